@@ -1,0 +1,50 @@
+"""Safe output: write to a temporary file in the target folder, then rename into place.
+
+An existing output is replaced only when ``force`` is true; a failure leaves no partial file.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+
+from motionlab.errors import InputError
+
+
+def check_output(path: str | Path, force: bool) -> Path:
+    """Validate an output path before any work is done; raise :class:`InputError` if unusable."""
+    path = Path(path)
+    if path.exists() and not force:
+        raise InputError("output exists", path, remedy="use --force to replace it")
+    if path.is_dir():
+        raise InputError("output is a folder", path, remedy="give a file name")
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        raise InputError("output folder does not exist", path, remedy=f"create {parent}")
+    if not os.access(parent, os.W_OK):
+        raise InputError("output folder is not writable", path, remedy="choose another folder")
+    return path
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | Path, force: bool = False) -> Iterator[Path]:
+    """Yield a temporary path next to ``path``; on success rename it onto ``path``.
+
+    Examples
+    --------
+    >>> with atomic_path("session.h5", force=True) as tmp:   # doctest: +SKIP
+    ...     save_session(session, tmp)
+    """
+    path = check_output(path, force)
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    tmp = Path(tmp_name)
+    try:
+        yield tmp
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()

@@ -1,0 +1,99 @@
+"""Readers of vendor and optical files, one module per format, and :func:`read_any`.
+
+Every reader module defines
+
+- ``FORMAT``: a short name (``"xsens"``),
+- ``sniff(path, head) -> bool``: whether the file's first bytes (``head``, up to 64 KiB) look like
+  this format — the content decides, never the file name alone,
+- ``read(path, options=None) -> Recording``: the data in SI units (see :mod:`motionlab.units`)
+  with the original units recorded, raising :class:`~motionlab.errors.InputError` with the
+  file, the line or channel, and a remedy for anything it cannot read.
+
+``options`` is a dict of reader options (for the generic reader: its YAML column map).
+"""
+
+from __future__ import annotations
+
+import importlib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from motionlab.errors import InputError
+from motionlab.session import MarkerSet, SensorStream
+
+HEAD_BYTES = 65536
+
+#: reader modules in detection order: specific formats first, the generic reader last
+READER_MODULES = (
+    "broad",
+    "apdm_h5",
+    "c3d",
+    "trc",
+    "opensim",
+    "xsens",
+    "dot",
+    "apdm",
+    "xio",
+    "generic",
+)
+
+
+@dataclass
+class Recording:
+    """What a reader returns: inertial sensors, optical marker sets, and file-level metadata."""
+
+    sensors: list[SensorStream] = field(default_factory=list)
+    markers: list[MarkerSet] = field(default_factory=list)
+    metadata: dict[str, Any] = field(default_factory=dict)
+    format: str = ""
+
+
+def _readers():
+    for name in READER_MODULES:
+        try:
+            yield importlib.import_module(f"motionlab.io.{name}")
+        except ModuleNotFoundError as exc:
+            if exc.name != f"motionlab.io.{name}":
+                raise
+
+
+def read_head(path: Path) -> bytes:
+    with open(path, "rb") as f:
+        return f.read(HEAD_BYTES)
+
+
+def detect_format(path: str | Path, options: dict[str, Any] | None = None) -> str:
+    """Name of the reader that recognises ``path`` by its content."""
+    return _detect(Path(path), options).FORMAT
+
+
+def _detect(path: Path, options: dict[str, Any] | None):
+    if not path.is_file():
+        raise InputError("no such file", path, remedy="check the path")
+    head = read_head(path)
+    if not head.strip():
+        raise InputError("file is empty", path, remedy="export the recording again")
+    if options and options.get("format"):
+        wanted = options["format"]
+        for module in _readers():
+            if module.FORMAT == wanted:
+                return module
+        raise InputError(f"unknown format '{wanted}'", path, remedy="see 'motionlab ingest --help'")
+    for module in _readers():
+        if module.sniff(path, head):
+            return module
+    raise InputError(
+        "unknown file format",
+        path,
+        remedy="give a column map with --map (see README, 'Generic delimited text')",
+    )
+
+
+def read_any(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
+    """Detect the format of ``path`` from its content and read it."""
+    path = Path(path)
+    module = _detect(path, options)
+    rec = module.read(path, options)
+    rec.format = module.FORMAT
+    return rec

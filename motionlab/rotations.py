@@ -1,0 +1,258 @@
+"""Quaternion algebra, vectorised over time.
+
+Conventions (fixed for all of motionlab):
+
+- Hamilton product, scalar first ``[w, x, y, z]``, float64 arrays of shape ``(N, 4)`` or ``(4,)``.
+- An orientation ``q`` maps sensor-frame vectors into the earth frame (ENU):
+  ``v_earth = q ⊗ [0, v_sensor] ⊗ q*`` (:func:`rotate`).
+- Sequences are kept sign-continuous, ``q_k · q_{k-1} ≥ 0`` (:func:`make_continuous`).
+- scipy's :class:`~scipy.spatial.transform.Rotation` is scalar last; :func:`to_scipy` and
+  :func:`from_scipy` are the only places that convert.
+
+The ``nb_*`` functions are numba kernels on single quaternions (length-4 arrays) for the
+per-sample recursions of the estimators.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
+
+IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
+
+
+def normalize(q: np.ndarray) -> np.ndarray:
+    """Unit quaternion(s) of the same shape; the sign is kept."""
+    q = np.asarray(q, dtype=float)
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+def conj(q: np.ndarray) -> np.ndarray:
+    """Conjugate ``[w, -x, -y, -z]`` (the inverse of a unit quaternion)."""
+    q = np.asarray(q, dtype=float)
+    return q * np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def mul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Hamilton product ``p ⊗ q``, broadcasting over leading dimensions."""
+    p = np.asarray(p, dtype=float)
+    q = np.asarray(q, dtype=float)
+    pw, px, py, pz = np.moveaxis(p, -1, 0)
+    qw, qx, qy, qz = np.moveaxis(q, -1, 0)
+    return np.stack(
+        [
+            pw * qw - px * qx - py * qy - pz * qz,
+            pw * qx + px * qw + py * qz - pz * qy,
+            pw * qy - px * qz + py * qw + pz * qx,
+            pw * qz + px * qy - py * qx + pz * qw,
+        ],
+        axis=-1,
+    )
+
+
+def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate vector(s) ``v`` (…, 3) by unit quaternion(s) ``q``: ``q ⊗ [0, v] ⊗ q*``."""
+    q = np.asarray(q, dtype=float)
+    v = np.asarray(v, dtype=float)
+    w = q[..., :1]
+    u = q[..., 1:]
+    t = 2.0 * np.cross(u, v)
+    return v + w * t + np.cross(u, t)
+
+
+def to_matrix(q: np.ndarray) -> np.ndarray:
+    """Rotation matrix (…, 3, 3) whose columns are the sensor axes in the earth frame."""
+    q = normalize(q)
+    w, x, y, z = np.moveaxis(q, -1, 0)
+    return np.stack(
+        [
+            np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+            np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+            np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
+        ],
+        axis=-2,
+    )
+
+
+def from_matrix(m: np.ndarray) -> np.ndarray:
+    """Unit quaternion(s) with ``w ≥ 0`` from rotation matrices (…, 3, 3)."""
+    m = np.asarray(m, dtype=float)
+    q = from_scipy(Rotation.from_matrix(m.reshape(-1, 3, 3)))
+    return q.reshape(m.shape[:-2] + (4,))
+
+
+def to_scipy(q: np.ndarray) -> Rotation:
+    """scipy Rotation from scalar-first quaternion(s)."""
+    q = np.asarray(q, dtype=float)
+    return Rotation.from_quat(q[..., [1, 2, 3, 0]])
+
+
+def from_scipy(r: Rotation) -> np.ndarray:
+    """Scalar-first quaternion(s) with ``w ≥ 0`` from a scipy Rotation."""
+    q = r.as_quat()[..., [3, 0, 1, 2]]
+    return q * np.where(q[..., :1] < 0, -1.0, 1.0)
+
+
+def from_rotvec(rv: np.ndarray) -> np.ndarray:
+    """Quaternion(s) of rotation vector(s) (…, 3) in rad: ``exp(rv / 2)``."""
+    rv = np.asarray(rv, dtype=float)
+    angle = np.linalg.norm(rv, axis=-1, keepdims=True)
+    half = 0.5 * angle
+    # sin(half)/angle with its limit 1/2 at zero
+    k = np.where(angle > 1e-12, np.sin(half) / np.where(angle > 1e-12, angle, 1.0), 0.5)
+    return np.concatenate([np.cos(half), k * rv], axis=-1)
+
+
+def to_rotvec(q: np.ndarray) -> np.ndarray:
+    """Rotation vector(s) (…, 3) in rad of the shortest rotation (angle ≤ π)."""
+    q = np.asarray(q, dtype=float)
+    q = q * np.where(q[..., :1] < 0, -1.0, 1.0)
+    vn = np.linalg.norm(q[..., 1:], axis=-1, keepdims=True)
+    angle = 2.0 * np.arctan2(vn, q[..., :1])
+    k = np.where(vn > 1e-12, angle / np.where(vn > 1e-12, vn, 1.0), 2.0)
+    return k * q[..., 1:]
+
+
+def from_axis_angle(axis: np.ndarray, angle: np.ndarray | float) -> np.ndarray:
+    """Quaternion(s) of a rotation by ``angle`` (rad) about ``axis`` (normalised here)."""
+    axis = np.asarray(axis, dtype=float)
+    axis = axis / np.linalg.norm(axis, axis=-1, keepdims=True)
+    angle = np.asarray(angle, dtype=float)[..., None]
+    return np.concatenate([np.cos(angle / 2), np.sin(angle / 2) * axis], axis=-1)
+
+
+def angle(q: np.ndarray) -> np.ndarray:
+    """Rotation angle (rad, in [0, π]) of unit quaternion(s)."""
+    q = np.asarray(q, dtype=float)
+    return 2.0 * np.arctan2(np.linalg.norm(q[..., 1:], axis=-1), np.abs(q[..., 0]))
+
+
+def angle_between(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Geodesic distance (rad) between orientations: the angle of ``p ⊗ q*``."""
+    return angle(mul(p, conj(q)))
+
+
+def make_continuous(q: np.ndarray) -> np.ndarray:
+    """Flip signs so that consecutive quaternions satisfy ``q_k · q_{k-1} ≥ 0``."""
+    q = np.array(q, dtype=float)
+    if q.ndim != 2 or len(q) < 2:
+        return q
+    dots = np.einsum("ij,ij->i", q[1:], q[:-1])
+    flips = np.concatenate([[1.0], np.cumprod(np.where(dots < 0, -1.0, 1.0))])
+    return q * flips[:, None]
+
+
+def slerp(q0: np.ndarray, q1: np.ndarray, t: np.ndarray | float) -> np.ndarray:
+    """Spherical linear interpolation from ``q0`` (t=0) to ``q1`` (t=1) along the short arc."""
+    q0 = np.asarray(q0, dtype=float)
+    q1 = np.asarray(q1, dtype=float)
+    t = np.asarray(t, dtype=float)[..., None]
+    d = np.sum(q0 * q1, axis=-1, keepdims=True)
+    q1 = np.where(d < 0, -q1, q1)
+    d = np.abs(d)
+    theta = np.arccos(np.clip(d, -1.0, 1.0))
+    small = theta < 1e-8
+    s = np.where(small, 1.0, np.sin(theta))
+    a = np.where(small, 1.0 - t, np.sin((1.0 - t) * theta) / s)
+    b = np.where(small, t, np.sin(t * theta) / s)
+    return normalize(a * q0 + b * q1)
+
+
+def resample(t: np.ndarray, q: np.ndarray, t_new: np.ndarray) -> np.ndarray:
+    """SLERP-resample a quaternion time series onto ``t_new`` (clamped at the ends)."""
+    t_new = np.clip(np.asarray(t_new, dtype=float), t[0], t[-1])
+    out = from_scipy(Slerp(t, to_scipy(q))(t_new))
+    return make_continuous(out)
+
+
+def mean(q: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
+    """Weighted quaternion mean (Markley et al. 2007): principal eigenvector of ``Σ wᵢ qᵢqᵢᵀ``."""
+    q = np.asarray(q, dtype=float)
+    w = np.ones(len(q)) if weights is None else np.asarray(weights, dtype=float)
+    m = (q * w[:, None]).T @ q
+    vals, vecs = np.linalg.eigh(m)
+    out = vecs[:, -1]
+    return out if out[0] >= 0 else -out
+
+
+# ---------------------------------------------------------------- numba kernels (single quaternion)
+
+
+@numba.njit(cache=True, inline="always")
+def nb_mul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Hamilton product of two length-4 arrays (numba)."""
+    out = np.empty(4)
+    out[0] = p[0] * q[0] - p[1] * q[1] - p[2] * q[2] - p[3] * q[3]
+    out[1] = p[0] * q[1] + p[1] * q[0] + p[2] * q[3] - p[3] * q[2]
+    out[2] = p[0] * q[2] - p[1] * q[3] + p[2] * q[0] + p[3] * q[1]
+    out[3] = p[0] * q[3] + p[1] * q[2] - p[2] * q[1] + p[3] * q[0]
+    return out
+
+
+@numba.njit(cache=True, inline="always")
+def nb_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate a 3-vector from sensor to earth frame by a unit quaternion (numba)."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    tx = 2.0 * (y * v[2] - z * v[1])
+    ty = 2.0 * (z * v[0] - x * v[2])
+    tz = 2.0 * (x * v[1] - y * v[0])
+    out = np.empty(3)
+    out[0] = v[0] + w * tx + (y * tz - z * ty)
+    out[1] = v[1] + w * ty + (z * tx - x * tz)
+    out[2] = v[2] + w * tz + (x * ty - y * tx)
+    return out
+
+
+@numba.njit(cache=True, inline="always")
+def nb_rotate_inv(q: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rotate a 3-vector from earth to sensor frame, ``q* ⊗ v ⊗ q`` (numba)."""
+    qc = np.empty(4)
+    qc[0] = q[0]
+    qc[1] = -q[1]
+    qc[2] = -q[2]
+    qc[3] = -q[3]
+    return nb_rotate(qc, v)
+
+
+@numba.njit(cache=True, inline="always")
+def nb_exp(rv: np.ndarray) -> np.ndarray:
+    """Quaternion of a rotation vector (rad), ``exp(rv/2)`` (numba)."""
+    a = np.sqrt(rv[0] * rv[0] + rv[1] * rv[1] + rv[2] * rv[2])
+    out = np.empty(4)
+    out[0] = np.cos(0.5 * a)
+    k = np.sin(0.5 * a) / a if a > 1e-12 else 0.5
+    out[1] = k * rv[0]
+    out[2] = k * rv[1]
+    out[3] = k * rv[2]
+    return out
+
+
+@numba.njit(cache=True, inline="always")
+def nb_normalize(q: np.ndarray) -> np.ndarray:
+    """Unit quaternion (numba)."""
+    return q / np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+
+
+@numba.njit(cache=True)
+def _integrate(q0: np.ndarray, gyr: np.ndarray, dt: np.ndarray) -> np.ndarray:
+    out = np.empty((gyr.shape[0], 4))
+    q = q0.copy()
+    out[0] = q
+    for k in range(1, gyr.shape[0]):
+        # midpoint rule on body rates: exact for piecewise-linear angular velocity up to O(dt^3)
+        w = 0.5 * (gyr[k - 1] + gyr[k]) * dt[k - 1]
+        q = nb_normalize(nb_mul(q, nb_exp(w)))
+        out[k] = q
+    return out
+
+
+def integrate_gyro(q0: np.ndarray, gyr: np.ndarray, dt: float | np.ndarray) -> np.ndarray:
+    """Strapdown integration of body angular velocity ``gyr`` (N×3, rad/s) from ``q0``.
+
+    ``dt`` is a scalar step (s) or the N−1 sample intervals. Returns N×4 orientations,
+    ``q_k = q_{k-1} ⊗ exp(ω̄ dt / 2)`` with ω̄ the mean of the two samples.
+    """
+    gyr = np.ascontiguousarray(gyr, dtype=float)
+    dt_arr = np.broadcast_to(np.asarray(dt, dtype=float), (max(len(gyr) - 1, 0),))
+    return _integrate(np.asarray(q0, dtype=float), gyr, np.ascontiguousarray(dt_arr))

@@ -1,0 +1,337 @@
+"""The session: everything recorded in one visit, and every stage's results, in one HDF5 file.
+
+Data model (SI units, first array dimension is time):
+
+- :class:`SensorStream`: one IMU — ``time`` (s), ``acc`` (m/s², specific force), ``gyr`` (rad/s),
+  ``mag`` (µT), optional vendor orientation ``quat`` (N×4, sensor → ENU earth, scalar first).
+- :class:`MarkerSet`: one optical recording — marker ``positions`` (N×M×3, m, NaN = not seen),
+  ``residuals`` (N×M, m), and optional rigid-body orientations.
+- :class:`Session`: sensors, marker sets, subject/session metadata, stage ``results`` (a tree of
+  dicts whose leaves are arrays or JSON-able values) and the provenance log.
+
+HDF5 layout (``h5dump`` shows it)::
+
+    /                       attrs: format, schema_version, metadata (JSON)
+    /sensors/<label>/       time, acc, gyr, mag, quat, extra/<name>; attrs: serial, vendor, ...
+    /markers/<name>/        time, positions, residuals, rigid_bodies/<name>; attrs: labels, ...
+    /results/<stage>/...    groups = dicts, datasets = arrays, attrs = JSON values
+    /provenance             one JSON object per entry (software version, command, inputs' SHA-256)
+
+Round trip :func:`save_session` → :func:`load_session` is bit-exact.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import hashlib
+import json
+import sys
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from motionlab import __version__
+from motionlab.atomic import atomic_path
+from motionlab.errors import InputError
+
+SCHEMA_VERSION = 1
+FORMAT_NAME = "motionlab-session"
+
+#: SI unit of each sensor channel inside motionlab.
+CHANNEL_UNITS = {"time": "s", "acc": "m/s^2", "gyr": "rad/s", "mag": "uT", "quat": "1"}
+SENSOR_CHANNELS = ("acc", "gyr", "mag", "quat")
+
+
+@dataclass
+class SensorStream:
+    """One inertial sensor's recording.
+
+    ``source_units`` records the unit each channel had in the input file (e.g. ``{"gyr": "deg/s"}``);
+    ``extra`` holds other per-sample channels (same length as ``time``), e.g. ``free_acc`` or a
+    ``movement`` mask; ``qc`` holds the ingest quality checks; ``attrs`` anything else JSON-able.
+    """
+
+    label: str
+    time: np.ndarray
+    acc: np.ndarray | None = None
+    gyr: np.ndarray | None = None
+    mag: np.ndarray | None = None
+    quat: np.ndarray | None = None
+    serial: str = ""
+    vendor: str = ""
+    segment: str = ""
+    side: str = ""
+    source_units: dict[str, str] = field(default_factory=dict)
+    extra: dict[str, np.ndarray] = field(default_factory=dict)
+    qc: dict[str, Any] = field(default_factory=dict)
+    attrs: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def channels(self) -> list[str]:
+        """Names of the channels present (``acc``, ``gyr``, ``mag``, ``quat``)."""
+        return [c for c in SENSOR_CHANNELS if getattr(self, c) is not None]
+
+    @property
+    def n_samples(self) -> int:
+        return int(len(self.time))
+
+    @property
+    def rate_hz(self) -> float:
+        """Sampling rate estimated from the timestamps (median interval)."""
+        return estimate_rate(self.time)
+
+    @property
+    def duration_s(self) -> float:
+        return float(self.time[-1] - self.time[0]) if len(self.time) > 1 else 0.0
+
+
+@dataclass
+class MarkerSet:
+    """Optical motion capture: marker trajectories and/or rigid-body orientations.
+
+    ``positions`` is N×M×3 in m with NaN where a marker was not seen; ``residuals`` N×M in m
+    (NaN where unknown); ``rigid_bodies`` maps a body name to N×4 quaternions (body → lab frame).
+    """
+
+    name: str
+    time: np.ndarray
+    labels: list[str] = field(default_factory=list)
+    positions: np.ndarray | None = None
+    residuals: np.ndarray | None = None
+    rigid_bodies: dict[str, np.ndarray] = field(default_factory=dict)
+    source_units: dict[str, str] = field(default_factory=dict)
+    attrs: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def rate_hz(self) -> float:
+        return estimate_rate(self.time)
+
+    @property
+    def n_markers(self) -> int:
+        return len(self.labels)
+
+
+@dataclass
+class Session:
+    """One recording session: sensors, marker sets, metadata, stage results and provenance."""
+
+    sensors: dict[str, SensorStream] = field(default_factory=dict)
+    markers: dict[str, MarkerSet] = field(default_factory=dict)
+    metadata: dict[str, Any] = field(default_factory=dict)
+    results: dict[str, Any] = field(default_factory=dict)
+    provenance: list[dict[str, Any]] = field(default_factory=list)
+    schema_version: int = SCHEMA_VERSION
+
+    def add_provenance(
+        self,
+        command: str | None = None,
+        parameters: dict[str, Any] | None = None,
+        inputs: list[str | Path] = (),
+    ) -> None:
+        """Append a provenance entry: time, software version, command, parameters, input hashes."""
+        self.provenance.append(
+            {
+                "time": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
+                "software": f"motionlab {__version__}",
+                "command": command if command is not None else " ".join(sys.argv),
+                "parameters": parameters or {},
+                "inputs": {str(p): sha256_file(p) for p in inputs},
+            }
+        )
+
+
+def estimate_rate(time: np.ndarray) -> float:
+    """Sampling rate (Hz) from the median sample interval; NaN for fewer than two samples."""
+    time = np.asarray(time, dtype=float)
+    if len(time) < 2:
+        return float("nan")
+    dt = np.median(np.diff(time))
+    return float(1.0 / dt) if dt > 0 else float("nan")
+
+
+def sha256_file(path: str | Path) -> str:
+    """SHA-256 hex digest of a file's bytes."""
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+# ------------------------------------------------------------------------------------ writing
+
+
+def _json(value: Any) -> str:
+    return json.dumps(value, sort_keys=True, default=_json_default)
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, Path):
+        return str(value)
+    raise TypeError(f"cannot store {type(value).__name__} in a session file")
+
+
+def _write_array(group: h5py.Group, name: str, data: np.ndarray, unit: str | None = None) -> None:
+    data = np.asarray(data)
+    if data.dtype.kind == "U":
+        ds = group.create_dataset(name, data=data.astype(object), dtype=h5py.string_dtype())
+        ds.attrs["kind"] = "str"
+    else:
+        ds = group.create_dataset(name, data=data)
+    if unit is not None:
+        ds.attrs["unit"] = unit
+
+
+def _write_tree(group: h5py.Group, tree: dict[str, Any]) -> None:
+    """Dicts become groups, arrays datasets, everything else a JSON attribute."""
+    for key, value in tree.items():
+        key = str(key)
+        if isinstance(value, dict):
+            _write_tree(group.create_group(key), value)
+        elif isinstance(value, np.ndarray):
+            _write_array(group, key, value)
+        else:
+            group.attrs[key] = _json(value)
+
+
+def write_session(session: Session, path: str | Path) -> None:
+    """Write ``session`` to ``path`` directly (no atomic rename; see :func:`save_session`)."""
+    with h5py.File(path, "w", track_order=True) as f:
+        f.attrs["format"] = FORMAT_NAME
+        f.attrs["schema_version"] = session.schema_version
+        f.attrs["metadata"] = _json(session.metadata)
+        sensors = f.create_group("sensors", track_order=True)
+        for label, s in session.sensors.items():
+            g = sensors.create_group(label)
+            _write_array(g, "time", s.time, "s")
+            for ch in SENSOR_CHANNELS:
+                arr = getattr(s, ch)
+                if arr is not None:
+                    _write_array(g, ch, arr, CHANNEL_UNITS[ch])
+            if s.quat is not None:
+                g["quat"].attrs["convention"] = "w,x,y,z; sensor -> ENU earth"
+            if s.extra:
+                ex = g.create_group("extra", track_order=True)
+                for name, arr in s.extra.items():
+                    _write_array(ex, name, arr)
+            g.attrs["label"] = s.label
+            for key in ("serial", "vendor", "segment", "side"):
+                g.attrs[key] = getattr(s, key)
+            for key in ("source_units", "qc", "attrs"):
+                g.attrs[key] = _json(getattr(s, key))
+        markers = f.create_group("markers", track_order=True)
+        for name, m in session.markers.items():
+            g = markers.create_group(name)
+            _write_array(g, "time", m.time, "s")
+            if m.positions is not None:
+                _write_array(g, "positions", m.positions, "m")
+            if m.residuals is not None:
+                _write_array(g, "residuals", m.residuals, "m")
+            if m.rigid_bodies:
+                rb = g.create_group("rigid_bodies", track_order=True)
+                for body, q in m.rigid_bodies.items():
+                    _write_array(rb, body, q, "1")
+            g.attrs["name"] = m.name
+            g.attrs["labels"] = _json(list(m.labels))
+            g.attrs["source_units"] = _json(m.source_units)
+            g.attrs["attrs"] = _json(m.attrs)
+        _write_tree(f.create_group("results", track_order=True), session.results)
+        f.create_dataset(
+            "provenance",
+            data=np.array([_json(p) for p in session.provenance], dtype=object),
+            dtype=h5py.string_dtype(),
+        )
+
+
+def save_session(session: Session, path: str | Path, force: bool = False) -> None:
+    """Write ``session`` atomically: a temporary file in the same folder renamed onto ``path``.
+
+    An existing ``path`` is replaced only with ``force=True`` (:class:`InputError` otherwise).
+    """
+    with atomic_path(path, force=force) as tmp:
+        write_session(session, tmp)
+
+
+# ------------------------------------------------------------------------------------ reading
+
+
+def _read_array(ds: h5py.Dataset) -> np.ndarray:
+    if ds.attrs.get("kind") == "str":
+        return ds.asstr()[()].astype(str)
+    return ds[()]
+
+
+def _read_tree(group: h5py.Group) -> dict[str, Any]:
+    tree: dict[str, Any] = {k: json.loads(v) for k, v in group.attrs.items()}
+    for key, item in group.items():
+        tree[key] = _read_tree(item) if isinstance(item, h5py.Group) else _read_array(item)
+    return tree
+
+
+def load_session(path: str | Path) -> Session:
+    """Read a session file written by :func:`save_session`.
+
+    Raises :class:`InputError` when the file is missing, not HDF5 or not a motionlab session.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("no such session file", path, remedy="check the path")
+    try:
+        f = h5py.File(path, "r")
+    except OSError:
+        raise InputError(
+            "not an HDF5 file", path, remedy="give a session written by 'motionlab ingest'"
+        ) from None
+    with f:
+        if f.attrs.get("format") != FORMAT_NAME:
+            raise InputError(
+                "HDF5 file is not a motionlab session",
+                path,
+                remedy="create one with 'motionlab ingest'",
+            )
+        version = int(f.attrs["schema_version"])
+        if version > SCHEMA_VERSION:
+            raise InputError(
+                f"session schema {version} is newer than this motionlab ({SCHEMA_VERSION})",
+                path,
+                remedy="upgrade motionlab",
+            )
+        session = Session(metadata=json.loads(f.attrs["metadata"]), schema_version=version)
+        for label, g in f["sensors"].items():
+            arrays = {ch: _read_array(g[ch]) for ch in SENSOR_CHANNELS if ch in g}
+            extra = {k: _read_array(v) for k, v in g["extra"].items()} if "extra" in g else {}
+            session.sensors[label] = SensorStream(
+                label=str(g.attrs["label"]),
+                time=_read_array(g["time"]),
+                **arrays,
+                serial=str(g.attrs["serial"]),
+                vendor=str(g.attrs["vendor"]),
+                segment=str(g.attrs["segment"]),
+                side=str(g.attrs["side"]),
+                source_units=json.loads(g.attrs["source_units"]),
+                extra=extra,
+                qc=json.loads(g.attrs["qc"]),
+                attrs=json.loads(g.attrs["attrs"]),
+            )
+        for name, g in f["markers"].items():
+            rb = {k: _read_array(v) for k, v in g["rigid_bodies"].items()} if "rigid_bodies" in g else {}
+            session.markers[name] = MarkerSet(
+                name=str(g.attrs["name"]),
+                time=_read_array(g["time"]),
+                labels=json.loads(g.attrs["labels"]),
+                positions=_read_array(g["positions"]) if "positions" in g else None,
+                residuals=_read_array(g["residuals"]) if "residuals" in g else None,
+                rigid_bodies=rb,
+                source_units=json.loads(g.attrs["source_units"]),
+                attrs=json.loads(g.attrs["attrs"]),
+            )
+        session.results = _read_tree(f["results"])
+        session.provenance = [json.loads(s) for s in f["provenance"].asstr()[()]]
+    return session

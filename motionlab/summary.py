@@ -1,0 +1,57 @@
+"""A JSON-able summary of a session, shared by ``motionlab info`` and the report."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from motionlab.session import CHANNEL_UNITS, Session
+
+
+def _finite(x: float) -> float | None:
+    return float(x) if np.isfinite(x) else None
+
+
+def session_summary(session: Session) -> dict[str, Any]:
+    """Per sensor: label, rate_hz, n_samples, duration_s, channels, units, gaps, qc; markers too."""
+    sensors = []
+    for s in session.sensors.values():
+        sensors.append(
+            {
+                "label": s.label,
+                "serial": s.serial,
+                "vendor": s.vendor,
+                "segment": s.segment,
+                "side": s.side,
+                "rate_hz": _finite(s.rate_hz),
+                "n_samples": s.n_samples,
+                "duration_s": s.duration_s,
+                "channels": s.channels,
+                "units": {ch: CHANNEL_UNITS[ch] for ch in ["time", *s.channels]},
+                "source_units": s.source_units,
+                "gaps": s.qc.get("gaps", []),
+                "qc": s.qc,
+            }
+        )
+    markers = [
+        {
+            "name": m.name,
+            "rate_hz": _finite(m.rate_hz),
+            "n_markers": m.n_markers,
+            "n_frames": int(len(m.time)),
+            "labels": list(m.labels),
+            "units": "m",
+            "source_units": m.source_units,
+            "rigid_bodies": list(m.rigid_bodies),
+        }
+        for m in session.markers.values()
+    ]
+    return {
+        "schema_version": session.schema_version,
+        "metadata": session.metadata,
+        "sensors": sensors,
+        "markers": markers,
+        "results": list(session.results),
+        "provenance": session.provenance,
+    }
