@@ -49,8 +49,8 @@ SENSOR_CHANNELS = ("acc", "gyr", "mag", "quat")
 class SensorStream:
     """One inertial sensor's recording.
 
-    ``source_units`` records the unit each channel had in the input file (e.g. ``{"gyr": "deg/s"}``);
-    ``extra`` holds other per-sample channels (same length as ``time``), e.g. ``free_acc`` or a
+    ``source_units`` records the unit each channel had in the input file
+    (e.g. ``{"gyr": "deg/s"}``); ``extra`` holds other per-sample channels (same length as ``time``), e.g. ``free_acc`` or a
     ``movement`` mask; ``qc`` holds the ingest quality checks; ``attrs`` anything else JSON-able.
     """
 
@@ -321,7 +321,9 @@ def load_session(path: str | Path) -> Session:
                 attrs=json.loads(g.attrs["attrs"]),
             )
         for name, g in f["markers"].items():
-            rb = {k: _read_array(v) for k, v in g["rigid_bodies"].items()} if "rigid_bodies" in g else {}
+            rb = {}
+            if "rigid_bodies" in g:
+                rb = {k: _read_array(v) for k, v in g["rigid_bodies"].items()}
             session.markers[name] = MarkerSet(
                 name=str(g.attrs["name"]),
                 time=_read_array(g["time"]),

@@ -1,0 +1,238 @@
+"""The estimator registry, the common result type and input validation.
+
+An estimator module defines a parameter dataclass (every tunable with a default; units and a
+one-line help in ``field(metadata={"unit": ..., "help": ...})``) and a function
+``run(gyr, acc, mag, rate, params) -> FusionResult``, and registers it::
+
+    @register("madgwick", MadgwickParams, "Madgwick gradient-descent filter (IMU and MARG)")
+    def run(gyr, acc, mag, rate, params): ...
+
+Inputs reaching ``run`` are validated: float64, C-contiguous, N×3, finite (NaN samples are
+replaced by the previous valid sample and reported in ``FusionResult.extra['nan_filled']``),
+``mag`` may be None.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import importlib
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from motionlab.errors import InputError
+
+DEFAULT_ESTIMATOR = "smoother"
+
+#: modules that register estimators when imported
+ESTIMATOR_MODULES = (
+    "complementary",
+    "kalman",
+    "ekf",
+    "mekf",
+    "ukf",
+    "particle",
+    "vqf_backend",
+)
+
+
+@dataclass
+class FusionResult:
+    """Output of every estimator.
+
+    Attributes
+    ----------
+    quat
+        (N, 4) orientation, scalar first, sensor → ENU earth, unit norm, sign-continuous.
+    name
+        Registered estimator name.
+    params
+        The parameters used (dataclass as dict).
+    gyro_bias
+        (N, 3) estimated gyroscope bias in rad/s, where the estimator estimates it.
+    rest
+        (N,) bool, samples detected as rest.
+    mag_disturbed
+        (N,) bool, samples where the magnetometer was judged disturbed and gated/down-weighted.
+    extra
+        Anything else worth keeping (covariances, effective sample size, ...).
+    """
+
+    quat: np.ndarray
+    name: str
+    params: dict[str, Any]
+    gyro_bias: np.ndarray | None = None
+    rest: np.ndarray | None = None
+    mag_disturbed: np.ndarray | None = None
+    extra: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class Estimator:
+    name: str
+    params_cls: type
+    description: str
+    run: Callable[..., FusionResult]
+    needs_mag: bool = False
+
+
+_REGISTRY: dict[str, Estimator] = {}
+_loaded = False
+
+
+def register(name: str, params_cls: type, description: str, needs_mag: bool = False):
+    """Decorator registering ``run(gyr, acc, mag, rate, params)`` under ``name``."""
+
+    def wrap(fn: Callable[..., FusionResult]) -> Callable[..., FusionResult]:
+        _REGISTRY[name] = Estimator(name, params_cls, description, fn, needs_mag)
+        return fn
+
+    return wrap
+
+
+def _load() -> None:
+    global _loaded
+    if _loaded:
+        return
+    for mod in ESTIMATOR_MODULES:
+        try:
+            importlib.import_module(f"motionlab.fusion.{mod}")
+        except ModuleNotFoundError as exc:
+            # a module not written yet, or an optional backend whose package is absent
+            if exc.name not in (f"motionlab.fusion.{mod}", "vqf"):
+                raise
+    _loaded = True
+
+
+def available() -> dict[str, Estimator]:
+    """All registered estimators by name (importing the estimator modules on first call)."""
+    _load()
+    return dict(sorted(_REGISTRY.items()))
+
+
+def get(name: str) -> Estimator:
+    """The estimator registered as ``name`` (``"default"`` is the offline smoother)."""
+    est = available()
+    key = DEFAULT_ESTIMATOR if name == "default" else name
+    if key not in est:
+        raise InputError(f"unknown estimator '{name}'", remedy=f"choose one of {', '.join(est)}")
+    return est[key]
+
+
+def make_params(est: Estimator, overrides: dict[str, Any]) -> Any:
+    """The estimator's parameter dataclass with ``overrides`` applied and type-converted."""
+    fields = {f.name: f for f in dataclasses.fields(est.params_cls)}
+    unknown = sorted(set(overrides) - set(fields))
+    if unknown:
+        raise InputError(
+            f"estimator '{est.name}' has no parameter {', '.join(unknown)}",
+            remedy=f"its parameters are {', '.join(fields) or 'none'}",
+        )
+    converted = {}
+    defaults = est.params_cls()
+    for key, value in overrides.items():
+        current = getattr(defaults, key)
+        try:
+            converted[key] = type(current)(value) if not isinstance(current, bool) else _bool(value)
+        except (TypeError, ValueError):
+            raise InputError(
+                f"parameter {key}={value!r} is not a {type(current).__name__}",
+                remedy=f"the default is {current!r}",
+            ) from None
+    return dataclasses.replace(defaults, **converted)
+
+
+def _bool(value: Any) -> bool:
+    if isinstance(value, str):
+        if value.lower() in ("1", "true", "yes", "on"):
+            return True
+        if value.lower() in ("0", "false", "no", "off"):
+            return False
+        raise ValueError(value)
+    return bool(value)
+
+
+def _vectors(name: str, arr: np.ndarray | None, n: int | None) -> np.ndarray | None:
+    if arr is None:
+        return None
+    arr = np.ascontiguousarray(arr, dtype=float)
+    if arr.ndim != 2 or arr.shape[1] != 3:
+        raise InputError(f"{name} has shape {arr.shape}, expected (N, 3)")
+    if n is not None and len(arr) != n:
+        raise InputError(f"{name} has {len(arr)} samples, gyr has {n}", remedy="resample first")
+    return arr
+
+
+def _fill_nan(arr: np.ndarray, name: str) -> tuple[np.ndarray, int]:
+    bad = ~np.isfinite(arr).all(axis=1)
+    if not bad.any():
+        return arr, 0
+    if bad.all():
+        raise InputError(f"{name} has no finite sample", remedy="check the recording")
+    idx = np.where(~bad, np.arange(len(arr)), 0)
+    np.maximum.accumulate(idx, out=idx)
+    first = np.argmax(~bad)
+    idx[: first] = first
+    return np.ascontiguousarray(arr[idx]), int(bad.sum())
+
+
+def estimate(
+    name: str,
+    gyr: np.ndarray,
+    acc: np.ndarray,
+    mag: np.ndarray | None = None,
+    rate: float = 100.0,
+    **params: Any,
+) -> FusionResult:
+    """Run estimator ``name`` on gyroscope (rad/s), accelerometer (m/s²), magnetometer (µT).
+
+    Parameters
+    ----------
+    name
+        A registered estimator (see :func:`available`), or ``"default"``.
+    gyr, acc, mag
+        (N, 3) arrays in the sensor frame; ``mag=None`` gives a 6-D estimate.
+    rate
+        Sampling rate in Hz.
+    **params
+        Overrides of the estimator's parameter dataclass.
+    """
+    est = get(name)
+    if not np.isfinite(rate) or rate <= 0:
+        raise InputError(f"sampling rate {rate} Hz is not positive")
+    gyr = _vectors("gyr", gyr, None)
+    n = len(gyr)
+    if n < 2:
+        raise InputError(f"{n} samples are too few to estimate an orientation")
+    acc = _vectors("acc", acc, n)
+    mag = _vectors("mag", mag, n)
+    if est.needs_mag and mag is None:
+        raise InputError(f"estimator '{est.name}' needs a magnetometer")
+    filled = {}
+    gyr, filled["gyr"] = _fill_nan(gyr, "gyr")
+    acc, filled["acc"] = _fill_nan(acc, "acc")
+    if mag is not None:
+        mag, filled["mag"] = _fill_nan(mag, "mag")
+    p = make_params(est, params)
+    result = est.run(gyr, acc, mag, float(rate), p)
+    result.name = est.name
+    result.params = dataclasses.asdict(p)
+    if any(filled.values()):
+        result.extra["nan_filled"] = filled
+    return result
+
+
+def describe() -> str:
+    """Text listing of every estimator with its parameters, defaults and units."""
+    lines = []
+    for name, est in available().items():
+        tag = " (default)" if name == DEFAULT_ESTIMATOR else ""
+        lines.append(f"{name}{tag}: {est.description}")
+        for f in dataclasses.fields(est.params_cls):
+            unit = f.metadata.get("unit", "")
+            help_ = f.metadata.get("help", "")
+            default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
+            lines.append(f"    {f.name} = {default!r} {unit}  {help_}".rstrip())
+    return "\n".join(lines)
