@@ -50,8 +50,8 @@ class SensorStream:
     """One inertial sensor's recording.
 
     ``source_units`` records the unit each channel had in the input file
-    (e.g. ``{"gyr": "deg/s"}``); ``extra`` holds other per-sample channels (same length as ``time``), e.g. ``free_acc`` or a
-    ``movement`` mask; ``qc`` holds the ingest quality checks; ``attrs`` anything else JSON-able.
+    (e.g. ``{"gyr": "deg/s"}``); ``extra`` holds other per-sample channels (same length as
+    ``time``), e.g. ``free_acc`` or a ``movement`` mask; ``qc`` holds the ingest quality checks; ``attrs`` anything else JSON-able.
     """
 
     label: str
