@@ -51,7 +51,8 @@ class SensorStream:
 
     ``source_units`` records the unit each channel had in the input file
     (e.g. ``{"gyr": "deg/s"}``); ``extra`` holds other per-sample channels (same length as
-    ``time``), e.g. ``free_acc`` or a ``movement`` mask; ``qc`` holds the ingest quality checks; ``attrs`` anything else JSON-able.
+    ``time``), e.g. ``free_acc`` or a ``movement`` mask;
+    ``qc`` holds the ingest quality checks; ``attrs`` anything else JSON-able.
     """
 
     label: str
