@@ -1,0 +1,441 @@
+"""Protocol files: what is recorded, where sensors go, how they are calibrated, what is computed.
+
+A protocol is a YAML file (``protocols/*.yaml``; copy one and edit it). Schema::
+
+    name: knee                          # short id (required)
+    title: Bilateral knee kinematics    # one line for the report
+    purpose: ...                        # a few sentences for the clinician
+    segments:                           # every segment that carries a sensor (required)
+      thigh_r:
+        side: r                         # l, r, or omitted for midline segments
+        placement: "lateral thigh, lower third, x forward, y up"   # text a clinician follows
+        sensor_axes: [x, y, z]          # optional nominal sensor axes in segment axes (see below)
+        landmarks: [GT_r, LE_r, ME_r]   # optional anatomical landmarks (marker names)
+        required: true                  # false for optional sensors (e.g. a lumbar sensor)
+    calibration:                        # steps in the order the subject performs them
+      - name: standing
+        kind: static                    # static | functional
+        pose: standing                  # static: standing | sitting | supine | other text
+        duration_s: 5
+        vertical_axis: {thigh_r: y}     # static: segment axis that is vertical, sign included
+        instructions: "stand still, feet hip-width apart"
+      - name: knee_flexion_r
+        kind: functional
+        segments: [thigh_r, shank_r]    # functional: the segments that move
+        axis: {shank_r: -z}             # the segment axis the movement defines (sign = direction
+                                        # of the angular velocity during the named movement)
+        repetitions: 5
+        duration_s: 10
+        instructions: "seated, flex and extend the right knee 5 times"
+    joints:
+      knee_r:
+        type: knee                      # knee | elbow | lumbar
+        proximal: thigh_r
+        distal: shank_r
+        side: r
+        sequence: ZXY                   # the decomposition (Grood & Suntay JCS for the knee)
+    tasks:                              # blocks of the recording after calibration
+      - {name: gait, kind: gait, duration_s: 30}
+    normative:                          # normal ranges per task and angle column, degrees
+      gait: {knee_flexion_deg: [0, 65]}
+    metrics: [rom, peaks, cycles, cross_talk, varus_thrust]
+    source: "where the normal ranges and the protocol come from"
+
+Axis strings are ``x``, ``y``, ``z`` of the ISB segment frame (x anterior, y proximal, z right),
+optionally with a sign: ``-z``. ``sensor_axes`` gives, for the sensor's x, y, z axes, the segment
+axis each one points along in the nominal placement (e.g. ``[-z, y, x]``); the default is aligned.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from motionlab.errors import InputError
+
+JOINT_TYPES = ("knee", "elbow", "lumbar")
+STEP_KINDS = ("static", "functional")
+SIDES = ("l", "r", "")
+AXES = {"x": 0, "y": 1, "z": 2}
+PACKAGED = Path(__file__).resolve().parent / "protocols"
+
+
+@dataclass
+class Segment:
+    name: str
+    side: str = ""
+    placement: str = ""
+    sensor_axes: tuple[str, str, str] = ("x", "y", "z")
+    landmarks: list[str] = field(default_factory=list)
+    required: bool = True
+
+    def nominal_mounting(self) -> np.ndarray:
+        """3×3 matrix: columns are the sensor axes in segment coordinates (nominal placement)."""
+        return np.column_stack([axis_vector(a) for a in self.sensor_axes])
+
+
+@dataclass
+class CalibrationStep:
+    name: str
+    kind: str
+    duration_s: float
+    instructions: str = ""
+    pose: str = ""
+    vertical_axis: dict[str, str] = field(default_factory=dict)
+    segments: list[str] = field(default_factory=list)
+    axis: dict[str, str] = field(default_factory=dict)
+    repetitions: int = 0
+    time_range: tuple[float, float] | None = None
+
+
+@dataclass
+class Joint:
+    name: str
+    type: str
+    proximal: str
+    distal: str
+    side: str = ""
+    sequence: str = "ZXY"
+
+
+@dataclass
+class Task:
+    name: str
+    kind: str
+    duration_s: float = 0.0
+    repetitions: int = 0
+    options: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class Protocol:
+    name: str
+    segments: dict[str, Segment]
+    joints: dict[str, Joint]
+    calibration: list[CalibrationStep] = field(default_factory=list)
+    tasks: list[Task] = field(default_factory=list)
+    normative: dict[str, dict[str, list[float]]] = field(default_factory=dict)
+    metrics: list[str] = field(default_factory=list)
+    title: str = ""
+    purpose: str = ""
+    source: str = ""
+    path: Path | None = None
+    raw: dict[str, Any] = field(default_factory=dict)
+
+
+def axis_vector(axis: str) -> np.ndarray:
+    """Unit vector of a signed axis string (``'x'``, ``'-z'``) in segment coordinates."""
+    axis = axis.strip()
+    sign = -1.0 if axis.startswith("-") else 1.0
+    v = np.zeros(3)
+    v[AXES[axis.lstrip("+-")]] = sign
+    return v
+
+
+# ------------------------------------------------------------------------------ YAML with lines
+
+
+class _LineLoader(yaml.SafeLoader):
+    """SafeLoader whose mappings remember the line of each key (``_lines``)."""
+
+
+class _Map(dict):
+    lines: dict[str, int]
+
+
+def _construct_mapping(loader: _LineLoader, node: yaml.MappingNode) -> _Map:
+    loader.flatten_mapping(node)
+    out = _Map()
+    out.lines = {}
+    for key_node, value_node in node.value:
+        key = loader.construct_object(key_node, deep=True)
+        out[key] = loader.construct_object(value_node, deep=True)
+        out.lines[key] = key_node.start_mark.line + 1
+    return out
+
+
+_LineLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
+
+
+class _Reader:
+    """Validates one protocol document, raising InputError that names the key and its line."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+
+    def fail(self, where: str, line: int | None, message: str, remedy: str) -> None:
+        place = f"line {line}, key {where}" if line else f"key {where}"
+        raise InputError(message, self.path, place, remedy)
+
+    def get(
+        self,
+        m: dict,
+        key: str,
+        where: str,
+        kind: type | tuple,
+        required: bool = True,
+        default: Any = None,
+    ) -> Any:
+        line = getattr(m, "lines", {}).get(key)
+        if key not in m:
+            if required:
+                parent_line = min(getattr(m, "lines", {}).values(), default=None)
+                self.fail(
+                    f"{where}.{key}".lstrip("."),
+                    parent_line,
+                    "missing",
+                    f"add '{key}:' (see protocols/knee.yaml)",
+                )
+            return default
+        value = m[key]
+        if kind is float and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if not isinstance(value, kind):
+            names = kind.__name__ if isinstance(kind, type) else "/".join(k.__name__ for k in kind)
+            self.fail(
+                f"{where}.{key}".lstrip("."),
+                line,
+                f"is {type(value).__name__} {value!r}, expected {names}",
+                "fix the value",
+            )
+        return value
+
+    def axis(self, value: Any, where: str, line: int | None) -> str:
+        if not isinstance(value, str) or value.strip().lstrip("+-") not in AXES:
+            self.fail(
+                where,
+                line,
+                f"axis {value!r} is not one of x, y, z, -x, -y, -z",
+                "write e.g. 'y' or '-z'",
+            )
+        return value.strip().lstrip("+")
+
+    def side(self, value: Any, where: str, line: int | None) -> str:
+        side = {"left": "l", "right": "r", None: ""}.get(value, value)
+        if side not in SIDES:
+            self.fail(where, line, f"side {value!r} is not l or r", "write 'l' or 'r'")
+        return side
+
+
+def load_protocol(path: str | Path) -> Protocol:
+    """Load and validate a protocol YAML file (a path, or the name of a packaged protocol)."""
+    path = resolve_protocol_path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+        doc = yaml.load(text, Loader=_LineLoader)  # noqa: S506 - SafeLoader subclass
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}" if mark else None
+        raise InputError(
+            f"not valid YAML ({getattr(exc, 'problem', exc)})",
+            path,
+            where,
+            "check indentation and colons",
+        ) from None
+    except UnicodeDecodeError:
+        raise InputError("not a text file", path, remedy="give a protocol YAML file") from None
+    r = _Reader(path)
+    if not isinstance(doc, dict):
+        r.fail("(top level)", 1, "is not a mapping", "start from protocols/knee.yaml")
+    name = r.get(doc, "name", "", str)
+
+    segments: dict[str, Segment] = {}
+    for seg_name, spec in r.get(doc, "segments", "", dict).items():
+        where = f"segments.{seg_name}"
+        line = doc["segments"].lines.get(seg_name)
+        spec = spec if spec is not None else _Map()
+        if not isinstance(spec, dict):
+            r.fail(where, line, "is not a mapping", "give side/placement keys")
+        axes = r.get(spec, "sensor_axes", where, list, False, ["x", "y", "z"])
+        if len(axes) != 3:
+            r.fail(f"{where}.sensor_axes", line, "needs three axes", "e.g. [x, y, z]")
+        axes = tuple(r.axis(a, f"{where}.sensor_axes", line) for a in axes)
+        if abs(np.linalg.det(np.column_stack([axis_vector(a) for a in axes]))) < 0.5:
+            r.fail(f"{where}.sensor_axes", line, "axes repeat", "name each axis once")
+        if np.linalg.det(np.column_stack([axis_vector(a) for a in axes])) < 0:
+            r.fail(f"{where}.sensor_axes", line, "axes are left-handed", "flip the sign of one")
+        segments[seg_name] = Segment(
+            name=seg_name,
+            side=r.side(spec.get("side"), f"{where}.side", line),
+            placement=r.get(spec, "placement", where, str, False, ""),
+            sensor_axes=axes,
+            landmarks=list(r.get(spec, "landmarks", where, list, False, [])),
+            required=r.get(spec, "required", where, bool, False, True),
+        )
+    if not segments:
+        r.fail("segments", doc.lines.get("segments"), "is empty", "name at least one segment")
+
+    def check_segment(seg: Any, where: str, line: int | None) -> str:
+        if seg not in segments:
+            r.fail(
+                where,
+                line,
+                f"names segment {seg!r}, which is not under segments",
+                f"use one of {', '.join(segments)}",
+            )
+        return seg
+
+    steps = []
+    for i, spec in enumerate(r.get(doc, "calibration", "", list, False, [])):
+        where = f"calibration[{i}]"
+        line = getattr(spec, "lines", {}).get("name", doc.lines.get("calibration"))
+        if not isinstance(spec, dict):
+            r.fail(where, line, "is not a mapping", "give name/kind keys")
+        kind = r.get(spec, "kind", where, str)
+        if kind not in STEP_KINDS:
+            r.fail(
+                f"{where}.kind",
+                spec.lines["kind"],
+                f"unknown step kind {kind!r}",
+                "use static or functional",
+            )
+        vertical = {
+            check_segment(s, f"{where}.vertical_axis", line): r.axis(
+                a, f"{where}.vertical_axis.{s}", line
+            )
+            for s, a in r.get(spec, "vertical_axis", where, dict, False, {}).items()
+        }
+        axis = {
+            check_segment(s, f"{where}.axis", line): r.axis(a, f"{where}.axis.{s}", line)
+            for s, a in r.get(spec, "axis", where, dict, False, {}).items()
+        }
+        if kind == "static" and not vertical:
+            r.fail(
+                f"{where}.vertical_axis",
+                line,
+                "a static step needs vertical_axis",
+                "name the vertical axis of each segment, e.g. {thigh_r: y}",
+            )
+        if kind == "functional" and not axis:
+            r.fail(
+                f"{where}.axis",
+                line,
+                "a functional step needs axis",
+                "name the segment axis the movement defines, e.g. {shank_r: -z}",
+            )
+        time_range = r.get(spec, "time_range", where, list, False, None)
+        if time_range is not None and (len(time_range) != 2 or time_range[0] >= time_range[1]):
+            r.fail(
+                f"{where}.time_range",
+                line,
+                "needs [start_s, end_s] with start < end",
+                "e.g. [12.0, 20.5]",
+            )
+        steps.append(
+            CalibrationStep(
+                name=r.get(spec, "name", where, str),
+                kind=kind,
+                duration_s=r.get(spec, "duration_s", where, float),
+                instructions=r.get(spec, "instructions", where, str, False, ""),
+                pose=r.get(spec, "pose", where, str, False, ""),
+                vertical_axis=vertical,
+                segments=[
+                    check_segment(s, f"{where}.segments", line)
+                    for s in r.get(spec, "segments", where, list, False, list(axis))
+                ],
+                axis=axis,
+                repetitions=r.get(spec, "repetitions", where, int, False, 0),
+                time_range=tuple(float(t) for t in time_range) if time_range else None,
+            )
+        )
+
+    joints = {}
+    for jname, spec in r.get(doc, "joints", "", dict).items():
+        where = f"joints.{jname}"
+        line = doc["joints"].lines.get(jname)
+        if not isinstance(spec, dict):
+            r.fail(where, line, "is not a mapping", "give type/proximal/distal keys")
+        jtype = r.get(spec, "type", where, str)
+        if jtype not in JOINT_TYPES:
+            r.fail(
+                f"{where}.type",
+                spec.lines["type"],
+                f"unknown joint type {jtype!r}",
+                f"use one of {', '.join(JOINT_TYPES)}",
+            )
+        joints[jname] = Joint(
+            name=jname,
+            type=jtype,
+            proximal=check_segment(
+                r.get(spec, "proximal", where, str), f"{where}.proximal", spec.lines.get("proximal")
+            ),
+            distal=check_segment(
+                r.get(spec, "distal", where, str), f"{where}.distal", spec.lines.get("distal")
+            ),
+            side=r.side(spec.get("side"), f"{where}.side", line),
+            sequence=r.get(spec, "sequence", where, str, False, "ZXY"),
+        )
+
+    tasks = []
+    for i, spec in enumerate(r.get(doc, "tasks", "", list, False, [])):
+        where = f"tasks[{i}]"
+        if not isinstance(spec, dict):
+            r.fail(where, doc.lines.get("tasks"), "is not a mapping", "give name/kind keys")
+        known = {"name", "kind", "duration_s", "repetitions"}
+        tasks.append(
+            Task(
+                name=r.get(spec, "name", where, str),
+                kind=r.get(spec, "kind", where, str),
+                duration_s=r.get(spec, "duration_s", where, float, False, 0.0),
+                repetitions=r.get(spec, "repetitions", where, int, False, 0),
+                options={k: v for k, v in spec.items() if k not in known},
+            )
+        )
+
+    normative = r.get(doc, "normative", "", dict, False, {})
+    for task, ranges in normative.items():
+        for col, rng in (ranges or {}).items():
+            if not (isinstance(rng, list) and len(rng) == 2 and rng[0] <= rng[1]):
+                r.fail(
+                    f"normative.{task}.{col}",
+                    getattr(ranges, "lines", {}).get(col),
+                    f"range {rng!r} is not [low, high]",
+                    "e.g. [0, 65]",
+                )
+    return Protocol(
+        name=name,
+        segments=segments,
+        joints=joints,
+        calibration=steps,
+        tasks=tasks,
+        normative={
+            t: {c: [float(v) for v in rng] for c, rng in (ranges or {}).items()}
+            for t, ranges in normative.items()
+        },
+        metrics=list(r.get(doc, "metrics", "", list, False, [])),
+        title=r.get(doc, "title", "", str, False, ""),
+        purpose=r.get(doc, "purpose", "", str, False, ""),
+        source=r.get(doc, "source", "", str, False, ""),
+        path=path,
+        raw=_plain(doc),
+    )
+
+
+def resolve_protocol_path(path: str | Path) -> Path:
+    """A path as given, or the packaged protocol of that name (``knee`` → protocols/knee.yaml)."""
+    p = Path(path)
+    if p.is_file():
+        return p
+    packaged = PACKAGED / f"{p.stem}.yaml"
+    if p.suffix in ("", ".yaml") and packaged.is_file() and not p.parent.parts[1:]:
+        return packaged
+    raise InputError(
+        "no such protocol file", p, remedy=f"give a path or one of {', '.join(list_protocols())}"
+    )
+
+
+def list_protocols() -> list[str]:
+    """Names of the protocols shipped with motionlab."""
+    return sorted(p.stem for p in PACKAGED.glob("*.yaml"))
+
+
+def _plain(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {k: _plain(v) for k, v in obj.items()}
+    if isinstance(obj, list):
+        return [_plain(v) for v in obj]
+    return obj
