@@ -160,10 +160,20 @@ def slerp(q0: np.ndarray, q1: np.ndarray, t: np.ndarray | float) -> np.ndarray:
 
 
 def resample(t: np.ndarray, q: np.ndarray, t_new: np.ndarray) -> np.ndarray:
-    """SLERP-resample a quaternion time series onto ``t_new`` (clamped at the ends)."""
+    """SLERP-resample a quaternion time series onto ``t_new`` (clamped at the ends).
+
+    The result is sign-continuous and its first sample takes the sign of the input sample
+    it lies next to, so resampling a continuous series at its own times returns it unchanged.
+    """
+    t = np.asarray(t, dtype=float)
+    q = np.asarray(q, dtype=float)
     t_new = np.clip(np.asarray(t_new, dtype=float), t[0], t[-1])
-    out = from_scipy(Slerp(t, to_scipy(q))(t_new))
-    return make_continuous(out)
+    out = make_continuous(from_scipy(Slerp(t, to_scipy(q))(t_new)))
+    if len(out):
+        k = min(int(np.searchsorted(t, t_new[0], side="right")) - 1, len(t) - 1)
+        if np.dot(out[0], q[max(k, 0)]) < 0:
+            out = -out
+    return out
 
 
 def mean(q: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
@@ -254,5 +264,7 @@ def integrate_gyro(q0: np.ndarray, gyr: np.ndarray, dt: float | np.ndarray) -> n
     ``q_k = q_{k-1} ⊗ exp(ω̄ dt / 2)`` with ω̄ the mean of the two samples.
     """
     gyr = np.ascontiguousarray(gyr, dtype=float)
+    if len(gyr) == 0:
+        return np.empty((0, 4))
     dt_arr = np.broadcast_to(np.asarray(dt, dtype=float), (max(len(gyr) - 1, 0),))
     return _integrate(np.asarray(q0, dtype=float), gyr, np.ascontiguousarray(dt_arr))
