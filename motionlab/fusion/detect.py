@@ -1,0 +1,172 @@
+"""Detectors shared by the estimators: rest, magnetic disturbance, magnetometer usability.
+
+Inputs are (N, 3) sensor-frame arrays in SI units (gyr rad/s, acc m/s², mag µT) sampled at
+``rate`` Hz. Magnetic disturbance is judged by the field norm and the dip angle against a
+reference estimated from the undisturbed part of the recording (Ricci 2015, thesis eqs. 4.3–4.5;
+Roetenberg et al. 2005): ``dip = asin(−(up·m)/|m|)`` with ``up`` the earth-up direction in the
+sensor frame (positive downward field, northern hemisphere). Estimators drop (gate) the
+magnetometer on flagged samples, so the heading is carried by the gyroscope and stays consistent;
+when the magnetometer is unusable over most of a recording they run in 6-D
+(:func:`mag_usable`).
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+from scipy.ndimage import binary_closing, binary_dilation, binary_opening, uniform_filter1d
+
+from motionlab import rotations as rot
+
+
+def _window(seconds: float, rate: float) -> int:
+    return max(1, int(round(seconds * rate)))
+
+
+def rest_mask(
+    gyr: np.ndarray,
+    acc: np.ndarray,
+    rate: float,
+    gyr_threshold: float = np.deg2rad(2.0),
+    acc_threshold: float = 0.5,
+    window: float = 0.5,
+    min_duration: float = 1.5,
+) -> np.ndarray:
+    """Samples (N,) bool where the sensor is at rest.
+
+    Rest means the moving-RMS (over ``window`` s) of the angular rate is below ``gyr_threshold``
+    (rad/s) and of the accelerometer's deviation from its moving mean below ``acc_threshold``
+    (m/s²), for at least ``min_duration`` s.
+    """
+    w = _window(window, rate)
+    gyr_rms = np.sqrt(uniform_filter1d(np.sum(gyr**2, axis=1), w, mode="nearest"))
+    acc_dev = acc - uniform_filter1d(acc, w, axis=0, mode="nearest")
+    acc_rms = np.sqrt(uniform_filter1d(np.sum(acc_dev**2, axis=1), w, mode="nearest"))
+    still = (gyr_rms < gyr_threshold) & (acc_rms < acc_threshold)
+    run = _window(min_duration, rate)
+    if run > 1 and len(still) >= run:
+        still = binary_opening(still, structure=np.ones(run, dtype=bool))
+    return still
+
+
+def field_norm_dip(
+    mag: np.ndarray, acc: np.ndarray, q: np.ndarray | None = None
+) -> tuple[np.ndarray, np.ndarray]:
+    """Field norm (µT) and dip angle (rad, positive downward) per sample.
+
+    The up direction comes from the orientation ``q`` (sensor → ENU) when given, otherwise from
+    the accelerometer (exact at rest, disturbed by linear acceleration).
+    """
+    norm = np.linalg.norm(mag, axis=1)
+    if q is not None:
+        up = rot.rotate(rot.conj(q), np.array([0.0, 0.0, 1.0]))
+    else:
+        up = acc / np.maximum(np.linalg.norm(acc, axis=1, keepdims=True), 1e-12)
+    sin_dip = -np.sum(up * mag, axis=1) / np.maximum(norm, 1e-12)
+    return norm, np.arcsin(np.clip(sin_dip, -1.0, 1.0))
+
+
+def field_reference(
+    mag: np.ndarray,
+    acc: np.ndarray,
+    q: np.ndarray | None = None,
+    norm_tol: float = 4.0,
+    dip_tol: float = np.deg2rad(6.0),
+) -> tuple[float, float]:
+    """Reference field norm (µT) and dip (rad) of the undisturbed field.
+
+    The mode of the norm (histogram with ``norm_tol`` bins), then the median norm and dip of the
+    samples consistent with it (within ``norm_tol`` and ``dip_tol`` of the dip median), and
+    restricted to samples with accelerometer norm within 1 m/s² of g when q is not given.
+    """
+    norm, dip = field_norm_dip(mag, acc, q)
+    keep = np.isfinite(norm) & np.isfinite(dip)
+    if q is None:
+        calm = np.abs(np.linalg.norm(acc, axis=1) - 9.81) < 1.0
+        if calm.sum() > 0.1 * keep.sum():
+            keep &= calm
+    if not keep.any():
+        return float("nan"), float("nan")
+    n, d = norm[keep], dip[keep]
+    lo, hi = n.min(), n.max()
+    bins = max(1, int(np.ceil((hi - lo) / norm_tol)))
+    counts, edges = np.histogram(n, bins=bins, range=(lo, hi + 1e-9))
+    peak = int(np.argmax(counts))
+    ref_norm = 0.5 * (edges[peak] + edges[peak + 1])
+    for _ in range(3):
+        sel = np.abs(n - ref_norm) < norm_tol
+        ref_dip = float(np.median(d[sel]))
+        sel &= np.abs(d - ref_dip) < dip_tol
+        if sel.any():
+            ref_norm = float(np.median(n[sel]))
+            ref_dip = float(np.median(d[sel]))
+    return float(ref_norm), float(ref_dip)
+
+
+def mag_disturbance(
+    mag: np.ndarray,
+    acc: np.ndarray,
+    q: np.ndarray | None,
+    rate: float,
+    norm_tol: float = 4.0,
+    dip_tol: float = np.deg2rad(6.0),
+    smooth: float = 0.2,
+    hold: float = 0.5,
+    reference: tuple[float, float] | None = None,
+) -> np.ndarray:
+    """Samples (N,) bool where the magnetic field is disturbed.
+
+    A sample is disturbed when its field norm differs from the reference by more than
+    ``norm_tol`` (µT) or, when the orientation ``q`` is given, its dip by more than ``dip_tol``
+    (rad); without ``q`` the dip is not tested, because the accelerometer's up direction is
+    unreliable during motion (estimators test it in their loop with their own orientation,
+    :func:`nb_field_disturbed`). Both are averaged over
+    ``smooth`` s; flags are extended by ``hold`` s on both sides so short clean gaps inside a
+    disturbance are not trusted. ``reference`` is ``(norm, dip)``; by default
+    :func:`field_reference`.
+    """
+    ref_norm, ref_dip = reference or field_reference(mag, acc, q, norm_tol, dip_tol)
+    norm, dip = field_norm_dip(mag, acc, q)
+    w = _window(smooth, rate)
+    norm = uniform_filter1d(norm, w, mode="nearest")
+    dip = uniform_filter1d(dip, w, mode="nearest")
+    bad = np.abs(norm - ref_norm) > norm_tol
+    if q is not None:
+        bad |= np.abs(dip - ref_dip) > dip_tol
+    bad |= ~np.isfinite(norm) | ~np.isfinite(dip)
+    h = _window(hold, rate)
+    if h > 1 and bad.any():
+        structure = np.ones(2 * h + 1, dtype=bool)
+        bad = binary_dilation(binary_closing(bad, structure=structure), structure=structure)
+    return bad
+
+
+def mag_usable(disturbed: np.ndarray, min_fraction: float = 0.2) -> bool:
+    """Whether enough of the recording (``min_fraction``) has an undisturbed field for 9-D use."""
+    return bool(len(disturbed)) and float(np.mean(~disturbed)) >= min_fraction
+
+
+@numba.njit(cache=True, inline="always")
+def nb_field_disturbed(
+    qw: float,
+    qx: float,
+    qy: float,
+    qz: float,
+    mx: float,
+    my: float,
+    mz: float,
+    ref_norm: float,
+    ref_dip: float,
+    norm_tol: float,
+    dip_tol: float,
+) -> bool:
+    """In-loop check of one sample against the reference, with the filter's current ``q``."""
+    n = np.sqrt(mx * mx + my * my + mz * mz)
+    if n < 1e-12:
+        return True
+    # earth-frame z of the field: third row of R(q) times m
+    ez = 2.0 * (qx * qz - qw * qy) * mx + 2.0 * (qy * qz + qw * qx) * my
+    ez += (1.0 - 2.0 * (qx * qx + qy * qy)) * mz
+    s = -ez / n
+    s = min(1.0, max(-1.0, s))
+    return abs(n - ref_norm) > norm_tol or abs(np.arcsin(s) - ref_dip) > dip_tol
