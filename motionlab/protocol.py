@@ -26,6 +26,9 @@ A protocol is a YAML file (``protocols/*.yaml``; copy one and edit it). Schema::
                                         # of the angular velocity during the named movement)
         repetitions: 5
         duration_s: 10
+        optional: false                 # true: the step may be left out of the recording
+        reference_rho: {shank_r: 0.8}   # optional: expected reliability (quality report)
+        time_range: [12.0, 20.5]        # optional: where the step is (s), skips detection
         instructions: "seated, flex and extend the right knee 5 times"
     joints:
       knee_r:
@@ -36,9 +39,11 @@ A protocol is a YAML file (``protocols/*.yaml``; copy one and edit it). Schema::
         sequence: ZXY                   # the decomposition (Grood & Suntay JCS for the knee)
     tasks:                              # blocks of the recording after calibration
       - {name: gait, kind: gait, duration_s: 30}
-    normative:                          # normal ranges per task and angle column, degrees
+    normative:                          # normal ranges per task and angle column, degrees;
+                                        # a column without side (knee_flexion_deg) means both
       gait: {knee_flexion_deg: [0, 65]}
     metrics: [rom, peaks, cycles, cross_talk, varus_thrust]
+    thresholds: {varus_thrust_deg: 3.0}  # numbers the metrics use (see kinematics/metrics.py)
     source: "where the normal ranges and the protocol come from"
 
 Axis strings are ``x``, ``y``, ``z`` of the ISB segment frame (x anterior, y proximal, z right),
@@ -90,6 +95,8 @@ class CalibrationStep:
     axis: dict[str, str] = field(default_factory=dict)
     repetitions: int = 0
     time_range: tuple[float, float] | None = None
+    optional: bool = False
+    reference_rho: dict[str, float] = field(default_factory=dict)
 
 
 @dataclass
@@ -120,6 +127,7 @@ class Protocol:
     tasks: list[Task] = field(default_factory=list)
     normative: dict[str, dict[str, list[float]]] = field(default_factory=dict)
     metrics: list[str] = field(default_factory=list)
+    thresholds: dict[str, Any] = field(default_factory=dict)
     title: str = ""
     purpose: str = ""
     source: str = ""
@@ -340,6 +348,11 @@ def load_protocol(path: str | Path) -> Protocol:
                 axis=axis,
                 repetitions=r.get(spec, "repetitions", where, int, False, 0),
                 time_range=tuple(float(t) for t in time_range) if time_range else None,
+                optional=r.get(spec, "optional", where, bool, False, False),
+                reference_rho={
+                    check_segment(s, f"{where}.reference_rho", line): float(v)
+                    for s, v in r.get(spec, "reference_rho", where, dict, False, {}).items()
+                },
             )
         )
 
@@ -407,6 +420,7 @@ def load_protocol(path: str | Path) -> Protocol:
             for t, ranges in normative.items()
         },
         metrics=list(r.get(doc, "metrics", "", list, False, [])),
+        thresholds=_plain(r.get(doc, "thresholds", "", dict, False, {})),
         title=r.get(doc, "title", "", str, False, ""),
         purpose=r.get(doc, "purpose", "", str, False, ""),
         source=r.get(doc, "source", "", str, False, ""),

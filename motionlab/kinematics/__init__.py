@@ -1,0 +1,1 @@
+"""Joint angles, repetitions and cycles, and the metrics computed from them."""

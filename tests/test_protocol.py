@@ -1,0 +1,112 @@
+"""Shipped protocols load; a broken protocol names the key and the line."""
+
+import numpy as np
+import pytest
+
+from motionlab.errors import InputError
+from motionlab.kinematics.joint_angles import JOINT_ANGLE_NAMES
+from motionlab.protocol import PACKAGED, axis_vector, list_protocols, load_protocol
+
+
+def test_all_shipped_protocols_are_there():
+    assert {"knee", "elbow", "lumbar", "upper_body_children"} <= set(list_protocols())
+
+
+@pytest.mark.parametrize("name", list_protocols())
+def test_shipped_protocol_loads_and_is_complete(name):
+    p = load_protocol(name)
+    assert p.title and p.purpose and p.source and p.metrics
+    for seg in p.segments.values():
+        assert seg.placement, seg.name
+        m = seg.nominal_mounting()
+        np.testing.assert_allclose(m.T @ m, np.eye(3))
+    assert any(s.kind == "static" for s in p.calibration)
+    # every required segment gets a vertical axis and at least one more axis, so its frame is fixed
+    for seg in (s for s in p.segments.values() if s.required):
+        axes = [s.vertical_axis[seg.name] for s in p.calibration if seg.name in s.vertical_axis]
+        axes += [s.axis[seg.name] for s in p.calibration if seg.name in s.axis]
+        dirs = {tuple(np.abs(axis_vector(a))) for a in axes}
+        assert len(dirs) >= 2 or name == "knee" and seg.name == "pelvis", (name, seg.name, axes)
+    for joint in p.joints.values():
+        assert joint.type in JOINT_ANGLE_NAMES
+        assert joint.side or joint.type == "lumbar"
+    for task, ranges in p.normative.items():
+        for col in ranges:
+            assert col.endswith("_deg"), (task, col)
+
+
+def test_knee_protocol_contents():
+    p = load_protocol("knee")
+    assert set(p.joints) == {"knee_r", "knee_l"}
+    names = [s.name for s in p.calibration]
+    assert names[:4] == ["standing", "sitting", "knee_flexion_r", "knee_flexion_l"]
+    assert p.calibration[2].repetitions == 5
+    assert all(s.optional for s in p.calibration if s.name.startswith("hip"))
+    assert {t.name for t in p.tasks} == {"gait", "squat", "sit_to_stand"}
+    assert p.thresholds["varus_thrust_deg"] == 3.0
+
+
+def test_children_protocol_has_ricci_movements_and_reliabilities():
+    p = load_protocol("upper_body_children")
+    names = [s.name for s in p.calibration]
+    assert names == [
+        "supine",
+        "thorax_rotation",
+        "thorax_flexion",
+        "arm_abduction",
+        "arm_flexion",
+        "arm_flexion_bar",
+        "pronation",
+        "elbow_flexion_bar",
+    ]
+    assert p.calibration[6].reference_rho["forearm_r"] == 0.89
+
+
+def _write(tmp_path, text):
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    return path
+
+
+def _broken(tmp_path, old, new):
+    text = (PACKAGED / "knee.yaml").read_text()
+    assert old in text
+    return _write(tmp_path, text.replace(old, new, 1))
+
+
+def test_unknown_segment_names_key_and_line(tmp_path):
+    path = _broken(tmp_path, "proximal: thigh_r", "proximal: femur_r")
+    line = next(i for i, t in enumerate(path.read_text().splitlines(), 1) if "femur_r" in t)
+    with pytest.raises(InputError) as err:
+        load_protocol(path)
+    msg = str(err.value)
+    assert "joints.knee_r.proximal" in msg and f"line {line}" in msg and "femur_r" in msg
+
+
+def test_bad_axis_names_key(tmp_path):
+    path = _broken(tmp_path, "axis: {shank_r: -z}", "axis: {shank_r: -w}")
+    with pytest.raises(InputError, match=r"calibration\[2\].axis.shank_r.*'-w'"):
+        load_protocol(path)
+
+
+def test_missing_key_and_bad_type(tmp_path):
+    path = _broken(tmp_path, "    duration_s: 5\n", "    duration_s: five\n")
+    with pytest.raises(InputError, match=r"line \d+, key calibration\[0\].duration_s.*five"):
+        load_protocol(path)
+    path = _write(tmp_path, "name: x\njoints: {}\n")
+    with pytest.raises(InputError, match="segments.*missing"):
+        load_protocol(path)
+
+
+def test_yaml_syntax_error_names_line(tmp_path):
+    path = _write(tmp_path, "name: knee\nsegments:\n  thigh_r: {side: r\n  shank_r: {}\n")
+    with pytest.raises(InputError, match=r"bad.yaml line \d+: not valid YAML"):
+        load_protocol(path)
+
+
+def test_bad_reference_rho_segment(tmp_path):
+    src = (PACKAGED / "upper_body_children.yaml").read_text()
+    src = src.replace("reference_rho: {thorax: 0.84}", "reference_rho: {torso: 0.84}", 1)
+    path = _write(tmp_path, src)
+    with pytest.raises(InputError, match="reference_rho.*torso"):
+        load_protocol(path)
