@@ -1,0 +1,290 @@
+"""Xsens MT Manager text exports (``MT_<...>_<DeviceId>.txt``).
+
+Layouts read (content decides, not the name):
+
+- legacy (MT Manager 4.x, 2018): ``// Start Time``, ``// Update Rate: 100.0Hz`` … lines;
+- 2019–2022: ``// General information`` block with ``DeviceId`` and ``Coordinate system``, no
+  rate line;
+- tab, comma, semicolon or single-space delimiters; empty or ``NaN`` fields read as NaN.
+
+Channels and units (Xsens MT Manager user manual, "Exporting data"):
+
+==================  ==========================  =========================================
+column(s)           file unit                   motionlab
+==================  ==========================  =========================================
+``Acc_*``           m/s² (specific force)       ``acc``
+``Gyr_*``           rad/s                       ``gyr``
+``Mag_*``           a.u. (1 ≈ local field)      ``mag`` in µT = a.u. × ``mag_field_ut``
+``FreeAcc_*``       m/s², earth frame           ``extra["free_acc"]`` (ENU)
+``Quat_q0..q3``     scalar first, sensor→earth  ``quat``
+``Mat[i][j]``       R_GS, row i = earth axis    ``quat`` (if no ``Quat_*``)
+``Roll Pitch Yaw``  deg, R = Rz(yaw)Ry(pitch)Rx(roll)  ``quat`` (if neither of the above)
+==================  ==========================  =========================================
+
+Orientation is expressed in ENU: a ``Coordinate system: NED`` or ``NWU`` export is rotated into
+ENU. When an export holds two or three orientation representations they are compared and the
+largest disagreement is recorded in ``attrs["orientation_agreement_deg"]``.
+
+Magnetometer: Xsens normalises the field to 1 at calibration (a.u.). motionlab scales it by an
+**assumed** local field of ``mag_field_ut`` µT (option; default 50 µT, a typical mid-latitude
+magnitude). Fusion uses only the field's direction; magnitude-based disturbance checks see the
+assumed scale, which is flagged in ``attrs["mag_scale_assumed"]`` and ``source_units["mag"]``.
+
+Time, from the device clock, in order of preference:
+
+1. ``SampleTimeFine``: 10 kHz ticks, 32-bit wrap (:mod:`motionlab.io.clock`);
+2. ``UTC_*`` fields with ``UTC_Nano`` (POSIX seconds), when every row has them;
+3. ``PacketCounter`` (16-bit wrap) divided by the rate: ``// Update Rate`` in the header, else
+   the ``rate_hz`` option, else 100 Hz (MTw default), flagged in ``attrs["rate_assumed"]``.
+
+Options: ``rate_hz`` (float), ``mag_field_ut`` (float), ``label`` (str).
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from scipy.spatial.transform import Rotation
+
+from motionlab import rotations
+from motionlab.errors import InputError
+from motionlab.io import Recording
+from motionlab.io.clock import checked_counter_time, count_wraps
+from motionlab.io.text import Table, first_content_line, parse_table, read_lines, require_values
+from motionlab.session import SensorStream
+
+FORMAT = "xsens"
+
+DEFAULT_MAG_FIELD_UT = 50.0
+DEFAULT_RATE_HZ = 100.0
+SAMPLE_TIME_FINE_HZ = 10_000.0
+
+_KNOWN = ("PacketCounter", "SampleTimeFine", "Acc_X", "Gyr_X", "Mag_X", "Quat_q0", "Mat[1][1]")
+_QUAT = ["Quat_q0", "Quat_q1", "Quat_q2", "Quat_q3"]
+_MAT = [f"Mat[{i}][{j}]" for i in (1, 2, 3) for j in (1, 2, 3)]
+_EULER = ["Roll", "Pitch", "Yaw"]
+_UTC = ["UTC_Year", "UTC_Month", "UTC_Day", "UTC_Hour", "UTC_Minute", "UTC_Second", "UTC_Nano"]
+
+#: rotation from a file's earth frame into ENU (columns: the file's axes in ENU)
+_TO_ENU = {
+    "ENU": np.eye(3),
+    "NED": np.array([[0.0, 1, 0], [1, 0, 0], [0, 0, -1]]),
+    "NWU": np.array([[0.0, -1, 0], [1, 0, 0], [0, 0, 1]]),
+}
+
+
+def _xyz(prefix: str) -> list[str]:
+    return [f"{prefix}_{a}" for a in "XYZ"]
+
+
+def _header_line(text: str) -> bool:
+    fields = re.split(r"[\t,; ]", text.strip())
+    return any(k in fields for k in _KNOWN)
+
+
+def sniff(path: Path, head: bytes) -> bool:
+    """An MT Manager export: its first non-comment line names Xsens columns, and it is not a
+    DOT export (which starts with ``sep=,`` and ``Key:,value`` lines)."""
+    text = head.decode("utf-8", errors="replace").lstrip("\ufeff")
+    lines = text.splitlines()
+    if not lines or lines[0].strip().lower().startswith("sep="):
+        return False
+    i = first_content_line(lines, prefixes=("//",))
+    return i < len(lines) and _header_line(lines[i])
+
+
+def _header_info(preamble: list[str]) -> dict[str, str]:
+    info = {}
+    for line in preamble:
+        body = line.lstrip("/").strip()
+        if ":" in body:
+            key, _, value = body.partition(":")
+            info[key.strip()] = value.strip()
+    return info
+
+
+def _serial(info: dict[str, str], path: Path) -> str:
+    if info.get("DeviceId"):
+        return info["DeviceId"]
+    ids = re.findall(r"_([0-9A-Fa-f]{8})(?=[_.])", path.name)  # MT_<master>_…_<DeviceId>.txt
+    return ids[-1].upper() if ids else ""
+
+
+def _rate(info: dict[str, str], options: dict[str, Any], path: Path) -> tuple[float, bool]:
+    text = info.get("Update Rate")
+    if text:
+        m = re.match(r"\s*([0-9.]+)", text)
+        if not m or float(m.group(1)) <= 0:
+            raise InputError(
+                f"cannot read 'Update Rate: {text}'",
+                path,
+                "header",
+                remedy="fix the header line, e.g. 'Update Rate: 100.0Hz'",
+            )
+        return float(m.group(1)), False
+    if options.get("rate_hz") is not None:
+        try:
+            rate = float(options["rate_hz"])
+        except (TypeError, ValueError):
+            rate = -1.0
+        if rate <= 0:
+            raise InputError(
+                f"rate_hz must be a positive number, not {options['rate_hz']!r}",
+                path,
+                "key rate_hz",
+                remedy="give the export's update rate in Hz",
+            )
+        return rate, False
+    return DEFAULT_RATE_HZ, True
+
+
+def _all_present(table: Table, names: list[str]) -> bool:
+    return all(table.has(n) and not np.any(np.isnan(table.column(n))) for n in names)
+
+
+def _time(table: Table, info: dict[str, str], options: dict[str, Any]) -> tuple:
+    """(time s, source name, attrs) from the best device clock in the file."""
+    path = table.path
+    if _all_present(table, ["SampleTimeFine"]):
+        stf = table.column("SampleTimeFine")
+        t = checked_counter_time(stf, SAMPLE_TIME_FINE_HZ, 32, path, "SampleTimeFine", table.lines)
+        return t, "SampleTimeFine", {"clock_wraps": count_wraps(stf, 32)}
+    if _all_present(table, _UTC):
+        cols = table.columns(_UTC)
+        parts = pd.DataFrame(
+            cols[:, :6].astype(np.int64),
+            columns=["year", "month", "day", "hour", "minute", "second"],
+        )
+        try:
+            stamp = pd.to_datetime(parts)
+        except (ValueError, OverflowError):
+            raise InputError(
+                "UTC fields do not form valid dates",
+                path,
+                "columns UTC_*",
+                remedy="export with SampleTimeFine or PacketCounter",
+            ) from None
+        posix = (stamp - pd.Timestamp("1970-01-01")).dt.total_seconds().to_numpy()
+        return posix + cols[:, 6] * 1e-9, "UTC", {}
+    if table.has("PacketCounter"):
+        rate, assumed = _rate(info, options, path)
+        pc = table.column("PacketCounter")
+        t = checked_counter_time(pc, rate, 16, path, "PacketCounter", table.lines)
+        attrs = {"clock_wraps": count_wraps(pc, 16), "counter_rate_hz": rate}
+        if assumed:
+            attrs["rate_assumed"] = True
+            attrs["notes_rate"] = (
+                f"no 'Update Rate' in the header and no rate_hz option: {rate} Hz assumed"
+            )
+        return t, "PacketCounter", attrs
+    raise InputError(
+        "no time column (SampleTimeFine, UTC_* or PacketCounter)",
+        path,
+        remedy="export with 'Sample Time Fine' or 'Packet Counter' enabled in MT Manager",
+    )
+
+
+def _orientations(table: Table) -> dict[str, np.ndarray]:
+    """Every orientation representation in the file, as quaternions (sensor → file earth)."""
+    out = {}
+    if all(table.has(n) for n in _QUAT):
+        out["quaternion"] = rotations.normalize(table.columns(_QUAT))
+    if all(table.has(n) for n in _MAT):
+        m = table.columns(_MAT).reshape(-1, 3, 3)
+        q = np.full((len(m), 4), np.nan)
+        ok = np.all(np.isfinite(m), axis=(1, 2))
+        if ok.any():
+            q[ok] = rotations.from_matrix(m[ok])
+        out["matrix"] = q
+    if all(table.has(n) for n in _EULER):
+        e = np.radians(table.columns(_EULER))
+        q = np.full((len(e), 4), np.nan)
+        ok = np.all(np.isfinite(e), axis=1)
+        if ok.any():
+            # Xsens: R_GS = Rz(yaw) Ry(pitch) Rx(roll) — intrinsic Z-Y'-X''
+            q[ok] = rotations.from_scipy(Rotation.from_euler("ZYX", e[ok][:, ::-1]))
+        out["euler"] = q
+    return out
+
+
+def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
+    """Read one MT Manager text export into a :class:`Recording` with one sensor (SI units)."""
+    path = Path(path)
+    options = options or {}
+    lines = read_lines(path)
+    header = first_content_line(lines, prefixes=("//",))
+    if header >= len(lines) or not _header_line(lines[header]):
+        raise InputError(
+            "no Xsens column header (PacketCounter, Acc_X, …)",
+            path,
+            f"line {min(header, len(lines)) + 1}",
+            remedy="export again from MT Manager with a header row",
+        )
+    table = parse_table(path, lines, header, comments=("//",))
+    info = _header_info(table.preamble)
+    frame = info.get("Coordinate system", "ENU").strip().upper() or "ENU"
+    if frame not in _TO_ENU:
+        raise InputError(
+            f"unknown coordinate system '{frame}'",
+            path,
+            "header",
+            remedy="export in ENU, NED or NWU",
+        )
+    time, time_source, attrs = _time(table, info, options)
+    serial = _serial(info, path)
+    stream = SensorStream(
+        label=str(options.get("label") or serial or path.stem),
+        time=time,
+        serial=serial,
+        vendor="Xsens",
+    )
+    attrs.update(time_source=time_source, earth_frame=frame, header=info)
+    for channel, prefix, unit in (("acc", "Acc", "m/s^2"), ("gyr", "Gyr", "rad/s")):
+        if table.has(f"{prefix}_X"):
+            require_values(table, _xyz(prefix), channel)
+            setattr(stream, channel, table.columns(_xyz(prefix)))
+            stream.source_units[channel] = unit
+    if table.has("Mag_X"):
+        require_values(table, _xyz("Mag"), "mag")
+        scale = float(options.get("mag_field_ut", DEFAULT_MAG_FIELD_UT))
+        stream.mag = table.columns(_xyz("Mag")) * scale
+        stream.source_units["mag"] = "a.u."
+        attrs.update(mag_scale_assumed=True, mag_field_ut=scale)
+    to_enu = _TO_ENU[frame]
+    if table.has("FreeAcc_X"):
+        require_values(table, _xyz("FreeAcc"), "free_acc")
+        stream.extra["free_acc"] = table.columns(_xyz("FreeAcc")) @ to_enu.T
+        stream.source_units["free_acc"] = "m/s^2"
+    reps = _orientations(table)
+    if reps:
+        first = next(iter(reps))
+        for name in reps:
+            require_values(
+                table,
+                {"quaternion": _QUAT, "matrix": _MAT, "euler": _EULER}[name],
+                f"orientation ({name})",
+            )
+        q_frame = rotations.from_matrix(to_enu)
+        stream.quat = rotations.make_continuous(rotations.mul(q_frame, reps[first]))
+        stream.source_units["quat"] = {"quaternion": "1", "matrix": "1", "euler": "deg"}[first]
+        attrs["orientation_source"] = first
+        if len(reps) > 1:
+            worst = max(
+                float(np.nanmax(np.degrees(rotations.angle_between(reps[first], q))))
+                for q in list(reps.values())[1:]
+            )
+            attrs["orientation_agreement_deg"] = worst
+    if not stream.channels:
+        raise InputError(
+            "no inertial or orientation columns",
+            path,
+            f"line {header + 1}",
+            remedy="export Acc, Gyr, Mag or orientation from MT Manager",
+        )
+    attrs["notes"] = table.notes + ([attrs.pop("notes_rate")] if "notes_rate" in attrs else [])
+    stream.attrs = attrs
+    return Recording(sensors=[stream], metadata={"source": str(path)}, format=FORMAT)
