@@ -1,0 +1,155 @@
+"""Xsens DOT CSV exports (Xsens DOT app / SDK).
+
+Layout: a ``sep=,`` line, ``Key:,value`` header lines (``DeviceTag``, ``FirmwareVersion``,
+``OutputRate: 60Hz``, ``FilterProfile``, ``Measurement Mode``, ``StartTime``), a blank line,
+then a comma-separated table.
+
+Channels and units (Xsens DOT user manual, "Data export"):
+
+=======================  ===================================  ============================
+column(s)                file unit                            motionlab
+=======================  ===================================  ============================
+``SampleTimeFine``       µs, 32-bit wrap (71.6 min)            ``time`` (s)
+``Quat_W..Z``            scalar first, sensor → ENU            ``quat``
+``Euler_X..Z``           deg, R = Rz(Z) Ry(Y) Rx(X)            ``quat`` (if no ``Quat_*``)
+``FreeAcc_X..Z``         m/s², ENU, gravity removed            ``extra["free_acc"]``
+``Acc_X..Z``             m/s² (specific force)                 ``acc``
+``Gyr_X..Z``             deg/s                                 ``gyr`` (rad/s)
+``Mag_X..Z``             a.u. (1 ≈ local field)                ``mag`` (µT, × ``mag_field_ut``)
+=======================  ===================================  ============================
+
+The "sensor fusion" measurement modes export orientation and free acceleration only, without
+raw gyroscope: the stream then has ``quat`` and ``extra["free_acc"]`` and no ``acc``/``gyr``.
+``serial`` is the device's ``DeviceTag`` (the DOT has no other id in its export).
+
+Options: ``mag_field_ut`` (float, default 50), ``label`` (str).
+"""
+
+from __future__ import annotations
+
+import re
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from motionlab import rotations
+from motionlab.errors import InputError
+from motionlab.io import Recording
+from motionlab.io.clock import checked_counter_time, count_wraps
+from motionlab.io.text import find_line, parse_table, read_lines, require_values, split_fields
+from motionlab.io.xsens import DEFAULT_MAG_FIELD_UT
+from motionlab.session import SensorStream
+
+FORMAT = "dot"
+
+TICK_HZ = 1e6  # SampleTimeFine in µs
+
+_CHANNELS = {
+    # name: (column prefix, file unit, factor to SI)
+    "acc": ("Acc", "m/s^2", 1.0),
+    "gyr": ("Gyr", "deg/s", np.pi / 180.0),
+}
+
+
+def _xyz(prefix: str, axes: str = "XYZ") -> list[str]:
+    return [f"{prefix}_{a}" for a in axes]
+
+
+def _is_table_header(line: str) -> bool:
+    fields = split_fields(line, ",")
+    return "SampleTimeFine" in fields and "PacketCounter" in fields
+
+
+def sniff(path: Path, head: bytes) -> bool:
+    """A DOT export: ``Key:,value`` lines and a table with ``PacketCounter``, ``SampleTimeFine``
+    and DOT channel names (``Quat_W``, ``Euler_X`` or ``FreeAcc_X``)."""
+    lines = head.decode("utf-8", errors="replace").lstrip("\ufeff").splitlines()
+    i = find_line(lines, _is_table_header, limit=40)
+    if i < 0:
+        return False
+    fields = split_fields(lines[i], ",")
+    dot_cols = {"Quat_W", "Euler_X", "FreeAcc_X"} & set(fields)
+    keyed = any(re.match(r"^[A-Za-z ]+:\s*,", line) for line in lines[:i])
+    return bool(dot_cols) and (keyed or lines[0].strip().lower() == "sep=,")
+
+
+def _header_info(preamble: list[str]) -> dict[str, str]:
+    info = {}
+    for line in preamble:
+        key, sep, value = line.partition(",")
+        if sep and key.strip().endswith(":"):
+            info[key.strip()[:-1].strip()] = value.strip()
+    return info
+
+
+def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
+    """Read one Xsens DOT CSV export into a :class:`Recording` with one sensor (SI units)."""
+    path = Path(path)
+    options = options or {}
+    lines = read_lines(path)
+    header = find_line(lines, _is_table_header, limit=200)
+    if header < 0:
+        raise InputError(
+            "no DOT table header (PacketCounter,SampleTimeFine,…)",
+            path,
+            remedy="export again from the Xsens DOT app",
+        )
+    table = parse_table(path, lines, header, delimiter=",", decimal=".")
+    info = _header_info(table.preamble)
+    stf = table.column("SampleTimeFine")
+    time = checked_counter_time(stf, TICK_HZ, 32, path, "SampleTimeFine", table.lines)
+    serial = info.get("DeviceTag", "")
+    stream = SensorStream(
+        label=str(options.get("label") or serial or path.stem),
+        time=time,
+        serial=serial,
+        vendor="Xsens DOT",
+    )
+    attrs: dict[str, Any] = {
+        "time_source": "SampleTimeFine",
+        "clock_wraps": count_wraps(stf, 32),
+        "header": info,
+        "notes": table.notes,
+    }
+    m = re.match(r"\s*([0-9.]+)", info.get("OutputRate", ""))
+    if m:
+        attrs["nominal_rate_hz"] = float(m.group(1))
+    for channel, (prefix, unit, scale) in _CHANNELS.items():
+        if table.has(f"{prefix}_X"):
+            require_values(table, _xyz(prefix), channel)
+            setattr(stream, channel, table.columns(_xyz(prefix)) * scale)
+            stream.source_units[channel] = unit
+    if table.has("Mag_X"):
+        require_values(table, _xyz("Mag"), "mag")
+        field_ut = float(options.get("mag_field_ut", DEFAULT_MAG_FIELD_UT))
+        stream.mag = table.columns(_xyz("Mag")) * field_ut
+        stream.source_units["mag"] = "a.u."
+        attrs.update(mag_scale_assumed=True, mag_field_ut=field_ut)
+    if table.has("Quat_W"):
+        names = _xyz("Quat", "WXYZ")
+        require_values(table, names, "quat")
+        stream.quat = rotations.make_continuous(rotations.normalize(table.columns(names)))
+        stream.source_units["quat"] = "1"
+        attrs["orientation_source"] = "quaternion"
+    elif table.has("Euler_X"):
+        require_values(table, _xyz("Euler"), "quat")
+        e = np.radians(table.columns(_xyz("Euler")))
+        q = rotations.from_scipy(Rotation.from_euler("ZYX", e[:, ::-1]))
+        stream.quat = rotations.make_continuous(q)
+        stream.source_units["quat"] = "deg"
+        attrs["orientation_source"] = "euler"
+    if table.has("FreeAcc_X"):
+        require_values(table, _xyz("FreeAcc"), "free_acc")
+        stream.extra["free_acc"] = table.columns(_xyz("FreeAcc"))
+        stream.source_units["free_acc"] = "m/s^2"
+    if not stream.channels and not stream.extra:
+        raise InputError(
+            "no inertial or orientation columns",
+            path,
+            f"line {header + 1}",
+            remedy="export orientation, free acceleration or inertial data from the DOT app",
+        )
+    stream.attrs = attrs
+    return Recording(sensors=[stream], metadata={"source": str(path)}, format=FORMAT)
