@@ -1,0 +1,273 @@
+"""Generic delimited text, read through a small column map (YAML, passed as ``options``).
+
+For any export no dedicated reader knows. :func:`sniff` is always False: this reader is used
+only when the options say ``format: generic`` (``motionlab ingest --map map.yaml``).
+
+Column map schema (every key optional unless marked *required*)::
+
+    format: generic
+    delimiter: ";"        # "\\t", ";", ",", " " or "whitespace" (runs of blanks); else detected
+    decimal: ","          # "." or ","; a decimal comma is detected if absent (non-comma delimiter)
+    comment: ["#", "//"]  # prefixes of comment lines, skipped anywhere (default "#" and "//")
+    skip_rows: 2          # lines to skip before the header (default 0)
+    header_rows: 2        # 0 (no header), 1 (default) or 2; with two rows a column is named
+                          #   "<row 1> <row 2>", row 1 carried right over empty cells
+    rate_hz: 100          # nominal rate, used only when there is no time column
+    time:                 # or just  time: "t"  (a column in seconds)
+      column: t           # name or 0-based index
+      unit: ms            # s, ms, us, or ticks (then tick_hz, and wrap_bits if it wraps)
+      tick_hz: 10000
+      wrap_bits: 32
+    sensors:              # *required* (or one sensor's keys at the top level, see below)
+      - label: thigh      # *required* with several sensors; default: the file name
+        serial: "00B421AF"
+        vendor: "Acme"
+        acc: {columns: [ax, ay, az], unit: g}        # unit *required*: g, m/s^2, mg …
+        gyr: {columns: [4, 5, 6], unit: deg/s}       # deg/s, rad/s …
+        mag: {columns: [mx, my, mz], unit: uT}       # uT, gauss, nT …
+        quat: {columns: [qw, qx, qy, qz], order: wxyz}   # order wxyz (default) or xyzw;
+                                                      # inverse: true if it maps earth → sensor
+      - label: shank
+        gyr: {columns: ["shank gyr_x", "shank gyr_y", "shank gyr_z"], unit: rad/s}
+
+A single sensor may be described at the top level instead (``label``, ``acc``, ``gyr`` …
+beside ``delimiter``). Quaternions must map sensor → ENU earth (``inverse: true`` conjugates).
+A key that is unknown, missing or of the wrong type raises :class:`InputError` naming it
+(``key sensors[1].gyr.unit``).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from motionlab import rotations
+from motionlab.errors import InputError
+from motionlab.io import Recording
+from motionlab.io.clock import checked_counter_time
+from motionlab.io.text import (
+    COMMENT_PREFIXES,
+    DELIMITERS,
+    Table,
+    first_content_line,
+    parse_table,
+    read_lines,
+)
+from motionlab.session import SensorStream
+from motionlab.units import to_si
+
+FORMAT = "generic"
+
+_TOP_KEYS = {"format", "delimiter", "decimal", "comment", "skip_rows", "header_rows", "rate_hz",
+             "time", "sensors"}  # fmt: skip
+_SENSOR_KEYS = {"label", "serial", "vendor", "acc", "gyr", "mag", "quat"}
+_CHANNEL_KEYS = {"columns", "unit", "order", "inverse"}
+_TIME_KEYS = {"column", "unit", "tick_hz", "wrap_bits"}
+_QUANTITY = {"acc": "acc", "gyr": "gyr", "mag": "mag"}
+
+
+def sniff(path: Path, head: bytes) -> bool:
+    """Never: the generic reader needs a column map (``format: generic``)."""
+    return False
+
+
+class _Map:
+    """Validating accessor for the column map: every error names the key."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+
+    def fail(self, key: str, message: str, remedy: str) -> InputError:
+        return InputError(message, self.path, f"column map key {key}", remedy)
+
+    def check_keys(self, d: Any, allowed: set[str], key: str) -> dict:
+        if not isinstance(d, dict):
+            raise self.fail(key, "must be a mapping", "see the schema in the generic reader docs")
+        unknown = sorted(set(d) - allowed)
+        if unknown:
+            raise self.fail(
+                f"{key}.{unknown[0]}" if key else unknown[0],
+                "unknown key",
+                f"allowed keys: {', '.join(sorted(allowed))}",
+            )
+        return d
+
+    def number(self, d: dict, name: str, key: str, positive: bool = True) -> float | None:
+        if d.get(name) is None:
+            return None
+        v = d[name]
+        if isinstance(v, bool) or not isinstance(v, int | float) or (positive and v <= 0):
+            raise self.fail(key, f"must be a positive number, not {v!r}", "give a number")
+        return float(v)
+
+
+def _column(m: _Map, table: Table, ref: Any, key: str) -> int:
+    if isinstance(ref, bool) or not isinstance(ref, int | str):
+        raise m.fail(key, f"column {ref!r} is neither a name nor an index", "give a name or index")
+    if isinstance(ref, int):
+        if not 0 <= ref < len(table.names):
+            raise m.fail(
+                key, f"column index {ref} out of range", f"the file has {len(table.names)} columns"
+            )
+        return ref
+    if ref in table.names:
+        return table.names.index(ref)
+    folded = [n.lower() for n in table.names]
+    if folded.count(ref.lower()) == 1:
+        return folded.index(ref.lower())
+    raise m.fail(key, f"no column '{ref}'", f"columns are {', '.join(table.names)}")
+
+
+def _channel(m: _Map, table: Table, spec: Any, name: str, key: str) -> tuple[np.ndarray, str]:
+    spec = m.check_keys(spec, _CHANNEL_KEYS, key)
+    n = 4 if name == "quat" else 3
+    cols = spec.get("columns")
+    if not isinstance(cols, list) or len(cols) != n:
+        raise m.fail(f"{key}.columns", f"needs a list of {n} columns", "e.g. [ax, ay, az]")
+    idx = [_column(m, table, c, f"{key}.columns[{k}]") for k, c in enumerate(cols)]
+    values = table.data[:, idx]
+    for k, j in enumerate(idx):
+        if np.all(np.isnan(values[:, k])):
+            raise InputError(
+                f"channel {name}: column '{table.names[j]}' has no values (all empty or NaN)",
+                table.path,
+                f"column '{table.names[j]}'",
+                remedy="check the column map, or leave the channel out",
+            )
+    if name == "quat":
+        order = spec.get("order", "wxyz")
+        if order not in ("wxyz", "xyzw"):
+            raise m.fail(f"{key}.order", f"'{order}' is not wxyz or xyzw", "give wxyz or xyzw")
+        q = values if order == "wxyz" else values[:, [3, 0, 1, 2]]
+        q = rotations.normalize(q)
+        if spec.get("inverse", False):
+            q = rotations.conj(q)
+        return rotations.make_continuous(q), order
+    if "order" in spec or "inverse" in spec:
+        raise m.fail(f"{key}.order", "only quaternions take 'order'/'inverse'", "remove it")
+    unit = spec.get("unit")
+    if not isinstance(unit, str):
+        raise m.fail(f"{key}.unit", "missing unit", f"give the unit of {name}, e.g. deg/s or g")
+    try:
+        return to_si(values, unit, _QUANTITY[name]), unit
+    except InputError as exc:
+        raise m.fail(f"{key}.unit", exc.message, exc.remedy or "") from None
+
+
+def _time(m: _Map, table: Table, opts: dict) -> tuple[np.ndarray, dict]:
+    spec = opts.get("time")
+    if spec is None:
+        rate = m.number(opts, "rate_hz", "rate_hz")
+        if rate is None:
+            raise m.fail("time", "no time column and no rate_hz", "give 'time' or 'rate_hz'")
+        return np.arange(len(table.data)) / rate, {"time_source": f"rate_hz {rate}"}
+    if isinstance(spec, str | int) and not isinstance(spec, bool):
+        spec = {"column": spec}
+    spec = m.check_keys(spec, _TIME_KEYS, "time")
+    if "column" not in spec:
+        raise m.fail("time.column", "missing", "name the time column")
+    j = _column(m, table, spec["column"], "time.column")
+    unit = spec.get("unit", "s")
+    attrs = {"time_source": table.names[j]}
+    if unit == "ticks":
+        tick_hz = m.number(spec, "tick_hz", "time.tick_hz")
+        if tick_hz is None:
+            raise m.fail("time.tick_hz", "missing for unit ticks", "give the tick rate in Hz")
+        bits = spec.get("wrap_bits", 62)  # 62: no wrap within int64 ticks
+        if isinstance(bits, bool) or not isinstance(bits, int) or not 2 <= bits <= 62:
+            raise m.fail("time.wrap_bits", f"{bits!r} is not a bit width", "e.g. 16 or 32")
+        t = checked_counter_time(
+            table.data[:, j], tick_hz, bits, table.path, table.names[j], table.lines
+        )
+        return t, attrs
+    values = table.data[:, j]
+    bad = np.flatnonzero(np.isnan(values))
+    if len(bad):
+        raise InputError(
+            f"time column '{table.names[j]}' is empty",
+            table.path,
+            f"line {table.lines[bad[0]]}",
+            remedy="repair or delete the line",
+        )
+    try:
+        return to_si(values, unit, "time"), attrs
+    except InputError as exc:
+        raise m.fail("time.unit", exc.message, exc.remedy or "") from None
+
+
+def _table(m: _Map, path: Path, opts: dict) -> Table:
+    lines = read_lines(path)
+    delimiter = opts.get("delimiter")
+    if delimiter is not None and delimiter not in (*DELIMITERS, "whitespace"):
+        raise m.fail(
+            "delimiter", f"{delimiter!r} is not supported", "use \\t ; , space or whitespace"
+        )
+    decimal = opts.get("decimal")
+    if decimal is not None and decimal not in (".", ","):
+        raise m.fail("decimal", f"{decimal!r} is not '.' or ','", "give '.' or ','")
+    comment = opts.get("comment", list(COMMENT_PREFIXES))
+    comment = [comment] if isinstance(comment, str) else comment
+    if not isinstance(comment, list) or not all(isinstance(c, str) and c for c in comment):
+        raise m.fail("comment", "must be a list of line prefixes", 'e.g. ["#", "//"]')
+    skip = opts.get("skip_rows", 0)
+    header_rows = opts.get("header_rows", 1)
+    if isinstance(skip, bool) or not isinstance(skip, int) or skip < 0:
+        raise m.fail("skip_rows", f"{skip!r} is not a line count", "give 0 or more")
+    if header_rows not in (0, 1, 2) or isinstance(header_rows, bool):
+        raise m.fail("header_rows", f"{header_rows!r} is not 0, 1 or 2", "give 0, 1 or 2")
+    header = first_content_line(lines, skip, comment)
+    return parse_table(
+        path,
+        lines,
+        header,
+        header_rows=header_rows,
+        delimiter=delimiter,
+        decimal=decimal,
+        comments=comment,
+    )
+
+
+def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
+    """Read a delimited text file described by the column map ``options`` (module docs)."""
+    path = Path(path)
+    m = _Map(path)
+    opts = dict(options or {})
+    if "sensors" in opts:
+        m.check_keys(opts, _TOP_KEYS, "")
+        sensors = opts["sensors"]
+        if not isinstance(sensors, list) or not sensors:
+            raise m.fail("sensors", "must be a non-empty list", "list one entry per sensor")
+    else:
+        m.check_keys(opts, _TOP_KEYS | _SENSOR_KEYS, "")
+        sensors = [{k: opts[k] for k in _SENSOR_KEYS if k in opts}]
+    table = _table(m, path, opts)
+    time, time_attrs = _time(m, table, opts)
+    streams = []
+    for i, spec in enumerate(sensors):
+        key = f"sensors[{i}]" if "sensors" in opts else ""
+        spec = m.check_keys(spec, _SENSOR_KEYS, key)
+        label = spec.get("label")
+        if label is None and len(sensors) > 1:
+            raise m.fail(f"{key}.label", "missing", "give each sensor a label")
+        s = SensorStream(
+            label=str(label or path.stem),
+            time=time.copy(),
+            serial=str(spec.get("serial", "")),
+            vendor=str(spec.get("vendor", "")),
+        )
+        for name in ("acc", "gyr", "mag", "quat"):
+            if name in spec:
+                sub = f"{key}.{name}" if key else name
+                values, unit = _channel(m, table, spec[name], name, sub)
+                setattr(s, name, values)
+                s.source_units[name] = "1" if name == "quat" else unit
+        if not s.channels:
+            raise m.fail(key or "acc", "no channel", "map at least one of acc, gyr, mag, quat")
+        s.attrs = {**time_attrs, "notes": table.notes}
+        streams.append(s)
+    labels = [s.label for s in streams]
+    if len(set(labels)) != len(labels):
+        raise m.fail("sensors", "labels repeat", "give every sensor its own label")
+    return Recording(sensors=streams, metadata={"source": str(path)}, format=FORMAT)
