@@ -270,3 +270,27 @@ def test_all_shared_xsens_files():
     sts = _one(folder / "MT_012005D6-000_sit_to_stand-000_00B421ED.txt")
     gaps = np.diff(sts.time)
     assert gaps.min() == pytest.approx(0.025) and gaps.max() > 0.025  # dropped packets kept
+
+
+def test_time_from_utc_fields(tmp_path):
+    head = "PacketCounter\tUTC_Nano\tUTC_Year\tUTC_Month\tUTC_Day\tUTC_Hour\tUTC_Minute"
+    head += "\tUTC_Second\tUTC_Valid\tAcc_X\tAcc_Y\tAcc_Z\n"
+    text = (
+        "1\t995000000\t2021\t12\t31\t23\t59\t59\t7\t0\t0\t9.81\n"
+        "2\t5000000\t2022\t1\t1\t0\t0\t0\t7\t0\t0\t9.81\n"
+        "3\t15000000\t2022\t1\t1\t0\t0\t0\t7\t0\t0\t9.81\n"
+    )
+    s = _one(_write(tmp_path, "u.txt", "// Update Rate: 100Hz\n" + head + text))
+    assert s.attrs["time_source"] == "UTC"
+    assert s.time[0] == pytest.approx(1640995199.995, abs=1e-6)
+    np.testing.assert_allclose(np.diff(s.time), 0.01, atol=1e-6)
+
+
+def test_session_round_trip_keeps_reader_output(tmp_path):
+    from motionlab.session import Session, load_session, save_session
+
+    s = _one(XS / "MT_012005D6_031-000_00B421AF_excerpt.txt")
+    save_session(Session(sensors={s.label: s}), tmp_path / "s.h5")
+    back = load_session(tmp_path / "s.h5").sensors[s.label]
+    np.testing.assert_array_equal(back.quat, s.quat)
+    assert back.attrs == s.attrs and back.source_units == s.source_units
