@@ -1,0 +1,110 @@
+"""Segment frame from two or more axes measured in the sensor frame.
+
+Given unit vectors ``v_i`` measured in sensor coordinates that should equal known segment axes
+``r_i`` (segment coordinates) after the mounting rotation ``M`` (segment → sensor, ``v ≈ M r``),
+with reliabilities ``ρ_i``: Ricci (2015, eqs. 6.3-6.13) minimises ``Σ ρ_i ‖v_i − M r_i‖²`` by
+Levenberg-Marquardt on a quaternion. For unit vectors this is the weighted Wahba problem, solved in
+closed form by the SVD of ``B = Σ ρ_i v_i r_iᵀ`` (orthogonal Procrustes, Markley 1988), the
+solver used here; :func:`lm_fit` is Ricci's Algorithm 1 kept as a cross-check.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from motionlab import rotations as rot
+
+
+def wahba(v: np.ndarray, r: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
+    """Rotation matrix ``M`` (3, 3) minimising ``Σ w_i ‖v_i − M r_i‖²`` (v, r: (K, 3))."""
+    v = np.asarray(v, dtype=float)
+    r = np.asarray(r, dtype=float)
+    w = np.ones(len(v)) if weights is None else np.asarray(weights, dtype=float)
+    b = (w[:, None] * v).T @ r
+    u, _, vt = np.linalg.svd(b)
+    d = np.sign(np.linalg.det(u) * np.linalg.det(vt)) or 1.0
+    return u @ np.diag([1.0, 1.0, d]) @ vt
+
+
+def lm_fit(
+    v: np.ndarray,
+    r: np.ndarray,
+    weights: np.ndarray | None = None,
+    q0: np.ndarray | None = None,
+    lam: float = 1e-3,
+    tol: float = 1e-4,
+    max_iter: int = 100,
+) -> tuple[np.ndarray, int]:
+    """Ricci's Algorithm 1: weighted LM over a quaternion, ``ε = r − Mᵀ v`` (eqs. 6.5-6.12).
+
+    Returns ``M`` (segment → sensor) and the number of iterations. ``q0`` is the initial
+    sensor → segment quaternion (identity as in the thesis); λ fixed at 10⁻³, stop when the
+    relative change of the cost is below ``tol``.
+    """
+    v = np.asarray(v, dtype=float)
+    r = np.asarray(r, dtype=float)
+    w = np.repeat(np.ones(len(v)) if weights is None else np.asarray(weights, float), 3)
+    q = rot.IDENTITY.copy() if q0 is None else rot.normalize(q0)
+
+    def residual(q: np.ndarray) -> np.ndarray:
+        return (r - rot.rotate(q, v)).ravel()  # R(q) maps sensor → segment (eq. 6.5)
+
+    cost = float(residual(q) @ (w * residual(q)))
+    it = 0
+    while it < max_iter:
+        it += 1
+        eps = residual(q)
+        jac = np.empty((eps.size, 4))
+        for k in range(4):  # central differences on the 4 quaternion parameters
+            dq = np.zeros(4)
+            dq[k] = 1e-7
+            jac[:, k] = (residual(q + dq) - residual(q - dq)) / 2e-7
+        jtwj = jac.T @ (w[:, None] * jac)
+        # the quaternion's norm direction has no gradient at the identity: minimum-norm step
+        delta = np.linalg.lstsq(jtwj + lam * np.diag(np.diag(jtwj)), jac.T @ (w * eps))[0]
+        q = rot.normalize(q - delta)
+        new_cost = float(residual(q) @ (w * residual(q)))
+        if cost == 0 or abs(new_cost - cost) / cost < tol:
+            cost = new_cost
+            break
+        cost = new_cost
+    return rot.to_matrix(rot.conj(q)), it
+
+
+def residual_angles(m: np.ndarray, v: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """Angle (deg) between each measured axis ``v_i`` and the fitted ``M r_i`` (Ricci eq. 6.18)."""
+    fitted = np.asarray(r, float) @ np.asarray(m).T
+    cos = np.clip(np.sum(fitted * np.asarray(v, float), axis=1), -1.0, 1.0)
+    return np.degrees(np.arccos(cos))
+
+
+def min_axis_separation(r: np.ndarray, v: np.ndarray) -> float:
+    """Smallest angle (deg, 0-90) between measured axes that stand for different segment axes."""
+    r = np.asarray(r, float)
+    v = np.asarray(v, float)
+    best = 90.0
+    for i in range(len(v)):
+        for j in range(i + 1, len(v)):
+            if abs(float(r[i] @ r[j])) > 0.99:  # the same segment axis measured twice
+                continue
+            angle = np.degrees(np.arccos(np.clip(abs(float(v[i] @ v[j])), 0.0, 1.0)))
+            best = min(best, float(angle))
+    return best
+
+
+def align_one(v: np.ndarray, r: np.ndarray, m_nominal: np.ndarray) -> np.ndarray:
+    """Mounting from one axis: the smallest rotation of the nominal ``M`` that makes ``M r = v``.
+
+    The heading about the measured axis stays as the protocol's nominal placement says.
+    """
+    a = m_nominal @ np.asarray(r, float)
+    b = np.asarray(v, float)
+    cross = np.cross(a, b)
+    angle = np.arctan2(np.linalg.norm(cross), float(a @ b))
+    if np.linalg.norm(cross) < 1e-12:
+        if a @ b > 0:
+            return m_nominal.copy()
+        perp = np.cross(a, [1.0, 0, 0] if abs(a[0]) < 0.9 else [0, 1.0, 0])
+        cross, angle = perp, np.pi
+    turn = rot.to_matrix(rot.from_axis_angle(cross, angle))
+    return turn @ m_nominal
