@@ -1,0 +1,116 @@
+"""BROAD benchmark trials (HDF5): one IMU and its aligned optical reference.
+
+Laidig, Caruso, Cereatti, Seel (2021), "BROAD — A Benchmark for Robust Inertial Orientation
+Estimation", Data 6(7):72, doi:10.3390/data6070072 (data licence CC BY 4.0).
+
+Each file holds ``imu_acc`` (m/s²), ``imu_gyr`` (rad/s), ``imu_mag`` (µT), ``opt_quat``
+(w, x, y, z, IMU → ENU, already aligned to the IMU), ``opt_pos`` (m), ``movement`` (bool) and the
+attribute ``sampling_rate`` (Hz); there is no time array, so time is ``k / sampling_rate``.
+
+Returned: the IMU as one :class:`~motionlab.session.SensorStream` (label ``imu``; ``movement``
+in ``extra["movement"]``) and the reference as one :class:`~motionlab.session.MarkerSet`
+(name ``optical``) on the same timebase, with ``rigid_bodies={"imu": opt_quat}`` and ``opt_pos``
+as the single marker ``imu_origin``. Occluded samples (NaN in ``opt_quat``) stay NaN.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from motionlab.errors import InputError
+from motionlab.io import Recording
+from motionlab.session import MarkerSet, SensorStream
+
+FORMAT = "broad"
+
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+#: dataset name → expected number of columns (None: one-dimensional)
+_DATASETS = {
+    "imu_acc": 3,
+    "imu_gyr": 3,
+    "imu_mag": 3,
+    "opt_quat": 4,
+    "opt_pos": 3,
+    "movement": None,
+}
+
+
+def sniff(path: Path, head: bytes) -> bool:
+    """An HDF5 file with top-level ``imu_gyr`` and ``opt_quat`` datasets."""
+    if not head.startswith(HDF5_SIGNATURE):
+        return False
+    try:
+        with h5py.File(path, "r") as f:
+            return "imu_gyr" in f and "opt_quat" in f
+    except OSError:
+        return False
+
+
+def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
+    """Read a BROAD trial: the IMU stream and the optical reference on one timebase."""
+    path = Path(path)
+    try:
+        f = h5py.File(path, "r")
+    except OSError:
+        raise InputError(
+            "not a readable HDF5 file", path, remedy="download the trial again"
+        ) from None
+    with f:
+        if "sampling_rate" not in f.attrs:
+            raise InputError(
+                "missing attribute", path, "key /sampling_rate", "give a BROAD trial file"
+            )
+        rate = float(np.ravel(f.attrs["sampling_rate"])[0])
+        if not np.isfinite(rate) or rate <= 0:
+            raise InputError(f"sampling_rate {rate}", path, "key /sampling_rate", "must be > 0 Hz")
+        data = {name: _dataset(path, f, name, width) for name, width in _DATASETS.items()}
+        info = f.attrs.get("info", "")
+        info = info.decode() if isinstance(info, bytes) else str(info)
+    n = len(data["imu_gyr"])
+    for name, arr in data.items():
+        if len(arr) != n:
+            raise InputError(
+                f"{len(arr)} samples but imu_gyr has {n}", path, f"key /{name}", "re-download"
+            )
+    time = np.arange(n) / rate
+    units = {"acc": "m/s^2", "gyr": "rad/s", "mag": "uT", "time": "s (from sampling_rate)"}
+    imu = SensorStream(
+        label="imu",
+        time=time,
+        acc=data["imu_acc"],
+        gyr=data["imu_gyr"],
+        mag=data["imu_mag"],
+        vendor="myon (BROAD)",
+        source_units=units,
+        extra={"movement": data["movement"].astype(bool)},
+        attrs={"nominal_rate_hz": rate},
+    )
+    optical = MarkerSet(
+        name="optical",
+        time=time.copy(),
+        labels=["imu_origin"],
+        positions=data["opt_pos"][:, None, :],
+        rigid_bodies={"imu": data["opt_quat"]},
+        source_units={"positions": "m"},
+        attrs={"earth_frame": "ENU", "aligned_to": "imu", "nominal_rate_hz": rate},
+    )
+    meta = {"dataset": "BROAD", "trial": path.stem, "licence": "CC BY 4.0", "info": info}
+    return Recording(sensors=[imu], markers=[optical], metadata=meta)
+
+
+def _dataset(path: Path, f: h5py.File, name: str, width: int | None) -> np.ndarray:
+    ds = f.get(name)
+    if not isinstance(ds, h5py.Dataset):
+        raise InputError("missing dataset", path, f"key /{name}", "give a complete BROAD trial")
+    data = ds[()]
+    ok = data.ndim == 1 if width is None else (data.ndim == 2 and data.shape[1] == width)
+    if not ok:
+        want = "(N,)" if width is None else f"(N, {width})"
+        raise InputError(
+            f"shape {data.shape}, expected {want}", path, f"key /{name}", "re-download"
+        )
+    return data if name == "movement" else np.asarray(data, dtype=float)
