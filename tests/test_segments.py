@@ -74,7 +74,9 @@ def knee_session(seed=0, max_err_deg=30.0):
     session, mounts = Session(), {}
     for seg, q_seg in seg_q.items():
         n = protocol.segments[seg].nominal_mounting().T  # segment → sensor
-        err = rot.to_matrix(rot.from_rotvec(rng.normal(size=3) * np.radians(max_err_deg) / 2))
+        direction = rng.normal(size=3)
+        angle = np.radians(max_err_deg) * rng.uniform(0.5, 1.0)
+        err = rot.to_matrix(rot.from_axis_angle(direction, angle))
         m = n @ err
         mounts[seg] = rot.from_matrix(m)
         q_sensor = rot.mul(q_seg, rot.conj(mounts[seg]))

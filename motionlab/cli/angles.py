@@ -1,0 +1,76 @@
+"""``motionlab angles``: knee, elbow and lumbar joint angles of a calibrated session."""
+
+from __future__ import annotations
+
+import click
+import numpy as np
+import pandas as pd
+
+from motionlab.atomic import atomic_path
+from motionlab.errors import InputError
+from motionlab.kinematics.session_angles import session_angles
+from motionlab.protocol import load_protocol
+from motionlab.session import load_session, save_session
+
+
+@click.command("angles")
+@click.argument("session", type=click.Path(dir_okay=False))
+@click.option("--csv", "csv_path", type=click.Path(dir_okay=False), help="Also write a CSV.")
+@click.option(
+    "--method",
+    type=click.Choice(["imu", "accel-only"]),
+    default="imu",
+    show_default=True,
+    help="imu: fused orientations; accel-only: elbow from accelerometers only (Lee 2012).",
+)
+@click.option("--protocol", "protocol_path", help="Protocol (default: the calibration's).")
+@click.option("--no-calibration", is_flag=True, help="Use sensor frames as segment frames.")
+@click.option("--force", is_flag=True, help="Replace existing angles and CSV.")
+def command(
+    session: str,
+    csv_path: str | None,
+    method: str,
+    protocol_path: str | None,
+    no_calibration: bool,
+    force: bool,
+) -> None:
+    """Compute joint angles (degrees) and store them in the session.
+
+    \b
+    Example:
+      motionlab angles session.h5 --csv angles.csv
+    """
+    ses = load_session(session)
+    cal = ses.results.get("calibration")
+    if cal is None and not no_calibration:
+        raise InputError(
+            "not calibrated",
+            session,
+            "results/calibration",
+            "run motionlab calibrate first, or pass --no-calibration",
+        )
+    if protocol_path is None:
+        if cal is None:
+            raise InputError("no protocol", session, remedy="give --protocol")
+        protocol_path = cal.get("protocol_path") or cal["protocol"]
+    protocol = load_protocol(protocol_path)
+    if "angles" in ses.results and not force:
+        raise InputError("already holds angles", session, "results/angles", "add --force")
+    if method == "imu":
+        table = session_angles(ses, protocol, None if no_calibration else cal)
+    else:
+        from motionlab.kinematics.accel_only import session_elbow_angles
+
+        table = session_elbow_angles(ses, protocol)
+    if csv_path:
+        with atomic_path(csv_path, force=force) as tmp:
+            pd.DataFrame(table).to_csv(tmp, index=False, float_format="%.4f")
+    ses.results["angles"] = {k: np.asarray(v) for k, v in table.items()}
+    ses.results["angles"]["method"] = method
+    ses.add_provenance(parameters={"stage": "angles", "method": method})
+    save_session(ses, session, force=True)
+    cols = [c for c in table if c != "time_s"]
+    click.echo(f"{len(table['time_s'])} samples, {len(cols)} angles")
+    for c in cols:
+        v = table[c]
+        click.echo(f"{c:<34} min {np.nanmin(v):8.1f}  max {np.nanmax(v):8.1f}")

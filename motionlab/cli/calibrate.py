@@ -1,0 +1,45 @@
+"""``motionlab calibrate``: sensor-to-segment calibration from poses and movements."""
+
+from __future__ import annotations
+
+import click
+
+from motionlab.errors import InputError
+from motionlab.protocol import load_protocol
+from motionlab.segments import calibrate
+from motionlab.session import load_session, save_session
+
+
+@click.command("calibrate")
+@click.argument("session", type=click.Path(dir_okay=False))
+@click.option("--protocol", "protocol_path", required=True, help="Protocol YAML file or name.")
+@click.option("--force", is_flag=True, help="Replace an existing calibration.")
+def command(session: str, protocol_path: str, force: bool) -> None:
+    """Find the protocol's calibration steps, fit each segment's mounting, report quality.
+
+    \b
+    Example:
+      motionlab calibrate session.h5 --protocol knee
+    """
+    protocol = load_protocol(protocol_path)
+    ses = load_session(session)
+    if "calibration" in ses.results and not force:
+        raise InputError(
+            "already holds a calibration", session, "results/calibration", "add --force to redo it"
+        )
+    result = calibrate(ses, protocol)
+    result["protocol_path"] = str(protocol.path)
+    ses.results["calibration"] = result
+    ses.add_provenance(parameters={"protocol": str(protocol.path), "stage": "calibrate"})
+    save_session(ses, session, force=True)
+    for name, rng in result["steps"].items():
+        where = f"{rng[0]:7.2f}–{rng[1]:7.2f} s" if rng else "not performed (optional)"
+        click.echo(f"step {name:<22} {where}")
+    for seg, res in result["segments"].items():
+        q = res["quality"]
+        click.echo(
+            f"{seg:<12} {res['method']:<12} min ρ {q['min_rho']:.2f}  "
+            + ("ok" if q["ok"] else "CHECK")
+        )
+        for msg in q["messages"]:
+            click.echo(f"  - {msg}")
