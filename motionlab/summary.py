@@ -14,7 +14,11 @@ def _finite(x: float) -> float | None:
 
 
 def session_summary(session: Session) -> dict[str, Any]:
-    """Per sensor: label, rate_hz, n_samples, duration_s, channels, units, gaps, qc; markers too."""
+    """Per sensor: label, rate_hz, n_samples, duration_s, channels, units, gaps, qc; markers too.
+
+    ``rate_hz`` is estimated from the stored time stamps; ``gaps`` are the gaps kept as missing
+    (``[start_s, end_s]``), ``flags`` the QC flags (:mod:`motionlab.qc`), ``qc`` every check.
+    """
     sensors = []
     for s in session.sensors.values():
         sensors.append(
@@ -30,7 +34,9 @@ def session_summary(session: Session) -> dict[str, Any]:
                 "channels": s.channels,
                 "units": {ch: CHANNEL_UNITS[ch] for ch in ["time", *s.channels]},
                 "source_units": s.source_units,
+                "jitter_ms": s.qc.get("jitter_ms"),
                 "gaps": s.qc.get("gaps", []),
+                "flags": s.qc.get("flags", {}),
                 "qc": s.qc,
             }
         )

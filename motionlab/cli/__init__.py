@@ -63,9 +63,9 @@ def main(ctx: click.Context, debug: bool) -> None:
 
 
 def _register() -> None:
-    from motionlab.cli import info
+    from motionlab.cli import angles, calibrate, info, ingest
 
-    for module in (info,):
+    for module in (info, ingest, calibrate, angles):
         main.add_command(module.command)
 
 

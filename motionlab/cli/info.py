@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 import click
 
@@ -23,35 +24,92 @@ def command(session: str, as_json: bool) -> None:
     """
     summary = session_summary(load_session(session))
     if as_json:
-        click.echo(json.dumps(summary, indent=2, default=float))
+        click.echo(json.dumps(_no_nan(summary), indent=2, default=float))
         return
     click.echo(format_summary(summary))
 
 
+def _no_nan(value):
+    """NaN/inf → null, so that the JSON is standard."""
+    if isinstance(value, dict):
+        return {k: _no_nan(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_no_nan(v) for v in value]
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    return value
+
+
+def _fmt(value, spec: str) -> str:
+    return "n/a" if value is None else format(value, spec)
+
+
+def _spans(spans: list, limit: int = 4) -> str:
+    text = ", ".join(f"{a:.2f}–{b:.2f} s" for a, b in spans[:limit])
+    return text + (f" and {len(spans) - limit} more" if len(spans) > limit else "")
+
+
+def _sensor_lines(s: dict) -> list[str]:
+    qc = s["qc"]
+    place = " ".join(p for p in (s["side"], s["segment"]) if p) or "unassigned"
+    lines = [
+        f"  {s['label']:<16} {place:<14} {_fmt(s['rate_hz'], '8.2f')} Hz"
+        f"  {s['n_samples']:>8} samples  {s['duration_s']:8.2f} s  {','.join(s['channels'])}"
+    ]
+    if qc:
+        clock = f"    clock: jitter {_fmt(qc.get('jitter_ms'), '.3f')} ms"
+        if qc.get("dropped_samples"):
+            clock += (
+                f", {qc['dropped_samples']} samples missing ({qc.get('gaps_filled', 0)} short"
+                f" gaps filled, {len(s['gaps'])} kept)"
+            )
+        repairs = [
+            f"{qc[k]} {k.replace('_', ' ')}"
+            for k in ("duplicates_dropped", "reordered", "restamped", "nan_time_dropped")
+            if qc.get(k)
+        ]
+        if repairs:
+            clock += "; repaired: " + ", ".join(repairs)
+        if qc.get("resampled_to_hz"):
+            clock += f"; resampled to {qc['resampled_to_hz']:g} Hz"
+        lines.append(clock)
+    if s["gaps"]:
+        lines.append(f"    gaps kept as missing: {_spans(s['gaps'])}")
+    for ch, spans in qc.get("nan_spans", {}).items():
+        lines.append(f"    NaN in {ch}: {_spans(spans)}")
+    flags = [k for k, v in s["flags"].items() if v]
+    lines.append(f"    qc flags: {', '.join(flags) if flags else 'none'}")
+    return lines
+
+
 def format_summary(summary: dict) -> str:
     """Plain-text rendering of :func:`~motionlab.summary.session_summary`."""
+    meta = summary["metadata"]
     lines = [f"motionlab session (schema {summary['schema_version']})"]
-    for key, value in summary["metadata"].items():
-        lines.append(f"  {key}: {value}")
+    for key in ("subject", "session"):
+        if meta.get(key):
+            lines.append(f"  {key}: " + ", ".join(f"{k}={v}" for k, v in meta[key].items()))
+    files = meta.get("files", {})
+    if files:
+        lines.append(f"  files: {len(files)}")
+        lines += [f"    {name} ({info.get('format', '?')})" for name, info in files.items()]
+    if "time_origin_s" in meta:
+        lines.append(f"  time origin: {meta['time_origin_s']:.6f} s (source clock) = 0 s here")
+    for key, value in meta.items():
+        if key not in ("subject", "session", "files", "time_origin_s"):
+            lines.append(f"  {key}: {value}")
     lines.append(f"sensors: {len(summary['sensors'])}")
     for s in summary["sensors"]:
-        place = " ".join(p for p in (s["side"], s["segment"]) if p) or "unassigned"
-        lines.append(
-            f"  {s['label']:<16} {place:<14} {s['rate_hz']:8.2f} Hz  {s['n_samples']:>8} samples"
-            f"  {s['duration_s']:8.2f} s  {','.join(s['channels'])}"
-        )
-        if s["gaps"]:
-            lines.append(f"    gaps: {len(s['gaps'])}")
-        flags = [k for k, v in s["qc"].get("flags", {}).items() if v]
-        if flags:
-            lines.append(f"    qc flags: {', '.join(flags)}")
+        lines += _sensor_lines(s)
     lines.append(f"marker sets: {len(summary['markers'])}")
     for m in summary["markers"]:
         lines.append(
-            f"  {m['name']:<16} {m['rate_hz']:8.2f} Hz  {m['n_markers']} markers"
+            f"  {m['name']:<16} {_fmt(m['rate_hz'], '8.2f')} Hz  {m['n_markers']} markers"
             f"  {m['n_frames']} frames  unit {m['units']}"
         )
     if summary["results"]:
         lines.append(f"results: {', '.join(summary['results'])}")
     lines.append(f"provenance entries: {len(summary['provenance'])}")
+    for p in summary["provenance"]:
+        lines.append(f"  {p.get('time', '')}  {p.get('software', '')}  {p.get('command', '')}")
     return "\n".join(lines)

@@ -1,0 +1,264 @@
+"""Ingest: several recording files → one :class:`~motionlab.session.Session`.
+
+Steps, for files read by :func:`motionlab.io.read_any` (one file per sensor, one file with many
+sensors, or optical files that become marker sets):
+
+1. the sensor map (:mod:`motionlab.sensor_map`) names each sensor's segment, side and label and
+   gives subject/session metadata; a map key that matches no sensor is an error;
+2. every stream's clock is repaired (:func:`motionlab.timebase.repair_clock`);
+3. a common time origin: the earliest first stamp over all streams and marker sets becomes 0;
+   the absolute origin is kept in ``metadata["time_origin_s"]`` and each stream's own first
+   stamp in ``attrs["start_s"]``;
+4. quality checks (:mod:`motionlab.qc`) on the data as recorded, then gaps up to ``gap_max`` s
+   are filled and longer ones kept as missing (:func:`motionlab.timebase.fill_short_gaps`);
+5. with ``rate``, every sensor stream and marker set goes onto the clock ``k / rate``;
+6. provenance: software version, command, parameters and the SHA-256 of every input.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from motionlab import timebase
+from motionlab.errors import InputError
+from motionlab.io import read_any
+from motionlab.qc import check_stream
+from motionlab.sensor_map import SensorMap, load_sensor_map
+from motionlab.session import MarkerSet, SensorStream, Session
+
+DEFAULT_GAP_MAX = 0.1  # s
+
+
+def _match(stream: SensorStream, smap: SensorMap) -> str | None:
+    """The map key naming ``stream`` by serial or label (case-insensitive), if any."""
+    names = {n.lower() for n in (stream.serial, stream.label) if n}
+    hits = [k for k in smap.sensors if k.lower() in names]
+    return hits[0] if hits else None
+
+
+def _apply_map(
+    streams: list[tuple[SensorStream, Path]], smap: SensorMap
+) -> list[tuple[SensorStream, Path]]:
+    used: dict[str, Path] = {}
+    out = []
+    for stream, path in streams:
+        key = _match(stream, smap)
+        if key is not None:
+            if key in used:
+                raise smap.fail(
+                    f"sensors.{key}",
+                    f"names a sensor in both {used[key].name} and {path.name}",
+                    "key the sensors by serial, or give each file's sensor its own key",
+                    smap.sensors[key].line,
+                )
+            used[key] = path
+            place = smap.sensors[key]
+            stream = dataclasses.replace(
+                stream,
+                segment=place.segment or stream.segment,
+                side=place.side or stream.side,
+                label=place.label or stream.label,
+                attrs={**stream.attrs, "map_key": key},
+            )
+        out.append((stream, path))
+    missing = [k for k in smap.sensors if k not in used]
+    if missing:
+        present = ", ".join(sorted({n for s, _ in streams for n in (s.serial, s.label) if n}))
+        key = missing[0]
+        raise smap.fail(
+            f"sensors.{key}",
+            f"no sensor '{key}' in the input files",
+            f"present: {present or 'none'}; fix the key or add the file",
+            smap.sensors[key].line,
+        )
+    return out
+
+
+def _check_channels(stream: SensorStream, path: Path) -> None:
+    where = f"sensor {stream.label}"
+    if stream.n_samples < 2:
+        raise InputError(
+            f"{stream.n_samples} samples",
+            path,
+            where,
+            "the file holds no data rows; export it again",
+        )
+    for ch in stream.channels:
+        a = getattr(stream, ch)
+        if len(a) != stream.n_samples:
+            raise InputError(f"channel {ch} has {len(a)} samples, time has {stream.n_samples}",
+                             path, where, "export the file again")  # fmt: skip
+        if not np.isfinite(a).any():
+            raise InputError(
+                f"channel {ch} holds no numbers (all NaN)",
+                path,
+                f"{where}, channel {ch}",
+                "export the channel again or leave it out of the export",
+            )
+
+
+def _unique_label(stream: SensorStream, path: Path, seen: dict[str, Path]) -> SensorStream:
+    label = stream.label.strip().replace("/", "_") or stream.serial or path.stem
+    if label in seen:
+        raise InputError(
+            f"sensor label '{label}' also comes from {seen[label].name}",
+            path,
+            f"sensor {label}",
+            "give each sensor its own label in the --map file (sensors: <serial>: {label: ...})",
+        )
+    seen[label] = path
+    return dataclasses.replace(stream, label=label) if label != stream.label else stream
+
+
+def _check_marker_clock(m: MarkerSet, path: Path) -> None:
+    t = np.asarray(m.time, dtype=float)
+    bad = np.flatnonzero(~np.isfinite(t[1:]) | (np.diff(t) <= 0))
+    if len(t) < 2 or len(bad):
+        raise InputError(
+            "frame times are not strictly increasing",
+            path,
+            f"marker set {m.name}, frame {int(bad[0]) + 2 if len(bad) else 1}",
+            "export the optical file again",
+        )
+
+
+def _resample_markers(m: MarkerSet, rate: float) -> MarkerSet:
+    arrays: dict[str, np.ndarray] = {}
+    if m.positions is not None:
+        arrays["positions"] = m.positions
+    if m.residuals is not None:
+        arrays["residuals"] = m.residuals
+    grid = timebase.regular_grid(m.time[0], m.time[-1], rate)
+    out = timebase.interpolate_rows(m.time, arrays, grid)
+    bodies = {
+        k: timebase.interpolate_rows(m.time, {"quat": q}, grid)["quat"]
+        for k, q in m.rigid_bodies.items()
+    }
+    return dataclasses.replace(
+        m,
+        time=grid,
+        positions=out.get("positions"),
+        residuals=out.get("residuals"),
+        rigid_bodies=bodies,
+        attrs={**m.attrs, "resampled_to_hz": float(rate)},
+    )
+
+
+def ingest(
+    paths: Sequence[str | Path],
+    sensor_map: SensorMap | str | Path | None = None,
+    rate: float | None = None,
+    gap_max: float = DEFAULT_GAP_MAX,
+    command: str | None = None,
+) -> Session:
+    """Read ``paths`` into one session with a common clock, quality checks and provenance.
+
+    Parameters
+    ----------
+    paths
+        Recording files (any format :func:`motionlab.io.read_any` knows).
+    sensor_map
+        A :class:`~motionlab.sensor_map.SensorMap` or the path of its YAML file.
+    rate
+        If given (Hz), resample every stream onto the clock ``k / rate``.
+    gap_max
+        Gaps up to this long (s) are interpolated, longer ones kept as missing.
+    command
+        The command line for the provenance log (default: ``sys.argv``).
+    """
+    paths = [Path(p) for p in paths]
+    if not paths:
+        raise InputError("no input files", remedy="give one or more recording files")
+    if gap_max < 0 or (rate is not None and not rate > 0):
+        raise InputError("--gap-max must be ≥ 0 and --rate > 0", remedy="fix the option")
+    map_path = None
+    if sensor_map is not None and not isinstance(sensor_map, SensorMap):
+        map_path = Path(sensor_map)
+        sensor_map = load_sensor_map(map_path)
+    smap = sensor_map or SensorMap()
+
+    streams: list[tuple[SensorStream, Path]] = []
+    markers: list[tuple[MarkerSet, Path]] = []
+    files: dict[str, Any] = {}
+    for path in paths:
+        rec = read_any(path, smap.reader or None)
+        if not rec.sensors and not rec.markers:
+            raise InputError("no sensors or markers found", path,
+                             remedy="check that the file holds a recording")  # fmt: skip
+        files[path.name] = {"format": rec.format, **rec.metadata}
+        streams += [(s, path) for s in rec.sensors]
+        markers += [(m, path) for m in rec.markers]
+
+    streams = _apply_map(streams, smap)
+    seen: dict[str, Path] = {}
+    streams = [(_unique_label(s, p, seen), p) for s, p in streams]
+    for stream, path in streams:
+        _check_channels(stream, path)
+    repaired = []
+    for stream, path in streams:
+        stream, report = timebase.repair_clock(stream, path)
+        repaired.append((stream, report))
+    for m, path in markers:
+        _check_marker_clock(m, path)
+
+    starts = [float(s.time[0]) for s, _ in repaired] + [float(m.time[0]) for m, _ in markers]
+    origin = min(starts)
+    session = Session(
+        metadata={
+            "subject": smap.subject,
+            "session": smap.session,
+            "files": files,
+            "time_origin_s": origin,
+        }
+    )
+    for stream, report in repaired:
+        stream = dataclasses.replace(
+            stream,
+            time=stream.time - origin,
+            attrs={**stream.attrs, "start_s": float(stream.time[0])},
+        )
+        qc = check_stream(stream, gap_max)
+        stream, gaps = timebase.fill_short_gaps(stream, gap_max)
+        qc.update(report)
+        qc.update(gaps)
+        qc["flags"].update(
+            gaps=bool(gaps["gaps"]),
+            dropped_samples=gaps["dropped_samples"] > 0,
+            clock_repaired=bool(
+                report["duplicates_dropped"] + report["reordered"] + report["restamped"]
+            ),  # fmt: skip
+        )
+        if rate is not None:
+            stream = timebase.resample(stream, rate)
+            qc["resampled_to_hz"] = float(rate)
+        stream.qc = qc
+        session.sensors[stream.label] = stream
+    for m, _ in markers:
+        m = dataclasses.replace(
+            m, time=m.time - origin, attrs={**m.attrs, "start_s": float(m.time[0])}
+        )
+        if rate is not None:
+            m = _resample_markers(m, rate)
+        name = m.name
+        n = 2
+        while name in session.markers:
+            name, n = f"{m.name}_{n}", n + 1
+        session.markers[name] = dataclasses.replace(m, name=name)
+
+    inputs: list[Path] = list(paths) + ([map_path] if map_path else [])
+    session.add_provenance(
+        command,
+        parameters={
+            "stage": "ingest",
+            "rate_hz": rate,
+            "gap_max_s": gap_max,
+            "map": str(map_path) if map_path else None,
+        },
+        inputs=inputs,
+    )
+    return session

@@ -1,0 +1,145 @@
+"""Quality checks of one sensor stream, stored in ``SensorStream.qc`` and shown by ``info``.
+
+All checks run on the stream as recorded (after the clock repair, before gap filling and
+resampling), in SI units. ``qc["flags"]`` holds one boolean per finding:
+
+==========================  ===============================================================
+flag                        raised when
+==========================  ===============================================================
+``gaps``                    an interval longer than ``gap_max`` is kept as missing data
+``dropped_samples``         any sample is missing (filled or not), from the time stamps
+``dropped_packets``         the packet counter (``extra["packet_counter"]``) skips values
+``clock_repaired``          duplicate rows dropped or an out-of-order stamp repaired
+``irregular_sampling``      jitter (std of the sample interval) above 10 % of the interval
+``acc/gyr/mag_saturated``   flat tops at the range: ≥ 3 identical extreme samples in a row
+``gyr_looks_like_deg_s``    ‖ω‖ above 35 rad/s (beyond a ±2000 °/s range) for ≥ 5 samples
+``acc_looks_like_g``        ‖a‖ at rest between 0.5 and 2 (a value in g, not m/s²)
+``acc_norm_implausible``    ‖a‖ at rest neither ≈ 1 g (7.8–11.8 m/s²) nor in g
+``mag_norm_out_of_range``   median ‖m‖ outside 20–70 µT (Earth's field); skipped when the
+                            reader had to assume the field's scale (Xsens a.u.)
+``nan_spans``               any channel has samples that are not numbers
+==========================  ===============================================================
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from motionlab.session import SENSOR_CHANNELS, SensorStream
+from motionlab.units import STANDARD_GRAVITY
+
+#: thresholds below which an extreme value is not a sensor range (smallest common ranges)
+SATURATION_MIN = {"acc": 2 * STANDARD_GRAVITY, "gyr": 4.0, "mag": 100.0}
+SATURATION_RUN = 3
+GYR_MAX_PLAUSIBLE = 35.0  # rad/s: ±2000 °/s, the largest common gyroscope range
+GYR_SUSTAINED = 5  # samples
+MAG_RANGE_UT = (20.0, 70.0)
+ACC_REST_RANGE = (7.8, 11.8)  # m/s²
+JITTER_LIMIT = 0.1  # relative to the nominal interval
+REST_GYR = 0.2  # rad/s: below this the sensor is taken to be at rest
+
+
+def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end (exclusive) indices of the runs of True in a 1-D mask."""
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+
+
+def saturated_samples(values: np.ndarray, minimum: float) -> int:
+    """Samples in flat tops: runs of ≥ 3 identical values at an axis' extreme (≥ ``minimum``)."""
+    count = 0
+    for x in np.atleast_2d(values.T):
+        finite = x[np.isfinite(x)]
+        if not len(finite):
+            continue
+        for extreme in (finite.max(), finite.min()):
+            if abs(extreme) < minimum:
+                continue
+            start, end = _runs(x == extreme)
+            length = end - start
+            count += int(length[length >= SATURATION_RUN].sum())
+    return count
+
+
+def nan_spans(time: np.ndarray, values: np.ndarray) -> list[list[float]]:
+    """``[start_s, end_s]`` of every run of samples with a NaN in any axis."""
+    bad = ~np.isfinite(values.reshape(len(values), -1)).all(axis=1)
+    start, end = _runs(bad)
+    return [[float(time[a]), float(time[b - 1])] for a, b in zip(start, end, strict=True)]
+
+
+def _norm(a: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(a, axis=1)
+
+
+def dropped_packets(counter: np.ndarray) -> int:
+    """Packets missing from a counter that steps by one and may wrap at 2¹⁶ or 2³²."""
+    c = np.asarray(counter, dtype=np.int64)
+    if len(c) < 2:
+        return 0
+    modulus = np.int64(1) << (16 if c.max() < 65536 else 32)
+    step = np.diff(c) % modulus
+    return int(np.clip(step - 1, 0, None).sum())
+
+
+def check_stream(stream: SensorStream, gap_max: float) -> dict[str, Any]:
+    """Rate, jitter, saturation, unit plausibility and NaN spans of ``stream`` (see module)."""
+    t = np.asarray(stream.time, dtype=float)
+    dt = np.diff(t)
+    nominal = float(np.median(dt)) if len(dt) else float("nan")
+    regular = dt[dt <= 1.5 * nominal] if len(dt) else dt
+    jitter = float(np.std(regular)) if len(regular) else float("nan")
+    qc: dict[str, Any] = {
+        "rate_hz": 1.0 / nominal if nominal > 0 else float("nan"),
+        "jitter_ms": 1e3 * jitter,
+        "n_samples_recorded": int(len(t)),
+        "duration_s": float(t[-1] - t[0]) if len(t) else 0.0,
+        "gap_max_s": float(gap_max),
+    }
+    flags = {"irregular_sampling": bool(jitter > JITTER_LIMIT * nominal)}
+
+    qc["saturated_samples"] = {}
+    spans: dict[str, list] = {}
+    for ch in SENSOR_CHANNELS:
+        a = getattr(stream, ch)
+        if a is None:
+            continue
+        if ch in SATURATION_MIN:
+            n = saturated_samples(a, SATURATION_MIN[ch])
+            qc["saturated_samples"][ch] = n
+            flags[f"{ch}_saturated"] = n > 0
+        s = nan_spans(t, a)
+        if s:
+            spans[ch] = s
+    qc["nan_spans"] = spans
+    flags["nan_spans"] = bool(spans)
+
+    rest = None
+    if stream.gyr is not None:
+        w = _norm(stream.gyr)
+        qc["gyr_max_rad_s"] = float(np.nanmax(w))
+        start, end = _runs(w > GYR_MAX_PLAUSIBLE)
+        flags["gyr_looks_like_deg_s"] = bool(np.any(end - start >= GYR_SUSTAINED))
+        rest = w < REST_GYR
+    if stream.acc is not None:
+        a = _norm(stream.acc)
+        use = rest if rest is not None and rest.sum() >= 10 else np.isfinite(a)
+        g = float(np.nanmedian(a[use])) if use.any() else float("nan")
+        qc["acc_rest_norm"] = g
+        flags["acc_looks_like_g"] = bool(0.5 <= g <= 2.0)
+        flags["acc_norm_implausible"] = not (
+            flags["acc_looks_like_g"] or ACC_REST_RANGE[0] <= g <= ACC_REST_RANGE[1]
+        )
+    if stream.mag is not None:
+        m = float(np.nanmedian(_norm(stream.mag)))
+        qc["mag_norm_ut"] = m
+        if not stream.attrs.get("mag_scale_assumed"):
+            flags["mag_norm_out_of_range"] = not (MAG_RANGE_UT[0] <= m <= MAG_RANGE_UT[1])
+    counter = stream.extra.get("packet_counter")
+    if counter is not None:
+        qc["dropped_packets"] = dropped_packets(counter)
+        flags["dropped_packets"] = qc["dropped_packets"] > 0
+    qc["flags"] = flags
+    return qc

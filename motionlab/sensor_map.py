@@ -1,0 +1,173 @@
+"""The sensor map (`ingest --map map.yaml`): where each sensor sits, and who was measured.
+
+Schema (every block optional)::
+
+    subject:                 # free metadata, stored in the session's metadata["subject"]
+      id: P017
+      height_m: 1.78
+    session:                 # free metadata, stored in metadata["session"]
+      date: 2024-05-02
+      protocol: knee
+    sensors:                 # keyed by the serial (device id) or the label the reader reports
+      00B421ED: {segment: shank, side: right}
+      00B421AF: {segment: thigh, side: r, label: thigh_r}
+    reader:                  # options given to every reader (motionlab.io.read_any), e.g.
+      format: generic        #   force a reader, or the generic reader's column map
+      rate_hz: 100
+
+``side`` is normalised to ``l``/``r`` (``left``, ``L``, ``right`` … accepted; omit it for midline
+segments); ``label`` renames the sensor in the session (default: the reader's label). Keys are read
+as text exactly as written, so ``00123456`` stays a serial and is not read as a number. Every error
+names the key and its line.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from motionlab.errors import InputError
+
+TOP_KEYS = ("subject", "session", "sensors", "reader")
+SENSOR_KEYS = ("segment", "side", "label")
+_SIDES = {"l": "l", "left": "l", "r": "r", "right": "r", "": ""}
+
+
+@dataclass
+class SensorPlacement:
+    """Where one sensor sits: the map key that named it, its segment, side and new label."""
+
+    key: str
+    segment: str = ""
+    side: str = ""
+    label: str = ""
+    line: int | None = None
+
+
+@dataclass
+class SensorMap:
+    """A validated sensor map."""
+
+    sensors: dict[str, SensorPlacement] = field(default_factory=dict)
+    subject: dict[str, Any] = field(default_factory=dict)
+    session: dict[str, Any] = field(default_factory=dict)
+    reader: dict[str, Any] = field(default_factory=dict)
+    path: Path | None = None
+
+    def fail(self, key: str, message: str, remedy: str, line: int | None = None) -> InputError:
+        """An :class:`InputError` naming ``key`` (and its line) in this map."""
+        place = f"line {line}, key {key}" if line else f"key {key}"
+        return InputError(message, self.path, place, remedy)
+
+
+class _Loader(yaml.SafeLoader):
+    """SafeLoader whose mapping keys stay the text written and remember their line."""
+
+
+class _Mapping(dict):
+    lines: dict[str, int]
+
+
+def _construct_mapping(loader: _Loader, node: yaml.MappingNode) -> _Mapping:
+    loader.flatten_mapping(node)
+    out = _Mapping()
+    out.lines = {}
+    for key_node, value_node in node.value:
+        if isinstance(key_node, yaml.ScalarNode):
+            key = key_node.value
+        else:
+            key = str(loader.construct_object(key_node, deep=True))
+        out[key] = loader.construct_object(value_node, deep=True)
+        out.lines[key] = key_node.start_mark.line + 1
+    return out
+
+
+_Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
+
+
+def _jsonable(value: Any) -> Any:
+    """YAML dates become ISO strings so that metadata can be stored as JSON."""
+    if isinstance(value, dict):
+        return {k: _jsonable(v) for k, v in value.items()}
+    if isinstance(value, list):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, _dt.date | _dt.datetime):
+        return value.isoformat()
+    return value
+
+
+def normalise_side(value: Any) -> str | None:
+    """``'Right'`` → ``'r'``, ``'left'`` → ``'l'``, ``None``/``''`` → ``''``; None if unknown."""
+    if value is None:
+        return ""
+    return _SIDES.get(str(value).strip().lower())
+
+
+def load_sensor_map(path: str | Path) -> SensorMap:
+    """Read and validate a sensor map; :class:`InputError` names the offending key and line."""
+    path = Path(path)
+    smap = SensorMap(path=path)
+    try:
+        doc = yaml.load(path.read_text(encoding="utf-8"), Loader=_Loader)  # noqa: S506
+    except FileNotFoundError:
+        raise InputError("no such map file", path, remedy="check the --map path") from None
+    except UnicodeDecodeError:
+        raise InputError("not a text file", path, remedy="give a YAML sensor map") from None
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}" if mark else None
+        raise InputError(
+            f"not valid YAML ({getattr(exc, 'problem', exc)})", path, where, "check indentation"
+        ) from None
+    if doc is None:
+        return smap
+    if not isinstance(doc, dict):
+        raise smap.fail("(top level)", "is not a mapping", "start with 'sensors:'", 1)
+    lines = doc.lines
+    for key, value in doc.items():
+        if key not in TOP_KEYS:
+            raise smap.fail(key, "unknown key", f"use {', '.join(TOP_KEYS)}", lines[key])
+        if value is not None and not isinstance(value, dict):
+            raise smap.fail(key, "is not a mapping", "give 'name: value' lines", lines[key])
+    smap.subject = _jsonable(dict(doc.get("subject") or {}))
+    smap.session = _jsonable(dict(doc.get("session") or {}))
+    smap.reader = _jsonable(dict(doc.get("reader") or {}))
+    sensors = doc.get("sensors") or _Mapping()
+    seen_labels: dict[str, str] = {}
+    for key, spec in sensors.items():
+        line = sensors.lines.get(key)
+        where = f"sensors.{key}"
+        if spec is None:
+            spec = {}
+        if not isinstance(spec, dict):
+            raise smap.fail(where, "is not a mapping", "write {segment: shank, side: r}", line)
+        for k in spec:
+            if k not in SENSOR_KEYS:
+                raise smap.fail(f"{where}.{k}", "unknown key", f"use {', '.join(SENSOR_KEYS)}",
+                                line)  # fmt: skip
+        for k in ("segment", "label"):
+            if not isinstance(spec.get(k, ""), str):
+                raise smap.fail(f"{where}.{k}", f"is not text: {spec[k]!r}", "quote it", line)
+        side = normalise_side(spec.get("side"))
+        if side is None:
+            raise smap.fail(
+                f"{where}.side", f"side {spec['side']!r} is not left or right", "write l or r", line
+            )
+        label = spec.get("label", "").strip()
+        if "/" in label or label in (".", ".."):
+            raise smap.fail(f"{where}.label", f"label {label!r} cannot name a sensor",
+                            "use letters, digits and _", line)  # fmt: skip
+        if label:
+            if label in seen_labels:
+                raise smap.fail(f"{where}.label", f"label {label!r} is also used by "
+                                f"sensors.{seen_labels[label]}", "give each sensor its own label",
+                                line)  # fmt: skip
+            seen_labels[label] = key
+        smap.sensors[key] = SensorPlacement(
+            key=key, segment=spec.get("segment", "").strip(), side=side, label=label, line=line
+        )
+    return smap

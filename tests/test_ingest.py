@@ -1,0 +1,364 @@
+"""Ingest: clock repair, gaps, resampling, quality checks, sensor map, common origin, provenance."""
+
+import numpy as np
+import pytest
+from conftest import SHARED, needs_shared
+
+from motionlab import ingest as ingest_module
+from motionlab import qc, rotations, timebase
+from motionlab.errors import InputError
+from motionlab.ingest import ingest
+from motionlab.io import Recording
+from motionlab.sensor_map import load_sensor_map
+from motionlab.session import MarkerSet, SensorStream, load_session, save_session, sha256_file
+
+
+def stream(t, label="s1", serial="", **channels) -> SensorStream:
+    t = np.asarray(t, dtype=float)
+    return SensorStream(label=label, time=t, serial=serial, **channels)
+
+
+def ramp(t):
+    """acc = [t, 2t, 9.81]: linear in time, so linear interpolation is exact."""
+    return np.column_stack([t, 2 * t, np.full_like(t, 9.81)])
+
+
+# ----------------------------------------------------------------------------- clock repair
+
+
+def test_exact_duplicates_dropped():
+    t = np.array([0.0, 0.01, 0.01, 0.02, 0.03])
+    s = stream(t, acc=ramp(t))
+    out, rep = timebase.repair_clock(s)
+    np.testing.assert_array_equal(out.time, [0.0, 0.01, 0.02, 0.03])
+    np.testing.assert_array_equal(out.acc, ramp(out.time))
+    assert rep["duplicates_dropped"] == 1
+
+
+def test_duplicate_stamp_with_other_values_refused():
+    t = np.array([0.0, 0.01, 0.01, 0.02])
+    acc = ramp(t)
+    acc[2, 0] = 5.0
+    with pytest.raises(InputError, match="data row 3") as e:
+        timebase.repair_clock(stream(t, acc=acc), "a.csv")
+    assert "a.csv" in e.value.line()
+
+
+def test_swapped_rows_reordered():
+    t = np.array([0.0, 0.01, 0.03, 0.02, 0.04])
+    s = stream(t, acc=ramp(t), extra={"flag": np.array([0, 1, 3, 2, 4])})
+    out, rep = timebase.repair_clock(s)
+    np.testing.assert_array_equal(out.time, [0.0, 0.01, 0.02, 0.03, 0.04])
+    np.testing.assert_array_equal(out.acc[:, 0], out.time)  # the values moved with their stamps
+    np.testing.assert_array_equal(out.extra["flag"], [0, 1, 2, 3, 4])
+    assert rep["reordered"] == 1
+
+
+def test_single_glitch_restamped():
+    t = np.array([0.0, 0.01, 0.02, 7.5, 0.04, 0.05])
+    out, rep = timebase.repair_clock(stream(t, acc=ramp(t)))
+    np.testing.assert_allclose(out.time, [0.0, 0.01, 0.02, 0.03, 0.04, 0.05])
+    assert rep["restamped"] == 1
+
+
+def test_two_backward_steps_refused():
+    t = np.array([0.0, 0.02, 0.01, 0.03, 0.05, 0.04, 0.06])
+    with pytest.raises(InputError, match=r"data row 3: time goes backwards at 2 places"):
+        timebase.repair_clock(stream(t, acc=ramp(t)))
+
+
+def test_nan_stamps_dropped():
+    t = np.array([0.0, 0.01, np.nan, 0.03])
+    out, rep = timebase.repair_clock(stream(t, acc=ramp(np.nan_to_num(t))))
+    np.testing.assert_array_equal(out.time, [0.0, 0.01, 0.03])
+    assert rep["nan_time_dropped"] == 1
+
+
+# ----------------------------------------------------------------------------- gaps
+
+
+def test_short_gap_filled_linear_and_slerp_long_gap_kept():
+    t = np.round(np.arange(0, 1.0, 0.01), 10)
+    keep = np.ones(len(t), bool)
+    keep[20:24] = False  # 4 samples missing: interval 0.19 → 0.24 (0.05 s), filled
+    keep[50:70] = False  # 20 missing: 0.49 → 0.70 (0.21 s), kept
+    t = t[keep]
+    angle = 2.0 * t  # rotation about z at 2 rad/s
+    quat = rotations.from_axis_angle([0, 0, 1], angle)
+    s = stream(t, acc=ramp(t), quat=quat, extra={"moving": t > 0.3})
+    out, rep = timebase.fill_short_gaps(s, gap_max=0.1)
+    assert rep["gaps_filled"] == 1 and rep["samples_filled"] == 4
+    assert rep["dropped_samples"] == 24
+    assert rep["gaps"] == [[pytest.approx(0.49), pytest.approx(0.70)]]
+    new = np.isin(np.round(out.time, 6), [0.2, 0.21, 0.22, 0.23])
+    assert new.sum() == 4 and len(out.time) == len(t) + 4
+    np.testing.assert_allclose(out.acc[new], ramp(out.time[new]), atol=1e-12)
+    np.testing.assert_allclose(rotations.angle(out.quat[new]), 2.0 * out.time[new], atol=1e-12)
+    assert not out.extra["moving"][new].any()  # held from the previous sample
+    old = ~new
+    np.testing.assert_array_equal(out.acc[old], s.acc)  # recorded samples untouched
+    np.testing.assert_array_equal(out.quat[old], s.quat)
+
+
+def test_no_gaps_returns_stream_unchanged():
+    t = np.arange(100) / 100.0
+    s = stream(t, acc=ramp(t))
+    out, rep = timebase.fill_short_gaps(s, 0.1)
+    assert out is s and rep["dropped_samples"] == 0 and rep["gaps"] == []
+
+
+# ----------------------------------------------------------------------------- resampling
+
+
+def test_resample_common_clock_and_nan_in_long_gap():
+    t = 0.0033 + np.arange(0, 3.0, 1 / 285.7)
+    t = t[(t < 1.0) | (t > 1.5)]
+    f = 1.3  # Hz, well below the new Nyquist frequency
+    gyr = np.column_stack([np.sin(2 * np.pi * f * t)] * 3)
+    q = rotations.from_axis_angle([1, 0, 0], 0.5 * t)
+    out = timebase.resample(stream(t, gyr=gyr, quat=q), 100.0)
+    k = np.round(out.time * 100)
+    np.testing.assert_allclose(out.time, k / 100, atol=1e-12)  # on k/rate
+    assert out.time[0] >= t[0] and out.time[-1] <= t[-1]
+    inside = (out.time > t[t < 1.0][-1]) & (out.time < t[t > 1.5][0])
+    assert inside.sum() == 51  # 1.00 … 1.50 s
+    assert np.isnan(out.gyr[inside]).all() and np.isnan(out.quat[inside]).all()
+    ok = ~inside & (out.time > 0.1) & (out.time < 2.9) & (np.abs(out.time - 1.25) > 0.4)
+    np.testing.assert_allclose(out.gyr[ok, 0], np.sin(2 * np.pi * f * out.time[ok]), atol=2e-3)
+    np.testing.assert_allclose(rotations.angle(out.quat[ok]), 0.5 * out.time[ok], atol=1e-9)
+
+
+def test_resample_removes_aliasing():
+    t = np.arange(0, 4.0, 1e-3)  # 1000 Hz
+    x = np.sin(2 * np.pi * 2.0 * t) + np.sin(2 * np.pi * 310.0 * t)  # 310 Hz would alias to 10 Hz
+    out = timebase.resample(stream(t, gyr=np.column_stack([x, x, x])), 100.0)
+    mid = (out.time > 0.5) & (out.time < 3.5)
+    err = out.gyr[mid, 0] - np.sin(2 * np.pi * 2.0 * out.time[mid])
+    assert np.max(np.abs(err)) < 0.02
+
+
+# ----------------------------------------------------------------------------- quality checks
+
+
+def _rest(n=500, rate=100.0, seed=1):
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / rate
+    acc = np.array([0.1, 0.2, 9.79]) + 0.02 * rng.standard_normal((n, 3))
+    gyr = 0.01 * rng.standard_normal((n, 3))
+    mag = np.array([0.0, 20.0, -40.0]) + 0.5 * rng.standard_normal((n, 3))
+    return t, acc, gyr, mag
+
+
+def test_qc_clean_recording_has_no_flags():
+    t, acc, gyr, mag = _rest()
+    acc = np.round(acc, 2)  # quantised: runs of identical values that are not a range limit
+    out = qc.check_stream(stream(t, acc=acc, gyr=gyr, mag=mag), 0.1)
+    assert not any(out["flags"].values()), out["flags"]
+    assert out["rate_hz"] == pytest.approx(100.0)
+    assert out["acc_rest_norm"] == pytest.approx(np.linalg.norm([0.1, 0.2, 9.79]), abs=0.01)
+
+
+def test_qc_jitter_in_ms():
+    rng = np.random.default_rng(2)
+    dt = 0.01 + 0.0005 * rng.standard_normal(5000)
+    t = np.concatenate([[0.0], np.cumsum(dt)])
+    out = qc.check_stream(stream(t, acc=ramp(t)), 0.1)
+    assert out["jitter_ms"] == pytest.approx(0.5, rel=0.05)
+    assert not out["flags"]["irregular_sampling"]
+
+
+def test_qc_saturation_flat_tops():
+    t = np.arange(1000) / 100.0
+    w = 40.0 * np.sin(2 * np.pi * 0.5 * t)
+    gyr = np.column_stack([np.clip(w, -34.9, 34.9), np.zeros_like(t), np.zeros_like(t)])
+    out = qc.check_stream(stream(t, gyr=gyr), 0.1)
+    assert out["flags"]["gyr_saturated"]
+    expected = np.sum(np.abs(w) >= 34.9)
+    assert out["saturated_samples"]["gyr"] == expected
+
+
+def test_qc_gyro_in_deg_per_s_and_acc_in_g():
+    t, acc, gyr, mag = _rest()
+    gyr[200:220, 2] = 60.0  # a 60 rad/s burst: that is a rate in deg/s
+    out = qc.check_stream(stream(t, acc=acc / 9.81, gyr=gyr, mag=mag * 10), 0.1)
+    f = out["flags"]
+    assert f["gyr_looks_like_deg_s"] and f["acc_looks_like_g"] and f["mag_norm_out_of_range"]
+    assert not f["acc_norm_implausible"]
+    one = gyr.copy()
+    one[:, 2] = 0.0
+    one[200, 2] = 60.0  # a single spike is not sustained
+    assert not qc.check_stream(stream(t, gyr=one), 0.1)["flags"]["gyr_looks_like_deg_s"]
+
+
+def test_qc_mag_assumed_scale_is_not_judged():
+    t, acc, gyr, mag = _rest()
+    s = stream(t, mag=mag * 10)
+    s.attrs["mag_scale_assumed"] = True
+    assert "mag_norm_out_of_range" not in qc.check_stream(s, 0.1)["flags"]
+
+
+def test_qc_nan_spans_and_packets():
+    t, acc, gyr, mag = _rest()
+    gyr[100:110] = np.nan
+    gyr[300, 1] = np.nan
+    counter = (np.arange(len(t)) + 65530) % 65536
+    counter = np.delete(counter, [10, 11, 12])  # three packets lost across the wrap
+    keep = np.delete(np.arange(len(t)), [10, 11, 12])
+    s = stream(t[keep], gyr=gyr[keep], extra={"packet_counter": counter})
+    out = qc.check_stream(s, 0.1)
+    assert out["dropped_packets"] == 3 and out["flags"]["dropped_packets"]
+    assert out["nan_spans"]["gyr"] == [[1.0, 1.09], [3.0, 3.0]]
+    assert out["flags"]["nan_spans"]
+
+
+# ----------------------------------------------------------------------------- ingest
+
+
+@pytest.fixture
+def fake_files(tmp_path, monkeypatch):
+    """Two files: one with two sensors on an absolute clock, one with a marker set."""
+    a, b = tmp_path / "imus.bin", tmp_path / "optical.bin"
+    a.write_bytes(b"imu file")
+    b.write_bytes(b"optical file")
+    t1 = 1000.0 + np.arange(0, 2.0, 0.01)
+    t2 = 1000.5 + np.arange(0, 2.0, 0.01)
+    tm = 1000.2 + np.arange(0, 1.0, 0.005)
+    recs = {
+        a: Recording(
+            sensors=[
+                stream(t1, "thigh", "00B421AF", acc=ramp(t1 - 1000), gyr=np.zeros((200, 3))),
+                stream(t2, "shank", "00B421ED", acc=ramp(t2 - 1000), gyr=np.zeros((200, 3))),
+            ],
+            metadata={"device": "test"},
+            format="fake",
+        ),
+        b: Recording(
+            markers=[MarkerSet("optical", tm, ["M1"], positions=np.zeros((200, 1, 3)))],
+            format="fake",
+        ),
+    }
+    monkeypatch.setattr(ingest_module, "read_any", lambda p, options=None: recs[p])
+    return a, b
+
+
+def test_ingest_common_origin_map_and_provenance(fake_files, tmp_path):
+    m = tmp_path / "map.yaml"
+    m.write_text(
+        "subject: {id: P1, height_m: 1.8}\nsession: {date: 2024-05-02}\n"
+        "sensors:\n  00b421ed: {segment: shank, side: Right, label: shank_r}\n"
+        "  thigh: {segment: thigh, side: L}\n"
+    )
+    s = ingest(list(fake_files), m, command="motionlab ingest test")
+    assert list(s.sensors) == ["thigh", "shank_r"]
+    assert s.metadata["time_origin_s"] == 1000.0
+    assert s.metadata["subject"] == {"id": "P1", "height_m": 1.8}
+    assert s.metadata["session"] == {"date": "2024-05-02"}
+    sh = s.sensors["shank_r"]
+    assert (sh.segment, sh.side, sh.serial) == ("shank", "r", "00B421ED")
+    assert s.sensors["thigh"].side == "l"
+    assert sh.time[0] == pytest.approx(0.5) and sh.attrs["start_s"] == 1000.5
+    assert s.markers["optical"].time[0] == pytest.approx(0.2)
+    np.testing.assert_allclose(sh.acc, ramp(sh.time), atol=1e-9)
+    assert sh.qc["flags"]["gaps"] is False and sh.qc["rate_hz"] == pytest.approx(100.0)
+    p = s.provenance[-1]
+    assert p["command"] == "motionlab ingest test"
+    assert p["parameters"]["gap_max_s"] == 0.1
+    assert p["inputs"] == {str(f): sha256_file(f) for f in [*fake_files, m]}
+    assert p["software"].startswith("motionlab ")
+
+
+def test_ingest_rate_puts_everything_on_one_clock(fake_files):
+    s = ingest(list(fake_files), rate=50.0)
+    for x in [*s.sensors.values(), *s.markers.values()]:
+        np.testing.assert_allclose(x.time * 50, np.round(x.time * 50), atol=1e-9)
+    assert s.sensors["shank"].time[0] == pytest.approx(0.5)
+
+
+def test_map_naming_absent_sensor(fake_files, tmp_path):
+    m = tmp_path / "map.yaml"
+    m.write_text("sensors:\n  thigh: {segment: thigh}\n  00B4FFFF: {segment: foot, side: r}\n")
+    with pytest.raises(InputError) as e:
+        ingest(list(fake_files), m)
+    assert e.value.where == "line 3, key sensors.00B4FFFF"
+    assert "00B421AF" in e.value.line()
+
+
+@pytest.mark.parametrize(
+    "text, key",
+    [
+        ("sensors:\n  a: {segment: shank, side: up}\n", "sensors.a.side"),
+        ("sensors:\n  a: {segment: shank, colour: red}\n", "sensors.a.colour"),
+        ("sensor:\n  a: {segment: shank}\n", "sensor"),
+        ("sensors:\n  a: {label: x}\n  b: {label: x}\n", "sensors.b.label"),
+        ("subject: P1\n", "subject"),
+    ],
+)
+def test_map_errors_name_the_key(tmp_path, text, key):
+    m = tmp_path / "map.yaml"
+    m.write_text(text)
+    with pytest.raises(InputError) as e:
+        load_sensor_map(m)
+    assert e.value.where.endswith(f"key {key}")
+
+
+def test_map_keys_stay_text(tmp_path):
+    m = tmp_path / "map.yaml"
+    m.write_text("sensors:\n  00123456: {side: left}\n  0x1F: {}\n")
+    smap = load_sensor_map(m)
+    assert list(smap.sensors) == ["00123456", "0x1F"]
+
+
+def test_all_nan_channel_refused(fake_files, monkeypatch):
+    t = np.arange(10) / 100
+    rec = Recording(sensors=[stream(t, "x", gyr=np.full((10, 3), np.nan), acc=ramp(t))])
+    monkeypatch.setattr(ingest_module, "read_any", lambda p, options=None: rec)
+    with pytest.raises(InputError, match="channel gyr holds no numbers"):
+        ingest([fake_files[0]])
+
+
+def write_xio(path, t, gyr_dps, acc_g):
+    head = "Time (s)," + ",".join(f"Gyroscope {a} (deg/s)" for a in "XYZ") + ","
+    head += ",".join(f"Accelerometer {a} (g)" for a in "XYZ")
+    np.savetxt(path, np.column_stack([t, gyr_dps, acc_g]), delimiter=",", header=head,
+               comments="", fmt="%.9g")  # fmt: skip
+
+
+def test_ingest_xio_files_end_to_end(tmp_path):
+    rng = np.random.default_rng(3)
+    files = []
+    for k, start in enumerate([0.0, 0.37]):
+        t = start + np.arange(0, 5.0, 0.01)
+        keep = np.ones(len(t), bool)
+        keep[100:103] = False  # a short gap, filled
+        keep[300:340] = False  # a long gap, kept
+        gyr = rng.normal(size=(len(t), 3)) * 10
+        write_xio(tmp_path / f"s{k}.csv", t[keep], gyr[keep], np.tile([0, 0, 1.0], (keep.sum(), 1)))
+        files.append(tmp_path / f"s{k}.csv")
+    before = [(f.read_bytes(), f.stat().st_mtime_ns) for f in files]
+    s = ingest(files)
+    assert [(f.read_bytes(), f.stat().st_mtime_ns) for f in files] == before
+    s1 = s.sensors["s1"]
+    assert s1.time[0] == pytest.approx(0.37)
+    assert s1.qc["gaps_filled"] == 1 and s1.qc["samples_filled"] == 3
+    assert s1.qc["gaps"] == [[pytest.approx(0.37 + 2.99), pytest.approx(0.37 + 3.40)]]
+    assert s1.source_units["gyr"] == "deg/s"
+    assert s1.qc["acc_rest_norm"] == pytest.approx(9.80665)
+    out = tmp_path / "session.h5"
+    save_session(s, out)
+    back = load_session(out)
+    np.testing.assert_array_equal(back.sensors["s1"].gyr, s1.gyr)
+    assert back.sensors["s1"].qc == s1.qc
+
+
+@needs_shared
+def test_ingest_real_xsens_and_xio():
+    f = SHARED / "formats"
+    s = ingest([f / "xsens/MT_012005D6_031-000_00B421AF.txt", f / "xio/sensor_data.csv"])
+    xs = s.sensors["00B421AF"]
+    assert xs.qc["rate_hz"] == pytest.approx(100.0)
+    assert xs.qc["acc_rest_norm"] == pytest.approx(9.81, abs=0.1)
+    assert not any(xs.qc["flags"].values())
+    xio = s.sensors["sensor_data"]
+    assert xio.source_units["gyr"] == "deg/s"
+    assert not xio.qc["flags"]["gyr_looks_like_deg_s"]
+    assert 20 < xio.qc["mag_norm_ut"] < 70
