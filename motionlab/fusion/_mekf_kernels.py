@@ -1,0 +1,343 @@
+"""Numba kernels of the multiplicative EKF and its RTS smoother (see :mod:`motionlab.fusion.mekf`).
+
+Conventions: quaternions scalar first, sensor → ENU earth; gyroscope rad/s, accelerometer m/s²,
+magnetometer µT. The error state is ``[δθ, δb]``: ``δθ`` (rad) a small rotation in the **earth**
+frame, ``q_true = exp(δθ/2) ⊗ q``, and ``δb`` (rad/s) the gyroscope-bias error, ``b_true = b + δb``.
+With an earth-frame attitude error the transition matrix is ``F = [[I, −R dt], [0, I]]``
+(``R`` = rotation matrix of ``q``), the accelerometer sees only ``δθ_x, δθ_y`` and the
+magnetometer's heading sees only ``δθ_z`` — every measurement is a scalar update on one
+component of the error state, so nothing in the loop allocates.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+# indices of the float parameter vector passed to the forward kernel
+GYR_NOISE, BIAS_RW, ACC_NOISE, ACC_REST_NOISE, REST_NOISE, GRAVITY = 0, 1, 2, 3, 4, 5
+MAG_NOISE, MAG_REST_NOISE, MAG_NORM_TOL, MAG_DIP_TOL, MAG_REF_TAU, MAG_NEW_FIELD_T = range(6, 12)
+N_PARAMS = 12
+
+
+@numba.njit(cache=True, inline="always")
+def _quat_mul_exp_left(rx: float, ry: float, rz: float, q: np.ndarray) -> None:
+    """In place ``q ← exp([rx, ry, rz]/2) ⊗ q`` followed by normalisation."""
+    a = np.sqrt(rx * rx + ry * ry + rz * rz)
+    c = np.cos(0.5 * a)
+    s = np.sin(0.5 * a) / a if a > 1e-12 else 0.5
+    pw, px, py, pz = c, s * rx, s * ry, s * rz
+    w = pw * q[0] - px * q[1] - py * q[2] - pz * q[3]
+    x = pw * q[1] + px * q[0] + py * q[3] - pz * q[2]
+    y = pw * q[2] - px * q[3] + py * q[0] + pz * q[1]
+    z = pw * q[3] + px * q[2] - py * q[1] + pz * q[0]
+    n = np.sqrt(w * w + x * x + y * y + z * z)
+    q[0], q[1], q[2], q[3] = w / n, x / n, y / n, z / n
+
+
+@numba.njit(cache=True, inline="always")
+def _quat_mul_exp_right(q: np.ndarray, rx: float, ry: float, rz: float) -> None:
+    """In place ``q ← q ⊗ exp([rx, ry, rz]/2)`` followed by normalisation."""
+    a = np.sqrt(rx * rx + ry * ry + rz * rz)
+    c = np.cos(0.5 * a)
+    s = np.sin(0.5 * a) / a if a > 1e-12 else 0.5
+    pw, px, py, pz = c, s * rx, s * ry, s * rz
+    w = q[0] * pw - q[1] * px - q[2] * py - q[3] * pz
+    x = q[0] * px + q[1] * pw + q[2] * pz - q[3] * py
+    y = q[0] * py - q[1] * pz + q[2] * pw + q[3] * px
+    z = q[0] * pz + q[1] * py - q[2] * px + q[3] * pw
+    n = np.sqrt(w * w + x * x + y * y + z * z)
+    q[0], q[1], q[2], q[3] = w / n, x / n, y / n, z / n
+
+
+@numba.njit(cache=True, inline="always")
+def _rot_matrix(q: np.ndarray, r: np.ndarray) -> None:
+    """Rotation matrix of ``q`` (sensor → earth) into the preallocated 3×3 ``r``."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    r[0, 0] = 1 - 2 * (y * y + z * z)
+    r[0, 1] = 2 * (x * y - w * z)
+    r[0, 2] = 2 * (x * z + w * y)
+    r[1, 0] = 2 * (x * y + w * z)
+    r[1, 1] = 1 - 2 * (x * x + z * z)
+    r[1, 2] = 2 * (y * z - w * x)
+    r[2, 0] = 2 * (x * z - w * y)
+    r[2, 1] = 2 * (y * z + w * x)
+    r[2, 2] = 1 - 2 * (x * x + y * y)
+
+
+@numba.njit(cache=True)
+def _predict(p: np.ndarray, r: np.ndarray, dt: float, qa: float, qb: float, t: np.ndarray) -> None:
+    """Covariance prediction ``P ← F P Fᵀ + Q`` with ``F = [[I, G], [0, I]]``, ``G = −R dt``."""
+    # T = P_ab + G P_bb (the new cross block); P_aa += G P_abᵀ + T Gᵀ
+    for i in range(3):
+        for j in range(3):
+            acc = p[i, 3 + j]
+            for m in range(3):
+                acc -= r[i, m] * dt * p[3 + m, 3 + j]
+            t[i, j] = acc
+    for i in range(3):
+        for j in range(i, 3):
+            acc = p[i, j]
+            for m in range(3):
+                acc -= r[i, m] * dt * p[j, 3 + m] + t[i, m] * r[j, m] * dt
+            p[i, j] = acc
+            p[j, i] = acc
+    for i in range(3):
+        for j in range(3):
+            p[i, 3 + j] = t[i, j]
+            p[3 + j, i] = t[i, j]
+        p[i, i] += qa
+        p[3 + i, 3 + i] += qb
+
+
+@numba.njit(cache=True)
+def _scalar_update(
+    p: np.ndarray,
+    dx: np.ndarray,
+    j: int,
+    innov: float,
+    var: float,
+    heading_only: bool,
+    k: np.ndarray,
+    row: np.ndarray,
+) -> None:
+    """Kalman update with a scalar measurement of error component ``j`` (``H = e_j``).
+
+    ``innov`` is the residual at the prior error (``z − H dx``). With ``heading_only`` the gain
+    of the inclination components (``δθ_x, δθ_y``) is forced to zero and the covariance is
+    updated in Joseph form, which stays valid for that suboptimal gain.
+    """
+    s = p[j, j] + var
+    for i in range(6):
+        k[i] = p[i, j] / s
+    if heading_only:
+        k[0] = 0.0
+        k[1] = 0.0
+    for i in range(6):
+        dx[i] += k[i] * innov
+    if not heading_only:
+        for i in range(6):
+            row[i] = p[j, i]
+        for i in range(6):
+            for m in range(6):
+                p[i, m] -= k[i] * row[m]
+        return
+    # Joseph form: A = P − K P_j ; P = A − A_j Kᵀ + var K Kᵀ (A_j the j-th column of A)
+    for i in range(6):
+        row[i] = p[j, i]
+    for i in range(6):
+        for m in range(6):
+            p[i, m] -= k[i] * row[m]
+    for i in range(6):
+        row[i] = p[i, j]
+    for i in range(6):
+        for m in range(6):
+            p[i, m] += -row[i] * k[m] + var * k[i] * k[m]
+
+
+@numba.njit(cache=True)
+def forward(
+    gyr: np.ndarray,
+    acc: np.ndarray,
+    mag: np.ndarray,
+    use_mag: bool,
+    rest: np.ndarray,
+    dt: float,
+    q0: np.ndarray,
+    b0: np.ndarray,
+    p0: np.ndarray,
+    prm: np.ndarray,
+    quat: np.ndarray,
+    bias: np.ndarray,
+    mag_dist: np.ndarray,
+    p_post: np.ndarray,
+    p_prior: np.ndarray,
+    store: bool,
+) -> None:
+    """Run the error-state EKF over all samples, writing into the preallocated outputs.
+
+    ``quat`` (N×4), ``bias`` (N×3) and ``mag_dist`` (N) receive the posterior estimates;
+    with ``store`` the posterior and prior covariances go into ``p_post``/``p_prior``
+    (N×6×6) for the smoother.
+    """
+    n = gyr.shape[0]
+    q = q0.copy()
+    b = b0.copy()
+    p = p0.copy()
+    r = np.empty((3, 3))
+    t = np.empty((3, 3))
+    dx = np.zeros(6)
+    kvec = np.empty(6)
+    row = np.empty(6)
+    qa = prm[GYR_NOISE] ** 2 * dt
+    qb = prm[BIAS_RW] ** 2 * dt
+    g = prm[GRAVITY]
+    a_ref = dt / prm[MAG_REF_TAU]
+    ref_n = -1.0
+    ref_d = 0.0
+    cand_n = 0.0
+    cand_d = 0.0
+    cand_t = 0.0
+    for k in range(n):
+        wx = gyr[k, 0] - b[0]
+        wy = gyr[k, 1] - b[1]
+        wz = gyr[k, 2] - b[2]
+        if k > 0:
+            _quat_mul_exp_right(q, wx * dt, wy * dt, wz * dt)
+            _rot_matrix(q, r)
+            _predict(p, r, dt, qa, qb, t)
+        if store:
+            p_prior[k] = p
+        for i in range(6):
+            dx[i] = 0.0
+        if rest[k]:
+            var = prm[REST_NOISE] ** 2
+            for i in range(3):
+                _scalar_update(p, dx, 3 + i, gyr[k, i] - b[i] - dx[3 + i], var, False, kvec, row)
+        _rot_matrix(q, r)
+        # earth-frame acc over g, linear in acc (not normalised by |acc|): zero-mean linear
+        # acceleration then averages out instead of being weighted by its own magnitude
+        ex = (r[0, 0] * acc[k, 0] + r[0, 1] * acc[k, 1] + r[0, 2] * acc[k, 2]) / g
+        ey = (r[1, 0] * acc[k, 0] + r[1, 1] * acc[k, 1] + r[1, 2] * acc[k, 2]) / g
+        var = (prm[ACC_REST_NOISE] if rest[k] else prm[ACC_NOISE]) ** 2
+        # residual e_z × δθ = (−δθ_y, δθ_x): two scalar updates
+        _scalar_update(p, dx, 1, -ex - dx[1], var, False, kvec, row)
+        _scalar_update(p, dx, 0, ey - dx[0], var, False, kvec, row)
+        _quat_mul_exp_left(dx[0], dx[1], dx[2], q)
+        for i in range(3):
+            b[i] += dx[3 + i]
+            dx[i] = 0.0
+            dx[3 + i] = 0.0
+        mag_dist[k] = False
+        if use_mag:
+            _rot_matrix(q, r)
+            mx = r[0, 0] * mag[k, 0] + r[0, 1] * mag[k, 1] + r[0, 2] * mag[k, 2]
+            my = r[1, 0] * mag[k, 0] + r[1, 1] * mag[k, 1] + r[1, 2] * mag[k, 2]
+            mz = r[2, 0] * mag[k, 0] + r[2, 1] * mag[k, 1] + r[2, 2] * mag[k, 2]
+            mn = np.sqrt(mx * mx + my * my + mz * mz)
+            hn = np.sqrt(mx * mx + my * my)
+            if mn > 0.0 and hn > 0.0:
+                dip = np.arcsin(mz / mn)
+                if ref_n < 0.0:
+                    ref_n, ref_d, cand_n, cand_d = mn, dip, mn, dip
+                ok = (
+                    abs(mn - ref_n) < prm[MAG_NORM_TOL] * ref_n
+                    and abs(dip - ref_d) < prm[MAG_DIP_TOL]
+                )
+                if ok:
+                    ref_n += a_ref * (mn - ref_n)
+                    ref_d += a_ref * (dip - ref_d)
+                    cand_t = 0.0
+                else:
+                    # a new homogeneous field: accepted once steady for MAG_NEW_FIELD_T
+                    same = (
+                        abs(mn - cand_n) < prm[MAG_NORM_TOL] * cand_n
+                        and abs(dip - cand_d) < prm[MAG_DIP_TOL]
+                    )
+                    if same:
+                        cand_t += dt
+                        cand_n += a_ref * (mn - cand_n)
+                        cand_d += a_ref * (dip - cand_d)
+                    else:
+                        cand_n, cand_d, cand_t = mn, dip, 0.0
+                    if cand_t > prm[MAG_NEW_FIELD_T]:
+                        ref_n, ref_d, cand_t = cand_n, cand_d, 0.0
+                        ok = True
+                mag_dist[k] = not ok
+                if ok:
+                    var = (prm[MAG_REST_NOISE] if rest[k] else prm[MAG_NOISE]) ** 2
+                    _scalar_update(p, dx, 2, np.arctan2(mx, my), var, True, kvec, row)
+                    _quat_mul_exp_left(0.0, 0.0, dx[2], q)
+                    for i in range(3):
+                        b[i] += dx[3 + i]
+        quat[k] = q
+        bias[k] = b
+        if store:
+            p_post[k] = p
+
+
+@numba.njit(cache=True)
+def _chol_solve(a: np.ndarray, l: np.ndarray, v: np.ndarray) -> None:
+    """Solve ``a x = v`` in place (``v ← x``) for symmetric positive definite 6×6 ``a``."""
+    for i in range(6):
+        for j in range(i + 1):
+            s = a[i, j]
+            for m in range(j):
+                s -= l[i, m] * l[j, m]
+            if i == j:
+                l[i, i] = np.sqrt(s if s > 1e-300 else 1e-300)
+            else:
+                l[i, j] = s / l[j, j]
+    for i in range(6):
+        s = v[i]
+        for m in range(i):
+            s -= l[i, m] * v[m]
+        v[i] = s / l[i, i]
+    for i in range(5, -1, -1):
+        s = v[i]
+        for m in range(i + 1, 6):
+            s -= l[m, i] * v[m]
+        v[i] = s / l[i, i]
+
+
+@numba.njit(cache=True)
+def backward(
+    gyr: np.ndarray,
+    dt: float,
+    quat: np.ndarray,
+    bias: np.ndarray,
+    p_post: np.ndarray,
+    p_prior: np.ndarray,
+) -> None:
+    """Rauch–Tung–Striebel backward pass, overwriting ``quat``/``bias`` with smoothed values.
+
+    With filter posterior ``x̂_k`` (covariance ``P_k``) and prior ``x̄_{k+1} = f(x̂_k)``
+    (``P⁻_{k+1}``), the smoothed error ``e_{k+1} = x^s_{k+1} ⊖ x̄_{k+1}`` maps back as
+    ``e_k = P_k Fᵀ (P⁻_{k+1})⁻¹ e_{k+1}`` and ``x^s_k = x̂_k ⊕ e_k`` (Rauch, Tung & Striebel
+    1965, applied to the error state as in Särkkä 2013, *Bayesian Filtering and Smoothing*,
+    eq. 8.6).
+    """
+    n = gyr.shape[0]
+    qbar = np.empty(4)
+    r = np.empty((3, 3))
+    l = np.empty((6, 6))
+    e = np.empty(6)
+    f = np.empty(6)
+    # smoothed state of sample k+1 is kept in quat[k+1], bias[k+1]
+    for k in range(n - 2, -1, -1):
+        for i in range(4):
+            qbar[i] = quat[k, i]
+        _quat_mul_exp_right(
+            qbar,
+            (gyr[k + 1, 0] - bias[k, 0]) * dt,
+            (gyr[k + 1, 1] - bias[k, 1]) * dt,
+            (gyr[k + 1, 2] - bias[k, 2]) * dt,
+        )
+        # attitude error: rotation vector of q^s_{k+1} ⊗ conj(qbar)
+        s0, s1, s2, s3 = quat[k + 1, 0], quat[k + 1, 1], quat[k + 1, 2], quat[k + 1, 3]
+        ew = s0 * qbar[0] + s1 * qbar[1] + s2 * qbar[2] + s3 * qbar[3]
+        ex = -s0 * qbar[1] + s1 * qbar[0] - s2 * qbar[3] + s3 * qbar[2]
+        ey = -s0 * qbar[2] + s1 * qbar[3] + s2 * qbar[0] - s3 * qbar[1]
+        ez = -s0 * qbar[3] - s1 * qbar[2] + s2 * qbar[1] + s3 * qbar[0]
+        if ew < 0.0:
+            ew, ex, ey, ez = -ew, -ex, -ey, -ez
+        vn = np.sqrt(ex * ex + ey * ey + ez * ez)
+        c = 2.0 * np.arctan2(vn, ew) / vn if vn > 1e-12 else 2.0
+        e[0], e[1], e[2] = c * ex, c * ey, c * ez
+        for i in range(3):
+            e[3 + i] = bias[k + 1, i] - bias[k, i]
+        _chol_solve(p_prior[k + 1], l, e)
+        # f = Fᵀ y with F = [[I, −R dt], [0, I]]
+        _rot_matrix(qbar, r)
+        for i in range(3):
+            f[i] = e[i]
+            f[3 + i] = e[3 + i] - dt * (r[0, i] * e[0] + r[1, i] * e[1] + r[2, i] * e[2])
+        pk = p_post[k]
+        for i in range(6):
+            s = 0.0
+            for m in range(6):
+                s += pk[i, m] * f[m]
+            e[i] = s
+        _quat_mul_exp_left(e[0], e[1], e[2], quat[k])
+        for i in range(3):
+            bias[k, i] += e[3 + i]
