@@ -91,6 +91,9 @@ def test_csv_errors(tmp_path):
     bad = lines[:10] + [lines[10].replace("0.", "x.", 1)] + lines[11:]
     with pytest.raises(InputError, match=r"line 11.*'x\."):
         apdm.read(_write_lines(tmp_path, bad))
+    units = lines[:3] + [lines[3].replace("rad/s", "furlong/s", 1)] + lines[4:]
+    with pytest.raises(InputError, match=r"line 4 column 5.*unknown unit 'furlong/s'"):
+        apdm.read(_write_lines(tmp_path, units))
     with pytest.raises(InputError, match="no 'Time"):
         apdm.read(_write_lines(tmp_path, lines[:2]))
     f7 = FORMAT7.read_text().splitlines()

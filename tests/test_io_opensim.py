@@ -106,8 +106,10 @@ def _variant(tmp_path: Path, edit) -> Path:
     ],
 )
 def test_read_errors(tmp_path, edit, match):
+    path = _variant(tmp_path, edit)
     with pytest.raises(InputError, match=match):
-        opensim.read(_variant(tmp_path, edit))
+        opensim.read(path)
+    assert detect_format(path) == "opensim"  # still recognised, so the error names the problem
 
 
 @needs_shared

@@ -79,11 +79,13 @@ def test_c3d_errors(small_c3d, tmp_path):
     with pytest.raises(InputError, match="ezc3d cannot open"):
         c3d.read(head_only)
     garbage = tmp_path / "garbage.c3d"
-    garbage.write_bytes(b"\x02\x50" + bytes(range(256)) * 4)
+    garbage.write_bytes(b"\x02\x50" + bytes(510) + b"\x01\x50\x01\x54" + bytes(range(256)) * 4)
     assert c3d.sniff(garbage, garbage.read_bytes())
-    with pytest.raises(InputError, match="ezc3d cannot open"):
+    with pytest.raises(InputError, match="garbage.c3d"):
         c3d.read(garbage)
     assert not c3d.sniff(TRC, TRC.read_bytes())
+    text = b"xP" + b"a" * 1000  # a text file whose second byte is 'P'
+    assert not c3d.sniff(path, text)
 
 
 def test_trc_fixture():

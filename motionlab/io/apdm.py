@@ -69,6 +69,14 @@ def nwu_to_enu(q: np.ndarray) -> np.ndarray:
     return rot.mul(NWU_TO_ENU, q)
 
 
+def convert(values: np.ndarray, unit: str, quantity: str, path: Path, where: str) -> np.ndarray:
+    """:func:`~motionlab.units.to_si` with the file and place named in the error."""
+    try:
+        return to_si(values, unit, quantity)
+    except InputError as exc:
+        raise InputError(exc.message, path, where, exc.remedy) from None
+
+
 def sniff(path: Path, head: bytes) -> bool:
     """An APDM CSV starts with ``Format=`` or has ``Sample Rate:`` and ``/Acceleration/`` rows."""
     lines = head.decode("latin-1").splitlines()[:10]
@@ -102,14 +110,14 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
         )
 
     t_raw = values[:, 0]
-    time = to_si(t_raw - t_raw[0], time_unit, "time")
+    time = convert(t_raw - t_raw[0], time_unit, "time", path, f"line {first_data} column 1")
     attrs: dict[str, Any] = {"source_earth_frame": "NWU"}
     if lines[0].startswith("Format="):
         attrs["start_unix_us"] = int(t_raw[0])
     if "sample_rate_hz" in meta:
         attrs["nominal_rate_hz"] = meta["sample_rate_hz"]
 
-    sensors = _streams(path, columns, values, time, attrs)
+    sensors = _streams(path, columns, values, time, attrs, units_line=first_data)
     ignored = sorted({f"{c[0]}/{c[2]}" for c in columns if c[2] not in _QUANTITIES})
     meta["ignored_columns"] = ignored
     if table.notes:
@@ -229,7 +237,12 @@ def _float(path: Path, line_index: int, cell: str) -> float:
 
 
 def _streams(
-    path: Path, columns: list[Column], values: np.ndarray, time: np.ndarray, attrs: dict
+    path: Path,
+    columns: list[Column],
+    values: np.ndarray,
+    time: np.ndarray,
+    attrs: dict,
+    units_line: int,
 ) -> list[SensorStream]:
     by_sensor: dict[str, dict[tuple[str, str], tuple[int, str]]] = {}
     serials: dict[str, str] = {}
@@ -257,7 +270,8 @@ def _streams(
                 channels["quat"] = nwu_to_enu(values[:, idx])
                 continue
             unit = cols[keys[0]][1] or DEFAULT_UNITS[channel]
-            channels[channel] = to_si(values[:, idx], unit, channel)
+            where = f"line {units_line} column {idx[0] + 1}"
+            channels[channel] = convert(values[:, idx], unit, channel, path, where)
             source_units[channel] = unit
         if not channels:
             continue

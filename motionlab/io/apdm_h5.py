@@ -26,9 +26,8 @@ import numpy as np
 
 from motionlab.errors import InputError
 from motionlab.io import Recording
-from motionlab.io.apdm import DEFAULT_UNITS, nwu_to_enu
+from motionlab.io.apdm import DEFAULT_UNITS, convert, nwu_to_enu
 from motionlab.session import SensorStream
-from motionlab.units import to_si
 
 FORMAT = "apdm_h5"
 
@@ -108,7 +107,7 @@ def _sensor(path: Path, case_id: str, g: h5py.Group, processed: h5py.Group | Non
             continue
         data = _dataset(path, g, name, 3)
         unit = _text(g[name].attrs.get("Units", "")) or DEFAULT_UNITS[channel]
-        channels[channel] = to_si(data, unit, channel)
+        channels[channel] = convert(data, unit, channel, path, f"key {g.name}/{name}")
         source_units[channel] = unit
     if processed is not None and case_id in processed and "Orientation" in processed[case_id]:
         channels["quat"] = nwu_to_enu(_dataset(path, processed[case_id], "Orientation", 4))

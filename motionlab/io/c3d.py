@@ -30,8 +30,12 @@ FORMAT = "c3d"
 
 
 def sniff(path: Path, head: bytes) -> bool:
-    """C3D: the second byte of the header block is the key 0x50."""
-    return len(head) >= 512 and head[1] == 0x50
+    """C3D: the second byte of the header block is the key 0x50, and the parameter section
+    (block ``head[0]``) names a processor type 84–86 (Intel, DEC, MIPS) in its fourth byte."""
+    if len(head) < 512 or head[1] != 0x50:
+        return False
+    processor = (max(head[0], 1) - 1) * 512 + 3
+    return processor < len(head) and head[processor] in (84, 85, 86)
 
 
 def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
@@ -108,7 +112,7 @@ def _announced_frames(path: Path) -> int:
     """
     with open(path, "rb") as f:
         head = f.read(512)
-        f.seek(max(head[0] - 1, 0) * 512 + 3)
+        f.seek((max(head[0], 1) - 1) * 512 + 3)
         processor = f.read(1)
     order = ">" if processor == bytes([86]) else "<"
     first, last = np.frombuffer(head[6:10], dtype=f"{order}u2")

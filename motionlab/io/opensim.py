@@ -41,15 +41,14 @@ OPENSIM_VERSION = "4.1"
 
 
 def sniff(path: Path, head: bytes) -> bool:
-    """A text file with an ``endheader`` line and ``DataType=Quaternion`` (or w,x,y,z cells)."""
-    lines = head.decode("latin-1").splitlines()
-    stripped = [ln.strip() for ln in lines]
-    if "endheader" not in stripped:
-        return False
-    end = stripped.index("endheader")
-    if any(ln.lower() == "datatype=quaternion" for ln in stripped[:end]):
+    """An OpenSim header (``DataType=Quaternion`` or ``OpenSimVersion=`` before ``endheader``),
+    or an ``endheader`` line followed by ``w,x,y,z`` cells."""
+    stripped = [ln.strip() for ln in head.decode("latin-1").splitlines()]
+    end = stripped.index("endheader") if "endheader" in stripped else min(len(stripped), 20)
+    header = [ln.lower() for ln in stripped[:end]]
+    if "datatype=quaternion" in header or any(ln.startswith("opensimversion=") for ln in header):
         return True
-    data = lines[end + 2 : end + 3]
+    data = stripped[end + 2 : end + 3]
     return bool(data) and "\t" in data[0] and data[0].split("\t")[1].count(",") == 3
 
 
