@@ -25,8 +25,14 @@ Model (conventions of :mod:`motionlab.rotations`: scalar-first quaternions, sens
 The smoother stores the filter's prior and posterior covariances and runs the RTS backward pass on
 the error state, bias included (Särkkä, *Bayesian Filtering and Smoothing*, 2013, eq. 8.6).
 
+The accelerometer residual is the earth-frame ``acc/g`` (linear in ``acc``, no gating): weighting
+samples by their own ``|acc|`` deviation biased the inclination on BROAD's translation trials,
+whereas a small constant gain lets zero-mean linear acceleration average out. The rest flags come
+from a centred window, so ``mekf`` is causal except for the rest detector's ≈2 s look-ahead.
+
 The default parameters were tuned on the 8 BROAD trials in ``../shared`` (Laidig et al. 2021),
 which are also the trials the accuracy is reported on; they are not an independent test set.
+Mean total RMSE there: smoother 1.60°, mekf 2.55° (offline VQF 2.38°, online VQF 2.54°).
 """
 
 from __future__ import annotations
