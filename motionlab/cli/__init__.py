@@ -63,9 +63,9 @@ def main(ctx: click.Context, debug: bool) -> None:
 
 
 def _register() -> None:
-    from motionlab.cli import angles, calibrate, info, ingest
+    from motionlab.cli import angles, calibrate, fuse, info, ingest, simulate
 
-    for module in (info, ingest, calibrate, angles):
+    for module in (info, ingest, calibrate, angles, fuse, simulate):
         main.add_command(module.command)
 
 

@@ -1,0 +1,117 @@
+"""``motionlab fuse``: orientation of every sensor by a registered estimator."""
+
+from __future__ import annotations
+
+import click
+
+from motionlab.atomic import check_output
+from motionlab.errors import InputError
+from motionlab.fusion import registry
+from motionlab.session import Session, load_session, save_session
+
+
+def parse_params(items: tuple[str, ...]) -> dict[str, str]:
+    """``("beta=0.1", ...)`` → ``{"beta": "0.1"}`` (values are converted by the registry)."""
+    out = {}
+    for item in items:
+        key, sep, value = item.partition("=")
+        if not sep or not key.strip() or not value.strip():
+            raise InputError(f"--param {item!r} is not key=value", remedy="e.g. --param beta=0.1")
+        out[key.strip()] = value.strip()
+    return out
+
+
+def fuse_session(
+    ses: Session, name: str, params: dict[str, str], sensors: list[str], force: bool, path: str
+) -> list[str]:
+    """Run estimator ``name`` on ``sensors`` and store results in ``ses.results["fusion"]``."""
+    est = registry.get(name)
+    registry.make_params(est, params)  # fail on a bad parameter before any work
+    store = ses.results.setdefault("fusion", {})
+    for label in sensors:
+        if label in store and not force:
+            raise InputError(
+                "already holds a fusion result",
+                path,
+                f"results/fusion/{label}",
+                "add --force to replace it",
+            )
+    done = []
+    with click.progressbar(
+        sensors, label=f"fusing ({est.name})", file=click.get_text_stream("stderr")
+    ) as bar:
+        for label in bar:
+            s = ses.sensors[label]
+            res = registry.estimate(est.name, s.gyr, s.acc, s.mag, s.rate_hz, **params)
+            entry = {"name": res.name, "quat": res.quat, "params": res.params}
+            for key in ("gyro_bias", "rest", "mag_disturbed"):
+                value = getattr(res, key)
+                if value is not None:
+                    entry[key] = value
+            store[label] = entry
+            done.append(label)
+    return done
+
+
+@click.command("fuse")
+@click.argument("session", type=click.Path(dir_okay=False), required=False)
+@click.option("--filter", "name", default="default", show_default=True, help="Estimator name.")
+@click.option("--param", "params", multiple=True, help="Estimator parameter key=value (repeat).")
+@click.option("--sensor", "labels", multiple=True, help="Sensor label (repeat; default: all).")
+@click.option("--force", is_flag=True, help="Replace existing fusion results or output file.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), help="Write here, not in place.")
+@click.option("--list", "list_", is_flag=True, help="List the estimators and their parameters.")
+def command(
+    session: str | None,
+    name: str,
+    params: tuple[str, ...],
+    labels: tuple[str, ...],
+    force: bool,
+    output: str | None,
+    list_: bool,
+) -> None:
+    """Estimate each sensor's orientation (sensor → ENU earth) and store it in the session.
+
+    \b
+    Example:
+      motionlab fuse session.h5
+      motionlab fuse session.h5 --filter madgwick --param beta=0.1 --sensor shank_r
+      motionlab fuse --list
+    """
+    if list_:
+        click.echo(registry.describe())
+        return
+    if session is None:
+        raise InputError("no session file given", remedy="motionlab fuse SESSION (or --list)")
+    if output is not None:
+        check_output(output, force)
+    ses = load_session(session)
+    unknown = [lab for lab in labels if lab not in ses.sensors]
+    if unknown:
+        raise InputError(
+            f"no sensor {', '.join(unknown)}",
+            session,
+            remedy=f"sensors are {', '.join(ses.sensors) or 'none'}",
+        )
+    chosen = list(labels) or list(ses.sensors)
+    usable = [lab for lab in chosen if ses.sensors[lab].gyr is not None]
+    usable = [lab for lab in usable if ses.sensors[lab].acc is not None]
+    if labels and len(usable) < len(chosen):
+        bad = sorted(set(chosen) - set(usable))
+        raise InputError(
+            f"sensor {', '.join(bad)} has no gyroscope or accelerometer",
+            session,
+            remedy="fusion needs both",
+        )
+    if not usable:
+        raise InputError("no sensor has gyroscope and accelerometer data", session)
+    parsed = parse_params(params)
+    done = fuse_session(ses, name, parsed, usable, force, session)
+    ses.add_provenance(
+        parameters={"stage": "fuse", "filter": name, "params": parsed, "sensors": done},
+        inputs=[session],
+    )
+    save_session(ses, output or session, force=True)
+    for label in chosen:
+        state = "fused" if label in done else "skipped (no gyr/acc)"
+        click.echo(f"{label:<16} {state}")

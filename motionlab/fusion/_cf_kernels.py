@@ -1,0 +1,342 @@
+"""Numba kernels of the complementary filters (:mod:`motionlab.fusion.complementary`).
+
+Each kernel runs one filter over whole arrays with scalar locals only (no allocation in the
+loop). Quaternions are scalar first, sensor → ENU earth; ``pre[k]`` marks samples whose
+magnetometer must not be used (precomputed disturbance, or no magnetometer at all: then ``mag``
+is a dummy (1, 3) array that is never read). ``gating = (ref_norm, ref_dip, norm_tol, dip_tol)``
+is the undisturbed field (µT, rad) and the in-loop tolerances.
+"""
+
+from __future__ import annotations
+
+import numba
+import numpy as np
+
+from motionlab.fusion.detect import nb_field_disturbed
+
+_DAMP = 1e-6  # Levenberg-Marquardt damping of the 3x3 Gauss-Newton normal matrix
+
+
+@numba.njit(cache=True, inline="always")
+def _qmul(aw, ax, ay, az, bw, bx, by, bz):
+    return (
+        aw * bw - ax * bx - ay * by - az * bz,
+        aw * bx + ax * bw + ay * bz - az * by,
+        aw * by - ax * bz + ay * bw + az * bx,
+        aw * bz + ax * by - ay * bx + az * bw,
+    )
+
+
+@numba.njit(cache=True, inline="always")
+def _normq(w, x, y, z):
+    n = 1.0 / np.sqrt(w * w + x * x + y * y + z * z)
+    return w * n, x * n, y * n, z * n
+
+
+@numba.njit(cache=True, inline="always")
+def _unit(x, y, z):
+    n = np.sqrt(x * x + y * y + z * z)
+    if n < 1e-12:
+        return 0.0, 0.0, 0.0, 0.0
+    return x / n, y / n, z / n, n
+
+
+@numba.njit(cache=True, inline="always")
+def _to_earth(w, x, y, z, vx, vy, vz):
+    """``R(q) v``."""
+    return (
+        (1.0 - 2.0 * (y * y + z * z)) * vx
+        + 2.0 * (x * y - w * z) * vy
+        + 2.0 * (x * z + w * y) * vz,
+        2.0 * (x * y + w * z) * vx
+        + (1.0 - 2.0 * (x * x + z * z)) * vy
+        + 2.0 * (y * z - w * x) * vz,
+        2.0 * (x * z - w * y) * vx
+        + 2.0 * (y * z + w * x) * vy
+        + (1.0 - 2.0 * (x * x + y * y)) * vz,
+    )
+
+
+@numba.njit(cache=True, inline="always")
+def _to_sensor(w, x, y, z, vx, vy, vz):
+    """``R(q)ᵀ v``."""
+    return _to_earth(w, -x, -y, -z, vx, vy, vz)
+
+
+@numba.njit(cache=True, inline="always")
+def _gyro_step(w, x, y, z, gx, gy, gz, dt):
+    """First-order strapdown step ``q + Δt/2 q ⊗ [0, ω]``, normalised (Liu eq. (30))."""
+    dw, dx, dy, dz = _qmul(w, x, y, z, 0.0, gx, gy, gz)
+    h = 0.5 * dt
+    return _normq(w + h * dw, x + h * dx, y + h * dy, z + h * dz)
+
+
+@numba.njit(cache=True, inline="always")
+def _mag_ok(pre, k, w, x, y, z, mag, ref_norm, ref_dip, norm_tol, dip_tol):
+    if pre[k]:
+        return False
+    return not nb_field_disturbed(
+        w, x, y, z, mag[k, 0], mag[k, 1], mag[k, 2], ref_norm, ref_dip, norm_tol, dip_tol
+    )
+
+
+@numba.njit(cache=True, inline="always")
+def _gn_add(n, g, wt, ox, oy, oz, yx, yy, yz):
+    """Accumulate one unit observation ``o`` with prediction ``y`` into the normal equations:
+    ``N += 4w(I − yyᵀ)``, ``g += 2w o×y`` (Liu eq. (55) with ``X_p = 2[y]×``)."""
+    n[0] += 4.0 * wt * (1.0 - yx * yx)
+    n[1] += -4.0 * wt * yx * yy
+    n[2] += -4.0 * wt * yx * yz
+    n[3] += 4.0 * wt * (1.0 - yy * yy)
+    n[4] += -4.0 * wt * yy * yz
+    n[5] += 4.0 * wt * (1.0 - yz * yz)
+    g[0] += 2.0 * wt * (oy * yz - oz * yy)
+    g[1] += 2.0 * wt * (oz * yx - ox * yz)
+    g[2] += 2.0 * wt * (ox * yy - oy * yx)
+
+
+@numba.njit(cache=True, inline="always")
+def _solve_sym(n, g):
+    """Solve the damped symmetric 3×3 system ``(N + λI) p = g`` (N packed xx,xy,xz,yy,yz,zz)."""
+    a, b, c = n[0] + _DAMP, n[1], n[2]
+    d, e, f = n[3] + _DAMP, n[4], n[5] + _DAMP
+    c00 = d * f - e * e
+    c01 = c * e - b * f
+    c02 = b * e - c * d
+    det = a * c00 + b * c01 + c * c02
+    c11 = a * f - c * c
+    c12 = b * c - a * e
+    c22 = a * d - b * b
+    return (
+        (c00 * g[0] + c01 * g[1] + c02 * g[2]) / det,
+        (c01 * g[0] + c11 * g[1] + c12 * g[2]) / det,
+        (c02 * g[0] + c12 * g[1] + c22 * g[2]) / det,
+    )
+
+
+@numba.njit(cache=True)
+def madgwick_kernel(
+    gyr, acc, mag, pre, q0, dt, beta, n_start, startup_gain, ref_norm, ref_dip, ntol, dtol
+):
+    nn = gyr.shape[0]
+    out = np.empty((nn, 4))
+    dist = np.empty(nn, dtype=np.bool_)
+    w, x, y, z = q0[0], q0[1], q0[2], q0[3]
+    for k in range(nn):
+        b = beta * startup_gain if k < n_start else beta
+        dw, dx, dy, dz = _qmul(w, x, y, z, 0.0, 0.5 * gyr[k, 0], 0.5 * gyr[k, 1], 0.5 * gyr[k, 2])
+        ax, ay, az, an = _unit(acc[k, 0], acc[k, 1], acc[k, 2])
+        use_m = _mag_ok(pre, k, w, x, y, z, mag, ref_norm, ref_dip, ntol, dtol)
+        dist[k] = not use_m
+        if an > 0.0:
+            # f = q* d q − s; ∇(½|f|²) = −2 q ⊗ (v ⊗ e) with v = q* d q, e = v − s
+            vx, vy, vz = _to_sensor(w, x, y, z, 0.0, 0.0, 1.0)
+            ex, ey, ez = vx - ax, vy - ay, vz - az
+            sw = -(vx * ex + vy * ey + vz * ez)
+            sx, sy, sz = vy * ez - vz * ey, vz * ex - vx * ez, vx * ey - vy * ex
+            if use_m:
+                mx, my, mz, mn = _unit(mag[k, 0], mag[k, 1], mag[k, 2])
+                hx, hy, hz = _to_earth(w, x, y, z, mx, my, mz)
+                # earth reference with the measured dip, horizontal part north (paper eq. (46))
+                vx, vy, vz = _to_sensor(w, x, y, z, 0.0, np.sqrt(hx * hx + hy * hy), hz)
+                ex, ey, ez = vx - mx, vy - my, vz - mz
+                sw -= vx * ex + vy * ey + vz * ez
+                sx += vy * ez - vz * ey
+                sy += vz * ex - vx * ez
+                sz += vx * ey - vy * ex
+            gw, gx, gy, gz = _qmul(w, x, y, z, sw, sx, sy, sz)
+            gn = np.sqrt(gw * gw + gx * gx + gy * gy + gz * gz)
+            if gn > 1e-12:
+                s = b / gn  # subtracting β∇/|∇| with ∇ = −(q ⊗ s): add
+                dw += s * gw
+                dx += s * gx
+                dy += s * gy
+                dz += s * gz
+        w, x, y, z = _normq(w + dt * dw, x + dt * dx, y + dt * dy, z + dt * dz)
+        out[k, 0], out[k, 1], out[k, 2], out[k, 3] = w, x, y, z
+    return out, dist
+
+
+@numba.njit(cache=True)
+def mahony_kernel(
+    gyr,
+    acc,
+    mag,
+    pre,
+    q0,
+    dt,
+    kp,
+    ki,
+    kmag,
+    n_start,
+    startup_gain,
+    ref_norm,
+    ref_dip,
+    ntol,
+    dtol,
+):
+    nn = gyr.shape[0]
+    out = np.empty((nn, 4))
+    bias = np.empty((nn, 3))
+    dist = np.empty(nn, dtype=np.bool_)
+    w, x, y, z = q0[0], q0[1], q0[2], q0[3]
+    bx, by, bz = 0.0, 0.0, 0.0
+    for k in range(nn):
+        ex, ey, ez = 0.0, 0.0, 0.0
+        ax, ay, az, an = _unit(acc[k, 0], acc[k, 1], acc[k, 2])
+        vx, vy, vz = _to_sensor(w, x, y, z, 0.0, 0.0, 1.0)
+        if an > 0.0:
+            # measured × predicted (Mahony 2008 eq. (32); To 2018 eq. (209) corrected)
+            ex, ey, ez = ay * vz - az * vy, az * vx - ax * vz, ax * vy - ay * vx
+        use_m = _mag_ok(pre, k, w, x, y, z, mag, ref_norm, ref_dip, ntol, dtol)
+        dist[k] = not use_m
+        if use_m:
+            hx, hy, _ = _to_earth(w, x, y, z, mag[k, 0], mag[k, 1], mag[k, 2])
+            hn = np.sqrt(hx * hx + hy * hy)
+            if hn > 1e-12:
+                # earth error ĥ_xy × north = [0, 0, hx/|h_xy|], mapped into the sensor frame
+                e_up = kmag * hx / hn
+                ex += e_up * vx
+                ey += e_up * vy
+                ez += e_up * vz
+        if k < n_start:
+            gain = kp * startup_gain
+        else:
+            gain = kp
+            bx -= ki * ex * dt
+            by -= ki * ey * dt
+            bz -= ki * ez * dt
+        w, x, y, z = _gyro_step(
+            w,
+            x,
+            y,
+            z,
+            gyr[k, 0] - bx + gain * ex,
+            gyr[k, 1] - by + gain * ey,
+            gyr[k, 2] - bz + gain * ez,
+            dt,
+        )
+        out[k, 0], out[k, 1], out[k, 2], out[k, 3] = w, x, y, z
+        bias[k, 0], bias[k, 1], bias[k, 2] = bx, by, bz
+    return out, bias, dist
+
+
+@numba.njit(cache=True, inline="always")
+def _gn_correction(w, x, y, z, ax, ay, az, wa, use_a, mag, k, wm, use_m, ref_dip, nrm, g):
+    """Reduced-order Gauss–Newton step ``p`` at ``q`` from the usable unit observations."""
+    for i in range(6):
+        nrm[i] = 0.0
+    g[0], g[1], g[2] = 0.0, 0.0, 0.0
+    if use_a:
+        vx, vy, vz = _to_sensor(w, x, y, z, 0.0, 0.0, 1.0)
+        _gn_add(nrm, g, wa, ax, ay, az, vx, vy, vz)
+    if use_m:
+        mx, my, mz, _ = _unit(mag[k, 0], mag[k, 1], mag[k, 2])
+        yx, yy, yz = _to_sensor(w, x, y, z, 0.0, np.cos(ref_dip), -np.sin(ref_dip))
+        _gn_add(nrm, g, wm, mx, my, mz, yx, yy, yz)
+    return _solve_sym(nrm, g)
+
+
+@numba.njit(cache=True)
+def liu_kernel(
+    gyr,
+    acc,
+    mag,
+    pre,
+    q0,
+    dt,
+    gain,
+    wa,
+    wm,
+    acc_tol,
+    gravity,
+    n_start,
+    startup_gain,
+    ref_norm,
+    ref_dip,
+    ntol,
+    dtol,
+):
+    nn = gyr.shape[0]
+    out = np.empty((nn, 4))
+    dist = np.empty(nn, dtype=np.bool_)
+    nrm = np.empty(6)
+    g = np.empty(3)
+    w, x, y, z = q0[0], q0[1], q0[2], q0[3]
+    for k in range(nn):
+        w, x, y, z = _gyro_step(w, x, y, z, gyr[k, 0], gyr[k, 1], gyr[k, 2], dt)
+        ax, ay, az, an = _unit(acc[k, 0], acc[k, 1], acc[k, 2])
+        use_a = an > 0.0 and abs(an - gravity) < acc_tol
+        use_m = _mag_ok(pre, k, w, x, y, z, mag, ref_norm, ref_dip, ntol, dtol)
+        dist[k] = not use_m
+        if use_a or use_m:
+            px, py, pz = _gn_correction(
+                w, x, y, z, ax, ay, az, wa, use_a, mag, k, wm, use_m, ref_dip, nrm, g
+            )
+            s = min(1.0, gain * dt * (startup_gain if k < n_start else 1.0))
+            dw, dx, dy, dz = _qmul(w, x, y, z, 0.0, px, py, pz)
+            w, x, y, z = _normq(w + s * dw, x + s * dx, y + s * dy, z + s * dz)
+        out[k, 0], out[k, 1], out[k, 2], out[k, 3] = w, x, y, z
+    return out, dist
+
+
+@numba.njit(cache=True)
+def adaptive_kernel(
+    gyr,
+    acc,
+    mag,
+    pre,
+    q0,
+    dt,
+    beta,
+    eps_acc,
+    eps_mag,
+    bias_gain,
+    gravity,
+    n_start,
+    startup_gain,
+    ref_norm,
+    ref_dip,
+    ntol,
+    dtol,
+):
+    nn = gyr.shape[0]
+    out = np.empty((nn, 4))
+    bias = np.empty((nn, 3))
+    dist = np.empty(nn, dtype=np.bool_)
+    nrm = np.empty(6)
+    g = np.empty(3)
+    w, x, y, z = q0[0], q0[1], q0[2], q0[3]
+    bx, by, bz = 0.0, 0.0, 0.0
+    for k in range(nn):
+        w, x, y, z = _gyro_step(w, x, y, z, gyr[k, 0] - bx, gyr[k, 1] - by, gyr[k, 2] - bz, dt)
+        ax, ay, az, an = _unit(acc[k, 0], acc[k, 1], acc[k, 2])
+        use_a = an > 0.0 and abs(an - gravity) < eps_acc
+        use_m = _mag_ok(pre, k, w, x, y, z, mag, ref_norm, ref_dip, ntol, dtol)
+        if use_m:
+            mn = np.sqrt(mag[k, 0] ** 2 + mag[k, 1] ** 2 + mag[k, 2] ** 2)
+            use_m = abs(mn - ref_norm) < eps_mag
+        dist[k] = not use_m
+        if use_a or use_m:
+            px, py, pz = _gn_correction(
+                w, x, y, z, ax, ay, az, 1.0, use_a, mag, k, 1.0, use_m, ref_dip, nrm, g
+            )
+            # δθ = 2p is the full Gauss-Newton correction (rotation vector, sensor frame)
+            tx, ty, tz = 2.0 * px, 2.0 * py, 2.0 * pz
+            if not use_a:  # magnetometer alone: heading only
+                vx, vy, vz = _to_sensor(w, x, y, z, 0.0, 0.0, 1.0)
+                c = tx * vx + ty * vy + tz * vz
+                tx, ty, tz = c * vx, c * vy, c * vz
+            mu = np.sqrt(tx * tx + ty * ty + tz * tz)
+            bdt = beta * dt * (startup_gain if k < n_start else 1.0)
+            gam = bdt / (mu + bdt)
+            tx, ty, tz = gam * tx, gam * ty, gam * tz
+            dw, dx, dy, dz = _qmul(w, x, y, z, 0.0, 0.5 * tx, 0.5 * ty, 0.5 * tz)
+            w, x, y, z = _normq(w + dw, x + dx, y + dy, z + dz)
+            if k >= n_start:
+                bx -= bias_gain * tx
+                by -= bias_gain * ty
+                bz -= bias_gain * tz
+        out[k, 0], out[k, 1], out[k, 2], out[k, 3] = w, x, y, z
+        bias[k, 0], bias[k, 1], bias[k, 2] = bx, by, bz
+    return out, bias, dist
