@@ -21,7 +21,6 @@ form, so :func:`read` gives back the written float64 values exactly.
 
 from __future__ import annotations
 
-import functools
 import io
 from pathlib import Path
 from typing import Any
@@ -98,32 +97,19 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     rows = lines[first:]
     if len(rows) < 1:
         raise InputError("no samples after the header", path, f"line {first + 1}", "re-export")
-    table = _cells(path, rows, first, len(names))
-    time = _numbers(path, table[:, :1], first, names[:1])[:, 0]
-    sensors = []
-    for j, name in enumerate(names[1:], start=1):
-        counts = np.char.count(table[:, j], ",") + 1
-        wrong = np.flatnonzero(counts != 4)
-        if wrong.size:
-            i = int(wrong[0])
-            raise InputError(
-                f"cell '{table[i, j]}' has {counts[i]} numbers, expected w,x,y,z",
-                path,
-                f"line {first + i + 1} column {name}",
-                "each cell must be four comma-separated numbers",
-            )
-        parts = pd.Series(table[:, j]).str.split(",", expand=True).to_numpy(dtype=str)
-        quat = _numbers(path, parts, first, [name] * 4)
-        sensors.append(
-            SensorStream(
-                label=name.strip(),
-                time=time,
-                quat=quat,
-                vendor="OpenSim",
-                source_units={"time": "s", "quat": "1"},
-                attrs={"earth_frame": EARTH_FRAME},
-            )
+    values = _values(path, rows, first, names)
+    time = values[:, 0]
+    sensors = [
+        SensorStream(
+            label=name.strip(),
+            time=time,
+            quat=values[:, 1 + 4 * k : 5 + 4 * k].copy(),
+            vendor="OpenSim",
+            source_units={"time": "s", "quat": "1"},
+            attrs={"earth_frame": EARTH_FRAME},
         )
+        for k, name in enumerate(names[1:])
+    ]
     meta: dict[str, Any] = {"header": header}
     if "DataRate" in header:
         try:
@@ -138,37 +124,51 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     return Recording(sensors=sensors, metadata=meta)
 
 
-def _cells(path: Path, rows: list[str], first: int, n_cols: int) -> np.ndarray:
-    """Tab-separated cells of ``rows`` as an (N, n_cols) string array; a wrong count is an error."""
-    n_fields = np.char.count(np.array(rows), "\t") + 1
-    wrong = np.flatnonzero(n_fields != n_cols)
+def _values(path: Path, rows: list[str], first: int, names: list[str]) -> np.ndarray:
+    """The samples as (N, 1 + 4·IMUs) float64: time, then w, x, y, z of each IMU.
+
+    The counts of tabs and commas are checked on every row at once; the numbers are parsed by
+    pandas' C parser; only a failure falls back to a cell-by-cell search for the culprit.
+    """
+    n_imus = len(names) - 1
+    text = np.array(rows)
+    tabs = np.char.count(text, "\t")
+    wrong = np.flatnonzero(tabs != n_imus)
     if wrong.size:
         i = int(wrong[0])
         raise InputError(
-            f"{n_fields[i]} cells, expected {n_cols}",
+            f"{tabs[i] + 1} cells, expected {len(names)}",
             path,
             f"line {first + i + 1}",
             "the file is truncated or edited; export it again",
         )
-    table = pd.read_csv(
-        io.StringIO("\n".join(rows)), sep="\t", header=None, dtype=str, na_filter=False
-    )
-    return table.to_numpy(dtype=str)
-
-
-def _numbers(path: Path, text: np.ndarray, first: int, names: list[str]) -> np.ndarray:
-    """Parse a string array as float64; name the first bad cell's line and column."""
-    values = pd.DataFrame(text).apply(pd.to_numeric, errors="coerce").to_numpy(dtype=float)
-    bad = np.isnan(values) & (np.char.lower(np.char.strip(text)) != "nan")
-    if bad.any():
-        i, j = np.argwhere(bad)[0]
+    wrong = np.flatnonzero(np.char.count(text, ",") != 3 * n_imus)
+    if wrong.size:
+        i = int(wrong[0])
+        cells = rows[i].split("\t")
+        j = next(j for j in range(1, len(cells)) if cells[j].count(",") != 3)
         raise InputError(
-            f"'{text[i, j]}' is not a number",
+            f"cell '{cells[j]}' has {cells[j].count(',') + 1} numbers, expected w,x,y,z",
             path,
             f"line {first + i + 1} column {names[j]}",
-            "fix the cell or export the file again",
+            "each cell must be four comma-separated numbers",
         )
-    return values
+    body = "\n".join(rows).replace("\t", ",")
+    try:
+        return pd.read_csv(io.StringIO(body), header=None, dtype=np.float64).to_numpy()
+    except ValueError:
+        cells = pd.read_csv(io.StringIO(body), header=None, dtype=str, na_filter=False)
+        cells = cells.to_numpy(dtype=str)
+        numbers = cells.copy()
+        numbers[np.char.lower(np.char.strip(cells)) == "nan"] = "0"
+        bad = np.isnan(pd.DataFrame(numbers).apply(pd.to_numeric, errors="coerce").to_numpy())
+        i, j = np.argwhere(bad)[0]
+        raise InputError(
+            f"'{cells[i, j]}' is not a number",
+            path,
+            f"line {first + i + 1} column {names[(j + 3) // 4]}",
+            "fix the cell or export the file again",
+        ) from None
 
 
 def write_sto(
@@ -196,21 +196,17 @@ def write_sto(
         raise InputError(f"time has shape {time.shape}, expected (N,)", path, remedy="pass (N,)")
     if not quats:
         raise InputError("no orientations to write", path, remedy="pass at least one IMU")
-    columns = ["time"]
-    cells = [_shortest(time)]
     for name, q in quats.items():
-        q = np.asarray(q, dtype=float)
         if any(c in name for c in "\t,\n") or not name.strip():
             raise InputError(f"IMU name {name!r}", path, remedy="use names without tab or comma")
-        if q.shape != (len(time), 4):
+        if np.shape(q) != (len(time), 4):
             raise InputError(
-                f"'{name}' has shape {q.shape}, expected ({len(time)}, 4)",
+                f"'{name}' has shape {np.shape(q)}, expected ({len(time)}, 4)",
                 path,
                 remedy="give one w,x,y,z row per time sample",
             )
-        s = _shortest(q)
-        cells.append(s[:, 0] + "," + s[:, 1] + "," + s[:, 2] + "," + s[:, 3])
-        columns.append(name)
+    columns = ["time", *quats]
+    values = np.column_stack([time, *(np.asarray(q, dtype=float) for q in quats.values())])
     rate = estimate_rate(time)
     header = [
         f"DataRate={rate if np.isfinite(rate) else 0.0:.6f}",
@@ -220,13 +216,18 @@ def write_sto(
         "endheader",
         "\t".join(columns),
     ]
-    rows = functools.reduce(lambda a, b: a + "\t" + b, cells)
-    text = "\n".join(header + list(rows)) + "\n"
+    text = "\n".join(header) + "\n" + _format_rows(values)
     with atomic_path(path, force=force) as tmp:
         tmp.write_text(text, encoding="utf-8")
 
 
-def _shortest(values: np.ndarray) -> np.ndarray:
-    """Shortest decimal strings that read back to the same float64 (``NaN`` for NaN)."""
-    s = np.asarray(values, dtype=float).astype(str)
-    return np.where(np.isnan(values), "NaN", s).astype(object)
+def _format_rows(values: np.ndarray) -> str:
+    """Rows of ``time<TAB>w,x,y,z<TAB>…`` with every float in its shortest round-trip form
+    (Python's ``repr``; ``NaN`` for NaN), joined in one pass without a loop over rows."""
+    n_rows, n_cols = values.shape
+    tokens = np.empty(2 * values.size, dtype=object)
+    tokens[0::2] = list(map(repr, values.ravel().tolist()))
+    tokens[0::2][np.isnan(values.ravel())] = "NaN"
+    separators = np.array(["\t" if c % 4 == 0 else "," for c in range(n_cols - 1)] + ["\n"], object)
+    tokens[1::2] = np.tile(separators, n_rows)
+    return "".join(tokens.tolist())
