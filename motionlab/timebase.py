@@ -88,6 +88,10 @@ def repair_clock(
         report["nan_time_dropped"] = int((~finite).sum())
         rows = rows[finite]
     where = f"sensor {stream.label}"
+    if len(rows) < 2:
+        raise InputError(
+            f"only {len(rows)} time-stamped samples", path, where, "export the file again"
+        )
 
     d = np.diff(t[rows])
     same = np.flatnonzero(d == 0)

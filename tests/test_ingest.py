@@ -362,3 +362,28 @@ def test_ingest_real_xsens_and_xio():
     assert xio.source_units["gyr"] == "deg/s"
     assert not xio.qc["flags"]["gyr_looks_like_deg_s"]
     assert 20 < xio.qc["mag_norm_ut"] < 70
+
+
+def test_info_json_and_text(tmp_path):
+    from click.testing import CliRunner
+
+    from motionlab.cli import main
+
+    t = np.arange(0, 3.0, 0.01)
+    t = t[(t < 1.0) | (t > 1.5)]
+    write_xio(tmp_path / "a.csv", t, np.zeros((len(t), 3)), np.tile([0, 0, 1.0], (len(t), 1)))
+    out = str(tmp_path / "s.h5")
+    assert CliRunner().invoke(main, ["ingest", str(tmp_path / "a.csv"), "-o", out]).exit_code == 0
+    r = CliRunner().invoke(main, ["info", out, "--json"])
+    assert r.exit_code == 0
+    import json
+
+    a = json.loads(r.stdout)["sensors"][0]
+    assert a["label"] == "a" and a["n_samples"] == len(t) and a["channels"] == ["acc", "gyr"]
+    assert a["rate_hz"] == pytest.approx(100.0) and a["duration_s"] == pytest.approx(2.99)
+    assert a["units"] == {"time": "s", "acc": "m/s^2", "gyr": "rad/s"}
+    assert a["gaps"] == [[pytest.approx(0.99), pytest.approx(1.51)]]
+    assert a["flags"]["gaps"] is True and a["flags"]["acc_saturated"] is False
+    text = CliRunner().invoke(main, ["info", out]).stdout
+    assert "gaps kept as missing: 0.99–1.51 s" in text and "qc flags: dropped_samples, gaps" in text
+    assert f"motionlab ingest {tmp_path / 'a.csv'} -o {out}" in text

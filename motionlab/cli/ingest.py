@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import shlex
-import sys
 
 import click
 
@@ -66,8 +65,11 @@ def command(files, map_path, rate, gap_max, output, force) -> None:  # fmt: skip
       motionlab ingest shank.txt thigh.txt --map map.yaml -o session.h5
     """
     check_output(output, force)
-    session = ingest(files, map_path, rate=rate, gap_max=gap_max,
-                     command=shlex.join(["motionlab", *sys.argv[1:]]))  # fmt: skip
+    args = ["motionlab", "ingest", *files, "-o", output]
+    for flag, value in (("--map", map_path), ("--rate", rate), ("--gap-max", gap_max)):
+        args += [flag, str(value)] if value is not None else []
+    args += ["--force"] if force else []
+    session = ingest(files, map_path, rate=rate, gap_max=gap_max, command=shlex.join(args))
     try:
         save_session(session, output, force=force)
     except OSError as exc:
