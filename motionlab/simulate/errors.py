@@ -1,0 +1,227 @@
+"""Sensor error model and its presets (``clean``, ``typical``, ``harsh``).
+
+Per triaxial channel (units of the channel: gyr rad/s, acc m/s², mag µT)::
+
+    y_k = Q( sat( (I + S + M) x_k + b_0 + w_k + n_k ) )
+
+``S`` diagonal scale-factor errors, ``M`` off-diagonal axis misalignment (rad), ``b_0`` a
+constant bias, ``w_k`` a bias random walk (rate random walk coefficient ``K``: increments
+N(0, K²Δt), Allan deviation ``K √(τ/3)``), ``n_k`` white noise of density ``N`` (per-sample
+σ = N √f_s, Allan deviation ``N / √τ``; IEEE Std 952-1997, Annex C), ``sat`` clipping at the
+full-scale range and ``Q`` rounding to the least significant bit. The magnetometer first sees
+soft iron (a symmetric matrix near I) and hard iron (an offset).
+
+Timing: each sensor clock reads ``offset + (1 + drift) t`` at true time ``t``; a sample is taken
+when the clock reads ``k / f_s + jitter`` and stamped ``k / f_s``; dropped packets (runs of
+geometrically distributed length, mean ``drop_burst`` samples) are removed, leaving gaps.
+
+``typical`` figures are those of consumer MEMS IMUs: Bosch BMI160 datasheet (BST-BMI160-DS000,
+2020): gyro noise 0.007 °/s/√Hz, 16.4 LSB/(°/s) at ±2000 °/s, accelerometer noise 180 µg/√Hz,
+2048 LSB/g at ±16 g, sensitivity tolerance ±1 %; TDK ICM-20948 / AK09916 magnetometer:
+0.15 µT/LSB, ±4900 µT; Xsens MTw Awinda user manual: magnetometer noise 0.2 mG/√Hz
+(0.02 µT/√Hz). The gyro bias (0.5 °/s) is a residual after factory trim, the clocks are ±20 ppm
+crystals. ``harsh`` multiplies noise and biases, narrows the gyro range so fast movements
+saturate, and adds packet loss, magnetic disturbances and soft-tissue wobble.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from motionlab.errors import InputError
+from motionlab.units import STANDARD_GRAVITY
+
+_DEG = math.pi / 180.0
+_G = STANDARD_GRAVITY
+
+
+@dataclass(frozen=True)
+class ChannelModel:
+    """Error parameters of one triaxial channel, in the channel's SI unit."""
+
+    noise_density: float = 0.0  # unit/√Hz
+    bias_sigma: float = 0.0  # unit, per axis
+    bias_walk: float = 0.0  # unit/√s (rate random walk coefficient K)
+    scale_sigma: float = 0.0  # fraction
+    misalignment_sigma: float = 0.0  # rad
+    full_scale: float = math.inf  # unit, saturation at ±full_scale
+    lsb: float = 0.0  # unit, 0 = no quantisation
+
+
+@dataclass(frozen=True)
+class TimingModel:
+    """Sampling errors of one sensor's clock and radio link."""
+
+    jitter_s: float = 0.0
+    drop_fraction: float = 0.0
+    drop_burst: float = 1.0  # mean dropped samples per gap
+    clock_offset_sigma_s: float = 0.0
+    clock_drift_sigma: float = 0.0  # fraction (20e-6 = 20 ppm)
+
+
+@dataclass(frozen=True)
+class Preset:
+    """Everything that makes a simulated recording imperfect."""
+
+    name: str
+    gyr: ChannelModel = field(default_factory=ChannelModel)
+    acc: ChannelModel = field(default_factory=ChannelModel)
+    mag: ChannelModel = field(default_factory=ChannelModel)
+    timing: TimingModel = field(default_factory=TimingModel)
+    hard_iron_sigma: float = 0.0  # µT
+    soft_iron_sigma: float = 0.0  # fraction
+    wobble_deg: float = 0.0  # soft-tissue wobble amplitude of the mounting
+    dipole_moment: float = 0.0  # A·m², a ferromagnetic object in the room (0 = none)
+    carried_field_ut: float = 0.0  # a field that moves with one sensor for a while (0 = none)
+    marker_noise_m: float = 0.0
+    occlusions_per_min: float = 0.0  # per marker
+    occlusion_mean_s: float = 0.2
+
+
+PRESETS = {
+    "clean": Preset("clean"),
+    "typical": Preset(
+        "typical",
+        gyr=ChannelModel(0.007 * _DEG, 0.5 * _DEG, 0.002 * _DEG, 0.005, 0.3 * _DEG,
+                         2000 * _DEG, 2000 * _DEG / 32768),
+        acc=ChannelModel(180e-6 * _G, 0.10, 2e-4, 0.005, 0.3 * _DEG, 16 * _G, 16 * _G / 32768),
+        mag=ChannelModel(0.02, 0.0, 0.0, 0.01, 0.5 * _DEG, 4900.0, 0.15),
+        timing=TimingModel(1e-4, 0.005, 3.0, 0.010, 20e-6),
+        hard_iron_sigma=5.0,
+        soft_iron_sigma=0.02,
+        wobble_deg=0.5,
+        marker_noise_m=0.001,
+        occlusions_per_min=2.0,
+    ),
+    "harsh": Preset(
+        "harsh",
+        gyr=ChannelModel(0.03 * _DEG, 2.0 * _DEG, 0.01 * _DEG, 0.02, 1.0 * _DEG,
+                         500 * _DEG, 500 * _DEG / 32768),
+        acc=ChannelModel(500e-6 * _G, 0.3, 1e-3, 0.02, 1.0 * _DEG, 4 * _G, 4 * _G / 32768),
+        mag=ChannelModel(0.1, 0.0, 0.0, 0.03, 1.5 * _DEG, 4900.0, 0.15),
+        timing=TimingModel(1e-3, 0.03, 10.0, 0.050, 100e-6),
+        hard_iron_sigma=20.0,
+        soft_iron_sigma=0.08,
+        wobble_deg=2.0,
+        dipole_moment=15.0,
+        carried_field_ut=15.0,
+        marker_noise_m=0.002,
+        occlusions_per_min=6.0,
+        occlusion_mean_s=0.5,
+    ),
+}  # fmt: skip
+
+
+def get_preset(preset: str | Preset) -> Preset:
+    """A preset by name (``clean``, ``typical``, ``harsh``) or a :class:`Preset` as given."""
+    if isinstance(preset, Preset):
+        return preset
+    if preset not in PRESETS:
+        raise InputError(
+            f"unknown preset {preset!r}",
+            where="--preset",
+            remedy=f"use one of {', '.join(PRESETS)}",
+        )
+    return PRESETS[preset]
+
+
+@dataclass
+class ChannelDraw:
+    """The constant errors drawn for one sensor channel."""
+
+    bias0: np.ndarray  # (3,)
+    matrix: np.ndarray  # (3, 3) = I + scale + misalignment
+
+
+def draw_channel(model: ChannelModel, rng: np.random.Generator) -> ChannelDraw:
+    """Draw the constant bias, scale factors and misalignment of one channel."""
+    bias0 = rng.normal(0.0, 1.0, 3) * model.bias_sigma
+    scale = rng.normal(0.0, 1.0, 3) * model.scale_sigma
+    mis = rng.normal(0.0, 1.0, (3, 3)) * model.misalignment_sigma
+    np.fill_diagonal(mis, 0.0)
+    return ChannelDraw(bias0, np.eye(3) + np.diag(scale) + mis)
+
+
+def apply_channel(
+    ideal: np.ndarray,
+    model: ChannelModel,
+    draw: ChannelDraw,
+    rate_hz: float,
+    rng: np.random.Generator,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Measured samples (N, 3) and the bias (N, 3) for ideal samples at ``rate_hz``."""
+    n = len(ideal)
+    dt = 1.0 / rate_hz
+    walk = np.cumsum(rng.normal(0.0, 1.0, (n, 3)), axis=0) * (model.bias_walk * math.sqrt(dt))
+    bias = draw.bias0 + walk
+    noise = rng.normal(0.0, 1.0, (n, 3)) * (model.noise_density * math.sqrt(rate_hz))
+    y = ideal @ draw.matrix.T + bias + noise
+    y = np.clip(y, -model.full_scale, model.full_scale)
+    if model.lsb > 0:
+        y = np.round(y / model.lsb) * model.lsb
+    return y, bias
+
+
+def soft_hard_iron(preset: Preset, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
+    """Soft-iron matrix (symmetric, near I) and hard-iron offset (µT) of one magnetometer."""
+    a = rng.normal(0.0, 1.0, (3, 3)) * preset.soft_iron_sigma
+    return np.eye(3) + (a + a.T) / 2, rng.normal(0.0, 1.0, 3) * preset.hard_iron_sigma
+
+
+@dataclass
+class Clock:
+    """A sensor clock: reads ``offset + (1 + drift) t`` at true time ``t`` (s)."""
+
+    offset: float = 0.0
+    drift: float = 0.0
+    jitter_s: float = 0.0
+
+    def true_time(self, clock_time: np.ndarray) -> np.ndarray:
+        return (np.asarray(clock_time) - self.offset) / (1.0 + self.drift)
+
+
+def draw_clock(timing: TimingModel, rng: np.random.Generator) -> Clock:
+    return Clock(
+        float(rng.normal() * timing.clock_offset_sigma_s),
+        float(rng.normal() * timing.clock_drift_sigma),
+        timing.jitter_s,
+    )
+
+
+def sample_times(
+    clock: Clock, rate_hz: float, duration: float, rng: np.random.Generator
+) -> tuple[np.ndarray, np.ndarray]:
+    """Stamps (sensor clock, s) and true sampling instants (s) of the samples in [0, duration]."""
+    k0 = math.ceil(clock.offset * rate_hz - 1e-9)
+    k1 = math.floor((clock.offset + (1.0 + clock.drift) * duration) * rate_hz + 1e-9)
+    stamps = np.arange(k0, k1 + 1) / rate_hz
+    jitter = rng.normal(0.0, 1.0, len(stamps)) * clock.jitter_s
+    return stamps, clock.true_time(stamps + jitter)
+
+
+def dropped(n: int, timing: TimingModel, rng: np.random.Generator) -> np.ndarray:
+    """Boolean mask (n,) of dropped packets: alternating kept and lost runs, geometric lengths.
+
+    The lost runs have mean ``drop_burst`` samples and the kept runs
+    ``drop_burst (1 - f) / f``, so the long-run lost fraction is ``f = drop_fraction``.
+    """
+    f = timing.drop_fraction
+    if f <= 0 or n == 0:
+        return np.zeros(n, dtype=bool)
+    bad_mean = max(timing.drop_burst, 1.0)
+    good_mean = bad_mean * (1 - f) / f
+    n_runs = int(2 * n / (good_mean + bad_mean)) + 20
+    while True:
+        good = rng.geometric(1.0 / max(good_mean, 1.0), n_runs)
+        bad = rng.geometric(1.0 / bad_mean, n_runs)
+        if good.sum() + bad.sum() >= n:
+            break
+        n_runs *= 2
+    lengths = np.column_stack([good, bad]).ravel()
+    flags = np.tile([False, True], n_runs)
+    mask = np.repeat(flags, lengths)[:n]
+    mask[0] = False  # a recording starts with its first packet
+    return mask

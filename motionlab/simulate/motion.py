@@ -1,0 +1,261 @@
+"""Joint trajectories as analytic functions of time, one generator per kind of movement.
+
+The body's state is a row of :data:`CHANNELS` (rad and m): the pelvis position and orientation
+relative to a *feet reference* (a point on the floor between the ankles and a heading; x forward,
+y left, z up), and three angles per joint. Knee, elbow and lumbar angles are clinical angles in the
+DESIGN signs (:func:`motionlab.kinematics.joint_angles.compose` turns them into rotations); hip,
+shoulder and ankle use the same Z-X-Y order with flexion/dorsiflexion, adduction and internal
+rotation positive on both sides. Pelvis angles: ``tilt_z`` about its z (negative = anterior tilt),
+``tilt_x`` about its x (obliquity), ``rot_y`` about its y (pelvic rotation).
+
+Every generator returns a :class:`Block` whose function of block time ``tau`` is a sum of
+sinusoids and polynomials multiplied by a C³ envelope that is exactly zero outside the block, so
+the block holds its neutral pose before and after it and can be joined to its neighbours without
+a kink (Hermite "smoothstep" of degree 7: 35x⁴ − 84x⁵ + 70x⁶ − 20x⁷).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from functools import cache
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+
+from motionlab.simulate.body import Body
+
+ROOT = ("root_x", "root_y", "root_z", "heading", "tilt_z", "tilt_x", "rot_y")
+JOINT_GROUPS = (
+    "hip_r", "hip_l", "knee_r", "knee_l", "ankle_r", "ankle_l", "lumbar",
+    "shoulder_r", "shoulder_l", "elbow_r", "elbow_l",
+)  # fmt: skip
+CHANNELS = ROOT + tuple(f"{g}_{i}" for g in JOINT_GROUPS for i in range(3))
+CH = {name: i for i, name in enumerate(CHANNELS)}
+DEG = np.pi / 180.0
+
+
+def group(name: str) -> slice:
+    """Columns of a joint group (``'knee_r'``) in the channel matrix."""
+    i = CH[f"{name}_0"]
+    return slice(i, i + 3)
+
+
+# ------------------------------------------------------------------------------ smooth pieces
+
+
+def smoothstep(x: np.ndarray) -> np.ndarray:
+    """C³ step from 0 (x ≤ 0) to 1 (x ≥ 1): 35x⁴ − 84x⁵ + 70x⁶ − 20x⁷."""
+    x = np.clip(x, 0.0, 1.0)
+    return x**4 * (35.0 + x * (-84.0 + x * (70.0 - 20.0 * x)))
+
+
+def _smoothstep_integral(x: np.ndarray) -> np.ndarray:
+    """∫₀ˣ smoothstep for x in [0, 1]: 7x⁵ − 14x⁶ + 10x⁷ − 2.5x⁸ (= 1/2 at x = 1)."""
+    return x**5 * (7.0 + x * (-14.0 + x * (10.0 - 2.5 * x)))
+
+
+def envelope(tau: np.ndarray, duration: float, ramp: float) -> np.ndarray:
+    """1 inside the block, C³ ramps of ``ramp`` s at both ends, exactly 0 outside [0, duration]."""
+    ramp = min(ramp, duration / 2)
+    return smoothstep(tau / ramp) * smoothstep((duration - tau) / ramp)
+
+
+def envelope_integral(tau: np.ndarray, duration: float, ramp: float) -> np.ndarray:
+    """∫₀^τ :func:`envelope` (s), analytic; constant after the block."""
+    ramp = min(ramp, duration / 2)
+    t = np.clip(tau, 0.0, duration)
+    head = ramp * _smoothstep_integral(np.clip(t / ramp, 0.0, 1.0))
+    middle = np.clip(t - ramp, 0.0, duration - 2 * ramp)
+    tail_x = np.clip((t - (duration - ramp)) / ramp, 0.0, 1.0)
+    tail = ramp * (0.5 - _smoothstep_integral(1.0 - tail_x))  # r ∫_{1-x}^{1} smoothstep
+    return head + middle + tail
+
+
+def wrap(a: np.ndarray) -> np.ndarray:
+    """Angle(s) wrapped to [-π, π)."""
+    return (np.asarray(a) + np.pi) % (2 * np.pi) - np.pi
+
+
+# ---------------------------------------------------------------------------- gait templates
+
+# Right-leg sagittal angles (deg) over one stride from heel strike (% of the cycle), shaped after
+# the normative curves in Perry & Burnfield (2010, Gait Analysis, ch. 4-6) and Winter (2009).
+_GAIT_POINTS = {
+    "knee": ([0, 15, 40, 60, 73, 87, 100], [5, 18, 4, 38, 62, 30, 5]),
+    "hip": ([0, 20, 50, 62, 85, 100], [30, 18, -10, 0, 35, 30]),
+    "ankle": ([0, 8, 45, 62, 75, 90, 100], [0, -6, 10, -16, -2, 2, 0]),
+}
+_HARMONICS = 6
+
+
+@cache
+def _gait_fourier(name: str) -> tuple[np.ndarray, np.ndarray]:
+    """Fourier coefficients (a_k cos kθ + b_k sin kθ, k = 0…6) of a periodic gait curve (rad)."""
+    pct, deg = _GAIT_POINTS[name]
+    spline = CubicSpline(np.array(pct) / 100.0, np.array(deg, dtype=float), bc_type="periodic")
+    n = 256
+    c = np.fft.rfft(spline(np.arange(n) / n)) / n
+    a = 2 * c.real[: _HARMONICS + 1]
+    b = -2 * c.imag[: _HARMONICS + 1]
+    a[0] /= 2
+    return a * DEG, b * DEG
+
+
+def gait_basis(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``cos(kθ)`` and ``sin(kθ)`` (N, 7) for :func:`gait_curve`; ``(−1)^k`` shifts them by π."""
+    kt = np.multiply.outer(theta, np.arange(_HARMONICS + 1))
+    return np.cos(kt), np.sin(kt)
+
+
+def gait_curve(name: str, basis: tuple[np.ndarray, np.ndarray], half: bool = False) -> np.ndarray:
+    """Gait template ``name`` (knee, hip, ankle) from :func:`gait_basis` of the phase (rad,
+    0 = heel strike); ``half`` shifts it by half a stride (the other leg)."""
+    a, b = _gait_fourier(name)
+    if half:
+        sign = (-1.0) ** np.arange(len(a))
+        a, b = a * sign, b * sign
+    return basis[0] @ a + basis[1] @ b
+
+
+# -------------------------------------------------------------------------------- postures
+
+
+def legs_sagittal(body: Body, kappa, beta, gamma):
+    """Pelvis height/forward position and hip/ankle angles for feet flat on the floor.
+
+    ``kappa`` knee flexion, ``beta`` forward tilt of the shank, ``gamma`` anterior pelvic tilt
+    (rad). Returns ``(forward, up, hip_flexion, ankle_dorsiflexion)`` with positions in m
+    relative to the feet reference.
+    """
+    L = body.lengths
+    thigh = kappa - beta
+    forward = L["shank"] * np.sin(beta) - L["thigh"] * np.sin(thigh)
+    up = L["ankle_height"] + L["shank"] * np.cos(beta) + L["thigh"] * np.cos(thigh)
+    return forward, up, thigh + gamma, beta
+
+
+def posture(body: Body, name: str) -> np.ndarray:
+    """Neutral channel row of a named pose: ``standing``, ``sitting`` or ``supine``."""
+    p = np.zeros(len(CHANNELS))
+    for side in "rl":
+        p[CH[f"elbow_{side}_1"]] = 10 * DEG  # carrying angle
+    if name == "sitting":
+        fwd, up, hip, ank = legs_sagittal(body, 90 * DEG, 0.0, 0.0)
+        p[CH["root_x"]], p[CH["root_z"]] = fwd, up
+        for side in "rl":
+            p[CH[f"knee_{side}_0"]], p[CH[f"hip_{side}_0"]] = 90 * DEG, hip
+            p[CH[f"elbow_{side}_0"]] = 30 * DEG
+        p[CH["lumbar_0"]] = 10 * DEG
+    elif name == "supine":
+        p[CH["root_x"]] = -(body.lengths["thigh"] + body.lengths["shank"])
+        p[CH["root_z"]] = body.lengths["pelvis_depth"]
+        p[CH["tilt_z"]] = np.pi / 2
+    else:
+        p[CH["root_z"]] = legs_sagittal(body, 0.0, 0.0, 0.0)[1]
+    return p
+
+
+def posture_of(text: str) -> str:
+    """Pose named in a step's ``pose`` or ``instructions`` text (default standing)."""
+    t = text.lower()
+    if any(w in t for w in ("supine", "lying", "lie ")):
+        return "supine"
+    if any(w in t for w in ("sit", "seated", "chair")):
+        return "sitting"
+    return "standing"
+
+
+# ----------------------------------------------------------------------------------- blocks
+
+
+@dataclass
+class Block:
+    """A stretch of the recording: channels as a function of block time ``tau`` (s).
+
+    ``fn`` returns local channels (N, C); ``end`` is the displacement of the feet reference at
+    the end ``(dx, dy, dheading)`` in the block's local frame; ``impacts`` are heel-strike times.
+    """
+
+    name: str
+    kind: str
+    phase: str
+    duration: float
+    fn: Callable[[np.ndarray], np.ndarray]
+    end: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    impacts: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    generator: str = ""
+
+
+def _tile(p: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    return np.broadcast_to(p, (len(tau), len(p))).copy()
+
+
+def static_block(body: Body, name: str, kind: str, phase: str, duration: float, pose: str):
+    """Holding a pose, perfectly still."""
+    p = posture(body, pose)
+    return Block(name, kind, phase, duration, lambda tau: _tile(p, tau), generator=f"static:{pose}")
+
+
+def rest_block(duration: float, row: np.ndarray) -> Block:
+    """Standing (or sitting) still in the pose ``row`` the previous block ended in."""
+    return Block("rest", "rest", "rest", duration, lambda tau: _tile(row, tau), generator="rest")
+
+
+def cycles(tau, duration, reps, ramp=0.4):
+    """(one-sided 0→1→0, symmetric ±1) repetition waves under the block envelope."""
+    f = max(reps, 1) / duration
+    e = envelope(tau, duration, min(ramp, 0.25 / f))
+    ph = 2 * np.pi * f * tau
+    return e * (1 - np.cos(ph)) / 2, e * np.sin(ph)
+
+
+def gait_block(body: Body, name: str, phase: str, duration: float, options: dict) -> Block:
+    """Walking around an ellipse (straight-ish sides, turns at the ends) at a steady cadence.
+
+    Speed up to ``speed`` m/s (default 1.2), stride frequency ``stride_hz`` (default 0.9 Hz);
+    knee, hip and ankle follow normative curves, with pelvis bounce/sway/rotation and arm swing.
+    """
+    a, b = float(options.get("path_a", 4.0)), float(options.get("path_b", 2.0))
+    speed, f = float(options.get("speed", 1.2)), float(options.get("stride_hz", 0.9))
+    ramp = min(2.0, duration / 3)
+    phidot = speed / a
+    stand = posture(body, "standing")
+
+    def path(phi):
+        x, y = a * np.sin(phi), b - b * np.cos(phi)
+        return x, y, phi + wrap(np.arctan2(b * np.sin(phi), a * np.cos(phi)) - phi)
+
+    def fn(tau):
+        e = envelope(tau, duration, ramp)
+        th = 2 * np.pi * f * tau
+        x, y, psi = path(phidot * envelope_integral(tau, duration, ramp))
+        out = _tile(stand, tau)
+        sway = 0.02 * e * np.sin(th)
+        out[:, CH["root_x"]] = x - np.sin(psi) * sway
+        out[:, CH["root_y"]] = y + np.cos(psi) * sway
+        out[:, CH["root_z"]] += e * (0.02 * np.cos(2 * th) - 0.015)
+        out[:, CH["heading"]] = psi
+        out[:, CH["tilt_z"]] = e * (-3 * DEG + 2 * DEG * np.sin(2 * th))
+        out[:, CH["tilt_x"]] = e * 4 * DEG * np.sin(2 * th + 0.6)
+        out[:, CH["rot_y"]] = e * 5 * DEG * np.cos(th)
+        basis = gait_basis(th)
+        for side, shift in (("r", 0.0), ("l", np.pi)):
+            out[:, CH[f"knee_{side}_0"]] = e * gait_curve("knee", basis, shift > 0)
+            out[:, CH[f"knee_{side}_2"]] = e * 3 * DEG * np.sin(th + shift - 0.4)
+            out[:, CH[f"knee_{side}_1"]] = e * 1.5 * DEG * np.sin(2 * (th + shift))
+            hip = gait_curve("hip", basis, shift > 0)
+            out[:, CH[f"hip_{side}_0"]] = e * hip
+            out[:, CH[f"hip_{side}_1"]] = e * 3 * DEG * np.sin(th + shift + 0.3)
+            out[:, CH[f"ankle_{side}_0"]] = e * gait_curve("ankle", basis, shift > 0)
+            out[:, CH[f"shoulder_{side}_0"]] = e * (-0.5 * hip + 8 * DEG)
+            out[:, CH[f"elbow_{side}_0"]] += e * (20 * DEG - 0.3 * hip)
+        out[:, CH["lumbar_2"]] = e * 5 * DEG * np.cos(th + np.pi)
+        out[:, CH["lumbar_1"]] = e * 3 * DEG * np.sin(2 * th)
+        out[:, CH["lumbar_0"]] = e * (3 * DEG + 1 * DEG * np.cos(2 * th))
+        return out
+
+    end = path(phidot * float(envelope_integral(np.array(duration), duration, ramp)))
+    strikes = np.arange(0.0, duration, 0.5 / f)  # both legs
+    strikes = strikes[envelope(strikes, duration, ramp) > 0.5]
+    return Block(name, "gait", phase, duration, fn, end, strikes, "gait")

@@ -1,0 +1,200 @@
+"""The recording's timeline: calibration steps, then tasks, with rests in between, as one C³ motion.
+
+Layout: ``rest, step₁, rest, step₂, …, rest, task₁, rest, …, task_K, rest``. Calibration steps keep
+their protocol durations; the tasks share what is left of ``duration`` in proportion to their
+``duration_s``. A rest holds the pose the previous block ended in; the change to the next block's
+starting pose is a C³ blend (:func:`~motionlab.simulate.motion.smoothstep`) over the last
+``blend_s`` seconds of the rest, so static steps are perfectly still from start to end.
+
+Every block works in the frame of a *feet reference* (position on the floor and heading) that is
+carried from one block to the next, so walking moves the subject through the room.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from motionlab.errors import InputError
+from motionlab.protocol import Protocol
+from motionlab.simulate.body import Body
+from motionlab.simulate.motion import (
+    CH,
+    DEG,
+    Block,
+    posture_of,
+    rest_block,
+    smoothstep,
+    static_block,
+)
+from motionlab.simulate.tasks import functional_block, mixed, task_block
+
+_XY = [CH["root_x"], CH["root_y"]]
+
+
+def _to_global(local: np.ndarray, origin: np.ndarray) -> np.ndarray:
+    """Block-local channels in the room frame (modifies and returns ``local``)."""
+    out = local
+    c, s = np.cos(origin[2]), np.sin(origin[2])
+    x, y = local[:, _XY[0]].copy(), local[:, _XY[1]].copy()
+    out[:, _XY[0]] = origin[0] + c * x - s * y
+    out[:, _XY[1]] = origin[1] + s * x + c * y
+    out[:, CH["heading"]] += origin[2]
+    return out
+
+
+def _to_local(row: np.ndarray, origin: np.ndarray) -> np.ndarray:
+    out = row.copy()
+    c, s = np.cos(origin[2]), np.sin(origin[2])
+    dx, dy = row[_XY[0]] - origin[0], row[_XY[1]] - origin[1]
+    out[_XY[0]], out[_XY[1]] = c * dx + s * dy, -s * dx + c * dy
+    out[CH["heading"]] -= origin[2]
+    return out
+
+
+def couple(ch: np.ndarray) -> np.ndarray:
+    """Couplings seen in real joints, added on top of every block.
+
+    Knee: adduction grows with flexion (up to 4° at 90°) and the tibia rotates internally with
+    flexion (0.12° per degree, the screw-home mechanism). Elbow: the carrying angle falls by
+    0.06° per degree of flexion. Modifies and returns ``ch``.
+    """
+    for s in "rl":
+        k = ch[:, CH[f"knee_{s}_0"]]
+        ch[:, CH[f"knee_{s}_1"]] += 4 * DEG * np.sin(k)
+        ch[:, CH[f"knee_{s}_2"]] += 0.12 * k
+        ch[:, CH[f"elbow_{s}_1"]] -= 0.06 * ch[:, CH[f"elbow_{s}_0"]]
+    return ch
+
+
+@dataclass
+class Timeline:
+    """Blocks with start times (s) and feet-reference origins ``(x, y, heading)``."""
+
+    blocks: list[Block]
+    starts: np.ndarray
+    origins: np.ndarray
+    blend_s: float
+
+    @property
+    def duration(self) -> float:
+        return float(self.starts[-1] + self.blocks[-1].duration)
+
+    def _global(self, i: int, tau: np.ndarray) -> np.ndarray:
+        return _to_global(self.blocks[i].fn(tau), self.origins[i])
+
+    def channels(self, t: np.ndarray) -> np.ndarray:
+        """Channel matrix (N, C) at true times ``t`` (s); the ends hold still beyond the record.
+
+        The result is read-only and the last two are kept: sensors sampled at the same instants
+        share one evaluation.
+        """
+        t = np.asarray(t, dtype=float)
+        cache = self.__dict__.setdefault("_cache", [])
+        for t_old, out in cache:
+            if t_old.shape == t.shape and np.array_equal(t_old, t):
+                return out
+        out = self._channels(t)
+        out.flags.writeable = False
+        cache[:] = [*cache[-1:], (t.copy(), out)]
+        return out
+
+    def _channels(self, t: np.ndarray) -> np.ndarray:
+        out = np.empty((len(t), len(CH)))
+        idx = np.clip(np.searchsorted(self.starts, t, side="right") - 1, 0, len(self.blocks) - 1)
+        for i in np.unique(idx):
+            m = idx == i
+            out[m] = self._global(i, t[m] - self.starts[i])
+        for i, block in enumerate(self.blocks[:-1]):
+            if block.phase != "rest":
+                continue
+            b = self.starts[i + 1]
+            w = min(self.blend_s, block.duration)
+            m = (t >= b - w) & (t < b)
+            if m.any():
+                s = smoothstep((t[m] - (b - w)) / w)[:, None]
+                out[m] = (1 - s) * out[m] + s * self._global(i + 1, t[m] - b)
+        return couple(out)
+
+    def impacts(self) -> np.ndarray:
+        """Heel-strike times (s) of all walking blocks (they excite the soft-tissue wobble)."""
+        parts = [s + b.impacts for s, b in zip(self.starts, self.blocks, strict=True)]
+        return np.concatenate(parts) if parts else np.zeros(0)
+
+    def steps(self) -> list[dict]:
+        """Calibration steps and tasks with start and end times (s); rests left out."""
+        return [
+            {
+                "name": b.name,
+                "kind": b.kind,
+                "phase": b.phase,
+                "start_s": float(s),
+                "end_s": float(s + b.duration),
+                "generator": b.generator,
+            }
+            for s, b in zip(self.starts, self.blocks, strict=True)
+            if b.phase != "rest"
+        ]
+
+
+def plan(
+    protocol: Protocol,
+    body: Body,
+    duration: float,
+    seed: int = 0,
+    rest_s: float = 3.0,
+    blend_s: float = 2.0,
+    calibration: bool = True,
+    heading_deg: float = 20.0,
+) -> Timeline:
+    """Lay out the protocol's calibration steps and tasks over ``duration`` seconds."""
+    steps = protocol.calibration if calibration else []
+    moves: list[Block] = []
+    for step in steps:
+        if step.kind == "static":
+            pose = posture_of(f"{step.pose} {step.instructions}")
+            moves.append(static_block(body, step.name, "static", "calibration", step.duration_s,
+                                      pose))  # fmt: skip
+        else:
+            moves.append(functional_block(body, step, seed))
+    tasks = list(protocol.tasks)
+    used = sum(b.duration for b in moves) + rest_s * (len(moves) + max(len(tasks), 1) + 1)
+    left = duration - used
+    n_tasks = max(len(tasks), 1)
+    if left < 3.0 * n_tasks - 1e-9:
+        raise InputError(
+            f"duration {duration:g} s is too short: calibration and rests take {used:g} s",
+            where="--duration",
+            remedy=f"give at least {used + 3.0 * n_tasks:g} s",
+        )
+    if tasks:
+        weights = np.array([t.duration_s for t in tasks], dtype=float)
+        weights = weights if weights.sum() > 0 else np.ones(len(tasks))
+        weights = np.where(weights > 0, weights, weights[weights > 0].mean())
+        share = left * weights / weights.sum()
+        for task, d in zip(tasks, share, strict=True):
+            moves.append(task_block(body, task, "task", float(d), seed))
+    else:
+        moves.append(mixed(body, "free", "task", left, 0, {}, seed))
+
+    blocks: list[Block] = []
+    origins: list[np.ndarray] = []
+    origin = np.array([0.0, 0.0, heading_deg * DEG])
+    for block in moves:
+        prev = blocks[-1] if blocks else None
+        if prev is None:
+            row = block.fn(np.array([-1.0]))[0]
+        else:
+            end = _to_global(prev.fn(np.array([prev.duration + 1.0])), origins[-1])[0]
+            row = _to_local(end, origin)
+        blocks += [rest_block(rest_s, row), block]
+        origins += [origin.copy(), origin.copy()]
+        dx, dy, dpsi = block.end
+        c, s = np.cos(origin[2]), np.sin(origin[2])
+        origin = origin + np.array([c * dx - s * dy, s * dx + c * dy, dpsi])
+    last = _to_global(blocks[-1].fn(np.array([blocks[-1].duration + 1.0])), origins[-1])[0]
+    blocks.append(rest_block(rest_s, _to_local(last, origin)))
+    origins.append(origin)
+    starts = np.concatenate([[0.0], np.cumsum([b.duration for b in blocks[:-1]])])
+    return Timeline(blocks, starts, np.array(origins), min(blend_s, rest_s))
