@@ -52,8 +52,9 @@ def command(
 
     \b
     Example:
-      motionlab simulate --protocol protocols/knee.yaml --duration 60 --seed 1 -o sim.h5 \\
+      motionlab simulate --protocol protocols/knee.yaml --duration 180 --seed 1 -o sim.h5 \\
           --truth truth.h5 --truth-csv truth/ --markers markers.c3d --preset typical
+      motionlab simulate --protocol knee --duration 60 --no-calibration -o gait.h5
     """
     if preset not in PRESETS:
         raise InputError(

@@ -166,7 +166,7 @@ def plan(
         raise InputError(
             f"duration {duration:g} s is too short: calibration and rests take {used:g} s",
             where="--duration",
-            remedy=f"give at least {used + 3.0 * n_tasks:g} s",
+            remedy=f"give at least {used + 3.0 * n_tasks:g} s or skip the calibration steps",
         )
     if tasks:
         weights = np.array([t.duration_s for t in tasks], dtype=float)
