@@ -71,7 +71,8 @@ def nan_spans(time: np.ndarray, values: np.ndarray) -> list[list[float]]:
 
 
 def _norm(a: np.ndarray) -> np.ndarray:
-    return np.linalg.norm(a, axis=1)
+    a = np.asarray(a, dtype=float)
+    return np.sqrt(np.einsum("ij,ij->i", a, a))
 
 
 def dropped_packets(counter: np.ndarray) -> int:
