@@ -8,7 +8,8 @@ sensors, or optical files that become marker sets):
 2. every stream's clock is repaired (:func:`motionlab.timebase.repair_clock`);
 3. a common time origin: the earliest first stamp over all streams and marker sets becomes 0;
    the absolute origin is kept in ``metadata["time_origin_s"]`` and each stream's own first
-   stamp in ``attrs["start_s"]``;
+   stamp in ``attrs["start_s"]``; starts more than a day apart set
+   ``metadata["clocks_unrelated"]`` (the files do not share a clock);
 4. quality checks (:mod:`motionlab.qc`) on the data as recorded, then gaps up to ``gap_max`` s
    are filled and longer ones kept as missing (:func:`motionlab.timebase.fill_short_gaps`);
 5. with ``rate``, every sensor stream and marker set goes onto the clock ``k / rate``;
@@ -32,6 +33,7 @@ from motionlab.sensor_map import SensorMap, load_sensor_map
 from motionlab.session import MarkerSet, SensorStream, Session
 
 DEFAULT_GAP_MAX = 0.1  # s
+UNRELATED_CLOCKS_S = 86400.0
 
 
 def _match(stream: SensorStream, smap: SensorMap) -> str | None:
@@ -214,6 +216,10 @@ def ingest(
             "session": smap.session,
             "files": files,
             "time_origin_s": origin,
+            "start_spread_s": max(starts) - origin,
+            # starts a day or more apart: the files' clocks are unrelated (e.g. Unix time and
+            # a clock that starts at 0) and the streams still need synchronising
+            "clocks_unrelated": max(starts) - origin > UNRELATED_CLOCKS_S,
         }
     )
     for stream, report in repaired:

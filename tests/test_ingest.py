@@ -387,3 +387,22 @@ def test_info_json_and_text(tmp_path):
     text = CliRunner().invoke(main, ["info", out]).stdout
     assert "gaps kept as missing: 0.99–1.51 s" in text and "qc flags: dropped_samples, gaps" in text
     assert f"motionlab ingest {tmp_path / 'a.csv'} -o {out}" in text
+
+
+def test_unrelated_clocks_are_flagged(fake_files, monkeypatch):
+    t = np.arange(0, 1.0, 0.01)
+    recs = {
+        fake_files[0]: Recording(sensors=[stream(1.55e9 + t, "unix", acc=ramp(t))]),
+        fake_files[1]: Recording(sensors=[stream(t, "zero", acc=ramp(t))]),
+    }
+    monkeypatch.setattr(ingest_module, "read_any", lambda p, options=None: recs[p])
+    s = ingest(list(fake_files))
+    assert s.metadata["clocks_unrelated"] is True
+    assert s.metadata["start_spread_s"] == pytest.approx(1.55e9)
+    assert s.sensors["unix"].attrs["start_s"] == 1.55e9
+
+
+def test_related_clocks_are_not_flagged(fake_files):
+    s = ingest(list(fake_files))
+    assert s.metadata["clocks_unrelated"] is False
+    assert s.metadata["start_spread_s"] == pytest.approx(0.5)

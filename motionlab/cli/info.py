@@ -95,8 +95,14 @@ def format_summary(summary: dict) -> str:
         lines += [f"    {name} ({info.get('format', '?')})" for name, info in files.items()]
     if "time_origin_s" in meta:
         lines.append(f"  time origin: {meta['time_origin_s']:.6f} s (source clock) = 0 s here")
+    if meta.get("clocks_unrelated"):
+        lines.append(
+            f"  warning: starts differ by {meta['start_spread_s']:.0f} s: the files do not share"
+            " a clock, synchronise the streams before comparing them"
+        )
+    shown = ("subject", "session", "files", "time_origin_s", "start_spread_s", "clocks_unrelated")
     for key, value in meta.items():
-        if key not in ("subject", "session", "files", "time_origin_s"):
+        if key not in shown:
             lines.append(f"  {key}: {value}")
     lines.append(f"sensors: {len(summary['sensors'])}")
     for s in summary["sensors"]:
