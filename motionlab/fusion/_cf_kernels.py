@@ -222,7 +222,7 @@ def mahony_kernel(
 
 
 @numba.njit(cache=True, inline="always")
-def _gn_correction(w, x, y, z, ax, ay, az, wa, use_a, mag, k, wm, use_m, ref_dip, nrm, g):
+def _gn_correction(w, x, y, z, ax, ay, az, wa, use_a, mag, k, wm, use_m, cos_dip, sin_dip, nrm, g):
     """Reduced-order Gauss–Newton step ``p`` at ``q`` from the usable unit observations."""
     for i in range(6):
         nrm[i] = 0.0
@@ -232,7 +232,7 @@ def _gn_correction(w, x, y, z, ax, ay, az, wa, use_a, mag, k, wm, use_m, ref_dip
         _gn_add(nrm, g, wa, ax, ay, az, vx, vy, vz)
     if use_m:
         mx, my, mz, _ = _unit(mag[k, 0], mag[k, 1], mag[k, 2])
-        yx, yy, yz = _to_sensor(w, x, y, z, 0.0, np.cos(ref_dip), -np.sin(ref_dip))
+        yx, yy, yz = _to_sensor(w, x, y, z, 0.0, cos_dip, -sin_dip)
         _gn_add(nrm, g, wm, mx, my, mz, yx, yy, yz)
     return _solve_sym(nrm, g)
 
@@ -262,6 +262,7 @@ def liu_kernel(
     dist = np.empty(nn, dtype=np.bool_)
     nrm = np.empty(6)
     g = np.empty(3)
+    cd, sd = np.cos(ref_dip), np.sin(ref_dip)
     w, x, y, z = q0[0], q0[1], q0[2], q0[3]
     for k in range(nn):
         w, x, y, z = _gyro_step(w, x, y, z, gyr[k, 0], gyr[k, 1], gyr[k, 2], dt)
@@ -271,7 +272,7 @@ def liu_kernel(
         dist[k] = not use_m
         if use_a or use_m:
             px, py, pz = _gn_correction(
-                w, x, y, z, ax, ay, az, wa, use_a, mag, k, wm, use_m, ref_dip, nrm, g
+                w, x, y, z, ax, ay, az, wa, use_a, mag, k, wm, use_m, cd, sd, nrm, g
             )
             s = min(1.0, gain * dt * (startup_gain if k < n_start else 1.0))
             dw, dx, dy, dz = _qmul(w, x, y, z, 0.0, px, py, pz)
@@ -306,6 +307,7 @@ def adaptive_kernel(
     dist = np.empty(nn, dtype=np.bool_)
     nrm = np.empty(6)
     g = np.empty(3)
+    cd, sd = np.cos(ref_dip), np.sin(ref_dip)
     w, x, y, z = q0[0], q0[1], q0[2], q0[3]
     bx, by, bz = 0.0, 0.0, 0.0
     for k in range(nn):
@@ -319,7 +321,7 @@ def adaptive_kernel(
         dist[k] = not use_m
         if use_a or use_m:
             px, py, pz = _gn_correction(
-                w, x, y, z, ax, ay, az, 1.0, use_a, mag, k, 1.0, use_m, ref_dip, nrm, g
+                w, x, y, z, ax, ay, az, 1.0, use_a, mag, k, 1.0, use_m, cd, sd, nrm, g
             )
             # δθ = 2p is the full Gauss-Newton correction (rotation vector, sensor frame)
             tx, ty, tz = 2.0 * px, 2.0 * py, 2.0 * pz

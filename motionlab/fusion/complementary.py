@@ -30,7 +30,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from motionlab import rotations as rot
 from motionlab.fusion import detect
 from motionlab.fusion._cf_kernels import (
     adaptive_kernel,
@@ -105,8 +104,9 @@ def _prepare(gyr, acc, mag, rate, p: _Common):
 
 
 def _result(quat, dist, use_mag, rest, bias=None, **extra) -> FusionResult:
+    # the kernels move q by small normalised increments, so it is already sign-continuous
     return FusionResult(
-        quat=rot.make_continuous(quat),
+        quat=quat,
         name="",
         params={},
         gyro_bias=bias,

@@ -14,13 +14,23 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-from scipy.ndimage import binary_closing, binary_dilation, binary_opening, uniform_filter1d
+from scipy.ndimage import uniform_filter1d
 
 from motionlab import rotations as rot
 
 
 def _window(seconds: float, rate: float) -> int:
     return max(1, int(round(seconds * rate)))
+
+
+def _dilate(mask: np.ndarray, size: int) -> np.ndarray:
+    """Binary dilation by a centred window of odd ``size`` in O(N) (moving average > 0)."""
+    return uniform_filter1d(mask.astype(np.float32), size, mode="nearest") > 1e-3 / size
+
+
+def _erode(mask: np.ndarray, size: int) -> np.ndarray:
+    """Binary erosion by a centred window of odd ``size`` in O(N) (moving average = 1)."""
+    return uniform_filter1d(mask.astype(np.float32), size, mode="nearest") > 1.0 - 1e-3 / size
 
 
 def rest_mask(
@@ -39,13 +49,14 @@ def rest_mask(
     (m/s²), for at least ``min_duration`` s.
     """
     w = _window(window, rate)
-    gyr_rms = np.sqrt(uniform_filter1d(np.sum(gyr**2, axis=1), w, mode="nearest"))
-    acc_dev = acc - uniform_filter1d(acc, w, axis=0, mode="nearest")
-    acc_rms = np.sqrt(uniform_filter1d(np.sum(acc_dev**2, axis=1), w, mode="nearest"))
-    still = (gyr_rms < gyr_threshold) & (acc_rms < acc_threshold)
-    run = _window(min_duration, rate)
+    gyr_ms = uniform_filter1d(np.einsum("ij,ij->i", gyr, gyr), w, mode="nearest")
+    acc_t = np.ascontiguousarray(acc.T)
+    acc_dev = acc_t - uniform_filter1d(acc_t, w, axis=1, mode="nearest")
+    acc_ms = uniform_filter1d(np.einsum("ij,ij->j", acc_dev, acc_dev), w, mode="nearest")
+    still = (gyr_ms < gyr_threshold**2) & (acc_ms < acc_threshold**2)
+    run = _window(min_duration, rate) | 1
     if run > 1 and len(still) >= run:
-        still = binary_opening(still, structure=np.ones(run, dtype=bool))
+        still = _dilate(_erode(still, run), run)  # opening: drop shorter still runs
     return still
 
 
@@ -79,6 +90,9 @@ def field_reference(
     samples consistent with it (within ``norm_tol`` and ``dip_tol`` of the dip median), and
     restricted to samples with accelerometer norm within 1 m/s² of g when q is not given.
     """
+    step = max(1, len(mag) // 5000)  # a few thousand samples fix the reference well enough
+    mag, acc = mag[::step], acc[::step]
+    q = None if q is None else q[::step]
     norm, dip = field_norm_dip(mag, acc, q)
     keep = np.isfinite(norm) & np.isfinite(dip)
     if q is None:
@@ -126,18 +140,19 @@ def mag_disturbance(
     :func:`field_reference`.
     """
     ref_norm, ref_dip = reference or field_reference(mag, acc, q, norm_tol, dip_tol)
-    norm, dip = field_norm_dip(mag, acc, q)
     w = _window(smooth, rate)
-    norm = uniform_filter1d(norm, w, mode="nearest")
-    dip = uniform_filter1d(dip, w, mode="nearest")
-    bad = np.abs(norm - ref_norm) > norm_tol
-    if q is not None:
-        bad |= np.abs(dip - ref_dip) > dip_tol
-    bad |= ~np.isfinite(norm) | ~np.isfinite(dip)
-    h = _window(hold, rate)
-    if h > 1 and bad.any():
-        structure = np.ones(2 * h + 1, dtype=bool)
-        bad = binary_dilation(binary_closing(bad, structure=structure), structure=structure)
+    if q is None:
+        norm = uniform_filter1d(np.sqrt(np.einsum("ij,ij->i", mag, mag)), w, mode="nearest")
+        bad = ~(np.abs(norm - ref_norm) <= norm_tol)
+    else:
+        norm, dip = field_norm_dip(mag, acc, q)
+        norm = uniform_filter1d(norm, w, mode="nearest")
+        dip = uniform_filter1d(dip, w, mode="nearest")
+        bad = ~((np.abs(norm - ref_norm) <= norm_tol) & (np.abs(dip - ref_dip) <= dip_tol))
+    size = 2 * _window(hold, rate) + 1
+    if size > 1 and bad.any():
+        closed = _erode(_dilate(bad, size), size)  # fill clean gaps shorter than the window
+        bad = _dilate(closed, size)
     return bad
 
 
