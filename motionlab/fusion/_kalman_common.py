@@ -1,0 +1,284 @@
+"""Pieces shared by the quaternion KF, the 7-state EKF and the quaternion UKF.
+
+Conventions: quaternions scalar first, sensor → ENU earth; ``gyr`` rad/s, ``acc`` m/s², ``mag``
+µT, (N, 3) sensor-frame arrays. Noise parameters are densities, so a filter behaves the same at
+any sampling rate: a gyroscope noise density ``σ_g`` (rad/s/√Hz) adds ``σ_g² Δt`` rad² of
+attitude variance per sample, a vector-measurement noise density ``σ`` (rad·√s) has per-sample
+variance ``σ² / Δt``; the ratio ``σ / σ_g`` is then the correction time constant in seconds.
+
+The numba helpers here work on scalars or preallocated arrays and allocate nothing.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numba
+import numpy as np
+
+from motionlab.fusion import detect
+from motionlab.fusion.attitude import initial_orientation
+
+
+def _f(default, unit: str, help_: str):
+    return field(default=default, metadata={"unit": unit, "help": help_})
+
+
+@dataclass
+class KalmanCommon:
+    """Tunables shared by ``kf``, ``ekf`` and ``ukf`` (measurement weighting and detectors)."""
+
+    gyr_noise: float = _f(0.005, "rad/s/√Hz", "gyroscope noise density (angle random walk)")
+    acc_noise: float = _f(
+        0.02, "rad·√s", "accelerometer direction noise density (÷gyr_noise = tilt time constant)"
+    )
+    mag_noise: float = _f(
+        0.2, "rad·√s", "magnetometer heading noise density (÷gyr_noise = heading time constant)"
+    )
+    acc_norm_gain: float = _f(
+        5.0, "rad·√s", "added acc noise per relative deviation of |acc| from g (linear acc.)"
+    )
+    acc_rate_gain: float = _f(0.1, "rad·s^1.5", "added acc noise per rad/s of rotation rate")
+    acc_gate: float = _f(0.25, "1", "skip acc when | |acc| − g | / g exceeds this")
+    att_init: float = _f(0.3, "rad", "initial attitude standard deviation")
+    startup_time: float = _f(3.0, "s", "duration of the start-up phase of fast convergence")
+    startup_noise: float = _f(
+        0.01, "x", "factor on the acc and mag noise during start-up (small: trust them more)"
+    )
+    mag_norm_tol: float = _f(4.0, "µT", "field-norm deviation that marks a magnetic disturbance")
+    mag_dip_tol: float = _f(6.0, "deg", "dip-angle deviation that marks a magnetic disturbance")
+    rest_gyr_threshold: float = _f(0.035, "rad/s", "rest detection: moving-RMS rate threshold")
+    rest_acc_threshold: float = _f(0.5, "m/s²", "rest detection: moving-RMS acc deviation")
+    rest_min_duration: float = _f(1.5, "s", "rest detection: minimum rest duration")
+    gravity: float = _f(9.81, "m/s²", "local gravity")
+
+
+@dataclass
+class Prepared:
+    """Inputs of a filter kernel derived once from the whole recording."""
+
+    q0: np.ndarray
+    rest: np.ndarray
+    mag: np.ndarray
+    pre: np.ndarray
+    use_mag: bool
+    ref_norm: float
+    ref_dip: float
+
+
+def prepare(
+    gyr: np.ndarray, acc: np.ndarray, mag: np.ndarray | None, rate: float, p: KalmanCommon
+) -> Prepared:
+    """Rest mask, magnetometer reference and pre-flags, and the initial orientation.
+
+    The magnetometer is used (9-D) when a reference field is found and enough of the recording
+    is undisturbed (:func:`~motionlab.fusion.detect.mag_usable`); the initial orientation comes
+    from the first samples whose field is undisturbed.
+    """
+    rest = detect.rest_mask(
+        gyr, acc, rate, p.rest_gyr_threshold, p.rest_acc_threshold,
+        min_duration=p.rest_min_duration,
+    )  # fmt: skip
+    use_mag = mag is not None
+    ref = (np.nan, np.nan)
+    pre = np.ones(len(gyr), dtype=bool)
+    if use_mag:
+        ref = detect.field_reference(mag, acc, norm_tol=p.mag_norm_tol)
+        pre = detect.mag_disturbance(mag, acc, None, rate, norm_tol=p.mag_norm_tol, reference=ref)
+        use_mag = bool(np.isfinite(ref[0])) and detect.mag_usable(pre)
+    first = int(np.argmax(~pre)) if use_mag else 0
+    q0 = initial_orientation(acc[first:], mag[first:] if use_mag else None)
+    if not use_mag:
+        mag, pre = np.zeros((1, 3)), np.ones(len(gyr), dtype=bool)
+    return Prepared(q0, rest, mag, pre, use_mag, float(ref[0]), float(ref[1]))
+
+
+@numba.njit(cache=True, inline="always")
+def rot_matrix(q: np.ndarray, r: np.ndarray) -> None:
+    """Rotation matrix of ``q`` (sensor → earth) into the preallocated 3×3 ``r``."""
+    w, x, y, z = q[0], q[1], q[2], q[3]
+    r[0, 0] = 1.0 - 2.0 * (y * y + z * z)
+    r[0, 1] = 2.0 * (x * y - w * z)
+    r[0, 2] = 2.0 * (x * z + w * y)
+    r[1, 0] = 2.0 * (x * y + w * z)
+    r[1, 1] = 1.0 - 2.0 * (x * x + z * z)
+    r[1, 2] = 2.0 * (y * z - w * x)
+    r[2, 0] = 2.0 * (x * z - w * y)
+    r[2, 1] = 2.0 * (y * z + w * x)
+    r[2, 2] = 1.0 - 2.0 * (x * x + y * y)
+
+
+@numba.njit(cache=True, inline="always")
+def normalize(q: np.ndarray) -> None:
+    """In place ``q ← q / |q|``."""
+    n = np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    q[0], q[1], q[2], q[3] = q[0] / n, q[1] / n, q[2] / n, q[3] / n
+
+
+@numba.njit(cache=True, inline="always")
+def mul_exp_right(q: np.ndarray, rx: float, ry: float, rz: float, out: np.ndarray) -> None:
+    """``out ← q ⊗ exp(r)`` for the rotation vector ``r`` (rad); ``out`` may be ``q``."""
+    a = np.sqrt(rx * rx + ry * ry + rz * rz)
+    c = np.cos(0.5 * a)
+    s = np.sin(0.5 * a) / a if a > 1e-12 else 0.5
+    pw, px, py, pz = c, s * rx, s * ry, s * rz
+    w = q[0] * pw - q[1] * px - q[2] * py - q[3] * pz
+    x = q[0] * px + q[1] * pw + q[2] * pz - q[3] * py
+    y = q[0] * py - q[1] * pz + q[2] * pw + q[3] * px
+    z = q[0] * pz + q[1] * py - q[2] * px + q[3] * pw
+    out[0], out[1], out[2], out[3] = w, x, y, z
+
+
+@numba.njit(cache=True, inline="always")
+def mul_exp_left(rx: float, ry: float, rz: float, q: np.ndarray) -> None:
+    """In place ``q ← exp(r) ⊗ q`` for the rotation vector ``r`` (rad, earth frame)."""
+    a = np.sqrt(rx * rx + ry * ry + rz * rz)
+    c = np.cos(0.5 * a)
+    s = np.sin(0.5 * a) / a if a > 1e-12 else 0.5
+    pw, px, py, pz = c, s * rx, s * ry, s * rz
+    w = pw * q[0] - px * q[1] - py * q[2] - pz * q[3]
+    x = pw * q[1] + px * q[0] + py * q[3] - pz * q[2]
+    y = pw * q[2] - px * q[3] + py * q[0] + pz * q[1]
+    z = pw * q[3] + px * q[2] - py * q[1] + pz * q[0]
+    q[0], q[1], q[2], q[3] = w, x, y, z
+
+
+@numba.njit(cache=True, inline="always")
+def acc_variance(
+    acc: np.ndarray,
+    k: int,
+    rate_norm: float,
+    g: float,
+    prm_noise: float,
+    norm_gain: float,
+    rate_gain: float,
+    gate: float,
+    dt: float,
+) -> float:
+    """Per-sample variance (rad²) of the accelerometer direction, or −1 when it is gated.
+
+    The density ``prm_noise`` grows with the relative deviation of ``|acc|`` from ``g`` and with
+    the rotation rate (linear and centripetal acceleration), then is divided by ``Δt``.
+    """
+    an = np.sqrt(acc[k, 0] ** 2 + acc[k, 1] ** 2 + acc[k, 2] ** 2)
+    dev = abs(an - g) / g
+    if an <= 0.0 or dev > gate:
+        return -1.0
+    dens = prm_noise**2 + (norm_gain * dev) ** 2 + (rate_gain * rate_norm) ** 2
+    return dens / dt
+
+
+@numba.njit(cache=True, inline="always")
+def mag_ok(
+    q: np.ndarray,
+    mag: np.ndarray,
+    k: int,
+    pre: np.ndarray,
+    ref_norm: float,
+    ref_dip: float,
+    norm_tol: float,
+    dip_tol: float,
+) -> bool:
+    """Whether sample ``k`` of the field is undisturbed (pre-flag and dip seen through ``q``)."""
+    if pre[k]:
+        return False
+    return not detect.nb_field_disturbed(
+        q[0], q[1], q[2], q[3], mag[k, 0], mag[k, 1], mag[k, 2],
+        ref_norm, ref_dip, norm_tol, dip_tol,
+    )  # fmt: skip
+
+
+@numba.njit(cache=True, inline="always")
+def horizontal_north(r: np.ndarray, mag: np.ndarray, k: int, out: np.ndarray) -> bool:
+    """Sensor-frame direction of the field's horizontal part, seen through ``r`` = R(q).
+
+    ``out ← Rᵀ normalise([m_e,x, m_e,y, 0])`` with ``m_e = R m``: a measurement of earth north
+    that carries heading only, so a wrong dip angle cannot tilt the estimate. False when the
+    field is vertical.
+    """
+    mx = r[0, 0] * mag[k, 0] + r[0, 1] * mag[k, 1] + r[0, 2] * mag[k, 2]
+    my = r[1, 0] * mag[k, 0] + r[1, 1] * mag[k, 1] + r[1, 2] * mag[k, 2]
+    h = np.sqrt(mx * mx + my * my)
+    if h < 1e-9:
+        return False
+    mx /= h
+    my /= h
+    for i in range(3):
+        out[i] = r[0, i] * mx + r[1, i] * my
+    return True
+
+
+@numba.njit(cache=True)
+def chol_solve(a: np.ndarray, n: int, low: np.ndarray, b: np.ndarray, m: int) -> None:
+    """Solve ``a x = b`` in place (``b ← x``) for the leading n×n of symmetric positive
+    definite ``a`` and the leading n×m of ``b``; ``low`` is an n×n work array."""
+    for i in range(n):
+        for j in range(i + 1):
+            s = a[i, j]
+            for t in range(j):
+                s -= low[i, t] * low[j, t]
+            if i == j:
+                low[i, i] = np.sqrt(s if s > 1e-300 else 1e-300)
+            else:
+                low[i, j] = s / low[j, j]
+    for c in range(m):
+        for i in range(n):
+            s = b[i, c]
+            for t in range(i):
+                s -= low[i, t] * b[t, c]
+            b[i, c] = s / low[i, i]
+        for i in range(n - 1, -1, -1):
+            s = b[i, c]
+            for t in range(i + 1, n):
+                s -= low[t, i] * b[t, c]
+            b[i, c] = s / low[i, i]
+
+
+@numba.njit(cache=True)
+def cholesky(a: np.ndarray, n: int, low: np.ndarray) -> None:
+    """Lower Cholesky factor of the leading n×n of ``a`` into ``low`` (upper part zeroed)."""
+    for i in range(n):
+        for j in range(n):
+            low[i, j] = 0.0
+    for i in range(n):
+        for j in range(i + 1):
+            s = a[i, j]
+            for t in range(j):
+                s -= low[i, t] * low[j, t]
+            if i == j:
+                low[i, i] = np.sqrt(s if s > 1e-300 else 1e-300)
+            else:
+                low[i, j] = s / low[j, j]
+
+
+# indices of the common float parameters passed to every kernel (see :func:`pack`)
+GYR_NOISE, ACC_NOISE, MAG_NOISE, ACC_NORM_GAIN, ACC_RATE_GAIN, ACC_GATE = 0, 1, 2, 3, 4, 5
+MAG_NORM_TOL, MAG_DIP_TOL, REF_NORM, REF_DIP, GRAVITY, ATT_INIT = 6, 7, 8, 9, 10, 11
+STARTUP_TIME, STARTUP_VAR = 12, 13
+N_COMMON = 14
+
+
+def pack(p: KalmanCommon, prep: Prepared) -> np.ndarray:
+    """The common parameters and the field reference as one float array for the kernels."""
+    prm = np.empty(N_COMMON)
+    prm[GYR_NOISE] = p.gyr_noise
+    prm[ACC_NOISE] = p.acc_noise
+    prm[MAG_NOISE] = p.mag_noise
+    prm[ACC_NORM_GAIN] = p.acc_norm_gain
+    prm[ACC_RATE_GAIN] = p.acc_rate_gain
+    prm[ACC_GATE] = p.acc_gate
+    prm[MAG_NORM_TOL] = p.mag_norm_tol
+    prm[MAG_DIP_TOL] = np.deg2rad(p.mag_dip_tol)
+    prm[REF_NORM] = prep.ref_norm
+    prm[REF_DIP] = prep.ref_dip
+    prm[GRAVITY] = p.gravity
+    prm[ATT_INIT] = p.att_init
+    prm[STARTUP_TIME] = p.startup_time
+    prm[STARTUP_VAR] = p.startup_noise**2
+    return prm
+
+
+@numba.njit(cache=True, inline="always")
+def startup_scale(prm: np.ndarray, k: int, dt: float) -> float:
+    """Factor on the measurement variances at sample ``k`` (small during the start-up phase)."""
+    return prm[STARTUP_VAR] if k * dt < prm[STARTUP_TIME] else 1.0
