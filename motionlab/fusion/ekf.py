@@ -178,19 +178,26 @@ def _kernel(
             for i in range(4):
                 q[i] = g[i]
             kc.normalize(q)
-            for i in range(NX):
+            # F P Fᵀ: F differs from I only in rows 0–3 (columns 0–6)
+            for i in range(4):
                 for j in range(NX):
                     acc_ij = 0.0
-                    for m in range(NX):
+                    for m in range(7):
                         acc_ij += f[i, m] * p[m, j]
                     tmp[i, j] = acc_ij
+            for i in range(4):
+                for j in range(NX):
+                    p[i, j] = tmp[i, j]
             for i in range(NX):
-                for j in range(i, NX):
+                for j in range(4):
                     acc_ij = 0.0
-                    for m in range(NX):
-                        acc_ij += tmp[i, m] * f[j, m]
-                    p[i, j] = acc_ij
-                    p[j, i] = acc_ij
+                    for m in range(7):
+                        acc_ij += p[i, m] * f[j, m]
+                    tmp[i, j] = acc_ij
+            for i in range(NX):
+                for j in range(4):
+                    p[i, j] = tmp[i, j]
+                    p[j, i] = tmp[i, j]
             # Q = var_w G Gᵀ per rate axis, G_c = [½Δt Ξ(q)_c; e_c; 0]
             for c in range(3):
                 for i in range(NX):
