@@ -7,6 +7,7 @@ import click
 from motionlab.atomic import check_output
 from motionlab.errors import InputError
 from motionlab.fusion import registry
+from motionlab.sensorcal.calfile import apply_calibration_dir
 from motionlab.session import Session, load_session, save_session
 
 
@@ -61,6 +62,11 @@ def fuse_session(
 @click.option("--force", is_flag=True, help="Replace existing fusion results or output file.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), help="Write here, not in place.")
 @click.option("--list", "list_", is_flag=True, help="List the estimators and their parameters.")
+@click.option(
+    "--calibration",
+    type=click.Path(file_okay=False),
+    help="Folder of per-serial sensor calibrations (motionlab sensorcal) to apply first.",
+)
 def command(
     session: str | None,
     name: str,
@@ -69,6 +75,7 @@ def command(
     force: bool,
     output: str | None,
     list_: bool,
+    calibration: str | None,
 ) -> None:
     """Estimate each sensor's orientation (sensor → ENU earth) and store it in the session.
 
@@ -106,12 +113,20 @@ def command(
     if not usable:
         raise InputError("no sensor has gyroscope and accelerometer data", session)
     parsed = parse_params(params)
+    recorded, notes, calibrated = dict(ses.sensors), {}, {}
+    if calibration is not None:  # fuse calibrated data; the session keeps the data as recorded
+        calibrated, notes = apply_calibration_dir(ses.sensors, calibration, usable)
+        ses.sensors.update(calibrated)
     done = fuse_session(ses, name, parsed, usable, force, session)
+    ses.sensors = recorded
+    for label, stream in calibrated.items():
+        ses.results["fusion"][label]["calibration"] = stream.attrs["calibration"]
     ses.add_provenance(
-        parameters={"stage": "fuse", "filter": name, "params": parsed, "sensors": done},
+        parameters={"stage": "fuse", "filter": name, "params": parsed, "sensors": done}
+        | ({"calibration": calibration} if calibration else {}),
         inputs=[session],
     )
     save_session(ses, output or session, force=True)
     for label in chosen:
         state = "fused" if label in done else "skipped (no gyr/acc)"
-        click.echo(f"{label:<16} {state}")
+        click.echo(f"{label:<16} {state}" + (f", {notes[label]}" if label in notes else ""))
