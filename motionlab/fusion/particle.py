@@ -1,0 +1,262 @@
+"""Particle filter on unit quaternions (To 2012 §6.5; Liu 2014 §5.4); registers ``particle``.
+
+Conventions of :mod:`motionlab.rotations`: scalar-first quaternions mapping sensor → ENU earth.
+
+Model and design (the choices the theses leave open are stated here):
+
+- **Particles.** Each particle is an orientation ``qᵢ = Lᵢ ⊗ G``: ``G`` is the gyroscope strapdown
+  integral shared by all particles (To eq. 231, bias-compensated rates) and ``Lᵢ`` the particle's
+  own offset. Propagating ``G`` once per sample moves every particle exactly, so the per-particle
+  work is only noise, likelihood and weights.
+- **Process noise.** Each sample every particle gets an independent rotation ``Lᵢ ← Lᵢ ⊗ exp(n)``
+  with ``n`` of variance ``process_noise² · dt`` per axis; the components are drawn uniform
+  (matched variance) — their sum over the filter's memory of hundreds of samples is Gaussian, and
+  one uniform costs a tenth of a normal.
+- **Likelihood** (bootstrap filter, generic weights eq. 151 with the previous weight kept — the
+  Bayesian form rather than To's memoryless eq. 234). The accelerometer and magnetometer give an
+  observed correction of the prior mean, as To's residuals to ``q_obs`` (eqs. 232–233): the tilt
+  correction is the earth-frame horizontal acc/g of the mean (``δ × e_z = −h``), in this linear
+  form so zero-mean linear accelerations average out instead of pulling with their magnitude; the
+  heading correction is the angle ψ of the field's horizontal part (heading only, inclination
+  untouched). Each particle's earth-frame offset δᵢ from the prior mean is scored with Gaussian
+  widths ``acc_sigma``/``mag_sigma`` (smaller ``*_rest_sigma`` at rest). Widths adapt: the acc
+  width grows by ``acc_norm_gain · | |acc| − g |/g`` and the acc is ignored beyond ``acc_gate``; the
+  mag weight is divided by ``1 + (Δnorm/tol)² + (Δdip/tol)²`` against the reference field of
+  :func:`motionlab.fusion.detect.field_reference`, and samples flagged by
+  :func:`~motionlab.fusion.detect.mag_disturbance` or by the in-loop dip test are gated. Without a
+  usable magnetometer the filter is 6-D (heading from the gyroscope only).
+- **Resampling** when the effective sample size ``1/Σwᵢ²`` (eq. 156) drops below
+  ``ess_threshold · N``: systematic, residual, deterministic (Kitagawa's fixed offset ½) or
+  auxiliary (To App. D-3: multinomial on flattened weights, with the importance correction so the
+  estimate stays unbiased). It is followed by regularisation (Musso et al. 2001): every particle is
+  moved by a kernel drawn from the **proposal density**, ``vmf`` (isotropic, κ from the cloud's
+  spread, To eq. 235–236) or ``bingham`` (anisotropic, shaped by the cloud's covariance,
+  band-limited at ``bingham_band`` Mahalanobis radii, To's NU density eq. 238–239), scaled by
+  the optimal Gaussian kernel bandwidth for N particles in 3-D.
+- **Gyroscope bias (To §6.5.7, "BC").** One bias estimate shared by the particles (not per
+  particle: bias states would make the particles 6-D and need far more of them). At rest
+  (:func:`~motionlab.fusion.detect.rest_mask`) the gyroscope reading is averaged into ``b`` with
+  ``bias_rest_tau``; optionally (``bias_tau`` finite, off by default because it cost accuracy on
+  the fast BROAD trials) the Mahony-type integral of the filter's own correction: the posterior
+  mean's rotation away from the gyro-propagated mean, in the sensor frame ``c``, gives
+  ``b ← b − c/bias_tau``.
+- **Output:** Markley's weighted mean (:mod:`motionlab.fusion.sphere`) every sample.
+- **Divergence reset** (To: "κ_post < κ_TH → reset at q_obs"): the tilt misfit between the mean
+  and the accelerometer (quasi-static samples only) and the heading misfit to the magnetometer
+  (undisturbed samples only) are low-pass filtered over ``reset_time``; above ``reset_angle`` the
+  cloud is redrawn about the vector attitude (the mean corrected to the measured gravity and north).
+
+Defaults were tuned by hand on the 8 BROAD trials of ``../shared`` (Laidig et al. 2021), which are
+also the trials the accuracy is reported on — not an independent test set.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from motionlab.errors import InputError
+from motionlab.fusion import _particle_kernels as kern
+from motionlab.fusion import detect
+from motionlab.fusion.attitude import initial_orientation
+from motionlab.fusion.registry import FusionResult, register
+from motionlab.fusion.resampling import SCHEMES
+from motionlab.rotations import make_continuous
+from motionlab.units import STANDARD_GRAVITY
+
+PROPOSALS = ("vmf", "bingham")
+
+
+@dataclass
+class ParticleParams:
+    """Tunables of the quaternion particle filter."""
+
+    n_particles: int = field(
+        default=1024, metadata={"unit": "count", "help": "number of particles N (128–4096)"}
+    )
+    proposal: str = field(
+        default="vmf", metadata={"unit": "", "help": "regularisation/reset density: vmf | bingham"}
+    )
+    resampling: str = field(
+        default="systematic",
+        metadata={"unit": "", "help": "systematic | residual | deterministic | auxiliary"},
+    )
+    ess_threshold: float = field(
+        default=0.5, metadata={"unit": "1", "help": "resample when ESS < this · N"}
+    )
+    aux_alpha: float = field(
+        default=2.0, metadata={"unit": "1", "help": "auxiliary resampling flattening α ≥ 1"}
+    )
+    kernel_scale: float = field(
+        default=1.0, metadata={"unit": "1", "help": "regularisation kernel / optimal bandwidth"}
+    )
+    bingham_band: float = field(
+        default=3.0, metadata={"unit": "1", "help": "Bingham-band limit in Mahalanobis radii"}
+    )
+    process_noise: float = field(
+        default=0.01, metadata={"unit": "rad/√s", "help": "orientation random walk per particle"}
+    )
+    acc_sigma: float = field(
+        default=1.5, metadata={"unit": "1", "help": "noise of earth-frame horizontal acc/g, motion"}
+    )
+    acc_rest_sigma: float = field(
+        default=0.1, metadata={"unit": "1", "help": "noise of earth-frame horizontal acc/g, rest"}
+    )
+    acc_norm_gain: float = field(
+        default=0.0, metadata={"unit": "1", "help": "added acc noise per | |acc| − g | / g"}
+    )
+    acc_gate: float = field(
+        default=20.0,
+        metadata={"unit": "1", "help": "ignore acc when | |acc| − g | / g exceeds this"},
+    )
+    mag_sigma: float = field(
+        default=10.0, metadata={"unit": "rad", "help": "magnetic heading noise per sample, motion"}
+    )
+    mag_rest_sigma: float = field(
+        default=3.0, metadata={"unit": "rad", "help": "magnetic heading noise per sample, rest"}
+    )
+    mag_norm_tolerance: float = field(
+        default=2.0, metadata={"unit": "µT", "help": "field norm deviation that halves mag weight"}
+    )
+    mag_dip_tolerance: float = field(
+        default=0.05, metadata={"unit": "rad", "help": "dip deviation that halves mag weight"}
+    )
+    mag_gate_dip: float = field(
+        default=0.15, metadata={"unit": "rad", "help": "dip deviation that gates the magnetometer"}
+    )
+    bias_tau: float = field(
+        default=np.inf,
+        metadata={"unit": "s", "help": "time constant of the in-motion bias integral (inf: off)"},
+    )
+    bias_rest_tau: float = field(
+        default=2.0, metadata={"unit": "s", "help": "bias averaging time constant at rest"}
+    )
+    bias_max: float = field(
+        default=0.1, metadata={"unit": "rad/s", "help": "bound on the bias estimate (0: no BC)"}
+    )
+    init_sigma: float = field(
+        default=0.1, metadata={"unit": "rad", "help": "initial/reset cloud spread per axis"}
+    )
+    reset_angle: float = field(
+        default=0.6, metadata={"unit": "rad", "help": "filtered misfit that resets the cloud"}
+    )
+    reset_time: float = field(
+        default=1.0, metadata={"unit": "s", "help": "low-pass time constant of the misfit"}
+    )
+    seed: int = field(default=0, metadata={"unit": "", "help": "random seed"})
+
+
+# ---------------------------------------------------------------- public interface
+
+
+def _check(params: ParticleParams) -> None:
+    if not 16 <= params.n_particles <= 1 << 16:
+        raise InputError(f"n_particles={params.n_particles} is out of range", remedy="use 128–4096")
+    if params.proposal not in PROPOSALS:
+        raise InputError(f"unknown proposal {params.proposal!r}", remedy=f"use one of {PROPOSALS}")
+    if params.resampling not in SCHEMES:
+        raise InputError(
+            f"unknown resampling scheme {params.resampling!r}", remedy=f"use one of {SCHEMES}"
+        )
+    positive = (
+        "process_noise", "acc_sigma", "acc_rest_sigma", "acc_gate", "mag_sigma", "mag_rest_sigma",
+        "mag_norm_tolerance", "mag_dip_tolerance", "bias_tau", "bias_rest_tau", "init_sigma",
+        "reset_time", "kernel_scale", "bingham_band",
+    )  # fmt: skip
+    for name in positive:
+        if not getattr(params, name) > 0:
+            raise InputError(f"parameter {name}={getattr(params, name)} must be positive")
+    if params.aux_alpha < 1:
+        raise InputError(f"aux_alpha={params.aux_alpha} must be ≥ 1")
+
+
+def particle_filter(
+    gyr: np.ndarray,
+    acc: np.ndarray,
+    mag: np.ndarray | None,
+    rate: float,
+    params: ParticleParams | None = None,
+    q0: np.ndarray | None = None,
+) -> FusionResult:
+    """Run the quaternion particle filter (see the module docstring for the model).
+
+    Parameters
+    ----------
+    gyr, acc, mag
+        (N, 3) rad/s, m/s², µT in the sensor frame; ``mag=None`` (or a magnetometer disturbed over
+        most of the recording) gives a 6-D estimate.
+    rate
+        Sampling rate in Hz.
+    params
+        :class:`ParticleParams`; defaults if None.
+    q0
+        Initial orientation (4,); by default from the first samples
+        (:func:`motionlab.fusion.attitude.initial_orientation`).
+
+    Returns
+    -------
+    FusionResult with ``quat``, ``gyro_bias``, ``rest``, ``mag_disturbed`` and in ``extra``:
+    ``ess`` (N,) effective sample size / N, ``resets`` (sample indices of divergence resets),
+    ``six_d`` (bool).
+    """
+    p = params or ParticleParams()
+    _check(p)
+    gyr = np.ascontiguousarray(gyr, dtype=float)
+    acc = np.ascontiguousarray(acc, dtype=float)
+    n_s = len(gyr)
+    dt = 1.0 / rate
+    rest = detect.rest_mask(gyr, acc, rate)
+    n0 = max(1, int(round(0.1 * rate)))
+    use_mag = mag is not None
+    flag = np.zeros(n_s, dtype=bool)
+    m_ref, dip_ref = 0.0, 0.0
+    if use_mag:
+        mag = np.ascontiguousarray(mag, dtype=float)
+        m_ref, dip_ref = detect.field_reference(mag, acc)
+        flag = detect.mag_disturbance(mag, acc, None, rate, reference=(m_ref, dip_ref))
+        use_mag = bool(np.isfinite(m_ref)) and detect.mag_usable(flag)
+        if use_mag:
+            good = np.flatnonzero(~flag[: max(n0, int(2 * rate))])
+            init_mag = mag[good[:n0]] if len(good) else None
+    if q0 is None:
+        q0 = initial_orientation(acc[:n0], init_mag if use_mag else None, n=n0)
+    q0 = np.asarray(q0, dtype=float) / np.linalg.norm(q0)
+    g_ref = float(np.median(np.linalg.norm(acc[rest], axis=1))) if rest.any() else STANDARD_GRAVITY
+    n = int(p.n_particles)
+    h = p.kernel_scale * (4.0 / (5.0 * n)) ** (1.0 / 7.0)  # optimal Gaussian kernel, d = 3
+    quat = np.empty((n_s, 4))
+    bias = np.empty((n_s, 3))
+    ess = np.empty(n_s)
+    resets = np.zeros(n_s, dtype=bool)
+    gated = np.zeros(n_s, dtype=bool)
+    kern.nb_filter(
+        gyr, acc, mag if use_mag else acc, use_mag, flag, rest, dt, q0, g_ref, m_ref, dip_ref,
+        PROPOSALS.index(p.proposal), SCHEMES.index(p.resampling), p.aux_alpha, p.ess_threshold,
+        h, 0.5 * p.bingham_band**2, p.process_noise, p.acc_sigma, p.acc_rest_sigma,
+        p.acc_norm_gain, p.acc_gate, 1.0 / p.mag_sigma**2, 1.0 / p.mag_rest_sigma**2,
+        p.mag_norm_tolerance, p.mag_dip_tolerance, p.mag_gate_dip, p.bias_tau, p.bias_rest_tau,
+        p.bias_max, p.init_sigma, p.reset_angle, p.reset_time, int(p.seed), n,
+        quat, bias, ess, resets, gated,
+    )  # fmt: skip
+    return FusionResult(
+        quat=make_continuous(quat),
+        name="particle",
+        params={},
+        gyro_bias=bias,
+        rest=rest,
+        mag_disturbed=gated if use_mag else None,
+        extra={"ess": ess, "resets": np.flatnonzero(resets), "six_d": not use_mag},
+    )
+
+
+@register(
+    "particle",
+    ParticleParams,
+    "Particle filter on S³ (To 2012): vMF/Bingham-band proposals, bias compensation, resets",
+)
+def run(
+    gyr: np.ndarray, acc: np.ndarray, mag: np.ndarray | None, rate: float, params: ParticleParams
+) -> FusionResult:
+    """Registry entry point: :func:`particle_filter` with the initial orientation from the data."""
+    return particle_filter(gyr, acc, mag, rate, params)
