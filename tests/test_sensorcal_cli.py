@@ -74,6 +74,19 @@ def test_auto_calibration_recovers_every_channel(session_file, tmp_path):
     assert set(load_calibration(caldir / "SIM_001.yaml").channels) == {"gyr", "acc", "mag"}
 
 
+def test_acc_ellipsoid_and_mag_with_a_known_field(session_file, tmp_path):
+    args = ["--kind", "acc", "--kind", "mag", "--field-norm", "50", "-o", tmp_path]
+    out = run("sensorcal", session_file, "--sensor", "shank_r", *args)
+    assert out.exit_code == 0, out.output
+    cal = load_calibration(tmp_path / "SIM_001.yaml")
+    acc, mag = cal.channels["acc"], cal.channels["mag"]
+    assert acc.method == "ellipsoid" and set(cal.channels) == {"acc", "mag"}
+    assert np.abs(acc.offset - ACC_BIAS).max() < 0.01
+    assert np.allclose(np.linalg.svd(acc.matrix @ ACC_GAIN, compute_uv=False), 1.0, atol=2e-3)
+    assert mag.quality["norm"] == 50.0
+    assert np.abs(mag.matrix - np.linalg.inv(SOFT)).max() < 2e-3  # symmetric soft iron: exact
+
+
 def test_fuse_applies_the_calibration_by_serial(session_file, tmp_path, recording):
     caldir = tmp_path / "cal"
     assert run("sensorcal", session_file, "--sensor", "shank_r", "-o", caldir).exit_code == 0

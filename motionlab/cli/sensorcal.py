@@ -38,7 +38,7 @@ def _describe(r: stage.KindResult) -> list[str]:
     if r.kind == "gyro":
         return [
             f"gyro      bias {_vec(f.bias * _DEG)} deg/s ± {_vec(f.std_error * _DEG)}",
-            f"          rest {f.rest_s:.1f} s in {len(f.windows)} windows, window spread "
+            f"          rest {f.rest_s:.1f} s in {len(f.windows)} window(s), window spread "
             f"{_vec(f.spread * _DEG)} deg/s",
         ]
     if r.kind in ("acc", "mag"):
