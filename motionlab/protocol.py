@@ -168,6 +168,9 @@ def _construct_mapping(loader: _LineLoader, node: yaml.MappingNode) -> _Map:
 
 _LineLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
 
+#: public name: other line-aware YAML files (marker maps) load with it; mappings get ``lines``
+LineLoader = _LineLoader
+
 
 class _Reader:
     """Validates one protocol document, raising InputError that names the key and its line."""

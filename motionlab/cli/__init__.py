@@ -67,6 +67,9 @@ def _register() -> None:
 
     for module in (info, ingest, sensorcal, calibrate, angles, fuse, simulate):
         main.add_command(module.command)
+    from motionlab.cli import validate
+
+    main.add_command(validate.command)
 
 
 _register()

@@ -1,0 +1,146 @@
+"""``motionlab validate``: IMU orientations and joint angles against optical motion capture."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import click
+
+from motionlab.atomic import atomic_path, check_output
+from motionlab.errors import InputError
+from motionlab.protocol import load_protocol
+from motionlab.session import load_session, save_session
+from motionlab.validation import validate
+from motionlab.validation.align import MODES
+from motionlab.validation.markermap import load_marker_map
+from motionlab.validation.reference import choose_marker_set, read_reference
+from motionlab.validation.tables import CSV_FILES, summary, tables
+
+
+def _protocol(path: str | None, calibration: dict | None):
+    if path is not None:
+        return load_protocol(path)
+    if calibration:
+        return load_protocol(calibration.get("protocol_path") or calibration["protocol"])
+    return None
+
+
+@click.command("validate")
+@click.argument("session", type=click.Path(dir_okay=False))
+@click.option("--reference", "reference", help="C3D/TRC/BROAD file or a session with markers "
+              "(default: the session's own markers).")  # fmt: skip
+@click.option("--markers", "markers_path", help="Marker map YAML (default: markers by name).")
+@click.option("--protocol", "protocol_path", help="Protocol (default: the calibration's).")
+@click.option("--mode", type=click.Choice(MODES), default="full", show_default=True,
+              help="Alignment: full (9-D), heading (6-D: vertical shared), none.")  # fmt: skip
+@click.option("--no-sync", is_flag=True, help="The streams already share one clock.")
+@click.option("--movement-only", is_flag=True, help="Statistics over movement phases only.")
+@click.option("--estimator", default="default", show_default=True,
+              help="Fusion for sensors without fusion results.")  # fmt: skip
+@click.option("--csv", "csv_dir", type=click.Path(file_okay=False), help="Write CSV tables here.")
+@click.option("--json", "as_json", is_flag=True, help="Print the results as JSON.")
+@click.option("--force", is_flag=True, help="Replace existing validation results and CSV files.")
+def command(
+    session: str,
+    reference: str | None,
+    markers_path: str | None,
+    protocol_path: str | None,
+    mode: str,
+    no_sync: bool,
+    movement_only: bool,
+    estimator: str,
+    csv_dir: str | None,
+    as_json: bool,
+    force: bool,
+) -> None:
+    """Compare SESSION with an optical reference: clock sync, frame alignment, orientation
+    errors and joint-angle agreement; results go into the session for the report.
+
+    \b
+    Example:
+      motionlab validate session.h5 --reference trial.c3d --markers map.yaml --json
+      motionlab validate broad.h5 --mode none --no-sync --movement-only
+    """
+    ses = load_session(session)
+    if "validation" in ses.results and not force:
+        raise InputError(
+            "already holds validation results", session, "results/validation", "add --force"
+        )
+    mmap = load_marker_map(markers_path) if markers_path else None
+    name = mmap.marker_set if mmap else None
+    if reference is None:
+        if not ses.markers:
+            raise InputError(
+                "has no optical data", session, remedy="give --reference FILE.c3d or a session"
+            )
+        ref = choose_marker_set(list(ses.markers.values()), name, session)
+    else:
+        ref = choose_marker_set(read_reference(reference), name, reference)
+    protocol = _protocol(protocol_path, ses.results.get("calibration"))
+    written = []
+    if csv_dir:
+        folder = Path(csv_dir)
+        if folder.exists() and not folder.is_dir():
+            raise InputError("is not a folder", folder, remedy="give a folder for the CSV tables")
+        folder.mkdir(parents=True, exist_ok=True)
+        for fname in CSV_FILES:
+            check_output(folder / fname, force)
+    result = validate(
+        ses, ref, mmap, protocol, mode, sync=not no_sync, movement_only=movement_only,
+        estimator=estimator,
+    )  # fmt: skip
+    if csv_dir:
+        for fname, table in tables(result).items():
+            with atomic_path(folder / fname, force=force) as tmp:
+                table.to_csv(tmp, index=False, float_format="%.6g")
+            written.append(str(folder / fname))
+    inputs = [session] + [p for p in (reference, markers_path) if p]
+    parameters = {
+        "stage": "validate",
+        "mode": mode,
+        "sync": not no_sync,
+        "movement_only": movement_only,
+        "protocol": protocol.name if protocol else None,
+    }
+    ses.add_provenance(parameters=parameters, inputs=inputs)  # fmt: skip
+    save_session(ses, session, force=True)
+    digest = summary(result)
+    if as_json:
+        click.echo(json.dumps(digest, indent=2))
+        return
+    _print(digest, result["sync"]["method"] != "none")
+    if written:
+        click.echo(f"wrote {', '.join(written)}")
+
+
+def _num(value: float | None, fmt: str = ".2f") -> str:
+    return "n/a" if value is None else format(value, fmt)
+
+
+def _print(digest: dict, synced: bool) -> None:
+    """The human-readable summary (degrees)."""
+    if synced:
+        click.echo(
+            f"clock: offset {digest['time_offset_s']:.4f} s, drift {digest['drift_ppm']:.1f} ppm, "
+            f"inliers {_num(digest['sync']['inlier_ratio'], '.0%')}"
+        )
+    else:
+        click.echo("clock: not synchronised (--no-sync)")
+    al = digest["alignment"]
+    click.echo(f"alignment ({al['mode']}): lab → earth {al['lab_to_earth']['angle_deg']:.2f}°")
+    for label, o in digest["orientation"].items():
+        click.echo(
+            f"{label:<16} total {_num(o['total_rmse_deg'])}°  heading "
+            f"{_num(o['heading_rmse_deg'])}°  inclination {_num(o['inclination_rmse_deg'])}°  "
+            f"median {_num(o['median_deg'])}°"
+        )
+    for col, a in digest["angles"].items():
+        lo, hi = a["loa_deg"]
+        click.echo(
+            f"{col:<30} RMSE {_num(a['rmse_deg'])}°  bias {_num(a['bias_deg'], '+.2f')}°  "
+            f"LoA [{_num(lo, '+.1f')}, {_num(hi, '+.1f')}]°  r {_num(a['r'], '.3f')}  "
+            f"CMC {_num(a['cmc'], '.3f')}"
+        )
+    for note in digest["notes"]:
+        click.echo(f"note: {note}")

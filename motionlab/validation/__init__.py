@@ -1,0 +1,292 @@
+"""Validation against optical motion capture: ``validate(session, reference, ...) -> dict``.
+
+Steps (each in its own module):
+
+1. optical segment orientations from the marker map: cluster fits, rigid bodies, anatomical
+   frames from landmarks (:mod:`.markermap`, :mod:`.optical`, :mod:`.anatomy`, :mod:`.reference`);
+2. time synchronisation of the IMU and optical clocks (:mod:`.sync`);
+3. both streams on one clock: the IMU (session) clock, at the samples of the first sensor;
+4. the two constant rotations between the systems (:mod:`.align`);
+5. orientation errors per sensor (:mod:`.orientation_error`: BROAD total/heading/inclination
+   RMSE and the geodesic median/IQR/95th percentile of Ricci 2015);
+6. joint angles of the optical segments through the same code as the IMU's
+   (:func:`motionlab.kinematics.joint_angles.joint_angles`) and their agreement per angle and
+   per repetition (:mod:`.agreement`).
+
+The result tree is stored in ``session.results["validation"]``; :mod:`.figures` draws it.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from motionlab import rotations as rot
+from motionlab.errors import InputError
+from motionlab.kinematics.joint_angles import JOINT_ANGLE_NAMES, column_name, joint_angles
+from motionlab.protocol import Protocol
+from motionlab.session import MarkerSet, Session, estimate_rate
+from motionlab.validation.agreement import agreement, per_repetition, repetitions
+from motionlab.validation.align import Alignment
+from motionlab.validation.align import align as estimate_alignment
+from motionlab.validation.markermap import MarkerMap, check_marker_map, default_marker_map
+from motionlab.validation.optical import resample_quat
+from motionlab.validation.orientation_error import error_angles, orientation_errors
+from motionlab.validation.reference import OpticalSegment, choose_marker_set, optical_segments
+from motionlab.validation.sync import no_sync, synchronise
+
+__all__ = ["validate"]
+
+MOVEMENT_RAD_S = 0.3  # angular speed above which a sample counts as movement
+MOVEMENT_PAD_S = 0.25
+
+
+def _pairs(session: Session, mmap: MarkerMap) -> dict[str, str]:
+    """``{sensor label: segment}`` for the mapped segments that carry a sensor with gyroscope."""
+    from motionlab.segments import sensor_for_segment
+
+    out = {}
+    for seg, spec in mmap.segments.items():
+        label = spec.sensor or sensor_for_segment(session, seg)
+        if label is not None and label in session.sensors:
+            out[label] = seg
+        elif spec.sensor:
+            raise InputError(
+                f"no sensor '{spec.sensor}' in the session",
+                mmap.path,
+                f"segments.{seg}.sensor",
+                f"sensors are {', '.join(session.sensors)}",
+            )
+    if not out:
+        raise InputError(
+            "no mapped segment carries a sensor of the session",
+            mmap.path,
+            remedy=f"name segments after sensors ({', '.join(session.sensors)}) or set sensor:",
+        )
+    return out
+
+
+def movement_mask(session: Session, labels: list[str], t: np.ndarray) -> np.ndarray:
+    """Samples of ``t`` (IMU clock) in movement: the sensors' own ``movement`` channel when all
+    have one (BROAD), else any sensor turning faster than 0.3 rad/s, padded by 0.25 s."""
+    sensors = [session.sensors[k] for k in labels]
+    if all("movement" in s.extra for s in sensors):
+        out = np.zeros(len(t), bool)
+        for s in sensors:
+            k = np.clip(np.searchsorted(s.time, t), 0, len(s.time) - 1)
+            out |= np.asarray(s.extra["movement"], bool)[k]
+        return out
+    moving = np.zeros(len(t), bool)
+    for s in sensors:
+        speed = np.linalg.norm(s.gyr, axis=1) if s.gyr is not None else np.zeros(len(s.time))
+        fast = s.time[speed > MOVEMENT_RAD_S]
+        if len(fast):
+            k = np.clip(np.searchsorted(fast, t), 1, len(fast) - 1)
+            near = np.minimum(np.abs(fast[k] - t), np.abs(fast[k - 1] - t))
+            moving |= near <= MOVEMENT_PAD_S
+    return moving
+
+
+def _common_time(session: Session, labels: list[str]) -> np.ndarray:
+    t = np.asarray(session.sensors[labels[0]].time, dtype=float)
+    t0 = max(session.sensors[k].time[0] for k in labels)
+    t1 = min(session.sensors[k].time[-1] for k in labels)
+    return t[(t >= t0) & (t <= t1)]
+
+
+def _orientation(q_est: np.ndarray, q_ref: np.ndarray, mask: np.ndarray | None) -> dict:
+    ang = error_angles(q_est, q_ref)
+    out: dict[str, Any] = {f"{k}_deg": v for k, v in ang.items()}
+    try:
+        out.update(orientation_errors(q_est, q_ref, mask))
+    except InputError:
+        out["n_samples"] = 0
+    return out
+
+
+def _optical_segment_quats(
+    optical: dict[str, OpticalSegment],
+    al: Alignment,
+    seg_of: dict[str, str],
+    calibration: dict | None,
+) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], dict[str, str]]:
+    """Segment → lab orientation per segment: anatomical (landmarks) or, without landmarks,
+    the cluster carried to the IMU segment frame (``B X q_mount``)."""
+    label_of = {seg: label for label, seg in seg_of.items()}
+    out, source = {}, {}
+    for seg, o in optical.items():
+        q = o.segment_quat()
+        if q is not None:
+            out[seg], source[seg] = (o.time, q), "landmarks"
+            continue
+        cal = (calibration or {}).get("segments", {}).get(seg)
+        if seg in label_of and cal is not None:
+            x = al.sensor_to_cluster[label_of[seg]]
+            out[seg] = (o.time, rot.mul(o.quat, rot.mul(x, np.asarray(cal["mounting"]))))
+            source[seg] = "imu_calibration"
+    return out, source
+
+
+def _joint_angles(qp: np.ndarray, qd: np.ndarray, joint) -> dict[str, np.ndarray]:
+    """:func:`joint_angles` on the rows where both orientations exist, NaN elsewhere."""
+    ok = np.isfinite(qp).all(axis=1) & np.isfinite(qd).all(axis=1)
+    out = {}
+    for col, values in joint_angles(qp[ok] if ok.any() else qp[:1] * 0 + rot.IDENTITY,
+                                    qd[ok] if ok.any() else qd[:1] * 0 + rot.IDENTITY,
+                                    joint).items():  # fmt: skip
+        full = np.full(len(ok), np.nan)
+        full[ok] = values[: ok.sum()]
+        out[col] = full
+    return out
+
+
+def _angles(
+    session: Session,
+    protocol: Protocol,
+    seg_quats: dict[str, tuple[np.ndarray, np.ndarray]],
+    to_reference,
+    movement: tuple[np.ndarray, np.ndarray] | None,
+) -> tuple[dict[str, Any], list[str]]:
+    """IMU and optical joint angles on the IMU angle time base and their agreement."""
+    from motionlab.kinematics.session_angles import session_angles
+
+    notes = []
+    table = session.results.get("angles")
+    if not isinstance(table, dict) or "time_s" not in table:
+        table = session_angles(session, protocol, session.results.get("calibration"))
+    t = np.asarray(table["time_s"], dtype=float)
+    rate = estimate_rate(t)
+    mask = None
+    if movement is not None:
+        k = np.clip(np.searchsorted(movement[0], t), 0, len(movement[0]) - 1)
+        mask = movement[1][k]
+    out: dict[str, Any] = {"time_s": t}
+    for joint in protocol.joints.values():
+        if joint.proximal not in seg_quats or joint.distal not in seg_quats:
+            notes.append(f"joint {joint.name}: no optical frame for both segments")
+            continue
+        t_ref = to_reference(t)
+        qp = resample_quat(*seg_quats[joint.proximal], t_ref)
+        qd = resample_quat(*seg_quats[joint.distal], t_ref)
+        ref = _joint_angles(qp, qd, joint)
+        names = JOINT_ANGLE_NAMES[joint.type]
+        primary = column_name(joint.type, joint.side, names[0])
+        reps = repetitions(ref[primary], rate)
+        for col, ref_deg in ref.items():
+            if col not in table:
+                notes.append(f"{col}: not in the IMU angle table")
+                continue
+            imu_deg = np.asarray(table[col], dtype=float)
+            entry = agreement(imu_deg, ref_deg, mask)
+            entry.update({"imu_deg": imu_deg, "ref_deg": ref_deg})
+            if len(reps) >= 2:
+                entry["repetitions"] = per_repetition(imu_deg, ref_deg, reps, t)
+            out[col] = entry
+    return out, notes
+
+
+def validate(
+    session: Session,
+    reference: MarkerSet | None = None,
+    marker_map: MarkerMap | None = None,
+    protocol: Protocol | None = None,
+    mode: str = "full",
+    *,
+    sync: bool = True,
+    movement_only: bool = False,
+    estimator: str = "default",
+    seed: int = 0,
+) -> dict[str, Any]:
+    """Compare the session's IMU orientations and joint angles with an optical reference.
+
+    Parameters
+    ----------
+    session
+        The IMU session (its fusion results are used; sensors without them are fused with
+        ``estimator``).
+    reference
+        The optical marker set (default: the session's own, named by the map or the only one).
+    marker_map
+        Which markers form which segment (default: :func:`default_marker_map`).
+    protocol
+        Needed for joint angles and landmarks (default: orientations only).
+    mode
+        Spatial alignment: ``full``, ``heading`` or ``none`` (:mod:`.align`).
+    sync
+        Estimate the clock model (``False``: the streams already share a clock).
+    movement_only
+        Restrict the statistics to movement phases (:func:`movement_mask`).
+
+    Returns
+    -------
+    dict
+        The tree also stored in ``session.results["validation"]``: ``sync``, ``alignment``,
+        ``optical``, ``orientation`` (per sensor) and ``angles`` (per angle column).
+    """
+    from motionlab.kinematics.session_angles import sensor_orientation
+
+    if reference is None:
+        name = marker_map.marker_set if marker_map else None
+        reference = choose_marker_set(list(session.markers.values()), name)
+    mmap = marker_map or default_marker_map(reference, protocol, list(session.sensors))
+    check_marker_map(mmap, reference)
+    optical = optical_segments(reference, mmap, protocol)
+    seg_of = _pairs(session, mmap)
+    labels = list(seg_of)
+    imu_q = {k: sensor_orientation(session, k, estimator) for k in labels}
+
+    if sync:
+        clock = synchronise(
+            [(session.sensors[k].time, session.sensors[k].gyr) for k in labels],
+            [(optical[seg_of[k]].time, optical[seg_of[k]].quat) for k in labels],
+            seed=seed,
+        )
+    else:
+        clock = no_sync()
+    t = _common_time(session, labels)
+    t_ref = clock.model.to_reference(t)
+    pairs = {
+        k: (
+            resample_quat(session.sensors[k].time, imu_q[k], t),
+            resample_quat(optical[seg_of[k]].time, optical[seg_of[k]].quat, t_ref),
+        )
+        for k in labels
+    }
+    al = estimate_alignment(pairs, mode, rate=estimate_rate(t))
+    moving = movement_mask(session, labels, t) if movement_only else None
+    orientation: dict[str, Any] = {"time_s": t}
+    for k, (a, b) in pairs.items():
+        orientation[k] = _orientation(a, al.reference(k, b), moving)
+
+    result: dict[str, Any] = {
+        "mode": mode,
+        "marker_set": reference.name,
+        "movement_only": movement_only,
+        "pairs": {k: seg_of[k] for k in labels},
+        "sync": clock.as_dict(),
+        "alignment": al.as_dict(),
+        "optical": {
+            seg: {"source": o.source, "landmarks": o.landmarks, **o.info}
+            for seg, o in optical.items()
+        },
+        "orientation": orientation,
+    }
+    residual = result["sync"].pop("pair_residual_s", np.zeros(0))
+    result["sync"]["sensor_residual_s"] = {
+        k: float(residual[i]) for i, k in enumerate(labels) if i < len(residual)
+    }
+    notes: list[str] = []
+    if protocol is not None and protocol.joints:
+        seg_quats, source = _optical_segment_quats(
+            optical, al, seg_of, session.results.get("calibration")
+        )
+        for seg, src in source.items():
+            result["optical"][seg]["frame"] = src
+        movement = (t, moving) if moving is not None else None
+        result["angles"], notes = _angles(
+            session, protocol, seg_quats, clock.model.to_reference, movement
+        )
+    result["notes"] = notes
+    session.results["validation"] = result
+    return result

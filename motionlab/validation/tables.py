@@ -1,0 +1,125 @@
+"""The validation result as a JSON summary and as CSV tables (degrees, units in column names)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+ANGLE_STATS = (
+    "rmse_deg", "bias_deg", "sd_deg", "max_abs_deg", "rmse_centred_deg", "r", "cmc", "n_samples",
+)  # fmt: skip
+CSV_FILES = (
+    "validation_angles.csv", "validation_metrics.csv", "validation_orientation.csv",
+    "validation_sync.csv",
+)  # fmt: skip
+ORIENTATION_STATS = (
+    "total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg", "median_deg", "iqr_deg",
+    "p95_deg", "n_samples",
+)  # fmt: skip
+
+
+def _plain(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [_plain(v) for v in value]
+    if isinstance(value, (np.floating, float)):
+        return None if not np.isfinite(value) else float(value)
+    if isinstance(value, np.integer):
+        return int(value)
+    if isinstance(value, np.bool_):
+        return bool(value)
+    return value
+
+
+def angle_columns(result: dict[str, Any]) -> list[str]:
+    """The angle columns of a result (those with statistics)."""
+    angles = result.get("angles", {})
+    return [k for k, v in angles.items() if isinstance(v, dict) and "rmse_deg" in v]
+
+
+def sensor_labels(result: dict[str, Any]) -> list[str]:
+    """The sensors with orientation errors."""
+    return [k for k, v in result.get("orientation", {}).items() if isinstance(v, dict)]
+
+
+def summary(result: dict[str, Any]) -> dict[str, Any]:
+    """JSON-able digest: ``time_offset_s``, ``drift_ppm``, the alignment rotations (quaternion
+    and angle), per sensor the orientation errors, per angle ``rmse_deg``, ``bias_deg``,
+    ``loa_deg``, ``r``, ``cmc`` and the other statistics."""
+    sync = result["sync"]
+    al = result["alignment"]
+    out = {
+        "time_offset_s": sync["time_offset_s"],
+        "drift_ppm": sync["drift_ppm"],
+        "sync": {k: sync[k] for k in ("method", "inlier_ratio", "residual_rms_s", "n_windows")},
+        "alignment": {
+            "mode": al["mode"],
+            "lab_to_earth": al["lab_to_earth"],
+            "sensor_to_cluster": al["sensor_to_cluster"],
+            "heading_deg": al.get("heading_deg", {}),
+            "residual_rms_deg": al.get("residual_rms_deg", {}),
+        },
+        "orientation": {
+            k: {s: result["orientation"][k].get(s) for s in ORIENTATION_STATS}
+            for k in sensor_labels(result)
+        },
+        "angles": {},
+        "notes": list(result.get("notes", [])),
+    }
+    for col in angle_columns(result):
+        entry = result["angles"][col]
+        out["angles"][col] = {s: entry[s] for s in ANGLE_STATS} | {"loa_deg": entry["loa_deg"]}
+        reps = entry.get("repetitions")
+        if isinstance(reps, dict) and reps.get("n"):
+            out["angles"][col]["repetitions"] = {
+                "n": reps["n"],
+                "rmse_deg_mean": float(np.mean(reps["rmse_deg"])),
+                "rom_error_deg_mean": float(np.mean(reps["rom_error_deg"])),
+                "cmc": reps["cmc"],
+            }
+    return _plain(out)
+
+
+def tables(result: dict[str, Any]) -> dict[str, pd.DataFrame]:
+    """CSV tables by file name: angle curves, angle metrics, orientation metrics, sync windows."""
+    out: dict[str, pd.DataFrame] = {}
+    cols = angle_columns(result)
+    if cols:
+        angles = result["angles"]
+        curves = {"time_s": angles["time_s"]}
+        for col in cols:
+            stem = col.removesuffix("_deg")
+            curves[f"{stem}_imu_deg"] = angles[col]["imu_deg"]
+            curves[f"{stem}_ref_deg"] = angles[col]["ref_deg"]
+        out["validation_angles.csv"] = pd.DataFrame(curves)
+        rows = []
+        for col in cols:
+            e = angles[col]
+            lo, hi = e["loa_deg"]
+            rows.append({"angle": col} | {s: e[s] for s in ANGLE_STATS}
+                        | {"loa_low_deg": lo, "loa_high_deg": hi})  # fmt: skip
+        out["validation_metrics.csv"] = pd.DataFrame(rows)
+    labels = sensor_labels(result)
+    if labels:
+        out["validation_orientation.csv"] = pd.DataFrame(
+            [
+                {"sensor": k} | {s: result["orientation"][k].get(s) for s in ORIENTATION_STATS}
+                for k in labels
+            ]  # fmt: skip
+        )
+    sync = result["sync"]
+    if len(sync.get("window_time_s", [])):
+        out["validation_sync.csv"] = pd.DataFrame(
+            {
+                "time_s": sync["window_time_s"],
+                "lag_s": sync["window_lag_s"],
+                "lag_sd_s": sync["window_sd_s"],
+                "correlation": sync["window_corr"],
+                "pair": sync["window_pair"],
+                "inlier": sync["inliers"],
+            }
+        )
+    return out

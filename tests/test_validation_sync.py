@@ -1,0 +1,93 @@
+"""Time synchronisation: clock model from angular speed, RANSAC, sub-sample peaks."""
+
+import numpy as np
+import pytest
+from scipy.signal import butter, sosfiltfilt
+
+from motionlab import rotations as rot
+from motionlab.errors import InputError
+from motionlab.validation.optical import resample_quat
+from motionlab.validation.sync import ClockModel, _parabola, ransac_line, synchronise
+
+OFFSET, DRIFT = 0.137, 100e-6
+
+
+def _recording(seed: int, noise_rad: float, duration: float = 90.0):
+    """A body turning with smooth random angular velocity (pauses included), seen by an IMU at
+    100 Hz on the true clock and by a camera at 120 Hz on the clock ``OFFSET + (1+DRIFT) t``."""
+    rng = np.random.default_rng(seed)
+    fine = np.arange(0.0, duration, 1e-3)
+    sos = butter(2, 2.0, fs=1000, output="sos")
+    w = sosfiltfilt(sos, rng.normal(size=(len(fine), 3)), axis=0)
+    w *= 2.0 / w.std() * 0.5 * (1 + np.tanh(4 * np.sin(2 * np.pi * fine / 20) + 1.2))[:, None]
+    q = rot.integrate_gyro(rot.IDENTITY, w, 1e-3)
+    t_imu = np.arange(0.0, duration - 0.01, 0.01)
+    gyr = np.column_stack([np.interp(t_imu, fine, w[:, i]) for i in range(3)])
+    stamps = np.arange(int((OFFSET + (1 + DRIFT) * duration) * 120)) / 120.0
+    t_true = (stamps - OFFSET) / (1 + DRIFT)
+    keep = (t_true >= 0) & (t_true < duration - 0.01)
+    q_opt = resample_quat(fine, q, t_true[keep])
+    q_opt = rot.mul(q_opt, rot.from_rotvec(rng.normal(0, noise_rad, (keep.sum(), 3))))
+    return (t_imu, gyr + rng.normal(0, 0.005, gyr.shape)), (stamps[keep], q_opt)
+
+
+def test_clock_model_maps_both_ways():
+    m = ClockModel(0.137, 1e-4)
+    t = np.array([0.0, 10.0, 100.0])
+    np.testing.assert_allclose(m.to_imu(m.to_reference(t)), t)
+    assert m.to_reference(10.0) == pytest.approx(0.137 + 10.001)
+
+
+def test_noise_free_offset_and_drift_are_exact():
+    imu, ref = _recording(0, 0.0)
+    res = synchronise([imu], [ref])
+    assert res.model.offset_s == pytest.approx(OFFSET, abs=1e-4)
+    assert res.model.drift == pytest.approx(DRIFT, abs=3e-6)
+    assert res.inlier_ratio == 1.0 and len(res.window_time_s) >= 10
+
+
+def test_marker_noise_costs_little_precision():
+    imu, ref = _recording(1, np.radians(0.5))  # 0.5° per camera frame, as with 1 mm markers
+    res = synchronise([imu], [ref])
+    assert res.model.offset_s == pytest.approx(OFFSET, abs=1e-3)
+    assert res.model.drift == pytest.approx(DRIFT, abs=20e-6)
+    d = res.as_dict()
+    assert d["drift_ppm"] == pytest.approx(res.model.drift * 1e6)
+    assert len(d["window_lag_s"]) == len(d["inliers"]) == d["n_windows"]
+
+
+def test_a_large_offset_is_found_by_the_coarse_search():
+    (t_imu, gyr), (t_ref, q) = _recording(2, 0.0)
+    res = synchronise([(t_imu, gyr)], [(t_ref + 7.3, q)])
+    assert res.model.offset_s == pytest.approx(OFFSET + 7.3, abs=1e-3)
+
+
+def test_ransac_rejects_outliers_and_weights_by_precision():
+    t = np.arange(0.0, 100.0, 5.0)
+    y = 0.2 + 1e-4 * t
+    y[[3, 11]] += [0.4, -0.25]  # windows matched to the wrong movement cycle
+    a, b, inliers = ransac_line(t, y, threshold=0.002)
+    assert a == pytest.approx(0.2) and b == pytest.approx(1e-4)
+    assert inliers.tolist() == [i not in (3, 11) for i in range(len(t))]
+    y2 = 0.2 + 1e-4 * t
+    y2[0] += 0.0015  # imprecise window: inside the threshold, but with a large SD
+    sd = np.full(len(t), 1e-4)
+    sd[0] = 1e-1
+    a, b, _ = ransac_line(t, y2, threshold=0.002, sd=sd)
+    assert a == pytest.approx(0.2, abs=1e-6)
+    with pytest.raises(InputError, match="window"):
+        ransac_line(t[:1], y[:1], 0.002)
+
+
+def test_parabola_vertex():
+    c = -((np.arange(5) - 2.3) ** 2)
+    assert 2 + _parabola(c, 2) == pytest.approx(2.3)
+    assert _parabola(c, 0) == 0.0
+
+
+def test_no_movement_cannot_be_synchronised():
+    t = np.arange(0.0, 30.0, 0.01)
+    still = (t, np.zeros((len(t), 3)) + 1e-3)
+    q = np.tile(rot.IDENTITY, (len(t), 1))
+    with pytest.raises(InputError, match="--no-sync"):
+        synchronise([still], [(t, q)])
