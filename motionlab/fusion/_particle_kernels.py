@@ -205,6 +205,7 @@ def nb_filter(
     e_tilt = 0.0
     e_head = 0.0
     out_prev = q0.copy()
+    inv_sum = 1.0
     for k in range(gyr.shape[0]):
         # -- gyroscope: the shared strapdown integral G (To eq. 231), bias-compensated
         if k > 0:
@@ -265,18 +266,35 @@ def nb_filter(
             lik[p] = lp
             if lp > lmax:
                 lmax = lp
+        # weights (kept unnormalised between samples: scale by the previous sum here), ESS and
+        # the scatter Σ wᵢLᵢLᵢᵀ of Markley's mean in one pass
         sw = 0.0
-        for p in range(n):
-            w[p] *= np.exp(lik[p] - lmax)
-            sw += w[p]
         s2 = 0.0
+        m00 = m01 = m02 = m03 = m11 = m12 = m13 = m22 = m23 = m33 = 0.0
         for p in range(n):
-            w[p] /= sw
-            s2 += w[p] * w[p]
-        ess = 1.0 / s2
+            wp = w[p] * inv_sum * np.exp(lik[p] - lmax)
+            w[p] = wp
+            sw += wp
+            s2 += wp * wp
+            a0, a1, a2, a3 = parts[p, 0], parts[p, 1], parts[p, 2], parts[p, 3]
+            wa0 = wp * a0
+            wa1 = wp * a1
+            wa2 = wp * a2
+            m00 += wa0 * a0
+            m01 += wa0 * a1
+            m02 += wa0 * a2
+            m03 += wa0 * a3
+            m11 += wa1 * a1
+            m12 += wa1 * a2
+            m13 += wa1 * a3
+            m22 += wa2 * a2
+            m23 += wa2 * a3
+            m33 += wp * a3 * a3
+        inv_sum = 1.0 / sw
+        ess = sw * sw / s2
         # -- Markley mean, warm-started from the previous one
         p0, p1, p2, p3 = mean[0], mean[1], mean[2], mean[3]
-        sph._nb_mean(parts, w, mean, mean)
+        sph._nb_principal(m00, m01, m02, m03, m11, m12, m13, m22, m23, m33, mean, mean)
         # -- bias (BC): the sensor-frame rotation of the mean's correction δ = prev* ⊗ mean
         d0 = p0 * mean[0] + p1 * mean[1] + p2 * mean[2] + p3 * mean[3]
         sd = 2.0 if d0 >= 0.0 else -2.0
@@ -297,6 +315,10 @@ def nb_filter(
             e_tilt += dt / reset_time * (np.arccos(c) - e_tilt)
         if km > 0.0:
             e_head += dt / reset_time * (abs(psi) - e_head)
+        if e_tilt > reset_angle or e_head > reset_angle or ess < ess_thr * n:
+            for p in range(n):
+                w[p] *= inv_sum
+            inv_sum = 1.0
         if e_tilt > reset_angle or e_head > reset_angle:
             _nb_vector_attitude(mean, ax, ay, az, mx, my, mz, not gated, center, v3)
             _nb_spread(state, parts, center, sig0, proposal, zmax, lam4, basis, jit)

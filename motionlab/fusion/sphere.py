@@ -173,21 +173,17 @@ def _nb_bingham(
 
 @numba.njit(cache=True)
 def _nb_mean(q: np.ndarray, w: np.ndarray, guess: np.ndarray, out: np.ndarray) -> None:
-    """Principal eigenvector of M = Σ wᵢ qᵢqᵢᵀ by power iteration from ``guess`` (sign of guess).
-
-    M is positive semi-definite, so the iteration converges to the eigenvector of the largest
-    eigenvalue at the rate λ₂/λ₁ (fast for a concentrated particle cloud); 4×4 scalar work only.
-    """
+    """Markley mean of ``q`` (N, 4) with weights ``w`` into ``out``, warm-started at ``guess``."""
     m00 = m01 = m02 = m03 = m11 = m12 = m13 = m22 = m23 = m33 = 0.0
     for i in range(q.shape[0]):
-        wi = w[i]
         a0 = q[i, 0]
         a1 = q[i, 1]
         a2 = q[i, 2]
         a3 = q[i, 3]
-        wa0 = wi * a0
-        wa1 = wi * a1
-        wa2 = wi * a2
+        wa0 = w[i] * a0
+        wa1 = w[i] * a1
+        wa2 = w[i] * a2
+        wa3 = w[i] * a3
         m00 += wa0 * a0
         m01 += wa0 * a1
         m02 += wa0 * a2
@@ -197,7 +193,16 @@ def _nb_mean(q: np.ndarray, w: np.ndarray, guess: np.ndarray, out: np.ndarray) -
         m13 += wa1 * a3
         m22 += wa2 * a2
         m23 += wa2 * a3
-        m33 += wi * a3 * a3
+        m33 += wa3 * a3
+    _nb_principal(m00, m01, m02, m03, m11, m12, m13, m22, m23, m33, guess, out)
+
+
+@numba.njit(cache=True)
+def _nb_principal(m00, m01, m02, m03, m11, m12, m13, m22, m23, m33, guess, out) -> None:
+    """Principal eigenvector of the symmetric PSD M = Σ wᵢ qᵢqᵢᵀ (upper entries given) by power
+    iteration from ``guess`` (its sign is kept); converges at the rate λ₂/λ₁, fast for a
+    concentrated cloud. ``guess`` and ``out`` may be the same array.
+    """
     v0, v1, v2, v3 = guess[0], guess[1], guess[2], guess[3]
     for _ in range(200):
         n0 = m00 * v0 + m01 * v1 + m02 * v2 + m03 * v3
