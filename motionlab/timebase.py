@@ -221,9 +221,20 @@ def fill_short_gaps(stream: SensorStream, gap_max: float) -> tuple[SensorStream,
     t_new = t[at] + k * (span[short] / (missing[short] + 1)).repeat(missing[short])
     arrays = per_sample_arrays(stream)
     new = interpolate_rows(t, arrays, t_new)
-    merged = {name: np.insert(np.asarray(a), at + 1, new[name], axis=0) for name, a in
-              arrays.items()}  # fmt: skip
-    return with_arrays(stream, np.insert(t, at + 1, t_new), merged), report
+    merged = {name: _insert_rows(a, at + 1, new[name]) for name, a in arrays.items()}
+    return with_arrays(stream, _insert_rows(t, at + 1, t_new), merged), report
+
+
+def _insert_rows(a: np.ndarray, before: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """``np.insert(a, before, rows, axis=0)`` for ascending ``before``, by block copies (one
+    per gap, not one mask over every sample)."""
+    a, rows = np.asarray(a), np.asarray(rows).astype(np.asarray(a).dtype, copy=False)
+    at, first, count = np.unique(before, return_index=True, return_counts=True)
+    pieces, prev = [], 0
+    for i, f, c in zip(at.tolist(), first.tolist(), count.tolist(), strict=True):
+        pieces += [a[prev:i], rows[f : f + c]]
+        prev = i
+    return np.concatenate([*pieces, a[prev:]])
 
 
 def regular_grid(t0: float, t1: float, rate: float) -> np.ndarray:

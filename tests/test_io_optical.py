@@ -76,7 +76,7 @@ def test_c3d_errors(small_c3d, tmp_path):
         c3d.read(cut)
     head_only = tmp_path / "head.c3d"
     head_only.write_bytes(data[:1000])
-    with pytest.raises(InputError, match="ezc3d cannot open"):
+    with pytest.raises(InputError, match="truncated: the file ends inside its parameter section"):
         c3d.read(head_only)
     garbage = tmp_path / "garbage.c3d"
     garbage.write_bytes(b"\x02\x50" + bytes(510) + b"\x01\x50\x01\x54" + bytes(range(256)) * 4)

@@ -23,6 +23,7 @@ from motionlab.errors import InputError
 from motionlab.session import MarkerSet, SensorStream
 
 HEAD_BYTES = 65536
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 
 #: reader modules in detection order: specific formats first, the generic reader last
 READER_MODULES = (
@@ -83,11 +84,32 @@ def _detect(path: Path, options: dict[str, Any] | None):
     for module in _readers():
         if module.sniff(path, head):
             return module
+    if head.startswith(HDF5_SIGNATURE):
+        _check_hdf5(path)
+        raise InputError(
+            "unknown file format: HDF5 without the datasets of a BROAD or APDM file",
+            path,
+            remedy="give a BROAD trial or an APDM .h5 export",
+        )
     raise InputError(
         "unknown file format",
         path,
         remedy="give a column map with --map (see README, 'Generic delimited text')",
     )
+
+
+def _check_hdf5(path: Path) -> None:
+    """Raise :class:`InputError` if h5py cannot open a file that starts like HDF5."""
+    import h5py
+
+    try:
+        h5py.File(path, "r").close()
+    except OSError:
+        raise InputError(
+            "HDF5 file is damaged or truncated (h5py cannot open it)",
+            path,
+            remedy="copy or export the file again",
+        ) from None
 
 
 def read_any(path: str | Path, options: dict[str, Any] | None = None) -> Recording:

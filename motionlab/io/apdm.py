@@ -41,6 +41,9 @@ FORMAT = "apdm"
 #: rotation taking NWU earth coordinates to ENU: +90° about the shared up axis
 NWU_TO_ENU = np.array([np.sqrt(0.5), 0.0, 0.0, np.sqrt(0.5)])
 
+#: the header rows are looked for among this many first lines
+HEADER_LINES = 200
+
 #: APDM's documented units, used when a file has no units row
 DEFAULT_UNITS = {"acc": "m/s^2", "gyr": "rad/s", "mag": "uT"}
 
@@ -92,17 +95,19 @@ def sniff(path: Path, head: bytes) -> bool:
 def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     """Read an APDM CSV export; one stream per sensor, SI units, quaternions sensor → ENU."""
     path = Path(path)
-    lines = read_lines(path)
-    while lines and not lines[-1].strip(","):
-        lines.pop()
-    if not lines:
+    text = read_lines(path)
+    end = len(text)
+    while end and not text[end - 1].strip(","):
+        end -= 1  # trailing rows of empty cells
+    if not end:
         raise InputError("file is empty", path, remedy="export the recording again")
+    lines = text[: min(end, HEADER_LINES)]
     if lines[0].startswith("Format="):
         columns, first_data, time_unit, meta = _format7_header(path, lines)
     else:
         columns, first_data, time_unit, meta = _studio_header(path, lines)
     names = ["Time"] + [f"{c[0]}/{c[2]}/{c[3]}" for c in columns]
-    table = parse_table(path, lines, first_data, header_rows=0, delimiter=",", names=names)
+    table = parse_table(path, text, first_data, header_rows=0, delimiter=",", names=names, end=end)
     values = table.data
     if len(values) < 2:
         raise InputError(

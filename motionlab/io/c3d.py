@@ -16,6 +16,7 @@ a gap). Analog channels are not read; their count is kept in ``attrs["n_analog_c
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -31,11 +32,17 @@ FORMAT = "c3d"
 
 def sniff(path: Path, head: bytes) -> bool:
     """C3D: the second byte of the header block is the key 0x50, and the parameter section
-    (block ``head[0]``) names a processor type 84–86 (Intel, DEC, MIPS) in its fourth byte."""
-    if len(head) < 512 or head[1] != 0x50:
+    (block ``head[0]``) names a processor type 84–86 (Intel, DEC, MIPS) in its fourth byte.
+
+    A file that ends before that byte but starts as C3D files do (parameter section in block
+    2: ``02 50``) is taken as a C3D file cut short, so that reading it says so.
+    """
+    if len(head) < 2 or head[1] != 0x50:
         return False
     processor = (max(head[0], 1) - 1) * 512 + 3
-    return processor < len(head) and head[processor] in (84, 85, 86)
+    if processor < len(head):
+        return len(head) >= 512 and head[processor] in (84, 85, 86)
+    return head[0] == 2
 
 
 def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
@@ -43,9 +50,13 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     import ezc3d
 
     path = Path(path)
+    layout = _layout(path)
+    expected = layout.frames
     try:
         c3d = ezc3d.c3d(str(path))
     except (RuntimeError, OSError, ValueError) as exc:
+        if expected > 0 and layout.size < layout.data_start + layout.frame_bytes:
+            raise _truncated(path, "the file ends inside its first frame", "frame 1") from None
         raise InputError(
             f"ezc3d cannot open it ({str(exc).splitlines()[0] if str(exc) else 'damaged'})",
             path,
@@ -55,7 +66,6 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     header = c3d["header"]["points"]
     points = c3d["data"]["points"]  # (4, M, N)
     n_markers, n_frames = points.shape[1], points.shape[2]
-    expected = _announced_frames(path)
     if n_markers and n_frames < expected:
         raise InputError(
             f"truncated: the header announces {expected} frames, the file holds {n_frames}",
@@ -104,19 +114,54 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     return Recording(markers=[markers], metadata={"c3d_unit": unit})
 
 
-def _announced_frames(path: Path) -> int:
-    """Frame count written in the C3D header block (ezc3d reports what it could read instead).
+@dataclass
+class _Layout:
+    """Where things are in a C3D file, from its header block (bytes)."""
 
-    Header words 4 and 5 are the first and last frame (uint16, 1-based); integers are
-    big-endian only on MIPS files (processor type 86, byte 4 of the parameter section).
+    size: int
+    frames: int  # announced in the header
+    data_start: int
+    frame_bytes: int
+
+
+def _layout(path: Path) -> _Layout:
+    """The header block's frame count and data layout (ezc3d reports the frames it could
+    read instead), after checking that the file reaches its first frame.
+
+    Header words (16-bit, 1-based): 1 parameter block (low byte) and key 0x50, 2 points per
+    frame, 3 analog samples per frame, 4–5 first and last frame, 7–8 the scale factor (float;
+    negative: samples stored as float32, else int16), 9 the first block of the data. The
+    parameter section's fourth byte is the processor type: 84 Intel, 85 DEC, 86 MIPS (the only
+    big-endian one). Raises :class:`InputError` for a file cut before its first frame.
     """
+    size = path.stat().st_size
     with open(path, "rb") as f:
         head = f.read(512)
-        f.seek((max(head[0], 1) - 1) * 512 + 3)
-        processor = f.read(1)
-    order = ">" if processor == bytes([86]) else "<"
-    first, last = np.frombuffer(head[6:10], dtype=f"{order}u2")
-    return int(last) - int(first) + 1
+        start = (max(head[0], 1) - 1) * 512 if head else 0
+        f.seek(start)
+        params = f.read(4)
+    if len(head) < 512:
+        raise _truncated(path, f"the file ends inside its 512-byte header ({size} bytes)", None)
+    if len(params) < 4:
+        raise _truncated(path, "the file ends before its parameter section", None)
+    order = ">" if params[3] == 86 else "<"
+    words = np.frombuffer(head[:18], dtype=f"{order}u2").astype(int)
+    frames = words[4] - words[3] + 1
+    data_start = (words[8] - 1) * 512
+    if size < min(start + params[2] * 512, data_start):  # some writers overstate params[2]
+        raise _truncated(path, "the file ends inside its parameter section", None)
+    if frames > 0 and size <= data_start:
+        raise _truncated(
+            path, f"the file ends before its first frame (the header announces {frames})",
+            "frame 1",
+        )  # fmt: skip
+    sign = head[{84: 15, 85: 13, 86: 12}.get(params[3], 15)] & 0x80  # of the scale factor
+    frame_bytes = (4 * words[1] + words[2]) * (4 if sign else 2)
+    return _Layout(size, int(frames), int(data_start), int(frame_bytes))
+
+
+def _truncated(path: Path, message: str, where: str | None) -> InputError:
+    return InputError(f"truncated: {message}", path, where, "copy or export the file again")
 
 
 def _value(group: dict, name: str, default: Any) -> Any:

@@ -4,12 +4,21 @@ decimal comma, and numeric parsing that names the first bad line and column.
 Conventions: line numbers in messages are 1-based, as an editor shows them; a parsed
 :class:`Table` holds one float64 row per data line (empty and ``NaN`` fields → NaN) and the
 file line number of every row, so readers can point at the line a problem comes from.
+
+Speed: a file is read once, as bytes (:class:`TextFile`); only the lines a reader looks at are
+decoded. :func:`parse_table` finds blank and comment lines with array operations over the
+first byte of every line, and parses the numeric body with ONE pandas C-parser call. Only when
+that call fails, or a row comes out short, are the fields of the lines counted (again with
+array operations) to name the first bad line.
 """
 
 from __future__ import annotations
 
 import io
-from collections.abc import Callable, Sequence
+import operator
+import re
+import warnings
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -22,14 +31,67 @@ from motionlab.errors import InputError
 DELIMITERS = ("\t", ";", ",", " ")
 COMMENT_PREFIXES = ("#", "//")
 
+_NEWLINE = 10
+_BLANK = np.zeros(256, dtype=bool)  # bytes skipped at the start of a line: space, tab, CR
+_BLANK[[9, 13, 32]] = True
+_SPACE = _BLANK.copy()  # bytes that separate fields of a "whitespace" delimited line
+_SPACE[_NEWLINE] = True
+
 
 def show_delimiter(delimiter: str) -> str:
     """Printable name of a delimiter for messages (``'\\t'`` → ``tab``)."""
     return {"\t": "tab", " ": "space"}.get(delimiter, f"'{delimiter}'")
 
 
-def read_lines(path: str | Path) -> list[str]:
-    """The file's lines without line endings (UTF-8 with or without BOM, else Latin-1).
+class TextFile(Sequence[str]):
+    """A text file held as bytes and seen as a sequence of lines, decoded when asked for.
+
+    ``raw`` is the content without byte-order mark, ending with ``\\n``; ``starts``/``ends``
+    the byte offsets of every line's first byte and of its ``\\n``. ``text[i]`` is line ``i``
+    (0-based) without its line ending; slices decode their lines in one go.
+    """
+
+    def __init__(self, path: str | Path, raw: bytes, encoding: str = "utf-8") -> None:
+        #: the last line has no line end (as in a file cut short)
+        self.unended = bool(raw) and not raw.endswith(b"\n")
+        if self.unended:
+            raw += b"\n"
+        self.path = Path(path)
+        self.raw = raw
+        self.encoding = encoding
+        self.bytes = np.frombuffer(raw, dtype=np.uint8)
+        self.ends = np.flatnonzero(self.bytes == _NEWLINE)
+        self.starts = np.concatenate(([0], self.ends[:-1] + 1)).astype(np.int64)
+
+    @classmethod
+    def from_lines(cls, path: str | Path, lines: Sequence[str]) -> TextFile:
+        """A :class:`TextFile` of ``lines`` (strings without line endings)."""
+        return cls(path, "\n".join(lines).encode("utf-8"), "utf-8")
+
+    def __len__(self) -> int:
+        return len(self.ends)
+
+    def __getitem__(self, i: int | slice) -> str | list[str]:  # type: ignore[override]
+        if isinstance(i, slice):
+            rows = range(len(self))[i]
+            if rows.step != 1 or not rows:
+                return [self[k] for k in rows]
+            chunk = self.raw[self.starts[rows.start] : self.ends[rows.stop - 1]]
+            return [s.rstrip("\r") for s in chunk.decode(self.encoding).split("\n")]
+        i = operator.index(i)
+        if i < 0:
+            i += len(self)
+        if not 0 <= i < len(self):
+            raise IndexError("line index out of range")
+        return self.raw[self.starts[i] : self.ends[i]].decode(self.encoding).rstrip("\r")
+
+    def __iter__(self) -> Iterator[str]:
+        return (self[i] for i in range(len(self)))
+
+
+def read_lines(path: str | Path) -> TextFile:
+    """The file's lines (UTF-8 with or without BOM, else Latin-1; ``\\r\\n``, ``\\n`` or
+    ``\\r`` line ends) as a :class:`TextFile`.
 
     Raises :class:`InputError` for a binary file (NUL bytes).
     """
@@ -44,11 +106,16 @@ def read_lines(path: str | Path) -> list[str]:
         raise InputError(
             "binary file, not delimited text", path, remedy="export the recording as text (CSV)"
         )
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError:
-        text = raw.decode("latin-1")
-    return text.splitlines()
+    raw = raw.removeprefix(b"\xef\xbb\xbf")
+    encoding = "utf-8"
+    if not raw.isascii():
+        try:
+            raw.decode("utf-8")
+        except UnicodeDecodeError:
+            encoding = "latin-1"
+    if b"\n" not in raw and b"\r" in raw:  # classic Mac line ends
+        raw = raw.replace(b"\r", b"\n")
+    return TextFile(path, raw, encoding)
 
 
 def is_comment(line: str, prefixes: Sequence[str] = COMMENT_PREFIXES) -> bool:
@@ -84,22 +151,18 @@ def split_fields(line: str, delimiter: str) -> list[str]:
     return [p.strip().strip('"').strip() for p in parts]
 
 
-def _count_fields(texts: Sequence[str], delimiter: str) -> np.ndarray:
-    if delimiter == "whitespace":
-        return np.fromiter((len(t.split()) for t in texts), int, len(texts))
-    return np.fromiter((t.count(delimiter) for t in texts), int, len(texts)) + 1
-
-
 def detect_delimiter(header: str, rows: Sequence[str]) -> str:
     """The delimiter that splits ``header`` and every sample row into the same number (> 1)
-    of fields; tab, semicolon, comma, then space are tried in that order.
+    of fields; tab, semicolon, comma, then space are tried in that order. The last row may
+    have fewer fields (a file cut short: the field check names it).
 
     Raises ``ValueError`` when none fits (the caller turns it into an :class:`InputError`).
     """
     for d in DELIMITERS:
         n = header.count(d) + 1
-        if n > 1 and all(r.count(d) + 1 == n for r in rows):
-            return d
+        if n > 1 and all(r.count(d) + 1 == n for r in rows[:-1]):
+            if not rows or rows[-1].count(d) + 1 <= n:
+                return d
     # a damaged sample row must not hide the delimiter: the header and most rows agree on it
     for d in DELIMITERS:
         n = header.count(d) + 1
@@ -163,6 +226,8 @@ def parse_table(
     decimal: str | None = None,
     names: Sequence[str] | None = None,
     comments: Sequence[str] = COMMENT_PREFIXES,
+    ragged: bool = False,
+    end: int | None = None,
 ) -> Table:
     """Parse the numeric table of ``lines`` whose header starts at index ``header``.
 
@@ -171,7 +236,7 @@ def parse_table(
     path
         The file (for messages).
     lines
-        All lines of the file (:func:`read_lines`).
+        The file's lines: a :class:`TextFile` (:func:`read_lines`, fast) or a list of strings.
     header
         0-based index of the first header line (of the first data line if ``header_rows=0``).
     header_rows
@@ -184,27 +249,41 @@ def parse_table(
         ``"."`` or ``","``; ``None`` detects a decimal comma when the delimiter is not a comma.
     comments
         Line prefixes of comment lines skipped among the data rows.
+    ragged
+        Rows may stop early (missing trailing fields are NaN) or carry more fields than
+        there are columns (the extra ones are ignored), as in TRC files.
+    end
+        0-based index of the line after the last one read (default: the end of the file).
 
     Raises :class:`InputError` naming the line and column for: no data rows, a wrong number
     of fields (a short last line is dropped and noted instead), text in a numeric column.
     """
     path = Path(path)
+    text = lines if isinstance(lines, TextFile) else TextFile.from_lines(path, lines)
     start = header + header_rows
-    body = [(i + 1, t) for i, t in enumerate(lines[start:], start) if not is_comment(t, comments)]
-    if not body:
-        where = f"line {header + 1}" if header < len(lines) else None
+    stop = len(text) if end is None else min(end, len(text))
+    rows = np.arange(start, max(stop, start))
+    rows = rows[~_skipped(text, rows, comments)]
+    if not len(rows):
+        where = f"line {header + 1}" if header < len(text) else None
+        if text.unended and start >= len(text):
+            raise InputError(
+                "truncated: the file ends inside its header, before any data row",
+                path,
+                where,
+                remedy="copy or export the file again",
+            )
         raise InputError(
             "no data rows after the header",
             path,
             where,
             remedy="the export is empty: record again or check the export settings",
         )
-    lineno = np.array([b[0] for b in body])
-    texts = [b[1].rstrip("\r") for b in body]
-    head = [lines[header + k] for k in range(header_rows)]
+    head = text[header : header + header_rows]
+    sample = [text[i] for i in rows[:50].tolist()]
     if delimiter is None:
         try:
-            delimiter = detect_delimiter(head[0] if head else texts[0], texts[:20])
+            delimiter = detect_delimiter(head[0] if head else sample[0], sample[:20])
         except ValueError:
             raise InputError(
                 "cannot tell the delimiter (tab, ';', ',' or space)",
@@ -212,22 +291,10 @@ def parse_table(
                 f"line {header + 1}",
                 remedy="give 'delimiter' in a column map",
             ) from None
-    if head:
-        rows = [split_fields(h, delimiter) for h in head]
-        if len(rows) == 2:
-            top, run = [], ""
-            for cell in rows[0] + [""] * (len(rows[1]) - len(rows[0])):
-                run = cell or run
-                top.append(run)
-            col_names = [f"{a} {b}".strip() for a, b in zip(top, rows[1], strict=False)]
-        else:
-            col_names = rows[0]
-    else:
-        ncol0 = len(split_fields(texts[0], delimiter))
-        col_names = list(names) if names is not None else [f"col{k}" for k in range(ncol0)]
+    col_names = _column_names(head, sample[0], delimiter, names)
     ncol = len(col_names)
     if ncol < 2:
-        first = head[0] if head else texts[0]
+        first = head[0] if head else sample[0]
         alt = next((d for d in DELIMITERS if d != delimiter and d in first.strip()), None)
         remedy = f"is the delimiter {show_delimiter(alt)}?" if alt else "give 'delimiter'"
         raise InputError(
@@ -236,60 +303,219 @@ def parse_table(
             f"line {header + 1}",
             remedy=remedy,
         )
-    notes: list[str] = []
-    counts = _count_fields(texts, delimiter)
-    bad = np.flatnonzero(counts != ncol)
-    if len(bad) and bad[0] == len(texts) - 1 and counts[-1] < ncol:
-        notes.append(
-            f"line {lineno[-1]}: truncated last line ({counts[-1]} of {ncol} columns) dropped"
+    if decimal is None:
+        decimal = "," if delimiter != "," and any("," in t for t in sample) else "."
+    if decimal == delimiter:
+        raise InputError(
+            f"the decimal mark and the delimiter are both '{decimal}'",
+            path,
+            f"line {header + 1}",
+            remedy="give 'decimal' or 'delimiter' in a column map",
         )
-        texts, lineno, bad = texts[:-1], lineno[:-1], bad[:-1]
-        if not texts:
-            raise InputError(
-                "no complete data row after the header",
-                path,
-                f"line {header + 1}",
-                remedy="the export is empty or damaged: export it again",
+    parse = _Parse(text, delimiter, decimal, ncol, ragged)
+    rows, df, notes = parse.checked(rows)
+    data = _to_float(path, df, rows + 1, col_names, decimal)
+    return Table(path, col_names, data, rows + 1, delimiter, decimal, text[:header], notes)
+
+
+def _column_names(
+    head: list[str], first_row: str, delimiter: str, names: Sequence[str] | None
+) -> list[str]:
+    if not head:
+        ncol = len(split_fields(first_row, delimiter))
+        return list(names) if names is not None else [f"col{k}" for k in range(ncol)]
+    cells = [split_fields(h, delimiter) for h in head]
+    if len(cells) == 1:
+        return cells[0]
+    top, run = [], ""
+    for cell in cells[0] + [""] * (len(cells[1]) - len(cells[0])):
+        run = cell or run
+        top.append(run)
+    return [f"{a} {b}".strip() for a, b in zip(top, cells[1], strict=False)]
+
+
+def _skipped(text: TextFile, rows: np.ndarray, prefixes: Sequence[str]) -> np.ndarray:
+    """Which of the lines ``rows`` are blank or comments, from array operations: only lines
+    whose first byte is a space, tab, CR, newline or a prefix's first byte are looked into."""
+    out = np.zeros(len(rows), dtype=bool)
+    if not len(rows):
+        return out
+    codes = [np.frombuffer(p.encode(text.encoding, "replace"), np.uint8) for p in prefixes]
+    codes = [c for c in codes if len(c)]
+    lead = _SPACE.copy()
+    lead[[c[0] for c in codes]] = True
+    b = text.bytes
+    suspect = np.flatnonzero(lead[b[text.starts[rows]]])
+    if not len(suspect):
+        return out
+    pos = text.starts[rows[suspect]]
+    moving = np.flatnonzero(_BLANK[b[pos]])
+    while len(moving):  # step over the indentation, one byte per round for all lines at once
+        pos[moving] += 1
+        moving = moving[_BLANK[b[pos[moving]]]]
+    hit = b[pos] == _NEWLINE
+    last = len(b) - 1
+    for c in codes:
+        match = np.ones(len(pos), dtype=bool)
+        for k, byte in enumerate(c):
+            match &= b[np.minimum(pos + k, last)] == byte
+        hit |= match
+    out[suspect[hit]] = True
+    return out
+
+
+class _Parse:
+    """The numeric body of a :class:`TextFile` through one pandas C-parser call, and the
+    field counts that name a bad line when the parse fails or a row is short."""
+
+    def __init__(self, text: TextFile, delimiter: str, decimal: str, ncol: int, ragged: bool):
+        self.text, self.delimiter, self.decimal = text, delimiter, decimal
+        self.ncol, self.ragged = ncol, ragged
+
+    def checked(self, rows: np.ndarray) -> tuple[np.ndarray, pd.DataFrame, list[str]]:
+        """(rows kept, their values, notes); a short last row is dropped and noted."""
+        if self.ragged:  # short rows are fine, longer ones only if their extra cells are empty
+            counts = self.field_counts(rows)
+            counts[(counts <= self.ncol) | self.empty_tails(rows, counts)] = self.ncol
+            self.check_counts(rows, counts)
+            return rows, self.read_or_fail(rows), []
+        try:
+            df = self.read(rows)
+        except ValueError:  # pandas' ParserError: too many fields, a stray quote
+            df = None
+        if df is None or df.shape != (len(rows), self.ncol):
+            rows, notes = self.check_counts(rows, self.field_counts(rows))
+            return rows, self.read_or_fail(rows), notes
+        short = np.flatnonzero(df.iloc[:, -1].isna().to_numpy())
+        if not len(short):
+            return rows, df, []
+        counts = np.full(len(rows), self.ncol)
+        counts[short] = self.field_counts(rows[short])
+        kept, notes = self.check_counts(rows, counts)
+        return kept, df.iloc[: len(kept)], notes
+
+    def read_or_fail(self, rows: np.ndarray) -> pd.DataFrame:
+        """:meth:`read` of rows whose fields were counted: a failure is named at its line."""
+        try:
+            df = self.read(rows)
+        except ValueError as exc:
+            raise self.unparsable(rows, str(exc)) from None
+        if df.shape != (len(rows), self.ncol):
+            raise self.unparsable(rows, "")
+        return df
+
+    def read(self, rows: np.ndarray) -> pd.DataFrame:
+        ragged = {"names": range(self.ncol), "usecols": range(self.ncol)} if self.ragged else {}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", pd.errors.DtypeWarning)
+            return pd.read_csv(
+                self.body(rows),
+                sep=r"\s+" if self.delimiter == "whitespace" else self.delimiter,
+                header=None,
+                decimal=self.decimal,
+                quotechar='"',
+                skip_blank_lines=False,
+                encoding=self.text.encoding,
+                engine="c",
+                **ragged,
             )
-    if len(bad):
+
+    def body(self, rows: np.ndarray) -> io.BytesIO:
+        """The bytes of the lines ``rows`` (ascending), without a copy when they run to the
+        end of the file, as one slice when they follow each other, else joined."""
+        t = self.text
+        breaks = np.flatnonzero(np.diff(rows) != 1)
+        if not len(breaks):
+            if rows[-1] == len(t) - 1:
+                f = io.BytesIO(t.raw)  # shares the bytes
+                f.seek(t.starts[rows[0]])
+                return f
+            return io.BytesIO(t.raw[t.starts[rows[0]] : t.ends[rows[-1]] + 1])
+        firsts = t.starts[rows[np.r_[0, breaks + 1]]].tolist()
+        lasts = (t.ends[rows[np.r_[breaks, len(rows) - 1]]] + 1).tolist()
+        return io.BytesIO(b"".join(t.raw[a:b] for a, b in zip(firsts, lasts, strict=True)))
+
+    def marks(self, rows: np.ndarray) -> np.ndarray:
+        """Byte offsets of the delimiters (for ``"whitespace"``: of the first byte of every
+        field) in the lines ``rows[0]`` to ``rows[-1]``, found in one pass."""
+        t = self.text
+        lo, hi = t.starts[rows[0]], t.ends[rows[-1]] + 1
+        chunk = t.bytes[lo:hi]
+        if self.delimiter == "whitespace":
+            space = _SPACE[chunk]
+            return np.flatnonzero(~space & np.r_[True, space[:-1]]) + lo
+        return np.flatnonzero(chunk == ord(self.delimiter)) + lo
+
+    def field_counts(self, rows: np.ndarray) -> np.ndarray:
+        """Number of fields of each line of ``rows``."""
+        t, marks = self.text, self.marks(rows)
+        n = np.searchsorted(marks, t.ends[rows]) - np.searchsorted(marks, t.starts[rows])
+        return n if self.delimiter == "whitespace" else n + 1
+
+    def empty_tails(self, rows: np.ndarray, counts: np.ndarray) -> np.ndarray:
+        """Whether the fields after the first ``ncol`` of each line are all empty: the line
+        ends with nothing but delimiters (and a CR) after its ``ncol``-th delimiter."""
+        out = np.zeros(len(rows), dtype=bool)
+        long = np.flatnonzero(counts > self.ncol)
+        if not len(long) or self.delimiter == "whitespace":
+            return out
+        t, marks = self.text, self.marks(rows)
+        ends = t.ends[rows[long]]
+        cut = marks[np.searchsorted(marks, t.starts[rows[long]]) + self.ncol - 1]
+        cr = t.bytes[ends - 1] == 13
+        out[long] = ends - cut - 1 == counts[long] - self.ncol + cr
+        return out
+
+    def check_counts(self, rows: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, list[str]]:
+        bad = np.flatnonzero(counts != self.ncol)
+        if not len(bad):
+            return rows, []
         k = bad[0]
-        alt = _suggest_delimiter(texts[k], ncol, delimiter)
+        line = int(rows[k]) + 1
+        if k == len(rows) - 1 and counts[k] < self.ncol:
+            if len(rows) == 1:
+                raise InputError(
+                    f"truncated: the only data row has {counts[k]} of {self.ncol} fields "
+                    "(fewer than the header)",
+                    self.text.path,
+                    f"line {line}",
+                    remedy="the file ends inside its first data row: copy or export it again",
+                )
+            note = f"line {line}: truncated last line ({counts[k]} of {self.ncol} columns) dropped"
+            return rows[:-1], [note]
+        alt = _suggest_delimiter(self.text[rows[k]], self.ncol, self.delimiter)
         if alt is not None:
             remedy = f"is the delimiter {show_delimiter(alt)}?"
         else:
             remedy = "the line is damaged: repair or delete it, or export the file again"
         raise InputError(
-            f"{counts[k]} columns, expected {ncol}", path, f"line {lineno[k]}", remedy=remedy
+            f"{counts[k]} columns, expected {self.ncol}",
+            self.text.path,
+            f"line {line}",
+            remedy=remedy,
         )
-    if decimal is None:
-        decimal = "," if delimiter != "," and any("," in t for t in texts[:50]) else "."
-    data = _to_float(path, texts, lineno, col_names, delimiter, decimal)
-    return Table(path, col_names, data, lineno, delimiter, decimal, list(lines[:header]), notes)
+
+    def unparsable(self, rows: np.ndarray, message: str) -> InputError:
+        """The error for a body that pandas cannot parse although every line has the right
+        number of fields (an unclosed quote joins lines): at the line pandas names."""
+        m = re.search(r"(line|row) (\d+)", message)  # pandas: "line" 1-based, "row" 0-based
+        k = int(m.group(2)) - (m.group(1) == "line") if m else 0
+        k = min(max(k, 0), len(rows) - 1)
+        return InputError(
+            "cannot split the lines into fields (an unclosed quote?)",
+            self.text.path,
+            f"line {int(rows[k]) + 1}",
+            remedy="repair the line, or export the file again",
+        )
 
 
 def _to_float(
-    path: Path,
-    texts: list[str],
-    lineno: np.ndarray,
-    col_names: list[str],
-    delimiter: str,
-    decimal: str,
+    path: Path, df: pd.DataFrame, lineno: np.ndarray, col_names: list[str], decimal: str
 ) -> np.ndarray:
-    """Vectorised numeric parse (pandas C parser); text in a numeric column → InputError."""
-    sep = r"\s+" if delimiter == "whitespace" else delimiter
-    df = pd.read_csv(
-        io.StringIO("\n".join(texts)),
-        sep=sep,
-        header=None,
-        names=range(len(col_names)),
-        decimal=decimal,
-        skip_blank_lines=False,
-        quotechar='"',
-        engine="c",
-        low_memory=False,
-    )
+    """The values as float64; text in a numeric column → InputError at its first line."""
+    first: tuple[int, int, str] | None = None
     for j in range(df.shape[1]):
-        col = df[j]
+        col = df.iloc[:, j]
         if col.dtype.kind in "fiub":
             continue
         raw = col.astype("string").str.strip()
@@ -297,15 +523,17 @@ def _to_float(
             raw = raw.str.replace(",", ".", regex=False)
         num = pd.to_numeric(raw, errors="coerce")
         wrong = np.flatnonzero(raw.notna().to_numpy() & num.isna().to_numpy())
-        if len(wrong):
-            k = wrong[0]
-            raise InputError(
-                f"'{col.iloc[k]}' in numeric column '{col_names[j]}'",
-                path,
-                f"line {lineno[k]}",
-                remedy="fix or delete the line, or check that the header matches the data",
-            )
-        df[j] = num
+        if len(wrong) and (first is None or wrong[0] < first[0]):
+            first = (int(wrong[0]), j, str(col.iloc[wrong[0]]))
+        df.isetitem(j, num.to_numpy(dtype=float, na_value=np.nan))
+    if first is not None:
+        k, j, value = first
+        raise InputError(
+            f"'{value}' in numeric column '{col_names[j]}'",
+            path,
+            f"line {lineno[k]}",
+            remedy="fix or delete the line, or check that the header matches the data",
+        )
     return df.to_numpy(dtype=float)
 
 

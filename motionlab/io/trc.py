@@ -77,21 +77,23 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     while n_markers > 0 and not any(names_row[2 + 3 * (n_markers - 1) :]):
         n_markers -= 1  # trailing empty cells after the last marker
     labels = [names_row[2 + 3 * k] or f"M{k + 1:03d}" for k in range(n_markers)]
-    n_cols = 2 + 3 * n_markers
-    body = [_fit(ln, delim, n_cols) for ln in lines]
     table = parse_table(
-        path, body, _HEADER_LINES, header_rows=0, delimiter=delim, names=_names(labels)
-    )
+        path, lines, _HEADER_LINES, header_rows=0, delimiter=delim, names=_names(labels),
+        ragged=True,
+    )  # fmt: skip
+    # rows whose last markers are missing may stop early or carry empty trailing cells;
+    # a row of nothing but delimiters is no frame
+    data = table.data[~np.isnan(table.data).all(axis=1)]
 
     warnings = list(table.notes)
-    n_frames = len(table.data)
+    n_frames = len(data)
     if "NumFrames" in info and _number(path, info["NumFrames"], "NumFrames") > n_frames:
         warnings.append(f"header announces {info['NumFrames']} frames, the file holds {n_frames}")
     if "NumMarkers" in info and _number(path, info["NumMarkers"], "NumMarkers") != n_markers:
         warnings.append(f"header announces {info['NumMarkers']} markers, names row has {n_markers}")
-    time = table.data[:, 1]
+    time = data[:, 1]
     if np.isnan(time).any():
-        time = (table.data[:, 0] - table.data[0, 0]) / rate
+        time = (data[:, 0] - data[0, 0]) / rate
     attrs: dict[str, Any] = {"nominal_rate_hz": rate, "header": info}
     if warnings:
         attrs["warnings"] = warnings
@@ -99,7 +101,7 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
         name=(options or {}).get("name") or path.stem,
         time=time,
         labels=labels,
-        positions=table.data[:, 2:].reshape(n_frames, n_markers, 3) * scale,
+        positions=data[:, 2:].reshape(n_frames, n_markers, 3) * scale,
         source_units={"positions": info["Units"]},
         attrs=attrs,
     )
@@ -108,16 +110,6 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
 
 def _names(labels: list[str]) -> list[str]:
     return ["Frame#", "Time"] + [f"{name}_{axis}" for name in labels for axis in "XYZ"]
-
-
-def _fit(line: str, delim: str, n_cols: int) -> str:
-    """A data line with trailing empty cells dropped and missing trailing cells added, so
-    that rows whose last markers are missing keep their width; all-empty lines become blank."""
-    line = line.rstrip("\r").rstrip(delim + " ")
-    if not line:
-        return ""
-    missing = n_cols - 1 - line.count(delim)
-    return line + delim * missing if missing > 0 else line
 
 
 def _number(path: Path, text: str, key: str) -> float:
