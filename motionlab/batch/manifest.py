@@ -1,0 +1,230 @@
+"""The study manifest: which sessions make up a study, and with which protocol.
+
+A manifest is a YAML file (``study.yaml``)::
+
+    protocol: knee                      # protocol file (relative to this file) or packaged name
+    map: maps/knee_sensors.yaml         # optional sensor map for raw recordings
+    sessions:
+      - subject: S01
+        visit: baseline
+        files: raw/S01/baseline/*.txt   # a glob, a file, or a list of them
+      - subject: S01
+        visit: week6
+        files: [raw/S01/week6/thigh.txt, raw/S01/week6/shank.txt]
+        reference: raw/S01/week6/mocap.c3d   # optional optical reference
+        map: maps/other.yaml                 # optional, replaces the top-level map
+      - {subject: S02, visit: baseline, files: sim/S02_baseline.h5}   # a motionlab session file
+
+Relative paths are relative to the manifest's folder. ``subject`` and ``visit`` name the output
+folder ``OUTDIR/<subject>/<visit>/``: letters, digits, space, ``_ . + -``. The structure is checked
+on load (:class:`~motionlab.errors.InputError` naming the key and its line); a session whose files
+do not exist is kept with its ``problem`` set, so that the rest of the study still runs.
+"""
+
+from __future__ import annotations
+
+import glob
+import re
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from motionlab.errors import InputError
+from motionlab.protocol import LineLoader, load_protocol, resolve_protocol_path
+
+TOP_KEYS = ("protocol", "map", "sessions")
+SESSION_KEYS = ("subject", "visit", "files", "reference", "map")
+_NAME = re.compile(r"^\w[\w .+-]*$")
+_EXAMPLE = "see the study manifest example in README.md"
+
+
+@dataclass(frozen=True)
+class SessionSpec:
+    """One session of a study: who, when, which files; ``problem`` says why it cannot run."""
+
+    subject: str
+    visit: str
+    files: tuple[Path, ...]
+    reference: Path | None = None
+    map: Path | None = None
+    line: int = 0
+    problem: str = ""
+
+    @property
+    def folder(self) -> Path:
+        """Output folder relative to the study's OUTDIR: ``<subject>/<visit>``."""
+        return Path(self.subject) / self.visit
+
+
+@dataclass(frozen=True)
+class Manifest:
+    """A validated study manifest (paths resolved, globs expanded, sorted)."""
+
+    path: Path
+    protocol: Path
+    sessions: tuple[SessionSpec, ...]
+    map: Path | None = None
+
+
+def _fail(path: Path, line: int | None, key: str, message: str, remedy: str) -> None:
+    where = f"line {line}, key {key}" if line else f"key {key}"
+    raise InputError(message, path, where, remedy)
+
+
+def _read(path: Path) -> Any:
+    try:
+        text = path.read_text(encoding="utf-8")
+    except FileNotFoundError:
+        raise InputError("no such manifest file", path, remedy="give the study YAML file") from None
+    except (UnicodeDecodeError, IsADirectoryError):
+        raise InputError("not a text file", path, remedy="give the study YAML file") from None
+    try:
+        return yaml.load(text, Loader=LineLoader)  # noqa: S506 - a SafeLoader subclass
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        raise InputError(
+            f"not valid YAML ({getattr(exc, 'problem', exc)})",
+            path,
+            f"line {mark.line + 1}" if mark else None,
+            "check indentation and colons",
+        ) from None
+
+
+def _name(path: Path, entry: dict, key: str, where: str, line: int) -> str:
+    value = entry.get(key)
+    if isinstance(value, bool) or not isinstance(value, (str, int)):
+        _fail(
+            path,
+            line,
+            f"{where}.{key}",
+            f"is {value!r}, expected a name",
+            f"give the {key}, e.g. {key}: {'S01' if key == 'subject' else 'baseline'}",
+        )
+    text = str(value).strip()
+    if not _NAME.match(text) or text != str(value):
+        _fail(
+            path,
+            line,
+            f"{where}.{key}",
+            f"{value!r} cannot name a folder",
+            "use letters, digits, space, _ . + - (no slashes, not starting with a dot)",
+        )
+    return text
+
+
+def _expand(base: Path, patterns: list[str]) -> tuple[list[Path], str]:
+    """Files matching each pattern (sorted per pattern), and the first pattern that matched none."""
+    files: list[Path] = []
+    for pattern in patterns:
+        full = str(base / pattern)
+        hits = sorted(glob.glob(full, recursive=True)) if glob.has_magic(pattern) else [full]
+        hits = [h for h in hits if Path(h).is_file()]
+        if not hits:
+            kind = "no file matches" if glob.has_magic(pattern) else "no such file"
+            return [], f"{kind} {pattern!r}"
+        files += [Path(h) for h in hits if Path(h) not in files]
+    return files, ""
+
+
+def _optional_file(
+    base: Path, entry: dict, key: str, default: Path | None
+) -> tuple[Path | None, str]:
+    value = entry.get(key)
+    if value is None:
+        return default, ""
+    file = base / str(value)
+    return file, "" if file.is_file() else f"no such {key} file {str(value)!r}"
+
+
+def load_manifest(path: str | Path) -> Manifest:
+    """Load and validate a study manifest; the protocol is loaded (and so validated) too."""
+    path = Path(path)
+    doc = _read(path)
+    base = path.parent
+    if not isinstance(doc, dict):
+        _fail(path, 1, "(top level)", "is not a mapping", _EXAMPLE)
+    lines = doc.lines
+    for key in doc:
+        if key not in TOP_KEYS:
+            _fail(path, lines[key], str(key), "unknown key", f"use {', '.join(TOP_KEYS)}")
+    for key in ("protocol", "sessions"):
+        if key not in doc:
+            _fail(path, min(lines.values(), default=1), key, "missing", f"add '{key}:'; {_EXAMPLE}")
+    if not isinstance(doc["protocol"], str):
+        _fail(path, lines["protocol"], "protocol", "is not a path", "e.g. protocol: knee")
+    local = base / doc["protocol"]
+    protocol = resolve_protocol_path(local if local.is_file() else doc["protocol"])
+    load_protocol(protocol)
+    study_map = None
+    if doc.get("map") is not None:
+        study_map = base / str(doc["map"])
+        if not study_map.is_file():
+            _fail(path, lines["map"], "map", f"no such file {doc['map']!r}", "fix the path")
+
+    entries = doc["sessions"]
+    if not isinstance(entries, list) or not entries:
+        _fail(path, lines["sessions"], "sessions", "needs a list of sessions", _EXAMPLE)
+    sessions: list[SessionSpec] = []
+    seen: dict[tuple[str, str], int] = {}
+    for i, entry in enumerate(entries):
+        where = f"sessions[{i}]"
+        if not isinstance(entry, dict):
+            _fail(
+                path, lines["sessions"], where, "is not a mapping", "give subject, visit and files"
+            )
+        line = min(entry.lines.values(), default=lines["sessions"])
+        for key in entry:
+            if key not in SESSION_KEYS:
+                _fail(
+                    path,
+                    entry.lines[key],
+                    f"{where}.{key}",
+                    "unknown key",
+                    f"use {', '.join(SESSION_KEYS)}",
+                )
+        subject = _name(path, entry, "subject", where, entry.lines.get("subject", line))
+        visit = _name(path, entry, "visit", where, entry.lines.get("visit", line))
+        if (subject, visit) in seen:
+            _fail(
+                path,
+                line,
+                where,
+                f"repeats subject {subject!r} visit {visit!r}",
+                f"the first is on line {seen[subject, visit]}; give each visit its own name",
+            )
+        seen[subject, visit] = line
+        patterns = entry.get("files")
+        patterns = [patterns] if isinstance(patterns, str) else patterns
+        if not patterns or not all(isinstance(p, str) and p.strip() for p in patterns):
+            _fail(
+                path,
+                entry.lines.get("files", line),
+                f"{where}.files",
+                "needs a file, a glob or a list of them",
+                "e.g. files: raw/S01/*.txt",
+            )
+        files, missing = _expand(base, patterns)
+        problems = [("files", missing)]
+        reference, missing = _optional_file(base, entry, "reference", None)
+        problems.append(("reference", missing))
+        session_map, missing = _optional_file(base, entry, "map", study_map)
+        problems.append(("map", missing))
+        problem = next(
+            (
+                InputError(
+                    msg,
+                    path,
+                    f"line {entry.lines[key]}, key {where}.{key}",
+                    "fix the path; the other sessions still run",
+                ).line()
+                for key, msg in problems
+                if msg
+            ),
+            "",
+        )
+        sessions.append(
+            SessionSpec(subject, visit, tuple(files), reference, session_map, line, problem)
+        )
+    return Manifest(path=path, protocol=protocol, sessions=tuple(sessions), map=study_map)

@@ -1,0 +1,235 @@
+"""Study outputs: every session's metrics in one table, the failures, and a PDF report.
+
+- ``study_metrics.csv``: ``subject, visit``, then the columns of the sessions' metric tables
+  (:func:`motionlab.kinematics.metrics.metrics_table`: ``block, joint, angle, metric, percent,
+  value, unit``), one row per session and joint metric; sessions in manifest order, rows in each
+  session's order, fields copied as text — so the file has the same bytes whichever machines
+  ran the sessions.
+- ``study_failures.csv``: ``subject, visit, kind, attempts, error`` (a one-line error each).
+- ``study_report.pdf``: counts and failures; the distribution across sessions of each angle's
+  range of motion per task and joint (boxes, one dot per session); per subject, the change over
+  visits of the primary angle's range of motion (flexion), with the median across subjects.
+
+All three are written atomically and replaced on every run (failed sessions drop out of the
+metric table until they succeed).
+"""
+
+from __future__ import annotations
+
+import csv
+from collections.abc import Iterator
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from matplotlib.backends.backend_pdf import PdfPages
+from matplotlib.figure import Figure
+
+from motionlab import __version__
+from motionlab.atomic import atomic_path
+from motionlab.batch.manifest import Manifest
+from motionlab.batch.state import METRICS
+from motionlab.kinematics.joint_angles import JOINT_ANGLE_NAMES
+from motionlab.protocol import load_protocol
+
+METRICS_CSV = "study_metrics.csv"
+FAILURES_CSV = "study_failures.csv"
+REPORT_PDF = "study_report.pdf"
+MAIN_METRIC = "rom_deg"
+_A4 = (8.27, 11.69)
+_PANELS = (3, 2)
+
+
+def write_study_outputs(outdir: Path, manifest: Manifest, outcomes: list) -> dict[str, Path]:
+    """Write the three study files into ``outdir``; ``outcomes`` in manifest order."""
+    paths = {name: outdir / name for name in (METRICS_CSV, FAILURES_CSV, REPORT_PDF)}
+    main = write_metrics(outdir, manifest, outcomes, paths[METRICS_CSV])
+    write_failures(outcomes, paths[FAILURES_CSV])
+    write_report(manifest, outcomes, main, paths[REPORT_PDF])
+    return paths
+
+
+def _read_table(path: Path) -> tuple[list[str], list[list[str]]]:
+    """Header and rows of a CSV file, fields as text."""
+    with open(path, newline="", encoding="utf-8") as f:
+        rows = list(csv.reader(f))
+    return (rows[0], rows[1:]) if rows else ([], [])
+
+
+def _rom_rows(subject: str, visit: str, head: list[str], rows: list[list[str]]) -> list[tuple]:
+    """The scalar ``rom_deg`` rows as ``(subject, visit, block, joint, angle, value)``."""
+    need = ("block", "joint", "angle", "metric", "value")
+    if not set(need) <= set(head):
+        return []
+    k = {c: head.index(c) for c in head}
+    return [
+        (subject, visit, r[k["block"]], r[k["joint"]], r[k["angle"]], float(r[k["value"]]))
+        for r in rows
+        if r[k["metric"]] == MAIN_METRIC and ("percent" not in k or r[k["percent"]] == "")
+    ]
+
+
+def write_metrics(outdir: Path, manifest: Manifest, outcomes: list, path: Path) -> pd.DataFrame:
+    """Concatenate the finished sessions' metric tables; return their ROM rows for the report.
+
+    The ROM rows are the scalar ``rom_deg`` rows: ``subject, visit, block, joint, angle, value``.
+    """
+    tables = [
+        (spec, *_read_table(outdir / spec.folder / METRICS))
+        for spec, o in zip(manifest.sessions, outcomes, strict=True)
+        if o.status in ("done", "skipped")
+    ]
+    columns: list[str] = []
+    for _, head, _ in tables:
+        columns += [c for c in head if c not in columns]
+    main: list[tuple] = []
+    with atomic_path(path, force=True) as tmp, open(tmp, "w", newline="", encoding="utf-8") as f:
+        out = csv.writer(f, lineterminator="\n")
+        out.writerow(["subject", "visit", *columns])
+        for spec, head, rows in tables:
+            pick = [head.index(c) if c in head else None for c in columns]
+            out.writerows(
+                [spec.subject, spec.visit, *(r[j] if j is not None else "" for j in pick)]
+                for r in rows
+            )
+            main += _rom_rows(spec.subject, spec.visit, head, rows)
+    return pd.DataFrame(main, columns=["subject", "visit", "block", "joint", "angle", "value"])
+
+
+def write_failures(outcomes: list, path: Path) -> None:
+    """One row per failed session: subject, visit, kind, attempts, one-line error."""
+    with atomic_path(path, force=True) as tmp, open(tmp, "w", newline="", encoding="utf-8") as f:
+        out = csv.writer(f, lineterminator="\n")
+        out.writerow(["subject", "visit", "kind", "attempts", "error"])
+        for o in outcomes:
+            if o.status == "failed":
+                out.writerow([o.subject, o.visit, o.kind, o.attempts, o.error])
+
+
+# ------------------------------------------------------------------------------ the PDF report
+
+
+def primary_angle(joint: str) -> str:
+    """The first clinical angle of a joint (``knee_r`` → ``flexion``)."""
+    for jtype, names in JOINT_ANGLE_NAMES.items():
+        if joint == jtype or joint.startswith(jtype + "_"):
+            return names[0]
+    return "flexion"
+
+
+def _pages(groups: list, title: str) -> Iterator[tuple[Figure, list]]:
+    """Figures of up to six panels: yields ``(figure, [(group, axes), ...])``."""
+    rows, cols = _PANELS
+    for start in range(0, len(groups), rows * cols):
+        fig = Figure(figsize=_A4)
+        fig.suptitle(title, fontsize=13)
+        chunk = groups[start : start + rows * cols]
+        axes = [fig.add_subplot(rows, cols, k + 1) for k in range(len(chunk))]
+        fig.subplots_adjust(hspace=0.45, wspace=0.3, top=0.92, bottom=0.06)
+        yield fig, list(zip(chunk, axes, strict=True))
+
+
+def _summary_page(manifest: Manifest, outcomes: list, main: pd.DataFrame) -> Figure:
+    fig = Figure(figsize=_A4)
+    protocol = load_protocol(manifest.protocol)
+    counts = {s: sum(o.status == s for o in outcomes) for s in ("done", "skipped", "failed")}
+    subjects = list(dict.fromkeys(s.subject for s in manifest.sessions))
+    visits = list(dict.fromkeys(s.visit for s in manifest.sessions))
+    lines = [
+        f"protocol {protocol.name} ({manifest.protocol.name}) — motionlab {__version__}",
+        f"{len(outcomes)} sessions of {len(subjects)} subjects; visits: {', '.join(visits)}",
+        f"processed now {counts['done']}, up to date (skipped) {counts['skipped']}, "
+        f"failed {counts['failed']}",
+    ]
+    fig.text(0.06, 0.95, f"Study report: {manifest.path.name}", fontsize=15, weight="bold")
+    for k, text in enumerate(lines):
+        fig.text(0.06, 0.92 - 0.022 * k, text, fontsize=9)
+    y = 0.84
+    if not main.empty:
+        fig.text(
+            0.06,
+            y,
+            "Range of motion across sessions (deg): median [quartiles], n",
+            fontsize=11,
+            weight="bold",
+        )
+        stats = main.groupby(["block", "joint", "angle"], sort=False)["value"]
+        for (block, joint, angle), v in list(stats)[:28]:
+            q1, med, q3 = np.nanpercentile(v, [25, 50, 75]) if v.notna().any() else [np.nan] * 3
+            y -= 0.018
+            fig.text(
+                0.08,
+                y,
+                f"{block:<16.16} {joint:<10.10} {angle:<16.16} "
+                f"{med:7.1f} [{q1:6.1f}, {q3:6.1f}]  n={v.notna().sum()}",
+                fontsize=8,
+                family="monospace",
+            )
+        y -= 0.03
+    failed = [o for o in outcomes if o.status == "failed"]
+    if failed:
+        fig.text(
+            0.06,
+            y,
+            f"Failed sessions ({len(failed)}; all in study_failures.csv)",
+            fontsize=11,
+            weight="bold",
+        )
+        for o in failed[: max(0, int((y - 0.05) / 0.017))]:
+            y -= 0.017
+            text = f"{o.subject}/{o.visit}: {o.error}"
+            fig.text(0.08, y, text[:118] + ("…" if len(text) > 118 else ""), fontsize=7)
+    return fig
+
+
+def _distributions(pdf: PdfPages, main: pd.DataFrame) -> None:
+    groups = list(main.groupby(["block", "joint"], sort=False))
+    rng = np.random.default_rng(0)
+    for fig, panels in _pages(groups, "Range of motion across sessions"):
+        for ((block, joint), g), ax in panels:
+            angles = list(dict.fromkeys(g["angle"]))
+            values = [g.loc[g["angle"] == a, "value"].dropna().to_numpy() for a in angles]
+            ax.boxplot(values, showfliers=False)
+            ax.set_xticks(range(1, len(angles) + 1), angles)
+            for k, v in enumerate(values):
+                ax.plot(k + 1 + rng.uniform(-0.15, 0.15, len(v)), v, ".", ms=3, alpha=0.5)
+            ax.set_title(f"{block} — {joint}", fontsize=10)
+            ax.set_ylabel("ROM (deg)")
+            ax.tick_params(labelsize=8)
+        pdf.savefig(fig)
+
+
+def _changes(pdf: PdfPages, main: pd.DataFrame, visits: list[str]) -> None:
+    primary = main[
+        [a == primary_angle(j) for j, a in zip(main["joint"], main["angle"], strict=True)]
+    ]
+    groups = list(primary.groupby(["block", "joint"], sort=False))
+    x_of = {v: k for k, v in enumerate(visits)}
+    for fig, panels in _pages(groups, "Change over visits, per subject"):
+        for ((block, joint), g), ax in panels:
+            for _, s in g.groupby("subject", sort=False):
+                ax.plot([x_of[v] for v in s["visit"]], s["value"], "o-", lw=0.8, ms=3, alpha=0.6)
+            median = g.groupby("visit", sort=False)["value"].median()
+            ax.plot(
+                [x_of[v] for v in median.index], median.to_numpy(), "k-", lw=2.5, label="median"
+            )
+            ax.set_xticks(range(len(visits)), visits, fontsize=8, rotation=30)
+            ax.set_title(f"{block} — {joint}: {primary_angle(joint)} ROM", fontsize=10)
+            ax.set_ylabel("ROM (deg)")
+            ax.legend(fontsize=7)
+        pdf.savefig(fig)
+
+
+def write_report(manifest: Manifest, outcomes: list, main: pd.DataFrame, path: Path) -> None:
+    """The study PDF: summary, ROM distributions, per-subject change over visits."""
+    visits = list(dict.fromkeys(s.visit for s in manifest.sessions))
+    metadata = {
+        "Title": f"Study report {manifest.path.name}",
+        "Creator": f"motionlab {__version__}",
+    }
+    with atomic_path(path, force=True) as tmp, PdfPages(tmp, metadata=metadata) as pdf:
+        pdf.savefig(_summary_page(manifest, outcomes, main))
+        if not main.empty:
+            _distributions(pdf, main)
+            if len(visits) > 1:
+                _changes(pdf, main, visits)

@@ -1,0 +1,152 @@
+"""What a study folder remembers between runs: which sessions are finished, which are running.
+
+Layout of a study output folder::
+
+    OUTDIR/.motionlab-batch           marks the folder as written by motionlab batch
+    OUTDIR/<subject>/<visit>/         the session's outputs (as motionlab run writes them)
+        batch_metrics.csv             the session's metric table (one row per joint metric)
+        batch_stamp.json              written last, atomically: the session finished
+        .batch_running                exists while a worker processes the session (its pid)
+
+A session is *current* when its stamp holds the key of its present inputs — the SHA-256 of every
+input file (with its name), of the protocol, map and reference files, and the motionlab version —
+and its metric table still has the hash the stamp recorded. Current sessions are skipped.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import time
+from pathlib import Path
+from typing import Any
+
+from motionlab import __version__
+from motionlab.atomic import atomic_path
+from motionlab.errors import InputError
+from motionlab.session import sha256_file
+
+MARKER = ".motionlab-batch"
+STAMP = "batch_stamp.json"
+METRICS = "batch_metrics.csv"
+CLAIM = ".batch_running"
+
+
+class FileHashes:
+    """SHA-256 of files, each read once per run (the protocol and map are shared by sessions)."""
+
+    def __init__(self) -> None:
+        self._cache: dict[Path, str] = {}
+
+    def __call__(self, path: Path | None) -> str | None:
+        if path is None:
+            return None
+        path = Path(path).resolve()
+        if path not in self._cache:
+            self._cache[path] = sha256_file(path)
+        return self._cache[path]
+
+
+def session_key(
+    files: list[Path],
+    protocol: Path,
+    map_path: Path | None,
+    reference: Path | None,
+    hashes: FileHashes,
+    version: str = __version__,
+) -> str:
+    """SHA-256 over the inputs' names and contents, the protocol, map, reference and version."""
+    doc = {
+        "motionlab": version,
+        "files": [[Path(f).name, hashes(f)] for f in files],
+        "protocol": hashes(protocol),
+        "map": hashes(map_path),
+        "reference": hashes(reference),
+    }
+    return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
+
+
+def prepare_outdir(outdir: Path, manifest: Path, force: bool) -> None:
+    """Create the study folder, or accept one written by motionlab batch (any folder with force)."""
+    if outdir.exists() and not outdir.is_dir():
+        raise InputError("is not a folder", outdir, "-o", "give a folder for the study outputs")
+    if outdir.is_dir() and any(outdir.iterdir()) and not (outdir / MARKER).is_file() and not force:
+        raise InputError(
+            "folder holds files not written by motionlab batch",
+            outdir,
+            "-o",
+            "choose another folder, or add --force to write into it",
+        )
+    if not outdir.parent.is_dir():
+        raise InputError("parent folder does not exist", outdir, "-o", f"create {outdir.parent}")
+    outdir.mkdir(exist_ok=True)
+    if not os.access(outdir, os.W_OK):
+        raise InputError("folder is not writable", outdir, "-o", "choose another folder")
+    if not (outdir / MARKER).is_file():
+        write_json(outdir / MARKER, {"manifest": str(manifest.resolve()), "motionlab": __version__})
+
+
+def write_json(path: Path, doc: dict[str, Any]) -> None:
+    """Write a small JSON file atomically (temporary file, then rename)."""
+    with atomic_path(path, force=True) as tmp:
+        tmp.write_text(json.dumps(doc, indent=1, sort_keys=True) + "\n", encoding="utf-8")
+
+
+def read_stamp(folder: Path) -> dict[str, Any] | None:
+    """The session's stamp, or None when there is none (or it is unreadable)."""
+    try:
+        doc = json.loads((folder / STAMP).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    return doc if isinstance(doc, dict) else None
+
+
+def is_current(folder: Path, key: str) -> bool:
+    """True if the session in ``folder`` finished with inputs of this key, outputs intact."""
+    stamp = read_stamp(folder)
+    metrics = folder / METRICS
+    return (
+        stamp is not None
+        and stamp.get("key") == key
+        and metrics.is_file()
+        and stamp.get("metrics_sha256") == sha256_file(metrics)
+    )
+
+
+def write_stamp(folder: Path, key: str, seconds: float) -> None:
+    """Record that the session in ``folder`` finished: written last, atomically."""
+    write_json(
+        folder / STAMP,
+        {
+            "key": key,
+            "metrics_sha256": sha256_file(folder / METRICS),
+            "motionlab": __version__,
+            "seconds": round(seconds, 3),
+            "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        },
+    )
+
+
+def claim(folder: Path) -> None:
+    """Mark the session as being processed by this process."""
+    (folder / CLAIM).write_text(f"{os.getpid()}\n", encoding="utf-8")
+
+
+def release(folder: Path) -> None:
+    """Remove the mark of :func:`claim` (no error if it is gone)."""
+    (folder / CLAIM).unlink(missing_ok=True)
+
+
+def claimed(folder: Path) -> bool:
+    return (folder / CLAIM).is_file()
+
+
+def sweep_temp(folder: Path) -> list[Path]:
+    """Delete temporary files a killed writer left in ``folder`` (``.<name>.<random>.tmp``)."""
+    if not folder.is_dir():
+        return []
+    stale = [p for p in folder.rglob(".*.tmp") if p.is_file()]
+    for p in stale:
+        p.unlink(missing_ok=True)
+    return stale

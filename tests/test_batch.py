@@ -1,0 +1,142 @@
+"""Batch runs on the local process pool, with a fast stand-in pipeline (tests/batch_fakes.py)."""
+
+import csv
+import inspect
+import os
+from functools import partial
+from pathlib import Path
+
+import pytest
+from batch_fakes import fake_pipeline, good_sessions, make_study
+from click.testing import CliRunner
+
+from motionlab.batch import load_manifest, run_study
+from motionlab.batch.state import CLAIM, STAMP, FileHashes, session_key
+from motionlab.cli import main
+from motionlab.errors import InputError
+
+
+def _run(manifest: Path, out: Path, **kw):
+    return run_study(load_manifest(manifest), out, pipeline=fake_pipeline, **kw)
+
+
+def _rows(path: Path) -> list[dict]:
+    with open(path, newline="") as f:
+        return list(csv.DictReader(f))
+
+
+def _leftovers(out: Path) -> list[Path]:
+    return [p for p in out.rglob("*") if p.name.endswith(".tmp") or p.name == CLAIM]
+
+
+def test_study_runs_isolates_failures_and_writes_outputs(tmp_path):
+    sessions = good_sessions() | {
+        ("S9", "v1"): "corrupt",
+        ("S9", "v2"): "bug",
+    }
+    result = _run(make_study(tmp_path, sessions), tmp_path / "out", workers=2)
+    status = {(o.subject, o.visit): o.status for o in result.outcomes}
+    assert [status[k] for k in good_sessions()] == ["done"] * 6
+    assert status["S9", "v1"] == status["S9", "v2"] == "failed" and not result.ok
+    rows = _rows(tmp_path / "out" / "study_metrics.csv")
+    assert len(rows) == 6 * 6  # six sessions of six joint metrics, in manifest order
+    assert [(r["subject"], r["visit"]) for r in rows[::6]] == list(good_sessions())
+    rom = {(r["subject"], r["visit"]): float(r["value"]) for r in rows
+           if r["metric"] == "rom_deg" and r["angle"] == "flexion"}  # fmt: skip
+    assert rom["S3", "v2"] == 20 + 30 + 5 and rom["S1", "v1"] == 30
+    failures = _rows(tmp_path / "out" / "study_failures.csv")
+    assert [(f["subject"], f["visit"], f["kind"]) for f in failures] == [
+        ("S9", "v1", "input"),
+        ("S9", "v2", "internal"),
+    ]
+    assert failures[0]["error"] == "rec.txt line 3: 7 columns, expected 10 — is the delimiter ';'?"
+    assert failures[1]["error"] == "internal error (ValueError: something went wrong)"
+    assert (tmp_path / "out" / "study_report.pdf").read_bytes()[:5] == b"%PDF-"
+    assert (tmp_path / "out" / "S1" / "v1" / "report.txt").is_file()
+    assert not _leftovers(tmp_path / "out")
+
+
+def test_rerun_skips_finished_sessions_and_reruns_changed_ones(tmp_path):
+    manifest = make_study(tmp_path, good_sessions(2))
+    out = tmp_path / "out"
+    _run(manifest, out, workers=1)
+    first = (out / "study_metrics.csv").read_bytes()
+    stamps = {p: p.stat().st_mtime_ns for p in out.rglob(STAMP)}
+    again = _run(manifest, out, workers=1)
+    assert [o.status for o in again.outcomes] == ["skipped"] * 4
+    assert {p: p.stat().st_mtime_ns for p in out.rglob(STAMP)} == stamps
+    assert (out / "study_metrics.csv").read_bytes() == first
+    (tmp_path / "raw" / "S2" / "v1" / "rec.txt").write_text("0 99 1")
+    changed = _run(manifest, out, workers=1)
+    assert [o.status for o in changed.outcomes] == ["skipped", "skipped", "done", "skipped"]
+    after = (out / "study_metrics.csv").read_bytes()
+    assert after != first
+    # every session again, on two workers: the same bytes as one worker and skipped sessions
+    assert _run(manifest, out, workers=2, force=True).count("done") == 4
+    assert (out / "study_metrics.csv").read_bytes() == after
+
+
+def test_session_key_follows_contents_names_protocol_and_version(tmp_path):
+    a, b, p = tmp_path / "a.txt", tmp_path / "b.txt", tmp_path / "p.yaml"
+    a.write_text("1"), b.write_text("1"), p.write_text("name: x")
+    key = session_key([a], p, None, None, FileHashes())
+    assert key == session_key([a], p, None, None, FileHashes())
+    assert key != session_key([b], p, None, None, FileHashes())  # same bytes, other name
+    assert key != session_key([a], p, None, None, FileHashes(), version="9.9")
+    assert key != session_key([a], p, None, a, FileHashes())
+    p.write_text("name: y")
+    assert key != session_key([a], p, None, None, FileHashes())
+
+
+def test_killed_workers_are_retried_and_bystanders_not_charged(tmp_path):
+    sessions = good_sessions(2) | {
+        ("S8", "v1"): "crash sleep 0.5 0 40 2",  # dies once, then succeeds
+        ("S8", "v2"): "crash-always 0 1",  # dies every time
+    }
+    sessions[("S1", "v1")] = "sleep 3 0 30 5 1"  # running while the other worker dies
+    result = _run(make_study(tmp_path, sessions), tmp_path / "out", workers=2, retry=1)
+    got = {(o.subject, o.visit): (o.status, o.kind, o.attempts) for o in result.outcomes}
+    assert got["S8", "v1"] == ("done", "", 2)
+    assert got["S8", "v2"] == ("failed", "worker_died", 2)
+    assert got["S1", "v1"] == ("done", "", 1)  # stopped by the broken pool: not its fault
+    assert len((tmp_path / "raw" / "S1" / "v1" / "rec.runs").read_text().split()) >= 2
+    assert result.count("done") == 5
+    assert len(_rows(tmp_path / "out" / "study_metrics.csv")) == 5 * 6
+    assert not _leftovers(tmp_path / "out")
+
+
+def test_outdir_of_other_files_needs_force(tmp_path):
+    manifest = make_study(tmp_path, good_sessions(1, ("v1",)))
+    (tmp_path / "busy").mkdir()
+    (tmp_path / "busy" / "thesis.docx").write_text("keep me")
+    with pytest.raises(InputError, match="not written by motionlab batch"):
+        _run(manifest, tmp_path / "busy")
+    assert _run(manifest, tmp_path / "busy", force=True).ok
+    assert (tmp_path / "busy" / "thesis.docx").read_text() == "keep me"
+
+
+def test_runner_calls_the_pipeline_with_its_signature():
+    pipeline = pytest.importorskip("motionlab.pipeline")
+    params = inspect.signature(pipeline.run_pipeline).parameters
+    assert list(params)[:3] == ["inputs", "protocol", "outdir"]
+    assert {"map_path", "reference", "force", "progress"} <= set(params)
+
+
+def test_cli_exit_codes_progress_and_summary(tmp_path, monkeypatch):
+    monkeypatch.setattr("motionlab.cli.batch.run_study", partial(run_study, pipeline=fake_pipeline))
+    manifest = make_study(tmp_path, good_sessions(1) | {("S9", "v1"): "corrupt"})
+    runner = CliRunner()
+    res = runner.invoke(main, ["batch", str(manifest), "-o", str(tmp_path / "out"),
+                               "--workers", "1"])  # fmt: skip
+    assert res.exit_code == 3, res.output
+    assert "3 sessions: 2 processed, 0 up to date, 1 failed" in res.output
+    assert "done 2  skipped 0  failed 1" in res.output
+    assert "first failure: S9/v1: rec.txt line 3" in res.output
+    (tmp_path / "raw" / "S9" / "v1" / "rec.txt").write_text("0 10")
+    res = runner.invoke(main, ["batch", str(manifest), "-o", str(tmp_path / "out")])
+    assert res.exit_code == 0, res.output
+    assert "1 processed, 2 up to date, 0 failed" in res.output
+    res = runner.invoke(main, ["batch", str(manifest), "-o", "x", "--workers", "2",
+                               "--scheduler", "tcp://127.0.0.1:1"])  # fmt: skip
+    assert res.exit_code == 2 and "--workers is for the local pool" in res.output
+    assert os.listdir(tmp_path / "out" / "S9" / "v1")

@@ -1,0 +1,93 @@
+"""Study manifest: paths, globs, inheritance, and one clear error per broken manifest."""
+
+from pathlib import Path
+
+import pytest
+
+from motionlab.batch import load_manifest
+from motionlab.errors import InputError
+from motionlab.protocol import PACKAGED
+
+
+def _files(root: Path, *names: str) -> None:
+    for name in names:
+        (root / name).parent.mkdir(parents=True, exist_ok=True)
+        (root / name).write_text("0 1\n")
+
+
+def test_valid_manifest_resolves_paths_globs_and_maps(tmp_path):
+    _files(tmp_path, "raw/a/shank.txt", "raw/a/thigh.txt", "raw/b/s.h5", "m.yaml", "m2.yaml",
+           "ref.c3d")  # fmt: skip
+    (tmp_path / "study.yaml").write_text(
+        "protocol: knee\n"
+        "map: m.yaml\n"
+        "sessions:\n"
+        "  - subject: S01\n"
+        "    visit: 1\n"
+        "    files: raw/a/*.txt\n"
+        "  - {subject: S01, visit: week 6, files: [raw/b/s.h5], reference: ref.c3d, map: m2.yaml}\n"
+    )
+    m = load_manifest(tmp_path / "study.yaml")
+    assert m.protocol == PACKAGED / "knee.yaml"
+    a, b = m.sessions
+    assert (a.subject, a.visit, a.line) == ("S01", "1", 4)
+    assert [f.name for f in a.files] == ["shank.txt", "thigh.txt"]  # sorted glob
+    assert a.map == tmp_path / "m.yaml" and a.reference is None and not a.problem
+    assert b.folder == Path("S01") / "week 6"
+    assert b.map == tmp_path / "m2.yaml" and b.reference == tmp_path / "ref.c3d"
+
+
+def test_missing_files_make_a_session_problem_not_an_error(tmp_path):
+    _files(tmp_path, "x.h5")
+    (tmp_path / "study.yaml").write_text(
+        "protocol: knee\nsessions:\n"
+        "  - {subject: A, visit: v1, files: x.h5}\n"
+        "  - {subject: B, visit: v1, files: nothere/*.txt}\n"
+        "  - subject: C\n    visit: v1\n    files: x.h5\n    reference: gone.c3d\n"
+    )
+    a, b, c = load_manifest(tmp_path / "study.yaml").sessions
+    assert a.problem == ""
+    assert b.problem.startswith("study.yaml line 4, key sessions[1].files: no file matches")
+    assert c.problem.startswith("study.yaml line 8, key sessions[2].reference: no such reference")
+
+
+BROKEN = [
+    ("protocol: knee\nsessons: []\n", "line 2, key sessons", "unknown key"),
+    ("protocol: knee\n", "key sessions", "missing"),
+    ("protocol: knee\nsessions: []\n", "line 2, key sessions", "needs a list"),
+    ("protocol: nosuch\nsessions: [{subject: A, visit: v, files: x}]\n", None, "no such protocol"),
+    ("protocol: knee\nmap: gone.yaml\nsessions: [{subject: A, visit: v, files: x}]\n",
+     "line 2, key map", "no such file"),
+    ("protocol: knee\nsessions:\n  - {subject: A/B, visit: v, files: x}\n",
+     "line 3, key sessions[0].subject", "cannot name a folder"),
+    ("protocol: knee\nsessions:\n  - {subject: ..., visit: v, files: x}\n",
+     "sessions[0].subject", "cannot name a folder"),
+    ("protocol: knee\nsessions:\n  - {visit: v, files: x}\n", "sessions[0].subject", "expected"),
+    ("protocol: knee\nsessions:\n  - {subject: A, visit: v, files: x}\n"
+     "  - {subject: A, visit: v, files: y}\n", "line 4, key sessions[1]", "first is on line 3"),
+    ("protocol: knee\nsessions:\n  - {subject: A, visit: v, files: []}\n",
+     "line 3, key sessions[0].files", "needs a file"),
+    ("protocol: knee\nsessions:\n  - subject: A\n    visit: v\n    fils: x\n",
+     "line 5, key sessions[0].fils", "unknown key"),
+    ("protocol: knee\nsessions:\n  - just a string\n", "key sessions[0]", "not a mapping"),
+    ("protocol: knee\nsessions:\n  - {subject: A, visit: v\n", "line 4", "not valid YAML"),
+    ("- a list\n", "key (top level)", "not a mapping"),
+]  # fmt: skip
+
+
+@pytest.mark.parametrize(("text", "where", "message"), BROKEN)
+def test_broken_manifest_names_key_and_line(tmp_path, text, where, message):
+    path = tmp_path / "study.yaml"
+    path.write_text(text)
+    with pytest.raises(InputError) as info:
+        load_manifest(path)
+    err = info.value
+    assert message in err.line()
+    if where:
+        assert err.path.name == "study.yaml" and where in err.where
+    assert "\n" not in err.line() and err.remedy
+
+
+def test_manifest_file_missing(tmp_path):
+    with pytest.raises(InputError, match="no such manifest"):
+        load_manifest(tmp_path / "nope.yaml")
