@@ -29,6 +29,7 @@ A protocol is a YAML file (``protocols/*.yaml``; copy one and edit it). Schema::
         optional: false                 # true: the step may be left out of the recording
         reference_rho: {shank_r: 0.8}   # optional: expected reliability (quality report)
         time_range: [12.0, 20.5]        # optional: where the step is (s), skips detection
+        axis_method: svd                # svd (default) | hinge: Seel's fit of the knee/elbow
         instructions: "seated, flex and extend the right knee 5 times"
     joints:
       knee_r:
@@ -38,7 +39,7 @@ A protocol is a YAML file (``protocols/*.yaml``; copy one and edit it). Schema::
         side: r
         sequence: ZXY                   # the decomposition (Grood & Suntay JCS for the knee)
     tasks:                              # blocks of the recording after calibration
-      - {name: gait, kind: gait, duration_s: 30}
+      - {name: gait, kind: gait, duration_s: 30}   # optional time_range: [95.0, 150.0] (s)
     normative:                          # normal ranges per task and angle column, degrees;
                                         # a column without side (knee_flexion_deg) means both
       gait: {knee_flexion_deg: [0, 65]}
@@ -64,6 +65,7 @@ from motionlab.errors import InputError
 
 JOINT_TYPES = ("knee", "elbow", "lumbar")
 STEP_KINDS = ("static", "functional")
+AXIS_METHODS = ("svd", "hinge")
 SIDES = ("l", "r", "")
 AXES = {"x": 0, "y": 1, "z": 2}
 PACKAGED = Path(__file__).resolve().parent / "protocols"
@@ -97,6 +99,7 @@ class CalibrationStep:
     time_range: tuple[float, float] | None = None
     optional: bool = False
     reference_rho: dict[str, float] = field(default_factory=dict)
+    axis_method: str = "svd"
 
 
 @dataclass
@@ -115,6 +118,7 @@ class Task:
     kind: str
     duration_s: float = 0.0
     repetitions: int = 0
+    time_range: tuple[float, float] | None = None
     options: dict[str, Any] = field(default_factory=dict)
 
 
@@ -329,12 +333,20 @@ def load_protocol(path: str | Path) -> Protocol:
                 "name the segment axis the movement defines, e.g. {shank_r: -z}",
             )
         time_range = r.get(spec, "time_range", where, list, False, None)
-        if time_range is not None and (len(time_range) != 2 or time_range[0] >= time_range[1]):
+        if time_range is not None and not _is_range(time_range):
             r.fail(
                 f"{where}.time_range",
                 line,
                 "needs [start_s, end_s] with start < end",
                 "e.g. [12.0, 20.5]",
+            )
+        axis_method = r.get(spec, "axis_method", where, str, False, "svd")
+        if axis_method not in AXIS_METHODS:
+            r.fail(
+                f"{where}.axis_method",
+                spec.lines.get("axis_method"),
+                f"unknown axis method {axis_method!r}",
+                f"use one of {', '.join(AXIS_METHODS)}",
             )
         steps.append(
             CalibrationStep(
@@ -356,6 +368,7 @@ def load_protocol(path: str | Path) -> Protocol:
                     check_segment(s, f"{where}.reference_rho", line): float(v)
                     for s, v in r.get(spec, "reference_rho", where, dict, False, {}).items()
                 },
+                axis_method=axis_method,
             )
         )
 
@@ -391,13 +404,22 @@ def load_protocol(path: str | Path) -> Protocol:
         where = f"tasks[{i}]"
         if not isinstance(spec, dict):
             r.fail(where, doc.lines.get("tasks"), "is not a mapping", "give name/kind keys")
-        known = {"name", "kind", "duration_s", "repetitions"}
+        known = {"name", "kind", "duration_s", "repetitions", "time_range"}
+        time_range = r.get(spec, "time_range", where, list, False, None)
+        if time_range is not None and not _is_range(time_range):
+            r.fail(
+                f"{where}.time_range",
+                spec.lines.get("time_range"),
+                "needs [start_s, end_s] with start < end",
+                "e.g. [95.0, 150.0]",
+            )
         tasks.append(
             Task(
                 name=r.get(spec, "name", where, str),
                 kind=r.get(spec, "kind", where, str),
                 duration_s=r.get(spec, "duration_s", where, float, False, 0.0),
                 repetitions=r.get(spec, "repetitions", where, int, False, 0),
+                time_range=tuple(float(t) for t in time_range) if time_range else None,
                 options={k: v for k, v in spec.items() if k not in known},
             )
         )
@@ -430,6 +452,12 @@ def load_protocol(path: str | Path) -> Protocol:
         path=path,
         raw=_plain(doc),
     )
+
+
+def _is_range(value: list) -> bool:
+    """``[start, end]``: two numbers with start < end."""
+    numbers = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
+    return len(value) == 2 and numbers and value[0] < value[1]
 
 
 def resolve_protocol_path(path: str | Path) -> Path:

@@ -63,9 +63,9 @@ def main(ctx: click.Context, debug: bool) -> None:
 
 
 def _register() -> None:
-    from motionlab.cli import angles, calibrate, fuse, info, ingest, sensorcal, simulate
+    from motionlab.cli import angles, calibrate, fuse, info, ingest, metrics, sensorcal, simulate
 
-    for module in (info, ingest, sensorcal, calibrate, angles, fuse, simulate):
+    for module in (info, ingest, sensorcal, calibrate, angles, metrics, fuse, simulate):
         main.add_command(module.command)
     from motionlab.cli import validate
 

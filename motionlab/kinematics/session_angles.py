@@ -1,10 +1,11 @@
 """Joint angles of a whole session: sensor orientations → segment orientations → angle table.
 
 Sensor orientations come from, in this order: the fusion stage's results
-(``session.results["fusion"][label]["quat"]``), running the default estimator on the raw
-accelerometer and gyroscope (and magnetometer), or the vendor's own ``quat``. Every joint is
-resampled onto one time base: the time of the first joint's proximal sensor, cut to the span all
-sensors cover.
+(``session.results["fusion"][label]["quat"]``, as ``motionlab fuse`` stores them), running the
+default estimator on the raw accelerometer, gyroscope and magnetometer, or the vendor's ``quat``.
+A segment's sensor is the one whose ``segment`` attribute names it (set by ``ingest --map``), else
+the sensor labelled like the segment. Every joint is resampled onto one time base: the time of
+the first joint's proximal sensor, cut to the span all sensors cover.
 """
 
 from __future__ import annotations
@@ -20,12 +21,22 @@ from motionlab.protocol import Protocol
 from motionlab.segments import segment_orientations, sensor_for_segment
 from motionlab.session import Session, estimate_rate
 
+SegmentQuats = dict[str, tuple[np.ndarray, np.ndarray]]
+
 
 def sensor_orientation(session: Session, label: str, estimator: str = "default") -> np.ndarray:
     """(N, 4) sensor → earth orientation of one sensor (see the module docstring)."""
     fused = session.results.get("fusion", {}).get(label, {})
     if isinstance(fused, dict) and "quat" in fused:
-        return np.asarray(fused["quat"], dtype=float)
+        q = np.asarray(fused["quat"], dtype=float)
+        if q.shape != (session.sensors[label].n_samples, 4):
+            raise InputError(
+                f"fusion result has shape {q.shape}, the sensor {session.sensors[label].n_samples}"
+                " samples",
+                where=f"results/fusion/{label}/quat",
+                remedy="run motionlab fuse --force again after ingest",
+            )
+        return q
     s = session.sensors[label]
     if s.acc is not None and s.gyr is not None:
         from motionlab.fusion import estimate
@@ -40,21 +51,53 @@ def sensor_orientation(session: Session, label: str, estimator: str = "default")
     )
 
 
-def session_angles(
+def nominal_calibration(protocol: Protocol, steps: dict[str, Any]) -> dict[str, Any]:
+    """A calibration tree holding each segment's nominal mounting (the protocol's placement).
+
+    "Calibration off": sensors are taken to sit exactly as the protocol's ``sensor_axes`` say;
+    ``steps`` (the found step times) still serve the heading alignment.
+    """
+    return {
+        "protocol": protocol.name,
+        "steps": steps,
+        "segments": {
+            seg: {"mounting": rot.from_matrix(spec.nominal_mounting().T)}
+            for seg, spec in protocol.segments.items()
+        },
+    }
+
+
+def session_segments(
     session: Session,
     protocol: Protocol,
     calibration: dict[str, Any] | None,
     estimator: str = "default",
     align_heading: bool = True,
-) -> dict[str, Any]:
-    """``{"time_s": (N,), "<joint>_<side>_<angle>_deg": (N,), ...}`` for every protocol joint.
+    segments: list[str] | None = None,
+) -> SegmentQuats:
+    """``{segment: (time, q_segment)}`` for the joints' segments (or ``segments``).
 
     ``calibration`` is ``session.results["calibration"]`` (``None``: sensor frames are used as
-    segment frames, which shows the cross-talk that calibration removes).
+    segment frames).
     """
-    needed = {s for j in protocol.joints.values() for s in (j.proximal, j.distal)}
+    quats = sensor_quats(session, protocol, segments, estimator)
+    return segment_orientations(protocol, calibration or {}, quats, align_heading)
+
+
+def joint_segments(protocol: Protocol) -> list[str]:
+    """The segments the protocol's joints use, in order of first use."""
+    return list(dict.fromkeys(s for j in protocol.joints.values() for s in (j.proximal, j.distal)))
+
+
+def sensor_quats(
+    session: Session,
+    protocol: Protocol,
+    segments: list[str] | None = None,
+    estimator: str = "default",
+) -> SegmentQuats:
+    """``{segment: (time, q_sensor)}`` of the joints' segments (or ``segments``)."""
     quats = {}
-    for seg in needed:
+    for seg in segments or joint_segments(protocol):
         label = sensor_for_segment(session, seg)
         if label is None:
             raise InputError(
@@ -63,11 +106,16 @@ def session_angles(
                 remedy="name the sensor after the segment or set its segment at ingest",
             )
         quats[seg] = (session.sensors[label].time, sensor_orientation(session, label, estimator))
-    seg_q = segment_orientations(protocol, calibration or {}, quats, align_heading)
+    return quats
+
+
+def angle_table(seg_q: SegmentQuats, protocol: Protocol) -> dict[str, Any]:
+    """``{"time_s": (N,), "<joint>_<side>_<angle>_deg": (N,), ...}`` for every protocol joint."""
     first = next(iter(protocol.joints.values()))
     t = seg_q[first.proximal][0]
-    t0 = max(v[0][0] for v in seg_q.values())
-    t1 = min(v[0][-1] for v in seg_q.values())
+    used = {s for j in protocol.joints.values() for s in (j.proximal, j.distal)}
+    t0 = max(seg_q[s][0][0] for s in used)
+    t1 = min(seg_q[s][0][-1] for s in used)
     t = t[(t >= t0) & (t <= t1)]
     out: dict[str, Any] = {"time_s": t}
     for joint in protocol.joints.values():
@@ -75,3 +123,15 @@ def session_angles(
         qd = rot.resample(*seg_q[joint.distal], t)
         out.update(joint_angles(qp, qd, joint))
     return out
+
+
+def session_angles(
+    session: Session,
+    protocol: Protocol,
+    calibration: dict[str, Any] | None,
+    estimator: str = "default",
+    align_heading: bool = True,
+) -> dict[str, Any]:
+    """The angle table (degrees) of every protocol joint, see :func:`angle_table`."""
+    seg_q = session_segments(session, protocol, calibration, estimator, align_heading)
+    return angle_table(seg_q, protocol)

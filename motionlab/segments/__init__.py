@@ -23,9 +23,7 @@ import numpy as np
 from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.protocol import Protocol, axis_vector
-from motionlab.segments import frames, heading, quality
-from motionlab.segments.functional import functional_axis, orient
-from motionlab.segments.static import gravity_axis
+from motionlab.segments import heading, mounting
 from motionlab.segments.steps import find_steps
 from motionlab.session import Session
 
@@ -40,78 +38,21 @@ def sensor_for_segment(session: Session, segment: str) -> str | None:
     return segment if segment in session.sensors else None
 
 
-def _window(t: np.ndarray, x: np.ndarray, rng: tuple[float, float]) -> np.ndarray:
-    sel = (t >= rng[0]) & (t <= rng[1])
-    return x[sel]
-
-
 def calibrate_segment(
     segment: str,
     protocol: Protocol,
-    stream: tuple[np.ndarray, np.ndarray, np.ndarray],
+    streams: Streams,
     steps: dict[str, tuple[float, float] | None],
 ) -> dict[str, Any]:
     """Mounting of one segment from the protocol's steps (time ranges in ``steps``).
 
-    Returns ``{"mounting": q (4,), "method": ..., "axes": {step: record}, "quality": {...}}``;
-    each axis record holds the sensor-frame axis, the segment axis, ρ and the residual angle.
+    ``streams`` holds ``(time, acc, gyr)`` of this segment and of the segments it forms joints
+    with (for the hinge fit). Returns ``{"mounting": q (4,), "method": ..., "axes": {name:
+    record}, "quality": {...}}``; each axis record holds the sensor-frame axis, the segment axis,
+    ρ and the residual angle (:mod:`~motionlab.segments.mounting`).
     """
-    t, acc, gyr = stream
-    m_nom = protocol.segments[segment].nominal_mounting().T  # segment → sensor
-    v, r, w, records = [], [], [], {}
-    for step in protocol.calibration:
-        rng = steps.get(step.name)
-        if rng is None:
-            continue
-        if step.kind == "static" and segment in step.vertical_axis:
-            seg_axis = axis_vector(step.vertical_axis[segment])
-            axis, rho = gravity_axis(_window(t, acc, rng))
-        elif step.kind == "functional" and segment in step.axis:
-            seg_axis = axis_vector(step.axis[segment])
-            axis, rho, _ = functional_axis(_window(t, gyr, rng))
-            axis = orient(axis, m_nom @ seg_axis)
-        else:
-            continue
-        v.append(axis)
-        r.append(seg_axis)
-        w.append(rho)
-        records[step.name] = {
-            "step": step.name,
-            "kind": step.kind,
-            "sensor_axis": axis,
-            "segment_axis": seg_axis,
-            "rho": rho,
-            "reference_rho": step.reference_rho.get(segment),
-        }
-    if not v:
-        raise InputError(
-            f"no calibration step gives an axis for segment '{segment}'",
-            protocol.path,
-            f"segments.{segment}",
-            "add it to a static step's vertical_axis or a functional step's axis",
-        )
-    v, r, w = np.array(v), np.array(r), np.array(w)
-    distinct = {tuple(np.abs(x).round(6)) for x in r}
-    lm_diff = None
-    if len(distinct) >= 2:
-        m = frames.wahba(v, r, w)
-        m_lm, _ = frames.lm_fit(v, r, w)
-        lm_diff = float(np.degrees(rot.angle(rot.from_matrix(m.T @ m_lm))))
-        method = "procrustes"
-        separation = frames.min_axis_separation(r, v)
-    else:  # one segment axis only: the heading about it comes from the nominal placement
-        m = frames.align_one(np.average(v, axis=0, weights=w), r[0], m_nom)
-        method = "single_axis"
-        separation = None
-    residuals = frames.residual_angles(m, v, r)
-    for rec, res in zip(records.values(), residuals, strict=True):
-        rec["residual_deg"] = float(res)
-    return {
-        "mounting": rot.from_matrix(m),
-        "method": method,
-        "axes": records,
-        "quality": quality.assess(segment, list(records.values()), separation, lm_diff),
-    }
+    records = mounting.measure(protocol, streams, steps)
+    return mounting.fit(segment, protocol, records.get(segment, {}))
 
 
 def streams_of(session: Session, protocol: Protocol) -> Streams:
@@ -142,9 +83,10 @@ def calibrate(session: Session, protocol: Protocol) -> dict[str, Any]:
     """Sensor-to-segment calibration of every segment; the tree for ``results["calibration"]``."""
     streams = streams_of(session, protocol)
     steps = find_steps(streams, protocol)
+    records = mounting.measure(protocol, streams, steps)
     segments = {}
     for seg in streams:
-        res = calibrate_segment(seg, protocol, streams[seg], steps)
+        res = mounting.fit(seg, protocol, records[seg])
         res["sensor"] = sensor_for_segment(session, seg)
         segments[seg] = res
     return {
@@ -156,12 +98,53 @@ def calibrate(session: Session, protocol: Protocol) -> dict[str, Any]:
 
 
 def reference_step(protocol: Protocol, proximal: str, distal: str) -> str | None:
-    """First static step in which both segments share the same vertical axis (same pose)."""
+    """First static step naming the proximal segment's vertical axis and the distal's as the
+    same or not at all: the reference pose of the joint (e.g. standing)."""
     for step in protocol.calibration:
         va = step.vertical_axis
-        if step.kind == "static" and proximal in va and va.get(distal) == va[proximal]:
+        if (
+            step.kind == "static"
+            and proximal in va
+            and va.get(distal, va[proximal]) == va[proximal]
+        ):
             return step.name
     return None
+
+
+def heading_anchors(
+    protocol: Protocol, joint, steps: dict[str, Any], t: np.ndarray, qp: np.ndarray, qd: np.ndarray
+) -> tuple[list[float], list[float]]:
+    """Times (s) and heading offsets δ (rad) of one joint (see :mod:`.heading`).
+
+    ``qp`` and ``qd`` are the joint's segment orientations on the common time ``t``.
+    """
+    times, deltas = [], []
+    p, d = joint.proximal, joint.distal
+    for step in protocol.calibration:  # movements of both segments about one axis
+        rng = steps.get(step.name)
+        if step.kind == "functional" and rng and step.axis.get(p, "?") == step.axis.get(d):
+            sel = (t >= rng[0]) & (t <= rng[1])
+            if sel.sum() > 2:
+                w_p = heading.earth_rates(t[sel], qp[sel])
+                w_d = heading.earth_rates(t[sel], qd[sel])
+                times.append(0.5 * (rng[0] + rng[1]))
+                deltas.append(heading.heading_from_rates(w_p, w_d))
+    name = reference_step(protocol, p, d)
+    if name is None:
+        return times, deltas
+    va = protocol.calibration[[s.name for s in protocol.calibration].index(name)].vertical_axis
+    axis_p, axis_d = axis_vector(va[p]), axis_vector(va.get(d, va[p]))
+    if times and abs(axis_p[1]) < 0.5:
+        return times, deltas  # pose not about the long axis (supine): no pose anchors
+    windows = heading.reference_rests(t, qp, qd, axis_p, axis_d, loose_distal=d not in va)
+    rng = steps.get(name)
+    if not windows and rng:
+        windows = [slice(*np.searchsorted(t, rng))]
+    for w in windows:
+        if w.stop - w.start > 2:
+            times.append(float(t[w].mean()))
+            deltas.append(heading.heading_from_pose(qp[w], qd[w]))
+    return times, deltas
 
 
 def segment_orientations(
@@ -172,9 +155,10 @@ def segment_orientations(
 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """``{segment: (time, q_segment)}`` from sensor orientations ``{segment: (time, q_sensor)}``.
 
-    With ``align_heading`` each joint's distal segment is turned about the vertical to the
-    proximal segment's heading in the reference pose (:func:`reference_step`); without a
-    calibration entry for a segment its sensor frame is used as the segment frame.
+    With ``align_heading`` each joint's distal segment is turned about the vertical by the
+    heading track ``δ(t)`` through the joint's anchors (:func:`heading_anchors`,
+    :mod:`.heading`); without a calibration entry for a segment its sensor frame is used as the
+    segment frame.
     """
     out = {}
     for seg, (t, q) in sensor_quats.items():
@@ -186,16 +170,12 @@ def segment_orientations(
     steps = calibration.get("steps", {})
     for joint in protocol.joints.values():
         p, d = joint.proximal, joint.distal
-        name = reference_step(protocol, p, d)
-        if p not in out or d not in out or name is None or not steps.get(name):
+        if p not in out or d not in out:
             continue
-        t0, t1 = steps[name]
         tp, qp = out[p]
         td, qd = out[d]
-        sel = (tp >= t0) & (tp <= t1)
-        if sel.sum() < 2:
-            continue
-        qd_at = rot.resample(td, qd, tp[sel])
-        delta = heading.heading_from_pose(qp[sel], qd_at)
-        out[d] = (td, heading.apply_heading(qd, delta))
+        times, deltas = heading_anchors(protocol, joint, steps, tp, qp, rot.resample(td, qd, tp))
+        if times:
+            track = heading.heading_track(np.array(times), np.array(deltas), td)
+            out[d] = (td, rot.make_continuous(heading.apply_heading(qd, track)))
     return out

@@ -108,3 +108,26 @@ def align_one(v: np.ndarray, r: np.ndarray, m_nominal: np.ndarray) -> np.ndarray
         cross, angle = perp, np.pi
     turn = rot.to_matrix(rot.from_axis_angle(cross, angle))
     return turn @ m_nominal
+
+
+def turn_about(
+    m: np.ndarray, axis: np.ndarray, v: np.ndarray, r: np.ndarray, weights: np.ndarray
+) -> np.ndarray:
+    """``m`` turned about the sensor-frame ``axis`` so that ``m r_i`` best meet ``v_i``.
+
+    Only the components perpendicular to ``axis`` count (a 2-D Procrustes in that plane), so the
+    axis ``m`` already maps exactly stays where it is (TRIAD-like: a primary axis, then a
+    secondary direction for the rotation about it).
+    """
+    axis = np.asarray(axis, float) / np.linalg.norm(axis)
+    a = np.asarray(r, float) @ m.T
+    b = np.asarray(v, float)
+    a -= np.outer(a @ axis, axis)
+    b -= np.outer(b @ axis, axis)
+    w = np.asarray(weights, float)
+    sin = float(np.sum(w * (np.cross(a, b) @ axis)))
+    cos = float(np.sum(w * np.sum(a * b, axis=1)))
+    if abs(sin) + abs(cos) < 1e-12:
+        return m
+    turn = rot.to_matrix(rot.from_axis_angle(axis, np.arctan2(sin, cos)))
+    return turn @ m

@@ -1,28 +1,49 @@
 """Heading alignment of adjacent segments without the magnetometer.
 
 A 6-D orientation estimate has an arbitrary heading per sensor: each sensor's "earth" frame is the
-true ENU frame turned about the vertical by an unknown angle. For joint angles, the distal
-segment's orientation is turned about the earth vertical by ``δ`` (``q ← q_z(δ) ⊗ q``) so that it
-shares the proximal segment's heading. Two estimates of ``δ``:
+true ENU frame turned about the vertical by an unknown angle, which drifts slowly (gyroscope bias
+and scale-factor errors while the subject turns). For joint angles, the distal segment's
+orientation is turned about the earth vertical by ``δ(t)`` (``q ← q_z(δ) ⊗ q``) so that it shares
+the proximal segment's heading. ``δ`` is measured at *anchors* and interpolated linearly in time
+between them (held before the first and after the last):
 
-- static pose: in the reference pose the two segment frames coincide, so ``δ`` maximises
-  ``tr(R_prox,kᵀ R_z(δ) R_dist,k)`` summed over the still window (closed form);
-- hinge constraint: the joint axis is one line in both segments, so its earth-frame directions
-  ``R_prox j_prox`` and ``R_dist j_dist`` must agree; ``δ`` is the 2-D Procrustes angle between
-  their horizontal components over a movement (after Laidig et al., Sensors 2022 22:9850).
+- a movement of both segments about one axis (the protocol names the same axis for both: a
+  straight-leg hip flexion, a straight-arm shoulder flexion, trunk flexion over the pelvis): their
+  earth-frame angular velocities are parallel, so ``δ`` is the 2-D Procrustes angle between their
+  horizontal components (:func:`heading_from_rates`);
+- the reference pose (standing): the two segment frames coincide, so ``δ`` maximises
+  ``tr(R_prox,kᵀ R_z(δ) R_dist,k)`` over the still window (:func:`heading_from_pose`); later rests
+  in the same pose (both segments still, their vertical axes within ``REST_TILT_DEG`` of
+  vertical) re-reference it, which removes the drift between tasks (To 2012 §8.2 re-references at
+  pauses);
+- the hinge constraint (:func:`heading_from_hinge`): the joint axis seen from both segments
+  (after Laidig et al., Sensors 2022 22:9850).
 """
 
 from __future__ import annotations
 
 import numpy as np
+from scipy.ndimage import binary_opening, uniform_filter1d
 
 from motionlab import rotations as rot
+
+UP = np.array([0.0, 0.0, 1.0])
+REST_RATE_RAD_S = 0.15
+REST_TILT_DEG = 10.0
+REST_MIN_S = 1.0
 
 
 def heading_from_pose(q_proximal: np.ndarray, q_distal: np.ndarray) -> float:
     """Heading offset δ (rad) making the distal segment frame equal the proximal one on average."""
     b = np.einsum("nij,nkj->ik", rot.to_matrix(q_distal), rot.to_matrix(q_proximal))
     return float(np.arctan2(b[0, 1] - b[1, 0], b[0, 0] + b[1, 1]))
+
+
+def _procrustes_2d(a: np.ndarray, d: np.ndarray) -> float:
+    """Angle δ (rad) about z turning the horizontal parts of ``d`` (N, 3) onto those of ``a``."""
+    cross = np.sum(d[:, 0] * a[:, 1] - d[:, 1] * a[:, 0])
+    dot = np.sum(d[:, 0] * a[:, 0] + d[:, 1] * a[:, 1])
+    return float(np.arctan2(cross, dot))
 
 
 def heading_from_hinge(
@@ -34,11 +55,58 @@ def heading_from_hinge(
     """
     a = rot.rotate(q_proximal, np.broadcast_to(axis_proximal, (len(q_proximal), 3)))
     d = rot.rotate(q_distal, np.broadcast_to(axis_distal, (len(q_distal), 3)))
-    cross = np.sum(d[:, 0] * a[:, 1] - d[:, 1] * a[:, 0])
-    dot = np.sum(d[:, 0] * a[:, 0] + d[:, 1] * a[:, 1])
-    return float(np.arctan2(cross, dot))
+    return _procrustes_2d(a, d)
 
 
-def apply_heading(q: np.ndarray, delta: float) -> np.ndarray:
-    """Orientations turned by ``delta`` (rad) about the earth vertical: ``q_z(δ) ⊗ q``."""
-    return rot.mul(rot.from_axis_angle(np.array([0.0, 0.0, 1.0]), delta), q)
+def earth_rates(t: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Angular velocity (N, 3) in rad/s in the earth frame, from an orientation series."""
+    step = rot.to_rotvec(rot.mul(q[1:], rot.conj(q[:-1]))) / np.diff(t)[:, None]
+    return np.vstack([step, step[-1:]]) if len(step) else np.zeros((len(q), 3))
+
+
+def heading_from_rates(w_proximal: np.ndarray, w_distal: np.ndarray) -> float:
+    """Heading offset δ (rad) making parallel earth-frame angular velocities (N, 3) agree."""
+    return _procrustes_2d(w_proximal, w_distal)
+
+
+def reference_rests(
+    t: np.ndarray,
+    q_proximal: np.ndarray,
+    q_distal: np.ndarray,
+    axis_proximal: np.ndarray,
+    axis_distal: np.ndarray,
+    loose_distal: bool = False,
+) -> list[slice]:
+    """Still windows (≥ ``REST_MIN_S``) in which both segments' given axes point up.
+
+    ``q_*`` are segment orientations on the common time ``t``; the axes are the reference pose's
+    vertical segment axes. ``loose_distal`` doubles the tilt tolerance of the distal segment
+    (for one the protocol does not declare vertical, e.g. a forearm with its carrying angle).
+    """
+    if len(t) < 3:
+        return []
+    rate = 1.0 / np.median(np.diff(t))
+    win = max(1, int(0.5 * rate))
+    ok = np.ones(len(t), bool)
+    tilts = (REST_TILT_DEG, REST_TILT_DEG * (2.0 if loose_distal else 1.0))
+    for q, axis, tilt in zip(
+        (q_proximal, q_distal), (axis_proximal, axis_distal), tilts, strict=True
+    ):
+        speed = uniform_filter1d(np.linalg.norm(earth_rates(t, q), axis=1), win)
+        up = rot.rotate(q, np.broadcast_to(axis, (len(q), 3)))[:, 2]
+        ok &= (speed < REST_RATE_RAD_S) & (up > np.cos(np.radians(tilt)))
+    ok = binary_opening(ok, np.ones(max(1, int(REST_MIN_S * rate)), bool))
+    edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(int), 0]))
+    return [slice(a, b) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
+
+def heading_track(times: np.ndarray, deltas: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """δ(t) (rad): the anchors ``(times, deltas)`` unwrapped and interpolated linearly."""
+    order = np.argsort(times)
+    times, deltas = np.asarray(times, float)[order], np.unwrap(np.asarray(deltas, float)[order])
+    return np.interp(t, times, deltas)
+
+
+def apply_heading(q: np.ndarray, delta: float | np.ndarray) -> np.ndarray:
+    """Orientations turned by ``delta`` (rad, scalar or per sample) about the earth vertical."""
+    return rot.mul(rot.from_axis_angle(UP, delta), q)

@@ -3,7 +3,8 @@
 Reliability ρ of each axis (Ricci 2015 eq. 6.2) is compared with the protocol's ``reference_rho``
 (for the children's protocol: Tab. 6.1, 40 children) or with a default; the fitted frame's
 residual angle per axis (eq. 6.18), the smallest angle between axes that should be orthogonal,
-and the agreement of the closed-form fit with Ricci's LM are checked.
+the agreement of the closed-form fit with Ricci's LM, and, for a knee or elbow flexion, the angle
+between the SVD axis and Seel's hinge axis are checked.
 """
 
 from __future__ import annotations
@@ -15,6 +16,7 @@ FUNCTIONAL_RHO_MIN = 0.60
 RHO_MARGIN = 0.10  # below the reference by more than this: flagged
 RESIDUAL_MAX_DEG = 15.0
 SEPARATION_MIN_DEG = 45.0
+HINGE_CHECK_MAX_DEG = 10.0
 
 
 def assess(
@@ -46,6 +48,12 @@ def assess(
                 f"{segment}: repeat the {a['step'].replace('_', ' ')}: {why} "
                 f"(ρ = {a['rho']:.2f}, {expect})"
             )
+        if a.get("hinge_check_deg", 0.0) > HINGE_CHECK_MAX_DEG:
+            messages.append(
+                f"{segment}: repeat the {a['step'].replace('_', ' ')}: its axis differs from "
+                f"the hinge-joint fit by {a['hinge_check_deg']:.0f}° (the movement was not "
+                "about one axis, or the upper segment moved)"
+            )
         if a.get("residual_deg", 0.0) > RESIDUAL_MAX_DEG:
             messages.append(
                 f"{segment}: the axis from {a['step']} is {a['residual_deg']:.0f}° off the "
@@ -69,4 +77,7 @@ def assess(
         "min_rho": min((a["rho"] for a in axes), default=float("nan")),
         "separation_deg": separation_deg,
         "lm_difference_deg": lm_difference_deg,
+        "hinge_check_deg": {
+            a["step"]: a["hinge_check_deg"] for a in axes if "hinge_check_deg" in a
+        },
     }

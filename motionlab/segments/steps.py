@@ -1,7 +1,8 @@
 """Find the protocol's calibration steps in one continuous recording.
 
-Rest and movement are told apart by the smoothed gyroscope norm of all sensors on a common 50 Hz
-grid: a sample is "moving" when any sensor turns faster than ``MOVING_RAD_S``. Short gaps are
+Rest and movement are told apart by the gyroscope of all sensors on a common 50 Hz grid,
+low-passed at ``LOWPASS_HZ`` (soft-tissue wobble after impacts rings at 10-20 Hz) and its norm
+smoothed: a sample is "moving" when any sensor turns faster than ``MOVING_RAD_S``. Short gaps are
 closed (pauses between repetitions belong to the step; twitches during a pose do not end it).
 Steps are then matched in protocol order:
 
@@ -9,11 +10,21 @@ Steps are then matched in protocol order:
   in which every named segment's sensor sees gravity within ``POSE_TOLERANCE_DEG`` of the nominal
   placement's vertical axis (so standing and sitting are told apart);
 - a functional step takes the next movement block in which the step's segments turn fastest
-  (their mean rate at least ``LEAD_FRACTION`` of the fastest sensor's); an optional step also
-  needs every other sensor to be nearly still.
+  (the fastest of them at least ``LEAD_FRACTION`` of the fastest sensor's mean rate, and each
+  of them at least ``MOVE_FRACTION`` of it); an optional step also
+  needs some sensor outside its segments to be nearly still (so that it is not taken for a
+  whole-body task such as walking; segments carried along, like the shank in a straight-leg
+  hip flexion, may move).
 
 A step's ``time_range`` in the protocol overrides detection. A required step that is not found
-raises :class:`InputError` naming the step and what to do.
+raises :class:`InputError` naming the step and what to do; so does an ambiguous functional step:
+the movement block right after the chosen one also fits the step, moves no other segment and fits
+no later step, and both last about the step's duration (0.5-2×), e.g. a movement done twice.
+
+Task blocks (:func:`find_tasks`) are the movement blocks after the last calibration step,
+matched to the protocol's tasks in order (moves shorter than ``MIN_TASK_S`` left out and blocks
+joined across the shortest rests while there are more blocks than tasks); a task's
+``time_range`` overrides detection.
 """
 
 from __future__ import annotations
@@ -22,18 +33,22 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.ndimage import binary_closing, uniform_filter1d
+from scipy.signal import butter, sosfiltfilt
 
 from motionlab.errors import InputError
 from motionlab.protocol import CalibrationStep, Protocol, axis_vector
 
 GRID_HZ = 50.0
-MOVING_RAD_S = 0.35
+LOWPASS_HZ = 2.0
+MOVING_RAD_S = 0.15
 SMOOTH_S = 0.4
-REP_GAP_S = 1.2
+REP_GAP_S = 1.5
 TWITCH_S = 0.3
 POSE_TOLERANCE_DEG = 50.0
 LEAD_FRACTION = 0.6
 QUIET_FRACTION = 0.3
+MOVE_FRACTION = 0.15
+MIN_TASK_S = 2.0
 
 
 @dataclass
@@ -58,8 +73,10 @@ def blocks(streams: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]) -> lis
     grid = np.arange(start, end, 1.0 / GRID_HZ)
     win = max(1, int(SMOOTH_S * GRID_HZ))
     rate, up = {}, {}
+    sos = butter(2, LOWPASS_HZ, fs=GRID_HZ, output="sos")
     for seg, (t, acc, gyr) in streams.items():
-        rate[seg] = uniform_filter1d(np.linalg.norm(_resample(t, gyr, grid), axis=1), win)
+        slow = sosfiltfilt(sos, _resample(t, gyr, grid), axis=0)
+        rate[seg] = uniform_filter1d(np.linalg.norm(slow, axis=1), win)
         up[seg] = _resample(t, acc, grid)
     moving = np.max(np.vstack(list(rate.values())), axis=0) > MOVING_RAD_S
     moving = binary_closing(moving, np.ones(int(REP_GAP_S * GRID_HZ)), border_value=0) | moving
@@ -98,13 +115,52 @@ def _functional_match(step: CalibrationStep, block: Block) -> bool:
     if not block.moving:
         return False
     fastest = max(block.rate.values())
-    movers = [s for s in step.axis if s in block.rate]
-    if not movers or min(block.rate[s] for s in movers) < LEAD_FRACTION * fastest:
+    rates = [block.rate[s] for s in step.axis if s in block.rate]
+    if not rates or max(rates) < LEAD_FRACTION * fastest or min(rates) < MOVE_FRACTION * fastest:
         return False
     if step.optional:
         others = [r for s, r in block.rate.items() if s not in step.segments]
-        return all(r < QUIET_FRACTION * fastest for r in others)
+        return any(r < QUIET_FRACTION * fastest for r in others)
     return True
+
+
+def _fmt(b: Block) -> str:
+    return f"{b.start:.1f}-{b.end:.1f} s"
+
+
+def _check_unambiguous(
+    step: CalibrationStep, hit: int, bl: list[Block], later: list[CalibrationStep], protocol
+) -> None:
+    """Refuse a functional step whose next movement block is a second candidate for it.
+
+    Only inside the calibration: after the last required step come the tasks, which may well
+    repeat the calibration movements (the lumbar protocol does).
+    """
+    if not any(not s.optional for s in later):
+        return
+    nxt = next((i for i in range(hit + 1, len(bl)) if bl[i].moving), None)
+    if nxt is None or not _functional_match(step, bl[nxt]):
+        return
+    fastest = max(bl[nxt].rate.values())
+    if any(
+        r >= QUIET_FRACTION * fastest for s, r in bl[nxt].rate.items() if s not in step.segments
+    ):
+        return  # other segments move too: a task, not this step again
+    if any(s.kind == "functional" and _functional_match(s, bl[nxt]) for s in later):
+        return
+
+    def fits(b: Block) -> bool:
+        return 0.5 * step.duration_s <= b.end - b.start <= 2.0 * step.duration_s
+
+    if fits(bl[hit]) and fits(bl[nxt]):
+        raise InputError(
+            f"calibration step '{step.name}' is ambiguous: two candidate windows, "
+            f"{_fmt(bl[hit])} and {_fmt(bl[nxt])}",
+            protocol.path,
+            f"calibration step {step.name}",
+            "give the step's time_range in the protocol (e.g. time_range: "
+            f"[{bl[nxt].start:.1f}, {bl[nxt].end:.1f}] for the second one)",
+        )
 
 
 def find_steps(
@@ -115,7 +171,7 @@ def find_steps(
     bl = blocks(streams)
     pos = 0  # index of the first block not yet used
     t_used = -np.inf
-    for step in protocol.calibration:
+    for k, step in enumerate(protocol.calibration):
         if step.time_range is not None:
             found[step.name] = step.time_range
             t_used = step.time_range[1]
@@ -143,7 +199,52 @@ def find_steps(
             trim = min(0.5, 0.2 * (b.end - b.start))
             found[step.name] = (b.start + trim, b.end - trim)
         else:
+            _check_unambiguous(step, hit, bl, protocol.calibration[k + 1 :], protocol)
             found[step.name] = (b.start, b.end)
         t_used = b.end
         pos = hit + 1
     return found
+
+
+def find_tasks(
+    streams: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
+    protocol: Protocol,
+    after_s: float = -np.inf,
+) -> dict[str, tuple[float, float]]:
+    """Time range (s) of each protocol task: movement blocks after ``after_s``, in order.
+
+    With more blocks than tasks, moves shorter than ``MIN_TASK_S`` are left out, then the two
+    blocks separated by the shortest rest are joined until the counts agree. Tasks with a
+    ``time_range`` keep it and the blocks overlapping it are left out.
+    """
+    fixed = {t.name: t.time_range for t in protocol.tasks if t.time_range is not None}
+    todo = [t for t in protocol.tasks if t.time_range is None]
+    if not todo:
+        return {t.name: fixed[t.name] for t in protocol.tasks}
+
+    def free(b: Block) -> bool:
+        return (
+            b.moving
+            and b.start >= after_s
+            and not any(b.start < r[1] and b.end > r[0] for r in fixed.values())
+        )
+
+    merged = [[b.start, b.end] for b in blocks(streams) if free(b)]
+    if len(merged) > len(todo):  # short moves between tasks: getting up, sitting down
+        long = [m for m in merged if m[1] - m[0] >= MIN_TASK_S]
+        merged = long if len(long) >= len(todo) else merged
+    while len(merged) > len(todo):
+        gaps = [merged[i + 1][0] - merged[i][1] for i in range(len(merged) - 1)]
+        i = int(np.argmin(gaps))
+        merged[i : i + 2] = [[merged[i][0], merged[i + 1][1]]]
+    if len(merged) < len(todo):
+        names = ", ".join(t.name for t in todo)
+        raise InputError(
+            f"found {len(merged)} movement block(s) after the calibration for {len(todo)} "
+            f"task(s) ({names})",
+            protocol.path,
+            "tasks",
+            "pause for a few seconds between tasks, or give each task's time_range",
+        )
+    found = dict(zip((t.name for t in todo), (tuple(m) for m in merged), strict=True))
+    return {t.name: found.get(t.name) or fixed[t.name] for t in protocol.tasks}

@@ -1,0 +1,100 @@
+"""``motionlab metrics``: range of motion, repetitions, cycle curves and out-of-plane metrics."""
+
+from __future__ import annotations
+
+import click
+import numpy as np
+
+from motionlab.atomic import atomic_path, check_output
+from motionlab.errors import InputError
+from motionlab.kinematics.metrics import metrics_table, session_metrics
+from motionlab.protocol import load_protocol
+from motionlab.session import load_session, save_session
+
+
+def _parse_tasks(items: tuple[str, ...]) -> dict[str, tuple[float, float]] | None:
+    """``("gait=95:150", ...)`` → ``{"gait": (95.0, 150.0)}``."""
+    if not items:
+        return None
+    out = {}
+    for item in items:
+        name, _, rng = item.partition("=")
+        start, _, end = rng.partition(":")
+        try:
+            t0, t1 = float(start), float(end)
+        except ValueError:
+            t0 = t1 = float("nan")
+        if not name or not t0 < t1:
+            raise InputError(f"--task {item!r} is not NAME=START:END", remedy="e.g. gait=95:150")
+        out[name] = (t0, t1)
+    return out
+
+
+@click.command("metrics")
+@click.argument("session", type=click.Path(dir_okay=False))
+@click.option("--csv", "csv_path", type=click.Path(dir_okay=False), help="Also write a CSV.")
+@click.option("--protocol", "protocol_path", help="Protocol (default: the calibration's).")
+@click.option(
+    "--task",
+    "tasks",
+    multiple=True,
+    help="Task time range NAME=START:END in s (repeat); default: found in the recording.",
+)
+@click.option("--force", is_flag=True, help="Replace existing metrics and CSV.")
+def command(
+    session: str,
+    csv_path: str | None,
+    protocol_path: str | None,
+    tasks: tuple[str, ...],
+    force: bool,
+) -> None:
+    """Per task, joint and plane: range of motion, peaks, repetitions, mean ± SD cycle curve;
+    and the protocol's out-of-plane metrics (cross-talk, lumbar out-of-plane offset, trunk
+    compensation, knee varus thrust and stance rotation).
+
+    Needs a calibrated session (motionlab calibrate); the angles are computed as
+    motionlab angles does. The CSV has one row per number:
+    block, joint, angle, metric, percent, value, unit.
+
+    \b
+    Example:
+      motionlab metrics session.h5 --csv metrics.csv
+      motionlab metrics session.h5 --task gait=95:150 --task squat=152:180 --force
+    """
+    if csv_path:
+        check_output(csv_path, force)
+    ses = load_session(session)
+    cal = ses.results.get("calibration")
+    if cal is None:
+        raise InputError(
+            "not calibrated", session, "results/calibration", "run motionlab calibrate first"
+        )
+    if "metrics" in ses.results and not force:
+        raise InputError("already holds metrics", session, "results/metrics", "add --force")
+    protocol = load_protocol(protocol_path or cal.get("protocol_path") or cal["protocol"])
+    unknown = [n for n in (_parse_tasks(tasks) or {}) if n not in {t.name for t in protocol.tasks}]
+    if unknown:
+        raise InputError(
+            f"the protocol has no task {', '.join(unknown)}",
+            protocol.path,
+            "tasks",
+            f"tasks are {', '.join(t.name for t in protocol.tasks)}",
+        )
+    result = session_metrics(ses, protocol, _parse_tasks(tasks))
+    table = metrics_table(result)
+    if csv_path:
+        with atomic_path(csv_path, force=force) as tmp:
+            table.to_csv(tmp, index=False, float_format="%.4f")
+    ses.results["metrics"] = result
+    ses.add_provenance(parameters={"stage": "metrics", "protocol": str(protocol.path)})
+    save_session(ses, session, force=True)
+    for block, rng in result["blocks"].items():
+        click.echo(f"task {block:<20} {rng['start_s']:8.2f}–{rng['end_s']:8.2f} s")
+        for col, m in result["joints"][block].items():
+            if not np.isfinite(m["rom_deg"]):
+                continue
+            click.echo(
+                f"  {col:<32} ROM {m['rom_deg']:6.1f}  min {m['min_deg']:6.1f}  "
+                f"max {m['max_deg']:6.1f}  cycles {m['repetitions']}"
+            )
+    click.echo(f"{len(table)} rows" + (f" written to {csv_path}" if csv_path else ""))

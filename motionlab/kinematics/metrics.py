@@ -1,0 +1,358 @@
+"""Metrics per task block, joint and plane, and the out-of-plane metrics; one tidy CSV table.
+
+Per task block (the protocol's ``tasks``; times from the simulator's truth, the protocol's
+``time_range`` or :func:`~motionlab.segments.steps.find_tasks`) and per angle column (degrees):
+
+- ``rom_deg``, ``min_deg``, ``max_deg`` over the block;
+- ``repetitions``: the cycles found — strides (heel strike to heel strike, from the shank's
+  angular velocity) for a knee in a gait task, else the repetitions of the joint's primary angle
+  (the task's ``plane`` option, else flexion; :func:`~motionlab.kinematics.cycles.
+  find_repetitions`);
+- peaks: each cycle's maximum and minimum (``cycle_max_deg``, ``cycle_min_deg``) and their mean;
+- the cycle-normalised curve, ``curve_mean_deg`` ± ``curve_sd_deg`` at 0, 1, …, 100 %.
+
+Out-of-plane metrics (:mod:`~motionlab.kinematics.out_of_plane`), each when the protocol's
+``metrics`` lists it: ``cross_talk`` during every single-plane block (a functional calibration step
+that moves a joint's distal segment alone, or a task with a ``plane`` option), calibrated against
+the protocol's nominal placement; ``out_of_plane_offset`` of lumbar joints per task with a
+``plane``; ``trunk_compensation`` of the ``thorax`` segment per task; ``varus_thrust`` /
+``stance_rotation`` of knees in gait tasks. Thresholds come from the protocol's ``thresholds``.
+
+The results tree (``session.results["metrics"]``) holds arrays and JSON values only;
+:func:`metrics_table` flattens it into rows ``block, joint, angle, metric, percent, value, unit``.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from motionlab import rotations as rot
+from motionlab.errors import InputError
+from motionlab.kinematics import cycles as cyc
+from motionlab.kinematics import out_of_plane as oop
+from motionlab.kinematics.joint_angles import JOINT_ANGLE_NAMES, column_name
+from motionlab.kinematics.session_angles import (
+    angle_table,
+    joint_segments,
+    nominal_calibration,
+    sensor_quats,
+)
+from motionlab.protocol import Joint, Protocol, Task
+from motionlab.segments import reference_step, segment_orientations, sensor_for_segment, streams_of
+from motionlab.segments.steps import find_tasks
+from motionlab.session import Session, estimate_rate
+
+OUT_OF_PLANE = ("cross_talk", "out_of_plane_offset", "trunk_compensation", "varus_thrust")
+THORAX = "thorax"
+
+
+def wanted(protocol: Protocol) -> set[str]:
+    """The out-of-plane metrics to compute: those the protocol lists (all if it lists none)."""
+    listed = set(protocol.metrics)
+    if "stance_rotation" in listed:
+        listed.add("varus_thrust")
+    return listed & set(OUT_OF_PLANE) if listed else set(OUT_OF_PLANE)
+
+
+def _window(time: np.ndarray, t0: float, t1: float) -> slice:
+    i0, i1 = np.searchsorted(time, [t0, t1], side="left")
+    return slice(int(i0), int(max(i0, i1)))
+
+
+def is_gait(task: Task) -> bool:
+    return "gait" in task.kind.lower() or "walk" in task.kind.lower()
+
+
+def angle_metrics(values: np.ndarray, cycles: cyc.Cycles) -> dict[str, Any]:
+    """ROM, extremes, per-cycle peaks and the cycle-normalised mean ± SD of one angle (deg)."""
+    v = np.asarray(values, dtype=float)
+    curves = cyc.normalise(v, cycles)
+    mean, sd = cyc.mean_sd(curves)
+    peaks_max = np.array(
+        [np.nanmax(v[a : b + 1]) for a, b in zip(cycles.start, cycles.end, strict=True)]
+    )
+    peaks_min = np.array(
+        [np.nanmin(v[a : b + 1]) for a, b in zip(cycles.start, cycles.end, strict=True)]
+    )
+    finite = np.isfinite(v).any()
+    return {
+        "rom_deg": float(np.nanmax(v) - np.nanmin(v)) if finite else float("nan"),
+        "min_deg": float(np.nanmin(v)) if finite else float("nan"),
+        "max_deg": float(np.nanmax(v)) if finite else float("nan"),
+        "repetitions": len(cycles),
+        "cycle_max_deg": peaks_max,
+        "cycle_min_deg": peaks_min,
+        "cycle_max_mean_deg": float(peaks_max.mean()) if len(cycles) else float("nan"),
+        "cycle_min_mean_deg": float(peaks_min.mean()) if len(cycles) else float("nan"),
+        "curve_mean_deg": mean,
+        "curve_sd_deg": sd,
+    }
+
+
+def primary_plane(joint: Joint, task: Task | None) -> int:
+    """Index of the angle whose repetitions define the cycles (task ``plane``, else flexion)."""
+    plane = str(task.options.get("plane", "")) if task is not None else ""
+    idx = oop.plane_index(joint.type, plane) if plane else None
+    return 0 if idx is None else idx
+
+
+def single_plane_blocks(
+    protocol: Protocol, blocks: dict[str, tuple[float, float]], steps: dict[str, Any]
+) -> list[tuple[str, Joint, int, tuple[float, float]]]:
+    """``(block, joint, on-axis index, time range)`` of every single-plane movement of a joint.
+
+    A functional calibration step counts for a joint when it names the distal segment's axis and
+    not the proximal segment's; a task when it has a ``plane`` option.
+    """
+    out = []
+    for step in protocol.calibration:
+        rng = steps.get(step.name)
+        if step.kind != "functional" or not rng:
+            continue
+        for joint in protocol.joints.values():
+            if joint.distal in step.axis and joint.proximal not in step.axis:
+                idx = oop.plane_index(joint.type, step.axis[joint.distal])
+                out.append((step.name, joint, idx, tuple(rng)))
+    for task in protocol.tasks:
+        plane = str(task.options.get("plane", ""))
+        if task.name in blocks and plane:
+            for joint in protocol.joints.values():
+                idx = oop.plane_index(joint.type, plane)
+                if idx is not None:
+                    out.append((task.name, joint, idx, blocks[task.name]))
+    return out
+
+
+def compute_metrics(
+    protocol: Protocol,
+    table: dict[str, np.ndarray],
+    seg_q: dict[str, tuple[np.ndarray, np.ndarray]],
+    blocks: dict[str, tuple[float, float]],
+    steps: dict[str, Any],
+    nominal_table: dict[str, np.ndarray] | None = None,
+    shank_omega: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
+) -> dict[str, Any]:
+    """The metrics tree (see the module docstring).
+
+    ``table`` is an angle table (``time_s`` and degree columns), ``seg_q`` calibrated segment
+    orientations ``{segment: (time, q)}``, ``blocks`` the task time ranges (s), ``steps`` the
+    calibration step ranges, ``nominal_table`` the angles with nominal mountings (cross-talk),
+    ``shank_omega`` ``{segment: (time, ω_z rad/s)}`` of shank segments (gait events).
+    """
+    time = np.asarray(table["time_s"], dtype=float)
+    rate = estimate_rate(time)
+    todo = wanted(protocol)
+    th = protocol.thresholds
+    tasks = {t.name: t for t in protocol.tasks}
+    out: dict[str, Any] = {"protocol": protocol.name, "joints": {}}
+    for name, (t0, t1) in blocks.items():
+        task, win = tasks.get(name), _window(time, t0, t1)
+        if win.stop - win.start < 3:
+            raise InputError(
+                f"task '{name}' ({t0:.1f}-{t1:.1f} s) is outside the angle data",
+                where=f"task {name}",
+                remedy="check the task times",
+            )
+        per_col: dict[str, Any] = {}
+        for joint in protocol.joints.values():
+            names = JOINT_ANGLE_NAMES[joint.type]
+            cols = [column_name(joint.type, joint.side, n) for n in names]
+            gait = task is not None and is_gait(task) and joint.type == "knee"
+            if gait and shank_omega and joint.distal in shank_omega:
+                tw, w = shank_omega[joint.distal]
+                hs, to = cyc.gait_events(np.interp(time[win], tw, w), rate)
+                cycles = cyc.strides(hs, to, rate)
+                if "varus_thrust" in todo:
+                    out.setdefault("gait", {}).setdefault(name, {})[joint.name] = (
+                        oop.stance_metrics(
+                            table[cols[1]][win],
+                            table[cols[2]][win],
+                            cycles,
+                            float(th.get("varus_thrust_deg", 3.0)),
+                        )
+                    )
+            else:
+                plane = primary_plane(joint, task)
+                cycles = cyc.find_repetitions(table[cols[plane]][win], rate)
+            for col in cols:
+                per_col[col] = angle_metrics(table[col][win], cycles)
+                per_col[col]["cycle_start_s"] = time[win][cycles.start]
+            if joint.type == "lumbar" and "out_of_plane_offset" in todo and task is not None:
+                plane = task.options.get("plane")
+                if plane and oop.plane_index("lumbar", str(plane)) is not None:
+                    out.setdefault("out_of_plane_offset", {}).setdefault(name, {})[joint.name] = (
+                        _offset(protocol, joint, seg_q, time, win, steps, str(plane), cycles, th)
+                    )
+        out["joints"][name] = per_col
+        if "trunk_compensation" in todo and THORAX in seg_q:
+            tq, q = seg_q[THORAX]
+            out.setdefault("trunk_compensation", {})[name] = oop.trunk_compensation(
+                tq, q, _window(tq, t0, t1), dict(th.get("trunk_compensation_deg", {}))
+            )
+    if "cross_talk" in todo:
+        for block, joint, idx, (t0, t1) in single_plane_blocks(protocol, blocks, steps):
+            out.setdefault("cross_talk", {}).setdefault(block, {})[joint.name] = oop.cross_talk(
+                table, nominal_table, joint, idx, _window(time, t0, t1)
+            )
+    out["blocks"] = {k: {"start_s": float(v[0]), "end_s": float(v[1])} for k, v in blocks.items()}
+    return out
+
+
+def _offset(protocol, joint, seg_q, time, win, steps, plane, cycles, th) -> dict[str, Any]:
+    qp = rot.resample(*seg_q[joint.proximal], time)
+    qd = rot.resample(*seg_q[joint.distal], time)
+    axis_deg = oop.axis_angles(qp, qd)
+    ref_name = reference_step(protocol, joint.proximal, joint.distal)
+    rng = steps.get(ref_name) if ref_name else None
+    sel = (time >= rng[0]) & (time <= rng[1]) if rng else np.zeros(len(time), bool)
+    if sel.sum() < 3:  # no standing pose: the rest before the task
+        sel = (time >= time[win][0] - oop.NEUTRAL_S) & (time < time[win][0])
+    reference = axis_deg[sel].mean(axis=0) if sel.any() else axis_deg[win][0]
+    return oop.out_of_plane_offset(
+        axis_deg,
+        reference,
+        oop.plane_index("lumbar", plane),
+        win,
+        cycles,
+        float(th.get("out_of_plane_offset_deg", 5.0)),
+    )
+
+
+def shank_angular_velocity(
+    session: Session, protocol: Protocol, calibration: dict[str, Any]
+) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """``{segment: (time, ω_z)}``: gyroscope about the segment's z axis of each knee's shank."""
+    out = {}
+    for joint in protocol.joints.values():
+        seg = joint.distal
+        label = sensor_for_segment(session, seg)
+        cal = calibration.get("segments", {}).get(seg)
+        if joint.type != "knee" or label is None or cal is None:
+            continue
+        s = session.sensors[label]
+        if s.gyr is None:
+            continue
+        w = rot.rotate(rot.conj(np.asarray(cal["mounting"])), s.gyr)  # sensor → segment
+        out[seg] = (s.time, w[:, 2])
+    return out
+
+
+def session_metrics(
+    session: Session,
+    protocol: Protocol,
+    tasks: dict[str, tuple[float, float]] | None = None,
+    estimator: str = "default",
+) -> dict[str, Any]:
+    """Metrics of a calibrated session; ``tasks`` ``{name: (start_s, end_s)}`` or found.
+
+    The angles are computed as ``motionlab angles`` does (calibrated, heading-aligned IMU
+    orientations) and again with the nominal mountings for the cross-talk comparison.
+    """
+    cal = session.results.get("calibration")
+    if cal is None:
+        raise InputError(
+            "not calibrated", where="results/calibration", remedy="run motionlab calibrate first"
+        )
+    steps = {k: tuple(v) for k, v in cal.get("steps", {}).items() if v is not None}
+    if tasks is None:
+        after = max((v[1] for v in steps.values()), default=-np.inf)
+        tasks = find_tasks(streams_of(session, protocol), protocol, after_s=after)
+        source = "detected"
+    else:
+        source = "given"
+    segs = joint_segments(protocol)
+    if "trunk_compensation" in wanted(protocol) and THORAX in protocol.segments:
+        if sensor_for_segment(session, THORAX) is not None and THORAX not in segs:
+            segs.append(THORAX)
+    quats = sensor_quats(session, protocol, segs, estimator)
+    seg_q = segment_orientations(protocol, cal, quats)
+    table = angle_table(seg_q, protocol)
+    nominal = None
+    if "cross_talk" in wanted(protocol):
+        nominal = angle_table(
+            segment_orientations(protocol, nominal_calibration(protocol, cal["steps"]), quats),
+            protocol,
+        )
+    out = compute_metrics(
+        protocol,
+        table,
+        seg_q,
+        tasks,
+        steps,
+        nominal,
+        shank_angular_velocity(session, protocol, cal),
+    )
+    for v in out["blocks"].values():
+        v["source"] = source
+    return out
+
+
+_UNITS = {"repetitions": "1", "strides": "1", "compensated": "1"}
+
+
+def metrics_table(metrics: dict[str, Any]) -> pd.DataFrame:
+    """Rows ``block, joint, angle, metric, percent, value, unit`` of every scalar and curve.
+
+    Per-cycle arrays are summarised by their mean; the cycle-normalised curves give one row per
+    percent. Long sample-by-sample series (offset, trunk angles) stay in the session only.
+    """
+    rows: list[tuple] = []
+
+    def add(block, joint, angle, metric, value, percent=None):
+        if isinstance(value, (bool, np.bool_)):
+            value = float(value)
+        unit = _UNITS.get(metric, "%" if metric.endswith("_pct") else "deg")
+        rows.append((block, joint, angle, metric, percent, float(value), unit))
+
+    for block, cols in metrics.get("joints", {}).items():
+        for col, m in cols.items():
+            joint, angle = _split_column(col)
+            for key in ("rom_deg", "min_deg", "max_deg", "repetitions"):
+                add(block, joint, angle, key, m[key])
+            for key in ("cycle_max_mean_deg", "cycle_min_mean_deg"):
+                add(block, joint, angle, key, m[key])
+            for pct, (mu, sd) in enumerate(
+                zip(m["curve_mean_deg"], m["curve_sd_deg"], strict=True)
+            ):
+                add(block, joint, angle, "curve_mean_deg", mu, pct)
+                add(block, joint, angle, "curve_sd_deg", sd, pct)
+    for block, joints in metrics.get("cross_talk", {}).items():
+        for joint, m in joints.items():
+            add(block, joint, m["on_axis"], "cross_talk_on_axis_rom_deg", m["on_axis_rom_deg"])
+            for angle, e in m.items():
+                if isinstance(e, dict):
+                    for key, value in e.items():
+                        add(block, joint, angle, f"cross_talk_{key}", value)
+    for block, joints in metrics.get("out_of_plane_offset", {}).items():
+        for joint, m in joints.items():
+            axes = "-".join(m["axes"])
+            for key in ("peak_deg", "mean_deg", "above_pct"):
+                add(block, joint, axes, f"out_of_plane_{key}", m[key])
+    for block, m in metrics.get("trunk_compensation", {}).items():
+        for angle in oop.TRUNK_ANGLES:
+            for key in ("peak_abs_deg", "max_deg", "min_deg", "above_pct"):
+                add(block, "trunk", angle, f"trunk_{key}", m[angle][key])
+        add(block, "trunk", "", "compensated", m["compensated"])
+    for block, joints in metrics.get("gait", {}).items():
+        for joint, m in joints.items():
+            add(block, joint, "", "strides", m["strides"])
+            for key in ("varus_thrust_mean_deg", "varus_thrust_sd_deg", "varus_thrust_above_pct"):
+                add(block, joint, "adduction", key, m[key])
+            for key in ("stance_rotation_range_mean_deg", "stance_rotation_range_sd_deg"):
+                add(block, joint, "rotation", key, m[key])
+    return pd.DataFrame(
+        rows, columns=["block", "joint", "angle", "metric", "percent", "value", "unit"]
+    )
+
+
+def _split_column(col: str) -> tuple[str, str]:
+    """``knee_r_flexion_deg`` → ``("knee_r", "flexion")``; ``lumbar_axial_rotation_deg`` too."""
+    stem = col.removesuffix("_deg")
+    for jtype, names in JOINT_ANGLE_NAMES.items():
+        for name in names:
+            if stem.startswith(jtype) and stem.endswith("_" + name):
+                return stem[: -len(name) - 1], name
+    return stem, ""
