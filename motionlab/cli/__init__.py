@@ -63,13 +63,29 @@ def main(ctx: click.Context, debug: bool) -> None:
 
 
 def _register() -> None:
-    from motionlab.cli import angles, calibrate, fuse, info, ingest, metrics, sensorcal, simulate
+    from motionlab.cli import (
+        angles,
+        calibrate,
+        demo,
+        fuse,
+        info,
+        ingest,
+        metrics,
+        report,
+        run,
+        sensorcal,
+        simulate,
+    )
 
-    for module in (info, ingest, sensorcal, calibrate, angles, metrics, fuse, simulate):
+    for module in (info, ingest, sensorcal, calibrate, angles, metrics, fuse, simulate, run,
+                   report, demo):  # fmt: skip
         main.add_command(module.command)
     from motionlab.cli import validate
 
     main.add_command(validate.command)
+    from motionlab.cli import batch
+
+    main.add_command(batch.command)
 
 
 _register()

@@ -1,0 +1,70 @@
+"""``motionlab run``: the whole analysis in one command (see :mod:`motionlab.pipeline`)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from motionlab.pipeline import run_pipeline
+
+
+@click.command("run")
+@click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.option("--protocol", "protocol", required=True, help="Protocol YAML file or packaged name.")
+@click.option(
+    "--map",
+    "map_path",
+    type=click.Path(dir_okay=False),
+    help="Sensor map YAML for raw recordings (see 'motionlab ingest --help').",
+)
+@click.option(
+    "--reference",
+    type=click.Path(dir_okay=False),
+    help="Optical reference (C3D, TRC or a session with markers): validate against it.",
+)
+@click.option(
+    "--calibration",
+    "calibration_dir",
+    type=click.Path(file_okay=False),
+    help="Folder of per-serial sensor calibrations (motionlab sensorcal) for fusion.",
+)
+@click.option(
+    "-o",
+    "--output",
+    "outdir",
+    required=True,
+    type=click.Path(file_okay=False),
+    help="Output folder: session.h5, report.pdf, report.txt, csv/.",
+)
+@click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
+@click.option("--force", is_flag=True, help="Replace existing outputs.")
+@click.option("--quiet", is_flag=True, help="No progress on stderr.")
+def command(
+    files, protocol, map_path, reference, calibration_dir, outdir, seed, force, quiet
+) -> None:
+    """Analyse recording FILES (or one session file) from raw data to the report.
+
+    ingest → sensor calibration (with --calibration) → fuse → calibrate → angles → metrics →
+    validate (with --reference, or when the inputs hold markers) → report. Every intermediate
+    result is kept in OUTDIR/session.h5; the report is OUTDIR/report.pdf with its text in
+    report.txt and its tables in OUTDIR/csv/.
+
+    \b
+    Example:
+      motionlab run --protocol knee --map map.yaml pelvis.txt thigh_r.txt thigh_l.txt \\
+          shank_r.txt shank_l.txt --reference gait.c3d -o results/P017
+      motionlab run --protocol knee sim.h5 -o results/sim
+    """
+    result = run_pipeline(
+        [Path(f) for f in files],
+        protocol,
+        Path(outdir),
+        map_path=Path(map_path) if map_path else None,
+        reference=Path(reference) if reference else None,
+        force=force,
+        progress=not quiet,
+        seed=seed,
+        calibration_dir=Path(calibration_dir) if calibration_dir else None,
+    )
+    click.echo(result.summary)

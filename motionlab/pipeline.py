@@ -1,0 +1,401 @@
+"""The whole analysis in one call: recordings → session → angles and metrics → report.
+
+:func:`run_pipeline` chains the stages' library functions in memory, as the commands
+``ingest``, ``fuse`` (``--calibration``), ``calibrate``, ``angles``, ``metrics`` and ``validate``
+would one after the other, and writes into ``OUTDIR``:
+
+- ``session.h5``: the session with every stage's results and the provenance log;
+- ``report.pdf`` and ``report.txt`` (the report's text, page by page);
+- ``csv/``: the report's CSV tables (:mod:`motionlab.report.csv`).
+
+Inputs are raw recordings (any format :func:`motionlab.io.read_any` knows; optical files among
+them become marker sets) or one motionlab session file (e.g. from ``motionlab simulate``). A
+session file whose sensors have no ingest quality checks gets them here (clock repair, checks,
+short gaps filled), as ingest does. Validation runs when a reference is given or the inputs hold
+markers. Outputs that exist are replaced only with ``force``; all are checked before any work.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import io
+import shlex
+import sys
+import time
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import h5py
+import pandas as pd
+
+from motionlab import timebase
+from motionlab.errors import InputError
+from motionlab.ingest import DEFAULT_GAP_MAX, ingest
+from motionlab.protocol import Protocol, load_protocol
+from motionlab.qc import check_stream
+from motionlab.segments import calibrate, sensor_for_segment
+from motionlab.session import (
+    FORMAT_NAME,
+    SensorStream,
+    Session,
+    load_session,
+    save_session,
+    sha256_file,
+)
+
+SESSION_FILE = "session.h5"
+REPORT_FILE = "report.pdf"
+CSV_DIR = "csv"
+
+
+@dataclass
+class PipelineResult:
+    """Where :func:`run_pipeline` wrote its outputs, the metrics and the one-screen summary.
+
+    ``metrics`` has one row per joint metric (scalar rows of
+    :func:`motionlab.kinematics.metrics.metrics_table`: ``block, joint, angle, metric, value,
+    unit``; the cycle curves are left out).
+    """
+
+    session_path: Path
+    report_path: Path
+    csv_dir: Path
+    metrics: pd.DataFrame
+    summary: str
+
+
+class _Stages:
+    """A stage counter on stderr (``[3/8] calibrate ... 0.4 s``), silent without ``progress``."""
+
+    def __init__(self, names: list[str], progress: bool) -> None:
+        self.names = names
+        self.progress = progress
+        self.times: dict[str, float] = {}
+
+    @contextlib.contextmanager
+    def __call__(self, name: str) -> Iterator[None]:
+        if name not in self.names:  # a stage found necessary on the way (validate)
+            self.names.insert(-1 if self.names else 0, name)
+        k = self.names.index(name) + 1
+        if self.progress:
+            print(f"[{k}/{len(self.names)}] {name} ...", file=sys.stderr, flush=True)
+        t0 = time.perf_counter()
+        yield
+        self.times[name] = time.perf_counter() - t0
+
+
+def is_session_file(path: Path) -> bool:
+    """Whether ``path`` is a motionlab session (HDF5 with the session format attribute)."""
+    try:
+        with h5py.File(path, "r") as f:
+            return f.attrs.get("format") == FORMAT_NAME
+    except OSError:
+        return False
+
+
+def _holds_markers(inputs: list[Path]) -> bool:
+    """Whether the inputs hold optical data: a session with markers, or a C3D/TRC file."""
+    from motionlab.io import detect_format
+
+    for p in inputs:
+        if not p.is_file():
+            continue
+        if is_session_file(p):
+            with h5py.File(p, "r") as f:
+                if len(f.get("markers", {})):
+                    return True
+        else:
+            with contextlib.suppress(InputError):
+                if detect_format(p) in ("c3d", "trc"):
+                    return True
+    return False
+
+
+def _prepare_sensors(session: Session, gap_max: float = DEFAULT_GAP_MAX) -> None:
+    """Clock repair, quality checks and short-gap filling, as ingest does, for the sensors of a
+    session file that has not been through ingest (no ``qc``)."""
+    for label, stream in list(session.sensors.items()):
+        if stream.qc:
+            continue
+        stream, report = timebase.repair_clock(stream)
+        qc = check_stream(stream, gap_max)
+        stream, gaps = timebase.fill_short_gaps(stream, gap_max)
+        qc.update(report)
+        qc.update(gaps)
+        qc["flags"].update(gaps=bool(gaps["gaps"]), dropped_samples=gaps["dropped_samples"] > 0)
+        session.sensors[label] = dataclasses.replace(stream, qc=qc)
+
+
+def load_inputs(inputs: list[Path], map_path: Path | None, command: str) -> Session:
+    """One session from raw recordings (ingest) or from one session file."""
+    sessions = [p for p in inputs if p.is_file() and is_session_file(p)]
+    if not sessions:
+        return ingest(inputs, map_path, command=command)
+    if len(inputs) > 1:
+        raise InputError(
+            "a session file cannot be combined with other inputs",
+            sessions[0],
+            remedy="give either raw recordings or one session file",
+        )
+    if map_path is not None:
+        raise InputError(
+            "--map applies to raw recordings; a session file already names its sensors",
+            map_path,
+            remedy="leave out --map, or ingest the raw files with it",
+        )
+    session = load_session(sessions[0])
+    _prepare_sensors(session)
+    session.add_provenance(command, {"stage": "load", "gap_max_s": DEFAULT_GAP_MAX}, sessions)
+    return session
+
+
+def check_segments(session: Session, protocol: Protocol, inputs: list[Path]) -> None:
+    """Raise one clear error when required protocol segments have no sensor."""
+    needed = [s for s, spec in protocol.segments.items() if spec.required]
+    missing = [s for s in needed if sensor_for_segment(session, s) is None]
+    if not missing:
+        return
+    labels = ", ".join(f"{k} ({s.segment})" if s.segment else k for k, s in session.sensors.items())
+    raise InputError(
+        f"the '{protocol.name}' protocol needs sensors on {', '.join(needed)}; none on "
+        f"{', '.join(missing)} (the input has {labels or 'no sensors'})",
+        inputs[0] if len(inputs) == 1 else None,
+        remedy="map each sensor to its segment with --map map.yaml (see 'motionlab ingest --help')",
+    )
+
+
+def _fusable(session: Session) -> list[str]:
+    return [k for k, s in session.sensors.items() if s.gyr is not None and s.acc is not None]
+
+
+def _fuse(session: Session, calibrated: dict[str, SensorStream], progress: bool) -> None:
+    """Every sensor with gyroscope and accelerometer, as ``motionlab fuse`` does; sensors in
+    ``calibrated`` are fused from their corrected data (the session keeps the data as recorded)."""
+    from motionlab.cli.fuse import fuse_session
+
+    usable = _fusable(session)
+    if not usable:
+        return
+    recorded = dict(session.sensors)
+    session.sensors.update(calibrated)
+    quiet = contextlib.nullcontext() if progress else contextlib.redirect_stderr(io.StringIO())
+    try:
+        with quiet:
+            fuse_session(session, "default", {}, usable, True, "")
+    finally:
+        session.sensors = recorded
+    for label, stream in calibrated.items():
+        session.results["fusion"][label]["calibration"] = stream.attrs["calibration"]
+
+
+def _validate(session: Session, protocol: Protocol, reference: Path | None, seed: int) -> None:
+    from motionlab.validation import validate
+    from motionlab.validation.reference import choose_marker_set, read_reference
+
+    marker_set = None
+    if reference is not None:
+        marker_set = choose_marker_set(read_reference(reference), None, reference)
+        name, n = marker_set.name, 2
+        while name in session.markers:
+            name, n = f"{marker_set.name}_{n}", n + 1
+        session.markers[name] = dataclasses.replace(marker_set, name=name)
+    validate(session, marker_set, None, protocol, "full", seed=seed)
+
+
+def _outputs(outdir: Path, force: bool) -> tuple[Path, Path, Path]:
+    if outdir.exists() and not outdir.is_dir():
+        raise InputError("is not a folder", outdir, remedy="give a folder for the outputs")
+    session_path, report_path, csv_dir = (
+        outdir / SESSION_FILE,
+        outdir / REPORT_FILE,
+        outdir / CSV_DIR,
+    )
+    if outdir.is_dir() and not force:
+        for p in (session_path, report_path, report_path.with_suffix(".txt"), csv_dir):
+            if p.exists():
+                raise InputError("output exists", p, remedy="use --force to replace it")
+    return session_path, report_path, csv_dir
+
+
+def analyse(
+    session: Session,
+    protocol: Protocol,
+    reference: Path | None = None,
+    seed: int = 0,
+    calibration_dir: Path | None = None,
+    stages: _Stages | None = None,
+) -> None:
+    """The stages after ingest, in memory: (sensor calibration) → fuse → calibrate → angles →
+    metrics → (validate, with ``reference`` or the session's own markers). Results go to
+    ``session.results`` under the names the stage commands use."""
+    from motionlab.kinematics.metrics import session_metrics
+    from motionlab.kinematics.session_angles import session_angles
+
+    stages = stages or _Stages([], progress=False)
+    calibrated: dict[str, SensorStream] = {}
+    if calibration_dir is not None:
+        from motionlab.sensorcal import apply_calibration_dir
+
+        with stages("sensorcal"):
+            usable = _fusable(session)
+            calibrated, _ = apply_calibration_dir(session.sensors, calibration_dir, usable)
+    with stages("fuse"):
+        _fuse(session, calibrated, stages.progress)
+    with stages("calibrate"):
+        cal = calibrate(session, protocol)
+        cal["protocol_path"] = str(protocol.path)
+        session.results["calibration"] = cal
+    with stages("angles"):
+        session.results["angles"] = session_angles(session, protocol, cal) | {"method": "imu"}
+    with stages("metrics"):
+        session.results["metrics"] = session_metrics(session, protocol)
+    if reference is not None or session.markers:
+        with stages("validate"):
+            _validate(session, protocol, Path(reference) if reference else None, seed)
+
+
+def run_pipeline(
+    inputs: list[Path],
+    protocol: Path | str,
+    outdir: Path,
+    map_path: Path | None = None,
+    reference: Path | None = None,
+    force: bool = False,
+    progress: bool = True,
+    seed: int = 0,
+    calibration_dir: Path | None = None,
+) -> PipelineResult:
+    """Ingest → (sensor calibration) → fuse → calibrate → angles → metrics → (validate) → report.
+
+    Parameters
+    ----------
+    inputs
+        Raw recording files, or one motionlab session file.
+    protocol
+        Protocol YAML file or the name of a packaged protocol (``knee``).
+    outdir
+        Output folder (created): ``session.h5``, ``report.pdf``, ``report.txt``, ``csv/``.
+    map_path
+        Sensor map YAML for raw recordings (segment and side of each sensor, subject).
+    reference
+        Optical reference (C3D, TRC or a session with markers) for the validation stage.
+    force
+        Replace existing outputs.
+    progress
+        Print the stage counter and fusion progress bar on stderr.
+    seed
+        Random seed of the stochastic steps (the validation's RANSAC clock fit).
+    calibration_dir
+        Folder of per-serial sensor calibrations (``motionlab sensorcal``) applied before fusion.
+    """
+    from motionlab.kinematics.metrics import metrics_table
+    from motionlab.report import load_views, write_report
+
+    t_start = time.perf_counter()
+    inputs = [Path(p) for p in inputs]
+    outdir = Path(outdir)
+    if not inputs:
+        raise InputError("no input files", remedy="give one or more recordings or a session file")
+    proto = load_protocol(protocol)
+    session_path, report_path, csv_dir = _outputs(outdir, force)
+    command = shlex.join(
+        ["motionlab", "run", "--protocol", str(protocol), *map(str, inputs), "-o", str(outdir)]
+        + (["--map", str(map_path)] if map_path else [])
+        + (["--reference", str(reference)] if reference else [])
+        + (["--calibration", str(calibration_dir)] if calibration_dir else [])
+        + (["--seed", str(seed)] if seed else [])
+    )
+    names = ["ingest", "fuse", "calibrate", "angles", "metrics", "report"]
+    if calibration_dir is not None:
+        names.insert(1, "sensorcal")
+    if reference is not None or _holds_markers(inputs):
+        names.insert(-1, "validate")
+    stages = _Stages(names, progress)
+
+    with stages("ingest"):
+        session = load_inputs(inputs, map_path, command)
+        check_segments(session, proto, inputs)
+    analyse(session, proto, reference, seed, calibration_dir, stages)
+    validated = "validation" in session.results
+    session.add_provenance(
+        command,
+        parameters={
+            "stage": "run",
+            "protocol": str(proto.path),
+            "protocol_sha256": sha256_file(proto.path),
+            "seed": seed,
+            "estimator": "default",
+            "validated": validated,
+        },
+    )
+    outdir.mkdir(parents=True, exist_ok=True)
+    save_session(session, session_path, force=force)
+    with stages("report"):
+        views = load_views([session], proto, [session_path])
+        out = write_report(views, report_path, csv_dir, force=force)
+    table = metrics_table(session.results["metrics"])
+    metrics = table[table["percent"].isna()].drop(columns="percent").reset_index(drop=True)
+    summary = run_summary(views[0], out, stages.times, time.perf_counter() - t_start)
+    return PipelineResult(session_path, report_path, csv_dir, metrics, summary)
+
+
+def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
+    """One screen: subject, data, calibration, tasks, flexion ranges, validation, outputs."""
+    from motionlab.report.model import calibration_rows, quality_rows, rom_rows
+    from motionlab.report.text import findings, span, task_name
+
+    ses, proto = view.session, view.protocol
+    q = quality_rows(view)
+    flagged = sorted({f for r in q for f in r["flags"]})
+    rate = q[0]["rate_hz"] if q else float("nan")
+    lines = [
+        f"motionlab run: {proto.name} ({proto.title}) - subject {view.subject}, {view.date}",
+        f"  data: {len(ses.sensors)} sensors at {rate:.0f} Hz, {view.angles['time_s'][-1]:.0f} s;"
+        f" quality flags: {', '.join(flagged) or 'none'}",
+    ]
+    fusion = {e.get("name") for e in ses.results.get("fusion", {}).values()}
+    lines.append(f"  fusion: {', '.join(sorted(fusion)) or 'sensor orientations'}")
+    segs = {r["segment"]: r["segment_ok"] for r in calibration_rows(view)}
+    bad = [s for s, ok in segs.items() if not ok]
+    lines.append(
+        f"  calibration: {len(segs) - len(bad)}/{len(segs)} segments ok"
+        + (f"; check {', '.join(bad)}" if bad else "")
+    )
+    lines.append(
+        "  tasks: "
+        + ", ".join(f"{task_name(k)} {a:.0f}-{b:.0f} s" for k, (a, b) in view.blocks().items())
+    )
+    lines.append("  flexion range (typical, deg):")
+    for r in rom_rows(view):
+        if r["angle"] == "flexion":
+            normal = (
+                f"normal {r['normal'][0]:g}-{r['normal'][1]:g}, {r['status']}"
+                if r["normal"]
+                else "no normal range"
+            )
+            lines.append(
+                f"    {task_name(r['task']):<14} {r['joint']:<8} "
+                f"{span(r['typical_min_deg'], r['typical_max_deg']):>10}  ({normal})"
+            )
+    val = ses.results.get("validation", {}).get("angles", {})
+    rmse = [
+        f"{c.removesuffix('_deg')} {v['rmse_deg']:.1f}"
+        for c, v in val.items()
+        if isinstance(v, dict) and "rmse_deg" in v
+    ]
+    if rmse:
+        lines.append(
+            f"  validation RMSE (deg): {', '.join(rmse[:6])}" + (" ..." if len(rmse) > 6 else "")
+        )
+    lines.append("  findings:")
+    lines += [f"    - {f}" for f in findings(view, limit=4)]
+    lines.append(f"outputs in {report.pdf_path.parent}:")
+    lines.append(
+        f"  {SESSION_FILE}, {report.pdf_path.name} ({len(report.pages)} pages), "
+        f"{report.text_path.name}, {CSV_DIR}/ ({len(report.csv_paths)} tables)"
+    )
+    steps = ", ".join(f"{k} {v:.1f}" for k, v in times.items())
+    lines.append(f"time: {total_s:.1f} s ({steps})")
+    return "\n".join(lines)

@@ -1,0 +1,217 @@
+"""CSV tables for researchers: one angle time series per joint, metrics, out-of-plane metrics,
+data quality and calibration quality. Every numeric column carries its unit in its name
+(``_deg``, ``_s``, ``_hz``, ``_ms``, ``_pct``, ``_n`` for counts, ``_ratio`` for unitless ratios).
+
+Files (in ``csv_dir``): ``<joint>_angles.csv`` (``time_s`` + one column per angle, degrees),
+``metrics.csv`` (range of motion per task, joint and angle, with the normal range and the
+symmetry index), ``out_of_plane.csv``, ``quality.csv`` (per sensor) and ``calibration.csv``
+(per segment and calibration step). Existing files are replaced only with ``force``.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from motionlab.atomic import atomic_path, check_output
+from motionlab.errors import InputError
+from motionlab.report.model import (
+    SessionView,
+    calibration_rows,
+    columns,
+    quality_rows,
+    rom_rows,
+    symmetry_rows,
+)
+
+FLOAT_FORMAT = "%.4f"
+
+
+def angle_frames(view: SessionView) -> dict[str, pd.DataFrame]:
+    """``{"<joint>_angles.csv": DataFrame(time_s, <joint>_<angle>_deg ...)}``."""
+    t = view.angles["time_s"]
+    out = {}
+    for joint in view.joints():
+        cols = {"time_s": t} | {col: view.angles[col] for _, col in columns(joint)}
+        out[f"{joint.name}_angles.csv"] = pd.DataFrame(cols)
+    return out
+
+
+def metrics_frame(view: SessionView) -> pd.DataFrame:
+    """Range of motion per task, joint and angle, with normal range, flag and symmetry."""
+    si = {
+        (s["task"], s["joint_type"], s["angle"]): s["symmetry_index_pct"]
+        for s in symmetry_rows(view)
+    }
+    rows = []
+    for r in rom_rows(view):
+        lo, hi = r["normal"] if r["normal"] else (np.nan, np.nan)
+        rows.append(
+            {
+                "task": r["task"],
+                "joint": r["joint"],
+                "angle": r["angle"],
+                "plane": r["plane"],
+                "rom_deg": r["rom_deg"],
+                "min_deg": r["min_deg"],
+                "max_deg": r["max_deg"],
+                "typical_min_deg": r["typical_min_deg"],
+                "typical_max_deg": r["typical_max_deg"],
+                "cycles_n": r["repetitions"],
+                "normal_min_deg": lo,
+                "normal_max_deg": hi,
+                "vs_normal": r["status"] or "no normal range",
+                "symmetry_index_pct": si.get((r["task"], r["joint_type"], r["angle"]), np.nan),
+            }
+        )
+    return pd.DataFrame(rows)
+
+
+def out_of_plane_frame(view: SessionView) -> pd.DataFrame:
+    """One row per out-of-plane number: metric, task, joint, angle and its value columns."""
+    m = view.metrics
+    rows = []
+
+    def add(metric, task, joint, angle, **values):
+        rows.append({"metric": metric, "task": task, "joint": joint, "angle": angle, **values})
+
+    for task, joints in (m.get("gait") or {}).items():
+        for joint, g in joints.items():
+            add(
+                "varus_thrust",
+                task,
+                joint,
+                "adduction",
+                value_deg=g["varus_thrust_mean_deg"],
+                sd_deg=g["varus_thrust_sd_deg"],
+                threshold_deg=g["threshold_deg"],
+                above_threshold_pct=g["varus_thrust_above_pct"],
+                count_n=g["strides"],
+            )
+            add(
+                "stance_rotation_range",
+                task,
+                joint,
+                "rotation",
+                value_deg=g["stance_rotation_range_mean_deg"],
+                sd_deg=g["stance_rotation_range_sd_deg"],
+                count_n=g["strides"],
+            )
+    for task, t in (m.get("trunk_compensation") or {}).items():
+        for angle in ("flexion", "lateral_bending", "axial_rotation"):
+            a = t[angle]
+            add(
+                "trunk_compensation",
+                task,
+                "trunk",
+                angle,
+                value_deg=a["peak_abs_deg"],
+                min_deg=a["min_deg"],
+                max_deg=a["max_deg"],
+                threshold_deg=a["threshold_deg"],
+                above_threshold_pct=a["above_pct"],
+            )
+    for task, joints in (m.get("out_of_plane_offset") or {}).items():
+        for joint, o in joints.items():
+            add(
+                "out_of_plane_offset",
+                task,
+                joint,
+                "-".join(o["axes"]),
+                value_deg=o["peak_deg"],
+                mean_deg=o["mean_deg"],
+                threshold_deg=o["threshold_deg"],
+                above_threshold_pct=o["above_pct"],
+            )
+    for block, joints in (m.get("cross_talk") or {}).items():
+        for joint, c in joints.items():
+            for angle, e in c.items():
+                if isinstance(e, dict):
+                    add(
+                        "cross_talk",
+                        block,
+                        joint,
+                        angle,
+                        value_deg=e["rom_deg"],
+                        of_moving_angle_pct=e["ratio_pct"],
+                        moving_angle_rom_deg=c["on_axis_rom_deg"],
+                        without_calibration_deg=e.get("nominal_rom_deg", np.nan),
+                        calibration_change_pct=e.get("change_pct", np.nan),
+                    )
+    return pd.DataFrame(rows)
+
+
+def quality_frame(view: SessionView) -> pd.DataFrame:
+    """Per sensor: placement, sampling and the data-quality numbers of the report."""
+    rows = []
+    for q in quality_rows(view):
+        rows.append(
+            {
+                "sensor": q["sensor"],
+                "serial": q["serial"],
+                "segment": q["segment"],
+                "side": q["side"],
+                "channels": q["channels"],
+                "rate_hz": q["rate_hz"],
+                "jitter_ms": q["jitter_ms"],
+                "duration_s": q["duration_s"],
+                "samples_n": q["samples"],
+                "missing_samples_n": q["dropped_samples"],
+                "gaps_filled_n": q["gaps_filled"],
+                "samples_filled_n": q["samples_filled"],
+                "gaps_kept_n": q["gaps_kept"],
+                "gaps_kept_s": q["gaps_kept_s"],
+                "saturated_samples_n": q["saturated_samples"],
+                "at_rest_pct": q["rest_pct"],
+                "mag_disturbed_pct": q["mag_disturbed_pct"],
+                "qc_flags": ";".join(q["flags"]),
+            }
+        )
+    return pd.DataFrame(rows)
+
+
+def calibration_frame(view: SessionView) -> pd.DataFrame:
+    rows = [
+        {
+            "segment": r["segment"],
+            "sensor": r["sensor"],
+            "method": r["method"],
+            "step": r["step"],
+            "kind": r["kind"],
+            "rho_ratio": r["rho"],
+            "reference_rho_ratio": r["reference_rho"],
+            "residual_deg": r["residual_deg"],
+            "segment_ok": r["segment_ok"],
+        }
+        for r in calibration_rows(view)
+    ]
+    return pd.DataFrame(rows)
+
+
+def tables(view: SessionView) -> dict[str, pd.DataFrame]:
+    """Every CSV of one session, by file name."""
+    return angle_frames(view) | {
+        "metrics.csv": metrics_frame(view),
+        "out_of_plane.csv": out_of_plane_frame(view),
+        "quality.csv": quality_frame(view),
+        "calibration.csv": calibration_frame(view),
+    }
+
+
+def write_csvs(view: SessionView, csv_dir: str | Path, force: bool = False) -> list[Path]:
+    """Write :func:`tables` into ``csv_dir`` (created); returns the paths written."""
+    csv_dir = Path(csv_dir)
+    if csv_dir.exists() and not csv_dir.is_dir():
+        raise InputError("is not a folder", csv_dir, remedy="give a folder for the CSV tables")
+    frames = tables(view)
+    paths = [csv_dir / name for name in frames]
+    if csv_dir.is_dir():
+        for p in paths:
+            check_output(p, force)
+    csv_dir.mkdir(parents=True, exist_ok=True)
+    for path, frame in zip(paths, frames.values(), strict=True):
+        with atomic_path(path, force=force) as tmp:
+            frame.to_csv(tmp, index=False, float_format=FLOAT_FORMAT)
+    return paths

@@ -1,0 +1,374 @@
+"""What the report shows, computed once per session: the numbers behind pages, texts and CSVs.
+
+Conventions: angles in degrees (the unit of the angle tables and metrics), times in s, rates in
+Hz. A *view* (:class:`SessionView`) wraps one session that has been through the pipeline
+(``results["angles"]`` and ``results["metrics"]``), with its protocol. The functions here only
+read results the stages stored; they compute no kinematics of their own.
+
+- :func:`rom_rows`: per task, joint and angle, the range of motion, the typical extremes (means of
+  the per-cycle peaks), the protocol's normal range and a flag when the extremes leave it (or
+  the flexion peak falls short of it) by more than :data:`TOLERANCE_DEG` (:func:`compare`);
+- :func:`symmetry_rows`: the left-right symmetry index of each range of motion (Robinson et al.
+  1987, J Manipulative Physiol Ther 10:172): ``SI = 100 (R − L) / ((R + L) / 2)`` %, flagged above
+  :data:`SYMMETRY_LIMIT_PCT`; not given when the mean range is below :data:`SYMMETRY_MIN_ROM_DEG`
+  (a ratio of two small ranges is noise);
+- :func:`quality_rows`: per sensor, rates, gaps, saturation, rest and magnetic disturbance;
+- :func:`calibration_rows`: per segment and calibration step, method, ρ and residual angle.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from motionlab.errors import InputError
+from motionlab.kinematics.joint_angles import JOINT_ANGLE_NAMES, column_name
+from motionlab.protocol import Joint, Protocol, load_protocol
+from motionlab.segments import sensor_for_segment
+from motionlab.session import Session
+
+TOLERANCE_DEG = 5.0
+SYMMETRY_LIMIT_PCT = 10.0
+SYMMETRY_MIN_ROM_DEG = 10.0
+
+#: clinical plane of each angle (the anatomical plane the movement happens in)
+PLANES = {
+    "flexion": "sagittal",
+    "adduction": "frontal",
+    "carrying": "frontal",
+    "lateral_bending": "frontal",
+    "rotation": "transverse",
+    "pronation": "transverse",
+    "axial_rotation": "transverse",
+}
+#: what a positive value means, for axis labels
+POSITIVE = {
+    ("knee", "flexion"): "flexion +",
+    ("knee", "adduction"): "varus +",
+    ("knee", "rotation"): "internal +",
+    ("elbow", "flexion"): "flexion +",
+    ("elbow", "carrying"): "valgus +",
+    ("elbow", "pronation"): "pronation +",
+    ("lumbar", "flexion"): "flexion +",
+    ("lumbar", "lateral_bending"): "to the right +",
+    ("lumbar", "axial_rotation"): "to the left +",
+}
+ANGLE_TITLES = {
+    "flexion": "flexion-extension",
+    "adduction": "varus-valgus (adduction)",
+    "carrying": "carrying angle (valgus)",
+    "rotation": "internal-external rotation",
+    "pronation": "pronation-supination",
+    "lateral_bending": "lateral bending",
+    "axial_rotation": "axial rotation",
+}
+SIDE_NAMES = {"r": "right", "l": "left", "": ""}
+
+
+@dataclass
+class SessionView:
+    """One analysed session and its protocol, with the names the report uses."""
+
+    session: Session
+    protocol: Protocol
+    path: Path | None = None
+    angles: dict[str, np.ndarray] = field(default_factory=dict)
+    metrics: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def subject(self) -> str:
+        subj = self.session.metadata.get("subject") or {}
+        return str(subj.get("id") or subj.get("name") or "not recorded")
+
+    @property
+    def date(self) -> str:
+        """Session date: the sensor map's ``session.date``, else the first provenance time."""
+        ses = self.session.metadata.get("session") or {}
+        if ses.get("date"):
+            return str(ses["date"])
+        times = [p.get("time", "") for p in self.session.provenance if p.get("time")]
+        return times[0][:10] if times else "not recorded"
+
+    @property
+    def visit(self) -> str:
+        ses = self.session.metadata.get("session") or {}
+        return str(ses.get("visit") or ses.get("id") or self.date)
+
+    def joints(self) -> list[Joint]:
+        return list(self.protocol.joints.values())
+
+    def blocks(self) -> dict[str, tuple[float, float]]:
+        """Task blocks ``{task: (start_s, end_s)}`` of the metrics, in time order."""
+        blocks = self.metrics.get("blocks", {})
+        order = sorted(blocks, key=lambda k: blocks[k]["start_s"])
+        return {k: (blocks[k]["start_s"], blocks[k]["end_s"]) for k in order}
+
+    def tasks(self) -> list[str]:
+        """Tasks with joint metrics, in time order."""
+        per_task = self.metrics.get("joints", {})
+        return [k for k in self.blocks() if k in per_task] + [
+            k for k in per_task if k not in self.blocks()
+        ]
+
+
+def in_order(keys, order: list[str]) -> list[str]:
+    """``keys`` sorted by their place in ``order`` (the others after them, as they come).
+
+    Result trees read back from a session file are in alphabetical order; the report shows
+    tasks in time order, joints and segments in protocol order.
+    """
+    keys = list(keys)
+    rank = {k: i for i, k in enumerate(order)}
+    return sorted(keys, key=lambda k: (rank.get(k, len(rank)), keys.index(k)))
+
+
+def joint_title(joint: Joint) -> str:
+    """``Right knee``, ``Lumbar spine``."""
+    name = "lumbar spine" if joint.type == "lumbar" else joint.type
+    side = SIDE_NAMES.get(joint.side, joint.side)
+    return f"{side} {name}".strip().capitalize()
+
+
+def angle_label(joint: Joint, angle: str) -> str:
+    """``Flexion-extension (sagittal)``."""
+    return f"{ANGLE_TITLES.get(angle, angle)} ({PLANES.get(angle, '')})".capitalize()
+
+
+def columns(joint: Joint) -> list[tuple[str, str]]:
+    """``[(angle name, column), ...]`` of a joint, in the order flexion, frontal, transverse."""
+    return [(a, column_name(joint.type, joint.side, a)) for a in JOINT_ANGLE_NAMES[joint.type]]
+
+
+def load_view(session: Session, protocol: Protocol | None = None, path: Path | None = None):
+    """A :class:`SessionView` of an analysed session (angles and metrics present).
+
+    ``protocol`` defaults to the one the calibration used (its file, else the packaged name).
+    """
+    res = session.results
+    missing = [k for k in ("calibration", "angles", "metrics") if k not in res]
+    if missing:
+        raise InputError(
+            f"has no {', '.join(missing)} results",
+            path,
+            "results/" + missing[0],
+            "analyse it first: motionlab run, or calibrate, angles and metrics",
+        )
+    if protocol is None:
+        cal = res["calibration"]
+        candidates = [cal.get("protocol_path"), cal.get("protocol")]
+        for cand in [c for c in candidates if c]:
+            try:
+                protocol = load_protocol(cand)
+                break
+            except InputError:
+                continue
+        if protocol is None:
+            raise InputError(
+                f"cannot find its protocol '{cal.get('protocol')}'",
+                path,
+                "results/calibration/protocol",
+                "give the protocol file with --protocol",
+            )
+    angles = {k: np.asarray(v) for k, v in res["angles"].items() if isinstance(v, np.ndarray)}
+    return SessionView(session, protocol, path, angles, res["metrics"])
+
+
+def normal_range(protocol: Protocol, task: str, column: str) -> tuple[float, float] | None:
+    """The protocol's normal range (deg) of ``column`` in ``task``, side-specific or not."""
+    table = protocol.normative.get(task) or {}
+    generic = column
+    for side in ("_r_", "_l_"):
+        generic = generic.replace(side, "_")
+    rng = table.get(column) or table.get(generic)
+    return (float(rng[0]), float(rng[1])) if rng else None
+
+
+def _extremes(m: dict[str, Any]) -> tuple[float, float]:
+    """Typical extremes: the means of the per-cycle peaks, else the block's min and max."""
+    if m.get("repetitions", 0) >= 1 and np.isfinite(m.get("cycle_max_mean_deg", np.nan)):
+        return float(m["cycle_min_mean_deg"]), float(m["cycle_max_mean_deg"])
+    return float(m["min_deg"]), float(m["max_deg"])
+
+
+def compare(low: float, high: float, normal: tuple[float, float] | None, reach: bool) -> str:
+    """``within``, ``below``, ``above`` or ``wider`` than the normal range.
+
+    An angle is flagged when its typical extremes leave the normal range by more than
+    :data:`TOLERANCE_DEG` (``above``, ``below``, both: ``wider``); with ``reach`` (the flexion
+    angle) also when its typical peak falls short of the range's upper end by more than that
+    (``below``: a reduced range of motion).
+    """
+    if normal is None or not (np.isfinite(low) and np.isfinite(high)):
+        return ""
+    lo, hi = normal
+    over_top, over_bottom = high > hi + TOLERANCE_DEG, low < lo - TOLERANCE_DEG
+    if over_top and over_bottom:
+        return "wider"
+    if over_top:
+        return "above"
+    if over_bottom or (reach and high < hi - TOLERANCE_DEG):
+        return "below"
+    return "within"
+
+
+def rom_rows(view: SessionView) -> list[dict[str, Any]]:
+    """One row per task, joint and angle (see the module docstring)."""
+    rows = []
+    for task in view.tasks():
+        per_col = view.metrics["joints"][task]
+        for joint in view.joints():
+            for angle, col in columns(joint):
+                m = per_col.get(col)
+                if m is None:
+                    continue
+                low, high = _extremes(m)
+                normal = normal_range(view.protocol, task, col)
+                rows.append(
+                    {
+                        "task": task,
+                        "joint": joint.name,
+                        "joint_type": joint.type,
+                        "side": joint.side,
+                        "angle": angle,
+                        "plane": PLANES.get(angle, ""),
+                        "column": col,
+                        "rom_deg": float(m["rom_deg"]),
+                        "min_deg": float(m["min_deg"]),
+                        "max_deg": float(m["max_deg"]),
+                        "typical_min_deg": low,
+                        "typical_max_deg": high,
+                        "repetitions": int(m["repetitions"]),
+                        "normal": normal,
+                        "status": compare(low, high, normal, angle == "flexion"),
+                    }
+                )
+    return rows
+
+
+def symmetry_rows(view: SessionView) -> list[dict[str, Any]]:
+    """Left-right symmetry index per task and angle, for joints present on both sides."""
+    by_key = {(r["task"], r["joint_type"], r["angle"], r["side"]): r for r in rom_rows(view)}
+    rows = []
+    for (task, jtype, angle, side), right in by_key.items():
+        left = by_key.get((task, jtype, angle, "l"))
+        if side != "r" or left is None:
+            continue
+        r = right["typical_max_deg"] - right["typical_min_deg"]
+        l = left["typical_max_deg"] - left["typical_min_deg"]
+        mean = 0.5 * (r + l)
+        si = 100.0 * (r - l) / mean if mean >= SYMMETRY_MIN_ROM_DEG else float("nan")
+        rows.append(
+            {
+                "task": task,
+                "joint_type": jtype,
+                "angle": angle,
+                "plane": PLANES.get(angle, ""),
+                "right_rom_deg": r,
+                "left_rom_deg": l,
+                "symmetry_index_pct": si,
+                "flag": bool(np.isfinite(si) and abs(si) > SYMMETRY_LIMIT_PCT),
+            }
+        )
+    return rows
+
+
+def _share(mask: Any) -> float:
+    m = np.asarray(mask, dtype=bool) if mask is not None else np.zeros(0, bool)
+    return float(100.0 * m.mean()) if m.size else float("nan")
+
+
+def _spans_s(spans: list) -> float:
+    return float(sum(b - a for a, b in spans)) if spans else 0.0
+
+
+def quality_rows(view: SessionView) -> list[dict[str, Any]]:
+    """Per sensor: placement, rate, jitter, gaps, saturation, rest and magnetic disturbance."""
+    fusion = view.session.results.get("fusion", {})
+    rows = []
+    for label, s in view.session.sensors.items():
+        qc = s.qc or {}
+        fz = fusion.get(label, {}) if isinstance(fusion, dict) else {}
+        sat = qc.get("saturated_samples", {}) or {}
+        flags = [k for k, v in (qc.get("flags") or {}).items() if v]
+        rows.append(
+            {
+                "sensor": label,
+                "serial": s.serial,
+                "segment": s.segment,
+                "side": s.side,
+                "rate_hz": float(s.rate_hz),
+                "jitter_ms": float(qc.get("jitter_ms", np.nan)),
+                "samples": int(s.n_samples),
+                "duration_s": float(s.duration_s),
+                "dropped_samples": int(qc.get("dropped_samples", 0)),
+                "gaps_filled": int(qc.get("gaps_filled", 0)),
+                "samples_filled": int(qc.get("samples_filled", 0)),
+                "gaps_kept": len(qc.get("gaps", [])),
+                "gaps_kept_s": _spans_s(qc.get("gaps", [])),
+                "saturated_samples": int(sum(sat.values())),
+                "rest_pct": _share(fz.get("rest")),
+                "mag_disturbed_pct": _share(fz.get("mag_disturbed")),
+                "channels": ",".join(s.channels),
+                "flags": flags,
+            }
+        )
+    return rows
+
+
+def calibration_rows(view: SessionView) -> list[dict[str, Any]]:
+    """Per segment and calibration step: method, ρ, reference ρ and the residual angle."""
+    cal = view.session.results.get("calibration", {})
+    segments = cal.get("segments", {})
+    order = [s for s in view.protocol.segments if s in segments]
+    steps = [s.name for s in view.protocol.calibration]
+    rows = []
+    for seg in order + [s for s in segments if s not in order]:
+        res = segments[seg]
+        q = res.get("quality", {})
+        axes = res.get("axes", {})
+        for step in sorted(axes, key=lambda k: steps.index(k) if k in steps else len(steps)):
+            a = axes[step]
+            ref = a.get("reference_rho")
+            rows.append(
+                {
+                    "segment": seg,
+                    "sensor": res.get("sensor") or sensor_for_segment(view.session, seg) or "",
+                    "method": res.get("method", ""),
+                    "step": step,
+                    "kind": a.get("kind", ""),
+                    "rho": float(a.get("rho", np.nan)),
+                    "reference_rho": float(ref) if ref is not None else float("nan"),
+                    "residual_deg": float(a.get("residual_deg", np.nan)),
+                    "segment_ok": bool(q.get("ok", False)),
+                }
+            )
+    return rows
+
+
+def excluded(view: SessionView) -> list[str]:
+    """Plain sentences on data left out of the analysis, and why."""
+    out = []
+    for s in view.session.sensors.values():
+        for a, b in (s.qc or {}).get("gaps", []):
+            out.append(
+                f"{s.label}: {b - a:.2f} s missing at {a:.1f} s (gap longer than the "
+                f"{(s.qc or {}).get('gap_max_s', 0.1):g} s that are interpolated) - no angles there"
+            )
+        for ch, spans in (s.qc or {}).get("nan_spans", {}).items():
+            out.append(f"{s.label}: {ch} not a number for {_spans_s(spans):.2f} s - not used")
+    cal = view.session.results.get("calibration", {})
+    for step, rng in cal.get("steps", {}).items():
+        if rng is None:
+            out.append(f"calibration step {step} not performed (optional) - not used")
+    blocks = view.blocks()
+    if blocks and len(view.angles.get("time_s", [])):
+        t = view.angles["time_s"]
+        inside = sum(b - a for a, b in blocks.values())
+        out.append(
+            f"metrics use the task blocks only ({inside:.0f} s of {t[-1] - t[0]:.0f} s); "
+            "calibration steps and rests are left out"
+        )
+    return out

@@ -1,0 +1,312 @@
+"""Per joint: angle-time curves, cycle-normalised mean ± SD against normative bands, the
+range-of-motion table with normal ranges and flags; and the left-right comparison.
+
+Curves are in degrees against time (s) or the cycle (0-100 %); a normative cycle band (grey) is
+drawn where ``report_data`` has one, else the protocol's normal range as a hatched band.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from matplotlib.axes import Axes
+from matplotlib.patches import Patch
+
+from motionlab.report.model import (
+    POSITIVE,
+    SessionView,
+    angle_label,
+    columns,
+    joint_title,
+    normal_range,
+    rom_rows,
+    symmetry_rows,
+)
+from motionlab.report.normative import band_for
+from motionlab.report.pdf import BAND_COLOUR, MUTED, SIDE_COLOUR, SIZE, Document
+from motionlab.report.text import STATUS_WORDS, span, task_name
+
+TASKS_PER_PAGE = 3
+MIN_SPAN_DEG = 10.0
+
+
+def _ylabel(joint, angle: str) -> str:
+    return f"{angle.replace('_', ' ')} (°)\n{POSITIVE.get((joint.type, angle), '')}"
+
+
+def _time_page(doc: Document, view: SessionView, joint) -> None:
+    t = view.angles["time_s"]
+    blocks = view.blocks()
+    axes = doc.axes_grid(3, 1, 5.6, left=0.85, bottom=0.45, hspace=0.45, top=0.45)
+    colour = SIDE_COLOUR.get(joint.side, SIDE_COLOUR[""])
+    for i, ((angle, col), (ax,)) in enumerate(zip(columns(joint), axes, strict=True)):
+        for task, (a, b) in blocks.items():
+            ax.axvspan(a, b, color="#f0f0f0", zorder=0)
+            rng = normal_range(view.protocol, task, col)
+            if rng is not None:
+                ax.fill_between(
+                    [a, b], rng[0], rng[1], color=BAND_COLOUR, alpha=0.5, lw=0, zorder=1
+                )
+            if i == 0:
+                ax.text(
+                    0.5 * (a + b),
+                    0.98,
+                    task_name(task),
+                    transform=ax.get_xaxis_transform(),
+                    ha="center",
+                    va="top",
+                    size=SIZE["small"] - 1,
+                    color=MUTED,
+                )
+        ax.plot(t, view.angles[col], color=colour, lw=0.6, zorder=2)
+        ax.set_ylabel(_ylabel(joint, angle))
+        ax.set_xlim(t[0], t[-1])
+        ax.set_title(angle_label(joint, angle), loc="left", size=SIZE["small"], weight="bold")
+        if i == 2:
+            ax.set_xlabel("time (s)")
+        else:
+            ax.tick_params(labelbottom=False)
+    axes[0][0].legend(
+        handles=[
+            Patch(color="#f0f0f0", label="task block"),
+            Patch(color=BAND_COLOUR, alpha=0.5, label="normal range of the task"),
+        ],
+        loc="lower right",
+        bbox_to_anchor=(1.0, 1.0),
+        ncol=2,
+        frameon=False,
+    )
+
+
+def _rom_table(doc: Document, view: SessionView, joint) -> None:
+    rows, flagged = [], []
+    for r in rom_rows(view):
+        if r["joint"] != joint.name:
+            continue
+        normal = f"{r['normal'][0]:g} to {r['normal'][1]:g}" if r["normal"] else "-"
+        bad = r["status"] not in ("within", "")
+        rows.append(
+            [
+                task_name(r["task"]),
+                f"{r['angle'].replace('_', ' ')} ({r['plane']})",
+                span(r["typical_min_deg"], r["typical_max_deg"]),
+                f"{r['rom_deg']:.0f}",
+                str(r["repetitions"]),
+                normal,
+                STATUS_WORDS.get(r["status"], "-") if r["status"] else "-",
+            ]
+        )
+        flagged.append([False] * 6 + [bad])
+    doc.heading("Range of motion")
+    doc.table(
+        [
+            "Task",
+            "Movement (plane)",
+            "Typical range",
+            "Full ROM (°)",
+            "Cycles",
+            "Normal (°)",
+            "vs normal",
+        ],
+        rows,
+        [0.15, 0.25, 0.14, 0.12, 0.08, 0.14, 0.12],
+        flagged,
+        align=["l", "l", "r", "r", "r", "r", "r"],
+    )
+    doc.paragraph(
+        "Typical range: means of the lowest and highest angle of each cycle. Full ROM: highest "
+        "minus lowest angle over the whole task. A range is flagged when it misses the normal "
+        "range by more than 5°.",
+        size=SIZE["small"],
+        colour=MUTED,
+    )
+
+
+def min_span(ax: Axes, span_deg: float = MIN_SPAN_DEG) -> None:
+    """Widen the y axis to at least ``span_deg`` so that small wiggles do not look large."""
+    lo, hi = ax.get_ylim()
+    if hi - lo < span_deg:
+        mid = 0.5 * (lo + hi)
+        ax.set_ylim(mid - 0.5 * span_deg, mid + 0.5 * span_deg)
+
+
+def _no_data(ax: Axes, text: str) -> None:
+    ax.text(
+        0.5,
+        0.5,
+        text,
+        transform=ax.transAxes,
+        ha="center",
+        va="center",
+        size=SIZE["small"],
+        color=MUTED,
+    )
+
+
+def draw_cycle(ax: Axes, view: SessionView, joint, task: str, angle: str, col: str) -> None:
+    """Mean ± SD over the cycles of one angle in one task, over its normative band."""
+    m = view.metrics.get("joints", {}).get(task, {}).get(col)
+    pct = np.arange(101)
+    band = band_for(task, joint.type, angle)
+    if band is not None:
+        ax.fill_between(
+            band.percent,
+            band.mean - band.sd,
+            band.mean + band.sd,
+            color=BAND_COLOUR,
+            lw=0,
+            alpha=0.7,
+        )
+    else:
+        rng = normal_range(view.protocol, task, col)
+        if rng is not None:
+            ax.axhspan(rng[0], rng[1], facecolor="none", edgecolor=BAND_COLOUR, hatch="////", lw=0)
+    colour = SIDE_COLOUR.get(joint.side, SIDE_COLOUR[""])
+    if m is None or m["repetitions"] == 0 or not np.isfinite(m["curve_mean_deg"]).any():
+        _no_data(ax, "no cycles found")
+    else:
+        mean, sd = np.asarray(m["curve_mean_deg"]), np.asarray(m["curve_sd_deg"])
+        ax.fill_between(pct, mean - sd, mean + sd, color=colour, alpha=0.25, lw=0)
+        ax.plot(pct, mean, color=colour, lw=1.2)
+    min_span(ax)
+    n = int(m["repetitions"]) if m is not None else 0
+    ax.set_title(
+        f"{task_name(task)}, {angle.replace('_', ' ')} (n = {n})", loc="left", size=SIZE["small"]
+    )
+    ax.set_xlim(0, 100)
+    ax.set_xlabel("cycle (%)")
+    ax.set_ylabel(f"{angle.replace('_', ' ')} (°)")
+
+
+def _cycle_pages(doc: Document, view: SessionView, joint) -> None:
+    tasks = view.tasks()
+    for k in range(0, len(tasks), TASKS_PER_PAGE):
+        chunk = tasks[k : k + TASKS_PER_PAGE]
+        doc.section(
+            f"{joint_title(joint)}: cycles against normal",
+            "Each task's repetitions (gait: heel strike to heel strike) resampled to 0-100 % "
+            "of the cycle: mean (line) ± 1 SD (shaded). Grey band: normal mean ± 1 SD; hatched: "
+            "the protocol's normal range where no normal curve is on file.",
+        )
+        grid = doc.axes_grid(3, len(chunk), 7.2, left=0.55, wspace=0.7, hspace=0.75, top=0.4)
+        for i, (angle, col) in enumerate(columns(joint)):
+            for j, task in enumerate(chunk):
+                draw_cycle(grid[i][j], view, joint, task, angle, col)
+        colour = SIDE_COLOUR.get(joint.side, SIDE_COLOUR[""])
+        doc.fig.legend(
+            handles=[
+                Patch(color=colour, alpha=0.4, label=f"{joint_title(joint)} mean ± SD"),
+                Patch(color=BAND_COLOUR, alpha=0.7, label="normal mean ± SD"),
+                Patch(facecolor="none", edgecolor=BAND_COLOUR, hatch="////", label="normal range"),
+            ],
+            loc="upper left",
+            bbox_to_anchor=(0.07, 1 - doc.y / 11.69),
+            ncol=3,
+            frameon=False,
+        )
+        doc.space(0.4)
+        sources = {
+            band.source
+            for task in chunk
+            for angle, _ in columns(joint)
+            if (band := band_for(task, joint.type, angle)) is not None
+        }
+        for src in sorted(sources):
+            doc.paragraph(f"Normal curve: {src}", size=SIZE["small"], colour=MUTED)
+        if view.protocol.source:
+            doc.paragraph(
+                f"Normal ranges: {' '.join(view.protocol.source.split())}",
+                size=SIZE["small"],
+                colour=MUTED,
+            )
+
+
+def joint_pages(doc: Document, view: SessionView) -> None:
+    """The time and cycle pages of every joint of the protocol."""
+    for joint in view.joints():
+        doc.section(
+            joint_title(joint),
+            f"{joint_title(joint)} angles over the recording in the three planes (degrees; "
+            "signs as in the legend of each axis), and the range of motion per task.",
+        )
+        _time_page(doc, view, joint)
+        _rom_table(doc, view, joint)
+        _cycle_pages(doc, view, joint)
+
+
+def symmetry_page(doc: Document, view: SessionView) -> None:
+    """Left-right comparison of the cycle curves and the symmetry index, for bilateral joints."""
+    rows = symmetry_rows(view)
+    if not rows:
+        return
+    pairs = {}
+    for j in view.joints():
+        pairs.setdefault(j.type, {})[j.side] = j
+    for jtype, sides in pairs.items():
+        if "r" not in sides or "l" not in sides:
+            continue
+        doc.section(
+            f"{jtype.capitalize()}: left-right comparison",
+            "Mean cycle curves of both sides. Symmetry index SI = 100 × (right − left) / mean of "
+            "the two ranges (Robinson et al. 1987); |SI| above 10 % is flagged; it is not given "
+            "when the mean range is under 10° (a ratio of two small ranges is mostly noise).",
+        )
+        tasks = view.tasks()[:TASKS_PER_PAGE]
+        grid = doc.axes_grid(3, len(tasks), 5.6, left=0.55, wspace=0.7, hspace=0.7, top=0.4)
+        for i, (angle, _) in enumerate(columns(sides["r"])):
+            for j, task in enumerate(tasks):
+                ax = grid[i][j]
+                for side in ("r", "l"):
+                    col = columns(sides[side])[i][1]
+                    m = view.metrics["joints"][task].get(col)
+                    if m is None or m["repetitions"] == 0:
+                        continue
+                    mean, sd = np.asarray(m["curve_mean_deg"]), np.asarray(m["curve_sd_deg"])
+                    ax.fill_between(
+                        np.arange(101),
+                        mean - sd,
+                        mean + sd,
+                        color=SIDE_COLOUR[side],
+                        alpha=0.15,
+                        lw=0,
+                    )
+                    ax.plot(np.arange(101), mean, color=SIDE_COLOUR[side], lw=1.1)
+                min_span(ax)
+                ax.set_title(
+                    f"{task_name(task)}, {angle.replace('_', ' ')}", loc="left", size=SIZE["small"]
+                )
+                ax.set_xlim(0, 100)
+                ax.set_xlabel("cycle (%)")
+                ax.set_ylabel(f"{angle.replace('_', ' ')} (°)")
+        doc.fig.legend(
+            handles=[
+                Patch(color=SIDE_COLOUR["r"], label="right"),
+                Patch(color=SIDE_COLOUR["l"], label="left"),
+            ],
+            loc="upper left",
+            bbox_to_anchor=(0.07, 1 - doc.y / 11.69),
+            ncol=2,
+            frameon=False,
+        )
+        doc.space(0.4)
+        table, flagged = [], []
+        for r in rows:
+            if r["joint_type"] != jtype:
+                continue
+            si = r["symmetry_index_pct"]
+            table.append(
+                [
+                    task_name(r["task"]),
+                    f"{r['angle'].replace('_', ' ')} ({r['plane']})",
+                    f"{r['right_rom_deg']:.0f}",
+                    f"{r['left_rom_deg']:.0f}",
+                    f"{si:+.0f}" if np.isfinite(si) else "n/a (range < 10°)",
+                ]
+            )
+            flagged.append([False] * 4 + [r["flag"]])
+        doc.table(
+            ["Task", "Movement (plane)", "Right range (°)", "Left range (°)", "SI (%)"],
+            table,
+            [0.2, 0.3, 0.15, 0.15, 0.2],
+            flagged,
+            align=["l", "l", "r", "r", "r"],
+        )

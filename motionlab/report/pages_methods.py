@@ -1,0 +1,166 @@
+"""Expected accuracy (motionlab's own validation results, kept as data) and the methods
+appendix (estimator and parameters, calibration, angle conventions, provenance with hashes)."""
+
+from __future__ import annotations
+
+import json
+from typing import Any
+
+from motionlab.kinematics.joint_angles import JOINT_ANGLE_NAMES
+from motionlab.report.model import SessionView, joint_title
+from motionlab.report.normative import load_accuracy
+from motionlab.report.pdf import MUTED, SIZE, Document
+from motionlab.report.text import accuracy_sentence
+
+
+def accuracy_page(doc: Document, view: SessionView) -> None:
+    """What error to expect for each angle of this protocol, and where the number comes from."""
+    acc = load_accuracy()
+    proto = (acc.get("protocols") or {}).get(view.protocol.name) or {}
+    doc.section(
+        "Expected accuracy",
+        "How far the angles in this report may be from the true joint angles, from motionlab's "
+        "own validation on recordings with a known truth. Read a range of motion as uncertain "
+        "by about these amounts.",
+    )
+    types = list(dict.fromkeys(j.type for j in view.joints()))
+    if not proto:
+        doc.paragraph(
+            f"motionlab has no validation results on file for the '{view.protocol.name}' "
+            "protocol, so no accuracy can be stated. Compare with an optical reference "
+            "(motionlab validate) before relying on small differences."
+        )
+    for jtype in types:
+        items = [
+            accuracy_sentence(a, proto[f"{jtype}_{a}"])
+            for a in JOINT_ANGLE_NAMES[jtype]
+            if f"{jtype}_{a}" in proto
+        ]
+        if items:
+            doc.heading(jtype.capitalize() if jtype != "lumbar" else "Lumbar spine")
+            doc.bullets(items)
+    if proto:
+        doc.paragraph(
+            "± value: the worst root-mean-square error over the validation runs, rounded up. "
+            f"Conditions: {acc.get('conditions', 'not stated')}. Source: motionlab "
+            f"{acc.get('motionlab', '?')}, {acc.get('generated', '?')}, "
+            f"'{acc.get('command', '?')}'.",
+            size=SIZE["small"],
+            colour=MUTED,
+        )
+        if acc.get("caveat"):
+            doc.paragraph(str(acc["caveat"]), size=SIZE["small"], colour=MUTED)
+    val = view.session.results.get("validation", {}).get("angles")
+    if isinstance(val, dict):
+        rows = [
+            [col.removesuffix("_deg").replace("_", " "), f"{v['rmse_deg']:.1f}"]
+            for col, v in val.items()
+            if isinstance(v, dict) and "rmse_deg" in v
+        ]
+        if rows:
+            doc.heading("In this session, against the optical reference")
+            doc.table(["Angle", "RMSE (°)"], rows, [0.5, 0.2], align=["l", "r"])
+
+
+def _params(view: SessionView) -> list[list[str]]:
+    fusion = view.session.results.get("fusion", {})
+    seen: dict[str, list[str]] = {}
+    for label, entry in fusion.items() if isinstance(fusion, dict) else []:
+        if not isinstance(entry, dict) or "name" not in entry:
+            continue
+        key = json.dumps(
+            {"name": entry["name"], "params": entry.get("params", {})}, default=str, sort_keys=True
+        )
+        seen.setdefault(key, []).append(label)
+    rows = []
+    for key, labels in seen.items():
+        e = json.loads(key)
+        params = ", ".join(f"{k} = {_value(v)}" for k, v in e["params"].items()) or "defaults"
+        rows.append([e["name"], ", ".join(labels), params])
+    return rows
+
+
+def _value(v: Any) -> str:
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    if isinstance(v, list) and len(v) > 4:
+        return f"[{len(v)} values]"
+    return str(v)
+
+
+def methods_page(doc: Document, view: SessionView) -> None:
+    """Estimator, calibration and angle methods, and the provenance log with input hashes."""
+    doc.section(
+        "Methods appendix",
+        "How the numbers in this report were computed, and from which files.",
+    )
+    doc.heading("Orientation estimation")
+    rows = _params(view)
+    if rows:
+        doc.table(
+            ["Estimator", "Sensors", "Parameters"], rows, [0.16, 0.3, 0.54], align=["l", "l", "l"]
+        )
+    else:
+        doc.paragraph("No fusion results stored; the sensors' own orientations were used.")
+    doc.paragraph(
+        "Each sensor's orientation (sensor to east-north-up earth frame, Hamilton quaternions) "
+        "is estimated from its gyroscope, accelerometer and, where given, magnetometer.",
+        size=SIZE["small"],
+        colour=MUTED,
+    )
+    doc.heading("Sensor-to-segment calibration")
+    cal = view.session.results.get("calibration", {})
+    methods = sorted({r.get("method", "") for r in cal.get("segments", {}).values()})
+    doc.paragraph(
+        f"Protocol '{view.protocol.name}' ({view.protocol.path}); segment frames (ISB: x "
+        "anterior, y proximal, z right) fitted from gravity in static poses and from the "
+        "rotation axes of functional movements (singular value decomposition, reliability "
+        f"ρ = σ1/Σσ), weighted orthogonal Procrustes; methods used: {', '.join(methods)}."
+    )
+    if view.protocol.source:
+        doc.paragraph(" ".join(view.protocol.source.split()), size=SIZE["small"], colour=MUTED)
+    doc.heading("Joint angles and metrics")
+    joints = "; ".join(
+        f"{joint_title(j)}: {j.distal} relative to {j.proximal}, {j.sequence}"
+        for j in view.joints()
+    )
+    doc.paragraph(
+        f"{joints}. Decomposition Z-X-Y (Grood & Suntay 1983 for the knee, ISB Wu et al. 2005 for "
+        "the elbow): flexion about the proximal z axis, ab/adduction about the floating axis, "
+        "rotation about the distal y axis; clinical signs as in motionlab's sign table (the left "
+        "side mirrored). Cycles: gait strides from the shank's angular velocity (heel strike to "
+        "heel strike), other tasks from the repetitions of the primary angle; each cycle "
+        "resampled to 101 points (0-100 %)."
+    )
+    doc.heading("Provenance")
+    rows = []
+    for p in view.session.provenance:
+        cmd = p.get("command", "")
+        rows.append([p.get("time", "")[:19].replace("T", " "), p.get("software", ""), cmd])
+    doc.table(
+        ["Time (UTC)", "Software", "Command"],
+        rows,
+        [0.2, 0.16, 0.64],
+        align=["l", "l", "l"],
+        size=SIZE["small"],
+    )
+    hashes = {}
+    for p in view.session.provenance:
+        hashes.update(p.get("inputs", {}) or {})
+    if hashes:
+        doc.heading("Input files (SHA-256)")
+        doc.table(
+            ["File", "SHA-256"],
+            [[str(k), v] for k, v in hashes.items()],
+            [0.3, 0.7],
+            align=["l", "l"],
+            size=SIZE["small"] - 0.5,
+        )
+    seed = [p.get("parameters", {}).get("seed") for p in view.session.provenance]
+    seed = [s for s in seed if s is not None]
+    if seed:
+        doc.paragraph(
+            f"Random seed(s): {', '.join(map(str, dict.fromkeys(seed)))}.",
+            size=SIZE["small"],
+            colour=MUTED,
+        )

@@ -1,0 +1,237 @@
+"""Out-of-plane metrics: cross-talk, knee varus thrust and stance rotation, the lumbar
+out-of-plane offset and trunk compensation, each with what it means in one sentence."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from motionlab.report.model import SessionView, in_order, joint_title
+from motionlab.report.pdf import MUTED, SIDE_COLOUR, SIZE, Document
+from motionlab.report.text import MEANING, task_name
+
+
+def _items(view: SessionView, data: dict) -> list[tuple[str, str, dict]]:
+    """``(block, joint, entry)`` of a ``{block: {joint: entry}}`` tree, blocks in time (then
+    protocol step) order and joints in protocol order."""
+    blocks = list(view.blocks()) + [s.name for s in view.protocol.calibration]
+    joints = list(view.protocol.joints)
+    return [
+        (block, name, data[block][name])
+        for block in in_order(data, blocks)
+        for name in in_order(data[block], joints)
+    ]
+
+
+def _f(x: float, spec: str = ".1f") -> str:
+    """``x`` formatted, ``-`` when missing; never ``-0.0``."""
+    if x is None or not np.isfinite(x):
+        return "-"
+    text = format(x, spec)
+    return text[1:] if text.startswith("-") and float(text) == 0 else text
+
+
+def _cross_talk(doc: Document, view: SessionView) -> None:
+    data = view.metrics.get("cross_talk") or {}
+    if not data:
+        return
+    doc.heading("Cross-talk during single-plane movements")
+    doc.paragraph(MEANING["cross_talk"], colour=MUTED)
+    rows, flagged = [], []
+    for block, name, m in _items(view, data):
+        joint = view.protocol.joints[name]
+        for angle, e in m.items():
+            if not isinstance(e, dict):
+                continue
+            rows.append(
+                [
+                    task_name(block),
+                    joint_title(joint),
+                    f"{m['on_axis'].replace('_', ' ')} {_f(m['on_axis_rom_deg'], '.0f')}",
+                    angle.replace("_", " "),
+                    _f(e["rom_deg"]),
+                    _f(e["ratio_pct"], ".0f"),
+                    _f(e.get("nominal_rom_deg")),
+                    _f(e.get("change_pct"), "+.0f"),
+                ]
+            )
+            flagged.append([False] * 5 + [e["ratio_pct"] > 20] + [False] * 2)
+    doc.table(
+        [
+            "Movement",
+            "Joint",
+            "Moving angle, range (°)",
+            "Other angle",
+            "Range (°)",
+            "% of moving",
+            "Without calibration (°)",
+            "Change (%)",
+        ],
+        rows,
+        [0.17, 0.12, 0.17, 0.13, 0.09, 0.09, 0.13, 0.1],
+        flagged,
+        align=["l", "l", "l", "l", "r", "r", "r", "r"],
+    )
+
+
+def _gait(doc: Document, view: SessionView) -> None:
+    data = view.metrics.get("gait") or {}
+    if not data:
+        return
+    doc.heading("Knee varus thrust and rotation in stance")
+    doc.paragraph(MEANING["varus_thrust"] + " " + MEANING["stance_rotation"], colour=MUTED)
+    rows, flagged, strides = [], [], []
+    for task, name, g in _items(view, data):
+        joint = view.protocol.joints[name]
+        rows.append(
+            [
+                task_name(task),
+                joint_title(joint),
+                str(g["strides"]),
+                f"{_f(g['varus_thrust_mean_deg'])} ± {_f(g['varus_thrust_sd_deg'])}",
+                _f(g["varus_thrust_above_pct"], ".0f"),
+                f"{_f(g['stance_rotation_range_mean_deg'])} ± "
+                f"{_f(g['stance_rotation_range_sd_deg'])}",
+            ]
+        )
+        flagged.append(
+            [False] * 3 + [g["varus_thrust_mean_deg"] > g["threshold_deg"]] + [False] * 2
+        )
+        strides.append((f"{joint_title(joint)}, {task_name(task)}", joint.side, g))
+    doc.table(
+        [
+            "Task",
+            "Knee",
+            "Strides",
+            "Varus thrust (°)",
+            "Strides above limit (%)",
+            "Stance rotation range (°)",
+        ],
+        rows,
+        [0.15, 0.15, 0.1, 0.2, 0.2, 0.2],
+        flagged,
+        align=["l", "l", "r", "r", "r", "r"],
+    )
+    ax = doc.axes_grid(1, 1, 2.2, left=1.9, bottom=0.5, top=0.3)[0][0]
+    for k, (_, side, g) in enumerate(strides):
+        x = np.asarray(g["varus_thrust_deg"], float)
+        ax.plot(
+            x,
+            np.full(len(x), k) + np.linspace(-0.15, 0.15, len(x)),
+            "o",
+            ms=3,
+            color=SIDE_COLOUR.get(side, SIDE_COLOUR[""]),
+        )
+    limit = max(g["threshold_deg"] for _, _, g in strides)
+    ax.axvline(limit, color="#b2182b", lw=0.8, ls="--")
+    ax.set_yticks(range(len(strides)), [s[0] for s in strides])
+    ax.set_ylim(-0.6, len(strides) - 0.4)
+    ax.set_xlabel("varus thrust per stride (°)")
+    ax.set_title(
+        f"Each stride's varus thrust; dashed: the protocol's limit ({limit:g}°)", loc="left"
+    )
+
+
+def _offset(doc: Document, view: SessionView) -> None:
+    data = view.metrics.get("out_of_plane_offset") or {}
+    if not data:
+        return
+    doc.heading("Lumbar out-of-plane offset")
+    doc.paragraph(MEANING["out_of_plane_offset"], colour=MUTED)
+    rows, flagged = [], []
+    for task, _, o in _items(view, data):
+        rows.append(
+            [
+                task_name(task),
+                "-".join(o["axes"]),
+                _f(o["peak_deg"]),
+                _f(o["mean_deg"]),
+                f"{_f(o['above_pct'], '.0f')} (limit {o['threshold_deg']:g}°)",
+            ]
+        )
+        flagged.append([False] * 4 + [o["above_pct"] > 0])
+    doc.table(
+        ["Task", "Axes compared", "Peak (°)", "Mean (°)", "Time above limit (%)"],
+        rows,
+        [0.25, 0.15, 0.15, 0.15, 0.3],
+        flagged,
+        align=["l", "l", "r", "r", "r"],
+    )
+
+
+def _trunk(doc: Document, view: SessionView) -> None:
+    data = view.metrics.get("trunk_compensation") or {}
+    if not data:
+        return
+    doc.heading("Trunk compensation")
+    doc.paragraph(MEANING["trunk_compensation"], colour=MUTED)
+    rows, flagged = [], []
+    for task in in_order(data, list(view.blocks())):
+        t = data[task]
+        for angle in ("flexion", "lateral_bending", "axial_rotation"):
+            a = t[angle]
+            rows.append(
+                [
+                    task_name(task),
+                    {
+                        "flexion": "forward lean (forward +)",
+                        "lateral_bending": "side lean (right +)",
+                        "axial_rotation": "twist (left +)",
+                    }[angle],
+                    f"{_f(a['min_deg'])} to {_f(a['max_deg'])}",
+                    _f(a["peak_abs_deg"]),
+                    f"{_f(a['above_pct'], '.0f')} (limit {a['threshold_deg']:g}°)",
+                ]
+            )
+            flagged.append([False] * 3 + [a["above_pct"] > 0] * 2)
+    doc.table(
+        ["Task", "Trunk movement", "Range (°)", "Peak (°)", "Time above limit (%)"],
+        rows,
+        [0.22, 0.24, 0.18, 0.12, 0.24],
+        flagged,
+        align=["l", "l", "r", "r", "r"],
+    )
+    tasks = [
+        k
+        for k in in_order(data, list(view.blocks()))
+        if len(np.asarray(data[k].get("angles_deg", [])))
+    ]
+    if not tasks:
+        return
+    grid = doc.axes_grid(1, len(tasks), 2.3, left=0.55, wspace=0.6, bottom=0.5, top=0.3)[0]
+    rate = 1.0 / np.median(np.diff(view.angles["time_s"]))
+    for ax, task in zip(grid, tasks, strict=True):
+        ang = np.asarray(data[task]["angles_deg"])
+        t = np.arange(len(ang)) / rate
+        for k, (name, colour) in enumerate(
+            (("forward lean", "#2166ac"), ("side lean", "#1a9850"), ("twist", "#d95f02"))
+        ):
+            ax.plot(t, ang[:, k], lw=0.8, color=colour, label=name)
+        ax.set_title(task_name(task), loc="left", size=SIZE["small"])
+        ax.set_xlabel("time in task (s)")
+        ax.set_ylabel("trunk angle (°)")
+    doc.fig.legend(
+        handles=grid[0].get_lines(),
+        loc="upper left",
+        ncol=3,
+        frameon=False,
+        bbox_to_anchor=(0.07, 1 - doc.y / 11.69),
+    )
+    doc.space(0.35)
+
+
+def out_of_plane_page(doc: Document, view: SessionView) -> None:
+    """One section with every out-of-plane metric the protocol computed (none: skipped)."""
+    m = view.metrics
+    if not any(
+        m.get(k) for k in ("cross_talk", "gait", "out_of_plane_offset", "trunk_compensation")
+    ):
+        return
+    doc.section(
+        "Out-of-plane metrics",
+        "Movements outside the main plane of a joint: measurement cross-talk, and clinical "
+        "signs such as knee thrust and trunk compensation.",
+    )
+    _gait(doc, view)
+    _trunk(doc, view)
+    _offset(doc, view)
+    _cross_talk(doc, view)

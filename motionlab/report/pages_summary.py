@@ -1,0 +1,60 @@
+"""Page 1: who, when, what was measured with which sensors, and the findings in plain language."""
+
+from __future__ import annotations
+
+import datetime as _dt
+
+from motionlab import __version__
+from motionlab.report.model import SIDE_NAMES, SessionView, joint_title
+from motionlab.report.pdf import MUTED, SIZE, Document
+from motionlab.report.text import findings, task_name
+
+
+def _software(view: SessionView) -> str:
+    versions = sorted({p.get("software", "") for p in view.session.provenance if p.get("software")})
+    used = ", ".join(versions) or "unknown"
+    return f"{used} (report: motionlab {__version__})"
+
+
+def summary_page(doc: Document, view: SessionView) -> None:
+    """Identity table, sensor placements and the findings."""
+    proto = view.protocol
+    doc.section("Summary", proto.title or proto.name)
+    blocks = view.blocks()
+    tasks = ", ".join(f"{task_name(k)} ({b - a:.0f} s)" for k, (a, b) in blocks.items())
+    joints = ", ".join(joint_title(j) for j in view.joints())
+    identity = [
+        ["Subject", view.subject],
+        ["Session date", view.date],
+        ["Protocol", f"{proto.name}: {proto.title}" if proto.title else proto.name],
+        ["Joints", joints],
+        ["Tasks analysed", tasks or "none found"],
+        ["Software", _software(view)],
+        ["Report written", _dt.date.today().isoformat()],
+    ]
+    if view.session.metadata.get("simulated"):
+        identity.append(["Data", "simulated recording (motionlab simulate), not a real subject"])
+    doc.table(["", ""], identity, [0.2, 0.8], align=["l", "l"], size=SIZE["body"])
+
+    doc.heading("Findings")
+    doc.bullets(findings(view))
+    doc.paragraph(
+        "Ranges are the typical lowest and highest angle of the repetitions (means of the "
+        "per-cycle extremes), in degrees; a range counts as outside normal when it misses the "
+        "protocol's normal range by more than 5°. Normal ranges are approximate, for orientation, "
+        "not diagnostic limits.",
+        size=SIZE["small"],
+        colour=MUTED,
+    )
+
+    doc.heading("Sensors and placements")
+    rows = []
+    for seg, spec in proto.segments.items():
+        sensor = next((s for s in view.session.sensors.values() if s.segment == seg), None)
+        sensor = sensor or view.session.sensors.get(seg)
+        name = f"{SIDE_NAMES.get(spec.side, '')} {seg.split('_')[0]}".strip()
+        ident = f"{sensor.label} ({sensor.serial})" if sensor and sensor.serial else "-"
+        if sensor and not sensor.serial:
+            ident = sensor.label
+        rows.append([name, ident, spec.placement or "-"])
+    doc.table(["Segment", "Sensor", "Placement"], rows, [0.14, 0.22, 0.64], align=["l"] * 3)

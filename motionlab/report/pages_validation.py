@@ -1,0 +1,186 @@
+"""Optical validation pages (when the session holds ``results["validation"]``): the error
+tables, and the overlay, Bland-Altman, sync and alignment figures of
+:mod:`motionlab.validation.figures`, placed on the A4 pages."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from motionlab.report.model import SessionView, columns, joint_title
+from motionlab.report.pdf import MUTED, SIZE, Document
+
+
+def _f(x: Any, spec: str = ".2f") -> str:
+    try:
+        x = float(x)
+    except (TypeError, ValueError):
+        return "-"
+    return format(x, spec) if np.isfinite(x) else "-"
+
+
+def _angle_table(doc: Document, angles: dict[str, Any]) -> None:
+    rows = []
+    for col, v in angles.items():
+        if not isinstance(v, dict) or "rmse_deg" not in v:
+            continue
+        lo, hi = (list(v.get("loa_deg", [np.nan, np.nan])) + [np.nan, np.nan])[:2]
+        rows.append(
+            [
+                col.removesuffix("_deg").replace("_", " "),
+                _f(v["rmse_deg"], ".1f"),
+                _f(v["bias_deg"], "+.1f"),
+                f"{_f(lo, '+.1f')} to {_f(hi, '+.1f')}",
+                _f(v.get("rmse_centred_deg"), ".1f"),
+                _f(v.get("max_abs_deg"), ".1f"),
+                _f(v.get("r"), ".3f"),
+                _f(v.get("cmc"), ".3f"),
+            ]
+        )
+    if not rows:
+        return
+    doc.heading("Joint angles: IMU against optical")
+    doc.table(
+        [
+            "Angle",
+            "RMSE (°)",
+            "Bias (°)",
+            "95 % limits of agreement (°)",
+            "RMSE without bias (°)",
+            "Max |error| (°)",
+            "r",
+            "CMC",
+        ],
+        rows,
+        [0.22, 0.09, 0.09, 0.18, 0.13, 0.11, 0.09, 0.09],
+        align=["l"] + ["r"] * 7,
+    )
+    doc.paragraph(
+        "Bias: mean IMU minus optical; limits of agreement: bias ± 1.96 SD of the difference "
+        "(Bland & Altman); CMC: coefficient of multiple correlation of the two curves (1 = same "
+        "shape).",
+        size=SIZE["small"],
+        colour=MUTED,
+    )
+
+
+def _orientation_table(doc: Document, orientation: dict[str, Any]) -> None:
+    rows = []
+    for label, v in orientation.items():
+        if not isinstance(v, dict) or "total_rmse_deg" not in v:
+            continue
+        rows.append(
+            [
+                label,
+                _f(v["total_rmse_deg"], ".1f"),
+                _f(v["heading_rmse_deg"], ".1f"),
+                _f(v["inclination_rmse_deg"], ".1f"),
+                _f(v["median_deg"], ".1f"),
+                _f(v["iqr_deg"], ".1f"),
+                _f(v["p95_deg"], ".1f"),
+            ]
+        )
+    if rows:
+        doc.heading("Sensor orientations: IMU against optical")
+        doc.table(
+            [
+                "Sensor",
+                "Total RMSE (°)",
+                "Heading RMSE (°)",
+                "Inclination RMSE (°)",
+                "Median (°)",
+                "IQR (°)",
+                "95th pct (°)",
+            ],
+            rows,
+            [0.2, 0.14, 0.14, 0.16, 0.12, 0.12, 0.12],
+        )
+
+
+def _sync_alignment(doc: Document, val: dict[str, Any]) -> None:
+    sync, al = val.get("sync", {}), val.get("alignment", {})
+    rows = [
+        ["Clock offset", f"{_f(sync.get('time_offset_s'), '.4f')} s"],
+        ["Clock drift", f"{_f(sync.get('drift_ppm'), '.1f')} ppm"],
+        [
+            "Windows agreeing with the clock model",
+            f"{_f(sync.get('inlier_ratio'), '.2f')} of {sync.get('n_windows', '-')}",
+        ],
+        ["Spatial alignment mode", str(al.get("mode", val.get("mode", "-")))],
+        [
+            "Optical lab to earth rotation",
+            f"{_f(al.get('lab_to_earth', {}).get('angle_deg'), '.1f')}°",
+        ],
+    ]
+    for label, e in (al.get("sensor_to_cluster") or {}).items():
+        rows.append([f"Sensor {label} to its marker cluster", f"{_f(e.get('angle_deg'), '.1f')}°"])
+    doc.heading("Synchronisation and alignment")
+    doc.table(["", ""], rows, [0.55, 0.3], align=["l", "r"])
+
+
+def _figure_pages(doc: Document, view: SessionView, val: dict[str, Any]) -> None:
+    """Overlays, Bland-Altman plots (flexion of each joint), sync and alignment figures."""
+    from motionlab.validation import figures
+
+    angles = val.get("angles") or {}
+    cols = [col for j in view.joints() for _, col in columns(j) if col in angles]
+    if cols:
+        doc.section(
+            "Validation: angle curves",
+            "Joint angles from the sensors (blue) over those from the cameras (black), with each "
+            "angle's RMSE and correlation r.",
+            figure=figures.angle_overlay(val, cols),
+        )
+        doc.place_figure(min(9.4, 1.5 * len(cols) + 0.6))
+    for joint in view.joints():
+        col = columns(joint)[0][1]
+        if col not in angles:
+            continue
+        doc.section(
+            f"Validation: {joint_title(joint).lower()} flexion, Bland-Altman",
+            "Each sample's difference (sensors minus cameras) against the mean of the two: a "
+            "level cloud means a constant bias, a slope an error that grows with the angle.",
+            figure=figures.bland_altman(val, col),
+        )
+        doc.place_figure(4.2)
+        _angle_table(doc, {c: angles[c] for _, c in columns(joint) if c in angles})
+    sync = val.get("sync") or {}
+    if len(np.asarray(sync.get("window_time_s", []))):
+        doc.section(
+            "Validation: time synchronisation",
+            "The camera clock against the sensor clock: each window's lag (from the "
+            "cross-correlation of angular speed) minus the fitted offset and drift.",
+            figure=figures.sync_figure(val),
+        )
+        doc.place_figure(3.6)
+        _sync_alignment(doc, val)
+    labels = [k for k, v in (val.get("orientation") or {}).items() if isinstance(v, dict)]
+    if labels:
+        doc.section(
+            "Validation: spatial alignment",
+            "Orientation error of each sensor against its marker cluster after the alignment "
+            "(total, heading and inclination, degrees).",
+            figure=figures.alignment_figure(val),
+        )
+        doc.place_figure(min(9.4, 1.6 * len(labels) + 0.6))
+
+
+def validation_pages(doc: Document, view: SessionView) -> None:
+    """Tables and figures of the optical validation; nothing when there is none."""
+    val = view.session.results.get("validation")
+    if not isinstance(val, dict):
+        return
+    doc.section(
+        "Validation against optical motion capture",
+        f"The same movements measured by the cameras (marker set '{val.get('marker_set', '?')}'), "
+        "synchronised and aligned with the sensors, then compared.",
+    )
+    _sync_alignment(doc, val)
+    _orientation_table(doc, val.get("orientation", {}))
+    _angle_table(doc, val.get("angles", {}))
+    notes = val.get("notes") or []
+    if notes:
+        doc.heading("Notes")
+        doc.bullets([str(n) for n in notes], size=SIZE["small"])
+    _figure_pages(doc, view, val)

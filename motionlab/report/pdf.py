@@ -1,0 +1,382 @@
+"""A4 pages drawn with matplotlib, filled top to bottom and saved into one PDF with PdfPages.
+
+Conventions: lengths in inches (A4 portrait is 8.27 × 11.69 in), font sizes in points, the page
+cursor ``y`` in inches from the top of the page. Figures are plain :class:`matplotlib.figure.Figure`
+objects (no pyplot state). Text is wrapped by measuring it with the Agg renderer, so lines never
+run past the margin. :meth:`Document.save` writes the PDF and keeps every page's text (titles,
+paragraphs, tables, axis labels and legends; not tick numbers) for tests and for a plain-text copy.
+:func:`layout_problems` lists text that leaves the page or overlaps other text.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from functools import lru_cache
+from itertools import combinations
+from pathlib import Path
+
+import matplotlib
+from matplotlib.axes import Axes
+from matplotlib.backends.backend_agg import FigureCanvasAgg, RendererAgg
+from matplotlib.backends.backend_pdf import PdfPages
+from matplotlib.figure import Figure
+from matplotlib.font_manager import FontProperties
+from matplotlib.lines import Line2D
+from matplotlib.text import Text
+
+PAGE_W, PAGE_H = 8.27, 11.69
+MARGIN = 0.6
+TOP = 0.75  # below the running header
+BOTTOM = 0.7  # above the footer
+WIDTH = PAGE_W - 2 * MARGIN
+SIZE = {"title": 15.0, "heading": 11.5, "body": 9.5, "small": 8.0, "table": 8.5}
+LINE = 1.35  # line height / font size
+FLAG_COLOUR = "#b2182b"
+SIDE_COLOUR = {"r": "#1a9850", "l": "#d73027", "": "#2166ac"}  # right green, left red
+BAND_COLOUR = "#bdbdbd"
+MUTED = "#555555"
+RC = {
+    "font.size": SIZE["body"],
+    "axes.titlesize": SIZE["body"],
+    "axes.labelsize": SIZE["small"],
+    "xtick.labelsize": SIZE["small"],
+    "ytick.labelsize": SIZE["small"],
+    "legend.fontsize": SIZE["small"],
+    "axes.spines.top": False,
+    "axes.spines.right": False,
+    "pdf.fonttype": 42,
+}
+
+_MEASURE = RendererAgg(int(PAGE_W * 72), int(PAGE_H * 72), 72)
+
+
+@lru_cache(maxsize=20000)
+def text_width(text: str, size: float, weight: str = "normal") -> float:
+    """Width (in) of one line of ``text`` at ``size`` pt (cached: measuring is slow)."""
+    prop = FontProperties(size=size, weight=weight)
+    w, _, _ = _MEASURE.get_text_width_height_descent(text, prop, ismath=False)
+    return w / 72.0
+
+
+def wrap(text: str, width: float, size: float, weight: str = "normal") -> list[str]:
+    """Greedy word wrap of ``text`` into lines at most ``width`` in wide (explicit newlines kept).
+
+    A line's width is the sum of its words' widths and the spaces between them.
+    """
+    space = text_width("a a", size, weight) - 2 * text_width("a", size, weight)
+    lines: list[str] = []
+    for para in str(text).split("\n"):
+        line, used = "", 0.0
+        for word in para.split():
+            w = text_width(word, size, weight)
+            if line and used + space + w > width:
+                lines.append(line)
+                line, used = word, w
+            else:
+                line, used = (f"{line} {word}", used + space + w) if line else (word, w)
+        lines.append(line)
+    return lines
+
+
+class Document:
+    """A report under construction: pages filled top to bottom.
+
+    ``title`` and ``subtitle`` run along the top of every page; :meth:`section` starts a page,
+    and every drawing method starts a continuation page when the current one is full.
+    """
+
+    def __init__(self, title: str, subtitle: str = "") -> None:
+        self.title = title
+        self.subtitle = subtitle
+        self.pages: list[Figure] = []
+        self.sections: list[str] = []
+        self.y = PAGE_H
+        self._section = ""
+
+    # ------------------------------------------------------------------------------ pages
+
+    @property
+    def fig(self) -> Figure:
+        return self.pages[-1]
+
+    def section(self, name: str, intro: str = "", figure: Figure | None = None) -> None:
+        """Start a new page headed ``name`` (and an optional introductory paragraph).
+
+        With ``figure`` (a constrained-layout figure drawn elsewhere, e.g. by
+        :mod:`motionlab.validation.figures`) the page is that figure, resized to A4; place its
+        content with :meth:`place_figure`.
+        """
+        self._section = name
+        self._new_page(figure)
+        self._heading(name, SIZE["title"])
+        if intro:
+            self.paragraph(intro, colour=MUTED)
+        self.space(0.05)
+
+    def _new_page(self, fig: Figure | None = None) -> None:
+        if fig is None:
+            with matplotlib.rc_context(RC):
+                fig = Figure(figsize=(PAGE_W, PAGE_H))
+        else:
+            fig.set_size_inches(PAGE_W, PAGE_H)
+        FigureCanvasAgg(fig)
+        fig.text(
+            MARGIN / PAGE_W,
+            1 - 0.38 / PAGE_H,
+            self.title,
+            size=SIZE["small"],
+            color=MUTED,
+            va="baseline",
+        )
+        if self.subtitle:
+            fig.text(
+                1 - MARGIN / PAGE_W,
+                1 - 0.38 / PAGE_H,
+                self.subtitle,
+                size=SIZE["small"],
+                color=MUTED,
+                ha="right",
+                va="baseline",
+            )
+        fig.add_artist(
+            Line2D(
+                [MARGIN / PAGE_W, 1 - MARGIN / PAGE_W],
+                [1 - 0.46 / PAGE_H] * 2,
+                color="#999999",
+                lw=0.5,
+            )
+        )
+        self.pages.append(fig)
+        self.sections.append(self._section)
+        self.y = TOP
+
+    def ensure(self, height: float) -> None:
+        """Start a continuation page unless ``height`` in still fit on this one."""
+        if not self.pages or self.y + height > PAGE_H - BOTTOM:
+            self._new_page()
+            if self._section:
+                self._heading(f"{self._section} (continued)", SIZE["heading"])
+
+    def space(self, height: float) -> None:
+        self.y += height
+
+    # ------------------------------------------------------------------------------ text
+
+    def _put(self, x: float, text: str, size: float, **kw) -> Text:
+        """One line of text with its baseline at the cursor + one line height."""
+        return self.fig.text(x / PAGE_W, 1 - self.y / PAGE_H, text, size=size, va="baseline", **kw)
+
+    def _heading(self, text: str, size: float) -> None:
+        self.y += size * LINE / 72
+        self._put(MARGIN, text, size, weight="bold")
+        self.y += 0.45 * size / 72
+
+    def heading(self, text: str) -> None:
+        """A sub-heading; kept on the page with at least 1.2 in of what follows."""
+        self.ensure(1.2)
+        self.space(0.08)
+        self._heading(text, SIZE["heading"])
+
+    def paragraph(
+        self,
+        text: str,
+        size: float = SIZE["body"],
+        indent: float = 0.0,
+        colour: str = "black",
+        weight: str = "normal",
+    ) -> None:
+        """Wrapped text across the page width (starts a new page when full)."""
+        step = size * LINE / 72
+        for line in wrap(text, WIDTH - indent, size, weight):
+            self.ensure(step)
+            self.y += step
+            self._put(MARGIN + indent, line, size, color=colour, weight=weight)
+        self.y += 0.35 * step
+
+    def bullets(self, items: Sequence[str], size: float = SIZE["body"], colour: str = "black"):
+        """A bulleted list; each item wrapped under its own first line."""
+        step = size * LINE / 72
+        for item in items:
+            for k, line in enumerate(wrap(item, WIDTH - 0.22, size)):
+                self.ensure(step)
+                self.y += step
+                if k == 0:
+                    self._put(MARGIN + 0.05, "•", size, color=colour)
+                self._put(MARGIN + 0.22, line, size, color=colour)
+            self.y += 0.25 * step
+        self.y += 0.2 * step
+
+    def table(
+        self,
+        header: Sequence[str],
+        rows: Sequence[Sequence[str]],
+        widths: Sequence[float],
+        flagged: Sequence[Sequence[bool]] | None = None,
+        align: Sequence[str] | None = None,
+        size: float = SIZE["table"],
+    ) -> None:
+        """A table across the page; ``widths`` are fractions of the page width (sum ≤ 1).
+
+        Cells wrap inside their column; ``flagged[i][j]`` draws cell ``(i, j)`` bold in red;
+        ``align`` is ``"l"`` or ``"r"`` per column. The header repeats on continuation pages.
+        """
+        cols = [w * WIDTH for w in widths]
+        xs = [MARGIN + sum(cols[:k]) for k in range(len(cols))]
+        align = align or ["l"] + ["r"] * (len(cols) - 1)
+        step = size * LINE / 72
+        pad = 0.06
+
+        def cell_lines(row: Sequence[str], weight: str) -> list[list[str]]:
+            return [wrap(str(c), w - pad, size, weight) for c, w in zip(row, cols, strict=True)]
+
+        def draw(row_lines: list[list[str]], weight: str, flags: Sequence[bool]) -> None:
+            for j, lines in enumerate(row_lines):
+                for k, line in enumerate(lines):
+                    x = xs[j] + (cols[j] - pad if align[j] == "r" else 0.0)
+                    self.fig.text(
+                        x / PAGE_W,
+                        1 - (self.y + (k + 1) * step) / PAGE_H,
+                        line,
+                        size=size,
+                        va="baseline",
+                        weight="bold" if flags[j] else weight,
+                        ha="right" if align[j] == "r" else "left",
+                        color=FLAG_COLOUR if flags[j] else "black",
+                    )
+            self.y += max(len(c) for c in row_lines) * step + 0.25 * step
+
+        def rule() -> None:
+            y = 1 - (self.y + 0.02) / PAGE_H
+            self.fig.add_artist(
+                Line2D(
+                    [MARGIN / PAGE_W, (MARGIN + sum(cols)) / PAGE_W],
+                    [y, y],
+                    color="#777777",
+                    lw=0.6,
+                )
+            )
+            self.y += 0.06
+
+        head = cell_lines(header, "bold") if any(str(h).strip() for h in header) else []
+        head_h = max(len(c) for c in head) * step + 0.3 if head else 0.0
+        page = None
+        for i, row in enumerate(rows):
+            lines = cell_lines(row, "normal")
+            self.ensure(max(len(c) for c in lines) * step + 0.1 + (head_h if page is None else 0))
+            if page is not self.fig:
+                page = self.fig
+                if head:
+                    draw(head, "bold", [False] * len(cols))
+                    rule()
+            draw(lines, "normal", flagged[i] if flagged else [False] * len(cols))
+        self.y += 0.12
+
+    # ------------------------------------------------------------------------------ plots
+
+    def axes_grid(
+        self,
+        nrows: int,
+        ncols: int,
+        height: float,
+        left: float = 0.75,
+        bottom: float = 0.5,
+        hspace: float = 0.55,
+        wspace: float = 0.75,
+        top: float = 0.3,
+    ) -> list[list[Axes]]:
+        """An ``nrows × ncols`` grid of axes filling the page width and ``height`` in.
+
+        ``left``/``bottom`` leave room for the tick and axis labels of each cell, ``top`` for
+        its title; ``hspace``/``wspace`` are gaps (in) between cells.
+        """
+        self.ensure(height)
+        cell_w = (WIDTH - left - (ncols - 1) * wspace) / ncols
+        cell_h = (height - top - bottom - (nrows - 1) * hspace) / nrows
+        grid = []
+        for i in range(nrows):
+            row = []
+            for j in range(ncols):
+                x = MARGIN + left + j * (cell_w + wspace)
+                y_top = self.y + top + i * (cell_h + hspace)
+                rect = [x / PAGE_W, 1 - (y_top + cell_h) / PAGE_H, cell_w / PAGE_W, cell_h / PAGE_H]
+                with matplotlib.rc_context(RC):
+                    row.append(self.fig.add_axes(rect))
+            grid.append(row)
+        self.y += height
+        return grid
+
+    def place_figure(self, height: float) -> None:
+        """Lay out the page's own (constrained-layout) figure in the next ``height`` in."""
+        rect = (MARGIN / PAGE_W, 1 - (self.y + height) / PAGE_H, WIDTH / PAGE_W, height / PAGE_H)
+        self.fig.get_layout_engine().set(rect=rect)
+        self.y += height
+
+    # ------------------------------------------------------------------------------ output
+
+    def save(self, pdf_path: str | Path, text_path: str | Path | None = None) -> list[str]:
+        """Number the pages, write the PDF (and the pages' text); return the text per page."""
+        n = len(self.pages)
+        texts = []
+        with PdfPages(pdf_path, metadata={"Title": self.title, "Creator": "motionlab"}) as pdf:
+            for i, fig in enumerate(self.pages, start=1):
+                fig.text(
+                    0.5,
+                    0.35 / PAGE_H,
+                    f"page {i} of {n}",
+                    size=SIZE["small"],
+                    color=MUTED,
+                    ha="center",
+                )
+                texts.append(page_text(fig))
+                pdf.savefig(fig)
+        if text_path is not None:
+            Path(text_path).write_text("\f".join(texts), encoding="utf-8")
+        return texts
+
+
+def _words(fig: Figure) -> list[tuple[float, float, str]]:
+    """``(y, x, text)`` of the page's text, axes texts placed at their axes' top left (figure
+    fraction); tick labels left out."""
+    out = [(*t.get_position()[::-1], t.get_text()) for t in fig.texts]
+    for ax in fig.axes:
+        box = ax.get_position()
+        texts = [ax.title, ax._left_title, ax._right_title, ax.xaxis.label, ax.yaxis.label]
+        texts += ax.texts
+        if ax.get_legend() is not None:
+            texts += ax.get_legend().get_texts()
+        out += [(box.y1, box.x0, t.get_text()) for t in texts]
+    for legend in fig.legends:
+        out += [(1.0, 0.0, t.get_text()) for t in legend.get_texts()]
+    return [(y, x, s) for y, x, s in out if s.strip()]
+
+
+def page_text(fig: Figure) -> str:
+    """The words on a page, top to bottom (tick numbers left out)."""
+    return "\n".join(s for _, _, s in sorted(_words(fig), key=lambda w: (-round(w[0], 3), w[1])))
+
+
+def layout_problems(fig: Figure) -> list[str]:
+    """Text that leaves the page or overlaps other text (bounding boxes, 0.5 pt tolerance)."""
+    fig.draw_without_rendering()  # places axis labels and legends
+    renderer = fig.canvas.get_renderer()
+    w, h = fig.bbox.width, fig.bbox.height
+    boxes = []
+    problems = []
+    hidden = set()  # tick labels outside the axis range are not drawn
+    for ax in fig.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            lo, hi = sorted(axis.get_view_interval())
+            tol = 1e-9 * max(1.0, abs(hi - lo))
+            for tick in axis.get_major_ticks() + axis.get_minor_ticks():
+                if not lo - tol <= tick.get_loc() <= hi + tol:
+                    hidden.update({id(tick.label1), id(tick.label2)})
+    found = fig.findobj(lambda a: isinstance(a, Text) and a.get_visible() and a.get_text())
+    for t in [t for t in found if id(t) not in hidden]:
+        bb = t.get_window_extent(renderer)
+        if bb.x0 < -0.5 or bb.y0 < -0.5 or bb.x1 > w + 0.5 or bb.y1 > h + 0.5:
+            problems.append(f"off the page: {t.get_text()!r}")
+        boxes.append((t.get_text(), bb.expanded(1.0, 1.0).shrunk(0.98, 0.9)))
+    for (a, ba), (b, bb) in combinations(boxes, 2):
+        if ba.overlaps(bb) and a.strip() and b.strip():
+            problems.append(f"overlap: {a!r} / {b!r}")
+    return problems

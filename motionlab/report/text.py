@@ -1,0 +1,190 @@
+"""Plain-language sentences for the report: findings, meanings of metrics, quality notes.
+
+Numbers are rounded to whole degrees (the accuracy of wearable-sensor joint angles does not
+support more) and every sentence names the side, the joint, the movement and the task, so that it
+can be read on its own ("Right knee flexion range 5–58° during gait, below the normal 0–65°").
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from motionlab.report.model import (
+    ANGLE_TITLES,
+    SIDE_NAMES,
+    SessionView,
+    calibration_rows,
+    quality_rows,
+    rom_rows,
+    symmetry_rows,
+)
+
+#: what each out-of-plane metric means, in one sentence
+MEANING = {
+    "cross_talk": (
+        "Cross-talk is motion the sensors report in the other planes while the joint moves in "
+        "one plane only; large values mean the sensor axes were not aligned with the joint, "
+        "and the calibration's reduction of it shows how much the calibration corrected."
+    ),
+    "varus_thrust": (
+        "Varus thrust is the sudden increase of knee varus (bow-leg angle) just after the heel "
+        "strikes the ground; a thrust of more than a few degrees is linked to progression of "
+        "medial knee osteoarthritis."
+    ),
+    "stance_rotation": (
+        "Stance rotation range is how much the shank twists on the thigh while the foot is on "
+        "the ground; a larger range than usual suggests rotational laxity of the knee."
+    ),
+    "out_of_plane_offset": (
+        "The out-of-plane offset is how far the trunk leaves the intended plane of a movement "
+        "(e.g. twisting while bending forward); large values mean the movement was not performed "
+        "in one plane."
+    ),
+    "trunk_compensation": (
+        "Trunk compensation is leaning or twisting the trunk to help the arm reach; it is common "
+        "after stroke or with a stiff shoulder or elbow, and healthy adults move the trunk little "
+        "when reaching within arm's length."
+    ),
+}
+
+TRUNK_WORDS = {"flexion": "forward lean", "lateral_bending": "side lean", "axial_rotation": "twist"}
+STATUS_WORDS = {"within": "within", "below": "below", "above": "above", "wider": "wider than"}
+
+
+def deg(x: float) -> str:
+    """``'12°'``, ``'-3°'``, or ``'n/a'``."""
+    return f"{x:.0f}°" if np.isfinite(x) else "n/a"
+
+
+def span(low: float, high: float) -> str:
+    """``'5–58°'``; ``'-3 to 5°'`` when an end is negative (a dash would read as a minus)."""
+    if not (np.isfinite(low) and np.isfinite(high)):
+        return "n/a"
+    lo, hi = round(low), round(high)
+    return f"{lo}–{hi}°" if lo >= 0 and hi >= 0 else f"{lo} to {hi}°"
+
+
+def task_name(task: str) -> str:
+    return task.replace("_", " ")
+
+
+def rom_sentence(row: dict[str, Any]) -> str:
+    """One row of :func:`~motionlab.report.model.rom_rows` as a sentence."""
+    side = SIDE_NAMES.get(row["side"], "")
+    joint = "lumbar spine" if row["joint_type"] == "lumbar" else row["joint_type"]
+    angle = ANGLE_TITLES.get(row["angle"], row["angle"]).split(" (")[0]
+    text = (
+        f"{side} {joint} {angle} range {span(row['typical_min_deg'], row['typical_max_deg'])} "
+        f"during {task_name(row['task'])}"
+    ).strip()
+    text = text[0].upper() + text[1:]
+    if row["normal"] is not None and row["status"]:
+        lo, hi = row["normal"]
+        text += f", {STATUS_WORDS[row['status']]} the normal {span(lo, hi)}"
+    return text + "."
+
+
+def _oop_findings(view: SessionView) -> list[str]:
+    out = []
+    m = view.metrics
+    for task, joints in (m.get("gait") or {}).items():
+        for name, g in joints.items():
+            joint = view.protocol.joints[name]
+            side = SIDE_NAMES.get(joint.side, "").capitalize()
+            thrust = g.get("varus_thrust_mean_deg", np.nan)
+            if not np.isfinite(thrust):
+                continue
+            limit = g.get("threshold_deg", 3.0)
+            verdict = "above" if thrust > limit else "within"
+            out.append(
+                f"{side} knee varus thrust {thrust:.0f}° in stance during {task_name(task)} "
+                f"({verdict} the {limit:g}° this protocol flags; {g['strides']} strides)."
+            )
+    for task, t in (m.get("trunk_compensation") or {}).items():
+        if t.get("compensated"):
+            parts = [
+                f"{TRUNK_WORDS[k]} up to {t[k]['peak_abs_deg']:.0f}°"
+                for k in TRUNK_WORDS
+                if t[k]["above_pct"] > 0
+            ]
+            out.append(
+                f"Trunk compensation during {task_name(task)}: {', '.join(parts)} away from the "
+                "neutral posture."
+            )
+    for task, joints in (m.get("out_of_plane_offset") or {}).items():
+        for o in joints.values():
+            if o["above_pct"] > 0:
+                out.append(
+                    f"Trunk out-of-plane offset during {task_name(task)}: "
+                    f"peak {o['peak_deg']:.0f}°, "
+                    f"above {o['threshold_deg']:g}° for {o['above_pct']:.0f}% of the movement."
+                )
+    return out
+
+
+def findings(view: SessionView, limit: int = 12) -> list[str]:
+    """The main findings of one session, most important first, at most ``limit``.
+
+    Ranges outside normal come first, then left-right asymmetries, out-of-plane findings, the
+    ranges within normal of the primary (flexion) angles, and data or calibration problems.
+    """
+    rows = [r for r in rom_rows(view) if r["normal"] is not None]
+    outside = [rom_sentence(r) for r in rows if r["status"] not in ("within", "")]
+    inside = [rom_sentence(r) for r in rows if r["status"] == "within" and r["angle"] == "flexion"]
+    asym = []
+    for s in symmetry_rows(view):
+        if s["flag"] and s["angle"] == "flexion":  # other planes: see the comparison page
+            joint = "lumbar spine" if s["joint_type"] == "lumbar" else s["joint_type"]
+            angle = ANGLE_TITLES.get(s["angle"], s["angle"]).split(" (")[0]
+            asym.append(
+                f"{joint.capitalize()} {angle} range during {task_name(s['task'])} differs "
+                f"between sides: right {s['right_rom_deg']:.0f}°, left {s['left_rom_deg']:.0f}° "
+                f"(symmetry index {s['symmetry_index_pct']:+.0f}%)."
+            )
+    problems = quality_notes(view)
+    items = outside + asym + _oop_findings(view) + inside
+    if len(items) > limit - len(problems[:2]):
+        items = items[: limit - len(problems[:2])]
+    if not items:
+        items = ["No task with a normal range was found in this recording."]
+    return items + problems[:2]
+
+
+def quality_notes(view: SessionView) -> list[str]:
+    """Sentences on data and calibration problems (empty when all is well)."""
+    notes = []
+    for q in quality_rows(view):
+        if q["gaps_kept"]:
+            notes.append(
+                f"Sensor {q['sensor']} lost {q['gaps_kept_s']:.1f} s of data in "
+                f"{q['gaps_kept']} gap(s); no angles are reported there."
+            )
+        if q["saturated_samples"]:
+            notes.append(
+                f"Sensor {q['sensor']} reached its measuring range on {q['saturated_samples']} "
+                "samples; fast movements there may be underestimated."
+            )
+        if np.isfinite(q["mag_disturbed_pct"]) and q["mag_disturbed_pct"] > 20:
+            notes.append(
+                f"The magnetic field near sensor {q['sensor']} was disturbed "
+                f"{q['mag_disturbed_pct']:.0f}% of the time (metal or electronics nearby)."
+            )
+    bad = sorted({r["segment"] for r in calibration_rows(view) if not r["segment_ok"]})
+    if bad:
+        notes.append(
+            f"Calibration of {', '.join(bad)} needs attention (see the calibration page); "
+            "angles involving it are less certain."
+        )
+    return notes
+
+
+def accuracy_sentence(angle: str, entry: dict[str, Any]) -> str:
+    """``'flexion-extension: ±2° (RMSE 1.4°, worst 1.9°)'``."""
+    rmse = float(entry.get("rmse_deg", np.nan))
+    worst = float(entry.get("max_rmse_deg", np.nan))
+    bound = max(rmse, worst) if np.isfinite(worst) else rmse
+    name = ANGLE_TITLES.get(angle, angle).split(" (")[0]
+    text = f"{name}: ±{np.ceil(bound):.0f}° (RMSE {rmse:.1f}°"
+    return text + (f", worst case {worst:.1f}°)" if np.isfinite(worst) else ")")

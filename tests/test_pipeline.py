@@ -1,0 +1,239 @@
+"""motionlab run / run_pipeline: raw files + map + C3D reference → session, report, CSV, summary;
+the errors a user meets (missing segments, existing outputs, mixed inputs); motionlab report."""
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+from click.testing import CliRunner
+from conftest import DATA, SHARED, needs_shared
+
+from motionlab.cli import main
+from motionlab.errors import InputError
+from motionlab.pipeline import PipelineResult, run_pipeline
+from motionlab.session import load_session, save_session
+from motionlab.simulate import simulate
+from motionlab.simulate.markers import OpticalSystem, write_c3d
+
+PROTOCOL = {
+    "name": "knee_small",
+    "title": "Right knee, small test protocol",
+    "segments": {
+        "thigh_r": {"side": "r", "placement": "lateral thigh"},
+        "shank_r": {"side": "r", "sensor_axes": ["-z", "y", "x"], "placement": "tibia"},
+    },
+    "calibration": [
+        {
+            "name": "standing",
+            "kind": "static",
+            "pose": "standing",
+            "duration_s": 3,
+            "vertical_axis": {"thigh_r": "y", "shank_r": "y"},
+        },
+    ],
+    "joints": {"knee_r": {"type": "knee", "proximal": "thigh_r", "distal": "shank_r", "side": "r"}},
+    "tasks": [{"name": "gait", "kind": "gait", "duration_s": 20}],
+    "normative": {"gait": {"knee_flexion_deg": [0, 65]}},
+    "metrics": ["rom", "peaks", "repetitions", "cycles", "varus_thrust"],
+}
+MAP = {
+    "subject": {"id": "T01"},
+    "session": {"date": "2024-05-03"},
+    "sensors": {
+        "THIGH": {"segment": "thigh_r", "side": "r"},
+        "SHANK": {"segment": "shank_r", "side": "r"},
+    },
+    "reader": {
+        "format": "generic",
+        "delimiter": ",",
+        "time": {"column": "t", "unit": "s"},
+        "acc": {"columns": ["ax", "ay", "az"], "unit": "m/s^2"},
+        "gyr": {"columns": ["gx", "gy", "gz"], "unit": "rad/s"},
+        "mag": {"columns": ["mx", "my", "mz"], "unit": "uT"},
+    },
+}
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    """A simulated right-knee recording as two CSV files, a sensor map and a C3D reference."""
+    root = tmp_path_factory.mktemp("raw")
+    (root / "knee_small.yaml").write_text(yaml.safe_dump(PROTOCOL))
+    session, truth = simulate(
+        root / "knee_small.yaml",
+        32.0,
+        3,
+        "typical",
+        rate_hz=50.0,
+        markers=True,
+        mounting_max_deg=5.0,
+        optical=OpticalSystem(rate_hz=50.0),
+    )
+    files = []
+    for seg, name in (("thigh_r", "THIGH"), ("shank_r", "SHANK")):
+        s = session.sensors[seg]
+        table = np.column_stack([s.time, s.acc, s.gyr, s.mag])
+        cols = ["t", "ax", "ay", "az", "gx", "gy", "gz", "mx", "my", "mz"]
+        pd.DataFrame(table, columns=cols).to_csv(root / f"{name}.csv", index=False)
+        files.append(root / f"{name}.csv")
+    (root / "map.yaml").write_text(yaml.safe_dump(MAP))
+    write_c3d(session.markers["optical"], root / "markers.c3d")
+    save_session(session, root / "sim.h5")
+    return root, files, truth
+
+
+@pytest.fixture(scope="module")
+def result(recorded) -> PipelineResult:
+    root, files, _ = recorded
+    return run_pipeline(
+        files,
+        root / "knee_small.yaml",
+        root / "out",
+        map_path=root / "map.yaml",
+        reference=root / "markers.c3d",
+        progress=False,
+        seed=2,
+    )
+
+
+def test_outputs_and_metrics_table(result, recorded):
+    _, _, truth = recorded
+    assert result.session_path.is_file() and result.report_path.is_file()
+    names = {p.name for p in result.csv_dir.iterdir()}
+    assert {"knee_r_angles.csv", "metrics.csv", "quality.csv", "calibration.csv"} <= names
+    m = result.metrics
+    assert list(m.columns) == ["block", "joint", "angle", "metric", "value", "unit"]
+    assert not m["metric"].str.startswith("curve_").any()  # one row per joint metric
+    rom = m[(m.joint == "knee_r") & (m.angle == "flexion") & (m.metric == "max_deg")]
+    assert len(rom) == 1 and rom.iloc[0]["unit"] == "deg"
+    gait = next(s for s in truth.steps if s["name"] == "gait")
+    inside = (truth.time > gait["start_s"]) & (truth.time < gait["end_s"])
+    true_max = truth.joint_angles["knee_r_flexion_deg"][inside].max()
+    assert rom.iloc[0]["value"] == pytest.approx(true_max, abs=5.0)
+
+
+def test_session_holds_every_stage_and_the_provenance(result, recorded):
+    root = recorded[0]
+    ses = load_session(result.session_path)
+    assert {"fusion", "calibration", "angles", "metrics", "validation"} <= set(ses.results)
+    assert ses.metadata["subject"]["id"] == "T01"
+    assert ses.markers, "the reference is kept in the session"
+    run = ses.provenance[-1]
+    assert run["command"].startswith("motionlab run --protocol")
+    assert run["parameters"]["seed"] == 2 and len(run["parameters"]["protocol_sha256"]) == 64
+    hashed = {k.split("/")[-1] for p in ses.provenance for k in p["inputs"]}
+    assert {"THIGH.csv", "SHANK.csv", "map.yaml"} <= hashed
+    val = ses.results["validation"]["angles"]["knee_r_flexion_deg"]
+    assert val["rmse_deg"] < 5.0
+    assert str(root) in result.summary or "T01" in result.summary
+
+
+def test_report_text_and_one_screen_summary(result):
+    text = result.report_path.with_suffix(".txt").read_text()
+    pages = text.split("\f")
+    assert len(pages) >= 8
+    for word in (
+        "Right knee",
+        "flexion",
+        "sagittal",
+        "frontal",
+        "transverse",
+        "Summary",
+        "Data quality",
+        "Calibration quality",
+        "Expected accuracy",
+        "Methods appendix",
+        "Validation against optical motion capture",
+    ):
+        assert word in text, word
+    lines = result.summary.splitlines()
+    assert len(lines) <= 30 and lines[0].startswith("motionlab run: knee_small")
+    assert any("knee_r" in line and "normal 0-65" in line for line in lines)
+
+
+def test_existing_outputs_need_force(result, recorded):
+    root, files, _ = recorded
+    before = result.session_path.stat().st_mtime_ns
+    with pytest.raises(InputError, match="output exists"):
+        run_pipeline(
+            files,
+            root / "knee_small.yaml",
+            root / "out",
+            map_path=root / "map.yaml",
+            progress=False,
+        )
+    assert result.session_path.stat().st_mtime_ns == before
+
+
+def run(*args):
+    return CliRunner().invoke(main, [str(a) for a in args])
+
+
+def test_missing_segments_one_line_exit_2(tmp_path):
+    res = run(
+        "run",
+        "--protocol",
+        "knee",
+        DATA / "xsens" / "MT_012005D6_031-000_00B421AF_excerpt.txt",
+        "-o",
+        tmp_path / "out",
+    )
+    assert res.exit_code == 2
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 2 and lines[0] == "[1/6] ingest ..."
+    assert "needs sensors on pelvis, thigh_r, thigh_l, shank_r, shank_l" in lines[1]
+    assert "--map" in lines[1] and not (tmp_path / "out").exists()
+
+
+@needs_shared
+def test_missing_segments_shared_xsens_recording(tmp_path):
+    path = SHARED / "formats" / "xsens" / "MT_012005D6_031-000_00B421AF.txt"
+    res = run("run", "--protocol", "knee", path, "-o", tmp_path / "out", "--quiet")
+    assert res.exit_code == 2
+    assert res.output.count("\n") == 1
+    assert res.output.startswith("error: MT_012005D6_031-000_00B421AF.txt: the 'knee' protocol")
+    assert "pelvis, thigh_r, thigh_l, shank_r, shank_l" in res.output
+
+
+def test_session_file_cannot_be_mixed_or_mapped(recorded, tmp_path):
+    root, files, _ = recorded
+    res = run(
+        "run",
+        "--protocol",
+        root / "knee_small.yaml",
+        root / "sim.h5",
+        files[0],
+        "-o",
+        tmp_path / "a",
+        "--quiet",
+    )
+    assert res.exit_code == 2 and "cannot be combined" in res.output
+    res = run(
+        "run",
+        "--protocol",
+        root / "knee_small.yaml",
+        root / "sim.h5",
+        "--map",
+        root / "map.yaml",
+        "-o",
+        tmp_path / "b",
+        "--quiet",
+    )
+    assert res.exit_code == 2 and "--map applies to raw recordings" in res.output
+
+
+def test_report_command_two_visits_adds_progress_page(result, tmp_path):
+    ses = load_session(result.session_path)
+    paths = []
+    for i, date in enumerate(("2024-05-03", "2024-06-14")):
+        ses.metadata["session"] = {"date": date, "visit": f"visit {i + 1}"}
+        paths.append(tmp_path / f"v{i + 1}.h5")
+        save_session(ses, paths[-1])
+    res = run("report", *paths, "-o", tmp_path / "p.pdf", "--csv", tmp_path / "tables")
+    assert res.exit_code == 0, res.output
+    text = (tmp_path / "p.txt").read_text()
+    assert "Progress over 2 visits (knee_small)" in text
+    assert "visit 1" in text and "visit 2" in text
+    assert (tmp_path / "tables" / "02_v2" / "metrics.csv").is_file()
+    res = run("report", paths[0], "-o", tmp_path / "p.pdf")
+    assert res.exit_code == 2 and "use --force" in res.output

@@ -1,0 +1,167 @@
+"""Report building blocks: normal-range flags, symmetry index, findings, normative bands, layout."""
+
+import matplotlib
+import numpy as np
+import pytest
+
+from motionlab.errors import InputError
+from motionlab.protocol import load_protocol
+from motionlab.report.model import SessionView, compare, rom_rows, symmetry_rows
+from motionlab.report.normative import band_for, load_bands
+from motionlab.report.pdf import RC, Document, layout_problems, page_text, text_width, wrap
+from motionlab.report.text import findings, rom_sentence, span
+from motionlab.session import Session
+
+
+def _angle(lo: float, hi: float, reps: int = 10) -> dict:
+    """A metrics entry whose cycles all go from ``lo`` to ``hi`` (deg)."""
+    return {
+        "rom_deg": hi - lo + 2.0,
+        "min_deg": lo - 1.0,
+        "max_deg": hi + 1.0,
+        "repetitions": reps,
+        "cycle_max_mean_deg": hi,
+        "cycle_min_mean_deg": lo,
+        "curve_mean_deg": np.linspace(lo, hi, 101),
+        "curve_sd_deg": np.ones(101),
+    }
+
+
+def _view(right: tuple, left: tuple) -> SessionView:
+    """A knee session whose gait flexion spans ``right`` and ``left`` (deg)."""
+    joints = {
+        "knee_r_flexion_deg": _angle(*right),
+        "knee_r_adduction_deg": _angle(-2.0, 4.0),
+        "knee_r_rotation_deg": _angle(-12.0, 22.0),
+        "knee_l_flexion_deg": _angle(*left),
+        "knee_l_adduction_deg": _angle(-3.0, 3.0),
+        "knee_l_rotation_deg": _angle(-5.0, 5.0),
+    }
+    metrics = {
+        "blocks": {"gait": {"start_s": 10.0, "end_s": 40.0}},
+        "joints": {"gait": joints},
+        "gait": {
+            "gait": {
+                "knee_r": {
+                    "strides": 12,
+                    "varus_thrust_deg": np.full(12, 6.0),
+                    "varus_thrust_mean_deg": 6.0,
+                    "varus_thrust_sd_deg": 0.5,
+                    "varus_thrust_above_pct": 100.0,
+                    "threshold_deg": 3.0,
+                    "stance_rotation_range_mean_deg": 8.0,
+                    "stance_rotation_range_sd_deg": 1.0,
+                }
+            }
+        },
+    }
+    return SessionView(Session(), load_protocol("knee"), None, {}, metrics)
+
+
+def test_compare_flags_ranges_outside_normal_beyond_the_tolerance():
+    assert compare(2.0, 63.0, (0, 65), reach=True) == "within"
+    assert compare(5.0, 58.0, (0, 65), reach=True) == "below"  # peak 7° short
+    assert compare(5.0, 58.0, (0, 65), reach=False) == "within"  # a band, not a range to reach
+    assert compare(-1.0, 75.0, (0, 65), reach=True) == "above"
+    assert compare(-12.0, 75.0, (0, 65), reach=True) == "wider"
+    assert compare(-12.0, 5.0, (-10, 15), reach=False) == "within"  # 2° beyond: tolerated
+    assert compare(-16.0, 5.0, (-10, 15), reach=False) == "below"
+    assert compare(0.0, 10.0, None, reach=True) == ""
+
+
+def test_issue_example_sentence():
+    row = next(
+        r for r in rom_rows(_view((5.0, 58.0), (0.0, 64.0))) if r["column"] == "knee_r_flexion_deg"
+    )
+    assert row["status"] == "below" and row["normal"] == (0.0, 65.0)
+    assert rom_sentence(row) == (
+        "Right knee flexion-extension range 5–58° during gait, below the normal 0–65°."
+    )
+    assert span(-3.2, 5.4) == "-3 to 5°"
+
+
+def test_symmetry_index_hand_computed():
+    rows = {r["angle"]: r for r in symmetry_rows(_view((5.0, 45.0), (0.0, 60.0)))}
+    # right range 40°, left 60°: SI = 100 (40 − 60) / 50 = −40 %
+    assert rows["flexion"]["symmetry_index_pct"] == pytest.approx(-40.0)
+    assert rows["flexion"]["flag"]
+    # adduction: ranges 6° and 6°, mean below 10°: no index
+    assert np.isnan(rows["adduction"]["symmetry_index_pct"]) and not rows["adduction"]["flag"]
+    # rotation: 34° vs 10°: SI = 100 × 24 / 22
+    assert rows["rotation"]["symmetry_index_pct"] == pytest.approx(100 * 24 / 22)
+
+
+def test_findings_put_abnormal_first_and_name_side_joint_task():
+    items = findings(_view((5.0, 45.0), (0.0, 64.0)))
+    assert items[0].startswith("Right knee flexion-extension range 5–45° during gait, below")
+    assert any(
+        "Right knee internal-external rotation range -12 to 22° during gait, above" in i
+        for i in items
+    )
+    assert any("differs between sides: right 40°, left 64°" in i for i in items)
+    assert any(
+        i.startswith("Right knee varus thrust 6° in stance during gait (above") for i in items
+    )
+    assert any(
+        i.startswith("Left knee flexion-extension range 0–64° during gait, within") for i in items
+    )
+
+
+def test_normative_band_interpolates_key_instants_and_names_its_source():
+    band = band_for("gait", "knee", "flexion")
+    assert band is not None and len(band.mean) == 101
+    assert band.mean[0] == pytest.approx(5.0) and band.mean[73] == pytest.approx(62.0)
+    assert band.mean[62] == pytest.approx(40.0) and np.all(band.sd == pytest.approx(5.0))
+    assert band.mean.max() == pytest.approx(62.0, abs=0.5)  # PCHIP does not overshoot
+    assert "Perry" in band.source
+    assert band_for("squat", "knee", "flexion") is None
+    assert all(b.source for b in load_bands().values())
+
+
+def test_band_file_errors_name_file_and_place(tmp_path):
+    curves = tmp_path / "c.csv"
+    curves.write_text("task,angle,percent_pct,mean_deg,sd_deg\ngait,x,0,1,1\ngait,x,50,2,1\n")
+    sources = tmp_path / "s.yaml"
+    sources.write_text("curves: {gait: {x: {source: me}}}\n")
+    with pytest.raises(InputError, match="c.csv task gait, angle x: key instants"):
+        load_bands(curves, sources)
+    curves.write_text("task,angle,percent\n")
+    with pytest.raises(InputError, match="missing columns"):
+        load_bands(curves, sources)
+
+
+def test_wrap_keeps_every_line_inside_the_width():
+    text = "Sensor-to-segment calibration finds how each sensor sits on its segment " * 8
+    lines = wrap(text, 3.0, 9.5)
+    assert len(lines) > 3
+    assert all(text_width(line, 9.5) <= 3.0 for line in lines)
+    assert " ".join(lines).split() == text.split()
+
+
+def test_long_table_continues_on_a_new_page_with_its_header_and_no_overlap():
+    with matplotlib.rc_context(RC):
+        doc = Document("motionlab report · test", "subject X")
+        doc.section("Table", "A table longer than one page.")
+        rows = [
+            [f"row {i}", f"{i * 1.5:.1f}", "a longer cell that has to wrap " * 2] for i in range(70)
+        ]
+        doc.table(["Name", "Value (°)", "Note"], rows, [0.2, 0.2, 0.6])
+        assert len(doc.pages) >= 2
+        texts = [page_text(f) for f in doc.pages]
+        assert all("Value (°)" in t for t in texts)
+        assert "Table (continued)" in texts[1]
+        assert "row 69" in texts[-1]
+        for fig in doc.pages:
+            assert layout_problems(fig) == []
+
+
+def test_layout_check_finds_overlapping_and_clipped_text():
+    with matplotlib.rc_context(RC):
+        doc = Document("t")
+        doc.section("S")
+        doc.fig.text(0.5, 0.5, "overlapping words")
+        doc.fig.text(0.5, 0.5, "more words")
+        doc.fig.text(0.98, 0.2, "runs off the right edge of the page")
+        problems = layout_problems(doc.fig)
+    assert any(p.startswith("overlap") for p in problems)
+    assert any(p.startswith("off the page") for p in problems)
