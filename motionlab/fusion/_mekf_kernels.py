@@ -14,10 +14,14 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from motionlab.fusion import _mekf_monitor as mon_k
+
 # indices of the float parameter vector passed to the forward kernel
 GYR_NOISE, BIAS_RW, ACC_NOISE, ACC_REST_NOISE, REST_NOISE, GRAVITY = 0, 1, 2, 3, 4, 5
 MAG_NOISE, MAG_REST_NOISE, MAG_NORM_TOL, MAG_DIP_TOL, MAG_REF_TAU, MAG_NEW_FIELD_T = range(6, 12)
-N_PARAMS = 12
+ATT_INIT, RESET_TILT, RESET_HEADING, RESET_TIME, RESET_HEADING_TIME = range(12, 17)
+RESET_TAU, RESET_NOISE, RESET_AGREE, MAG_NEW_FIELD_MIN = range(17, 21)
+N_PARAMS = 21
 
 
 @numba.njit(cache=True, inline="always")
@@ -150,15 +154,21 @@ def forward(
     quat: np.ndarray,
     bias: np.ndarray,
     mag_dist: np.ndarray,
+    reset: np.ndarray,
     p_post: np.ndarray,
     p_prior: np.ndarray,
     store: bool,
 ) -> None:
     """Run the error-state EKF over all samples, writing into the preallocated outputs.
 
-    ``quat`` (N×4), ``bias`` (N×3) and ``mag_dist`` (N) receive the posterior estimates;
-    with ``store`` the posterior and prior covariances go into ``p_post``/``p_prior``
-    (N×6×6) for the smoother.
+    ``quat`` (N×4), ``bias`` (N×3), ``mag_dist`` and ``reset`` (N) receive the posterior
+    estimates and the samples where the attitude was re-initialised; with ``store`` the
+    posterior and prior covariances go into ``p_post``/``p_prior`` (N×6×6) for the smoother.
+
+    A reset found at sample k is applied at k+1 as process noise plus a measurement: the
+    attitude covariance is inflated by ``ATT_INIT²`` in the prior (so the smoother's backward
+    pass decouples the samples before the reset, whose estimates were inconsistent), then the
+    vector-attitude correction is measured with standard deviation ``RESET_NOISE``.
     """
     n = gyr.shape[0]
     q = q0.copy()
@@ -169,6 +179,13 @@ def forward(
     dx = np.zeros(6)
     kvec = np.empty(6)
     row = np.empty(6)
+    mon = np.empty(mon_k.N_MONITOR)
+    corr = np.zeros(3)
+    mon_k.monitor_clear(mon)
+    alpha = min(1.0, dt / prm[RESET_TAU])
+    cos_tilt = np.cos(prm[RESET_TILT])
+    cos_heading = np.cos(prm[RESET_HEADING])
+    mx, my, mz = 0.0, 0.0, 0.0
     qa = prm[GYR_NOISE] ** 2 * dt
     qb = prm[BIAS_RW] ** 2 * dt
     g = prm[GRAVITY]
@@ -178,6 +195,9 @@ def forward(
     cand_n = 0.0
     cand_d = 0.0
     cand_t = 0.0
+    ref_age = 0.0
+    mode = 0
+    with_heading = False
     for k in range(n):
         wx = gyr[k, 0] - b[0]
         wy = gyr[k, 1] - b[1]
@@ -186,10 +206,31 @@ def forward(
             _quat_mul_exp_right(q, wx * dt, wy * dt, wz * dt)
             _rot_matrix(q, r)
             _predict(p, r, dt, qa, qb, t)
-        if store:
-            p_prior[k] = p
         for i in range(6):
             dx[i] = 0.0
+        reset[k] = mode != 0
+        if mode != 0:
+            first = 0 if mode == 1 else 2
+            for i in range(first, 3):
+                p[i, i] += prm[ATT_INIT] ** 2
+        if store:
+            p_prior[k] = p
+        if mode != 0:
+            var = prm[RESET_NOISE] ** 2
+            if mode == 1:
+                _scalar_update(p, dx, 0, corr[0], var, False, kvec, row)
+                _scalar_update(p, dx, 1, corr[1] - dx[1], var, False, kvec, row)
+                if with_heading:
+                    _scalar_update(p, dx, 2, corr[2] - dx[2], var, False, kvec, row)
+            else:
+                _scalar_update(p, dx, 2, corr[2], var, True, kvec, row)
+            _quat_mul_exp_left(dx[0], dx[1], dx[2], q)
+            for i in range(3):
+                b[i] += dx[3 + i]
+                dx[i] = 0.0
+                dx[3 + i] = 0.0
+            mon_k.monitor_clear(mon)
+            mode = 0
         if rest[k]:
             var = prm[REST_NOISE] ** 2
             for i in range(3):
@@ -197,18 +238,23 @@ def forward(
         _rot_matrix(q, r)
         # earth-frame acc over g, linear in acc (not normalised by |acc|): zero-mean linear
         # acceleration then averages out instead of being weighted by its own magnitude
-        ex = (r[0, 0] * acc[k, 0] + r[0, 1] * acc[k, 1] + r[0, 2] * acc[k, 2]) / g
-        ey = (r[1, 0] * acc[k, 0] + r[1, 1] * acc[k, 1] + r[1, 2] * acc[k, 2]) / g
+        ax = r[0, 0] * acc[k, 0] + r[0, 1] * acc[k, 1] + r[0, 2] * acc[k, 2]
+        ay = r[1, 0] * acc[k, 0] + r[1, 1] * acc[k, 1] + r[1, 2] * acc[k, 2]
+        az = r[2, 0] * acc[k, 0] + r[2, 1] * acc[k, 1] + r[2, 2] * acc[k, 2]
+        ex = ax / g
+        ey = ay / g
         var = (prm[ACC_REST_NOISE] if rest[k] else prm[ACC_NOISE]) ** 2
-        # residual e_z × δθ = (−δθ_y, δθ_x): two scalar updates
-        _scalar_update(p, dx, 1, -ex - dx[1], var, False, kvec, row)
-        _scalar_update(p, dx, 0, ey - dx[0], var, False, kvec, row)
+        # residual e_z × δθ = (−δθ_y, δθ_x): two scalar updates, gated while inconsistent
+        if not mon_k.tilt_run(mon):
+            _scalar_update(p, dx, 1, -ex - dx[1], var, False, kvec, row)
+            _scalar_update(p, dx, 0, ey - dx[0], var, False, kvec, row)
         _quat_mul_exp_left(dx[0], dx[1], dx[2], q)
         for i in range(3):
             b[i] += dx[3 + i]
             dx[i] = 0.0
             dx[3 + i] = 0.0
         mag_dist[k] = False
+        mag_ok = False
         if use_mag:
             _rot_matrix(q, r)
             mx = r[0, 0] * mag[k, 0] + r[0, 1] * mag[k, 1] + r[0, 2] * mag[k, 2]
@@ -227,9 +273,11 @@ def forward(
                 if ok:
                     ref_n += a_ref * (mn - ref_n)
                     ref_d += a_ref * (dip - ref_d)
+                    ref_age += dt
                     cand_t = 0.0
                 else:
-                    # a new homogeneous field: accepted once steady for MAG_NEW_FIELD_T
+                    # a new homogeneous field: accepted once steady for as long as the
+                    # reference was seen, at least MAG_NEW_FIELD_MIN, at most MAG_NEW_FIELD_T
                     same = (
                         abs(mn - cand_n) < prm[MAG_NORM_TOL] * cand_n
                         and abs(dip - cand_d) < prm[MAG_DIP_TOL]
@@ -240,16 +288,30 @@ def forward(
                         cand_d += a_ref * (dip - cand_d)
                     else:
                         cand_n, cand_d, cand_t = mn, dip, 0.0
-                    if cand_t > prm[MAG_NEW_FIELD_T]:
-                        ref_n, ref_d, cand_t = cand_n, cand_d, 0.0
+                    if cand_t > min(prm[MAG_NEW_FIELD_T], max(prm[MAG_NEW_FIELD_MIN], ref_age)):
+                        ref_n, ref_d, ref_age, cand_t = cand_n, cand_d, cand_t, 0.0
                         ok = True
                 mag_dist[k] = not ok
+                mag_ok = ok
                 if ok:
                     var = (prm[MAG_REST_NOISE] if rest[k] else prm[MAG_NOISE]) ** 2
                     _scalar_update(p, dx, 2, np.arctan2(mx, my), var, True, kvec, row)
                     _quat_mul_exp_left(0.0, 0.0, dx[2], q)
+                    if mon_k.in_run(mon):
+                        mon_k.monitor_turn(mon, dx[2])
                     for i in range(3):
                         b[i] += dx[3 + i]
+        # the monitor sees the vectors under the estimate before this sample's small corrections
+        mode = mon_k.monitor(
+            mon, (ax, ay, az), (mx, my, mz), mag_ok, alpha, cos_tilt, cos_heading,
+            prm[RESET_TIME], prm[RESET_HEADING_TIME], prm[RESET_AGREE], dt,
+        )  # fmt: skip
+        if mode != 0:
+            with_heading = mon_k.reset_correction(
+                mon, mode, use_mag, ref_n, ref_d, prm[MAG_NORM_TOL], prm[MAG_DIP_TOL], corr
+            )
+            if mode == 1:
+                ref_age = 0.0  # learnt under the wrong attitude: a steady field may replace it
         quat[k] = q
         bias[k] = b
         if store:
