@@ -193,3 +193,23 @@ def test_figures_draw_the_stored_result(knee):
         buf = io.BytesIO()
         fig.savefig(buf, format="png", dpi=40)
         assert buf.getvalue()[:4] == b"\x89PNG", name
+
+
+def test_cli_bad_inputs_give_one_line_and_exit_2(tmp_path):
+    from motionlab.session import SensorStream
+
+    t = np.arange(10) / 100.0
+    path = tmp_path / "s.h5"
+    save_session(Session(sensors={"imu": SensorStream("imu", t, gyr=np.zeros((10, 3)))}), path)
+    bad_map = tmp_path / "map.yaml"
+    bad_map.write_text("segments:\n  imu:\n    cluster: [A, B]\n")
+    runner = CliRunner()
+    for args, message in (
+        ([str(path)], "has no optical data"),
+        ([str(path), "--reference", str(tmp_path / "none.c3d")], "no such reference file"),
+        ([str(path), "--markers", str(bad_map)], "map.yaml line 3, key segments.imu.cluster"),
+        ([str(path), "--mode", "sideways"], "Invalid value for '--mode'"),
+    ):
+        out = runner.invoke(main, ["validate", *args])
+        assert out.exit_code == 2, (args, out.output)
+        assert message in out.output, out.output

@@ -96,3 +96,20 @@ def test_default_map_by_names():
     assert broad.segments["imu"].rigid_body == "imu"
     with pytest.raises(InputError, match="no segment"):
         default_marker_map(_markers(["A", "B", "C"]), proto)
+
+
+def test_reference_files_session_and_trc(tmp_path, data_dir):
+    from motionlab.session import Session, save_session
+    from motionlab.validation.reference import choose_marker_set, read_reference
+
+    path = tmp_path / "ref.h5"
+    save_session(Session(markers={"optical": _markers(["A", "B", "C"])}), path)
+    sets = read_reference(path)
+    assert [m.name for m in sets] == ["optical"]
+    assert choose_marker_set(sets, None).labels == ["A", "B", "C"]
+    trc = read_reference(data_dir / "c3d" / "markers_20frames.trc")
+    assert len(trc) == 1 and trc[0].positions.shape[0] == 20
+    with pytest.raises(InputError, match="no marker set 'lab'"):
+        choose_marker_set(sets, "lab", path)
+    with pytest.raises(InputError, match="no such reference"):
+        read_reference(tmp_path / "missing.c3d")

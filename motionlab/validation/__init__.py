@@ -31,7 +31,7 @@ from motionlab.validation.agreement import agreement, per_repetition, repetition
 from motionlab.validation.align import Alignment
 from motionlab.validation.align import align as estimate_alignment
 from motionlab.validation.markermap import MarkerMap, check_marker_map, default_marker_map
-from motionlab.validation.optical import resample_quat
+from motionlab.validation.optical import angular_velocity, resample_quat
 from motionlab.validation.orientation_error import error_angles, orientation_errors
 from motionlab.validation.reference import OpticalSegment, choose_marker_set, optical_segments
 from motionlab.validation.sync import no_sync, synchronise
@@ -43,7 +43,7 @@ MOVEMENT_PAD_S = 0.25
 
 
 def _pairs(session: Session, mmap: MarkerMap) -> dict[str, str]:
-    """``{sensor label: segment}`` for the mapped segments that carry a sensor with gyroscope."""
+    """``{sensor label: segment}`` for the mapped segments that carry a sensor."""
     from motionlab.segments import sensor_for_segment
 
     out = {}
@@ -86,6 +86,14 @@ def movement_mask(session: Session, labels: list[str], t: np.ndarray) -> np.ndar
             near = np.minimum(np.abs(fast[k] - t), np.abs(fast[k - 1] - t))
             moving |= near <= MOVEMENT_PAD_S
     return moving
+
+
+def _angular_velocity(session: Session, label: str, q: np.ndarray) -> tuple:
+    """``(time, ω)`` of a sensor: its gyroscope, else differences of its orientation."""
+    s = session.sensors[label]
+    if s.gyr is not None:
+        return s.time, s.gyr
+    return angular_velocity(s.time, q)
 
 
 def _common_time(session: Session, labels: list[str]) -> np.ndarray:
@@ -131,13 +139,11 @@ def _optical_segment_quats(
 def _joint_angles(qp: np.ndarray, qd: np.ndarray, joint) -> dict[str, np.ndarray]:
     """:func:`joint_angles` on the rows where both orientations exist, NaN elsewhere."""
     ok = np.isfinite(qp).all(axis=1) & np.isfinite(qd).all(axis=1)
-    out = {}
-    for col, values in joint_angles(qp[ok] if ok.any() else qp[:1] * 0 + rot.IDENTITY,
-                                    qd[ok] if ok.any() else qd[:1] * 0 + rot.IDENTITY,
-                                    joint).items():  # fmt: skip
-        full = np.full(len(ok), np.nan)
-        full[ok] = values[: ok.sum()]
-        out[col] = full
+    names = [column_name(joint.type, joint.side, a) for a in JOINT_ANGLE_NAMES[joint.type]]
+    out = {col: np.full(len(ok), np.nan) for col in names}
+    if ok.any():
+        for col, values in joint_angles(qp[ok], qd[ok], joint).items():
+            out[col][ok] = values
     return out
 
 
@@ -238,7 +244,7 @@ def validate(
 
     if sync:
         clock = synchronise(
-            [(session.sensors[k].time, session.sensors[k].gyr) for k in labels],
+            [_angular_velocity(session, k, imu_q[k]) for k in labels],
             [(optical[seg_of[k]].time, optical[seg_of[k]].quat) for k in labels],
             seed=seed,
         )
@@ -276,7 +282,13 @@ def validate(
     result["sync"]["sensor_residual_s"] = {
         k: float(residual[i]) for i, k in enumerate(labels) if i < len(residual)
     }
-    notes: list[str] = []
+    notes = [f"segment {seg}: no sensor" for seg in mmap.segments if seg not in seg_of.values()]
+    spread = np.ptp(residual[np.isfinite(residual)]) if np.isfinite(residual).any() else 0.0
+    if spread * estimate_rate(t) > 1.0:
+        notes.append(
+            f"the sensors' clocks disagree by {spread * 1e3:.0f} ms (sync/sensor_residual_s): "
+            "they are not on one clock; repair the clocks at ingest"
+        )
     if protocol is not None and protocol.joints:
         seg_quats, source = _optical_segment_quats(
             optical, al, seg_of, session.results.get("calibration")
@@ -284,9 +296,10 @@ def validate(
         for seg, src in source.items():
             result["optical"][seg]["frame"] = src
         movement = (t, moving) if moving is not None else None
-        result["angles"], notes = _angles(
+        result["angles"], angle_notes = _angles(
             session, protocol, seg_quats, clock.model.to_reference, movement
         )
+        notes += angle_notes
     result["notes"] = notes
     session.results["validation"] = result
     return result

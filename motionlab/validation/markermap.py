@@ -4,7 +4,7 @@ A marker map is a YAML file; every error names the key and its line. Schema::
 
     marker_set: optical          # optional: the marker set to use when a file holds several
     max_gap_s: 0.1               # optional: longest cluster gap filled by interpolation (s)
-    lowpass_hz: 10               # optional: low-pass of the cluster poses (Hz; 0 = raw)
+    lowpass_hz: 6                # optional: low-pass of the cluster poses (Hz; 0 = raw)
     static_time_s: [3.0, 8.0]    # optional: where landmarks are read (reference clock, s);
                                  # default: the whole recording
     segments:

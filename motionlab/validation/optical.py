@@ -12,8 +12,8 @@ fitted by the weighted least-squares rigid transform of Arun, Huang & Blostein (
 seen in that frame, at least three and not collinear, with the RMS residual per frame. Gaps where
 the cluster cannot be fitted are filled by SLERP when they are short (``max_gap_s``) and left NaN
 and flagged otherwise. The pose is then low-passed (zero-phase 4th-order Butterworth on the
-sign-continuous quaternion components and the origin, 10 Hz by default; Winter 2009 uses 6 Hz
-for gait markers), which removes most of the marker noise without touching human movement.
+sign-continuous quaternion components and the origin, 6 Hz by default, as Winter (2009) uses
+for gait markers), which removes most of the marker noise and keeps the movement.
 Angular velocity from an orientation sequence follows Ricci (2015, eqs. 5.11-5.12):
 ``ω_k = 2 log(q_k* ⊗ q_{k+1}) / Δt`` in the moving frame.
 """
@@ -30,7 +30,7 @@ from motionlab.errors import InputError
 
 MIN_MARKERS = 3
 DEFAULT_MAX_GAP_S = 0.1
-DEFAULT_LOWPASS_HZ = 10.0
+DEFAULT_LOWPASS_HZ = 6.0
 _PROCRUSTES_ITERATIONS = 3
 _SHAPE_FRAMES = 3000
 _COLLINEAR = 1e-3  # second singular value / first below this: the visible markers are a line
