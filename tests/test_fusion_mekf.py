@@ -8,6 +8,7 @@ from fusion_signals import FIELD, G, constant_rotation, heading_aligned, wrong_s
 
 from motionlab import rotations as rot
 from motionlab.fusion import DEFAULT_ESTIMATOR, estimate
+from motionlab.fusion.mekf import MekfParams, causal_rest
 from motionlab.validation.orientation_error import error_angles, orientation_errors
 
 
@@ -40,16 +41,86 @@ def test_smoother_is_the_default():
     assert DEFAULT_ESTIMATOR == "smoother"
 
 
+def _wrong_pose_start(sig: dict, axis, degrees: float, seconds: float = 0.5) -> dict:
+    """``sig`` with the first ``seconds`` of acc and mag from the pose rotated by ``degrees``
+    about the earth-frame ``axis`` (a wrong start about any axis, e.g. heading only)."""
+    k = int(seconds * sig["rate"])
+    wrong = rot.mul(rot.from_axis_angle(axis, np.deg2rad(degrees)), sig["quat"][:k])
+    out = {**sig, "acc": sig["acc"].copy(), "mag": sig["mag"].copy()}
+    out["acc"][:k] = rot.rotate(rot.conj(wrong), np.array([0.0, 0.0, G]))
+    out["mag"][:k] = rot.rotate(rot.conj(wrong), FIELD)
+    return out
+
+
 @pytest.mark.parametrize("name", ["mekf", "smoother"])
 def test_converges_from_a_90_degree_wrong_start(name):
     sig = wrong_start(constant_rotation(seconds=60.0, omega=(0.2, -0.1, 0.3)))
     res = estimate(name, sig["gyr"], sig["acc"], sig["mag"], rate=sig["rate"])
     err = error_angles(res.quat, sig["quat"])["total"]
+    # one reset, ≈1.2 s after the data start to contradict the estimate (at 0.5 s)
+    assert len(res.extra["resets"]) == 1 and 100 < res.extra["resets"][0] < 200
     if name == "mekf":
         assert err[0] > 80.0
-    # the defaults average slowly (tuned for BROAD): within 20° after 10 s, 5.5° after 40 s
-    assert np.max(err[1000:]) < 20.0
-    assert np.max(err[4000:]) < 5.5
+        assert np.max(err[200:]) < 2.0  # measured 1.2°
+    else:  # the state at the reset is carried back to the start
+        assert res.extra["carried_back"] == res.extra["resets"][0]
+        assert np.max(err) < 1.0  # measured 0.5°
+
+
+@pytest.mark.parametrize("name", ["mekf", "smoother"])
+@pytest.mark.parametrize(("axis", "degrees"), [((0.0, 0.0, 1.0), 120.0), ((1.0, -1.0, 0.3), 170.0)])
+def test_converges_from_a_wrong_heading_or_upside_down(name, axis, degrees):
+    truth = constant_rotation(seconds=20.0)
+    sig = _wrong_pose_start(truth, axis, degrees)
+    res = estimate(name, sig["gyr"], sig["acc"], sig["mag"], rate=sig["rate"])
+    err = error_angles(res.quat, truth["quat"])
+    assert len(res.extra["resets"]) == 1
+    assert np.max(err["total"][500:]) < 2.0  # measured ≤ 1.0°
+    if name == "smoother":
+        assert np.max(err["total"]) < 2.0
+
+
+@pytest.mark.parametrize("name", ["mekf", "smoother"])
+def test_6d_converges_from_a_wrong_start(name):
+    sig = wrong_start(constant_rotation())
+    res = estimate(name, sig["gyr"], sig["acc"], None, rate=sig["rate"])
+    err = error_angles(res.quat, sig["quat"])
+    assert len(res.extra["resets"]) == 1
+    assert np.max(err["inclination"][300:]) < 1.5  # measured 0.9° (mekf), 0.3° (smoother)
+
+
+@pytest.mark.parametrize("name", ["mekf", "smoother"])
+def test_no_reset_without_a_contradiction(name):
+    for sig in (constant_rotation(), _rest_then_motion(bias=(0.01, -0.01, 0.005), seed=3)):
+        res = estimate(name, sig["gyr"], sig["acc"], sig["mag"], rate=sig["rate"])
+        assert res.extra["resets"] == []
+
+
+@pytest.mark.parametrize("name", ["mekf", "smoother"])
+def test_recovers_from_a_gyroscope_glitch(name):
+    # 0.1 s of a 15.7 rad/s spurious rate at 20 s: the integrated attitude jumps by 90°
+    sig = constant_rotation(seconds=40.0, seed=4)
+    gyr = sig["gyr"].copy()
+    gyr[2000:2010, 0] += 15.7
+    res = estimate(name, gyr, sig["acc"], sig["mag"], rate=sig["rate"])
+    err = error_angles(res.quat, sig["quat"])["total"]
+    assert len(res.extra["resets"]) == 1 and 2000 < res.extra["resets"][0] < 2200
+    assert np.max(err[2300:]) < 5.0  # measured 4.1° (mekf), 3.4° (smoother)
+    if name == "mekf":
+        assert np.max(err[:2000]) < 2.0
+
+
+def test_mekf_rest_detection_is_causal():
+    sig = _rest_then_motion()
+    p = MekfParams()
+    rest = causal_rest(sig["gyr"], sig["acc"], sig["rate"], p)
+    np.testing.assert_array_equal(
+        rest[:700], causal_rest(sig["gyr"][:700], sig["acc"][:700], 100, p)
+    )
+    # rest until the motion starts (sample 500); again 2 s (0.5 s window + 1.5 s) into the
+    # final rest (from 4500)
+    assert rest[:500].all() and not rest[500:4500].any()
+    assert not rest[4500:4640].any() and rest[4700:].all()
 
 
 @pytest.mark.parametrize("name", ["mekf", "smoother"])
@@ -115,6 +186,7 @@ def test_broad_smoother_accuracy():
             gyr, acc, mag = f["imu_gyr"][:], f["imu_acc"][:], f["imu_mag"][:]
             ref, mask, rate = f["opt_quat"][:], f["movement"][:], f.attrs["sampling_rate"]
         res = estimate("default", gyr, acc, mag, rate=rate)
+        assert res.extra["resets"] == []
         totals.append(orientation_errors(res.quat, ref, mask.astype(bool))["total_rmse_deg"])
     # measured 0.56° and 0.93° (offline VQF: 1.01°, 1.16°)
     assert np.mean(totals) < 1.0

@@ -38,7 +38,7 @@ shortest rotation taking their mean acceleration to up, and the heading of their
 matches the reference norm and dip (TRIAD, gravity exact) — with the attitude covariance reset:
 ``att_init²`` is added to the prior as process noise and the correction enters as a measurement
 of standard deviation ``reset_noise``. On BROAD no reset occurs; with the defaults a 90° error
-falls below 1° about 1.5 s after the data start to contradict it.
+falls below 1° about 1.2 s after the data start to contradict it.
 
 The smoother stores the filter's prior and posterior covariances and runs the RTS backward pass on
 the error state, bias included (Särkkä, *Bayesian Filtering and Smoothing*, 2013, eq. 8.6). The
