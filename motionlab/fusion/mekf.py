@@ -163,7 +163,7 @@ class MekfParams:
 
 @dataclass
 class SmootherParams(MekfParams):
-    """Tunables of the RTS smoother: those of the forward filter, and the restart rule."""
+    """Tunables of the RTS smoother: those of the forward filter, and the carry-back rule."""
 
     early_reset_window: float = field(
         default=10.0,
