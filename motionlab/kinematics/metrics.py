@@ -166,14 +166,15 @@ def compute_metrics(
                 hs, to = cyc.gait_events(np.interp(time[win], tw, w), rate)
                 cycles = cyc.strides(hs, to, rate)
                 if "varus_thrust" in todo:
-                    out.setdefault("gait", {}).setdefault(name, {})[joint.name] = (
-                        oop.stance_metrics(
-                            table[cols[1]][win],
-                            table[cols[2]][win],
-                            cycles,
-                            float(th.get("varus_thrust_deg", 3.0)),
-                        )
+                    stance = oop.stance_metrics(
+                        table[cols[1]][win],
+                        table[cols[2]][win],
+                        cycles,
+                        float(th.get("varus_thrust_deg", 3.0)),
                     )
+                    stance["heel_strike_s"] = time[win][cycles.start]
+                    stance["toe_off_s"] = time[win][cycles.peak]
+                    out.setdefault("gait", {}).setdefault(name, {})[joint.name] = stance
             else:
                 plane = primary_plane(joint, task)
                 cycles = cyc.find_repetitions(table[cols[plane]][win], rate)

@@ -136,14 +136,20 @@ def heading_anchors(
     axis_p, axis_d = axis_vector(va[p]), axis_vector(va.get(d, va[p]))
     if times and abs(axis_p[1]) < 0.5:
         return times, deltas  # pose not about the long axis (supine): no pose anchors
-    windows = heading.reference_rests(t, qp, qd, axis_p, axis_d, loose_distal=d not in va)
     rng = steps.get(name)
-    if not windows and rng:
-        windows = [slice(*np.searchsorted(t, rng))]
-    for w in windows:
+    if rng:
+        w = slice(*np.searchsorted(t, rng))
         if w.stop - w.start > 2:
             times.append(float(t[w].mean()))
             deltas.append(heading.heading_from_pose(qp[w], qd[w]))
+    turned = np.cumsum(np.abs(heading.earth_rates(t, qp)[:, 2]) * np.gradient(t))
+    for w in heading.reference_rests(t, qp, qd, axis_p, axis_d, loose_distal=d not in va):
+        delta = heading.heading_from_pose(qp[w], qd[w])
+        at = float(t[w].mean())
+        if times and not heading.on_track(times, deltas, at, delta, turned, t):
+            continue  # a held pose (a turned trunk), not the reference pose
+        times.append(at)
+        deltas.append(delta)
     return times, deltas
 
 

@@ -13,9 +13,12 @@ between them (held before the first and after the last):
   horizontal components (:func:`heading_from_rates`);
 - the reference pose (standing): the two segment frames coincide, so ``δ`` maximises
   ``tr(R_prox,kᵀ R_z(δ) R_dist,k)`` over the still window (:func:`heading_from_pose`); later rests
-  in the same pose (both segments still, their vertical axes within ``REST_TILT_DEG`` of
-  vertical) re-reference it, which removes the drift between tasks (To 2012 §8.2 re-references at
-  pauses);
+  in the same pose (both segments still for ``REST_MIN_S``, their vertical axes within
+  ``REST_TILT_DEG`` of vertical) re-reference it, which removes the drift between tasks (To 2012
+  §8.2 re-references at pauses). A rest whose δ is off the track so far by more than
+  ``REST_JUMP_DEG`` plus the drift the turning since the last anchor can explain
+  (``DRIFT_PER_TURN`` of the proximal segment's accumulated turning about the vertical) is a
+  held pose (a turned trunk), not the reference pose, and is skipped (:func:`on_track`);
 - the hinge constraint (:func:`heading_from_hinge`): the joint axis seen from both segments
   (after Laidig et al., Sensors 2022 22:9850).
 """
@@ -30,7 +33,9 @@ from motionlab import rotations as rot
 UP = np.array([0.0, 0.0, 1.0])
 REST_RATE_RAD_S = 0.15
 REST_TILT_DEG = 10.0
-REST_MIN_S = 1.0
+REST_MIN_S = 2.0
+REST_JUMP_DEG = 6.0
+DRIFT_PER_TURN = 0.02  # heading drift allowed per turn of the segment (gyro scale errors)
 
 
 def heading_from_pose(q_proximal: np.ndarray, q_distal: np.ndarray) -> float:
@@ -98,6 +103,24 @@ def reference_rests(
     ok = binary_opening(ok, np.ones(max(1, int(REST_MIN_S * rate)), bool))
     edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(int), 0]))
     return [slice(a, b) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
+
+def on_track(
+    times: list[float],
+    deltas: list[float],
+    at: float,
+    delta: float,
+    turned: np.ndarray,
+    t: np.ndarray,
+) -> bool:
+    """Whether a rest's ``delta`` at time ``at`` fits the anchors so far (see the module notes).
+
+    ``turned`` (rad, on ``t``) is the proximal segment's accumulated turning about the vertical.
+    """
+    pred = heading_track(np.array(times), np.array(deltas), np.array([at]))[0]
+    since = np.interp(at, t, turned) - np.interp(max(times), t, turned)
+    allowed = np.radians(REST_JUMP_DEG) + DRIFT_PER_TURN * max(since, 0.0)
+    return abs(float(np.angle(np.exp(1j * (delta - pred))))) <= allowed
 
 
 def heading_track(times: np.ndarray, deltas: np.ndarray, t: np.ndarray) -> np.ndarray:

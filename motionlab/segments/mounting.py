@@ -5,8 +5,9 @@ Each step gives axis records per segment (sensor-frame axis ↔ segment axis, wi
 - static pose: gravity ("up") for the step's ``vertical_axis`` (:mod:`.static`);
 - functional movement: the rotation axis by uncentred SVD of the gyroscope (:mod:`.functional`),
   or, with the step option ``axis_method: hinge``, Seel's hinge axes from the gyroscopes of the
-  moving knee or elbow's two segments (:mod:`.hinge`): the distal segment's axis, and the same
-  axis in the proximal segment (the flexion axis belongs to both in the reference pose).
+  moving knee or elbow's two segments (:mod:`.hinge`): the distal segment's axis, and, when the
+  proximal segment moved too (else the constraint leaves its axis free), the same axis in the
+  proximal segment (the flexion axis belongs to both in the reference pose).
   For a knee or elbow flexion the hinge fit is run in any case and the angle between its axis and
   the SVD axis is kept as a check (``hinge_check_deg``).
 
@@ -36,6 +37,7 @@ from motionlab.segments.hinge import hinge_axes
 from motionlab.segments.static import gravity_axis
 from motionlab.session import estimate_rate
 
+HINGE_MIN_MOTION = 0.2
 GYR_LOWPASS_HZ = 4.0  # functional movements are slower; soft-tissue wobble is 10-20 Hz
 Stream = tuple[np.ndarray, np.ndarray, np.ndarray]  # time (s), acc (m/s²), gyr (rad/s)
 
@@ -88,8 +90,12 @@ def _record(
     }
 
 
-def _hinge(protocol, step, joint, streams, rng) -> tuple[np.ndarray, np.ndarray, float]:
-    """Seel's axes of ``joint`` over the step window (proximal, distal sensor frames)."""
+def _hinge(protocol, step, joint, streams, rng) -> tuple[np.ndarray | None, np.ndarray, float]:
+    """Seel's axes of ``joint`` over the step window (proximal, distal sensor frames).
+
+    The proximal axis is ``None`` when the proximal segment hardly moved (its angular velocity
+    RMS below ``HINGE_MIN_MOTION`` of the distal's): the constraint does not fix it then.
+    """
     tp, _, gp = streams[joint.proximal]
     td, _, gd = streams[joint.distal]
     sel = (tp >= rng[0]) & (tp <= rng[1])
@@ -97,7 +103,9 @@ def _hinge(protocol, step, joint, streams, rng) -> tuple[np.ndarray, np.ndarray,
     seg_axis = axis_vector(step.axis[joint.distal])
     prior_p = protocol.segments[joint.proximal].nominal_mounting().T @ seg_axis
     prior_d = protocol.segments[joint.distal].nominal_mounting().T @ seg_axis
-    return hinge_axes(gp[sel], gd_at, prior_p, prior_d)
+    j_p, j_d, residual = hinge_axes(gp[sel], gd_at, prior_p, prior_d)
+    moved = np.sqrt(np.mean(gp[sel] ** 2)) >= HINGE_MIN_MOTION * np.sqrt(np.mean(gd_at**2))
+    return (j_p if moved else None), j_d, residual
 
 
 def measure(
@@ -140,9 +148,10 @@ def measure(
             rec["hinge_residual_rad_s"] = residual
             if step.axis_method == "hinge":
                 rec.update(sensor_axis=j_d, method="hinge")
-                out[joint.proximal][f"{step.name}:hinge"] = _record(
-                    step, joint.proximal, rec["segment_axis"], j_p, rec["rho"], "hinge", True
-                )
+                if j_p is not None:
+                    out[joint.proximal][f"{step.name}:hinge"] = _record(
+                        step, joint.proximal, rec["segment_axis"], j_p, rec["rho"], "hinge", True
+                    )
     return out
 
 

@@ -17,9 +17,11 @@ Steps are then matched in protocol order:
   hip flexion, may move).
 
 A step's ``time_range`` in the protocol overrides detection. A required step that is not found
-raises :class:`InputError` naming the step and what to do; so does an ambiguous functional step:
-the movement block right after the chosen one also fits the step, moves no other segment and fits
-no later step, and both last about the step's duration (0.5-2×), e.g. a movement done twice.
+raises :class:`InputError` naming the step and what to do; so does an ambiguous functional step
+(not the last one, which the tasks may repeat): the movement block right after the chosen one
+also fits the step, moves no other segment, fits no later step and turns about the same axis
+(within ``SAME_AXIS_DEG``), and both last about the step's duration (0.5-2×), e.g. a movement
+done twice.
 
 Task blocks (:func:`find_tasks`) are the movement blocks after the last calibration step,
 matched to the protocol's tasks in order (moves shorter than ``MIN_TASK_S`` left out and blocks
@@ -37,6 +39,7 @@ from scipy.signal import butter, sosfiltfilt
 
 from motionlab.errors import InputError
 from motionlab.protocol import CalibrationStep, Protocol, axis_vector
+from motionlab.segments.functional import functional_axis
 
 GRID_HZ = 50.0
 LOWPASS_HZ = 2.0
@@ -49,6 +52,7 @@ LEAD_FRACTION = 0.6
 QUIET_FRACTION = 0.3
 MOVE_FRACTION = 0.15
 MIN_TASK_S = 2.0
+SAME_AXIS_DEG = 20.0
 
 
 @dataclass
@@ -120,7 +124,7 @@ def _functional_match(step: CalibrationStep, block: Block) -> bool:
         return False
     if step.optional:
         others = [r for s, r in block.rate.items() if s not in step.segments]
-        return any(r < QUIET_FRACTION * fastest for r in others)
+        return not others or any(r < QUIET_FRACTION * fastest for r in others)
     return True
 
 
@@ -128,15 +132,31 @@ def _fmt(b: Block) -> str:
     return f"{b.start:.1f}-{b.end:.1f} s"
 
 
+def _same_axis(step: CalibrationStep, a: Block, b: Block, streams) -> bool:
+    """Whether the step's first segment turns about the same sensor axis in blocks a and b."""
+    t, _, gyr = streams[next(s for s in step.axis if s in streams)]
+    axes = []
+    for blk in (a, b):
+        sel = (t >= blk.start) & (t <= blk.end)
+        if sel.sum() < 10:
+            return False
+        axes.append(functional_axis(gyr[sel])[0])
+    return abs(float(axes[0] @ axes[1])) > np.cos(np.radians(SAME_AXIS_DEG))
+
+
 def _check_unambiguous(
-    step: CalibrationStep, hit: int, bl: list[Block], later: list[CalibrationStep], protocol
+    step: CalibrationStep,
+    hit: int,
+    bl: list[Block],
+    later: list[CalibrationStep],
+    protocol,
+    streams,
 ) -> None:
     """Refuse a functional step whose next movement block is a second candidate for it.
 
-    Only inside the calibration: after the last required step come the tasks, which may well
-    repeat the calibration movements (the lumbar protocol does).
+    Not for the last step: the tasks that follow may well repeat it (the lumbar protocol does).
     """
-    if not any(not s.optional for s in later):
+    if not later:
         return
     nxt = next((i for i in range(hit + 1, len(bl)) if bl[i].moving), None)
     if nxt is None or not _functional_match(step, bl[nxt]):
@@ -152,7 +172,7 @@ def _check_unambiguous(
     def fits(b: Block) -> bool:
         return 0.5 * step.duration_s <= b.end - b.start <= 2.0 * step.duration_s
 
-    if fits(bl[hit]) and fits(bl[nxt]):
+    if fits(bl[hit]) and fits(bl[nxt]) and _same_axis(step, bl[hit], bl[nxt], streams):
         raise InputError(
             f"calibration step '{step.name}' is ambiguous: two candidate windows, "
             f"{_fmt(bl[hit])} and {_fmt(bl[nxt])}",
@@ -199,7 +219,7 @@ def find_steps(
             trim = min(0.5, 0.2 * (b.end - b.start))
             found[step.name] = (b.start + trim, b.end - trim)
         else:
-            _check_unambiguous(step, hit, bl, protocol.calibration[k + 1 :], protocol)
+            _check_unambiguous(step, hit, bl, protocol.calibration[k + 1 :], protocol, streams)
             found[step.name] = (b.start, b.end)
         t_used = b.end
         pos = hit + 1

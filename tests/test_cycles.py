@@ -1,0 +1,100 @@
+"""Repetitions, gait events and cycle normalisation on signals with known events."""
+
+import numpy as np
+import pytest
+
+from motionlab.kinematics.cycles import (
+    Cycles,
+    find_repetitions,
+    gait_events,
+    mean_sd,
+    normalise,
+    strides,
+)
+
+RATE = 100.0
+
+
+def reps_signal(n_reps=5, peak=60.0, period=3.0, pause=1.0, sign=1.0, base=10.0, seed=0):
+    """``n_reps`` raised-cosine excursions from ``base`` with pauses; true start/peak/end (s)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0, 2.0 + n_reps * (period + pause) + 2.0, 1 / RATE)
+    x = np.full(len(t), base)
+    events = []
+    for k in range(n_reps):
+        t0 = 2.0 + k * (period + pause)
+        on = (t >= t0) & (t <= t0 + period)
+        x[on] += sign * peak * (1 - np.cos(2 * np.pi * (t[on] - t0) / period)) / 2
+        events.append((t0, t0 + period / 2, t0 + period))
+    return t, x + rng.normal(0, 0.3, len(t)), np.array(events)
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_repetitions_found_with_their_boundaries(sign):
+    t, x, events = reps_signal(sign=sign)
+    c = find_repetitions(x, RATE)
+    assert len(c) == 5
+    assert np.allclose(t[c.peak], events[:, 1], atol=0.1)
+    # the repetition starts and ends where the curve is within 5 % of the excursion of the base
+    assert np.all(np.abs(t[c.start] - events[:, 0]) < 0.5)
+    assert np.all(np.abs(t[c.end] - events[:, 2]) < 0.5)
+    assert np.all(c.start < c.peak) and np.all(c.peak < c.end)
+
+
+def test_symmetric_movement_counts_one_repetition_per_period():
+    t = np.arange(0, 32, 1 / RATE)
+    x = 25 * np.sin(2 * np.pi * (t - 2) / 8.0) * (t > 2) * (t < 26)  # 3 periods of ±25°
+    c = find_repetitions(x, RATE)
+    assert len(c) == 3
+    assert np.allclose(x[c.peak], 25, atol=0.5)
+
+
+def test_no_repetition_in_a_still_or_empty_curve():
+    assert len(find_repetitions(np.full(500, 3.0) + 0.01 * np.sin(np.arange(500)), RATE)) == 0
+    assert len(find_repetitions(np.array([1.0, 2.0]), RATE)) == 0
+    assert len(find_repetitions(np.full(100, np.nan), RATE)) == 0
+
+
+def test_normalise_and_mean_sd():
+    values = np.arange(1000, dtype=float)
+    c = Cycles(np.array([0, 200, 500]), np.array([50, 300, 600]), np.array([200, 500, 900]))
+    curves = normalise(values, c)
+    assert curves.shape == (3, 101)
+    assert np.allclose(curves[1], np.linspace(200, 500, 101))
+    mean, sd = mean_sd(curves)
+    assert mean[0] == pytest.approx((0 + 200 + 500) / 3)
+    assert sd[-1] == pytest.approx(np.std([200, 500, 900], ddof=1))
+    mean1, sd1 = mean_sd(curves[:1])
+    assert np.all(sd1 == 0) and np.allclose(mean1, curves[0])
+    nan_mean, _ = mean_sd(np.zeros((0, 101)))
+    assert nan_mean.shape == (101,) and np.isnan(nan_mean).all()
+
+
+def shank_rate(stride=1.1, n=8, seed=1):
+    """Shank sagittal rate (rad/s): mid-swing peak, toe-off dip before, heel-strike dip after."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0, n * stride + 1.0, 1 / RATE)
+    w = np.zeros(len(t))
+    hs, to = [], []
+    for k in range(n):
+        mid = 0.5 + k * stride
+        w += 5.0 * np.exp(-0.5 * ((t - mid) / 0.08) ** 2)
+        w -= 1.5 * np.exp(-0.5 * ((t - (mid - 0.22)) / 0.03) ** 2)
+        w -= 2.0 * np.exp(-0.5 * ((t - (mid + 0.2)) / 0.03) ** 2)
+        to.append(mid - 0.22)
+        hs.append(mid + 0.2)
+    return t, w + rng.normal(0, 0.05, len(t)), np.array(hs), np.array(to)
+
+
+def test_gait_events_and_strides():
+    t, w, hs_true, to_true = shank_rate()
+    hs, to = gait_events(w, RATE)
+    assert len(hs) == len(hs_true) and len(to) == len(to_true)
+    assert np.abs(t[hs] - hs_true).max() < 0.03
+    assert np.abs(t[to] - to_true).max() < 0.03
+    s = strides(hs, to, RATE)
+    assert len(s) == len(hs_true) - 1
+    assert np.all(t[s.peak] - t[s.start] == pytest.approx(1.1 - 0.42, abs=0.04))
+    # a standing recording has no gait events
+    hs0, to0 = gait_events(np.random.default_rng(0).normal(0, 0.05, 3000), RATE)
+    assert len(hs0) == 0 and len(to0) == 0

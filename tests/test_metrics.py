@@ -1,0 +1,138 @@
+"""Metrics and out-of-plane metrics on hand-made angle curves and orientations."""
+
+import numpy as np
+import pytest
+
+from motionlab import rotations as rot
+from motionlab.kinematics import out_of_plane as oop
+from motionlab.kinematics.cycles import Cycles
+from motionlab.kinematics.joint_angles import compose
+from motionlab.kinematics.metrics import (
+    angle_metrics,
+    compute_metrics,
+    metrics_table,
+    single_plane_blocks,
+)
+from motionlab.protocol import Joint, load_protocol
+
+RATE = 100.0
+Z = np.array([0.0, 0.0, 1.0])
+KNEE_R = Joint("knee_r", "knee", "thigh_r", "shank_r", "r")
+
+
+def test_angle_metrics_rom_peaks_and_curve():
+    t = np.arange(0, 12, 1 / RATE)
+    x = 40 * (1 - np.cos(2 * np.pi * t / 4)) / 2 + 5  # 3 cycles 5 → 45 → 5
+    c = Cycles(np.array([0, 400, 800]), np.array([200, 600, 1000]), np.array([400, 800, 1199]))
+    m = angle_metrics(x, c)
+    assert m["rom_deg"] == pytest.approx(40, abs=1e-6)
+    assert m["repetitions"] == 3
+    assert np.allclose(m["cycle_max_deg"], 45, atol=1e-3)
+    assert m["cycle_min_mean_deg"] == pytest.approx(5, abs=1e-3)
+    assert m["curve_mean_deg"][50] == pytest.approx(45, abs=0.01)
+    assert m["curve_sd_deg"].max() < 0.2  # the last cycle is one sample short
+
+
+def test_cross_talk_against_nominal():
+    n = 500
+    flex = np.linspace(0, 80, n)
+    table = {
+        "knee_r_flexion_deg": flex,
+        "knee_r_adduction_deg": 0.05 * flex,  # 4° off-axis
+        "knee_r_rotation_deg": 0.1 * flex,  # 8°
+    }
+    nominal = {
+        "knee_r_flexion_deg": flex,
+        "knee_r_adduction_deg": 0.2 * flex,  # 16°
+        "knee_r_rotation_deg": 0.1 * flex,
+    }
+    m = oop.cross_talk(table, nominal, KNEE_R, 0, slice(None))
+    assert m["on_axis"] == "flexion" and m["on_axis_rom_deg"] == pytest.approx(80)
+    assert m["adduction"]["rom_deg"] == pytest.approx(4)
+    assert m["adduction"]["ratio_pct"] == pytest.approx(5)
+    assert m["adduction"]["change_pct"] == pytest.approx(-75)
+    assert m["rotation"]["change_pct"] == pytest.approx(0)
+
+
+def test_axis_angles_and_out_of_plane_offset():
+    theta = np.radians(np.linspace(0, 30, 200))
+    pelvis = np.tile(rot.IDENTITY, (200, 1))
+    # lateral bending about x only: the y and z axes turn by the same angle, x stays
+    thorax = rot.from_axis_angle(np.array([1.0, 0, 0]), theta)
+    ang = oop.axis_angles(pelvis, thorax)
+    assert np.allclose(ang[:, 0], 0, atol=1e-6)
+    assert np.allclose(ang[:, 1], np.degrees(theta)) and np.allclose(ang[:, 2], np.degrees(theta))
+    c = Cycles(np.array([0]), np.array([199]), np.array([199]))
+    m = oop.out_of_plane_offset(ang, np.zeros(3), 1, slice(None), c, 5.0)
+    assert m["axes"] == ["y", "z"] and m["peak_deg"] < 1e-6
+    # add 8° of axial rotation: the y axis stays closer, the offset is out-of-plane motion
+    twist = rot.from_axis_angle(np.array([0, 1.0, 0]), np.radians(np.linspace(0, 8, 200)))
+    ang = oop.axis_angles(pelvis, rot.mul(thorax, twist))
+    m = oop.out_of_plane_offset(ang, np.zeros(3), 1, slice(None), c, 0.5)
+    z_angle = ang[-1, 2]
+    assert m["peak_deg"] == pytest.approx(abs(30 - z_angle), abs=1e-6)
+    assert z_angle > 30 and 0 < m["above_pct"] < 100
+
+
+def test_trunk_compensation_relative_to_neutral():
+    t = np.arange(0, 10, 1 / RATE)
+    lean = np.where(t > 2, 15 * np.sin(np.pi * (t - 2) / 8) ** 2, 0.0)  # peaks at 15° forward
+    angles = np.radians(np.column_stack([lean, 0 * t, 0.5 * lean]))
+    neutral = rot.from_axis_angle(Z, 0.7)  # any heading: the neutral posture is the reference
+    q = rot.mul(np.tile(neutral, (len(t), 1)), compose(angles, "lumbar"))
+    m = oop.trunk_compensation(t, q, slice(200, None), {"flexion": 10.0, "axial_rotation": 10.0})
+    assert m["flexion"]["max_deg"] == pytest.approx(15, abs=0.05)
+    assert m["axial_rotation"]["peak_abs_deg"] == pytest.approx(7.5, abs=0.05)
+    assert m["axial_rotation"]["above_pct"] == 0.0
+    # time above 10° of a 15 sin² bump: 1 - 2 asin(sqrt(2/3)) / π of the 8 s
+    expect = 100 * (1 - 2 * np.arcsin(np.sqrt(2 / 3)) / np.pi)
+    assert m["flexion"]["above_pct"] == pytest.approx(expect, abs=1.0)
+    assert m["compensated"] is True
+
+
+def test_stance_metrics_varus_thrust():
+    t = np.arange(0, 4.4, 1 / RATE)
+    add = 2 + 4 * np.exp(-0.5 * ((t % 1.1 - 0.15) / 0.05) ** 2)  # +4° early in each stance
+    rotation = 3 * np.sin(2 * np.pi * t / 1.1)
+    hs = np.array([0, 110, 220, 330])
+    c = Cycles(hs[:-1], hs[:-1] + 66, hs[1:])
+    m = oop.stance_metrics(add, rotation, c, 3.0)
+    assert m["strides"] == 3
+    assert np.allclose(m["varus_thrust_deg"], 4 * (1 - np.exp(-0.5 * 9)), atol=0.05)
+    assert m["varus_thrust_above_pct"] == 100.0
+    # stance = the first 60 % of the stride: from the sine's maximum 3 down to 3 sin(216°)
+    expect = 3 - 3 * np.sin(2 * np.pi * 0.6)
+    assert m["stance_rotation_range_mean_deg"] == pytest.approx(expect, abs=0.05)
+
+
+def test_compute_metrics_on_a_lumbar_table_and_csv():
+    protocol = load_protocol("lumbar")
+    t = np.arange(0, 60, 1 / RATE)
+    bend = np.where((t > 10) & (t < 40), 20 * np.sin(2 * np.pi * (t - 10) / 10), 0.0)
+    angles = np.radians(np.column_stack([0 * t, bend, 0 * t]))
+    pelvis = np.tile(rot.from_axis_angle(Z, 0.3), (len(t), 1))
+    thorax = rot.mul(pelvis, compose(angles, "lumbar"))
+    table = {
+        "time_s": t,
+        "lumbar_flexion_deg": 0 * t,
+        "lumbar_lateral_bending_deg": bend,
+        "lumbar_axial_rotation_deg": 0 * t,
+    }
+    seg_q = {"pelvis": (t, pelvis), "thorax": (t, thorax)}
+    blocks = {"lateral_bending": (8.0, 42.0)}
+    steps = {"standing": (1.0, 7.0)}
+    m = compute_metrics(protocol, table, seg_q, blocks, steps, nominal_table=table)
+    lat = m["joints"]["lateral_bending"]["lumbar_lateral_bending_deg"]
+    assert lat["repetitions"] == 3 and lat["rom_deg"] == pytest.approx(40, abs=0.01)
+    off = m["out_of_plane_offset"]["lateral_bending"]["lumbar"]
+    assert off["axes"] == ["y", "z"] and off["peak_deg"] < 1e-6
+    ct = m["cross_talk"]["lateral_bending"]["lumbar"]
+    assert ct["on_axis"] == "lateral_bending" and ct["flexion"]["rom_deg"] == 0
+    blocks_found = single_plane_blocks(protocol, blocks, steps)
+    assert [(b, j.name, i) for b, j, i, _ in blocks_found] == [("lateral_bending", "lumbar", 1)]
+    df = metrics_table(m)
+    assert list(df.columns) == ["block", "joint", "angle", "metric", "percent", "value", "unit"]
+    row = df[(df.metric == "rom_deg") & (df.angle == "lateral_bending")]
+    assert row.value.item() == pytest.approx(40, abs=0.01) and row.joint.item() == "lumbar"
+    assert (df[df.metric == "curve_mean_deg"].percent.dropna().max()) == 100
+    assert "out_of_plane_peak_deg" in set(df.metric)
