@@ -5,20 +5,18 @@ Conventions: line numbers in messages are 1-based, as an editor shows them; a pa
 :class:`Table` holds one float64 row per data line (empty and ``NaN`` fields → NaN) and the
 file line number of every row, so readers can point at the line a problem comes from.
 
-Speed: a file is read once, as bytes (:class:`TextFile`); only the lines a reader looks at are
-decoded. :func:`parse_table` finds blank and comment lines with array operations over the
-first byte of every line, and parses the numeric body with ONE pandas C-parser call. Only when
-that call fails, or a row comes out short, are the fields of the lines counted (again with
-array operations) to name the first bad line.
+Speed: a file is read once, as bytes (:class:`~motionlab.io.textfile.TextFile`); only the
+lines a reader looks at are decoded. :func:`parse_table` finds blank and comment lines with
+array operations over the first byte of every line, and parses the numeric body with ONE
+pandas C-parser call. Only when that call fails, or a row comes out short, are the fields of
+the lines counted (again with array operations) to name the first bad line.
 """
 
 from __future__ import annotations
 
-import io
-import operator
 import re
 import warnings
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -26,96 +24,22 @@ import numpy as np
 import pandas as pd
 
 from motionlab.errors import InputError
+from motionlab.io.textfile import TextFile, read_lines
+
+__all__ = [
+    "COMMENT_PREFIXES", "DELIMITERS", "Table", "TextFile", "detect_delimiter", "find_line",
+    "first_content_line", "is_comment", "nan_only", "parse_table", "read_lines",
+    "require_values", "show_delimiter", "split_fields",
+]  # fmt: skip
 
 #: delimiters tried by :func:`detect_delimiter`, in order of preference
 DELIMITERS = ("\t", ";", ",", " ")
 COMMENT_PREFIXES = ("#", "//")
 
-_NEWLINE = 10
-_BLANK = np.zeros(256, dtype=bool)  # bytes skipped at the start of a line: space, tab, CR
-_BLANK[[9, 13, 32]] = True
-_SPACE = _BLANK.copy()  # bytes that separate fields of a "whitespace" delimited line
-_SPACE[_NEWLINE] = True
-
 
 def show_delimiter(delimiter: str) -> str:
     """Printable name of a delimiter for messages (``'\\t'`` → ``tab``)."""
     return {"\t": "tab", " ": "space"}.get(delimiter, f"'{delimiter}'")
-
-
-class TextFile(Sequence[str]):
-    """A text file held as bytes and seen as a sequence of lines, decoded when asked for.
-
-    ``raw`` is the content without byte-order mark, ending with ``\\n``; ``starts``/``ends``
-    the byte offsets of every line's first byte and of its ``\\n``. ``text[i]`` is line ``i``
-    (0-based) without its line ending; slices decode their lines in one go.
-    """
-
-    def __init__(self, path: str | Path, raw: bytes, encoding: str = "utf-8") -> None:
-        #: the last line has no line end (as in a file cut short)
-        self.unended = bool(raw) and not raw.endswith(b"\n")
-        if self.unended:
-            raw += b"\n"
-        self.path = Path(path)
-        self.raw = raw
-        self.encoding = encoding
-        self.bytes = np.frombuffer(raw, dtype=np.uint8)
-        self.ends = np.flatnonzero(self.bytes == _NEWLINE)
-        self.starts = np.concatenate(([0], self.ends[:-1] + 1)).astype(np.int64)
-
-    @classmethod
-    def from_lines(cls, path: str | Path, lines: Sequence[str]) -> TextFile:
-        """A :class:`TextFile` of ``lines`` (strings without line endings)."""
-        return cls(path, "\n".join(lines).encode("utf-8"), "utf-8")
-
-    def __len__(self) -> int:
-        return len(self.ends)
-
-    def __getitem__(self, i: int | slice) -> str | list[str]:  # type: ignore[override]
-        if isinstance(i, slice):
-            rows = range(len(self))[i]
-            if rows.step != 1 or not rows:
-                return [self[k] for k in rows]
-            chunk = self.raw[self.starts[rows.start] : self.ends[rows.stop - 1]]
-            return [s.rstrip("\r") for s in chunk.decode(self.encoding).split("\n")]
-        i = operator.index(i)
-        if i < 0:
-            i += len(self)
-        if not 0 <= i < len(self):
-            raise IndexError("line index out of range")
-        return self.raw[self.starts[i] : self.ends[i]].decode(self.encoding).rstrip("\r")
-
-    def __iter__(self) -> Iterator[str]:
-        return (self[i] for i in range(len(self)))
-
-
-def read_lines(path: str | Path) -> TextFile:
-    """The file's lines (UTF-8 with or without BOM, else Latin-1; ``\\r\\n``, ``\\n`` or
-    ``\\r`` line ends) as a :class:`TextFile`.
-
-    Raises :class:`InputError` for a binary file (NUL bytes).
-    """
-    path = Path(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise InputError(
-            f"cannot read the file ({exc.strerror})", path, remedy="check the path"
-        ) from None
-    if b"\0" in raw[:65536]:
-        raise InputError(
-            "binary file, not delimited text", path, remedy="export the recording as text (CSV)"
-        )
-    raw = raw.removeprefix(b"\xef\xbb\xbf")
-    encoding = "utf-8"
-    if not raw.isascii():
-        try:
-            raw.decode("utf-8")
-        except UnicodeDecodeError:
-            encoding = "latin-1"
-    if b"\n" not in raw and b"\r" in raw:  # classic Mac line ends
-        raw = raw.replace(b"\r", b"\n")
-    return TextFile(path, raw, encoding)
 
 
 def is_comment(line: str, prefixes: Sequence[str] = COMMENT_PREFIXES) -> bool:
@@ -263,12 +187,12 @@ def parse_table(
     start = header + header_rows
     stop = len(text) if end is None else min(end, len(text))
     rows = np.arange(start, max(stop, start))
-    rows = rows[~_skipped(text, rows, comments)]
+    rows = rows[~text.blank_or_comment(rows, comments)]
     if not len(rows):
         where = f"line {header + 1}" if header < len(text) else None
         if text.unended and start >= len(text):
             raise InputError(
-                "truncated: the file ends inside its header, before any data row",
+                "no data rows after the header, which has no line end: truncated?",
                 path,
                 where,
                 remedy="copy or export the file again",
@@ -314,7 +238,27 @@ def parse_table(
         )
     parse = _Parse(text, delimiter, decimal, ncol, ragged)
     rows, df, notes = parse.checked(rows)
-    data = _to_float(path, df, rows + 1, col_names, decimal)
+    data, text_cell = _to_float(df, decimal)
+    if text_cell is not None:
+        k, j, value = text_cell
+        line = rows[k] + 1
+        if k < len(rows) - 1 or not text.unended or line < len(text):
+            raise InputError(
+                f"'{value}' in numeric column '{col_names[j]}'",
+                path,
+                f"line {line}",
+                remedy="fix or delete the line, or check that the header matches the data",
+            )
+        # the file stops inside the last value ("-", "1.5e"): a truncated last line
+        if k == 0:
+            raise InputError(
+                f"truncated: the only data row ends inside a value ('{value}')",
+                path,
+                f"line {line}",
+                remedy="the file ends inside its first data row: copy or export it again",
+            )
+        notes.append(f"line {line}: truncated last line ('{value}') dropped")
+        rows, data = rows[:-1], data[:-1]
     return Table(path, col_names, data, rows + 1, delimiter, decimal, text[:header], notes)
 
 
@@ -332,36 +276,6 @@ def _column_names(
         run = cell or run
         top.append(run)
     return [f"{a} {b}".strip() for a, b in zip(top, cells[1], strict=False)]
-
-
-def _skipped(text: TextFile, rows: np.ndarray, prefixes: Sequence[str]) -> np.ndarray:
-    """Which of the lines ``rows`` are blank or comments, from array operations: only lines
-    whose first byte is a space, tab, CR, newline or a prefix's first byte are looked into."""
-    out = np.zeros(len(rows), dtype=bool)
-    if not len(rows):
-        return out
-    codes = [np.frombuffer(p.encode(text.encoding, "replace"), np.uint8) for p in prefixes]
-    codes = [c for c in codes if len(c)]
-    lead = _SPACE.copy()
-    lead[[c[0] for c in codes]] = True
-    b = text.bytes
-    suspect = np.flatnonzero(lead[b[text.starts[rows]]])
-    if not len(suspect):
-        return out
-    pos = text.starts[rows[suspect]]
-    moving = np.flatnonzero(_BLANK[b[pos]])
-    while len(moving):  # step over the indentation, one byte per round for all lines at once
-        pos[moving] += 1
-        moving = moving[_BLANK[b[pos[moving]]]]
-    hit = b[pos] == _NEWLINE
-    last = len(b) - 1
-    for c in codes:
-        match = np.ones(len(pos), dtype=bool)
-        for k, byte in enumerate(c):
-            match &= b[np.minimum(pos + k, last)] == byte
-        hit |= match
-    out[suspect[hit]] = True
-    return out
 
 
 class _Parse:
@@ -409,7 +323,7 @@ class _Parse:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", pd.errors.DtypeWarning)
             return pd.read_csv(
-                self.body(rows),
+                self.text.stream(rows),
                 sep=r"\s+" if self.delimiter == "whitespace" else self.delimiter,
                 header=None,
                 decimal=self.decimal,
@@ -420,37 +334,9 @@ class _Parse:
                 **ragged,
             )
 
-    def body(self, rows: np.ndarray) -> io.BytesIO:
-        """The bytes of the lines ``rows`` (ascending), without a copy when they run to the
-        end of the file, as one slice when they follow each other, else joined."""
-        t = self.text
-        breaks = np.flatnonzero(np.diff(rows) != 1)
-        if not len(breaks):
-            if rows[-1] == len(t) - 1:
-                f = io.BytesIO(t.raw)  # shares the bytes
-                f.seek(t.starts[rows[0]])
-                return f
-            return io.BytesIO(t.raw[t.starts[rows[0]] : t.ends[rows[-1]] + 1])
-        firsts = t.starts[rows[np.r_[0, breaks + 1]]].tolist()
-        lasts = (t.ends[rows[np.r_[breaks, len(rows) - 1]]] + 1).tolist()
-        return io.BytesIO(b"".join(t.raw[a:b] for a, b in zip(firsts, lasts, strict=True)))
-
-    def marks(self, rows: np.ndarray) -> np.ndarray:
-        """Byte offsets of the delimiters (for ``"whitespace"``: of the first byte of every
-        field) in the lines ``rows[0]`` to ``rows[-1]``, found in one pass."""
-        t = self.text
-        lo, hi = t.starts[rows[0]], t.ends[rows[-1]] + 1
-        chunk = t.bytes[lo:hi]
-        if self.delimiter == "whitespace":
-            space = _SPACE[chunk]
-            return np.flatnonzero(~space & np.r_[True, space[:-1]]) + lo
-        return np.flatnonzero(chunk == ord(self.delimiter)) + lo
-
     def field_counts(self, rows: np.ndarray) -> np.ndarray:
         """Number of fields of each line of ``rows``."""
-        t, marks = self.text, self.marks(rows)
-        n = np.searchsorted(marks, t.ends[rows]) - np.searchsorted(marks, t.starts[rows])
-        return n if self.delimiter == "whitespace" else n + 1
+        return self.text.count_per_line(rows, self.delimiter) + (self.delimiter != "whitespace")
 
     def empty_tails(self, rows: np.ndarray, counts: np.ndarray) -> np.ndarray:
         """Whether the fields after the first ``ncol`` of each line are all empty: the line
@@ -459,11 +345,11 @@ class _Parse:
         long = np.flatnonzero(counts > self.ncol)
         if not len(long) or self.delimiter == "whitespace":
             return out
-        t, marks = self.text, self.marks(rows)
+        t, marks = self.text, self.text.marks(rows, self.delimiter)
         ends = t.ends[rows[long]]
         cut = marks[np.searchsorted(marks, t.starts[rows[long]]) + self.ncol - 1]
         cr = t.bytes[ends - 1] == 13
-        out[long] = ends - cut - 1 == counts[long] - self.ncol + cr
+        out[long] = ends - cut - 1 == counts[long] - 1 - self.ncol + cr
         return out
 
     def check_counts(self, rows: np.ndarray, counts: np.ndarray) -> tuple[np.ndarray, list[str]]:
@@ -497,22 +383,22 @@ class _Parse:
 
     def unparsable(self, rows: np.ndarray, message: str) -> InputError:
         """The error for a body that pandas cannot parse although every line has the right
-        number of fields (an unclosed quote joins lines): at the line pandas names."""
-        m = re.search(r"(line|row) (\d+)", message)  # pandas: "line" 1-based, "row" 0-based
-        k = int(m.group(2)) - (m.group(1) == "line") if m else 0
-        k = min(max(k, 0), len(rows) - 1)
+        number of fields: at the first line with an odd number of quotes (a quote left open
+        joins lines), else at the line pandas names."""
+        odd = np.flatnonzero(self.text.count_per_line(rows, '"') % 2)
+        m = re.search(r"line (\d+)", message)
+        k = odd[0] if len(odd) else min(int(m.group(1)), len(rows)) - 1 if m else 0
         return InputError(
-            "cannot split the lines into fields (an unclosed quote?)",
+            "cannot split the line into fields (a quote left open?)",
             self.text.path,
             f"line {int(rows[k]) + 1}",
             remedy="repair the line, or export the file again",
         )
 
 
-def _to_float(
-    path: Path, df: pd.DataFrame, lineno: np.ndarray, col_names: list[str], decimal: str
-) -> np.ndarray:
-    """The values as float64; text in a numeric column → InputError at its first line."""
+def _to_float(df: pd.DataFrame, decimal: str) -> tuple[np.ndarray, tuple[int, int, str] | None]:
+    """The values as float64 (text → NaN), and (row, column, text) of the first cell that
+    holds text instead of a number, if any."""
     first: tuple[int, int, str] | None = None
     for j in range(df.shape[1]):
         col = df.iloc[:, j]
@@ -526,15 +412,7 @@ def _to_float(
         if len(wrong) and (first is None or wrong[0] < first[0]):
             first = (int(wrong[0]), j, str(col.iloc[wrong[0]]))
         df.isetitem(j, num.to_numpy(dtype=float, na_value=np.nan))
-    if first is not None:
-        k, j, value = first
-        raise InputError(
-            f"'{value}' in numeric column '{col_names[j]}'",
-            path,
-            f"line {lineno[k]}",
-            remedy="fix or delete the line, or check that the header matches the data",
-        )
-    return df.to_numpy(dtype=float)
+    return df.to_numpy(dtype=float), first
 
 
 def nan_only(table: Table, names: Sequence[str]) -> str | None:

@@ -218,6 +218,13 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     lines = read_lines(path)
     header = first_content_line(lines, prefixes=("//",))
     if header >= len(lines) or not _header_line(lines[header]):
+        if lines.unended and header >= len(lines) - 1:
+            raise InputError(
+                "truncated: the file ends inside its header",
+                path,
+                f"line {len(lines)}",
+                remedy="copy or export the file again",
+            )
         raise InputError(
             "no Xsens column header (PacketCounter, Acc_X, …)",
             path,
