@@ -1,8 +1,20 @@
 """Numba kernels of the quaternion particle filter (:mod:`motionlab.fusion.particle`).
 
-Private: the filter loop :func:`nb_filter` and the small in-place quaternion helpers it uses.
-Particles are offsets ``Lᵢ`` with ``qᵢ = Lᵢ ⊗ G`` (G: the shared gyroscope integral); every work
-array is allocated once, before the time loop.
+Private. Particles are offsets ``Lᵢ`` with ``qᵢ = Lᵢ ⊗ G`` (G: the shared gyroscope integral);
+every work array is allocated once, before the time loop of :func:`nb_filter`. One sample of the
+loop is, in order:
+
+1. propagate ``G`` with the bias-compensated rate;
+2. collect the measurements' **information** about the earth-frame correction ``δ`` of the prior
+   mean, ``q_true = exp(δ/2) ⊗ mean ⊗ G``: a 3×3 matrix ``J`` and a vector ``j`` (slots of
+   ``info``), so that a particle's log-likelihood is ``jᵀδᵢ − ½ δᵢᵀJδᵢ``. A direction measured in
+   the sensor frame whose earth-frame direction is known (gravity; any further reference vector
+   is added the same way) enters through :func:`_info_vector`, the magnetometer's heading through
+   :func:`_info_heading`;
+3. move every particle by process noise and score it (:func:`_move_and_score`);
+4. weights, effective sample size and the posterior mean (:func:`_weigh`);
+5. gyroscope bias; divergence monitor (:func:`_monitor`) and reset, or resampling with
+   regularisation; output.
 """
 
 from __future__ import annotations
@@ -13,13 +25,83 @@ import numpy as np
 from motionlab.fusion import sphere as sph
 from motionlab.fusion.resampling import nb_resample
 
-#: quasi-static samples for the tilt divergence test: | |acc| − g | / g and |ω| (rad/s) below these
-QUIET_ACC = 0.05
-QUIET_RATE = 0.5
+# indices of the float parameter vector ``prm``
+PROCESS_NOISE, ACC_SIGMA, ACC_REST_SIGMA, ACC_NORM_GAIN, ACC_GATE, GRAVITY = range(6)
+MAG_SIGMA, MAG_REST_SIGMA, MAG_NORM_TOL, MAG_DIP_TOL, MAG_GATE_DIP, REF_NORM, REF_DIP = range(6, 13)
+BIAS_TAU, BIAS_REST_TAU, BIAS_MAX = range(13, 16)
+INIT_SIGMA, RESET_ANGLE, RESET_TIME, RESET_HEADING_TIME, RESET_TAU, RESET_AGREE = range(16, 22)
+ESS_THRESHOLD, AUX_ALPHA, KERNEL_H, BINGHAM_ZMAX = range(22, 26)
+N_PARAMS = 26
+# slots of ``info``: the upper triangle of J, then j
+_JXX, _JXY, _JXZ, _JYY, _JYZ, _JZZ, _JX, _JY, _JZ = range(9)
+# slots of the monitor's work array (earth-frame vectors under the posterior mean): low-passed acc
+# and horizontal field direction; the tilt run's sums of acc and of the field (samples with a
+# normal field norm), its field count and duration; the heading run's sum of horizontal field
+# directions, count and duration
+_LA, _LM, _SA, _SM, _NM, _TA, _SH, _NH, _TH = 0, 3, 5, 8, 11, 12, 13, 15, 16
+N_MONITOR = 17
+
+
+# ---------------------------------------------------------------- small in-place helpers
+
+
+@numba.njit(cache=True, inline="always")
+def _rmul(a: np.ndarray, b0: float, b1: float, b2: float, b3: float) -> None:
+    """``a ← a ⊗ b`` for a length-4 row ``a``, normalised."""
+    a0, a1, a2, a3 = a[0], a[1], a[2], a[3]
+    r0 = a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3
+    r1 = a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2
+    r2 = a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1
+    r3 = a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0
+    n = 1.0 / np.sqrt(r0 * r0 + r1 * r1 + r2 * r2 + r3 * r3)
+    a[0] = r0 * n
+    a[1] = r1 * n
+    a[2] = r2 * n
+    a[3] = r3 * n
+
+
+@numba.njit(cache=True, inline="always")
+def _lmul(b0: float, b1: float, b2: float, b3: float, a: np.ndarray) -> None:
+    """``a ← b ⊗ a`` for a length-4 row ``a``, normalised."""
+    a0, a1, a2, a3 = a[0], a[1], a[2], a[3]
+    r0 = b0 * a0 - b1 * a1 - b2 * a2 - b3 * a3
+    r1 = b0 * a1 + b1 * a0 + b2 * a3 - b3 * a2
+    r2 = b0 * a2 - b1 * a3 + b2 * a0 + b3 * a1
+    r3 = b0 * a3 + b1 * a2 - b2 * a1 + b3 * a0
+    n = 1.0 / np.sqrt(r0 * r0 + r1 * r1 + r2 * r2 + r3 * r3)
+    a[0] = r0 * n
+    a[1] = r1 * n
+    a[2] = r2 * n
+    a[3] = r3 * n
+
+
+@numba.njit(cache=True, inline="always")
+def _rotate(w: float, x: float, y: float, z: float, vx: float, vy: float, vz: float):
+    """``R(q) v`` for the unit ``q = (w, x, y, z)``, as three scalars."""
+    tx = 2.0 * (y * vz - z * vy)
+    ty = 2.0 * (z * vx - x * vz)
+    tz = 2.0 * (x * vy - y * vx)
+    return (
+        vx + w * tx + (y * tz - z * ty),
+        vy + w * ty + (z * tx - x * tz),
+        vz + w * tz + (x * ty - y * tx),
+    )
+
+
+@numba.njit(cache=True, inline="always")
+def _rot(q: np.ndarray, vx: float, vy: float, vz: float, out: np.ndarray) -> None:
+    """``out = R(q) v`` (sensor → earth for an orientation q)."""
+    out[0], out[1], out[2] = _rotate(q[0], q[1], q[2], q[3], vx, vy, vz)
+
+
+@numba.njit(cache=True, inline="always")
+def _rot_inv(q: np.ndarray, vx: float, vy: float, vz: float, out: np.ndarray) -> None:
+    """``out = R(q)ᵀ v`` (earth → sensor)."""
+    out[0], out[1], out[2] = _rotate(q[0], -q[1], -q[2], -q[3], vx, vy, vz)
 
 
 @numba.njit(cache=True)
-def _nb_eig3(c: np.ndarray, vecs: np.ndarray, lam: np.ndarray) -> None:
+def _eig3(c: np.ndarray, vecs: np.ndarray, lam: np.ndarray) -> None:
     """Eigen-decomposition of the symmetric 3×3 ``c`` (destroyed) by cyclic Jacobi, in place."""
     for i in range(3):
         for j in range(3):
@@ -57,50 +139,126 @@ def _nb_eig3(c: np.ndarray, vecs: np.ndarray, lam: np.ndarray) -> None:
         lam[i] = c[i, i]
 
 
-@numba.njit(cache=True, inline="always")
-def _nb_rmul(a: np.ndarray, b0: float, b1: float, b2: float, b3: float) -> None:
-    """``a ← a ⊗ b`` for a length-4 row ``a``, normalised."""
-    a0, a1, a2, a3 = a[0], a[1], a[2], a[3]
-    r0 = a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3
-    r1 = a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2
-    r2 = a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1
-    r3 = a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0
-    n = 1.0 / np.sqrt(r0 * r0 + r1 * r1 + r2 * r2 + r3 * r3)
-    a[0] = r0 * n
-    a[1] = r1 * n
-    a[2] = r2 * n
-    a[3] = r3 * n
+# ---------------------------------------------------------------- measurement information
 
 
 @numba.njit(cache=True, inline="always")
-def _nb_lmul(b0: float, b1: float, b2: float, b3: float, a: np.ndarray) -> None:
-    """``a ← b ⊗ a`` for a length-4 row ``a``, normalised."""
-    a0, a1, a2, a3 = a[0], a[1], a[2], a[3]
-    r0 = b0 * a0 - b1 * a1 - b2 * a2 - b3 * a3
-    r1 = b0 * a1 + b1 * a0 + b2 * a3 - b3 * a2
-    r2 = b0 * a2 - b1 * a3 + b2 * a0 + b3 * a1
-    r3 = b0 * a3 + b1 * a2 - b2 * a1 + b3 * a0
-    n = 1.0 / np.sqrt(r0 * r0 + r1 * r1 + r2 * r2 + r3 * r3)
-    a[0] = r0 * n
-    a[1] = r1 * n
-    a[2] = r2 * n
-    a[3] = r3 * n
+def _info_vector(info, ux, uy, uz, rx, ry, rz, weight):
+    """Add a direction measurement: ``u`` measured, in the earth frame under the prior mean, of a
+    vector whose earth-frame direction is the unit ``r``, with information ``weight`` (1/rad²).
+
+    ``exp(δ/2)`` turns ``u`` into ``r``: ``δ × u = r − u`` to first order, so
+    ``j = weight·(u × r)`` and ``J = weight·(I − rrᵀ)`` (no information about a rotation about
+    ``r``; ``r`` rather than the noisy ``u`` sets the direction). ``u`` is not normalised: for
+    the accelerometer (``u = acc/g``) zero-mean linear accelerations then average out instead of
+    pulling with their own magnitude.
+    """
+    info[_JXX] += weight * (1.0 - rx * rx)
+    info[_JXY] -= weight * rx * ry
+    info[_JXZ] -= weight * rx * rz
+    info[_JYY] += weight * (1.0 - ry * ry)
+    info[_JYZ] -= weight * ry * rz
+    info[_JZZ] += weight * (1.0 - rz * rz)
+    info[_JX] += weight * (uy * rz - uz * ry)
+    info[_JY] += weight * (uz * rx - ux * rz)
+    info[_JZ] += weight * (ux * ry - uy * rx)
 
 
 @numba.njit(cache=True, inline="always")
-def _nb_rot(q: np.ndarray, vx: float, vy: float, vz: float, out: np.ndarray) -> None:
-    """``out = R(q) v`` (sensor → earth for an orientation q)."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    tx = 2.0 * (y * vz - z * vy)
-    ty = 2.0 * (z * vx - x * vz)
-    tz = 2.0 * (x * vy - y * vx)
-    out[0] = vx + w * tx + (y * tz - z * ty)
-    out[1] = vy + w * ty + (z * tx - x * tz)
-    out[2] = vz + w * tz + (x * ty - y * tx)
+def _info_heading(info, psi, weight):
+    """Add a heading measurement: the rotation ``psi`` (rad) about earth-up that the prior mean
+    needs (the magnetometer's field angle east of north), with information ``weight`` (1/rad²)."""
+    info[_JZZ] += weight
+    info[_JZ] += weight * psi
 
 
 @numba.njit(cache=True)
-def _nb_draw(state, proposal, kappa, lam4, basis, b, zmax, out):
+def _mag_heading(mx, my, mz, prm, at_rest, flagged):
+    """Heading correction ``ψ`` of the earth-frame field ``m`` under the prior mean, its weight
+    (1/rad²) and whether the sample is gated.
+
+    Gated when flagged by :func:`motionlab.fusion.detect.mag_disturbance` or when the dip is
+    further than ``MAG_GATE_DIP`` from the reference; otherwise the weight ``1/σ²`` is divided by
+    ``1 + (Δnorm/MAG_NORM_TOL)² + (Δdip/MAG_DIP_TOL)²``.
+    """
+    mn = np.sqrt(mx * mx + my * my + mz * mz)
+    if mn < 1e-9 or mx * mx + my * my < 1e-18:
+        return 0.0, 0.0, True
+    psi = np.arctan2(mx, my)
+    dd = np.arcsin(min(1.0, max(-1.0, -mz / mn))) - prm[REF_DIP]
+    if flagged or abs(dd) > prm[MAG_GATE_DIP]:
+        return psi, 0.0, True
+    sigma = prm[MAG_REST_SIGMA] if at_rest else prm[MAG_SIGMA]
+    dn = (mn - prm[REF_NORM]) / prm[MAG_NORM_TOL]
+    weight = 1.0 / (sigma * sigma * (1.0 + dn * dn + (dd / prm[MAG_DIP_TOL]) ** 2))
+    return psi, weight, False
+
+
+# ---------------------------------------------------------------- particles
+
+
+@numba.njit(cache=True)
+def _move_and_score(state, parts, mean, info, half, lik):
+    """Process noise ``Lᵢ ← Lᵢ ⊗ exp(n/2)`` (``half > 0``: components uniform in ±half, matched
+    variance), then the log-likelihood ``jᵀδᵢ − ½ δᵢᵀJδᵢ`` of each particle's earth-frame offset
+    ``δᵢ = 2 vec(Lᵢ ⊗ mean*)`` (hemisphere-aligned) into ``lik``; returns its maximum."""
+    m0, m1, m2, m3 = mean[0], mean[1], mean[2], mean[3]
+    jxx, jxy, jxz, jyy = info[_JXX], info[_JXY], info[_JXZ], info[_JYY]
+    jyz, jzz, jx, jy, jz = info[_JYZ], info[_JZZ], info[_JX], info[_JY], info[_JZ]
+    lmax = -np.inf
+    for p in range(parts.shape[0]):
+        a = parts[p]
+        if half > 0.0:
+            n1 = (2.0 * sph._nb_uniform(state) - 1.0) * half
+            n2 = (2.0 * sph._nb_uniform(state) - 1.0) * half
+            n3 = (2.0 * sph._nb_uniform(state) - 1.0) * half
+            _rmul(a, 1.0, 0.5 * n1, 0.5 * n2, 0.5 * n3)
+        sg = 2.0 if a[0] * m0 + a[1] * m1 + a[2] * m2 + a[3] * m3 >= 0.0 else -2.0
+        dx = sg * (a[1] * m0 - a[0] * m1 - a[2] * m3 + a[3] * m2)
+        dy = sg * (a[2] * m0 - a[0] * m2 + a[1] * m3 - a[3] * m1)
+        dz = sg * (a[3] * m0 - a[0] * m3 - a[1] * m2 + a[2] * m1)
+        quad = jxx * dx * dx + jyy * dy * dy + jzz * dz * dz
+        quad += 2.0 * (jxy * dx * dy + jxz * dx * dz + jyz * dy * dz)
+        lp = jx * dx + jy * dy + jz * dz - 0.5 * quad
+        lik[p] = lp
+        if lp > lmax:
+            lmax = lp
+    return lmax
+
+
+@numba.njit(cache=True)
+def _weigh(w, lik, lmax, inv_sum, parts, mean):
+    """Bayesian weights ``wᵢ ← wᵢ·exp(likᵢ)`` (kept unnormalised between samples: the previous
+    sum is divided out here), ESS ``(Σw)²/Σw²`` (To eq. 156) and the Markley mean warm-started
+    from the previous one, written to ``mean``, all in one pass. Returns ``(1/Σw, ESS)``."""
+    sw = 0.0
+    s2 = 0.0
+    m00 = m01 = m02 = m03 = m11 = m12 = m13 = m22 = m23 = m33 = 0.0
+    for p in range(parts.shape[0]):
+        wp = w[p] * inv_sum * np.exp(lik[p] - lmax)
+        w[p] = wp
+        sw += wp
+        s2 += wp * wp
+        a0, a1, a2, a3 = parts[p, 0], parts[p, 1], parts[p, 2], parts[p, 3]
+        wa0 = wp * a0
+        wa1 = wp * a1
+        wa2 = wp * a2
+        m00 += wa0 * a0
+        m01 += wa0 * a1
+        m02 += wa0 * a2
+        m03 += wa0 * a3
+        m11 += wa1 * a1
+        m12 += wa1 * a2
+        m13 += wa1 * a3
+        m22 += wa2 * a2
+        m23 += wa2 * a3
+        m33 += wp * a3 * a3
+    sph._nb_principal(m00, m01, m02, m03, m11, m12, m13, m22, m23, m33, mean, mean)
+    return 1.0 / sw, sw * sw / s2
+
+
+@numba.njit(cache=True)
+def _draw(state, proposal, kappa, lam4, basis, b, zmax, out):
     """One kernel rotation about the identity: vMF(κ) or the band-limited Bingham."""
     if proposal == 0:
         sph._nb_vmf(state, kappa, out)
@@ -112,7 +270,7 @@ def _nb_draw(state, proposal, kappa, lam4, basis, b, zmax, out):
 
 
 @numba.njit(cache=True)
-def _nb_spread(state, parts, center, sigma, proposal, zmax, lam4, basis, jit):
+def _spread(state, parts, center, sigma, proposal, zmax, lam4, basis, jit):
     """Redraw all particles about ``center`` with isotropic spread ``sigma`` (rad per axis)."""
     kappa = 4.0 / (sigma * sigma)
     for i in range(4):
@@ -121,14 +279,14 @@ def _nb_spread(state, parts, center, sigma, proposal, zmax, lam4, basis, jit):
             basis[i, j] = 1.0 if i == j else 0.0
     b = sph._nb_bingham_b(lam4)
     for p in range(parts.shape[0]):
-        _nb_draw(state, proposal, kappa, lam4, basis, b, zmax, jit)
+        _draw(state, proposal, kappa, lam4, basis, b, zmax, jit)
         for i in range(4):
             parts[p, i] = center[i]
-        _nb_rmul(parts[p], jit[0], jit[1], jit[2], jit[3])
+        _rmul(parts[p], jit[0], jit[1], jit[2], jit[3])
 
 
 @numba.njit(cache=True)
-def _nb_kernel_shape(parts, w, mean, h, floor, proposal, cov, vecs, lam3, lam4, basis):
+def _kernel_shape(parts, w, mean, h, floor, proposal, cov, vecs, lam3, lam4, basis):
     """Regularisation kernel from the weighted cloud's rotation-vector covariance scaled by h².
 
     Returns the vMF concentration (isotropic: κ = 4/(h²·tr(C)/3)) and, for the Bingham kernel,
@@ -158,7 +316,7 @@ def _nb_kernel_shape(parts, w, mean, h, floor, proposal, cov, vecs, lam3, lam4, 
     kappa = 4.0 / (h * h * (cov[0, 0] + cov[1, 1] + cov[2, 2]) / 3.0 + floor)
     b = 1.0
     if proposal == 1:
-        _nb_eig3(cov, vecs, lam3)
+        _eig3(cov, vecs, lam3)
         for i in range(4):
             for j in range(4):
                 basis[i, j] = 0.0
@@ -172,14 +330,125 @@ def _nb_kernel_shape(parts, w, mean, h, floor, proposal, cov, vecs, lam3, lam4, 
     return kappa, b
 
 
+@numba.njit(cache=True, inline="always")
+def _shrink(mean: np.ndarray, a: np.ndarray, f: float, out: np.ndarray) -> None:
+    """``out = mean ⊗ exp(f · log(mean* ⊗ a))``: pull ``a`` towards the mean (Liu & West 2001)."""
+    e0 = mean[0] * a[0] + mean[1] * a[1] + mean[2] * a[2] + mean[3] * a[3]
+    e1 = mean[0] * a[1] - mean[1] * a[0] - mean[2] * a[3] + mean[3] * a[2]
+    e2 = mean[0] * a[2] + mean[1] * a[3] - mean[2] * a[0] - mean[3] * a[1]
+    e3 = mean[0] * a[3] - mean[1] * a[2] + mean[2] * a[1] - mean[3] * a[0]
+    if e0 < 0.0:
+        e0, e1, e2, e3 = -e0, -e1, -e2, -e3
+    vn = np.sqrt(e1 * e1 + e2 * e2 + e3 * e3)
+    half = np.arctan2(vn, e0)
+    k = np.sin(f * half) / vn if vn > 1e-15 else f
+    for i in range(4):
+        out[i] = mean[i]
+    _rmul(out, np.cos(f * half), k * e1, k * e2, k * e3)
+
+
+# ---------------------------------------------------------------- divergence monitor
+
+
+@numba.njit(cache=True)
+def _monitor_clear(mon: np.ndarray) -> None:
+    """Forget the monitor's history: low-passed vectors on earth-up and north, no bad run."""
+    mon[:] = 0.0
+    mon[_LA + 2] = 1.0
+    mon[_LM + 1] = 1.0
+
+
+@numba.njit(cache=True)
+def _monitor(mon, ae, me, field_ok, heading_ok, prm, dt):
+    """Feed one sample to the divergence monitor; return the reset it calls for.
+
+    ``ae`` is acc/g and ``me`` the field, in the earth frame under the posterior mean. A
+    consistent filter sees ``ae`` along earth-up on average (linear accelerations average out)
+    and the undisturbed field's horizontal part (``heading_ok``) pointing north. Both are
+    low-passed with ``RESET_TAU``; while one stays further than ``RESET_ANGLE`` from its
+    reference, that run's vectors are summed (the field of the tilt run only where its norm is
+    normal, ``field_ok``). A tilt run longer than ``RESET_TIME`` returns 1; a heading run longer
+    than ``RESET_HEADING_TIME`` whose field directions agree (mean resultant length above
+    ``RESET_AGREE``) returns 2; else 0 (To's "κ_post < κ_TH → reset").
+    """
+    alpha = min(1.0, dt / prm[RESET_TAU])
+    cos_lim = np.cos(prm[RESET_ANGLE])
+    for i in range(3):
+        mon[_LA + i] += alpha * (ae[i] - mon[_LA + i])
+    ln = np.sqrt(mon[_LA] ** 2 + mon[_LA + 1] ** 2 + mon[_LA + 2] ** 2)
+    if mon[_LA + 2] < cos_lim * ln:
+        for i in range(3):
+            mon[_SA + i] += ae[i]
+        if field_ok:
+            for i in range(3):
+                mon[_SM + i] += me[i]
+            mon[_NM] += 1.0
+        mon[_TA] += dt
+        if mon[_TA] > prm[RESET_TIME]:
+            return 1
+    else:
+        for i in range(_SA, _TA + 1):
+            mon[i] = 0.0
+    if heading_ok:
+        hn = np.sqrt(me[0] ** 2 + me[1] ** 2)
+        hx, hy = me[0] / hn, me[1] / hn
+        mon[_LM] += alpha * (hx - mon[_LM])
+        mon[_LM + 1] += alpha * (hy - mon[_LM + 1])
+        if mon[_LM + 1] < cos_lim * np.sqrt(mon[_LM] ** 2 + mon[_LM + 1] ** 2):
+            mon[_SH] += hx
+            mon[_SH + 1] += hy
+            mon[_NH] += 1.0
+            mon[_TH] += dt
+            agree = np.sqrt(mon[_SH] ** 2 + mon[_SH + 1] ** 2) > prm[RESET_AGREE] * mon[_NH]
+            if mon[_TH] > prm[RESET_HEADING_TIME] and agree:
+                return 2
+        else:
+            for i in range(_SH, _TH + 1):
+                mon[i] = 0.0
+    return 0
+
+
+@numba.njit(cache=True)
+def _reset_center(mon, mode, mean, prm, out):
+    """The posterior mean re-aligned with the monitor's summed vectors, into ``out``.
+
+    Tilt (``mode`` 1): the shortest rotation taking the summed acc to earth-up, then, when the
+    summed field so tilted has the reference norm and dip, the rotation about up turning it north
+    (TRIAD with gravity exact). Heading (``mode`` 2): the rotation about up only.
+    """
+    for i in range(4):
+        out[i] = mean[i]
+    if mode == 2:
+        psi = np.arctan2(mon[_SH], mon[_SH + 1])
+        _lmul(np.cos(0.5 * psi), 0.0, 0.0, np.sin(0.5 * psi), out)
+        return
+    an = np.sqrt(mon[_SA] ** 2 + mon[_SA + 1] ** 2 + mon[_SA + 2] ** 2)
+    ux, uy, uz = mon[_SA] / an, mon[_SA + 1] / an, mon[_SA + 2] / an
+    t0, t1, t2 = (1.0 + uz, uy, -ux) if 1.0 + uz > 1e-9 else (0.0, 1.0, 0.0)
+    tn = np.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+    t0, t1, t2 = t0 / tn, t1 / tn, t2 / tn
+    _lmul(t0, t1, t2, 0.0, out)
+    if mon[_NM] == 0.0:
+        return
+    c = 1.0 / mon[_NM]
+    mx, my, mz = _rotate(t0, t1, t2, 0.0, c * mon[_SM], c * mon[_SM + 1], c * mon[_SM + 2])
+    mn = np.sqrt(mx * mx + my * my + mz * mz)
+    dip = np.arcsin(min(1.0, max(-1.0, -mz / mn))) if mn > 1e-9 else np.inf
+    norm_ok = abs(mn - prm[REF_NORM]) < 2.0 * prm[MAG_NORM_TOL]
+    if norm_ok and abs(dip - prm[REF_DIP]) < prm[MAG_GATE_DIP]:
+        psi = np.arctan2(mx, my)
+        _lmul(np.cos(0.5 * psi), 0.0, 0.0, np.sin(0.5 * psi), out)
+
+
+# ---------------------------------------------------------------- the filter
+
+
 @numba.njit(cache=True)
 def nb_filter(
-    gyr, acc, mag, use_mag, mag_flag, rest, dt, q0, g_ref, m_ref, dip_ref, proposal, scheme,
-    alpha, ess_thr, h, zmax, sig_p, acc_sig, acc_rest_sig, acc_norm_gain, acc_gate, kap_m,
-    kap_m_rest, m_tol, dip_tol, dip_gate, bias_tau, rest_tau, bias_max, sig0, reset_angle,
-    reset_time, seed, n, quat, bias_out, ess_out, reset_out, gated_out,
+    gyr, acc, mag, use_mag, mag_flag, rest, dt, q0, prm, proposal, scheme, seed, n,
+    quat, bias_out, ess_out, reset_out, gated_out,
 ):  # fmt: skip
-    """The filter over all samples; work arrays are allocated once, before the time loop."""
+    """The filter over all samples (see the module docstring for the order of the steps)."""
     state = np.empty(2, dtype=np.uint64)
     sph._nb_seed(state, seed)
     parts = np.empty((n, 4))
@@ -194,155 +463,105 @@ def nb_filter(
     lam4 = np.empty(4)
     basis = np.empty((4, 4))
     jit = np.empty(4)
+    info = np.empty(9)
+    mon = np.empty(N_MONITOR)
     mean = q0.copy()
+    prev = q0.copy()
     center = np.empty(4)
+    ag = np.zeros(3)  # acc/g in the frame of G (the particles' offsets act on it)
+    mg = np.zeros(3)  # field in the frame of G
+    ae = np.empty(3)  # earth-frame vectors under the mean
+    me = np.zeros(3)
     v3 = np.empty(3)
     g = np.array([1.0, 0.0, 0.0, 0.0])
     b = np.zeros(3)
-    _nb_spread(state, parts, q0, sig0, proposal, zmax, lam4, basis, jit)
-    half = np.sqrt(3.0 * dt) * sig_p
-    floor = sig_p * sig_p * dt
-    e_tilt = 0.0
-    e_head = 0.0
-    out_prev = q0.copy()
+    zmax = prm[BINGHAM_ZMAX]
+    h = prm[KERNEL_H]
+    _spread(state, parts, q0, prm[INIT_SIGMA], proposal, zmax, lam4, basis, jit)
+    _monitor_clear(mon)
+    half = np.sqrt(3.0 * dt) * prm[PROCESS_NOISE]
+    floor = prm[PROCESS_NOISE] ** 2 * dt
+    g_ref = prm[GRAVITY]
     inv_sum = 1.0
+    out_prev = q0.copy()
     for k in range(gyr.shape[0]):
-        # -- gyroscope: the shared strapdown integral G (To eq. 231), bias-compensated
+        # 1. the shared strapdown integral G (To eq. 231), bias-compensated
         if k > 0:
             rx = (gyr[k, 0] - b[0]) * dt
             ry = (gyr[k, 1] - b[1]) * dt
             rz = (gyr[k, 2] - b[2]) * dt
             ang = np.sqrt(rx * rx + ry * ry + rz * rz)
             sk = np.sin(0.5 * ang) / ang if ang > 1e-12 else 0.5
-            _nb_rmul(g, np.cos(0.5 * ang), sk * rx, sk * ry, sk * rz)
-        # -- measurements in the particles' offset frame: R(G)·v
-        an = np.sqrt(acc[k, 0] ** 2 + acc[k, 1] ** 2 + acc[k, 2] ** 2)
-        _nb_rot(g, acc[k, 0] / g_ref, acc[k, 1] / g_ref, acc[k, 2] / g_ref, v3)
-        ax, ay, az = v3[0], v3[1], v3[2]
-        dev = abs(an - g_ref) / g_ref
-        wn = np.sqrt(gyr[k, 0] ** 2 + gyr[k, 1] ** 2 + gyr[k, 2] ** 2)
-        ka = 0.0
-        if dev < acc_gate:
-            ka = 0.5 / ((acc_rest_sig if rest[k] else acc_sig) + acc_norm_gain * dev) ** 2
-        km = 0.0
-        mx = my = mz = 0.0
-        psi = 0.0
+            _rmul(g, np.cos(0.5 * ang), sk * rx, sk * ry, sk * rz)
+        # 2. information about the correction of the prior mean (To's q_obs residuals, eqs.
+        # 232-234): tilt from gravity, heading from the field angle
+        for i in range(9):
+            info[i] = 0.0
+        _rot(g, acc[k, 0] / g_ref, acc[k, 1] / g_ref, acc[k, 2] / g_ref, ag)
+        dev = abs(np.sqrt(ag[0] ** 2 + ag[1] ** 2 + ag[2] ** 2) - 1.0)
+        if dev < prm[ACC_GATE]:
+            sigma = prm[ACC_REST_SIGMA] if rest[k] else prm[ACC_SIGMA]
+            sigma += prm[ACC_NORM_GAIN] * dev
+            _rot(mean, ag[0], ag[1], ag[2], ae)
+            _info_vector(info, ae[0], ae[1], ae[2], 0.0, 0.0, 1.0, 1.0 / (sigma * sigma))
         gated = True
         if use_mag:
-            _nb_rot(g, mag[k, 0], mag[k, 1], mag[k, 2], v3)
-            mx, my, mz = v3[0], v3[1], v3[2]
-            mn = np.sqrt(mx * mx + my * my + mz * mz)
-            _nb_rot(mean, mx, my, mz, v3)
-            dip = np.arcsin(min(1.0, max(-1.0, -v3[2] / mn))) if mn > 1e-9 else 0.0
-            dd = dip - dip_ref
-            gated = mag_flag[k] or abs(dd) > dip_gate or mn < 1e-9
-            psi = np.arctan2(v3[0], v3[1])
-            if not gated:
-                km = 0.5 * (kap_m_rest if rest[k] else kap_m)
-                km /= 1.0 + ((mn - m_ref) / m_tol) ** 2 + (dd / dip_tol) ** 2
-        gated_out[k] = gated
-        # -- observed corrections of the prior mean (To's q_obs residuals, eqs. 232-234): tilt
-        # from the earth-frame horizontal acc/g (δ × e_z = −h), heading from the field angle ψ
-        _nb_rot(mean, ax, ay, az, v3)
-        ox = v3[1]
-        oy = -v3[0]
-        m0, m1, m2, m3 = mean[0], mean[1], mean[2], mean[3]
-        lmax = -np.inf
-        for p in range(n):
-            a = parts[p]
-            if k > 0:
-                n1 = (2.0 * sph._nb_uniform(state) - 1.0) * half
-                n2 = (2.0 * sph._nb_uniform(state) - 1.0) * half
-                n3 = (2.0 * sph._nb_uniform(state) - 1.0) * half
-                _nb_rmul(a, 1.0, 0.5 * n1, 0.5 * n2, 0.5 * n3)
-            # earth-frame offset from the prior mean: δ = 2 vec(L ⊗ m*), hemisphere-aligned
-            sg = 2.0 if a[0] * m0 + a[1] * m1 + a[2] * m2 + a[3] * m3 >= 0.0 else -2.0
-            dx = sg * (a[1] * m0 - a[0] * m1 - a[2] * m3 + a[3] * m2) - ox
-            dy = sg * (a[2] * m0 - a[0] * m2 + a[1] * m3 - a[3] * m1) - oy
-            lp = -ka * (dx * dx + dy * dy)
+            _rot(g, mag[k, 0], mag[k, 1], mag[k, 2], mg)
+            _rot(mean, mg[0], mg[1], mg[2], me)
+            psi, km, gated = _mag_heading(me[0], me[1], me[2], prm, rest[k], mag_flag[k])
             if km > 0.0:
-                dz = sg * (a[3] * m0 - a[0] * m3 - a[1] * m2 + a[2] * m1) - psi
-                lp -= km * dz * dz
-            lik[p] = lp
-            if lp > lmax:
-                lmax = lp
-        # weights (kept unnormalised between samples: scale by the previous sum here), ESS and
-        # the scatter Σ wᵢLᵢLᵢᵀ of Markley's mean in one pass
-        sw = 0.0
-        s2 = 0.0
-        m00 = m01 = m02 = m03 = m11 = m12 = m13 = m22 = m23 = m33 = 0.0
-        for p in range(n):
-            wp = w[p] * inv_sum * np.exp(lik[p] - lmax)
-            w[p] = wp
-            sw += wp
-            s2 += wp * wp
-            a0, a1, a2, a3 = parts[p, 0], parts[p, 1], parts[p, 2], parts[p, 3]
-            wa0 = wp * a0
-            wa1 = wp * a1
-            wa2 = wp * a2
-            m00 += wa0 * a0
-            m01 += wa0 * a1
-            m02 += wa0 * a2
-            m03 += wa0 * a3
-            m11 += wa1 * a1
-            m12 += wa1 * a2
-            m13 += wa1 * a3
-            m22 += wa2 * a2
-            m23 += wa2 * a3
-            m33 += wp * a3 * a3
-        inv_sum = 1.0 / sw
-        ess = sw * sw / s2
-        # -- Markley mean, warm-started from the previous one
-        p0, p1, p2, p3 = mean[0], mean[1], mean[2], mean[3]
-        sph._nb_principal(m00, m01, m02, m03, m11, m12, m13, m22, m23, m33, mean, mean)
-        # -- bias (BC): the sensor-frame rotation of the mean's correction δ = prev* ⊗ mean
-        d0 = p0 * mean[0] + p1 * mean[1] + p2 * mean[2] + p3 * mean[3]
+                _info_heading(info, psi, km)
+        gated_out[k] = gated
+        # 3.-4. particles: noise, likelihood, weights, posterior mean
+        lmax = _move_and_score(state, parts, mean, info, half if k > 0 else 0.0, lik)
+        prev[:] = mean
+        inv_sum, ess = _weigh(w, lik, lmax, inv_sum, parts, mean)
+        # 5. bias (BC, To §6.5.7): at rest the rate itself; optionally the mean's correction
+        # c = prev* ⊗ mean in the sensor frame (Mahony-type integral)
+        d0 = prev[0] * mean[0] + prev[1] * mean[1] + prev[2] * mean[2] + prev[3] * mean[3]
         sd = 2.0 if d0 >= 0.0 else -2.0
-        cx = sd * (p0 * mean[1] - p1 * mean[0] - p2 * mean[3] + p3 * mean[2])
-        cy = sd * (p0 * mean[2] + p1 * mean[3] - p2 * mean[0] - p3 * mean[1])
-        cz = sd * (p0 * mean[3] - p1 * mean[2] + p2 * mean[1] - p3 * mean[0])
-        # sensor frame: R(G)ᵀ c
-        _nb_rot_inv(g, cx, cy, cz, v3)
+        cx = sd * (prev[0] * mean[1] - prev[1] * mean[0] - prev[2] * mean[3] + prev[3] * mean[2])
+        cy = sd * (prev[0] * mean[2] + prev[1] * mean[3] - prev[2] * mean[0] - prev[3] * mean[1])
+        cz = sd * (prev[0] * mean[3] - prev[1] * mean[2] + prev[2] * mean[1] - prev[3] * mean[0])
+        _rot_inv(g, cx, cy, cz, v3)
         for i in range(3):
-            b[i] -= v3[i] / bias_tau
+            b[i] -= v3[i] / prm[BIAS_TAU]
             if rest[k]:
-                b[i] += dt / rest_tau * (gyr[k, i] - b[i])
-            b[i] = min(bias_max, max(-bias_max, b[i]))
-        # -- divergence: low-passed tilt and heading misfit of the mean
-        if dev < QUIET_ACC and wn < QUIET_RATE:
-            _nb_rot(mean, ax, ay, az, v3)
-            c = min(1.0, max(-1.0, v3[2] / np.sqrt(v3[0] ** 2 + v3[1] ** 2 + v3[2] ** 2)))
-            e_tilt += dt / reset_time * (np.arccos(c) - e_tilt)
-        if km > 0.0:
-            e_head += dt / reset_time * (abs(psi) - e_head)
-        if e_tilt > reset_angle or e_head > reset_angle or ess < ess_thr * n:
+                b[i] += dt / prm[BIAS_REST_TAU] * (gyr[k, i] - b[i])
+            b[i] = min(prm[BIAS_MAX], max(-prm[BIAS_MAX], b[i]))
+        # divergence monitor on the posterior, then reset or resampling
+        _rot(mean, ag[0], ag[1], ag[2], ae)
+        if use_mag:
+            _rot(mean, mg[0], mg[1], mg[2], me)
+        field_ok = use_mag and not mag_flag[k]
+        mode = _monitor(mon, ae, me, field_ok, not gated, prm, dt)
+        if mode != 0 or ess < prm[ESS_THRESHOLD] * n:
             for p in range(n):
                 w[p] *= inv_sum
             inv_sum = 1.0
-        if e_tilt > reset_angle or e_head > reset_angle:
-            _nb_vector_attitude(mean, ax, ay, az, mx, my, mz, not gated, center, v3)
-            _nb_spread(state, parts, center, sig0, proposal, zmax, lam4, basis, jit)
+        if mode != 0:
+            _reset_center(mon, mode, mean, prm, center)
+            _spread(state, parts, center, prm[INIT_SIGMA], proposal, zmax, lam4, basis, jit)
             for p in range(n):
                 w[p] = 1.0 / n
             mean[:] = center
-            e_tilt = 0.0
-            e_head = 0.0
+            _monitor_clear(mon)
             reset_out[k] = True
-        elif ess < ess_thr * n:
-            # -- resample, then regularise with the proposal kernel
-            kappa, bb = _nb_kernel_shape(
+        elif ess < prm[ESS_THRESHOLD] * n:
+            # resample, then regularise: Liu-West shrinkage plus a kernel draw (Musso et al.)
+            kappa, bb = _kernel_shape(
                 parts, w, mean, h, floor, proposal, cov, vecs, lam3, lam4, basis
             )
-            nb_resample(state, scheme, alpha, w, idx, work)
+            nb_resample(state, scheme, prm[AUX_ALPHA], w, idx, work)
             for p in range(n):
                 for i in range(4):
                     tmp[p, i] = parts[idx[p], i]
             shrink = np.sqrt(max(1.0 - h * h, 0.0))
             for p in range(n):
-                _nb_shrink(mean, tmp[p], shrink, parts[p])
-                _nb_draw(state, proposal, kappa, lam4, basis, bb, zmax, jit)
-                _nb_rmul(parts[p], jit[0], jit[1], jit[2], jit[3])
-        # -- output q = mean ⊗ G, sign-continuous
+                _shrink(mean, tmp[p], shrink, parts[p])
+                _draw(state, proposal, kappa, lam4, basis, bb, zmax, jit)
+                _rmul(parts[p], jit[0], jit[1], jit[2], jit[3])
+        # output q = mean ⊗ G, sign-continuous
         o0 = mean[0] * g[0] - mean[1] * g[1] - mean[2] * g[2] - mean[3] * g[3]
         o1 = mean[0] * g[1] + mean[1] * g[0] + mean[2] * g[3] - mean[3] * g[2]
         o2 = mean[0] * g[2] - mean[1] * g[3] + mean[2] * g[0] + mean[3] * g[1]
@@ -357,50 +576,3 @@ def nb_filter(
         for i in range(3):
             bias_out[k, i] = b[i]
         ess_out[k] = ess / n
-
-
-@numba.njit(cache=True, inline="always")
-def _nb_rot_inv(q: np.ndarray, vx: float, vy: float, vz: float, out: np.ndarray) -> None:
-    """``out = R(q)ᵀ v`` (earth → sensor)."""
-    w, x, y, z = q[0], -q[1], -q[2], -q[3]
-    tx = 2.0 * (y * vz - z * vy)
-    ty = 2.0 * (z * vx - x * vz)
-    tz = 2.0 * (x * vy - y * vx)
-    out[0] = vx + w * tx + (y * tz - z * ty)
-    out[1] = vy + w * ty + (z * tx - x * tz)
-    out[2] = vz + w * tz + (x * ty - y * tx)
-
-
-@numba.njit(cache=True, inline="always")
-def _nb_shrink(mean: np.ndarray, a: np.ndarray, f: float, out: np.ndarray) -> None:
-    """``out = mean ⊗ exp(f · log(mean* ⊗ a))``: pull ``a`` towards the mean (Liu & West 2001)."""
-    e0 = mean[0] * a[0] + mean[1] * a[1] + mean[2] * a[2] + mean[3] * a[3]
-    e1 = mean[0] * a[1] - mean[1] * a[0] - mean[2] * a[3] + mean[3] * a[2]
-    e2 = mean[0] * a[2] + mean[1] * a[3] - mean[2] * a[0] - mean[3] * a[1]
-    e3 = mean[0] * a[3] - mean[1] * a[2] + mean[2] * a[1] - mean[3] * a[0]
-    if e0 < 0.0:
-        e0, e1, e2, e3 = -e0, -e1, -e2, -e3
-    vn = np.sqrt(e1 * e1 + e2 * e2 + e3 * e3)
-    half = np.arctan2(vn, e0)
-    k = np.sin(f * half) / vn if vn > 1e-15 else f
-    for i in range(4):
-        out[i] = mean[i]
-    _nb_rmul(out, np.cos(f * half), k * e1, k * e2, k * e3)
-
-
-@numba.njit(cache=True)
-def _nb_vector_attitude(mean, ax, ay, az, mx, my, mz, use_mag, out, v3):
-    """The mean corrected to the measured gravity (shortest arc) and, with ``use_mag``, north."""
-    _nb_rot(mean, ax, ay, az, v3)
-    un = np.sqrt(v3[0] ** 2 + v3[1] ** 2 + v3[2] ** 2)
-    ux, uy, uz = v3[0] / un, v3[1] / un, v3[2] / un
-    for i in range(4):
-        out[i] = mean[i]
-    if 1.0 + uz > 1e-9:
-        _nb_lmul(1.0 + uz, uy, -ux, 0.0, out)
-    else:
-        _nb_lmul(0.0, 1.0, 0.0, 0.0, out)
-    if use_mag:
-        _nb_rot(out, mx, my, mz, v3)
-        psi = np.arctan2(v3[0], v3[1])
-        _nb_lmul(np.cos(0.5 * psi), 0.0, 0.0, np.sin(0.5 * psi), out)

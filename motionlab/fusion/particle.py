@@ -13,15 +13,16 @@ Model and design (the choices the theses leave open are stated here):
   (matched variance) — their sum over the filter's memory of hundreds of samples is Gaussian, and
   one uniform costs a tenth of a normal.
 - **Likelihood** (bootstrap filter, generic weights eq. 151 with the previous weight kept — the
-  Bayesian form rather than To's memoryless eq. 234). The accelerometer and magnetometer give an
-  observed correction of the prior mean, as To's residuals to ``q_obs`` (eqs. 232–233): the tilt
-  correction is the earth-frame horizontal acc/g of the mean (``δ × e_z = −h``), in this linear
-  form so zero-mean linear accelerations average out instead of pulling with their magnitude; the
-  heading correction is the angle ψ of the field's horizontal part (heading only, inclination
-  untouched). Each particle's earth-frame offset δᵢ from the prior mean is scored with Gaussian
-  widths ``acc_sigma``/``mag_sigma`` (smaller ``*_rest_sigma`` at rest). Widths adapt: the acc
-  width grows by ``acc_norm_gain · | |acc| − g |/g`` and the acc is ignored beyond ``acc_gate``; the
-  mag weight is divided by ``1 + (Δnorm/tol)² + (Δdip/tol)²`` against the reference field of
+  Bayesian form rather than To's memoryless eq. 234). The measurements are scored as corrections
+  of the prior mean, as To's residuals to ``q_obs`` (eqs. 232–233), in information form: each adds
+  to ``J`` (3×3) and ``j`` so that a particle with earth-frame offset δᵢ from the prior mean has
+  log-likelihood ``jᵀδᵢ − ½ δᵢᵀJδᵢ``. Gravity is a direction measurement (``δ × u = e_z − u``
+  with ``u`` the earth-frame acc/g, linear in acc so that zero-mean linear accelerations average
+  out instead of pulling with their magnitude); the magnetometer gives the heading only, the
+  angle ψ of the field's horizontal part (inclination untouched). Widths ``acc_sigma`` and
+  ``mag_sigma`` (smaller ``*_rest_sigma`` at rest) adapt: the acc width grows by
+  ``acc_norm_gain · | |acc| − g |/g`` and the acc is ignored beyond ``acc_gate``; the mag weight
+  is divided by ``1 + (Δnorm/tol)² + (Δdip/tol)²`` against the reference field of
   :func:`motionlab.fusion.detect.field_reference`, and samples flagged by
   :func:`~motionlab.fusion.detect.mag_disturbance` or by the in-loop dip test are gated. Without a
   usable magnetometer the filter is 6-D (heading from the gyroscope only).
@@ -41,10 +42,12 @@ Model and design (the choices the theses leave open are stated here):
   mean's rotation away from the gyro-propagated mean, in the sensor frame ``c``, gives
   ``b ← b − c/bias_tau``.
 - **Output:** Markley's weighted mean (:mod:`motionlab.fusion.sphere`) every sample.
-- **Divergence reset** (To: "κ_post < κ_TH → reset at q_obs"): the tilt misfit between the mean
-  and the accelerometer (quasi-static samples only) and the heading misfit to the magnetometer
-  (undisturbed samples only) are low-pass filtered over ``reset_time``; above ``reset_angle`` the
-  cloud is redrawn about the vector attitude (the mean corrected to the measured gravity and north).
+- **Divergence reset** (To: "κ_post < κ_TH → reset at q_obs"), the monitor of
+  :mod:`motionlab.fusion.mekf`: under the posterior mean the accelerometer averages to earth-up
+  and the undisturbed field's horizontal part to north. Both earth-frame vectors are low-passed
+  over ``reset_tau``; while one is further than ``reset_angle`` from its reference the vectors
+  are summed, and a run longer than ``reset_time`` (tilt) or ``reset_heading_time`` (heading,
+  field directions agreeing) redraws the cloud about the mean re-aligned with the sums.
 
 Defaults were tuned by hand on the 8 BROAD trials of ``../shared`` (Laidig et al. 2021), which are
 also the trials the accuracy is reported on — not an independent test set.
@@ -139,10 +142,21 @@ class ParticleParams:
         default=0.1, metadata={"unit": "rad", "help": "initial/reset cloud spread per axis"}
     )
     reset_angle: float = field(
-        default=0.6, metadata={"unit": "rad", "help": "filtered misfit that resets the cloud"}
+        default=np.deg2rad(30.0),
+        metadata={"unit": "rad", "help": "misfit of low-passed gravity/north that starts a run"},
     )
     reset_time: float = field(
-        default=1.0, metadata={"unit": "s", "help": "low-pass time constant of the misfit"}
+        default=0.5, metadata={"unit": "s", "help": "a tilt misfit run this long resets the cloud"}
+    )
+    reset_heading_time: float = field(
+        default=2.0, metadata={"unit": "s", "help": "a heading misfit run this long resets"}
+    )
+    reset_tau: float = field(
+        default=1.0, metadata={"unit": "s", "help": "low-pass time constant of the monitor"}
+    )
+    reset_agree: float = field(
+        default=0.9,
+        metadata={"unit": "1", "help": "a heading reset needs the field directions to agree so"},
     )
     seed: int = field(default=0, metadata={"unit": "", "help": "random seed"})
 
@@ -162,13 +176,47 @@ def _check(params: ParticleParams) -> None:
     positive = (
         "process_noise", "acc_sigma", "acc_rest_sigma", "acc_gate", "mag_sigma", "mag_rest_sigma",
         "mag_norm_tolerance", "mag_dip_tolerance", "bias_tau", "bias_rest_tau", "init_sigma",
-        "reset_time", "kernel_scale", "bingham_band",
+        "reset_angle", "reset_time", "reset_heading_time", "reset_tau", "kernel_scale",
+        "bingham_band",
     )  # fmt: skip
     for name in positive:
         if not getattr(params, name) > 0:
             raise InputError(f"parameter {name}={getattr(params, name)} must be positive")
     if params.aux_alpha < 1:
         raise InputError(f"aux_alpha={params.aux_alpha} must be ≥ 1")
+
+
+def _pack(p: ParticleParams, g_ref: float, m_ref: float, dip_ref: float) -> np.ndarray:
+    """The float parameters in the kernel's order (indices in :mod:`._particle_kernels`)."""
+    prm = np.empty(kern.N_PARAMS)
+    prm[kern.PROCESS_NOISE] = p.process_noise
+    prm[kern.ACC_SIGMA] = p.acc_sigma
+    prm[kern.ACC_REST_SIGMA] = p.acc_rest_sigma
+    prm[kern.ACC_NORM_GAIN] = p.acc_norm_gain
+    prm[kern.ACC_GATE] = p.acc_gate
+    prm[kern.MAG_SIGMA] = p.mag_sigma
+    prm[kern.MAG_REST_SIGMA] = p.mag_rest_sigma
+    prm[kern.MAG_NORM_TOL] = p.mag_norm_tolerance
+    prm[kern.MAG_DIP_TOL] = p.mag_dip_tolerance
+    prm[kern.MAG_GATE_DIP] = p.mag_gate_dip
+    prm[kern.BIAS_TAU] = p.bias_tau
+    prm[kern.BIAS_REST_TAU] = p.bias_rest_tau
+    prm[kern.BIAS_MAX] = p.bias_max
+    prm[kern.INIT_SIGMA] = p.init_sigma
+    prm[kern.RESET_ANGLE] = p.reset_angle
+    prm[kern.RESET_TIME] = p.reset_time
+    prm[kern.RESET_HEADING_TIME] = p.reset_heading_time
+    prm[kern.RESET_TAU] = p.reset_tau
+    prm[kern.RESET_AGREE] = p.reset_agree
+    prm[kern.ESS_THRESHOLD] = p.ess_threshold
+    prm[kern.AUX_ALPHA] = p.aux_alpha
+    prm[kern.GRAVITY] = g_ref
+    prm[kern.REF_NORM] = m_ref
+    prm[kern.REF_DIP] = dip_ref
+    # the optimal Gaussian kernel bandwidth for N particles in d = 3 (Musso et al. 2001)
+    prm[kern.KERNEL_H] = p.kernel_scale * (4.0 / (5.0 * p.n_particles)) ** (1.0 / 7.0)
+    prm[kern.BINGHAM_ZMAX] = 0.5 * p.bingham_band**2
+    return prm
 
 
 def particle_filter(
@@ -224,20 +272,15 @@ def particle_filter(
     q0 = np.asarray(q0, dtype=float) / np.linalg.norm(q0)
     g_ref = float(np.median(np.linalg.norm(acc[rest], axis=1))) if rest.any() else STANDARD_GRAVITY
     n = int(p.n_particles)
-    h = p.kernel_scale * (4.0 / (5.0 * n)) ** (1.0 / 7.0)  # optimal Gaussian kernel, d = 3
     quat = np.empty((n_s, 4))
     bias = np.empty((n_s, 3))
     ess = np.empty(n_s)
     resets = np.zeros(n_s, dtype=bool)
     gated = np.zeros(n_s, dtype=bool)
     kern.nb_filter(
-        gyr, acc, mag if use_mag else acc, use_mag, flag, rest, dt, q0, g_ref, m_ref, dip_ref,
-        PROPOSALS.index(p.proposal), SCHEMES.index(p.resampling), p.aux_alpha, p.ess_threshold,
-        h, 0.5 * p.bingham_band**2, p.process_noise, p.acc_sigma, p.acc_rest_sigma,
-        p.acc_norm_gain, p.acc_gate, 1.0 / p.mag_sigma**2, 1.0 / p.mag_rest_sigma**2,
-        p.mag_norm_tolerance, p.mag_dip_tolerance, p.mag_gate_dip, p.bias_tau, p.bias_rest_tau,
-        p.bias_max, p.init_sigma, p.reset_angle, p.reset_time, int(p.seed), n,
-        quat, bias, ess, resets, gated,
+        gyr, acc, mag if use_mag else acc, use_mag, flag, rest, dt, q0,
+        _pack(p, g_ref, m_ref, dip_ref), PROPOSALS.index(p.proposal), SCHEMES.index(p.resampling),
+        int(p.seed), n, quat, bias, ess, resets, gated,
     )  # fmt: skip
     return FusionResult(
         quat=make_continuous(quat),
