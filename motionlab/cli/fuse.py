@@ -23,9 +23,16 @@ def parse_params(items: tuple[str, ...]) -> dict[str, str]:
 
 
 def fuse_session(
-    ses: Session, name: str, params: dict[str, str], sensors: list[str], force: bool, path: str
+    ses: Session,
+    name: str,
+    params: dict[str, str],
+    sensors: list[str],
+    force: bool,
+    path: str,
+    references: dict | None = None,
 ) -> list[str]:
-    """Run estimator ``name`` on ``sensors`` and store results in ``ses.results["fusion"]``."""
+    """Run estimator ``name`` on ``sensors`` and store results in ``ses.results["fusion"]``;
+    ``references`` maps a sensor label to its marker reference vectors (IMU + marker fusion)."""
     est = registry.get(name)
     registry.make_params(est, params)  # fail on a bad parameter before any work
     store = ses.results.setdefault("fusion", {})
@@ -43,8 +50,13 @@ def fuse_session(
     ) as bar:
         for label in bar:
             s = ses.sensors[label]
-            res = registry.estimate(est.name, s.gyr, s.acc, s.mag, s.rate_hz, **params)
+            ref = (references or {}).get(label)
+            res = registry.estimate(
+                est.name, s.gyr, s.acc, s.mag, s.rate_hz, references=ref, **params
+            )
             entry = {"name": res.name, "quat": res.quat, "params": res.params}
+            if "scenario" in res.extra:
+                entry["scenario"] = res.extra["scenario"]
             for key in ("gyro_bias", "rest", "mag_disturbed"):
                 value = getattr(res, key)
                 if value is not None:
@@ -52,6 +64,20 @@ def fuse_session(
             store[label] = entry
             done.append(label)
     return done
+
+
+def _marker_references(ses: Session, name: str, markers_path: str | None, labels: list[str]):
+    """Marker reference vectors of the sensors that carry a cluster (``--with-markers``)."""
+    from motionlab.fusion.markers import session_references
+    from motionlab.validation.markermap import load_marker_map
+
+    if not registry.takes_references(name):
+        takes = [k for k in registry.available() if registry.takes_references(k)]
+        raise InputError(
+            f"estimator '{name}' cannot fuse markers", remedy=f"use --filter {' or '.join(takes)}"
+        )
+    mmap = load_marker_map(markers_path) if markers_path else None
+    return session_references(ses, mmap, labels=labels)
 
 
 @click.command("fuse")
@@ -67,6 +93,10 @@ def fuse_session(
     type=click.Path(file_okay=False),
     help="Folder of per-serial sensor calibrations (motionlab sensorcal) to apply first.",
 )
+@click.option(
+    "--with-markers", is_flag=True, help="Fuse the session's marker clusters (Liu 2010) too."
+)
+@click.option("--markers", "markers_path", help="Marker map YAML (implies --with-markers).")
 def command(
     session: str | None,
     name: str,
@@ -76,6 +106,8 @@ def command(
     output: str | None,
     list_: bool,
     calibration: str | None,
+    with_markers: bool,
+    markers_path: str | None,
 ) -> None:
     """Estimate each sensor's orientation (sensor → ENU earth) and store it in the session.
 
@@ -83,6 +115,7 @@ def command(
     Example:
       motionlab fuse session.h5
       motionlab fuse session.h5 --filter madgwick --param beta=0.1 --sensor shank_r
+      motionlab fuse session.h5 --filter liu_gn --with-markers --markers map.yaml
       motionlab fuse --list
     """
     if list_:
@@ -117,14 +150,23 @@ def command(
     if calibration is not None:  # fuse calibrated data; the session keeps the data as recorded
         calibrated, notes = apply_calibration_dir(ses.sensors, calibration, usable)
         ses.sensors.update(calibrated)
-    done = fuse_session(ses, name, parsed, usable, force, session)
+    refs, marker_info = {}, {}
+    if with_markers or markers_path:
+        refs, marker_info = _marker_references(ses, name, markers_path, usable)
+    done = fuse_session(ses, name, parsed, usable, force, session, refs)
     ses.sensors = recorded
     for label, stream in calibrated.items():
         ses.results["fusion"][label]["calibration"] = stream.attrs["calibration"]
+    for label in refs:
+        record = marker_info["sensors"][label] | {"lab_to_earth": marker_info["lab_to_earth"]}
+        ses.results["fusion"][label]["markers"] = record
+        seen = f"markers seen {100 * record['visible_fraction']:.0f} %"
+        notes[label] = f"{notes[label]}, {seen}" if label in notes else seen
     ses.add_provenance(
         parameters={"stage": "fuse", "filter": name, "params": parsed, "sensors": done}
-        | ({"calibration": calibration} if calibration else {}),
-        inputs=[session],
+        | ({"calibration": calibration} if calibration else {})
+        | ({"with_markers": True, "markers": markers_path} if refs else {}),
+        inputs=[session] + ([markers_path] if markers_path else []),
     )
     save_session(ses, output or session, force=True)
     for label in chosen:

@@ -5,6 +5,12 @@ loop). Quaternions are scalar first, sensor → ENU earth; ``pre[k]`` marks samp
 magnetometer must not be used (precomputed disturbance, or no magnetometer at all: then ``mag``
 is a dummy (1, 3) array that is never read). ``gating = (ref_norm, ref_dip, norm_tol, dip_tol)``
 is the undisturbed field (µT, rad) and the in-loop tolerances.
+
+Liu's filter also takes optical reference vectors (:mod:`motionlab.fusion.markers`): ``ref_body``
+(K, 3) unit marker-pair directions in the sensor frame, ``ref_earth`` (N, K, 3) their measured
+directions in the earth frame (NaN where not seen) and ``ref_w`` (K,) their weights; with K = 0
+the filter is the IMU-only one. ``used[k]`` records the measurements of each sample as bits
+(``USED_ACC``, ``USED_MAG``, ``USED_MARKERS``), from which the thesis's scenario is read.
 """
 
 from __future__ import annotations
@@ -13,6 +19,7 @@ import numba
 import numpy as np
 
 from motionlab.fusion.detect import nb_field_disturbed
+from motionlab.fusion.markers import USED_ACC, USED_MAG, USED_MARKERS
 
 _DAMP = 1e-6  # Levenberg-Marquardt damping of the 3x3 Gauss-Newton normal matrix
 
@@ -93,6 +100,46 @@ def _gn_add(n, g, wt, ox, oy, oz, yx, yy, yz):
     g[0] += 2.0 * wt * (oy * yz - oz * yy)
     g[1] += 2.0 * wt * (oz * yx - ox * yz)
     g[2] += 2.0 * wt * (ox * yy - oy * yx)
+
+
+@numba.njit(cache=True, inline="always")
+def _gn_add_markers(w, x, y, z, ref_body, ref_earth, ref_w, k, n, g):
+    """Accumulate the marker vectors seen at sample ``k``; returns how many there were.
+
+    A body-fixed unit vector ``a`` measured in the earth frame as ``o`` is predicted as
+    ``R(q) a`` (Liu eq. (33), ``q ⊗ m ⊗ q*``); with ``q ← q ⊗ [1, p]`` the reduced-order
+    Jacobian is ``X_p = −2 R [a]×``, so ``N += 4w(I − aaᵀ)`` and ``g += 2w a × Rᵀo``.
+    Returns the number of vectors and the sum of their weights.
+    """
+    count = 0
+    wsum = 0.0
+    for j in range(ref_body.shape[0]):
+        ox, oy, oz = ref_earth[k, j, 0], ref_earth[k, j, 1], ref_earth[k, j, 2]
+        if not (np.isfinite(ox) and np.isfinite(oy) and np.isfinite(oz)):
+            continue
+        sx, sy, sz = _to_sensor(w, x, y, z, ox, oy, oz)
+        ax, ay, az = ref_body[j, 0], ref_body[j, 1], ref_body[j, 2]
+        _gn_add(n, g, ref_w[j], -sx, -sy, -sz, ax, ay, az)  # o×y with o = −Rᵀo, y = a
+        count += 1
+        wsum += ref_w[j]
+    return count, wsum
+
+
+@numba.njit(cache=True, inline="always")
+def _marker_step(var, wsum, mu, floor):
+    """Step ``s`` of a marker update and the new attitude variance (scalar Kalman schedule).
+
+    ``var`` (rad², per axis) is the variance of the IMU prediction; the marker solution has
+    ``r = 3/(2Σw)`` per axis (normal matrix ``≈ (8/3)Σw I`` of spread vectors).
+    ``s = var/(var + r)``, not below ``floor``; a correction ``mu`` (rad) beyond 5σ of both (a
+    jump the variance did not foresee, e.g. samples lost from the IMU stream) first raises
+    ``var`` to the per-axis share of ``mu²``.
+    """
+    r = 1.5 / wsum
+    if mu * mu > 75.0 * (var + r):
+        var = mu * mu / 3.0
+    s = max(var / (var + r), floor)
+    return min(s, 1.0), (1.0 - s) * var
 
 
 @numba.njit(cache=True, inline="always")
@@ -222,8 +269,9 @@ def mahony_kernel(
 
 
 @numba.njit(cache=True, inline="always")
-def _gn_correction(w, x, y, z, ax, ay, az, wa, use_a, mag, k, wm, use_m, cos_dip, sin_dip, nrm, g):
-    """Reduced-order Gauss–Newton step ``p`` at ``q`` from the usable unit observations."""
+def _gn_imu(w, x, y, z, ax, ay, az, wa, use_a, mag, k, wm, use_m, cos_dip, sin_dip, nrm, g):
+    """Normal equations ``nrm``, ``g`` (reset here) of the usable unit acc and mag observations;
+    the reduced-order Gauss–Newton step ``p`` at ``q`` is then ``_solve_sym(nrm, g)``."""
     for i in range(6):
         nrm[i] = 0.0
     g[0], g[1], g[2] = 0.0, 0.0, 0.0
@@ -234,7 +282,6 @@ def _gn_correction(w, x, y, z, ax, ay, az, wa, use_a, mag, k, wm, use_m, cos_dip
         mx, my, mz, _ = _unit(mag[k, 0], mag[k, 1], mag[k, 2])
         yx, yy, yz = _to_sensor(w, x, y, z, 0.0, cos_dip, -sin_dip)
         _gn_add(nrm, g, wm, mx, my, mz, yx, yy, yz)
-    return _solve_sym(nrm, g)
 
 
 @numba.njit(cache=True)
@@ -256,29 +303,42 @@ def liu_kernel(
     ref_dip,
     ntol,
     dtol,
+    ref_body,
+    ref_earth,
+    ref_w,
+    ref_gain,
+    ref_drift,
 ):
     nn = gyr.shape[0]
     out = np.empty((nn, 4))
     dist = np.empty(nn, dtype=np.bool_)
+    used = np.empty(nn, dtype=np.int8)
     nrm = np.empty(6)
     g = np.empty(3)
     cd, sd = np.cos(ref_dip), np.sin(ref_dip)
     w, x, y, z = q0[0], q0[1], q0[2], q0[3]
+    var = 1.0  # attitude variance (rad²) of the IMU prediction, for the marker steps
     for k in range(nn):
         w, x, y, z = _gyro_step(w, x, y, z, gyr[k, 0], gyr[k, 1], gyr[k, 2], dt)
         ax, ay, az, an = _unit(acc[k, 0], acc[k, 1], acc[k, 2])
         use_a = an > 0.0 and abs(an - gravity) < acc_tol
         use_m = _mag_ok(pre, k, w, x, y, z, mag, ref_norm, ref_dip, ntol, dtol)
         dist[k] = not use_m
-        if use_a or use_m:
-            px, py, pz = _gn_correction(
-                w, x, y, z, ax, ay, az, wa, use_a, mag, k, wm, use_m, cd, sd, nrm, g
-            )
+        _gn_imu(w, x, y, z, ax, ay, az, wa, use_a, mag, k, wm, use_m, cd, sd, nrm, g)
+        n_ref, wsum = _gn_add_markers(w, x, y, z, ref_body, ref_earth, ref_w, k, nrm, g)
+        used[k] = USED_ACC * use_a + USED_MAG * use_m + USED_MARKERS * (n_ref > 0)
+        sp = np.sqrt(var) + ref_drift * dt
+        var = sp * sp
+        if use_a or use_m or n_ref > 0:
+            px, py, pz = _solve_sym(nrm, g)
             s = min(1.0, gain * dt * (startup_gain if k < n_start else 1.0))
+            if n_ref > 0:
+                mu = 2.0 * np.sqrt(px * px + py * py + pz * pz)
+                s, var = _marker_step(var, wsum, mu, ref_gain * dt)
             dw, dx, dy, dz = _qmul(w, x, y, z, 0.0, px, py, pz)
             w, x, y, z = _normq(w + s * dw, x + s * dx, y + s * dy, z + s * dz)
         out[k, 0], out[k, 1], out[k, 2], out[k, 3] = w, x, y, z
-    return out, dist
+    return out, dist, used
 
 
 @numba.njit(cache=True)
@@ -320,9 +380,8 @@ def adaptive_kernel(
             use_m = abs(mn - ref_norm) < eps_mag
         dist[k] = not use_m
         if use_a or use_m:
-            px, py, pz = _gn_correction(
-                w, x, y, z, ax, ay, az, 1.0, use_a, mag, k, 1.0, use_m, cd, sd, nrm, g
-            )
+            _gn_imu(w, x, y, z, ax, ay, az, 1.0, use_a, mag, k, 1.0, use_m, cd, sd, nrm, g)
+            px, py, pz = _solve_sym(nrm, g)
             # δθ = 2p is the full Gauss-Newton correction (rotation vector, sensor frame)
             tx, ty, tz = 2.0 * px, 2.0 * py, 2.0 * pz
             if not use_a:  # magnetometer alone: heading only

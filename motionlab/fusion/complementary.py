@@ -38,6 +38,7 @@ from motionlab.fusion._cf_kernels import (
     mahony_kernel,
 )
 from motionlab.fusion.attitude import initial_orientation
+from motionlab.fusion.markers import MarkerReferences, interval_rates, scenario
 from motionlab.fusion.registry import FusionResult, register
 
 
@@ -72,6 +73,10 @@ class LiuParams(_Common):
     mag_sigma: float = _f(1.0, "1", "std of the normalised magnetometer residual (W = 1/sigma)")
     acc_tol: float = _f(0.5, "m/s^2", "skip the accelerometer when | |a| - g | exceeds this")
     gravity: float = _f(9.81, "m/s^2", "local gravity")
+    marker_gain: float = _f(2.0, "1/s", "least gain g on samples with marker vectors")
+    marker_drift: float = _f(
+        0.2, "deg/s", "growth of the attitude error between marker samples (sets their gain)"
+    )
 
 
 @dataclass
@@ -152,15 +157,21 @@ def run_mahony(gyr, acc, mag, rate, params: MahonyParams) -> FusionResult:
 
 
 @register("liu_gn", LiuParams, "Liu's reduced-order Gauss-Newton complementary filter")
-def run_liu(gyr, acc, mag, rate, params: LiuParams) -> FusionResult:
+def run_liu(
+    gyr, acc, mag, rate, params: LiuParams, references: MarkerReferences | None = None
+) -> FusionResult:
     """Liu (2010) §5.1: predict ``q⁻ = q + Δt/2 q ⊗ ω`` (30), reduced-order Gauss–Newton step
     ``p = (X_pᵀWᵀWX_p)⁻¹X_pᵀWᵀε`` (55) with ``X_p = 2[ŷ]×``, update ``q = q⁻ + gΔt q⁻ ⊗ p`` (45).
 
     The field reference ``[0, cos δ, −sin δ]`` uses the dip ``δ`` of the undisturbed data.
+    Marker ``references`` (:mod:`motionlab.fusion.markers`) add the rows of Table 4 for the
+    marker vectors (``X_p = −2R[a]×``, weight ``1/σ²``) where they are seen, and the step uses
+    ``marker_gain`` there; ``extra["scenario"]`` then gives Liu's scenario (Table 2) per sample.
     """
     q0, n_start, mag, pre, use_mag, gating, rest = _prepare(gyr, acc, mag, rate, params)
-    quat, dist = liu_kernel(
-        gyr,
+    refs = references if references is not None else MarkerReferences.none(len(gyr))
+    quat, dist, used = liu_kernel(
+        gyr if references is None else interval_rates(gyr, refs.gyro_bias),
         acc,
         mag,
         pre,
@@ -174,8 +185,15 @@ def run_liu(gyr, acc, mag, rate, params: LiuParams) -> FusionResult:
         n_start,
         params.startup_gain,
         *gating,
+        refs.body,
+        refs.earth,
+        1.0 / refs.sigma**2,
+        params.marker_gain,
+        np.deg2rad(params.marker_drift),
     )
-    return _result(quat, dist, use_mag, rest)
+    if references is None:
+        return _result(quat, dist, use_mag, rest)
+    return _result(quat, dist, use_mag, rest, scenario=scenario(used))
 
 
 @register("adaptive_cf", AdaptiveParams, "Adaptive-gain Gauss-Newton complementary filter (Tian)")

@@ -17,6 +17,12 @@ angular rate ``ω`` (rad/s) and gyroscope bias ``b`` (rad/s). Liu (2010, thesis 
   horizontal part seen through the prediction (:func:`~motionlab.fusion._kalman_common.
   horizontal_north`), so only the heading is informed by it. On detected rest a zero-rate
   pseudo-measurement ``ω = 0`` makes the bias observable directly;
+- marker reference vectors (Liu Tables 3 and 6, :mod:`motionlab.fusion.markers`): a body-fixed
+  unit vector ``a`` measured in the earth frame is predicted as ``R(q) a`` (``q ⊗ a ⊗ q*``) with
+  the Jacobian of that form (the notes' closed form: App. A with ``q*``, vector part negated) and
+  the vector's own noise variance per component; with them the gyroscope enters as the interval
+  mean (:func:`~motionlab.fusion.markers.interval_rates`) and the bias starts from the
+  registration's estimate;
 - every measurement component is a scalar update (diagonal ``R``), linearised at the prediction;
   ``q`` is normalised after the prediction and the update (as Liu does) and the covariance is
   projected onto the tangent space of the unit sphere.
@@ -36,6 +42,15 @@ import numpy as np
 
 from motionlab.fusion import _kalman_common as kc
 from motionlab.fusion._kalman_common import KalmanCommon, _f
+from motionlab.fusion.markers import (
+    USED_ACC,
+    USED_MAG,
+    USED_MARKERS,
+    MarkerReferences,
+    interval_rates,
+    marker_jump,
+    scenario,
+)
 from motionlab.fusion.registry import FusionResult, register
 from motionlab.rotations import make_continuous
 
@@ -124,11 +139,20 @@ def _kernel(
     bias_rw: float,
     bias_init: float,
     rest_noise: float,
+    ref_body: np.ndarray,
+    ref_earth: np.ndarray,
+    ref_var: np.ndarray,
+    bias0: np.ndarray,
     quat: np.ndarray,
     bias: np.ndarray,
     dist: np.ndarray,
+    used: np.ndarray,
 ) -> None:
-    """Run the EKF over all samples into the preallocated ``quat``, ``bias``, ``dist``."""
+    """Run the EKF over all samples into the preallocated ``quat``, ``bias``, ``dist``, ``used``.
+
+    ``ref_body`` (K, 3), ``ref_earth`` (N, K, 3, NaN = not seen) and ``ref_var`` (K,) are the
+    marker reference vectors (K = 0: IMU only); ``bias0`` the initial bias.
+    """
     n = gyr.shape[0]
     x = np.zeros(NX)
     p = np.zeros((NX, NX))
@@ -140,11 +164,13 @@ def _kernel(
     dx = np.empty(NX)
     r = np.empty((3, 3))
     north = np.empty(3)
+    qc = np.empty(4)
     q = x[0:4]
     for i in range(4):
         q[i] = q0[i]
     for i in range(3):
-        x[4 + i] = gyr[0, i]
+        x[7 + i] = bias0[i]
+        x[4 + i] = gyr[0, i] - bias0[i]
     v0 = 0.25 * prm[kc.ATT_INIT] ** 2
     for i in range(4):
         for j in range(4):
@@ -236,7 +262,9 @@ def _kernel(
         kc.rot_matrix(q, r)
         scale = kc.startup_scale(prm, k, dt)
         var_a *= scale
+        used[k] = 0
         if var_a > 0.0:
+            used[k] += USED_ACC
             an = np.sqrt(acc[k, 0] ** 2 + acc[k, 1] ** 2 + acc[k, 2] ** 2)
             for c in range(3):
                 _jacobian(q, 0.0, 0.0, 1.0, c, hrow)
@@ -249,9 +277,29 @@ def _kernel(
             )  # fmt: skip
             if ok and kc.horizontal_north(r, mag, k, north):
                 dist[k] = False
+                used[k] += USED_MAG
                 for c in range(3):
                     _jacobian(q, 0.0, 1.0, 0.0, c, hrow)
                     _update(p, dx, hrow, north[c] - r[1, c], var_mag * scale, ph, nfree)
+        qc[0], qc[1], qc[2], qc[3] = q[0], -q[1], -q[2], -q[3]
+        var_att = 4.0 / 3.0 * (p[0, 0] + p[1, 1] + p[2, 2] + p[3, 3])
+        jump = marker_jump(r, ref_body, ref_earth, ref_var, k, var_att)
+        if jump > 0.0:  # the markers disagree beyond the covariance: widen the attitude
+            for i in range(4):
+                for m in range(4):
+                    p[i, m] += 0.25 * jump * ((1.0 if i == m else 0.0) - q[i] * q[m])
+        for j in range(ref_body.shape[0]):
+            if not np.isfinite(ref_earth[k, j, 0]):
+                continue
+            used[k] |= USED_MARKERS
+            ax, ay, az = ref_body[j, 0], ref_body[j, 1], ref_body[j, 2]
+            for c in range(3):
+                # ∂(q ⊗ a ⊗ q*)/∂q: App. A at q* with the vector part negated
+                _jacobian(qc, ax, ay, az, c, hrow)
+                for i in range(1, 4):
+                    hrow[i] = -hrow[i]
+                pred = r[c, 0] * ax + r[c, 1] * ay + r[c, 2] * az
+                _update(p, dx, hrow, ref_earth[k, j, c] - pred, ref_var[j], ph, nfree)
         for i in range(NX):
             x[i] += dx[i]
         kc.normalize(q)
@@ -283,20 +331,34 @@ def _project(p: np.ndarray, q: np.ndarray, tmp: np.ndarray) -> None:
 
 @register("ekf", EkfParams, "Liu's quaternion EKF with rate (and gyro-bias) states")
 def run(
-    gyr: np.ndarray, acc: np.ndarray, mag: np.ndarray | None, rate: float, params: EkfParams
+    gyr: np.ndarray,
+    acc: np.ndarray,
+    mag: np.ndarray | None,
+    rate: float,
+    params: EkfParams,
+    references: MarkerReferences | None = None,
 ) -> FusionResult:
-    """Quaternion EKF of Liu (2010) §5.2 with bias states; see the module docstring."""
+    """Quaternion EKF of Liu (2010) §5.2 with bias states; see the module docstring.
+
+    With marker ``references`` ``extra["scenario"]`` gives Liu's scenario (Table 2) per sample.
+    """
     prep = kc.prepare(gyr, acc, mag, rate, params)
+    refs = references if references is not None else MarkerReferences.none(len(gyr))
     n = len(gyr)
     quat = np.empty((n, 4))
     bias = np.empty((n, 3))
     dist = np.empty(n, dtype=np.bool_)
+    used = np.empty(n, dtype=np.int8)
     _kernel(
-        gyr, acc, prep.mag, prep.use_mag, prep.pre, prep.rest, 1.0 / rate, prep.q0,
-        kc.pack(params, prep), float(params.rate_rw), float(params.bias_rw),
-        float(params.bias_init), float(params.rest_noise), quat, bias, dist,
+        gyr if references is None else interval_rates(gyr, 0.0), acc, prep.mag, prep.use_mag,
+        prep.pre, prep.rest, 1.0 / rate, prep.q0, kc.pack(params, prep), float(params.rate_rw),
+        float(params.bias_rw), float(params.bias_init), float(params.rest_noise), refs.body,
+        refs.earth, refs.sigma**2, refs.gyro_bias, quat, bias, dist, used,
     )  # fmt: skip
+    extra = {"mag_used": prep.use_mag}
+    if references is not None:
+        extra["scenario"] = scenario(used)
     return FusionResult(
         make_continuous(quat), "ekf", {}, gyro_bias=bias, rest=prep.rest,
-        mag_disturbed=dist if prep.use_mag else None, extra={"mag_used": prep.use_mag},
+        mag_disturbed=dist if prep.use_mag else None, extra=extra,
     )  # fmt: skip

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 import importlib
+import inspect
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
@@ -178,12 +179,18 @@ def _fill_nan(arr: np.ndarray, name: str) -> tuple[np.ndarray, int]:
     return np.ascontiguousarray(arr[idx]), int(bad.sum())
 
 
+def takes_references(name: str) -> bool:
+    """Whether estimator ``name`` can fuse marker reference vectors (``references=``)."""
+    return "references" in inspect.signature(get(name).run).parameters
+
+
 def estimate(
     name: str,
     gyr: np.ndarray,
     acc: np.ndarray,
     mag: np.ndarray | None = None,
     rate: float = 100.0,
+    references: Any = None,
     **params: Any,
 ) -> FusionResult:
     """Run estimator ``name`` on gyroscope (rad/s), accelerometer (m/s²), magnetometer (µT).
@@ -196,6 +203,9 @@ def estimate(
         (N, 3) arrays in the sensor frame; ``mag=None`` gives a 6-D estimate.
     rate
         Sampling rate in Hz.
+    references
+        Optional :class:`~motionlab.fusion.markers.MarkerReferences` on the same samples (IMU +
+        marker fusion); only for estimators whose ``run`` takes ``references``.
     **params
         Overrides of the estimator's parameter dataclass.
     """
@@ -216,7 +226,16 @@ def estimate(
     if mag is not None:
         mag, filled["mag"] = _fill_nan(mag, "mag")
     p = make_params(est, params)
-    result = est.run(gyr, acc, mag, float(rate), p)
+    kwargs = {}
+    if references is not None:
+        takes = [k for k in available() if takes_references(k)]
+        if est.name not in takes:
+            raise InputError(
+                f"estimator '{est.name}' cannot fuse marker references",
+                remedy=f"use one of {', '.join(takes)}",
+            )
+        kwargs["references"] = references.validated(n)
+    result = est.run(gyr, acc, mag, float(rate), p, **kwargs)
     result.name = est.name
     result.params = dataclasses.asdict(p)
     if any(filled.values()):

@@ -19,6 +19,13 @@ rotation vector in the body frame, ``q_true = q ⊗ exp(δθ)``. The gyroscope d
   applied multiplicatively ``q = q̄ ⊗ exp(K_θ ν)``, ``b = b̄ + K_b ν`` (eq. (106) corrected) and
   ``P = P⁻ − K P_zxᵀ − P_xz Kᵀ + K P_zz Kᵀ`` (valid for any gain; eq. (107) has no ``H`` in a UKF).
 
+Marker reference vectors (Liu Table 3, :mod:`motionlab.fusion.markers`) add the predicted
+earth-frame directions ``R(χ) a`` of the body-fixed marker pairs to ``Z_i`` with their own noise;
+with them the gyroscope enters as the interval mean
+(:func:`~motionlab.fusion.markers.interval_rates`), the bias starts from the registration's
+estimate, and a jump beyond the covariance (:func:`~motionlab.fusion.markers.marker_jump`) widens
+the attitude block of ``P⁻`` (sigma points redrawn) before the update.
+
 During the start-up phase the bias is *considered*, not estimated (zero gain), so a wrong
 initial attitude is not absorbed by the bias. Accelerometer noise grows with linear acceleration
 and rotation rate; disturbed magnetometer samples are dropped (:mod:`motionlab.fusion.detect`).
@@ -38,6 +45,15 @@ import numpy as np
 from motionlab.errors import InputError
 from motionlab.fusion import _kalman_common as kc
 from motionlab.fusion._kalman_common import KalmanCommon, _f
+from motionlab.fusion.markers import (
+    USED_ACC,
+    USED_MAG,
+    USED_MARKERS,
+    MarkerReferences,
+    interval_rates,
+    marker_jump,
+    scenario,
+)
 from motionlab.fusion.registry import FusionResult, register
 from motionlab.rotations import make_continuous
 
@@ -127,14 +143,24 @@ def _kernel(
     bias_rw: float,
     bias_init: float,
     rest_noise: float,
+    ref_body: np.ndarray,
+    ref_earth: np.ndarray,
+    ref_var: np.ndarray,
+    bias0: np.ndarray,
     quat: np.ndarray,
     bias: np.ndarray,
     dist: np.ndarray,
+    used: np.ndarray,
 ) -> None:
-    """Run the UKF over all samples into the preallocated ``quat``, ``bias``, ``dist``."""
+    """Run the UKF over all samples into the preallocated ``quat``, ``bias``, ``dist``, ``used``.
+
+    ``ref_body`` (K, 3), ``ref_earth`` (N, K, 3, NaN = not seen) and ``ref_var`` (K,) are the
+    marker reference vectors (K = 0: IMU only); ``bias0`` the initial bias.
+    """
     n = gyr.shape[0]
+    nz = 9 + 3 * ref_body.shape[0]
     q = q0.copy()
-    b = np.zeros(3)
+    b = bias0.copy()
     p = np.zeros((NX, NX))
     a = np.empty((NX, NX))
     low = np.empty((NX, NX))
@@ -142,14 +168,14 @@ def _kernel(
     chib = np.empty((NS, 3))
     dev = np.empty((NS, NX))
     err = np.empty((NS, 3))
-    zs = np.empty((NS, 9))
-    zbar = np.empty(9)
-    z = np.empty(9)
-    rvar = np.empty(9)
-    pzz = np.empty((9, 9))
-    pxz = np.empty((NX, 9))
-    kt = np.empty((9, NX))
-    lowz = np.empty((9, 9))
+    zs = np.empty((NS, nz))
+    zbar = np.empty(nz)
+    z = np.empty(nz)
+    rvar = np.empty(nz)
+    pzz = np.empty((nz, nz))
+    pxz = np.empty((NX, nz))
+    kt = np.empty((nz, NX))
+    lowz = np.empty((nz, nz))
     dx = np.empty(NX)
     r = np.empty((3, 3))
     north = np.empty(3)
@@ -198,7 +224,17 @@ def _kernel(
                 for s in range(NS):
                     acc_ij += dev[s, i] * dev[s, j]
                 p[i, j] = w * acc_ij
-        # measurements present at this sample: acc (3), horizontal field (3), rest (3)
+        if ref_body.shape[0] > 0:
+            kc.rot_matrix(q, r)
+            jump = marker_jump(
+                r, ref_body, ref_earth, ref_var, k, (p[0, 0] + p[1, 1] + p[2, 2]) / 3
+            )
+            if jump > 0.0:  # the markers disagree beyond P⁻: widen it and redraw the points
+                for i in range(3):
+                    p[i, i] += jump
+                _redraw(q, b, p, a, low, chi, chib, dev)
+        # measurements present at this sample: acc (3), horizontal field (3), markers, rest (3)
+        used[k] = 0
         m = 0
         scale = kc.startup_scale(prm, k, dt)
         wx, wy, wz = gyr[k, 0] - b[0], gyr[k, 1] - b[1], gyr[k, 2] - b[2]
@@ -216,6 +252,7 @@ def _kernel(
                 z[i] = acc[k, i] / an
                 rvar[i] = var_a * scale
             m = 3
+            used[k] += USED_ACC
         dist[k] = True
         if use_mag:
             ok = kc.mag_ok(
@@ -233,6 +270,23 @@ def _kernel(
                     z[m + i] = north[i]
                     rvar[m + i] = var_mag * scale
                 m += 3
+                used[k] += USED_MAG
+        for j in range(ref_body.shape[0]):
+            if not np.isfinite(ref_earth[k, j, 0]):
+                continue
+            for s in range(NS):
+                kc.rot_matrix(chi[s], r)
+                for i in range(3):
+                    zs[s, m + i] = (
+                        r[i, 0] * ref_body[j, 0]
+                        + r[i, 1] * ref_body[j, 1]
+                        + r[i, 2] * ref_body[j, 2]
+                    )
+            for i in range(3):
+                z[m + i] = ref_earth[k, j, i]
+                rvar[m + i] = ref_var[j]
+            m += 3
+            used[k] |= USED_MARKERS
         if rest[k]:
             for s in range(NS):
                 for i in range(3):
@@ -247,6 +301,32 @@ def _kernel(
             quat[k, i] = q[i]
         for i in range(3):
             bias[k, i] = b[i]
+
+
+@numba.njit(cache=True)
+def _redraw(
+    q: np.ndarray,
+    b: np.ndarray,
+    p: np.ndarray,
+    a: np.ndarray,
+    low: np.ndarray,
+    chi: np.ndarray,
+    chib: np.ndarray,
+    dev: np.ndarray,
+) -> None:
+    """Sigma points ``chi``, ``chib`` and deviations ``dev`` of N([q; b], P), in place."""
+    for i in range(NX):
+        for j in range(NX):
+            a[i, j] = NX * p[i, j]
+    kc.cholesky(a, NX, low)
+    for s in range(NS):
+        c = s % NX
+        sign = 1.0 if s < NX else -1.0
+        kc.mul_exp_right(q, sign * low[0, c], sign * low[1, c], sign * low[2, c], chi[s])
+        for i in range(NX):
+            dev[s, i] = sign * low[i, c]
+        for i in range(3):
+            chib[s, i] = b[i] + sign * low[3 + i, c]
 
 
 @numba.njit(cache=True)
@@ -317,20 +397,34 @@ def _correct(
 
 @register("ukf", UkfParams, "Quaternion UKF (Kraft) with intrinsic mean and gyro-bias states")
 def run(
-    gyr: np.ndarray, acc: np.ndarray, mag: np.ndarray | None, rate: float, params: UkfParams
+    gyr: np.ndarray,
+    acc: np.ndarray,
+    mag: np.ndarray | None,
+    rate: float,
+    params: UkfParams,
+    references: MarkerReferences | None = None,
 ) -> FusionResult:
-    """Quaternion UKF with bias states; see the module docstring."""
+    """Quaternion UKF with bias states; see the module docstring.
+
+    With marker ``references`` ``extra["scenario"]`` gives Liu's scenario (Table 2) per sample.
+    """
     prep = kc.prepare(gyr, acc, mag, rate, params)
+    refs = references if references is not None else MarkerReferences.none(len(gyr))
     n = len(gyr)
     quat = np.empty((n, 4))
     bias = np.empty((n, 3))
     dist = np.empty(n, dtype=np.bool_)
+    used = np.empty(n, dtype=np.int8)
     _kernel(
-        gyr, acc, prep.mag, prep.use_mag, prep.pre, prep.rest, 1.0 / rate, prep.q0,
-        kc.pack(params, prep), float(params.bias_rw), float(params.bias_init),
-        float(params.rest_noise), quat, bias, dist,
+        gyr if references is None else interval_rates(gyr, 0.0), acc, prep.mag, prep.use_mag,
+        prep.pre, prep.rest, 1.0 / rate, prep.q0, kc.pack(params, prep), float(params.bias_rw),
+        float(params.bias_init), float(params.rest_noise), refs.body, refs.earth, refs.sigma**2,
+        refs.gyro_bias, quat, bias, dist, used,
     )  # fmt: skip
+    extra = {"mag_used": prep.use_mag}
+    if references is not None:
+        extra["scenario"] = scenario(used)
     return FusionResult(
         make_continuous(quat), "ukf", {}, gyro_bias=bias, rest=prep.rest,
-        mag_disturbed=dist if prep.use_mag else None, extra={"mag_used": prep.use_mag},
+        mag_disturbed=dist if prep.use_mag else None, extra=extra,
     )  # fmt: skip
