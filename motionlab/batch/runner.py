@@ -135,7 +135,7 @@ class StudyResult:
 
 # ------------------------------------------------------------------------------ worker side
 
-_ACTIVE: list[Path] = []  # the session folder this worker process is writing
+_ACTIVE: set[Path] = set()  # the session folders this worker process is writing
 
 
 def _one_line(text: str) -> str:
@@ -154,7 +154,7 @@ def run_session(task: SessionTask, pipeline: Pipeline | None = None) -> Outcome:
     sweep_temp(folder)
     (folder / STAMP).unlink(missing_ok=True)
     claim(folder)
-    _ACTIVE[:] = [folder]
+    _ACTIVE.add(folder)
     try:
         if pipeline is None:
             from motionlab.pipeline import run_pipeline as pipeline
@@ -177,7 +177,7 @@ def run_session(task: SessionTask, pipeline: Pipeline | None = None) -> Outcome:
     except Exception as exc:  # a bug in one session must not stop the study
         error, kind = f"internal error ({type(exc).__name__}: {exc})", "internal"
     finally:
-        _ACTIVE.clear()
+        _ACTIVE.discard(folder)
         release(folder)
     seconds = time.perf_counter() - start
     return Outcome(task.subject, task.visit, "failed", _one_line(error), kind, seconds)
@@ -185,7 +185,7 @@ def run_session(task: SessionTask, pipeline: Pipeline | None = None) -> Outcome:
 
 def _on_terminate(signum: int, frame: object) -> None:
     """The pool stops healthy workers when another one died: drop the claim, exit at once."""
-    for folder in _ACTIVE:
+    for folder in list(_ACTIVE):
         release(folder)
     os._exit(128 + signum)
 
