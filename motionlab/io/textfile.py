@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import io
 import operator
+import os
 from collections.abc import Iterator, Sequence
 from pathlib import Path
 
@@ -28,22 +29,27 @@ _SPACE[_NEWLINE] = True
 class TextFile(Sequence[str]):
     """A text file held as bytes and seen as a sequence of lines, decoded when asked for.
 
-    ``raw`` is the content without byte-order mark, ending with ``\\n``; ``starts``/``ends``
-    the byte offsets of every line's first byte and of its ``\\n``; ``unended`` whether the
-    file's last line had no line end (as in a file cut short). ``text[i]`` is line ``i``
-    without its line ending; slices decode their lines in one go.
+    ``bytes`` is the content (uint8 array) without byte-order mark, ending with ``\\n``;
+    ``starts``/``ends`` the offsets of every line's first byte and of its ``\\n``;
+    ``unended`` whether the file's last line had no line end (as in a file cut short).
+    ``text[i]`` is line ``i`` without its line ending; slices decode their lines in one go.
     """
 
-    def __init__(self, path: str | Path, raw: bytes, encoding: str = "utf-8") -> None:
-        self.unended = bool(raw) and not raw.endswith(b"\n")
-        if self.unended:
-            raw += b"\n"
+    def __init__(self, path: str | Path, data: bytes | np.ndarray, encoding: str = "utf-8"):
+        b = np.frombuffer(data, dtype=np.uint8) if isinstance(data, bytes) else data
+        ends = np.flatnonzero(b == _NEWLINE)
+        if not len(ends) and (b == 13).any():  # classic Mac line ends
+            b = np.where(b == 13, np.uint8(_NEWLINE), b)
+            ends = np.flatnonzero(b == _NEWLINE)
+        self.unended = len(b) > 0 and b[-1] != _NEWLINE
+        if self.unended:  # a copy, but only for a file cut short (or written without one)
+            b = np.append(b, np.uint8(_NEWLINE))
+            ends = np.append(ends, len(b) - 1)
         self.path = Path(path)
-        self.raw = raw
+        self.bytes = b
         self.encoding = encoding
-        self.bytes = np.frombuffer(raw, dtype=np.uint8)
-        self.ends = np.flatnonzero(self.bytes == _NEWLINE)
-        self.starts = np.concatenate(([0], self.ends[:-1] + 1)).astype(np.int64)
+        self.ends = ends
+        self.starts = np.concatenate(([0], ends[:-1] + 1)).astype(np.int64)
 
     @classmethod
     def from_lines(cls, path: str | Path, lines: Sequence[str]) -> TextFile:
@@ -58,17 +64,20 @@ class TextFile(Sequence[str]):
             rows = range(len(self))[i]
             if rows.step != 1 or not rows:
                 return [self[k] for k in rows]
-            chunk = self.raw[self.starts[rows.start] : self.ends[rows.stop - 1]]
-            return [s.rstrip("\r") for s in chunk.decode(self.encoding).split("\n")]
+            chunk = self._text(self.starts[rows.start], self.ends[rows.stop - 1])
+            return [s.rstrip("\r") for s in chunk.split("\n")]
         i = operator.index(i)
         if i < 0:
             i += len(self)
         if not 0 <= i < len(self):
             raise IndexError("line index out of range")
-        return self.raw[self.starts[i] : self.ends[i]].decode(self.encoding).rstrip("\r")
+        return self._text(self.starts[i], self.ends[i]).rstrip("\r")
 
     def __iter__(self) -> Iterator[str]:
         return (self[i] for i in range(len(self)))
+
+    def _text(self, start: int, stop: int) -> str:
+        return self.bytes[start:stop].tobytes().decode(self.encoding)
 
     def blank_or_comment(self, rows: np.ndarray, prefixes: Sequence[str]) -> np.ndarray:
         """Which of the lines ``rows`` are blank or start (after blanks) with one of
@@ -115,19 +124,31 @@ class TextFile(Sequence[str]):
         marks = self.marks(rows, char)
         return np.searchsorted(marks, self.ends[rows]) - np.searchsorted(marks, self.starts[rows])
 
-    def stream(self, rows: np.ndarray) -> io.BytesIO:
-        """The bytes of the lines ``rows`` as a file: without a copy when they run to the end
-        of the file, as one slice when they follow each other, else joined."""
-        breaks = np.flatnonzero(np.diff(rows) != 1)
+    def stream(self, rows: np.ndarray) -> io.RawIOBase:
+        """The bytes of the lines ``rows`` as a binary file: without a copy when they follow
+        each other, else joined."""
+        b, breaks = self.bytes, np.flatnonzero(np.diff(rows) != 1)
         if not len(breaks):
-            if rows[-1] == len(self) - 1:
-                f = io.BytesIO(self.raw)  # shares the bytes
-                f.seek(self.starts[rows[0]])
-                return f
-            return io.BytesIO(self.raw[self.starts[rows[0]] : self.ends[rows[-1]] + 1])
+            return _ArrayFile(b[self.starts[rows[0]] : self.ends[rows[-1]] + 1])
         firsts = self.starts[rows[np.r_[0, breaks + 1]]].tolist()
         lasts = (self.ends[rows[np.r_[breaks, len(rows) - 1]]] + 1).tolist()
-        return io.BytesIO(b"".join(self.raw[a:b] for a, b in zip(firsts, lasts, strict=True)))
+        return _ArrayFile(np.concatenate([b[i:j] for i, j in zip(firsts, lasts, strict=True)]))
+
+
+class _ArrayFile(io.RawIOBase):
+    """A read-only binary file over a uint8 array, for pandas to parse without a copy."""
+
+    def __init__(self, data: np.ndarray) -> None:
+        self._data, self._pos = data, 0
+
+    def readable(self) -> bool:
+        return True
+
+    def readinto(self, buffer: bytearray | memoryview) -> int:
+        n = min(len(buffer), len(self._data) - self._pos)
+        memoryview(buffer).cast("B")[:n] = self._data[self._pos : self._pos + n]
+        self._pos += n
+        return n
 
 
 def read_lines(path: str | Path) -> TextFile:
@@ -138,22 +159,23 @@ def read_lines(path: str | Path) -> TextFile:
     """
     path = Path(path)
     try:
-        raw = path.read_bytes()
+        with open(path, "rb", buffering=0) as f:
+            b = np.empty(os.fstat(f.fileno()).st_size, dtype=np.uint8)
+            b = b[: f.readinto(memoryview(b))]  # into an array: no bytes object, no copy
     except OSError as exc:
         raise InputError(
             f"cannot read the file ({exc.strerror})", path, remedy="check the path"
         ) from None
-    if b"\0" in raw[:65536]:
+    if not b[:65536].all():
         raise InputError(
             "binary file, not delimited text", path, remedy="export the recording as text (CSV)"
         )
-    raw = raw.removeprefix(b"\xef\xbb\xbf")
+    if b[:3].tobytes() == b"\xef\xbb\xbf":
+        b = b[3:]
     encoding = "utf-8"
-    if not raw.isascii():
+    if len(b) and b.max() >= 0x80:
         try:
-            raw.decode("utf-8")
+            b.tobytes().decode("utf-8")
         except UnicodeDecodeError:
             encoding = "latin-1"
-    if b"\n" not in raw and b"\r" in raw:  # classic Mac line ends
-        raw = raw.replace(b"\r", b"\n")
-    return TextFile(path, raw, encoding)
+    return TextFile(path, b, encoding)
