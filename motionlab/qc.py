@@ -51,10 +51,15 @@ def saturated_samples(values: np.ndarray, minimum: float) -> int:
     """Samples in flat tops: runs of ≥ 3 identical values at an axis' extreme (≥ ``minimum``)."""
     count = 0
     for x in np.atleast_2d(values.T):
-        finite = x[np.isfinite(x)]
-        if not len(finite):
+        if not len(x):
             continue
-        for extreme in (finite.max(), finite.min()):
+        high, low = np.fmax.reduce(x), np.fmin.reduce(x)  # NaN ignored, no copy
+        if not (np.isfinite(high) and np.isfinite(low)):  # all NaN, or an infinite value
+            finite = x[np.isfinite(x)]
+            if not len(finite):
+                continue
+            high, low = finite.max(), finite.min()
+        for extreme in (high, low):
             if abs(extreme) < minimum:
                 continue
             start, end = _runs(x == extreme)
@@ -66,8 +71,15 @@ def saturated_samples(values: np.ndarray, minimum: float) -> int:
 def nan_spans(time: np.ndarray, values: np.ndarray) -> list[list[float]]:
     """``[start_s, end_s]`` of every run of samples with a NaN in any axis."""
     bad = ~np.isfinite(values.reshape(len(values), -1)).all(axis=1)
+    if not bad.any():
+        return []
     start, end = _runs(bad)
     return [[float(time[a]), float(time[b - 1])] for a, b in zip(start, end, strict=True)]
+
+
+def _median(x: np.ndarray) -> float:
+    """``np.nanmedian`` without its copy when there is no NaN."""
+    return float(np.nanmedian(x) if np.isnan(x).any() else np.median(x))
 
 
 def _norm(a: np.ndarray) -> np.ndarray:
@@ -127,14 +139,14 @@ def check_stream(stream: SensorStream, gap_max: float) -> dict[str, Any]:
     if stream.acc is not None:
         a = _norm(stream.acc)
         use = rest if rest is not None and rest.sum() >= 10 else np.isfinite(a)
-        g = float(np.nanmedian(a[use])) if use.any() else float("nan")
+        g = _median(a[use]) if use.any() else float("nan")
         qc["acc_rest_norm"] = g
         flags["acc_looks_like_g"] = bool(0.5 <= g <= 2.0)
         flags["acc_norm_implausible"] = not (
             flags["acc_looks_like_g"] or ACC_REST_RANGE[0] <= g <= ACC_REST_RANGE[1]
         )
     if stream.mag is not None:
-        m = float(np.nanmedian(_norm(stream.mag)))
+        m = _median(_norm(stream.mag))
         qc["mag_norm_ut"] = m
         if not stream.attrs.get("mag_scale_assumed"):
             flags["mag_norm_out_of_range"] = not (MAG_RANGE_UT[0] <= m <= MAG_RANGE_UT[1])

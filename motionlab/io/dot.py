@@ -119,23 +119,23 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     for channel, (prefix, unit, scale) in _CHANNELS.items():
         if table.has(f"{prefix}_X"):
             require_values(table, _xyz(prefix), channel)
-            setattr(stream, channel, table.columns(_xyz(prefix)) * scale)
+            setattr(stream, channel, table.block(_xyz(prefix)) * scale)
             stream.source_units[channel] = unit
     if table.has("Mag_X"):
         require_values(table, _xyz("Mag"), "mag")
         field_ut = float(options.get("mag_field_ut", DEFAULT_MAG_FIELD_UT))
-        stream.mag = table.columns(_xyz("Mag")) * field_ut
+        stream.mag = table.block(_xyz("Mag")) * field_ut
         stream.source_units["mag"] = "a.u."
         attrs.update(mag_scale_assumed=True, mag_field_ut=field_ut)
     if table.has("Quat_W"):
         names = _xyz("Quat", "WXYZ")
         require_values(table, names, "quat")
-        stream.quat = rotations.make_continuous(rotations.normalize(table.columns(names)))
+        stream.quat = rotations.make_continuous(rotations.normalize(table.block(names)))
         stream.source_units["quat"] = "1"
         attrs["orientation_source"] = "quaternion"
     elif table.has("Euler_X"):
         require_values(table, _xyz("Euler"), "quat")
-        e = np.radians(table.columns(_xyz("Euler")))
+        e = np.radians(table.block(_xyz("Euler")))
         q = rotations.from_scipy(Rotation.from_euler("ZYX", e[:, ::-1]))
         stream.quat = rotations.make_continuous(q)
         stream.source_units["quat"] = "deg"

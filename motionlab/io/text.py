@@ -139,6 +139,14 @@ class Table:
     def columns(self, names: Sequence[str]) -> np.ndarray:
         return self.data[:, [self.index(n) for n in names]]
 
+    def block(self, columns: Sequence[str | int]) -> np.ndarray:
+        """The columns (names or indices) as a view of ``data`` when they are adjacent and
+        in order, else a copy: for arithmetic that makes its own copy anyway."""
+        j = [c if isinstance(c, int) else self.index(c) for c in columns]
+        if j == list(range(j[0], j[0] + len(j))):
+            return self.data[:, j[0] : j[0] + len(j)]
+        return self.data[:, j]
+
 
 def parse_table(
     path: str | Path,

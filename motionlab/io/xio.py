@@ -121,7 +121,7 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
                     remedy="re-export with this channel enabled",
                 )
         unit = units.pop()
-        setattr(stream, channel, _si(table.data[:, cols], unit, quantity, path, base))
+        setattr(stream, channel, _si(table.block(cols), unit, quantity, path, base))
         stream.source_units[channel] = unit
     for key, j in extra.items():
         stream.extra[key] = table.data[:, j]

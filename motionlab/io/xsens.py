@@ -192,7 +192,7 @@ def _orientations(table: Table) -> dict[str, np.ndarray]:
     """Every orientation representation in the file, as quaternions (sensor → file earth)."""
     out = {}
     if all(table.has(n) for n in _QUAT):
-        out["quaternion"] = rotations.normalize(table.columns(_QUAT))
+        out["quaternion"] = rotations.normalize(table.block(_QUAT))
     if all(table.has(n) for n in _MAT):
         m = table.columns(_MAT).reshape(-1, 3, 3)
         q = np.full((len(m), 4), np.nan)
@@ -201,7 +201,7 @@ def _orientations(table: Table) -> dict[str, np.ndarray]:
             q[ok] = rotations.from_matrix(m[ok])
         out["matrix"] = q
     if all(table.has(n) for n in _EULER):
-        e = np.radians(table.columns(_EULER))
+        e = np.radians(table.block(_EULER))
         q = np.full((len(e), 4), np.nan)
         ok = np.all(np.isfinite(e), axis=1)
         if ok.any():
@@ -258,13 +258,13 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     if table.has("Mag_X"):
         require_values(table, _xyz("Mag"), "mag")
         scale = float(options.get("mag_field_ut", DEFAULT_MAG_FIELD_UT))
-        stream.mag = table.columns(_xyz("Mag")) * scale
+        stream.mag = table.block(_xyz("Mag")) * scale
         stream.source_units["mag"] = "a.u."
         attrs.update(mag_scale_assumed=True, mag_field_ut=scale)
     to_enu = _TO_ENU[frame]
     if table.has("FreeAcc_X"):
         require_values(table, _xyz("FreeAcc"), "free_acc")
-        stream.extra["free_acc"] = table.columns(_xyz("FreeAcc")) @ to_enu.T
+        stream.extra["free_acc"] = table.block(_xyz("FreeAcc")) @ to_enu.T
         stream.source_units["free_acc"] = "m/s^2"
     reps = _orientations(table)
     if reps:
