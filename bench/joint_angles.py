@@ -2,7 +2,8 @@
 
 For each protocol and seed: ``motionlab.simulate`` (preset, random mounting up to 30°, 5 s pauses
 between steps and tasks) gives the session, whose streams get what ``motionlab ingest`` does to
-every recording (clock repair, gaps up to 0.1 s filled; longer packet losses stay gaps); every
+every recording (clock repair, gaps up to ``--gap-max`` filled, 0.1 s as ingest's default;
+longer packet losses stay gaps, which the fusion filters integrate across as one sample); every
 sensor is fused 6-D (no magnetometer) with the default estimator (the offline smoother) as
 ``motionlab fuse`` stores it; ``calibrate`` and the angles follow. RMSE (deg) per joint and
 plane over the protocol's task blocks (true times) is printed for the calibrated angles and with
@@ -14,6 +15,7 @@ Needs no data files. Usage::
 
     python bench/joint_angles.py [--protocols knee,elbow,...] [--seeds 0,1,2]
                                  [--preset typical] [--mounting 30] [--estimator default]
+                                 [--gap-max 0.1]
 """
 
 from __future__ import annotations
@@ -72,7 +74,9 @@ def errors(table: dict, truth, stamps: np.ndarray, true: np.ndarray, tasks: list
     return out
 
 
-def run_one(protocol: Protocol, seed: int, preset: str, mounting: float, estimator: str) -> dict:
+def run_one(
+    protocol: Protocol, seed: int, preset: str, mounting: float, estimator: str, gap_max: float
+) -> dict:
     """RMSE per column, calibrated and nominal, and the calibration quality, for one seed."""
     session, truth = simulate(
         protocol, duration(protocol), seed, preset, mounting_max_deg=mounting, rest_s=REST_S
@@ -80,7 +84,7 @@ def run_one(protocol: Protocol, seed: int, preset: str, mounting: float, estimat
     stamps = {label: s.time.copy() for label, s in session.sensors.items()}
     for label, s in session.sensors.items():  # as motionlab ingest does
         s, _ = timebase.repair_clock(s, label)
-        session.sensors[label], _ = timebase.fill_short_gaps(s, DEFAULT_GAP_MAX)
+        session.sensors[label], _ = timebase.fill_short_gaps(s, gap_max)
     fused = {}
     for label, s in session.sensors.items():
         res = estimate(estimator, s.gyr, s.acc, None, rate=s.rate_hz)
@@ -113,11 +117,14 @@ def main() -> None:
     parser.add_argument("--preset", default="typical")
     parser.add_argument("--mounting", type=float, default=30.0, help="largest mounting error (°)")
     parser.add_argument("--estimator", default="default")
+    parser.add_argument(
+        "--gap-max", type=float, default=DEFAULT_GAP_MAX, help="ingest --gap-max (s)"
+    )
     args = parser.parse_args()
     seeds = [int(s) for s in args.seeds.split(",")]
     est = get(args.estimator).name
     print(f"estimator: {est} (6-D), preset {args.preset}, mounting ≤ {args.mounting:g}°, "
-          f"seeds {seeds}; RMSE (deg) over the task blocks")  # fmt: skip
+          f"gaps ≤ {args.gap_max:g} s filled, seeds {seeds}; RMSE (deg), task blocks")  # fmt: skip
     print()
     print("| protocol | angle | RMSE mean | RMSE max | target | ok | calibration off (mean) |")
     print("|---|---|---:|---:|---:|:-:|---:|")
@@ -125,7 +132,7 @@ def main() -> None:
     for name in args.protocols.split(","):
         protocol = load_protocol(name)
         t0 = time.perf_counter()
-        runs = [run_one(protocol, s, args.preset, args.mounting, est) for s in seeds]
+        runs = [run_one(protocol, s, args.preset, args.mounting, est, args.gap_max) for s in seeds]
         for col in runs[0]["cal"]:
             cal = np.array([r["cal"][col] for r in runs])
             nom = np.array([r["nominal"][col] for r in runs])

@@ -32,14 +32,16 @@ def lm_fit(
     weights: np.ndarray | None = None,
     q0: np.ndarray | None = None,
     lam: float = 1e-3,
-    tol: float = 1e-4,
+    tol: float = 1e-12,
     max_iter: int = 100,
 ) -> tuple[np.ndarray, int]:
-    """Ricci's Algorithm 1: weighted LM over a quaternion, ``ε = r − Mᵀ v`` (eqs. 6.5-6.12).
+    """Ricci's Algorithm 1: weighted LM for ``ε = r − Mᵀ v`` (eqs. 6.5-6.12).
 
     Returns ``M`` (segment → sensor) and the number of iterations. ``q0`` is the initial
     sensor → segment quaternion (identity as in the thesis); λ fixed at 10⁻³, stop when the
-    relative change of the cost is below ``tol``.
+    relative change of the cost is below ``tol``. The step is a small rotation ``δ`` applied as
+    ``q ⊗ exp(δ/2)`` with the analytic Jacobian ``R(q) [v]×`` instead of Ricci's update of the
+    four quaternion components, whose norm direction has no gradient and makes it stall.
     """
     v = np.asarray(v, dtype=float)
     r = np.asarray(r, dtype=float)
@@ -51,23 +53,22 @@ def lm_fit(
 
     cost = float(residual(q) @ (w * residual(q)))
     it = 0
-    while it < max_iter:
+    while it < max_iter and cost > 0:
         it += 1
         eps = residual(q)
-        jac = np.empty((eps.size, 4))
-        for k in range(4):  # central differences on the 4 quaternion parameters
-            dq = np.zeros(4)
-            dq[k] = 1e-7
-            jac[:, k] = (residual(q + dq) - residual(q - dq)) / 2e-7
+        skew = np.zeros((len(v), 3, 3))  # [v]× so that δ × v = -[v]× δ
+        skew[:, 0, 1], skew[:, 0, 2], skew[:, 1, 2] = -v[:, 2], v[:, 1], -v[:, 0]
+        skew -= np.transpose(skew, (0, 2, 1))
+        jac = (rot.to_matrix(q) @ skew).reshape(-1, 3)  # dε/dδ = R(q) [v]×
         jtwj = jac.T @ (w[:, None] * jac)
-        # the quaternion's norm direction has no gradient at the identity: minimum-norm step
-        delta = np.linalg.lstsq(jtwj + lam * np.diag(np.diag(jtwj)), jac.T @ (w * eps))[0]
-        q = rot.normalize(q - delta)
+        delta = -np.linalg.solve(jtwj + lam * np.diag(np.diag(jtwj)) + 1e-12 * np.eye(3),
+                                 jac.T @ (w * eps))  # fmt: skip
+        q = rot.normalize(rot.mul(q, rot.from_rotvec(delta)))
         new_cost = float(residual(q) @ (w * residual(q)))
-        if cost == 0 or abs(new_cost - cost) / cost < tol:
-            cost = new_cost
-            break
+        done = abs(new_cost - cost) <= tol * max(cost, 1e-300)
         cost = new_cost
+        if done:
+            break
     return rot.to_matrix(rot.conj(q)), it
 
 

@@ -6,6 +6,10 @@ axis and ρ = σ₁ / (σ₁ + σ₂ + σ₃) as its reliability. Flexion and ex
 same line through the origin, so no segmentation into half-cycles is needed. The singular
 vector's sign is arbitrary; :func:`orient` fixes it with a prior direction (the protocol's
 nominal mounting), so the axis points along the angular velocity of the named movement.
+
+The axis is then refined on the samples within ``INLIER_DEG`` of it (either sign): turning into
+or out of the step's start pose about another axis (e.g. bending the elbow to 90° before a
+pronation) would otherwise tilt it. ρ stays Ricci's, over all samples above the threshold.
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ from motionlab.errors import InputError
 from motionlab.segments.static import principal_axis
 
 PEAK_FRACTION = 0.30
+INLIER_DEG = 25.0
 
 
 def functional_axis(
@@ -32,6 +37,12 @@ def functional_axis(
         raise InputError("the segment does not move during the step", remedy="repeat the movement")
     keep = norm >= peak_fraction * np.nanmax(norm)
     axis, rho = principal_axis(gyr[keep])
+    fast = gyr[keep]
+    cos = np.abs(fast @ axis) / np.linalg.norm(fast, axis=1)
+    inliers = cos >= np.cos(np.radians(INLIER_DEG))
+    if inliers.sum() >= 3:
+        refined, _ = principal_axis(fast[inliers])
+        axis = refined if refined @ axis >= 0 else -refined
     return axis, rho, int(keep.sum())
 
 
