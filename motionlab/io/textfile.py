@@ -37,10 +37,10 @@ class TextFile(Sequence[str]):
 
     def __init__(self, path: str | Path, data: bytes | np.ndarray, encoding: str = "utf-8"):
         b = np.frombuffer(data, dtype=np.uint8) if isinstance(data, bytes) else data
-        ends = np.flatnonzero(b == _NEWLINE)
+        ends = _positions(b, _NEWLINE)
         if not len(ends) and (b == 13).any():  # classic Mac line ends
             b = np.where(b == 13, np.uint8(_NEWLINE), b)
-            ends = np.flatnonzero(b == _NEWLINE)
+            ends = _positions(b, _NEWLINE)
         self.unended = len(b) > 0 and b[-1] != _NEWLINE
         if self.unended:  # a copy, but only for a file cut short (or written without one)
             b = np.append(b, np.uint8(_NEWLINE))
@@ -133,6 +133,12 @@ class TextFile(Sequence[str]):
         firsts = self.starts[rows[np.r_[0, breaks + 1]]].tolist()
         lasts = (self.ends[rows[np.r_[breaks, len(rows) - 1]]] + 1).tolist()
         return _ArrayFile(np.concatenate([b[i:j] for i, j in zip(firsts, lasts, strict=True)]))
+
+
+def _positions(b: np.ndarray, byte: int, block: int = 1 << 20) -> np.ndarray:
+    """Offsets of ``byte`` in ``b``, a block at a time (the comparison stays in the cache)."""
+    found = [np.flatnonzero(b[i : i + block] == byte) + i for i in range(0, len(b), block)]
+    return np.concatenate(found) if found else np.zeros(0, dtype=np.intp)
 
 
 class _ArrayFile(io.RawIOBase):
