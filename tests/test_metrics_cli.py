@@ -37,10 +37,16 @@ def session_file(tmp_path_factory):
     protocol_path = tmp / "elbow_r.yaml"
     protocol_path.write_text(ELBOW)
     session, truth = simulate(load_protocol(protocol_path), duration=70, seed=1, rest_s=5.0)
-    fused = {}  # the true orientations as "fused" ones: the test is about the stages after fusion
-    for label in session.sensors:
-        tr = truth.sensors[label]
+    # sensors named by serial, their segment set (as ingest --map does); the true orientations
+    # stored as motionlab fuse stores its results: the test is about the stages after fusion
+    fused, sensors = {}, {}
+    for i, (seg, stream) in enumerate(session.sensors.items()):
+        label = f"SN{i:04d}"
+        stream.label, stream.segment = label, seg
+        sensors[label] = stream
+        tr = truth.sensors[seg]
         fused[label] = {"quat": rot.resample(truth.time, tr["orientation"], tr["sample_time"])}
+    session.sensors = sensors
     session.results["fusion"] = fused
     path = tmp / "s.h5"
     save_session(session, path)

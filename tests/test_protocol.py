@@ -110,3 +110,20 @@ def test_bad_reference_rho_segment(tmp_path):
     path = _write(tmp_path, src)
     with pytest.raises(InputError, match="reference_rho.*torso"):
         load_protocol(path)
+
+
+def test_task_time_range_and_step_options(tmp_path):
+    path = _broken(tmp_path, "{name: gait, kind: gait, duration_s: 60,",
+                   "{name: gait, kind: gait, duration_s: 60, time_range: [95, 150.5],")  # fmt: skip
+    p = load_protocol(path)
+    assert p.tasks[0].time_range == (95.0, 150.5) and "time_range" not in p.tasks[0].options
+    assert p.calibration[2].axis_method == "svd"
+    path = _broken(tmp_path, "{name: gait, kind: gait, duration_s: 60,",
+                   "{name: gait, kind: gait, duration_s: 60, time_range: [150, 95],")  # fmt: skip
+    with pytest.raises(InputError, match=r"line \d+, key tasks\[0\].time_range"):
+        load_protocol(path)
+    path = _broken(tmp_path, "    repetitions: 5\n    duration_s: 15\n    instructions: \"still",
+                   "    repetitions: 5\n    duration_s: 15\n    axis_method: seel\n"
+                   "    instructions: \"still")  # fmt: skip
+    with pytest.raises(InputError, match=r"line \d+, key calibration\[2\].axis_method.*'seel'"):
+        load_protocol(path)

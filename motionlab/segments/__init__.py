@@ -1,17 +1,18 @@
 """Sensor-to-segment calibration: from a protocol's poses and movements to mounting rotations.
 
-For every segment, axes measured in the sensor frame (gravity in static poses,
-:mod:`~motionlab.segments.static`; rotation axes of functional movements,
-:mod:`~motionlab.segments.functional`) are paired with the segment axes the protocol names, and
-the mounting rotation is their ρ-weighted orthogonal Procrustes fit
-(:mod:`~motionlab.segments.frames`; Ricci 2015 ch. 6). A segment with a single axis keeps the
-protocol's nominal placement for its heading about that axis.
+The steps are found in the recording (:mod:`~motionlab.segments.steps`); for every segment, axes
+measured in the sensor frame (gravity in static poses, :mod:`~motionlab.segments.static`;
+rotation axes of functional movements, :mod:`~motionlab.segments.functional`, or Seel's hinge
+fit, :mod:`~motionlab.segments.hinge`) are paired with the segment axes the protocol names and
+fitted by ρ-weighted orthogonal Procrustes (:mod:`~motionlab.segments.mounting`,
+:mod:`~motionlab.segments.frames`; Ricci 2015 ch. 6).
 
 The mounting ``q_mount`` maps segment coordinates into sensor coordinates, so the segment's
 orientation is ``q_segment = q_sensor ⊗ q_mount`` (segment → ENU earth). Without a magnetometer
-each sensor has its own heading; :func:`segment_orientations` turns each distal segment about the
-vertical so that it shares its proximal segment's heading in the protocol's standing pose
-(:mod:`~motionlab.segments.heading`).
+each sensor has its own, slowly drifting heading; :func:`segment_orientations` turns each distal
+segment about the vertical by a heading track through the joint's anchors (movements of both
+segments about one axis, the reference pose and later rests in it;
+:mod:`~motionlab.segments.heading`).
 """
 
 from __future__ import annotations
