@@ -31,7 +31,7 @@ from motionlab.fusion.markers import (
 from motionlab.session import load_session, save_session
 from motionlab.validation.optical import rigid_fit
 
-FILTERS = ("liu_gn", "ekf", "ukf")
+FILTERS = ("liu_gn", "ekf", "ukf", "particle")
 Z = np.array([0.0, 0.0, 1.0])
 
 

@@ -15,6 +15,14 @@ loop is, in order:
 4. weights, effective sample size and the posterior mean (:func:`_weigh`);
 5. gyroscope bias; divergence monitor (:func:`_monitor`) and reset, or resampling with
    regularisation; output.
+
+Marker reference vectors (:mod:`motionlab.fusion.markers`; Liu 2010 §5.4) enter step 2 through
+:func:`_info_vector` like gravity, with the roles of the two directions swapped: the body-fixed
+vector seen through the prior mean is the direction to correct, the marker measurement the
+target. When they reappear after being hidden for ``T`` s, every particle is first turned by a
+vMF draw of spread ``MARKER_DRIFT · T`` (the error the IMU alone may have gathered), and when
+they jump beyond their noise (:func:`~motionlab.fusion.markers.marker_jump`) the cloud is spread
+about the prior mean, so that the markers can pick the cloud up.
 """
 
 from __future__ import annotations
@@ -23,6 +31,8 @@ import numba
 import numpy as np
 
 from motionlab.fusion import sphere as sph
+from motionlab.fusion._kalman_common import rot_matrix
+from motionlab.fusion.markers import USED_ACC, USED_MAG, USED_MARKERS, marker_jump
 from motionlab.fusion.resampling import nb_resample
 
 # indices of the float parameter vector ``prm``
@@ -30,8 +40,8 @@ PROCESS_NOISE, ACC_SIGMA, ACC_REST_SIGMA, ACC_NORM_GAIN, ACC_GATE, GRAVITY = ran
 MAG_SIGMA, MAG_REST_SIGMA, MAG_NORM_TOL, MAG_DIP_TOL, MAG_GATE_DIP, REF_NORM, REF_DIP = range(6, 13)
 BIAS_TAU, BIAS_REST_TAU, BIAS_MAX = range(13, 16)
 INIT_SIGMA, RESET_ANGLE, RESET_TIME, RESET_HEADING_TIME, RESET_TAU, RESET_AGREE = range(16, 22)
-ESS_THRESHOLD, AUX_ALPHA, KERNEL_H, BINGHAM_ZMAX = range(22, 26)
-N_PARAMS = 26
+ESS_THRESHOLD, AUX_ALPHA, KERNEL_H, BINGHAM_ZMAX, MARKER_DRIFT, RATE_NOISE = range(22, 28)
+N_PARAMS = 28
 # slots of ``info``: the upper triangle of J, then j
 _JXX, _JXY, _JXZ, _JYY, _JYZ, _JZZ, _JX, _JY, _JZ = range(9)
 # slots of the monitor's work array (earth-frame vectors under the posterior mean): low-passed acc
@@ -446,9 +456,14 @@ def _reset_center(mon, mode, mean, prm, out):
 @numba.njit(cache=True)
 def nb_filter(
     gyr, acc, mag, use_mag, mag_flag, rest, dt, q0, prm, proposal, scheme, seed, n,
-    quat, bias_out, ess_out, reset_out, gated_out,
+    ref_body, ref_earth, ref_var, bias0, quat, bias_out, ess_out, reset_out, gated_out, used,
 ):  # fmt: skip
-    """The filter over all samples (see the module docstring for the order of the steps)."""
+    """The filter over all samples (see the module docstring for the order of the steps).
+
+    ``ref_body`` (K, 3), ``ref_earth`` (N, K, 3, NaN = not seen) and ``ref_var`` (K,) are the
+    marker reference vectors (K = 0: IMU only), ``bias0`` the initial gyroscope bias; ``used``
+    receives the measurement bits of each sample.
+    """
     state = np.empty(2, dtype=np.uint64)
     sph._nb_seed(state, seed)
     parts = np.empty((n, 4))
@@ -474,12 +489,14 @@ def nb_filter(
     me = np.zeros(3)
     v3 = np.empty(3)
     g = np.array([1.0, 0.0, 0.0, 0.0])
-    b = np.zeros(3)
+    b = bias0.copy()
+    prior = np.empty(4)
+    rm = np.empty((3, 3))
+    hidden_s = 0.0  # time since the marker vectors were last seen
     zmax = prm[BINGHAM_ZMAX]
     h = prm[KERNEL_H]
     _spread(state, parts, q0, prm[INIT_SIGMA], proposal, zmax, lam4, basis, jit)
     _monitor_clear(mon)
-    half = np.sqrt(3.0 * dt) * prm[PROCESS_NOISE]
     floor = prm[PROCESS_NOISE] ** 2 * dt
     g_ref = prm[GRAVITY]
     inv_sum = 1.0
@@ -499,7 +516,9 @@ def nb_filter(
             info[i] = 0.0
         _rot(g, acc[k, 0] / g_ref, acc[k, 1] / g_ref, acc[k, 2] / g_ref, ag)
         dev = abs(np.sqrt(ag[0] ** 2 + ag[1] ** 2 + ag[2] ** 2) - 1.0)
+        used[k] = 0
         if dev < prm[ACC_GATE]:
+            used[k] += USED_ACC
             sigma = prm[ACC_REST_SIGMA] if rest[k] else prm[ACC_SIGMA]
             sigma += prm[ACC_NORM_GAIN] * dev
             _rot(mean, ag[0], ag[1], ag[2], ae)
@@ -511,8 +530,41 @@ def nb_filter(
             psi, km, gated = _mag_heading(me[0], me[1], me[2], prm, rest[k], mag_flag[k])
             if km > 0.0:
                 _info_heading(info, psi, km)
+                used[k] += USED_MAG
         gated_out[k] = gated
+        if ref_body.shape[0] > 0:
+            # marker vectors: R(mean ⊗ G) a should turn into the measured direction
+            prior[:] = mean
+            _rmul(prior, g[0], g[1], g[2], g[3])
+            rot_matrix(prior, rm)
+            seen = False
+            for j in range(ref_body.shape[0]):
+                seen = seen or np.isfinite(ref_earth[k, j, 0])
+            widen = prm[MARKER_DRIFT] * hidden_s
+            if seen and widen > 1e-4:
+                for p in range(n):
+                    sph._nb_vmf(state, 4.0 / (widen * widen), jit)
+                    _rmul(parts[p], jit[0], jit[1], jit[2], jit[3])
+            hidden_s = 0.0 if seen else hidden_s + dt
+            jump = marker_jump(rm, ref_body, ref_earth, ref_var, k, 0.0)
+            if jump > 0.0:
+                _spread(state, parts, mean, np.sqrt(jump), proposal, zmax, lam4, basis, jit)
+                for p in range(n):
+                    w[p] = 1.0 / n
+                inv_sum = 1.0
+            for j in range(ref_body.shape[0]):
+                if np.isfinite(ref_earth[k, j, 0]):
+                    ax, ay, az = ref_body[j, 0], ref_body[j, 1], ref_body[j, 2]
+                    ux = rm[0, 0] * ax + rm[0, 1] * ay + rm[0, 2] * az
+                    uy = rm[1, 0] * ax + rm[1, 1] * ay + rm[1, 2] * az
+                    uz = rm[2, 0] * ax + rm[2, 1] * ay + rm[2, 2] * az
+                    ox, oy, oz = ref_earth[k, j, 0], ref_earth[k, j, 1], ref_earth[k, j, 2]
+                    _info_vector(info, ux, uy, uz, ox, oy, oz, 1.0 / ref_var[j])
+                    used[k] |= USED_MARKERS
         # 3.-4. particles: noise, likelihood, weights, posterior mean
+        # process noise: angle random walk plus the rate-proportional part (scale factors)
+        wn2 = (gyr[k, 0] - b[0]) ** 2 + (gyr[k, 1] - b[1]) ** 2 + (gyr[k, 2] - b[2]) ** 2
+        half = np.sqrt(3.0 * dt * (prm[PROCESS_NOISE] ** 2 + prm[RATE_NOISE] ** 2 * wn2))
         lmax = _move_and_score(state, parts, mean, info, half if k > 0 else 0.0, lik)
         prev[:] = mean
         inv_sum, ess = _weigh(w, lik, lmax, inv_sum, parts, mean)

@@ -58,7 +58,7 @@ LENGTH_TOL_SIGMAS = 6.0
 MIN_SIGMA_M = 1e-4
 CLOCK_ITERATIONS = 6
 SYNC_WINDOWS = {"window_s": 4.0, "step_s": 2.0}  # short: occlusions leave few long windows
-JUMP_CHI2 = 25.0  # a 5σ disagreement between the markers and the prediction is a jump
+JUMP_CHI2 = 25.0  # |δ|² over its variance per axis: a 3-D correction beyond about 5σ
 _STEP_S = 1e-3  # finite-difference step of the clock derivative
 
 
@@ -151,29 +151,48 @@ def marker_jump(
     k: int,
     var_att: float,
 ) -> float:
-    """Attitude variance (rad², per axis) to add when the marker vectors of sample ``k`` are
-    further from the prediction ``r`` = R(q) (3×3) than its variance ``var_att`` and theirs
-    ``var`` allow (a 5σ test on the mean squared angle), else 0.
+    """Attitude variance (rad², per axis) to add when the marker vectors of sample ``k`` call
+    for a correction of the prediction ``r`` = R(q) (3×3) beyond what its variance ``var_att``
+    (per axis) and their noise ``var`` (K,) allow, else 0.
 
-    Such a jump is not noise: IMU samples were lost, or the gyroscope saturated; the filters
-    then widen their attitude uncertainty so the markers pull them back at once.
+    The correction is the weighted least-squares rotation ``δ`` (earth frame) with
+    ``δ × Ra ≈ o − Ra`` over the seen vectors: ``N δ = Σ wⱼ Raⱼ × oⱼ``,
+    ``N = Σ wⱼ (I − Raⱼ Raⱼᵀ)``, ``wⱼ = 1/varⱼ``; it is a jump when ``|δ|²`` exceeds ``JUMP_CHI2``
+    times ``var_att + tr(N⁻¹)/3``. Such a jump is not noise (IMU samples were lost, the
+    gyroscope saturated): the filters widen their attitude uncertainty by ``|δ|²/3`` so that the
+    markers pull them back at once.
     """
-    chi, e2sum, count = 0.0, 0.0, 0
+    n00 = n01 = n02 = n11 = n12 = n22 = 0.0
+    g0 = g1 = g2 = 0.0
     for j in range(body.shape[0]):
-        if not np.isfinite(earth[k, j, 0]):
+        ox, oy, oz = earth[k, j, 0], earth[k, j, 1], earth[k, j, 2]
+        if not np.isfinite(ox):
             continue
-        e2 = 0.0
-        for c in range(3):
-            d = earth[k, j, c] - (
-                r[c, 0] * body[j, 0] + r[c, 1] * body[j, 1] + r[c, 2] * body[j, 2]
-            )
-            e2 += d * d
-        chi += e2 / (2.0 * (var_att + var[j]))
-        e2sum += e2
-        count += 1
-    if count == 0 or chi <= JUMP_CHI2 * count:
+        ax = r[0, 0] * body[j, 0] + r[0, 1] * body[j, 1] + r[0, 2] * body[j, 2]
+        ay = r[1, 0] * body[j, 0] + r[1, 1] * body[j, 1] + r[1, 2] * body[j, 2]
+        az = r[2, 0] * body[j, 0] + r[2, 1] * body[j, 1] + r[2, 2] * body[j, 2]
+        w = 1.0 / var[j]
+        n00 += w * (1.0 - ax * ax)
+        n01 -= w * ax * ay
+        n02 -= w * ax * az
+        n11 += w * (1.0 - ay * ay)
+        n12 -= w * ay * az
+        n22 += w * (1.0 - az * az)
+        g0 += w * (ay * oz - az * oy)
+        g1 += w * (az * ox - ax * oz)
+        g2 += w * (ax * oy - ay * ox)
+    c00, c01, c02 = n11 * n22 - n12 * n12, n02 * n12 - n01 * n22, n01 * n12 - n02 * n11
+    c11, c12, c22 = n00 * n22 - n02 * n02, n01 * n02 - n00 * n12, n00 * n11 - n01 * n01
+    det = n00 * c00 + n01 * c01 + n02 * c02
+    if not det > 1e-12 * (n00 + n11 + n22) ** 3:  # fewer than two distinct vectors
         return 0.0
-    return 0.5 * e2sum / count
+    d0 = (c00 * g0 + c01 * g1 + c02 * g2) / det
+    d1 = (c01 * g0 + c11 * g1 + c12 * g2) / det
+    d2 = (c02 * g0 + c12 * g1 + c22 * g2) / det
+    d2sum = d0 * d0 + d1 * d1 + d2 * d2
+    if d2sum <= JUMP_CHI2 * (var_att + (c00 + c11 + c22) / (3.0 * det)):
+        return 0.0
+    return d2sum / 3.0
 
 
 def scenario(used: np.ndarray) -> np.ndarray:

@@ -41,6 +41,11 @@ Model and design (the choices the theses leave open are stated here):
   the fast BROAD trials) the Mahony-type integral of the filter's own correction: the posterior
   mean's rotation away from the gyro-propagated mean, in the sensor frame ``c``, gives
   ``b ← b − c/bias_tau``.
+- **Marker reference vectors** (Liu 2010 §5.4; :mod:`motionlab.fusion.markers`): each marker
+  pair seen adds a direction measurement like gravity (its body vector through the prior mean
+  against the measured earth direction, width its own noise); a jump beyond that noise spreads
+  the cloud first. With them the gyroscope enters as the interval mean
+  (:func:`~motionlab.fusion.markers.interval_rates`) and the bias starts from the registration's.
 - **Output:** Markley's weighted mean (:mod:`motionlab.fusion.sphere`) every sample.
 - **Divergence reset** (To: "κ_post < κ_TH → reset at q_obs"), the monitor of
   :mod:`motionlab.fusion.mekf`: under the posterior mean the accelerometer averages to earth-up
@@ -55,6 +60,7 @@ also the trials the accuracy is reported on — not an independent test set.
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -63,6 +69,7 @@ from motionlab.errors import InputError
 from motionlab.fusion import _particle_kernels as kern
 from motionlab.fusion import detect
 from motionlab.fusion.attitude import initial_orientation
+from motionlab.fusion.markers import MarkerReferences, interval_rates, scenario
 from motionlab.fusion.registry import FusionResult, register
 from motionlab.fusion.resampling import SCHEMES
 from motionlab.rotations import make_continuous
@@ -99,6 +106,10 @@ class ParticleParams:
     )
     process_noise: float = field(
         default=0.01, metadata={"unit": "rad/√s", "help": "orientation random walk per particle"}
+    )
+    rate_noise: float = field(
+        default=0.0,
+        metadata={"unit": "1", "help": "added random walk per rad of rotation (gyro scale error)"},
     )
     acc_sigma: float = field(
         default=1.5, metadata={"unit": "1", "help": "noise of earth-frame horizontal acc/g, motion"}
@@ -158,6 +169,14 @@ class ParticleParams:
         default=0.9,
         metadata={"unit": "1", "help": "a heading reset needs the field directions to agree so"},
     )
+    marker_process_noise: float = field(
+        default=0.005,
+        metadata={"unit": "rad/√s", "help": "process_noise with marker references (bias known)"},
+    )
+    marker_drift: float = field(
+        default=1.0,
+        metadata={"unit": "deg/s", "help": "error growth while markers are hidden (widens cloud)"},
+    )
     seed: int = field(default=0, metadata={"unit": "", "help": "random seed"})
 
 
@@ -177,7 +196,7 @@ def _check(params: ParticleParams) -> None:
         "process_noise", "acc_sigma", "acc_rest_sigma", "acc_gate", "mag_sigma", "mag_rest_sigma",
         "mag_norm_tolerance", "mag_dip_tolerance", "bias_tau", "bias_rest_tau", "init_sigma",
         "reset_angle", "reset_time", "reset_heading_time", "reset_tau", "kernel_scale",
-        "bingham_band",
+        "bingham_band", "marker_process_noise", "marker_drift",
     )  # fmt: skip
     for name in positive:
         if not getattr(params, name) > 0:
@@ -190,6 +209,7 @@ def _pack(p: ParticleParams, g_ref: float, m_ref: float, dip_ref: float) -> np.n
     """The float parameters in the kernel's order (indices in :mod:`._particle_kernels`)."""
     prm = np.empty(kern.N_PARAMS)
     prm[kern.PROCESS_NOISE] = p.process_noise
+    prm[kern.RATE_NOISE] = p.rate_noise
     prm[kern.ACC_SIGMA] = p.acc_sigma
     prm[kern.ACC_REST_SIGMA] = p.acc_rest_sigma
     prm[kern.ACC_NORM_GAIN] = p.acc_norm_gain
@@ -216,6 +236,7 @@ def _pack(p: ParticleParams, g_ref: float, m_ref: float, dip_ref: float) -> np.n
     # the optimal Gaussian kernel bandwidth for N particles in d = 3 (Musso et al. 2001)
     prm[kern.KERNEL_H] = p.kernel_scale * (4.0 / (5.0 * p.n_particles)) ** (1.0 / 7.0)
     prm[kern.BINGHAM_ZMAX] = 0.5 * p.bingham_band**2
+    prm[kern.MARKER_DRIFT] = np.deg2rad(p.marker_drift)
     return prm
 
 
@@ -226,6 +247,7 @@ def particle_filter(
     rate: float,
     params: ParticleParams | None = None,
     q0: np.ndarray | None = None,
+    references: MarkerReferences | None = None,
 ) -> FusionResult:
     """Run the quaternion particle filter (see the module docstring for the model).
 
@@ -241,12 +263,15 @@ def particle_filter(
     q0
         Initial orientation (4,); by default from the first samples
         (:func:`motionlab.fusion.attitude.initial_orientation`).
+    references
+        Marker reference vectors on the same samples (IMU + marker fusion), validated
+        (:meth:`~motionlab.fusion.markers.MarkerReferences.validated`).
 
     Returns
     -------
     FusionResult with ``quat``, ``gyro_bias``, ``rest``, ``mag_disturbed`` and in ``extra``:
     ``ess`` (N,) effective sample size / N, ``resets`` (sample indices of divergence resets),
-    ``six_d`` (bool).
+    ``six_d`` (bool), and with references ``scenario`` (Liu's Table 2, per sample).
     """
     p = params or ParticleParams()
     _check(p)
@@ -277,11 +302,19 @@ def particle_filter(
     ess = np.empty(n_s)
     resets = np.zeros(n_s, dtype=bool)
     gated = np.zeros(n_s, dtype=bool)
+    used = np.empty(n_s, dtype=np.int8)
+    refs = references if references is not None else MarkerReferences.none(n_s)
+    if references is not None:
+        p = dataclasses.replace(p, process_noise=p.marker_process_noise)
     kern.nb_filter(
-        gyr, acc, mag if use_mag else acc, use_mag, flag, rest, dt, q0,
-        _pack(p, g_ref, m_ref, dip_ref), PROPOSALS.index(p.proposal), SCHEMES.index(p.resampling),
-        int(p.seed), n, quat, bias, ess, resets, gated,
+        gyr if references is None else interval_rates(gyr, 0.0), acc, mag if use_mag else acc,
+        use_mag, flag, rest, dt, q0, _pack(p, g_ref, m_ref, dip_ref), PROPOSALS.index(p.proposal),
+        SCHEMES.index(p.resampling), int(p.seed), n, refs.body, refs.earth, refs.sigma**2,
+        refs.gyro_bias, quat, bias, ess, resets, gated, used,
     )  # fmt: skip
+    extra = {"ess": ess, "resets": np.flatnonzero(resets), "six_d": not use_mag}
+    if references is not None:
+        extra["scenario"] = scenario(used)
     return FusionResult(
         quat=make_continuous(quat),
         name="particle",
@@ -289,7 +322,7 @@ def particle_filter(
         gyro_bias=bias,
         rest=rest,
         mag_disturbed=gated if use_mag else None,
-        extra={"ess": ess, "resets": np.flatnonzero(resets), "six_d": not use_mag},
+        extra=extra,
     )
 
 
@@ -299,7 +332,12 @@ def particle_filter(
     "Particle filter on S³ (To 2012): vMF/Bingham-band proposals, bias compensation, resets",
 )
 def run(
-    gyr: np.ndarray, acc: np.ndarray, mag: np.ndarray | None, rate: float, params: ParticleParams
+    gyr: np.ndarray,
+    acc: np.ndarray,
+    mag: np.ndarray | None,
+    rate: float,
+    params: ParticleParams,
+    references: MarkerReferences | None = None,
 ) -> FusionResult:
     """Registry entry point: :func:`particle_filter` with the initial orientation from the data."""
-    return particle_filter(gyr, acc, mag, rate, params)
+    return particle_filter(gyr, acc, mag, rate, params, references=references)
