@@ -153,8 +153,8 @@ def run_session(task: SessionTask, pipeline: Pipeline | None = None) -> Outcome:
     folder.mkdir(parents=True, exist_ok=True)
     sweep_temp(folder)
     (folder / STAMP).unlink(missing_ok=True)
+    _ACTIVE.add(folder)  # before the claim: a SIGTERM in between must not leave it
     claim(folder)
-    _ACTIVE.add(folder)
     try:
         if pipeline is None:
             from motionlab.pipeline import run_pipeline as pipeline
