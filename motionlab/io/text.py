@@ -182,13 +182,15 @@ def parse_table(
     comments
         Line prefixes of comment lines skipped among the data rows.
     ragged
-        Rows may stop early (missing trailing fields are NaN) or carry more fields than
-        there are columns (the extra ones are ignored), as in TRC files.
+        Rows may stop early (missing trailing fields are NaN) or end with empty fields
+        beyond the last column, as in TRC files.
     end
         0-based index of the line after the last one read (default: the end of the file).
 
     Raises :class:`InputError` naming the line and column for: no data rows, a wrong number
-    of fields (a short last line is dropped and noted instead), text in a numeric column.
+    of fields, text in a numeric column, a quote left open. A last line cut short — fewer
+    fields, or a value cut off at the end of a file without a final line end — is dropped
+    and noted instead; if it was the only data row, the error says the file is truncated.
     """
     path = Path(path)
     text = lines if isinstance(lines, TextFile) else TextFile.from_lines(path, lines)

@@ -35,13 +35,13 @@ class TextFile(Sequence[str]):
     ``text[i]`` is line ``i`` without its line ending; slices decode their lines in one go.
     """
 
-    def __init__(self, path: str | Path, data: bytes | np.ndarray, encoding: str = "utf-8"):
+    def __init__(self, path: str | Path, data: bytes | np.ndarray, encoding: str = "utf-8") -> None:
         b = np.frombuffer(data, dtype=np.uint8) if isinstance(data, bytes) else data
         ends = _positions(b, _NEWLINE)
         if not len(ends) and (b == 13).any():  # classic Mac line ends
             b = np.where(b == 13, np.uint8(_NEWLINE), b)
             ends = _positions(b, _NEWLINE)
-        self.unended = len(b) > 0 and b[-1] != _NEWLINE
+        self.unended = bool(len(b)) and bool(b[-1] != _NEWLINE)
         if self.unended:  # a copy, but only for a file cut short (or written without one)
             b = np.append(b, np.uint8(_NEWLINE))
             ends = np.append(ends, len(b) - 1)
@@ -49,7 +49,7 @@ class TextFile(Sequence[str]):
         self.bytes = b
         self.encoding = encoding
         self.ends = ends
-        self.starts = np.concatenate(([0], ends[:-1] + 1)).astype(np.int64)
+        self.starts = np.concatenate(([0], ends[:-1] + 1)).astype(np.int64)[: len(ends)]
 
     @classmethod
     def from_lines(cls, path: str | Path, lines: Sequence[str]) -> TextFile:
@@ -166,8 +166,11 @@ def read_lines(path: str | Path) -> TextFile:
     path = Path(path)
     try:
         with open(path, "rb", buffering=0) as f:
-            b = np.empty(os.fstat(f.fileno()).st_size, dtype=np.uint8)
-            b = b[: f.readinto(memoryview(b))]  # into an array: no bytes object, no copy
+            b = np.empty(os.fstat(f.fileno()).st_size, dtype=np.uint8)  # no bytes object
+            view, n = memoryview(b), 0
+            while n < len(b) and (got := f.readinto(view[n:])):  # a read may stop at 2 GiB
+                n += got
+            b = b[:n]
     except OSError as exc:
         raise InputError(
             f"cannot read the file ({exc.strerror})", path, remedy="check the path"
