@@ -16,17 +16,19 @@ from motionlab import rotations as rot
 from motionlab.cli import main
 from motionlab.errors import InputError
 from motionlab.fusion import estimate
+from motionlab.fusion.marker_registration import (
+    lab_to_earth,
+    register_sensor,
+    session_references,
+)
 from motionlab.fusion.markers import (
     USED_ACC,
     USED_MAG,
     USED_MARKERS,
     MarkerReferences,
-    lab_to_earth,
     marker_noise,
     pair_vectors,
-    register_sensor,
     scenario,
-    session_references,
 )
 from motionlab.session import load_session, save_session
 from motionlab.validation.optical import rigid_fit

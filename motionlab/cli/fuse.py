@@ -68,7 +68,7 @@ def fuse_session(
 
 def _marker_references(ses: Session, name: str, markers_path: str | None, labels: list[str]):
     """Marker reference vectors of the sensors that carry a cluster (``--with-markers``)."""
-    from motionlab.fusion.markers import session_references
+    from motionlab.fusion.marker_registration import session_references
     from motionlab.validation.markermap import load_marker_map
 
     if not registry.takes_references(name):

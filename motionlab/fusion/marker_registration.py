@@ -1,0 +1,323 @@
+"""Registration of a marker cluster with its IMU, and the marker references of a session.
+
+Conventions: quaternions scalar first; ``q`` maps sensor → ENU earth; the optical cluster
+orientation ``B`` maps cluster → lab; ``X`` maps sensor → cluster and ``Y`` lab → earth, so the
+sensor orientation is ``Y ⊗ B ⊗ X`` (as :mod:`motionlab.validation.align`). Times in s.
+
+Liu (2010, thesis §3.2 and §6.2) registers IMU and marker board from one static pose in a lab
+frame that is the earth frame. Offline files have their own lab frame and clocks, so here every
+sample where both systems see the segment is used:
+
+- clock: the angular-speed cross-correlation of :func:`motionlab.validation.sync.synchronise`,
+  then refined with ``X`` and the gyroscope bias by Gauss–Newton on the relative rotations over
+  the lags ``L`` of ``LAGS_S``: ``log(A_k* A_k+L) = R(X)ᵀ log(B(τ_k)* B(τ_k+L)) + b ΔT`` with
+  ``A`` the strapdown integral of the gyroscope and ``τ = offset + (1 + drift) t`` (an
+  orientation error is the angular rate times the clock error, so the fusion needs the offset
+  to a fraction of a millisecond);
+- ``X`` (sensor → cluster): the Wahba fit of those relative rotations (Park & Martin 1994);
+- ``Y`` (lab → earth), the thesis's two-vector solve (eqs. (2)–(4), as TRIAD): the vertical is the
+  mean specific force and the north the mean undisturbed magnetic field, both carried into the lab
+  frame through ``B X`` and pooled over the sensors (linear accelerations and sensor errors
+  average out); a vertical within ``SNAP_DEG`` of a lab axis is taken as that axis (optical labs
+  are levelled). Without a magnetometer the heading keeps the lab's x axis in the east–up plane.
+  The earth frame's heading is the magnetometers': their calibration errors turn the estimate
+  about the vertical.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from motionlab import rotations as rot
+from motionlab.errors import InputError
+from motionlab.fusion.attitude import NORTH, UP, triad
+from motionlab.fusion.markers import (
+    MarkerReferences,
+    interpolate_vectors,
+    marker_noise,
+    pair_vectors,
+)
+
+LAGS_S = (0.2, 1.0)
+LOWPASS_HZ = 4.0
+SNAP_DEG = 2.0
+CLOCK_ITERATIONS = 6
+SYNC_WINDOWS = {"window_s": 4.0, "step_s": 2.0}  # short: occlusions leave few long windows
+_STEP_S = 1e-3  # finite-difference step of the clock derivative
+
+
+@dataclass
+class SensorRegistration:
+    """Clock and sensor → cluster rotation of one sensor (see the module docstring).
+
+    ``offset_s``/``drift`` map the IMU clock to the optical one, ``t_ref = offset + (1 + drift)
+    t``; ``gyro_bias`` (rad/s) is the bias fitted with ``X``; ``residual_deg`` the RMS misfit of
+    the relative rotations over ``LAGS_S``.
+    """
+
+    offset_s: float
+    drift: float
+    sensor_to_cluster: np.ndarray
+    gyro_bias: np.ndarray
+    residual_deg: float
+    n_rows: int
+
+    def to_reference(self, t: np.ndarray) -> np.ndarray:
+        return self.offset_s + (1.0 + self.drift) * np.asarray(t, dtype=float)
+
+
+def _relative(t: np.ndarray, q: np.ndarray, start: np.ndarray, end: np.ndarray) -> np.ndarray:
+    """Rotation vectors ``log(q_i* ⊗ q_j)`` (rows, 3) for the index pairs ``(start, end)``, in
+    the moving frame of ``q`` (N, 4) low-passed at ``LOWPASS_HZ`` (a linear filter of the
+    components, so it commutes with the constant rotations between the two systems)."""
+    from motionlab.validation.optical import smooth_pose
+
+    q = smooth_pose(t, q, np.zeros((len(t), 3)), LOWPASS_HZ)[0]
+    return rot.to_rotvec(rot.mul(rot.conj(q[start]), q[end]))
+
+
+def _row_pairs(t: np.ndarray, bad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Start and end sample of the relative rotations: every lag of ``LAGS_S``, a start every
+    quarter of the shortest lag, no lost gyroscope sample in between."""
+    rate = 1.0 / np.median(np.diff(t))
+    lags = [max(1, int(round(lag_s * rate))) for lag_s in LAGS_S]
+    stride = max(1, lags[0] // 4)
+    starts, ends = [], []
+    for lag in lags:
+        if len(t) > 2 * lag:
+            spans_bad = np.convolve(bad, np.ones(lag + 1), "valid") > 0
+            first = np.flatnonzero(~spans_bad)[::stride]
+            starts.append(first)
+            ends.append(first + lag)
+    if not starts:
+        raise InputError(f"{len(t)} samples are too few to register the markers", "markers")
+    return np.concatenate(starts), np.concatenate(ends)
+
+
+def register_sensor(
+    t: np.ndarray,
+    gyr: np.ndarray,
+    t_opt: np.ndarray,
+    q_opt: np.ndarray,
+    offset_s: float = 0.0,
+    drift: float = 0.0,
+    refine_clock: bool = True,
+) -> SensorRegistration:
+    """Sensor → cluster rotation, gyroscope bias and refined clock of one sensor.
+
+    Parameters
+    ----------
+    t, gyr
+        IMU times (s, IMU clock) and gyroscope (N, 3) rad/s.
+    t_opt, q_opt
+        Optical times (s, optical clock) and cluster → lab orientations (M, 4), NaN in gaps.
+    offset_s, drift
+        Starting clock model (e.g. from :func:`motionlab.validation.sync.synchronise`).
+    refine_clock
+        Refine the clock model (False: keep it, e.g. for streams on one clock).
+    """
+    from motionlab.segments.frames import wahba
+    from motionlab.validation.optical import resample_quat
+
+    t = np.asarray(t, dtype=float)
+    bad = ~np.isfinite(gyr).all(axis=1)
+    i, j = _row_pairs(t, bad)
+    a = rot.integrate_gyro(rot.IDENTITY, np.where(bad[:, None], 0.0, gyr), np.diff(t))
+    da, span = _relative(t, a, i, j), (t[j] - t[i])[:, None]
+    tc = t[i] - t[i].mean()
+    m, bias, keep = np.eye(3), np.zeros(3), np.ones(len(i), bool)
+    for it in range(CLOCK_ITERATIONS if refine_clock else 1):
+        tau = offset_s + (1.0 + drift) * t
+        db = _relative(t, resample_quat(t_opt, q_opt, tau), i, j)
+        ok = keep & np.isfinite(db).all(axis=1)
+        if ok.sum() < 20:
+            raise InputError(
+                "too little overlap of the IMU and the marker cluster to register them",
+                "markers",
+                remedy="check the marker map and that both systems recorded the same movement",
+            )
+        for _ in range(3):  # X and bias, alternately (the bias is small against the motion)
+            m = wahba(db[ok], da[ok] - bias * span[ok])
+            resid = da - bias * span - db @ m
+            bias = bias + np.sum(resid[ok] * span[ok], axis=0) / np.sum(span[ok] ** 2)
+        resid = da - bias * span - db @ m
+        err = np.linalg.norm(resid, axis=1)
+        if it == 0:  # drop glitches (marker swaps, ghost markers) before refining
+            keep &= ~(err > 5.0 * np.nanmedian(err[ok]))
+            ok &= keep
+        if not refine_clock:
+            break
+        ahead = _relative(t, resample_quat(t_opt, q_opt, tau + _STEP_S), i, j)
+        behind = _relative(t, resample_quat(t_opt, q_opt, tau - _STEP_S), i, j)
+        ddb = (ahead - behind) @ m / (2.0 * _STEP_S)
+        okd = ok & np.isfinite(ddb).all(axis=1)
+        jac = np.column_stack([ddb[okd].ravel(), (ddb[okd] * tc[okd, None]).ravel()])
+        step = np.linalg.lstsq(jac, resid[okd].ravel(), rcond=None)[0]
+        offset_s += step[0] - step[1] * t[i].mean()
+        drift += step[1]
+    rms = float(np.degrees(np.sqrt(np.mean(err[ok] ** 2))))
+    return SensorRegistration(
+        float(offset_s), float(drift), rot.from_matrix(m), bias, rms, int(ok.sum())
+    )
+
+
+def _snap(up: np.ndarray) -> tuple[np.ndarray, str | None]:
+    """``up`` replaced by the closest lab axis when within ``SNAP_DEG`` of it."""
+    k = int(np.argmax(np.abs(up)))
+    axis = np.zeros(3)
+    axis[k] = np.sign(up[k])
+    if np.degrees(np.arccos(np.clip(axis @ up, -1.0, 1.0))) <= SNAP_DEG:
+        return axis, f"{'+' if axis[k] > 0 else '-'}{'xyz'[k]}"
+    return up, None
+
+
+def lab_to_earth(
+    sensors: list[tuple[np.ndarray, np.ndarray, np.ndarray | None]], field_tol_deg: float = 6.0
+) -> tuple[np.ndarray, dict[str, Any]]:
+    """Lab → earth rotation ``Y`` from gravity and the magnetic field seen in the lab frame.
+
+    ``sensors`` holds per sensor ``(BX (N, 4), acc (N, 3), mag (N, 3) or None)``: the sensor →
+    lab orientation from the markers (NaN where unknown) and the IMU's specific force and field.
+    The lab vertical is the direction of the summed specific force (snapped to a lab axis within
+    ``SNAP_DEG``); north is the horizontal part of the mean field direction over the samples
+    within ``field_tol_deg`` of the median direction (a disturbed field is off it). Liu 2010,
+    eqs. (2)–(4), solved by TRIAD.
+    """
+    up_sum, fields = np.zeros(3), []
+    for bx, acc, mag in sensors:
+        ok = np.isfinite(bx).all(axis=1)
+        up_sum += np.sum(rot.rotate(bx[ok], acc[ok]), axis=0)
+        if mag is not None:
+            f = rot.rotate(bx[ok], mag[ok])
+            fields.append(f / np.linalg.norm(f, axis=1, keepdims=True))
+    if not np.linalg.norm(up_sum) > 0:
+        raise InputError("no sample where the markers and the IMU overlap", "markers")
+    up, snapped = _snap(up_sum / np.linalg.norm(up_sum))
+    info: dict[str, Any] = {"vertical_axis": snapped, "vertical_lab": up}
+    f = np.concatenate(fields) if fields else np.zeros((0, 3))
+    f = f[np.isfinite(f).all(axis=1)]
+    if len(f):
+        med = np.median(f, axis=0)
+        med /= np.linalg.norm(med)
+        near = f @ med >= np.cos(np.radians(field_tol_deg))
+        field_lab = np.mean(f[near], axis=0)
+        info |= {"heading_from": "magnetometer", "field_fraction_used": float(near.mean())}
+        y = triad(up, field_lab, UP, NORTH)
+        info["dip_deg"] = float(
+            np.degrees(np.arcsin(-(field_lab @ up) / np.linalg.norm(field_lab)))
+        )
+    else:  # 6-D: keep the lab x axis in the east-up plane
+        x = np.eye(3)[0] if abs(up[0]) < 0.9 else np.eye(3)[1]
+        y = triad(up, x, UP, np.array([1.0, 0.0, 0.0]))
+        info["heading_from"] = "lab axes (no magnetometer)"
+    return y, info
+
+
+# ------------------------------------------------------------------------------ session
+
+
+def _cluster_sensors(session: Any, mmap: Any, labels: list[str] | None) -> dict[str, Any]:
+    """``{sensor label: SegmentMap}`` for the mapped marker clusters that carry a chosen sensor."""
+    from motionlab.segments import sensor_for_segment
+
+    out = {}
+    for seg, spec in mmap.segments.items():
+        label = spec.sensor or sensor_for_segment(session, seg)
+        if label in session.sensors and spec.cluster and (labels is None or label in labels):
+            out[label] = spec
+    if not out:
+        raise InputError(
+            "no marker cluster of the marker map is on a sensor to fuse",
+            mmap.path,
+            remedy="name cluster segments after the sensors, or set sensor: in the marker map",
+        )
+    return out
+
+
+def session_references(
+    session: Any,
+    marker_map: Any = None,
+    protocol: Any = None,
+    labels: list[str] | None = None,
+    *,
+    sync: bool = True,
+    seed: int = 0,
+) -> tuple[dict[str, MarkerReferences], dict[str, Any]]:
+    """Marker reference vectors for the session's sensors that carry a marker cluster.
+
+    Parameters
+    ----------
+    session
+        A :class:`~motionlab.session.Session` with a marker set (``session.markers``).
+    marker_map
+        A :class:`~motionlab.validation.markermap.MarkerMap` (default: clusters found by name,
+        :func:`~motionlab.validation.markermap.default_marker_map`).
+    protocol
+        Used by the default marker map to tell landmarks from cluster markers.
+    labels
+        Sensors to prepare (default: every sensor with a cluster).
+    sync
+        Estimate each sensor's clock against the optical one (False: one shared clock).
+    seed
+        Seed of the RANSAC in the coarse clock estimate.
+
+    Returns
+    -------
+    references, info
+        ``{label: MarkerReferences}`` on each sensor's own samples, and a JSON-able record:
+        ``lab_to_earth`` (quaternion and how it was found) and per sensor the clock
+        (``time_offset_s``, ``drift_ppm``), ``sensor_to_cluster``, the gyroscope bias, the
+        registration residual, the marker noise and the visible fraction.
+    """
+    from motionlab.validation.markermap import check_marker_map, default_marker_map
+    from motionlab.validation.optical import resample_quat, track_cluster
+    from motionlab.validation.reference import choose_marker_set
+    from motionlab.validation.sync import synchronise
+
+    if not session.markers:
+        raise InputError("the session holds no marker data", remedy="ingest a C3D/TRC file with it")
+    name = marker_map.marker_set if marker_map is not None else None
+    markers = choose_marker_set(list(session.markers.values()), name)
+    mmap = marker_map or default_marker_map(markers, protocol, list(session.sensors))
+    check_marker_map(mmap, markers)
+    chosen = _cluster_sensors(session, mmap, labels)
+    parts, pooled, info = {}, [], {"marker_set": markers.name, "sensors": {}}
+    for label, spec in chosen.items():
+        s = session.sensors[label]
+        points = markers.positions[:, [markers.labels.index(m) for m in spec.cluster]]
+        track = track_cluster(markers.time, points, spec.cluster, mmap.max_gap_s, mmap.lowpass_hz)
+        offset, drift = 0.0, 0.0
+        if sync:
+            clock = synchronise(
+                [(s.time, s.gyr)], [(track.time, track.quat)], seed=seed, **SYNC_WINDOWS
+            )
+            offset, drift = clock.model.offset_s, clock.model.drift
+        reg = register_sensor(s.time, s.gyr, track.time, track.quat, offset, drift, sync)
+        sigma_m = marker_noise(track.residual, track.n_visible)
+        pairs, cluster_dirs, lab_dirs, sigma = pair_vectors(track.shape, points, sigma_m)
+        tau = reg.to_reference(s.time)
+        bx = rot.mul(resample_quat(track.time, track.quat, tau), reg.sensor_to_cluster)
+        pooled.append((bx, s.acc, s.mag))
+        parts[label] = (reg, rot.rotate(rot.conj(reg.sensor_to_cluster), cluster_dirs),
+                        interpolate_vectors(markers.time, lab_dirs, tau), sigma,
+                        [(spec.cluster[i], spec.cluster[j]) for i, j in pairs])  # fmt: skip
+        info["sensors"][label] = {
+            "segment": spec.name,
+            "time_offset_s": reg.offset_s,
+            "drift_ppm": reg.drift * 1e6,
+            "sensor_to_cluster": reg.sensor_to_cluster,
+            "gyro_bias_rad_s": reg.gyro_bias,
+            "registration_residual_deg": reg.residual_deg,
+            "marker_noise_mm": sigma_m * 1e3,
+            "n_pairs": len(pairs),
+        }
+    y, info["lab_to_earth"] = lab_to_earth(pooled)
+    info["lab_to_earth"]["quat"] = y
+    refs = {}
+    for label, (reg, body, lab, sigma, names) in parts.items():
+        refs[label] = MarkerReferences(body, rot.rotate(y, lab), sigma, reg.gyro_bias, names)
+        info["sensors"][label]["visible_fraction"] = float(refs[label].visible.mean())
+    return refs, info
