@@ -58,6 +58,8 @@ def _xyz(prefix: str, axes: str = "XYZ") -> list[str]:
 
 
 def _is_table_header(line: str) -> bool:
+    if "SampleTimeFine" not in line or "PacketCounter" not in line:
+        return False  # without splitting every line of every file that is sniffed
     fields = split_fields(line, ",")
     return "SampleTimeFine" in fields and "PacketCounter" in fields
 
