@@ -35,10 +35,9 @@ CALIBRATED = dataclasses.replace(
 GAP_FILL_S = 0.1
 
 
-def occlude_blocks(markers, fraction: float, rng, shortest: float = 1.0, longest: float = 5.0):
-    """Hide every marker in blocks of ``shortest``–``longest`` s (1 s apart at least) until
-    ``fraction`` of the frames are hidden; returns the hidden frames (bool)."""
-    t = markers.time
+def hidden_blocks(t: np.ndarray, fraction: float, rng, shortest: float = 1.0, longest: float = 5.0):
+    """Blocks of ``shortest``–``longest`` s (1 s apart at least) covering ``fraction`` of the
+    samples at times ``t``: bool mask."""
     hidden = np.zeros(len(t), bool)
     while hidden.mean() < fraction:
         length = rng.uniform(shortest, longest)
@@ -46,7 +45,6 @@ def occlude_blocks(markers, fraction: float, rng, shortest: float = 1.0, longest
         if hidden[(t >= start - 1.0) & (t <= start + length + 1.0)].any():
             continue
         hidden |= (t >= start) & (t <= start + length)
-    markers.positions[hidden] = np.nan
     return hidden
 
 
@@ -57,7 +55,9 @@ def acceptance_session(duration: float = 60.0, seed: int = 1, occluded: float = 
     )
     for label, stream in session.sensors.items():
         session.sensors[label] = fill_short_gaps(stream, GAP_FILL_S)[0]
-    hidden = occlude_blocks(session.markers["optical"], occluded, np.random.default_rng(seed))
+    markers = session.markers["optical"]
+    hidden = hidden_blocks(markers.time, occluded, np.random.default_rng(seed))
+    markers.positions[hidden] = np.nan
     return session, truth, hidden
 
 

@@ -35,6 +35,7 @@ Defaults were tuned on the 8 BROAD trials in ``../shared``, which are also the r
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numba
@@ -344,6 +345,10 @@ def run(
     """
     prep = kc.prepare(gyr, acc, mag, rate, params)
     refs = references if references is not None else MarkerReferences.none(len(gyr))
+    if references is not None:  # no start-up boost of acc and mag once the markers are seen
+        first = np.flatnonzero(refs.visible)
+        seen = first[0] / rate if len(first) else np.inf
+        params = dataclasses.replace(params, startup_time=min(params.startup_time, seen))
     n = len(gyr)
     quat = np.empty((n, 4))
     bias = np.empty((n, 3))

@@ -188,7 +188,7 @@ def lab_to_earth(
     """
     up_sum, fields = np.zeros(3), []
     for bx, acc, mag in sensors:
-        ok = np.isfinite(bx).all(axis=1)
+        ok = np.isfinite(bx).all(axis=1) & np.isfinite(acc).all(axis=1)
         up_sum += np.sum(rot.rotate(bx[ok], acc[ok]), axis=0)
         if mag is not None:
             f = rot.rotate(bx[ok], mag[ok])
@@ -226,7 +226,10 @@ def _cluster_sensors(session: Any, mmap: Any, labels: list[str] | None) -> dict[
     out = {}
     for seg, spec in mmap.segments.items():
         label = spec.sensor or sensor_for_segment(session, seg)
-        if label in session.sensors and spec.cluster and (labels is None or label in labels):
+        if label not in session.sensors or not spec.cluster:
+            continue
+        s = session.sensors[label]
+        if s.gyr is not None and s.acc is not None and (labels is None or label in labels):
             out[label] = spec
     if not out:
         raise InputError(
