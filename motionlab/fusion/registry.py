@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 
 from motionlab.errors import InputError
+from motionlab.fusion.timegrid import checked_time, gap_grid
 
 DEFAULT_ESTIMATOR = "smoother"
 
@@ -175,7 +176,7 @@ def _fill_nan(arr: np.ndarray, name: str) -> tuple[np.ndarray, int]:
     idx = np.where(~bad, np.arange(len(arr)), 0)
     np.maximum.accumulate(idx, out=idx)
     first = np.argmax(~bad)
-    idx[: first] = first
+    idx[:first] = first
     return np.ascontiguousarray(arr[idx]), int(bad.sum())
 
 
@@ -191,6 +192,7 @@ def estimate(
     mag: np.ndarray | None = None,
     rate: float = 100.0,
     references: Any = None,
+    time: np.ndarray | None = None,
     **params: Any,
 ) -> FusionResult:
     """Run estimator ``name`` on gyroscope (rad/s), accelerometer (m/s²), magnetometer (µT).
@@ -206,6 +208,11 @@ def estimate(
     references
         Optional :class:`~motionlab.fusion.markers.MarkerReferences` on the same samples (IMU +
         marker fusion); only for estimators whose ``run`` takes ``references``.
+    time
+        Optional (N,) sample times (s). Where packets were lost (intervals over 1.5/``rate``)
+        the estimator runs on a grid with the gaps filled and the result is taken back to these
+        times, with the filled spans in ``extra["resampled"]`` (:mod:`motionlab.fusion.timegrid`).
+        Without ``time`` every interval is taken as ``1/rate``.
     **params
         Overrides of the estimator's parameter dataclass.
     """
@@ -226,6 +233,9 @@ def estimate(
     if mag is not None:
         mag, filled["mag"] = _fill_nan(mag, "mag")
     p = make_params(est, params)
+    grid = None if time is None else gap_grid(checked_time(time, n), rate)
+    if grid is not None:
+        gyr, acc, mag = grid.vectors(gyr), grid.vectors(acc), grid.vectors(mag)
     kwargs = {}
     if references is not None:
         takes = [k for k in available() if takes_references(k)]
@@ -234,8 +244,11 @@ def estimate(
                 f"estimator '{est.name}' cannot fuse marker references",
                 remedy=f"use one of {', '.join(takes)}",
             )
-        kwargs["references"] = references.validated(n)
+        references = references.validated(n)
+        kwargs["references"] = references if grid is None else grid.references(references)
     result = est.run(gyr, acc, mag, float(rate), p, **kwargs)
+    if grid is not None:
+        result = grid.back(result)
     result.name = est.name
     result.params = dataclasses.asdict(p)
     if any(filled.values()):

@@ -1,0 +1,187 @@
+"""Time-aware fusion: packet-loss gaps filled for the filters, results taken back to the stamps.
+
+The estimators integrate the gyroscope with a fixed interval ``1/rate``. A recording with lost
+packets has intervals far longer than that (ingest fills gaps up to ``--gap-max``, 0.1 s by
+default, and leaves longer ones), and a filter that integrates such a gap as one sample misses
+the rotation of the whole gap: at 100 Hz a 0.5 s gap during a 200 °/s knee swing loses 100°.
+
+:func:`gap_grid` therefore builds, from the recorded stamps, a sample grid on which every
+interval is about ``1/rate``: the recorded instants themselves, plus, inside every interval longer
+than ``GAP_FACTOR / rate`` (the gap definition of :mod:`motionlab.timebase`), equally spaced
+instants at about ``1/rate``. The inputs are interpolated onto the filled instants, the estimator
+runs on the grid, and the results are taken back to the recorded stamps. As every recorded
+instant is on the grid, taking back is a selection of rows (what SLERP resampling at the grid's
+own instants would return), and recordings without a gap reach the estimator unchanged. Clock
+jitter is not resampled: stamps that scatter around a regular sampling would otherwise move real
+samples, and the integration errors of jittered intervals cancel from one interval to the next.
+
+Interpolation: a gap up to ``CUBIC_MAX_S`` is bridged by a cubic Hermite curve through the two
+samples either side with the slopes of the recorded intervals next to the gap (one-sided
+differences), longer gaps linearly. What the filter loses in a gap is the integral of the rate
+it does not see, and a straight line misses the curvature of a swinging limb. On a simulated
+0.8 Hz, 6 rad/s swing (``tests/test_fusion_timegrid.py``, 6 gap positions) a 6-D smoother was
+1.2° RMS off without a gap; with one gap of 0.3 / 0.5 / 0.8 s it was 3.4 / 14.7 / 31° off
+bridged linearly and 1.24 / 1.95 / 17° bridged by the cubic. At 1 s the cubic overshoots (63°,
+linear 23°): the movement in such a gap is not recoverable, and the straight line invents least.
+
+Marker reference vectors (:class:`~motionlab.fusion.markers.MarkerReferences`) are measured at the
+recorded instants only: the filled instants get none (NaN), so inside a gap the filters run on
+the IMU alone, as they do where the markers are hidden.
+
+Conventions: time in s, strictly increasing; arrays have the samples along the first axis.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from motionlab.errors import InputError
+from motionlab.timebase import GAP_FACTOR
+
+CUBIC_MAX_S = 0.8  # longest gap bridged by a cubic (s); longer ones linearly
+
+if TYPE_CHECKING:
+    from motionlab.fusion.markers import MarkerReferences
+    from motionlab.fusion.registry import FusionResult
+
+
+@dataclass(frozen=True)
+class GapGrid:
+    """A near-uniform sample grid around the recorded stamps.
+
+    Attributes
+    ----------
+    stamps
+        (N,) the recorded times (s).
+    time
+        (M,) the grid (s), M ≥ N: the stamps plus the instants filled into the gaps.
+    index
+        (N,) position of every recorded sample on the grid (``time[index] == stamps``).
+    spans
+        (K, 2) ``[start_s, end_s]`` of every filled gap (the stamps either side of it).
+    before
+        (M − N,) for every filled instant, the recorded sample before its gap.
+    """
+
+    stamps: np.ndarray
+    time: np.ndarray
+    index: np.ndarray
+    spans: np.ndarray
+    before: np.ndarray
+
+    @property
+    def filled(self) -> int:
+        """Number of instants filled into the gaps."""
+        return len(self.time) - len(self.stamps)
+
+    def vectors(self, arr: np.ndarray | None) -> np.ndarray | None:
+        """(N, 3) samples at the recorded stamps → (M, 3) on the grid (see the module notes)."""
+        if arr is None:
+            return None
+        t, i = self.stamps, self.before
+        j = i + 1
+        out = np.empty((len(self.time), arr.shape[1]))
+        out[self.index] = arr
+        h = (t[j] - t[i])[:, None]
+        chord = (arr[j] - arr[i]) / h
+        left = np.where(i[:, None] > 0, _slope(t, arr, i - 1, i), chord)
+        right = np.where(j[:, None] < len(t) - 1, _slope(t, arr, j, j + 1), chord)
+        s = ((self.time[self._filled] - t[i]) / h[:, 0])[:, None]
+        cubic = (
+            (2 * s**3 - 3 * s**2 + 1) * arr[i]
+            + (s**3 - 2 * s**2 + s) * h * left
+            + (3 * s**2 - 2 * s**3) * arr[j]
+            + (s**3 - s**2) * h * right
+        )
+        linear = arr[i] + s * (arr[j] - arr[i])
+        out[self._filled] = np.where(h > CUBIC_MAX_S, linear, cubic)
+        return out
+
+    @property
+    def _filled(self) -> np.ndarray:
+        """Grid positions of the filled instants."""
+        mask = np.ones(len(self.time), bool)
+        mask[self.index] = False
+        return np.flatnonzero(mask)
+
+    def references(self, refs: MarkerReferences) -> MarkerReferences:
+        """Marker references on the grid: the recorded rows kept, none (NaN) at filled instants."""
+        earth = np.full((len(self.time),) + refs.earth.shape[1:], np.nan)
+        earth[self.index] = refs.earth
+        return dataclasses.replace(refs, earth=earth)
+
+    def back(self, result: FusionResult) -> FusionResult:
+        """``result`` of a run on the grid, at the recorded stamps (every per-sample array, in
+        the attributes and in ``extra``), with ``extra["resampled"]`` describing the gaps."""
+        m = len(self.time)
+
+        def take(value):
+            if isinstance(value, np.ndarray) and value.ndim >= 1 and len(value) == m:
+                return np.ascontiguousarray(value[self.index])
+            return value
+
+        extra = {key: take(value) for key, value in result.extra.items()}
+        extra["resampled"] = {"spans_s": self.spans, "samples_filled": self.filled}
+        return dataclasses.replace(
+            result,
+            quat=take(result.quat),
+            gyro_bias=take(result.gyro_bias),
+            rest=take(result.rest),
+            mag_disturbed=take(result.mag_disturbed),
+            extra=extra,
+        )
+
+
+def checked_time(time: np.ndarray, n: int) -> np.ndarray:
+    """``time`` as (n,) float64, finite and strictly increasing, else :class:`InputError`."""
+    t = np.asarray(time, dtype=float)
+    if t.shape != (n,):
+        raise InputError(
+            f"time has shape {t.shape}, the sensor has {n} samples",
+            where="time",
+            remedy="give one time stamp (s) per sample",
+        )
+    if not np.isfinite(t).all():
+        k = int(np.argmin(np.isfinite(t)))
+        raise InputError(f"time stamp {k} is not finite", where="time", remedy="ingest first")
+    steps = np.diff(t)
+    if (steps <= 0).any():
+        k = int(np.argmax(steps <= 0)) + 1
+        raise InputError(
+            f"time does not increase at sample {k} ({t[k - 1]:.6g} s → {t[k]:.6g} s)",
+            where="time",
+            remedy="repair the clock first (motionlab ingest does)",
+        )
+    return t
+
+
+def gap_grid(time: np.ndarray, rate: float) -> GapGrid | None:
+    """The grid of ``time`` (s) at ``rate`` (Hz), or ``None`` when no interval is a gap.
+
+    A gap of length ``T`` gets ``round(T · rate) − 1`` equally spaced instants (at least one), so
+    its intervals are ``1/rate`` to within half a sample spread over the gap.
+    """
+    t = np.asarray(time, dtype=float)
+    gaps = np.flatnonzero(np.diff(t) > GAP_FACTOR / rate)
+    if not len(gaps):
+        return None
+    span = t[gaps + 1] - t[gaps]
+    missing = np.maximum(np.round(span * rate).astype(np.int64) - 1, 1)
+    owner = np.repeat(np.arange(len(gaps)), missing)
+    step = np.arange(len(owner)) - np.repeat(np.cumsum(missing) - missing, missing) + 1
+    filled = t[gaps][owner] + step * (span / (missing + 1))[owner]
+    grid = np.sort(np.concatenate([t, filled]))
+    index = np.searchsorted(grid, t)
+    spans = np.column_stack([t[gaps], t[gaps + 1]])
+    return GapGrid(t, grid, index, spans, gaps[owner])
+
+
+def _slope(t: np.ndarray, arr: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Difference quotients between samples ``a`` and ``b`` (clipped into range)."""
+    a, b = np.clip(a, 0, len(t) - 1), np.clip(b, 0, len(t) - 1)
+    dt = np.where(b > a, t[b] - t[a], 1.0)
+    return (arr[b] - arr[a]) / dt[:, None]
