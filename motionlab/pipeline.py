@@ -67,7 +67,8 @@ class PipelineResult:
 
 
 class _Stages:
-    """A stage counter on stderr (``[3/8] calibrate ... 0.4 s``), silent without ``progress``."""
+    """A stage counter on stderr (``[3/7] calibrate ...``) and stage times; silent without
+    ``progress``."""
 
     def __init__(self, names: list[str], progress: bool) -> None:
         self.names = names
@@ -113,7 +114,7 @@ def _holds_markers(inputs: list[Path]) -> bool:
     return False
 
 
-def _prepare_sensors(session: Session, gap_max: float = DEFAULT_GAP_MAX) -> None:
+def prepare_sensors(session: Session, gap_max: float = DEFAULT_GAP_MAX) -> None:
     """Clock repair, quality checks and short-gap filling, as ingest does, for the sensors of a
     session file that has not been through ingest (no ``qc``)."""
     for label, stream in list(session.sensors.items()):
@@ -146,7 +147,7 @@ def load_inputs(inputs: list[Path], map_path: Path | None, command: str) -> Sess
             remedy="leave out --map, or ingest the raw files with it",
         )
     session = load_session(sessions[0])
-    _prepare_sensors(session)
+    prepare_sensors(session)
     session.add_provenance(command, {"stage": "load", "gap_max_s": DEFAULT_GAP_MAX}, sessions)
     return session
 

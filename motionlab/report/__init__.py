@@ -37,7 +37,14 @@ from motionlab.report.pages_validation import validation_pages
 from motionlab.report.pdf import RC, Document
 from motionlab.session import Session
 
-__all__ = ["ReportOutput", "SessionView", "load_views", "write_report", "write_csvs"]
+__all__ = [
+    "ReportOutput",
+    "SessionView",
+    "build_document",
+    "load_views",
+    "write_report",
+    "write_csvs",
+]
 
 
 @dataclass
@@ -98,7 +105,7 @@ def write_report(
     for p in (pdf_path, text_path):
         check_output(p, force)
     with matplotlib.rc_context(RC):
-        doc = _document(views)
+        doc = build_document(views)
         csv_paths: list[Path] = []
         if csv_dir is not None:
             for i, view in enumerate(views):
@@ -112,7 +119,7 @@ def write_report(
     return ReportOutput(pdf_path, text_path, csv_paths, pages, list(doc.sections))
 
 
-def _document(views: list[SessionView]) -> Document:
+def build_document(views: list[SessionView]) -> Document:
     """All pages of the report, drawn (not yet saved)."""
     first = views[-1]
     subtitle = f"subject {first.subject}"

@@ -342,6 +342,8 @@ def calibration_rows(view: SessionView) -> list[dict[str, Any]]:
                     "rho": float(a.get("rho", np.nan)),
                     "reference_rho": float(ref) if ref is not None else float("nan"),
                     "residual_deg": float(a.get("residual_deg", np.nan)),
+                    "used": bool(a.get("used", True)),
+                    "hinge_check_deg": float(a.get("hinge_check_deg", np.nan)),
                     "segment_ok": bool(q.get("ok", False)),
                 }
             )
@@ -352,10 +354,13 @@ def excluded(view: SessionView) -> list[str]:
     """Plain sentences on data left out of the analysis, and why."""
     out = []
     for s in view.session.sensors.values():
-        for a, b in (s.qc or {}).get("gaps", []):
+        gaps = (s.qc or {}).get("gaps", [])
+        if gaps:
+            a, b = max(gaps, key=lambda g: g[1] - g[0])
             out.append(
-                f"{s.label}: {b - a:.2f} s missing at {a:.1f} s (gap longer than the "
-                f"{(s.qc or {}).get('gap_max_s', 0.1):g} s that are interpolated) - no angles there"
+                f"{s.label}: {len(gaps)} gap(s), {_spans_s(gaps):.2f} s in all (longest "
+                f"{b - a:.2f} s at {a:.1f} s), longer than the "
+                f"{(s.qc or {}).get('gap_max_s', 0.1):g} s that are interpolated: no angles there"
             )
         for ch, spans in (s.qc or {}).get("nan_spans", {}).items():
             out.append(f"{s.label}: {ch} not a number for {_spans_s(spans):.2f} s - not used")

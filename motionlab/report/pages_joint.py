@@ -22,7 +22,7 @@ from motionlab.report.model import (
     symmetry_rows,
 )
 from motionlab.report.normative import band_for
-from motionlab.report.pdf import BAND_COLOUR, MUTED, SIDE_COLOUR, SIZE, Document
+from motionlab.report.pdf import BAND_COLOUR, MUTED, SIDE_COLOUR, SIZE, Document, label_spans
 from motionlab.report.text import STATUS_WORDS, span, task_name
 
 TASKS_PER_PAGE = 3
@@ -46,20 +46,11 @@ def _time_page(doc: Document, view: SessionView, joint) -> None:
                 ax.fill_between(
                     [a, b], rng[0], rng[1], color=BAND_COLOUR, alpha=0.5, lw=0, zorder=1
                 )
-            if i == 0:
-                ax.text(
-                    0.5 * (a + b),
-                    0.98,
-                    task_name(task),
-                    transform=ax.get_xaxis_transform(),
-                    ha="center",
-                    va="top",
-                    size=SIZE["small"] - 1,
-                    color=MUTED,
-                )
         ax.plot(t, view.angles[col], color=colour, lw=0.6, zorder=2)
         ax.set_ylabel(_ylabel(joint, angle))
         ax.set_xlim(t[0], t[-1])
+        if i == 0:
+            label_spans(ax, {task_name(k): v for k, v in blocks.items()}, SIZE["small"] - 1)
         ax.set_title(angle_label(joint, angle), loc="left", size=SIZE["small"], weight="bold")
         if i == 2:
             ax.set_xlabel("time (s)")
@@ -299,7 +290,9 @@ def symmetry_page(doc: Document, view: SessionView) -> None:
                     f"{r['angle'].replace('_', ' ')} ({r['plane']})",
                     f"{r['right_rom_deg']:.0f}",
                     f"{r['left_rom_deg']:.0f}",
-                    f"{si:+.0f}" if np.isfinite(si) else "n/a (range < 10°)",
+                    f"{0.0 if round(si) == 0 else si:+.0f}"
+                    if np.isfinite(si)
+                    else "n/a (range < 10°)",
                 ]
             )
             flagged.append([False] * 4 + [r["flag"]])

@@ -7,10 +7,14 @@ import json
 from typing import Any
 
 from motionlab.kinematics.joint_angles import JOINT_ANGLE_NAMES
-from motionlab.report.model import SessionView, joint_title
+from motionlab.report.model import SessionView, columns, in_order, joint_title
 from motionlab.report.normative import load_accuracy
 from motionlab.report.pdf import MUTED, SIZE, Document
 from motionlab.report.text import accuracy_sentence
+
+
+def _columns(view: SessionView) -> list[str]:
+    return [col for j in view.joints() for _, col in columns(j)]
 
 
 def accuracy_page(doc: Document, view: SessionView) -> None:
@@ -54,7 +58,7 @@ def accuracy_page(doc: Document, view: SessionView) -> None:
     if isinstance(val, dict):
         rows = [
             [col.removesuffix("_deg").replace("_", " "), f"{v['rmse_deg']:.1f}"]
-            for col, v in val.items()
+            for col, v in ((c, val[c]) for c in in_order(val, _columns(view)))
             if isinstance(v, dict) and "rmse_deg" in v
         ]
         if rows:
@@ -135,13 +139,20 @@ def methods_page(doc: Document, view: SessionView) -> None:
     doc.heading("Provenance")
     rows = []
     for p in view.session.provenance:
-        cmd = p.get("command", "")
-        rows.append([p.get("time", "")[:19].replace("T", " "), p.get("software", ""), cmd])
+        stage = (p.get("parameters") or {}).get("stage", "")
+        rows.append(
+            [
+                p.get("time", "")[:19].replace("T", " "),
+                p.get("software", ""),
+                stage,
+                p.get("command", ""),
+            ]
+        )
     doc.table(
-        ["Time (UTC)", "Software", "Command"],
+        ["Time (UTC)", "Software", "Stage", "Command"],
         rows,
-        [0.2, 0.16, 0.64],
-        align=["l", "l", "l"],
+        [0.18, 0.15, 0.1, 0.57],
+        align=["l", "l", "l", "l"],
         size=SIZE["small"],
     )
     hashes = {}

@@ -124,7 +124,7 @@ def _gait(doc: Document, view: SessionView) -> None:
     limit = max(g["threshold_deg"] for _, _, g in strides)
     ax.axvline(limit, color="#b2182b", lw=0.8, ls="--")
     ax.set_yticks(range(len(strides)), [s[0] for s in strides])
-    ax.set_ylim(-0.6, len(strides) - 0.4)
+    ax.set_ylim(len(strides) - 0.4, -0.6)  # first row on top, as in the table
     ax.set_xlabel("varus thrust per stride (°)")
     ax.set_title(
         f"Each stride's varus thrust; dashed: the protocol's limit ({limit:g}°)", loc="left"

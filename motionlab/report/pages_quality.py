@@ -5,9 +5,21 @@ from __future__ import annotations
 
 import numpy as np
 
-from motionlab.report.model import SessionView, calibration_rows, excluded, quality_rows
-from motionlab.report.pdf import MUTED, SIZE, Document
+from motionlab.report.model import (
+    SessionView,
+    calibration_rows,
+    excluded,
+    in_order,
+    quality_rows,
+)
+from motionlab.report.pdf import MUTED, SIZE, Document, label_spans
 from motionlab.segments.quality import FUNCTIONAL_RHO_MIN, RESIDUAL_MAX_DEG, STATIC_RHO_MIN
+
+METHODS = {
+    "procrustes": "the segment frame is the best fit to two or more measured axes",
+    "primary_secondary": "one axis fixed as measured, the rotation about it from the others",
+    "single_axis": "one axis measured, the rotation about it from the nominal placement",
+}
 
 
 def _f(x: float, spec: str = ".1f") -> str:
@@ -23,7 +35,7 @@ def _timeline(doc: Document, view: SessionView) -> None:
     """One lane per sensor: rest, magnetic disturbance and gaps over time, tasks shaded."""
     sensors = list(view.session.sensors.values())
     height = 1.3 + 0.28 * len(sensors)
-    ax = doc.axes_grid(1, 1, height, left=0.9, bottom=0.75, top=0.25)[0][0]
+    ax = doc.axes_grid(1, 1, height, left=0.9, bottom=0.5, top=0.25)[0][0]
     fusion = view.session.results.get("fusion", {})
     for k, s in enumerate(sensors):
         y = len(sensors) - 1 - k
@@ -38,19 +50,12 @@ def _timeline(doc: Document, view: SessionView) -> None:
         gaps = [(a, b - a) for a, b in (s.qc or {}).get("gaps", [])]
         if gaps:
             ax.broken_barh(gaps, (y - 0.4, 0.8), color="#b2182b")
-    for name, (a, b) in view.blocks().items():
+    for a, b in view.blocks().values():
         ax.axvspan(a, b, color="#e8f4e8", zorder=0)
-        ax.text(
-            0.5 * (a + b),
-            len(sensors) - 0.45,
-            name.replace("_", " "),
-            ha="center",
-            va="bottom",
-            size=SIZE["small"] - 1,
-            color=MUTED,
-        )
     ax.set_yticks(range(len(sensors)), [s.label for s in reversed(sensors)])
-    ax.set_ylim(-0.6, len(sensors) - 0.05)
+    ax.set_ylim(-0.6, len(sensors) + 0.5)
+    ax.set_xlim(*ax.get_xlim())
+    label_spans(ax, {k.replace("_", " "): v for k, v in view.blocks().items()}, SIZE["small"] - 1)
     ax.set_xlabel("time (s)")
     ax.set_title("The recording, sensor by sensor", loc="left")
     doc.paragraph(
@@ -141,7 +146,7 @@ def calibration_page(doc: Document, view: SessionView) -> None:
             kinds.get(name, ""),
             f"{rng[0]:.1f}–{rng[1]:.1f}" if rng else "not performed (optional)",
         ]
-        for name, rng in steps.items()
+        for name, rng in ((k, steps[k]) for k in in_order(steps, list(kinds)))
     ]
     doc.heading("Steps found in the recording")
     doc.table(["Step", "Kind", "Time (s)"], rows, [0.4, 0.2, 0.4], align=["l", "l", "l"])
@@ -158,23 +163,23 @@ def calibration_page(doc: Document, view: SessionView) -> None:
                 r["method"].replace("_", " "),
                 r["step"].replace("_", " "),
                 _f(r["rho"], ".3f"),
-                _f(r["reference_rho"], ".2f")
-                if np.isfinite(r["reference_rho"])
-                else f"≥ {floor:.2f}",
+                f"≥ {floor:.2f}",
                 _f(r["residual_deg"]),
+                "yes" if r["used"] else "no",
                 "ok" if r["segment_ok"] else "check",
             ]
         )
         flagged.append(
             [False] * 3
-            + [r["rho"] < floor, False, r["residual_deg"] > RESIDUAL_MAX_DEG, not r["segment_ok"]]
+            + [r["rho"] < floor, False, r["residual_deg"] > RESIDUAL_MAX_DEG, False]
+            + [not r["segment_ok"]]
         )
     doc.table(
-        ["Segment", "Method", "Step", "ρ", "ρ wanted", "Residual (°)", "Segment"],
+        ["Segment", "Method", "Step", "ρ", "ρ wanted", "Residual (°)", "In fit", "Segment"],
         rows,
-        [0.14, 0.14, 0.24, 0.1, 0.12, 0.14, 0.12],
+        [0.11, 0.16, 0.19, 0.08, 0.12, 0.13, 0.09, 0.12],
         flagged,
-        align=["l", "l", "l", "r", "r", "r", "r"],
+        align=["l", "l", "l", "r", "r", "r", "r", "r"],
     )
     messages = [
         m
@@ -186,9 +191,10 @@ def calibration_page(doc: Document, view: SessionView) -> None:
     doc.paragraph(
         f"Limits: ρ ≥ {STATIC_RHO_MIN:.2f} for static poses and ≥ {FUNCTIONAL_RHO_MIN:.2f} for "
         f"functional movements (or within 0.1 of the protocol's reference), residual ≤ "
-        f"{RESIDUAL_MAX_DEG:.0f}°. Method 'procrustes': the segment frame is the best fit to two "
-        "or more axes; 'single axis': one axis measured, the heading about it from the "
-        "protocol's nominal placement.",
+        f"{RESIDUAL_MAX_DEG:.0f}°. Methods: "
+        + "; ".join(f"'{k.replace('_', ' ')}': {v}" for k, v in METHODS.items())
+        + ". 'In fit': no when a joint movement's axis was left out because a step keeping the "
+        "joint still measured the same axis better.",
         size=SIZE["small"],
         colour=MUTED,
     )

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from motionlab.report.model import SessionView, columns, joint_title
+from motionlab.report.model import SessionView, columns, in_order, joint_title
 from motionlab.report.pdf import MUTED, SIZE, Document
 
 
@@ -20,9 +20,10 @@ def _f(x: Any, spec: str = ".2f") -> str:
     return format(x, spec) if np.isfinite(x) else "-"
 
 
-def _angle_table(doc: Document, angles: dict[str, Any]) -> None:
+def _angle_table(doc: Document, view: SessionView, angles: dict[str, Any]) -> None:
     rows = []
-    for col, v in angles.items():
+    order = [col for j in view.joints() for _, col in columns(j)]
+    for col, v in ((c, angles[c]) for c in in_order(angles, order)):
         if not isinstance(v, dict) or "rmse_deg" not in v:
             continue
         lo, hi = (list(v.get("loa_deg", [np.nan, np.nan])) + [np.nan, np.nan])[:2]
@@ -65,9 +66,11 @@ def _angle_table(doc: Document, angles: dict[str, Any]) -> None:
     )
 
 
-def _orientation_table(doc: Document, orientation: dict[str, Any]) -> None:
+def _orientation_table(doc: Document, view: SessionView, orientation: dict[str, Any]) -> None:
     rows = []
-    for label, v in orientation.items():
+    for label, v in (
+        (k, orientation[k]) for k in in_order(orientation, list(view.session.sensors))
+    ):
         if not isinstance(v, dict) or "total_rmse_deg" not in v:
             continue
         rows.append(
@@ -144,7 +147,7 @@ def _figure_pages(doc: Document, view: SessionView, val: dict[str, Any]) -> None
             figure=figures.bland_altman(val, col),
         )
         doc.place_figure(4.2)
-        _angle_table(doc, {c: angles[c] for _, c in columns(joint) if c in angles})
+        _angle_table(doc, view, {c: angles[c] for _, c in columns(joint) if c in angles})
     sync = val.get("sync") or {}
     if len(np.asarray(sync.get("window_time_s", []))):
         doc.section(
@@ -177,8 +180,8 @@ def validation_pages(doc: Document, view: SessionView) -> None:
         "synchronised and aligned with the sensors, then compared.",
     )
     _sync_alignment(doc, val)
-    _orientation_table(doc, val.get("orientation", {}))
-    _angle_table(doc, val.get("angles", {}))
+    _orientation_table(doc, view, val.get("orientation", {}))
+    _angle_table(doc, view, val.get("angles", {}))
     notes = val.get("notes") or []
     if notes:
         doc.heading("Notes")

@@ -16,6 +16,7 @@ from itertools import combinations
 from pathlib import Path
 
 import matplotlib
+import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg, RendererAgg
 from matplotlib.backends.backend_pdf import PdfPages
@@ -67,7 +68,7 @@ def wrap(text: str, width: float, size: float, weight: str = "normal") -> list[s
     lines: list[str] = []
     for para in str(text).split("\n"):
         line, used = "", 0.0
-        for word in para.split():
+        for word in _split_long(para.split(), width, size, weight):
             w = text_width(word, size, weight)
             if line and used + space + w > width:
                 lines.append(line)
@@ -76,6 +77,45 @@ def wrap(text: str, width: float, size: float, weight: str = "normal") -> list[s
                 line, used = (f"{line} {word}", used + space + w) if line else (word, w)
         lines.append(line)
     return lines
+
+
+def label_spans(ax: Axes, spans: dict[str, tuple[float, float]], size: float) -> None:
+    """Name each span ``(start, end)`` of the x axis just inside the axes' top edge, centred on
+    it; a label that would run into the one before it goes one line lower. Call after the
+    x limits are set."""
+    x0, x1 = ax.get_xlim()
+    per_in = (x1 - x0) / (ax.get_position().width * PAGE_W)
+    ends = [-np.inf, -np.inf]
+    for name, (a, b) in spans.items():
+        centre = 0.5 * (a + b)
+        half = (0.5 * text_width(name, size) + 0.05) * per_in
+        row = 0 if centre - half > ends[0] else 1
+        ends[row] = centre + half
+        ax.annotate(
+            name,
+            (centre, 1.0),
+            xycoords=("data", "axes fraction"),
+            xytext=(0, -2 - row * (size + 2)),
+            textcoords="offset points",
+            ha="center",
+            va="top",
+            size=size,
+            color=MUTED,
+        )
+
+
+def _split_long(words: list[str], width: float, size: float, weight: str) -> list[str]:
+    """Words, with any word wider than ``width`` cut into pieces that fit (paths, hashes)."""
+    out = []
+    for word in words:
+        while text_width(word, size, weight) > width and len(word) > 1:
+            n = max(1, int(len(word) * width / text_width(word, size, weight)))
+            while n > 1 and text_width(word[:n], size, weight) > width:
+                n -= 1
+            out.append(word[:n])
+            word = word[n:]
+        out.append(word)
+    return out
 
 
 class Document:
@@ -346,7 +386,9 @@ def _words(fig: Figure) -> list[tuple[float, float, str]]:
             texts += ax.get_legend().get_texts()
         out += [(box.y1, box.x0, t.get_text()) for t in texts]
     for legend in fig.legends:
-        out += [(1.0, 0.0, t.get_text()) for t in legend.get_texts()]
+        anchor = legend.get_bbox_to_anchor()
+        y, x = anchor.y0 / fig.bbox.height, anchor.x0 / fig.bbox.width
+        out += [(y, x, t.get_text()) for t in legend.get_texts()]
     return [(y, x, s) for y, x, s in out if s.strip()]
 
 
@@ -375,7 +417,7 @@ def layout_problems(fig: Figure) -> list[str]:
         bb = t.get_window_extent(renderer)
         if bb.x0 < -0.5 or bb.y0 < -0.5 or bb.x1 > w + 0.5 or bb.y1 > h + 0.5:
             problems.append(f"off the page: {t.get_text()!r}")
-        boxes.append((t.get_text(), bb.expanded(1.0, 1.0).shrunk(0.98, 0.9)))
+        boxes.append((t.get_text(), bb.shrunk(1.0, 0.9)))
     for (a, ba), (b, bb) in combinations(boxes, 2):
         if ba.overlaps(bb) and a.strip() and b.strip():
             problems.append(f"overlap: {a!r} / {b!r}")

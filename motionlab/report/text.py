@@ -153,11 +153,18 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
 
 
 def quality_notes(view: SessionView) -> list[str]:
-    """Sentences on data and calibration problems (empty when all is well)."""
-    notes = []
+    """Sentences on data and calibration problems, most important first (calibration,
+    saturation, magnetic disturbance, then gaps); empty when all is well."""
+    notes, gaps = [], []
+    bad = sorted({r["segment"] for r in calibration_rows(view) if not r["segment_ok"]})
+    if bad:
+        notes.append(
+            f"Calibration of {', '.join(bad)} needs attention (see the calibration page); "
+            "angles involving it are less certain."
+        )
     for q in quality_rows(view):
         if q["gaps_kept"]:
-            notes.append(
+            gaps.append(
                 f"Sensor {q['sensor']} lost {q['gaps_kept_s']:.1f} s of data in "
                 f"{q['gaps_kept']} gap(s); no angles are reported there."
             )
@@ -171,13 +178,7 @@ def quality_notes(view: SessionView) -> list[str]:
                 f"The magnetic field near sensor {q['sensor']} was disturbed "
                 f"{q['mag_disturbed_pct']:.0f}% of the time (metal or electronics nearby)."
             )
-    bad = sorted({r["segment"] for r in calibration_rows(view) if not r["segment_ok"]})
-    if bad:
-        notes.append(
-            f"Calibration of {', '.join(bad)} needs attention (see the calibration page); "
-            "angles involving it are less certain."
-        )
-    return notes
+    return notes + gaps
 
 
 def accuracy_sentence(angle: str, entry: dict[str, Any]) -> str:
