@@ -87,7 +87,7 @@ def run_one(
         session.sensors[label], _ = timebase.fill_short_gaps(s, gap_max)
     fused = {}
     for label, s in session.sensors.items():
-        res = estimate(estimator, s.gyr, s.acc, None, rate=s.rate_hz)
+        res = estimate(estimator, s.gyr, s.acc, None, rate=s.rate_hz, time=s.time)
         fused[label] = {"name": res.name, "quat": res.quat}
     session.results["fusion"] = fused
     cal = calibrate(session, protocol)

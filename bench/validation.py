@@ -74,7 +74,8 @@ def simulated_case(seed: int, imu: str, estimator: str) -> dict:
             fusion[label] = {"quat": _stand_in(truth, label, s.time, i)}
         else:
             mag = s.mag if imu == "9-D" else None
-            fusion[label] = {"quat": estimate(estimator, s.gyr, s.acc, mag, s.rate_hz).quat}
+            res = estimate(estimator, s.gyr, s.acc, mag, s.rate_hz, time=s.time)
+            fusion[label] = {"quat": res.quat}
     session.results["fusion"] = fusion
     mode = "heading" if imu == "6-D" else "full"
     t0 = time.perf_counter()
@@ -166,7 +167,7 @@ def broad_table(data: Path, name: str) -> str:
         ses = Session(sensors={"imu": rec.sensors[0]}, markers={"optical": rec.markers[0]})
         s = ses.sensors["imu"]
         ses.results["fusion"] = {
-            "imu": {"quat": estimate(name, s.gyr, s.acc, s.mag, tr["rate"]).quat}
+            "imu": {"quat": estimate(name, s.gyr, s.acc, s.mag, tr["rate"], time=s.time).quat}
         }
         plain = validate(ses, mode="none", sync=False, movement_only=True)["orientation"]["imu"]
         synced = validate(ses, mode="none", movement_only=True)

@@ -82,8 +82,10 @@ def evaluate(session, truth, hidden, refs, name: str, **params) -> dict[str, dic
         s = session.sensors[label]
         q_true, t_opt = truth_at_samples(session, truth, label)
         in_block = np.interp(t_opt, markers.time, hidden.astype(float)) > 0.5
-        fused = estimate(name, s.gyr, s.acc, s.mag, s.rate_hz, references=ref, **params)
-        alone = estimate(name, s.gyr, s.acc, s.mag, s.rate_hz, **params)
+        fused = estimate(
+            name, s.gyr, s.acc, s.mag, s.rate_hz, references=ref, time=s.time, **params
+        )
+        alone = estimate(name, s.gyr, s.acc, s.mag, s.rate_hz, time=s.time, **params)
         e_fused = np.degrees(rot.angle_between(fused.quat, q_true))
         e_alone = np.degrees(rot.angle_between(alone.quat, q_true))
         out[label] = {

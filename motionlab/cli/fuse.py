@@ -52,11 +52,13 @@ def fuse_session(
             s = ses.sensors[label]
             ref = (references or {}).get(label)
             res = registry.estimate(
-                est.name, s.gyr, s.acc, s.mag, s.rate_hz, references=ref, **params
+                est.name, s.gyr, s.acc, s.mag, s.rate_hz, references=ref, time=s.time, **params
             )
             entry = {"name": res.name, "quat": res.quat, "params": res.params}
             if "scenario" in res.extra:
                 entry["scenario"] = res.extra["scenario"]
+            if "resampled" in res.extra:  # packet-loss gaps the estimator ran across
+                entry["gaps_bridged_s"] = res.extra["resampled"]["spans_s"]
             for key in ("gyro_bias", "rest", "mag_disturbed"):
                 value = getattr(res, key)
                 if value is not None:

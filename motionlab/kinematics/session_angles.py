@@ -41,7 +41,7 @@ def sensor_orientation(session: Session, label: str, estimator: str = "default")
     if s.acc is not None and s.gyr is not None:
         from motionlab.fusion import estimate
 
-        return estimate(estimator, s.gyr, s.acc, s.mag, rate=estimate_rate(s.time)).quat
+        return estimate(estimator, s.gyr, s.acc, s.mag, estimate_rate(s.time), time=s.time).quat
     if s.quat is not None:
         return np.asarray(s.quat, dtype=float)
     raise InputError(
