@@ -159,9 +159,10 @@ def check_segments(session: Session, protocol: Protocol, inputs: list[Path]) -> 
     if not missing:
         return
     labels = ", ".join(f"{k} ({s.segment})" if s.segment else k for k, s in session.sensors.items())
+    gap = "none of them" if missing == needed else f"none on {', '.join(missing)}"
     raise InputError(
-        f"the '{protocol.name}' protocol needs sensors on {', '.join(needed)}; none on "
-        f"{', '.join(missing)} (the input has {labels or 'no sensors'})",
+        f"the '{protocol.name}' protocol needs sensors on {', '.join(needed)}; the input has "
+        f"{gap} (its sensors: {labels or 'none'})",
         inputs[0] if len(inputs) == 1 else None,
         remedy="map each sensor to its segment with --map map.yaml (see 'motionlab ingest --help')",
     )

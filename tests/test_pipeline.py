@@ -195,6 +195,24 @@ def test_missing_segments_shared_xsens_recording(tmp_path):
     assert "pelvis, thigh_r, thigh_l, shank_r, shank_l" in res.output
 
 
+def test_missing_one_segment_is_named(recorded, tmp_path):
+    ses = load_session(recorded[0] / "sim.h5")
+    del ses.sensors["shank_r"]
+    save_session(ses, tmp_path / "no_shank.h5")
+    res = run(
+        "run",
+        "--protocol",
+        recorded[0] / "knee_small.yaml",
+        tmp_path / "no_shank.h5",
+        "-o",
+        tmp_path / "out",
+        "--quiet",
+    )
+    assert res.exit_code == 2
+    assert "needs sensors on shank_r, thigh_r; the input has none on shank_r" in res.output
+    assert "(its sensors: thigh_r (thigh_r))" in res.output
+
+
 def test_session_file_cannot_be_mixed_or_mapped(recorded, tmp_path):
     root, files, _ = recorded
     res = run(
