@@ -124,3 +124,16 @@ def test_bad_joint_or_side_is_input_error():
         decompose(q, q, "knee", "")
     with pytest.raises(InputError, match="joint type"):
         decompose(q, q, "hip", "r")
+
+
+@pytest.mark.parametrize("joint_type, side", [("knee", "l"), ("elbow", "r"), ("lumbar", "")])
+def test_missing_orientations_give_nan_rows(joint_type, side):
+    angles = np.radians([[30.0, 5.0, -10.0], [60.0, -3.0, 12.0], [90.0, 2.0, 20.0]])
+    q_prox = np.tile(rot.from_matrix(STANDING), (3, 1))
+    q_dist = rot.mul(q_prox, compose(angles, joint_type, side))
+    q_prox[1] = np.nan  # proximal sample lost
+    q_dist[2] = 0.0  # distal sample not a rotation
+    out = decompose(q_prox, q_dist, joint_type, side)
+    assert np.isnan(out[1:]).all()
+    np.testing.assert_allclose(out[0], angles[0], atol=1e-9)
+    assert np.isnan(decompose(np.full((2, 4), np.nan), q_dist[:2], joint_type, side)).all()

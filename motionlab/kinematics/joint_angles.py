@@ -77,12 +77,17 @@ def decompose(
     """Clinical joint angles (N, 3) in rad from segment → earth quaternions (N, 4).
 
     Columns follow :data:`JOINT_ANGLE_NAMES` ``[joint_type]``; signs as in the module docstring.
-    ``side`` is ``'l'`` or ``'r'`` (ignored for ``'lumbar'``).
+    ``side`` is ``'l'`` or ``'r'`` (ignored for ``'lumbar'``). A sample where either
+    orientation is missing (NaN, or a zero quaternion) gives a row of NaN.
     """
     signs = _signs(joint_type, side)
     q_rel = np.atleast_2d(relative(q_proximal, q_distal))
-    abc = rot.to_scipy(q_rel).as_euler("ZXY")
-    return abc * signs
+    bad = ~np.isfinite(q_rel).all(axis=1) | ~(np.linalg.norm(q_rel, axis=1) > 0)
+    if bad.any():
+        q_rel = np.where(bad[:, None], rot.IDENTITY, q_rel)
+    abc = rot.to_scipy(q_rel).as_euler("ZXY") * signs
+    abc[bad] = np.nan
+    return abc
 
 
 def compose(angles: np.ndarray, joint_type: str, side: str = "") -> np.ndarray:
