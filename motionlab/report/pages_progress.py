@@ -32,7 +32,7 @@ def progress_page(doc: Document, views: list[SessionView]) -> None:
     grid = doc.axes_grid(
         nrows,
         ncols,
-        min(2.6 * nrows + 0.3, 8.0),
+        min(2.2 * nrows + 0.3, 7.0),
         left=0.6,
         wspace=0.8,
         hspace=0.9,

@@ -177,7 +177,7 @@ def calibration_page(doc: Document, view: SessionView) -> None:
     doc.table(
         ["Segment", "Method", "Step", "ρ", "ρ wanted", "Residual (°)", "In fit", "Segment"],
         rows,
-        [0.11, 0.16, 0.19, 0.08, 0.12, 0.13, 0.09, 0.12],
+        [0.13, 0.14, 0.19, 0.08, 0.12, 0.13, 0.09, 0.12],
         flagged,
         align=["l", "l", "l", "r", "r", "r", "r", "r"],
     )
