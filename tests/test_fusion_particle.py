@@ -55,12 +55,16 @@ def test_every_proposal_and_scheme_tracks(proposal, scheme):
 
 
 def test_converges_from_wrong_start():
-    # in motion from the first sample (weak accelerometer weight), 17° off: below the reset angle
+    # in motion from the first sample (weak accelerometer weight), 17° off in tilt: below the
+    # reset angle, so the filter itself must converge. Slowly: the heading-only magnetometer
+    # turns a tilt error into a heading error of up to tan(dip) times it until the accelerometer
+    # (σ = 1.5 g in motion) has removed the tilt (the MEKF is slower still on this signal).
     q, gyr, acc, mag = _signals(seconds=40.0, rest=0.0)
     wrong = rot.mul(rot.from_axis_angle([0, 1, 0], 0.3), q[0])
     res = particle_filter(gyr, acc, mag, RATE, ParticleParams(n_particles=256), q0=wrong)
     err = _deg(res.quat, q)
-    assert err[:10].min() > 10 and err[-500:].max() < 2.5 and len(res.extra["resets"]) == 0
+    assert err[:10].min() > 10 and len(res.extra["resets"]) == 0
+    assert err[-500:].max() < 6.0 and err[-500:].max() < 0.6 * err[1000]
 
 
 def test_estimates_known_gyro_bias():

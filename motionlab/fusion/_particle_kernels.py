@@ -40,8 +40,8 @@ PROCESS_NOISE, ACC_SIGMA, ACC_REST_SIGMA, ACC_NORM_GAIN, ACC_GATE, GRAVITY = ran
 MAG_SIGMA, MAG_REST_SIGMA, MAG_NORM_TOL, MAG_DIP_TOL, MAG_GATE_DIP, REF_NORM, REF_DIP = range(6, 13)
 BIAS_TAU, BIAS_REST_TAU, BIAS_MAX = range(13, 16)
 INIT_SIGMA, RESET_ANGLE, RESET_TIME, RESET_HEADING_TIME, RESET_TAU, RESET_AGREE = range(16, 22)
-ESS_THRESHOLD, AUX_ALPHA, KERNEL_H, BINGHAM_ZMAX, MARKER_DRIFT, RATE_NOISE = range(22, 28)
-N_PARAMS = 28
+ESS_THRESHOLD, AUX_ALPHA, KERNEL_H, BINGHAM_ZMAX, MARKER_DRIFT = range(22, 27)
+N_PARAMS = 27
 # slots of ``info``: the upper triangle of J, then j
 _JXX, _JXY, _JXZ, _JYY, _JYZ, _JZZ, _JX, _JY, _JZ = range(9)
 # slots of the monitor's work array (earth-frame vectors under the posterior mean): low-passed acc
@@ -497,6 +497,7 @@ def nb_filter(
     h = prm[KERNEL_H]
     _spread(state, parts, q0, prm[INIT_SIGMA], proposal, zmax, lam4, basis, jit)
     _monitor_clear(mon)
+    half = np.sqrt(3.0 * dt) * prm[PROCESS_NOISE]
     floor = prm[PROCESS_NOISE] ** 2 * dt
     g_ref = prm[GRAVITY]
     inv_sum = 1.0
@@ -562,9 +563,6 @@ def nb_filter(
                     _info_vector(info, ux, uy, uz, ox, oy, oz, 1.0 / ref_var[j])
                     used[k] |= USED_MARKERS
         # 3.-4. particles: noise, likelihood, weights, posterior mean
-        # process noise: angle random walk plus the rate-proportional part (scale factors)
-        wn2 = (gyr[k, 0] - b[0]) ** 2 + (gyr[k, 1] - b[1]) ** 2 + (gyr[k, 2] - b[2]) ** 2
-        half = np.sqrt(3.0 * dt * (prm[PROCESS_NOISE] ** 2 + prm[RATE_NOISE] ** 2 * wn2))
         lmax = _move_and_score(state, parts, mean, info, half if k > 0 else 0.0, lik)
         prev[:] = mean
         inv_sum, ess = _weigh(w, lik, lmax, inv_sum, parts, mean)
