@@ -30,10 +30,11 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from motionlab.fusion import resampling as rs
 from motionlab.fusion import sphere as sph
 from motionlab.fusion._kalman_common import rot_matrix
 from motionlab.fusion.markers import USED_ACC, USED_MAG, USED_MARKERS, marker_jump
-from motionlab.fusion.resampling import nb_resample
+from motionlab.fusion.sphere import _nb_rmul as _rmul
 
 # indices of the float parameter vector ``prm``
 PROCESS_NOISE, ACC_SIGMA, ACC_REST_SIGMA, ACC_NORM_GAIN, ACC_GATE, GRAVITY = range(6)
@@ -53,21 +54,6 @@ N_MONITOR = 17
 
 
 # ---------------------------------------------------------------- small in-place helpers
-
-
-@numba.njit(cache=True, inline="always")
-def _rmul(a: np.ndarray, b0: float, b1: float, b2: float, b3: float) -> None:
-    """``a ← a ⊗ b`` for a length-4 row ``a``, normalised."""
-    a0, a1, a2, a3 = a[0], a[1], a[2], a[3]
-    r0 = a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3
-    r1 = a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2
-    r2 = a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1
-    r3 = a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0
-    n = 1.0 / np.sqrt(r0 * r0 + r1 * r1 + r2 * r2 + r3 * r3)
-    a[0] = r0 * n
-    a[1] = r1 * n
-    a[2] = r2 * n
-    a[3] = r3 * n
 
 
 @numba.njit(cache=True, inline="always")
@@ -108,45 +94,6 @@ def _rot(q: np.ndarray, vx: float, vy: float, vz: float, out: np.ndarray) -> Non
 def _rot_inv(q: np.ndarray, vx: float, vy: float, vz: float, out: np.ndarray) -> None:
     """``out = R(q)ᵀ v`` (earth → sensor)."""
     out[0], out[1], out[2] = _rotate(q[0], -q[1], -q[2], -q[3], vx, vy, vz)
-
-
-@numba.njit(cache=True)
-def _eig3(c: np.ndarray, vecs: np.ndarray, lam: np.ndarray) -> None:
-    """Eigen-decomposition of the symmetric 3×3 ``c`` (destroyed) by cyclic Jacobi, in place."""
-    for i in range(3):
-        for j in range(3):
-            vecs[i, j] = 1.0 if i == j else 0.0
-    for _ in range(30):
-        off = c[0, 1] ** 2 + c[0, 2] ** 2 + c[1, 2] ** 2
-        if off < 1e-30 * (c[0, 0] ** 2 + c[1, 1] ** 2 + c[2, 2] ** 2) + 1e-300:
-            break
-        for p in range(2):
-            for q in range(p + 1, 3):
-                if c[p, q] == 0.0:
-                    continue
-                theta = 0.5 * (c[q, q] - c[p, p]) / c[p, q]
-                t = np.sign(theta) / (abs(theta) + np.sqrt(theta * theta + 1.0))
-                if theta == 0.0:
-                    t = 1.0
-                cs = 1.0 / np.sqrt(t * t + 1.0)
-                sn = t * cs
-                for k in range(3):
-                    ckp = c[k, p]
-                    ckq = c[k, q]
-                    c[k, p] = cs * ckp - sn * ckq
-                    c[k, q] = sn * ckp + cs * ckq
-                for k in range(3):
-                    cpk = c[p, k]
-                    cqk = c[q, k]
-                    c[p, k] = cs * cpk - sn * cqk
-                    c[q, k] = sn * cpk + cs * cqk
-                for k in range(3):
-                    vkp = vecs[k, p]
-                    vkq = vecs[k, q]
-                    vecs[k, p] = cs * vkp - sn * vkq
-                    vecs[k, q] = sn * vkp + cs * vkq
-    for i in range(3):
-        lam[i] = c[i, i]
 
 
 # ---------------------------------------------------------------- measurement information
@@ -265,96 +212,6 @@ def _weigh(w, lik, lmax, inv_sum, parts, mean):
         m33 += wp * a3 * a3
     sph._nb_principal(m00, m01, m02, m03, m11, m12, m13, m22, m23, m33, mean, mean)
     return 1.0 / sw, sw * sw / s2
-
-
-@numba.njit(cache=True)
-def _draw(state, proposal, kappa, lam4, basis, b, zmax, out):
-    """One kernel rotation about the identity: vMF(κ) or the band-limited Bingham."""
-    if proposal == 0:
-        sph._nb_vmf(state, kappa, out)
-    else:
-        sph._nb_bingham(state, lam4, basis, b, zmax, out)
-        if out[0] < 0.0:
-            for i in range(4):
-                out[i] = -out[i]
-
-
-@numba.njit(cache=True)
-def _spread(state, parts, center, sigma, proposal, zmax, lam4, basis, jit):
-    """Redraw all particles about ``center`` with isotropic spread ``sigma`` (rad per axis)."""
-    kappa = 4.0 / (sigma * sigma)
-    for i in range(4):
-        lam4[i] = 0.0 if i == 0 else 2.0 / (sigma * sigma)
-        for j in range(4):
-            basis[i, j] = 1.0 if i == j else 0.0
-    b = sph._nb_bingham_b(lam4)
-    for p in range(parts.shape[0]):
-        _draw(state, proposal, kappa, lam4, basis, b, zmax, jit)
-        for i in range(4):
-            parts[p, i] = center[i]
-        _rmul(parts[p], jit[0], jit[1], jit[2], jit[3])
-
-
-@numba.njit(cache=True)
-def _kernel_shape(parts, w, mean, h, floor, proposal, cov, vecs, lam3, lam4, basis):
-    """Regularisation kernel from the weighted cloud's rotation-vector covariance scaled by h².
-
-    Returns the vMF concentration (isotropic: κ = 4/(h²·tr(C)/3)) and, for the Bingham kernel,
-    fills ``lam4``/``basis`` with A = diag(0, 2(h²C)⁻¹) in C's eigenbasis and returns its b.
-    """
-    for i in range(3):
-        for j in range(3):
-            cov[i, j] = 0.0
-    for p in range(parts.shape[0]):
-        # e = mean* ⊗ Lp; rotation vector ≈ 2 e_v with e_w ≥ 0
-        a0, a1, a2, a3 = parts[p, 0], parts[p, 1], parts[p, 2], parts[p, 3]
-        e0 = mean[0] * a0 + mean[1] * a1 + mean[2] * a2 + mean[3] * a3
-        e1 = mean[0] * a1 - mean[1] * a0 - mean[2] * a3 + mean[3] * a2
-        e2 = mean[0] * a2 + mean[1] * a3 - mean[2] * a0 - mean[3] * a1
-        e3 = mean[0] * a3 - mean[1] * a2 + mean[2] * a1 - mean[3] * a0
-        s = 2.0 if e0 >= 0.0 else -2.0
-        r0, r1, r2 = s * e1, s * e2, s * e3
-        cov[0, 0] += w[p] * r0 * r0
-        cov[0, 1] += w[p] * r0 * r1
-        cov[0, 2] += w[p] * r0 * r2
-        cov[1, 1] += w[p] * r1 * r1
-        cov[1, 2] += w[p] * r1 * r2
-        cov[2, 2] += w[p] * r2 * r2
-    cov[1, 0] = cov[0, 1]
-    cov[2, 0] = cov[0, 2]
-    cov[2, 1] = cov[1, 2]
-    kappa = 4.0 / (h * h * (cov[0, 0] + cov[1, 1] + cov[2, 2]) / 3.0 + floor)
-    b = 1.0
-    if proposal == 1:
-        _eig3(cov, vecs, lam3)
-        for i in range(4):
-            for j in range(4):
-                basis[i, j] = 0.0
-        basis[0, 0] = 1.0
-        lam4[0] = 0.0
-        for k in range(3):
-            lam4[k + 1] = 2.0 / (h * h * max(lam3[k], 0.0) + floor)
-            for i in range(3):
-                basis[i + 1, k + 1] = vecs[i, k]
-        b = sph._nb_bingham_b(lam4)
-    return kappa, b
-
-
-@numba.njit(cache=True, inline="always")
-def _shrink(mean: np.ndarray, a: np.ndarray, f: float, out: np.ndarray) -> None:
-    """``out = mean ⊗ exp(f · log(mean* ⊗ a))``: pull ``a`` towards the mean (Liu & West 2001)."""
-    e0 = mean[0] * a[0] + mean[1] * a[1] + mean[2] * a[2] + mean[3] * a[3]
-    e1 = mean[0] * a[1] - mean[1] * a[0] - mean[2] * a[3] + mean[3] * a[2]
-    e2 = mean[0] * a[2] + mean[1] * a[3] - mean[2] * a[0] - mean[3] * a[1]
-    e3 = mean[0] * a[3] - mean[1] * a[2] + mean[2] * a[1] - mean[3] * a[0]
-    if e0 < 0.0:
-        e0, e1, e2, e3 = -e0, -e1, -e2, -e3
-    vn = np.sqrt(e1 * e1 + e2 * e2 + e3 * e3)
-    half = np.arctan2(vn, e0)
-    k = np.sin(f * half) / vn if vn > 1e-15 else f
-    for i in range(4):
-        out[i] = mean[i]
-    _rmul(out, np.cos(f * half), k * e1, k * e2, k * e3)
 
 
 # ---------------------------------------------------------------- divergence monitor
@@ -495,7 +352,7 @@ def nb_filter(
     hidden_s = 0.0  # time since the marker vectors were last seen
     zmax = prm[BINGHAM_ZMAX]
     h = prm[KERNEL_H]
-    _spread(state, parts, q0, prm[INIT_SIGMA], proposal, zmax, lam4, basis, jit)
+    rs.nb_spread(state, parts, q0, prm[INIT_SIGMA], proposal, zmax, lam4, basis, jit)
     _monitor_clear(mon)
     half = np.sqrt(3.0 * dt) * prm[PROCESS_NOISE]
     floor = prm[PROCESS_NOISE] ** 2 * dt
@@ -549,7 +406,7 @@ def nb_filter(
             hidden_s = 0.0 if seen else hidden_s + dt
             jump = marker_jump(rm, ref_body, ref_earth, ref_var, k, 0.0)
             if jump > 0.0:
-                _spread(state, parts, mean, np.sqrt(jump), proposal, zmax, lam4, basis, jit)
+                rs.nb_spread(state, parts, mean, np.sqrt(jump), proposal, zmax, lam4, basis, jit)
                 for p in range(n):
                     w[p] = 1.0 / n
                 inv_sum = 1.0
@@ -591,7 +448,7 @@ def nb_filter(
             inv_sum = 1.0
         if mode != 0:
             _reset_center(mon, mode, mean, prm, center)
-            _spread(state, parts, center, prm[INIT_SIGMA], proposal, zmax, lam4, basis, jit)
+            rs.nb_spread(state, parts, center, prm[INIT_SIGMA], proposal, zmax, lam4, basis, jit)
             for p in range(n):
                 w[p] = 1.0 / n
             mean[:] = center
@@ -599,18 +456,13 @@ def nb_filter(
             reset_out[k] = True
         elif ess < prm[ESS_THRESHOLD] * n:
             # resample, then regularise: Liu-West shrinkage plus a kernel draw (Musso et al.)
-            kappa, bb = _kernel_shape(
+            kappa, bb = rs.nb_kernel_shape(
                 parts, w, mean, h, floor, proposal, cov, vecs, lam3, lam4, basis
             )
-            nb_resample(state, scheme, prm[AUX_ALPHA], w, idx, work)
-            for p in range(n):
-                for i in range(4):
-                    tmp[p, i] = parts[idx[p], i]
-            shrink = np.sqrt(max(1.0 - h * h, 0.0))
-            for p in range(n):
-                _shrink(mean, tmp[p], shrink, parts[p])
-                _draw(state, proposal, kappa, lam4, basis, bb, zmax, jit)
-                _rmul(parts[p], jit[0], jit[1], jit[2], jit[3])
+            rs.nb_resample(state, scheme, prm[AUX_ALPHA], w, idx, work)
+            rs.nb_regularise(
+                state, parts, tmp, idx, mean, h, proposal, kappa, lam4, basis, bb, zmax, jit
+            )
         # output q = mean ⊗ G, sign-continuous
         o0 = mean[0] * g[0] - mean[1] * g[1] - mean[2] * g[2] - mean[3] * g[3]
         o1 = mean[0] * g[1] + mean[1] * g[0] + mean[2] * g[3] - mean[3] * g[2]

@@ -1,4 +1,4 @@
-"""Particle resampling schemes (To 2012, Appendix D; Douc, Cappé & Moulines 2005).
+"""Particle resampling (To 2012, Appendix D; Douc, Cappé & Moulines 2005) and regularisation.
 
 Given normalised weights ``w`` (N,), a scheme chooses N parent indices; particle ``i`` is copied
 ``kᵢ`` times with ``E[kᵢ] = N·wᵢ`` (auxiliary: ``N·aᵢ`` with importance weights ``wᵢ/aᵢ``):
@@ -14,7 +14,14 @@ Given normalised weights ``w`` (N,), a scheme chooses N parent indices; particle
   table omits it; without it the scheme is biased towards uniform weights).
 
 Multinomial draws use sorted uniforms from exponential spacings (O(N), no sort).
-The ``nb_*`` kernel works in place on preallocated arrays (no allocation) for the filter's loop.
+
+Regularisation (the "move" after resampling, Musso et al. 2001, with Liu & West's 2001 shrinkage):
+``nb_kernel_shape`` measures the weighted cloud's rotation-vector covariance about its mean and
+shapes the kernel — isotropic von Mises–Fisher or the anisotropic band-limited Bingham of
+:mod:`motionlab.fusion.sphere` (To 2012 §6.5.6) — and ``nb_regularise`` moves every copied parent
+towards the mean and turns it by one kernel draw, which keeps the cloud's covariance.
+
+The ``nb_*`` kernels work in place on preallocated arrays (no allocation) for the filter's loop.
 """
 
 from __future__ import annotations
@@ -22,7 +29,14 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from motionlab.fusion.sphere import _nb_seed, _nb_uniform
+from motionlab.fusion.sphere import (
+    _nb_bingham,
+    _nb_bingham_b,
+    _nb_rmul,
+    _nb_seed,
+    _nb_uniform,
+    _nb_vmf,
+)
 
 SCHEMES = ("systematic", "residual", "deterministic", "auxiliary")
 
@@ -119,6 +133,154 @@ def nb_resample(
         return
     for j in range(n):
         w[j] = 1.0 / n
+
+
+# ---------------------------------------------------------------- regularisation
+
+
+@numba.njit(cache=True)
+def _nb_eig3(c: np.ndarray, vecs: np.ndarray, lam: np.ndarray) -> None:
+    """Eigen-decomposition of the symmetric 3×3 ``c`` (destroyed) by cyclic Jacobi, in place."""
+    for i in range(3):
+        for j in range(3):
+            vecs[i, j] = 1.0 if i == j else 0.0
+    for _ in range(30):
+        off = c[0, 1] ** 2 + c[0, 2] ** 2 + c[1, 2] ** 2
+        if off < 1e-30 * (c[0, 0] ** 2 + c[1, 1] ** 2 + c[2, 2] ** 2) + 1e-300:
+            break
+        for p in range(2):
+            for q in range(p + 1, 3):
+                if c[p, q] == 0.0:
+                    continue
+                theta = 0.5 * (c[q, q] - c[p, p]) / c[p, q]
+                t = np.sign(theta) / (abs(theta) + np.sqrt(theta * theta + 1.0))
+                if theta == 0.0:
+                    t = 1.0
+                cs = 1.0 / np.sqrt(t * t + 1.0)
+                sn = t * cs
+                for k in range(3):
+                    ckp = c[k, p]
+                    ckq = c[k, q]
+                    c[k, p] = cs * ckp - sn * ckq
+                    c[k, q] = sn * ckp + cs * ckq
+                for k in range(3):
+                    cpk = c[p, k]
+                    cqk = c[q, k]
+                    c[p, k] = cs * cpk - sn * cqk
+                    c[q, k] = sn * cpk + cs * cqk
+                for k in range(3):
+                    vkp = vecs[k, p]
+                    vkq = vecs[k, q]
+                    vecs[k, p] = cs * vkp - sn * vkq
+                    vecs[k, q] = sn * vkp + cs * vkq
+    for i in range(3):
+        lam[i] = c[i, i]
+
+
+@numba.njit(cache=True)
+def nb_draw(state, proposal, kappa, lam4, basis, b, zmax, out):
+    """One kernel rotation about the identity: vMF(κ) or the band-limited Bingham."""
+    if proposal == 0:
+        _nb_vmf(state, kappa, out)
+    else:
+        _nb_bingham(state, lam4, basis, b, zmax, out)
+        if out[0] < 0.0:
+            for i in range(4):
+                out[i] = -out[i]
+
+
+@numba.njit(cache=True)
+def nb_spread(state, parts, center, sigma, proposal, zmax, lam4, basis, jit):
+    """Redraw all particles about ``center`` with isotropic spread ``sigma`` (rad per axis)."""
+    kappa = 4.0 / (sigma * sigma)
+    for i in range(4):
+        lam4[i] = 0.0 if i == 0 else 2.0 / (sigma * sigma)
+        for j in range(4):
+            basis[i, j] = 1.0 if i == j else 0.0
+    b = _nb_bingham_b(lam4)
+    for p in range(parts.shape[0]):
+        nb_draw(state, proposal, kappa, lam4, basis, b, zmax, jit)
+        for i in range(4):
+            parts[p, i] = center[i]
+        _nb_rmul(parts[p], jit[0], jit[1], jit[2], jit[3])
+
+
+@numba.njit(cache=True)
+def nb_kernel_shape(parts, w, mean, h, floor, proposal, cov, vecs, lam3, lam4, basis):
+    """Regularisation kernel from the weighted cloud's rotation-vector covariance scaled by h².
+
+    Returns the vMF concentration (isotropic: κ = 4/(h²·tr(C)/3)) and, for the Bingham kernel,
+    fills ``lam4``/``basis`` with A = diag(0, 2(h²C)⁻¹) in C's eigenbasis and returns its b.
+    """
+    for i in range(3):
+        for j in range(3):
+            cov[i, j] = 0.0
+    for p in range(parts.shape[0]):
+        # e = mean* ⊗ Lp; rotation vector ≈ 2 e_v with e_w ≥ 0
+        a0, a1, a2, a3 = parts[p, 0], parts[p, 1], parts[p, 2], parts[p, 3]
+        e0 = mean[0] * a0 + mean[1] * a1 + mean[2] * a2 + mean[3] * a3
+        e1 = mean[0] * a1 - mean[1] * a0 - mean[2] * a3 + mean[3] * a2
+        e2 = mean[0] * a2 + mean[1] * a3 - mean[2] * a0 - mean[3] * a1
+        e3 = mean[0] * a3 - mean[1] * a2 + mean[2] * a1 - mean[3] * a0
+        s = 2.0 if e0 >= 0.0 else -2.0
+        r0, r1, r2 = s * e1, s * e2, s * e3
+        cov[0, 0] += w[p] * r0 * r0
+        cov[0, 1] += w[p] * r0 * r1
+        cov[0, 2] += w[p] * r0 * r2
+        cov[1, 1] += w[p] * r1 * r1
+        cov[1, 2] += w[p] * r1 * r2
+        cov[2, 2] += w[p] * r2 * r2
+    cov[1, 0] = cov[0, 1]
+    cov[2, 0] = cov[0, 2]
+    cov[2, 1] = cov[1, 2]
+    kappa = 4.0 / (h * h * (cov[0, 0] + cov[1, 1] + cov[2, 2]) / 3.0 + floor)
+    b = 1.0
+    if proposal == 1:
+        _nb_eig3(cov, vecs, lam3)
+        for i in range(4):
+            for j in range(4):
+                basis[i, j] = 0.0
+        basis[0, 0] = 1.0
+        lam4[0] = 0.0
+        for k in range(3):
+            lam4[k + 1] = 2.0 / (h * h * max(lam3[k], 0.0) + floor)
+            for i in range(3):
+                basis[i + 1, k + 1] = vecs[i, k]
+        b = _nb_bingham_b(lam4)
+    return kappa, b
+
+
+@numba.njit(cache=True, inline="always")
+def _nb_shrink(mean: np.ndarray, a: np.ndarray, f: float, out: np.ndarray) -> None:
+    """``out = mean ⊗ exp(f · log(mean* ⊗ a))``: pull ``a`` towards the mean (Liu & West 2001)."""
+    e0 = mean[0] * a[0] + mean[1] * a[1] + mean[2] * a[2] + mean[3] * a[3]
+    e1 = mean[0] * a[1] - mean[1] * a[0] - mean[2] * a[3] + mean[3] * a[2]
+    e2 = mean[0] * a[2] + mean[1] * a[3] - mean[2] * a[0] - mean[3] * a[1]
+    e3 = mean[0] * a[3] - mean[1] * a[2] + mean[2] * a[1] - mean[3] * a[0]
+    if e0 < 0.0:
+        e0, e1, e2, e3 = -e0, -e1, -e2, -e3
+    vn = np.sqrt(e1 * e1 + e2 * e2 + e3 * e3)
+    half = np.arctan2(vn, e0)
+    k = np.sin(f * half) / vn if vn > 1e-15 else f
+    for i in range(4):
+        out[i] = mean[i]
+    _nb_rmul(out, np.cos(f * half), k * e1, k * e2, k * e3)
+
+
+@numba.njit(cache=True)
+def nb_regularise(state, parts, tmp, idx, mean, h, proposal, kappa, lam4, basis, b, zmax, jit):
+    """Replace the particles by their parents ``idx``, each shrunk towards ``mean`` by
+    ``√(1 − h²)`` (Liu & West 2001) and turned by a kernel draw (``nb_draw``), so that the
+    cloud's covariance is kept in expectation (Musso et al. 2001)."""
+    n = parts.shape[0]
+    for p in range(n):
+        for i in range(4):
+            tmp[p, i] = parts[idx[p], i]
+    shrink = np.sqrt(max(1.0 - h * h, 0.0))
+    for p in range(n):
+        _nb_shrink(mean, tmp[p], shrink, parts[p])
+        nb_draw(state, proposal, kappa, lam4, basis, b, zmax, jit)
+        _nb_rmul(parts[p], jit[0], jit[1], jit[2], jit[3])
 
 
 @numba.njit(cache=True)
