@@ -129,7 +129,8 @@ def _gn_add_markers(w, x, y, z, ref_body, ref_earth, ref_w, k, n, g):
 def _marker_step(var, wsum, mu, floor):
     """Step ``s`` of a marker update and the new attitude variance (scalar Kalman schedule).
 
-    ``var`` (rad², per axis) is the variance of the IMU prediction; the marker solution has
+    ``var`` (rad², per axis) is the variance of the prediction (it grows while the markers are
+    hidden, so the first samples after a gap take large steps); the marker solution has
     ``r = 3/(2Σw)`` per axis (normal matrix ``≈ (8/3)Σw I`` of spread vectors).
     ``s = var/(var + r)``, not below ``floor``; a correction ``mu`` (rad) beyond 5σ of both (a
     jump the variance did not foresee, e.g. samples lost from the IMU stream) first raises
@@ -327,8 +328,9 @@ def liu_kernel(
         _gn_imu(w, x, y, z, ax, ay, az, wa, use_a, mag, k, wm, use_m, cd, sd, nrm, g)
         n_ref, wsum = _gn_add_markers(w, x, y, z, ref_body, ref_earth, ref_w, k, nrm, g)
         used[k] = USED_ACC * use_a + USED_MAG * use_m + USED_MARKERS * (n_ref > 0)
-        sp = np.sqrt(var) + ref_drift * dt
-        var = sp * sp
+        if n_ref == 0:  # the attitude error grows while the markers are hidden
+            sp = np.sqrt(var) + ref_drift * dt
+            var = sp * sp
         if use_a or use_m or n_ref > 0:
             px, py, pz = _solve_sym(nrm, g)
             s = min(1.0, gain * dt * (startup_gain if k < n_start else 1.0))

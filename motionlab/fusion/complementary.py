@@ -73,9 +73,9 @@ class LiuParams(_Common):
     mag_sigma: float = _f(1.0, "1", "std of the normalised magnetometer residual (W = 1/sigma)")
     acc_tol: float = _f(0.5, "m/s^2", "skip the accelerometer when | |a| - g | exceeds this")
     gravity: float = _f(9.81, "m/s^2", "local gravity")
-    marker_gain: float = _f(2.0, "1/s", "least gain g on samples with marker vectors")
+    marker_gain: float = _f(1.5, "1/s", "gain g on samples with marker vectors (least)")
     marker_drift: float = _f(
-        0.2, "deg/s", "growth of the attitude error between marker samples (sets their gain)"
+        1.0, "deg/s", "error growth while markers are hidden (larger gain when they return)"
     )
 
 
@@ -165,8 +165,14 @@ def run_liu(
 
     The field reference ``[0, cos δ, −sin δ]`` uses the dip ``δ`` of the undisturbed data.
     Marker ``references`` (:mod:`motionlab.fusion.markers`) add the rows of Table 4 for the
-    marker vectors (``X_p = −2R[a]×``, weight ``1/σ²``) where they are seen, and the step uses
-    ``marker_gain`` there; ``extra["scenario"]`` then gives Liu's scenario (Table 2) per sample.
+    marker vectors (``X_p = −2R[a]×``, weight ``1/σ²``) where they are seen. There the step
+    ``gΔt`` follows a scalar Kalman schedule: the prediction's variance grows by
+    ``marker_drift`` while the markers are hidden and shrinks with each marker step
+    ``var/(var + r)`` (``r`` the marker solution's variance), never below ``marker_gain·Δt``; so
+    the first samples after a gap take nearly full Gauss–Newton steps (Liu's ``gΔt = 1``) and the
+    steady state averages the marker noise. The gyroscope enters as the interval mean less the
+    registration's bias (:func:`~motionlab.fusion.markers.interval_rates`: the filter has no bias
+    state). ``extra["scenario"]`` gives Liu's scenario (Table 2) per sample.
     """
     q0, n_start, mag, pre, use_mag, gating, rest = _prepare(gyr, acc, mag, rate, params)
     refs = references if references is not None else MarkerReferences.none(len(gyr))

@@ -10,8 +10,9 @@ sample where both systems see the segment is used:
 
 - clock: the angular-speed cross-correlation of :func:`motionlab.validation.sync.synchronise`,
   then refined with ``X`` and the gyroscope bias by Gauss–Newton on the relative rotations over
-  the lags ``L`` of ``LAGS_S``: ``log(A_k* A_k+L) = R(X)ᵀ log(B(τ_k)* B(τ_k+L)) + b ΔT`` with
-  ``A`` the strapdown integral of the gyroscope and ``τ = offset + (1 + drift) t`` (an
+  the lags ``L`` of ``LAGS_S``: ``log(A_k* A_k+L) = R(X)ᵀ log(B(τ_k)* B(τ_k+L))`` with ``A``
+  the strapdown integral of the bias-corrected gyroscope (the bias left in the relative
+  rotations, ``≈ b ΔT``, is fitted and removed in turn) and ``τ = offset + (1 + drift) t`` (an
   orientation error is the angular rate times the clock error, so the fusion needs the offset
   to a fraction of a millisecond);
 - ``X`` (sensor → cluster): the Wahba fit of those relative rotations (Park & Martin 1994);
@@ -41,7 +42,7 @@ from motionlab.fusion.markers import (
     pair_vectors,
 )
 
-LAGS_S = (0.2, 1.0)
+LAGS_S = (0.2, 1.0, 2.0, 4.0)
 LOWPASS_HZ = 4.0
 SNAP_DEG = 2.0
 CLOCK_ITERATIONS = 6
@@ -125,25 +126,35 @@ def register_sensor(
     t = np.asarray(t, dtype=float)
     bad = ~np.isfinite(gyr).all(axis=1)
     i, j = _row_pairs(t, bad)
-    a = rot.integrate_gyro(rot.IDENTITY, np.where(bad[:, None], 0.0, gyr), np.diff(t))
-    da, span = _relative(t, a, i, j), (t[j] - t[i])[:, None]
-    tc = t[i] - t[i].mean()
+    gyr = np.where(bad[:, None], 0.0, gyr)
+
+    def imu_relative(bias: np.ndarray, seen: np.ndarray) -> np.ndarray:
+        # the IMU's orientations only where the optical ones exist, so that both are low-passed
+        # over the same runs (the filter's start and end transients then match too)
+        a = rot.integrate_gyro(rot.IDENTITY, gyr - bias, np.diff(t))
+        return _relative(t, np.where(seen[:, None], a, np.nan), i, j)
+
+    span, tc = (t[j] - t[i])[:, None], t[i] - t[i].mean()
     m, bias, keep = np.eye(3), np.zeros(3), np.ones(len(i), bool)
     for it in range(CLOCK_ITERATIONS if refine_clock else 1):
         tau = offset_s + (1.0 + drift) * t
-        db = _relative(t, resample_quat(t_opt, q_opt, tau), i, j)
-        ok = keep & np.isfinite(db).all(axis=1)
+        b = resample_quat(t_opt, q_opt, tau)
+        seen = np.isfinite(b).all(axis=1)
+        db = _relative(t, b, i, j)
+        da = imu_relative(bias, seen)
+        ok = keep & np.isfinite(db).all(axis=1) & np.isfinite(da).all(axis=1)
         if ok.sum() < 20:
             raise InputError(
                 "too little overlap of the IMU and the marker cluster to register them",
                 "markers",
                 remedy="check the marker map and that both systems recorded the same movement",
             )
-        for _ in range(3):  # X and bias, alternately (the bias is small against the motion)
-            m = wahba(db[ok], da[ok] - bias * span[ok])
-            resid = da - bias * span - db @ m
+        for _ in range(3):  # X, then the bias left in the relative rotations (≈ b ΔT), again
+            m = wahba(db[ok], da[ok])
+            resid = da - db @ m
             bias = bias + np.sum(resid[ok] * span[ok], axis=0) / np.sum(span[ok] ** 2)
-        resid = da - bias * span - db @ m
+            da = imu_relative(bias, seen)
+        resid = da - db @ m
         err = np.linalg.norm(resid, axis=1)
         if it == 0:  # drop glitches (marker swaps, ghost markers) before refining
             keep &= ~(err > 5.0 * np.nanmedian(err[ok]))
