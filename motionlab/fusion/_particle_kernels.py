@@ -226,6 +226,23 @@ def _monitor_clear(mon: np.ndarray) -> None:
 
 
 @numba.njit(cache=True)
+def _monitor_follow(mon, mean, prev):
+    """Turn the monitor's earth-frame vectors by the estimate's correction ``mean ⊗ prev*``
+    (the horizontal field directions by its rotation about up), so that a run's sums stay the
+    vectors seen under the current estimate."""
+    c0 = mean[0] * prev[0] + mean[1] * prev[1] + mean[2] * prev[2] + mean[3] * prev[3]
+    c1 = -mean[0] * prev[1] + mean[1] * prev[0] - mean[2] * prev[3] + mean[3] * prev[2]
+    c2 = -mean[0] * prev[2] + mean[1] * prev[3] + mean[2] * prev[0] - mean[3] * prev[1]
+    c3 = -mean[0] * prev[3] - mean[1] * prev[2] + mean[2] * prev[1] + mean[3] * prev[0]
+    for i in (_LA, _SA, _SM):
+        mon[i], mon[i + 1], mon[i + 2] = _rotate(c0, c1, c2, c3, mon[i], mon[i + 1], mon[i + 2])
+    turn = 2.0 * np.arctan2(c3, c0)
+    cs, sn = np.cos(turn), np.sin(turn)
+    for i in (_LM, _SH):
+        mon[i], mon[i + 1] = cs * mon[i] - sn * mon[i + 1], sn * mon[i] + cs * mon[i + 1]
+
+
+@numba.njit(cache=True)
 def _monitor(mon, ae, me, field_ok, heading_ok, prm, dt):
     """Feed one sample to the divergence monitor; return the reset it calls for.
 
@@ -437,6 +454,7 @@ def nb_filter(
                 b[i] += dt / prm[BIAS_REST_TAU] * (gyr[k, i] - b[i])
             b[i] = min(prm[BIAS_MAX], max(-prm[BIAS_MAX], b[i]))
         # divergence monitor on the posterior, then reset or resampling
+        _monitor_follow(mon, mean, prev)
         _rot(mean, ag[0], ag[1], ag[2], ae)
         if use_mag:
             _rot(mean, mg[0], mg[1], mg[2], me)
