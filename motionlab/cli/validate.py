@@ -30,6 +30,8 @@ def _protocol(path: str | None, calibration: dict | None):
 @click.argument("session", type=click.Path(dir_okay=False))
 @click.option("--reference", "reference", help="C3D/TRC/BROAD file or a session with markers "
               "(default: the session's own markers).")  # fmt: skip
+@click.option("--static", "static_path", help="Static trial (C3D/TRC/session) showing the "
+              "clusters and landmarks (default: a still window of the reference).")  # fmt: skip
 @click.option("--markers", "markers_path", help="Marker map YAML (default: markers by name).")
 @click.option("--protocol", "protocol_path", help="Protocol (default: the calibration's).")
 @click.option("--mode", type=click.Choice(MODES), default="full", show_default=True,
@@ -44,6 +46,7 @@ def _protocol(path: str | None, calibration: dict | None):
 def command(
     session: str,
     reference: str | None,
+    static_path: str | None,
     markers_path: str | None,
     protocol_path: str | None,
     mode: str,
@@ -60,6 +63,7 @@ def command(
     \b
     Example:
       motionlab validate session.h5 --reference trial.c3d --markers map.yaml --json
+      motionlab validate session.h5 --reference walk.c3d --static static.c3d
       motionlab validate broad.h5 --mode none --no-sync --movement-only
     """
     ses = load_session(session)
@@ -77,6 +81,12 @@ def command(
         ref = choose_marker_set(list(ses.markers.values()), name, session)
     else:
         ref = choose_marker_set(read_reference(reference), name, reference)
+    static = None
+    if static_path is not None:
+        sets = read_reference(static_path)
+        static = choose_marker_set(
+            sets, name if name in {m.name for m in sets} else None, static_path
+        )
     protocol = _protocol(protocol_path, ses.results.get("calibration"))
     written = []
     if csv_dir:
@@ -88,14 +98,14 @@ def command(
             check_output(folder / fname, force)
     result = validate(
         ses, ref, mmap, protocol, mode, sync=not no_sync, movement_only=movement_only,
-        estimator=estimator,
+        estimator=estimator, static=static,
     )  # fmt: skip
     if csv_dir:
         for fname, table in tables(result).items():
             with atomic_path(folder / fname, force=force) as tmp:
                 table.to_csv(tmp, index=False, float_format="%.6g")
             written.append(str(folder / fname))
-    inputs = [session] + [p for p in (reference, markers_path) if p]
+    inputs = [session] + [p for p in (reference, static_path, markers_path) if p]
     parameters = {
         "stage": "validate",
         "mode": mode,

@@ -3,7 +3,8 @@
 Steps (each in its own module):
 
 1. optical segment orientations from the marker map: cluster fits, rigid bodies, anatomical
-   frames from landmarks (:mod:`.markermap`, :mod:`.optical`, :mod:`.anatomy`, :mod:`.reference`);
+   frames from landmarks fixed in the cluster frames (:mod:`.markermap`, :mod:`.optical`,
+   :mod:`.cast`, :mod:`.anatomy`, :mod:`.reference`);
 2. time synchronisation of the IMU and optical clocks (:mod:`.sync`);
 3. both streams on one clock: the IMU (session) clock, at the samples of the first sensor;
 4. the two constant rotations between the systems (:mod:`.align`);
@@ -203,6 +204,7 @@ def validate(
     movement_only: bool = False,
     estimator: str = "default",
     seed: int = 0,
+    static: MarkerSet | None = None,
 ) -> dict[str, Any]:
     """Compare the session's IMU orientations and joint angles with an optical reference.
 
@@ -223,6 +225,9 @@ def validate(
         Estimate the clock model (``False``: the streams already share a clock).
     movement_only
         Restrict the statistics to movement phases (:func:`movement_mask`).
+    static
+        A static trial with the cluster markers and the landmarks, in which the landmarks are
+        fixed in the cluster frames (default: a static window of ``reference``; :mod:`.cast`).
 
     Returns
     -------
@@ -237,7 +242,7 @@ def validate(
         reference = choose_marker_set(list(session.markers.values()), name)
     mmap = marker_map or default_marker_map(reference, protocol, list(session.sensors))
     check_marker_map(mmap, reference)
-    optical = optical_segments(reference, mmap, protocol)
+    optical = optical_segments(reference, mmap, protocol, static)
     seg_of = _pairs(session, mmap)
     labels = list(seg_of)
     imu_q = {k: sensor_orientation(session, k, estimator) for k in labels}

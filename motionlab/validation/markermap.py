@@ -6,7 +6,8 @@ A marker map is a YAML file; every error names the key and its line. Schema::
     max_gap_s: 0.1               # optional: longest cluster gap filled by interpolation (s)
     lowpass_hz: 6                # optional: low-pass of the cluster poses (Hz; 0 = raw)
     static_time_s: [3.0, 8.0]    # optional: where landmarks are read (reference clock, s);
-                                 # default: the whole recording
+                                 # default: the longest still window showing landmarks
+                                 # (validation/cast.py); a static trial (--static) wins
     segments:
       thigh_r:
         cluster: [RTH1, RTH2, RTH3, RTH4]   # three or more markers on one rigid plate
