@@ -8,6 +8,7 @@ from motionlab import __version__
 from motionlab.report.model import SIDE_NAMES, SessionView, joint_title
 from motionlab.report.pdf import MUTED, SIZE, Document
 from motionlab.report.text import findings, task_name
+from motionlab.segments import sensor_for_segment
 
 
 def _software(view: SessionView) -> str:
@@ -50,8 +51,8 @@ def summary_page(doc: Document, view: SessionView) -> None:
     doc.heading("Sensors and placements")
     rows = []
     for seg, spec in proto.segments.items():
-        sensor = next((s for s in view.session.sensors.values() if s.segment == seg), None)
-        sensor = sensor or view.session.sensors.get(seg)
+        label = sensor_for_segment(view.session, seg)
+        sensor = view.session.sensors[label] if label else None
         name = f"{SIDE_NAMES.get(spec.side, '')} {seg.split('_')[0]}".strip()
         ident = f"{sensor.label} ({sensor.serial})" if sensor and sensor.serial else "-"
         if sensor and not sensor.serial:

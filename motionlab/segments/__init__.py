@@ -32,9 +32,14 @@ Streams = dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 
 def sensor_for_segment(session: Session, segment: str) -> str | None:
-    """Label of the sensor on ``segment`` (its ``segment`` attribute, else the same label)."""
+    """Label of the sensor on protocol segment ``segment`` (e.g. ``shank_r``).
+
+    A sensor matches when its ``segment`` attribute is the protocol name (``shank_r``), or is the
+    bare name with the side in ``side`` (``shank`` + ``r``, as a sensor map writes it), or when its
+    label is the segment name.
+    """
     for label, s in session.sensors.items():
-        if s.segment == segment:
+        if s.segment == segment or (s.side and f"{s.segment}_{s.side}" == segment):
             return label
     return segment if segment in session.sensors else None
 
