@@ -162,13 +162,16 @@ def test_lab_to_earth_from_gravity_and_field(tilt_deg):
     q = rot.normalize(rng.normal(size=(3000, 4)))  # sensor → earth
     field = 48.0 * np.array([0.0, np.cos(1.1), -np.sin(1.1)])
     acc = rot.rotate(rot.conj(q), G * Z) + rng.normal(size=(3000, 3)) + [0.1, -0.1, 0.05]
-    mag = rot.rotate(rot.conj(q), field) + 0.5 * rng.normal(size=(3000, 3))
-    mag[:300] += 30.0  # a disturbance: off the median direction
+    hard_iron = np.array([5.0, -3.0, 2.0])  # turns with the sensor: fitted with the field
+    mag = rot.rotate(rot.conj(q), field) + hard_iron + 0.5 * rng.normal(size=(3000, 3))
+    mag[:300] += 30.0  # a disturbance: left out of the fit
     bx = rot.mul(rot.conj(y), q)  # sensor → lab
     est, info = lab_to_earth([(bx, acc, mag)])
     # linear accelerations (1 m/s² here) average out; a levelled lab needs only the heading
     assert np.degrees(rot.angle_between(est, y)) < (0.1 if tilt_deg == 0 else 0.3)
     assert info["vertical_axis"] == ("+z" if tilt_deg == 0 else None)  # a levelled lab snaps
+    assert info["dip_deg"] == pytest.approx(np.degrees(1.1), abs=0.2)
+    assert info["field_fraction_used"] == pytest.approx(0.9, abs=0.02)
 
 
 @pytest.fixture(scope="module")

@@ -19,10 +19,11 @@ sample where both systems see the segment is used:
 - ``Y`` (lab → earth), the thesis's two-vector solve (eqs. (2)–(4), as TRIAD): the vertical is the
   mean specific force and the north the mean undisturbed magnetic field, both carried into the lab
   frame through ``B X`` and pooled over the sensors (linear accelerations and sensor errors
-  average out); a vertical within ``SNAP_DEG`` of a lab axis is taken as that axis (optical labs
-  are levelled). Without a magnetometer the heading keeps the lab's x axis in the east–up plane.
-  The earth frame's heading is the magnetometers': their calibration errors turn the estimate
-  about the vertical.
+  average out; each magnetometer's hard iron, which turns with the sensor, is fitted with the
+  field); a vertical within ``SNAP_DEG`` of a lab axis is taken as that axis (optical labs are
+  levelled). Without a magnetometer the heading keeps the lab's x axis in the east–up plane.
+  The earth frame's heading is the magnetometers': their remaining calibration errors (soft
+  iron, axis misalignment) turn the estimate about the vertical.
 """
 
 from __future__ import annotations
@@ -185,41 +186,68 @@ def _snap(up: np.ndarray) -> tuple[np.ndarray, str | None]:
     return up, None
 
 
+def _lab_field(
+    items: list[tuple[np.ndarray, np.ndarray]], tol_ut: float
+) -> tuple[np.ndarray, float]:
+    """The earth field in the lab frame (µT) and the fraction of samples that agree with it.
+
+    ``items`` holds per sensor the sensor → lab rotation matrices (n, 3, 3) and the field
+    (n, 3). Each sensor's hard iron ``h`` turns with it while the earth field ``c`` stays fixed
+    in the lab, so ``R_k m_k = c + R_k h`` is solved for ``c`` and every ``h`` by least squares
+    (minimum norm where a sensor turned about one axis only); samples further than ``tol_ut``
+    (or three times the median) from the fit are dropped (disturbances) and the fit repeated.
+    """
+    s = len(items)
+    keep = [np.ones(len(m), bool) for _, m in items]
+    for _ in range(3):
+        a = np.zeros((3 + 3 * s, 3 + 3 * s))
+        b = np.zeros(3 + 3 * s)
+        for i, ((r, m), k) in enumerate(zip(items, keep, strict=True)):
+            y = np.einsum("nij,nj->ni", r[k], m[k])
+            hi = slice(3 + 3 * i, 6 + 3 * i)
+            a[:3, :3] += k.sum() * np.eye(3)
+            a[:3, hi] += r[k].sum(axis=0)
+            a[hi, :3] = a[:3, hi].T
+            a[hi, hi] = k.sum() * np.eye(3)
+            b[:3] += y.sum(axis=0)
+            b[hi] = m[k].sum(axis=0)
+        theta = np.linalg.lstsq(a, b, rcond=1e-8)[0]
+        c = theta[:3]
+        resid = [np.linalg.norm(np.einsum("nij,nj->ni", r, m - theta[3 + 3 * i : 6 + 3 * i]) - c,
+                                axis=1) for i, (r, m) in enumerate(items)]  # fmt: skip
+        limit = max(tol_ut, 3.0 * float(np.median(np.concatenate(resid))))
+        keep = [e <= limit for e in resid]
+    return c, float(np.mean(np.concatenate(keep)))
+
+
 def lab_to_earth(
-    sensors: list[tuple[np.ndarray, np.ndarray, np.ndarray | None]], field_tol_deg: float = 6.0
+    sensors: list[tuple[np.ndarray, np.ndarray, np.ndarray | None]], field_tol_ut: float = 4.0
 ) -> tuple[np.ndarray, dict[str, Any]]:
     """Lab → earth rotation ``Y`` from gravity and the magnetic field seen in the lab frame.
 
     ``sensors`` holds per sensor ``(BX (N, 4), acc (N, 3), mag (N, 3) or None)``: the sensor →
     lab orientation from the markers (NaN where unknown) and the IMU's specific force and field.
     The lab vertical is the direction of the summed specific force (snapped to a lab axis within
-    ``SNAP_DEG``); north is the horizontal part of the mean field direction over the samples
-    within ``field_tol_deg`` of the median direction (a disturbed field is off it). Liu 2010,
-    eqs. (2)–(4), solved by TRIAD.
+    ``SNAP_DEG``); north is the horizontal part of the earth field in the lab frame, fitted with
+    each magnetometer's hard iron (:func:`_lab_field`). Liu 2010, eqs. (2)–(4), solved by TRIAD.
     """
     up_sum, fields = np.zeros(3), []
     for bx, acc, mag in sensors:
         ok = np.isfinite(bx).all(axis=1) & np.isfinite(acc).all(axis=1)
         up_sum += np.sum(rot.rotate(bx[ok], acc[ok]), axis=0)
         if mag is not None:
-            f = rot.rotate(bx[ok], mag[ok])
-            fields.append(f / np.linalg.norm(f, axis=1, keepdims=True))
+            ok &= np.isfinite(mag).all(axis=1)
+            fields.append((rot.to_matrix(bx[ok]), mag[ok]))
     if not np.linalg.norm(up_sum) > 0:
         raise InputError("no sample where the markers and the IMU overlap", "markers")
     up, snapped = _snap(up_sum / np.linalg.norm(up_sum))
     info: dict[str, Any] = {"vertical_axis": snapped, "vertical_lab": up}
-    f = np.concatenate(fields) if fields else np.zeros((0, 3))
-    f = f[np.isfinite(f).all(axis=1)]
-    if len(f):
-        med = np.median(f, axis=0)
-        med /= np.linalg.norm(med)
-        near = f @ med >= np.cos(np.radians(field_tol_deg))
-        field_lab = np.mean(f[near], axis=0)
-        info |= {"heading_from": "magnetometer", "field_fraction_used": float(near.mean())}
+    if sum(len(m) for _, m in fields) >= 10:
+        field_lab, used = _lab_field(fields, field_tol_ut)
+        info |= {"heading_from": "magnetometer", "field_fraction_used": used}
         y = triad(up, field_lab, UP, NORTH)
-        info["dip_deg"] = float(
-            np.degrees(np.arcsin(-(field_lab @ up) / np.linalg.norm(field_lab)))
-        )
+        norm = float(np.linalg.norm(field_lab))
+        info |= {"field_uT": norm, "dip_deg": float(np.degrees(np.arcsin(-field_lab @ up / norm)))}
     else:  # 6-D: keep the lab x axis in the east-up plane
         x = np.eye(3)[0] if abs(up[0]) < 0.9 else np.eye(3)[1]
         y = triad(up, x, UP, np.array([1.0, 0.0, 0.0]))
