@@ -36,7 +36,7 @@ def session_file(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("cli")
     protocol_path = tmp / "elbow_r.yaml"
     protocol_path.write_text(ELBOW)
-    session, truth = simulate(load_protocol(protocol_path), duration=70, seed=1, rest_s=5.0)
+    session, truth = simulate(load_protocol(protocol_path), duration=74, seed=1, rest_s=5.0)
     # sensors named by serial, their segment set (as ingest --map does); the true orientations
     # stored as motionlab fuse stores its results: the test is about the stages after fusion
     fused, sensors = {}, {}

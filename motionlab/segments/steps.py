@@ -1,20 +1,29 @@
 """Find the protocol's calibration steps in one continuous recording.
 
 Rest and movement are told apart by the gyroscope of all sensors on a common 50 Hz grid,
-low-passed at ``LOWPASS_HZ`` (soft-tissue wobble after impacts rings at 10-20 Hz) and its norm
-smoothed: a sample is "moving" when any sensor turns faster than ``MOVING_RAD_S``. Short gaps are
-closed (pauses between repetitions belong to the step; twitches during a pose do not end it).
-Steps are then matched in protocol order:
+low-passed at ``LOWPASS_HZ`` (soft-tissue wobble after impacts rings at 10-20 Hz), less each
+sensor's bias (the median over its quietest samples, up to ``MAX_BIAS_RAD_S``: consumer MEMS
+gyroscopes are specified to ±20°/s zero-rate offset before calibration, e.g. the InvenSense
+MPU-6050); its norm is taken, the fastest sensor's at each sample. A movement starts where that
+rate exceeds ``MOVING_RAD_S`` and lasts until it falls below ``STILL_RAD_S`` (hysteresis: the
+slow start and end of a movement, and the turning points between its repetitions, belong to it).
+Pauses shorter than ``MIN_REST_S`` are closed (pauses of up to about 1 s between repetitions
+belong to the step; a rest of 2 s between movements keeps them apart), and moves
+shorter than ``TWITCH_S`` during a pose do not end it. Steps are then matched in protocol order:
 
 - a static step takes the next rest block that lasts at least half its ``duration_s`` (≥ 1 s) and
   in which every named segment's sensor sees gravity within ``POSE_TOLERANCE_DEG`` of the nominal
   placement's vertical axis (so standing and sitting are told apart);
 - a functional step takes the next movement block in which the step's segments turn fastest
   (the fastest of them at least ``LEAD_FRACTION`` of the fastest sensor's mean rate, and each
-  of them at least ``MOVE_FRACTION`` of it); an optional step also
-  needs some sensor outside its segments to be nearly still (so that it is not taken for a
+  of them at least ``MOVE_FRACTION`` of it). An optional step may not have been recorded at
+  all, so a block must also look like it: some sensor outside its segments nearly still (not a
   whole-body task such as walking; segments carried along, like the shank in a straight-leg
-  hip flexion, may move).
+  hip flexion, may move), a length within ``DURATION_RANGE`` × its ``duration_s``, every named
+  segment turning about its named axis (within ``AXIS_TOLERANCE_DEG`` of the nominal
+  placement's), and segments named with the same axis turning as one (their rates within
+  ``RIGID_TOLERANCE`` of each other: the knee locked in a straight-leg hip flexion, not
+  flexing as in gait).
 
 A step's ``time_range`` in the protocol overrides detection. A required step that is not found
 raises :class:`InputError` naming the step and what to do; so does an ambiguous functional step
@@ -34,7 +43,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.ndimage import binary_closing, uniform_filter1d
+from scipy.ndimage import binary_closing, label, maximum
 from scipy.signal import butter, sosfiltfilt
 
 from motionlab.errors import InputError
@@ -44,15 +53,22 @@ from motionlab.segments.functional import functional_axis
 GRID_HZ = 50.0
 LOWPASS_HZ = 2.0
 MOVING_RAD_S = 0.15
-SMOOTH_S = 0.4
-REP_GAP_S = 1.5
+STILL_RAD_S = 0.08
+MIN_REST_S = 1.5
 TWITCH_S = 0.3
+BIAS_QUANTILE = 0.1
+MAX_BIAS_RAD_S = 0.35
 POSE_TOLERANCE_DEG = 50.0
 LEAD_FRACTION = 0.6
 QUIET_FRACTION = 0.3
 MOVE_FRACTION = 0.15
+DURATION_RANGE = (0.4, 2.5)
+AXIS_TOLERANCE_DEG = 45.0
+RIGID_TOLERANCE = 0.25
 MIN_TASK_S = 2.0
 SAME_AXIS_DEG = 20.0
+
+Streams = dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 
 @dataclass
@@ -60,32 +76,49 @@ class Block:
     start: float
     end: float
     moving: bool
-    rate: dict[str, float]  # mean smoothed gyro norm per segment (rad/s)
+    rate: dict[str, float]  # mean low-passed gyro norm per segment (rad/s)
     up: dict[str, np.ndarray]  # mean unit specific force per segment (sensor coordinates)
+    norms: dict[str, np.ndarray]  # low-passed gyro norm per segment on the 50 Hz grid (rad/s)
 
 
 def _resample(t: np.ndarray, x: np.ndarray, grid: np.ndarray) -> np.ndarray:
     return np.column_stack([np.interp(grid, t, x[:, k]) for k in range(x.shape[1])])
 
 
-def blocks(streams: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]) -> list[Block]:
+def _rate(t: np.ndarray, gyr: np.ndarray, grid: np.ndarray) -> np.ndarray:
+    """Low-passed gyro norm (rad/s) on ``grid``, less the bias: the median over the quietest
+    ``BIAS_QUANTILE`` of the samples, when it is small enough to be one (``MAX_BIAS_RAD_S``)."""
+    slow = sosfiltfilt(butter(2, LOWPASS_HZ, fs=GRID_HZ, output="sos"), _resample(t, gyr, grid), 0)
+    norm = np.linalg.norm(slow, axis=1)
+    bias = np.median(slow[norm <= np.quantile(norm, BIAS_QUANTILE)], axis=0)
+    if np.linalg.norm(bias) < MAX_BIAS_RAD_S:
+        norm = np.linalg.norm(slow - bias, axis=1)
+    return norm
+
+
+def moving_mask(rate: np.ndarray) -> np.ndarray:
+    """Movement on the 50 Hz grid from the fastest sensor's rate (rad/s), with hysteresis,
+    pauses under ``MIN_REST_S`` closed and moves under ``TWITCH_S`` dropped."""
+    runs, n = label(rate > STILL_RAD_S)
+    if n == 0:
+        return np.zeros(len(rate), bool)
+    peaks = np.asarray(maximum(rate, runs, np.arange(1, n + 1)))
+    moving = np.isin(runs, np.flatnonzero(peaks > MOVING_RAD_S) + 1)
+    moving |= binary_closing(moving, np.ones(int(MIN_REST_S * GRID_HZ)), border_value=0)
+    still = binary_closing(~moving, np.ones(int(TWITCH_S * GRID_HZ)), border_value=0) | ~moving
+    return ~still
+
+
+def blocks(streams: Streams) -> list[Block]:
     """Rest and movement blocks of a recording; ``streams[segment] = (time, acc, gyr)``."""
     start = max(s[0][0] for s in streams.values())
     end = min(s[0][-1] for s in streams.values())
     if end - start < 1.0:
         raise InputError("the sensors overlap by less than 1 s", remedy="check the clocks")
     grid = np.arange(start, end, 1.0 / GRID_HZ)
-    win = max(1, int(SMOOTH_S * GRID_HZ))
-    rate, up = {}, {}
-    sos = butter(2, LOWPASS_HZ, fs=GRID_HZ, output="sos")
-    for seg, (t, acc, gyr) in streams.items():
-        slow = sosfiltfilt(sos, _resample(t, gyr, grid), axis=0)
-        rate[seg] = uniform_filter1d(np.linalg.norm(slow, axis=1), win)
-        up[seg] = _resample(t, acc, grid)
-    moving = np.max(np.vstack(list(rate.values())), axis=0) > MOVING_RAD_S
-    moving = binary_closing(moving, np.ones(int(REP_GAP_S * GRID_HZ)), border_value=0) | moving
-    still = binary_closing(~moving, np.ones(int(TWITCH_S * GRID_HZ)), border_value=0) | ~moving
-    moving = ~still
+    rate = {seg: _rate(t, gyr, grid) for seg, (t, _, gyr) in streams.items()}
+    up = {seg: _resample(t, acc, grid) for seg, (t, acc, _) in streams.items()}
+    moving = moving_mask(np.max(np.vstack(list(rate.values())), axis=0))
     edges = np.flatnonzero(np.diff(moving.astype(int))) + 1
     out = []
     for i0, i1 in zip(np.r_[0, edges], np.r_[edges, len(grid)], strict=True):
@@ -98,6 +131,7 @@ def blocks(streams: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]) -> lis
                 moving=bool(moving[i0]),
                 rate={s: float(r[sl].mean()) for s, r in rate.items()},
                 up={s: u / (np.linalg.norm(u) or 1.0) for s, u in mean_up.items()},
+                norms={s: r[sl] for s, r in rate.items()},
             )
         )
     return out
@@ -125,6 +159,36 @@ def _functional_match(step: CalibrationStep, block: Block) -> bool:
     if step.optional:
         others = [r for s, r in block.rate.items() if s not in step.segments]
         return not others or any(r < QUIET_FRACTION * fastest for r in others)
+    return True
+
+
+def _rigid(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether two segments' rates (rad/s, same grid) agree while they move: one rigid body."""
+    on = np.maximum(a, b) > MOVING_RAD_S
+    if on.sum() < 3:
+        return True
+    return float(np.median(np.abs(a[on] - b[on]) / np.maximum(a[on], b[on]))) < RIGID_TOLERANCE
+
+
+def _looks_like(step: CalibrationStep, block: Block, protocol: Protocol, streams: Streams) -> bool:
+    """Whether a block that fits an optional step by its rates also has the step's length,
+    axes and rigid segments (see the module docstring)."""
+    low, high = DURATION_RANGE
+    if not low * step.duration_s <= block.end - block.start <= high * step.duration_s:
+        return False
+    named = [s for s in step.axis if s in streams]
+    for a, b in zip(named[:-1], named[1:], strict=True):
+        if step.axis[a] == step.axis[b] and not _rigid(block.norms[a], block.norms[b]):
+            return False
+    for seg in named:
+        t, _, gyr = streams[seg]
+        sel = (t >= block.start) & (t <= block.end)
+        if sel.sum() < 10:
+            return False
+        axis = functional_axis(gyr[sel])[0]
+        nominal = protocol.segments[seg].nominal_mounting().T @ axis_vector(step.axis[seg])
+        if abs(float(axis @ nominal)) < np.cos(np.radians(AXIS_TOLERANCE_DEG)):
+            return False
     return True
 
 
@@ -183,9 +247,7 @@ def _check_unambiguous(
         )
 
 
-def find_steps(
-    streams: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]], protocol: Protocol
-) -> dict[str, tuple[float, float] | None]:
+def find_steps(streams: Streams, protocol: Protocol) -> dict[str, tuple[float, float] | None]:
     """Time range (s) of each calibration step, ``None`` for an optional step not performed."""
     found: dict[str, tuple[float, float] | None] = {}
     bl = blocks(streams)
@@ -202,7 +264,15 @@ def find_steps(
                 (i for i in range(pos, len(bl)) if _static_match(step, bl[i], protocol)), None
             )
         else:
-            hit = next((i for i in range(pos, len(bl)) if _functional_match(step, bl[i])), None)
+            hit = next(
+                (
+                    i
+                    for i in range(pos, len(bl))
+                    if _functional_match(step, bl[i])
+                    and (not step.optional or _looks_like(step, bl[i], protocol, streams))
+                ),
+                None,
+            )
         if hit is None:
             if step.optional:
                 found[step.name] = None
@@ -227,7 +297,7 @@ def find_steps(
 
 
 def find_tasks(
-    streams: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]],
+    streams: Streams,
     protocol: Protocol,
     after_s: float = -np.inf,
 ) -> dict[str, tuple[float, float]]:

@@ -2,9 +2,12 @@
 
 Layout: ``rest, step₁, rest, step₂, …, rest, task₁, rest, …, task_K, rest``. Calibration steps keep
 their protocol durations; the tasks share what is left of ``duration`` in proportion to their
-``duration_s``. A rest holds the pose the previous block ended in; the change to the next block's
-starting pose is a C³ blend (:func:`~motionlab.simulate.motion.smoothstep`) over the last
-``blend_s`` seconds of the rest, so static steps are perfectly still from start to end.
+``duration_s``. A rest holds the pose the previous block ended in for ``rest_s`` seconds. When the
+next block starts in another pose (sitting down before the sit-to-stand task, standing up after a
+seated step), a C³ blend (:func:`~motionlab.simulate.motion.smoothstep`) over ``blend_s``
+seconds follows, right before the next block, and the rest is that much longer. So every rest
+holds ``rest_s`` seconds of stillness after the previous block, and static steps are perfectly
+still from start to end.
 
 Every block works in the frame of a *feet reference* (position on the floor and heading) that is
 carried from one block to the next, so walking moves the subject through the room.
@@ -27,10 +30,12 @@ from motionlab.simulate.motion import (
     rest_block,
     smoothstep,
     static_block,
+    wrap,
 )
 from motionlab.simulate.tasks import functional_block, mixed, task_block
 
 _XY = [CH["root_x"], CH["root_y"]]
+POSE_TOLERANCE = 1e-3  # rad or m: a smaller difference between two poses is no change of pose
 
 
 def _to_global(local: np.ndarray, origin: np.ndarray) -> np.ndarray:
@@ -138,6 +143,25 @@ class Timeline:
         ]
 
 
+def _pose_change(prev: Block, block: Block) -> bool:
+    """Whether ``block`` starts in another pose than ``prev`` ends in (feet reference carried)."""
+    end = _to_global(prev.fn(np.array([prev.duration + 1.0])), np.zeros(3))[0]
+    diff = _to_local(end, np.asarray(prev.end, dtype=float)) - block.fn(np.array([-1.0]))[0]
+    diff[CH["heading"]] = wrap(diff[CH["heading"]])
+    return bool(np.max(np.abs(diff)) > POSE_TOLERANCE)
+
+
+def _task_blocks(body: Body, tasks: list, total: float, seed: int) -> list[Block]:
+    """The tasks sharing ``total`` seconds in proportion to their ``duration_s``."""
+    if not tasks:
+        return [mixed(body, "free", "task", total, 0, {}, seed)]
+    weights = np.array([t.duration_s for t in tasks], dtype=float)
+    weights = weights if weights.sum() > 0 else np.ones(len(tasks))
+    weights = np.where(weights > 0, weights, weights[weights > 0].mean())
+    share = total * weights / weights.sum()
+    return [task_block(body, t, "task", float(d), seed) for t, d in zip(tasks, share, strict=True)]
+
+
 def plan(
     protocol: Protocol,
     body: Body,
@@ -148,7 +172,11 @@ def plan(
     calibration: bool = True,
     heading_deg: float = 20.0,
 ) -> Timeline:
-    """Lay out the protocol's calibration steps and tasks over ``duration`` seconds."""
+    """Lay out the protocol's calibration steps and tasks over ``duration`` seconds.
+
+    ``rest_s`` is the stillness after every block (and before the first), ``blend_s`` the time a
+    change of pose between two blocks takes (see the module docstring).
+    """
     steps = protocol.calibration if calibration else []
     moves: list[Block] = []
     for step in steps:
@@ -159,24 +187,18 @@ def plan(
         else:
             moves.append(functional_block(body, step, seed))
     tasks = list(protocol.tasks)
-    used = sum(b.duration for b in moves) + rest_s * (len(moves) + max(len(tasks), 1) + 1)
-    left = duration - used
     n_tasks = max(len(tasks), 1)
+    trial = moves + _task_blocks(body, tasks, 10.0 * n_tasks, seed)  # poses only
+    changes = sum(_pose_change(a, b) for a, b in zip(trial[:-1], trial[1:], strict=True))
+    used = sum(b.duration for b in moves) + rest_s * (len(moves) + n_tasks + 1) + blend_s * changes
+    left = duration - used
     if left < 3.0 * n_tasks - 1e-9:
         raise InputError(
             f"duration {duration:g} s is too short: calibration and rests take {used:g} s",
             where="--duration",
             remedy=f"give at least {used + 3.0 * n_tasks:g} s or skip the calibration steps",
         )
-    if tasks:
-        weights = np.array([t.duration_s for t in tasks], dtype=float)
-        weights = weights if weights.sum() > 0 else np.ones(len(tasks))
-        weights = np.where(weights > 0, weights, weights[weights > 0].mean())
-        share = left * weights / weights.sum()
-        for task, d in zip(tasks, share, strict=True):
-            moves.append(task_block(body, task, "task", float(d), seed))
-    else:
-        moves.append(mixed(body, "free", "task", left, 0, {}, seed))
+    moves += _task_blocks(body, tasks, left, seed)
 
     blocks: list[Block] = []
     origins: list[np.ndarray] = []
@@ -184,11 +206,12 @@ def plan(
     for block in moves:
         prev = blocks[-1] if blocks else None
         if prev is None:
-            row = block.fn(np.array([-1.0]))[0]
+            row, rest = block.fn(np.array([-1.0]))[0], rest_s
         else:
             end = _to_global(prev.fn(np.array([prev.duration + 1.0])), origins[-1])[0]
             row = _to_local(end, origin)
-        blocks += [rest_block(rest_s, row), block]
+            rest = rest_s + (blend_s if _pose_change(prev, block) else 0.0)
+        blocks += [rest_block(rest, row), block]
         origins += [origin.copy(), origin.copy()]
         dx, dy, dpsi = block.end
         c, s = np.cos(origin[2]), np.sin(origin[2])
@@ -197,4 +220,4 @@ def plan(
     blocks.append(rest_block(rest_s, _to_local(last, origin)))
     origins.append(origin)
     starts = np.concatenate([[0.0], np.cumsum([b.duration for b in blocks[:-1]])])
-    return Timeline(blocks, starts, np.array(origins), min(blend_s, rest_s))
+    return Timeline(blocks, starts, np.array(origins), blend_s)

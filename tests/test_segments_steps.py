@@ -1,0 +1,100 @@
+"""Rest/movement blocks, calibration steps and task blocks with short rests and skipped steps.
+
+Hand-made gyroscope signals test the hysteresis and the rest lengths; simulated knee sessions
+(the simulator's default rests, 2 s rests, and a session without the optional hip flexions)
+test the steps and tasks against the simulator's truth.
+"""
+
+import numpy as np
+import pytest
+
+from motionlab.protocol import load_protocol
+from motionlab.segments import streams_of
+from motionlab.segments.steps import blocks, find_steps, find_tasks
+from motionlab.simulate import simulate
+
+RATE = 100.0
+
+
+def movement(t, t0, reps, period, pause, peak, ramp=0.3):
+    """Rate (rad/s) of ``reps`` repetitions of ``period`` s (easing in and out) with ``pause`` s
+    between them; the whole movement starts and stops within ``ramp`` s. Returns the rate and
+    the movement's end (s)."""
+    out = np.zeros(len(t))
+    for k in range(reps):
+        x = np.clip((t - t0 - k * (period + pause)) / period, 0.0, 1.0)
+        out += np.sin(np.pi * x) ** 2
+    end = t0 + reps * period + (reps - 1) * pause
+    edge = np.clip(np.minimum(t - t0, end - t) / ramp, 0.0, 1.0)
+    return peak * np.maximum(out, 0.3) * edge, end
+
+
+def test_two_second_rests_split_and_pauses_between_repetitions_do_not():
+    """Three movements of four repetitions (0.8 s pauses between them, where the rate eases to
+    0.3 of its peak or below, then stops), 2 s apart; one sensor has an uncalibrated 0.2 rad/s
+    bias (11°/s), both sensor noise."""
+    rng = np.random.default_rng(0)
+    t = np.arange(0, 60, 1 / RATE)
+    truth, rate, t0 = [], np.zeros(len(t)), 5.0
+    for _ in range(3):
+        r, end = movement(t, t0, 4, 2.0, 0.8, 1.2)
+        rate += r
+        truth.append((t0, end))
+        t0 = end + 2.0
+    axis = np.array([0.0, 0.6, 0.8])
+    streams = {}
+    for seg, bias in (("thigh", [0.12, -0.16, 0.0]), ("shank", [0.0, 0.0, 0.0])):
+        gyr = rate[:, None] * axis + np.asarray(bias) + rng.normal(0, 0.01, (len(t), 3))
+        acc = np.tile([0.0, 9.81, 0.0], (len(t), 1)) + rng.normal(0, 0.05, (len(t), 3))
+        streams[seg] = (t, acc, gyr)
+    found = blocks(streams)
+    moving = [b for b in found if b.moving]
+    assert len(moving) == 3
+    for b, (a, e) in zip(moving, truth, strict=True):
+        assert abs(b.start - a) < 0.3 and abs(b.end - e) < 0.3
+    assert all(b.rate["thigh"] < 0.03 for b in found if not b.moving)  # the bias is no movement
+
+
+@pytest.fixture(scope="module")
+def knee():
+    return load_protocol("knee")
+
+
+def test_default_rests_knee_session_steps_and_tasks(knee):
+    """``motionlab simulate --protocol knee --duration 150`` (3 s rests): every step and task."""
+    session, truth = simulate(knee, 150.0, seed=0, rate_hz=50.0)
+    streams = streams_of(session, knee)
+    steps = find_steps(streams, knee)
+    for step in truth.steps:  # a change of pose (2 s) may come right before a block
+        found = steps.get(step["name"]) or find_tasks(streams, knee, steps["hip_flexion_l"][1])[
+            step["name"]
+        ]
+        if step["kind"] != "static":
+            assert -2.5 < found[0] - step["start_s"] < 0.5 and abs(found[1] - step["end_s"]) < 0.5
+
+
+def test_two_second_rests_in_a_simulated_session(knee):
+    session, truth = simulate(knee, 150.0, seed=1, rate_hz=50.0, rest_s=2.0)
+    streams = streams_of(session, knee)
+    steps = find_steps(streams, knee)
+    tasks = find_tasks(streams, knee, after_s=steps["hip_flexion_l"][1])
+    for step in truth.steps:
+        found = steps.get(step["name"]) or tasks[step["name"]]
+        if step["kind"] != "static":
+            assert -2.5 < found[0] - step["start_s"] < 0.5 and abs(found[1] - step["end_s"]) < 0.5
+
+
+def test_optional_steps_not_recorded_are_not_matched(knee, tmp_path):
+    """Without the hip flexions in the recording, the gait (both legs moving, the knee flexing)
+    must not be taken for them, and the tasks keep their blocks."""
+    text = knee.path.read_text()
+    cut = text[text.index("  - name: hip_flexion_r") : text.index("joints:")]
+    path = tmp_path / "knee_no_hip.yaml"
+    path.write_text(text.replace(cut, ""))
+    session, truth = simulate(load_protocol(path), 130.0, seed=2, rate_hz=50.0)
+    streams = streams_of(session, knee)
+    steps = find_steps(streams, knee)
+    assert steps["hip_flexion_r"] is None and steps["hip_flexion_l"] is None
+    tasks = find_tasks(streams, knee, after_s=steps["knee_flexion_l"][1])
+    for name, (_, b) in tasks.items():
+        assert abs(b - truth.step(name)["end_s"]) < 0.5
