@@ -71,18 +71,24 @@ def test_normalise_and_mean_sd():
 
 
 def shank_rate(stride=1.1, n=8, seed=1):
-    """Shank sagittal rate (rad/s): mid-swing peak, toe-off dip before, heel-strike dip after."""
+    """Shank sagittal rate (rad/s): the forward swing between toe-off and heel strike (zero at
+    both), a slow backward turn in stance, a toe-off dip and a heel-strike impact dip 40 ms
+    after the contact (the first local minimum after mid-swing, Aminian's heel strike)."""
     rng = np.random.default_rng(seed)
     t = np.arange(0, n * stride + 1.0, 1 / RATE)
     w = np.zeros(len(t))
     hs, to = [], []
     for k in range(n):
         mid = 0.5 + k * stride
-        w += 5.0 * np.exp(-0.5 * ((t - mid) / 0.08) ** 2)
-        w -= 1.5 * np.exp(-0.5 * ((t - (mid - 0.22)) / 0.03) ** 2)
-        w -= 2.0 * np.exp(-0.5 * ((t - (mid + 0.2)) / 0.03) ** 2)
-        to.append(mid - 0.22)
-        hs.append(mid + 0.2)
+        t_to, t_hs = mid - 0.22, mid + 0.2
+        swing = (t >= t_to) & (t <= t_hs)
+        w[swing] += 5.0 * np.sin(np.pi * (t[swing] - t_to) / (t_hs - t_to))
+        stance = (t > t_hs) & (t < t_to + stride)
+        w[stance] -= 0.6 * np.sin(np.pi * (t[stance] - t_hs) / (stride - 0.42))
+        w -= 1.5 * np.exp(-0.5 * ((t - t_to) / 0.03) ** 2)
+        w -= 2.0 * np.exp(-0.5 * ((t - (t_hs + 0.04)) / 0.015) ** 2)
+        to.append(t_to)
+        hs.append(t_hs)
     return t, w + rng.normal(0, 0.05, len(t)), np.array(hs), np.array(to)
 
 
@@ -98,3 +104,46 @@ def test_gait_events_and_strides():
     # a standing recording has no gait events
     hs0, to0 = gait_events(np.random.default_rng(0).normal(0, 0.05, 3000), RATE)
     assert len(hs0) == 0 and len(to0) == 0
+
+
+GAIT = """name: gait
+segments:
+  thigh_r: {side: r, sensor_axes: [x, y, z]}
+  shank_r: {side: r, sensor_axes: [-z, y, x]}
+  thigh_l: {side: l, sensor_axes: [-x, y, -z]}
+  shank_l: {side: l, sensor_axes: [-z, y, x]}
+calibration: []
+joints:
+  knee_r: {type: knee, proximal: thigh_r, distal: shank_r, side: r}
+  knee_l: {type: knee, proximal: thigh_l, distal: shank_l, side: l}
+tasks:
+  - {name: gait, kind: gait, duration_s: 20}
+"""
+
+
+def test_heel_strikes_match_the_simulated_gait(tmp_path):
+    """Heel strikes from the simulated shank gyroscopes (typical errors, sensor clocks) at the
+    simulator's true contacts: right heel at the start of each stride (0.9 strides/s), left
+    half a stride later; the knee is at its 5° of the gait template there."""
+    from motionlab import rotations as rot
+    from motionlab.protocol import load_protocol
+    from motionlab.simulate import simulate
+
+    path = tmp_path / "gait.yaml"
+    path.write_text(GAIT)
+    session, truth = simulate(load_protocol(path), 26.0, seed=3, calibration=False)
+    gait = truth.step("gait")
+    for side, shift in (("r", 0.0), ("l", 0.5)):
+        sensor = truth.sensors[f"shank_{side}"]
+        t_true = sensor["sample_time"]
+        omega = rot.rotate(sensor["mounting"], session.sensors[f"shank_{side}"].gyr)  # segment
+        grid = np.arange(t_true[0], t_true[-1], 1 / RATE)
+        hs, _ = gait_events(np.interp(grid, t_true, omega[:, 2]), RATE)
+        contacts = gait["start_s"] + (np.arange(40) + shift) / 0.9
+        inner = contacts[(contacts > gait["start_s"] + 2.5) & (contacts < gait["end_s"] - 2.5)]
+        found = grid[hs]
+        err = np.array([found[np.argmin(np.abs(found - c))] - c for c in inner])
+        assert len(inner) >= 12 and np.abs(err).max() < 0.02  # the old minimum: 0.1 s late
+        knee = np.interp(found[(found > inner[0] - 0.1) & (found < inner[-1] + 0.1)], truth.time,
+                         truth.joint_angles[f"knee_{side}_flexion_deg"])  # fmt: skip
+        assert np.abs(knee - 5.0).max() < 1.5

@@ -10,9 +10,14 @@ and boundary positions are sample indices.
   trough level on either side (within 5 % of the excursion).
 - :func:`gait_events`: heel strikes and toe-offs from the shank's sagittal angular velocity
   (segment z, positive when the shank's lower end swings forward): mid-swing is the large
-  positive peak; toe-off the last local minimum before it and heel strike the first local
-  minimum after it (Aminian et al. 2002, J Biomech 35:689; Salarian et al. 2004, IEEE TBME
-  51:1434).
+  positive peak (Aminian et al. 2002, J Biomech 35:689; Salarian et al. 2004, IEEE TBME
+  51:1434); toe-off the last local minimum before it (ibid.); heel strike (initial contact)
+  the positive-to-negative zero crossing after it, where the shank stops swinging forward and
+  starts to turn over the planted foot (the shank-gyroscope gait phase detection of Behboodi
+  et al., IEEE EMBC 2015:5529, doi:10.1109/EMBC.2015.7319644, as described in Phys Ther 2019
+  99:739, doi:10.1093/ptj/pzz040, Fig. 3). The first local minimum after mid-swing (Aminian's
+  heel strike) is the impact dip on recordings that have one; without it (soft landings, the
+  simulator) it falls in the loading response, about 0.1 s and 8° of knee flexion late.
 - :func:`normalise`: each cycle resampled to 101 points, 0-100 %; :func:`mean_sd` across cycles.
 """
 
@@ -108,7 +113,9 @@ def gait_events(omega_z: np.ndarray, rate: float) -> tuple[np.ndarray, np.ndarra
 
     ``omega_z`` is the angular velocity about the shank segment's z axis (positive: the lower
     end swings forward, both sides). Low-passed at 6 Hz; mid-swing peaks must reach half the
-    median of the largest peaks and 1 rad/s, at least 0.6 s apart.
+    median of the largest peaks and 1 rad/s, at least 0.6 s apart. The heel strike is the
+    sample nearest the first positive-to-negative zero crossing after a mid-swing peak, the
+    toe-off the last local minimum before it, each within 40 % of a stride of the peak.
     """
     w = _filled(omega_z)
     if len(w) < int(2 * MIN_STRIDE_S * rate) or not np.isfinite(w).all():
@@ -124,9 +131,11 @@ def gait_events(omega_z: np.ndarray, rate: float) -> tuple[np.ndarray, np.ndarra
     stride = min(stride, MAX_STRIDE_S * rate)
     reach = int(0.4 * stride)
     minima = _local_minima(w)
+    down = np.flatnonzero((w[:-1] >= 0) & (w[1:] < 0))  # crossing between down[i] and down[i]+1
+    down = down + (w[down] > -w[down + 1])  # the sample nearer zero
     hs, to = [], []
     for p in swing:
-        after = minima[(minima > p) & (minima <= p + reach)]
+        after = down[(down > p) & (down <= p + reach)]
         before = minima[(minima < p) & (minima >= p - reach)]
         if len(after):
             hs.append(after[0])
