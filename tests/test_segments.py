@@ -183,3 +183,51 @@ def test_seel_hinge_axes_and_heading_from_hinge():
     q_shank_6d = apply_heading(q_shank, np.radians(35))
     delta = heading_from_hinge(q_thigh, q_shank_6d, Z, Z)
     assert abs(np.degrees(delta) + 35) < 0.5
+
+
+def test_hinge_fit_on_active_samples_with_the_analytic_jacobian(monkeypatch):
+    """The fit uses at most MAX_SAMPLES moving samples and Seel's analytic Jacobian, and lands
+    within 0.1° of the plain fit over every sample with a finite-difference Jacobian."""
+    import scipy.optimize
+
+    from motionlab.segments import hinge
+
+    rng = np.random.default_rng(6)
+    t = np.arange(0, 80, 0.01)
+    on = smooth_step(t, 10, 11) - smooth_step(t, 69, 70)  # 10 s still at both ends
+    rv = on[:, None] * np.column_stack(
+        [0.6 * np.sin(0.7 * t), 0.4 * np.sin(1.3 * t + 1), 0.8 * np.sin(0.9 * t)]
+    )
+    q_thigh = rot.from_rotvec(rv)
+    flex = np.radians(40) * (1 - np.cos(2.1 * t)) * on
+    q_shank = rot.mul(q_thigh, compose(np.column_stack([flex, 0 * t, 0 * t]), "knee", "r"))
+    m1, m2 = rot.normalize(rng.normal(size=(2, 4)))
+    g1 = body_rates(t, rot.mul(q_thigh, rot.conj(m1))) + rng.normal(0, 0.01, (len(t), 3))
+    g2 = body_rates(t, rot.mul(q_shank, rot.conj(m2))) + rng.normal(0, 0.01, (len(t), 3))
+    j1_true, j2_true = rot.rotate(m1, Z), rot.rotate(m2, Z)
+
+    calls = []
+    real = scipy.optimize.least_squares
+
+    def spy(fun, x0, jac="2-point", **kw):
+        calls.append((len(fun(x0)), callable(jac)))
+        if callable(jac):  # the analytic Jacobian agrees with finite differences
+            num = scipy.optimize.approx_fprime(x0, lambda x: fun(x)[7], 1e-7)
+            assert np.allclose(jac(x0)[7], num, atol=1e-4)
+        return real(fun, x0, jac=jac, **kw)
+
+    monkeypatch.setattr(hinge, "least_squares", spy)
+    j1, j2, _ = hinge.hinge_axes(g1, g2, prior1=j1_true, prior2=j2_true)
+    moving = np.sum(np.maximum(np.linalg.norm(g1, axis=1), np.linalg.norm(g2, axis=1)) > 0.1)
+    assert all(jac and n <= hinge.MAX_SAMPLES for n, jac in calls)
+    assert len(g1) - moving > 1500  # the rests were there to leave out
+
+    def plain(x):  # Seel's residual over every sample
+        a, b = hinge._unit(x[0], x[1]), hinge._unit(x[2], x[3])
+        return np.linalg.norm(np.cross(g1, a), axis=1) - np.linalg.norm(np.cross(g2, b), axis=1)
+
+    x0 = np.array([*hinge._angles(j1_true), *hinge._angles(j2_true)])
+    ref = real(plain, x0, method="lm").x
+    for j, r in ((j1, hinge._unit(ref[0], ref[1])), (j2, hinge._unit(ref[2], ref[3]))):
+        assert np.degrees(np.arccos(min(1.0, abs(j @ r)))) < 0.1
+    assert np.degrees(np.arccos(j2 @ j2_true)) < 1.0
