@@ -46,7 +46,7 @@ from motionlab.fusion.markers import (
 LAGS_S = (0.2, 1.0, 2.0, 4.0)
 LOWPASS_HZ = 4.0
 SNAP_DEG = 2.0
-CLOCK_ITERATIONS = 6
+CLOCK_ITERATIONS = 4
 SYNC_WINDOWS = {"window_s": 4.0, "step_s": 2.0}  # short: occlusions leave few long windows
 _STEP_S = 1e-3  # finite-difference step of the clock derivative
 
@@ -150,7 +150,7 @@ def register_sensor(
                 "markers",
                 remedy="check the marker map and that both systems recorded the same movement",
             )
-        for _ in range(3):  # X, then the bias left in the relative rotations (≈ b ΔT), again
+        for _ in range(2):  # X, then the bias left in the relative rotations (≈ b ΔT), again
             m = wahba(db[ok], da[ok])
             resid = da - db @ m
             bias = bias + np.sum(resid[ok] * span[ok], axis=0) / np.sum(span[ok] ** 2)
