@@ -18,6 +18,7 @@ A protocol is a YAML file (``protocols/*.yaml``; copy one and edit it). Schema::
         pose: standing                  # static: standing | sitting | supine | other text
         duration_s: 5
         vertical_axis: {thigh_r: y}     # static: segment axis that is vertical, sign included
+        horizontal_axis: {forearm_r: x} # static, optional: a segment axis lying horizontal
         instructions: "stand still, feet hip-width apart"
       - name: knee_flexion_r
         kind: functional
@@ -93,6 +94,7 @@ class CalibrationStep:
     instructions: str = ""
     pose: str = ""
     vertical_axis: dict[str, str] = field(default_factory=dict)
+    horizontal_axis: dict[str, str] = field(default_factory=dict)
     segments: list[str] = field(default_factory=list)
     axis: dict[str, str] = field(default_factory=dict)
     repetitions: int = 0
@@ -314,6 +316,15 @@ def load_protocol(path: str | Path) -> Protocol:
             )
             for s, a in r.get(spec, "vertical_axis", where, dict, False, {}).items()
         }
+        horizontal = {
+            check_segment(s, f"{where}.horizontal_axis", line): r.axis(
+                a, f"{where}.horizontal_axis.{s}", line
+            )
+            for s, a in r.get(spec, "horizontal_axis", where, dict, False, {}).items()
+        }
+        if horizontal and kind != "static":
+            r.fail(f"{where}.horizontal_axis", line, "only a static step has horizontal axes",
+                   "move it to a static pose")  # fmt: skip
         axis = {
             check_segment(s, f"{where}.axis", line): r.axis(a, f"{where}.axis.{s}", line)
             for s, a in r.get(spec, "axis", where, dict, False, {}).items()
@@ -356,6 +367,7 @@ def load_protocol(path: str | Path) -> Protocol:
                 instructions=r.get(spec, "instructions", where, str, False, ""),
                 pose=r.get(spec, "pose", where, str, False, ""),
                 vertical_axis=vertical,
+                horizontal_axis=horizontal,
                 segments=[
                     check_segment(s, f"{where}.segments", line)
                     for s in r.get(spec, "segments", where, list, False, list(axis))

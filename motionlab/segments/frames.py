@@ -132,3 +132,19 @@ def turn_about(
         return m
     turn = rot.to_matrix(rot.from_axis_angle(axis, np.arctan2(sin, cos)))
     return turn @ m
+
+
+def level(m: np.ndarray, up: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """``m`` turned by the smallest rotation that lays the segment axis ``r`` horizontal, i.e.
+    makes ``M r`` perpendicular to the sensor-frame ``up`` (a static pose's gravity).
+
+    The rotation is about ``M r × up``, so nothing else about the frame changes more than needed;
+    an axis pointing straight up or down has no such rotation and ``m`` is returned.
+    """
+    a = m @ np.asarray(r, float)
+    up = np.asarray(up, float) / np.linalg.norm(up)
+    n = np.cross(a, up)
+    if np.linalg.norm(n) < 1e-9:
+        return m
+    elevation = np.arcsin(np.clip(float(a @ up), -1.0, 1.0))
+    return rot.to_matrix(rot.from_axis_angle(n, -elevation)) @ m

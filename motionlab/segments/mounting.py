@@ -2,7 +2,13 @@
 
 Each step gives axis records per segment (sensor-frame axis ↔ segment axis, with reliability ρ):
 
-- static pose: gravity ("up") for the step's ``vertical_axis`` (:mod:`.static`);
+- static pose: gravity ("up") for the step's ``vertical_axis`` (:mod:`.static`); a segment axis
+  the step names in ``horizontal_axis`` (e.g. the forearm's anterior axis in standing, elbow
+  straight, palm forward: flexion and pronation at zero while the carrying angle keeps its long
+  axis off the vertical) is laid horizontal after the fit by the smallest rotation
+  (:func:`~motionlab.segments.frames.level`). That is the pose's definition of zero, as a
+  vertical axis is, and it ties the segment's tilt to the same accelerometer whose gravity the
+  orientation filter follows, where the fit alone would rely on gyroscope axes only;
 - functional movement: the rotation axis by uncentred SVD of the gyroscope (:mod:`.functional`),
   or, with the step option ``axis_method: hinge``, Seel's hinge axes from the gyroscopes of the
   moving knee or elbow's two segments (:mod:`.hinge`): the distal segment's axis, and, when the
@@ -126,6 +132,13 @@ def measure(
                     out[seg][step.name] = _record(
                         step, seg, axis_vector(axis_name), axis, rho, "gravity", False
                     )
+            for seg, axis_name in step.horizontal_axis.items():
+                if seg in streams:
+                    t, acc, _ = streams[seg]
+                    up, rho = gravity_axis(_window(t, acc, rng))
+                    out[seg][f"{step.name}:horizontal"] = _record(
+                        step, seg, axis_vector(axis_name), up, rho, "horizontal", False
+                    )
             continue
         moved = moved_joints(protocol, step)
         for seg, axis_name in step.axis.items():
@@ -191,7 +204,15 @@ def fit(segment: str, protocol: Protocol, records: dict[str, dict[str, Any]]) ->
             f"segments.{segment}",
             "add it to a static step's vertical_axis or a functional step's axis",
         )
-    recs = list(records.values())
+    level = [r for r in records.values() if r["method"] == "horizontal"]
+    recs = [r for r in records.values() if r["method"] != "horizontal"]
+    if not recs:
+        raise InputError(
+            f"a horizontal axis alone does not fix segment '{segment}'",
+            protocol.path,
+            f"segments.{segment}",
+            "add it to a static step's vertical_axis or a functional step's axis",
+        )
     _mark_used(recs)
     used = [r for r in recs if r["used"]]
     primary = [r for r in used if not r["secondary"]]
@@ -217,12 +238,18 @@ def fit(segment: str, protocol: Protocol, records: dict[str, dict[str, Any]]) ->
             separation = frames.min_axis_separation(np.vstack([r_, rs]), np.vstack([v, vs]))
         else:
             method = "single_axis"
+    for rec in level:
+        m = frames.level(m, rec["sensor_axis"], rec["segment_axis"])
     residuals = frames.residual_angles(m, *_arrays(recs)[:2])
     for rec, res in zip(recs, residuals, strict=True):
         rec["residual_deg"] = float(res)
+    for rec in level:  # off the horizontal, 0 unless two poses disagree
+        rec["used"] = True
+        tilt = float(rec["sensor_axis"] @ (m @ rec["segment_axis"]))
+        rec["residual_deg"] = float(np.degrees(np.arcsin(min(abs(tilt), 1.0))))
     return {
         "mounting": rot.from_matrix(m),
         "method": method,
         "axes": records,
-        "quality": quality.assess(segment, recs, separation, lm_diff),
+        "quality": quality.assess(segment, recs + level, separation, lm_diff),
     }
