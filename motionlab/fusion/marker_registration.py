@@ -46,7 +46,8 @@ from motionlab.fusion.markers import (
 LAGS_S = (0.2, 1.0, 2.0, 4.0)
 LOWPASS_HZ = 4.0
 SNAP_DEG = 2.0
-CLOCK_ITERATIONS = 4
+CLOCK_ITERATIONS = 8
+CLOCK_TOL_S = 2e-5  # clock steps below this end the refinement
 SYNC_WINDOWS = {"window_s": 4.0, "step_s": 2.0}  # short: occlusions leave few long windows
 _STEP_S = 1e-3  # finite-difference step of the clock derivative
 
@@ -170,6 +171,8 @@ def register_sensor(
         step = np.linalg.lstsq(jac, resid[okd].ravel(), rcond=None)[0]
         offset_s += step[0] - step[1] * t[i].mean()
         drift += step[1]
+        if abs(step[0]) < CLOCK_TOL_S and abs(step[1]) * np.ptp(t) < CLOCK_TOL_S:
+            break
     rms = float(np.degrees(np.sqrt(np.mean(err[ok] ** 2))))
     return SensorRegistration(
         float(offset_s), float(drift), rot.from_matrix(m), bias, rms, int(ok.sum())
