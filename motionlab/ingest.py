@@ -11,7 +11,9 @@ sensors, or optical files that become marker sets):
    stamp in ``attrs["start_s"]``; starts more than a day apart set
    ``metadata["clocks_unrelated"]`` (the files do not share a clock);
 4. quality checks (:mod:`motionlab.qc`) on the data as recorded, then gaps up to ``gap_max`` s
-   are filled and longer ones kept as missing (:func:`motionlab.timebase.fill_short_gaps`);
+   are filled and longer ones kept as missing (:func:`motionlab.timebase.fill_short_gaps`), one
+   stream at a time by :func:`check_and_fill` (``motionlab run`` applies it to session files
+   that have not been through ingest);
 5. with ``rate``, every sensor stream and marker set goes onto the clock ``k / rate``;
 6. provenance: software version, command, parameters and the SHA-256 of every input.
 """
@@ -151,6 +153,23 @@ def _resample_markers(m: MarkerSet, rate: float) -> MarkerSet:
     )
 
 
+def check_and_fill(stream: SensorStream, report: dict[str, Any], gap_max: float) -> SensorStream:
+    """Step 4 for one stream whose clock is repaired: quality checks on the data as recorded,
+    then gaps up to ``gap_max`` s filled; the stream with its ``qc``, which also holds the
+    clock repair ``report`` of :func:`motionlab.timebase.repair_clock`."""
+    qc = check_stream(stream, gap_max)
+    stream, gaps = timebase.fill_short_gaps(stream, gap_max)
+    qc.update(report)
+    qc.update(gaps)
+    repaired = report["duplicates_dropped"] + report["reordered"] + report["restamped"]
+    qc["flags"].update(
+        gaps=bool(gaps["gaps"]),
+        dropped_samples=gaps["dropped_samples"] > 0,
+        clock_repaired=bool(repaired),
+    )
+    return dataclasses.replace(stream, qc=qc)
+
+
 def ingest(
     paths: Sequence[str | Path],
     sensor_map: SensorMap | str | Path | None = None,
@@ -228,21 +247,12 @@ def ingest(
             time=stream.time - origin,
             attrs={**stream.attrs, "start_s": float(stream.time[0])},
         )
-        qc = check_stream(stream, gap_max)
-        stream, gaps = timebase.fill_short_gaps(stream, gap_max)
-        qc.update(report)
-        qc.update(gaps)
-        qc["flags"].update(
-            gaps=bool(gaps["gaps"]),
-            dropped_samples=gaps["dropped_samples"] > 0,
-            clock_repaired=bool(
-                report["duplicates_dropped"] + report["reordered"] + report["restamped"]
-            ),  # fmt: skip
-        )
+        stream = check_and_fill(stream, report, gap_max)
         if rate is not None:
+            qc = stream.qc
             stream = timebase.resample(stream, rate)
             qc["resampled_to_hz"] = float(rate)
-        stream.qc = qc
+            stream.qc = qc
         session.sensors[stream.label] = stream
     for m, _ in markers:
         m = dataclasses.replace(

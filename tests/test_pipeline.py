@@ -123,9 +123,34 @@ def test_session_holds_every_stage_and_the_provenance(result, recorded):
     assert run["parameters"]["seed"] == 2 and len(run["parameters"]["protocol_sha256"]) == 64
     hashed = {k.split("/")[-1] for p in ses.provenance for k in p["inputs"]}
     assert {"THIGH.csv", "SHANK.csv", "map.yaml"} <= hashed
-    val = ses.results["validation"]["angles"]["knee_r_flexion_deg"]
-    assert val["rmse_deg"] < 5.0
+    val = ses.results["validation"]["angles"]
+    assert val["knee_r_flexion_deg"]["rmse_deg"] < 5.0
+    # 6-D fusion and heading alignment: with the (uncalibrated) magnetometers the shank's
+    # heading was turned in the walk and the rotation was 7.9° off
+    assert all(e["magnetometer"] is False for e in ses.results["fusion"].values())
+    assert ses.results["validation"]["mode"] == "heading"
+    assert val["knee_r_rotation_deg"]["rmse_deg"] < 3.0
     assert str(root) in result.summary or "T01" in result.summary
+
+
+def test_session_files_get_the_ingest_checks_from_ingest(recorded):
+    """A session file without QC gets ingest's own per-stream checks (the same qc tree), and
+    the pipeline calls the library's fusion stage, not the fuse command."""
+    import ast
+
+    import motionlab.pipeline as pipeline
+    from motionlab import timebase
+    from motionlab.ingest import check_and_fill
+
+    session = load_session(recorded[0] / "sim.h5")
+    stream = session.sensors["shank_r"]
+    pipeline.prepare_sensors(session)
+    expected = check_and_fill(*timebase.repair_clock(stream), pipeline.DEFAULT_GAP_MAX)
+    assert session.sensors["shank_r"].qc == expected.qc
+    assert "clock_repaired" in session.sensors["shank_r"].qc["flags"]
+    tree = ast.parse(open(pipeline.__file__).read())
+    imported = {n.module for n in ast.walk(tree) if isinstance(n, ast.ImportFrom)}
+    assert not any(m.startswith("motionlab.cli") for m in imported if m)
 
 
 def test_report_text_and_one_screen_summary(result):

@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import click
 
 from motionlab.atomic import check_output
 from motionlab.errors import InputError
 from motionlab.fusion import registry
+from motionlab.fusion.stage import fusable, fuse_session
 from motionlab.sensorcal.calfile import apply_calibration_dir
 from motionlab.session import Session, load_session, save_session
 
@@ -22,50 +25,10 @@ def parse_params(items: tuple[str, ...]) -> dict[str, str]:
     return out
 
 
-def fuse_session(
-    ses: Session,
-    name: str,
-    params: dict[str, str],
-    sensors: list[str],
-    force: bool,
-    path: str,
-    references: dict | None = None,
-) -> list[str]:
-    """Run estimator ``name`` on ``sensors`` and store results in ``ses.results["fusion"]``;
-    ``references`` maps a sensor label to its marker reference vectors (IMU + marker fusion)."""
-    est = registry.get(name)
-    registry.make_params(est, params)  # fail on a bad parameter before any work
-    store = ses.results.setdefault("fusion", {})
-    for label in sensors:
-        if label in store and not force:
-            raise InputError(
-                "already holds a fusion result",
-                path,
-                f"results/fusion/{label}",
-                "add --force to replace it",
-            )
-    done = []
-    with click.progressbar(
-        sensors, label=f"fusing ({est.name})", file=click.get_text_stream("stderr")
-    ) as bar:
-        for label in bar:
-            s = ses.sensors[label]
-            ref = (references or {}).get(label)
-            res = registry.estimate(
-                est.name, s.gyr, s.acc, s.mag, s.rate_hz, references=ref, time=s.time, **params
-            )
-            entry = {"name": res.name, "quat": res.quat, "params": res.params}
-            if "scenario" in res.extra:
-                entry["scenario"] = res.extra["scenario"]
-            if "resampled" in res.extra:  # packet-loss gaps the estimator ran across
-                entry["gaps_bridged_s"] = res.extra["resampled"]["spans_s"]
-            for key in ("gyro_bias", "rest", "mag_disturbed"):
-                value = getattr(res, key)
-                if value is not None:
-                    entry[key] = value
-            store[label] = entry
-            done.append(label)
-    return done
+def _progress(labels: list[str], text: str) -> Iterator[str]:
+    """A progress bar on stderr over the sensors."""
+    with click.progressbar(labels, label=text, file=click.get_text_stream("stderr")) as bar:
+        yield from bar
 
 
 def _marker_references(ses: Session, name: str, markers_path: str | None, labels: list[str]):
@@ -136,8 +99,7 @@ def command(
             remedy=f"sensors are {', '.join(ses.sensors) or 'none'}",
         )
     chosen = list(labels) or list(ses.sensors)
-    usable = [lab for lab in chosen if ses.sensors[lab].gyr is not None]
-    usable = [lab for lab in usable if ses.sensors[lab].acc is not None]
+    usable = fusable(ses, chosen)
     if labels and len(usable) < len(chosen):
         bad = sorted(set(chosen) - set(usable))
         raise InputError(
@@ -155,7 +117,9 @@ def command(
     refs, marker_info = {}, {}
     if with_markers or markers_path:
         refs, marker_info = _marker_references(ses, name, markers_path, usable)
-    done = fuse_session(ses, name, parsed, usable, force, session, refs)
+    done = fuse_session(
+        ses, name, parsed, usable, force=force, path=session, references=refs, progress=_progress
+    )
     ses.sensors = recorded
     for label, stream in calibrated.items():
         ses.results["fusion"][label]["calibration"] = stream.attrs["calibration"]

@@ -37,11 +37,16 @@ from motionlab.pipeline import run_pipeline
     type=click.Path(file_okay=False),
     help="Output folder: session.h5, report.pdf, report.txt, csv/.",
 )
+@click.option(
+    "--magnetometer",
+    is_flag=True,
+    help="Fuse with the magnetometers (default 6-D: indoor fields turn headings mid-task).",
+)
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
 @click.option("--force", is_flag=True, help="Replace existing outputs.")
 @click.option("--quiet", is_flag=True, help="No progress on stderr.")
 def command(
-    files, protocol, map_path, reference, calibration_dir, outdir, seed, force, quiet
+    files, protocol, map_path, reference, calibration_dir, magnetometer, outdir, seed, force, quiet
 ) -> None:
     """Analyse recording FILES (or one session file) from raw data to the report.
 
@@ -66,5 +71,6 @@ def command(
         progress=not quiet,
         seed=seed,
         calibration_dir=Path(calibration_dir) if calibration_dir else None,
+        magnetometer=magnetometer,
     )
     click.echo(result.summary)

@@ -72,8 +72,9 @@ def _params(view: SessionView) -> list[list[str]]:
     for label, entry in fusion.items() if isinstance(fusion, dict) else []:
         if not isinstance(entry, dict) or "name" not in entry:
             continue
+        name = entry["name"] + ("" if entry.get("magnetometer", True) else " (6-D)")
         key = json.dumps(
-            {"name": entry["name"], "params": entry.get("params", {})}, default=str, sort_keys=True
+            {"name": name, "params": entry.get("params", {})}, default=str, sort_keys=True
         )
         seen.setdefault(key, []).append(label)
     rows = []
@@ -108,7 +109,9 @@ def methods_page(doc: Document, view: SessionView) -> None:
         doc.paragraph("No fusion results stored; the sensors' own orientations were used.")
     doc.paragraph(
         "Each sensor's orientation (sensor to east-north-up earth frame, Hamilton quaternions) "
-        "is estimated from its gyroscope, accelerometer and, where given, magnetometer.",
+        "is estimated from its gyroscope, accelerometer and, where given, magnetometer; "
+        "6-D estimates leave the magnetometer out (each segment's heading then comes from the "
+        "heading alignment with its neighbour).",
         size=SIZE["small"],
         colour=MUTED,
     )
