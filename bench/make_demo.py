@@ -15,8 +15,8 @@ calibration with marker clusters), and the float arrays are stored with their ma
 (sensor channels to 12 bits, relative error ≤ 1.2e-4, under half the simulated sensors'
 quantisation step at full scale; marker positions to 13 bits, ≤ 0.5 mm here, under half the
 marker noise; time stamps exact) and gzip-compressed. h5py reads them like any other session.
-The rests between blocks last 4 s (the simulator's default 3 s leave too little stillness for
-the step detection to separate the blocks).
+The rests between blocks are the simulator's default: 3 s of stillness, plus 2 s where the next
+block starts in another pose (sitting down, standing up).
 
 Usage::
 
@@ -45,7 +45,7 @@ EXAMPLES = {
 }
 IMU_HZ = 60.0
 MARKER_HZ = 20.0
-REST_S = 4.0  # still time between blocks: 2 s of blend into the next pose, then 2 s still
+REST_S = 3.0  # still time between blocks (s), a change of pose comes on top
 SUBJECT = {"id": "DEMO-01", "height_m": 1.75, "note": "simulated subject"}
 
 

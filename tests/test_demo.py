@@ -101,6 +101,18 @@ def test_csv_headers_carry_units(demo, name):
     assert table["time_s"].is_monotonic_increasing
 
 
+def test_normal_simulated_elbow_motion_is_not_flagged(demo):
+    """The simulated subject moves its elbows within the task-specific normal ranges."""
+    from motionlab.report.model import rom_rows
+
+    view = load_views([load_session(demo / "elbow" / "session.h5")])[0]
+    rows = [r for r in rom_rows(view) if r["normal"]]
+    assert {r["task"] for r in rows} == {"reaching", "hand_to_mouth"}
+    assert all(r["status"] == "within" for r in rows), [
+        (r["task"], r["column"], r["status"]) for r in rows if r["status"] != "within"
+    ]
+
+
 def test_no_text_overlaps_or_leaves_any_page(demo):
     views = load_views([load_session(demo / "knee" / "session.h5")])
     with matplotlib.rc_context(RC):

@@ -106,6 +106,33 @@ def elbow_flexion(body: Body, name, phase, duration, reps, options) -> Block:
     return Block(name, "elbow_flexion", phase, duration, fn, generator="elbow_flexion")
 
 
+def hand_to_mouth(body: Body, name, phase, duration, reps, options) -> Block:
+    """A cup from the table to the mouth and back, right and left arm in turn, ``reps`` times each.
+
+    From the hand on the table (elbow flexed 80°, shoulder 15°) to the mouth (elbow 130°,
+    shoulder flexed 35° and abducted 15°, forearm supinated 20°): within the ranges of drinking
+    from a cup (Safaee-Rad et al. 1990, Arch Phys Med Rehabil 71:505: elbow 70-130°, forearm
+    40° pronation to 60° supination).
+    """
+    reps = _reps(reps, duration, 3.0)
+    rest = _base(body, options, **{"elbow_*_0": 80.0, "shoulder_*_0": 15.0})
+
+    def fn(tau):
+        f = reps / duration  # per arm
+        e = envelope(tau, duration, min(0.4, 0.25 / f))
+        wave = np.sin(2 * np.pi * f * tau)  # right arm while positive, left while negative
+        out = _tile(rest, tau)
+        for s, sign in (("r", 1.0), ("l", -1.0)):
+            m = e * np.maximum(sign * wave, 0.0) ** 4  # C³ where the arms take turns
+            out[:, CH[f"elbow_{s}_0"]] = rest[CH[f"elbow_{s}_0"]] + 50 * DEG * m
+            out[:, CH[f"shoulder_{s}_0"]] = rest[CH[f"shoulder_{s}_0"]] + 20 * DEG * m
+            out[:, CH[f"shoulder_{s}_1"]] = -15 * DEG * m
+            out[:, CH[f"elbow_{s}_2"]] = -20 * DEG * m
+        return out
+
+    return Block(name, "hand_to_mouth", phase, duration, fn, generator="hand_to_mouth")
+
+
 def pronation(body: Body, name, phase, duration, reps, options) -> Block:
     """Forearm pronation/supination ±80° with the elbow held at 90°."""
     reps = _reps(reps, duration, 2.5)
@@ -220,7 +247,9 @@ def task_block(body: Body, task, phase: str, duration: float, seed: int) -> Bloc
         return reaching(body, task.name, phase, duration, reps, opts)
     if "pronation" in key or "supination" in key or "prosup" in key:
         return pronation(body, task.name, phase, duration, reps, opts)
-    if any(w in key for w in ("elbow", "curl", "mouth", "drink", "feed", "comb")):
+    if any(w in key for w in ("mouth", "drink", "feed")):
+        return hand_to_mouth(body, task.name, phase, duration, reps, opts)
+    if any(w in key for w in ("elbow", "curl", "comb")):
         return elbow_flexion(body, task.name, phase, duration, reps, opts)
     if "lateral" in key or "side_bend" in key:
         return trunk(body, task.name, phase, duration, reps, opts, (1,))
