@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Iterator
 
 import click
@@ -27,7 +28,7 @@ def parse_params(items: tuple[str, ...]) -> dict[str, str]:
 
 def _progress(labels: list[str], text: str) -> Iterator[str]:
     """A progress bar on stderr over the sensors."""
-    with click.progressbar(labels, label=text, file=click.get_text_stream("stderr")) as bar:
+    with click.progressbar(labels, label=text, file=sys.stderr) as bar:
         yield from bar
 
 
