@@ -72,8 +72,10 @@ def factor(unit: str, quantity: str | None = None) -> float:
         raise InputError(f"unknown unit '{unit}'", remedy=f"use one of {sorted(_FACTORS)}")
     kind, f = _FACTORS[key]
     if quantity is not None and kind != quantity:
-        raise InputError(f"unit '{unit}' is not a unit of {quantity}",
-                         remedy=f"use a unit of {quantity} such as {SI_UNITS[quantity]}")
+        raise InputError(
+            f"unit '{unit}' is not a unit of {quantity}",
+            remedy=f"use a unit of {quantity} such as {SI_UNITS[quantity]}",
+        )
     return f
 
 

@@ -27,8 +27,12 @@ def test_calibrate_then_angles_cli(tmp_path):
     res = runner.invoke(main, ["angles", str(path), "--csv", str(csv)])
     assert res.exit_code == 0, res.output
     df = pd.read_csv(csv)
-    assert list(df.columns[:4]) == ["time_s", "knee_r_flexion_deg", "knee_r_adduction_deg",
-                                    "knee_r_rotation_deg"]
+    assert list(df.columns[:4]) == [
+        "time_s",
+        "knee_r_flexion_deg",
+        "knee_r_adduction_deg",
+        "knee_r_rotation_deg",
+    ]
     task = df["time_s"].to_numpy() > 39
     err = df.loc[task, "knee_l_flexion_deg"] - np.degrees(truth["l"][t > 39, 0])
     assert np.sqrt(np.mean(err**2)) < 1.0

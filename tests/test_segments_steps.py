@@ -66,9 +66,10 @@ def test_default_rests_knee_session_steps_and_tasks(knee):
     streams = streams_of(session, knee)
     steps = find_steps(streams, knee)
     for step in truth.steps:  # a change of pose (2 s) may come right before a block
-        found = steps.get(step["name"]) or find_tasks(streams, knee, steps["hip_flexion_l"][1])[
-            step["name"]
-        ]
+        found = (
+            steps.get(step["name"])
+            or find_tasks(streams, knee, steps["hip_flexion_l"][1])[step["name"]]
+        )
         if step["kind"] != "static":
             assert -2.5 < found[0] - step["start_s"] < 0.5 and abs(found[1] - step["end_s"]) < 0.5
 
