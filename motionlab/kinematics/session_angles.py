@@ -2,7 +2,10 @@
 
 Sensor orientations come from, in this order: the fusion stage's results
 (``session.results["fusion"][label]["quat"]``, as ``motionlab fuse`` stores them), running the
-default estimator on the raw accelerometer, gyroscope and magnetometer, or the vendor's ``quat``.
+default estimator 6-D on the raw accelerometer and gyroscope, or the vendor's ``quat``. 6-D as
+``motionlab run`` fuses: the heading alignment gives each segment's heading relative to its
+neighbour, and an uncalibrated magnetometer only adds errors (carrying angle and pronation up to
+5–10° in ``bench/joint_angles.py --mag``; docs/kinematics.md).
 A segment's sensor is the one whose ``segment`` attribute names it (set by ``ingest --map``), else
 the sensor labelled like the segment. Every joint is resampled onto one time base: the time of
 the first joint's proximal sensor, cut to the span all sensors cover.
@@ -41,7 +44,7 @@ def sensor_orientation(session: Session, label: str, estimator: str = "default")
     if s.acc is not None and s.gyr is not None:
         from motionlab.fusion import estimate
 
-        return estimate(estimator, s.gyr, s.acc, s.mag, estimate_rate(s.time), time=s.time).quat
+        return estimate(estimator, s.gyr, s.acc, None, estimate_rate(s.time), time=s.time).quat
     if s.quat is not None:
         return np.asarray(s.quat, dtype=float)
     raise InputError(
