@@ -1,8 +1,9 @@
 """Study-scale batch processing: speed-up, Dask byte-identity, resume, failure isolation.
 
 A study of simulated knee sessions (a short version of the packaged knee protocol: standing,
-right and left seated knee flexion, walking, 4 s rests; 40 s at 100 Hz, five IMUs, the ``typical`` error
-preset; four visits per subject, subject heights 1.55-1.95 m) runs through ``motionlab batch``:
+right and left seated knee flexion, walking, 4 s rests; 40 s at 100 Hz, five IMUs, the
+``typical`` error preset; four visits per subject, subject heights 1.55-1.95 m) runs through
+``motionlab batch``:
 
 1. with 1 and with 2 local workers, in the same run: wall time and speed-up;
 2. on a Dask ``LocalCluster`` with 2 worker processes: wall time, and whether its
@@ -16,6 +17,7 @@ The data are simulated (``--data`` is not used); ``--work DIR`` keeps the sessio
 
     python3 bench/batch.py                      # 200 sessions; about an hour on 2 cores
     python3 bench/batch.py --sessions 12 --failure-sessions 6   # a quick look
+    python3 bench/batch.py --parts speedup --sessions 40         # when the machine is quiet
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from __future__ import annotations
 import argparse
 import csv
 import os
+import resource
 import shutil
 import signal
 import subprocess
@@ -44,6 +47,7 @@ DURATION_S = 40.0
 REST_S = 4.0  # still time between steps, so that the pipeline finds them
 MOTIONLAB = [sys.executable, "-c", "from motionlab.cli import main; main()"]
 VISITS = ("v1", "v2", "v3", "v4")
+PARTS = ("speedup", "dask", "rerun", "failure")
 
 
 def short_knee_protocol(path: Path) -> Path:
@@ -197,8 +201,43 @@ def failure_run(work: Path, protocol: Path, good: list, out: Path) -> dict:
         "finished": finished,
         "good": len(good),
         "half_written": half_written(out),
-        "stderr_tail": proc.stderr.strip().splitlines()[-1:] if proc.stderr else [],
     }
+
+
+def _children_cpu_s() -> float:
+    """CPU time of the finished child processes (the pool's workers once it has shut down)."""
+    usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return usage.ru_utime + usage.ru_stime
+
+
+def speed_rows(work: Path, manifest: Path, parts: set[str]) -> list[tuple]:
+    """(run, sessions run, wall s, CPU s or None) of the 1- and 2-worker and Dask runs."""
+    rows = []
+    for workers in (1, 2) if "speedup" in parts else ():
+        cpu = _children_cpu_s()
+        wall, result = timed_study(manifest, work / f"out_local{workers}", workers=workers)
+        rows.append(
+            (
+                f"local pool, {workers} worker(s)",
+                result.count("done"),
+                wall,
+                _children_cpu_s() - cpu,
+            )
+        )
+    if "dask" in parts:
+        import dask
+        from distributed import LocalCluster
+
+        with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+            cluster = LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None)
+        try:
+            wall, result = timed_study(
+                manifest, work / "out_dask", scheduler=cluster.scheduler_address
+            )
+        finally:
+            cluster.close()
+        rows.append(("Dask LocalCluster, 2 workers", result.count("done"), wall, None))
+    return rows
 
 
 def main() -> None:
@@ -210,9 +249,11 @@ def main() -> None:
         default=40,
         help="good sessions in the failure run (plus 3 corrupt ones)",
     )
+    ap.add_argument("--parts", default=",".join(PARTS), help=f"any of {', '.join(PARTS)}")
     ap.add_argument("--work", type=Path, help="working folder (kept); default: a temporary one")
     ap.add_argument("--data", help="not used: the sessions are simulated")
     args = ap.parse_args()
+    parts = set(args.parts.split(","))
     work = args.work or Path(tempfile.mkdtemp(prefix="motionlab-batch-bench-"))
     work.mkdir(parents=True, exist_ok=True)
     protocol = short_knee_protocol(work / "knee_short.yaml")
@@ -223,71 +264,65 @@ def main() -> None:
         f"({time.perf_counter() - t0:.0f} s to simulate or find)"
     )
     manifest = write_manifest(work / "study.yaml", protocol, good)
-
     warm = write_manifest(work / "warmup.yaml", protocol, good[:2])
     timed_study(warm, work / "out_warmup", workers=2)  # fills numba's on-disk caches
-    print(f"load average before: {os.getloadavg()[0]:.1f} (cores: {os.cpu_count()})")
-    rows = []
-    for workers in (1, 2):
-        wall, result = timed_study(manifest, work / f"out_local{workers}", workers=workers)
-        rows.append((f"local pool, {workers} worker(s)", wall, result.count("done")))
-    cluster_wall, cluster_result = None, None
-    try:
-        import dask
-        from distributed import LocalCluster
 
-        with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
-            cluster = LocalCluster(n_workers=2, threads_per_worker=1, dashboard_address=None)
-        try:
-            cluster_wall, cluster_result = timed_study(
-                manifest, work / "out_dask", scheduler=cluster.scheduler_address
-            )
-        finally:
-            cluster.close()
-        rows.append(("Dask LocalCluster, 2 workers", cluster_wall, cluster_result.count("done")))
-    except ImportError:
-        print("Dask is not installed (pip install 'motionlab[dask]'): no Dask run")
-    print(f"load average after: {os.getloadavg()[0]:.1f}")
-
-    t0 = time.perf_counter()
-    rerun = subprocess.run(
-        [*MOTIONLAB, "batch", str(manifest), "-o", str(work / "out_local2"), "--workers", "2"],
-        capture_output=True,
-        text=True,
-    )
-    rerun_wall = time.perf_counter() - t0
-
-    base = rows[0][1]
-    print("\n| run | sessions run | wall (s) | s per session | speed-up vs 1 worker |")
-    print("|---|---|---|---|---|")
-    for name, wall, done in rows:
-        print(f"| {name} | {done} | {wall:.1f} | {wall / max(done, 1):.2f} | {base / wall:.2f} |")
-    print(f"| re-run, `motionlab batch` (exit {rerun.returncode}) | 0 | {rerun_wall:.1f} | - | - |")
-    print(f"\nre-run says: {rerun.stdout.strip()}")
+    load = os.getloadavg()[0]
+    rows = speed_rows(work, manifest, parts)
+    if rows:
+        print(
+            f"load average (1 min) before: {load:.1f}, after: {os.getloadavg()[0]:.1f} "
+            f"(cores: {os.cpu_count()}); 'cores busy' = workers' CPU time / wall time"
+        )
+        base = rows[0][2] if rows[0][0].startswith("local pool, 1") else None
+        print("\n| run | sessions run | wall (s) | s per session | cores busy | speed-up vs 1 |")
+        print("|---|---|---|---|---|---|")
+        for name, done, wall, cpu in rows:
+            busy = "-" if cpu is None else f"{cpu / wall:.2f}"
+            gain = "-" if base is None else f"{base / wall:.2f}"
+            print(f"| {name} | {done} | {wall:.1f} | {wall / max(done, 1):.2f} | {busy} | {gain} |")
     metrics = {
         n: (work / n / "study_metrics.csv").read_bytes()
         for n in ("out_local1", "out_local2", "out_dask")
-        if (work / n).is_dir()
+        if (work / n / "study_metrics.csv").is_file()
     }
-    same = {n: b == metrics["out_local1"] for n, b in metrics.items()}
-    n_rows = metrics["out_local1"].count(b"\n") - 1
-    print(
-        f"study_metrics.csv byte-identical to 1 worker's: {same} "
-        f"({len(metrics['out_local1'])} bytes, {n_rows} rows)"
-    )
+    if metrics:
+        first = next(iter(metrics.values()))
+        same = {n: b == first for n, b in metrics.items()}
+        rows_n = first.count(b"\n") - 1
+        print(
+            f"\nstudy_metrics.csv byte-identical to {next(iter(metrics))}'s: {same} "
+            f"({len(first)} bytes, {rows_n} rows)"
+        )
 
-    n_fail = min(args.failure_sessions, len(good))
-    f = failure_run(work, protocol, good[:n_fail], work / "out_failures")
-    print(
-        f"\nfailure run: {f['good']} good + 3 corrupt sessions, 2 workers, worker pid "
-        f"{f['killed'] or 'none'} killed mid-session; {f['wall']:.1f} s, exit code {f['exit']}"
-    )
-    print(f"  good sessions finished: {f['finished']}/{f['good']}")
-    print("  | subject | visit | kind | attempts | error |")
-    print("  |---|---|---|---|---|")
-    for r in f["failures"]:
-        print(f"  | {r['subject']} | {r['visit']} | {r['kind']} | {r['attempts']} | {r['error']} |")
-    print(f"  half-written or temporary files: {f['half_written'] or 'none'}")
+    if "rerun" in parts:
+        t0 = time.perf_counter()
+        rerun = subprocess.run(
+            [*MOTIONLAB, "batch", str(manifest), "-o", str(work / "out_local2"), "--workers", "2"],
+            capture_output=True,
+            text=True,
+        )
+        print(
+            f"\nre-run of the finished study, as a command: {time.perf_counter() - t0:.1f} s, "
+            f"exit code {rerun.returncode}: {rerun.stdout.strip()}"
+        )
+
+    if "failure" in parts:
+        f = failure_run(work, protocol, good[: args.failure_sessions], work / "out_failures")
+        print(
+            f"\nfailure run: {f['good']} good + 3 corrupt sessions, 2 workers, worker pid "
+            f"{f['killed'] or 'none'} killed mid-session; {f['wall']:.1f} s, "
+            f"exit code {f['exit']}"
+        )
+        print(f"  good sessions finished: {f['finished']}/{f['good']}")
+        print("  | subject | visit | kind | attempts | error |")
+        print("  |---|---|---|---|---|")
+        for r in f["failures"]:
+            print(
+                f"  | {r['subject']} | {r['visit']} | {r['kind']} | {r['attempts']} | "
+                f"{r['error']} |"
+            )
+        print(f"  half-written or temporary files: {f['half_written'] or 'none'}")
 
 
 if __name__ == "__main__":
