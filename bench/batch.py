@@ -131,8 +131,9 @@ def timed_study(manifest: Path, out: Path, **kw) -> tuple[float, object]:
     return time.perf_counter() - t0, result
 
 
-def _killer(out: Path, after: int, killed: list[int], stop: threading.Event) -> None:
-    """Once ``after`` sessions have finished, SIGKILL the worker of a running session."""
+def _killer(out: Path, after: int, killed: list, stop: threading.Event) -> None:
+    """Once ``after`` sessions have finished, SIGKILL the worker of a running session;
+    ``killed`` gets its pid and the session's folder."""
     while not stop.is_set():
         if sum(1 for _ in out.glob(f"*/*/{STAMP}")) >= after:
             for claim in out.glob(f"*/*/{CLAIM}"):
@@ -141,7 +142,7 @@ def _killer(out: Path, after: int, killed: list[int], stop: threading.Event) -> 
                     os.kill(pid, signal.SIGKILL)
                 except (OSError, ValueError):
                     continue
-                killed.append(pid)
+                killed += [pid, claim.parent]
                 return
         time.sleep(0.2)
 
@@ -172,7 +173,7 @@ def failure_run(work: Path, protocol: Path, good: list, out: Path) -> dict:
     sessions = good[: len(good) // 2] + bad[:2] + good[len(good) // 2 :] + bad[2:]
     manifest = write_manifest(work / "study_failures.yaml", protocol, sessions)
     shutil.rmtree(out, ignore_errors=True)
-    killed: list[int] = []
+    killed: list = []
     stop = threading.Event()
     killer = threading.Thread(target=_killer, args=(out, max(2, len(good) // 3), killed, stop))
     killer.start()
@@ -188,15 +189,19 @@ def failure_run(work: Path, protocol: Path, good: list, out: Path) -> dict:
     with open(out / "study_failures.csv", newline="", encoding="utf-8") as f:
         failures = list(csv.DictReader(f))
     study, hashes = load_manifest(manifest), FileHashes()
-    finished = sum(
-        is_current(out / s.folder, session_key(list(s.files), study.protocol, None, None, hashes))
+    current = {
+        out / s.folder: is_current(
+            out / s.folder, session_key(list(s.files), study.protocol, None, None, hashes)
+        )
         for s in study.sessions
-        if s.subject.startswith("S")
-    )
+    }
+    finished = sum(current[out / s.folder] for s in study.sessions if s.subject.startswith("S"))
+    victim = (killed[1].relative_to(out).as_posix(), current[killed[1]]) if killed else None
     return {
         "wall": wall,
         "exit": proc.returncode,
-        "killed": killed,
+        "killed": killed[:1],
+        "victim": victim,
         "failures": failures,
         "finished": finished,
         "good": len(good),
@@ -315,6 +320,9 @@ def main() -> None:
             f"exit code {f['exit']}"
         )
         print(f"  good sessions finished: {f['finished']}/{f['good']}")
+        if f["victim"]:
+            name, ok = f["victim"]
+            print(f"  the killed worker's session {name}: {'finished on retry' if ok else 'LOST'}")
         print("  | subject | visit | kind | attempts | error |")
         print("  |---|---|---|---|---|")
         for r in f["failures"]:

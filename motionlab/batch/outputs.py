@@ -1,14 +1,15 @@
 """Study outputs: every session's metrics in one table, the failures, and a PDF report.
 
 - ``study_metrics.csv``: ``subject, visit``, then the columns of the sessions' metric tables
-  (:func:`motionlab.kinematics.metrics.metrics_table`: ``block, joint, angle, metric, percent,
-  value, unit``), one row per session and joint metric; sessions in manifest order, rows in each
-  session's order, fields copied as text — so the file has the same bytes whichever machines
-  ran the sessions.
+  (``PipelineResult.metrics`` of :func:`motionlab.pipeline.run_pipeline`: ``block, joint, angle,
+  metric, value, unit``), one row per session and joint metric; sessions in manifest order,
+  rows in each session's order, fields copied as text — so the file has the same bytes
+  whichever machines ran the sessions.
 - ``study_failures.csv``: ``subject, visit, kind, attempts, error`` (a one-line error each).
-- ``study_report.pdf``: counts and failures; the distribution across sessions of each angle's
-  range of motion per task and joint (boxes, one dot per session); per subject, the change over
-  visits of the primary angle's range of motion (flexion), with the median across subjects.
+- ``study_report.pdf``: counts, a table of the ranges of motion across sessions, failures; the
+  distribution across subjects of each angle's range of motion per task and joint (boxes, one
+  dot per subject: its mean over visits); per subject, the change over visits of the primary
+  angle's range of motion (flexion), with the median across subjects.
 
 All three are written atomically and replaced on every run (failed sessions drop out of the
 metric table until they succeed).
@@ -183,12 +184,15 @@ def _summary_page(manifest: Manifest, outcomes: list, main: pd.DataFrame) -> Fig
 
 
 def _distributions(pdf: PdfPages, main: pd.DataFrame) -> None:
+    """One box per angle of the subjects' ranges of motion (each the mean over its visits)."""
     groups = list(main.groupby(["block", "joint"], sort=False))
     rng = np.random.default_rng(0)
-    for fig, panels in _pages(groups, "Range of motion across sessions"):
+    title = "Range of motion across subjects (each dot: a subject's mean over visits)"
+    for fig, panels in _pages(groups, title):
         for ((block, joint), g), ax in panels:
+            per_subject = g.groupby(["angle", "subject"], sort=False)["value"].mean()
             angles = list(dict.fromkeys(g["angle"]))
-            values = [g.loc[g["angle"] == a, "value"].dropna().to_numpy() for a in angles]
+            values = [per_subject[a].dropna().to_numpy() for a in angles]
             ax.boxplot(values, showfliers=False)
             ax.set_xticks(range(1, len(angles) + 1), angles)
             for k, v in enumerate(values):
