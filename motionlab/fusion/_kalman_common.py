@@ -11,46 +11,43 @@ The numba helpers here work on scalars or preallocated arrays and allocate nothi
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numba
 import numpy as np
 
 from motionlab.fusion import detect
 from motionlab.fusion.attitude import initial_orientation
-
-
-def _f(default, unit: str, help_: str):
-    return field(default=default, metadata={"unit": unit, "help": help_})
+from motionlab.fusion.registry import param
 
 
 @dataclass
 class KalmanCommon:
     """Tunables shared by ``kf``, ``ekf`` and ``ukf`` (measurement weighting and detectors)."""
 
-    gyr_noise: float = _f(0.005, "rad/s/√Hz", "gyroscope noise density (angle random walk)")
-    acc_noise: float = _f(
+    gyr_noise: float = param(0.005, "rad/s/√Hz", "gyroscope noise density (angle random walk)")
+    acc_noise: float = param(
         0.02, "rad·√s", "accelerometer direction noise density (÷gyr_noise = tilt time constant)"
     )
-    mag_noise: float = _f(
+    mag_noise: float = param(
         0.2, "rad·√s", "magnetometer heading noise density (÷gyr_noise = heading time constant)"
     )
-    acc_norm_gain: float = _f(
+    acc_norm_gain: float = param(
         5.0, "rad·√s", "added acc noise per relative deviation of |acc| from g (linear acc.)"
     )
-    acc_rate_gain: float = _f(0.1, "rad·s^1.5", "added acc noise per rad/s of rotation rate")
-    acc_gate: float = _f(0.25, "1", "skip acc when | |acc| − g | / g exceeds this")
-    att_init: float = _f(0.3, "rad", "initial attitude standard deviation")
-    startup_time: float = _f(3.0, "s", "duration of the start-up phase of fast convergence")
-    startup_noise: float = _f(
+    acc_rate_gain: float = param(0.1, "rad·s^1.5", "added acc noise per rad/s of rotation rate")
+    acc_gate: float = param(0.25, "1", "skip acc when | |acc| − g | / g exceeds this")
+    att_init: float = param(0.3, "rad", "initial attitude standard deviation")
+    startup_time: float = param(3.0, "s", "duration of the start-up phase of fast convergence")
+    startup_noise: float = param(
         0.01, "x", "factor on the acc and mag noise during start-up (small: trust them more)"
     )
-    mag_norm_tol: float = _f(4.0, "µT", "field-norm deviation that marks a magnetic disturbance")
-    mag_dip_tol: float = _f(6.0, "deg", "dip-angle deviation that marks a magnetic disturbance")
-    rest_gyr_threshold: float = _f(0.035, "rad/s", "rest detection: moving-RMS rate threshold")
-    rest_acc_threshold: float = _f(0.5, "m/s²", "rest detection: moving-RMS acc deviation")
-    rest_min_duration: float = _f(1.5, "s", "rest detection: minimum rest duration")
-    gravity: float = _f(9.81, "m/s²", "local gravity")
+    mag_norm_tol: float = param(4.0, "µT", "field-norm deviation that marks a magnetic disturbance")
+    mag_dip_tol: float = param(6.0, "deg", "dip-angle deviation that marks a magnetic disturbance")
+    rest_gyr_threshold: float = param(0.035, "rad/s", "rest detection: moving-RMS rate threshold")
+    rest_acc_threshold: float = param(0.5, "m/s²", "rest detection: moving-RMS acc deviation")
+    rest_min_duration: float = param(1.5, "s", "rest detection: minimum rest duration")
+    gravity: float = param(9.81, "m/s²", "local gravity")
 
 
 @dataclass

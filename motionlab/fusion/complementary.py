@@ -26,7 +26,7 @@ defaults from Ricci 2015, thesis §4.2 (β = 0.0756 rad/s, ε_A = 0.25 m/s², ε
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -39,53 +39,51 @@ from motionlab.fusion._cf_kernels import (
 )
 from motionlab.fusion.attitude import initial_orientation
 from motionlab.fusion.markers import MarkerReferences, interval_rates, scenario
-from motionlab.fusion.registry import FusionResult, register
-
-
-def _f(default, unit: str, help_: str):
-    return field(default=default, metadata={"unit": unit, "help": help_})
+from motionlab.fusion.registry import FusionResult, param, register
 
 
 @dataclass
 class _Common:
-    startup_time: float = _f(2.0, "s", "duration of the raised-gain start-up phase")
-    startup_gain: float = _f(10.0, "x", "gain multiplier during start-up")
-    mag_norm_tol: float = _f(4.0, "uT", "field-norm deviation that marks a magnetic disturbance")
-    mag_dip_tol: float = _f(6.0, "deg", "dip-angle deviation that marks a magnetic disturbance")
+    startup_time: float = param(2.0, "s", "duration of the raised-gain start-up phase")
+    startup_gain: float = param(10.0, "x", "gain multiplier during start-up")
+    mag_norm_tol: float = param(4.0, "uT", "field-norm deviation that marks a magnetic disturbance")
+    mag_dip_tol: float = param(6.0, "deg", "dip-angle deviation that marks a magnetic disturbance")
 
 
 @dataclass
 class MadgwickParams(_Common):
-    beta: float = _f(0.1, "rad/s", "gradient-descent gain (gyro error rate), paper eq. (33)")
+    beta: float = param(0.1, "rad/s", "gradient-descent gain (gyro error rate), paper eq. (33)")
 
 
 @dataclass
 class MahonyParams(_Common):
-    kp: float = _f(0.3, "1/s", "proportional gain on the vector-measurement error")
-    ki: float = _f(0.002, "1/s^2", "integral gain of the gyro-bias estimate")
-    mag_weight: float = _f(1.0, "1", "weight of the (heading-only) magnetometer error")
+    kp: float = param(0.3, "1/s", "proportional gain on the vector-measurement error")
+    ki: float = param(0.002, "1/s^2", "integral gain of the gyro-bias estimate")
+    mag_weight: float = param(1.0, "1", "weight of the (heading-only) magnetometer error")
 
 
 @dataclass
 class LiuParams(_Common):
-    gain: float = _f(0.3, "1/s", "filter gain g of eq. (45); g*dt = 1 is a full Gauss-Newton step")
-    acc_sigma: float = _f(1.0, "1", "std of the normalised accelerometer residual (W = 1/sigma)")
-    mag_sigma: float = _f(1.0, "1", "std of the normalised magnetometer residual (W = 1/sigma)")
-    acc_tol: float = _f(0.5, "m/s^2", "skip the accelerometer when | |a| - g | exceeds this")
-    gravity: float = _f(9.81, "m/s^2", "local gravity")
-    marker_gain: float = _f(1.5, "1/s", "gain g on samples with marker vectors (least)")
-    marker_drift: float = _f(
+    gain: float = param(
+        0.3, "1/s", "filter gain g of eq. (45); g*dt = 1 is a full Gauss-Newton step"
+    )
+    acc_sigma: float = param(1.0, "1", "std of the normalised accelerometer residual (W = 1/sigma)")
+    mag_sigma: float = param(1.0, "1", "std of the normalised magnetometer residual (W = 1/sigma)")
+    acc_tol: float = param(0.5, "m/s^2", "skip the accelerometer when | |a| - g | exceeds this")
+    gravity: float = param(9.81, "m/s^2", "local gravity")
+    marker_gain: float = param(1.5, "1/s", "gain g on samples with marker vectors (least)")
+    marker_drift: float = param(
         1.0, "deg/s", "error growth while markers are hidden (larger gain when they return)"
     )
 
 
 @dataclass
 class AdaptiveParams(_Common):
-    beta: float = _f(0.0756, "rad/s", "gyro divergence rate bounding the correction (Ricci)")
-    eps_acc: float = _f(0.25, "m/s^2", "| |a| - g | above which acc is not used (eps_A)")
-    eps_mag: float = _f(2.0, "uT", "field-norm deviation above which mag is not used (eps_M)")
-    bias_gain: float = _f(0.02, "1/s", "rate of the gyro-bias estimate (1/time constant)")
-    gravity: float = _f(9.81, "m/s^2", "local gravity")
+    beta: float = param(0.0756, "rad/s", "gyro divergence rate bounding the correction (Ricci)")
+    eps_acc: float = param(0.25, "m/s^2", "| |a| - g | above which acc is not used (eps_A)")
+    eps_mag: float = param(2.0, "uT", "field-norm deviation above which mag is not used (eps_M)")
+    bias_gain: float = param(0.02, "1/s", "rate of the gyro-bias estimate (1/time constant)")
+    gravity: float = param(9.81, "m/s^2", "local gravity")
 
 
 def _prepare(gyr, acc, mag, rate, p: _Common):

@@ -42,7 +42,7 @@ import numba
 import numpy as np
 
 from motionlab.fusion import _kalman_common as kc
-from motionlab.fusion._kalman_common import KalmanCommon, _f
+from motionlab.fusion._kalman_common import KalmanCommon
 from motionlab.fusion.markers import (
     USED_ACC,
     USED_MAG,
@@ -52,7 +52,7 @@ from motionlab.fusion.markers import (
     marker_jump,
     scenario,
 )
-from motionlab.fusion.registry import FusionResult, register
+from motionlab.fusion.registry import FusionResult, param, register
 from motionlab.rotations import make_continuous
 
 NX = 10
@@ -62,10 +62,10 @@ NX = 10
 class EkfParams(KalmanCommon):
     """Tunables of the quaternion EKF with rate and bias states."""
 
-    rate_rw: float = _f(50.0, "rad/s²/√Hz", "angular-acceleration noise density (rate state)")
-    bias_rw: float = _f(1e-4, "rad/s/√s", "gyroscope bias random walk")
-    bias_init: float = _f(0.02, "rad/s", "initial bias standard deviation")
-    rest_noise: float = _f(0.005, "rad/s", "noise of the zero-rate pseudo-measurement at rest")
+    rate_rw: float = param(50.0, "rad/s²/√Hz", "angular-acceleration noise density (rate state)")
+    bias_rw: float = param(1e-4, "rad/s/√s", "gyroscope bias random walk")
+    bias_init: float = param(0.02, "rad/s", "initial bias standard deviation")
+    rest_noise: float = param(0.005, "rad/s", "noise of the zero-rate pseudo-measurement at rest")
 
 
 @numba.njit(cache=True, inline="always")

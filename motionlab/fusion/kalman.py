@@ -35,8 +35,8 @@ import numba
 import numpy as np
 
 from motionlab.fusion import _kalman_common as kc
-from motionlab.fusion._kalman_common import KalmanCommon, _f
-from motionlab.fusion.registry import FusionResult, register
+from motionlab.fusion._kalman_common import KalmanCommon
+from motionlab.fusion.registry import FusionResult, param, register
 from motionlab.rotations import make_continuous
 
 #: To 2012, eq. (197) as printed (not symmetric); see :func:`paper_process_noise`
@@ -58,12 +58,12 @@ MAX_STEP = 0.1
 class KalmanParams(KalmanCommon):
     """Tunables of To's quaternion Kalman filter."""
 
-    gn_iterations: int = _f(2, "1", "Gauss–Newton steps of the observation quaternion")
-    mag_weight: float = _f(
+    gn_iterations: int = param(2, "1", "Gauss–Newton steps of the observation quaternion")
+    mag_weight: float = param(
         0.1, "1", "Gauss–Newton weight of the field direction relative to gravity's"
     )
-    rest_bias_tau: float = _f(1.0, "s", "time constant of the gyro-bias average at rest")
-    paper_noise: bool = _f(False, "", "use To's printed Q, R, P0 (eqs. 197–198) instead")
+    rest_bias_tau: float = param(1.0, "s", "time constant of the gyro-bias average at rest")
+    paper_noise: bool = param(False, "", "use To's printed Q, R, P0 (eqs. 197–198) instead")
 
 
 def paper_process_noise() -> np.ndarray:

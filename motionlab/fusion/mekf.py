@@ -53,7 +53,7 @@ Mean total RMSE there: smoother 1.60°, mekf 2.63° (offline VQF 2.38°, online 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -61,7 +61,7 @@ from motionlab.fusion import _mekf_kernels as kern
 from motionlab.fusion import _mekf_monitor as mon_k
 from motionlab.fusion.attitude import initial_orientation
 from motionlab.fusion.detect import rest_mask
-from motionlab.fusion.registry import FusionResult, register
+from motionlab.fusion.registry import FusionResult, param, register
 from motionlab.rotations import conj, integrate_gyro, make_continuous, mul
 from motionlab.units import STANDARD_GRAVITY
 
@@ -74,103 +74,52 @@ class MekfParams:
     were tuned on the 8 shared BROAD trials (see the module docstring).
     """
 
-    gyr_noise: float = field(
-        default=0.01,
-        metadata={"unit": "rad/s/√Hz", "help": "gyroscope noise density (angle random walk)"},
+    gyr_noise: float = param(0.01, "rad/s/√Hz", "gyroscope noise density (angle random walk)")
+    bias_rw: float = param(1e-4, "rad/s/√s", "gyroscope bias random walk")
+    bias_init: float = param(0.02, "rad/s", "initial bias standard deviation")
+    att_init: float = param(0.5, "rad", "initial attitude standard deviation")
+    acc_noise: float = param(1.5, "1", "noise of the earth-frame acc/g in motion (per sample)")
+    acc_rest_noise: float = param(0.1, "1", "noise of the earth-frame acc/g at rest")
+    rest_noise: float = param(0.005, "rad/s", "gyroscope noise of the bias update at rest")
+    mag_noise: float = param(10.0, "rad", "magnetometer heading noise in motion")
+    mag_rest_noise: float = param(3.0, "rad", "magnetometer heading noise at rest")
+    mag_norm_tol: float = param(0.1, "1", "disturbed when |m| differs from the reference by more")
+    mag_dip_tol: float = param(
+        np.deg2rad(10.0), "rad", "disturbed when the dip differs from the reference more"
     )
-    bias_rw: float = field(
-        default=1e-4, metadata={"unit": "rad/s/√s", "help": "gyroscope bias random walk"}
+    mag_ref_tau: float = param(20.0, "s", "time constant of the reference field")
+    mag_new_field_time: float = param(
+        60.0, "s", "a steady new field becomes the reference after this"
     )
-    bias_init: float = field(
-        default=0.02, metadata={"unit": "rad/s", "help": "initial bias standard deviation"}
+    mag_new_field_min: float = param(
+        5.0, "s", "… or after as long as the reference was seen, ≥ this"
     )
-    att_init: float = field(
-        default=0.5, metadata={"unit": "rad", "help": "initial attitude standard deviation"}
+    rest_gyr_threshold: float = param(
+        np.deg2rad(2.0), "rad/s", "rest detection: moving-RMS rate threshold"
     )
-    acc_noise: float = field(
-        default=1.5,
-        metadata={"unit": "1", "help": "noise of the earth-frame acc/g in motion (per sample)"},
+    rest_acc_threshold: float = param(
+        0.5, "m/s²", "rest detection: moving-RMS acc deviation threshold"
     )
-    acc_rest_noise: float = field(
-        default=0.1, metadata={"unit": "1", "help": "noise of the earth-frame acc/g at rest"}
+    rest_min_duration: float = param(1.5, "s", "rest detection: minimum rest duration")
+    reset_tilt: float = param(
+        np.deg2rad(30.0), "rad", "reset when the low-passed acc is further from up"
     )
-    rest_noise: float = field(
-        default=0.005,
-        metadata={"unit": "rad/s", "help": "gyroscope noise of the bias update at rest"},
+    reset_heading: float = param(
+        np.deg2rad(45.0), "rad", "reset when the low-passed field is further from north"
     )
-    mag_noise: float = field(
-        default=10.0, metadata={"unit": "rad", "help": "magnetometer heading noise in motion"}
-    )
-    mag_rest_noise: float = field(
-        default=3.0, metadata={"unit": "rad", "help": "magnetometer heading noise at rest"}
-    )
-    mag_norm_tol: float = field(
-        default=0.1,
-        metadata={"unit": "1", "help": "disturbed when |m| differs from the reference by more"},
-    )
-    mag_dip_tol: float = field(
-        default=np.deg2rad(10.0),
-        metadata={"unit": "rad", "help": "disturbed when the dip differs from the reference more"},
-    )
-    mag_ref_tau: float = field(
-        default=20.0, metadata={"unit": "s", "help": "time constant of the reference field"}
-    )
-    mag_new_field_time: float = field(
-        default=60.0,
-        metadata={"unit": "s", "help": "a steady new field becomes the reference after this"},
-    )
-    mag_new_field_min: float = field(
-        default=5.0,
-        metadata={"unit": "s", "help": "… or after as long as the reference was seen, ≥ this"},
-    )
-    rest_gyr_threshold: float = field(
-        default=np.deg2rad(2.0),
-        metadata={"unit": "rad/s", "help": "rest detection: moving-RMS rate threshold"},
-    )
-    rest_acc_threshold: float = field(
-        default=0.5,
-        metadata={"unit": "m/s²", "help": "rest detection: moving-RMS acc deviation threshold"},
-    )
-    rest_min_duration: float = field(
-        default=1.5, metadata={"unit": "s", "help": "rest detection: minimum rest duration"}
-    )
-    reset_tilt: float = field(
-        default=np.deg2rad(30.0),
-        metadata={"unit": "rad", "help": "reset when the low-passed acc is further from up"},
-    )
-    reset_heading: float = field(
-        default=np.deg2rad(45.0),
-        metadata={"unit": "rad", "help": "reset when the low-passed field is further from north"},
-    )
-    reset_time: float = field(
-        default=0.5, metadata={"unit": "s", "help": "tilt inconsistency lasting this long resets"}
-    )
-    reset_heading_time: float = field(
-        default=2.0,
-        metadata={"unit": "s", "help": "heading inconsistency lasting this long resets"},
-    )
-    reset_tau: float = field(
-        default=1.0, metadata={"unit": "s", "help": "low-pass time constant of the monitor"}
-    )
-    reset_noise: float = field(
-        default=0.05, metadata={"unit": "rad", "help": "noise of the reset's vector attitude"}
-    )
-    reset_agree: float = field(
-        default=0.9,
-        metadata={"unit": "1", "help": "a heading reset needs the field directions to agree so"},
-    )
+    reset_time: float = param(0.5, "s", "tilt inconsistency lasting this long resets")
+    reset_heading_time: float = param(2.0, "s", "heading inconsistency lasting this long resets")
+    reset_tau: float = param(1.0, "s", "low-pass time constant of the monitor")
+    reset_noise: float = param(0.05, "rad", "noise of the reset's vector attitude")
+    reset_agree: float = param(0.9, "1", "a heading reset needs the field directions to agree so")
 
 
 @dataclass
 class SmootherParams(MekfParams):
     """Tunables of the RTS smoother: those of the forward filter, and the carry-back rule."""
 
-    early_reset_window: float = field(
-        default=10.0,
-        metadata={
-            "unit": "s",
-            "help": "before a reset this soon after the start, carry the smoothed state back",
-        },
+    early_reset_window: float = param(
+        10.0, "s", "before a reset this soon after the start, carry the smoothed state back"
     )
 
 

@@ -73,7 +73,7 @@ attached magnet of trial 33 became the reference: 6.8°).
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -82,7 +82,7 @@ from motionlab.fusion import _particle_kernels as kern
 from motionlab.fusion import detect
 from motionlab.fusion.attitude import initial_orientation
 from motionlab.fusion.markers import MarkerReferences, interval_rates, scenario
-from motionlab.fusion.registry import FusionResult, register
+from motionlab.fusion.registry import FusionResult, param, register
 from motionlab.fusion.resampling import SCHEMES
 from motionlab.rotations import make_continuous
 from motionlab.units import STANDARD_GRAVITY
@@ -94,99 +94,41 @@ PROPOSALS = ("vmf", "bingham")
 class ParticleParams:
     """Tunables of the quaternion particle filter."""
 
-    n_particles: int = field(
-        default=1024, metadata={"unit": "count", "help": "number of particles N (128–4096)"}
+    n_particles: int = param(1024, "count", "number of particles N (128–4096)")
+    proposal: str = param("bingham", "", "regularisation/reset density: bingham | vmf")
+    resampling: str = param("systematic", "", "systematic | residual | deterministic | auxiliary")
+    ess_threshold: float = param(0.5, "1", "resample when ESS < this · N")
+    aux_alpha: float = param(2.0, "1", "auxiliary resampling flattening α ≥ 1")
+    kernel_scale: float = param(1.0, "1", "regularisation kernel / optimal bandwidth")
+    bingham_band: float = param(3.0, "1", "Bingham-band limit in Mahalanobis radii")
+    process_noise: float = param(0.01, "rad/√s", "orientation random walk per particle")
+    acc_sigma: float = param(1.5, "1", "noise of earth-frame horizontal acc/g, motion")
+    acc_rest_sigma: float = param(0.1, "1", "noise of earth-frame horizontal acc/g, rest")
+    acc_norm_gain: float = param(0.0, "1", "added acc noise per | |acc| − g | / g")
+    acc_gate: float = param(20.0, "1", "ignore acc when | |acc| − g | / g exceeds this")
+    mag_sigma: float = param(2.0, "rad", "magnetic heading noise per sample, motion")
+    mag_rest_sigma: float = param(3.0, "rad", "magnetic heading noise per sample, rest")
+    mag_norm_tolerance: float = param(2.0, "µT", "field norm deviation that halves mag weight")
+    mag_dip_tolerance: float = param(0.05, "rad", "dip deviation that halves mag weight")
+    mag_gate_dip: float = param(0.15, "rad", "dip deviation that gates the magnetometer")
+    bias_tau: float = param(np.inf, "s", "time constant of the in-motion bias integral (inf: off)")
+    bias_rest_tau: float = param(2.0, "s", "bias averaging time constant at rest")
+    bias_max: float = param(0.1, "rad/s", "bound on the bias estimate (0: no BC)")
+    init_sigma: float = param(0.1, "rad", "initial/reset cloud spread per axis")
+    reset_angle: float = param(
+        np.deg2rad(30.0), "rad", "misfit of low-passed gravity/north that starts a run"
     )
-    proposal: str = field(
-        default="bingham",
-        metadata={"unit": "", "help": "regularisation/reset density: bingham | vmf"},
+    reset_time: float = param(0.5, "s", "a tilt misfit run this long resets the cloud")
+    reset_heading_time: float = param(2.0, "s", "a heading misfit run this long resets")
+    reset_tau: float = param(1.0, "s", "low-pass time constant of the monitor")
+    reset_agree: float = param(0.9, "1", "a heading reset needs the field directions to agree so")
+    marker_process_noise: float = param(
+        0.005, "rad/√s", "process_noise with marker references (bias known)"
     )
-    resampling: str = field(
-        default="systematic",
-        metadata={"unit": "", "help": "systematic | residual | deterministic | auxiliary"},
+    marker_drift: float = param(
+        1.0, "deg/s", "error growth while markers are hidden (widens cloud)"
     )
-    ess_threshold: float = field(
-        default=0.5, metadata={"unit": "1", "help": "resample when ESS < this · N"}
-    )
-    aux_alpha: float = field(
-        default=2.0, metadata={"unit": "1", "help": "auxiliary resampling flattening α ≥ 1"}
-    )
-    kernel_scale: float = field(
-        default=1.0, metadata={"unit": "1", "help": "regularisation kernel / optimal bandwidth"}
-    )
-    bingham_band: float = field(
-        default=3.0, metadata={"unit": "1", "help": "Bingham-band limit in Mahalanobis radii"}
-    )
-    process_noise: float = field(
-        default=0.01, metadata={"unit": "rad/√s", "help": "orientation random walk per particle"}
-    )
-    acc_sigma: float = field(
-        default=1.5, metadata={"unit": "1", "help": "noise of earth-frame horizontal acc/g, motion"}
-    )
-    acc_rest_sigma: float = field(
-        default=0.1, metadata={"unit": "1", "help": "noise of earth-frame horizontal acc/g, rest"}
-    )
-    acc_norm_gain: float = field(
-        default=0.0, metadata={"unit": "1", "help": "added acc noise per | |acc| − g | / g"}
-    )
-    acc_gate: float = field(
-        default=20.0,
-        metadata={"unit": "1", "help": "ignore acc when | |acc| − g | / g exceeds this"},
-    )
-    mag_sigma: float = field(
-        default=2.0, metadata={"unit": "rad", "help": "magnetic heading noise per sample, motion"}
-    )
-    mag_rest_sigma: float = field(
-        default=3.0, metadata={"unit": "rad", "help": "magnetic heading noise per sample, rest"}
-    )
-    mag_norm_tolerance: float = field(
-        default=2.0, metadata={"unit": "µT", "help": "field norm deviation that halves mag weight"}
-    )
-    mag_dip_tolerance: float = field(
-        default=0.05, metadata={"unit": "rad", "help": "dip deviation that halves mag weight"}
-    )
-    mag_gate_dip: float = field(
-        default=0.15, metadata={"unit": "rad", "help": "dip deviation that gates the magnetometer"}
-    )
-    bias_tau: float = field(
-        default=np.inf,
-        metadata={"unit": "s", "help": "time constant of the in-motion bias integral (inf: off)"},
-    )
-    bias_rest_tau: float = field(
-        default=2.0, metadata={"unit": "s", "help": "bias averaging time constant at rest"}
-    )
-    bias_max: float = field(
-        default=0.1, metadata={"unit": "rad/s", "help": "bound on the bias estimate (0: no BC)"}
-    )
-    init_sigma: float = field(
-        default=0.1, metadata={"unit": "rad", "help": "initial/reset cloud spread per axis"}
-    )
-    reset_angle: float = field(
-        default=np.deg2rad(30.0),
-        metadata={"unit": "rad", "help": "misfit of low-passed gravity/north that starts a run"},
-    )
-    reset_time: float = field(
-        default=0.5, metadata={"unit": "s", "help": "a tilt misfit run this long resets the cloud"}
-    )
-    reset_heading_time: float = field(
-        default=2.0, metadata={"unit": "s", "help": "a heading misfit run this long resets"}
-    )
-    reset_tau: float = field(
-        default=1.0, metadata={"unit": "s", "help": "low-pass time constant of the monitor"}
-    )
-    reset_agree: float = field(
-        default=0.9,
-        metadata={"unit": "1", "help": "a heading reset needs the field directions to agree so"},
-    )
-    marker_process_noise: float = field(
-        default=0.005,
-        metadata={"unit": "rad/√s", "help": "process_noise with marker references (bias known)"},
-    )
-    marker_drift: float = field(
-        default=1.0,
-        metadata={"unit": "deg/s", "help": "error growth while markers are hidden (widens cloud)"},
-    )
-    seed: int = field(default=0, metadata={"unit": "", "help": "random seed"})
+    seed: int = param(0, "", "random seed")
 
 
 # ---------------------------------------------------------------- public interface

@@ -1,8 +1,8 @@
 """The estimator registry, the common result type and input validation.
 
 An estimator module defines a parameter dataclass (every tunable with a default; units and a
-one-line help in ``field(metadata={"unit": ..., "help": ...})``) and a function
-``run(gyr, acc, mag, rate, params) -> FusionResult``, and registers it::
+one-line help in ``field(metadata={"unit": ..., "help": ...})``, written ``param(default, unit,
+help)``) and a function ``run(gyr, acc, mag, rate, params) -> FusionResult``, and registers it::
 
     @register("madgwick", MadgwickParams, "Madgwick gradient-descent filter (IMU and MARG)")
     def run(gyr, acc, mag, rate, params): ...
@@ -38,6 +38,11 @@ ESTIMATOR_MODULES = (
     "particle",
     "vqf_backend",
 )
+
+
+def param(default: Any, unit: str, help: str) -> Any:
+    """A parameter dataclass field: its default, unit and one-line help (see :func:`describe`)."""
+    return field(default=default, metadata={"unit": unit, "help": help})
 
 
 @dataclass

@@ -45,7 +45,7 @@ import numpy as np
 
 from motionlab.errors import InputError
 from motionlab.fusion import _kalman_common as kc
-from motionlab.fusion._kalman_common import KalmanCommon, _f
+from motionlab.fusion._kalman_common import KalmanCommon
 from motionlab.fusion.markers import (
     USED_ACC,
     USED_MAG,
@@ -55,7 +55,7 @@ from motionlab.fusion.markers import (
     marker_jump,
     scenario,
 )
-from motionlab.fusion.registry import FusionResult, register
+from motionlab.fusion.registry import FusionResult, param, register
 from motionlab.rotations import make_continuous
 
 NX = 6
@@ -68,9 +68,9 @@ MEAN_ITERATIONS = 20
 class UkfParams(KalmanCommon):
     """Tunables of the quaternion UKF."""
 
-    bias_rw: float = _f(1e-4, "rad/s/√s", "gyroscope bias random walk")
-    bias_init: float = _f(0.02, "rad/s", "initial bias standard deviation")
-    rest_noise: float = _f(0.005, "rad/s", "gyroscope noise of the bias measurement at rest")
+    bias_rw: float = param(1e-4, "rad/s/√s", "gyroscope bias random walk")
+    bias_init: float = param(0.02, "rad/s", "initial bias standard deviation")
+    rest_noise: float = param(0.005, "rad/s", "gyroscope noise of the bias measurement at rest")
 
 
 @numba.njit(cache=True, inline="always")

@@ -11,32 +11,22 @@ doi:10.1016/j.inffus.2022.10.014.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 from vqf import VQF, offlineVQF
 
 from motionlab import rotations as rot
-from motionlab.fusion.registry import FusionResult, register
+from motionlab.fusion.registry import FusionResult, param, register
 
 
 @dataclass
 class VQFParams:
-    tau_acc: float = field(
-        default=3.0, metadata={"unit": "s", "help": "time constant of the inclination correction"}
-    )
-    tau_mag: float = field(
-        default=9.0, metadata={"unit": "s", "help": "time constant of the heading correction"}
-    )
-    motion_bias_est: bool = field(
-        default=True, metadata={"unit": "", "help": "estimate the gyro bias during motion"}
-    )
-    rest_bias_est: bool = field(
-        default=True, metadata={"unit": "", "help": "estimate the gyro bias at rest"}
-    )
-    mag_dist_rejection: bool = field(
-        default=True, metadata={"unit": "", "help": "detect and reject magnetic disturbances"}
-    )
+    tau_acc: float = param(3.0, "s", "time constant of the inclination correction")
+    tau_mag: float = param(9.0, "s", "time constant of the heading correction")
+    motion_bias_est: bool = param(True, "", "estimate the gyro bias during motion")
+    rest_bias_est: bool = param(True, "", "estimate the gyro bias at rest")
+    mag_dist_rejection: bool = param(True, "", "detect and reject magnetic disturbances")
 
 
 def _vqf_params(p: VQFParams) -> dict:
