@@ -18,26 +18,11 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from motionlab.fusion import _common as cm
 from motionlab.fusion.detect import nb_field_disturbed
 from motionlab.fusion.markers import USED_ACC, USED_MAG, USED_MARKERS
 
 _DAMP = 1e-6  # Levenberg-Marquardt damping of the 3x3 Gauss-Newton normal matrix
-
-
-@numba.njit(cache=True, inline="always")
-def _qmul(aw, ax, ay, az, bw, bx, by, bz):
-    return (
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    )
-
-
-@numba.njit(cache=True, inline="always")
-def _normq(w, x, y, z):
-    n = 1.0 / np.sqrt(w * w + x * x + y * y + z * z)
-    return w * n, x * n, y * n, z * n
 
 
 @numba.njit(cache=True, inline="always")
@@ -73,9 +58,9 @@ def _to_sensor(w, x, y, z, vx, vy, vz):
 @numba.njit(cache=True, inline="always")
 def _gyro_step(w, x, y, z, gx, gy, gz, dt):
     """First-order strapdown step ``q + Δt/2 q ⊗ [0, ω]``, normalised (Liu eq. (30))."""
-    dw, dx, dy, dz = _qmul(w, x, y, z, 0.0, gx, gy, gz)
+    dw, dx, dy, dz = cm.qmul(w, x, y, z, 0.0, gx, gy, gz)
     h = 0.5 * dt
-    return _normq(w + h * dw, x + h * dx, y + h * dy, z + h * dz)
+    return cm.normq(w + h * dw, x + h * dx, y + h * dy, z + h * dz)
 
 
 @numba.njit(cache=True, inline="always")
@@ -146,19 +131,8 @@ def _marker_step(var, wsum, mu, floor):
 @numba.njit(cache=True, inline="always")
 def _solve_sym(n, g):
     """Solve the damped symmetric 3×3 system ``(N + λI) p = g`` (N packed xx,xy,xz,yy,yz,zz)."""
-    a, b, c = n[0] + _DAMP, n[1], n[2]
-    d, e, f = n[3] + _DAMP, n[4], n[5] + _DAMP
-    c00 = d * f - e * e
-    c01 = c * e - b * f
-    c02 = b * e - c * d
-    det = a * c00 + b * c01 + c * c02
-    c11 = a * f - c * c
-    c12 = b * c - a * e
-    c22 = a * d - b * b
-    return (
-        (c00 * g[0] + c01 * g[1] + c02 * g[2]) / det,
-        (c01 * g[0] + c11 * g[1] + c12 * g[2]) / det,
-        (c02 * g[0] + c12 * g[1] + c22 * g[2]) / det,
+    return cm.solve_sym3(
+        n[0] + _DAMP, n[1], n[2], n[3] + _DAMP, n[4], n[5] + _DAMP, g[0], g[1], g[2]
     )
 
 
@@ -172,7 +146,7 @@ def madgwick_kernel(
     w, x, y, z = q0[0], q0[1], q0[2], q0[3]
     for k in range(nn):
         b = beta * startup_gain if k < n_start else beta
-        dw, dx, dy, dz = _qmul(w, x, y, z, 0.0, 0.5 * gyr[k, 0], 0.5 * gyr[k, 1], 0.5 * gyr[k, 2])
+        dw, dx, dy, dz = cm.qmul(w, x, y, z, 0.0, 0.5 * gyr[k, 0], 0.5 * gyr[k, 1], 0.5 * gyr[k, 2])
         ax, ay, az, an = _unit(acc[k, 0], acc[k, 1], acc[k, 2])
         use_m = _mag_ok(pre, k, w, x, y, z, mag, ref_norm, ref_dip, ntol, dtol)
         dist[k] = not use_m
@@ -192,7 +166,7 @@ def madgwick_kernel(
                 sx += vy * ez - vz * ey
                 sy += vz * ex - vx * ez
                 sz += vx * ey - vy * ex
-            gw, gx, gy, gz = _qmul(w, x, y, z, sw, sx, sy, sz)
+            gw, gx, gy, gz = cm.qmul(w, x, y, z, sw, sx, sy, sz)
             gn = np.sqrt(gw * gw + gx * gx + gy * gy + gz * gz)
             if gn > 1e-12:
                 s = b / gn  # subtracting β∇/|∇| with ∇ = −(q ⊗ s): add
@@ -200,7 +174,7 @@ def madgwick_kernel(
                 dx += s * gx
                 dy += s * gy
                 dz += s * gz
-        w, x, y, z = _normq(w + dt * dw, x + dt * dx, y + dt * dy, z + dt * dz)
+        w, x, y, z = cm.normq(w + dt * dw, x + dt * dx, y + dt * dy, z + dt * dz)
         out[k, 0], out[k, 1], out[k, 2], out[k, 3] = w, x, y, z
     return out, dist
 
@@ -337,8 +311,8 @@ def liu_kernel(
             if n_ref > 0:
                 mu = 2.0 * np.sqrt(px * px + py * py + pz * pz)
                 s, var = _marker_step(var, wsum, mu, ref_gain * dt)
-            dw, dx, dy, dz = _qmul(w, x, y, z, 0.0, px, py, pz)
-            w, x, y, z = _normq(w + s * dw, x + s * dx, y + s * dy, z + s * dz)
+            dw, dx, dy, dz = cm.qmul(w, x, y, z, 0.0, px, py, pz)
+            w, x, y, z = cm.normq(w + s * dw, x + s * dx, y + s * dy, z + s * dz)
         out[k, 0], out[k, 1], out[k, 2], out[k, 3] = w, x, y, z
     return out, dist, used
 
@@ -394,8 +368,8 @@ def adaptive_kernel(
             bdt = beta * dt * (startup_gain if k < n_start else 1.0)
             gam = bdt / (mu + bdt)
             tx, ty, tz = gam * tx, gam * ty, gam * tz
-            dw, dx, dy, dz = _qmul(w, x, y, z, 0.0, 0.5 * tx, 0.5 * ty, 0.5 * tz)
-            w, x, y, z = _normq(w + dw, x + dx, y + dy, z + dz)
+            dw, dx, dy, dz = cm.qmul(w, x, y, z, 0.0, 0.5 * tx, 0.5 * ty, 0.5 * tz)
+            w, x, y, z = cm.normq(w + dw, x + dx, y + dy, z + dz)
             if k >= n_start:
                 bx -= bias_gain * tx
                 by -= bias_gain * ty

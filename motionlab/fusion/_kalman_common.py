@@ -91,56 +91,6 @@ def prepare(
 
 
 @numba.njit(cache=True, inline="always")
-def rot_matrix(q: np.ndarray, r: np.ndarray) -> None:
-    """Rotation matrix of ``q`` (sensor → earth) into the preallocated 3×3 ``r``."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    r[0, 0] = 1.0 - 2.0 * (y * y + z * z)
-    r[0, 1] = 2.0 * (x * y - w * z)
-    r[0, 2] = 2.0 * (x * z + w * y)
-    r[1, 0] = 2.0 * (x * y + w * z)
-    r[1, 1] = 1.0 - 2.0 * (x * x + z * z)
-    r[1, 2] = 2.0 * (y * z - w * x)
-    r[2, 0] = 2.0 * (x * z - w * y)
-    r[2, 1] = 2.0 * (y * z + w * x)
-    r[2, 2] = 1.0 - 2.0 * (x * x + y * y)
-
-
-@numba.njit(cache=True, inline="always")
-def normalize(q: np.ndarray) -> None:
-    """In place ``q ← q / |q|``."""
-    n = np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-    q[0], q[1], q[2], q[3] = q[0] / n, q[1] / n, q[2] / n, q[3] / n
-
-
-@numba.njit(cache=True, inline="always")
-def mul_exp_right(q: np.ndarray, rx: float, ry: float, rz: float, out: np.ndarray) -> None:
-    """``out ← q ⊗ exp(r)`` for the rotation vector ``r`` (rad); ``out`` may be ``q``."""
-    a = np.sqrt(rx * rx + ry * ry + rz * rz)
-    c = np.cos(0.5 * a)
-    s = np.sin(0.5 * a) / a if a > 1e-12 else 0.5
-    pw, px, py, pz = c, s * rx, s * ry, s * rz
-    w = q[0] * pw - q[1] * px - q[2] * py - q[3] * pz
-    x = q[0] * px + q[1] * pw + q[2] * pz - q[3] * py
-    y = q[0] * py - q[1] * pz + q[2] * pw + q[3] * px
-    z = q[0] * pz + q[1] * py - q[2] * px + q[3] * pw
-    out[0], out[1], out[2], out[3] = w, x, y, z
-
-
-@numba.njit(cache=True, inline="always")
-def mul_exp_left(rx: float, ry: float, rz: float, q: np.ndarray) -> None:
-    """In place ``q ← exp(r) ⊗ q`` for the rotation vector ``r`` (rad, earth frame)."""
-    a = np.sqrt(rx * rx + ry * ry + rz * rz)
-    c = np.cos(0.5 * a)
-    s = np.sin(0.5 * a) / a if a > 1e-12 else 0.5
-    pw, px, py, pz = c, s * rx, s * ry, s * rz
-    w = pw * q[0] - px * q[1] - py * q[2] - pz * q[3]
-    x = pw * q[1] + px * q[0] + py * q[3] - pz * q[2]
-    y = pw * q[2] - px * q[3] + py * q[0] + pz * q[1]
-    z = pw * q[3] + px * q[2] - py * q[1] + pz * q[0]
-    q[0], q[1], q[2], q[3] = w, x, y, z
-
-
-@numba.njit(cache=True, inline="always")
 def acc_variance(
     acc: np.ndarray,
     k: int,
@@ -203,49 +153,6 @@ def horizontal_north(r: np.ndarray, mag: np.ndarray, k: int, out: np.ndarray) ->
     for i in range(3):
         out[i] = r[0, i] * mx + r[1, i] * my
     return True
-
-
-@numba.njit(cache=True)
-def chol_solve(a: np.ndarray, n: int, low: np.ndarray, b: np.ndarray, m: int) -> None:
-    """Solve ``a x = b`` in place (``b ← x``) for the leading n×n of symmetric positive
-    definite ``a`` and the leading n×m of ``b``; ``low`` is an n×n work array."""
-    for i in range(n):
-        for j in range(i + 1):
-            s = a[i, j]
-            for t in range(j):
-                s -= low[i, t] * low[j, t]
-            if i == j:
-                low[i, i] = np.sqrt(s if s > 1e-300 else 1e-300)
-            else:
-                low[i, j] = s / low[j, j]
-    for c in range(m):
-        for i in range(n):
-            s = b[i, c]
-            for t in range(i):
-                s -= low[i, t] * b[t, c]
-            b[i, c] = s / low[i, i]
-        for i in range(n - 1, -1, -1):
-            s = b[i, c]
-            for t in range(i + 1, n):
-                s -= low[t, i] * b[t, c]
-            b[i, c] = s / low[i, i]
-
-
-@numba.njit(cache=True)
-def cholesky(a: np.ndarray, n: int, low: np.ndarray) -> None:
-    """Lower Cholesky factor of the leading n×n of ``a`` into ``low`` (upper part zeroed)."""
-    for i in range(n):
-        for j in range(n):
-            low[i, j] = 0.0
-    for i in range(n):
-        for j in range(i + 1):
-            s = a[i, j]
-            for t in range(j):
-                s -= low[i, t] * low[j, t]
-            if i == j:
-                low[i, i] = np.sqrt(s if s > 1e-300 else 1e-300)
-            else:
-                low[i, j] = s / low[j, j]
 
 
 # indices of the common float parameters passed to every kernel (see :func:`pack`)

@@ -14,6 +14,7 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from motionlab.fusion import _common as cm
 from motionlab.fusion import _mekf_monitor as mon_k
 
 # indices of the float parameter vector passed to the forward kernel
@@ -22,51 +23,6 @@ MAG_NOISE, MAG_REST_NOISE, MAG_NORM_TOL, MAG_DIP_TOL, MAG_REF_TAU, MAG_NEW_FIELD
 ATT_INIT, RESET_TILT, RESET_HEADING, RESET_TIME, RESET_HEADING_TIME = range(12, 17)
 RESET_TAU, RESET_NOISE, RESET_AGREE, MAG_NEW_FIELD_MIN = range(17, 21)
 N_PARAMS = 21
-
-
-@numba.njit(cache=True, inline="always")
-def _quat_mul_exp_left(rx: float, ry: float, rz: float, q: np.ndarray) -> None:
-    """In place ``q ← exp([rx, ry, rz]/2) ⊗ q`` followed by normalisation."""
-    a = np.sqrt(rx * rx + ry * ry + rz * rz)
-    c = np.cos(0.5 * a)
-    s = np.sin(0.5 * a) / a if a > 1e-12 else 0.5
-    pw, px, py, pz = c, s * rx, s * ry, s * rz
-    w = pw * q[0] - px * q[1] - py * q[2] - pz * q[3]
-    x = pw * q[1] + px * q[0] + py * q[3] - pz * q[2]
-    y = pw * q[2] - px * q[3] + py * q[0] + pz * q[1]
-    z = pw * q[3] + px * q[2] - py * q[1] + pz * q[0]
-    n = np.sqrt(w * w + x * x + y * y + z * z)
-    q[0], q[1], q[2], q[3] = w / n, x / n, y / n, z / n
-
-
-@numba.njit(cache=True, inline="always")
-def _quat_mul_exp_right(q: np.ndarray, rx: float, ry: float, rz: float) -> None:
-    """In place ``q ← q ⊗ exp([rx, ry, rz]/2)`` followed by normalisation."""
-    a = np.sqrt(rx * rx + ry * ry + rz * rz)
-    c = np.cos(0.5 * a)
-    s = np.sin(0.5 * a) / a if a > 1e-12 else 0.5
-    pw, px, py, pz = c, s * rx, s * ry, s * rz
-    w = q[0] * pw - q[1] * px - q[2] * py - q[3] * pz
-    x = q[0] * px + q[1] * pw + q[2] * pz - q[3] * py
-    y = q[0] * py - q[1] * pz + q[2] * pw + q[3] * px
-    z = q[0] * pz + q[1] * py - q[2] * px + q[3] * pw
-    n = np.sqrt(w * w + x * x + y * y + z * z)
-    q[0], q[1], q[2], q[3] = w / n, x / n, y / n, z / n
-
-
-@numba.njit(cache=True, inline="always")
-def _rot_matrix(q: np.ndarray, r: np.ndarray) -> None:
-    """Rotation matrix of ``q`` (sensor → earth) into the preallocated 3×3 ``r``."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    r[0, 0] = 1 - 2 * (y * y + z * z)
-    r[0, 1] = 2 * (x * y - w * z)
-    r[0, 2] = 2 * (x * z + w * y)
-    r[1, 0] = 2 * (x * y + w * z)
-    r[1, 1] = 1 - 2 * (x * x + z * z)
-    r[1, 2] = 2 * (y * z - w * x)
-    r[2, 0] = 2 * (x * z - w * y)
-    r[2, 1] = 2 * (y * z + w * x)
-    r[2, 2] = 1 - 2 * (x * x + y * y)
 
 
 @numba.njit(cache=True)
@@ -203,8 +159,9 @@ def forward(
         wy = gyr[k, 1] - b[1]
         wz = gyr[k, 2] - b[2]
         if k > 0:
-            _quat_mul_exp_right(q, wx * dt, wy * dt, wz * dt)
-            _rot_matrix(q, r)
+            cm.mul_exp_right(q, wx * dt, wy * dt, wz * dt, q)
+            cm.normalize(q)
+            cm.rot_matrix(q, r)
             _predict(p, r, dt, qa, qb, t)
         for i in range(6):
             dx[i] = 0.0
@@ -224,7 +181,8 @@ def forward(
                     _scalar_update(p, dx, 2, corr[2] - dx[2], var, False, kvec, row)
             else:
                 _scalar_update(p, dx, 2, corr[2], var, True, kvec, row)
-            _quat_mul_exp_left(dx[0], dx[1], dx[2], q)
+            cm.mul_exp_left(dx[0], dx[1], dx[2], q)
+            cm.normalize(q)
             for i in range(3):
                 b[i] += dx[3 + i]
                 dx[i] = 0.0
@@ -235,7 +193,7 @@ def forward(
             var = prm[REST_NOISE] ** 2
             for i in range(3):
                 _scalar_update(p, dx, 3 + i, gyr[k, i] - b[i] - dx[3 + i], var, False, kvec, row)
-        _rot_matrix(q, r)
+        cm.rot_matrix(q, r)
         # earth-frame acc over g, linear in acc (not normalised by |acc|): zero-mean linear
         # acceleration then averages out instead of being weighted by its own magnitude
         ax = r[0, 0] * acc[k, 0] + r[0, 1] * acc[k, 1] + r[0, 2] * acc[k, 2]
@@ -248,7 +206,8 @@ def forward(
         if not mon_k.tilt_run(mon):
             _scalar_update(p, dx, 1, -ex - dx[1], var, False, kvec, row)
             _scalar_update(p, dx, 0, ey - dx[0], var, False, kvec, row)
-        _quat_mul_exp_left(dx[0], dx[1], dx[2], q)
+        cm.mul_exp_left(dx[0], dx[1], dx[2], q)
+        cm.normalize(q)
         for i in range(3):
             b[i] += dx[3 + i]
             dx[i] = 0.0
@@ -256,7 +215,7 @@ def forward(
         mag_dist[k] = False
         mag_ok = False
         if use_mag:
-            _rot_matrix(q, r)
+            cm.rot_matrix(q, r)
             mx = r[0, 0] * mag[k, 0] + r[0, 1] * mag[k, 1] + r[0, 2] * mag[k, 2]
             my = r[1, 0] * mag[k, 0] + r[1, 1] * mag[k, 1] + r[1, 2] * mag[k, 2]
             mz = r[2, 0] * mag[k, 0] + r[2, 1] * mag[k, 1] + r[2, 2] * mag[k, 2]
@@ -296,7 +255,8 @@ def forward(
                 if ok:
                     var = (prm[MAG_REST_NOISE] if rest[k] else prm[MAG_NOISE]) ** 2
                     _scalar_update(p, dx, 2, np.arctan2(mx, my), var, True, kvec, row)
-                    _quat_mul_exp_left(0.0, 0.0, dx[2], q)
+                    cm.mul_exp_left(0.0, 0.0, dx[2], q)
+                    cm.normalize(q)
                     if mon_k.in_run(mon):
                         mon_k.monitor_turn(mon, dx[2])
                     for i in range(3):
@@ -316,30 +276,6 @@ def forward(
         bias[k] = b
         if store:
             p_post[k] = p
-
-
-@numba.njit(cache=True)
-def _chol_solve(a: np.ndarray, l: np.ndarray, v: np.ndarray) -> None:
-    """Solve ``a x = v`` in place (``v ← x``) for symmetric positive definite 6×6 ``a``."""
-    for i in range(6):
-        for j in range(i + 1):
-            s = a[i, j]
-            for m in range(j):
-                s -= l[i, m] * l[j, m]
-            if i == j:
-                l[i, i] = np.sqrt(s if s > 1e-300 else 1e-300)
-            else:
-                l[i, j] = s / l[j, j]
-    for i in range(6):
-        s = v[i]
-        for m in range(i):
-            s -= l[i, m] * v[m]
-        v[i] = s / l[i, i]
-    for i in range(5, -1, -1):
-        s = v[i]
-        for m in range(i + 1, 6):
-            s -= l[m, i] * v[m]
-        v[i] = s / l[i, i]
 
 
 @numba.njit(cache=True)
@@ -364,17 +300,20 @@ def backward(
     r = np.empty((3, 3))
     l = np.empty((6, 6))
     e = np.empty(6)
+    e_col = e.reshape((6, 1))  # e as the one column of chol_solve's right-hand side
     f = np.empty(6)
     # smoothed state of sample k+1 is kept in quat[k+1], bias[k+1]
     for k in range(n - 2, -1, -1):
         for i in range(4):
             qbar[i] = quat[k, i]
-        _quat_mul_exp_right(
+        cm.mul_exp_right(
             qbar,
             (gyr[k + 1, 0] - bias[k, 0]) * dt,
             (gyr[k + 1, 1] - bias[k, 1]) * dt,
             (gyr[k + 1, 2] - bias[k, 2]) * dt,
+            qbar,
         )
+        cm.normalize(qbar)
         # attitude error: rotation vector of q^s_{k+1} ⊗ conj(qbar)
         s0, s1, s2, s3 = quat[k + 1, 0], quat[k + 1, 1], quat[k + 1, 2], quat[k + 1, 3]
         ew = s0 * qbar[0] + s1 * qbar[1] + s2 * qbar[2] + s3 * qbar[3]
@@ -388,9 +327,9 @@ def backward(
         e[0], e[1], e[2] = c * ex, c * ey, c * ez
         for i in range(3):
             e[3 + i] = bias[k + 1, i] - bias[k, i]
-        _chol_solve(p_prior[k + 1], l, e)
+        cm.chol_solve(p_prior[k + 1], 6, l, e_col, 1)
         # f = Fᵀ y with F = [[I, −R dt], [0, I]]
-        _rot_matrix(qbar, r)
+        cm.rot_matrix(qbar, r)
         for i in range(3):
             f[i] = e[i]
             f[3 + i] = e[3 + i] - dt * (r[0, i] * e[0] + r[1, i] * e[1] + r[2, i] * e[2])
@@ -400,6 +339,7 @@ def backward(
             for m in range(6):
                 s += pk[i, m] * f[m]
             e[i] = s
-        _quat_mul_exp_left(e[0], e[1], e[2], quat[k])
+        cm.mul_exp_left(e[0], e[1], e[2], quat[k])
+        cm.normalize(quat[k])
         for i in range(3):
             bias[k, i] += e[3 + i]

@@ -30,11 +30,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from motionlab.fusion import _common as cm
 from motionlab.fusion import resampling as rs
 from motionlab.fusion import sphere as sph
-from motionlab.fusion._kalman_common import rot_matrix
 from motionlab.fusion.markers import USED_ACC, USED_MAG, USED_MARKERS, marker_jump
-from motionlab.fusion.sphere import _nb_rmul as _rmul
 
 # indices of the float parameter vector ``prm``
 PROCESS_NOISE, ACC_SIGMA, ACC_REST_SIGMA, ACC_NORM_GAIN, ACC_GATE, GRAVITY = range(6)
@@ -54,21 +53,6 @@ N_MONITOR = 17
 
 
 # ---------------------------------------------------------------- small in-place helpers
-
-
-@numba.njit(cache=True, inline="always")
-def _lmul(b0: float, b1: float, b2: float, b3: float, a: np.ndarray) -> None:
-    """``a ← b ⊗ a`` for a length-4 row ``a``, normalised."""
-    a0, a1, a2, a3 = a[0], a[1], a[2], a[3]
-    r0 = b0 * a0 - b1 * a1 - b2 * a2 - b3 * a3
-    r1 = b0 * a1 + b1 * a0 + b2 * a3 - b3 * a2
-    r2 = b0 * a2 - b1 * a3 + b2 * a0 + b3 * a1
-    r3 = b0 * a3 + b1 * a2 - b2 * a1 + b3 * a0
-    n = 1.0 / np.sqrt(r0 * r0 + r1 * r1 + r2 * r2 + r3 * r3)
-    a[0] = r0 * n
-    a[1] = r1 * n
-    a[2] = r2 * n
-    a[3] = r3 * n
 
 
 @numba.njit(cache=True, inline="always")
@@ -169,7 +153,7 @@ def _move_and_score(state, parts, mean, info, half, lik):
             n1 = (2.0 * sph._nb_uniform(state) - 1.0) * half
             n2 = (2.0 * sph._nb_uniform(state) - 1.0) * half
             n3 = (2.0 * sph._nb_uniform(state) - 1.0) * half
-            _rmul(a, 1.0, 0.5 * n1, 0.5 * n2, 0.5 * n3)
+            cm.rmul(a, 1.0, 0.5 * n1, 0.5 * n2, 0.5 * n3)
         sg = 2.0 if a[0] * m0 + a[1] * m1 + a[2] * m2 + a[3] * m3 >= 0.0 else -2.0
         dx = sg * (a[1] * m0 - a[0] * m1 - a[2] * m3 + a[3] * m2)
         dy = sg * (a[2] * m0 - a[0] * m2 + a[1] * m3 - a[3] * m1)
@@ -304,14 +288,14 @@ def _reset_center(mon, mode, mean, prm, out):
         out[i] = mean[i]
     if mode == 2:
         psi = np.arctan2(mon[_SH], mon[_SH + 1])
-        _lmul(np.cos(0.5 * psi), 0.0, 0.0, np.sin(0.5 * psi), out)
+        cm.lmul(np.cos(0.5 * psi), 0.0, 0.0, np.sin(0.5 * psi), out)
         return
     an = np.sqrt(mon[_SA] ** 2 + mon[_SA + 1] ** 2 + mon[_SA + 2] ** 2)
     ux, uy, uz = mon[_SA] / an, mon[_SA + 1] / an, mon[_SA + 2] / an
     t0, t1, t2 = (1.0 + uz, uy, -ux) if 1.0 + uz > 1e-9 else (0.0, 1.0, 0.0)
     tn = np.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
     t0, t1, t2 = t0 / tn, t1 / tn, t2 / tn
-    _lmul(t0, t1, t2, 0.0, out)
+    cm.lmul(t0, t1, t2, 0.0, out)
     if mon[_NM] == 0.0:
         return
     c = 1.0 / mon[_NM]
@@ -321,7 +305,7 @@ def _reset_center(mon, mode, mean, prm, out):
     norm_ok = abs(mn - prm[REF_NORM]) < 2.0 * prm[MAG_NORM_TOL]
     if norm_ok and abs(dip - prm[REF_DIP]) < prm[MAG_GATE_DIP]:
         psi = np.arctan2(mx, my)
-        _lmul(np.cos(0.5 * psi), 0.0, 0.0, np.sin(0.5 * psi), out)
+        cm.lmul(np.cos(0.5 * psi), 0.0, 0.0, np.sin(0.5 * psi), out)
 
 
 # ---------------------------------------------------------------- the filter
@@ -384,7 +368,7 @@ def nb_filter(
             rz = (gyr[k, 2] - b[2]) * dt
             ang = np.sqrt(rx * rx + ry * ry + rz * rz)
             sk = np.sin(0.5 * ang) / ang if ang > 1e-12 else 0.5
-            _rmul(g, np.cos(0.5 * ang), sk * rx, sk * ry, sk * rz)
+            cm.rmul(g, np.cos(0.5 * ang), sk * rx, sk * ry, sk * rz)
         # 2. information about the correction of the prior mean (To's q_obs residuals, eqs.
         # 232-234): tilt from gravity, heading from the field angle
         for i in range(9):
@@ -410,8 +394,8 @@ def nb_filter(
         if ref_body.shape[0] > 0:
             # marker vectors: R(mean ⊗ G) a should turn into the measured direction
             prior[:] = mean
-            _rmul(prior, g[0], g[1], g[2], g[3])
-            rot_matrix(prior, rm)
+            cm.rmul(prior, g[0], g[1], g[2], g[3])
+            cm.rot_matrix(prior, rm)
             seen = False
             for j in range(ref_body.shape[0]):
                 seen = seen or np.isfinite(ref_earth[k, j, 0])
@@ -419,7 +403,7 @@ def nb_filter(
             if seen and widen > 1e-4:
                 for p in range(n):
                     sph._nb_vmf(state, 4.0 / (widen * widen), jit)
-                    _rmul(parts[p], jit[0], jit[1], jit[2], jit[3])
+                    cm.rmul(parts[p], jit[0], jit[1], jit[2], jit[3])
             hidden_s = 0.0 if seen else hidden_s + dt
             jump = marker_jump(rm, ref_body, ref_earth, ref_var, k, 0.0)
             if jump > 0.0:

@@ -41,6 +41,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from motionlab.fusion import _common as cm
 from motionlab.fusion import _kalman_common as kc
 from motionlab.fusion._kalman_common import KalmanCommon
 from motionlab.fusion.markers import (
@@ -204,7 +205,7 @@ def _kernel(
                 g[i] = f[i, 0] * q[0] + f[i, 1] * q[1] + f[i, 2] * q[2] + f[i, 3] * q[3]
             for i in range(4):
                 q[i] = g[i]
-            kc.normalize(q)
+            cm.normalize(q)
             # F P Fᵀ: F differs from I only in rows 0–3 (columns 0–6)
             for i in range(4):
                 for j in range(NX):
@@ -260,7 +261,7 @@ def _kernel(
             acc, k, rate, prm[kc.GRAVITY], prm[kc.ACC_NOISE], prm[kc.ACC_NORM_GAIN],
             prm[kc.ACC_RATE_GAIN], prm[kc.ACC_GATE], dt,
         )  # fmt: skip
-        kc.rot_matrix(q, r)
+        cm.rot_matrix(q, r)
         scale = kc.startup_scale(prm, k, dt)
         var_a *= scale
         used[k] = 0
@@ -303,7 +304,7 @@ def _kernel(
                 _update(p, dx, hrow, ref_earth[k, j, c] - pred, ref_var[j], ph, nfree)
         for i in range(NX):
             x[i] += dx[i]
-        kc.normalize(q)
+        cm.normalize(q)
         _project(p, q, tmp)
         for i in range(4):
             quat[k, i] = q[i]

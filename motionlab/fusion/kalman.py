@@ -34,6 +34,7 @@ from dataclasses import dataclass
 import numba
 import numpy as np
 
+from motionlab.fusion import _common as cm
 from motionlab.fusion import _kalman_common as kc
 from motionlab.fusion._kalman_common import KalmanCommon
 from motionlab.fusion.registry import FusionResult, param, register
@@ -105,7 +106,7 @@ def _gn_step(
     (ref ``[0, cos δ, −sin δ]``, weight ``w_m``); with ``X_p = 2[y]×`` the normal equations are
     ``Σ w 4(I − y yᵀ) p = Σ w 2 ŷ × y`` and ``q ← normalise(q ⊗ [1, p])``.
     """
-    kc.rot_matrix(q, r)
+    cm.rot_matrix(q, r)
     n00 = n11 = n22 = 1e-9
     n01 = n02 = n12 = 0.0
     g0 = g1 = g2 = 0.0
@@ -127,17 +128,7 @@ def _gn_step(
         g0 += 2.0 * w * (oy * yz - oz * yy)
         g1 += 2.0 * w * (oz * yx - ox * yz)
         g2 += 2.0 * w * (ox * yy - oy * yx)
-    # Cramer's rule on the symmetric 3×3 normal matrix
-    c00 = n11 * n22 - n12 * n12
-    c01 = n02 * n12 - n01 * n22
-    c02 = n01 * n12 - n02 * n11
-    det = n00 * c00 + n01 * c01 + n02 * c02
-    c11 = n00 * n22 - n02 * n02
-    c12 = n01 * n02 - n00 * n12
-    c22 = n00 * n11 - n01 * n01
-    p0 = (c00 * g0 + c01 * g1 + c02 * g2) / det
-    p1 = (c01 * g0 + c11 * g1 + c12 * g2) / det
-    p2 = (c02 * g0 + c12 * g1 + c22 * g2) / det
+    p0, p1, p2 = cm.solve_sym3(n00, n01, n02, n11, n12, n22, g0, g1, g2)
     pn = np.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
     if pn > MAX_STEP:
         # a step beyond the linearisation's reach: shorten it
@@ -147,7 +138,7 @@ def _gn_step(
     y0 = q[2] + q[0] * p1 - q[1] * p2 + q[3] * p0
     z0 = q[3] + q[0] * p2 + q[1] * p1 - q[2] * p0
     q[0], q[1], q[2], q[3] = w0, x0, y0, z0
-    kc.normalize(q)
+    cm.normalize(q)
 
 
 @numba.njit(cache=True)
@@ -174,7 +165,7 @@ def _observation(
     ax, ay, az = acc[k, 0] / an, acc[k, 1] / an, acc[k, 2] / an
     for i in range(4):
         qo[i] = qp[i]
-    kc.rot_matrix(qo, r)
+    cm.rot_matrix(qo, r)
     ex = r[0, 0] * ax + r[0, 1] * ay + r[0, 2] * az
     ey = r[1, 0] * ax + r[1, 1] * ay + r[1, 2] * az
     ez = r[2, 0] * ax + r[2, 1] * ay + r[2, 2] * az
@@ -189,13 +180,13 @@ def _observation(
     y0 = tw * qo[2] - tx * qo[3] + ty * qo[0]
     z0 = tw * qo[3] + tx * qo[2] - ty * qo[1]
     qo[0], qo[1], qo[2], qo[3] = w0, x0, y0, z0
-    kc.normalize(qo)
+    cm.normalize(qo)
     if not use_m:
         return
-    kc.rot_matrix(qo, r)
+    cm.rot_matrix(qo, r)
     hx = r[0, 0] * mag[k, 0] + r[0, 1] * mag[k, 1] + r[0, 2] * mag[k, 2]
     hy = r[1, 0] * mag[k, 0] + r[1, 1] * mag[k, 1] + r[1, 2] * mag[k, 2]
-    kc.mul_exp_left(0.0, 0.0, np.arctan2(hx, hy), qo)
+    cm.mul_exp_left(0.0, 0.0, np.arctan2(hx, hy), qo)
     mn = np.sqrt(mag[k, 0] ** 2 + mag[k, 1] ** 2 + mag[k, 2] ** 2)
     mx, my, mz = mag[k, 0] / mn, mag[k, 1] / mn, mag[k, 2] / mn
     for _ in range(iters):
@@ -269,7 +260,7 @@ def _kernel(
                     p[i, j] += tmp[i, 3] * s[j, 3]
             for i in range(4):
                 q[i] = qn[i]
-            kc.normalize(q)
+            cm.normalize(q)
             for i in range(4):
                 for j in range(4):
                     e = 1.0 if i == j else 0.0
@@ -311,7 +302,7 @@ def _kernel(
             for i in range(4):
                 for j in range(4):
                     kt[i, j] = p[i, j]
-            kc.chol_solve(s, 4, low, kt, 4)
+            cm.chol_solve(s, 4, low, kt, 4)
             for i in range(4):
                 d = 0.0
                 for j in range(4):
@@ -327,7 +318,7 @@ def _kernel(
                 q[i] = qn[i]
                 for j in range(4):
                     p[i, j] = 0.5 * (tmp[i, j] + tmp[j, i])
-            kc.normalize(q)
+            cm.normalize(q)
         if not paper:
             _project(p, q, tmp)
         for i in range(4):

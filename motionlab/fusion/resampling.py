@@ -29,10 +29,10 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from motionlab.fusion import _common as cm
 from motionlab.fusion.sphere import (
     _nb_bingham,
     _nb_bingham_b,
-    _nb_rmul,
     _nb_seed,
     _nb_uniform,
     _nb_vmf,
@@ -202,7 +202,7 @@ def nb_spread(state, parts, center, sigma, proposal, zmax, lam4, basis, jit):
         nb_draw(state, proposal, kappa, lam4, basis, b, zmax, jit)
         for i in range(4):
             parts[p, i] = center[i]
-        _nb_rmul(parts[p], jit[0], jit[1], jit[2], jit[3])
+        cm.rmul(parts[p], jit[0], jit[1], jit[2], jit[3])
 
 
 @numba.njit(cache=True)
@@ -253,18 +253,13 @@ def nb_kernel_shape(parts, w, mean, h, floor, proposal, cov, vecs, lam3, lam4, b
 @numba.njit(cache=True, inline="always")
 def _nb_shrink(mean: np.ndarray, a: np.ndarray, f: float, out: np.ndarray) -> None:
     """``out = mean ⊗ exp(f · log(mean* ⊗ a))``: pull ``a`` towards the mean (Liu & West 2001)."""
-    e0 = mean[0] * a[0] + mean[1] * a[1] + mean[2] * a[2] + mean[3] * a[3]
-    e1 = mean[0] * a[1] - mean[1] * a[0] - mean[2] * a[3] + mean[3] * a[2]
-    e2 = mean[0] * a[2] + mean[1] * a[3] - mean[2] * a[0] - mean[3] * a[1]
-    e3 = mean[0] * a[3] - mean[1] * a[2] + mean[2] * a[1] - mean[3] * a[0]
-    if e0 < 0.0:
-        e0, e1, e2, e3 = -e0, -e1, -e2, -e3
+    e0, e1, e2, e3 = cm.conj_mul_shortest(mean, a)
     vn = np.sqrt(e1 * e1 + e2 * e2 + e3 * e3)
     half = np.arctan2(vn, e0)
     k = np.sin(f * half) / vn if vn > 1e-15 else f
     for i in range(4):
         out[i] = mean[i]
-    _nb_rmul(out, np.cos(f * half), k * e1, k * e2, k * e3)
+    cm.rmul(out, np.cos(f * half), k * e1, k * e2, k * e3)
 
 
 @numba.njit(cache=True)
@@ -280,7 +275,7 @@ def nb_regularise(state, parts, tmp, idx, mean, h, proposal, kappa, lam4, basis,
     for p in range(n):
         _nb_shrink(mean, tmp[p], shrink, parts[p])
         nb_draw(state, proposal, kappa, lam4, basis, b, zmax, jit)
-        _nb_rmul(parts[p], jit[0], jit[1], jit[2], jit[3])
+        cm.rmul(parts[p], jit[0], jit[1], jit[2], jit[3])
 
 
 @numba.njit(cache=True)

@@ -63,21 +63,6 @@ def _nb_normal(state: np.ndarray) -> float:
 # ---------------------------------------------------------------- quaternion product
 
 
-@numba.njit(cache=True, inline="always")
-def _nb_rmul(a: np.ndarray, b0: float, b1: float, b2: float, b3: float) -> None:
-    """``a ← a ⊗ b`` for a length-4 row ``a``, normalised."""
-    a0, a1, a2, a3 = a[0], a[1], a[2], a[3]
-    r0 = a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3
-    r1 = a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2
-    r2 = a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1
-    r3 = a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0
-    n = 1.0 / np.sqrt(r0 * r0 + r1 * r1 + r2 * r2 + r3 * r3)
-    a[0] = r0 * n
-    a[1] = r1 * n
-    a[2] = r2 * n
-    a[3] = r3 * n
-
-
 # ---------------------------------------------------------------- von Mises–Fisher (Wood 1994)
 
 

@@ -44,6 +44,7 @@ import numba
 import numpy as np
 
 from motionlab.errors import InputError
+from motionlab.fusion import _common as cm
 from motionlab.fusion import _kalman_common as kc
 from motionlab.fusion._kalman_common import KalmanCommon
 from motionlab.fusion.markers import (
@@ -76,12 +77,7 @@ class UkfParams(KalmanCommon):
 @numba.njit(cache=True, inline="always")
 def _log_rel(qa: np.ndarray, qb: np.ndarray, out: np.ndarray, j: int) -> None:
     """``out[j] ← log(qa* ⊗ qb)`` as a rotation vector (rad), shortest of ±."""
-    w = qa[0] * qb[0] + qa[1] * qb[1] + qa[2] * qb[2] + qa[3] * qb[3]
-    x = qa[0] * qb[1] - qa[1] * qb[0] - qa[2] * qb[3] + qa[3] * qb[2]
-    y = qa[0] * qb[2] + qa[1] * qb[3] - qa[2] * qb[0] - qa[3] * qb[1]
-    z = qa[0] * qb[3] - qa[1] * qb[2] + qa[2] * qb[1] - qa[3] * qb[0]
-    if w < 0.0:
-        w, x, y, z = -w, -x, -y, -z
+    w, x, y, z = cm.conj_mul_shortest(qa, qb)
     vn = np.sqrt(x * x + y * y + z * z)
     c = 2.0 * np.arctan2(vn, w) / vn if vn > 1e-12 else 2.0
     out[j, 0], out[j, 1], out[j, 2] = c * x, c * y, c * z
@@ -103,8 +99,8 @@ def _intrinsic_mean(chi: np.ndarray, qbar: np.ndarray, err: np.ndarray) -> int:
             ey += err[i, 1]
             ez += err[i, 2]
         ex, ey, ez = ex / m, ey / m, ez / m
-        kc.mul_exp_right(qbar, ex, ey, ez, qbar)
-        kc.normalize(qbar)
+        cm.mul_exp_right(qbar, ex, ey, ez, qbar)
+        cm.normalize(qbar)
         if ex * ex + ey * ey + ez * ez < MEAN_TOL**2:
             for i in range(m):
                 _log_rel(qbar, chi[i], err, i)
@@ -194,20 +190,20 @@ def _kernel(
                 a[i, j] = NX * p[i, j]
             if k > 0:
                 a[i, i] += NX * (var_g if i < 3 else var_b)
-        kc.cholesky(a, NX, low)
+        cm.cholesky(a, NX, low)
         for s in range(NS):
             c = s % NX
             sign = 1.0 if s < NX else -1.0
-            kc.mul_exp_right(q, sign * low[0, c], sign * low[1, c], sign * low[2, c], chi[s])
+            cm.mul_exp_right(q, sign * low[0, c], sign * low[1, c], sign * low[2, c], chi[s])
             for i in range(3):
                 chib[s, i] = b[i] + sign * low[3 + i, c]
             if k > 0:
-                kc.mul_exp_right(
+                cm.mul_exp_right(
                     chi[s], (gyr[k, 0] - chib[s, 0]) * dt, (gyr[k, 1] - chib[s, 1]) * dt,
                     (gyr[k, 2] - chib[s, 2]) * dt, chi[s],
                 )  # fmt: skip
         if k > 0:
-            kc.mul_exp_right(
+            cm.mul_exp_right(
                 q, (gyr[k, 0] - b[0]) * dt, (gyr[k, 1] - b[1]) * dt, (gyr[k, 2] - b[2]) * dt, q
             )
         _intrinsic_mean(chi, q, err)
@@ -226,7 +222,7 @@ def _kernel(
                     acc_ij += dev[s, i] * dev[s, j]
                 p[i, j] = w * acc_ij
         if ref_body.shape[0] > 0:
-            kc.rot_matrix(q, r)
+            cm.rot_matrix(q, r)
             jump = marker_jump(
                 r, ref_body, ref_earth, ref_var, k, (p[0, 0] + p[1, 1] + p[2, 2]) / 3
             )
@@ -246,7 +242,7 @@ def _kernel(
         if var_a > 0.0:
             an = np.sqrt(acc[k, 0] ** 2 + acc[k, 1] ** 2 + acc[k, 2] ** 2)
             for s in range(NS):
-                kc.rot_matrix(chi[s], r)
+                cm.rot_matrix(chi[s], r)
                 for i in range(3):
                     zs[s, i] = r[2, i]
             for i in range(3):
@@ -260,11 +256,11 @@ def _kernel(
                 q, mag, k, pre, prm[kc.REF_NORM], prm[kc.REF_DIP], prm[kc.MAG_NORM_TOL],
                 prm[kc.MAG_DIP_TOL],
             )  # fmt: skip
-            kc.rot_matrix(q, r)
+            cm.rot_matrix(q, r)
             if ok and kc.horizontal_north(r, mag, k, north):
                 dist[k] = False
                 for s in range(NS):
-                    kc.rot_matrix(chi[s], r)
+                    cm.rot_matrix(chi[s], r)
                     for i in range(3):
                         zs[s, m + i] = r[1, i]
                 for i in range(3):
@@ -276,7 +272,7 @@ def _kernel(
             if not np.isfinite(ref_earth[k, j, 0]):
                 continue
             for s in range(NS):
-                kc.rot_matrix(chi[s], r)
+                cm.rot_matrix(chi[s], r)
                 for i in range(3):
                     zs[s, m + i] = (
                         r[i, 0] * ref_body[j, 0]
@@ -319,11 +315,11 @@ def _redraw(
     for i in range(NX):
         for j in range(NX):
             a[i, j] = NX * p[i, j]
-    kc.cholesky(a, NX, low)
+    cm.cholesky(a, NX, low)
     for s in range(NS):
         c = s % NX
         sign = 1.0 if s < NX else -1.0
-        kc.mul_exp_right(q, sign * low[0, c], sign * low[1, c], sign * low[2, c], chi[s])
+        cm.mul_exp_right(q, sign * low[0, c], sign * low[1, c], sign * low[2, c], chi[s])
         for i in range(NX):
             dev[s, i] = sign * low[i, c]
         for i in range(3):
@@ -368,7 +364,7 @@ def _correct(
             pxz[j, i] = w * acc
             kt[i, j] = pxz[j, i]
     # Kᵀ = P_zz⁻¹ P_xzᵀ
-    kc.chol_solve(pzz, m, lowz, kt, NX)
+    cm.chol_solve(pzz, m, lowz, kt, NX)
     if hold_bias:
         for i in range(m):
             for j in range(3, NX):
@@ -378,8 +374,8 @@ def _correct(
         for i in range(m):
             acc += kt[i, j] * (z[i] - zbar[i])
         dx[j] = acc
-    kc.mul_exp_right(q, dx[0], dx[1], dx[2], q)
-    kc.normalize(q)
+    cm.mul_exp_right(q, dx[0], dx[1], dx[2], q)
+    cm.normalize(q)
     for i in range(3):
         b[i] += dx[3 + i]
     # P ← P − K P_xzᵀ − P_xz Kᵀ + K P_zz Kᵀ
