@@ -25,6 +25,18 @@ RESET_TAU, RESET_NOISE, RESET_AGREE, MAG_NEW_FIELD_MIN = range(17, 21)
 N_PARAMS = 21
 
 
+@numba.njit(cache=True, inline="always")
+def _inject(q: np.ndarray, b: np.ndarray, dx: np.ndarray) -> None:
+    """Move the error state ``dx`` into the estimate, ``q ← exp(δθ/2) ⊗ q`` (normalised) and
+    ``b ← b + δb``, and clear it."""
+    cm.mul_exp_left(dx[0], dx[1], dx[2], q)
+    cm.normalize(q)
+    for i in range(3):
+        b[i] += dx[3 + i]
+        dx[i] = 0.0
+        dx[3 + i] = 0.0
+
+
 @numba.njit(cache=True)
 def _predict(p: np.ndarray, r: np.ndarray, dt: float, qa: float, qb: float, t: np.ndarray) -> None:
     """Covariance prediction ``P ← F P Fᵀ + Q`` with ``F = [[I, G], [0, I]]``, ``G = −R dt``."""
@@ -181,12 +193,7 @@ def forward(
                     _scalar_update(p, dx, 2, corr[2] - dx[2], var, False, kvec, row)
             else:
                 _scalar_update(p, dx, 2, corr[2], var, True, kvec, row)
-            cm.mul_exp_left(dx[0], dx[1], dx[2], q)
-            cm.normalize(q)
-            for i in range(3):
-                b[i] += dx[3 + i]
-                dx[i] = 0.0
-                dx[3 + i] = 0.0
+            _inject(q, b, dx)
             mon_k.monitor_clear(mon)
             mode = 0
         if rest[k]:
@@ -206,12 +213,7 @@ def forward(
         if not mon_k.tilt_run(mon):
             _scalar_update(p, dx, 1, -ex - dx[1], var, False, kvec, row)
             _scalar_update(p, dx, 0, ey - dx[0], var, False, kvec, row)
-        cm.mul_exp_left(dx[0], dx[1], dx[2], q)
-        cm.normalize(q)
-        for i in range(3):
-            b[i] += dx[3 + i]
-            dx[i] = 0.0
-            dx[3 + i] = 0.0
+        _inject(q, b, dx)
         mag_dist[k] = False
         mag_ok = False
         if use_mag:

@@ -171,30 +171,15 @@ def _move_and_score(state, parts, mean, info, half, lik):
 def _weigh(w, lik, lmax, inv_sum, parts, mean):
     """Bayesian weights ``wᵢ ← wᵢ·exp(likᵢ)`` (kept unnormalised between samples: the previous
     sum is divided out here), ESS ``(Σw)²/Σw²`` (To eq. 156) and the Markley mean warm-started
-    from the previous one, written to ``mean``, all in one pass. Returns ``(1/Σw, ESS)``."""
+    from the previous one, written to ``mean``. Returns ``(1/Σw, ESS)``."""
     sw = 0.0
     s2 = 0.0
-    m00 = m01 = m02 = m03 = m11 = m12 = m13 = m22 = m23 = m33 = 0.0
     for p in range(parts.shape[0]):
         wp = w[p] * inv_sum * np.exp(lik[p] - lmax)
         w[p] = wp
         sw += wp
         s2 += wp * wp
-        a0, a1, a2, a3 = parts[p, 0], parts[p, 1], parts[p, 2], parts[p, 3]
-        wa0 = wp * a0
-        wa1 = wp * a1
-        wa2 = wp * a2
-        m00 += wa0 * a0
-        m01 += wa0 * a1
-        m02 += wa0 * a2
-        m03 += wa0 * a3
-        m11 += wa1 * a1
-        m12 += wa1 * a2
-        m13 += wa1 * a3
-        m22 += wa2 * a2
-        m23 += wa2 * a3
-        m33 += wp * a3 * a3
-    sph._nb_principal(m00, m01, m02, m03, m11, m12, m13, m22, m23, m33, mean, mean)
+    sph._nb_mean(parts, w, mean, mean)
     return 1.0 / sw, sw * sw / s2
 
 

@@ -138,6 +138,16 @@ def nb_resample(
 # ---------------------------------------------------------------- regularisation
 
 
+@numba.njit(cache=True, inline="always")
+def _nb_rotate_columns(a: np.ndarray, p: int, q: int, cs: float, sn: float) -> None:
+    """Givens rotation of columns ``p`` and ``q`` of the 3-row ``a`` in place (``a ← a G``)."""
+    for k in range(3):
+        akp = a[k, p]
+        akq = a[k, q]
+        a[k, p] = cs * akp - sn * akq
+        a[k, q] = sn * akp + cs * akq
+
+
 @numba.njit(cache=True)
 def _nb_eig3(c: np.ndarray, vecs: np.ndarray, lam: np.ndarray) -> None:
     """Eigen-decomposition of the symmetric 3×3 ``c`` (destroyed) by cyclic Jacobi, in place."""
@@ -158,21 +168,9 @@ def _nb_eig3(c: np.ndarray, vecs: np.ndarray, lam: np.ndarray) -> None:
                     t = 1.0
                 cs = 1.0 / np.sqrt(t * t + 1.0)
                 sn = t * cs
-                for k in range(3):
-                    ckp = c[k, p]
-                    ckq = c[k, q]
-                    c[k, p] = cs * ckp - sn * ckq
-                    c[k, q] = sn * ckp + cs * ckq
-                for k in range(3):
-                    cpk = c[p, k]
-                    cqk = c[q, k]
-                    c[p, k] = cs * cpk - sn * cqk
-                    c[q, k] = sn * cpk + cs * cqk
-                for k in range(3):
-                    vkp = vecs[k, p]
-                    vkq = vecs[k, q]
-                    vecs[k, p] = cs * vkp - sn * vkq
-                    vecs[k, q] = sn * vkp + cs * vkq
+                _nb_rotate_columns(c, p, q, cs, sn)
+                _nb_rotate_columns(c.T, p, q, cs, sn)
+                _nb_rotate_columns(vecs, p, q, cs, sn)
     for i in range(3):
         lam[i] = c[i, i]
 
