@@ -11,6 +11,8 @@ The numba helpers here work on scalars or preallocated arrays and allocate nothi
 
 from __future__ import annotations
 
+import dataclasses
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numba
@@ -18,7 +20,9 @@ import numpy as np
 
 from motionlab.fusion import detect
 from motionlab.fusion.attitude import initial_orientation
-from motionlab.fusion.registry import param
+from motionlab.fusion.markers import MarkerReferences, interval_rates, scenario
+from motionlab.fusion.registry import FusionResult, param
+from motionlab.rotations import make_continuous
 
 
 @dataclass
@@ -88,6 +92,50 @@ def prepare(
     if not use_mag:
         mag, pre = np.zeros((1, 3)), np.ones(len(gyr), dtype=bool)
     return Prepared(q0, rest, mag, pre, use_mag, float(ref[0]), float(ref[1]))
+
+
+def run_with_markers(
+    kernel: Callable[..., None],
+    name: str,
+    own: tuple[float, ...],
+    gyr: np.ndarray,
+    acc: np.ndarray,
+    mag: np.ndarray | None,
+    rate: float,
+    params: KalmanCommon,
+    references: MarkerReferences | None,
+) -> FusionResult:
+    """Run the EKF's or the UKF's ``kernel`` over the recording (the estimator ``name``).
+
+    The kernel takes the prepared inputs (:func:`prepare`, :func:`pack`), the filter's own
+    parameters ``own``, the marker reference vectors and the outputs ``quat``, ``bias``,
+    ``dist``, ``used``. With marker ``references`` the gyroscope enters as the interval mean
+    (:func:`~motionlab.fusion.markers.interval_rates`), the start-up phase ends when the markers
+    are first seen, and ``extra["scenario"]`` gives Liu's scenario (Table 2) per sample.
+    """
+    prep = prepare(gyr, acc, mag, rate, params)
+    refs = references if references is not None else MarkerReferences.none(len(gyr))
+    if references is not None:  # no start-up boost of acc and mag once the markers are seen
+        first = np.flatnonzero(refs.visible)
+        seen = first[0] / rate if len(first) else np.inf
+        params = dataclasses.replace(params, startup_time=min(params.startup_time, seen))
+    n = len(gyr)
+    quat = np.empty((n, 4))
+    bias = np.empty((n, 3))
+    dist = np.empty(n, dtype=np.bool_)
+    used = np.empty(n, dtype=np.int8)
+    kernel(
+        gyr if references is None else interval_rates(gyr, 0.0), acc, prep.mag, prep.use_mag,
+        prep.pre, prep.rest, 1.0 / rate, prep.q0, pack(params, prep), *(float(v) for v in own),
+        refs.body, refs.earth, refs.sigma**2, refs.gyro_bias, quat, bias, dist, used,
+    )  # fmt: skip
+    extra = {"mag_used": prep.use_mag}
+    if references is not None:
+        extra["scenario"] = scenario(used)
+    return FusionResult(
+        make_continuous(quat), name, {}, gyro_bias=bias, rest=prep.rest,
+        mag_disturbed=dist if prep.use_mag else None, extra=extra,
+    )  # fmt: skip
 
 
 @numba.njit(cache=True, inline="always")

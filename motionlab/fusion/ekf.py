@@ -35,7 +35,6 @@ Defaults were tuned on the 8 BROAD trials in ``../shared``, which are also the r
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 
 import numba
@@ -49,12 +48,9 @@ from motionlab.fusion.markers import (
     USED_MAG,
     USED_MARKERS,
     MarkerReferences,
-    interval_rates,
     marker_jump,
-    scenario,
 )
 from motionlab.fusion.registry import FusionResult, param, register
-from motionlab.rotations import make_continuous
 
 NX = 10
 
@@ -344,27 +340,5 @@ def run(
 
     With marker ``references`` ``extra["scenario"]`` gives Liu's scenario (Table 2) per sample.
     """
-    prep = kc.prepare(gyr, acc, mag, rate, params)
-    refs = references if references is not None else MarkerReferences.none(len(gyr))
-    if references is not None:  # no start-up boost of acc and mag once the markers are seen
-        first = np.flatnonzero(refs.visible)
-        seen = first[0] / rate if len(first) else np.inf
-        params = dataclasses.replace(params, startup_time=min(params.startup_time, seen))
-    n = len(gyr)
-    quat = np.empty((n, 4))
-    bias = np.empty((n, 3))
-    dist = np.empty(n, dtype=np.bool_)
-    used = np.empty(n, dtype=np.int8)
-    _kernel(
-        gyr if references is None else interval_rates(gyr, 0.0), acc, prep.mag, prep.use_mag,
-        prep.pre, prep.rest, 1.0 / rate, prep.q0, kc.pack(params, prep), float(params.rate_rw),
-        float(params.bias_rw), float(params.bias_init), float(params.rest_noise), refs.body,
-        refs.earth, refs.sigma**2, refs.gyro_bias, quat, bias, dist, used,
-    )  # fmt: skip
-    extra = {"mag_used": prep.use_mag}
-    if references is not None:
-        extra["scenario"] = scenario(used)
-    return FusionResult(
-        make_continuous(quat), "ekf", {}, gyro_bias=bias, rest=prep.rest,
-        mag_disturbed=dist if prep.use_mag else None, extra=extra,
-    )  # fmt: skip
+    own = (params.rate_rw, params.bias_rw, params.bias_init, params.rest_noise)
+    return kc.run_with_markers(_kernel, "ekf", own, gyr, acc, mag, rate, params, references)
