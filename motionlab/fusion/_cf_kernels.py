@@ -64,9 +64,10 @@ def _gyro_step(w, x, y, z, gx, gy, gz, dt):
 
 
 @numba.njit(cache=True, inline="always")
-def _mag_ok(pre, k, w, x, y, z, mag, ref_norm, ref_dip, norm_tol, dip_tol):
+def _mag_ok(pre, k, w, x, y, z, mag, gating):
     if pre[k]:
         return False
+    ref_norm, ref_dip, norm_tol, dip_tol = gating
     return not nb_field_disturbed(
         w, x, y, z, mag[k, 0], mag[k, 1], mag[k, 2], ref_norm, ref_dip, norm_tol, dip_tol
     )
@@ -137,9 +138,7 @@ def _solve_sym(n, g):
 
 
 @numba.njit(cache=True)
-def madgwick_kernel(
-    gyr, acc, mag, pre, q0, dt, beta, n_start, startup_gain, ref_norm, ref_dip, ntol, dtol
-):
+def madgwick_kernel(gyr, acc, mag, pre, q0, dt, beta, n_start, startup_gain, gating):
     nn = gyr.shape[0]
     out = np.empty((nn, 4))
     dist = np.empty(nn, dtype=np.bool_)
@@ -148,7 +147,7 @@ def madgwick_kernel(
         b = beta * startup_gain if k < n_start else beta
         dw, dx, dy, dz = cm.qmul(w, x, y, z, 0.0, 0.5 * gyr[k, 0], 0.5 * gyr[k, 1], 0.5 * gyr[k, 2])
         ax, ay, az, an = _unit(acc[k, 0], acc[k, 1], acc[k, 2])
-        use_m = _mag_ok(pre, k, w, x, y, z, mag, ref_norm, ref_dip, ntol, dtol)
+        use_m = _mag_ok(pre, k, w, x, y, z, mag, gating)
         dist[k] = not use_m
         if an > 0.0:
             # f = q* d q − s; ∇(½|f|²) = −2 q ⊗ (v ⊗ e) with v = q* d q, e = v − s
@@ -180,23 +179,7 @@ def madgwick_kernel(
 
 
 @numba.njit(cache=True)
-def mahony_kernel(
-    gyr,
-    acc,
-    mag,
-    pre,
-    q0,
-    dt,
-    kp,
-    ki,
-    kmag,
-    n_start,
-    startup_gain,
-    ref_norm,
-    ref_dip,
-    ntol,
-    dtol,
-):
+def mahony_kernel(gyr, acc, mag, pre, q0, dt, kp, ki, kmag, n_start, startup_gain, gating):
     nn = gyr.shape[0]
     out = np.empty((nn, 4))
     bias = np.empty((nn, 3))
@@ -210,7 +193,7 @@ def mahony_kernel(
         if an > 0.0:
             # measured × predicted (Mahony 2008 eq. (32); To 2018 eq. (209) corrected)
             ex, ey, ez = ay * vz - az * vy, az * vx - ax * vz, ax * vy - ay * vx
-        use_m = _mag_ok(pre, k, w, x, y, z, mag, ref_norm, ref_dip, ntol, dtol)
+        use_m = _mag_ok(pre, k, w, x, y, z, mag, gating)
         dist[k] = not use_m
         if use_m:
             hx, hy, _ = _to_earth(w, x, y, z, mag[k, 0], mag[k, 1], mag[k, 2])
@@ -261,35 +244,16 @@ def _gn_imu(w, x, y, z, ax, ay, az, wa, use_a, mag, k, wm, use_m, cos_dip, sin_d
 
 @numba.njit(cache=True)
 def liu_kernel(
-    gyr,
-    acc,
-    mag,
-    pre,
-    q0,
-    dt,
-    gain,
-    wa,
-    wm,
-    acc_tol,
-    gravity,
-    n_start,
-    startup_gain,
-    ref_norm,
-    ref_dip,
-    ntol,
-    dtol,
-    ref_body,
-    ref_earth,
-    ref_w,
-    ref_gain,
-    ref_drift,
-):
+    gyr, acc, mag, pre, q0, dt, gain, wa, wm, acc_tol, gravity, n_start, startup_gain, gating,
+    ref_body, ref_earth, ref_w, ref_gain, ref_drift,
+):  # fmt: skip
     nn = gyr.shape[0]
     out = np.empty((nn, 4))
     dist = np.empty(nn, dtype=np.bool_)
     used = np.empty(nn, dtype=np.int8)
     nrm = np.empty(6)
     g = np.empty(3)
+    ref_dip = gating[1]
     cd, sd = np.cos(ref_dip), np.sin(ref_dip)
     w, x, y, z = q0[0], q0[1], q0[2], q0[3]
     var = 1.0  # attitude variance (rad²) of the IMU prediction, for the marker steps
@@ -297,7 +261,7 @@ def liu_kernel(
         w, x, y, z = _gyro_step(w, x, y, z, gyr[k, 0], gyr[k, 1], gyr[k, 2], dt)
         ax, ay, az, an = _unit(acc[k, 0], acc[k, 1], acc[k, 2])
         use_a = an > 0.0 and abs(an - gravity) < acc_tol
-        use_m = _mag_ok(pre, k, w, x, y, z, mag, ref_norm, ref_dip, ntol, dtol)
+        use_m = _mag_ok(pre, k, w, x, y, z, mag, gating)
         dist[k] = not use_m
         _gn_imu(w, x, y, z, ax, ay, az, wa, use_a, mag, k, wm, use_m, cd, sd, nrm, g)
         n_ref, wsum = _gn_add_markers(w, x, y, z, ref_body, ref_earth, ref_w, k, nrm, g)
@@ -319,30 +283,16 @@ def liu_kernel(
 
 @numba.njit(cache=True)
 def adaptive_kernel(
-    gyr,
-    acc,
-    mag,
-    pre,
-    q0,
-    dt,
-    beta,
-    eps_acc,
-    eps_mag,
-    bias_gain,
-    gravity,
-    n_start,
-    startup_gain,
-    ref_norm,
-    ref_dip,
-    ntol,
-    dtol,
-):
+    gyr, acc, mag, pre, q0, dt, beta, eps_acc, eps_mag, bias_gain, gravity, n_start,
+    startup_gain, gating,
+):  # fmt: skip
     nn = gyr.shape[0]
     out = np.empty((nn, 4))
     bias = np.empty((nn, 3))
     dist = np.empty(nn, dtype=np.bool_)
     nrm = np.empty(6)
     g = np.empty(3)
+    ref_norm, ref_dip = gating[0], gating[1]
     cd, sd = np.cos(ref_dip), np.sin(ref_dip)
     w, x, y, z = q0[0], q0[1], q0[2], q0[3]
     bx, by, bz = 0.0, 0.0, 0.0
@@ -350,7 +300,7 @@ def adaptive_kernel(
         w, x, y, z = _gyro_step(w, x, y, z, gyr[k, 0] - bx, gyr[k, 1] - by, gyr[k, 2] - bz, dt)
         ax, ay, az, an = _unit(acc[k, 0], acc[k, 1], acc[k, 2])
         use_a = an > 0.0 and abs(an - gravity) < eps_acc
-        use_m = _mag_ok(pre, k, w, x, y, z, mag, ref_norm, ref_dip, ntol, dtol)
+        use_m = _mag_ok(pre, k, w, x, y, z, mag, gating)
         if use_m:
             mn = np.sqrt(mag[k, 0] ** 2 + mag[k, 1] ** 2 + mag[k, 2] ** 2)
             use_m = abs(mn - ref_norm) < eps_mag

@@ -1,15 +1,53 @@
-"""Numba helpers shared by the fusion kernels: quaternion products and small dense solves.
+"""Pieces shared by the fusion estimators: the magnetometer's preparation, and numba helpers of
+their kernels (quaternion products and small dense solves).
 
 Private. Quaternions are scalar first ``[w, x, y, z]``; an orientation ``q`` maps sensor → ENU
-earth. Rotation vectors are in rad. The helpers work on scalars or preallocated arrays and
-allocate nothing, so the per-sample loops of the filters stay allocation-free; the array versions
-of :mod:`motionlab.rotations` (``nb_mul``, ``nb_exp``, ...) allocate their results.
+earth. Rotation vectors are in rad; ``gyr`` rad/s, ``acc`` m/s², ``mag`` µT, (N, 3) sensor frame.
+The numba helpers work on scalars or preallocated arrays and allocate nothing, so the per-sample
+loops of the filters stay allocation-free; the array versions of :mod:`motionlab.rotations`
+(``nb_mul``, ``nb_exp``, ...) allocate their results.
 """
 
 from __future__ import annotations
 
 import numba
 import numpy as np
+
+from motionlab.fusion import detect
+from motionlab.fusion.attitude import initial_orientation
+
+
+def prepare_mag(
+    gyr: np.ndarray, acc: np.ndarray, mag: np.ndarray | None, rate: float, norm_tol: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool, tuple[float, float]]:
+    """Magnetometer reference and pre-flags, and the initial orientation.
+
+    The magnetometer is used (9-D) when a reference field is found
+    (:func:`~motionlab.fusion.detect.field_reference`, field-norm tolerance ``norm_tol`` µT) and
+    enough of the recording is undisturbed (:func:`~motionlab.fusion.detect.mag_usable`); the
+    initial orientation comes from the first samples whose field is undisturbed.
+
+    Returns
+    -------
+    q0, mag, pre, use_mag, (ref_norm, ref_dip)
+        ``pre`` (N,) bool marks the samples whose field must not be used; without a usable
+        magnetometer every sample is marked and ``mag`` is a dummy (1, 3) array. The reference
+        field's norm (µT) and dip (rad) are NaN without one.
+    """
+    use_mag = mag is not None
+    ref = (np.nan, np.nan)
+    pre = np.ones(len(gyr), dtype=bool)
+    if use_mag:
+        ref = detect.field_reference(mag, acc, norm_tol=norm_tol)
+        pre = detect.mag_disturbance(mag, acc, None, rate, norm_tol=norm_tol, reference=ref)
+        use_mag = bool(np.isfinite(ref[0])) and detect.mag_usable(pre)
+    start = np.isfinite(acc).all(axis=1) & ~pre if use_mag else np.ones(len(acc), bool)
+    first = int(np.argmax(start))
+    q0 = initial_orientation(acc[first:], mag[first:] if use_mag else None)
+    if not use_mag:
+        mag, pre = np.zeros((1, 3)), np.ones(len(gyr), dtype=bool)
+    return q0, mag, pre, use_mag, (float(ref[0]), float(ref[1]))
+
 
 # ---------------------------------------------------------------- quaternions as scalars
 

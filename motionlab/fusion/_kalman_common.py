@@ -19,7 +19,7 @@ import numba
 import numpy as np
 
 from motionlab.fusion import detect
-from motionlab.fusion.attitude import initial_orientation
+from motionlab.fusion._common import prepare_mag
 from motionlab.fusion.markers import MarkerReferences, interval_rates, scenario
 from motionlab.fusion.registry import FusionResult, param
 from motionlab.rotations import make_continuous
@@ -70,28 +70,14 @@ class Prepared:
 def prepare(
     gyr: np.ndarray, acc: np.ndarray, mag: np.ndarray | None, rate: float, p: KalmanCommon
 ) -> Prepared:
-    """Rest mask, magnetometer reference and pre-flags, and the initial orientation.
-
-    The magnetometer is used (9-D) when a reference field is found and enough of the recording
-    is undisturbed (:func:`~motionlab.fusion.detect.mag_usable`); the initial orientation comes
-    from the first samples whose field is undisturbed.
-    """
+    """Rest mask, magnetometer reference and pre-flags, and the initial orientation
+    (:func:`~motionlab.fusion._common.prepare_mag`)."""
     rest = detect.rest_mask(
         gyr, acc, rate, p.rest_gyr_threshold, p.rest_acc_threshold,
         min_duration=p.rest_min_duration,
     )  # fmt: skip
-    use_mag = mag is not None
-    ref = (np.nan, np.nan)
-    pre = np.ones(len(gyr), dtype=bool)
-    if use_mag:
-        ref = detect.field_reference(mag, acc, norm_tol=p.mag_norm_tol)
-        pre = detect.mag_disturbance(mag, acc, None, rate, norm_tol=p.mag_norm_tol, reference=ref)
-        use_mag = bool(np.isfinite(ref[0])) and detect.mag_usable(pre)
-    first = int(np.argmax(~pre)) if use_mag else 0
-    q0 = initial_orientation(acc[first:], mag[first:] if use_mag else None)
-    if not use_mag:
-        mag, pre = np.zeros((1, 3)), np.ones(len(gyr), dtype=bool)
-    return Prepared(q0, rest, mag, pre, use_mag, float(ref[0]), float(ref[1]))
+    q0, mag, pre, use_mag, ref = prepare_mag(gyr, acc, mag, rate, p.mag_norm_tol)
+    return Prepared(q0, rest, mag, pre, use_mag, ref[0], ref[1])
 
 
 def run_with_markers(

@@ -37,7 +37,7 @@ from motionlab.fusion._cf_kernels import (
     madgwick_kernel,
     mahony_kernel,
 )
-from motionlab.fusion.attitude import initial_orientation
+from motionlab.fusion._common import prepare_mag
 from motionlab.fusion.markers import MarkerReferences, interval_rates, scenario
 from motionlab.fusion.registry import FusionResult, param, register
 
@@ -89,20 +89,9 @@ class AdaptiveParams(_Common):
 def _prepare(gyr, acc, mag, rate, p: _Common):
     """Initial orientation, start-up length, magnetometer gating inputs and rest mask."""
     rest = detect.rest_mask(gyr, acc, rate)
-    use_mag = mag is not None
-    ref = (np.nan, np.nan)
-    pre = np.zeros(len(gyr), dtype=bool)
-    if use_mag:
-        ref = detect.field_reference(mag, acc, norm_tol=p.mag_norm_tol)
-        pre = detect.mag_disturbance(mag, acc, None, rate, norm_tol=p.mag_norm_tol, reference=ref)
-        use_mag = bool(np.isfinite(ref[0])) and detect.mag_usable(pre)
-    start = np.isfinite(acc).all(axis=1) & ~pre if use_mag else np.ones(len(acc), bool)
-    first = int(np.argmax(start))
-    q0 = initial_orientation(acc[first:], mag[first:] if use_mag else None)
-    if not use_mag:
-        mag, pre = np.zeros((1, 3)), np.ones(len(gyr), dtype=bool)
+    q0, mag, pre, use_mag, ref = prepare_mag(gyr, acc, mag, rate, p.mag_norm_tol)
     n_start = int(round(p.startup_time * rate))
-    gating = (float(ref[0]), float(ref[1]), p.mag_norm_tol, np.deg2rad(p.mag_dip_tol))
+    gating = (ref[0], ref[1], p.mag_norm_tol, np.deg2rad(p.mag_dip_tol))
     return q0, n_start, mag, pre, use_mag, gating, rest
 
 
@@ -124,7 +113,7 @@ def run_madgwick(gyr, acc, mag, rate, params: MadgwickParams) -> FusionResult:
     """Madgwick's filter: ``q̇ = ½ q ⊗ ω − β ∇f/|∇f|`` (paper eqs. (42)–(44)), ENU references."""
     q0, n_start, mag, pre, use_mag, gating, rest = _prepare(gyr, acc, mag, rate, params)
     quat, dist = madgwick_kernel(
-        gyr, acc, mag, pre, q0, 1.0 / rate, params.beta, n_start, params.startup_gain, *gating
+        gyr, acc, mag, pre, q0, 1.0 / rate, params.beta, n_start, params.startup_gain, gating
     )
     return _result(quat, dist, use_mag, rest)
 
@@ -138,19 +127,9 @@ def run_mahony(gyr, acc, mag, rate, params: MahonyParams) -> FusionResult:
     """
     q0, n_start, mag, pre, use_mag, gating, rest = _prepare(gyr, acc, mag, rate, params)
     quat, bias, dist = mahony_kernel(
-        gyr,
-        acc,
-        mag,
-        pre,
-        q0,
-        1.0 / rate,
-        params.kp,
-        params.ki,
-        params.mag_weight,
-        n_start,
-        params.startup_gain,
-        *gating,
-    )
+        gyr, acc, mag, pre, q0, 1.0 / rate, params.kp, params.ki, params.mag_weight, n_start,
+        params.startup_gain, gating,
+    )  # fmt: skip
     return _result(quat, dist, use_mag, rest, bias)
 
 
@@ -175,26 +154,11 @@ def run_liu(
     q0, n_start, mag, pre, use_mag, gating, rest = _prepare(gyr, acc, mag, rate, params)
     refs = references if references is not None else MarkerReferences.none(len(gyr))
     quat, dist, used = liu_kernel(
-        gyr if references is None else interval_rates(gyr, refs.gyro_bias),
-        acc,
-        mag,
-        pre,
-        q0,
-        1.0 / rate,
-        params.gain,
-        1.0 / params.acc_sigma**2,
-        1.0 / params.mag_sigma**2,
-        params.acc_tol,
-        params.gravity,
-        n_start,
-        params.startup_gain,
-        *gating,
-        refs.body,
-        refs.earth,
-        1.0 / refs.sigma**2,
-        params.marker_gain,
-        np.deg2rad(params.marker_drift),
-    )
+        gyr if references is None else interval_rates(gyr, refs.gyro_bias), acc, mag, pre, q0,
+        1.0 / rate, params.gain, 1.0 / params.acc_sigma**2, 1.0 / params.mag_sigma**2,
+        params.acc_tol, params.gravity, n_start, params.startup_gain, gating, refs.body,
+        refs.earth, 1.0 / refs.sigma**2, params.marker_gain, np.deg2rad(params.marker_drift),
+    )  # fmt: skip
     if references is None:
         return _result(quat, dist, use_mag, rest)
     return _result(quat, dist, use_mag, rest, scenario=scenario(used))
@@ -213,21 +177,9 @@ def run_adaptive(gyr, acc, mag, rate, params: AdaptiveParams) -> FusionResult:
     """
     q0, n_start, mag, pre, use_mag, gating, rest = _prepare(gyr, acc, mag, rate, params)
     quat, bias, dist = adaptive_kernel(
-        gyr,
-        acc,
-        mag,
-        pre,
-        q0,
-        1.0 / rate,
-        params.beta,
-        params.eps_acc,
-        params.eps_mag,
-        params.bias_gain,
-        params.gravity,
-        n_start,
-        params.startup_gain,
-        *gating,
-    )
+        gyr, acc, mag, pre, q0, 1.0 / rate, params.beta, params.eps_acc, params.eps_mag,
+        params.bias_gain, params.gravity, n_start, params.startup_gain, gating,
+    )  # fmt: skip
     return _result(quat, dist, use_mag, rest, bias)
 
 
