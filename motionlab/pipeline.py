@@ -232,10 +232,14 @@ def analyse(
     calibration_dir: Path | None = None,
     stages: _Stages | None = None,
     magnetometer: bool = False,
+    clock_sync: bool = True,
 ) -> None:
-    """The stages after ingest, in memory: (sensor calibration) → fuse → calibrate → angles →
-    metrics → (validate, with ``reference`` or the session's own markers). Results go to
-    ``session.results`` under the names the stage commands use.
+    """The stages after ingest, in memory: (clock sync) → (sensor calibration) → fuse →
+    calibrate → angles → metrics → (validate, with ``reference`` or the session's own markers).
+    Results go to ``session.results`` under the names the stage commands use.
+
+    ``clock_sync`` puts sensors recorded on their own clocks on one clock
+    (:func:`motionlab.clocksync.synchronise`; corrections only where reliable and non-zero).
 
     Fusion is 6-D (no magnetometer) unless ``magnetometer``: joint angles need the heading of
     each segment relative to its neighbour only, which the heading alignment gives
@@ -249,6 +253,11 @@ def analyse(
     from motionlab.kinematics.session_angles import session_angles
 
     stages = stages or _Stages([], progress=False)
+    if clock_sync:
+        from motionlab.clocksync import synchronise
+
+        with stages("clock sync"):
+            synchronise(session, protocol)
     calibrated: dict[str, SensorStream] = {}
     if calibration_dir is not None:
         from motionlab.sensorcal import apply_calibration_dir
@@ -282,8 +291,10 @@ def run_pipeline(
     seed: int = 0,
     calibration_dir: Path | None = None,
     magnetometer: bool = False,
+    clock_sync: bool = True,
 ) -> PipelineResult:
-    """Ingest → (sensor calibration) → fuse → calibrate → angles → metrics → (validate) → report.
+    """Ingest → (clock sync) → (sensor calibration) → fuse → calibrate → angles → metrics →
+    (validate) → report.
 
     Parameters
     ----------
@@ -307,6 +318,8 @@ def run_pipeline(
         Folder of per-serial sensor calibrations (``motionlab sensorcal``) applied before fusion.
     magnetometer
         Fuse with the magnetometers (default 6-D, see :func:`analyse`).
+    clock_sync
+        Put the IMUs on one clock from their shared joint centres (see :func:`analyse`).
     """
     from motionlab.kinematics.metrics import metrics_table
     from motionlab.report import load_views, write_report
@@ -325,10 +338,13 @@ def run_pipeline(
         + (["--calibration", str(calibration_dir)] if calibration_dir else [])
         + (["--seed", str(seed)] if seed else [])
         + (["--magnetometer"] if magnetometer else [])
+        + ([] if clock_sync else ["--no-clock-sync"])
     )
     names = ["ingest", "fuse", "calibrate", "angles", "metrics", "report"]
     if calibration_dir is not None:
         names.insert(1, "sensorcal")
+    if clock_sync:
+        names.insert(1, "clock sync")
     if reference is not None or _holds_markers(inputs):
         names.insert(-1, "validate")
     stages = _Stages(names, progress)
@@ -336,7 +352,7 @@ def run_pipeline(
     with stages("ingest"):
         session = load_inputs(inputs, map_path, command)
         check_segments(session, proto, inputs)
-    analyse(session, proto, reference, seed, calibration_dir, stages, magnetometer)
+    analyse(session, proto, reference, seed, calibration_dir, stages, magnetometer, clock_sync)
     validated = "validation" in session.results
     session.add_provenance(
         command,
@@ -347,6 +363,7 @@ def run_pipeline(
             "seed": seed,
             "estimator": "default",
             "magnetometer": magnetometer,
+            "clock_sync": clock_sync,
             "validated": validated,
         },
     )
@@ -380,6 +397,14 @@ def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
         for e in ses.results.get("fusion", {}).values()
     }
     lines.append(f"  fusion: {', '.join(sorted(fusion)) or 'sensor orientations'}")
+    synced = ses.results.get("clock_sync", {})
+    if synced:
+        moved = [f"{k} {1e3 * v['offset_s']:+.1f} ms" for k, v in synced.items()
+                 if v["status"] == "applied"]  # fmt: skip
+        lines.append(
+            f"  clock sync: {', '.join(moved) if moved else 'no correction needed or reliable'}"
+            f" ({len(synced)} sensor pairs checked)"
+        )
     segs = {r["segment"]: r["segment_ok"] for r in calibration_rows(view)}
     bad = [s for s, ok in segs.items() if not ok]
     lines.append(

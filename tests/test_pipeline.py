@@ -205,7 +205,7 @@ def test_missing_segments_one_line_exit_2(tmp_path):
     )
     assert res.exit_code == 2
     lines = res.output.strip().splitlines()
-    assert len(lines) == 2 and lines[0] == "[1/6] ingest ..."
+    assert len(lines) == 2 and lines[0] == "[1/7] ingest ..."
     assert "needs sensors on pelvis, thigh_r, thigh_l, shank_r, shank_l" in lines[1]
     assert "--map" in lines[1] and not (tmp_path / "out").exists()
 

@@ -75,9 +75,10 @@ def _register() -> None:
         run,
         sensorcal,
         simulate,
+        sync,
     )
 
-    for module in (info, ingest, sensorcal, calibrate, angles, metrics, fuse, simulate, run,
+    for module in (info, ingest, sync, sensorcal, calibrate, angles, metrics, fuse, simulate, run,
                    report, demo):  # fmt: skip
         main.add_command(module.command)
     from motionlab.cli import validate

@@ -42,18 +42,34 @@ from motionlab.pipeline import run_pipeline
     is_flag=True,
     help="Fuse with the magnetometers (default 6-D: indoor fields turn headings mid-task).",
 )
+@click.option(
+    "--clock-sync/--no-clock-sync",
+    default=True,
+    show_default=True,
+    help="Put IMUs recorded on their own clocks on one clock (from the joints they share).",
+)
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
 @click.option("--force", is_flag=True, help="Replace existing outputs.")
 @click.option("--quiet", is_flag=True, help="No progress on stderr.")
 def command(
-    files, protocol, map_path, reference, calibration_dir, magnetometer, outdir, seed, force, quiet
+    files,
+    protocol,
+    map_path,
+    reference,
+    calibration_dir,
+    magnetometer,
+    clock_sync,
+    outdir,
+    seed,
+    force,
+    quiet,
 ) -> None:
     """Analyse recording FILES (or one session file) from raw data to the report.
 
-    ingest → sensor calibration (with --calibration) → fuse → calibrate → angles → metrics →
-    validate (with --reference, or when the inputs hold markers) → report. Every intermediate
-    result is kept in OUTDIR/session.h5; the report is OUTDIR/report.pdf with its text in
-    report.txt and its tables in OUTDIR/csv/.
+    ingest → clock sync → sensor calibration (with --calibration) → fuse → calibrate → angles →
+    metrics → validate (with --reference, or when the inputs hold markers) → report. Every
+    intermediate result is kept in OUTDIR/session.h5; the report is OUTDIR/report.pdf with its
+    text in report.txt and its tables in OUTDIR/csv/.
 
     \b
     Example:
@@ -72,5 +88,6 @@ def command(
         seed=seed,
         calibration_dir=Path(calibration_dir) if calibration_dir else None,
         magnetometer=magnetometer,
+        clock_sync=clock_sync,
     )
     click.echo(result.summary)

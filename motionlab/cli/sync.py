@@ -1,0 +1,42 @@
+"""``motionlab sync``: put IMUs recorded on their own clocks on one clock."""
+
+from __future__ import annotations
+
+import click
+
+from motionlab.clocksync import describe, synchronise
+from motionlab.errors import InputError
+from motionlab.protocol import load_protocol
+from motionlab.session import load_session, save_session
+
+
+@click.command("sync")
+@click.argument("session", type=click.Path(dir_okay=False))
+@click.option("--protocol", "protocol_path", required=True, help="Protocol YAML file or name.")
+@click.option("--force", is_flag=True, help="Redo an earlier synchronisation.")
+def command(session: str, protocol_path: str, force: bool) -> None:
+    """Estimate each IMU's clock offset and drift against its neighbour's and correct the stamps.
+
+    Two segments joined at a joint feel the same acceleration at the joint centre; the clock
+    shift that makes the two sensors agree on it is fitted for every pair of neighbours (the
+    protocol's joints, pelvis-thigh, thorax-upper arm, ...). Corrections are applied only where
+    reliable and non-zero; the recorded stamps can be restored with --force and are kept in each
+    sensor's attributes. Run it after ingest and before fuse (motionlab run does).
+
+    \b
+    Example:
+      motionlab sync session.h5 --protocol knee
+    """
+    protocol = load_protocol(protocol_path)
+    ses = load_session(session)
+    if "clock_sync" in ses.results and not force:
+        raise InputError(
+            "is already synchronised", session, "results/clock_sync", "add --force to redo it"
+        )
+    fits = synchronise(ses, protocol)
+    ses.add_provenance(parameters={"protocol": str(protocol.path), "stage": "sync"})
+    save_session(ses, session, force=True)
+    if not fits:
+        click.echo("no pair of neighbouring segments with sensors: nothing to synchronise")
+    for fit in fits:
+        click.echo(describe(fit))

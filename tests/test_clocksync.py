@@ -1,0 +1,140 @@
+"""IMU-to-IMU clock sync (motionlab.clocksync, motionlab sync): offsets and drifts recovered on
+simulated knee recordings against the simulator's true sampling instants; nothing applied when
+the IMUs share a clock or do not move; the recorded stamps restored exactly."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from motionlab.cli import main
+from motionlab.clocksync import (
+    estimate_clock,
+    sync_tree,
+    synchronise,
+    unsynchronise,
+)
+from motionlab.protocol import load_protocol
+from motionlab.session import save_session
+from motionlab.simulate import simulate
+from motionlab.simulate.errors import get_preset
+
+DURATION = 200.0  # s: the knee protocol's calibration steps, then gait, squat, sit-to-stand
+
+
+def own_clocks(preset_name: str):
+    """A preset whose IMUs have their own clocks (offset σ 20 ms, drift σ 40 ppm)."""
+    preset = get_preset(preset_name)
+    timing = dataclasses.replace(get_preset("typical").timing, clock_offset_sigma_s=0.02,
+                                 clock_drift_sigma=40e-6)  # fmt: skip
+    return dataclasses.replace(preset, timing=timing)
+
+
+@pytest.fixture(scope="module")
+def knee():
+    return load_protocol("knee")
+
+
+@pytest.fixture(scope="module")
+def typical(knee):
+    return simulate(knee, DURATION, 8, own_clocks("typical"))
+
+
+def true_difference(session, truth, ref: str, label: str, t: np.ndarray) -> np.ndarray:
+    """c(t) (s): the sensor's stamp minus the reference's stamp of one true instant."""
+    true_ref = np.interp(t, session.sensors[ref].time, truth.sensors[ref]["sample_time"])
+    return np.interp(true_ref, truth.sensors[label]["sample_time"], session.sensors[label].time) - t
+
+
+@pytest.mark.parametrize("preset, tolerance", [("clean", 0.0005), ("typical", 0.002)])
+def test_offset_and_drift_recovered(knee, typical, preset, tolerance):
+    session, truth = typical if preset == "typical" else simulate(knee, DURATION, 8,
+                                                                  own_clocks("clean"))  # fmt: skip
+    ref, label = session.sensors["thigh_r"], session.sensors["shank_r"]
+    fit = estimate_clock(ref, label)
+    t = ref.time[(ref.time > 20) & (ref.time < DURATION - 20)]
+    truth_c = true_difference(session, truth, "thigh_r", "shank_r", t)
+    line = np.polyval(np.polyfit(t, truth_c, 1), t)  # without the sampling jitter (0.1 ms)
+    assert np.ptp(line) > 0.0015  # the drift is there to be found
+    assert np.max(np.abs(fit.error_s(t) - line)) < tolerance
+    assert fit.status == "applied"
+
+
+def test_shared_clock_left_alone(knee):
+    preset = get_preset("typical")
+    timing = dataclasses.replace(preset.timing, clock_offset_sigma_s=0.0, clock_drift_sigma=0.0)
+    session, _ = simulate(knee, DURATION, 4, dataclasses.replace(preset, timing=timing))
+    before = {k: s.time.copy() for k, s in session.sensors.items()}
+    fits = synchronise(session, knee)
+    assert [f.status for f in fits] == ["consistent with one clock"] * 4
+    for k, s in session.sensors.items():
+        assert np.array_equal(s.time, before[k])
+
+
+def test_synchronise_then_restore(knee, typical):
+    session, truth = typical
+    session = dataclasses.replace(session, sensors=dict(session.sensors), results={})
+    recorded = {k: s.time.copy() for k, s in session.sensors.items()}
+    fits = synchronise(session, knee)
+    assert [(f.reference, f.sensor) for f in fits] == [
+        ("pelvis", "thigh_r"), ("pelvis", "thigh_l"), ("thigh_r", "shank_r"), ("thigh_l", "shank_l")
+    ]  # fmt: skip
+    # every sensor now on the pelvis clock: one true instant, one session time (to 2 ms)
+    t = np.linspace(30, DURATION - 30, 50)
+    true_pelvis = np.interp(
+        t, session.sensors["pelvis"].time, truth.sensors["pelvis"]["sample_time"]
+    )
+    for label in ("thigh_r", "thigh_l", "shank_r", "shank_l"):
+        s = session.sensors[label]
+        true_label = np.interp(t, s.time, truth.sensors[label]["sample_time"])
+        assert np.max(np.abs(true_label - true_pelvis)) < 0.003, label
+        assert s.attrs["clock_sync"]["reference"] in ("pelvis", "thigh_r", "thigh_l")
+    assert set(session.results["clock_sync"]) == {"thigh_r", "thigh_l", "shank_r", "shank_l"}
+    unsynchronise(session)
+    for k, s in session.sensors.items():
+        np.testing.assert_allclose(s.time, recorded[k], atol=1e-9, rtol=0)
+        assert "clock_sync" not in s.attrs
+
+
+def test_no_movement_no_correction(knee, typical):
+    session, _ = typical
+    still = dataclasses.replace(
+        session.sensors["shank_r"],
+        gyr=np.zeros_like(session.sensors["shank_r"].gyr),
+        acc=np.tile([0.0, 0.0, 9.81], (session.sensors["shank_r"].n_samples, 1)),
+    )
+    ref = dataclasses.replace(session.sensors["thigh_r"], gyr=np.zeros_like(still.gyr[:1]).repeat(
+        session.sensors["thigh_r"].n_samples, axis=0))  # fmt: skip
+    fit = estimate_clock(ref, still)
+    assert fit.status == "not enough shared movement"
+    assert fit.offset_s == 0.0
+
+
+def test_tree_follows_neighbours(knee):
+    lumbar = load_protocol("lumbar")
+    session, _ = simulate(lumbar, 120.0, 0, get_preset("clean"))
+    # the protocol's joint first (its angles need that pair), then the other neighbours
+    assert sync_tree(session, lumbar) == [("pelvis", "thorax"), ("pelvis", "lumbar")]
+    elbow = load_protocol("elbow")
+    session, _ = simulate(elbow, 170.0, 0, get_preset("clean"))
+    assert sync_tree(session, elbow) == [
+        ("thorax", "upperarm_r"), ("thorax", "upperarm_l"),
+        ("upperarm_r", "forearm_r"), ("upperarm_l", "forearm_l"),
+    ]  # fmt: skip
+
+
+def test_sync_command(tmp_path, typical):
+    session, _ = typical
+    path = tmp_path / "s.h5"
+    keep = {k: v for k, v in session.sensors.items() if k in ("thigh_r", "shank_r")}
+    save_session(dataclasses.replace(session, sensors=keep, results={}), path)
+    runner = CliRunner()
+    res = runner.invoke(main, ["sync", str(path), "--protocol", "knee"])
+    assert res.exit_code == 0, res.output
+    assert "shank_r vs thigh_r:" in res.output and "applied" in res.output
+    again = runner.invoke(main, ["sync", str(path), "--protocol", "knee"])
+    assert again.exit_code == 2 and "add --force" in again.output
+    forced = runner.invoke(main, ["sync", str(path), "--protocol", "knee", "--force"])
+    assert forced.exit_code == 0
+    assert forced.output == res.output  # redone from the recorded stamps: the same fits
