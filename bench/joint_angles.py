@@ -6,19 +6,24 @@ recording (clock repair, gaps up to ``--gap-max`` filled, 0.1 s as ingest's defa
 packet losses stay gaps, which fusion bridges from the sample times). Every sensor is fused with
 the default estimator (the offline smoother), 6-D unless ``--mag``; ``calibrate`` and the angles
 follow as ``motionlab run`` does them. RMSE (deg) per joint and plane over the protocol's task
-blocks (true times) is printed for three variants of the recording:
+blocks (true times; each joint read on its proximal sensor's clock) for four variants:
 
 - ``recorded``: the preset as it is: every IMU has its own clock (offset σ 10 ms, drift σ 20 ppm
-  in ``typical``) and its raw, uncalibrated errors;
-- ``shared clock``: the IMUs share one clock (offset and drift 0; jitter and packet loss kept),
-  as the sensors of a synchronised system do and as motionlab assumes (it has no IMU-to-IMU
-  synchronisation);
-- ``+ sensorcal``: shared clock, and every sensor calibrated beforehand with ``motionlab
+  in ``typical``) and its raw, uncalibrated errors; no clock sync;
+- ``clock sync``: the same recording put on one clock by ``motionlab sync`` (the default of
+  ``motionlab run``; :mod:`motionlab.clocksync`);
+- ``clock sync + sensorcal``: and every sensor calibrated beforehand with ``motionlab
   sensorcal`` from a simulated calibration recording with the sensor's own error draws (each
   axis up and down at three headings, still for 4 s, joined by 1 s turns): accelerometer bias,
   scale and misalignment by the multi-position fit, gyroscope bias from the rest windows, with
   ``--mag`` the magnetometer's ellipsoid. The gyroscope's scale and misalignment stay (a still
-  recording cannot show them).
+  recording cannot show them). This is the full pipeline of the brief (sensor calibration,
+  then mounting calibration);
+- ``shared clock + sensorcal``: the IMUs share one clock (offset and drift 0; jitter and packet
+  loss kept), as a radio-synchronised system's do: what a perfect clock sync would give.
+
+A second table gives the clock differences left between neighbouring sensors (the sync's pairs)
+before and after the sync, against the simulator's true sampling instants.
 
 With the calibration off (the protocol's nominal sensor placement, same heading alignment, the
 ``recorded`` variant) the same table shows the cross-talk the calibration removes. Targets
@@ -37,16 +42,19 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import time
+from collections import Counter
+from functools import partial
 
 import numpy as np
 
 from motionlab import rotations as rot
 from motionlab import timebase
+from motionlab.clocksync import ClockFit, sync_tree, synchronise
 from motionlab.fusion import estimate, get
 from motionlab.ingest import DEFAULT_GAP_MAX
 from motionlab.kinematics.session_angles import angle_table, nominal_calibration, sensor_quats
 from motionlab.protocol import Protocol, load_protocol
-from motionlab.segments import calibrate, segment_orientations
+from motionlab.segments import calibrate, segment_orientations, sensor_for_segment
 from motionlab.sensorcal import apply_calibration
 from motionlab.sensorcal.stage import calibrate_sensor, merge
 from motionlab.session import SensorStream
@@ -54,7 +62,7 @@ from motionlab.simulate import simulate
 from motionlab.simulate.errors import ChannelDraw, Preset, apply_channel, get_preset
 
 PROTOCOLS = ("knee", "elbow", "lumbar", "upper_body_children")
-VARIANTS = ("recorded", "shared clock", "+ sensorcal")
+VARIANTS = ("recorded", "clock sync", "clock sync + sensorcal", "shared clock + sensorcal")
 TASK_S = 30.0  # simulated time per task
 REST_S = 5.0  # pause between steps and tasks (3 s of stillness after the 2 s blend)
 CAL_HOLD_S, CAL_TURN_S = 4.0, 1.0  # calibration recording: still pose, turn to the next
@@ -136,30 +144,71 @@ def sensor_calibrated(session, truth, preset: Preset, mag: bool, seed: int) -> l
     return notes
 
 
-def errors(table: dict, truth, stamps: np.ndarray, true: np.ndarray, tasks: list) -> dict:
+def true_clock(session, truth, stamps: dict, label: str):
+    """Function: session time of sensor ``label`` (its clock, corrected by the clock sync when
+    that was applied) → true time (s), from the true instant of each recorded stamp."""
+    st = stamps[label]
+    sync = session.sensors[label].attrs.get("clock_sync")
+    if sync is not None:
+        st = ClockFit(**sync).corrected_time(st)
+    true = truth.sensors[label]["sample_time"]
+    return lambda t: np.interp(t, st, true)
+
+
+def errors(table: dict, truth, clocks: dict, protocol: Protocol, tasks: list) -> dict:
     """Per column: the error samples (deg) over the task blocks.
 
-    The table's time is the clock of the sensor whose ``stamps`` are given; ``true`` holds the
-    true time of each of its samples (from the truth), so the truth is read at true times.
+    Each joint's angles are read on its proximal sensor's clock (``clocks[joint]``: session
+    time → true time), so the truth is read at the true instants its sensors sampled: a joint
+    angle's error is its own, whatever the other joints' clocks (the clock sync's accuracy
+    between joints is reported on its own).
     """
-    true_time = np.interp(table["time_s"], stamps, true)
-    inside = np.zeros(len(true_time), bool)
-    for t0, t1 in tasks:
-        inside |= (true_time >= t0) & (true_time <= t1)
     out = {}
     for col, values in table.items():
-        if col != "time_s":
-            ref = np.interp(true_time, truth.time, truth.joint_angles[col])
-            out[col] = (values - ref)[inside]
+        if col == "time_s":
+            continue
+        joint = next(j for j in protocol.joints if col.startswith(f"{j}_"))
+        true_time = clocks[joint](table["time_s"])
+        inside = np.zeros(len(true_time), bool)
+        for t0, t1 in tasks:
+            inside |= (true_time >= t0) & (true_time <= t1)
+        ref = np.interp(true_time, truth.time, truth.joint_angles[col])
+        out[col] = (values - ref)[inside]
     return out
 
 
-def angles(session, truth, protocol: Protocol, args, nominal: bool = False) -> dict:
-    """RMSE per column of one prepared session (and with the calibration off), and messages."""
+def clock_errors(session, truth, protocol: Protocol, stamps: dict, tasks: list) -> dict:
+    """Per sensor pair of the clock sync tree: the largest clock difference left over the task
+    blocks (s): true instant of the sensor's sample minus the reference's, at one session time."""
+    out = {}
+    for ref, label in sync_pairs(session, protocol):
+        t = session.sensors[ref].time
+        t_ref = true_clock(session, truth, stamps, ref)(t)
+        inside = np.zeros(len(t), bool)
+        for t0, t1 in tasks:
+            inside |= (t_ref >= t0) & (t_ref <= t1)
+        diff = true_clock(session, truth, stamps, label)(t[inside]) - t_ref[inside]
+        out[f"{ref}→{label}"] = float(np.max(np.abs(diff)))
+    return out
+
+
+def sync_pairs(session, protocol: Protocol) -> list[tuple[str, str]]:
+    """(reference, sensor) labels of the clock sync's tree."""
+    label = partial(sensor_for_segment, session)
+    return [(label(a), label(b)) for a, b in sync_tree(session, protocol)]
+
+
+def angles(
+    session, truth, protocol: Protocol, args, nominal: bool = False, sync: bool = False
+) -> dict:
+    """RMSE per column of one prepared session (and with the calibration off), the clock
+    differences left between sensor pairs (s), and messages."""
+    session = dataclasses.replace(session, sensors=dict(session.sensors), results={})
     stamps = {label: s.time.copy() for label, s in session.sensors.items()}
     for label, s in session.sensors.items():  # as motionlab ingest does
         s, _ = timebase.repair_clock(s, label)
         session.sensors[label], _ = timebase.fill_short_gaps(s, args.gap_max)
+    fits = synchronise(session, protocol) if sync else []
     fused = {}
     for label, s in session.sensors.items():
         mag = s.mag if args.mag else None
@@ -173,33 +222,42 @@ def angles(session, truth, protocol: Protocol, args, nominal: bool = False) -> d
         off = nominal_calibration(protocol, cal["steps"])
         tables["nominal"] = angle_table(segment_orientations(protocol, off, quats), protocol)
     tasks = [(s["start_s"], s["end_s"]) for s in truth.steps if s["phase"] == "task"]
-    first = next(iter(protocol.joints.values())).proximal
+    clocks = {
+        name: true_clock(session, truth, stamps, sensor_for_segment(session, j.proximal))
+        for name, j in protocol.joints.items()
+    }
     out = {}
     for key, table in tables.items():
-        true = truth.sensors[first]["sample_time"]
-        err = errors(table, truth, stamps[first], true, tasks)
+        err = errors(table, truth, clocks, protocol, tasks)
         out[key] = {c: float(np.sqrt(np.mean(e**2))) for c, e in err.items()}
+    out["clocks"] = clock_errors(session, truth, protocol, stamps, tasks)
+    out["status"] = {f"{f.reference}→{f.sensor}": f.status for f in fits}
     out["messages"] = [m for s in cal["segments"].values() for m in s["quality"]["messages"]]
     return out
 
 
 def run_one(protocol: Protocol, seed: int, args) -> dict:
-    """``{variant: {column: RMSE}}``, the calibration-off RMSE and the messages of one seed."""
+    """``{variant: {column: RMSE}}``, the calibration-off RMSE, the clock differences left per
+    sensor pair (``{variant: {pair: s}}``), the sync's verdicts and the messages of one seed."""
     preset = get_preset(args.preset)
     sim = {"mounting_max_deg": args.mounting, "rest_s": REST_S}
     rec, truth = simulate(protocol, duration(protocol), seed, preset, **sim)
-    recorded = angles(rec, truth, protocol, args, nominal=True)
+    rec_cal = dataclasses.replace(rec, sensors=dict(rec.sensors), results={})
+    notes = sensor_calibrated(rec_cal, truth, preset, args.mag, seed)
     shared, truth_s = simulate(protocol, duration(protocol), seed, shared_clock(preset), **sim)
-    calibrated = dataclasses.replace(shared, sensors=dict(shared.sensors), results={})
-    notes = sensor_calibrated(calibrated, truth_s, preset, args.mag, seed)
-    synced = angles(shared, truth_s, protocol, args)
-    both = angles(calibrated, truth_s, protocol, args)
+    notes += sensor_calibrated(shared, truth_s, preset, args.mag, seed)
+    runs = {
+        "recorded": angles(rec, truth, protocol, args, nominal=True),
+        "clock sync": angles(rec, truth, protocol, args, sync=True),
+        "clock sync + sensorcal": angles(rec_cal, truth, protocol, args, sync=True),
+        "shared clock + sensorcal": angles(shared, truth_s, protocol, args),
+    }
     return {
-        "recorded": recorded["cal"],
-        "shared clock": synced["cal"],
-        "+ sensorcal": both["cal"],
-        "nominal": recorded["nominal"],
-        "messages": recorded["messages"] + [f"sensorcal {n}" for n in notes],
+        **{v: r["cal"] for v, r in runs.items()},
+        "nominal": runs["recorded"]["nominal"],
+        "clocks": {v: r["clocks"] for v, r in runs.items()},
+        "status": runs["clock sync + sensorcal"]["status"],
+        "messages": runs["recorded"]["messages"] + [f"sensorcal {n}" for n in notes],
     }
 
 
@@ -224,7 +282,7 @@ def main() -> None:
     head = " | ".join(f"{v} mean | max" for v in VARIANTS)
     print(f"| protocol | angle | target | {head} | calibration off (mean) |")
     print("|---|---|---:|" + "---:|---:|" * len(VARIANTS) + "---:|")
-    notes = []
+    notes, clock_rows = [], []
     for name in args.protocols.split(","):
         protocol = load_protocol(name)
         t0 = time.perf_counter()
@@ -237,9 +295,26 @@ def main() -> None:
                 cells.append(f"{x.mean():.2f} | {x.max():.2f} {ok}")
             nom = np.mean([r["nominal"][col] for r in runs])
             print(f"| {name} | {col} | {target(col):.1f} | {' | '.join(cells)} | {nom:.2f} |")
+        for pair in runs[0]["clocks"]["recorded"]:
+            raw = np.array([r["clocks"]["recorded"][pair] for r in runs]) * 1e3
+            left = np.array([r["clocks"]["clock sync + sensorcal"][pair] for r in runs]) * 1e3
+            verdicts = Counter(r["status"].get(pair, "-") for r in runs)
+            said = ", ".join(f"{k} ×{n}" for k, n in verdicts.items())
+            clock_rows.append(f"| {name} | {pair} | {raw.mean():.1f} | {raw.max():.1f} | "
+                              f"{left.mean():.1f} | {left.max():.1f} | {said} |")  # fmt: skip
         for seed, r in zip(seeds, runs, strict=True):
             notes += [f"{name} seed {seed}: {m}" for m in r["messages"]]
         notes.append(f"{name}: {time.perf_counter() - t0:.0f} s for {len(seeds)} seeds")
+    print()
+    print("Clock differences between neighbouring sensors over the task blocks (ms; largest")
+    print("|true instant of the sensor's sample − the reference's| at one session time), as")
+    print("recorded and after `motionlab sync` (clock sync + sensorcal variant), mean / max over")
+    print("the seeds, and the sync's verdicts:")
+    print()
+    print("| protocol | pair | recorded mean | max | synced mean | max | verdicts |")
+    print("|---|---|---:|---:|---:|---:|---|")
+    for row in clock_rows:
+        print(row)
     print()
     for n in notes:
         print(n)
