@@ -45,7 +45,7 @@ from motionlab.session import SensorStream, Session
 
 MAX_OFFSET_S = 0.5  # search range of the offset (s)
 GRID_STEP_S = 0.005  # coarse grid over the offset (s)
-MAX_SE_S = 0.005  # largest standard error of c(t) for a correction to be applied (s)
+MAX_SE_S = 0.010  # largest standard error of c(t) for a correction to be applied (s)
 MIN_CORRECTION_S = 0.001  # smaller clock differences are left alone (s)
 MOVING_RAD_S = 0.35  # a segment moves above this angular rate (rad/s, 20 °/s)
 MIN_MOVING_S = 5.0  # shared movement needed (s)
