@@ -53,6 +53,7 @@ LOWPASS_HZ = 6.0  # zero-phase low-pass of the residuals (Hz)
 INPUT_LP_HZ = 8.0  # zero-phase low-pass of f and ω (order INPUT_ORDER): soft-tissue wobble
 INPUT_ORDER = 8  # at 10–20 Hz would otherwise reach ω̇ × r by tens of m/s²
 BLOCK_S = 8.0  # movement time per block whose offset checks the fit (s)
+MIN_SAMPLES = 100  # finite accelerometer and gyroscope samples a sensor needs
 SETTLE_S = 0.3  # samples this close to a gap are left out (s)
 BODY = 12  # parameters besides the clock: two lever arms and two accelerometer biases
 
@@ -145,9 +146,12 @@ def estimate_clock(
     joint. The status is ``"applied"`` only when the fit is reliable and differs from zero
     (:func:`synchronise` applies only those).
     """
+    name = (reference.label, sensor.label)
+    if min(_finite_samples(reference), _finite_samples(sensor)) < MIN_SAMPLES:
+        return ClockFit(*name, 0.0, 0.0, float(np.mean(reference.time[[0, -1]])), np.inf, np.inf,
+                        np.nan, 0.0, "no usable accelerometer and gyroscope samples")  # fmt: skip
     a, b = _signals(reference), _signals(sensor)
     inside = (a.time - max_offset_s >= b.time[0]) & (a.time + max_offset_s <= b.time[-1])
-    name = (reference.label, sensor.label)
     t_mid = float(0.5 * (a.time[0] + a.time[-1]))
     if inside.sum() < 2 * MIN_MOVING_S / (a.time[1] - a.time[0]):
         return ClockFit(*name, 0.0, 0.0, t_mid, np.inf, np.inf, np.nan, 0.0,
@@ -323,10 +327,14 @@ def sync_tree(session: Session, protocol: Protocol) -> list[tuple[str, str]]:
 
 def _usable(session: Session, segment: str) -> bool:
     label = sensor_for_segment(session, segment)
-    if label is None:
-        return False
-    s = session.sensors[label]
-    return s.acc is not None and s.gyr is not None and s.n_samples > 100
+    return label is not None and _finite_samples(session.sensors[label]) >= MIN_SAMPLES
+
+
+def _finite_samples(s: SensorStream) -> int:
+    """Samples with a finite accelerometer and gyroscope reading (0 without either)."""
+    if s.acc is None or s.gyr is None:
+        return 0
+    return int(np.sum(np.all(np.isfinite(s.acc), axis=1) & np.all(np.isfinite(s.gyr), axis=1)))
 
 
 def _kind_side(segment: str) -> tuple[str, str]:

@@ -138,3 +138,14 @@ def test_sync_command(tmp_path, typical):
     forced = runner.invoke(main, ["sync", str(path), "--protocol", "knee", "--force"])
     assert forced.exit_code == 0
     assert forced.output == res.output  # redone from the recorded stamps: the same fits
+
+
+def test_nan_sensor_left_out(knee, typical):
+    session, _ = typical
+    shank = session.sensors["shank_r"]
+    broken = dataclasses.replace(shank, acc=np.full_like(shank.acc, np.nan))
+    fit = estimate_clock(session.sensors["thigh_r"], broken)
+    assert fit.status == "no usable accelerometer and gyroscope samples"
+    sensors = dict(session.sensors, shank_r=broken)
+    assert ("thigh_r", "shank_r") not in sync_tree(dataclasses.replace(session, sensors=sensors),
+                                                   knee)  # fmt: skip
