@@ -44,7 +44,7 @@ from motionlab.segments import sensor_for_segment
 from motionlab.session import SensorStream, Session
 
 MAX_OFFSET_S = 0.5  # search range of the offset (s)
-GRID_STEP_S = 0.005  # coarse grid over the offset (s)
+GRID_STEP_S = 0.01  # coarse grid over the offset (s)
 MAX_SE_S = 0.010  # largest standard error of c(t) for a correction to be applied (s)
 MIN_CORRECTION_S = 0.001  # smaller clock differences are left alone (s)
 MOVING_RAD_S = 0.35  # a segment moves above this angular rate (rad/s, 20 °/s)
@@ -171,7 +171,9 @@ def estimate_clock(
     if moving_s < MIN_MOVING_S:
         return ClockFit(*name, 0.0, 0.0, t_mid, np.inf, np.inf, np.nan, moving_s,
                         "not enough shared movement")  # fmt: skip
-    pair = _Pair(t, ref, b.spline, t_mid, sos, use)
+    # the low-passed residuals change little within a quarter of the filter's period
+    stride = max(1, int(0.25 / (LOWPASS_HZ * dt)))
+    pair = _Pair(t, ref, b.spline, t_mid, sos, use[::stride])
     body = pair.body(0.0)
     grid = np.arange(-max_offset_s, max_offset_s + 1e-12, GRID_STEP_S)
     c0 = float(grid[int(np.argmin([pair.cost(np.r_[body, c, 0.0]) for c in grid]))])
@@ -247,6 +249,7 @@ class _Pair:
             np.zeros(BODY),
             jac=lambda q: self.residuals(np.r_[q, fixed], jacobian=True)[:, :BODY],
             x_scale=0.1,
+            method="lm",
         )
         return sol.x
 
@@ -257,6 +260,7 @@ class _Pair:
             p0,
             jac=lambda p: self.residuals(p, jacobian=True),
             x_scale=np.r_[np.full(BODY, 0.1), 0.01, 1e-4],
+            method="lm",
         ).x
 
     def standard_errors(self, p: np.ndarray) -> tuple[float, float]:
@@ -265,12 +269,12 @@ class _Pair:
         each block's information, its covariance scaled up by the scatter (χ²/dof when above 1)
         so that the model's errors, which the residuals' statistics understate, show. Fewer than
         three blocks: infinite."""
-        dt = self.t[1] - self.t[0]
+        dt = float(np.median(np.diff(self.t[self.use])))  # spacing of the fitted samples
         blocks = np.array_split(self.use, int(len(self.use) * dt // BLOCK_S))
         if len(blocks) < 3:
             return np.inf, np.inf
         rows, offsets, weights = [], [], []
-        correlation = 0.5 / (LOWPASS_HZ * dt)  # samples per independent residual
+        correlation = max(1.0, 0.5 / (LOWPASS_HZ * dt))  # samples per independent residual
         for block in blocks:
             part = replace(self, use=block)
             centre = self.t[block].mean() - self.t_mid
