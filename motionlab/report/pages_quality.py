@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from motionlab.clocksync import ClockFit, describe
 from motionlab.report.model import (
     SessionView,
     calibration_rows,
@@ -124,6 +125,16 @@ def data_quality_page(doc: Document, view: SessionView) -> None:
     ]
     doc.heading("Quality checks raised")
     doc.bullets(flags or ["none: every check of every sensor passed"])
+    synced = view.session.results.get("clock_sync", {})
+    if synced:
+        doc.heading("Sensor clocks")
+        doc.paragraph(
+            "Each sensor's clock against its neighbour's, from the acceleration of the joint "
+            "centre they share; corrected where the estimate was reliable and not zero.",
+            size=SIZE["small"],
+            colour=MUTED,
+        )
+        doc.bullets([describe(ClockFit(**fit)) for fit in synced.values()])
     _timeline(doc, view)
     doc.heading("Excluded from the analysis, and why")
     doc.bullets(excluded(view) or ["nothing"])
