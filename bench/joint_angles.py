@@ -256,7 +256,7 @@ def run_one(protocol: Protocol, seed: int, args) -> dict:
         **{v: r["cal"] for v, r in runs.items()},
         "nominal": runs["recorded"]["nominal"],
         "clocks": {v: r["clocks"] for v, r in runs.items()},
-        "status": runs["clock sync + sensorcal"]["status"],
+        "status": {v: runs[v]["status"] for v in ("clock sync", "clock sync + sensorcal")},
         "messages": runs["recorded"]["messages"] + [f"sensorcal {n}" for n in notes],
     }
 
@@ -296,23 +296,25 @@ def main() -> None:
             nom = np.mean([r["nominal"][col] for r in runs])
             print(f"| {name} | {col} | {target(col):.1f} | {' | '.join(cells)} | {nom:.2f} |")
         for pair in runs[0]["clocks"]["recorded"]:
-            raw = np.array([r["clocks"]["recorded"][pair] for r in runs]) * 1e3
-            left = np.array([r["clocks"]["clock sync + sensorcal"][pair] for r in runs]) * 1e3
-            verdicts = Counter(r["status"].get(pair, "-") for r in runs)
+            cells = []
+            for v in ("recorded", "clock sync", "clock sync + sensorcal"):
+                ms = np.array([r["clocks"][v][pair] for r in runs]) * 1e3
+                cells.append(f"{ms.mean():.1f} | {ms.max():.1f}")
+            verdicts = Counter(r["status"][v].get(pair, "-") for r in runs for v in r["status"])
             said = ", ".join(f"{k} ×{n}" for k, n in verdicts.items())
-            clock_rows.append(f"| {name} | {pair} | {raw.mean():.1f} | {raw.max():.1f} | "
-                              f"{left.mean():.1f} | {left.max():.1f} | {said} |")  # fmt: skip
+            clock_rows.append(f"| {name} | {pair} | {' | '.join(cells)} | {said} |")
         for seed, r in zip(seeds, runs, strict=True):
             notes += [f"{name} seed {seed}: {m}" for m in r["messages"]]
         notes.append(f"{name}: {time.perf_counter() - t0:.0f} s for {len(seeds)} seeds")
     print()
     print("Clock differences between neighbouring sensors over the task blocks (ms; largest")
     print("|true instant of the sensor's sample − the reference's| at one session time), as")
-    print("recorded and after `motionlab sync` (clock sync + sensorcal variant), mean / max over")
-    print("the seeds, and the sync's verdicts:")
+    print("recorded and after `motionlab sync` on the raw and on the sensorcal-corrected data,")
+    print("mean / max over the seeds, and the sync's verdicts (both variants):")
     print()
-    print("| protocol | pair | recorded mean | max | synced mean | max | verdicts |")
-    print("|---|---|---:|---:|---:|---:|---|")
+    print("| protocol | pair | recorded mean | max | synced mean | max | synced + sensorcal mean "
+          "| max | verdicts |")  # fmt: skip
+    print("|---|---|---:|---:|---:|---:|---:|---:|---|")
     for row in clock_rows:
         print(row)
     print()
