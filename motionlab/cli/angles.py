@@ -7,6 +7,7 @@ import numpy as np
 import pandas as pd
 
 from motionlab.atomic import atomic_path
+from motionlab.cli._stage import refuse_to_redo
 from motionlab.errors import InputError
 from motionlab.kinematics.session_angles import session_angles
 from motionlab.protocol import load_protocol
@@ -54,8 +55,7 @@ def command(
             raise InputError("no protocol", session, remedy="give --protocol")
         protocol_path = cal.get("protocol_path") or cal["protocol"]
     protocol = load_protocol(protocol_path)
-    if "angles" in ses.results and not force:
-        raise InputError("already holds angles", session, "results/angles", "add --force")
+    refuse_to_redo(ses, session, "angles", "angles", force)
     if method == "imu":
         table = session_angles(ses, protocol, None if no_calibration else cal)
     else:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from motionlab.errors import InputError
+from motionlab.cli._stage import refuse_to_redo
 from motionlab.protocol import load_protocol
 from motionlab.segments import calibrate
 from motionlab.session import load_session, save_session
@@ -23,10 +23,7 @@ def command(session: str, protocol_path: str, force: bool) -> None:
     """
     protocol = load_protocol(protocol_path)
     ses = load_session(session)
-    if "calibration" in ses.results and not force:
-        raise InputError(
-            "already holds a calibration", session, "results/calibration", "add --force to redo it"
-        )
+    refuse_to_redo(ses, session, "calibration", "a calibration", force)
     result = calibrate(ses, protocol)
     result["protocol_path"] = str(protocol.path)
     ses.results["calibration"] = result

@@ -6,6 +6,7 @@ import click
 import numpy as np
 
 from motionlab.atomic import atomic_path, check_output
+from motionlab.cli._stage import refuse_to_redo
 from motionlab.errors import InputError
 from motionlab.kinematics.metrics import metrics_table, session_metrics
 from motionlab.protocol import load_protocol
@@ -69,8 +70,7 @@ def command(
         raise InputError(
             "not calibrated", session, "results/calibration", "run motionlab calibrate first"
         )
-    if "metrics" in ses.results and not force:
-        raise InputError("already holds metrics", session, "results/metrics", "add --force")
+    refuse_to_redo(ses, session, "metrics", "metrics", force)
     protocol = load_protocol(protocol_path or cal.get("protocol_path") or cal["protocol"])
     unknown = [n for n in (_parse_tasks(tasks) or {}) if n not in {t.name for t in protocol.tasks}]
     if unknown:

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import click
 
+from motionlab.cli._stage import refuse_to_redo
 from motionlab.clocksync import describe, synchronise
-from motionlab.errors import InputError
 from motionlab.protocol import load_protocol
 from motionlab.session import load_session, save_session
 
@@ -29,10 +29,7 @@ def command(session: str, protocol_path: str, force: bool) -> None:
     """
     protocol = load_protocol(protocol_path)
     ses = load_session(session)
-    if "clock_sync" in ses.results and not force:
-        raise InputError(
-            "is already synchronised", session, "results/clock_sync", "add --force to redo it"
-        )
+    refuse_to_redo(ses, session, "clock_sync", "a clock synchronisation", force)
     fits = synchronise(ses, protocol)
     ses.add_provenance(parameters={"protocol": str(protocol.path), "stage": "sync"})
     save_session(ses, session, force=True)

@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from motionlab.atomic import atomic_path, check_output
+from motionlab.cli._stage import refuse_to_redo
 from motionlab.errors import InputError
 from motionlab.protocol import load_protocol
 from motionlab.session import load_session, save_session
@@ -67,10 +68,7 @@ def command(
       motionlab validate broad.h5 --mode none --no-sync --movement-only
     """
     ses = load_session(session)
-    if "validation" in ses.results and not force:
-        raise InputError(
-            "already holds validation results", session, "results/validation", "add --force"
-        )
+    refuse_to_redo(ses, session, "validation", "validation results", force)
     mmap = load_marker_map(markers_path) if markers_path else None
     name = mmap.marker_set if mmap else None
     if reference is None:
