@@ -270,9 +270,10 @@ class _Pair:
         so that the model's errors, which the residuals' statistics understate, show. Fewer than
         three blocks: infinite."""
         dt = float(np.median(np.diff(self.t[self.use])))  # spacing of the fitted samples
-        blocks = np.array_split(self.use, int(len(self.use) * dt // BLOCK_S))
-        if len(blocks) < 3:
+        n_blocks = int(len(self.use) * dt // BLOCK_S)
+        if n_blocks < 3:
             return np.inf, np.inf
+        blocks = np.array_split(self.use, n_blocks)
         rows, offsets, weights = [], [], []
         correlation = max(1.0, 0.5 / (LOWPASS_HZ * dt))  # samples per independent residual
         for block in blocks:

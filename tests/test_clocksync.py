@@ -149,3 +149,18 @@ def test_nan_sensor_left_out(knee, typical):
     sensors = dict(session.sensors, shank_r=broken)
     assert ("thigh_r", "shank_r") not in sync_tree(dataclasses.replace(session, sensors=sensors),
                                                    knee)  # fmt: skip
+
+
+def test_short_movement_is_not_reliable(typical):
+    """Less than three blocks of shared movement (a 40 s session): no correction, no crash."""
+    session, _ = typical
+
+    def crop(stream, t0: float, t1: float):
+        keep = (stream.time >= t0) & (stream.time <= t1)
+        return dataclasses.replace(stream, time=stream.time[keep], acc=stream.acc[keep],
+                                   gyr=stream.gyr[keep], mag=stream.mag[keep])  # fmt: skip
+
+    fit = estimate_clock(crop(session.sensors["thigh_r"], 150, 165),
+                         crop(session.sensors["shank_r"], 150, 165))  # fmt: skip
+    assert 5.0 <= fit.moving_s < 24.0
+    assert fit.status == "not reliable: too little shared movement"
