@@ -14,9 +14,11 @@ joint position estimation):
 with ``f`` the specific force (accelerometer, m/s²), ``ω`` the angular rate (rad/s) and ``r`` the
 vector from the sensor to the joint centre in the sensor frame (m). When sensor 2's clock reads
 ``t + c(t)`` at sensor 1's time ``t``, with ``c(t) = c₀ + c₁ (t − t_mid)`` (offset s, drift), the
-equality holds only for the right ``c``: ``r₁``, ``r₂``, ``c₀``, ``c₁`` minimise the squared
-differences over the samples where a segment moves (scipy's least squares, started from a grid
-over ``c₀``). Standard errors come from the Jacobian, widened by the residuals' correlation time.
+equality holds only for the right ``c``. ``r₁``, ``r₂``, both accelerometer biases, ``c₀`` and
+``c₁`` minimise the squared differences (low-passed) over the samples where a segment moves
+(MINPACK Levenberg–Marquardt with the analytic Jacobian, started from a grid over ``c₀``). The
+clock is then refitted from the offsets of 8 s blocks of movement: a weighted line with a prior
+on the drift, whose scatter gives honest standard errors (see :meth:`_Pair.clock_from_blocks`).
 
 Which pairs: the protocol's joints, then anatomical neighbours (pelvis–thigh, thorax–upper arm,
 pelvis–lumbar–thorax, …) so that every sensor reaches one reference sensor (pelvis, else thorax,
@@ -53,6 +55,7 @@ LOWPASS_HZ = 6.0  # zero-phase low-pass of the residuals (Hz)
 INPUT_LP_HZ = 8.0  # zero-phase low-pass of f and ω (order INPUT_ORDER): soft-tissue wobble
 INPUT_ORDER = 8  # at 10–20 Hz would otherwise reach ω̇ × r by tens of m/s²
 BLOCK_S = 8.0  # movement time per block whose offset checks the fit (s)
+DRIFT_PRIOR = 50e-6  # prior standard deviation of one clock's drift against another's
 MIN_SAMPLES = 100  # finite accelerometer and gyroscope samples a sensor needs
 SETTLE_S = 0.3  # samples this close to a gap are left out (s)
 BODY = 12  # parameters besides the clock: two lever arms and two accelerometer biases
@@ -179,7 +182,7 @@ def estimate_clock(
     c0 = float(grid[int(np.argmin([pair.cost(np.r_[body, c, 0.0]) for c in grid]))])
     fit = pair.solve(np.r_[pair.body(c0), c0, 0.0])
     half = 0.5 * (t[use[-1]] - t[use[0]])
-    offset_se, drift_se = pair.standard_errors(fit)
+    fit[-2:], offset_se, drift_se = pair.clock_from_blocks(fit)
     worst_se = float(np.hypot(offset_se, drift_se * half))
     c_ends = np.abs(fit[-2] + fit[-1] * (t[use[[0, -1]]] - t_mid))
     if worst_se > MAX_SE_S:
@@ -263,20 +266,24 @@ class _Pair:
             method="lm",
         ).x
 
-    def standard_errors(self, p: np.ndarray) -> tuple[float, float]:
-        """Standard errors of c₀ (s) and c₁ from the offsets fitted block by block (the moving
-        samples in runs of ``BLOCK_S``, levers and biases held): a line through them weighted by
-        each block's information, its covariance scaled up by the scatter (χ²/dof when above 1)
-        so that the model's errors, which the residuals' statistics understate, show. Fewer than
-        three blocks: infinite."""
+    def clock_from_blocks(self, p: np.ndarray) -> tuple[np.ndarray, float, float]:
+        """c₀ (s), c₁ and their standard errors from offsets fitted block by block (the moving
+        samples in runs of ``BLOCK_S``; levers and biases of ``p`` held).
+
+        A line through the block offsets, weighted by each block's information and scaled by
+        its scatter (χ²/dof when above 1, so that the model's errors, which the residuals'
+        statistics understate, show), with a prior on the drift (0 ± ``DRIFT_PRIOR``: two
+        crystal clocks): where the movement sits in two clusters whose offsets carry different
+        model errors, an unrestrained line turned a few milliseconds into hundreds of ppm.
+        Fewer than three blocks: infinite errors.
+        """
         dt = float(np.median(np.diff(self.t[self.use])))  # spacing of the fitted samples
         n_blocks = int(len(self.use) * dt // BLOCK_S)
         if n_blocks < 3:
-            return np.inf, np.inf
-        blocks = np.array_split(self.use, n_blocks)
+            return p[-2:], np.inf, np.inf
         rows, offsets, weights = [], [], []
         correlation = max(1.0, 0.5 / (LOWPASS_HZ * dt))  # samples per independent residual
-        for block in blocks:
+        for block in np.array_split(self.use, n_blocks):
             part = replace(self, use=block)
             centre = self.t[block].mean() - self.t_mid
             sol = least_squares(
@@ -288,12 +295,14 @@ class _Pair:
             rows.append([1.0, centre])
             offsets.append(sol.x[0])
             weights.append(float(sol.jac[:, 0] @ sol.jac[:, 0]) / max(s2, 1e-30))
-        x, w = np.array(rows), np.array(weights)
+        x, w, y = np.array(rows), np.array(weights), np.array(offsets)
         info = x.T @ (w[:, None] * x)
-        scatter = np.asarray(offsets) - x @ p[-2:]
-        chi2 = float(w @ scatter**2) / (len(blocks) - 2)
-        cov = np.linalg.inv(info) * max(1.0, chi2)
-        return float(np.sqrt(cov[0, 0])), float(np.sqrt(cov[1, 1]))
+        line = np.linalg.solve(info, x.T @ (w * y))
+        chi2 = float(w @ (y - x @ line) ** 2) / (len(y) - 2)
+        info = info / max(1.0, chi2) + np.diag([0.0, DRIFT_PRIOR**-2])
+        cov = np.linalg.inv(info)
+        clock = cov @ (x.T @ (w * y)) / max(1.0, chi2)
+        return clock, float(np.sqrt(cov[0, 0])), float(np.sqrt(cov[1, 1]))
 
 
 def _centre(values: np.ndarray, r: np.ndarray, bias: np.ndarray) -> np.ndarray:
