@@ -193,7 +193,7 @@ def estimate_clock(
         status = "consistent with one clock"
     else:
         status = "applied"
-    rms = float(np.sqrt(pair.cost(fit) / len(use)))
+    rms = float(np.sqrt(pair.cost(fit) / len(pair.use)))
     return ClockFit(*name, float(fit[-2]), float(fit[-1]), t_mid, offset_se, drift_se, rms,
                     moving_s, status)  # fmt: skip
 
