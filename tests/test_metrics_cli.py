@@ -5,6 +5,7 @@ import numpy as np
 import pandas as pd
 import pytest
 from click.testing import CliRunner
+from protocol_texts import ELBOW_R
 
 from motionlab import rotations as rot
 from motionlab.cli import main
@@ -12,30 +13,12 @@ from motionlab.protocol import load_protocol
 from motionlab.session import load_session, save_session
 from motionlab.simulate import simulate
 
-ELBOW = """name: elbow_r
-segments:
-  upperarm_r: {side: r, sensor_axes: [x, y, z]}
-  forearm_r: {side: r, sensor_axes: [z, y, -x]}
-calibration:
-  - {name: standing, kind: static, pose: standing, duration_s: 4, vertical_axis: {upperarm_r: y}}
-  - {name: shoulder_flexion_r, kind: functional, axis: {upperarm_r: z, forearm_r: z},
-     repetitions: 3, duration_s: 8}
-  - {name: elbow_flexion_r, kind: functional, axis: {forearm_r: z}, repetitions: 3,
-     duration_s: 8}
-  - {name: pronation_r, kind: functional, axis: {forearm_r: y}, repetitions: 3, duration_s: 8}
-joints:
-  elbow_r: {type: elbow, proximal: upperarm_r, distal: forearm_r, side: r}
-tasks:
-  - {name: curls, kind: elbow_flexion, repetitions: 4, duration_s: 12}
-metrics: [rom, cycles, cross_talk]
-"""
-
 
 @pytest.fixture(scope="module")
 def session_file(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("cli")
     protocol_path = tmp / "elbow_r.yaml"
-    protocol_path.write_text(ELBOW)
+    protocol_path.write_text(ELBOW_R)
     session, truth = simulate(load_protocol(protocol_path), duration=74, seed=1, rest_s=5.0)
     # sensors named by serial, their segment set (as ingest --map does); the true orientations
     # stored as motionlab fuse stores its results: the test is about the stages after fusion

@@ -8,6 +8,7 @@ forward in that pose tilts its measured gravity by about 1.2° about the segment
 
 import numpy as np
 import pytest
+from protocol_texts import ELBOW_R
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
@@ -16,23 +17,8 @@ from motionlab.segments import calibrate
 from motionlab.segments.frames import level
 from motionlab.simulate import simulate
 
-ELBOW = """name: elbow_r
-segments:
-  upperarm_r: {side: r, sensor_axes: [x, y, z]}
-  forearm_r: {side: r, sensor_axes: [z, y, -x]}
-calibration:
-  - {name: standing, kind: static, pose: standing, duration_s: 4, vertical_axis: {upperarm_r: y}
-     %s}
-  - {name: shoulder_flexion_r, kind: functional, axis: {upperarm_r: z, forearm_r: z},
-     repetitions: 3, duration_s: 8}
-  - {name: elbow_flexion_r, kind: functional, axis: {forearm_r: z}, repetitions: 3,
-     duration_s: 8}
-  - {name: pronation_r, kind: functional, axis: {forearm_r: y}, repetitions: 3, duration_s: 8}
-joints:
-  elbow_r: {type: elbow, proximal: upperarm_r, distal: forearm_r, side: r}
-tasks:
-  - {name: curls, kind: elbow_flexion, repetitions: 4, duration_s: 12}
-"""
+# the standing pose takes extra keys through "%s"
+ELBOW = ELBOW_R.replace("{upperarm_r: y}}", "{upperarm_r: y}\n     %s}")
 BIAS = 0.2  # m/s²
 
 

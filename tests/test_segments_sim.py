@@ -7,6 +7,7 @@ drift), so that these tests measure calibration and metrics, not the fusion filt
 
 import numpy as np
 import pytest
+from protocol_texts import ELBOW_R
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
@@ -39,24 +40,6 @@ tasks:
   - {name: squat, kind: squat, repetitions: 3, duration_s: 12}
 metrics: [rom, cycles, cross_talk, varus_thrust, stance_rotation]
 thresholds: {varus_thrust_deg: 2.0}
-"""
-
-ELBOW = """name: elbow_r
-segments:
-  upperarm_r: {side: r, sensor_axes: [x, y, z]}
-  forearm_r: {side: r, sensor_axes: [z, y, -x]}
-calibration:
-  - {name: standing, kind: static, pose: standing, duration_s: 4, vertical_axis: {upperarm_r: y}}
-  - {name: shoulder_flexion_r, kind: functional, axis: {upperarm_r: z, forearm_r: z},
-     repetitions: 3, duration_s: 8}
-  - {name: elbow_flexion_r, kind: functional, axis: {forearm_r: z}, repetitions: 3,
-     duration_s: 8}
-  - {name: pronation_r, kind: functional, axis: {forearm_r: y}, repetitions: 3, duration_s: 8}
-joints:
-  elbow_r: {type: elbow, proximal: upperarm_r, distal: forearm_r, side: r}
-tasks:
-  - {name: curls, kind: elbow_flexion, repetitions: 4, duration_s: 12}
-metrics: [rom, cycles, cross_talk]
 """
 
 
@@ -94,7 +77,7 @@ def knee(tmp_path_factory):
 @pytest.fixture(scope="module")
 def elbow(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("elbow")
-    protocol = write(tmp, "elbow_r", ELBOW)
+    protocol = write(tmp, "elbow_r", ELBOW_R)
     session, truth = simulate(protocol, duration=70, seed=1, rest_s=5.0)
     return tmp, protocol, session, truth
 
