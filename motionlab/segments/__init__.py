@@ -24,7 +24,7 @@ import numpy as np
 from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.protocol import Protocol, axis_vector
-from motionlab.segments import heading, mounting
+from motionlab.segments import heading, mounting, movement
 from motionlab.segments.steps import find_steps
 from motionlab.session import Session
 
@@ -85,20 +85,124 @@ def streams_of(session: Session, protocol: Protocol) -> Streams:
     return out
 
 
-def calibrate(session: Session, protocol: Protocol) -> dict[str, Any]:
-    """Sensor-to-segment calibration of every segment; the tree for ``results["calibration"]``."""
+def hinge_spec(joint) -> tuple[str, bool] | None:
+    """``(flexion axis in segment coordinates, anatomical sign)`` of a hinge-like joint, or None.
+
+    The axis is the one about which the distal segment turns when the joint's first angle
+    increases; anatomical: the joint flexes one way from its reference pose (knee, elbow).
+    """
+    if joint.type == "knee":
+        return "-z", True
+    if joint.type == "elbow":
+        return "z", True
+    if joint.type == "hinge" and getattr(joint, "axis", None):
+        return joint.axis, False
+    return None
+
+
+def _measured_by_steps(records: dict[str, Any], axis: np.ndarray) -> bool:
+    """Whether a functional step already measured this segment axis (either sign)."""
+    return any(
+        r["kind"] == "functional" and abs(float(r["segment_axis"] @ axis)) > 0.99
+        for r in records.values()
+    )
+
+
+def movement_hinges(
+    session: Session,
+    protocol: Protocol,
+    streams: Streams,
+    steps: dict[str, Any],
+    records: dict[str, dict[str, Any]],
+) -> dict[str, movement.HingeFit]:
+    """Hinge axes from ordinary movement for the hinge-like joints no functional step measures.
+
+    Their axis records (``movement:<joint>``, kind ``movement``) are added to ``records`` of both
+    segments unless the fit is ``not determined``; the fits are returned by joint name.
+    """
+    from motionlab.kinematics.session_angles import sensor_orientation
+
+    fits: dict[str, movement.HingeFit] = {}
+    for name, joint in protocol.joints.items():
+        spec = hinge_spec(joint)
+        p, d = joint.proximal, joint.distal
+        if spec is None or p not in streams or d not in streams:
+            continue
+        seg_axis = axis_vector(spec[0])
+        if _measured_by_steps(records[d], seg_axis):
+            continue
+        side = {}
+        for seg in (p, d):
+            label = sensor_for_segment(session, seg)
+            t, _, gyr = streams[seg]
+            side[seg] = (t, gyr, sensor_orientation(session, label))
+        ref_name = reference_step(protocol, p, d)
+        reference = steps.get(ref_name) if ref_name else None
+        prior_p = protocol.segments[p].nominal_mounting().T @ seg_axis
+        prior_d = protocol.segments[d].nominal_mounting().T @ seg_axis
+        try:
+            fit = movement.fit_hinge(
+                name, side[p], side[d], prior_p, prior_d, None, reference, anatomical=spec[1]
+            )
+        except InputError as exc:
+            fits[name] = movement.failed(name, exc.message)
+            continue
+        fits[name] = fit
+        if fit.verdict == "not determined":
+            continue
+        rho = 0.9 if fit.verdict == "determined" else 0.6
+        for seg, axis in ((p, fit.axis_proximal), (d, fit.axis_distal)):
+            records[seg][f"movement:{name}"] = {
+                "step": f"movement:{name}",
+                "kind": "movement",
+                "method": "hinge",
+                "sensor_axis": np.asarray(axis, float),
+                "segment_axis": seg_axis,
+                "rho": rho,
+                "reference_rho": None,
+                "joint_movement": False,
+                "secondary": False,
+                "verdict": fit.verdict,
+            }
+    return fits
+
+
+def calibrate(
+    session: Session, protocol: Protocol, warnings: list[str] | None = None
+) -> dict[str, Any]:
+    """Sensor-to-segment calibration of every segment; the tree for ``results["calibration"]``.
+
+    Lines about the recording that the user should read (a nominal placement the data
+    contradicts) are added to ``warnings`` and kept in the result's ``warnings``.
+    """
+    notes: list[str] = []
     streams = streams_of(session, protocol)
-    steps = find_steps(streams, protocol)
+    steps = find_steps(streams, protocol, notes)
     records = mounting.measure(protocol, streams, steps)
+    hinges = movement_hinges(session, protocol, streams, steps, records)
     segments = {}
     for seg in streams:
         res = mounting.fit(seg, protocol, records[seg])
         res["sensor"] = sensor_for_segment(session, seg)
         segments[seg] = res
+    for name, fit in hinges.items():
+        if fit.verdict != "determined":
+            joint = protocol.joints[name]
+            for seg in (joint.proximal, joint.distal):
+                q = segments[seg]["quality"]
+                q["messages"].append(
+                    f"{seg}: the {name} axis from the movement is {fit.verdict}: "
+                    + ("; ".join(fit.reasons) or "see the calibration page")
+                )
+                q["ok"] = False
+    if warnings is not None:
+        warnings.extend(notes)
     return {
         "protocol": protocol.name,
         "steps": {k: (list(v) if v else None) for k, v in steps.items()},
         "segments": segments,
+        "hinges": {k: v.to_tree() for k, v in hinges.items()},
+        "warnings": notes,
         "ok": all(s["quality"]["ok"] for s in segments.values()),
     }
 
@@ -186,8 +290,14 @@ def segment_orientations(
             continue
         tp, qp = out[p]
         td, qd = out[d]
-        times, deltas = heading_anchors(protocol, joint, steps, tp, qp, rot.resample(td, qd, tp))
-        if times:
+        qd_on_p = rot.resample(td, qd, tp)
+        fit = calibration.get("hinges", {}).get(joint.name)
+        if fit is not None and fit["verdict"] != "not determined":
+            axis = axis_vector(hinge_spec(joint)[0])
+            times, deltas = heading.hinge_anchors(tp, qp, qd_on_p, axis, axis)
+        else:
+            times, deltas = heading_anchors(protocol, joint, steps, tp, qp, qd_on_p)
+        if len(times):
             track = heading.heading_track(np.array(times), np.array(deltas), td)
             out[d] = (td, rot.make_continuous(heading.apply_heading(qd, track)))
     return out

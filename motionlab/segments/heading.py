@@ -20,7 +20,11 @@ between them (held before the first and after the last):
   (``DRIFT_PER_TURN`` of the proximal segment's accumulated turning about the vertical) is a
   held pose (a turned trunk), not the reference pose, and is skipped (:func:`on_track`);
 - the hinge constraint (:func:`heading_from_hinge`): the joint axis seen from both segments
-  (after Laidig et al., Sensors 2022 22:9850).
+  (after Laidig et al., Sensors 2022 22:9850). For a joint whose axis was calibrated from
+  movement it holds at every sample, so :func:`hinge_anchors` measures δ over the whole
+  recording in windows of ``HINGE_WINDOW_S`` every ``HINGE_STEP_S``, each weighted by how
+  horizontal the axis is (a vertical axis carries no heading information; windows where its
+  horizontal part stays under ``HINGE_MIN_HORIZONTAL`` are left out).
 """
 
 from __future__ import annotations
@@ -36,6 +40,10 @@ REST_TILT_DEG = 10.0
 REST_MIN_S = 2.0
 REST_JUMP_DEG = 6.0
 DRIFT_PER_TURN = 0.02  # heading drift allowed per turn of the segment (gyro scale errors)
+HINGE_WINDOW_S = 4.0
+HINGE_STEP_S = 1.0
+HINGE_MIN_HORIZONTAL = 0.3  # mean horizontal part of the unit axis, at least
+HINGE_MEDIAN_WINDOWS = 5  # anchors are median-filtered over this many windows
 
 
 def heading_from_pose(q_proximal: np.ndarray, q_distal: np.ndarray) -> float:
@@ -61,6 +69,42 @@ def heading_from_hinge(
     a = rot.rotate(q_proximal, np.broadcast_to(axis_proximal, (len(q_proximal), 3)))
     d = rot.rotate(q_distal, np.broadcast_to(axis_distal, (len(q_distal), 3)))
     return _procrustes_2d(a, d)
+
+
+def hinge_anchors(
+    t: np.ndarray,
+    q_proximal: np.ndarray,
+    q_distal: np.ndarray,
+    axis_proximal: np.ndarray,
+    axis_distal: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Times (s) and heading offsets δ (rad) from the hinge constraint over the whole recording.
+
+    ``q_*`` are segment orientations on the common time ``t``; the axes are the hinge axis in
+    each segment's coordinates. One anchor per window (see the module notes), median-filtered
+    over ``HINGE_MEDIAN_WINDOWS`` neighbours (unwrapped) against outliers.
+    """
+    if len(t) < 3:
+        return np.empty(0), np.empty(0)
+    a = rot.rotate(q_proximal, np.broadcast_to(axis_proximal, (len(t), 3)))
+    d = rot.rotate(q_distal, np.broadcast_to(axis_distal, (len(t), 3)))
+    horizontal = np.sqrt(np.minimum(a[:, 0] ** 2 + a[:, 1] ** 2, d[:, 0] ** 2 + d[:, 1] ** 2))
+    times, deltas = [], []
+    for start in np.arange(t[0], t[-1] - HINGE_WINDOW_S / 2, HINGE_STEP_S):
+        w = slice(*np.searchsorted(t, [start, start + HINGE_WINDOW_S]))
+        ok = np.isfinite(horizontal[w])
+        if ok.sum() < 3 or np.mean(horizontal[w][ok]) < HINGE_MIN_HORIZONTAL:
+            continue
+        times.append(float(np.mean(t[w][ok])))
+        deltas.append(_procrustes_2d(a[w][ok], d[w][ok]))
+    if not times:
+        return np.empty(0), np.empty(0)
+    deltas_u = np.unwrap(np.array(deltas))
+    half = HINGE_MEDIAN_WINDOWS // 2
+    smooth = np.array(
+        [np.median(deltas_u[max(0, i - half) : i + half + 1]) for i in range(len(deltas_u))]
+    )
+    return np.array(times), smooth
 
 
 def earth_rates(t: np.ndarray, q: np.ndarray) -> np.ndarray:

@@ -68,12 +68,16 @@ def hinge_axes(
     prior2: np.ndarray | None = None,
     n_starts: int = 6,
     seed: int = 0,
+    loss: str = "linear",
+    f_scale: float = 1.0,
 ) -> tuple[np.ndarray, np.ndarray, float]:
     """Joint axis in sensor 1 and sensor 2 coordinates (unit, (3,)) and the RMS residual (rad/s).
 
     ``gyr1``, ``gyr2`` are (N, 3) rad/s on one clock. The fit starts from the priors and from
     ``n_starts`` random directions (seeded) and keeps the best; signs follow the priors. The
-    residual is over the samples used (see the module docstring).
+    residual is over the samples used (see the module docstring). ``loss`` and ``f_scale``
+    (rad/s) select a robust loss of scipy's ``least_squares`` (e.g. ``"soft_l1"``: samples off
+    the hinge model weigh less); the default is plain least squares (Levenberg-Marquardt).
     """
     g1 = np.asarray(gyr1, float)
     g2 = np.asarray(gyr2, float)
@@ -104,7 +108,13 @@ def hinge_axes(
     best = None
     for s in starts:
         x0 = np.array([*_angles(s[:3]), *_angles(s[3:])])
-        fit = least_squares(residual, x0, jac=jacobian, method="lm", max_nfev=MAX_EVALUATIONS)
+        if loss == "linear":
+            fit = least_squares(residual, x0, jac=jacobian, method="lm", max_nfev=MAX_EVALUATIONS)
+        else:
+            fit = least_squares(
+                residual, x0, jac=jacobian, method="trf", loss=loss, f_scale=f_scale,
+                max_nfev=MAX_EVALUATIONS,
+            )  # fmt: skip
         if best is None or fit.cost < best.cost:
             best = fit
     j1, j2 = _unit(best.x[0], best.x[1]), _unit(best.x[2], best.x[3])
@@ -112,4 +122,5 @@ def hinge_axes(
         j1 = -j1
     if prior2 is not None and j2 @ prior2 < 0:
         j2 = -j2
-    return j1, j2, float(np.sqrt(2 * best.cost / len(g1)))
+    rms = float(np.sqrt(np.mean(residual(best.x) ** 2)))
+    return j1, j2, rms

@@ -187,6 +187,28 @@ def _arrays(recs: list[dict[str, Any]]) -> tuple[np.ndarray, np.ndarray, np.ndar
     return v, np.array([r["segment_axis"] for r in recs]), np.array([r["rho"] for r in recs])
 
 
+def nominal(segment: str, protocol: Protocol) -> dict[str, Any]:
+    """The nominal placement (the protocol's ``sensor_axes`` hint) of a segment the recording
+    gives no axis for, with a quality message saying so."""
+    m_nom = protocol.segments[segment].nominal_mounting().T
+    return {
+        "mounting": rot.from_matrix(m_nom),
+        "method": "nominal",
+        "axes": {},
+        "quality": {
+            "ok": False,
+            "messages": [
+                f"{segment}: no axis of it was measured (no stand, no movement of a hinge it "
+                "forms); its frame is the protocol's nominal placement"
+            ],
+            "min_rho": float("nan"),
+            "separation_deg": None,
+            "lm_difference_deg": None,
+            "hinge_check_deg": {},
+        },
+    }
+
+
 def fit(segment: str, protocol: Protocol, records: dict[str, dict[str, Any]]) -> dict[str, Any]:
     """Mounting (segment → sensor quaternion), method, the records and the quality.
 
@@ -198,12 +220,7 @@ def fit(segment: str, protocol: Protocol, records: dict[str, dict[str, Any]]) ->
     (:func:`~motionlab.segments.frames.turn_about`), or stand in when there are no primaries.
     """
     if not records:
-        raise InputError(
-            f"no calibration step gives an axis for segment '{segment}'",
-            protocol.path,
-            f"segments.{segment}",
-            "add it to a static step's vertical_axis or a functional step's axis",
-        )
+        return nominal(segment, protocol)
     level = [r for r in records.values() if r["method"] == "horizontal"]
     recs = [r for r in records.values() if r["method"] != "horizontal"]
     if not recs:

@@ -247,9 +247,63 @@ def _check_unambiguous(
         )
 
 
-def find_steps(streams: Streams, protocol: Protocol) -> dict[str, tuple[float, float] | None]:
-    """Time range (s) of each calibration step, ``None`` for an optional step not performed."""
+def _axis_words(v: np.ndarray) -> str:
+    """The signed sensor axis a unit vector is closest to (``+x``), or its components."""
+    k = int(np.argmax(np.abs(v)))
+    if abs(v[k]) >= np.cos(np.radians(30.0)):
+        return f"sensor {'+' if v[k] > 0 else '-'}{'xyz'[k]}"
+    return "sensor ({:+.2f}, {:+.2f}, {:+.2f})".format(*v)
+
+
+def placement_warnings(step: CalibrationStep, block: Block, protocol: Protocol) -> list[str]:
+    """One warning per segment whose measured vertical axis in ``block`` contradicts the hint."""
+    out = []
+    for seg, axis in step.vertical_axis.items():
+        if seg not in block.up:
+            continue
+        nominal_up = protocol.segments[seg].nominal_mounting().T @ axis_vector(axis)
+        if np.degrees(np.arccos(np.clip(nominal_up @ block.up[seg], -1, 1))) > POSE_TOLERANCE_DEG:
+            out.append(
+                f"{seg}: {_axis_words(block.up[seg])} points up in the {step.name} pose, the "
+                f"protocol says {_axis_words(nominal_up).removeprefix('sensor ')}; using the data"
+            )
+    return out
+
+
+def _fits_without_hint(step: CalibrationStep, block: Block) -> bool:
+    return not block.moving and block.end - block.start >= max(1.0, 0.5 * step.duration_s)
+
+
+def describe(bl: list[Block]) -> str:
+    """What a recording holds, in words: its rests and movements, and which axes point up."""
+    parts = [
+        f"{'movement' if b.moving else 'rest'} {_fmt(b)} ({b.end - b.start:.1f} s)"
+        for b in bl
+        if b.end - b.start >= (TWITCH_S if b.moving else 1.0)
+    ]
+    if len(parts) > 8:
+        parts = parts[:7] + [f"... {len(parts) - 7} more"]
+    rest = next((b for b in bl if not b.moving), None)
+    text = "the recording holds " + (", ".join(parts) or "no rest or movement")
+    if rest is not None:
+        ups = ", ".join(f"{s} {_axis_words(u).removeprefix('sensor ')}" for s, u in rest.up.items())
+        text += f"; up in the first rest: {ups}"
+    return text
+
+
+def find_steps(
+    streams: Streams, protocol: Protocol, warnings: list[str] | None = None
+) -> dict[str, tuple[float, float] | None]:
+    """Time range (s) of each calibration step, ``None`` for an optional step not performed.
+
+    A static step is first matched with the nominal placement's vertical axes (so standing and
+    sitting are told apart); when no rest fits them, the next rest long enough is taken and the
+    axes measured in it are used, with one line per contradicted segment added to ``warnings``
+    (the placement is a hint). Required steps still missing are named all at once in one
+    :class:`InputError`, with what the recording holds and a shipped protocol that fits it.
+    """
     found: dict[str, tuple[float, float] | None] = {}
+    missing: list[CalibrationStep] = []
     bl = blocks(streams)
     pos = 0  # index of the first block not yet used
     t_used = -np.inf
@@ -263,6 +317,11 @@ def find_steps(streams: Streams, protocol: Protocol) -> dict[str, tuple[float, f
             hit = next(
                 (i for i in range(pos, len(bl)) if _static_match(step, bl[i], protocol)), None
             )
+            if hit is None and not step.optional:
+                rests = (i for i in range(pos, len(bl)) if _fits_without_hint(step, bl[i]))
+                hit = next(rests, None)
+                if hit is not None and warnings is not None:
+                    warnings.extend(placement_warnings(step, bl[hit], protocol))
         else:
             hit = next(
                 (
@@ -274,16 +333,10 @@ def find_steps(streams: Streams, protocol: Protocol) -> dict[str, tuple[float, f
                 None,
             )
         if hit is None:
-            if step.optional:
-                found[step.name] = None
-                continue
-            after = f" after {t_used:.1f} s" if np.isfinite(t_used) else ""
-            raise InputError(
-                f"calibration step '{step.name}' ({step.kind}) not found{after}",
-                protocol.path,
-                f"calibration step {step.name}",
-                "check the recording holds it in protocol order, or give its time_range",
-            )
+            if not step.optional:
+                missing.append(step)
+            found[step.name] = None
+            continue
         b = bl[hit]
         if step.kind == "static":  # keep the middle of the pose, away from its edges
             trim = min(0.5, 0.2 * (b.end - b.start))
@@ -293,7 +346,39 @@ def find_steps(streams: Streams, protocol: Protocol) -> dict[str, tuple[float, f
             found[step.name] = (b.start, b.end)
         t_used = b.end
         pos = hit + 1
+    if missing:
+        names = ", ".join(f"'{s.name}' ({s.kind})" for s in missing)
+        fits = fitting_protocols(streams, protocol)
+        raise InputError(
+            f"calibration step{'s' if len(missing) > 1 else ''} {names} not found; {describe(bl)}",
+            protocol.path,
+            "calibration",
+            (f"the shipped protocol {' or '.join(repr(f) for f in fits)} fits this recording; "
+             if fits else "")
+            + "or check the recording holds the steps in protocol order, or give their "
+            "time_range",
+        )  # fmt: skip
     return found
+
+
+def fitting_protocols(streams: Streams, protocol: Protocol) -> list[str]:
+    """Shipped protocols (other than ``protocol``) whose segments and steps this recording has."""
+    from motionlab.protocol import PACKAGED, load_protocol
+
+    out = []
+    for path in sorted(PACKAGED.glob("*.yaml")):
+        other = load_protocol(path)
+        if other.name == protocol.name:
+            continue
+        needed = [s for s, spec in other.segments.items() if spec.required]
+        if not needed or any(s not in streams for s in needed):
+            continue
+        try:
+            find_steps({s: streams[s] for s in other.segments if s in streams}, other)
+        except InputError:
+            continue
+        out.append(other.name)
+    return out
 
 
 def find_tasks(
