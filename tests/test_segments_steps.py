@@ -8,6 +8,7 @@ test the steps and tasks against the simulator's truth.
 import numpy as np
 import pytest
 
+from motionlab.errors import InputError
 from motionlab.protocol import load_protocol
 from motionlab.segments import streams_of
 from motionlab.segments.steps import blocks, find_steps, find_tasks
@@ -99,3 +100,39 @@ def test_optional_steps_not_recorded_are_not_matched(knee, tmp_path):
     tasks = find_tasks(streams, knee, after_s=steps["knee_flexion_l"][1])
     for name, (_, b) in tasks.items():
         assert abs(b - truth.step(name)["end_s"]) < 0.5
+
+
+def _stand_then_walk(up_axis: int):
+    """10 s still (each sensor's ``up_axis`` up), then 30 s of movement of every segment."""
+    t = np.arange(0, 40, 1 / RATE)
+    rate, _ = movement(t, 10.0, 20, 1.2, 0.1, 2.0)
+    up = np.zeros(3)
+    up[up_axis] = 9.81
+    streams = {}
+    for k, seg in enumerate(("pelvis", "thigh_r", "thigh_l", "shank_r", "shank_l")):
+        gyr = rate[:, None] * np.roll([0.0, 0.0, 1.0], k % 2)
+        streams[seg] = (t, np.tile(up, (len(t), 1)), gyr)
+    return streams
+
+
+def test_all_missing_steps_named_at_once_with_what_the_recording_holds(knee):
+    with pytest.raises(InputError) as err:
+        find_steps(_stand_then_walk(up_axis=1), knee)
+    msg = err.value.line()
+    for step in ("'sitting' (static)", "'knee_flexion_r' (functional)", "'knee_flexion_l'"):
+        assert step in msg
+    assert "'standing'" not in msg  # found
+    assert "rest 0.0-" in msg and "movement 10.0-" in msg
+    assert "up in the first rest: pelvis +y, thigh_r +y" in msg
+    assert "'walk'" in msg  # the shipped protocol that fits a stand and a walk
+
+
+def test_a_contradicted_hint_gives_one_warning_and_the_data_is_used(knee):
+    warnings: list[str] = []
+    with pytest.raises(InputError):  # the seated steps are still missing
+        find_steps(_stand_then_walk(up_axis=0), knee, warnings)
+    assert len(warnings) == 5  # one per segment of the standing pose
+    assert (
+        "thigh_r: sensor +x points up in the standing pose, the protocol says +y; using the data"
+        in warnings
+    )

@@ -24,7 +24,7 @@ import numpy as np
 from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.protocol import Protocol, axis_vector
-from motionlab.segments import heading, mounting, movement
+from motionlab.segments import grades, heading, mounting, movement
 from motionlab.segments.steps import find_steps
 from motionlab.session import Session
 
@@ -197,7 +197,7 @@ def calibrate(
                 q["ok"] = False
     if warnings is not None:
         warnings.extend(notes)
-    return {
+    result = {
         "protocol": protocol.name,
         "steps": {k: (list(v) if v else None) for k, v in steps.items()},
         "segments": segments,
@@ -205,6 +205,9 @@ def calibrate(
         "warnings": notes,
         "ok": all(s["quality"]["ok"] for s in segments.values()),
     }
+    axes = {n: (hinge_spec(j) or (None,))[0] for n, j in protocol.joints.items()}
+    result["grades"] = grades.grade_joints(protocol, result, axes)
+    return result
 
 
 def reference_step(protocol: Protocol, proximal: str, distal: str) -> str | None:

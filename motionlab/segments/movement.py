@@ -139,8 +139,9 @@ def anatomical_sign(
 
     The joint rate ``j_d·ω_d − j_p·ω_p`` (rad/s, gyroscope biases taken as their median over the
     ``reference`` window, a still pose with the joint straight) is integrated from the reference
-    pose; the excursions (98th percentile each way, degrees) are returned with the sign. ``None``
-    when neither excursion dominates (see ``FLEXION_MIN_DEG``, ``FLEXION_RATIO``).
+    pose; the excursions (98th percentile each way, degrees: flexion then extension) are returned
+    with the sign. ``None`` (and the excursions along ``+j``, then ``-j``) when neither
+    dominates (see ``FLEXION_MIN_DEG``, ``FLEXION_RATIO``).
     """
     sel = (t >= reference[0]) & (t <= reference[1])
     if sel.sum() < 5:
@@ -156,7 +157,7 @@ def anatomical_sign(
     big, small = max(up, down), max(min(up, down), 0.0)
     if big < FLEXION_MIN_DEG or big < FLEXION_RATIO * small:
         return None, (up, down)
-    return (1.0 if up >= down else -1.0), (up, down)
+    return (1.0 if up >= down else -1.0), (big, max(min(up, down), 0.0))
 
 
 def fit_hinge(

@@ -16,11 +16,11 @@ shorter than ``TWITCH_S`` during a pose do not end it. Steps are then matched in
   placement's vertical axis (so standing and sitting are told apart);
 - a functional step takes the next movement block in which the step's segments turn fastest
   (the fastest of them at least ``LEAD_FRACTION`` of the fastest sensor's mean rate, and each
-  of them at least ``MOVE_FRACTION`` of it). An optional step may not have been recorded at
-  all, so a block must also look like it: some sensor outside its segments nearly still (not a
-  whole-body task such as walking; segments carried along, like the shank in a straight-leg
-  hip flexion, may move), a length within ``DURATION_RANGE`` × its ``duration_s``, every named
-  segment turning about its named axis (within ``AXIS_TOLERANCE_DEG`` of the nominal
+  of them at least ``MOVE_FRACTION`` of it), and some sensor outside its segments nearly still
+  (not a whole-body task such as walking; segments carried along, like the shank in a
+  straight-leg hip flexion, may move). An optional step may not have been recorded at
+  all, so a block must also look like it: a length within ``DURATION_RANGE`` × its
+  ``duration_s``, every named segment turning about its named axis (within ``AXIS_TOLERANCE_DEG`` of the nominal
   placement's), and segments named with the same axis turning as one (their rates within
   ``RIGID_TOLERANCE`` of each other: the knee locked in a straight-leg hip flexion, not
   flexing as in gait).
@@ -156,10 +156,8 @@ def _functional_match(step: CalibrationStep, block: Block) -> bool:
     rates = [block.rate[s] for s in step.axis if s in block.rate]
     if not rates or max(rates) < LEAD_FRACTION * fastest or min(rates) < MOVE_FRACTION * fastest:
         return False
-    if step.optional:
-        others = [r for s, r in block.rate.items() if s not in step.segments]
-        return not others or any(r < QUIET_FRACTION * fastest for r in others)
-    return True
+    others = [r for s, r in block.rate.items() if s not in step.segments]
+    return not others or any(r < QUIET_FRACTION * fastest for r in others)
 
 
 def _rigid(a: np.ndarray, b: np.ndarray) -> bool:
@@ -270,8 +268,25 @@ def placement_warnings(step: CalibrationStep, block: Block, protocol: Protocol) 
     return out
 
 
-def _fits_without_hint(step: CalibrationStep, block: Block) -> bool:
-    return not block.moving and block.end - block.start >= max(1.0, 0.5 * step.duration_s)
+def _fits_without_hint(
+    step: CalibrationStep, block: Block, earlier: list[tuple[CalibrationStep, Block]]
+) -> bool:
+    """A rest long enough for a static step whose vertical axes are consistent with the static
+    steps found before it: a segment named in both turned between them by the angle between
+    the two steps' segment axes (standing → sitting: the thigh by 90°), whatever its mounting."""
+    if block.moving or block.end - block.start < max(1.0, 0.5 * step.duration_s):
+        return False
+    for other, b in earlier:
+        for seg, axis in step.vertical_axis.items():
+            if seg not in other.vertical_axis or seg not in block.up:
+                continue
+            expected = np.arccos(
+                np.clip(axis_vector(axis) @ axis_vector(other.vertical_axis[seg]), -1, 1)
+            )
+            measured = np.arccos(np.clip(block.up[seg] @ b.up[seg], -1, 1))
+            if abs(np.degrees(measured - expected)) > POSE_TOLERANCE_DEG:
+                return False
+    return True
 
 
 def describe(bl: list[Block]) -> str:
@@ -304,6 +319,7 @@ def find_steps(
     """
     found: dict[str, tuple[float, float] | None] = {}
     missing: list[CalibrationStep] = []
+    statics: list[tuple[CalibrationStep, Block]] = []  # static steps found so far
     bl = blocks(streams)
     pos = 0  # index of the first block not yet used
     t_used = -np.inf
@@ -318,7 +334,7 @@ def find_steps(
                 (i for i in range(pos, len(bl)) if _static_match(step, bl[i], protocol)), None
             )
             if hit is None and not step.optional:
-                rests = (i for i in range(pos, len(bl)) if _fits_without_hint(step, bl[i]))
+                rests = (i for i in range(pos, len(bl)) if _fits_without_hint(step, bl[i], statics))
                 hit = next(rests, None)
                 if hit is not None and warnings is not None:
                     warnings.extend(placement_warnings(step, bl[hit], protocol))
@@ -339,6 +355,7 @@ def find_steps(
             continue
         b = bl[hit]
         if step.kind == "static":  # keep the middle of the pose, away from its edges
+            statics.append((step, b))
             trim = min(0.5, 0.2 * (b.end - b.start))
             found[step.name] = (b.start + trim, b.end - trim)
         else:

@@ -1,0 +1,93 @@
+"""An honest grade for every joint angle: did the recording determine it?
+
+Each angle of each joint is graded from what its two segments' calibrations actually used:
+
+- ``determined``: every axis the angle depends on was measured — for the angle about a hinge
+  axis (flexion of a knee or elbow, a generic hinge's angle) the axis itself, from a functional
+  step or from movement with a ``determined`` fit; for the other angles both segment frames from
+  two independent measured axes (a static pose's gravity, a movement's axis) with no quality
+  message;
+- ``weak``: one measured axis and the nominal placement (the protocol's ``sensor_axes`` hint)
+  for the rest, a ``weak`` hinge fit, or a calibration the quality checks flagged;
+- ``not determined``: a segment with no measured axis at all, or a failed or inconsistent fit.
+
+The reason is kept in plain words with each grade. The grades depend on the calibration only:
+the angle table and the report carry them next to every number, and findings are not stated for
+an angle that is not determined.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+GRADES = ("determined", "weak", "not determined")
+FULL_FRAME = ("procrustes", "primary_secondary")
+
+
+def _worse(a: str, b: str) -> str:
+    return a if GRADES.index(a) >= GRADES.index(b) else b
+
+
+def _frame_grade(segment: str, cal: dict[str, Any] | None) -> tuple[str, str]:
+    """Grade of a whole segment frame, with the reason."""
+    if cal is None:
+        return "not determined", f"{segment} has no calibration"
+    method = cal.get("method", "")
+    if method == "nominal":
+        return "not determined", f"no axis of {segment} was measured (nominal placement only)"
+    if method not in FULL_FRAME:
+        return "weak", f"{segment}'s frame has one measured axis, the rest is the nominal placement"
+    if not cal.get("quality", {}).get("ok", True):
+        return "weak", f"the calibration of {segment} was flagged"
+    return "determined", ""
+
+
+def _axis_grade(joint, calibration: dict[str, Any], hinge_axis: str | None) -> tuple[str, str]:
+    """Grade of the angle about a hinge axis: the axis measured in both segments."""
+    fit = calibration.get("hinges", {}).get(joint.name)
+    if fit is not None:
+        reasons = "; ".join(fit.get("reasons", []))
+        return fit["verdict"], (f"hinge axis from movement: {reasons}" if reasons else "")
+    segs = calibration.get("segments", {})
+    grade, reason = "determined", ""
+    for seg in (joint.proximal, joint.distal):
+        cal = segs.get(seg)
+        if cal is None or cal.get("method") == "nominal":
+            return "not determined", f"no axis of {seg} was measured (nominal placement only)"
+        measured = [
+            r
+            for r in cal.get("axes", {}).values()
+            if r.get("kind") in ("functional", "movement") and r.get("used", True)
+        ]
+        if not measured and cal.get("method") not in FULL_FRAME:
+            grade, reason = "weak", f"the flexion axis of {seg} is the nominal placement's"
+        elif not cal.get("quality", {}).get("ok", True):
+            grade, reason = _worse(grade, "weak"), f"the calibration of {seg} was flagged"
+    return grade, reason
+
+
+def grade_joints(protocol, calibration: dict[str, Any], hinge_axes: dict[str, str | None]):
+    """``{joint: {"grades": [3 str], "reasons": [3 str]}}`` for every protocol joint.
+
+    ``hinge_axes`` maps a joint name to its hinge axis (segment coordinates) when the joint's
+    first angle is about one (knee, elbow, hinge), else ``None``.
+    """
+    out = {}
+    segs = calibration.get("segments", {})
+    for name, joint in protocol.joints.items():
+        frames = [_frame_grade(s, segs.get(s)) for s in (joint.proximal, joint.distal)]
+        g_frame = _worse(frames[0][0], frames[1][0])
+        r_frame = "; ".join(r for _, r in frames if r)
+        fit = calibration.get("hinges", {}).get(name)
+        if fit is not None and fit["verdict"] != "determined":
+            g_frame = _worse(g_frame, fit["verdict"])
+            r_frame = "; ".join(filter(None, [r_frame, "the hinge axis from movement is "
+                                              + fit["verdict"]]))  # fmt: skip
+        if hinge_axes.get(name):
+            g_axis, r_axis = _axis_grade(joint, calibration, hinge_axes[name])
+            grades = [g_axis, g_frame, g_frame]
+            reasons = [r_axis, r_frame, r_frame]
+        else:
+            grades, reasons = [g_frame] * 3, [r_frame] * 3
+        out[name] = {"grades": grades, "reasons": reasons}
+    return out
