@@ -13,24 +13,28 @@ shorter than ``TWITCH_S`` during a pose do not end it. Steps are then matched in
 
 - a static step takes the next rest block that lasts at least half its ``duration_s`` (≥ 1 s) and
   in which every named segment's sensor sees gravity within ``POSE_TOLERANCE_DEG`` of the nominal
-  placement's vertical axis (so standing and sitting are told apart);
+  placement's vertical axis (so standing and sitting are told apart). The placement is a hint:
+  when no rest fits it, the next rest long enough whose vertical axes turned from the static
+  steps found before by the angles the protocol's axes say is taken, and the contradicted
+  segments are warned about (:func:`placement_warnings`);
 - a functional step takes the next movement block in which the step's segments turn fastest
   (the fastest of them at least ``LEAD_FRACTION`` of the fastest sensor's mean rate, and each
   of them at least ``MOVE_FRACTION`` of it), and some sensor outside its segments nearly still
   (not a whole-body task such as walking; segments carried along, like the shank in a
-  straight-leg hip flexion, may move). An optional step may not have been recorded at
-  all, so a block must also look like it: a length within ``DURATION_RANGE`` × its
-  ``duration_s``, every named segment turning about its named axis (within ``AXIS_TOLERANCE_DEG`` of the nominal
-  placement's), and segments named with the same axis turning as one (their rates within
-  ``RIGID_TOLERANCE`` of each other: the knee locked in a straight-leg hip flexion, not
+  straight-leg hip flexion, may move). An optional step may not have been recorded at all, so
+  a block must also look like it: a length within ``DURATION_RANGE`` × its ``duration_s``,
+  every named segment turning about its named axis (within ``AXIS_TOLERANCE_DEG`` of the
+  nominal placement's), and segments named with the same axis turning as one (their rates
+  within ``RIGID_TOLERANCE`` of each other: the knee locked in a straight-leg hip flexion, not
   flexing as in gait).
 
-A step's ``time_range`` in the protocol overrides detection. A required step that is not found
-raises :class:`InputError` naming the step and what to do; so does an ambiguous functional step
-(not the last one, which the tasks may repeat): the movement block right after the chosen one
-also fits the step, moves no other segment, fits no later step and turns about the same axis
-(within ``SAME_AXIS_DEG``), and both last about the step's duration (0.5-2×), e.g. a movement
-done twice.
+A step's ``time_range`` in the protocol overrides detection. Required steps that are not found
+raise one :class:`InputError` naming all of them, what the recording holds (:func:`describe`)
+and a shipped protocol that fits it (:func:`fitting_protocols`); an ambiguous functional step
+raises too (not the last one, which the tasks may repeat): the movement block right after the
+chosen one also fits the step, moves no other segment, fits no later step and turns about the
+same axis (within ``SAME_AXIS_DEG``), and both last about the step's duration (0.5-2×), e.g. a
+movement done twice.
 
 Task blocks (:func:`find_tasks`) are the movement blocks after the last calibration step,
 matched to the protocol's tasks in order (moves shorter than ``MIN_TASK_S`` left out and blocks
