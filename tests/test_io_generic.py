@@ -214,3 +214,89 @@ def test_unwrap_counter():
     assert count_wraps(c, 16) == 1
     big = np.array([2**32 - 1, 0, 1], dtype=np.uint32)
     np.testing.assert_array_equal(unwrap_counter(big, 32), [2**32 - 1, 2**32, 2**32 + 1])
+
+
+def _rig_file(tmp_path, rate_line="# sampling frequency: 40", n=80):
+    """Five IMUs in one comma file without a time column, in the layout of a multi-segment rig
+    (``segN_acc_x`` …, gyro rad/s, magnetometer in arbitrary units); synthetic values."""
+    rng = np.random.default_rng(3)
+    names = [
+        f"seg{s}_{ch}_{ax}" for s in range(1, 6) for ch in ("acc", "gyr", "mag") for ax in "xyz"
+    ]
+    data = rng.normal(size=(n, len(names)))
+    lines = [rate_line, "# units are seconds/meters/radians/a.u.", ",".join(names)]
+    lines += [",".join(f"{v:.9f}" for v in row) for row in data]
+    return _write(tmp_path, "\n".join(lines) + "\n", "imu.csv"), names, data
+
+
+def _rig_map(**top):
+    sensors = [
+        {
+            "label": f"seg{s}",
+            "acc": {"columns": [f"seg{s}_acc_{a}" for a in "xyz"], "unit": "m/s^2"},
+            "gyr": {"columns": [f"seg{s}_gyr_{a}" for a in "xyz"], "unit": "rad/s"},
+            "mag": {"columns": [f"seg{s}_mag_{a}" for a in "xyz"], "unit": "a.u."},
+        }
+        for s in range(1, 6)
+    ]
+    return {"format": "generic", "sensors": sensors, **top}
+
+
+def test_five_sensors_rate_from_comment_and_mag_in_arbitrary_units(tmp_path):
+    p, names, data = _rig_file(tmp_path)
+    rec = read_any(p, _rig_map())
+    assert [s.label for s in rec.sensors] == [f"seg{k}" for k in range(1, 6)]
+    for k, s in enumerate(rec.sensors):
+        assert len(s.time) == 80 and s.rate_hz == pytest.approx(40.0)
+        np.testing.assert_allclose(s.time, np.arange(80) / 40.0)
+        assert s.attrs["time_source"] == "comment line 1: 40.0 Hz"
+        j = names.index(f"seg{k + 1}_gyr_x")
+        np.testing.assert_allclose(s.gyr, data[:, j : j + 3], atol=1e-9)
+        raw = data[:, j + 3 : j + 6]
+        # direction kept, median norm at the assumed field, flagged so QC does not judge it
+        cos = np.einsum("ij,ij->i", s.mag, raw) / np.linalg.norm(s.mag, axis=1)
+        np.testing.assert_allclose(cos, np.linalg.norm(raw, axis=1), rtol=1e-9)
+        assert np.median(np.linalg.norm(s.mag, axis=1)) == pytest.approx(50.0)
+        assert s.source_units["mag"] == "a.u."
+        assert s.attrs["mag_scale_assumed"] is True
+        assert any("a.u." in note for note in s.attrs["notes"])
+
+
+@pytest.mark.parametrize(
+    "line, rate",
+    [
+        ("// fs=100", 100.0),
+        ("# rate: 100 Hz", 100.0),
+        ("# Sampling Rate (Hz): 128", 128.0),
+        ("#sample_rate=62.5Hz", 62.5),
+    ],
+)
+def test_rate_line_forms(tmp_path, line, rate):
+    p, _, _ = _rig_file(tmp_path, line, n=20)
+    s = read_any(p, _rig_map()).sensors[0]
+    assert s.rate_hz == pytest.approx(rate)
+
+
+def test_rate_in_map_wins_over_comment_and_missing_rate_is_an_error(tmp_path):
+    p, _, _ = _rig_file(tmp_path, "# sampling frequency: 40", n=20)
+    s = read_any(p, _rig_map(rate_hz=50)).sensors[0]
+    assert s.rate_hz == pytest.approx(50.0) and s.attrs["time_source"] == "rate_hz 50.0"
+    p, _, _ = _rig_file(tmp_path, "# recorded on a rig", n=20)
+    with pytest.raises(InputError, match="no rate in a comment line"):
+        read_any(p, _rig_map())
+
+
+def test_arbitrary_units_only_for_the_magnetometer(tmp_path):
+    p, _, _ = _rig_file(tmp_path, n=20)
+    bad = _rig_map()
+    bad["sensors"][0]["acc"]["unit"] = "a.u."
+    with pytest.raises(InputError, match="acc cannot be in a.u."):
+        read_any(p, bad)
+    custom = _rig_map()
+    custom["sensors"][0]["mag"]["field_ut"] = 40
+    s = read_any(p, custom).sensors[0]
+    assert np.median(np.linalg.norm(s.mag, axis=1)) == pytest.approx(40.0)
+    wrong = _rig_map()
+    wrong["sensors"][0]["gyr"]["field_ut"] = 40
+    with pytest.raises(InputError, match="field_ut"):
+        read_any(p, wrong)

@@ -12,7 +12,9 @@ Column map schema (every key optional unless marked *required*)::
     skip_rows: 2          # lines to skip before the header (default 0)
     header_rows: 2        # 0 (no header), 1 (default) or 2; with two rows a column is named
                           #   "<row 1> <row 2>", row 1 carried right over empty cells
-    rate_hz: 100          # nominal rate, used only when there is no time column
+    rate_hz: 100          # nominal rate, used only when there is no time column; without it
+                          #   the rate is read from a comment line before the header:
+                          #   "# sampling frequency: 40", "// fs=100", "# rate: 100 Hz"
     time:                 # or just  time: "t"  (a column in seconds)
       column: t           # name or 0-based index
       unit: ms            # s, ms, us, or ticks (then tick_hz, and wrap_bits if it wraps)
@@ -24,11 +26,22 @@ Column map schema (every key optional unless marked *required*)::
         vendor: "Acme"
         acc: {columns: [ax, ay, az], unit: g}        # unit *required*: g, m/s^2, mg …
         gyr: {columns: [4, 5, 6], unit: deg/s}       # deg/s, rad/s …
-        mag: {columns: [mx, my, mz], unit: uT}       # uT, gauss, nT …
+        mag: {columns: [mx, my, mz], unit: uT}       # uT, gauss, nT … or a.u. (below)
         quat: {columns: [qw, qx, qy, qz], order: wxyz}   # order wxyz (default) or xyzw;
                                                       # inverse: true if it maps earth → sensor
       - label: shank
         gyr: {columns: ["shank gyr_x", "shank gyr_y", "shank gyr_z"], unit: rad/s}
+
+Without a time column the time is row / rate (s), the first row at 0; ``attrs["time_source"]``
+says where the rate came from (``rate_hz 40.0`` or ``comment line 1: 40.0 Hz``).
+
+Magnetometer in arbitrary units (``unit: a.u.``, e.g. raw counts, or a field normalised to 1):
+only the direction is known. Inside motionlab the field is in µT (fusion's disturbance tolerances
+are in µT), so each sensor's field is scaled by one constant that makes its median norm
+``field_ut`` (a key of the ``mag`` entry; default 50 µT, a typical mid-latitude field). The
+direction is kept exactly; ``source_units["mag"]`` is ``"a.u."``, ``attrs["mag_scale_assumed"]``
+is set (so the QC does not judge the norm) with the factor in ``attrs["mag_scale_ut_per_au"]``,
+and a note says so.
 
 A single sensor may be described at the top level instead (``label``, ``acc``, ``gyr`` …
 beside ``delimiter``). Quaternions must map sensor → ENU earth (``inverse: true`` conjugates).
@@ -38,6 +51,7 @@ A key that is unknown, missing or of the wrong type raises :class:`InputError` n
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -63,9 +77,17 @@ FORMAT = "generic"
 _TOP_KEYS = {"format", "delimiter", "decimal", "comment", "skip_rows", "header_rows", "rate_hz",
              "time", "sensors"}  # fmt: skip
 _SENSOR_KEYS = {"label", "serial", "vendor", "acc", "gyr", "mag", "quat"}
-_CHANNEL_KEYS = {"columns", "unit", "order", "inverse"}
+_CHANNEL_KEYS = {"columns", "unit", "order", "inverse", "field_ut"}
 _TIME_KEYS = {"column", "unit", "tick_hz", "wrap_bits"}
 _QUANTITY = {"acc": "acc", "gyr": "gyr", "mag": "mag"}
+ARBITRARY_UNITS = ("a.u.", "au", "a.u", "arbitrary")
+DEFAULT_FIELD_UT = 50.0  # µT: the assumed field norm of a magnetometer in arbitrary units
+#: a rate in a comment line: "# sampling frequency: 40", "// fs=100", "# rate: 100 Hz"
+_RATE_LINE = re.compile(
+    r"(?:sampling|sample)?[ _-]?(?:frequency|freq|rate|fs)\s*(?:\(\s*hz\s*\)|\[\s*hz\s*\])?"
+    r"\s*[:=]\s*([0-9]+(?:\.[0-9]*)?(?:e[+-]?[0-9]+)?)\s*(?:hz)?\s*$",
+    re.IGNORECASE,
+)
 
 
 def sniff(path: Path, head: bytes) -> bool:
@@ -150,19 +172,53 @@ def _channel(m: _Map, table: Table, spec: Any, name: str, key: str) -> tuple[np.
     unit = spec.get("unit")
     if not isinstance(unit, str):
         raise m.fail(f"{key}.unit", "missing unit", f"give the unit of {name}, e.g. deg/s or g")
+    arbitrary = unit.strip().lower() in ARBITRARY_UNITS
+    if "field_ut" in spec and not (name == "mag" and arbitrary):
+        raise m.fail(f"{key}.field_ut", "only a magnetometer in a.u. takes it", "remove it")
+    if arbitrary:
+        if name != "mag":
+            raise m.fail(f"{key}.unit", f"{name} cannot be in a.u.", "give its physical unit")
+        m.number(spec, "field_ut", f"{key}.field_ut")
+        return values.astype(float), "a.u."
     try:
         return to_si(values, unit, _QUANTITY[name]), unit
     except InputError as exc:
         raise m.fail(f"{key}.unit", exc.message, exc.remedy or "") from None
 
 
-def _time(m: _Map, table: Table, opts: dict) -> tuple[np.ndarray, dict]:
+def rate_from_comments(lines: list[str], prefixes: list[str]) -> tuple[float, int] | None:
+    """The rate (Hz) written in a comment line among ``lines``, and its 1-based line number.
+
+    Recognised: ``# sampling frequency: 40``, ``// fs=100``, ``# rate: 100 Hz``,
+    ``# sample rate (Hz): 50`` (case-insensitive); the first such line wins.
+    """
+    for i, line in enumerate(lines):
+        s = line.strip()
+        prefix = next((p for p in prefixes if s.startswith(p)), None)
+        if prefix is None:
+            continue
+        match = _RATE_LINE.fullmatch(s[len(prefix) :].strip())
+        if match and float(match.group(1)) > 0:
+            return float(match.group(1)), i + 1
+    return None
+
+
+def _time(m: _Map, table: Table, opts: dict, comments: list[str]) -> tuple[np.ndarray, dict]:
     spec = opts.get("time")
     if spec is None:
         rate = m.number(opts, "rate_hz", "rate_hz")
+        source = f"rate_hz {rate}"
         if rate is None:
-            raise m.fail("time", "no time column and no rate_hz", "give 'time' or 'rate_hz'")
-        return np.arange(len(table.data)) / rate, {"time_source": f"rate_hz {rate}"}
+            found = rate_from_comments(table.preamble, comments)
+            if found is None:
+                raise m.fail(
+                    "time",
+                    "no time column, no rate_hz and no rate in a comment line",
+                    "give 'time' or 'rate_hz' in the column map",
+                )
+            rate, line = found
+            source = f"comment line {line}: {rate} Hz"
+        return np.arange(len(table.data)) / rate, {"time_source": source}
     if isinstance(spec, str | int) and not isinstance(spec, bool):
         spec = {"column": spec}
     spec = m.check_keys(spec, _TIME_KEYS, "time")
@@ -197,6 +253,24 @@ def _time(m: _Map, table: Table, opts: dict) -> tuple[np.ndarray, dict]:
         raise m.fail("time.unit", exc.message, exc.remedy or "") from None
 
 
+def _comments(m: _Map, opts: dict) -> list[str]:
+    comment = opts.get("comment", list(COMMENT_PREFIXES))
+    comment = [comment] if isinstance(comment, str) else comment
+    if not isinstance(comment, list) or not all(isinstance(c, str) and c for c in comment):
+        raise m.fail("comment", "must be a list of line prefixes", 'e.g. ["#", "//"]')
+    return comment
+
+
+def _scale_arbitrary(values: np.ndarray, spec: dict) -> tuple[np.ndarray, dict[str, Any]]:
+    """A field in a.u. scaled to a median norm of ``field_ut`` µT; the attributes saying so."""
+    field_ut = float(spec.get("field_ut", DEFAULT_FIELD_UT))
+    norm = np.linalg.norm(values, axis=1)
+    median = float(np.nanmedian(norm)) if np.isfinite(norm).any() else 0.0
+    scale = field_ut / median if median > 0 else 1.0
+    attrs = {"mag_scale_assumed": True, "mag_field_ut": field_ut, "mag_scale_ut_per_au": scale}
+    return values * scale, attrs
+
+
 def _table(m: _Map, path: Path, opts: dict) -> Table:
     lines = read_lines(path)
     delimiter = opts.get("delimiter")
@@ -207,10 +281,7 @@ def _table(m: _Map, path: Path, opts: dict) -> Table:
     decimal = opts.get("decimal")
     if decimal is not None and decimal not in (".", ","):
         raise m.fail("decimal", f"{decimal!r} is not '.' or ','", "give '.' or ','")
-    comment = opts.get("comment", list(COMMENT_PREFIXES))
-    comment = [comment] if isinstance(comment, str) else comment
-    if not isinstance(comment, list) or not all(isinstance(c, str) and c for c in comment):
-        raise m.fail("comment", "must be a list of line prefixes", 'e.g. ["#", "//"]')
+    comment = _comments(m, opts)
     skip = opts.get("skip_rows", 0)
     header_rows = opts.get("header_rows", 1)
     if isinstance(skip, bool) or not isinstance(skip, int) or skip < 0:
@@ -243,7 +314,7 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
         m.check_keys(opts, _TOP_KEYS | _SENSOR_KEYS, "")
         sensors = [{k: opts[k] for k in _SENSOR_KEYS if k in opts}]
     table = _table(m, path, opts)
-    time, time_attrs = _time(m, table, opts)
+    time, time_attrs = _time(m, table, opts, _comments(m, opts))
     streams = []
     for i, spec in enumerate(sensors):
         key = f"sensors[{i}]" if "sensors" in opts else ""
@@ -257,15 +328,24 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
             serial=str(spec.get("serial", "")),
             vendor=str(spec.get("vendor", "")),
         )
+        notes = list(table.notes)
+        mag_attrs: dict[str, Any] = {}
         for name in ("acc", "gyr", "mag", "quat"):
             if name in spec:
                 sub = f"{key}.{name}" if key else name
                 values, unit = _channel(m, table, spec[name], name, sub)
+                if unit == "a.u.":
+                    values, mag_attrs = _scale_arbitrary(values, spec[name])
+                    notes.append(
+                        f"mag in a.u.: scaled by {mag_attrs['mag_scale_ut_per_au']:.4g} µT/a.u. "
+                        f"to an assumed median field of {mag_attrs['mag_field_ut']:g} µT "
+                        "(direction only)"
+                    )
                 setattr(s, name, values)
                 s.source_units[name] = "1" if name == "quat" else unit
         if not s.channels:
             raise m.fail(key or "acc", "no channel", "map at least one of acc, gyr, mag, quat")
-        s.attrs = {**time_attrs, "notes": table.notes}
+        s.attrs = {**time_attrs, **mag_attrs, "notes": notes}
         streams.append(s)
     labels = [s.label for s in streams]
     if len(set(labels)) != len(labels):
