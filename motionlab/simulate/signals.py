@@ -28,9 +28,11 @@ the segment's long axis, and the site slides 2 mm per degree down the segment. T
     q_sensor = q_seg ⊗ exp(θ) ⊗ q_mount ⊗ exp(w)  =  q_seg ⊗ q_mount ⊗ wobble
     p_sensor = p_seg + R_seg (site + d + d_slip)
 
-(``wobble = q_mount* ⊗ exp(θ) ⊗ q_mount ⊗ exp(w)``, in the sensor frame). The response is
-solved on a 200 Hz grid (exact first-order-hold discretisation) and represented by quintic
-splines, so the IMU signals (derivatives of the pose) and the truth are the same function.
+(``wobble = q_mount* ⊗ exp(θ) ⊗ q_mount ⊗ exp(w)``, in the sensor frame). With ``k = 1``
+(``--soft-tissue motion`` with ``typical``) a thigh or shank sensor turns by ≈1-3° (peaks
+0.5-4°) and moves by 1-3 mm in gait; ``loose`` (``k = 3``) about three times that, plus its slip.
+The response is solved on a 200 Hz grid (exact first-order-hold discretisation) and represented
+by quintic splines, so the IMU signals (derivatives of the pose) and the truth are one function.
 """
 
 from __future__ import annotations
