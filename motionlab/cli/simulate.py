@@ -10,8 +10,8 @@ from motionlab.atomic import check_output
 from motionlab.errors import InputError
 from motionlab.protocol import resolve_protocol_path
 from motionlab.session import save_session
-from motionlab.simulate import save_truth, simulate, write_truth_csv
-from motionlab.simulate.errors import PRESETS
+from motionlab.simulate import MOUNTINGS, save_truth, simulate, write_truth_csv
+from motionlab.simulate.errors import PRESETS, SOFT_TISSUE
 from motionlab.simulate.markers import write_c3d
 
 
@@ -26,6 +26,14 @@ from motionlab.simulate.markers import write_c3d
 @click.option("--session-markers", is_flag=True, help="Put the markers into the session too.")
 @click.option("--preset", default="typical", show_default=True,
               help=f"Sensor errors: {', '.join(PRESETS)}.")  # fmt: skip
+@click.option("--mounting", default="nominal", show_default=True,
+              help="Sensor placement: nominal (the protocol's sensor_axes, within 30°), random "
+                   "(any orientation, anywhere on the segment) or surface (anywhere on the "
+                   "segment, flat on the skin, any turn).")  # fmt: skip
+@click.option("--soft-tissue", "soft_tissue", default=None,
+              help="Sensor motion on the segment: impacts (ringing after heel strikes) or motion "
+                   "(also following the segment's acceleration, and slipping with --preset "
+                   "loose). Default: the preset's (motion for loose, else impacts).")  # fmt: skip
 @click.option("--height", type=float, default=1.75, show_default=True, help="Body height (m).")
 @click.option("--rate", type=float, default=100.0, show_default=True, help="IMU rate (Hz).")
 @click.option("--no-calibration", is_flag=True, help="Skip the protocol's calibration steps.")
@@ -40,6 +48,8 @@ def command(
     markers_path: str | None,
     session_markers: bool,
     preset: str,
+    mounting: str,
+    soft_tissue: str | None,
     height: float,
     rate: float,
     no_calibration: bool,
@@ -48,13 +58,19 @@ def command(
     """Simulate a recording of PROTOCOL: IMU signals, optical markers and the exact truth.
 
     The subject performs the protocol's calibration steps, then its tasks, for DURATION
-    seconds; the same seed gives the same bytes.
+    seconds; the same seed gives the same bytes. Presets: clean, typical, harsh (sensor errors)
+    and loose (typical sensors on a loose strap: soft tissue moving the sensor by a few degrees
+    with the segment's acceleration, and a slow slip of a few degrees). With --mounting random
+    every sensor sits anywhere on its segment in any orientation; the truth holds the true
+    mounting, the sensor's orientation over time and its motion on the segment (wobble).
 
     \b
     Example:
       motionlab simulate --protocol protocols/knee.yaml --duration 180 --seed 1 -o sim.h5 \\
           --truth truth.h5 --truth-csv truth/ --markers markers.c3d --preset typical
       motionlab simulate --protocol knee --duration 60 --no-calibration -o gait.h5
+      motionlab simulate --protocol walk --duration 70 --seed 3 --mounting random \\
+          --preset loose -o walk.h5 --truth truth.h5
     """
     if preset not in PRESETS:
         raise InputError(
@@ -62,6 +78,12 @@ def command(
             where="--preset",
             remedy=f"use one of {', '.join(PRESETS)}",
         )
+    choices = ((mounting, MOUNTINGS, "--mounting"),
+               (soft_tissue or "impacts", SOFT_TISSUE, "--soft-tissue"))  # fmt: skip
+    for value, allowed, option in choices:
+        if value not in allowed:
+            raise InputError(f"unknown value {value!r}", where=option,
+                             remedy=f"use one of {', '.join(allowed)}")  # fmt: skip
     resolve_protocol_path(protocol)
     for path in (output, truth_path, markers_path):
         if path:
@@ -77,6 +99,8 @@ def command(
         rate_hz=rate,
         markers=bool(markers_path or session_markers),
         calibration=not no_calibration,
+        mounting=mounting,
+        soft_tissue=soft_tissue,
     )
     optical = session.markers.get("optical")
     if optical is not None and not session_markers:

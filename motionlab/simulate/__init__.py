@@ -7,11 +7,19 @@ optionally optical markers are recorded (:mod:`.markers`). The truth (:mod:`.tru
 segment and sensor orientations, joint angles in the DESIGN conventions, biases, clocks, steps and
 marker layouts. Random draws come from independent streams keyed by ``(seed, purpose, sensor)``,
 so the motion and mountings of one seed are the same under every preset.
+
+Mountings (``mounting=``): ``nominal`` puts each sensor at the protocol's ``sensor_axes`` turned by
+up to ``mounting_max_deg`` about a random axis, near the body's usual site for the segment;
+``random`` draws the orientation uniformly over SO(3) (Haar measure: a normalised 4-D Gaussian)
+and the site anywhere on the segment's skin (:meth:`~.body.Body.surface_site`: along its length
+and around it); ``surface`` uses such a site with the sensor flat on the skin (sensor z along the
+outward normal) and turned by a uniform angle about it. The extra draws come from sub-streams of
+the mounting stream, so ``nominal`` keeps its numbers and the soft tissue is the same under every
+mounting.
 """
 
 from __future__ import annotations
 
-from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -26,12 +34,14 @@ from motionlab.simulate import markers as _markers
 from motionlab.simulate.body import SEGMENTS, Body, kind_side
 from motionlab.simulate.chain import segment_poses
 from motionlab.simulate.errors import (
+    SOFT_TISSUE,
     Clock,
     Preset,
     apply_channel,
     draw_channel,
     draw_clock,
     dropped,
+    error_model,
     get_preset,
     sample_times,
     soft_hard_iron,
@@ -43,7 +53,9 @@ from motionlab.simulate.signals import (
     Wobble,
     _poses,
     ideal_imu,
+    segment_kinematics,
     sensor_pose,
+    tissue_motion,
 )
 from motionlab.simulate.timeline import Timeline, plan
 from motionlab.simulate.truth import Truth, load_truth, save_truth, write_truth_csv
@@ -52,10 +64,29 @@ __all__ = ["simulate", "Truth", "load_truth", "save_truth", "write_truth_csv", "
 
 PROVENANCE_TIME = "2000-01-01T00:00:00+00:00"  # fixed, so that the same seed gives the same bytes
 _STREAMS = {"mount": 1, "sensor": 2, "markers": 3, "field": 4}
+MOUNTINGS = ("nominal", "random", "surface")
+_SUB_SITE, _SUB_TISSUE = 1, 2  # sub-streams of "mount" for the newer draws
+TISSUE_RATE_HZ = 200.0  # grid of the soft-tissue dynamics
 
 
-def _rng(seed: int, purpose: str, index: int = 0) -> np.random.Generator:
-    return np.random.default_rng([seed, _STREAMS[purpose], index])
+def _rng(seed: int, purpose: str, index: int = 0, *sub: int) -> np.random.Generator:
+    return np.random.default_rng([seed, _STREAMS[purpose], index, *sub])
+
+
+def _uniform_rotation(rng: np.random.Generator) -> np.ndarray:
+    """A rotation uniform over SO(3) (normalised 4-D Gaussian; ``w ≥ 0``)."""
+    q = rot.normalize(rng.normal(size=4))
+    return q if q[0] >= 0 else -q
+
+
+def _flat_on_skin(normal: np.ndarray, turn: float) -> np.ndarray:
+    """Mounting (sensor → segment) with sensor z along ``normal``, turned by ``turn`` rad."""
+    helper = np.array([0.0, 1.0, 0.0]) if abs(normal[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    e1 = np.cross(helper, normal)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(normal, e1)
+    x = np.cos(turn) * e1 + np.sin(turn) * e2
+    return rot.from_matrix(np.column_stack([x, np.cross(normal, x), normal]))
 
 
 def _random_rotation(rng: np.random.Generator, max_deg: float) -> np.ndarray:
@@ -64,12 +95,14 @@ def _random_rotation(rng: np.random.Generator, max_deg: float) -> np.ndarray:
 
 
 def _mount(body: Body, protocol: Protocol, seg: str, i: int, seed: int, preset: Preset,
-           max_deg: float, impacts: np.ndarray) -> Mount:  # fmt: skip
+           max_deg: float, impacts: np.ndarray, mounting: str = "nominal",
+           kin: tuple | None = None, grid: np.ndarray | None = None) -> Mount:  # fmt: skip
+    """Where sensor ``i`` sits; ``kin`` on ``grid`` (segment kinematics) for the soft tissue."""
     rng = _rng(seed, "mount", i)
     nominal = rot.from_matrix(protocol.segments[seg].nominal_mounting())
     kind, _ = kind_side(seg)
     scale = 1.0 if kind in ("thigh", "shank", "foot") else 0.5
-    return Mount(
+    mount = Mount(
         segment=seg,
         q_mount=rot.mul(_random_rotation(rng, max_deg), nominal),
         site=body.sensor_site(seg) + rng.uniform(-0.01, 0.01, 3),
@@ -80,6 +113,22 @@ def _mount(body: Body, protocol: Protocol, seg: str, i: int, seed: int, preset: 
             impacts=impacts,
         ),
     )
+    mount.normal = body.site_normal(seg, mount.site)
+    if mounting != "nominal":
+        alt = _rng(seed, "mount", i, _SUB_SITE)
+        mount.site, mount.normal = body.surface_site(seg, alt.uniform(), alt.uniform())
+        if mounting == "random":
+            mount.q_mount = _uniform_rotation(alt)
+        else:
+            mount.q_mount = _flat_on_skin(mount.normal, alt.uniform(0.0, 2 * np.pi))
+    if kin is not None and grid is not None:
+        t_rng = _rng(seed, "mount", i, _SUB_TISSUE)
+        damping = t_rng.uniform(0.3, 0.5)
+        slip_axis = rot.normalize(np.array([0.3, 1.0, 0.3]) * t_rng.normal(size=3))
+        slip = np.radians(preset.slip_deg) * t_rng.uniform(0.5, 1.0)
+        mount.tissue = tissue_motion(kin, grid, mount.site, mount.normal, mount.wobble.freq_hz,
+                                     damping, preset.tissue_gain, slip_axis, slip)  # fmt: skip
+    return mount
 
 
 def _joint_truth(protocol: Protocol, ch: np.ndarray, poses: dict, body: Body) -> dict:
@@ -127,6 +176,8 @@ def simulate(
     gravity: float = 9.81,
     optical: _markers.OpticalSystem | None = None,
     rest_s: float = 3.0,
+    mounting: str = "nominal",
+    soft_tissue: str | None = None,
 ) -> tuple[Session, Truth]:
     """Simulate a recording of ``protocol`` lasting ``duration`` s (true time).
 
@@ -145,6 +196,14 @@ def simulate(
         Perform the protocol's calibration steps before the tasks.
     mounting_max_deg
         Largest random deviation of a sensor from its nominal mounting (deg).
+    mounting
+        ``nominal`` (the protocol's ``sensor_axes``, within ``mounting_max_deg``), ``random``
+        (any orientation, anywhere on the segment) or ``surface`` (anywhere on the segment, flat
+        on the skin, any turn about the skin normal); see the module docstring.
+    soft_tissue
+        ``impacts`` (ringing after heel strikes) or ``motion`` (also moving with the segment's
+        acceleration, and slipping by the preset's ``slip_deg``); default the preset's
+        (``motion`` for ``loose``). See :mod:`.signals`.
     field, gravity
         Magnetic field model (default 50 µT, dip 60°) and gravity (m/s²).
     optical
@@ -157,6 +216,13 @@ def simulate(
     """
     protocol = protocol if isinstance(protocol, Protocol) else load_protocol(protocol)
     preset = get_preset(preset)
+    if mounting not in MOUNTINGS:
+        raise InputError(f"unknown mounting {mounting!r}", where="--mounting",
+                         remedy=f"use one of {', '.join(MOUNTINGS)}")  # fmt: skip
+    soft_tissue = soft_tissue or preset.soft_tissue
+    if soft_tissue not in SOFT_TISSUE:
+        raise InputError(f"unknown soft-tissue model {soft_tissue!r}", where="--soft-tissue",
+                         remedy=f"use one of {', '.join(SOFT_TISSUE)}")  # fmt: skip
     if not duration > 0 or not rate_hz > 0:
         raise InputError("duration and rate must be positive", where="--duration/--rate")
     for seg in protocol.segments:
@@ -182,12 +248,30 @@ def simulate(
     )
     session = Session()
     carried = _rng(seed, "field", 1).integers(len(protocol.segments))
+    extended = mounting != "nominal" or soft_tissue != "impacts"  # the newer truth fields
+    kin, grid = None, None
+    if soft_tissue == "motion":
+        grid = np.arange(-1.0, duration + 1.0 + 1e-9, 1.0 / TISSUE_RATE_HZ)
+        kin = segment_kinematics(body, timeline, grid, tuple(protocol.segments))
     for i, seg in enumerate(protocol.segments):
-        stream, info = _sensor(body, timeline, protocol, seg, i, seed, preset, rate_hz, duration,
-                               field, gravity, mounting_max_deg, i == carried)  # fmt: skip
-        q_grid, p_grid = sensor_pose(body, timeline, info.pop("mount"), tuple(poses))(t)
+        mount = _mount(body, protocol, seg, i, seed, preset, mounting_max_deg, timeline.impacts(),
+                       mounting, kin[seg] if kin else None, grid)  # fmt: skip
+        stream, info = _sensor(body, timeline, protocol, mount, seg, i, seed, preset, rate_hz,
+                               duration, field, gravity, i == carried)  # fmt: skip
+        q_grid, p_grid = sensor_pose(body, timeline, mount, tuple(poses))(t)
         truth.sensors[seg] = {"orientation": rot.make_continuous(q_grid), "position": p_grid}
         truth.sensors[seg] |= info
+        if extended:
+            wobble, disp = mount.relative(t)
+            tissue = mount.tissue
+            truth.sensors[seg] |= {
+                "wobble": rot.make_continuous(wobble),
+                "displacement": disp,
+                "normal": mount.normal,
+                "tissue_hz": tissue.freq_hz if tissue else mount.wobble.freq_hz,
+                "tissue_damping": tissue.damping if tissue else 0.0,
+                "slip_deg": tissue.slip_deg if tissue else 0.0,
+            }
         session.sensors[seg] = stream
 
     system = optical or _markers.OpticalSystem(
@@ -225,10 +309,13 @@ def simulate(
         "markers": markers,
         "calibration": calibration,
         "mounting_max_deg": mounting_max_deg,
+        # the newer options only when used, so older files keep their bytes
+        **({"mounting": mounting} if mounting != "nominal" else {}),
+        **({"soft_tissue": soft_tissue} if soft_tissue != "impacts" else {}),
         "gravity_m_s2": gravity,
         "earth_field_uT": field.earth,
         "magnetic_dipoles": [{"position_m": p, "moment_Am2": m} for p, m in field.dipoles],
-        "error_model": asdict(preset),
+        "error_model": error_model(preset),
     }
     truth.config = params
     session.metadata = {
@@ -251,10 +338,9 @@ def simulate(
     return session, truth
 
 
-def _sensor(body, timeline, protocol, seg, i, seed, preset, rate_hz, duration, field, gravity,
-            max_deg, carries_field):  # fmt: skip
+def _sensor(body, timeline, protocol, mount, seg, i, seed, preset, rate_hz, duration, field,
+            gravity, carries_field):  # fmt: skip
     """One IMU: its recorded stream and its truth entries."""
-    mount = _mount(body, protocol, seg, i, seed, preset, max_deg, timeline.impacts())
     rng = _rng(seed, "sensor", i)
     clock = draw_clock(preset.timing, rng)
     stamps, t_true = sample_times(clock, rate_hz, duration, rng)
@@ -289,7 +375,6 @@ def _sensor(body, timeline, protocol, seg, i, seed, preset, rate_hz, duration, f
         attrs={"simulated": True, "rate_hz": rate_hz},
     )
     info = {
-        "mount": mount,
         "segment": seg,
         "mounting": mount.q_mount,
         "site": mount.site,

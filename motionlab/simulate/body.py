@@ -157,6 +157,23 @@ _ALIASES = {
 }
 
 
+# Where a strap may sit, per segment kind: y range (proximal, distal end; units of H, or of the
+# segment length for the long segments in _LONG), centre of the cross-section along x (H), its
+# semi-axes (x, lateral; H) at the two ends, and the angle range around it (rad, 0 = anterior,
+# π/2 = lateral). Circumferences after adult anthropometric tables (thigh about 50 cm at mid-
+# thigh, calf 37 cm, ankle 22 cm, upper arm 30 cm, forearm 26 cm, wrist 16 cm, for H = 1.75 m).
+_LONG = ("thigh", "shank", "upperarm", "forearm")
+_SURFACES: dict[str, tuple] = {
+    "thigh": (-0.15, -0.85, 0.0, (0.050, 0.050), (0.033, 0.033), (0.0, 2 * np.pi)),
+    "shank": (-0.12, -0.80, 0.0, (0.034, 0.034), (0.022, 0.022), (0.0, 2 * np.pi)),
+    "upperarm": (-0.20, -0.85, 0.0, (0.028, 0.028), (0.024, 0.024), (0.0, 2 * np.pi)),
+    "forearm": (-0.15, -0.90, 0.0, (0.024, 0.024), (0.015, 0.015), (0.0, 2 * np.pi)),
+    "pelvis": (0.050, 0.0, -0.015, (0.050, 0.095), (0.050, 0.095), (0.0, 2 * np.pi)),
+    "lumbar": (0.060, 0.010, 0.0, (0.055, 0.080), (0.055, 0.080), (0.8 * np.pi, 1.2 * np.pi)),
+    "thorax": (0.220, 0.120, 0.005, (0.065, 0.090), (0.065, 0.090), (0.0, 2 * np.pi)),
+}
+
+
 def _candidates(name: str) -> list[tuple[str, str]]:
     """(name, side) to look up: ``LE_r``, ``R_LE``, ``RLE`` → ``('LE', 'r')`` (upper case)."""
     n = name.upper()
@@ -280,6 +297,39 @@ class Body:
             "forearm": (-0.015 * h, -0.80 * L, 0.0),
         }
         return np.array(sites[kind])
+
+    def surface_site(self, segment: str, u: float, v: float) -> tuple[np.ndarray, np.ndarray]:
+        """A place on the segment's skin where a strap may sit, and its outward normal.
+
+        ``u`` in [0, 1] runs along the segment (proximal → distal end of the strap zone), ``v``
+        in [0, 1] around it (from anterior, through lateral, back to anterior; the lumbar zone
+        covers the back only, the foot zone is its dorsum). Position in m, segment frame.
+        """
+        kind, side = kind_side(segment)
+        h, s, L = self.height, self.lateral(side), self.segment_length(segment)
+        if kind == "foot":
+            site = np.array([(0.02 + 0.06 * u) * h, -0.010 * h, (v - 0.5) * 0.04 * h])
+            return site, np.array([0.0, 1.0, 0.0])
+        y0, y1, cx, (ax0, az0), (ax1, az1), arc = _SURFACES[kind]
+        if kind in _LONG:
+            y0, y1 = y0 * L / h, y1 * L / h
+        ax, az = ax0 + u * (ax1 - ax0), az0 + u * (az1 - az0)
+        phi = arc[0] + v * (arc[1] - arc[0])
+        c, sn = np.cos(phi), np.sin(phi)
+        site = np.array([cx + ax * c, y0 + u * (y1 - y0), s * az * sn]) * h
+        normal = np.array([c / ax, 0.0, s * sn / az])
+        return site, normal / np.linalg.norm(normal)
+
+    def site_normal(self, segment: str, site: np.ndarray) -> np.ndarray:
+        """Outward skin normal (unit, segment frame) near ``site`` (m): radial about the strap
+        zone's centre line (the dorsum's normal on the foot)."""
+        kind, _ = kind_side(segment)
+        if kind == "foot":
+            return np.array([0.0, 1.0, 0.0])
+        cx = _SURFACES[kind][2] * self.height
+        radial = np.array([site[0] - cx, 0.0, site[2]])
+        n = np.linalg.norm(radial)
+        return radial / n if n > 1e-9 else np.array([1.0, 0.0, 0.0])
 
     def cluster_site(self, segment: str) -> tuple[np.ndarray, np.ndarray]:
         """Centre (m) and outward normal of a marker cluster plate on the segment."""

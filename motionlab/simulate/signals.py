@@ -9,6 +9,30 @@
 The sensor sits at ``site`` (m, segment frame) with mounting ``q_mount`` (sensor → segment) and
 an optional soft-tissue wobble: a small rotation ``exp(w(t))`` in the sensor frame, each heel
 strike adding a damped oscillation ``A u (t/τ)³ e^{3−t/τ}/27 sin(2π f t)`` (C³ at its onset).
+
+Optionally (:class:`TissueMotion`, preset ``soft_tissue: motion``) the sensor also moves on the
+segment with the soft tissue under it: a second-order mass-spring-damper per axis (natural
+frequency ``f`` 10-16 Hz, damping ratio ζ 0.3-0.5) driven by the segment's kinematic acceleration
+(gravity left out, so a sensor at rest sits at its mounting)::
+
+    d̈ + 2ζω ḋ + ω² d = −k a_site        (translation d, m, segment frame)
+    ρ̈ + 2ζω ρ̇ + ω² ρ = −k α             (rotation ρ, rad, segment frame)
+    θ = ρ + n × d / ℓ + θ_slip(t)        (tilt of the sensor as the tissue under it shears)
+
+with ``a_site`` the acceleration of the site and ``α`` the angular acceleration of the segment
+(both in the segment frame), ``k`` the preset's ``tissue_gain``, ``n`` the outward skin normal at
+the site and ``ℓ`` = 5 cm of tissue. A slip ``θ_slip`` grows by ``slip_deg`` over the recording,
+in proportion to ``∫|ω|² dt`` so it advances only while the segment moves, about an axis near
+the segment's long axis, and the site slides 2 mm per degree down the segment. The pose is then::
+
+    q_sensor = q_seg ⊗ exp(θ) ⊗ q_mount ⊗ exp(w)  =  q_seg ⊗ q_mount ⊗ wobble
+    p_sensor = p_seg + R_seg (site + d + d_slip)
+
+(``wobble = q_mount* ⊗ exp(θ) ⊗ q_mount ⊗ exp(w)``, in the sensor frame). With ``k = 1``
+(``--soft-tissue motion`` with ``typical``) a thigh or shank sensor turns by ≈1-3° (peaks
+0.5-4°) and moves by 1-3 mm in gait; ``loose`` (``k = 3``) about three times that, plus its slip.
+The response is solved on a 200 Hz grid (exact first-order-hold discretisation) and represented
+by quintic splines, so the IMU signals (derivatives of the pose) and the truth are one function.
 """
 
 from __future__ import annotations
@@ -16,6 +40,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.integrate import cumulative_trapezoid
+from scipy.interpolate import BSpline, make_interp_spline
+from scipy.signal import cont2discrete, lfilter
 
 from motionlab import rotations as rot
 from motionlab.simulate.body import Body
@@ -70,6 +97,21 @@ class Wobble:
         return self.amplitude * w[:, None] * self.axis
 
 
+TISSUE_LEVER_M = 0.05  # height of the tissue column that shears under the sensor (m)
+SLIP_M_PER_RAD = 0.002 / np.radians(1.0)  # slide of the site down the segment per slip (m/rad)
+
+
+@dataclass
+class TissueMotion:
+    """Motion of a sensor on its segment (see the module docstring): splines of time (s)."""
+
+    rotation: BSpline  # t → (N, 3) rotation vector θ (rad, segment frame)
+    displacement: BSpline  # t → (N, 3) displacement of the site (m, segment frame)
+    freq_hz: float = 12.0
+    damping: float = 0.4
+    slip_deg: float = 0.0
+
+
 @dataclass
 class Mount:
     """Where and how a sensor sits on its segment."""
@@ -78,6 +120,75 @@ class Mount:
     q_mount: np.ndarray  # (4,) sensor → segment
     site: np.ndarray  # (3,) m, segment frame
     wobble: Wobble = field(default_factory=Wobble)
+    tissue: TissueMotion | None = None
+    normal: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
+
+    def relative(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """``(wobble (N,4), d (N,3))``: the sensor's rotation away from its mounting (sensor
+        frame; ``q_sensor = q_seg ⊗ q_mount ⊗ wobble``) and its site's displacement (m)."""
+        t = np.asarray(t, dtype=float)
+        q = np.broadcast_to(rot.IDENTITY, (len(t), 4)).copy()
+        d = np.zeros((len(t), 3))
+        if self.tissue is not None:
+            q = rot.mul(rot.mul(rot.conj(self.q_mount), rot.from_rotvec(self.tissue.rotation(t))),
+                        self.q_mount)  # fmt: skip
+            d = self.tissue.displacement(t)
+        if self.wobble.amplitude > 0:
+            q = rot.mul(q, rot.from_rotvec(self.wobble.rotvec(t)))
+        return q, d
+
+
+def segment_kinematics(body: Body, timeline: Timeline, t: np.ndarray,
+                       segments: tuple[str, ...]) -> dict:  # fmt: skip
+    """``{segment: (q, omega, alpha, a)}`` on a uniform grid ``t`` (s): orientation, angular
+    velocity (rad/s) and acceleration (rad/s², both segment frame), origin acceleration (m/s²,
+    ENU, gravity left out)."""
+    out = {}
+    for seg in segments:
+
+        def pose(tt, seg=seg):
+            return _poses(body, timeline, tt, segments)[seg]
+
+        q, _, omega, acc = derivatives(pose, t)
+        out[seg] = (q, omega, np.gradient(omega, t, axis=0), acc)
+    return out
+
+
+def tissue_motion(
+    kin: tuple[np.ndarray, ...],
+    t: np.ndarray,
+    site: np.ndarray,
+    normal: np.ndarray,
+    freq_hz: float,
+    damping: float,
+    gain: float,
+    slip_axis: np.ndarray,
+    slip_rad: float,
+) -> TissueMotion:
+    """The soft-tissue motion of a sensor at ``site`` with skin normal ``normal`` (segment frame)
+    from the segment's kinematics ``kin`` (:func:`segment_kinematics` on the uniform grid ``t``)."""
+    q, omega, alpha, acc = kin
+    a_site = (rot.rotate(rot.conj(q), acc) + np.cross(alpha, site)
+              + np.cross(omega, np.cross(omega, site)))  # fmt: skip
+    w = 2 * np.pi * freq_hz
+    dt = float(t[1] - t[0])
+    num, den, _ = cont2discrete(([1.0], [1.0, 2 * damping * w, w * w]), dt, method="foh")
+    drive = -gain * np.hstack([a_site, alpha])
+    resp = lfilter(np.ravel(num), den, drive, axis=0)
+    d, rho = resp[:, :3], resp[:, 3:]
+    theta = rho + np.cross(normal, d) / TISSUE_LEVER_M
+    if slip_rad > 0:
+        work = cumulative_trapezoid(np.sum(omega**2, axis=1), t, initial=0.0)
+        progress = work / work[-1] if work[-1] > 0 else np.zeros_like(work)
+        theta = theta + slip_rad * progress[:, None] * slip_axis
+        d = d - SLIP_M_PER_RAD * slip_rad * progress[:, None] * np.array([0.0, 1.0, 0.0])
+    return TissueMotion(
+        rotation=make_interp_spline(t, theta, k=5),
+        displacement=make_interp_spline(t, d, k=5),
+        freq_hz=freq_hz,
+        damping=damping,
+        slip_deg=float(np.degrees(slip_rad)),
+    )
 
 
 def _poses(body: Body, timeline: Timeline, t: np.ndarray, segments: tuple[str, ...]) -> dict:
@@ -102,10 +213,15 @@ def sensor_pose(body: Body, timeline: Timeline, mount: Mount, segments: tuple[st
 
     def pose(t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         q_seg, p_seg = _poses(body, timeline, t, segments)[mount.segment]
-        q = rot.mul(q_seg, mount.q_mount)
+        site = mount.site
+        if mount.tissue is None:
+            q = rot.mul(q_seg, mount.q_mount)
+        else:
+            q = rot.mul(rot.mul(q_seg, rot.from_rotvec(mount.tissue.rotation(t))), mount.q_mount)
+            site = site + mount.tissue.displacement(t)
         if mount.wobble.amplitude > 0:
             q = rot.mul(q, rot.from_rotvec(mount.wobble.rotvec(t)))
-        return q, p_seg + rot.rotate(q_seg, mount.site)
+        return q, p_seg + rot.rotate(q_seg, site)
 
     return pose
 

@@ -175,6 +175,45 @@ def reaching(body: Body, name, phase, duration, reps, options) -> Block:
     return Block(name, "reaching", phase, duration, fn, generator="reaching")
 
 
+def free_arm(body: Body, name, phase, duration, reps, options, seed: int = 0) -> Block:
+    """Free arm movement, both arms independently, smooth and random (seeded).
+
+    Elbow flexion 10-130°, pronation ±60° (positive = pronation), shoulder flexion 0-90°,
+    abduction 0-40° and rotation ±30°, with a little trunk motion: every channel a frequency-
+    modulated sinusoid ``sin(2π f t + β sin(2π g t + φ))`` (f 0.12-0.35 Hz) that reaches both ends
+    of its range every cycle; incommensurate frequencies turn the elbow's axes through many
+    directions in the room. Standing, arms hanging at the block's ends.
+    """
+    rng = np.random.default_rng([seed, 7])
+    stand = posture(body, "standing")
+    # (channel, centre, half range) in deg; centre ± half range is the channel's range
+    ranges = [(f"elbow_{s}_0", 70.0, 60.0) for s in "rl"]
+    ranges += [(f"elbow_{s}_2", 0.0, 60.0) for s in "rl"]
+    ranges += [(f"shoulder_{s}_0", 45.0, 45.0) for s in "rl"]
+    ranges += [(f"shoulder_{s}_1", -20.0, 20.0) for s in "rl"]
+    ranges += [(f"shoulder_{s}_2", 0.0, 30.0) for s in "rl"]
+    ranges += [("lumbar_0", 3.0, 5.0), ("lumbar_1", 0.0, 4.0), ("lumbar_2", 0.0, 8.0)]
+    n = len(ranges)
+    f = rng.uniform(0.12, 0.35, n)
+    g = rng.uniform(0.03, 0.10, n)
+    beta = rng.uniform(0.5, 2.0, n)
+    ph = rng.uniform(0, 2 * np.pi, (2, n))
+    cols = [CH[c] for c, _, _ in ranges]
+    centre = np.array([c for _, c, _ in ranges]) * DEG
+    half = np.array([h for _, _, h in ranges]) * DEG
+    ramp = min(1.5, duration / 4)
+
+    def fn(tau):
+        e = envelope(tau, duration, ramp)[:, None]
+        t = tau[:, None]
+        wave = np.sin(2 * np.pi * f * t + ph[0] + beta * np.sin(2 * np.pi * g * t + ph[1]))
+        out = _tile(stand, tau)
+        out[:, cols] += e * (centre + half * wave)
+        return out
+
+    return Block(name, "free_arm", phase, duration, fn, generator="free_arm")
+
+
 def trunk(body: Body, name, phase, duration, reps, options, planes=(0, 1, 2)) -> Block:
     """Lumbar flexion (0→60°), lateral bending (±25°) and axial rotation (±35°), in turn."""
     reps = _reps(reps, duration * len(planes) / 3, 4.0)
@@ -239,6 +278,8 @@ def task_block(body: Body, task, phase: str, duration: float, seed: int) -> Bloc
     pose_words = ("static", "standing", "sitting", "supine", "rest", "quiet")
     if any(w in key for w in ("gait", "walk", "turn")):
         return gait_block(body, task.name, phase, duration, opts)
+    if "free_arm" in key or "free" in key and "arm" in key:
+        return free_arm(body, task.name, phase, duration, reps, opts, seed)
     if "squat" in key:
         return squat(body, task.name, phase, duration, reps, opts)
     if "sit" in key and ("stand" in key or "rise" in key) or "sts" in key.split():

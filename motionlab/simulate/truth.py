@@ -10,6 +10,12 @@ Layout (``h5dump`` shows it; SI units and rad inside, joint angles in degrees)::
                             time of each recorded sample, gyr_bias/acc_bias/mag_bias (M,3),
                             gyr_matrix/acc_matrix/mag_matrix (3,3), soft_iron (3,3),
                             hard_iron (3,); attrs: segment, clock_offset_s, clock_drift, jitter_s
+                            With --mounting random|surface or soft tissue ``motion`` also:
+                            wobble (N,4) the sensor's rotation on its segment in the sensor frame
+                            (orientation = segment ⊗ mounting ⊗ wobble), displacement (N,3) m of
+                            the site (position = segment origin + R_seg (site + displacement)),
+                            normal (3,) skin normal at the site; attrs tissue_hz,
+                            tissue_damping, slip_deg (see simulate/signals.py)
     /joint_angles/<column>  (N,) degrees, columns named by ``column_name`` (e.g. knee_r_flexion_deg)
     /steps/                 name, kind, phase, generator (str), start_s, end_s (true time)
     /markers/               labels, segments, kinds, local (M,3) m; lab_rotation (4,) lab → ENU,
