@@ -413,6 +413,20 @@ def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
         f"  calibration: {len(segs) - len(bad)}/{len(segs)} segments ok"
         + (f"; check {', '.join(bad)}" if bad else "")
     )
+    cal = ses.results.get("calibration", {})
+    lines += [f"  warning: {w}" for w in cal.get("warnings", [])]
+    graded = {
+        g: [f"{j} {k + 1}" for j, v in cal.get("grades", {}).items()
+            for k, x in enumerate(v["grades"]) if x == g]
+        for g in ("weak", "not determined")
+    }  # fmt: skip
+    n_angles = 3 * len(cal.get("grades", {}))
+    if n_angles:
+        lines.append(
+            f"  angles determined by the recording: "
+            f"{n_angles - len(graded['weak']) - len(graded['not determined'])}/{n_angles}"
+            + "".join(f"; {g}: {', '.join(v)}" for g, v in graded.items() if v)
+        )
     lines.append(
         "  tasks: "
         + ", ".join(f"{task_name(k)} {a:.0f}-{b:.0f} s" for k, (a, b) in view.blocks().items())

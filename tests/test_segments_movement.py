@@ -96,5 +96,5 @@ def test_relative_sign_from_the_vertical_component():
 def test_anatomical_sign_is_the_larger_excursion():
     (prox, dist), (j_p, j_d) = hinge_recording(6)
     t = prox[0]
-    assert anatomical_sign(t, prox[1], dist[1], j_p, j_d, (0.5, 2.5))[0] == 1.0
-    assert anatomical_sign(t, prox[1], dist[1], -j_p, -j_d, (0.5, 2.5))[0] == -1.0
+    assert anatomical_sign(t, prox[2], dist[2], j_p, j_d, (0.5, 2.5))[0] == 1.0
+    assert anatomical_sign(t, prox[2], dist[2], -j_p, -j_d, (0.5, 2.5))[0] == -1.0

@@ -161,7 +161,7 @@ def movement_hinges(
                 "rho": rho,
                 "reference_rho": None,
                 "joint_movement": False,
-                "secondary": False,
+                "secondary": True,  # a static pose's gravity, where there is one, stays exact
                 "verdict": fit.verdict,
             }
     return fits

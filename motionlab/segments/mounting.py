@@ -246,7 +246,8 @@ def fit(segment: str, protocol: Protocol, records: dict[str, dict[str, Any]]) ->
         method = "procrustes"
         separation = frames.min_axis_separation(r_, v)
     else:  # one primary axis: the rotation about it from the secondaries, else nominal
-        axis = np.average(v * np.sign(v @ (m_nom @ r_[0]))[:, None], axis=0, weights=w)
+        # records of one axis may name it with either sign (y, -y); measured signs are kept
+        axis = np.average(v * np.sign(r_ @ r_[0])[:, None], axis=0, weights=w)
         m = frames.align_one(axis / np.linalg.norm(axis), r_[0], m_nom)
         vs, rs, ws = _arrays(secondary) if secondary else (None, None, None)
         if secondary and _distinct(secondary + primary[:1]) >= 2:

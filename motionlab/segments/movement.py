@@ -30,7 +30,6 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.integrate import cumulative_trapezoid
 from scipy.signal import butter, sosfiltfilt
 
 from motionlab import rotations as rot
@@ -129,35 +128,40 @@ def relative_sign(
 
 def anatomical_sign(
     t: np.ndarray,
-    gyr_p: np.ndarray,
-    gyr_d: np.ndarray,
+    q_p: np.ndarray,
+    q_d: np.ndarray,
     j_p: np.ndarray,
     j_d: np.ndarray,
     reference: tuple[float, float],
 ) -> tuple[float | None, tuple[float, float]]:
     """Sign (±1) making the joint angle about ``j`` flex the way anatomy allows, or ``None``.
 
-    The joint rate ``j_d·ω_d − j_p·ω_p`` (rad/s, gyroscope biases taken as their median over the
-    ``reference`` window, a still pose with the joint straight) is integrated from the reference
-    pose; the excursions (98th percentile each way, degrees: flexion then extension) are returned
-    with the sign. ``None`` (and the excursions along ``+j``, then ``-j``) when neither
-    dominates (see ``FLEXION_MIN_DEG``, ``FLEXION_RATIO``).
+    ``q_p``, ``q_d`` (N, 4) are the sensors' 6-D orientations on the time ``t`` (s). The distal
+    heading is tied to the proximal one by the hinge (:func:`.heading.hinge_anchors`), and the
+    angle about ``j_p`` of the relative rotation since the ``reference`` window (a still pose
+    with the joint straight) is taken at every sample: unlike an integrated gyroscope it does
+    not drift with turns. The excursions (98th percentile each way, degrees: flexion then
+    extension) are returned with the sign. ``None`` (and the excursions along ``+j``, then
+    ``-j``) when neither dominates (see ``FLEXION_MIN_DEG``, ``FLEXION_RATIO``).
     """
+    from motionlab.segments import heading
+
     sel = (t >= reference[0]) & (t <= reference[1])
     if sel.sum() < 5:
         return None, (float("nan"), float("nan"))
-    bp = np.median(gyr_p[sel], axis=0)
-    bd = np.median(gyr_d[sel], axis=0)
-    rate = (gyr_d - bd) @ j_d - (gyr_p - bp) @ j_p
-    theta = np.degrees(cumulative_trapezoid(rate, t, initial=0.0))
-    theta -= np.median(theta[sel])
-    after = t >= reference[0]
+    times, deltas = heading.hinge_anchors(t, q_p, q_d, j_p, j_d)
+    if len(times):
+        q_d = heading.apply_heading(q_d, heading.heading_track(times, deltas, t))
+    q_rel = rot.mul(rot.conj(q_p), q_d)
+    r = rot.mul(q_rel, rot.conj(rot.mean(q_rel[sel])))
+    theta = np.degrees(2.0 * np.arctan2(r[:, 1:] @ j_p, np.abs(r[:, 0])) * np.sign(r[:, 0] + 1e-12))
+    after = (t >= reference[0]) & np.isfinite(theta)
     up = float(np.percentile(theta[after], 98))
     down = float(-np.percentile(theta[after], 2))
     big, small = max(up, down), max(min(up, down), 0.0)
     if big < FLEXION_MIN_DEG or big < FLEXION_RATIO * small:
         return None, (up, down)
-    return (1.0 if up >= down else -1.0), (big, max(min(up, down), 0.0))
+    return (1.0 if up >= down else -1.0), (big, small)
 
 
 def fit_hinge(
@@ -238,7 +242,7 @@ def fit_hinge(
         )
     sign, excursion = None, (float("nan"), float("nan"))
     if anatomical and reference is not None:
-        sign, excursion = anatomical_sign(tp, gp, _on(tp, td, gd), j_p, j_d, reference)
+        sign, excursion = anatomical_sign(t, q1, q2, j_p, j_d, reference)
     if sign is not None:
         j_p, j_d, sign_source = sign * j_p, sign * j_d, "anatomy"
     else:
@@ -294,3 +298,118 @@ def failed(joint: str, why: str) -> HingeFit:
         verdict="not determined",
         reasons=[why],
     )
+
+
+TWO_AXIS_WINDOW_S = 10.0
+TWO_AXIS_MAX_SAMPLES = 3000
+TWO_AXIS_STARTS = 6
+
+
+def _heading_rot(delta: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Rows of ``v`` (N, 3) turned about the vertical by ``delta`` (N,) rad."""
+    c, s = np.cos(delta), np.sin(delta)
+    return np.column_stack([c * v[:, 0] - s * v[:, 1], s * v[:, 0] + c * v[:, 1], v[:, 2]])
+
+
+def _unit(phi: float, theta: float) -> np.ndarray:
+    return np.array([np.cos(phi) * np.cos(theta), np.cos(phi) * np.sin(theta), np.sin(phi)])
+
+
+def _sph(v: np.ndarray) -> tuple[float, float]:
+    v = v / np.linalg.norm(v)
+    return float(np.arcsin(np.clip(v[2], -1, 1))), float(np.arctan2(v[1], v[0]))
+
+
+@dataclass
+class TwoAxisFit:
+    """Flexion axis in the proximal sensor and long (pronation) axis in the distal sensor of a
+    two-degree-of-freedom joint (the elbow), unit (3,), with the heading offsets fitted with them
+    and a verdict as for :class:`HingeFit`."""
+
+    joint: str
+    axis_proximal: np.ndarray
+    axis_distal: np.ndarray
+    residual_rad_s: float
+    relative_residual: float
+    consistency_deg: float
+    carrying_deg: float  # 90° less the angle between the two axes in the reference pose
+    verdict: str = "determined"
+    reasons: list[str] = field(default_factory=list)
+
+
+def fit_two_axes(
+    joint: str,
+    proximal: tuple[np.ndarray, np.ndarray, np.ndarray],
+    distal: tuple[np.ndarray, np.ndarray, np.ndarray],
+    j1_start: np.ndarray,
+    j2_prior: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, float]:
+    """Axes ``j1`` (proximal sensor) and ``j2`` (distal sensor) of a joint that turns about one
+    axis fixed in each segment (the elbow: flexion fixed in the upper arm, pronation in the
+    forearm), and the RMS residual (rad/s).
+
+    After Laidig, Müller & Seel (Curr Dir Biomed Eng 2017 3:167): the relative angular velocity
+    lies in the plane of the two axes, so its component along ``j1 × j2`` (all in the earth
+    frame) is zero. The sensors' 6-D orientations (``proximal``, ``distal`` = ``(time, gyr,
+    q)``, one clock) give that frame up to a heading offset between them, fitted per window of
+    ``TWO_AXIS_WINDOW_S`` (it drifts). Starts: ``j1_start`` (a hinge fit) with ``±j2_prior`` and
+    random ``j2``; the heading of each window by a grid; then a soft-L1 least-squares refinement.
+    """
+    from scipy.optimize import least_squares
+
+    tp, gp, qp = proximal
+    td, gd, qd = distal
+    sel = (tp >= td[0]) & (tp <= td[-1])
+    t = tp[sel]
+    rate = estimate_rate(t)
+    w1 = rot.rotate(qp[sel], _lowpass(gp[sel], rate))
+    q2 = rot.resample(td, qd, t)
+    w2 = rot.rotate(q2, _lowpass(_on(t, td, gd), rate))
+    active = np.maximum(np.linalg.norm(w1, axis=1), np.linalg.norm(w2, axis=1))
+    keep = np.flatnonzero(active >= 0.1 * np.percentile(active, 95))
+    keep = keep[np.linspace(0, len(keep) - 1, min(len(keep), TWO_AXIS_MAX_SAMPLES)).astype(int)]
+    m1 = rot.to_matrix(qp[sel][keep])
+    m2 = rot.to_matrix(q2[keep])
+    w1, w2, tk = w1[keep], w2[keep], t[keep]
+    win = ((tk - tk[0]) // TWO_AXIS_WINDOW_S).astype(int)
+    n_win = int(win.max()) + 1
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        j1, j2 = _unit(x[0], x[1]), _unit(x[2], x[3])
+        delta = x[4:][win]
+        a = m1 @ j1
+        b = _heading_rot(delta, m2 @ j2)
+        n = np.cross(a, b)
+        n /= np.maximum(np.linalg.norm(n, axis=1), 1e-9)[:, None]
+        return np.einsum("ij,ij->i", n, w1 - _heading_rot(delta, w2))
+
+    def init_deltas(j1: np.ndarray, j2: np.ndarray) -> np.ndarray:
+        grid = np.linspace(-np.pi, np.pi, 72, endpoint=False)
+        a, b0 = m1 @ j1, m2 @ j2
+        out = np.zeros(n_win)
+        for k in range(n_win):
+            s = win == k
+            costs = []
+            for d in grid:
+                n = np.cross(a[s], _heading_rot(np.full(s.sum(), d), b0[s]))
+                n /= np.maximum(np.linalg.norm(n, axis=1), 1e-9)[:, None]
+                e = np.einsum("ij,ij->i", n, w1[s] - _heading_rot(np.full(s.sum(), d), w2[s]))
+                costs.append(np.sum(np.abs(e)))
+            out[k] = grid[int(np.argmin(costs))]
+        return out
+
+    rng = np.random.default_rng(0)
+    starts = [(j1_start, j2_prior)] + [
+        (rng.normal(size=3), rng.normal(size=3)) for _ in range(TWO_AXIS_STARTS)
+    ]
+    best = None
+    for j1, j2 in starts:
+        j1, j2 = j1 / np.linalg.norm(j1), j2 / np.linalg.norm(j2)
+        x0 = np.r_[_sph(j1), _sph(j2), init_deltas(j1, j2)]
+        fit = least_squares(
+            residual, x0, method="trf", loss="soft_l1", f_scale=ROBUST_SCALE_RAD_S, max_nfev=200
+        )
+        if best is None or fit.cost < best.cost:
+            best = fit
+    j1, j2 = _unit(best.x[0], best.x[1]), _unit(best.x[2], best.x[3])
+    return j1, j2, float(np.sqrt(np.mean(residual(best.x) ** 2)))
