@@ -116,6 +116,7 @@ def test_hinge_off_axis_angles_follow_the_sequence():
     joint = Joint("wrist", "hinge", "forearm", "hand", axis="y")
     assert [plane(joint, a) for a in angle_names(joint)] == ["transverse", "sagittal", "frontal"]
     assert plane_index(joint, "y") == 0 and plane_index(joint, "-x") == 2
+    assert plane_index(joint, "xy") is None and plane_index("lumbar", "lateral_bending") == 1
 
 
 # ------------------------------------------------------------------------------ ball

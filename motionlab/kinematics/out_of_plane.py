@@ -57,7 +57,7 @@ def plane_index(joint: Any, plane: str) -> int | None:
     if plane in names:
         return names.index(plane)
     letter = plane.strip().lstrip("+-").upper()
-    return sequence.index(letter) if letter and letter in sequence else None
+    return sequence.index(letter) if len(letter) == 1 and letter in sequence else None
 
 
 def cross_talk(
