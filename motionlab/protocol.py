@@ -34,11 +34,25 @@ A protocol is a YAML file (``protocols/*.yaml``; copy one and edit it). Schema::
         instructions: "seated, flex and extend the right knee 5 times"
     joints:
       knee_r:
-        type: knee                      # knee | elbow | lumbar
+        type: knee                      # knee | elbow | lumbar | hinge | ball
+                                        # (kinematics/joint_types.py has the table)
         proximal: thigh_r
-        distal: shank_r
-        side: r
-        sequence: ZXY                   # the decomposition (Grood & Suntay JCS for the knee)
+        distal: shank_r                 # a segment other than proximal
+        side: r                         # required for knee and elbow; optional otherwise
+        sequence: ZXY                   # intrinsic Tait-Bryan sequence, upper case; knee, elbow
+                                        # and lumbar: ZXY only (Grood & Suntay JCS, ISB)
+      wrist_r:
+        type: hinge                     # a generic hinge about its own axis
+        axis: z                         # hinge only, required: x|y|z|-x|-y|-z, the same segment
+                                        # axis in both segments at the zero pose; the sequence
+                                        # (default z → ZXY, x → XYZ, y → YZX) starts with it
+        proximal: forearm_r
+        distal: hand_r
+      shoulder_r:
+        type: ball                      # three angles named by the sequence's letters
+        sequence: YXZ                   # any of XYZ XZY YXZ YZX ZXY ZYX (default ZXY)
+        proximal: thorax
+        distal: upperarm_r
     tasks:                              # blocks of the recording after calibration
       - {name: gait, kind: gait, duration_s: 30}   # optional time_range: [95.0, 150.0] (s)
     normative:                          # normal ranges per task and angle column, degrees;
@@ -47,6 +61,10 @@ A protocol is a YAML file (``protocols/*.yaml``; copy one and edit it). Schema::
     metrics: [rom, peaks, cycles, cross_talk, varus_thrust]
     thresholds: {varus_thrust_deg: 3.0}  # numbers the metrics use (see kinematics/metrics.py)
     source: "where the normal ranges and the protocol come from"
+
+Angle columns: ``<type>_<side>_<angle>_deg`` for knee, elbow and lumbar (``knee_r_flexion_deg``,
+``lumbar_flexion_deg``); ``<joint>_<angle>_deg`` for hinge and ball joints (``wrist_r_angle_deg``,
+``wrist_r_off_axis_1_deg``, ``shoulder_r_y_deg``). Two joints giving one column are an error.
 
 Axis strings are ``x``, ``y``, ``z`` of the ISB segment frame (x anterior, y proximal, z right),
 optionally with a sign: ``-z``. ``sensor_axes`` gives, for the sensor's x, y, z axes, the segment
@@ -63,8 +81,14 @@ import numpy as np
 import yaml
 
 from motionlab.errors import InputError
+from motionlab.kinematics.joint_types import (
+    JOINT_TYPES,
+    angle_columns,
+    joint_type,
+    resolve_sequence,
+    sequence_problem,
+)
 
-JOINT_TYPES = ("knee", "elbow", "lumbar")
 STEP_KINDS = ("static", "functional")
 AXIS_METHODS = ("svd", "hinge")
 SIDES = ("l", "r", "")
@@ -111,7 +135,10 @@ class Joint:
     proximal: str
     distal: str
     side: str = ""
-    sequence: str = "ZXY"
+    #: intrinsic Euler sequence; ``""``: the type's standard one (the loader fills it in)
+    sequence: str = ""
+    #: hinge joints only: the hinge axis in segment coordinates (``'z'``, ``'-x'``)
+    axis: str | None = None
 
 
 @dataclass
@@ -385,31 +412,24 @@ def load_protocol(path: str | Path) -> Protocol:
         )
 
     joints = {}
+    owners: dict[str, tuple[str, int | None]] = {}  # column → (joint key, line)
     for jname, spec in r.get(doc, "joints", "", dict).items():
         where = f"joints.{jname}"
         line = doc["joints"].lines.get(jname)
         if not isinstance(spec, dict):
             r.fail(where, line, "is not a mapping", "give type/proximal/distal keys")
-        jtype = r.get(spec, "type", where, str)
-        if jtype not in JOINT_TYPES:
-            r.fail(
-                f"{where}.type",
-                spec.lines["type"],
-                f"unknown joint type {jtype!r}",
-                f"use one of {', '.join(JOINT_TYPES)}",
-            )
-        joints[jname] = Joint(
-            name=jname,
-            type=jtype,
-            proximal=check_segment(
-                r.get(spec, "proximal", where, str), f"{where}.proximal", spec.lines.get("proximal")
-            ),
-            distal=check_segment(
-                r.get(spec, "distal", where, str), f"{where}.distal", spec.lines.get("distal")
-            ),
-            side=r.side(spec.get("side"), f"{where}.side", line),
-            sequence=r.get(spec, "sequence", where, str, False, "ZXY"),
-        )
+        joints[jname] = _joint(r, jname, spec, line, check_segment)
+        for _, col in angle_columns(joints[jname]):
+            if col in owners:
+                other, other_line = owners[col]
+                r.fail(
+                    where,
+                    line,
+                    f"gives column {col}, as joint {other} (line {other_line}) does",
+                    "give the two joints different sides, or use a generic type (hinge, ball) "
+                    "whose columns carry the joint's name",
+                )
+            owners[col] = (where, line)
 
     tasks = []
     for i, spec in enumerate(r.get(doc, "tasks", "", list, False, [])):
@@ -463,6 +483,63 @@ def load_protocol(path: str | Path) -> Protocol:
         source=r.get(doc, "source", "", str, False, ""),
         path=path,
         raw=_plain(doc),
+    )
+
+
+def _joint(r: _Reader, jname: str, spec: Any, line: int | None, check_segment) -> Joint:
+    """One validated joint of the protocol's ``joints`` (see the module docstring)."""
+    where = f"joints.{jname}"
+    lines = getattr(spec, "lines", {})
+    jtype = r.get(spec, "type", where, str)
+    if jtype not in JOINT_TYPES:
+        r.fail(
+            f"{where}.type",
+            lines.get("type"),
+            f"unknown joint type {jtype!r}",
+            f"use one of {', '.join(JOINT_TYPES)}",
+        )
+    jt = joint_type(jtype)
+    proximal = check_segment(
+        r.get(spec, "proximal", where, str), f"{where}.proximal", lines.get("proximal")
+    )
+    distal = check_segment(
+        r.get(spec, "distal", where, str), f"{where}.distal", lines.get("distal")
+    )
+    if proximal == distal:
+        r.fail(
+            f"{where}.distal",
+            lines.get("distal"),
+            f"is the proximal segment {proximal!r} too",
+            "a joint joins two different segments",
+        )
+    side = r.side(spec.get("side"), f"{where}.side", lines.get("side", line))
+    if jt.sided and not side:
+        r.fail(f"{where}.side", line, f"a {jtype} joint needs a side", "add side: l or side: r")
+    axis = None
+    if "axis" in spec:
+        axis = r.axis(spec["axis"], f"{where}.axis", lines.get("axis"))
+    sequence = r.get(spec, "sequence", where, str, False, "").strip()
+    if jt.sequence_rule == "axis" and axis is None:
+        r.fail(f"{where}.axis", line, f"a {jtype} joint needs axis", "add e.g. axis: z")
+    if axis is not None and jt.sequence_rule != "axis":
+        r.fail(f"{where}.axis", lines.get("axis"), f"a {jtype} joint takes no axis",
+               "remove it (only a hinge joint has its own axis)")  # fmt: skip
+    problem = sequence_problem(jtype, sequence or None, axis)
+    if problem:
+        r.fail(
+            f"{where}.sequence",
+            lines.get("sequence", line),
+            problem,
+            "write an upper-case intrinsic sequence such as ZXY, or leave sequence out",
+        )
+    return Joint(
+        name=jname,
+        type=jtype,
+        proximal=proximal,
+        distal=distal,
+        side=side,
+        sequence=resolve_sequence(jtype, sequence or None, axis),
+        axis=axis,
     )
 
 

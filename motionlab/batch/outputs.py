@@ -30,7 +30,7 @@ from motionlab import __version__
 from motionlab.atomic import atomic_path
 from motionlab.batch.manifest import Manifest
 from motionlab.batch.state import METRICS
-from motionlab.kinematics.joint_angles import JOINT_ANGLE_NAMES
+from motionlab.kinematics.joint_types import JOINT_TYPES
 from motionlab.protocol import load_protocol
 
 METRICS_CSV = "study_metrics.csv"
@@ -110,12 +110,13 @@ def write_failures(outcomes: list, path: Path) -> None:
 # ------------------------------------------------------------------------------ the PDF report
 
 
-def primary_angle(joint: str) -> str:
-    """The first clinical angle of a joint (``knee_r`` → ``flexion``)."""
-    for jtype, names in JOINT_ANGLE_NAMES.items():
-        if joint == jtype or joint.startswith(jtype + "_"):
-            return names[0]
-    return "flexion"
+def primary_angle(joint: str, angles: list[str] | None = None) -> str:
+    """The first angle of a joint: ``knee_r`` → ``flexion`` (the joint-type table); a generic
+    joint (``hinge3``, ``shoulder``) → the first of ``angles`` (its angles in column order)."""
+    for jt in JOINT_TYPES.values():
+        if jt.clinical and jt.angle_names and (joint == jt.name or joint.startswith(jt.name + "_")):
+            return jt.angle_names[0]
+    return angles[0] if angles else "flexion"
 
 
 def _pages(groups: list, title: str) -> Iterator[tuple[Figure, list]]:
@@ -204,9 +205,8 @@ def _distributions(pdf: PdfPages, main: pd.DataFrame) -> None:
 
 
 def _changes(pdf: PdfPages, main: pd.DataFrame, visits: list[str]) -> None:
-    primary = main[
-        [a == primary_angle(j) for j, a in zip(main["joint"], main["angle"], strict=True)]
-    ]
+    first = {j: primary_angle(j, list(dict.fromkeys(g["angle"]))) for j, g in main.groupby("joint")}
+    primary = main[[a == first[j] for j, a in zip(main["joint"], main["angle"], strict=True)]]
     groups = list(primary.groupby(["block", "joint"], sort=False))
     x_of = {v: k for k, v in enumerate(visits)}
     for fig, panels in _pages(groups, "Change over visits, per subject"):
@@ -218,7 +218,7 @@ def _changes(pdf: PdfPages, main: pd.DataFrame, visits: list[str]) -> None:
                 [x_of[v] for v in median.index], median.to_numpy(), "k-", lw=2.5, label="median"
             )
             ax.set_xticks(range(len(visits)), visits, fontsize=8, rotation=30)
-            ax.set_title(f"{block} — {joint}: {primary_angle(joint)} ROM", fontsize=10)
+            ax.set_title(f"{block} — {joint}: {first[joint]} ROM", fontsize=10)
             ax.set_ylabel("ROM (deg)")
             ax.legend(fontsize=7)
         pdf.savefig(fig)

@@ -27,7 +27,7 @@ from scipy.signal import butter, sosfiltfilt
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
-from motionlab.kinematics.joint_angles import JOINT_ANGLE_NAMES, SIGNS, column_name
+from motionlab.kinematics.joint_types import angle_columns, signs_for
 from motionlab.protocol import Protocol
 from motionlab.segments import sensor_for_segment
 from motionlab.session import Session, estimate_rate
@@ -93,7 +93,7 @@ def elbow_from_gravity(up_upper: np.ndarray, up_fore: np.ndarray, side: str) -> 
     pron_lock = flex_lock | (np.hypot(wx, v[:, 2]) < LOCK) | (np.hypot(u[:, 0], u[:, 2]) < LOCK)
     n = _hold(n, flex_lock)
     m = _hold(m, pron_lock)
-    signs = SIGNS["elbow"][side]
+    signs = signs_for("elbow", side)
     return np.column_stack([signs[0] * n, np.zeros_like(n), signs[2] * m])
 
 
@@ -127,6 +127,6 @@ def session_elbow_angles(session: Session, protocol: Protocol) -> dict[str, Any]
         up_d = np.column_stack([np.interp(t, ups[1][0], ups[1][1][:, k]) for k in range(3)])
         angles = np.degrees(elbow_from_gravity(ups[0][1], up_d, joint.side))
         out.setdefault("time_s", t)
-        for i, name in enumerate(JOINT_ANGLE_NAMES["elbow"]):
-            out[column_name("elbow", joint.side, name)] = np.interp(out["time_s"], t, angles[:, i])
+        for i, (_, col) in enumerate(angle_columns(joint)):
+            out[col] = np.interp(out["time_s"], t, angles[:, i])
     return out

@@ -33,7 +33,7 @@ from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.kinematics import cycles as cyc
 from motionlab.kinematics import out_of_plane as oop
-from motionlab.kinematics.joint_angles import JOINT_ANGLE_NAMES, column_name
+from motionlab.kinematics.joint_types import angle_columns, split_column
 from motionlab.kinematics.session_angles import (
     angle_table,
     joint_segments,
@@ -95,7 +95,7 @@ def angle_metrics(values: np.ndarray, cycles: cyc.Cycles) -> dict[str, Any]:
 def primary_plane(joint: Joint, task: Task | None) -> int:
     """Index of the angle whose repetitions define the cycles (task ``plane``, else flexion)."""
     plane = str(task.options.get("plane", "")) if task is not None else ""
-    idx = oop.plane_index(joint.type, plane) if plane else None
+    idx = oop.plane_index(joint, plane) if plane else None
     return 0 if idx is None else idx
 
 
@@ -114,13 +114,13 @@ def single_plane_blocks(
             continue
         for joint in protocol.joints.values():
             if joint.distal in step.axis and joint.proximal not in step.axis:
-                idx = oop.plane_index(joint.type, step.axis[joint.distal])
+                idx = oop.plane_index(joint, step.axis[joint.distal])
                 out.append((step.name, joint, idx, tuple(rng)))
     for task in protocol.tasks:
         plane = str(task.options.get("plane", ""))
         if task.name in blocks and plane:
             for joint in protocol.joints.values():
-                idx = oop.plane_index(joint.type, plane)
+                idx = oop.plane_index(joint, plane)
                 if idx is not None:
                     out.append((task.name, joint, idx, blocks[task.name]))
     return out
@@ -158,8 +158,7 @@ def compute_metrics(
             )
         per_col: dict[str, Any] = {}
         for joint in protocol.joints.values():
-            names = JOINT_ANGLE_NAMES[joint.type]
-            cols = [column_name(joint.type, joint.side, n) for n in names]
+            cols = [col for _, col in angle_columns(joint)]
             gait = task is not None and is_gait(task) and joint.type == "knee"
             if gait and shank_omega and joint.distal in shank_omega:
                 tw, w = shank_omega[joint.distal]
@@ -310,7 +309,7 @@ def metrics_table(metrics: dict[str, Any]) -> pd.DataFrame:
 
     for block, cols in metrics.get("joints", {}).items():
         for col, m in cols.items():
-            joint, angle = _split_column(col)
+            joint, angle = split_column(col)
             for key in ("rom_deg", "min_deg", "max_deg", "repetitions"):
                 add(block, joint, angle, key, m[key])
             for key in ("cycle_max_mean_deg", "cycle_min_mean_deg"):
@@ -347,13 +346,3 @@ def metrics_table(metrics: dict[str, Any]) -> pd.DataFrame:
     return pd.DataFrame(
         rows, columns=["block", "joint", "angle", "metric", "percent", "value", "unit"]
     )
-
-
-def _split_column(col: str) -> tuple[str, str]:
-    """``knee_r_flexion_deg`` → ``("knee_r", "flexion")``; ``lumbar_axial_rotation_deg`` too."""
-    stem = col.removesuffix("_deg")
-    for jtype, names in JOINT_ANGLE_NAMES.items():
-        for name in names:
-            if stem.startswith(jtype) and stem.endswith("_" + name):
-                return stem[: -len(name) - 1], name
-    return stem, ""

@@ -1,7 +1,7 @@
 """Out-of-plane metrics: cross-talk, the lumbar axis-angle offset, trunk compensation, knee thrust.
 
-Conventions: angle tables hold degrees (columns as :func:`~motionlab.kinematics.joint_angles.
-column_name`); orientations are segment → ENU earth quaternions ``(N, 4)``, scalar first; time in
+Conventions: angle tables hold degrees (columns as :func:`~motionlab.kinematics.joint_types.
+angle_columns`); orientations are segment → ENU earth quaternions ``(N, 4)``, scalar first; time in
 s; index windows are ``slice`` objects into the table's time base.
 
 - **Cross-talk** (Ricci 2015 §6.3, Fig. 6.9): during a single-plane movement, the range of the two
@@ -28,20 +28,36 @@ import numpy as np
 
 from motionlab import rotations as rot
 from motionlab.kinematics.cycles import Cycles
-from motionlab.kinematics.joint_angles import JOINT_ANGLE_NAMES, column_name, decompose
+from motionlab.kinematics.joint_angles import decompose
+from motionlab.kinematics.joint_types import (
+    JOINT_TYPES,
+    angle_columns,
+    angle_names,
+    joint_sequence,
+    names_for,
+)
 
-AXIS_PLANE = {"z": 0, "x": 1, "y": 2}  # segment axis of a movement → angle index (Z-X-Y)
-PLANE_AXIS = {0: 2, 1: 0, 2: 1}  # angle index → segment axis index (z, x, y)
-TRUNK_ANGLES = JOINT_ANGLE_NAMES["lumbar"]
+_LUMBAR = JOINT_TYPES["lumbar"]
+#: lumbar angle index → segment axis index (0 x, 1 y, 2 z) it turns about
+PLANE_AXIS = {i: "XYZ".index(c) for i, c in enumerate(_LUMBAR.sequence)}
+TRUNK_ANGLES = names_for("lumbar")
 NEUTRAL_S = 1.0
 
 
-def plane_index(joint_type: str, plane: str) -> int | None:
-    """Index (0-2) of a plane given by angle name (``flexion``) or axis letter (``z``)."""
-    names = JOINT_ANGLE_NAMES[joint_type]
+def plane_index(joint: Any, plane: str) -> int | None:
+    """Index (0-2) of a plane given by angle name (``flexion``) or axis letter (``z``, ``-z``).
+
+    ``joint`` is a :class:`~motionlab.protocol.Joint` (its sequence), or the name of a type
+    with a standard sequence (``"lumbar"``).
+    """
+    if isinstance(joint, str):
+        names, sequence = names_for(joint), JOINT_TYPES[joint].sequence
+    else:
+        names, sequence = angle_names(joint), joint_sequence(joint)
     if plane in names:
         return names.index(plane)
-    return AXIS_PLANE.get(plane.strip().lstrip("+-"))
+    letter = plane.strip().lstrip("+-").upper()
+    return sequence.index(letter) if len(letter) == 1 and letter in sequence else None
 
 
 def cross_talk(
@@ -56,8 +72,8 @@ def cross_talk(
     ``on_axis`` is the index of the moving plane; ``nominal`` the angle table computed with the
     protocol's nominal mountings (``None``: no comparison).
     """
-    names = JOINT_ANGLE_NAMES[joint.type]
-    cols = [column_name(joint.type, joint.side, n) for n in names]
+    names = [name for name, _ in angle_columns(joint)]
+    cols = [col for _, col in angle_columns(joint)]
 
     def rom(table: dict[str, np.ndarray], col: str) -> float:
         v = np.asarray(table[col][window], float)

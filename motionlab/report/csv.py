@@ -17,10 +17,10 @@ import pandas as pd
 
 from motionlab.atomic import atomic_path, check_output
 from motionlab.errors import InputError
+from motionlab.kinematics.joint_types import angle_columns
 from motionlab.report.model import (
     SessionView,
     calibration_rows,
-    columns,
     quality_rows,
     rom_rows,
     symmetry_rows,
@@ -34,7 +34,7 @@ def angle_frames(view: SessionView) -> dict[str, pd.DataFrame]:
     t = view.angles["time_s"]
     out = {}
     for joint in view.joints():
-        cols = {"time_s": t} | {col: view.angles[col] for _, col in columns(joint)}
+        cols = {"time_s": t} | {col: view.angles[col] for _, col in angle_columns(joint)}
         out[f"{joint.name}_angles.csv"] = pd.DataFrame(cols)
     return out
 

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from motionlab.errors import InputError
-from motionlab.kinematics.joint_angles import JOINT_ANGLE_NAMES, column_name
+from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, plane, title
 from motionlab.protocol import Joint, Protocol, load_protocol
 from motionlab.segments import sensor_for_segment
 from motionlab.session import Session
@@ -34,37 +34,6 @@ TOLERANCE_DEG = 5.0
 SYMMETRY_LIMIT_PCT = 10.0
 SYMMETRY_MIN_ROM_DEG = 10.0
 
-#: clinical plane of each angle (the anatomical plane the movement happens in)
-PLANES = {
-    "flexion": "sagittal",
-    "adduction": "frontal",
-    "carrying": "frontal",
-    "lateral_bending": "frontal",
-    "rotation": "transverse",
-    "pronation": "transverse",
-    "axial_rotation": "transverse",
-}
-#: what a positive value means, for axis labels
-POSITIVE = {
-    ("knee", "flexion"): "flexion +",
-    ("knee", "adduction"): "varus +",
-    ("knee", "rotation"): "internal +",
-    ("elbow", "flexion"): "flexion +",
-    ("elbow", "carrying"): "valgus +",
-    ("elbow", "pronation"): "pronation +",
-    ("lumbar", "flexion"): "flexion +",
-    ("lumbar", "lateral_bending"): "to the right +",
-    ("lumbar", "axial_rotation"): "to the left +",
-}
-ANGLE_TITLES = {
-    "flexion": "flexion-extension",
-    "adduction": "varus-valgus (adduction)",
-    "carrying": "carrying angle (valgus)",
-    "rotation": "internal-external rotation",
-    "pronation": "pronation-supination",
-    "lateral_bending": "lateral bending",
-    "axial_rotation": "axial rotation",
-}
 SIDE_NAMES = {"r": "right", "l": "left", "": ""}
 
 
@@ -126,20 +95,34 @@ def in_order(keys, order: list[str]) -> list[str]:
 
 
 def joint_title(joint: Joint) -> str:
-    """``Right knee``, ``Lumbar spine``."""
-    name = "lumbar spine" if joint.type == "lumbar" else joint.type
-    side = SIDE_NAMES.get(joint.side, joint.side)
-    return f"{side} {name}".strip().capitalize()
+    """``Right knee``, ``Lumbar spine``; generic joints by name: ``Wrist r (hinge)``."""
+    jt = JOINT_TYPES[joint.type]
+    if not jt.clinical:
+        return f"{joint.name.replace('_', ' ')} ({jt.display})".capitalize()
+    side = SIDE_NAMES.get(joint.side, joint.side) if jt.sided else ""
+    return f"{side} {jt.display}".strip().capitalize()
+
+
+def joint_type_title(joint_type: str) -> str:
+    """``Knee``, ``Lumbar spine``: a heading for all joints of one type."""
+    jt = JOINT_TYPES.get(joint_type)
+    return (jt.display if jt else joint_type).capitalize()
+
+
+def angle_title(joint_type: str, angle: str) -> str:
+    """Short display name of an angle for sentences: ``varus-valgus``, ``axial rotation``."""
+    return title(joint_type, angle).split(" (")[0]
 
 
 def angle_label(joint: Joint, angle: str) -> str:
     """``Flexion-extension (sagittal)``."""
-    return f"{ANGLE_TITLES.get(angle, angle)} ({PLANES.get(angle, '')})".capitalize()
+    return f"{title(joint.type, angle)} ({plane(joint, angle)})".capitalize()
 
 
-def columns(joint: Joint) -> list[tuple[str, str]]:
-    """``[(angle name, column), ...]`` of a joint, in the order flexion, frontal, transverse."""
-    return [(a, column_name(joint.type, joint.side, a)) for a in JOINT_ANGLE_NAMES[joint.type]]
+def symmetric_type(joint_type: str) -> bool:
+    """Left and right joints of this type are compared (types that need a side)."""
+    jt = JOINT_TYPES.get(joint_type)
+    return bool(jt and jt.sided)
 
 
 def load_view(session: Session, protocol: Protocol | None = None, path: Path | None = None):
@@ -220,7 +203,7 @@ def rom_rows(view: SessionView) -> list[dict[str, Any]]:
     for task in view.tasks():
         per_col = view.metrics["joints"][task]
         for joint in view.joints():
-            for angle, col in columns(joint):
+            for angle, col in angle_columns(joint):
                 m = per_col.get(col)
                 if m is None:
                     continue
@@ -233,7 +216,7 @@ def rom_rows(view: SessionView) -> list[dict[str, Any]]:
                         "joint_type": joint.type,
                         "side": joint.side,
                         "angle": angle,
-                        "plane": PLANES.get(angle, ""),
+                        "plane": plane(joint, angle),
                         "column": col,
                         "rom_deg": float(m["rom_deg"]),
                         "min_deg": float(m["min_deg"]),
@@ -254,7 +237,7 @@ def symmetry_rows(view: SessionView) -> list[dict[str, Any]]:
     rows = []
     for (task, jtype, angle, side), right in by_key.items():
         left = by_key.get((task, jtype, angle, "l"))
-        if side != "r" or left is None:
+        if side != "r" or left is None or not symmetric_type(jtype):
             continue
         r = right["typical_max_deg"] - right["typical_min_deg"]
         l = left["typical_max_deg"] - left["typical_min_deg"]
@@ -265,7 +248,7 @@ def symmetry_rows(view: SessionView) -> list[dict[str, Any]]:
                 "task": task,
                 "joint_type": jtype,
                 "angle": angle,
-                "plane": PLANES.get(angle, ""),
+                "plane": right["plane"],
                 "right_rom_deg": r,
                 "left_rom_deg": l,
                 "symmetry_index_pct": si,

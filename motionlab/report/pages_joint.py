@@ -11,14 +11,15 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.patches import Patch
 
+from motionlab.kinematics.joint_types import angle_columns, positive
 from motionlab.report.model import (
-    POSITIVE,
     SessionView,
     angle_label,
-    columns,
     joint_title,
+    joint_type_title,
     normal_range,
     rom_rows,
+    symmetric_type,
     symmetry_rows,
 )
 from motionlab.report.normative import band_for
@@ -30,7 +31,7 @@ MIN_SPAN_DEG = 10.0
 
 
 def _ylabel(joint, angle: str) -> str:
-    return f"{angle.replace('_', ' ')} (°)\n{POSITIVE.get((joint.type, angle), '')}"
+    return f"{angle.replace('_', ' ')} (°)\n{positive(joint, angle)}"
 
 
 def _time_page(doc: Document, view: SessionView, joint) -> None:
@@ -38,7 +39,7 @@ def _time_page(doc: Document, view: SessionView, joint) -> None:
     blocks = view.blocks()
     axes = doc.axes_grid(3, 1, 5.6, left=0.85, bottom=0.45, hspace=0.45, top=0.45)
     colour = SIDE_COLOUR.get(joint.side, SIDE_COLOUR[""])
-    for i, ((angle, col), (ax,)) in enumerate(zip(columns(joint), axes, strict=True)):
+    for i, ((angle, col), (ax,)) in enumerate(zip(angle_columns(joint), axes, strict=True)):
         for task, (a, b) in blocks.items():
             ax.axvspan(a, b, color="#f0f0f0", zorder=0)
             rng = normal_range(view.protocol, task, col)
@@ -179,7 +180,7 @@ def _cycle_pages(doc: Document, view: SessionView, joint) -> None:
             "the protocol's normal range where no normal curve is on file.",
         )
         grid = doc.axes_grid(3, len(chunk), 7.2, left=0.55, wspace=0.7, hspace=0.75, top=0.4)
-        for i, (angle, col) in enumerate(columns(joint)):
+        for i, (angle, col) in enumerate(angle_columns(joint)):
             for j, task in enumerate(chunk):
                 draw_cycle(grid[i][j], view, joint, task, angle, col)
         colour = SIDE_COLOUR.get(joint.side, SIDE_COLOUR[""])
@@ -198,7 +199,7 @@ def _cycle_pages(doc: Document, view: SessionView, joint) -> None:
         sources = {
             band.source
             for task in chunk
-            for angle, _ in columns(joint)
+            for angle, _ in angle_columns(joint)
             if (band := band_for(task, joint.type, angle)) is not None
         }
         for src in sorted(sources):
@@ -231,23 +232,24 @@ def symmetry_page(doc: Document, view: SessionView) -> None:
         return
     pairs = {}
     for j in view.joints():
-        pairs.setdefault(j.type, {})[j.side] = j
+        if symmetric_type(j.type):
+            pairs.setdefault(j.type, {})[j.side] = j
     for jtype, sides in pairs.items():
         if "r" not in sides or "l" not in sides:
             continue
         doc.section(
-            f"{jtype.capitalize()}: left-right comparison",
+            f"{joint_type_title(jtype)}: left-right comparison",
             "Mean cycle curves of both sides. Symmetry index SI = 100 × (right − left) / mean of "
             "the two ranges (Robinson et al. 1987); |SI| above 10 % is flagged; it is not given "
             "when the mean range is under 10° (a ratio of two small ranges is mostly noise).",
         )
         tasks = view.tasks()[:TASKS_PER_PAGE]
         grid = doc.axes_grid(3, len(tasks), 5.6, left=0.55, wspace=0.7, hspace=0.7, top=0.4)
-        for i, (angle, _) in enumerate(columns(sides["r"])):
+        for i, (angle, _) in enumerate(angle_columns(sides["r"])):
             for j, task in enumerate(tasks):
                 ax = grid[i][j]
                 for side in ("r", "l"):
-                    col = columns(sides[side])[i][1]
+                    col = angle_columns(sides[side])[i][1]
                     m = view.metrics["joints"][task].get(col)
                     if m is None or m["repetitions"] == 0:
                         continue

@@ -6,15 +6,57 @@ from __future__ import annotations
 import json
 from typing import Any
 
-from motionlab.kinematics.joint_angles import JOINT_ANGLE_NAMES
-from motionlab.report.model import SessionView, columns, in_order, joint_title
+from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, angle_names, joint_sequence
+from motionlab.report.model import SessionView, in_order, joint_title, joint_type_title
 from motionlab.report.normative import load_accuracy
 from motionlab.report.pdf import MUTED, SIZE, Document
 from motionlab.report.text import accuracy_sentence
 
 
 def _columns(view: SessionView) -> list[str]:
-    return [col for j in view.joints() for _, col in columns(j)]
+    return [col for j in view.joints() for _, col in angle_columns(j)]
+
+
+def _dashed(sequence: str) -> str:
+    return "-".join(sequence)
+
+
+def decomposition_text(joints: list) -> str:
+    """The methods paragraph on joint angles, naming the sequence each joint was decomposed with."""
+    listed = "; ".join(
+        f"{joint_title(j)}: {j.distal} relative to {j.proximal}, intrinsic "
+        f"{_dashed(joint_sequence(j))}"
+        + (f" (hinge axis {j.axis})" if JOINT_TYPES[j.type].sequence_rule == "axis" else "")
+        for j in joints
+    )
+    parts = [f"{listed}."]
+    clinical = [j for j in joints if JOINT_TYPES[j.type].clinical]
+    if clinical:
+        seqs = ", ".join(dict.fromkeys(_dashed(joint_sequence(j)) for j in clinical))
+        parts.append(
+            f"Knee, elbow and lumbar decomposition {seqs} (Grood & Suntay 1983 for the knee, ISB "
+            "Wu et al. 2005 for the elbow): flexion about the proximal z axis, ab/adduction about "
+            "the floating axis, rotation about the distal y axis; clinical signs as in "
+            "motionlab's sign table (the left side mirrored)."
+        )
+    if any(JOINT_TYPES[j.type].sequence_rule == "axis" for j in joints):
+        parts.append(
+            "Hinge joints: the angle about the hinge axis (first in the sequence, positive about "
+            "the given axis direction), then two off-axis angles (about the floating axis and "
+            "the distal third axis) that show how far the joint is from a pure hinge."
+        )
+    if any(JOINT_TYPES[j.type].sequence_rule == "any" for j in joints):
+        parts.append(
+            "Ball joints: three angles of the named intrinsic sequence, each named by its axis "
+            "(first about the proximal axis, last about the distal one), positive about the "
+            "positive segment axis."
+        )
+    parts.append(
+        "Cycles: gait strides from the shank's angular velocity (heel strike to heel strike), "
+        "other tasks from the repetitions of the primary angle; each cycle resampled to 101 "
+        "points (0-100 %)."
+    )
+    return " ".join(parts)
 
 
 def accuracy_page(doc: Document, view: SessionView) -> None:
@@ -27,21 +69,23 @@ def accuracy_page(doc: Document, view: SessionView) -> None:
         "own validation on recordings with a known truth. Read a range of motion as uncertain "
         "by about these amounts.",
     )
-    types = list(dict.fromkeys(j.type for j in view.joints()))
+    types = {}  # type → its angle names (of its first joint)
+    for j in view.joints():
+        types.setdefault(j.type, angle_names(j))
     if not proto:
         doc.paragraph(
             f"motionlab has no validation results on file for the '{view.protocol.name}' "
             "protocol, so no accuracy can be stated. Compare with an optical reference "
             "(motionlab validate) before relying on small differences."
         )
-    for jtype in types:
+    for jtype, names in types.items():
         items = [
-            accuracy_sentence(a, proto[f"{jtype}_{a}"])
-            for a in JOINT_ANGLE_NAMES[jtype]
+            accuracy_sentence(a, proto[f"{jtype}_{a}"], jtype)
+            for a in names
             if f"{jtype}_{a}" in proto
         ]
         if items:
-            doc.heading(jtype.capitalize() if jtype != "lumbar" else "Lumbar spine")
+            doc.heading(joint_type_title(jtype))
             doc.bullets(items)
     if proto:
         doc.paragraph(
@@ -127,18 +171,7 @@ def methods_page(doc: Document, view: SessionView) -> None:
     if view.protocol.source:
         doc.paragraph(" ".join(view.protocol.source.split()), size=SIZE["small"], colour=MUTED)
     doc.heading("Joint angles and metrics")
-    joints = "; ".join(
-        f"{joint_title(j)}: {j.distal} relative to {j.proximal}, {j.sequence}"
-        for j in view.joints()
-    )
-    doc.paragraph(
-        f"{joints}. Decomposition Z-X-Y (Grood & Suntay 1983 for the knee, ISB Wu et al. 2005 for "
-        "the elbow): flexion about the proximal z axis, ab/adduction about the floating axis, "
-        "rotation about the distal y axis; clinical signs as in motionlab's sign table (the left "
-        "side mirrored). Cycles: gait strides from the shank's angular velocity (heel strike to "
-        "heel strike), other tasks from the repetitions of the primary angle; each cycle "
-        "resampled to 101 points (0-100 %)."
-    )
+    doc.paragraph(decomposition_text(view.joints()))
     doc.heading("Provenance")
     rows = []
     for p in view.session.provenance:

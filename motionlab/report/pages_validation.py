@@ -8,7 +8,8 @@ from typing import Any
 
 import numpy as np
 
-from motionlab.report.model import SessionView, columns, in_order, joint_title
+from motionlab.kinematics.joint_types import angle_columns
+from motionlab.report.model import SessionView, in_order, joint_title
 from motionlab.report.pdf import MUTED, SIZE, Document
 
 
@@ -22,7 +23,7 @@ def _f(x: Any, spec: str = ".2f") -> str:
 
 def _angle_table(doc: Document, view: SessionView, angles: dict[str, Any]) -> None:
     rows = []
-    order = [col for j in view.joints() for _, col in columns(j)]
+    order = [col for j in view.joints() for _, col in angle_columns(j)]
     for col, v in ((c, angles[c]) for c in in_order(angles, order)):
         if not isinstance(v, dict) or "rmse_deg" not in v:
             continue
@@ -127,7 +128,7 @@ def _figure_pages(doc: Document, view: SessionView, val: dict[str, Any]) -> None
     from motionlab.validation import figures
 
     angles = val.get("angles") or {}
-    cols = [col for j in view.joints() for _, col in columns(j) if col in angles]
+    cols = [col for j in view.joints() for _, col in angle_columns(j) if col in angles]
     if cols:
         doc.section(
             "Validation: angle curves",
@@ -137,7 +138,7 @@ def _figure_pages(doc: Document, view: SessionView, val: dict[str, Any]) -> None
         )
         doc.place_figure(min(9.4, 1.5 * len(cols) + 0.6))
     for joint in view.joints():
-        col = columns(joint)[0][1]
+        col = angle_columns(joint)[0][1]
         if col not in angles:
             continue
         doc.section(
@@ -147,7 +148,7 @@ def _figure_pages(doc: Document, view: SessionView, val: dict[str, Any]) -> None
             figure=figures.bland_altman(val, col),
         )
         doc.place_figure(4.2)
-        _angle_table(doc, view, {c: angles[c] for _, c in columns(joint) if c in angles})
+        _angle_table(doc, view, {c: angles[c] for _, c in angle_columns(joint) if c in angles})
     sync = val.get("sync") or {}
     if len(np.asarray(sync.get("window_time_s", []))):
         doc.section(

@@ -11,10 +11,11 @@ from typing import Any
 
 import numpy as np
 
+from motionlab.kinematics.joint_types import JOINT_TYPES
 from motionlab.report.model import (
-    ANGLE_TITLES,
     SIDE_NAMES,
     SessionView,
+    angle_title,
     calibration_rows,
     quality_rows,
     rom_rows,
@@ -70,11 +71,20 @@ def task_name(task: str) -> str:
     return task.replace("_", " ")
 
 
+def _joint_words(row: dict[str, Any]) -> tuple[str, str]:
+    """``("right", "knee")`` of a report row; generic joints by name: ``("", "wrist r hinge")``."""
+    jt = JOINT_TYPES.get(row["joint_type"])
+    if jt is not None and not jt.clinical:
+        name = str(row.get("joint", jt.name)).replace("_", " ")
+        return "", f"{name} {jt.display}"
+    side = SIDE_NAMES.get(row.get("side", ""), "") if jt is None or jt.sided else ""
+    return side, jt.display if jt is not None else row["joint_type"]
+
+
 def rom_sentence(row: dict[str, Any]) -> str:
     """One row of :func:`~motionlab.report.model.rom_rows` as a sentence."""
-    side = SIDE_NAMES.get(row["side"], "")
-    joint = "lumbar spine" if row["joint_type"] == "lumbar" else row["joint_type"]
-    angle = ANGLE_TITLES.get(row["angle"], row["angle"]).split(" (")[0]
+    side, joint = _joint_words(row)
+    angle = angle_title(row["joint_type"], row["angle"])
     text = (
         f"{side} {joint} {angle} range {span(row['typical_min_deg'], row['typical_max_deg'])} "
         f"during {task_name(row['task'])}"
@@ -136,8 +146,8 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
     asym = []
     for s in symmetry_rows(view):
         if s["flag"] and s["angle"] == "flexion":  # other planes: see the comparison page
-            joint = "lumbar spine" if s["joint_type"] == "lumbar" else s["joint_type"]
-            angle = ANGLE_TITLES.get(s["angle"], s["angle"]).split(" (")[0]
+            joint = _joint_words(s)[1]
+            angle = angle_title(s["joint_type"], s["angle"])
             asym.append(
                 f"{joint.capitalize()} {angle} range during {task_name(s['task'])} differs "
                 f"between sides: right {s['right_rom_deg']:.0f}°, left {s['left_rom_deg']:.0f}° "
@@ -181,11 +191,15 @@ def quality_notes(view: SessionView) -> list[str]:
     return notes + gaps
 
 
-def accuracy_sentence(angle: str, entry: dict[str, Any]) -> str:
-    """``'flexion-extension: ±2° (RMSE 1.4°, worst 1.9°)'``."""
+def accuracy_sentence(angle: str, entry: dict[str, Any], joint_type: str = "") -> str:
+    """``'flexion-extension: ±2° (RMSE 1.4°, worst 1.9°)'``; ``joint_type`` names the angle
+    (default: the first clinical type that has it)."""
     rmse = float(entry.get("rmse_deg", np.nan))
     worst = float(entry.get("max_rmse_deg", np.nan))
     bound = max(rmse, worst) if np.isfinite(worst) else rmse
-    name = ANGLE_TITLES.get(angle, angle).split(" (")[0]
+    if not joint_type:
+        known = (t.name for t in JOINT_TYPES.values() if t.angle_names and angle in t.angle_names)
+        joint_type = next(known, "")
+    name = angle_title(joint_type, angle)
     text = f"{name}: ±{np.ceil(bound):.0f}° (RMSE {rmse:.1f}°"
     return text + (f", worst case {worst:.1f}°)" if np.isfinite(worst) else ")")

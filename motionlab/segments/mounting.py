@@ -36,6 +36,7 @@ from scipy.signal import butter, sosfiltfilt
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
+from motionlab.kinematics.joint_types import JOINT_TYPES, flexion_axis
 from motionlab.protocol import CalibrationStep, Protocol, axis_vector
 from motionlab.segments import frames, quality
 from motionlab.segments.functional import functional_axis, orient
@@ -152,7 +153,12 @@ def measure(
             carried = any(j.distal == seg and j.proximal in step.axis for j in joints)
             out[seg][step.name] = _record(step, seg, seg_axis, axis, rho, "svd", moves, carried)
         for joint in moved:
-            hinge_like = joint.type in ("knee", "elbow") and step.axis[joint.distal][-1] == "z"
+            axis = flexion_axis(joint)
+            hinge_like = (
+                JOINT_TYPES[joint.type].hinge
+                and axis is not None
+                and step.axis[joint.distal][-1] == axis[-1]
+            )
             if not hinge_like or joint.proximal not in streams or joint.distal not in streams:
                 continue
             j_p, j_d, residual = _hinge(protocol, step, joint, streams, rng)

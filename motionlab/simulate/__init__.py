@@ -27,7 +27,8 @@ import numpy as np
 from motionlab import __version__
 from motionlab import rotations as rot
 from motionlab.errors import InputError
-from motionlab.kinematics.joint_angles import JOINT_ANGLE_NAMES, column_name, decompose
+from motionlab.kinematics.joint_angles import decompose_joint
+from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns
 from motionlab.protocol import Protocol, load_protocol
 from motionlab.session import SensorStream, Session
 from motionlab.simulate import markers as _markers
@@ -136,15 +137,14 @@ def _joint_truth(protocol: Protocol, ch: np.ndarray, poses: dict, body: Body) ->
     body model's joints, else decomposed from the segment orientations."""
     out = {}
     for joint in protocol.joints.values():
-        grp = "lumbar" if joint.type == "lumbar" else f"{joint.type}_{joint.side}"
+        grp = f"{joint.type}_{joint.side}" if JOINT_TYPES[joint.type].sided else joint.type
         parent, chan, _ = body.parent(joint.distal)
         if chan == grp and parent == joint.proximal:
             angles = ch[:, group(grp)]
         else:
-            angles = decompose(poses[joint.proximal][0], poses[joint.distal][0], joint.type,
-                               joint.side)  # fmt: skip
-        for i, name in enumerate(JOINT_ANGLE_NAMES[joint.type]):
-            out[column_name(joint.type, joint.side, name)] = np.degrees(angles[:, i])
+            angles = decompose_joint(poses[joint.proximal][0], poses[joint.distal][0], joint)
+        for i, (_, col) in enumerate(angle_columns(joint)):
+            out[col] = np.degrees(angles[:, i])
     return out
 
 

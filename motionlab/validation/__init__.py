@@ -25,7 +25,8 @@ import numpy as np
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
-from motionlab.kinematics.joint_angles import JOINT_ANGLE_NAMES, column_name, joint_angles
+from motionlab.kinematics.joint_angles import joint_angles
+from motionlab.kinematics.joint_types import angle_columns
 from motionlab.protocol import Protocol
 from motionlab.session import MarkerSet, Session, estimate_rate
 from motionlab.validation.agreement import agreement, per_repetition, repetitions
@@ -140,7 +141,7 @@ def _optical_segment_quats(
 def _joint_angles(qp: np.ndarray, qd: np.ndarray, joint) -> dict[str, np.ndarray]:
     """:func:`joint_angles` on the rows where both orientations exist, NaN elsewhere."""
     ok = np.isfinite(qp).all(axis=1) & np.isfinite(qd).all(axis=1)
-    names = [column_name(joint.type, joint.side, a) for a in JOINT_ANGLE_NAMES[joint.type]]
+    names = [col for _, col in angle_columns(joint)]
     out = {col: np.full(len(ok), np.nan) for col in names}
     if ok.any():
         for col, values in joint_angles(qp[ok], qd[ok], joint).items():
@@ -177,8 +178,7 @@ def _angles(
         qp = resample_quat(*seg_quats[joint.proximal], t_ref)
         qd = resample_quat(*seg_quats[joint.distal], t_ref)
         ref = _joint_angles(qp, qd, joint)
-        names = JOINT_ANGLE_NAMES[joint.type]
-        primary = column_name(joint.type, joint.side, names[0])
+        primary = angle_columns(joint)[0][1]
         reps = repetitions(ref[primary], rate)
         for col, ref_deg in ref.items():
             if col not in table:
