@@ -82,6 +82,9 @@ class JointType:
     sequence_rule: str
     #: display name of the joint type (``lumbar spine``)
     display: str
+    #: flexes far one way from its reference pose and hardly the other (knee, elbow): the
+    #: direction of its axis is told by anatomy when calibrated from movement
+    flexes_one_way: bool = False
 
 
 JOINT_TYPES: dict[str, JointType] = {
@@ -98,6 +101,7 @@ JOINT_TYPES: dict[str, JointType] = {
         titles=("flexion-extension", "varus-valgus (adduction)", "internal-external rotation"),
         hinge=True,
         flexion_axis="-z",
+        flexes_one_way=True,
         clinical=True,
         sequence_rule="fixed",
         display="knee",
@@ -114,6 +118,7 @@ JOINT_TYPES: dict[str, JointType] = {
         titles=("flexion-extension", "carrying angle (valgus)", "pronation-supination"),
         hinge=True,
         flexion_axis="z",
+        flexes_one_way=True,
         clinical=True,
         sequence_rule="fixed",
         display="elbow",

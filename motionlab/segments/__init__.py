@@ -23,6 +23,7 @@ import numpy as np
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
+from motionlab.kinematics.joint_types import flexion_axis, joint_type
 from motionlab.protocol import Protocol, axis_vector
 from motionlab.segments import grades, heading, mounting, movement
 from motionlab.segments.steps import find_steps
@@ -86,18 +87,13 @@ def streams_of(session: Session, protocol: Protocol) -> Streams:
 
 
 def hinge_spec(joint) -> tuple[str, bool] | None:
-    """``(flexion axis in segment coordinates, anatomical sign)`` of a hinge-like joint, or None.
-
-    The axis is the one about which the distal segment turns when the joint's first angle
-    increases; anatomical: the joint flexes one way from its reference pose (knee, elbow).
-    """
-    if joint.type == "knee":
-        return "-z", True
-    if joint.type == "elbow":
-        return "z", True
-    if joint.type == "hinge" and getattr(joint, "axis", None):
-        return joint.axis, False
-    return None
+    """``(flexion axis in segment coordinates, flexes one way)`` of a hinge-like joint (knee,
+    elbow, generic hinge; :mod:`motionlab.kinematics.joint_types`), else ``None``."""
+    jt = joint_type(joint.type)
+    axis = flexion_axis(joint)
+    if not jt.hinge or not axis:
+        return None
+    return axis, jt.flexes_one_way
 
 
 def _measured_by_steps(records: dict[str, Any], axis: np.ndarray) -> bool:
