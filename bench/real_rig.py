@@ -8,8 +8,11 @@ product is run through its CLI (``python -m motionlab.cli run``) and its angle c
 ball joint) are compared with the optical angles from ``omc.csv`` (30 Hz): ``q_rel = q_prox* ⊗
 q_dist`` decomposed with the hinge axis first (x → XYZ, y → YZX, z → ZXY; the ball joint ZXY).
 
-Clock: one offset per mounting, from the gyroscope speeds ‖ω‖ of all five IMUs against the
-optical angular speeds (search ±0.2 s, ``validation.joint_reference.fit_clock_offset``).
+Clock: one offset per mounting, first from the gyroscope speeds ‖ω‖ of all five IMUs against
+the optical angular speeds (search ±0.2 s, ``validation.joint_reference.fit_clock_offset``), then
+refined within ±0.1 s on the by-hand 6-D hinge angles (:func:`angle_offset`: the gyroscope
+samples are interval averages, so orientations lag the speeds by about half a sample); every
+variant is compared at that one offset.
 IMU angles are interpolated onto the optical samples; optical gaps (NaN) are skipped.
 
 References computed here from library pieces ("by hand"): each IMU fused alone
@@ -93,6 +96,23 @@ def clock_offset(t_imu, imu, t_opt, q_opt) -> tuple[float, float]:
         speeds_opt.append(np.interp(t_opt, tm, np.linalg.norm(w, axis=1)))
         speeds_opt[-1][~np.isfinite(q_opt[seg]).all(axis=1)] = np.nan
     return fit_clock_offset(t_imu, np.column_stack(speeds_imu), t_opt, np.column_stack(speeds_opt))
+
+
+def angle_offset(t_imu, hand: dict, t_opt, ref: dict, around: float) -> float:
+    """Offset (s, ``t_opt = t_imu + d``) minimising the mean offset-free RMSE of the by-hand 6-D
+    hinge angles, within ±0.1 s of ``around`` (1 ms steps). Orientations integrate gyroscope
+    samples that are interval averages, so they lag the angular speeds by about half a sample:
+    the angles, not the speeds, set the offset at which angles are compared."""
+    best, best_cost = around, np.inf
+    for lag in np.arange(around - 0.1, around + 0.1 + 5e-4, 0.001):
+        costs = []
+        for j, ang in hand.items():
+            e = on_optical(t_imu, ang, t_opt, lag) - ref[j]
+            e = e[np.isfinite(e)]
+            costs.append(np.sqrt(np.mean((e - e.mean()) ** 2)) if len(e) > 10 else np.inf)
+        if np.mean(costs) < best_cost:
+            best, best_cost = float(lag), float(np.mean(costs))
+    return best
 
 
 def on_optical(t_imu: np.ndarray, values: np.ndarray, t_opt: np.ndarray, offset: float):
@@ -242,8 +262,17 @@ def main(argv: list[str] | None = None) -> int:
         for mounting in MOUNTINGS:
             name = mounting.removesuffix(".csv").removeprefix("imu_")
             t_imu, imu, rate = read_imu(args.data / mounting)
-            offset, r_clock = clock_offset(t_imu, imu, t_opt, q_opt)
-            clocks.append(f"- {name}: optical = IMU + {offset * 1000:.0f} ms (r = {r_clock:.3f})")
+            speed_offset, r_clock = clock_offset(t_imu, imu, t_opt, q_opt)
+            fused = fuse_all(imu, rate, has_vqf)
+            hand = {
+                j: hinge_by_hand(t_imu, imu, fused["default 6-D"], rate, p, d, a, True)
+                for j, (p, d, a) in HINGES.items()
+            }
+            offset = angle_offset(t_imu, hand, t_opt, ref_hinge, speed_offset)
+            clocks.append(
+                f"- {name}: optical = IMU + {offset * 1000:.0f} ms from the hinge angles "
+                f"(from the angular speeds: {speed_offset * 1000:.0f} ms, r = {r_clock:.3f})"
+            )
             variants = [] if args.skip_run else [("run 6-D", False), ("run 9-D", True)]
             for variant, mag in variants:
                 csv_dir, error = run_product(
@@ -266,7 +295,6 @@ def main(argv: list[str] | None = None) -> int:
                     m = agreement_metrics(est, ref)
                     note = "metrics after flipping the sign" if m["flipped"] else ""
                     rows.append(row(name, variant, column, m, g.get(column, "n/a"), note))
-            fused = fuse_all(imu, rate, has_vqf)
             for label, six_d in (("by hand (default 6-D)", "default 6-D"),
                                  ("VQF offline 9-D", "VQF offline 9-D")):  # fmt: skip
                 if six_d not in fused:
@@ -291,7 +319,7 @@ def main(argv: list[str] | None = None) -> int:
                 cells = " | ".join(fmt(err[s]) for s in SEGMENTS)
                 heading_rows.append(f"| {name} | {label} ({mode}) | {cells} |")
     print("## RING trial 1: joint angles against optical\n")
-    print("Clock offset (from angular speeds, search ±0.2 s):")
+    print("Clock offset:")
     print("\n".join(clocks) + "\n")
     print(header)
     print("\n".join(rows))
