@@ -36,7 +36,7 @@ are off, and the 9-D pass starts from the 6-D estimate with a flat heading prior
 (``mag_heading_init``) so the data, not the first sample, fix the heading. Rejection by norm and
 dip follows Roetenberg et al. (IEEE TBME 52(3), 2005) and VQF (Laidig & Seel 2023). On the real
 RING rig (5 sensors, uncalibrated magnetometers) this took the per-segment heading error from up
-to 36.5° to ≤ 6.7° (VQF offline: 3.2–8.7°).
+to 36.5° to ≤ 6.3° (VQF offline: 3.2–8.7°).
 
 Recovery from a wrong state (a wrong start, or a gross error later): the measurement weights are
 tuned for accuracy on BROAD and are weak, so on its own the filter would take tens of seconds to
