@@ -22,7 +22,10 @@ GYR_NOISE, BIAS_RW, ACC_NOISE, ACC_REST_NOISE, REST_NOISE, GRAVITY = 0, 1, 2, 3,
 MAG_NOISE, MAG_REST_NOISE, MAG_NORM_TOL, MAG_DIP_TOL, MAG_REF_TAU, MAG_NEW_FIELD_T = range(6, 12)
 ATT_INIT, RESET_TILT, RESET_HEADING, RESET_TIME, RESET_HEADING_TIME = range(12, 17)
 RESET_TAU, RESET_NOISE, RESET_AGREE, MAG_NEW_FIELD_MIN = range(17, 21)
-N_PARAMS = 21
+# offline magnetometer gating: fixed reference norm (≤ 0: learn it online) and dip, and
+# whether an undisturbed field may call for a heading reset
+MAG_FIXED_NORM, MAG_FIXED_DIP, MAG_HEADING_RESET = range(21, 24)
+N_PARAMS = 24
 
 
 @numba.njit(cache=True, inline="always")
@@ -113,6 +116,7 @@ def forward(
     acc: np.ndarray,
     mag: np.ndarray,
     use_mag: bool,
+    mag_scale: np.ndarray,
     rest: np.ndarray,
     dt: float,
     q0: np.ndarray,
@@ -137,6 +141,12 @@ def forward(
     attitude covariance is inflated by ``ATT_INIT²`` in the prior (so the smoother's backward
     pass decouples the samples before the reset, whose estimates were inconsistent), then the
     vector-attitude correction is measured with standard deviation ``RESET_NOISE``.
+
+    With ``prm[MAG_FIXED_NORM] > 0`` the field's reference (norm, dip) is fixed and the
+    magnetometer is used exactly on the samples where ``mag_scale`` (N) is finite, with its
+    heading variance multiplied by it (the offline gating and weighting of
+    :func:`motionlab.fusion.detect.field_gate`); otherwise ``mag_scale`` is ignored and the
+    reference is learnt online.
     """
     n = gyr.shape[0]
     q = q0.copy()
@@ -166,6 +176,10 @@ def forward(
     ref_age = 0.0
     mode = 0
     with_heading = False
+    fixed = prm[MAG_FIXED_NORM] > 0.0
+    if fixed:
+        ref_n, ref_d = prm[MAG_FIXED_NORM], prm[MAG_FIXED_DIP]
+    heading_reset = prm[MAG_HEADING_RESET] > 0.0
     for k in range(n):
         wx = gyr[k, 0] - b[0]
         wy = gyr[k, 1] - b[1]
@@ -225,37 +239,42 @@ def forward(
             hn = np.sqrt(mx * mx + my * my)
             if mn > 0.0 and hn > 0.0:
                 dip = np.arcsin(mz / mn)
-                if ref_n < 0.0:
-                    ref_n, ref_d, cand_n, cand_d = mn, dip, mn, dip
-                ok = (
-                    abs(mn - ref_n) < prm[MAG_NORM_TOL] * ref_n
-                    and abs(dip - ref_d) < prm[MAG_DIP_TOL]
-                )
-                if ok:
-                    ref_n += a_ref * (mn - ref_n)
-                    ref_d += a_ref * (dip - ref_d)
-                    ref_age += dt
-                    cand_t = 0.0
+                if fixed:
+                    ok = np.isfinite(mag_scale[k])
                 else:
-                    # a new homogeneous field: accepted once steady for as long as the
-                    # reference was seen, at least MAG_NEW_FIELD_MIN, at most MAG_NEW_FIELD_T
-                    same = (
-                        abs(mn - cand_n) < prm[MAG_NORM_TOL] * cand_n
-                        and abs(dip - cand_d) < prm[MAG_DIP_TOL]
+                    if ref_n < 0.0:
+                        ref_n, ref_d, cand_n, cand_d = mn, dip, mn, dip
+                    ok = (
+                        abs(mn - ref_n) < prm[MAG_NORM_TOL] * ref_n
+                        and abs(dip - ref_d) < prm[MAG_DIP_TOL]
                     )
-                    if same:
-                        cand_t += dt
-                        cand_n += a_ref * (mn - cand_n)
-                        cand_d += a_ref * (dip - cand_d)
+                    if ok:
+                        ref_n += a_ref * (mn - ref_n)
+                        ref_d += a_ref * (dip - ref_d)
+                        ref_age += dt
+                        cand_t = 0.0
                     else:
-                        cand_n, cand_d, cand_t = mn, dip, 0.0
-                    if cand_t > min(prm[MAG_NEW_FIELD_T], max(prm[MAG_NEW_FIELD_MIN], ref_age)):
-                        ref_n, ref_d, ref_age, cand_t = cand_n, cand_d, cand_t, 0.0
-                        ok = True
+                        # a new homogeneous field: accepted once steady for as long as the
+                        # reference was seen, at least MAG_NEW_FIELD_MIN, at most MAG_NEW_FIELD_T
+                        same = (
+                            abs(mn - cand_n) < prm[MAG_NORM_TOL] * cand_n
+                            and abs(dip - cand_d) < prm[MAG_DIP_TOL]
+                        )
+                        if same:
+                            cand_t += dt
+                            cand_n += a_ref * (mn - cand_n)
+                            cand_d += a_ref * (dip - cand_d)
+                        else:
+                            cand_n, cand_d, cand_t = mn, dip, 0.0
+                        if cand_t > min(prm[MAG_NEW_FIELD_T], max(prm[MAG_NEW_FIELD_MIN], ref_age)):
+                            ref_n, ref_d, ref_age, cand_t = cand_n, cand_d, cand_t, 0.0
+                            ok = True
                 mag_dist[k] = not ok
                 mag_ok = ok
                 if ok:
                     var = (prm[MAG_REST_NOISE] if rest[k] else prm[MAG_NOISE]) ** 2
+                    if fixed:
+                        var *= mag_scale[k]
                     _scalar_update(p, dx, 2, np.arctan2(mx, my), var, True, kvec, row)
                     cm.mul_exp_left(0.0, 0.0, dx[2], q)
                     cm.normalize(q)
@@ -265,7 +284,7 @@ def forward(
                         b[i] += dx[3 + i]
         # the monitor sees the vectors under the estimate before this sample's small corrections
         mode = mon_k.monitor(
-            mon, (ax, ay, az), (mx, my, mz), mag_ok, alpha, cos_tilt, cos_heading,
+            mon, (ax, ay, az), (mx, my, mz), mag_ok and heading_reset, alpha, cos_tilt, cos_heading,
             prm[RESET_TIME], prm[RESET_HEADING_TIME], prm[RESET_AGREE], dt,
         )  # fmt: skip
         if mode != 0:

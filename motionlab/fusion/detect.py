@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numba
 import numpy as np
-from scipy.ndimage import uniform_filter1d
+from scipy.ndimage import label, uniform_filter1d
 
 from motionlab import rotations as rot
 
@@ -185,3 +185,68 @@ def nb_field_disturbed(
     s = -ez / n
     s = min(1.0, max(-1.0, s))
     return abs(n - ref_norm) > norm_tol or abs(np.arcsin(s) - ref_dip) > dip_tol
+
+
+def field_gate(
+    mag: np.ndarray,
+    q: np.ndarray,
+    rate: float,
+    norm_tol: float = 0.1,
+    dip_tol: float = np.deg2rad(10.0),
+    hysteresis: float = 0.5,
+    smooth: float = 0.2,
+    hold: float = 0.5,
+    heading_tol: float = np.deg2rad(90.0),
+) -> tuple[np.ndarray, np.ndarray, float, float]:
+    """Offline magnetometer gate from the recording's own field: ``(gate, dev, norm, dip)``.
+
+    Scale-free, so a field in arbitrary units works as well as one in µT. Under the orientation
+    ``q`` (N, 4; its inclination is what matters, e.g. a 6-D smoother's) each sample's field
+    norm and dip (rad, ``asin(m_up/|m|)``: negative for a downward field) are compared with the
+    recording's robust reference — the median of both over the samples consistent with it,
+    iterated from the overall median. A sample is gated (``gate`` True: do not use its field)
+    when its deviation, averaged over ``smooth`` s, exceeds ``hysteresis`` × the tolerance
+    (``norm_tol`` relative to the reference norm, ``dip_tol`` rad) within a run that crosses the
+    full tolerance somewhere (hysteresis thresholding), then extended by ``hold`` s on both
+    sides. A sample whose field heading under ``q`` (gyroscope-carried, so nearly constant for
+    a homogeneous field) is more than ``heading_tol`` rad from its recording median is also
+    gated. ``dev`` (N) is the smoothed deviation in units of the tolerance (the larger of norm
+    and dip). The reference norm is in the unit of ``mag``. Disturbance by norm and dip as in
+    Roetenberg et al. (IEEE TBME 52(3), 2005) and VQF (Laidig & Seel 2023), which rejects a
+    field whose norm or dip departs from its learnt reference.
+    """
+    em = rot.rotate(q, mag)
+    norm = np.linalg.norm(em, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dip = np.arcsin(np.clip(em[:, 2] / norm, -1.0, 1.0))
+    good = np.isfinite(norm) & np.isfinite(dip) & (norm > 0)
+    if not good.any():
+        return np.ones(len(mag), dtype=bool), np.full(len(mag), np.inf), np.nan, np.nan
+    ref_n, ref_d = float(np.median(norm[good])), float(np.median(dip[good]))
+    for _ in range(3):
+        sel = good & (np.abs(norm / ref_n - 1.0) < norm_tol) & (np.abs(dip - ref_d) < dip_tol)
+        if not sel.any():
+            break
+        ref_n, ref_d = float(np.median(norm[sel])), float(np.median(dip[sel]))
+    w = _window(smooth, rate)
+    dev_n = np.where(good, np.abs(norm / ref_n - 1.0) / norm_tol, np.inf)
+    dev_d = np.where(good, np.abs(dip - ref_d) / dip_tol, np.inf)
+    dev = np.maximum(
+        uniform_filter1d(np.nan_to_num(dev_n, posinf=1e6), w, mode="nearest"),
+        uniform_filter1d(np.nan_to_num(dev_d, posinf=1e6), w, mode="nearest"),
+    )
+    psi = np.arctan2(em[:, 0], em[:, 1])
+    ok = good & (dev <= 1.0)
+    if ok.any():
+        mean = np.angle(np.mean(np.exp(1j * psi[ok])))
+        mid = mean + np.median(np.angle(np.exp(1j * (psi[ok] - mean))))
+        off = np.abs(np.angle(np.exp(1j * (np.where(good, psi, 0.0) - mid))))
+        dev = np.maximum(dev, uniform_filter1d(off, w, mode="nearest") / heading_tol)
+    low = dev > hysteresis
+    runs, count = label(low)
+    strong = np.unique(runs[dev > 1.0])
+    bad = np.isin(runs, strong[strong > 0]) if count else low
+    size = 2 * _window(hold, rate) + 1
+    if size > 1 and bad.any():
+        bad = _dilate(bad, size)
+    return bad | ~good, dev, ref_n, ref_d
