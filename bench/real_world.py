@@ -29,8 +29,8 @@ import time
 from collections import Counter
 
 import numpy as np
-
 from joint_angles import errors, true_clock
+
 from motionlab.kinematics.joint_types import angle_columns
 from motionlab.pipeline import analyse, prepare_sensors
 from motionlab.protocol import load_protocol
@@ -122,8 +122,7 @@ def main() -> None:
             vals = np.array([r["rmse"][col] for r in good])
             grades = [r["grades"][col][0] for r in good]
             ok = all(
-                v <= target(col) or g == "not determined"
-                for v, g in zip(vals, grades, strict=True)
+                v <= target(col) or g == "not determined" for v, g in zip(vals, grades, strict=True)
             )
             for v, g in zip(vals, grades, strict=True):
                 if g == "determined":

@@ -85,6 +85,9 @@ class JointType:
     #: flexes far one way from its reference pose and hardly the other (knee, elbow): the
     #: direction of its axis is told by anatomy when calibrated from movement
     flexes_one_way: bool = False
+    #: a second axis fixed in the distal segment about which it turns too (the elbow's
+    #: pronation about the forearm's long axis y): calibrated from movement as a two-axis joint
+    twist_axis: str | None = None
 
 
 JOINT_TYPES: dict[str, JointType] = {
@@ -119,6 +122,7 @@ JOINT_TYPES: dict[str, JointType] = {
         hinge=True,
         flexion_axis="z",
         flexes_one_way=True,
+        twist_axis="y",
         clinical=True,
         sequence_rule="fixed",
         display="elbow",

@@ -136,10 +136,17 @@ def movement_hinges(
         reference = steps.get(ref_name) if ref_name else None
         prior_p = protocol.segments[p].nominal_mounting().T @ seg_axis
         prior_d = protocol.segments[d].nominal_mounting().T @ seg_axis
+        twist = joint_type(joint.type).twist_axis
         try:
-            fit = movement.fit_hinge(
-                name, side[p], side[d], prior_p, prior_d, None, reference, anatomical=spec[1]
-            )
+            if twist:
+                fit = movement.fit_two_dof(
+                    name, side[p], side[d], prior_p,
+                    protocol.segments[d].nominal_mounting().T @ axis_vector(twist), reference,
+                )  # fmt: skip
+            else:
+                fit = movement.fit_hinge(
+                    name, side[p], side[d], prior_p, prior_d, None, reference, spec[1]
+                )
         except InputError as exc:
             fits[name] = movement.failed(name, exc.message)
             continue
@@ -147,17 +154,25 @@ def movement_hinges(
         if fit.verdict == "not determined":
             continue
         rho = 0.9 if fit.verdict == "determined" else 0.6
-        for seg, axis in ((p, fit.axis_proximal), (d, fit.axis_distal)):
-            records[seg][f"movement:{name}"] = {
+        new = [(p, fit.axis_proximal, seg_axis, True)]
+        if twist:  # the distal's long axis, and its flexion axis in the reference pose
+            new.append((d, fit.axis_distal, axis_vector(twist), False))
+            if np.all(np.isfinite(fit.flexion_distal)):
+                new.append((d, fit.flexion_distal, seg_axis, True))
+        else:
+            new.append((d, fit.axis_distal, seg_axis, True))
+        for k, (seg, axis, segment_axis, secondary) in enumerate(new):
+            records[seg][f"movement:{name}:{k}"] = {
                 "step": f"movement:{name}",
                 "kind": "movement",
                 "method": "hinge",
                 "sensor_axis": np.asarray(axis, float),
-                "segment_axis": seg_axis,
+                "segment_axis": segment_axis,
                 "rho": rho,
                 "reference_rho": None,
                 "joint_movement": False,
-                "secondary": True,  # a static pose's gravity, where there is one, stays exact
+                # a static pose's gravity, where there is one, stays exact
+                "secondary": secondary,
                 "verdict": fit.verdict,
             }
     return fits
@@ -262,6 +277,19 @@ def heading_anchors(
     return times, deltas
 
 
+def chain_order(protocol: Protocol) -> list:
+    """The protocol's joints, each after the joint whose distal segment is its proximal one
+    (so a segment's heading is final before its distal neighbour is turned to it)."""
+    todo = list(protocol.joints.values())
+    out: list = []
+    while todo:
+        distal_of_todo = {j.distal for j in todo}
+        ready = [j for j in todo if j.proximal not in distal_of_todo] or todo[:1]  # a loop
+        out += ready
+        todo = [j for j in todo if j not in ready]
+    return out
+
+
 def segment_orientations(
     protocol: Protocol,
     calibration: dict[str, Any],
@@ -271,9 +299,12 @@ def segment_orientations(
     """``{segment: (time, q_segment)}`` from sensor orientations ``{segment: (time, q_sensor)}``.
 
     With ``align_heading`` each joint's distal segment is turned about the vertical by the
-    heading track ``δ(t)`` through the joint's anchors (:func:`heading_anchors`,
-    :mod:`.heading`); without a calibration entry for a segment its sensor frame is used as the
-    segment frame.
+    heading track ``δ(t)`` of the joint, joints taken along the chain (:func:`chain_order`):
+    for a joint calibrated from movement the hinge constraint over the whole recording
+    (:func:`.heading.hinge_anchors`), or the headings fitted with a two-axis joint's axes
+    (added to the track its proximal segment was turned by); otherwise the anchors of the
+    protocol's steps and rests (:func:`heading_anchors`). Without a calibration entry for a
+    segment its sensor frame is used as the segment frame.
     """
     out = {}
     for seg, (t, q) in sensor_quats.items():
@@ -283,20 +314,28 @@ def segment_orientations(
     if not align_heading:
         return out
     steps = calibration.get("steps", {})
-    for joint in protocol.joints.values():
+    turned: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # segment: (time, δ applied)
+    for joint in chain_order(protocol):
         p, d = joint.proximal, joint.distal
         if p not in out or d not in out:
             continue
         tp, qp = out[p]
         td, qd = out[d]
-        qd_on_p = rot.resample(td, qd, tp)
         fit = calibration.get("hinges", {}).get(joint.name)
-        if fit is not None and fit["verdict"] != "not determined":
-            axis = axis_vector(hinge_spec(joint)[0])
-            times, deltas = heading.hinge_anchors(tp, qp, qd_on_p, axis, axis)
+        if fit is not None and fit["verdict"] != "not determined" and "heading_times" in fit:
+            times = np.asarray(fit["heading_times"], float)
+            deltas = np.asarray(fit["heading_deltas"], float)
+            if p in turned:  # the fit was made on the proximal sensor's own heading
+                deltas = deltas + np.interp(times, *turned[p])
         else:
-            times, deltas = heading_anchors(protocol, joint, steps, tp, qp, qd_on_p)
+            qd_on_p = rot.resample(td, qd, tp)
+            if fit is not None and fit["verdict"] != "not determined":
+                axis = axis_vector(hinge_spec(joint)[0])
+                times, deltas = heading.hinge_anchors(tp, qp, qd_on_p, axis, axis)
+            else:
+                times, deltas = heading_anchors(protocol, joint, steps, tp, qp, qd_on_p)
         if len(times):
             track = heading.heading_track(np.array(times), np.array(deltas), td)
             out[d] = (td, rot.make_continuous(heading.apply_heading(qd, track)))
+            turned[d] = (td, track)
     return out

@@ -35,7 +35,6 @@ import numpy as np
 from scipy.signal import butter, sosfiltfilt
 
 from motionlab import rotations as rot
-from motionlab.errors import InputError
 from motionlab.kinematics.joint_types import JOINT_TYPES, flexion_axis
 from motionlab.protocol import CalibrationStep, Protocol, axis_vector
 from motionlab.segments import frames, quality
@@ -229,13 +228,8 @@ def fit(segment: str, protocol: Protocol, records: dict[str, dict[str, Any]]) ->
         return nominal(segment, protocol)
     level = [r for r in records.values() if r["method"] == "horizontal"]
     recs = [r for r in records.values() if r["method"] != "horizontal"]
-    if not recs:
-        raise InputError(
-            f"a horizontal axis alone does not fix segment '{segment}'",
-            protocol.path,
-            f"segments.{segment}",
-            "add it to a static step's vertical_axis or a functional step's axis",
-        )
+    if not recs:  # a horizontal axis alone fixes no direction of the frame
+        return nominal(segment, protocol)
     _mark_used(recs)
     used = [r for r in recs if r["used"]]
     primary = [r for r in used if not r["secondary"]]

@@ -133,6 +133,7 @@ def anatomical_sign(
     j_p: np.ndarray,
     j_d: np.ndarray,
     reference: tuple[float, float],
+    align: bool = True,
 ) -> tuple[float | None, tuple[float, float]]:
     """Sign (±1) making the joint angle about ``j`` flex the way anatomy allows, or ``None``.
 
@@ -149,7 +150,7 @@ def anatomical_sign(
     sel = (t >= reference[0]) & (t <= reference[1])
     if sel.sum() < 5:
         return None, (float("nan"), float("nan"))
-    times, deltas = heading.hinge_anchors(t, q_p, q_d, j_p, j_d)
+    times, deltas = heading.hinge_anchors(t, q_p, q_d, j_p, j_d) if align else ([], [])
     if len(times):
         q_d = heading.apply_heading(q_d, heading.heading_track(times, deltas, t))
     q_rel = rot.mul(rot.conj(q_p), q_d)
@@ -321,95 +322,204 @@ def _sph(v: np.ndarray) -> tuple[float, float]:
 
 
 @dataclass
-class TwoAxisFit:
-    """Flexion axis in the proximal sensor and long (pronation) axis in the distal sensor of a
-    two-degree-of-freedom joint (the elbow), unit (3,), with the heading offsets fitted with them
-    and a verdict as for :class:`HingeFit`."""
+class TwoAxisFit(HingeFit):
+    """A two-degree-of-freedom joint (the elbow): ``axis_proximal`` is the flexion axis in the
+    proximal sensor, ``axis_distal`` the long (pronation) axis in the distal sensor, pointing
+    proximally; ``flexion_distal`` the flexion axis in the distal sensor in the reference pose
+    (the distal segment's z there). ``heading_times`` / ``heading_deltas`` (s, rad) are the
+    heading offsets fitted with the axes (the distal sensor's earth frame turned by δ about the
+    vertical matches the proximal one)."""
 
-    joint: str
-    axis_proximal: np.ndarray
-    axis_distal: np.ndarray
-    residual_rad_s: float
-    relative_residual: float
-    consistency_deg: float
-    carrying_deg: float  # 90° less the angle between the two axes in the reference pose
-    verdict: str = "determined"
-    reasons: list[str] = field(default_factory=list)
+    flexion_distal: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    heading_times: np.ndarray = field(default_factory=lambda: np.empty(0))
+    heading_deltas: np.ndarray = field(default_factory=lambda: np.empty(0))
+
+    def to_tree(self) -> dict:
+        return super().to_tree() | {
+            "kind": "two_axes",
+            "flexion_distal": np.asarray(self.flexion_distal, float),
+            "heading_times": np.asarray(self.heading_times, float),
+            "heading_deltas": np.asarray(self.heading_deltas, float),
+        }
 
 
-def fit_two_axes(
-    joint: str,
-    proximal: tuple[np.ndarray, np.ndarray, np.ndarray],
-    distal: tuple[np.ndarray, np.ndarray, np.ndarray],
-    j1_start: np.ndarray,
-    j2_prior: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, float]:
-    """Axes ``j1`` (proximal sensor) and ``j2`` (distal sensor) of a joint that turns about one
-    axis fixed in each segment (the elbow: flexion fixed in the upper arm, pronation in the
-    forearm), and the RMS residual (rad/s).
+class _TwoAxisProblem:
+    """Samples and residual of the two-axis constraint (see :func:`fit_two_dof`)."""
 
-    After Laidig, Müller & Seel (Curr Dir Biomed Eng 2017 3:167): the relative angular velocity
-    lies in the plane of the two axes, so its component along ``j1 × j2`` (all in the earth
-    frame) is zero. The sensors' 6-D orientations (``proximal``, ``distal`` = ``(time, gyr,
-    q)``, one clock) give that frame up to a heading offset between them, fitted per window of
-    ``TWO_AXIS_WINDOW_S`` (it drifts). Starts: ``j1_start`` (a hinge fit) with ``±j2_prior`` and
-    random ``j2``; the heading of each window by a grid; then a soft-L1 least-squares refinement.
-    """
-    from scipy.optimize import least_squares
+    def __init__(self, t, w1, w2, m1, m2):
+        self.t, self.w1, self.w2, self.m1, self.m2 = t, w1, w2, m1, m2
+        self.win = ((t - t[0]) // TWO_AXIS_WINDOW_S).astype(int)
+        self.n_win = int(self.win.max()) + 1 if len(t) else 0
 
-    tp, gp, qp = proximal
-    td, gd, qd = distal
-    sel = (tp >= td[0]) & (tp <= td[-1])
-    t = tp[sel]
-    rate = estimate_rate(t)
-    w1 = rot.rotate(qp[sel], _lowpass(gp[sel], rate))
-    q2 = rot.resample(td, qd, t)
-    w2 = rot.rotate(q2, _lowpass(_on(t, td, gd), rate))
-    active = np.maximum(np.linalg.norm(w1, axis=1), np.linalg.norm(w2, axis=1))
-    keep = np.flatnonzero(active >= 0.1 * np.percentile(active, 95))
-    keep = keep[np.linspace(0, len(keep) - 1, min(len(keep), TWO_AXIS_MAX_SAMPLES)).astype(int)]
-    m1 = rot.to_matrix(qp[sel][keep])
-    m2 = rot.to_matrix(q2[keep])
-    w1, w2, tk = w1[keep], w2[keep], t[keep]
-    win = ((tk - tk[0]) // TWO_AXIS_WINDOW_S).astype(int)
-    n_win = int(win.max()) + 1
-
-    def residual(x: np.ndarray) -> np.ndarray:
+    def residual(self, x: np.ndarray) -> np.ndarray:
         j1, j2 = _unit(x[0], x[1]), _unit(x[2], x[3])
-        delta = x[4:][win]
-        a = m1 @ j1
-        b = _heading_rot(delta, m2 @ j2)
+        delta = x[4:][self.win]
+        a = self.m1 @ j1
+        b = _heading_rot(delta, self.m2 @ j2)
         n = np.cross(a, b)
         n /= np.maximum(np.linalg.norm(n, axis=1), 1e-9)[:, None]
-        return np.einsum("ij,ij->i", n, w1 - _heading_rot(delta, w2))
+        return np.einsum("ij,ij->i", n, self.w1 - _heading_rot(delta, self.w2))
 
-    def init_deltas(j1: np.ndarray, j2: np.ndarray) -> np.ndarray:
+    def deltas(self, j1: np.ndarray, j2: np.ndarray) -> np.ndarray:
+        """The best heading offset of each window for given axes, from a 5° grid."""
         grid = np.linspace(-np.pi, np.pi, 72, endpoint=False)
-        a, b0 = m1 @ j1, m2 @ j2
-        out = np.zeros(n_win)
-        for k in range(n_win):
-            s = win == k
+        a, b0 = self.m1 @ j1, self.m2 @ j2
+        out = np.zeros(self.n_win)
+        for k in range(self.n_win):
+            s = self.win == k
             costs = []
             for d in grid:
-                n = np.cross(a[s], _heading_rot(np.full(s.sum(), d), b0[s]))
+                dd = np.full(s.sum(), d)
+                n = np.cross(a[s], _heading_rot(dd, b0[s]))
                 n /= np.maximum(np.linalg.norm(n, axis=1), 1e-9)[:, None]
-                e = np.einsum("ij,ij->i", n, w1[s] - _heading_rot(np.full(s.sum(), d), w2[s]))
+                e = np.einsum("ij,ij->i", n, self.w1[s] - _heading_rot(dd, self.w2[s]))
                 costs.append(np.sum(np.abs(e)))
             out[k] = grid[int(np.argmin(costs))]
         return out
 
+    def solve(self, starts: list[tuple[np.ndarray, np.ndarray]]):
+        from scipy.optimize import least_squares
+
+        best = None
+        for j1, j2 in starts:
+            j1, j2 = j1 / np.linalg.norm(j1), j2 / np.linalg.norm(j2)
+            x0 = np.r_[_sph(j1), _sph(j2), self.deltas(j1, j2)]
+            fit = least_squares(
+                self.residual, x0, method="trf", loss="soft_l1", f_scale=ROBUST_SCALE_RAD_S,
+                max_nfev=200,
+            )  # fmt: skip
+            if best is None or fit.cost < best.cost:
+                best = fit
+        return best
+
+
+def fit_two_dof(
+    joint: str,
+    proximal: tuple[np.ndarray, np.ndarray, np.ndarray],
+    distal: tuple[np.ndarray, np.ndarray, np.ndarray],
+    prior_1: np.ndarray,
+    prior_2: np.ndarray,
+    reference: tuple[float, float] | None = None,
+) -> TwoAxisFit:
+    """Flexion axis (proximal sensor) and long axis (distal sensor) of a joint that turns about
+    one axis fixed in each segment: the elbow, flexion fixed in the upper arm and pronation in
+    the forearm.
+
+    After Laidig, Müller & Seel (Curr Dir Biomed Eng 2017 3:167): the relative angular velocity
+    lies in the plane of the two axes, so its component along ``j1 × j2`` (all in the earth
+    frame) is zero at every sample. The sensors' 6-D orientations (``proximal``, ``distal`` =
+    ``(time s, gyr rad/s, q)``) give that frame up to a heading offset between them, fitted per
+    window of ``TWO_AXIS_WINDOW_S`` (it drifts). Starts: the nominal placement and random
+    directions, each window's heading by a grid; then a soft-L1 least-squares refinement.
+
+    Signs: the long axis points proximally (up in the ``reference`` pose, arms hanging); the
+    flexion axis by anatomy as for :func:`fit_hinge`, else by the nominal placement. Verdict from
+    the residual relative to the relative angular rate and the consistency of ``N_PARTS`` part
+    fits, as for :func:`fit_hinge`.
+    """
+    tp, gp, qp = proximal
+    td, gd, qd = distal
+    sel = (tp >= td[0]) & (tp <= td[-1])
+    t = tp[sel]
+    if len(t) < 3 * MIN_PART_SAMPLES:
+        raise InputError(
+            f"joint {joint}: too little shared movement for its axes ({len(t)} samples)",
+            remedy="record a longer movement of the joint",
+        )
+    rate = estimate_rate(t)
+    q1 = qp[sel]
+    q2 = rot.resample(td, qd, t)
+    w1 = rot.rotate(q1, _lowpass(gp[sel], rate))
+    w2 = rot.rotate(q2, _lowpass(_on(t, td, gd), rate))
+    active = np.linalg.norm(w1 - w2, axis=1)  # heading offsets do not matter for a threshold
+    speed = np.maximum(np.linalg.norm(w1, axis=1), np.linalg.norm(w2, axis=1))
+    if not np.percentile(speed, 95) >= MIN_ACTIVE_RAD_S:
+        raise InputError(
+            f"joint {joint}: its segments hardly turn", remedy="record a movement of the joint"
+        )
+    keep = np.flatnonzero(speed >= 0.1 * np.percentile(speed, 95))
+    keep = keep[np.linspace(0, len(keep) - 1, min(len(keep), TWO_AXIS_MAX_SAMPLES)).astype(int)]
+    prob = _TwoAxisProblem(
+        t[keep], w1[keep], w2[keep], rot.to_matrix(q1[keep]), rot.to_matrix(q2[keep])
+    )
     rng = np.random.default_rng(0)
-    starts = [(j1_start, j2_prior)] + [
+    starts = [(prior_1, prior_2)] + [
         (rng.normal(size=3), rng.normal(size=3)) for _ in range(TWO_AXIS_STARTS)
     ]
-    best = None
-    for j1, j2 in starts:
-        j1, j2 = j1 / np.linalg.norm(j1), j2 / np.linalg.norm(j2)
-        x0 = np.r_[_sph(j1), _sph(j2), init_deltas(j1, j2)]
-        fit = least_squares(
-            residual, x0, method="trf", loss="soft_l1", f_scale=ROBUST_SCALE_RAD_S, max_nfev=200
-        )
-        if best is None or fit.cost < best.cost:
-            best = fit
+    best = prob.solve(starts)
     j1, j2 = _unit(best.x[0], best.x[1]), _unit(best.x[2], best.x[3])
-    return j1, j2, float(np.sqrt(np.mean(residual(best.x) ** 2)))
+    res = prob.residual(best.x)
+    residual = float(np.sqrt(np.mean(res**2)))
+    scale = float(np.sqrt(np.mean(active[keep] ** 2)))
+    relative = residual / scale if scale > 0 else float("inf")
+    win_times = np.array([prob.t[prob.win == k].mean() for k in range(prob.n_win)])
+    deltas = np.unwrap(best.x[4:])
+    # consistency: the axes refitted on consecutive parts of the movement
+    worst = 0.0
+    bounds = np.linspace(0, len(prob.t), N_PARTS + 1).astype(int)
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        if b - a < MIN_PART_SAMPLES:
+            continue
+        part = _TwoAxisProblem(prob.t[a:b], prob.w1[a:b], prob.w2[a:b], prob.m1[a:b], prob.m2[a:b])
+        fit = part.solve([(j1, j2)])
+        pj1, pj2 = _unit(fit.x[0], fit.x[1]), _unit(fit.x[2], fit.x[3])
+        worst = max(worst, _angle_deg(pj1, j1), _angle_deg(pj2, j2))
+    # the distal orientation with its heading tied to the proximal one
+    from motionlab.segments import heading
+
+    q2_aligned = heading.apply_heading(q2, heading.heading_track(win_times, deltas, t))
+    reasons: list[str] = []
+    sign_source = "nominal"
+    flex_d = np.full(3, np.nan)
+    excursion = (float("nan"), float("nan"))
+    if reference is not None and ((t >= reference[0]) & (t <= reference[1])).sum() >= 5:
+        ref = (t >= reference[0]) & (t <= reference[1])
+        up_d = rot.rotate(rot.conj(rot.mean(q2[ref])), np.array([0.0, 0.0, 1.0]))
+        j2 = j2 if j2 @ up_d >= 0 else -j2
+        sign, excursion = anatomical_sign(t, q1, q2_aligned, j1, j1, reference, align=False)
+        if sign is not None:
+            j1, sign_source = sign * j1, "anatomy"
+    else:
+        j2 = j2 if j2 @ prior_2 >= 0 else -j2
+    if sign_source == "nominal":
+        j1 = j1 if j1 @ prior_1 >= 0 else -j1
+        reasons.append(
+            "the direction of flexion could not be told from the movement (no stand with the "
+            "joint straight, or no clear flexion), so it follows the nominal placement"
+        )
+    if reference is not None:
+        ref = (t >= reference[0]) & (t <= reference[1])
+        if ref.sum() >= 5:
+            r_d = rot.to_matrix(q2_aligned[ref])
+            r_p = rot.to_matrix(q1[ref])
+            flex_d = np.mean(np.einsum("nji,njk,k->ni", r_d, r_p, j1), axis=0)
+            flex_d /= np.linalg.norm(flex_d)
+    verdict = "determined"
+    if worst > WEAK_DEG or relative > WEAK_RESIDUAL:
+        verdict = "not determined"
+    elif worst > DETERMINED_DEG or relative > DETERMINED_RESIDUAL or sign_source == "nominal":
+        verdict = "weak"
+    if worst > DETERMINED_DEG:
+        reasons.append(f"the axes differ by up to {worst:.0f}° between parts of the movement")
+    if relative > DETERMINED_RESIDUAL:
+        reasons.append(
+            f"the movement is not about the two axes (residual {100 * relative:.0f}% of the rate)"
+        )
+    return TwoAxisFit(
+        joint=joint,
+        axis_proximal=j1,
+        axis_distal=j2,
+        residual_rad_s=residual,
+        relative_residual=relative,
+        consistency_deg=worst,
+        relative_sign="measured",
+        sign=sign_source,
+        excursion_deg=excursion,
+        window_s=(float(t[0]), float(t[-1])),
+        n_samples=len(keep),
+        verdict=verdict,
+        reasons=reasons,
+        flexion_distal=flex_d,
+        heading_times=win_times,
+        heading_deltas=deltas,
+    )
