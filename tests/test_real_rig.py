@@ -89,20 +89,10 @@ def test_ring_protocol_follows_the_rig_and_the_rest_loads(tmp_path):
         "hinge34": {"type": "hinge", "proximal": "seg3", "distal": "seg4", "axis": "y"},
         "hinge45": {"type": "hinge", "proximal": "seg4", "distal": "seg5", "axis": "z"},
     }
-    try:
-        protocol = load_protocol(PROTOCOL)
-    except InputError as exc:  # a version without ball/hinge joints: check everything else
-        assert "unknown joint type" in str(exc)
-        doc["joints"] = {
-            k: {"type": "lumbar", "proximal": v["proximal"], "distal": v["distal"]}
-            for k, v in doc["joints"].items()
-        }
-        (tmp_path / "rig.yaml").write_text(yaml.safe_dump(doc), encoding="utf-8")
-        protocol = load_protocol(tmp_path / "rig.yaml")
+    protocol = load_protocol(PROTOCOL)
     assert list(protocol.segments) == ["seg1", "seg2", "seg3", "seg4", "seg5"]
     assert all(s.sensor_axes == ("x", "y", "z") for s in protocol.segments.values())
-    (start,) = protocol.calibration
-    assert start.kind == "static" and start.optional and start.duration_s == 1
+    assert protocol.calibration == []  # no reference pose: every axis from the movement
     assert [t.name for t in protocol.tasks] == ["motion"]
     sensors = load_sensor_map(MAP).sensors
     assert {k: v.segment for k, v in sensors.items()} == {s: s for s in protocol.segments}

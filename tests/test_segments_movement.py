@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from motionlab import rotations as rot
-from motionlab.segments.movement import anatomical_sign, fit_hinge, relative_sign
+from motionlab.segments.movement import anatomical_sign, fit_hinge, fit_two_dof, relative_sign
 
 RATE = 100.0
 STAND_S = 3.0
@@ -98,3 +98,50 @@ def test_anatomical_sign_is_the_larger_excursion():
     t = prox[0]
     assert anatomical_sign(t, prox[2], dist[2], j_p, j_d, (0.5, 2.5))[0] == 1.0
     assert anatomical_sign(t, prox[2], dist[2], -j_p, -j_d, (0.5, 2.5))[0] == -1.0
+
+
+def elbow_recording(seed: int, duration: float = 40.0):
+    """A stand (arm hanging), then flexion 0-120° and pronation ±60° while the upper arm moves;
+    a 10° carrying angle between the axes. Returns both sensors' ``(time, gyr, q)``, the true
+    flexion axis in the upper-arm sensor and long axis in the forearm sensor, and each sensor's
+    heading drift (rad/s) applied to its own 6-D earth frame."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, duration, 1.0 / RATE)
+    ramp = np.clip((t - STAND_S) / 2.0, 0.0, 1.0)
+    rv = np.column_stack([ramp * _smooth(t, rng, 0.7) for _ in range(3)])
+    q_u = rot.mul(rot.from_rotvec(rv), UPRIGHT)
+    flex = ramp * np.radians(60.0) * (1 - np.cos(2 * np.pi * 0.4 * (t - STAND_S)))
+    pron = ramp * np.radians(60.0) * np.sin(2 * np.pi * 0.27 * (t - STAND_S))
+    z, x, y = np.eye(3)[2], np.eye(3)[0], np.eye(3)[1]
+    carrying = rot.from_axis_angle(x, np.radians(10.0))
+    q_f = rot.mul(rot.mul(rot.mul(q_u, rot.from_axis_angle(z, flex)), carrying),
+                  rot.from_axis_angle(y, pron))  # fmt: skip
+    mounts = rot.normalize(rng.normal(size=(2, 4)))
+    out = []
+    for q_seg, m, drift in ((q_u, mounts[0], 0.002), (q_f, mounts[1], -0.003)):
+        q_s = rot.mul(q_seg, rot.conj(m))
+        q_6d = rot.mul(rot.from_axis_angle(z, 0.7 + drift * t), q_s)  # own heading, drifting
+        out.append((t, _gyr(t, q_s), q_6d))
+    return out, (rot.rotate(mounts[0], z), rot.rotate(mounts[1], y))
+
+
+def test_elbow_axes_from_free_movement():
+    (upper, fore), (j1, j2) = elbow_recording(7)
+    fit = fit_two_dof("elbow_r", upper, fore, np.eye(3)[0], np.eye(3)[1], (0.5, 2.5))
+    assert _deg(fit.axis_proximal, j1) < 1.0  # flexion direction by anatomy
+    assert _deg(fit.axis_distal, j2) < 1.0  # long axis up in the stand
+    assert fit.sign == "anatomy" and fit.verdict == "determined", fit.reasons
+    assert fit.flexion_distal @ j2 == pytest.approx(np.sin(np.radians(10.0)), abs=0.02)
+
+
+def test_joints_are_aligned_along_the_chain():
+    from motionlab.protocol import Joint, Protocol, Segment
+    from motionlab.segments import chain_order
+
+    segs = {s: Segment(s) for s in ("thorax", "upperarm", "forearm")}
+    joints = {
+        "elbow": Joint("elbow", "hinge", "upperarm", "forearm", axis="z"),
+        "shoulder": Joint("shoulder", "ball", "thorax", "upperarm"),
+    }
+    order = chain_order(Protocol("p", segs, joints))
+    assert [j.name for j in order] == ["shoulder", "elbow"]
