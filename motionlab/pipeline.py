@@ -269,7 +269,7 @@ def analyse(
         _fuse(session, calibrated, stages.progress, magnetometer)
     with stages("calibrate"):
         cal = calibrate(session, protocol)
-        for line in cal["warnings"]:
+        for line in cal["warnings"] if stages.progress else []:
             print(f"warning: {line}", file=sys.stderr, flush=True)
         cal["protocol_path"] = str(protocol.path)
         session.results["calibration"] = cal
