@@ -274,7 +274,10 @@ def analyse(
         cal["protocol_path"] = str(protocol.path)
         session.results["calibration"] = cal
     with stages("angles"):
-        session.results["angles"] = session_angles(session, protocol, cal) | {"method": "imu"}
+        corrections: dict = {}
+        session.results["angles"] = session_angles(session, protocol, cal, corrections=corrections)
+        session.results["angles"]["method"] = "imu"
+        session.results["heading"] = corrections
     with stages("metrics"):
         session.results["metrics"] = session_metrics(session, protocol)
     if reference is not None or session.markers:

@@ -56,8 +56,10 @@ def command(
         protocol_path = cal.get("protocol_path") or cal["protocol"]
     protocol = load_protocol(protocol_path)
     refuse_to_redo(ses, session, "angles", "angles", force)
+    corrections: dict = {}
     if method == "imu":
-        table = session_angles(ses, protocol, None if no_calibration else cal)
+        cal_used = None if no_calibration else cal
+        table = session_angles(ses, protocol, cal_used, corrections=corrections)
     else:
         from motionlab.kinematics.accel_only import session_elbow_angles
 
@@ -67,6 +69,7 @@ def command(
             pd.DataFrame(table).to_csv(tmp, index=False, float_format="%.4f")
     ses.results["angles"] = {k: np.asarray(v) for k, v in table.items()}
     ses.results["angles"]["method"] = method
+    ses.results["heading"] = corrections
     ses.add_provenance(parameters={"stage": "angles", "method": method})
     save_session(ses, session, force=True)
     cols = [c for c in table if c != "time_s"]

@@ -77,6 +77,7 @@ def session_segments(
     estimator: str = "default",
     align_heading: bool = True,
     segments: list[str] | None = None,
+    corrections: dict[str, dict[str, Any]] | None = None,
 ) -> SegmentQuats:
     """``{segment: (time, q_segment)}`` for the joints' segments (or ``segments``).
 
@@ -84,7 +85,7 @@ def session_segments(
     segment frames).
     """
     quats = sensor_quats(session, protocol, segments, estimator)
-    return segment_orientations(protocol, calibration or {}, quats, align_heading)
+    return segment_orientations(protocol, calibration or {}, quats, align_heading, corrections)
 
 
 def joint_segments(protocol: Protocol) -> list[str]:
@@ -134,7 +135,11 @@ def session_angles(
     calibration: dict[str, Any] | None,
     estimator: str = "default",
     align_heading: bool = True,
+    corrections: dict[str, dict[str, Any]] | None = None,
 ) -> dict[str, Any]:
-    """The angle table (degrees) of every protocol joint, see :func:`angle_table`."""
-    seg_q = session_segments(session, protocol, calibration, estimator, align_heading)
+    """The angle table (degrees) of every protocol joint, see :func:`angle_table`;
+    ``corrections`` receives each joint's heading correction (:func:`segment_orientations`)."""
+    seg_q = session_segments(
+        session, protocol, calibration, estimator, align_heading, corrections=corrections
+    )
     return angle_table(seg_q, protocol)

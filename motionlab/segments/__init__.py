@@ -295,6 +295,7 @@ def segment_orientations(
     calibration: dict[str, Any],
     sensor_quats: dict[str, tuple[np.ndarray, np.ndarray]],
     align_heading: bool = True,
+    corrections: dict[str, dict[str, Any]] | None = None,
 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """``{segment: (time, q_segment)}`` from sensor orientations ``{segment: (time, q_sensor)}``.
 
@@ -304,7 +305,9 @@ def segment_orientations(
     (:func:`.heading.hinge_anchors`), or the headings fitted with a two-axis joint's axes
     (added to the track its proximal segment was turned by); otherwise the anchors of the
     protocol's steps and rests (:func:`heading_anchors`). Without a calibration entry for a
-    segment its sensor frame is used as the segment frame.
+    segment its sensor frame is used as the segment frame. ``corrections``, when given, receives
+    per joint the heading correction applied: ``source`` (``hinge``, ``two_axes``, ``steps``),
+    the number of ``anchors``, and the correction's mean, range and drift (degrees, °/min).
     """
     out = {}
     for seg, (t, q) in sensor_quats.items():
@@ -323,6 +326,7 @@ def segment_orientations(
         td, qd = out[d]
         fit = calibration.get("hinges", {}).get(joint.name)
         if fit is not None and fit["verdict"] != "not determined" and "heading_times" in fit:
+            source = "two_axes"
             times = np.asarray(fit["heading_times"], float)
             deltas = np.asarray(fit["heading_deltas"], float)
             if p in turned:  # the fit was made on the proximal sensor's own heading
@@ -330,12 +334,31 @@ def segment_orientations(
         else:
             qd_on_p = rot.resample(td, qd, tp)
             if fit is not None and fit["verdict"] != "not determined":
+                source = "hinge"
                 axis = axis_vector(hinge_spec(joint)[0])
                 times, deltas = heading.hinge_anchors(tp, qp, qd_on_p, axis, axis)
             else:
+                source = "steps"
                 times, deltas = heading_anchors(protocol, joint, steps, tp, qp, qd_on_p)
         if len(times):
             track = heading.heading_track(np.array(times), np.array(deltas), td)
             out[d] = (td, rot.make_continuous(heading.apply_heading(qd, track)))
             turned[d] = (td, track)
+        if corrections is not None:
+            corrections[joint.name] = _correction(source, times, deltas, td)
     return out
+
+
+def _correction(source: str, times, deltas, t: np.ndarray) -> dict[str, Any]:
+    """What a joint's heading alignment did, in degrees (see :func:`segment_orientations`)."""
+    if not len(times):
+        return {"source": source, "anchors": 0}
+    track = np.degrees(heading.heading_track(np.array(times), np.array(deltas), t))
+    minutes = (t[-1] - t[0]) / 60.0
+    return {
+        "source": source,
+        "anchors": len(times),
+        "mean_deg": float(np.mean(track)),
+        "range_deg": float(np.ptp(track)),
+        "drift_deg_per_min": float((track[-1] - track[0]) / minutes) if minutes > 0 else 0.0,
+    }
