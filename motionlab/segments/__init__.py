@@ -23,9 +23,8 @@ import numpy as np
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
-from motionlab.kinematics.joint_types import flexion_axis, joint_type
 from motionlab.protocol import Protocol, axis_vector
-from motionlab.segments import grades, heading, mounting, movement
+from motionlab.segments import grades, heading, mounting, placement
 from motionlab.segments.steps import find_steps
 from motionlab.session import Session
 
@@ -86,98 +85,6 @@ def streams_of(session: Session, protocol: Protocol) -> Streams:
     return out
 
 
-def hinge_spec(joint) -> tuple[str, bool] | None:
-    """``(flexion axis in segment coordinates, flexes one way)`` of a hinge-like joint (knee,
-    elbow, generic hinge; :mod:`motionlab.kinematics.joint_types`), else ``None``."""
-    jt = joint_type(joint.type)
-    axis = flexion_axis(joint)
-    if not jt.hinge or not axis:
-        return None
-    return axis, jt.flexes_one_way
-
-
-def _measured_by_steps(records: dict[str, Any], axis: np.ndarray) -> bool:
-    """Whether a functional step already measured this segment axis (either sign)."""
-    return any(
-        r["kind"] == "functional" and abs(float(r["segment_axis"] @ axis)) > 0.99
-        for r in records.values()
-    )
-
-
-def movement_hinges(
-    session: Session,
-    protocol: Protocol,
-    streams: Streams,
-    steps: dict[str, Any],
-    records: dict[str, dict[str, Any]],
-) -> dict[str, movement.HingeFit]:
-    """Hinge axes from ordinary movement for the hinge-like joints no functional step measures.
-
-    Their axis records (``movement:<joint>``, kind ``movement``) are added to ``records`` of both
-    segments unless the fit is ``not determined``; the fits are returned by joint name.
-    """
-    from motionlab.kinematics.session_angles import sensor_orientation
-
-    fits: dict[str, movement.HingeFit] = {}
-    for name, joint in protocol.joints.items():
-        spec = hinge_spec(joint)
-        p, d = joint.proximal, joint.distal
-        if spec is None or p not in streams or d not in streams:
-            continue
-        seg_axis = axis_vector(spec[0])
-        if _measured_by_steps(records[d], seg_axis):
-            continue
-        side = {}
-        for seg in (p, d):
-            label = sensor_for_segment(session, seg)
-            t, _, gyr = streams[seg]
-            side[seg] = (t, gyr, sensor_orientation(session, label))
-        ref_name = reference_step(protocol, p, d)
-        reference = steps.get(ref_name) if ref_name else None
-        prior_p = protocol.segments[p].nominal_mounting().T @ seg_axis
-        prior_d = protocol.segments[d].nominal_mounting().T @ seg_axis
-        twist = joint_type(joint.type).twist_axis
-        try:
-            if twist:
-                fit = movement.fit_two_dof(
-                    name, side[p], side[d], prior_p,
-                    protocol.segments[d].nominal_mounting().T @ axis_vector(twist), reference,
-                )  # fmt: skip
-            else:
-                fit = movement.fit_hinge(
-                    name, side[p], side[d], prior_p, prior_d, None, reference, spec[1]
-                )
-        except InputError as exc:
-            fits[name] = movement.failed(name, exc.message)
-            continue
-        fits[name] = fit
-        if fit.verdict == "not determined":
-            continue
-        rho = 0.9 if fit.verdict == "determined" else 0.6
-        new = [(p, fit.axis_proximal, seg_axis, True)]
-        if twist:  # the distal's long axis, and its flexion axis in the reference pose
-            new.append((d, fit.axis_distal, axis_vector(twist), False))
-            if np.all(np.isfinite(fit.flexion_distal)):
-                new.append((d, fit.flexion_distal, seg_axis, True))
-        else:
-            new.append((d, fit.axis_distal, seg_axis, True))
-        for k, (seg, axis, segment_axis, secondary) in enumerate(new):
-            records[seg][f"movement:{name}:{k}"] = {
-                "step": f"movement:{name}",
-                "kind": "movement",
-                "method": "hinge",
-                "sensor_axis": np.asarray(axis, float),
-                "segment_axis": segment_axis,
-                "rho": rho,
-                "reference_rho": None,
-                "joint_movement": False,
-                # a static pose's gravity, where there is one, stays exact
-                "secondary": secondary,
-                "verdict": fit.verdict,
-            }
-    return fits
-
-
 def calibrate(
     session: Session, protocol: Protocol, warnings: list[str] | None = None
 ) -> dict[str, Any]:
@@ -190,14 +97,23 @@ def calibrate(
     streams = streams_of(session, protocol)
     steps = find_steps(streams, protocol, notes)
     records = mounting.measure(protocol, streams, steps)
-    hinges = movement_hinges(session, protocol, streams, steps, records)
+    contradicted = placement.contradicted(protocol, records)
+    hinges = placement.movement_hinges(session, protocol, streams, steps, records, contradicted)
+    unsure = placement.orient_by_data(protocol, records, hinges, contradicted)
     segments = {}
     for seg in streams:
         res = mounting.fit(seg, protocol, records[seg])
         res["sensor"] = sensor_for_segment(session, seg)
         segments[seg] = res
+    for seg, names in unsure.items():
+        q = segments[seg]["quality"]
+        q["messages"].append(
+            f"{seg}: the direction of the axis from {', '.join(names)} follows the nominal "
+            "placement, which the data contradicts"
+        )
+        q["ok"] = False
     for name, fit in hinges.items():
-        if fit.verdict != "determined":
+        if fit.verdict != "determined" and fit.used_for == "axes":
             joint = protocol.joints[name]
             for seg in (joint.proximal, joint.distal):
                 q = segments[seg]["quality"]
@@ -216,7 +132,7 @@ def calibrate(
         "warnings": notes,
         "ok": all(s["quality"]["ok"] for s in segments.values()),
     }
-    axes = {n: (hinge_spec(j) or (None,))[0] for n, j in protocol.joints.items()}
+    axes = {n: (placement.hinge_spec(j) or (None,))[0] for n, j in protocol.joints.items()}
     result["grades"] = grades.grade_joints(protocol, result, axes)
     return result
 
@@ -325,6 +241,8 @@ def segment_orientations(
         tp, qp = out[p]
         td, qd = out[d]
         fit = calibration.get("hinges", {}).get(joint.name)
+        if fit is not None and fit.get("used_for", "axes") != "axes":
+            fit = None  # the steps measured this joint's axes: their anchors tie its heading
         if fit is not None and fit["verdict"] != "not determined" and "heading_times" in fit:
             source = "two_axes"
             times = np.asarray(fit["heading_times"], float)
@@ -335,7 +253,7 @@ def segment_orientations(
             qd_on_p = rot.resample(td, qd, tp)
             if fit is not None and fit["verdict"] != "not determined":
                 source = "hinge"
-                axis = axis_vector(hinge_spec(joint)[0])
+                axis = axis_vector(placement.hinge_spec(joint)[0])
                 times, deltas = heading.hinge_anchors(tp, qp, qd_on_p, axis, axis)
             else:
                 source = "steps"

@@ -45,7 +45,7 @@ def _frame_grade(segment: str, cal: dict[str, Any] | None) -> tuple[str, str]:
 def _axis_grade(joint, calibration: dict[str, Any], hinge_axis: str | None) -> tuple[str, str]:
     """Grade of the angle about a hinge axis: the axis measured in both segments."""
     fit = calibration.get("hinges", {}).get(joint.name)
-    if fit is not None:
+    if fit is not None and fit.get("used_for", "axes") == "axes":
         reasons = "; ".join(fit.get("reasons", []))
         return fit["verdict"], (f"hinge axis from movement: {reasons}" if reasons else "")
     segs = calibration.get("segments", {})
@@ -79,7 +79,11 @@ def grade_joints(protocol, calibration: dict[str, Any], hinge_axes: dict[str, st
         g_frame = _worse(frames[0][0], frames[1][0])
         r_frame = "; ".join(r for _, r in frames if r)
         fit = calibration.get("hinges", {}).get(name)
-        if fit is not None and fit["verdict"] != "determined":
+        if (
+            fit is not None
+            and fit.get("used_for", "axes") == "axes"
+            and fit["verdict"] != "determined"
+        ):
             g_frame = _worse(g_frame, fit["verdict"])
             r_frame = "; ".join(filter(None, [r_frame, "the hinge axis from movement is "
                                               + fit["verdict"]]))  # fmt: skip

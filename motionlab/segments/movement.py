@@ -73,10 +73,14 @@ class HingeFit:
     n_samples: int = 0
     verdict: str = "determined"
     reasons: list[str] = field(default_factory=list)
+    #: ``axes``: the fit gives the joint's axes; ``direction``: a functional step measured them
+    #: and the fit only tells which way they point (the placement hint was contradicted)
+    used_for: str = "axes"
 
     def to_tree(self) -> dict:
         """The HDF5 results layout (plain numbers, lists and strings)."""
         return {
+            "used_for": self.used_for,
             "joint": self.joint,
             "axis_proximal": np.asarray(self.axis_proximal, float),
             "axis_distal": np.asarray(self.axis_distal, float),

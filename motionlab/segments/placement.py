@@ -1,0 +1,206 @@
+"""Placement from the data: which way each sensor sits, whatever the protocol's hint says.
+
+The protocol's ``sensor_axes`` is a hint. A static pose's gravity gives a measured, signed axis
+whatever the mounting. A functional step's rotation axis is measured without a sign, which the
+hint supplies (:func:`~motionlab.segments.functional.orient`); so is a hinge axis. Where the data
+contradicts the hint (:func:`contradicted`: gravity or a functional axis more than
+``CONTRADICTED_DEG`` from where the hint puts it), those signs are taken from the data instead
+(:func:`orient_by_data`): from the segment's signed axes (gravity, and the axes fitted from the
+movement with their anatomical direction, :mod:`.movement`) where they fix it.
+
+Hinge-like joints (knee, elbow, generic hinges; :func:`hinge_spec`) get their axes from the
+movement (:func:`movement_hinges`) when no functional step measures them, or when the hint of
+one of their segments is contradicted (then only to orient the steps' axes).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from motionlab.errors import InputError
+from motionlab.kinematics.joint_types import flexion_axis, joint_type
+from motionlab.protocol import Protocol, axis_vector
+from motionlab.segments import frames, movement
+from motionlab.segments.functional import orient
+from motionlab.session import Session
+
+CONTRADICTED_DEG = 60.0
+Streams = dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
+
+
+def hinge_spec(joint) -> tuple[str, bool] | None:
+    """``(flexion axis in segment coordinates, flexes one way)`` of a hinge-like joint (knee,
+    elbow, generic hinge; :mod:`motionlab.kinematics.joint_types`), else ``None``."""
+    jt = joint_type(joint.type)
+    axis = flexion_axis(joint)
+    if not jt.hinge or not axis:
+        return None
+    return axis, jt.flexes_one_way
+
+
+def _measured_by_steps(records: dict[str, Any], axis: np.ndarray) -> bool:
+    """Whether a functional step already measured this segment axis (either sign)."""
+    return any(
+        r["kind"] == "functional" and abs(float(r["segment_axis"] @ axis)) > 0.99
+        for r in records.values()
+    )
+
+
+def movement_hinges(
+    session: Session,
+    protocol: Protocol,
+    streams: Streams,
+    steps: dict[str, Any],
+    records: dict[str, dict[str, Any]],
+    contradicted: set[str] = frozenset(),
+) -> dict[str, movement.HingeFit]:
+    """Hinge axes from ordinary movement for the hinge-like joints no functional step measures,
+    and for those with a segment in ``contradicted`` (to orient the steps' axes).
+
+    For the first, the axis records (``movement:<joint>:k``, kind ``movement``) are added to
+    ``records`` unless the fit is ``not determined``; the fits are returned by joint name.
+    """
+    from motionlab.kinematics.session_angles import sensor_orientation
+    from motionlab.segments import reference_step, sensor_for_segment
+
+    fits: dict[str, movement.HingeFit] = {}
+    for name, joint in protocol.joints.items():
+        spec = hinge_spec(joint)
+        p, d = joint.proximal, joint.distal
+        if spec is None or p not in streams or d not in streams:
+            continue
+        seg_axis = axis_vector(spec[0])
+        measured = _measured_by_steps(records[d], seg_axis)
+        if measured and not {p, d} & contradicted:
+            continue
+        side = {}
+        for seg in (p, d):
+            label = sensor_for_segment(session, seg)
+            t, _, gyr = streams[seg]
+            side[seg] = (t, gyr, sensor_orientation(session, label))
+        ref_name = reference_step(protocol, p, d)
+        reference = steps.get(ref_name) if ref_name else None
+        prior_p = protocol.segments[p].nominal_mounting().T @ seg_axis
+        prior_d = protocol.segments[d].nominal_mounting().T @ seg_axis
+        twist = joint_type(joint.type).twist_axis
+        try:
+            if twist:
+                fit = movement.fit_two_dof(
+                    name, side[p], side[d], prior_p,
+                    protocol.segments[d].nominal_mounting().T @ axis_vector(twist), reference,
+                )  # fmt: skip
+            else:
+                fit = movement.fit_hinge(
+                    name, side[p], side[d], prior_p, prior_d, None, reference, spec[1]
+                )
+        except InputError as exc:
+            fits[name] = movement.failed(name, exc.message)
+            continue
+        fits[name] = fit
+        if measured:
+            fit.used_for = "direction"
+        if fit.verdict == "not determined" or measured:
+            continue
+        rho = 0.9 if fit.verdict == "determined" else 0.6
+        new = [(p, fit.axis_proximal, seg_axis, True)]
+        if twist:  # the distal's long axis, and its flexion axis in the reference pose
+            new.append((d, fit.axis_distal, axis_vector(twist), False))
+            if np.all(np.isfinite(fit.flexion_distal)):
+                new.append((d, fit.flexion_distal, seg_axis, True))
+        else:
+            new.append((d, fit.axis_distal, seg_axis, True))
+        for k, (seg, axis, segment_axis, secondary) in enumerate(new):
+            records[seg][f"movement:{name}:{k}"] = {
+                "step": f"movement:{name}",
+                "kind": "movement",
+                "method": "hinge",
+                "sensor_axis": np.asarray(axis, float),
+                "segment_axis": segment_axis,
+                "rho": rho,
+                "reference_rho": None,
+                "joint_movement": False,
+                # a static pose's gravity, where there is one, stays exact
+                "secondary": secondary,
+                "verdict": fit.verdict,
+            }
+    return fits
+
+
+def contradicted(protocol: Protocol, records: dict[str, dict[str, Any]]) -> set[str]:
+    """Segments whose measured axes (gravity, signed; functional axes, either sign) lie more
+    than ``CONTRADICTED_DEG`` from where the nominal placement puts them."""
+    out = set()
+    for seg, recs in records.items():
+        m_nom = protocol.segments[seg].nominal_mounting().T  # segment → sensor
+        for r in recs.values():
+            if r["method"] not in ("gravity", "svd", "hinge") or r["kind"] == "movement":
+                continue
+            c = float(r["sensor_axis"] @ (m_nom @ r["segment_axis"]))
+            if r["method"] != "gravity":
+                c = abs(c)
+            if c < np.cos(np.radians(CONTRADICTED_DEG)):
+                out.add(seg)
+    return out
+
+
+def _signed_axes(
+    protocol: Protocol, seg: str, records: dict[str, Any], fits: dict[str, movement.HingeFit]
+) -> list[tuple[np.ndarray, np.ndarray]]:
+    """``(sensor axis, segment axis)`` pairs of a segment measured with their sign: gravity,
+    and the axes fitted from movement with a sign from the data (anatomy, the stand)."""
+    out = [(r["sensor_axis"], r["segment_axis"]) for r in records.values()
+           if r["method"] == "gravity"]  # fmt: skip
+    for name, fit in fits.items():
+        joint = protocol.joints[name]
+        if fit.verdict == "not determined" or fit.sign != "anatomy":
+            continue
+        axis = axis_vector(hinge_spec(joint)[0])
+        if seg == joint.proximal:
+            out.append((fit.axis_proximal, axis))
+        elif seg == joint.distal:
+            twist = joint_type(joint.type).twist_axis
+            if twist:
+                out.append((fit.axis_distal, axis_vector(twist)))
+                if np.all(np.isfinite(fit.flexion_distal)):
+                    out.append((fit.flexion_distal, axis))
+            else:
+                out.append((fit.axis_distal, axis))
+    return out
+
+
+def orient_by_data(
+    protocol: Protocol,
+    records: dict[str, dict[str, Any]],
+    fits: dict[str, movement.HingeFit],
+    contradicted: set[str],
+) -> dict[str, list[str]]:
+    """Give the functional axes of ``contradicted`` segments their sign from the data.
+
+    The segment's signed axes (:func:`_signed_axes`) fix its frame when two of them differ
+    (a Procrustes fit), or the sign of a parallel axis when there is one. Returns, per segment,
+    the steps whose axis still follows the hint.
+    """
+    unsure: dict[str, list[str]] = {}
+    for seg in contradicted:
+        signed = _signed_axes(protocol, seg, records[seg], fits)
+        v = np.array([s for s, _ in signed]) if signed else np.empty((0, 3))
+        r = np.array([a for _, a in signed]) if signed else np.empty((0, 3))
+        distinct = {tuple(np.abs(a).round(6)) for a in r}
+        m = frames.wahba(v, r) if len(distinct) >= 2 else None
+        for rec in records[seg].values():
+            if rec["kind"] != "functional" or rec["method"] not in ("svd", "hinge"):
+                continue
+            if m is not None:
+                rec["sensor_axis"] = orient(rec["sensor_axis"], m @ rec["segment_axis"])
+                continue
+            par = [k for k in range(len(r)) if abs(float(r[k] @ rec["segment_axis"])) > 0.99]
+            if par:
+                k = par[0]
+                rec["sensor_axis"] = orient(
+                    rec["sensor_axis"], v[k] * float(r[k] @ rec["segment_axis"])
+                )
+            else:
+                unsure.setdefault(seg, []).append(rec["step"])
+    return unsure
