@@ -11,7 +11,6 @@ from conftest import ROOT, SHARED
 from scipy.spatial.transform import Rotation
 
 from motionlab import rotations as rot
-from motionlab.errors import InputError
 from motionlab.io import generic
 from motionlab.protocol import load_protocol
 from motionlab.sensor_map import load_sensor_map

@@ -4,7 +4,13 @@ import numpy as np
 import pytest
 
 from motionlab import rotations as rot
-from motionlab.segments.movement import anatomical_sign, fit_hinge, fit_two_dof, relative_sign
+from motionlab.segments.movement import (
+    anatomical_sign,
+    fit_hinge,
+    fit_two_dof,
+    relative_sign,
+    swing_sign,
+)
 
 RATE = 100.0
 STAND_S = 3.0
@@ -145,3 +151,11 @@ def test_joints_are_aligned_along_the_chain():
     }
     order = chain_order(Protocol("p", segs, joints))
     assert [j.name for j in order] == ["shoulder", "elbow"]
+
+
+def test_swing_sign_from_the_whole_orientation():
+    (prox, dist), (j_p, j_d) = hinge_recording(8)
+    t = prox[0]
+    assert swing_sign(t, prox[2], dist[2], j_p, j_d)[0] == 1.0
+    sign, margin = swing_sign(t, prox[2], dist[2], j_p, -j_d)
+    assert sign == -1.0 and margin > 0.5

@@ -117,17 +117,46 @@ def relative_sign(
     """Sign (±1) to give ``j_d`` so that it is the same physical axis as ``j_p``, and the margin.
 
     ``q_p``, ``q_d`` (N, 4) are the sensors' orientations on one clock (only their tilt matters).
-    The margin (0 to 1) is ``(bad - good) / (bad + good)`` of the mean squared difference of the
-    axis' vertical components from both sides.
+    The axis' vertical components seen from both sides rise and fall together; the sign is that
+    of their correlation and the margin its size (0 to 1). Centred, so that the small constant
+    tilt an axis fitted from an imperfect hinge carries (a knee's rotation and ab/adduction
+    coupled to flexion) does not count.
     """
     up_p = rot.rotate(q_p, np.broadcast_to(j_p, (len(q_p), 3)))[:, 2]
     up_d = rot.rotate(q_d, np.broadcast_to(j_d, (len(q_d), 3)))[:, 2]
     ok = np.isfinite(up_p) & np.isfinite(up_d)
-    same = float(np.mean((up_p[ok] - up_d[ok]) ** 2))
-    flip = float(np.mean((up_p[ok] + up_d[ok]) ** 2))
-    good, bad = min(same, flip), max(same, flip)
+    a, b = up_p[ok] - up_p[ok].mean(), up_d[ok] - up_d[ok].mean()
+    den = float(np.sqrt(np.sum(a**2) * np.sum(b**2)))
+    corr = float(np.sum(a * b) / den) if den > 0 else 0.0
+    return (1.0 if corr >= 0 else -1.0), abs(corr)
+
+
+def swing_sign(
+    t: np.ndarray, q_p: np.ndarray, q_d: np.ndarray, j_p: np.ndarray, j_d: np.ndarray
+) -> tuple[float, float]:
+    """Sign (±1) to give ``j_d`` so that it is the same physical axis as ``j_p``, and the margin,
+    from the whole orientations: with the right sign, the distal heading tied to the proximal one
+    by the hinge (:func:`.heading.hinge_anchors`) leaves a relative rotation that turns about the
+    axis only; with the wrong one the ties are half a turn off and, as the proximal segment
+    tilts, the relative rotation swings off the axis. The margin is ``(bad - good) / (bad +
+    good)`` of the RMS swing angle (rad).
+    """
+    from motionlab.segments import heading
+
+    swings = []
+    for sign in (1.0, -1.0):
+        times, deltas = heading.hinge_anchors(t, q_p, q_d, j_p, sign * j_d)
+        if not len(times):
+            return 1.0, 0.0
+        q = heading.apply_heading(q_d, heading.heading_track(times, deltas, t))
+        rel = rot.mul(rot.conj(q_p), q)
+        r = rot.mul(rel, rot.conj(rel[len(rel) // 2]))
+        v = r[:, 1:] - np.outer(r[:, 1:] @ j_p, j_p)  # the part off the axis
+        swing = 2.0 * np.arcsin(np.clip(np.linalg.norm(v, axis=1), 0.0, 1.0))
+        swings.append(float(np.sqrt(np.nanmean(swing**2))))
+    good, bad = min(swings), max(swings)
     margin = (bad - good) / (bad + good) if bad + good > 0 else 0.0
-    return (1.0 if same <= flip else -1.0), margin
+    return (1.0 if swings[0] <= swings[1] else -1.0), margin
 
 
 def anatomical_sign(
@@ -235,6 +264,9 @@ def fit_hinge(
     relative = residual / scale if scale > 0 else float("inf")
     # signs
     s_rel, margin = relative_sign(q1[on], q2[on], j_p, j_d)
+    s_swing, margin_swing = swing_sign(t, q1, q2, j_p, j_d)
+    if margin_swing > margin:
+        s_rel, margin = s_swing, margin_swing
     if margin >= SIGN_MARGIN:
         j_d = s_rel * j_d
         rel_source = "measured"
@@ -242,8 +274,8 @@ def fit_hinge(
         j_d = j_d if (j_p @ prior_p) * (j_d @ prior_d) >= 0 else -j_d
         rel_source = "nominal"
         reasons.append(
-            "the two segments' axis stayed horizontal, so which way it points on the distal "
-            "segment is taken from the nominal placement"
+            "the movement did not tell which way the axis points on the distal segment, so it "
+            "is taken from the nominal placement"
         )
     sign, excursion = None, (float("nan"), float("nan"))
     if anatomical and reference is not None:
