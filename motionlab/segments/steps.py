@@ -19,10 +19,10 @@ shorter than ``TWITCH_S`` during a pose do not end it. Steps are then matched in
   segments are warned about (:func:`placement_warnings`);
 - a functional step takes the next movement block in which the step's segments turn fastest
   (the fastest of them at least ``LEAD_FRACTION`` of the fastest sensor's mean rate, and each
-  of them at least ``MOVE_FRACTION`` of it), and some sensor outside its segments nearly still
-  (not a whole-body task such as walking; segments carried along, like the shank in a
-  straight-leg hip flexion, may move). An optional step may not have been recorded at all, so
-  a block must also look like it: a length within ``DURATION_RANGE`` × its ``duration_s``,
+  of them at least ``MOVE_FRACTION`` of it). An optional step may not have been recorded at
+  all, so a block must also look like it: some sensor outside its segments nearly still (not a
+  whole-body task such as walking; segments carried along, like the shank in a straight-leg hip
+  flexion, may move), a length within ``DURATION_RANGE`` × its ``duration_s``,
   every named segment turning about its named axis (within ``AXIS_TOLERANCE_DEG`` of the
   nominal placement's), and segments named with the same axis turning as one (their rates
   within ``RIGID_TOLERANCE`` of each other: the knee locked in a straight-leg hip flexion, not
@@ -160,8 +160,10 @@ def _functional_match(step: CalibrationStep, block: Block) -> bool:
     rates = [block.rate[s] for s in step.axis if s in block.rate]
     if not rates or max(rates) < LEAD_FRACTION * fastest or min(rates) < MOVE_FRACTION * fastest:
         return False
-    others = [r for s, r in block.rate.items() if s not in step.segments]
-    return not others or any(r < QUIET_FRACTION * fastest for r in others)
+    if step.optional:
+        others = [r for s, r in block.rate.items() if s not in step.segments]
+        return not others or any(r < QUIET_FRACTION * fastest for r in others)
+    return True
 
 
 def _rigid(a: np.ndarray, b: np.ndarray) -> bool:
@@ -311,7 +313,10 @@ def describe(bl: list[Block]) -> str:
 
 
 def find_steps(
-    streams: Streams, protocol: Protocol, warnings: list[str] | None = None
+    streams: Streams,
+    protocol: Protocol,
+    warnings: list[str] | None = None,
+    suggest: bool = True,
 ) -> dict[str, tuple[float, float] | None]:
     """Time range (s) of each calibration step, ``None`` for an optional step not performed.
 
@@ -319,7 +324,8 @@ def find_steps(
     sitting are told apart); when no rest fits them, the next rest long enough is taken and the
     axes measured in it are used, with one line per contradicted segment added to ``warnings``
     (the placement is a hint). Required steps still missing are named all at once in one
-    :class:`InputError`, with what the recording holds and a shipped protocol that fits it.
+    :class:`InputError`, with what the recording holds and (``suggest``) a shipped protocol
+    that fits it.
     """
     found: dict[str, tuple[float, float] | None] = {}
     missing: list[CalibrationStep] = []
@@ -369,7 +375,7 @@ def find_steps(
         pos = hit + 1
     if missing:
         names = ", ".join(f"'{s.name}' ({s.kind})" for s in missing)
-        fits = fitting_protocols(streams, protocol)
+        fits = fitting_protocols(streams, protocol) if suggest else []
         raise InputError(
             f"calibration step{'s' if len(missing) > 1 else ''} {names} not found; {describe(bl)}",
             protocol.path,
@@ -395,7 +401,7 @@ def fitting_protocols(streams: Streams, protocol: Protocol) -> list[str]:
         if not needed or any(s not in streams for s in needed):
             continue
         try:
-            find_steps({s: streams[s] for s in other.segments if s in streams}, other)
+            find_steps({s: streams[s] for s in other.segments if s in streams}, other, None, False)
         except InputError:
             continue
         out.append(other.name)
