@@ -383,9 +383,37 @@ def run_pipeline(
     return PipelineResult(session_path, report_path, csv_dir, metrics, summary)
 
 
+def grade_lines(view, width: int = 100) -> list[str]:
+    """Summary lines on the angles' grades: how many the recording determined, then the weak
+    and not determined ones by column name, grouped by reason (wrapped at ``width``)."""
+    import textwrap
+
+    from motionlab.report.model import grade_rows
+
+    rows = grade_rows(view)
+    good = sum(r["grade"] == "determined" for r in rows)
+    lines = [f"  angles determined by the recording: {good}/{len(rows)}"]
+    groups: dict[tuple[str, str], list[str]] = {}
+    for r in rows:
+        if r["grade"] != "determined":
+            groups.setdefault((r["grade"], r["reason"]), []).append(r["column"])
+    for (grade, reason), cols in groups.items():
+        text = f"{grade}: {', '.join(cols)}" + (f" - {reason}" if reason else "")
+        lines += textwrap.wrap(
+            text, width, initial_indent="    ", subsequent_indent="      ", break_on_hyphens=False
+        )
+    return lines
+
+
 def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
     """One screen: subject, data, calibration, tasks, flexion ranges, validation, outputs."""
-    from motionlab.report.model import calibration_rows, quality_rows, rom_rows
+    from motionlab.report.model import (
+        angle_grades,
+        calibration_rows,
+        grade_mark,
+        quality_rows,
+        rom_rows,
+    )
     from motionlab.report.text import findings, span, task_name
 
     ses, proto = view.session, view.protocol
@@ -418,37 +446,30 @@ def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
     )
     cal = ses.results.get("calibration", {})
     lines += [f"  warning: {w}" for w in cal.get("warnings", [])]
-    graded = {
-        g: [f"{j} {k + 1}" for j, v in cal.get("grades", {}).items()
-            for k, x in enumerate(v["grades"]) if x == g]
-        for g in ("weak", "not determined")
-    }  # fmt: skip
-    n_angles = 3 * len(cal.get("grades", {}))
-    if n_angles:
-        lines.append(
-            f"  angles determined by the recording: "
-            f"{n_angles - len(graded['weak']) - len(graded['not determined'])}/{n_angles}"
-            + "".join(f"; {g}: {', '.join(v)}" for g, v in graded.items() if v)
-        )
+    lines += grade_lines(view)
     lines.append(
         "  tasks: "
         + ", ".join(f"{task_name(k)} {a:.0f}-{b:.0f} s" for k, (a, b) in view.blocks().items())
     )
-    lines.append("  flexion range (typical, deg):")
-    for r in rom_rows(view):
-        if r["angle"] == "flexion":
-            normal = (
-                f"normal {r['normal'][0]:g}-{r['normal'][1]:g}, {r['status']}"
-                if r["normal"]
-                else "no normal range"
-            )
-            lines.append(
-                f"    {task_name(r['task']):<14} {r['joint']:<8} "
-                f"{span(r['typical_min_deg'], r['typical_max_deg']):>10}  ({normal})"
-            )
+    flexion = [r for r in rom_rows(view) if r["angle"] == "flexion"]
+    if flexion:
+        lines.append("  flexion range (typical, deg):")
+    for r in flexion:
+        normal = (
+            f"normal {r['normal'][0]:g}-{r['normal'][1]:g}, {r['status'] or 'not compared'}"
+            if r["normal"]
+            else "no normal range"
+        )
+        lines.append(
+            f"    {task_name(r['task']):<14} {r['joint']:<8} "
+            f"{span(r['typical_min_deg'], r['typical_max_deg']):>10}  ({normal})"
+            + (f" {grade_mark(r['grade'])}" if grade_mark(r["grade"]) else "")
+        )
     val = ses.results.get("validation", {}).get("angles", {})
+    grades = angle_grades(view)
     rmse = [
         f"{c.removesuffix('_deg')} {v['rmse_deg']:.1f}"
+        + (f" {grade_mark(grades[c][0])}" if c in grades and grade_mark(grades[c][0]) else "")
         for c, v in val.items()
         if isinstance(v, dict) and "rmse_deg" in v
     ]

@@ -39,6 +39,9 @@ TEXT_COLUMNS = {
     "step",
     "kind",
     "segment_ok",
+    "grade",
+    "reason",
+    "column",
 }
 WORDS = {
     "knee": ["Right knee", "Left knee", "flexion", "adduction", "rotation", "varus"],

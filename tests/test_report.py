@@ -165,3 +165,115 @@ def test_layout_check_finds_overlapping_and_clipped_text():
         problems = layout_problems(doc.fig)
     assert any(p.startswith("overlap") for p in problems)
     assert any(p.startswith("off the page") for p in problems)
+
+
+WEAK_WHY = "shank_r's frame has one measured axis, the rest is the nominal placement"
+NOT_WHY = "no axis of shank_r was measured (nominal placement only)"
+
+
+def _graded_view(graded: bool = True) -> SessionView:
+    """The knee view with angle series and a calibration: right knee adduction ``weak``,
+    rotation ``not determined`` (shank_r calibrated without a measured axis); ``graded=False``:
+    a session calibrated before grades existed."""
+    view = _view((5.0, 45.0), (0.0, 64.0))
+    t = np.linspace(0.0, 50.0, 501)
+    view.angles = {"time_s": t} | {
+        c: np.sin(t) for c in view.metrics["joints"]["gait"] if c.endswith("_deg")
+    }
+    ok = {"ok": True, "messages": []}
+    axis = {"standing": {"kind": "static", "rho": 0.99, "residual_deg": 0.5}}
+    segments = {s: {"method": "primary_secondary", "axes": axis, "quality": ok} for s in
+                ("pelvis", "thigh_r", "thigh_l", "shank_l")}  # fmt: skip
+    segments["shank_r"] = {"method": "nominal", "axes": {}, "quality": {"ok": False}}
+    cal: dict = {"segments": segments, "steps": {}, "warnings": []}
+    if graded:
+        cal["grades"] = {
+            "knee_r": {
+                "grades": ["determined", "weak", "not determined"],
+                "reasons": ["", WEAK_WHY, NOT_WHY],
+            },
+            "knee_l": {"grades": ["determined"] * 3, "reasons": [""] * 3},
+        }
+    view.session.results["calibration"] = cal
+    return view
+
+
+def test_grades_reach_the_csv_tables():
+    from motionlab.report.csv import tables
+
+    frames = tables(_graded_view())
+    grades = frames["grades.csv"]
+    assert list(grades.columns) == ["joint", "angle", "column", "grade", "reason"]
+    assert len(grades) == 6
+    by_col = grades.set_index("column")
+    assert by_col.loc["knee_r_rotation_deg", "grade"] == "not determined"
+    assert by_col.loc["knee_r_rotation_deg", "reason"] == NOT_WHY
+    assert by_col.loc["knee_r_adduction_deg", "grade"] == "weak"
+    assert (
+        by_col.drop(["knee_r_rotation_deg", "knee_r_adduction_deg"]).grade == "determined"
+    ).all()
+    metrics = frames["metrics.csv"].set_index(["joint", "angle"])
+    assert metrics.loc[("knee_r", "rotation"), "grade"] == "not determined"
+    assert metrics.loc[("knee_r", "rotation"), "vs_normal"] == "not compared"
+    assert metrics.loc[("knee_r", "adduction"), "grade"] == "weak"
+    oop = frames["out_of_plane.csv"].set_index("metric")
+    assert oop.loc["varus_thrust", "grade"] == "weak"
+    assert oop.loc["stance_rotation_range", "grade"] == "not determined"
+    # the angle series stay numeric
+    assert all(f[c].dtype.kind == "f" for n, f in frames.items() if n.endswith("_angles.csv")
+               for c in f.columns)  # fmt: skip
+
+
+def test_findings_of_an_undetermined_angle_say_why_instead():
+    items = findings(_graded_view())
+    assert not any("Right knee internal-external rotation range" in i for i in items)
+    assert f"Right knee internal-external rotation is not reported: {NOT_WHY}." in items, items
+    thrust = next(i for i in items if i.startswith("Right knee varus thrust"))
+    assert thrust.endswith(f"(weak: {WEAK_WHY}).")
+    assert any(i.startswith("Left knee flexion-extension range 0–64°") for i in items)
+
+
+def test_summary_names_graded_columns_and_counts_nominal_segments(tmp_path):
+    from motionlab.pipeline import run_summary
+    from motionlab.report import ReportOutput
+
+    out = ReportOutput(tmp_path / "report.pdf", tmp_path / "report.txt")
+    text = run_summary(_graded_view(), out, {}, 1.0)
+    assert "calibration: 4/5 segments ok; check shank_r" in text
+    assert "angles determined by the recording: 4/6" in text
+    assert f"not determined: knee_r_rotation_deg - {NOT_WHY}" in " ".join(text.split())
+    assert "weak: knee_r_adduction_deg" in text
+    old = run_summary(_graded_view(graded=False), out, {}, 1.0)
+    assert "angles determined by the recording: 6/6" in old and "weak:" not in old
+
+
+def test_a_session_without_grades_has_every_angle_determined():
+    from motionlab.report.csv import tables
+
+    view = _graded_view(graded=False)
+    frames = tables(view)
+    assert (frames["grades.csv"].grade == "determined").all()
+    assert (frames["grades.csv"].reason.fillna("") == "").all()
+    assert (frames["metrics.csv"].grade == "determined").all()
+    assert (frames["out_of_plane.csv"].grade == "determined").all()
+    assert not any("not reported" in i or "(weak" in i for i in findings(view))
+
+
+def test_graded_pages_keep_a_clean_layout():
+    from motionlab.report.pages_joint import joint_pages
+    from motionlab.report.pages_oop import out_of_plane_page
+    from motionlab.report.pages_quality import calibration_page
+
+    view = _graded_view()
+    with matplotlib.rc_context(RC):
+        doc = Document("motionlab report · test", "subject X")
+        calibration_page(doc, view)
+        joint_pages(doc, view)
+        out_of_plane_page(doc, view)
+        text = "\n".join(page_text(f) for f in doc.pages)
+        problems = [p for f in doc.pages for p in layout_problems(f)]
+    assert problems == []
+    assert "What the recording determined" in text
+    assert "Internal-external rotation (transverse) · not determined" in text  # greyed curves
+    assert "gait, rotation (n = 10), not determined" in text
+    assert "6.0 ± 0.5 (weak)" in text  # varus thrust

@@ -1,11 +1,16 @@
 """CSV tables for researchers: one angle time series per joint, metrics, out-of-plane metrics,
-data quality and calibration quality. Every numeric column carries its unit in its name
-(``_deg``, ``_s``, ``_hz``, ``_ms``, ``_pct``, ``_n`` for counts, ``_ratio`` for unitless ratios).
+the grade of every angle, data quality and calibration quality. Every numeric column carries its
+unit in its name (``_deg``, ``_s``, ``_hz``, ``_ms``, ``_pct``, ``_n`` for counts, ``_ratio`` for
+unitless ratios).
 
-Files (in ``csv_dir``): ``<joint>_angles.csv`` (``time_s`` + one column per angle, degrees),
-``metrics.csv`` (range of motion per task, joint and angle, with the normal range and the
-symmetry index), ``out_of_plane.csv``, ``quality.csv`` (per sensor) and ``calibration.csv``
-(per segment and calibration step). Existing files are replaced only with ``force``.
+Files (in ``csv_dir``): ``<joint>_angles.csv`` (``time_s`` + one column per angle, degrees;
+numbers only), ``metrics.csv`` (range of motion per task, joint and angle, with the normal range,
+the symmetry index and the angle's ``grade``), ``out_of_plane.csv`` (with the ``grade`` of the
+angle a row refers to; the worst of the joint's angles for the lumbar offset, the thorax frame's
+for trunk compensation), ``grades.csv`` (``joint, angle, column, grade, reason``: one row per
+angle column; ``determined``, ``weak`` or ``not determined``, see
+:mod:`motionlab.segments.grades`), ``quality.csv`` (per sensor) and ``calibration.csv`` (per
+segment and calibration step). Existing files are replaced only with ``force``.
 """
 
 from __future__ import annotations
@@ -19,11 +24,16 @@ from motionlab.atomic import atomic_path, check_output
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_types import angle_columns
 from motionlab.report.model import (
+    THORAX,
     SessionView,
+    angle_grade,
     calibration_rows,
+    grade_rows,
     quality_rows,
     rom_rows,
+    segment_grade,
     symmetry_rows,
+    worst_grade,
 )
 
 FLOAT_FORMAT = "%.4f"
@@ -62,8 +72,9 @@ def metrics_frame(view: SessionView) -> pd.DataFrame:
                 "cycles_n": r["repetitions"],
                 "normal_min_deg": lo,
                 "normal_max_deg": hi,
-                "vs_normal": r["status"] or "no normal range",
+                "vs_normal": r["status"] or ("not compared" if r["normal"] else "no normal range"),
                 "symmetry_index_pct": si.get((r["task"], r["joint_type"], r["angle"]), np.nan),
+                "grade": r["grade"],
             }
         )
     return pd.DataFrame(rows)
@@ -74,8 +85,13 @@ def out_of_plane_frame(view: SessionView) -> pd.DataFrame:
     m = view.metrics
     rows = []
 
-    def add(metric, task, joint, angle, **values):
-        rows.append({"metric": metric, "task": task, "joint": joint, "angle": angle, **values})
+    def add(metric, task, joint, angle, grade=None, **values):
+        if grade is None:
+            grade = angle_grade(view, joint, angle)[0]
+        rows.append(
+            {"metric": metric, "task": task, "joint": joint, "angle": angle, **values}
+            | {"grade": grade}
+        )
 
     for task, joints in (m.get("gait") or {}).items():
         for joint, g in joints.items():
@@ -99,6 +115,7 @@ def out_of_plane_frame(view: SessionView) -> pd.DataFrame:
                 sd_deg=g["stance_rotation_range_sd_deg"],
                 count_n=g["strides"],
             )
+    trunk = segment_grade(view, THORAX)[0]
     for task, t in (m.get("trunk_compensation") or {}).items():
         for angle in ("flexion", "lateral_bending", "axial_rotation"):
             a = t[angle]
@@ -107,6 +124,7 @@ def out_of_plane_frame(view: SessionView) -> pd.DataFrame:
                 task,
                 "trunk",
                 angle,
+                grade=trunk,
                 value_deg=a["peak_abs_deg"],
                 min_deg=a["min_deg"],
                 max_deg=a["max_deg"],
@@ -115,11 +133,13 @@ def out_of_plane_frame(view: SessionView) -> pd.DataFrame:
             )
     for task, joints in (m.get("out_of_plane_offset") or {}).items():
         for joint, o in joints.items():
+            graded = [(r["grade"], "") for r in grade_rows(view) if r["joint"] == joint]
             add(
                 "out_of_plane_offset",
                 task,
                 joint,
                 "-".join(o["axes"]),
+                grade=worst_grade(graded)[0],
                 value_deg=o["peak_deg"],
                 mean_deg=o["mean_deg"],
                 threshold_deg=o["threshold_deg"],
@@ -172,6 +192,11 @@ def quality_frame(view: SessionView) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def grades_frame(view: SessionView) -> pd.DataFrame:
+    """One row per angle column: ``joint, angle, column, grade, reason``."""
+    return pd.DataFrame(grade_rows(view), columns=["joint", "angle", "column", "grade", "reason"])
+
+
 def calibration_frame(view: SessionView) -> pd.DataFrame:
     rows = [
         {
@@ -195,6 +220,7 @@ def tables(view: SessionView) -> dict[str, pd.DataFrame]:
     return angle_frames(view) | {
         "metrics.csv": metrics_frame(view),
         "out_of_plane.csv": out_of_plane_frame(view),
+        "grades.csv": grades_frame(view),
         "quality.csv": quality_frame(view),
         "calibration.csv": calibration_frame(view),
     }

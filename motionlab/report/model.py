@@ -13,7 +13,14 @@ read results the stages stored; they compute no kinematics of their own.
   :data:`SYMMETRY_LIMIT_PCT`; not given when the mean range is below :data:`SYMMETRY_MIN_ROM_DEG`
   (a ratio of two small ranges is noise);
 - :func:`quality_rows`: per sensor, rates, gaps, saturation, rest and magnetic disturbance;
-- :func:`calibration_rows`: per segment and calibration step, method, ρ and residual angle.
+- :func:`calibration_rows`: per segment and calibration step, method, ρ and residual angle
+  (one row for a segment calibrated without any measured axis, so that every protocol segment with
+  a sensor is counted);
+- :func:`grade_rows`: per joint angle, its grade (``determined``, ``weak``, ``not determined``;
+  :mod:`motionlab.segments.grades`) and the reason in plain words. Sessions calibrated before
+  grades existed have none: every angle counts as ``determined`` there. Rows of :func:`rom_rows`
+  and :func:`symmetry_rows` carry the grade; a range of a ``not determined`` angle is not compared
+  with the normal range (``status`` empty).
 """
 
 from __future__ import annotations
@@ -26,9 +33,13 @@ import numpy as np
 
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, plane, title
+from motionlab.kinematics.metrics import THORAX as THORAX  # re-exported for the pages
 from motionlab.protocol import Joint, Protocol, load_protocol
 from motionlab.segments import sensor_for_segment
+from motionlab.segments.grades import GRADES, _frame_grade
 from motionlab.session import Session
+
+DETERMINED, WEAK, NOT_DETERMINED = GRADES
 
 TOLERANCE_DEG = 5.0
 SYMMETRY_LIMIT_PCT = 10.0
@@ -197,8 +208,75 @@ def compare(low: float, high: float, normal: tuple[float, float] | None, reach: 
     return "within"
 
 
+def grade_rows(view: SessionView) -> list[dict[str, Any]]:
+    """One row per angle column of every protocol joint: ``joint, angle, column, grade, reason``.
+
+    From ``results["calibration"]["grades"]``; a joint without grades (a session calibrated
+    before they existed) has every angle ``determined`` with an empty reason.
+    """
+    graded = view.session.results.get("calibration", {}).get("grades") or {}
+    rows = []
+    for joint in view.joints():
+        entry = graded.get(joint.name) or {}
+        grades = [str(g) for g in entry.get("grades", [])]
+        reasons = [str(r) for r in entry.get("reasons", [])]
+        for k, (angle, col) in enumerate(angle_columns(joint)):
+            grade = grades[k] if k < len(grades) and grades[k] in GRADES else DETERMINED
+            reason = reasons[k] if k < len(reasons) and grade != DETERMINED else ""
+            rows.append(
+                {
+                    "joint": joint.name,
+                    "angle": angle,
+                    "column": col,
+                    "grade": grade,
+                    "reason": reason,
+                }
+            )
+    return rows
+
+
+def angle_grades(view: SessionView) -> dict[str, tuple[str, str]]:
+    """``{column: (grade, reason)}`` of every angle column (see :func:`grade_rows`)."""
+    return {r["column"]: (r["grade"], r["reason"]) for r in grade_rows(view)}
+
+
+def angle_grade(view: SessionView, joint: str, angle: str) -> tuple[str, str]:
+    """``(grade, reason)`` of one angle of a protocol joint (``determined`` when unknown)."""
+    for r in grade_rows(view):
+        if r["joint"] == joint and r["angle"] == angle:
+            return r["grade"], r["reason"]
+    return DETERMINED, ""
+
+
+def worst_grade(graded: list[tuple[str, str]]) -> tuple[str, str]:
+    """The worst ``(grade, reason)`` of several; ``determined`` for none."""
+    worst = (DETERMINED, "")
+    for g in graded:
+        if GRADES.index(g[0]) > GRADES.index(worst[0]):
+            worst = g
+    return worst
+
+
+def segment_grade(view: SessionView, segment: str) -> tuple[str, str]:
+    """``(grade, reason)`` of one segment's whole frame (for the metrics of a segment alone,
+    such as trunk compensation); ``determined`` for a session without grades."""
+    cal = view.session.results.get("calibration", {})
+    if not cal.get("grades"):
+        return DETERMINED, ""
+    return _frame_grade(segment, cal.get("segments", {}).get(segment))
+
+
+def grade_mark(grade: str, reason: str = "") -> str:
+    """What follows a number of a graded angle: ``""`` (determined), ``"(weak: <reason>)"``,
+    ``"(not determined)"``; without ``reason`` just the grade in brackets."""
+    if grade == DETERMINED:
+        return ""
+    return f"({grade}: {reason})" if reason and grade == WEAK else f"({grade})"
+
+
 def rom_rows(view: SessionView) -> list[dict[str, Any]]:
     """One row per task, joint and angle (see the module docstring)."""
+    grades = {r["column"]: (r["grade"], r["reason"]) for r in grade_rows(view)}
     rows = []
     for task in view.tasks():
         per_col = view.metrics["joints"][task]
@@ -209,6 +287,8 @@ def rom_rows(view: SessionView) -> list[dict[str, Any]]:
                     continue
                 low, high = _extremes(m)
                 normal = normal_range(view.protocol, task, col)
+                grade, reason = grades.get(col, (DETERMINED, ""))
+                status = compare(low, high, normal, angle == "flexion")
                 rows.append(
                     {
                         "task": task,
@@ -225,7 +305,9 @@ def rom_rows(view: SessionView) -> list[dict[str, Any]]:
                         "typical_max_deg": high,
                         "repetitions": int(m["repetitions"]),
                         "normal": normal,
-                        "status": compare(low, high, normal, angle == "flexion"),
+                        "status": "" if grade == NOT_DETERMINED else status,
+                        "grade": grade,
+                        "reason": reason,
                     }
                 )
     return rows
@@ -243,6 +325,11 @@ def symmetry_rows(view: SessionView) -> list[dict[str, Any]]:
         l = left["typical_max_deg"] - left["typical_min_deg"]
         mean = 0.5 * (r + l)
         si = 100.0 * (r - l) / mean if mean >= SYMMETRY_MIN_ROM_DEG else float("nan")
+        grade, reason = worst_grade(
+            [(right["grade"], right["reason"]), (left["grade"], left["reason"])]
+        )
+        if grade == NOT_DETERMINED:
+            si = float("nan")
         rows.append(
             {
                 "task": task,
@@ -253,6 +340,8 @@ def symmetry_rows(view: SessionView) -> list[dict[str, Any]]:
                 "left_rom_deg": l,
                 "symmetry_index_pct": si,
                 "flag": bool(np.isfinite(si) and abs(si) > SYMMETRY_LIMIT_PCT),
+                "grade": grade,
+                "reason": reason,
             }
         )
     return rows
@@ -301,17 +390,45 @@ def quality_rows(view: SessionView) -> list[dict[str, Any]]:
     return rows
 
 
+def _no_axis_row(view: SessionView, seg: str, res: dict[str, Any]) -> dict[str, Any]:
+    """The one row of a segment without a measured axis (``nominal``) or without a calibration."""
+    return {
+        "segment": seg,
+        "sensor": res.get("sensor") or sensor_for_segment(view.session, seg) or "",
+        "method": res.get("method", "not calibrated"),
+        "step": "none",
+        "kind": "nominal" if res else "",
+        "rho": float("nan"),
+        "reference_rho": float("nan"),
+        "residual_deg": float("nan"),
+        "used": False,
+        "hinge_check_deg": float("nan"),
+        "segment_ok": bool(res.get("quality", {}).get("ok", False)),
+    }
+
+
 def calibration_rows(view: SessionView) -> list[dict[str, Any]]:
-    """Per segment and calibration step: method, ρ, reference ρ and the residual angle."""
+    """Per segment and calibration step: method, ρ, reference ρ and the residual angle.
+
+    Every protocol segment with a sensor has at least one row: a segment whose calibration
+    measured no axis (method ``nominal``: the placement hint only), or that has no calibration
+    at all, gets one row with step ``none`` (and ``segment_ok`` from its quality, else false).
+    """
     cal = view.session.results.get("calibration", {})
     segments = cal.get("segments", {})
-    order = [s for s in view.protocol.segments if s in segments]
+    order = [
+        s
+        for s in view.protocol.segments
+        if s in segments or (cal and sensor_for_segment(view.session, s) is not None)
+    ]
     steps = [s.name for s in view.protocol.calibration]
     rows = []
     for seg in order + [s for s in segments if s not in order]:
-        res = segments[seg]
+        res = segments.get(seg, {})
         q = res.get("quality", {})
         axes = res.get("axes", {})
+        if not axes:
+            rows.append(_no_axis_row(view, seg, res))
         for step in sorted(axes, key=lambda k: steps.index(k) if k in steps else len(steps)):
             a = axes[step]
             ref = a.get("reference_rho")

@@ -2,7 +2,9 @@
 range-of-motion table with normal ranges and flags; and the left-right comparison.
 
 Curves are in degrees against time (s) or the cycle (0-100 %); a normative cycle band (grey) is
-drawn where ``report_data`` has one, else the protocol's normal range as a hatched band.
+drawn where ``report_data`` has one, else the protocol's normal range as a hatched band. Every
+angle carries its grade: the curves of a ``not determined`` angle are drawn grey and labelled so,
+its table rows greyed and not compared with the normal range; a ``weak`` angle is labelled.
 """
 
 from __future__ import annotations
@@ -13,7 +15,9 @@ from matplotlib.patches import Patch
 
 from motionlab.kinematics.joint_types import angle_columns, positive
 from motionlab.report.model import (
+    NOT_DETERMINED,
     SessionView,
+    angle_grades,
     angle_label,
     joint_title,
     joint_type_title,
@@ -23,7 +27,15 @@ from motionlab.report.model import (
     symmetry_rows,
 )
 from motionlab.report.normative import band_for
-from motionlab.report.pdf import BAND_COLOUR, MUTED, SIDE_COLOUR, SIZE, Document, label_spans
+from motionlab.report.pdf import (
+    BAND_COLOUR,
+    MUTED,
+    NOT_DETERMINED_COLOUR,
+    SIDE_COLOUR,
+    SIZE,
+    Document,
+    label_spans,
+)
 from motionlab.report.text import STATUS_WORDS, span, task_name
 
 TASKS_PER_PAGE = 3
@@ -34,12 +46,22 @@ def _ylabel(joint, angle: str) -> str:
     return f"{angle.replace('_', ' ')} (°)\n{positive(joint, angle)}"
 
 
+def graded_style(view: SessionView, joint, col: str) -> tuple[str, str]:
+    """``(colour, title suffix)`` of an angle's curves: the side's colour, grey and
+    ``' · not determined'`` for an angle the recording did not determine, ``' · weak'``."""
+    grade = angle_grades(view).get(col, ("determined", ""))[0]
+    if grade == NOT_DETERMINED:
+        return NOT_DETERMINED_COLOUR, " · not determined"
+    colour = SIDE_COLOUR.get(joint.side, SIDE_COLOUR[""])
+    return colour, "" if grade == "determined" else f" · {grade}"
+
+
 def _time_page(doc: Document, view: SessionView, joint) -> None:
     t = view.angles["time_s"]
     blocks = view.blocks()
     axes = doc.axes_grid(3, 1, 5.6, left=0.85, bottom=0.45, hspace=0.45, top=0.45)
-    colour = SIDE_COLOUR.get(joint.side, SIDE_COLOUR[""])
     for i, ((angle, col), (ax,)) in enumerate(zip(angle_columns(joint), axes, strict=True)):
+        colour, suffix = graded_style(view, joint, col)
         for task, (a, b) in blocks.items():
             ax.axvspan(a, b, color="#f0f0f0", zorder=0)
             rng = normal_range(view.protocol, task, col)
@@ -52,7 +74,13 @@ def _time_page(doc: Document, view: SessionView, joint) -> None:
         ax.set_xlim(t[0], t[-1])
         if i == 0:
             label_spans(ax, {task_name(k): v for k, v in blocks.items()}, SIZE["small"] - 1)
-        ax.set_title(angle_label(joint, angle), loc="left", size=SIZE["small"], weight="bold")
+        ax.set_title(
+            angle_label(joint, angle) + suffix,
+            loc="left",
+            size=SIZE["small"],
+            weight="bold",
+            color=MUTED if suffix == " · not determined" else "black",
+        )
         if i == 2:
             ax.set_xlabel("time (s)")
         else:
@@ -70,12 +98,13 @@ def _time_page(doc: Document, view: SessionView, joint) -> None:
 
 
 def _rom_table(doc: Document, view: SessionView, joint) -> None:
-    rows, flagged = [], []
+    rows, flagged, muted = [], [], []
     for r in rom_rows(view):
         if r["joint"] != joint.name:
             continue
         normal = f"{r['normal'][0]:g} to {r['normal'][1]:g}" if r["normal"] else "-"
         bad = r["status"] not in ("within", "")
+        muted.append(r["grade"] == NOT_DETERMINED)
         rows.append(
             [
                 task_name(r["task"]),
@@ -85,9 +114,10 @@ def _rom_table(doc: Document, view: SessionView, joint) -> None:
                 str(r["repetitions"]),
                 normal,
                 STATUS_WORDS.get(r["status"], "-") if r["status"] else "-",
+                r["grade"],
             ]
         )
-        flagged.append([False] * 6 + [bad])
+        flagged.append([False] * 6 + [bad, False])
     doc.heading("Range of motion")
     doc.table(
         [
@@ -98,16 +128,19 @@ def _rom_table(doc: Document, view: SessionView, joint) -> None:
             "Cycles",
             "Normal (°)",
             "vs normal",
+            "Grade",
         ],
         rows,
-        [0.15, 0.25, 0.14, 0.12, 0.08, 0.14, 0.12],
+        [0.12, 0.2, 0.13, 0.1, 0.08, 0.11, 0.1, 0.16],
         flagged,
-        align=["l", "l", "r", "r", "r", "r", "r"],
+        align=["l", "l", "r", "r", "r", "r", "r", "r"],
+        muted=muted,
     )
     doc.paragraph(
         "Typical range: means of the lowest and highest angle of each cycle. Full ROM: highest "
         "minus lowest angle over the whole task. A range is flagged when it misses the normal "
-        "range by more than 5°.",
+        "range by more than 5°. Grade: whether the recording determined the angle (see the "
+        "calibration page); a range that is not determined (grey) is not compared.",
         size=SIZE["small"],
         colour=MUTED,
     )
@@ -152,17 +185,20 @@ def draw_cycle(ax: Axes, view: SessionView, joint, task: str, angle: str, col: s
         rng = normal_range(view.protocol, task, col)
         if rng is not None:
             ax.axhspan(rng[0], rng[1], facecolor="none", edgecolor=BAND_COLOUR, hatch="////", lw=0)
-    colour = SIDE_COLOUR.get(joint.side, SIDE_COLOUR[""])
+    colour, suffix = graded_style(view, joint, col)
     if m is None or m["repetitions"] == 0 or not np.isfinite(m["curve_mean_deg"]).any():
         _no_data(ax, "no cycles found")
     else:
         mean, sd = np.asarray(m["curve_mean_deg"]), np.asarray(m["curve_sd_deg"])
-        ax.fill_between(pct, mean - sd, mean + sd, color=colour, alpha=0.25, lw=0)
-        ax.plot(pct, mean, color=colour, lw=1.2)
+        grey = colour == NOT_DETERMINED_COLOUR
+        ax.fill_between(pct, mean - sd, mean + sd, color=colour, alpha=0.1 if grey else 0.25, lw=0)
+        ax.plot(pct, mean, color=colour, lw=1.2, ls="--" if grey else "-")
     min_span(ax)
     n = int(m["repetitions"]) if m is not None else 0
     ax.set_title(
-        f"{task_name(task)}, {angle.replace('_', ' ')} (n = {n})", loc="left", size=SIZE["small"]
+        f"{task_name(task)}, {angle.replace('_', ' ')} (n = {n}){suffix.replace(' · ', ', ')}",
+        loc="left",
+        size=SIZE["small"],
     )
     ax.set_xlim(0, 100)
     ax.set_xlabel("cycle (%)")
@@ -281,10 +317,11 @@ def symmetry_page(doc: Document, view: SessionView) -> None:
             frameon=False,
         )
         doc.space(0.4)
-        table, flagged = [], []
+        table, flagged, muted = [], [], []
         for r in rows:
             if r["joint_type"] != jtype:
                 continue
+            muted.append(r["grade"] == NOT_DETERMINED)
             si = r["symmetry_index_pct"]
             table.append(
                 [
@@ -294,14 +331,16 @@ def symmetry_page(doc: Document, view: SessionView) -> None:
                     f"{r['left_rom_deg']:.0f}",
                     f"{0.0 if round(si) == 0 else si:+.0f}"
                     if np.isfinite(si)
-                    else "n/a (range < 10°)",
+                    else ("-" if r["grade"] == NOT_DETERMINED else "n/a (range < 10°)"),
+                    r["grade"],
                 ]
             )
-            flagged.append([False] * 4 + [r["flag"]])
+            flagged.append([False] * 4 + [r["flag"], False])
         doc.table(
-            ["Task", "Movement (plane)", "Right range (°)", "Left range (°)", "SI (%)"],
+            ["Task", "Movement (plane)", "Right range (°)", "Left range (°)", "SI (%)", "Grade"],
             table,
-            [0.2, 0.3, 0.15, 0.15, 0.2],
+            [0.17, 0.26, 0.13, 0.13, 0.15, 0.16],
             flagged,
-            align=["l", "l", "r", "r", "r"],
+            align=["l", "l", "r", "r", "r", "r"],
+            muted=muted,
         )

@@ -1,12 +1,26 @@
 """Out-of-plane metrics: cross-talk, knee varus thrust and stance rotation, the lumbar
-out-of-plane offset and trunk compensation, each with what it means in one sentence."""
+out-of-plane offset and trunk compensation, each with what it means in one sentence.
+
+Each number carries the grade of its angle: ``(weak)`` after it, or ``not determined`` in
+place of a clinical metric (varus thrust, stance rotation, trunk compensation, offset) whose
+plane the recording did not determine; cross-talk rows name the grade of the other angle."""
 
 from __future__ import annotations
 
 import numpy as np
 
-from motionlab.report.model import SessionView, in_order, joint_title
-from motionlab.report.pdf import MUTED, SIDE_COLOUR, SIZE, Document
+from motionlab.report.model import (
+    NOT_DETERMINED,
+    THORAX,
+    SessionView,
+    angle_grade,
+    grade_rows,
+    in_order,
+    joint_title,
+    segment_grade,
+    worst_grade,
+)
+from motionlab.report.pdf import MUTED, NOT_DETERMINED_COLOUR, SIDE_COLOUR, SIZE, Document
 from motionlab.report.text import MEANING, task_name
 
 
@@ -30,24 +44,35 @@ def _f(x: float, spec: str = ".1f") -> str:
     return text[1:] if text.startswith("-") and float(text) == 0 else text
 
 
+def _graded(text: str, grade: str) -> str:
+    """A number with its grade: as is, ``'<text> (weak)'``, or ``'not determined'``."""
+    if grade == NOT_DETERMINED:
+        return "not determined"
+    return text if grade == "determined" else f"{text} ({grade})"
+
+
 def _cross_talk(doc: Document, view: SessionView) -> None:
     data = view.metrics.get("cross_talk") or {}
     if not data:
         return
     doc.heading("Cross-talk during single-plane movements")
     doc.paragraph(MEANING["cross_talk"], colour=MUTED)
-    rows, flagged = [], []
+    rows, flagged, muted = [], [], []
     for block, name, m in _items(view, data):
         joint = view.protocol.joints[name]
         for angle, e in m.items():
             if not isinstance(e, dict):
                 continue
+            grade = angle_grade(view, name, angle)[0]
+            muted.append(grade == NOT_DETERMINED)
+            on_grade = angle_grade(view, name, m["on_axis"])[0]
+            on_text = f"{m['on_axis'].replace('_', ' ')} {_f(m['on_axis_rom_deg'], '.0f')}"
             rows.append(
                 [
                     task_name(block),
                     joint_title(joint),
-                    f"{m['on_axis'].replace('_', ' ')} {_f(m['on_axis_rom_deg'], '.0f')}",
-                    angle.replace("_", " "),
+                    on_text if on_grade == "determined" else f"{on_text} ({on_grade})",
+                    angle.replace("_", " ") + ("" if grade == "determined" else f" ({grade})"),
                     _f(e["rom_deg"]),
                     _f(e["ratio_pct"], ".0f"),
                     _f(e.get("nominal_rom_deg")),
@@ -70,6 +95,7 @@ def _cross_talk(doc: Document, view: SessionView) -> None:
         [0.17, 0.12, 0.17, 0.13, 0.09, 0.09, 0.13, 0.1],
         flagged,
         align=["l", "l", "l", "l", "r", "r", "r", "r"],
+        muted=muted,
     )
 
 
@@ -82,21 +108,30 @@ def _gait(doc: Document, view: SessionView) -> None:
     rows, flagged, strides = [], [], []
     for task, name, g in _items(view, data):
         joint = view.protocol.joints[name]
+        varus = angle_grade(view, name, "adduction")[0]
+        rotation = angle_grade(view, name, "rotation")[0]
         rows.append(
             [
                 task_name(task),
                 joint_title(joint),
                 str(g["strides"]),
-                f"{_f(g['varus_thrust_mean_deg'])} ± {_f(g['varus_thrust_sd_deg'])}",
-                _f(g["varus_thrust_above_pct"], ".0f"),
-                f"{_f(g['stance_rotation_range_mean_deg'])} ± "
-                f"{_f(g['stance_rotation_range_sd_deg'])}",
+                _graded(
+                    f"{_f(g['varus_thrust_mean_deg'])} ± {_f(g['varus_thrust_sd_deg'])}", varus
+                ),
+                _graded(_f(g["varus_thrust_above_pct"], ".0f"), varus),
+                _graded(
+                    f"{_f(g['stance_rotation_range_mean_deg'])} ± "
+                    f"{_f(g['stance_rotation_range_sd_deg'])}",
+                    rotation,
+                ),
             ]
         )
-        flagged.append(
-            [False] * 3 + [g["varus_thrust_mean_deg"] > g["threshold_deg"]] + [False] * 2
-        )
-        strides.append((f"{joint_title(joint)}, {task_name(task)}", joint.side, g))
+        above = varus != NOT_DETERMINED and g["varus_thrust_mean_deg"] > g["threshold_deg"]
+        flagged.append([False] * 3 + [above] + [False] * 2)
+        label = f"{joint_title(joint)}, {task_name(task)}"
+        if varus != "determined":
+            label += f" ({varus})"
+        strides.append((label, joint.side if varus != NOT_DETERMINED else None, g))
     doc.table(
         [
             "Task",
@@ -119,7 +154,7 @@ def _gait(doc: Document, view: SessionView) -> None:
             np.full(len(x), k) + np.linspace(-0.15, 0.15, len(x)),
             "o",
             ms=3,
-            color=SIDE_COLOUR.get(side, SIDE_COLOUR[""]),
+            color=NOT_DETERMINED_COLOUR if side is None else SIDE_COLOUR.get(side, SIDE_COLOUR[""]),
         )
     limit = max(g["threshold_deg"] for _, _, g in strides)
     ax.axvline(limit, color="#b2182b", lw=0.8, ls="--")
@@ -138,17 +173,19 @@ def _offset(doc: Document, view: SessionView) -> None:
     doc.heading("Lumbar out-of-plane offset")
     doc.paragraph(MEANING["out_of_plane_offset"], colour=MUTED)
     rows, flagged = [], []
-    for task, _, o in _items(view, data):
+    for task, name, o in _items(view, data):
+        graded = [(r["grade"], "") for r in grade_rows(view) if r["joint"] == name]
+        grade = worst_grade(graded)[0]
         rows.append(
             [
                 task_name(task),
                 "-".join(o["axes"]),
-                _f(o["peak_deg"]),
-                _f(o["mean_deg"]),
-                f"{_f(o['above_pct'], '.0f')} (limit {o['threshold_deg']:g}°)",
+                _graded(_f(o["peak_deg"]), grade),
+                _graded(_f(o["mean_deg"]), grade),
+                _graded(f"{_f(o['above_pct'], '.0f')} (limit {o['threshold_deg']:g}°)", grade),
             ]
         )
-        flagged.append([False] * 4 + [o["above_pct"] > 0])
+        flagged.append([False] * 4 + [grade != NOT_DETERMINED and o["above_pct"] > 0])
     doc.table(
         ["Task", "Axes compared", "Peak (°)", "Mean (°)", "Time above limit (%)"],
         rows,
@@ -165,6 +202,7 @@ def _trunk(doc: Document, view: SessionView) -> None:
     doc.heading("Trunk compensation")
     doc.paragraph(MEANING["trunk_compensation"], colour=MUTED)
     rows, flagged = [], []
+    grade = segment_grade(view, THORAX)[0]
     for task in in_order(data, list(view.blocks())):
         t = data[task]
         for angle in ("flexion", "lateral_bending", "axial_rotation"):
@@ -177,12 +215,12 @@ def _trunk(doc: Document, view: SessionView) -> None:
                         "lateral_bending": "side lean (right +)",
                         "axial_rotation": "twist (left +)",
                     }[angle],
-                    f"{_f(a['min_deg'])} to {_f(a['max_deg'])}",
-                    _f(a["peak_abs_deg"]),
-                    f"{_f(a['above_pct'], '.0f')} (limit {a['threshold_deg']:g}°)",
+                    _graded(f"{_f(a['min_deg'])} to {_f(a['max_deg'])}", grade),
+                    _graded(_f(a["peak_abs_deg"]), grade),
+                    _graded(f"{_f(a['above_pct'], '.0f')} (limit {a['threshold_deg']:g}°)", grade),
                 ]
             )
-            flagged.append([False] * 3 + [a["above_pct"] > 0] * 2)
+            flagged.append([False] * 3 + [grade != NOT_DETERMINED and a["above_pct"] > 0] * 2)
     doc.table(
         ["Task", "Trunk movement", "Range (°)", "Peak (°)", "Time above limit (%)"],
         rows,

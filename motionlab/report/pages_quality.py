@@ -1,5 +1,6 @@
 """Data quality (rates, gaps, saturation, rest, magnetic disturbance, exclusions) and
-calibration quality (methods, ρ per movement, residual angles, what to repeat)."""
+calibration quality (methods, ρ per movement, residual angles, the grade of every joint angle
+with its reason, the hinge axes fitted from movement, what to repeat)."""
 
 from __future__ import annotations
 
@@ -7,10 +8,13 @@ import numpy as np
 
 from motionlab.clocksync import ClockFit, describe
 from motionlab.report.model import (
+    NOT_DETERMINED,
     SessionView,
     calibration_rows,
     excluded,
+    grade_rows,
     in_order,
+    joint_title,
     quality_rows,
 )
 from motionlab.report.pdf import MUTED, SIZE, Document, label_spans
@@ -20,7 +24,15 @@ METHODS = {
     "procrustes": "the segment frame is the best fit to two or more measured axes",
     "primary_secondary": "one axis fixed as measured, the rotation about it from the others",
     "single_axis": "one axis measured, the rotation about it from the nominal placement",
+    "nominal": "no axis measured: the protocol's placement hint only",
 }
+GRADE_WORDS = (
+    "Determined: every axis the angle depends on was measured. Weak: one axis measured and the "
+    "rest taken from the placement the protocol describes, a weak hinge fit, or a calibration "
+    "the checks flagged: read it with care. Not determined: no axis of a segment was measured, "
+    "or a fit failed: the curves are shown grey and no finding is stated."
+)
+SIGN_WORDS = {"anatomy": "anatomy (it flexes one way)", "nominal": "the placement hint"}
 
 
 def _f(x: float, spec: str = ".1f") -> str:
@@ -140,6 +152,90 @@ def data_quality_page(doc: Document, view: SessionView) -> None:
     doc.bullets(excluded(view) or ["nothing"])
 
 
+def _grades_table(doc: Document, view: SessionView) -> None:
+    """Each joint's angles with their grade and the reason; a joint's angles that share both
+    are one row."""
+    groups: list[list] = []
+    for r in grade_rows(view):
+        key = (r["joint"], r["grade"], r["reason"])
+        if groups and groups[-1][0] == key:
+            groups[-1][1].append(r["angle"])
+        else:
+            groups.append([key, [r["angle"]]])
+    rows, muted = [], []
+    for (joint, grade, reason), angles in groups:
+        rows.append(
+            [
+                joint_title(view.protocol.joints[joint]),
+                ", ".join(a.replace("_", " ") for a in angles),
+                grade,
+                reason or "its axes were measured",
+            ]
+        )
+        muted.append(grade == NOT_DETERMINED)
+    doc.heading("What the recording determined: a grade for every angle")
+    doc.paragraph(GRADE_WORDS, size=SIZE["small"], colour=MUTED)
+    doc.table(
+        ["Joint", "Angles", "Grade", "Why"],
+        rows,
+        [0.2, 0.22, 0.16, 0.42],
+        align=["l", "l", "l", "l"],
+        muted=muted,
+    )
+
+
+def _direction(fit: dict) -> str:
+    """How the hinge direction was decided, in words."""
+    sign = SIGN_WORDS.get(str(fit.get("sign", "")), str(fit.get("sign", "")) or "-")
+    rel = str(fit.get("relative_sign", ""))
+    both = {"measured": "the data", "nominal": "the placement hint"}.get(rel, "-")
+    return f"positive direction: {sign}; matched between the two segments by {both}"
+
+
+def _hinges_table(doc: Document, view: SessionView) -> None:
+    """The hinge axes fitted from ordinary movement: verdict, consistency, residual, direction."""
+    hinges = view.session.results.get("calibration", {}).get("hinges") or {}
+    if not hinges:
+        return
+    rows, flagged = [], []
+    for name in in_order(hinges, list(view.protocol.joints)):
+        fit = hinges[name]
+        joint = view.protocol.joints.get(name)
+        verdict = str(fit.get("verdict", ""))
+        reasons = "; ".join(str(r) for r in fit.get("reasons", []))
+        rows.append(
+            [
+                joint_title(joint) if joint else name,
+                verdict,
+                _f(float(fit.get("consistency_deg", np.nan))),
+                _f(float(fit.get("relative_residual", np.nan)), ".2f"),
+                _direction(fit) + (f". {reasons}" if reasons else ""),
+            ]
+        )
+        flagged.append([False, verdict != "determined"] + [False] * 3)
+    doc.heading("Hinge axes from movement")
+    doc.paragraph(
+        "Where no functional movement measured a hinge's axis, it was fitted to the ordinary "
+        "movement of its two segments. Consistency: largest angle between the axes fitted on "
+        "parts of the movement; residual: RMS misfit relative to the angular rate off the axis.",
+        size=SIZE["small"],
+        colour=MUTED,
+    )
+    doc.table(
+        [
+            "Joint",
+            "Verdict",
+            "Consistency (°)",
+            "Residual (ratio)",
+            "How the direction was decided",
+        ],
+        rows,
+        [0.2, 0.12, 0.13, 0.12, 0.43],
+        flagged,
+        align=["l", "l", "r", "r", "l"],
+    )
+
+
 def calibration_page(doc: Document, view: SessionView) -> None:
     cal = view.session.results.get("calibration", {})
     doc.section(
@@ -160,7 +256,10 @@ def calibration_page(doc: Document, view: SessionView) -> None:
         for name, rng in ((k, steps[k]) for k in in_order(steps, list(kinds)))
     ]
     doc.heading("Steps found in the recording")
-    doc.table(["Step", "Kind", "Time (s)"], rows, [0.4, 0.2, 0.4], align=["l", "l", "l"])
+    if rows:
+        doc.table(["Step", "Kind", "Time (s)"], rows, [0.4, 0.2, 0.4], align=["l", "l", "l"])
+    else:
+        doc.paragraph("none: the protocol has no calibration steps", size=SIZE["small"])
 
     doc.heading("Per segment and step")
     rows, flagged = [], []
@@ -174,7 +273,7 @@ def calibration_page(doc: Document, view: SessionView) -> None:
                 r["method"].replace("_", " "),
                 r["step"].replace("_", " "),
                 _f(r["rho"], ".3f"),
-                f"≥ {floor:.2f}",
+                f"≥ {floor:.2f}" if r["step"] != "none" else "-",
                 _f(r["residual_deg"]),
                 "yes" if r["used"] else "no",
                 "ok" if r["segment_ok"] else "check",
@@ -192,7 +291,9 @@ def calibration_page(doc: Document, view: SessionView) -> None:
         flagged,
         align=["l", "l", "l", "r", "r", "r", "r", "r"],
     )
-    messages = [
+    _grades_table(doc, view)
+    _hinges_table(doc, view)
+    messages = [str(w) for w in cal.get("warnings", [])] + [
         m
         for res in cal.get("segments", {}).values()
         for m in res.get("quality", {}).get("messages", [])

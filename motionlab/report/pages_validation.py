@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 
 from motionlab.kinematics.joint_types import angle_columns
-from motionlab.report.model import SessionView, in_order, joint_title
+from motionlab.report.model import NOT_DETERMINED, SessionView, angle_grades, in_order, joint_title
 from motionlab.report.pdf import MUTED, SIZE, Document
 
 
@@ -22,11 +22,14 @@ def _f(x: Any, spec: str = ".2f") -> str:
 
 
 def _angle_table(doc: Document, view: SessionView, angles: dict[str, Any]) -> None:
-    rows = []
+    rows, muted = [], []
+    grades = angle_grades(view)
     order = [col for j in view.joints() for _, col in angle_columns(j)]
     for col, v in ((c, angles[c]) for c in in_order(angles, order)):
         if not isinstance(v, dict) or "rmse_deg" not in v:
             continue
+        grade = grades.get(col, ("determined", ""))[0]
+        muted.append(grade == NOT_DETERMINED)
         lo, hi = (list(v.get("loa_deg", [np.nan, np.nan])) + [np.nan, np.nan])[:2]
         rows.append(
             [
@@ -38,6 +41,7 @@ def _angle_table(doc: Document, view: SessionView, angles: dict[str, Any]) -> No
                 _f(v.get("max_abs_deg"), ".1f"),
                 _f(v.get("r"), ".3f"),
                 _f(v.get("cmc"), ".3f"),
+                grade,
             ]
         )
     if not rows:
@@ -53,15 +57,17 @@ def _angle_table(doc: Document, view: SessionView, angles: dict[str, Any]) -> No
             "Max |error| (°)",
             "r",
             "CMC",
+            "Grade",
         ],
         rows,
-        [0.22, 0.09, 0.09, 0.18, 0.13, 0.11, 0.09, 0.09],
-        align=["l"] + ["r"] * 7,
+        [0.18, 0.08, 0.08, 0.15, 0.11, 0.1, 0.07, 0.07, 0.16],
+        align=["l"] + ["r"] * 8,
+        muted=muted,
     )
     doc.paragraph(
         "Bias: mean IMU minus optical; limits of agreement: bias ± 1.96 SD of the difference "
         "(Bland & Altman); CMC: coefficient of multiple correlation of the two curves (1 = same "
-        "shape).",
+        "shape). Grade: whether the recording determined the angle (calibration page).",
         size=SIZE["small"],
         colour=MUTED,
     )

@@ -36,6 +36,8 @@ FLAG_COLOUR = "#b2182b"
 SIDE_COLOUR = {"r": "#1a9850", "l": "#d73027", "": "#2166ac"}  # right green, left red
 BAND_COLOUR = "#bdbdbd"
 MUTED = "#555555"
+MUTED_ROW = "#8c8c8c"  # a table row of an angle that is not determined
+NOT_DETERMINED_COLOUR = "#a0a0a0"  # its curves
 RC = {
     "font.size": SIZE["body"],
     "axes.titlesize": SIZE["body"],
@@ -254,10 +256,12 @@ class Document:
         flagged: Sequence[Sequence[bool]] | None = None,
         align: Sequence[str] | None = None,
         size: float = SIZE["table"],
+        muted: Sequence[bool] | None = None,
     ) -> None:
         """A table across the page; ``widths`` are fractions of the page width (sum ≤ 1).
 
         Cells wrap inside their column; ``flagged[i][j]`` draws cell ``(i, j)`` bold in red;
+        ``muted[i]`` draws row ``i`` grey (a number shown but not stated as a finding);
         ``align`` is ``"l"`` or ``"r"`` per column. The header repeats on continuation pages.
         """
         cols = [w * WIDTH for w in widths]
@@ -269,7 +273,9 @@ class Document:
         def cell_lines(row: Sequence[str], weight: str) -> list[list[str]]:
             return [wrap(str(c), w - pad, size, weight) for c, w in zip(row, cols, strict=True)]
 
-        def draw(row_lines: list[list[str]], weight: str, flags: Sequence[bool]) -> None:
+        def draw(
+            row_lines: list[list[str]], weight: str, flags: Sequence[bool], grey: bool = False
+        ) -> None:
             for j, lines in enumerate(row_lines):
                 for k, line in enumerate(lines):
                     x = xs[j] + (cols[j] - pad if align[j] == "r" else 0.0)
@@ -281,7 +287,7 @@ class Document:
                         va="baseline",
                         weight="bold" if flags[j] else weight,
                         ha="right" if align[j] == "r" else "left",
-                        color=FLAG_COLOUR if flags[j] else "black",
+                        color=FLAG_COLOUR if flags[j] else (MUTED_ROW if grey else "black"),
                     )
             self.y += max(len(c) for c in row_lines) * step + 0.25 * step
 
@@ -308,7 +314,8 @@ class Document:
                 if head:
                     draw(head, "bold", [False] * len(cols))
                     rule()
-            draw(lines, "normal", flagged[i] if flagged else [False] * len(cols))
+            grey = bool(muted[i]) if muted else False
+            draw(lines, "normal", flagged[i] if flagged else [False] * len(cols), grey)
         self.y += 0.12
 
     # ------------------------------------------------------------------------------ plots

@@ -3,6 +3,11 @@
 Numbers are rounded to whole degrees (the accuracy of wearable-sensor joint angles does not
 support more) and every sentence names the side, the joint, the movement and the task, so that it
 can be read on its own ("Right knee flexion range 5–58° during gait, below the normal 0–65°").
+
+Findings follow the grade of their angle (:func:`~motionlab.report.model.grade_rows`): a
+``weak`` angle's finding ends with "(weak: <reason>)"; for a ``not determined`` angle no finding
+is stated, one sentence says why instead ("Right knee internal-external rotation is not
+reported: no axis of shank_r was measured (nominal placement only).").
 """
 
 from __future__ import annotations
@@ -13,13 +18,21 @@ import numpy as np
 
 from motionlab.kinematics.joint_types import JOINT_TYPES
 from motionlab.report.model import (
+    NOT_DETERMINED,
     SIDE_NAMES,
+    THORAX,
+    WEAK,
     SessionView,
+    angle_grade,
     angle_title,
     calibration_rows,
+    grade_rows,
+    joint_title,
     quality_rows,
     rom_rows,
+    segment_grade,
     symmetry_rows,
+    worst_grade,
 )
 
 #: what each out-of-plane metric means, in one sentence
@@ -96,6 +109,28 @@ def rom_sentence(row: dict[str, Any]) -> str:
     return text + "."
 
 
+def not_reported(what: str, reason: str) -> str:
+    """``'<What> is not reported: <reason>.'`` (``what`` capitalised)."""
+    why = reason or "the calibration did not determine it"
+    return f"{what[0].upper()}{what[1:]} is not reported: {why}."
+
+
+def angle_words(view: SessionView, joint: str, angle: str) -> str:
+    """``'Right knee internal-external rotation'``, ``'Ball12 (ball joint) rotation about z'``."""
+    j = view.protocol.joints[joint]
+    return f"{joint_title(j)} {angle_title(j.type, angle)}"
+
+
+def graded(sentence: str, grade: str, reason: str, what: str) -> str:
+    """A finding as its grade allows: kept (``determined``), marked ``(weak: <reason>)``, or
+    replaced by :func:`not_reported` (``not determined``; ``what`` names the angle)."""
+    if grade == NOT_DETERMINED:
+        return not_reported(what, reason)
+    if grade == WEAK:
+        return f"{sentence.removesuffix('.')} (weak{': ' + reason if reason else ''})."
+    return sentence
+
+
 def _oop_findings(view: SessionView) -> list[str]:
     out = []
     m = view.metrics
@@ -108,29 +143,43 @@ def _oop_findings(view: SessionView) -> list[str]:
                 continue
             limit = g.get("threshold_deg", 3.0)
             verdict = "above" if thrust > limit else "within"
-            out.append(
+            sentence = (
                 f"{side} knee varus thrust {thrust:.0f}° in stance during {task_name(task)} "
                 f"({verdict} the {limit:g}° this protocol flags; {g['strides']} strides)."
             )
+            grade, reason = angle_grade(view, name, "adduction")
+            what = f"{joint_title(joint)} varus thrust"
+            out.append(graded(sentence, grade, reason, what))
+    trunk_grade, trunk_reason = segment_grade(view, THORAX)
     for task, t in (m.get("trunk_compensation") or {}).items():
-        if t.get("compensated"):
+        if trunk_grade == NOT_DETERMINED:
+            out.append(not_reported(f"trunk compensation during {task_name(task)}", trunk_reason))
+        elif t.get("compensated"):
             parts = [
                 f"{TRUNK_WORDS[k]} up to {t[k]['peak_abs_deg']:.0f}°"
                 for k in TRUNK_WORDS
                 if t[k]["above_pct"] > 0
             ]
-            out.append(
+            sentence = (
                 f"Trunk compensation during {task_name(task)}: {', '.join(parts)} away from the "
                 "neutral posture."
             )
+            out.append(graded(sentence, trunk_grade, trunk_reason, "trunk compensation"))
     for task, joints in (m.get("out_of_plane_offset") or {}).items():
-        for o in joints.values():
-            if o["above_pct"] > 0:
-                out.append(
+        for name, o in joints.items():
+            grade, reason = worst_grade(
+                [(r["grade"], r["reason"]) for r in grade_rows(view) if r["joint"] == name]
+            )
+            what = f"trunk out-of-plane offset during {task_name(task)}"
+            if grade == NOT_DETERMINED:
+                out.append(not_reported(what, reason))
+            elif o["above_pct"] > 0:
+                sentence = (
                     f"Trunk out-of-plane offset during {task_name(task)}: "
                     f"peak {o['peak_deg']:.0f}°, "
                     f"above {o['threshold_deg']:g}° for {o['above_pct']:.0f}% of the movement."
                 )
+                out.append(graded(sentence, grade, reason, what))
     return out
 
 
@@ -141,20 +190,27 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
     ranges within normal of the primary (flexion) angles, and data or calibration problems.
     """
     rows = [r for r in rom_rows(view) if r["normal"] is not None]
-    outside = [rom_sentence(r) for r in rows if r["status"] not in ("within", "")]
-    inside = [rom_sentence(r) for r in rows if r["status"] == "within" and r["angle"] == "flexion"]
+
+    def sentence(r: dict[str, Any]) -> str:
+        what = angle_words(view, r["joint"], r["angle"])
+        return graded(rom_sentence(r), r["grade"], r["reason"], what)
+
+    outside = [sentence(r) for r in rows if r["status"] not in ("within", "")]
+    unknown = [sentence(r) for r in rows if r["grade"] == NOT_DETERMINED]
+    inside = [sentence(r) for r in rows if r["status"] == "within" and r["angle"] == "flexion"]
     asym = []
     for s in symmetry_rows(view):
         if s["flag"] and s["angle"] == "flexion":  # other planes: see the comparison page
             joint = _joint_words(s)[1]
             angle = angle_title(s["joint_type"], s["angle"])
-            asym.append(
+            text = (
                 f"{joint.capitalize()} {angle} range during {task_name(s['task'])} differs "
                 f"between sides: right {s['right_rom_deg']:.0f}°, left {s['left_rom_deg']:.0f}° "
                 f"(symmetry index {s['symmetry_index_pct']:+.0f}%)."
             )
+            asym.append(graded(text, s["grade"], s["reason"], ""))
     problems = quality_notes(view)
-    items = outside + asym + _oop_findings(view) + inside
+    items = list(dict.fromkeys(outside + unknown + asym + _oop_findings(view) + inside))
     if len(items) > limit - len(problems[:2]):
         items = items[: limit - len(problems[:2])]
     if not items:
