@@ -198,6 +198,35 @@ def estimate_clock(
                     moving_s, status)  # fmt: skip
 
 
+def joint_centre_forces(
+    reference: SensorStream, sensor: SensorStream
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Specific force at the shared joint centre seen by each sensor, in its own frame.
+
+    ``(time s, f_J reference (N, 3), f_J sensor (N, 3))`` on the reference's uniform grid, from
+    the lever arms and accelerometer biases fitted as for the clock (the clocks taken as one;
+    :func:`synchronise` first). ``None`` when the two share too little movement. Rotated into
+    the earth frame the two vectors are one (Seel et al. 2012), which ties their headings.
+    """
+    if min(_finite_samples(reference), _finite_samples(sensor)) < MIN_SAMPLES:
+        return None
+    a, b = _signals(reference), _signals(sensor)
+    inside = (a.time >= b.time[0]) & (a.time <= b.time[-1])
+    t, ref = a.time[inside], a.values[inside]
+    if len(t) < 10:
+        return None
+    dt = float(t[1] - t[0])
+    sos = butter(4, LOWPASS_HZ, fs=1.0 / dt, output="sos")
+    other = b.spline(t)
+    rates = np.hypot(np.linalg.norm(ref[:, 3:6], axis=1), np.linalg.norm(other[:, 3:6], axis=1))
+    use = np.flatnonzero(sosfiltfilt(sos, rates) > MOVING_RAD_S)
+    if len(use) * dt < MIN_MOVING_S:
+        return None
+    stride = max(1, int(0.25 / (LOWPASS_HZ * dt)))
+    p = _Pair(t, ref, b.spline, float(t.mean()), sos, use[::stride]).body(0.0)
+    return t, _centre(ref, p[:3], p[6:9]), _centre(other, p[3:6], p[9:12])
+
+
 @dataclass
 class _Pair:
     """Residuals LP(‖f₁ + b₁ + K₁ r₁‖ − ‖f₂ + b₂ + K₂ r₂‖) at reference times ``t[use]`` (s),

@@ -100,6 +100,7 @@ def calibrate(
     contradicted = placement.contradicted(protocol, records)
     hinges = placement.movement_hinges(session, protocol, streams, steps, records, contradicted)
     unsure = placement.orient_by_data(protocol, records, hinges, contradicted)
+    centres = placement.centre_headings(session, protocol, streams)
     segments = {}
     for seg in streams:
         res = mounting.fit(seg, protocol, records[seg])
@@ -129,6 +130,7 @@ def calibrate(
         "steps": {k: (list(v) if v else None) for k, v in steps.items()},
         "segments": segments,
         "hinges": {k: v.to_tree() for k, v in hinges.items()},
+        "centres": centres,
         "warnings": notes,
         "ok": all(s["quality"]["ok"] for s in segments.values()),
     }
@@ -218,11 +220,13 @@ def segment_orientations(
     With ``align_heading`` each joint's distal segment is turned about the vertical by the
     heading track ``δ(t)`` of the joint, joints taken along the chain (:func:`chain_order`):
     for a joint calibrated from movement the hinge constraint over the whole recording
-    (:func:`.heading.hinge_anchors`), or the headings fitted with a two-axis joint's axes
-    (added to the track its proximal segment was turned by); otherwise the anchors of the
+    (:func:`.heading.hinge_anchors`), or the headings fitted with a two-axis joint's axes or
+    from a ball joint's shared centre (added to the track its proximal segment was turned by);
+    otherwise the anchors of the
     protocol's steps and rests (:func:`heading_anchors`). Without a calibration entry for a
     segment its sensor frame is used as the segment frame. ``corrections``, when given, receives
-    per joint the heading correction applied: ``source`` (``hinge``, ``two_axes``, ``steps``),
+    per joint the heading correction applied: ``source`` (``hinge``, ``two_axes``, ``centre``,
+    ``steps``),
     the number of ``anchors``, and the correction's mean, range and drift (degrees, °/min).
     """
     out = {}
@@ -243,8 +247,11 @@ def segment_orientations(
         fit = calibration.get("hinges", {}).get(joint.name)
         if fit is not None and fit.get("used_for", "axes") != "axes":
             fit = None  # the steps measured this joint's axes: their anchors tie its heading
+        centre = calibration.get("centres", {}).get(joint.name)
+        if fit is None and centre is not None:
+            fit = {"verdict": "determined", "kind": "centre"} | centre
         if fit is not None and fit["verdict"] != "not determined" and "heading_times" in fit:
-            source = "two_axes"
+            source = fit.get("kind", "two_axes")
             times = np.asarray(fit["heading_times"], float)
             deltas = np.asarray(fit["heading_deltas"], float)
             if p in turned:  # the fit was made on the proximal sensor's own heading

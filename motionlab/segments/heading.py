@@ -44,6 +44,7 @@ HINGE_WINDOW_S = 4.0
 HINGE_STEP_S = 1.0
 HINGE_MIN_HORIZONTAL = 0.3  # mean horizontal part of the unit axis, at least
 HINGE_MEDIAN_WINDOWS = 5  # anchors are median-filtered over this many windows
+CENTRE_MIN_M_S2 = 0.5  # RMS horizontal joint-centre acceleration a window needs
 
 
 def heading_from_pose(q_proximal: np.ndarray, q_distal: np.ndarray) -> float:
@@ -97,6 +98,42 @@ def hinge_anchors(
             continue
         times.append(float(np.mean(t[w][ok])))
         deltas.append(_procrustes_2d(a[w][ok], d[w][ok]))
+    return _median_track(times, deltas)
+
+
+def centre_anchors(
+    t: np.ndarray,
+    q_proximal: np.ndarray,
+    q_distal: np.ndarray,
+    f_proximal: np.ndarray,
+    f_distal: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Times (s) and heading offsets δ (rad) from the acceleration of a shared joint centre.
+
+    ``f_*`` (N, 3) are the specific force at the joint centre in each sensor's frame
+    (:func:`motionlab.clocksync.joint_centre_forces`) and ``q_*`` the sensors' 6-D orientations
+    on ``t``: in the earth frame the two are one vector, so the turn about the vertical that
+    brings the distal's horizontal part onto the proximal's is δ (after Weygers et al. 2020 and
+    Laidig et al. 2017, for joints without a hinge). One anchor per ``HINGE_WINDOW_S`` window
+    every ``HINGE_STEP_S``, where the horizontal acceleration is at least ``CENTRE_MIN_M_S2``
+    RMS, median-filtered as :func:`hinge_anchors`.
+    """
+    a = rot.rotate(q_proximal, f_proximal)
+    d = rot.rotate(q_distal, f_distal)
+    horizontal = np.hypot(a[:, 0], a[:, 1])
+    times, deltas = [], []
+    for start in np.arange(t[0], t[-1] - HINGE_WINDOW_S / 2, HINGE_STEP_S):
+        w = slice(*np.searchsorted(t, [start, start + HINGE_WINDOW_S]))
+        ok = np.isfinite(horizontal[w]) & np.all(np.isfinite(d[w]), axis=1)
+        if ok.sum() < 3 or np.sqrt(np.mean(horizontal[w][ok] ** 2)) < CENTRE_MIN_M_S2:
+            continue
+        times.append(float(np.mean(t[w][ok])))
+        deltas.append(_procrustes_2d(a[w][ok], d[w][ok]))
+    return _median_track(times, deltas)
+
+
+def _median_track(times: list[float], deltas: list[float]) -> tuple[np.ndarray, np.ndarray]:
+    """Anchors unwrapped and median-filtered over ``HINGE_MEDIAN_WINDOWS`` neighbours."""
     if not times:
         return np.empty(0), np.empty(0)
     deltas_u = np.unwrap(np.array(deltas))

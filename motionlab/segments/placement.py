@@ -204,3 +204,35 @@ def orient_by_data(
             else:
                 unsure.setdefault(seg, []).append(rec["step"])
     return unsure
+
+
+def centre_headings(
+    session: Session, protocol: Protocol, streams: Streams
+) -> dict[str, dict[str, Any]]:
+    """Heading ties of the ball joints from their shared joint centre, by joint name.
+
+    ``{joint: {"heading_times": (K,) s, "heading_deltas": (K,) rad, "anchors": K}}`` for the
+    joints of type ``ball`` whose two sensors share enough movement
+    (:func:`motionlab.clocksync.joint_centre_forces`, :func:`.heading.centre_anchors`).
+    """
+    from motionlab import rotations as rot
+    from motionlab.clocksync import joint_centre_forces
+    from motionlab.kinematics.session_angles import sensor_orientation
+    from motionlab.segments import heading, sensor_for_segment
+
+    out = {}
+    for name, joint in protocol.joints.items():
+        if joint.type != "ball" or joint.proximal not in streams or joint.distal not in streams:
+            continue
+        labels = [sensor_for_segment(session, s) for s in (joint.proximal, joint.distal)]
+        forces = joint_centre_forces(*(session.sensors[k] for k in labels))
+        if forces is None:
+            continue
+        t, f_p, f_d = forces
+        q_p, q_d = (
+            rot.resample(session.sensors[k].time, sensor_orientation(session, k), t) for k in labels
+        )
+        times, deltas = heading.centre_anchors(t, q_p, q_d, f_p, f_d)
+        if len(times):
+            out[name] = {"heading_times": times, "heading_deltas": deltas, "anchors": len(times)}
+    return out
