@@ -38,6 +38,13 @@ from motionlab.pipeline import run_pipeline
     help="Output folder: session.h5, report.pdf, report.txt, csv/.",
 )
 @click.option(
+    "--filter",
+    "estimator",
+    default="default",
+    show_default=True,
+    help="Estimator for the fusion stage (names: 'motionlab fuse --list').",
+)
+@click.option(
     "--magnetometer",
     is_flag=True,
     help="Fuse with the magnetometers (default 6-D: indoor fields turn headings mid-task).",
@@ -57,6 +64,7 @@ def command(
     map_path,
     reference,
     calibration_dir,
+    estimator,
     magnetometer,
     clock_sync,
     outdir,
@@ -76,6 +84,7 @@ def command(
       motionlab run --protocol knee --map map.yaml pelvis.txt thigh_r.txt thigh_l.txt \\
           shank_r.txt shank_l.txt --reference gait.c3d -o results/P017
       motionlab run --protocol knee sim.h5 -o results/sim
+      motionlab run --protocol knee sim.h5 --filter madgwick -o results/sim_madgwick
     """
     result = run_pipeline(
         [Path(f) for f in files],
@@ -89,5 +98,6 @@ def command(
         calibration_dir=Path(calibration_dir) if calibration_dir else None,
         magnetometer=magnetometer,
         clock_sync=clock_sync,
+        estimator=estimator,
     )
     click.echo(result.summary)
