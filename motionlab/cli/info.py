@@ -113,6 +113,15 @@ def format_summary(summary: dict) -> str:
             f"  {m['name']:<16} {_fmt(m['rate_hz'], '8.2f')} Hz  {m['n_markers']} markers"
             f"  {m['n_frames']} frames  unit {m['units']}"
         )
+        if m.get("subjects"):
+            lines.append(f"    subjects (label prefixes stripped): {', '.join(m['subjects'])}")
+        for kind, o in m.get("model_outputs", {}).items():
+            units = ", ".join(u or "unit not given" for u in o["units"])
+            names = ", ".join(o["names"][:4]) + (" …" if o["count"] > 4 else "")
+            lines.append(f"    model outputs, {kind}: {o['count']} ({units}): {names}")
+        flags = [k for k, v in m.get("flags", {}).items() if v]
+        lines.append(f"    qc flags: {', '.join(flags) if flags else 'none'}")
+        lines += [f"    warning: {w}" for w in m.get("warnings", [])]
     if summary["results"]:
         lines.append(f"results: {', '.join(summary['results'])}")
     lines.append(f"provenance entries: {len(summary['provenance'])}")
