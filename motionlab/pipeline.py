@@ -6,7 +6,9 @@ would one after the other, and writes into ``OUTDIR``:
 
 - ``session.h5``: the session with every stage's results and the provenance log;
 - ``report.pdf`` and ``report.txt`` (the report's text, page by page);
-- ``csv/``: the report's CSV tables (:mod:`motionlab.report.csv`).
+- ``csv/``: the report's CSV tables (:mod:`motionlab.report.csv`);
+- ``results.json``: the machine-readable results (:func:`motionlab.export.results_json`, as
+  ``motionlab export --format json`` writes them).
 
 Inputs are raw recordings (any format :func:`motionlab.io.read_any` knows; optical files among
 them become marker sets) or one motionlab session file (e.g. from ``motionlab simulate``). A
@@ -46,6 +48,7 @@ from motionlab.session import (
 
 SESSION_FILE = "session.h5"
 REPORT_FILE = "report.pdf"
+RESULTS_JSON = "results.json"
 CSV_DIR = "csv"
 
 
@@ -234,7 +237,8 @@ def _outputs(outdir: Path, force: bool) -> tuple[Path, Path, Path]:
         outdir / CSV_DIR,
     )
     if outdir.is_dir() and not force:
-        for p in (session_path, report_path, report_path.with_suffix(".txt"), csv_dir):
+        results = outdir / RESULTS_JSON
+        for p in (session_path, report_path, report_path.with_suffix(".txt"), csv_dir, results):
             if p.exists():
                 raise InputError("output exists", p, remedy="use --force to replace it")
     return session_path, report_path, csv_dir
@@ -325,7 +329,8 @@ def run_pipeline(
     protocol
         Protocol YAML file or the name of a packaged protocol (``knee``).
     outdir
-        Output folder (created): ``session.h5``, ``report.pdf``, ``report.txt``, ``csv/``.
+        Output folder (created): ``session.h5``, ``report.pdf``, ``report.txt``, ``csv/``,
+        ``results.json``.
     map_path
         Sensor map YAML for raw recordings (segment and side of each sensor, subject).
     reference
@@ -345,6 +350,7 @@ def run_pipeline(
     estimator
         Fusion estimator name (``motionlab fuse --list``); checked before any work.
     """
+    from motionlab.export import write_json
     from motionlab.kinematics.metrics import metrics_table
     from motionlab.report import load_views, write_report
 
@@ -408,6 +414,7 @@ def run_pipeline(
     with stages("report"):
         views = load_views([session], proto, [session_path])
         out = write_report(views, report_path, csv_dir, force=force)
+        write_json(session, outdir / RESULTS_JSON, force=force)
     table = metrics_table(session.results["metrics"])
     metrics = table[table["percent"].isna()].drop(columns="percent").reset_index(drop=True)
     summary = run_summary(views[0], out, stages.times, time.perf_counter() - t_start)
@@ -492,7 +499,7 @@ def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
     lines.append(f"outputs in {report.pdf_path.parent}:")
     lines.append(
         f"  {SESSION_FILE}, {report.pdf_path.name} ({len(report.pages)} pages), "
-        f"{report.text_path.name}, {CSV_DIR}/ ({len(report.csv_paths)} tables)"
+        f"{report.text_path.name}, {CSV_DIR}/ ({len(report.csv_paths)} tables), {RESULTS_JSON}"
     )
     steps = ", ".join(f"{k} {v:.1f}" for k, v in times.items())
     lines.append(f"time: {total_s:.1f} s ({steps})")

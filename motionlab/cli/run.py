@@ -35,7 +35,7 @@ from motionlab.pipeline import run_pipeline
     "outdir",
     required=True,
     type=click.Path(file_okay=False),
-    help="Output folder: session.h5, report.pdf, report.txt, csv/.",
+    help="Output folder: session.h5, report.pdf, report.txt, csv/, results.json.",
 )
 @click.option(
     "--filter",
@@ -77,7 +77,8 @@ def command(
     ingest → clock sync → sensor calibration (with --calibration) → fuse → calibrate → angles →
     metrics → validate (with --reference, or when the inputs hold markers) → report. Every
     intermediate result is kept in OUTDIR/session.h5; the report is OUTDIR/report.pdf with its
-    text in report.txt and its tables in OUTDIR/csv/.
+    text in report.txt and its tables in OUTDIR/csv/; OUTDIR/results.json holds the results
+    for programs (as 'motionlab export --format json' writes them).
 
     \b
     Example:
