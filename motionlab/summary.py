@@ -52,6 +52,7 @@ def session_summary(session: Session) -> dict[str, Any]:
                 "gaps": s.qc.get("gaps", []),
                 "flags": s.qc.get("flags", {}),
                 "qc": s.qc,
+                "notes": list(s.attrs.get("notes", [])),
             }
         )
     markers = [

@@ -79,6 +79,16 @@ def _sensor_lines(s: dict) -> list[str]:
         lines.append(f"    NaN in {ch}: {_spans(spans)}")
     flags = [k for k, v in s["flags"].items() if v]
     lines.append(f"    qc flags: {', '.join(flags) if flags else 'none'}")
+    if s["flags"].get("held_samples"):
+        lines.append(
+            f"    held samples: {100 * qc['held_share']:.0f} % of the rows repeat the previous one,"
+            f" ≈ {qc['effective_rate_hz']:.0f} Hz real"
+        )
+    if qc.get("identical_to"):
+        lines.append(f"    identical to: {', '.join(qc['identical_to'])} (the same data twice?)")
+    if s["flags"].get("rate_assumed"):
+        notes = [n for n in s.get("notes", []) if "assumed" in n] or ["the file gives no rate"]
+        lines.append(f"    rate assumed: {notes[0]}")
     return lines
 
 
