@@ -1,13 +1,18 @@
 """Safe output: write to a temporary file in the target folder, then rename into place.
 
 An existing output is replaced only when ``force`` is true; a failure leaves no partial file.
+The output gets the permissions a plain ``open(path, "w")`` would give: a new file the mode
+the umask allows (0644 under umask 022, not the 0600 of :func:`tempfile.mkstemp`), a replaced
+file (an in-place stage) the mode it had.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import stat
 import tempfile
+import threading
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -29,6 +34,25 @@ def check_output(path: str | Path, force: bool) -> Path:
     return path
 
 
+_UMASK_LOCK = threading.Lock()
+
+
+def current_umask() -> int:
+    """The process umask (read by setting it and restoring it at once, under a lock)."""
+    with _UMASK_LOCK:
+        mask = os.umask(0o022)
+        os.umask(mask)
+    return mask
+
+
+def output_mode(path: str | Path) -> int:
+    """Permission bits for ``path``: those of the existing file, else 0666 minus the umask."""
+    try:
+        return stat.S_IMODE(os.stat(path).st_mode)
+    except FileNotFoundError:
+        return 0o666 & ~current_umask()
+
+
 @contextlib.contextmanager
 def atomic_path(path: str | Path, force: bool = False) -> Iterator[Path]:
     """Yield a temporary path next to ``path``; on success rename it onto ``path``.
@@ -44,6 +68,7 @@ def atomic_path(path: str | Path, force: bool = False) -> Iterator[Path]:
     tmp = Path(tmp_name)
     try:
         yield tmp
+        os.chmod(tmp, output_mode(path))
         os.replace(tmp, path)
     finally:
         if tmp.exists():

@@ -30,7 +30,7 @@ import numpy as np
 from motionlab import timebase
 from motionlab.errors import InputError
 from motionlab.io import read_any
-from motionlab.qc import check_stream
+from motionlab.qc import check_stream, mark_identical_streams
 from motionlab.sensor_map import SensorMap, load_sensor_map
 from motionlab.session import MarkerSet, SensorStream, Session
 
@@ -254,6 +254,7 @@ def ingest(
             qc["resampled_to_hz"] = float(rate)
             stream.qc = qc
         session.sensors[stream.label] = stream
+    mark_identical_streams(session.sensors)
     for m, _ in markers:
         m = dataclasses.replace(
             m, time=m.time - origin, attrs={**m.attrs, "start_s": float(m.time[0])}

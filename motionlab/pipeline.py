@@ -6,7 +6,9 @@ would one after the other, and writes into ``OUTDIR``:
 
 - ``session.h5``: the session with every stage's results and the provenance log;
 - ``report.pdf`` and ``report.txt`` (the report's text, page by page);
-- ``csv/``: the report's CSV tables (:mod:`motionlab.report.csv`).
+- ``csv/``: the report's CSV tables (:mod:`motionlab.report.csv`);
+- ``results.json``: the machine-readable results (:func:`motionlab.export.results_json`, as
+  ``motionlab export --format json`` writes them).
 
 Inputs are raw recordings (any format :func:`motionlab.io.read_any` knows; optical files among
 them become marker sets) or one motionlab session file (e.g. from ``motionlab simulate``). A
@@ -46,6 +48,7 @@ from motionlab.session import (
 
 SESSION_FILE = "session.h5"
 REPORT_FILE = "report.pdf"
+RESULTS_JSON = "results.json"
 CSV_DIR = "csv"
 
 
@@ -168,10 +171,15 @@ def _announce(labels: list[str], text: str) -> list[str]:
 
 
 def _fuse(
-    session: Session, calibrated: dict[str, SensorStream], progress: bool, magnetometer: bool
+    session: Session,
+    calibrated: dict[str, SensorStream],
+    progress: bool,
+    magnetometer: bool,
+    estimator: str = "default",
 ) -> None:
-    """Every sensor with gyroscope and accelerometer, as ``motionlab fuse`` does; sensors in
-    ``calibrated`` are fused from their corrected data (the session keeps the data as recorded)."""
+    """Every sensor with gyroscope and accelerometer by ``estimator``, as ``motionlab fuse``
+    does; sensors in ``calibrated`` are fused from their corrected data (the session keeps the
+    data as recorded)."""
     usable = fusable(session)
     if not usable:
         return
@@ -180,6 +188,7 @@ def _fuse(
     try:
         fuse_session(
             session,
+            estimator,
             sensors=usable,
             force=True,
             magnetometer=magnetometer,
@@ -209,6 +218,16 @@ def _validate(
     validate(session, marker_set, None, protocol, "full" if shared_earth else "heading", seed=seed)
 
 
+def _check_estimator(name: str, magnetometer: bool) -> None:
+    """Raise :class:`InputError` before any work for an unknown estimator, or one that needs the
+    magnetometer when fusing 6-D."""
+    from motionlab.fusion import registry
+
+    est = registry.get(name)
+    if est.needs_mag and not magnetometer:
+        raise InputError(f"estimator '{name}' needs a magnetometer", remedy="add --magnetometer")
+
+
 def _outputs(outdir: Path, force: bool) -> tuple[Path, Path, Path]:
     if outdir.exists() and not outdir.is_dir():
         raise InputError("is not a folder", outdir, remedy="give a folder for the outputs")
@@ -218,7 +237,8 @@ def _outputs(outdir: Path, force: bool) -> tuple[Path, Path, Path]:
         outdir / CSV_DIR,
     )
     if outdir.is_dir() and not force:
-        for p in (session_path, report_path, report_path.with_suffix(".txt"), csv_dir):
+        results = outdir / RESULTS_JSON
+        for p in (session_path, report_path, report_path.with_suffix(".txt"), csv_dir, results):
             if p.exists():
                 raise InputError("output exists", p, remedy="use --force to replace it")
     return session_path, report_path, csv_dir
@@ -233,6 +253,7 @@ def analyse(
     stages: _Stages | None = None,
     magnetometer: bool = False,
     clock_sync: bool = True,
+    estimator: str = "default",
 ) -> None:
     """The stages after ingest, in memory: (clock sync) → (sensor calibration) → fuse →
     calibrate → angles → metrics → (validate, with ``reference`` or the session's own markers).
@@ -248,6 +269,8 @@ def analyse(
     middle of a task (knee sessions simulated with the ``typical`` preset, seeds 0-9 at 100, 60
     and 50 Hz: with the magnetometer 3 of 30 had a knee rotation RMSE of 21-23°, without it none
     above 2°). Validation then aligns each sensor's heading separately (mode ``heading``).
+
+    ``estimator`` names the fusion estimator (:func:`motionlab.fusion.registry.available`).
     """
     from motionlab.kinematics.metrics import session_metrics
     from motionlab.kinematics.session_angles import session_angles
@@ -266,7 +289,7 @@ def analyse(
             usable = fusable(session)
             calibrated, _ = apply_calibration_dir(session.sensors, calibration_dir, usable)
     with stages("fuse"):
-        _fuse(session, calibrated, stages.progress, magnetometer)
+        _fuse(session, calibrated, stages.progress, magnetometer, estimator)
     with stages("calibrate"):
         cal = calibrate(session, protocol)
         for line in cal["warnings"] if stages.progress else []:
@@ -297,6 +320,7 @@ def run_pipeline(
     calibration_dir: Path | None = None,
     magnetometer: bool = False,
     clock_sync: bool = True,
+    estimator: str = "default",
 ) -> PipelineResult:
     """Ingest → (clock sync) → (sensor calibration) → fuse → calibrate → angles → metrics →
     (validate) → report.
@@ -308,7 +332,8 @@ def run_pipeline(
     protocol
         Protocol YAML file or the name of a packaged protocol (``knee``).
     outdir
-        Output folder (created): ``session.h5``, ``report.pdf``, ``report.txt``, ``csv/``.
+        Output folder (created): ``session.h5``, ``report.pdf``, ``report.txt``, ``csv/``,
+        ``results.json``.
     map_path
         Sensor map YAML for raw recordings (segment and side of each sensor, subject).
     reference
@@ -325,7 +350,10 @@ def run_pipeline(
         Fuse with the magnetometers (default 6-D, see :func:`analyse`).
     clock_sync
         Put the IMUs on one clock from their shared joint centres (see :func:`analyse`).
+    estimator
+        Fusion estimator name (``motionlab fuse --list``); checked before any work.
     """
+    from motionlab.export import write_json
     from motionlab.kinematics.metrics import metrics_table
     from motionlab.report import load_views, write_report
 
@@ -335,6 +363,7 @@ def run_pipeline(
     if not inputs:
         raise InputError("no input files", remedy="give one or more recordings or a session file")
     proto = load_protocol(protocol)
+    _check_estimator(estimator, magnetometer)
     session_path, report_path, csv_dir = _outputs(outdir, force)
     command = shlex.join(
         ["motionlab", "run", "--protocol", str(protocol), *map(str, inputs), "-o", str(outdir)]
@@ -342,6 +371,7 @@ def run_pipeline(
         + (["--reference", str(reference)] if reference else [])
         + (["--calibration", str(calibration_dir)] if calibration_dir else [])
         + (["--seed", str(seed)] if seed else [])
+        + (["--filter", estimator] if estimator != "default" else [])
         + (["--magnetometer"] if magnetometer else [])
         + ([] if clock_sync else ["--no-clock-sync"])
     )
@@ -357,7 +387,17 @@ def run_pipeline(
     with stages("ingest"):
         session = load_inputs(inputs, map_path, command)
         check_segments(session, proto, inputs)
-    analyse(session, proto, reference, seed, calibration_dir, stages, magnetometer, clock_sync)
+    analyse(
+        session,
+        proto,
+        reference,
+        seed,
+        calibration_dir,
+        stages,
+        magnetometer,
+        clock_sync,
+        estimator,
+    )
     validated = "validation" in session.results
     session.add_provenance(
         command,
@@ -366,7 +406,7 @@ def run_pipeline(
             "protocol": str(proto.path),
             "protocol_sha256": sha256_file(proto.path),
             "seed": seed,
-            "estimator": "default",
+            "estimator": estimator,
             "magnetometer": magnetometer,
             "clock_sync": clock_sync,
             "validated": validated,
@@ -377,6 +417,7 @@ def run_pipeline(
     with stages("report"):
         views = load_views([session], proto, [session_path])
         out = write_report(views, report_path, csv_dir, force=force)
+        write_json(session, outdir / RESULTS_JSON, force=force)
     table = metrics_table(session.results["metrics"])
     metrics = table[table["percent"].isna()].drop(columns="percent").reset_index(drop=True)
     summary = run_summary(views[0], out, stages.times, time.perf_counter() - t_start)
@@ -482,7 +523,7 @@ def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
     lines.append(f"outputs in {report.pdf_path.parent}:")
     lines.append(
         f"  {SESSION_FILE}, {report.pdf_path.name} ({len(report.pages)} pages), "
-        f"{report.text_path.name}, {CSV_DIR}/ ({len(report.csv_paths)} tables)"
+        f"{report.text_path.name}, {CSV_DIR}/ ({len(report.csv_paths)} tables), {RESULTS_JSON}"
     )
     steps = ", ".join(f"{k} {v:.1f}" for k, v in times.items())
     lines.append(f"time: {total_s:.1f} s ({steps})")

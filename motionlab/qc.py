@@ -18,11 +18,21 @@ flag                        raised when
 ``mag_norm_out_of_range``   median ‖m‖ outside 20–70 µT (Earth's field); skipped when the
                             reader had to assume the field's scale (Xsens a.u.)
 ``nan_spans``               any channel has samples that are not numbers
+``held_samples``            ≥ 20 % of the rows repeat the previous row exactly in every
+                            channel: the device sent a slower stream at a faster rate (a
+                            166.67 Hz file with two rows in three repeated is ≈ 50 Hz real);
+                            ``qc["held_share"]`` and ``qc["effective_rate_hz"]`` say how much
+``identical_stream``        the sensor's data equal another sensor's sample for sample
+                            (``qc["identical_to"]``; set by :func:`mark_identical_streams`)
+``rate_assumed``            the reader had to assume the sampling rate (e.g. an Xsens export
+                            without 'Update Rate'); times rest on that assumption
+``mag_scale_assumed``       the magnetometer's scale was assumed (arbitrary units)
 ==========================  ===============================================================
 """
 
 from __future__ import annotations
 
+import hashlib
 from typing import Any
 
 import numpy as np
@@ -39,6 +49,7 @@ MAG_RANGE_UT = (20.0, 70.0)
 ACC_REST_RANGE = (7.8, 11.8)  # m/s²
 JITTER_LIMIT = 0.1  # relative to the nominal interval
 REST_GYR = 0.2  # rad/s: below this the sensor is taken to be at rest
+HELD_SHARE = 0.2  # share of rows repeating the previous one above which samples are "held"
 
 
 def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -97,6 +108,43 @@ def dropped_packets(counter: np.ndarray) -> int:
     return int(np.clip(step - 1, 0, None).sum())
 
 
+def held_rows(stream: SensorStream) -> int:
+    """Rows (after the first) equal to the previous row in every channel, bit for bit (a row
+    with a NaN never counts): samples a device held and sent again."""
+    arrays = [getattr(stream, ch) for ch in SENSOR_CHANNELS if getattr(stream, ch) is not None]
+    n = len(stream.time)
+    if not arrays or n < 3:
+        return 0
+    same = np.ones(n - 1, dtype=bool)
+    for a in arrays:
+        a = np.asarray(a).reshape(n, -1)
+        same &= np.all(a[1:] == a[:-1], axis=1)
+    return int(same.sum())
+
+
+def mark_identical_streams(sensors: dict[str, SensorStream]) -> dict[str, list[str]]:
+    """Flag sensors whose channels are identical, sample for sample, to another sensor's (the
+    same file given twice, or a channel map pointing two sensors at the same columns): sets
+    ``qc["identical_to"]`` and ``qc["flags"]["identical_stream"]``; returns label → others."""
+    groups: dict[str, list[str]] = {}
+    for label, s in sensors.items():
+        if not s.channels:
+            continue
+        h = hashlib.sha256(",".join(s.channels).encode())
+        for ch in s.channels:
+            h.update(np.ascontiguousarray(getattr(s, ch), dtype=float).tobytes())
+        groups.setdefault(h.hexdigest(), []).append(label)
+    out = {}
+    for labels in groups.values():
+        for label in labels if len(labels) > 1 else []:
+            others = [k for k in labels if k != label]
+            out[label] = others
+            qc = sensors[label].qc
+            qc["identical_to"] = others
+            qc.setdefault("flags", {})["identical_stream"] = True
+    return out
+
+
 def check_stream(stream: SensorStream, gap_max: float) -> dict[str, Any]:
     """Rate, jitter, saturation, unit plausibility and NaN spans of ``stream`` (see module)."""
     t = np.asarray(stream.time, dtype=float)
@@ -150,6 +198,14 @@ def check_stream(stream: SensorStream, gap_max: float) -> dict[str, Any]:
         qc["mag_norm_ut"] = m
         if not stream.attrs.get("mag_scale_assumed"):
             flags["mag_norm_out_of_range"] = not (MAG_RANGE_UT[0] <= m <= MAG_RANGE_UT[1])
+    held = held_rows(stream)
+    share = held / max(len(t) - 1, 1)
+    qc["held_samples"] = held
+    qc["held_share"] = share
+    qc["effective_rate_hz"] = qc["rate_hz"] * (1.0 - share)
+    flags["held_samples"] = share >= HELD_SHARE
+    flags["rate_assumed"] = bool(stream.attrs.get("rate_assumed"))
+    flags["mag_scale_assumed"] = bool(stream.attrs.get("mag_scale_assumed"))
     counter = stream.extra.get("packet_counter")
     if counter is not None:
         qc["dropped_packets"] = dropped_packets(counter)

@@ -5,7 +5,9 @@ Data model (SI units, first array dimension is time):
 - :class:`SensorStream`: one IMU — ``time`` (s), ``acc`` (m/s², specific force), ``gyr`` (rad/s),
   ``mag`` (µT), optional vendor orientation ``quat`` (N×4, sensor → ENU earth, scalar first).
 - :class:`MarkerSet`: one optical recording — marker ``positions`` (N×M×3, m, NaN = not seen),
-  ``residuals`` (N×M, m), and optional rigid-body orientations.
+  ``residuals`` (N×M, m), optional rigid-body orientations, and the model outputs a C3D file
+  carries beside its markers (:class:`ModelOutput`: joint angles, forces, moments, powers… in
+  the unit the file gives).
 - :class:`Session`: sensors, marker sets, subject/session metadata, stage ``results`` (a tree of
   dicts whose leaves are arrays or JSON-able values) and the provenance log.
 
@@ -14,6 +16,7 @@ HDF5 layout (``h5dump`` shows it)::
     /                       attrs: format, schema_version, metadata (JSON)
     /sensors/<label>/       time, acc, gyr, mag, quat, extra/<name>; attrs: serial, vendor, ...
     /markers/<name>/        time, positions, residuals, rigid_bodies/<name>; attrs: labels, ...
+    /markers/<name>/model_outputs/<kind>   (N×K×3) one dataset per kind; attrs: labels, units
     /results/<stage>/...    groups = dicts, datasets = arrays, attrs = JSON values
     /provenance             one JSON object per entry (software version, command, inputs' SHA-256)
 
@@ -89,12 +92,32 @@ class SensorStream:
         return float(self.time[-1] - self.time[0]) if len(self.time) > 1 else 0.0
 
 
+#: model output kinds, as C3D names their POINT groups (``POINT:ANGLES`` → ``angles``)
+MODEL_OUTPUT_KINDS = ("angles", "forces", "moments", "powers", "scalars", "reactions")
+
+
+@dataclass
+class ModelOutput:
+    """One model output of an optical recording (a C3D ``POINT`` that is not a marker).
+
+    ``kind`` is one of :data:`MODEL_OUTPUT_KINDS`; ``data`` is (N, 3) on the marker set's
+    ``time``, in ``unit`` as the file gives it (e.g. ``deg`` for Plug-in Gait ``LKneeAngles``,
+    ``Nmm`` for moments; not converted to SI), NaN where invalid.
+    """
+
+    name: str
+    kind: str
+    unit: str
+    data: np.ndarray
+
+
 @dataclass
 class MarkerSet:
     """Optical motion capture: marker trajectories and/or rigid-body orientations.
 
     ``positions`` is N×M×3 in m with NaN where a marker was not seen; ``residuals`` N×M in m
-    (NaN where unknown); ``rigid_bodies`` maps a body name to N×4 quaternions (body → lab frame).
+    (NaN where unknown); ``rigid_bodies`` maps a body name to N×4 quaternions (body → lab frame);
+    ``model_outputs`` maps a name to a :class:`ModelOutput` (joint angles etc., not markers).
     """
 
     name: str
@@ -105,10 +128,15 @@ class MarkerSet:
     rigid_bodies: dict[str, np.ndarray] = field(default_factory=dict)
     source_units: dict[str, str] = field(default_factory=dict)
     attrs: dict[str, Any] = field(default_factory=dict)
+    model_outputs: dict[str, ModelOutput] = field(default_factory=dict)
 
     @property
     def rate_hz(self) -> float:
         return estimate_rate(self.time)
+
+    def outputs_of(self, kind: str) -> dict[str, ModelOutput]:
+        """The model outputs of one kind (``"angles"``…), by name."""
+        return {k: o for k, o in self.model_outputs.items() if o.kind == kind}
 
     @property
     def n_markers(self) -> int:
@@ -239,6 +267,8 @@ def write_session(session: Session, path: str | Path) -> None:
                 rb = g.create_group("rigid_bodies", track_order=True)
                 for body, q in m.rigid_bodies.items():
                     _write_array(rb, body, q, "1")
+            if m.model_outputs:
+                _write_model_outputs(g.create_group("model_outputs", track_order=True), m)
             g.attrs["name"] = m.name
             g.attrs["labels"] = _json(list(m.labels))
             g.attrs["source_units"] = _json(m.source_units)
@@ -249,6 +279,26 @@ def write_session(session: Session, path: str | Path) -> None:
             data=np.array([_json(p) for p in session.provenance], dtype=object),
             dtype=h5py.string_dtype(),
         )
+
+
+def _write_model_outputs(group: h5py.Group, m: MarkerSet) -> None:
+    """One (N, K, 3) dataset per kind, with its output names and units as attributes."""
+    for kind in dict.fromkeys(o.kind for o in m.model_outputs.values()):
+        outs = list(m.outputs_of(kind).values())
+        data = np.stack([np.asarray(o.data, dtype=float) for o in outs], axis=1)
+        ds = group.create_dataset(kind, data=data)
+        ds.attrs["labels"] = _json([o.name for o in outs])
+        ds.attrs["units"] = _json([o.unit for o in outs])
+
+
+def _read_model_outputs(group: h5py.Group) -> dict[str, ModelOutput]:
+    out = {}
+    for kind, ds in group.items():
+        data = ds[()]
+        names, units = json.loads(ds.attrs["labels"]), json.loads(ds.attrs["units"])
+        for k, (name, unit) in enumerate(zip(names, units, strict=True)):
+            out[name] = ModelOutput(name, kind, unit, data[:, k])
+    return out
 
 
 def save_session(session: Session, path: str | Path, force: bool = False) -> None:
@@ -334,6 +384,9 @@ def load_session(path: str | Path) -> Session:
                 rigid_bodies=rb,
                 source_units=json.loads(g.attrs["source_units"]),
                 attrs=json.loads(g.attrs["attrs"]),
+                model_outputs=(
+                    _read_model_outputs(g["model_outputs"]) if "model_outputs" in g else {}
+                ),
             )
         session.results = _read_tree(f["results"])
         session.provenance = [json.loads(s) for s in f["provenance"].asstr()[()]]

@@ -6,11 +6,23 @@ from typing import Any
 
 import numpy as np
 
-from motionlab.session import CHANNEL_UNITS, Session
+from motionlab.session import CHANNEL_UNITS, MarkerSet, Session
 
 
 def _finite(x: float) -> float | None:
     return float(x) if np.isfinite(x) else None
+
+
+def model_output_summary(markers: MarkerSet) -> dict[str, dict[str, Any]]:
+    """Per model output kind: ``count``, ``units`` (distinct, as the file gives them), ``names``."""
+    out: dict[str, dict[str, Any]] = {}
+    for o in markers.model_outputs.values():
+        entry = out.setdefault(o.kind, {"count": 0, "units": [], "names": []})
+        entry["count"] += 1
+        entry["names"].append(o.name)
+        if o.unit not in entry["units"]:
+            entry["units"].append(o.unit)
+    return out
 
 
 def session_summary(session: Session) -> dict[str, Any]:
@@ -18,6 +30,8 @@ def session_summary(session: Session) -> dict[str, Any]:
 
     ``rate_hz`` is estimated from the stored time stamps; ``gaps`` are the gaps kept as missing
     (``[start_s, end_s]``), ``flags`` the QC flags (:mod:`motionlab.qc`), ``qc`` every check.
+    Marker sets list their model outputs per kind (:func:`model_output_summary`), subjects,
+    flags (``duplicate_labels``) and the reader's warnings.
     """
     sensors = []
     for s in session.sensors.values():
@@ -38,6 +52,7 @@ def session_summary(session: Session) -> dict[str, Any]:
                 "gaps": s.qc.get("gaps", []),
                 "flags": s.qc.get("flags", {}),
                 "qc": s.qc,
+                "notes": list(s.attrs.get("notes", [])),
             }
         )
     markers = [
@@ -50,6 +65,10 @@ def session_summary(session: Session) -> dict[str, Any]:
             "units": "m",
             "source_units": m.source_units,
             "rigid_bodies": list(m.rigid_bodies),
+            "model_outputs": model_output_summary(m),
+            "subjects": m.attrs.get("subjects", []),
+            "flags": m.attrs.get("flags", {}),
+            "warnings": m.attrs.get("warnings", []),
         }
         for m in session.markers.values()
     ]

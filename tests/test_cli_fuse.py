@@ -84,3 +84,21 @@ def test_list_prints_every_estimator():
     for name in ("madgwick", "mahony", "liu_gn", "adaptive_cf"):
         assert f"{name}:" in out.output
     assert "beta = 0.1 rad/s" in out.output
+
+
+def test_no_magnetometer_fuses_6d(session_file):
+    out = CliRunner().invoke(main, ["fuse", str(session_file), "--no-magnetometer"])
+    assert out.exit_code == 0, out.output
+    assert "6-D" in out.output
+    ses = load_session(session_file)
+    assert all(e["magnetometer"] is False for e in ses.results["fusion"].values())
+    assert ses.provenance[-1]["parameters"]["magnetometer"] is False
+
+
+def test_run_unknown_filter_is_refused_before_work(tmp_path, session_file):
+    out = CliRunner().invoke(
+        main, ["run", "--protocol", "knee", str(session_file), "--filter", "nope", "-o",
+               str(tmp_path / "out")],
+    )  # fmt: skip
+    assert out.exit_code == 2 and "unknown estimator 'nope'" in out.output
+    assert not (tmp_path / "out").exists()

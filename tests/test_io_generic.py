@@ -300,3 +300,16 @@ def test_arbitrary_units_only_for_the_magnetometer(tmp_path):
     wrong["sensors"][0]["gyr"]["field_ut"] = 40
     with pytest.raises(InputError, match="field_ut"):
         read_any(p, wrong)
+
+
+def test_header_and_rows_ending_in_the_delimiter(tmp_path):
+    """``t;ax;ay;az;``: a trailing delimiter is an empty last field, not a damaged line."""
+    opts = {"format": "generic", "time": {"column": "t", "unit": "s"},
+            "acc": {"columns": ["ax", "ay", "az"], "unit": "m/s^2"}}  # fmt: skip
+    rows = [f"{k / 100};0;0;9.81{';' if k % 2 else ''}\n" for k in range(20)]
+    (s,) = read_any(_write(tmp_path, "t;ax;ay;az;\n" + "".join(rows)), opts).sensors
+    assert s.n_samples == 20 and s.acc[:, 2] == pytest.approx(9.81)
+    assert np.diff(s.time) == pytest.approx(0.01)
+    bad = "t;ax;ay;az;\n" + "".join(rows[:2]) + "0.5;1;2\n" + "".join(rows[2:])
+    with pytest.raises(InputError, match="line 4: 3 columns, expected 4"):
+        read_any(_write(tmp_path, bad), opts)

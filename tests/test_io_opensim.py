@@ -23,7 +23,10 @@ def test_read_fixture():
     for s in rec.sensors:
         assert s.channels == ["quat"] and s.quat.shape == (6, 4)
         assert s.rate_hz == pytest.approx(100.0, rel=1e-9)
-        assert "Y up" in s.attrs["earth_frame"]
+        assert (
+            "Z up" in s.attrs["earth_frame"]
+            and "sensor_to_opensim_rotations" in (s.attrs["earth_frame"])
+        )
         np.testing.assert_allclose(np.linalg.norm(s.quat, axis=1), 1.0, atol=1e-12)
     np.testing.assert_array_equal(
         rec.sensors[0].quat[0],

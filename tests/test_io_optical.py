@@ -170,3 +170,91 @@ def test_shared_optical_files():
     (m,) = read_any(folder / "markers.trc").markers
     assert m.n_markers == 51 and m.rate_hz == pytest.approx(100.0)
     assert m.positions.shape == (93, 51, 3) and np.nanmax(np.abs(m.positions)) < 2.0
+
+
+def _write_model_c3d(path: Path, n: int = 30) -> dict[str, np.ndarray]:
+    """A Vicon-like C3D (mm): markers A22:RKNE, A22:LKNE, a repeated A22:RKNE, and the model
+    output A22:LKneeAngles (deg) listed in POINT:ANGLES; returns what was written."""
+    rng = np.random.default_rng(3)
+    data = {
+        "RKNE": rng.uniform(-900, 900, (n, 3)),
+        "LKNE": rng.uniform(-900, 900, (n, 3)),
+        "RKNE_2": rng.uniform(-900, 900, (n, 3)),
+        "LKneeAngles": np.column_stack([np.linspace(0, 57.86, n), np.full(n, -3.5), np.zeros(n)]),
+    }
+    labels = ["A22:RKNE", "A22:LKNE", "A22:RKNE", "A22:LKneeAngles"]
+    f = ezc3d.c3d()
+    f["parameters"]["POINT"]["RATE"]["value"] = [100.0]
+    f["parameters"]["POINT"]["LABELS"]["value"] = labels
+    f["parameters"]["POINT"]["UNITS"]["value"] = ["mm"]
+    f.add_parameter("POINT", "ANGLES", ["A22:LKneeAngles"])
+    f.add_parameter("POINT", "ANGLE_UNITS", ["deg"])
+    points = np.ones((4, len(labels), n))
+    points[:3] = np.transpose(np.stack(list(data.values()), axis=1), (2, 1, 0))
+    f["data"]["points"] = points
+    f.write(str(path))
+    return data
+
+
+def test_c3d_model_outputs_prefixes_duplicates(tmp_path):
+    path = tmp_path / "pig.c3d"
+    data = _write_model_c3d(path)
+    (m,) = read_any(path).markers
+    assert m.labels == ["RKNE", "LKNE", "RKNE_2"]  # prefix stripped, the repeat renamed
+    np.testing.assert_allclose(m.positions[:, 0], data["RKNE"] / 1000.0, rtol=1e-5)
+    np.testing.assert_allclose(m.positions[:, 2], data["RKNE_2"] / 1000.0, rtol=1e-5)
+    (angle,) = m.model_outputs.values()
+    assert (angle.name, angle.kind, angle.unit) == ("LKneeAngles", "angles", "deg")
+    np.testing.assert_allclose(angle.data, data["LKneeAngles"], atol=1e-4)  # deg, not m
+    assert np.isfinite(angle.data).all(), "a zero angle is a value, not a gap"
+    assert m.attrs["subjects"] == ["A22"] and m.attrs["label_prefixes"]["LKNE"] == "A22:"
+    assert m.attrs["duplicate_labels"] == {"RKNE": 2} and m.attrs["flags"]["duplicate_labels"]
+    assert any("RKNE appears 2 times" in w for w in m.attrs["warnings"])
+
+
+def test_c3d_model_outputs_in_session_and_info(tmp_path):
+    from click.testing import CliRunner
+
+    from motionlab.cli import main
+    from motionlab.session import load_session
+
+    _write_model_c3d(tmp_path / "pig.c3d")
+    out = tmp_path / "s.h5"
+    res = CliRunner().invoke(main, ["ingest", str(tmp_path / "pig.c3d"), "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    (m,) = load_session(out).markers.values()
+    assert m.model_outputs["LKneeAngles"].unit == "deg" and m.n_markers == 3
+    info = CliRunner().invoke(main, ["info", str(out)])
+    assert "model outputs, angles: 1 (deg): LKneeAngles" in info.output
+    assert "duplicate_labels" in info.output and "subjects (label prefixes stripped): A22" in (
+        info.output
+    )
+    ref = CliRunner().invoke(main, ["info", str(out), "--json"])
+    assert '"angles"' in ref.output
+
+
+def test_c3d_unit_parameter_absent_is_assumed(tmp_path):
+    f = ezc3d.c3d()
+    f["parameters"]["POINT"]["RATE"]["value"] = [50.0]
+    f["parameters"]["POINT"]["LABELS"]["value"] = ["RHipMoment", "M1"]
+    f["parameters"]["POINT"]["UNITS"]["value"] = ["mm"]
+    f.add_parameter("POINT", "MOMENTS", ["RHipMoment"])
+    points = np.ones((4, 2, 5))
+    points[:3] = 1200.0
+    f["data"]["points"] = points
+    f.write(str(tmp_path / "mom.c3d"))
+    (m,) = read_any(tmp_path / "mom.c3d").markers
+    mom = m.model_outputs["RHipMoment"]
+    assert mom.kind == "moments" and mom.unit == "Nmm" and mom.data[0, 0] == pytest.approx(1200)
+    assert "POINT:MOMENT_UNITS absent; Nmm assumed" in m.attrs["warnings"]
+    assert m.labels == ["M1"]
+
+
+@needs_shared
+def test_shared_c3d_prefixes():
+    folder = SHARED / "formats" / "c3d"
+    (m,) = read_any(folder / "vicon_nexus_markers_analogs.c3d").markers
+    assert "ASISr" in m.labels and m.attrs["subjects"] == ["Daphnee", "boite"]
+    assert not m.model_outputs and not m.attrs["flags"]["duplicate_labels"]
+    (m,) = read_any(folder / "optitrack_motive_sprintbasket.c3d").markers
+    assert "WheelchairL:Marker1" in m.labels and "ArmL:Marker1" in m.labels  # kept: they'd merge

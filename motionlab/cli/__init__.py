@@ -87,6 +87,9 @@ def _register() -> None:
     from motionlab.cli import batch
 
     main.add_command(batch.command)
+    from motionlab.cli import export
+
+    main.add_command(export.command)
 
 
 _register()

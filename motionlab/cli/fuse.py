@@ -63,6 +63,12 @@ def _marker_references(ses: Session, name: str, markers_path: str | None, labels
     "--with-markers", is_flag=True, help="Fuse the session's marker clusters (Liu 2010) too."
 )
 @click.option("--markers", "markers_path", help="Marker map YAML (implies --with-markers).")
+@click.option(
+    "--magnetometer/--no-magnetometer",
+    default=True,
+    show_default=True,
+    help="Use the magnetometers; --no-magnetometer fuses 6-D (gyr + acc, arbitrary heading).",
+)
 def command(
     session: str | None,
     name: str,
@@ -74,6 +80,7 @@ def command(
     calibration: str | None,
     with_markers: bool,
     markers_path: str | None,
+    magnetometer: bool,
 ) -> None:
     """Estimate each sensor's orientation (sensor → ENU earth) and store it in the session.
 
@@ -82,6 +89,7 @@ def command(
       motionlab fuse session.h5
       motionlab fuse session.h5 --filter madgwick --param beta=0.1 --sensor shank_r
       motionlab fuse session.h5 --filter liu_gn --with-markers --markers map.yaml
+      motionlab fuse session.h5 --no-magnetometer   # 6-D, e.g. indoors near steel
       motionlab fuse --list
     """
     if list_:
@@ -111,6 +119,10 @@ def command(
     if not usable:
         raise InputError("no sensor has gyroscope and accelerometer data", session)
     parsed = parse_params(params)
+    if not magnetometer and registry.get(name).needs_mag:
+        raise InputError(
+            f"estimator '{name}' needs a magnetometer", remedy="drop --no-magnetometer"
+        )
     recorded, notes, calibrated = dict(ses.sensors), {}, {}
     if calibration is not None:  # fuse calibrated data; the session keeps the data as recorded
         calibrated, notes = apply_calibration_dir(ses.sensors, calibration, usable)
@@ -119,7 +131,15 @@ def command(
     if with_markers or markers_path:
         refs, marker_info = _marker_references(ses, name, markers_path, usable)
     done = fuse_session(
-        ses, name, parsed, usable, force=force, path=session, references=refs, progress=_progress
+        ses,
+        name,
+        parsed,
+        usable,
+        force=force,
+        path=session,
+        references=refs,
+        magnetometer=magnetometer,
+        progress=_progress,
     )
     ses.sensors = recorded
     for label, stream in calibrated.items():
@@ -132,10 +152,13 @@ def command(
     ses.add_provenance(
         parameters={"stage": "fuse", "filter": name, "params": parsed, "sensors": done}
         | ({"calibration": calibration} if calibration else {})
-        | ({"with_markers": True, "markers": markers_path} if refs else {}),
+        | ({"with_markers": True, "markers": markers_path} if refs else {})
+        | ({} if magnetometer else {"magnetometer": False}),
         inputs=[session] + ([markers_path] if markers_path else []),
     )
     save_session(ses, output or session, force=True)
     for label in chosen:
         state = "fused" if label in done else "skipped (no gyr/acc)"
+        if label in done and not magnetometer:
+            state += " (6-D, no magnetometer)"
         click.echo(f"{label:<16} {state}" + (f", {notes[label]}" if label in notes else ""))

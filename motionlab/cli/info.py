@@ -79,6 +79,16 @@ def _sensor_lines(s: dict) -> list[str]:
         lines.append(f"    NaN in {ch}: {_spans(spans)}")
     flags = [k for k, v in s["flags"].items() if v]
     lines.append(f"    qc flags: {', '.join(flags) if flags else 'none'}")
+    if s["flags"].get("held_samples"):
+        lines.append(
+            f"    held samples: {100 * qc['held_share']:.0f} % of the rows repeat the previous one,"
+            f" ≈ {qc['effective_rate_hz']:.0f} Hz real"
+        )
+    if qc.get("identical_to"):
+        lines.append(f"    identical to: {', '.join(qc['identical_to'])} (the same data twice?)")
+    if s["flags"].get("rate_assumed"):
+        notes = [n for n in s.get("notes", []) if "assumed" in n] or ["the file gives no rate"]
+        lines.append(f"    rate assumed: {notes[0]}")
     return lines
 
 
@@ -113,6 +123,15 @@ def format_summary(summary: dict) -> str:
             f"  {m['name']:<16} {_fmt(m['rate_hz'], '8.2f')} Hz  {m['n_markers']} markers"
             f"  {m['n_frames']} frames  unit {m['units']}"
         )
+        if m.get("subjects"):
+            lines.append(f"    subjects (label prefixes stripped): {', '.join(m['subjects'])}")
+        for kind, o in m.get("model_outputs", {}).items():
+            units = ", ".join(u or "unit not given" for u in o["units"])
+            names = ", ".join(o["names"][:4]) + (" …" if o["count"] > 4 else "")
+            lines.append(f"    model outputs, {kind}: {o['count']} ({units}): {names}")
+        flags = [k for k, v in m.get("flags", {}).items() if v]
+        lines.append(f"    qc flags: {', '.join(flags) if flags else 'none'}")
+        lines += [f"    warning: {w}" for w in m.get("warnings", [])]
     if summary["results"]:
         lines.append(f"results: {', '.join(summary['results'])}")
     lines.append(f"provenance entries: {len(summary['provenance'])}")

@@ -81,5 +81,8 @@ def command(files, map_path, rate, gap_max, output, force) -> None:  # fmt: skip
         click.echo(f"{s.label:<16} {place:<14} {s.rate_hz:8.2f} Hz {s.n_samples:>9} samples"
                    f"  gaps kept {n_gaps}, filled {s.qc.get('gaps_filled', 0)}")  # fmt: skip
     for m in session.markers.values():
-        click.echo(f"{m.name:<16} markers {m.n_markers:>4}  {m.rate_hz:8.2f} Hz")
+        outputs = f", model outputs {len(m.model_outputs)}" if m.model_outputs else ""
+        click.echo(f"{m.name:<16} markers {m.n_markers:>4}  {m.rate_hz:8.2f} Hz{outputs}")
+        for line in m.attrs.get("warnings", []):
+            click.echo(f"warning: {m.name}: {line}", err=True)
     click.echo(f"wrote {output}")

@@ -35,7 +35,14 @@ from motionlab.pipeline import run_pipeline
     "outdir",
     required=True,
     type=click.Path(file_okay=False),
-    help="Output folder: session.h5, report.pdf, report.txt, csv/.",
+    help="Output folder: session.h5, report.pdf, report.txt, csv/, results.json.",
+)
+@click.option(
+    "--filter",
+    "estimator",
+    default="default",
+    show_default=True,
+    help="Estimator for the fusion stage (names: 'motionlab fuse --list').",
 )
 @click.option(
     "--magnetometer",
@@ -57,6 +64,7 @@ def command(
     map_path,
     reference,
     calibration_dir,
+    estimator,
     magnetometer,
     clock_sync,
     outdir,
@@ -69,13 +77,15 @@ def command(
     ingest → clock sync → sensor calibration (with --calibration) → fuse → calibrate → angles →
     metrics → validate (with --reference, or when the inputs hold markers) → report. Every
     intermediate result is kept in OUTDIR/session.h5; the report is OUTDIR/report.pdf with its
-    text in report.txt and its tables in OUTDIR/csv/.
+    text in report.txt and its tables in OUTDIR/csv/; OUTDIR/results.json holds the results
+    for programs (as 'motionlab export --format json' writes them).
 
     \b
     Example:
       motionlab run --protocol knee --map map.yaml pelvis.txt thigh_r.txt thigh_l.txt \\
           shank_r.txt shank_l.txt --reference gait.c3d -o results/P017
       motionlab run --protocol knee sim.h5 -o results/sim
+      motionlab run --protocol knee sim.h5 --filter madgwick -o results/sim_madgwick
     """
     result = run_pipeline(
         [Path(f) for f in files],
@@ -89,5 +99,6 @@ def command(
         calibration_dir=Path(calibration_dir) if calibration_dir else None,
         magnetometer=magnetometer,
         clock_sync=clock_sync,
+        estimator=estimator,
     )
     click.echo(result.summary)

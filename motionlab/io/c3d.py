@@ -6,7 +6,21 @@ Returned: one :class:`~motionlab.session.MarkerSet` named after the file, with
 - ``positions`` (N, M, 3) in m (``POINT:UNITS`` ``mm``, ``cm`` or ``m``; ``mm`` assumed, with a
   warning, when the parameter is absent),
 - ``residuals`` (N, M) in m,
-- ``time`` = frame index / ``POINT:RATE`` in s (the first frame number in ``attrs``).
+- ``time`` = frame index / ``POINT:RATE`` in s (the first frame number in ``attrs``),
+- ``model_outputs``: the POINT entries the file's own parameters type as model outputs —
+  ``POINT:ANGLES``, ``FORCES``, ``MOMENTS``, ``POWERS``, ``SCALARS``, ``REACTIONS`` list their
+  labels, ``POINT:ANGLE_UNITS``, ``FORCE_UNITS``… their units (Plug-in Gait: deg, N, Nmm, W).
+  They keep their unit (``LKneeAngles`` stays 57.86 deg; scaling it as a marker by 1/1000 made
+  it 0.0579 "m") and are not markers. A missing unit parameter is assumed (deg, N, Nmm, W) and
+  said in ``attrs["warnings"]``.
+
+Labels: subject prefixes (``A22:RKNE``, Vicon's ``SUBJECTS:LABEL_PREFIXES``, or any text up to
+the first ``:``) are stripped, so that marker maps and protocols name markers as usual, unless
+that would merge distinct labels (OptiTrack's ``WheelchairL:Marker1`` and ``ArmL:Marker1``):
+then every label keeps its prefix. ``attrs["label_prefixes"]`` keeps each stripped prefix and
+``attrs["subjects"]`` their names. Labels that repeat in the file (two points ``RKNE``) are not
+silent: the repeats are renamed ``RKNE_2``… and listed in ``attrs["duplicate_labels"]``,
+``attrs["flags"]["duplicate_labels"]`` and ``attrs["warnings"]``.
 
 The C3D header block is compared with the frames ezc3d could read, to refuse a truncated
 file. A point is invalid — NaN in ``positions`` and ``residuals`` — when its residual is negative
@@ -24,10 +38,20 @@ import numpy as np
 
 from motionlab.errors import InputError
 from motionlab.io import Recording
-from motionlab.session import MarkerSet
+from motionlab.session import MarkerSet, ModelOutput
 from motionlab.units import factor
 
 FORMAT = "c3d"
+
+#: model output kind → (POINT parameter listing its labels, unit parameter, unit assumed)
+MODEL_KINDS = {
+    "angles": ("ANGLES", "ANGLE_UNITS", "deg"),
+    "forces": ("FORCES", "FORCE_UNITS", "N"),
+    "moments": ("MOMENTS", "MOMENT_UNITS", "Nmm"),
+    "powers": ("POWERS", "POWER_UNITS", "W"),
+    "scalars": ("SCALARS", "SCALAR_UNITS", ""),
+    "reactions": ("REACTIONS", "REACTION_UNITS", ""),
+}
 
 
 def sniff(path: Path, head: bytes) -> bool:
@@ -86,12 +110,26 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     except InputError as exc:
         raise InputError(exc.message, path, "parameter POINT:UNITS", exc.remedy) from None
 
-    labels = _labels(point, n_markers)
+    raw = _labels(point, n_markers)
+    kinds, units = _kinds(point, raw, warnings)
+    labels, prefixes = _strip_prefixes(raw, _known_prefixes(c3d["parameters"]))
+    labels, duplicates = _unique(labels)
+    for name, count in duplicates.items():
+        warnings.append(
+            f"label {name} appears {count} times; the repeats are renamed "
+            + ", ".join(f"{name}_{k}" for k in range(2, count + 1))
+        )
     xyz = np.transpose(points[:3], (2, 1, 0)).astype(float)  # (N, M, 3)
     residuals = np.asarray(c3d["data"]["meta_points"]["residuals"][0], dtype=float).T
-    invalid = (residuals < 0) | np.all(xyz == 0.0, axis=2) | np.isnan(xyz).any(axis=2)
+    unseen = (residuals < 0) | np.isnan(xyz).any(axis=2)
+    is_marker = np.array([k is None for k in kinds], dtype=bool)
+    invalid = unseen | (np.all(xyz == 0.0, axis=2) & is_marker)  # zeros: a marker gap only
     xyz[invalid] = np.nan
     residuals[invalid] = np.nan
+    outputs = {
+        labels[j]: ModelOutput(labels[j], kinds[j], units[j], xyz[:, j].copy())
+        for j in np.flatnonzero(~is_marker)
+    }
 
     analogs = c3d["parameters"].get("ANALOG", {})
     attrs: dict[str, Any] = {
@@ -100,16 +138,23 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
         "n_analog_channels": int(c3d["header"]["analogs"]["size"]),
         "analog_rate_hz": _value(analogs, "RATE", 0.0),
     }
+    if prefixes:
+        attrs["label_prefixes"] = prefixes
+        attrs["subjects"] = sorted({p.rstrip(":") for p in prefixes.values()})
+    if duplicates:
+        attrs["duplicate_labels"] = duplicates
+    attrs["flags"] = {"duplicate_labels": bool(duplicates)}
     if warnings:
         attrs["warnings"] = warnings
     markers = MarkerSet(
         name=(options or {}).get("name") or path.stem,
         time=np.arange(n_frames) / rate,
-        labels=labels,
-        positions=xyz * scale,
-        residuals=residuals * scale,
+        labels=[lab for lab, m in zip(labels, is_marker, strict=True) if m],
+        positions=xyz[:, is_marker] * scale,
+        residuals=residuals[:, is_marker] * scale,
         source_units={"positions": unit, "residuals": unit},
         attrs=attrs,
+        model_outputs=outputs,
     )
     return Recording(markers=[markers], metadata={"c3d_unit": unit})
 
@@ -182,3 +227,84 @@ def _labels(point: dict, n_markers: int) -> list[str]:
         labels += [str(s).strip() for s in point[key]["value"]]
     labels += [""] * (n_markers - len(labels))
     return [name or f"M{k + 1:03d}" for k, name in enumerate(labels[:n_markers])]
+
+
+def _names(point: dict, key: str) -> list[str]:
+    """The labels a POINT parameter lists (``ANGLES``, continued in ``ANGLES2``…), stripped."""
+    names: list[str] = []
+    for k in [key] + [f"{key}{n}" for n in range(2, 100)]:
+        if k not in point:
+            break
+        names += [str(v).strip() for v in point[k].get("value", [])]
+    return [n for n in names if n]
+
+
+def _kinds(
+    point: dict, labels: list[str], warnings: list[str]
+) -> tuple[list[str | None], list[str]]:
+    """Per point: its model output kind (``None`` for a marker) and unit (``""`` for markers).
+
+    A label matches a kind's list with or without its subject prefix on either side.
+    """
+    kinds: list[str | None] = [None] * len(labels)
+    units = [""] * len(labels)
+    bare = [lab.partition(":")[2] or lab for lab in labels]
+    for kind, (key, unit_key, assumed) in MODEL_KINDS.items():
+        listed = _names(point, key)
+        if not listed:
+            continue
+        wanted = set(listed) | {n.partition(":")[2] or n for n in listed}
+        unit = str(_value(point, unit_key, "")).strip()
+        if not unit and assumed:
+            unit = assumed
+            warnings.append(f"POINT:{unit_key} absent; {assumed} assumed")
+        for j, lab in enumerate(labels):
+            if kinds[j] is None and (lab in wanted or bare[j] in wanted):
+                kinds[j], units[j] = kind, unit
+    return kinds, units
+
+
+def _known_prefixes(parameters: dict) -> list[str]:
+    """Vicon's ``SUBJECTS:LABEL_PREFIXES`` (``["A22:"]``) when ``USES_PREFIXES`` is set."""
+    subjects = parameters.get("SUBJECTS", {})
+    if not _value(subjects, "USES_PREFIXES", 0.0):
+        return []
+    values = subjects.get("LABEL_PREFIXES", {}).get("value", [])
+    return [str(p).strip() for p in values if str(p).strip()]
+
+
+def _strip_prefixes(labels: list[str], known: list[str]) -> tuple[list[str], dict[str, str]]:
+    """Labels without their subject prefix, if the bare names are all distinct (else all kept,
+    as two subjects or rigid bodies with the same marker names need them); name → prefix."""
+    split = []
+    for lab in labels:
+        prefix = next((p for p in known if lab.startswith(p) and len(lab) > len(p)), None)
+        if prefix is None and ":" in lab.strip(":"):
+            prefix = lab[: lab.index(":") + 1]
+        split.append((prefix, lab[len(prefix) :] if prefix else lab))
+    if not any(p for p, _ in split):
+        return list(labels), {}
+    bare = [name for _, name in split]
+    if len(set(bare)) < len(set(labels)):  # stripping would merge distinct labels
+        return list(labels), {}
+    return bare, {name: p for p, name in split if p}
+
+
+def _unique(labels: list[str]) -> tuple[list[str], dict[str, int]]:
+    """Repeated labels renamed ``NAME_2``, ``NAME_3``…; the repeats' counts by name."""
+    counts: dict[str, int] = {}
+    for lab in labels:
+        counts[lab] = counts.get(lab, 0) + 1
+    taken = set(labels)
+    seen: dict[str, int] = {}
+    out = []
+    for lab in labels:
+        seen[lab] = seen.get(lab, 0) + 1
+        name, k = lab, seen[lab]
+        if k > 1:
+            name = f"{lab}_{k}"
+            while name in taken:
+                name += "_"
+            taken.add(name)
+        out.append(name)
+    return out, {lab: n for lab, n in counts.items() if n > 1}

@@ -11,17 +11,21 @@ File layout (OpenSim Storage version 3, ``DataType=Quaternion``)::
     0<TAB>w,x,y,z<TAB>w,x,y,z ...
 
 Each IMU column becomes a :class:`~motionlab.session.SensorStream` with only ``quat``
-(scalar first, sensor → earth), read **as stored**: OpenSense's earth frame is OpenSim's ground,
-which is Y up (its readers rotate the vendor's Z-up world frame by −90° about X by default), not
-ENU. ``attrs["earth_frame"]`` records this; convert before mixing with ENU orientations.
+(scalar first, sensor → earth), read **as stored**. The files OpenSense's readers write (Xsens,
+APDM) keep the IMU system's own Z-up world frame: OpenSim's Y-up ground is reached only inside
+OpenSense, by the ``sensor_to_opensim_rotations`` of the IMU placer and IK tools (−90° about X
+by default). ``attrs["earth_frame"]`` says so (:data:`EARTH_FRAME`); for Xsens that frame is
+ENU, as motionlab's, with the vendor's heading.
 
-:func:`write_sto` writes the same layout with every number printed in its shortest round-trip
-form, so :func:`read` gives back the written float64 values exactly.
+:func:`write_sto` writes the same layout, in the same frame (motionlab's ENU earth), with every
+number printed in its shortest round-trip form, so :func:`read` gives back the written float64
+values exactly. :func:`write_mot` / :func:`read_mot`: OpenSim motion files (joint angles).
 """
 
 from __future__ import annotations
 
 import io
+import math
 from pathlib import Path
 from typing import Any
 
@@ -35,7 +39,10 @@ from motionlab.session import SensorStream, estimate_rate
 
 FORMAT = "opensim"
 
-EARTH_FRAME = "OpenSim ground (Y up; heading from the source IMU system), not ENU"
+EARTH_FRAME = (
+    "IMU system world frame, Z up (ENU for Xsens and motionlab), as OpenSense's readers write it;"
+    " OpenSense rotates it into OpenSim ground (Y up) by sensor_to_opensim_rotations"
+)
 OPENSIM_VERSION = "4.1"
 
 
@@ -186,8 +193,10 @@ def write_sto(
     time
         Sample times (N,) in s.
     quats
-        IMU name → (N, 4) quaternions ``w, x, y, z`` in the frame the caller chose (OpenSense
-        expects sensor → OpenSim ground, Y up). Names must not contain tabs or commas.
+        IMU name → (N, 4) quaternions ``w, x, y, z``, sensor → the IMU system's Z-up earth frame
+        (ENU), as OpenSense's own readers write them (OpenSense applies its
+        ``sensor_to_opensim_rotations``, −90° about X, to reach its Y-up ground). Names must not
+        contain tabs or commas.
     force
         Replace an existing file.
     """
@@ -231,3 +240,50 @@ def _format_rows(values: np.ndarray) -> str:
     separators = np.array(["\t" if c % 4 == 0 else "," for c in range(n_cols - 1)] + ["\n"], object)
     tokens[1::2] = np.tile(separators, n_rows)
     return "".join(tokens.tolist())
+
+
+def write_mot(
+    path: str | Path,
+    time: np.ndarray,
+    columns: dict[str, np.ndarray],
+    force: bool = False,
+) -> None:
+    """Write an OpenSim motion file (version 1, tab-separated, ``inDegrees=yes``) of angle
+    columns in degrees (atomic; ``force`` to replace); numbers in shortest round-trip form;
+    ``_deg`` is dropped from the column names."""
+    path = Path(path)
+    names = [c.removesuffix("_deg") for c in columns]
+    values = np.column_stack([time, *columns.values()]) if columns else time[:, None]
+    header = [
+        path.stem,
+        "version=1",
+        f"nRows={len(time)}",
+        f"nColumns={1 + len(columns)}",
+        "inDegrees=yes",
+        "endheader",
+        "\t".join(["time", *names]),
+    ]
+    rows = ["\t".join("NaN" if math.isnan(x) else repr(x) for x in row) for row in values.tolist()]
+    with atomic_path(path, force=force) as tmp:
+        tmp.write_text("\n".join(header + rows) + "\n", encoding="utf-8")
+
+
+def read_mot(path: str | Path) -> tuple[dict[str, str], pd.DataFrame]:
+    """An OpenSim motion (``.mot``) or storage table: its header (``key=value`` lines before
+    ``endheader``) and its columns (``time`` first), as float64."""
+    path = Path(path)
+    lines = path.read_text(encoding="utf-8-sig").splitlines()
+    stripped = [ln.strip() for ln in lines]
+    if "endheader" not in stripped:
+        raise InputError("no 'endheader' line", path, remedy="give an OpenSim .mot/.sto file")
+    end = stripped.index("endheader")
+    header = dict(
+        (k.strip(), v.strip())
+        for k, _, v in (ln.partition("=") for ln in stripped[:end] if "=" in ln)
+    )
+    body = "\n".join(lines[end + 1 :])
+    try:
+        table = pd.read_csv(io.StringIO(body), sep="\t", dtype=np.float64)
+    except ValueError as exc:
+        raise InputError(f"not a numeric table ({exc})", path, remedy="export it again") from None
+    return header, table

@@ -80,19 +80,36 @@ def detect_delimiter(header: str, rows: Sequence[str]) -> str:
     of fields; tab, semicolon, comma, then space are tried in that order. The last row may
     have fewer fields (a file cut short: the field check names it).
 
+    A delimiter ending a line (``t;ax;ay;az;``, as some exporters write) does not count.
     Raises ``ValueError`` when none fits (the caller turns it into an :class:`InputError`).
     """
     for d in DELIMITERS:
-        n = header.count(d) + 1
-        if n > 1 and all(r.count(d) + 1 == n for r in rows[:-1]):
-            if not rows or rows[-1].count(d) + 1 <= n:
+        n = _n_fields(header, d)
+        if max(n) > 1 and all(n & _n_fields(r, d) for r in rows[:-1]):
+            if not rows or min(_n_fields(rows[-1], d)) <= max(n):
                 return d
     # a damaged sample row must not hide the delimiter: the header and most rows agree on it
     for d in DELIMITERS:
-        n = header.count(d) + 1
-        if n > 1 and sum(r.count(d) + 1 == n for r in rows) > len(rows) / 2:
+        n = _n_fields(header, d)
+        if max(n) > 1 and sum(bool(n & _n_fields(r, d)) for r in rows) > len(rows) / 2:
             return d
     raise ValueError("no delimiter fits")
+
+
+def _n_fields(line: str, delimiter: str) -> set[int]:
+    """Field counts of ``line`` split by ``delimiter``: as written, and without a delimiter that
+    ends the line (an empty last field or not: a two-row header's first row may end in empty
+    cells that mean something)."""
+    line = line.rstrip("\r\n")
+    if delimiter != " ":
+        line = line.rstrip(" ")
+    n = line.count(delimiter) + 1
+    return {n, n - 1} if n > 1 and line.endswith(delimiter) else {n}
+
+
+def ends_with_delimiter(line: str, delimiter: str) -> bool:
+    """Whether ``line`` ends with ``delimiter`` (not a space: spaces are trimmed)."""
+    return delimiter not in (" ", "whitespace") and line.rstrip().endswith(delimiter)
 
 
 def _suggest_delimiter(line: str, ncol: int, current: str) -> str | None:
@@ -226,6 +243,12 @@ def parse_table(
                 remedy="give 'delimiter' in a column map",
             ) from None
     col_names = _column_names(head, sample[0], delimiter, names)
+    # a header or rows ending in the delimiter ("t;ax;ay;az;"): an empty last field, not a column
+    trailing = ends_with_delimiter(sample[0], delimiter) or any(
+        ends_with_delimiter(h, delimiter) for h in head
+    )
+    if trailing and len(col_names) > 2 and not col_names[-1]:
+        col_names = col_names[:-1]
     ncol = len(col_names)
     if ncol < 2:
         first = head[0] if head else sample[0]
@@ -246,7 +269,7 @@ def parse_table(
             f"line {header + 1}",
             remedy="give 'decimal' or 'delimiter' in a column map",
         )
-    parse = _Parse(text, delimiter, decimal, ncol, ragged)
+    parse = _Parse(text, delimiter, decimal, ncol, ragged, trailing)
     rows, df, notes = parse.checked(rows)
     data, text_cell = _to_float(df, decimal)
     if text_cell is not None:
@@ -292,9 +315,17 @@ class _Parse:
     """The numeric body of a :class:`TextFile` through one pandas C-parser call, and the
     field counts that name a bad line when the parse fails or a row is short."""
 
-    def __init__(self, text: TextFile, delimiter: str, decimal: str, ncol: int, ragged: bool):
+    def __init__(
+        self,
+        text: TextFile,
+        delimiter: str,
+        decimal: str,
+        ncol: int,
+        ragged: bool,
+        trailing: bool = False,
+    ) -> None:
         self.text, self.delimiter, self.decimal = text, delimiter, decimal
-        self.ncol, self.ragged = ncol, ragged
+        self.ncol, self.ragged, self.trailing = ncol, ragged, trailing
 
     def checked(self, rows: np.ndarray) -> tuple[np.ndarray, pd.DataFrame, list[str]]:
         """(rows kept, their values, notes); a short last row is dropped and noted."""
@@ -303,6 +334,11 @@ class _Parse:
             counts[(counts <= self.ncol) | self.empty_tails(rows, counts)] = self.ncol
             self.check_counts(rows, counts)
             return rows, self.read_or_fail(rows), []
+        if self.trailing:  # lines may end in the delimiter: one empty field more is fine
+            counts = self.field_counts(rows)
+            counts[(counts == self.ncol + 1) & self.empty_tails(rows, counts)] = self.ncol
+            rows, notes = self.check_counts(rows, counts)
+            return rows, self.read_or_fail(rows), notes
         try:
             df = self.read(rows)
         except ValueError:  # pandas' ParserError: too many fields, a stray quote
@@ -329,7 +365,9 @@ class _Parse:
         return df
 
     def read(self, rows: np.ndarray) -> pd.DataFrame:
-        ragged = {"names": range(self.ncol), "usecols": range(self.ncol)} if self.ragged else {}
+        ragged = {}
+        if self.ragged or self.trailing:
+            ragged = {"names": range(self.ncol), "usecols": range(self.ncol)}
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", pd.errors.DtypeWarning)
             return pd.read_csv(

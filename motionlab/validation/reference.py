@@ -92,6 +92,14 @@ def read_reference(path: str | Path) -> list[MarkerSet]:
         raise InputError(
             "holds no optical data", path, remedy="give a C3D/TRC file or a session with markers"
         )
+    if not any(m.n_markers or m.rigid_bodies for m in sets):
+        kinds = sorted({o.kind for m in sets for o in m.model_outputs.values()})
+        if kinds:  # a C3D of model outputs only (Plug-in Gait angles…): no marker to track
+            raise InputError(
+                f"holds model outputs ({', '.join(kinds)}) but no markers or rigid bodies",
+                path,
+                remedy="give the C3D with the marker trajectories (model outputs are kept apart)",
+            )
     return sets
 
 

@@ -1,0 +1,352 @@
+"""Exports of a session for other tools: OpenSim ``.sto``/``.mot``, C3D and JSON.
+
+- ``sto``: the sensor orientations (sensor → earth; the fusion results, else the vendor's
+  quaternions) as OpenSense reads them (:func:`motionlab.io.opensim.write_sto`): one column per
+  IMU named after its OpenSim body (``tibia_r_imu``) where the segment maps
+  (:data:`OPENSIM_BODIES`), else the sensor label. Like the files OpenSense's own readers write,
+  the orientations stay in the IMU system's Z-up earth frame (ENU here); OpenSense turns them
+  into its Y-up ground with ``sensor_to_opensim_rotations = -1.5708 0 0`` (its default).
+  All sensors are SLERP-resampled onto the first one's time stamps, within the span they share.
+- ``mot``: the joint angles as an OpenSim motion file (``inDegrees=yes``; columns ``time`` and
+  motionlab's angle names without ``_deg``, e.g. ``knee_r_flexion``; motionlab's clinical signs,
+  not an OpenSim model's coordinates).
+- ``c3d``: the joint angles as ``POINT:ANGLES`` model outputs (one point per joint, its three
+  angles as X, Y, Z in deg, ``ANGLE_UNITS`` deg) and the markers, if any (mm), all on the angles'
+  time stamps (markers interpolated through the validation's clock fit when there is one).
+- ``json``: :func:`results_json` — metadata, sensors, angle columns with their grades, the
+  metric table, calibration and validation summaries; units in every name; NaN as ``null``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from motionlab import __version__
+from motionlab import rotations as rot
+from motionlab.atomic import atomic_path
+from motionlab.errors import InputError
+from motionlab.session import MarkerSet, ModelOutput, Session
+
+FORMATS = ("sto", "mot", "c3d", "json")
+JSON_FORMAT = "motionlab-results"
+JSON_VERSION = 1
+
+#: motionlab segment → OpenSim body of the gait and upper-limb models (Rajagopal, gait2392)
+OPENSIM_BODIES = {
+    "pelvis": "pelvis",
+    "thorax": "torso",
+    "trunk": "torso",
+    "thigh": "femur",
+    "shank": "tibia",
+    "foot": "calcn",
+    "upper_arm": "humerus",
+    "forearm": "radius",
+    "hand": "hand",
+}
+
+
+# ------------------------------------------------------------------------------ orientations
+
+
+def imu_name(label: str, segment: str, side: str) -> str:
+    """OpenSense column name: ``<body>_imu`` (``tibia_r_imu``) when the segment maps to an
+    OpenSim body (:data:`OPENSIM_BODIES`), else the sensor label."""
+    base, _, suffix = segment.rpartition("_")
+    if suffix in ("r", "l") and base:
+        segment, side = base, suffix
+    side = {"right": "r", "left": "l"}.get(side, side)
+    body = OPENSIM_BODIES.get(segment)
+    if body is None:
+        return label
+    if side in ("r", "l") and body not in ("pelvis", "torso"):
+        return f"{body}_{side}_imu"
+    return f"{body}_imu"
+
+
+def orientations(session: Session) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Time (s) and each sensor's orientation (sensor → earth, (N, 4)) on a common time base.
+
+    Per sensor: the fusion result if any, else the vendor quaternions. The time base is the first
+    such sensor's time stamps within the span all share; the others are SLERP-resampled onto it
+    (samples in a gap longer than 1.5 sample intervals become NaN).
+    """
+    fusion = session.results.get("fusion", {})
+    streams: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    for label, s in session.sensors.items():
+        q = fusion.get(label, {}).get("quat")
+        if q is None:
+            q = s.quat
+        if q is None:
+            continue
+        name = imu_name(label, s.segment, s.side)
+        if name in streams:
+            name = label
+        streams[name] = (np.asarray(s.time, dtype=float), np.asarray(q, dtype=float))
+    if not streams:
+        raise InputError(
+            "no sensor orientations to export",
+            remedy="run 'motionlab fuse' first, or ingest files with vendor quaternions",
+        )
+    start = max(t[0] for t, _ in streams.values())
+    end = min(t[-1] for t, _ in streams.values())
+    t0 = next(iter(streams.values()))[0]
+    time = t0[(t0 >= start - 1e-9) & (t0 <= end + 1e-9)]
+    if len(time) < 1:
+        raise InputError("the sensors' recordings do not overlap in time", remedy="sync them")
+    return time, {name: _on(time, t, q) for name, (t, q) in streams.items()}
+
+
+def _on(time: np.ndarray, t: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """``q`` (on ``t``) at ``time``: unchanged when the stamps are the same, else SLERP."""
+    if len(t) == len(time) and np.array_equal(t, time):
+        return q
+    ok = np.isfinite(q).all(axis=1)
+    if ok.sum() < 2:
+        return np.full((len(time), 4), np.nan)
+    out = rot.resample(t[ok], q[ok], time)
+    dt = np.median(np.diff(t))
+    k = np.clip(np.searchsorted(t[ok], time), 1, ok.sum() - 1)
+    span = t[ok][k] - t[ok][k - 1]
+    out[span > 1.5 * dt] = np.nan
+    return out
+
+
+# ------------------------------------------------------------------------------ angles
+
+
+def angle_table(session: Session) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """Time (s) and the joint angle columns (``knee_r_flexion_deg`` → (N,), deg)."""
+    angles = session.results.get("angles")
+    if not angles or "time_s" not in angles:
+        raise InputError(
+            "no joint angles to export", remedy="run 'motionlab angles' (or 'motionlab run') first"
+        )
+    columns = {k: np.asarray(v, dtype=float) for k, v in angles.items()
+               if k.endswith("_deg") and isinstance(v, np.ndarray)}  # fmt: skip
+    return np.asarray(angles["time_s"], dtype=float), columns
+
+
+def joint_columns(session: Session) -> dict[str, list[str]]:
+    """Joint → its three angle columns in decomposition order (from the protocol the session
+    was calibrated with), else the columns grouped by the joint names of the grades."""
+    _, columns = angle_table(session)
+    cal = session.results.get("calibration", {})
+    try:
+        from motionlab.kinematics.joint_types import angle_columns
+        from motionlab.protocol import load_protocol
+
+        proto = load_protocol(cal.get("protocol_path") or cal.get("protocol"))
+        out = {name: [c for _, c in angle_columns(j)] for name, j in proto.joints.items()}
+        if all(c in columns for cols in out.values() for c in cols):
+            return out
+    except (InputError, OSError, TypeError, KeyError):
+        pass
+    joints = sorted(cal.get("grades", {}), key=len, reverse=True)
+    out: dict[str, list[str]] = {}
+    for col in columns:
+        joint = next((j for j in joints if col.startswith(f"{j}_")), col.rsplit("_", 2)[0])
+        out.setdefault(joint, []).append(col)
+    return out
+
+
+# ------------------------------------------------------------------------------ writers
+
+
+def write_c3d(
+    path: str | Path,
+    time: np.ndarray,
+    outputs: list[ModelOutput],
+    markers: MarkerSet | None = None,
+    marker_time: np.ndarray | None = None,
+    descriptions: dict[str, str] | None = None,
+    force: bool = False,
+) -> None:
+    """A C3D file at the rate of ``time``: the markers (mm; sampled at ``marker_time``, their
+    clock's stamps for each frame, linearly) then the model outputs, each kind listed in
+    ``POINT:<KIND>`` with ``POINT:<KIND>_UNITS`` (``ANGLE_UNITS``…); ``descriptions`` fill
+    ``POINT:DESCRIPTIONS`` by label. NaN → residual −1."""
+    import ezc3d
+
+    from motionlab.io.c3d import MODEL_KINDS
+
+    rate = 1.0 / float(np.median(np.diff(time))) if len(time) > 1 else 100.0
+    labels, blocks = [], []
+    if markers is not None and markers.n_markers:
+        t_m = time if marker_time is None else marker_time
+        labels += list(markers.labels)
+        blocks.append(_interp(markers.time, markers.positions, t_m) * 1000.0)
+    labels += [o.name for o in outputs]
+    blocks += [np.asarray(o.data, dtype=float)[:, None, :] for o in outputs]
+    if not labels:
+        raise InputError("nothing to write", path, remedy="the session has no angles or markers")
+    xyz = np.concatenate(blocks, axis=1)  # (N, P, 3)
+    c3d = ezc3d.c3d()
+    point = c3d["parameters"]["POINT"]
+    point["RATE"]["value"] = [float(np.round(rate, 6))]
+    point["LABELS"]["value"] = labels
+    point["UNITS"]["value"] = ["mm"]
+    for kind, (key, unit_key, _) in MODEL_KINDS.items():
+        of_kind = [o for o in outputs if o.kind == kind]
+        if of_kind:
+            c3d.add_parameter("POINT", key, [o.name for o in of_kind])
+            c3d.add_parameter("POINT", unit_key, [of_kind[0].unit])
+    described = descriptions or {}
+    c3d.add_parameter("POINT", "DESCRIPTIONS", [described.get(lab, "") for lab in labels])
+    seen = np.isfinite(xyz).all(axis=2)
+    pts = np.ones((4, xyz.shape[1], xyz.shape[0]))
+    pts[:3] = np.transpose(np.where(seen[..., None], xyz, 0.0), (2, 1, 0))
+    c3d["data"]["points"] = pts
+    c3d["data"]["meta_points"] = {
+        "residuals": np.where(seen, 0.0, -1.0).T[None],
+        "camera_masks": np.zeros((7, xyz.shape[1], xyz.shape[0]), dtype=bool),
+    }
+    with atomic_path(path, force=force) as tmp:
+        real = tmp.with_suffix(".c3d")  # ezc3d appends .c3d to other names
+        try:
+            c3d.write(str(real))
+            real.replace(tmp)
+        finally:
+            real.unlink(missing_ok=True)
+
+
+def _interp(t: np.ndarray, values: np.ndarray, t_new: np.ndarray) -> np.ndarray:
+    """Linear interpolation of (N, …) ``values`` along time; NaN next to a NaN or outside."""
+    flat = values.reshape(len(t), -1)
+    out = np.full((len(t_new), flat.shape[1]), np.nan)
+    k = np.searchsorted(t, t_new, side="right") - 1
+    inside = (k >= 0) & (k < len(t) - 1) | np.isclose(t_new, t[-1])
+    k = np.clip(k, 0, len(t) - 2)
+    w = ((t_new - t[k]) / (t[k + 1] - t[k]))[:, None]
+    est = (1 - w) * flat[k] + w * flat[k + 1]
+    est = np.where(np.isclose(w, 0.0), flat[k], est)
+    out[inside] = est[inside]
+    return out.reshape((len(t_new), *values.shape[1:]))
+
+
+def _json_clean(value: Any) -> Any:
+    """Arrays → lists, NaN/inf → ``None``, numpy scalars → Python (standard JSON)."""
+    if isinstance(value, dict):
+        return {str(k): _json_clean(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [_json_clean(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return _json_clean(value.tolist())
+    if isinstance(value, np.generic):
+        return _json_clean(value.item())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, Path):
+        return str(value)
+    return value
+
+
+def _scalars(tree: Any) -> Any:
+    """A results subtree without per-sample arrays (longer than 16 values)."""
+    if isinstance(tree, dict):
+        return {k: _scalars(v) for k, v in tree.items()
+                if not (isinstance(v, np.ndarray) and v.size > 16)}  # fmt: skip
+    return tree
+
+
+def results_json(session: Session) -> dict[str, Any]:
+    """The machine-readable results (:data:`JSON_FORMAT`, version :data:`JSON_VERSION`).
+
+    Keys: ``software``, ``metadata``, ``sensors`` (label, segment, side, rate_hz, QC flags),
+    ``angles`` (``time_s`` and per joint its ``columns`` (name → values, deg) and ``grades``
+    and ``reasons`` when the calibration graded them), ``metrics`` (rows ``block, joint, angle,
+    metric, percent, value, unit``), ``calibration`` (ok, warnings), ``validation`` (its scalars),
+    ``fusion`` (estimator per sensor). Standard JSON: NaN is ``null``.
+    """
+    out: dict[str, Any] = {
+        "format": JSON_FORMAT,
+        "version": JSON_VERSION,
+        "software": f"motionlab {__version__}",
+        "metadata": session.metadata,
+        "sensors": [
+            {
+                "label": s.label,
+                "segment": s.segment,
+                "side": s.side,
+                "rate_hz": s.rate_hz,
+                "n_samples": s.n_samples,
+                "qc_flags": sorted(k for k, v in s.qc.get("flags", {}).items() if v),
+            }
+            for s in session.sensors.values()
+        ],
+    }
+    res = session.results
+    if "angles" in res:
+        time, columns = angle_table(session)
+        grades = res.get("calibration", {}).get("grades", {})
+        joints = {}
+        for joint, cols in joint_columns(session).items():
+            entry: dict[str, Any] = {"columns": {c: columns[c] for c in cols if c in columns}}
+            if joint in grades and len(grades[joint].get("grades", [])) == len(cols):
+                entry["grades"] = dict(zip(cols, grades[joint]["grades"], strict=True))
+                entry["reasons"] = dict(zip(cols, grades[joint].get("reasons", []), strict=False))
+            joints[joint] = entry
+        out["angles"] = {"time_s": time, "method": res["angles"].get("method"), "joints": joints}
+    if "metrics" in res:
+        from motionlab.kinematics.metrics import metrics_table
+
+        table = metrics_table(res["metrics"])
+        out["metrics"] = table.astype(object).where(table.notna(), None).to_dict("records")
+    if "calibration" in res:
+        cal = res["calibration"]
+        out["calibration"] = {k: cal[k] for k in ("ok", "protocol", "warnings") if k in cal}
+    if "fusion" in res:
+        out["fusion"] = {
+            k: {"estimator": v.get("name"), "magnetometer": v.get("magnetometer")}
+            for k, v in res["fusion"].items()
+        }
+    if "validation" in res:
+        out["validation"] = _scalars(res["validation"])
+    return _json_clean(out)
+
+
+def write_json(session: Session, path: str | Path, force: bool = False) -> None:
+    """:func:`results_json` written to ``path`` (atomic, indented, UTF-8)."""
+    text = json.dumps(results_json(session), indent=1, allow_nan=False)
+    with atomic_path(path, force=force) as tmp:
+        tmp.write_text(text + "\n", encoding="utf-8")
+
+
+def export_session(session: Session, fmt: str, path: str | Path, force: bool = False) -> str:
+    """Write ``session`` as ``fmt`` (:data:`FORMATS`) to ``path``; a one-line summary."""
+    from motionlab.io.opensim import write_mot, write_sto
+
+    if fmt == "sto":
+        time, quats = orientations(session)
+        write_sto(path, time, quats, force=force)
+        return f"{len(quats)} IMU orientations, {len(time)} samples: {', '.join(quats)}"
+    if fmt == "mot":
+        time, columns = angle_table(session)
+        order = [c for cols in joint_columns(session).values() for c in cols if c in columns]
+        columns = {c: columns[c] for c in order + [c for c in columns if c not in order]}
+        write_mot(path, time, columns, force=force)
+        return f"{len(columns)} joint angles (deg), {len(time)} samples"
+    if fmt == "c3d":
+        time, columns = angle_table(session)
+        outputs, descriptions = [], {}
+        for joint, cols in joint_columns(session).items():
+            xyz = [columns.get(c, np.full(len(time), np.nan)) for c in (cols + [""] * 3)[:3]]
+            outputs.append(ModelOutput(f"{joint}_angles", "angles", "deg", np.column_stack(xyz)))
+            descriptions[f"{joint}_angles"] = "X, Y, Z: " + ", ".join(cols[:3])
+        markers = next((m for m in session.markers.values() if m.n_markers), None)
+        marker_time = None
+        if markers is not None:
+            sync = session.results.get("validation", {}).get("sync", {})
+            offset, ppm = sync.get("time_offset_s", 0.0), sync.get("drift_ppm", 0.0)
+            marker_time = offset + (1.0 + ppm * 1e-6) * time
+        write_c3d(path, time, outputs, markers, marker_time, descriptions, force=force)
+        n_markers = markers.n_markers if markers is not None else 0
+        return f"{len(outputs)} joint angle points (POINT:ANGLES, deg), {n_markers} markers"
+    if fmt == "json":
+        write_json(session, path, force=force)
+        return "results as JSON"
+    raise InputError(f"unknown export format '{fmt}'", path, remedy=f"use {', '.join(FORMATS)}")

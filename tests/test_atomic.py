@@ -1,0 +1,50 @@
+"""Outputs keep the umask's permissions; in-place rewrites keep the file's mode."""
+
+from __future__ import annotations
+
+import os
+import stat
+
+import numpy as np
+import pytest
+
+from motionlab.atomic import atomic_path, current_umask
+from motionlab.session import SensorStream, Session, load_session, save_session
+
+
+@pytest.fixture
+def umask_022():
+    old = os.umask(0o022)
+    yield
+    os.umask(old)
+
+
+def _mode(path) -> int:
+    return stat.S_IMODE(os.stat(path).st_mode)
+
+
+def test_new_output_gets_the_umask_mode(tmp_path, umask_022):
+    assert current_umask() == 0o022
+    with atomic_path(tmp_path / "a.txt") as tmp:
+        tmp.write_text("x")
+    assert _mode(tmp_path / "a.txt") == 0o644
+
+
+def test_session_is_shareable_and_in_place_keeps_mode(tmp_path, umask_022):
+    ses = Session(sensors={"s": SensorStream("s", np.arange(3) / 100.0, acc=np.zeros((3, 3)))})
+    path = tmp_path / "session.h5"
+    save_session(ses, path)
+    assert _mode(path) == 0o644
+    os.chmod(path, 0o640)
+    save_session(load_session(path), path, force=True)
+    assert _mode(path) == 0o640
+
+
+def test_umask_077_stays_private(tmp_path):
+    old = os.umask(0o077)
+    try:
+        with atomic_path(tmp_path / "b.txt") as tmp:
+            tmp.write_text("x")
+    finally:
+        os.umask(old)
+    assert _mode(tmp_path / "b.txt") == 0o600

@@ -1,0 +1,156 @@
+"""``motionlab export`` (sto, mot, c3d, json) round trips, and ``run`` writing results.json with
+``--filter``."""
+
+from __future__ import annotations
+
+import json
+
+import ezc3d
+import numpy as np
+import pytest
+import yaml
+from click.testing import CliRunner
+from conftest import SHARED, needs_shared
+from test_pipeline import PROTOCOL
+
+from motionlab.cli import main
+from motionlab.export import orientations, results_json
+from motionlab.io import read_any
+from motionlab.io.opensim import read_mot
+from motionlab.pipeline import run_pipeline
+from motionlab.session import load_session, save_session
+from motionlab.simulate import simulate
+from motionlab.simulate.markers import OpticalSystem
+
+
+@pytest.fixture(scope="module")
+def run_dir(tmp_path_factory):
+    """A simulated right-knee session with markers, run with --filter madgwick."""
+    root = tmp_path_factory.mktemp("export")
+    (root / "knee_small.yaml").write_text(yaml.safe_dump(PROTOCOL))
+    session, _ = simulate(
+        root / "knee_small.yaml", 32.0, 5, "typical", rate_hz=50.0, markers=True,
+        mounting_max_deg=5.0, optical=OpticalSystem(rate_hz=50.0),
+    )  # fmt: skip
+    save_session(session, root / "sim.h5")
+    run_pipeline(
+        [root / "sim.h5"], root / "knee_small.yaml", root / "out", progress=False,
+        clock_sync=False, estimator="madgwick",
+    )  # fmt: skip
+    return root / "out"
+
+
+def _export(run_dir, fmt, name):
+    out = run_dir / name
+    res = CliRunner().invoke(
+        main, ["export", str(run_dir / "session.h5"), "--format", fmt, "-o", str(out), "--force"]
+    )
+    assert res.exit_code == 0, res.output
+    return out
+
+
+def test_run_filter_and_results_json(run_dir):
+    ses = load_session(run_dir / "session.h5")
+    assert {e["name"] for e in ses.results["fusion"].values()} == {"madgwick"}
+    assert ses.provenance[-1]["parameters"]["estimator"] == "madgwick"
+    assert "--filter madgwick" in ses.provenance[-1]["command"]
+    written = json.loads((run_dir / "results.json").read_text())
+    again = results_json(ses)
+    assert written["angles"]["joints"].keys() == again["angles"]["joints"].keys()
+    for joint, entry in written["angles"]["joints"].items():
+        for col, values in entry["columns"].items():
+            np.testing.assert_allclose(
+                np.array(values, dtype=float),
+                np.array(again["angles"]["joints"][joint]["columns"][col], dtype=float),
+            )
+    assert sorted(map(json.dumps, written["metrics"])) == sorted(map(json.dumps, again["metrics"]))
+
+
+def test_json_export_loads_with_grades_and_metrics(run_dir):
+    doc = json.loads(_export(run_dir, "json", "r.json").read_text())  # strict JSON: no NaN
+    assert doc["format"] == "motionlab-results"
+    knee = doc["angles"]["joints"]["knee_r"]
+    assert list(knee["columns"]) == ["knee_r_flexion_deg", "knee_r_adduction_deg",
+                                     "knee_r_rotation_deg"]  # fmt: skip
+    assert set(knee["grades"].values()) <= {"determined", "weak", "not determined"}
+    assert len(knee["columns"]["knee_r_flexion_deg"]) == len(doc["angles"]["time_s"])
+    row = doc["metrics"][0]
+    assert {"block", "joint", "angle", "metric", "value", "unit"} <= set(row)
+    assert "validation" in doc and "sync" in doc["validation"]
+
+
+def test_sto_round_trip_through_ingest(run_dir):
+    path = _export(run_dir, "sto", "orientations.sto")
+    time, quats = orientations(load_session(run_dir / "session.h5"))
+    assert sorted(quats) == ["femur_r_imu", "tibia_r_imu"]
+    rec = read_any(path)
+    assert rec.format == "opensim"
+    for s in rec.sensors:
+        np.testing.assert_allclose(s.quat, quats[s.label], atol=1e-6)
+        np.testing.assert_allclose(s.time, time, atol=1e-9)
+    res = CliRunner().invoke(main, ["ingest", str(path), "-o", str(run_dir / "sto.h5"),
+                                    "--force"])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    back = load_session(run_dir / "sto.h5")
+    np.testing.assert_allclose(back.sensors["tibia_r_imu"].quat, quats["tibia_r_imu"], atol=1e-6)
+
+
+@needs_shared
+def test_sto_matches_files_opensim_wrote(run_dir):
+    ours = run_dir / "orientations_cmp.sto"
+    if not ours.exists():
+        _export(run_dir, "sto", ours.name)
+    theirs = SHARED / "formats" / "opensim" / "myComplexTasksTrial_orientations.sto"
+
+    def head(path):
+        lines = path.read_text().splitlines()
+        end = lines.index("endheader")
+        return {ln.split("=")[0] for ln in lines[:end] if "=" in ln}
+
+    assert head(ours) == head(theirs)
+    a, b = read_any(ours).sensors[0], read_any(theirs).sensors[0]
+    assert a.attrs["earth_frame"] == b.attrs["earth_frame"]
+    assert "Z up" in a.attrs["earth_frame"]
+
+
+def test_mot_round_trip(run_dir):
+    header, table = read_mot(_export(run_dir, "mot", "angles.mot"))
+    assert header["inDegrees"] == "yes" and int(header["nRows"]) == len(table)
+    angles = load_session(run_dir / "session.h5").results["angles"]
+    assert list(table.columns[:4]) == ["time", "knee_r_flexion", "knee_r_adduction",
+                                       "knee_r_rotation"]  # fmt: skip
+    np.testing.assert_array_equal(table["time"], angles["time_s"])
+    np.testing.assert_array_equal(table["knee_r_flexion"], angles["knee_r_flexion_deg"])
+
+
+def test_c3d_round_trip(run_dir):
+    path = _export(run_dir, "c3d", "angles.c3d")
+    ses = load_session(run_dir / "session.h5")
+    raw = ezc3d.c3d(str(path))
+    point = raw["parameters"]["POINT"]
+    assert list(point["ANGLES"]["value"]) == ["knee_r_angles"]
+    assert list(point["ANGLE_UNITS"]["value"]) == ["deg"]
+    (m,) = read_any(path).markers
+    angle = m.model_outputs["knee_r_angles"]
+    assert angle.kind == "angles" and angle.unit == "deg"
+    flex = ses.results["angles"]["knee_r_flexion_deg"]
+    ok = np.isfinite(flex)
+    np.testing.assert_allclose(angle.data[ok, 0], flex[ok], atol=1e-3)  # float32 in the file
+    optical = next(iter(ses.markers.values()))
+    assert m.labels == optical.labels
+    assert np.nanmax(np.abs(m.positions)) == pytest.approx(
+        np.nanmax(np.abs(optical.positions)), abs=0.05
+    )  # metres, not mm
+
+
+def test_export_errors(run_dir, tmp_path):
+    res = CliRunner().invoke(main, ["export", str(run_dir / "session.h5"), "-o",
+                                    str(tmp_path / "x.txt")])  # fmt: skip
+    assert res.exit_code == 2 and "--format" in res.output
+    empty = tmp_path / "empty.h5"
+    from motionlab.session import Session
+
+    save_session(Session(), empty)
+    res = CliRunner().invoke(main, ["export", str(empty), "-o", str(tmp_path / "a.mot")])
+    assert res.exit_code == 2 and "no joint angles" in res.output
+    assert not (tmp_path / "a.mot").exists()
