@@ -249,9 +249,11 @@ def analyse(
     and 50 Hz: with the magnetometer 3 of 30 had a knee rotation RMSE of 21-23°, without it none
     above 2°). Validation then aligns each sensor's heading separately (mode ``heading``).
     """
-    from motionlab.kinematics.metrics import session_metrics
+    from motionlab.kinematics.gait import analyse_gait, sensed_protocol
+    from motionlab.kinematics.metrics import is_gait, session_metrics
     from motionlab.kinematics.session_angles import session_angles
 
+    protocol = sensed_protocol(protocol, session)
     stages = stages or _Stages([], progress=False)
     if clock_sync:
         from motionlab.clocksync import synchronise
@@ -277,6 +279,9 @@ def analyse(
         session.results["angles"] = session_angles(session, protocol, cal) | {"method": "imu"}
     with stages("metrics"):
         session.results["metrics"] = session_metrics(session, protocol)
+    if any(is_gait(t) for t in protocol.tasks):
+        with stages("gait"):
+            session.results["gait"] = analyse_gait(session, protocol)
     if reference is not None or session.markers:
         with stages("validate"):
             _validate(session, protocol, Path(reference) if reference else None, seed, magnetometer)
@@ -323,6 +328,7 @@ def run_pipeline(
     clock_sync
         Put the IMUs on one clock from their shared joint centres (see :func:`analyse`).
     """
+    from motionlab.kinematics.gait import sensed_protocol
     from motionlab.kinematics.metrics import metrics_table
     from motionlab.report import load_views, write_report
 
@@ -354,6 +360,7 @@ def run_pipeline(
     with stages("ingest"):
         session = load_inputs(inputs, map_path, command)
         check_segments(session, proto, inputs)
+        proto = sensed_protocol(proto, session)
     analyse(session, proto, reference, seed, calibration_dir, stages, magnetometer, clock_sync)
     validated = "validation" in session.results
     session.add_provenance(
