@@ -438,6 +438,7 @@ def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
         "  tasks: "
         + ", ".join(f"{task_name(k)} {a:.0f}-{b:.0f} s" for k, (a, b) in view.blocks().items())
     )
+    lines.append(_gait_line(ses.results.get("gait")))
     lines.append("  flexion range (typical, deg):")
     for r in rom_rows(view):
         if r["angle"] == "flexion":
@@ -470,3 +471,17 @@ def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
     steps = ", ".join(f"{k} {v:.1f}" for k, v in times.items())
     lines.append(f"time: {total_s:.1f} s ({steps})")
     return "\n".join(lines)
+
+
+def _gait_line(gait: dict | None) -> str:
+    """One summary line about gait: its main numbers, or why there are no gait pages."""
+    if gait is None:
+        return "  gait: none in this recording (the protocol has no gait task); no gait pages"
+    if gait.get("status") != "ok":
+        return f"  gait: {gait.get('status')}; no gait pages"
+    s = gait["summary"]
+    gps = gait.get("map", {}).get("gps", {}).get("overall", float("nan"))
+    return (
+        f"  gait: {s['strides_kept']} strides, cadence {s['cadence_steps_per_min']:.1f} steps/min,"
+        f" step-time asymmetry {s['step_time_asymmetry_pct']:.1f} %, GPS {gps:.1f} deg"
+    )

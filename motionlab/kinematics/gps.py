@@ -21,14 +21,14 @@ they are approximate).
 from __future__ import annotations
 
 from functools import lru_cache
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 from scipy.interpolate import PchipInterpolator
 
-from motionlab.report.normative import DATA
-
+DATA = Path(__file__).resolve().parent.parent / "report_data"  # as motionlab.report.normative
 NORMATIVE = DATA / "gait_normative.csv"
 NORMATIVE_SOURCES = DATA / "gait_normative.yaml"
 VARIABLES = (
