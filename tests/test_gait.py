@@ -75,7 +75,8 @@ def test_spatiotemporal_formulas_on_hand_made_events():
     table = sp.stride_table(sides, events)
     summ = sp.summary(table)
     r, left = summ["sides"]["r"], summ["sides"]["l"]
-    assert r["stance_pct"]["mean"] == pytest.approx(65) and left["stance_pct"]["mean"] == pytest.approx(60)
+    assert r["stance_pct"]["mean"] == pytest.approx(65)
+    assert left["stance_pct"]["mean"] == pytest.approx(60)
     assert r["step_time_s"]["mean"] == pytest.approx(0.55)
     assert left["step_time_s"]["mean"] == pytest.approx(0.45)
     assert summ["step_time_asymmetry_pct"] == pytest.approx(20.0)
