@@ -116,6 +116,9 @@ def run_one(seed: int, variant: str) -> dict[str, float]:
                       ("pelvis rot RMSE", "pelvis_rotation_deg")):  # fmt: skip
         e = P[col] - np.interp(tp, truth.time, G[col])
         row[name] = float(np.sqrt(np.nanmean(e[w] ** 2)))
+    row["strides kept r"] = float(g["strides"]["kept"][g["strides"]["side"] == "r"].sum())
+    row["strides kept l"] = float(g["strides"]["kept"][g["strides"]["side"] == "l"].sum())
+    print(f"seed {seed} {variant}: {g['summary']['strides_rejected']}", file=sys.stderr)
     row["GPS"] = g["map"]["gps"]["overall"]
     row["population GPS"] = g["map"]["population_gps_deg"]
     pct = np.linspace(0, 100, 101)
@@ -124,7 +127,8 @@ def run_one(seed: int, variant: str) -> dict[str, float]:
         means = {s: {k: v for k, v in c.items() if not k.endswith("_sd")}
                  for s, c in g["curves"].items()}  # fmt: skip
         for s in means:
-            means[s]["knee_flexion"] = means[s]["knee_flexion"] - deficit * bump
+            if "knee_flexion" in means[s]:
+                means[s]["knee_flexion"] = means[s]["knee_flexion"] - deficit * bump
         row[f"GPS -{deficit}°"] = movement_analysis_profile(means)["gps"]["overall"]
     return row
 
