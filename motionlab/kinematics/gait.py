@@ -42,8 +42,9 @@ PELVIS_SEGMENT = "pelvis"
 
 def sensed_protocol(protocol: Protocol, session: Session) -> Protocol:
     """The protocol without the joints that use an optional segment with no sensor (the walk
-    protocol's hips when the pelvis sensor is left off); the protocol itself when nothing is
-    missing."""
+    protocol's hips when the pelvis sensor is left off); the protocol itself when no joint is
+    dropped. Segments stay (calibration steps may name them; a missing optional one is skipped
+    there as before)."""
     missing = {
         seg
         for seg, spec in protocol.segments.items()
@@ -56,8 +57,9 @@ def sensed_protocol(protocol: Protocol, session: Session) -> Protocol:
         for k, j in protocol.joints.items()
         if j.proximal not in missing and j.distal not in missing
     }
-    segments = {k: v for k, v in protocol.segments.items() if k not in missing}
-    return dataclasses.replace(protocol, joints=joints, segments=segments)
+    if len(joints) == len(protocol.joints):
+        return protocol
+    return dataclasses.replace(protocol, joints=joints)  # segments kept: steps may name them
 
 
 def _yaw_rate(session: Session, label: str) -> tuple[np.ndarray, np.ndarray]:
