@@ -272,9 +272,11 @@ def analyse(
 
     ``estimator`` names the fusion estimator (:func:`motionlab.fusion.registry.available`).
     """
-    from motionlab.kinematics.metrics import session_metrics
+    from motionlab.kinematics.gait import analyse_gait, sensed_protocol
+    from motionlab.kinematics.metrics import is_gait, session_metrics
     from motionlab.kinematics.session_angles import session_angles
 
+    protocol = sensed_protocol(protocol, session)
     stages = stages or _Stages([], progress=False)
     if clock_sync:
         from motionlab.clocksync import synchronise
@@ -303,6 +305,9 @@ def analyse(
         session.results["heading"] = corrections
     with stages("metrics"):
         session.results["metrics"] = session_metrics(session, protocol)
+    if any(is_gait(t) for t in protocol.tasks):
+        with stages("gait"):
+            session.results["gait"] = analyse_gait(session, protocol)
     if reference is not None or session.markers:
         with stages("validate"):
             _validate(session, protocol, Path(reference) if reference else None, seed, magnetometer)
@@ -354,6 +359,7 @@ def run_pipeline(
         Fusion estimator name (``motionlab fuse --list``); checked before any work.
     """
     from motionlab.export import write_json
+    from motionlab.kinematics.gait import sensed_protocol
     from motionlab.kinematics.metrics import metrics_table
     from motionlab.report import load_views, write_report
 
@@ -387,6 +393,7 @@ def run_pipeline(
     with stages("ingest"):
         session = load_inputs(inputs, map_path, command)
         check_segments(session, proto, inputs)
+        proto = sensed_protocol(proto, session)
     analyse(
         session,
         proto,
@@ -492,6 +499,7 @@ def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
         "  tasks: "
         + ", ".join(f"{task_name(k)} {a:.0f}-{b:.0f} s" for k, (a, b) in view.blocks().items())
     )
+    lines.append(_gait_line(ses.results.get("gait")))
     flexion = [r for r in rom_rows(view) if r["angle"] == "flexion"]
     if flexion:
         lines.append("  flexion range (typical, deg):")
@@ -528,3 +536,17 @@ def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
     steps = ", ".join(f"{k} {v:.1f}" for k, v in times.items())
     lines.append(f"time: {total_s:.1f} s ({steps})")
     return "\n".join(lines)
+
+
+def _gait_line(gait: dict | None) -> str:
+    """One summary line about gait: its main numbers, or why there are no gait pages."""
+    if gait is None:
+        return "  gait: none in this recording (the protocol has no gait task); no gait pages"
+    if gait.get("status") != "ok":
+        return f"  gait: {gait.get('status')}; no gait pages"
+    s = gait["summary"]
+    gps = gait.get("map", {}).get("gps", {}).get("overall", float("nan"))
+    return (
+        f"  gait: {s['strides_kept']} strides, cadence {s['cadence_steps_per_min']:.1f} steps/min,"
+        f" step-time asymmetry {s['step_time_asymmetry_pct']:.1f} %, GPS {gps:.1f} deg"
+    )

@@ -34,6 +34,10 @@ from motionlab.simulate.markers import write_c3d
               help="Sensor motion on the segment: impacts (ringing after heel strikes) or motion "
                    "(also following the segment's acceleration, and slipping with --preset "
                    "loose). Default: the preset's (motion for loose, else impacts).")  # fmt: skip
+@click.option("--gait", default=None,
+              help="Gait variant of the walking tasks, with gait events and pelvis angles in the "
+                   "truth: normal, asymmetric (right stance longer, unequal steps), slow (90 "
+                   "steps/min) or slow_asymmetric.")  # fmt: skip
 @click.option("--height", type=float, default=1.75, show_default=True, help="Body height (m).")
 @click.option("--rate", type=float, default=100.0, show_default=True, help="IMU rate (Hz).")
 @click.option("--no-calibration", is_flag=True, help="Skip the protocol's calibration steps.")
@@ -50,6 +54,7 @@ def command(
     preset: str,
     mounting: str,
     soft_tissue: str | None,
+    gait: str | None,
     height: float,
     rate: float,
     no_calibration: bool,
@@ -101,6 +106,7 @@ def command(
         calibration=not no_calibration,
         mounting=mounting,
         soft_tissue=soft_tissue,
+        gait=gait,
     )
     optical = session.markers.get("optical")
     if optical is not None and not session_markers:

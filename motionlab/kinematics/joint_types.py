@@ -9,7 +9,7 @@ only names, signs and words.
 
 Kinds of joint types:
 
-- **clinical** (knee, elbow, lumbar): fixed names, signs and sequence (only their standard
+- **clinical** (knee, hip, elbow, lumbar): fixed names, signs and sequence (only their standard
   sequence is accepted); angle columns ``<type>_<side>_<angle>_deg`` (``knee_r_flexion_deg``), or
   ``<type>_<angle>_deg`` for midline types (``lumbar_flexion_deg``).
 - **hinge**: the joint names its own axis (``axis: x|y|z|-x|-y|-z``, the same segment axis in the
@@ -108,6 +108,25 @@ JOINT_TYPES: dict[str, JointType] = {
         clinical=True,
         sequence_rule="fixed",
         display="knee",
+    ),
+    # ISB hip JCS (Wu et al. 2002, J Biomech 35:543): thigh relative to pelvis, flexion about the
+    # pelvic z, ab/adduction about the floating axis, internal rotation about the femoral y.
+    # Euler a > 0 turns the knee forward (flexion); b > 0 moves the knee to the left (adduction
+    # of the right hip); c > 0 turns the thigh's front to the left (internal for the right hip).
+    "hip": JointType(
+        name="hip",
+        angle_names=("flexion", "adduction", "rotation"),
+        sequence="ZXY",
+        signs={"r": (1.0, 1.0, 1.0), "l": (1.0, -1.0, -1.0)},
+        sided=True,
+        planes=("sagittal", "frontal", "transverse"),
+        positive=("flexion +", "adduction +", "internal +"),
+        titles=("flexion-extension", "ab-adduction", "internal-external rotation"),
+        hinge=False,
+        flexion_axis="z",
+        clinical=True,
+        sequence_rule="fixed",
+        display="hip",
     ),
     # ISB (Wu et al. 2005) elbow: flexion, carrying angle, pronation-supination.
     "elbow": JointType(

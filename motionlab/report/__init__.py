@@ -27,6 +27,7 @@ from motionlab.errors import InputError
 from motionlab.protocol import Protocol
 from motionlab.report.csv import write_csvs
 from motionlab.report.model import SessionView, load_view
+from motionlab.report.pages_gait import gait_report_pages
 from motionlab.report.pages_joint import joint_pages, symmetry_page
 from motionlab.report.pages_methods import accuracy_page, methods_page
 from motionlab.report.pages_oop import out_of_plane_page
@@ -79,6 +80,7 @@ def _session_pages(doc: Document, view: SessionView) -> None:
     summary_page(doc, view)
     data_quality_page(doc, view)
     calibration_page(doc, view)
+    gait_report_pages(doc, view)
     joint_pages(doc, view)
     symmetry_page(doc, view)
     out_of_plane_page(doc, view)

@@ -215,15 +215,25 @@ def calibration_frame(view: SessionView) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def _gait_frames(view: SessionView) -> dict[str, pd.DataFrame]:
+    from motionlab.report.pages_gait import gait_frames  # pages_gait imports this package
+
+    return gait_frames(view)
+
+
 def tables(view: SessionView) -> dict[str, pd.DataFrame]:
     """Every CSV of one session, by file name."""
-    return angle_frames(view) | {
-        "metrics.csv": metrics_frame(view),
-        "out_of_plane.csv": out_of_plane_frame(view),
-        "grades.csv": grades_frame(view),
-        "quality.csv": quality_frame(view),
-        "calibration.csv": calibration_frame(view),
-    }
+    return (
+        angle_frames(view)
+        | {
+            "metrics.csv": metrics_frame(view),
+            "out_of_plane.csv": out_of_plane_frame(view),
+            "grades.csv": grades_frame(view),
+            "quality.csv": quality_frame(view),
+            "calibration.csv": calibration_frame(view),
+        }
+        | _gait_frames(view)
+    )
 
 
 def write_csvs(view: SessionView, csv_dir: str | Path, force: bool = False) -> list[Path]:

@@ -20,6 +20,7 @@ mounting.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -47,6 +48,7 @@ from motionlab.simulate.errors import (
     sample_times,
     soft_hard_iron,
 )
+from motionlab.simulate.gait_truth import gait_truth
 from motionlab.simulate.motion import group, smoothstep
 from motionlab.simulate.signals import (
     MagneticField,
@@ -68,6 +70,16 @@ _STREAMS = {"mount": 1, "sensor": 2, "markers": 3, "field": 4}
 MOUNTINGS = ("nominal", "random", "surface")
 _SUB_SITE, _SUB_TISSUE = 1, 2  # sub-streams of "mount" for the newer draws
 TISSUE_RATE_HZ = 200.0  # grid of the soft-tissue dynamics
+#: named gait variants (``gait=``): options of the gait tasks (motion.gait_block); ``asymmetric``:
+#: the right stance ends at 67 % instead of 62 % and the left heel strikes at 47 % of the stride
+#: (right step 0.47, left step 0.53 of a stride); ``slow``: 0.75 strides/s (90 steps/min) at
+#: 0.9 m/s. Every variant walks the ellipse of the gait task, so it turns at both ends.
+GAIT_VARIANTS: dict[str, dict[str, float]] = {
+    "normal": {},
+    "asymmetric": {"toe_off_r": 0.67, "step_offset": 0.47},
+    "slow": {"stride_hz": 0.75, "speed": 0.9},
+    "slow_asymmetric": {"stride_hz": 0.75, "speed": 0.9, "toe_off_r": 0.67, "step_offset": 0.47},
+}
 
 
 def _rng(seed: int, purpose: str, index: int = 0, *sub: int) -> np.random.Generator:
@@ -161,6 +173,29 @@ def _field(field: MagneticField | None, preset: Preset, timeline: Timeline, body
     return field
 
 
+def _gait_options(gait: str | dict | None) -> dict | None:
+    """Options of the gait tasks from a variant name or a dict; ``None`` when not asked for."""
+    if gait is None:
+        return None
+    if isinstance(gait, str):
+        if gait not in GAIT_VARIANTS:
+            raise InputError(f"unknown gait variant {gait!r}", where="--gait",
+                             remedy=f"use one of {', '.join(GAIT_VARIANTS)}")  # fmt: skip
+        return dict(GAIT_VARIANTS[gait])
+    return {k: float(v) for k, v in gait.items()}
+
+
+def _with_gait(protocol: Protocol, options: dict) -> Protocol:
+    """The protocol with ``options`` added to every gait task's options."""
+    tasks = [
+        dataclasses.replace(t, options={**t.options, **options})
+        if any(w in f"{t.kind} {t.name}".lower() for w in ("gait", "walk"))
+        else t
+        for t in protocol.tasks
+    ]
+    return dataclasses.replace(protocol, tasks=tasks)
+
+
 def simulate(
     protocol: Protocol | str | Path,
     duration: float = 60.0,
@@ -178,6 +213,7 @@ def simulate(
     rest_s: float = 3.0,
     mounting: str = "nominal",
     soft_tissue: str | None = None,
+    gait: str | dict | None = None,
 ) -> tuple[Session, Truth]:
     """Simulate a recording of ``protocol`` lasting ``duration`` s (true time).
 
@@ -204,6 +240,11 @@ def simulate(
         ``impacts`` (ringing after heel strikes) or ``motion`` (also moving with the segment's
         acceleration, and slipping by the preset's ``slip_deg``); default the preset's
         (``motion`` for ``loose``). See :mod:`.signals`.
+    gait
+        A gait variant (:data:`GAIT_VARIANTS`) or options of the gait tasks (``stride_hz``,
+        ``speed``, ``toe_off_r``, ``toe_off_l``, ``step_offset``; see
+        :func:`~motionlab.simulate.motion.gait_block`). When given, the truth also holds the gait
+        events from the feet's motion and the pelvis angles (:mod:`.gait_truth`).
     field, gravity
         Magnetic field model (default 50 µT, dip 60°) and gravity (m/s²).
     optical
@@ -234,6 +275,9 @@ def simulate(
                 f"segments.{seg}",
                 f"use one of {body_segments}",
             )
+    gait_options = _gait_options(gait)
+    if gait_options is not None:
+        protocol = _with_gait(protocol, gait_options)
     body = Body(height)
     timeline = plan(protocol, body, duration, seed, rest_s=rest_s, calibration=calibration)
     field = _field(field, preset, timeline, body, seed)
@@ -246,6 +290,8 @@ def simulate(
         joint_angles=_joint_truth(protocol, ch, poses, body),
         steps=timeline.steps(),
     )
+    if gait_options is not None:
+        truth.gait = gait_truth(body, timeline, t)
     session = Session()
     carried = _rng(seed, "field", 1).integers(len(protocol.segments))
     extended = mounting != "nominal" or soft_tissue != "impacts"  # the newer truth fields
@@ -312,6 +358,7 @@ def simulate(
         # the newer options only when used, so older files keep their bytes
         **({"mounting": mounting} if mounting != "nominal" else {}),
         **({"soft_tissue": soft_tissue} if soft_tissue != "impacts" else {}),
+        **({"gait": gait_options} if gait_options is not None else {}),
         "gravity_m_s2": gravity,
         "earth_field_uT": field.earth,
         "magnetic_dipoles": [{"position_m": p, "moment_Am2": m} for p, m in field.dipoles],

@@ -215,6 +215,8 @@ def gait_block(body: Body, name: str, phase: str, duration: float, options: dict
 
     Speed up to ``speed`` m/s (default 1.2), stride frequency ``stride_hz`` (default 0.9 Hz);
     knee, hip and ankle follow normative curves, with pelvis bounce/sway/rotation and arm swing.
+    ``toe_off_r``, ``toe_off_l`` and ``step_offset`` change the timing of each leg
+    (:func:`_shaped_gait`); without them the motion is the original one, sample for sample.
     """
     a, b = float(options.get("path_a", 4.0)), float(options.get("path_b", 2.0))
     speed, f = float(options.get("speed", 1.2)), float(options.get("stride_hz", 0.9))
@@ -255,7 +257,58 @@ def gait_block(body: Body, name: str, phase: str, duration: float, options: dict
         out[:, CH["lumbar_0"]] = e * (3 * DEG + 1 * DEG * np.cos(2 * th))
         return out
 
+    if any(k in options for k in GAIT_SHAPE_OPTIONS):
+        fn = _shaped_gait(fn, options, f, duration, ramp)
     end = path(phidot * float(envelope_integral(np.array(duration), duration, ramp)))
     strikes = np.arange(0.0, duration, 0.5 / f)  # both legs
     strikes = strikes[envelope(strikes, duration, ramp) > 0.5]
     return Block(name, "gait", phase, duration, fn, end, strikes, "gait")
+
+
+#: gait options that change the legs' timing (:func:`_shaped_gait`)
+GAIT_SHAPE_OPTIONS = ("toe_off_r", "toe_off_l", "step_offset")
+#: where the templates' toe-off falls (fraction of the stride, Perry & Burnfield 2010: 60-62 %)
+TEMPLATE_TOE_OFF = 0.62
+
+
+def leg_phase(u: np.ndarray, toe_off: float) -> np.ndarray:
+    """Template phase (0-1) of a leg at its own stride phase ``u`` (0-1 from heel strike).
+
+    A smooth monotone warp ``v = u + c sin²(πu)`` with ``v(toe_off) = TEMPLATE_TOE_OFF``: the
+    template's stance is stretched to end at ``toe_off`` (so ``toe_off`` 0.67 gives a longer
+    stance), heel strike stays at 0 and the curves stay C^∞ across strides.
+    """
+    c = (TEMPLATE_TOE_OFF - toe_off) / np.sin(np.pi * toe_off) ** 2
+    if abs(c) * np.pi >= 0.95:
+        raise ValueError(f"toe-off at {toe_off:g} of the stride is too far from the template's")
+    return u + c * np.sin(np.pi * u) ** 2
+
+
+def _shaped_gait(fn, options: dict, f: float, duration: float, ramp: float):
+    """The gait block's ``fn`` with each leg on its own timing.
+
+    The right leg's heel strikes at stride phase 0, the left's at ``step_offset`` (default 0.5;
+    below 0.5 the left step is the shorter one); each leg's template runs through
+    :func:`leg_phase` with its ``toe_off_<side>`` (default :data:`TEMPLATE_TOE_OFF`). The pelvis,
+    trunk and arms keep the right leg's phase.
+    """
+    offset = float(options.get("step_offset", 0.5))
+    toe = {s: float(options.get(f"toe_off_{s}", TEMPLATE_TOE_OFF)) for s in "rl"}
+
+    def shaped(tau):
+        out = fn(tau)
+        e = envelope(tau, duration, ramp)
+        for side, d in (("r", 0.0), ("l", offset)):
+            u = np.mod(f * tau - d, 1.0)
+            th = 2 * np.pi * leg_phase(u, toe[side])
+            basis = gait_basis(th)
+            out[:, CH[f"knee_{side}_0"]] = e * gait_curve("knee", basis)
+            out[:, CH[f"knee_{side}_2"]] = e * 3 * DEG * np.sin(th - 0.4)
+            out[:, CH[f"knee_{side}_1"]] = e * 1.5 * DEG * np.sin(2 * th)
+            hip = gait_curve("hip", basis)
+            out[:, CH[f"hip_{side}_0"]] = e * hip
+            out[:, CH[f"hip_{side}_1"]] = e * 3 * DEG * np.sin(th + 0.3)
+            out[:, CH[f"ankle_{side}_0"]] = e * gait_curve("ankle", basis)
+        return out
+
+    return shaped

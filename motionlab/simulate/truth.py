@@ -18,6 +18,9 @@ Layout (``h5dump`` shows it; SI units and rad inside, joint angles in degrees)::
                             tissue_damping, slip_deg (see simulate/signals.py)
     /joint_angles/<column>  (N,) degrees, columns named by ``column_name`` (e.g. knee_r_flexion_deg)
     /steps/                 name, kind, phase, generator (str), start_s, end_s (true time)
+    /gait/                  only with --gait: ic_r, fc_r, ic_l, fc_l (K,) event times (s, true
+                            time) with *_steady (K,) bool; pelvis_tilt_deg, pelvis_obliquity_deg,
+                            pelvis_rotation_deg (N,) and walking_heading (N,) rad on /time
     /markers/               labels, segments, kinds, local (M,3) m; lab_rotation (4,) lab → ENU,
                             lab_origin (3,); frame_time (F,) true time of each optical frame;
                             attrs: rate_hz, clock_offset_s, clock_drift
@@ -52,6 +55,9 @@ class Truth:
     steps: list[dict[str, Any]] = field(default_factory=list)
     markers: dict[str, Any] = field(default_factory=dict)
     config: dict[str, Any] = field(default_factory=dict)
+    #: only with ``simulate(gait=...)``: events (s) per side and pelvis angles (deg), see
+    #: :mod:`motionlab.simulate.gait_truth`
+    gait: dict[str, Any] = field(default_factory=dict)
 
     def step(self, name: str) -> dict[str, Any]:
         """The step or task called ``name``."""
@@ -110,6 +116,8 @@ def save_truth(truth: Truth, path: str | Path, force: bool = False) -> None:
             ja.create_dataset(col, data=values).attrs["unit"] = "deg"
         _write(f.create_group("steps", track_order=True), steps)
         _write(f.create_group("markers", track_order=True), truth.markers)
+        if truth.gait:  # only when asked for, so other truth files keep their bytes
+            _write(f.create_group("gait", track_order=True), truth.gait)
 
 
 def load_truth(path: str | Path) -> Truth:
@@ -143,6 +151,7 @@ def load_truth(path: str | Path) -> Truth:
             ],
             markers=_read(f["markers"]),
             config=json.loads(f.attrs["config"]),
+            gait=_read(f["gait"]) if "gait" in f else {},
         )
 
 

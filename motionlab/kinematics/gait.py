@@ -1,0 +1,179 @@
+"""Gait analysis of a calibrated session: events, strides, spatio-temporal parameters, pelvis
+angles, cycle curves and the GPS/MAP (``session.results["gait"]``).
+
+Steps: the gait tasks' time ranges (``results["metrics"]["blocks"]`` of tasks whose kind is gait
+or walk) → each knee's shank sagittal angular velocity (raw gyroscope turned into the shank frame
+by the calibrated mounting) → events per side (:mod:`.gait_events`; turns from the vertical
+angular velocity of the pelvis sensor, else of the side's shank sensor) → strides and
+spatio-temporal parameters (:mod:`.spatiotemporal`) → pelvis angles relative to the walking
+direction (:mod:`.pelvis`, with a pelvis sensor) → per side the mean curve over kept strides of
+pelvis, hip and knee angles → GPS and MAP (:mod:`.gps`).
+
+A session without a gait task, without shank sensors or without strides gives
+``{"status": "no gait: <why>"}`` and nothing else.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+import numpy as np
+
+from motionlab import rotations as rot
+from motionlab.kinematics import gait_events as ge
+from motionlab.kinematics import spatiotemporal as sp
+from motionlab.kinematics.cycles import CURVE_POINTS
+from motionlab.kinematics.gps import PELVIS, movement_analysis_profile
+from motionlab.kinematics.metrics import is_gait, shank_angular_velocity
+from motionlab.kinematics.pelvis import (
+    PELVIS_COLUMNS,
+    pelvis_angles,
+    side_angles,
+    walking_heading,
+)
+from motionlab.kinematics.session_angles import sensor_orientation, session_segments
+from motionlab.protocol import Protocol
+from motionlab.segments import sensor_for_segment
+from motionlab.session import Session
+
+PELVIS_SEGMENT = "pelvis"
+
+
+def sensed_protocol(protocol: Protocol, session: Session) -> Protocol:
+    """The protocol without the joints that use an optional segment with no sensor (the walk
+    protocol's hips when the pelvis sensor is left off); the protocol itself when no joint is
+    dropped. Segments stay (calibration steps may name them; a missing optional one is skipped
+    there as before)."""
+    missing = {
+        seg
+        for seg, spec in protocol.segments.items()
+        if not spec.required and sensor_for_segment(session, seg) is None
+    }
+    if not missing:
+        return protocol
+    joints = {
+        k: j
+        for k, j in protocol.joints.items()
+        if j.proximal not in missing and j.distal not in missing
+    }
+    if len(joints) == len(protocol.joints):
+        return protocol
+    return dataclasses.replace(protocol, joints=joints)  # segments kept: steps may name them
+
+
+def _yaw_rate(session: Session, label: str) -> tuple[np.ndarray, np.ndarray]:
+    """``(time, vertical angular velocity rad/s)`` of one sensor (earth z of its gyroscope)."""
+    s = session.sensors[label]
+    q = sensor_orientation(session, label)
+    return s.time, rot.rotate(q, s.gyr)[:, 2]
+
+
+def gait_spans(session: Session, protocol: Protocol) -> dict[str, tuple[float, float]]:
+    """``{task: (start_s, end_s)}`` of the protocol's gait tasks found in the session."""
+    blocks = session.results.get("metrics", {}).get("blocks", {})
+    out = {}
+    for task in protocol.tasks:
+        b = blocks.get(task.name)
+        if is_gait(task) and isinstance(b, dict) and "start_s" in b:
+            out[task.name] = (float(b["start_s"]), float(b["end_s"]))
+    return out
+
+
+def _curve(time: np.ndarray, values: np.ndarray, t0: float, t1: float) -> np.ndarray:
+    pct = np.linspace(t0, t1, CURVE_POINTS)
+    return np.interp(pct, time, values, left=np.nan, right=np.nan)
+
+
+def analyse_gait(session: Session, protocol: Protocol) -> dict[str, Any]:
+    """``session.results["gait"]`` (module docstring); the session must be calibrated and have
+    angles and metrics."""
+    spans = gait_spans(session, protocol)
+    if not spans:
+        return {"status": "no gait: the protocol has no gait task, or none was found"}
+    cal = session.results.get("calibration", {})
+    omega = shank_angular_velocity(session, protocol, cal)
+    side_of = {j.distal: j.side for j in protocol.joints.values() if j.type == "knee"}
+    if not omega:
+        return {"status": "no gait: no shank sensor under a knee joint"}
+    pelvis_label = sensor_for_segment(session, PELVIS_SEGMENT)
+    events, strides = {}, {}
+    for seg, (time, wz) in omega.items():
+        side = side_of[seg]
+        ev = ge.detect(time, wz)
+        label = pelvis_label or sensor_for_segment(session, seg)
+        yaw = _yaw_rate(session, label) if label else None
+        parts = [ge.strides(side, ev, yaw, span) for span in spans.values()]
+        strides[side] = ge.Strides(
+            side,
+            np.concatenate([p.ic for p in parts]),
+            np.concatenate([p.fc for p in parts]),
+            np.concatenate([p.next_ic for p in parts]),
+            np.concatenate([p.kept for p in parts]),
+            [r for p in parts for r in p.reason],
+        )
+        events[side] = {
+            "ic": ev.ic,
+            "ic_confidence": ev.ic_confidence,
+            "fc": ev.fc,
+            "fc_confidence": ev.fc_confidence,
+        }
+    table = sp.stride_table(strides, events)
+    if not table["kept"].any():
+        return {"status": "no gait: no stride passed the checks", "events": events}
+    summary = sp.summary(table)
+    out: dict[str, Any] = {
+        "status": "ok",
+        "tasks": {k: {"start_s": a, "end_s": b} for k, (a, b) in spans.items()},
+        "events": events,
+        "strides": {c: table[c].to_numpy() for c in table.columns if c not in ("side", "reason")}
+        | {"side": table["side"].to_numpy(str), "reason": table["reason"].to_numpy(str)},
+        "summary": summary,
+        "walking_speed": "not measured: no foot sensors (see kinematics/spatiotemporal.py)",
+    }
+    angles = session.results.get("angles", {})
+    series: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    if "time_s" in angles:
+        for col, v in angles.items():
+            if col.endswith("_deg"):
+                series[col] = (np.asarray(angles["time_s"]), np.asarray(v, dtype=float))
+    if pelvis_label is not None:
+        t_p, q_p = session_segments(session, protocol, cal, segments=[PELVIS_SEGMENT])[
+            PELVIS_SEGMENT
+        ]
+        rate = 1.0 / float(np.median(np.diff(t_p)))
+        stride_s = float(table.loc[table["kept"], "stride_time_s"].median())
+        heading = walking_heading(q_p, rate, stride_s)
+        pel = np.degrees(pelvis_angles(q_p, heading))
+        out["pelvis"] = {"time_s": t_p} | {c: pel[:, i] for i, c in enumerate(PELVIS_COLUMNS)}
+        out["pelvis"]["method"] = (
+            "pelvis frame from the calibration (gravity in the stand and the placement hint); "
+            "walking direction = pelvis heading averaged over one stride"
+        )
+    curves: dict[str, dict[str, np.ndarray]] = {}
+    for side, st in strides.items():
+        keep = st.kept
+        var_series: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        for v in ("hip_flexion", "hip_adduction", "hip_rotation", "knee_flexion"):
+            joint, angle = v.split("_")
+            col = f"{joint}_{side}_{angle}_deg"
+            if col in series:
+                var_series[v] = series[col]
+        if "pelvis" in out:
+            pel = np.column_stack([out["pelvis"][c] for c in PELVIS_COLUMNS])
+            pel = side_angles(pel, side)
+            for i, v in enumerate(PELVIS):
+                var_series[v] = (out["pelvis"]["time_s"], pel[:, i])
+        curves[side] = {}
+        for v, (t, x) in var_series.items():
+            cyc = np.array([_curve(t, x, a, b) for a, b in zip(st.ic[keep], st.next_ic[keep],
+                                                              strict=True)])  # fmt: skip
+            if len(cyc):
+                curves[side][v] = np.nanmean(cyc, axis=0)
+                curves[side][f"{v}_sd"] = (
+                    np.nanstd(cyc, axis=0, ddof=1) if len(cyc) > 1 else (np.zeros(CURVE_POINTS))
+                )
+    out["curves"] = curves
+    means = {s: {k: v for k, v in c.items() if not k.endswith("_sd")} for s, c in curves.items()}
+    out["map"] = movement_analysis_profile(means)
+    return out

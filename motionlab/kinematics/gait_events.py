@@ -1,0 +1,184 @@
+"""Gait events per side from the shank gyroscope, with a confidence per event, and strides kept or
+rejected with the reason.
+
+Input: the shank's sagittal angular velocity ``ω_z`` (rad/s, about the shank segment's z axis,
+positive when the lower end swings forward, both sides) and, for turns, the vertical (earth z)
+angular velocity of the shank or pelvis. Low-passed at 6 Hz (2nd-order Butterworth, zero phase).
+
+- **Mid-swing**: the large positive peaks of ``ω_z`` (Aminian et al. 2002, J Biomech 35:689;
+  Salarian et al. 2004, IEEE TBME 51:1434), at least half the median of the larger peaks and
+  1 rad/s, 0.6 s apart.
+- **Initial contact** (IC): the positive-to-negative zero crossing after mid-swing, where the
+  shank stops swinging forward and turns over the planted foot (Behboodi et al. 2015, IEEE EMBC
+  5529; as in :func:`motionlab.kinematics.cycles.gait_events`), linearly interpolated between
+  samples. Trojaniello et al. (2014, J NeuroEng Rehabil 11:152) take the same crossing region for
+  pathological gait; the impact dip (Aminian's IC) is not used because soft landings lack it.
+- **Final contact** (FC, toe-off): the last local minimum of ``ω_z`` before mid-swing (Aminian
+  2002; Salarian 2004), refined by a parabola through its three samples.
+
+Confidence (0-1) of an event: how typical its stride's swing peak and the event's own feature
+(the slope of ``ω_z`` at IC, the depth of the minimum at FC) are, each ``exp(-|ln(x / median)|)``
+(1 for the median, 0.5 for half or twice it), multiplied.
+
+Strides (IC to the next IC of the same side) are rejected, with the first reason that applies:
+``duration`` (outside 0.6-2.5 s or more than 25 % from the median stride), ``final contact`` (not
+exactly one FC inside), ``start/stop`` (a swing peak of the stride or its neighbours below 80 % of
+the median: gait initiation, termination, a pause), ``turn`` (the heading changed by more than
+20° over the stride), ``low confidence`` (an event below 0.5). The thresholds are this module's
+constants.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.signal import butter, find_peaks, sosfiltfilt
+
+LOWPASS_HZ = 6.0
+SWING_MIN_RAD_S = 1.0
+SWING_FRACTION = 0.5
+MIN_STRIDE_S, MAX_STRIDE_S = 0.6, 2.5
+STRIDE_TOLERANCE = 0.25
+STEADY_FRACTION = 0.8
+TURN_DEG = 20.0
+MIN_CONFIDENCE = 0.5
+
+
+@dataclass
+class SideEvents:
+    """Events of one side: times (s) and confidences (0-1), and the swing peaks (s, rad/s)."""
+
+    ic: np.ndarray
+    ic_confidence: np.ndarray
+    fc: np.ndarray
+    fc_confidence: np.ndarray
+    swing: np.ndarray
+    swing_height: np.ndarray
+
+
+@dataclass
+class Strides:
+    """Strides of one side: IC, FC inside, next IC (s), kept or the reason why not."""
+
+    side: str
+    ic: np.ndarray
+    fc: np.ndarray
+    next_ic: np.ndarray
+    kept: np.ndarray
+    reason: list[str] = field(default_factory=list)
+
+    def __len__(self) -> int:
+        return len(self.ic)
+
+
+def _typical(x: np.ndarray, median: float) -> np.ndarray:
+    x = np.maximum(np.asarray(x, dtype=float), 1e-9)
+    return np.exp(-np.abs(np.log(x / max(median, 1e-9))))
+
+
+def lowpass(x: np.ndarray, rate: float, cutoff: float = LOWPASS_HZ) -> np.ndarray:
+    """Zero-phase 2nd-order Butterworth low-pass (cutoff in Hz, at most 0.4 × ``rate``)."""
+    sos = butter(2, min(cutoff, 0.4 * rate), fs=rate, output="sos")
+    return sosfiltfilt(sos, x)
+
+
+def detect(time: np.ndarray, omega_z: np.ndarray) -> SideEvents:
+    """IC and FC of one side from its shank's ``ω_z`` (rad/s) on a regular time base (s)."""
+    time = np.asarray(time, dtype=float)
+    empty = np.zeros(0)
+    ok = np.isfinite(omega_z)
+    rate = 1.0 / float(np.median(np.diff(time))) if len(time) > 1 else 0.0
+    if len(time) < int(2 * MIN_STRIDE_S * rate) + 3 or ok.sum() < 3:
+        return SideEvents(empty, empty, empty, empty, empty, empty)
+    idx = np.arange(len(time))
+    w = lowpass(np.interp(idx, idx[ok], np.asarray(omega_z)[ok]), rate)
+    cand, props = find_peaks(w, height=SWING_MIN_RAD_S, distance=int(MIN_STRIDE_S * rate))
+    if len(cand) == 0:
+        return SideEvents(empty, empty, empty, empty, empty, empty)
+    heights = props["peak_heights"]
+    top = np.sort(heights)[-max(1, len(cand) // 2) :]
+    keep = heights >= SWING_FRACTION * np.median(top)
+    swing, heights = cand[keep], heights[keep]
+    stride = np.median(np.diff(swing)) if len(swing) > 1 else MAX_STRIDE_S * rate / 2
+    reach = int(0.4 * min(stride, MAX_STRIDE_S * rate))
+    minima = np.flatnonzero((w[1:-1] < w[:-2]) & (w[1:-1] <= w[2:])) + 1
+    down = np.flatnonzero((w[:-1] >= 0) & (w[1:] < 0))
+    ic, ic_slope, ic_peak, fc, fc_depth, fc_peak = [], [], [], [], [], []
+    for p, h in zip(swing, heights, strict=True):
+        after = down[(down > p) & (down <= p + reach)]
+        if len(after):
+            k = after[0]
+            frac = w[k] / (w[k] - w[k + 1])
+            ic.append(time[k] + frac * (time[k + 1] - time[k]))
+            ic_slope.append((w[k] - w[k + 1]) * rate)
+            ic_peak.append(h)
+        before = minima[(minima < p) & (minima >= p - reach)]
+        if len(before):
+            k = before[-1]
+            den = w[k - 1] - 2 * w[k] + w[k + 1]
+            shift = 0.5 * (w[k - 1] - w[k + 1]) / den if den > 0 else 0.0
+            fc.append(time[k] + np.clip(shift, -0.5, 0.5) * (time[k + 1] - time[k - 1]) / 2)
+            fc_depth.append(h - w[k])
+            fc_peak.append(h)
+    med_h = float(np.median(heights))
+    ic_c = _typical(np.array(ic_slope), float(np.median(ic_slope)) if ic_slope else 1.0)
+    fc_c = _typical(np.array(fc_depth), float(np.median(fc_depth)) if fc_depth else 1.0)
+    return SideEvents(
+        ic=np.array(ic),
+        ic_confidence=ic_c * _typical(np.array(ic_peak), med_h),
+        fc=np.array(fc),
+        fc_confidence=fc_c * _typical(np.array(fc_peak), med_h),
+        swing=time[swing],
+        swing_height=heights,
+    )
+
+
+def heading_change(time: np.ndarray, yaw_rate: np.ndarray, t0: float, t1: float) -> float:
+    """Heading change (deg) between ``t0`` and ``t1`` from the vertical angular velocity (rad/s)."""
+    m = (time >= t0) & (time <= t1)
+    if m.sum() < 2:
+        return 0.0
+    return float(np.degrees(np.trapezoid(yaw_rate[m], time[m])))
+
+
+def strides(
+    side: str,
+    ev: SideEvents,
+    yaw: tuple[np.ndarray, np.ndarray] | None = None,
+    span: tuple[float, float] | None = None,
+) -> Strides:
+    """Strides of one side, kept or rejected (module docstring); ``yaw`` ``(time, rad/s)`` for
+    turns; ``span`` ``(t0, t1)`` keeps strides inside a task."""
+    ic = ev.ic if span is None else ev.ic[(ev.ic >= span[0]) & (ev.ic <= span[1])]
+    a, b = ic[:-1], ic[1:]
+    out = Strides(side, a, np.full(len(a), np.nan), b, np.zeros(len(a), bool), [])
+    if len(a) == 0:
+        return out
+    med = float(np.median(b - a))
+    med_h = float(np.median(ev.swing_height)) if len(ev.swing_height) else 1.0
+    conf = {t: c for t, c in zip(ev.ic, ev.ic_confidence, strict=True)}
+    for k, (t0, t1) in enumerate(zip(a, b, strict=True)):
+        inside = (ev.fc > t0) & (ev.fc < t1)
+        near = (ev.swing > t0 - 0.6 * med) & (ev.swing < t1 + 0.6 * med)
+        reason = ""
+        if not (MIN_STRIDE_S <= t1 - t0 <= MAX_STRIDE_S) or abs(t1 - t0 - med) > (
+            STRIDE_TOLERANCE * med
+        ):
+            reason = "duration"
+        elif inside.sum() != 1:
+            reason = "final contact"
+        elif near.any() and ev.swing_height[near].min() < STEADY_FRACTION * med_h:
+            reason = "start/stop"
+        elif yaw is not None and abs(heading_change(*yaw, t0, t1)) > TURN_DEG:
+            reason = "turn"
+        else:
+            out.fc[k] = ev.fc[inside][0]
+            c = min(conf.get(t0, 0.0), conf.get(t1, 0.0), float(ev.fc_confidence[inside][0]))
+            if c < MIN_CONFIDENCE:
+                reason = "low confidence"
+        if inside.sum() == 1:
+            out.fc[k] = ev.fc[inside][0]
+        out.kept[k] = reason == ""
+        out.reason.append(reason or "kept")
+    return out

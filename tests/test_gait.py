@@ -1,0 +1,123 @@
+"""Gait: hip signs, pelvis angles, events and strides, spatio-temporal formulas, GPS, the
+simulator's gait truth, and the gait pages/CSV of run."""
+
+import numpy as np
+import pytest
+
+from motionlab import rotations as rot
+from motionlab.kinematics import gait_events as ge
+from motionlab.kinematics import spatiotemporal as sp
+from motionlab.kinematics.gps import gvs, movement_analysis_profile, normative, population_gps
+from motionlab.kinematics.joint_angles import compose, decompose
+from motionlab.kinematics.pelvis import pelvis_angles, side_angles
+from motionlab.protocol import load_protocol
+
+Z, X, Y = np.eye(3)[2], np.eye(3)[0], np.eye(3)[1]
+BASE = rot.from_axis_angle(X, np.pi / 2)  # ISB segment → ENU at heading 0
+
+
+@pytest.mark.parametrize("side", ["r", "l"])
+def test_hip_signs_flexion_adduction_internal_rotation(side):
+    s = 1.0 if side == "r" else -1.0
+    flex = rot.from_axis_angle(Z, np.array([0.3]))  # knee forward
+    add = rot.from_axis_angle(X, np.array([s * 0.2]))  # knee medially (left for the right hip)
+    internal = rot.from_axis_angle(Y, np.array([s * 0.1]))  # front turns medially
+    eye = np.array([[1.0, 0, 0, 0]])
+    for q, i, v in ((flex, 0, 0.3), (add, 1, 0.2), (internal, 2, 0.1)):
+        a = decompose(eye, q, "hip", side)[0]
+        assert a[i] == pytest.approx(v) and np.abs(np.delete(a, i)).max() < 1e-12
+    angles = np.array([[0.2, -0.1, 0.15]])
+    assert decompose(eye, compose(angles, "hip", side), "hip", side) == pytest.approx(angles)
+
+
+def test_pelvis_angles_signs_relative_to_the_walking_direction():
+    heading = np.array([0.7])
+    walk = rot.mul(rot.from_axis_angle(np.array([0.0, 0, 1]), heading), BASE)
+    cases = [(Z, -0.1, 0, 0.1), (X, 0.05, 1, -0.05), (Y, 0.08, 2, 0.08)]
+    for axis, angle, i, expected in cases:
+        q = rot.mul(walk, rot.from_axis_angle(axis, np.array([angle])))
+        a = pelvis_angles(q, heading)[0]
+        assert a[i] == pytest.approx(expected) and np.abs(np.delete(a, i)).max() < 1e-12
+    assert side_angles(np.array([[1.0, 2.0, 3.0]]), "l").tolist() == [[1.0, -2.0, -3.0]]
+
+
+def _shank(rate=100.0, stride=1.1, n=20, stance=0.62):
+    """A shank ω_z with a swing peak per stride, a minimum before it and a zero crossing after."""
+    t = np.arange(0, n * stride, 1 / rate)
+    u = np.mod(t / stride, 1.0)
+    w = np.where(u < stance, -0.8 * np.sin(np.pi * (u / stance) ** 2),
+                 4.0 * np.sin(np.pi * (u - stance) / (1 - stance)))  # fmt: skip
+    return t, w
+
+
+def test_events_and_strides_from_a_clean_shank_signal():
+    t, w = _shank()
+    ev = ge.detect(t, w)
+    assert len(ev.ic) >= 18 and np.all((ev.ic_confidence > 0.8) & (ev.ic_confidence <= 1))
+    ic_phase = np.mod(ev.ic / 1.1 + 0.5, 1.0) - 0.5
+    assert np.abs(ic_phase).max() < 0.04  # the swing ends at the boundary (6 Hz low-pass)
+    st = ge.strides("r", ev)
+    assert st.kept.sum() >= len(st) - 2
+    yaw = (t, np.full(len(t), np.radians(30.0)))  # 33° per stride
+    assert set(ge.strides("r", ev, yaw).reason) == {"turn"}
+
+
+def test_spatiotemporal_formulas_on_hand_made_events():
+    T = 1.0
+    ic_r = np.arange(0, 10) * T
+    ic_l = ic_r + 0.45
+    fc_r, fc_l = ic_r + 0.65, ic_l + 0.6
+    sides, events = {}, {}
+    for s, ic, fc in (("r", ic_r, fc_r), ("l", ic_l, fc_l)):
+        ev = ge.SideEvents(ic, np.ones(10), fc, np.ones(10), ic, np.ones(10))
+        sides[s] = ge.strides(s, ev)
+        events[s] = {"ic": ic, "fc": fc}
+    table = sp.stride_table(sides, events)
+    summ = sp.summary(table)
+    r, left = summ["sides"]["r"], summ["sides"]["l"]
+    assert r["stance_pct"]["mean"] == pytest.approx(65)
+    assert left["stance_pct"]["mean"] == pytest.approx(60)
+    assert r["step_time_s"]["mean"] == pytest.approx(0.55)
+    assert left["step_time_s"]["mean"] == pytest.approx(0.45)
+    assert summ["step_time_asymmetry_pct"] == pytest.approx(20.0)
+    assert summ["cadence_steps_per_min"] == pytest.approx(120.0)
+    # right stride: initial DS = left FC (0.05 after the previous left IC ... ) - right IC
+    ds = table[(table["side"] == "r") & (table["start_s"] > 0)]["double_support_pct"]
+    assert ds.to_numpy() == pytest.approx(100 * ((1.05 - 1.0) + (1.65 - 1.45)))
+
+
+def test_gps_zero_for_the_normative_mean_and_rising_with_a_deficit():
+    pct = np.linspace(0, 100, 101)
+    means = {s: {v: normative(v, pct)[0] for v in ("knee_flexion", "hip_flexion")} for s in "rl"}
+    assert movement_analysis_profile(means)["gps"]["overall"] == pytest.approx(0, abs=1e-9)
+    bump = np.exp(-0.5 * ((pct - 73) / 8) ** 2)
+    scores = [gvs(means["r"]["knee_flexion"] - d * bump, "knee_flexion") for d in (0, 10, 20)]
+    assert scores[0] < scores[1] < scores[2]
+    assert 3 < population_gps() < 7
+
+
+def test_simulated_gait_truth_and_asymmetry():
+    from motionlab.simulate import simulate
+
+    proto = load_protocol("walk")
+    _, truth = simulate(proto, 30.0, 0, "clean", rate_hz=50.0, gait="asymmetric")
+    g = truth.gait
+    stance = {}
+    for s in "rl":
+        ic, fc = g[f"ic_{s}"][g[f"ic_{s}_steady"]], g[f"fc_{s}"]
+        pairs = zip(ic[:-1], ic[1:], strict=True)
+        stance[s] = np.median([(fc[fc > a][0] - a) / (b - a) for a, b in pairs])
+    assert stance["r"] > stance["l"] + 0.04  # the right stance is longer
+    assert {"pelvis_tilt_deg", "hip_r_flexion_deg"} <= set(g) | set(truth.joint_angles)
+
+
+def test_walk_without_pelvis_drops_the_hips():
+    from motionlab.kinematics.gait import sensed_protocol
+    from motionlab.simulate import simulate
+
+    proto = load_protocol("walk")
+    session, _ = simulate(proto, 20.0, 0, "clean", rate_hz=25.0)
+    del session.sensors["pelvis"]
+    reduced = sensed_protocol(proto, session)
+    assert set(reduced.joints) == {"knee_r", "knee_l"}
+    assert sensed_protocol(load_protocol("knee"), session) is not None
