@@ -88,6 +88,9 @@ class JointType:
     #: a second axis fixed in the distal segment about which it turns too (the elbow's
     #: pronation about the forearm's long axis y): calibrated from movement as a two-axis joint
     twist_axis: str | None = None
+    #: no hinge, so in 6-D its two segments' headings are tied by the shared joint centre's
+    #: acceleration (ball joints, the hip)
+    centre_heading: bool = False
 
 
 JOINT_TYPES: dict[str, JointType] = {
@@ -127,6 +130,7 @@ JOINT_TYPES: dict[str, JointType] = {
         clinical=True,
         sequence_rule="fixed",
         display="hip",
+        centre_heading=True,
     ),
     # ISB (Wu et al. 2005) elbow: flexion, carrying angle, pronation-supination.
     "elbow": JointType(
@@ -191,6 +195,7 @@ JOINT_TYPES: dict[str, JointType] = {
         clinical=False,
         sequence_rule="any",
         display="ball joint",
+        centre_heading=True,
     ),
 }
 

@@ -106,6 +106,9 @@ def calibrate(
         res = mounting.fit(seg, protocol, records[seg])
         res["sensor"] = sensor_for_segment(session, seg)
         segments[seg] = res
+    for seg in placement.anterior_from_neighbours(session, protocol, segments, centres, steps):
+        refit = mounting.fit(seg, protocol, segments[seg]["axes"])
+        segments[seg] = refit | {"sensor": segments[seg]["sensor"]}
     for seg, names in unsure.items():
         q = segments[seg]["quality"]
         q["messages"].append(

@@ -8,7 +8,8 @@ Each angle of each joint is graded from what its two segments' calibrations actu
   two independent measured axes (a static pose's gravity, a movement's axis) with no quality
   message;
 - ``weak``: one measured axis and the nominal placement (the protocol's ``sensor_axes`` hint)
-  for the rest, a ``weak`` hinge fit, or a calibration the quality checks flagged;
+  or the neighbours' forward direction in the stand (the pelvis from the thighs) for the rest,
+  a ``weak`` hinge fit, or a calibration the quality checks flagged;
 - ``not determined``: a segment with no measured axis at all, or a failed or inconsistent fit.
 
 The reason is kept in plain words with each grade. The grades depend on the calibration only:
@@ -37,6 +38,11 @@ def _frame_grade(segment: str, cal: dict[str, Any] | None) -> tuple[str, str]:
         return "not determined", f"no axis of {segment} was measured (nominal placement only)"
     if method not in FULL_FRAME:
         return "weak", f"{segment}'s frame has one measured axis, the rest is the nominal placement"
+    if "neighbours" in cal.get("axes", {}):
+        return "weak", (
+            f"{segment}'s forward direction is taken from its neighbours' in the stand, not "
+            "measured on it"
+        )
     if not cal.get("quality", {}).get("ok", True):
         return "weak", f"the calibration of {segment} was flagged"
     return "determined", ""
