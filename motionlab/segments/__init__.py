@@ -75,14 +75,35 @@ def streams_of(session: Session, protocol: Protocol) -> Streams:
                 )
             continue
         s = session.sensors[label]
-        if s.acc is None or s.gyr is None:
+        if s.acc is not None and s.gyr is not None:
+            out[seg] = (s.time, s.acc, s.gyr)
+        elif s.quat is not None:
+            out[seg] = signals_from_orientation(s.time, np.asarray(s.quat, float))
+        else:
             raise InputError(
-                f"sensor '{label}' has no accelerometer or gyroscope",
+                f"sensor '{label}' has neither accelerometer and gyroscope nor an orientation",
                 where=f"sensor {label}",
-                remedy="calibration needs raw acc and gyr",
+                remedy="calibration needs raw acc and gyr, or the vendor's orientation",
             )
-        out[seg] = (s.time, s.acc, s.gyr)
     return out
+
+
+def signals_from_orientation(
+    t: np.ndarray, q: np.ndarray, gravity: float = 9.81
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(time, acc, gyr)`` a sensor with only an orientation (OpenSense ``.sto``, Xsens DOT
+    quaternions, a vendor's fusion) stands in with for calibration: gravity along the earth
+    vertical seen in the sensor frame (m/s², the specific force at rest; the vendor's own
+    estimate of it) and the body-frame angular velocity of the orientation series (rad/s,
+    central differences). ``q`` maps sensor to the Z-up earth frame."""
+    q = rot.make_continuous(q)
+    acc = gravity * rot.rotate(rot.conj(q), np.broadcast_to([0.0, 0.0, 1.0], (len(q), 3)))
+    gyr = np.zeros((len(q), 3))
+    if len(q) > 2:
+        step = rot.to_rotvec(rot.mul(rot.conj(q[:-2]), q[2:])) / (t[2:] - t[:-2])[:, None]
+        gyr[1:-1] = step
+        gyr[0], gyr[-1] = step[0], step[-1]
+    return t, acc, gyr
 
 
 def calibrate(

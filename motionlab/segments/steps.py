@@ -118,6 +118,12 @@ def blocks(streams: Streams) -> list[Block]:
     start = max(s[0][0] for s in streams.values())
     end = min(s[0][-1] for s in streams.values())
     if end - start < 1.0:
+        longest = max(s[0][-1] - s[0][0] for s in streams.values())
+        if longest < 1.0:
+            raise InputError(
+                f"the recording lasts {longest:.2f} s",
+                remedy="calibration needs at least a stand of a few seconds, then the task",
+            )
         raise InputError("the sensors overlap by less than 1 s", remedy="check the clocks")
     grid = np.arange(start, end, 1.0 / GRID_HZ)
     rate = {seg: _rate(t, gyr, grid) for seg, (t, _, gyr) in streams.items()}
@@ -431,7 +437,8 @@ def find_tasks(
             and not any(b.start < r[1] and b.end > r[0] for r in fixed.values())
         )
 
-    merged = [[b.start, b.end] for b in blocks(streams) if free(b)]
+    found_blocks = blocks(streams)
+    merged = [[b.start, b.end] for b in found_blocks if free(b)]
     if len(merged) > len(todo):  # short moves between tasks: getting up, sitting down
         long = [m for m in merged if m[1] - m[0] >= MIN_TASK_S]
         merged = long if len(long) >= len(todo) else merged
@@ -443,10 +450,11 @@ def find_tasks(
         names = ", ".join(t.name for t in todo)
         raise InputError(
             f"found {len(merged)} movement block(s) after the calibration for {len(todo)} "
-            f"task(s) ({names})",
+            f"task(s) ({names}); {describe(found_blocks)}",
             protocol.path,
             "tasks",
-            "pause for a few seconds between tasks, or give each task's time_range",
+            "record the task after the calibration, pausing a few seconds between tasks, or "
+            "give each task's time_range",
         )
     found = dict(zip((t.name for t in todo), (tuple(m) for m in merged), strict=True))
     return {t.name: found.get(t.name) or fixed[t.name] for t in protocol.tasks}
