@@ -45,3 +45,33 @@ def test_angles_needs_calibration(tmp_path):
     save_session(session, path)
     res = CliRunner().invoke(main, ["angles", str(path)])
     assert res.exit_code == 2 and "motionlab calibrate" in res.output
+
+
+def test_a_walk_without_a_stand_says_what_is_missing_in_one_line(tmp_path):
+    from motionlab.protocol import load_protocol
+    from motionlab.simulate import simulate
+
+    session, _ = simulate(load_protocol("walk"), 20.0, 0, "clean", calibration=False, rest_s=0.5)
+    path = tmp_path / "walk.h5"
+    save_session(session, path)
+    res = CliRunner().invoke(main, ["calibrate", str(path), "--protocol", "walk"])
+    assert res.exit_code == 2
+    lines = res.output.strip().splitlines()
+    assert len(lines) == 1
+    assert "calibration step 'standing' (static) not found" in lines[0]
+    assert "the recording holds movement" in lines[0]
+
+
+def test_a_contradicted_hint_warns_once_per_segment_and_calibrates(tmp_path):
+    from motionlab.protocol import load_protocol
+    from motionlab.simulate import simulate
+
+    session, _ = simulate(load_protocol("walk"), 30.0, 1, "clean", mounting="random")
+    path = tmp_path / "walk.h5"
+    save_session(session, path)
+    res = CliRunner().invoke(main, ["calibrate", str(path), "--protocol", "walk"])
+    assert res.exit_code == 0, res.output
+    warnings = [x for x in res.output.splitlines() if x.startswith("warning:")]
+    assert warnings and len(warnings) == len({w.split(":")[1] for w in warnings})
+    assert all("points up in the standing pose" in w and "using the data" in w for w in warnings)
+    assert "knee_r       angles: determined, determined, determined" in res.output
