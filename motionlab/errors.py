@@ -10,7 +10,7 @@ import re
 from pathlib import Path
 
 #: longest part of a message (what, place, remedy, file name) before it is cut with "…"
-PART_MAX = 200
+PART_MAX = 1000
 #: longest echo of a cell or value from the input (see :func:`shorten`)
 CELL_MAX = 80
 _UNPRINTABLE = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029\ufeff]")
