@@ -54,7 +54,9 @@ class BoundedSafeLoader(yaml.SafeLoader):
             raise _Refused(
                 f"cannot read {value!r} ({exc})",
                 node.start_mark,
-                "write a date that exists (YYYY-MM-DD), or quote the value to keep it as text",
+                "write a date that exists (YYYY-MM-DD), or quote the value to keep it as text"
+                if node.tag.endswith(":timestamp")
+                else "fix the value, or quote it to keep it as text",
             ) from None
 
 
