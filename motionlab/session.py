@@ -284,6 +284,8 @@ class _Place:
 
 
 def _read_array(ds: h5py.Dataset, place: _Place | None = None) -> np.ndarray:
+    if not isinstance(ds, h5py.Dataset):
+        raise (place or _Place(Path("session"))).fail("cannot be opened as a dataset")
     if place is not None:
         place.where = ds.name
     if ds.attrs.get("kind") == "str":
@@ -335,6 +337,9 @@ def _read_tree(group: h5py.Group, place: _Place | None = None) -> dict[str, Any]
     place = place or _Place(Path(group.file.filename))
     tree: dict[str, Any] = {k: _json_attr(group, k, place) for k in group.attrs}
     for key, item in group.items():
+        place.where = f"{group.name.rstrip('/')}/{key}"
+        if item is None:
+            raise place.fail("cannot be opened, the file is damaged")
         if isinstance(item, h5py.Group):
             tree[key] = _read_tree(item, place)
         else:
@@ -370,6 +375,21 @@ def load_session(path: str | Path) -> Session:
             ) from None
 
 
+def _groups(f: h5py.File, name: str, place: _Place) -> list[tuple[str, h5py.Group]]:
+    """The subgroups of ``/name`` (sensors, marker sets), each checked to be a group."""
+    place.where = f"/{name}"
+    parent = f[name]
+    if not isinstance(parent, h5py.Group):
+        raise place.fail("is not a group")
+    out = []
+    for key, g in parent.items():
+        place.where = f"/{name}/{key}"
+        if not isinstance(g, h5py.Group):
+            raise place.fail("cannot be opened as a group, the file is damaged")
+        out.append((key, g))
+    return out
+
+
 def _load(f: h5py.File, path: Path, place: _Place) -> Session:
     if f.attrs.get("format") != FORMAT_NAME:
         raise InputError(
@@ -393,8 +413,7 @@ def _load(f: h5py.File, path: Path, place: _Place) -> Session:
         raise place.fail("is not a JSON object")
     session = Session(metadata=metadata, schema_version=version)
     place.where = "/sensors"
-    for label, g in f["sensors"].items():
-        place.where = g.name
+    for label, g in _groups(f, "sensors", place):
         time = _numeric(g["time"], place, None)
         n = len(time)
         arrays = {
@@ -415,8 +434,7 @@ def _load(f: h5py.File, path: Path, place: _Place) -> Session:
             attrs=_json_attr(g, "attrs", place),
         )
     place.where = "/markers"
-    for name, g in f["markers"].items():
-        place.where = g.name
+    for name, g in _groups(f, "markers", place):
         time = _numeric(g["time"], place, None)
         n = len(time)
         labels = _json_attr(g, "labels", place)

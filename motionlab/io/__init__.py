@@ -111,7 +111,7 @@ def _check_hdf5(path: Path) -> None:
 
     try:
         h5py.File(path, "r").close()
-    except OSError:
+    except (OSError, RuntimeError):
         raise InputError(
             "HDF5 file is damaged or truncated (h5py cannot open it)",
             path,
@@ -125,7 +125,9 @@ def read_any(path: str | Path, options: dict[str, Any] | None = None) -> Recordi
     module = _detect(path, options)
     try:
         rec = module.read(path, options)
-    except OSError as exc:  # h5py and ezc3d report damaged data inside a file as OSError
+    except (OSError, RuntimeError) as exc:  # h5py: damaged data or metadata in the file
+        if isinstance(exc, RuntimeError) and module.FORMAT not in ("broad", "apdm_h5"):
+            raise
         if isinstance(exc, FileNotFoundError | PermissionError | IsADirectoryError):
             raise InputError(
                 f"cannot read the file ({exc.strerror or exc})", path, remedy="check the path"

@@ -42,7 +42,7 @@ def sniff(path: Path, head: bytes) -> bool:
     try:
         with h5py.File(path, "r") as f:
             return isinstance(f.get("Sensors"), h5py.Group)
-    except OSError:
+    except (OSError, RuntimeError, KeyError):  # h5py: damaged metadata (read() says so)
         return False
 
 

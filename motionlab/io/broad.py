@@ -48,7 +48,7 @@ def sniff(path: Path, head: bytes) -> bool:
     try:
         with h5py.File(path, "r") as f:
             return "imu_gyr" in f and "opt_quat" in f
-    except OSError:
+    except (OSError, RuntimeError, KeyError):  # h5py: damaged metadata (read() says so)
         return False
 
 
