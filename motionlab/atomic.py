@@ -13,15 +13,59 @@ import os
 import stat
 import tempfile
 import threading
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from motionlab.errors import InputError
 
 
-def check_output(path: str | Path, force: bool) -> Path:
-    """Validate an output path before any work is done; raise :class:`InputError` if unusable."""
+def same_file(a: str | Path, b: str | Path) -> bool:
+    """Whether ``a`` and ``b`` name one file (links and relative paths resolved)."""
+    a, b = Path(a), Path(b)
+    try:
+        if a.exists() and b.exists():
+            return os.path.samefile(a, b)
+    except OSError:
+        pass
+    return a.resolve() == b.resolve()
+
+
+def refuse_input_as_output(path: str | Path, inputs: Iterable[str | Path | None]) -> None:
+    """Raise :class:`InputError` when ``path`` is one of ``inputs``: an input is never
+    overwritten, not even with ``--force``."""
+    for item in inputs:
+        if item is not None and same_file(path, item):
+            raise InputError(
+                "the output is also an input; inputs are never overwritten",
+                path,
+                remedy="give the output another name",
+            )
+
+
+def check_folder_writable(folder: str | Path, path: str | Path | None = None) -> None:
+    """Raise :class:`InputError` unless a file can be created in ``folder`` (tried, so that
+    read-only mounts and permissions count, also for root)."""
+    folder = Path(folder)
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".motionlab-probe.", dir=folder)
+    except OSError as exc:
+        raise InputError(
+            f"output folder is not writable ({exc.strerror or exc})",
+            path or folder,
+            remedy="choose another folder",
+        ) from None
+    os.close(fd)
+    os.unlink(probe)
+
+
+def check_output(path: str | Path, force: bool, inputs: Iterable[str | Path | None] = ()) -> Path:
+    """Validate an output path before any work is done; raise :class:`InputError` if unusable.
+
+    ``inputs`` are the command's input files: an output naming one of them is refused even
+    with ``force``.
+    """
     path = Path(path)
+    refuse_input_as_output(path, inputs)
     if path.exists() and not force:
         raise InputError("output exists", path, remedy="use --force to replace it")
     if path.is_dir():
@@ -31,6 +75,7 @@ def check_output(path: str | Path, force: bool) -> Path:
         raise InputError("output folder does not exist", path, remedy=f"create {parent}")
     if not os.access(parent, os.W_OK):
         raise InputError("output folder is not writable", path, remedy="choose another folder")
+    check_folder_writable(parent, path)
     return path
 
 

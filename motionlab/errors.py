@@ -6,7 +6,21 @@ exception is a bug (exit code 1, traceback with ``--debug``).
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
+
+#: longest part of a message (what, place, remedy, file name) before it is cut with "…"
+PART_MAX = 1000
+#: longest echo of a cell or value from the input (see :func:`shorten`)
+CELL_MAX = 80
+_UNPRINTABLE = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029\ufeff]")
+
+
+def shorten(value: object, limit: int = CELL_MAX) -> str:
+    """``value`` as text fit to echo in a one-line message: non-printable characters escaped
+    (``\\x00``) and cut to ``limit`` characters with ``…``."""
+    text = _UNPRINTABLE.sub(lambda m: repr(m.group())[1:-1], str(value))
+    return text if len(text) <= limit else text[: limit - 1] + "…"
 
 
 class InputError(Exception):
@@ -39,8 +53,10 @@ class InputError(Exception):
 
     def line(self) -> str:
         """The one-line message: ``file place: what — remedy``."""
-        head = " ".join(p for p in (self.path.name if self.path else None, self.where) if p)
-        text = f"{head}: {self.message}" if head else self.message
+        name = self.path.name if self.path else None
+        head = " ".join(shorten(p, PART_MAX) for p in (name, self.where) if p)
+        message = shorten(self.message, PART_MAX)
+        text = f"{head}: {message}" if head else message
         if self.remedy:
-            text += f" — {self.remedy}"
-        return text.replace("\n", " ")
+            text += f" — {shorten(self.remedy, PART_MAX)}"
+        return text

@@ -36,6 +36,13 @@ from motionlab.session import MarkerSet, SensorStream, Session
 
 DEFAULT_GAP_MAX = 0.1  # s
 UNRELATED_CLOCKS_S = 86400.0
+#: sampling rates (Hz) and time stamps (s) taken as real; beyond them the clock is damaged
+RATE_RANGE_HZ = (0.01, 1e6)
+TIME_MAX_S = 1e11  # about 3000 years: Unix time in s fits, a stamp near 1e300 does not
+#: --rate may be at most this many times the highest native rate
+UPSAMPLE_MAX = 10.0
+#: a quaternion whose norm is outside this range is not an orientation (e.g. all zero)
+QUAT_NORM_RANGE = (0.5, 1.5)
 
 
 def _match(stream: SensorStream, smap: SensorMap) -> str | None:
@@ -106,6 +113,91 @@ def _check_channels(stream: SensorStream, path: Path) -> None:
             )
 
 
+def _check_clock(stream: SensorStream, path: Path) -> None:
+    """Refuse time stamps no clock gives: beyond ±:data:`TIME_MAX_S`, or a sampling rate
+    outside :data:`RATE_RANGE_HZ` (the stream's clock is repaired: finite and increasing)."""
+    t = stream.time
+    where = f"sensor {stream.label}"
+    big = np.flatnonzero(np.abs(t) > TIME_MAX_S)
+    if len(big):
+        raise InputError(
+            f"time stamp {t[big[0]]:.3g} s is not a time",
+            path,
+            f"{where}, data row {big[0] + 1}",
+            "check the time column and its unit, or export the file again",
+        )
+    rate = stream.rate_hz
+    if not RATE_RANGE_HZ[0] <= rate <= RATE_RANGE_HZ[1]:
+        raise InputError(
+            f"sampling rate {rate:.3g} Hz from the time stamps",
+            path,
+            where,
+            f"a sensor samples at {RATE_RANGE_HZ[0]:g} to {RATE_RANGE_HZ[1]:g} Hz: "
+            "check the time column and its unit",
+        )
+
+
+def _check_quaternions(stream: SensorStream) -> tuple[SensorStream, dict[str, Any]]:
+    """Quaternions that are no orientation (norm far from 1, e.g. all zero) become NaN
+    (missing), counted in the report; a channel with none left is dropped."""
+    if stream.quat is None:
+        return stream, {}
+    q = np.asarray(stream.quat, dtype=float)
+    with np.errstate(invalid="ignore", over="ignore"):
+        norm = np.sqrt(np.einsum("ij,ij->i", q, q))
+    finite = np.isfinite(q).all(axis=1)
+    bad = finite & ~((norm >= QUAT_NORM_RANGE[0]) & (norm <= QUAT_NORM_RANGE[1]))
+    if not bad.any():
+        return stream, {}
+    report: dict[str, Any] = {"quat_invalid_samples": int(bad.sum())}
+    if (bad | ~finite).all():
+        report["quat_dropped"] = "no quaternion has unit norm (e.g. all zero)"
+        return dataclasses.replace(stream, quat=None), report
+    q = q.copy()
+    q[bad] = np.nan
+    return dataclasses.replace(stream, quat=q), report
+
+
+def _check_rate(
+    rate: float,
+    streams: list[SensorStream],
+    markers: list[MarkerSet],
+    paths: Sequence[Path],
+) -> None:
+    """Refuse a ``--rate`` beyond :data:`UPSAMPLE_MAX` times the highest native rate, or whose
+    session would be larger than 4× the inputs + 256 MiB — before anything is allocated."""
+    natives = [s.rate_hz for s in streams] + [m.rate_hz for m in markers]
+    native = max((r for r in natives if np.isfinite(r)), default=float("nan"))
+    if np.isfinite(native) and rate > UPSAMPLE_MAX * native:
+        raise InputError(
+            f"--rate {rate:g} Hz is more than {UPSAMPLE_MAX:g}× the highest native rate "
+            f"({native:.4g} Hz)",
+            remedy=f"give --rate {native:.4g} or less",
+        )
+    if rate < RATE_RANGE_HZ[0]:
+        raise InputError(f"--rate {rate:g} Hz", remedy=f"give at least {RATE_RANGE_HZ[0]:g} Hz")
+    columns = [
+        1 + sum(np.asarray(a).reshape(len(a), -1).shape[1] for a in (s.acc, s.gyr, s.mag, s.quat)
+                if a is not None) + len(s.extra)
+        for s in streams
+    ]  # fmt: skip
+    columns += [1 + 4 * m.n_markers + 4 * len(m.rigid_bodies) for m in markers]
+    durations = [s.duration_s for s in streams] + [float(m.time[-1] - m.time[0]) for m in markers]
+    estimate = sum(8 * c * (d * rate + 1) for c, d in zip(columns, durations, strict=True))
+    budget = 4 * sum(p.stat().st_size for p in paths) + (256 << 20)
+    if estimate > budget:
+        raise InputError(
+            f"--rate {rate:g} Hz would make a session of about {estimate / 2**20:,.0f} MiB",
+            remedy="give a lower --rate",
+        )
+    short = [s.label for s in streams if s.duration_s * rate < 1]
+    if short:
+        raise InputError(
+            f"--rate {rate:g} Hz leaves sensor {short[0]} with fewer than 2 samples",
+            remedy="give a higher --rate",
+        )
+
+
 def _unique_label(stream: SensorStream, path: Path, seen: dict[str, Path]) -> SensorStream:
     label = stream.label.strip().replace("/", "_") or stream.serial or path.stem
     if label in seen:
@@ -163,6 +255,7 @@ def check_and_fill(stream: SensorStream, report: dict[str, Any], gap_max: float)
     qc.update(gaps)
     repaired = report["duplicates_dropped"] + report["reordered"] + report["restamped"]
     qc["flags"].update(
+        quat_invalid=bool(report.get("quat_invalid_samples")),
         gaps=bool(gaps["gaps"]),
         dropped_samples=gaps["dropped_samples"] > 0,
         clock_repaired=bool(repaired),
@@ -218,14 +311,27 @@ def ingest(
     streams = _apply_map(streams, smap)
     seen: dict[str, Path] = {}
     streams = [(_unique_label(s, p, seen), p) for s, p in streams]
+    checked = []
     for stream, path in streams:
+        stream, quat_report = _check_quaternions(stream)
         _check_channels(stream, path)
+        checked.append((stream, path, quat_report))
     repaired = []
-    for stream, path in streams:
+    for stream, path, quat_report in checked:
         stream, report = timebase.repair_clock(stream, path)
-        repaired.append((stream, report))
+        _check_clock(stream, path)
+        repaired.append((stream, report | quat_report))
     for m, path in markers:
         _check_marker_clock(m, path)
+        if np.abs(m.time[[0, -1]]).max() > TIME_MAX_S:
+            raise InputError(
+                f"frame time {m.time[-1]:.3g} s is not a time",
+                path,
+                f"marker set {m.name}",
+                "check the rate and the first frame, or export the file again",
+            )
+    if rate is not None:
+        _check_rate(rate, [s for s, _ in repaired], [m for m, _ in markers], paths)
 
     starts = [float(s.time[0]) for s, _ in repaired] + [float(m.time[0]) for m, _ in markers]
     origin = min(starts)

@@ -24,7 +24,7 @@ import dataclasses
 import shlex
 import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -32,6 +32,7 @@ import h5py
 import pandas as pd
 
 from motionlab import timebase
+from motionlab.atomic import check_folder_writable, refuse_input_as_output
 from motionlab.errors import InputError
 from motionlab.fusion.stage import fusable, fuse_session
 from motionlab.ingest import DEFAULT_GAP_MAX, check_and_fill, ingest
@@ -228,7 +229,12 @@ def _check_estimator(name: str, magnetometer: bool) -> None:
         raise InputError(f"estimator '{name}' needs a magnetometer", remedy="add --magnetometer")
 
 
-def _outputs(outdir: Path, force: bool) -> tuple[Path, Path, Path]:
+def _outputs(
+    outdir: Path, force: bool, inputs: Sequence[Path | None] = ()
+) -> tuple[Path, Path, Path]:
+    """The output paths in ``outdir``, checked before any work: the folder (or the first
+    folder above it that exists, where it will be created) writable, no output one of the
+    ``inputs``, and none replaced without ``force``."""
     if outdir.exists() and not outdir.is_dir():
         raise InputError("is not a folder", outdir, remedy="give a folder for the outputs")
     session_path, report_path, csv_dir = (
@@ -236,6 +242,14 @@ def _outputs(outdir: Path, force: bool) -> tuple[Path, Path, Path]:
         outdir / REPORT_FILE,
         outdir / CSV_DIR,
     )
+    for p in (session_path, report_path, report_path.with_suffix(".txt")):
+        refuse_input_as_output(p, inputs)
+    existing = outdir.absolute()
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if not existing.is_dir():
+        raise InputError("is not a folder", existing, remedy="give a folder for the outputs")
+    check_folder_writable(existing, outdir)
     if outdir.is_dir() and not force:
         results = outdir / RESULTS_JSON
         for p in (session_path, report_path, report_path.with_suffix(".txt"), csv_dir, results):
@@ -370,7 +384,9 @@ def run_pipeline(
         raise InputError("no input files", remedy="give one or more recordings or a session file")
     proto = load_protocol(protocol)
     _check_estimator(estimator, magnetometer)
-    session_path, report_path, csv_dir = _outputs(outdir, force)
+    session_path, report_path, csv_dir = _outputs(
+        outdir, force, [*inputs, map_path, reference, proto.path]
+    )
     command = shlex.join(
         ["motionlab", "run", "--protocol", str(protocol), *map(str, inputs), "-o", str(outdir)]
         + (["--map", str(map_path)] if map_path else [])

@@ -80,7 +80,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from motionlab.errors import InputError
+from motionlab.errors import InputError, shorten
 from motionlab.kinematics.joint_types import (
     JOINT_TYPES,
     angle_columns,
@@ -88,11 +88,21 @@ from motionlab.kinematics.joint_types import (
     resolve_sequence,
     sequence_problem,
 )
+from motionlab.yamlsafe import BoundedSafeLoader, did_you_mean, load_yaml, read_yaml_text
 
 STEP_KINDS = ("static", "functional")
 AXIS_METHODS = ("svd", "hinge")
 SIDES = ("l", "r", "")
 AXES = {"x": 0, "y": 1, "z": 2}
+#: the keys each part of a protocol may hold (anything else is a typo: an error with a hint)
+TOP_KEYS = ("name", "title", "purpose", "segments", "calibration", "joints", "tasks",
+            "normative", "metrics", "thresholds", "source")  # fmt: skip
+SEGMENT_KEYS = ("side", "placement", "sensor_axes", "landmarks", "required")
+STEP_KEYS = ("name", "kind", "pose", "duration_s", "vertical_axis", "horizontal_axis",
+             "instructions", "segments", "axis", "repetitions", "optional", "reference_rho",
+             "time_range", "axis_method")  # fmt: skip
+JOINT_KEYS = ("type", "proximal", "distal", "side", "sequence", "axis")
+TASK_KEYS = ("name", "kind", "duration_s", "repetitions", "time_range", "instructions", "plane")
 PACKAGED = Path(__file__).resolve().parent / "protocols"
 
 
@@ -180,7 +190,7 @@ def axis_vector(axis: str) -> np.ndarray:
 # ------------------------------------------------------------------------------ YAML with lines
 
 
-class _LineLoader(yaml.SafeLoader):
+class _LineLoader(BoundedSafeLoader):
     """SafeLoader whose mappings remember the line of each key (``_lines``)."""
 
 
@@ -238,15 +248,41 @@ class _Reader:
         value = m[key]
         if kind is float and isinstance(value, int) and not isinstance(value, bool):
             value = float(value)
-        if not isinstance(value, kind):
+        if not isinstance(value, kind) or (
+            isinstance(value, bool) and bool not in (kind if isinstance(kind, tuple) else (kind,))
+        ):
             names = kind.__name__ if isinstance(kind, type) else "/".join(k.__name__ for k in kind)
             self.fail(
                 f"{where}.{key}".lstrip("."),
                 line,
-                f"is {type(value).__name__} {value!r}, expected {names}",
+                f"is {type(value).__name__} {shorten(repr(value))}, expected {names}",
                 "fix the value",
             )
+        if isinstance(value, float) and not np.isfinite(value):
+            self.fail(f"{where}.{key}".lstrip("."), line, f"is {value}", "give a finite number")
         return value
+
+    def known(self, m: dict, where: str, allowed: tuple[str, ...]) -> None:
+        """Fail on a key of ``m`` that is not ``allowed`` (a typo), with a hint."""
+        lines = getattr(m, "lines", {})
+        for key in m:
+            if key not in allowed:
+                place = f"{where}.{key}".lstrip(".")
+                self.fail(place, lines.get(key), "unknown key", did_you_mean(key, allowed))
+
+    def names(self, m: dict, where: str) -> None:
+        """Fail on a key of ``m`` that is not text (a segment, joint or column name)."""
+        lines = getattr(m, "lines", {})
+        for key in m:
+            if not isinstance(key, str):
+                place = f"{where}.{key}".lstrip(".")
+                self.fail(place, lines.get(key), f"name {key!r} is not text", "quote it")
+
+    def number(self, value: Any, where: str, line: int | None) -> float:
+        """A finite number (not a bool)."""
+        if isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value):
+            self.fail(where, line, f"{shorten(repr(value))} is not a number", "give a number")
+        return float(value)
 
     def axis(self, value: Any, where: str, line: int | None) -> str:
         if not isinstance(value, str) or value.strip().lstrip("+-") not in AXES:
@@ -259,6 +295,8 @@ class _Reader:
         return value.strip().lstrip("+")
 
     def side(self, value: Any, where: str, line: int | None) -> str:
+        if value is not None and not isinstance(value, str):
+            self.fail(where, line, f"side {shorten(repr(value))} is not l or r", "write 'l' or 'r'")
         side = {"left": "l", "right": "r", None: ""}.get(value, value)
         if side not in SIDES:
             self.fail(where, line, f"side {value!r} is not l or r", "write 'l' or 'r'")
@@ -268,24 +306,17 @@ class _Reader:
 def load_protocol(path: str | Path) -> Protocol:
     """Load and validate a protocol YAML file (a path, or the name of a packaged protocol)."""
     path = resolve_protocol_path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-        doc = yaml.load(text, Loader=_LineLoader)  # noqa: S506 - SafeLoader subclass
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"line {mark.line + 1}" if mark else None
-        raise InputError(
-            f"not valid YAML ({getattr(exc, 'problem', exc)})",
-            path,
-            where,
-            "check indentation and colons",
-        ) from None
-    except UnicodeDecodeError:
-        raise InputError("not a text file", path, remedy="give a protocol YAML file") from None
+    text = read_yaml_text(path, "protocol", "give a protocol YAML file (see protocols/knee.yaml)")
+    doc = load_yaml(text, _LineLoader, path, "check indentation and colons")
     r = _Reader(path)
     if not isinstance(doc, dict):
         r.fail("(top level)", 1, "is not a mapping", "start from protocols/knee.yaml")
+    r.names(doc, "")
+    r.known(doc, "", TOP_KEYS)
     name = r.get(doc, "name", "", str)
+    for key in ("segments", "joints", "normative", "thresholds"):
+        if isinstance(doc.get(key), dict):
+            r.names(doc[key], key)
 
     segments: dict[str, Segment] = {}
     for seg_name, spec in r.get(doc, "segments", "", dict).items():
@@ -294,6 +325,7 @@ def load_protocol(path: str | Path) -> Protocol:
         spec = spec if spec is not None else _Map()
         if not isinstance(spec, dict):
             r.fail(where, line, "is not a mapping", "give side/placement keys")
+        r.known(spec, where, SEGMENT_KEYS)
         axes = r.get(spec, "sensor_axes", where, list, False, ["x", "y", "z"])
         if len(axes) != 3:
             r.fail(f"{where}.sensor_axes", line, "needs three axes", "e.g. [x, y, z]")
@@ -307,18 +339,21 @@ def load_protocol(path: str | Path) -> Protocol:
             side=r.side(spec.get("side"), f"{where}.side", line),
             placement=r.get(spec, "placement", where, str, False, ""),
             sensor_axes=axes,
-            landmarks=list(r.get(spec, "landmarks", where, list, False, [])),
+            landmarks=[
+                _text(r, v, f"{where}.landmarks", line)
+                for v in r.get(spec, "landmarks", where, list, False, [])
+            ],
             required=r.get(spec, "required", where, bool, False, True),
         )
     if not segments:
         r.fail("segments", doc.lines.get("segments"), "is empty", "name at least one segment")
 
     def check_segment(seg: Any, where: str, line: int | None) -> str:
-        if seg not in segments:
+        if not isinstance(seg, str) or seg not in segments:
             r.fail(
                 where,
                 line,
-                f"names segment {seg!r}, which is not under segments",
+                f"names segment {shorten(repr(seg))}, which is not under segments",
                 f"use one of {', '.join(segments)}",
             )
         return seg
@@ -329,6 +364,7 @@ def load_protocol(path: str | Path) -> Protocol:
         line = getattr(spec, "lines", {}).get("name", doc.lines.get("calibration"))
         if not isinstance(spec, dict):
             r.fail(where, line, "is not a mapping", "give name/kind keys")
+        r.known(spec, where, STEP_KEYS)
         kind = r.get(spec, "kind", where, str)
         if kind not in STEP_KINDS:
             r.fail(
@@ -404,7 +440,9 @@ def load_protocol(path: str | Path) -> Protocol:
                 time_range=tuple(float(t) for t in time_range) if time_range else None,
                 optional=r.get(spec, "optional", where, bool, False, False),
                 reference_rho={
-                    check_segment(s, f"{where}.reference_rho", line): float(v)
+                    check_segment(s, f"{where}.reference_rho", line): r.number(
+                        v, f"{where}.reference_rho.{s}", line
+                    )
                     for s, v in r.get(spec, "reference_rho", where, dict, False, {}).items()
                 },
                 axis_method=axis_method,
@@ -418,6 +456,7 @@ def load_protocol(path: str | Path) -> Protocol:
         line = doc["joints"].lines.get(jname)
         if not isinstance(spec, dict):
             r.fail(where, line, "is not a mapping", "give type/proximal/distal keys")
+        r.known(spec, where, JOINT_KEYS)
         joints[jname] = _joint(r, jname, spec, line, check_segment)
         for _, col in angle_columns(joints[jname]):
             if col in owners:
@@ -436,6 +475,7 @@ def load_protocol(path: str | Path) -> Protocol:
         where = f"tasks[{i}]"
         if not isinstance(spec, dict):
             r.fail(where, doc.lines.get("tasks"), "is not a mapping", "give name/kind keys")
+        r.known(spec, where, TASK_KEYS)
         known = {"name", "kind", "duration_s", "repetitions", "time_range"}
         time_range = r.get(spec, "time_range", where, list, False, None)
         if time_range is not None and not _is_range(time_range):
@@ -458,12 +498,16 @@ def load_protocol(path: str | Path) -> Protocol:
 
     normative = r.get(doc, "normative", "", dict, False, {})
     for task, ranges in normative.items():
+        if ranges is not None and not isinstance(ranges, dict):
+            r.fail(f"normative.{task}", doc["normative"].lines.get(task), "is not a mapping",
+                   "give 'column: [low, high]' lines, e.g. knee_flexion_deg: [0, 65]")  # fmt: skip
+        r.names(ranges or {}, f"normative.{task}")
         for col, rng in (ranges or {}).items():
-            if not (isinstance(rng, list) and len(rng) == 2 and rng[0] <= rng[1]):
+            if not (isinstance(rng, list) and len(rng) == 2 and _is_range(rng, strict=False)):
                 r.fail(
                     f"normative.{task}.{col}",
                     getattr(ranges, "lines", {}).get(col),
-                    f"range {rng!r} is not [low, high]",
+                    f"range {shorten(repr(rng))} is not [low, high]",
                     "e.g. [0, 65]",
                 )
     return Protocol(
@@ -476,8 +520,11 @@ def load_protocol(path: str | Path) -> Protocol:
             t: {c: [float(v) for v in rng] for c, rng in (ranges or {}).items()}
             for t, ranges in normative.items()
         },
-        metrics=list(r.get(doc, "metrics", "", list, False, [])),
-        thresholds=_plain(r.get(doc, "thresholds", "", dict, False, {})),
+        metrics=[
+            _text(r, m, "metrics", doc.lines.get("metrics"))
+            for m in r.get(doc, "metrics", "", list, False, [])
+        ],
+        thresholds=_thresholds(r, r.get(doc, "thresholds", "", dict, False, {}), "thresholds"),
         title=r.get(doc, "title", "", str, False, ""),
         purpose=r.get(doc, "purpose", "", str, False, ""),
         source=r.get(doc, "source", "", str, False, ""),
@@ -543,10 +590,36 @@ def _joint(r: _Reader, jname: str, spec: Any, line: int | None, check_segment) -
     )
 
 
-def _is_range(value: list) -> bool:
-    """``[start, end]``: two numbers with start < end."""
-    numbers = all(isinstance(v, (int, float)) and not isinstance(v, bool) for v in value)
-    return len(value) == 2 and numbers and value[0] < value[1]
+def _text(r: _Reader, value: Any, where: str, line: int | None) -> str:
+    """An item of a list of names: text."""
+    if not isinstance(value, str):
+        r.fail(where, line, f"item {shorten(repr(value))} is not text", "quote it")
+    return value
+
+
+def _thresholds(r: _Reader, m: dict, where: str) -> dict[str, Any]:
+    """``thresholds``: numbers, lists of numbers, or mappings of them, each key text."""
+    r.names(m, where)
+    out: dict[str, Any] = {}
+    for key, value in m.items():
+        line = getattr(m, "lines", {}).get(key)
+        if isinstance(value, dict):
+            out[key] = _thresholds(r, value, f"{where}.{key}")
+        elif isinstance(value, list):
+            out[key] = [r.number(v, f"{where}.{key}", line) for v in value]
+        else:
+            out[key] = r.number(value, f"{where}.{key}", line)
+    return out
+
+
+def _is_range(value: list, strict: bool = True) -> bool:
+    """``[start, end]``: two finite numbers with start < end (``strict``) or start ≤ end."""
+    numbers = all(
+        isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) for v in value
+    )
+    if not (len(value) == 2 and numbers):
+        return False
+    return value[0] < value[1] if strict else value[0] <= value[1]
 
 
 def resolve_protocol_path(path: str | Path) -> Path:

@@ -27,6 +27,10 @@ flag                        raised when
 ``rate_assumed``            the reader had to assume the sampling rate (e.g. an Xsens export
                             without 'Update Rate'); times rest on that assumption
 ``mag_scale_assumed``       the magnetometer's scale was assumed (arbitrary units)
+``non_finite``              any channel holds NaN or ±inf (``qc["non_finite_share"]``: the
+                            share of samples per channel)
+``implausible_values``      any sample beyond what a sensor measures (``IMPLAUSIBLE``: e.g.
+                            a 1e308 spike; ``qc["implausible_share"]`` per channel)
 ==========================  ===============================================================
 """
 
@@ -50,6 +54,8 @@ ACC_REST_RANGE = (7.8, 11.8)  # m/s²
 JITTER_LIMIT = 0.1  # relative to the nominal interval
 REST_GYR = 0.2  # rad/s: below this the sensor is taken to be at rest
 HELD_SHARE = 0.2  # share of rows repeating the previous one above which samples are "held"
+#: magnitudes no sensor reports (per axis): beyond them a value is damage, not motion
+IMPLAUSIBLE = {"acc": 1e4, "gyr": 1e3, "mag": 1e5, "quat": 10.0}  # m/s², rad/s, µT, 1
 
 
 def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -176,6 +182,22 @@ def check_stream(stream: SensorStream, gap_max: float) -> dict[str, Any]:
             spans[ch] = s
     qc["nan_spans"] = spans
     flags["nan_spans"] = bool(spans)
+    qc["non_finite_share"], qc["implausible_share"] = {}, {}
+    for ch in SENSOR_CHANNELS:
+        a = getattr(stream, ch)
+        if a is None or not len(a):
+            continue
+        a = np.asarray(a, dtype=float).reshape(len(a), -1)
+        finite = np.isfinite(a)
+        bad = ~finite.all(axis=1)
+        if bad.any():
+            qc["non_finite_share"][ch] = float(bad.mean())
+        with np.errstate(invalid="ignore"):
+            wild = (finite & (np.abs(a) > IMPLAUSIBLE[ch])).any(axis=1)
+        if wild.any():
+            qc["implausible_share"][ch] = float(wild.mean())
+    flags["non_finite"] = bool(qc["non_finite_share"])
+    flags["implausible_values"] = bool(qc["implausible_share"])
 
     rest = None
     if stream.gyr is not None:

@@ -30,7 +30,8 @@ from typing import Any
 
 import yaml
 
-from motionlab.errors import InputError
+from motionlab.errors import InputError, shorten
+from motionlab.yamlsafe import BoundedSafeLoader, did_you_mean, load_yaml, read_yaml_text
 
 TOP_KEYS = ("subject", "session", "sensors", "reader")
 SENSOR_KEYS = ("segment", "side", "label")
@@ -64,7 +65,7 @@ class SensorMap:
         return InputError(message, self.path, place, remedy)
 
 
-class _Loader(yaml.SafeLoader):
+class _Loader(BoundedSafeLoader):
     """SafeLoader whose mapping keys stay the text written and remember their line."""
 
 
@@ -111,18 +112,8 @@ def load_sensor_map(path: str | Path) -> SensorMap:
     """Read and validate a sensor map; :class:`InputError` names the offending key and line."""
     path = Path(path)
     smap = SensorMap(path=path)
-    try:
-        doc = yaml.load(path.read_text(encoding="utf-8"), Loader=_Loader)  # noqa: S506
-    except FileNotFoundError:
-        raise InputError("no such map file", path, remedy="check the --map path") from None
-    except UnicodeDecodeError:
-        raise InputError("not a text file", path, remedy="give a YAML sensor map") from None
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        where = f"line {mark.line + 1}" if mark else None
-        raise InputError(
-            f"not valid YAML ({getattr(exc, 'problem', exc)})", path, where, "check indentation"
-        ) from None
+    text = read_yaml_text(path, "sensor map", "give a YAML sensor map (see 'ingest --help')")
+    doc = load_yaml(text, _Loader, path, "check indentation")
     if doc is None:
         return smap
     if not isinstance(doc, dict):
@@ -130,7 +121,7 @@ def load_sensor_map(path: str | Path) -> SensorMap:
     lines = doc.lines
     for key, value in doc.items():
         if key not in TOP_KEYS:
-            raise smap.fail(key, "unknown key", f"use {', '.join(TOP_KEYS)}", lines[key])
+            raise smap.fail(key, "unknown key", did_you_mean(key, TOP_KEYS), lines[key])
         if value is not None and not isinstance(value, dict):
             raise smap.fail(key, "is not a mapping", "give 'name: value' lines", lines[key])
     smap.subject = _jsonable(dict(doc.get("subject") or {}))
@@ -147,15 +138,20 @@ def load_sensor_map(path: str | Path) -> SensorMap:
             raise smap.fail(where, "is not a mapping", "write {segment: shank, side: r}", line)
         for k in spec:
             if k not in SENSOR_KEYS:
-                raise smap.fail(f"{where}.{k}", "unknown key", f"use {', '.join(SENSOR_KEYS)}",
-                                line)  # fmt: skip
+                raise smap.fail(f"{where}.{k}", "unknown key", did_you_mean(k, SENSOR_KEYS), line)
         for k in ("segment", "label"):
             if not isinstance(spec.get(k, ""), str):
-                raise smap.fail(f"{where}.{k}", f"is not text: {spec[k]!r}", "quote it", line)
-        side = normalise_side(spec.get("side"))
+                raise smap.fail(
+                    f"{where}.{k}", f"is not text: {shorten(repr(spec[k]))}", "quote it", line
+                )
+        raw_side = spec.get("side")
+        side = normalise_side(raw_side) if raw_side is None or isinstance(raw_side, str) else None
         if side is None:
             raise smap.fail(
-                f"{where}.side", f"side {spec['side']!r} is not left or right", "write l or r", line
+                f"{where}.side",
+                f"side {shorten(repr(raw_side))} is not left or right",
+                "write l or r",
+                line,
             )
         label = spec.get("label", "").strip()
         if "/" in label or label in (".", ".."):

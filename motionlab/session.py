@@ -38,7 +38,7 @@ import numpy as np
 
 from motionlab import __version__
 from motionlab.atomic import atomic_path
-from motionlab.errors import InputError
+from motionlab.errors import InputError, shorten
 
 SCHEMA_VERSION = 1
 FORMAT_NAME = "motionlab-session"
@@ -313,23 +313,96 @@ def save_session(session: Session, path: str | Path, force: bool = False) -> Non
 # ------------------------------------------------------------------------------------ reading
 
 
-def _read_array(ds: h5py.Dataset) -> np.ndarray:
+#: shape of each sensor channel after the time axis
+_CHANNEL_WIDTH = {"acc": 3, "gyr": 3, "mag": 3, "quat": 4}
+
+
+class _Place:
+    """Where :func:`load_session` is reading (``/sensors/shank/acc``), for its messages."""
+
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        self.where = "/"
+
+    def fail(self, message: str, remedy: str = "") -> InputError:
+        return InputError(
+            message,
+            self.path,
+            f"key {self.where}",
+            remedy or "write the session again with 'motionlab ingest'",
+        )
+
+
+def _read_array(ds: h5py.Dataset, place: _Place | None = None) -> np.ndarray:
+    if not isinstance(ds, h5py.Dataset):
+        raise (place or _Place(Path("session"))).fail("cannot be opened as a dataset")
+    if place is not None:
+        place.where = ds.name
     if ds.attrs.get("kind") == "str":
         return ds.asstr()[()].astype(str)
     return ds[()]
 
 
-def _read_tree(group: h5py.Group) -> dict[str, Any]:
-    tree: dict[str, Any] = {k: json.loads(v) for k, v in group.attrs.items()}
+def _numeric(ds: h5py.Dataset, place: _Place, *shape: int | None) -> np.ndarray:
+    """A dataset that must hold numbers in ``shape`` (``None``: any length there) as float64
+    (booleans stay booleans)."""
+    place.where = ds.name
+    if not isinstance(ds, h5py.Dataset):
+        raise place.fail("is a group, expected a dataset")
+    if len(ds.shape) != len(shape) or any(
+        w is not None and w != d for w, d in zip(shape, ds.shape, strict=True)
+    ):
+        want = tuple("N" if w is None else w for w in shape)
+        raise place.fail(f"shape {ds.shape}, expected {want}")
+    if ds.dtype.kind not in "biuf":
+        raise place.fail(f"holds {ds.dtype}, expected numbers")
+    data = ds[()]
+    return data if data.dtype.kind == "b" else np.asarray(data, dtype=float)
+
+
+def _json_attr(obj: h5py.Group | h5py.Dataset, key: str, place: _Place) -> Any:
+    place.where = f"{obj.name.rstrip('/')}/@{key}"
+    if key not in obj.attrs:
+        raise place.fail("missing attribute")
+    value = obj.attrs[key]
+    if isinstance(value, bytes):
+        value = value.decode("utf-8", "replace")
+    if not isinstance(value, str):
+        raise place.fail(f"holds {type(value).__name__}, expected JSON text")
+    try:
+        return json.loads(value)
+    except ValueError:
+        raise place.fail(f"not JSON: {shorten(value)!r}") from None
+
+
+def _text_attr(obj: h5py.Group, key: str, place: _Place) -> str:
+    place.where = f"{obj.name.rstrip('/')}/@{key}"
+    if key not in obj.attrs:
+        raise place.fail("missing attribute")
+    value = obj.attrs[key]
+    return value.decode("utf-8", "replace") if isinstance(value, bytes) else str(value)
+
+
+def _read_tree(group: h5py.Group, place: _Place | None = None) -> dict[str, Any]:
+    place = place or _Place(Path(group.file.filename))
+    tree: dict[str, Any] = {k: _json_attr(group, k, place) for k in group.attrs}
     for key, item in group.items():
-        tree[key] = _read_tree(item) if isinstance(item, h5py.Group) else _read_array(item)
+        place.where = f"{group.name.rstrip('/')}/{key}"
+        if item is None:
+            raise place.fail("cannot be opened, the file is damaged")
+        if isinstance(item, h5py.Group):
+            tree[key] = _read_tree(item, place)
+        else:
+            tree[key] = _read_array(item, place)
     return tree
 
 
 def load_session(path: str | Path) -> Session:
     """Read a session file written by :func:`save_session`.
 
-    Raises :class:`InputError` when the file is missing, not HDF5 or not a motionlab session.
+    Raises :class:`InputError` when the file is missing, not HDF5 or not a motionlab session,
+    and, naming the dataset or attribute, for damaged data (h5py cannot read it), attributes
+    that are not JSON, or channels that are not numbers of the right shape.
     """
     path = Path(path)
     if not path.is_file():
@@ -340,54 +413,103 @@ def load_session(path: str | Path) -> Session:
         raise InputError(
             "not an HDF5 file", path, remedy="give a session written by 'motionlab ingest'"
         ) from None
+    place = _Place(path)
     with f:
-        if f.attrs.get("format") != FORMAT_NAME:
-            raise InputError(
-                "HDF5 file is not a motionlab session",
-                path,
-                remedy="create one with 'motionlab ingest'",
-            )
-        version = int(f.attrs["schema_version"])
-        if version > SCHEMA_VERSION:
-            raise InputError(
-                f"session schema {version} is newer than this motionlab ({SCHEMA_VERSION})",
-                path,
-                remedy="upgrade motionlab",
-            )
-        session = Session(metadata=json.loads(f.attrs["metadata"]), schema_version=version)
-        for label, g in f["sensors"].items():
-            arrays = {ch: _read_array(g[ch]) for ch in SENSOR_CHANNELS if ch in g}
-            extra = {k: _read_array(v) for k, v in g["extra"].items()} if "extra" in g else {}
-            session.sensors[label] = SensorStream(
-                label=str(g.attrs["label"]),
-                time=_read_array(g["time"]),
-                **arrays,
-                serial=str(g.attrs["serial"]),
-                vendor=str(g.attrs["vendor"]),
-                segment=str(g.attrs["segment"]),
-                side=str(g.attrs["side"]),
-                source_units=json.loads(g.attrs["source_units"]),
-                extra=extra,
-                qc=json.loads(g.attrs["qc"]),
-                attrs=json.loads(g.attrs["attrs"]),
-            )
-        for name, g in f["markers"].items():
-            rb = {}
-            if "rigid_bodies" in g:
-                rb = {k: _read_array(v) for k, v in g["rigid_bodies"].items()}
-            session.markers[name] = MarkerSet(
-                name=str(g.attrs["name"]),
-                time=_read_array(g["time"]),
-                labels=json.loads(g.attrs["labels"]),
-                positions=_read_array(g["positions"]) if "positions" in g else None,
-                residuals=_read_array(g["residuals"]) if "residuals" in g else None,
-                rigid_bodies=rb,
-                source_units=json.loads(g.attrs["source_units"]),
-                attrs=json.loads(g.attrs["attrs"]),
-                model_outputs=(
-                    _read_model_outputs(g["model_outputs"]) if "model_outputs" in g else {}
-                ),
-            )
-        session.results = _read_tree(f["results"])
-        session.provenance = [json.loads(s) for s in f["provenance"].asstr()[()]]
+        try:
+            return _load(f, path, place)
+        except (OSError, KeyError, RuntimeError, TypeError, ValueError) as exc:  # h5py: damage
+            detail = shorten(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
+            raise place.fail(
+                f"cannot be read, the file is damaged ({detail})",
+                "copy the session again, or ingest the recordings again",
+            ) from None
+
+
+def _groups(f: h5py.File, name: str, place: _Place) -> list[tuple[str, h5py.Group]]:
+    """The subgroups of ``/name`` (sensors, marker sets), each checked to be a group."""
+    place.where = f"/{name}"
+    parent = f[name]
+    if not isinstance(parent, h5py.Group):
+        raise place.fail("is not a group")
+    out = []
+    for key, g in parent.items():
+        place.where = f"/{name}/{key}"
+        if not isinstance(g, h5py.Group):
+            raise place.fail("cannot be opened as a group, the file is damaged")
+        out.append((key, g))
+    return out
+
+
+def _load(f: h5py.File, path: Path, place: _Place) -> Session:
+    if f.attrs.get("format") != FORMAT_NAME:
+        raise InputError(
+            "HDF5 file is not a motionlab session",
+            path,
+            remedy="create one with 'motionlab ingest'",
+        )
+    place.where = "/@schema_version"
+    try:
+        version = int(np.ravel(f.attrs["schema_version"])[0])
+    except (ValueError, TypeError, IndexError):
+        raise place.fail("is not an integer") from None
+    if version > SCHEMA_VERSION:
+        raise InputError(
+            f"session schema {version} is newer than this motionlab ({SCHEMA_VERSION})",
+            path,
+            remedy="upgrade motionlab",
+        )
+    metadata = _json_attr(f, "metadata", place)
+    if not isinstance(metadata, dict):
+        raise place.fail("is not a JSON object")
+    session = Session(metadata=metadata, schema_version=version)
+    place.where = "/sensors"
+    for label, g in _groups(f, "sensors", place):
+        time = _numeric(g["time"], place, None)
+        n = len(time)
+        arrays = {
+            ch: _numeric(g[ch], place, n, _CHANNEL_WIDTH[ch]) for ch in SENSOR_CHANNELS if ch in g
+        }
+        extra = {k: _read_array(v, place) for k, v in g["extra"].items()} if "extra" in g else {}
+        session.sensors[label] = SensorStream(
+            label=_text_attr(g, "label", place),
+            time=time,
+            **arrays,
+            serial=_text_attr(g, "serial", place),
+            vendor=_text_attr(g, "vendor", place),
+            segment=_text_attr(g, "segment", place),
+            side=_text_attr(g, "side", place),
+            source_units=_json_attr(g, "source_units", place),
+            extra=extra,
+            qc=_json_attr(g, "qc", place),
+            attrs=_json_attr(g, "attrs", place),
+        )
+    place.where = "/markers"
+    for name, g in _groups(f, "markers", place):
+        time = _numeric(g["time"], place, None)
+        n = len(time)
+        labels = _json_attr(g, "labels", place)
+        rb = {}
+        if "rigid_bodies" in g:
+            rb = {k: _numeric(v, place, n, 4) for k, v in g["rigid_bodies"].items()}
+        positions = g.get("positions")
+        residuals = g.get("residuals")
+        session.markers[name] = MarkerSet(
+            name=_text_attr(g, "name", place),
+            time=time,
+            labels=labels,
+            positions=None if positions is None else _numeric(positions, place, n, None, 3),
+            residuals=None if residuals is None else _numeric(residuals, place, n, None),
+            rigid_bodies=rb,
+            source_units=_json_attr(g, "source_units", place),
+            attrs=_json_attr(g, "attrs", place),
+            model_outputs=(_read_model_outputs(g["model_outputs"]) if "model_outputs" in g else {}),
+        )
+    place.where = "/results"
+    session.results = _read_tree(f["results"], place)
+    place.where = "/provenance"
+    entries = f["provenance"].asstr()[()]
+    try:
+        session.provenance = [json.loads(s) for s in entries]
+    except ValueError:
+        raise place.fail("an entry is not JSON") from None
     return session

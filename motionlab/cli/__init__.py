@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import sys
 import traceback
+import warnings
 
 import click
 
@@ -24,7 +25,8 @@ class MotionlabGroup(click.Group):
 
     def invoke(self, ctx: click.Context):
         try:
-            return super().invoke(ctx)
+            with warnings.catch_warnings():  # main() silences numpy's warnings in here
+                return super().invoke(ctx)
         except InputError as exc:
             if ctx.obj and ctx.obj.get("debug"):
                 traceback.print_exc()
@@ -60,6 +62,8 @@ def main(ctx: click.Context, debug: bool) -> None:
     """
     ctx.ensure_object(dict)
     ctx.obj["debug"] = debug
+    if not debug:  # numpy's RuntimeWarnings are no message for the user: QC flags and errors are
+        warnings.simplefilter("ignore", RuntimeWarning)
 
 
 def _register() -> None:

@@ -6,8 +6,9 @@ import click
 import numpy as np
 import pandas as pd
 
-from motionlab.atomic import atomic_path
+from motionlab.atomic import atomic_path, check_output
 from motionlab.cli._stage import refuse_to_redo
+from motionlab.cli.paths import INPUT_FILE, OUTPUT_FILE
 from motionlab.errors import InputError
 from motionlab.kinematics.session_angles import session_angles
 from motionlab.protocol import load_protocol
@@ -15,8 +16,8 @@ from motionlab.session import load_session, save_session
 
 
 @click.command("angles")
-@click.argument("session", type=click.Path(dir_okay=False))
-@click.option("--csv", "csv_path", type=click.Path(dir_okay=False), help="Also write a CSV.")
+@click.argument("session", type=INPUT_FILE)
+@click.option("--csv", "csv_path", type=OUTPUT_FILE, help="Also write a CSV.")
 @click.option(
     "--method",
     type=click.Choice(["imu", "accel-only"]),
@@ -41,6 +42,8 @@ def command(
     Example:
       motionlab angles session.h5 --csv angles.csv
     """
+    if csv_path:
+        check_output(csv_path, force, inputs=[session, protocol_path])
     ses = load_session(session)
     cal = ses.results.get("calibration")
     if cal is None and not no_calibration:

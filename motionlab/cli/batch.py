@@ -9,6 +9,7 @@ from pathlib import Path
 import click
 
 from motionlab.batch import Progress, load_manifest, run_study
+from motionlab.cli.paths import INPUT_FILE
 from motionlab.errors import InputError
 
 #: exit code when the study ran but some sessions failed (bad input is 2, a bug 1)
@@ -55,7 +56,7 @@ class _ProgressBar:
 
 
 @click.command("batch")
-@click.argument("manifest", type=click.Path(dir_okay=False))
+@click.argument("manifest", type=INPUT_FILE)
 @click.option("-o", "--output", "outdir", required=True, help="Study output folder.")
 @click.option("--workers", type=int, help="Local worker processes [default: number of cores].")
 @click.option(

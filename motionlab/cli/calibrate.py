@@ -5,13 +5,14 @@ from __future__ import annotations
 import click
 
 from motionlab.cli._stage import refuse_to_redo
+from motionlab.cli.paths import INPUT_FILE
 from motionlab.protocol import load_protocol
 from motionlab.segments import calibrate
 from motionlab.session import load_session, save_session
 
 
 @click.command("calibrate")
-@click.argument("session", type=click.Path(dir_okay=False))
+@click.argument("session", type=INPUT_FILE)
 @click.option("--protocol", "protocol_path", required=True, help="Protocol YAML file or name.")
 @click.option("--force", is_flag=True, help="Replace an existing calibration.")
 def command(session: str, protocol_path: str, force: bool) -> None:

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import click
 
+from motionlab.cli.paths import FOLDER
 from motionlab.pipeline import run_pipeline
 
 DEMO_DIR = Path(__file__).resolve().parent.parent / "data" / "demo"
@@ -21,7 +22,7 @@ EXAMPLES = {"knee": ("knee.h5", "knee"), "elbow": ("elbow.h5", "elbow")}
     "outdir",
     default="motionlab-demo",
     show_default=True,
-    type=click.Path(file_okay=False),
+    type=FOLDER,
     help="Output folder (one subfolder per example).",
 )
 @click.option("--only", type=click.Choice(list(EXAMPLES)), help="Run one example only.")

@@ -8,6 +8,7 @@ from collections.abc import Iterator
 import click
 
 from motionlab.atomic import check_output
+from motionlab.cli.paths import FOLDER, INPUT_FILE, OUTPUT_FILE
 from motionlab.errors import InputError
 from motionlab.fusion import registry
 from motionlab.fusion.stage import fusable, fuse_session
@@ -27,7 +28,11 @@ def parse_params(items: tuple[str, ...]) -> dict[str, str]:
 
 
 def _progress(labels: list[str], text: str) -> Iterator[str]:
-    """A progress bar on stderr over the sensors."""
+    """A progress bar on stderr over the sensors, shown on a terminal only (a log or a pipe
+    gets one line per outcome: the result, or the error)."""
+    if not sys.stderr.isatty():
+        yield from labels
+        return
     with click.progressbar(labels, label=text, file=sys.stderr) as bar:
         yield from bar
 
@@ -47,16 +52,16 @@ def _marker_references(ses: Session, name: str, markers_path: str | None, labels
 
 
 @click.command("fuse")
-@click.argument("session", type=click.Path(dir_okay=False), required=False)
+@click.argument("session", type=INPUT_FILE, required=False)
 @click.option("--filter", "name", default="default", show_default=True, help="Estimator name.")
 @click.option("--param", "params", multiple=True, help="Estimator parameter key=value (repeat).")
 @click.option("--sensor", "labels", multiple=True, help="Sensor label (repeat; default: all).")
 @click.option("--force", is_flag=True, help="Replace existing fusion results or output file.")
-@click.option("-o", "--output", type=click.Path(dir_okay=False), help="Write here, not in place.")
+@click.option("-o", "--output", type=OUTPUT_FILE, help="Write here, not in place.")
 @click.option("--list", "list_", is_flag=True, help="List the estimators and their parameters.")
 @click.option(
     "--calibration",
-    type=click.Path(file_okay=False),
+    type=FOLDER,
     help="Folder of per-serial sensor calibrations (motionlab sensorcal) to apply first.",
 )
 @click.option(
@@ -98,7 +103,7 @@ def command(
     if session is None:
         raise InputError("no session file given", remedy="motionlab fuse SESSION (or --list)")
     if output is not None:
-        check_output(output, force)
+        check_output(output, force, inputs=[session, markers_path])
     ses = load_session(session)
     unknown = [lab for lab in labels if lab not in ses.sensors]
     if unknown:

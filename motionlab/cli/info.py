@@ -7,12 +7,13 @@ import math
 
 import click
 
+from motionlab.cli.paths import INPUT_FILE
 from motionlab.session import load_session
 from motionlab.summary import session_summary
 
 
 @click.command("info")
-@click.argument("session", type=click.Path(dir_okay=False))
+@click.argument("session", type=INPUT_FILE)
 @click.option("--json", "as_json", is_flag=True, help="Print the summary as JSON.")
 def command(session: str, as_json: bool) -> None:
     """Summarise a session file: sensors, rates, gaps, QC flags, markers, results.

@@ -7,17 +7,18 @@ import shlex
 import click
 
 from motionlab.atomic import check_output
+from motionlab.cli.paths import INPUT_FILE, OUTPUT_FILE
 from motionlab.errors import InputError
 from motionlab.ingest import DEFAULT_GAP_MAX, ingest
 from motionlab.session import save_session
 
 
 @click.command("ingest")
-@click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.argument("files", nargs=-1, required=True, type=INPUT_FILE)
 @click.option(
     "--map",
     "map_path",
-    type=click.Path(dir_okay=False),
+    type=INPUT_FILE,
     help="Sensor map YAML: segment/side/label per sensor, subject and reader options.",
 )
 @click.option(
@@ -39,7 +40,7 @@ from motionlab.session import save_session
     "-o",
     "--output",
     required=True,
-    type=click.Path(dir_okay=False),
+    type=OUTPUT_FILE,
     help="Session file to write (HDF5).",
 )
 @click.option("--force", is_flag=True, help="Replace an existing output file.")
@@ -64,7 +65,7 @@ def command(files, map_path, rate, gap_max, output, force) -> None:  # fmt: skip
     Example:
       motionlab ingest shank.txt thigh.txt --map map.yaml -o session.h5
     """
-    check_output(output, force)
+    check_output(output, force, inputs=[*files, map_path])
     args = ["motionlab", "ingest", *files, "-o", output]
     for flag, value in (("--map", map_path), ("--rate", rate), ("--gap-max", gap_max)):
         args += [flag, str(value)] if value is not None else []

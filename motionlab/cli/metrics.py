@@ -7,6 +7,7 @@ import numpy as np
 
 from motionlab.atomic import atomic_path, check_output
 from motionlab.cli._stage import refuse_to_redo
+from motionlab.cli.paths import INPUT_FILE, OUTPUT_FILE
 from motionlab.errors import InputError
 from motionlab.kinematics.metrics import metrics_table, session_metrics
 from motionlab.protocol import load_protocol
@@ -32,8 +33,8 @@ def _parse_tasks(items: tuple[str, ...]) -> dict[str, tuple[float, float]] | Non
 
 
 @click.command("metrics")
-@click.argument("session", type=click.Path(dir_okay=False))
-@click.option("--csv", "csv_path", type=click.Path(dir_okay=False), help="Also write a CSV.")
+@click.argument("session", type=INPUT_FILE)
+@click.option("--csv", "csv_path", type=OUTPUT_FILE, help="Also write a CSV.")
 @click.option("--protocol", "protocol_path", help="Protocol (default: the calibration's).")
 @click.option(
     "--task",
@@ -63,7 +64,7 @@ def command(
       motionlab metrics session.h5 --task gait=95:150 --task squat=152:180 --force
     """
     if csv_path:
-        check_output(csv_path, force)
+        check_output(csv_path, force, inputs=[session, protocol_path])
     ses = load_session(session)
     cal = ses.results.get("calibration")
     if cal is None:

@@ -6,24 +6,26 @@ from pathlib import Path
 
 import click
 
+from motionlab.atomic import refuse_input_as_output
+from motionlab.cli.paths import FOLDER, INPUT_FILE, OUTPUT_FILE
 from motionlab.protocol import load_protocol
 from motionlab.report import load_views, write_report
 from motionlab.session import load_session
 
 
 @click.command("report")
-@click.argument("sessions", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.argument("sessions", nargs=-1, required=True, type=INPUT_FILE)
 @click.option(
     "-o",
     "--output",
     required=True,
-    type=click.Path(dir_okay=False),
+    type=OUTPUT_FILE,
     help="PDF file to write (its text goes beside it as .txt).",
 )
 @click.option(
     "--csv",
     "csv_dir",
-    type=click.Path(file_okay=False),
+    type=FOLDER,
     help="Also write the CSV tables into this folder.",
 )
 @click.option("--protocol", "protocol_path", help="Protocol (default: the calibration's).")
@@ -38,6 +40,9 @@ def command(sessions, output, csv_dir, protocol_path, force) -> None:
       motionlab report results/P017/session.h5 -o P017.pdf --csv P017_tables
       motionlab report visit1/session.h5 visit2/session.h5 -o P017_progress.pdf
     """
+    outputs = [Path(output), Path(output).with_suffix(".txt")]
+    for out in outputs:
+        refuse_input_as_output(out, [*sessions, protocol_path])
     protocol = load_protocol(protocol_path) if protocol_path else None
     paths = [Path(s) for s in sessions]
     views = load_views([load_session(p) for p in paths], protocol, paths)

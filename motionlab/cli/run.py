@@ -6,27 +6,28 @@ from pathlib import Path
 
 import click
 
+from motionlab.cli.paths import FOLDER, INPUT_FILE
 from motionlab.pipeline import run_pipeline
 
 
 @click.command("run")
-@click.argument("files", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@click.argument("files", nargs=-1, required=True, type=INPUT_FILE)
 @click.option("--protocol", "protocol", required=True, help="Protocol YAML file or packaged name.")
 @click.option(
     "--map",
     "map_path",
-    type=click.Path(dir_okay=False),
+    type=INPUT_FILE,
     help="Sensor map YAML for raw recordings (see 'motionlab ingest --help').",
 )
 @click.option(
     "--reference",
-    type=click.Path(dir_okay=False),
+    type=INPUT_FILE,
     help="Optical reference (C3D, TRC or a session with markers): validate against it.",
 )
 @click.option(
     "--calibration",
     "calibration_dir",
-    type=click.Path(file_okay=False),
+    type=FOLDER,
     help="Folder of per-serial sensor calibrations (motionlab sensorcal) for fusion.",
 )
 @click.option(
@@ -34,7 +35,7 @@ from motionlab.pipeline import run_pipeline
     "--output",
     "outdir",
     required=True,
-    type=click.Path(file_okay=False),
+    type=FOLDER,
     help="Output folder: session.h5, report.pdf, report.txt, csv/, results.json.",
 )
 @click.option(

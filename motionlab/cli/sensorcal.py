@@ -8,6 +8,7 @@ import click
 import h5py
 import numpy as np
 
+from motionlab.cli.paths import INPUT_FILE
 from motionlab.errors import InputError
 from motionlab.io import read_any
 from motionlab.sensorcal import calfile, stage
@@ -81,7 +82,7 @@ def _describe(r: stage.KindResult) -> list[str]:
 
 
 @click.command("sensorcal")
-@click.argument("source", type=click.Path(dir_okay=False))
+@click.argument("source", type=INPUT_FILE)
 @click.option("--sensor", "labels", multiple=True, help="Sensor label (repeat; default: all).")
 @click.option(
     "--kind",

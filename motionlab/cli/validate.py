@@ -9,6 +9,7 @@ import click
 
 from motionlab.atomic import atomic_path, check_output
 from motionlab.cli._stage import refuse_to_redo
+from motionlab.cli.paths import FOLDER, INPUT_FILE
 from motionlab.errors import InputError
 from motionlab.protocol import load_protocol
 from motionlab.session import load_session, save_session
@@ -28,7 +29,7 @@ def _protocol(path: str | None, calibration: dict | None):
 
 
 @click.command("validate")
-@click.argument("session", type=click.Path(dir_okay=False))
+@click.argument("session", type=INPUT_FILE)
 @click.option("--reference", "reference", help="C3D/TRC/BROAD file or a session with markers "
               "(default: the session's own markers).")  # fmt: skip
 @click.option("--static", "static_path", help="Static trial (C3D/TRC/session) showing the "
@@ -41,7 +42,7 @@ def _protocol(path: str | None, calibration: dict | None):
 @click.option("--movement-only", is_flag=True, help="Statistics over movement phases only.")
 @click.option("--estimator", default="default", show_default=True,
               help="Fusion for sensors without fusion results.")  # fmt: skip
-@click.option("--csv", "csv_dir", type=click.Path(file_okay=False), help="Write CSV tables here.")
+@click.option("--csv", "csv_dir", type=FOLDER, help="Write CSV tables here.")
 @click.option("--json", "as_json", is_flag=True, help="Print the results as JSON.")
 @click.option("--force", is_flag=True, help="Replace existing validation results and CSV files.")
 def command(
@@ -87,13 +88,14 @@ def command(
         )
     protocol = _protocol(protocol_path, ses.results.get("calibration"))
     written = []
+    extra_inputs = [reference, static_path, markers_path, protocol_path]
     if csv_dir:
         folder = Path(csv_dir)
         if folder.exists() and not folder.is_dir():
             raise InputError("is not a folder", folder, remedy="give a folder for the CSV tables")
         folder.mkdir(parents=True, exist_ok=True)
         for fname in CSV_FILES:
-            check_output(folder / fname, force)
+            check_output(folder / fname, force, inputs=[session, *extra_inputs])
     result = validate(
         ses, ref, mmap, protocol, mode, sync=not no_sync, movement_only=movement_only,
         estimator=estimator, static=static,

@@ -14,6 +14,8 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from motionlab.errors import InputError
 from motionlab.fusion import registry
 from motionlab.session import Session
@@ -91,6 +93,13 @@ def fuse_session(
         res = registry.estimate(
             est.name, s.gyr, s.acc, mag, s.rate_hz, references=ref, time=s.time, **params
         )
+        if not np.isfinite(res.quat).all(axis=1).any():
+            raise InputError(
+                f"fusion ({est.name}) gives no finite orientation for this sensor",
+                path,
+                f"sensor {label}",
+                "its data hold non-finite or implausible values: see 'motionlab info' (QC)",
+            )
         entry = {
             "name": res.name,
             "quat": res.quat,

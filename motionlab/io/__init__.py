@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from motionlab.errors import InputError
+from motionlab.errors import InputError, shorten
 from motionlab.session import MarkerSet, SensorStream
 
 HEAD_BYTES = 65536
@@ -70,9 +70,16 @@ def detect_format(path: str | Path, options: dict[str, Any] | None = None) -> st
 
 
 def _detect(path: Path, options: dict[str, Any] | None):
+    if path.is_dir():
+        raise InputError("is a folder, expected a file", path, remedy="give the file's path")
     if not path.is_file():
         raise InputError("no such file", path, remedy="check the path")
-    head = read_head(path)
+    try:
+        head = read_head(path)
+    except OSError as exc:
+        raise InputError(
+            f"cannot read the file ({exc.strerror or exc})", path, remedy="check its permissions"
+        ) from None
     if not head.strip():
         raise InputError("file is empty", path, remedy="export the recording again")
     if options and options.get("format"):
@@ -104,7 +111,7 @@ def _check_hdf5(path: Path) -> None:
 
     try:
         h5py.File(path, "r").close()
-    except OSError:
+    except (OSError, RuntimeError):
         raise InputError(
             "HDF5 file is damaged or truncated (h5py cannot open it)",
             path,
@@ -116,6 +123,20 @@ def read_any(path: str | Path, options: dict[str, Any] | None = None) -> Recordi
     """Detect the format of ``path`` from its content and read it."""
     path = Path(path)
     module = _detect(path, options)
-    rec = module.read(path, options)
+    try:
+        rec = module.read(path, options)
+    except (OSError, RuntimeError) as exc:  # h5py: damaged data or metadata in the file
+        if isinstance(exc, RuntimeError) and module.FORMAT not in ("broad", "apdm_h5"):
+            raise
+        if isinstance(exc, FileNotFoundError | PermissionError | IsADirectoryError):
+            raise InputError(
+                f"cannot read the file ({exc.strerror or exc})", path, remedy="check the path"
+            ) from None
+        detail = shorten(str(exc).splitlines()[0] if str(exc) else type(exc).__name__)
+        raise InputError(
+            f"cannot be read, the file is damaged ({detail})",
+            path,
+            remedy="copy or export the file again",
+        ) from None
     rec.format = module.FORMAT
     return rec

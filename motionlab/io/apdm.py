@@ -186,12 +186,12 @@ def _format7_header(path: Path, lines: list[str]) -> tuple[list[Column], int, st
         )
     sensor_row, quantity_row, component_row = (_cells(ln) for ln in lines[:3])
     n = len(quantity_row)
-    if len(sensor_row) != n or len(component_row) != n:
+    if len(sensor_row) != n or len(component_row) != n or n < 2:
         raise InputError(
             f"header rows have {len(sensor_row)}, {n} and {len(component_row)} cells",
             path,
             "lines 1-3",
-            "export the file again without editing it",
+            "export the file again without editing it (comma-delimited)",
         )
     first_quantity = quantity_row[1]
     columns: list[Column] = []

@@ -24,7 +24,7 @@ from typing import Any
 import h5py
 import numpy as np
 
-from motionlab.errors import InputError
+from motionlab.errors import InputError, shorten
 from motionlab.io import Recording
 from motionlab.io.apdm import DEFAULT_UNITS, convert, nwu_to_enu
 from motionlab.session import SensorStream
@@ -42,7 +42,7 @@ def sniff(path: Path, head: bytes) -> bool:
     try:
         with h5py.File(path, "r") as f:
             return isinstance(f.get("Sensors"), h5py.Group)
-    except OSError:
+    except (OSError, RuntimeError, KeyError):  # h5py: damaged metadata (read() says so)
         return False
 
 
@@ -85,7 +85,16 @@ def _dataset(path: Path, group: h5py.Group, name: str, width: int | None) -> np.
         raise InputError(
             "missing dataset", path, f"key {where}", "export the raw sensor data into the .h5"
         )
-    data = np.asarray(ds[()], dtype=float)
+    if ds.dtype.kind not in "biuf":
+        raise InputError(
+            f"holds {ds.dtype}, expected numbers", path, f"key {where}", "re-export the file"
+        )
+    try:
+        data = np.asarray(ds[()], dtype=float)
+    except OSError:
+        raise InputError(
+            "cannot be read, the data are damaged", path, f"key {where}", "re-export the file"
+        ) from None
     shape_ok = data.ndim == 1 if width is None else (data.ndim == 2 and data.shape[1] == width)
     if not shape_ok:
         want = "(N,)" if width is None else f"(N, {width})"
@@ -132,7 +141,15 @@ def _sensor(path: Path, case_id: str, g: h5py.Group, processed: h5py.Group | Non
     if config is not None:
         label = _text(config.attrs.get("Label 0", ""))
         if "Sample Rate" in config.attrs:
-            attrs["nominal_rate_hz"] = float(np.ravel(config.attrs["Sample Rate"])[0])
+            rate = np.ravel(config.attrs["Sample Rate"])
+            if rate.dtype.kind not in "iuf" or len(rate) != 1 or not np.isfinite(rate[0]):
+                raise InputError(
+                    f"is {shorten(rate.tolist())!r}, expected one number (Hz)",
+                    path,
+                    f"key {config.name}/Sample Rate",
+                    "re-export the file",
+                )
+            attrs["nominal_rate_hz"] = float(rate[0])
     return SensorStream(
         label=label or case_id,
         time=(time_us - time_us[0]) * 1e-6,

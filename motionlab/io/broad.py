@@ -21,11 +21,13 @@ from typing import Any
 import h5py
 import numpy as np
 
-from motionlab.errors import InputError
+from motionlab.errors import InputError, shorten
 from motionlab.io import Recording
 from motionlab.session import MarkerSet, SensorStream
 
 FORMAT = "broad"
+#: the highest sampling rate taken as real (Hz); above it the attribute is damaged
+MAX_RATE_HZ = 1e5
 
 HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
 #: dataset name → expected number of columns (None: one-dimensional)
@@ -46,7 +48,7 @@ def sniff(path: Path, head: bytes) -> bool:
     try:
         with h5py.File(path, "r") as f:
             return "imu_gyr" in f and "opt_quat" in f
-    except OSError:
+    except (OSError, RuntimeError, KeyError):  # h5py: damaged metadata (read() says so)
         return False
 
 
@@ -64,12 +66,13 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
             raise InputError(
                 "missing attribute", path, "key /sampling_rate", "give a BROAD trial file"
             )
-        rate = float(np.ravel(f.attrs["sampling_rate"])[0])
-        if not np.isfinite(rate) or rate <= 0:
-            raise InputError(f"sampling_rate {rate}", path, "key /sampling_rate", "must be > 0 Hz")
+        rate = _rate(path, f)
         data = {name: _dataset(path, f, name, width) for name, width in _DATASETS.items()}
-        info = f.attrs.get("info", "")
-        info = info.decode() if isinstance(info, bytes) else str(info)
+        try:
+            info = f.attrs.get("info", "")
+        except OSError:
+            info = ""
+        info = info.decode("utf-8", "replace") if isinstance(info, bytes) else str(info)
     n = len(data["imu_gyr"])
     for name, arr in data.items():
         if len(arr) != n:
@@ -102,15 +105,41 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     return Recording(sensors=[imu], markers=[optical], metadata=meta)
 
 
+def _rate(path: Path, f: h5py.File) -> float:
+    """The ``sampling_rate`` attribute: one positive number (Hz)."""
+    where = "key /sampling_rate"
+    try:
+        value = np.ravel(f.attrs["sampling_rate"])
+    except OSError:
+        raise InputError("cannot be read (damaged)", path, where, "re-download") from None
+    if value.dtype.kind not in "iuf" or len(value) != 1:
+        raise InputError(
+            f"is {shorten(value.tolist())!r}, expected one number (Hz)", path, where, "re-download"
+        )
+    rate = float(value[0])
+    if not np.isfinite(rate) or not 0 < rate <= MAX_RATE_HZ:
+        raise InputError(
+            f"sampling_rate {rate:g} Hz", path, where, f"must be > 0 and ≤ {MAX_RATE_HZ:g} Hz"
+        )
+    return rate
+
+
 def _dataset(path: Path, f: h5py.File, name: str, width: int | None) -> np.ndarray:
+    where = f"key /{name}"
     ds = f.get(name)
     if not isinstance(ds, h5py.Dataset):
-        raise InputError("missing dataset", path, f"key /{name}", "give a complete BROAD trial")
-    data = ds[()]
-    ok = data.ndim == 1 if width is None else (data.ndim == 2 and data.shape[1] == width)
+        raise InputError("missing dataset", path, where, "give a complete BROAD trial")
+    ok = len(ds.shape) == 1 if width is None else (len(ds.shape) == 2 and ds.shape[1] == width)
     if not ok:
         want = "(N,)" if width is None else f"(N, {width})"
+        raise InputError(f"shape {ds.shape}, expected {want}", path, where, "re-download")
+    if ds.dtype.kind not in "biuf":
+        raise InputError(f"holds {ds.dtype}, expected numbers", path, where, "re-download")
+    try:
+        data = ds[()]
+    except OSError as exc:
+        detail = shorten(str(exc).splitlines()[0] if str(exc) else "damaged")
         raise InputError(
-            f"shape {data.shape}, expected {want}", path, f"key /{name}", "re-download"
-        )
+            f"cannot be read, the data are damaged ({detail})", path, where, "re-download"
+        ) from None
     return data if name == "movement" else np.asarray(data, dtype=float)

@@ -22,8 +22,11 @@ then every label keeps its prefix. ``attrs["label_prefixes"]`` keeps each stripp
 silent: the repeats are renamed ``RKNE_2``… and listed in ``attrs["duplicate_labels"]``,
 ``attrs["flags"]["duplicate_labels"]`` and ``attrs["warnings"]``.
 
-The C3D header block is compared with the frames ezc3d could read, to refuse a truncated
-file. A point is invalid — NaN in ``positions`` and ``residuals`` — when its residual is negative
+Before ezc3d reads anything, the frames and points announced by the parameter section
+(``POINT:FRAMES``, ``POINT:USED``; the header block where absent) are checked against the file's
+size, so that a damaged parameter section cannot make ezc3d allocate far more than the file
+holds; a truncated file is refused, a complete file with a stale header block is read.
+A point is invalid — NaN in ``positions`` and ``residuals`` — when its residual is negative
 (the C3D "not seen" flag) or all three coordinates are exactly zero (how some exporters write
 a gap). Analog channels are not read; their count is kept in ``attrs["n_analog_channels"]``.
 """
@@ -76,6 +79,7 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     path = Path(path)
     layout = _layout(path)
     expected = layout.frames
+    _check_size(path, layout)
     try:
         c3d = ezc3d.c3d(str(path))
     except (RuntimeError, OSError, ValueError) as exc:
@@ -164,9 +168,12 @@ class _Layout:
     """Where things are in a C3D file, from its header block (bytes)."""
 
     size: int
-    frames: int  # announced in the header
+    frames: int  # announced: POINT:FRAMES, else the header block
     data_start: int
     frame_bytes: int
+    header_frames: int = 0
+    points: int = 0  # per frame: POINT:USED, else the header block
+    header_points: int = 0
 
 
 def _layout(path: Path) -> _Layout:
@@ -185,6 +192,8 @@ def _layout(path: Path) -> _Layout:
         start = (max(head[0], 1) - 1) * 512 if head else 0
         f.seek(start)
         params = f.read(4)
+        f.seek(start)
+        section = f.read(max(params[2], 1) * 512) if len(params) == 4 else b""
     if len(head) < 512:
         raise _truncated(path, f"the file ends inside its 512-byte header ({size} bytes)", None)
     if len(params) < 4:
@@ -201,8 +210,77 @@ def _layout(path: Path) -> _Layout:
             "frame 1",
         )  # fmt: skip
     sign = head[{84: 15, 85: 13, 86: 12}.get(params[3], 15)] & 0x80  # of the scale factor
-    frame_bytes = (4 * words[1] + words[2]) * (4 if sign else 2)
-    return _Layout(size, int(frames), int(data_start), int(frame_bytes))
+    found = _parameters(section, order)
+    points = int(found.get(("POINT", "USED"), [words[1]])[0])
+    announced = int(found.get(("POINT", "FRAMES"), [frames])[0])
+    if announced <= 0:  # some writers leave it 0 or store more than 32767 as negative
+        announced = int(frames)
+    frame_bytes = (4 * points + words[2]) * (4 if sign else 2)
+    return _Layout(size, announced, int(data_start), int(frame_bytes), int(frames), points,
+                   int(words[1]))  # fmt: skip
+
+
+def _check_size(path: Path, layout: _Layout) -> None:
+    """Refuse, before ezc3d reads it, a file that cannot hold the frames its parameter
+    section announces (truncated, or a damaged POINT:USED / POINT:FRAMES)."""
+    if layout.frames <= 0 or layout.frame_bytes <= 0:
+        return
+    held = max(layout.size - layout.data_start, 0) // layout.frame_bytes
+    if held >= layout.frames:
+        return
+    if layout.points != layout.header_points and held < 1:
+        raise InputError(
+            f"the parameter section's POINT:USED ({layout.points}) disagrees with the header "
+            f"block ({layout.header_points} points) and does not fit the file",
+            path,
+            "parameter POINT:USED",
+            "export the C3D again from the capture software",
+        )
+    if held < 1:
+        return  # the first frame is cut short: read() says so
+    source = "header" if layout.frames == layout.header_frames else "parameter POINT:FRAMES"
+    raise InputError(
+        f"truncated: the {source} announces {layout.frames} frames, the file holds {held}",
+        path,
+        f"frame {held + 1}",
+        "copy or export the file again",
+    )
+
+
+def _parameters(section: bytes, order: str) -> dict[tuple[str, str], list[float]]:
+    """The short numeric parameters of a C3D parameter section, ``{(GROUP, NAME): values}``
+    (a damaged section gives what could be read before the damage)."""
+    groups: dict[int, str] = {}
+    found: list[tuple[int, str, int]] = []
+    i16 = np.dtype(f"{order}i2")
+    pos = 4
+    while pos + 4 <= len(section):
+        nlen, gid = np.frombuffer(section, np.int8, 2, pos).tolist()
+        end = pos + 2 + abs(nlen)
+        if nlen == 0 or end + 2 > len(section):
+            break
+        name = section[pos + 2 : end].decode("latin-1").upper()
+        offset = int(np.frombuffer(section, i16, 1, end)[0])
+        if gid < 0:
+            groups[-gid] = name
+        else:
+            found.append((gid, name, end + 2))
+        if offset <= 0:
+            break
+        pos = end + offset
+    out: dict[tuple[str, str], list[float]] = {}
+    types = {1: np.dtype("u1"), 2: i16, 4: np.dtype(f"{order}f4")}
+    for gid, name, p in found:
+        if p + 2 > len(section):
+            continue
+        kind, ndims = int(np.frombuffer(section, np.int8, 1, p)[0]), section[p + 1]
+        count = int(np.prod(list(section[p + 2 : p + 2 + ndims]))) if ndims else 1
+        dtype, body = types.get(kind), p + 2 + ndims
+        if dtype is None or not 0 < count <= 16 or body + count * dtype.itemsize > len(section):
+            continue
+        values = np.frombuffer(section, dtype, count, body).astype(float)
+        out[(groups.get(gid, ""), name)] = values.tolist()
+    return out
 
 
 def _truncated(path: Path, message: str, where: str | None) -> InputError:

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from motionlab.errors import InputError
+from motionlab.errors import InputError, shorten
 from motionlab.io.textfile import TextFile, read_lines
 
 __all__ = [
@@ -145,9 +145,9 @@ class Table:
             return self.names.index(name)
         except ValueError:
             raise InputError(
-                f"no column '{name}'",
+                f"no column '{shorten(name)}'",
                 self.path,
-                remedy=f"columns are {', '.join(self.names)}",
+                remedy=f"columns are {shorten(', '.join(self.names), 160)}",
             ) from None
 
     def column(self, name: str) -> np.ndarray:
@@ -277,7 +277,7 @@ def parse_table(
         line = rows[k] + 1
         if k < len(rows) - 1 or not text.unended or line < len(text):
             raise InputError(
-                f"'{value}' in numeric column '{col_names[j]}'",
+                f"'{shorten(value)}' in numeric column '{shorten(col_names[j])}'",
                 path,
                 f"line {line}",
                 remedy="fix or delete the line, or check that the header matches the data",
@@ -285,7 +285,7 @@ def parse_table(
         # the file stops inside the last value ("-", "1.5e"): a truncated last line
         if k == 0:
             raise InputError(
-                f"truncated: the only data row ends inside a value ('{value}')",
+                f"truncated: the only data row ends inside a value ('{shorten(value)}')",
                 path,
                 f"line {line}",
                 remedy="the file ends inside its first data row: copy or export it again",

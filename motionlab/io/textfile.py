@@ -20,6 +20,7 @@ import numpy as np
 from motionlab.errors import InputError
 
 _NEWLINE = 10
+HEAD_CHECK = 65536  # bytes looked at for NUL before the whole file is read
 _BLANK = np.zeros(256, dtype=bool)  # bytes skipped at the start of a line: space, tab, CR
 _BLANK[[9, 13, 32]] = True
 _SPACE = _BLANK.copy()  # bytes that separate fields of a "whitespace" delimited line
@@ -164,8 +165,14 @@ def read_lines(path: str | Path) -> TextFile:
     Raises :class:`InputError` for a binary file (NUL bytes).
     """
     path = Path(path)
+    binary = InputError(
+        "binary file, not delimited text", path, remedy="export the recording as text (CSV)"
+    )
     try:
         with open(path, "rb", buffering=0) as f:
+            if b"\x00" in f.read(HEAD_CHECK):  # the head first: never read a binary body
+                raise binary
+            f.seek(0)
             b = np.empty(os.fstat(f.fileno()).st_size, dtype=np.uint8)  # no bytes object
             view, n = memoryview(b), 0
             while n < len(b) and (got := f.readinto(view[n:])):  # a read may stop at 2 GiB
@@ -175,9 +182,14 @@ def read_lines(path: str | Path) -> TextFile:
         raise InputError(
             f"cannot read the file ({exc.strerror})", path, remedy="check the path"
         ) from None
-    if not b[:65536].all():
+    nul = _positions(b, 0)
+    if len(nul):  # text, then binary data: name the line where it starts
+        line = int(np.count_nonzero(b[: nul[0]] == _NEWLINE)) + 1
         raise InputError(
-            "binary file, not delimited text", path, remedy="export the recording as text (CSV)"
+            f"binary data (NUL bytes) from byte {nul[0]}",
+            path,
+            f"line {line}",
+            "the file is damaged: copy or export it again",
         )
     if b[:3].tobytes() == b"\xef\xbb\xbf":
         b = b[3:]

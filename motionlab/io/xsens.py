@@ -197,6 +197,9 @@ def _orientations(table: Table) -> dict[str, np.ndarray]:
         m = table.columns(_MAT).reshape(-1, 3, 3)
         q = np.full((len(m), 4), np.nan)
         ok = np.all(np.isfinite(m), axis=(1, 2))
+        with np.errstate(all="ignore"):  # a rotation: orthonormal, det +1 (not all zero)
+            gram = np.einsum("nij,nkj->nik", m, m) - np.eye(3)
+            ok &= (np.abs(gram).max(axis=(1, 2)) < 0.05) & (np.abs(np.linalg.det(m) - 1) < 0.05)
         if ok.any():
             q[ok] = rotations.from_matrix(m[ok])
         out["matrix"] = q

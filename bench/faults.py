@@ -1,0 +1,131 @@
+"""Fault campaign (issue 16): hundreds of broken, odd and real inputs through the CLI, each
+judged against the promise (exit 0, or exit 2 with one stderr line; no traceback; inputs
+byte-identical; nothing left behind by a refusal), with the counts by verdict.
+
+Cases come from ``tests/faults.py`` (every reader's fixture mutated, HDF5 type swaps, YAML type
+errors, broken sessions); ``--c3d DIR`` adds truncated and byte-flipped copies of every C3D
+file in DIR (e.g. the c3d.org samples). Session byte flips and C3D cases run in a forked child
+each, so that a crash inside libhdf5 or ezc3d counts as a verdict instead of ending the run.
+The peak memory of ``ingest`` (growth of the child's peak RSS over the imports) is measured for
+every fixture and C3D file and compared with 4× the input size + 300 MB.
+
+    python3 bench/faults.py                       # ≈ 450 cases
+    python3 bench/faults.py --c3d ../shared/formats/c3d --seed 2
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
+
+import faults  # noqa: E402
+
+
+def run_isolated(case: faults.Case, folder: Path, timeout: float = 120.0) -> faults.Verdict:
+    """``case`` in a forked child (motionlab already imported): a crash (signal) is the verdict
+    ``crash``; ``peak`` is the child's growth of its peak resident memory during the run."""
+    read, write = os.pipe()
+    pid = os.fork()
+    if pid == 0:  # the child: run, report, and leave without cleanup
+        os.close(read)
+        code = 1
+        try:
+            base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
+            v = faults.run_case(case, folder, timeout)
+            peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 - base
+            os.write(write, json.dumps(v.__dict__ | {"peak": peak}).encode())
+            code = 0
+        finally:
+            os._exit(code)
+    os.close(write)
+    t0 = time.perf_counter()
+    chunks = []
+    while chunk := os.read(read, 65536):
+        chunks.append(chunk)
+    os.close(read)
+    _, status = os.waitpid(pid, 0)
+    seconds = time.perf_counter() - t0
+    if os.WIFSIGNALED(status) or not chunks:
+        return faults.Verdict(case.name, "crash", -os.WTERMSIG(status) if os.WIFSIGNALED(status)
+                              else 1, "", seconds)  # fmt: skip
+    res = json.loads(b"".join(chunks))
+    peak = res.pop("peak")
+    v = faults.Verdict(**res)
+    v.peak = peak  # type: ignore[attr-defined]
+    return v
+
+
+def c3d_cases(folder: Path, rng: np.random.Generator, per_file: int) -> list[faults.Case]:
+    cases = []
+    for path in sorted(folder.glob("*.c3d")):
+        data = path.read_bytes()
+        cases.append(faults.Case(f"c3d/original/{path.stem}", {"in.c3d": data},
+                                 ["ingest", "in.c3d", "-o", "out.h5"]))  # fmt: skip
+        for i in range(per_file):
+            if i % 2:
+                mutated = faults.truncate(data, rng.uniform(0, 1))
+            else:  # flips in the header and parameter section, where counts live
+                mutated = faults.flip(data, int(rng.integers(min(len(data), 4096))),
+                                      int(rng.integers(1, 256)))  # fmt: skip
+            name = f"c3d/{'cut' if i % 2 else 'flip'}/{path.stem}/{i}"
+            args = ["ingest", "in.c3d", "-o", "out.h5"]
+            cases.append(faults.Case(name, {"in.c3d": mutated}, args))
+    return cases
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--per-reader", type=int, default=40, help="cases per text reader")
+    ap.add_argument("--c3d", type=Path, help="folder of C3D files to break")
+    ap.add_argument("--per-c3d", type=int, default=12)
+    args = ap.parse_args()
+    rng = np.random.default_rng(args.seed)
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        cases = faults.campaign(tmp / "make", args.seed, args.per_reader, 20, 0)
+        verdicts = [faults.run_case(c, tmp / f"c{i}") for i, c in enumerate(cases)]
+        files = {"in.txt": faults.FIXTURES["xsens"].read_bytes()}
+        good_case = faults.Case("good", files, ["ingest", "in.txt", "-o", "s.h5"], "s.h5")
+        good = faults.run_case(good_case, tmp / "good")
+        isolated = faults.session_cases((tmp / "good" / "s.h5").read_bytes(), rng, 80)
+        if args.c3d:
+            isolated += c3d_cases(args.c3d, rng, args.per_c3d)
+        verdicts += [run_isolated(c, tmp / f"i{i}") for i, c in enumerate(isolated)]
+        memory = []
+        originals = [
+            faults.ingest_case(f"memory/{k}", k, p.read_bytes()) for k, p in faults.FIXTURES.items()
+        ]
+        originals += [c for c in isolated if c.name.startswith("c3d/original")]
+        for i, c in enumerate(originals):
+            v = run_isolated(c, tmp / f"m{i}")
+            size = sum(len(d) for d in c.files.values())
+            memory.append((c.name, size, getattr(v, "peak", 0), 4 * size + 300e6))
+    broken = [v for v in verdicts if v.verdict not in ("ok", "refused")]
+    print(f"{len(verdicts)} cases in {time.perf_counter() - t0:.0f} s (seed {args.seed}); "
+          f"{100 * (1 - len(broken) / len(verdicts)):.1f} % clean")  # fmt: skip
+    print(faults.table(verdicts))
+    for v in broken:
+        print(f"  {v.verdict:<14} {v.name}: {v.stderr[:160]}")
+    print("peak memory of ingest (growth of the peak RSS in a forked child, over the imports):")
+    for name, size, peak, limit in memory:
+        state = "ok" if peak <= limit else "OVER"
+        print(f"  {name:<44} {size / 1e6:8.2f} MB in  {peak / 1e6:8.0f} MB peak  "
+              f"(limit {limit / 1e6:.0f} MB) {state}")  # fmt: skip
+    assert good.verdict == "ok"
+
+
+if __name__ == "__main__":
+    main()

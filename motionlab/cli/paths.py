@@ -1,0 +1,63 @@
+"""Click parameter types for files and folders that check what they name while the options
+are parsed, and say what is wrong in one line (:class:`~motionlab.errors.InputError`, exit 2)
+instead of click's usage text."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import click
+
+from motionlab.errors import InputError
+
+
+class InputFile(click.ParamType):
+    """A file to read: a folder or an unreadable file is refused; a missing one is left to the
+    reader, which says so."""
+
+    name = "file"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> str:
+        path = Path(value)
+        if path.is_dir():
+            raise InputError("is a folder, expected a file", path, remedy="give the file's path")
+        if path.exists():
+            try:
+                with open(path, "rb") as f:
+                    f.read(1)
+            except OSError as exc:
+                raise InputError(
+                    f"cannot read the file ({exc.strerror or exc})",
+                    path,
+                    remedy="check its permissions",
+                ) from None
+        return str(value)
+
+
+class OutputFile(click.ParamType):
+    """A file to write: an existing folder of that name is refused."""
+
+    name = "file"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> str:
+        if Path(value).is_dir():
+            raise InputError("output is a folder", value, remedy="give a file name")
+        return str(value)
+
+
+class Folder(click.ParamType):
+    """A folder (to read or to write into): an existing file of that name is refused."""
+
+    name = "folder"
+
+    def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> str:
+        path = Path(value)
+        if path.exists() and not path.is_dir():
+            raise InputError("is a file, expected a folder", path, remedy="give a folder")
+        return str(value)
+
+
+INPUT_FILE = InputFile()
+OUTPUT_FILE = OutputFile()
+FOLDER = Folder()

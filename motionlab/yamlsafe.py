@@ -1,0 +1,146 @@
+"""YAML input that cannot hang, eat memory or crash: the base loader of every YAML file a user
+gives (protocols, sensor and marker maps, batch manifests).
+
+- Aliases are bounded: the document, with every alias expanded, may hold at most
+  :data:`MAX_NODES` nodes (a "billion laughs" of a few hundred bytes is refused at once), and
+  a recursive alias is refused.
+- A value the safe constructors cannot build (``2026-02-30``: a date that does not exist,
+  ``!!int abc``) is a :class:`yaml.YAMLError` with its line, not a ``ValueError``.
+
+:func:`read_yaml_text` reads the file itself: a folder, an unreadable, binary or oversized file
+is an :class:`~motionlab.errors.InputError`.
+"""
+
+from __future__ import annotations
+
+import difflib
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import yaml
+from yaml.constructor import ConstructorError
+
+from motionlab.errors import InputError, shorten
+
+#: nodes a document may hold with its aliases expanded
+MAX_NODES = 50_000
+#: the largest YAML file read (bytes); protocols and maps are a few kB
+MAX_BYTES = 4 << 20
+
+
+class _Refused(ConstructorError):
+    """A document refused by :class:`BoundedSafeLoader`, with its own remedy."""
+
+    def __init__(self, problem: str, mark: yaml.Mark | None, remedy: str) -> None:
+        super().__init__(None, None, problem, mark)
+        self.remedy = remedy
+
+
+class BoundedSafeLoader(yaml.SafeLoader):
+    """``yaml.SafeLoader`` with aliases bounded and constructor errors as YAML errors."""
+
+    def compose_document(self) -> yaml.Node | None:
+        node = super().compose_document()
+        if node is not None:
+            _count_nodes(node)
+        return node
+
+    def construct_object(self, node: yaml.Node, deep: bool = False) -> Any:
+        try:
+            return super().construct_object(node, deep=deep)
+        except (ValueError, TypeError, OverflowError) as exc:
+            value = shorten(node.value) if isinstance(node, yaml.ScalarNode) else node.tag
+            raise _Refused(
+                f"cannot read {value!r} ({exc})",
+                node.start_mark,
+                "write a date that exists (YYYY-MM-DD), or quote the value to keep it as text"
+                if node.tag.endswith(":timestamp")
+                else "fix the value, or quote it to keep it as text",
+            ) from None
+
+
+def _count_nodes(root: yaml.Node) -> int:
+    """Nodes under ``root`` with aliases expanded; :class:`yaml.YAMLError` past the bound or
+    for a recursive alias. Shared nodes are counted once per use, without expanding them."""
+    sizes: dict[int, int] = {}
+    active: set[int] = set()
+
+    def size(node: yaml.Node) -> int:
+        key = id(node)
+        if key in sizes:
+            return sizes[key]
+        if key in active:
+            raise _Refused("recursive alias", node.start_mark, "remove the alias (*name)")
+        active.add(key)
+        n = 1
+        if isinstance(node, yaml.SequenceNode):
+            n += sum(size(c) for c in node.value)
+        elif isinstance(node, yaml.MappingNode):
+            n += sum(size(k) + size(v) for k, v in node.value)
+        active.discard(key)
+        if n > MAX_NODES:
+            raise _Refused(
+                f"aliases expand to more than {MAX_NODES} values",
+                node.start_mark,
+                "write the values out instead of aliases (*name)",
+            )
+        sizes[key] = n
+        return n
+
+    return size(root)
+
+
+def read_yaml_text(path: str | Path, what: str, remedy: str) -> str:
+    """The text of the YAML file ``path`` (a ``what``: "protocol", "sensor map"), with an
+    :class:`InputError` for a missing, folder, unreadable, oversized or binary file."""
+    path = Path(path)
+    if path.is_dir():
+        raise InputError(f"is a folder, expected a {what} file", path, remedy=remedy)
+    try:
+        size = path.stat().st_size
+        if size > MAX_BYTES:
+            raise InputError(
+                f"{size} bytes: too large for a {what} file (at most {MAX_BYTES >> 20} MiB)",
+                path,
+                remedy=remedy,
+            )
+        data = path.read_bytes()
+    except FileNotFoundError:
+        raise InputError(f"no such {what} file", path, remedy="check the path") from None
+    except OSError as exc:
+        raise InputError(
+            f"cannot read the file ({exc.strerror or exc})", path, remedy="check its permissions"
+        ) from None
+    if b"\x00" in data:
+        raise InputError(f"binary file, not a {what}", path, remedy=remedy)
+    try:
+        return data.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise InputError(
+            f"not UTF-8 text (byte {exc.start})", path, remedy="save it as UTF-8"
+        ) from None
+
+
+def load_yaml(text: str, loader: type[BoundedSafeLoader], path: Path, remedy: str) -> Any:
+    """``text`` loaded with ``loader``; every YAML problem an :class:`InputError` with its
+    line."""
+    try:
+        return yaml.load(text, Loader=loader)  # noqa: S506 - a SafeLoader subclass
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}" if mark else None
+        problem = getattr(exc, "problem", None) or exc
+        remedy = getattr(exc, "remedy", remedy)
+        raise InputError(f"not valid YAML ({problem})", path, where, remedy) from None
+    except RecursionError:
+        raise InputError("nested too deeply", path, remedy=remedy) from None
+
+
+def did_you_mean(key: object, allowed: Iterable[str]) -> str:
+    """A remedy for an unknown key: the closest allowed key, or the list of them."""
+    allowed = list(allowed)
+    close = difflib.get_close_matches(str(key), allowed, n=1, cutoff=0.6)
+    if close:
+        return f"did you mean '{close[0]}'?"
+    return f"use one of {', '.join(allowed)}"

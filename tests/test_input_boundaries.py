@@ -1,0 +1,245 @@
+"""One regression test per class of bad input of issue 16: refused at the boundary where it
+enters (exit 2, one line naming file and place) or accepted and flagged."""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+from pathlib import Path
+
+import ezc3d
+import h5py
+import numpy as np
+from click.testing import CliRunner
+
+from motionlab.cli import main
+from motionlab.io import read_any
+from motionlab.session import load_session
+
+DATA = Path(__file__).resolve().parent / "data"
+XSENS = DATA / "xsens" / "MT46_01-000_00B42D4D.txt"
+MAT = DATA / "xsens" / "MT2022_ACC_GYRO_ROT_MAT_COMMA_00B42D4B.txt"
+
+
+def cli(folder: Path, *args: str):
+    old = os.getcwd()
+    os.chdir(folder)
+    try:
+        return CliRunner().invoke(main, list(args))
+    finally:
+        os.chdir(old)
+
+
+def refused(result, *expect: str) -> str:
+    assert result.exit_code == 2, (result.exit_code, result.output)
+    lines = result.stderr.splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error: "), result.stderr
+    for text in expect:
+        assert text in lines[0], lines[0]
+    return lines[0]
+
+
+def session(tmp_path: Path, name: str = "s.h5") -> Path:
+    (tmp_path / "in.txt").write_bytes(XSENS.read_bytes())
+    assert cli(tmp_path, "ingest", "in.txt", "-o", name).exit_code == 0
+    return tmp_path / name
+
+
+def test_output_equal_to_an_input_is_refused_even_with_force(tmp_path):
+    (tmp_path / "s.txt").write_bytes(XSENS.read_bytes())
+    refused(cli(tmp_path, "ingest", "s.txt", "-o", "s.txt", "--force"), "also an input")
+    assert (tmp_path / "s.txt").read_bytes() == XSENS.read_bytes()
+    s = session(tmp_path)
+    refused(cli(tmp_path, "fuse", "s.h5", "-o", "s.h5", "--force"), "also an input")
+    refused(cli(tmp_path, "angles", "s.h5", "--csv", "s.h5", "--force"), "also an input")
+    refused(cli(tmp_path, "report", "s.h5", "-o", "s.h5", "--force"), "also an input")
+    assert load_session(s).sensors
+
+
+def test_session_with_non_json_metadata_or_text_channels(tmp_path):
+    s = session(tmp_path)
+    with h5py.File(s, "r+") as f:
+        f.attrs["metadata"] = "{not json"
+    refused(cli(tmp_path, "info", "s.h5"), "s.h5 key /@metadata", "not JSON")
+    s = session(tmp_path, "t.h5")
+    with h5py.File(s, "r+") as f:
+        g = f["sensors"][next(iter(f["sensors"]))]
+        n = g["acc"].shape
+        del g["acc"]
+        g.create_dataset("acc", data=np.full(n, "x", dtype=object), dtype=h5py.string_dtype())
+    for command in ("info", "fuse"):
+        refused(cli(tmp_path, command, "t.h5"), "/acc", "expected numbers")
+
+
+def test_session_with_damaged_compressed_data(tmp_path):
+    s = session(tmp_path)
+    with h5py.File(s, "r+") as f:
+        g = f["sensors"][next(iter(f["sensors"]))]
+        acc = g["acc"][()]
+        del g["acc"]
+        g.create_dataset("acc", data=acc, compression="gzip", chunks=(2, 3))
+    data = bytearray(s.read_bytes())
+    with h5py.File(s, "r") as f:
+        g = f["sensors"][next(iter(f["sensors"]))]
+        offsets = [g["acc"].id.get_chunk_info(k).byte_offset for k in range(2)]
+    for off in offsets:
+        data[off + 4 : off + 12] = b"\xff" * 8
+    s.write_bytes(bytes(data))
+    refused(cli(tmp_path, "info", "s.h5"), "s.h5 key /sensors/", "damaged")
+
+
+def test_broad_rate_as_text(tmp_path):
+    path = tmp_path / "b.hdf5"
+    path.write_bytes((DATA / "broad" / "broad_10_excerpt.hdf5").read_bytes())
+    with h5py.File(path, "r+") as f:
+        f.attrs["sampling_rate"] = "fast"
+    refused(cli(tmp_path, "ingest", "b.hdf5", "-o", "o.h5"), "key /sampling_rate")
+
+
+def test_xsens_zero_rotation_matrix_is_missing_not_a_crash(tmp_path):
+    lines = MAT.read_text().splitlines()
+    header = next(i for i, ln in enumerate(lines) if "Mat[1][1]" in ln)
+    names = lines[header].split(",")
+    cells = lines[header + 2].split(",")
+    for j, name in enumerate(names):
+        if name.startswith("Mat["):
+            cells[j] = "0"
+    lines[header + 2] = ",".join(cells)
+    (tmp_path / "m.txt").write_text("\n".join(lines) + "\n")
+    rec = read_any(tmp_path / "m.txt")
+    assert np.isnan(rec.sensors[0].quat[1]).all() and np.isfinite(rec.sensors[0].quat[0]).all()
+
+
+def test_rate_far_beyond_the_native_rate_is_refused_before_allocating(tmp_path):
+    (tmp_path / "in.txt").write_bytes(XSENS.read_bytes())
+    for rate in ("1e9", "1e6"):
+        t0 = time.perf_counter()
+        refused(cli(tmp_path, "ingest", "in.txt", "--rate", rate, "-o", "o.h5"), "native rate")
+        assert time.perf_counter() - t0 < 5
+    assert cli(tmp_path, "ingest", "in.txt", "--rate", "200", "-o", "o.h5").exit_code == 0
+
+
+def test_time_stamps_near_1e300_are_refused(tmp_path):
+    rows = "".join(f"{k * 1e298:.6e},0.1,0.2,0.3,0.0,0.0,1.0\n" for k in range(1, 50))
+    head = "Time (s),Gyroscope X (deg/s),Gyroscope Y (deg/s),Gyroscope Z (deg/s),"
+    head += "Accelerometer X (g),Accelerometer Y (g),Accelerometer Z (g)\n"
+    (tmp_path / "in.csv").write_text(head + rows)
+    refused(cli(tmp_path, "ingest", "in.csv", "-o", "o.h5"), "in.csv", "sensor")
+
+
+def test_all_zero_quaternions_are_not_stored_as_orientations(tmp_path):
+    text = XSENS.read_text().splitlines()
+    header = next(i for i, ln in enumerate(text) if ln.startswith("PacketCounter"))
+    names = text[header].split("\t")
+    qcols = [j for j, n in enumerate(names) if n.startswith("Quat_")]
+    for i in range(header + 1, len(text)):
+        cells = text[i].split("\t")
+        for j in qcols:
+            cells[j] = "0"
+        text[i] = "\t".join(cells)
+    (tmp_path / "in.txt").write_text("\n".join(text) + "\n")
+    r = cli(tmp_path, "ingest", "in.txt", "-o", "o.h5")
+    if r.exit_code == 2:  # refused: the channel holds no orientation
+        refused(r, "in.txt", "quat")
+        return
+    assert r.exit_code == 0, r.output
+    s = next(iter(load_session(tmp_path / "o.h5").sensors.values()))
+    assert s.quat is None or not np.isfinite(s.quat).any()
+
+
+def test_accelerometer_spike_is_flagged_and_fusion_without_result_exits_2(tmp_path):
+    text = XSENS.read_text().splitlines()
+    header = next(i for i, ln in enumerate(text) if ln.startswith("PacketCounter"))
+    j = text[header].split("\t").index("Acc_X")
+    for i in range(header + 1, len(text), 3):
+        cells = text[i].split("\t")
+        cells[j] = "1e308"
+        text[i] = "\t".join(cells)
+    (tmp_path / "in.txt").write_text("\n".join(text) + "\n")
+    r = cli(tmp_path, "ingest", "in.txt", "-o", "o.h5")
+    assert r.exit_code == 0 and r.stderr == "", r.output
+    s = next(iter(load_session(tmp_path / "o.h5").sensors.values()))
+    assert s.qc["flags"]["implausible_values"] and s.qc["implausible_share"]["acc"] > 0.3
+    r = cli(tmp_path, "fuse", "o.h5")
+    assert r.exit_code in (0, 2)
+    if r.exit_code == 2:
+        refused(r, "no finite orientation")
+
+
+def test_folders_and_unreadable_paths_give_one_line(tmp_path):
+    (tmp_path / "in.txt").write_bytes(XSENS.read_bytes())
+    (tmp_path / "d").mkdir()
+    refused(cli(tmp_path, "ingest", "d", "-o", "o.h5"), "d: is a folder")
+    refused(cli(tmp_path, "ingest", "in.txt", "--map", "d", "-o", "o.h5"), "d: is a folder")
+    refused(cli(tmp_path, "ingest", "in.txt", "-o", "d"), "output is a folder")
+    refused(cli(tmp_path, "run", "in.txt", "--protocol", "d", "-o", "r"), "d: ")
+
+
+def test_run_into_an_unwritable_folder_is_refused_before_any_work(tmp_path):
+    (tmp_path / "in.txt").write_bytes(XSENS.read_bytes())
+    t0 = time.perf_counter()
+    refused(cli(tmp_path, "run", "in.txt", "--protocol", "knee", "-o", "/proc/motionlab-out"),
+            "not writable")  # fmt: skip
+    assert time.perf_counter() - t0 < 5
+
+
+def test_sparse_text_file_is_refused_without_reading_it(tmp_path):
+    path = tmp_path / "big.txt"
+    with open(path, "wb") as f:
+        f.write(XSENS.read_bytes()[:300])
+        f.truncate(1 << 30)  # sparse: 1 GiB of NUL bytes after an Xsens header
+    t0 = time.perf_counter()
+    refused(cli(tmp_path, "ingest", "big.txt", "-o", "o.h5"), "binary")
+    assert time.perf_counter() - t0 < 5
+
+
+def test_echoed_cell_is_cut_and_escaped(tmp_path):
+    head = "Time (s),Gyroscope X (deg/s),Gyroscope Y (deg/s),Gyroscope Z (deg/s),"
+    head += "Accelerometer X (g),Accelerometer Y (g),Accelerometer Z (g)\n"
+    rows = [f"{k * 0.01:.2f},0.1,0.2,0.3,0.0,0.0,1.0" for k in range(50)]
+    rows[20] = "0.20,0.1," + "x\x01" * 3000 + ",0.3,0.0,0.0,1.0"
+    (tmp_path / "in.csv").write_text(head + "\n".join(rows) + "\n")
+    line = refused(cli(tmp_path, "ingest", "in.csv", "-o", "o.h5"), "line 22", "\\x01")
+    assert len(line) < 400
+
+
+def _c3d(path: Path, frames: int = 40) -> None:
+    f = ezc3d.c3d()
+    f["parameters"]["POINT"]["RATE"]["value"] = [100.0]
+    f["parameters"]["POINT"]["LABELS"]["value"] = ["a", "b", "c"]
+    points = np.ones((4, 3, frames))
+    points[:3] = np.random.default_rng(1).uniform(-500, 500, (3, 3, frames))
+    f["data"]["points"] = points
+    f.write(str(path))
+
+
+def test_c3d_stale_header_is_read_and_bloated_point_count_refused_fast(tmp_path):
+    _c3d(tmp_path / "full.c3d")
+    data = bytearray((tmp_path / "full.c3d").read_bytes())
+    stale = bytearray(data)
+    stale[8:10] = np.array([79], "<u2").tobytes()  # header: last frame 80, file holds 40
+    (tmp_path / "stale.c3d").write_bytes(bytes(stale))
+    assert read_any(tmp_path / "stale.c3d").markers[0].time.size == 40
+    from motionlab.io.c3d import _parameters
+
+    start = (data[0] - 1) * 512
+    used = _parameters(bytes(data[start : start + 1024]), "<")[("POINT", "USED")]
+    assert used == [3.0]
+    at = bytes(data).find(b"USED", start) + 4 + 2 + 2  # name, offset, type and dims
+    assert data[at : at + 2] == b"\x03\x00"
+    data[at : at + 2] = np.array([30000], "<i2").tobytes()
+    (tmp_path / "bloated.c3d").write_bytes(bytes(data))
+    t0 = time.perf_counter()
+    refused(cli(tmp_path, "ingest", "bloated.c3d", "-o", "o.h5"), "POINT:USED")
+    assert time.perf_counter() - t0 < 5
+
+
+def test_yaml_map_problems(tmp_path):
+    (tmp_path / "in.txt").write_bytes(XSENS.read_bytes())
+    (tmp_path / "m.yaml").write_text("session: {date: 2026-02-30}\n")
+    refused(cli(tmp_path, "ingest", "in.txt", "--map", "m.yaml", "-o", "o.h5"), "line 1", "date")
+    (tmp_path / "m.yaml").write_text("sensors:\n  00B42D4D: {segment: shank, sied: r}\n")
+    refused(cli(tmp_path, "ingest", "in.txt", "--map", "m.yaml", "-o", "o.h5"),
+            "did you mean 'side'")  # fmt: skip
+    assert json.dumps({"ok": True})
