@@ -510,6 +510,13 @@ def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
     )
     cal = ses.results.get("calibration", {})
     lines += [f"  warning: {w}" for w in cal.get("warnings", [])]
+    tied = [
+        f"{j} by its {h['source'].replace('_', ' ')} ({h['range_deg']:.1f}° range)"
+        for j, h in ses.results.get("heading", {}).items()
+        if h.get("anchors") and h.get("source") != "steps"
+    ]
+    if tied:
+        lines.append("  heading tied by the joints: " + ", ".join(tied))
     lines += grade_lines(view)
     lines.append(
         "  tasks: "
