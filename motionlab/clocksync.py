@@ -406,20 +406,28 @@ def synchronise(
     """Put the protocol's sensors on one clock, in place (see the module docstring).
 
     Each corrected stream's ``time`` is replaced and ``attrs["clock_sync"]`` records the fit (so
-    the recorded stamps can be restored); ``session.results["clock_sync"]`` holds every fit.
+    the recorded stamps can be restored); ``session.results["clock_sync"]`` holds every fit. A
+    sensor whose own fit is not applied but whose reference was corrected gets the reference's
+    correction: its recorded timing relative to its neighbour is kept (a thigh moved while its
+    shank stayed would misalign the knee by the thigh's whole correction).
     """
     unsynchronise(session)
     fits = []
+    moved: dict[str, ClockFit] = {}  # label: the correction its stamps got
     for ref_seg, seg in sync_tree(session, protocol):
         ref, label = sensor_for_segment(session, ref_seg), sensor_for_segment(session, seg)
         stream = session.sensors[label]
         fit = estimate_clock(session.sensors[ref], stream, max_offset_s)
         fits.append(fit)
-        if fit.status == "applied":
-            attrs = dict(stream.attrs, clock_sync=asdict(fit))
+        # without a correction of its own, a sensor keeps its recorded timing relative to its
+        # reference, so it follows the reference's correction
+        use = fit if fit.status == "applied" else moved.get(ref)
+        if use is not None:
+            attrs = dict(stream.attrs, clock_sync=asdict(use))
             session.sensors[label] = replace(
-                stream, time=fit.corrected_time(stream.time), attrs=attrs
+                stream, time=use.corrected_time(stream.time), attrs=attrs
             )
+            moved[label] = use
     session.results["clock_sync"] = {f.sensor: asdict(f) for f in fits}
     return fits
 
