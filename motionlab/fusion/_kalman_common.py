@@ -47,7 +47,9 @@ class KalmanCommon:
         0.01, "x", "factor on the acc and mag noise during start-up (small: trust them more)"
     )
     mag_norm_tol: float = param(4.0, "µT", "field-norm deviation that marks a magnetic disturbance")
-    mag_dip_tol: float = param(6.0, "deg", "dip-angle deviation that marks a magnetic disturbance")
+    mag_dip_tol: float = param(
+        np.deg2rad(6.0), "rad", "dip-angle deviation that marks a magnetic disturbance"
+    )
     rest_gyr_threshold: float = param(0.035, "rad/s", "rest detection: moving-RMS rate threshold")
     rest_acc_threshold: float = param(0.5, "m/s²", "rest detection: moving-RMS acc deviation")
     rest_min_duration: float = param(1.5, "s", "rest detection: minimum rest duration")
@@ -206,7 +208,7 @@ def pack(p: KalmanCommon, prep: Prepared) -> np.ndarray:
     prm[ACC_RATE_GAIN] = p.acc_rate_gain
     prm[ACC_GATE] = p.acc_gate
     prm[MAG_NORM_TOL] = p.mag_norm_tol
-    prm[MAG_DIP_TOL] = np.deg2rad(p.mag_dip_tol)
+    prm[MAG_DIP_TOL] = p.mag_dip_tol
     prm[REF_NORM] = prep.ref_norm
     prm[REF_DIP] = prep.ref_dip
     prm[GRAVITY] = p.gravity

@@ -126,7 +126,7 @@ class ParticleParams:
         0.005, "rad/√s", "process_noise with marker references (bias known)"
     )
     marker_drift: float = param(
-        1.0, "deg/s", "error growth while markers are hidden (widens cloud)"
+        np.deg2rad(1.0), "rad/s", "error growth while markers are hidden (widens cloud)"
     )
     seed: int = param(0, "", "random seed")
 
@@ -186,7 +186,7 @@ def _pack(p: ParticleParams, g_ref: float, m_ref: float, dip_ref: float) -> np.n
     # the optimal Gaussian kernel bandwidth for N particles in d = 3 (Musso et al. 2001)
     prm[kern.KERNEL_H] = p.kernel_scale * (4.0 / (5.0 * p.n_particles)) ** (1.0 / 7.0)
     prm[kern.BINGHAM_ZMAX] = 0.5 * p.bingham_band**2
-    prm[kern.MARKER_DRIFT] = np.deg2rad(p.marker_drift)
+    prm[kern.MARKER_DRIFT] = p.marker_drift
     return prm
 
 

@@ -41,7 +41,13 @@ ESTIMATOR_MODULES = (
 
 
 def param(default: Any, unit: str, help: str) -> Any:
-    """A parameter dataclass field: its default, unit and one-line help (see :func:`describe`)."""
+    """A parameter dataclass field: its default, unit and one-line help (see :func:`describe`).
+
+    Units are SI (angles in rad); a numpy scalar default (``np.deg2rad(6.0)``) is stored as the
+    Python float of the same value.
+    """
+    if isinstance(default, np.floating):
+        default = float(default)
     return field(default=default, metadata={"unit": unit, "help": help})
 
 
@@ -261,6 +267,15 @@ def estimate(
     return result
 
 
+def _shown(value: Any, unit: str) -> str:
+    """A default with its unit; an angle (rad, rad/s) also in degrees for people."""
+    text = f"{value!r} {unit}".rstrip()
+    angle = unit in ("rad", "rad/s") and isinstance(value, float) and np.isfinite(value)
+    if angle and value != 0.0:
+        text += f" ({np.degrees(value):.4g}°{unit[3:]})"
+    return text
+
+
 def describe() -> str:
     """Text listing of every estimator with its parameters, defaults and units."""
     lines = []
@@ -271,5 +286,5 @@ def describe() -> str:
             unit = f.metadata.get("unit", "")
             help_ = f.metadata.get("help", "")
             default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
-            lines.append(f"    {f.name} = {default!r} {unit}  {help_}".rstrip())
+            lines.append(f"    {f.name} = {_shown(default, unit)}  {help_}".rstrip())
     return "\n".join(lines)
