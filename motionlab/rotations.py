@@ -9,13 +9,12 @@ Conventions (fixed for all of motionlab):
 - scipy's :class:`~scipy.spatial.transform.Rotation` is scalar last; :func:`to_scipy` and
   :func:`from_scipy` are the only places that convert.
 
-The ``nb_*`` functions are numba kernels on single quaternions (length-4 arrays) for the
-per-sample recursions of the estimators.
+The numba helpers of the estimators' per-sample loops (quaternions as scalars, allocation-free)
+are in :mod:`motionlab.fusion._common`; :func:`integrate_gyro` runs one of them.
 """
 
 from __future__ import annotations
 
-import numba
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
@@ -186,77 +185,6 @@ def mean(q: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
     return out if out[0] >= 0 else -out
 
 
-# ---------------------------------------------------------------- numba kernels (single quaternion)
-
-
-@numba.njit(cache=True, inline="always")
-def nb_mul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Hamilton product of two length-4 arrays (numba)."""
-    out = np.empty(4)
-    out[0] = p[0] * q[0] - p[1] * q[1] - p[2] * q[2] - p[3] * q[3]
-    out[1] = p[0] * q[1] + p[1] * q[0] + p[2] * q[3] - p[3] * q[2]
-    out[2] = p[0] * q[2] - p[1] * q[3] + p[2] * q[0] + p[3] * q[1]
-    out[3] = p[0] * q[3] + p[1] * q[2] - p[2] * q[1] + p[3] * q[0]
-    return out
-
-
-@numba.njit(cache=True, inline="always")
-def nb_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate a 3-vector from sensor to earth frame by a unit quaternion (numba)."""
-    w, x, y, z = q[0], q[1], q[2], q[3]
-    tx = 2.0 * (y * v[2] - z * v[1])
-    ty = 2.0 * (z * v[0] - x * v[2])
-    tz = 2.0 * (x * v[1] - y * v[0])
-    out = np.empty(3)
-    out[0] = v[0] + w * tx + (y * tz - z * ty)
-    out[1] = v[1] + w * ty + (z * tx - x * tz)
-    out[2] = v[2] + w * tz + (x * ty - y * tx)
-    return out
-
-
-@numba.njit(cache=True, inline="always")
-def nb_rotate_inv(q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rotate a 3-vector from earth to sensor frame, ``q* ⊗ v ⊗ q`` (numba)."""
-    qc = np.empty(4)
-    qc[0] = q[0]
-    qc[1] = -q[1]
-    qc[2] = -q[2]
-    qc[3] = -q[3]
-    return nb_rotate(qc, v)
-
-
-@numba.njit(cache=True, inline="always")
-def nb_exp(rv: np.ndarray) -> np.ndarray:
-    """Quaternion of a rotation vector (rad), ``exp(rv/2)`` (numba)."""
-    a = np.sqrt(rv[0] * rv[0] + rv[1] * rv[1] + rv[2] * rv[2])
-    out = np.empty(4)
-    out[0] = np.cos(0.5 * a)
-    k = np.sin(0.5 * a) / a if a > 1e-12 else 0.5
-    out[1] = k * rv[0]
-    out[2] = k * rv[1]
-    out[3] = k * rv[2]
-    return out
-
-
-@numba.njit(cache=True, inline="always")
-def nb_normalize(q: np.ndarray) -> np.ndarray:
-    """Unit quaternion (numba)."""
-    return q / np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
-
-
-@numba.njit(cache=True)
-def _integrate(q0: np.ndarray, gyr: np.ndarray, dt: np.ndarray) -> np.ndarray:
-    out = np.empty((gyr.shape[0], 4))
-    q = q0.copy()
-    out[0] = q
-    for k in range(1, gyr.shape[0]):
-        # midpoint rule on body rates: exact for piecewise-linear angular velocity up to O(dt^3)
-        w = 0.5 * (gyr[k - 1] + gyr[k]) * dt[k - 1]
-        q = nb_normalize(nb_mul(q, nb_exp(w)))
-        out[k] = q
-    return out
-
-
 def integrate_gyro(q0: np.ndarray, gyr: np.ndarray, dt: float | np.ndarray) -> np.ndarray:
     """Strapdown integration of body angular velocity ``gyr`` (N×3, rad/s) from ``q0``.
 
@@ -266,5 +194,10 @@ def integrate_gyro(q0: np.ndarray, gyr: np.ndarray, dt: float | np.ndarray) -> n
     gyr = np.ascontiguousarray(gyr, dtype=float)
     if len(gyr) == 0:
         return np.empty((0, 4))
+    # the estimators' numba kernel (imported here: motionlab.fusion imports this module)
+    from motionlab.fusion._common import strapdown
+
     dt_arr = np.broadcast_to(np.asarray(dt, dtype=float), (max(len(gyr) - 1, 0),))
-    return _integrate(np.asarray(q0, dtype=float), gyr, np.ascontiguousarray(dt_arr))
+    out = np.empty((len(gyr), 4))
+    strapdown(np.array(q0, dtype=float), gyr, np.ascontiguousarray(dt_arr), out)
+    return out

@@ -8,6 +8,7 @@ from hypothesis.extra.numpy import arrays
 from scipy.spatial.transform import Rotation
 
 from motionlab import rotations as R
+from motionlab.fusion import _common as cm
 
 PROPS = settings(max_examples=60, deadline=None, derandomize=True)
 FLOATS = st.floats(-1.0, 1.0, allow_nan=False, allow_infinity=False)
@@ -100,14 +101,26 @@ def test_rotate_hand_computed():
 @PROPS
 @given(quats(5), vectors)
 def test_numba_kernels_match_numpy(q, v):
+    # the allocation-free helpers of the estimators' loops (motionlab.fusion._common)
     for k in range(5):
-        np.testing.assert_allclose(R.nb_rotate(q[k], v[k]), R.rotate(q[k], v[k]), atol=1e-12)
-        np.testing.assert_allclose(R.nb_rotate_inv(q[k], R.rotate(q[k], v[k])), v[k], atol=1e-12)
-        np.testing.assert_allclose(
-            R.nb_mul(q[k], q[(k + 1) % 5]), R.mul(q[k], q[(k + 1) % 5]), atol=1e-15
-        )
-        np.testing.assert_allclose(R.nb_exp(v[k]), R.from_rotvec(v[k]), atol=1e-12)
-        np.testing.assert_allclose(R.nb_normalize(3.0 * q[k]), q[k], atol=1e-15)
+        p, rv = q[(k + 1) % 5], 0.5 * v[k]
+        np.testing.assert_allclose(cm.qmul(*q[k], *p), R.mul(q[k], p), atol=1e-15)
+        np.testing.assert_allclose(cm.normq(*(3.0 * q[k])), q[k], atol=1e-15)
+        r = np.empty((3, 3))
+        cm.rot_matrix(q[k], r)
+        np.testing.assert_allclose(r @ v[k], R.rotate(q[k], v[k]), atol=1e-12)
+        out = np.empty(4)
+        cm.mul_exp_right(q[k], *rv, out)
+        np.testing.assert_allclose(out, R.mul(q[k], R.from_rotvec(rv)), atol=1e-12)
+        left = q[k].copy()
+        cm.mul_exp_left(*rv, left)
+        np.testing.assert_allclose(left, R.mul(R.from_rotvec(rv), q[k]), atol=1e-12)
+        rel = np.array(cm.conj_mul_shortest(q[k], p))
+        expect = R.mul(R.conj(q[k]), p)
+        np.testing.assert_allclose(rel, expect if expect[0] >= 0 else -expect, atol=1e-15)
+        row = 3.0 * q[k]
+        cm.normalize(row)
+        np.testing.assert_allclose(row, q[k], atol=1e-15)
 
 
 # ----------------------------------------------------------------------------- conversions

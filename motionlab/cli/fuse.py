@@ -54,7 +54,13 @@ def _marker_references(ses: Session, name: str, markers_path: str | None, labels
 @click.command("fuse")
 @click.argument("session", type=INPUT_FILE, required=False)
 @click.option("--filter", "name", default="default", show_default=True, help="Estimator name.")
-@click.option("--param", "params", multiple=True, help="Estimator parameter key=value (repeat).")
+@click.option(
+    "--param",
+    "params",
+    multiple=True,
+    help="Estimator parameter key=value (repeat), in SI units as --list shows them "
+    "(angles in rad, rates in rad/s).",
+)
 @click.option("--sensor", "labels", multiple=True, help="Sensor label (repeat; default: all).")
 @click.option("--force", is_flag=True, help="Replace existing fusion results or output file.")
 @click.option("-o", "--output", type=OUTPUT_FILE, help="Write here, not in place.")

@@ -4,8 +4,9 @@ their kernels (quaternion products and small dense solves).
 Private. Quaternions are scalar first ``[w, x, y, z]``; an orientation ``q`` maps sensor → ENU
 earth. Rotation vectors are in rad; ``gyr`` rad/s, ``acc`` m/s², ``mag`` µT, (N, 3) sensor frame.
 The numba helpers work on scalars or preallocated arrays and allocate nothing, so the per-sample
-loops of the filters stay allocation-free; the array versions of :mod:`motionlab.rotations`
-(``nb_mul``, ``nb_exp``, ...) allocate their results.
+loops of the filters stay allocation-free (the vectorised quaternion algebra is
+:mod:`motionlab.rotations`, whose :func:`~motionlab.rotations.integrate_gyro` runs
+:func:`strapdown`).
 """
 
 from __future__ import annotations
@@ -143,6 +144,23 @@ def mul_exp_left(rx: float, ry: float, rz: float, q: np.ndarray) -> None:
     """In place ``q ← exp(r) ⊗ q`` for the rotation vector ``r`` (rad, earth frame)."""
     pw, px, py, pz = _exp_half(rx, ry, rz)
     q[0], q[1], q[2], q[3] = qmul(pw, px, py, pz, q[0], q[1], q[2], q[3])
+
+
+@numba.njit(cache=True)
+def strapdown(q0: np.ndarray, gyr: np.ndarray, dt: np.ndarray, out: np.ndarray) -> None:
+    """Strapdown integration of body rates ``gyr`` (N×3, rad/s) from ``q0`` into ``out`` (N×4):
+    ``q_k = q_{k-1} ⊗ exp(ω̄ dt_{k-1} / 2)``, normalised, with ω̄ the mean of the two samples (the
+    midpoint rule, exact for piecewise-linear rates up to O(dt³)); ``dt`` the N−1 intervals."""
+    q = q0.copy()
+    out[0] = q
+    for k in range(1, gyr.shape[0]):
+        h = dt[k - 1]
+        rx = 0.5 * (gyr[k - 1, 0] + gyr[k, 0]) * h
+        ry = 0.5 * (gyr[k - 1, 1] + gyr[k, 1]) * h
+        rz = 0.5 * (gyr[k - 1, 2] + gyr[k, 2]) * h
+        mul_exp_right(q, rx, ry, rz, q)
+        normalize(q)
+        out[k] = q
 
 
 # ---------------------------------------------------------------- small dense solves

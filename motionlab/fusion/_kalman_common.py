@@ -21,7 +21,7 @@ import numpy as np
 from motionlab.fusion import detect
 from motionlab.fusion._common import prepare_mag
 from motionlab.fusion.markers import MarkerReferences, interval_rates, scenario
-from motionlab.fusion.registry import FusionResult, param
+from motionlab.fusion.registry import FusionResult, KernelParams, param
 from motionlab.rotations import make_continuous
 
 
@@ -47,7 +47,9 @@ class KalmanCommon:
         0.01, "x", "factor on the acc and mag noise during start-up (small: trust them more)"
     )
     mag_norm_tol: float = param(4.0, "µT", "field-norm deviation that marks a magnetic disturbance")
-    mag_dip_tol: float = param(6.0, "deg", "dip-angle deviation that marks a magnetic disturbance")
+    mag_dip_tol: float = param(
+        np.deg2rad(6.0), "rad", "dip-angle deviation that marks a magnetic disturbance"
+    )
     rest_gyr_threshold: float = param(0.035, "rad/s", "rest detection: moving-RMS rate threshold")
     rest_acc_threshold: float = param(0.5, "m/s²", "rest detection: moving-RMS acc deviation")
     rest_min_duration: float = param(1.5, "s", "rest detection: minimum rest duration")
@@ -189,31 +191,20 @@ def horizontal_north(r: np.ndarray, mag: np.ndarray, k: int, out: np.ndarray) ->
     return True
 
 
-# indices of the common float parameters passed to every kernel (see :func:`pack`)
-GYR_NOISE, ACC_NOISE, MAG_NOISE, ACC_NORM_GAIN, ACC_RATE_GAIN, ACC_GATE = 0, 1, 2, 3, 4, 5
-MAG_NORM_TOL, MAG_DIP_TOL, REF_NORM, REF_DIP, GRAVITY, ATT_INIT = 6, 7, 8, 9, 10, 11
+#: the common float parameters passed to every kernel, and the field reference (see :func:`pack`)
+PRM = KernelParams(
+    "gyr_noise", "acc_noise", "mag_noise", "acc_norm_gain", "acc_rate_gain", "acc_gate",
+    "mag_norm_tol", "mag_dip_tol", "ref_norm", "ref_dip", "gravity", "att_init", "startup_time",
+    "startup_var",
+)  # fmt: skip
+GYR_NOISE, ACC_NOISE, MAG_NOISE, ACC_NORM_GAIN, ACC_RATE_GAIN, ACC_GATE = range(6)
+MAG_NORM_TOL, MAG_DIP_TOL, REF_NORM, REF_DIP, GRAVITY, ATT_INIT = range(6, 12)
 STARTUP_TIME, STARTUP_VAR = 12, 13
-N_COMMON = 14
 
 
 def pack(p: KalmanCommon, prep: Prepared) -> np.ndarray:
     """The common parameters and the field reference as one float array for the kernels."""
-    prm = np.empty(N_COMMON)
-    prm[GYR_NOISE] = p.gyr_noise
-    prm[ACC_NOISE] = p.acc_noise
-    prm[MAG_NOISE] = p.mag_noise
-    prm[ACC_NORM_GAIN] = p.acc_norm_gain
-    prm[ACC_RATE_GAIN] = p.acc_rate_gain
-    prm[ACC_GATE] = p.acc_gate
-    prm[MAG_NORM_TOL] = p.mag_norm_tol
-    prm[MAG_DIP_TOL] = np.deg2rad(p.mag_dip_tol)
-    prm[REF_NORM] = prep.ref_norm
-    prm[REF_DIP] = prep.ref_dip
-    prm[GRAVITY] = p.gravity
-    prm[ATT_INIT] = p.att_init
-    prm[STARTUP_TIME] = p.startup_time
-    prm[STARTUP_VAR] = p.startup_noise**2
-    return prm
+    return PRM.pack(p, ref_norm=prep.ref_norm, ref_dip=prep.ref_dip, startup_var=p.startup_noise**2)
 
 
 @numba.njit(cache=True, inline="always")

@@ -16,16 +16,23 @@ import numpy as np
 
 from motionlab.fusion import _common as cm
 from motionlab.fusion import _mekf_monitor as mon_k
+from motionlab.fusion.registry import KernelParams
 
-# indices of the float parameter vector passed to the forward kernel
-GYR_NOISE, BIAS_RW, ACC_NOISE, ACC_REST_NOISE, REST_NOISE, GRAVITY = 0, 1, 2, 3, 4, 5
-MAG_NOISE, MAG_REST_NOISE, MAG_NORM_TOL, MAG_DIP_TOL, MAG_REF_TAU, MAG_NEW_FIELD_T = range(6, 12)
-ATT_INIT, RESET_TILT, RESET_HEADING, RESET_TIME, RESET_HEADING_TIME = range(12, 17)
-RESET_TAU, RESET_NOISE, RESET_AGREE, MAG_NEW_FIELD_MIN = range(17, 21)
-# offline magnetometer gating: fixed reference norm (≤ 0: learn it online) and dip, and
-# whether an undisturbed field may call for a heading reset
+#: the float parameter vector of :func:`forward`, packed from :class:`~.mekf.MekfParams`; the
+#: last three are the offline magnetometer gate: fixed reference norm (≤ 0: learn it online) and
+#: dip, and whether an undisturbed field may call for a heading reset
+PRM = KernelParams(
+    "gyr_noise", "bias_rw", "acc_noise", "acc_rest_noise", "rest_noise", "gravity",
+    "mag_noise", "mag_rest_noise", "mag_norm_tol", "mag_dip_tol", "mag_ref_tau",
+    "mag_new_field_time", "att_init", "reset_tilt", "reset_heading", "reset_time",
+    "reset_heading_time", "reset_tau", "reset_noise", "reset_agree", "mag_new_field_min",
+    "mag_fixed_norm", "mag_fixed_dip", "mag_heading_reset",
+)  # fmt: skip
+GYR_NOISE, BIAS_RW, ACC_NOISE, ACC_REST_NOISE, REST_NOISE, GRAVITY = range(6)
+MAG_NOISE, MAG_REST_NOISE, MAG_NORM_TOL, MAG_DIP_TOL, MAG_REF_TAU = range(6, 11)
+MAG_NEW_FIELD_TIME, ATT_INIT, RESET_TILT, RESET_HEADING, RESET_TIME = range(11, 16)
+RESET_HEADING_TIME, RESET_TAU, RESET_NOISE, RESET_AGREE, MAG_NEW_FIELD_MIN = range(16, 21)
 MAG_FIXED_NORM, MAG_FIXED_DIP, MAG_HEADING_RESET = range(21, 24)
-N_PARAMS = 24
 
 
 @numba.njit(cache=True, inline="always")
@@ -255,7 +262,7 @@ def forward(
                         cand_t = 0.0
                     else:
                         # a new homogeneous field: accepted once steady for as long as the
-                        # reference was seen, at least MAG_NEW_FIELD_MIN, at most MAG_NEW_FIELD_T
+                        # reference was seen, at least MAG_NEW_FIELD_MIN, at most MAG_NEW_FIELD_TIME
                         same = (
                             abs(mn - cand_n) < prm[MAG_NORM_TOL] * cand_n
                             and abs(dip - cand_d) < prm[MAG_DIP_TOL]
@@ -266,7 +273,9 @@ def forward(
                             cand_d += a_ref * (dip - cand_d)
                         else:
                             cand_n, cand_d, cand_t = mn, dip, 0.0
-                        if cand_t > min(prm[MAG_NEW_FIELD_T], max(prm[MAG_NEW_FIELD_MIN], ref_age)):
+                        if cand_t > min(
+                            prm[MAG_NEW_FIELD_TIME], max(prm[MAG_NEW_FIELD_MIN], ref_age)
+                        ):
                             ref_n, ref_d, ref_age, cand_t = cand_n, cand_d, cand_t, 0.0
                             ok = True
                 mag_dist[k] = not ok

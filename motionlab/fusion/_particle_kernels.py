@@ -34,14 +34,22 @@ from motionlab.fusion import _common as cm
 from motionlab.fusion import resampling as rs
 from motionlab.fusion import sphere as sph
 from motionlab.fusion.markers import USED_ACC, USED_MAG, USED_MARKERS, marker_jump
+from motionlab.fusion.registry import KernelParams
 
-# indices of the float parameter vector ``prm``
+#: the float parameter vector ``prm``, packed from :class:`~.particle.ParticleParams` and the
+#: reference gravity and field, the kernel bandwidth and the Bingham-band limit
+PRM = KernelParams(
+    "process_noise", "acc_sigma", "acc_rest_sigma", "acc_norm_gain", "acc_gate", "gravity",
+    "mag_sigma", "mag_rest_sigma", "mag_norm_tolerance", "mag_dip_tolerance", "mag_gate_dip",
+    "ref_norm", "ref_dip", "bias_tau", "bias_rest_tau", "bias_max", "init_sigma", "reset_angle",
+    "reset_time", "reset_heading_time", "reset_tau", "reset_agree", "ess_threshold", "aux_alpha",
+    "kernel_h", "bingham_zmax", "marker_drift",
+)  # fmt: skip
 PROCESS_NOISE, ACC_SIGMA, ACC_REST_SIGMA, ACC_NORM_GAIN, ACC_GATE, GRAVITY = range(6)
-MAG_SIGMA, MAG_REST_SIGMA, MAG_NORM_TOL, MAG_DIP_TOL, MAG_GATE_DIP, REF_NORM, REF_DIP = range(6, 13)
-BIAS_TAU, BIAS_REST_TAU, BIAS_MAX = range(13, 16)
+MAG_SIGMA, MAG_REST_SIGMA, MAG_NORM_TOLERANCE, MAG_DIP_TOLERANCE, MAG_GATE_DIP = range(6, 11)
+REF_NORM, REF_DIP, BIAS_TAU, BIAS_REST_TAU, BIAS_MAX = range(11, 16)
 INIT_SIGMA, RESET_ANGLE, RESET_TIME, RESET_HEADING_TIME, RESET_TAU, RESET_AGREE = range(16, 22)
 ESS_THRESHOLD, AUX_ALPHA, KERNEL_H, BINGHAM_ZMAX, MARKER_DRIFT = range(22, 27)
-N_PARAMS = 27
 # slots of ``info``: the upper triangle of J, then j
 _JXX, _JXY, _JXZ, _JYY, _JYZ, _JZZ, _JX, _JY, _JZ = range(9)
 # slots of the monitor's work array (earth-frame vectors under the posterior mean): low-passed acc
@@ -120,7 +128,7 @@ def _mag_heading(mx, my, mz, prm, at_rest, flagged):
 
     Gated when flagged by :func:`motionlab.fusion.detect.mag_disturbance` or when the dip is
     further than ``MAG_GATE_DIP`` from the reference; otherwise the weight ``1/σ²`` is divided by
-    ``1 + (Δnorm/MAG_NORM_TOL)² + (Δdip/MAG_DIP_TOL)²``.
+    ``1 + (Δnorm/MAG_NORM_TOLERANCE)² + (Δdip/MAG_DIP_TOLERANCE)²``.
     """
     mn = np.sqrt(mx * mx + my * my + mz * mz)
     if mn < 1e-9 or mx * mx + my * my < 1e-18:
@@ -130,8 +138,8 @@ def _mag_heading(mx, my, mz, prm, at_rest, flagged):
     if flagged or abs(dd) > prm[MAG_GATE_DIP]:
         return psi, 0.0, True
     sigma = prm[MAG_REST_SIGMA] if at_rest else prm[MAG_SIGMA]
-    dn = (mn - prm[REF_NORM]) / prm[MAG_NORM_TOL]
-    weight = 1.0 / (sigma * sigma * (1.0 + dn * dn + (dd / prm[MAG_DIP_TOL]) ** 2))
+    dn = (mn - prm[REF_NORM]) / prm[MAG_NORM_TOLERANCE]
+    weight = 1.0 / (sigma * sigma * (1.0 + dn * dn + (dd / prm[MAG_DIP_TOLERANCE]) ** 2))
     return psi, weight, False
 
 
@@ -287,7 +295,7 @@ def _reset_center(mon, mode, mean, prm, out):
     mx, my, mz = _rotate(t0, t1, t2, 0.0, c * mon[_SM], c * mon[_SM + 1], c * mon[_SM + 2])
     mn = np.sqrt(mx * mx + my * my + mz * mz)
     dip = np.arcsin(min(1.0, max(-1.0, -mz / mn))) if mn > 1e-9 else np.inf
-    norm_ok = abs(mn - prm[REF_NORM]) < 2.0 * prm[MAG_NORM_TOL]
+    norm_ok = abs(mn - prm[REF_NORM]) < 2.0 * prm[MAG_NORM_TOLERANCE]
     if norm_ok and abs(dip - prm[REF_DIP]) < prm[MAG_GATE_DIP]:
         psi = np.arctan2(mx, my)
         cm.lmul(np.cos(0.5 * psi), 0.0, 0.0, np.sin(0.5 * psi), out)

@@ -47,7 +47,9 @@ class _Common:
     startup_time: float = param(2.0, "s", "duration of the raised-gain start-up phase")
     startup_gain: float = param(10.0, "x", "gain multiplier during start-up")
     mag_norm_tol: float = param(4.0, "uT", "field-norm deviation that marks a magnetic disturbance")
-    mag_dip_tol: float = param(6.0, "deg", "dip-angle deviation that marks a magnetic disturbance")
+    mag_dip_tol: float = param(
+        np.deg2rad(6.0), "rad", "dip-angle deviation that marks a magnetic disturbance"
+    )
 
 
 @dataclass
@@ -73,7 +75,9 @@ class LiuParams(_Common):
     gravity: float = param(9.81, "m/s^2", "local gravity")
     marker_gain: float = param(1.5, "1/s", "gain g on samples with marker vectors (least)")
     marker_drift: float = param(
-        1.0, "deg/s", "error growth while markers are hidden (larger gain when they return)"
+        np.deg2rad(1.0),
+        "rad/s",
+        "error growth while markers are hidden (larger gain when they return)",
     )
 
 
@@ -91,7 +95,7 @@ def _prepare(gyr, acc, mag, rate, p: _Common):
     rest = detect.rest_mask(gyr, acc, rate)
     q0, mag, pre, use_mag, ref = prepare_mag(gyr, acc, mag, rate, p.mag_norm_tol)
     n_start = int(round(p.startup_time * rate))
-    gating = (ref[0], ref[1], p.mag_norm_tol, np.deg2rad(p.mag_dip_tol))
+    gating = (ref[0], ref[1], p.mag_norm_tol, p.mag_dip_tol)
     return q0, n_start, mag, pre, use_mag, gating, rest
 
 
@@ -157,7 +161,7 @@ def run_liu(
         gyr if references is None else interval_rates(gyr, refs.gyro_bias), acc, mag, pre, q0,
         1.0 / rate, params.gain, 1.0 / params.acc_sigma**2, 1.0 / params.mag_sigma**2,
         params.acc_tol, params.gravity, n_start, params.startup_gain, gating, refs.body,
-        refs.earth, 1.0 / refs.sigma**2, params.marker_gain, np.deg2rad(params.marker_drift),
+        refs.earth, 1.0 / refs.sigma**2, params.marker_gain, params.marker_drift,
     )  # fmt: skip
     if references is None:
         return _result(quat, dist, use_mag, rest)

@@ -158,32 +158,11 @@ class SmootherParams(MekfParams):
 
 
 def _pack(p: MekfParams) -> np.ndarray:
-    prm = np.empty(kern.N_PARAMS)
-    prm[kern.GYR_NOISE] = p.gyr_noise
-    prm[kern.BIAS_RW] = p.bias_rw
-    prm[kern.ACC_NOISE] = p.acc_noise
-    prm[kern.ACC_REST_NOISE] = p.acc_rest_noise
-    prm[kern.REST_NOISE] = p.rest_noise
-    prm[kern.GRAVITY] = STANDARD_GRAVITY
-    prm[kern.MAG_NOISE] = p.mag_noise
-    prm[kern.MAG_REST_NOISE] = p.mag_rest_noise
-    prm[kern.MAG_NORM_TOL] = p.mag_norm_tol
-    prm[kern.MAG_DIP_TOL] = p.mag_dip_tol
-    prm[kern.MAG_REF_TAU] = p.mag_ref_tau
-    prm[kern.MAG_NEW_FIELD_T] = p.mag_new_field_time
-    prm[kern.MAG_NEW_FIELD_MIN] = p.mag_new_field_min
-    prm[kern.ATT_INIT] = p.att_init
-    prm[kern.RESET_TILT] = p.reset_tilt
-    prm[kern.RESET_HEADING] = p.reset_heading
-    prm[kern.RESET_TIME] = p.reset_time
-    prm[kern.RESET_HEADING_TIME] = p.reset_heading_time
-    prm[kern.RESET_TAU] = p.reset_tau
-    prm[kern.RESET_NOISE] = p.reset_noise
-    prm[kern.RESET_AGREE] = p.reset_agree
-    prm[kern.MAG_FIXED_NORM] = -1.0  # learn the reference online (the smoother fixes it)
-    prm[kern.MAG_FIXED_DIP] = 0.0
-    prm[kern.MAG_HEADING_RESET] = 1.0
-    return prm
+    """The forward kernel's parameter vector; the reference field is learnt online (the
+    smoother's 9-D pass fixes it, :func:`_filter`)."""
+    return kern.PRM.pack(
+        p, gravity=STANDARD_GRAVITY, mag_fixed_norm=-1.0, mag_fixed_dip=0.0, mag_heading_reset=1.0
+    )
 
 
 def causal_rest(gyr: np.ndarray, acc: np.ndarray, rate: float, p: MekfParams) -> np.ndarray:

@@ -126,7 +126,7 @@ class ParticleParams:
         0.005, "rad/√s", "process_noise with marker references (bias known)"
     )
     marker_drift: float = param(
-        1.0, "deg/s", "error growth while markers are hidden (widens cloud)"
+        np.deg2rad(1.0), "rad/s", "error growth while markers are hidden (widens cloud)"
     )
     seed: int = param(0, "", "random seed")
 
@@ -157,37 +157,13 @@ def _check(params: ParticleParams) -> None:
 
 
 def _pack(p: ParticleParams, g_ref: float, m_ref: float, dip_ref: float) -> np.ndarray:
-    """The float parameters in the kernel's order (indices in :mod:`._particle_kernels`)."""
-    prm = np.empty(kern.N_PARAMS)
-    prm[kern.PROCESS_NOISE] = p.process_noise
-    prm[kern.ACC_SIGMA] = p.acc_sigma
-    prm[kern.ACC_REST_SIGMA] = p.acc_rest_sigma
-    prm[kern.ACC_NORM_GAIN] = p.acc_norm_gain
-    prm[kern.ACC_GATE] = p.acc_gate
-    prm[kern.MAG_SIGMA] = p.mag_sigma
-    prm[kern.MAG_REST_SIGMA] = p.mag_rest_sigma
-    prm[kern.MAG_NORM_TOL] = p.mag_norm_tolerance
-    prm[kern.MAG_DIP_TOL] = p.mag_dip_tolerance
-    prm[kern.MAG_GATE_DIP] = p.mag_gate_dip
-    prm[kern.BIAS_TAU] = p.bias_tau
-    prm[kern.BIAS_REST_TAU] = p.bias_rest_tau
-    prm[kern.BIAS_MAX] = p.bias_max
-    prm[kern.INIT_SIGMA] = p.init_sigma
-    prm[kern.RESET_ANGLE] = p.reset_angle
-    prm[kern.RESET_TIME] = p.reset_time
-    prm[kern.RESET_HEADING_TIME] = p.reset_heading_time
-    prm[kern.RESET_TAU] = p.reset_tau
-    prm[kern.RESET_AGREE] = p.reset_agree
-    prm[kern.ESS_THRESHOLD] = p.ess_threshold
-    prm[kern.AUX_ALPHA] = p.aux_alpha
-    prm[kern.GRAVITY] = g_ref
-    prm[kern.REF_NORM] = m_ref
-    prm[kern.REF_DIP] = dip_ref
-    # the optimal Gaussian kernel bandwidth for N particles in d = 3 (Musso et al. 2001)
-    prm[kern.KERNEL_H] = p.kernel_scale * (4.0 / (5.0 * p.n_particles)) ** (1.0 / 7.0)
-    prm[kern.BINGHAM_ZMAX] = 0.5 * p.bingham_band**2
-    prm[kern.MARKER_DRIFT] = np.deg2rad(p.marker_drift)
-    return prm
+    """The kernel's parameter vector (:data:`._particle_kernels.PRM`)."""
+    return kern.PRM.pack(
+        p, gravity=g_ref, ref_norm=m_ref, ref_dip=dip_ref,
+        # the optimal Gaussian kernel bandwidth for N particles in d = 3 (Musso et al. 2001)
+        kernel_h=p.kernel_scale * (4.0 / (5.0 * p.n_particles)) ** (1.0 / 7.0),
+        bingham_zmax=0.5 * p.bingham_band**2,
+    )  # fmt: skip
 
 
 def particle_filter(

@@ -41,8 +41,54 @@ ESTIMATOR_MODULES = (
 
 
 def param(default: Any, unit: str, help: str) -> Any:
-    """A parameter dataclass field: its default, unit and one-line help (see :func:`describe`)."""
+    """A parameter dataclass field: its default, unit and one-line help (see :func:`describe`).
+
+    Units are SI (angles in rad); a numpy scalar default (``np.deg2rad(6.0)``) is stored as the
+    Python float of the same value.
+    """
+    if isinstance(default, np.floating):
+        default = float(default)
     return field(default=default, metadata={"unit": unit, "help": help})
+
+
+class KernelParams:
+    """The float parameter vector of a numba kernel: named slots in a fixed order.
+
+    A slot named after a field of the estimator's parameter dataclass takes that field; the
+    others are values the caller derives (``pack(params, gravity=g)``). Every slot must get a
+    value, so nothing reaches a kernel uninitialised. The kernel module names the indices after
+    the slots, upper case (``GYR_NOISE = 0`` for ``"gyr_noise"``; checked by the tests).
+    """
+
+    def __init__(self, *names: str) -> None:
+        if len(set(names)) != len(names):
+            raise ValueError(f"repeated kernel parameter in {names}")
+        self.names = names
+        self.index = {name: i for i, name in enumerate(names)}
+
+    def __len__(self) -> int:
+        return len(self.names)
+
+    def pack(self, params: Any, **derived: float) -> np.ndarray:
+        """The vector of ``params``' fields and the ``derived`` values, by slot name."""
+        fields = {f.name for f in dataclasses.fields(params)} & set(self.names)
+        both = sorted(fields & set(derived))
+        unknown = sorted(set(derived) - set(self.names))
+        missing = [n for n in self.names if n not in fields and n not in derived]
+        if both or unknown or missing:
+            raise ValueError(
+                f"kernel parameters: given as field and derived {both}, no such slot {unknown}, "
+                f"no value for {missing}"
+            )
+        values = {name: getattr(params, name) for name in fields} | derived
+        prm = np.full(len(self.names), np.nan)
+        for name, value in values.items():
+            prm[self.index[name]] = value
+        return prm
+
+    def unpack(self, prm: np.ndarray) -> dict[str, float]:
+        """Slot name → value of a packed vector (the inverse of :meth:`pack`)."""
+        return {name: float(prm[i]) for i, name in enumerate(self.names)}
 
 
 @dataclass
@@ -261,6 +307,15 @@ def estimate(
     return result
 
 
+def _shown(value: Any, unit: str) -> str:
+    """A default with its unit; an angle (rad, rad/s) also in degrees for people."""
+    text = f"{value!r} {unit}".rstrip()
+    angle = unit in ("rad", "rad/s") and isinstance(value, float) and np.isfinite(value)
+    if angle and value != 0.0:
+        text += f" ({np.degrees(value):.4g}°{unit[3:]})"
+    return text
+
+
 def describe() -> str:
     """Text listing of every estimator with its parameters, defaults and units."""
     lines = []
@@ -271,5 +326,5 @@ def describe() -> str:
             unit = f.metadata.get("unit", "")
             help_ = f.metadata.get("help", "")
             default = f.default if f.default is not dataclasses.MISSING else f.default_factory()
-            lines.append(f"    {f.name} = {default!r} {unit}  {help_}".rstrip())
+            lines.append(f"    {f.name} = {_shown(default, unit)}  {help_}".rstrip())
     return "\n".join(lines)
