@@ -123,7 +123,7 @@ def test_bad_joint_or_side_is_input_error():
     with pytest.raises(InputError, match="side"):
         decompose(q, q, "knee", "")
     with pytest.raises(InputError, match="joint type"):
-        decompose(q, q, "hip", "r")
+        decompose(q, q, "wrist", "r")
 
 
 @pytest.mark.parametrize("joint_type, side", [("knee", "l"), ("elbow", "r"), ("lumbar", "")])

@@ -98,10 +98,15 @@ def stride_table(
 def _stats(x: pd.Series) -> dict[str, float]:
     x = x.dropna().to_numpy(dtype=float)
     if len(x) == 0:
-        return {"mean": np.nan, "sd": np.nan, "cv_pct": np.nan, "n": 0}
+        return {"mean": np.nan, "sd": np.nan, "cv_pct": np.nan, "strides_n": 0}
     sd = float(np.std(x, ddof=1)) if len(x) > 1 else 0.0
     mean = float(np.mean(x))
-    return {"mean": mean, "sd": sd, "cv_pct": 100 * sd / mean if mean else np.nan, "n": len(x)}
+    return {
+        "mean": mean,
+        "sd": sd,
+        "cv_pct": 100 * sd / mean if mean else np.nan,
+        "strides_n": len(x),
+    }
 
 
 def summary(table: pd.DataFrame) -> dict[str, Any]:
@@ -133,5 +138,5 @@ def summary_rows(summ: dict[str, Any]) -> pd.DataFrame:
             rows.append({"parameter": c, "side": side} | s)
     for c in ("cadence_steps_per_min", "step_time_asymmetry_pct", "stride_time_cv_pct"):
         rows.append({"parameter": c, "side": "both", "mean": summ[c], "sd": np.nan,
-                     "cv_pct": np.nan, "n": summ["strides_kept"]})  # fmt: skip
+                     "cv_pct": np.nan, "strides_n": summ["strides_kept"]})  # fmt: skip
     return pd.DataFrame(rows)
