@@ -198,6 +198,26 @@ def anatomical_sign(
     return (1.0 if up >= down else -1.0), (big, small)
 
 
+def _verdict(
+    worst_deg: float, relative: float, hinted: bool, reasons: list[str], axes: str, model: str
+) -> str:
+    """``determined``, ``weak`` or ``not determined`` from the part fits' largest disagreement
+    (deg), the relative residual and whether a direction came from the hint; the reasons are
+    appended to ``reasons`` in plain words (``axes``: "the axis differs", ``model``: what the
+    movement should turn about)."""
+    if worst_deg > DETERMINED_DEG:
+        reasons.append(f"{axes} by up to {worst_deg:.0f}° between parts of the movement")
+    if relative > DETERMINED_RESIDUAL:
+        reasons.append(
+            f"the movement is not about {model} (residual {100 * relative:.0f}% of the rate)"
+        )
+    if worst_deg > WEAK_DEG or relative > WEAK_RESIDUAL:
+        return "not determined"
+    if worst_deg > DETERMINED_DEG or relative > DETERMINED_RESIDUAL or hinted:
+        return "weak"
+    return "determined"
+
+
 def fit_hinge(
     joint: str,
     proximal: tuple[np.ndarray, np.ndarray, np.ndarray],
@@ -290,19 +310,8 @@ def fit_hinge(
                 "the direction of flexion could not be told from the movement (no stand with "
                 "the joint straight, or no clear flexion), so it follows the nominal placement"
             )
-    verdict = "determined"
-    if worst > WEAK_DEG or relative > WEAK_RESIDUAL:
-        verdict = "not determined"
-    elif worst > DETERMINED_DEG or relative > DETERMINED_RESIDUAL or rel_source == "nominal":
-        verdict = "weak"
-    if worst > DETERMINED_DEG:
-        reasons.append(f"the axis differs by up to {worst:.0f}° between parts of the movement")
-    if relative > DETERMINED_RESIDUAL:
-        reasons.append(
-            f"the movement is not about one axis (residual {100 * relative:.0f}% of the rate)"
-        )
-    if anatomical and sign_source == "nominal" and verdict == "determined":
-        verdict = "weak"
+    hinted = rel_source == "nominal" or (anatomical and sign_source == "nominal")
+    verdict = _verdict(worst, relative, hinted, reasons, "the axis differs", "one axis")
     return HingeFit(
         joint=joint,
         axis_proximal=j_p,
@@ -530,17 +539,9 @@ def fit_two_dof(
             r_p = rot.to_matrix(q1[ref])
             flex_d = np.mean(np.einsum("nji,njk,k->ni", r_d, r_p, j1), axis=0)
             flex_d /= np.linalg.norm(flex_d)
-    verdict = "determined"
-    if worst > WEAK_DEG or relative > WEAK_RESIDUAL:
-        verdict = "not determined"
-    elif worst > DETERMINED_DEG or relative > DETERMINED_RESIDUAL or sign_source == "nominal":
-        verdict = "weak"
-    if worst > DETERMINED_DEG:
-        reasons.append(f"the axes differ by up to {worst:.0f}° between parts of the movement")
-    if relative > DETERMINED_RESIDUAL:
-        reasons.append(
-            f"the movement is not about the two axes (residual {100 * relative:.0f}% of the rate)"
-        )
+    verdict = _verdict(
+        worst, relative, sign_source == "nominal", reasons, "the axes differ", "the two axes"
+    )
     return TwoAxisFit(
         joint=joint,
         axis_proximal=j1,
