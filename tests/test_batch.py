@@ -1,6 +1,7 @@
 """Batch runs on the local process pool, with a fast stand-in pipeline (tests/batch_fakes.py)."""
 
 import csv
+import dataclasses
 import inspect
 import os
 from functools import partial
@@ -118,8 +119,9 @@ def test_outdir_of_other_files_needs_force(tmp_path):
 def test_runner_calls_the_pipeline_with_its_signature():
     pipeline = pytest.importorskip("motionlab.pipeline")
     params = inspect.signature(pipeline.run_pipeline).parameters
-    assert list(params)[:3] == ["inputs", "protocol", "outdir"]
-    assert {"map_path", "reference", "force", "progress"} <= set(params)
+    assert list(params) == ["inputs", "outdir", "options"]
+    fields = {f.name for f in dataclasses.fields(pipeline.PipelineOptions)}
+    assert {"protocol", "map_path", "reference", "force", "progress"} <= fields
 
 
 def test_cli_exit_codes_progress_and_summary(tmp_path, monkeypatch):
