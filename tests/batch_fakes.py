@@ -48,7 +48,10 @@ def fake_pipeline(inputs, outdir, options):
     metrics = pd.DataFrame(rows, columns=["block", "joint", "angle", "metric", "value", "unit"])
     report = Path(outdir) / "report.txt"
     with atomic_path(report, force=True) as tmp:
-        tmp.write_text(f"{len(inputs)} inputs, protocol {Path(options.protocol).name}\n")
+        tmp.write_text(
+            f"{len(inputs)} inputs, protocol {Path(options.protocol).name}, seed {options.seed}, "
+            f"magnetometer {options.magnetometer}, filter {options.estimator}\n"
+        )
     return SimpleNamespace(
         session_path=None, report_path=report, csv_dir=None, metrics=metrics, summary=""
     )
