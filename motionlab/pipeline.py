@@ -1,8 +1,9 @@
 """The whole analysis in one call: recordings → session → angles and metrics → report.
 
-:func:`run_pipeline` chains the stages' library functions in memory, as the commands
-``ingest``, ``fuse`` (``--calibration``), ``calibrate``, ``angles``, ``metrics`` and ``validate``
-would one after the other, and writes into ``OUTDIR``:
+:func:`run_pipeline` chains the stage functions of :mod:`motionlab.stages` in memory, the ones
+the commands ``ingest``, ``sync``, ``fuse`` (``--calibration``), ``calibrate``, ``angles``,
+``metrics`` and ``validate`` call one after the other, with the same defaults; every option is
+in one :class:`PipelineOptions`. It writes into ``OUTDIR``:
 
 - ``session.h5``: the session with every stage's results and the provenance log;
 - ``report.pdf`` and ``report.txt`` (the report's text, page by page);
