@@ -25,7 +25,7 @@ from motionlab.kinematics import gait_events as ge  # noqa: E402
 from motionlab.kinematics import spatiotemporal as sp  # noqa: E402
 from motionlab.kinematics.gait import analyse_gait  # noqa: E402
 from motionlab.kinematics.gps import movement_analysis_profile  # noqa: E402
-from motionlab.pipeline import analyse, prepare_sensors  # noqa: E402
+from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors  # noqa: E402
 from motionlab.protocol import load_protocol  # noqa: E402
 from motionlab.simulate import simulate  # noqa: E402
 
@@ -69,7 +69,7 @@ def run_one(seed: int, variant: str) -> dict[str, float]:
     session, truth = simulate(proto, 60.0, seed, "typical", gait=variant)
     orig = {k: s.time.copy() for k, s in session.sensors.items()}
     prepare_sensors(session)
-    analyse(session, proto)
+    analyse(session, PipelineOptions(proto, progress=False))
     g = analyse_gait(session, proto)
     G = truth.gait
     row: dict[str, float] = {}

@@ -32,7 +32,7 @@ import numpy as np
 from joint_angles import errors, true_clock
 
 from motionlab.kinematics.joint_types import angle_columns
-from motionlab.pipeline import analyse, prepare_sensors
+from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
 from motionlab.protocol import load_protocol
 from motionlab.segments import sensor_for_segment
 from motionlab.simulate import simulate
@@ -60,7 +60,7 @@ def run_one(job: tuple[str, int, str]) -> dict:
     prepare_sensors(session)
     t0 = time.perf_counter()
     try:
-        analyse(session, protocol)
+        analyse(session, PipelineOptions(protocol, progress=False))
     except Exception as exc:  # noqa: BLE001 - a failing seed is a row of the table, not a crash
         return {"name": name, "seed": seed, "error": f"{type(exc).__name__}: {exc}"}
     seconds = time.perf_counter() - t0

@@ -27,7 +27,7 @@ import yaml
 
 from motionlab import __version__
 from motionlab.kinematics.joint_angles import JOINT_ANGLE_NAMES, column_name
-from motionlab.pipeline import analyse, prepare_sensors
+from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
 from motionlab.protocol import load_protocol
 from motionlab.report.normative import ACCURACY
 from motionlab.simulate import simulate
@@ -59,7 +59,7 @@ def run_one(name: str, seed: int) -> dict[str, float]:
     )
     stamps = {label: s.time.copy() for label, s in session.sensors.items()}
     prepare_sensors(session)
-    analyse(session, protocol, seed=seed)
+    analyse(session, PipelineOptions(protocol, seed=seed, progress=False))
     table = {k: v for k, v in session.results["angles"].items() if k != "method"}
     tasks = [(s["start_s"], s["end_s"]) for s in truth.steps if s["phase"] == "task"]
     first = next(iter(protocol.joints.values())).proximal

@@ -1,8 +1,9 @@
 """The whole analysis in one call: recordings → session → angles and metrics → report.
 
-:func:`run_pipeline` chains the stages' library functions in memory, as the commands
-``ingest``, ``fuse`` (``--calibration``), ``calibrate``, ``angles``, ``metrics`` and ``validate``
-would one after the other, and writes into ``OUTDIR``:
+:func:`run_pipeline` chains the stage functions of :mod:`motionlab.stages` in memory, the ones
+the commands ``ingest``, ``sync``, ``fuse`` (``--calibration``), ``calibrate``, ``angles``,
+``metrics`` and ``validate`` call one after the other, with the same defaults; every option is
+in one :class:`PipelineOptions`. It writes into ``OUTDIR``:
 
 - ``session.h5``: the session with every stage's results and the provenance log;
 - ``report.pdf`` and ``report.txt`` (the report's text, page by page);
@@ -31,16 +32,14 @@ from pathlib import Path
 import h5py
 import pandas as pd
 
-from motionlab import timebase
+from motionlab import stages as stages_lib
 from motionlab.atomic import check_folder_writable, refuse_input_as_output
 from motionlab.errors import InputError
-from motionlab.fusion.stage import fusable, fuse_session
-from motionlab.ingest import DEFAULT_GAP_MAX, check_and_fill, ingest
+from motionlab.ingest import DEFAULT_GAP_MAX, ingest
 from motionlab.protocol import Protocol, load_protocol
-from motionlab.segments import calibrate, sensor_for_segment
+from motionlab.segments import sensor_for_segment
 from motionlab.session import (
     FORMAT_NAME,
-    SensorStream,
     Session,
     load_session,
     save_session,
@@ -118,13 +117,9 @@ def _holds_markers(inputs: list[Path]) -> bool:
 
 
 def prepare_sensors(session: Session, gap_max: float = DEFAULT_GAP_MAX) -> None:
-    """Clock repair, quality checks and short-gap filling, as ingest does
-    (:func:`motionlab.timebase.repair_clock`, :func:`motionlab.ingest.check_and_fill`), for the
-    sensors of a session file that has not been through ingest (no ``qc``)."""
-    for label, stream in list(session.sensors.items()):
-        if not stream.qc:
-            stream, report = timebase.repair_clock(stream)
-            session.sensors[label] = check_and_fill(stream, report, gap_max)
+    """Clock repair, quality checks and short-gap filling for the sensors of a session file that
+    has not been through ingest (:func:`motionlab.stages.prepare`)."""
+    stages_lib.prepare(session, gap_max)
 
 
 def load_inputs(inputs: list[Path], map_path: Path | None, command: str) -> Session:
@@ -171,54 +166,6 @@ def _announce(labels: list[str], text: str) -> list[str]:
     return labels
 
 
-def _fuse(
-    session: Session,
-    calibrated: dict[str, SensorStream],
-    progress: bool,
-    magnetometer: bool,
-    estimator: str = "default",
-) -> None:
-    """Every sensor with gyroscope and accelerometer by ``estimator``, as ``motionlab fuse``
-    does; sensors in ``calibrated`` are fused from their corrected data (the session keeps the
-    data as recorded)."""
-    usable = fusable(session)
-    if not usable:
-        return
-    recorded = dict(session.sensors)
-    session.sensors.update(calibrated)
-    try:
-        fuse_session(
-            session,
-            estimator,
-            sensors=usable,
-            force=True,
-            magnetometer=magnetometer,
-            progress=_announce if progress else None,
-        )
-    finally:
-        session.sensors = recorded
-    for label, stream in calibrated.items():
-        session.results["fusion"][label]["calibration"] = stream.attrs["calibration"]
-
-
-def _validate(
-    session: Session, protocol: Protocol, reference: Path | None, seed: int, shared_earth: bool
-) -> None:
-    """Validation against the reference; ``shared_earth``: the sensors were fused with their
-    magnetometers (one earth frame), else each has its own heading (alignment mode heading)."""
-    from motionlab.validation import validate
-    from motionlab.validation.reference import choose_marker_set, read_reference
-
-    marker_set = None
-    if reference is not None:
-        marker_set = choose_marker_set(read_reference(reference), None, reference)
-        name, n = marker_set.name, 2
-        while name in session.markers:
-            name, n = f"{marker_set.name}_{n}", n + 1
-        session.markers[name] = dataclasses.replace(marker_set, name=name)
-    validate(session, marker_set, None, protocol, "full" if shared_earth else "heading", seed=seed)
-
-
 def _check_estimator(name: str, magnetometer: bool) -> None:
     """Raise :class:`InputError` before any work for an unknown estimator, or one that needs the
     magnetometer when fusing 6-D."""
@@ -258,119 +205,137 @@ def _outputs(
     return session_path, report_path, csv_dir
 
 
-def analyse(
-    session: Session,
-    protocol: Protocol,
-    reference: Path | None = None,
-    seed: int = 0,
-    calibration_dir: Path | None = None,
-    stages: _Stages | None = None,
-    magnetometer: bool = False,
-    clock_sync: bool = True,
-    estimator: str = "default",
-) -> None:
-    """The stages after ingest, in memory: (clock sync) → (sensor calibration) → fuse →
-    calibrate → angles → metrics → (validate, with ``reference`` or the session's own markers).
-    Results go to ``session.results`` under the names the stage commands use.
+@dataclass(frozen=True)
+class PipelineOptions:
+    """Every option of ``motionlab run`` (and of each session of ``motionlab batch``).
 
-    ``clock_sync`` puts sensors recorded on their own clocks on one clock
+    protocol
+        Protocol YAML file, the name of a packaged protocol (``knee``) or a loaded
+        :class:`~motionlab.protocol.Protocol`.
+    map_path
+        Sensor map YAML for raw recordings (segment and side of each sensor, subject).
+    reference
+        Optical reference (C3D, TRC or a session with markers) for the validation stage.
+    calibration_dir
+        Folder of per-serial sensor calibrations (``motionlab sensorcal``) applied before fusion.
+    magnetometer
+        Fuse with the magnetometers (default 6-D, :data:`motionlab.stages.MAGNETOMETER`).
+    clock_sync
+        Put the IMUs on one clock from their shared joint centres first (``motionlab sync``).
+    seed
+        Random seed of the stochastic steps (the validation's RANSAC clock fit).
+    estimator
+        Fusion estimator name (``motionlab fuse --list``; ``--filter``).
+    force
+        Replace existing outputs.
+    progress
+        Print the stage counter and fusion progress on stderr.
+    """
+
+    protocol: str | Path | Protocol
+    map_path: Path | None = None
+    reference: Path | None = None
+    calibration_dir: Path | None = None
+    magnetometer: bool = stages_lib.MAGNETOMETER
+    clock_sync: bool = stages_lib.CLOCK_SYNC
+    seed: int = 0
+    estimator: str = stages_lib.DEFAULT_ESTIMATOR
+    force: bool = False
+    progress: bool = True
+
+    def load_protocol(self) -> Protocol:
+        """The protocol, loaded (and so checked)."""
+        return (
+            self.protocol if isinstance(self.protocol, Protocol) else load_protocol(self.protocol)
+        )
+
+    def analysis(self) -> dict[str, object]:
+        """The options that change the numbers and differ from the defaults (``reference`` and
+        ``map_path`` aside): ``{"seed": 3, "magnetometer": True, ...}`` (paths as text)."""
+        out: dict[str, object] = {}
+        for f in dataclasses.fields(self):
+            if f.name in ("protocol", "map_path", "reference", "force", "progress"):
+                continue
+            value = getattr(self, f.name)
+            if value != f.default:
+                out[f.name] = str(value) if isinstance(value, Path) else value
+        return out
+
+    def command(self, inputs: list[Path], outdir: Path) -> str:
+        """The ``motionlab run`` command line these options stand for."""
+        protocol = self.protocol.path if isinstance(self.protocol, Protocol) else self.protocol
+        return shlex.join(
+            ["motionlab", "run", "--protocol", str(protocol), *map(str, inputs), "-o", str(outdir)]
+            + (["--map", str(self.map_path)] if self.map_path else [])
+            + (["--reference", str(self.reference)] if self.reference else [])
+            + (["--calibration", str(self.calibration_dir)] if self.calibration_dir else [])
+            + (["--seed", str(self.seed)] if self.seed else [])
+            + (["--filter", self.estimator] if self.estimator != "default" else [])
+            + (["--magnetometer"] if self.magnetometer else [])
+            + ([] if self.clock_sync else ["--no-clock-sync"])
+        )
+
+
+def analyse(session: Session, options: PipelineOptions, stages: _Stages | None = None) -> None:
+    """The stages after ingest, in memory, each by its function in :mod:`motionlab.stages` (as
+    the stage commands call them): (sync) → fuse (with the sensor calibrations) → calibrate →
+    angles → metrics (and gait) → (validate, with ``options.reference`` or the session's own
+    markers). Results go to ``session.results`` under the names the stage commands use.
+
+    ``options.clock_sync`` puts sensors recorded on their own clocks on one clock
     (:func:`motionlab.clocksync.synchronise`; corrections only where reliable and non-zero).
 
-    Fusion is 6-D (no magnetometer) unless ``magnetometer``: joint angles need the heading of
-    each segment relative to its neighbour only, which the heading alignment gives
+    Fusion is 6-D (no magnetometer) unless ``options.magnetometer``: joint angles need the
+    heading of each segment relative to its neighbour only, which the heading alignment gives
     (:func:`motionlab.segments.segment_orientations`), while indoors an uncalibrated or
     disturbed magnetometer made the default estimator turn a sensor's heading by 20-60° in the
     middle of a task (knee sessions simulated with the ``typical`` preset, seeds 0-9 at 100, 60
     and 50 Hz: with the magnetometer 3 of 30 had a knee rotation RMSE of 21-23°, without it none
     above 2°). Validation then aligns each sensor's heading separately (mode ``heading``).
-
-    ``estimator`` names the fusion estimator (:func:`motionlab.fusion.registry.available`).
     """
-    from motionlab.kinematics.gait import analyse_gait, sensed_protocol
-    from motionlab.kinematics.metrics import is_gait, session_metrics
-    from motionlab.kinematics.session_angles import session_angles
+    from motionlab.kinematics.gait import sensed_protocol
 
-    protocol = sensed_protocol(protocol, session)
-    stages = stages or _Stages([], progress=False)
-    if clock_sync:
-        from motionlab.clocksync import synchronise
-
+    protocol = sensed_protocol(options.load_protocol(), session)
+    stages = stages or _Stages([], progress=options.progress)
+    if options.clock_sync:
         with stages("clock sync"):
-            synchronise(session, protocol)
-    calibrated: dict[str, SensorStream] = {}
-    if calibration_dir is not None:
-        from motionlab.sensorcal import apply_calibration_dir
-
-        with stages("sensorcal"):
-            usable = fusable(session)
-            calibrated, _ = apply_calibration_dir(session.sensors, calibration_dir, usable)
+            stages_lib.sync(session, protocol, force=True)
     with stages("fuse"):
-        _fuse(session, calibrated, stages.progress, magnetometer, estimator)
+        stages_lib.fuse(
+            session,
+            options.estimator,
+            magnetometer=options.magnetometer,
+            calibration_dir=options.calibration_dir,
+            force=True,
+            progress=_announce if stages.progress else None,
+        )
     with stages("calibrate"):
-        cal = calibrate(session, protocol)
+        cal = stages_lib.calibrate(session, protocol, force=True)
         for line in cal["warnings"] if stages.progress else []:
             print(f"warning: {line}", file=sys.stderr, flush=True)
-        cal["protocol_path"] = str(protocol.path)
-        session.results["calibration"] = cal
     with stages("angles"):
-        corrections: dict = {}
-        session.results["angles"] = session_angles(session, protocol, cal, corrections=corrections)
-        session.results["angles"]["method"] = "imu"
-        session.results["heading"] = corrections
+        stages_lib.angles(session, protocol, force=True)
     with stages("metrics"):
-        session.results["metrics"] = session_metrics(session, protocol)
-    if any(is_gait(t) for t in protocol.tasks):
-        with stages("gait"):
-            session.results["gait"] = analyse_gait(session, protocol)
-    if reference is not None or session.markers:
+        stages_lib.metrics(session, protocol, force=True)
+    if options.reference is not None or session.markers:
+        from motionlab.validation.reference import choose_marker_set, read_reference
+
         with stages("validate"):
-            _validate(session, protocol, Path(reference) if reference else None, seed, magnetometer)
+            marker_set = None
+            if options.reference is not None:
+                ref = Path(options.reference)
+                marker_set = choose_marker_set(read_reference(ref), None, ref)
+            stages_lib.validate(session, protocol, marker_set, seed=options.seed, force=True)
 
 
-def run_pipeline(
-    inputs: list[Path],
-    protocol: Path | str,
-    outdir: Path,
-    map_path: Path | None = None,
-    reference: Path | None = None,
-    force: bool = False,
-    progress: bool = True,
-    seed: int = 0,
-    calibration_dir: Path | None = None,
-    magnetometer: bool = False,
-    clock_sync: bool = True,
-    estimator: str = "default",
-) -> PipelineResult:
-    """Ingest → (clock sync) → (sensor calibration) → fuse → calibrate → angles → metrics →
+def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> PipelineResult:
+    """Ingest → (clock sync) → fuse (with sensor calibrations) → calibrate → angles → metrics →
     (validate) → report.
 
-    Parameters
-    ----------
-    inputs
-        Raw recording files, or one motionlab session file.
-    protocol
-        Protocol YAML file or the name of a packaged protocol (``knee``).
-    outdir
-        Output folder (created): ``session.h5``, ``report.pdf``, ``report.txt``, ``csv/``,
-        ``results.json``.
-    map_path
-        Sensor map YAML for raw recordings (segment and side of each sensor, subject).
-    reference
-        Optical reference (C3D, TRC or a session with markers) for the validation stage.
-    force
-        Replace existing outputs.
-    progress
-        Print the stage counter and fusion progress bar on stderr.
-    seed
-        Random seed of the stochastic steps (the validation's RANSAC clock fit).
-    calibration_dir
-        Folder of per-serial sensor calibrations (``motionlab sensorcal``) applied before fusion.
-    magnetometer
-        Fuse with the magnetometers (default 6-D, see :func:`analyse`).
-    clock_sync
-        Put the IMUs on one clock from their shared joint centres (see :func:`analyse`).
-    estimator
-        Fusion estimator name (``motionlab fuse --list``); checked before any work.
+    ``inputs``: raw recording files, or one motionlab session file. ``outdir``: output folder
+    (created): ``session.h5``, ``report.pdf``, ``report.txt``, ``csv/``, ``results.json``.
+    ``options``: everything else (:class:`PipelineOptions`); the protocol and the estimator are
+    checked before any work.
     """
     from motionlab.export import write_json
     from motionlab.kinematics.gait import sensed_protocol
@@ -382,45 +347,25 @@ def run_pipeline(
     outdir = Path(outdir)
     if not inputs:
         raise InputError("no input files", remedy="give one or more recordings or a session file")
-    proto = load_protocol(protocol)
-    _check_estimator(estimator, magnetometer)
+    proto = options.load_protocol()
+    _check_estimator(options.estimator, options.magnetometer)
     session_path, report_path, csv_dir = _outputs(
-        outdir, force, [*inputs, map_path, reference, proto.path]
+        outdir, options.force, [*inputs, options.map_path, options.reference, proto.path]
     )
-    command = shlex.join(
-        ["motionlab", "run", "--protocol", str(protocol), *map(str, inputs), "-o", str(outdir)]
-        + (["--map", str(map_path)] if map_path else [])
-        + (["--reference", str(reference)] if reference else [])
-        + (["--calibration", str(calibration_dir)] if calibration_dir else [])
-        + (["--seed", str(seed)] if seed else [])
-        + (["--filter", estimator] if estimator != "default" else [])
-        + (["--magnetometer"] if magnetometer else [])
-        + ([] if clock_sync else ["--no-clock-sync"])
-    )
+    command = options.command(inputs, outdir)
     names = ["ingest", "fuse", "calibrate", "angles", "metrics", "report"]
-    if calibration_dir is not None:
-        names.insert(1, "sensorcal")
-    if clock_sync:
+    if options.clock_sync:
         names.insert(1, "clock sync")
-    if reference is not None or _holds_markers(inputs):
+    if options.reference is not None or _holds_markers(inputs):
         names.insert(-1, "validate")
-    stages = _Stages(names, progress)
+    stages = _Stages(names, options.progress)
 
     with stages("ingest"):
+        map_path = Path(options.map_path) if options.map_path else None
         session = load_inputs(inputs, map_path, command)
         check_segments(session, proto, inputs)
         proto = sensed_protocol(proto, session)
-    analyse(
-        session,
-        proto,
-        reference,
-        seed,
-        calibration_dir,
-        stages,
-        magnetometer,
-        clock_sync,
-        estimator,
-    )
+    analyse(session, dataclasses.replace(options, protocol=proto), stages)
     validated = "validation" in session.results
     session.add_provenance(
         command,
@@ -428,19 +373,24 @@ def run_pipeline(
             "stage": "run",
             "protocol": str(proto.path),
             "protocol_sha256": sha256_file(proto.path),
-            "seed": seed,
-            "estimator": estimator,
-            "magnetometer": magnetometer,
-            "clock_sync": clock_sync,
+            "seed": options.seed,
+            "estimator": options.estimator,
+            "magnetometer": options.magnetometer,
+            "clock_sync": options.clock_sync,
             "validated": validated,
-        },
+        }
+        | (
+            {"calibration": str(options.calibration_dir)}
+            if options.calibration_dir is not None
+            else {}
+        ),
     )
     outdir.mkdir(parents=True, exist_ok=True)
-    save_session(session, session_path, force=force)
+    save_session(session, session_path, force=options.force)
     with stages("report"):
         views = load_views([session], proto, [session_path])
-        out = write_report(views, report_path, csv_dir, force=force)
-        write_json(session, outdir / RESULTS_JSON, force=force)
+        out = write_report(views, report_path, csv_dir, force=options.force)
+        write_json(session, outdir / RESULTS_JSON, force=options.force)
     table = metrics_table(session.results["metrics"])
     metrics = table[table["percent"].isna()].drop(columns="percent").reset_index(drop=True)
     summary = run_summary(views[0], out, stages.times, time.perf_counter() - t_start)

@@ -21,16 +21,7 @@ from motionlab.atomic import atomic_path
 from motionlab.errors import InputError
 
 
-def fake_pipeline(
-    inputs,
-    protocol,
-    outdir,
-    map_path=None,
-    reference=None,
-    force=False,
-    progress=False,
-    seed=0,
-):
+def fake_pipeline(inputs, outdir, options):
     source = Path(inputs[0])
     with open(source.with_suffix(".runs"), "a") as log:  # one line per start
         log.write(f"{os.getpid()}\n")
@@ -57,7 +48,10 @@ def fake_pipeline(
     metrics = pd.DataFrame(rows, columns=["block", "joint", "angle", "metric", "value", "unit"])
     report = Path(outdir) / "report.txt"
     with atomic_path(report, force=True) as tmp:
-        tmp.write_text(f"{len(inputs)} inputs, protocol {Path(protocol).name}\n")
+        tmp.write_text(
+            f"{len(inputs)} inputs, protocol {Path(options.protocol).name}, seed {options.seed}, "
+            f"magnetometer {options.magnetometer}, filter {options.estimator}\n"
+        )
     return SimpleNamespace(
         session_path=None, report_path=report, csv_dir=None, metrics=metrics, summary=""
     )

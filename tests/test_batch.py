@@ -1,6 +1,7 @@
 """Batch runs on the local process pool, with a fast stand-in pipeline (tests/batch_fakes.py)."""
 
 import csv
+import dataclasses
 import inspect
 import os
 from functools import partial
@@ -118,8 +119,25 @@ def test_outdir_of_other_files_needs_force(tmp_path):
 def test_runner_calls_the_pipeline_with_its_signature():
     pipeline = pytest.importorskip("motionlab.pipeline")
     params = inspect.signature(pipeline.run_pipeline).parameters
-    assert list(params)[:3] == ["inputs", "protocol", "outdir"]
-    assert {"map_path", "reference", "force", "progress"} <= set(params)
+    assert list(params) == ["inputs", "outdir", "options"]
+    fields = {f.name for f in dataclasses.fields(pipeline.PipelineOptions)}
+    assert {"protocol", "map_path", "reference", "force", "progress"} <= fields
+
+
+def test_run_options_from_manifest_flags_and_sessions(tmp_path):
+    """A session's own key wins over a flag, a flag over the study's key; changed options
+    make a session run again."""
+    manifest = make_study(tmp_path, good_sessions(1, ("v1", "v2")))
+    text = manifest.read_text().replace("sessions:", "seed: 1\nfilter: madgwick\nsessions:", 1)
+    manifest.write_text(text.replace("files: raw/S1/v2/*.txt}", "files: raw/S1/v2/*.txt, seed: 5}"))
+    out = tmp_path / "out"
+    assert _run(manifest, out, options={"seed": 3, "magnetometer": True}, workers=1).ok
+    report = {v: (out / "S1" / v / "report.txt").read_text() for v in ("v1", "v2")}
+    assert "seed 3, magnetometer True, filter madgwick" in report["v1"]
+    assert "seed 5, magnetometer True, filter madgwick" in report["v2"]
+    again = _run(manifest, out, options={"seed": 3, "magnetometer": True}, workers=1)
+    assert again.count("skipped") == 2
+    assert _run(manifest, out, options={"seed": 3}, workers=1).count("done") == 2
 
 
 def test_cli_exit_codes_progress_and_summary(tmp_path, monkeypatch):

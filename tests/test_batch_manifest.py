@@ -37,6 +37,20 @@ def test_valid_manifest_resolves_paths_globs_and_maps(tmp_path):
     assert b.map == tmp_path / "m2.yaml" and b.reference == tmp_path / "ref.c3d"
 
 
+def test_run_options_as_keys(tmp_path):
+    _files(tmp_path, "x.h5", "cal/ABC.yaml")
+    (tmp_path / "study.yaml").write_text(
+        "protocol: knee\nseed: 2\nclock_sync: false\ncalibration: cal\nsessions:\n"
+        "  - {subject: A, visit: v1, files: x.h5, magnetometer: true, filter: madgwick}\n"
+        "  - {subject: B, visit: v1, files: x.h5, calibration: nocal}\n"
+    )
+    m = load_manifest(tmp_path / "study.yaml")
+    assert m.options == {"seed": 2, "clock_sync": False, "calibration_dir": tmp_path / "cal"}
+    a, b = m.sessions
+    assert a.options == {"magnetometer": True, "estimator": "madgwick"} and not a.problem
+    assert b.problem.startswith("study.yaml line 7, key sessions[1].calibration: no such")
+
+
 def test_missing_files_make_a_session_problem_not_an_error(tmp_path):
     _files(tmp_path, "x.h5")
     (tmp_path / "study.yaml").write_text(
@@ -72,6 +86,14 @@ BROKEN = [
     ("protocol: knee\nsessions:\n  - just a string\n", "key sessions[0]", "not a mapping"),
     ("protocol: knee\nsessions:\n  - {subject: A, visit: v\n", "line 4", "not valid YAML"),
     ("- a list\n", "key (top level)", "not a mapping"),
+    ("protocol: knee\nseed: x\nsessions: [{subject: A, visit: v, files: x}]\n",
+     "line 2, key seed", "expected an integer"),
+    ("protocol: knee\nsessions:\n  - {subject: A, visit: v, files: x,\n     magnetometer: 1}\n",
+     "line 4, key sessions[0].magnetometer", "expected true or false"),
+    ("protocol: knee\nfilter: nope\nsessions: [{subject: A, visit: v, files: x}]\n",
+     "line 2, key filter", "unknown estimator"),
+    ("protocol: knee\ncalibration: gone/\nsessions: [{subject: A, visit: v, files: x}]\n",
+     "line 2, key calibration", "no such calibration folder"),
 ]  # fmt: skip
 
 

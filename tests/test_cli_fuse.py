@@ -27,9 +27,8 @@ def session_file(tmp_path):
 
 
 def test_fuse_stores_a_result_per_sensor(session_file):
-    out = CliRunner().invoke(
-        main, ["fuse", str(session_file), "--filter", "madgwick", "--param", "beta=0.2"]
-    )
+    args = ["fuse", str(session_file), "--filter", "madgwick", "--param", "beta=0.2"]
+    out = CliRunner().invoke(main, [*args, "--magnetometer"])  # 9-D: the truth's heading
     assert out.exit_code == 0, out.output
     ses = load_session(session_file)
     fusion = ses.results["fusion"]
@@ -86,10 +85,12 @@ def test_list_prints_every_estimator():
     assert "beta = 0.1 rad/s" in out.output
 
 
-def test_no_magnetometer_fuses_6d(session_file):
-    out = CliRunner().invoke(main, ["fuse", str(session_file), "--no-magnetometer"])
+@pytest.mark.parametrize("extra", [[], ["--no-magnetometer"]])
+def test_fuses_6d_by_default_as_run_does(session_file, extra):
+    out = CliRunner().invoke(main, ["fuse", str(session_file), *extra])
     assert out.exit_code == 0, out.output
     assert "6-D" in out.output
+    assert "not been clock-synchronised: run 'motionlab sync" in out.output
     ses = load_session(session_file)
     assert all(e["magnetometer"] is False for e in ses.results["fusion"].values())
     assert ses.provenance[-1]["parameters"]["magnetometer"] is False

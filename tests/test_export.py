@@ -17,7 +17,7 @@ from motionlab.cli import main
 from motionlab.export import orientations, results_json
 from motionlab.io import read_any
 from motionlab.io.opensim import read_mot
-from motionlab.pipeline import run_pipeline
+from motionlab.pipeline import PipelineOptions, run_pipeline
 from motionlab.session import load_session, save_session
 from motionlab.simulate import simulate
 from motionlab.simulate.markers import OpticalSystem
@@ -33,10 +33,10 @@ def run_dir(tmp_path_factory):
         mounting_max_deg=5.0, optical=OpticalSystem(rate_hz=50.0),
     )  # fmt: skip
     save_session(session, root / "sim.h5")
-    run_pipeline(
-        [root / "sim.h5"], root / "knee_small.yaml", root / "out", progress=False,
-        clock_sync=False, estimator="madgwick",
-    )  # fmt: skip
+    options = PipelineOptions(
+        root / "knee_small.yaml", progress=False, clock_sync=False, estimator="madgwick"
+    )
+    run_pipeline([root / "sim.h5"], root / "out", options)
     return root / "out"
 
 

@@ -211,8 +211,8 @@ def test_cli_with_markers(tmp_path, session):
     runner = CliRunner()
     res = runner.invoke(main, ["fuse", str(path), "--filter", "madgwick", "--with-markers"])
     assert res.exit_code == 2 and "cannot fuse markers" in res.output
-    res = runner.invoke(main, ["fuse", str(path), "--filter", "liu_gn", "--with-markers",
-                               "--sensor", "shank_r"])  # fmt: skip
+    args = ["fuse", str(path), "--filter", "liu_gn", "--with-markers", "--sensor", "shank_r"]
+    res = runner.invoke(main, [*args, "--magnetometer"])  # 9-D: Liu's scenarios 1 and 2
     assert res.exit_code == 0, res.output
     entry = load_session(path).results["fusion"]["shank_r"]
     assert set(np.unique(entry["scenario"])) >= {1, 2}

@@ -10,7 +10,7 @@ from conftest import DATA, SHARED, needs_shared
 
 from motionlab.cli import main
 from motionlab.errors import InputError
-from motionlab.pipeline import PipelineResult, run_pipeline
+from motionlab.pipeline import PipelineOptions, PipelineResult, run_pipeline
 from motionlab.session import load_session, save_session
 from motionlab.simulate import simulate
 from motionlab.simulate.markers import OpticalSystem, write_c3d
@@ -85,15 +85,14 @@ def recorded(tmp_path_factory):
 @pytest.fixture(scope="module")
 def result(recorded) -> PipelineResult:
     root, files, _ = recorded
-    return run_pipeline(
-        files,
+    options = PipelineOptions(
         root / "knee_small.yaml",
-        root / "out",
         map_path=root / "map.yaml",
         reference=root / "markers.c3d",
         progress=False,
         seed=2,
     )
+    return run_pipeline(files, root / "out", options)
 
 
 def test_outputs_and_metrics_table(result, recorded):
@@ -180,13 +179,10 @@ def test_existing_outputs_need_force(result, recorded):
     root, files, _ = recorded
     before = result.session_path.stat().st_mtime_ns
     with pytest.raises(InputError, match="output exists"):
-        run_pipeline(
-            files,
-            root / "knee_small.yaml",
-            root / "out",
-            map_path=root / "map.yaml",
-            progress=False,
+        options = PipelineOptions(
+            root / "knee_small.yaml", map_path=root / "map.yaml", progress=False
         )
+        run_pipeline(files, root / "out", options)
     assert result.session_path.stat().st_mtime_ns == before
 
 

@@ -13,7 +13,14 @@ A manifest is a YAML file (``study.yaml``)::
         files: [raw/S01/week6/thigh.txt, raw/S01/week6/shank.txt]
         reference: raw/S01/week6/mocap.c3d   # optional optical reference
         map: maps/other.yaml                 # optional, replaces the top-level map
+        seed: 3                              # optional, replaces the study's setting
       - {subject: S02, visit: baseline, files: sim/S02_baseline.h5}   # a motionlab session file
+
+The options of ``motionlab run`` are keys too, at the top (the whole study) or in a session (that
+session): ``calibration`` (folder of sensor calibrations, ``--calibration``), ``magnetometer``
+(true/false, ``--magnetometer``), ``clock_sync`` (true/false, ``--no-clock-sync``), ``seed``
+(integer, ``--seed``) and ``filter`` (estimator name, ``--filter``). An unknown key is an error
+naming its line.
 
 Relative paths are relative to the manifest's folder. ``subject`` and ``visit`` name the output
 folder ``OUTDIR/<subject>/<visit>/``: letters, digits, space, ``_ . + -``. The structure is checked
@@ -25,7 +32,7 @@ from __future__ import annotations
 
 import glob
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -34,8 +41,16 @@ import yaml
 from motionlab.errors import InputError
 from motionlab.protocol import LineLoader, load_protocol, resolve_protocol_path
 
-TOP_KEYS = ("protocol", "map", "sessions")
-SESSION_KEYS = ("subject", "visit", "files", "reference", "map")
+#: manifest keys of the options of ``motionlab run`` → :class:`motionlab.pipeline.PipelineOptions`
+OPTION_KEYS = {
+    "calibration": "calibration_dir",
+    "magnetometer": "magnetometer",
+    "clock_sync": "clock_sync",
+    "seed": "seed",
+    "filter": "estimator",
+}
+TOP_KEYS = ("protocol", "map", "sessions", *OPTION_KEYS)
+SESSION_KEYS = ("subject", "visit", "files", "reference", "map", *OPTION_KEYS)
 _NAME = re.compile(r"^\w[\w .+-]*$")
 _EXAMPLE = "see the study manifest example in README.md"
 
@@ -51,6 +66,9 @@ class SessionSpec:
     map: Path | None = None
     line: int = 0
     problem: str = ""
+    #: this session's options of ``motionlab run`` (:class:`~motionlab.pipeline.PipelineOptions`
+    #: field names), replacing the study's
+    options: dict[str, Any] = field(default_factory=dict)
 
     @property
     def folder(self) -> Path:
@@ -66,6 +84,9 @@ class Manifest:
     protocol: Path
     sessions: tuple[SessionSpec, ...]
     map: Path | None = None
+    #: the study's options of ``motionlab run`` (:class:`~motionlab.pipeline.PipelineOptions`
+    #: field names)
+    options: dict[str, Any] = field(default_factory=dict)
 
 
 def _fail(path: Path, line: int | None, key: str, message: str, remedy: str) -> None:
@@ -138,6 +159,36 @@ def _optional_file(
     return file, "" if file.is_file() else f"no such {key} file {str(value)!r}"
 
 
+def _options(path: Path, base: Path, entry: dict, where: str) -> tuple[dict[str, Any], str]:
+    """The run options among ``entry``'s keys (checked; errors name the line) and a missing
+    calibration folder (a problem of the session, an error at the top)."""
+    from motionlab.fusion import registry
+
+    out: dict[str, Any] = {}
+    missing = ""
+    for key, name in OPTION_KEYS.items():
+        if key not in entry:
+            continue
+        value, line, at = entry[key], entry.lines[key], f"{where}{key}"
+        if key in ("magnetometer", "clock_sync") and not isinstance(value, bool):
+            _fail(path, line, at, f"is {value!r}, expected true or false", f"e.g. {key}: true")
+        if key == "seed" and (isinstance(value, bool) or not isinstance(value, int)):
+            _fail(path, line, at, f"is {value!r}, expected an integer", "e.g. seed: 3")
+        if key in ("filter", "calibration") and not (isinstance(value, str) and value.strip()):
+            _fail(path, line, at, f"is {value!r}, expected a name", f"e.g. {key}: default")
+        if key == "filter":
+            try:
+                registry.get(value)
+            except InputError as exc:
+                _fail(path, line, at, exc.message, exc.remedy or "see motionlab fuse --list")
+        if key == "calibration":
+            value = base / value
+            if not value.is_dir():
+                missing = f"no such calibration folder {entry[key]!r}"
+        out[name] = value
+    return out, missing
+
+
 def load_manifest(path: str | Path) -> Manifest:
     """Load and validate a study manifest; the protocol is loaded (and so validated) too."""
     path = Path(path)
@@ -162,6 +213,9 @@ def load_manifest(path: str | Path) -> Manifest:
         study_map = base / str(doc["map"])
         if not study_map.is_file():
             _fail(path, lines["map"], "map", f"no such file {doc['map']!r}", "fix the path")
+    study_options, missing = _options(path, base, doc, "")
+    if missing:
+        _fail(path, lines["calibration"], "calibration", missing, "fix the path")
 
     entries = doc["sessions"]
     if not isinstance(entries, list) or not entries:
@@ -211,6 +265,8 @@ def load_manifest(path: str | Path) -> Manifest:
         problems.append(("reference", missing))
         session_map, missing = _optional_file(base, entry, "map", study_map)
         problems.append(("map", missing))
+        options, missing = _options(path, base, entry, f"{where}.")
+        problems.append(("calibration", missing))
         problem = next(
             (
                 InputError(
@@ -225,6 +281,14 @@ def load_manifest(path: str | Path) -> Manifest:
             "",
         )
         sessions.append(
-            SessionSpec(subject, visit, tuple(files), reference, session_map, line, problem)
+            SessionSpec(
+                subject, visit, tuple(files), reference, session_map, line, problem, options
+            )
         )
-    return Manifest(path=path, protocol=protocol, sessions=tuple(sessions), map=study_map)
+    return Manifest(
+        path=path,
+        protocol=protocol,
+        sessions=tuple(sessions),
+        map=study_map,
+        options=study_options,
+    )

@@ -33,7 +33,7 @@ import uuid
 from collections.abc import Callable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -54,8 +54,9 @@ from motionlab.batch.state import (
     write_stamp,
 )
 from motionlab.errors import InputError
+from motionlab.pipeline import PipelineOptions
 
-#: the signature of motionlab.pipeline.run_pipeline (tests pass a stand-in)
+#: ``run_pipeline(inputs, outdir, options)`` of motionlab.pipeline (tests pass a stand-in)
 Pipeline = Callable[..., Any]
 _THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 _POLL_S = 0.2
@@ -64,17 +65,16 @@ _CONNECT_TIMEOUT_S = 10.0
 
 @dataclass(frozen=True)
 class SessionTask:
-    """What a worker needs to process one session (absolute paths, picklable)."""
+    """What a worker needs to process one session (absolute paths, picklable): its files, its
+    output folder and every option of ``motionlab run`` (protocol, map, reference, ...)."""
 
     index: int
     subject: str
     visit: str
     files: tuple[str, ...]
-    protocol: str
     outdir: str
     key: str
-    map_path: str | None = None
-    reference: str | None = None
+    options: PipelineOptions
 
 
 @dataclass
@@ -158,15 +158,7 @@ def run_session(task: SessionTask, pipeline: Pipeline | None = None) -> Outcome:
     try:
         if pipeline is None:
             from motionlab.pipeline import run_pipeline as pipeline
-        result = pipeline(
-            [Path(f) for f in task.files],
-            task.protocol,
-            folder,
-            map_path=task.map_path,
-            reference=task.reference,
-            force=True,
-            progress=False,
-        )
+        result = pipeline([Path(f) for f in task.files], folder, task.options)
         with atomic_path(folder / METRICS, force=True) as tmp:
             result.metrics.to_csv(tmp, index=False, lineterminator="\n")
         seconds = time.perf_counter() - start
@@ -362,6 +354,7 @@ def run_study(
     scheduler: str | None = None,
     retry: int = 1,
     force: bool = False,
+    options: dict[str, Any] | None = None,
     pipeline: Pipeline | None = None,
     progress: Callable[[Progress], None] | None = None,
 ) -> StudyResult:
@@ -382,6 +375,10 @@ def run_study(
         How many more times a session whose worker died is submitted.
     force
         Run every session even if current; accept an ``outdir`` holding other files.
+    options
+        Options of ``motionlab run`` for every session (:class:`PipelineOptions` field names,
+        the ``motionlab batch`` flags): they replace the manifest's top-level settings, and a
+        session's own settings replace them.
     pipeline
         Stand-in for :func:`motionlab.pipeline.run_pipeline` (a picklable function).
     progress
@@ -399,10 +396,28 @@ def run_study(
     for i, spec in enumerate(manifest.sessions):
         folder = (outdir / spec.folder).resolve()
         problem, key = spec.problem, ""
+        settings = manifest.options | (options or {}) | spec.options
+        run_options = PipelineOptions(
+            str(manifest.protocol.resolve()),
+            map_path=spec.map.resolve() if spec.map else None,
+            reference=spec.reference.resolve() if spec.reference else None,
+            force=True,
+            progress=False,
+            **settings,
+        )
+        if run_options.calibration_dir is not None:
+            run_options = replace(
+                run_options, calibration_dir=run_options.calibration_dir.resolve()
+            )
         if not problem:
             try:
                 key = session_key(
-                    list(spec.files), manifest.protocol, spec.map, spec.reference, hashes
+                    list(spec.files),
+                    manifest.protocol,
+                    spec.map,
+                    spec.reference,
+                    hashes,
+                    options=run_options.analysis(),
                 )
             except OSError as exc:
                 problem = f"cannot read an input ({_one_line(exc)})"
@@ -417,11 +432,9 @@ def run_study(
                     subject=spec.subject,
                     visit=spec.visit,
                     files=tuple(str(f.resolve()) for f in spec.files),
-                    protocol=str(manifest.protocol.resolve()),
                     outdir=str(folder),
                     key=key,
-                    map_path=str(spec.map.resolve()) if spec.map else None,
-                    reference=str(spec.reference.resolve()) if spec.reference else None,
+                    options=run_options,
                 )
             )
     state = Progress(total=len(manifest.sessions), to_run=len(tasks))

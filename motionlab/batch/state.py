@@ -55,15 +55,27 @@ def session_key(
     reference: Path | None,
     hashes: FileHashes,
     version: str = __version__,
+    options: dict[str, Any] | None = None,
 ) -> str:
-    """SHA-256 over the inputs' names and contents, the protocol, map, reference and version."""
-    doc = {
+    """SHA-256 over the inputs' names and contents, the protocol, map, reference and version,
+    and the run ``options`` that differ from the defaults
+    (:meth:`~motionlab.pipeline.PipelineOptions.analysis`; a calibration folder by the names and
+    contents of its files). Without such options the key is the one of earlier versions."""
+    doc: dict[str, Any] = {
         "motionlab": version,
         "files": [[Path(f).name, hashes(f)] for f in files],
         "protocol": hashes(protocol),
         "map": hashes(map_path),
         "reference": hashes(reference),
     }
+    if options:
+        doc["options"] = dict(options)
+        if "calibration_dir" in options:
+            folder = Path(options["calibration_dir"])
+            files_in = sorted(p for p in folder.rglob("*") if p.is_file())
+            doc["options"]["calibration_dir"] = [
+                [str(p.relative_to(folder)), hashes(p)] for p in files_in
+            ]
     return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
 
 

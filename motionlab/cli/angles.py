@@ -6,12 +6,9 @@ import click
 import numpy as np
 import pandas as pd
 
+from motionlab import stages
 from motionlab.atomic import atomic_path, check_output
-from motionlab.cli._stage import refuse_to_redo
 from motionlab.cli.paths import INPUT_FILE, OUTPUT_FILE
-from motionlab.errors import InputError
-from motionlab.kinematics.session_angles import session_angles
-from motionlab.protocol import load_protocol
 from motionlab.session import load_session, save_session
 
 
@@ -45,34 +42,17 @@ def command(
     if csv_path:
         check_output(csv_path, force, inputs=[session, protocol_path])
     ses = load_session(session)
-    cal = ses.results.get("calibration")
-    if cal is None and not no_calibration:
-        raise InputError(
-            "not calibrated",
-            session,
-            "results/calibration",
-            "run motionlab calibrate first, or pass --no-calibration",
-        )
-    if protocol_path is None:
-        if cal is None:
-            raise InputError("no protocol", session, remedy="give --protocol")
-        protocol_path = cal.get("protocol_path") or cal["protocol"]
-    protocol = load_protocol(protocol_path)
-    refuse_to_redo(ses, session, "angles", "angles", force)
-    corrections: dict = {}
-    if method == "imu":
-        cal_used = None if no_calibration else cal
-        table = session_angles(ses, protocol, cal_used, corrections=corrections)
-    else:
-        from motionlab.kinematics.accel_only import session_elbow_angles
-
-        table = session_elbow_angles(ses, protocol)
+    table = stages.angles(
+        ses,
+        protocol_path,
+        method=method,
+        calibrated=not no_calibration,
+        force=force,
+        path=session,
+    )
     if csv_path:
         with atomic_path(csv_path, force=force) as tmp:
             pd.DataFrame(table).to_csv(tmp, index=False, float_format="%.4f")
-    ses.results["angles"] = {k: np.asarray(v) for k, v in table.items()}
-    ses.results["angles"]["method"] = method
-    ses.results["heading"] = corrections
     ses.add_provenance(parameters={"stage": "angles", "method": method})
     save_session(ses, session, force=True)
     cols = [c for c in table if c != "time_s"]

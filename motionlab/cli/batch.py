@@ -11,6 +11,7 @@ import click
 from motionlab.batch import Progress, load_manifest, run_study
 from motionlab.cli.paths import INPUT_FILE
 from motionlab.errors import InputError
+from motionlab.fusion import registry
 
 #: exit code when the study ran but some sessions failed (bad input is 2, a bug 1)
 EXIT_SESSIONS_FAILED = 3
@@ -71,6 +72,24 @@ class _ProgressBar:
     show_default=True,
     help="Resubmit a session whose worker process died this many times.",
 )
+@click.option(
+    "--calibration",
+    "calibration_dir",
+    type=click.Path(file_okay=False),
+    help="Folder of per-serial sensor calibrations for fusion (manifest key 'calibration').",
+)
+@click.option(
+    "--magnetometer/--no-magnetometer",
+    default=None,
+    help="Fuse with the magnetometers [default: 6-D, as motionlab run].",
+)
+@click.option(
+    "--clock-sync/--no-clock-sync",
+    default=None,
+    help="Put IMUs recorded on their own clocks on one clock [default: on].",
+)
+@click.option("--seed", type=int, help="Random seed [default: 0].")
+@click.option("--filter", "estimator", help="Fusion estimator [default: default].")
 @click.option("--force", is_flag=True, help="Re-run up-to-date sessions; write into any folder.")
 def command(
     manifest: str,
@@ -78,6 +97,11 @@ def command(
     workers: int | None,
     scheduler: str | None,
     retry: int,
+    calibration_dir: str | None,
+    magnetometer: bool | None,
+    clock_sync: bool | None,
+    seed: int | None,
+    estimator: str | None,
     force: bool,
 ) -> None:
     """Process every session of the study MANIFEST (study.yaml) as 'motionlab run' does.
@@ -88,18 +112,39 @@ def command(
     OUTDIR/study_failures.csv and the others go on. All sessions' metrics are collected in
     OUTDIR/study_metrics.csv and summarised in OUTDIR/study_report.pdf.
 
+    The options of 'motionlab run' (--calibration, --magnetometer, --no-clock-sync, --seed,
+    --filter) are also manifest keys, for the study or for one session; a flag given here
+    replaces the manifest's study-wide setting, a session's own setting replaces both.
+
     Exit code: 0 when every session succeeded, 3 when some failed, 2 for a bad manifest.
 
     \b
     Example:
       motionlab batch study.yaml -o results/ --workers 8
       motionlab batch study.yaml -o results/ --scheduler tcp://10.0.0.5:8786
+      motionlab batch study.yaml -o results/ --calibration calibration/ --seed 3
     """
     if scheduler and workers is not None:
         raise InputError(
             "--workers is for the local pool",
             where="--workers",
             remedy="leave it out with --scheduler: the Dask cluster has its own workers",
+        )
+    flags = {
+        "calibration_dir": Path(calibration_dir) if calibration_dir else None,
+        "magnetometer": magnetometer,
+        "clock_sync": clock_sync,
+        "seed": seed,
+        "estimator": estimator,
+    }
+    if estimator is not None:
+        registry.get(estimator)  # an unknown name fails before any work
+    if calibration_dir is not None and not Path(calibration_dir).is_dir():
+        raise InputError(
+            "no such calibration folder",
+            calibration_dir,
+            "--calibration",
+            "run motionlab sensorcal",
         )
     study = load_manifest(manifest)
     start = time.monotonic()
@@ -110,6 +155,7 @@ def command(
         scheduler=scheduler,
         retry=retry,
         force=force,
+        options={k: v for k, v in flags.items() if v is not None},
         progress=_ProgressBar(),
     )
     failed = result.count("failed")

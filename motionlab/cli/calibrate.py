@@ -4,10 +4,9 @@ from __future__ import annotations
 
 import click
 
-from motionlab.cli._stage import refuse_to_redo
+from motionlab import stages
 from motionlab.cli.paths import INPUT_FILE
 from motionlab.protocol import load_protocol
-from motionlab.segments import calibrate
 from motionlab.session import load_session, save_session
 
 
@@ -24,10 +23,7 @@ def command(session: str, protocol_path: str, force: bool) -> None:
     """
     protocol = load_protocol(protocol_path)
     ses = load_session(session)
-    refuse_to_redo(ses, session, "calibration", "a calibration", force)
-    result = calibrate(ses, protocol)
-    result["protocol_path"] = str(protocol.path)
-    ses.results["calibration"] = result
+    result = stages.calibrate(ses, protocol, force=force, path=session)
     ses.add_provenance(parameters={"protocol": str(protocol.path), "stage": "calibrate"})
     save_session(ses, session, force=True)
     for line in result["warnings"]:

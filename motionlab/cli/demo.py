@@ -8,7 +8,7 @@ from pathlib import Path
 import click
 
 from motionlab.cli.paths import FOLDER
-from motionlab.pipeline import run_pipeline
+from motionlab.pipeline import PipelineOptions, run_pipeline
 
 DEMO_DIR = Path(__file__).resolve().parent.parent / "data" / "demo"
 #: example name → (session file in DEMO_DIR, protocol)
@@ -45,9 +45,8 @@ def command(outdir: str, only: str | None, force: bool, quiet: bool) -> None:
             continue
         if not quiet:
             click.echo(f"== example '{name}': {DEMO_DIR / file}", err=True)
-        result = run_pipeline(
-            [DEMO_DIR / file], protocol, Path(outdir) / name, force=force, progress=not quiet
-        )
+        options = PipelineOptions(protocol, force=force, progress=not quiet)
+        result = run_pipeline([DEMO_DIR / file], Path(outdir) / name, options)
         click.echo(result.summary)
         click.echo("")
         reports.append(result.report_path)

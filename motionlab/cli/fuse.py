@@ -7,13 +7,13 @@ from collections.abc import Iterator
 
 import click
 
+from motionlab import stages
 from motionlab.atomic import check_output
 from motionlab.cli.paths import FOLDER, INPUT_FILE, OUTPUT_FILE
 from motionlab.errors import InputError
 from motionlab.fusion import registry
-from motionlab.fusion.stage import fusable, fuse_session
-from motionlab.sensorcal.calfile import apply_calibration_dir
-from motionlab.session import Session, load_session, save_session
+from motionlab.fusion.stage import fusable
+from motionlab.session import load_session, save_session
 
 
 def parse_params(items: tuple[str, ...]) -> dict[str, str]:
@@ -37,23 +37,11 @@ def _progress(labels: list[str], text: str) -> Iterator[str]:
         yield from bar
 
 
-def _marker_references(ses: Session, name: str, markers_path: str | None, labels: list[str]):
-    """Marker reference vectors of the sensors that carry a cluster (``--with-markers``)."""
-    from motionlab.fusion.marker_registration import session_references
-    from motionlab.validation.markermap import load_marker_map
-
-    if not registry.takes_references(name):
-        takes = [k for k in registry.available() if registry.takes_references(k)]
-        raise InputError(
-            f"estimator '{name}' cannot fuse markers", remedy=f"use --filter {' or '.join(takes)}"
-        )
-    mmap = load_marker_map(markers_path) if markers_path else None
-    return session_references(ses, mmap, labels=labels)
-
-
 @click.command("fuse")
 @click.argument("session", type=INPUT_FILE, required=False)
-@click.option("--filter", "name", default="default", show_default=True, help="Estimator name.")
+@click.option(
+    "--filter", "name", default=stages.DEFAULT_ESTIMATOR, show_default=True, help="Estimator name."
+)
 @click.option(
     "--param",
     "params",
@@ -76,9 +64,9 @@ def _marker_references(ses: Session, name: str, markers_path: str | None, labels
 @click.option("--markers", "markers_path", help="Marker map YAML (implies --with-markers).")
 @click.option(
     "--magnetometer/--no-magnetometer",
-    default=True,
+    default=stages.MAGNETOMETER,
     show_default=True,
-    help="Use the magnetometers; --no-magnetometer fuses 6-D (gyr + acc, arbitrary heading).",
+    help="Use the magnetometers (9-D); the default fuses 6-D (gyr + acc), as motionlab run.",
 )
 def command(
     session: str | None,
@@ -95,12 +83,17 @@ def command(
 ) -> None:
     """Estimate each sensor's orientation (sensor → ENU earth) and store it in the session.
 
+    6-D (gyroscope and accelerometer) by default, as motionlab run: indoor fields turn a
+    sensor's heading mid-task, and joint angles need only the heading of each segment relative
+    to its neighbour, which calibrate aligns. Run motionlab sync first (a warning says so when
+    the session has not been synchronised).
+
     \b
     Example:
-      motionlab fuse session.h5
+      motionlab sync session.h5 --protocol knee && motionlab fuse session.h5
       motionlab fuse session.h5 --filter madgwick --param beta=0.1 --sensor shank_r
       motionlab fuse session.h5 --filter liu_gn --with-markers --markers map.yaml
-      motionlab fuse session.h5 --no-magnetometer   # 6-D, e.g. indoors near steel
+      motionlab fuse session.h5 --magnetometer   # 9-D, with a calibrated magnetometer outdoors
       motionlab fuse --list
     """
     if list_:
@@ -130,41 +123,38 @@ def command(
     if not usable:
         raise InputError("no sensor has gyroscope and accelerometer data", session)
     parsed = parse_params(params)
-    if not magnetometer and registry.get(name).needs_mag:
-        raise InputError(
-            f"estimator '{name}' needs a magnetometer", remedy="drop --no-magnetometer"
+    mmap = None
+    if markers_path:
+        from motionlab.validation.markermap import load_marker_map
+
+        mmap = load_marker_map(markers_path)
+    if not stages.synced(ses):
+        click.echo(
+            "warning: the session has not been clock-synchronised: run 'motionlab sync SESSION "
+            "--protocol NAME' first, as motionlab run does (sensors on one radio-synchronised "
+            "clock can skip it)",
+            err=True,
         )
-    recorded, notes, calibrated = dict(ses.sensors), {}, {}
-    if calibration is not None:  # fuse calibrated data; the session keeps the data as recorded
-        calibrated, notes = apply_calibration_dir(ses.sensors, calibration, usable)
-        ses.sensors.update(calibrated)
-    refs, marker_info = {}, {}
-    if with_markers or markers_path:
-        refs, marker_info = _marker_references(ses, name, markers_path, usable)
-    done = fuse_session(
+    fused = stages.fuse(
         ses,
         name,
         parsed,
         usable,
+        magnetometer=magnetometer,
+        calibration_dir=calibration,
+        markers=with_markers or markers_path is not None,
+        marker_map=mmap,
         force=force,
         path=session,
-        references=refs,
-        magnetometer=magnetometer,
         progress=_progress,
     )
-    ses.sensors = recorded
-    for label, stream in calibrated.items():
-        ses.results["fusion"][label]["calibration"] = stream.attrs["calibration"]
-    for label in refs:
-        record = marker_info["sensors"][label] | {"lab_to_earth": marker_info["lab_to_earth"]}
-        ses.results["fusion"][label]["markers"] = record
-        seen = f"markers seen {100 * record['visible_fraction']:.0f} %"
-        notes[label] = f"{notes[label]}, {seen}" if label in notes else seen
+    done, notes = fused.sensors, fused.notes
+    with_refs = any("markers" in ses.results["fusion"][k] for k in done)
     ses.add_provenance(
         parameters={"stage": "fuse", "filter": name, "params": parsed, "sensors": done}
         | ({"calibration": calibration} if calibration else {})
-        | ({"with_markers": True, "markers": markers_path} if refs else {})
-        | ({} if magnetometer else {"magnetometer": False}),
+        | ({"with_markers": True, "markers": markers_path} if with_refs else {})
+        | {"magnetometer": magnetometer},
         inputs=[session] + ([markers_path] if markers_path else []),
     )
     save_session(ses, output or session, force=True)

@@ -5,12 +5,11 @@ from __future__ import annotations
 import click
 import numpy as np
 
+from motionlab import stages
 from motionlab.atomic import atomic_path, check_output
-from motionlab.cli._stage import refuse_to_redo
 from motionlab.cli.paths import INPUT_FILE, OUTPUT_FILE
 from motionlab.errors import InputError
-from motionlab.kinematics.metrics import metrics_table, session_metrics
-from motionlab.protocol import load_protocol
+from motionlab.kinematics.metrics import metrics_table
 from motionlab.session import load_session, save_session
 
 
@@ -66,27 +65,12 @@ def command(
     if csv_path:
         check_output(csv_path, force, inputs=[session, protocol_path])
     ses = load_session(session)
-    cal = ses.results.get("calibration")
-    if cal is None:
-        raise InputError(
-            "not calibrated", session, "results/calibration", "run motionlab calibrate first"
-        )
-    refuse_to_redo(ses, session, "metrics", "metrics", force)
-    protocol = load_protocol(protocol_path or cal.get("protocol_path") or cal["protocol"])
-    unknown = [n for n in (_parse_tasks(tasks) or {}) if n not in {t.name for t in protocol.tasks}]
-    if unknown:
-        raise InputError(
-            f"the protocol has no task {', '.join(unknown)}",
-            protocol.path,
-            "tasks",
-            f"tasks are {', '.join(t.name for t in protocol.tasks)}",
-        )
-    result = session_metrics(ses, protocol, _parse_tasks(tasks))
+    result = stages.metrics(ses, protocol_path, _parse_tasks(tasks), force=force, path=session)
+    protocol = stages.stage_protocol(ses, protocol_path, session)
     table = metrics_table(result)
     if csv_path:
         with atomic_path(csv_path, force=force) as tmp:
             table.to_csv(tmp, index=False, float_format="%.4f")
-    ses.results["metrics"] = result
     ses.add_provenance(parameters={"stage": "metrics", "protocol": str(protocol.path)})
     save_session(ses, session, force=True)
     for block, rng in result["blocks"].items():

@@ -6,8 +6,9 @@ from pathlib import Path
 
 import click
 
+from motionlab import stages
 from motionlab.cli.paths import FOLDER, INPUT_FILE
-from motionlab.pipeline import run_pipeline
+from motionlab.pipeline import PipelineOptions, run_pipeline
 
 
 @click.command("run")
@@ -41,18 +42,18 @@ from motionlab.pipeline import run_pipeline
 @click.option(
     "--filter",
     "estimator",
-    default="default",
+    default=stages.DEFAULT_ESTIMATOR,
     show_default=True,
     help="Estimator for the fusion stage (names: 'motionlab fuse --list').",
 )
 @click.option(
-    "--magnetometer",
-    is_flag=True,
+    "--magnetometer/--no-magnetometer",
+    default=stages.MAGNETOMETER,
     help="Fuse with the magnetometers (default 6-D: indoor fields turn headings mid-task).",
 )
 @click.option(
     "--clock-sync/--no-clock-sync",
-    default=True,
+    default=stages.CLOCK_SYNC,
     show_default=True,
     help="Put IMUs recorded on their own clocks on one clock (from the joints they share).",
 )
@@ -88,18 +89,17 @@ def command(
       motionlab run --protocol knee sim.h5 -o results/sim
       motionlab run --protocol knee sim.h5 --filter madgwick -o results/sim_madgwick
     """
-    result = run_pipeline(
-        [Path(f) for f in files],
-        protocol,
-        Path(outdir),
+    options = PipelineOptions(
+        protocol=protocol,
         map_path=Path(map_path) if map_path else None,
         reference=Path(reference) if reference else None,
-        force=force,
-        progress=not quiet,
-        seed=seed,
         calibration_dir=Path(calibration_dir) if calibration_dir else None,
         magnetometer=magnetometer,
         clock_sync=clock_sync,
+        seed=seed,
         estimator=estimator,
+        force=force,
+        progress=not quiet,
     )
+    result = run_pipeline([Path(f) for f in files], Path(outdir), options)
     click.echo(result.summary)

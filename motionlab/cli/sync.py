@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import click
 
-from motionlab.cli._stage import refuse_to_redo
+from motionlab import stages
 from motionlab.cli.paths import INPUT_FILE
-from motionlab.clocksync import describe, synchronise
+from motionlab.clocksync import describe
 from motionlab.protocol import load_protocol
 from motionlab.session import load_session, save_session
 
@@ -22,7 +22,7 @@ def command(session: str, protocol_path: str, force: bool) -> None:
     shift that makes the two sensors agree on it is fitted for every pair of neighbours (the
     protocol's joints, pelvis-thigh, thorax-upper arm, ...). Corrections are applied only where
     reliable and non-zero; the recorded stamps can be restored with --force and are kept in each
-    sensor's attributes. Run it after ingest and before fuse (motionlab run does).
+    sensor's attributes. The first stage after ingest: run it before fuse (motionlab run does).
 
     \b
     Example:
@@ -30,8 +30,7 @@ def command(session: str, protocol_path: str, force: bool) -> None:
     """
     protocol = load_protocol(protocol_path)
     ses = load_session(session)
-    refuse_to_redo(ses, session, "clock_sync", "a clock synchronisation", force)
-    fits = synchronise(ses, protocol)
+    fits = stages.sync(ses, protocol, force=force, path=session)
     ses.add_provenance(parameters={"protocol": str(protocol.path), "stage": "sync"})
     save_session(ses, session, force=True)
     if not fits:

@@ -7,25 +7,15 @@ from pathlib import Path
 
 import click
 
+from motionlab import stages
 from motionlab.atomic import atomic_path, check_output
-from motionlab.cli._stage import refuse_to_redo
 from motionlab.cli.paths import FOLDER, INPUT_FILE
 from motionlab.errors import InputError
-from motionlab.protocol import load_protocol
 from motionlab.session import load_session, save_session
-from motionlab.validation import validate
 from motionlab.validation.align import MODES
 from motionlab.validation.markermap import load_marker_map
 from motionlab.validation.reference import choose_marker_set, read_reference
 from motionlab.validation.tables import CSV_FILES, summary, tables
-
-
-def _protocol(path: str | None, calibration: dict | None):
-    if path is not None:
-        return load_protocol(path)
-    if calibration:
-        return load_protocol(calibration.get("protocol_path") or calibration["protocol"])
-    return None
 
 
 @click.command("validate")
@@ -36,12 +26,14 @@ def _protocol(path: str | None, calibration: dict | None):
               "clusters and landmarks (default: a still window of the reference).")  # fmt: skip
 @click.option("--markers", "markers_path", help="Marker map YAML (default: markers by name).")
 @click.option("--protocol", "protocol_path", help="Protocol (default: the calibration's).")
-@click.option("--mode", type=click.Choice(MODES), default="full", show_default=True,
-              help="Alignment: full (9-D), heading (6-D: vertical shared), none.")  # fmt: skip
+@click.option("--mode", type=click.Choice(MODES), help="Alignment: full (9-D), heading (6-D: "
+              "vertical shared), none [default: full after 9-D fusion, else heading].")  # fmt: skip
 @click.option("--no-sync", is_flag=True, help="The streams already share one clock.")
 @click.option("--movement-only", is_flag=True, help="Statistics over movement phases only.")
-@click.option("--estimator", default="default", show_default=True,
+@click.option("--estimator", default=stages.DEFAULT_ESTIMATOR, show_default=True,
               help="Fusion for sensors without fusion results.")  # fmt: skip
+@click.option("--seed", type=int, default=0, show_default=True,
+              help="Random seed (the RANSAC clock fit).")  # fmt: skip
 @click.option("--csv", "csv_dir", type=FOLDER, help="Write CSV tables here.")
 @click.option("--json", "as_json", is_flag=True, help="Print the results as JSON.")
 @click.option("--force", is_flag=True, help="Replace existing validation results and CSV files.")
@@ -51,10 +43,11 @@ def command(
     static_path: str | None,
     markers_path: str | None,
     protocol_path: str | None,
-    mode: str,
+    mode: str | None,
     no_sync: bool,
     movement_only: bool,
     estimator: str,
+    seed: int,
     csv_dir: str | None,
     as_json: bool,
     force: bool,
@@ -69,7 +62,7 @@ def command(
       motionlab validate broad.h5 --mode none --no-sync --movement-only
     """
     ses = load_session(session)
-    refuse_to_redo(ses, session, "validation", "validation results", force)
+    stages.refuse_to_redo(ses, "validation", "validation results", force, session)
     mmap = load_marker_map(markers_path) if markers_path else None
     name = mmap.marker_set if mmap else None
     if reference is None:
@@ -86,7 +79,9 @@ def command(
         static = choose_marker_set(
             sets, name if name in {m.name for m in sets} else None, static_path
         )
-    protocol = _protocol(protocol_path, ses.results.get("calibration"))
+    protocol = None
+    if protocol_path is not None or "calibration" in ses.results:
+        protocol = stages.stage_protocol(ses, protocol_path, session)
     written = []
     extra_inputs = [reference, static_path, markers_path, protocol_path]
     if csv_dir:
@@ -96,9 +91,10 @@ def command(
         folder.mkdir(parents=True, exist_ok=True)
         for fname in CSV_FILES:
             check_output(folder / fname, force, inputs=[session, *extra_inputs])
-    result = validate(
-        ses, ref, mmap, protocol, mode, sync=not no_sync, movement_only=movement_only,
-        estimator=estimator, static=static,
+    mode = mode or stages.validation_mode(ses)
+    result = stages.validate(
+        ses, protocol, ref, marker_map=mmap, static=static, mode=mode, clock=not no_sync,
+        movement_only=movement_only, estimator=estimator, seed=seed, force=force, path=session,
     )  # fmt: skip
     if csv_dir:
         for fname, table in tables(result).items():
@@ -111,6 +107,7 @@ def command(
         "mode": mode,
         "sync": not no_sync,
         "movement_only": movement_only,
+        "seed": seed,
         "protocol": protocol.name if protocol else None,
     }
     ses.add_provenance(parameters=parameters, inputs=inputs)  # fmt: skip

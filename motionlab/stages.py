@@ -1,0 +1,386 @@
+"""One function per analysis stage: compute the stage's results and store them in the session.
+
+The stage commands (``motionlab sync``, ``fuse``, ``calibrate``, ``angles``, ``metrics``,
+``validate``) and ``motionlab run`` (:func:`motionlab.pipeline.analyse`) call these functions
+with the same defaults, so the stage-by-stage path computes what ``run`` computes:
+
+    sync → fuse → calibrate → angles → metrics → (validate)
+
+Each function takes the session (in memory), adds its results to ``session.results`` under the
+stage's name and returns them; ``force`` replaces earlier results of the stage (without it they
+are an :class:`~motionlab.errors.InputError` naming ``path``, the session file). Every function
+that reads the protocol uses :func:`motionlab.kinematics.gait.sensed_protocol` (joints of
+optional segments without a sensor left out), as ``run`` does.
+
+A session file that has not been through ingest (``motionlab simulate`` writes one) gets
+ingest's clock repair, quality checks and gap filling in the first stage that reads its sensors
+(:func:`prepare`: ``sync`` or ``fuse``), as ``run`` gives them on loading it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from motionlab.errors import InputError
+from motionlab.ingest import DEFAULT_GAP_MAX, check_and_fill
+from motionlab.protocol import Protocol, load_protocol
+from motionlab.session import Session
+
+if TYPE_CHECKING:
+    from motionlab.clocksync import ClockFit
+    from motionlab.session import MarkerSet
+    from motionlab.validation.markermap import MarkerMap
+
+#: fusion estimator of ``fuse`` and ``run`` (``motionlab fuse --list``)
+DEFAULT_ESTIMATOR = "default"
+#: 6-D fusion by default: indoors an uncalibrated or disturbed magnetometer turned a sensor's
+#: heading by 20-60° mid-task, while joint angles need only the heading of each segment relative
+#: to its neighbour, which the heading alignment gives (see :func:`motionlab.pipeline.analyse`)
+MAGNETOMETER = False
+#: ``run`` puts IMUs recorded on their own clocks on one clock first (``motionlab sync``)
+CLOCK_SYNC = True
+
+Progress = Callable[[list[str], str], Iterable[str]]
+
+
+def refuse_to_redo(session: Session, stage: str, what: str, force: bool, path: Any = None) -> None:
+    """Raise when ``session`` already holds ``results[stage]`` and not ``force``."""
+    if stage in session.results and not force:
+        raise InputError(
+            f"already holds {what}", path, f"results/{stage}", "add --force to redo it"
+        )
+
+
+def stage_protocol(
+    session: Session, protocol: Protocol | str | Path | None, path: Any = None
+) -> Protocol:
+    """The protocol given (loaded), else the calibration's; without the joints of absent
+    optional segments (:func:`~motionlab.kinematics.gait.sensed_protocol`)."""
+    from motionlab.kinematics.gait import sensed_protocol
+
+    if protocol is None:
+        cal = session.results.get("calibration")
+        if cal is None:
+            raise InputError("no protocol", path, remedy="give --protocol")
+        protocol = cal.get("protocol_path") or cal["protocol"]
+    if not isinstance(protocol, Protocol):
+        protocol = load_protocol(protocol)
+    return sensed_protocol(protocol, session)
+
+
+def _calibration(session: Session, path: Any) -> dict[str, Any]:
+    cal = session.results.get("calibration")
+    if cal is None:
+        raise InputError(
+            "not calibrated", path, "results/calibration", "run motionlab calibrate first"
+        )
+    return cal
+
+
+def prepare(session: Session, gap_max: float = DEFAULT_GAP_MAX) -> list[str]:
+    """Clock repair, quality checks and short-gap filling, as ingest does
+    (:func:`motionlab.timebase.repair_clock`, :func:`motionlab.ingest.check_and_fill`), for the
+    sensors that have not been through ingest (no ``qc``); returns their labels."""
+    from motionlab import timebase
+
+    done = []
+    for label, stream in list(session.sensors.items()):
+        if not stream.qc:
+            stream, report = timebase.repair_clock(stream)
+            session.sensors[label] = check_and_fill(stream, report, gap_max)
+            done.append(label)
+    return done
+
+
+def sync(
+    session: Session,
+    protocol: Protocol | str | Path,
+    *,
+    force: bool = False,
+    path: Any = None,
+) -> list[ClockFit]:
+    """Put the protocol's IMUs on one clock (:func:`motionlab.clocksync.synchronise`);
+    ``results["clock_sync"]`` holds every fit. Prepares sensors without QC first
+    (:func:`prepare`). ``force`` redoes it from the recorded stamps."""
+    from motionlab.clocksync import synchronise
+
+    refuse_to_redo(session, "clock_sync", "a clock synchronisation", force, path)
+    prepare(session)
+    return synchronise(session, stage_protocol(session, protocol, path))
+
+
+@dataclass
+class Fused:
+    """What :func:`fuse` did: the sensors fused, in order, and a note per sensor (sensor
+    calibration applied or missing, markers seen)."""
+
+    sensors: list[str]
+    notes: dict[str, str] = field(default_factory=dict)
+
+
+def fuse(
+    session: Session,
+    estimator: str = DEFAULT_ESTIMATOR,
+    params: dict[str, str] | None = None,
+    sensors: list[str] | None = None,
+    *,
+    magnetometer: bool = MAGNETOMETER,
+    calibration_dir: str | Path | None = None,
+    markers: bool = False,
+    marker_map: MarkerMap | None = None,
+    force: bool = False,
+    path: Any = None,
+    progress: Progress | None = None,
+) -> Fused:
+    """Orientation of every sensor with gyroscope and accelerometer (of ``sensors``) by
+    ``estimator``, stored in ``results["fusion"]`` (:func:`motionlab.fusion.stage.fuse_session`).
+
+    ``magnetometer``: 9-D where a sensor has one (default 6-D, :data:`MAGNETOMETER`).
+    ``calibration_dir``: per-serial sensor calibrations (``motionlab sensorcal``) applied to the
+    data fused; the session keeps the data as recorded. ``markers``: fuse the session's marker
+    clusters too (``marker_map``, default by name). Prepares sensors without QC first.
+    """
+    from motionlab.fusion import registry
+    from motionlab.fusion.stage import fusable, fuse_session
+
+    if not magnetometer and registry.get(estimator).needs_mag:
+        raise InputError(
+            f"estimator '{estimator}' needs a magnetometer", remedy="add --magnetometer"
+        )
+    prepare(session)
+    usable = fusable(session, sensors)
+    if not usable:
+        return Fused([])
+    recorded, notes, calibrated = dict(session.sensors), {}, {}
+    refs: dict[str, Any] = {}
+    marker_info: dict[str, Any] = {}
+    try:
+        if calibration_dir is not None:
+            from motionlab.sensorcal.calfile import apply_calibration_dir
+
+            calibrated, notes = apply_calibration_dir(session.sensors, calibration_dir, usable)
+            session.sensors.update(calibrated)
+        if markers or marker_map is not None:
+            refs, marker_info = _marker_references(session, estimator, marker_map, usable)
+        done = fuse_session(
+            session,
+            estimator,
+            params,
+            usable,
+            force=force,
+            path=path,
+            references=refs,
+            magnetometer=magnetometer,
+            progress=progress,
+        )
+    finally:
+        session.sensors = recorded
+    store = session.results["fusion"]
+    for label, stream in calibrated.items():
+        store[label]["calibration"] = stream.attrs["calibration"]
+    for label in refs:
+        record = marker_info["sensors"][label] | {"lab_to_earth": marker_info["lab_to_earth"]}
+        store[label]["markers"] = record
+        seen = f"markers seen {100 * record['visible_fraction']:.0f} %"
+        notes[label] = f"{notes[label]}, {seen}" if label in notes else seen
+    return Fused(done, notes)
+
+
+def _marker_references(
+    session: Session, estimator: str, marker_map: MarkerMap | None, labels: list[str]
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """Marker reference vectors of the sensors that carry a cluster."""
+    from motionlab.fusion import registry
+    from motionlab.fusion.marker_registration import session_references
+
+    if not registry.takes_references(estimator):
+        takes = [k for k in registry.available() if registry.takes_references(k)]
+        raise InputError(
+            f"estimator '{estimator}' cannot fuse markers",
+            remedy=f"use --filter {' or '.join(takes)}",
+        )
+    return session_references(session, marker_map, labels=labels)
+
+
+def synced(session: Session) -> bool:
+    """Whether the session went through the clock sync stage (or has one sensor only)."""
+    return "clock_sync" in session.results or len(session.sensors) < 2
+
+
+def calibrate(
+    session: Session,
+    protocol: Protocol | str | Path,
+    *,
+    force: bool = False,
+    path: Any = None,
+) -> dict[str, Any]:
+    """Sensor-to-segment calibration (:func:`motionlab.segments.calibrate`), stored in
+    ``results["calibration"]`` with the protocol's path."""
+    from motionlab.segments import calibrate as calibrate_segments
+
+    refuse_to_redo(session, "calibration", "a calibration", force, path)
+    protocol = stage_protocol(session, protocol, path)
+    result = calibrate_segments(session, protocol)
+    result["protocol_path"] = str(protocol.path)
+    session.results["calibration"] = result
+    return result
+
+
+def angles(
+    session: Session,
+    protocol: Protocol | str | Path | None = None,
+    *,
+    method: str = "imu",
+    calibrated: bool = True,
+    force: bool = False,
+    path: Any = None,
+) -> dict[str, Any]:
+    """The joint angle table (degrees), stored in ``results["angles"]`` (with its ``method``)
+    and each joint's heading correction in ``results["heading"]``.
+
+    ``protocol`` defaults to the calibration's. ``method``: ``imu`` (fused orientations) or
+    ``accel-only`` (elbow from accelerometers, Lee 2012). ``calibrated=False`` takes sensor
+    frames as segment frames.
+    """
+    import numpy as np
+
+    from motionlab.kinematics.session_angles import session_angles
+
+    cal = session.results.get("calibration")
+    if cal is None and calibrated:
+        raise InputError(
+            "not calibrated",
+            path,
+            "results/calibration",
+            "run motionlab calibrate first, or pass --no-calibration",
+        )
+    protocol = stage_protocol(session, protocol, path)
+    refuse_to_redo(session, "angles", "angles", force, path)
+    corrections: dict[str, Any] = {}
+    if method == "imu":
+        table = session_angles(
+            session, protocol, cal if calibrated else None, corrections=corrections
+        )
+    elif method == "accel-only":
+        from motionlab.kinematics.accel_only import session_elbow_angles
+
+        table = session_elbow_angles(session, protocol)
+    else:
+        raise InputError(f"unknown angle method {method!r}", remedy="use imu or accel-only")
+    session.results["angles"] = {k: np.asarray(v) for k, v in table.items()} | {"method": method}
+    session.results["heading"] = corrections
+    return table
+
+
+def metrics(
+    session: Session,
+    protocol: Protocol | str | Path | None = None,
+    tasks: dict[str, tuple[float, float]] | None = None,
+    *,
+    gait: bool = True,
+    force: bool = False,
+    path: Any = None,
+) -> dict[str, Any]:
+    """Per task, joint and plane metrics (:func:`motionlab.kinematics.metrics.session_metrics`)
+    in ``results["metrics"]``; with ``gait`` and a gait task in the protocol, the gait analysis
+    (:func:`motionlab.kinematics.gait.analyse_gait`) in ``results["gait"]``.
+
+    ``protocol`` defaults to the calibration's; ``tasks`` ``{name: (start_s, end_s)}`` (default:
+    found in the recording).
+    """
+    from motionlab.kinematics.metrics import session_metrics
+
+    _calibration(session, path)
+    refuse_to_redo(session, "metrics", "metrics", force, path)
+    protocol = stage_protocol(session, protocol, path)
+    names = {t.name for t in protocol.tasks}
+    unknown = [n for n in tasks or {} if n not in names]
+    if unknown:
+        raise InputError(
+            f"the protocol has no task {', '.join(unknown)}",
+            protocol.path,
+            "tasks",
+            f"tasks are {', '.join(t.name for t in protocol.tasks)}",
+        )
+    result = session_metrics(session, protocol, tasks)
+    session.results["metrics"] = result
+    if gait:
+        gait_stage(session, protocol)
+    return result
+
+
+def gait_stage(session: Session, protocol: Protocol | str | Path | None = None) -> dict | None:
+    """The gait analysis in ``results["gait"]`` when the protocol has a gait task (else none)."""
+    from motionlab.kinematics.gait import analyse_gait
+    from motionlab.kinematics.metrics import is_gait
+
+    protocol = stage_protocol(session, protocol, None)
+    if not any(is_gait(t) for t in protocol.tasks):
+        return None
+    session.results["gait"] = analyse_gait(session, protocol)
+    return session.results["gait"]
+
+
+def validation_mode(session: Session) -> str:
+    """Alignment mode for the session's fusion: ``full`` when every sensor was fused with its
+    magnetometer (one earth frame; also when nothing was fused yet: the validation fuses with
+    the magnetometers), else ``heading`` (each sensor its own heading)."""
+    entries = session.results.get("fusion", {}).values()
+    return "full" if all(e.get("magnetometer", True) for e in entries) else "heading"
+
+
+def validate(
+    session: Session,
+    protocol: Protocol | str | Path | None = None,
+    reference: MarkerSet | None = None,
+    *,
+    marker_map: MarkerMap | None = None,
+    static: MarkerSet | None = None,
+    mode: str | None = None,
+    clock: bool = True,
+    movement_only: bool = False,
+    estimator: str = DEFAULT_ESTIMATOR,
+    seed: int = 0,
+    keep_reference: bool = True,
+    force: bool = False,
+    path: Any = None,
+) -> dict[str, Any]:
+    """Validation against an optical reference (:func:`motionlab.validation.validate`), stored
+    in ``results["validation"]``.
+
+    ``reference`` defaults to the session's own markers; with ``keep_reference`` a reference
+    from elsewhere is added to ``session.markers`` (renamed if the name is taken) so that the
+    report shows it. ``mode`` defaults to :func:`validation_mode`. ``clock``: estimate the
+    optical-to-IMU clock model (``False``: one clock). ``protocol`` defaults to the
+    calibration's (orientations only without one).
+    """
+    from motionlab.validation import validate as validate_session
+
+    refuse_to_redo(session, "validation", "validation results", force, path)
+    if protocol is None and "calibration" not in session.results:
+        proto = None
+    else:
+        proto = stage_protocol(session, protocol, path)
+    kept = any(m is reference for m in session.markers.values())
+    if reference is not None and keep_reference and not kept:
+        name, n = reference.name, 2
+        while name in session.markers:
+            name, n = f"{reference.name}_{n}", n + 1
+        reference = dataclasses.replace(reference, name=name)
+        session.markers[name] = reference
+    return validate_session(
+        session,
+        reference,
+        marker_map,
+        proto,
+        mode or validation_mode(session),
+        sync=clock,
+        movement_only=movement_only,
+        estimator=estimator,
+        seed=seed,
+        static=static,
+    )
