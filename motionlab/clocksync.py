@@ -407,7 +407,7 @@ def synchronise(
 
     Each corrected stream's ``time`` is replaced and ``attrs["clock_sync"]`` records the fit (so
     the recorded stamps can be restored); ``session.results["clock_sync"]`` holds every fit. A
-    sensor whose own fit is not applied but whose reference was corrected gets the reference's
+    sensor whose own fit is not reliable but whose reference was corrected gets the reference's
     correction: its recorded timing relative to its neighbour is kept (a thigh moved while its
     shank stayed would misalign the knee by the thigh's whole correction).
     """
@@ -419,9 +419,12 @@ def synchronise(
         stream = session.sensors[label]
         fit = estimate_clock(session.sensors[ref], stream, max_offset_s)
         fits.append(fit)
-        # without a correction of its own, a sensor keeps its recorded timing relative to its
-        # reference, so it follows the reference's correction
-        use = fit if fit.status == "applied" else moved.get(ref)
+        # the fit is against the reference's corrected clock: "consistent with one clock" means
+        # the sensor already agrees with it; an unreliable fit tells nothing, so the sensor keeps
+        # its recorded timing relative to its reference and follows the reference's correction
+        use = fit if fit.status == "applied" else None
+        if fit.status.startswith("not reliable"):
+            use = moved.get(ref)
         if use is not None:
             attrs = dict(stream.attrs, clock_sync=asdict(use))
             session.sensors[label] = replace(
