@@ -4,7 +4,8 @@ For each seed, ``motionlab.simulate`` records the shipped ``walk`` protocol (a s
 gait with turns) or ``arm`` protocol (a stand, then free arm movement) with every sensor at a
 random orientation and place on its segment (``mounting="random"``), the ``typical`` sensor
 errors (every IMU on its own clock) and soft-tissue motion of the sensor on the segment
-(``soft_tissue="motion"``; ``--preset loose`` for the loose mounting). The session goes through
+(``soft_tissue="motion"``; ``--preset loose`` for the loose mounting; ``--shared-clock`` puts
+the IMUs on one clock, as a radio-synchronised system does). The session goes through
 the stages exactly as ``motionlab run`` chains them (:func:`motionlab.pipeline.analyse`: clock
 sync, 6-D fusion, calibration from the stand and the movement, angles, metrics), and every angle
 column is compared with the simulator's truth over the task (each joint read on its proximal
@@ -29,13 +30,14 @@ import time
 from collections import Counter
 
 import numpy as np
-from joint_angles import errors, true_clock
+from joint_angles import errors, shared_clock, true_clock
 
 from motionlab.kinematics.joint_types import angle_columns
 from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
 from motionlab.protocol import load_protocol
 from motionlab.segments import sensor_for_segment
 from motionlab.simulate import simulate
+from motionlab.simulate.errors import get_preset
 
 DURATION_S = {"walk": 74.0, "arm": 74.0}
 
@@ -51,7 +53,9 @@ def target(column: str) -> float:
 
 def run_one(job: tuple[str, int, str]) -> dict:
     """RMSE and grade per angle column of one simulated session through the product path."""
-    name, seed, preset = job
+    name, seed, preset, shared = job
+    if shared:
+        preset = shared_clock(get_preset(preset))
     protocol = load_protocol(name)
     session, truth = simulate(
         protocol, DURATION_S[name], seed, preset, mounting="random", soft_tissue="motion"
@@ -100,12 +104,23 @@ def main() -> None:
     ap.add_argument("--protocols", default="walk,arm")
     ap.add_argument("--seeds", default="0-9")
     ap.add_argument("--preset", default="typical")
+    ap.add_argument(
+        "--shared-clock",
+        action="store_true",
+        help="the IMUs on one clock (a radio-synchronised system), no clock offsets to sync",
+    )
     ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args()
-    jobs = [(p, s, args.preset) for p in args.protocols.split(",") for s in seeds_arg(args.seeds)]
+    jobs = [
+        (p, s, args.preset, args.shared_clock)
+        for p in args.protocols.split(",")
+        for s in seeds_arg(args.seeds)
+    ]
     with mp.get_context("spawn").Pool(args.workers) as pool:
         results = pool.map(run_one, jobs)
-    print(f"preset {args.preset}, random mountings, soft-tissue motion, seeds {args.seeds}")
+    clocks = "one shared clock" if args.shared_clock else "every IMU on its own clock"
+    print(f"preset {args.preset} ({clocks}), random mountings, soft-tissue motion, "
+          f"seeds {args.seeds}")  # fmt: skip
     print()
     print("| protocol | angle | target | mean | max | worst seed | grades (seeds) | ok |")
     print("|---|---|---:|---:|---:|---:|---|---|")
