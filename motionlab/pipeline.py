@@ -226,6 +226,9 @@ class PipelineOptions:
         Random seed of the stochastic steps (the validation's RANSAC clock fit).
     estimator
         Fusion estimator name (``motionlab fuse --list``; ``--filter``).
+    orientation
+        ``fused`` (default) or ``vendor``: use the orientation the sensors carry (the vendor's
+        fusion, an OpenSense ``.sto``) instead of fusing (:func:`motionlab.stages.fuse`).
     force
         Replace existing outputs.
     progress
@@ -240,6 +243,7 @@ class PipelineOptions:
     clock_sync: bool = stages_lib.CLOCK_SYNC
     seed: int = 0
     estimator: str = stages_lib.DEFAULT_ESTIMATOR
+    orientation: str = "fused"
     force: bool = False
     progress: bool = True
 
@@ -271,6 +275,7 @@ class PipelineOptions:
             + (["--calibration", str(self.calibration_dir)] if self.calibration_dir else [])
             + (["--seed", str(self.seed)] if self.seed else [])
             + (["--filter", self.estimator] if self.estimator != "default" else [])
+            + (["--orientation", self.orientation] if self.orientation != "fused" else [])
             + (["--magnetometer"] if self.magnetometer else [])
             + ([] if self.clock_sync else ["--no-clock-sync"])
         )
@@ -308,6 +313,7 @@ def analyse(session: Session, options: PipelineOptions, stages: _Stages | None =
             calibration_dir=options.calibration_dir,
             force=True,
             progress=_announce if stages.progress else None,
+            orientation=options.orientation,
         )
     with stages("calibrate"):
         cal = stages_lib.calibrate(session, protocol, force=True)

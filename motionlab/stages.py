@@ -135,9 +135,14 @@ def fuse(
     force: bool = False,
     path: Any = None,
     progress: Progress | None = None,
+    orientation: str = "fused",
 ) -> Fused:
     """Orientation of every sensor with gyroscope and accelerometer (of ``sensors``) by
     ``estimator``, stored in ``results["fusion"]`` (:func:`motionlab.fusion.stage.fuse_session`).
+
+    ``orientation="vendor"``: sensors that carry the vendor's own orientation (``quat``: an
+    Xsens export's, an OpenSense ``.sto``, Xsens DOT) keep it instead of being fused (entry
+    ``name: vendor``); the others are fused. Sessions without raw signals always use it.
 
     ``magnetometer``: 9-D where a sensor has one (default 6-D, :data:`MAGNETOMETER`).
     ``calibration_dir``: per-serial sensor calibrations (``motionlab sensorcal``) applied to the
@@ -151,10 +156,18 @@ def fuse(
         raise InputError(
             f"estimator '{estimator}' needs a magnetometer", remedy="add --magnetometer"
         )
+    if orientation not in ORIENTATIONS:
+        raise InputError(
+            f"unknown orientation source {orientation!r}", where="--orientation",
+            remedy=f"use one of {', '.join(ORIENTATIONS)}",
+        )  # fmt: skip
     prepare(session)
-    usable = fusable(session, sensors)
+    vendor: list[str] = []
+    if orientation == "vendor":
+        vendor = _vendor_orientations(session, sensors, force, path)
+    usable = [k for k in fusable(session, sensors) if k not in vendor]
     if not usable:
-        return Fused([])
+        return Fused(vendor)
     recorded, notes, calibrated = dict(session.sensors), {}, {}
     refs: dict[str, Any] = {}
     marker_info: dict[str, Any] = {}
@@ -187,7 +200,33 @@ def fuse(
         store[label]["markers"] = record
         seen = f"markers seen {100 * record['visible_fraction']:.0f} %"
         notes[label] = f"{notes[label]}, {seen}" if label in notes else seen
-    return Fused(done, notes)
+    return Fused(vendor + done, notes)
+
+
+ORIENTATIONS = ("fused", "vendor")
+
+
+def _vendor_orientations(
+    session: Session, sensors: list[str] | None, force: bool, path: Any
+) -> list[str]:
+    """Store the vendor's orientation of every sensor that has one as its fusion entry."""
+    import numpy as np
+
+    store = session.results.setdefault("fusion", {})
+    out = []
+    for label in sensors or list(session.sensors):
+        s = session.sensors[label]
+        if s.quat is None:
+            continue
+        if label in store and not force:
+            raise InputError(
+                "already has orientations", path, f"results/fusion/{label}",
+                "use --force to replace them",
+            )  # fmt: skip
+        # the vendor's fusion shares one earth frame between its sensors (9-D)
+        store[label] = {"name": "vendor", "quat": np.asarray(s.quat, float), "magnetometer": True}
+        out.append(label)
+    return out
 
 
 def _marker_references(

@@ -68,6 +68,13 @@ def _progress(labels: list[str], text: str) -> Iterator[str]:
     show_default=True,
     help="Use the magnetometers (9-D); the default fuses 6-D (gyr + acc), as motionlab run.",
 )
+@click.option(
+    "--orientation",
+    type=click.Choice(stages.ORIENTATIONS),
+    default="fused",
+    show_default=True,
+    help="'vendor': keep the orientation the sensors carry (their own fusion) instead of fusing.",
+)
 def command(
     session: str | None,
     name: str,
@@ -80,6 +87,7 @@ def command(
     with_markers: bool,
     markers_path: str | None,
     magnetometer: bool,
+    orientation: str,
 ) -> None:
     """Estimate each sensor's orientation (sensor → ENU earth) and store it in the session.
 
@@ -113,6 +121,8 @@ def command(
         )
     chosen = list(labels) or list(ses.sensors)
     usable = fusable(ses, chosen)
+    if orientation == "vendor":  # sensors with their own orientation need no raw signals
+        usable = [k for k in chosen if k in usable or ses.sensors[k].quat is not None]
     if labels and len(usable) < len(chosen):
         bad = sorted(set(chosen) - set(usable))
         raise InputError(
@@ -147,6 +157,7 @@ def command(
         force=force,
         path=session,
         progress=_progress,
+        orientation=orientation,
     )
     done, notes = fused.sensors, fused.notes
     with_refs = any("markers" in ses.results["fusion"][k] for k in done)
@@ -154,12 +165,14 @@ def command(
         parameters={"stage": "fuse", "filter": name, "params": parsed, "sensors": done}
         | ({"calibration": calibration} if calibration else {})
         | ({"with_markers": True, "markers": markers_path} if with_refs else {})
-        | {"magnetometer": magnetometer},
+        | {"magnetometer": magnetometer, "orientation": orientation},
         inputs=[session] + ([markers_path] if markers_path else []),
     )
     save_session(ses, output or session, force=True)
     for label in chosen:
         state = "fused" if label in done else "skipped (no gyr/acc)"
-        if label in done and not magnetometer:
+        if ses.results["fusion"].get(label, {}).get("name") == "vendor" and label in done:
+            state = "vendor orientation kept"
+        elif label in done and not magnetometer:
             state += " (6-D, no magnetometer)"
         click.echo(f"{label:<16} {state}" + (f", {notes[label]}" if label in notes else ""))

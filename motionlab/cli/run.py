@@ -52,6 +52,14 @@ from motionlab.pipeline import PipelineOptions, run_pipeline
     help="Fuse with the magnetometers (default 6-D: indoor fields turn headings mid-task).",
 )
 @click.option(
+    "--orientation",
+    type=click.Choice(stages.ORIENTATIONS),
+    default="fused",
+    show_default=True,
+    help="'vendor': use the orientation the sensors carry (their own fusion, a .sto) instead "
+    "of fusing; recordings with orientations only always do.",
+)
+@click.option(
     "--clock-sync/--no-clock-sync",
     default=stages.CLOCK_SYNC,
     show_default=True,
@@ -68,6 +76,7 @@ def command(
     calibration_dir,
     estimator,
     magnetometer,
+    orientation,
     clock_sync,
     outdir,
     seed,
@@ -88,6 +97,7 @@ def command(
           shank_r.txt shank_l.txt --reference gait.c3d -o results/P017
       motionlab run --protocol knee sim.h5 -o results/sim
       motionlab run --protocol knee sim.h5 --filter madgwick -o results/sim_madgwick
+      motionlab run --protocol walk --map map.yaml trial.sto --orientation vendor -o results/sto
     """
     options = PipelineOptions(
         protocol=protocol,
@@ -98,6 +108,7 @@ def command(
         clock_sync=clock_sync,
         seed=seed,
         estimator=estimator,
+        orientation=orientation,
         force=force,
         progress=not quiet,
     )
