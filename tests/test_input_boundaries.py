@@ -243,3 +243,25 @@ def test_yaml_map_problems(tmp_path):
     refused(cli(tmp_path, "ingest", "in.txt", "--map", "m.yaml", "-o", "o.h5"),
             "did you mean 'side'")  # fmt: skip
     assert json.dumps({"ok": True})
+
+
+def test_simulate_never_writes_over_its_protocol_or_one_output_over_another(tmp_path):
+    from click.testing import CliRunner
+
+    from motionlab.cli import main
+    from motionlab.protocol import PACKAGED
+
+    proto = tmp_path / "walk.yaml"
+    proto.write_bytes((PACKAGED / "walk.yaml").read_bytes())
+    before = proto.read_bytes()
+    res = CliRunner().invoke(
+        main, ["simulate", "--protocol", str(proto), "--duration", "5", "-o", str(proto), "--force"]
+    )
+    assert res.exit_code == 2 and "also an input" in res.output
+    assert proto.read_bytes() == before
+    out = tmp_path / "s.h5"
+    res = CliRunner().invoke(
+        main, ["simulate", "--protocol", "walk", "--duration", "5", "-o", str(out),
+               "--truth", str(out)],
+    )  # fmt: skip
+    assert res.exit_code == 2 and not out.exists()

@@ -90,9 +90,12 @@ def command(
             raise InputError(f"unknown value {value!r}", where=option,
                              remedy=f"use one of {', '.join(allowed)}")  # fmt: skip
     resolve_protocol_path(protocol)
+    protocol_file = protocol if Path(protocol).is_file() else None
+    outputs: list[str] = []
     for path in (output, truth_path, markers_path):
-        if path:
-            check_output(path, force)
+        if path:  # never over the protocol, nor one output over another
+            check_output(path, force, inputs=[protocol_file, *outputs])
+            outputs.append(path)
     if truth_csv and Path(truth_csv).exists() and not Path(truth_csv).is_dir():
         raise InputError("is not a folder", truth_csv, remedy="give a folder for the CSV tables")
     session, truth = simulate(
