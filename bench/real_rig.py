@@ -52,6 +52,7 @@ from motionlab import rotations as rot  # noqa: E402
 from motionlab.errors import InputError  # noqa: E402
 from motionlab.fusion import estimate  # noqa: E402
 from motionlab.io import generic  # noqa: E402
+from motionlab.kinematics.joint_angles import decompose  # noqa: E402
 from motionlab.protocol import axis_vector  # noqa: E402
 from motionlab.segments.heading import apply_heading, heading_from_hinge, heading_track  # noqa: E402
 from motionlab.segments.hinge import hinge_axes  # noqa: E402
@@ -60,9 +61,7 @@ from motionlab.validation.align import align  # noqa: E402
 from motionlab.validation.joint_reference import (  # noqa: E402
     agreement_metrics,
     fit_clock_offset,
-    hinge_angle,
     read_orientation_csv,
-    relative_angles,
     wrap_deg,
 )
 from motionlab.validation.optical import angular_velocity, resample_quat  # noqa: E402
@@ -180,7 +179,7 @@ def hinge_by_hand(t, imu, quats, rate, prox, dist, axis, align_heading: bool) ->
         times = [t[s + win // 2] for s in starts]
         deltas = [heading_from_hinge(q_p[s : s + win], q_d[s : s + win], e, e) for s in starts]
         q_d = apply_heading(q_d, heading_track(np.array(times), np.array(deltas), t))
-    return np.degrees(hinge_angle(q_p, q_d, axis))
+    return np.degrees(decompose(q_p, q_d, "hinge", axis=axis)[:, 0])
 
 
 def fuse_all(imu: dict, rate: float, has_vqf: bool) -> dict[str, dict[str, np.ndarray]]:
@@ -251,9 +250,10 @@ def main(argv: list[str] | None = None) -> int:
         has_vqf = False
     t_opt, q_opt = read_orientation_csv(omc)
     ref_hinge = {
-        j: np.degrees(hinge_angle(q_opt[p], q_opt[d], a)) for j, (p, d, a) in HINGES.items()
+        j: np.degrees(decompose(q_opt[p], q_opt[d], "hinge", axis=a)[:, 0])
+        for j, (p, d, a) in HINGES.items()
     }
-    ref_ball = np.degrees(relative_angles(q_opt[BALL[1]], q_opt[BALL[2]], BALL[3]))
+    ref_ball = np.degrees(decompose(q_opt[BALL[1]], q_opt[BALL[2]], "ball", sequence=BALL[3]))
     header = ("| mounting | variant | column | RMSE (deg) | RMSE offset-free | max abs offset-free "
               "| r | sign | grade | note |\n|---|---|---|---|---|---|---|---|---|---|")  # fmt: skip
     rows, heading_rows, clocks = [], [], []

@@ -237,6 +237,11 @@ def _insert_rows(a: np.ndarray, before: np.ndarray, rows: np.ndarray) -> np.ndar
     return np.concatenate([*pieces, a[prev:]])
 
 
+def interp_columns(t_new: np.ndarray, t: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Each column of ``x`` (sampled at ``t``) linearly interpolated at ``t_new``."""
+    return np.column_stack([np.interp(t_new, t, x[:, k]) for k in range(x.shape[1])])
+
+
 def regular_grid(t0: float, t1: float, rate: float) -> np.ndarray:
     """Instants ``k / rate`` (k integer) inside ``[t0, t1]``: the same clock for every stream."""
     k0, k1 = int(np.ceil(t0 * rate - 1e-9)), int(np.floor(t1 * rate + 1e-9))

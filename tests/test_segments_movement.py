@@ -67,7 +67,7 @@ def test_axes_signs_and_verdict_recovered_from_any_mounting(seed):
     (prox, dist), (j_p, j_d) = hinge_recording(seed)
     # the nominal placement is of no help: a random prior, even the wrong way round
     prior = np.array([1.0, 0.0, 0.0])
-    fit = fit_hinge("knee_r", prox, dist, prior, -prior, None, (0.5, 2.5), anatomical=True)
+    fit = fit_hinge("knee_r", prox, dist, prior, -prior, (0.5, 2.5), anatomical=True)
     assert _deg(fit.axis_proximal, j_p) < 1.0
     assert _deg(fit.axis_distal, j_d) < 1.0
     assert fit.sign == "anatomy" and fit.relative_sign == "measured"
@@ -78,7 +78,7 @@ def test_axes_signs_and_verdict_recovered_from_any_mounting(seed):
 
 def test_without_a_stand_the_sign_follows_the_hint_and_is_weak():
     (prox, dist), (j_p, j_d) = hinge_recording(3)
-    fit = fit_hinge("knee_r", prox, dist, -j_p, -j_d, None, None, anatomical=True)
+    fit = fit_hinge("knee_r", prox, dist, -j_p, -j_d, None, anatomical=True)
     assert _deg(fit.axis_proximal, -j_p) < 1.0  # the hint's (wrong) direction, said so
     assert fit.sign == "nominal" and fit.verdict == "weak"
     assert any("nominal placement" in r for r in fit.reasons)
@@ -87,7 +87,7 @@ def test_without_a_stand_the_sign_follows_the_hint_and_is_weak():
 def test_a_sensor_that_slips_is_not_determined():
     (prox, dist), _ = hinge_recording(4, duration=60.0, second_axis=True)
     prior = np.array([0.0, 0.0, 1.0])
-    fit = fit_hinge("knee_r", prox, dist, prior, prior, None, (0.5, 2.5), anatomical=True)
+    fit = fit_hinge("knee_r", prox, dist, prior, prior, (0.5, 2.5), anatomical=True)
     assert fit.verdict != "determined"
     assert fit.consistency_deg > 5.0
 

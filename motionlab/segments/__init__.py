@@ -27,6 +27,7 @@ from motionlab.protocol import Protocol, axis_vector
 from motionlab.segments import grades, heading, mounting, placement
 from motionlab.segments.steps import find_steps
 from motionlab.session import Session
+from motionlab.timebase import interp_columns
 
 Streams = dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
 
@@ -95,14 +96,16 @@ def signals_from_orientation(
     quaternions, a vendor's fusion) stands in with for calibration: gravity along the earth
     vertical seen in the sensor frame (m/s², the specific force at rest; the vendor's own
     estimate of it) and the body-frame angular velocity of the orientation series (rad/s,
-    central differences). ``q`` maps sensor to the Z-up earth frame."""
+    :func:`motionlab.validation.optical.angular_velocity` at the sample times). ``q`` maps
+    sensor to the Z-up earth frame."""
+    from motionlab.validation.optical import angular_velocity
+
     q = rot.make_continuous(q)
     acc = gravity * rot.rotate(rot.conj(q), np.broadcast_to([0.0, 0.0, 1.0], (len(q), 3)))
     gyr = np.zeros((len(q), 3))
-    if len(q) > 2:
-        step = rot.to_rotvec(rot.mul(rot.conj(q[:-2]), q[2:])) / (t[2:] - t[:-2])[:, None]
-        gyr[1:-1] = step
-        gyr[0], gyr[-1] = step[0], step[-1]
+    if len(q) > 1:
+        mid, rates = angular_velocity(t, q)
+        gyr = interp_columns(t, mid, rates)
     return t, acc, gyr
 
 
@@ -127,9 +130,6 @@ def calibrate(
         res = mounting.fit(seg, protocol, records[seg])
         res["sensor"] = sensor_for_segment(session, seg)
         segments[seg] = res
-    for seg in placement.anterior_from_neighbours(session, protocol, segments, centres, steps):
-        refit = mounting.fit(seg, protocol, segments[seg]["axes"])
-        segments[seg] = refit | {"sensor": segments[seg]["sensor"]}
     for seg, names in unsure.items():
         q = segments[seg]["quality"]
         q["messages"].append(
@@ -158,8 +158,7 @@ def calibrate(
         "warnings": notes,
         "ok": all(s["quality"]["ok"] for s in segments.values()),
     }
-    axes = {n: (placement.hinge_spec(j) or (None,))[0] for n, j in protocol.joints.items()}
-    result["grades"] = grades.grade_joints(protocol, result, axes)
+    result["grades"] = grades.grade_joints(protocol, result)
     return result
 
 
@@ -246,12 +245,11 @@ def segment_orientations(
     for a joint calibrated from movement the hinge constraint over the whole recording
     (:func:`.heading.hinge_anchors`), or the headings fitted with a two-axis joint's axes or
     from a ball joint's shared centre (added to the track its proximal segment was turned by);
-    otherwise the anchors of the
-    protocol's steps and rests (:func:`heading_anchors`). Without a calibration entry for a
-    segment its sensor frame is used as the segment frame. ``corrections``, when given, receives
-    per joint the heading correction applied: ``source`` (``hinge``, ``two_axes``, ``centre``,
-    ``steps``),
-    the number of ``anchors``, and the correction's mean, range and drift (degrees, °/min).
+    otherwise the anchors of the protocol's steps and rests (:func:`heading_anchors`). Without a
+    calibration entry for a segment its sensor frame is used as the segment frame.
+    ``corrections``, when given, receives per joint the heading correction applied: ``source``
+    (``hinge``, ``two_axes``, ``centre``, ``steps``), the number of ``anchors``, and the
+    correction's mean, range and drift (degrees, °/min).
     """
     out = {}
     for seg, (t, q) in sensor_quats.items():
@@ -260,7 +258,6 @@ def segment_orientations(
         out[seg] = (t, rot.make_continuous(rot.mul(q, q_mount)))
     if not align_heading:
         return out
-    steps = calibration.get("steps", {})
     turned: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # segment: (time, δ applied)
     for joint in chain_order(protocol):
         p, d = joint.proximal, joint.distal
@@ -268,27 +265,9 @@ def segment_orientations(
             continue
         tp, qp = out[p]
         td, qd = out[d]
-        fit = calibration.get("hinges", {}).get(joint.name)
-        if fit is not None and fit.get("used_for", "axes") != "axes":
-            fit = None  # the steps measured this joint's axes: their anchors tie its heading
-        centre = calibration.get("centres", {}).get(joint.name)
-        if fit is None and centre is not None:
-            fit = {"verdict": "determined", "kind": "centre"} | centre
-        if fit is not None and fit["verdict"] != "not determined" and "heading_times" in fit:
-            source = fit.get("kind", "two_axes")
-            times = np.asarray(fit["heading_times"], float)
-            deltas = np.asarray(fit["heading_deltas"], float)
-            if p in turned:  # the fit was made on the proximal sensor's own heading
-                deltas = deltas + np.interp(times, *turned[p])
-        else:
-            qd_on_p = rot.resample(td, qd, tp)
-            if fit is not None and fit["verdict"] != "not determined":
-                source = "hinge"
-                axis = axis_vector(placement.hinge_spec(joint)[0])
-                times, deltas = heading.hinge_anchors(tp, qp, qd_on_p, axis, axis)
-            else:
-                source = "steps"
-                times, deltas = heading_anchors(protocol, joint, steps, tp, qp, qd_on_p)
+        source, times, deltas = _joint_ties(protocol, calibration, joint, tp, qp, td, qd)
+        if source in ("two_axes", "centre") and p in turned:
+            deltas = deltas + np.interp(times, *turned[p])  # fitted on the proximal's own heading
         if len(times):
             track = heading.heading_track(np.array(times), np.array(deltas), td)
             out[d] = (td, rot.make_continuous(heading.apply_heading(qd, track)))
@@ -296,6 +275,29 @@ def segment_orientations(
         if corrections is not None:
             corrections[joint.name] = _correction(source, times, deltas, td)
     return out
+
+
+def _joint_ties(protocol: Protocol, calibration: dict[str, Any], joint, tp, qp, td, qd):
+    """``(source, times s, δ rad)`` of one joint's heading anchors (see
+    :func:`segment_orientations`): the headings stored with a two-axis fit or a ball joint's
+    centre, the hinge over the whole recording, or the steps' anchors."""
+    fit = calibration.get("hinges", {}).get(joint.name)
+    if fit is not None and (
+        fit.get("used_for", "axes") != "axes" or fit["verdict"] == "not determined"
+    ):
+        fit = None  # the steps measured the axes, or the movement did not: the steps' anchors
+    stored = fit if fit is not None and "heading_times" in fit else None
+    if fit is None:
+        stored = calibration.get("centres", {}).get(joint.name)
+    if stored is not None:
+        times = np.asarray(stored["heading_times"], float)
+        return ("two_axes" if fit else "centre"), times, np.asarray(stored["heading_deltas"], float)
+    qd_on_p = rot.resample(td, qd, tp)
+    if fit is not None:
+        axis = axis_vector(placement.hinge_spec(joint)[0])
+        return ("hinge", *heading.hinge_anchors(tp, qp, qd_on_p, axis, axis))
+    steps = calibration.get("steps", {})
+    return ("steps", *heading_anchors(protocol, joint, steps, tp, qp, qd_on_p))
 
 
 def _correction(source: str, times, deltas, t: np.ndarray) -> dict[str, Any]:

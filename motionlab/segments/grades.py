@@ -8,8 +8,7 @@ Each angle of each joint is graded from what its two segments' calibrations actu
   two independent measured axes (a static pose's gravity, a movement's axis) with no quality
   message;
 - ``weak``: one measured axis and the nominal placement (the protocol's ``sensor_axes`` hint)
-  or the neighbours' forward direction in the stand (the pelvis from the thighs) for the rest,
-  a ``weak`` hinge fit, or a calibration the quality checks flagged;
+  for the rest, a ``weak`` hinge fit, or a calibration the quality checks flagged;
 - ``not determined``: a segment with no measured axis at all, or a failed or inconsistent fit.
 
 The reason is kept in plain words with each grade. The grades depend on the calibration only:
@@ -38,17 +37,12 @@ def _frame_grade(segment: str, cal: dict[str, Any] | None) -> tuple[str, str]:
         return "not determined", f"no axis of {segment} was measured (nominal placement only)"
     if method not in FULL_FRAME:
         return "weak", f"{segment}'s frame has one measured axis, the rest is the nominal placement"
-    if "neighbours" in cal.get("axes", {}):
-        return "weak", (
-            f"{segment}'s forward direction is taken from its neighbours' in the stand, not "
-            "measured on it"
-        )
     if not cal.get("quality", {}).get("ok", True):
         return "weak", f"the calibration of {segment} was flagged"
     return "determined", ""
 
 
-def _axis_grade(joint, calibration: dict[str, Any], hinge_axis: str | None) -> tuple[str, str]:
+def _axis_grade(joint, calibration: dict[str, Any]) -> tuple[str, str]:
     """Grade of the angle about a hinge axis: the axis measured in both segments."""
     fit = calibration.get("hinges", {}).get(joint.name)
     if fit is not None and fit.get("used_for", "axes") == "axes":
@@ -72,12 +66,12 @@ def _axis_grade(joint, calibration: dict[str, Any], hinge_axis: str | None) -> t
     return grade, reason
 
 
-def grade_joints(protocol, calibration: dict[str, Any], hinge_axes: dict[str, str | None]):
-    """``{joint: {"grades": [3 str], "reasons": [3 str]}}`` for every protocol joint.
+def grade_joints(protocol, calibration: dict[str, Any]) -> dict[str, dict[str, list[str]]]:
+    """``{joint: {"grades": [3 str], "reasons": [3 str]}}`` for every protocol joint; the first
+    angle of a hinge-like joint (knee, elbow, hinge: :func:`.placement.hinge_spec`) is graded by
+    its axis alone."""
+    from motionlab.segments.placement import hinge_spec
 
-    ``hinge_axes`` maps a joint name to its hinge axis (segment coordinates) when the joint's
-    first angle is about one (knee, elbow, hinge), else ``None``.
-    """
     out = {}
     segs = calibration.get("segments", {})
     for name, joint in protocol.joints.items():
@@ -93,8 +87,8 @@ def grade_joints(protocol, calibration: dict[str, Any], hinge_axes: dict[str, st
             g_frame = _worse(g_frame, fit["verdict"])
             r_frame = "; ".join(filter(None, [r_frame, "the hinge axis from movement is "
                                               + fit["verdict"]]))  # fmt: skip
-        if hinge_axes.get(name):
-            g_axis, r_axis = _axis_grade(joint, calibration, hinge_axes[name])
+        if hinge_spec(joint) is not None:
+            g_axis, r_axis = _axis_grade(joint, calibration)
             grades = [g_axis, g_frame, g_frame]
             reasons = [r_axis, r_frame, r_frame]
         else:

@@ -42,6 +42,7 @@ from motionlab.segments.functional import functional_axis, orient
 from motionlab.segments.hinge import hinge_axes
 from motionlab.segments.static import gravity_axis
 from motionlab.session import estimate_rate
+from motionlab.timebase import interp_columns
 
 HINGE_MIN_MOTION = 0.2
 GYR_LOWPASS_HZ = 4.0  # functional movements are slower; soft-tissue wobble is 10-20 Hz
@@ -105,7 +106,7 @@ def _hinge(protocol, step, joint, streams, rng) -> tuple[np.ndarray | None, np.n
     tp, _, gp = streams[joint.proximal]
     td, _, gd = streams[joint.distal]
     sel = (tp >= rng[0]) & (tp <= rng[1])
-    gd_at = np.column_stack([np.interp(tp[sel], td, gd[:, k]) for k in range(3)])
+    gd_at = interp_columns(tp[sel], td, gd)
     seg_axis = axis_vector(step.axis[joint.distal])
     prior_p = protocol.segments[joint.proximal].nominal_mounting().T @ seg_axis
     prior_d = protocol.segments[joint.distal].nominal_mounting().T @ seg_axis

@@ -9,16 +9,20 @@ flexion) on gyroscopes low-passed at ``LOWPASS_HZ``.
 
 The constraint leaves the sign of each axis free. They are fixed in two steps:
 
-1. **Relative sign** (both axes the same physical direction): the axis seen from both segments
-   is one vector, so its *vertical* component is the same from both sides at every sample,
-   whatever the (6-D, unknown) headings. Of ``±j_distal`` the one whose vertical component
-   follows the proximal's is kept (:func:`relative_sign`); where the axis stays horizontal
-   (a seated knee flexion) the test cannot tell and the nominal placement decides.
-2. **Absolute sign** (which way is flexion): for joints the table marks anatomical (knee,
-   elbow), the angle about the axis, integrated from the reference pose (standing: knee straight,
-   arm hanging), is one-sided: the knee and elbow flex far one way and hardly hyperextend. The
-   direction with the larger excursion is flexion (:func:`anatomical_sign`). Otherwise the
-   nominal placement (the protocol's ``sensor_axes`` hint) decides.
+1. **Relative sign** (both axes the same physical direction), whichever of two tests is surer:
+   the axis' vertical components seen from both sensors rise and fall together whatever the
+   (6-D, unknown) headings (:func:`relative_sign`); and with the wrong sign the hinge-tied
+   headings are half a turn off, so the relative rotation swings off the axis as the proximal
+   segment tilts (:func:`swing_sign`). When neither tells (an axis that stays horizontal, as in
+   a seated knee flexion), the nominal placement decides.
+2. **Absolute sign** (which way is flexion): for joints that flex one way (knee, elbow), the
+   angle about the axis since the reference pose (standing: knee straight, arm hanging), from
+   the hinge-tied relative orientation, reaches far one way and hardly the other; that way is
+   flexion (:func:`anatomical_sign`). Otherwise the nominal placement (the protocol's
+   ``sensor_axes`` hint) decides.
+
+The elbow turns about two axes, flexion fixed in the upper arm and pronation in the forearm:
+:func:`fit_two_dof` fits both with the heading offsets between the two sensors.
 
 A verdict comes from the fit's own numbers: the RMS residual relative to the RMS of the
 perpendicular angular rate, and the consistency of the axes fitted on ``N_PARTS`` consecutive
@@ -36,6 +40,7 @@ from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.segments.hinge import hinge_axes
 from motionlab.session import estimate_rate
+from motionlab.timebase import interp_columns
 
 LOWPASS_HZ = 6.0
 ROBUST_SCALE_RAD_S = 0.1
@@ -105,10 +110,6 @@ def _lowpass(x: np.ndarray, rate: float) -> np.ndarray:
 
 def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.degrees(np.arccos(np.clip(abs(float(a @ b)), 0.0, 1.0))))
-
-
-def _on(t: np.ndarray, td: np.ndarray, x: np.ndarray) -> np.ndarray:
-    return np.column_stack([np.interp(t, td, x[:, k]) for k in range(x.shape[1])])
 
 
 def relative_sign(
@@ -224,7 +225,6 @@ def fit_hinge(
     distal: tuple[np.ndarray, np.ndarray, np.ndarray],
     prior_p: np.ndarray,
     prior_d: np.ndarray,
-    window: tuple[float, float] | None = None,
     reference: tuple[float, float] | None = None,
     anatomical: bool = False,
 ) -> HingeFit:
@@ -232,15 +232,11 @@ def fit_hinge(
 
     ``proximal`` and ``distal`` are ``(time s, gyr rad/s (N, 3), q_sensor (N, 4))``; ``prior_*``
     are the axis (positive direction) in sensor coordinates under the nominal placement;
-    ``window`` limits the samples used (s); ``reference`` is a still window in the joint's zero
-    pose (for the anatomical sign).
+    ``reference`` is a still window (s) in the joint's zero pose (for the anatomical sign).
     """
     tp, gp, qp = proximal
     td, gd, qd = distal
-    sel = np.ones(len(tp), bool)
-    if window is not None:
-        sel = (tp >= window[0]) & (tp <= window[1])
-    sel &= (tp >= td[0]) & (tp <= td[-1])
+    sel = (tp >= td[0]) & (tp <= td[-1])
     t = tp[sel]
     if len(t) < 3 * MIN_PART_SAMPLES:
         raise InputError(
@@ -249,7 +245,7 @@ def fit_hinge(
         )
     rate = estimate_rate(t)
     g1 = _lowpass(gp[sel], rate)
-    g2 = _lowpass(_on(t, td, gd), rate)
+    g2 = _lowpass(interp_columns(t, td, gd), rate)
     q1 = qp[sel]
     q2 = rot.resample(td, qd, t)
     active = np.maximum(np.linalg.norm(g1, axis=1), np.linalg.norm(g2, axis=1))
@@ -475,7 +471,7 @@ def fit_two_dof(
     q1 = qp[sel]
     q2 = rot.resample(td, qd, t)
     w1 = rot.rotate(q1, _lowpass(gp[sel], rate))
-    w2 = rot.rotate(q2, _lowpass(_on(t, td, gd), rate))
+    w2 = rot.rotate(q2, _lowpass(interp_columns(t, td, gd), rate))
     active = np.linalg.norm(w1 - w2, axis=1)  # heading offsets do not matter for a threshold
     speed = np.maximum(np.linalg.norm(w1, axis=1), np.linalg.norm(w2, axis=1))
     if not np.percentile(speed, 95) >= MIN_ACTIVE_RAD_S:

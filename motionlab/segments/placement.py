@@ -93,7 +93,7 @@ def movement_hinges(
                 )  # fmt: skip
             else:
                 fit = movement.fit_hinge(
-                    name, side[p], side[d], prior_p, prior_d, None, reference, spec[1]
+                    name, side[p], side[d], prior_p, prior_d, reference, spec[1]
                 )
         except InputError as exc:
             fits[name] = movement.failed(name, exc.message)
@@ -239,74 +239,3 @@ def centre_headings(
         if len(times):
             out[name] = {"heading_times": times, "heading_deltas": deltas, "anchors": len(times)}
     return out
-
-
-def anterior_from_neighbours(
-    session: Session,
-    protocol: Protocol,
-    segments: dict[str, dict[str, Any]],
-    centres: dict[str, dict[str, Any]],
-    steps: dict[str, Any],
-) -> list[str]:
-    """The rotation about the vertical of segments fixed by gravity alone (the pelvis), from
-    the segments hanging from them through a centre-tied joint (the thighs, whose frames their
-    knees fixed): in the reference pose (standing) their anterior axes point the same way.
-
-    For each such segment, the distal neighbours' anterior axes (x) in the reference window,
-    turned into the segment sensor's earth frame by the joint's heading tie, are averaged in
-    the segment's sensor coordinates and added as a secondary record ``neighbours`` (kind
-    ``movement``); the caller refits. Returns the segments so completed.
-    """
-    from motionlab import rotations as rot
-    from motionlab.kinematics.session_angles import sensor_orientation
-    from motionlab.segments import heading, reference_step, sensor_for_segment
-
-    done = []
-    x = np.array([1.0, 0.0, 0.0])
-    for seg, cal in segments.items():
-        if cal["method"] not in ("single_axis", "nominal"):
-            continue
-        joints = [
-            j for j in protocol.joints.values()
-            if j.proximal == seg and j.name in centres
-            and segments.get(j.distal, {}).get("method") in ("procrustes", "primary_secondary")
-        ]  # fmt: skip
-        if not joints:
-            continue
-        name = reference_step(protocol, seg, joints[0].distal)
-        window = steps.get(name) if name else None
-        if window is None:
-            continue
-        label = sensor_for_segment(session, seg)
-        t = session.sensors[label].time
-        sel = (t >= window[0]) & (t <= window[1])
-        if sel.sum() < 3:
-            continue
-        r_seg = rot.to_matrix(rot.mean(sensor_orientation(session, label)[sel]))
-        votes = []
-        for j in joints:
-            lab_d = sensor_for_segment(session, j.distal)
-            t_d = session.sensors[lab_d].time
-            q_d = rot.resample(t_d, sensor_orientation(session, lab_d), t[sel])
-            c = centres[j.name]
-            track = heading.heading_track(c["heading_times"], c["heading_deltas"], t[sel])
-            q_d = heading.apply_heading(q_d, track)
-            x_d = rot.rotate(q_d, np.broadcast_to(rot.rotate(segments[j.distal]["mounting"], x),
-                                                  (sel.sum(), 3)))  # fmt: skip
-            votes.append(r_seg.T @ x_d.mean(axis=0))
-        v = np.mean(votes, axis=0)
-        if np.linalg.norm(v) < 1e-6:
-            continue
-        cal["axes"]["neighbours"] = {
-            "step": "neighbours",
-            "kind": "movement",
-            "method": "hinge",
-            "sensor_axis": v / np.linalg.norm(v),
-            "segment_axis": x,
-            "rho": 0.6,
-            "reference_rho": None,
-            "joint_movement": False,
-            "secondary": True,
-        }
-        done.append(seg)
-    return done

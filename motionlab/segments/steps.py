@@ -21,11 +21,11 @@ shorter than ``TWITCH_S`` during a pose do not end it. Steps are then matched in
   (the fastest of them at least ``LEAD_FRACTION`` of the fastest sensor's mean rate, and each
   of them at least ``MOVE_FRACTION`` of it). An optional step may not have been recorded at
   all, so a block must also look like it: some sensor outside its segments nearly still (not a
-  whole-body task such as walking; segments carried along, like the shank in a straight-leg hip
-  flexion, may move), a length within ``DURATION_RANGE`` × its ``duration_s``,
-  every named segment turning about its named axis (within ``AXIS_TOLERANCE_DEG`` of the
-  nominal placement's), and segments named with the same axis turning as one (their rates
-  within ``RIGID_TOLERANCE`` of each other: the knee locked in a straight-leg hip flexion, not
+  whole-body task such as walking; segments carried along, like the shank in a straight-leg
+  hip flexion, may move), a length within ``DURATION_RANGE`` × its ``duration_s``, every named
+  segment turning about its named axis (within ``AXIS_TOLERANCE_DEG`` of the nominal
+  placement's), and segments named with the same axis turning as one (their rates within
+  ``RIGID_TOLERANCE`` of each other: the knee locked in a straight-leg hip flexion, not
   flexing as in gait).
 
 A step's ``time_range`` in the protocol overrides detection. Required steps that are not found
@@ -53,6 +53,7 @@ from scipy.signal import butter, sosfiltfilt
 from motionlab.errors import InputError
 from motionlab.protocol import CalibrationStep, Protocol, axis_vector
 from motionlab.segments.functional import functional_axis
+from motionlab.timebase import interp_columns
 
 GRID_HZ = 50.0
 LOWPASS_HZ = 2.0
@@ -85,14 +86,12 @@ class Block:
     norms: dict[str, np.ndarray]  # low-passed gyro norm per segment on the 50 Hz grid (rad/s)
 
 
-def _resample(t: np.ndarray, x: np.ndarray, grid: np.ndarray) -> np.ndarray:
-    return np.column_stack([np.interp(grid, t, x[:, k]) for k in range(x.shape[1])])
-
-
 def _rate(t: np.ndarray, gyr: np.ndarray, grid: np.ndarray) -> np.ndarray:
     """Low-passed gyro norm (rad/s) on ``grid``, less the bias: the median over the quietest
     ``BIAS_QUANTILE`` of the samples, when it is small enough to be one (``MAX_BIAS_RAD_S``)."""
-    slow = sosfiltfilt(butter(2, LOWPASS_HZ, fs=GRID_HZ, output="sos"), _resample(t, gyr, grid), 0)
+    slow = sosfiltfilt(
+        butter(2, LOWPASS_HZ, fs=GRID_HZ, output="sos"), interp_columns(grid, t, gyr), 0
+    )
     norm = np.linalg.norm(slow, axis=1)
     bias = np.median(slow[norm <= np.quantile(norm, BIAS_QUANTILE)], axis=0)
     if np.linalg.norm(bias) < MAX_BIAS_RAD_S:
@@ -127,7 +126,7 @@ def blocks(streams: Streams) -> list[Block]:
         raise InputError("the sensors overlap by less than 1 s", remedy="check the clocks")
     grid = np.arange(start, end, 1.0 / GRID_HZ)
     rate = {seg: _rate(t, gyr, grid) for seg, (t, _, gyr) in streams.items()}
-    up = {seg: _resample(t, acc, grid) for seg, (t, acc, _) in streams.items()}
+    up = {seg: interp_columns(grid, t, acc) for seg, (t, acc, _) in streams.items()}
     moving = moving_mask(np.max(np.vstack(list(rate.values())), axis=0))
     edges = np.flatnonzero(np.diff(moving.astype(int))) + 1
     out = []

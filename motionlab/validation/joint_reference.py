@@ -5,9 +5,8 @@ columns ``<segment>_quat_{w,x,y,z}``, NaN where tracking was lost):
 
 - :func:`read_orientation_csv` reads them with the generic reader (rate from ``rate_hz`` or a
   comment line such as ``# sampling frequency: 30``; time = row / rate, s);
-- :func:`relative_angles` decomposes ``q_rel = q_prox* ⊗ q_dist`` with an intrinsic sequence,
-  :func:`hinge_angle` takes the angle about a hinge axis (the axis first: x → ``XYZ``,
-  y → ``YZX``, z → ``ZXY``);
+- their joint angles come from :func:`motionlab.kinematics.joint_angles.decompose`, as the
+  IMU's do (a hinge's angle about its axis; a ball joint's with its sequence);
 - :func:`fit_clock_offset` finds the constant offset between two clocks from signals both see
   (angles or angular speeds) by correlation over a bounded search;
 - :func:`agreement_metrics` gives RMSE, offset-free RMSE, max error, Pearson r and the sign.
@@ -22,12 +21,10 @@ from pathlib import Path
 
 import numpy as np
 
-from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.io import generic
 from motionlab.io.text import first_content_line, read_lines
 
-HINGE_SEQUENCES = {"x": "XYZ", "y": "YZX", "z": "ZXY"}
 _QUAT = re.compile(r"^(.+)_quat_w$")
 
 
@@ -57,25 +54,6 @@ def read_orientation_csv(
         options["rate_hz"] = rate_hz
     rec = generic.read(path, options)
     return rec.sensors[0].time, {s.label: s.quat for s in rec.sensors}
-
-
-def relative_angles(q_prox: np.ndarray, q_dist: np.ndarray, sequence: str) -> np.ndarray:
-    """Intrinsic ``sequence`` angles (N, 3) rad of ``q_prox* ⊗ q_dist``; NaN rows where missing."""
-    q_rel = np.atleast_2d(rot.mul(rot.conj(q_prox), q_dist))
-    bad = ~np.isfinite(q_rel).all(axis=1) | ~(np.linalg.norm(q_rel, axis=1) > 0)
-    q_rel = np.where(bad[:, None], rot.IDENTITY, q_rel)
-    out = rot.to_scipy(q_rel).as_euler(sequence.upper())
-    out[bad] = np.nan
-    return out
-
-
-def hinge_angle(q_prox: np.ndarray, q_dist: np.ndarray, axis: str) -> np.ndarray:
-    """Angle (N,) rad of the distal segment about the hinge ``axis`` (x, y, z, optional '-')."""
-    sign = -1.0 if axis.startswith("-") else 1.0
-    letter = axis.lstrip("+-").lower()
-    if letter not in HINGE_SEQUENCES:
-        raise InputError(f"hinge axis {axis!r} is not x, y or z", remedy="give x, y, z or -x …")
-    return sign * relative_angles(q_prox, q_dist, HINGE_SEQUENCES[letter])[:, 0]
 
 
 def _as_2d(x: np.ndarray) -> np.ndarray:
