@@ -238,8 +238,14 @@ def _insert_rows(a: np.ndarray, before: np.ndarray, rows: np.ndarray) -> np.ndar
 
 
 def interp_columns(t_new: np.ndarray, t: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """Each column of ``x`` (sampled at ``t``) linearly interpolated at ``t_new``."""
-    return np.column_stack([np.interp(t_new, t, x[:, k]) for k in range(x.shape[1])])
+    """Each column of ``x`` (sampled at ``t``) linearly interpolated at ``t_new`` from its
+    finite samples (across NaN spans; a column with fewer than two is NaN)."""
+    out = np.full((len(t_new), x.shape[1]), np.nan)
+    for k in range(x.shape[1]):
+        ok = np.isfinite(x[:, k]) & np.isfinite(t)
+        if ok.sum() >= 2:
+            out[:, k] = np.interp(t_new, t[ok], x[ok, k])
+    return out
 
 
 def regular_grid(t0: float, t1: float, rate: float) -> np.ndarray:

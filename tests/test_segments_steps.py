@@ -138,3 +138,15 @@ def test_a_contradicted_hint_gives_one_warning_and_the_data_is_used(knee):
         "thigh_r: sensor +x points up in the standing pose, the protocol says +y; using the data"
         in warnings
     )
+
+
+def test_a_nan_span_in_one_sensor_does_not_hide_the_rests_and_movements():
+    streams = _stand_then_walk(up_axis=1)
+    t, acc, gyr = streams["thigh_r"]
+    acc, gyr = acc.copy(), gyr.copy()
+    acc[2000:2100] = np.nan  # 1 s of lost samples in the walk
+    gyr[2000:2100] = np.nan
+    streams["thigh_r"] = (t, acc, gyr)
+    found = blocks(streams)
+    assert [b.moving for b in found if b.end - b.start > 1.0] == [False, True, False]
+    assert np.allclose(found[0].up["thigh_r"], [0.0, 1.0, 0.0])

@@ -244,7 +244,7 @@ def fit_hinge(
             remedy="record a longer movement of the joint",
         )
     rate = estimate_rate(t)
-    g1 = _lowpass(gp[sel], rate)
+    g1 = _lowpass(interp_columns(t, tp, gp), rate)  # across NaN spans: filters spread them
     g2 = _lowpass(interp_columns(t, td, gd), rate)
     q1 = qp[sel]
     q2 = rot.resample(td, qd, t)
@@ -470,7 +470,7 @@ def fit_two_dof(
     rate = estimate_rate(t)
     q1 = qp[sel]
     q2 = rot.resample(td, qd, t)
-    w1 = rot.rotate(q1, _lowpass(gp[sel], rate))
+    w1 = rot.rotate(q1, _lowpass(interp_columns(t, tp, gp), rate))
     w2 = rot.rotate(q2, _lowpass(interp_columns(t, td, gd), rate))
     active = np.linalg.norm(w1 - w2, axis=1)  # heading offsets do not matter for a threshold
     speed = np.maximum(np.linalg.norm(w1, axis=1), np.linalg.norm(w2, axis=1))
