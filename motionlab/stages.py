@@ -387,9 +387,20 @@ def validate(
     keep_reference: bool = True,
     force: bool = False,
     path: Any = None,
+    reference_kind: str = "markers",
+    frames: str = "anatomical",
+    angle_map: dict | None = None,
+    sync_on: str = "gyroscope",
 ) -> dict[str, Any]:
     """Validation against an optical reference (:func:`motionlab.validation.validate`), stored
     in ``results["validation"]``.
+
+    ``reference_kind`` (:func:`motionlab.validation.reference_kinds.load_reference` tells it):
+    ``markers``; ``segments`` (segment quaternions, :mod:`motionlab.validation.segment_csv`;
+    ``frames`` ``anatomical`` or ``body``); ``angles`` (model joint angles,
+    :func:`motionlab.validation.model_angles.validate_model_angles` with ``angle_map``, default
+    Plug-in Gait's). ``sync_on``: the IMU signal of the clock sync (``gyroscope``, as interval
+    averages, or ``orientation``).
 
     ``reference`` defaults to the session's own markers; with ``keep_reference`` a reference
     from elsewhere is added to ``session.markers`` (renamed if the name is taken) so that the
@@ -411,7 +422,19 @@ def validate(
             name, n = f"{reference.name}_{n}", n + 1
         reference = dataclasses.replace(reference, name=name)
         session.markers[name] = reference
-    return validate_session(
+    if reference_kind == "angles":
+        from motionlab.validation.model_angles import validate_model_angles
+
+        return validate_model_angles(
+            session, reference, proto, mapping=angle_map, sync=clock,
+            movement_only=movement_only, seed=seed,
+        )  # fmt: skip
+    if reference_kind == "segments" and marker_map is None:
+        from motionlab.validation.segment_csv import segment_map
+
+        segs = list(proto.segments) if proto is not None else []
+        marker_map = segment_map(reference, segs, list(session.sensors), frames)
+    result = validate_session(
         session,
         reference,
         marker_map,
@@ -422,4 +445,9 @@ def validate(
         estimator=estimator,
         seed=seed,
         static=static,
+        sync_on=sync_on,
     )
+    result["reference"] = {"kind": reference_kind}
+    if reference_kind == "segments":
+        result["reference"]["frames"] = frames
+    return result

@@ -14,14 +14,30 @@ from motionlab.errors import InputError
 from motionlab.session import load_session, save_session
 from motionlab.validation.align import MODES
 from motionlab.validation.markermap import load_marker_map
+from motionlab.validation.model_angles import has_model_angles, load_angle_map
 from motionlab.validation.reference import choose_marker_set, read_reference
+from motionlab.validation.reference_kinds import REFERENCE_KINDS, load_reference
+from motionlab.validation.segment_csv import FRAMES
 from motionlab.validation.tables import CSV_FILES, summary, tables
+from motionlab.validation.time_alignment import SYNC_SOURCES
 
 
 @click.command("validate")
 @click.argument("session", type=INPUT_FILE)
-@click.option("--reference", "reference", help="C3D/TRC/BROAD file or a session with markers "
-              "(default: the session's own markers).")  # fmt: skip
+@click.option("--reference", "reference", help="C3D/TRC/BROAD file or a session with markers, a "
+              "C3D of model joint angles, or a CSV of segment quaternions (default: the "
+              "session's own markers).")  # fmt: skip
+@click.option("--reference-kind", type=click.Choice(REFERENCE_KINDS), default="auto",
+              show_default=True, help="markers, segments (quaternion CSV) or angles (C3D "
+              "POINT:ANGLES, e.g. Plug-in Gait); auto: from the file.")  # fmt: skip
+@click.option("--frames", type=click.Choice(FRAMES), default="anatomical", show_default=True,
+              help="Segment CSV: its quaternions are anatomical segment frames (ISB) or "
+              "arbitrary body frames.")  # fmt: skip
+@click.option("--angle-map", "angle_map_path", type=INPUT_FILE, help="Model-angle reference: "
+              "YAML 'column: {label, component, sign}' (default: Plug-in Gait).")  # fmt: skip
+@click.option("--sync-on", type=click.Choice(SYNC_SOURCES), default="gyroscope",
+              show_default=True, help="IMU signal of the clock sync: the gyroscope (as interval "
+              "averages) or the orientations' angular velocity.")  # fmt: skip
 @click.option("--static", "static_path", help="Static trial (C3D/TRC/session) showing the "
               "clusters and landmarks (default: a still window of the reference).")  # fmt: skip
 @click.option("--markers", "markers_path", help="Marker map YAML (default: markers by name).")
@@ -40,6 +56,10 @@ from motionlab.validation.tables import CSV_FILES, summary, tables
 def command(
     session: str,
     reference: str | None,
+    reference_kind: str,
+    frames: str,
+    angle_map_path: str | None,
+    sync_on: str,
     static_path: str | None,
     markers_path: str | None,
     protocol_path: str | None,
@@ -60,6 +80,8 @@ def command(
       motionlab validate session.h5 --reference trial.c3d --markers map.yaml --json
       motionlab validate session.h5 --reference walk.c3d --static static.c3d
       motionlab validate broad.h5 --mode none --no-sync --movement-only
+      motionlab validate session.h5 --reference pig.c3d          # Plug-in Gait angles
+      motionlab validate session.h5 --reference segments.csv     # time, thigh_r_qw, ...
     """
     ses = load_session(session)
     stages.refuse_to_redo(ses, "validation", "validation results", force, session)
@@ -71,8 +93,13 @@ def command(
                 "has no optical data", session, remedy="give --reference FILE.c3d or a session"
             )
         ref = choose_marker_set(list(ses.markers.values()), name, session)
+        kind = reference_kind
+        if kind == "auto":
+            only_angles = has_model_angles(ref) and not (ref.n_markers or ref.rigid_bodies)
+            kind = "angles" if only_angles else "markers"
     else:
-        ref = choose_marker_set(read_reference(reference), name, reference)
+        ref, kind = load_reference(reference, reference_kind, name)
+    angle_map = load_angle_map(angle_map_path) if angle_map_path else None
     static = None
     if static_path is not None:
         sets = read_reference(static_path)
@@ -83,7 +110,7 @@ def command(
     if protocol_path is not None or "calibration" in ses.results:
         protocol = stages.stage_protocol(ses, protocol_path, session)
     written = []
-    extra_inputs = [reference, static_path, markers_path, protocol_path]
+    extra_inputs = [reference, static_path, markers_path, protocol_path, angle_map_path]
     if csv_dir:
         folder = Path(csv_dir)
         if folder.exists() and not folder.is_dir():
@@ -95,17 +122,20 @@ def command(
     result = stages.validate(
         ses, protocol, ref, marker_map=mmap, static=static, mode=mode, clock=not no_sync,
         movement_only=movement_only, estimator=estimator, seed=seed, force=force, path=session,
+        reference_kind=kind, frames=frames, angle_map=angle_map, sync_on=sync_on,
     )  # fmt: skip
     if csv_dir:
         for fname, table in tables(result).items():
             with atomic_path(folder / fname, force=force) as tmp:
                 table.to_csv(tmp, index=False, float_format="%.6g")
             written.append(str(folder / fname))
-    inputs = [session] + [p for p in (reference, static_path, markers_path) if p]
+    inputs = [session] + [p for p in (reference, static_path, markers_path, angle_map_path) if p]
     parameters = {
         "stage": "validate",
         "mode": mode,
+        "reference_kind": kind,
         "sync": not no_sync,
+        "sync_on": sync_on,
         "movement_only": movement_only,
         "seed": seed,
         "protocol": protocol.name if protocol else None,
@@ -128,14 +158,22 @@ def _num(value: float | None, fmt: str = ".2f") -> str:
 def _print(digest: dict, synced: bool) -> None:
     """The human-readable summary (degrees)."""
     if synced:
+        sync = digest["sync"]
         click.echo(
             f"clock: offset {digest['time_offset_s']:.4f} s, drift {digest['drift_ppm']:.1f} ppm, "
-            f"inliers {_num(digest['sync']['inlier_ratio'], '.0%')}"
+            f"inliers {_num(sync['inlier_ratio'], '.0%')}, ± {_num(sync.get('standard_error_ms'))} "
+            f"ms ({sync.get('grade', 'n/a')}; {sync['method']})"
         )
     else:
         click.echo("clock: not synchronised (--no-sync)")
     al = digest["alignment"]
-    click.echo(f"alignment ({al['mode']}): lab → earth {al['lab_to_earth']['angle_deg']:.2f}°")
+    if digest.get("reference", {}).get("kind") == "angles":
+        mapping = digest["reference"].get("mapping", {})
+        click.echo(
+            "reference: model joint angles " + ", ".join(f"{k} = {v}" for k, v in mapping.items())
+        )
+    else:
+        click.echo(f"alignment ({al['mode']}): lab → earth {al['lab_to_earth']['angle_deg']:.2f}°")
     for label, o in digest["orientation"].items():
         click.echo(
             f"{label:<16} total {_num(o['total_rmse_deg'])}°  heading "
@@ -145,7 +183,8 @@ def _print(digest: dict, synced: bool) -> None:
     for col, a in digest["angles"].items():
         lo, hi = a["loa_deg"]
         click.echo(
-            f"{col:<30} RMSE {_num(a['rmse_deg'])}°  bias {_num(a['bias_deg'], '+.2f')}°  "
+            f"{col:<30} RMSE {_num(a['rmse_deg'])}°  offset-free {_num(a['rmse_centred_deg'])}°  "
+            f"bias {_num(a['bias_deg'], '+.2f')}°  "
             f"LoA [{_num(lo, '+.1f')}, {_num(hi, '+.1f')}]°  r {_num(a['r'], '.3f')}  "
             f"CMC {_num(a['cmc'], '.3f')}"
         )

@@ -214,6 +214,7 @@ def simulate(
     mounting: str = "nominal",
     soft_tissue: str | None = None,
     gait: str | dict | None = None,
+    gyr_sampling: str = "point",
 ) -> tuple[Session, Truth]:
     """Simulate a recording of ``protocol`` lasting ``duration`` s (true time).
 
@@ -247,6 +248,10 @@ def simulate(
         events from the feet's motion and the pelvis angles (:mod:`.gait_truth`).
     field, gravity
         Magnetic field model (default 50 µT, dip 60°) and gravity (m/s²).
+    gyr_sampling
+        ``point`` (the rate at each sampling instant) or ``interval`` (the mean rate over the
+        interval ending there, as real MEMS gyroscopes report: the rotation between the two
+        instants over their spacing). Recorded in each stream's ``attrs["gyr_sampling"]``.
     optical
         Camera system (rate, clock, lab frame, noise); default from the preset.
 
@@ -266,6 +271,9 @@ def simulate(
                          remedy=f"use one of {', '.join(SOFT_TISSUE)}")  # fmt: skip
     if not duration > 0 or not rate_hz > 0:
         raise InputError("duration and rate must be positive", where="--duration/--rate")
+    if gyr_sampling not in ("point", "interval"):
+        raise InputError(f"unknown gyroscope sampling {gyr_sampling!r}", where="gyr_sampling",
+                         remedy="use point or interval")  # fmt: skip
     for seg in protocol.segments:
         if seg not in SEGMENTS:
             body_segments = ", ".join(SEGMENTS)
@@ -303,7 +311,7 @@ def simulate(
         mount = _mount(body, protocol, seg, i, seed, preset, mounting_max_deg, timeline.impacts(),
                        mounting, kin[seg] if kin else None, grid)  # fmt: skip
         stream, info = _sensor(body, timeline, protocol, mount, seg, i, seed, preset, rate_hz,
-                               duration, field, gravity, i == carried)  # fmt: skip
+                               duration, field, gravity, i == carried, gyr_sampling)  # fmt: skip
         q_grid, p_grid = sensor_pose(body, timeline, mount, tuple(poses))(t)
         truth.sensors[seg] = {"orientation": rot.make_continuous(q_grid), "position": p_grid}
         truth.sensors[seg] |= info
@@ -359,6 +367,7 @@ def simulate(
         **({"mounting": mounting} if mounting != "nominal" else {}),
         **({"soft_tissue": soft_tissue} if soft_tissue != "impacts" else {}),
         **({"gait": gait_options} if gait_options is not None else {}),
+        **({"gyr_sampling": gyr_sampling} if gyr_sampling != "point" else {}),
         "gravity_m_s2": gravity,
         "earth_field_uT": field.earth,
         "magnetic_dipoles": [{"position_m": p, "moment_Am2": m} for p, m in field.dipoles],
@@ -386,13 +395,16 @@ def simulate(
 
 
 def _sensor(body, timeline, protocol, mount, seg, i, seed, preset, rate_hz, duration, field,
-            gravity, carries_field):  # fmt: skip
+            gravity, carries_field, gyr_sampling="point"):  # fmt: skip
     """One IMU: its recorded stream and its truth entries."""
     rng = _rng(seed, "sensor", i)
     clock = draw_clock(preset.timing, rng)
     stamps, t_true = sample_times(clock, rate_hz, duration, rng)
     shared = tuple(protocol.segments) if clock == Clock(jitter_s=0.0) else ()  # same instants
     ideal = ideal_imu(body, timeline, mount, t_true, field, gravity, shared)
+    if gyr_sampling == "interval":  # mean rate over the interval ending at each instant
+        q_before = sensor_pose(body, timeline, mount, shared)(t_true - 1.0 / rate_hz)[0]
+        ideal["gyr"] = rot.to_rotvec(rot.mul(rot.conj(q_before), ideal["quat"])) * rate_hz
     soft, hard = soft_hard_iron(preset, rng)
     mag = ideal["mag"]
     carried = np.zeros(3)
@@ -419,7 +431,7 @@ def _sensor(body, timeline, protocol, mount, seg, i, seed, preset, rate_hz, dura
         segment=seg,
         side=side,
         source_units={"acc": "m/s^2", "gyr": "rad/s", "mag": "uT"},
-        attrs={"simulated": True, "rate_hz": rate_hz},
+        attrs={"simulated": True, "rate_hz": rate_hz, "gyr_sampling": gyr_sampling},
     )
     info = {
         "segment": seg,

@@ -33,10 +33,11 @@ from motionlab.validation.agreement import agreement, per_repetition, repetition
 from motionlab.validation.align import Alignment
 from motionlab.validation.align import align as estimate_alignment
 from motionlab.validation.markermap import MarkerMap, check_marker_map, default_marker_map
-from motionlab.validation.optical import angular_velocity, resample_quat
+from motionlab.validation.optical import resample_quat
 from motionlab.validation.orientation_error import error_angles, orientation_errors
 from motionlab.validation.reference import OpticalSegment, choose_marker_set, optical_segments
 from motionlab.validation.sync import no_sync, synchronise
+from motionlab.validation.time_alignment import SYNC_SOURCES, gyro_sampling, imu_signal
 
 __all__ = ["validate"]
 
@@ -90,12 +91,12 @@ def movement_mask(session: Session, labels: list[str], t: np.ndarray) -> np.ndar
     return moving
 
 
-def _angular_velocity(session: Session, label: str, q: np.ndarray) -> tuple:
-    """``(time, ω)`` of a sensor: its gyroscope, else differences of its orientation."""
+def _angular_velocity(session: Session, label: str, q: np.ndarray, source: str) -> tuple:
+    """``(time, ω)`` of a sensor for the sync: its gyroscope at the times its samples describe
+    (interval centres unless the stream is point-sampled), or (``source="orientation"``, or
+    without a gyroscope) differences of its orientation (:mod:`.time_alignment`)."""
     s = session.sensors[label]
-    if s.gyr is not None:
-        return s.time, s.gyr
-    return angular_velocity(s.time, q)
+    return imu_signal(s.time, s.gyr, q, source, gyro_sampling(s.attrs))
 
 
 def _common_time(session: Session, labels: list[str]) -> np.ndarray:
@@ -128,7 +129,8 @@ def _optical_segment_quats(
     for seg, o in optical.items():
         q = o.segment_quat()
         if q is not None:
-            out[seg], source[seg] = (o.time, q), "landmarks"
+            out[seg] = (o.time, q)
+            source[seg] = "segment_frame" if o.info.get("segment_frame") else "landmarks"
             continue
         cal = (calibration or {}).get("segments", {}).get(seg)
         if seg in label_of and cal is not None:
@@ -205,6 +207,7 @@ def validate(
     estimator: str = "default",
     seed: int = 0,
     static: MarkerSet | None = None,
+    sync_on: str = "gyroscope",
 ) -> dict[str, Any]:
     """Compare the session's IMU orientations and joint angles with an optical reference.
 
@@ -228,6 +231,9 @@ def validate(
     static
         A static trial with the cluster markers and the landmarks, in which the landmarks are
         fixed in the cluster frames (default: a static window of ``reference``; :mod:`.cast`).
+    sync_on
+        The IMU side of the sync: ``gyroscope`` (interval averages, :mod:`.time_alignment`) or
+        ``orientation`` (differences of the orientations being validated).
 
     Returns
     -------
@@ -247,9 +253,13 @@ def validate(
     labels = list(seg_of)
     imu_q = {k: sensor_orientation(session, k, estimator) for k in labels}
 
+    if sync_on not in SYNC_SOURCES:
+        raise InputError(
+            f"unknown sync signal '{sync_on}'", remedy=f"use {', '.join(SYNC_SOURCES)}"
+        )
     if sync:
         clock = synchronise(
-            [_angular_velocity(session, k, imu_q[k]) for k in labels],
+            [_angular_velocity(session, k, imu_q[k], sync_on) for k in labels],
             [(optical[seg_of[k]].time, optical[seg_of[k]].quat) for k in labels],
             seed=seed,
         )
@@ -283,6 +293,7 @@ def validate(
         },
         "orientation": orientation,
     }
+    result["sync"]["signal"] = sync_on if sync else ""
     residual = result["sync"].pop("pair_residual_s", np.zeros(0))
     result["sync"]["sensor_residual_s"] = {
         k: float(residual[i]) for i, k in enumerate(labels) if i < len(residual)

@@ -19,6 +19,10 @@ A marker map is a YAML file; every error names the key and its line. Schema::
           secondary: {axis: y, from: [RLE, RME], to: [RGT]} # (validation/anatomy.py) does not fit
       pelvis:
         rigid_body: pelvis                  # a rigid body of the file, taken as it is
+        segment_frame: true                 # optional: its frame is the anatomical segment
+                                            # frame (ISB: x anterior, y up, z right); default
+                                            # false: an arbitrary body frame, carried to the
+                                            # segment through the IMU's calibration
 
 Without a map, :func:`default_marker_map` builds one: a rigid body named after a segment or
 sensor, else the markers whose labels start with ``<segment>_`` form its cluster.
@@ -54,6 +58,7 @@ class SegmentMap:
     sensor: str | None = None
     frame: FrameRecipe | None = None
     line: int = 0
+    segment_frame: bool = False
 
 
 @dataclass
@@ -162,7 +167,7 @@ def _segment(c: _Checker, name: str, spec: Any, line: int | None) -> SegmentMap:
     if not isinstance(spec, dict):
         c.fail(key, line, "is not a mapping", "give cluster: [...] or rigid_body: NAME")
     lines = spec.lines
-    allowed = {"cluster", "rigid_body", "landmarks", "sensor", "frame"}
+    allowed = {"cluster", "rigid_body", "landmarks", "sensor", "frame", "segment_frame"}
     for k in spec:
         if k not in allowed:
             c.fail(f"{key}.{k}", lines.get(k), "unknown key", f"use {', '.join(sorted(allowed))}")
@@ -200,7 +205,11 @@ def _segment(c: _Checker, name: str, spec: Any, line: int | None) -> SegmentMap:
         if first.axis == second.axis:
             c.fail(f"{key}.frame", fline, "primary and secondary share an axis", "use two axes")
         frame = FrameRecipe(first, second)
-    return SegmentMap(name, cluster, body, landmarks, sensor, frame, line or 0)
+    segment_frame = spec.get("segment_frame", False)
+    if not isinstance(segment_frame, bool) or (segment_frame and not has_body):
+        c.fail(f"{key}.segment_frame", lines.get("segment_frame"), f"is {segment_frame!r}",
+               "true or false, for a rigid_body")  # fmt: skip
+    return SegmentMap(name, cluster, body, landmarks, sensor, frame, line or 0, segment_frame)
 
 
 def check_marker_map(mmap: MarkerMap, markers: MarkerSet) -> None:

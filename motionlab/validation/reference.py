@@ -72,8 +72,9 @@ class OpticalSegment:
         return {label: points[:, i] for i, label in enumerate(self.local)}
 
 
-def read_reference(path: str | Path) -> list[MarkerSet]:
-    """Marker sets of a reference file: a motionlab session, or any file the readers know."""
+def read_reference(path: str | Path, model_outputs_ok: bool = False) -> list[MarkerSet]:
+    """Marker sets of a reference file: a motionlab session, or any file the readers know
+    (``model_outputs_ok``: a C3D of model outputs only is fine: joint angles as reference)."""
     path = Path(path)
     if not path.is_file():
         raise InputError("no such reference file", path, remedy="check the path")
@@ -94,11 +95,14 @@ def read_reference(path: str | Path) -> list[MarkerSet]:
         )
     if not any(m.n_markers or m.rigid_bodies for m in sets):
         kinds = sorted({o.kind for m in sets for o in m.model_outputs.values()})
-        if kinds:  # a C3D of model outputs only (Plug-in Gait angles…): no marker to track
+        if (
+            kinds and not model_outputs_ok
+        ):  # a C3D of model outputs only (Plug-in Gait angles…): no marker to track
             raise InputError(
                 f"holds model outputs ({', '.join(kinds)}) but no markers or rigid bodies",
                 path,
-                remedy="give the C3D with the marker trajectories (model outputs are kept apart)",
+                remedy="give the C3D with the marker trajectories, or validate against its "
+                "joint angles with --reference-kind angles",
             )
     return sets
 
@@ -267,6 +271,9 @@ def optical_segments(
             ok = np.isfinite(q).all(axis=1)
             info = {"fitted_fraction": float(ok.mean()), "rigid_body": seg.rigid_body}
             out[name] = OpticalSegment(name, markers.time, q, "rigid_body", info=info)
+            if seg.segment_frame:  # the body frame is the anatomical one (segment_frame: true)
+                out[name].anatomical = rot.IDENTITY.copy()
+                info["segment_frame"] = True
         else:
             out[name] = _cluster_segment(markers, seg, mmap)
     clusters = {k: o for k, o in out.items() if o.source == "cluster"}

@@ -73,6 +73,10 @@ class SyncResult:
     window_pair: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
     inliers: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     method: str = "cross-correlation"
+    standard_error_s: float = float("nan")
+    grade: str = "poor"
+    fallback: str = ""
+    signal: str = ""
 
     def as_dict(self) -> dict[str, Any]:
         """The tree stored in ``results["validation"]["sync"]``."""
@@ -91,6 +95,10 @@ class SyncResult:
             "window_pair": np.asarray(self.window_pair, int),
             "inliers": np.asarray(self.inliers, bool),
             "pair_residual_s": self.pair_residuals(),
+            "standard_error_s": float(self.standard_error_s),
+            "grade": self.grade,
+            "fallback": self.fallback,
+            "signal": self.signal,
         }
 
     def pair_residuals(self) -> np.ndarray:
@@ -108,14 +116,15 @@ class SyncResult:
 
 def no_sync() -> SyncResult:
     """The identity clock model, for streams already on one clock."""
-    return SyncResult(ClockModel(), float("nan"), float("nan"), 0.0, method="none")
+    return SyncResult(ClockModel(), float("nan"), float("nan"), 0.0, method="none", grade="none")
 
 
 # ------------------------------------------------------------------------------ signals
 
 
 def speed_signal(t: np.ndarray, omega: np.ndarray, cutoff_hz: float = CUTOFF_HZ):
-    """Low-passed angular speed ``‖ω‖`` (rad/s) of samples ``omega`` (N, 3) at times ``t``.
+    """Low-passed angular speed ``‖ω‖`` (rad/s) of samples ``omega`` (N, 3) at times ``t``; a
+    1-D ``omega`` (N,) is taken as a signed scalar signal (a joint angle's rate) as it is.
 
     The components are put on a uniform grid at the median rate (linear interpolation), filtered
     by a zero-phase 4th-order Butterworth low-pass, and the norm is interpolated by a cubic
@@ -124,6 +133,8 @@ def speed_signal(t: np.ndarray, omega: np.ndarray, cutoff_hz: float = CUTOFF_HZ)
     """
     t = np.asarray(t, dtype=float)
     omega = np.asarray(omega, dtype=float)
+    scalar = omega.ndim == 1
+    omega = omega[:, None] if scalar else omega
     ok = np.isfinite(omega).all(axis=1)
     if ok.sum() < 10:
         raise InputError(
@@ -135,10 +146,11 @@ def speed_signal(t: np.ndarray, omega: np.ndarray, cutoff_hz: float = CUTOFF_HZ)
     grid = t[0] + np.arange(int(np.floor((t[-1] - t[0]) * rate + 1e-9)) + 1) / rate
     k = np.clip(np.searchsorted(t, grid), 1, len(t) - 1)
     good = ok[k] & ok[k - 1] & (t[k] - t[k - 1] <= 5.0 / rate)
-    filled = np.column_stack([np.interp(grid, t[ok], omega[ok, i]) for i in range(3)])
+    filled = np.column_stack([np.interp(grid, t[ok], omega[ok, i]) for i in range(omega.shape[1])])
     if len(grid) > 30 and cutoff_hz < 0.45 * rate:
         filled = sosfiltfilt(butter(4, cutoff_hz, fs=rate, output="sos"), filled, axis=0)
-    spline = make_interp_spline(grid, np.linalg.norm(filled, axis=1), k=3)
+    values = filled[:, 0] if scalar else np.linalg.norm(filled, axis=1)
+    spline = make_interp_spline(grid, values, k=3)
 
     def valid(tq: np.ndarray) -> np.ndarray:
         tq = np.asarray(tq, dtype=float)
@@ -318,16 +330,20 @@ def synchronise(
     max_lag_s: float | None = None,
     threshold_s: float | None = None,
     seed: int = 0,
+    ref_is_rate: bool = False,
 ) -> SyncResult:
     """Clock model between IMU and reference from pairs of streams on the same rigid body.
 
     Parameters
     ----------
     imu
-        Per pair ``(time (N,), gyr (N, 3))``: IMU clock (s), gyroscope (rad/s).
+        Per pair ``(time (N,), ω (N, 3))``: IMU clock (s), angular velocity (rad/s) at the
+        times it describes (a gyroscope at its interval centres:
+        :func:`~motionlab.validation.time_alignment.imu_signal`); or ``(time, x (N,))``, a
+        signed scalar signal (a joint angle's rate).
     ref
         Per pair ``(time (M,), quat (M, 4))``: reference clock (s), optical orientations
-        (NaN in gaps).
+        (NaN in gaps); with ``ref_is_rate`` already ``(time, ω or x)`` like ``imu``.
     window_s, step_s, search_s
         Window length, window step and the lag search half-range around the coarse estimate (s).
     cutoff_hz
@@ -341,22 +357,75 @@ def synchronise(
     if not imu or len(imu) != len(ref):
         raise InputError("no IMU/optical pair to synchronise", where="time synchronisation")
     rate = float(np.median([1.0 / np.median(np.diff(t)) for t, _ in imu]))
-    threshold = 2.0 / rate if threshold_s is None else threshold_s
     imu_sig, ref_sig = [], []
-    for (t_i, gyr), (t_r, q) in zip(imu, ref, strict=True):
+    for (t_i, w_i), (t_r, q) in zip(imu, ref, strict=True):
         t_i = np.asarray(t_i, float)
-        imu_sig.append((*speed_signal(t_i, gyr, cutoff_hz), t_i[0], t_i[-1]))
-        t_mid, omega = angular_velocity(t_r, q)
+        imu_sig.append((*speed_signal(t_i, w_i, cutoff_hz), t_i[0], t_i[-1]))
+        t_mid, omega = (np.asarray(t_r, float), q) if ref_is_rate else angular_velocity(t_r, q)
         ref_sig.append((*speed_signal(t_mid, omega, cutoff_hz), t_mid[0], t_mid[-1]))
+    return fit_clock(imu_sig, ref_sig, rate, window_s=window_s, step_s=step_s,
+                     search_s=search_s, cutoff_hz=cutoff_hz, max_lag_s=max_lag_s,
+                     threshold_s=threshold_s, seed=seed)  # fmt: skip
+
+
+def fit_clock(
+    imu_sig: list[tuple],
+    ref_sig: list[tuple],
+    rate: float,
+    *,
+    window_s: float = WINDOW_S,
+    step_s: float = STEP_S,
+    search_s: float = SEARCH_S,
+    cutoff_hz: float = CUTOFF_HZ,
+    max_lag_s: float | None = None,
+    threshold_s: float | None = None,
+    seed: int = 0,
+) -> SyncResult:
+    """The clock model from signals ``(spline, valid, t0, t1)`` (:func:`speed_signal`): coarse
+    lag, window lags, RANSAC line, refined twice. When fewer than two windows match (or fewer
+    than two agree), one global offset over the whole recordings instead
+    (:func:`~motionlab.validation.time_alignment.global_offset`, ``fallback`` says why). Sets
+    ``standard_error_s`` (of the offset at the centre of the recording) and ``grade``."""
+    from motionlab.validation import time_alignment as ta
+
+    threshold = 2.0 / rate if threshold_s is None else threshold_s
     lag0, _ = coarse_lag(imu_sig, ref_sig, rate, max_lag_s)
+    centre = 0.5 * (min(s[2] for s in imu_sig) + max(s[3] for s in imu_sig))
     model = ClockModel(lag0, 0.0)
     search = search_s
+    fallback = ""
+    win: dict[str, np.ndarray] = {}
     for _ in range(1 + REFINEMENTS):
         win = window_lags(imu_sig, ref_sig, model, rate, window_s, step_s, search, cutoff_hz)
+        if len(win["time"]) < 2:
+            fallback = f"only {len(win['time'])} window(s) matched"
+            break
         a, b, inliers = ransac_line(win["time"], win["lag"], threshold, win["sd"], seed)
+        if inliers.sum() < 2:
+            fallback = f"only {int(inliers.sum())} window(s) agree"
+            break
         model = ClockModel(a, b)
         search = 3.0 / rate
+    if fallback:
+        offset, se, peak = ta.global_offset(imu_sig, ref_sig, model.offset_s, rate, cutoff_hz)
+        if not np.isfinite(peak):
+            raise InputError(
+                "the IMU and optical recordings could not be matched in time (no overlap "
+                "with movement on both sides)",
+                where="time synchronisation",
+                remedy="record some movement with both systems, or use --no-sync if they "
+                "share a clock",
+            )
+        empty = np.zeros(0)
+        return SyncResult(
+            model=ClockModel(offset, 0.0), inlier_ratio=float("nan"), residual_rms_s=float("nan"),
+            coarse_lag_s=lag0, method="global cross-correlation", standard_error_s=se,
+            grade=ta.grade(se, rate), fallback=f"{fallback}: one offset for the whole recording",
+            window_time_s=empty, window_lag_s=empty, window_sd_s=empty, window_corr=empty,
+            window_pair=np.zeros(0, int), inliers=np.zeros(0, bool),
+        )  # fmt: skip
     resid = win["lag"] - (a + b * win["time"])
+    se = ta.offset_standard_error(win["time"][inliers], win["sd"][inliers], resid[inliers], centre)
     return SyncResult(
         model=model,
         inlier_ratio=float(inliers.mean()),
@@ -368,4 +437,6 @@ def synchronise(
         window_corr=win["corr"],
         window_pair=win["pair"],
         inliers=inliers,
+        standard_error_s=se,
+        grade=ta.grade(se, rate) if inliers.mean() >= 0.5 else "poor",
     )

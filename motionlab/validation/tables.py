@@ -54,7 +54,13 @@ def summary(result: dict[str, Any]) -> dict[str, Any]:
     out = {
         "time_offset_s": sync["time_offset_s"],
         "drift_ppm": sync["drift_ppm"],
-        "sync": {k: sync[k] for k in ("method", "inlier_ratio", "residual_rms_s", "n_windows")},
+        "sync": {k: sync[k] for k in ("method", "inlier_ratio", "residual_rms_s", "n_windows")}
+        | {
+            "standard_error_ms": 1e3 * sync.get("standard_error_s", float("nan")),
+            "grade": sync.get("grade", ""),
+            "fallback": sync.get("fallback", ""),
+            "signal": sync.get("signal", ""),
+        },
         "alignment": {
             "mode": al["mode"],
             "lab_to_earth": al["lab_to_earth"],
@@ -69,6 +75,8 @@ def summary(result: dict[str, Any]) -> dict[str, Any]:
         "angles": {},
         "notes": list(result.get("notes", [])),
     }
+    if isinstance(result.get("reference"), dict):
+        out["reference"] = dict(result["reference"])
     for col in angle_columns(result):
         entry = result["angles"][col]
         out["angles"][col] = {s: entry[s] for s in ANGLE_STATS} | {"loa_deg": entry["loa_deg"]}

@@ -1,0 +1,299 @@
+"""A reference of joint angles computed by another model (Plug-in Gait and the like), as C3D
+``POINT:ANGLES`` model outputs (:mod:`motionlab.io.c3d` keeps them apart from the markers).
+
+The mapping from model-output labels to motionlab angle columns (:data:`PLUGIN_GAIT`, written
+out in docs/validation.md) follows Vicon's Plug-in Gait reference guide: each ``*Angles`` point
+holds three angles in degrees as X, Y, Z, already in clinical signs on both sides (flexion,
+adduction/varus and internal rotation positive; the left side is mirrored by the model), which
+are motionlab's signs (DESIGN.md §1), so every sign is +1:
+
+====================  ======  ===========================  ====
+label                 comp.   motionlab column             sign
+====================  ======  ===========================  ====
+R/LHipAngles          X Y Z   hip_<s>_flexion / adduction / rotation     +1
+R/LKneeAngles         X Y Z   knee_<s>_flexion / adduction / rotation    +1
+R/LElbowAngles        X       elbow_<s>_flexion                          +1
+====================  ======  ===========================  ====
+
+Plug-in Gait's elbow Y and Z are not the carrying angle and pronation (pronation lives in its
+wrist angles), so they are left out. motionlab's own C3D export (``<joint>_angles`` with X, Y, Z
+the joint's three columns in decomposition order) maps by the protocol. Other labels or signs:
+a YAML angle map (:func:`load_angle_map`)::
+
+    knee_r_flexion_deg: {label: RKneeAngles, component: x, sign: 1}
+    knee_r_rotation_deg: {label: RKneeAngles, component: z, sign: -1}
+
+**Caveat:** the model's segment frames (from its markers and its joint centres) are not the
+IMU calibration's, so constant offsets between the curves are expected, above all in
+ab/adduction and rotation; the offset-free RMSE (``rmse_centred_deg``) and r are the numbers
+that compare the two systems' movement. Every result carries this caveat in its notes.
+
+Time sync: the joint angles are the only signal both sides share, so the clock model is fitted
+on the angular rates of each joint's first (flexion) angle, IMU against reference
+(:func:`motionlab.validation.sync.synchronise` on signed scalar rates; both from orientations,
+so no gyroscope timing is involved), falling back to one global offset when windows fail.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import yaml
+
+from motionlab import rotations as rot
+from motionlab.errors import InputError
+from motionlab.protocol import Protocol
+from motionlab.session import MarkerSet, Session, estimate_rate
+from motionlab.validation.agreement import agreement, per_repetition, repetitions
+from motionlab.validation.sync import no_sync, synchronise
+
+CAVEAT = (
+    "the reference angles come from another model whose segment frames differ from the IMU "
+    "calibration's: constant offsets are expected (above all in ab/adduction and rotation); "
+    "compare the offset-free RMSE (rmse_centred_deg) and r"
+)
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+@dataclass(frozen=True)
+class AngleSource:
+    """One reference angle: ``component`` (0, 1, 2 = X, Y, Z) of model output ``label``, times
+    ``sign``."""
+
+    label: str
+    component: int
+    sign: float = 1.0
+
+    def describe(self) -> str:
+        return f"{'-' if self.sign < 0 else ''}{self.label}.{'XYZ'[self.component]}"
+
+
+def _plugin_gait() -> dict[str, AngleSource]:
+    out = {}
+    for side, s in (("R", "r"), ("L", "l")):
+        for joint, label in (("hip", "HipAngles"), ("knee", "KneeAngles")):
+            for i, name in enumerate(("flexion", "adduction", "rotation")):
+                out[f"{joint}_{s}_{name}_deg"] = AngleSource(f"{side}{label}", i)
+        out[f"elbow_{s}_flexion_deg"] = AngleSource(f"{side}ElbowAngles", 0)
+    return out
+
+
+#: motionlab angle column → its Plug-in Gait source (see the module docstring)
+PLUGIN_GAIT: dict[str, AngleSource] = _plugin_gait()
+
+
+def load_angle_map(path: str | Path) -> dict[str, AngleSource]:
+    """An angle map YAML: ``column: {label: NAME, component: x|y|z, sign: 1|-1}``."""
+    path = Path(path)
+    if not path.is_file():
+        raise InputError("no such angle map", path, remedy="check the path")
+    try:
+        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
+    except (yaml.YAMLError, UnicodeDecodeError) as exc:
+        raise InputError(
+            f"not valid YAML ({type(exc).__name__})",
+            path,
+            remedy="write 'column: {label: RKneeAngles, component: x, sign: 1}'",
+        ) from None
+    if not isinstance(doc, dict) or not doc:
+        raise InputError(
+            "is not a mapping of angle columns",
+            path,
+            remedy="write 'knee_r_flexion_deg: {label: RKneeAngles, component: x}'",
+        )
+    out = {}
+    for col, spec in doc.items():
+        ok = isinstance(spec, dict) and isinstance(spec.get("label"), str)
+        comp = str(spec.get("component", "")).lower() if ok else ""
+        sign = spec.get("sign", 1) if ok else 1
+        if not ok or comp not in _AXES or sign not in (1, -1) or not str(col).endswith("_deg"):
+            raise InputError(
+                f"entry {col!r} is {spec!r}",
+                path,
+                f"key {col}",
+                "give '<column>_deg: {label: NAME, component: x|y|z, sign: 1|-1}'",
+            )
+        out[str(col)] = AngleSource(spec["label"], _AXES[comp], float(sign))
+    return out
+
+
+def default_mapping(reference: MarkerSet, protocol: Protocol | None) -> dict[str, AngleSource]:
+    """Plug-in Gait's labels, and motionlab's own ``<joint>_angles`` (by the protocol)."""
+    out = dict(PLUGIN_GAIT)
+    if protocol is not None:
+        from motionlab.kinematics.joint_types import angle_columns
+
+        for name, joint in protocol.joints.items():
+            if f"{name}_angles" in reference.model_outputs:
+                for i, (_, col) in enumerate(angle_columns(joint)):
+                    out[col] = AngleSource(f"{name}_angles", i)
+    return out
+
+
+def has_model_angles(reference: MarkerSet) -> bool:
+    """Whether the reference holds joint angles as model outputs."""
+    return bool(reference.outputs_of("angles"))
+
+
+def reference_angles(
+    reference: MarkerSet, mapping: dict[str, AngleSource], columns: list[str]
+) -> dict[str, np.ndarray]:
+    """``column → (M,) deg`` on the reference clock, for the IMU ``columns`` the mapping finds
+    among the reference's angle outputs (``rad`` outputs are converted)."""
+    outputs = reference.outputs_of("angles")
+    out = {}
+    for col in columns:
+        src = mapping.get(col)
+        if src is None or src.label not in outputs:
+            continue
+        o = outputs[src.label]
+        values = np.asarray(o.data, dtype=float)[:, src.component] * src.sign
+        if o.unit.strip().lower() in ("rad", "radian", "radians"):
+            values = np.degrees(values)
+        out[col] = values
+    return out
+
+
+def _interp(t: np.ndarray, y: np.ndarray, t_new: np.ndarray) -> np.ndarray:
+    """Linear interpolation; NaN outside ``t`` and next to NaN samples."""
+    out = np.full(len(t_new), np.nan)
+    k = np.searchsorted(t, t_new, side="right") - 1
+    inside = (t_new >= t[0]) & (t_new <= t[-1])
+    k = np.clip(k, 0, len(t) - 2)
+    w = (t_new - t[k]) / (t[k + 1] - t[k])
+    est = np.where(w <= 0, y[k], (1 - w) * y[k] + w * y[k + 1])
+    out[inside] = est[inside]
+    return out
+
+
+def _rate_rad_s(t: np.ndarray, deg: np.ndarray) -> np.ndarray:
+    """Angular rate (rad/s) of a curve in degrees (central differences; NaN stays NaN)."""
+    return np.gradient(np.radians(deg), t)
+
+
+def validate_model_angles(
+    session: Session,
+    reference: MarkerSet,
+    protocol: Protocol | None = None,
+    *,
+    mapping: dict[str, AngleSource] | None = None,
+    sync: bool = True,
+    movement_only: bool = False,
+    seed: int = 0,
+) -> dict[str, Any]:
+    """Compare the session's joint angles with model joint angles of ``reference``.
+
+    The IMU angles are the session's ``angles`` results (else computed from the calibration
+    with ``protocol``). Returns the tree stored in ``session.results["validation"]``, shaped as
+    :func:`motionlab.validation.validate`'s (``sync``, ``alignment`` (mode ``none``: no frames
+    to align), ``orientation`` (no sensor: none is compared), ``angles``, ``notes``) plus
+    ``reference``: ``kind`` (``model_angles``), ``file`` and ``mapping`` (column → source).
+    """
+    from motionlab.kinematics.session_angles import session_angles
+    from motionlab.validation import movement_mask
+
+    table = session.results.get("angles")
+    if not isinstance(table, dict) or "time_s" not in table:
+        if protocol is None:
+            raise InputError(
+                "the session has no joint angles",
+                where="validation",
+                remedy="run 'motionlab angles' first, or give --protocol",
+            )
+        table = session_angles(session, protocol, session.results.get("calibration"))
+    t = np.asarray(table["time_s"], dtype=float)
+    columns = [k for k, v in table.items() if k.endswith("_deg") and isinstance(v, np.ndarray)]
+    mapping = mapping if mapping is not None else default_mapping(reference, protocol)
+    ref = reference_angles(reference, mapping, columns)
+    if not ref:
+        names = ", ".join(list(reference.outputs_of("angles"))[:8]) or "none"
+        raise InputError(
+            f"none of its angle outputs ({names}) maps to the session's angles "
+            f"({', '.join(columns[:6])})",
+            reference.attrs.get("source_file"),
+            "POINT:ANGLES",
+            "give --angle-map map.yaml ('knee_r_flexion_deg: {label: RKneeAngles, component: x}')",
+        )
+    t_ref = np.asarray(reference.time, dtype=float)
+    primary = _primaries(list(ref), protocol)
+    if sync:
+        imu_sig, ref_sig = [], []
+        for col in primary:
+            imu_sig.append((t, _rate_rad_s(t, np.asarray(table[col], float))))
+            ref_sig.append((t_ref, _rate_rad_s(t_ref, ref[col])))
+        clock = synchronise(imu_sig, ref_sig, seed=seed, ref_is_rate=True)
+    else:
+        clock = no_sync()
+    tq = clock.model.to_reference(t)
+    mask = None
+    notes = [CAVEAT]
+    if movement_only:
+        labels = [k for k in session.sensors if session.sensors[k].gyr is not None]
+        if labels:
+            mask = movement_mask(session, labels, t)
+        else:
+            notes.append("movement_only: no gyroscope to find movement; all samples used")
+    rate = estimate_rate(t)
+    angles: dict[str, Any] = {"time_s": t}
+    for col, values in ref.items():
+        ref_deg = _interp(t_ref, values, tq)
+        imu_deg = np.asarray(table[col], dtype=float)
+        entry = agreement(imu_deg, ref_deg, mask)
+        entry.update({"imu_deg": imu_deg, "ref_deg": ref_deg})
+        if col in primary:
+            reps = repetitions(ref_deg, rate)
+            if len(reps) >= 2:
+                entry["repetitions"] = per_repetition(imu_deg, ref_deg, reps, t)
+        angles[col] = entry
+    unmapped = [c for c in columns if c not in ref]
+    if unmapped:
+        notes.append(f"no reference for {', '.join(unmapped)}")
+    sync_tree = clock.as_dict()
+    sync_tree.pop("pair_residual_s", None)
+    sync_tree["signal"] = "joint angle rates" if sync else ""
+    sync_tree["sensor_residual_s"] = {}
+    if sync and sync_tree.get("fallback"):
+        notes.append(f"time sync: {sync_tree['fallback']}")
+    result: dict[str, Any] = {
+        "mode": "angles",
+        "marker_set": reference.name,
+        "movement_only": movement_only,
+        "pairs": {},
+        "sync": sync_tree,
+        "alignment": {
+            "mode": "none",
+            "lab_to_earth": {"quat": rot.IDENTITY.copy(), "angle_deg": 0.0},
+            "sensor_to_cluster": {},
+            "heading_deg": {},
+            "residual_rms_deg": {},
+            "conditioning": {},
+        },
+        "optical": {},
+        "orientation": {"time_s": t},
+        "angles": angles,
+        "reference": {
+            "kind": "model_angles",
+            "file": str(reference.attrs.get("source_file", "")),
+            "mapping": {col: mapping[col].describe() for col in ref},
+        },
+        "notes": notes,
+    }
+    session.results["validation"] = result
+    return result
+
+
+def _primaries(columns: list[str], protocol: Protocol | None) -> list[str]:
+    """The first (flexion) angle of each joint among ``columns`` (all flexion columns without a
+    protocol; every column when none is a flexion)."""
+    if protocol is not None:
+        from motionlab.kinematics.joint_types import angle_columns
+
+        out = [angle_columns(j)[0][1] for j in protocol.joints.values()]
+        out = [c for c in out if c in columns]
+        if out:
+            return out
+    out = [c for c in columns if "_flexion_" in c]
+    return out or columns

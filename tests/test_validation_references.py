@@ -1,0 +1,200 @@
+"""References beyond markers: a CSV of segment quaternions and C3D model joint angles (written
+with ezc3d here), each on its own clock (0.137 s ahead, 100 ppm fast) and rate, against a
+simulated right-knee session whose gyroscopes are interval averages; and the sync's global
+fallback and its standard error."""
+
+import json
+
+import ezc3d
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+from click.testing import CliRunner
+from test_pipeline import PROTOCOL
+
+from motionlab import rotations as rot
+from motionlab.cli import main
+from motionlab.errors import InputError
+from motionlab.protocol import load_protocol
+from motionlab.segments import calibrate
+from motionlab.session import load_session, save_session
+from motionlab.simulate import simulate
+from motionlab.simulate.errors import Preset
+from motionlab.validation.optical import resample_quat
+from motionlab.validation.segment_csv import read_segment_csv
+from motionlab.validation.sync import synchronise
+from motionlab.validation.time_alignment import gyro_times
+
+OFFSET_S, DRIFT = 0.137, 100e-6
+LAB = rot.from_rotvec(np.radians([0.0, 0.0, 70.0]))  # lab → ENU: a turned lab
+
+
+def _stand_in(truth, label, t, seed):
+    """True sensor orientation with a slowly wandering ~1° error (a fusion stand-in)."""
+    q = resample_quat(truth.time, truth.sensors[label]["orientation"], t)
+    rng = np.random.default_rng(seed)
+    knots = np.linspace(t[0], t[-1], 12)
+    wander = np.column_stack([np.interp(t, knots, rng.normal(0, 0.6, 12)) for _ in range(3)])
+    return rot.make_continuous(rot.mul(rot.from_rotvec(np.radians(wander)), q))
+
+
+@pytest.fixture(scope="module")
+def knee(tmp_path_factory):
+    root = tmp_path_factory.mktemp("refs")
+    (root / "knee_small.yaml").write_text(yaml.safe_dump(PROTOCOL))
+    protocol = load_protocol(root / "knee_small.yaml")
+    session, truth = simulate(protocol, 40.0, 4, Preset("clean"), rate_hz=100.0,
+                              mounting_max_deg=10.0, gyr_sampling="interval")  # fmt: skip
+    for step in protocol.calibration:
+        s = truth.step(step.name)
+        step.time_range = (s["start_s"], s["end_s"])
+    session.results["calibration"] = calibrate(session, protocol)
+    session.results["calibration"]["protocol_path"] = str(root / "knee_small.yaml")
+    session.results["fusion"] = {
+        k: {"quat": _stand_in(truth, k, s.time, i)}
+        for i, (k, s) in enumerate(session.sensors.items())
+    }
+    path = root / "s.h5"
+    save_session(session, path)
+    return root, path, truth
+
+
+def _camera_times(truth, rate):
+    """Frames on the reference clock (from 0) and the true times they were taken at."""
+    t_cam = np.arange(0.0, OFFSET_S + (1 + DRIFT) * truth.time[-1], 1.0 / rate)
+    t_true = (t_cam - OFFSET_S) / (1 + DRIFT)
+    keep = (t_true >= truth.time[0]) & (t_true <= truth.time[-1])
+    return t_cam[keep] + 3.0, t_true[keep]  # its own origin: frame 0 at 3 s
+
+
+def _validate(path, reference, *extra):
+    res = CliRunner().invoke(main, ["validate", str(path), "--reference", str(reference),
+                                    "--json", "--force", *extra])  # fmt: skip
+    assert res.exit_code == 0, res.output
+    return json.loads(res.output), load_session(path).results["validation"]
+
+
+def _error(result, truth, col):
+    """The IMU angle minus the truth (deg)."""
+    t = result["angles"]["time_s"]
+    return result["angles"][col]["imu_deg"] - np.interp(t, truth.time, truth.joint_angles[col])
+
+
+def _direct(result, truth, col, centred=False):
+    err = _error(result, truth, col)
+    if centred:
+        err = err - np.nanmean(err)
+    return float(np.sqrt(np.nanmean(err**2)))
+
+
+def test_segment_quaternion_csv_reference(knee):
+    root, path, truth = knee
+    t_cam, t_true = _camera_times(truth, 60.0)
+    rng = np.random.default_rng(1)
+    table = {"time": t_cam}
+    for seg in ("thigh_r", "shank_r"):
+        q = resample_quat(truth.time, truth.segments[seg]["orientation"], t_true)
+        q = rot.mul(rot.conj(LAB), q)  # segment → lab
+        q = rot.mul(q, rot.from_rotvec(rng.normal(0, np.radians(0.2), (len(q), 3))))
+        for i, c in enumerate("wxyz"):
+            table[f"{seg}_q{c}"] = q[:, i]
+    csv = root / "segments.csv"
+    pd.DataFrame(table).to_csv(csv, index=False, float_format="%.9g")
+    digest, result = _validate(path, csv)
+    assert result["reference"]["kind"] == "segments"
+    assert abs(digest["time_offset_s"] - (OFFSET_S + 3.0)) <= 0.005
+    assert digest["sync"]["grade"] in ("good", "fair") and digest["sync"]["standard_error_ms"] < 2
+    assert {result["optical"][s]["frame"] for s in ("thigh_r", "shank_r")} == {"segment_frame"}
+    for col in truth.joint_angles:  # RMSE agreement as for markers (tests/test_validation.py)
+        assert abs(result["angles"][col]["rmse_deg"] - _direct(result, truth, col)) < 0.2, col
+    assert digest["angles"]["knee_r_flexion_deg"]["r"] > 0.99
+
+
+def _write_pig(path, t_cam, angles_xyz, rate):
+    """A Plug-in-Gait-like C3D: one marker and RKneeAngles (deg) in POINT:ANGLES."""
+    n = len(t_cam)
+    f = ezc3d.c3d()
+    f["parameters"]["POINT"]["RATE"]["value"] = [rate]
+    f["parameters"]["POINT"]["LABELS"]["value"] = ["P01:RKneeAngles"]
+    f["parameters"]["POINT"]["UNITS"]["value"] = ["mm"]
+    f.add_parameter("POINT", "ANGLES", ["P01:RKneeAngles"])
+    f.add_parameter("POINT", "ANGLE_UNITS", ["deg"])
+    points = np.ones((4, 1, n))
+    points[:3, 0] = angles_xyz.T
+    f["data"]["points"] = points
+    f.write(str(path))
+
+
+def test_c3d_model_angles_reference(knee):
+    root, path, truth = knee
+    rate = 100.0
+    t_cam, t_true = _camera_times(truth, rate)
+    start = t_cam[0]
+    t_cam = t_cam - start  # a C3D starts at frame 0
+    cols = ("knee_r_flexion_deg", "knee_r_adduction_deg", "knee_r_rotation_deg")
+    frames_differ = np.array([1.5, 4.0, -6.0])  # another model's frames: constant offsets
+    xyz = np.column_stack([np.interp(t_true, truth.time, truth.joint_angles[c]) for c in cols])
+    _write_pig(root / "pig.c3d", t_cam, xyz + frames_differ, rate)
+    digest, result = _validate(path, root / "pig.c3d")
+    assert result["reference"]["kind"] == "model_angles"
+    assert result["reference"]["mapping"]["knee_r_rotation_deg"] == "RKneeAngles.Z"
+    assert abs(digest["time_offset_s"] - (OFFSET_S + 3.0 - start)) <= 0.005
+    assert any("offsets are expected" in n for n in digest["notes"])
+    for i, col in enumerate(cols):
+        entry = result["angles"][col]
+        assert abs(entry["rmse_centred_deg"] - _direct(result, truth, col, centred=True)) < 0.2
+        own_bias = np.nanmean(_error(result, truth, col))
+        assert entry["bias_deg"] - own_bias == pytest.approx(-frames_differ[i], abs=0.2)
+    # a sign flipped by an angle map
+    (root / "map.yaml").write_text(
+        "knee_r_flexion_deg: {label: RKneeAngles, component: x}\n"
+        "knee_r_rotation_deg: {label: RKneeAngles, component: z, sign: -1}\n"
+    )
+    _, flipped = _validate(path, root / "pig.c3d", "--angle-map", str(root / "map.yaml"))
+    assert flipped["reference"]["mapping"]["knee_r_rotation_deg"] == "-RKneeAngles.Z"
+    assert "knee_r_adduction_deg" not in flipped["angles"]
+    assert flipped["angles"]["knee_r_rotation_deg"]["r"] < 0
+
+
+def test_segment_csv_errors(tmp_path):
+    bad = tmp_path / "a.csv"
+    bad.write_text("time,thigh_r_qw,thigh_r_qx,thigh_r_qy\n" + "0,1,0,0\n" * 12)
+    with pytest.raises(InputError, match="thigh_r_qz"):
+        read_segment_csv(bad)
+    bad.write_text("t,thigh_r_qw\n0,1\n")
+    with pytest.raises(InputError, match="no time column"):
+        read_segment_csv(bad)
+    res = CliRunner().invoke(main, ["validate", str(tmp_path / "none.h5"), "--reference", str(bad)])
+    assert res.exit_code == 2
+
+
+def _turning(seed, duration, rate=100.0):
+    """An IMU and an optical body turning with smooth random rates; the gyroscope reports the
+    interval averages."""
+    rng = np.random.default_rng(seed)
+    fine = np.arange(0.0, duration, 1e-3)
+    w = np.cumsum(rng.normal(size=(len(fine), 3)), axis=0)
+    w = (w - w.mean(axis=0)) / w.std() * 1.5
+    q = rot.integrate_gyro(rot.IDENTITY, w, 1e-3)
+    t_imu = np.arange(0.01, duration - 0.01, 1.0 / rate)
+    q_imu = resample_quat(fine, q, t_imu)
+    dq = rot.mul(rot.conj(resample_quat(fine, q, t_imu - 1.0 / rate)), q_imu)
+    gyr = rot.to_rotvec(dq) * rate
+    t_opt = np.arange(0.0, duration, 1 / 120.0)
+    q_opt = resample_quat(fine, q, t_opt)
+    return (t_imu, gyr), (t_opt + OFFSET_S, q_opt)
+
+
+def test_interval_gyro_timing_and_global_fallback():
+    (t, gyr), ref = _turning(2, 30.0)
+    point = synchronise([(t, gyr)], [ref])
+    interval = synchronise([(gyro_times(t), gyr)], [ref])
+    assert abs(point.model.offset_s - (OFFSET_S - 0.005)) < 0.001  # half a sample off
+    assert abs(interval.model.offset_s - OFFSET_S) < 0.001
+    assert interval.grade == "good" and interval.standard_error_s < 0.001
+    # 8 s of data: no 10 s window fits, one global offset instead of "0 windows" refused
+    short = synchronise([(gyro_times(t[:800]), gyr[:800])], [ref])
+    assert short.method == "global cross-correlation" and "0 window" in short.fallback
+    assert abs(short.model.offset_s - OFFSET_S) < 0.002
+    assert np.isfinite(short.standard_error_s) and short.grade in ("good", "fair")
