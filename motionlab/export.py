@@ -7,9 +7,12 @@
   the orientations stay in the IMU system's Z-up earth frame (ENU here); OpenSense turns them
   into its Y-up ground with ``sensor_to_opensim_rotations = -1.5708 0 0`` (its default).
   All sensors are SLERP-resampled onto the first one's time stamps, within the span they share.
-- ``mot``: the joint angles as an OpenSim motion file (``inDegrees=yes``; columns ``time`` and
-  motionlab's angle names without ``_deg``, e.g. ``knee_r_flexion``; motionlab's clinical signs,
-  not an OpenSim model's coordinates).
+- ``mot``: the joint angles as an OpenSim motion file (``inDegrees=yes``, degrees): angles
+  that are coordinates of OpenSim's Rajagopal (2015) full-body model, the model OpenSense's
+  tutorials use, get its coordinate names and signs (:data:`OPENSIM_COORDINATES`:
+  ``knee_angle_r``, ``hip_flexion_r``, ``lumbar_extension`` = −lumbar flexion, …); the others
+  keep motionlab's names without ``_deg`` (``knee_r_adduction``: Rajagopal's knee has one
+  degree of freedom). The zeros are motionlab's (the calibration pose), not the model's.
 - ``c3d``: the joint angles as ``POINT:ANGLES`` model outputs (one point per joint, its three
   angles as X, Y, Z in deg, ``ANGLE_UNITS`` deg) and the markers, if any (mm), all on the angles'
   time stamps (markers interpolated through the validation's clock fit when there is one).
@@ -48,6 +51,41 @@ OPENSIM_BODIES = {
     "forearm": "radius",
     "hand": "hand",
 }
+
+
+#: motionlab angle column → (OpenSim coordinate of the Rajagopal 2015 model, sign). Both use
+#: ISB-like frames (x anterior, y up, z right) and mirror the left side, so the signs agree
+#: except lumbar flexion (Rajagopal's lumbar_extension turns the torso backward about +z).
+#: Rajagopal's knee_angle is positive in flexion (gait2392's is negative: negate it there).
+#: Positive lumbar_bending bends to the right and lumbar_rotation turns to the left, as
+#: motionlab's; pro_sup is positive in pronation; elbow_flex in flexion.
+OPENSIM_COORDINATES: dict[str, tuple[str, float]] = {
+    **{
+        f"{joint}_{s}_{angle}_deg": (f"{coordinate}_{s}", 1.0)
+        for s in ("r", "l")
+        for joint, angle, coordinate in (
+            ("hip", "flexion", "hip_flexion"),
+            ("hip", "adduction", "hip_adduction"),
+            ("hip", "rotation", "hip_rotation"),
+            ("knee", "flexion", "knee_angle"),
+            ("elbow", "flexion", "elbow_flex"),
+            ("elbow", "pronation", "pro_sup"),
+        )
+    },
+    "lumbar_flexion_deg": ("lumbar_extension", -1.0),
+    "lumbar_lateral_bending_deg": ("lumbar_bending", 1.0),
+    "lumbar_axial_rotation_deg": ("lumbar_rotation", 1.0),
+}
+
+
+def opensim_columns(columns: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """Angle columns (deg) renamed to OpenSim coordinates with their signs
+    (:data:`OPENSIM_COORDINATES`); unmapped columns keep their names."""
+    out = {}
+    for col, values in columns.items():
+        name, sign = OPENSIM_COORDINATES.get(col, (col, 1.0))
+        out[name] = sign * np.asarray(values, dtype=float) if sign != 1.0 else values
+    return out
 
 
 # ------------------------------------------------------------------------------ orientations
@@ -328,8 +366,12 @@ def export_session(session: Session, fmt: str, path: str | Path, force: bool = F
         time, columns = angle_table(session)
         order = [c for cols in joint_columns(session).values() for c in cols if c in columns]
         columns = {c: columns[c] for c in order + [c for c in columns if c not in order]}
-        write_mot(path, time, columns, force=force)
-        return f"{len(columns)} joint angles (deg), {len(time)} samples"
+        renamed = opensim_columns(columns)
+        write_mot(path, time, renamed, force=force)
+        n_os = sum(c in OPENSIM_COORDINATES for c in columns)
+        return (
+            f"{len(columns)} joint angles (deg; {n_os} as OpenSim coordinates), {len(time)} samples"
+        )
     if fmt == "c3d":
         time, columns = angle_table(session)
         outputs, descriptions = [], {}

@@ -14,10 +14,9 @@ from conftest import SHARED, needs_shared
 from test_pipeline import PROTOCOL
 
 from motionlab.cli import main
-from motionlab.export import orientations, results_json
+from motionlab.export import opensim_columns, orientations, results_json
 from motionlab.io import read_any
 from motionlab.io.opensim import read_mot
-from motionlab.pipeline import PipelineOptions, run_pipeline
 from motionlab.session import load_session, save_session
 from motionlab.simulate import simulate
 from motionlab.simulate.markers import OpticalSystem
@@ -33,17 +32,18 @@ def run_dir(tmp_path_factory):
         mounting_max_deg=5.0, optical=OpticalSystem(rate_hz=50.0),
     )  # fmt: skip
     save_session(session, root / "sim.h5")
-    options = PipelineOptions(
-        root / "knee_small.yaml", progress=False, clock_sync=False, estimator="madgwick"
-    )
-    run_pipeline([root / "sim.h5"], root / "out", options)
+    args = ["run", "--protocol", str(root / "knee_small.yaml"), str(root / "sim.h5"), "-o",
+            str(root / "out"), "--filter", "madgwick", "--no-clock-sync", "--quiet", "--json",
+            str(root / "run.json")]  # fmt: skip
+    res = CliRunner().invoke(main, args)
+    assert res.exit_code == 0, res.output
     return root / "out"
 
 
 def _export(run_dir, fmt, name):
     out = run_dir / name
     res = CliRunner().invoke(
-        main, ["export", str(run_dir / "session.h5"), "--format", fmt, "-o", str(out), "--force"]
+        main, ["export", str(run_dir / "session.h5"), "--to", fmt, "-o", str(out), "--force"]
     )
     assert res.exit_code == 0, res.output
     return out
@@ -55,6 +55,7 @@ def test_run_filter_and_results_json(run_dir):
     assert ses.provenance[-1]["parameters"]["estimator"] == "madgwick"
     assert "--filter madgwick" in ses.provenance[-1]["command"]
     written = json.loads((run_dir / "results.json").read_text())
+    assert json.loads((run_dir.parent / "run.json").read_text()) == written  # run --json FILE
     again = results_json(ses)
     assert written["angles"]["joints"].keys() == again["angles"]["joints"].keys()
     for joint, entry in written["angles"]["joints"].items():
@@ -117,10 +118,22 @@ def test_mot_round_trip(run_dir):
     header, table = read_mot(_export(run_dir, "mot", "angles.mot"))
     assert header["inDegrees"] == "yes" and int(header["nRows"]) == len(table)
     angles = load_session(run_dir / "session.h5").results["angles"]
-    assert list(table.columns[:4]) == ["time", "knee_r_flexion", "knee_r_adduction",
+    # Rajagopal's coordinate where one maps (knee flexion), motionlab's names elsewhere
+    assert list(table.columns[:4]) == ["time", "knee_angle_r", "knee_r_adduction",
                                        "knee_r_rotation"]  # fmt: skip
     np.testing.assert_array_equal(table["time"], angles["time_s"])
-    np.testing.assert_array_equal(table["knee_r_flexion"], angles["knee_r_flexion_deg"])
+    np.testing.assert_array_equal(table["knee_angle_r"], angles["knee_r_flexion_deg"])
+    np.testing.assert_array_equal(table["knee_r_rotation"], angles["knee_r_rotation_deg"])
+
+
+def test_opensim_coordinate_names_and_signs():
+    cols = {c: np.array([10.0, -5.0]) for c in ("lumbar_flexion_deg", "lumbar_lateral_bending_deg",
+            "hip_l_adduction_deg", "elbow_r_carrying_deg", "elbow_r_pronation_deg")}  # fmt: skip
+    out = opensim_columns(cols)
+    assert list(out) == ["lumbar_extension", "lumbar_bending", "hip_adduction_l",
+                         "elbow_r_carrying_deg", "pro_sup_r"]  # fmt: skip
+    np.testing.assert_array_equal(out["lumbar_extension"], [-10.0, 5.0])  # extension = −flexion
+    np.testing.assert_array_equal(out["hip_adduction_l"], [10.0, -5.0])
 
 
 def test_c3d_round_trip(run_dir):
@@ -146,7 +159,7 @@ def test_c3d_round_trip(run_dir):
 def test_export_errors(run_dir, tmp_path):
     res = CliRunner().invoke(main, ["export", str(run_dir / "session.h5"), "-o",
                                     str(tmp_path / "x.txt")])  # fmt: skip
-    assert res.exit_code == 2 and "--format" in res.output
+    assert res.exit_code == 2 and "--to" in res.output
     empty = tmp_path / "empty.h5"
     from motionlab.session import Session
 

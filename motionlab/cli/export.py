@@ -14,8 +14,8 @@ from motionlab.session import load_session
 @click.command("export")
 @click.argument("session", type=click.Path(dir_okay=False))
 @click.option(
-    "--format",
     "--to",
+    "--format",
     "fmt",
     type=click.Choice(FORMATS),
     help="sto, mot, c3d or json (default: from the output's extension).",
@@ -28,21 +28,23 @@ def command(session: str, fmt: str | None, output: str, force: bool) -> None:
     \b
     sto   sensor orientations for OpenSense (one w,x,y,z column per IMU, Z-up earth frame
           as OpenSense's readers write it: keep sensor_to_opensim_rotations = -1.5708 0 0)
-    mot   joint angles as an OpenSim motion file (time, degrees, inDegrees=yes)
+    mot   joint angles as an OpenSim motion file (degrees, inDegrees=yes), with the
+          Rajagopal model's coordinate names and signs where they map (knee_angle_r,
+          hip_flexion_r, lumbar_extension, ...), motionlab's names for the others
     c3d   joint angles as POINT:ANGLES model outputs (deg) and the markers, if any (mm)
     json  machine-readable results: metadata, angles with grades, metrics, validation
 
     \b
     Example:
-      motionlab export results/P017/session.h5 --format sto -o P017_orientations.sto
+      motionlab export results/P017/session.h5 --to sto -o P017_orientations.sto
       motionlab export results/P017/session.h5 -o P017_angles.mot
-      motionlab export results/P017/session.h5 --format json -o P017.json
+      motionlab export results/P017/session.h5 --to json -o P017.json
     """
     fmt = fmt or Path(output).suffix.lstrip(".").lower()
     if fmt not in FORMATS:
         raise click.BadParameter(
-            f"cannot tell the format from '{output}'; give --format {'|'.join(FORMATS)}",
-            param_hint="--format",
+            f"cannot tell the format from '{output}'; give --to {'|'.join(FORMATS)}",
+            param_hint="--to",
         )
     check_output(output, force)
     summary = export_session(load_session(session), fmt, output, force=force)

@@ -7,8 +7,9 @@ from pathlib import Path
 import click
 
 from motionlab import stages
+from motionlab.atomic import atomic_path, check_output
 from motionlab.cli.paths import FOLDER, INPUT_FILE
-from motionlab.pipeline import PipelineOptions, run_pipeline
+from motionlab.pipeline import RESULTS_JSON, PipelineOptions, run_pipeline
 
 
 @click.command("run")
@@ -65,6 +66,12 @@ from motionlab.pipeline import PipelineOptions, run_pipeline
     show_default=True,
     help="Put IMUs recorded on their own clocks on one clock (from the joints they share).",
 )
+@click.option(
+    "--json",
+    "json_path",
+    type=click.Path(dir_okay=False),
+    help="Also write the results JSON (as OUTDIR/results.json and 'motionlab export --to json').",
+)
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
 @click.option("--force", is_flag=True, help="Replace existing outputs.")
 @click.option("--quiet", is_flag=True, help="No progress on stderr.")
@@ -79,6 +86,7 @@ def command(
     orientation,
     clock_sync,
     outdir,
+    json_path,
     seed,
     force,
     quiet,
@@ -98,7 +106,10 @@ def command(
       motionlab run --protocol knee sim.h5 -o results/sim
       motionlab run --protocol knee sim.h5 --filter madgwick -o results/sim_madgwick
       motionlab run --protocol walk --map map.yaml trial.sto --orientation vendor -o results/sto
+      motionlab run --protocol knee sim.h5 -o results/sim --json sim_results.json
     """
+    if json_path is not None:
+        check_output(json_path, force, inputs=list(files))
     options = PipelineOptions(
         protocol=protocol,
         map_path=Path(map_path) if map_path else None,
@@ -113,4 +124,7 @@ def command(
         progress=not quiet,
     )
     result = run_pipeline([Path(f) for f in files], Path(outdir), options)
+    if json_path is not None:  # the very bytes of OUTDIR/results.json
+        with atomic_path(json_path, force=force) as tmp:
+            tmp.write_bytes((Path(outdir) / RESULTS_JSON).read_bytes())
     click.echo(result.summary)

@@ -420,7 +420,9 @@ def fit_clock(
         return SyncResult(
             model=ClockModel(offset, 0.0), inlier_ratio=float("nan"), residual_rms_s=float("nan"),
             coarse_lag_s=lag0, method="global cross-correlation", standard_error_s=se,
-            grade=ta.grade(se, rate), fallback=f"{fallback}: one offset for the whole recording",
+            grade=ta.grade(se, rate) if peak >= MIN_CORRELATION else "poor",
+            fallback=f"{fallback}: one offset for the whole recording (peak correlation "
+            f"{peak:.2f})",
             window_time_s=empty, window_lag_s=empty, window_sd_s=empty, window_corr=empty,
             window_pair=np.zeros(0, int), inliers=np.zeros(0, bool),
         )  # fmt: skip
