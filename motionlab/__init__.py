@@ -3,11 +3,75 @@
 Conventions (fixed, see docs/architecture.md): SI units inside the code, Hamilton quaternions
 scalar first ``[w, x, y, z]`` mapping sensor-frame vectors into the ENU earth frame, ISB segment
 frames, first array dimension is time.
+
+The Python API (README "From Python"; ``examples/knee_from_python.py``) is a thin re-export of
+the functions the commands call, imported on first use so that ``import motionlab`` stays
+light:
+
+- data: :class:`Session`, :class:`SensorStream`, :class:`MarkerSet`, :func:`load_session`,
+  :func:`save_session`, :func:`read_any` (one file → :class:`Recording`), :func:`ingest`
+  (files → one session), :func:`load_protocol`, :func:`simulate`;
+- stages (each adds its results to ``session.results`` and returns them, as the commands do):
+  :func:`sync`, :func:`fuse` (or :func:`estimate` for one sensor's arrays), :func:`calibrate`,
+  :func:`angles`, :func:`metrics`, :func:`validate`;
+- the whole analysis: :func:`run_pipeline` with :class:`PipelineOptions` (files → output
+  folder), :func:`analyse` (a session in memory);
+- out: :func:`load_views` and :func:`write_report` (PDF/CSV), :func:`export_session` (sto, mot,
+  c3d, json), :func:`results_json` (the results as a JSON-able dict);
+- :class:`InputError`: what every function raises for bad input (its message names the place).
 """
 
-from importlib.metadata import PackageNotFoundError, version
+from importlib import import_module
+from typing import Any
 
-try:
-    __version__ = version("motionlab")
-except PackageNotFoundError:  # running from a source tree that was not installed
-    __version__ = "0.0.0+unknown"
+#: public name → module that defines it (imported on first use)
+_EXPORTS = {
+    "Session": "motionlab.session",
+    "SensorStream": "motionlab.session",
+    "MarkerSet": "motionlab.session",
+    "load_session": "motionlab.session",
+    "save_session": "motionlab.session",
+    "read_any": "motionlab.io",
+    "Recording": "motionlab.io",
+    "ingest": "motionlab.ingest",
+    "load_protocol": "motionlab.protocol",
+    "Protocol": "motionlab.protocol",
+    "simulate": "motionlab.simulate",
+    "estimate": "motionlab.fusion",
+    "sync": "motionlab.stages",
+    "fuse": "motionlab.stages",
+    "calibrate": "motionlab.stages",
+    "angles": "motionlab.stages",
+    "metrics": "motionlab.stages",
+    "validate": "motionlab.stages",
+    "run_pipeline": "motionlab.pipeline",
+    "analyse": "motionlab.pipeline",
+    "PipelineOptions": "motionlab.pipeline",
+    "load_views": "motionlab.report",
+    "write_report": "motionlab.report",
+    "export_session": "motionlab.export",
+    "results_json": "motionlab.export",
+    "InputError": "motionlab.errors",
+}
+
+__all__ = ["__version__", *_EXPORTS]
+
+
+def __getattr__(name: str) -> Any:
+    if name == "__version__":
+        from importlib.metadata import PackageNotFoundError, version
+
+        try:
+            value = version("motionlab")
+        except PackageNotFoundError:  # running from a source tree that was not installed
+            value = "0.0.0+unknown"
+    elif name in _EXPORTS:
+        value = getattr(import_module(_EXPORTS[name]), name)
+    else:
+        raise AttributeError(f"module 'motionlab' has no attribute {name!r}")
+    globals()[name] = value  # later look-ups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(__all__))

@@ -36,9 +36,12 @@ GLOBAL_SEARCH_SAMPLES = 3.0
 
 
 def gyro_sampling(attrs: dict[str, Any]) -> str:
-    """``interval`` (the default: real sensors) or ``point`` (``attrs["gyr_sampling"]``)."""
-    value = str(attrs.get("gyr_sampling", "interval"))
-    return value if value in GYRO_SAMPLING else "interval"
+    """``attrs["gyr_sampling"]`` (``interval`` or ``point``); without it ``interval`` (real
+    sensors), except for a simulated stream (``attrs["simulated"]``), which predates the
+    option and so was point-sampled."""
+    default = "point" if attrs.get("simulated") else "interval"
+    value = str(attrs.get("gyr_sampling", default))
+    return value if value in GYRO_SAMPLING else default
 
 
 def gyro_times(time: np.ndarray, sampling: str = "interval") -> np.ndarray:

@@ -1,0 +1,40 @@
+"""The Python API: ``import motionlab`` stays light, its names are the stage functions, and the
+example script runs on the bundled demo."""
+
+import importlib.util
+import json
+import subprocess
+import sys
+
+import numpy as np
+from conftest import ROOT
+
+import motionlab
+
+
+def test_import_is_light_and_names_resolve():
+    code = ("import sys, motionlab; heavy = {'numpy', 'h5py', 'numba', 'matplotlib', 'scipy'};"
+            "print(sorted(heavy & set(sys.modules)))")  # fmt: skip
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "[]"
+    from motionlab import stages
+
+    assert motionlab.fuse is stages.fuse and motionlab.validate is stages.validate
+    assert {"load_session", "run_pipeline", "read_any", "export_session"} <= set(motionlab.__all__)
+    assert all(getattr(motionlab, name) is not None for name in motionlab.__all__)
+    assert motionlab.__version__
+
+
+def test_example_runs_on_the_demo(tmp_path):
+    spec = importlib.util.spec_from_file_location(
+        "example", ROOT / "examples" / "knee_from_python.py"
+    )
+    example = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(example)
+    doc = example.main(tmp_path)
+    flexion = np.array(doc["angles"]["joints"]["knee_r"]["columns"]["knee_r_flexion_deg"], float)
+    assert 60 < np.nanmax(flexion) < 120
+    saved = json.loads((tmp_path / "knee_results.json").read_text())
+    assert saved["validation"]["sync"]["grade"] in ("good", "fair")
+    assert saved["validation"]["angles"]["knee_r_flexion_deg"]["rmse_deg"] < 3.0
+    assert (tmp_path / "knee_angles.mot").read_text().count("knee_angle_r") == 1
