@@ -198,3 +198,15 @@ def test_interval_gyro_timing_and_global_fallback():
     assert short.method == "global cross-correlation" and "0 window" in short.fallback
     assert abs(short.model.offset_s - OFFSET_S) < 0.002
     assert np.isfinite(short.standard_error_s) and short.grade in ("good", "fair")
+
+
+def test_simulated_interval_gyroscope_is_the_mean_rate(knee):
+    _, path, truth = knee
+    s = load_session(path).sensors["shank_r"]
+    assert s.attrs["gyr_sampling"] == "interval"
+    t_true = truth.sensors["shank_r"]["sample_time"]
+    q = resample_quat(truth.time, truth.sensors["shank_r"]["orientation"], t_true)
+    mean_rate = rot.to_rotvec(rot.mul(rot.conj(q[:-1]), q[1:])) / np.diff(t_true)[:, None]
+    inner = slice(100, -100)
+    err = np.linalg.norm(s.gyr[1:][inner] - mean_rate[inner], axis=1)
+    assert np.max(err) < 1e-6  # point samples are off by 0.27 rad/s (99th percentile) here

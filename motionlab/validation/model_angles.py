@@ -2,7 +2,7 @@
 ``POINT:ANGLES`` model outputs (:mod:`motionlab.io.c3d` keeps them apart from the markers).
 
 The mapping from model-output labels to motionlab angle columns (:data:`PLUGIN_GAIT`, written
-out in docs/validation.md) follows Vicon's Plug-in Gait reference guide: each ``*Angles`` point
+out in the README, "Validate") follows Vicon's Plug-in Gait reference guide: each ``*Angles`` point
 holds three angles in degrees as X, Y, Z, already in clinical signs on both sides (flexion,
 adduction/varus and internal rotation positive; the left side is mirrored by the model), which
 are motionlab's signs (DESIGN.md §1), so every sign is +1:
