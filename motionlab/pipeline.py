@@ -215,7 +215,9 @@ class PipelineOptions:
     map_path
         Sensor map YAML for raw recordings (segment and side of each sensor, subject).
     reference
-        Optical reference (C3D, TRC or a session with markers) for the validation stage.
+        Reference for the validation stage: markers (C3D, TRC or a session with markers), a CSV
+        of segment quaternions or a C3D of model joint angles
+        (:mod:`motionlab.validation.reference_kinds`).
     calibration_dir
         Folder of per-serial sensor calibrations (``motionlab sensorcal``) applied before fusion.
     magnetometer
@@ -324,14 +326,14 @@ def analyse(session: Session, options: PipelineOptions, stages: _Stages | None =
     with stages("metrics"):
         stages_lib.metrics(session, protocol, force=True)
     if options.reference is not None or session.markers:
-        from motionlab.validation.reference import choose_marker_set, read_reference
+        from motionlab.validation.reference_kinds import load_reference
 
         with stages("validate"):
-            marker_set = None
-            if options.reference is not None:
-                ref = Path(options.reference)
-                marker_set = choose_marker_set(read_reference(ref), None, ref)
-            stages_lib.validate(session, protocol, marker_set, seed=options.seed, force=True)
+            marker_set, kind = None, "markers"
+            if options.reference is not None:  # markers, segment quaternions or model angles
+                marker_set, kind = load_reference(Path(options.reference))
+            stages_lib.validate(session, protocol, marker_set, seed=options.seed, force=True,
+                                reference_kind=kind)  # fmt: skip
 
 
 def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> PipelineResult:

@@ -155,6 +155,16 @@ def test_c3d_model_angles_reference(knee):
     assert flipped["reference"]["mapping"]["knee_r_rotation_deg"] == "-RKneeAngles.Z"
     assert "knee_r_adduction_deg" not in flipped["angles"]
     assert flipped["angles"]["knee_r_rotation_deg"]["r"] < 0
+    # run takes it as its reference, and the report's validation pages take the result
+    args = ["run", "--protocol", str(root / "knee_small.yaml"), str(path), "--quiet",
+            "--reference", str(root / "pig.c3d"), "-o", str(root / "run"),
+            "--no-clock-sync"]  # fmt: skip
+    res = CliRunner().invoke(main, args)
+    assert res.exit_code == 0, res.output
+    ran = load_session(root / "run" / "session.h5").results["validation"]
+    assert ran["reference"]["kind"] == "model_angles"
+    assert ran["angles"]["knee_r_flexion_deg"]["rmse_centred_deg"] < 3.0
+    assert "knee_r_flexion" in (root / "run" / "report.txt").read_text()
 
 
 def test_segment_csv_errors(tmp_path):

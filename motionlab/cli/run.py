@@ -24,7 +24,8 @@ from motionlab.pipeline import RESULTS_JSON, PipelineOptions, run_pipeline
 @click.option(
     "--reference",
     type=INPUT_FILE,
-    help="Optical reference (C3D, TRC or a session with markers): validate against it.",
+    help="Reference to validate against: markers (C3D, TRC, a session), a CSV of segment "
+    "quaternions or a C3D of model joint angles (see 'motionlab validate --help').",
 )
 @click.option(
     "--calibration",
