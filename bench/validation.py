@@ -22,11 +22,15 @@
    as a segment CSV, clocks not aligned to the sample: the offset found with the gyroscope
    modelled as interval averages, as point samples, and from the orientations, against the
    offset that minimises the orientation error (a scan).
+4. The trunk recordings (``../shared/datasets/trunk``, x-IMU3 + OptiTrack, no licence: read in
+   place; the Motive CSV's rigid-body quaternions go to a temporary segment CSV): the thorax
+   (``Back`` vs ``back``) and lower back (``Chest`` vs ``low_back``) IMUs, clocks unsynchronised
+   by about an hour, 9-18 s per trial: too short for 10 s windows, so the global offset.
 
 Usage::
 
     python bench/validation.py [--data DIR] [--seeds 1,2,3] [--estimator madgwick]
-        [--fused-estimator default] [--skip-sim] [--skip-broad] [--skip-ring]
+        [--fused-estimator default] [--skip-sim] [--skip-broad] [--skip-ring] [--skip-trunk]
 """
 
 from __future__ import annotations
@@ -271,6 +275,70 @@ def ring_table(folder: Path) -> str:
     return "\n".join(lines)
 
 
+def _motive_segments(src: Path, dst: Path, bodies: dict[str, str]) -> None:
+    """A segment CSV from a Motive (OptiTrack) CSV export: ``bodies`` rigid body → segment."""
+    import pandas as pd
+
+    raw = pd.read_csv(src, header=None, skiprows=2, low_memory=False)
+    kind, name, what, comp = (raw.iloc[i] for i in (0, 1, 3, 4))
+    data = raw.iloc[5:].apply(pd.to_numeric, errors="coerce")
+    out = {"time": data[1].to_numpy(float)}
+    for body, seg in bodies.items():
+        for c in "WXYZ":
+            j = next(i for i in range(len(name)) if kind[i] == "Rigid Body" and name[i] == body
+                     and what[i] == "Rotation" and comp[i] == c)  # fmt: skip
+            out[f"{seg}_q{c.lower()}"] = data[j].to_numpy(float)
+    pd.DataFrame(out).to_csv(dst, index=False)
+
+
+def trunk_table(folder: Path) -> str:
+    """Sync on the trunk recordings (module docstring, item 4)."""
+    import tempfile
+
+    from motionlab.errors import InputError
+    from motionlab.io import read_any
+    from motionlab.validation.segment_csv import read_segment_csv, segment_map
+
+    pairs = {"Back": "back", "Chest": "low_back"}
+    lines = [
+        "Trunk (x-IMU3 vs OptiTrack rigid bodies, 6-D fusion, mode heading, body frames)\n",
+        "| trial | s | sync on | offset (s) | standard error (ms), grade | how | total RMSE "
+        "Back, Chest (°) |",
+        "|---|---:|---|---:|---|---|---|",
+    ]
+    for trial in sorted(folder.glob("*/*")):
+        ses = Session()
+        for dev in sorted((trial / "imu").iterdir()):
+            label = dev.name.split()[0]
+            if label in pairs:
+                s = read_any(dev / "Inertial.csv").sensors[0]
+                s.label = s.segment = label
+                ses.sensors[label] = s
+                q = estimate("default", s.gyr, s.acc, None, s.rate_hz, time=s.time).quat
+                ses.results.setdefault("fusion", {})[label] = {"quat": q}
+        with tempfile.TemporaryDirectory() as tmp:
+            path = Path(tmp) / "segments.csv"
+            _motive_segments(trial / "optitrack.csv", path, {v: k for k, v in pairs.items()})
+            ref = read_segment_csv(path)
+        mmap = segment_map(ref, [], list(ses.sensors), "body")
+        t = ses.sensors["Back"].time
+        for source in ("gyroscope", "orientation"):
+            try:
+                res = validate(ses, ref, mmap, None, "heading", sync_on=source)
+            except InputError as exc:
+                lines.append(f"| {trial.parent.name}/{trial.name} | | {source} | {exc} | | | |")
+                continue
+            sy = res["sync"]
+            how = sy["fallback"] or f"{sy['method']}, {sy['n_windows']} windows"
+            rmse = ", ".join(f"{res['orientation'][k]['total_rmse_deg']:.2f}" for k in pairs)
+            lines.append(
+                f"| {trial.parent.name}/{trial.name} | {t[-1] - t[0]:.0f} | {source} | "
+                f"{sy['time_offset_s']:+.4f} | {sy['standard_error_s'] * 1e3:.2f}, "
+                f"{sy['grade']} | {how} | {rmse} |"
+            )
+    return "\n".join(lines)
+
+
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA, help="folder of BROAD *.hdf5")
@@ -280,6 +348,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--skip-sim", action="store_true")
     ap.add_argument("--skip-broad", action="store_true")
     ap.add_argument("--skip-ring", action="store_true")
+    ap.add_argument("--skip-trunk", action="store_true")
     ap.add_argument("--sides", default=",".join(SIDES), help="simulated IMU sides")
     args = ap.parse_args(argv)
     if not args.skip_sim:
@@ -294,6 +363,10 @@ def main(argv: list[str] | None = None) -> None:
     if not args.skip_ring and ring.is_dir():
         print()
         print(ring_table(ring))
+    trunk = args.data.parent / "trunk"
+    if not args.skip_trunk and trunk.is_dir():
+        print()
+        print(trunk_table(trunk))
 
 
 if __name__ == "__main__":

@@ -37,7 +37,12 @@ from motionlab.validation.optical import resample_quat
 from motionlab.validation.orientation_error import error_angles, orientation_errors
 from motionlab.validation.reference import OpticalSegment, choose_marker_set, optical_segments
 from motionlab.validation.sync import no_sync, synchronise
-from motionlab.validation.time_alignment import SYNC_SOURCES, gyro_sampling, imu_signal
+from motionlab.validation.time_alignment import (
+    SYNC_SOURCES,
+    gyro_sampling,
+    imu_signal,
+    sync_notes,
+)
 
 __all__ = ["validate"]
 
@@ -299,6 +304,7 @@ def validate(
         k: float(residual[i]) for i, k in enumerate(labels) if i < len(residual)
     }
     notes = [f"segment {seg}: no sensor" for seg in mmap.segments if seg not in seg_of.values()]
+    notes += sync_notes(result["sync"]) if sync else []
     spread = np.ptp(residual[np.isfinite(residual)]) if np.isfinite(residual).any() else 0.0
     if spread * estimate_rate(t) > 1.0:
         notes.append(

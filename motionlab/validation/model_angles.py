@@ -49,6 +49,7 @@ from motionlab.protocol import Protocol
 from motionlab.session import MarkerSet, Session, estimate_rate
 from motionlab.validation.agreement import agreement, per_repetition, repetitions
 from motionlab.validation.sync import no_sync, synchronise
+from motionlab.validation.time_alignment import sync_notes
 
 CAVEAT = (
     "the reference angles come from another model whose segment frames differ from the IMU "
@@ -255,8 +256,7 @@ def validate_model_angles(
     sync_tree.pop("pair_residual_s", None)
     sync_tree["signal"] = "joint angle rates" if sync else ""
     sync_tree["sensor_residual_s"] = {}
-    if sync and sync_tree.get("fallback"):
-        notes.append(f"time sync: {sync_tree['fallback']}")
+    notes += sync_notes(sync_tree) if sync else []
     result: dict[str, Any] = {
         "mode": "angles",
         "marker_set": reference.name,

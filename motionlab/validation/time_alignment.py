@@ -149,3 +149,17 @@ def global_offset(
     if n and den_sum > 0:
         se = float(np.sqrt(num / n / den_sum * max(rate / (2 * cutoff_hz), 1.0)))
     return lag, se, float(corr[k])
+
+
+def sync_notes(sync: dict[str, Any]) -> list[str]:
+    """Notes on a sync tree (``results["validation"]["sync"]``): its fallback, a poor grade."""
+    out = []
+    if sync.get("fallback"):
+        out.append(f"time sync: {sync['fallback']}")
+    if sync.get("grade") == "poor":
+        se = sync.get("standard_error_s", float("nan")) * 1e3
+        out.append(
+            f"time sync is poor (standard error {se:.1f} ms): the errors may come from the "
+            "clocks, not the sensors; record more movement seen by both systems"
+        )
+    return out
