@@ -220,3 +220,14 @@ def test_simulated_interval_gyroscope_is_the_mean_rate(knee):
     inner = slice(100, -100)
     err = np.linalg.norm(s.gyr[1:][inner] - mean_rate[inner], axis=1)
     assert np.max(err) < 1e-6  # point samples are off by 0.27 rad/s (99th percentile) here
+
+
+def test_marker_map_segment_frame_key(tmp_path):
+    from motionlab.validation.markermap import load_marker_map
+
+    path = tmp_path / "map.yaml"
+    path.write_text("segments:\n  thigh_r: {rigid_body: femur, segment_frame: true}\n")
+    assert load_marker_map(path).segments["thigh_r"].segment_frame
+    path.write_text("segments:\n  thigh_r: {cluster: [A, B, C], segment_frame: true}\n")
+    with pytest.raises(InputError, match="segment_frame"):
+        load_marker_map(path)

@@ -117,6 +117,12 @@ def _sync_alignment(doc: Document, val: dict[str, Any]) -> None:
             "Windows agreeing with the clock model",
             f"{_f(sync.get('inlier_ratio'), '.2f')} of {sync.get('n_windows', '-')}",
         ],
+        [
+            "Clock offset standard error, grade",
+            f"{_f(1e3 * sync.get('standard_error_s', float('nan')), '.2f')} ms, "
+            f"{sync.get('grade') or '-'}",
+        ],
+        ["Reference", str((val.get("reference") or {}).get("kind", "markers"))],
         ["Spatial alignment mode", str(al.get("mode", val.get("mode", "-")))],
         [
             "Optical lab to earth rotation",
