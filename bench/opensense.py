@@ -25,6 +25,7 @@ import argparse
 import math
 import shutil
 import sys
+import os
 import tempfile
 from pathlib import Path
 
@@ -77,6 +78,7 @@ def main(argv: list[str] | None = None) -> None:
 
     root = Path(tempfile.mkdtemp(prefix="opensense-")) if args.keep is None else args.keep
     root.mkdir(parents=True, exist_ok=True)
+    os.chdir(root)  # OpenSim writes its opensim.log into the working folder
     (root / "knee_small.yaml").write_text(yaml.safe_dump(PROTOCOL))
     session, truth = simulate(root / "knee_small.yaml", 40.0, 5, "clean", rate_hz=100.0,
                               mounting_max_deg=10.0, gyr_sampling="interval")  # fmt: skip
