@@ -23,9 +23,9 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import shutil
 import sys
-import os
 import tempfile
 from pathlib import Path
 
