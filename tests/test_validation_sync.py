@@ -89,5 +89,5 @@ def test_no_movement_cannot_be_synchronised():
     t = np.arange(0.0, 30.0, 0.01)
     still = (t, np.zeros((len(t), 3)) + 1e-3)
     q = np.tile(rot.IDENTITY, (len(t), 1))
-    with pytest.raises(InputError, match="--no-sync"):
+    with pytest.raises(InputError, match="clock=False"):
         synchronise([still], [(t, q)])

@@ -106,7 +106,9 @@ def read_reference(path: str | Path) -> list[MarkerSet]:
 def choose_marker_set(sets: list[MarkerSet], name: str | None, path: str | Path | None = None):
     """The marker set called ``name``, or the only one."""
     if not sets:
-        raise InputError("holds no optical data", path, remedy="give --reference FILE.c3d")
+        raise InputError(
+            "holds no optical data", path, remedy="give reference=FILE.c3d", argument="reference"
+        )
     if name is not None:
         for m in sets:
             if m.name == name:

@@ -75,7 +75,7 @@ class SyncResult:
     method: str = "cross-correlation"
 
     def as_dict(self) -> dict[str, Any]:
-        """The tree stored in ``results["validation"]["sync"]``."""
+        """The tree stored in ``results.validation.sync``."""
         return {
             "method": self.method,
             "time_offset_s": float(self.model.offset_s),
@@ -281,7 +281,9 @@ def ransac_line(
         raise InputError(
             f"only {n} window(s) could be matched between the IMU and the optical data",
             where="time synchronisation",
-            remedy="record some movement with both systems, or use --no-sync if they share a clock",
+            remedy="record some movement with both systems, or pass clock=False if they share a "
+            "clock",
+            argument="clock",
         )
     if n * (n - 1) // 2 <= _RANSAC_PAIRS:
         i, j = np.triu_indices(n, 1)
