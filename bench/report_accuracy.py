@@ -60,7 +60,7 @@ def run_one(name: str, seed: int) -> dict[str, float]:
     stamps = {label: s.time.copy() for label, s in session.sensors.items()}
     prepare_sensors(session)
     analyse(session, PipelineOptions(protocol, seed=seed, progress=False))
-    table = {k: v for k, v in session.results["angles"].items() if k != "method"}
+    table = session.results.angles.columns()
     tasks = [(s["start_s"], s["end_s"]) for s in truth.steps if s["phase"] == "task"]
     first = next(iter(protocol.joints.values())).proximal
     err = errors(table, truth, stamps[first], truth.sensors[first]["sample_time"], tasks)

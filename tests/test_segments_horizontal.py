@@ -52,8 +52,8 @@ def sessions(tmp_path_factory):
 def test_forearm_tilt_follows_the_standing_accelerometer(sessions):
     tmp, plain, session, truth = sessions
     leveled = protocol(tmp, ", horizontal_axis: {forearm_r: x}")
-    before = calibrate(session, plain)["segments"]["forearm_r"]
-    after = calibrate(session, leveled)["segments"]["forearm_r"]
+    before = calibrate(session, plain).segments["forearm_r"]
+    after = calibrate(session, leveled).segments["forearm_r"]
     rec = after["axes"]["standing:horizontal"]
     assert rec["method"] == "horizontal" and rec["residual_deg"] < 1e-6
     assert rec["rho"] > 0.99
@@ -90,7 +90,7 @@ def test_horizontal_axis_alone_does_not_fix_a_segment(tmp_path):
     one = load_protocol(path)
     session, _ = simulate(one, duration=20, seed=0, preset="clean", rest_s=2.0)
     cal = calibrate(session, one)
-    assert not cal["ok"]
-    grades = cal["grades"]["elbow_r"]
+    assert not cal.ok
+    grades = cal.grades["elbow_r"]
     assert "determined" not in grades["grades"]
     assert all(grades["reasons"])

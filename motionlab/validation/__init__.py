@@ -1,4 +1,4 @@
-"""Validation against optical motion capture: ``validate(session, reference, ...) -> dict``.
+"""Validation against optical motion capture: ``validate(session, reference, ...) -> Validation``.
 
 Steps (each in its own module):
 
@@ -14,7 +14,8 @@ Steps (each in its own module):
    (:func:`motionlab.kinematics.joint_angles.joint_angles`) and their agreement per angle and
    per repetition (:mod:`.agreement`).
 
-The result tree is stored in ``session.results["validation"]``; :mod:`.figures` draws it.
+The result (:class:`~motionlab.results.Validation`) is stored in ``session.results.validation``;
+:mod:`.figures` draws it.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from motionlab.errors import InputError
 from motionlab.kinematics.joint_angles import joint_angles
 from motionlab.kinematics.joint_types import angle_columns
 from motionlab.protocol import Protocol
+from motionlab.results import Calibration, Validation
 from motionlab.session import MarkerSet, Session, estimate_rate
 from motionlab.validation.agreement import agreement, per_repetition, repetitions
 from motionlab.validation.align import Alignment
@@ -119,7 +121,7 @@ def _optical_segment_quats(
     optical: dict[str, OpticalSegment],
     al: Alignment,
     seg_of: dict[str, str],
-    calibration: dict | None,
+    calibration: Calibration | None,
 ) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], dict[str, str]]:
     """Segment → lab orientation per segment: anatomical (landmarks) or, without landmarks,
     the cluster carried to the IMU segment frame (``B X q_mount``)."""
@@ -130,7 +132,7 @@ def _optical_segment_quats(
         if q is not None:
             out[seg], source[seg] = (o.time, q), "landmarks"
             continue
-        cal = (calibration or {}).get("segments", {}).get(seg)
+        cal = calibration.segments.get(seg) if calibration is not None else None
         if seg in label_of and cal is not None:
             x = al.sensor_to_cluster[label_of[seg]]
             out[seg] = (o.time, rot.mul(o.quat, rot.mul(x, np.asarray(cal["mounting"]))))
@@ -160,9 +162,11 @@ def _angles(
     from motionlab.kinematics.session_angles import session_angles
 
     notes = []
-    table = session.results.get("angles")
-    if not isinstance(table, dict) or "time_s" not in table:
-        table = session_angles(session, protocol, session.results.get("calibration"))
+    stored = session.results.angles
+    if stored is not None:
+        table = stored.columns()
+    else:
+        table = session_angles(session, protocol, session.results.calibration)
     t = np.asarray(table["time_s"], dtype=float)
     rate = estimate_rate(t)
     mask = None
@@ -231,9 +235,9 @@ def validate(
 
     Returns
     -------
-    dict
-        The tree also stored in ``session.results["validation"]``: ``sync``, ``alignment``,
-        ``optical``, ``orientation`` (per sensor) and ``angles`` (per angle column).
+    Validation
+        Also stored in ``session.results.validation``: ``sync``, ``alignment``, ``optical``,
+        ``orientation`` (per sensor) and ``angles`` (per angle column).
     """
     from motionlab.kinematics.session_angles import sensor_orientation
 
@@ -295,9 +299,7 @@ def validate(
             "they are not on one clock; repair the clocks at ingest"
         )
     if protocol is not None and protocol.joints:
-        seg_quats, source = _optical_segment_quats(
-            optical, al, seg_of, session.results.get("calibration")
-        )
+        seg_quats, source = _optical_segment_quats(optical, al, seg_of, session.results.calibration)
         for seg, src in source.items():
             result["optical"][seg]["frame"] = src
         movement = (t, moving) if moving is not None else None
@@ -306,5 +308,6 @@ def validate(
         )
         notes += angle_notes
     result["notes"] = notes
-    session.results["validation"] = result
-    return result
+    validation = Validation(**result)
+    session.results.validation = validation
+    return validation
