@@ -62,7 +62,8 @@ def command(
       motionlab validate broad.h5 --mode none --no-sync --movement-only
     """
     ses = load_session(session)
-    stages.refuse_to_redo(ses, "validation", "validation results", force, session)
+    done = ses.results.validation is not None
+    stages.refuse_to_redo(done, "validation", "validation results", force, session)
     mmap = load_marker_map(markers_path) if markers_path else None
     name = mmap.marker_set if mmap else None
     if reference is None:
@@ -80,7 +81,7 @@ def command(
             sets, name if name in {m.name for m in sets} else None, static_path
         )
     protocol = None
-    if protocol_path is not None or "calibration" in ses.results:
+    if protocol_path is not None or ses.results.calibration is not None:
         protocol = stages.stage_protocol(ses, protocol_path, session)
     written = []
     extra_inputs = [reference, static_path, markers_path, protocol_path]
@@ -116,7 +117,7 @@ def command(
     if as_json:
         click.echo(json.dumps(digest, indent=2))
         return
-    _print(digest, result["sync"]["method"] != "none")
+    _print(digest, result.sync["method"] != "none")
     if written:
         click.echo(f"wrote {', '.join(written)}")
 
