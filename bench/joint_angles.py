@@ -55,7 +55,7 @@ from motionlab.ingest import DEFAULT_GAP_MAX
 from motionlab.kinematics.session_angles import angle_table, nominal_calibration, sensor_quats
 from motionlab.protocol import Protocol, load_protocol
 from motionlab.results import FusionEntry, Results
-from motionlab.segments import calibrate, segment_orientations, sensor_for_segment
+from motionlab.segments import calibrate_segments, segment_orientations, sensor_for_segment
 from motionlab.sensorcal import apply_calibration
 from motionlab.sensorcal.stage import calibrate_sensor, merge
 from motionlab.session import SensorStream
@@ -216,7 +216,7 @@ def angles(
         res = estimate(args.estimator, s.gyr, s.acc, mag, rate=s.rate_hz, time=s.time)
         fused[label] = FusionEntry(res.name, res.quat, magnetometer=mag is not None)
     session.results.fusion = fused
-    cal = calibrate(session, protocol)
+    cal = calibrate_segments(session, protocol)
     quats = sensor_quats(session, protocol)
     tables = {"cal": angle_table(segment_orientations(protocol, cal, quats), protocol)}
     if nominal:

@@ -35,7 +35,7 @@ from motionlab import rotations as rot
 from motionlab.fusion import estimate
 from motionlab.protocol import load_protocol
 from motionlab.results import FusionEntry  # noqa: E402
-from motionlab.segments import calibrate
+from motionlab.segments import calibrate_segments
 from motionlab.session import Session
 from motionlab.simulate import simulate
 from motionlab.simulate.errors import PRESETS, Preset, TimingModel
@@ -68,7 +68,7 @@ def simulated_case(seed: int, imu: str, estimator: str) -> dict:
     for step in protocol.calibration:
         s = truth.step(step.name)
         step.time_range = (s["start_s"], s["end_s"])
-    session.results.calibration = calibrate(session, protocol)
+    session.results.calibration = calibrate_segments(session, protocol)
     fusion = {}
     for i, (label, s) in enumerate(session.sensors.items()):
         if imu == "stand-in":

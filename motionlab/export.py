@@ -30,7 +30,7 @@ from motionlab import __version__
 from motionlab import rotations as rot
 from motionlab.atomic import atomic_path
 from motionlab.errors import InputError
-from motionlab.results import Calibration
+from motionlab.results import SegmentCalibration
 from motionlab.session import MarkerSet, ModelOutput, Session
 
 FORMATS = ("sto", "mot", "c3d", "json")
@@ -134,7 +134,7 @@ def joint_columns(session: Session) -> dict[str, list[str]]:
     """Joint → its three angle columns in decomposition order (from the protocol the session
     was calibrated with), else the columns grouped by the joint names of the grades."""
     _, columns = angle_table(session)
-    cal = session.results.calibration or Calibration("")
+    cal = session.results.calibration or SegmentCalibration("")
     try:
         from motionlab.kinematics.joint_types import angle_columns
         from motionlab.protocol import load_protocol

@@ -443,7 +443,7 @@ def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
         quality_rows,
         rom_rows,
     )
-    from motionlab.report.text import findings, span, task_name
+    from motionlab.report.sentences import findings, span, task_name
 
     ses, proto = view.session, view.protocol
     q = quality_rows(view)

@@ -5,7 +5,7 @@
 way; the session file's ``/results/<stage>/`` group is written by :meth:`Results.to_tree` and
 read by :meth:`Results.from_tree`, and no other code names the tree's keys::
 
-    cal = session.results.calibration           # Calibration | None
+    cal = session.results.calibration           # SegmentCalibration | None
     q = session.results.fusion["shank_r"].quat   # FusionEntry per sensor label
     session.results.angles = AngleTable(...)
 
@@ -14,7 +14,7 @@ attribute          type                           stage (command)
 =================  =============================  ===============================================
 ``clock_sync``     :class:`ClockSync`             IMU-to-IMU clock fits (``motionlab sync``)
 ``fusion``         ``{label: FusionEntry}``       orientation per sensor (``motionlab fuse``)
-``calibration``    :class:`Calibration`           sensor-to-segment calibration (``calibrate``)
+``calibration``    :class:`SegmentCalibration`    sensor-to-segment calibration (``calibrate``)
 ``angles``         :class:`AngleTable`            joint angle table (``motionlab angles``)
 ``heading``        ``{joint: HeadingCorrection}`` heading alignment per joint (``angles``)
 ``metrics``        :class:`Metrics`               metrics per task and joint (``metrics``)
@@ -43,7 +43,7 @@ import numpy as np
 __all__ = [
     "STAGES",
     "AngleTable",
-    "Calibration",
+    "SegmentCalibration",
     "ClockFit",
     "ClockSync",
     "FusionEntry",
@@ -63,7 +63,8 @@ class _Record:
     that field) and come back out in ``to_tree``.
     """
 
-    _omit_empty: ClassVar[tuple[str, ...]] = ()
+    #: field name → its key in the file, where the two differ (the layout predates the name)
+    _keys: ClassVar[dict[str, str]] = {}
 
     def to_tree(self) -> dict[str, Any]:
         """The tree stored under the stage's group in the session file."""
@@ -72,17 +73,18 @@ class _Record:
             value = getattr(self, f.name)
             if f.name == "more":
                 tree.update(value)
-            elif value is not None and not (f.name in self._omit_empty and not value):
-                tree[f.name] = value
+            elif value is not None:
+                tree[self._keys.get(f.name, f.name)] = value
         return tree
 
     @classmethod
     def from_tree(cls, tree: dict[str, Any]) -> Any:
         """The record of a stored tree (see :meth:`to_tree`)."""
-        names = {f.name for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
-        known = {k: v for k, v in tree.items() if k in names and k != "more"}
-        rest = {k: v for k, v in tree.items() if k not in names}
-        if "more" in names:
+        fields = dataclasses.fields(cls)  # type: ignore[arg-type]
+        field_of = {cls._keys.get(f.name, f.name): f.name for f in fields}
+        known = {field_of[k]: v for k, v in tree.items() if k in field_of and k != "more"}
+        rest = {k: v for k, v in tree.items() if k not in field_of}
+        if "more" in field_of:
             known["more"] = rest
         return cls(**known)
 
@@ -164,10 +166,12 @@ class FusionEntry(_Record):
     ``magnetometer``: 9-D (one earth heading shared by the sensors) or 6-D. What the estimator
     reports besides, when it does: ``gyro_bias`` (N, 3) rad/s, ``rest`` (N,) bool,
     ``mag_disturbed`` (N,) bool, marker ``scenario``, ``gaps_bridged_s`` (packet-loss gaps it
-    ran across, s). ``calibration``: the per-serial sensor calibration applied
-    (``motionlab sensorcal``); ``markers``: the marker cluster fused with it (visible fraction,
-    lab-to-earth rotation).
+    ran across, s). ``sensor_calibration``: the per-serial sensor calibration applied
+    (``motionlab sensorcal``; key ``calibration`` in the file); ``markers``: the marker cluster
+    fused with it (visible fraction, lab-to-earth rotation).
     """
+
+    _keys: ClassVar[dict[str, str]] = {"sensor_calibration": "calibration"}
 
     name: str
     quat: np.ndarray
@@ -178,7 +182,7 @@ class FusionEntry(_Record):
     gyro_bias: np.ndarray | None = None
     rest: np.ndarray | None = None
     mag_disturbed: np.ndarray | None = None
-    calibration: dict[str, Any] | None = None
+    sensor_calibration: dict[str, Any] | None = None
     markers: dict[str, Any] | None = None
     more: dict[str, Any] = field(default_factory=dict)
 
@@ -187,8 +191,9 @@ class FusionEntry(_Record):
 
 
 @dataclass
-class Calibration(_Record):
-    """Sensor-to-segment calibration (:func:`motionlab.segments.calibrate`).
+class SegmentCalibration(_Record):
+    """Sensor-to-segment calibration: how each sensor sits on its segment
+    (:func:`motionlab.segments.calibrate_segments`).
 
     ``protocol``: its name; ``protocol_path``: the file it was read from. ``steps``
     ``{step: [start_s, end_s] | None}`` found in the recording. ``segments`` ``{segment:
@@ -404,7 +409,7 @@ class Results:
 
     clock_sync: ClockSync | None = None
     fusion: dict[str, FusionEntry] = field(default_factory=dict)
-    calibration: Calibration | None = None
+    calibration: SegmentCalibration | None = None
     angles: AngleTable | None = None
     heading: dict[str, HeadingCorrection] | None = None
     metrics: Metrics | None = None
@@ -441,7 +446,7 @@ class Results:
         readers = {
             "clock_sync": ClockSync.from_tree,
             "fusion": lambda t: {k: FusionEntry.from_tree(e) for k, e in t.items()},
-            "calibration": Calibration.from_tree,
+            "calibration": SegmentCalibration.from_tree,
             "angles": AngleTable.from_tree,
             "heading": lambda t: {k: HeadingCorrection.from_tree(c) for k, c in t.items()},
             "metrics": Metrics.from_tree,

@@ -30,7 +30,7 @@ from typing import TYPE_CHECKING, Any
 from motionlab.errors import InputError
 from motionlab.ingest import DEFAULT_GAP_MAX, check_and_fill
 from motionlab.protocol import Protocol, load_protocol
-from motionlab.results import AngleTable, Calibration, FusionEntry, Gait, Metrics, Validation
+from motionlab.results import AngleTable, FusionEntry, Gait, Metrics, SegmentCalibration, Validation
 from motionlab.session import Session
 
 if TYPE_CHECKING:
@@ -77,7 +77,7 @@ def stage_protocol(
     return sensed_protocol(protocol, session)
 
 
-def _calibration(session: Session, path: Any) -> Calibration:
+def _calibration(session: Session, path: Any) -> SegmentCalibration:
     cal = session.results.calibration
     if cal is None:
         raise InputError(
@@ -202,7 +202,7 @@ def fuse(
         session.sensors = recorded
     store = session.results.fusion
     for label, stream in calibrated.items():
-        store[label].calibration = stream.attrs["calibration"]
+        store[label].sensor_calibration = stream.attrs["calibration"]
     for label in refs:
         record = marker_info["sensors"][label] | {"lab_to_earth": marker_info["lab_to_earth"]}
         store[label].markers = record
@@ -265,10 +265,10 @@ def calibrate(
     *,
     force: bool = False,
     path: Any = None,
-) -> Calibration:
-    """Sensor-to-segment calibration (:func:`motionlab.segments.calibrate`), stored in
+) -> SegmentCalibration:
+    """Sensor-to-segment calibration (:func:`motionlab.segments.calibrate_segments`), stored in
     ``results.calibration`` with the protocol's path."""
-    from motionlab.segments import calibrate as calibrate_segments
+    from motionlab.segments import calibrate_segments
 
     done = session.results.calibration is not None
     refuse_to_redo(done, "calibration", "a calibration", force, path)

@@ -9,8 +9,8 @@ from motionlab.protocol import load_protocol
 from motionlab.report.model import SessionView, compare, rom_rows, symmetry_rows
 from motionlab.report.normative import band_for, load_bands
 from motionlab.report.pdf import RC, Document, layout_problems, page_text, text_width, wrap
-from motionlab.report.text import findings, rom_sentence, span
-from motionlab.results import Calibration, Metrics
+from motionlab.report.sentences import findings, rom_sentence, span
+from motionlab.results import Metrics, SegmentCalibration
 from motionlab.session import Session
 
 
@@ -187,7 +187,7 @@ def _graded_view(graded: bool = True) -> SessionView:
     segments = {s: {"method": "primary_secondary", "axes": axis, "quality": ok} for s in
                 ("pelvis", "thigh_r", "thigh_l", "shank_l")}  # fmt: skip
     segments["shank_r"] = {"method": "nominal", "axes": {}, "quality": {"ok": False}}
-    cal = Calibration("knee", segments=segments)
+    cal = SegmentCalibration("knee", segments=segments)
     if graded:
         cal.grades = {
             "knee_r": {

@@ -13,7 +13,6 @@ import motionlab.results as results_module
 from motionlab.results import (
     STAGES,
     AngleTable,
-    Calibration,
     ClockFit,
     ClockSync,
     FusionEntry,
@@ -21,13 +20,14 @@ from motionlab.results import (
     HeadingCorrection,
     Metrics,
     Results,
+    SegmentCalibration,
     Validation,
 )
 from motionlab.session import SCHEMA_VERSION, SensorStream, Session, load_session, save_session
 
 RECORDS = (
-    ClockFit, ClockSync, FusionEntry, Calibration, AngleTable, HeadingCorrection, Metrics, Gait,
-    Validation,
+    ClockFit, ClockSync, FusionEntry, SegmentCalibration, AngleTable, HeadingCorrection, Metrics,
+    Gait, Validation,
 )  # fmt: skip
 
 
@@ -71,7 +71,7 @@ def _analysed_session() -> Session:
     res = Results(
         clock_sync=ClockSync({"shank_r": fit}),
         fusion={"shank_r": FusionEntry("default", q, {"gain": 0.5}, magnetometer=False)},
-        calibration=Calibration(
+        calibration=SegmentCalibration(
             "knee", steps={"stand": [0.1, 0.6], "squat": None}, protocol_path="knee.yaml"
         ),
         angles=AngleTable(t, {"knee_r_flexion_deg": rng.normal(size=200)}),

@@ -7,7 +7,7 @@ from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_angles import compose, decompose
 from motionlab.protocol import load_protocol
-from motionlab.segments import calibrate, segment_orientations
+from motionlab.segments import calibrate_segments, segment_orientations
 from motionlab.segments.frames import lm_fit, wahba
 from motionlab.segments.functional import functional_axis
 from motionlab.segments.heading import apply_heading, heading_from_hinge
@@ -89,7 +89,7 @@ def knee_session(seed=0, max_err_deg=30.0):
 
 def test_knee_calibration_recovers_mountings_and_steps():
     session, protocol, mounts, _, steps, _ = knee_session()
-    cal = calibrate(session, protocol)
+    cal = calibrate_segments(session, protocol)
     for name, (t0, t1) in steps.items():
         found = cal.steps[name]
         assert found[0] >= t0 - 1.0 and found[1] <= t1 + 1.0, (name, found)
@@ -105,7 +105,7 @@ def test_knee_calibration_recovers_mountings_and_steps():
 
 def test_knee_angles_after_calibration_and_heading_alignment():
     session, protocol, _, truth, _, t = knee_session(seed=1)
-    cal = calibrate(session, protocol)
+    cal = calibrate_segments(session, protocol)
     # 6-D fusion: each sensor has its own heading; the calibration must align them
     quats = {
         seg: (s.time, apply_heading(s.quat, np.radians(40.0 * i - 60)))
@@ -128,13 +128,13 @@ def test_missing_step_is_input_error():
         keep = s.time < 20.5
         s.time, s.acc, s.gyr = s.time[keep], s.acc[keep], s.gyr[keep]
     with pytest.raises(InputError, match="knee_flexion_l.*not found"):
-        calibrate(session, protocol)
+        calibrate_segments(session, protocol)
 
 
 def test_time_range_override():
     session, protocol, *_ = knee_session()
     protocol.calibration[2].time_range = (10.0, 18.0)
-    cal = calibrate(session, protocol)
+    cal = calibrate_segments(session, protocol)
     assert cal.steps["knee_flexion_r"] == [10.0, 18.0]
 
 

@@ -16,7 +16,7 @@ from motionlab.kinematics.metrics import session_metrics
 from motionlab.kinematics.session_angles import session_angles
 from motionlab.protocol import load_protocol
 from motionlab.results import FusionEntry
-from motionlab.segments import calibrate, streams_of
+from motionlab.segments import calibrate_segments, streams_of
 from motionlab.segments.steps import find_tasks
 from motionlab.simulate import simulate
 
@@ -85,7 +85,7 @@ def elbow(tmp_path_factory):
 
 def test_knee_steps_mountings_and_joint_movement_axis(knee):
     _, protocol, session, truth = knee
-    cal = calibrate(session, protocol)
+    cal = calibrate_segments(session, protocol)
     for step in truth.steps:
         found = cal.steps.get(step["name"])
         if step["kind"] == "functional":
@@ -107,7 +107,7 @@ def test_knee_flexion_axis_alone_carries_the_screw_home_bias(knee):
     tmp, _, session, truth = knee
     protocol = write(tmp, "no_hip", KNEE.split("  - {name: hip_flexion_r")[0] % {
         "method": "", "extra": ""} + KNEE.split("optional: true}\n")[1])  # fmt: skip
-    cal = calibrate(session, protocol)
+    cal = calibrate_segments(session, protocol)
     assert cal.segments["shank_r"]["axes"]["knee_flexion_r"]["used"] is True
     # the sim's tibia rotates 0.12°/° with flexion: the functional axis is several degrees off
     assert 3.0 < mount_error_deg(truth, cal, "shank_r") < 15.0
@@ -119,7 +119,7 @@ def test_hinge_axis_method(knee):
     protocol = write(tmp, "hinge", text.split("  - {name: hip_flexion_r")[0] + text.split(
         "optional: true}\n")[1])  # fmt: skip
     assert protocol.calibration[2].axis_method == "hinge"
-    cal = calibrate(session, protocol)
+    cal = calibrate_segments(session, protocol)
     shank = cal.segments["shank_r"]["axes"]["knee_flexion_r"]
     assert shank["method"] == "hinge" and shank["used"] is True
     # seated, the thigh is still: Seel's constraint leaves its axis free, so it gets none
@@ -143,12 +143,12 @@ def test_knee_flexion_done_twice_is_ambiguous(knee):
     session, _ = simulate(twice, duration=90, seed=4, rest_s=5.0)
     once = write(tmp, "once", KNEE % {"method": "", "extra": ""})
     with pytest.raises(InputError, match="ambiguous: two candidate windows"):
-        calibrate(session, once)
+        calibrate_segments(session, once)
 
 
 def test_heading_offset_and_drift_removed_by_anchors(knee):
     _, protocol, session, truth = knee
-    cal = calibrate(session, protocol)
+    cal = calibrate_segments(session, protocol)
     # 6-D-like: every sensor its own heading, the shank's drifting 0.1°/s during the tasks
     drift = {"thigh_r": (1.0, 0.0), "shank_r": (-2.0, np.radians(0.1))}
 
@@ -170,7 +170,7 @@ def test_heading_offset_and_drift_removed_by_anchors(knee):
 
 def test_task_blocks_found_in_order(knee):
     _, protocol, session, truth = knee
-    cal = calibrate(session, protocol)
+    cal = calibrate_segments(session, protocol)
     after = max(v[1] for v in cal.steps.values() if v)
     tasks = find_tasks(streams_of(session, protocol), protocol, after_s=after)
     for name in ("gait", "squat"):
@@ -181,7 +181,7 @@ def test_task_blocks_found_in_order(knee):
 
 def test_metrics_agree_with_the_truth(knee):
     _, protocol, session, truth = knee
-    session.results.calibration = calibrate(session, protocol)
+    session.results.calibration = calibrate_segments(session, protocol)
     true_fusion(session, truth)
     blocks = {n: (truth.step(n)["start_s"], truth.step(n)["end_s"]) for n in ("gait", "squat")}
     m = session_metrics(session, protocol, blocks)
@@ -218,7 +218,7 @@ def test_metrics_agree_with_the_truth(knee):
 
 def test_elbow_forearm_frame_keeps_the_carrying_angle(elbow):
     _, protocol, session, truth = elbow
-    cal = calibrate(session, protocol)
+    cal = calibrate_segments(session, protocol)
     fore = cal.segments["forearm_r"]
     assert fore["method"] == "primary_secondary"
     assert fore["axes"]["elbow_flexion_r"]["used"] is False

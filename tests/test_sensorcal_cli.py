@@ -100,7 +100,7 @@ def test_fuse_applies_the_calibration_by_serial(session_file, tmp_path, recordin
     assert "calibrated (gyr, acc, mag)" in out.output
     ses = load_session(session_file)
     entry = ses.results.fusion["shank_r"]
-    assert entry.calibration["serial"] == "SIM 001"
+    assert entry.sensor_calibration["serial"] == "SIM 001"
     _, q_true, sig = recording
     assert np.array_equal(ses.sensors["shank_r"].gyr, sig["gyr"])  # the data stay as recorded
     assert ses.provenance[-1]["parameters"]["calibration"] == str(caldir)

@@ -7,7 +7,13 @@ import numpy as np
 import pytest
 
 from motionlab.errors import InputError
-from motionlab.results import AngleTable, Calibration, FusionEntry, HeadingCorrection, Results
+from motionlab.results import (
+    AngleTable,
+    FusionEntry,
+    HeadingCorrection,
+    Results,
+    SegmentCalibration,
+)
 from motionlab.session import (
     MarkerSet,
     SensorStream,
@@ -77,7 +83,7 @@ def make_session(tmp_path) -> Session:
                     rest=rng.random(n) > 0.5,
                 )
             },
-            calibration=Calibration(
+            calibration=SegmentCalibration(
                 "knee",
                 steps={"stand": [0.1, 0.5], "squat": None},
                 segments={"shank_r": {"mounting": quat[0], "method": "procrustes"}},

@@ -20,7 +20,7 @@ from motionlab import rotations as rot
 from motionlab.cli import main
 from motionlab.protocol import load_protocol
 from motionlab.results import FusionEntry, Results
-from motionlab.segments import calibrate
+from motionlab.segments import calibrate_segments
 from motionlab.session import Session, load_session, save_session
 from motionlab.simulate import simulate
 from motionlab.simulate.errors import Preset
@@ -49,7 +49,7 @@ def knee():
     for step in protocol.calibration:  # the steps' places are known: calibration is not tested
         s = truth.step(step.name)
         step.time_range = (s["start_s"], s["end_s"])
-    session.results.calibration = calibrate(session, protocol)
+    session.results.calibration = calibrate_segments(session, protocol)
     session.results.fusion = {
         k: FusionEntry("truth", _fusion_stand_in(truth, k, s.time, i))
         for i, (k, s) in enumerate(session.sensors.items())

@@ -21,7 +21,7 @@ from motionlab.cli import main
 from motionlab.errors import InputError
 from motionlab.protocol import load_protocol
 from motionlab.results import FusionEntry, Results
-from motionlab.segments import calibrate
+from motionlab.segments import calibrate_segments
 from motionlab.session import MarkerSet, Session, save_session
 from motionlab.simulate import simulate
 from motionlab.simulate.errors import Preset
@@ -93,7 +93,7 @@ def elbow():
     for step in protocol.calibration:
         s = truth.step(step.name)
         step.time_range = (s["start_s"], s["end_s"])
-    session.results.calibration = calibrate(session, protocol)
+    session.results.calibration = calibrate_segments(session, protocol)
     session.results.fusion = {
         k: FusionEntry("truth", _fusion_stand_in(truth, k, s.time, i))
         for i, (k, s) in enumerate(session.sensors.items())

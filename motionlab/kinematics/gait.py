@@ -34,7 +34,7 @@ from motionlab.kinematics.pelvis import (
 )
 from motionlab.kinematics.session_angles import sensor_orientation, session_segments
 from motionlab.protocol import Protocol
-from motionlab.results import Calibration, Gait
+from motionlab.results import Gait, SegmentCalibration
 from motionlab.segments import sensor_for_segment
 from motionlab.session import Session
 
@@ -93,7 +93,7 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
     spans = gait_spans(session, protocol)
     if not spans:
         return Gait("no gait: the protocol has no gait task, or none was found")
-    cal = session.results.calibration or Calibration("")
+    cal = session.results.calibration or SegmentCalibration("")
     omega = shank_angular_velocity(session, protocol, cal)
     side_of = {j.distal: j.side for j in protocol.joints.values() if j.type == "knee"}
     if not omega:

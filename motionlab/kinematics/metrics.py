@@ -42,7 +42,7 @@ from motionlab.kinematics.session_angles import (
     sensor_quats,
 )
 from motionlab.protocol import Joint, Protocol, Task
-from motionlab.results import Calibration, Metrics
+from motionlab.results import Metrics, SegmentCalibration
 from motionlab.segments import reference_step, segment_orientations, sensor_for_segment, streams_of
 from motionlab.segments.steps import find_tasks
 from motionlab.session import Session, estimate_rate
@@ -224,7 +224,7 @@ def _offset(protocol, joint, seg_q, time, win, steps, plane, cycles, th) -> dict
 
 
 def shank_angular_velocity(
-    session: Session, protocol: Protocol, calibration: Calibration
+    session: Session, protocol: Protocol, calibration: SegmentCalibration
 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """``{segment: (time, ω_z)}``: gyroscope about the segment's z axis of each knee's shank."""
     out = {}

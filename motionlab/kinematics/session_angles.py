@@ -21,7 +21,7 @@ from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_angles import joint_angles
 from motionlab.protocol import Protocol
-from motionlab.results import Calibration, HeadingCorrection
+from motionlab.results import HeadingCorrection, SegmentCalibration
 from motionlab.segments import segment_orientations, sensor_for_segment
 from motionlab.session import Session, estimate_rate
 
@@ -56,7 +56,7 @@ def sensor_orientation(session: Session, label: str, estimator: str = "default")
     )
 
 
-def nominal_calibration(protocol: Protocol, steps: dict[str, Any]) -> Calibration:
+def nominal_calibration(protocol: Protocol, steps: dict[str, Any]) -> SegmentCalibration:
     """A calibration holding each segment's nominal mounting (the protocol's placement).
 
     "Calibration off": sensors are taken to sit exactly as the protocol's ``sensor_axes`` say;
@@ -66,13 +66,13 @@ def nominal_calibration(protocol: Protocol, steps: dict[str, Any]) -> Calibratio
         seg: {"mounting": rot.from_matrix(spec.nominal_mounting().T)}
         for seg, spec in protocol.segments.items()
     }
-    return Calibration(protocol.name, steps=steps, segments=segments)
+    return SegmentCalibration(protocol.name, steps=steps, segments=segments)
 
 
 def session_segments(
     session: Session,
     protocol: Protocol,
-    calibration: Calibration | None,
+    calibration: SegmentCalibration | None,
     estimator: str = "default",
     align_heading: bool = True,
     segments: list[str] | None = None,
@@ -131,7 +131,7 @@ def angle_table(seg_q: SegmentQuats, protocol: Protocol) -> dict[str, Any]:
 def session_angles(
     session: Session,
     protocol: Protocol,
-    calibration: Calibration | None,
+    calibration: SegmentCalibration | None,
     estimator: str = "default",
     align_heading: bool = True,
     corrections: dict[str, HeadingCorrection] | None = None,

@@ -35,7 +35,7 @@ from motionlab.errors import InputError
 from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, plane, title
 from motionlab.kinematics.metrics import THORAX as THORAX  # re-exported for the pages
 from motionlab.protocol import Joint, Protocol, load_protocol
-from motionlab.results import Calibration, Metrics
+from motionlab.results import Metrics, SegmentCalibration
 from motionlab.segments import sensor_for_segment
 from motionlab.segments.grades import GRADES, _frame_grade
 from motionlab.session import Session
@@ -466,7 +466,7 @@ def excluded(view: SessionView) -> list[str]:
             )
         for ch, spans in (s.qc or {}).get("nan_spans", {}).items():
             out.append(f"{s.label}: {ch} not a number for {_spans_s(spans):.2f} s - not used")
-    cal = view.session.results.calibration or Calibration("")
+    cal = view.session.results.calibration or SegmentCalibration("")
     for step, rng in cal.steps.items():
         if rng is None:
             out.append(f"calibration step {step} not performed (optional) - not used")

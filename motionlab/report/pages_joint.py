@@ -36,7 +36,7 @@ from motionlab.report.pdf import (
     Document,
     label_spans,
 )
-from motionlab.report.text import STATUS_WORDS, span, task_name
+from motionlab.report.sentences import STATUS_WORDS, span, task_name
 
 TASKS_PER_PAGE = 3
 MIN_SPAN_DEG = 10.0

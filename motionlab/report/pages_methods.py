@@ -10,7 +10,7 @@ from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, angle_n
 from motionlab.report.model import SessionView, in_order, joint_title, joint_type_title
 from motionlab.report.normative import load_accuracy
 from motionlab.report.pdf import MUTED, SIZE, Document
-from motionlab.report.text import accuracy_sentence
+from motionlab.report.sentences import accuracy_sentence
 
 
 def _columns(view: SessionView) -> list[str]:

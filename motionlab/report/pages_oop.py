@@ -21,7 +21,7 @@ from motionlab.report.model import (
     worst_grade,
 )
 from motionlab.report.pdf import MUTED, NOT_DETERMINED_COLOUR, SIDE_COLOUR, SIZE, Document
-from motionlab.report.text import MEANING, task_name
+from motionlab.report.sentences import MEANING, task_name
 
 
 def _items(view: SessionView, data: dict) -> list[tuple[str, str, dict]]:

@@ -18,7 +18,7 @@ from motionlab.report.model import (
     quality_rows,
 )
 from motionlab.report.pdf import MUTED, SIZE, Document, label_spans
-from motionlab.results import Calibration
+from motionlab.results import SegmentCalibration
 from motionlab.segments.quality import FUNCTIONAL_RHO_MIN, RESIDUAL_MAX_DEG, STATIC_RHO_MIN
 
 METHODS = {
@@ -240,7 +240,7 @@ def _hinges_table(doc: Document, view: SessionView) -> None:
 
 
 def calibration_page(doc: Document, view: SessionView) -> None:
-    cal = view.session.results.calibration or Calibration("")
+    cal = view.session.results.calibration or SegmentCalibration("")
     doc.section(
         "Calibration quality",
         "How each sensor's position on its body segment was found: static poses fix the "

@@ -24,7 +24,7 @@ import numpy as np
 from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.protocol import Protocol, axis_vector
-from motionlab.results import Calibration, HeadingCorrection
+from motionlab.results import HeadingCorrection, SegmentCalibration
 from motionlab.segments import grades, heading, mounting, placement
 from motionlab.segments.steps import find_steps
 from motionlab.session import Session
@@ -44,23 +44,6 @@ def sensor_for_segment(session: Session, segment: str) -> str | None:
         if s.segment == segment or (s.side and f"{s.segment}_{s.side}" == segment):
             return label
     return segment if segment in session.sensors else None
-
-
-def calibrate_segment(
-    segment: str,
-    protocol: Protocol,
-    streams: Streams,
-    steps: dict[str, tuple[float, float] | None],
-) -> dict[str, Any]:
-    """Mounting of one segment from the protocol's steps (time ranges in ``steps``).
-
-    ``streams`` holds ``(time, acc, gyr)`` of this segment and of the segments it forms joints
-    with (for the hinge fit). Returns ``{"mounting": q (4,), "method": ..., "axes": {name:
-    record}, "quality": {...}}``; each axis record holds the sensor-frame axis, the segment axis,
-    ρ and the residual angle (:mod:`~motionlab.segments.mounting`).
-    """
-    records = mounting.measure(protocol, streams, steps)
-    return mounting.fit(segment, protocol, records.get(segment, {}))
 
 
 def streams_of(session: Session, protocol: Protocol) -> Streams:
@@ -110,9 +93,9 @@ def signals_from_orientation(
     return t, acc, gyr
 
 
-def calibrate(
+def calibrate_segments(
     session: Session, protocol: Protocol, warnings: list[str] | None = None
-) -> Calibration:
+) -> SegmentCalibration:
     """Sensor-to-segment calibration of every segment (stored in ``results.calibration``).
 
     Lines about the recording that the user should read (a nominal placement the data
@@ -150,7 +133,7 @@ def calibrate(
                 q["ok"] = False
     if warnings is not None:
         warnings.extend(notes)
-    result = Calibration(
+    result = SegmentCalibration(
         protocol.name,
         steps={k: (list(v) if v else None) for k, v in steps.items()},
         segments=segments,
@@ -234,7 +217,7 @@ def chain_order(protocol: Protocol) -> list:
 
 def segment_orientations(
     protocol: Protocol,
-    calibration: Calibration | None,
+    calibration: SegmentCalibration | None,
     sensor_quats: dict[str, tuple[np.ndarray, np.ndarray]],
     align_heading: bool = True,
     corrections: dict[str, HeadingCorrection] | None = None,
@@ -252,7 +235,7 @@ def segment_orientations(
     ``corrections``, when given, receives per joint the heading correction applied
     (:class:`~motionlab.results.HeadingCorrection`).
     """
-    calibration = calibration or Calibration("")
+    calibration = calibration or SegmentCalibration("")
     out = {}
     for seg, (t, q) in sensor_quats.items():
         cal = calibration.segments.get(seg)
@@ -279,7 +262,7 @@ def segment_orientations(
     return out
 
 
-def _joint_ties(protocol: Protocol, calibration: Calibration, joint, tp, qp, td, qd):
+def _joint_ties(protocol: Protocol, calibration: SegmentCalibration, joint, tp, qp, td, qd):
     """``(source, times s, δ rad)`` of one joint's heading anchors (see
     :func:`segment_orientations`): the headings stored with a two-axis fit or a ball joint's
     centre, the hinge over the whole recording, or the steps' anchors."""

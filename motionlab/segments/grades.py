@@ -21,7 +21,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
-    from motionlab.results import Calibration
+    from motionlab.results import SegmentCalibration
 
 GRADES = ("determined", "weak", "not determined")
 FULL_FRAME = ("procrustes", "primary_secondary")
@@ -45,7 +45,7 @@ def _frame_grade(segment: str, cal: dict[str, Any] | None) -> tuple[str, str]:
     return "determined", ""
 
 
-def _axis_grade(joint, calibration: Calibration) -> tuple[str, str]:
+def _axis_grade(joint, calibration: SegmentCalibration) -> tuple[str, str]:
     """Grade of the angle about a hinge axis: the axis measured in both segments."""
     fit = calibration.hinges.get(joint.name)
     if fit is not None and fit.get("used_for", "axes") == "axes":
@@ -69,7 +69,7 @@ def _axis_grade(joint, calibration: Calibration) -> tuple[str, str]:
     return grade, reason
 
 
-def grade_joints(protocol, calibration: Calibration) -> dict[str, dict[str, list[str]]]:
+def grade_joints(protocol, calibration: SegmentCalibration) -> dict[str, dict[str, list[str]]]:
     """``{joint: {"grades": [3 str], "reasons": [3 str]}}`` for every protocol joint; the first
     angle of a hinge-like joint (knee, elbow, hinge: :func:`.placement.hinge_spec`) is graded by
     its axis alone."""

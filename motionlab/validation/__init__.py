@@ -5,7 +5,7 @@ Steps (each in its own module):
 1. optical segment orientations from the marker map: cluster fits, rigid bodies, anatomical
    frames from landmarks fixed in the cluster frames (:mod:`.markermap`, :mod:`.optical`,
    :mod:`.cast`, :mod:`.anatomy`, :mod:`.reference`);
-2. time synchronisation of the IMU and optical clocks (:mod:`.sync`);
+2. time alignment of the IMU and optical clocks (:mod:`.time_alignment`);
 3. both streams on one clock: the IMU (session) clock, at the samples of the first sensor;
 4. the two constant rotations between the systems (:mod:`.align`);
 5. orientation errors per sensor (:mod:`.orientation_error`: BROAD total/heading/inclination
@@ -29,7 +29,7 @@ from motionlab.errors import InputError
 from motionlab.kinematics.joint_angles import joint_angles
 from motionlab.kinematics.joint_types import angle_columns
 from motionlab.protocol import Protocol
-from motionlab.results import Calibration, Validation
+from motionlab.results import SegmentCalibration, Validation
 from motionlab.session import MarkerSet, Session, estimate_rate
 from motionlab.validation.agreement import agreement, per_repetition, repetitions
 from motionlab.validation.align import Alignment
@@ -38,7 +38,7 @@ from motionlab.validation.markermap import MarkerMap, check_marker_map, default_
 from motionlab.validation.optical import angular_velocity, resample_quat
 from motionlab.validation.orientation_error import error_angles, orientation_errors
 from motionlab.validation.reference import OpticalSegment, choose_marker_set, optical_segments
-from motionlab.validation.sync import no_sync, synchronise
+from motionlab.validation.time_alignment import no_sync, synchronise
 
 __all__ = ["validate"]
 
@@ -121,7 +121,7 @@ def _optical_segment_quats(
     optical: dict[str, OpticalSegment],
     al: Alignment,
     seg_of: dict[str, str],
-    calibration: Calibration | None,
+    calibration: SegmentCalibration | None,
 ) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], dict[str, str]]:
     """Segment → lab orientation per segment: anatomical (landmarks) or, without landmarks,
     the cluster carried to the IMU segment frame (``B X q_mount``)."""

@@ -7,7 +7,7 @@ from scipy.signal import butter, sosfiltfilt
 from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.validation.optical import resample_quat
-from motionlab.validation.sync import ClockModel, _parabola, ransac_line, synchronise
+from motionlab.validation.time_alignment import ClockModel, _parabola, ransac_line, synchronise
 
 OFFSET, DRIFT = 0.137, 100e-6
 

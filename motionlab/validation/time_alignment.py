@@ -1,4 +1,5 @@
-"""Time synchronisation of the IMU and optical clocks from angular-speed magnitudes.
+"""Time alignment of the IMU and optical clocks from angular-speed magnitudes (IMU to optical;
+the IMU-to-IMU clock sync is :mod:`motionlab.clocksync`).
 
 The clock model maps the IMU (session) clock to the reference clock::
 
@@ -54,7 +55,7 @@ class ClockModel:
 
 
 @dataclass
-class SyncResult:
+class TimeAlignment:
     """Clock model, its support, and the window correspondences behind it.
 
     ``window_time_s`` is the window centre on the IMU clock, ``window_lag_s`` = t_ref − t_imu
@@ -106,9 +107,9 @@ class SyncResult:
         return out
 
 
-def no_sync() -> SyncResult:
+def no_sync() -> TimeAlignment:
     """The identity clock model, for streams already on one clock."""
-    return SyncResult(ClockModel(), float("nan"), float("nan"), 0.0, method="none")
+    return TimeAlignment(ClockModel(), float("nan"), float("nan"), 0.0, method="none")
 
 
 # ------------------------------------------------------------------------------ signals
@@ -320,7 +321,7 @@ def synchronise(
     max_lag_s: float | None = None,
     threshold_s: float | None = None,
     seed: int = 0,
-) -> SyncResult:
+) -> TimeAlignment:
     """Clock model between IMU and reference from pairs of streams on the same rigid body.
 
     Parameters
@@ -359,7 +360,7 @@ def synchronise(
         model = ClockModel(a, b)
         search = 3.0 / rate
     resid = win["lag"] - (a + b * win["time"])
-    return SyncResult(
+    return TimeAlignment(
         model=model,
         inlier_ratio=float(inliers.mean()),
         residual_rms_s=float(np.sqrt(np.mean(resid[inliers] ** 2))),
