@@ -154,7 +154,12 @@ class MarkerSet:
 
 @dataclass
 class Session:
-    """One recording session: sensors, marker sets, metadata, stage results and provenance."""
+    """One recording session: sensors, marker sets, metadata, stage results and provenance.
+
+    ``results`` holds every stage's typed result (:class:`~motionlab.results.Results`);
+    ``schema_version`` is the schema of the file it was loaded from (a save writes the current
+    :data:`SCHEMA_VERSION`).
+    """
 
     sensors: dict[str, SensorStream] = field(default_factory=dict)
     markers: dict[str, MarkerSet] = field(default_factory=dict)
