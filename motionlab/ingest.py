@@ -39,7 +39,7 @@ UNRELATED_CLOCKS_S = 86400.0
 #: sampling rates (Hz) and time stamps (s) taken as real; beyond them the clock is damaged
 RATE_RANGE_HZ = (0.01, 1e6)
 TIME_MAX_S = 1e11  # about 3000 years: Unix time in s fits, a stamp near 1e300 does not
-#: --rate may be at most this many times the highest native rate
+#: ``rate`` may be at most this many times the highest native rate
 UPSAMPLE_MAX = 10.0
 #: a quaternion whose norm is outside this range is not an orientation (e.g. all zero)
 QUAT_NORM_RANGE = (0.5, 1.5)
