@@ -156,6 +156,14 @@ def true_clock(session, truth, stamps: dict, label: str):
     return lambda t: np.interp(t, st, true)
 
 
+def joint_clocks(session, truth, stamps: dict, protocol: Protocol) -> dict:
+    """Per joint: its proximal sensor's :func:`true_clock` (session time → true time)."""
+    return {
+        name: true_clock(session, truth, stamps, sensor_for_segment(session, j.proximal))
+        for name, j in protocol.joints.items()
+    }
+
+
 def errors(table: dict, truth, clocks: dict, protocol: Protocol, tasks: list) -> dict:
     """Per column: the error samples (deg) over the task blocks.
 
@@ -223,10 +231,7 @@ def angles(
         off = nominal_calibration(protocol, cal.steps)
         tables["nominal"] = angle_table(segment_orientations(protocol, off, quats), protocol)
     tasks = [(s["start_s"], s["end_s"]) for s in truth.steps if s["phase"] == "task"]
-    clocks = {
-        name: true_clock(session, truth, stamps, sensor_for_segment(session, j.proximal))
-        for name, j in protocol.joints.items()
-    }
+    clocks = joint_clocks(session, truth, stamps, protocol)
     out = {}
     for key, table in tables.items():
         err = errors(table, truth, clocks, protocol, tasks)

@@ -30,12 +30,11 @@ import time
 from collections import Counter
 
 import numpy as np
-from joint_angles import errors, shared_clock, true_clock
+from joint_angles import errors, joint_clocks, shared_clock
 
 from motionlab.kinematics.joint_types import angle_columns
 from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
 from motionlab.protocol import load_protocol
-from motionlab.segments import sensor_for_segment
 from motionlab.simulate import simulate
 from motionlab.simulate.errors import get_preset
 
@@ -70,11 +69,7 @@ def run_one(job: tuple[str, int, str]) -> dict:
     seconds = time.perf_counter() - t0
     table = session.results.angles.columns()
     tasks = [(s["start_s"], s["end_s"]) for s in truth.steps if s["phase"] == "task"]
-    clocks = {
-        j: true_clock(session, truth, stamps, sensor_for_segment(session, joint.proximal))
-        for j, joint in protocol.joints.items()
-    }
-    err = errors(table, truth, clocks, protocol, tasks)
+    err = errors(table, truth, joint_clocks(session, truth, stamps, protocol), protocol, tasks)
     grades = {}
     cal = session.results.calibration
     for jname, joint in protocol.joints.items():

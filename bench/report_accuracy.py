@@ -30,11 +30,10 @@ from motionlab.kinematics.joint_angles import JOINT_ANGLE_NAMES, column_name
 from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
 from motionlab.protocol import load_protocol
 from motionlab.report.normative import ACCURACY
-from motionlab.segments import sensor_for_segment
 from motionlab.simulate import simulate
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from joint_angles import errors, true_clock  # noqa: E402  (bench helper, same folder)
+from joint_angles import errors, joint_clocks  # noqa: E402  (bench helper, same folder)
 
 PRESET = "typical"
 MOUNTING_DEG = 30.0
@@ -63,11 +62,7 @@ def run_one(name: str, seed: int) -> dict[str, float]:
     analyse(session, PipelineOptions(protocol, seed=seed, progress=False))
     table = session.results.angles.columns()
     tasks = [(s["start_s"], s["end_s"]) for s in truth.steps if s["phase"] == "task"]
-    clocks = {
-        j: true_clock(session, truth, stamps, sensor_for_segment(session, joint.proximal))
-        for j, joint in protocol.joints.items()
-    }
-    err = errors(table, truth, clocks, protocol, tasks)
+    err = errors(table, truth, joint_clocks(session, truth, stamps, protocol), protocol, tasks)
     return {col: float(np.sqrt(np.mean(e**2))) for col, e in err.items()}
 
 
