@@ -100,7 +100,7 @@ def run_one(seed: int, variant: str) -> dict[str, float]:
     row["asym truth %"] = tsum["step_time_asymmetry_pct"]
     row["stance truth r %"] = tsum["sides"]["r"]["stance_pct"]["mean"]
     # angles on the steady walk
-    ang = session.results["angles"]
+    ang = session.results.angles.columns()
     tt = _to_true(session, truth, orig, "thigh_r")(ang["time_s"])
     w = (tt > step["start_s"] + 3) & (tt < step["end_s"] - 3)
     for name, cols in (("hip flex RMSE", "flexion"), ("hip add RMSE", "adduction"),

@@ -54,7 +54,8 @@ from motionlab.fusion import estimate, get
 from motionlab.ingest import DEFAULT_GAP_MAX
 from motionlab.kinematics.session_angles import angle_table, nominal_calibration, sensor_quats
 from motionlab.protocol import Protocol, load_protocol
-from motionlab.segments import calibrate, segment_orientations, sensor_for_segment
+from motionlab.results import FusionEntry, Results
+from motionlab.segments import calibrate_segments, segment_orientations, sensor_for_segment
 from motionlab.sensorcal import apply_calibration
 from motionlab.sensorcal.stage import calibrate_sensor, merge
 from motionlab.session import SensorStream
@@ -155,6 +156,14 @@ def true_clock(session, truth, stamps: dict, label: str):
     return lambda t: np.interp(t, st, true)
 
 
+def joint_clocks(session, truth, stamps: dict, protocol: Protocol) -> dict:
+    """Per joint: its proximal sensor's :func:`true_clock` (session time → true time)."""
+    return {
+        name: true_clock(session, truth, stamps, sensor_for_segment(session, j.proximal))
+        for name, j in protocol.joints.items()
+    }
+
+
 def errors(table: dict, truth, clocks: dict, protocol: Protocol, tasks: list) -> dict:
     """Per column: the error samples (deg) over the task blocks.
 
@@ -203,7 +212,7 @@ def angles(
 ) -> dict:
     """RMSE per column of one prepared session (and with the calibration off), the clock
     differences left between sensor pairs (s), and messages."""
-    session = dataclasses.replace(session, sensors=dict(session.sensors), results={})
+    session = dataclasses.replace(session, sensors=dict(session.sensors), results=Results())
     stamps = {label: s.time.copy() for label, s in session.sensors.items()}
     for label, s in session.sensors.items():  # as motionlab ingest does
         s, _ = timebase.repair_clock(s, label)
@@ -213,26 +222,23 @@ def angles(
     for label, s in session.sensors.items():
         mag = s.mag if args.mag else None
         res = estimate(args.estimator, s.gyr, s.acc, mag, rate=s.rate_hz, time=s.time)
-        fused[label] = {"name": res.name, "quat": res.quat}
-    session.results["fusion"] = fused
-    cal = calibrate(session, protocol)
+        fused[label] = FusionEntry(res.name, res.quat, magnetometer=mag is not None)
+    session.results.fusion = fused
+    cal = calibrate_segments(session, protocol)
     quats = sensor_quats(session, protocol)
     tables = {"cal": angle_table(segment_orientations(protocol, cal, quats), protocol)}
     if nominal:
-        off = nominal_calibration(protocol, cal["steps"])
+        off = nominal_calibration(protocol, cal.steps)
         tables["nominal"] = angle_table(segment_orientations(protocol, off, quats), protocol)
     tasks = [(s["start_s"], s["end_s"]) for s in truth.steps if s["phase"] == "task"]
-    clocks = {
-        name: true_clock(session, truth, stamps, sensor_for_segment(session, j.proximal))
-        for name, j in protocol.joints.items()
-    }
+    clocks = joint_clocks(session, truth, stamps, protocol)
     out = {}
     for key, table in tables.items():
         err = errors(table, truth, clocks, protocol, tasks)
         out[key] = {c: float(np.sqrt(np.mean(e**2))) for c, e in err.items()}
     out["clocks"] = clock_errors(session, truth, protocol, stamps, tasks)
     out["status"] = {f"{f.reference}→{f.sensor}": f.status for f in fits}
-    out["messages"] = [m for s in cal["segments"].values() for m in s["quality"]["messages"]]
+    out["messages"] = [m for s in cal.segments.values() for m in s["quality"]["messages"]]
     return out
 
 
@@ -242,7 +248,7 @@ def run_one(protocol: Protocol, seed: int, args) -> dict:
     preset = get_preset(args.preset)
     sim = {"mounting_max_deg": args.mounting, "rest_s": REST_S}
     rec, truth = simulate(protocol, duration(protocol), seed, preset, **sim)
-    rec_cal = dataclasses.replace(rec, sensors=dict(rec.sensors), results={})
+    rec_cal = dataclasses.replace(rec, sensors=dict(rec.sensors), results=Results())
     notes = sensor_calibrated(rec_cal, truth, preset, args.mag, seed)
     shared, truth_s = simulate(protocol, duration(protocol), seed, shared_clock(preset), **sim)
     notes += sensor_calibrated(shared, truth_s, preset, args.mag, seed)

@@ -53,7 +53,7 @@ from motionlab.fusion.markers import MarkerReferences  # noqa: E402
 from motionlab.simulate.errors import get_preset  # noqa: E402
 from motionlab.validation.markermap import default_marker_map  # noqa: E402
 from motionlab.validation.optical import resample_quat, track_cluster  # noqa: E402
-from motionlab.validation.sync import synchronise  # noqa: E402
+from motionlab.validation.time_alignment import synchronise  # noqa: E402
 
 FILTERS = ("liu_gn", "ekf", "ukf", "particle")
 BROAD_SIGMA = np.deg2rad(0.3)

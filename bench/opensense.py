@@ -106,15 +106,15 @@ def main(argv: list[str] | None = None) -> None:
     ik.set_orientations_file(str(root / "orientations.sto"))
     ik.set_sensor_to_opensim_rotations(rotations)
     ik.set_results_directory(str(root / "ik"))
-    sto_time = load_session(root / "out" / "session.h5").results["angles"]["time_s"]
+    sto_time = load_session(root / "out" / "session.h5").results.angles.time
     ik.set_time_range(0, float(sto_time[0]))  # the tool's default range is not the whole file
     ik.set_time_range(1, float(sto_time[-1]))
     ik.run(False)
     (mot,) = list((root / "ik").glob("ik_*.mot"))
     header, table = read_mot(mot)
     ses = load_session(root / "out" / "session.h5")
-    t = np.asarray(ses.results["angles"]["time_s"])
-    ours = np.asarray(ses.results["angles"]["knee_r_flexion_deg"])
+    t = np.asarray(ses.results.angles.time)
+    ours = np.asarray(ses.results.angles.data["knee_r_flexion_deg"])
     theirs = np.interp(t, table["time"].to_numpy(), table["knee_angle_r"].to_numpy())
     if header.get("inDegrees", "no") != "yes":
         theirs = np.degrees(theirs)

@@ -30,12 +30,11 @@ import time
 from collections import Counter
 
 import numpy as np
-from joint_angles import errors, shared_clock, true_clock
+from joint_angles import errors, joint_clocks, shared_clock
 
 from motionlab.kinematics.joint_types import angle_columns
 from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
 from motionlab.protocol import load_protocol
-from motionlab.segments import sensor_for_segment
 from motionlab.simulate import simulate
 from motionlab.simulate.errors import get_preset
 
@@ -68,18 +67,13 @@ def run_one(job: tuple[str, int, str]) -> dict:
     except Exception as exc:  # noqa: BLE001 - a failing seed is a row of the table, not a crash
         return {"name": name, "seed": seed, "error": f"{type(exc).__name__}: {exc}"}
     seconds = time.perf_counter() - t0
-    table = session.results["angles"]
-    table = {k: v for k, v in table.items() if k == "time_s" or k.endswith("_deg")}
+    table = session.results.angles.columns()
     tasks = [(s["start_s"], s["end_s"]) for s in truth.steps if s["phase"] == "task"]
-    clocks = {
-        j: true_clock(session, truth, stamps, sensor_for_segment(session, joint.proximal))
-        for j, joint in protocol.joints.items()
-    }
-    err = errors(table, truth, clocks, protocol, tasks)
+    err = errors(table, truth, joint_clocks(session, truth, stamps, protocol), protocol, tasks)
     grades = {}
-    cal = session.results["calibration"]
+    cal = session.results.calibration
     for jname, joint in protocol.joints.items():
-        g = cal["grades"][jname]
+        g = cal.grades[jname]
         for k, (_, col) in enumerate(angle_columns(joint)):
             grades[col] = (g["grades"][k], g["reasons"][k])
     return {
@@ -87,7 +81,7 @@ def run_one(job: tuple[str, int, str]) -> dict:
         "seed": seed,
         "rmse": {c: float(np.sqrt(np.mean(e**2))) for c, e in err.items()},
         "grades": grades,
-        "warnings": list(cal.get("warnings", [])),
+        "warnings": list(cal.warnings),
         "seconds": seconds,
     }
 

@@ -33,7 +33,7 @@ from motionlab.report.normative import ACCURACY
 from motionlab.simulate import simulate
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from joint_angles import errors  # noqa: E402  (bench helper, same folder)
+from joint_angles import errors, joint_clocks  # noqa: E402  (bench helper, same folder)
 
 PRESET = "typical"
 MOUNTING_DEG = 30.0
@@ -60,10 +60,9 @@ def run_one(name: str, seed: int) -> dict[str, float]:
     stamps = {label: s.time.copy() for label, s in session.sensors.items()}
     prepare_sensors(session)
     analyse(session, PipelineOptions(protocol, seed=seed, progress=False))
-    table = {k: v for k, v in session.results["angles"].items() if k != "method"}
+    table = session.results.angles.columns()
     tasks = [(s["start_s"], s["end_s"]) for s in truth.steps if s["phase"] == "task"]
-    first = next(iter(protocol.joints.values())).proximal
-    err = errors(table, truth, stamps[first], truth.sensors[first]["sample_time"], tasks)
+    err = errors(table, truth, joint_clocks(session, truth, stamps, protocol), protocol, tasks)
     return {col: float(np.sqrt(np.mean(e**2))) for col, e in err.items()}
 
 

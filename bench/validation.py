@@ -47,7 +47,8 @@ import numpy as np
 from motionlab import rotations as rot
 from motionlab.fusion import estimate
 from motionlab.protocol import load_protocol
-from motionlab.segments import calibrate
+from motionlab.results import FusionEntry  # noqa: E402
+from motionlab.segments import calibrate_segments
 from motionlab.session import Session
 from motionlab.simulate import simulate
 from motionlab.simulate.errors import PRESETS, Preset, TimingModel
@@ -84,21 +85,21 @@ def simulated_case(seed: int, imu: str, estimator: str) -> dict:
     for step in protocol.calibration:
         s = truth.step(step.name)
         step.time_range = (s["start_s"], s["end_s"])
-    session.results["calibration"] = calibrate(session, protocol)
+    session.results.calibration = calibrate_segments(session, protocol)
     fusion = {}
     for i, (label, s) in enumerate(session.sensors.items()):
         if imu == "stand-in":
-            fusion[label] = {"quat": _stand_in(truth, label, s.time, i)}
+            fusion[label] = FusionEntry("truth", _stand_in(truth, label, s.time, i))
         else:
             mag = s.mag if imu == "9-D" else None
             res = estimate(estimator, s.gyr, s.acc, mag, s.rate_hz, time=s.time)
-            fusion[label] = {"quat": res.quat}
-    session.results["fusion"] = fusion
+            fusion[label] = FusionEntry(res.name, res.quat, magnetometer=mag is not None)
+    session.results.fusion = fusion
     mode = "heading" if imu.startswith("6-D") else "full"
     t0 = time.perf_counter()
     res = validate(session, protocol=protocol, mode=mode)
     seconds = time.perf_counter() - t0
-    al = res["alignment"]
+    al = res.alignment
     y_true = truth.markers["lab_rotation"]
     if mode == "heading":  # only the vertical is shared: compare where the lab's z points
         up = rot.rotate(al["lab_to_earth"]["quat"], [0.0, 0, 1])
@@ -109,23 +110,23 @@ def simulated_case(seed: int, imu: str, estimator: str) -> dict:
     for label in session.sensors:
         idx = [i for i, (a, b) in enumerate(zip(labels, segs, strict=True))
                if b == label and "_C" in a]  # fmt: skip
-        c = rigid_fit(truth.markers["local"][idx], res["optical"][label]["shape_m"][None])[0][0]
+        c = rigid_fit(truth.markers["local"][idx], res.optical[label]["shape_m"][None])[0][0]
         x_true = rot.mul(c, truth.sensors[label]["mounting"])
         rot_err.append(rot.angle_between(al["sensor_to_cluster"][label]["quat"], x_true))
-    t = res["angles"]["time_s"]
+    t = res.angles["time_s"]
     diffs, rmses = [], []
     for col, true_deg in truth.joint_angles.items():
-        err = res["angles"][col]["imu_deg"] - np.interp(t, truth.time, true_deg)
+        err = res.angles[col]["imu_deg"] - np.interp(t, truth.time, true_deg)
         direct = float(np.sqrt(np.nanmean(err**2)))
-        diffs.append(res["angles"][col]["rmse_deg"] - direct)
-        rmses.append(res["angles"][col]["rmse_deg"])
-    ori = [res["orientation"][k]["total_rmse_deg"] for k in session.sensors]
+        diffs.append(res.angles[col]["rmse_deg"] - direct)
+        rmses.append(res.angles[col]["rmse_deg"])
+    ori = [res.orientation[k]["total_rmse_deg"] for k in session.sensors]
     return {
-        "offset_ms": (res["sync"]["time_offset_s"] - OFFSET_S) * 1e3,
-        "drift_ppm": res["sync"]["drift_ppm"] - DRIFT_PPM,
-        "inliers": res["sync"]["inlier_ratio"],
-        "se_ms": res["sync"]["standard_error_s"] * 1e3,
-        "grade": res["sync"]["grade"],
+        "offset_ms": (res.sync["time_offset_s"] - OFFSET_S) * 1e3,
+        "drift_ppm": res.sync["drift_ppm"] - DRIFT_PPM,
+        "inliers": res.sync["inlier_ratio"],
+        "se_ms": res.sync["standard_error_s"] * 1e3,
+        "grade": res.sync["grade"],
         "rot_deg": float(np.degrees(np.max(rot_err))),
         "ori_deg": float(np.mean(ori)),
         "rmse_deg": float(np.mean(rmses)),
@@ -192,12 +193,11 @@ def broad_table(data: Path, name: str) -> str:
         rec = read(data / f"{tr['name']}.hdf5")
         ses = Session(sensors={"imu": rec.sensors[0]}, markers={"optical": rec.markers[0]})
         s = ses.sensors["imu"]
-        ses.results["fusion"] = {
-            "imu": {"quat": estimate(name, s.gyr, s.acc, s.mag, tr["rate"], time=s.time).quat}
-        }
-        plain = validate(ses, mode="none", sync=False, movement_only=True)["orientation"]["imu"]
+        q = estimate(name, s.gyr, s.acc, s.mag, tr["rate"], time=s.time).quat
+        ses.results.fusion = {"imu": FusionEntry(name, q)}
+        plain = validate(ses, mode="none", sync=False, movement_only=True).orientation["imu"]
         synced = validate(ses, mode="none", movement_only=True)
-        so = synced["orientation"]["imu"]
+        so = synced.orientation["imu"]
         diff = max(abs(plain[k] - exp[k]) for k in keys)
         lines.append(
             f"| {tr['name']} | {exp[keys[0]]:.3f} | {exp[keys[1]]:.3f} | {exp[keys[2]]:.3f} | "
@@ -253,8 +253,8 @@ def ring_table(folder: Path) -> str:
             for s in ses.sensors.values():
                 s.attrs["gyr_sampling"] = sampling
             res = validate(ses, ref, mmap, None, "heading", sync_on=source)
-            sy = res["sync"]
-            rmse = np.mean([res["orientation"][k]["total_rmse_deg"] for k in ses.sensors])
+            sy = res.sync
+            rmse = np.mean([res.orientation[k]["total_rmse_deg"] for k in ses.sensors])
             at_mid = sy["time_offset_s"] + sy["drift_ppm"] * 1e-6 * mid
             lines.append(
                 f"| {kind} | {name} | {sy['time_offset_s'] * 1e3:+.1f} | {sy['drift_ppm']:+.0f} | "
@@ -266,7 +266,7 @@ def ring_table(folder: Path) -> str:
         for off in np.arange(0.0, 0.0601, 0.002):
             ref.time = base - off
             res = validate(ses, ref, mmap, None, "heading", sync=False)
-            scan.append((np.mean([res["orientation"][k]["total_rmse_deg"] for k in ses.sensors]),
+            scan.append((np.mean([res.orientation[k]["total_rmse_deg"] for k in ses.sensors]),
                          off))  # fmt: skip
         ref.time = base
         best, off = min(scan)
@@ -328,7 +328,7 @@ def trunk_table(folder: Path) -> str:
             except InputError as exc:
                 lines.append(f"| {trial.parent.name}/{trial.name} | | {source} | {exc} | | | |")
                 continue
-            sy = res["sync"]
+            sy = res.sync
             how = sy["fallback"] or f"{sy['method']}, {sy['n_windows']} windows"
             rmse = ", ".join(f"{res['orientation'][k]['total_rmse_deg']:.2f}" for k in pairs)
             lines.append(

@@ -67,7 +67,9 @@ def check_output(path: str | Path, force: bool, inputs: Iterable[str | Path | No
     path = Path(path)
     refuse_input_as_output(path, inputs)
     if path.exists() and not force:
-        raise InputError("output exists", path, remedy="use --force to replace it")
+        raise InputError(
+            "output exists", path, remedy="use force=True to replace it", argument="force"
+        )
     if path.is_dir():
         raise InputError("output is a folder", path, remedy="give a file name")
     parent = path.parent if str(path.parent) else Path(".")

@@ -45,6 +45,7 @@ from scipy.optimize import least_squares
 from scipy.signal import butter, sosfiltfilt
 
 from motionlab.protocol import Protocol
+from motionlab.results import ClockFit, ClockSync
 from motionlab.segments import sensor_for_segment
 from motionlab.session import SensorStream, Session
 
@@ -80,39 +81,6 @@ NEIGHBOURS = (
     ("thorax", "head"),
 )
 ROOTS = ("pelvis", "thorax")
-
-
-@dataclass(frozen=True)
-class ClockFit:
-    """Clock of ``sensor`` relative to ``reference``: it reads ``t + offset_s + drift (t −
-    t_mid_s)`` at the reference's time ``t`` (s); standard errors ``*_se``; RMS residual of the
-    joint-centre acceleration magnitudes (m/s²) over ``moving_s`` seconds of shared movement."""
-
-    reference: str
-    sensor: str
-    offset_s: float
-    drift: float
-    t_mid_s: float
-    offset_se_s: float
-    drift_se: float
-    residual: float
-    moving_s: float
-    status: str  # "applied", "consistent with one clock", "not enough shared movement", ...
-
-    def error_s(self, t: np.ndarray) -> np.ndarray:
-        """c(t) (s) at reference times ``t``."""
-        return self.offset_s + self.drift * (np.asarray(t, float) - self.t_mid_s)
-
-    def corrected_time(self, t: np.ndarray) -> np.ndarray:
-        """The sensor's own stamps ``t`` (s) on the reference clock."""
-        return (np.asarray(t, float) - self.offset_s + self.drift * self.t_mid_s) / (
-            1.0 + self.drift
-        )
-
-    def recorded_time(self, t: np.ndarray) -> np.ndarray:
-        """Inverse of :meth:`corrected_time`: the sensor's own stamps (s)."""
-        drift = self.drift
-        return np.asarray(t, float) * (1.0 + drift) + self.offset_s - drift * self.t_mid_s
 
 
 @dataclass
@@ -406,7 +374,7 @@ def synchronise(
     """Put the protocol's sensors on one clock, in place (see the module docstring).
 
     Each corrected stream's ``time`` is replaced and ``attrs["clock_sync"]`` records the fit (so
-    the recorded stamps can be restored); ``session.results["clock_sync"]`` holds every fit. A
+    the recorded stamps can be restored); ``session.results.clock_sync`` holds every fit. A
     sensor whose own fit is not reliable but whose reference was corrected gets the reference's
     correction: its recorded timing relative to its neighbour is kept (a thigh moved while its
     shank stayed would misalign the knee by the thigh's whole correction).
@@ -431,7 +399,7 @@ def synchronise(
                 stream, time=use.corrected_time(stream.time), attrs=attrs
             )
             moved[label] = use
-    session.results["clock_sync"] = {f.sensor: asdict(f) for f in fits}
+    session.results.clock_sync = ClockSync({f.sensor: f for f in fits})
     return fits
 
 
@@ -444,7 +412,7 @@ def unsynchronise(session: Session) -> None:
             session.sensors[label] = replace(
                 stream, time=fit.recorded_time(stream.time), attrs=attrs
             )
-    session.results.pop("clock_sync", None)
+    session.results.clock_sync = None
 
 
 def describe(fit: ClockFit) -> str:

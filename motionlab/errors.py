@@ -35,7 +35,12 @@ class InputError(Exception):
     where
         The place inside the file: ``"line 4812"``, ``"channel Acc_X"``, ``"key joints[0].distal"``.
     remedy
-        What to do about it: ``"is the delimiter ';'?"``.
+        What to do about it: ``"is the delimiter ';'?"``. The library names its own function
+        arguments here (``"pass force=True to replace it"``), never a command-line flag.
+    argument
+        The function argument(s) the error or its remedy is about (``"force"``, ``("duration",
+        "rate")``), spelled in the text as ``name=value``, ``name=True`` or ``argument name``;
+        the CLI rewrites those into its flags (``motionlab.cli.flags``).
     """
 
     def __init__(
@@ -44,8 +49,12 @@ class InputError(Exception):
         path: str | Path | None = None,
         where: str | None = None,
         remedy: str | None = None,
+        argument: str | tuple[str, ...] | None = None,
     ) -> None:
         self.message = message
+        self.arguments: tuple[str, ...] = (
+            () if argument is None else (argument,) if isinstance(argument, str) else argument
+        )
         self.path = None if path is None else Path(path)
         self.where = where
         self.remedy = remedy

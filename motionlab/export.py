@@ -33,6 +33,7 @@ from motionlab import __version__
 from motionlab import rotations as rot
 from motionlab.atomic import atomic_path
 from motionlab.errors import InputError
+from motionlab.results import SegmentCalibration
 from motionlab.session import MarkerSet, ModelOutput, Session
 
 FORMATS = ("sto", "mot", "c3d", "json")
@@ -113,12 +114,10 @@ def orientations(session: Session) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     such sensor's time stamps within the span all share; the others are SLERP-resampled onto it
     (samples in a gap longer than 1.5 sample intervals become NaN).
     """
-    fusion = session.results.get("fusion", {})
+    fusion = session.results.fusion
     streams: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     for label, s in session.sensors.items():
-        q = fusion.get(label, {}).get("quat")
-        if q is None:
-            q = s.quat
+        q = fusion[label].quat if label in fusion else s.quat
         if q is None:
             continue
         name = imu_name(label, s.segment, s.side)
@@ -159,32 +158,32 @@ def _on(time: np.ndarray, t: np.ndarray, q: np.ndarray) -> np.ndarray:
 
 def angle_table(session: Session) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """Time (s) and the joint angle columns (``knee_r_flexion_deg`` → (N,), deg)."""
-    angles = session.results.get("angles")
-    if not angles or "time_s" not in angles:
+    angles = session.results.angles
+    if angles is None:
         raise InputError(
             "no joint angles to export", remedy="run 'motionlab angles' (or 'motionlab run') first"
         )
-    columns = {k: np.asarray(v, dtype=float) for k, v in angles.items()
-               if k.endswith("_deg") and isinstance(v, np.ndarray)}  # fmt: skip
-    return np.asarray(angles["time_s"], dtype=float), columns
+    columns = {k: np.asarray(v, dtype=float) for k, v in angles.data.items()
+               if angles.units[k] == "deg"}  # fmt: skip
+    return np.asarray(angles.time, dtype=float), columns
 
 
 def joint_columns(session: Session) -> dict[str, list[str]]:
     """Joint → its three angle columns in decomposition order (from the protocol the session
     was calibrated with), else the columns grouped by the joint names of the grades."""
     _, columns = angle_table(session)
-    cal = session.results.get("calibration", {})
+    cal = session.results.calibration or SegmentCalibration("")
     try:
         from motionlab.kinematics.joint_types import angle_columns
         from motionlab.protocol import load_protocol
 
-        proto = load_protocol(cal.get("protocol_path") or cal.get("protocol"))
+        proto = load_protocol(cal.protocol_source)
         out = {name: [c for _, c in angle_columns(j)] for name, j in proto.joints.items()}
         if all(c in columns for cols in out.values() for c in cols):
             return out
     except (InputError, OSError, TypeError, KeyError):
         pass
-    joints = sorted(cal.get("grades", {}), key=len, reverse=True)
+    joints = sorted(cal.grades, key=len, reverse=True)
     out: dict[str, list[str]] = {}
     for col in columns:
         joint = next((j for j in joints if col.startswith(f"{j}_")), col.rsplit("_", 2)[0])
@@ -318,9 +317,9 @@ def results_json(session: Session) -> dict[str, Any]:
         ],
     }
     res = session.results
-    if "angles" in res:
+    if res.angles is not None:
         time, columns = angle_table(session)
-        grades = res.get("calibration", {}).get("grades", {})
+        grades = res.calibration.grades if res.calibration is not None else {}
         joints = {}
         for joint, cols in joint_columns(session).items():
             entry: dict[str, Any] = {"columns": {c: columns[c] for c in cols if c in columns}}
@@ -328,22 +327,21 @@ def results_json(session: Session) -> dict[str, Any]:
                 entry["grades"] = dict(zip(cols, grades[joint]["grades"], strict=True))
                 entry["reasons"] = dict(zip(cols, grades[joint].get("reasons", []), strict=False))
             joints[joint] = entry
-        out["angles"] = {"time_s": time, "method": res["angles"].get("method"), "joints": joints}
-    if "metrics" in res:
+        out["angles"] = {"time_s": time, "method": res.angles.method, "joints": joints}
+    if res.metrics is not None:
         from motionlab.kinematics.metrics import metrics_table
 
-        table = metrics_table(res["metrics"])
+        table = metrics_table(res.metrics)
         out["metrics"] = table.astype(object).where(table.notna(), None).to_dict("records")
-    if "calibration" in res:
-        cal = res["calibration"]
-        out["calibration"] = {k: cal[k] for k in ("ok", "protocol", "warnings") if k in cal}
-    if "fusion" in res:
+    if res.calibration is not None:
+        cal = res.calibration
+        out["calibration"] = {"ok": cal.ok, "protocol": cal.protocol, "warnings": cal.warnings}
+    if res.fusion:
         out["fusion"] = {
-            k: {"estimator": v.get("name"), "magnetometer": v.get("magnetometer")}
-            for k, v in res["fusion"].items()
+            k: {"estimator": v.name, "magnetometer": v.magnetometer} for k, v in res.fusion.items()
         }
-    if "validation" in res:
-        out["validation"] = _scalars(res["validation"])
+    if res.validation is not None:
+        out["validation"] = _scalars(res.validation.to_tree())
     return _json_clean(out)
 
 
@@ -382,7 +380,8 @@ def export_session(session: Session, fmt: str, path: str | Path, force: bool = F
         markers = next((m for m in session.markers.values() if m.n_markers), None)
         marker_time = None
         if markers is not None:
-            sync = session.results.get("validation", {}).get("sync", {})
+            val = session.results.validation
+            sync = val.sync if val is not None else {}
             offset, ppm = sync.get("time_offset_s", 0.0), sync.get("drift_ppm", 0.0)
             marker_time = offset + (1.0 + ppm * 1e-6) * time
         write_c3d(path, time, outputs, markers, marker_time, descriptions, force=force)

@@ -39,7 +39,7 @@ UNRELATED_CLOCKS_S = 86400.0
 #: sampling rates (Hz) and time stamps (s) taken as real; beyond them the clock is damaged
 RATE_RANGE_HZ = (0.01, 1e6)
 TIME_MAX_S = 1e11  # about 3000 years: Unix time in s fits, a stamp near 1e300 does not
-#: --rate may be at most this many times the highest native rate
+#: ``rate`` may be at most this many times the highest native rate
 UPSAMPLE_MAX = 10.0
 #: a quaternion whose norm is outside this range is not an orientation (e.g. all zero)
 QUAT_NORM_RANGE = (0.5, 1.5)
@@ -164,18 +164,21 @@ def _check_rate(
     markers: list[MarkerSet],
     paths: Sequence[Path],
 ) -> None:
-    """Refuse a ``--rate`` beyond :data:`UPSAMPLE_MAX` times the highest native rate, or whose
+    """Refuse a ``rate`` beyond :data:`UPSAMPLE_MAX` times the highest native rate, or whose
     session would be larger than 4× the inputs + 256 MiB — before anything is allocated."""
     natives = [s.rate_hz for s in streams] + [m.rate_hz for m in markers]
     native = max((r for r in natives if np.isfinite(r)), default=float("nan"))
     if np.isfinite(native) and rate > UPSAMPLE_MAX * native:
         raise InputError(
-            f"--rate {rate:g} Hz is more than {UPSAMPLE_MAX:g}× the highest native rate "
+            f"rate={rate:g} Hz is more than {UPSAMPLE_MAX:g}× the highest native rate "
             f"({native:.4g} Hz)",
-            remedy=f"give --rate {native:.4g} or less",
+            remedy=f"give rate={native:.4g} or less",
+            argument="rate",
         )
     if rate < RATE_RANGE_HZ[0]:
-        raise InputError(f"--rate {rate:g} Hz", remedy=f"give at least {RATE_RANGE_HZ[0]:g} Hz")
+        raise InputError(
+            f"rate={rate:g} Hz", remedy=f"give at least {RATE_RANGE_HZ[0]:g} Hz", argument="rate"
+        )
     columns = [
         1 + sum(np.asarray(a).reshape(len(a), -1).shape[1] for a in (s.acc, s.gyr, s.mag, s.quat)
                 if a is not None) + len(s.extra)
@@ -187,14 +190,16 @@ def _check_rate(
     budget = 4 * sum(p.stat().st_size for p in paths) + (256 << 20)
     if estimate > budget:
         raise InputError(
-            f"--rate {rate:g} Hz would make a session of about {estimate / 2**20:,.0f} MiB",
-            remedy="give a lower --rate",
+            f"rate={rate:g} Hz would make a session of about {estimate / 2**20:,.0f} MiB",
+            remedy="give a lower rate=",
+            argument="rate",
         )
     short = [s.label for s in streams if s.duration_s * rate < 1]
     if short:
         raise InputError(
-            f"--rate {rate:g} Hz leaves sensor {short[0]} with fewer than 2 samples",
-            remedy="give a higher --rate",
+            f"rate={rate:g} Hz leaves sensor {short[0]} with fewer than 2 samples",
+            remedy="give a higher rate=",
+            argument="rate",
         )
 
 
@@ -205,7 +210,7 @@ def _unique_label(stream: SensorStream, path: Path, seen: dict[str, Path]) -> Se
             f"sensor label '{label}' also comes from {seen[label].name}",
             path,
             f"sensor {label}",
-            "give each sensor its own label in the --map file (sensors: <serial>: {label: ...})",
+            "give each sensor its own label in the sensor map (sensors: <serial>: {label: ...})",
         )
     seen[label] = path
     return dataclasses.replace(stream, label=label) if label != stream.label else stream
@@ -289,7 +294,11 @@ def ingest(
     if not paths:
         raise InputError("no input files", remedy="give one or more recording files")
     if gap_max < 0 or (rate is not None and not rate > 0):
-        raise InputError("--gap-max must be ≥ 0 and --rate > 0", remedy="fix the option")
+        raise InputError(
+            f"gap_max={gap_max:g} must be ≥ 0 and rate={rate} > 0",
+            remedy="fix the option",
+            argument=("gap_max", "rate"),
+        )
     map_path = None
     if sensor_map is not None and not isinstance(sensor_map, SensorMap):
         map_path = Path(sensor_map)

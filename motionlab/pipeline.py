@@ -37,6 +37,7 @@ from motionlab.atomic import check_folder_writable, refuse_input_as_output
 from motionlab.errors import InputError
 from motionlab.ingest import DEFAULT_GAP_MAX, ingest
 from motionlab.protocol import Protocol, load_protocol
+from motionlab.results import Gait
 from motionlab.segments import sensor_for_segment
 from motionlab.session import (
     FORMAT_NAME,
@@ -135,9 +136,10 @@ def load_inputs(inputs: list[Path], map_path: Path | None, command: str) -> Sess
         )
     if map_path is not None:
         raise InputError(
-            "--map applies to raw recordings; a session file already names its sensors",
+            "map_path= applies to raw recordings; a session file already names its sensors",
             map_path,
-            remedy="leave out --map, or ingest the raw files with it",
+            remedy="leave out map_path=, or ingest the raw files with it",
+            argument="map_path",
         )
     session = load_session(sessions[0])
     prepare_sensors(session)
@@ -157,7 +159,8 @@ def check_segments(session: Session, protocol: Protocol, inputs: list[Path]) -> 
         f"the '{protocol.name}' protocol needs sensors on {', '.join(needed)}; the input has "
         f"{gap} (its sensors: {labels or 'none'})",
         inputs[0] if len(inputs) == 1 else None,
-        remedy="map each sensor to its segment with --map map.yaml (see 'motionlab ingest --help')",
+        remedy="map each sensor to its segment with a sensor map, map_path=map.yaml (README)",
+        argument="map_path",
     )
 
 
@@ -173,7 +176,11 @@ def _check_estimator(name: str, magnetometer: bool) -> None:
 
     est = registry.get(name)
     if est.needs_mag and not magnetometer:
-        raise InputError(f"estimator '{name}' needs a magnetometer", remedy="add --magnetometer")
+        raise InputError(
+            f"estimator '{name}' needs a magnetometer",
+            remedy="add magnetometer=True",
+            argument="magnetometer",
+        )
 
 
 def _outputs(
@@ -201,7 +208,9 @@ def _outputs(
         results = outdir / RESULTS_JSON
         for p in (session_path, report_path, report_path.with_suffix(".txt"), csv_dir, results):
             if p.exists():
-                raise InputError("output exists", p, remedy="use --force to replace it")
+                raise InputError(
+                    "output exists", p, remedy="use force=True to replace it", argument="force"
+                )
     return session_path, report_path, csv_dir
 
 
@@ -287,7 +296,7 @@ def analyse(session: Session, options: PipelineOptions, stages: _Stages | None =
     """The stages after ingest, in memory, each by its function in :mod:`motionlab.stages` (as
     the stage commands call them): (sync) → fuse (with the sensor calibrations) → calibrate →
     angles → metrics (and gait) → (validate, with ``options.reference`` or the session's own
-    markers). Results go to ``session.results`` under the names the stage commands use.
+    markers). Results go to ``session.results``' stage attributes, as the stage commands store them.
 
     ``options.clock_sync`` puts sensors recorded on their own clocks on one clock
     (:func:`motionlab.clocksync.synchronise`; corrections only where reliable and non-zero).
@@ -374,7 +383,7 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
         check_segments(session, proto, inputs)
         proto = sensed_protocol(proto, session)
     analyse(session, dataclasses.replace(options, protocol=proto), stages)
-    validated = "validation" in session.results
+    validated = session.results.validation is not None
     session.add_provenance(
         command,
         parameters={
@@ -399,7 +408,7 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
         views = load_views([session], proto, [session_path])
         out = write_report(views, report_path, csv_dir, force=options.force)
         write_json(session, outdir / RESULTS_JSON, force=options.force)
-    table = metrics_table(session.results["metrics"])
+    table = metrics_table(session.results.metrics)
     metrics = table[table["percent"].isna()].drop(columns="percent").reset_index(drop=True)
     summary = run_summary(views[0], out, stages.times, time.perf_counter() - t_start)
     return PipelineResult(session_path, report_path, csv_dir, metrics, summary)
@@ -436,7 +445,7 @@ def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
         quality_rows,
         rom_rows,
     )
-    from motionlab.report.text import findings, span, task_name
+    from motionlab.report.sentences import findings, span, task_name
 
     ses, proto = view.session, view.protocol
     q = quality_rows(view)
@@ -448,14 +457,14 @@ def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
         f" quality flags: {', '.join(flagged) or 'none'}",
     ]
     fusion = {
-        f"{e.get('name')}{'' if e.get('magnetometer', True) else ' (6-D, no magnetometer)'}"
-        for e in ses.results.get("fusion", {}).values()
+        f"{e.name}{'' if e.magnetometer else ' (6-D, no magnetometer)'}"
+        for e in ses.results.fusion.values()
     }
     lines.append(f"  fusion: {', '.join(sorted(fusion)) or 'sensor orientations'}")
-    synced = ses.results.get("clock_sync", {})
+    synced = ses.results.clock_sync.fits if ses.results.clock_sync is not None else {}
     if synced:
-        moved = [f"{k} {1e3 * v['offset_s']:+.1f} ms" for k, v in synced.items()
-                 if v["status"] == "applied"]  # fmt: skip
+        moved = [f"{k} {1e3 * v.offset_s:+.1f} ms" for k, v in synced.items()
+                 if v.status == "applied"]  # fmt: skip
         lines.append(
             f"  clock sync: {', '.join(moved) if moved else 'no correction needed or reliable'}"
             f" ({len(synced)} sensor pairs checked)"
@@ -466,12 +475,12 @@ def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
         f"  calibration: {len(segs) - len(bad)}/{len(segs)} segments ok"
         + (f"; check {', '.join(bad)}" if bad else "")
     )
-    cal = ses.results.get("calibration", {})
-    lines += [f"  warning: {w}" for w in cal.get("warnings", [])]
+    cal = ses.results.calibration
+    lines += [f"  warning: {w}" for w in (cal.warnings if cal is not None else [])]
     tied = [
-        f"{j} by its {h['source'].replace('_', ' ')} ({h['range_deg']:.1f}° range)"
-        for j, h in ses.results.get("heading", {}).items()
-        if h.get("anchors") and h.get("source") != "steps"
+        f"{j} by its {h.source.replace('_', ' ')} ({h.range_deg:.1f}° range)"
+        for j, h in (ses.results.heading or {}).items()
+        if h.anchors and h.source != "steps"
     ]
     if tied:
         lines.append("  heading tied by the joints: " + ", ".join(tied))
@@ -480,7 +489,7 @@ def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
         "  tasks: "
         + ", ".join(f"{task_name(k)} {a:.0f}-{b:.0f} s" for k, (a, b) in view.blocks().items())
     )
-    lines.append(_gait_line(ses.results.get("gait")))
+    lines.append(_gait_line(ses.results.gait))
     flexion = [r for r in rom_rows(view) if r["angle"] == "flexion"]
     if flexion:
         lines.append("  flexion range (typical, deg):")
@@ -495,7 +504,8 @@ def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
             f"{span(r['typical_min_deg'], r['typical_max_deg']):>10}  ({normal})"
             + (f" {grade_mark(r['grade'])}" if grade_mark(r["grade"]) else "")
         )
-    val = ses.results.get("validation", {}).get("angles", {})
+    validation = ses.results.validation
+    val = (validation.angles or {}) if validation is not None else {}
     grades = angle_grades(view)
     rmse = [
         f"{c.removesuffix('_deg')} {v['rmse_deg']:.1f}"
@@ -519,14 +529,14 @@ def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
     return "\n".join(lines)
 
 
-def _gait_line(gait: dict | None) -> str:
+def _gait_line(gait: Gait | None) -> str:
     """One summary line about gait: its main numbers, or why there are no gait pages."""
     if gait is None:
         return "  gait: none in this recording (the protocol has no gait task); no gait pages"
-    if gait.get("status") != "ok":
-        return f"  gait: {gait.get('status')}; no gait pages"
-    s = gait["summary"]
-    gps = gait.get("map", {}).get("gps", {}).get("overall", float("nan"))
+    if not gait.ok:
+        return f"  gait: {gait.status}; no gait pages"
+    s = gait.summary
+    gps = (gait.map or {}).get("gps", {}).get("overall", float("nan"))
     return (
         f"  gait: {s['strides_kept']} strides, cadence {s['cadence_steps_per_min']:.1f} steps/min,"
         f" step-time asymmetry {s['step_time_asymmetry_pct']:.1f} %, GPS {gps:.1f} deg"

@@ -112,7 +112,7 @@ def load_sensor_map(path: str | Path) -> SensorMap:
     """Read and validate a sensor map; :class:`InputError` names the offending key and line."""
     path = Path(path)
     smap = SensorMap(path=path)
-    text = read_yaml_text(path, "sensor map", "give a YAML sensor map (see 'ingest --help')")
+    text = read_yaml_text(path, "sensor map", "give a YAML sensor map (see the README)")
     doc = load_yaml(text, _Loader, path, "check indentation")
     if doc is None:
         return smap

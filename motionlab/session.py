@@ -8,8 +8,12 @@ Data model (SI units, first array dimension is time):
   ``residuals`` (N×M, m), optional rigid-body orientations, and the model outputs a C3D file
   carries beside its markers (:class:`ModelOutput`: joint angles, forces, moments, powers… in
   the unit the file gives).
-- :class:`Session`: sensors, marker sets, subject/session metadata, stage ``results`` (a tree of
-  dicts whose leaves are arrays or JSON-able values) and the provenance log.
+- :class:`Session`: sensors, marker sets, subject/session metadata, stage ``results``
+  (:class:`motionlab.results.Results`: one typed attribute per stage, e.g.
+  ``session.results.calibration``) and the provenance log.
+
+Stage results are read and stored by attribute (``session.results.fusion[label].quat``); only
+this module turns them into the file's tree and back (``Results.to_tree`` / ``from_tree``).
 
 HDF5 layout (``h5dump`` shows it)::
 
@@ -17,10 +21,14 @@ HDF5 layout (``h5dump`` shows it)::
     /sensors/<label>/       time, acc, gyr, mag, quat, extra/<name>; attrs: serial, vendor, ...
     /markers/<name>/        time, positions, residuals, rigid_bodies/<name>; attrs: labels, ...
     /markers/<name>/model_outputs/<kind>   (N×K×3) one dataset per kind; attrs: labels, units
-    /results/<stage>/...    groups = dicts, datasets = arrays, attrs = JSON values
+    /results/<stage>/...    Results.to_tree(): groups = dicts, datasets = arrays, attrs = JSON
     /provenance             one JSON object per entry (software version, command, inputs' SHA-256)
 
 Round trip :func:`save_session` → :func:`load_session` is bit-exact.
+
+Schema versions: 2 (current) stores the angle table's ``units`` and ``events``; a schema-1 file
+loads with the units taken from the column names and the events from the calibration steps and
+metric blocks (:func:`_upgrade_v1`); it is written back as schema 2.
 """
 
 from __future__ import annotations
@@ -39,8 +47,9 @@ import numpy as np
 from motionlab import __version__
 from motionlab.atomic import atomic_path
 from motionlab.errors import InputError, shorten
+from motionlab.results import Results
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2
 FORMAT_NAME = "motionlab-session"
 
 #: SI unit of each sensor channel inside motionlab.
@@ -145,12 +154,17 @@ class MarkerSet:
 
 @dataclass
 class Session:
-    """One recording session: sensors, marker sets, metadata, stage results and provenance."""
+    """One recording session: sensors, marker sets, metadata, stage results and provenance.
+
+    ``results`` holds every stage's typed result (:class:`~motionlab.results.Results`);
+    ``schema_version`` is the schema of the file it was loaded from (a save writes the current
+    :data:`SCHEMA_VERSION`).
+    """
 
     sensors: dict[str, SensorStream] = field(default_factory=dict)
     markers: dict[str, MarkerSet] = field(default_factory=dict)
     metadata: dict[str, Any] = field(default_factory=dict)
-    results: dict[str, Any] = field(default_factory=dict)
+    results: Results = field(default_factory=Results)
     provenance: list[dict[str, Any]] = field(default_factory=list)
     schema_version: int = SCHEMA_VERSION
 
@@ -234,7 +248,7 @@ def write_session(session: Session, path: str | Path) -> None:
     """Write ``session`` to ``path`` directly (no atomic rename; see :func:`save_session`)."""
     with h5py.File(path, "w", track_order=True) as f:
         f.attrs["format"] = FORMAT_NAME
-        f.attrs["schema_version"] = session.schema_version
+        f.attrs["schema_version"] = SCHEMA_VERSION
         f.attrs["metadata"] = _json(session.metadata)
         sensors = f.create_group("sensors", track_order=True)
         for label, s in session.sensors.items():
@@ -273,7 +287,7 @@ def write_session(session: Session, path: str | Path) -> None:
             g.attrs["labels"] = _json(list(m.labels))
             g.attrs["source_units"] = _json(m.source_units)
             g.attrs["attrs"] = _json(m.attrs)
-        _write_tree(f.create_group("results", track_order=True), session.results)
+        _write_tree(f.create_group("results", track_order=True), session.results.to_tree())
         f.create_dataset(
             "provenance",
             data=np.array([_json(p) for p in session.provenance], dtype=object),
@@ -425,6 +439,19 @@ def load_session(path: str | Path) -> Session:
             ) from None
 
 
+def _upgrade_v1(results: Results) -> None:
+    """Schema 1 → 2: the angle table's events from the calibration steps and metric blocks
+    (its units come from the column names, :func:`motionlab.results.column_unit`)."""
+    if results.angles is None or results.angles.events:
+        return
+    if results.calibration is not None:
+        for step, rng in results.calibration.steps.items():
+            if rng is not None:
+                results.angles.events[step] = (float(rng[0]), float(rng[1]))
+    if results.metrics is not None:
+        results.angles.events.update(results.metrics.spans())
+
+
 def _groups(f: h5py.File, name: str, place: _Place) -> list[tuple[str, h5py.Group]]:
     """The subgroups of ``/name`` (sensors, marker sets), each checked to be a group."""
     place.where = f"/{name}"
@@ -505,7 +532,14 @@ def _load(f: h5py.File, path: Path, place: _Place) -> Session:
             model_outputs=(_read_model_outputs(g["model_outputs"]) if "model_outputs" in g else {}),
         )
     place.where = "/results"
-    session.results = _read_tree(f["results"], place)
+    tree = _read_tree(f["results"], place)
+    place.where = "/results"
+    try:
+        session.results = Results.from_tree(tree)
+    except (TypeError, ValueError, KeyError, IndexError) as exc:
+        raise place.fail(f"does not hold stage results this motionlab reads ({exc})") from None
+    if version < 2:
+        _upgrade_v1(session.results)
     place.where = "/provenance"
     entries = f["provenance"].asstr()[()]
     try:

@@ -6,8 +6,10 @@ with the same defaults, so the stage-by-stage path computes what ``run`` compute
 
     sync → fuse → calibrate → angles → metrics → (validate)
 
-Each function takes the session (in memory), adds its results to ``session.results`` under the
-stage's name and returns them; ``force`` replaces earlier results of the stage (without it they
+Each function takes the session (in memory), stores its result in the stage's attribute of
+``session.results`` (:class:`motionlab.results.Results`: ``clock_sync``, ``fusion``,
+``calibration``, ``angles`` and ``heading``, ``metrics`` and ``gait``, ``validation``) and
+returns it; ``force`` replaces earlier results of the stage (without it they
 are an :class:`~motionlab.errors.InputError` naming ``path``, the session file). Every function
 that reads the protocol uses :func:`motionlab.kinematics.gait.sensed_protocol` (joints of
 optional segments without a sensor left out), as ``run`` does.
@@ -28,6 +30,7 @@ from typing import TYPE_CHECKING, Any
 from motionlab.errors import InputError
 from motionlab.ingest import DEFAULT_GAP_MAX, check_and_fill
 from motionlab.protocol import Protocol, load_protocol
+from motionlab.results import AngleTable, FusionEntry, Gait, Metrics, SegmentCalibration, Validation
 from motionlab.session import Session
 
 if TYPE_CHECKING:
@@ -47,12 +50,14 @@ CLOCK_SYNC = True
 Progress = Callable[[list[str], str], Iterable[str]]
 
 
-def refuse_to_redo(session: Session, stage: str, what: str, force: bool, path: Any = None) -> None:
-    """Raise when ``session`` already holds ``results[stage]`` and not ``force``."""
-    if stage in session.results and not force:
+def refuse_to_redo(done: bool, stage: str, what: str, force: bool, path: Any = None) -> None:
+    """Raise when the session already holds the ``stage``'s result (``done``) and not
+    ``force``."""
+    if done and not force:
         raise InputError(
-            f"already holds {what}", path, f"results/{stage}", "add --force to redo it"
-        )
+            f"already holds {what}", path, f"results/{stage}", "add force=True to redo it",
+            argument="force",
+        )  # fmt: skip
 
 
 def stage_protocol(
@@ -63,17 +68,17 @@ def stage_protocol(
     from motionlab.kinematics.gait import sensed_protocol
 
     if protocol is None:
-        cal = session.results.get("calibration")
+        cal = session.results.calibration
         if cal is None:
-            raise InputError("no protocol", path, remedy="give --protocol")
-        protocol = cal.get("protocol_path") or cal["protocol"]
+            raise InputError("no protocol", path, remedy="give protocol=", argument="protocol")
+        protocol = cal.protocol_source
     if not isinstance(protocol, Protocol):
         protocol = load_protocol(protocol)
     return sensed_protocol(protocol, session)
 
 
-def _calibration(session: Session, path: Any) -> dict[str, Any]:
-    cal = session.results.get("calibration")
+def _calibration(session: Session, path: Any) -> SegmentCalibration:
+    cal = session.results.calibration
     if cal is None:
         raise InputError(
             "not calibrated", path, "results/calibration", "run motionlab calibrate first"
@@ -104,11 +109,12 @@ def sync(
     path: Any = None,
 ) -> list[ClockFit]:
     """Put the protocol's IMUs on one clock (:func:`motionlab.clocksync.synchronise`);
-    ``results["clock_sync"]`` holds every fit. Prepares sensors without QC first
+    ``results.clock_sync`` holds every fit. Prepares sensors without QC first
     (:func:`prepare`). ``force`` redoes it from the recorded stamps."""
     from motionlab.clocksync import synchronise
 
-    refuse_to_redo(session, "clock_sync", "a clock synchronisation", force, path)
+    done = session.results.clock_sync is not None
+    refuse_to_redo(done, "clock_sync", "a clock synchronisation", force, path)
     prepare(session)
     return synchronise(session, stage_protocol(session, protocol, path))
 
@@ -138,7 +144,7 @@ def fuse(
     orientation: str = "fused",
 ) -> Fused:
     """Orientation of every sensor with gyroscope and accelerometer (of ``sensors``) by
-    ``estimator``, stored in ``results["fusion"]`` (:func:`motionlab.fusion.stage.fuse_session`).
+    ``estimator``, stored in ``results.fusion`` (:func:`motionlab.fusion.stage.fuse_session`).
 
     ``orientation="vendor"``: sensors that carry the vendor's own orientation (``quat``: an
     Xsens export's, an OpenSense ``.sto``, Xsens DOT) keep it instead of being fused (entry
@@ -154,12 +160,14 @@ def fuse(
 
     if not magnetometer and registry.get(estimator).needs_mag:
         raise InputError(
-            f"estimator '{estimator}' needs a magnetometer", remedy="add --magnetometer"
+            f"estimator '{estimator}' needs a magnetometer",
+            remedy="add magnetometer=True",
+            argument="magnetometer",
         )
     if orientation not in ORIENTATIONS:
         raise InputError(
-            f"unknown orientation source {orientation!r}", where="--orientation",
-            remedy=f"use one of {', '.join(ORIENTATIONS)}",
+            f"unknown orientation source {orientation!r}", where="argument orientation",
+            remedy=f"use one of {', '.join(ORIENTATIONS)}", argument="orientation",
         )  # fmt: skip
     prepare(session)
     vendor: list[str] = []
@@ -192,12 +200,12 @@ def fuse(
         )
     finally:
         session.sensors = recorded
-    store = session.results["fusion"]
+    store = session.results.fusion
     for label, stream in calibrated.items():
-        store[label]["calibration"] = stream.attrs["calibration"]
+        store[label].sensor_calibration = stream.attrs["calibration"]
     for label in refs:
         record = marker_info["sensors"][label] | {"lab_to_earth": marker_info["lab_to_earth"]}
-        store[label]["markers"] = record
+        store[label].markers = record
         seen = f"markers seen {100 * record['visible_fraction']:.0f} %"
         notes[label] = f"{notes[label]}, {seen}" if label in notes else seen
     return Fused(vendor + done, notes)
@@ -212,7 +220,7 @@ def _vendor_orientations(
     """Store the vendor's orientation of every sensor that has one as its fusion entry."""
     import numpy as np
 
-    store = session.results.setdefault("fusion", {})
+    store = session.results.fusion
     out = []
     for label in sensors or list(session.sensors):
         s = session.sensors[label]
@@ -221,10 +229,10 @@ def _vendor_orientations(
         if label in store and not force:
             raise InputError(
                 "already has orientations", path, f"results/fusion/{label}",
-                "use --force to replace them",
+                "use force=True to replace them", argument="force",
             )  # fmt: skip
         # the vendor's fusion shares one earth frame between its sensors (9-D)
-        store[label] = {"name": "vendor", "quat": np.asarray(s.quat, float), "magnetometer": True}
+        store[label] = FusionEntry("vendor", np.asarray(s.quat, float), magnetometer=True)
         out.append(label)
     return out
 
@@ -240,14 +248,15 @@ def _marker_references(
         takes = [k for k in registry.available() if registry.takes_references(k)]
         raise InputError(
             f"estimator '{estimator}' cannot fuse markers",
-            remedy=f"use --filter {' or '.join(takes)}",
+            remedy=f"use estimator={' or '.join(takes)}",
+            argument="estimator",
         )
     return session_references(session, marker_map, labels=labels)
 
 
 def synced(session: Session) -> bool:
     """Whether the session went through the clock sync stage (or has one sensor only)."""
-    return "clock_sync" in session.results or len(session.sensors) < 2
+    return session.results.clock_sync is not None or len(session.sensors) < 2
 
 
 def calibrate(
@@ -256,16 +265,17 @@ def calibrate(
     *,
     force: bool = False,
     path: Any = None,
-) -> dict[str, Any]:
-    """Sensor-to-segment calibration (:func:`motionlab.segments.calibrate`), stored in
-    ``results["calibration"]`` with the protocol's path."""
-    from motionlab.segments import calibrate as calibrate_segments
+) -> SegmentCalibration:
+    """Sensor-to-segment calibration (:func:`motionlab.segments.calibrate_segments`), stored in
+    ``results.calibration`` with the protocol's path."""
+    from motionlab.segments import calibrate_segments
 
-    refuse_to_redo(session, "calibration", "a calibration", force, path)
+    done = session.results.calibration is not None
+    refuse_to_redo(done, "calibration", "a calibration", force, path)
     protocol = stage_protocol(session, protocol, path)
     result = calibrate_segments(session, protocol)
-    result["protocol_path"] = str(protocol.path)
-    session.results["calibration"] = result
+    result.protocol_path = str(protocol.path)
+    session.results.calibration = result
     return result
 
 
@@ -277,29 +287,30 @@ def angles(
     calibrated: bool = True,
     force: bool = False,
     path: Any = None,
-) -> dict[str, Any]:
-    """The joint angle table (degrees), stored in ``results["angles"]`` (with its ``method``)
-    and each joint's heading correction in ``results["heading"]``.
+) -> AngleTable:
+    """The joint angle table (degrees), stored in ``results.angles`` (with its ``method`` and
+    the calibration steps as events) and each joint's heading correction in
+    ``results.heading``.
 
     ``protocol`` defaults to the calibration's. ``method``: ``imu`` (fused orientations) or
     ``accel-only`` (elbow from accelerometers, Lee 2012). ``calibrated=False`` takes sensor
     frames as segment frames.
     """
-    import numpy as np
-
     from motionlab.kinematics.session_angles import session_angles
+    from motionlab.results import HeadingCorrection
 
-    cal = session.results.get("calibration")
+    cal = session.results.calibration
     if cal is None and calibrated:
         raise InputError(
             "not calibrated",
             path,
             "results/calibration",
-            "run motionlab calibrate first, or pass --no-calibration",
+            "run motionlab calibrate first, or pass calibrated=False",
+            argument="calibrated",
         )
     protocol = stage_protocol(session, protocol, path)
-    refuse_to_redo(session, "angles", "angles", force, path)
-    corrections: dict[str, Any] = {}
+    refuse_to_redo(session.results.angles is not None, "angles", "angles", force, path)
+    corrections: dict[str, HeadingCorrection] = {}
     if method == "imu":
         table = session_angles(
             session, protocol, cal if calibrated else None, corrections=corrections
@@ -309,10 +320,15 @@ def angles(
 
         table = session_elbow_angles(session, protocol)
     else:
-        raise InputError(f"unknown angle method {method!r}", remedy="use imu or accel-only")
-    session.results["angles"] = {k: np.asarray(v) for k, v in table.items()} | {"method": method}
-    session.results["heading"] = corrections
-    return table
+        raise InputError(
+            f"unknown angle method {method!r}", remedy="use imu or accel-only", argument="method"
+        )
+    steps = cal.steps if cal is not None else {}
+    events = {k: (float(v[0]), float(v[1])) for k, v in steps.items() if v is not None}
+    result = AngleTable.from_columns(table, method, events)
+    session.results.angles = result
+    session.results.heading = corrections
+    return result
 
 
 def metrics(
@@ -323,10 +339,11 @@ def metrics(
     gait: bool = True,
     force: bool = False,
     path: Any = None,
-) -> dict[str, Any]:
+) -> Metrics:
     """Per task, joint and plane metrics (:func:`motionlab.kinematics.metrics.session_metrics`)
-    in ``results["metrics"]``; with ``gait`` and a gait task in the protocol, the gait analysis
-    (:func:`motionlab.kinematics.gait.analyse_gait`) in ``results["gait"]``.
+    in ``results.metrics`` (their task blocks added to the angle table's events); with ``gait``
+    and a gait task in the protocol, the gait analysis
+    (:func:`motionlab.kinematics.gait.analyse_gait`) in ``results.gait``.
 
     ``protocol`` defaults to the calibration's; ``tasks`` ``{name: (start_s, end_s)}`` (default:
     found in the recording).
@@ -334,7 +351,7 @@ def metrics(
     from motionlab.kinematics.metrics import session_metrics
 
     _calibration(session, path)
-    refuse_to_redo(session, "metrics", "metrics", force, path)
+    refuse_to_redo(session.results.metrics is not None, "metrics", "metrics", force, path)
     protocol = stage_protocol(session, protocol, path)
     names = {t.name for t in protocol.tasks}
     unknown = [n for n in tasks or {} if n not in names]
@@ -346,30 +363,32 @@ def metrics(
             f"tasks are {', '.join(t.name for t in protocol.tasks)}",
         )
     result = session_metrics(session, protocol, tasks)
-    session.results["metrics"] = result
+    session.results.metrics = result
+    if session.results.angles is not None:
+        session.results.angles.events.update(result.spans())
     if gait:
         gait_stage(session, protocol)
     return result
 
 
-def gait_stage(session: Session, protocol: Protocol | str | Path | None = None) -> dict | None:
-    """The gait analysis in ``results["gait"]`` when the protocol has a gait task (else none)."""
+def gait_stage(session: Session, protocol: Protocol | str | Path | None = None) -> Gait | None:
+    """The gait analysis in ``results.gait`` when the protocol has a gait task (else none)."""
     from motionlab.kinematics.gait import analyse_gait
     from motionlab.kinematics.metrics import is_gait
 
     protocol = stage_protocol(session, protocol, None)
     if not any(is_gait(t) for t in protocol.tasks):
         return None
-    session.results["gait"] = analyse_gait(session, protocol)
-    return session.results["gait"]
+    session.results.gait = analyse_gait(session, protocol)
+    return session.results.gait
 
 
 def validation_mode(session: Session) -> str:
     """Alignment mode for the session's fusion: ``full`` when every sensor was fused with its
     magnetometer (one earth frame; also when nothing was fused yet: the validation fuses with
     the magnetometers), else ``heading`` (each sensor its own heading)."""
-    entries = session.results.get("fusion", {}).values()
-    return "full" if all(e.get("magnetometer", True) for e in entries) else "heading"
+    entries = session.results.fusion.values()
+    return "full" if all(e.magnetometer for e in entries) else "heading"
 
 
 def validate(
@@ -391,9 +410,9 @@ def validate(
     frames: str = "anatomical",
     angle_map: dict | None = None,
     sync_on: str = "gyroscope",
-) -> dict[str, Any]:
+) -> Validation:
     """Validation against an optical reference (:func:`motionlab.validation.validate`), stored
-    in ``results["validation"]``.
+    in ``results.validation``.
 
     ``reference_kind`` (:func:`motionlab.validation.reference_kinds.load_reference` tells it):
     ``markers``; ``segments`` (segment quaternions, :mod:`motionlab.validation.segment_csv`;
@@ -410,8 +429,9 @@ def validate(
     """
     from motionlab.validation import validate as validate_session
 
-    refuse_to_redo(session, "validation", "validation results", force, path)
-    if protocol is None and "calibration" not in session.results:
+    done = session.results.validation is not None
+    refuse_to_redo(done, "validation", "validation results", force, path)
+    if protocol is None and session.results.calibration is None:
         proto = None
     else:
         proto = stage_protocol(session, protocol, path)
@@ -447,7 +467,7 @@ def validate(
         static=static,
         sync_on=sync_on,
     )
-    result["reference"] = {"kind": reference_kind}
+    result.reference = {"kind": reference_kind}
     if reference_kind == "segments":
-        result["reference"]["frames"] = frames
+        result.reference["frames"] = frames
     return result

@@ -77,6 +77,6 @@ def session_summary(session: Session) -> dict[str, Any]:
         "metadata": session.metadata,
         "sensors": sensors,
         "markers": markers,
-        "results": list(session.results),
+        "results": session.results.stages(),
         "provenance": session.provenance,
     }

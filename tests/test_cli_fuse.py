@@ -31,13 +31,13 @@ def test_fuse_stores_a_result_per_sensor(session_file):
     out = CliRunner().invoke(main, [*args, "--magnetometer"])  # 9-D: the truth's heading
     assert out.exit_code == 0, out.output
     ses = load_session(session_file)
-    fusion = ses.results["fusion"]
+    fusion = ses.results.fusion
     assert set(fusion) == {"shank_r", "thigh_r"}
     res = fusion["shank_r"]
-    assert res["name"] == "madgwick" and res["params"]["beta"] == 0.2
+    assert res.name == "madgwick" and res.params["beta"] == 0.2
     truth = np.array(ses.sensors["shank_r"].attrs["truth"])
-    assert np.degrees(rot.angle_between(res["quat"][-300:], truth[-300:])).max() < 3.0
-    assert res["rest"].dtype == bool and res["mag_disturbed"].shape == (1000,)
+    assert np.degrees(rot.angle_between(res.quat[-300:], truth[-300:])).max() < 3.0
+    assert res.rest.dtype == bool and res.mag_disturbed.shape == (1000,)
     assert ses.provenance[-1]["parameters"]["filter"] == "madgwick"
     assert "skipped" in out.output
 
@@ -51,7 +51,7 @@ def test_existing_result_needs_force_and_output_file(session_file, tmp_path):
     assert runner.invoke(main, [*args, "--force"]).exit_code == 0
     target = tmp_path / "out.h5"
     assert runner.invoke(main, [*args, "--force", "-o", str(target)]).exit_code == 0
-    assert "gyro_bias" in load_session(target).results["fusion"]["thigh_r"]
+    assert load_session(target).results.fusion["thigh_r"].gyro_bias is not None
     exists = runner.invoke(
         main, ["fuse", str(session_file), "--sensor", "shank_r", "-o", str(target)]
     )
@@ -92,7 +92,7 @@ def test_fuses_6d_by_default_as_run_does(session_file, extra):
     assert "6-D" in out.output
     assert "not been clock-synchronised: run 'motionlab sync" in out.output
     ses = load_session(session_file)
-    assert all(e["magnetometer"] is False for e in ses.results["fusion"].values())
+    assert all(e.magnetometer is False for e in ses.results.fusion.values())
     assert ses.provenance[-1]["parameters"]["magnetometer"] is False
 
 

@@ -16,6 +16,7 @@ from motionlab.clocksync import (
     unsynchronise,
 )
 from motionlab.protocol import load_protocol
+from motionlab.results import Results
 from motionlab.session import save_session
 from motionlab.simulate import simulate
 from motionlab.simulate.errors import get_preset
@@ -74,7 +75,7 @@ def test_shared_clock_left_alone(knee):
 
 def test_synchronise_then_restore(knee, typical):
     session, truth = typical
-    session = dataclasses.replace(session, sensors=dict(session.sensors), results={})
+    session = dataclasses.replace(session, sensors=dict(session.sensors), results=Results())
     recorded = {k: s.time.copy() for k, s in session.sensors.items()}
     fits = synchronise(session, knee)
     assert [(f.reference, f.sensor) for f in fits] == [
@@ -90,7 +91,7 @@ def test_synchronise_then_restore(knee, typical):
         true_label = np.interp(t, s.time, truth.sensors[label]["sample_time"])
         assert np.max(np.abs(true_label - true_pelvis)) < 0.003, label
         assert s.attrs["clock_sync"]["reference"] in ("pelvis", "thigh_r", "thigh_l")
-    assert set(session.results["clock_sync"]) == {"thigh_r", "thigh_l", "shank_r", "shank_l"}
+    assert set(session.results.clock_sync.fits) == {"thigh_r", "thigh_l", "shank_r", "shank_l"}
     unsynchronise(session)
     for k, s in session.sensors.items():
         np.testing.assert_allclose(s.time, recorded[k], atol=1e-9, rtol=0)
@@ -128,7 +129,7 @@ def test_sync_command(tmp_path, typical):
     session, _ = typical
     path = tmp_path / "s.h5"
     keep = {k: v for k, v in session.sensors.items() if k in ("thigh_r", "shank_r")}
-    save_session(dataclasses.replace(session, sensors=keep, results={}), path)
+    save_session(dataclasses.replace(session, sensors=keep, results=Results()), path)
     runner = CliRunner()
     res = runner.invoke(main, ["sync", str(path), "--protocol", "knee"])
     assert res.exit_code == 0, res.output

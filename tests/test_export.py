@@ -51,7 +51,7 @@ def _export(run_dir, fmt, name):
 
 def test_run_filter_and_results_json(run_dir):
     ses = load_session(run_dir / "session.h5")
-    assert {e["name"] for e in ses.results["fusion"].values()} == {"madgwick"}
+    assert {e.name for e in ses.results.fusion.values()} == {"madgwick"}
     assert ses.provenance[-1]["parameters"]["estimator"] == "madgwick"
     assert "--filter madgwick" in ses.provenance[-1]["command"]
     written = json.loads((run_dir / "results.json").read_text())
@@ -117,7 +117,7 @@ def test_sto_matches_files_opensim_wrote(run_dir):
 def test_mot_round_trip(run_dir):
     header, table = read_mot(_export(run_dir, "mot", "angles.mot"))
     assert header["inDegrees"] == "yes" and int(header["nRows"]) == len(table)
-    angles = load_session(run_dir / "session.h5").results["angles"]
+    angles = load_session(run_dir / "session.h5").results.angles.columns()
     # Rajagopal's coordinate where one maps (knee flexion), motionlab's names elsewhere
     assert list(table.columns[:4]) == ["time", "knee_angle_r", "knee_r_adduction",
                                        "knee_r_rotation"]  # fmt: skip
@@ -146,7 +146,7 @@ def test_c3d_round_trip(run_dir):
     (m,) = read_any(path).markers
     angle = m.model_outputs["knee_r_angles"]
     assert angle.kind == "angles" and angle.unit == "deg"
-    flex = ses.results["angles"]["knee_r_flexion_deg"]
+    flex = ses.results.angles.data["knee_r_flexion_deg"]
     ok = np.isfinite(flex)
     np.testing.assert_allclose(angle.data[ok, 0], flex[ok], atol=1e-3)  # float32 in the file
     optical = next(iter(ses.markers.values()))

@@ -8,7 +8,7 @@ from motionlab import rotations
 from motionlab.errors import InputError
 from motionlab.io import generic, read_any
 from motionlab.io.clock import count_wraps, unwrap_counter
-from motionlab.io.text import parse_table, read_lines
+from motionlab.io.delimited import parse_table, read_lines
 
 RNG = np.random.default_rng(7)
 

@@ -122,11 +122,11 @@ def test_compute_metrics_on_a_lumbar_table_and_csv():
     blocks = {"lateral_bending": (8.0, 42.0)}
     steps = {"standing": (1.0, 7.0)}
     m = compute_metrics(protocol, table, seg_q, blocks, steps, nominal_table=table)
-    lat = m["joints"]["lateral_bending"]["lumbar_lateral_bending_deg"]
+    lat = m.joints["lateral_bending"]["lumbar_lateral_bending_deg"]
     assert lat["repetitions"] == 3 and lat["rom_deg"] == pytest.approx(40, abs=0.01)
-    off = m["out_of_plane_offset"]["lateral_bending"]["lumbar"]
+    off = m.out_of_plane_offset["lateral_bending"]["lumbar"]
     assert off["axes"] == ["y", "z"] and off["peak_deg"] < 1e-6
-    ct = m["cross_talk"]["lateral_bending"]["lumbar"]
+    ct = m.cross_talk["lateral_bending"]["lumbar"]
     assert ct["on_axis"] == "lateral_bending" and ct["flexion"]["rom_deg"] == 0
     blocks_found = single_plane_blocks(protocol, blocks, steps)
     assert [(b, j.name, i) for b, j, i, _ in blocks_found] == [("lateral_bending", "lumbar", 1)]

@@ -10,6 +10,7 @@ from protocol_texts import ELBOW_R
 from motionlab import rotations as rot
 from motionlab.cli import main
 from motionlab.protocol import load_protocol
+from motionlab.results import FusionEntry
 from motionlab.session import load_session, save_session
 from motionlab.simulate import simulate
 
@@ -28,9 +29,10 @@ def session_file(tmp_path_factory):
         stream.label, stream.segment = label, seg
         sensors[label] = stream
         tr = truth.sensors[seg]
-        fused[label] = {"quat": rot.resample(truth.time, tr["orientation"], tr["sample_time"])}
+        q = rot.resample(truth.time, tr["orientation"], tr["sample_time"])
+        fused[label] = FusionEntry("truth", q)
     session.sensors = sensors
-    session.results["fusion"] = fused
+    session.results.fusion = fused
     path = tmp / "s.h5"
     save_session(session, path)
     res = CliRunner().invoke(main, ["calibrate", str(path), "--protocol", str(protocol_path)])
@@ -57,7 +59,7 @@ def test_accel_only_angles_through_the_cli(session_file):
     df = pd.read_csv(csv)
     assert list(df.columns) == ["time_s", "elbow_r_flexion_deg", "elbow_r_carrying_deg",
                                 "elbow_r_pronation_deg"]  # fmt: skip
-    assert load_session(path).results["angles"]["method"] == "accel-only"
+    assert load_session(path).results.angles.method == "accel-only"
     curls = truth.step("curls")
     # Lee's model has no carrying angle (the simulated arm has 10°): a few degrees of error
     assert rmse_vs_truth(df, truth, "elbow_r_flexion_deg", curls) < 8.0
@@ -86,14 +88,14 @@ def test_imu_angles_and_metrics_through_the_cli(session_file):
                                             abs=1.5)  # fmt: skip
     ct = m[(m.block == "elbow_flexion_r") & (m.metric == "cross_talk_change_pct")]
     assert len(ct) == 2  # carrying angle and pronation against the nominal placement
-    stored = load_session(path).results["metrics"]
-    assert stored["blocks"]["curls"]["source"] == "given"
+    stored = load_session(path).results.metrics
+    assert stored.blocks["curls"]["source"] == "given"
     again = runner.invoke(main, ["metrics", str(path)])
     assert again.exit_code == 2 and "--force" in again.output
     # the curls are found in the recording as well
     res = runner.invoke(main, ["metrics", str(path), "--force"])
     assert res.exit_code == 0, res.output
-    found = load_session(path).results["metrics"]["blocks"]["curls"]
+    found = load_session(path).results.metrics.blocks["curls"]
     assert abs(found["start_s"] - curls["start_s"]) < 2.5 and found["source"] == "detected"
 
 

@@ -114,7 +114,7 @@ def test_outputs_and_metrics_table(result, recorded):
 def test_session_holds_every_stage_and_the_provenance(result, recorded):
     root = recorded[0]
     ses = load_session(result.session_path)
-    assert {"fusion", "calibration", "angles", "metrics", "validation"} <= set(ses.results)
+    assert {"fusion", "calibration", "angles", "metrics", "validation"} <= set(ses.results.stages())
     assert ses.metadata["subject"]["id"] == "T01"
     assert ses.markers, "the reference is kept in the session"
     run = ses.provenance[-1]
@@ -122,12 +122,12 @@ def test_session_holds_every_stage_and_the_provenance(result, recorded):
     assert run["parameters"]["seed"] == 2 and len(run["parameters"]["protocol_sha256"]) == 64
     hashed = {k.split("/")[-1] for p in ses.provenance for k in p["inputs"]}
     assert {"THIGH.csv", "SHANK.csv", "map.yaml"} <= hashed
-    val = ses.results["validation"]["angles"]
+    val = ses.results.validation.angles
     assert val["knee_r_flexion_deg"]["rmse_deg"] < 5.0
     # 6-D fusion and heading alignment: with the (uncalibrated) magnetometers the shank's
     # heading was turned in the walk and the rotation was 7.9° off
-    assert all(e["magnetometer"] is False for e in ses.results["fusion"].values())
-    assert ses.results["validation"]["mode"] == "heading"
+    assert all(e.magnetometer is False for e in ses.results.fusion.values())
+    assert ses.results.validation.mode == "heading"
     assert val["knee_r_rotation_deg"]["rmse_deg"] < 3.0
     assert str(root) in result.summary or "T01" in result.summary
 

@@ -9,7 +9,8 @@ from motionlab.protocol import load_protocol
 from motionlab.report.model import SessionView, compare, rom_rows, symmetry_rows
 from motionlab.report.normative import band_for, load_bands
 from motionlab.report.pdf import RC, Document, layout_problems, page_text, text_width, wrap
-from motionlab.report.text import findings, rom_sentence, span
+from motionlab.report.sentences import findings, rom_sentence, span
+from motionlab.results import Metrics, SegmentCalibration
 from motionlab.session import Session
 
 
@@ -37,10 +38,11 @@ def _view(right: tuple, left: tuple) -> SessionView:
         "knee_l_adduction_deg": _angle(-3.0, 3.0),
         "knee_l_rotation_deg": _angle(-5.0, 5.0),
     }
-    metrics = {
-        "blocks": {"gait": {"start_s": 10.0, "end_s": 40.0}},
-        "joints": {"gait": joints},
-        "gait": {
+    metrics = Metrics(
+        "knee",
+        blocks={"gait": {"start_s": 10.0, "end_s": 40.0}},
+        joints={"gait": joints},
+        gait={
             "gait": {
                 "knee_r": {
                     "strides": 12,
@@ -54,7 +56,7 @@ def _view(right: tuple, left: tuple) -> SessionView:
                 }
             }
         },
-    }
+    )
     return SessionView(Session(), load_protocol("knee"), None, {}, metrics)
 
 
@@ -178,23 +180,23 @@ def _graded_view(graded: bool = True) -> SessionView:
     view = _view((5.0, 45.0), (0.0, 64.0))
     t = np.linspace(0.0, 50.0, 501)
     view.angles = {"time_s": t} | {
-        c: np.sin(t) for c in view.metrics["joints"]["gait"] if c.endswith("_deg")
+        c: np.sin(t) for c in view.metrics.joints["gait"] if c.endswith("_deg")
     }
     ok = {"ok": True, "messages": []}
     axis = {"standing": {"kind": "static", "rho": 0.99, "residual_deg": 0.5}}
     segments = {s: {"method": "primary_secondary", "axes": axis, "quality": ok} for s in
                 ("pelvis", "thigh_r", "thigh_l", "shank_l")}  # fmt: skip
     segments["shank_r"] = {"method": "nominal", "axes": {}, "quality": {"ok": False}}
-    cal: dict = {"segments": segments, "steps": {}, "warnings": []}
+    cal = SegmentCalibration("knee", segments=segments)
     if graded:
-        cal["grades"] = {
+        cal.grades = {
             "knee_r": {
                 "grades": ["determined", "weak", "not determined"],
                 "reasons": ["", WEAK_WHY, NOT_WHY],
             },
             "knee_l": {"grades": ["determined"] * 3, "reasons": [""] * 3},
         }
-    view.session.results["calibration"] = cal
+    view.session.results.calibration = cal
     return view
 
 

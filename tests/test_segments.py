@@ -7,7 +7,7 @@ from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_angles import compose, decompose
 from motionlab.protocol import load_protocol
-from motionlab.segments import calibrate, segment_orientations
+from motionlab.segments import calibrate_segments, segment_orientations
 from motionlab.segments.frames import lm_fit, wahba
 from motionlab.segments.functional import functional_axis
 from motionlab.segments.heading import apply_heading, heading_from_hinge
@@ -89,23 +89,23 @@ def knee_session(seed=0, max_err_deg=30.0):
 
 def test_knee_calibration_recovers_mountings_and_steps():
     session, protocol, mounts, _, steps, _ = knee_session()
-    cal = calibrate(session, protocol)
+    cal = calibrate_segments(session, protocol)
     for name, (t0, t1) in steps.items():
-        found = cal["steps"][name]
+        found = cal.steps[name]
         assert found[0] >= t0 - 1.0 and found[1] <= t1 + 1.0, (name, found)
-    assert cal["steps"]["hip_flexion_r"] is None
-    for seg, res in cal["segments"].items():
+    assert cal.steps["hip_flexion_r"] is None
+    for seg, res in cal.segments.items():
         err = np.degrees(rot.angle(rot.mul(rot.conj(mounts[seg]), res["mounting"])))
         limit = 2.0 if res["method"] == "procrustes" else 40.0
         assert err < limit, (seg, err, res["method"])
         assert res["quality"]["min_rho"] > 0.9
-    assert cal["segments"]["shank_r"]["method"] == "procrustes"
-    assert cal["segments"]["pelvis"]["method"] == "single_axis"
+    assert cal.segments["shank_r"]["method"] == "procrustes"
+    assert cal.segments["pelvis"]["method"] == "single_axis"
 
 
 def test_knee_angles_after_calibration_and_heading_alignment():
     session, protocol, _, truth, _, t = knee_session(seed=1)
-    cal = calibrate(session, protocol)
+    cal = calibrate_segments(session, protocol)
     # 6-D fusion: each sensor has its own heading; the calibration must align them
     quats = {
         seg: (s.time, apply_heading(s.quat, np.radians(40.0 * i - 60)))
@@ -117,7 +117,7 @@ def test_knee_angles_after_calibration_and_heading_alignment():
         err = np.degrees(np.sqrt(np.mean((got - truth[side])[t > 39] ** 2, axis=0)))
         assert np.all(err < [1.0, 2.0, 2.0]), (side, err)
     # without calibration the sensors' axes give cross-talk and offsets
-    raw = segment_orientations(protocol, {}, quats, align_heading=False)
+    raw = segment_orientations(protocol, None, quats, align_heading=False)
     got = decompose(raw["thigh_r"][1], raw["shank_r"][1], "knee", "r")
     assert np.degrees(np.sqrt(np.mean((got - truth["r"]) ** 2, axis=0))).max() > 10
 
@@ -128,14 +128,14 @@ def test_missing_step_is_input_error():
         keep = s.time < 20.5
         s.time, s.acc, s.gyr = s.time[keep], s.acc[keep], s.gyr[keep]
     with pytest.raises(InputError, match="knee_flexion_l.*not found"):
-        calibrate(session, protocol)
+        calibrate_segments(session, protocol)
 
 
 def test_time_range_override():
     session, protocol, *_ = knee_session()
     protocol.calibration[2].time_range = (10.0, 18.0)
-    cal = calibrate(session, protocol)
-    assert cal["steps"]["knee_flexion_r"] == [10.0, 18.0]
+    cal = calibrate_segments(session, protocol)
+    assert cal.steps["knee_flexion_r"] == [10.0, 18.0]
 
 
 def test_functional_axis_svd_and_reliability():

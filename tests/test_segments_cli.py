@@ -6,21 +6,22 @@ from click.testing import CliRunner
 from test_segments import knee_session
 
 from motionlab.cli import main
+from motionlab.results import FusionEntry
 from motionlab.session import load_session, save_session
 
 
 def test_calibrate_then_angles_cli(tmp_path):
     session, _, _, truth, _, t = knee_session(seed=3)
     for s in session.sensors.values():
-        session.results.setdefault("fusion", {})[s.label] = {"quat": s.quat}
+        session.results.fusion[s.label] = FusionEntry("vendor", s.quat)
     path = tmp_path / "s.h5"
     save_session(session, path)
     runner = CliRunner()
     res = runner.invoke(main, ["calibrate", str(path), "--protocol", "knee"])
     assert res.exit_code == 0, res.output
     assert "knee_flexion_r" in res.output and "shank_r" in res.output
-    cal = load_session(path).results["calibration"]
-    assert cal["segments"]["shank_l"]["method"] == "procrustes"
+    cal = load_session(path).results.calibration
+    assert cal.segments["shank_l"]["method"] == "procrustes"
     again = runner.invoke(main, ["calibrate", str(path), "--protocol", "knee"])
     assert again.exit_code == 2 and "--force" in again.output
     csv = tmp_path / "angles.csv"
@@ -36,7 +37,7 @@ def test_calibrate_then_angles_cli(tmp_path):
     task = df["time_s"].to_numpy() > 39
     err = df.loc[task, "knee_l_flexion_deg"] - np.degrees(truth["l"][t > 39, 0])
     assert np.sqrt(np.mean(err**2)) < 1.0
-    assert "knee_l_rotation_deg" in load_session(path).results["angles"]
+    assert "knee_l_rotation_deg" in load_session(path).results.angles.data
 
 
 def test_angles_needs_calibration(tmp_path):

@@ -13,7 +13,7 @@ from protocol_texts import ELBOW_R
 from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.protocol import load_protocol
-from motionlab.segments import calibrate
+from motionlab.segments import calibrate_segments
 from motionlab.segments.frames import level
 from motionlab.simulate import simulate
 
@@ -52,8 +52,8 @@ def sessions(tmp_path_factory):
 def test_forearm_tilt_follows_the_standing_accelerometer(sessions):
     tmp, plain, session, truth = sessions
     leveled = protocol(tmp, ", horizontal_axis: {forearm_r: x}")
-    before = calibrate(session, plain)["segments"]["forearm_r"]
-    after = calibrate(session, leveled)["segments"]["forearm_r"]
+    before = calibrate_segments(session, plain).segments["forearm_r"]
+    after = calibrate_segments(session, leveled).segments["forearm_r"]
     rec = after["axes"]["standing:horizontal"]
     assert rec["method"] == "horizontal" and rec["residual_deg"] < 1e-6
     assert rec["rho"] > 0.99
@@ -89,8 +89,8 @@ def test_horizontal_axis_alone_does_not_fix_a_segment(tmp_path):
     )
     one = load_protocol(path)
     session, _ = simulate(one, duration=20, seed=0, preset="clean", rest_s=2.0)
-    cal = calibrate(session, one)
-    assert not cal["ok"]
-    grades = cal["grades"]["elbow_r"]
+    cal = calibrate_segments(session, one)
+    assert not cal.ok
+    grades = cal.grades["elbow_r"]
     assert "determined" not in grades["grades"]
     assert all(grades["reasons"])

@@ -6,7 +6,7 @@ import numpy as np
 from motionlab import rotations as rot
 from motionlab.kinematics.session_angles import session_angles
 from motionlab.protocol import load_protocol
-from motionlab.segments import calibrate, signals_from_orientation
+from motionlab.segments import calibrate_segments, signals_from_orientation
 from motionlab.simulate import simulate
 
 
@@ -27,8 +27,8 @@ def test_walk_from_vendor_orientations_only():
         q = rot.resample(truth.time, truth.sensors[label]["orientation"], s.time)
         session.sensors[label] = type(s)(label=label, time=s.time, quat=q, segment=s.segment,
                                          side=s.side)  # fmt: skip
-    cal = calibrate(session, protocol)
-    assert cal["grades"]["knee_r"]["grades"][0] == "determined"
+    cal = calibrate_segments(session, protocol)
+    assert cal.grades["knee_r"]["grades"][0] == "determined"
     table = session_angles(session, protocol, cal)
     col = "knee_r_flexion_deg"
     ref = np.interp(table["time_s"], truth.time, truth.joint_angles[col])

@@ -15,7 +15,8 @@ from motionlab.kinematics.joint_angles import decompose
 from motionlab.kinematics.metrics import session_metrics
 from motionlab.kinematics.session_angles import session_angles
 from motionlab.protocol import load_protocol
-from motionlab.segments import calibrate, streams_of
+from motionlab.results import FusionEntry
+from motionlab.segments import calibrate_segments, streams_of
 from motionlab.segments.steps import find_tasks
 from motionlab.simulate import simulate
 
@@ -50,20 +51,20 @@ def write(tmp, name, text):
 
 
 def true_fusion(session, truth, heading=None):
-    """``results["fusion"]`` from the true sensor orientations (optionally 6-D-like headings)."""
+    """``results.fusion`` from the true sensor orientations (optionally 6-D-like headings)."""
     fused = {}
     for label in session.sensors:
         tr = truth.sensors[label]
         q = rot.resample(truth.time, tr["orientation"], tr["sample_time"])
         if heading is not None:
             q = rot.mul(rot.from_axis_angle(Z, heading(label, tr["sample_time"])), q)
-        fused[label] = {"quat": q}
-    session.results["fusion"] = fused
+        fused[label] = FusionEntry("truth", q)
+    session.results.fusion = fused
 
 
 def mount_error_deg(truth, cal, seg):
     return float(np.degrees(rot.angle(rot.mul(truth.sensors[seg]["mounting"],
-                                              cal["segments"][seg]["mounting"]))))  # fmt: skip
+                                              cal.segments[seg]["mounting"]))))  # fmt: skip
 
 
 @pytest.fixture(scope="module")
@@ -84,16 +85,16 @@ def elbow(tmp_path_factory):
 
 def test_knee_steps_mountings_and_joint_movement_axis(knee):
     _, protocol, session, truth = knee
-    cal = calibrate(session, protocol)
+    cal = calibrate_segments(session, protocol)
     for step in truth.steps:
-        found = cal["steps"].get(step["name"])
+        found = cal.steps.get(step["name"])
         if step["kind"] == "functional":
             assert abs(found[0] - step["start_s"]) < 2.5 and abs(found[1] - step["end_s"]) < 2.5
         elif step["phase"] == "calibration":  # a pose: the still block around it, trimmed
             assert found[0] < step["start_s"] + 1 and found[1] > step["end_s"] - 1
     assert mount_error_deg(truth, cal, "thigh_r") < 1.5
     assert mount_error_deg(truth, cal, "shank_r") < 1.5
-    shank = cal["segments"]["shank_r"]
+    shank = cal.segments["shank_r"]
     # the seated knee flexion turns the shank about the screw-home-coupled axis: left out,
     # since the straight-leg hip flexion gives the z axis with the knee still
     assert shank["axes"]["knee_flexion_r"]["used"] is False
@@ -106,8 +107,8 @@ def test_knee_flexion_axis_alone_carries_the_screw_home_bias(knee):
     tmp, _, session, truth = knee
     protocol = write(tmp, "no_hip", KNEE.split("  - {name: hip_flexion_r")[0] % {
         "method": "", "extra": ""} + KNEE.split("optional: true}\n")[1])  # fmt: skip
-    cal = calibrate(session, protocol)
-    assert cal["segments"]["shank_r"]["axes"]["knee_flexion_r"]["used"] is True
+    cal = calibrate_segments(session, protocol)
+    assert cal.segments["shank_r"]["axes"]["knee_flexion_r"]["used"] is True
     # the sim's tibia rotates 0.12°/° with flexion: the functional axis is several degrees off
     assert 3.0 < mount_error_deg(truth, cal, "shank_r") < 15.0
 
@@ -118,11 +119,11 @@ def test_hinge_axis_method(knee):
     protocol = write(tmp, "hinge", text.split("  - {name: hip_flexion_r")[0] + text.split(
         "optional: true}\n")[1])  # fmt: skip
     assert protocol.calibration[2].axis_method == "hinge"
-    cal = calibrate(session, protocol)
-    shank = cal["segments"]["shank_r"]["axes"]["knee_flexion_r"]
+    cal = calibrate_segments(session, protocol)
+    shank = cal.segments["shank_r"]["axes"]["knee_flexion_r"]
     assert shank["method"] == "hinge" and shank["used"] is True
     # seated, the thigh is still: Seel's constraint leaves its axis free, so it gets none
-    assert "knee_flexion_r:hinge" not in cal["segments"]["thigh_r"]["axes"]
+    assert "knee_flexion_r:hinge" not in cal.segments["thigh_r"]["axes"]
     # the hinge axis is the same (screw-home coupled) axis the SVD finds
     assert shank["hinge_check_deg"] < 2.0
     true_z = rot.rotate(rot.conj(truth.sensors["shank_r"]["mounting"]), -Z)
@@ -142,12 +143,12 @@ def test_knee_flexion_done_twice_is_ambiguous(knee):
     session, _ = simulate(twice, duration=90, seed=4, rest_s=5.0)
     once = write(tmp, "once", KNEE % {"method": "", "extra": ""})
     with pytest.raises(InputError, match="ambiguous: two candidate windows"):
-        calibrate(session, once)
+        calibrate_segments(session, once)
 
 
 def test_heading_offset_and_drift_removed_by_anchors(knee):
     _, protocol, session, truth = knee
-    cal = calibrate(session, protocol)
+    cal = calibrate_segments(session, protocol)
     # 6-D-like: every sensor its own heading, the shank's drifting 0.1°/s during the tasks
     drift = {"thigh_r": (1.0, 0.0), "shank_r": (-2.0, np.radians(0.1))}
 
@@ -169,8 +170,8 @@ def test_heading_offset_and_drift_removed_by_anchors(knee):
 
 def test_task_blocks_found_in_order(knee):
     _, protocol, session, truth = knee
-    cal = calibrate(session, protocol)
-    after = max(v[1] for v in cal["steps"].values() if v)
+    cal = calibrate_segments(session, protocol)
+    after = max(v[1] for v in cal.steps.values() if v)
     tasks = find_tasks(streams_of(session, protocol), protocol, after_s=after)
     for name in ("gait", "squat"):
         step = truth.step(name)
@@ -180,20 +181,20 @@ def test_task_blocks_found_in_order(knee):
 
 def test_metrics_agree_with_the_truth(knee):
     _, protocol, session, truth = knee
-    session.results["calibration"] = calibrate(session, protocol)
+    session.results.calibration = calibrate_segments(session, protocol)
     true_fusion(session, truth)
     blocks = {n: (truth.step(n)["start_s"], truth.step(n)["end_s"]) for n in ("gait", "squat")}
     m = session_metrics(session, protocol, blocks)
-    squat = m["joints"]["squat"]["knee_r_flexion_deg"]
+    squat = m.joints["squat"]["knee_r_flexion_deg"]
     assert squat["repetitions"] == 3
     sel = (truth.time >= blocks["squat"][0]) & (truth.time <= blocks["squat"][1])
     true_flex = truth.joint_angles["knee_r_flexion_deg"][sel]
     assert squat["rom_deg"] == pytest.approx(np.ptp(true_flex), abs=1.0)
     assert squat["cycle_max_mean_deg"] == pytest.approx(true_flex.max(), abs=1.0)
-    gait = m["gait"]["gait"]["knee_r"]
+    gait = m.gait["gait"]["knee_r"]
     # 0.9 strides/s over 33 s, less the speed ramps at both ends
     assert 22 <= gait["strides"] <= 30
-    stride_s = np.diff(m["joints"]["gait"]["knee_r_flexion_deg"]["cycle_start_s"])
+    stride_s = np.diff(m.joints["gait"]["knee_r_flexion_deg"]["cycle_start_s"])
     assert np.median(stride_s) == pytest.approx(1 / 0.9, abs=0.02)
     # thrust and stance rotation against the same stances (heel strike → toe-off) of the truth
     t = truth.time
@@ -210,15 +211,15 @@ def test_metrics_agree_with_the_truth(knee):
     assert np.abs(gait["stance_rotation_range_deg"] - rot_range).max() < 1.0
     # stance share of the stride (the simulated shank has no heel-strike impact: about 40 %)
     assert 0.35 < np.median((gait["toe_off_s"] - gait["heel_strike_s"]) * 0.9) < 0.65
-    ct = m["cross_talk"]["knee_flexion_r"]["knee_r"]
+    ct = m.cross_talk["knee_flexion_r"]["knee_r"]
     assert ct["on_axis"] == "flexion" and ct["on_axis_rom_deg"] > 60
     assert ct["adduction"]["rom_deg"] < ct["adduction"]["nominal_rom_deg"]
 
 
 def test_elbow_forearm_frame_keeps_the_carrying_angle(elbow):
     _, protocol, session, truth = elbow
-    cal = calibrate(session, protocol)
-    fore = cal["segments"]["forearm_r"]
+    cal = calibrate_segments(session, protocol)
+    fore = cal.segments["forearm_r"]
     assert fore["method"] == "primary_secondary"
     assert fore["axes"]["elbow_flexion_r"]["used"] is False
     assert mount_error_deg(truth, cal, "forearm_r") < 2.0

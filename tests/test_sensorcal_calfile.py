@@ -72,8 +72,9 @@ def test_json_files_are_read_and_existing_files_need_force(tmp_path):
     back = find_calibration(tmp_path, "00B421AF")
     assert np.array_equal(back.channels["mag"].matrix, cal.channels["mag"].matrix)
     save_calibration(cal, tmp_path)
-    with pytest.raises(InputError, match="--force"):
+    with pytest.raises(InputError, match="force=True") as err:  # the argument, not the flag
         save_calibration(cal, tmp_path)
+    assert err.value.arguments == ("force",)
     save_calibration(cal, tmp_path, force=True)
 
 

@@ -99,8 +99,8 @@ def test_fuse_applies_the_calibration_by_serial(session_file, tmp_path, recordin
     assert out.exit_code == 0, out.output
     assert "calibrated (gyr, acc, mag)" in out.output
     ses = load_session(session_file)
-    entry = ses.results["fusion"]["shank_r"]
-    assert entry["calibration"]["serial"] == "SIM 001"
+    entry = ses.results.fusion["shank_r"]
+    assert entry.sensor_calibration["serial"] == "SIM 001"
     _, q_true, sig = recording
     assert np.array_equal(ses.sensors["shank_r"].gyr, sig["gyr"])  # the data stay as recorded
     assert ses.provenance[-1]["parameters"]["calibration"] == str(caldir)
@@ -110,8 +110,8 @@ def test_fuse_applies_the_calibration_by_serial(session_file, tmp_path, recordin
         d = rot.mul(q[tail], rot.conj(q_true[tail]))
         return np.degrees(rot.angle(rot.mul(rot.conj(rot.mean(d)), d))).mean()
 
-    err_cal = error_deg(entry["quat"])
-    err_raw = error_deg(load_session(raw).results["fusion"]["shank_r"]["quat"])
+    err_cal = error_deg(entry.quat)
+    err_raw = error_deg(load_session(raw).results.fusion["shank_r"].quat)
     assert err_cal < 3.0 and err_cal < err_raw / 2
 
 

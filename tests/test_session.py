@@ -7,6 +7,13 @@ import numpy as np
 import pytest
 
 from motionlab.errors import InputError
+from motionlab.results import (
+    AngleTable,
+    FusionEntry,
+    HeadingCorrection,
+    Results,
+    SegmentCalibration,
+)
 from motionlab.session import (
     MarkerSet,
     SensorStream,
@@ -65,19 +72,39 @@ def make_session(tmp_path) -> Session:
         sensors={"shank_r": imu, "thigh": gyr_only},
         markers={"vicon": markers},
         metadata={"subject": {"id": "P1", "height_m": 1.8}, "session": {"date": "2024-05-02"}},
-        results={
-            "fuse": {
-                "shank_r": {"quat": quat, "bias": np.array([1e-3, -2e-3, np.nan])},
-                "params": {"beta": 0.1, "method": "madgwick"},
-                "method": "madgwick",
+        results=Results(
+            fusion={
+                "shank_r": FusionEntry(
+                    "madgwick",
+                    quat,
+                    {"beta": 0.1},
+                    magnetometer=False,
+                    gyro_bias=np.tile([1e-3, -2e-3, np.nan], (n, 1)),
+                    rest=rng.random(n) > 0.5,
+                )
             },
-            "angles": {
-                "columns": np.array(["knee_flexion_deg", "knee_varus_deg"]),
-                "valid": np.array([True, False, True]),
-                "counts": np.arange(5, dtype=np.int32),
-                "summary": {"rom_deg": 61.25, "cycles": [1, 2, 3], "ok": True},
+            calibration=SegmentCalibration(
+                "knee",
+                steps={"stand": [0.1, 0.5], "squat": None},
+                segments={"shank_r": {"mounting": quat[0], "method": "procrustes"}},
+                warnings=["µT, ° and ü survive"],
+                grades={"knee_r": {"grades": ["determined"] * 3, "reasons": [""] * 3}},
+                protocol_path="knee.yaml",
+            ),
+            angles=AngleTable(
+                t, {"knee_r_flexion_deg": rng.normal(size=n)}, events={"stand": (0.1, 0.5)}
+            ),
+            heading={"knee_r": HeadingCorrection("steps", 0)},
+            # a stage this motionlab does not know (a newer one wrote it) is kept as it is
+            more={
+                "future": {
+                    "columns": np.array(["knee_flexion_deg", "knee_varus_deg"]),
+                    "valid": np.array([True, False, True]),
+                    "counts": np.arange(5, dtype=np.int32),
+                    "summary": {"rom_deg": 61.25, "cycles": [1, 2, 3], "ok": True},
+                }
             },
-        },
+        ),
     )
     s.add_provenance("motionlab ingest input.txt -o s.h5", {"rate_hz": None}, [src])
     return s
@@ -123,9 +150,13 @@ def test_round_trip_bit_exact(tmp_path):
     assert_same(ma.rigid_bodies, mb.rigid_bodies)
     assert (ma.labels, ma.source_units, ma.attrs) == (mb.labels, mb.source_units, mb.attrs)
     assert back.metadata == s.metadata
-    assert_same(s.results, back.results)
-    assert back.results["angles"]["columns"].dtype.kind == "U"
-    assert back.results["angles"]["valid"].dtype == bool
+    assert_same(s.results.to_tree(), back.results.to_tree())
+    assert back.results.more["future"]["columns"].dtype.kind == "U"
+    assert back.results.more["future"]["valid"].dtype == bool
+    assert back.results.fusion["shank_r"].magnetometer is False
+    assert back.results.calibration.steps["squat"] is None
+    assert back.results.angles.units == {"knee_r_flexion_deg": "deg"}
+    assert back.results.angles.events == {"stand": (0.1, 0.5)}
     assert back.provenance == s.provenance
     assert back.provenance[0]["inputs"] == {str(tmp_path / "input.txt"): sha256_file(
         tmp_path / "input.txt")}  # fmt: skip
@@ -136,7 +167,7 @@ def test_second_round_trip_gives_the_same_file_content(tmp_path):
     save_session(s, tmp_path / "a.h5")
     save_session(load_session(tmp_path / "a.h5"), tmp_path / "b.h5")
     a, b = load_session(tmp_path / "a.h5"), load_session(tmp_path / "b.h5")
-    assert_same(a.results, b.results)
+    assert_same(a.results.to_tree(), b.results.to_tree())
     assert_same(a.sensors["shank_r"].extra, b.sensors["shank_r"].extra)
     assert a.provenance == b.provenance
 
@@ -167,7 +198,7 @@ def test_overwrite_needs_force_and_keeps_old_file(tmp_path):
 
 def test_failed_write_leaves_nothing(tmp_path):
     s = make_session(tmp_path)
-    s.results["bad"] = {"x": object()}  # not storable
+    s.results.more["bad"] = {"x": object()}  # not storable
     with pytest.raises(TypeError):
         save_session(s, tmp_path / "s.h5")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["input.txt"]

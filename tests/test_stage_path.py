@@ -67,24 +67,22 @@ def test_stage_commands_give_the_angles_of_run(tmp_path, name):
 
     run = load_session(tmp_path / "run" / "session.h5").results
     stage = load_session(staged).results
-    assert run["clock_sync"].keys() == stage["clock_sync"].keys()
-    applied = [k for k, v in run["clock_sync"].items() if v["status"] == "applied"]
-    for k, fit in run["clock_sync"].items():
-        assert (fit["status"], fit["offset_s"]) == (
-            stage["clock_sync"][k]["status"],
-            stage["clock_sync"][k]["offset_s"],
+    assert run.clock_sync.fits.keys() == stage.clock_sync.fits.keys()
+    applied = [k for k, v in run.clock_sync.fits.items() if v.status == "applied"]
+    for k, fit in run.clock_sync.fits.items():
+        assert (fit.status, fit.offset_s) == (
+            stage.clock_sync.fits[k].status,
+            stage.clock_sync.fits[k].offset_s,
         ), k
         assert k in synced
     if name == "elbow":  # the case where the sync moves a clock (upper arm on the thorax's)
         assert applied
-    assert {e["magnetometer"] for e in [*run["fusion"].values(), *stage["fusion"].values()]} == {
-        False
-    }
-    columns = [c for c in run["angles"] if c != "method"]
-    assert columns == [c for c in stage["angles"] if c != "method"] and len(columns) >= 4
+    assert {e.magnetometer for e in [*run.fusion.values(), *stage.fusion.values()]} == {False}
+    columns = list(run.angles.columns())
+    assert columns == list(stage.angles.columns()) and len(columns) >= 4
     for c in columns:
-        a, b = np.asarray(run["angles"][c]), np.asarray(stage["angles"][c])
+        a, b = run.angles.columns()[c], stage.angles.columns()[c]
         assert a.shape == b.shape, c
         assert np.array_equal(np.isnan(a), np.isnan(b)), c
         assert np.nanmax(np.abs(a - b)) < 0.01, c
-    assert run["heading"].keys() == stage["heading"].keys()
+    assert run.heading.keys() == stage.heading.keys()

@@ -7,6 +7,7 @@ ones with a smooth, seeded error of about 1° (a stand-in for a fusion filter, s
 checks validation and not fusion).
 """
 
+import copy
 import importlib.util
 import json
 
@@ -18,7 +19,8 @@ from conftest import ROOT, SHARED, needs_shared
 from motionlab import rotations as rot
 from motionlab.cli import main
 from motionlab.protocol import load_protocol
-from motionlab.segments import calibrate
+from motionlab.results import FusionEntry, Results
+from motionlab.segments import calibrate_segments
 from motionlab.session import Session, load_session, save_session
 from motionlab.simulate import simulate
 from motionlab.simulate.errors import Preset
@@ -47,9 +49,9 @@ def knee():
     for step in protocol.calibration:  # the steps' places are known: calibration is not tested
         s = truth.step(step.name)
         step.time_range = (s["start_s"], s["end_s"])
-    session.results["calibration"] = calibrate(session, protocol)
-    session.results["fusion"] = {
-        k: {"quat": _fusion_stand_in(truth, k, s.time, i)}
+    session.results.calibration = calibrate_segments(session, protocol)
+    session.results.fusion = {
+        k: FusionEntry("truth", _fusion_stand_in(truth, k, s.time, i))
         for i, (k, s) in enumerate(session.sensors.items())
     }
     result = validate(session, protocol=protocol)
@@ -58,7 +60,7 @@ def knee():
 
 def test_clock_offset_and_drift_are_recovered(knee):
     _, _, _, result = knee
-    sync = result["sync"]
+    sync = result.sync
     assert abs(sync["time_offset_s"] - OFFSET_S) < 0.5 / 100.0  # half an IMU sample
     assert abs(sync["drift_ppm"] - DRIFT * 1e6) < 20.0
     assert sync["inlier_ratio"] > 0.9
@@ -66,14 +68,14 @@ def test_clock_offset_and_drift_are_recovered(knee):
 
 def test_alignment_rotations_are_recovered(knee):
     session, truth, _, result = knee
-    al = result["alignment"]
+    al = result.alignment
     y_err = rot.angle_between(al["lab_to_earth"]["quat"], truth.markers["lab_rotation"])
     assert np.degrees(y_err) < 0.5
     for label in session.sensors:
         # true sensor → cluster: the cluster's estimated shape fitted onto its true layout
         pairs = zip(truth.markers["labels"], truth.markers["segments"], strict=True)
         idx = [i for i, (lab, seg) in enumerate(pairs) if seg == label and "_C" in lab]
-        shape = result["optical"][label]["shape_m"]
+        shape = result.optical[label]["shape_m"]
         segment_to_cluster = rigid_fit(truth.markers["local"][idx], shape[None])[0][0]
         x_true = rot.mul(segment_to_cluster, truth.sensors[label]["mounting"])
         x_err = rot.angle_between(al["sensor_to_cluster"][label]["quat"], x_true)
@@ -83,7 +85,7 @@ def test_alignment_rotations_are_recovered(knee):
 
 def test_joint_angle_rmse_equals_rmse_against_truth(knee):
     _, truth, _, result = knee
-    angles = result["angles"]
+    angles = result.angles
     t = angles["time_s"]
     for col, true_deg in truth.joint_angles.items():
         entry = angles[col]
@@ -99,11 +101,11 @@ def test_joint_angle_rmse_equals_rmse_against_truth(knee):
 
 def test_optical_side_reports_gaps_and_frames(knee):
     _, _, _, result = knee
-    for seg, info in result["optical"].items():
+    for seg, info in result.optical.items():
         assert info["frame"] == "landmarks", seg
         assert 0.95 < info["fitted_fraction"] <= 1.0
         assert 0.8 < info["residual_rms_mm"] < 1.6  # 1 mm noise per coordinate, 4 markers
-    assert sum(info["n_long_gaps"] for info in result["optical"].values()) > 0
+    assert sum(info["n_long_gaps"] for info in result.optical.values()) > 0
 
 
 def test_movement_mask_follows_the_steps(knee):
@@ -119,8 +121,9 @@ def test_movement_mask_follows_the_steps(knee):
 def test_cli_json_csv_and_force(knee, tmp_path):
     session, _, _, _ = knee
     ses = Session(sensors=session.sensors, metadata=session.metadata,
-                  results={k: session.results[k] for k in ("calibration", "fusion")})  # fmt: skip
-    ses.results["calibration"]["protocol_path"] = "knee"
+                  results=Results(fusion=session.results.fusion,
+                                  calibration=copy.copy(session.results.calibration)))  # fmt: skip
+    ses.results.calibration.protocol_path = "knee"
     path, c3d = tmp_path / "s.h5", tmp_path / "markers.c3d"
     save_session(ses, path)
     write_c3d(session.markers["optical"], c3d)
@@ -136,8 +139,8 @@ def test_cli_json_csv_and_force(knee, tmp_path):
     flex = digest["angles"]["knee_l_flexion_deg"]
     assert {"rmse_deg", "bias_deg", "loa_deg", "r", "cmc"} <= set(flex)
     assert (tmp_path / "csv" / "validation_metrics.csv").is_file()
-    stored = load_session(path).results["validation"]
-    assert stored["angles"]["knee_l_flexion_deg"]["rmse_deg"] == pytest.approx(flex["rmse_deg"])
+    stored = load_session(path).results.validation
+    assert stored.angles["knee_l_flexion_deg"]["rmse_deg"] == pytest.approx(flex["rmse_deg"])
     again = runner.invoke(main, ["validate", str(path), "--reference", str(c3d)])
     assert again.exit_code == 2 and "--force" in again.output
 
@@ -162,16 +165,16 @@ def test_broad_mode_none_reproduces_the_benchmark():
     ses = Session(sensors={"imu": rec.sensors[0]}, markers={"optical": rec.markers[0]})
     s = ses.sensors["imu"]
     fused = estimate("madgwick", s.gyr, s.acc, s.mag, s.attrs["nominal_rate_hz"])
-    ses.results["fusion"] = {"imu": {"quat": fused.quat}}
-    exact = validate(ses, mode="none", sync=False, movement_only=True)["orientation"]["imu"]
+    ses.results.fusion = {"imu": FusionEntry("madgwick", fused.quat)}
+    exact = validate(ses, mode="none", sync=False, movement_only=True).orientation["imu"]
     synced = validate(ses, mode="none", movement_only=True)
     for key in ("total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg"):
         assert exact[key] == pytest.approx(expected[key], abs=1e-9)
-        assert synced["orientation"]["imu"][key] == pytest.approx(expected[key], abs=0.05)
+        assert synced.orientation["imu"][key] == pytest.approx(expected[key], abs=0.05)
     # BROAD shares one clock; its optical stream sits about 4 ms (1.2 samples) before the IMU
     # in every trial here, which the synchronisation finds (see bench/validation.py)
-    assert abs(synced["sync"]["time_offset_s"]) < 0.01
-    assert abs(synced["sync"]["drift_ppm"]) < 10.0
+    assert abs(synced.sync["time_offset_s"]) < 0.01
+    assert abs(synced.sync["drift_ppm"]) < 10.0
 
 
 def test_figures_draw_the_stored_result(knee):

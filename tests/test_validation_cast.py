@@ -7,6 +7,7 @@ are recorded as a copy on the upper arm and one on the forearm; in a still windo
 stay put relative to either cluster, so only the protocol's landmark lists can tell them apart.
 """
 
+import copy
 import dataclasses
 import json
 
@@ -19,7 +20,8 @@ from motionlab import rotations as rot
 from motionlab.cli import main
 from motionlab.errors import InputError
 from motionlab.protocol import load_protocol
-from motionlab.segments import calibrate
+from motionlab.results import FusionEntry, Results
+from motionlab.segments import calibrate_segments
 from motionlab.session import MarkerSet, Session, save_session
 from motionlab.simulate import simulate
 from motionlab.simulate.errors import Preset
@@ -91,16 +93,16 @@ def elbow():
     for step in protocol.calibration:
         s = truth.step(step.name)
         step.time_range = (s["start_s"], s["end_s"])
-    session.results["calibration"] = calibrate(session, protocol)
-    session.results["fusion"] = {
-        k: {"quat": _fusion_stand_in(truth, k, s.time, i)}
+    session.results.calibration = calibrate_segments(session, protocol)
+    session.results.fusion = {
+        k: FusionEntry("truth", _fusion_stand_in(truth, k, s.time, i))
         for i, (k, s) in enumerate(session.sensors.items())
     }
     return session, truth, protocol, full
 
 
 def _check_rmse_against_truth(result, truth):
-    angles = result["angles"]
+    angles = result.angles
     t = angles["time_s"]
     for col, true_deg in truth.joint_angles.items():
         entry = angles[col]
@@ -113,7 +115,7 @@ def test_elbow_landmarks_in_the_standing_pose_only(elbow):
     result = validate(session, protocol=protocol)
     _check_rmse_against_truth(result, truth)
     standing = truth.step("standing")
-    for seg, info in result["optical"].items():
+    for seg, info in result.optical.items():
         assert info["frame"] == "landmarks", seg
         assert info["static_source"] == "still window"
         # on the camera clock (0.137 s ahead), inside the standing pose
@@ -160,12 +162,13 @@ def test_landmarks_from_a_separate_static_trial(elbow, tmp_path):
     )
     result = validate(session, movement, protocol=protocol, static=static)
     _check_rmse_against_truth(result, truth)
-    for seg, info in result["optical"].items():
+    for seg, info in result.optical.items():
         assert info["frame"] == "landmarks" and info["static_source"] == "static trial", seg
 
     ses = Session(sensors=session.sensors, metadata=session.metadata,
-                  results={k: session.results[k] for k in ("calibration", "fusion")})  # fmt: skip
-    ses.results["calibration"]["protocol_path"] = "elbow"
+                  results=Results(fusion=session.results.fusion,
+                                  calibration=copy.copy(session.results.calibration)))  # fmt: skip
+    ses.results.calibration.protocol_path = "elbow"
     path, dyn, sta = tmp_path / "s.h5", tmp_path / "move.c3d", tmp_path / "static.c3d"
     save_session(ses, path)
     write_c3d(movement, dyn)
@@ -175,7 +178,7 @@ def test_landmarks_from_a_separate_static_trial(elbow, tmp_path):
     assert out.exit_code == 0, out.output
     digest = json.loads(out.output)
     for col, entry in digest["angles"].items():
-        assert entry["rmse_deg"] == pytest.approx(result["angles"][col]["rmse_deg"], abs=0.05)
+        assert entry["rmse_deg"] == pytest.approx(result.angles[col]["rmse_deg"], abs=0.05)
 
     for prefix_landmarks, message in ((False, "cluster marker thorax_C1"), (True, "none of the")):
         renamed = [

@@ -17,14 +17,15 @@ from motionlab import rotations as rot
 from motionlab.cli import main
 from motionlab.errors import InputError
 from motionlab.protocol import load_protocol
-from motionlab.segments import calibrate
+from motionlab.results import FusionEntry
+from motionlab.segments import calibrate_segments
 from motionlab.session import load_session, save_session
 from motionlab.simulate import simulate
 from motionlab.simulate.errors import Preset
 from motionlab.validation.optical import resample_quat
 from motionlab.validation.segment_csv import read_segment_csv
-from motionlab.validation.sync import synchronise
-from motionlab.validation.time_alignment import gyro_times
+from motionlab.validation.time_alignment import synchronise
+from motionlab.validation.time_offset import gyro_times
 
 OFFSET_S, DRIFT = 0.137, 100e-6
 LAB = rot.from_rotvec(np.radians([0.0, 0.0, 70.0]))  # lab → ENU: a turned lab
@@ -49,10 +50,10 @@ def knee(tmp_path_factory):
     for step in protocol.calibration:
         s = truth.step(step.name)
         step.time_range = (s["start_s"], s["end_s"])
-    session.results["calibration"] = calibrate(session, protocol)
-    session.results["calibration"]["protocol_path"] = str(root / "knee_small.yaml")
-    session.results["fusion"] = {
-        k: {"quat": _stand_in(truth, k, s.time, i)}
+    session.results.calibration = calibrate_segments(session, protocol)
+    session.results.calibration.protocol_path = str(root / "knee_small.yaml")
+    session.results.fusion = {
+        k: FusionEntry("truth", _stand_in(truth, k, s.time, i))
         for i, (k, s) in enumerate(session.sensors.items())
     }
     path = root / "s.h5"
@@ -72,13 +73,13 @@ def _validate(path, reference, *extra):
     res = CliRunner().invoke(main, ["validate", str(path), "--reference", str(reference),
                                     "--json", "--force", *extra])  # fmt: skip
     assert res.exit_code == 0, res.output
-    return json.loads(res.output), load_session(path).results["validation"]
+    return json.loads(res.output), load_session(path).results.validation
 
 
 def _error(result, truth, col):
     """The IMU angle minus the truth (deg)."""
-    t = result["angles"]["time_s"]
-    return result["angles"][col]["imu_deg"] - np.interp(t, truth.time, truth.joint_angles[col])
+    t = result.angles["time_s"]
+    return result.angles[col]["imu_deg"] - np.interp(t, truth.time, truth.joint_angles[col])
 
 
 def _direct(result, truth, col, centred=False):
@@ -102,12 +103,12 @@ def test_segment_quaternion_csv_reference(knee):
     csv = root / "segments.csv"
     pd.DataFrame(table).to_csv(csv, index=False, float_format="%.9g")
     digest, result = _validate(path, csv)
-    assert result["reference"]["kind"] == "segments"
+    assert result.reference["kind"] == "segments"
     assert abs(digest["time_offset_s"] - (OFFSET_S + 3.0)) <= 0.005
     assert digest["sync"]["grade"] in ("good", "fair") and digest["sync"]["standard_error_ms"] < 2
-    assert {result["optical"][s]["frame"] for s in ("thigh_r", "shank_r")} == {"segment_frame"}
+    assert {result.optical[s]["frame"] for s in ("thigh_r", "shank_r")} == {"segment_frame"}
     for col in truth.joint_angles:  # RMSE agreement as for markers (tests/test_validation.py)
-        assert abs(result["angles"][col]["rmse_deg"] - _direct(result, truth, col)) < 0.2, col
+        assert abs(result.angles[col]["rmse_deg"] - _direct(result, truth, col)) < 0.2, col
     assert digest["angles"]["knee_r_flexion_deg"]["r"] > 0.99
 
 
@@ -137,12 +138,12 @@ def test_c3d_model_angles_reference(knee):
     xyz = np.column_stack([np.interp(t_true, truth.time, truth.joint_angles[c]) for c in cols])
     _write_pig(root / "pig.c3d", t_cam, xyz + frames_differ, rate)
     digest, result = _validate(path, root / "pig.c3d")
-    assert result["reference"]["kind"] == "model_angles"
-    assert result["reference"]["mapping"]["knee_r_rotation_deg"] == "RKneeAngles.Z"
+    assert result.reference["kind"] == "model_angles"
+    assert result.reference["mapping"]["knee_r_rotation_deg"] == "RKneeAngles.Z"
     assert abs(digest["time_offset_s"] - (OFFSET_S + 3.0 - start)) <= 0.005
     assert any("offsets are expected" in n for n in digest["notes"])
     for i, col in enumerate(cols):
-        entry = result["angles"][col]
+        entry = result.angles[col]
         assert abs(entry["rmse_centred_deg"] - _direct(result, truth, col, centred=True)) < 0.2
         own_bias = np.nanmean(_error(result, truth, col))
         assert entry["bias_deg"] - own_bias == pytest.approx(-frames_differ[i], abs=0.2)
@@ -152,18 +153,18 @@ def test_c3d_model_angles_reference(knee):
         "knee_r_rotation_deg: {label: RKneeAngles, component: z, sign: -1}\n"
     )
     _, flipped = _validate(path, root / "pig.c3d", "--angle-map", str(root / "map.yaml"))
-    assert flipped["reference"]["mapping"]["knee_r_rotation_deg"] == "-RKneeAngles.Z"
-    assert "knee_r_adduction_deg" not in flipped["angles"]
-    assert flipped["angles"]["knee_r_rotation_deg"]["r"] < 0
+    assert flipped.reference["mapping"]["knee_r_rotation_deg"] == "-RKneeAngles.Z"
+    assert "knee_r_adduction_deg" not in flipped.angles
+    assert flipped.angles["knee_r_rotation_deg"]["r"] < 0
     # run takes it as its reference, and the report's validation pages take the result
     args = ["run", "--protocol", str(root / "knee_small.yaml"), str(path), "--quiet",
             "--reference", str(root / "pig.c3d"), "-o", str(root / "run"),
             "--no-clock-sync"]  # fmt: skip
     res = CliRunner().invoke(main, args)
     assert res.exit_code == 0, res.output
-    ran = load_session(root / "run" / "session.h5").results["validation"]
-    assert ran["reference"]["kind"] == "model_angles"
-    assert ran["angles"]["knee_r_flexion_deg"]["rmse_centred_deg"] < 3.0
+    ran = load_session(root / "run" / "session.h5").results.validation
+    assert ran.reference["kind"] == "model_angles"
+    assert ran.angles["knee_r_flexion_deg"]["rmse_centred_deg"] < 3.0
     assert "knee_r_flexion" in (root / "run" / "report.txt").read_text()
 
 

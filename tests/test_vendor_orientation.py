@@ -34,10 +34,10 @@ def test_run_uses_the_vendor_orientation_when_asked(tmp_path):
     )  # fmt: skip
     assert res.exit_code == 0, res.output
     ses = load_session(out / "session.h5")
-    assert {e["name"] for e in ses.results["fusion"].values()} == {"vendor"}
+    assert {e.name for e in ses.results.fusion.values()} == {"vendor"}
     for label, s in ses.sensors.items():
-        np.testing.assert_array_equal(ses.results["fusion"][label]["quat"], s.quat)
-    angles = ses.results["angles"]
+        np.testing.assert_array_equal(ses.results.fusion[label].quat, s.quat)
+    angles = ses.results.angles.columns()
     col = "knee_l_flexion_deg"
     ref = np.interp(angles["time_s"], truth.time, truth.joint_angles[col])
     walking = ref > 5.0

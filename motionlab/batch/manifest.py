@@ -180,7 +180,7 @@ def _options(path: Path, base: Path, entry: dict, where: str) -> tuple[dict[str,
             try:
                 registry.get(value)
             except InputError as exc:
-                _fail(path, line, at, exc.message, exc.remedy or "see motionlab fuse --list")
+                _fail(path, line, at, exc.message, exc.remedy or "see the estimators' list")
         if key == "calibration":
             value = base / value
             if not value.is_dir():

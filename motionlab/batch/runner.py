@@ -251,8 +251,9 @@ class _DaskCluster:
             import distributed
         except ImportError:
             raise InputError(
-                "Dask is not installed", where="--scheduler", remedy="pip install 'motionlab[dask]'"
-            ) from None
+                "Dask is not installed", where="argument scheduler",
+                remedy="pip install 'motionlab[dask]'", argument="scheduler",
+            ) from None  # fmt: skip
         self._killed = distributed.KilledWorker
         try:
             self.client = distributed.Client(
@@ -261,8 +262,9 @@ class _DaskCluster:
         except (OSError, TimeoutError, ValueError) as exc:
             raise InputError(
                 f"cannot reach the Dask scheduler {address!r} ({_one_line(exc)})",
-                where="--scheduler",
+                where="argument scheduler",
                 remedy="start one with 'dask scheduler' or check the address",
+                argument="scheduler",
             ) from None
 
     def submit(self, task: SessionTask, pipeline: Pipeline | None) -> Any:
@@ -386,9 +388,9 @@ def run_study(
     """
     outdir = Path(outdir)
     if retry < 0:
-        raise InputError(f"--retry {retry} is negative", where="--retry", remedy="give 0 or more")
+        raise InputError(f"retry={retry} is negative", remedy="give 0 or more", argument="retry")
     if workers is not None and workers < 1:
-        raise InputError(f"--workers {workers} is below 1", where="--workers", remedy="give 1+")
+        raise InputError(f"workers={workers} is below 1", remedy="give 1+", argument="workers")
     prepare_outdir(outdir, manifest.path, force)
     hashes = FileHashes()
     outcomes: dict[int, Outcome] = {}

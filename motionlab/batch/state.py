@@ -82,13 +82,20 @@ def session_key(
 def prepare_outdir(outdir: Path, manifest: Path, force: bool) -> None:
     """Create the study folder, or accept one written by motionlab batch (any folder with force)."""
     if outdir.exists() and not outdir.is_dir():
-        raise InputError("is not a folder", outdir, "-o", "give a folder for the study outputs")
+        raise InputError(
+            "is not a folder",
+            outdir,
+            "argument outdir",
+            "give a folder for the study outputs",
+            argument="outdir",
+        )
     if outdir.is_dir() and any(outdir.iterdir()) and not (outdir / MARKER).is_file() and not force:
         raise InputError(
             "folder holds files not written by motionlab batch",
             outdir,
-            "-o",
-            "choose another folder, or add --force to write into it",
+            "argument outdir",
+            "choose another folder, or add force=True to write into it",
+            argument=("outdir", "force"),
         )
     if not outdir.parent.is_dir():
         raise InputError("parent folder does not exist", outdir, "-o", f"create {outdir.parent}")

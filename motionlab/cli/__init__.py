@@ -14,6 +14,7 @@ import warnings
 import click
 
 from motionlab import __version__
+from motionlab.cli.flags import cli_error
 from motionlab.errors import InputError
 
 EXIT_BAD_INPUT = 2
@@ -30,7 +31,7 @@ class MotionlabGroup(click.Group):
         except InputError as exc:
             if ctx.obj and ctx.obj.get("debug"):
                 traceback.print_exc()
-            click.echo(f"error: {exc.line()}", err=True)
+            click.echo(f"error: {cli_error(exc).line()}", err=True)
             sys.exit(EXIT_BAD_INPUT)
         except (click.exceptions.Exit, click.ClickException, click.Abort, SystemExit):
             raise

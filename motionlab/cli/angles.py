@@ -52,11 +52,9 @@ def command(
     )
     if csv_path:
         with atomic_path(csv_path, force=force) as tmp:
-            pd.DataFrame(table).to_csv(tmp, index=False, float_format="%.4f")
+            pd.DataFrame(table.columns()).to_csv(tmp, index=False, float_format="%.4f")
     ses.add_provenance(parameters={"stage": "angles", "method": method})
     save_session(ses, session, force=True)
-    cols = [c for c in table if c != "time_s"]
-    click.echo(f"{len(table['time_s'])} samples, {len(cols)} angles")
-    for c in cols:
-        v = table[c]
+    click.echo(f"{len(table.time)} samples, {len(table.data)} angles")
+    for c, v in table.data.items():
         click.echo(f"{c:<34} min {np.nanmin(v):8.1f}  max {np.nanmax(v):8.1f}")

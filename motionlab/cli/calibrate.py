@@ -26,12 +26,12 @@ def command(session: str, protocol_path: str, force: bool) -> None:
     result = stages.calibrate(ses, protocol, force=force, path=session)
     ses.add_provenance(parameters={"protocol": str(protocol.path), "stage": "calibrate"})
     save_session(ses, session, force=True)
-    for line in result["warnings"]:
+    for line in result.warnings:
         click.echo(f"warning: {line}", err=True)
-    for name, rng in result["steps"].items():
+    for name, rng in result.steps.items():
         where = f"{rng[0]:7.2f}–{rng[1]:7.2f} s" if rng else "not performed (optional)"
         click.echo(f"step {name:<22} {where}")
-    for seg, res in result["segments"].items():
+    for seg, res in result.segments.items():
         q = res["quality"]
         click.echo(
             f"{seg:<12} {res['method']:<12} min ρ {q['min_rho']:.2f}  "
@@ -39,5 +39,5 @@ def command(session: str, protocol_path: str, force: bool) -> None:
         )
         for msg in q["messages"]:
             click.echo(f"  - {msg}")
-    for joint, g in result["grades"].items():
+    for joint, g in result.grades.items():
         click.echo(f"{joint:<12} angles: {', '.join(g['grades'])}")

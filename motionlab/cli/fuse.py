@@ -160,7 +160,8 @@ def command(
         orientation=orientation,
     )
     done, notes = fused.sensors, fused.notes
-    with_refs = any("markers" in ses.results["fusion"][k] for k in done)
+    fusion = ses.results.fusion
+    with_refs = any(fusion[k].markers is not None for k in done)
     ses.add_provenance(
         parameters={"stage": "fuse", "filter": name, "params": parsed, "sensors": done}
         | ({"calibration": calibration} if calibration else {})
@@ -171,7 +172,7 @@ def command(
     save_session(ses, output or session, force=True)
     for label in chosen:
         state = "fused" if label in done else "skipped (no gyr/acc)"
-        if ses.results["fusion"].get(label, {}).get("name") == "vendor" and label in done:
+        if label in done and fusion[label].name == "vendor":
             state = "vendor orientation kept"
         elif label in done and not magnetometer:
             state += " (6-D, no magnetometer)"

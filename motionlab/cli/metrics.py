@@ -73,9 +73,9 @@ def command(
             table.to_csv(tmp, index=False, float_format="%.4f")
     ses.add_provenance(parameters={"stage": "metrics", "protocol": str(protocol.path)})
     save_session(ses, session, force=True)
-    for block, rng in result["blocks"].items():
+    for block, rng in result.blocks.items():
         click.echo(f"task {block:<20} {rng['start_s']:8.2f}–{rng['end_s']:8.2f} s")
-        for col, m in result["joints"][block].items():
+        for col, m in result.joints[block].items():
             if not np.isfinite(m["rom_deg"]):
                 continue
             click.echo(

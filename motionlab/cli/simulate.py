@@ -38,6 +38,10 @@ from motionlab.simulate.markers import write_c3d
               help="Gait variant of the walking tasks, with gait events and pelvis angles in the "
                    "truth: normal, asymmetric (right stance longer, unequal steps), slow (90 "
                    "steps/min) or slow_asymmetric.")  # fmt: skip
+@click.option("--gyr-sampling", "gyr_sampling", type=click.Choice(["point", "interval"]),
+              default="point", show_default=True,
+              help="Gyroscope samples: the rate at the stamp (point) or the mean rate over the "
+                   "interval ending at the stamp (interval, as MEMS sensors give).")  # fmt: skip
 @click.option("--height", type=float, default=1.75, show_default=True, help="Body height (m).")
 @click.option("--rate", type=float, default=100.0, show_default=True, help="IMU rate (Hz).")
 @click.option("--no-calibration", is_flag=True, help="Skip the protocol's calibration steps.")
@@ -55,6 +59,7 @@ def command(
     mounting: str,
     soft_tissue: str | None,
     gait: str | None,
+    gyr_sampling: str,
     height: float,
     rate: float,
     no_calibration: bool,
@@ -110,6 +115,7 @@ def command(
         mounting=mounting,
         soft_tissue=soft_tissue,
         gait=gait,
+        gyr_sampling=gyr_sampling,
     )
     optical = session.markers.get("optical")
     if optical is not None and not session_markers:

@@ -19,7 +19,7 @@ from motionlab.validation.reference import choose_marker_set, read_reference
 from motionlab.validation.reference_kinds import REFERENCE_KINDS, load_reference
 from motionlab.validation.segment_csv import FRAMES
 from motionlab.validation.tables import CSV_FILES, summary, tables
-from motionlab.validation.time_alignment import SYNC_SOURCES
+from motionlab.validation.time_offset import SYNC_SOURCES
 
 
 @click.command("validate")
@@ -84,7 +84,8 @@ def command(
       motionlab validate session.h5 --reference segments.csv     # time, thigh_r_qw, ...
     """
     ses = load_session(session)
-    stages.refuse_to_redo(ses, "validation", "validation results", force, session)
+    done = ses.results.validation is not None
+    stages.refuse_to_redo(done, "validation", "validation results", force, session)
     mmap = load_marker_map(markers_path) if markers_path else None
     name = mmap.marker_set if mmap else None
     if reference is None:
@@ -107,7 +108,7 @@ def command(
             sets, name if name in {m.name for m in sets} else None, static_path
         )
     protocol = None
-    if protocol_path is not None or "calibration" in ses.results:
+    if protocol_path is not None or ses.results.calibration is not None:
         protocol = stages.stage_protocol(ses, protocol_path, session)
     written = []
     extra_inputs = [reference, static_path, markers_path, protocol_path, angle_map_path]
@@ -146,7 +147,7 @@ def command(
     if as_json:
         click.echo(json.dumps(digest, indent=2))
         return
-    _print(digest, result["sync"]["method"] != "none")
+    _print(digest, result.sync["method"] != "none")
     if written:
         click.echo(f"wrote {', '.join(written)}")
 

@@ -8,9 +8,10 @@ Liu (2010, thesis §3.2 and §6.2) registers IMU and marker board from one stati
 frame that is the earth frame. Offline files have their own lab frame and clocks, so here every
 sample where both systems see the segment is used:
 
-- clock: the angular-speed cross-correlation of :func:`motionlab.validation.sync.synchronise`,
-  then refined with ``X`` and the gyroscope bias by Gauss–Newton on the relative rotations over
-  the lags ``L`` of ``LAGS_S``: ``log(A_k* A_k+L) = R(X)ᵀ log(B(τ_k)* B(τ_k+L))`` with ``A``
+- clock: the angular-speed cross-correlation of
+  :func:`motionlab.validation.time_alignment.synchronise`, then refined with ``X`` and the
+  gyroscope bias by Gauss–Newton on the relative rotations over the lags ``L`` of ``LAGS_S``:
+  ``log(A_k* A_k+L) = R(X)ᵀ log(B(τ_k)* B(τ_k+L))`` with ``A``
   the strapdown integral of the bias-corrected gyroscope (the bias left in the relative
   rotations, ``≈ b ΔT``, is fitted and removed in turn) and ``τ = offset + (1 + drift) t`` (an
   orientation error is the angular rate times the clock error, so the fusion needs the offset
@@ -118,7 +119,7 @@ def register_sensor(
     t_opt, q_opt
         Optical times (s, optical clock) and cluster → lab orientations (M, 4), NaN in gaps.
     offset_s, drift
-        Starting clock model (e.g. from :func:`motionlab.validation.sync.synchronise`).
+        Starting clock model (e.g. from :func:`motionlab.validation.time_alignment.synchronise`).
     refine_clock
         Refine the clock model (False: keep it, e.g. for streams on one clock).
     """
@@ -320,7 +321,7 @@ def session_references(
     from motionlab.validation.markermap import check_marker_map, default_marker_map
     from motionlab.validation.optical import resample_quat, track_cluster
     from motionlab.validation.reference import choose_marker_set
-    from motionlab.validation.sync import synchronise
+    from motionlab.validation.time_alignment import synchronise
 
     if not session.markers:
         raise InputError("the session holds no marker data", remedy="ingest a C3D/TRC file with it")

@@ -1,11 +1,12 @@
 """The fusion stage: every chosen sensor's orientation by one estimator, stored in the session.
 
 ``motionlab fuse`` and ``motionlab run`` (:mod:`motionlab.pipeline`) both call
-:func:`fuse_session`. Each sensor's entry in ``session.results["fusion"]`` holds the estimator's
-``name``, ``quat`` ((N, 4), sensor → ENU earth, on the sensor's own time stamps, which are passed
-to the estimator so that packet-loss gaps are bridged), its ``params``, whether the
-``magnetometer`` was used, and what the estimator reports besides: ``gyro_bias``, ``rest``,
-``mag_disturbed``, the marker ``scenario``, and ``gaps_bridged_s`` (the gaps it ran across).
+:func:`fuse_session`. Each sensor's :class:`~motionlab.results.FusionEntry` in
+``session.results.fusion`` holds the estimator's ``name``, ``quat`` ((N, 4), sensor → ENU earth,
+on the sensor's own time stamps, which are passed to the estimator so that packet-loss gaps are
+bridged), its ``params``, whether the ``magnetometer`` was used, and what the estimator reports
+besides: ``gyro_bias``, ``rest``, ``mag_disturbed``, the marker ``scenario``, and
+``gaps_bridged_s`` (the gaps it ran across).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import numpy as np
 
 from motionlab.errors import InputError
 from motionlab.fusion import registry
+from motionlab.results import FusionEntry
 from motionlab.session import Session
 
 Progress = Callable[[list[str], str], Iterable[str]]
@@ -45,12 +47,12 @@ def fuse_session(
     magnetometer: bool = True,
     progress: Progress | None = None,
 ) -> list[str]:
-    """Run estimator ``name`` on ``sensors`` and store the results in ``session.results``.
+    """Run estimator ``name`` on ``sensors`` and store the results in ``session.results.fusion``.
 
     Parameters
     ----------
     session
-        The session; its ``results["fusion"]`` gets one entry per sensor (module docstring).
+        The session; its ``results.fusion`` gets one entry per sensor (module docstring).
     name, params
         Registered estimator and its parameters as text (``{"beta": "0.1"}``), checked before
         any work.
@@ -75,14 +77,15 @@ def fuse_session(
     params = dict(params or {})
     registry.make_params(est, params)  # fail on a bad parameter before any work
     sensors = fusable(session) if sensors is None else list(sensors)
-    store = session.results.setdefault("fusion", {})
+    store = session.results.fusion
     for label in sensors:
         if label in store and not force:
             raise InputError(
                 "already holds a fusion result",
                 path,
                 f"results/fusion/{label}",
-                "add --force to replace it",
+                "add force=True to replace it",
+                argument="force",
             )
     text = f"fusing ({est.name}{'' if magnetometer else ', 6-D'})"
     done = []
@@ -100,20 +103,17 @@ def fuse_session(
                 f"sensor {label}",
                 "its data hold non-finite or implausible values: see 'motionlab info' (QC)",
             )
-        entry = {
-            "name": res.name,
-            "quat": res.quat,
-            "params": res.params,
-            "magnetometer": mag is not None,
-        }
-        if "scenario" in res.extra:
-            entry["scenario"] = res.extra["scenario"]
-        if "resampled" in res.extra:  # packet-loss gaps the estimator ran across
-            entry["gaps_bridged_s"] = res.extra["resampled"]["spans_s"]
-        for key in ("gyro_bias", "rest", "mag_disturbed"):
-            value = getattr(res, key)
-            if value is not None:
-                entry[key] = value
-        store[label] = entry
+        resampled = res.extra.get("resampled")  # packet-loss gaps the estimator ran across
+        store[label] = FusionEntry(
+            res.name,
+            res.quat,
+            res.params,
+            magnetometer=mag is not None,
+            scenario=res.extra.get("scenario"),
+            gaps_bridged_s=None if resampled is None else resampled["spans_s"],
+            gyro_bias=res.gyro_bias,
+            rest=res.rest,
+            mag_disturbed=res.mag_disturbed,
+        )
         done.append(label)
     return done

@@ -87,7 +87,11 @@ def _detect(path: Path, options: dict[str, Any] | None):
         for module in _readers():
             if module.FORMAT == wanted:
                 return module
-        raise InputError(f"unknown format '{wanted}'", path, remedy="see 'motionlab ingest --help'")
+        raise InputError(
+            f"unknown format '{wanted}'",
+            path,
+            remedy=f"use one of {', '.join(m.FORMAT for m in _readers())}",
+        )
     for module in _readers():
         if module.sniff(path, head):
             return module
@@ -101,7 +105,8 @@ def _detect(path: Path, options: dict[str, Any] | None):
     raise InputError(
         "unknown file format",
         path,
-        remedy="give a column map with --map (see README, 'Generic delimited text')",
+        remedy="give a column map as map_path= (see README, 'Generic delimited text')",
+        argument="map_path",
     )
 
 

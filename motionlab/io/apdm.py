@@ -32,7 +32,7 @@ import numpy as np
 from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.io import Recording
-from motionlab.io.text import parse_table, read_lines
+from motionlab.io.delimited import parse_table, read_lines
 from motionlab.session import SensorStream
 from motionlab.units import to_si
 

@@ -38,7 +38,7 @@ from motionlab import rotations
 from motionlab.errors import InputError
 from motionlab.io import Recording
 from motionlab.io.clock import checked_counter_time, count_wraps
-from motionlab.io.text import find_line, parse_table, read_lines, require_values, split_fields
+from motionlab.io.delimited import find_line, parse_table, read_lines, require_values, split_fields
 from motionlab.io.xsens import DEFAULT_MAG_FIELD_UT
 from motionlab.session import SensorStream
 

@@ -61,7 +61,7 @@ from motionlab import rotations
 from motionlab.errors import InputError
 from motionlab.io import Recording
 from motionlab.io.clock import checked_counter_time
-from motionlab.io.text import (
+from motionlab.io.delimited import (
     COMMENT_PREFIXES,
     DELIMITERS,
     Table,

@@ -1,5 +1,5 @@
 """A text file read once as bytes and seen as a sequence of lines (:class:`TextFile`), with the
-array operations over its bytes that the table parser (:mod:`motionlab.io.text`) needs: blank
+array operations over its bytes that the table parser (:mod:`motionlab.io.delimited`) needs: blank
 and comment lines, and counts of a character per line — no Python loop over the lines.
 
 Conventions: line indices are 0-based here (messages add 1); a line is what lies between two

@@ -25,7 +25,7 @@ import numpy as np
 
 from motionlab.errors import InputError
 from motionlab.io import Recording
-from motionlab.io.text import parse_table, read_lines, split_fields
+from motionlab.io.delimited import parse_table, read_lines, split_fields
 from motionlab.session import MarkerSet
 from motionlab.units import factor
 

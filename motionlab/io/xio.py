@@ -23,7 +23,7 @@ import numpy as np
 
 from motionlab.errors import InputError
 from motionlab.io import Recording
-from motionlab.io.text import first_content_line, parse_table, read_lines, split_fields
+from motionlab.io.delimited import first_content_line, parse_table, read_lines, split_fields
 from motionlab.session import SensorStream
 from motionlab.units import to_si
 

@@ -54,7 +54,13 @@ from motionlab import rotations
 from motionlab.errors import InputError
 from motionlab.io import Recording
 from motionlab.io.clock import checked_counter_time, count_wraps
-from motionlab.io.text import Table, first_content_line, parse_table, read_lines, require_values
+from motionlab.io.delimited import (
+    Table,
+    first_content_line,
+    parse_table,
+    read_lines,
+    require_values,
+)
 from motionlab.session import SensorStream
 
 FORMAT = "xsens"

@@ -99,13 +99,15 @@ def elbow_from_gravity(up_upper: np.ndarray, up_fore: np.ndarray, side: str) -> 
 
 def session_elbow_angles(session: Session, protocol: Protocol) -> dict[str, Any]:
     """Accelerometer-only elbow angles (degrees) of every elbow joint of a calibrated session."""
-    cal = session.results.get("calibration", {}).get("segments", {})
+    calibration = session.results.calibration
+    cal = calibration.segments if calibration is not None else {}
     elbows = [j for j in protocol.joints.values() if j.type == "elbow"]
     if not elbows:
         raise InputError(
             "the accelerometer-only method is for elbows",
             where=f"protocol {protocol.name}",
-            remedy="use --method imu",
+            remedy="use method='imu'",
+            argument="method",
         )
     out: dict[str, Any] = {}
     for joint in elbows:

@@ -1,7 +1,7 @@
 """Gait analysis of a calibrated session: events, strides, spatio-temporal parameters, pelvis
-angles, cycle curves and the GPS/MAP (``session.results["gait"]``).
+angles, cycle curves and the GPS/MAP (:class:`~motionlab.results.Gait`, ``session.results.gait``).
 
-Steps: the gait tasks' time ranges (``results["metrics"]["blocks"]`` of tasks whose kind is gait
+Steps: the gait tasks' time ranges (``results.metrics.blocks`` of tasks whose kind is gait
 or walk) → each knee's shank sagittal angular velocity (raw gyroscope turned into the shank frame
 by the calibrated mounting) → events per side (:mod:`.gait_events`; turns from the vertical
 angular velocity of the pelvis sensor, else of the side's shank sensor) → strides and
@@ -10,7 +10,7 @@ direction (:mod:`.pelvis`, with a pelvis sensor) → per side the mean curve ove
 pelvis, hip and knee angles → GPS and MAP (:mod:`.gps`).
 
 A session without a gait task, without shank sensors or without strides gives
-``{"status": "no gait: <why>"}`` and nothing else.
+``Gait(status="no gait: <why>")`` and nothing else.
 """
 
 from __future__ import annotations
@@ -34,6 +34,7 @@ from motionlab.kinematics.pelvis import (
 )
 from motionlab.kinematics.session_angles import sensor_orientation, session_segments
 from motionlab.protocol import Protocol
+from motionlab.results import Gait, SegmentCalibration
 from motionlab.segments import sensor_for_segment
 from motionlab.session import Session
 
@@ -71,7 +72,8 @@ def _yaw_rate(session: Session, label: str) -> tuple[np.ndarray, np.ndarray]:
 
 def gait_spans(session: Session, protocol: Protocol) -> dict[str, tuple[float, float]]:
     """``{task: (start_s, end_s)}`` of the protocol's gait tasks found in the session."""
-    blocks = session.results.get("metrics", {}).get("blocks", {})
+    metrics = session.results.metrics
+    blocks = metrics.blocks if metrics is not None else {}
     out = {}
     for task in protocol.tasks:
         b = blocks.get(task.name)
@@ -85,17 +87,17 @@ def _curve(time: np.ndarray, values: np.ndarray, t0: float, t1: float) -> np.nda
     return np.interp(pct, time, values, left=np.nan, right=np.nan)
 
 
-def analyse_gait(session: Session, protocol: Protocol) -> dict[str, Any]:
-    """``session.results["gait"]`` (module docstring); the session must be calibrated and have
+def analyse_gait(session: Session, protocol: Protocol) -> Gait:
+    """``session.results.gait`` (module docstring); the session must be calibrated and have
     angles and metrics."""
     spans = gait_spans(session, protocol)
     if not spans:
-        return {"status": "no gait: the protocol has no gait task, or none was found"}
-    cal = session.results.get("calibration", {})
+        return Gait("no gait: the protocol has no gait task, or none was found")
+    cal = session.results.calibration or SegmentCalibration("")
     omega = shank_angular_velocity(session, protocol, cal)
     side_of = {j.distal: j.side for j in protocol.joints.values() if j.type == "knee"}
     if not omega:
-        return {"status": "no gait: no shank sensor under a knee joint"}
+        return Gait("no gait: no shank sensor under a knee joint")
     pelvis_label = sensor_for_segment(session, PELVIS_SEGMENT)
     events, strides = {}, {}
     for seg, (time, wz) in omega.items():
@@ -120,7 +122,7 @@ def analyse_gait(session: Session, protocol: Protocol) -> dict[str, Any]:
         }
     table = sp.stride_table(strides, events)
     if not table["kept"].any():
-        return {"status": "no gait: no stride passed the checks", "events": events}
+        return Gait("no gait: no stride passed the checks", events=events)
     summary = sp.summary(table)
     out: dict[str, Any] = {
         "status": "ok",
@@ -131,12 +133,12 @@ def analyse_gait(session: Session, protocol: Protocol) -> dict[str, Any]:
         "summary": summary,
         "walking_speed": "not measured: no foot sensors (see kinematics/spatiotemporal.py)",
     }
-    angles = session.results.get("angles", {})
+    angles = session.results.angles
     series: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-    if "time_s" in angles:
-        for col, v in angles.items():
-            if col.endswith("_deg"):
-                series[col] = (np.asarray(angles["time_s"]), np.asarray(v, dtype=float))
+    if angles is not None:
+        for col, v in angles.data.items():
+            if angles.units[col] == "deg":
+                series[col] = (np.asarray(angles.time), np.asarray(v, dtype=float))
     if pelvis_label is not None:
         t_p, q_p = session_segments(session, protocol, cal, segments=[PELVIS_SEGMENT])[
             PELVIS_SEGMENT
@@ -176,4 +178,4 @@ def analyse_gait(session: Session, protocol: Protocol) -> dict[str, Any]:
     out["curves"] = curves
     means = {s: {k: v for k, v in c.items() if not k.endswith("_sd")} for s, c in curves.items()}
     out["map"] = movement_analysis_profile(means)
-    return out
+    return Gait(**out)

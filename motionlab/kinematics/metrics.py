@@ -18,8 +18,9 @@ the protocol's nominal placement; ``out_of_plane_offset`` of lumbar joints per t
 ``plane``; ``trunk_compensation`` of the ``thorax`` segment per task; ``varus_thrust`` /
 ``stance_rotation`` of knees in gait tasks. Thresholds come from the protocol's ``thresholds``.
 
-The results tree (``session.results["metrics"]``) holds arrays and JSON values only;
-:func:`metrics_table` flattens it into rows ``block, joint, angle, metric, percent, value, unit``.
+The result (:class:`~motionlab.results.Metrics`, ``session.results.metrics``) holds arrays and
+JSON values only; :func:`metrics_table` flattens it into rows ``block, joint, angle, metric,
+percent, value, unit``.
 """
 
 from __future__ import annotations
@@ -41,6 +42,7 @@ from motionlab.kinematics.session_angles import (
     sensor_quats,
 )
 from motionlab.protocol import Joint, Protocol, Task
+from motionlab.results import Metrics, SegmentCalibration
 from motionlab.segments import reference_step, segment_orientations, sensor_for_segment, streams_of
 from motionlab.segments.steps import find_tasks
 from motionlab.session import Session, estimate_rate
@@ -134,8 +136,8 @@ def compute_metrics(
     steps: dict[str, Any],
     nominal_table: dict[str, np.ndarray] | None = None,
     shank_omega: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
-) -> dict[str, Any]:
-    """The metrics tree (see the module docstring).
+) -> Metrics:
+    """The metrics (see the module docstring).
 
     ``table`` is an angle table (``time_s`` and degree columns), ``seg_q`` calibrated segment
     orientations ``{segment: (time, q)}``, ``blocks`` the task time ranges (s), ``steps`` the
@@ -198,7 +200,7 @@ def compute_metrics(
                 table, nominal_table, joint, idx, _window(time, t0, t1)
             )
     out["blocks"] = {k: {"start_s": float(v[0]), "end_s": float(v[1])} for k, v in blocks.items()}
-    return out
+    return Metrics(**out)
 
 
 def _offset(protocol, joint, seg_q, time, win, steps, plane, cycles, th) -> dict[str, Any]:
@@ -222,14 +224,14 @@ def _offset(protocol, joint, seg_q, time, win, steps, plane, cycles, th) -> dict
 
 
 def shank_angular_velocity(
-    session: Session, protocol: Protocol, calibration: dict[str, Any]
+    session: Session, protocol: Protocol, calibration: SegmentCalibration
 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """``{segment: (time, ω_z)}``: gyroscope about the segment's z axis of each knee's shank."""
     out = {}
     for joint in protocol.joints.values():
         seg = joint.distal
         label = sensor_for_segment(session, seg)
-        cal = calibration.get("segments", {}).get(seg)
+        cal = calibration.segments.get(seg)
         if joint.type != "knee" or label is None or cal is None:
             continue
         s = session.sensors[label]
@@ -245,18 +247,18 @@ def session_metrics(
     protocol: Protocol,
     tasks: dict[str, tuple[float, float]] | None = None,
     estimator: str = "default",
-) -> dict[str, Any]:
+) -> Metrics:
     """Metrics of a calibrated session; ``tasks`` ``{name: (start_s, end_s)}`` or found.
 
     The angles are computed as ``motionlab angles`` does (calibrated, heading-aligned IMU
     orientations) and again with the nominal mountings for the cross-talk comparison.
     """
-    cal = session.results.get("calibration")
+    cal = session.results.calibration
     if cal is None:
         raise InputError(
             "not calibrated", where="results/calibration", remedy="run motionlab calibrate first"
         )
-    steps = {k: tuple(v) for k, v in cal.get("steps", {}).items() if v is not None}
+    steps = {k: tuple(v) for k, v in cal.steps.items() if v is not None}
     if tasks is None:
         after = max((v[1] for v in steps.values()), default=-np.inf)
         tasks = find_tasks(streams_of(session, protocol), protocol, after_s=after)
@@ -273,7 +275,7 @@ def session_metrics(
     nominal = None
     if "cross_talk" in wanted(protocol):
         nominal = angle_table(
-            segment_orientations(protocol, nominal_calibration(protocol, cal["steps"]), quats),
+            segment_orientations(protocol, nominal_calibration(protocol, cal.steps), quats),
             protocol,
         )
     out = compute_metrics(
@@ -285,7 +287,7 @@ def session_metrics(
         nominal,
         shank_angular_velocity(session, protocol, cal),
     )
-    for v in out["blocks"].values():
+    for v in out.blocks.values():
         v["source"] = source
     return out
 
@@ -293,7 +295,7 @@ def session_metrics(
 _UNITS = {"repetitions": "1", "strides": "1", "compensated": "1"}
 
 
-def metrics_table(metrics: dict[str, Any]) -> pd.DataFrame:
+def metrics_table(metrics: Metrics) -> pd.DataFrame:
     """Rows ``block, joint, angle, metric, percent, value, unit`` of every scalar and curve.
 
     Per-cycle arrays are summarised by their mean; the cycle-normalised curves give one row per
@@ -307,7 +309,7 @@ def metrics_table(metrics: dict[str, Any]) -> pd.DataFrame:
         unit = _UNITS.get(metric, "%" if metric.endswith("_pct") else "deg")
         rows.append((block, joint, angle, metric, percent, float(value), unit))
 
-    for block, cols in metrics.get("joints", {}).items():
+    for block, cols in metrics.joints.items():
         for col, m in cols.items():
             joint, angle = split_column(col)
             for key in ("rom_deg", "min_deg", "max_deg", "repetitions"):
@@ -319,24 +321,24 @@ def metrics_table(metrics: dict[str, Any]) -> pd.DataFrame:
             ):
                 add(block, joint, angle, "curve_mean_deg", mu, pct)
                 add(block, joint, angle, "curve_sd_deg", sd, pct)
-    for block, joints in metrics.get("cross_talk", {}).items():
+    for block, joints in (metrics.cross_talk or {}).items():
         for joint, m in joints.items():
             add(block, joint, m["on_axis"], "cross_talk_on_axis_rom_deg", m["on_axis_rom_deg"])
             for angle, e in m.items():
                 if isinstance(e, dict):
                     for key, value in e.items():
                         add(block, joint, angle, f"cross_talk_{key}", value)
-    for block, joints in metrics.get("out_of_plane_offset", {}).items():
+    for block, joints in (metrics.out_of_plane_offset or {}).items():
         for joint, m in joints.items():
             axes = "-".join(m["axes"])
             for key in ("peak_deg", "mean_deg", "above_pct"):
                 add(block, joint, axes, f"out_of_plane_{key}", m[key])
-    for block, m in metrics.get("trunk_compensation", {}).items():
+    for block, m in (metrics.trunk_compensation or {}).items():
         for angle in oop.TRUNK_ANGLES:
             for key in ("peak_abs_deg", "max_deg", "min_deg", "above_pct"):
                 add(block, "trunk", angle, f"trunk_{key}", m[angle][key])
         add(block, "trunk", "", "compensated", m["compensated"])
-    for block, joints in metrics.get("gait", {}).items():
+    for block, joints in (metrics.gait or {}).items():
         for joint, m in joints.items():
             add(block, joint, "", "strides", m["strides"])
             for key in ("varus_thrust_mean_deg", "varus_thrust_sd_deg", "varus_thrust_above_pct"):

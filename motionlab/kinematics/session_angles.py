@@ -1,7 +1,7 @@
 """Joint angles of a whole session: sensor orientations → segment orientations → angle table.
 
 Sensor orientations come from, in this order: the fusion stage's results
-(``session.results["fusion"][label]["quat"]``, as ``motionlab fuse`` stores them), running the
+(``session.results.fusion[label].quat``, as ``motionlab fuse`` stores them), running the
 default estimator 6-D on the raw accelerometer and gyroscope, or the vendor's ``quat``. 6-D as
 ``motionlab run`` fuses: the heading alignment gives each segment's heading relative to its
 neighbour, and an uncalibrated magnetometer only adds errors (carrying angle and pronation up to
@@ -21,6 +21,7 @@ from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_angles import joint_angles
 from motionlab.protocol import Protocol
+from motionlab.results import HeadingCorrection, SegmentCalibration
 from motionlab.segments import segment_orientations, sensor_for_segment
 from motionlab.session import Session, estimate_rate
 
@@ -29,15 +30,16 @@ SegmentQuats = dict[str, tuple[np.ndarray, np.ndarray]]
 
 def sensor_orientation(session: Session, label: str, estimator: str = "default") -> np.ndarray:
     """(N, 4) sensor → earth orientation of one sensor (see the module docstring)."""
-    fused = session.results.get("fusion", {}).get(label, {})
-    if isinstance(fused, dict) and "quat" in fused:
-        q = np.asarray(fused["quat"], dtype=float)
+    fused = session.results.fusion.get(label)
+    if fused is not None:
+        q = np.asarray(fused.quat, dtype=float)
         if q.shape != (session.sensors[label].n_samples, 4):
             raise InputError(
                 f"fusion result has shape {q.shape}, the sensor {session.sensors[label].n_samples}"
                 " samples",
                 where=f"results/fusion/{label}/quat",
-                remedy="run motionlab fuse --force again after ingest",
+                remedy="fuse again with force=True after ingest",
+                argument="force",
             )
         return q
     s = session.sensors[label]
@@ -54,38 +56,35 @@ def sensor_orientation(session: Session, label: str, estimator: str = "default")
     )
 
 
-def nominal_calibration(protocol: Protocol, steps: dict[str, Any]) -> dict[str, Any]:
-    """A calibration tree holding each segment's nominal mounting (the protocol's placement).
+def nominal_calibration(protocol: Protocol, steps: dict[str, Any]) -> SegmentCalibration:
+    """A calibration holding each segment's nominal mounting (the protocol's placement).
 
     "Calibration off": sensors are taken to sit exactly as the protocol's ``sensor_axes`` say;
     ``steps`` (the found step times) still serve the heading alignment.
     """
-    return {
-        "protocol": protocol.name,
-        "steps": steps,
-        "segments": {
-            seg: {"mounting": rot.from_matrix(spec.nominal_mounting().T)}
-            for seg, spec in protocol.segments.items()
-        },
+    segments = {
+        seg: {"mounting": rot.from_matrix(spec.nominal_mounting().T)}
+        for seg, spec in protocol.segments.items()
     }
+    return SegmentCalibration(protocol.name, steps=steps, segments=segments)
 
 
 def session_segments(
     session: Session,
     protocol: Protocol,
-    calibration: dict[str, Any] | None,
+    calibration: SegmentCalibration | None,
     estimator: str = "default",
     align_heading: bool = True,
     segments: list[str] | None = None,
-    corrections: dict[str, dict[str, Any]] | None = None,
+    corrections: dict[str, HeadingCorrection] | None = None,
 ) -> SegmentQuats:
     """``{segment: (time, q_segment)}`` for the joints' segments (or ``segments``).
 
-    ``calibration`` is ``session.results["calibration"]`` (``None``: sensor frames are used as
+    ``calibration`` is ``session.results.calibration`` (``None``: sensor frames are used as
     segment frames).
     """
     quats = sensor_quats(session, protocol, segments, estimator)
-    return segment_orientations(protocol, calibration or {}, quats, align_heading, corrections)
+    return segment_orientations(protocol, calibration, quats, align_heading, corrections)
 
 
 def joint_segments(protocol: Protocol) -> list[str]:
@@ -132,10 +131,10 @@ def angle_table(seg_q: SegmentQuats, protocol: Protocol) -> dict[str, Any]:
 def session_angles(
     session: Session,
     protocol: Protocol,
-    calibration: dict[str, Any] | None,
+    calibration: SegmentCalibration | None,
     estimator: str = "default",
     align_heading: bool = True,
-    corrections: dict[str, dict[str, Any]] | None = None,
+    corrections: dict[str, HeadingCorrection] | None = None,
 ) -> dict[str, Any]:
     """The angle table (degrees) of every protocol joint, see :func:`angle_table`;
     ``corrections`` receives each joint's heading correction (:func:`segment_orientations`)."""

@@ -93,7 +93,7 @@ def out_of_plane_frame(view: SessionView) -> pd.DataFrame:
             | {"grade": grade}
         )
 
-    for task, joints in (m.get("gait") or {}).items():
+    for task, joints in (m.gait or {}).items():
         for joint, g in joints.items():
             add(
                 "varus_thrust",
@@ -116,7 +116,7 @@ def out_of_plane_frame(view: SessionView) -> pd.DataFrame:
                 count_n=g["strides"],
             )
     trunk = segment_grade(view, THORAX)[0]
-    for task, t in (m.get("trunk_compensation") or {}).items():
+    for task, t in (m.trunk_compensation or {}).items():
         for angle in ("flexion", "lateral_bending", "axial_rotation"):
             a = t[angle]
             add(
@@ -131,7 +131,7 @@ def out_of_plane_frame(view: SessionView) -> pd.DataFrame:
                 threshold_deg=a["threshold_deg"],
                 above_threshold_pct=a["above_pct"],
             )
-    for task, joints in (m.get("out_of_plane_offset") or {}).items():
+    for task, joints in (m.out_of_plane_offset or {}).items():
         for joint, o in joints.items():
             graded = [(r["grade"], "") for r in grade_rows(view) if r["joint"] == joint]
             add(
@@ -145,7 +145,7 @@ def out_of_plane_frame(view: SessionView) -> pd.DataFrame:
                 threshold_deg=o["threshold_deg"],
                 above_threshold_pct=o["above_pct"],
             )
-    for block, joints in (m.get("cross_talk") or {}).items():
+    for block, joints in (m.cross_talk or {}).items():
         for joint, c in joints.items():
             for angle, e in c.items():
                 if isinstance(e, dict):

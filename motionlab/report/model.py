@@ -2,7 +2,7 @@
 
 Conventions: angles in degrees (the unit of the angle tables and metrics), times in s, rates in
 Hz. A *view* (:class:`SessionView`) wraps one session that has been through the pipeline
-(``results["angles"]`` and ``results["metrics"]``), with its protocol. The functions here only
+(``results.angles`` and ``results.metrics``), with its protocol. The functions here only
 read results the stages stored; they compute no kinematics of their own.
 
 - :func:`rom_rows`: per task, joint and angle, the range of motion, the typical extremes (means of
@@ -35,6 +35,7 @@ from motionlab.errors import InputError
 from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, plane, title
 from motionlab.kinematics.metrics import THORAX as THORAX  # re-exported for the pages
 from motionlab.protocol import Joint, Protocol, load_protocol
+from motionlab.results import Metrics, SegmentCalibration
 from motionlab.segments import sensor_for_segment
 from motionlab.segments.grades import GRADES, _frame_grade
 from motionlab.session import Session
@@ -55,8 +56,8 @@ class SessionView:
     session: Session
     protocol: Protocol
     path: Path | None = None
-    angles: dict[str, np.ndarray] = field(default_factory=dict)
-    metrics: dict[str, Any] = field(default_factory=dict)
+    angles: dict[str, np.ndarray] = field(default_factory=dict)  # AngleTable.columns()
+    metrics: Metrics = field(default_factory=lambda: Metrics(""))
 
     @property
     def subject(self) -> str:
@@ -82,13 +83,13 @@ class SessionView:
 
     def blocks(self) -> dict[str, tuple[float, float]]:
         """Task blocks ``{task: (start_s, end_s)}`` of the metrics, in time order."""
-        blocks = self.metrics.get("blocks", {})
+        blocks = self.metrics.blocks
         order = sorted(blocks, key=lambda k: blocks[k]["start_s"])
         return {k: (blocks[k]["start_s"], blocks[k]["end_s"]) for k in order}
 
     def tasks(self) -> list[str]:
         """Tasks with joint metrics, in time order."""
-        per_task = self.metrics.get("joints", {})
+        per_task = self.metrics.joints
         return [k for k in self.blocks() if k in per_task] + [
             k for k in per_task if k not in self.blocks()
         ]
@@ -142,8 +143,8 @@ def load_view(session: Session, protocol: Protocol | None = None, path: Path | N
     ``protocol`` defaults to the one the calibration used (its file, else the packaged name).
     """
     res = session.results
-    missing = [k for k in ("calibration", "angles", "metrics") if k not in res]
-    if missing:
+    missing = [k for k in ("calibration", "angles", "metrics") if k not in res.stages()]
+    if missing or res.calibration is None or res.angles is None or res.metrics is None:
         raise InputError(
             f"has no {', '.join(missing)} results",
             path,
@@ -151,8 +152,8 @@ def load_view(session: Session, protocol: Protocol | None = None, path: Path | N
             "analyse it first: motionlab run, or calibrate, angles and metrics",
         )
     if protocol is None:
-        cal = res["calibration"]
-        candidates = [cal.get("protocol_path"), cal.get("protocol")]
+        cal = res.calibration
+        candidates = [cal.protocol_path, cal.protocol]
         for cand in [c for c in candidates if c]:
             try:
                 protocol = load_protocol(cand)
@@ -161,13 +162,13 @@ def load_view(session: Session, protocol: Protocol | None = None, path: Path | N
                 continue
         if protocol is None:
             raise InputError(
-                f"cannot find its protocol '{cal.get('protocol')}'",
+                f"cannot find its protocol '{cal.protocol}'",
                 path,
                 "results/calibration/protocol",
-                "give the protocol file with --protocol",
+                "give the protocol file as protocol=",
+                argument="protocol",
             )
-    angles = {k: np.asarray(v) for k, v in res["angles"].items() if isinstance(v, np.ndarray)}
-    return SessionView(session, protocol, path, angles, res["metrics"])
+    return SessionView(session, protocol, path, res.angles.columns(), res.metrics)
 
 
 def normal_range(protocol: Protocol, task: str, column: str) -> tuple[float, float] | None:
@@ -211,10 +212,11 @@ def compare(low: float, high: float, normal: tuple[float, float] | None, reach: 
 def grade_rows(view: SessionView) -> list[dict[str, Any]]:
     """One row per angle column of every protocol joint: ``joint, angle, column, grade, reason``.
 
-    From ``results["calibration"]["grades"]``; a joint without grades (a session calibrated
+    From ``results.calibration.grades``; a joint without grades (a session calibrated
     before they existed) has every angle ``determined`` with an empty reason.
     """
-    graded = view.session.results.get("calibration", {}).get("grades") or {}
+    cal = view.session.results.calibration
+    graded = cal.grades if cal is not None else {}
     rows = []
     for joint in view.joints():
         entry = graded.get(joint.name) or {}
@@ -260,10 +262,10 @@ def worst_grade(graded: list[tuple[str, str]]) -> tuple[str, str]:
 def segment_grade(view: SessionView, segment: str) -> tuple[str, str]:
     """``(grade, reason)`` of one segment's whole frame (for the metrics of a segment alone,
     such as trunk compensation); ``determined`` for a session without grades."""
-    cal = view.session.results.get("calibration", {})
-    if not cal.get("grades"):
+    cal = view.session.results.calibration
+    if cal is None or not cal.grades:
         return DETERMINED, ""
-    return _frame_grade(segment, cal.get("segments", {}).get(segment))
+    return _frame_grade(segment, cal.segments.get(segment))
 
 
 def grade_mark(grade: str, reason: str = "") -> str:
@@ -279,7 +281,7 @@ def rom_rows(view: SessionView) -> list[dict[str, Any]]:
     grades = {r["column"]: (r["grade"], r["reason"]) for r in grade_rows(view)}
     rows = []
     for task in view.tasks():
-        per_col = view.metrics["joints"][task]
+        per_col = view.metrics.joints[task]
         for joint in view.joints():
             for angle, col in angle_columns(joint):
                 m = per_col.get(col)
@@ -358,11 +360,11 @@ def _spans_s(spans: list) -> float:
 
 def quality_rows(view: SessionView) -> list[dict[str, Any]]:
     """Per sensor: placement, rate, jitter, gaps, saturation, rest and magnetic disturbance."""
-    fusion = view.session.results.get("fusion", {})
+    fusion = view.session.results.fusion
     rows = []
     for label, s in view.session.sensors.items():
         qc = s.qc or {}
-        fz = fusion.get(label, {}) if isinstance(fusion, dict) else {}
+        fz = fusion.get(label)
         sat = qc.get("saturated_samples", {}) or {}
         flags = [k for k, v in (qc.get("flags") or {}).items() if v]
         rows.append(
@@ -381,8 +383,8 @@ def quality_rows(view: SessionView) -> list[dict[str, Any]]:
                 "gaps_kept": len(qc.get("gaps", [])),
                 "gaps_kept_s": _spans_s(qc.get("gaps", [])),
                 "saturated_samples": int(sum(sat.values())),
-                "rest_pct": _share(fz.get("rest")),
-                "mag_disturbed_pct": _share(fz.get("mag_disturbed")),
+                "rest_pct": _share(fz.rest if fz else None),
+                "mag_disturbed_pct": _share(fz.mag_disturbed if fz else None),
                 "channels": ",".join(s.channels),
                 "flags": flags,
             }
@@ -414,12 +416,12 @@ def calibration_rows(view: SessionView) -> list[dict[str, Any]]:
     measured no axis (method ``nominal``: the placement hint only), or that has no calibration
     at all, gets one row with step ``none`` (and ``segment_ok`` from its quality, else false).
     """
-    cal = view.session.results.get("calibration", {})
-    segments = cal.get("segments", {})
+    cal = view.session.results.calibration
+    segments = cal.segments if cal is not None else {}
     order = [
         s
         for s in view.protocol.segments
-        if s in segments or (cal and sensor_for_segment(view.session, s) is not None)
+        if s in segments or (cal is not None and sensor_for_segment(view.session, s) is not None)
     ]
     steps = [s.name for s in view.protocol.calibration]
     rows = []
@@ -464,8 +466,8 @@ def excluded(view: SessionView) -> list[str]:
             )
         for ch, spans in (s.qc or {}).get("nan_spans", {}).items():
             out.append(f"{s.label}: {ch} not a number for {_spans_s(spans):.2f} s - not used")
-    cal = view.session.results.get("calibration", {})
-    for step, rng in cal.get("steps", {}).items():
+    cal = view.session.results.calibration or SegmentCalibration("")
+    for step, rng in cal.steps.items():
         if rng is None:
             out.append(f"calibration step {step} not performed (optional) - not used")
     blocks = view.blocks()

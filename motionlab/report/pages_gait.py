@@ -1,6 +1,6 @@
 """Gait pages: spatio-temporal parameters against normative bands with the Movement Analysis
 Profile (first page), then the pelvis, hip and knee cycle curves against the GPS's normative
-curves; and the ``spatiotemporal.csv`` table. Drawn only when ``results["gait"]`` holds a gait
+curves; and the ``spatiotemporal.csv`` table. Drawn only when ``results.gait`` holds a gait
 analysis (:mod:`motionlab.kinematics.gait`)."""
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from motionlab.kinematics.gps import NORMATIVE_SOURCES, VARIABLES, normative
 from motionlab.kinematics.spatiotemporal import STRIDE_COLUMNS, summary_rows
 from motionlab.report.model import SessionView
 from motionlab.report.pdf import BAND_COLOUR, MUTED, SIDE_COLOUR, SIZE, Document
+from motionlab.results import Gait
 
 _LABELS = {
     "cadence_steps_per_min": "cadence (steps/min)",
@@ -37,10 +38,10 @@ def _bands() -> dict[str, Any]:
         return yaml.safe_load(f)
 
 
-def gait_result(view: SessionView) -> dict[str, Any] | None:
+def gait_result(view: SessionView) -> Gait | None:
     """The session's gait analysis, or None when there is none (or no gait was found)."""
-    g = view.session.results.get("gait")
-    return g if isinstance(g, dict) and g.get("status") == "ok" else None
+    g = view.session.results.gait
+    return g if g is not None and g.ok else None
 
 
 def _fmt(s: dict[str, float], digits: int) -> str:
@@ -58,7 +59,7 @@ def gait_pages(doc: Document, view: SessionView) -> None:
     g = gait_result(view)
     if g is None:
         return
-    summ, bands = g["summary"], _bands()["spatiotemporal"]
+    summ, bands = g.summary, _bands()["spatiotemporal"]
     doc.section(
         "Gait: spatio-temporal parameters and profile",
         "Events from the shank gyroscopes (initial contact: the shank stops swinging forward; "
@@ -88,7 +89,7 @@ def gait_pages(doc: Document, view: SessionView) -> None:
         size=SIZE["small"],
     )
     doc.paragraph("Bands: " + _bands()["spatiotemporal_source"], size=SIZE["small"], colour=MUTED)
-    _map_chart(doc, g["map"])
+    _map_chart(doc, g.map)
 
 
 def _map_chart(doc: Document, mp: dict[str, Any]) -> None:
@@ -123,7 +124,7 @@ def curve_page(doc: Document, view: SessionView) -> None:
     g = gait_result(view)
     if g is None:
         return
-    curves = g["curves"]
+    curves = g.curves
     used = [v for v in VARIABLES if any(v in curves.get(s, {}) for s in "rl")]
     if not used:
         return
@@ -162,9 +163,9 @@ def gait_frames(view: SessionView) -> dict[str, pd.DataFrame]:
     g = gait_result(view)
     if g is None:
         return {}
-    strides = pd.DataFrame({k: np.asarray(v) for k, v in g["strides"].items()})
+    strides = pd.DataFrame({k: np.asarray(v) for k, v in g.strides.items()})
     strides = strides[["side", "start_s", "kept", "reason", *STRIDE_COLUMNS]]
     return {
         "spatiotemporal.csv": strides,
-        "spatiotemporal_summary.csv": summary_rows(g["summary"]),
+        "spatiotemporal_summary.csv": summary_rows(g.summary),
     }

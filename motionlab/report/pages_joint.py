@@ -36,7 +36,7 @@ from motionlab.report.pdf import (
     Document,
     label_spans,
 )
-from motionlab.report.text import STATUS_WORDS, span, task_name
+from motionlab.report.sentences import STATUS_WORDS, span, task_name
 
 TASKS_PER_PAGE = 3
 MIN_SPAN_DEG = 10.0
@@ -169,7 +169,7 @@ def _no_data(ax: Axes, text: str) -> None:
 
 def draw_cycle(ax: Axes, view: SessionView, joint, task: str, angle: str, col: str) -> None:
     """Mean ± SD over the cycles of one angle in one task, over its normative band."""
-    m = view.metrics.get("joints", {}).get(task, {}).get(col)
+    m = view.metrics.joints.get(task, {}).get(col)
     pct = np.arange(101)
     band = band_for(task, joint.type, angle)
     if band is not None:
@@ -286,7 +286,7 @@ def symmetry_page(doc: Document, view: SessionView) -> None:
                 ax = grid[i][j]
                 for side in ("r", "l"):
                     col = angle_columns(sides[side])[i][1]
-                    m = view.metrics["joints"][task].get(col)
+                    m = view.metrics.joints[task].get(col)
                     if m is None or m["repetitions"] == 0:
                         continue
                     mean, sd = np.asarray(m["curve_mean_deg"]), np.asarray(m["curve_sd_deg"])

@@ -10,7 +10,7 @@ from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, angle_n
 from motionlab.report.model import SessionView, in_order, joint_title, joint_type_title
 from motionlab.report.normative import load_accuracy
 from motionlab.report.pdf import MUTED, SIZE, Document
-from motionlab.report.text import accuracy_sentence
+from motionlab.report.sentences import accuracy_sentence
 
 
 def _columns(view: SessionView) -> list[str]:
@@ -98,8 +98,9 @@ def accuracy_page(doc: Document, view: SessionView) -> None:
         )
         if acc.get("caveat"):
             doc.paragraph(str(acc["caveat"]), size=SIZE["small"], colour=MUTED)
-    val = view.session.results.get("validation", {}).get("angles")
-    if isinstance(val, dict):
+    validation = view.session.results.validation
+    val = validation.angles if validation is not None else None
+    if val:
         rows = [
             [col.removesuffix("_deg").replace("_", " "), f"{v['rmse_deg']:.1f}"]
             for col, v in ((c, val[c]) for c in in_order(val, _columns(view)))
@@ -111,15 +112,10 @@ def accuracy_page(doc: Document, view: SessionView) -> None:
 
 
 def _params(view: SessionView) -> list[list[str]]:
-    fusion = view.session.results.get("fusion", {})
     seen: dict[str, list[str]] = {}
-    for label, entry in fusion.items() if isinstance(fusion, dict) else []:
-        if not isinstance(entry, dict) or "name" not in entry:
-            continue
-        name = entry["name"] + ("" if entry.get("magnetometer", True) else " (6-D)")
-        key = json.dumps(
-            {"name": name, "params": entry.get("params", {})}, default=str, sort_keys=True
-        )
+    for label, entry in view.session.results.fusion.items():
+        name = entry.name + ("" if entry.magnetometer else " (6-D)")
+        key = json.dumps({"name": name, "params": entry.params or {}}, default=str, sort_keys=True)
         seen.setdefault(key, []).append(label)
     rows = []
     for key, labels in seen.items():
@@ -160,8 +156,9 @@ def methods_page(doc: Document, view: SessionView) -> None:
         colour=MUTED,
     )
     doc.heading("Sensor-to-segment calibration")
-    cal = view.session.results.get("calibration", {})
-    methods = sorted({r.get("method", "") for r in cal.get("segments", {}).values()})
+    cal = view.session.results.calibration
+    segments = cal.segments if cal is not None else {}
+    methods = sorted({r.get("method", "") for r in segments.values()})
     doc.paragraph(
         f"Protocol '{view.protocol.name}' ({view.protocol.path}); segment frames (ISB: x "
         "anterior, y proximal, z right) fitted from gravity in static poses and from the "

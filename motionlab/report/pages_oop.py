@@ -21,7 +21,7 @@ from motionlab.report.model import (
     worst_grade,
 )
 from motionlab.report.pdf import MUTED, NOT_DETERMINED_COLOUR, SIDE_COLOUR, SIZE, Document
-from motionlab.report.text import MEANING, task_name
+from motionlab.report.sentences import MEANING, task_name
 
 
 def _items(view: SessionView, data: dict) -> list[tuple[str, str, dict]]:
@@ -52,7 +52,7 @@ def _graded(text: str, grade: str) -> str:
 
 
 def _cross_talk(doc: Document, view: SessionView) -> None:
-    data = view.metrics.get("cross_talk") or {}
+    data = view.metrics.cross_talk or {}
     if not data:
         return
     doc.heading("Cross-talk during single-plane movements")
@@ -100,7 +100,7 @@ def _cross_talk(doc: Document, view: SessionView) -> None:
 
 
 def _gait(doc: Document, view: SessionView) -> None:
-    data = view.metrics.get("gait") or {}
+    data = view.metrics.gait or {}
     if not data:
         return
     doc.heading("Knee varus thrust and rotation in stance")
@@ -167,7 +167,7 @@ def _gait(doc: Document, view: SessionView) -> None:
 
 
 def _offset(doc: Document, view: SessionView) -> None:
-    data = view.metrics.get("out_of_plane_offset") or {}
+    data = view.metrics.out_of_plane_offset or {}
     if not data:
         return
     doc.heading("Lumbar out-of-plane offset")
@@ -196,7 +196,7 @@ def _offset(doc: Document, view: SessionView) -> None:
 
 
 def _trunk(doc: Document, view: SessionView) -> None:
-    data = view.metrics.get("trunk_compensation") or {}
+    data = view.metrics.trunk_compensation or {}
     if not data:
         return
     doc.heading("Trunk compensation")
@@ -260,9 +260,7 @@ def _trunk(doc: Document, view: SessionView) -> None:
 def out_of_plane_page(doc: Document, view: SessionView) -> None:
     """One section with every out-of-plane metric the protocol computed (none: skipped)."""
     m = view.metrics
-    if not any(
-        m.get(k) for k in ("cross_talk", "gait", "out_of_plane_offset", "trunk_compensation")
-    ):
+    if not any((m.cross_talk, m.gait, m.out_of_plane_offset, m.trunk_compensation)):
         return
     doc.section(
         "Out-of-plane metrics",

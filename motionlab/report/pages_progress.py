@@ -6,7 +6,7 @@ import numpy as np
 
 from motionlab.report.model import SessionView, joint_title, rom_rows
 from motionlab.report.pdf import BAND_COLOUR, MUTED, SIDE_COLOUR, SIZE, Document
-from motionlab.report.text import span, task_name
+from motionlab.report.sentences import span, task_name
 
 PLOTS_PER_ROW = 2
 

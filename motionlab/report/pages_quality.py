@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from motionlab.clocksync import ClockFit, describe
+from motionlab.clocksync import describe
 from motionlab.report.model import (
     NOT_DETERMINED,
     SessionView,
@@ -18,6 +18,7 @@ from motionlab.report.model import (
     quality_rows,
 )
 from motionlab.report.pdf import MUTED, SIZE, Document, label_spans
+from motionlab.results import SegmentCalibration
 from motionlab.segments.quality import FUNCTIONAL_RHO_MIN, RESIDUAL_MAX_DEG, STATIC_RHO_MIN
 
 METHODS = {
@@ -49,14 +50,15 @@ def _timeline(doc: Document, view: SessionView) -> None:
     sensors = list(view.session.sensors.values())
     height = 1.3 + 0.28 * len(sensors)
     ax = doc.axes_grid(1, 1, height, left=0.9, bottom=0.5, top=0.25)[0][0]
-    fusion = view.session.results.get("fusion", {})
+    fusion = view.session.results.fusion
     for k, s in enumerate(sensors):
         y = len(sensors) - 1 - k
         t = np.asarray(s.time, float)
         ax.broken_barh([(t[0], t[-1] - t[0])], (y - 0.35, 0.7), color="#d9e6f2")
-        fz = fusion.get(s.label, {}) if isinstance(fusion, dict) else {}
+        fz = fusion.get(s.label)
         for key, colour in (("rest", "#9e9e9e"), ("mag_disturbed", "#f4a259")):
-            mask = np.asarray(fz.get(key, np.zeros(0)), bool)
+            value = getattr(fz, key) if fz is not None else None
+            mask = np.asarray(value if value is not None else np.zeros(0), bool)
             if len(mask) == len(t):
                 bars = [(t[a], t[b - 1] - t[a]) for a, b in _runs(mask)]
                 ax.broken_barh(bars, (y - 0.3 + (0.35 if key == "rest" else 0), 0.25), color=colour)
@@ -137,8 +139,8 @@ def data_quality_page(doc: Document, view: SessionView) -> None:
     ]
     doc.heading("Quality checks raised")
     doc.bullets(flags or ["none: every check of every sensor passed"])
-    synced = view.session.results.get("clock_sync", {})
-    if synced:
+    synced = view.session.results.clock_sync
+    if synced is not None and synced.fits:
         doc.heading("Sensor clocks")
         doc.paragraph(
             "Each sensor's clock against its neighbour's, from the acceleration of the joint "
@@ -146,7 +148,7 @@ def data_quality_page(doc: Document, view: SessionView) -> None:
             size=SIZE["small"],
             colour=MUTED,
         )
-        doc.bullets([describe(ClockFit(**fit)) for fit in synced.values()])
+        doc.bullets([describe(fit) for fit in synced.fits.values()])
     _timeline(doc, view)
     doc.heading("Excluded from the analysis, and why")
     doc.bullets(excluded(view) or ["nothing"])
@@ -194,7 +196,8 @@ def _direction(fit: dict) -> str:
 
 def _hinges_table(doc: Document, view: SessionView) -> None:
     """The hinge axes fitted from ordinary movement: verdict, consistency, residual, direction."""
-    hinges = view.session.results.get("calibration", {}).get("hinges") or {}
+    cal = view.session.results.calibration
+    hinges = cal.hinges if cal is not None else {}
     if not hinges:
         return
     rows, flagged = [], []
@@ -237,7 +240,7 @@ def _hinges_table(doc: Document, view: SessionView) -> None:
 
 
 def calibration_page(doc: Document, view: SessionView) -> None:
-    cal = view.session.results.get("calibration", {})
+    cal = view.session.results.calibration or SegmentCalibration("")
     doc.section(
         "Calibration quality",
         "How each sensor's position on its body segment was found: static poses fix the "
@@ -245,7 +248,7 @@ def calibration_page(doc: Document, view: SessionView) -> None:
         "how clean a pose or movement was; the residual is the angle between a measured axis and "
         "the fitted segment frame.",
     )
-    steps = cal.get("steps", {})
+    steps = cal.steps
     kinds = {s.name: s.kind for s in view.protocol.calibration}
     rows = [
         [
@@ -293,10 +296,8 @@ def calibration_page(doc: Document, view: SessionView) -> None:
     )
     _grades_table(doc, view)
     _hinges_table(doc, view)
-    messages = [str(w) for w in cal.get("warnings", [])] + [
-        m
-        for res in cal.get("segments", {}).values()
-        for m in res.get("quality", {}).get("messages", [])
+    messages = [str(w) for w in cal.warnings] + [
+        m for res in cal.segments.values() for m in res.get("quality", {}).get("messages", [])
     ]
     doc.heading("Warnings and what to repeat next time")
     doc.bullets(messages or ["none: every segment was calibrated within the quality limits"])

@@ -7,7 +7,7 @@ import datetime as _dt
 from motionlab import __version__
 from motionlab.report.model import SIDE_NAMES, SessionView, joint_title
 from motionlab.report.pdf import MUTED, SIZE, Document
-from motionlab.report.text import findings, task_name
+from motionlab.report.sentences import findings, task_name
 from motionlab.segments import sensor_for_segment
 
 

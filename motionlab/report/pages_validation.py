@@ -1,4 +1,4 @@
-"""Optical validation pages (when the session holds ``results["validation"]``): the error
+"""Optical validation pages (when the session holds ``results.validation``): the error
 tables, and the overlay, Bland-Altman, sync and alignment figures of
 :mod:`motionlab.validation.figures`, placed on the A4 pages."""
 
@@ -11,6 +11,7 @@ import numpy as np
 from motionlab.kinematics.joint_types import angle_columns
 from motionlab.report.model import NOT_DETERMINED, SessionView, angle_grades, in_order, joint_title
 from motionlab.report.pdf import MUTED, SIZE, Document
+from motionlab.results import Validation
 
 
 def _f(x: Any, spec: str = ".2f") -> str:
@@ -108,8 +109,8 @@ def _orientation_table(doc: Document, view: SessionView, orientation: dict[str, 
         )
 
 
-def _sync_alignment(doc: Document, val: dict[str, Any]) -> None:
-    sync, al = val.get("sync", {}), val.get("alignment", {})
+def _sync_alignment(doc: Document, val: Validation) -> None:
+    sync, al = val.sync, val.alignment
     rows = [
         ["Clock offset", f"{_f(sync.get('time_offset_s'), '.4f')} s"],
         ["Clock drift", f"{_f(sync.get('drift_ppm'), '.1f')} ppm"],
@@ -122,8 +123,8 @@ def _sync_alignment(doc: Document, val: dict[str, Any]) -> None:
             f"{_f(1e3 * sync.get('standard_error_s', float('nan')), '.2f')} ms, "
             f"{sync.get('grade') or '-'}",
         ],
-        ["Reference", str((val.get("reference") or {}).get("kind", "markers"))],
-        ["Spatial alignment mode", str(al.get("mode", val.get("mode", "-")))],
+        ["Reference", str(val.reference.get("kind", "markers"))],
+        ["Spatial alignment mode", str(al.get("mode", val.mode))],
         [
             "Optical lab to earth rotation",
             f"{_f(al.get('lab_to_earth', {}).get('angle_deg'), '.1f')}°",
@@ -135,11 +136,11 @@ def _sync_alignment(doc: Document, val: dict[str, Any]) -> None:
     doc.table(["", ""], rows, [0.55, 0.3], align=["l", "r"])
 
 
-def _figure_pages(doc: Document, view: SessionView, val: dict[str, Any]) -> None:
+def _figure_pages(doc: Document, view: SessionView, val: Validation) -> None:
     """Overlays, Bland-Altman plots (flexion of each joint), sync and alignment figures."""
     from motionlab.validation import figures
 
-    angles = val.get("angles") or {}
+    angles = val.angles or {}
     cols = [col for j in view.joints() for _, col in angle_columns(j) if col in angles]
     if cols:
         doc.section(
@@ -161,7 +162,7 @@ def _figure_pages(doc: Document, view: SessionView, val: dict[str, Any]) -> None
         )
         doc.place_figure(4.2)
         _angle_table(doc, view, {c: angles[c] for _, c in angle_columns(joint) if c in angles})
-    sync = val.get("sync") or {}
+    sync = val.sync
     if len(np.asarray(sync.get("window_time_s", []))):
         doc.section(
             "Validation: time synchronisation",
@@ -171,7 +172,7 @@ def _figure_pages(doc: Document, view: SessionView, val: dict[str, Any]) -> None
         )
         doc.place_figure(3.6)
         _sync_alignment(doc, val)
-    labels = [k for k, v in (val.get("orientation") or {}).items() if isinstance(v, dict)]
+    labels = [k for k, v in val.orientation.items() if isinstance(v, dict)]
     if labels:
         doc.section(
             "Validation: spatial alignment",
@@ -184,18 +185,18 @@ def _figure_pages(doc: Document, view: SessionView, val: dict[str, Any]) -> None
 
 def validation_pages(doc: Document, view: SessionView) -> None:
     """Tables and figures of the optical validation; nothing when there is none."""
-    val = view.session.results.get("validation")
-    if not isinstance(val, dict):
+    val = view.session.results.validation
+    if val is None:
         return
     doc.section(
         "Validation against optical motion capture",
-        f"The same movements measured by the cameras (marker set '{val.get('marker_set', '?')}'), "
+        f"The same movements measured by the cameras (marker set '{val.marker_set or '?'}'), "
         "synchronised and aligned with the sensors, then compared.",
     )
     _sync_alignment(doc, val)
-    _orientation_table(doc, view, val.get("orientation", {}))
-    _angle_table(doc, view, val.get("angles", {}))
-    notes = val.get("notes") or []
+    _orientation_table(doc, view, val.orientation)
+    _angle_table(doc, view, val.angles or {})
+    notes = val.notes
     if notes:
         doc.heading("Notes")
         doc.bullets([str(n) for n in notes], size=SIZE["small"])

@@ -24,6 +24,7 @@ import numpy as np
 from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.protocol import Protocol, axis_vector
+from motionlab.results import HeadingCorrection, SegmentCalibration
 from motionlab.segments import grades, heading, mounting, placement
 from motionlab.segments.steps import find_steps
 from motionlab.session import Session
@@ -43,23 +44,6 @@ def sensor_for_segment(session: Session, segment: str) -> str | None:
         if s.segment == segment or (s.side and f"{s.segment}_{s.side}" == segment):
             return label
     return segment if segment in session.sensors else None
-
-
-def calibrate_segment(
-    segment: str,
-    protocol: Protocol,
-    streams: Streams,
-    steps: dict[str, tuple[float, float] | None],
-) -> dict[str, Any]:
-    """Mounting of one segment from the protocol's steps (time ranges in ``steps``).
-
-    ``streams`` holds ``(time, acc, gyr)`` of this segment and of the segments it forms joints
-    with (for the hinge fit). Returns ``{"mounting": q (4,), "method": ..., "axes": {name:
-    record}, "quality": {...}}``; each axis record holds the sensor-frame axis, the segment axis,
-    ρ and the residual angle (:mod:`~motionlab.segments.mounting`).
-    """
-    records = mounting.measure(protocol, streams, steps)
-    return mounting.fit(segment, protocol, records.get(segment, {}))
 
 
 def streams_of(session: Session, protocol: Protocol) -> Streams:
@@ -109,10 +93,10 @@ def signals_from_orientation(
     return t, acc, gyr
 
 
-def calibrate(
+def calibrate_segments(
     session: Session, protocol: Protocol, warnings: list[str] | None = None
-) -> dict[str, Any]:
-    """Sensor-to-segment calibration of every segment; the tree for ``results["calibration"]``.
+) -> SegmentCalibration:
+    """Sensor-to-segment calibration of every segment (stored in ``results.calibration``).
 
     Lines about the recording that the user should read (a nominal placement the data
     contradicts) are added to ``warnings`` and kept in the result's ``warnings``.
@@ -149,16 +133,16 @@ def calibrate(
                 q["ok"] = False
     if warnings is not None:
         warnings.extend(notes)
-    result = {
-        "protocol": protocol.name,
-        "steps": {k: (list(v) if v else None) for k, v in steps.items()},
-        "segments": segments,
-        "hinges": {k: v.to_tree() for k, v in hinges.items()},
-        "centres": centres,
-        "warnings": notes,
-        "ok": all(s["quality"]["ok"] for s in segments.values()),
-    }
-    result["grades"] = grades.grade_joints(protocol, result)
+    result = SegmentCalibration(
+        protocol.name,
+        steps={k: (list(v) if v else None) for k, v in steps.items()},
+        segments=segments,
+        hinges={k: v.to_tree() for k, v in hinges.items()},
+        centres=centres,
+        warnings=notes,
+        ok=all(s["quality"]["ok"] for s in segments.values()),
+    )
+    result.grades = grades.grade_joints(protocol, result)
     return result
 
 
@@ -233,10 +217,10 @@ def chain_order(protocol: Protocol) -> list:
 
 def segment_orientations(
     protocol: Protocol,
-    calibration: dict[str, Any],
+    calibration: SegmentCalibration | None,
     sensor_quats: dict[str, tuple[np.ndarray, np.ndarray]],
     align_heading: bool = True,
-    corrections: dict[str, dict[str, Any]] | None = None,
+    corrections: dict[str, HeadingCorrection] | None = None,
 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """``{segment: (time, q_segment)}`` from sensor orientations ``{segment: (time, q_sensor)}``.
 
@@ -246,14 +230,15 @@ def segment_orientations(
     (:func:`.heading.hinge_anchors`), or the headings fitted with a two-axis joint's axes or
     from a ball joint's shared centre (added to the track its proximal segment was turned by);
     otherwise the anchors of the protocol's steps and rests (:func:`heading_anchors`). Without a
-    calibration entry for a segment its sensor frame is used as the segment frame.
-    ``corrections``, when given, receives per joint the heading correction applied: ``source``
-    (``hinge``, ``two_axes``, ``centre``, ``steps``), the number of ``anchors``, and the
-    correction's mean, range and drift (degrees, °/min).
+    calibration (``None``) or its entry for a segment the sensor frame is used as the segment
+    frame.
+    ``corrections``, when given, receives per joint the heading correction applied
+    (:class:`~motionlab.results.HeadingCorrection`).
     """
+    calibration = calibration or SegmentCalibration("")
     out = {}
     for seg, (t, q) in sensor_quats.items():
-        cal = calibration.get("segments", {}).get(seg)
+        cal = calibration.segments.get(seg)
         q_mount = np.asarray(cal["mounting"]) if cal else rot.IDENTITY
         out[seg] = (t, rot.make_continuous(rot.mul(q, q_mount)))
     if not align_heading:
@@ -277,18 +262,18 @@ def segment_orientations(
     return out
 
 
-def _joint_ties(protocol: Protocol, calibration: dict[str, Any], joint, tp, qp, td, qd):
+def _joint_ties(protocol: Protocol, calibration: SegmentCalibration, joint, tp, qp, td, qd):
     """``(source, times s, δ rad)`` of one joint's heading anchors (see
     :func:`segment_orientations`): the headings stored with a two-axis fit or a ball joint's
     centre, the hinge over the whole recording, or the steps' anchors."""
-    fit = calibration.get("hinges", {}).get(joint.name)
+    fit = calibration.hinges.get(joint.name)
     if fit is not None and (
         fit.get("used_for", "axes") != "axes" or fit["verdict"] == "not determined"
     ):
         fit = None  # the steps measured the axes, or the movement did not: the steps' anchors
     stored = fit if fit is not None and "heading_times" in fit else None
     if fit is None:
-        stored = calibration.get("centres", {}).get(joint.name)
+        stored = calibration.centres.get(joint.name)
     if stored is not None:
         times = np.asarray(stored["heading_times"], float)
         return ("two_axes" if fit else "centre"), times, np.asarray(stored["heading_deltas"], float)
@@ -296,20 +281,19 @@ def _joint_ties(protocol: Protocol, calibration: dict[str, Any], joint, tp, qp, 
     if fit is not None:
         axis = axis_vector(placement.hinge_spec(joint)[0])
         return ("hinge", *heading.hinge_anchors(tp, qp, qd_on_p, axis, axis))
-    steps = calibration.get("steps", {})
-    return ("steps", *heading_anchors(protocol, joint, steps, tp, qp, qd_on_p))
+    return ("steps", *heading_anchors(protocol, joint, calibration.steps, tp, qp, qd_on_p))
 
 
-def _correction(source: str, times, deltas, t: np.ndarray) -> dict[str, Any]:
+def _correction(source: str, times, deltas, t: np.ndarray) -> HeadingCorrection:
     """What a joint's heading alignment did, in degrees (see :func:`segment_orientations`)."""
     if not len(times):
-        return {"source": source, "anchors": 0}
+        return HeadingCorrection(source, 0)
     track = np.degrees(heading.heading_track(np.array(times), np.array(deltas), t))
     minutes = (t[-1] - t[0]) / 60.0
-    return {
-        "source": source,
-        "anchors": len(times),
-        "mean_deg": float(np.mean(track)),
-        "range_deg": float(np.ptp(track)),
-        "drift_deg_per_min": float((track[-1] - track[0]) / minutes) if minutes > 0 else 0.0,
-    }
+    return HeadingCorrection(
+        source,
+        len(times),
+        mean_deg=float(np.mean(track)),
+        range_deg=float(np.ptp(track)),
+        drift_deg_per_min=float((track[-1] - track[0]) / minutes) if minutes > 0 else 0.0,
+    )

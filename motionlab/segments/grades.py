@@ -18,7 +18,10 @@ an angle that is not determined.
 
 from __future__ import annotations
 
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from motionlab.results import SegmentCalibration
 
 GRADES = ("determined", "weak", "not determined")
 FULL_FRAME = ("procrustes", "primary_secondary")
@@ -42,13 +45,13 @@ def _frame_grade(segment: str, cal: dict[str, Any] | None) -> tuple[str, str]:
     return "determined", ""
 
 
-def _axis_grade(joint, calibration: dict[str, Any]) -> tuple[str, str]:
+def _axis_grade(joint, calibration: SegmentCalibration) -> tuple[str, str]:
     """Grade of the angle about a hinge axis: the axis measured in both segments."""
-    fit = calibration.get("hinges", {}).get(joint.name)
+    fit = calibration.hinges.get(joint.name)
     if fit is not None and fit.get("used_for", "axes") == "axes":
         reasons = "; ".join(fit.get("reasons", []))
         return fit["verdict"], (f"hinge axis from movement: {reasons}" if reasons else "")
-    segs = calibration.get("segments", {})
+    segs = calibration.segments
     grade, reason = "determined", ""
     for seg in (joint.proximal, joint.distal):
         cal = segs.get(seg)
@@ -66,19 +69,19 @@ def _axis_grade(joint, calibration: dict[str, Any]) -> tuple[str, str]:
     return grade, reason
 
 
-def grade_joints(protocol, calibration: dict[str, Any]) -> dict[str, dict[str, list[str]]]:
+def grade_joints(protocol, calibration: SegmentCalibration) -> dict[str, dict[str, list[str]]]:
     """``{joint: {"grades": [3 str], "reasons": [3 str]}}`` for every protocol joint; the first
     angle of a hinge-like joint (knee, elbow, hinge: :func:`.placement.hinge_spec`) is graded by
     its axis alone."""
     from motionlab.segments.placement import hinge_spec
 
     out = {}
-    segs = calibration.get("segments", {})
+    segs = calibration.segments
     for name, joint in protocol.joints.items():
         frames = [_frame_grade(s, segs.get(s)) for s in (joint.proximal, joint.distal)]
         g_frame = _worse(frames[0][0], frames[1][0])
         r_frame = "; ".join(r for _, r in frames if r)
-        fit = calibration.get("hinges", {}).get(name)
+        fit = calibration.hinges.get(name)
         if (
             fit is not None
             and fit.get("used_for", "axes") == "axes"

@@ -27,7 +27,7 @@ def assess(
 ) -> dict[str, Any]:
     """Quality record of one segment.
 
-    ``axes`` are the per-axis records made by :func:`motionlab.segments.calibrate_segment`
+    ``axes`` are the per-axis records made by :func:`motionlab.segments.mounting.measure`
     (``step``, ``kind``, ``rho``, ``reference_rho``, ``residual_deg``, ``instructions``).
     Returns ``{"ok": bool, "messages": [...], "min_rho": float, ...}``.
     """

@@ -125,7 +125,7 @@ def run_kind(
     except InputError as exc:
         inner = exc.where not in (None, kind, NEEDS[kind])
         where = f"sensor {s.label} {kind}" + (f" ({exc.where})" if inner else "")
-        raise InputError(exc.message, exc.path, where, exc.remedy) from None
+        raise InputError(exc.message, exc.path, where, exc.remedy, exc.arguments) from None
 
 
 def calibrate_sensor(
@@ -142,11 +142,15 @@ def calibrate_sensor(
     """
     unknown = [k for k in kinds if k not in KINDS]
     if unknown:
-        raise InputError(f"unknown kind {unknown[0]!r}", where="--kind", remedy=", ".join(KINDS))
+        raise InputError(
+            f"unknown kind {unknown[0]!r}", where="argument kinds", remedy=", ".join(KINDS),
+            argument="kinds",
+        )  # fmt: skip
     if "acc" in kinds and "multipos" in kinds:
         raise InputError(
-            "acc and multipos both calibrate the accelerometer", "--kind", remedy="choose one"
-        )
+            "acc and multipos both calibrate the accelerometer", where="argument kinds",
+            remedy="choose one", argument="kinds",
+        )  # fmt: skip
     if kinds:
         return [run_kind(s, k, gravity, field_norm) for k in kinds], {}
     results, skipped = [], {}
@@ -190,7 +194,8 @@ def merge(
             raise InputError(
                 f"already holds a {taken[0]} calibration for {key}",
                 path,
-                remedy="add --force to replace it",
+                remedy="add force=True to replace it",
+                argument="force",
             )
         if r.channel is not None:
             cal.channels[TARGET[r.kind]] = r.channel

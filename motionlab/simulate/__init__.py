@@ -179,8 +179,9 @@ def _gait_options(gait: str | dict | None) -> dict | None:
         return None
     if isinstance(gait, str):
         if gait not in GAIT_VARIANTS:
-            raise InputError(f"unknown gait variant {gait!r}", where="--gait",
-                             remedy=f"use one of {', '.join(GAIT_VARIANTS)}")  # fmt: skip
+            raise InputError(f"unknown gait variant {gait!r}", where="argument gait",
+                             remedy=f"use one of {', '.join(GAIT_VARIANTS)}",
+                             argument="gait")  # fmt: skip
         return dict(GAIT_VARIANTS[gait])
     return {k: float(v) for k, v in gait.items()}
 
@@ -263,17 +264,25 @@ def simulate(
     protocol = protocol if isinstance(protocol, Protocol) else load_protocol(protocol)
     preset = get_preset(preset)
     if mounting not in MOUNTINGS:
-        raise InputError(f"unknown mounting {mounting!r}", where="--mounting",
-                         remedy=f"use one of {', '.join(MOUNTINGS)}")  # fmt: skip
+        raise InputError(f"unknown mounting {mounting!r}", where="argument mounting",
+                         remedy=f"use one of {', '.join(MOUNTINGS)}",
+                         argument="mounting")  # fmt: skip
     soft_tissue = soft_tissue or preset.soft_tissue
     if soft_tissue not in SOFT_TISSUE:
-        raise InputError(f"unknown soft-tissue model {soft_tissue!r}", where="--soft-tissue",
-                         remedy=f"use one of {', '.join(SOFT_TISSUE)}")  # fmt: skip
+        raise InputError(f"unknown soft-tissue model {soft_tissue!r}",
+                         where="argument soft_tissue",
+                         remedy=f"use one of {', '.join(SOFT_TISSUE)}",
+                         argument="soft_tissue")  # fmt: skip
     if not duration > 0 or not rate_hz > 0:
-        raise InputError("duration and rate must be positive", where="--duration/--rate")
+        raise InputError(
+            "duration and rate must be positive",
+            where="argument duration, argument rate_hz",
+            argument=("duration", "rate_hz"),
+        )
     if gyr_sampling not in ("point", "interval"):
-        raise InputError(f"unknown gyroscope sampling {gyr_sampling!r}", where="gyr_sampling",
-                         remedy="use point or interval")  # fmt: skip
+        raise InputError(f"unknown gyroscope sampling {gyr_sampling!r}",
+                         where="argument gyr_sampling", remedy="use point or interval",
+                         argument="gyr_sampling")  # fmt: skip
     for seg in protocol.segments:
         if seg not in SEGMENTS:
             body_segments = ", ".join(SEGMENTS)

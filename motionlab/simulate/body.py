@@ -198,7 +198,8 @@ class Body:
         if not 0.5 <= self.height <= 2.5:
             raise InputError(
                 f"height {self.height} m is outside 0.5–2.5 m",
-                where="--height",
+                where="argument height",
+                argument="height",
                 remedy="give the subject's height in metres, e.g. 1.75",
             )
         h = self.height

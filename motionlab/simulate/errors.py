@@ -147,7 +147,8 @@ def get_preset(preset: str | Preset) -> Preset:
     if preset not in PRESETS:
         raise InputError(
             f"unknown preset {preset!r}",
-            where="--preset",
+            where="argument preset",
+            argument="preset",
             remedy=f"use one of {', '.join(PRESETS)}",
         )
     return PRESETS[preset]

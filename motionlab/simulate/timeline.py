@@ -195,7 +195,8 @@ def plan(
     if left < 3.0 * n_tasks - 1e-9:
         raise InputError(
             f"duration {duration:g} s is too short: calibration and rests take {used:g} s",
-            where="--duration",
+            where="argument duration",
+            argument="duration",
             remedy=f"give at least {used + 3.0 * n_tasks:g} s or skip the calibration steps",
         )
     moves += _task_blocks(body, tasks, left, seed)

@@ -129,14 +129,14 @@ def load_truth(path: str | Path) -> Truth:
         f = h5py.File(path, "r")
     except OSError:
         raise InputError(
-            "not an HDF5 file", path, remedy="give a file from 'simulate --truth'"
+            "not an HDF5 file", path, remedy="give a truth file the simulator wrote"
         ) from None
     with f:
         if f.attrs.get("format") != FORMAT:
             raise InputError(
                 "HDF5 file is not a motionlab truth file",
                 path,
-                remedy="write one with 'motionlab simulate --truth'",
+                remedy="give a truth file the simulator wrote (write_truth)",
             )
         steps = _read(f["steps"])
         n = len(steps.get("name", []))

@@ -1,11 +1,11 @@
-"""Validation against optical motion capture: ``validate(session, reference, ...) -> dict``.
+"""Validation against optical motion capture: ``validate(session, reference, ...) -> Validation``.
 
 Steps (each in its own module):
 
 1. optical segment orientations from the marker map: cluster fits, rigid bodies, anatomical
    frames from landmarks fixed in the cluster frames (:mod:`.markermap`, :mod:`.optical`,
    :mod:`.cast`, :mod:`.anatomy`, :mod:`.reference`);
-2. time synchronisation of the IMU and optical clocks (:mod:`.sync`);
+2. time alignment of the IMU and optical clocks (:mod:`.time_alignment`);
 3. both streams on one clock: the IMU (session) clock, at the samples of the first sensor;
 4. the two constant rotations between the systems (:mod:`.align`);
 5. orientation errors per sensor (:mod:`.orientation_error`: BROAD total/heading/inclination
@@ -14,7 +14,8 @@ Steps (each in its own module):
    (:func:`motionlab.kinematics.joint_angles.joint_angles`) and their agreement per angle and
    per repetition (:mod:`.agreement`).
 
-The result tree is stored in ``session.results["validation"]``; :mod:`.figures` draws it.
+The result (:class:`~motionlab.results.Validation`) is stored in ``session.results.validation``;
+:mod:`.figures` draws it.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from motionlab.errors import InputError
 from motionlab.kinematics.joint_angles import joint_angles
 from motionlab.kinematics.joint_types import angle_columns
 from motionlab.protocol import Protocol
+from motionlab.results import SegmentCalibration, Validation
 from motionlab.session import MarkerSet, Session, estimate_rate
 from motionlab.validation.agreement import agreement, per_repetition, repetitions
 from motionlab.validation.align import Alignment
@@ -36,8 +38,8 @@ from motionlab.validation.markermap import MarkerMap, check_marker_map, default_
 from motionlab.validation.optical import resample_quat
 from motionlab.validation.orientation_error import error_angles, orientation_errors
 from motionlab.validation.reference import OpticalSegment, choose_marker_set, optical_segments
-from motionlab.validation.sync import no_sync, synchronise
-from motionlab.validation.time_alignment import (
+from motionlab.validation.time_alignment import no_sync, synchronise
+from motionlab.validation.time_offset import (
     SYNC_SOURCES,
     gyro_sampling,
     imu_signal,
@@ -125,7 +127,7 @@ def _optical_segment_quats(
     optical: dict[str, OpticalSegment],
     al: Alignment,
     seg_of: dict[str, str],
-    calibration: dict | None,
+    calibration: SegmentCalibration | None,
 ) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], dict[str, str]]:
     """Segment → lab orientation per segment: anatomical (landmarks) or, without landmarks,
     the cluster carried to the IMU segment frame (``B X q_mount``)."""
@@ -137,7 +139,7 @@ def _optical_segment_quats(
             out[seg] = (o.time, q)
             source[seg] = "segment_frame" if o.info.get("segment_frame") else "landmarks"
             continue
-        cal = (calibration or {}).get("segments", {}).get(seg)
+        cal = calibration.segments.get(seg) if calibration is not None else None
         if seg in label_of and cal is not None:
             x = al.sensor_to_cluster[label_of[seg]]
             out[seg] = (o.time, rot.mul(o.quat, rot.mul(x, np.asarray(cal["mounting"]))))
@@ -167,9 +169,11 @@ def _angles(
     from motionlab.kinematics.session_angles import session_angles
 
     notes = []
-    table = session.results.get("angles")
-    if not isinstance(table, dict) or "time_s" not in table:
-        table = session_angles(session, protocol, session.results.get("calibration"))
+    stored = session.results.angles
+    if stored is not None:
+        table = stored.columns()
+    else:
+        table = session_angles(session, protocol, session.results.calibration)
     t = np.asarray(table["time_s"], dtype=float)
     rate = estimate_rate(t)
     mask = None
@@ -242,9 +246,9 @@ def validate(
 
     Returns
     -------
-    dict
-        The tree also stored in ``session.results["validation"]``: ``sync``, ``alignment``,
-        ``optical``, ``orientation`` (per sensor) and ``angles`` (per angle column).
+    Validation
+        Also stored in ``session.results.validation``: ``sync``, ``alignment``, ``optical``,
+        ``orientation`` (per sensor) and ``angles`` (per angle column).
     """
     from motionlab.kinematics.session_angles import sensor_orientation
 
@@ -312,9 +316,7 @@ def validate(
             "they are not on one clock; repair the clocks at ingest"
         )
     if protocol is not None and protocol.joints:
-        seg_quats, source = _optical_segment_quats(
-            optical, al, seg_of, session.results.get("calibration")
-        )
+        seg_quats, source = _optical_segment_quats(optical, al, seg_of, session.results.calibration)
         for seg, src in source.items():
             result["optical"][seg]["frame"] = src
         movement = (t, moving) if moving is not None else None
@@ -323,5 +325,6 @@ def validate(
         )
         notes += angle_notes
     result["notes"] = notes
-    session.results["validation"] = result
-    return result
+    validation = Validation(**result)
+    session.results.validation = validation
+    return validation

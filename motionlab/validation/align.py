@@ -65,7 +65,7 @@ class Alignment:
         return rot.mul(rot.mul(y, q_optical), self.sensor_to_cluster[label])
 
     def as_dict(self) -> dict[str, Any]:
-        """The tree stored in ``results["validation"]["alignment"]``."""
+        """The tree stored in ``results.validation.alignment``."""
 
         def entry(q: np.ndarray) -> dict[str, Any]:
             q = rot.normalize(q) * (1.0 if q[0] >= 0 else -1.0)
@@ -100,7 +100,8 @@ def initial_x(a: np.ndarray, b: np.ndarray, lag: int) -> tuple[np.ndarray, float
         raise InputError(
             "too little rotation to align the IMU with the optical data",
             where="spatial alignment",
-            remedy="record movements about several axes, or use --mode none",
+            remedy="record movements about several axes, or use mode='none'",
+            argument="mode",
         )
     m = wahba(db[ok], da[ok])
     sv = np.linalg.svd(da[ok], compute_uv=False)
@@ -120,7 +121,10 @@ def align(
     """
     if mode not in MODES:
         raise InputError(
-            f"unknown alignment mode {mode!r}", where="--mode", remedy="full, heading or none"
+            f"unknown alignment mode {mode!r}",
+            where="argument mode",
+            remedy="full, heading or none",
+            argument="mode",
         )
     labels = list(pairs)
     if mode == "none":

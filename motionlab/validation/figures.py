@@ -1,16 +1,16 @@
-"""Figures of a validation result (``session.results["validation"]``), for the report.
+"""Figures of a validation result (``session.results.validation``), for the report.
 
-Each function takes the stored result tree and returns a :class:`matplotlib.figure.Figure`
-(no pyplot state; save it with ``fig.savefig``). Angles in degrees, time in s (IMU clock).
+Each function takes the stored :class:`~motionlab.results.Validation` and returns a
+:class:`matplotlib.figure.Figure` (no pyplot state; save it with ``fig.savefig``). Angles in
+degrees, time in s (IMU clock).
 """
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 from matplotlib.figure import Figure
 
+from motionlab.results import Validation
 from motionlab.validation.tables import angle_columns, sensor_labels
 
 IMU_COLOUR = "tab:blue"
@@ -23,20 +23,20 @@ def _figure(rows: int = 1, height: float = 3.0) -> tuple[Figure, list]:
     return fig, list(axes)
 
 
-def _columns(result: dict[str, Any], columns: list[str] | None) -> list[str]:
+def _columns(result: Validation, columns: list[str] | None) -> list[str]:
     cols = angle_columns(result) if columns is None else list(columns)
     if not cols:
         raise ValueError("the result holds no joint angles")
     return cols
 
 
-def angle_overlay(result: dict[str, Any], columns: list[str] | None = None) -> Figure:
+def angle_overlay(result: Validation, columns: list[str] | None = None) -> Figure:
     """IMU and optical angle curves over time, one panel per angle."""
     cols = _columns(result, columns)
-    t = result["angles"]["time_s"]
+    t = result.angles["time_s"]
     fig, axes = _figure(len(cols), 2.2)
     for ax, col in zip(axes, cols, strict=True):
-        e = result["angles"][col]
+        e = result.angles[col]
         ax.plot(t, e["ref_deg"], color=REF_COLOUR, lw=1.0, label="optical")
         ax.plot(t, e["imu_deg"], color=IMU_COLOUR, lw=1.0, label="IMU")
         ax.set_ylabel(f"{col.removesuffix('_deg')} (°)", fontsize=8)
@@ -46,13 +46,13 @@ def angle_overlay(result: dict[str, Any], columns: list[str] | None = None) -> F
     return fig
 
 
-def angle_error(result: dict[str, Any], columns: list[str] | None = None) -> Figure:
+def angle_error(result: Validation, columns: list[str] | None = None) -> Figure:
     """IMU − optical error of each angle over time, with its bias and limits of agreement."""
     cols = _columns(result, columns)
-    t = result["angles"]["time_s"]
+    t = result.angles["time_s"]
     fig, axes = _figure(len(cols), 2.0)
     for ax, col in zip(axes, cols, strict=True):
-        e = result["angles"][col]
+        e = result.angles[col]
         ax.plot(t, np.asarray(e["imu_deg"]) - np.asarray(e["ref_deg"]), color=IMU_COLOUR, lw=0.8)
         ax.axhline(e["bias_deg"], color="tab:red", lw=1.0)
         for limit in e["loa_deg"]:
@@ -62,9 +62,9 @@ def angle_error(result: dict[str, Any], columns: list[str] | None = None) -> Fig
     return fig
 
 
-def bland_altman(result: dict[str, Any], column: str) -> Figure:
+def bland_altman(result: Validation, column: str) -> Figure:
     """Bland–Altman plot of one angle: difference against mean, bias and 95 % limits."""
-    e = result["angles"][column]
+    e = result.angles[column]
     imu, ref = np.asarray(e["imu_deg"]), np.asarray(e["ref_deg"])
     ok = np.isfinite(imu) & np.isfinite(ref)
     fig, (ax,) = _figure(1, 4.0)
@@ -79,9 +79,9 @@ def bland_altman(result: dict[str, Any], column: str) -> Figure:
     return fig
 
 
-def sync_figure(result: dict[str, Any]) -> Figure:
+def sync_figure(result: Validation) -> Figure:
     """Window lags around the fitted clock model, inliers and outliers."""
-    s = result["sync"]
+    s = result.sync
     t = np.asarray(s["window_time_s"])
     fig, (ax,) = _figure(1, 3.5)
     if len(t):
@@ -99,16 +99,16 @@ def sync_figure(result: dict[str, Any]) -> Figure:
     return fig
 
 
-def alignment_figure(result: dict[str, Any]) -> Figure:
+def alignment_figure(result: Validation) -> Figure:
     """Orientation error after alignment over time: total, heading, inclination per sensor."""
     labels = sensor_labels(result)
     if not labels:
         raise ValueError("the result holds no orientation errors")
-    t = result["orientation"]["time_s"]
-    al = result["alignment"]
+    t = result.orientation["time_s"]
+    al = result.alignment
     fig, axes = _figure(len(labels), 2.0)
     for ax, label in zip(axes, labels, strict=True):
-        o = result["orientation"][label]
+        o = result.orientation[label]
         for key, colour in (("total", REF_COLOUR), ("heading", "tab:orange"),
                             ("inclination", IMU_COLOUR)):  # fmt: skip
             ax.plot(t, o[f"{key}_deg"], lw=0.8, color=colour, label=key)

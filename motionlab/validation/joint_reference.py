@@ -23,7 +23,7 @@ import numpy as np
 
 from motionlab.errors import InputError
 from motionlab.io import generic
-from motionlab.io.text import first_content_line, read_lines
+from motionlab.io.delimited import first_content_line, read_lines
 
 _QUAT = re.compile(r"^(.+)_quat_w$")
 

@@ -267,6 +267,7 @@ def default_marker_map(
         raise InputError(
             f"no segment found in marker set '{markers.name}' by name",
             where="marker map",
-            remedy="give --markers map.yaml naming each segment's cluster markers",
+            remedy="give marker_map=map.yaml naming each segment's cluster markers",
+            argument="marker_map",
         )
     return MarkerMap(segments=segments, marker_set=markers.name)

@@ -30,8 +30,9 @@ that compare the two systems' movement. Every result carries this caveat in its 
 
 Time sync: the joint angles are the only signal both sides share, so the clock model is fitted
 on the angular rates of each joint's first (flexion) angle, IMU against reference
-(:func:`motionlab.validation.sync.synchronise` on signed scalar rates; both from orientations,
-so no gyroscope timing is involved), falling back to one global offset when windows fail.
+(:func:`motionlab.validation.time_alignment.synchronise` on signed scalar rates; both from
+orientations, so no gyroscope timing is involved), falling back to one global offset when
+windows fail.
 """
 
 from __future__ import annotations
@@ -46,10 +47,11 @@ import yaml
 from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.protocol import Protocol
+from motionlab.results import Validation
 from motionlab.session import MarkerSet, Session, estimate_rate
 from motionlab.validation.agreement import agreement, per_repetition, repetitions
-from motionlab.validation.sync import no_sync, synchronise
-from motionlab.validation.time_alignment import sync_notes
+from motionlab.validation.time_alignment import no_sync, synchronise
+from motionlab.validation.time_offset import sync_notes
 
 CAVEAT = (
     "the reference angles come from another model whose segment frames differ from the IMU "
@@ -184,27 +186,31 @@ def validate_model_angles(
     sync: bool = True,
     movement_only: bool = False,
     seed: int = 0,
-) -> dict[str, Any]:
+) -> Validation:
     """Compare the session's joint angles with model joint angles of ``reference``.
 
     The IMU angles are the session's ``angles`` results (else computed from the calibration
-    with ``protocol``). Returns the tree stored in ``session.results["validation"]``, shaped as
-    :func:`motionlab.validation.validate`'s (``sync``, ``alignment`` (mode ``none``: no frames
-    to align), ``orientation`` (no sensor: none is compared), ``angles``, ``notes``) plus
-    ``reference``: ``kind`` (``model_angles``), ``file`` and ``mapping`` (column → source).
+    with ``protocol``). Returns the :class:`~motionlab.results.Validation` stored in
+    ``session.results.validation``, shaped as :func:`motionlab.validation.validate`'s
+    (``sync``, ``alignment`` (mode ``none``: no frames to align), ``orientation`` (no sensor:
+    none is compared), ``angles``, ``notes``) with ``reference``: ``kind``
+    (``model_angles``), ``file`` and ``mapping`` (column → source).
     """
     from motionlab.kinematics.session_angles import session_angles
     from motionlab.validation import movement_mask
 
-    table = session.results.get("angles")
-    if not isinstance(table, dict) or "time_s" not in table:
+    stored = session.results.angles
+    if stored is not None:
+        table = stored.columns()
+    else:
         if protocol is None:
             raise InputError(
                 "the session has no joint angles",
                 where="validation",
-                remedy="run 'motionlab angles' first, or give --protocol",
+                remedy="compute the angles stage first, or pass protocol=",
+                argument="protocol",
             )
-        table = session_angles(session, protocol, session.results.get("calibration"))
+        table = session_angles(session, protocol, session.results.calibration)
     t = np.asarray(table["time_s"], dtype=float)
     columns = [k for k, v in table.items() if k.endswith("_deg") and isinstance(v, np.ndarray)]
     mapping = mapping if mapping is not None else default_mapping(reference, protocol)
@@ -216,7 +222,8 @@ def validate_model_angles(
             f"({', '.join(columns[:6])})",
             reference.attrs.get("source_file"),
             "POINT:ANGLES",
-            "give --angle-map map.yaml ('knee_r_flexion_deg: {label: RKneeAngles, component: x}')",
+            "pass angle_map=map.yaml ('knee_r_flexion_deg: {label: RKneeAngles, component: x}')",
+            argument="angle_map",
         )
     t_ref = np.asarray(reference.time, dtype=float)
     primary = _primaries(list(ref), protocol)
@@ -257,13 +264,13 @@ def validate_model_angles(
     sync_tree["signal"] = "joint angle rates" if sync else ""
     sync_tree["sensor_residual_s"] = {}
     notes += sync_notes(sync_tree) if sync else []
-    result: dict[str, Any] = {
-        "mode": "angles",
-        "marker_set": reference.name,
-        "movement_only": movement_only,
-        "pairs": {},
-        "sync": sync_tree,
-        "alignment": {
+    result = Validation(
+        mode="angles",
+        marker_set=reference.name,
+        movement_only=movement_only,
+        pairs={},
+        sync=sync_tree,
+        alignment={
             "mode": "none",
             "lab_to_earth": {"quat": rot.IDENTITY.copy(), "angle_deg": 0.0},
             "sensor_to_cluster": {},
@@ -271,17 +278,17 @@ def validate_model_angles(
             "residual_rms_deg": {},
             "conditioning": {},
         },
-        "optical": {},
-        "orientation": {"time_s": t},
-        "angles": angles,
-        "reference": {
+        optical={},
+        orientation={"time_s": t},
+        angles=angles,
+        reference={
             "kind": "model_angles",
             "file": str(reference.attrs.get("source_file", "")),
             "mapping": {col: mapping[col].describe() for col in ref},
         },
-        "notes": notes,
-    }
-    session.results["validation"] = result
+        notes=notes,
+    )
+    session.results.validation = result
     return result
 
 

@@ -102,7 +102,8 @@ def read_reference(path: str | Path, model_outputs_ok: bool = False) -> list[Mar
                 f"holds model outputs ({', '.join(kinds)}) but no markers or rigid bodies",
                 path,
                 remedy="give the C3D with the marker trajectories, or validate against its "
-                "joint angles with --reference-kind angles",
+                "joint angles with reference_kind=angles",
+                argument="reference_kind",
             )
     return sets
 
@@ -110,7 +111,9 @@ def read_reference(path: str | Path, model_outputs_ok: bool = False) -> list[Mar
 def choose_marker_set(sets: list[MarkerSet], name: str | None, path: str | Path | None = None):
     """The marker set called ``name``, or the only one."""
     if not sets:
-        raise InputError("holds no optical data", path, remedy="give --reference FILE.c3d")
+        raise InputError(
+            "holds no optical data", path, remedy="give reference=FILE.c3d", argument="reference"
+        )
     if name is not None:
         for m in sets:
             if m.name == name:

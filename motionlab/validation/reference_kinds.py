@@ -42,7 +42,8 @@ def load_reference(
         raise InputError(
             "holds no joint angles (POINT:ANGLES)",
             path,
-            remedy="give a C3D with model angles, or --reference-kind markers",
+            remedy="give a C3D with model angles, or pass reference_kind=markers",
+            argument="reference_kind",
         )
     if kind == "markers" and not markers:
         raise InputError(

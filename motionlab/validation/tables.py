@@ -7,6 +7,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from motionlab.results import Validation
+
 ANGLE_STATS = (
     "rmse_deg", "bias_deg", "sd_deg", "max_abs_deg", "rmse_centred_deg", "r", "cmc", "n_samples",
 )  # fmt: skip
@@ -34,23 +36,23 @@ def _plain(value: Any) -> Any:
     return value
 
 
-def angle_columns(result: dict[str, Any]) -> list[str]:
+def angle_columns(result: Validation) -> list[str]:
     """The angle columns of a result (those with statistics)."""
-    angles = result.get("angles", {})
+    angles = result.angles or {}
     return [k for k, v in angles.items() if isinstance(v, dict) and "rmse_deg" in v]
 
 
-def sensor_labels(result: dict[str, Any]) -> list[str]:
+def sensor_labels(result: Validation) -> list[str]:
     """The sensors with orientation errors."""
-    return [k for k, v in result.get("orientation", {}).items() if isinstance(v, dict)]
+    return [k for k, v in result.orientation.items() if isinstance(v, dict)]
 
 
-def summary(result: dict[str, Any]) -> dict[str, Any]:
+def summary(result: Validation) -> dict[str, Any]:
     """JSON-able digest: ``time_offset_s``, ``drift_ppm``, the alignment rotations (quaternion
     and angle), per sensor the orientation errors, per angle ``rmse_deg``, ``bias_deg``,
     ``loa_deg``, ``r``, ``cmc`` and the other statistics."""
-    sync = result["sync"]
-    al = result["alignment"]
+    sync = result.sync
+    al = result.alignment
     out = {
         "time_offset_s": sync["time_offset_s"],
         "drift_ppm": sync["drift_ppm"],
@@ -69,16 +71,16 @@ def summary(result: dict[str, Any]) -> dict[str, Any]:
             "residual_rms_deg": al.get("residual_rms_deg", {}),
         },
         "orientation": {
-            k: {s: result["orientation"][k].get(s) for s in ORIENTATION_STATS}
+            k: {s: result.orientation[k].get(s) for s in ORIENTATION_STATS}
             for k in sensor_labels(result)
         },
         "angles": {},
-        "notes": list(result.get("notes", [])),
+        "notes": list(result.notes),
     }
-    if isinstance(result.get("reference"), dict):
-        out["reference"] = dict(result["reference"])
+    if result.reference:
+        out["reference"] = dict(result.reference)
     for col in angle_columns(result):
-        entry = result["angles"][col]
+        entry = result.angles[col]
         out["angles"][col] = {s: entry[s] for s in ANGLE_STATS} | {"loa_deg": entry["loa_deg"]}
         reps = entry.get("repetitions")
         if isinstance(reps, dict) and reps.get("n"):
@@ -91,12 +93,12 @@ def summary(result: dict[str, Any]) -> dict[str, Any]:
     return _plain(out)
 
 
-def tables(result: dict[str, Any]) -> dict[str, pd.DataFrame]:
+def tables(result: Validation) -> dict[str, pd.DataFrame]:
     """CSV tables by file name: angle curves, angle metrics, orientation metrics, sync windows."""
     out: dict[str, pd.DataFrame] = {}
     cols = angle_columns(result)
     if cols:
-        angles = result["angles"]
+        angles = result.angles
         curves = {"time_s": angles["time_s"]}
         for col in cols:
             stem = col.removesuffix("_deg")
@@ -114,11 +116,11 @@ def tables(result: dict[str, Any]) -> dict[str, pd.DataFrame]:
     if labels:
         out["validation_orientation.csv"] = pd.DataFrame(
             [
-                {"sensor": k} | {s: result["orientation"][k].get(s) for s in ORIENTATION_STATS}
+                {"sensor": k} | {s: result.orientation[k].get(s) for s in ORIENTATION_STATS}
                 for k in labels
             ]  # fmt: skip
         )
-    sync = result["sync"]
+    sync = result.sync
     if len(sync.get("window_time_s", [])):
         out["validation_sync.csv"] = pd.DataFrame(
             {

@@ -1,165 +1,448 @@
-"""Helpers of the IMU-to-reference time sync that make it work on real recordings.
+"""Time alignment of the IMU and optical clocks from angular-speed magnitudes (IMU to optical;
+the IMU-to-IMU clock sync is :mod:`motionlab.clocksync`).
 
-- **Gyroscope timing.** A MEMS gyroscope sample is the mean rate over the interval that ends at
-  its time stamp (the sensor integrates or low-passes between reads), not the rate at the stamp:
-  correlating it at its stamps against an optical angular velocity (which lives at the midpoints
-  of its frames) puts the lag half an IMU sample away from the lag that aligns the orientations.
-  :func:`gyro_times` moves each sample to the centre of its interval unless the stream says it is
-  point-sampled (``attrs["gyr_sampling"] == "point"``, as the simulator's default stream does).
-  The fusion filters integrate sample ``k`` over the interval ending at ``k``
-  (:mod:`motionlab.fusion`), which is exact for interval averages, so the orientation being
-  validated and the interval-centred gyroscope agree in time.
-- **Signals from both sides.** :func:`imu_signal` gives the IMU's angular velocity from its
-  gyroscope (``source="gyroscope"``) or from differences of the orientation being validated
-  (``"orientation"``; the same operator as the optical side, so no sampling model is needed).
-- **One global offset.** When no window can be matched (movement too slow or too short for
-  10 s windows, gaps), :func:`global_offset` correlates the whole recordings at sub-sample lags
-  around the coarse estimate and gives one offset (no drift) with its standard error.
-- **How sure.** :func:`offset_standard_error` (the clock fit's standard error at the centre of
-  the recording) and :func:`grade` (``good``/``fair``/``poor`` against the IMU sample interval).
+The clock model maps the IMU (session) clock to the reference clock::
+
+    t_ref = offset + (1 + drift) · t_imu     (offset in s, drift a fraction; ppm = 1e6 · drift)
+
+Method (Ricci 2015, §4.2 and §5.2): the angular-speed magnitude ``‖ω‖`` of each IMU (gyroscope)
+and of its optical counterpart (angular velocity of the optical orientations,
+:func:`~motionlab.validation.optical.angular_velocity`) is low-passed with the same zero-phase
+Butterworth filter (no group delay) and put on a uniform grid at the IMU rate. A normalised
+cross-correlation of the whole recordings gives a coarse offset; then, window by window, the
+normalised cross-correlation peak is found near the current clock model and refined to a
+sub-sample lag by a parabola through the peak and its neighbours. The window correspondences of
+all sensor pairs are fitted with the linear clock model by RANSAC (Fischler & Bolles 1981,
+Comm ACM 24:381; exhaustive over pairs of windows when there are few), followed by least squares
+on the inliers; the windows are then re-correlated under the new model (removing the smearing of
+drift and the bias of the parabola) and the fit repeated.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from scipy.interpolate import make_interp_spline
+from scipy.signal import butter, correlate, sosfiltfilt
 
+from motionlab.errors import InputError
 from motionlab.validation.optical import angular_velocity
 
-GYRO_SAMPLING = ("interval", "point")
-SYNC_SOURCES = ("gyroscope", "orientation")
-#: standard errors (in IMU sample intervals) up to which a sync is graded good / fair
-GOOD_SAMPLES, FAIR_SAMPLES = 0.1, 0.5
-GLOBAL_STEP_SAMPLES = 0.05
-GLOBAL_SEARCH_SAMPLES = 3.0
+CUTOFF_HZ = 3.0
+WINDOW_S = 10.0
+STEP_S = 5.0
+SEARCH_S = 0.5
+MIN_CORRELATION = 0.6
+MIN_MOTION_RAD_S = 0.1
+REFINEMENTS = 2
+_RANSAC_PAIRS = 2000
 
 
-def gyro_sampling(attrs: dict[str, Any]) -> str:
-    """``attrs["gyr_sampling"]`` (``interval`` or ``point``); without it ``interval`` (real
-    sensors), except for a simulated stream (``attrs["simulated"]``), which predates the
-    option and so was point-sampled."""
-    default = "point" if attrs.get("simulated") else "interval"
-    value = str(attrs.get("gyr_sampling", default))
-    return value if value in GYRO_SAMPLING else default
+@dataclass
+class ClockModel:
+    """``t_ref = offset_s + (1 + drift) · t_imu``."""
+
+    offset_s: float = 0.0
+    drift: float = 0.0
+
+    def to_reference(self, t_imu: np.ndarray) -> np.ndarray:
+        return self.offset_s + (1.0 + self.drift) * np.asarray(t_imu, dtype=float)
+
+    def to_imu(self, t_ref: np.ndarray) -> np.ndarray:
+        return (np.asarray(t_ref, dtype=float) - self.offset_s) / (1.0 + self.drift)
 
 
-def gyro_times(time: np.ndarray, sampling: str = "interval") -> np.ndarray:
-    """Times (s) at which gyroscope samples stamped ``time`` describe the motion: the centres of
-    the intervals ending at the stamps (``interval``; the first sample's interval is the median
-    one) or the stamps themselves (``point``)."""
-    t = np.asarray(time, dtype=float)
-    if sampling == "point" or len(t) < 2:
-        return t
-    dt = np.diff(t)
-    return t - 0.5 * np.concatenate([[np.median(dt)], dt])
+@dataclass
+class TimeAlignment:
+    """Clock model, its support, and the window correspondences behind it.
 
-
-def imu_signal(
-    time: np.ndarray,
-    gyr: np.ndarray | None,
-    quat: np.ndarray | None,
-    source: str = "gyroscope",
-    sampling: str = "interval",
-) -> tuple[np.ndarray, np.ndarray]:
-    """``(time, ω (N, 3) rad/s)`` of one IMU for the sync: its gyroscope at
-    :func:`gyro_times`, or (``source="orientation"``, or without a gyroscope) the angular
-    velocity of ``quat`` at the midpoints of its samples."""
-    if source == "gyroscope" and gyr is not None:
-        return gyro_times(time, sampling), np.asarray(gyr, dtype=float)
-    if quat is None:
-        raise ValueError("no gyroscope and no orientation to synchronise on")
-    return angular_velocity(time, quat)
-
-
-def offset_standard_error(t: np.ndarray, sd: np.ndarray, resid: np.ndarray, centre: float) -> float:
-    """Standard error (s) of ``a + b·centre`` for the weighted line fit of lags on window times
-    (weights ``1/sd²``), scaled up by the reduced χ² of the residuals when it exceeds 1. One
-    window: its own ``sd``."""
-    t, sd, resid = (np.asarray(v, dtype=float) for v in (t, sd, resid))
-    if len(t) == 0:
-        return float("nan")
-    w = 1.0 / np.maximum(sd, 1e-9) ** 2
-    if len(t) < 3 or np.ptp(t) <= 0:
-        return float(np.sqrt(1.0 / w.sum()) * max(1.0, float(np.sqrt(np.mean(resid**2 * w)))))
-    x = np.column_stack([np.ones_like(t), t])
-    cov = np.linalg.inv(x.T @ (w[:, None] * x))
-    chi2 = float(np.sum(w * resid**2) / (len(t) - 2))
-    v = np.array([1.0, centre])
-    return float(np.sqrt(v @ cov @ v * max(chi2, 1.0)))
-
-
-def grade(standard_error_s: float, rate_hz: float) -> str:
-    """``good`` (standard error ≤ 0.1 IMU sample), ``fair`` (≤ 0.5 sample) or ``poor``."""
-    if not np.isfinite(standard_error_s):
-        return "poor"
-    samples = standard_error_s * rate_hz
-    return "good" if samples <= GOOD_SAMPLES else "fair" if samples <= FAIR_SAMPLES else "poor"
-
-
-def global_offset(
-    imu: list[tuple], ref: list[tuple], lag0: float, rate: float, cutoff_hz: float
-) -> tuple[float, float, float]:
-    """One offset ``t_ref − t_imu`` (s) for the whole recordings, near the coarse ``lag0``.
-
-    ``imu``/``ref`` are ``(spline, valid, t0, t1)`` per pair (:func:`.sync.speed_signal`). The
-    pooled Pearson correlation over every pair's overlap (both signals valid) is evaluated at
-    lags ``lag0 ± 3`` IMU samples in steps of 0.05 sample, the peak refined by a parabola.
-    Returns ``(offset_s, standard_error_s, peak correlation)``; the standard error is the
-    Gauss-Newton one of fitting ``y(t + τ) ≈ α x(t) + β`` (as for a window), inflated by
-    ``rate / (2 cutoff)`` for low-passed noise.
+    ``window_time_s`` is the window centre on the IMU clock, ``window_lag_s`` = t_ref − t_imu
+    found there, ``window_corr`` the correlation peak, ``window_pair`` the index of the sensor
+    pair, ``inliers`` the RANSAC inliers.
     """
-    step = GLOBAL_STEP_SAMPLES / rate
-    lags = lag0 + np.arange(-GLOBAL_SEARCH_SAMPLES / rate, GLOBAL_SEARCH_SAMPLES / rate + step / 2,
-                            step)  # fmt: skip
-    grids = [t0 + np.arange(int(np.floor((t1 - t0) * rate)) + 1) / rate for *_, t0, t1 in imu]
-    corr = np.full(len(lags), -np.inf)
-    for i, lag in enumerate(lags):
-        xs, ys = [], []
-        for (fx, vx, *_), (fy, vy, *_), g in zip(imu, ref, grids, strict=True):
-            ok = vx(g) & vy(g + lag)
-            if ok.sum() > 10:
-                xs.append(fx(g[ok]))
-                ys.append(fy(g[ok] + lag))
-        if xs:
-            x, y = np.concatenate(xs), np.concatenate(ys)
-            if x.std() > 0 and y.std() > 0:
-                corr[i] = float(np.corrcoef(x, y)[0, 1])
-    if not np.isfinite(corr).any():
-        return float(lag0), float("nan"), float("nan")
-    k = int(np.argmax(corr))
-    frac = 0.0
-    if 0 < k < len(corr) - 1 and np.isfinite(corr[k - 1 : k + 2]).all():
-        den = corr[k - 1] - 2.0 * corr[k] + corr[k + 1]
-        frac = float(np.clip(0.5 * (corr[k - 1] - corr[k + 1]) / den, -0.5, 0.5)) if den < 0 else 0
-    lag = float(lags[k] + frac * step)
-    # standard error from the residual of the linear fit at the best lag
-    num, den_sum, n = 0.0, 0.0, 0
-    for (fx, vx, *_), (fy, vy, *_), g in zip(imu, ref, grids, strict=True):
-        ok = vx(g) & vy(g + lag)
-        if ok.sum() <= 10:
-            continue
-        x, y = fx(g[ok]), fy(g[ok] + lag)
-        design = np.column_stack([x, np.ones_like(x)])
-        resid = y - design @ np.linalg.lstsq(design, y, rcond=None)[0]
-        num += float(np.sum(resid**2))
-        den_sum += float(np.sum(fy.derivative()(g[ok] + lag) ** 2))
-        n += int(ok.sum())
-    se = float("nan")
-    if n and den_sum > 0:
-        se = float(np.sqrt(num / n / den_sum * max(rate / (2 * cutoff_hz), 1.0)))
-    return lag, se, float(corr[k])
+
+    model: ClockModel
+    inlier_ratio: float
+    residual_rms_s: float
+    coarse_lag_s: float
+    window_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    window_lag_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    window_sd_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    window_corr: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    window_pair: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    inliers: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    method: str = "cross-correlation"
+    standard_error_s: float = float("nan")
+    grade: str = "poor"
+    fallback: str = ""
+    signal: str = ""
+
+    def as_dict(self) -> dict[str, Any]:
+        """The tree stored in ``results.validation.sync``."""
+        return {
+            "method": self.method,
+            "time_offset_s": float(self.model.offset_s),
+            "drift_ppm": float(self.model.drift * 1e6),
+            "inlier_ratio": float(self.inlier_ratio),
+            "residual_rms_s": float(self.residual_rms_s),
+            "coarse_lag_s": float(self.coarse_lag_s),
+            "n_windows": int(len(self.window_time_s)),
+            "window_time_s": np.asarray(self.window_time_s, float),
+            "window_lag_s": np.asarray(self.window_lag_s, float),
+            "window_sd_s": np.asarray(self.window_sd_s, float),
+            "window_corr": np.asarray(self.window_corr, float),
+            "window_pair": np.asarray(self.window_pair, int),
+            "inliers": np.asarray(self.inliers, bool),
+            "pair_residual_s": self.pair_residuals(),
+            "standard_error_s": float(self.standard_error_s),
+            "grade": self.grade,
+            "fallback": self.fallback,
+            "signal": self.signal,
+        }
+
+    def pair_residuals(self) -> np.ndarray:
+        """Median lag residual (s) of each sensor pair's inlier windows (NaN: none): sensors
+        whose own clocks disagree show here."""
+        n = int(self.window_pair.max()) + 1 if len(self.window_pair) else 0
+        resid = self.window_lag_s - self.model.to_reference(self.window_time_s) + self.window_time_s
+        out = np.full(n, np.nan)
+        for p in range(n):
+            sel = (self.window_pair == p) & self.inliers
+            if sel.any():
+                out[p] = np.median(resid[sel])
+        return out
 
 
-def sync_notes(sync: dict[str, Any]) -> list[str]:
-    """Notes on a sync tree (``results["validation"]["sync"]``): its fallback, a poor grade."""
-    out = []
-    if sync.get("fallback"):
-        out.append(f"time sync: {sync['fallback']}")
-    if sync.get("grade") == "poor":
-        se = sync.get("standard_error_s", float("nan")) * 1e3
-        out.append(
-            f"time sync is poor (standard error {se:.1f} ms): the errors may come from the "
-            "clocks, not the sensors; record more movement seen by both systems"
+def no_sync() -> TimeAlignment:
+    """The identity clock model, for streams already on one clock."""
+    return TimeAlignment(ClockModel(), float("nan"), float("nan"), 0.0, method="none", grade="none")
+
+
+# ------------------------------------------------------------------------------ signals
+
+
+def speed_signal(t: np.ndarray, omega: np.ndarray, cutoff_hz: float = CUTOFF_HZ):
+    """Low-passed angular speed ``‖ω‖`` (rad/s) of samples ``omega`` (N, 3) at times ``t``; a
+    1-D ``omega`` (N,) is taken as a signed scalar signal (a joint angle's rate) as it is.
+
+    The components are put on a uniform grid at the median rate (linear interpolation), filtered
+    by a zero-phase 4th-order Butterworth low-pass, and the norm is interpolated by a cubic
+    spline. Returns ``(spline, valid)``: ``spline(t_query)`` and ``valid(t_query)`` (bool:
+    inside ``t``, next to finite samples and not in a gap longer than 5 samples).
+    """
+    t = np.asarray(t, dtype=float)
+    omega = np.asarray(omega, dtype=float)
+    scalar = omega.ndim == 1
+    omega = omega[:, None] if scalar else omega
+    ok = np.isfinite(omega).all(axis=1)
+    if ok.sum() < 10:
+        raise InputError(
+            f"only {int(ok.sum())} valid angular-velocity samples",
+            where="time synchronisation",
+            remedy="check the marker map and the reference file",
         )
-    return out
+    rate = 1.0 / np.median(np.diff(t))
+    grid = t[0] + np.arange(int(np.floor((t[-1] - t[0]) * rate + 1e-9)) + 1) / rate
+    k = np.clip(np.searchsorted(t, grid), 1, len(t) - 1)
+    good = ok[k] & ok[k - 1] & (t[k] - t[k - 1] <= 5.0 / rate)
+    filled = np.column_stack([np.interp(grid, t[ok], omega[ok, i]) for i in range(omega.shape[1])])
+    if len(grid) > 30 and cutoff_hz < 0.45 * rate:
+        filled = sosfiltfilt(butter(4, cutoff_hz, fs=rate, output="sos"), filled, axis=0)
+    values = filled[:, 0] if scalar else np.linalg.norm(filled, axis=1)
+    spline = make_interp_spline(grid, values, k=3)
+
+    def valid(tq: np.ndarray) -> np.ndarray:
+        tq = np.asarray(tq, dtype=float)
+        inside = (tq >= grid[0]) & (tq <= grid[-1])
+        j = np.clip(np.rint((tq - grid[0]) * rate).astype(int), 0, len(grid) - 1)
+        return inside & good[j]
+
+    return spline, valid
+
+
+# ------------------------------------------------------------------------------ correlation
+
+
+def _ncc(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Pearson correlation of ``x`` (W,) with every W-long stretch of ``y`` (W + 2K,)."""
+    w = len(x)
+    xc = x - x.mean()
+    num = correlate(y, xc, mode="valid")
+    c1 = np.concatenate([[0.0], np.cumsum(y)])
+    c2 = np.concatenate([[0.0], np.cumsum(y * y)])
+    s1 = c1[w:] - c1[:-w]
+    s2 = c2[w:] - c2[:-w]
+    var = np.maximum(s2 - s1 * s1 / w, 1e-300)
+    return num / np.sqrt(var * np.sum(xc * xc))
+
+
+def _parabola(c: np.ndarray, k: int) -> float:
+    """Sub-sample offset of the peak at index ``k`` from a parabola through its neighbours."""
+    if k <= 0 or k >= len(c) - 1:
+        return 0.0
+    den = c[k - 1] - 2.0 * c[k] + c[k + 1]
+    return float(np.clip(0.5 * (c[k - 1] - c[k + 1]) / den, -0.5, 0.5)) if den < 0 else 0.0
+
+
+def coarse_lag(
+    imu: list[tuple], ref: list[tuple], rate: float, max_lag_s: float | None = None
+) -> tuple[float, float]:
+    """Lag ``t_ref − t_imu`` (s) maximising the overlap-normalised correlation of all pairs.
+
+    ``imu`` and ``ref`` are lists of ``(spline, valid, t0, t1)``. Returns (lag, peak).
+    """
+    t0 = min(min(a[2], b[2]) for a, b in zip(imu, ref, strict=True))
+    t1 = max(max(a[3], b[3]) for a, b in zip(imu, ref, strict=True))
+    grid = t0 + np.arange(int((t1 - t0) * rate) + 1) / rate
+    n = len(grid)
+    num = np.zeros(2 * n - 1)
+    ex = np.zeros(2 * n - 1)
+    ey = np.zeros(2 * n - 1)
+    overlap = np.zeros(2 * n - 1)
+    for (fx, vx, *_), (fy, vy, *_) in zip(imu, ref, strict=True):
+        mx, my = vx(grid).astype(float), vy(grid).astype(float)
+        x = np.where(mx > 0, fx(grid), 0.0)
+        y = np.where(my > 0, fy(grid), 0.0)
+        x = (x - x[mx > 0].mean()) * mx if mx.any() else x
+        y = (y - y[my > 0].mean()) * my if my.any() else y
+        num += correlate(y, x, method="fft")
+        ex += correlate(my, x * x, method="fft")
+        ey += correlate(y * y, mx, method="fft")
+        overlap += correlate(my, mx, method="fft")
+    lags = np.arange(-(n - 1), n) / rate
+    enough = overlap > 0.3 * min(overlap.max(), n)
+    if max_lag_s is not None:
+        enough &= np.abs(lags) <= max_lag_s
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ncc = np.where(enough, num / np.sqrt(np.maximum(ex * ey, 1e-300)), -np.inf)
+    k = int(np.argmax(ncc))
+    finite = np.where(np.isfinite(ncc), ncc, np.nan)
+    return float(lags[k] + _parabola(finite, k) / rate), float(ncc[k])
+
+
+def window_lags(
+    imu: list[tuple],
+    ref: list[tuple],
+    model: ClockModel,
+    rate: float,
+    window_s: float,
+    step_s: float,
+    search_s: float,
+    cutoff_hz: float,
+) -> dict[str, np.ndarray]:
+    """Lag ``t_ref − t_imu`` at the centre of each window (IMU clock) of each pair.
+
+    Returns arrays ``time``, ``lag``, ``sd`` (standard error of the lag, s), ``corr`` (peak
+    correlation) and ``pair``. The standard error is the Gauss-Newton one of fitting
+    ``y(t + τ) ≈ α x(t) + β``: ``σ_e² / Σ ẏ²``, inflated by ``rate / (2 cutoff)`` for the
+    correlation of low-passed noise. Windows without motion (IMU signal SD below 0.1 rad/s),
+    with gaps, or whose peak correlation is below 0.6 or on the edge of the search are left out.
+    """
+    w = int(round(window_s * rate))
+    k_search = max(int(np.ceil(search_s * rate)), 2)
+    shifts = np.arange(-k_search, w + k_search) / rate
+    rows = []
+    for p, ((fx, vx, a0, a1), (fy, vy, _, _)) in enumerate(zip(imu, ref, strict=True)):
+        starts = a0 + np.arange(0.0, max(a1 - a0 - window_s, 0.0) + 1e-9, step_s)
+        for s in starts:  # one correlation per window, not per sample
+            tx = s + np.arange(w) / rate
+            ty = model.to_reference(s + shifts)
+            if not (vx(tx).all() and vy(ty).all()):
+                continue
+            x = fx(tx)
+            if x.std() < MIN_MOTION_RAD_S:
+                continue
+            c = _ncc(x, fy(ty))
+            k = int(np.argmax(c))
+            if c[k] < MIN_CORRELATION or k == 0 or k == len(c) - 1:
+                continue
+            shift = (k - k_search + _parabola(c, k)) / rate
+            t_best = model.to_reference(tx + shift)
+            y = fy(t_best)
+            design = np.column_stack([x, np.ones(w)])
+            coef = np.linalg.lstsq(design, y, rcond=None)[0]
+            resid = y - design @ coef
+            slope = fy.derivative()(t_best)
+            var = np.mean(resid**2) / max(np.sum(slope**2), 1e-300) * max(rate / (2 * cutoff_hz), 1)
+            centre = s + 0.5 * (w - 1) / rate
+            lag = float(model.to_reference(centre + shift)) - centre
+            rows.append((centre, lag, np.sqrt(var), c[k], p))
+    cols = np.array(rows, dtype=float).reshape(-1, 5)
+    return {
+        "time": cols[:, 0],
+        "lag": cols[:, 1],
+        "sd": cols[:, 2],
+        "corr": cols[:, 3],
+        "pair": cols[:, 4].astype(int),
+    }
+
+
+def ransac_line(
+    t: np.ndarray,
+    y: np.ndarray,
+    threshold: float,
+    sd: np.ndarray | None = None,
+    seed: int = 0,
+) -> tuple[float, float, np.ndarray]:
+    """Robust fit ``y ≈ a + b t``: the two-point model with most inliers (|residual| ≤
+    ``threshold``; ties: smallest inlier residual sum), refitted on its inliers by least
+    squares weighted by ``1 / sd²`` (default: unweighted)."""
+    n = len(t)
+    if n < 2:
+        raise InputError(
+            f"only {n} window(s) could be matched between the IMU and the optical data",
+            where="time synchronisation",
+            remedy="record some movement with both systems, or pass clock=False if they share a "
+            "clock",
+            argument="clock",
+        )
+    if n * (n - 1) // 2 <= _RANSAC_PAIRS:
+        i, j = np.triu_indices(n, 1)
+    else:
+        rng = np.random.default_rng(seed)
+        i = rng.integers(0, n, _RANSAC_PAIRS)
+        j = (i + rng.integers(1, n, _RANSAC_PAIRS)) % n
+    keep = np.abs(t[j] - t[i]) > 1e-9
+    i, j = i[keep], j[keep]
+    if len(i) == 0:  # every window at the same time: an offset only
+        a = float(np.median(y))
+        return a, 0.0, np.abs(y - a) <= threshold
+    b = (y[j] - y[i]) / (t[j] - t[i])
+    a = y[i] - b * t[i]
+    res = np.abs(y[None, :] - a[:, None] - b[:, None] * t[None, :])
+    inl = res <= threshold
+    best = np.lexsort((np.where(inl, res, 0.0).sum(axis=1), -inl.sum(axis=1)))[0]
+    inliers = inl[best]
+    if inliers.sum() < 2 or np.ptp(t[inliers]) <= 0:
+        return float(a[best]), float(b[best]), inliers
+    w = None if sd is None else 1.0 / np.maximum(sd[inliers], 1e-9)
+    b_fit, a_fit = np.polyfit(t[inliers], y[inliers], 1, w=w)
+    return float(a_fit), float(b_fit), inliers
+
+
+def synchronise(
+    imu: list[tuple[np.ndarray, np.ndarray]],
+    ref: list[tuple[np.ndarray, np.ndarray]],
+    *,
+    window_s: float = WINDOW_S,
+    step_s: float = STEP_S,
+    search_s: float = SEARCH_S,
+    cutoff_hz: float = CUTOFF_HZ,
+    max_lag_s: float | None = None,
+    threshold_s: float | None = None,
+    seed: int = 0,
+    ref_is_rate: bool = False,
+) -> TimeAlignment:
+    """Clock model between IMU and reference from pairs of streams on the same rigid body.
+
+    Parameters
+    ----------
+    imu
+        Per pair ``(time (N,), ω (N, 3))``: IMU clock (s), angular velocity (rad/s) at the
+        times it describes (a gyroscope at its interval centres:
+        :func:`~motionlab.validation.time_offset.imu_signal`); or ``(time, x (N,))``, a
+        signed scalar signal (a joint angle's rate).
+    ref
+        Per pair ``(time (M,), quat (M, 4))``: reference clock (s), optical orientations
+        (NaN in gaps); with ``ref_is_rate`` already ``(time, ω or x)`` like ``imu``.
+    window_s, step_s, search_s
+        Window length, window step and the lag search half-range around the coarse estimate (s).
+    cutoff_hz
+        Low-pass cutoff applied to both angular velocities (Hz).
+    max_lag_s
+        Largest coarse offset considered (s; default: any with 30 % overlap).
+    threshold_s
+        RANSAC inlier threshold (s; default: two IMU samples; a wrong match is off by a
+        fraction of a movement period, far more).
+    """
+    if not imu or len(imu) != len(ref):
+        raise InputError("no IMU/optical pair to synchronise", where="time synchronisation")
+    rate = float(np.median([1.0 / np.median(np.diff(t)) for t, _ in imu]))
+    imu_sig, ref_sig = [], []
+    for (t_i, w_i), (t_r, q) in zip(imu, ref, strict=True):
+        t_i = np.asarray(t_i, float)
+        imu_sig.append((*speed_signal(t_i, w_i, cutoff_hz), t_i[0], t_i[-1]))
+        t_mid, omega = (np.asarray(t_r, float), q) if ref_is_rate else angular_velocity(t_r, q)
+        ref_sig.append((*speed_signal(t_mid, omega, cutoff_hz), t_mid[0], t_mid[-1]))
+    return fit_clock(imu_sig, ref_sig, rate, window_s=window_s, step_s=step_s,
+                     search_s=search_s, cutoff_hz=cutoff_hz, max_lag_s=max_lag_s,
+                     threshold_s=threshold_s, seed=seed)  # fmt: skip
+
+
+def fit_clock(
+    imu_sig: list[tuple],
+    ref_sig: list[tuple],
+    rate: float,
+    *,
+    window_s: float = WINDOW_S,
+    step_s: float = STEP_S,
+    search_s: float = SEARCH_S,
+    cutoff_hz: float = CUTOFF_HZ,
+    max_lag_s: float | None = None,
+    threshold_s: float | None = None,
+    seed: int = 0,
+) -> TimeAlignment:
+    """The clock model from signals ``(spline, valid, t0, t1)`` (:func:`speed_signal`): coarse
+    lag, window lags, RANSAC line, refined twice. When fewer than two windows match (or fewer
+    than two agree), one global offset over the whole recordings instead
+    (:func:`~motionlab.validation.time_offset.global_offset`, ``fallback`` says why). Sets
+    ``standard_error_s`` (of the offset at the centre of the recording) and ``grade``."""
+    from motionlab.validation import time_offset as ta
+
+    threshold = 2.0 / rate if threshold_s is None else threshold_s
+    lag0, _ = coarse_lag(imu_sig, ref_sig, rate, max_lag_s)
+    centre = 0.5 * (min(s[2] for s in imu_sig) + max(s[3] for s in imu_sig))
+    model = ClockModel(lag0, 0.0)
+    search = search_s
+    fallback = ""
+    win: dict[str, np.ndarray] = {}
+    for _ in range(1 + REFINEMENTS):
+        win = window_lags(imu_sig, ref_sig, model, rate, window_s, step_s, search, cutoff_hz)
+        if len(win["time"]) < 2:
+            fallback = f"only {len(win['time'])} window(s) matched"
+            break
+        a, b, inliers = ransac_line(win["time"], win["lag"], threshold, win["sd"], seed)
+        if inliers.sum() < 2:
+            fallback = f"only {int(inliers.sum())} window(s) agree"
+            break
+        model = ClockModel(a, b)
+        search = 3.0 / rate
+    if fallback:
+        offset, se, peak = ta.global_offset(imu_sig, ref_sig, model.offset_s, rate, cutoff_hz)
+        if not np.isfinite(peak):
+            raise InputError(
+                "the IMU and optical recordings could not be matched in time (no overlap "
+                "with movement on both sides)",
+                where="time synchronisation",
+                remedy="record some movement with both systems, or pass clock=False if they "
+                "share a clock",
+                argument="clock",
+            )
+        empty = np.zeros(0)
+        return TimeAlignment(
+            model=ClockModel(offset, 0.0), inlier_ratio=float("nan"), residual_rms_s=float("nan"),
+            coarse_lag_s=lag0, method="global cross-correlation", standard_error_s=se,
+            grade=ta.grade(se, rate) if peak >= MIN_CORRELATION else "poor",
+            fallback=f"{fallback}: one offset for the whole recording (peak correlation "
+            f"{peak:.2f})",
+            window_time_s=empty, window_lag_s=empty, window_sd_s=empty, window_corr=empty,
+            window_pair=np.zeros(0, int), inliers=np.zeros(0, bool),
+        )  # fmt: skip
+    resid = win["lag"] - (a + b * win["time"])
+    se = ta.offset_standard_error(win["time"][inliers], win["sd"][inliers], resid[inliers], centre)
+    return TimeAlignment(
+        model=model,
+        inlier_ratio=float(inliers.mean()),
+        residual_rms_s=float(np.sqrt(np.mean(resid[inliers] ** 2))),
+        coarse_lag_s=lag0,
+        window_time_s=win["time"],
+        window_lag_s=win["lag"],
+        window_sd_s=win["sd"],
+        window_corr=win["corr"],
+        window_pair=win["pair"],
+        inliers=inliers,
+        standard_error_s=se,
+        grade=ta.grade(se, rate) if inliers.mean() >= 0.5 else "poor",
+    )

@@ -7,7 +7,7 @@ from scipy.signal import butter, sosfiltfilt
 from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.validation.optical import resample_quat
-from motionlab.validation.sync import ClockModel, _parabola, ransac_line, synchronise
+from motionlab.validation.time_alignment import ClockModel, _parabola, ransac_line, synchronise
 
 OFFSET, DRIFT = 0.137, 100e-6
 
@@ -89,5 +89,5 @@ def test_no_movement_cannot_be_synchronised():
     t = np.arange(0.0, 30.0, 0.01)
     still = (t, np.zeros((len(t), 3)) + 1e-3)
     q = np.tile(rot.IDENTITY, (len(t), 1))
-    with pytest.raises(InputError, match="--no-sync"):
+    with pytest.raises(InputError, match="clock=False"):
         synchronise([still], [(t, q)])

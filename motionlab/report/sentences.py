@@ -134,7 +134,7 @@ def graded(sentence: str, grade: str, reason: str, what: str) -> str:
 def _oop_findings(view: SessionView) -> list[str]:
     out = []
     m = view.metrics
-    for task, joints in (m.get("gait") or {}).items():
+    for task, joints in (m.gait or {}).items():
         for name, g in joints.items():
             joint = view.protocol.joints[name]
             side = SIDE_NAMES.get(joint.side, "").capitalize()
@@ -151,7 +151,7 @@ def _oop_findings(view: SessionView) -> list[str]:
             what = f"{joint_title(joint)} varus thrust"
             out.append(graded(sentence, grade, reason, what))
     trunk_grade, trunk_reason = segment_grade(view, THORAX)
-    for task, t in (m.get("trunk_compensation") or {}).items():
+    for task, t in (m.trunk_compensation or {}).items():
         if trunk_grade == NOT_DETERMINED:
             out.append(not_reported(f"trunk compensation during {task_name(task)}", trunk_reason))
         elif t.get("compensated"):
@@ -165,7 +165,7 @@ def _oop_findings(view: SessionView) -> list[str]:
                 "neutral posture."
             )
             out.append(graded(sentence, trunk_grade, trunk_reason, "trunk compensation"))
-    for task, joints in (m.get("out_of_plane_offset") or {}).items():
+    for task, joints in (m.out_of_plane_offset or {}).items():
         for name, o in joints.items():
             grade, reason = worst_grade(
                 [(r["grade"], r["reason"]) for r in grade_rows(view) if r["joint"] == name]

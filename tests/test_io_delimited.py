@@ -1,11 +1,11 @@
-"""Fast delimited-text parsing (:mod:`motionlab.io.text`): values and file lines against a
+"""Fast delimited-text parsing (:mod:`motionlab.io.delimited`): values and file lines against a
 line-by-line reference, and the exact line named for every kind of damage."""
 
 import numpy as np
 import pytest
 
 from motionlab.errors import InputError
-from motionlab.io.text import TextFile, parse_table, read_lines
+from motionlab.io.delimited import TextFile, parse_table, read_lines
 
 RNG = np.random.default_rng(20)
 

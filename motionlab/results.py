@@ -1,0 +1,464 @@
+"""Typed stage results: what each analysis stage stores in a session, one dataclass per stage.
+
+``session.results`` is a :class:`Results`: one attribute per stage, ``None`` (or an empty
+``fusion``) until the stage has run. Read a stage's result by attribute and store it the same
+way; the session file's ``/results/<stage>/`` group is written by :meth:`Results.to_tree` and
+read by :meth:`Results.from_tree`, and no other code names the tree's keys::
+
+    cal = session.results.calibration           # SegmentCalibration | None
+    q = session.results.fusion["shank_r"].quat   # FusionEntry per sensor label
+    session.results.angles = AngleTable(...)
+
+=================  =============================  ===============================================
+attribute          type                           stage (command)
+=================  =============================  ===============================================
+``clock_sync``     :class:`ClockSync`             IMU-to-IMU clock fits (``motionlab sync``)
+``fusion``         ``{label: FusionEntry}``       orientation per sensor (``motionlab fuse``)
+``calibration``    :class:`SegmentCalibration`    sensor-to-segment calibration (``calibrate``)
+``angles``         :class:`AngleTable`            joint angle table (``motionlab angles``)
+``heading``        ``{joint: HeadingCorrection}`` heading alignment per joint (``angles``)
+``metrics``        :class:`Metrics`               metrics per task and joint (``metrics``)
+``gait``           :class:`Gait`                  gait analysis (``metrics``, gait tasks)
+``validation``     :class:`Validation`            agreement with optical (``motionlab validate``)
+=================  =============================  ===============================================
+
+Each class's ``to_tree()`` gives the tree the session file stores (dicts become HDF5 groups,
+arrays datasets, other values JSON attributes; ``None`` fields are left out) and ``from_tree``
+reads it back; keys a class does not know (written by a newer motionlab) are kept in ``more``
+so that a round trip loses nothing. Units are SI except where a name says otherwise
+(``*_deg``: degrees, ``*_s``: seconds, ``*_ppm``, ``*_pct``).
+
+Nested records whose keys vary with the protocol (one per segment, joint, task or angle
+column) stay dictionaries; their keys are documented at the attribute.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import asdict, dataclass, field
+from typing import Any, ClassVar
+
+import numpy as np
+
+__all__ = [
+    "STAGES",
+    "AngleTable",
+    "SegmentCalibration",
+    "ClockFit",
+    "ClockSync",
+    "FusionEntry",
+    "Gait",
+    "HeadingCorrection",
+    "Metrics",
+    "Results",
+    "Validation",
+    "column_unit",
+]
+
+
+class _Record:
+    """``to_tree`` / ``from_tree`` for a dataclass whose fields are its tree's keys.
+
+    ``None`` fields are not stored; unknown keys of a tree go to ``more`` (when the class has
+    that field) and come back out in ``to_tree``.
+    """
+
+    #: field name → its key in the file, where the two differ (the layout predates the name)
+    _keys: ClassVar[dict[str, str]] = {}
+
+    def to_tree(self) -> dict[str, Any]:
+        """The tree stored under the stage's group in the session file."""
+        tree: dict[str, Any] = {}
+        for f in dataclasses.fields(self):  # type: ignore[arg-type]
+            value = getattr(self, f.name)
+            if f.name == "more":
+                tree.update(value)
+            elif value is not None:
+                tree[self._keys.get(f.name, f.name)] = value
+        return tree
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> Any:
+        """The record of a stored tree (see :meth:`to_tree`)."""
+        fields = dataclasses.fields(cls)  # type: ignore[arg-type]
+        field_of = {cls._keys.get(f.name, f.name): f.name for f in fields}
+        known = {field_of[k]: v for k, v in tree.items() if k in field_of and k != "more"}
+        rest = {k: v for k, v in tree.items() if k not in field_of}
+        if "more" in field_of:
+            known["more"] = rest
+        return cls(**known)
+
+
+# ------------------------------------------------------------------------------ clock sync
+
+
+@dataclass(frozen=True)
+class ClockFit:
+    """Clock of ``sensor`` relative to ``reference``: it reads ``t + offset_s + drift (t −
+    t_mid_s)`` at the reference's time ``t`` (``offset_s`` s, ``drift`` s/s about ``t_mid_s``
+    s); standard errors ``offset_se_s`` (s) and ``drift_se``; ``residual``: RMS residual of
+    the joint-centre acceleration magnitudes (m/s²) over ``moving_s`` seconds of shared
+    movement; ``status``: ``applied``, ``consistent with one clock``, or why not (``not
+    reliable: ...``, ``not enough shared movement``)."""
+
+    reference: str
+    sensor: str
+    offset_s: float
+    drift: float
+    t_mid_s: float
+    offset_se_s: float
+    drift_se: float
+    residual: float
+    moving_s: float
+    status: str  # "applied", "consistent with one clock", "not enough shared movement", ...
+
+    def error_s(self, t: np.ndarray) -> np.ndarray:
+        """c(t) (s) at reference times ``t``."""
+        return self.offset_s + self.drift * (np.asarray(t, float) - self.t_mid_s)
+
+    def corrected_time(self, t: np.ndarray) -> np.ndarray:
+        """The sensor's own stamps ``t`` (s) on the reference clock."""
+        return (np.asarray(t, float) - self.offset_s + self.drift * self.t_mid_s) / (
+            1.0 + self.drift
+        )
+
+    def recorded_time(self, t: np.ndarray) -> np.ndarray:
+        """Inverse of :meth:`corrected_time`: the sensor's own stamps (s)."""
+        drift = self.drift
+        return np.asarray(t, float) * (1.0 + drift) + self.offset_s - drift * self.t_mid_s
+
+    def to_tree(self) -> dict[str, Any]:
+        """The fit's fields (stored as attributes of ``/results/clock_sync/<sensor>``)."""
+        return asdict(self)
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> ClockFit:
+        """The fit of a stored tree."""
+        return cls(**tree)
+
+
+@dataclass
+class ClockSync:
+    """The clock sync stage: ``fits`` ``{sensor label: ClockFit}`` in the order they were
+    made (each against its reference's corrected clock)."""
+
+    fits: dict[str, ClockFit] = field(default_factory=dict)
+
+    def to_tree(self) -> dict[str, Any]:
+        """``{sensor: fit tree}``."""
+        return {k: f.to_tree() for k, f in self.fits.items()}
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> ClockSync:
+        """The fits of a stored tree."""
+        return cls({k: ClockFit.from_tree(v) for k, v in tree.items()})
+
+
+# ---------------------------------------------------------------------------------- fusion
+
+
+@dataclass
+class FusionEntry(_Record):
+    """One sensor's orientation from the fusion stage (or the vendor's own).
+
+    ``name``: estimator (``vendor``: the device's orientation); ``quat`` (N, 4) sensor → ENU
+    earth, scalar first, on the sensor's own time stamps; ``params``: estimator parameters (SI);
+    ``magnetometer``: 9-D (one earth heading shared by the sensors) or 6-D. What the estimator
+    reports besides, when it does: ``gyro_bias`` (N, 3) rad/s, ``rest`` (N,) bool,
+    ``mag_disturbed`` (N,) bool, marker ``scenario``, ``gaps_bridged_s`` (packet-loss gaps it
+    ran across, s). ``sensor_calibration``: the per-serial sensor calibration applied
+    (``motionlab sensorcal``; key ``calibration`` in the file); ``markers``: the marker cluster
+    fused with it (visible fraction, lab-to-earth rotation).
+    """
+
+    _keys: ClassVar[dict[str, str]] = {"sensor_calibration": "calibration"}
+
+    name: str
+    quat: np.ndarray
+    params: dict[str, Any] | None = None
+    magnetometer: bool = True
+    scenario: Any = None
+    gaps_bridged_s: Any = None
+    gyro_bias: np.ndarray | None = None
+    rest: np.ndarray | None = None
+    mag_disturbed: np.ndarray | None = None
+    sensor_calibration: dict[str, Any] | None = None
+    markers: dict[str, Any] | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+# ----------------------------------------------------------------------------- calibration
+
+
+@dataclass
+class SegmentCalibration(_Record):
+    """Sensor-to-segment calibration: how each sensor sits on its segment
+    (:func:`motionlab.segments.calibrate_segments`).
+
+    ``protocol``: its name; ``protocol_path``: the file it was read from. ``steps``
+    ``{step: [start_s, end_s] | None}`` found in the recording. ``segments`` ``{segment:
+    record}``: ``mounting`` (4,) sensor → segment quaternion, ``method``, ``sensor``, ``axes``,
+    ``quality`` (``ok``, ``messages``) and the fit's details. ``hinges`` ``{joint: record}``:
+    axes from ordinary movement (``verdict``, ``used_for``, ``reasons``, headings).
+    ``centres`` ``{joint: record}``: headings from a ball joint's shared centre. ``warnings``:
+    lines the user should read; ``ok``: every segment's quality passed. ``grades`` ``{joint:
+    {"grades": [3], "reasons": [3]}}`` per angle (:func:`motionlab.segments.grades.grade_joints`).
+    """
+
+    protocol: str
+    steps: dict[str, Any] = field(default_factory=dict)
+    segments: dict[str, dict[str, Any]] = field(default_factory=dict)
+    hinges: dict[str, dict[str, Any]] = field(default_factory=dict)
+    centres: dict[str, dict[str, Any]] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+    ok: bool = True
+    grades: dict[str, dict[str, Any]] = field(default_factory=dict)
+    protocol_path: str | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def protocol_source(self) -> str:
+        """What to load the protocol from: its path, else its name."""
+        return self.protocol_path or self.protocol
+
+
+# ---------------------------------------------------------------------------------- angles
+
+
+def column_unit(name: str) -> str:
+    """Unit of an angle-table column from its name's suffix (``_deg`` → ``deg``, ``_s`` → ``s``)."""
+    for suffix, unit in (("_deg", "deg"), ("_s", "s"), ("_pct", "%")):
+        if name.endswith(suffix):
+            return unit
+    return "1"
+
+
+@dataclass
+class AngleTable:
+    """The joint angle table (after kineticstoolkit's ``TimeSeries``): ``time`` (N,) s, one
+    ``data`` column (N,) per angle (``knee_r_flexion_deg``, named by
+    :func:`motionlab.kinematics.joint_types.angle_columns`), each column's unit in ``units``,
+    and ``events`` ``{name: (start_s, end_s)}``: the calibration steps and the task blocks
+    (added by the metrics stage). ``method``: ``imu`` or ``accel-only``.
+    """
+
+    time: np.ndarray
+    data: dict[str, np.ndarray]
+    units: dict[str, str] = field(default_factory=dict)
+    events: dict[str, tuple[float, float]] = field(default_factory=dict)
+    method: str = "imu"
+
+    TIME: ClassVar[str] = "time_s"
+
+    def __post_init__(self) -> None:
+        for name in self.data:
+            self.units.setdefault(name, column_unit(name))
+
+    @classmethod
+    def from_columns(
+        cls,
+        columns: dict[str, Any],
+        method: str = "imu",
+        events: dict[str, tuple[float, float]] | None = None,
+    ) -> AngleTable:
+        """From ``{"time_s": (N,), "<column>": (N,), ...}`` (as the angle functions give)."""
+        data = {k: np.asarray(v) for k, v in columns.items() if k != cls.TIME}
+        return cls(np.asarray(columns[cls.TIME]), data, events=dict(events or {}), method=method)
+
+    def columns(self) -> dict[str, np.ndarray]:
+        """``{"time_s": time, <column>: values, ...}``: one dict of equal-length arrays (a
+        ``pandas.DataFrame`` of it has only numeric columns)."""
+        return {self.TIME: self.time} | dict(self.data)
+
+    def to_tree(self) -> dict[str, Any]:
+        """``time_s`` and the columns as datasets; ``method``, ``units`` and ``events``."""
+        tree: dict[str, Any] = self.columns()
+        tree["method"] = self.method
+        tree["units"] = dict(self.units)
+        tree["events"] = {k: [float(a), float(b)] for k, (a, b) in self.events.items()}
+        return tree
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> AngleTable:
+        """The table of a stored tree (schema 1 had no ``units`` nor ``events``)."""
+        columns = {k: v for k, v in tree.items() if isinstance(v, np.ndarray)}
+        events = {k: (float(v[0]), float(v[1])) for k, v in tree.get("events", {}).items()}
+        table = cls.from_columns(columns, str(tree.get("method", "imu")), events)
+        table.units.update(tree.get("units", {}))
+        return table
+
+
+@dataclass
+class HeadingCorrection(_Record):
+    """What one joint's heading alignment did (:func:`motionlab.segments.segment_orientations`):
+    ``source`` (``hinge``, ``two_axes``, ``centre``, ``steps``), the number of ``anchors``, and
+    the correction's ``mean_deg``, ``range_deg`` and ``drift_deg_per_min`` (none without anchors).
+    """
+
+    source: str
+    anchors: int
+    mean_deg: float | None = None
+    range_deg: float | None = None
+    drift_deg_per_min: float | None = None
+
+
+# --------------------------------------------------------------------------------- metrics
+
+
+@dataclass
+class Metrics(_Record):
+    """Metrics per task block (:func:`motionlab.kinematics.metrics.session_metrics`).
+
+    ``protocol``: its name. ``blocks`` ``{task: {start_s, end_s, source}}`` (``source``:
+    ``detected`` or ``given``). ``joints`` ``{task: {column: metrics}}`` (``rom_deg``,
+    ``min_deg``, ``max_deg``, ``repetitions``, cycle peaks, ``curve_mean_deg`` /
+    ``curve_sd_deg`` over 0–100 %, ``cycle_start_s``). When the protocol asks for them:
+    ``gait`` ``{task: {joint: stance metrics}}``, ``out_of_plane_offset`` ``{task: {joint:
+    ...}}``, ``trunk_compensation`` ``{task: ...}``, ``cross_talk`` ``{block: {joint: ...}}``.
+    """
+
+    protocol: str
+    joints: dict[str, dict[str, Any]] = field(default_factory=dict)
+    blocks: dict[str, dict[str, Any]] = field(default_factory=dict)
+    gait: dict[str, Any] | None = None
+    out_of_plane_offset: dict[str, Any] | None = None
+    trunk_compensation: dict[str, Any] | None = None
+    cross_talk: dict[str, Any] | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+    def spans(self) -> dict[str, tuple[float, float]]:
+        """``{task: (start_s, end_s)}`` of the blocks."""
+        return {k: (float(b["start_s"]), float(b["end_s"])) for k, b in self.blocks.items()}
+
+
+@dataclass
+class Gait(_Record):
+    """The gait analysis (:func:`motionlab.kinematics.gait.analyse_gait`).
+
+    ``status``: ``ok`` or ``no gait: <why>``. With ``ok``: ``tasks`` ``{task: {start_s,
+    end_s}}``, ``events`` ``{side: {ic, ic_confidence, fc, fc_confidence}}`` (s),
+    ``strides`` (one array per stride-table column), ``summary``, ``walking_speed`` (why it is
+    not measured), ``pelvis`` (pelvis angles, deg, with its ``time_s`` and ``method``),
+    ``curves`` ``{side: {variable: (101,) deg}}`` and ``map`` (the movement analysis profile).
+    """
+
+    status: str
+    tasks: dict[str, Any] | None = None
+    events: dict[str, Any] | None = None
+    strides: dict[str, Any] | None = None
+    summary: Any = None
+    walking_speed: str | None = None
+    pelvis: dict[str, Any] | None = None
+    curves: dict[str, Any] | None = None
+    map: Any = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def ok(self) -> bool:
+        """Whether strides were found and analysed."""
+        return self.status == "ok"
+
+
+# ------------------------------------------------------------------------------ validation
+
+
+@dataclass
+class Validation(_Record):
+    """Agreement with an optical reference (:func:`motionlab.validation.validate`).
+
+    ``mode`` (``full`` or ``heading`` alignment), ``marker_set``, ``movement_only``,
+    ``pairs`` ``{sensor: segment}``; ``sync``: the optical-to-IMU time alignment
+    (:meth:`motionlab.validation.time_alignment.TimeAlignment.as_dict`, with
+    ``sensor_residual_s``); ``alignment``: the spatial alignment; ``optical`` ``{segment:
+    {source, landmarks, frame, ...}}``; ``orientation``: ``time_s`` and per sensor the
+    orientation errors; ``angles``: ``time_s`` and per angle column the IMU and optical series
+    and their agreement; ``notes``: lines the user should read; ``reference``: what the
+    reference was when not markers (``kind``: ``segments`` with its ``frames``, or
+    ``model_angles`` with its ``file`` and ``mapping`` column → source).
+    """
+
+    mode: str
+    marker_set: str = ""
+    movement_only: bool = False
+    pairs: dict[str, str] = field(default_factory=dict)
+    sync: dict[str, Any] = field(default_factory=dict)
+    alignment: dict[str, Any] = field(default_factory=dict)
+    optical: dict[str, Any] = field(default_factory=dict)
+    orientation: dict[str, Any] = field(default_factory=dict)
+    angles: dict[str, Any] | None = None
+    notes: list[str] = field(default_factory=list)
+    reference: dict[str, Any] = field(default_factory=dict)
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+# -------------------------------------------------------------------------------- container
+
+#: the stages in the order they run; each is an attribute of :class:`Results`
+STAGES = (
+    "clock_sync",
+    "fusion",
+    "calibration",
+    "angles",
+    "heading",
+    "metrics",
+    "gait",
+    "validation",
+)
+
+
+@dataclass
+class Results:
+    """Every stage's result of a session (see the module docstring's table)."""
+
+    clock_sync: ClockSync | None = None
+    fusion: dict[str, FusionEntry] = field(default_factory=dict)
+    calibration: SegmentCalibration | None = None
+    angles: AngleTable | None = None
+    heading: dict[str, HeadingCorrection] | None = None
+    metrics: Metrics | None = None
+    gait: Gait | None = None
+    validation: Validation | None = None
+    #: stages written by a newer motionlab, kept as trees so that a round trip loses nothing
+    more: dict[str, Any] = field(default_factory=dict)
+
+    def stages(self) -> list[str]:
+        """Names of the stages that hold a result, in :data:`STAGES` order."""
+        done = [s for s in STAGES if getattr(self, s) not in (None, {})]
+        return done + list(self.more)
+
+    def to_tree(self) -> dict[str, Any]:
+        """``{stage: tree}`` of the stages that hold a result (``/results`` of the file)."""
+        tree: dict[str, Any] = {}
+        for stage in self.stages():
+            value = getattr(self, stage) if stage in STAGES else self.more[stage]
+            if stage == "fusion":
+                tree[stage] = {k: e.to_tree() for k, e in value.items()}
+            elif stage == "heading":
+                tree[stage] = {k: c.to_tree() for k, c in value.items()}
+            elif stage in STAGES:
+                tree[stage] = value.to_tree()
+            else:
+                tree[stage] = value
+        return tree
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> Results:
+        """The results of a stored ``/results`` tree (current schema; see
+        :func:`motionlab.session.load_session` for the older ones)."""
+        out = cls()
+        readers = {
+            "clock_sync": ClockSync.from_tree,
+            "fusion": lambda t: {k: FusionEntry.from_tree(e) for k, e in t.items()},
+            "calibration": SegmentCalibration.from_tree,
+            "angles": AngleTable.from_tree,
+            "heading": lambda t: {k: HeadingCorrection.from_tree(c) for k, c in t.items()},
+            "metrics": Metrics.from_tree,
+            "gait": Gait.from_tree,
+            "validation": Validation.from_tree,
+        }
+        for stage, sub in tree.items():
+            if stage in readers:
+                setattr(out, stage, readers[stage](sub))
+            else:
+                out.more[stage] = sub
+        return out

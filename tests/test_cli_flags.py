@@ -1,0 +1,77 @@
+"""Library errors name arguments; the CLI turns them into its flags through one table."""
+
+import ast
+import re
+from pathlib import Path
+
+import pytest
+
+from motionlab.cli.flags import FLAGS, NEGATIVE, cli_error, to_flags
+from motionlab.errors import InputError
+from motionlab.session import Session, save_session
+
+PACKAGE = Path(__file__).resolve().parents[1] / "motionlab"
+FLAG = re.compile(r"(?<![\w-])--?[a-z][a-z-]*")
+
+
+def _library_errors():
+    """``(file:line, call)`` of every ``InputError(...)`` outside ``motionlab/cli``."""
+    for path in sorted(PACKAGE.rglob("*.py")):
+        if "cli" in path.relative_to(PACKAGE).parts:
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Call) and getattr(node.func, "id", "") == "InputError":
+                yield f"{path.relative_to(PACKAGE)}:{node.lineno}", node
+
+
+def _texts(node: ast.AST) -> list[str]:
+    return [
+        n.value for n in ast.walk(node) if isinstance(n, ast.Constant) and isinstance(n.value, str)
+    ]
+
+
+def test_no_library_error_names_a_command_line_flag():
+    found = [
+        (where, text)
+        for where, call in _library_errors()
+        for text in _texts(call)
+        if FLAG.search(text) and not text.startswith("-")  # "-" alone: a negative number
+    ]
+    assert not found, found
+
+
+def test_every_argument_an_error_names_has_a_flag():
+    named = set()
+    for _, call in _library_errors():
+        for kw in call.keywords:
+            if kw.arg == "argument":
+                named.update(_texts(kw.value))
+    assert named, "no library error names an argument"
+    assert sorted(named - set(FLAGS) - set(NEGATIVE)) == []
+
+
+@pytest.mark.parametrize(
+    ("library", "cli"),
+    [
+        ("add force=True to redo it", "add --force to redo it"),
+        ("rate=500 Hz is too high", "--rate 500 Hz is too high"),
+        ("give rate=100 or less", "give --rate 100 or less"),
+        ("calibrate first, or pass calibrated=False", "calibrate first, or pass --no-calibration"),
+        ("use method='imu'", "use --method imu"),
+        ("argument soft_tissue", "--soft-tissue"),
+        ("use estimator=vqf or mekf", "use --filter vqf or mekf"),
+    ],
+)  # fmt: skip
+def test_arguments_become_flags(library, cli):
+    names = ("force", "rate", "calibrated", "method", "soft_tissue", "estimator")
+    assert to_flags(library, names) == cli
+
+
+def test_the_cli_line_of_a_library_error(tmp_path):
+    path = tmp_path / "s.h5"
+    save_session(Session(), path)
+    with pytest.raises(InputError) as err:
+        save_session(Session(), path)
+    assert err.value.arguments == ("force",)
+    assert "force=True" in err.value.line() and "--force" not in err.value.line()
+    assert cli_error(err.value).line() == "s.h5: output exists — use --force to replace it"

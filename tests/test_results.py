@@ -1,0 +1,126 @@
+"""Typed stage results: every attribute documented, the session file's old schema still loads."""
+
+import dataclasses
+import inspect
+import json
+
+import h5py
+import numpy as np
+import pandas as pd
+import pytest
+
+import motionlab.results as results_module
+from motionlab.results import (
+    STAGES,
+    AngleTable,
+    ClockFit,
+    ClockSync,
+    FusionEntry,
+    Gait,
+    HeadingCorrection,
+    Metrics,
+    Results,
+    SegmentCalibration,
+    Validation,
+)
+from motionlab.session import SCHEMA_VERSION, SensorStream, Session, load_session, save_session
+
+RECORDS = (
+    ClockFit, ClockSync, FusionEntry, SegmentCalibration, AngleTable, HeadingCorrection, Metrics,
+    Gait, Validation,
+)  # fmt: skip
+
+
+@pytest.mark.parametrize("cls", RECORDS, ids=lambda c: c.__name__)
+def test_every_attribute_of_a_result_is_documented(cls):
+    """As gaitmap tests its ``results_``: each field is named in its class's docstring."""
+    doc = inspect.getdoc(cls) or ""
+    missing = [
+        f.name for f in dataclasses.fields(cls) if f.name != "more" and f"``{f.name}``" not in doc
+    ]
+    assert not missing, f"{cls.__name__} does not document {missing}"
+
+
+def test_every_stage_is_documented_in_the_module_table():
+    doc = results_module.__doc__
+    fields = [f.name for f in dataclasses.fields(Results) if f.name != "more"]
+    assert fields == list(STAGES)
+    assert all(f"``{name}``" in doc for name in STAGES)
+
+
+def test_the_angle_table_holds_only_numbers_in_its_columns():
+    t = np.arange(5) / 100.0
+    table = AngleTable.from_columns(
+        {"time_s": t, "knee_r_flexion_deg": np.ones(5)}, "accel-only", {"walk": (0.0, 0.04)}
+    )
+    df = pd.DataFrame(table.columns())
+    assert list(df.columns) == ["time_s", "knee_r_flexion_deg"]
+    assert all(k.kind == "f" for k in df.dtypes)
+    assert table.units == {"knee_r_flexion_deg": "deg"} and table.method == "accel-only"
+    back = AngleTable.from_tree(table.to_tree())
+    assert back.events == {"walk": (0.0, 0.04)} and back.method == "accel-only"
+    np.testing.assert_array_equal(back.time, t)
+
+
+def _analysed_session() -> Session:
+    rng = np.random.default_rng(3)
+    t = np.arange(200) / 100.0
+    q = np.tile([1.0, 0.0, 0.0, 0.0], (200, 1))
+    sensor = SensorStream("shank_r", t, acc=rng.normal(size=(200, 3)), gyr=np.zeros((200, 3)))
+    fit = ClockFit("thigh_r", "shank_r", 0.012, 2e-5, 1.0, 4e-4, 1e-6, 0.02, 30.0, "applied")
+    res = Results(
+        clock_sync=ClockSync({"shank_r": fit}),
+        fusion={"shank_r": FusionEntry("default", q, {"gain": 0.5}, magnetometer=False)},
+        calibration=SegmentCalibration(
+            "knee", steps={"stand": [0.1, 0.6], "squat": None}, protocol_path="knee.yaml"
+        ),
+        angles=AngleTable(t, {"knee_r_flexion_deg": rng.normal(size=200)}),
+        heading={"knee_r": HeadingCorrection("hinge", 3, 1.0, 0.5, 0.1)},
+        metrics=Metrics("knee", blocks={"walk": {"start_s": 0.8, "end_s": 1.9}}),
+        gait=Gait("no gait: no shank sensor under a knee joint"),
+    )
+    return Session(sensors={"shank_r": sensor}, results=res)
+
+
+def test_a_schema_1_file_loads(tmp_path):
+    """Schema 1 (before the typed results) had the same layout without the angle table's
+    ``units`` and ``events``: such a file loads, with the units from the column names and the
+    events from the calibration steps and the metric blocks, and is written back as schema 2."""
+    ses = _analysed_session()
+    path = tmp_path / "old.h5"
+    save_session(ses, path)
+    with h5py.File(path, "r+") as f:  # the file as schema 1 wrote it
+        f.attrs["schema_version"] = 1
+        del f["results/angles/units"], f["results/angles/events"]
+        assert json.loads(f["results/angles"].attrs["method"]) == "imu"
+        assert f["results/clock_sync/shank_r"].attrs["status"] == '"applied"'
+    old = load_session(path)
+    assert old.schema_version == 1
+    res = old.results
+    assert res.stages() == ["clock_sync", "fusion", "calibration", "angles", "heading",
+                            "metrics", "gait"]  # fmt: skip
+    assert res.clock_sync.fits["shank_r"] == ses.results.clock_sync.fits["shank_r"]
+    assert res.fusion["shank_r"].magnetometer is False
+    np.testing.assert_array_equal(res.fusion["shank_r"].quat, ses.results.fusion["shank_r"].quat)
+    assert res.calibration.protocol_source == "knee.yaml"
+    assert res.angles.units == {"knee_r_flexion_deg": "deg"}
+    assert res.angles.events == {"stand": (0.1, 0.6), "walk": (0.8, 1.9)}
+    np.testing.assert_array_equal(res.angles.data["knee_r_flexion_deg"],
+                                  ses.results.angles.data["knee_r_flexion_deg"])  # fmt: skip
+    assert res.heading["knee_r"] == ses.results.heading["knee_r"]
+    assert res.metrics.spans() == {"walk": (0.8, 1.9)}
+    assert not res.gait.ok
+    save_session(old, tmp_path / "new.h5")
+    with h5py.File(tmp_path / "new.h5") as f:
+        assert int(f.attrs["schema_version"]) == SCHEMA_VERSION == 2
+        assert "events" in f["results/angles"]
+
+
+def test_results_round_trip_through_the_file(tmp_path):
+    ses = _analysed_session()
+    save_session(ses, tmp_path / "s.h5")
+    back = load_session(tmp_path / "s.h5").results
+    assert back.angles.events == {}
+    assert back.heading == ses.results.heading
+    assert back.clock_sync == ses.results.clock_sync
+    assert back.gait == ses.results.gait
