@@ -328,7 +328,7 @@ def analyse(session: Session, options: PipelineOptions, stages: _Stages | None =
         )
     with stages("calibrate"):
         cal = stages_lib.calibrate(session, protocol, force=True)
-        for line in cal["warnings"] if stages.progress else []:
+        for line in cal.warnings if stages.progress else []:
             print(f"warning: {line}", file=sys.stderr, flush=True)
     with stages("angles"):
         stages_lib.angles(session, protocol, force=True)

@@ -76,3 +76,9 @@ def test_a_contradicted_hint_warns_once_per_segment_and_calibrates(tmp_path):
     assert warnings and len(warnings) == len({w.split(":")[1] for w in warnings})
     assert all("points up in the standing pose" in w and "using the data" in w for w in warnings)
     assert "knee_r       angles: determined, determined, determined" in res.output
+    # run shows the same warnings while it reports its progress (the stage path it shares)
+    res = CliRunner().invoke(
+        main, ["run", str(path), "--protocol", "walk", "-o", str(tmp_path / "out")]
+    )
+    assert res.exit_code == 0, res.output
+    assert [x for x in res.output.splitlines() if x.startswith("warning:")] == warnings
