@@ -280,3 +280,40 @@ def test_proximal_equals_distal(tmp_path):
 def test_sided_type_without_side(tmp_path):
     text = ARM.replace("    side: r\n", "")
     assert_error(tmp_path, text, "joints.elbow_r.side", line_of(text, "elbow_r:"), "needs a side")
+
+
+# ------------------------------------------------------------------------------ ankle
+
+
+@pytest.mark.parametrize("side, toes_left", [("r", 1.0), ("l", -1.0)])
+def test_ankle_angles_of_a_hand_built_pose(side, toes_left):
+    """A foot lifted 15° at the toes, its sole turned 8° towards the midline and its toes turned
+    5° towards the midline reads dorsiflexion 15°, inversion 8°, internal rotation 5° on either
+    side (ISB frames: x anterior, y up, z to the subject's right)."""
+    lift = rot.from_axis_angle([0.0, 0.0, 1.0], np.radians(15.0))  # toes up about z
+    # inversion: the foot's top tilts laterally (to the right for the right foot)
+    tilt = rot.from_axis_angle([1.0, 0.0, 0.0], np.radians(8.0) * toes_left)
+    turn = rot.from_axis_angle([0.0, 1.0, 0.0], np.radians(5.0) * toes_left)  # toes medially
+    q_foot = rot.mul(rot.mul(lift, tilt), turn)[None]
+    joint = Joint(f"ankle_{side}", "ankle", f"shank_{side}", f"foot_{side}", side)
+    table = joint_angles(IDENTITY, q_foot, joint)
+    assert list(table) == [f"ankle_{side}_dorsiflexion_deg", f"ankle_{side}_inversion_deg",
+                           f"ankle_{side}_rotation_deg"]  # fmt: skip
+    np.testing.assert_allclose([table[c][0] for c in table], [15.0, 8.0, 5.0], atol=1e-9)
+
+
+def test_ankle_in_a_protocol(tmp_path):
+    path = tmp_path / "ankle.yaml"
+    path.write_text(
+        "name: ankle\nsegments:\n  shank_r: {side: r}\n  foot_r: {side: r}\n"
+        "joints:\n  ankle_r: {type: ankle, proximal: shank_r, distal: foot_r, side: r}\n"
+    )
+    protocol = load_protocol(path)
+    assert [c for _, c in angle_columns(protocol.joints["ankle_r"])] == [
+        "ankle_r_dorsiflexion_deg", "ankle_r_inversion_deg", "ankle_r_rotation_deg"
+    ]  # fmt: skip
+    joint = protocol.joints["ankle_r"]
+    assert [plane(joint, a) for a in ("dorsiflexion", "inversion", "rotation")] == [
+        "sagittal", "frontal", "transverse"
+    ]  # fmt: skip
+    assert plane_index(joint, "inversion") == 1

@@ -167,6 +167,25 @@ JOINT_TYPES: dict[str, JointType] = {
         sequence_rule="fixed",
         display="lumbar spine",
     ),
+    # ISB ankle joint complex (Wu et al. 2002, J Biomech 35:543): foot relative to shank,
+    # dorsiflexion about the tibial z, inversion about the floating axis, internal rotation about
+    # the foot's y. Euler a > 0 lifts the toes; b > 0 tilts the foot's top to the right
+    # (inversion of the right foot); c > 0 turns the toes to the left (internal for the right).
+    "ankle": JointType(
+        name="ankle",
+        angle_names=("dorsiflexion", "inversion", "rotation"),
+        sequence="ZXY",
+        signs={"r": (1.0, 1.0, 1.0), "l": (1.0, -1.0, -1.0)},
+        sided=True,
+        planes=("sagittal", "frontal", "transverse"),
+        positive=("dorsiflexion +", "inversion +", "internal +"),
+        titles=("dorsi-plantarflexion", "inversion-eversion", "internal-external rotation"),
+        hinge=True,
+        flexion_axis="z",
+        clinical=True,
+        sequence_rule="fixed",
+        display="ankle",
+    ),
     "hinge": JointType(
         name="hinge",
         angle_names=("angle", "off_axis_1", "off_axis_2"),
