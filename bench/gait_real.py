@@ -13,6 +13,11 @@ et al. (2008) that the simulator's truth uses (heel farthest in front of / toe `
 behind the mid-PSIS). Plate 2 is struck by the left forefoot (the heel lands before the plate's
 edge), and the right heel lands 2 cm before plate 1: a plate's initial contact counts only when
 the heel marker lies inside the plate's corners at mid-stance (neither does here).
+
+It also prints where each hip's relative rotation (thigh from hip and knee joint centres and
+femoral condyles, pelvis from ASIS and PSIS) has its dominant axis in the pelvis frame: a heading
+tie that assumed that axis to be the pelvis's medio-lateral axis (the hip's JCS flexion axis)
+would be off by that angle on this walker, whose adduction rate follows the flexion rate.
 """
 
 from __future__ import annotations
@@ -55,6 +60,37 @@ def sagittal_rate(cluster: np.ndarray, rate: float, left: np.ndarray) -> np.ndar
             W = (R[k + 1] - R[k - 1]) * rate / 2 @ R[k].T
             w[k] = -np.dot([W[2, 1], W[0, 2], W[1, 0]], left)
     return w
+
+
+def _frame(x: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """(N, 3, 3) frames, columns x, y, z, from a forward-ish ``x`` and a right-ish ``z``."""
+    z = z / np.linalg.norm(z, axis=1, keepdims=True)
+    x = x - np.sum(x * z, axis=1, keepdims=True) * z
+    x = x / np.linalg.norm(x, axis=1, keepdims=True)
+    return np.stack([x, np.cross(z, x), z], axis=2)
+
+
+def hip_axes(marker, rate: float) -> dict[str, tuple[float, float]]:
+    """Per side, the dominant axis of the hip's relative angular velocity in the pelvis frame:
+    its angle from the pelvis z about the vertical (deg) and the second/first singular value
+    (the rates low-passed at 6 Hz like the gait events')."""
+    ra, la, rp, lp = (marker(k) for k in ("RASI", "LASI", "RPSI", "LPSI"))
+    pelvis = _frame((ra + la - rp - lp) / 2, ra - la)
+    out = {}
+    for side, pre in (("r", "R"), ("l", "L")):
+        hjc, kjc, lat, med = (marker(pre + k) for k in ("HJC", "KJC", "LFC", "MFC"))
+        y = hjc - kjc
+        thigh = _frame(np.cross(y, lat - med if pre == "R" else med - lat), lat - med)
+        rel = np.einsum("nji,njk->nik", pelvis, thigh)
+        ok = np.all(np.isfinite(rel), axis=(1, 2))
+        ok[1:-1] &= ok[:-2] & ok[2:]
+        k = np.flatnonzero(ok[1:-1]) + 1
+        W = (rel[k + 1] - rel[k - 1]) * rate / 2 @ np.transpose(rel[k], (0, 2, 1))
+        w = ge.lowpass(np.column_stack([W[:, 2, 1], W[:, 0, 2], W[:, 1, 0]]).T, rate).T
+        _, sv, vt = np.linalg.svd(w, full_matrices=False)
+        a = vt[0] * np.sign(vt[0][2])
+        out[side] = (float(np.degrees(np.arctan2(a[0], a[2]))), float(sv[1] / sv[0]))
+    return out
 
 
 def main() -> None:
@@ -122,6 +158,9 @@ def main() -> None:
     print(f"{'side':<5}{'event':<6}{'reference':<16}{'time s':>8}{'error ms':>10}")
     for side, ev_name, ref, x, d in rows:
         print(f"{side:<5}{ev_name:<6}{ref:<16}{x:8.3f}{d:10.0f}")
+    for side, (angle, ratio) in hip_axes(marker, rate).items():
+        print(f"hip {side}: dominant relative axis {angle:+.1f}° from the pelvis z about the "
+              f"vertical (second/first singular value {ratio:.2f})")  # fmt: skip
     for ev_name in ("IC", "FC"):
         for ref in ("force plate", "Zeni kinematic"):
             d = [r[4] for r in rows if r[1] == ev_name and r[2] == ref]
