@@ -28,6 +28,10 @@ from motionlab.kinematics.gps import movement_analysis_profile  # noqa: E402
 from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors  # noqa: E402
 from motionlab.protocol import load_protocol  # noqa: E402
 from motionlab.simulate import simulate  # noqa: E402
+from motionlab.simulate.errors import get_preset  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from joint_angles import shared_clock  # noqa: E402
 
 TARGETS = {
     "IC med |err| ms": 20.0,
@@ -64,12 +68,13 @@ def _truth_strides(G, walk):
     return sp.stride_table(sides, events)
 
 
-def run_one(seed: int, variant: str) -> dict[str, float]:
+def run_one(seed: int, variant: str, one_clock: bool = False) -> dict[str, float]:
     proto = load_protocol("walk")
-    session, truth = simulate(proto, 60.0, seed, "typical", gait=variant)
+    preset = shared_clock(get_preset("typical")) if one_clock else "typical"
+    session, truth = simulate(proto, 60.0, seed, preset, gait=variant)
     orig = {k: s.time.copy() for k, s in session.sensors.items()}
     prepare_sensors(session)
-    analyse(session, PipelineOptions(proto, progress=False))
+    analyse(session, PipelineOptions(proto, progress=False, clock_sync=not one_clock))
     g = analyse_gait(session, proto)
     G = truth.gait
     row: dict[str, float] = {}
@@ -77,7 +82,7 @@ def run_one(seed: int, variant: str) -> dict[str, float]:
     for s in "rl":
         m = _to_true(session, truth, orig, f"shank_{s}")
         for ev in ("ic", "fc"):
-            det = m(g["events"][s][ev])
+            det = m(g.events[s][ev])
             tr = G[f"{ev}_{s}"][G[f"{ev}_{s}_steady"]]
             d = np.array([det[np.argmin(np.abs(det - x))] - x for x in tr])
             errs[ev] += list(d[np.abs(d) < 0.3])
@@ -90,7 +95,7 @@ def run_one(seed: int, variant: str) -> dict[str, float]:
     walk = {"time": truth.time, "yaw_rate": np.gradient(heading, truth.time),
             "start": step["start_s"], "end": step["end_s"]}  # fmt: skip
     tsum = sp.summary(_truth_strides(G, walk))
-    dsum = g["summary"]
+    dsum = g.summary
     row["cadence err /min"] = abs(dsum["cadence_steps_per_min"] - tsum["cadence_steps_per_min"])
     row["stance err pts"] = max(
         abs(dsum["sides"][s]["stance_pct"]["mean"] - tsum["sides"][s]["stance_pct"]["mean"])
@@ -108,7 +113,7 @@ def run_one(seed: int, variant: str) -> dict[str, float]:
         e = [ang[f"hip_{s}_{cols}_deg"] - np.interp(tt, truth.time,
              truth.joint_angles[f"hip_{s}_{cols}_deg"]) for s in "rl"]  # fmt: skip
         row[name] = max(float(np.sqrt(np.nanmean(x[w] ** 2))) for x in e)
-    P = g["pelvis"]
+    P = g.pelvis
     tp = _to_true(session, truth, orig, "pelvis")(P["time_s"])
     w = (tp > step["start_s"] + 3) & (tp < step["end_s"] - 3)
     for name, col in (("pelvis tilt RMSE", "pelvis_tilt_deg"),
@@ -116,16 +121,16 @@ def run_one(seed: int, variant: str) -> dict[str, float]:
                       ("pelvis rot RMSE", "pelvis_rotation_deg")):  # fmt: skip
         e = P[col] - np.interp(tp, truth.time, G[col])
         row[name] = float(np.sqrt(np.nanmean(e[w] ** 2)))
-    row["strides kept r"] = float(g["strides"]["kept"][g["strides"]["side"] == "r"].sum())
-    row["strides kept l"] = float(g["strides"]["kept"][g["strides"]["side"] == "l"].sum())
-    print(f"seed {seed} {variant}: {g['summary']['strides_rejected']}", file=sys.stderr)
-    row["GPS"] = g["map"]["gps"]["overall"]
-    row["population GPS"] = g["map"]["population_gps_deg"]
+    row["strides kept r"] = float(g.strides["kept"][g.strides["side"] == "r"].sum())
+    row["strides kept l"] = float(g.strides["kept"][g.strides["side"] == "l"].sum())
+    print(f"seed {seed} {variant}: {g.summary['strides_rejected']}", file=sys.stderr)
+    row["GPS"] = g.map["gps"]["overall"]
+    row["population GPS"] = g.map["population_gps_deg"]
     pct = np.linspace(0, 100, 101)
     bump = np.exp(-0.5 * ((pct - 73) / 8) ** 2)  # swing flexion, peak at 73 %
     for deficit in (10, 20):
         means = {s: {k: v for k, v in c.items() if not k.endswith("_sd")}
-                 for s, c in g["curves"].items()}  # fmt: skip
+                 for s, c in g.curves.items()}  # fmt: skip
         for s in means:
             if "knee_flexion" in means[s]:
                 means[s]["knee_flexion"] = means[s]["knee_flexion"] - deficit * bump
@@ -137,11 +142,19 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
     ap.add_argument("--variants", nargs="+", default=["normal", "asymmetric"])
+    ap.add_argument(
+        "--shared-clock",
+        action="store_true",
+        help="the IMUs on one clock (a radio-synchronised system: no clock offsets, "
+        "run --no-clock-sync)",
+    )
     args = ap.parse_args()
-    rows = {v: [run_one(s, v) for s in args.seeds] for v in args.variants}
+    rows = {v: [run_one(s, v, args.shared_clock) for s in args.seeds] for v in args.variants}
     keys = list(next(iter(rows.values()))[0])
-    print(f"walk protocol, 60 s, preset typical, seeds {args.seeds}; per-seed values, then the")
-    print("median; a target in brackets: OK when the worst seed meets it.\n")
+    clocks = "one shared clock" if args.shared_clock else "every IMU on its own clock"
+    print(f"walk protocol, 60 s, preset typical ({clocks}), seeds {args.seeds};")
+    print("per-seed values, then the median; a target in brackets: OK when the worst seed")
+    print("meets it.\n")
     for v, rs in rows.items():
         print(f"## {v}")
         for k in keys:
