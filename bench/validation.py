@@ -201,8 +201,8 @@ def broad_table(data: Path, name: str) -> str:
         diff = max(abs(plain[k] - exp[k]) for k in keys)
         lines.append(
             f"| {tr['name']} | {exp[keys[0]]:.3f} | {exp[keys[1]]:.3f} | {exp[keys[2]]:.3f} | "
-            f"{diff:.1e} | {synced['sync']['time_offset_s'] * 1e3:+.2f} | "
-            f"{synced['sync']['drift_ppm']:+.1f} | {so[keys[0]]:.3f} | {so[keys[1]]:.3f} | "
+            f"{diff:.1e} | {synced.sync['time_offset_s'] * 1e3:+.2f} | "
+            f"{synced.sync['drift_ppm']:+.1f} | {so[keys[0]]:.3f} | {so[keys[1]]:.3f} | "
             f"{so[keys[2]]:.3f} |"
         )
     return "\n".join(lines)
@@ -243,7 +243,7 @@ def ring_table(folder: Path) -> str:
             t = np.arange(len(g)) / 40.0
             ses.sensors[f"seg{n}"] = SensorStream(label=f"seg{n}", time=t, acc=a, gyr=g)
             q = estimate("default", g, a, None, 40.0, time=t).quat
-            ses.results.setdefault("fusion", {})[f"seg{n}"] = {"quat": q}
+            ses.results.fusion[f"seg{n}"] = FusionEntry("default", q, magnetometer=False)
         mmap = segment_map(ref, [], list(ses.sensors), "body")
         mid = 0.5 * len(imu) / 40.0
         runs = (("gyroscope, interval averages", "gyroscope", "interval"),
@@ -315,7 +315,7 @@ def trunk_table(folder: Path) -> str:
                 s.label = s.segment = label
                 ses.sensors[label] = s
                 q = estimate("default", s.gyr, s.acc, None, s.rate_hz, time=s.time).quat
-                ses.results.setdefault("fusion", {})[label] = {"quat": q}
+                ses.results.fusion[label] = FusionEntry("default", q, magnetometer=False)
         with tempfile.TemporaryDirectory() as tmp:
             path = Path(tmp) / "segments.csv"
             _motive_segments(trial / "optitrack.csv", path, {v: k for k, v in pairs.items()})
@@ -330,7 +330,7 @@ def trunk_table(folder: Path) -> str:
                 continue
             sy = res.sync
             how = sy["fallback"] or f"{sy['method']}, {sy['n_windows']} windows"
-            rmse = ", ".join(f"{res['orientation'][k]['total_rmse_deg']:.2f}" for k in pairs)
+            rmse = ", ".join(f"{res.orientation[k]['total_rmse_deg']:.2f}" for k in pairs)
             lines.append(
                 f"| {trial.parent.name}/{trial.name} | {t[-1] - t[0]:.0f} | {source} | "
                 f"{sy['time_offset_s']:+.4f} | {sy['standard_error_s'] * 1e3:.2f}, "
