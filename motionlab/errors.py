@@ -7,6 +7,7 @@ exception is a bug (exit code 1, traceback with ``--debug``).
 from __future__ import annotations
 
 import re
+from collections.abc import Callable
 from pathlib import Path
 
 #: longest part of a message (what, place, remedy, file name) before it is cut with "…"
@@ -59,6 +60,31 @@ class InputError(Exception):
         self.where = where
         self.remedy = remedy
         super().__init__(self.line())
+
+    def respelled(self, spell: Callable[[str, str | None], str | None]) -> InputError:
+        """The error with each of its arguments spelled for another interface: ``name=value``,
+        ``name=True`` and ``argument name`` become ``spell(name, value)`` (``value`` ``None``
+        for ``argument name``); where ``spell`` returns ``None`` the text is kept. The CLI
+        spells flags (``motionlab.cli.flags``), ``batch`` its manifest keys."""
+        if not self.arguments:
+            return self
+
+        def fix(text: str | None) -> str | None:
+            for name in self.arguments if text else ():
+                text = re.sub(
+                    rf"\b{name}=('[^']*'|[^\s,;)]*)",
+                    lambda m, name=name: spell(name, m.group(1)) or m.group(0),
+                    text,
+                )
+                text = re.sub(
+                    rf"\bargument {name}\b",
+                    lambda m, name=name: spell(name, None) or m.group(0),
+                    text,
+                )
+            return text
+
+        return InputError(fix(self.message) or self.message, self.path, fix(self.where),
+                          fix(self.remedy))  # fmt: skip
 
     def line(self) -> str:
         """The one-line message: ``file place: what — remedy``."""

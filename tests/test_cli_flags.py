@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pytest
 
+from motionlab.batch.manifest import manifest_spelling
 from motionlab.cli.flags import FLAGS, NEGATIVE, cli_error, to_flags
 from motionlab.errors import InputError
 from motionlab.session import Session, save_session
@@ -75,3 +76,20 @@ def test_the_cli_line_of_a_library_error(tmp_path):
     assert err.value.arguments == ("force",)
     assert "force=True" in err.value.line() and "--force" not in err.value.line()
     assert cli_error(err.value).line() == "s.h5: output exists — use --force to replace it"
+
+
+def test_batch_names_manifest_keys_not_flags_or_arguments():
+    err = InputError(
+        "sensor 'A1' has no segment",
+        "s.txt",
+        remedy="map each sensor to a segment with a sensor map, map_path=map.yaml",
+        argument=("map_path", "force"),
+    )
+    line = err.respelled(manifest_spelling).line()
+    assert line == ("s.txt: sensor 'A1' has no segment — map each sensor to a segment with a "
+                    "sensor map, 'map: map.yaml'")  # fmt: skip
+    off = InputError("no sync", remedy="pass clock_sync=False", argument="clock_sync")
+    assert off.respelled(manifest_spelling).remedy == "pass 'clock_sync: false'"
+    # an argument with no manifest key keeps the library's spelling
+    kept = InputError("exists", remedy="pass force=True", argument="force")
+    assert kept.respelled(manifest_spelling).remedy == "pass force=True"

@@ -49,6 +49,12 @@ OPTION_KEYS = {
     "seed": "seed",
     "filter": "estimator",
 }
+#: library argument → the manifest key that sets it, for the failure messages
+ARGUMENT_KEYS = {v: k for k, v in OPTION_KEYS.items()} | {
+    "map_path": "map",
+    "protocol": "protocol",
+    "reference": "reference",
+}
 TOP_KEYS = ("protocol", "map", "sessions", *OPTION_KEYS)
 SESSION_KEYS = ("subject", "visit", "files", "reference", "map", *OPTION_KEYS)
 _NAME = re.compile(r"^\w[\w .+-]*$")
@@ -292,3 +298,16 @@ def load_manifest(path: str | Path) -> Manifest:
         map=study_map,
         options=study_options,
     )
+
+
+def manifest_spelling(name: str, value: str | None) -> str | None:
+    """How a batch user sets library argument ``name`` (to ``value``): its manifest key
+    (``map_path=map.yaml`` → ``'map: map.yaml'``); ``None`` for an argument with no key
+    (:meth:`motionlab.errors.InputError.respelled`)."""
+    key = ARGUMENT_KEYS.get(name)
+    if key is None:
+        return None
+    if value in (None, "", "True"):
+        return f"manifest key '{key}'"
+    value = "false" if value == "False" else value.strip("'")
+    return f"'{key}: {value}'"

@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import Any
 
 from motionlab.atomic import atomic_path
-from motionlab.batch.manifest import Manifest
+from motionlab.batch.manifest import Manifest, manifest_spelling
 from motionlab.batch.state import (
     METRICS,
     STAMP,
@@ -165,7 +165,7 @@ def run_session(task: SessionTask, pipeline: Pipeline | None = None) -> Outcome:
         write_stamp(folder, task.key, seconds)
         return Outcome(task.subject, task.visit, "done", seconds=seconds)
     except InputError as exc:
-        error, kind = exc.line(), "input"
+        error, kind = exc.respelled(manifest_spelling).line(), "input"
     except Exception as exc:  # a bug in one session must not stop the study
         error, kind = f"internal error ({type(exc).__name__}: {exc})", "internal"
     finally:

@@ -9,8 +9,6 @@ spellings into the flag of :data:`FLAGS` (``pass --force to replace it``, ``--ra
 
 from __future__ import annotations
 
-import re
-
 from motionlab.errors import InputError
 
 #: library argument: the flag that sets it (``name=True`` becomes the flag alone)
@@ -53,6 +51,7 @@ NEGATIVE = {
 
 
 def _flag(name: str, value: str | None) -> str:
+    """The flag of argument ``name`` given ``value`` (``None``: the argument itself)."""
     if value == "False" and name in NEGATIVE:
         return NEGATIVE[name]
     flag = FLAGS.get(name, NEGATIVE.get(name, f"--{name.replace('_', '-')}"))
@@ -66,23 +65,9 @@ def to_flags(text: str | None, arguments: tuple[str, ...]) -> str | None:
     ``--flag value``, ``name=True`` → ``--flag``, ``argument name`` → ``--flag``."""
     if not text:
         return text
-    for name in arguments:
-        text = re.sub(
-            rf"\b{name}=('[^']*'|[^\s,;)]*)",
-            lambda m, name=name: _flag(name, m.group(1)),
-            text,
-        )
-        text = re.sub(rf"\bargument {name}\b", _flag(name, None), text)
-    return text
+    return InputError(text, argument=arguments).respelled(_flag).message
 
 
 def cli_error(exc: InputError) -> InputError:
     """The error as the CLI shows it: its arguments spelled as flags (:func:`to_flags`)."""
-    if not exc.arguments:
-        return exc
-    return InputError(
-        to_flags(exc.message, exc.arguments) or exc.message,
-        exc.path,
-        to_flags(exc.where, exc.arguments),
-        to_flags(exc.remedy, exc.arguments),
-    )
+    return exc.respelled(_flag)
