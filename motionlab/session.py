@@ -39,6 +39,7 @@ import numpy as np
 from motionlab import __version__
 from motionlab.atomic import atomic_path
 from motionlab.errors import InputError, shorten
+from motionlab.isolated import check_hdf5
 
 SCHEMA_VERSION = 1
 FORMAT_NAME = "motionlab-session"
@@ -407,6 +408,7 @@ def load_session(path: str | Path) -> Session:
     path = Path(path)
     if not path.is_file():
         raise InputError("no such session file", path, remedy="check the path")
+    check_hdf5(path)  # a damaged file can crash libhdf5 itself: probed in a child first
     try:
         f = h5py.File(path, "r")
     except OSError:

@@ -133,11 +133,20 @@ def _dataset(path: Path, f: h5py.File, name: str, width: int | None) -> np.ndarr
     if not ok:
         want = "(N,)" if width is None else f"(N, {width})"
         raise InputError(f"shape {ds.shape}, expected {want}", path, where, "re-download")
-    if ds.dtype.kind not in "biuf":
+    try:
+        kind = ds.dtype.kind
+    except (ValueError, TypeError) as exc:  # h5py: a damaged type description
+        raise InputError(
+            f"its data type cannot be read, the file is damaged ({shorten(exc)})",
+            path,
+            where,
+            "re-download",
+        ) from None
+    if kind not in "biuf":
         raise InputError(f"holds {ds.dtype}, expected numbers", path, where, "re-download")
     try:
         data = ds[()]
-    except OSError as exc:
+    except (OSError, ValueError) as exc:
         detail = shorten(str(exc).splitlines()[0] if str(exc) else "damaged")
         raise InputError(
             f"cannot be read, the data are damaged ({detail})", path, where, "re-download"
