@@ -195,6 +195,11 @@ def fuse(
     store = session.results["fusion"]
     for label, stream in calibrated.items():
         store[label]["calibration"] = stream.attrs["calibration"]
+    for label in done:
+        spans = store[label].get("nan_bridged_s")
+        if spans:
+            held = f"{len(spans)} run(s) of non-finite samples bridged"
+            notes[label] = f"{notes[label]}, {held}" if label in notes else held
     for label in refs:
         record = marker_info["sensors"][label] | {"lab_to_earth": marker_info["lab_to_earth"]}
         store[label]["markers"] = record
