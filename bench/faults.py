@@ -34,7 +34,9 @@ import faults  # noqa: E402
 
 def run_isolated(case: faults.Case, folder: Path, timeout: float = 120.0) -> faults.Verdict:
     """``case`` in a forked child (motionlab already imported): a crash (signal) is the verdict
-    ``crash``; ``peak`` is the child's growth of its peak resident memory during the run."""
+    ``crash``; ``peak`` is the growth of the peak resident memory during the run, of the child
+    or of the readers' own children (ezc3d and the HDF5 probe run in one,
+    :mod:`motionlab.isolated`), whichever is larger."""
     read, write = os.pipe()
     pid = os.fork()
     if pid == 0:  # the child: run, report, and leave without cleanup
@@ -43,7 +45,14 @@ def run_isolated(case: faults.Case, folder: Path, timeout: float = 120.0) -> fau
         try:
             base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
             v = faults.run_case(case, folder, timeout)
-            peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 - base
+            peak = (
+                1024
+                * max(
+                    resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
+                    resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss,
+                )
+                - base
+            )
             os.write(write, json.dumps(v.__dict__ | {"peak": peak}).encode())
             code = 0
         finally:
@@ -84,6 +93,39 @@ def c3d_cases(folder: Path, rng: np.random.Generator, per_file: int) -> list[fau
     return cases
 
 
+def guard_cost(session: Path, c3d_files: list[Path], repeat: int = 10) -> list[str]:
+    """Milliseconds of a normal read with and without the child-process guards: a session
+    (``load_session``, HDF5 probe) and each C3D file (``c3d.read``, ezc3d in a child)."""
+    from motionlab import isolated
+    from motionlab.io import c3d
+    from motionlab.session import load_session
+
+    def ms(fn, path: Path) -> float:
+        best = []
+        for _ in range(repeat):
+            isolated._PROBED.clear()
+            t0 = time.perf_counter()
+            fn(path)
+            best.append(time.perf_counter() - t0)
+        return 1000 * float(np.median(best))
+
+    rows = []
+    for fn, paths in ((load_session, [session]), (c3d.read, c3d_files)):
+        for path in paths:
+            guarded = ms(fn, path)
+            real = isolated.can_isolate
+            isolated.can_isolate = lambda: False
+            try:
+                plain = ms(fn, path)
+            finally:
+                isolated.can_isolate = real
+            rows.append(f"  {fn.__module__.split('.')[-1] + '.' + fn.__name__:<22} "
+                        f"{path.name:<36} {path.stat().st_size / 1e6:7.2f} MB  "
+                        f"{plain:7.1f} ms in-process  {guarded:7.1f} ms guarded  "
+                        f"(+{guarded - plain:.1f} ms)")  # fmt: skip
+    return rows
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=1)
@@ -115,17 +157,29 @@ def main() -> None:
             v = run_isolated(c, tmp / f"m{i}")
             size = sum(len(d) for d in c.files.values())
             memory.append((c.name, size, getattr(v, "peak", 0), 4 * size + 300e6))
+        big = tmp / "big.h5"
+        simulate = ["simulate", "--protocol", "walk", "--duration", "600", "-o", str(big)]
+        faults.run_case(faults.Case("big", {}, simulate, ""), tmp / "big")  # a 10-min session
+        sessions = [tmp / "good" / "s.h5"] + ([big] if big.exists() else [])
+        costs = [r for s in sessions for r in guard_cost(s, [])]
+        costs += guard_cost(sessions[0], sorted(args.c3d.glob("*.c3d")) if args.c3d else [])[1:]
     broken = [v for v in verdicts if v.verdict not in ("ok", "refused")]
     print(f"{len(verdicts)} cases in {time.perf_counter() - t0:.0f} s (seed {args.seed}); "
           f"{100 * (1 - len(broken) / len(verdicts)):.1f} % clean")  # fmt: skip
     print(faults.table(verdicts))
     for v in broken:
         print(f"  {v.verdict:<14} {v.name}: {v.stderr[:160]}")
+    net = [v for v in verdicts if "crashed reading it" in v.stderr]
+    print(f"refused by the child-process safety net (a native crash in a child): {len(net)}")
+    for v in net:
+        print(f"  {v.name}: {v.stderr[:160]}")
     print("peak memory of ingest (growth of the peak RSS in a forked child, over the imports):")
     for name, size, peak, limit in memory:
         state = "ok" if peak <= limit else "OVER"
         print(f"  {name:<44} {size / 1e6:8.2f} MB in  {peak / 1e6:8.0f} MB peak  "
               f"(limit {limit / 1e6:.0f} MB) {state}")  # fmt: skip
+    print("cost of the guards on normal reads (median of 10):")
+    print("\n".join(costs))
     assert good.verdict == "ok"
 
 

@@ -60,7 +60,10 @@ class _ProgressBar:
 
 @click.command("batch")
 @click.argument("manifest", type=INPUT_FILE)
-@click.option("-o", "--output", "outdir", required=True, help="Study output folder.")
+@click.option(
+    "-o", "--output", "outdir", required=True,
+    help="Study output folder (not one that is or holds an input of the study).",
+)  # fmt: skip
 @click.option("--workers", type=int, help="Local worker processes [default: number of cores].")
 @click.option(
     "--scheduler",

@@ -94,7 +94,10 @@ def _describe(r: stage.KindResult) -> list[str]:
     type=click.Choice(stage.KINDS),
     help="What to calibrate (repeat; default: every kind the data support, except allan).",
 )
-@click.option("-o", "--output", "caldir", required=True, help="Calibration folder.")
+@click.option(
+    "-o", "--output", "caldir", required=True,
+    help="Calibration folder (not one that is or holds the recording).",
+)  # fmt: skip
 @click.option("--force", is_flag=True, help="Replace calibrations already in the files.")
 @click.option(
     "--gravity", type=float, default=STANDARD_GRAVITY, show_default=True, help="Local g, m/s²."
