@@ -51,6 +51,10 @@ class InputError(Exception):
         self.remedy = remedy
         super().__init__(self.line())
 
+    def __reduce__(self) -> tuple:
+        """Pickled with its parts (raised in a child process, :mod:`motionlab.isolated`)."""
+        return (type(self), (self.message, self.path, self.where, self.remedy))
+
     def line(self) -> str:
         """The one-line message: ``file place: what — remedy``."""
         name = self.path.name if self.path else None

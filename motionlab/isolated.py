@@ -98,6 +98,26 @@ def _quiet_child() -> None:
     os.close(null)
 
 
+HDF5_SIGNATURE = b"\x89HDF\r\n\x1a\n"
+
+
+def looks_like_hdf5(path: str | Path) -> bool:
+    """Whether ``path`` is a file with the HDF5 signature where the format puts it (byte 0, 512,
+    1024, 2048…), read in Python: ``h5py.is_hdf5`` asks libhdf5, which may open the file."""
+    try:
+        with open(path, "rb") as f:
+            size = os.fstat(f.fileno()).st_size
+            at = 0
+            while at + 8 <= size:
+                f.seek(at)
+                if f.read(8) == HDF5_SIGNATURE:
+                    return True
+                at = 512 if at == 0 else 2 * at
+    except OSError:
+        return False
+    return False
+
+
 def check_hdf5(path: str | Path) -> None:
     """Refuse an HDF5 file that crashes libhdf5 when read (probed in a child, see module doc).
 

@@ -214,8 +214,15 @@ ORIENTATIONS = ("fused", "vendor")
 def _vendor_orientations(
     session: Session, sensors: list[str] | None, force: bool, path: Any
 ) -> list[str]:
-    """Store the vendor's orientation of every sensor that has one as its fusion entry."""
+    """Store the vendor's orientation of every sensor that has one as its fusion entry.
+
+    Non-finite rows are treated as in fusion (:mod:`motionlab.fusion.stage`): runs up to
+    ``NAN_BRIDGE_MAX_S`` hold the last orientation and are listed in ``nan_bridged_s``, longer
+    runs are refused."""
     import numpy as np
+
+    from motionlab.fusion.registry import hold_last_finite
+    from motionlab.fusion.stage import bridged_spans
 
     store = session.results.setdefault("fusion", {})
     out = []
@@ -228,8 +235,12 @@ def _vendor_orientations(
                 "already has orientations", path, f"results/fusion/{label}",
                 "use --force to replace them",
             )  # fmt: skip
+        quat = np.asarray(s.quat, float)
+        bridged = bridged_spans(label, s.time, {"quat": quat}, path)
         # the vendor's fusion shares one earth frame between its sensors (9-D)
-        store[label] = {"name": "vendor", "quat": np.asarray(s.quat, float), "magnetometer": True}
+        store[label] = {"name": "vendor", "quat": hold_last_finite(quat), "magnetometer": True}
+        if bridged:
+            store[label]["nan_bridged_s"] = bridged
         out.append(label)
     return out
 

@@ -104,3 +104,24 @@ def test_cli_fuse_and_run_never_write_nan_orientations(tmp_path):
     assert "1 run(s) of non-finite samples bridged" in r.output
     q = load_session(tmp_path / "o.h5").results["fusion"]["shank_r"]["quat"]
     assert np.isfinite(q).all()
+
+
+def test_vendor_orientations_follow_the_same_rule(tmp_path):
+    from motionlab import stages
+
+    def with_quat(start: int, stop: int):
+        def edit(s: SensorStream) -> None:
+            s.quat = constant_rotation(seconds=10.0, rate=RATE, seed=3)["quat"].copy()
+            s.quat[start:stop] = np.nan
+
+        return edit
+
+    ses = session_with(with_quat(500, 502))
+    assert stages.fuse(ses, orientation="vendor").sensors == ["shank_r"]
+    entry = ses.results["fusion"]["shank_r"]
+    assert entry["name"] == "vendor" and entry["nan_bridged_s"] == [[5.0, 5.01]]
+    assert np.isfinite(entry["quat"]).all()
+    assert np.array_equal(entry["quat"][500], entry["quat"][499])  # the last one held
+    save_session(session_with(with_quat(500, 700)), tmp_path / "v.h5")
+    refused(cli(tmp_path, "fuse", "v.h5", "--orientation", "vendor", "-o", "o.h5"),
+            "sensor shank_r: quat not a number from 5.00 s to 6.99 s")  # fmt: skip

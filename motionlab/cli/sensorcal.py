@@ -12,7 +12,7 @@ from motionlab.atomic import refuse_folder_holding_inputs
 from motionlab.cli.paths import INPUT_FILE
 from motionlab.errors import InputError
 from motionlab.io import read_any
-from motionlab.isolated import check_hdf5
+from motionlab.isolated import check_hdf5, looks_like_hdf5
 from motionlab.sensorcal import calfile, stage
 from motionlab.session import FORMAT_NAME, SensorStream, load_session
 from motionlab.units import STANDARD_GRAVITY
@@ -23,7 +23,7 @@ _DEG = 180.0 / np.pi
 def load_streams(path: str | Path) -> dict[str, SensorStream]:
     """The inertial sensors of a session file or of any vendor file ``read_any`` knows."""
     path = Path(path)
-    if path.is_file() and h5py.is_hdf5(path):
+    if path.is_file() and looks_like_hdf5(path):
         check_hdf5(path)
         with h5py.File(path, "r") as f:
             is_session = f.attrs.get("format") == FORMAT_NAME

@@ -102,7 +102,7 @@ def fuse_session(
         s = session.sensors[label]
         mag = s.mag if magnetometer else None
         ref = (references or {}).get(label)
-        bridged = _bridged_spans(label, s.time, {"gyr": s.gyr, "acc": s.acc, "mag": mag}, path)
+        bridged = bridged_spans(label, s.time, {"gyr": s.gyr, "acc": s.acc, "mag": mag}, path)
         res = registry.estimate(
             est.name, s.gyr, s.acc, mag, s.rate_hz, references=ref, time=s.time, **params
         )
@@ -128,7 +128,7 @@ def fuse_session(
     return done
 
 
-def _bridged_spans(
+def bridged_spans(
     label: str, time: np.ndarray, channels: dict[str, np.ndarray | None], path: Any
 ) -> list[list[float]]:
     """``[first, last]`` time (s) of every run of samples non-finite in any of ``channels``,

@@ -22,7 +22,7 @@ import numpy as np
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
-from motionlab.isolated import check_hdf5
+from motionlab.isolated import check_hdf5, looks_like_hdf5
 from motionlab.protocol import Protocol
 from motionlab.session import FORMAT_NAME, MarkerSet, load_session
 from motionlab.validation.anatomy import anatomical_frame, recipe_for
@@ -78,7 +78,7 @@ def read_reference(path: str | Path) -> list[MarkerSet]:
     path = Path(path)
     if not path.is_file():
         raise InputError("no such reference file", path, remedy="check the path")
-    if h5py.is_hdf5(path):
+    if looks_like_hdf5(path):
         check_hdf5(path)
     try:
         with h5py.File(path, "r") as f:
