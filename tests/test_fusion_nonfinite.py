@@ -96,7 +96,9 @@ def test_an_estimate_that_turns_nan_midway_is_refused_with_where_it_starts(monke
 def test_cli_fuse_and_run_never_write_nan_orientations(tmp_path):
     save_session(session_with(nan_rows("gyr", 200, 320)), tmp_path / "s.h5")
     before = (tmp_path / "s.h5").read_bytes()
-    refused(cli(tmp_path, "fuse", "s.h5", "-o", "o.h5"), "s.h5 sensor shank_r: gyr not a number")
+    r = cli(tmp_path, "fuse", "s.h5", "-o", "o.h5")
+    refused(r, "s.h5 sensor shank_r: gyr not a number")
+    assert r.stdout == ""  # nothing ("fusing (…)") before the error
     assert not (tmp_path / "o.h5").exists() and (tmp_path / "s.h5").read_bytes() == before
     save_session(session_with(nan_rows("gyr", 200, 203)), tmp_path / "b.h5")
     r = cli(tmp_path, "fuse", "b.h5", "-o", "o.h5")
