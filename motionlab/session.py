@@ -370,6 +370,7 @@ def _json_attr(obj: h5py.Group | h5py.Dataset, key: str, place: _Place) -> Any:
         value = value.decode("utf-8", "replace")
     if not isinstance(value, str):
         raise place.fail(f"holds {type(value).__name__}, expected JSON text")
+    _utf8(value, place)
     try:
         return json.loads(value)
     except ValueError:
@@ -381,14 +382,27 @@ def _text_attr(obj: h5py.Group, key: str, place: _Place) -> str:
     if key not in obj.attrs:
         raise place.fail("missing attribute")
     value = obj.attrs[key]
-    return value.decode("utf-8", "replace") if isinstance(value, bytes) else str(value)
+    if isinstance(value, bytes):
+        return value.decode("utf-8", "replace")
+    return _utf8(str(value), place)
+
+
+def _utf8(text: str, place: _Place) -> str:
+    """``text`` if it is valid UTF-8 (h5py decodes damaged bytes to surrogates, which cannot be
+    printed or written again)."""
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        raise place.fail(f"is not valid UTF-8 text: {shorten(text)!r}") from None
+    return text
 
 
 def _read_tree(group: h5py.Group, place: _Place | None = None) -> dict[str, Any]:
     place = place or _Place(Path(group.file.filename))
     tree: dict[str, Any] = {k: _json_attr(group, k, place) for k in group.attrs}
     for key, item in group.items():
-        place.where = f"{group.name.rstrip('/')}/{key}"
+        place.where = f"{group.name.rstrip('/')}/{shorten(key)}"
+        _utf8(key, place)
         if item is None:
             raise place.fail("cannot be opened, the file is damaged")
         if isinstance(item, h5py.Group):
@@ -435,7 +449,8 @@ def _groups(f: h5py.File, name: str, place: _Place) -> list[tuple[str, h5py.Grou
         raise place.fail("is not a group")
     out = []
     for key, g in parent.items():
-        place.where = f"/{name}/{key}"
+        place.where = f"/{name}/{shorten(key)}"
+        _utf8(key, place)
         if not isinstance(g, h5py.Group):
             raise place.fail("cannot be opened as a group, the file is damaged")
         out.append((key, g))

@@ -144,3 +144,17 @@ def test_sensorcal_and_batch_refuse_an_output_folder_holding_an_input(tmp_path):
             "still.txt")  # fmt: skip
     refused(cli(tmp_path, "batch", "study.yaml", "-o", ".", "--force"), "study.yaml")
     assert {p: p.read_bytes() for p in tmp_path.rglob("*") if p.is_file()} == before
+
+
+def test_session_text_that_is_not_utf8_is_refused_with_its_key(tmp_path):
+    """A byte flip inside a text attribute (bench seed 3, ``session/info/52``): h5py decodes it
+    to surrogates, which made ``info`` fail printing them (exit 1)."""
+    import h5py
+
+    (tmp_path / "in.txt").write_bytes(XSENS.read_bytes())
+    assert cli(tmp_path, "ingest", "in.txt", "-o", "s.h5").exit_code == 0
+    with h5py.File(tmp_path / "s.h5", "r+") as f:
+        g = f["sensors"][next(iter(f["sensors"]))]
+        g.attrs.create("label", b"shank\xd6", dtype=h5py.string_dtype("utf-8"))
+    for args in (["info", "s.h5"], ["fuse", "s.h5", "-o", "o.h5"]):
+        refused(cli(tmp_path, *args), "s.h5 key /sensors/in/@label", "not valid UTF-8")

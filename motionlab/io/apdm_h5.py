@@ -75,7 +75,8 @@ def _text(value: Any) -> str:
         value = value.decode("utf-8", errors="replace")
     if isinstance(value, np.ndarray):
         value = _text(value.flat[0]) if value.size else ""
-    return str(value).rstrip("\x00").strip()
+    text = str(value).encode("utf-8", "replace").decode("utf-8")  # h5py's surrogates for damage
+    return text.rstrip("\x00").strip()
 
 
 def _dataset(path: Path, group: h5py.Group, name: str, width: int | None) -> np.ndarray:

@@ -70,9 +70,10 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
         data = {name: _dataset(path, f, name, width) for name, width in _DATASETS.items()}
         try:
             info = f.attrs.get("info", "")
-        except OSError:
+        except (OSError, ValueError, TypeError):  # h5py: a damaged attribute (free text only)
             info = ""
         info = info.decode("utf-8", "replace") if isinstance(info, bytes) else str(info)
+        info = info.encode("utf-8", "replace").decode("utf-8")  # damaged bytes: surrogates
     n = len(data["imu_gyr"])
     for name, arr in data.items():
         if len(arr) != n:
