@@ -19,8 +19,10 @@ from __future__ import annotations
 
 import os
 import pickle
+import select
 import signal
 import threading
+import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
@@ -33,6 +35,9 @@ T = TypeVar("T")
 _PROBED: set[tuple[str, int, int, int]] = set()
 #: rows per slice when the probe reads a dataset (bounds its memory)
 _PROBE_ROWS = 1 << 16
+#: a native reader's time limit: this many seconds plus the file's size at the rate below
+BASE_S = 10.0
+SLOWEST_BYTES_PER_S = 10e6
 
 
 def can_isolate() -> bool:
@@ -40,11 +45,22 @@ def can_isolate() -> bool:
     return hasattr(os, "fork") and threading.active_count() == 1
 
 
+def time_limit(path: Path) -> float:
+    """Seconds a native reader may take on ``path``: :data:`BASE_S` + its size at
+    :data:`SLOWEST_BYTES_PER_S` (a damaged file can make libhdf5 loop)."""
+    try:
+        size = path.stat().st_size
+    except OSError:
+        size = 0
+    return BASE_S + size / SLOWEST_BYTES_PER_S
+
+
 def call_isolated(fn: Callable[..., T], *args: Any, path: Path, what: str) -> T:
     """``fn(*args)`` computed in a forked child; its result or exception comes back here.
 
-    A child killed by a signal (``what`` crashed on a damaged file) raises
-    :class:`InputError` for ``path``. Runs in-process when :func:`can_isolate` is false.
+    A child killed by a signal (``what`` crashed on a damaged file), or still running after
+    :func:`time_limit` (it is then killed), raises :class:`InputError` for ``path``. Runs
+    in-process when :func:`can_isolate` is false.
     """
     if not can_isolate():
         return fn(*args)
@@ -69,8 +85,19 @@ def call_isolated(fn: Callable[..., T], *args: Any, path: Path, what: str) -> T:
         finally:
             os._exit(code)
     os.close(write)
-    with os.fdopen(read, "rb") as pipe:
-        data = pipe.read()
+    limit = time_limit(path)
+    try:
+        data = _read_until(read, time.monotonic() + limit)
+    finally:
+        os.close(read)
+    if data is None:
+        os.kill(pid, signal.SIGKILL)
+        os.waitpid(pid, 0)
+        raise InputError(
+            f"{what} did not finish reading it in {limit:.0f} s: the file is damaged",
+            path,
+            remedy="copy or export the file again",
+        )
     _, status = os.waitpid(pid, 0)
     if os.WIFSIGNALED(status) or not data:
         sig = os.WTERMSIG(status) if os.WIFSIGNALED(status) else 0
@@ -84,6 +111,23 @@ def call_isolated(fn: Callable[..., T], *args: Any, path: Path, what: str) -> T:
     if kind == "raise":
         raise value
     return value
+
+
+def _read_until(fd: int, deadline: float) -> bytes | None:
+    """Everything from ``fd`` up to its end, or ``None`` if the end is not reached by
+    ``deadline`` (``time.monotonic()``)."""
+    chunks = []
+    while True:
+        remaining = deadline - time.monotonic()
+        if remaining <= 0:
+            return None
+        ready, _, _ = select.select([fd], [], [], remaining)
+        if not ready:
+            continue
+        chunk = os.read(fd, 1 << 20)
+        if not chunk:
+            return b"".join(chunks)
+        chunks.append(chunk)
 
 
 def _quiet_child() -> None:

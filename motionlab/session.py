@@ -292,11 +292,13 @@ def _write_model_outputs(group: h5py.Group, m: MarkerSet) -> None:
         ds.attrs["units"] = _json([o.unit for o in outs])
 
 
-def _read_model_outputs(group: h5py.Group) -> dict[str, ModelOutput]:
+def _read_model_outputs(group: h5py.Group, place: _Place, n: int) -> dict[str, ModelOutput]:
     out = {}
     for kind, ds in group.items():
-        data = ds[()]
-        names, units = json.loads(ds.attrs["labels"]), json.loads(ds.attrs["units"])
+        names, units = _json_attr(ds, "labels", place), _json_attr(ds, "units", place)
+        if not isinstance(names, list) or not isinstance(units, list):
+            raise place.fail("labels and units are not lists")
+        data = _numeric(ds, place, n, len(names), 3)
         for k, (name, unit) in enumerate(zip(names, units, strict=True)):
             out[name] = ModelOutput(name, kind, unit, data[:, k])
     return out
@@ -457,6 +459,15 @@ def _groups(f: h5py.File, name: str, place: _Place) -> list[tuple[str, h5py.Grou
     return out
 
 
+def _group(parent: h5py.Group, key: str, place: _Place) -> h5py.Group:
+    """``parent[key]``, which must be a group (a damaged file can make it anything)."""
+    place.where = f"{parent.name.rstrip('/')}/{key}"
+    item = parent[key]
+    if not isinstance(item, h5py.Group):
+        raise place.fail("cannot be opened as a group, the file is damaged")
+    return item
+
+
 def _load(f: h5py.File, path: Path, place: _Place) -> Session:
     if f.attrs.get("format") != FORMAT_NAME:
         raise InputError(
@@ -486,7 +497,11 @@ def _load(f: h5py.File, path: Path, place: _Place) -> Session:
         arrays = {
             ch: _numeric(g[ch], place, n, _CHANNEL_WIDTH[ch]) for ch in SENSOR_CHANNELS if ch in g
         }
-        extra = {k: _read_array(v, place) for k, v in g["extra"].items()} if "extra" in g else {}
+        extra = (
+            {k: _read_array(v, place) for k, v in _group(g, "extra", place).items()}
+            if "extra" in g
+            else {}
+        )
         session.sensors[label] = SensorStream(
             label=_text_attr(g, "label", place),
             time=time,
@@ -507,7 +522,7 @@ def _load(f: h5py.File, path: Path, place: _Place) -> Session:
         labels = _json_attr(g, "labels", place)
         rb = {}
         if "rigid_bodies" in g:
-            rb = {k: _numeric(v, place, n, 4) for k, v in g["rigid_bodies"].items()}
+            rb = {k: _numeric(v, place, n, 4) for k, v in _group(g, "rigid_bodies", place).items()}
         positions = g.get("positions")
         residuals = g.get("residuals")
         session.markers[name] = MarkerSet(
@@ -519,12 +534,19 @@ def _load(f: h5py.File, path: Path, place: _Place) -> Session:
             rigid_bodies=rb,
             source_units=_json_attr(g, "source_units", place),
             attrs=_json_attr(g, "attrs", place),
-            model_outputs=(_read_model_outputs(g["model_outputs"]) if "model_outputs" in g else {}),
+            model_outputs=(
+                _read_model_outputs(_group(g, "model_outputs", place), place, n)
+                if "model_outputs" in g
+                else {}
+            ),
         )
     place.where = "/results"
-    session.results = _read_tree(f["results"], place)
+    session.results = _read_tree(_group(f, "results", place), place)
     place.where = "/provenance"
-    entries = f["provenance"].asstr()[()]
+    provenance = f["provenance"]
+    if not isinstance(provenance, h5py.Dataset):
+        raise place.fail("cannot be opened as a dataset, the file is damaged")
+    entries = provenance.asstr()[()]
     try:
         session.provenance = [json.loads(s) for s in entries]
     except ValueError:

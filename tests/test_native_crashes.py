@@ -158,3 +158,36 @@ def test_session_text_that_is_not_utf8_is_refused_with_its_key(tmp_path):
         g.attrs.create("label", b"shank\xd6", dtype=h5py.string_dtype("utf-8"))
     for args in (["info", "s.h5"], ["fuse", "s.h5", "-o", "o.h5"]):
         refused(cli(tmp_path, *args), "s.h5 key /sensors/in/@label", "not valid UTF-8")
+
+
+def _sleep() -> None:
+    import time
+
+    time.sleep(30)
+
+
+def test_a_reader_that_does_not_finish_is_killed_and_refused(monkeypatch):
+    """A damaged session made libhdf5 loop reading an attribute (a hang, not a crash)."""
+    import time
+
+    monkeypatch.setattr(isolated, "BASE_S", 0.5)
+    t0 = time.perf_counter()
+    with pytest.raises(InputError, match="did not finish reading it in 0 s: the file is damaged"):
+        isolated.call_isolated(_sleep, path=Path("x.h5"), what="the HDF5 library")
+    assert time.perf_counter() - t0 < 5
+
+
+def test_session_objects_of_the_wrong_kind_name_their_key(tmp_path):
+    """A byte flip turned /provenance into a named datatype (exit 1: no ``asstr``)."""
+    import h5py
+
+    (tmp_path / "in.txt").write_bytes(XSENS.read_bytes())
+    assert cli(tmp_path, "ingest", "in.txt", "-o", "s.h5").exit_code == 0
+    with h5py.File(tmp_path / "s.h5", "r+") as f:
+        del f["provenance"]
+        f["provenance"] = np.dtype("f8")
+        f["sensors/in/extra"] = np.zeros(3)
+    refused(cli(tmp_path, "info", "s.h5"), "s.h5 key /sensors/in/extra", "not be opened as a group")
+    with h5py.File(tmp_path / "s.h5", "r+") as f:
+        del f["sensors/in/extra"]
+    refused(cli(tmp_path, "info", "s.h5"), "s.h5 key /provenance", "cannot be opened as a dataset")
