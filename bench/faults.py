@@ -4,12 +4,14 @@ byte-identical; nothing left behind by a refusal), with the counts by verdict.
 
 Cases come from ``tests/faults.py`` (every reader's fixture mutated, HDF5 type swaps, YAML type
 errors, broken sessions); ``--c3d DIR`` adds truncated and byte-flipped copies of every C3D
-file in DIR (e.g. the c3d.org samples). Session byte flips and C3D cases run in a forked child
-each, so that a crash inside libhdf5 or ezc3d counts as a verdict instead of ending the run.
-The peak memory of ``ingest`` (growth of the child's peak RSS over the imports) is measured for
-every fixture and C3D file and compared with 4× the input size + 300 MB.
+file in DIR (e.g. the c3d.org samples). HDF5, session and C3D cases run in a forked child
+each, so that a crash inside libhdf5 or ezc3d that the readers' own guards
+(:mod:`motionlab.isolated`) missed counts as a verdict instead of ending the run. The peak
+memory of ``ingest`` (growth of the peak RSS over the imports, of the child or of the readers'
+children) is measured for every fixture, every C3D file and a synthetic C3D of
+``--big-c3d-mb`` MB, and compared with 4× the input size + 300 MB.
 
-    python3 bench/faults.py                       # ≈ 450 cases
+    python3 bench/faults.py                       # ≈ 440 cases
     python3 bench/faults.py --c3d ../shared/formats/c3d --seed 2
 """
 
@@ -93,6 +95,24 @@ def c3d_cases(folder: Path, rng: np.random.Generator, per_file: int) -> list[fau
     return cases
 
 
+def big_c3d(path: Path, megabytes: float) -> bytes:
+    """A C3D file of about ``megabytes`` MB: 60 markers as float32 at 200 Hz (ezc3d writes it)."""
+    import ezc3d
+
+    markers = 60
+    frames = int(megabytes * 1e6 / (16 * markers))
+    f = ezc3d.c3d()
+    f["parameters"]["POINT"]["RATE"]["value"] = [200.0]
+    f["parameters"]["POINT"]["LABELS"]["value"] = [f"M{k:02d}" for k in range(markers)]
+    points = np.ones((4, markers, frames))
+    points[:3] = np.random.default_rng(0).uniform(-500, 500, (3, markers, frames))
+    f["data"]["points"] = points
+    f.write(str(path))
+    data = path.read_bytes()
+    path.unlink()
+    return data
+
+
 def guard_cost(session: Path, c3d_files: list[Path], repeat: int = 10) -> list[str]:
     """Milliseconds of a normal read with and without the child-process guards: a session
     (``load_session``, HDF5 probe) and each C3D file (``c3d.read``, ezc3d in a child)."""
@@ -132,6 +152,8 @@ def main() -> None:
     ap.add_argument("--per-reader", type=int, default=40, help="cases per text reader")
     ap.add_argument("--c3d", type=Path, help="folder of C3D files to break")
     ap.add_argument("--per-c3d", type=int, default=12)
+    ap.add_argument("--big-c3d-mb", type=float, default=48.0,
+                    help="size of a synthetic C3D for the memory table (0: none)")  # fmt: skip
     args = ap.parse_args()
     rng = np.random.default_rng(args.seed)
     t0 = time.perf_counter()
@@ -153,6 +175,10 @@ def main() -> None:
             faults.ingest_case(f"memory/{k}", k, p.read_bytes()) for k, p in faults.FIXTURES.items()
         ]
         originals += [c for c in isolated if c.name.startswith("c3d/original")]
+        if args.big_c3d_mb > 0:
+            files = {"in.c3d": big_c3d(tmp / "big.c3d", args.big_c3d_mb)}
+            args_ = ["ingest", "in.c3d", "-o", "out.h5"]
+            originals.append(faults.Case("memory/c3d_synthetic", files, args_))
         for i, c in enumerate(originals):
             v = run_isolated(c, tmp / f"m{i}")
             size = sum(len(d) for d in c.files.values())
