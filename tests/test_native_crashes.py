@@ -73,6 +73,8 @@ def test_damaged_c3d_records_are_refused_with_their_byte(tmp_path):
     rate = data.find(b"RATE\t") + 4 + 2  # POINT:RATE: name, offset → its data type byte
     scale = data.find(b"SCALE", data.find(b"GEN_SCALE") + 9)  # ANALOG:SCALE's name
     used = data.find(b"USED")
+    analog_used = data.find(b"USED", data.find(b"ANALOG")) + 4 + 2 + 2  # after type and dims
+    assert data[analog_used : analog_used + 2] == b"\x02\x00"
     cases = {  # each of the first two crashes ezc3d (SIGSEGV) when it reads the file itself
         "dims.c3d": (_set(data, rate + 1, 0xB2), f"byte {rate + 1}", "RATE has -78 dimensions"),
         "scale.c3d": (_set(data, scale + 4, ord("X")), "ANALOG:SCALE", "absent"),
@@ -80,6 +82,7 @@ def test_damaged_c3d_records_are_refused_with_their_byte(tmp_path):
         "group0.c3d": (_set(data, used - 1, 0), f"byte {used - 1}", "group id 0"),
         "desc.c3d": (_set(data, rate + 2 + 4, 0x90), "RATE has a description of negative"),
         "chain.c3d": (_set(data, rate - 2, data[rate - 2] + 1), "the chain says"),
+        "used.c3d": (_set(data, analog_used, 3), "ANALOG:SCALE", "2 value(s), expected 3"),
     }
     for name, (mutated, *expect) in cases.items():
         (tmp_path / name).write_bytes(mutated)

@@ -44,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from motionlab.errors import InputError
+from motionlab.errors import InputError, shorten
 from motionlab.io import Recording
 from motionlab.isolated import call_isolated
 from motionlab.session import MarkerSet, ModelOutput
@@ -325,7 +325,7 @@ def _check_records(path: Path, layout: _Layout) -> None:
         end = pos + 2 + abs(nlen)
         if end + 2 > len(buf):
             raise refuse(pos, "a record runs past the end of the section")
-        name = buf[pos + 2 : end].decode("latin-1").upper()
+        name = shorten(buf[pos + 2 : end].decode("latin-1").upper(), 40)
         offset = int(np.frombuffer(buf, i16, 1, end)[0])
         at = end + 2
         if gid < 0:
@@ -363,12 +363,10 @@ def _check_records(path: Path, layout: _Layout) -> None:
         need.append(("POINT", "SCALE", 1))
     if layout.analogs > 0:
         need.append(("ANALOG", "GEN_SCALE", 1))
-    channels = max(n("ANALOG", "USED"), 0)
-    if layout.analogs > 0 and channels == 0:
-        channels = 1
-    for key in ("SCALE", "OFFSET"):
-        if layout.analogs > 0:
-            need.append(("ANALOG", key, channels))
+    if layout.analogs > 0:  # one scale and offset per channel (ANALOG:USED), at least one
+        used = _parameters(buf, layout.order).get(("ANALOG", "USED"), [1])
+        channels = int(min(max(used[0], 1), layout.analogs))
+        need += [("ANALOG", "SCALE", channels), ("ANALOG", "OFFSET", channels)]
     for group, name, least in need:
         have = n(group, name)
         if have < least:
