@@ -23,6 +23,15 @@ from motionlab.io import read_any  # noqa: E402
 
 SHARED_C3D = Path(__file__).resolve().parents[1] / ".." / "shared" / "formats" / "c3d"
 
+pytestmark = pytest.mark.skipif(not hasattr(os, "fork"), reason="the guards need os.fork")
+
+
+@pytest.fixture(autouse=True)
+def isolate(monkeypatch):
+    """The guards on, even if an earlier test left a thread running in this process (a Dask
+    client's event loop), which turns them off for safety outside the tests."""
+    monkeypatch.setattr(isolated, "can_isolate", lambda: True)
+
 
 def _crash() -> None:
     os.kill(os.getpid(), signal.SIGSEGV)
