@@ -4,12 +4,14 @@ byte-identical; nothing left behind by a refusal), with the counts by verdict.
 
 Cases come from ``tests/faults.py`` (every reader's fixture mutated, HDF5 type swaps, YAML type
 errors, broken sessions); ``--c3d DIR`` adds truncated and byte-flipped copies of every C3D
-file in DIR (e.g. the c3d.org samples). Session byte flips and C3D cases run in a forked child
-each, so that a crash inside libhdf5 or ezc3d counts as a verdict instead of ending the run.
-The peak memory of ``ingest`` (growth of the child's peak RSS over the imports) is measured for
-every fixture and C3D file and compared with 4× the input size + 300 MB.
+file in DIR (e.g. the c3d.org samples). HDF5, session and C3D cases run in a forked child
+each, so that a crash inside libhdf5 or ezc3d that the readers' own guards
+(:mod:`motionlab.isolated`) missed counts as a verdict instead of ending the run. The peak
+memory of ``ingest`` (growth of the peak RSS over the imports, of the child or of the readers'
+children) is measured for every fixture, every C3D file and a synthetic C3D of
+``--big-c3d-mb`` MB, and compared with 4× the input size + 300 MB.
 
-    python3 bench/faults.py                       # ≈ 450 cases
+    python3 bench/faults.py                       # ≈ 440 cases
     python3 bench/faults.py --c3d ../shared/formats/c3d --seed 2
 """
 
@@ -34,7 +36,9 @@ import faults  # noqa: E402
 
 def run_isolated(case: faults.Case, folder: Path, timeout: float = 120.0) -> faults.Verdict:
     """``case`` in a forked child (motionlab already imported): a crash (signal) is the verdict
-    ``crash``; ``peak`` is the child's growth of its peak resident memory during the run."""
+    ``crash``; ``peak`` is the growth of the peak resident memory during the run, of the child
+    or of the readers' own children (ezc3d and the HDF5 probe run in one,
+    :mod:`motionlab.isolated`), whichever is larger."""
     read, write = os.pipe()
     pid = os.fork()
     if pid == 0:  # the child: run, report, and leave without cleanup
@@ -43,7 +47,14 @@ def run_isolated(case: faults.Case, folder: Path, timeout: float = 120.0) -> fau
         try:
             base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
             v = faults.run_case(case, folder, timeout)
-            peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 - base
+            peak = (
+                1024
+                * max(
+                    resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
+                    resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss,
+                )
+                - base
+            )
             os.write(write, json.dumps(v.__dict__ | {"peak": peak}).encode())
             code = 0
         finally:
@@ -84,23 +95,78 @@ def c3d_cases(folder: Path, rng: np.random.Generator, per_file: int) -> list[fau
     return cases
 
 
+def big_c3d(path: Path, megabytes: float) -> bytes:
+    """A C3D file of about ``megabytes`` MB: 60 markers as float32 at 200 Hz (ezc3d writes it)."""
+    import ezc3d
+
+    markers = 60
+    frames = int(megabytes * 1e6 / (16 * markers))
+    f = ezc3d.c3d()
+    f["parameters"]["POINT"]["RATE"]["value"] = [200.0]
+    f["parameters"]["POINT"]["LABELS"]["value"] = [f"M{k:02d}" for k in range(markers)]
+    points = np.ones((4, markers, frames))
+    points[:3] = np.random.default_rng(0).uniform(-500, 500, (3, markers, frames))
+    f["data"]["points"] = points
+    f.write(str(path))
+    data = path.read_bytes()
+    path.unlink()
+    return data
+
+
+def guard_cost(session: Path, c3d_files: list[Path], repeat: int = 10) -> list[str]:
+    """Milliseconds of a normal read with and without the child-process guards: a session
+    (``load_session``, HDF5 probe) and each C3D file (``c3d.read``, ezc3d in a child)."""
+    from motionlab import isolated
+    from motionlab.io import c3d
+    from motionlab.session import load_session
+
+    def ms(fn, path: Path) -> float:
+        best = []
+        for _ in range(repeat):
+            isolated._PROBED.clear()
+            t0 = time.perf_counter()
+            fn(path)
+            best.append(time.perf_counter() - t0)
+        return 1000 * float(np.median(best))
+
+    rows = []
+    for fn, paths in ((load_session, [session]), (c3d.read, c3d_files)):
+        for path in paths:
+            guarded = ms(fn, path)
+            real = isolated.can_isolate
+            isolated.can_isolate = lambda: False
+            try:
+                plain = ms(fn, path)
+            finally:
+                isolated.can_isolate = real
+            rows.append(f"  {fn.__module__.split('.')[-1] + '.' + fn.__name__:<22} "
+                        f"{path.name:<36} {path.stat().st_size / 1e6:7.2f} MB  "
+                        f"{plain:7.1f} ms in-process  {guarded:7.1f} ms guarded  "
+                        f"(+{guarded - plain:.1f} ms)")  # fmt: skip
+    return rows
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--per-reader", type=int, default=40, help="cases per text reader")
     ap.add_argument("--c3d", type=Path, help="folder of C3D files to break")
     ap.add_argument("--per-c3d", type=int, default=12)
+    ap.add_argument("--big-c3d-mb", type=float, default=48.0,
+                    help="size of a synthetic C3D for the memory table (0: none)")  # fmt: skip
     args = ap.parse_args()
     rng = np.random.default_rng(args.seed)
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         cases = faults.campaign(tmp / "make", args.seed, args.per_reader, 20, 0)
+        native = [c for c in cases if c.name.startswith(("broad/", "apdm_h5/"))]  # libhdf5
+        cases = [c for c in cases if c not in native]
         verdicts = [faults.run_case(c, tmp / f"c{i}") for i, c in enumerate(cases)]
         files = {"in.txt": faults.FIXTURES["xsens"].read_bytes()}
         good_case = faults.Case("good", files, ["ingest", "in.txt", "-o", "s.h5"], "s.h5")
         good = faults.run_case(good_case, tmp / "good")
-        isolated = faults.session_cases((tmp / "good" / "s.h5").read_bytes(), rng, 80)
+        isolated = native + faults.session_cases((tmp / "good" / "s.h5").read_bytes(), rng, 80)
         if args.c3d:
             isolated += c3d_cases(args.c3d, rng, args.per_c3d)
         verdicts += [run_isolated(c, tmp / f"i{i}") for i, c in enumerate(isolated)]
@@ -109,21 +175,37 @@ def main() -> None:
             faults.ingest_case(f"memory/{k}", k, p.read_bytes()) for k, p in faults.FIXTURES.items()
         ]
         originals += [c for c in isolated if c.name.startswith("c3d/original")]
+        if args.big_c3d_mb > 0:
+            files = {"in.c3d": big_c3d(tmp / "big.c3d", args.big_c3d_mb)}
+            args_ = ["ingest", "in.c3d", "-o", "out.h5"]
+            originals.append(faults.Case("memory/c3d_synthetic", files, args_))
         for i, c in enumerate(originals):
             v = run_isolated(c, tmp / f"m{i}")
             size = sum(len(d) for d in c.files.values())
             memory.append((c.name, size, getattr(v, "peak", 0), 4 * size + 300e6))
+        big = tmp / "big.h5"
+        simulate = ["simulate", "--protocol", "walk", "--duration", "600", "-o", str(big)]
+        faults.run_case(faults.Case("big", {}, simulate, ""), tmp / "big")  # a 10-min session
+        sessions = [tmp / "good" / "s.h5"] + ([big] if big.exists() else [])
+        costs = [r for s in sessions for r in guard_cost(s, [])]
+        costs += guard_cost(sessions[0], sorted(args.c3d.glob("*.c3d")) if args.c3d else [])[1:]
     broken = [v for v in verdicts if v.verdict not in ("ok", "refused")]
     print(f"{len(verdicts)} cases in {time.perf_counter() - t0:.0f} s (seed {args.seed}); "
           f"{100 * (1 - len(broken) / len(verdicts)):.1f} % clean")  # fmt: skip
     print(faults.table(verdicts))
     for v in broken:
         print(f"  {v.verdict:<14} {v.name}: {v.stderr[:160]}")
+    net = [v for v in verdicts if "crashed reading it" in v.stderr]
+    print(f"refused by the child-process safety net (a native crash in a child): {len(net)}")
+    for v in net:
+        print(f"  {v.name}: {v.stderr[:160]}")
     print("peak memory of ingest (growth of the peak RSS in a forked child, over the imports):")
     for name, size, peak, limit in memory:
         state = "ok" if peak <= limit else "OVER"
         print(f"  {name:<44} {size / 1e6:8.2f} MB in  {peak / 1e6:8.0f} MB peak  "
               f"(limit {limit / 1e6:.0f} MB) {state}")  # fmt: skip
+    print("cost of the guards on normal reads (median of 10):")
+    print("\n".join(costs))
     assert good.verdict == "ok"
 
 

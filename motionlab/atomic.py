@@ -16,7 +16,7 @@ import threading
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
-from motionlab.errors import InputError
+from motionlab.errors import InputError, shorten
 
 
 def same_file(a: str | Path, b: str | Path) -> bool:
@@ -39,6 +39,24 @@ def refuse_input_as_output(path: str | Path, inputs: Iterable[str | Path | None]
                 "the output is also an input; inputs are never overwritten",
                 path,
                 remedy="give the output another name",
+            )
+
+
+def refuse_folder_holding_inputs(folder: str | Path, inputs: Iterable[str | Path | None]) -> None:
+    """Raise :class:`InputError` when the output ``folder`` is one of ``inputs`` or holds one
+    (at any depth): outputs are written into it, so an input there could be replaced; refused
+    even with ``--force``."""
+    root = Path(folder).resolve()
+    for item in inputs:
+        if item is None:
+            continue
+        p = Path(item).resolve()
+        if p == root or root in p.parents:
+            raise InputError(
+                f"the output folder {'is' if p == root else 'holds'} the input "
+                f"{shorten(p.name)}; inputs are never overwritten",
+                folder,
+                remedy="write the outputs into another folder",
             )
 
 

@@ -86,6 +86,11 @@ class InputError(Exception):
         return InputError(fix(self.message) or self.message, self.path, fix(self.where),
                           fix(self.remedy))  # fmt: skip
 
+    def __reduce__(self) -> tuple:
+        """Pickled with its parts (raised in a child process, :mod:`motionlab.isolated`)."""
+        parts = (self.message, self.path, self.where, self.remedy, self.arguments or None)
+        return (type(self), parts)
+
     def line(self) -> str:
         """The one-line message: ``file place: what — remedy``."""
         name = self.path.name if self.path else None

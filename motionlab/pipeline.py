@@ -36,6 +36,7 @@ from motionlab import stages as stages_lib
 from motionlab.atomic import check_folder_writable, refuse_input_as_output
 from motionlab.errors import InputError
 from motionlab.ingest import DEFAULT_GAP_MAX, ingest
+from motionlab.isolated import check_hdf5, looks_like_hdf5
 from motionlab.protocol import Protocol, load_protocol
 from motionlab.results import Gait
 from motionlab.segments import sensor_for_segment
@@ -92,6 +93,9 @@ class _Stages:
 
 def is_session_file(path: Path) -> bool:
     """Whether ``path`` is a motionlab session (HDF5 with the session format attribute)."""
+    if not looks_like_hdf5(path):
+        return False
+    check_hdf5(path)
     try:
         with h5py.File(path, "r") as f:
             return f.attrs.get("format") == FORMAT_NAME

@@ -166,7 +166,8 @@ class FusionEntry(_Record):
     ``magnetometer``: 9-D (one earth heading shared by the sensors) or 6-D. What the estimator
     reports besides, when it does: ``gyro_bias`` (N, 3) rad/s, ``rest`` (N,) bool,
     ``mag_disturbed`` (N,) bool, marker ``scenario``, ``gaps_bridged_s`` (packet-loss gaps it
-    ran across, s). ``sensor_calibration``: the per-serial sensor calibration applied
+    ran across, s), ``nan_bridged_s`` (runs of non-finite samples held over, ``[start, end]``
+    s each). ``sensor_calibration``: the per-serial sensor calibration applied
     (``motionlab sensorcal``; key ``calibration`` in the file); ``markers``: the marker cluster
     fused with it (visible fraction, lab-to-earth rotation).
     """
@@ -179,6 +180,7 @@ class FusionEntry(_Record):
     magnetometer: bool = True
     scenario: Any = None
     gaps_bridged_s: Any = None
+    nan_bridged_s: Any = None
     gyro_bias: np.ndarray | None = None
     rest: np.ndarray | None = None
     mag_disturbed: np.ndarray | None = None

@@ -47,6 +47,7 @@ import numpy as np
 from motionlab import __version__
 from motionlab.atomic import atomic_path
 from motionlab.errors import InputError, shorten
+from motionlab.isolated import check_hdf5
 from motionlab.results import Results
 
 SCHEMA_VERSION = 2
@@ -305,11 +306,13 @@ def _write_model_outputs(group: h5py.Group, m: MarkerSet) -> None:
         ds.attrs["units"] = _json([o.unit for o in outs])
 
 
-def _read_model_outputs(group: h5py.Group) -> dict[str, ModelOutput]:
+def _read_model_outputs(group: h5py.Group, place: _Place, n: int) -> dict[str, ModelOutput]:
     out = {}
     for kind, ds in group.items():
-        data = ds[()]
-        names, units = json.loads(ds.attrs["labels"]), json.loads(ds.attrs["units"])
+        names, units = _json_attr(ds, "labels", place), _json_attr(ds, "units", place)
+        if not isinstance(names, list) or not isinstance(units, list):
+            raise place.fail("labels and units are not lists")
+        data = _numeric(ds, place, n, len(names), 3)
         for k, (name, unit) in enumerate(zip(names, units, strict=True)):
             out[name] = ModelOutput(name, kind, unit, data[:, k])
     return out
@@ -383,6 +386,7 @@ def _json_attr(obj: h5py.Group | h5py.Dataset, key: str, place: _Place) -> Any:
         value = value.decode("utf-8", "replace")
     if not isinstance(value, str):
         raise place.fail(f"holds {type(value).__name__}, expected JSON text")
+    _utf8(value, place)
     try:
         return json.loads(value)
     except ValueError:
@@ -394,14 +398,27 @@ def _text_attr(obj: h5py.Group, key: str, place: _Place) -> str:
     if key not in obj.attrs:
         raise place.fail("missing attribute")
     value = obj.attrs[key]
-    return value.decode("utf-8", "replace") if isinstance(value, bytes) else str(value)
+    if isinstance(value, bytes):
+        return value.decode("utf-8", "replace")
+    return _utf8(str(value), place)
+
+
+def _utf8(text: str, place: _Place) -> str:
+    """``text`` if it is valid UTF-8 (h5py decodes damaged bytes to surrogates, which cannot be
+    printed or written again)."""
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        raise place.fail(f"is not valid UTF-8 text: {shorten(text)!r}") from None
+    return text
 
 
 def _read_tree(group: h5py.Group, place: _Place | None = None) -> dict[str, Any]:
     place = place or _Place(Path(group.file.filename))
     tree: dict[str, Any] = {k: _json_attr(group, k, place) for k in group.attrs}
     for key, item in group.items():
-        place.where = f"{group.name.rstrip('/')}/{key}"
+        place.where = f"{group.name.rstrip('/')}/{shorten(key)}"
+        _utf8(key, place)
         if item is None:
             raise place.fail("cannot be opened, the file is damaged")
         if isinstance(item, h5py.Group):
@@ -421,6 +438,7 @@ def load_session(path: str | Path) -> Session:
     path = Path(path)
     if not path.is_file():
         raise InputError("no such session file", path, remedy="check the path")
+    check_hdf5(path)  # a damaged file can crash libhdf5 itself: probed in a child first
     try:
         f = h5py.File(path, "r")
     except OSError:
@@ -460,11 +478,21 @@ def _groups(f: h5py.File, name: str, place: _Place) -> list[tuple[str, h5py.Grou
         raise place.fail("is not a group")
     out = []
     for key, g in parent.items():
-        place.where = f"/{name}/{key}"
+        place.where = f"/{name}/{shorten(key)}"
+        _utf8(key, place)
         if not isinstance(g, h5py.Group):
             raise place.fail("cannot be opened as a group, the file is damaged")
         out.append((key, g))
     return out
+
+
+def _group(parent: h5py.Group, key: str, place: _Place) -> h5py.Group:
+    """``parent[key]``, which must be a group (a damaged file can make it anything)."""
+    place.where = f"{parent.name.rstrip('/')}/{key}"
+    item = parent[key]
+    if not isinstance(item, h5py.Group):
+        raise place.fail("cannot be opened as a group, the file is damaged")
+    return item
 
 
 def _load(f: h5py.File, path: Path, place: _Place) -> Session:
@@ -496,7 +524,11 @@ def _load(f: h5py.File, path: Path, place: _Place) -> Session:
         arrays = {
             ch: _numeric(g[ch], place, n, _CHANNEL_WIDTH[ch]) for ch in SENSOR_CHANNELS if ch in g
         }
-        extra = {k: _read_array(v, place) for k, v in g["extra"].items()} if "extra" in g else {}
+        extra = (
+            {k: _read_array(v, place) for k, v in _group(g, "extra", place).items()}
+            if "extra" in g
+            else {}
+        )
         session.sensors[label] = SensorStream(
             label=_text_attr(g, "label", place),
             time=time,
@@ -517,7 +549,7 @@ def _load(f: h5py.File, path: Path, place: _Place) -> Session:
         labels = _json_attr(g, "labels", place)
         rb = {}
         if "rigid_bodies" in g:
-            rb = {k: _numeric(v, place, n, 4) for k, v in g["rigid_bodies"].items()}
+            rb = {k: _numeric(v, place, n, 4) for k, v in _group(g, "rigid_bodies", place).items()}
         positions = g.get("positions")
         residuals = g.get("residuals")
         session.markers[name] = MarkerSet(
@@ -529,10 +561,14 @@ def _load(f: h5py.File, path: Path, place: _Place) -> Session:
             rigid_bodies=rb,
             source_units=_json_attr(g, "source_units", place),
             attrs=_json_attr(g, "attrs", place),
-            model_outputs=(_read_model_outputs(g["model_outputs"]) if "model_outputs" in g else {}),
+            model_outputs=(
+                _read_model_outputs(_group(g, "model_outputs", place), place, n)
+                if "model_outputs" in g
+                else {}
+            ),
         )
     place.where = "/results"
-    tree = _read_tree(f["results"], place)
+    tree = _read_tree(_group(f, "results", place), place)
     place.where = "/results"
     try:
         session.results = Results.from_tree(tree)
@@ -541,7 +577,10 @@ def _load(f: h5py.File, path: Path, place: _Place) -> Session:
     if version < 2:
         _upgrade_v1(session.results)
     place.where = "/provenance"
-    entries = f["provenance"].asstr()[()]
+    provenance = f["provenance"]
+    if not isinstance(provenance, h5py.Dataset):
+        raise place.fail("cannot be opened as a dataset, the file is damaged")
+    entries = provenance.asstr()[()]
     try:
         session.provenance = [json.loads(s) for s in entries]
     except ValueError:

@@ -203,6 +203,11 @@ def fuse(
     store = session.results.fusion
     for label, stream in calibrated.items():
         store[label].sensor_calibration = stream.attrs["calibration"]
+    for label in done:
+        spans = store[label].nan_bridged_s
+        if spans:
+            held = f"{len(spans)} run(s) of non-finite samples bridged"
+            notes[label] = f"{notes[label]}, {held}" if label in notes else held
     for label in refs:
         record = marker_info["sensors"][label] | {"lab_to_earth": marker_info["lab_to_earth"]}
         store[label].markers = record
@@ -217,8 +222,15 @@ ORIENTATIONS = ("fused", "vendor")
 def _vendor_orientations(
     session: Session, sensors: list[str] | None, force: bool, path: Any
 ) -> list[str]:
-    """Store the vendor's orientation of every sensor that has one as its fusion entry."""
+    """Store the vendor's orientation of every sensor that has one as its fusion entry.
+
+    Non-finite rows are treated as in fusion (:mod:`motionlab.fusion.stage`): runs up to
+    ``NAN_BRIDGE_MAX_S`` hold the last orientation and are listed in ``nan_bridged_s``, longer
+    runs are refused."""
     import numpy as np
+
+    from motionlab.fusion.registry import hold_last_finite
+    from motionlab.fusion.stage import bridged_spans
 
     store = session.results.fusion
     out = []
@@ -231,8 +243,12 @@ def _vendor_orientations(
                 "already has orientations", path, f"results/fusion/{label}",
                 "use force=True to replace them", argument="force",
             )  # fmt: skip
+        quat = np.asarray(s.quat, float)
+        bridged = bridged_spans(label, s.time, {"quat": quat}, path)
         # the vendor's fusion shares one earth frame between its sensors (9-D)
-        store[label] = FusionEntry("vendor", np.asarray(s.quat, float), magnetometer=True)
+        store[label] = FusionEntry(
+            "vendor", hold_last_finite(quat), magnetometer=True, nan_bridged_s=bridged or None
+        )
         out.append(label)
     return out
 

@@ -352,13 +352,35 @@ def broad_cases(rng: np.random.Generator, tmp: Path, n_random: int) -> list[Case
     return cases
 
 
+def apdm_h5_cases(rng: np.random.Generator, tmp: Path, n_random: int) -> list[Case]:
+    """An APDM .h5 export (built as documented, ``tests/test_io_apdm.py``) truncated or with
+    one byte flipped, given to ``ingest``."""
+    from test_io_apdm import _write_apdm_h5
+
+    tmp.mkdir(parents=True, exist_ok=True)
+    _write_apdm_h5(tmp / "apdm.h5")
+    data = (tmp / "apdm.h5").read_bytes()
+    cases = []
+    for i in range(n_random):
+        if i % 2:
+            mutated = truncate(data, rng.uniform(0, 1))
+        else:
+            mutated = flip(data, int(rng.integers(len(data))), int(rng.integers(1, 256)))
+        name = f"apdm_h5/{'truncate' if i % 2 else 'flip'}/{i}"
+        cases.append(Case(name, {"in.h5": mutated}, ["ingest", "in.h5", "-o", "out.h5"]))
+    return cases
+
+
 def session_cases(
     session: bytes, rng: np.random.Generator, n_random: int, flips: bool = True
 ) -> list[Case]:
     """A session file broken, given to ``info`` (reads every dataset) or ``fuse``.
 
     Byte flips can make libhdf5 itself crash (a segmentation fault reading a damaged attribute
-    heap): ``bench/faults.py`` runs them in a subprocess; ``flips=False`` only truncates.
+    heap); the readers probe every HDF5 file in a forked child first
+    (:func:`motionlab.isolated.check_hdf5`), so that a crash there is a refusal. ``bench/faults.py``
+    still runs each case in a child of its own, so that a crash the probe missed is counted
+    instead of ending the run. ``flips=False`` only truncates.
     """
     cases = []
     for i in range(n_random):
@@ -405,6 +427,7 @@ def campaign(
     for reader in TEXT_READERS:
         cases += text_cases(reader, rng, n_text)
     cases += broad_cases(rng, tmp, n_h5)
+    cases += apdm_h5_cases(rng, tmp / "apdm", n_h5)
     cases += yaml_cases()
     session = tmp / "good" / "s.h5"
     if n_session:

@@ -75,10 +75,10 @@ def test_auto_calibration_recovers_every_channel(session_file, tmp_path):
 
 
 def test_acc_ellipsoid_and_mag_with_a_known_field(session_file, tmp_path):
-    args = ["--kind", "acc", "--kind", "mag", "--field-norm", "50", "-o", tmp_path]
+    args = ["--kind", "acc", "--kind", "mag", "--field-norm", "50", "-o", tmp_path / "cal"]
     out = run("sensorcal", session_file, "--sensor", "shank_r", *args)
     assert out.exit_code == 0, out.output
-    cal = load_calibration(tmp_path / "SIM_001.yaml")
+    cal = load_calibration(tmp_path / "cal" / "SIM_001.yaml")
     acc, mag = cal.channels["acc"], cal.channels["mag"]
     assert acc.method == "ellipsoid" and set(cal.channels) == {"acc", "mag"}
     assert np.abs(acc.offset - ACC_BIAS).max() < 0.01
@@ -128,11 +128,12 @@ def test_allan_kind_on_a_static_recording(tmp_path):
     ses = Session(sensors={"imu": static})
     save_session(ses, tmp_path / "still.h5")
     out = run(
-        "sensorcal", tmp_path / "still.h5", "--kind", "allan", "--kind", "gyro", "-o", tmp_path
-    )
+        "sensorcal", tmp_path / "still.h5", "--kind", "allan", "--kind", "gyro", "-o",
+        tmp_path / "cal",
+    )  # fmt: skip
     assert out.exit_code == 0, out.output
     assert "deg/sqrt(h)" in out.output and "allan acc" in out.output
-    data = yaml.safe_load((tmp_path / "S2.yaml").read_text())
+    data = yaml.safe_load((tmp_path / "cal" / "S2.yaml").read_text())
     white = np.array(data["noise"]["gyr"]["white_density"])
     assert np.allclose(white, 0.002 / np.sqrt(rate), rtol=0.05)
 

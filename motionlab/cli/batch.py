@@ -8,7 +8,9 @@ from pathlib import Path
 
 import click
 
+from motionlab.atomic import refuse_folder_holding_inputs
 from motionlab.batch import Progress, load_manifest, run_study
+from motionlab.batch.manifest import Manifest
 from motionlab.cli.paths import INPUT_FILE
 from motionlab.errors import InputError
 from motionlab.fusion import registry
@@ -58,7 +60,10 @@ class _ProgressBar:
 
 @click.command("batch")
 @click.argument("manifest", type=INPUT_FILE)
-@click.option("-o", "--output", "outdir", required=True, help="Study output folder.")
+@click.option(
+    "-o", "--output", "outdir", required=True,
+    help="Study output folder (not one that is or holds an input of the study).",
+)  # fmt: skip
 @click.option("--workers", type=int, help="Local worker processes [default: number of cores].")
 @click.option(
     "--scheduler",
@@ -147,6 +152,7 @@ def command(
             "run motionlab sensorcal",
         )
     study = load_manifest(manifest)
+    refuse_folder_holding_inputs(outdir, _inputs(study, flags["calibration_dir"]))
     start = time.monotonic()
     result = run_study(
         study,
@@ -169,3 +175,13 @@ def command(
         first = next(o for o in result.outcomes if o.status == "failed")
         click.echo(f"first failure: {first.subject}/{first.visit}: {first.error}", err=True)
         sys.exit(EXIT_SESSIONS_FAILED)
+
+
+def _inputs(study: Manifest, calibration_dir: Path | None) -> list[Path | None]:
+    """Every file and folder the study reads: the manifest, protocol, maps, recordings,
+    references and calibration folders."""
+    paths: list[Path | None] = [study.path, study.protocol, study.map, calibration_dir]
+    paths.append(study.options.get("calibration_dir"))
+    for s in study.sessions:
+        paths += [*s.files, s.reference, s.map, s.options.get("calibration_dir")]
+    return paths

@@ -8,9 +8,11 @@ import click
 import h5py
 import numpy as np
 
+from motionlab.atomic import refuse_folder_holding_inputs
 from motionlab.cli.paths import INPUT_FILE
 from motionlab.errors import InputError
 from motionlab.io import read_any
+from motionlab.isolated import check_hdf5, looks_like_hdf5
 from motionlab.sensorcal import calfile, stage
 from motionlab.session import FORMAT_NAME, SensorStream, load_session
 from motionlab.units import STANDARD_GRAVITY
@@ -21,7 +23,8 @@ _DEG = 180.0 / np.pi
 def load_streams(path: str | Path) -> dict[str, SensorStream]:
     """The inertial sensors of a session file or of any vendor file ``read_any`` knows."""
     path = Path(path)
-    if path.is_file() and h5py.is_hdf5(path):
+    if path.is_file() and looks_like_hdf5(path):
+        check_hdf5(path)
         with h5py.File(path, "r") as f:
             is_session = f.attrs.get("format") == FORMAT_NAME
         if is_session:
@@ -91,7 +94,10 @@ def _describe(r: stage.KindResult) -> list[str]:
     type=click.Choice(stage.KINDS),
     help="What to calibrate (repeat; default: every kind the data support, except allan).",
 )
-@click.option("-o", "--output", "caldir", required=True, help="Calibration folder.")
+@click.option(
+    "-o", "--output", "caldir", required=True,
+    help="Calibration folder (not one that is or holds the recording).",
+)  # fmt: skip
 @click.option("--force", is_flag=True, help="Replace calibrations already in the files.")
 @click.option(
     "--gravity", type=float, default=STANDARD_GRAVITY, show_default=True, help="Local g, m/s²."
@@ -123,6 +129,7 @@ def command(
         raise InputError("is a file, expected a folder", out, remedy="give a folder for -o")
     if not out.exists() and not out.parent.is_dir():
         raise InputError("folder does not exist", out.parent, remedy="create it first")
+    refuse_folder_holding_inputs(out, [source])
     if not gravity > 0 or (field_norm is not None and not field_norm > 0):
         raise InputError("must be positive", where="--gravity/--field-norm")
     streams = load_streams(source)

@@ -224,11 +224,19 @@ def _fill_nan(arr: np.ndarray, name: str) -> tuple[np.ndarray, int]:
         return arr, 0
     if bad.all():
         raise InputError(f"{name} has no finite sample", remedy="check the recording")
+    return hold_last_finite(arr), int(bad.sum())
+
+
+def hold_last_finite(arr: np.ndarray) -> np.ndarray:
+    """(N, k) rows with a non-finite value replaced by the last finite row before them (the
+    first finite row for those at the start); unchanged when every row is finite or none is."""
+    bad = ~np.isfinite(arr).all(axis=1)
+    if not bad.any() or bad.all():
+        return arr
     idx = np.where(~bad, np.arange(len(arr)), 0)
     np.maximum.accumulate(idx, out=idx)
-    first = np.argmax(~bad)
-    idx[:first] = first
-    return np.ascontiguousarray(arr[idx]), int(bad.sum())
+    idx[: np.argmax(~bad)] = np.argmax(~bad)
+    return np.ascontiguousarray(arr[idx])
 
 
 def takes_references(name: str) -> bool:

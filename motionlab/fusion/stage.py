@@ -7,6 +7,15 @@ on the sensor's own time stamps, which are passed to the estimator so that packe
 bridged), its ``params``, whether the ``magnetometer`` was used, and what the estimator reports
 besides: ``gyro_bias``, ``rest``, ``mag_disturbed``, the marker ``scenario``, and
 ``gaps_bridged_s`` (the gaps it ran across).
+
+Samples that are not numbers (NaN, ±inf in a channel fused) are not left to spread: a run of
+them up to :data:`NAN_BRIDGE_MAX_S` (from the last finite sample before to the first after, as
+ingest fills time gaps up to its ``--gap-max`` default) is bridged by holding the last finite
+sample, and listed in the entry's ``nan_bridged_s``; a longer run is refused
+(:class:`~motionlab.errors.InputError` naming the sensor, the channels and the time span), as
+the orientation there would be a guess. An estimate that is not finite everywhere (a filter
+driven to NaN by implausible values such as 1e308) is refused too, with its first bad time and
+share: no NaN orientation reaches the joint angles and metrics.
 """
 
 from __future__ import annotations
@@ -23,6 +32,9 @@ from motionlab.results import FusionEntry
 from motionlab.session import Session
 
 Progress = Callable[[list[str], str], Iterable[str]]
+
+#: longest run of non-finite input samples (s) the fusion bridges; longer runs are refused
+NAN_BRIDGE_MAX_S = 0.1
 
 
 def fusable(session: Session, labels: list[str] | None = None) -> list[str]:
@@ -93,16 +105,11 @@ def fuse_session(
         s = session.sensors[label]
         mag = s.mag if magnetometer else None
         ref = (references or {}).get(label)
+        bridged = bridged_spans(label, s.time, {"gyr": s.gyr, "acc": s.acc, "mag": mag}, path)
         res = registry.estimate(
             est.name, s.gyr, s.acc, mag, s.rate_hz, references=ref, time=s.time, **params
         )
-        if not np.isfinite(res.quat).all(axis=1).any():
-            raise InputError(
-                f"fusion ({est.name}) gives no finite orientation for this sensor",
-                path,
-                f"sensor {label}",
-                "its data hold non-finite or implausible values: see 'motionlab info' (QC)",
-            )
+        _check_finite(label, est.name, s.time, res.quat, path)
         resampled = res.extra.get("resampled")  # packet-loss gaps the estimator ran across
         store[label] = FusionEntry(
             res.name,
@@ -111,9 +118,64 @@ def fuse_session(
             magnetometer=mag is not None,
             scenario=res.extra.get("scenario"),
             gaps_bridged_s=None if resampled is None else resampled["spans_s"],
+            nan_bridged_s=bridged or None,
             gyro_bias=res.gyro_bias,
             rest=res.rest,
             mag_disturbed=res.mag_disturbed,
         )
         done.append(label)
     return done
+
+
+def bridged_spans(
+    label: str, time: np.ndarray, channels: dict[str, np.ndarray | None], path: Any
+) -> list[list[float]]:
+    """``[first, last]`` time (s) of every run of samples non-finite in any of ``channels``,
+    each no longer than :data:`NAN_BRIDGE_MAX_S` from the finite sample before to the one
+    after; a longer run raises :class:`InputError` naming the sensor, channels and span."""
+    t = np.asarray(time, dtype=float)
+    used = {k: np.asarray(a) for k, a in channels.items() if a is not None}
+    bad = np.zeros(len(t), dtype=bool)
+    for a in used.values():
+        bad |= ~np.isfinite(a.reshape(len(a), -1)).all(axis=1)
+    if not bad.any():
+        return []
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], bad.astype(np.int8), [0]])))
+    runs = list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))  # [start, end)
+    long = [
+        (a, b)
+        for a, b in runs
+        if t[min(b, len(t) - 1)] - t[max(a - 1, 0)] > NAN_BRIDGE_MAX_S * (1 + 1e-9)
+    ]
+    if long:
+        a, b = long[0]
+        names = [k for k, arr in used.items() if not np.isfinite(arr[a:b]).all()]
+        more = f"; {len(long) - 1} more run(s)" if len(long) > 1 else ""
+        raise InputError(
+            f"{'/'.join(names)} not a number from {t[a]:.2f} s to {t[b - 1]:.2f} s "
+            f"({b - a} samples, {100 * bad.mean():.1f} % of the recording{more}): fusion "
+            f"bridges at most {NAN_BRIDGE_MAX_S:g} s",
+            path,
+            f"sensor {label}",
+            "export the recording again, or trim it to the part with data "
+            "(see 'motionlab info', QC)",
+        )
+    return [[float(t[a]), float(t[b - 1])] for a, b in runs]
+
+
+def _check_finite(label: str, name: str, time: np.ndarray, quat: np.ndarray, path: Any) -> None:
+    """Refuse an orientation that is not finite at every sample, with where it starts."""
+    finite = np.isfinite(quat).all(axis=1)
+    if finite.all():
+        return
+    first = int(np.argmin(finite))
+    share = 100 * (1 - finite.mean())
+    span = "for this sensor" if not finite.any() else (
+        f"for {share:.1f} % of the samples, from {float(time[first]):.2f} s on"
+    )  # fmt: skip
+    raise InputError(
+        f"fusion ({name}) gives no finite orientation {span}",
+        path,
+        f"sensor {label}",
+        "its data hold non-finite or implausible values: see 'motionlab info' (QC)",
+    )

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from motionlab.errors import InputError, shorten
+from motionlab.isolated import check_hdf5
 from motionlab.session import MarkerSet, SensorStream
 
 HEAD_BYTES = 65536
@@ -92,6 +93,8 @@ def _detect(path: Path, options: dict[str, Any] | None):
             path,
             remedy=f"use one of {', '.join(m.FORMAT for m in _readers())}",
         )
+    if head.startswith(HDF5_SIGNATURE):
+        check_hdf5(path)  # a crash in libhdf5 on a damaged file: refused before any sniffer
     for module in _readers():
         if module.sniff(path, head):
             return module

@@ -75,7 +75,8 @@ def _text(value: Any) -> str:
         value = value.decode("utf-8", errors="replace")
     if isinstance(value, np.ndarray):
         value = _text(value.flat[0]) if value.size else ""
-    return str(value).rstrip("\x00").strip()
+    text = str(value).encode("utf-8", "replace").decode("utf-8")  # h5py's surrogates for damage
+    return text.rstrip("\x00").strip()
 
 
 def _dataset(path: Path, group: h5py.Group, name: str, width: int | None) -> np.ndarray:
@@ -85,13 +86,18 @@ def _dataset(path: Path, group: h5py.Group, name: str, width: int | None) -> np.
         raise InputError(
             "missing dataset", path, f"key {where}", "export the raw sensor data into the .h5"
         )
-    if ds.dtype.kind not in "biuf":
+    try:
+        kind = ds.dtype.kind
+    except (ValueError, TypeError):  # h5py: a damaged type description
+        kind = "damaged"
+    if kind not in "biuf":
+        what = "a data type that cannot be read" if kind == "damaged" else str(ds.dtype)
         raise InputError(
-            f"holds {ds.dtype}, expected numbers", path, f"key {where}", "re-export the file"
+            f"holds {what}, expected numbers", path, f"key {where}", "re-export the file"
         )
     try:
         data = np.asarray(ds[()], dtype=float)
-    except OSError:
+    except (OSError, ValueError):
         raise InputError(
             "cannot be read, the data are damaged", path, f"key {where}", "re-export the file"
         ) from None

@@ -70,9 +70,10 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
         data = {name: _dataset(path, f, name, width) for name, width in _DATASETS.items()}
         try:
             info = f.attrs.get("info", "")
-        except OSError:
+        except (OSError, ValueError, TypeError):  # h5py: a damaged attribute (free text only)
             info = ""
         info = info.decode("utf-8", "replace") if isinstance(info, bytes) else str(info)
+        info = info.encode("utf-8", "replace").decode("utf-8")  # damaged bytes: surrogates
     n = len(data["imu_gyr"])
     for name, arr in data.items():
         if len(arr) != n:
@@ -133,11 +134,20 @@ def _dataset(path: Path, f: h5py.File, name: str, width: int | None) -> np.ndarr
     if not ok:
         want = "(N,)" if width is None else f"(N, {width})"
         raise InputError(f"shape {ds.shape}, expected {want}", path, where, "re-download")
-    if ds.dtype.kind not in "biuf":
+    try:
+        kind = ds.dtype.kind
+    except (ValueError, TypeError) as exc:  # h5py: a damaged type description
+        raise InputError(
+            f"its data type cannot be read, the file is damaged ({shorten(exc)})",
+            path,
+            where,
+            "re-download",
+        ) from None
+    if kind not in "biuf":
         raise InputError(f"holds {ds.dtype}, expected numbers", path, where, "re-download")
     try:
         data = ds[()]
-    except OSError as exc:
+    except (OSError, ValueError) as exc:
         detail = shorten(str(exc).splitlines()[0] if str(exc) else "damaged")
         raise InputError(
             f"cannot be read, the data are damaged ({detail})", path, where, "re-download"

@@ -25,7 +25,12 @@ silent: the repeats are renamed ``RKNE_2``… and listed in ``attrs["duplicate_l
 Before ezc3d reads anything, the frames and points announced by the parameter section
 (``POINT:FRAMES``, ``POINT:USED``; the header block where absent) are checked against the file's
 size, so that a damaged parameter section cannot make ezc3d allocate far more than the file
-holds; a truncated file is refused, a complete file with a stale header block is read.
+holds; a truncated file is refused, a complete file with a stale header block is read. The
+parameter section is then walked record by record as ezc3d reads it (:func:`_check_records`:
+group ids, data types, dimensions, description lengths, each record ending where the next one
+starts, the parameters ezc3d indexes while reading the frames), so that a damaged record is
+refused with its byte offset instead of crashing ezc3d. ezc3d itself runs in a forked child
+(:func:`motionlab.isolated.call_isolated`) as a safety net: a crash there is refused too.
 A point is invalid — NaN in ``positions`` and ``residuals`` — when its residual is negative
 (the C3D "not seen" flag) or all three coordinates are exactly zero (how some exporters write
 a gap). Analog channels are not read; their count is kept in ``attrs["n_analog_channels"]``.
@@ -39,8 +44,9 @@ from typing import Any
 
 import numpy as np
 
-from motionlab.errors import InputError
+from motionlab.errors import InputError, shorten
 from motionlab.io import Recording
+from motionlab.isolated import call_isolated
 from motionlab.session import MarkerSet, ModelOutput
 from motionlab.units import factor
 
@@ -74,14 +80,13 @@ def sniff(path: Path, head: bytes) -> bool:
 
 def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     """Read the marker trajectories of a C3D file (m, NaN where not seen)."""
-    import ezc3d
-
     path = Path(path)
     layout = _layout(path)
     expected = layout.frames
     _check_size(path, layout)
+    _check_records(path, layout)
     try:
-        c3d = ezc3d.c3d(str(path))
+        c3d = call_isolated(_ezc3d_read, path, path=path, what="ezc3d")
     except (RuntimeError, OSError, ValueError) as exc:
         if expected > 0 and layout.size < layout.data_start + layout.frame_bytes:
             raise _truncated(path, "the file ends inside its first frame", "frame 1") from None
@@ -163,11 +168,30 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     return Recording(markers=[markers], metadata={"c3d_unit": unit})
 
 
+def _ezc3d_read(path: Path) -> dict[str, Any]:
+    """What :func:`read` uses of ezc3d's reading, as plain picklable objects."""
+    import ezc3d
+
+    c3d = ezc3d.c3d(str(path))
+    header = c3d["header"]
+    return {
+        "parameters": {g: dict(v) for g, v in c3d["parameters"].items()},
+        "header": {"points": dict(header["points"]), "analogs": dict(header["analogs"])},
+        "data": {
+            "points": c3d["data"]["points"],
+            "meta_points": {"residuals": c3d["data"]["meta_points"]["residuals"]},
+        },
+    }
+
+
 @dataclass
 class _Layout:
     """Where things are in a C3D file, from its header block (bytes)."""
 
     size: int
+    start: int  # of the parameter section
+    order: str  # byte order of its integers: "<" or ">"
+    analogs: int  # analog samples per frame (header word 3)
     frames: int  # announced: POINT:FRAMES, else the header block
     data_start: int
     frame_bytes: int
@@ -216,8 +240,8 @@ def _layout(path: Path) -> _Layout:
     if announced <= 0:  # some writers leave it 0 or store more than 32767 as negative
         announced = int(frames)
     frame_bytes = (4 * points + words[2]) * (4 if sign else 2)
-    return _Layout(size, announced, int(data_start), int(frame_bytes), int(frames), points,
-                   int(words[1]))  # fmt: skip
+    return _Layout(size, start, order, int(words[2]), announced, int(data_start),
+                   int(frame_bytes), int(frames), points, int(words[1]))  # fmt: skip
 
 
 def _check_size(path: Path, layout: _Layout) -> None:
@@ -245,6 +269,114 @@ def _check_size(path: Path, layout: _Layout) -> None:
         f"frame {held + 1}",
         "copy or export the file again",
     )
+
+
+#: C3D parameter data types: byte length of one value (-1: characters)
+_TYPES = (-1, 1, 2, 4)
+#: the C3D standard allows up to 7 dimensions per parameter
+_MAX_DIMS = 7
+#: a parameter section spans at most 255 blocks (its block count is one byte)
+_MAX_SECTION = 255 * 512
+
+
+def _check_records(path: Path, layout: _Layout) -> None:
+    """Walk the parameter section as ezc3d reads it and refuse, naming the byte, a record it
+    would read out of bounds or misread (the damage that crashes it rather than raising).
+
+    A record: name length (int8, 0 ends the section; negative: locked), group id (int8:
+    negative for a group, the owning group's id for a parameter, never 0), the name, the byte
+    count to the next record (uint16, from its own position; 0 for the last record). A group
+    then has a description (length int8); a parameter a data type (-1 char, 1 byte, 2 int16,
+    4 float), a dimension count (0–7) and the dimensions (uint8 each), the data (the product of
+    the dimensions × the type's length) and a description. Each record must end where the next
+    one starts (ezc3d's own rule). Then the parameters ezc3d indexes while it reads the frames
+    must hold enough values: ``POINT:SCALE`` (points), ``ANALOG:SCALE``, ``ANALOG:OFFSET`` (one
+    per channel) and ``ANALOG:GEN_SCALE``.
+    """
+    with open(path, "rb") as f:
+        f.seek(layout.start)
+        buf = f.read(_MAX_SECTION)
+    if len(buf) < 4:
+        return  # _layout refused it already
+    i16 = np.dtype(f"{layout.order}u2")
+
+    def refuse(at: int, what: str) -> InputError:
+        return InputError(
+            f"damaged parameter section: {what}",
+            path,
+            f"byte {layout.start + at}",
+            "export the C3D again from the capture software",
+        )
+
+    groups: dict[int, str] = {}
+    counts: dict[tuple[int, str], int] = {}
+    pos = expected = 4  # the first byte ("first parameter block") is ignored, as ezc3d does
+    while True:
+        if pos != expected:
+            raise refuse(pos, f"a record ends at byte {layout.start + pos}, the chain says "
+                         f"{layout.start + expected}")  # fmt: skip
+        if pos + 2 > len(buf):
+            raise refuse(pos, "the records run past the end of the section")
+        nlen, gid = np.frombuffer(buf, np.int8, 2, pos).tolist()
+        if nlen == 0:
+            break
+        if gid == 0:
+            raise refuse(pos + 1, "a record with group id 0")
+        end = pos + 2 + abs(nlen)
+        if end + 2 > len(buf):
+            raise refuse(pos, "a record runs past the end of the section")
+        name = shorten(buf[pos + 2 : end].decode("latin-1").upper(), 40)
+        offset = int(np.frombuffer(buf, i16, 1, end)[0])
+        at = end + 2
+        if gid < 0:
+            groups[-gid] = name
+        else:
+            kind, ndims = (
+                np.frombuffer(buf, np.int8, 2, at).tolist() if at + 2 <= len(buf) else (0, 0)
+            )
+            if kind not in _TYPES:
+                raise refuse(at, f"parameter {name} has data type {kind} (expected -1, 1, 2 or 4)")
+            if not 0 <= ndims <= _MAX_DIMS:
+                raise refuse(at + 1, f"parameter {name} has {ndims} dimensions (at most 7)")
+            dims = list(buf[at + 2 : at + 2 + ndims])
+            count = int(np.prod(dims)) if ndims else (0 if kind == -1 else 1)
+            at += 2 + ndims + count * abs(kind)
+            counts[(gid, name)] = count // (max(dims[0], 1) if kind == -1 and ndims else 1)
+        if at >= len(buf):
+            raise refuse(pos, f"record {name} runs past the end of the section")
+        if buf[at] > 127:  # a negative int8
+            raise refuse(at, f"record {name} has a description of negative length")
+        at += 1 + buf[at]
+        if at > len(buf):
+            raise refuse(pos, f"record {name} runs past the end of the section")
+        if offset == 0:
+            break
+        expected = end + offset
+        pos = at
+    ids = {v: k for k, v in groups.items()}
+
+    def n(group: str, name: str) -> int:
+        return counts.get((ids.get(group, 0), name), -1)
+
+    need = []
+    if layout.header_points > 0:
+        need.append(("POINT", "SCALE", 1))
+    if layout.analogs > 0:
+        need.append(("ANALOG", "GEN_SCALE", 1))
+    if layout.analogs > 0:  # one scale and offset per channel (ANALOG:USED), at least one
+        used = _parameters(buf, layout.order).get(("ANALOG", "USED"), [1])
+        channels = int(min(max(used[0], 1), layout.analogs))
+        need += [("ANALOG", "SCALE", channels), ("ANALOG", "OFFSET", channels)]
+    for group, name, least in need:
+        have = n(group, name)
+        if have < least:
+            what = "absent" if have < 0 else f"{have} value(s), expected {least}"
+            raise InputError(
+                f"damaged parameter section: {group}:{name} {what}",
+                path,
+                f"parameter {group}:{name}",
+                "export the C3D again from the capture software",
+            )
 
 
 def _parameters(section: bytes, order: str) -> dict[tuple[str, str], list[float]]:

@@ -39,6 +39,7 @@ import pandas as pd
 
 from motionlab.atomic import atomic_path
 from motionlab.errors import InputError
+from motionlab.isolated import check_hdf5
 
 FORMAT = "motionlab-truth"
 SCHEMA_VERSION = 1
@@ -125,6 +126,7 @@ def load_truth(path: str | Path) -> Truth:
     path = Path(path)
     if not path.is_file():
         raise InputError("no such truth file", path, remedy="check the path")
+    check_hdf5(path)
     try:
         f = h5py.File(path, "r")
     except OSError:

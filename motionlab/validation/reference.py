@@ -22,6 +22,7 @@ import numpy as np
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
+from motionlab.isolated import check_hdf5, looks_like_hdf5
 from motionlab.protocol import Protocol
 from motionlab.session import FORMAT_NAME, MarkerSet, load_session
 from motionlab.validation.anatomy import anatomical_frame, recipe_for
@@ -78,6 +79,8 @@ def read_reference(path: str | Path, model_outputs_ok: bool = False) -> list[Mar
     path = Path(path)
     if not path.is_file():
         raise InputError("no such reference file", path, remedy="check the path")
+    if looks_like_hdf5(path):
+        check_hdf5(path)
     try:
         with h5py.File(path, "r") as f:
             is_session = f.attrs.get("format") == FORMAT_NAME

@@ -1,0 +1,129 @@
+"""Non-finite samples never spread silently through fusion (issue 16): a short run of NaN is
+bridged and listed; a long run, or an estimate that turns NaN, is refused with the sensor and
+the time span (exit 2, one line) instead of written with exit 0."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from fusion_signals import constant_rotation  # noqa: E402
+from test_input_boundaries import cli, refused  # noqa: E402
+
+from motionlab import rotations as rot  # noqa: E402
+from motionlab.errors import InputError  # noqa: E402
+from motionlab.fusion.stage import NAN_BRIDGE_MAX_S, fuse_session  # noqa: E402
+from motionlab.session import SensorStream, Session, load_session, save_session  # noqa: E402
+
+RATE = 100.0
+
+
+def session_with(edit=None, seconds: float = 10.0) -> Session:
+    sig = constant_rotation(seconds=seconds, rate=RATE, seed=3)
+    n = len(sig["gyr"])
+    s = SensorStream(
+        "shank_r", np.arange(n) / RATE, acc=sig["acc"].copy(), gyr=sig["gyr"].copy(),
+        segment="shank", side="r",
+    )  # fmt: skip
+    if edit:
+        edit(s)
+    ses = Session(metadata={})
+    ses.sensors[s.label] = s
+    ses.truth = sig["quat"]  # type: ignore[attr-defined]
+    return ses
+
+
+def nan_rows(channel: str, start: int, stop: int):
+    def edit(s: SensorStream) -> None:
+        getattr(s, channel)[start:stop] = np.nan
+
+    return edit
+
+
+def test_a_short_nan_run_is_bridged_listed_and_the_orientation_stays_right():
+    ses = session_with(nan_rows("gyr", 400, 405))  # 5 samples: 0.06 s from finite to finite
+    assert fuse_session(ses, "madgwick", magnetometer=False) == ["shank_r"]
+    entry = ses.results.fusion["shank_r"]
+    assert entry.nan_bridged_s == [[4.0, 4.04]]
+    q = entry.quat
+    assert np.isfinite(q).all()
+    # held gyro over 0.05 s at ≤ 0.6 rad/s: the tilt stays within a few degrees of the truth
+    truth = ses.truth  # type: ignore[attr-defined]
+    up_est = rot.rotate(rot.conj(q), np.array([0.0, 0.0, 1.0]))
+    up_true = rot.rotate(rot.conj(truth), np.array([0.0, 0.0, 1.0]))
+    tilt = np.degrees(np.arccos(np.clip((up_est * up_true).sum(axis=1), -1, 1)))
+    assert tilt[300:].max() < 5.0
+
+
+def test_a_long_nan_run_is_refused_with_sensor_channel_and_span():
+    ses = session_with(nan_rows("acc", 250, 400))  # 1.5 s
+    with pytest.raises(InputError) as exc:
+        fuse_session(ses, "madgwick", magnetometer=False, path="s.h5")
+    line = exc.value.line()
+    assert "sensor shank_r" in line and "acc not a number from 2.50 s to 3.99 s" in line, line
+    assert "150 samples" in line and f"{NAN_BRIDGE_MAX_S:g} s" in line
+    assert "shank_r" not in ses.results.fusion
+
+
+def test_infinite_values_count_as_not_a_number():
+    ses = session_with(nan_rows("gyr", 100, 101))
+    ses.sensors["shank_r"].gyr[100] = np.inf
+    fuse_session(ses, "madgwick", magnetometer=False)
+    assert ses.results.fusion["shank_r"].nan_bridged_s == [[1.0, 1.0]]
+
+
+def test_an_estimate_that_turns_nan_midway_is_refused_with_where_it_starts(monkeypatch):
+    from motionlab.fusion import registry
+
+    real = registry.estimate
+
+    def diverging(*args, **kwargs):
+        res = real(*args, **kwargs)
+        res.quat[600:] = np.nan  # as a filter driven to NaN by an implausible spike
+        return res
+
+    monkeypatch.setattr(registry, "estimate", diverging)
+    ses = session_with()
+    with pytest.raises(InputError) as exc:
+        fuse_session(ses, "madgwick", magnetometer=False, path="s.h5")
+    assert "no finite orientation for 40.0 % of the samples, from 6.00 s on" in exc.value.line()
+
+
+def test_cli_fuse_and_run_never_write_nan_orientations(tmp_path):
+    save_session(session_with(nan_rows("gyr", 200, 320)), tmp_path / "s.h5")
+    before = (tmp_path / "s.h5").read_bytes()
+    r = cli(tmp_path, "fuse", "s.h5", "-o", "o.h5")
+    refused(r, "s.h5 sensor shank_r: gyr not a number")
+    assert r.stdout == ""  # nothing ("fusing (…)") before the error
+    assert not (tmp_path / "o.h5").exists() and (tmp_path / "s.h5").read_bytes() == before
+    save_session(session_with(nan_rows("gyr", 200, 203)), tmp_path / "b.h5")
+    r = cli(tmp_path, "fuse", "b.h5", "-o", "o.h5")
+    assert r.exit_code == 0, r.output
+    assert "1 run(s) of non-finite samples bridged" in r.output
+    q = load_session(tmp_path / "o.h5").results.fusion["shank_r"].quat
+    assert np.isfinite(q).all()
+
+
+def test_vendor_orientations_follow_the_same_rule(tmp_path):
+    from motionlab import stages
+
+    def with_quat(start: int, stop: int):
+        def edit(s: SensorStream) -> None:
+            s.quat = constant_rotation(seconds=10.0, rate=RATE, seed=3)["quat"].copy()
+            s.quat[start:stop] = np.nan
+
+        return edit
+
+    ses = session_with(with_quat(500, 502))
+    assert stages.fuse(ses, orientation="vendor").sensors == ["shank_r"]
+    entry = ses.results.fusion["shank_r"]
+    assert entry.name == "vendor" and entry.nan_bridged_s == [[5.0, 5.01]]
+    assert np.isfinite(entry.quat).all()
+    assert np.array_equal(entry.quat[500], entry.quat[499])  # the last one held
+    save_session(session_with(with_quat(500, 700)), tmp_path / "v.h5")
+    refused(cli(tmp_path, "fuse", "v.h5", "--orientation", "vendor", "-o", "o.h5"),
+            "sensor shank_r: quat not a number from 5.00 s to 6.99 s")  # fmt: skip
