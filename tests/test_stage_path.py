@@ -70,10 +70,10 @@ def test_stage_commands_give_the_angles_of_run(tmp_path, name):
     assert run.clock_sync.fits.keys() == stage.clock_sync.fits.keys()
     applied = [k for k, v in run.clock_sync.fits.items() if v.status == "applied"]
     for k, fit in run.clock_sync.fits.items():
-        assert (fit.status, fit.offset_s) == (
-            stage.clock_sync.fits[k].status,
-            stage.clock_sync.fits[k].offset_s,
-        ), k
+        # the same fit: same verdict, offsets within 0.1 ms (MINPACK's iterations may end a few
+        # µs apart when the two paths' floating-point sums differ in the last bits)
+        assert fit.status == stage.clock_sync.fits[k].status, k
+        assert abs(fit.offset_s - stage.clock_sync.fits[k].offset_s) < 1e-4, k
         assert k in synced
     if name == "elbow":  # the case where the sync moves a clock (upper arm on the thorax's)
         assert applied
