@@ -62,8 +62,10 @@ def streams_of(session: Session, protocol: Protocol) -> Streams:
         s = session.sensors[label]
         if s.acc is not None and s.gyr is not None:
             out[seg] = (s.time, s.acc, s.gyr)
-        elif s.quat is not None:
-            out[seg] = signals_from_orientation(s.time, np.asarray(s.quat, float))
+        elif s.quat is not None:  # rows without a finite orientation are missing samples
+            q = np.asarray(s.quat, float)
+            ok = np.isfinite(q).all(axis=1)
+            out[seg] = signals_from_orientation(s.time[ok], q[ok])
         else:
             raise InputError(
                 f"sensor '{label}' has neither accelerometer and gyroscope nor an orientation",
