@@ -157,7 +157,8 @@ def test_sto_round_trip_reproduces_the_fused_angles(sto_round_trip):
 
 def test_run_on_the_sto_alone_matches_the_fused_knee_flexion(sto_round_trip):
     """The orientation-only calibration (gravity and rates from the orientation) against the
-    original's from the raw signals: flexion RMS difference measured 2.3° over 61° of range."""
+    original's from the raw signals: flexion RMS difference measured 2.3° (max 7.3° at the
+    peaks) over 61° of range, the same range to 0.005°."""
     root = sto_round_trip
     _cli("run", "--protocol", root / "knee.yaml", root / "sto.h5", "-o", root / "out_sto",
          "--quiet")  # fmt: skip
@@ -169,4 +170,4 @@ def test_run_on_the_sto_alone_matches_the_fused_knee_flexion(sto_round_trip):
     t = got["time_s"] + ses.metadata["time_origin_s"]
     diff = got[FLEX] - np.interp(t, ref["time_s"], ref[FLEX])
     assert np.sqrt(np.mean(diff**2)) < 3.5
-    assert abs(np.ptp(got[FLEX]) - np.ptp(ref[FLEX])) < 4.0
+    assert abs(np.ptp(got[FLEX]) - np.ptp(ref[FLEX])) < 1.0  # measured 0.005°
