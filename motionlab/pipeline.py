@@ -489,10 +489,10 @@ def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
     if tied:
         lines.append("  heading tied by the joints: " + ", ".join(tied))
     lines += grade_lines(view)
-    lines.append(
-        "  tasks: "
-        + ", ".join(f"{task_name(k)} {a:.0f}-{b:.0f} s" for k, (a, b) in view.blocks().items())
-    )
+    spans = ", ".join(f"{task_name(k)} {a:.0f}-{b:.0f} s" for k, (a, b) in view.blocks().items())
+    if not spans and cal is not None and cal.single_pose:
+        spans = "none (the recording is its calibration pose)"
+    lines.append("  tasks: " + spans)
     lines.append(_gait_line(ses.results.gait))
     flexion = [r for r in rom_rows(view) if r["angle"] == "flexion"]
     if flexion:

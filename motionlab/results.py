@@ -205,6 +205,8 @@ class SegmentCalibration(_Record):
     ``centres`` ``{joint: record}``: headings from a ball joint's shared centre. ``warnings``:
     lines the user should read; ``ok``: every segment's quality passed. ``grades`` ``{joint:
     {"grades": [3], "reasons": [3]}}`` per angle (:func:`motionlab.segments.grades.grade_joints`).
+    ``single_pose``: the static step a recording too short for more was taken as (an
+    OpenSense-style single-pose calibration, :mod:`motionlab.segments.single_pose`), else ``None``.
     """
 
     protocol: str
@@ -216,6 +218,7 @@ class SegmentCalibration(_Record):
     ok: bool = True
     grades: dict[str, dict[str, Any]] = field(default_factory=dict)
     protocol_path: str | None = None
+    single_pose: str | None = None
     more: dict[str, Any] = field(default_factory=dict)
 
     @property
@@ -293,8 +296,9 @@ class AngleTable:
 @dataclass
 class HeadingCorrection(_Record):
     """What one joint's heading alignment did (:func:`motionlab.segments.segment_orientations`):
-    ``source`` (``hinge``, ``two_axes``, ``centre``, ``steps``), the number of ``anchors``, and
-    the correction's ``mean_deg``, ``range_deg`` and ``drift_deg_per_min`` (none without anchors).
+    ``source`` (``hinge``, ``two_axes``, ``centre``, ``steps``, ``single pose``), the number of
+    ``anchors``, and the correction's ``mean_deg``, ``range_deg`` and ``drift_deg_per_min`` (none
+    without anchors).
     """
 
     source: str

@@ -259,7 +259,9 @@ def session_metrics(
             "not calibrated", where="results/calibration", remedy="run motionlab calibrate first"
         )
     steps = {k: tuple(v) for k, v in cal.steps.items() if v is not None}
-    if tasks is None:
+    if tasks is None and cal.single_pose:
+        tasks, source = {}, "detected"  # the recording is the calibration pose: no task in it
+    elif tasks is None:
         after = max((v[1] for v in steps.values()), default=-np.inf)
         tasks = find_tasks(streams_of(session, protocol), protocol, after_s=after)
         source = "detected"

@@ -98,7 +98,10 @@ def sensor_quats(
     segments: list[str] | None = None,
     estimator: str = "default",
 ) -> SegmentQuats:
-    """``{segment: (time, q_sensor)}`` of the joints' segments (or ``segments``)."""
+    """``{segment: (time, q_sensor)}`` of the joints' segments (or ``segments``).
+
+    Rows without a finite orientation (a vendor file's gaps, e.g. ``NaN`` rows of a ``.sto``)
+    are left out, as missing samples are: the angles SLERP across them."""
     quats = {}
     for seg in segments or joint_segments(protocol):
         label = sensor_for_segment(session, seg)
@@ -108,7 +111,13 @@ def sensor_quats(
                 where=f"protocol {protocol.name}",
                 remedy="name the sensor after the segment or set its segment at ingest",
             )
-        quats[seg] = (session.sensors[label].time, sensor_orientation(session, label, estimator))
+        q = sensor_orientation(session, label, estimator)
+        ok = np.isfinite(q).all(axis=1)
+        quats[seg] = (
+            (session.sensors[label].time[ok], q[ok])
+            if not ok.all()
+            else (session.sensors[label].time, q)
+        )
     return quats
 
 

@@ -25,7 +25,7 @@ from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.protocol import Protocol, axis_vector
 from motionlab.results import HeadingCorrection, SegmentCalibration
-from motionlab.segments import grades, heading, mounting, placement
+from motionlab.segments import grades, heading, mounting, placement, single_pose
 from motionlab.segments.steps import find_steps
 from motionlab.session import Session
 from motionlab.timebase import interp_columns
@@ -62,8 +62,10 @@ def streams_of(session: Session, protocol: Protocol) -> Streams:
         s = session.sensors[label]
         if s.acc is not None and s.gyr is not None:
             out[seg] = (s.time, s.acc, s.gyr)
-        elif s.quat is not None:
-            out[seg] = signals_from_orientation(s.time, np.asarray(s.quat, float))
+        elif s.quat is not None:  # rows without a finite orientation are missing samples
+            q = np.asarray(s.quat, float)
+            ok = np.isfinite(q).all(axis=1)
+            out[seg] = signals_from_orientation(s.time[ok], q[ok])
         else:
             raise InputError(
                 f"sensor '{label}' has neither accelerometer and gyroscope nor an orientation",
@@ -103,12 +105,19 @@ def calibrate_segments(
     """
     notes: list[str] = []
     streams = streams_of(session, protocol)
-    steps = find_steps(streams, protocol, notes)
-    records = mounting.measure(protocol, streams, steps)
-    contradicted = placement.contradicted(protocol, records)
-    hinges = placement.movement_hinges(session, protocol, streams, steps, records, contradicted)
-    unsure = placement.orient_by_data(protocol, records, hinges, contradicted)
-    centres = placement.centre_headings(session, protocol, streams)
+    pose = single_pose.pose_step(session, protocol, streams)
+    hinges: dict[str, Any] = {}
+    unsure: dict[str, list[str]] = {}
+    centres: dict[str, dict[str, Any]] = {}
+    if pose is not None:  # orientations too short for more (OpenSense-style)
+        steps, records = single_pose.measure(session, protocol, streams, pose, notes)
+    else:
+        steps = find_steps(streams, protocol, notes)
+        records = mounting.measure(protocol, streams, steps)
+        contradicted = placement.contradicted(protocol, records)
+        hinges = placement.movement_hinges(session, protocol, streams, steps, records, contradicted)
+        unsure = placement.orient_by_data(protocol, records, hinges, contradicted)
+        centres = placement.centre_headings(session, protocol, streams)
     segments = {}
     for seg in streams:
         res = mounting.fit(seg, protocol, records[seg])
@@ -141,6 +150,7 @@ def calibrate_segments(
         centres=centres,
         warnings=notes,
         ok=all(s["quality"]["ok"] for s in segments.values()),
+        single_pose=pose.name if pose is not None else None,
     )
     result.grades = grades.grade_joints(protocol, result)
     return result
@@ -229,7 +239,8 @@ def segment_orientations(
     for a joint calibrated from movement the hinge constraint over the whole recording
     (:func:`.heading.hinge_anchors`), or the headings fitted with a two-axis joint's axes or
     from a ball joint's shared centre (added to the track its proximal segment was turned by);
-    otherwise the anchors of the protocol's steps and rests (:func:`heading_anchors`). Without a
+    a single-pose calibration (:mod:`.single_pose`) its pose; otherwise the anchors of the
+    protocol's steps and rests (:func:`heading_anchors`). Without a
     calibration (``None``) or its entry for a segment the sensor frame is used as the segment
     frame.
     ``corrections``, when given, receives per joint the heading correction applied
@@ -265,7 +276,8 @@ def segment_orientations(
 def _joint_ties(protocol: Protocol, calibration: SegmentCalibration, joint, tp, qp, td, qd):
     """``(source, times s, δ rad)`` of one joint's heading anchors (see
     :func:`segment_orientations`): the headings stored with a two-axis fit or a ball joint's
-    centre, the hinge over the whole recording, or the steps' anchors."""
+    centre, the hinge over the whole recording, the pose of a single-pose calibration, or the
+    steps' anchors."""
     fit = calibration.hinges.get(joint.name)
     if fit is not None and (
         fit.get("used_for", "axes") != "axes" or fit["verdict"] == "not determined"
@@ -278,6 +290,9 @@ def _joint_ties(protocol: Protocol, calibration: SegmentCalibration, joint, tp, 
         times = np.asarray(stored["heading_times"], float)
         return ("two_axes" if fit else "centre"), times, np.asarray(stored["heading_deltas"], float)
     qd_on_p = rot.resample(td, qd, tp)
+    pose_range = calibration.steps.get(calibration.single_pose or "")
+    if pose_range:
+        return ("single pose", *single_pose.heading_anchor(tuple(pose_range), tp, qp, qd_on_p))
     if fit is not None:
         axis = axis_vector(placement.hinge_spec(joint)[0])
         return ("hinge", *heading.hinge_anchors(tp, qp, qd_on_p, axis, axis))

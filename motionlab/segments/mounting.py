@@ -115,6 +115,32 @@ def _hinge(protocol, step, joint, streams, rng) -> tuple[np.ndarray | None, np.n
     return (j_p if moved else None), j_d, residual
 
 
+def static_records(
+    step: CalibrationStep,
+    streams: dict[str, Stream],
+    rng: tuple[float, float],
+    out: dict[str, dict[str, dict[str, Any]]],
+    min_samples: int = 3,
+) -> None:
+    """Add to ``out`` the records of a static step over ``rng`` (s): gravity for each segment
+    the step names a ``vertical_axis`` of, and the axes it lays horizontal (``min_samples``: see
+    :func:`~motionlab.segments.static.gravity_axis`)."""
+    for seg, axis_name in step.vertical_axis.items():
+        if seg in streams:
+            t, acc, _ = streams[seg]
+            axis, rho = gravity_axis(_window(t, acc, rng), min_samples)
+            out[seg][step.name] = _record(
+                step, seg, axis_vector(axis_name), axis, rho, "gravity", False
+            )
+    for seg, axis_name in step.horizontal_axis.items():
+        if seg in streams:
+            t, acc, _ = streams[seg]
+            up, rho = gravity_axis(_window(t, acc, rng), min_samples)
+            out[seg][f"{step.name}:horizontal"] = _record(
+                step, seg, axis_vector(axis_name), up, rho, "horizontal", False
+            )
+
+
 def measure(
     protocol: Protocol, streams: dict[str, Stream], steps: dict[str, tuple[float, float] | None]
 ) -> dict[str, dict[str, dict[str, Any]]]:
@@ -126,20 +152,7 @@ def measure(
         if rng is None:
             continue
         if step.kind == "static":
-            for seg, axis_name in step.vertical_axis.items():
-                if seg in streams:
-                    t, acc, _ = streams[seg]
-                    axis, rho = gravity_axis(_window(t, acc, rng))
-                    out[seg][step.name] = _record(
-                        step, seg, axis_vector(axis_name), axis, rho, "gravity", False
-                    )
-            for seg, axis_name in step.horizontal_axis.items():
-                if seg in streams:
-                    t, acc, _ = streams[seg]
-                    up, rho = gravity_axis(_window(t, acc, rng))
-                    out[seg][f"{step.name}:horizontal"] = _record(
-                        step, seg, axis_vector(axis_name), up, rho, "horizontal", False
-                    )
+            static_records(step, streams, rng, out)
             continue
         moved = moved_joints(protocol, step)
         for seg, axis_name in step.axis.items():

@@ -79,7 +79,10 @@ def movement_hinges(
         for seg in (p, d):
             label = sensor_for_segment(session, seg)
             t, _, gyr = streams[seg]
-            side[seg] = (t, gyr, sensor_orientation(session, label))
+            q, s = sensor_orientation(session, label), session.sensors[label]
+            if s.acc is None or s.gyr is None:  # as streams_of: rows with an orientation
+                q = q[np.isfinite(np.asarray(s.quat, float)).all(axis=1)]
+            side[seg] = (t, gyr, q)
         ref_name = reference_step(protocol, p, d)
         reference = steps.get(ref_name) if ref_name else None
         prior_p = protocol.segments[p].nominal_mounting().T @ seg_axis

@@ -14,14 +14,15 @@ import numpy as np
 from motionlab.errors import InputError
 
 
-def principal_axis(samples: np.ndarray) -> tuple[np.ndarray, float]:
+def principal_axis(samples: np.ndarray, min_samples: int = 3) -> tuple[np.ndarray, float]:
     """First right singular vector of the uncentred (N, 3) matrix and ρ = σ₁/Σσ (Ricci eq. 6.2).
 
-    The sign is that of the mean sample (arbitrary if the mean is zero).
+    The sign is that of the mean sample (arbitrary if the mean is zero). Fewer than
+    ``min_samples`` finite samples are refused.
     """
     samples = np.asarray(samples, dtype=float)
     samples = samples[np.all(np.isfinite(samples), axis=1)]
-    if len(samples) < 3:
+    if len(samples) < max(1, min_samples):
         raise InputError(f"only {len(samples)} valid samples for an axis", remedy="record longer")
     _, sigma, vt = np.linalg.svd(samples, full_matrices=False)
     axis = vt[0]
@@ -32,9 +33,10 @@ def principal_axis(samples: np.ndarray) -> tuple[np.ndarray, float]:
     return axis, rho
 
 
-def gravity_axis(acc: np.ndarray) -> tuple[np.ndarray, float]:
+def gravity_axis(acc: np.ndarray, min_samples: int = 3) -> tuple[np.ndarray, float]:
     """Unit "up" direction (3,) in sensor coordinates and its reliability ρ, from a still window.
 
-    ``acc`` is (N, 3) specific force in m/s².
+    ``acc`` is (N, 3) specific force in m/s²; ``min_samples`` as in :func:`principal_axis` (a
+    single-pose calibration from orientations takes even one sample).
     """
-    return principal_axis(acc)
+    return principal_axis(acc, min_samples)

@@ -72,6 +72,7 @@ AXIS_TOLERANCE_DEG = 45.0
 RIGID_TOLERANCE = 0.25
 MIN_TASK_S = 2.0
 SAME_AXIS_DEG = 20.0
+MIN_RECORDING_S = 1.0
 
 Streams = dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
 
@@ -112,13 +113,19 @@ def moving_mask(rate: np.ndarray) -> np.ndarray:
     return ~still
 
 
+def longest_s(streams: Streams) -> float:
+    """Duration (s) of the longest stream: under ``MIN_RECORDING_S`` the recording is too
+    short to tell rest from movement (:func:`blocks` refuses it)."""
+    return max(s[0][-1] - s[0][0] for s in streams.values())
+
+
 def blocks(streams: Streams) -> list[Block]:
     """Rest and movement blocks of a recording; ``streams[segment] = (time, acc, gyr)``."""
     start = max(s[0][0] for s in streams.values())
     end = min(s[0][-1] for s in streams.values())
-    if end - start < 1.0:
-        longest = max(s[0][-1] - s[0][0] for s in streams.values())
-        if longest < 1.0:
+    if end - start < MIN_RECORDING_S:
+        longest = longest_s(streams)
+        if longest < MIN_RECORDING_S:
             raise InputError(
                 f"the recording lasts {longest:.2f} s",
                 remedy="calibration needs at least a stand of a few seconds, then the task",
