@@ -9,7 +9,8 @@ each, so that a crash inside libhdf5 or ezc3d that the readers' own guards
 (:mod:`motionlab.isolated`) missed counts as a verdict instead of ending the run. The peak
 memory of ``ingest`` (growth of the peak RSS over the imports, of the child or of the readers'
 children) is measured for every fixture, every C3D file and a synthetic C3D of
-``--big-c3d-mb`` MB, and compared with 4× the input size + 300 MB.
+``--big-c3d-mb`` MB (float storage, and the same points as int16 words: half the file, the
+same result, the worst ratio), and compared with 4× the input size + 300 MB.
 
     python3 bench/faults.py                       # ≈ 440 cases
     python3 bench/faults.py --c3d ../shared/formats/c3d --seed 2
@@ -31,6 +32,7 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 sys.path[:0] = [str(ROOT), str(ROOT / "tests")]
 
+import c3d_variants  # noqa: E402
 import faults  # noqa: E402
 
 
@@ -115,7 +117,8 @@ def big_c3d(path: Path, megabytes: float) -> bytes:
 
 def guard_cost(session: Path, c3d_files: list[Path], repeat: int = 10) -> list[str]:
     """Milliseconds of a normal read with and without the child-process guards: a session
-    (``load_session``, HDF5 probe) and each C3D file (``c3d.read``, ezc3d in a child)."""
+    (``load_session``, HDF5 probe) and each C3D file (``c3d.read``: no native code, no guard
+    any more; the rows show its read time)."""
     from motionlab import isolated
     from motionlab.io import c3d
     from motionlab.session import load_session
@@ -175,10 +178,13 @@ def main() -> None:
             faults.ingest_case(f"memory/{k}", k, p.read_bytes()) for k, p in faults.FIXTURES.items()
         ]
         originals += [c for c in isolated if c.name.startswith("c3d/original")]
-        if args.big_c3d_mb > 0:
-            files = {"in.c3d": big_c3d(tmp / "big.c3d", args.big_c3d_mb)}
+        if args.big_c3d_mb > 0:  # float storage, and the same points as int16 words
+            data = big_c3d(tmp / "big.c3d", args.big_c3d_mb)
             args_ = ["ingest", "in.c3d", "-o", "out.h5"]
-            originals.append(faults.Case("memory/c3d_synthetic", files, args_))
+            originals.append(faults.Case("memory/c3d_synthetic", {"in.c3d": data}, args_))
+            int16 = {"in.c3d": c3d_variants.to_int16(data, 0.1)}
+            originals.append(faults.Case("memory/c3d_synthetic_int16", int16, args_))
+            del data, int16
         for i, c in enumerate(originals):
             v = run_isolated(c, tmp / f"m{i}")
             size = sum(len(d) for d in c.files.values())
