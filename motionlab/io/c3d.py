@@ -1,4 +1,4 @@
-"""C3D marker files (Vicon, OptiTrack, Qualisys, …) read with ezc3d.
+"""C3D marker files (Vicon, OptiTrack, Qualisys, …), read with numpy.
 
 Returned: one :class:`~motionlab.session.MarkerSet` named after the file, with
 
@@ -22,15 +22,17 @@ then every label keeps its prefix. ``attrs["label_prefixes"]`` keeps each stripp
 silent: the repeats are renamed ``RKNE_2``… and listed in ``attrs["duplicate_labels"]``,
 ``attrs["flags"]["duplicate_labels"]`` and ``attrs["warnings"]``.
 
-Before ezc3d reads anything, the frames and points announced by the parameter section
-(``POINT:FRAMES``, ``POINT:USED``; the header block where absent) are checked against the file's
-size, so that a damaged parameter section cannot make ezc3d allocate far more than the file
-holds; a truncated file is refused, a complete file with a stale header block is read. The
-parameter section is then walked record by record as ezc3d reads it (:func:`_check_records`:
-group ids, data types, dimensions, description lengths, each record ending where the next one
-starts, the parameters ezc3d indexes while reading the frames), so that a damaged record is
-refused with its byte offset instead of crashing ezc3d. ezc3d itself runs in a forked child
-(:func:`motionlab.isolated.call_isolated`) as a safety net: a crash there is refused too.
+The file is read here, not by ezc3d (whose object model takes about 11× the file): the header
+block, the parameter section (:func:`_read_parameters`) and then the points of each frame
+through a numpy structured dtype that skips the frame's analog samples (:func:`_read_points`),
+a few MB at a time, so that the memory is the result's. Intel, DEC and MIPS files, float32 or
+int16 storage, read as ezc3d 1.7 reads them (``tests/test_io_c3d_reader.py`` compares the two
+bit for bit). Before the frames are read, the parameter section is walked record by record
+(:func:`_check_records`: group ids, data types, dimensions, description lengths, each record
+ending where the next one starts, the scale and offset parameters a frame needs), so that a
+damaged record is refused with its byte offset, and the frames and points it announces
+(``POINT:FRAMES``, ``POINT:USED``; the header block where absent) are checked against the
+file's size; a truncated file is refused, a complete file with a stale header block is read.
 A point is invalid — NaN in ``positions`` and ``residuals`` — when its residual is negative
 (the C3D "not seen" flag) or all three coordinates are exactly zero (how some exporters write
 a gap). Analog channels are not read; their count is kept in ``attrs["n_analog_channels"]``.
@@ -304,7 +306,7 @@ def _layout(path: Path) -> _Layout:
     point, analog = groups.get("POINT", {}), groups.get("ANALOG", {})
     points = _count(point, "USED", words[1])
     frames_param = _count(point, "FRAMES", frames, least=-(1 << 15))
-    announced = frames_param if frames_param > 0 else int(frames)  # 0, or > 32767 stored < 0
+    announced = frames_param if frames_param > 0 else max(int(frames), 0)  # > 32767: < 0
     rate = _value(point, "RATE", header_rate)
     channels = _count(analog, "USED", 0)
     analog_words = int(words[2])
@@ -404,7 +406,7 @@ def _strings(data: bytes, dims: list[int]) -> list[str]:
 
 
 def _check_size(path: Path, layout: _Layout) -> None:
-    """Refuse, before ezc3d reads it, a file that cannot hold the frames its parameter
+    """Refuse, before its frames are read, a file that cannot hold the frames its parameter
     section announces (truncated, or a damaged POINT:USED / POINT:FRAMES)."""
     if layout.frames <= 0 or layout.frame_bytes <= 0:
         return
