@@ -1,4 +1,4 @@
-"""Optical readers: C3D (through ezc3d) and TRC."""
+"""Optical readers: C3D (files written by ezc3d) and TRC."""
 
 from pathlib import Path
 

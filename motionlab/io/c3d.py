@@ -1,4 +1,4 @@
-"""C3D marker files (Vicon, OptiTrack, Qualisys, …) read with ezc3d.
+"""C3D marker files (Vicon, OptiTrack, Qualisys, …), read with numpy.
 
 Returned: one :class:`~motionlab.session.MarkerSet` named after the file, with
 
@@ -22,15 +22,17 @@ then every label keeps its prefix. ``attrs["label_prefixes"]`` keeps each stripp
 silent: the repeats are renamed ``RKNE_2``… and listed in ``attrs["duplicate_labels"]``,
 ``attrs["flags"]["duplicate_labels"]`` and ``attrs["warnings"]``.
 
-Before ezc3d reads anything, the frames and points announced by the parameter section
-(``POINT:FRAMES``, ``POINT:USED``; the header block where absent) are checked against the file's
-size, so that a damaged parameter section cannot make ezc3d allocate far more than the file
-holds; a truncated file is refused, a complete file with a stale header block is read. The
-parameter section is then walked record by record as ezc3d reads it (:func:`_check_records`:
-group ids, data types, dimensions, description lengths, each record ending where the next one
-starts, the parameters ezc3d indexes while reading the frames), so that a damaged record is
-refused with its byte offset instead of crashing ezc3d. ezc3d itself runs in a forked child
-(:func:`motionlab.isolated.call_isolated`) as a safety net: a crash there is refused too.
+The file is read here, not by ezc3d (whose object model takes about 11× the file): the header
+block, the parameter section (:func:`_read_parameters`) and then the points of each frame
+through a numpy structured dtype that skips the frame's analog samples (:func:`_read_points`),
+a few MB at a time, so that the memory is the result's. Intel, DEC and MIPS files, float32 or
+int16 storage, read as ezc3d 1.7 reads them (``tests/test_io_c3d_reader.py`` compares the two
+bit for bit). Before the frames are read, the parameter section is walked record by record
+(:func:`_check_records`: group ids, data types, dimensions, description lengths, each record
+ending where the next one starts, the scale and offset parameters a frame needs), so that a
+damaged record is refused with its byte offset, and the frames and points it announces
+(``POINT:FRAMES``, ``POINT:USED``; the header block where absent) are checked against the
+file's size; a truncated file is refused, a complete file with a stale header block is read.
 A point is invalid — NaN in ``positions`` and ``residuals`` — when its residual is negative
 (the C3D "not seen" flag) or all three coordinates are exactly zero (how some exporters write
 a gap). Analog channels are not read; their count is kept in ``attrs["n_analog_channels"]``.
@@ -38,7 +40,7 @@ a gap). Analog channels are not read; their count is kept in ``attrs["n_analog_c
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -46,7 +48,6 @@ import numpy as np
 
 from motionlab.errors import InputError, shorten
 from motionlab.io import Recording
-from motionlab.isolated import call_isolated
 from motionlab.session import MarkerSet, ModelOutput
 from motionlab.units import factor
 
@@ -82,33 +83,16 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     """Read the marker trajectories of a C3D file (m, NaN where not seen)."""
     path = Path(path)
     layout = _layout(path)
-    expected = layout.frames
-    _check_size(path, layout)
     _check_records(path, layout)
-    try:
-        c3d = call_isolated(_ezc3d_read, path, path=path, what="ezc3d")
-    except (RuntimeError, OSError, ValueError) as exc:
-        if expected > 0 and layout.size < layout.data_start + layout.frame_bytes:
-            raise _truncated(path, "the file ends inside its first frame", "frame 1") from None
-        raise InputError(
-            f"ezc3d cannot open it ({str(exc).splitlines()[0] if str(exc) else 'damaged'})",
-            path,
-            remedy="export the C3D again from the capture software",
-        ) from None
-    point = c3d["parameters"].get("POINT", {})
-    header = c3d["header"]["points"]
-    points = c3d["data"]["points"]  # (4, M, N)
-    n_markers, n_frames = points.shape[1], points.shape[2]
-    if n_markers and n_frames < expected:
-        raise InputError(
-            f"truncated: the header announces {expected} frames, the file holds {n_frames}",
-            path,
-            f"frame {n_frames + 1}",
-            "copy or export the file again",
-        )
-    rate = _value(point, "RATE", float(header["frame_rate"]))
+    _check_size(path, layout)
+    if layout.frames > 0 and layout.size < layout.data_start + layout.frame_bytes:
+        raise _truncated(path, "the file ends inside its first frame", "frame 1")
+    point = layout.parameters.get("POINT", {})
+    rate = _value(point, "RATE", layout.header_rate)
     if not np.isfinite(rate) or rate <= 0:
         raise InputError(f"point rate {rate} Hz", path, "parameter POINT:RATE", "fix the rate")
+    xyz, residuals = _read_points(path, layout)  # (N, M, 3), (N, M) in the file's unit
+    n_frames, n_markers = residuals.shape
     warnings: list[str] = []
     unit = _value(point, "UNITS", "").strip()
     if not unit:
@@ -121,30 +105,34 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
 
     raw = _labels(point, n_markers)
     kinds, units = _kinds(point, raw, warnings)
-    labels, prefixes = _strip_prefixes(raw, _known_prefixes(c3d["parameters"]))
+    labels, prefixes = _strip_prefixes(raw, _known_prefixes(layout.parameters))
     labels, duplicates = _unique(labels)
     for name, count in duplicates.items():
         warnings.append(
             f"label {name} appears {count} times; the repeats are renamed "
             + ", ".join(f"{name}_{k}" for k in range(2, count + 1))
         )
-    xyz = np.transpose(points[:3], (2, 1, 0)).astype(float)  # (N, M, 3)
-    residuals = np.asarray(c3d["data"]["meta_points"]["residuals"][0], dtype=float).T
     unseen = (residuals < 0) | np.isnan(xyz).any(axis=2)
     is_marker = np.array([k is None for k in kinds], dtype=bool)
     invalid = unseen | (np.all(xyz == 0.0, axis=2) & is_marker)  # zeros: a marker gap only
+    del unseen
     xyz[invalid] = np.nan
     residuals[invalid] = np.nan
+    del invalid
     outputs = {
         labels[j]: ModelOutput(labels[j], kinds[j], units[j], xyz[:, j].copy())
         for j in np.flatnonzero(~is_marker)
     }
+    if not is_marker.all():  # else the arrays are used as they are, scaled in place
+        xyz, residuals = xyz[:, is_marker], residuals[:, is_marker]
+    xyz *= scale
+    residuals *= scale
 
-    analogs = c3d["parameters"].get("ANALOG", {})
+    analogs = layout.parameters.get("ANALOG", {})
     attrs: dict[str, Any] = {
-        "first_frame": int(header["first_frame"]),
+        "first_frame": layout.first_frame,
         "nominal_rate_hz": rate,
-        "n_analog_channels": int(c3d["header"]["analogs"]["size"]),
+        "n_analog_channels": layout.analog_channels,
         "analog_rate_hz": _value(analogs, "RATE", 0.0),
     }
     if prefixes:
@@ -159,8 +147,8 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
         name=(options or {}).get("name") or path.stem,
         time=np.arange(n_frames) / rate,
         labels=[lab for lab, m in zip(labels, is_marker, strict=True) if m],
-        positions=xyz[:, is_marker] * scale,
-        residuals=residuals[:, is_marker] * scale,
+        positions=xyz,
+        residuals=residuals,
         source_units={"positions": unit, "residuals": unit},
         attrs=attrs,
         model_outputs=outputs,
@@ -168,25 +156,84 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     return Recording(markers=[markers], metadata={"c3d_unit": unit})
 
 
-def _ezc3d_read(path: Path) -> dict[str, Any]:
-    """What :func:`read` uses of ezc3d's reading, as plain picklable objects."""
-    import ezc3d
+#: processor types (the parameter section's fourth byte)
+INTEL, DEC, MIPS = 84, 85, 86
+#: bytes of frames read at once (bounds the reading buffer, not the result)
+_CHUNK_BYTES = 1 << 22
 
-    c3d = ezc3d.c3d(str(path))
-    header = c3d["header"]
-    return {
-        "parameters": {g: dict(v) for g, v in c3d["parameters"].items()},
-        "header": {"points": dict(header["points"]), "analogs": dict(header["analogs"])},
-        "data": {
-            "points": c3d["data"]["points"],
-            "meta_points": {"residuals": c3d["data"]["meta_points"]["residuals"]},
-        },
-    }
+
+def _read_points(path: Path, layout: _Layout) -> tuple[np.ndarray, np.ndarray]:
+    """Every point of every frame as ezc3d reads it: positions (N, M, 3) and residuals (N, M)
+    in the file's unit (float64), NaN positions where the residual is negative.
+
+    A frame is ``POINT:USED`` points of four words (x, y, z, residual) then the frame's analog
+    samples; a word is a float32 (header scale factor negative) or an int16 scaled by
+    ``POINT:SCALE``. Frames are read a few MB at a time through a structured dtype that only
+    names the points, so that the memory is the result's, not the file's.
+
+    The residual word, as ezc3d 1.7 reads it: float storage — the fourth float, negative
+    for a point not seen, else rounded (half away from zero) to an integer whose second byte
+    is the residual × ``|POINT:SCALE|`` and whose low byte is the camera mask (NaN, ∞ or
+    beyond 2⁶³: residual 0); int16 storage — the word's high byte an int8 residual ×
+    ``POINT:SCALE`` (negative: not seen), the low byte the camera mask. A point not seen has
+    residual -1 and a NaN position, as ezc3d gives them.
+    """
+    n, m = layout.frames, layout.points
+    xyz = np.empty((n, m, 3))
+    residuals = np.empty((n, m))
+    if n == 0 or m == 0:
+        return xyz, residuals
+    word = 4 if layout.is_float else 2
+    frame = np.dtype({"names": ["p"], "formats": [("u1", (m, 4, word))],
+                      "itemsize": layout.frame_bytes})  # fmt: skip
+    scales = layout.scales[:m] if layout.scales.size >= m else np.full(m, layout.scales[0])
+    step = max(1, _CHUNK_BYTES // layout.frame_bytes)
+    with open(path, "rb") as f:
+        f.seek(layout.data_start)
+        for at in range(0, n, step):
+            k = min(step, n - at)
+            buf = f.read(k * layout.frame_bytes)
+            if len(buf) < k * layout.frame_bytes:  # _check_size made sure it is there
+                raise _truncated(path, "the file ends inside its data", f"frame {at + 1}")
+            raw = np.frombuffer(buf, frame, k)["p"]  # (k, M, 4, word) bytes
+            if layout.is_float:
+                xyz[at : at + k] = _floats(raw[:, :, :3], layout.processor)
+                word = _floats(raw[:, :, 3], layout.processor).astype(float)
+                valid = ~(word < 0)  # NaN: valid, residual 0
+                whole = np.where(valid & (word < 2.0**63), np.floor(word + 0.5), 0.0)
+                high = (whole.astype(np.int64) >> 8) & 0xFF  # of the rounded integer
+                residuals[at : at + k] = np.where(valid, high * np.abs(scales), -1.0)
+            else:
+                ints = np.ascontiguousarray(raw).view(f"{layout.order}i2")[..., 0]
+                xyz[at : at + k] = ints[:, :, :3] * scales[:, None]
+                high = raw[:, :, 3, 0 if layout.processor == MIPS else 1].view(np.int8)
+                residuals[at : at + k] = high * scales
+    unseen = residuals < 0
+    xyz[unseen] = np.nan
+    residuals[unseen] = -1.0  # ezc3d's value for a point not seen
+    return xyz, residuals
+
+
+def _floats(raw: np.ndarray, processor: int) -> np.ndarray:
+    """float32 values from their 4 bytes (last axis) as ``processor`` stores them.
+
+    DEC (VAX F-floating): the two 16-bit halves swapped, and the exponent 2 more than IEEE's
+    (its byte, the second, less 1 unless 0), as ezc3d converts them.
+    """
+    raw = np.ascontiguousarray(raw, dtype=np.uint8)
+    if processor == MIPS:
+        return raw.view(">f4")[..., 0]
+    if processor == DEC:
+        swapped = np.ascontiguousarray(raw[..., [2, 3, 0, 1]])
+        high = swapped[..., 3]
+        swapped[..., 3] = np.where(high != 0, high - np.uint8(1), high)
+        return swapped.view("<f4")[..., 0]
+    return raw.view("<f4")[..., 0]
 
 
 @dataclass
 class _Layout:
-    """Where things are in a C3D file, from its header block (bytes)."""
+    """Where things are in a C3D file, from its header block and parameter section (bytes)."""
 
     size: int
     start: int  # of the parameter section
@@ -198,17 +245,27 @@ class _Layout:
     header_frames: int = 0
     points: int = 0  # per frame: POINT:USED, else the header block
     header_points: int = 0
+    processor: int = INTEL
+    is_float: bool = True  # the header's scale factor is negative: words are float32
+    scales: np.ndarray = field(default_factory=lambda: np.array([-1.0]))  # POINT:SCALE
+    header_rate: float = 0.0
+    first_frame: int = 0  # 0-based, as ezc3d gives it
+    analog_channels: int = 0  # ANALOG:USED
+    parameters: dict[str, dict[str, dict[str, Any]]] = field(default_factory=dict)
 
 
 def _layout(path: Path) -> _Layout:
-    """The header block's frame count and data layout (ezc3d reports the frames it could
-    read instead), after checking that the file reaches its first frame.
+    """The header block, the parameter section and the data layout they give, after checking
+    that the file reaches its first frame.
 
     Header words (16-bit, 1-based): 1 parameter block (low byte) and key 0x50, 2 points per
     frame, 3 analog samples per frame, 4–5 first and last frame, 7–8 the scale factor (float;
-    negative: samples stored as float32, else int16), 9 the first block of the data. The
-    parameter section's fourth byte is the processor type: 84 Intel, 85 DEC, 86 MIPS (the only
-    big-endian one). Raises :class:`InputError` for a file cut before its first frame.
+    negative: samples stored as float32, else int16), 9 the first block of the data, 11–12
+    the frame rate (float). The parameter section's fourth byte is the processor type: 84
+    Intel, 85 DEC, 86 MIPS (the only big-endian one). The parameter section wins where it
+    disagrees with the header block (``POINT:USED``, ``POINT:FRAMES``; analog samples per
+    frame = ``ANALOG:USED`` × ``ANALOG:RATE`` / ``POINT:RATE``), as in ezc3d. Raises
+    :class:`InputError` for a file cut before its first frame.
     """
     size = path.stat().st_size
     with open(path, "rb") as f:
@@ -222,8 +279,9 @@ def _layout(path: Path) -> _Layout:
         raise _truncated(path, f"the file ends inside its 512-byte header ({size} bytes)", None)
     if len(params) < 4:
         raise _truncated(path, "the file ends before its parameter section", None)
-    order = ">" if params[3] == 86 else "<"
-    words = np.frombuffer(head[:18], dtype=f"{order}u2").astype(int)
+    processor = params[3]
+    order = ">" if processor == MIPS else "<"
+    words = np.frombuffer(head[:20], dtype=f"{order}u2").astype(int).tolist()
     frames = words[4] - words[3] + 1
     data_start = (words[8] - 1) * 512
     if size < min(start + params[2] * 512, data_start):  # some writers overstate params[2]
@@ -233,19 +291,122 @@ def _layout(path: Path) -> _Layout:
             path, f"the file ends before its first frame (the header announces {frames})",
             "frame 1",
         )  # fmt: skip
-    sign = head[{84: 15, 85: 13, 86: 12}.get(params[3], 15)] & 0x80  # of the scale factor
-    found = _parameters(section, order)
-    points = int(found.get(("POINT", "USED"), [words[1]])[0])
-    announced = int(found.get(("POINT", "FRAMES"), [frames])[0])
-    if announced <= 0:  # some writers leave it 0 or store more than 32767 as negative
-        announced = int(frames)
-    frame_bytes = (4 * points + words[2]) * (4 if sign else 2)
-    return _Layout(size, start, order, int(words[2]), announced, int(data_start),
-                   int(frame_bytes), int(frames), points, int(words[1]))  # fmt: skip
+    if data_start <= start:
+        raise InputError(
+            f"damaged header block: the data starts at block {words[8]}, not after the "
+            f"parameter section (block {start // 512 + 1})",
+            path,
+            "header word 9",
+            "export the C3D again from the capture software",
+        )
+    floats = np.frombuffer(head[12:16] + head[20:24], np.uint8).reshape(2, 4)
+    header_scale, header_rate = _floats(floats, processor).astype(float).tolist()
+    is_float = bool(head[{INTEL: 15, DEC: 13, MIPS: 12}.get(processor, 15)] & 0x80)
+    groups = _read_parameters(section, processor)
+    point, analog = groups.get("POINT", {}), groups.get("ANALOG", {})
+    points = _count(point, "USED", words[1])
+    frames_param = _count(point, "FRAMES", frames, least=-(1 << 15))
+    announced = frames_param if frames_param > 0 else max(int(frames), 0)  # > 32767: < 0
+    rate = _value(point, "RATE", header_rate)
+    channels = _count(analog, "USED", 0)
+    analog_words = int(words[2])
+    if "USED" in analog and "RATE" in analog:  # what ezc3d does (the header may be stale)
+        ratio = _value(analog, "RATE", 0.0) / rate if np.isfinite(rate) and rate >= 1 else 1.0
+        analog_words = channels * (int(ratio) if 0 <= ratio < 1e9 else 0)
+    frame_bytes = (4 * points + analog_words) * (4 if is_float else 2)
+    if frames_param < 0 and frame_bytes > 0:  # more frames than int16: read what it holds
+        announced = max(announced, (size - data_start) // frame_bytes)
+    scales = np.asarray(point.get("SCALE", {}).get("value", []), dtype=float).ravel()
+    if scales.size == 0:
+        scales = np.array([header_scale])
+    first = max(int(words[3]) - 1, 0)
+    return _Layout(size, start, order, int(words[2]), int(announced), int(data_start),
+                   int(frame_bytes), int(frames), points, int(words[1]), processor, is_float,
+                   scales, header_rate, first, channels, groups)  # fmt: skip
+
+
+def _count(group: dict, name: str, default: int, least: int = 0) -> int:
+    """An integer parameter's first value (``default`` if absent or not a number ≥ ``least``)."""
+    value = _value(group, name, default)
+    if isinstance(value, str) or not np.isfinite(value) or not least <= value < 1 << 31:
+        return int(default)
+    return int(value)
+
+
+def _read_parameters(section: bytes, processor: int) -> dict[str, dict[str, dict[str, Any]]]:
+    """The parameter section as ezc3d gives it: ``{GROUP: {NAME: {"value": …}}}``.
+
+    Values: characters as a list of strings (one per column of a 2-D array, its first
+    dimension the length; trailing spaces and NUL bytes removed), numbers as a numpy array in
+    Fortran order (bytes as int8, words as int16, floats converted from the processor's
+    format). A damaged section gives what could be read before the damage (:func:`_check_records`
+    has refused a damaged record already).
+    """
+    order = ">" if processor == MIPS else "<"
+    i16 = np.dtype(f"{order}i2")
+    names: dict[int, str] = {}
+    found: list[tuple[int, str, int]] = []
+    pos = 4
+    while pos + 4 <= len(section):
+        nlen, gid = np.frombuffer(section, np.int8, 2, pos).tolist()
+        end = pos + 2 + abs(nlen)
+        if nlen == 0 or end + 2 > len(section):
+            break
+        name = section[pos + 2 : end].decode("latin-1").upper()
+        offset = int(np.frombuffer(section, i16, 1, end)[0])
+        if gid < 0:
+            names.setdefault(-gid, name)
+        elif gid > 0:
+            found.append((gid, name, end + 2))
+        if offset <= 0:
+            break
+        pos = end + offset
+    groups: dict[str, dict[str, dict[str, Any]]] = {name: {} for name in names.values()}
+    for gid, name, p in found:
+        if gid not in names or p + 2 > len(section):
+            continue
+        kind, ndims = int(np.frombuffer(section, np.int8, 1, p)[0]), section[p + 1]
+        dims = list(section[p + 2 : p + 2 + ndims])
+        if kind not in _TYPES or ndims > _MAX_DIMS or len(dims) < ndims:
+            continue
+        body = p + 2 + ndims
+        count = int(np.prod(dims)) if ndims else (0 if kind == -1 else 1)
+        if body + count * abs(kind) > len(section):
+            continue
+        data = section[body : body + count * abs(kind)]
+        if kind == -1:
+            value: Any = _strings(data, dims)
+        elif kind == 4:
+            raw = np.frombuffer(data, np.uint8).reshape(-1, 4)
+            value = _floats(raw, processor).astype(float)
+        else:
+            value = np.frombuffer(data, np.int8 if kind == 1 else i16).astype(int)
+        if kind != -1 and ndims:
+            value = value.reshape(dims, order="F")
+        groups[names[gid]].setdefault(name, {"type": kind, "value": value})
+    return groups
+
+
+def _strings(data: bytes, dims: list[int]) -> list[str]:
+    """Character parameter values: one string per column of ``dims[0]`` characters."""
+    if not dims or len(dims) == 1 and dims[0] == 0:
+        return []
+    if dims[0] == 0:  # columns of no characters: empty strings
+        return [""] * int(np.prod(dims[1:]))
+    width = dims[0]
+    out = []
+    for k in range(0, len(data), width):
+        chunk = data[k : k + width].replace(b"\x00", b"")
+        try:
+            text = chunk.decode("utf-8")
+        except UnicodeDecodeError:
+            text = chunk.decode("latin-1")
+        out.append(text.rstrip(" "))
+    return out
 
 
 def _check_size(path: Path, layout: _Layout) -> None:
-    """Refuse, before ezc3d reads it, a file that cannot hold the frames its parameter
+    """Refuse, before its frames are read, a file that cannot hold the frames its parameter
     section announces (truncated, or a damaged POINT:USED / POINT:FRAMES)."""
     if layout.frames <= 0 or layout.frame_bytes <= 0:
         return
@@ -422,6 +583,8 @@ def _truncated(path: Path, message: str, where: str | None) -> InputError:
 def _value(group: dict, name: str, default: Any) -> Any:
     """First value of a C3D parameter, or ``default`` when absent or empty."""
     values = group.get(name, {}).get("value", [])
+    if isinstance(values, np.ndarray):
+        values = values.ravel()
     if len(values) == 0:
         return default
     value = values[0]
