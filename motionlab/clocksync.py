@@ -22,49 +22,16 @@ on the drift, whose scatter gives honest standard errors (see :meth:`_Pair.clock
 
 Which pairs: the protocol's joints, then anatomical neighbours (pelvis–thigh, thorax–upper arm,
 pelvis–lumbar–thorax, …) so that every sensor reaches one reference sensor (pelvis, else thorax,
-else the first segment) through a tree; each sensor is put on its parent's corrected clock.
-
-How well the data determine the offset: a model error (a sensor rocking on soft tissue, a joint that
-is no fixed point) is not noise. It is the same in every stride, so offsets fitted on split halves
-or alternate blocks agree on a wrong value, and the statistical standard errors (block scatter;
-profile curvature with the residuals' autocorrelation) came out at 0.1–4 ms for pelvis–thigh fits
-7–57 ms wrong on simulated walks (``soft_tissue="motion"``). What tells them apart is how much of
-the residual a time shift could hide: ``s`` (m/s² per s), the RMS change of the residuals per second
-of offset that the lever arms and biases cannot absorb (the offset's Jacobian column less its
-projection on theirs, :meth:`_Pair.timing_sensitivity`), against the RMS residual ``e``. ``e / s``
-is the offset error a model error as large as the residual would cause if it looked like a shift.
-Noise is not such an error: it differs from block to block, so the block offsets (lever arms held)
-scatter, and averaging over the blocks reduces it, which the block standard error already says. A
-model error repeats in every stride, and there the block offsets agree to a small fraction of
-``e/s``: when their RMS scatter about the clock line is below ``COHERENT`` × ``e/s``, ``e/s`` is
-added (in quadrature) to the block standard error. Measured scatter / (e/s): below 0.25 for every
-pair of the walks below (0.003–0.1 on the 12 pairs of seeds 0, 2, 8); 0.35–1.2 for the clinical knee
-protocol's pairs and 0.4–7.9 for the elbow protocol's (slow arm movements whose block offsets
-scatter by 20–120 ms while the whole recording's fit is within 1.5 ms of the truth). Measured on
-walk seeds 0–9 (own clocks) and 0–4 (one clock), typical preset, random mounting, soft tissue moving
-with the segment: |error| / (e/s) had median 0.46 (pelvis–thigh) and 0.33 (thigh–shank) and RMS 0.87
-(0.88); larger only where the fit sat in a wrong minimum (2.2, 3.5), with e/s of 25 and 34 ms.
-``e/s`` was 14–47 ms for every pelvis–thigh pair but two (8.0, 9.4), 4–20 ms for soft-tissue knees,
-2–4 ms for pelvis–thigh and knees on the clinical knee protocol (actual errors ≤ 1.7 ms), 16–24 ms
-for upper arm–forearm on the clinical elbow protocol (actual errors 0.3–1.5 ms; their scatter keeps
-the block standard error, 1.6–6 ms, and they are applied). The split is empirical (the measured
-pairs above, protocols simulated without a soft-tissue model on the arm): an arm recording whose
-block offsets scatter from noise while a soft-tissue error biases them all alike would keep the
-smaller error.
-
-A correction is applied only when it is reliable (standard error ≤ ``MAX_SE_S`` over the recording)
-and exceeds its standard error (``SIGNIFICANCE``) and ``MIN_CORRECTION_S``; otherwise the sensor
-keeps its clock and the reason is recorded. The former residual gate (0.05 m/s²) is folded into the
-standard error: it refused knees fitted within 2 ms (residual 0.051, e/s 9.8 ms) and passed
-pelvis–thigh fits 57 ms wrong (residual 0.037). Segments that never move together carry no timing
-information (a still pelvis under a bending trunk), and there the timing does not matter either. The
-shared joint centre holds only between neighbours: the bench (``bench/joint_angles.py``) reports the
-accuracy reached per pair. The cost, measured: a pelvis–thigh offset the walk does not determine
-stays uncorrected even where the fit happened to be right (own clocks, walk seeds 0–9: the
-pelvis–thigh difference left is 17.1 ms on average, 16.4 ms with the former gates; one clock: 0.1
-ms, was 16.7 ms); on bench/gait.py's sessions (no soft-tissue motion) hip flexion RMSE rose from a
-median 2.3° to 2.7° and the stance asymmetry error from 2.4 to 4.6 points. A second timing signal
-for pelvis–thigh (heel-strike transients) is not yet there.
+else the first segment) through a tree; each sensor is put on its parent's corrected clock. A
+correction is applied only when it is reliable (standard error ≤ ``MAX_SE_S`` over the recording,
+and the joint-centre model fits: RMS residual ≤ ``MAX_RESIDUAL_M_S2``; a sensor rocking on soft
+tissue with the segment's acceleration breaks the model and biased the offset by 20–30 ms on
+simulated walks, with a residual five times the usual) and differs from zero (by more than
+twice that and ``MIN_CORRECTION_S``); otherwise the sensor keeps its clock and the reason is
+recorded. Segments that never move together carry no timing information (a still pelvis under
+a bending trunk), and there the timing does not matter either. The shared joint centre holds
+only between neighbours: the bench (``bench/joint_angles.py``)
+reports the accuracy reached per pair.
 """
 
 from __future__ import annotations
@@ -85,10 +52,9 @@ from motionlab.session import SensorStream, Session
 MAX_OFFSET_S = 0.5  # search range of the offset (s)
 GRID_STEP_S = 0.01  # coarse grid over the offset (s)
 MAX_SE_S = 0.010  # largest standard error of c(t) for a correction to be applied (s)
-SIGNIFICANCE = 1.0  # a correction is applied when it exceeds this many standard errors
-# block offsets scattering less than this fraction of e/s: the residual repeats in every block (a
-# model error, not noise), and e/s joins the standard error (see the module docstring)
-COHERENT = 0.25
+# largest RMS residual (low-passed, m/s²) for a correction: 0.009-0.026 on the simulated clinical
+# protocols; 0.09-0.13 where acceleration-driven soft tissue biased the offset by 20-30 ms
+MAX_RESIDUAL_M_S2 = 0.05
 MIN_CORRECTION_S = 0.001  # smaller clock differences are left alone (s)
 MOVING_RAD_S = 0.35  # a segment moves above this angular rate (rad/s, 20 °/s)
 MIN_MOVING_S = 5.0  # shared movement needed (s)
@@ -190,24 +156,20 @@ def estimate_clock(
     c0 = float(grid[int(np.argmin([pair.cost(np.r_[body, c, 0.0]) for c in grid]))])
     fit = pair.solve(np.r_[pair.body(c0), c0, 0.0])
     half = 0.5 * (t[use[-1]] - t[use[0]])
-    fit[-2:], offset_se, drift_se, scatter = pair.clock_from_blocks(fit)
-    rms = float(np.sqrt(pair.cost(fit) / len(pair.use)))
-    sensitivity = pair.timing_sensitivity(fit)
-    if not scatter >= COHERENT * rms / sensitivity:  # blocks agree better than noise would let them
-        offset_se = float(np.hypot(offset_se, rms / sensitivity))
+    fit[-2:], offset_se, drift_se = pair.clock_from_blocks(fit)
     worst_se = float(np.hypot(offset_se, drift_se * half))
     c_ends = np.abs(fit[-2] + fit[-1] * (t[use[[0, -1]]] - t_mid))
-    if not np.isfinite(worst_se):
+    rms = float(np.sqrt(pair.cost(fit) / len(pair.use)))
+    if worst_se > MAX_SE_S:
         status = "not reliable: too little shared movement"
-    elif worst_se > MAX_SE_S:
+    elif rms > MAX_RESIDUAL_M_S2:
         status = (
-            f"not reliable: the data do not determine the offset (± {1e3 * worst_se:.0f} ms; "
-            f"joint-centre residual {rms:.3f} m/s², of which a shift explains "
-            f"{1e-3 * sensitivity:.3f} m/s² per ms)"
+            f"not reliable: the shared joint centre fits poorly (residual {rms:.2f} m/s²: soft "
+            "tissue or a loose sensor)"
         )
     elif abs(fit[-2]) > max_offset_s - GRID_STEP_S:
         status = f"not reliable: offset at the edge of the ±{max_offset_s:g} s search"
-    elif c_ends.max() <= max(MIN_CORRECTION_S, SIGNIFICANCE * worst_se):
+    elif c_ends.max() <= max(MIN_CORRECTION_S, 2.0 * worst_se):
         status = "consistent with one clock"
     else:
         status = "applied"
@@ -312,19 +274,9 @@ class _Pair:
             method="lm",
         ).x
 
-    def timing_sensitivity(self, p: np.ndarray) -> float:
-        """RMS change of the residuals per second of offset (m/s² per s) that the lever arms
-        and biases cannot absorb: the offset column of the Jacobian at ``p`` less its
-        least-squares projection on the body columns (the Schur complement of the offset)."""
-        jac = self.residuals(p, jacobian=True)
-        body, offset = jac[:, :BODY], jac[:, BODY]
-        coef = np.linalg.lstsq(body, offset, rcond=None)[0]
-        return float(np.sqrt(np.mean((offset - body @ coef) ** 2)))
-
-    def clock_from_blocks(self, p: np.ndarray) -> tuple[np.ndarray, float, float, float]:
-        """c₀ (s), c₁, their standard errors and the RMS scatter of the block offsets about the
-        line (s), from offsets fitted block by block (the moving samples in runs of ``BLOCK_S``;
-        levers and biases of ``p`` held).
+    def clock_from_blocks(self, p: np.ndarray) -> tuple[np.ndarray, float, float]:
+        """c₀ (s), c₁ and their standard errors from offsets fitted block by block (the moving
+        samples in runs of ``BLOCK_S``; levers and biases of ``p`` held).
 
         A line through the block offsets, weighted by each block's information and scaled by
         its scatter (χ²/dof when above 1, so that the model's errors, which the residuals'
@@ -336,7 +288,7 @@ class _Pair:
         dt = float(np.median(np.diff(self.t[self.use])))  # spacing of the fitted samples
         n_blocks = int(len(self.use) * dt // BLOCK_S)
         if n_blocks < 3:
-            return p[-2:], np.inf, np.inf, np.nan
+            return p[-2:], np.inf, np.inf
         rows, offsets, weights = [], [], []
         correlation = max(1.0, 0.5 / (LOWPASS_HZ * dt))  # samples per independent residual
         for block in np.array_split(self.use, n_blocks):
@@ -358,8 +310,7 @@ class _Pair:
         info = info / max(1.0, chi2) + np.diag([0.0, DRIFT_PRIOR**-2])
         cov = np.linalg.inv(info)
         clock = cov @ (x.T @ (w * y)) / max(1.0, chi2)
-        scatter = float(np.sqrt(np.mean((y - x @ clock) ** 2)))
-        return clock, float(np.sqrt(cov[0, 0])), float(np.sqrt(cov[1, 1])), scatter
+        return clock, float(np.sqrt(cov[0, 0])), float(np.sqrt(cov[1, 1]))
 
 
 def _centre(values: np.ndarray, r: np.ndarray, bias: np.ndarray) -> np.ndarray:
