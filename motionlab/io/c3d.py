@@ -542,38 +542,15 @@ def _check_records(path: Path, layout: _Layout) -> None:
 
 def _parameters(section: bytes, order: str) -> dict[tuple[str, str], list[float]]:
     """The short numeric parameters of a C3D parameter section, ``{(GROUP, NAME): values}``
-    (a damaged section gives what could be read before the damage)."""
-    groups: dict[int, str] = {}
-    found: list[tuple[int, str, int]] = []
-    i16 = np.dtype(f"{order}i2")
-    pos = 4
-    while pos + 4 <= len(section):
-        nlen, gid = np.frombuffer(section, np.int8, 2, pos).tolist()
-        end = pos + 2 + abs(nlen)
-        if nlen == 0 or end + 2 > len(section):
-            break
-        name = section[pos + 2 : end].decode("latin-1").upper()
-        offset = int(np.frombuffer(section, i16, 1, end)[0])
-        if gid < 0:
-            groups[-gid] = name
-        else:
-            found.append((gid, name, end + 2))
-        if offset <= 0:
-            break
-        pos = end + offset
-    out: dict[tuple[str, str], list[float]] = {}
-    types = {1: np.dtype("u1"), 2: i16, 4: np.dtype(f"{order}f4")}
-    for gid, name, p in found:
-        if p + 2 > len(section):
-            continue
-        kind, ndims = int(np.frombuffer(section, np.int8, 1, p)[0]), section[p + 1]
-        count = int(np.prod(list(section[p + 2 : p + 2 + ndims]))) if ndims else 1
-        dtype, body = types.get(kind), p + 2 + ndims
-        if dtype is None or not 0 < count <= 16 or body + count * dtype.itemsize > len(section):
-            continue
-        values = np.frombuffer(section, dtype, count, body).astype(float)
-        out[(groups.get(gid, ""), name)] = values.tolist()
-    return out
+    (up to 16 values; from :func:`_read_parameters`, so a damaged section gives what could be
+    read before the damage)."""
+    groups = _read_parameters(section, MIPS if order == ">" else INTEL)
+    return {
+        (group, name): np.ravel(p["value"]).astype(float).tolist()
+        for group, params in groups.items()
+        for name, p in params.items()
+        if p["type"] != -1 and 0 < np.size(p["value"]) <= 16
+    }
 
 
 def _truncated(path: Path, message: str, where: str | None) -> InputError:
