@@ -1,8 +1,9 @@
 """Native readers run where their crash cannot take the process down (issue 16).
 
-libhdf5 (through h5py) and ezc3d are C/C++ libraries: a damaged file can make them crash
-(a segmentation fault on a byte-flipped attribute heap or parameter record) instead of raising
-an error, and a crash cannot be caught in Python. Two guards, both in a forked child process:
+libhdf5 (through h5py) is a C library: a damaged file can make it crash (a segmentation fault
+on a byte-flipped attribute heap) or loop instead of raising an error, and neither can be
+caught in Python. (C3D files are read by motionlab itself, :mod:`motionlab.io.c3d`.) Two
+guards, both in a forked child process:
 
 - :func:`call_isolated` runs a reading function in a child and returns its result (pickled
   through a pipe); the function's own exceptions are raised again in the caller, and a child
