@@ -219,6 +219,38 @@ def _verdict(
     return "determined"
 
 
+def _shared_movement(
+    joint: str,
+    proximal: tuple[np.ndarray, np.ndarray, np.ndarray],
+    distal: tuple[np.ndarray, np.ndarray, np.ndarray],
+) -> tuple[np.ndarray, ...]:
+    """``(t s, g1, g2 rad/s, q1, q2, speed rad/s)``: both segments on the proximal sensor's
+    samples that the distal one covers; gyroscopes low-passed in their sensor frames
+    (interpolated across NaN spans first: a filter would spread them), orientations, and the
+    faster segment's angular speed per sample. Refuses too few samples, or segments that hardly
+    turn (95th percentile of the speed under ``MIN_ACTIVE_RAD_S``)."""
+    tp, gp, qp = proximal
+    td, gd, qd = distal
+    sel = (tp >= td[0]) & (tp <= td[-1])
+    t = tp[sel]
+    if len(t) < 3 * MIN_PART_SAMPLES:
+        raise InputError(
+            f"joint {joint}: too little shared movement for its axes ({len(t)} samples)",
+            remedy="record a longer movement of the joint",
+        )
+    rate = estimate_rate(t)
+    g1 = _lowpass(interp_columns(t, tp, gp), rate)
+    g2 = _lowpass(interp_columns(t, td, gd), rate)
+    speed = np.maximum(np.linalg.norm(g1, axis=1), np.linalg.norm(g2, axis=1))
+    if not np.percentile(speed, 95) >= MIN_ACTIVE_RAD_S:
+        raise InputError(
+            f"joint {joint}: its segments hardly turn (95th percentile "
+            f"{np.percentile(speed, 95):.2f} rad/s)",
+            remedy="record a movement of the joint",
+        )
+    return t, g1, g2, qp[sel], rot.resample(td, qd, t), speed
+
+
 def fit_hinge(
     joint: str,
     proximal: tuple[np.ndarray, np.ndarray, np.ndarray],
@@ -234,27 +266,7 @@ def fit_hinge(
     are the axis (positive direction) in sensor coordinates under the nominal placement;
     ``reference`` is a still window (s) in the joint's zero pose (for the anatomical sign).
     """
-    tp, gp, qp = proximal
-    td, gd, qd = distal
-    sel = (tp >= td[0]) & (tp <= td[-1])
-    t = tp[sel]
-    if len(t) < 3 * MIN_PART_SAMPLES:
-        raise InputError(
-            f"joint {joint}: too little shared movement for the hinge axis ({len(t)} samples)",
-            remedy="record a longer movement of the joint",
-        )
-    rate = estimate_rate(t)
-    g1 = _lowpass(interp_columns(t, tp, gp), rate)  # across NaN spans: filters spread them
-    g2 = _lowpass(interp_columns(t, td, gd), rate)
-    q1 = qp[sel]
-    q2 = rot.resample(td, qd, t)
-    active = np.maximum(np.linalg.norm(g1, axis=1), np.linalg.norm(g2, axis=1))
-    if not np.percentile(active, 95) >= MIN_ACTIVE_RAD_S:
-        raise InputError(
-            f"joint {joint}: its segments hardly turn (95th percentile "
-            f"{np.percentile(active, 95):.2f} rad/s)",
-            remedy="record a movement of the joint",
-        )
+    t, g1, g2, q1, q2, active = _shared_movement(joint, proximal, distal)
     j_p, j_d, _ = hinge_axes(g1, g2, prior_p, prior_d, loss="soft_l1", f_scale=ROBUST_SCALE_RAD_S)
     reasons: list[str] = []
     # consistency over consecutive parts of the movement
@@ -458,26 +470,9 @@ def fit_two_dof(
     the residual relative to the relative angular rate and the consistency of ``N_PARTS`` part
     fits, as for :func:`fit_hinge`.
     """
-    tp, gp, qp = proximal
-    td, gd, qd = distal
-    sel = (tp >= td[0]) & (tp <= td[-1])
-    t = tp[sel]
-    if len(t) < 3 * MIN_PART_SAMPLES:
-        raise InputError(
-            f"joint {joint}: too little shared movement for its axes ({len(t)} samples)",
-            remedy="record a longer movement of the joint",
-        )
-    rate = estimate_rate(t)
-    q1 = qp[sel]
-    q2 = rot.resample(td, qd, t)
-    w1 = rot.rotate(q1, _lowpass(interp_columns(t, tp, gp), rate))
-    w2 = rot.rotate(q2, _lowpass(interp_columns(t, td, gd), rate))
+    t, g1, g2, q1, q2, speed = _shared_movement(joint, proximal, distal)
+    w1, w2 = rot.rotate(q1, g1), rot.rotate(q2, g2)
     active = np.linalg.norm(w1 - w2, axis=1)  # heading offsets do not matter for a threshold
-    speed = np.maximum(np.linalg.norm(w1, axis=1), np.linalg.norm(w2, axis=1))
-    if not np.percentile(speed, 95) >= MIN_ACTIVE_RAD_S:
-        raise InputError(
-            f"joint {joint}: its segments hardly turn", remedy="record a movement of the joint"
-        )
     keep = np.flatnonzero(speed >= 0.1 * np.percentile(speed, 95))
     keep = keep[np.linspace(0, len(keep) - 1, min(len(keep), TWO_AXIS_MAX_SAMPLES)).astype(int)]
     prob = _TwoAxisProblem(
