@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from motionlab.session import SENSOR_CHANNELS, SensorStream
+from motionlab.timebase import runs
 from motionlab.units import STANDARD_GRAVITY
 
 #: thresholds below which an extreme value is not a sensor range (smallest common ranges)
@@ -56,12 +57,6 @@ REST_GYR = 0.2  # rad/s: below this the sensor is taken to be at rest
 HELD_SHARE = 0.2  # share of rows repeating the previous one above which samples are "held"
 #: magnitudes no sensor reports (per axis): beyond them a value is damage, not motion
 IMPLAUSIBLE = {"acc": 1e4, "gyr": 1e3, "mag": 1e5, "quat": 10.0}  # m/s², rad/s, µT, 1
-
-
-def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Start and end (exclusive) indices of the runs of True in a 1-D mask."""
-    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    return np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
 
 
 def saturated_samples(values: np.ndarray, minimum: float) -> int:
@@ -79,7 +74,7 @@ def saturated_samples(values: np.ndarray, minimum: float) -> int:
         for extreme in (high, low):
             if abs(extreme) < minimum:
                 continue
-            start, end = _runs(x == extreme)
+            start, end = runs(x == extreme).T
             length = end - start
             count += int(length[length >= SATURATION_RUN].sum())
     return count
@@ -90,7 +85,7 @@ def nan_spans(time: np.ndarray, values: np.ndarray) -> list[list[float]]:
     bad = ~np.isfinite(values.reshape(len(values), -1)).all(axis=1)
     if not bad.any():
         return []
-    start, end = _runs(bad)
+    start, end = runs(bad).T
     return [[float(time[a]), float(time[b - 1])] for a, b in zip(start, end, strict=True)]
 
 
@@ -203,7 +198,7 @@ def check_stream(stream: SensorStream, gap_max: float) -> dict[str, Any]:
     if stream.gyr is not None:
         w = _norm(stream.gyr)
         qc["gyr_max_rad_s"] = float(np.nanmax(w))
-        start, end = _runs(w > GYR_MAX_PLAUSIBLE)
+        start, end = runs(w > GYR_MAX_PLAUSIBLE).T
         flags["gyr_looks_like_deg_s"] = bool(np.any(end - start >= GYR_SUSTAINED))
         rest = w < REST_GYR
     if stream.acc is not None:

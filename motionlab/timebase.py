@@ -37,6 +37,13 @@ from motionlab.session import SENSOR_CHANNELS, SensorStream
 GAP_FACTOR = 1.5  # an interval longer than this many nominal intervals is a gap
 
 
+def runs(mask: np.ndarray) -> np.ndarray:
+    """(W, 2) int start (inclusive) and stop (exclusive) indices of the runs of True in a 1-D
+    ``mask``."""
+    edges = np.diff(np.concatenate(([0], np.asarray(mask).astype(np.int8), [0])))
+    return np.column_stack((np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
+
+
 def per_sample_arrays(stream: SensorStream) -> dict[str, np.ndarray]:
     """Every per-sample array of a stream: channels by name, extras as ``extra/<name>``."""
     out = {ch: getattr(stream, ch) for ch in SENSOR_CHANNELS if getattr(stream, ch) is not None}

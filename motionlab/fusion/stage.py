@@ -30,6 +30,7 @@ from motionlab.errors import InputError
 from motionlab.fusion import registry
 from motionlab.results import FusionEntry
 from motionlab.session import Session
+from motionlab.timebase import runs
 
 Progress = Callable[[list[str], str], Iterable[str]]
 
@@ -140,11 +141,10 @@ def bridged_spans(
         bad |= ~np.isfinite(a.reshape(len(a), -1)).all(axis=1)
     if not bad.any():
         return []
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], bad.astype(np.int8), [0]])))
-    runs = list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))  # [start, end)
+    spans = runs(bad).tolist()  # [start, end)
     long = [
         (a, b)
-        for a, b in runs
+        for a, b in spans
         if t[min(b, len(t) - 1)] - t[max(a - 1, 0)] > NAN_BRIDGE_MAX_S * (1 + 1e-9)
     ]
     if long:
@@ -160,7 +160,7 @@ def bridged_spans(
             "export the recording again, or trim it to the part with data "
             "(see 'motionlab info', QC)",
         )
-    return [[float(t[a]), float(t[b - 1])] for a, b in runs]
+    return [[float(t[a]), float(t[b - 1])] for a, b in spans]
 
 
 def _check_finite(label: str, name: str, time: np.ndarray, quat: np.ndarray, path: Any) -> None:

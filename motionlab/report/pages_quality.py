@@ -20,6 +20,7 @@ from motionlab.report.model import (
 from motionlab.report.pdf import MUTED, SIZE, Document, label_spans
 from motionlab.results import SegmentCalibration
 from motionlab.segments.quality import FUNCTIONAL_RHO_MIN, RESIDUAL_MAX_DEG, STATIC_RHO_MIN
+from motionlab.timebase import runs
 
 METHODS = {
     "procrustes": "the segment frame is the best fit to two or more measured axes",
@@ -40,11 +41,6 @@ def _f(x: float, spec: str = ".1f") -> str:
     return format(x, spec) if np.isfinite(x) else "-"
 
 
-def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
-    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
-    return list(zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True))
-
-
 def _timeline(doc: Document, view: SessionView) -> None:
     """One lane per sensor: rest, magnetic disturbance and gaps over time, tasks shaded."""
     sensors = list(view.session.sensors.values())
@@ -60,7 +56,7 @@ def _timeline(doc: Document, view: SessionView) -> None:
             value = getattr(fz, key) if fz is not None else None
             mask = np.asarray(value if value is not None else np.zeros(0), bool)
             if len(mask) == len(t):
-                bars = [(t[a], t[b - 1] - t[a]) for a, b in _runs(mask)]
+                bars = [(t[a], t[b - 1] - t[a]) for a, b in runs(mask)]
                 ax.broken_barh(bars, (y - 0.3 + (0.35 if key == "rest" else 0), 0.25), color=colour)
         gaps = [(a, b - a) for a, b in (s.qc or {}).get("gaps", [])]
         if gaps:

@@ -33,6 +33,7 @@ import numpy as np
 from scipy.ndimage import binary_opening, uniform_filter1d
 
 from motionlab import rotations as rot
+from motionlab.timebase import runs
 
 UP = np.array([0.0, 0.0, 1.0])
 REST_RATE_RAD_S = 0.15
@@ -176,8 +177,7 @@ def reference_rests(
         up = rot.rotate(q, np.broadcast_to(axis, (len(q), 3)))[:, 2]
         ok &= (speed < REST_RATE_RAD_S) & (up > np.cos(np.radians(tilt)))
     ok = binary_opening(ok, np.ones(max(1, int(REST_MIN_S * rate)), bool))
-    edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(int), 0]))
-    return [slice(a, b) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+    return [slice(a, b) for a, b in runs(ok)]
 
 
 def on_track(

@@ -37,6 +37,7 @@ import yaml
 from motionlab.atomic import atomic_path
 from motionlab.errors import InputError
 from motionlab.session import SensorStream
+from motionlab.yamlsafe import BoundedSafeLoader, load_yaml, read_yaml_text
 
 FORMAT = "motionlab-sensor-calibration"
 VERSION = 1
@@ -198,15 +199,14 @@ def load_calibration(path: str | Path) -> SensorCalibration:
     path = Path(path)
     if not path.is_file():
         raise InputError("no such calibration file", path, remedy="check the path")
+    text = read_yaml_text(path, "sensor calibration", "fix or recreate it")
+    if path.suffix != ".json":  # aliases bounded: a small file cannot expand without limit
+        return from_dict(load_yaml(text, BoundedSafeLoader, path, "fix or recreate it"), path)
     try:
-        text = path.read_text(encoding="utf-8")
-        data = json.loads(text) if path.suffix == ".json" else yaml.safe_load(text)
-    except (UnicodeDecodeError, json.JSONDecodeError, yaml.YAMLError) as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = getattr(exc, "lineno", None) or (mark.line + 1 if mark else None)
-        raise InputError(
-            "not valid YAML/JSON", path, f"line {line}" if line else None, "fix or recreate it"
-        ) from None
+        data = json.loads(text)
+    except json.JSONDecodeError as exc:
+        where = f"line {exc.lineno}"
+        raise InputError("not valid JSON", path, where, "fix or recreate it") from None
     return from_dict(data, path)
 
 

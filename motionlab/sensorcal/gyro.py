@@ -18,7 +18,8 @@ import numpy as np
 
 from motionlab.errors import InputError
 from motionlab.sensorcal._validate import positive_rate, samples3
-from motionlab.sensorcal.rest import find_rest, runs
+from motionlab.sensorcal.rest import find_rest
+from motionlab.timebase import runs
 
 
 @dataclass

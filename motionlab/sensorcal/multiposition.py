@@ -34,7 +34,8 @@ from scipy.optimize import least_squares
 
 from motionlab.errors import InputError
 from motionlab.sensorcal._validate import positive_rate, samples3
-from motionlab.sensorcal.rest import find_rest, runs
+from motionlab.sensorcal.rest import find_rest
+from motionlab.timebase import runs
 from motionlab.units import STANDARD_GRAVITY
 
 _TRIL = np.tril_indices(3)

@@ -80,9 +80,3 @@ def find_rest(
         if mask.sum() > best.sum() and np.linalg.norm(gyr[mask].mean(axis=0)) <= max_bias:
             best = mask
     return best
-
-
-def runs(mask: np.ndarray) -> np.ndarray:
-    """(W, 2) int start (inclusive) and stop (exclusive) sample indices of the True runs."""
-    edges = np.diff(np.concatenate(([0], mask.astype(np.int8), [0])))
-    return np.column_stack((np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))

@@ -22,6 +22,7 @@ import numpy as np
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
+from motionlab.timebase import runs
 from motionlab.validation.optical import local_coordinates
 
 MAX_LANDMARK_SPREAD_M = 0.01  # a landmark moving more than this in the cluster frame is left out
@@ -105,10 +106,10 @@ def still_frames(
 
 def longest_run(time: np.ndarray, mask: np.ndarray, min_s: float = MIN_STATIC_S) -> tuple | None:
     """``(start_s, end_s)`` of the longest run of ``mask`` lasting at least ``min_s``, or None."""
-    edges = np.flatnonzero(np.diff(np.r_[0, np.asarray(mask, int), 0]))
-    if len(edges) == 0:
+    found = runs(mask)
+    if len(found) == 0:
         return None
-    starts, ends = edges[::2], edges[1::2] - 1
+    starts, ends = found[:, 0], found[:, 1] - 1
     span = time[ends] - time[starts]
     best = int(np.argmax(span))
     if span[best] < min_s:

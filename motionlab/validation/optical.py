@@ -27,6 +27,7 @@ from scipy.signal import butter, sosfiltfilt
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
+from motionlab.timebase import runs
 
 MIN_MARKERS = 3
 DEFAULT_MAX_GAP_S = 0.1
@@ -217,8 +218,7 @@ def smooth_pose(
         return quat, origin
     sos = butter(4, cutoff_hz, fs=rate, output="sos")
     ok = np.isfinite(quat).all(axis=1) & np.isfinite(origin).all(axis=1)
-    edges = np.flatnonzero(np.diff(np.r_[0, ok.astype(int), 0]))
-    for a, b in zip(edges[::2], edges[1::2], strict=True):  # one filter call per run
+    for a, b in runs(ok):  # one filter call per run
         if b - a > 30:
             quat[a:b] = rot.normalize(sosfiltfilt(sos, quat[a:b], axis=0))
             origin[a:b] = sosfiltfilt(sos, origin[a:b], axis=0)
