@@ -146,3 +146,14 @@ def test_unparsable_file_names_the_line(tmp_path):
         load_calibration(path)
     with pytest.raises(InputError, match="no such"):
         load_calibration(tmp_path / "missing.yaml")
+
+
+def test_billion_laughs_calibration_file_is_refused(tmp_path):
+    lol = '"lol", ' * 8 + '"lol"'
+    levels = zip("abcdefgh", "bcdefghi", strict=True)
+    nested = "".join(f"{c}: &{c} [{', '.join(['*' + p] * 9)}]\n" for p, c in levels)
+    text = f"a: &a [{lol}]\n" + nested
+    path = tmp_path / "x.yaml"
+    path.write_text(text)
+    with pytest.raises(InputError, match="alias"):
+        load_calibration(path)

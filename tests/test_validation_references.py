@@ -22,6 +22,7 @@ from motionlab.segments import calibrate_segments
 from motionlab.session import load_session, save_session
 from motionlab.simulate import simulate
 from motionlab.simulate.errors import Preset
+from motionlab.validation.model_angles import load_angle_map
 from motionlab.validation.optical import resample_quat
 from motionlab.validation.segment_csv import read_segment_csv
 from motionlab.validation.time_alignment import synchronise
@@ -178,6 +179,27 @@ def test_segment_csv_errors(tmp_path):
         read_segment_csv(bad)
     res = CliRunner().invoke(main, ["validate", str(tmp_path / "none.h5"), "--reference", str(bad)])
     assert res.exit_code == 2
+    bad.write_text("")  # pandas' delimiter sniffer fails on an empty file (was exit 1)
+    with pytest.raises(InputError, match="cannot be read as CSV"):
+        read_segment_csv(bad)
+
+
+LAUGHS = 'a: &a ["lol","lol","lol","lol","lol","lol","lol","lol","lol"]\n' + "".join(
+    f"{c}: &{c} [{', '.join(['*' + p] * 9)}]\n" for p, c in zip("abcdefgh", "bcdefghi", strict=True)
+)
+
+
+def test_angle_map_yaml_is_bounded_and_checked(tmp_path):
+    path = tmp_path / "map.yaml"
+    path.write_text(LAUGHS)  # a billion laughs: refused, not expanded
+    with pytest.raises(InputError, match="alias"):
+        load_angle_map(path)
+    path.write_text("knee_r_flexion_deg: {label: RKneeAngles, component: [\n")
+    with pytest.raises(InputError, match="line"):
+        load_angle_map(path)
+    path.write_text("knee_r_flexion_deg: {label: RKneeAngles, component: q}\n")
+    with pytest.raises(InputError, match="key knee_r_flexion_deg"):
+        load_angle_map(path)
 
 
 def _turning(seed, duration, rate=100.0):

@@ -42,16 +42,17 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
+from motionlab.kinematics.joint_types import angle_columns
 from motionlab.protocol import Protocol
 from motionlab.results import Validation
 from motionlab.session import MarkerSet, Session, estimate_rate
 from motionlab.validation.agreement import agreement, per_repetition, repetitions
 from motionlab.validation.time_alignment import no_sync, synchronise
 from motionlab.validation.time_offset import sync_notes
+from motionlab.yamlsafe import BoundedSafeLoader, load_yaml, read_yaml_text
 
 CAVEAT = (
     "the reference angles come from another model whose segment frames differ from the IMU "
@@ -91,16 +92,8 @@ PLUGIN_GAIT: dict[str, AngleSource] = _plugin_gait()
 def load_angle_map(path: str | Path) -> dict[str, AngleSource]:
     """An angle map YAML: ``column: {label: NAME, component: x|y|z, sign: 1|-1}``."""
     path = Path(path)
-    if not path.is_file():
-        raise InputError("no such angle map", path, remedy="check the path")
-    try:
-        doc = yaml.safe_load(path.read_text(encoding="utf-8"))
-    except (yaml.YAMLError, UnicodeDecodeError) as exc:
-        raise InputError(
-            f"not valid YAML ({type(exc).__name__})",
-            path,
-            remedy="write 'column: {label: RKneeAngles, component: x, sign: 1}'",
-        ) from None
+    remedy = "write 'column: {label: RKneeAngles, component: x, sign: 1}'"
+    doc = load_yaml(read_yaml_text(path, "angle map", remedy), BoundedSafeLoader, path, remedy)
     if not isinstance(doc, dict) or not doc:
         raise InputError(
             "is not a mapping of angle columns",
@@ -127,8 +120,6 @@ def default_mapping(reference: MarkerSet, protocol: Protocol | None) -> dict[str
     """Plug-in Gait's labels, and motionlab's own ``<joint>_angles`` (by the protocol)."""
     out = dict(PLUGIN_GAIT)
     if protocol is not None:
-        from motionlab.kinematics.joint_types import angle_columns
-
         for name, joint in protocol.joints.items():
             if f"{name}_angles" in reference.model_outputs:
                 for i, (_, col) in enumerate(angle_columns(joint)):
@@ -296,8 +287,6 @@ def _primaries(columns: list[str], protocol: Protocol | None) -> list[str]:
     """The first (flexion) angle of each joint among ``columns`` (all flexion columns without a
     protocol; every column when none is a flexion)."""
     if protocol is not None:
-        from motionlab.kinematics.joint_types import angle_columns
-
         out = [angle_columns(j)[0][1] for j in protocol.joints.values()]
         out = [c for c in out if c in columns]
         if out:

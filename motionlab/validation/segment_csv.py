@@ -21,6 +21,7 @@ Format (comma, semicolon or tab separated; ``#`` comment lines allowed)::
 
 from __future__ import annotations
 
+import csv
 import re
 from pathlib import Path
 
@@ -60,7 +61,7 @@ def read_segment_csv(path: str | Path, name: str = "segments") -> MarkerSet:
         raise InputError("no such reference file", path, remedy="check the path")
     try:
         table = pd.read_csv(path, sep=None, engine="python", comment="#", skipinitialspace=True)
-    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as exc:
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, csv.Error, UnicodeDecodeError) as exc:
         raise InputError(
             f"cannot be read as CSV ({exc})".splitlines()[0],
             path,

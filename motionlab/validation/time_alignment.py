@@ -28,6 +28,7 @@ from scipy.interpolate import make_interp_spline
 from scipy.signal import butter, correlate, sosfiltfilt
 
 from motionlab.errors import InputError
+from motionlab.validation import time_offset as ta
 from motionlab.validation.optical import angular_velocity
 
 CUTOFF_HZ = 3.0
@@ -389,8 +390,6 @@ def fit_clock(
     than two agree), one global offset over the whole recordings instead
     (:func:`~motionlab.validation.time_offset.global_offset`, ``fallback`` says why). Sets
     ``standard_error_s`` (of the offset at the centre of the recording) and ``grade``."""
-    from motionlab.validation import time_offset as ta
-
     threshold = 2.0 / rate if threshold_s is None else threshold_s
     lag0, _ = coarse_lag(imu_sig, ref_sig, rate, max_lag_s)
     centre = 0.5 * (min(s[2] for s in imu_sig) + max(s[3] for s in imu_sig))
