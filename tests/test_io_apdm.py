@@ -206,3 +206,21 @@ def test_shared_apdm_files():
     assert np.median(heading) < 0.5 and heading.max() < 5.0
     rec7 = read_any(SHARED / "formats" / "apdm" / "apdm_format7.csv")
     assert len(rec7.sensors) == 6 and rec7.sensors[0].rate_hz == pytest.approx(128.0, rel=1e-3)
+
+
+def test_h5_damaged_links_and_names_are_one_line(tmp_path):
+    """h5py's words for damaged metadata (a dangling link: ``None``; a name that is not UTF-8:
+    ``UnicodeDecodeError`` on every lookup) were exit 1; byte flips of the fixture made both."""
+    path = tmp_path / "dangling.h5"
+    _write_apdm_h5(path)
+    with h5py.File(path, "a") as f:
+        f["Sensors"]["SI-000999"] = h5py.SoftLink("/nowhere")
+    with pytest.raises(InputError, match="SI-000999.*|is not a sensor group"):
+        apdm_h5.read(path)
+    path = tmp_path / "names.h5"
+    _write_apdm_h5(path)
+    with h5py.File(path, "a") as f:  # a name that is not UTF-8, as a flipped byte leaves it
+        f.copy(f["Sensors/SI-000646"], f["Sensors"], name=b"SI-00064\xc8")
+        f.copy(f["Processed/SI-000646"], f["Processed"], name=b"SI-00064\xc8")
+    with pytest.raises(InputError, match="damaged"):
+        apdm_h5.read(path)

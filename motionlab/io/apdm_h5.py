@@ -42,7 +42,7 @@ def sniff(path: Path, head: bytes) -> bool:
     try:
         with h5py.File(path, "r") as f:
             return isinstance(f.get("Sensors"), h5py.Group)
-    except (OSError, RuntimeError, KeyError):  # h5py: damaged metadata (read() says so)
+    except (OSError, RuntimeError, KeyError, UnicodeError):  # damaged metadata: read() says so
         return False
 
 
@@ -64,10 +64,35 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
                 "group /Sensors",
                 "give an APDM .h5 recording (Motion Studio or Mobility Lab)",
             )
-        processed = f.get("Processed")
-        streams = [_sensor(path, case_id, g, processed) for case_id, g in sensors.items()]
-        meta = {k: _text(v) for k, v in f.attrs.items() if isinstance(v, (str, bytes))}
+        try:
+            processed = f.get("Processed")
+            streams = []
+            for case_id, g in sensors.items():
+                if not isinstance(g, h5py.Group):  # a dangling link or a damaged object header
+                    raise InputError(
+                        "is not a sensor group: the file is damaged",
+                        path,
+                        f"key /Sensors/{shorten(case_id)}",
+                        "export the recording again as .h5",
+                    )
+                streams.append(_sensor(path, case_id, g, processed))
+            meta = {k: _text(v) for k, v in f.attrs.items() if isinstance(v, (str, bytes))}
+        except (UnicodeError, KeyError, ValueError, TypeError, OSError, RuntimeError) as exc:
+            # h5py's words for damaged metadata: a name that is not UTF-8, an object header it
+            # cannot open, a type description it cannot represent
+            raise InputError(
+                f"the file is damaged ({shorten(_words(exc))})",
+                path,
+                remedy="export the recording again as .h5",
+            ) from None
     return Recording(sensors=streams, metadata=meta)
+
+
+def _words(exc: Exception) -> str:
+    """What h5py says of damaged metadata, without the quotes a ``KeyError`` adds."""
+    if isinstance(exc, UnicodeError):
+        return "a name that is not UTF-8"
+    return str(exc.args[0]) if exc.args else type(exc).__name__
 
 
 def _text(value: Any) -> str:
