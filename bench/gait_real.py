@@ -113,6 +113,19 @@ def hip_axes(marker, rate: float) -> dict[str, tuple[float, float]]:
     return out
 
 
+def _stance(side: str, zeni: dict, ev: ge.SideEvents) -> list[tuple]:
+    """``(side, IC s, Zeni stance %, detector stance %)`` of each stride with all its events."""
+    rows = []
+    for a, b in zip(zeni["ic"][:-1], zeni["ic"][1:], strict=True):
+        fc = zeni["fc"][(zeni["fc"] > a) & (zeni["fc"] < b)]
+        want = ((ev.ic, a), (ev.fc, fc[0] if len(fc) else np.nan), (ev.ic, b))
+        found = [x[np.argmin(np.abs(x - y))] if len(x) else np.nan for x, y in want]
+        if len(fc) == 1 and np.all(np.isfinite(found)):
+            d0, d1, d2 = found
+            rows.append((side, a, 100 * (fc[0] - a) / (b - a), 100 * (d1 - d0) / (d2 - d0)))
+    return rows
+
+
 def _lengths(marker, rate, left, fwd, sacrum, zeni_ic, det_ic) -> list[tuple]:
     """Rows ``(what, side, time s, reference, model at detected IC, model at Zeni IC)`` for
     steps, strides (m) and stride speeds (m/s); see the module docstring."""
@@ -216,6 +229,7 @@ def main() -> None:
         plates[side] = (on if heel_on_plate else np.nan, off)
     rows = []
     zeni_ic, det_ic = {}, {}
+    stance: list[tuple] = []
     for side, pre in (("r", "R"), ("l", "L")):
         cl = np.stack([marker(f"{pre}TB{i}") for i in (1, 2, 3)], axis=1)
         w = sagittal_rate(cl, rate, left)
@@ -230,6 +244,7 @@ def main() -> None:
             k, _ = find_peaks(np.where(np.isfinite(x), x, -9.0), prominence=0.1)
             zeni[name] = t[k]
         zeni_ic[side], det_ic[side] = zeni["ic"], ev.ic
+        stance.extend(_stance(side, zeni, ev))
         for name, det in (("ic", ev.ic), ("fc", ev.fc)):
             refs = [("force plate", np.array([plates[side][0 if name == "ic" else 1]]))]
             refs.append(("Zeni kinematic", zeni[name]))
@@ -244,6 +259,10 @@ def main() -> None:
     print(f"{'side':<5}{'event':<6}{'reference':<16}{'time s':>8}{'error ms':>10}")
     for side, ev_name, ref, x, d in rows:
         print(f"{side:<5}{ev_name:<6}{ref:<16}{x:8.3f}{d:10.0f}")
+    print("\nstance (% of the stride): detector against Zeni's events")
+    for side, a, ref, det in stance:
+        print(f"  {side} stride from {a:.3f} s: Zeni {ref:5.1f} %, detector {det:5.1f} % "
+              f"({det - ref:+.1f} points)")  # fmt: skip
     print(f"\nstep/stride length (m), speed (m/s): model ({sp.LENGTH_MODEL.split(',')[0]}) "
           "against the heel markers and the mid-PSIS")  # fmt: skip
     print(f"{'what':<8}{'side':<5}{'IC s':>7}{'heels':>8}{'model':>8}{'err %':>7}"
