@@ -189,13 +189,10 @@ def _lengths(marker, rate, left, fwd, sacrum, zeni_ic, det_ic) -> list[tuple]:
     return [r for r in rows if np.isfinite(r[3])]
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared")
-    args = ap.parse_args()
-    path = args.data / FILE
-    if not path.exists():
-        sys.exit(f"{path}: not found; give the shared data folder with --data DIR")
+def evaluate(path: Path) -> dict:
+    """The walk's numbers: ``events`` rows ``(side, IC|FC, reference, time s, error ms)``,
+    ``stance`` and ``lengths`` rows (:func:`_stance`, :func:`_lengths`), ``hips``
+    (:func:`hip_axes`) and ``seconds``, ``rate``."""
     c = ezc3d.c3d(str(path))
     par = c["parameters"]
     labels = par["POINT"]["LABELS"]["value"]
@@ -255,7 +252,21 @@ def main() -> None:
                         err = 1e3 * d[np.argmin(np.abs(d))]
                         rows.append((side, name.upper(), ref_name, x, err))
     lengths = _lengths(marker, rate, left, fwd, sacrum, zeni_ic, det_ic)
-    print(f"{path.name}: {n / rate:.1f} s at {rate:g} Hz; detector error (detected − reference)\n")
+    return {"events": rows, "stance": stance, "lengths": lengths,
+            "hips": hip_axes(marker, rate), "seconds": n / rate, "rate": rate}  # fmt: skip
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared")
+    args = ap.parse_args()
+    path = args.data / FILE
+    if not path.exists():
+        sys.exit(f"{path}: not found; give the shared data folder with --data DIR")
+    res = evaluate(path)
+    rows, stance, lengths = res["events"], res["stance"], res["lengths"]
+    print(f"{path.name}: {res['seconds']:.1f} s at {res['rate']:g} Hz; detector error "
+          "(detected − reference)\n")  # fmt: skip
     print(f"{'side':<5}{'event':<6}{'reference':<16}{'time s':>8}{'error ms':>10}")
     for side, ev_name, ref, x, d in rows:
         print(f"{side:<5}{ev_name:<6}{ref:<16}{x:8.3f}{d:10.0f}")
@@ -279,7 +290,7 @@ def main() -> None:
                   f"{np.nanmax(e):+.1f}), at the Zeni ICs {np.nanmedian(ez):+.1f} % (range "
                   f"{np.nanmin(ez):+.1f} to {np.nanmax(ez):+.1f}; without the foot-roll factor "
                   f"{np.nanmedian(raw):+.1f} %) (n={len(e)})")  # fmt: skip
-    for side, (angle, ratio) in hip_axes(marker, rate).items():
+    for side, (angle, ratio) in res["hips"].items():
         print(f"hip {side}: dominant relative axis {angle:+.1f}° from the pelvis z about the "
               f"vertical (second/first singular value {ratio:.2f})")  # fmt: skip
     for ev_name in ("IC", "FC"):

@@ -3,6 +3,7 @@ simulator's gait truth, and the gait pages/CSV of run."""
 
 import numpy as np
 import pytest
+from conftest import ROOT, SHARED, needs_shared
 
 from motionlab import rotations as rot
 from motionlab.kinematics import gait_events as ge
@@ -192,6 +193,26 @@ def test_simulated_walk_end_to_end_events_and_stride_length():
     assert g.summary["walking_speed_m_s"] == pytest.approx(
         measured / np.nanmean(g.strides["stride_time_s"][kept]), rel=0.02
     )
+
+
+@needs_shared
+def test_real_walk_final_contact_stance_and_stride_length():
+    """Vicon walking2 (bench/gait_real.py): FC within 20 ms of both force-plate toe-offs (the
+    minimum alone was 33-37 ms early), stance within 1.5 points of Zeni's on the two steady
+    strides, stride length within 2.5 % of the heel markers there (a regression check: the
+    1.25 foot-roll factor was taken from this walk)."""
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location("gait_real", ROOT / "bench" / "gait_real.py")
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    res = bench.evaluate(SHARED / bench.FILE)
+    plates = [e for e in res["events"] if e[1] == "FC" and e[2] == "force plate"]
+    assert len(plates) == 2 and all(abs(e[4]) < 20 for e in plates)
+    steady = [r for r in res["stance"] if r[1] < 2.5]  # the third stride is the stop
+    assert len(steady) == 2 and all(abs(r[3] - r[2]) < 1.5 for r in steady)
+    strides = [r for r in res["lengths"] if r[0] == "stride" and r[2] < 2.5]
+    assert len(strides) == 2 and all(abs(r[4] / r[3] - 1) < 0.025 for r in strides)
 
 
 def test_gps_zero_for_the_normative_mean_and_rising_with_a_deficit():
