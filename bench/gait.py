@@ -9,6 +9,14 @@ Detected times are mapped to true time through each sensor's true sample times. 
 from the simulated feet (Zeni et al. 2008, :mod:`motionlab.simulate.gait_truth`), steady part of
 the walk only; truth spatio-temporal numbers from the truth events of straight strides, with the
 same formulas (:mod:`motionlab.kinematics.spatiotemporal`).
+
+Stride length: ``stride err legs %`` compares the IMU model with the same model on the true
+segment orientations at the true events (the sensors' and calibration's share of the error);
+``stride err pelvis %`` and ``speed err pelvis %`` compare it with the pelvis's displacement
+over the same strides. They disagree because the simulated stance foot slides (no foot-floor
+contact; along the ellipse the path speed varies, the legs' motion does not): the pelvis rows
+say how inconsistent the simulator is, not how good the model is (its real error:
+``bench/gait_real.py``).
 """
 
 from __future__ import annotations
@@ -53,7 +61,26 @@ def _to_true(session, truth, orig, seg):
     return lambda x: np.interp(np.asarray(x) - shift, orig[seg], truth.sensors[seg]["sample_time"])
 
 
-def _truth_strides(G, walk):
+def _truth_reach(truth, height: float) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """The leg model (:func:`spatiotemporal.leg_reach`) on the true segment orientations and the
+    simulated body's lengths (Winter's fractions of its height, as the model assumes)."""
+    t_m, s_m = (sp.LENGTH_FRACTIONS[k] * height for k in ("thigh", "shank"))
+    S = truth.segments
+    return {s: (truth.time, sp.leg_reach(S[f"thigh_{s}"]["orientation"],
+                                         S[f"shank_{s}"]["orientation"], t_m, s_m))
+            for s in "rl"}  # fmt: skip
+
+
+def _pelvis_strides(truth, table) -> np.ndarray:
+    """Horizontal pelvis displacement (m) over each kept truth stride."""
+    p = truth.segments["pelvis"]["position"]
+    kept = table[table["kept"]]
+    a, b = kept["start_s"].to_numpy(), (kept["start_s"] + kept["stride_time_s"]).to_numpy()
+    xy = [np.column_stack([np.interp(x, truth.time, p[:, i]) for i in (0, 1)]) for x in (a, b)]
+    return np.hypot(*(xy[1] - xy[0]).T)
+
+
+def _truth_strides(G, walk, reach=None):
     """Truth strides of each side (steady, straight) and the truth stride table."""
     sides, events = {}, {}
     for s in "rl":
@@ -65,7 +92,12 @@ def _truth_strides(G, walk):
         steady = G[f"ic_{s}_steady"]
         ok = np.isin(sides[s].ic, ic[steady]) & np.isin(sides[s].next_ic, ic[steady])
         sides[s].kept &= ok
-    return sp.stride_table(sides, events)
+    return sp.stride_table(sides, events, reach)
+
+
+def tsum_stride_s(table) -> float:
+    """Mean stride time (s) of the kept truth strides."""
+    return float(table.loc[table["kept"], "stride_time_s"].mean())
 
 
 def run_one(seed: int, variant: str, one_clock: bool = False) -> dict[str, float]:
@@ -94,7 +126,8 @@ def run_one(seed: int, variant: str, one_clock: bool = False) -> dict[str, float
     heading = np.unwrap(G["walking_heading"])
     walk = {"time": truth.time, "yaw_rate": np.gradient(heading, truth.time),
             "start": step["start_s"], "end": step["end_s"]}  # fmt: skip
-    tsum = sp.summary(_truth_strides(G, walk))
+    ttable = _truth_strides(G, walk, _truth_reach(truth, session.metadata["subject"]["height_m"]))
+    tsum = sp.summary(ttable)
     dsum = g.summary
     row["cadence err /min"] = abs(dsum["cadence_steps_per_min"] - tsum["cadence_steps_per_min"])
     row["stance err pts"] = max(
@@ -103,6 +136,16 @@ def run_one(seed: int, variant: str, one_clock: bool = False) -> dict[str, float
     )
     row["asym err pts"] = abs(dsum["step_time_asymmetry_pct"] - tsum["step_time_asymmetry_pct"])
     row["asym truth %"] = tsum["step_time_asymmetry_pct"]
+    length = float(g.strides["stride_length_m"][g.strides["kept"]].mean())
+    legs = float(ttable.loc[ttable["kept"], "stride_length_m"].mean())
+    pelvis = float(_pelvis_strides(truth, ttable).mean())
+    row["stride len cm"] = 100 * length
+    row["stride err legs %"] = 100 * (length - legs) / legs
+    row["pelvis stride cm"] = 100 * pelvis
+    row["stride err pelvis %"] = 100 * (length - pelvis) / pelvis
+    row["speed err pelvis %"] = 100 * (
+        dsum["walking_speed_m_s"] * tsum_stride_s(ttable) / pelvis - 1
+    )
     row["stance truth r %"] = tsum["sides"]["r"]["stance_pct"]["mean"]
     # angles on the steady walk
     ang = session.results.angles.columns()

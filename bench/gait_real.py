@@ -14,6 +14,15 @@ behind the mid-PSIS). Plate 2 is struck by the left forefoot (the heel lands bef
 edge), and the right heel lands 2 cm before plate 1: a plate's initial contact counts only when
 the heel marker lies inside the plate's corners at mid-stance (neither does here).
 
+Step and stride length, walking speed (:mod:`motionlab.kinematics.spatiotemporal`'s leg model):
+the thigh (``RTH1-3``) and tibia clusters stand in for the thigh and shank sensors, each
+segment's axes fixed in its cluster from the joint centres (``HJC``, ``KJC``, ``AJC``) and the
+femoral condyles / malleoli at one reference frame (as a calibration would), its lengths the
+median joint-centre distances. Reference: the heel markers' forward displacement between their
+own Zeni initial contacts (a step: the landing heel minus the other heel at its contact) and the
+mid-PSIS's mean forward speed over each stride. The model is evaluated at the detector's and at
+the Zeni initial contacts. The 1.25 foot-roll factor of the model was taken from this walk.
+
 It also prints where each hip's relative rotation (thigh from hip and knee joint centres and
 femoral condyles, pelvis from ASIS and PSIS) has its dominant axis in the pelvis frame: a heading
 tie that assumed that axis to be the pelvis's medio-lateral axis (the hip's JCS flexion axis)
@@ -32,7 +41,9 @@ from scipy.signal import find_peaks
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
+from motionlab import rotations as rot  # noqa: E402
 from motionlab.kinematics import gait_events as ge  # noqa: E402
+from motionlab.kinematics import spatiotemporal as sp  # noqa: E402
 
 FILE = "formats/c3d/vicon_nexus_walking2.c3d"
 FORCE_N = 20.0
@@ -60,6 +71,15 @@ def sagittal_rate(cluster: np.ndarray, rate: float, left: np.ndarray) -> np.ndar
             W = (R[k + 1] - R[k - 1]) * rate / 2 @ R[k].T
             w[k] = -np.dot([W[2, 1], W[0, 2], W[1, 0]], left)
     return w
+
+
+def segment_quats(cluster: np.ndarray, ref: int, axes: np.ndarray) -> np.ndarray:
+    """(N, 4) segment → lab orientations of a marker cluster (N, M, 3) whose segment axes (3×3,
+    columns x, y, z in the lab) are known at frame ``ref``; NaN where a marker is missing."""
+    q = np.full((len(cluster), 4), np.nan)
+    for k in np.flatnonzero(np.all(np.isfinite(cluster), axis=(1, 2))):
+        q[k] = rot.from_matrix(_rotation(cluster[ref], cluster[k]) @ axes)
+    return q
 
 
 def _frame(x: np.ndarray, z: np.ndarray) -> np.ndarray:
@@ -93,13 +113,86 @@ def hip_axes(marker, rate: float) -> dict[str, tuple[float, float]]:
     return out
 
 
-def main() -> None:
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared")
-    args = ap.parse_args()
-    path = args.data / FILE
-    if not path.exists():
-        sys.exit(f"{path}: not found; give the shared data folder with --data DIR")
+def _stance(side: str, zeni: dict, ev: ge.SideEvents) -> list[tuple]:
+    """``(side, IC s, Zeni stance %, detector stance %)`` of each stride with all its events."""
+    rows = []
+    for a, b in zip(zeni["ic"][:-1], zeni["ic"][1:], strict=True):
+        fc = zeni["fc"][(zeni["fc"] > a) & (zeni["fc"] < b)]
+        want = ((ev.ic, a), (ev.fc, fc[0] if len(fc) else np.nan), (ev.ic, b))
+        found = [x[np.argmin(np.abs(x - y))] if len(x) else np.nan for x, y in want]
+        if len(fc) == 1 and np.all(np.isfinite(found)):
+            d0, d1, d2 = found
+            rows.append((side, a, 100 * (fc[0] - a) / (b - a), 100 * (d1 - d0) / (d2 - d0)))
+    return rows
+
+
+def _lengths(marker, rate, left, fwd, sacrum, zeni_ic, det_ic) -> list[tuple]:
+    """Rows ``(what, side, time s, reference, model at detected IC, model at Zeni IC)`` for
+    steps, strides (m) and stride speeds (m/s); see the module docstring."""
+    n = len(sacrum)
+    t = np.arange(n) / rate
+    jc = np.flatnonzero(np.all(np.isfinite(marker("RKJC")) & np.isfinite(marker("LKJC")), axis=1))
+    reach = {}
+    for side, pre in (("r", "R"), ("l", "L")):
+        sign = 1.0 if side == "r" else -1.0
+        quats, length = [], []
+        for cl, prox, dist, lat, med in (
+            ("TH", "HJC", "KJC", "LFC", "MFC"),
+            ("TB", "KJC", "AJC", "LMAL", "MMAL"),
+        ):
+            cluster = np.stack([marker(f"{pre}{cl}{i}") for i in (1, 2, 3)], axis=1)
+            ok = np.all(np.isfinite(cluster), axis=(1, 2))
+            ref = jc[ok[jc]][len(jc[ok[jc]]) // 2]
+            y = marker(pre + prox)[ref] - marker(pre + dist)[ref]
+            z = sign * (marker(pre + lat)[ref] - marker(pre + med)[ref])
+            y /= np.linalg.norm(y)
+            x = np.cross(y, z)
+            x /= np.linalg.norm(x)
+            axes = np.column_stack([x, y, np.cross(x, y)])
+            quats.append(segment_quats(cluster, ref, axes))
+            d = np.linalg.norm(marker(pre + prox) - marker(pre + dist), axis=1)
+            length.append(float(np.nanmedian(d)))
+        reach[side] = (t, sp.leg_reach(quats[0], quats[1], *length))
+
+    def step(side: str, x: float) -> float:
+        return sp._step(reach, side, x)
+
+    def near(det: np.ndarray, x: float) -> float:
+        d = np.abs(det - x)
+        return float(det[np.argmin(d)]) if len(d) and d.min() < 0.15 else np.nan
+
+    def heel(side: str, x: float) -> float:
+        h = marker(("R" if side == "r" else "L") + "CAL")
+        return float(np.interp(x, t, h @ fwd, left=np.nan, right=np.nan))
+
+    rows = []
+    events = sorted((x, s) for s in "rl" for x in zeni_ic[s])
+    for (x0, s0), (x1, s1) in zip(events[:-1], events[1:], strict=True):
+        if s0 == s1:
+            continue
+        ref = heel(s1, x1) - heel(s0, x0)
+        rows.append(("step", s1, x1, ref, step(s1, near(det_ic[s1], x1)), step(s1, x1)))
+    for s in "rl":
+        o = "l" if s == "r" else "r"
+        for a, b in zip(zeni_ic[s][:-1], zeni_ic[s][1:], strict=True):
+            inner = zeni_ic[o][(zeni_ic[o] > a) & (zeni_ic[o] < b)]
+            if len(inner) != 1:
+                continue
+            ref = heel(s, b) - heel(s, a)
+            da, db, di = near(det_ic[s], a), near(det_ic[s], b), near(det_ic[o], inner[0])
+            model = step(o, di) + step(s, db)
+            model_z = step(o, inner[0]) + step(s, b)
+            rows.append(("stride", s, a, ref, model, model_z))
+            m = (t >= a) & (t <= b)
+            speed = float(np.nanmean(np.gradient(sacrum @ fwd, t)[m]))
+            rows.append(("speed", s, a, speed, model / (db - da), model_z / (b - a)))
+    return [r for r in rows if np.isfinite(r[3])]
+
+
+def evaluate(path: Path) -> dict:
+    """The walk's numbers: ``events`` rows ``(side, IC|FC, reference, time s, error ms)``,
+    ``stance`` and ``lengths`` rows (:func:`_stance`, :func:`_lengths`), ``hips``
+    (:func:`hip_axes`) and ``seconds``, ``rate``."""
     c = ezc3d.c3d(str(path))
     par = c["parameters"]
     labels = par["POINT"]["LABELS"]["value"]
@@ -132,6 +225,8 @@ def main() -> None:
         heel_on_plate = bool(np.all((heel >= lo) & (heel <= hi)))
         plates[side] = (on if heel_on_plate else np.nan, off)
     rows = []
+    zeni_ic, det_ic = {}, {}
+    stance: list[tuple] = []
     for side, pre in (("r", "R"), ("l", "L")):
         cl = np.stack([marker(f"{pre}TB{i}") for i in (1, 2, 3)], axis=1)
         w = sagittal_rate(cl, rate, left)
@@ -145,6 +240,8 @@ def main() -> None:
         for name, x in (("fc", toe), ("ic", heel)):
             k, _ = find_peaks(np.where(np.isfinite(x), x, -9.0), prominence=0.1)
             zeni[name] = t[k]
+        zeni_ic[side], det_ic[side] = zeni["ic"], ev.ic
+        stance.extend(_stance(side, zeni, ev))
         for name, det in (("ic", ev.ic), ("fc", ev.fc)):
             refs = [("force plate", np.array([plates[side][0 if name == "ic" else 1]]))]
             refs.append(("Zeni kinematic", zeni[name]))
@@ -154,11 +251,46 @@ def main() -> None:
                     if len(d) and np.min(np.abs(d)) < 0.3:
                         err = 1e3 * d[np.argmin(np.abs(d))]
                         rows.append((side, name.upper(), ref_name, x, err))
-    print(f"{path.name}: {n / rate:.1f} s at {rate:g} Hz; detector error (detected − reference)\n")
+    lengths = _lengths(marker, rate, left, fwd, sacrum, zeni_ic, det_ic)
+    return {"events": rows, "stance": stance, "lengths": lengths,
+            "hips": hip_axes(marker, rate), "seconds": n / rate, "rate": rate}  # fmt: skip
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[2] / "shared")
+    args = ap.parse_args()
+    path = args.data / FILE
+    if not path.exists():
+        sys.exit(f"{path}: not found; give the shared data folder with --data DIR")
+    res = evaluate(path)
+    rows, stance, lengths = res["events"], res["stance"], res["lengths"]
+    print(f"{path.name}: {res['seconds']:.1f} s at {res['rate']:g} Hz; detector error "
+          "(detected − reference)\n")  # fmt: skip
     print(f"{'side':<5}{'event':<6}{'reference':<16}{'time s':>8}{'error ms':>10}")
     for side, ev_name, ref, x, d in rows:
         print(f"{side:<5}{ev_name:<6}{ref:<16}{x:8.3f}{d:10.0f}")
-    for side, (angle, ratio) in hip_axes(marker, rate).items():
+    print("\nstance (% of the stride): detector against Zeni's events")
+    for side, a, ref, det in stance:
+        print(f"  {side} stride from {a:.3f} s: Zeni {ref:5.1f} %, detector {det:5.1f} % "
+              f"({det - ref:+.1f} points)")  # fmt: skip
+    print(f"\nstep/stride length (m), speed (m/s): model ({sp.LENGTH_MODEL.split(',')[0]}) "
+          "against the heel markers and the mid-PSIS")  # fmt: skip
+    print(f"{'what':<8}{'side':<5}{'IC s':>7}{'heels':>8}{'model':>8}{'err %':>7}"
+          f"{'at Zeni IC':>11}{'err %':>7}")  # fmt: skip
+    for what, side, x, ref, model, model_z in lengths:
+        print(f"{what:<8}{side:<5}{x:7.3f}{ref:8.3f}{model:8.3f}{100 * (model / ref - 1):7.1f}"
+              f"{model_z:11.3f}{100 * (model_z / ref - 1):7.1f}")  # fmt: skip
+    for what in ("step", "stride", "speed"):
+        e = [100 * (r[4] / r[3] - 1) for r in lengths if r[0] == what]
+        ez = [100 * (r[5] / r[3] - 1) for r in lengths if r[0] == what]
+        raw = [100 * (r[5] / r[3] / sp.FOOT_ROLL_FACTOR - 1) for r in lengths if r[0] == what]
+        if e:
+            print(f"{what}: error median {np.nanmedian(e):+.1f} % (range {np.nanmin(e):+.1f} to "
+                  f"{np.nanmax(e):+.1f}), at the Zeni ICs {np.nanmedian(ez):+.1f} % (range "
+                  f"{np.nanmin(ez):+.1f} to {np.nanmax(ez):+.1f}; without the foot-roll factor "
+                  f"{np.nanmedian(raw):+.1f} %) (n={len(e)})")  # fmt: skip
+    for side, (angle, ratio) in res["hips"].items():
         print(f"hip {side}: dominant relative axis {angle:+.1f}° from the pelvis z about the "
               f"vertical (second/first singular value {ratio:.2f})")  # fmt: skip
     for ev_name in ("IC", "FC"):

@@ -541,7 +541,9 @@ def _gait_line(gait: Gait | None) -> str:
         return f"  gait: {gait.status}; no gait pages"
     s = gait.summary
     gps = (gait.map or {}).get("gps", {}).get("overall", float("nan"))
+    speed = s.get("walking_speed_m_s", float("nan"))
+    speed_text = f", speed {speed:.2f} m/s (leg model)" if speed == speed else ""
     return (
         f"  gait: {s['strides_kept']} strides, cadence {s['cadence_steps_per_min']:.1f} steps/min,"
-        f" step-time asymmetry {s['step_time_asymmetry_pct']:.1f} %, GPS {gps:.1f} deg"
+        f" step-time asymmetry {s['step_time_asymmetry_pct']:.1f} %{speed_text}, GPS {gps:.1f} deg"
     )

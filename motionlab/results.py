@@ -343,9 +343,10 @@ class Gait(_Record):
 
     ``status``: ``ok`` or ``no gait: <why>``. With ``ok``: ``tasks`` ``{task: {start_s,
     end_s}}``, ``events`` ``{side: {ic, ic_confidence, fc, fc_confidence}}`` (s),
-    ``strides`` (one array per stride-table column), ``summary``, ``walking_speed`` (why it is
-    not measured), ``pelvis`` (pelvis angles, deg, with its ``time_s`` and ``method``),
-    ``curves`` ``{side: {variable: (101,) deg}}`` and ``map`` (the movement analysis profile).
+    ``strides`` (one array per stride-table column), ``summary``, ``walking_speed`` (the step and
+    stride length model and the segment lengths used, or why they are not measured), ``pelvis``
+    (pelvis angles, deg, with its ``time_s`` and ``method``), ``curves`` ``{side: {variable:
+    (101,) deg}}`` and ``map`` (the movement analysis profile).
     """
 
     status: str

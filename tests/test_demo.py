@@ -21,7 +21,7 @@ from motionlab.report import build_document, load_views
 from motionlab.report.pdf import RC, layout_problems
 from motionlab.session import load_session
 
-UNIT = re.compile(r"_(deg|s|hz|ms|pct|n|ratio|m_s2|ut|per_min)$")
+UNIT = re.compile(r"_(deg|s|hz|ms|pct|n|ratio|m|m_s|m_s2|ut|per_min)$")
 TEXT_COLUMNS = {
     "task",
     "joint",

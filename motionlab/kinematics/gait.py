@@ -70,6 +70,29 @@ def _yaw_rate(session: Session, label: str) -> tuple[np.ndarray, np.ndarray]:
     return s.time, rot.rotate(q, s.gyr)[:, 2]
 
 
+def _leg_reach(
+    session: Session, protocol: Protocol, cal: SegmentCalibration
+) -> tuple[dict[str, tuple[np.ndarray, np.ndarray]], str]:
+    """``({side: (time s, leg reach m)}, how)`` from each knee's thigh and shank
+    (:func:`.spatiotemporal.leg_reach`); empty with the reason when lengths or sensors lack."""
+    lengths = sp.segment_lengths(session.metadata.get("subject"))
+    if lengths is None:
+        return {}, "not measured: no subject height_m (or thigh_m and shank_m) in the sensor map"
+    knees = [j for j in protocol.joints.values() if j.type == "knee"]
+    segs = [s for j in knees for s in (j.proximal, j.distal)]
+    if any(sensor_for_segment(session, s) is None for s in segs):
+        return {}, "not measured: a thigh or shank sensor is missing"
+    poses = session_segments(session, protocol, cal, segments=segs)
+    out = {}
+    for j in knees:
+        (t, q_t), (t_s, q_s) = poses[j.proximal], poses[j.distal]
+        thigh = np.interp(t_s, t, np.sin(sp.sagittal_inclination(q_t)))
+        out[j.side] = (t_s, lengths[0] * thigh + lengths[1] * np.sin(sp.sagittal_inclination(q_s)))
+    if set(out) != {"r", "l"}:
+        return {}, "not measured: needs both legs"
+    return out, f"{sp.LENGTH_MODEL}; lengths: {lengths[2]}"
+
+
 def gait_spans(session: Session, protocol: Protocol) -> dict[str, tuple[float, float]]:
     """``{task: (start_s, end_s)}`` of the protocol's gait tasks found in the session."""
     metrics = session.results.metrics
@@ -120,7 +143,8 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
             "fc": ev.fc,
             "fc_confidence": ev.fc_confidence,
         }
-    table = sp.stride_table(strides, events)
+    reach, speed_note = _leg_reach(session, protocol, cal)
+    table = sp.stride_table(strides, events, reach)
     if not table["kept"].any():
         return Gait("no gait: no stride passed the checks", events=events)
     summary = sp.summary(table)
@@ -131,7 +155,7 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
         "strides": {c: table[c].to_numpy() for c in table.columns if c not in ("side", "reason")}
         | {"side": table["side"].to_numpy(str), "reason": table["reason"].to_numpy(str)},
         "summary": summary,
-        "walking_speed": "not measured: no foot sensors (see kinematics/spatiotemporal.py)",
+        "walking_speed": speed_note,
     }
     angles = session.results.angles
     series: dict[str, tuple[np.ndarray, np.ndarray]] = {}

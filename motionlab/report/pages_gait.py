@@ -29,6 +29,9 @@ _LABELS = {
     "double_support_pct": "double support (% of stride)",
     "step_time_asymmetry_pct": "step-time asymmetry (symmetry index, %)",
     "stride_time_cv_pct": "stride-time variability (CV, %)",
+    "step_length_m": "step length (m)*",
+    "stride_length_m": "stride length (m)*",
+    "walking_speed_m_s": "walking speed (m/s)*",
 }
 
 
@@ -63,12 +66,13 @@ def gait_pages(doc: Document, view: SessionView) -> None:
     doc.section(
         "Gait: spatio-temporal parameters and profile",
         "Events from the shank gyroscopes (initial contact: the shank stops swinging forward; "
-        "final contact: the last minimum before mid-swing); straight, steady strides only. "
+        "final contact: midway between the last minimum before mid-swing and the following zero "
+        "crossing); straight, steady strides only. "
         "Mean ± SD (CV) per side; normal bands are approximate ranges of healthy adults.",
     )
     rows, flags = [], []
     for c in STRIDE_COLUMNS:
-        digits = 2 if c.endswith("_s") else 1
+        digits = 2 if c.endswith(("_s", "_m")) else 1
         r, left = summ["sides"]["r"][c], summ["sides"]["l"][c]
         band = bands.get(c)
         rows.append([_LABELS[c], _fmt(r, digits), _fmt(left, digits),
@@ -84,12 +88,24 @@ def gait_pages(doc: Document, view: SessionView) -> None:
     rejected = ", ".join(f"{k} {v}" for k, v in summ["strides_rejected"].items()) or "none"
     doc.paragraph(
         f"Strides kept: {summ['strides_kept']}; rejected: {rejected}. Overall cadence "
-        f"{summ['cadence_steps_per_min']:.1f} steps/min. Walking speed and stride length: "
-        "not measured (no foot sensors).",
+        f"{summ['cadence_steps_per_min']:.1f} steps/min. *Lengths and speed: {length_note(g)}",
         size=SIZE["small"],
     )
     doc.paragraph("Bands: " + _bands()["spatiotemporal_source"], size=SIZE["small"], colour=MUTED)
     _map_chart(doc, g.map)
+
+
+def length_note(g: Gait) -> str:
+    """One sentence on the stride length and speed: the model, its measured error, or why not."""
+    speed = g.summary.get("walking_speed_m_s", np.nan)
+    if not np.isfinite(speed):
+        return (g.walking_speed or "not measured") + "."
+    return (
+        f"overall {speed:.2f} m/s; {g.walking_speed}. Measured error on one real walk (Vicon "
+        "walking2, 3 strides, with the foot-roll factor taken from it): stride length within "
+        "2 % of the heel markers on its steady strides; an estimate checked on one walker only "
+        "(docs/kinematics.md)."
+    )
 
 
 def _map_chart(doc: Document, mp: dict[str, Any]) -> None:
