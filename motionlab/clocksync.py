@@ -472,8 +472,7 @@ def describe(fit: ClockFit) -> str:
         return f"{head} {fit.status} ({fit.moving_s:.0f} s of shared movement){other}"
     return (
         f"{head} {1e3 * fit.offset_s:+.1f} ms, drift {1e6 * fit.drift:+.0f} ppm "
-        f"(± {1e3 * fit.offset_se_s:.1f} ms, {1e6 * fit.drift_se:.0f} ppm) — {fit.status}"
-        + other
+        f"(± {1e3 * fit.offset_se_s:.1f} ms, {1e6 * fit.drift_se:.0f} ppm) — {fit.status}" + other
     )
 
 
@@ -600,8 +599,10 @@ def impact_clock(
     if worst_se > IMPACT_MAX_SE_S:
         status = "not reliable: the heel-strike transients disagree between blocks"
     elif corr - second < IMPACT_MARGIN:
-        status = (f"not reliable: steps as regular as the clock search (correlation {corr:.3f} at "
-                  f"the best lag, {second:.3f} at another)")
+        status = (
+            f"not reliable: steps as regular as the clock search (correlation {corr:.3f} at "
+            f"the best lag, {second:.3f} at another)"
+        )
     elif corr < IMPACT_MIN_CORRELATION:
         status = f"not reliable: the transients correlate poorly ({corr:.2f})"
     elif abs(clock[0]) > max_offset_s - IMPACT_BLOCK_SEARCH_S:
