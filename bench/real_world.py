@@ -86,6 +86,22 @@ def run_one(job: tuple[str, int, str]) -> dict:
     }
 
 
+def _per_seed(results: list[dict]) -> None:
+    """RMSE (deg) of every angle column per seed (rows), ✗ above the target."""
+    for name in dict.fromkeys(r["name"] for r in results):
+        good = [r for r in results if r["name"] == name and "error" not in r]
+        if not good:
+            continue
+        cols = list(good[0]["rmse"])
+        print()
+        print(f"{name}, RMSE (deg) per seed:")
+        print("| seed | " + " | ".join(c.removesuffix("_deg") for c in cols) + " |")
+        print("|---:|" + "---:|" * len(cols))
+        for r in good:
+            cells = [f"{r['rmse'][c]:.2f}{' ✗' if r['rmse'][c] > target(c) else ''}" for c in cols]
+            print(f"| {r['seed']} | " + " | ".join(cells) + " |")
+
+
 def seeds_arg(text: str) -> list[int]:
     if "-" in text:
         a, b = text.split("-")
@@ -104,6 +120,9 @@ def main() -> None:
         help="the IMUs on one clock (a radio-synchronised system), no clock offsets to sync",
     )
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument(
+        "--per-seed", action="store_true", help="also a table of every seed's RMSE per angle"
+    )
     args = ap.parse_args()
     jobs = [
         (p, s, args.preset, args.shared_clock)
@@ -143,6 +162,8 @@ def main() -> None:
                 f"| {name} | {col} | {target(col):.1f} | {vals.mean():.2f} | {vals.max():.2f} | "
                 f"{worst} | {counts} | {'✓' if ok else '✗'} |"
             )
+    if args.per_seed:
+        _per_seed(results)
     share = 100.0 * within / determined if determined else float("nan")
     print()
     print(f"angles graded 'determined' within 5°: {within}/{determined} ({share:.0f} %)")

@@ -1,4 +1,4 @@
-"""IMU-to-IMU clock synchronisation from the joint centres the segments share.
+"""IMU-to-IMU clock synchronisation from the joint centres the segments share and the heel strikes.
 
 Sensors that record on their own clocks (no radio synchronisation: consumer IMUs, loggers started
 one by one, Xsens DOT without its sync) disagree by tens of milliseconds in offset and 10–50 ppm in
@@ -20,18 +20,49 @@ equality holds only for the right ``c``. ``r₁``, ``r₂``, both accelerometer 
 clock is then refitted from the offsets of 8 s blocks of movement: a weighted line with a prior
 on the drift, whose scatter gives honest standard errors (see :meth:`_Pair.clock_from_blocks`).
 
+A second, independent timing signal: the heel strikes (:func:`impact_clock`). Every heel strike
+shakes the whole body at one instant, and every leg and pelvis sensor rocks on its soft tissue
+for a few tens of milliseconds after it (10-16 Hz ringing; on real recordings also a sharp spike
+at the shank, weaker above). The envelope of each sensor's rocking — the gyroscope integrated to
+an angle, band-passed to ``IMPACT_BAND_HZ`` (zero phase), its norm low-passed — is then a pulse
+train common to all sensors, and the lag that maximises the correlation of two sensors'
+envelopes (within ``±max_offset_s``, refined between samples) is their clock offset, for any two
+sensors, not only neighbours. The angle rather than the rate: the envelope of a rate is the
+angle's times the ringing frequency plus the envelope's own slope, so two sensors ringing at 10
+and 15 Hz gave lags 2.8 ms apart (tests/test_clock_impacts.py); the angle's envelope does not
+depend on the frequency. Block lags (``BLOCK_S`` blocks with transients, each within
+``IMPACT_BLOCK_SEARCH_S`` of the whole recording's lag) give the drift and, from their scatter,
+the standard error. The lag is refused when the transients are too few, correlate poorly, or
+recur so regularly that a lag one step away fits as well (``IMPACT_MARGIN``). **Assumption:**
+the transient reaches every sensor at the same instant. In the body it travels up the leg at
+tens of metres per second, and the pelvis may see it a few milliseconds after the shank; on the
+simulator (where it arrives at once) the lags still carry up to ~3 ms of bias that their block
+scatter does not show (the sensors' own tissue resonance, driven by the segment's acceleration
+at its own phase of the stride, adds to the envelope; ``IMPACT_BIAS_S``). The accelerometer is
+left out: its band carries the segment's own movement, which biased the simulated lags by
+6-18 ms.
+
 Which pairs: the protocol's joints, then anatomical neighbours (pelvis–thigh, thorax–upper arm,
 pelvis–lumbar–thorax, …) so that every sensor reaches one reference sensor (pelvis, else thorax,
-else the first segment) through a tree; each sensor is put on its parent's corrected clock. A
-correction is applied only when it is reliable (standard error ≤ ``MAX_SE_S`` over the recording,
-and the joint-centre model fits: RMS residual ≤ ``MAX_RESIDUAL_M_S2``; a sensor rocking on soft
-tissue with the segment's acceleration breaks the model and biased the offset by 20–30 ms on
-simulated walks, with a residual five times the usual) and differs from zero (by more than
-twice that and ``MIN_CORRECTION_S``); otherwise the sensor keeps its clock and the reason is
-recorded. Segments that never move together carry no timing information (a still pelvis under
-a bending trunk), and there the timing does not matter either. The shared joint centre holds
-only between neighbours: the bench (``bench/joint_angles.py``)
-reports the accuracy reached per pair.
+else the first segment) through a tree; each sensor is put on its parent's corrected clock. Both
+signals are tried on every pair and :func:`choose` picks one: the joint-centre fit when the
+impact lag is not reliable (no heel strikes: arm, elbow, lumbar and the clinical tasks, whose
+timing is as before) or when both agree within the impact lag's allowance (the joint centre is
+the more precise), else the impact lag. On simulated walks the joint-centre fits of pelvis–thigh
+were 7-68 ms off with claimed standard errors of 0.1 ms (its model error is locked to the
+stride), and errors added up along shank_r←thigh_r←pelvis→thigh_l→shank_l; with the impact lag
+the left and right legs agree to 1-2 ms. Which was used, and the other's answer, is recorded in
+each :class:`ClockFit` (``method``, ``other``).
+
+A correction is applied only when it is reliable (joint centre: standard error ≤ ``MAX_SE_S``
+over the recording, and the joint-centre model fits: RMS residual ≤ ``MAX_RESIDUAL_M_S2``; a
+sensor rocking on soft tissue with the segment's acceleration breaks the model and biased the
+offset by 20–30 ms on simulated walks, with a residual five times the usual; impacts: standard
+error ≤ ``IMPACT_MAX_SE_S``) and differs from zero (by more than twice that and
+``MIN_CORRECTION_S``); otherwise the sensor keeps its clock and the reason is recorded. Segments
+that never move together carry no timing information (a still pelvis under a bending trunk), and
+there the timing does not matter either. The bench (``bench/joint_angles.py``) reports the
+accuracy reached per pair.
 """
 
 from __future__ import annotations
@@ -80,7 +111,7 @@ IMPACT_MARGIN = 0.02  # the best correlation must beat every other peak's by thi
 IMPACT_FLOOR_S = 2e-4  # smallest scatter of block lags assumed (s)
 # error of an impact lag that its block scatter does not show: the transients reach the sensors
 # through different tissue (measured up to 3.2 ms on simulated walks, the pelvis; see above)
-IMPACT_BIAS_S = 0.003
+IMPACT_BIAS_S = 0.0015
 
 # Anatomical neighbours by segment kind (a joint centre between them), proximal first.
 NEIGHBOURS = (
@@ -491,11 +522,11 @@ class _Envelope:
 
 
 def _envelope(stream: SensorStream) -> _Envelope:
-    """‖ω_band‖ low-passed at ``IMPACT_ENVELOPE_HZ`` (rad/s): the gyroscope band-passed to
-    ``IMPACT_BAND_HZ`` (zero phase, so that no sensor's envelope is delayed), gaps bridged
-    linearly and the envelope zero within ``SETTLE_S`` of them. The accelerometer is left out:
-    its band carries the segment's own movement (shank and thigh at their own phases of the
-    stride), which with it biased simulated lags by 6-18 ms; without it by ≤ 2.3 ms."""
+    """‖θ_band‖ low-passed at ``IMPACT_ENVELOPE_HZ`` (rad): the gyroscope integrated to a
+    rotation angle θ and band-passed to ``IMPACT_BAND_HZ`` (zero phase, so that no sensor's
+    envelope is delayed; the integration's drift is far below the band), gaps bridged linearly
+    and the envelope zero within ``SETTLE_S`` of them (see the module docstring: why the angle
+    and not the rate, why not the accelerometer)."""
     t = np.asarray(stream.time, float)
     dt = 1.0 / stream.rate_hz
     grid = t[0] + np.arange(int(np.floor((t[-1] - t[0]) / dt)) + 1) * dt
@@ -507,7 +538,7 @@ def _envelope(stream: SensorStream) -> _Envelope:
         return _Envelope(grid, np.zeros(len(grid)), CubicSpline(grid, np.zeros(len(grid))),
                          np.zeros(len(grid), bool))  # fmt: skip
     sos = butter(IMPACT_ORDER, (IMPACT_BAND_HZ[0], high), "bandpass", fs=1.0 / dt, output="sos")
-    band = sosfiltfilt(sos, on_grid, axis=0)
+    band = sosfiltfilt(sos, np.cumsum(on_grid, axis=0) * dt, axis=0)  # angle (rad), band
     k = np.clip(np.searchsorted(t_ok, grid), 1, len(t_ok) - 1)
     real = np.minimum(grid - t_ok[k - 1], t_ok[k] - grid) <= 0.75 * dt
     valid = np.convolve(~real, np.ones(2 * int(SETTLE_S / dt) + 1), mode="same") == 0
