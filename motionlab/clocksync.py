@@ -41,9 +41,9 @@ the lags still carry errors that their block scatter does not show: with tissue 
 rocks with the segment's acceleration (``soft_tissue="motion"``, bench/real_world.py seeds 0-9)
 pelvis–thigh and thigh–thigh ≤ 1 ms, every pair with a shank median 0.4-0.9 ms but up to
 3-5 ms (the shank's own resonance, driven at its own phase of the stride, adds to its
-envelope); with ringing after heel strikes only (bench/gait.py seeds 0-4) ≤ 2.1 ms. The accelerometer is
-left out: its band carries the segment's own movement, which biased the simulated lags by
-6-18 ms.
+envelope); with ringing after heel strikes only (bench/gait.py seeds 0-4) ≤ 2.1 ms. The
+accelerometer is left out: its band carries the segment's own movement, which biased the
+simulated lags by 6-18 ms.
 
 Which pairs: the protocol's joints, then anatomical neighbours (pelvis–thigh, thorax–upper arm,
 pelvis–lumbar–thorax, …) so that every sensor reaches one reference sensor (pelvis, else thorax,
