@@ -5,7 +5,9 @@ gait with turns) or ``arm`` protocol (a stand, then free arm movement) with ever
 random orientation and place on its segment (``mounting="random"``), the ``typical`` sensor
 errors (every IMU on its own clock) and soft-tissue motion of the sensor on the segment
 (``soft_tissue="motion"``; ``--preset loose`` for the loose mounting; ``--shared-clock`` puts
-the IMUs on one clock, as a radio-synchronised system does). The session goes through
+the IMUs on one clock, as a radio-synchronised system does; ``--true-clocks`` keeps the own
+clocks but gives every sensor the simulator's true sampling instants on the first sensor's
+clock and skips the clock sync: what a perfect sync would give). The session goes through
 the stages exactly as ``motionlab run`` chains them (:func:`motionlab.pipeline.analyse`: clock
 sync, 6-D fusion, calibration from the stand and the movement, angles, metrics), and every angle
 column is compared with the simulator's truth over the task (each joint read on its proximal
@@ -19,12 +21,13 @@ rotation and pronation ≤ 4° — or graded ``not determined``; and every angle
 Needs no data files. Usage::
 
     python bench/real_world.py [--protocols walk,arm] [--seeds 0-9] [--preset typical]
-                               [--workers 2]
+                               [--workers 2] [--shared-clock | --true-clocks] [--per-seed]
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import multiprocessing as mp
 import time
 from collections import Counter
@@ -52,18 +55,24 @@ def target(column: str) -> float:
 
 def run_one(job: tuple[str, int, str]) -> dict:
     """RMSE and grade per angle column of one simulated session through the product path."""
-    name, seed, preset, shared = job
+    name, seed, preset, shared, true_clocks = job
     if shared:
         preset = shared_clock(get_preset(preset))
     protocol = load_protocol(name)
     session, truth = simulate(
         protocol, DURATION_S[name], seed, preset, mounting="random", soft_tissue="motion"
     )
+    if true_clocks:  # every stamp the true instant, read on the first sensor's clock
+        first = next(iter(session.sensors))
+        on_first = (truth.sensors[first]["sample_time"], session.sensors[first].time.copy())
+        for label, s in list(session.sensors.items()):
+            t = np.interp(truth.sensors[label]["sample_time"], *on_first)
+            session.sensors[label] = dataclasses.replace(s, time=t)
     stamps = {label: s.time.copy() for label, s in session.sensors.items()}
     prepare_sensors(session)
     t0 = time.perf_counter()
     try:
-        analyse(session, PipelineOptions(protocol, progress=False))
+        analyse(session, PipelineOptions(protocol, progress=False, clock_sync=not true_clocks))
     except Exception as exc:  # noqa: BLE001 - a failing seed is a row of the table, not a crash
         return {"name": name, "seed": seed, "error": f"{type(exc).__name__}: {exc}"}
     seconds = time.perf_counter() - t0
@@ -86,6 +95,22 @@ def run_one(job: tuple[str, int, str]) -> dict:
     }
 
 
+def _per_seed(results: list[dict]) -> None:
+    """RMSE (deg) of every angle column per seed (rows), ✗ above the target."""
+    for name in dict.fromkeys(r["name"] for r in results):
+        good = [r for r in results if r["name"] == name and "error" not in r]
+        if not good:
+            continue
+        cols = list(good[0]["rmse"])
+        print()
+        print(f"{name}, RMSE (deg) per seed:")
+        print("| seed | " + " | ".join(c.removesuffix("_deg") for c in cols) + " |")
+        print("|---:|" + "---:|" * len(cols))
+        for r in good:
+            cells = [f"{r['rmse'][c]:.2f}{' ✗' if r['rmse'][c] > target(c) else ''}" for c in cols]
+            print(f"| {r['seed']} | " + " | ".join(cells) + " |")
+
+
 def seeds_arg(text: str) -> list[int]:
     if "-" in text:
         a, b = text.split("-")
@@ -103,16 +128,25 @@ def main() -> None:
         action="store_true",
         help="the IMUs on one clock (a radio-synchronised system), no clock offsets to sync",
     )
+    ap.add_argument(
+        "--true-clocks",
+        action="store_true",
+        help="own clocks, but every stamp the true instant (a perfect clock sync), no sync",
+    )
     ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument(
+        "--per-seed", action="store_true", help="also a table of every seed's RMSE per angle"
+    )
     args = ap.parse_args()
     jobs = [
-        (p, s, args.preset, args.shared_clock)
+        (p, s, args.preset, args.shared_clock, args.true_clocks)
         for p in args.protocols.split(",")
         for s in seeds_arg(args.seeds)
     ]
     with mp.get_context("spawn").Pool(args.workers) as pool:
         results = pool.map(run_one, jobs)
     clocks = "one shared clock" if args.shared_clock else "every IMU on its own clock"
+    clocks += ", true sampling instants, no sync" if args.true_clocks else ""
     print(f"preset {args.preset} ({clocks}), random mountings, soft-tissue motion, "
           f"seeds {args.seeds}")  # fmt: skip
     print()
@@ -143,6 +177,8 @@ def main() -> None:
                 f"| {name} | {col} | {target(col):.1f} | {vals.mean():.2f} | {vals.max():.2f} | "
                 f"{worst} | {counts} | {'✓' if ok else '✗'} |"
             )
+    if args.per_seed:
+        _per_seed(results)
     share = 100.0 * within / determined if determined else float("nan")
     print()
     print(f"angles graded 'determined' within 5°: {within}/{determined} ({share:.0f} %)")

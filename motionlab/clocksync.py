@@ -1,4 +1,4 @@
-"""IMU-to-IMU clock synchronisation from the joint centres the segments share.
+"""IMU-to-IMU clock synchronisation from the joint centres the segments share and the heel strikes.
 
 Sensors that record on their own clocks (no radio synchronisation: consumer IMUs, loggers started
 one by one, Xsens DOT without its sync) disagree by tens of milliseconds in offset and 10–50 ppm in
@@ -20,18 +20,54 @@ equality holds only for the right ``c``. ``r₁``, ``r₂``, both accelerometer 
 clock is then refitted from the offsets of 8 s blocks of movement: a weighted line with a prior
 on the drift, whose scatter gives honest standard errors (see :meth:`_Pair.clock_from_blocks`).
 
+A second, independent timing signal: the heel strikes (:func:`impact_clock`). Every heel strike
+shakes the whole body at one instant, and every leg and pelvis sensor rocks on its soft tissue
+for a few tens of milliseconds after it (10-16 Hz ringing; on real recordings also a sharp spike
+at the shank, weaker above). The envelope of each sensor's rocking — the gyroscope integrated to
+an angle, band-passed to ``IMPACT_BAND_HZ`` (zero phase), its norm low-passed — is then a pulse
+train common to all sensors, and the lag that maximises the correlation of two sensors'
+envelopes (within ``±max_offset_s``, refined between samples) is their clock offset, for any two
+sensors, not only neighbours. The angle rather than the rate: the envelope of a rate is the
+angle's times the ringing frequency plus the envelope's own slope, so two sensors ringing at 10
+and 15 Hz gave lags 2.8 ms apart (tests/test_clock_impacts.py); the angle's envelope does not
+depend on the frequency. Block lags (``BLOCK_S`` blocks with transients, each within
+``IMPACT_BLOCK_SEARCH_S`` of the whole recording's lag) give the drift and, from their scatter,
+the standard error. The lag is refused when the transients are too few, correlate poorly, or
+recur so regularly that a lag one step away fits as well (``IMPACT_MARGIN``). **Assumption:**
+the transient reaches every sensor at the same instant. In the body it travels up the leg at
+tens of metres per second, and the pelvis may see it a few milliseconds after the shank (a
+bias of that size on pelvis pairs, not modelled). On the simulator, where it arrives at once,
+the lags still carry errors that their block scatter does not show: with tissue that also
+rocks with the segment's acceleration (``soft_tissue="motion"``, bench/real_world.py seeds 0-9)
+pelvis–thigh and thigh–thigh ≤ 1 ms, every pair with a shank median 0.4-0.9 ms but up to
+3-5 ms (the shank's own resonance, driven at its own phase of the stride, adds to its
+envelope); with ringing after heel strikes only (bench/gait.py seeds 0-4) ≤ 2.1 ms. The
+accelerometer is left out: its band carries the segment's own movement, which biased the
+simulated lags by 6-18 ms.
+
 Which pairs: the protocol's joints, then anatomical neighbours (pelvis–thigh, thorax–upper arm,
 pelvis–lumbar–thorax, …) so that every sensor reaches one reference sensor (pelvis, else thorax,
-else the first segment) through a tree; each sensor is put on its parent's corrected clock. A
-correction is applied only when it is reliable (standard error ≤ ``MAX_SE_S`` over the recording,
-and the joint-centre model fits: RMS residual ≤ ``MAX_RESIDUAL_M_S2``; a sensor rocking on soft
-tissue with the segment's acceleration breaks the model and biased the offset by 20–30 ms on
-simulated walks, with a residual five times the usual) and differs from zero (by more than
-twice that and ``MIN_CORRECTION_S``); otherwise the sensor keeps its clock and the reason is
-recorded. Segments that never move together carry no timing information (a still pelvis under
-a bending trunk), and there the timing does not matter either. The shared joint centre holds
-only between neighbours: the bench (``bench/joint_angles.py``)
-reports the accuracy reached per pair.
+else the first segment) through a tree; each sensor is put on its parent's corrected clock. Both
+signals are tried on every pair and :func:`choose` picks one: the joint-centre fit when the
+impact lag is not reliable (no heel strikes: arm, elbow, lumbar and the clinical tasks, whose
+timing is as before) or when both agree within the impact lag's allowance (the joint centre is
+the more precise), else the impact lag. On simulated walks the joint-centre fits of pelvis–thigh
+were 7-68 ms off with claimed standard errors of 0.1 ms (its model error is locked to the
+stride), and errors added up along shank_r←thigh_r←pelvis→thigh_l→shank_l; with the impact lag
+the clocks left after the sync (against the simulator's true instants) are within 1.5 ms
+thigh_r–thigh_l and 2.9 ms shank_r–shank_l on bench/gait.py seeds 0-4, within 2.2 ms and 5 ms
+on bench/real_world.py walk seeds 0-9 (the shanks' own tissue resonance). Which was used, and
+the other's answer, is recorded in each :class:`ClockFit` (``method``, ``other``).
+
+A correction is applied only when it is reliable (joint centre: standard error ≤ ``MAX_SE_S``
+over the recording, and the joint-centre model fits: RMS residual ≤ ``MAX_RESIDUAL_M_S2``; a
+sensor rocking on soft tissue with the segment's acceleration breaks the model and biased the
+offset by 20–30 ms on simulated walks, with a residual five times the usual; impacts: standard
+error ≤ ``IMPACT_MAX_SE_S``) and differs from zero (by more than twice that and
+``MIN_CORRECTION_S``); otherwise the sensor keeps its clock and the reason is recorded. Segments
+that never move together carry no timing information (a still pelvis under a bending trunk), and
+there the timing does not matter either. The bench (``bench/joint_angles.py``) reports the
+accuracy reached per pair.
 """
 
 from __future__ import annotations
@@ -41,7 +77,7 @@ from dataclasses import asdict, dataclass, replace
 
 import numpy as np
 from scipy.interpolate import CubicSpline
-from scipy.optimize import least_squares
+from scipy.optimize import least_squares, minimize_scalar
 from scipy.signal import butter, sosfiltfilt
 
 from motionlab.protocol import Protocol
@@ -66,6 +102,22 @@ DRIFT_PRIOR = 50e-6  # prior standard deviation of one clock's drift against ano
 MIN_SAMPLES = 100  # finite accelerometer and gyroscope samples a sensor needs
 SETTLE_S = 0.3  # samples this close to a gap are left out (s)
 BODY = 12  # parameters besides the clock: two lever arms and two accelerometer biases
+JOINT_CENTRE, IMPACTS = "joint centre", "impacts"  # ClockFit.method
+IMPACT_BAND_HZ = (7.0, 40.0)  # band of the heel-strike transients (upper ≤ 0.4 × rate) (Hz)
+IMPACT_ORDER = 8  # Butterworth order of the band-pass (flat over the 10-16 Hz of tissue ringing)
+IMPACT_ENVELOPE_HZ = 8.0  # zero-phase low-pass of the energy envelope (Hz)
+IMPACT_ACTIVE = 2.0  # a transient: the envelope above this many times its median
+IMPACT_MIN_ACTIVE_S = 0.5  # transient time a block needs (s)
+IMPACT_BLOCK_SEARCH_S = 0.05  # a block's lag is searched this close to the whole one's (s)
+IMPACT_MIN_CORRELATION = 0.5  # correlation coefficient of the envelopes a lag needs
+IMPACT_MAX_SE_S = 0.002  # largest standard error of c(t) for an impact lag to be used (s)
+IMPACT_PEAK_WIDTH_S = 0.15  # other correlation peaks lie farther than this from the best (s)
+IMPACT_MARGIN = 0.02  # the best correlation must beat every other peak's by this much
+IMPACT_FLOOR_S = 2e-4  # smallest scatter of block lags assumed (s)
+# allowance for the errors of an impact lag that its block scatter does not show (medians
+# 0.2-0.9 ms on simulated walks, see above): within it plus twice the standard errors, the
+# joint-centre fit is kept; 3 ms let pelvis-thigh fits 3.4 ms off through on bench/gait.py seed 0
+IMPACT_BIAS_S = 0.0015
 
 # Anatomical neighbours by segment kind (a joint centre between them), proximal first.
 NEIGHBOURS = (
@@ -385,7 +437,8 @@ def synchronise(
     for ref_seg, seg in sync_tree(session, protocol):
         ref, label = sensor_for_segment(session, ref_seg), sensor_for_segment(session, seg)
         stream = session.sensors[label]
-        fit = estimate_clock(session.sensors[ref], stream, max_offset_s)
+        fit = choose(estimate_clock(session.sensors[ref], stream, max_offset_s),
+                     impact_clock(session.sensors[ref], stream, max_offset_s))  # fmt: skip
         fits.append(fit)
         # the fit is against the reference's corrected clock: "consistent with one clock" means
         # the sensor already agrees with it; an unreliable fit tells nothing, so the sensor keeps
@@ -403,6 +456,38 @@ def synchronise(
     return fits
 
 
+def _reliable(fit: ClockFit) -> bool:
+    return fit.status in ("applied", "consistent with one clock")
+
+
+def choose(centre: ClockFit, impacts: ClockFit) -> ClockFit:
+    """The fit :func:`synchronise` uses for one pair, with the other's answer in ``other``.
+
+    The joint-centre fit when the impact lag is not reliable (no heel strikes: the arm, lumbar
+    and clinical tasks) or when both are reliable and agree (their offsets within twice their
+    combined standard error plus ``IMPACT_BIAS_S``: the joint centre is the more precise);
+    the impact lag when it is reliable and the joint-centre fit is not or disagrees (its
+    model error locked to the stride gave 7-68 ms wrong offsets with standard errors of
+    0.1 ms on simulated walks).
+    """
+    if not _reliable(impacts):
+        return replace(centre, other=_summary(impacts))
+    gap = abs(centre.offset_s - impacts.offset_s)
+    allowed = 2.0 * np.hypot(centre.offset_se_s, impacts.offset_se_s) + IMPACT_BIAS_S
+    if _reliable(centre) and gap <= allowed:
+        return replace(centre, other=_summary(impacts))
+    why = "not reliable" if not _reliable(centre) else f"{1e3 * gap:.1f} ms away"
+    return replace(impacts, other=f"{_summary(centre)} ({why})")
+
+
+def _summary(fit: ClockFit) -> str:
+    """``impacts: +12.3 ms ± 0.4 ms, applied`` (or the status alone when no offset)."""
+    if not np.isfinite(fit.offset_se_s):
+        return f"{fit.method}: {fit.status}"
+    return (f"{fit.method}: {1e3 * fit.offset_s:+.1f} ± {1e3 * fit.offset_se_s:.1f} ms, "
+            f"{fit.status}")  # fmt: skip
+
+
 def unsynchronise(session: Session) -> None:
     """Restore every sensor's recorded stamps (undo :func:`synchronise`), in place."""
     for label, stream in list(session.sensors.items()):
@@ -416,11 +501,164 @@ def unsynchronise(session: Session) -> None:
 
 
 def describe(fit: ClockFit) -> str:
-    """One line: ``shank_r on thigh_r's clock: +12.3 ms, drift −21 ppm (± 0.4 ms) applied``."""
-    head = f"{fit.sensor} vs {fit.reference}:"
+    """One line: ``shank_r vs thigh_r (impacts): +12.3 ms, drift −21 ppm (± 0.4 ms, 9 ppm) —
+    applied; joint centre: ...`` (the other method's answer last)."""
+    head = f"{fit.sensor} vs {fit.reference} ({fit.method}):"
+    other = f"; {fit.other}" if fit.other else ""
     if not np.isfinite(fit.offset_se_s):
-        return f"{head} {fit.status} ({fit.moving_s:.0f} s of shared movement)"
+        return f"{head} {fit.status} ({fit.moving_s:.0f} s of shared movement){other}"
     return (
         f"{head} {1e3 * fit.offset_s:+.1f} ms, drift {1e6 * fit.drift:+.0f} ppm "
-        f"(± {1e3 * fit.offset_se_s:.1f} ms, {1e6 * fit.drift_se:.0f} ppm) — {fit.status}"
+        f"(± {1e3 * fit.offset_se_s:.1f} ms, {1e6 * fit.drift_se:.0f} ppm) — {fit.status}" + other
     )
+
+
+# --- the impact lag ---------------------------------------------------------------------------
+
+
+@dataclass
+class _Envelope:
+    """High-frequency energy envelope of one sensor on a uniform grid: time (s), envelope
+    (dimensionless, see :func:`_envelope`), its cubic spline, and which samples are real."""
+
+    time: np.ndarray
+    values: np.ndarray
+    spline: CubicSpline
+    valid: np.ndarray
+
+
+def _envelope(stream: SensorStream) -> _Envelope:
+    """‖θ_band‖ low-passed at ``IMPACT_ENVELOPE_HZ`` (rad): the gyroscope integrated to a
+    rotation angle θ and band-passed to ``IMPACT_BAND_HZ`` (zero phase, so that no sensor's
+    envelope is delayed; the integration's drift is far below the band), gaps bridged linearly
+    and the envelope zero within ``SETTLE_S`` of them (see the module docstring: why the angle
+    and not the rate, why not the accelerometer)."""
+    t = np.asarray(stream.time, float)
+    dt = 1.0 / stream.rate_hz
+    grid = t[0] + np.arange(int(np.floor((t[-1] - t[0]) / dt)) + 1) * dt
+    ok = np.all(np.isfinite(stream.gyr), axis=1)
+    t_ok = t[ok]
+    on_grid = np.column_stack([np.interp(grid, t_ok, stream.gyr[ok, k]) for k in range(3)])
+    high = min(IMPACT_BAND_HZ[1], 0.4 / dt)
+    if high <= 1.2 * IMPACT_BAND_HZ[0]:  # sampled too slowly to see the transients
+        return _Envelope(grid, np.zeros(len(grid)), CubicSpline(grid, np.zeros(len(grid))),
+                         np.zeros(len(grid), bool))  # fmt: skip
+    sos = butter(IMPACT_ORDER, (IMPACT_BAND_HZ[0], high), "bandpass", fs=1.0 / dt, output="sos")
+    band = sosfiltfilt(sos, np.cumsum(on_grid, axis=0) * dt, axis=0)  # angle (rad), band
+    k = np.clip(np.searchsorted(t_ok, grid), 1, len(t_ok) - 1)
+    real = np.minimum(grid - t_ok[k - 1], t_ok[k] - grid) <= 0.75 * dt
+    valid = np.convolve(~real, np.ones(2 * int(SETTLE_S / dt) + 1), mode="same") == 0
+    low = butter(4, IMPACT_ENVELOPE_HZ, fs=1.0 / dt, output="sos")
+    env = np.where(valid, sosfiltfilt(low, np.linalg.norm(band, axis=1)), 0.0)
+    return _Envelope(grid, env, CubicSpline(grid, env), valid)
+
+
+def _correlation(x: np.ndarray, y: np.ndarray) -> float:
+    x, y = x - x.mean(), y - y.mean()
+    norm = float(np.sqrt((x @ x) * (y @ y)))
+    return float(x @ y) / norm if norm > 0 else 0.0
+
+
+def _best_lag(t: np.ndarray, x: np.ndarray, spline: CubicSpline, lags: np.ndarray) -> tuple[
+        float, float, bool]:  # fmt: skip
+    """The lag (s) in ``lags`` (uniform, s) that maximises the correlation of ``x`` at ``t``
+    with ``spline`` at ``t + lag``, refined between grid lags by a bounded scalar search;
+    its correlation coefficient; whether the maximum is inside the range (not at an end)."""
+    r = np.array([_correlation(x, spline(t + c)) for c in lags])
+    i = int(np.argmax(r))
+    inside = 0 < i < len(lags) - 1
+    if not inside:
+        return float(lags[i]), float(r[i]), False
+    step = float(lags[1] - lags[0])
+    sol = minimize_scalar(lambda c: -_correlation(x, spline(t + c)),
+                          bounds=(lags[i] - step, lags[i] + step), method="bounded",
+                          options={"xatol": 1e-5})  # fmt: skip
+    return float(sol.x), float(-sol.fun), True
+
+
+def impact_clock(
+    reference: SensorStream,
+    sensor: SensorStream,
+    max_offset_s: float = MAX_OFFSET_S,
+) -> ClockFit:
+    """Offset and drift of ``sensor``'s clock against ``reference``'s from the transients
+    both see at every heel strike (see the module docstring); any two sensors of the body.
+
+    The lag that maximises the correlation of the two high-frequency energy envelopes
+    (:func:`_envelope`) over the whole recording, then the lag of each ``BLOCK_S`` block with
+    shared transients (within ``IMPACT_BLOCK_SEARCH_S`` of it), and a line through the block
+    lags with a prior on the drift whose scatter gives the standard errors. ``residual`` is
+    1 − the whole recording's correlation coefficient; the status is ``"applied"`` only when
+    the fit is reliable and differs from zero.
+    """
+    name = (reference.label, sensor.label)
+    t_mid = float(np.mean(reference.time[[0, -1]]))
+
+    def refused(status: str, moving_s: float = 0.0) -> ClockFit:
+        return ClockFit(*name, 0.0, 0.0, t_mid, np.inf, np.inf, np.nan, moving_s, status,
+                        IMPACTS)  # fmt: skip
+
+    if min(_finite_samples(reference), _finite_samples(sensor)) < MIN_SAMPLES:
+        return refused("no usable accelerometer and gyroscope samples")
+    a, b = _envelope(reference), _envelope(sensor)
+    inside = (a.time - max_offset_s >= b.time[0]) & (a.time + max_offset_s <= b.time[-1])
+    t_mid = float(0.5 * (a.time[0] + a.time[-1]))
+    if inside.sum() < 3 * BLOCK_S / (a.time[1] - a.time[0]):
+        return refused("not enough shared recording")
+    t, x = a.time[inside], a.values[inside]
+    dt = float(t[1] - t[0])
+    lags = np.arange(-max_offset_s, max_offset_s + 1e-12, dt)
+    r = np.array([_correlation(x, np.interp(t + c, b.time, b.values)) for c in lags])
+    i = int(np.argmax(r))
+    others = np.abs(lags - lags[i]) > IMPACT_PEAK_WIDTH_S
+    second = float(r[others].max()) if others.any() else -1.0
+    lag, corr, _ = _best_lag(t, x, b.spline, lags[max(i - 1, 0) : i + 2])
+    # blocks of the recording in which the reference's envelope has transients
+    active = x > IMPACT_ACTIVE * np.median(x[x > 0]) if np.any(x > 0) else np.zeros(len(x), bool)
+    n_blocks = int(len(t) * dt // BLOCK_S)
+    rows, offsets = [], []
+    search = np.arange(-IMPACT_BLOCK_SEARCH_S, IMPACT_BLOCK_SEARCH_S + 1e-12, dt)
+    for block in np.array_split(np.arange(len(t)), max(n_blocks, 1)):
+        if active[block].sum() * dt < IMPACT_MIN_ACTIVE_S:
+            continue
+        c, r_block, ok = _best_lag(t[block], x[block], b.spline, lag + search)
+        if ok and r_block >= IMPACT_MIN_CORRELATION:
+            rows.append([1.0, float(t[block].mean()) - t_mid])
+            offsets.append(c)
+    active_s = float(active.sum() * dt)
+    if len(offsets) < 3:
+        return refused("not reliable: too few heel strikes (or other shared transients)",
+                       active_s)  # fmt: skip
+    clock, offset_se, drift_se = _line(np.array(rows), np.array(offsets))
+    ends = np.array([rows[0][1] - 0.5 * BLOCK_S, rows[-1][1] + 0.5 * BLOCK_S])  # - t_mid
+    worst_se = float(np.hypot(offset_se, drift_se * 0.5 * (ends[1] - ends[0])))
+    c_ends = np.abs(clock[0] + clock[1] * ends)
+    if worst_se > IMPACT_MAX_SE_S:
+        status = "not reliable: the heel-strike transients disagree between blocks"
+    elif corr - second < IMPACT_MARGIN:
+        status = (
+            f"not reliable: steps as regular as the clock search (correlation {corr:.3f} at "
+            f"the best lag, {second:.3f} at another)"
+        )
+    elif corr < IMPACT_MIN_CORRELATION:
+        status = f"not reliable: the transients correlate poorly ({corr:.2f})"
+    elif abs(clock[0]) > max_offset_s - IMPACT_BLOCK_SEARCH_S:
+        status = f"not reliable: offset at the edge of the ±{max_offset_s:g} s search"
+    elif c_ends.max() <= max(MIN_CORRECTION_S, 2.0 * worst_se):
+        status = "consistent with one clock"
+    else:
+        status = "applied"
+    return ClockFit(*name, float(clock[0]), float(clock[1]), t_mid, offset_se, drift_se,
+                    1.0 - corr, active_s, status, IMPACTS)  # fmt: skip
+
+
+def _line(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float, float]:
+    """Offset (s) and drift of block lags ``y`` (s) at rows ``x`` = [1, t − t_mid], equal
+    weights scaled by their scatter, drift prior 0 ± ``DRIFT_PRIOR``; and their standard errors."""
+    fit = np.linalg.lstsq(x, y, rcond=None)[0]
+    dof = max(len(y) - 2, 1)
+    s2 = max(float(np.sum((y - x @ fit) ** 2)) / dof, IMPACT_FLOOR_S**2)
+    info = x.T @ x / s2 + np.diag([0.0, DRIFT_PRIOR**-2])
+    cov = np.linalg.inv(info)
+    clock = cov @ (x.T @ y) / s2
+    return clock, float(np.sqrt(cov[0, 0])), float(np.sqrt(cov[1, 1]))

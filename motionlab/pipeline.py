@@ -236,7 +236,8 @@ class PipelineOptions:
     magnetometer
         Fuse with the magnetometers (default 6-D, :data:`motionlab.stages.MAGNETOMETER`).
     clock_sync
-        Put the IMUs on one clock from their shared joint centres first (``motionlab sync``).
+        Put the IMUs on one clock from their shared joint centres and heel strikes first
+        (``motionlab sync``).
     seed
         Random seed of the stochastic steps (the validation's RANSAC clock fit).
     estimator

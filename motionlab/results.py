@@ -96,10 +96,15 @@ class _Record:
 class ClockFit:
     """Clock of ``sensor`` relative to ``reference``: it reads ``t + offset_s + drift (t −
     t_mid_s)`` at the reference's time ``t`` (``offset_s`` s, ``drift`` s/s about ``t_mid_s``
-    s); standard errors ``offset_se_s`` (s) and ``drift_se``; ``residual``: RMS residual of
-    the joint-centre acceleration magnitudes (m/s²) over ``moving_s`` seconds of shared
-    movement; ``status``: ``applied``, ``consistent with one clock``, or why not (``not
-    reliable: ...``, ``not enough shared movement``)."""
+    s); standard errors ``offset_se_s`` (s) and ``drift_se``; ``status``: ``applied``,
+    ``consistent with one clock``, or why not (``not reliable: ...``, ``not enough shared
+    movement``). ``method`` says which signal timed the pair (:mod:`motionlab.clocksync`):
+    ``joint centre`` (``residual``: RMS residual of the joint-centre acceleration magnitudes,
+    m/s², over ``moving_s`` seconds of shared movement) or ``impacts`` (the heel-strike
+    transients; ``residual``: 1 − the correlation coefficient of the two envelopes, ``moving_s``
+    the seconds of transients); ``other``: one line on the other method's answer for the pair
+    (empty when it was not tried). Files written before ``method`` existed read as ``joint
+    centre``."""
 
     reference: str
     sensor: str
@@ -111,6 +116,8 @@ class ClockFit:
     residual: float
     moving_s: float
     status: str  # "applied", "consistent with one clock", "not enough shared movement", ...
+    method: str = "joint centre"  # or "impacts" (heel-strike transients)
+    other: str = ""
 
     def error_s(self, t: np.ndarray) -> np.ndarray:
         """c(t) (s) at reference times ``t``."""

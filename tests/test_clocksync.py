@@ -144,7 +144,8 @@ def test_sync_command(tmp_path, typical):
     runner = CliRunner()
     res = runner.invoke(main, ["sync", str(path), "--protocol", "knee"])
     assert res.exit_code == 0, res.output
-    assert "shank_r vs thigh_r:" in res.output and "applied" in res.output
+    assert "shank_r vs thigh_r (joint centre):" in res.output and "applied" in res.output
+    assert "; impacts: " in res.output  # the heel-strike lag agreed, and is shown
     again = runner.invoke(main, ["sync", str(path), "--protocol", "knee"])
     assert again.exit_code == 2 and "add --force" in again.output
     forced = runner.invoke(main, ["sync", str(path), "--protocol", "knee", "--force"])
