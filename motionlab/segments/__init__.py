@@ -25,7 +25,7 @@ from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.protocol import Protocol, axis_vector
 from motionlab.results import HeadingCorrection, SegmentCalibration
-from motionlab.segments import grades, heading, mounting, placement, single_pose
+from motionlab.segments import grades, heading, hip_axis, mounting, placement, single_pose
 from motionlab.segments.steps import find_steps
 from motionlab.session import Session
 from motionlab.timebase import interp_columns
@@ -153,7 +153,43 @@ def calibrate_segments(
         single_pose=pose.name if pose is not None else None,
     )
     result.grades = grades.grade_joints(protocol, result)
+    if pose is None:
+        result.hip_axes = hip_axes(session, protocol, result)
     return result
+
+
+def _long_axis_measured(cal: dict[str, Any], axis: np.ndarray) -> bool:
+    """Whether a calibration movement (a functional step) measured this segment axis."""
+    return any(
+        r.get("kind") == "functional" and r.get("used", True)
+        and abs(float(np.asarray(r["segment_axis"]) @ axis)) > 0.99
+        for r in cal.get("axes", {}).values()
+    )  # fmt: skip
+
+
+def hip_axes(
+    session: Session, protocol: Protocol, calibration: SegmentCalibration
+) -> dict[str, dict[str, Any]]:
+    """The hips' flexion axes from the movement (:mod:`.hip_axis`), by joint name, for the hip
+    joints whose thigh's flexion axis no functional step measured."""
+    from motionlab.kinematics.joint_types import flexion_axis, joint_type
+    from motionlab.kinematics.session_angles import sensor_quats
+
+    out: dict[str, dict[str, Any]] = {}
+    for name, joint in protocol.joints.items():
+        p, d = joint.proximal, joint.distal
+        if joint_type(joint.type).name != "hip" or p not in calibration.segments:
+            continue
+        cal_d = calibration.segments.get(d)
+        if cal_d is None or _long_axis_measured(cal_d, axis_vector(flexion_axis(joint))):
+            continue
+        quats = sensor_quats(session, protocol, [p, d])
+        seg_q = segment_orientations(protocol, calibration, quats)
+        t = seg_q[p][0]
+        t = t[(t >= seg_q[d][0][0]) & (t <= seg_q[d][0][-1])]
+        qp, qd = rot.resample(*seg_q[p], t), rot.resample(*seg_q[d], t)
+        out[name] = hip_axis.flexion_turn(t, qp, qd)
+    return out
 
 
 def reference_step(protocol: Protocol, proximal: str, distal: str) -> str | None:
