@@ -25,15 +25,7 @@ from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.protocol import Protocol, axis_vector
 from motionlab.results import HeadingCorrection, SegmentCalibration
-from motionlab.segments import (
-    grades,
-    heading,
-    hip_axis,
-    hip_centres,
-    mounting,
-    placement,
-    single_pose,
-)
+from motionlab.segments import grades, heading, hip_axis, mounting, placement, single_pose
 from motionlab.segments.steps import find_steps
 from motionlab.session import Session
 from motionlab.timebase import interp_columns
@@ -126,7 +118,6 @@ def calibrate_segments(
         hinges = placement.movement_hinges(session, protocol, streams, steps, records, contradicted)
         unsure = placement.orient_by_data(protocol, records, hinges, contradicted)
         centres = placement.centre_headings(session, protocol, streams)
-        pelvis_line(session, protocol, records, notes)
     segments = {}
     for seg in streams:
         res = mounting.fit(seg, protocol, records[seg])
@@ -165,50 +156,6 @@ def calibrate_segments(
     if pose is None:
         result.hip_axes = hip_axes(session, protocol, result)
     return result
-
-
-def pelvis_line(
-    session: Session, protocol: Protocol, records: dict[str, dict[str, Any]], notes: list[str]
-) -> dict[str, Any] | None:
-    """Add the pelvis's z from the two hip centres (:mod:`.hip_centres`) to its ``records``
-    (kind ``movement``, secondary: gravity keeps the tilt) when the recording measured only its
-    vertical axis and both hips have a sensor on their thigh. Returns the measurement, if made;
-    a plausibility check that fails adds a line to ``notes``."""
-    from motionlab.kinematics.joint_types import joint_type
-
-    hips = {j.side: j for j in protocol.joints.values() if joint_type(j.type).name == "hip"}
-    if set(hips) != {"r", "l"} or hips["r"].proximal != hips["l"].proximal:
-        return None
-    pelvis = hips["r"].proximal
-    recs = records.get(pelvis, {})
-    gravity = [r for r in recs.values() if r["method"] == "gravity"]
-    if not gravity or mounting._distinct(list(recs.values())) != 1:
-        return None
-    labels = [sensor_for_segment(session, s) for s in (pelvis, hips["r"].distal, hips["l"].distal)]
-    streams = [session.sensors[k] for k in labels if k is not None]
-    if len(streams) < 3 or any(s.acc is None or s.gyr is None for s in streams):
-        return None
-    up = np.asarray(gravity[0]["sensor_axis"], float)
-    up = up * np.sign(float(gravity[0]["segment_axis"] @ np.array([0.0, 1.0, 0.0])) or 1.0)
-    found = hip_centres.pelvis_z(*streams, up)
-    if not found["used"]:
-        notes.append(f"{pelvis}: its forward direction is the placement hint: {found['reason']}")
-        return found
-    recs["movement:hip centres"] = {
-        "step": "movement:hip centres",
-        "kind": "movement",
-        "method": "hip centres",
-        "sensor_axis": found["axis"],
-        "segment_axis": np.array([0.0, 0.0, 1.0]),
-        "rho": hip_centres.RHO,
-        "reference_rho": None,
-        "joint_movement": False,
-        "secondary": True,
-        "verdict": "determined",
-        "width_m": found["width_m"],
-        "tilt_deg": found["tilt_deg"],
-    }
-    return found
 
 
 def _long_axis_measured(cal: dict[str, Any], axis: np.ndarray) -> bool:
