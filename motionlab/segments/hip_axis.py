@@ -83,8 +83,8 @@ def flexion_turn(t: np.ndarray, q_pelvis: np.ndarray, q_thigh: np.ndarray) -> di
     if rho < MIN_RHO:
         return out | {"turn_deg": 0.0, "reason": f"no dominant hip axis (rho {rho:.2f})"}
     if abs(turn) > MAX_TURN_DEG:
-        return out | {"turn_deg": 0.0,
-                      "reason": f"the dominant axis is {turn:.0f} deg from the pelvis z"}  # fmt: skip
+        why = f"the dominant axis is {turn:.0f} deg from the pelvis z"
+        return out | {"turn_deg": 0.0, "reason": why}
     return out | {"used": True, "reason": ""}
 
 
