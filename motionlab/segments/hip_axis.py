@@ -41,7 +41,7 @@ from motionlab.segments.functional import functional_axis
 LOWPASS_HZ = 6.0
 MIN_RATE_RAD_S = 0.5  # relative angular rate a sample needs to count as hip movement
 MIN_SAMPLES = 300
-MIN_RHO = 0.4
+MIN_RHO = 0.8  # simulated walks 0.87-0.90; a pelvis frame far off its true heading gave 0.55-0.68
 MAX_TURN_DEG = 30.0
 _Y = np.array([0.0, 1.0, 0.0])
 
