@@ -205,10 +205,11 @@ def pelvis_forward(
     by_stand = seg in contradicted
     if not found["used"]:
         if by_stand:
-            notes.append(
-                f"{seg}: the placement hint is contradicted and the walk did not give its "
-                f"forward direction ({found['reason']}): the pelvis angles and the hips use the "
-                "hint's"
+            _add_note(
+                notes,
+                seg,
+                f"the walk did not give its forward direction ({found['reason']}): the pelvis "
+                "angles and the hips use the hint's",
             )
         return found
     hint = protocol.segments[seg].nominal_mounting().T @ np.array([1.0, 0.0, 0.0])
@@ -216,10 +217,9 @@ def pelvis_forward(
     found["hint_off_deg"] = off
     if not by_stand and off <= placement.CONTRADICTED_DEG:
         return found  # the hint agrees with the walk: it stays (the turns are 5-20° off)
-    why = "the stand" if by_stand else f"the walk's turns ({off:.0f}° from it)"
-    notes.append(
-        f"{seg}: the placement hint is contradicted by {why}; its forward direction is taken "
-        f"from the walk's turns ({found['turns']} turns)"
+    why = "" if by_stand else f"the walk's turns are {off:.0f}° from the hint's forward; "
+    _add_note(
+        notes, seg, f"{why}its forward direction is taken from the walk's turns ({found['turns']})"
     )
     recs["movement:turns"] = {
         "step": "movement:turns",
@@ -236,6 +236,16 @@ def pelvis_forward(
         "spread_deg": found["spread_deg"],
     }
     return found
+
+
+def _add_note(notes: list[str], segment: str, text: str) -> None:
+    """``text`` joined to the segment's line in ``notes`` (one line per segment), else a new
+    line."""
+    for i, line in enumerate(notes):
+        if line.startswith(f"{segment}: "):
+            notes[i] = f"{line}; {text}"
+            return
+    notes.append(f"{segment}: {text}")
 
 
 def _long_axis_measured(cal: dict[str, Any], axis: np.ndarray) -> bool:

@@ -16,9 +16,9 @@ sign: ``f ∝ Σ ω′ (a′ × ẑ)`` (primes: deviations from the walk's means
 accelerometer bias and the ellipse's mean turning), expressed in the sensor frame sample by
 sample with the fused orientation. Signals are low-passed at ``LOWPASS_HZ`` (below the stride
 frequency). The sensor's lever arm from the body's path turns the estimate: a sensor 0.11 m
-behind the pelvis centre sees ``ω² r`` forward in a turn, which turned ``f`` by −4 to −22° on the
-nominal simulated walks and −14 to +5° with random mountings and soft-tissue motion. So it
-replaces only a contradicted hint, and the frame is graded ``weak``.
+behind the pelvis centre sees ``ω² r`` forward in a turn, which turned ``f`` by −4 to −22° on
+the nominal simulated walks and −14 to +5° with random mountings and soft-tissue motion (60 s
+walks). So it replaces only a contradicted hint, and the frame is graded ``weak``.
 
 Used when the walk has at least ``MIN_TURNS`` turns (runs of ``|ω| ≥ TURN_RAD_S`` of at least
 ``TURN_MIN_S``) whose own estimates lie within ``MAX_SPREAD_DEG`` of the whole walk's.
