@@ -214,6 +214,9 @@ class SegmentCalibration(_Record):
     {"grades": [3], "reasons": [3]}}`` per angle (:func:`motionlab.segments.grades.grade_joints`).
     ``single_pose``: the static step a recording too short for more was taken as (an
     OpenSense-style single-pose calibration, :mod:`motionlab.segments.single_pose`), else ``None``.
+    ``hip_axes`` ``{joint: record}``: the hips' flexion axes from the movement (``used``,
+    ``turn_deg`` about the pelvis y, ``rho``, ``n_samples``, ``reason``;
+    :mod:`motionlab.segments.hip_axis`).
     """
 
     protocol: str
@@ -226,6 +229,7 @@ class SegmentCalibration(_Record):
     grades: dict[str, dict[str, Any]] = field(default_factory=dict)
     protocol_path: str | None = None
     single_pose: str | None = None
+    hip_axes: dict[str, dict[str, Any]] = field(default_factory=dict)
     more: dict[str, Any] = field(default_factory=dict)
 
     @property

@@ -173,8 +173,9 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
         pel = np.degrees(pelvis_angles(q_p, heading))
         out["pelvis"] = {"time_s": t_p} | {c: pel[:, i] for i, c in enumerate(PELVIS_COLUMNS)}
         out["pelvis"]["method"] = (
-            "pelvis frame from the calibration (gravity in the stand and the placement hint); "
-            "walking direction = pelvis heading averaged over one stride"
+            "pelvis frame from the calibration (gravity in the stand; forward from the placement "
+            "hint, or from the walk's turns where the hint is contradicted); walking direction = "
+            "pelvis heading averaged over one stride"
         )
     curves: dict[str, dict[str, np.ndarray]] = {}
     for side, st in strides.items():

@@ -273,7 +273,7 @@ def session_metrics(
             segs.append(THORAX)
     quats = sensor_quats(session, protocol, segs, estimator)
     seg_q = segment_orientations(protocol, cal, quats)
-    table = angle_table(seg_q, protocol)
+    table = angle_table(seg_q, protocol, cal)
     nominal = None
     if "cross_talk" in wanted(protocol):
         nominal = angle_table(

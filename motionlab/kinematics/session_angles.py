@@ -23,6 +23,7 @@ from motionlab.kinematics.joint_angles import joint_angles
 from motionlab.protocol import Protocol
 from motionlab.results import HeadingCorrection, SegmentCalibration
 from motionlab.segments import segment_orientations, sensor_for_segment
+from motionlab.segments.hip_axis import apply_turn
 from motionlab.session import Session, estimate_rate
 
 SegmentQuats = dict[str, tuple[np.ndarray, np.ndarray]]
@@ -121,8 +122,13 @@ def sensor_quats(
     return quats
 
 
-def angle_table(seg_q: SegmentQuats, protocol: Protocol) -> dict[str, Any]:
-    """``{"time_s": (N,), "<joint>_<side>_<angle>_deg": (N,), ...}`` for every protocol joint."""
+def angle_table(
+    seg_q: SegmentQuats, protocol: Protocol, calibration: SegmentCalibration | None = None
+) -> dict[str, Any]:
+    """``{"time_s": (N,), "<joint>_<side>_<angle>_deg": (N,), ...}`` for every protocol joint.
+
+    A hip whose flexion axis the ``calibration`` measured from the movement
+    (``calibration.hip_axes``, :mod:`motionlab.segments.hip_axis`) is measured about it."""
     first = next(iter(protocol.joints.values()))
     t = seg_q[first.proximal][0]
     used = {s for j in protocol.joints.values() for s in (j.proximal, j.distal)}
@@ -133,6 +139,9 @@ def angle_table(seg_q: SegmentQuats, protocol: Protocol) -> dict[str, Any]:
     for joint in protocol.joints.values():
         qp = rot.resample(*seg_q[joint.proximal], t)
         qd = rot.resample(*seg_q[joint.distal], t)
+        axis = calibration.hip_axes.get(joint.name) if calibration is not None else None
+        if axis and axis.get("used"):
+            qd = apply_turn(qp, qd, float(axis["turn_deg"]))
         out.update(joint_angles(qp, qd, joint))
     return out
 
@@ -150,4 +159,4 @@ def session_angles(
     seg_q = session_segments(
         session, protocol, calibration, estimator, align_heading, corrections=corrections
     )
-    return angle_table(seg_q, protocol)
+    return angle_table(seg_q, protocol, calibration)

@@ -235,6 +235,45 @@ def _hinges_table(doc: Document, view: SessionView) -> None:
     )
 
 
+def _hip_axes_table(doc: Document, view: SessionView) -> None:
+    """The hips' flexion axes from the walk (:mod:`motionlab.segments.hip_axis`)."""
+    cal = view.session.results.calibration
+    axes = cal.hip_axes if cal is not None else {}
+    if not axes:
+        return
+    rows, flagged = [], []
+    for name in in_order(axes, list(view.protocol.joints)):
+        fit = axes[name]
+        joint = view.protocol.joints.get(name)
+        used = bool(fit.get("used"))
+        rows.append(
+            [
+                joint_title(joint) if joint else name,
+                "yes" if used else "no",
+                _f(float(fit.get("turn_deg", np.nan))),
+                _f(float(fit.get("rho", np.nan)), ".2f"),
+                str(fit.get("reason", "")) or "-",
+            ]
+        )
+        flagged.append([False, not used] + [False] * 3)
+    doc.heading("Hip flexion axes from the walk")
+    doc.paragraph(
+        "Each hip is measured about the dominant axis of the thigh's rotation relative to the "
+        "pelvis in the recording (the thigh's frame from the knee axis is left to the knee). "
+        "Turn: that axis's angle about the pelvis's vertical axis from the pelvis's "
+        "medio-lateral axis; ρ: how dominant it is (1: one axis only).",
+        size=SIZE["small"],
+        colour=MUTED,
+    )
+    doc.table(
+        ["Joint", "Used", "Turn (°)", "ρ", "Why not used"],
+        rows,
+        [0.2, 0.1, 0.12, 0.1, 0.48],
+        flagged,
+        align=["l", "l", "r", "r", "l"],
+    )
+
+
 def calibration_page(doc: Document, view: SessionView) -> None:
     cal = view.session.results.calibration or SegmentCalibration("")
     doc.section(
@@ -292,6 +331,7 @@ def calibration_page(doc: Document, view: SessionView) -> None:
     )
     _grades_table(doc, view)
     _hinges_table(doc, view)
+    _hip_axes_table(doc, view)
     messages = [str(w) for w in cal.warnings] + [
         m for res in cal.segments.values() for m in res.get("quality", {}).get("messages", [])
     ]

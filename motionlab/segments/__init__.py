@@ -25,7 +25,15 @@ from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.protocol import Protocol, axis_vector
 from motionlab.results import HeadingCorrection, SegmentCalibration
-from motionlab.segments import grades, heading, mounting, placement, single_pose
+from motionlab.segments import (
+    grades,
+    heading,
+    hip_axis,
+    mounting,
+    placement,
+    single_pose,
+    walk_forward,
+)
 from motionlab.segments.steps import find_steps
 from motionlab.session import Session
 from motionlab.timebase import interp_columns
@@ -118,6 +126,7 @@ def calibrate_segments(
         hinges = placement.movement_hinges(session, protocol, streams, steps, records, contradicted)
         unsure = placement.orient_by_data(protocol, records, hinges, contradicted)
         centres = placement.centre_headings(session, protocol, streams)
+        pelvis_forward(session, protocol, steps, records, contradicted, notes)
     segments = {}
     for seg in streams:
         res = mounting.fit(seg, protocol, records[seg])
@@ -153,7 +162,124 @@ def calibrate_segments(
         single_pose=pose.name if pose is not None else None,
     )
     result.grades = grades.grade_joints(protocol, result)
+    if pose is None:
+        result.hip_axes = hip_axes(session, protocol, result)
     return result
+
+
+def pelvis_forward(
+    session: Session,
+    protocol: Protocol,
+    steps: dict[str, Any],
+    records: dict[str, dict[str, Any]],
+    contradicted: set[str],
+    notes: list[str],
+) -> dict[str, Any] | None:
+    """The hips' proximal segment's forward direction from the walk's turns
+    (:mod:`.walk_forward`), added to its ``records`` (kind ``movement``, secondary: gravity keeps
+    the tilt) when the recording measured only its vertical axis and the placement hint is
+    contradicted: by the stand (its vertical, :func:`.placement.contradicted`) or by the turns
+    (their forward direction more than ``placement.CONTRADICTED_DEG`` from the hint's). Returns
+    the measurement, if made; a line goes to ``notes`` when the hint is not kept."""
+    from motionlab.kinematics.joint_types import joint_type
+    from motionlab.kinematics.session_angles import sensor_orientation
+
+    hips = [j for j in protocol.joints.values() if joint_type(j.type).name == "hip"]
+    if not hips:
+        return None
+    seg = hips[0].proximal
+    recs = records.get(seg, {})
+    gravity = [r for r in recs.values() if r["method"] == "gravity" and r["kind"] == "static"]
+    if not gravity or mounting._distinct(list(recs.values())) != 1:
+        return None
+    label = sensor_for_segment(session, seg)
+    s = session.sensors[label] if label is not None else None
+    rng = steps.get(gravity[0]["step"])
+    if s is None or s.acc is None or s.gyr is None or not rng:
+        return None
+    up = np.asarray(gravity[0]["sensor_axis"], float) * float(
+        np.sign(gravity[0]["segment_axis"] @ np.array([0.0, 1.0, 0.0])) or 1.0
+    )
+    q = sensor_orientation(session, label)
+    found = walk_forward.forward_from_turns(s.time, s.acc, q, s.gyr, up, float(rng[1]))
+    by_stand = seg in contradicted
+    if not found["used"]:
+        if by_stand:
+            _add_note(
+                notes,
+                seg,
+                f"the walk did not give its forward direction ({found['reason']}): the pelvis "
+                "angles and the hips use the hint's",
+            )
+        return found
+    hint = protocol.segments[seg].nominal_mounting().T @ np.array([1.0, 0.0, 0.0])
+    off = float(np.degrees(np.arccos(np.clip(found["axis"] @ hint, -1.0, 1.0))))
+    found["hint_off_deg"] = off
+    if not by_stand and off <= placement.CONTRADICTED_DEG:
+        return found  # the hint agrees with the walk: it stays (the turns are 5-20° off)
+    why = "" if by_stand else f"the walk's turns are {off:.0f}° from the hint's forward; "
+    _add_note(
+        notes, seg, f"{why}its forward direction is taken from the walk's turns ({found['turns']})"
+    )
+    recs["movement:turns"] = {
+        "step": "movement:turns",
+        "kind": "movement",
+        "method": "turns",
+        "sensor_axis": found["axis"],
+        "segment_axis": np.array([1.0, 0.0, 0.0]),
+        "rho": walk_forward.RHO,
+        "reference_rho": None,
+        "joint_movement": False,
+        "secondary": True,
+        "verdict": "weak",
+        "turns": found["turns"],
+        "spread_deg": found["spread_deg"],
+    }
+    return found
+
+
+def _add_note(notes: list[str], segment: str, text: str) -> None:
+    """``text`` joined to the segment's line in ``notes`` (one line per segment), else a new
+    line."""
+    for i, line in enumerate(notes):
+        if line.startswith(f"{segment}: "):
+            notes[i] = f"{line}; {text}"
+            return
+    notes.append(f"{segment}: {text}")
+
+
+def _long_axis_measured(cal: dict[str, Any], axis: np.ndarray) -> bool:
+    """Whether a calibration movement (a functional step) measured this segment axis."""
+    return any(
+        r.get("kind") == "functional" and r.get("used", True)
+        and abs(float(np.asarray(r["segment_axis"]) @ axis)) > 0.99
+        for r in cal.get("axes", {}).values()
+    )  # fmt: skip
+
+
+def hip_axes(
+    session: Session, protocol: Protocol, calibration: SegmentCalibration
+) -> dict[str, dict[str, Any]]:
+    """The hips' flexion axes from the movement (:mod:`.hip_axis`), by joint name, for the hip
+    joints whose thigh's flexion axis no functional step measured."""
+    from motionlab.kinematics.joint_types import flexion_axis, joint_type
+    from motionlab.kinematics.session_angles import sensor_quats
+
+    out: dict[str, dict[str, Any]] = {}
+    for name, joint in protocol.joints.items():
+        p, d = joint.proximal, joint.distal
+        if joint_type(joint.type).name != "hip" or p not in calibration.segments:
+            continue
+        cal_d = calibration.segments.get(d)
+        if cal_d is None or _long_axis_measured(cal_d, axis_vector(flexion_axis(joint))):
+            continue
+        quats = sensor_quats(session, protocol, [p, d])
+        seg_q = segment_orientations(protocol, calibration, quats)
+        t = seg_q[p][0]
+        t = t[(t >= seg_q[d][0][0]) & (t <= seg_q[d][0][-1])]
+        qp, qd = rot.resample(*seg_q[p], t), rot.resample(*seg_q[d], t)
+        out[name] = hip_axis.flexion_turn(t, qp, qd)
+    return out
 
 
 def reference_step(protocol: Protocol, proximal: str, distal: str) -> str | None:

@@ -1,0 +1,94 @@
+"""The pelvis's forward direction from the walk's turns, for a pelvis sensor whose placement hint
+the stand contradicts.
+
+With only gravity in the stand, the pelvis sensor's heading on the pelvis is the protocol's
+placement hint. When the stand shows the hint is wrong (the sensor's measured vertical more than
+60° from where the hint puts it: :func:`motionlab.segments.placement.contradicted`), the hint's
+forward direction means nothing: with random mountings it was 97–142° off the true pelvis x on
+simulated walks (``bench/real_world.py`` seeds 0, 1, 2, 4), which turned the pelvis angles
+(tilt and obliquity swap and change sign) and put up to 8° into the hips.
+
+Walking round a turn, the body's centre accelerates towards the inside of the turn: in the
+horizontal plane ``a = v ω (ẑ × f) + v̇ f`` for a forward direction ``f``, a speed ``v`` and a
+turning rate ``ω`` about the vertical ``ẑ``. So the part of the horizontal acceleration that
+follows the turning rate points to the left of ``f`` in a left turn and gives ``f``, with its
+sign: ``f ∝ Σ ω′ (a′ × ẑ)`` (primes: deviations from the walk's means, which removes a constant
+accelerometer bias and the ellipse's mean turning), expressed in the sensor frame sample by
+sample with the fused orientation. Signals are low-passed at ``LOWPASS_HZ`` (below the stride
+frequency). The sensor's lever arm from the body's path turns the estimate: a sensor 0.11 m
+behind the pelvis centre sees ``ω² r`` forward in a turn, which turned ``f`` by −4 to −22° on
+the nominal simulated walks and −14 to +5° with random mountings and soft-tissue motion (60 s
+walks). So it replaces only a contradicted hint, and the frame is graded ``weak``.
+
+Used when the walk has at least ``MIN_TURNS`` turns (runs of ``|ω| ≥ TURN_RAD_S`` of at least
+``TURN_MIN_S``) whose own estimates lie within ``MAX_SPREAD_DEG`` of the whole walk's.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from scipy.signal import butter, sosfiltfilt
+
+from motionlab import rotations as rot
+from motionlab.session import estimate_rate
+from motionlab.timebase import runs
+
+LOWPASS_HZ = 0.5
+TURN_RAD_S = 0.3  # |ω| low-passed (simulated ellipse: 0.15-0.2 on its sides, 0.4-0.55 in turns)
+TURN_MIN_S = 1.0
+MIN_TURNS = 2
+MAX_SPREAD_DEG = 30.0
+GRAVITY = 9.81
+RHO = 0.6  # weight of the axis in the frame fit (secondary to gravity)
+
+
+def forward_from_turns(
+    t: np.ndarray, acc: np.ndarray, q: np.ndarray, gyr: np.ndarray, up: np.ndarray, after_s: float
+) -> dict[str, Any]:
+    """The forward direction (unit, horizontal in the stand, sensor frame) from the turns.
+
+    ``t`` (s), ``acc`` (m/s², specific force) and ``gyr`` (rad/s) of one sensor with its fused
+    orientation ``q`` (sensor → earth, (N, 4)); ``up`` its vertical in the stand (sensor frame);
+    only samples after ``after_s`` (the stand's end) count. Returns ``{"used", "axis", "turns",
+    "spread_deg", "reason"}``.
+    """
+    out: dict[str, Any] = {"used": False, "turns": 0}
+    walk = t > after_s
+    if walk.sum() < 100:
+        return out | {"reason": "no walk after the stand"}
+    rate = estimate_rate(t)
+    if not rate > 2.5 * LOWPASS_HZ:
+        return out | {"reason": "sampling too slow"}
+    sos = butter(2, LOWPASS_HZ, fs=rate, output="sos")
+    a = sosfiltfilt(sos, rot.rotate(q, acc) - np.array([0.0, 0.0, GRAVITY]), axis=0)
+    yaw = sosfiltfilt(sos, rot.rotate(q, gyr)[:, 2])
+    a = a - a[walk].mean(axis=0)
+    w = yaw - yaw[walk].mean()
+    left = np.column_stack([a[:, 1], -a[:, 0], np.zeros(len(t))])  # a × ẑ
+    contrib = rot.rotate(rot.conj(q), w[:, None] * left)  # in the sensor frame
+    up = np.asarray(up, float) / np.linalg.norm(up)
+
+    def horizontal(v: np.ndarray) -> np.ndarray | None:
+        h = v - (v @ up) * up
+        n = float(np.linalg.norm(h))
+        return h / n if n > 0 else None
+
+    whole = horizontal(contrib[walk].sum(axis=0))
+    if whole is None:
+        return out | {"reason": "no turns in the walk"}
+    parts = []
+    for i, j in runs(walk & (np.abs(yaw) >= TURN_RAD_S)):
+        if (j - i) / rate >= TURN_MIN_S:
+            h = horizontal(contrib[i:j].sum(axis=0))
+            if h is not None:
+                parts.append(h)
+    out["turns"] = len(parts)
+    if len(parts) < MIN_TURNS:
+        return out | {"reason": f"{len(parts)} turn(s) in the walk, {MIN_TURNS} needed"}
+    spread = max(float(np.degrees(np.arccos(np.clip(p @ whole, -1.0, 1.0)))) for p in parts)
+    out["spread_deg"] = spread
+    if spread > MAX_SPREAD_DEG:
+        return out | {"reason": f"the turns disagree by up to {spread:.0f} deg"}
+    return out | {"used": True, "axis": whole, "reason": ""}
