@@ -34,13 +34,13 @@ from scipy.signal import butter, sosfiltfilt
 from motionlab import rotations as rot
 from motionlab.session import estimate_rate
 from motionlab.timebase import runs
+from motionlab.units import STANDARD_GRAVITY
 
 LOWPASS_HZ = 0.5
 TURN_RAD_S = 0.3  # |ω| low-passed (simulated ellipse: 0.15-0.2 on its sides, 0.4-0.55 in turns)
 TURN_MIN_S = 1.0
 MIN_TURNS = 2
 MAX_SPREAD_DEG = 30.0
-GRAVITY = 9.81
 RHO = 0.6  # weight of the axis in the frame fit (secondary to gravity)
 
 
@@ -62,7 +62,7 @@ def forward_from_turns(
     if not rate > 2.5 * LOWPASS_HZ:
         return out | {"reason": "sampling too slow"}
     sos = butter(2, LOWPASS_HZ, fs=rate, output="sos")
-    a = sosfiltfilt(sos, rot.rotate(q, acc) - np.array([0.0, 0.0, GRAVITY]), axis=0)
+    a = sosfiltfilt(sos, rot.rotate(q, acc) - np.array([0.0, 0.0, STANDARD_GRAVITY]), axis=0)
     yaw = sosfiltfilt(sos, rot.rotate(q, gyr)[:, 2])
     a = a - a[walk].mean(axis=0)
     w = yaw - yaw[walk].mean()
