@@ -22,7 +22,9 @@ then shown next to variants that each remove one suspected source:
   error-free segment angular velocities over the walk; ``def``: that functional truth against
   the anatomical truth (the definitional difference between the two axes, no product in it);
   ``func svd`` / ``def svd``: the same with the functional axis taken as the dominant axis of
-  the true relative angular velocity (SVD) instead of the hinge fit;
+  the true relative angular velocity (SVD) instead of the hinge fit; ``func jcs`` / ``def jcs``:
+  the same with the turn about the shank's long axis left out first (what the product's
+  :func:`~motionlab.segments.movement.dominant_axes` estimates);
 - ``ax th / ax sh``: the angle (deg) between the product's flexion axis (segment z, read
   through the true mounting) and the anatomical z / the true functional axis, on the thigh and
   the shank; ``vd``: the product's verdict of the hinge fit with its consistency (deg) and
@@ -110,9 +112,10 @@ def _frame(z: np.ndarray, y: np.ndarray) -> np.ndarray:
 def functional_truth(truth, protocol, tasks, how: str = "seel") -> tuple[dict, dict]:
     """Truth re-expressed with functional knee frames (see the module notes), and the axes.
 
-    ``how``: ``seel`` (the product's hinge fit on the true segment rates) or ``svd`` (the
-    dominant axis of the true relative angular velocity in the thigh frame; the shank's is the
-    same axis through the stand, where the true knee angles are zero).
+    ``how``: ``seel`` (the Seel hinge fit on the true segment rates), ``svd`` (the dominant axis
+    of the true relative angular velocity in the thigh frame; the shank's is the same axis
+    through the stand, where the true knee angles are zero) or ``jcs`` (as ``svd`` with the turn
+    about the shank's long axis left out, as :func:`motionlab.segments.movement.dominant_axes`).
 
     Returns ``({column: degrees on truth.time}, {segment: functional z in segment coords})``.
     """
@@ -128,9 +131,12 @@ def functional_truth(truth, protocol, tasks, how: str = "seel") -> tuple[dict, d
         wp, wd = _body_rate(t, qp)[inside], _body_rate(t, qd)[inside]
         step = max(1, int(inside.sum() // 20000))
         z = np.array([0.0, 0.0, 1.0])
-        if how == "svd":
+        if how in ("svd", "jcs"):
             q_rel = rot.mul(rot.conj(qp), qd)[inside]
             w_rel = rot.rotate(q_rel, wd) - wp
+            if how == "jcs":  # the turn about the shank's long axis y left out
+                long_p = rot.rotate(q_rel, np.broadcast_to([0.0, 1.0, 0.0], (len(q_rel), 3)))
+                w_rel -= long_p * np.einsum("ij,ij->i", w_rel, long_p)[:, None]
             jp = np.linalg.svd(w_rel[::step], full_matrices=False)[2][0]
             jd = jp.copy()
         else:
@@ -178,6 +184,11 @@ def diagnose(job: tuple[int, bool]) -> dict:
                     stamps, tasks)  # fmt: skip
     row["func_svd"] = {c: _rmse(err_s[c]) for c in cols}
     row["def_svd"] = {c: _rmse((svd[c] - anat[c])[inside]) for c in cols}
+    jcs, jax = functional_truth(truth, protocol, tasks, "jcs")
+    err_j = _errors(session, dataclasses.replace(truth, joint_angles={**anat, **jcs}), protocol,
+                    stamps, tasks)  # fmt: skip
+    row["func_jcs"] = {c: _rmse(err_j[c]) for c in cols}
+    row["def_jcs"] = {c: _rmse((jcs[c] - anat[c])[inside]) for c in cols}
     # the product's axes against the anatomical and functional ones
     cal = session.results.calibration
     row["axes"], row["verdict"] = {}, {}
@@ -243,9 +254,9 @@ def main() -> None:
           "anatomical z / product y vs true y")  # fmt: skip
     print()
     head = "| seed | angle | tgt | as is | mean | sd | stand | clocks | impacts | no acc bias |"
-    head += " true mnt | func | def | func svd | def svd |"
+    head += " true mnt | func | def | func svd | def svd | func jcs | def jcs |"
     print(head + " grade | axes prox e-a/e-f/f-a/y | axes dist | hinge fit |")
-    print("|---:|---|---:|" + "---:|" * 12 + "---|---|---|---|")
+    print("|---:|---|---:|" + "---:|" * 14 + "---|---|---|---|")
     for r in rows:
         for c in r["cols"]:
             if not args.all_cells and r["as_is"][c] <= target(c):
@@ -262,6 +273,7 @@ def main() -> None:
                 f"{r['impacts'][c]:.2f} | "
                 f"{r['no_acc_bias'][c]:.2f} | {r['true_mnt'][c]:.2f} | {r['func'][c]:.2f} | "
                 f"{r['def'][c]:.2f} | {r['func_svd'][c]:.2f} | {r['def_svd'][c]:.2f} | "
+                f"{r['func_jcs'][c]:.2f} | {r['def_jcs'][c]:.2f} | "
                 f"{r['grade'][c]} | {'/'.join(f'{x:.1f}' for x in ap_)} | "
                 f"{'/'.join(f'{x:.1f}' for x in ad)} | {v[0]} {v[1]:.1f}° {100 * v[2]:.0f}% |"
             )

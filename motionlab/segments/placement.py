@@ -97,7 +97,7 @@ def movement_hinges(
             else:
                 fit = movement.fit_hinge(
                     name, side[p], side[d], prior_p, prior_d, reference, spec[1],
-                    twist_long=_twists_about_long_axis(protocol, joint, ref_name, spec),
+                    twist_long=twists_about_long_axis(protocol, joint, ref_name, spec),
                 )  # fmt: skip
         except InputError as exc:
             fits[name] = movement.failed(name, exc.message)
@@ -132,7 +132,7 @@ def movement_hinges(
     return fits
 
 
-def _twists_about_long_axis(protocol: Protocol, joint, ref_name: str | None, spec) -> bool:
+def twists_about_long_axis(protocol: Protocol, joint, ref_name: str | None, spec) -> bool:
     """Whether a one-way hinge-like joint (the knee) also turns about its distal segment's long
     axis y (its sequence ends in Y, the flexion axis is another) and the reference pose has that
     axis vertical: then :func:`.movement.dominant_axes` refines its flexion axis."""
