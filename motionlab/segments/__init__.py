@@ -421,7 +421,12 @@ def _joint_ties(protocol: Protocol, calibration: SegmentCalibration, joint, tp, 
         return ("single pose", *single_pose.heading_anchor(tuple(pose_range), tp, qp, qd_on_p))
     if fit is not None:
         axis = axis_vector(placement.hinge_spec(joint)[0])
-        return ("hinge", *heading.hinge_anchors(tp, qp, qd_on_p, axis, axis))
+        ref_name = reference_step(protocol, joint.proximal, joint.distal)
+        twists = placement.twists_about_long_axis(
+            protocol, joint, ref_name, placement.hinge_spec(joint)
+        )
+        long_axis = axis_vector("y") if twists else None
+        return ("hinge", *heading.hinge_anchors(tp, qp, qd_on_p, axis, axis, long_axis))
     return ("steps", *heading_anchors(protocol, joint, calibration.steps, tp, qp, qd_on_p))
 
 

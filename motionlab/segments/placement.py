@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from motionlab.errors import InputError
-from motionlab.kinematics.joint_types import flexion_axis, joint_type
+from motionlab.kinematics.joint_types import flexion_axis, joint_sequence, joint_type
 from motionlab.protocol import Protocol, axis_vector
 from motionlab.segments import frames, movement
 from motionlab.segments.functional import orient
@@ -96,8 +96,9 @@ def movement_hinges(
                 )  # fmt: skip
             else:
                 fit = movement.fit_hinge(
-                    name, side[p], side[d], prior_p, prior_d, reference, spec[1]
-                )
+                    name, side[p], side[d], prior_p, prior_d, reference, spec[1],
+                    twist_long=twists_about_long_axis(protocol, joint, ref_name, spec),
+                )  # fmt: skip
         except InputError as exc:
             fits[name] = movement.failed(name, exc.message)
             continue
@@ -129,6 +130,17 @@ def movement_hinges(
                 "verdict": fit.verdict,
             }
     return fits
+
+
+def twists_about_long_axis(protocol: Protocol, joint, ref_name: str | None, spec) -> bool:
+    """Whether a one-way hinge-like joint (the knee) also turns about its distal segment's long
+    axis y (its sequence ends in Y, the flexion axis is another) and the reference pose has that
+    axis vertical: then :func:`.movement.dominant_axes` refines its flexion axis."""
+    if not spec[1] or ref_name is None or spec[0].strip("+-") == "y":
+        return False
+    step = next((s for s in protocol.calibration if s.name == ref_name), None)
+    vertical = step.vertical_axis.get(joint.distal, "") if step is not None else ""
+    return joint_sequence(joint).upper().endswith("Y") and vertical.strip("+") == "y"
 
 
 def contradicted(protocol: Protocol, records: dict[str, dict[str, Any]]) -> set[str]:
