@@ -90,22 +90,16 @@ def test_simulated_walk_hip_adduction_without_the_knee_axis_cross_talk():
     assert np.sqrt(np.mean(e0[w] ** 2)) > 3.5
 
 
-def test_pelvis_forward_from_the_turns_when_the_hint_is_contradicted():
-    """Random mounting, seed 1: the stand contradicts the pelvis hint, whose forward direction
-    is 142° off; the walk's turns give it within 15° (measured 5°), graded weak."""
-
+def _pelvis_forward_error(duration: float, seed: int):
+    """Calibration of a randomly mounted stand + walk, and the angle (deg) between the pelvis
+    frame's forward direction and the truth's, about the measured vertical."""
     proto = load_protocol("walk")
-    session, truth = simulate(proto, 60.0, 1, "typical", mounting="random", soft_tissue="motion")
+    session, truth = simulate(proto, duration, seed, "typical", mounting="random",
+                              soft_tissue="motion")  # fmt: skip
     prepare_sensors(session)
     analyse(session, PipelineOptions(proto, progress=False))
     cal = session.results.calibration
     pelvis = cal.segments["pelvis"]
-    assert "movement:turns" in pelvis["axes"] and pelvis["method"] == "primary_secondary"
-    assert any(
-        w.startswith("pelvis: ") and "forward direction is taken from the walk's turns" in w
-        for w in cal.warnings
-    )
-    assert cal.grades["hip_r"]["grades"] == ["weak"] * 3
     stand = cal.steps["standing"]
     sel = (truth.time >= stand[0]) & (truth.time <= stand[1])
     m = rot.mul(rot.conj(truth.sensors["pelvis"]["orientation"][sel]),
@@ -114,5 +108,28 @@ def test_pelvis_forward_from_the_turns_when_the_hint_is_contradicted():
     x_est = rot.rotate(np.asarray(pelvis["mounting"]), np.array([1.0, 0.0, 0.0]))
     up = rot.rotate(np.asarray(pelvis["mounting"]), Y)
     h = [v - (v @ up) * up for v in (x_true, x_est)]
-    angle = np.degrees(np.arccos(h[0] @ h[1] / np.linalg.norm(h[0]) / np.linalg.norm(h[1])))
+    return cal, np.degrees(np.arccos(h[0] @ h[1] / np.linalg.norm(h[0]) / np.linalg.norm(h[1])))
+
+
+def test_pelvis_forward_from_the_turns_when_the_hint_is_contradicted():
+    """Random mounting, seed 1: the stand contradicts the pelvis hint, whose forward direction
+    is 142° off; the walk's turns give it within 15° (measured 5°), graded weak."""
+    cal, angle = _pelvis_forward_error(60.0, 1)
+    pelvis = cal.segments["pelvis"]
+    assert "movement:turns" in pelvis["axes"] and pelvis["method"] == "primary_secondary"
+    assert any(
+        w.startswith("pelvis: ") and "forward direction is taken from the walk's turns" in w
+        for w in cal.warnings
+    )
+    assert cal.grades["hip_r"]["grades"] == ["weak"] * 3
     assert angle < 15.0
+
+
+def test_pelvis_forward_from_turns_that_agree_less_well_when_the_hint_is_contradicted():
+    """Random mounting, seed 4 of bench/real_world.py (74 s): the stand contradicts the hint and
+    the single turns spread by 36° (over the 30° asked of a hint the stand did not refute); they
+    still beat the hint: the forward direction is within 20° (measured 4.9°), and hip flexion
+    RMSE fell from 6.4° to 2.2° on the bench."""
+    cal, angle = _pelvis_forward_error(74.0, 4)
+    assert "movement:turns" in cal.segments["pelvis"]["axes"]
+    assert angle < 20.0

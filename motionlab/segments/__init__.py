@@ -201,8 +201,9 @@ def pelvis_forward(
         np.sign(gravity[0]["segment_axis"] @ np.array([0.0, 1.0, 0.0])) or 1.0
     )
     q = sensor_orientation(session, label)
-    found = walk_forward.forward_from_turns(s.time, s.acc, q, s.gyr, up, float(rng[1]))
     by_stand = seg in contradicted
+    spread = walk_forward.MAX_SPREAD_CONTRADICTED_DEG if by_stand else walk_forward.MAX_SPREAD_DEG
+    found = walk_forward.forward_from_turns(s.time, s.acc, q, s.gyr, up, float(rng[1]), spread)
     if not found["used"]:
         if by_stand:
             _add_note(
