@@ -43,7 +43,7 @@ import multiprocessing as mp
 
 import numpy as np
 from joint_angles import errors, joint_clocks
-from real_world import seeds_arg, target
+from real_world import put_on_true_clocks, seeds_arg, target
 
 from motionlab import rotations as rot
 from motionlab import stages
@@ -72,11 +72,7 @@ def _run(seed: int, tissue: str, true_clocks: bool, acc_bias: bool = True):
         protocol, DURATION_S, seed, preset, mounting="random", soft_tissue=tissue
     )
     if true_clocks:
-        first = next(iter(session.sensors))
-        on_first = (truth.sensors[first]["sample_time"], session.sensors[first].time.copy())
-        for label, s in list(session.sensors.items()):
-            t = np.interp(truth.sensors[label]["sample_time"], *on_first)
-            session.sensors[label] = dataclasses.replace(s, time=t)
+        put_on_true_clocks(session, truth)
     stamps = {label: s.time.copy() for label, s in session.sensors.items()}
     prepare_sensors(session)
     analyse(session, PipelineOptions(protocol, progress=False, clock_sync=not true_clocks))

@@ -53,6 +53,16 @@ def target(column: str) -> float:
     return 4.0
 
 
+def put_on_true_clocks(session, truth) -> None:
+    """Every stamp the true instant of its sample, read on the first sensor's clock (what a
+    perfect clock sync gives), in place."""
+    first = next(iter(session.sensors))
+    on_first = (truth.sensors[first]["sample_time"], session.sensors[first].time.copy())
+    for label, s in list(session.sensors.items()):
+        t = np.interp(truth.sensors[label]["sample_time"], *on_first)
+        session.sensors[label] = dataclasses.replace(s, time=t)
+
+
 def run_one(job: tuple[str, int, str]) -> dict:
     """RMSE and grade per angle column of one simulated session through the product path."""
     name, seed, preset, shared, true_clocks = job
@@ -62,12 +72,8 @@ def run_one(job: tuple[str, int, str]) -> dict:
     session, truth = simulate(
         protocol, DURATION_S[name], seed, preset, mounting="random", soft_tissue="motion"
     )
-    if true_clocks:  # every stamp the true instant, read on the first sensor's clock
-        first = next(iter(session.sensors))
-        on_first = (truth.sensors[first]["sample_time"], session.sensors[first].time.copy())
-        for label, s in list(session.sensors.items()):
-            t = np.interp(truth.sensors[label]["sample_time"], *on_first)
-            session.sensors[label] = dataclasses.replace(s, time=t)
+    if true_clocks:
+        put_on_true_clocks(session, truth)
     stamps = {label: s.time.copy() for label, s in session.sensors.items()}
     prepare_sensors(session)
     t0 = time.perf_counter()
