@@ -356,13 +356,9 @@ class _Pair:
             offsets.append(sol.x[0])
             weights.append(float(sol.jac[:, 0] @ sol.jac[:, 0]) / max(s2, 1e-30))
         x, w, y = np.array(rows), np.array(weights), np.array(offsets)
-        info = x.T @ (w[:, None] * x)
-        line = np.linalg.solve(info, x.T @ (w * y))
+        line = np.linalg.solve(x.T @ (w[:, None] * x), x.T @ (w * y))
         chi2 = float(w @ (y - x @ line) ** 2) / (len(y) - 2)
-        info = info / max(1.0, chi2) + np.diag([0.0, DRIFT_PRIOR**-2])
-        cov = np.linalg.inv(info)
-        clock = cov @ (x.T @ (w * y)) / max(1.0, chi2)
-        return clock, float(np.sqrt(cov[0, 0])), float(np.sqrt(cov[1, 1]))
+        return _line_with_prior(x, y, w, max(1.0, chi2))
 
 
 def _centre(values: np.ndarray, r: np.ndarray, bias: np.ndarray) -> np.ndarray:
@@ -654,11 +650,20 @@ def impact_clock(
 
 def _line(x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, float, float]:
     """Offset (s) and drift of block lags ``y`` (s) at rows ``x`` = [1, t − t_mid], equal
-    weights scaled by their scatter, drift prior 0 ± ``DRIFT_PRIOR``; and their standard errors."""
+    weights scaled by their scatter (at least ``IMPACT_FLOOR_S``), with the drift prior."""
     fit = np.linalg.lstsq(x, y, rcond=None)[0]
     dof = max(len(y) - 2, 1)
     s2 = max(float(np.sum((y - x @ fit) ** 2)) / dof, IMPACT_FLOOR_S**2)
-    info = x.T @ x / s2 + np.diag([0.0, DRIFT_PRIOR**-2])
+    return _line_with_prior(x, y, np.ones(len(y)), s2)
+
+
+def _line_with_prior(
+    x: np.ndarray, y: np.ndarray, w: np.ndarray, scale: float
+) -> tuple[np.ndarray, float, float]:
+    """Offset (s) and drift through block offsets ``y`` (s) at rows ``x`` = [1, t − t_mid]
+    with weights ``w`` divided by ``scale``, drift prior 0 ± ``DRIFT_PRIOR`` (two crystal
+    clocks); and their standard errors."""
+    info = x.T @ (w[:, None] * x) / scale + np.diag([0.0, DRIFT_PRIOR**-2])
     cov = np.linalg.inv(info)
-    clock = cov @ (x.T @ y) / s2
+    clock = cov @ (x.T @ (w * y)) / scale
     return clock, float(np.sqrt(cov[0, 0])), float(np.sqrt(cov[1, 1]))
