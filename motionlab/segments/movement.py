@@ -54,10 +54,6 @@ WEAK_RESIDUAL = 0.6
 SIGN_MARGIN = 0.3  # relative-sign test: (bad - good) / (bad + good)
 FLEXION_MIN_DEG = 15.0  # anatomical sign: the larger excursion at least this
 FLEXION_RATIO = 2.0  # ... and this many times the other
-# passes of (tie the headings with the axes, take the dominant axis): the ties made with the
-# refined axes absorb part of a screw-home rotation, so more passes drift (the tests' coupled
-# knee: 0.2° off after one pass, 2.5° after two, 5.6° after five)
-REFINE_ITERATIONS = 1
 
 
 @dataclass
@@ -213,7 +209,6 @@ def dominant_axes(
     j_d: np.ndarray,
     ref: np.ndarray,
     on: np.ndarray,
-    iterations: int = REFINE_ITERATIONS,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The flexion axis as the dominant axis of the relative angular velocity, with the turn
     about the distal segment's long axis left out; in the proximal sensor, and carried into the
@@ -231,28 +226,29 @@ def dominant_axes(
     by the segments' motion about other axes, and a screw-home rotation coupled to flexion stays
     in the rotation angle instead of tilting the axis (``bench/knee_sources.py``). The distal
     axis is that axis seen from the distal sensor in the reference pose, where both segment
-    frames coincide. ``iterations`` passes (see ``REFINE_ITERATIONS``). Signs follow ``j_p``,
-    ``j_d``.
+    frames coincide. One pass (tie the headings with Seel's axes, take the dominant axis): ties
+    made with the refined axes absorb part of a screw-home rotation, so further passes drift
+    (the tests' coupled knee: 0.2° off after one pass, 2.5° after two, 5.6° after five). Signs
+    follow ``j_p``, ``j_d``; Seel's axes are returned when the headings cannot be tied or too few
+    samples remain.
     """
     from motionlab.segments import heading
 
     long_d = rot.rotate(rot.conj(rot.mean(q2[ref])), np.array([0.0, 0.0, 1.0]))
-    for _ in range(iterations):
-        times, deltas = heading.hinge_anchors(t, q1, q2, j_p, j_d)
-        if not len(times):
-            break
-        q2a = heading.apply_heading(q2, heading.heading_track(times, deltas, t))
-        q_rel = rot.mul(rot.conj(q1), q2a)  # distal sensor -> proximal sensor
-        long_p = rot.rotate(q_rel[on], np.broadcast_to(long_d, (int(on.sum()), 3)))
-        w_p = rot.rotate(q_rel[on], g2[on]) - g1[on]
-        w_p -= long_p * np.einsum("ij,ij->i", w_p, long_p)[:, None]
-        ok = np.isfinite(w_p).all(axis=1)
-        if ok.sum() < MIN_PART_SAMPLES:
-            break
-        a_p = np.linalg.svd(w_p[ok], full_matrices=False)[2][0]
-        a_d = rot.rotate(rot.conj(rot.mean(q_rel[ref])), a_p)
-        j_p, j_d = a_p * np.sign(a_p @ j_p), a_d * np.sign(a_d @ j_d)
-    return j_p, j_d
+    times, deltas = heading.hinge_anchors(t, q1, q2, j_p, j_d)
+    if not len(times):
+        return j_p, j_d
+    q2a = heading.apply_heading(q2, heading.heading_track(times, deltas, t))
+    q_rel = rot.mul(rot.conj(q1), q2a)  # distal sensor -> proximal sensor
+    long_p = rot.rotate(q_rel[on], np.broadcast_to(long_d, (int(on.sum()), 3)))
+    w_p = rot.rotate(q_rel[on], g2[on]) - g1[on]
+    w_p -= long_p * np.einsum("ij,ij->i", w_p, long_p)[:, None]
+    ok = np.isfinite(w_p).all(axis=1)
+    if ok.sum() < MIN_PART_SAMPLES:
+        return j_p, j_d
+    a_p = np.linalg.svd(w_p[ok], full_matrices=False)[2][0]
+    a_d = rot.rotate(rot.conj(rot.mean(q_rel[ref])), a_p)
+    return a_p * np.sign(a_p @ j_p), a_d * np.sign(a_d @ j_d)
 
 
 def _verdict(
