@@ -179,8 +179,10 @@ def pelvis_forward(
     (:mod:`.walk_forward`), added to its ``records`` (kind ``movement``, secondary: gravity keeps
     the tilt) when the recording measured only its vertical axis and the placement hint is
     contradicted: by the stand (its vertical, :func:`.placement.contradicted`) or by the turns
-    (their forward direction more than ``placement.CONTRADICTED_DEG`` from the hint's). Returns
-    the measurement, if made; a line goes to ``notes`` when the hint is not kept."""
+    (their forward direction more than ``placement.CONTRADICTED_DEG`` from the hint's). The
+    single turns may disagree more where the stand refuted the hint
+    (``walk_forward.MAX_SPREAD_CONTRADICTED_DEG``). Returns the measurement, if made; a line
+    goes to ``notes`` when the hint is not kept."""
     from motionlab.kinematics.joint_types import joint_type
     from motionlab.kinematics.session_angles import sensor_orientation
 
