@@ -171,7 +171,9 @@ class FusionEntry(_Record):
     ``name``: estimator (``vendor``: the device's orientation); ``quat`` (N, 4) sensor → ENU
     earth, scalar first, on the sensor's own time stamps; ``params``: estimator parameters (SI);
     ``magnetometer``: 9-D (one earth heading shared by the sensors) or 6-D. What the estimator
-    reports besides, when it does: ``gyro_bias`` (N, 3) rad/s, ``rest`` (N,) bool,
+    reports besides, when it does: ``gyro_bias`` (N, 3) rad/s, ``acc_bias`` (N, 3) m/s² in the
+    sensor frame (the calibration's gravity directions are taken from ``acc − acc_bias``;
+    files written before it existed hold none), ``rest`` (N,) bool,
     ``mag_disturbed`` (N,) bool, marker ``scenario``, ``gaps_bridged_s`` (packet-loss gaps it
     ran across, s), ``nan_bridged_s`` (runs of non-finite samples held over, ``[start, end]``
     s each). ``sensor_calibration``: the per-serial sensor calibration applied
@@ -191,6 +193,7 @@ class FusionEntry(_Record):
     gyro_bias: np.ndarray | None = None
     rest: np.ndarray | None = None
     mag_disturbed: np.ndarray | None = None
+    acc_bias: np.ndarray | None = None
     sensor_calibration: dict[str, Any] | None = None
     markers: dict[str, Any] | None = None
     more: dict[str, Any] = field(default_factory=dict)

@@ -1,12 +1,14 @@
 """Numba kernels of the multiplicative EKF and its RTS smoother (see :mod:`motionlab.fusion.mekf`).
 
 Conventions: quaternions scalar first, sensor → ENU earth; gyroscope rad/s, accelerometer m/s²,
-magnetometer µT. The error state is ``[δθ, δb]``: ``δθ`` (rad) a small rotation in the **earth**
-frame, ``q_true = exp(δθ/2) ⊗ q``, and ``δb`` (rad/s) the gyroscope-bias error, ``b_true = b + δb``.
-With an earth-frame attitude error the transition matrix is ``F = [[I, −R dt], [0, I]]``
-(``R`` = rotation matrix of ``q``), the accelerometer sees only ``δθ_x, δθ_y`` and the
-magnetometer's heading sees only ``δθ_z`` — every measurement is a scalar update on one
-component of the error state, so nothing in the loop allocates.
+magnetometer µT. The error state (``N_ERR`` = 9) is ``[δθ, δb, δa]``: ``δθ`` (rad) a small
+rotation in the **earth** frame, ``q_true = exp(δθ/2) ⊗ q``; ``δb`` (rad/s) the gyroscope-bias
+error, ``b_true = b + δb``; ``δa`` (m/s², sensor frame) the accelerometer-bias error,
+``a_true = a + δa``. With an earth-frame attitude error the transition matrix is
+``F = [[I, −R dt, 0], [0, I, 0], [0, 0, I]]`` (``R`` = rotation matrix of ``q``). The
+accelerometer's horizontal earth-frame rows see ``δθ_x, δθ_y`` and ``R δa / g`` (general scalar
+rows, :func:`_row_update`); the magnetometer's heading and the rest and reset updates see one
+component each (:func:`_scalar_update`). Nothing in the loop allocates.
 """
 
 from __future__ import annotations
@@ -26,33 +28,40 @@ PRM = KernelParams(
     "mag_noise", "mag_rest_noise", "mag_norm_tol", "mag_dip_tol", "mag_ref_tau",
     "mag_new_field_time", "att_init", "reset_tilt", "reset_heading", "reset_time",
     "reset_heading_time", "reset_tau", "reset_noise", "reset_agree", "mag_new_field_min",
-    "mag_fixed_norm", "mag_fixed_dip", "mag_heading_reset",
+    "mag_fixed_norm", "mag_fixed_dip", "mag_heading_reset", "acc_bias_rw",
 )  # fmt: skip
 GYR_NOISE, BIAS_RW, ACC_NOISE, ACC_REST_NOISE, REST_NOISE, GRAVITY = range(6)
 MAG_NOISE, MAG_REST_NOISE, MAG_NORM_TOL, MAG_DIP_TOL, MAG_REF_TAU = range(6, 11)
 MAG_NEW_FIELD_TIME, ATT_INIT, RESET_TILT, RESET_HEADING, RESET_TIME = range(11, 16)
 RESET_HEADING_TIME, RESET_TAU, RESET_NOISE, RESET_AGREE, MAG_NEW_FIELD_MIN = range(16, 21)
-MAG_FIXED_NORM, MAG_FIXED_DIP, MAG_HEADING_RESET = range(21, 24)
+MAG_FIXED_NORM, MAG_FIXED_DIP, MAG_HEADING_RESET, ACC_BIAS_RW = range(21, 25)
+
+#: dimension of the error state ``[δθ, δb, δa]``
+N_ERR = 9
 
 
 @numba.njit(cache=True, inline="always")
-def _inject(q: np.ndarray, b: np.ndarray, dx: np.ndarray) -> None:
-    """Move the error state ``dx`` into the estimate, ``q ← exp(δθ/2) ⊗ q`` (normalised) and
-    ``b ← b + δb``, and clear it."""
+def _inject(q: np.ndarray, b: np.ndarray, a: np.ndarray, dx: np.ndarray) -> None:
+    """Move the error state ``dx`` into the estimate, ``q ← exp(δθ/2) ⊗ q`` (normalised),
+    ``b ← b + δb`` and ``a ← a + δa``, and clear it."""
     cm.mul_exp_left(dx[0], dx[1], dx[2], q)
     cm.normalize(q)
     for i in range(3):
         b[i] += dx[3 + i]
+        a[i] += dx[6 + i]
+    for i in range(N_ERR):
         dx[i] = 0.0
-        dx[3 + i] = 0.0
 
 
 @numba.njit(cache=True)
-def _predict(p: np.ndarray, r: np.ndarray, dt: float, qa: float, qb: float, t: np.ndarray) -> None:
-    """Covariance prediction ``P ← F P Fᵀ + Q`` with ``F = [[I, G], [0, I]]``, ``G = −R dt``."""
-    # T = P_ab + G P_bb (the new cross block); P_aa += G P_abᵀ + T Gᵀ
+def _predict(
+    p: np.ndarray, r: np.ndarray, dt: float, qa: float, qb: float, qc: float, t: np.ndarray
+) -> None:
+    """Covariance prediction ``P ← F P Fᵀ + Q`` with ``F = [[I, G, 0], [0, I, 0], [0, 0, I]]``,
+    ``G = −R dt``; ``Q = diag(qa I, qb I, qc I)``. ``t`` is a 3×6 work array."""
+    # new cross blocks: P_ab + G P_bb and P_ac + G P_bc; then P_aa += G P_abᵀ + (P_ab + G P_bb) Gᵀ
     for i in range(3):
-        for j in range(3):
+        for j in range(6):
             acc = p[i, 3 + j]
             for m in range(3):
                 acc -= r[i, m] * dt * p[3 + m, 3 + j]
@@ -65,11 +74,12 @@ def _predict(p: np.ndarray, r: np.ndarray, dt: float, qa: float, qb: float, t: n
             p[i, j] = acc
             p[j, i] = acc
     for i in range(3):
-        for j in range(3):
+        for j in range(6):
             p[i, 3 + j] = t[i, j]
             p[3 + j, i] = t[i, j]
         p[i, i] += qa
         p[3 + i, 3 + i] += qb
+        p[6 + i, 6 + i] += qc
 
 
 @numba.njit(cache=True)
@@ -86,35 +96,68 @@ def _scalar_update(
     """Kalman update with a scalar measurement of error component ``j`` (``H = e_j``).
 
     ``innov`` is the residual at the prior error (``z − H dx``). With ``heading_only`` the gain
-    of the inclination components (``δθ_x, δθ_y``) is forced to zero and the covariance is
-    updated in Joseph form, which stays valid for that suboptimal gain.
+    of the inclination components (``δθ_x, δθ_y``) and of the accelerometer bias (which would
+    move the inclination at the next sample) is forced to zero and the covariance is updated in
+    Joseph form, which stays valid for that suboptimal gain.
     """
+    n = N_ERR
     s = p[j, j] + var
-    for i in range(6):
+    for i in range(n):
         k[i] = p[i, j] / s
     if heading_only:
         k[0] = 0.0
         k[1] = 0.0
-    for i in range(6):
+        for i in range(6, n):
+            k[i] = 0.0
+    for i in range(n):
         dx[i] += k[i] * innov
+    for i in range(n):
+        row[i] = p[j, i]
+    for i in range(n):
+        for m in range(n):
+            p[i, m] -= k[i] * row[m]
     if not heading_only:
-        for i in range(6):
-            row[i] = p[j, i]
-        for i in range(6):
-            for m in range(6):
-                p[i, m] -= k[i] * row[m]
         return
     # Joseph form: A = P − K P_j ; P = A − A_j Kᵀ + var K Kᵀ (A_j the j-th column of A)
-    for i in range(6):
-        row[i] = p[j, i]
-    for i in range(6):
-        for m in range(6):
-            p[i, m] -= k[i] * row[m]
-    for i in range(6):
+    for i in range(n):
         row[i] = p[i, j]
-    for i in range(6):
-        for m in range(6):
+    for i in range(n):
+        for m in range(n):
             p[i, m] += -row[i] * k[m] + var * k[i] * k[m]
+
+
+@numba.njit(cache=True)
+def _row_update(
+    p: np.ndarray,
+    dx: np.ndarray,
+    h: np.ndarray,
+    z: float,
+    var: float,
+    k: np.ndarray,
+    ph: np.ndarray,
+) -> None:
+    """Kalman update with a scalar measurement ``z = h · x + v``, ``v ~ N(0, var)``, of the
+    error state (``h`` a general row, N_ERR); ``k`` and ``ph`` are work arrays.
+
+    ``dx ← dx + K (z − h dx)``, ``K = P h / (hᵀ P h + var)``, ``P ← P − K (P h)ᵀ``.
+    """
+    n = N_ERR
+    for i in range(n):
+        acc = 0.0
+        for m in range(n):
+            acc += p[i, m] * h[m]
+        ph[i] = acc
+    s = var
+    innov = z
+    for i in range(n):
+        s += h[i] * ph[i]
+        innov -= h[i] * dx[i]
+    for i in range(n):
+        k[i] = ph[i] / s
+        dx[i] += k[i] * innov
+    for i in range(n):
+        for m in range(n):
+            p[i, m] -= k[i] * ph[m]
 
 
 @numba.njit(cache=True)
@@ -128,10 +171,12 @@ def forward(
     dt: float,
     q0: np.ndarray,
     b0: np.ndarray,
+    a0: np.ndarray,
     p0: np.ndarray,
     prm: np.ndarray,
     quat: np.ndarray,
     bias: np.ndarray,
+    acc_bias: np.ndarray,
     mag_dist: np.ndarray,
     reset: np.ndarray,
     p_post: np.ndarray,
@@ -140,9 +185,11 @@ def forward(
 ) -> None:
     """Run the error-state EKF over all samples, writing into the preallocated outputs.
 
-    ``quat`` (N×4), ``bias`` (N×3), ``mag_dist`` and ``reset`` (N) receive the posterior
-    estimates and the samples where the attitude was re-initialised; with ``store`` the
-    posterior and prior covariances go into ``p_post``/``p_prior`` (N×6×6) for the smoother.
+    ``quat`` (N×4), ``bias`` (N×3, rad/s), ``acc_bias`` (N×3, m/s², sensor frame), ``mag_dist``
+    and ``reset`` (N) receive the posterior estimates and the samples where the attitude was
+    re-initialised; with ``store`` the posterior and prior covariances go into
+    ``p_post``/``p_prior`` (N×9×9) for the smoother. ``b0``, ``a0`` and ``p0`` (9×9) are the
+    initial biases and error covariance.
 
     A reset found at sample k is applied at k+1 as process noise plus a measurement: the
     attitude covariance is inflated by ``ATT_INIT²`` in the prior (so the smoother's backward
@@ -158,12 +205,14 @@ def forward(
     n = gyr.shape[0]
     q = q0.copy()
     b = b0.copy()
+    a = a0.copy()
     p = p0.copy()
     r = np.empty((3, 3))
-    t = np.empty((3, 3))
-    dx = np.zeros(6)
-    kvec = np.empty(6)
-    row = np.empty(6)
+    t = np.empty((3, 6))
+    dx = np.zeros(N_ERR)
+    kvec = np.empty(N_ERR)
+    row = np.empty(N_ERR)
+    h = np.zeros(N_ERR)
     mon = np.empty(mon_k.N_MONITOR)
     corr = np.zeros(3)
     mon_k.monitor_clear(mon)
@@ -173,6 +222,7 @@ def forward(
     mx, my, mz = 0.0, 0.0, 0.0
     qa = prm[GYR_NOISE] ** 2 * dt
     qb = prm[BIAS_RW] ** 2 * dt
+    qc = prm[ACC_BIAS_RW] ** 2 * dt
     g = prm[GRAVITY]
     a_ref = dt / prm[MAG_REF_TAU]
     ref_n = -1.0
@@ -195,8 +245,8 @@ def forward(
             cm.mul_exp_right(q, wx * dt, wy * dt, wz * dt, q)
             cm.normalize(q)
             cm.rot_matrix(q, r)
-            _predict(p, r, dt, qa, qb, t)
-        for i in range(6):
+            _predict(p, r, dt, qa, qb, qc, t)
+        for i in range(N_ERR):
             dx[i] = 0.0
         reset[k] = mode != 0
         if mode != 0:
@@ -214,7 +264,7 @@ def forward(
                     _scalar_update(p, dx, 2, corr[2] - dx[2], var, False, kvec, row)
             else:
                 _scalar_update(p, dx, 2, corr[2], var, True, kvec, row)
-            _inject(q, b, dx)
+            _inject(q, b, a, dx)
             mon_k.monitor_clear(mon)
             mode = 0
         if rest[k]:
@@ -222,19 +272,30 @@ def forward(
             for i in range(3):
                 _scalar_update(p, dx, 3 + i, gyr[k, i] - b[i] - dx[3 + i], var, False, kvec, row)
         cm.rot_matrix(q, r)
-        # earth-frame acc over g, linear in acc (not normalised by |acc|): zero-mean linear
-        # acceleration then averages out instead of being weighted by its own magnitude
-        ax = r[0, 0] * acc[k, 0] + r[0, 1] * acc[k, 1] + r[0, 2] * acc[k, 2]
-        ay = r[1, 0] * acc[k, 0] + r[1, 1] * acc[k, 1] + r[1, 2] * acc[k, 2]
-        az = r[2, 0] * acc[k, 0] + r[2, 1] * acc[k, 1] + r[2, 2] * acc[k, 2]
-        ex = ax / g
-        ey = ay / g
+        # earth-frame bias-corrected acc over g, linear in acc (not normalised by |acc|):
+        # zero-mean linear acceleration then averages out instead of being weighted by its own
+        # magnitude
+        cx, cy, cz = acc[k, 0] - a[0], acc[k, 1] - a[1], acc[k, 2] - a[2]
+        ax = r[0, 0] * cx + r[0, 1] * cy + r[0, 2] * cz
+        ay = r[1, 0] * cx + r[1, 1] * cy + r[1, 2] * cz
+        az = r[2, 0] * cx + r[2, 1] * cy + r[2, 2] * cz
         var = (prm[ACC_REST_NOISE] if rest[k] else prm[ACC_NOISE]) ** 2
-        # residual e_z × δθ = (−δθ_y, δθ_x): two scalar updates, gated while inconsistent
+        # residual e_z × δθ = (−δθ_y, δθ_x), plus R δa / g at rest: two scalar rows, gated
+        # while inconsistent. In motion the bias columns are left out (see the module docstring
+        # of mekf: a limb's linear acceleration is correlated with its orientation and would
+        # be taken for a bias); the vertical row is not used (it would tie δa to |acc| − g,
+        # i.e. to scale errors and the local gravity)
         if not mon_k.tilt_run(mon):
-            _scalar_update(p, dx, 1, -ex - dx[1], var, False, kvec, row)
-            _scalar_update(p, dx, 0, ey - dx[0], var, False, kvec, row)
-        _inject(q, b, dx)
+            wb = 1.0 / g if rest[k] else 0.0
+            h[0], h[1], h[2] = 0.0, -1.0, 0.0
+            for i in range(3):
+                h[6 + i] = wb * r[0, i]
+            _row_update(p, dx, h, ax / g, var, kvec, row)
+            h[0], h[1] = 1.0, 0.0
+            for i in range(3):
+                h[6 + i] = wb * r[1, i]
+            _row_update(p, dx, h, ay / g, var, kvec, row)
+        _inject(q, b, a, dx)
         mag_dist[k] = False
         mag_ok = False
         if use_mag:
@@ -304,6 +365,7 @@ def forward(
                 ref_age = 0.0  # learnt under the wrong attitude: a steady field may replace it
         quat[k] = q
         bias[k] = b
+        acc_bias[k] = a
         if store:
             p_post[k] = p
 
@@ -314,10 +376,12 @@ def backward(
     dt: float,
     quat: np.ndarray,
     bias: np.ndarray,
+    acc_bias: np.ndarray,
     p_post: np.ndarray,
     p_prior: np.ndarray,
 ) -> None:
-    """Rauch–Tung–Striebel backward pass, overwriting ``quat``/``bias`` with smoothed values.
+    """Rauch–Tung–Striebel backward pass, overwriting ``quat``/``bias``/``acc_bias`` with
+    smoothed values.
 
     With filter posterior ``x̂_k`` (covariance ``P_k``) and prior ``x̄_{k+1} = f(x̂_k)``
     (``P⁻_{k+1}``), the smoothed error ``e_{k+1} = x^s_{k+1} ⊖ x̄_{k+1}`` maps back as
@@ -328,10 +392,11 @@ def backward(
     n = gyr.shape[0]
     qbar = np.empty(4)
     r = np.empty((3, 3))
-    l = np.empty((6, 6))
-    e = np.empty(6)
-    e_col = e.reshape((6, 1))  # e as the one column of chol_solve's right-hand side
-    f = np.empty(6)
+    n_e = N_ERR
+    l = np.empty((n_e, n_e))
+    e = np.empty(n_e)
+    e_col = e.reshape((n_e, 1))  # e as the one column of chol_solve's right-hand side
+    f = np.empty(n_e)
     # smoothed state of sample k+1 is kept in quat[k+1], bias[k+1]
     for k in range(n - 2, -1, -1):
         for i in range(4):
@@ -357,19 +422,22 @@ def backward(
         e[0], e[1], e[2] = c * ex, c * ey, c * ez
         for i in range(3):
             e[3 + i] = bias[k + 1, i] - bias[k, i]
-        cm.chol_solve(p_prior[k + 1], 6, l, e_col, 1)
-        # f = Fᵀ y with F = [[I, −R dt], [0, I]]
+            e[6 + i] = acc_bias[k + 1, i] - acc_bias[k, i]
+        cm.chol_solve(p_prior[k + 1], n_e, l, e_col, 1)
+        # f = Fᵀ y with F = [[I, −R dt, 0], [0, I, 0], [0, 0, I]]
         cm.rot_matrix(qbar, r)
         for i in range(3):
             f[i] = e[i]
             f[3 + i] = e[3 + i] - dt * (r[0, i] * e[0] + r[1, i] * e[1] + r[2, i] * e[2])
+            f[6 + i] = e[6 + i]
         pk = p_post[k]
-        for i in range(6):
+        for i in range(n_e):
             s = 0.0
-            for m in range(6):
+            for m in range(n_e):
                 s += pk[i, m] * f[m]
             e[i] = s
         cm.mul_exp_left(e[0], e[1], e[2], quat[k])
         cm.normalize(quat[k])
         for i in range(3):
             bias[k, i] += e[3 + i]
+            acc_bias[k, i] += e[6 + i]

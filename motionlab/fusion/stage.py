@@ -123,6 +123,7 @@ def fuse_session(
             gyro_bias=res.gyro_bias,
             rest=res.rest,
             mag_disturbed=res.mag_disturbed,
+            acc_bias=res.extra.get("acc_bias"),
         )
         done.append(label)
     return done

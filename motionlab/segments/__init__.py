@@ -54,8 +54,23 @@ def sensor_for_segment(session: Session, segment: str) -> str | None:
     return segment if segment in session.sensors else None
 
 
+def corrected_acc(session: Session, label: str) -> np.ndarray:
+    """Sensor ``label``'s accelerometer (N, 3) m/s² less the bias its fusion estimated
+    (``results.fusion[label].acc_bias``, the default estimator's accelerometer-bias states;
+    the recording as it is when there is none): a stand's gravity direction is then not tilted
+    by the bias that the fused orientation no longer has."""
+    acc = np.asarray(session.sensors[label].acc, dtype=float)
+    fused = session.results.fusion.get(label)
+    bias = None if fused is None else fused.acc_bias
+    if bias is None:
+        return acc
+    bias = np.asarray(bias, dtype=float)
+    return acc - bias if bias.shape == acc.shape else acc
+
+
 def streams_of(session: Session, protocol: Protocol) -> Streams:
-    """``{segment: (time, acc, gyr)}`` for every protocol segment that has a sensor."""
+    """``{segment: (time, acc, gyr)}`` for every protocol segment that has a sensor (``acc``
+    less the fusion's accelerometer bias, :func:`corrected_acc`)."""
     out: Streams = {}
     for seg, spec in protocol.segments.items():
         label = sensor_for_segment(session, seg)
@@ -69,7 +84,7 @@ def streams_of(session: Session, protocol: Protocol) -> Streams:
             continue
         s = session.sensors[label]
         if s.acc is not None and s.gyr is not None:
-            out[seg] = (s.time, s.acc, s.gyr)
+            out[seg] = (s.time, corrected_acc(session, label), s.gyr)
         elif s.quat is not None:  # rows without a finite orientation are missing samples
             q = np.asarray(s.quat, float)
             ok = np.isfinite(q).all(axis=1)
@@ -205,7 +220,8 @@ def pelvis_forward(
     q = sensor_orientation(session, label)
     by_stand = seg in contradicted
     spread = walk_forward.MAX_SPREAD_CONTRADICTED_DEG if by_stand else walk_forward.MAX_SPREAD_DEG
-    found = walk_forward.forward_from_turns(s.time, s.acc, q, s.gyr, up, float(rng[1]), spread)
+    acc = corrected_acc(session, label)
+    found = walk_forward.forward_from_turns(s.time, acc, q, s.gyr, up, float(rng[1]), spread)
     if not found["used"]:
         if by_stand:
             _add_note(
