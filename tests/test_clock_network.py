@@ -50,12 +50,12 @@ def _network(rng, impact_error=None, centre_error=None) -> list[ClockFit]:
 
 
 # the priors motionlab.clocksync gives a walk's sensors: shanks' envelope delays 1.5 ms (others
-# 0.5 ms), the hips' joint centres a 3 ms floor (knees 2 ms)
+# 0.5 ms), the hips' joint centres a 5 ms floor (knees 2 ms)
 PRIORS = {
     "envelope_sd": {"shank_r": 0.0015, "shank_l": 0.0015},
     "centre_floor": {
-        frozenset(("pelvis", "thigh_r")): 0.003,
-        frozenset(("pelvis", "thigh_l")): 0.003,
+        frozenset(("pelvis", "thigh_r")): 0.005,
+        frozenset(("pelvis", "thigh_l")): 0.005,
     },
 }
 
@@ -135,7 +135,7 @@ def _synced_minus_true(protocol_name: str, seconds: float, seed: int, **kw):
 def test_asymmetric_walk_seed_1():
     """bench/gait.py's failing case: all of shank_r's impact lags 7.3 ms off. Measured after
     the network sync (against the simulator's true instants, relative to the pelvis): shank_r
-    5.0 ms (4.5-5.6 ms over the walk), the others within 0.7 ms; the per-pair choice left
+    5.2 ms (4.7-5.7 ms over the walk), the others within 0.9 ms; the per-pair choice left
     shank_r 7.9 ms off. Bounds: 6 ms and 1 ms."""
     _, _, fits, err = _synced_minus_true("walk", 60.0, 1, gait="asymmetric")
     assert {f.method for f in fits} == {"network"}
