@@ -137,8 +137,8 @@ IMPACT_BIAS_S = 0.0015
 # (both variants) and bench/real_world.py walk seeds 10-14, for the smallest worst-case clock error
 # left on shank_r-shank_l, the knees and the hips (a 3 ms knee floor gave smaller medians but a
 # larger worst case; a 2 ms hip floor, or 1 ms for the pelvis's and thighs' envelope delays, let
-# wrong joint centres through: 5-8 ms); reported on seeds 0-4 and 0-9 (bench/clock_network.py). The standard deviation of a
-# sensor's own delay of its heel-strike envelope (s) by segment kind: the shank's own tissue
+# wrong joint centres through: 5-8 ms); reported on seeds 0-4 and 0-9 (bench/clock_network.py).
+# The standard deviation of a sensor's own delay of its heel-strike envelope (s) by segment kind: the shank's own tissue
 # resonance shifted all of its impact lags by up to 7 ms, the other sensors' by ≤ 0.7 ms
 # (the others: motionlab.clocknet.ENVELOPE_BIAS_S, 0.5 ms)
 ENVELOPE_SD_S = {"shank": 0.0015, "foot": 0.0015}
