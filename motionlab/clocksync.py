@@ -138,9 +138,9 @@ IMPACT_BIAS_S = 0.0015
 # left on shank_r-shank_l, the knees and the hips (a 3 ms knee floor gave smaller medians but a
 # larger worst case; a 2 ms hip floor, or 1 ms for the pelvis's and thighs' envelope delays, let
 # wrong joint centres through: 5-8 ms); reported on seeds 0-4 and 0-9 (bench/clock_network.py).
-# The standard deviation of a sensor's own delay of its heel-strike envelope (s) by segment kind: the shank's own tissue
-# resonance shifted all of its impact lags by up to 7 ms, the other sensors' by ≤ 0.7 ms
-# (the others: motionlab.clocknet.ENVELOPE_BIAS_S, 0.5 ms)
+# The standard deviation of a sensor's own delay of its heel-strike envelope (s) by segment kind:
+# the shank's own tissue resonance shifted all of its impact lags by up to 7 ms, the other
+# sensors' by ≤ 0.7 ms (the others: motionlab.clocknet.ENVELOPE_BIAS_S, 0.5 ms)
 ENVELOPE_SD_S = {"shank": 0.0015, "foot": 0.0015}
 # and the floor of a joint-centre fit's offset error (s): its model error locked to the stride,
 # 0.1-6 ms at the knee, up to 31 ms at the hip on simulated walks (claimed errors ≈ 0.05 ms);
