@@ -17,14 +17,23 @@ show (``CENTRE_FLOOR_S``: the joint-centre model error locked to the stride; ``P
 ``β_k`` is sensor ``k``'s own delay of its transient envelope: on simulated walks a shank's
 tissue resonance shifted *every* impact lag of that shank by the same 2-7 ms (seed 1 asymmetric:
 −7.3 ms on all four of shank_r's), which no loop of impact lags can show, since the delay cancels
-around every loop. Each ``β_k`` has a prior ``0 ± ENVELOPE_BIAS_S``; a joint-centre fit that
-disagrees with the impact lags of one sensor tests that prior.
+around every loop. Each ``β_k`` has a prior ``0 ± ENVELOPE_BIAS_S`` (the caller gives shanks a
+larger one); only a joint-centre fit of that sensor can contradict it.
 
 **Weighted least squares with data snooping** (Baarda 1968): solve, compute every measurement's
-standardised residual ``w = r / σ_r`` (``σ_r²`` the residual's own variance: ``σ² − a Σ aᵀ``;
-a measurement no other closes a loop with has ``σ_r ≈ 0`` and cannot be tested), set aside the
-one with the largest ``|w|`` when above ``REJECT_W``, and solve again until none is. A set-aside
-envelope prior means that sensor's impact lags tie only its envelope delay, not its clock.
+standardised residual ``w = r / σ_r`` (``σ_r²`` the residual's own variance, the diagonal of
+``Σ_y − A Σ_x Aᵀ``; a measurement no other closes a loop with has ``σ_r ≈ 0`` and cannot be
+tested), set aside the one with the largest ``|w|`` above ``REJECT_W``, and solve again until
+none is. Two exceptions: a measurement whose residual is correlated beyond ``SEPARABLE`` with
+another's is not set aside, since an error in either would look the same (a shank's knee joint
+centre against that shank's envelope prior: the data cannot tell which is wrong, so both are kept
+and the solution weighs them); and the envelope priors are priors, never set aside. Kept
+measurements and priors with ``|w|`` above ``DISPUTE_W`` are reported as disagreeing, so the
+clinician sees where a clock rests on a judgement between two signals.
+
+Measured (bench/clock_network.py, motionlab.clocksync's priors): on bench/gait.py's seed 1
+asymmetric walk shank_r is left 5.2 ms off (the per-pair choice it replaces: 7.9 ms), the
+other sensors within 0.9 ms.
 """
 
 from __future__ import annotations
@@ -54,8 +63,9 @@ TESTABLE = 0.05  # a residual whose variance is below this share of σ² cannot 
 @dataclass
 class NetworkClock:
     """One sensor's clock on the root's: it reads ``T + offset_s + drift (T − t_mid_s)`` at root
-    time ``T`` (s), with standard errors; ``used`` and ``rejected``: one phrase per
-    measurement that timed it or was set aside (clinician-readable)."""
+    time ``T`` (s), with standard errors; ``used``: (method, other sensor) of each measurement
+    that timed it; ``rejected`` and ``disputed``: one phrase per measurement set aside, or kept
+    though it disagrees (clinician-readable, :meth:`summary`)."""
 
     offset_s: float
     drift: float
@@ -68,7 +78,7 @@ class NetworkClock:
 
     def summary(self) -> str:
         """``timed by heel strikes with pelvis, thigh_l; joint centre with thigh_r; set aside:
-        ...; disputed (cannot tell which is wrong, both weighed): ...``."""
+        ...; disagreeing, kept and weighed (cannot tell which is wrong): ...``."""
         by: dict[str, list[str]] = {}
         for method, other in self.used:
             by.setdefault(method, []).append(other)
