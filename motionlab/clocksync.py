@@ -69,8 +69,9 @@ solution then weighs them by their priors (``ENVELOPE_SD_S``, ``HIP_CENTRE_FLOOR
 :data:`motionlab.clocknet.CENTRE_FLOOR_S`) and the sensor's line says that they disagree.
 Seed 1 asymmetric: shank_r 5.2 ms off instead of 7.9 ms, the other sensors within 0.9 ms. Each
 network :class:`ClockFit` is against the root sensor (``method`` ``network``) and says in
-``other`` what timed the sensor, what was set aside and what disagrees. A sensor that no reliable
-measurement ties to the others follows its tree parent's clock.
+``other`` what timed the sensor, what was set aside and what disagrees; it is applied when the
+correction at the recording's ends exceeds ``MIN_CORRECTION_S`` and its own standard error. A
+sensor that no reliable measurement ties to the others follows its tree parent's clock.
 
 A correction is applied only when it is reliable (joint centre: standard error ≤ ``MAX_SE_S``
 over the recording, and the joint-centre model fits: RMS residual ≤ ``MAX_RESIDUAL_M_S2``; a
