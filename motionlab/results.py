@@ -102,9 +102,11 @@ class ClockFit:
     ``joint centre`` (``residual``: RMS residual of the joint-centre acceleration magnitudes,
     m/s², over ``moving_s`` seconds of shared movement) or ``impacts`` (the heel-strike
     transients; ``residual``: 1 − the correlation coefficient of the two envelopes, ``moving_s``
-    the seconds of transients); ``other``: one line on the other method's answer for the pair
-    (empty when it was not tried). Files written before ``method`` existed read as ``joint
-    centre``."""
+    the seconds of transients) or ``network`` (every sensor's clock solved at once against the
+    root sensor from all pairwise measurements, :mod:`motionlab.clocknet`; ``residual`` NaN,
+    ``moving_s`` 0); ``other``: one line on the other method's answer for the pair (empty when
+    it was not tried), or for ``network`` what timed the sensor, what was set aside and what
+    disagrees. Files written before ``method`` existed read as ``joint centre``."""
 
     reference: str
     sensor: str

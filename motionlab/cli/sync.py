@@ -20,7 +20,9 @@ def command(session: str, protocol_path: str, force: bool) -> None:
 
     Two segments joined at a joint feel the same acceleration at the joint centre; the clock
     shift that makes the two sensors agree on it is fitted for every pair of neighbours (the
-    protocol's joints, pelvis-thigh, thorax-upper arm, ...). Corrections are applied only where
+    protocol's joints, pelvis-thigh, thorax-upper arm, ...). In gait the heel strikes time every
+    pair of sensors too, and all clocks are solved at once, a measurement that disagrees with the
+    others set aside; each line says what timed the sensor. Corrections are applied only where
     reliable and non-zero; the recorded stamps can be restored with --force and are kept in each
     sensor's attributes. The first stage after ingest: run it before fuse (motionlab run does).
 

@@ -140,7 +140,9 @@ def data_quality_page(doc: Document, view: SessionView) -> None:
         doc.heading("Sensor clocks")
         doc.paragraph(
             "Each sensor's clock against its neighbour's, from the acceleration of the joint "
-            "centre they share; corrected where the estimate was reliable and not zero.",
+            "centre they share; in gait, every sensor's clock at once from the heel strikes all "
+            "sensors feel and those joint centres, a measurement that disagrees with the others "
+            "set aside. Corrected where the estimate was reliable and not zero.",
             size=SIZE["small"],
             colour=MUTED,
         )
