@@ -80,7 +80,11 @@ def wrap(a: np.ndarray) -> np.ndarray:
 # ---------------------------------------------------------------------------- gait templates
 
 # Right-leg sagittal angles (deg) over one stride from heel strike (% of the cycle): the knots of a
-# periodic cubic spline, kept to its first _HARMONICS Fourier harmonics (10.8 Hz at 0.9 strides/s).
+# periodic cubic spline, kept to its first _HARMONICS Fourier harmonics (5.4 Hz at 0.9 strides/s).
+# 6 harmonics follow these knots as closely as 12 around contact (the shank's zero crossing within
+# 1 ms, its deceleration 52 against 58 rad/s²); 12 put 0.13 rad/s RMS of the shank's ω into 7-11
+# Hz, where clocksync.impact_clock looks for heel strikes, and its shank clock offsets went
+# 11-40 ms wrong (seed 3; step-time asymmetry errors up to 11 points in bench/gait.py).
 # Knee, loading response to mid-stance (0-41 %) and swing (72-100 %): the mean knee flexion of
 # Schwartz, Rozumalski & Trost (2008, J Biomech 41:1639; typically developing children at their
 # self-selected speed; the mean curve as tabulated every 2 % in the open repository
@@ -110,7 +114,7 @@ _GAIT_POINTS = {
     "hip": ([0, 6, 20, 50, 62, 85, 97, 100], [30, 30, 18, -10, 0, 35, 30, 30]),
     "ankle": ([0, 8, 45, 62, 75, 90, 100], [0, -6, 10, -16, -2, 2, 0]),
 }
-_HARMONICS = 12
+_HARMONICS = 6
 
 
 @cache
