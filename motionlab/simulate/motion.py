@@ -85,7 +85,7 @@ def wrap(a: np.ndarray) -> np.ndarray:
 # 1 ms, its deceleration 52 against 58 rad/s²); 12 put 0.13 rad/s RMS of the shank's ω into 7-11
 # Hz, where clocksync.impact_clock looks for heel strikes, and its shank clock offsets went
 # 11-40 ms wrong (seed 3; step-time asymmetry errors up to 11 points in bench/gait.py).
-# Knee, loading response to mid-stance (0-41 %) and swing (72-100 %): the mean knee flexion of
+# Knee, loading response to mid-stance (0-42 %) and swing (72-100 %): the mean knee flexion of
 # Schwartz, Rozumalski & Trost (2008, J Biomech 41:1639; typically developing children at their
 # self-selected speed; the mean curve as tabulated every 2 % in the open repository
 # 0todd0000/detrend1d, detrend1d/csv/kneeflex.csv) at 12 of its instants; its key values agree
@@ -97,8 +97,8 @@ def wrap(a: np.ndarray) -> np.ndarray:
 # it stops 1-7 ms before it (bench/gait_contact.py). Knee pre-swing (50 %: 10°, 55 %: 19°, 60 %:
 # 38°, Perry & Burnfield's 40° at toe-off): near its mid-stance value until terminal stance, which
 # puts the shank's fastest backward rotation (hip minus knee flexion rate) at 55-60 % of the
-# stride and 50 ms before the kinematic toe-off, as on the real walk (≈57 %, 52-60 ms; Schwartz's
-# later pre-swing, 56 %: 22.6°, 62 %: 40.6°, put it 42 ms before).
+# stride and 51-56 ms before the kinematic toe-off, as on the real walk (≈57 %, 52-60 ms;
+# Schwartz's later pre-swing, 56 %: 22.6°, 62 %: 40.6°, put it 39 ms before).
 # Hip: Perry & Burnfield (2010, ch. 8) key values (30° at initial contact, 10° extension at 50 %,
 # neutral at toe-off, 35° in terminal swing); the terminal-swing retraction (35° → 30°) ends at
 # 97 % and the hip holds 30° into loading response (6 %), as on the real walk (Vicon walking2,
@@ -108,7 +108,7 @@ def wrap(a: np.ndarray) -> np.ndarray:
 # Ankle: Perry & Burnfield (2010, ch. 6).
 _GAIT_POINTS = {
     "knee": (
-        [0, 4, 8, 12, 25, 41, 50, 55, 60, 72, 80, 86, 90, 94, 98, 100],
+        [0, 4, 8, 12, 24, 42, 50, 55, 60, 72, 80, 86, 90, 94, 98, 100],
         [5.5, 11.0, 17.2, 19.7, 14.5, 6.7, 10.0, 19.0, 38.0, 60.5, 50.8, 32.9, 19.0, 7.5, 3.8, 5.5],
     ),
     "hip": ([0, 6, 20, 50, 62, 85, 97, 100], [30, 30, 18, -10, 0, 35, 30, 30]),
