@@ -7,7 +7,10 @@ errors (every IMU on its own clock) and soft-tissue motion of the sensor on the 
 (``soft_tissue="motion"``; ``--preset loose`` for the loose mounting; ``--shared-clock`` puts
 the IMUs on one clock, as a radio-synchronised system does; ``--true-clocks`` keeps the own
 clocks but gives every sensor the simulator's true sampling instants on the first sensor's
-clock and skips the clock sync: what a perfect sync would give). The session goes through
+clock and skips the clock sync: what a perfect sync would give; ``--uncoupled-knee`` simulates
+knees without the ab/adduction and rotation the simulator couples to flexion, which a flexion
+axis found from movement takes for a turned axis, so that the knee rows show the product's own
+error without that definitional part, see docs/kinematics.md). The session goes through
 the stages exactly as ``motionlab run`` chains them (:func:`motionlab.pipeline.analyse`: clock
 sync, 6-D fusion, calibration from the stand and the movement, angles, metrics), and every angle
 column is compared with the simulator's truth over the task (each joint read on its proximal
@@ -22,6 +25,7 @@ Needs no data files. Usage::
 
     python bench/real_world.py [--protocols walk,arm] [--seeds 0-9] [--preset typical]
                                [--workers 2] [--shared-clock | --true-clocks] [--per-seed]
+                               [--uncoupled-knee]
 """
 
 from __future__ import annotations
@@ -38,7 +42,7 @@ from joint_angles import errors, joint_clocks, shared_clock
 from motionlab.kinematics.joint_types import angle_columns
 from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
 from motionlab.protocol import load_protocol
-from motionlab.simulate import simulate
+from motionlab.simulate import simulate, timeline
 from motionlab.simulate.errors import get_preset
 
 DURATION_S = {"walk": 74.0, "arm": 74.0}
@@ -63,9 +67,11 @@ def put_on_true_clocks(session, truth) -> None:
         session.sensors[label] = dataclasses.replace(s, time=t)
 
 
-def run_one(job: tuple[str, int, str]) -> dict:
+def run_one(job: tuple[str, int, str, bool, bool, bool]) -> dict:
     """RMSE and grade per angle column of one simulated session through the product path."""
-    name, seed, preset, shared, true_clocks = job
+    name, seed, preset, shared, true_clocks, uncoupled = job
+    if uncoupled:  # this worker's simulator only (the pool's processes are the bench's own)
+        timeline.KNEE_ADDUCTION_COUPLING = timeline.KNEE_ROTATION_COUPLING = 0.0
     if shared:
         preset = shared_clock(get_preset(preset))
     protocol = load_protocol(name)
@@ -139,13 +145,18 @@ def main() -> None:
         action="store_true",
         help="own clocks, but every stamp the true instant (a perfect clock sync), no sync",
     )
+    ap.add_argument(
+        "--uncoupled-knee",
+        action="store_true",
+        help="simulated knees without the adduction and rotation coupled to flexion",
+    )
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument(
         "--per-seed", action="store_true", help="also a table of every seed's RMSE per angle"
     )
     args = ap.parse_args()
     jobs = [
-        (p, s, args.preset, args.shared_clock, args.true_clocks)
+        (p, s, args.preset, args.shared_clock, args.true_clocks, args.uncoupled_knee)
         for p in args.protocols.split(",")
         for s in seeds_arg(args.seeds)
     ]
@@ -153,6 +164,7 @@ def main() -> None:
         results = pool.map(run_one, jobs)
     clocks = "one shared clock" if args.shared_clock else "every IMU on its own clock"
     clocks += ", true sampling instants, no sync" if args.true_clocks else ""
+    clocks += ", knees without flexion couplings" if args.uncoupled_knee else ""
     print(f"preset {args.preset} ({clocks}), random mountings, soft-tissue motion, "
           f"seeds {args.seeds}")  # fmt: skip
     print()

@@ -16,7 +16,13 @@ vector from the sensor to the joint centre in the sensor frame (m). When sensor 
 ``t + c(t)`` at sensor 1's time ``t``, with ``c(t) = c₀ + c₁ (t − t_mid)`` (offset s, drift), the
 equality holds only for the right ``c``. ``r₁``, ``r₂``, both accelerometer biases, ``c₀`` and
 ``c₁`` minimise the squared differences (low-passed) over the samples where a segment moves
-(MINPACK Levenberg–Marquardt with the analytic Jacobian, started from a grid over ``c₀``). The
+(MINPACK Levenberg–Marquardt with the analytic Jacobian, started from a grid over ``c₀``; the
+biases with a prior of 0 ± 1 m/s², see :meth:`_Pair._with_prior`). ``f`` and ``ω`` are first
+low-passed at ``INPUT_LP_HZ`` against soft-tissue wobble; on a real-like walk the shank's own
+motion reaches past it (the knee's terminal-swing reversal), which leaves 0.37-0.43 ms of
+thigh-shank clock error on clean simulated sensors (knee protocol, seeds 4-6 and 8); a 10 Hz
+low-pass gave 0.05-0.09 ms there (seeds 4, 8) but let a typical sensor's 10-16 Hz wobble
+through (0.30-0.46 ms instead of 0.15-0.37). The
 clock is then refitted from the offsets of 8 s blocks of movement: a weighted line with a prior
 on the drift, whose scatter gives honest standard errors (see :meth:`_Pair.clock_from_blocks`).
 
@@ -112,6 +118,7 @@ MIN_MOVING_S = 5.0  # shared movement needed (s)
 LOWPASS_HZ = 6.0  # zero-phase low-pass of the residuals (Hz)
 INPUT_LP_HZ = 8.0  # zero-phase low-pass of f and ω (order INPUT_ORDER): soft-tissue wobble
 INPUT_ORDER = 8  # at 10–20 Hz would otherwise reach ω̇ × r by tens of m/s²
+BIAS_PRIOR_M_S2 = 1.0  # prior standard deviation of each accelerometer bias (m/s²), see _Pair
 BLOCK_S = 8.0  # movement time per block whose offset checks the fit (s)
 DRIFT_PRIOR = 50e-6  # prior standard deviation of one clock's drift against another's
 MIN_SAMPLES = 100  # finite accelerometer and gyroscope samples a sensor needs
@@ -186,7 +193,9 @@ def _signals(stream: SensorStream) -> _Signals:
     on_grid = sosfiltfilt(
         butter(INPUT_ORDER, INPUT_LP_HZ, fs=1.0 / dt, output="sos"), on_grid, axis=0
     )
-    values = np.hstack([on_grid, np.gradient(on_grid[:, 3:], dt, axis=0)])
+    # ω̇ from the spline, not np.gradient, whose central difference is 1.6 % low at 5 Hz: on the
+    # simulated walk's shank that was 0.15-0.2 ms of the offset's error (clean, seeds 4 and 8)
+    values = np.hstack([on_grid, CubicSpline(grid, on_grid[:, 3:], axis=0)(grid, 1)])
     k = np.clip(np.searchsorted(t_ok, grid), 1, len(t_ok) - 1)
     real = np.minimum(grid - t_ok[k - 1], t_ok[k] - grid) <= 0.75 * dt
     valid = np.convolve(~real, np.ones(2 * int(SETTLE_S / dt) + 1), mode="same") == 0
@@ -330,6 +339,22 @@ class _Pair:
         ])  # fmt: skip
         return self._filtered(jac)
 
+    def _with_prior(self, p: np.ndarray, jacobian: bool = False) -> np.ndarray:
+        """:meth:`residuals` and the biases' prior rows ``b / BIAS_PRIOR_M_S2`` (0 ± 1 m/s²).
+
+        Without them the fit has a second valley at biases of ~10⁸ m/s², where ‖f + b + K r‖
+        is the projection of the joint-centre acceleration on a fixed axis of each sensor: both
+        sensors' projections on the knee's flexion axis agree, so it nearly fits, but it times
+        the clock poorly. On the knee protocol's simulated walk (clean sensors, seeds 5 and 6)
+        the search fell into it (residual 0.076 m/s², offsets 1.6-1.7 ms off) once the knee
+        template had a real-like terminal swing; a real accelerometer's bias is < 1 m/s².
+        """
+        if not jacobian:
+            return np.r_[self.residuals(p), p[6:12] / BIAS_PRIOR_M_S2]
+        prior = np.zeros((6, len(p)))
+        prior[:, 6:12] = np.eye(6) / BIAS_PRIOR_M_S2
+        return np.vstack([self.residuals(p, jacobian=True), prior])
+
     def cost(self, p: np.ndarray) -> float:
         return float(np.sum(self.residuals(p) ** 2))
 
@@ -337,9 +362,9 @@ class _Pair:
         """r₁, r₂ (m), b₁, b₂ (m/s²) for the offset ``c0`` (s) and no drift."""
         fixed = np.array([c0, 0.0])
         sol = least_squares(
-            lambda q: self.residuals(np.r_[q, fixed]),
+            lambda q: self._with_prior(np.r_[q, fixed]),
             np.zeros(BODY),
-            jac=lambda q: self.residuals(np.r_[q, fixed], jacobian=True)[:, :BODY],
+            jac=lambda q: self._with_prior(np.r_[q, fixed], jacobian=True)[:, :BODY],
             x_scale=0.1,
             method="lm",
         )
@@ -348,9 +373,9 @@ class _Pair:
     def solve(self, p0: np.ndarray) -> np.ndarray:
         """All parameters, from ``p0``."""
         return least_squares(
-            self.residuals,
+            self._with_prior,
             p0,
-            jac=lambda p: self.residuals(p, jacobian=True),
+            jac=lambda p: self._with_prior(p, jacobian=True),
             x_scale=np.r_[np.full(BODY, 0.1), 0.01, 1e-4],
             method="lm",
         ).x

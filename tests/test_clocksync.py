@@ -48,9 +48,15 @@ def true_difference(session, truth, ref: str, label: str, t: np.ndarray) -> np.n
     return np.interp(true_ref, truth.sensors[label]["sample_time"], session.sensors[label].time) - t
 
 
-@pytest.mark.parametrize("preset, tolerance", [("clean", 0.0005), ("typical", 0.002)])
-def test_offset_and_drift_recovered(knee, typical, preset, tolerance):
-    session, truth = typical if preset == "typical" else simulate(knee, DURATION, 8,
+@pytest.mark.parametrize(
+    "preset, seed, tolerance", [("clean", 8, 0.0005), ("clean", 5, 0.0005), ("typical", 8, 0.002)]
+)
+def test_offset_and_drift_recovered(knee, typical, preset, seed, tolerance):
+    """Clean sensors: 0.42 ms (seed 8) and 0.37 ms (seed 5) on the real-like walk, where the
+    fit's 8 Hz input low-pass clips the shank's terminal swing (0.07-0.13 ms with the former
+    gait templates); seed 5 fell into the fit's large-bias valley before the bias prior
+    (1.6 ms off, "not reliable")."""
+    session, truth = typical if preset == "typical" else simulate(knee, DURATION, seed,
                                                                   own_clocks("clean"))  # fmt: skip
     ref, label = session.sensors["thigh_r"], session.sensors["shank_r"]
     fit = estimate_clock(ref, label)

@@ -79,16 +79,39 @@ def wrap(a: np.ndarray) -> np.ndarray:
 
 # ---------------------------------------------------------------------------- gait templates
 
-# Right-leg sagittal angles (deg) over one stride from heel strike (% of the cycle), shaped after
-# the normative curves in Perry & Burnfield (2010, Gait Analysis, ch. 4-6) and Winter (2009).
-# The knee's pre-swing points (50 %: 10°, 55 %: 19°) keep it near its mid-stance value until
-# terminal stance, as in those curves: without them the knee rose from 45 %, the shank's angular
-# velocity (hip minus knee flexion rate) had a flat minimum at 49 % of the stride, 14 % before
-# toe-off, where a real walk has it at ≈57 % (bench/gait_real.py, tibia clusters of Vicon
-# walking2: 33-37 ms before the force plates' toe-off). Now at 57-58 %.
+# Right-leg sagittal angles (deg) over one stride from heel strike (% of the cycle): the knots of a
+# periodic cubic spline, kept to its first _HARMONICS Fourier harmonics (5.4 Hz at 0.9 strides/s).
+# 6 harmonics follow these knots as closely as 12 around contact (the shank's zero crossing within
+# 1 ms, its deceleration 52 against 58 rad/s²); 12 put 0.13 rad/s RMS of the shank's ω into 7-11
+# Hz, where clocksync.impact_clock looks for heel strikes, and its shank clock offsets went
+# 11-40 ms wrong (seed 3; step-time asymmetry errors up to 11 points in bench/gait.py).
+# Knee, loading response to mid-stance (0-42 %) and swing (72-100 %): the mean knee flexion of
+# Schwartz, Rozumalski & Trost (2008, J Biomech 41:1639; typically developing children at their
+# self-selected speed; the mean curve as tabulated every 2 % in the open repository
+# 0todd0000/detrend1d, detrend1d/csv/kneeflex.csv) at 12 of its instants; its key values agree
+# with the adult ones of Perry & Burnfield (2010, Gait Analysis, ch. 7: 5° at initial contact,
+# 15-20° in loading response, 60-62° peak, 25° at the end of mid-swing). It ends its terminal-swing
+# extension at 98 % (3.8°) and flexes straight into loading response (11° at 4 %); the former
+# Perry-only knots (100 %: 5°, 15 %: 18°, 6 harmonics) spread that reversal over 93-5 %, so the
+# shank kept swinging forward 16-19 ms past the kinematic initial contact, where on a real walk
+# it stops 1-7 ms before it (bench/gait_contact.py). Knee pre-swing (50 %: 10°, 55 %: 19°, 60 %:
+# 38°, Perry & Burnfield's 40° at toe-off): near its mid-stance value until terminal stance, which
+# puts the shank's fastest backward rotation (hip minus knee flexion rate) at 55-60 % of the
+# stride and 51-56 ms before the kinematic toe-off, as on the real walk (≈57 %, 52-60 ms;
+# Schwartz's later pre-swing, 56 %: 22.6°, 62 %: 40.6°, put it 39 ms before).
+# Hip: Perry & Burnfield (2010, ch. 8) key values (30° at initial contact, 10° extension at 50 %,
+# neutral at toe-off, 35° in terminal swing); the terminal-swing retraction (35° → 30°) ends at
+# 97 % and the hip holds 30° into loading response (6 %), as on the real walk (Vicon walking2,
+# sagittal angles from the joint centres: hip flexion falls 3-6° from its swing peak at ≈90 % to
+# 97-98 %, then stays within 3° of that until 10 %; the knee joint centre still moves forward
+# relative to the hip at initial contact).
+# Ankle: Perry & Burnfield (2010, ch. 6).
 _GAIT_POINTS = {
-    "knee": ([0, 15, 40, 50, 55, 60, 73, 87, 100], [5, 18, 4, 10, 19, 38, 62, 30, 5]),
-    "hip": ([0, 20, 50, 62, 85, 100], [30, 18, -10, 0, 35, 30]),
+    "knee": (
+        [0, 4, 8, 12, 24, 42, 50, 55, 60, 72, 80, 86, 90, 94, 98, 100],
+        [5.5, 11.0, 17.2, 19.7, 14.5, 6.7, 10.0, 19.0, 38.0, 60.5, 50.8, 32.9, 19.0, 7.5, 3.8, 5.5],
+    ),
+    "hip": ([0, 6, 20, 50, 62, 85, 97, 100], [30, 30, 18, -10, 0, 35, 30, 30]),
     "ankle": ([0, 8, 45, 62, 75, 90, 100], [0, -6, 10, -16, -2, 2, 0]),
 }
 _HARMONICS = 6
@@ -96,7 +119,8 @@ _HARMONICS = 6
 
 @cache
 def _gait_fourier(name: str) -> tuple[np.ndarray, np.ndarray]:
-    """Fourier coefficients (a_k cos kθ + b_k sin kθ, k = 0…6) of a periodic gait curve (rad)."""
+    """Fourier coefficients (a_k cos kθ + b_k sin kθ, k = 0…:data:`_HARMONICS`) of a periodic
+    gait curve (rad)."""
     pct, deg = _GAIT_POINTS[name]
     spline = CubicSpline(np.array(pct) / 100.0, np.array(deg, dtype=float), bc_type="periodic")
     n = 256
@@ -108,7 +132,8 @@ def _gait_fourier(name: str) -> tuple[np.ndarray, np.ndarray]:
 
 
 def gait_basis(theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``cos(kθ)`` and ``sin(kθ)`` (N, 7) for :func:`gait_curve`; ``(−1)^k`` shifts them by π."""
+    """``cos(kθ)`` and ``sin(kθ)`` (N, :data:`_HARMONICS` + 1) for :func:`gait_curve`; ``(−1)^k``
+    shifts them by π."""
     kt = np.multiply.outer(theta, np.arange(_HARMONICS + 1))
     return np.cos(kt), np.sin(kt)
 
@@ -219,7 +244,11 @@ def gait_block(body: Body, name: str, phase: str, duration: float, options: dict
     """Walking around an ellipse (straight-ish sides, turns at the ends) at a steady cadence.
 
     Speed up to ``speed`` m/s (default 1.2), stride frequency ``stride_hz`` (default 0.9 Hz);
-    knee, hip and ankle follow normative curves, with pelvis bounce/sway/rotation and arm swing.
+    knee, hip and ankle follow published mean curves (knee: Schwartz et al. 2008; hip and ankle:
+    Perry & Burnfield 2010, with the hip's terminal-swing retraction ending before initial contact
+    as on a real walk; the comment above :data:`_GAIT_POINTS` says which values come from where),
+    with pelvis bounce/sway/rotation and arm swing. Around contact the shank's sagittal angular
+    velocity is checked against a real walk by ``bench/gait_contact.py``.
     ``toe_off_r``, ``toe_off_l`` and ``step_offset`` change the timing of each leg
     (:func:`_shaped_gait`); without them the motion is the original one, sample for sample.
     """

@@ -58,17 +58,27 @@ def _to_local(row: np.ndarray, origin: np.ndarray) -> np.ndarray:
     return out
 
 
+#: knee adduction coupled to flexion: this many rad times sin(flexion) (4° at 90°)
+KNEE_ADDUCTION_COUPLING = 4 * DEG
+#: internal tibial rotation coupled to flexion (rad per rad, the screw-home mechanism)
+KNEE_ROTATION_COUPLING = 0.12
+
+
 def couple(ch: np.ndarray) -> np.ndarray:
     """Couplings seen in real joints, added on top of every block.
 
-    Knee: adduction grows with flexion (up to 4° at 90°) and the tibia rotates internally with
-    flexion (0.12° per degree, the screw-home mechanism). Elbow: the carrying angle falls by
-    0.06° per degree of flexion. Modifies and returns ``ch``.
+    Knee: adduction grows with flexion (:data:`KNEE_ADDUCTION_COUPLING`, up to 4° at 90°) and
+    the tibia rotates internally with flexion (:data:`KNEE_ROTATION_COUPLING`, 0.12° per degree,
+    the screw-home mechanism). A flexion axis found from the movement (a functional axis) cannot
+    tell a coupling proportional to flexion from a turned axis, so these put a definitional
+    error into the functional calibrations (``bench/real_world.py --uncoupled-knee`` shows its
+    size). Elbow: the carrying angle falls by 0.06° per degree of flexion. Modifies and returns
+    ``ch``.
     """
     for s in "rl":
         k = ch[:, CH[f"knee_{s}_0"]]
-        ch[:, CH[f"knee_{s}_1"]] += 4 * DEG * np.sin(k)
-        ch[:, CH[f"knee_{s}_2"]] += 0.12 * k
+        ch[:, CH[f"knee_{s}_1"]] += KNEE_ADDUCTION_COUPLING * np.sin(k)
+        ch[:, CH[f"knee_{s}_2"]] += KNEE_ROTATION_COUPLING * k
         ch[:, CH[f"elbow_{s}_1"]] -= 0.06 * ch[:, CH[f"elbow_{s}_0"]]
     return ch
 
