@@ -138,13 +138,15 @@ def _synced_minus_true(protocol_name: str, seconds: float, seed: int, **kw):
 def test_asymmetric_walk_seed_1():
     """bench/gait.py's failing case: all of shank_r's impact lags 7.3 ms off. Measured after
     the network sync (against the simulator's true instants, relative to the pelvis at the same
-    instants, 10 s trimmed at each end): shank_r 4.8-5.7 ms, the others within 0.9 ms; the
-    per-pair choice left shank_r 7.9 ms off. Bounds: 6 ms and 1 ms."""
+    instants, 10 s trimmed at each end): shank_r 4.8-5.7 ms, the others within 0.9 ms, where the
+    per-pair choice left shank_r 7.9 ms off; with the gait templates of Schwartz 2008 (sharper
+    terminal swing) shank_r 2.7 ms, thigh_r 1.1 ms, the others within 0.8 ms. Bounds: 6 ms and
+    1.5 ms."""
     _, _, fits, err = _synced_minus_true("walk", 60.0, 1, gait="asymmetric")
     assert {f.method for f in fits} == {"network"}
     rel = {k: e - err["pelvis"] for k, e in err.items()}  # at the same true instants
     for k in ("thigh_r", "thigh_l", "shank_l"):
-        assert np.max(np.abs(rel[k])) < 0.001, k
+        assert np.max(np.abs(rel[k])) < 0.0015, k
     assert np.max(np.abs(rel["shank_r"])) < 0.006
     line = describe(next(f for f in fits if f.sensor == "shank_r"))
     assert line.startswith("shank_r on pelvis's clock (every pair at once):")
