@@ -35,6 +35,9 @@ from motionlab.pipeline import prepare_sensors  # noqa: E402
 from motionlab.protocol import load_protocol  # noqa: E402
 from motionlab.simulate import simulate  # noqa: E402
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from real_world import seeds_arg  # noqa: E402
+
 PAIRS = {
     "sr-sl": ("shank_l", "shank_r"),
     "knee r": ("thigh_r", "shank_r"),
@@ -90,13 +93,6 @@ def run_one(kind: str, seed: int) -> dict:
                 if part.startswith(("set aside", "disagreeing"))
             ]
     return row
-
-
-def seeds_arg(text: str) -> list[int]:
-    if "-" in text:
-        a, b = text.split("-")
-        return list(range(int(a), int(b) + 1))
-    return [int(s) for s in text.split(",")]
 
 
 def main() -> None:

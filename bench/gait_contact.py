@@ -144,26 +144,19 @@ def simulated(variant: str = "normal", duration: float = 30.0, seed: int = 0) ->
     return rows
 
 
-def real(data: Path) -> list[dict]:
-    """:func:`contact_features` of both legs of Vicon ``walking2`` (steady strides)."""
-    import ezc3d
-
+def _gait_real():
+    """``bench/gait_real.py`` as a module (its C3D reader and virtual sensors)."""
     here = Path(__file__).parent
     spec = importlib.util.spec_from_file_location("gait_real", here / "gait_real.py")
     gr = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(gr)
-    c = ezc3d.c3d(str(data / gr.FILE))
-    labels = c["parameters"]["POINT"]["LABELS"]["value"]
-    rate = float(c["parameters"]["POINT"]["RATE"]["value"][0])
-    pts = c["data"]["points"][:3] / 1000.0
-    t = np.arange(pts.shape[2]) / rate
+    return gr
 
-    def marker(name: str) -> np.ndarray:
-        return pts[:, labels.index(name), :].T
 
-    sacrum = (marker("RPSI") + marker("LPSI")) / 2
-    v = np.nanmean(np.diff(sacrum, axis=0), axis=0)
-    fwd = np.array([v[0], v[1], 0.0]) / np.hypot(v[0], v[1])
+def real(data: Path) -> list[dict]:
+    """:func:`contact_features` of both legs of Vicon ``walking2`` (steady strides)."""
+    gr = _gait_real()
+    _, t, rate, marker, sacrum, fwd = gr.walk_markers(data / gr.FILE)
     left = np.cross([0.0, 0.0, 1.0], fwd)
     rows = []
     for side, pre in (("r", "R"), ("l", "L")):
@@ -193,20 +186,8 @@ PERCENT = np.array([0, 4, 8, 12, 70, 80, 86, 90, 94, 96, 98, 100])
 
 def real_angles(data: Path) -> list[tuple[str, float, np.ndarray, np.ndarray]]:
     """``(side, IC s, hip (deg), knee (deg))`` at :data:`PERCENT` of each steady real stride."""
-    import ezc3d
-
-    c = ezc3d.c3d(str(data / "formats/c3d/vicon_nexus_walking2.c3d"))
-    labels = c["parameters"]["POINT"]["LABELS"]["value"]
-    rate = float(c["parameters"]["POINT"]["RATE"]["value"][0])
-    pts = c["data"]["points"][:3] / 1000.0
-    t = np.arange(pts.shape[2]) / rate
-
-    def marker(name: str) -> np.ndarray:
-        return pts[:, labels.index(name), :].T
-
-    sacrum = (marker("RPSI") + marker("LPSI")) / 2
-    v = np.nanmean(np.diff(sacrum, axis=0), axis=0)
-    fwd = np.array([v[0], v[1], 0.0]) / np.hypot(v[0], v[1])
+    gr = _gait_real()
+    _, t, _, marker, sacrum, fwd = gr.walk_markers(data / gr.FILE)
     up = np.array([0.0, 0.0, 1.0])
 
     def angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:  # a → b forward of straight down

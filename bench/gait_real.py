@@ -189,17 +189,14 @@ def _lengths(marker, rate, left, fwd, sacrum, zeni_ic, det_ic) -> list[tuple]:
     return [r for r in rows if np.isfinite(r[3])]
 
 
-def evaluate(path: Path) -> dict:
-    """The walk's numbers: ``events`` rows ``(side, IC|FC, reference, time s, error ms)``,
-    ``stance`` and ``lengths`` rows (:func:`_stance`, :func:`_lengths`), ``hips``
-    (:func:`hip_axes`) and ``seconds``, ``rate``."""
+def walk_markers(path: Path):
+    """The C3D walk's ``(c3d, t (s), rate (Hz), marker, sacrum, fwd)``: ``marker(name)`` the
+    (N, 3) trajectory in m, ``sacrum`` the mid-PSIS, ``fwd`` the horizontal walking direction."""
     c = ezc3d.c3d(str(path))
-    par = c["parameters"]
-    labels = par["POINT"]["LABELS"]["value"]
-    rate = float(par["POINT"]["RATE"]["value"][0])
+    labels = c["parameters"]["POINT"]["LABELS"]["value"]
+    rate = float(c["parameters"]["POINT"]["RATE"]["value"][0])
     pts = c["data"]["points"][:3] / 1000.0  # (3, M, N) mm → m
-    n = pts.shape[2]
-    t = np.arange(n) / rate
+    t = np.arange(pts.shape[2]) / rate
 
     def marker(name: str) -> np.ndarray:
         return pts[:, labels.index(name), :].T
@@ -207,6 +204,16 @@ def evaluate(path: Path) -> dict:
     sacrum = (marker("RPSI") + marker("LPSI")) / 2
     v = np.nanmean(np.diff(sacrum, axis=0), axis=0)
     fwd = np.array([v[0], v[1], 0.0]) / np.hypot(v[0], v[1])
+    return c, t, rate, marker, sacrum, fwd
+
+
+def evaluate(path: Path) -> dict:
+    """The walk's numbers: ``events`` rows ``(side, IC|FC, reference, time s, error ms)``,
+    ``stance`` and ``lengths`` rows (:func:`_stance`, :func:`_lengths`), ``hips``
+    (:func:`hip_axes`) and ``seconds``, ``rate``."""
+    c, t, rate, marker, sacrum, fwd = walk_markers(path)
+    par = c["parameters"]
+    n = len(t)
     left = np.cross([0.0, 0.0, 1.0], fwd)
     an = c["data"]["analogs"][0]
     alab = par["ANALOG"]["LABELS"]["value"]
