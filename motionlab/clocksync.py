@@ -100,7 +100,7 @@ from scipy.interpolate import CubicSpline
 from scipy.optimize import least_squares, minimize_scalar
 from scipy.signal import butter, sosfiltfilt
 
-from motionlab.clocknet import CENTRE_FLOOR_S, solve_network
+from motionlab.clocknet import CENTRE_FLOOR_S, IMPACTS, NETWORK, solve_network
 from motionlab.protocol import Protocol
 from motionlab.results import ClockFit, ClockSync
 from motionlab.segments import sensor_for_segment
@@ -124,7 +124,6 @@ DRIFT_PRIOR = 50e-6  # prior standard deviation of one clock's drift against ano
 MIN_SAMPLES = 100  # finite accelerometer and gyroscope samples a sensor needs
 SETTLE_S = 0.3  # samples this close to a gap are left out (s)
 BODY = 12  # parameters besides the clock: two lever arms and two accelerometer biases
-JOINT_CENTRE, IMPACTS, NETWORK = "joint centre", "impacts", "network"  # ClockFit.method
 IMPACT_BAND_HZ = (7.0, 40.0)  # band of the heel-strike transients (upper ≤ 0.4 × rate) (Hz)
 IMPACT_ORDER = 8  # Butterworth order of the band-pass (flat over the 10-16 Hz of tissue ringing)
 IMPACT_ENVELOPE_HZ = 8.0  # zero-phase low-pass of the energy envelope (Hz)
@@ -557,8 +556,7 @@ def _synchronise_network(
 ) -> list[ClockFit]:
     """Every sensor's clock at once from all pairwise measurements on the raw clocks
     (:func:`motionlab.clocknet.solve_network`). A sensor that no reliable measurement ties to
-    the root follows its reference's clock (as in the tree), and the sensors tied to it are
-    solved against it."""
+    the root follows its reference's clock (its recorded timing against it is kept)."""
     edges = [(a, b) for a, b in _edges(session, protocol) if a in label and b in label]
     centres = {
         (a, b): estimate_clock(session.sensors[label[a]], session.sensors[label[b]], max_offset_s)
@@ -572,22 +570,10 @@ def _synchronise_network(
     t0 = float(np.mean(session.sensors[root].time[[0, -1]]))
     span = float(np.ptp(session.sensors[root].time))
     clocks: dict[str, tuple] = {root: (None, "")}  # label: (NetworkClock or None, follows)
-    solved = solve_network(pool, root, t0, envelope, floor)
-    clocks.update({k: (v, "") for k, v in solved.items()})
-    for ref_seg, seg in tree:
-        lab = label[seg]
-        if lab in clocks:
-            continue
-        # not tied to the root: follow the reference, and solve what is tied to this sensor
-        clocks[lab] = (clocks[label[ref_seg]][0], label[ref_seg])
-        base = clocks[lab][0]
-        for k, v in solve_network(pool, lab, t0, envelope, floor).items():
-            if k not in clocks:
-                if base is not None:
-                    v = replace(v, offset_s=v.offset_s + base.offset_s, drift=v.drift + base.drift,
-                                offset_se_s=float(np.hypot(v.offset_se_s, base.offset_se_s)),
-                                drift_se=float(np.hypot(v.drift_se, base.drift_se)))  # fmt: skip
-                clocks[k] = (v, "")
+    clocks.update({k: (v, "") for k, v in solve_network(pool, root, t0, envelope, floor).items()})
+    for ref_seg, seg in tree:  # not tied to the root: the reference's clock (tree order)
+        if label[seg] not in clocks:
+            clocks[label[seg]] = (clocks[label[ref_seg]][0], label[ref_seg])
     fits = []
     for _, seg in tree:
         lab = label[seg]

@@ -168,3 +168,29 @@ def test_no_heel_strikes_tree_unchanged():
     for f in fits:
         if f.reference == root:
             assert f == dataclasses.replace(estimate_clock(raw[root], raw[f.sensor]), other=f.other)
+
+
+def test_sensor_tied_by_nothing_follows_its_reference():
+    """A shank whose signals time nothing (it lies still: no heel strikes, no shared movement
+    at the knee) is not left on its own clock while its thigh moves: it takes the thigh's
+    correction, so the knee keeps its recorded timing, and its line says so."""
+    walk = load_protocol("walk")
+    session, _ = simulate(walk, 60.0, 0, "typical")
+    prepare_sensors(session)
+    still = session.sensors["shank_l"]
+    rng = np.random.default_rng(0)
+    n = len(still.time)
+    session.sensors["shank_l"] = dataclasses.replace(
+        still,
+        gyr=0.001 * rng.standard_normal((n, 3)),
+        acc=np.array([0.0, 0.0, 9.81]) + 0.01 * rng.standard_normal((n, 3)),
+    )
+    recorded = session.sensors["shank_l"].time.copy()
+    fits = {f.sensor: f for f in synchronise(session, walk)}
+    shank, thigh = fits["shank_l"], fits["thigh_l"]
+    assert shank.method == "network" and shank.status.startswith("not reliable")
+    assert "follows thigh_l's clock" in describe(shank)
+    assert thigh.status == "applied"  # seed 0: the left thigh's clock is corrected
+    shift = session.sensors["shank_l"].time - recorded
+    assert np.allclose(shift, thigh.corrected_time(recorded) - recorded, atol=1e-9)
+    assert np.max(np.abs(shift)) > 1e-4  # it did move with the thigh
