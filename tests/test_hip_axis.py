@@ -58,8 +58,9 @@ def test_a_still_hip_is_not_used():
 
 def test_simulated_walk_hip_adduction_without_the_knee_axis_cross_talk():
     """Seed 2 (one clock): the gait knee fit turns the right thigh 8° about its long axis,
-    which gave hip adduction RMSE 4.7° with the knee-axis frame; measured about the dominant
-    hip axis it is within the 3° target, and the knee angles do not change."""
+    which gives hip adduction RMSE 3.3° with the knee-axis frame (4.7° before the calibration
+    took the accelerometer bias at its wider prior); measured about the dominant hip axis it is
+    within the 3° target (1.25°), and the knee angles do not change."""
     proto = load_protocol("walk")
     timing = dataclasses.replace(
         get_preset("typical").timing, clock_offset_sigma_s=0.0, clock_drift_sigma=0.0
@@ -76,7 +77,8 @@ def test_simulated_walk_hip_adduction_without_the_knee_axis_cross_talk():
     err = ang["hip_r_adduction_deg"] - np.interp(
         ang["time_s"], truth.time, truth.joint_angles["hip_r_adduction_deg"]
     )
-    assert np.sqrt(np.mean(err[w] ** 2)) < 3.0
+    about_hip_axis = np.sqrt(np.mean(err[w] ** 2))
+    assert about_hip_axis < 3.0  # measured 1.25°
     # the hip's turn is the hip's alone: the knee is the thigh's knee-axis frame as before
     cal.hip_axes = {}
     from motionlab.kinematics.session_angles import session_angles
@@ -87,7 +89,8 @@ def test_simulated_walk_hip_adduction_without_the_knee_axis_cross_talk():
     e0 = plain["hip_r_adduction_deg"] - np.interp(
         plain["time_s"], truth.time, truth.joint_angles["hip_r_adduction_deg"]
     )
-    assert np.sqrt(np.mean(e0[w] ** 2)) > 3.5
+    knee_axis_frame = np.sqrt(np.mean(e0[w] ** 2))
+    assert knee_axis_frame > 3.0 and knee_axis_frame > 2 * about_hip_axis  # measured 3.30°
 
 
 def _pelvis_forward_error(duration: float, seed: int):

@@ -34,7 +34,9 @@ Model (conventions of :mod:`motionlab.rotations`: scalar-first quaternions, sens
   rests in different poses, or one rest next to movement that fixes the inclination by itself
   (a walk with turns, whose horizontal bias turns in the earth frame and averages out). A
   sensor-to-segment calibration taken at such a rest is then less tilted by the bias (it reads
-  ``acc − a``, :func:`motionlab.segments.corrected_acc`). How far the filter believes the
+  ``acc − a`` with ``a`` from this smoother at the wider prior
+  :data:`motionlab.fusion.stage.CALIBRATION_ACC_BIAS_INIT`,
+  :func:`motionlab.fusion.stage.calibration_acc_bias`). How far the filter believes the
   movement over the rest is set by ``acc_bias_init`` against the gyroscope noise of the model
   (a catch-all tuned on BROAD, far above a MEMS gyroscope's): the default 0.1 m/s² (a
   datasheet-level offset, the simulator's ``typical`` σ) takes about a tenth of the stand's tilt
