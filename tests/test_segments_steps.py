@@ -129,6 +129,21 @@ def test_all_missing_steps_named_at_once_with_what_the_recording_holds(knee):
     assert "'walk'" in msg  # the shipped protocol that fits a stand and a walk
 
 
+def test_a_recording_without_a_rest_says_no_shipped_protocol_fits_and_why():
+    t = np.arange(0, 30, 1 / RATE)
+    rate, _ = movement(t, -1.0, 30, 1.2, 0.1, 2.0)  # moving from the first sample to the last
+    streams = {
+        seg: (t, np.tile([0.0, 9.81, 0.0], (len(t), 1)), rate[:, None] * [0.0, 0.0, 1.0])
+        for seg in ("pelvis", "thigh_r", "thigh_l", "shank_r", "shank_l")
+    }
+    with pytest.raises(InputError) as err:
+        find_steps(streams, load_protocol("walk"))
+    msg = err.value.line()
+    assert "'standing' (static) not found" in msg and "the recording holds movement 0.0-" in msg
+    assert "no shipped protocol fits a recording without a rest" in msg
+    assert "record one before the task" in msg
+
+
 def test_a_contradicted_hint_gives_one_warning_and_the_data_is_used(knee):
     warnings: list[str] = []
     with pytest.raises(InputError):  # the seated steps are still missing

@@ -392,12 +392,25 @@ def find_steps(
             f"calibration step{'s' if len(missing) > 1 else ''} {names} not found; {describe(bl)}",
             protocol.path,
             "calibration",
-            (f"the shipped protocol {' or '.join(repr(f) for f in fits)} fits this recording; "
-             if fits else "")
-            + "or check the recording holds the steps in protocol order, or give their "
-            "time_range",
-        )  # fmt: skip
+            _remedy(fits, suggest, any(not b.moving and b.end - b.start >= 1.0 for b in bl)),
+        )
     return found
+
+
+def _remedy(fits: list[str], suggested: bool, has_rest: bool) -> str:
+    """What to do about missing steps: a shipped protocol that fits, or why none does."""
+    check = "check the recording holds the steps in protocol order, or give their time_range"
+    if fits:
+        names = " or ".join(repr(f) for f in fits)
+        return f"the shipped protocol {names} fits this recording; or {check}"
+    if not suggested:
+        return check
+    if not has_rest:
+        return (
+            "no shipped protocol fits a recording without a rest (each starts with a pose held "
+            f"still for a few seconds, mostly a stand): record one before the task, or {check}"
+        )
+    return f"no shipped protocol fits this recording either; {check}"
 
 
 def fitting_protocols(streams: Streams, protocol: Protocol) -> list[str]:
