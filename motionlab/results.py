@@ -174,10 +174,11 @@ class FusionEntry(_Record):
     earth, scalar first, on the sensor's own time stamps; ``params``: estimator parameters (SI);
     ``magnetometer``: 9-D (one earth heading shared by the sensors) or 6-D. What the estimator
     reports besides, when it does: ``gyro_bias`` (N, 3) rad/s, ``acc_bias`` (N, 3) m/s² in the
-    sensor frame (the bias the calibration takes off the accelerometer, its gravity directions
-    being ``acc − acc_bias``: the default smoother's bias states at the calibration's wider
-    prior, :func:`motionlab.fusion.stage.calibration_acc_bias`; none when the estimator has no
-    such states; files written before it existed hold none), ``rest`` (N,) bool,
+    sensor frame (what the segment calibration takes off the recorded accelerometer, its gravity
+    directions being ``acc − acc_bias``: the default smoother's bias states at the calibration's
+    wider prior, :func:`motionlab.fusion.stage.calibration_acc_bias`, plus the correction of a
+    sensor calibration applied at fuse; none when there is neither; files written before it
+    existed hold none), ``rest`` (N,) bool,
     ``mag_disturbed`` (N,) bool, marker ``scenario``, ``gaps_bridged_s`` (packet-loss gaps it
     ran across, s), ``nan_bridged_s`` (runs of non-finite samples held over, ``[start, end]``
     s each). ``sensor_calibration``: the per-serial sensor calibration applied

@@ -202,7 +202,11 @@ def fuse(
         session.sensors = recorded
     store = session.results.fusion
     for label, stream in calibrated.items():
-        store[label].sensor_calibration = stream.attrs["calibration"]
+        entry = store[label]
+        entry.sensor_calibration = stream.attrs["calibration"]
+        if stream.acc is not None:  # the segment calibration reads the recorded accelerometer
+            bias = 0.0 if entry.acc_bias is None else entry.acc_bias
+            entry.acc_bias = recorded[label].acc - stream.acc + bias
     for label in done:
         spans = store[label].nan_bridged_s
         if spans:

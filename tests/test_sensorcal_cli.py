@@ -8,7 +8,8 @@ from sensorcal_signals import measure, random_poses, trajectory
 
 from motionlab import rotations as rot
 from motionlab.cli import main
-from motionlab.sensorcal import load_calibration
+from motionlab.segments import corrected_acc
+from motionlab.sensorcal import apply_calibration, load_calibration
 from motionlab.session import SensorStream, Session, load_session, save_session
 
 RNG = np.random.default_rng(42)
@@ -103,6 +104,10 @@ def test_fuse_applies_the_calibration_by_serial(session_file, tmp_path, recordin
     assert entry.sensor_calibration["serial"] == "SIM 001"
     _, q_true, sig = recording
     assert np.array_equal(ses.sensors["shank_r"].gyr, sig["gyr"])  # the data stay as recorded
+    # the segment calibration's accelerometer is the one the fusion saw (madgwick: no bias states)
+    seen = apply_calibration(ses.sensors["shank_r"], load_calibration(next(caldir.iterdir())))
+    assert np.abs(corrected_acc(ses, "shank_r") - seen.acc).max() < 1e-12
+    assert np.abs(corrected_acc(ses, "shank_r") - sig["acc"]).max() > 0.05
     assert ses.provenance[-1]["parameters"]["calibration"] == str(caldir)
 
     def error_deg(q):  # orientation error over the tumble, heading offset removed
