@@ -4,8 +4,10 @@ Each angle of each joint is graded from what its two segments' calibrations actu
 
 - ``determined``: every axis the angle depends on was measured — for the angle about a hinge
   axis (flexion of a knee or elbow, a generic hinge's angle) the axis itself, from a functional
-  step or from movement with a ``determined`` fit; for the other angles both segment frames from
-  two independent measured axes (a static pose's gravity, a movement's axis) with no quality
+  step or from movement with a ``determined`` fit, and its zero: both segment frames measured
+  whole (a segment with only the hinge axis measured takes its turn about that axis, hence the
+  angle's zero, from the placement hint); for the other angles both segment frames from two
+  independent measured axes (a static pose's gravity, a movement's axis) with no quality
   message;
 - ``weak``: one measured axis and the nominal placement (the protocol's ``sensor_axes`` hint)
   for the rest, a ``weak`` hinge fit, or a calibration the quality checks flagged;
@@ -73,10 +75,26 @@ def _axis_grade(joint, calibration: SegmentCalibration) -> tuple[str, str]:
     return grade, reason
 
 
+def _zero_grade(joint, segs: dict[str, Any], grade: str, reason: str) -> tuple[str, str]:
+    """The hinge angle's grade made ``weak`` when its zero rests on a placement hint: a segment
+    whose frame has one measured axis (the hinge's, with no reference pose) is turned about it
+    as the protocol's ``sensor_axes`` say, and the angle's offset follows that turn."""
+    if grade != "determined":
+        return grade, reason
+    for seg in (joint.proximal, joint.distal):
+        cal = segs.get(seg)
+        if cal is not None and cal.get("method") not in FULL_FRAME:
+            return "weak", (
+                f"its zero is {seg}'s placement hint (one measured axis, no reference pose): "
+                "the curve is measured, its offset is not"
+            )
+    return grade, reason
+
+
 def grade_joints(protocol, calibration: SegmentCalibration) -> dict[str, dict[str, list[str]]]:
     """``{joint: {"grades": [3 str], "reasons": [3 str]}}`` for every protocol joint; the first
     angle of a hinge-like joint (knee, elbow, hinge: :func:`.placement.hinge_spec`) is graded by
-    its axis alone."""
+    its axis and its zero."""
     from motionlab.segments.placement import hinge_spec
 
     out = {}
@@ -95,7 +113,7 @@ def grade_joints(protocol, calibration: SegmentCalibration) -> dict[str, dict[st
             r_frame = "; ".join(filter(None, [r_frame, "the hinge axis from movement is "
                                               + fit["verdict"]]))  # fmt: skip
         if hinge_spec(joint) is not None:
-            g_axis, r_axis = _axis_grade(joint, calibration)
+            g_axis, r_axis = _zero_grade(joint, segs, *_axis_grade(joint, calibration))
             grades = [g_axis, g_frame, g_frame]
             reasons = [r_axis, r_frame, r_frame]
         else:

@@ -1,0 +1,41 @@
+"""A hinge angle is ``determined`` only when its zero is measured too: both segment frames whole
+(:func:`motionlab.segments.grades.grade_joints`)."""
+
+from pathlib import Path
+
+import pytest
+
+from motionlab.protocol import load_protocol
+from motionlab.results import SegmentCalibration
+from motionlab.segments.grades import grade_joints
+
+RIG = Path(__file__).resolve().parents[1] / "motionlab/protocols/examples/ring_rig.yaml"
+MEASURED = {"kind": "movement", "used": True}
+
+
+def _calibration(seg4_method: str) -> SegmentCalibration:
+    """hinge34 (seg3-seg4, axis y) with its axis fitted from movement (``determined``)."""
+    segs = {
+        "seg3": {"method": "procrustes", "axes": {"hinge23": MEASURED, "hinge34": MEASURED}},
+        "seg4": {"method": seg4_method, "axes": {"hinge34": MEASURED}},
+    }
+    fit = {"verdict": "determined", "used_for": "axes", "reasons": []}
+    return SegmentCalibration("ring_rig", segments=segs, hinges={"hinge34": fit})
+
+
+def _hinge34(method: str) -> tuple[str, str]:
+    protocol = load_protocol(RIG)
+    protocol.joints = {"hinge34": protocol.joints["hinge34"]}
+    g = grade_joints(protocol, _calibration(method))["hinge34"]
+    return g["grades"][0], g["reasons"][0]
+
+
+@pytest.mark.parametrize("method", ["procrustes", "primary_secondary"])
+def test_a_hinge_between_two_whole_frames_is_determined(method):
+    assert _hinge34(method) == ("determined", "")
+
+
+def test_a_hinge_whose_zero_is_a_placement_hint_is_weak_and_says_why():
+    grade, reason = _hinge34("single_axis")
+    assert grade == "weak"
+    assert reason.startswith("its zero is seg4's placement hint")
