@@ -130,7 +130,7 @@ def fuse_session(
             gyro_bias=res.gyro_bias,
             rest=res.rest,
             mag_disturbed=res.mag_disturbed,
-            acc_bias=_calibration_bias(res, s, est.name, params),
+            acc_bias=_calibration_bias(res, s, params),
         )
         done.append(label)
     return done
@@ -159,7 +159,7 @@ def calibration_acc_bias(
     return np.asarray(res.extra["acc_bias"], dtype=float)
 
 
-def _calibration_bias(res: Any, s: Any, name: str, params: dict[str, str]) -> np.ndarray | None:
+def _calibration_bias(res: Any, s: Any, params: dict[str, str]) -> np.ndarray | None:
     """:func:`calibration_acc_bias` for a result with accelerometer-bias states (none when
     the estimator has none or they are switched off)."""
     if res.extra.get("acc_bias") is None or not float(res.params.get("acc_bias_init", 0.0)):

@@ -73,6 +73,8 @@ RIGID_TOLERANCE = 0.25
 MIN_TASK_S = 2.0
 SAME_AXIS_DEG = 20.0
 MIN_RECORDING_S = 1.0
+#: a rest shorter than this (s) is no pose: not a static step, not named in a message
+SHORTEST_POSE_S = 1.0
 
 Streams = dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
 
@@ -154,7 +156,7 @@ def blocks(streams: Streams) -> list[Block]:
 
 
 def _static_match(step: CalibrationStep, block: Block, protocol: Protocol) -> bool:
-    if block.moving or block.end - block.start < max(1.0, 0.5 * step.duration_s):
+    if block.moving or block.end - block.start < max(SHORTEST_POSE_S, 0.5 * step.duration_s):
         return False
     for seg, axis in step.vertical_axis.items():
         if seg not in block.up:
@@ -292,7 +294,7 @@ def _fits_without_hint(
     """A rest long enough for a static step whose vertical axes are consistent with the static
     steps found before it: a segment named in both turned between them by the angle between
     the two steps' segment axes (standing → sitting: the thigh by 90°), whatever its mounting."""
-    if block.moving or block.end - block.start < max(1.0, 0.5 * step.duration_s):
+    if block.moving or block.end - block.start < max(SHORTEST_POSE_S, 0.5 * step.duration_s):
         return False
     for other, b in earlier:
         for seg, axis in step.vertical_axis.items():
@@ -312,7 +314,7 @@ def describe(bl: list[Block]) -> str:
     parts = [
         f"{'movement' if b.moving else 'rest'} {_fmt(b)} ({b.end - b.start:.1f} s)"
         for b in bl
-        if b.end - b.start >= (TWITCH_S if b.moving else 1.0)
+        if b.end - b.start >= (TWITCH_S if b.moving else SHORTEST_POSE_S)
     ]
     if len(parts) > 8:
         parts = parts[:7] + [f"... {len(parts) - 7} more"]
@@ -392,9 +394,14 @@ def find_steps(
             f"calibration step{'s' if len(missing) > 1 else ''} {names} not found; {describe(bl)}",
             protocol.path,
             "calibration",
-            _remedy(fits, suggest, any(not b.moving and b.end - b.start >= 1.0 for b in bl)),
+            _remedy(fits, suggest, any(_is_pose(b) for b in bl)),
         )
     return found
+
+
+def _is_pose(b: Block) -> bool:
+    """A rest long enough to be a pose (:data:`SHORTEST_POSE_S`)."""
+    return not b.moving and b.end - b.start >= SHORTEST_POSE_S
 
 
 def _remedy(fits: list[str], suggested: bool, has_rest: bool) -> str:
