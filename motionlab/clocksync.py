@@ -102,6 +102,7 @@ from scipy.signal import butter, sosfiltfilt
 
 from motionlab.clocknet import CENTRE_FLOOR_S, IMPACTS, NETWORK, solve_network
 from motionlab.protocol import Protocol
+from motionlab.qc import measurable
 from motionlab.results import ClockFit, ClockSync
 from motionlab.segments import sensor_for_segment
 from motionlab.session import SensorStream, Session
@@ -185,7 +186,7 @@ def _signals(stream: SensorStream) -> _Signals:
     t = np.asarray(stream.time, float)
     dt = 1.0 / stream.rate_hz
     grid = t[0] + np.arange(int(np.floor((t[-1] - t[0]) / dt)) + 1) * dt
-    ok = np.all(np.isfinite(stream.acc), axis=1) & np.all(np.isfinite(stream.gyr), axis=1)
+    ok = measurable(stream.acc, "acc") & measurable(stream.gyr, "gyr")
     t_ok = t[ok]
     raw = np.hstack([stream.acc[ok], stream.gyr[ok]])
     on_grid = np.column_stack([np.interp(grid, t_ok, raw[:, k]) for k in range(6)])
@@ -461,10 +462,10 @@ def _usable(session: Session, segment: str) -> bool:
 
 
 def _finite_samples(s: SensorStream) -> int:
-    """Samples with a finite accelerometer and gyroscope reading (0 without either)."""
+    """Samples with a measurable accelerometer and gyroscope reading (0 without either)."""
     if s.acc is None or s.gyr is None:
         return 0
-    return int(np.sum(np.all(np.isfinite(s.acc), axis=1) & np.all(np.isfinite(s.gyr), axis=1)))
+    return int(np.sum(measurable(s.acc, "acc") & measurable(s.gyr, "gyr")))
 
 
 def _centre_floor(a: str, b: str) -> float:
@@ -690,7 +691,7 @@ def _envelope(stream: SensorStream) -> _Envelope:
     t = np.asarray(stream.time, float)
     dt = 1.0 / stream.rate_hz
     grid = t[0] + np.arange(int(np.floor((t[-1] - t[0]) / dt)) + 1) * dt
-    ok = np.all(np.isfinite(stream.gyr), axis=1)
+    ok = measurable(stream.gyr, "gyr")
     t_ok = t[ok]
     on_grid = np.column_stack([np.interp(grid, t_ok, stream.gyr[ok, k]) for k in range(3)])
     high = min(IMPACT_BAND_HZ[1], 0.4 / dt)

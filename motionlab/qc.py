@@ -59,6 +59,14 @@ HELD_SHARE = 0.2  # share of rows repeating the previous one above which samples
 IMPLAUSIBLE = {"acc": 1e4, "gyr": 1e3, "mag": 1e5, "quat": 10.0}  # m/s², rad/s, µT, 1
 
 
+def measurable(samples: np.ndarray, channel: str) -> np.ndarray:
+    """(N,) bool: the samples (N, ...) of ``channel`` that are finite and within what a sensor
+    measures (:data:`IMPLAUSIBLE`); a 1e300 spike is as unusable as a NaN."""
+    a = np.asarray(samples, dtype=float).reshape(len(samples), -1)
+    with np.errstate(invalid="ignore"):
+        return (np.isfinite(a) & (np.abs(a) <= IMPLAUSIBLE[channel])).all(axis=1)
+
+
 def saturated_samples(values: np.ndarray, minimum: float) -> int:
     """Samples in flat tops: runs of ≥ 3 identical values at an axis' extreme (≥ ``minimum``)."""
     count = 0

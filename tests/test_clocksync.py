@@ -173,6 +173,19 @@ def test_nan_sensor_left_out(knee, typical):
                                                    knee)  # fmt: skip
 
 
+def test_an_implausible_spike_is_left_out_like_a_gap(typical):
+    """0.2 s of 1e300 m/s² in the gait (damage, not motion): the fit neither fails on
+    overflowing residuals nor moves, it bridges the spike as it bridges a gap."""
+    session, _ = typical
+    shank = session.sensors["shank_r"]
+    spiked = shank.acc.copy()
+    spiked[(shank.time > 80.0) & (shank.time < 80.2)] = 1e300
+    fit = estimate_clock(session.sensors["thigh_r"], dataclasses.replace(shank, acc=spiked))
+    clean = estimate_clock(session.sensors["thigh_r"], shank)
+    assert fit.status == clean.status == "applied"
+    assert abs(fit.offset_s - clean.offset_s) < 0.0005
+
+
 def test_short_movement_is_not_reliable(typical):
     """Less than three blocks of shared movement (a 40 s session): no correction, no crash."""
     session, _ = typical
