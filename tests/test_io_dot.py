@@ -102,3 +102,22 @@ def test_shared_dot_files():
         assert s.rate_hz == pytest.approx(60.0, abs=0.01)
         assert s.duration_s == pytest.approx(n / 60.0, abs=1e-3)
         np.testing.assert_allclose(np.linalg.norm(s.quat, axis=1), 1.0, atol=1e-12)
+
+
+RATE_QUANTITIES = DATA / "dot" / "femur_rate_quantities_excerpt.csv"
+
+
+def test_rate_quantities_export_is_read_in_si_units():
+    """The DOT app's 2024 "Inertial data mode – rate quantities (with mag)" export: raw acc
+    (m/s²), gyr (deg/s → rad/s) and mag (a.u.), no orientation; the label is the DeviceTag."""
+    s = _one(RATE_QUANTITIES)
+    raw = np.genfromtxt(RATE_QUANTITIES, delimiter=",", skip_header=12)
+    assert s.n_samples == 200 and s.label == "Femur" and s.serial == "Femur"
+    assert s.quat is None and s.channels == ["acc", "gyr", "mag"]
+    np.testing.assert_allclose(s.acc, raw[:, 2:5])
+    np.testing.assert_allclose(s.gyr, np.radians(raw[:, 5:8]))
+    np.testing.assert_allclose(s.mag, raw[:, 8:11] * 50.0)
+    assert s.source_units == {"acc": "m/s^2", "gyr": "deg/s", "mag": "a.u."}
+    np.testing.assert_allclose(s.time - s.time[0], (raw[:, 1] - raw[0, 1]) * 1e-6, atol=1e-9)
+    # seated at the start: gravity along the thigh sensor's z, about 1 g
+    assert 9.5 < np.linalg.norm(s.acc[:20].mean(axis=0)) < 10.1

@@ -66,13 +66,16 @@ def _is_table_header(line: str) -> bool:
 
 def sniff(path: Path, head: bytes) -> bool:
     """A DOT export: ``Key:,value`` lines and a table with ``PacketCounter``, ``SampleTimeFine``
-    and DOT channel names (``Quat_W``, ``Euler_X`` or ``FreeAcc_X``)."""
+    and DOT channel names (``Quat_W``, ``Euler_X`` or ``FreeAcc_X``; or ``Acc_X`` and ``Gyr_X``
+    in the "Inertial data mode – rate quantities" export)."""
     lines = head.decode("utf-8", errors="replace").lstrip("\ufeff").splitlines()
     i = find_line(lines, _is_table_header, limit=40)
     if i < 0:
         return False
     fields = split_fields(lines[i], ",")
-    dot_cols = {"Quat_W", "Euler_X", "FreeAcc_X"} & set(fields)
+    dot_cols = {"Quat_W", "Euler_X", "FreeAcc_X"} & set(fields) or (
+        {"Acc_X", "Gyr_X"} <= set(fields) and {"Acc_X"}
+    )
     keyed = any(re.match(r"^[A-Za-z ]+:\s*,", line) for line in lines[:i])
     return bool(dot_cols) and (keyed or lines[0].strip().lower() == "sep=,")
 

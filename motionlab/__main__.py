@@ -1,0 +1,5 @@
+"""``python -m motionlab``: the ``motionlab`` command (for a source tree that is not installed)."""
+
+from motionlab.cli import main
+
+main()
