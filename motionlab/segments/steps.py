@@ -421,7 +421,8 @@ def _remedy(fits: list[str], suggested: bool, has_rest: bool) -> str:
 
 
 def fitting_protocols(streams: Streams, protocol: Protocol) -> list[str]:
-    """Shipped protocols (other than ``protocol``) whose segments and steps this recording has."""
+    """Shipped protocols (other than ``protocol``) whose required segments, the two segments of
+    at least one joint, and whose steps this recording has."""
     from motionlab.protocol import PACKAGED, load_protocol
 
     out = []
@@ -430,7 +431,9 @@ def fitting_protocols(streams: Streams, protocol: Protocol) -> list[str]:
         if other.name == protocol.name:
             continue
         needed = [s for s, spec in other.segments.items() if spec.required]
-        if not needed or any(s not in streams for s in needed):
+        if any(s not in streams for s in needed) or not any(
+            j.proximal in streams and j.distal in streams for j in other.joints.values()
+        ):
             continue
         try:
             find_steps({s: streams[s] for s in other.segments if s in streams}, other, None, False)
