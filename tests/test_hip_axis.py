@@ -137,3 +137,14 @@ def test_pelvis_forward_from_turns_that_agree_less_well_when_the_hint_is_contrad
     cal, angle = _pelvis_forward_error(74.0, 4)
     assert "movement:turns" in cal.segments["pelvis"]["axes"]
     assert angle < 20.0
+
+
+def test_pelvis_forward_from_the_first_steps_when_the_walk_has_no_two_turns():
+    """A stand and a short walk (20 s, seed 1): fewer than two turns, so the pelvis's forward
+    direction comes from the velocity of the first steps after the stand, within 10° (measured
+    3.6°) where the contradicted hint is 142° off; still graded weak."""
+    cal, angle = _pelvis_forward_error(20.0, 1)
+    assert cal.segments["pelvis"]["axes"]["movement:turns"]["method"] == "walk start"
+    assert any("taken from the first steps of the walk" in w for w in cal.warnings)
+    assert cal.grades["hip_r"]["grades"] == ["weak"] * 3
+    assert angle < 10.0

@@ -57,10 +57,13 @@ def _frame_grade(segment: str, cal: dict[str, Any] | None) -> tuple[str, str]:
         return "not determined", f"no axis of {segment} was measured (nominal placement only)"
     if method not in FULL_FRAME:
         return "weak", f"{segment}'s frame has one measured axis, the rest is the nominal placement"
-    if any(
-        r.get("method") == "turns" and r.get("used", True) for r in cal.get("axes", {}).values()
-    ):
+    methods = {r.get("method") for r in cal.get("axes", {}).values() if r.get("used", True)}
+    if "turns" in methods:
         return "weak", f"{segment}'s forward direction is from the walk's turns (about 5-20° off)"
+    if "walk start" in methods:
+        return "weak", (
+            f"{segment}'s forward direction is from the first steps of the walk (about 5-10° off)"
+        )
     if not cal.get("quality", {}).get("ok", True):
         return "weak", f"the calibration of {segment} was flagged"
     return "determined", ""
