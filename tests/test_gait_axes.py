@@ -112,6 +112,7 @@ def test_a_walk_without_a_stand_is_refused_in_one_line(walk):
     with pytest.raises(InputError) as exc:
         find_steps(cut, proto)
     assert "'standing' (static) not found" in str(exc.value)
+    assert "'standing' needs the standing pose held still for at least 2.5 s" in str(exc.value)
     assert "\n" not in str(exc.value)
 
 
