@@ -52,6 +52,9 @@ CONSISTENCY_DEG = (5.0, 15.0)
 DOMINANCE = (0.5, 0.7)
 WITNESS_DEG = (12.0, 25.0)
 RESIDUAL = (0.9, 1.2)
+# a knee extends little past its straight stand (real walks: 0.2-1°; hyperextension is rarely
+# over 10°): more says thigh and shank do not share a knee (a sensor on the other leg)
+EXTENSION_DEG = (10.0, 20.0)
 
 
 @dataclass
@@ -233,7 +236,7 @@ def fit_knee(
         t, q1, q2, axes.axis_proximal, axes.axis_distal, prior_p, prior_d, on, reference, True,
         reasons,
     )  # fmt: skip
-    verdict = _verdict(axes, reasons, hinted="nominal" in (rel_source, sign_source))
+    verdict = _verdict(axes, excursion[1], reasons, hinted="nominal" in (rel_source, sign_source))
     return movement.HingeFit(
         joint=joint,
         axis_proximal=j_p,
@@ -254,9 +257,10 @@ def fit_knee(
     )
 
 
-def _verdict(axes: PrincipalAxes, reasons: list[str], hinted: bool) -> str:
-    """``determined``, ``weak`` or ``not determined`` from the axes' numbers (limits at the top
-    of the module); what falls short is said in ``reasons``."""
+def _verdict(axes: PrincipalAxes, extension_deg: float, reasons: list[str], hinted: bool) -> str:
+    """``determined``, ``weak`` or ``not determined`` from the axes' numbers and the knee's
+    extension past the stand (deg; limits at the top of the module); what falls short is said
+    in ``reasons``."""
     checks = (
         (axes.consistency_deg, CONSISTENCY_DEG,
          f"the axis differs by up to {axes.consistency_deg:.0f}° between parts of the walk"),
@@ -268,6 +272,9 @@ def _verdict(axes: PrincipalAxes, reasons: list[str], hinted: bool) -> str:
         (axes.relative_residual, RESIDUAL,
          f"thigh and shank do not move as one knee (hinge residual "
          f"{100 * axes.relative_residual:.0f}% of the rate)"),
+        (extension_deg if np.isfinite(extension_deg) else 0.0, EXTENSION_DEG,
+         f"the knee would extend {extension_deg:.0f}° past its straight stand: are thigh and "
+         "shank sensors on the same leg?"),
     )  # fmt: skip
     worst = 0
     for value, (good, bad), why in checks:
