@@ -191,8 +191,8 @@ def pelvis_forward(
     contradicted: set[str],
     notes: list[str],
 ) -> dict[str, Any] | None:
-    """The hips' proximal segment's forward direction from the walk's turns, or with fewer than
-    two turns from its first steps (:mod:`.walk_forward`), added to its ``records`` (kind
+    """The hips' proximal segment's forward direction from the walk's turns, or where they do not
+    give it (fewer than two, or disagreeing) from its first steps (:mod:`.walk_forward`), added to its ``records`` (kind
     ``movement``, method ``turns`` or ``walk start``, secondary: gravity keeps
     the tilt) when the recording measured only its vertical axis and the placement hint is
     contradicted: by the stand (its vertical, :func:`.placement.contradicted`) or by the turns
@@ -225,7 +225,7 @@ def pelvis_forward(
     acc = corrected_acc(session, label)
     found = walk_forward.forward_from_turns(s.time, acc, q, s.gyr, up, float(rng[1]), spread)
     method, words = "turns", f"the walk's turns ({found['turns']})"
-    if not found["used"] and found["turns"] < walk_forward.MIN_TURNS:
+    if not found["used"]:
         start = walk_forward.forward_from_start(s.time, acc, q, up, float(rng[1]))
         if start["used"]:
             found, method, words = start, "walk start", "the first steps of the walk"

@@ -50,7 +50,7 @@ LOWPASS_HZ = 3.0  # gait's segment rotations lie below it; soft-tissue wobble an
 # verdicts: (determined up to, weak up to), each measured on real walks (module notes)
 CONSISTENCY_DEG = (5.0, 15.0)
 DOMINANCE = (0.5, 0.7)
-WITNESS_DEG = (12.0, 25.0)
+WITNESS_DEG = (15.0, 25.0)  # the simulator's screw-home knee: 13°; flexion loses 1-cos 15° = 3 %
 RESIDUAL = (0.9, 1.2)
 # a knee extends little past its straight stand (real walks: 0.2-1°; hyperextension is rarely
 # over 10°): more says thigh and shank do not share a knee (a sensor on the other leg)

@@ -1,4 +1,4 @@
-"""The pelvis's forward direction from the walk's turns (or, with fewer than two turns, from its
+"""The pelvis's forward direction from the walk's turns (or, where they do not give it, from its
 first steps), for a pelvis sensor whose placement hint the stand contradicts.
 
 With only gravity in the stand, the pelvis sensor's heading on the pelvis is the protocol's
