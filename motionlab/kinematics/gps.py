@@ -171,14 +171,18 @@ def gated_profile(
     scores: dict[str, dict[str, float]] = {}
     withheld: dict[str, dict[str, str]] = {}
     for side in ("r", "l"):
-        gone: dict[str, str] = dict((mp.get("withheld") or {}).get(side, {}))
+        before = (mp.get("withheld") or {}).get(side, {})
+        gone: dict[str, str] = {}
         curves = mp["gvs"].get(side, {})
         n = strides.get(side)
         for v in VARIABLES:
             grade = grades.get(side, {}).get(v, ("determined", ""))[0]
-            if v in gone or (v not in curves and grade == "determined"):
-                continue  # withheld before, or not measured (no sensor): left out
-            if grade != "determined":
+            if v not in curves and v not in before and grade == "determined":
+                continue  # not measured (no sensor): left out
+            if grade == "determined" and v in before and "steady strides" in before[v]:
+                gone[v] = before[v]  # its score was withheld for its strides: still is
+            elif grade != "determined" or v in before:
+                gone[v] = grade if grade != "determined" else before[v]
                 gone[v] = grade
             elif n is not None and n < MIN_STRIDES:
                 gone[v] = too_few(n)

@@ -24,8 +24,9 @@ of *paired* steps only (a step onto the right and the next step onto the left, b
 second starting at the first's landing), at least :data:`MIN_STRIDES` pairs, with its standard
 error from the paired differences; stride-time variability as the CV of the stride time (Hausdorff
 2005, J NeuroEng Rehabil 2:19), with both sides at :data:`MIN_STRIDES` strides or more, its
-standard error ``CV/√(2n)`` (the large-sample error of a CV of normal data). A number not given
-has its reason in ``withheld`` (``"not enough steady strides (2 of 3 needed)"``).
+standard error ``CV/√(2n)`` (the large-sample error of a CV of normal data); the cadence too
+needs both sides at :data:`MIN_STRIDES`. A number not given has its reason in ``withheld``
+(``"not enough steady strides (2 of 3 needed)"``).
 
 Step length, stride length and walking speed (with thigh and shank sensors and segment lengths):
 a double-pendulum leg model after Salarian et al. (2004, IEEE TBME 51:1434) and Aminian et al.
@@ -267,11 +268,12 @@ def summary(table: pd.DataFrame) -> dict[str, Any]:
         out["sides"][side] = {c: _stats(part[c]) for c in STRIDE_COLUMNS}
         counts[side] = int(part["stride_time_s"].notna().sum())
     stride = kept["stride_time_s"].dropna()
+    fewest = min(counts.values())
     out["cadence_steps_per_min"] = np.nan
-    if len(stride) >= MIN_STRIDES:
+    if fewest >= MIN_STRIDES:
         out["cadence_steps_per_min"] = 120.0 / float(stride.mean())
     else:
-        withheld["cadence_steps_per_min"] = too_few(len(stride))
+        withheld["cadence_steps_per_min"] = too_few(fewest) + " on one side"
     r, left = _paired_steps(kept)
     out["step_pairs"] = len(r)
     out["step_time_asymmetry_pct"] = out["step_time_asymmetry_se_pct"] = np.nan
@@ -283,7 +285,6 @@ def summary(table: pd.DataFrame) -> dict[str, Any]:
     else:
         withheld["step_time_asymmetry_pct"] = too_few(len(r), "paired steady steps")
     out["stride_time_cv_pct"] = out["stride_time_cv_se_pct"] = np.nan
-    fewest = min(counts.values())
     if fewest >= MIN_STRIDES:
         cv = _stats(stride)["cv_pct"]
         out["stride_time_cv_pct"] = cv

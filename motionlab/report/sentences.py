@@ -215,8 +215,8 @@ _BEND = {
 
 def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[str, str]:
     """``(cause, remedy)`` in a clinician's words of a grade's ``reason``
-    (:mod:`motionlab.segments.grades`): ``("axis", "walk 10 straight steps at an even pace")``.
-    """
+    (:mod:`motionlab.segments.grades`; its first clause, the main one):
+    ``("axis", "walk 10 straight steps at an even pace")``."""
     joint = view.protocol.joints[joint_name]
     jt = JOINT_TYPES.get(joint.type)
     display = jt.display if jt is not None else joint.type
@@ -224,7 +224,7 @@ def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[s
     seg = next((sg for sg in (joint.proximal, joint.distal) if sg in reason), "")
     spec = view.protocol.segments.get(seg)
     where = f"{SIDE_NAMES.get(spec.side, '')} {seg.split('_')[0]}".strip() if spec else seg
-    r = reason.lower()
+    r = reason.lower().removeprefix("hinge axis from movement: ").split("; ")[0]
     if "which way the axis points" in r or "direction of flexion" in r:
         return "direction of flexion", f"stand still 5 s with the {display} straight, then {bend}"
     if "its zero" in r:
