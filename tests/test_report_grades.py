@@ -304,12 +304,22 @@ def test_one_turn(walk):
     assert problems(ses, joints=False) == []
 
 
-def test_a_sensor_swapped():
-    ses = _analysed(swap=True)
-    assert problems(ses, joints=False) == []
+@pytest.fixture(scope="module")
+def swapped():
+    return _analysed(swap=True)
 
 
-# ------------------------------------------------------------------------ real recordings
+def test_a_sensor_swapped(swapped):
+    assert problems(swapped, joints=False) == []
+
+
+@pytest.mark.xfail(strict=True, reason="calibration: a shank swapped left for right is graded "
+                   "determined (hinge fits 'determined', knee flexion -36 to 71°)")  # fmt: skip
+def test_a_swapped_shank_is_not_determined(swapped):
+    """The report obeys the grades; the grades must catch the swap (segments, not the report).
+    Strict: when the calibration learns it, this passes and the mark must go."""
+    grades = swapped.results.calibration.grades
+    assert "determined" not in grades["knee_r"]["grades"][:1] + grades["knee_l"]["grades"][:1]
 
 
 DOT_PROTOCOL = """

@@ -23,8 +23,10 @@ stride time of all kept strides; step-time asymmetry as the symmetry index of Ro
 of *paired* steps only (a step onto the right and the next step onto the left, both kept, the
 second starting at the first's landing), at least :data:`MIN_STRIDES` pairs, with its standard
 error from the paired differences; stride-time variability as the CV of the stride time (Hausdorff
-2005, J NeuroEng Rehabil 2:19), with both sides at :data:`MIN_STRIDES` strides or more, its
-standard error ``CV/√(2n)`` (the large-sample error of a CV of normal data); the cadence too
+2005, J NeuroEng Rehabil 2:19) *within* steady bouts (the pooled SD of runs of consecutive kept
+strides over the mean: a change of pace after a turn is no variability), with both sides at
+:data:`MIN_STRIDES` strides or more, its standard error ``CV/√(2 dof)`` (the large-sample error
+of a CV of normal data, dof the pooled degrees of freedom); the cadence too
 needs both sides at :data:`MIN_STRIDES`. A number not given has its reason in ``withheld``
 (``"not enough steady strides (2 of 3 needed)"``).
 
@@ -72,6 +74,14 @@ LENGTH_MODEL = (
 
 #: fewest kept strides of a side (or paired steps) from which a summary number is given
 MIN_STRIDES = 3
+
+#: bounds (s) of the event detector's own timing error, rounded up from docs/kinematics.md:
+#: initial contact within 3 ms on the real walk (n = 4) and 0.4-1.5 ms on the simulator; final
+#: contact 9-16 ms after the force plates (n = 2), -14 to +8 ms from Zeni's (n = 4)
+IC_ERROR_S, FC_ERROR_S = 0.01, 0.02
+#: relative bound of the leg model's step and stride length and speed: 2 % on the one real walk
+#: its foot-roll factor was taken from (a training error), so 5 % is assumed
+LENGTH_ERROR = 0.05
 
 #: per-stride columns (units in the names)
 STRIDE_COLUMNS = (
@@ -210,6 +220,33 @@ def stride_table(
     return pd.DataFrame(rows, columns=cols).sort_values("start_s", ignore_index=True)
 
 
+def method_error(column: str, value: float, stride_s: float) -> float:
+    """Bound of the method's own error (the column's unit) on a per-side mean of ``column``
+    (:data:`STRIDE_COLUMNS`, or ``step_time_asymmetry_pct``), from the event timing bounds
+    :data:`IC_ERROR_S`, :data:`FC_ERROR_S` and :data:`LENGTH_ERROR`; ``stride_s`` the mean stride
+    time (s). A time between two initial contacts carries one IC error (their common bias
+    cancels), one from an IC to an FC both; double support has two such intervals. The
+    stride-time CV has none (a constant bias does not vary). NaN for an unknown column."""
+    ic, fc = IC_ERROR_S, FC_ERROR_S
+    pct = 100.0 / stride_s
+    bounds = {
+        "stride_time_s": ic,
+        "step_time_s": ic,
+        "stance_time_s": ic + fc,
+        "swing_time_s": ic + fc,
+        "stance_pct": (ic + fc) * pct,
+        "swing_pct": (ic + fc) * pct,
+        "double_support_pct": 2 * (ic + fc) * pct,
+        "cadence_steps_per_min": 120.0 * ic / stride_s**2,
+        "step_length_m": LENGTH_ERROR * abs(value),
+        "stride_length_m": LENGTH_ERROR * abs(value),
+        "walking_speed_m_s": LENGTH_ERROR * abs(value),
+        "step_time_asymmetry_pct": 200.0 * ic / stride_s,
+        "stride_time_cv_pct": 0.0,
+    }
+    return float(bounds.get(column, np.nan))
+
+
 def _stats(x: pd.Series) -> dict[str, float]:
     """Mean, SD, CV, SE, median, q1, q3 (NaN below :data:`MIN_STRIDES` values) and
     ``strides_n``."""
@@ -230,6 +267,27 @@ def _stats(x: pd.Series) -> dict[str, float]:
         "q3": q3,
         "strides_n": len(x),
     }
+
+
+def _within_bout_cv(kept: pd.DataFrame) -> tuple[float, int]:
+    """``(CV %, degrees of freedom)`` of the stride time within steady bouts: the pooled SD of
+    each side's runs of consecutive kept strides (a stride starting where the one before ended)
+    over the mean stride time, so that a change of pace between bouts (after a turn or a stop)
+    is not counted as variability."""
+    ss, dof, values = 0.0, 0, []
+    for side in ("r", "l"):
+        part = kept[kept["side"] == side].dropna(subset=["stride_time_s"])
+        start = part["start_s"].to_numpy(dtype=float)
+        stride = part["stride_time_s"].to_numpy(dtype=float)
+        breaks = np.flatnonzero(~np.isclose(start[1:], (start + stride)[:-1], atol=1e-6)) + 1
+        for bout in np.split(stride, breaks):
+            if len(bout) > 1:
+                ss += float(np.sum((bout - bout.mean()) ** 2))
+                dof += len(bout) - 1
+        values += list(stride)
+    if dof == 0:
+        return np.nan, 0
+    return float(100 * np.sqrt(ss / dof) / np.mean(values)), dof
 
 
 def too_few(n: int, what: str = "steady strides") -> str:
@@ -286,9 +344,9 @@ def summary(table: pd.DataFrame) -> dict[str, Any]:
         withheld["step_time_asymmetry_pct"] = too_few(len(r), "paired steady steps")
     out["stride_time_cv_pct"] = out["stride_time_cv_se_pct"] = np.nan
     if fewest >= MIN_STRIDES:
-        cv = _stats(stride)["cv_pct"]
+        cv, dof = _within_bout_cv(kept)
         out["stride_time_cv_pct"] = cv
-        out["stride_time_cv_se_pct"] = float(cv / np.sqrt(2 * len(stride)))
+        out["stride_time_cv_se_pct"] = float(cv / np.sqrt(2 * dof)) if dof else np.nan
     else:
         withheld["stride_time_cv_pct"] = too_few(fewest) + " on one side"
     speed = kept["walking_speed_m_s"].dropna()

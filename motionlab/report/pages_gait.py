@@ -3,11 +3,11 @@ Profile (first page), then the pelvis, hip and knee cycle curves against the GPS
 curves; and the ``spatiotemporal.csv`` table. Drawn only when ``results.gait`` holds a gait
 analysis (:mod:`motionlab.kinematics.gait`).
 
-What is shown obeys the inputs: a side's parameter needs :data:`~motionlab.kinematics.
-spatiotemporal.MIN_STRIDES` kept strides ("not enough steady strides (2 of 3 needed)" instead),
-the asymmetry as many paired steps; each is given as mean ± SD (CV) with its median and
-interquartile range, and is red only when outside its band by more than its own uncertainty
-(1.96 standard errors, :func:`beyond`). The GPS and the MAP's bars come only from determined
+What is shown obeys the inputs: a side's parameter needs ``MIN_STRIDES`` (3) kept strides ("not
+enough steady strides (2 of 3 needed)" instead), the asymmetry as many paired steps; each is
+given as mean ± SD (CV) with its median and interquartile range, and is red only when outside
+its band by more than its own uncertainty (1.96 standard errors plus the method's timing or
+length error bound, :func:`beyond`). The GPS and the MAP's bars come only from determined
 variables (:func:`motionlab.report.model.gait_profile`); a curve of a variable the recording did
 not determine is not drawn, a weak one is labelled."""
 
@@ -21,7 +21,13 @@ import pandas as pd
 import yaml
 
 from motionlab.kinematics.gps import NORMATIVE_SOURCES, VARIABLES, normative, variable_grades
-from motionlab.kinematics.spatiotemporal import MIN_STRIDES, STRIDE_COLUMNS, summary_rows, too_few
+from motionlab.kinematics.spatiotemporal import (
+    MIN_STRIDES,
+    STRIDE_COLUMNS,
+    method_error,
+    summary_rows,
+    too_few,
+)
 from motionlab.report.model import SessionView, gait_profile
 from motionlab.report.pdf import BAND_COLOUR, MUTED, SIDE_COLOUR, SIZE, Document
 from motionlab.results import Gait
@@ -60,23 +66,25 @@ Z95 = 1.96
 
 
 def _fmt(s: dict[str, float], digits: int) -> str:
-    """``'1.10 ± 0.02 (CV 1.8 %); median 1.10, IQR 1.09-1.11; n 9'``, or why not given."""
+    """``'1.10 ± 0.02 (CV 1.8 %)\\nmedian 1.10 (1.09-1.11); n 9'``, or why not given."""
     n = int(s.get("strides_n", 0))
     if n < MIN_STRIDES or not np.isfinite(s.get("mean", np.nan)):
         return too_few(n) if n < MIN_STRIDES else "-"
     d = digits
     return (
-        f"{s['mean']:.{d}f} ± {s['sd']:.{d}f} (CV {s['cv_pct']:.1f} %); median "
-        f"{s['median']:.{d}f}, IQR {s['q1']:.{d}f}-{s['q3']:.{d}f}; n {n}"
+        f"{s['mean']:.{d}f} ± {s['sd']:.{d}f} (CV {s['cv_pct']:.1f} %)\n"
+        f"median {s['median']:.{d}f} ({s['q1']:.{d}f}-{s['q3']:.{d}f}); n {n}"
     )
 
 
-def beyond(value: float, se: float, band: list[float] | None) -> bool:
-    """Whether ``value`` lies outside ``band`` by more than its own uncertainty
-    (:data:`Z95` × its standard error ``se``; a NaN ``se`` counts as unknown: never flagged)."""
-    if not band or not (np.isfinite(value) and np.isfinite(se)):
+def beyond(value: float, se: float, band: list[float] | None, method: float = 0.0) -> bool:
+    """Whether ``value`` lies outside ``band`` by more than its own uncertainty: :data:`Z95`
+    × its standard error ``se`` plus ``method``, the bound of the method's own error
+    (:func:`~motionlab.kinematics.spatiotemporal.method_error`); a NaN ``se`` or ``method``
+    counts as unknown: never flagged."""
+    if not band or not (np.isfinite(value) and np.isfinite(se) and np.isfinite(method)):
         return False
-    margin = Z95 * se
+    margin = Z95 * se + method
     return bool(value - margin > band[1] or value + margin < band[0])
 
 
@@ -105,24 +113,31 @@ def gait_pages(doc: Document, view: SessionView) -> None:
         "crossing); straight, steady strides only. "
         f"Per side mean ± SD (CV), median and interquartile range of at least {MIN_STRIDES} "
         "steady strides; step times only inside one steady bout, the asymmetry from paired "
-        "consecutive steps. Red: outside the normal band by more than the value's own 95 % "
-        "uncertainty. Normal bands are approximate ranges of healthy adults.",
+        "consecutive steps. Red: outside the normal band by more than the value's own "
+        "uncertainty (1.96 standard errors plus the method's event-timing error: 10 ms at "
+        "initial, 20 ms at final contact; lengths 5 %). Normal bands are approximate ranges of "
+        "healthy adults.",
     )
     rows, flags = [], []
+    times = [summ["sides"][k]["stride_time_s"]["mean"] for k in ("r", "l")]
+    stride = float(np.nanmean(times)) if np.isfinite(times).any() else np.nan
     for c in STRIDE_COLUMNS:
         digits = 2 if c.endswith(("_s", "_m")) else 1
         r, left = summ["sides"]["r"][c], summ["sides"]["l"][c]
         band = bands.get(c)
         rows.append([_LABELS[c], _fmt(r, digits), _fmt(left, digits),
                      f"{band[0]:g}-{band[1]:g}" if band else "-"])  # fmt: skip
-        flags.append([False, beyond(r["mean"], r.get("se", np.nan), band),
-                      beyond(left["mean"], left.get("se", np.nan), band), False])  # fmt: skip
+        flags.append([False] + [beyond(x["mean"], x.get("se", np.nan), band,
+                                       method_error(c, x["mean"], stride)) for x in (r, left)]
+                     + [False])  # fmt: skip
     for c in ("step_time_asymmetry_pct", "stride_time_cv_pct"):
         band = bands.get(c)
         se = summ.get(c.removesuffix("_pct") + "_se_pct", np.nan)
+        value = summ.get(c, np.nan)
         rows.append([_LABELS[c], _both(summ, c), "",
                      f"{band[0]:g}-{band[1]:g}" if band else "-"])  # fmt: skip
-        flags.append([False, beyond(summ.get(c, np.nan), se, band), False, False])
+        flags.append([False, beyond(value, se, band, method_error(c, value, stride)), False,
+                      False])  # fmt: skip
     doc.table(["parameter", "right", "left", "normal"], rows, [0.28, 0.29, 0.29, 0.14],
               flagged=flags, align=["l", "r", "r", "r"])  # fmt: skip
     rejected = ", ".join(f"{k} {v}" for k, v in summ["strides_rejected"].items()) or "none"
@@ -228,6 +243,9 @@ def curve_page(doc: Document, view: SessionView) -> None:
                 m, s = np.asarray(c[v]), np.asarray(c[f"{v}_sd"])
                 ax.plot(pct, m, color=SIDE_COLOUR[side], lw=1.2)
                 ax.fill_between(pct, m - s, m + s, color=SIDE_COLOUR[side], alpha=0.15, lw=0)
+        if marks and all("not determined" in m for m in marks):
+            ax.text(0.5, 0.5, "not determined: not drawn", transform=ax.transAxes,
+                    ha="center", va="center", size=SIZE["small"], color=MUTED)  # fmt: skip
         ax.set_title(v.replace("_", " ") + (f" ({', '.join(marks)})" if marks else ""))
         ax.set_xlim(0, 100)
         ax.set_ylabel("deg")

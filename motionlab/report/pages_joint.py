@@ -27,6 +27,7 @@ from motionlab.report.model import (
     rom_rows,
     symmetric_type,
     symmetry_rows,
+    worst_grade,
 )
 from motionlab.report.normative import band_for
 from motionlab.report.pdf import (
@@ -109,13 +110,14 @@ def _rom_table(doc: Document, view: SessionView, joint) -> None:
             continue
         normal = f"{r['normal'][0]:g} to {r['normal'][1]:g}" if r["normal"] else "-"
         bad = r["status"] not in ("within", "")
-        muted.append(r["grade"] == NOT_DETERMINED)
+        hide = r["grade"] == NOT_DETERMINED  # a number the recording did not determine
+        muted.append(hide)
         rows.append(
             [
                 task_name(r["task"]),
                 f"{r['angle'].replace('_', ' ')} ({r['plane']})",
-                span(r["typical_min_deg"], r["typical_max_deg"]),
-                f"{r['rom_deg']:.0f}",
+                "-" if hide else span(r["typical_min_deg"], r["typical_max_deg"]),
+                "-" if hide else f"{r['rom_deg']:.0f}",
                 str(r["repetitions"]),
                 normal,
                 STATUS_WORDS.get(r["status"], "-")
@@ -138,7 +140,7 @@ def _rom_table(doc: Document, view: SessionView, joint) -> None:
             "Grade",
         ],
         rows,
-        [0.12, 0.2, 0.13, 0.1, 0.08, 0.11, 0.1, 0.16],
+        [0.1, 0.19, 0.12, 0.09, 0.07, 0.1, 0.15, 0.18],
         flagged,
         align=["l", "l", "r", "r", "r", "r", "r", "r"],
         muted=muted,
@@ -154,7 +156,8 @@ def _rom_table(doc: Document, view: SessionView, joint) -> None:
     weak = weak_lines(view, joint.name)
     if weak:
         doc.paragraph(
-            "Weak angles (shown, not compared, not findings): " + " ".join(weak),
+            "Weak angles (shown, not compared with the normal range, not findings): "
+            + " ".join(weak),
             size=SIZE["small"],
         )
 
@@ -320,8 +323,15 @@ def symmetry_page(doc: Document, view: SessionView) -> None:
                 if hidden:
                     _no_data(ax, f"{' and '.join(hidden)}: not determined")
                 min_span(ax)
+                grade = worst_grade(
+                    [angle_grades(view).get(angle_columns(sides[x])[i][1], ("determined", ""))
+                     for x in ("r", "l")]
+                )[0]  # fmt: skip
+                mark = "" if is_determined(grade) else f" ({grade})"
                 ax.set_title(
-                    f"{task_name(task)}, {angle.replace('_', ' ')}", loc="left", size=SIZE["small"]
+                    f"{task_name(task)}, {angle.replace('_', ' ')}{mark}",
+                    loc="left",
+                    size=SIZE["small"],
                 )
                 ax.set_xlim(0, 100)
                 ax.set_xlabel("cycle (%)")
@@ -347,8 +357,8 @@ def symmetry_page(doc: Document, view: SessionView) -> None:
                 [
                     task_name(r["task"]),
                     f"{r['angle'].replace('_', ' ')} ({r['plane']})",
-                    f"{r['right_rom_deg']:.0f}",
-                    f"{r['left_rom_deg']:.0f}",
+                    "-" if r["grade"] == NOT_DETERMINED else f"{r['right_rom_deg']:.0f}",
+                    "-" if r["grade"] == NOT_DETERMINED else f"{r['left_rom_deg']:.0f}",
                     f"{0.0 if round(si) == 0 else si:+.0f}"
                     if np.isfinite(si)
                     else ("n/a (range < 10°)" if is_determined(r["grade"]) else "not compared"),

@@ -201,7 +201,10 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
     if len(items) > limit - len(problems[:2]):
         items = items[: limit - len(problems[:2])]
     if not items:
-        items = ["No finding: no range this recording determined has a normal range to compare."]
+        items = [
+            "No finding can be stated: no angle with a normal range was determined by this "
+            "recording (see below)."
+        ]
     return items + problems[:2]
 
 
@@ -272,14 +275,25 @@ def missing_lines(view: SessionView) -> list[str]:
 
 
 def weak_lines(view: SessionView, joint: str) -> list[str]:
-    """Descriptions of a joint's ``weak`` ranges for its page, with the grade and reason, not
-    compared with the normal range: ``'Right hip ab-adduction range -30 to 16° during walk (weak:
-    <reason>).'``."""
-    return [
-        graded(rom_sentence(r), r["grade"], r["reason"])
-        for r in rom_rows(view)
-        if r["joint"] == joint and r["grade"] == WEAK
-    ]
+    """Descriptions of a joint's ``weak`` ranges for its page, one sentence per task and reason,
+    not compared with the normal range: ``'Right hip flexion-extension range -13 to 41° and
+    ab-adduction range -13 to 5° during walk (weak: <reason>).'``."""
+    groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for r in rom_rows(view):
+        if r["joint"] == joint and r["grade"] == WEAK:
+            groups.setdefault((r["task"], r["reason"]), []).append(r)
+    out = []
+    for (task, reason), rows in groups.items():
+        side, name = _joint_words(rows[0])
+        parts = [
+            f"{angle_title(r['joint_type'], r['angle'])} range "
+            f"{span(r['typical_min_deg'], r['typical_max_deg'])}"
+            for r in rows
+        ]
+        ranges = ", ".join(parts[:-1]) + " and " + parts[-1] if len(parts) > 1 else parts[0]
+        text = f"{side} {name} {ranges} during {task_name(task)}".strip()
+        out.append(graded(text[0].upper() + text[1:] + ".", WEAK, reason))
+    return out
 
 
 def quality_notes(view: SessionView) -> list[str]:
