@@ -119,14 +119,21 @@ def gait_pages(doc: Document, view: SessionView) -> None:
         "healthy adults.",
     )
     rows, flags = [], []
+    counts = {k: int(summ["sides"][k]["stride_time_s"]["strides_n"]) for k in ("r", "l")}
+    few = [f"{'right' if k == 'r' else 'left'}: {too_few(n)}" for k, n in counts.items()
+           if n < MIN_STRIDES]  # fmt: skip
+    if few:
+        doc.paragraph("No mean is given for a side with too few strides (" + "; ".join(few)
+                      + ").", weight="bold")  # fmt: skip
     times = [summ["sides"][k]["stride_time_s"]["mean"] for k in ("r", "l")]
     stride = float(np.nanmean(times)) if np.isfinite(times).any() else np.nan
     for c in STRIDE_COLUMNS:
         digits = 2 if c.endswith(("_s", "_m")) else 1
         r, left = summ["sides"]["r"][c], summ["sides"]["l"][c]
         band = bands.get(c)
-        rows.append([_LABELS[c], _fmt(r, digits), _fmt(left, digits),
-                     f"{band[0]:g}-{band[1]:g}" if band else "-"])  # fmt: skip
+        cells = [_fmt(x, digits) if counts[k] >= MIN_STRIDES else "-"
+                 for k, x in (("r", r), ("l", left))]  # fmt: skip
+        rows.append([_LABELS[c], *cells, f"{band[0]:g}-{band[1]:g}" if band else "-"])
         flags.append([False] + [beyond(x["mean"], x.get("se", np.nan), band,
                                        method_error(c, x["mean"], stride)) for x in (r, left)]
                      + [False])  # fmt: skip
