@@ -192,8 +192,9 @@ def _map_chart(doc: Document, mp: dict[str, Any]) -> None:
                 vals.append(mp["gps"].get(side, np.nan))
             ax.bar(x + (k - 0.5) * 0.38, vals, 0.36, color=SIDE_COLOUR[side],
                    label={"r": "right", "l": "left"}[side])  # fmt: skip
-        expected = f"expected GPS of a normal subject {mp['population_gps_deg']:.1f}°"
-        ax.axhline(mp["population_gps_deg"], color=MUTED, ls="--", lw=0.8, label=expected)
+        if not missing:  # the population's GPS is a reference for a GPS, not for one GVS
+            expected = f"expected GPS of a normal subject {mp['population_gps_deg']:.1f}°"
+            ax.axhline(mp["population_gps_deg"], color=MUTED, ls="--", lw=0.8, label=expected)
         ax.set_xticks(x, [n.replace("_", " ") for n in names], rotation=30, ha="right")
         ax.set_ylabel("deg (RMS difference)")
         ax.legend(loc="upper left", frameon=False)

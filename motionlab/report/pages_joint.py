@@ -140,7 +140,7 @@ def _rom_table(doc: Document, view: SessionView, joint) -> None:
             "Grade",
         ],
         rows,
-        [0.1, 0.19, 0.12, 0.09, 0.07, 0.1, 0.15, 0.18],
+        [0.12, 0.19, 0.12, 0.09, 0.07, 0.1, 0.14, 0.17],
         flagged,
         align=["l", "l", "r", "r", "r", "r", "r", "r"],
         muted=muted,
@@ -149,7 +149,7 @@ def _rom_table(doc: Document, view: SessionView, joint) -> None:
         "Typical range: means of the lowest and highest angle of each cycle. Full ROM: highest "
         "minus lowest angle over the whole task. A range is flagged when it misses the normal "
         "range by more than 5°. Grade: whether the recording determined the angle (see the "
-        "calibration page); only a determined range is compared with the normal range.",
+        "calibration page); only a determined range is compared.",
         size=SIZE["small"],
         colour=MUTED,
     )
