@@ -179,9 +179,11 @@ def length_note(g: Gait) -> str:
 def _map_chart(doc: Document, mp: dict[str, Any]) -> None:
     """The Movement Analysis Profile: GVS per determined variable and side, and the GPS when
     every variable is determined (else which are missing)."""
-    doc.heading("Gait Profile Score and Movement Analysis Profile")
     missing = mp.get("not_computed", "")
     names = [v for v in mp["variables"] if any(v in mp["gvs"].get(s, {}) for s in "rl")]
+    if names:
+        doc.ensure(3.8)  # the heading stays with its chart
+    doc.heading("Gait Profile Score and Movement Analysis Profile")
     if names:
         ((ax,),) = doc.axes_grid(1, 1, 3.0, left=0.6, bottom=0.9, top=0.2)
         names = [*names, *([] if missing else ["GPS"])]
