@@ -271,7 +271,8 @@ def gait_report_pages(doc: Document, view: SessionView) -> None:
 
 def gait_frames(view: SessionView) -> dict[str, pd.DataFrame]:
     """``spatiotemporal.csv`` (one row per stride, kept or not, with the reason) and
-    ``spatiotemporal_summary.csv`` (per side mean, SD, CV); nothing without a gait analysis."""
+    ``spatiotemporal_summary.csv`` (per side mean, SD, CV, SE, median, quartiles and the number
+    of strides; NaN below 3 strides); nothing without a gait analysis."""
     g = gait_result(view)
     if g is None:
         return {}
