@@ -57,10 +57,11 @@ def test_a_still_hip_is_not_used():
 
 
 def test_simulated_walk_hip_adduction_without_the_knee_axis_cross_talk():
-    """Seed 2 (one clock): the gait knee fit turns the right thigh 8° about its long axis,
-    which gives hip adduction RMSE 3.3° with the knee-axis frame (4.7° before the calibration
-    took the accelerometer bias at its wider prior); measured about the dominant hip axis it is
-    within the 3° target (1.25°), and the knee angles do not change."""
+    """Seed 2 (one clock): Seel's knee axis turned the right thigh 8° about its long axis, which
+    gave hip adduction RMSE 3.3° with the knee-axis frame; the principal axis of the walk
+    (:mod:`motionlab.segments.gait_axes`) lies within 2.2° of the hip's dominant axis, and both
+    frames are within the 3° target (1.41° knee-axis frame, 1.71° about the hip axis); the hip
+    axis leaves the knee angles alone."""
     proto = load_protocol("walk")
     timing = dataclasses.replace(
         get_preset("typical").timing, clock_offset_sigma_s=0.0, clock_drift_sigma=0.0
@@ -70,7 +71,7 @@ def test_simulated_walk_hip_adduction_without_the_knee_axis_cross_talk():
     prepare_sensors(session)
     analyse(session, PipelineOptions(proto, progress=False, clock_sync=False))
     cal = session.results.calibration
-    assert cal.hip_axes["hip_r"]["used"] and cal.hip_axes["hip_r"]["turn_deg"] > 5.0
+    assert cal.hip_axes["hip_r"]["used"] and abs(cal.hip_axes["hip_r"]["turn_deg"]) < 5.0
     ang = session.results.angles.columns()
     step = truth.step("walk")
     w = (ang["time_s"] > step["start_s"] + 3) & (ang["time_s"] < step["end_s"] - 3)
@@ -90,7 +91,7 @@ def test_simulated_walk_hip_adduction_without_the_knee_axis_cross_talk():
         plain["time_s"], truth.time, truth.joint_angles["hip_r_adduction_deg"]
     )
     knee_axis_frame = np.sqrt(np.mean(e0[w] ** 2))
-    assert knee_axis_frame > 3.0 and knee_axis_frame > 2 * about_hip_axis  # measured 3.30°
+    assert knee_axis_frame < 3.0  # measured 1.41° (3.30° with Seel's knee axis)
 
 
 def _pelvis_forward_error(duration: float, seed: int):
@@ -136,3 +137,14 @@ def test_pelvis_forward_from_turns_that_agree_less_well_when_the_hint_is_contrad
     cal, angle = _pelvis_forward_error(74.0, 4)
     assert "movement:turns" in cal.segments["pelvis"]["axes"]
     assert angle < 20.0
+
+
+def test_pelvis_forward_from_the_first_steps_when_the_walk_has_no_two_turns():
+    """A stand and a short walk (20 s, seed 1): fewer than two turns, so the pelvis's forward
+    direction comes from the velocity of the first steps after the stand, within 10° (measured
+    3.6°) where the contradicted hint is 142° off; still graded weak."""
+    cal, angle = _pelvis_forward_error(20.0, 1)
+    assert cal.segments["pelvis"]["axes"]["movement:turns"]["method"] == "walk start"
+    assert any("taken from the first steps of the walk" in w for w in cal.warnings)
+    assert cal.grades["hip_r"]["grades"] == ["weak"] * 3
+    assert angle < 10.0

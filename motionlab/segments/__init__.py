@@ -191,8 +191,9 @@ def pelvis_forward(
     contradicted: set[str],
     notes: list[str],
 ) -> dict[str, Any] | None:
-    """The hips' proximal segment's forward direction from the walk's turns
-    (:mod:`.walk_forward`), added to its ``records`` (kind ``movement``, secondary: gravity keeps
+    """The hips' proximal segment's forward direction from the walk's turns, or with fewer than
+    two turns from its first steps (:mod:`.walk_forward`), added to its ``records`` (kind
+    ``movement``, method ``turns`` or ``walk start``, secondary: gravity keeps
     the tilt) when the recording measured only its vertical axis and the placement hint is
     contradicted: by the stand (its vertical, :func:`.placement.contradicted`) or by the turns
     (their forward direction more than ``placement.CONTRADICTED_DEG`` from the hint's). The
@@ -223,6 +224,11 @@ def pelvis_forward(
     spread = walk_forward.MAX_SPREAD_CONTRADICTED_DEG if by_stand else walk_forward.MAX_SPREAD_DEG
     acc = corrected_acc(session, label)
     found = walk_forward.forward_from_turns(s.time, acc, q, s.gyr, up, float(rng[1]), spread)
+    method, words = "turns", f"the walk's turns ({found['turns']})"
+    if not found["used"] and found["turns"] < walk_forward.MIN_TURNS:
+        start = walk_forward.forward_from_start(s.time, acc, q, up, float(rng[1]))
+        if start["used"]:
+            found, method, words = start, "walk start", "the first steps of the walk"
     if not found["used"]:
         if by_stand:
             _add_note(
@@ -237,14 +243,12 @@ def pelvis_forward(
     found["hint_off_deg"] = off
     if not by_stand and off <= placement.CONTRADICTED_DEG:
         return found  # the hint agrees with the walk: it stays (the turns are 5-20° off)
-    why = "" if by_stand else f"the walk's turns are {off:.0f}° from the hint's forward; "
-    _add_note(
-        notes, seg, f"{why}its forward direction is taken from the walk's turns ({found['turns']})"
-    )
+    why = "" if by_stand else f"{words} are {off:.0f}° from the hint's forward; "
+    _add_note(notes, seg, f"{why}its forward direction is taken from {words}")
     recs["movement:turns"] = {
         "step": "movement:turns",
         "kind": "movement",
-        "method": "turns",
+        "method": method,
         "sensor_axis": found["axis"],
         "segment_axis": np.array([1.0, 0.0, 0.0]),
         "rho": walk_forward.RHO,
@@ -253,7 +257,7 @@ def pelvis_forward(
         "secondary": True,
         "verdict": "weak",
         "turns": found["turns"],
-        "spread_deg": found["spread_deg"],
+        "spread_deg": found.get("spread_deg", float("nan")),
     }
     return found
 

@@ -13,6 +13,17 @@ Each angle of each joint is graded from what its two segments' calibrations actu
   for the rest, a ``weak`` hinge fit, or a calibration the quality checks flagged;
 - ``not determined``: a segment with no measured axis at all, or a failed or inconsistent fit.
 
+A knee calibrated from a walk (:mod:`.gait_axes`) knows its flexion axis only to within the angle
+between its two estimates (the principal axes and the constrained hinge fit), and never better
+than ``AXIS_FLOOR_DEG``: both estimates see the plane the leg swings in, which lies some degrees
+from the knee's own axis with the foot's progression angle and the hip's rotation (functional and
+anatomical knee axes differ by about 5°, Della Croce et al. 2005, Med Biol Eng Comput 43:275). An
+axis turned by ``e`` moves ``sin(e)`` of the flexion into ab/adduction and rotation, so those two
+angles are graded by that cross-talk, ``flexion excursion × sin(e)``: up to ``CROSSTALK_DEG[0]``
+determined, up to ``CROSSTALK_DEG[1]`` weak, beyond it not determined. On real walks (estimates
+1.5-10° apart, flexion 75-100° over the recording) that is 6.5-17°: a walk alone does not
+determine a real knee's ab/adduction and rotation.
+
 The reason is kept in plain words with each grade. The grades depend on the calibration only:
 the angle table and the report carry them next to every number, and findings are not stated for
 an angle that is not determined.
@@ -22,11 +33,15 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
+
 if TYPE_CHECKING:
     from motionlab.results import SegmentCalibration
 
 GRADES = ("determined", "weak", "not determined")
 FULL_FRAME = ("procrustes", "primary_secondary")
+CROSSTALK_DEG = (3.0, 6.0)  # determined up to, weak up to (deg of flexion in the other planes)
+AXIS_FLOOR_DEG = 5.0  # a walk-calibrated knee axis is never known better than this
 
 
 def _worse(a: str, b: str) -> str:
@@ -42,10 +57,13 @@ def _frame_grade(segment: str, cal: dict[str, Any] | None) -> tuple[str, str]:
         return "not determined", f"no axis of {segment} was measured (nominal placement only)"
     if method not in FULL_FRAME:
         return "weak", f"{segment}'s frame has one measured axis, the rest is the nominal placement"
-    if any(
-        r.get("method") == "turns" and r.get("used", True) for r in cal.get("axes", {}).values()
-    ):
+    methods = {r.get("method") for r in cal.get("axes", {}).values() if r.get("used", True)}
+    if "turns" in methods:
         return "weak", f"{segment}'s forward direction is from the walk's turns (about 5-20° off)"
+    if "walk start" in methods:
+        return "weak", (
+            f"{segment}'s forward direction is from the first steps of the walk (about 5-10° off)"
+        )
     if not cal.get("quality", {}).get("ok", True):
         return "weak", f"the calibration of {segment} was flagged"
     return "determined", ""
@@ -73,6 +91,25 @@ def _axis_grade(joint, calibration: SegmentCalibration) -> tuple[str, str]:
         elif not cal.get("quality", {}).get("ok", True):
             grade, reason = _worse(grade, "weak"), f"the calibration of {seg} was flagged"
     return grade, reason
+
+
+def _crosstalk_grade(fit: dict[str, Any] | None) -> tuple[str, str]:
+    """Grade of the angles off a walk-calibrated knee's flexion axis from the axis' uncertainty
+    (see the module notes); ``determined`` for any other joint."""
+    if fit is None or fit.get("method") != "principal" or fit.get("used_for", "axes") != "axes":
+        return "determined", ""
+    witness = max(float(fit.get("witness_deg", float("nan"))), AXIS_FLOOR_DEG)
+    flexion = float(fit.get("excursion_deg", [float("nan")])[0])
+    crosstalk = abs(flexion) * np.sin(np.radians(witness))
+    if not np.isfinite(crosstalk):
+        return "not determined", "the flexion axis's uncertainty is unknown"
+    if crosstalk <= CROSSTALK_DEG[0]:
+        return "determined", ""
+    grade = "weak" if crosstalk <= CROSSTALK_DEG[1] else "not determined"
+    return grade, (
+        f"the flexion axis from the walk is known to {witness:.0f}°, which can carry "
+        f"{crosstalk:.0f}° of the {abs(flexion):.0f}° flexion into this angle"
+    )
 
 
 def _zero_grade(joint, segs: dict[str, Any], grade: str, reason: str) -> tuple[str, str]:
@@ -114,6 +151,9 @@ def grade_joints(protocol, calibration: SegmentCalibration) -> dict[str, dict[st
                                               + fit["verdict"]]))  # fmt: skip
         if hinge_spec(joint) is not None:
             g_axis, r_axis = _zero_grade(joint, segs, *_axis_grade(joint, calibration))
+            g_cross, r_cross = _crosstalk_grade(fit)
+            if g_cross != "determined" and GRADES.index(g_cross) >= GRADES.index(g_frame):
+                g_frame, r_frame = g_cross, "; ".join(filter(None, [r_frame, r_cross]))
             grades = [g_axis, g_frame, g_frame]
             reasons = [r_axis, r_frame, r_frame]
         else:

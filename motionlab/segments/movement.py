@@ -1,8 +1,9 @@
 """Hinge axes from ordinary movement: gait, free arm movement, a rig's motion.
 
 A recording made as people make them holds a stand and a task, not the protocol's functional
-movements. The flexion axis of a knee, an elbow or a generic hinge is then taken from whatever
-the two segments did, with Seel's constraint (Seel, Raisch & Schauer, Sensors 2014 14:6891;
+movements. The flexion axis of an elbow or a generic hinge (and of a knee without a stand before
+its walk; a knee with one: :mod:`.gait_axes`) is then taken from whatever the two segments did,
+with Seel's constraint (Seel, Raisch & Schauer, Sensors 2014 14:6891;
 :func:`~motionlab.segments.hinge.hinge_axes`) fitted with a robust loss (soft-L1, so that the
 knee's small ab/adduction and rotation, soft-tissue wobble and impacts weigh less than the
 flexion) on gyroscopes low-passed at ``LOWPASS_HZ``.
@@ -81,11 +82,21 @@ class HingeFit:
     #: ``axes``: the fit gives the joint's axes; ``direction``: a functional step measured them
     #: and the fit only tells which way they point (the placement hint was contradicted)
     used_for: str = "axes"
+    #: ``seel``: Seel's hinge constraint; ``principal``: each segment's principal rotation axis
+    #: over a walk (:mod:`.gait_axes`), with the constrained hinge fit as its witness
+    method: str = "seel"
+    #: (``principal``) degrees between the principal axes and the constrained hinge fit's
+    witness_deg: float = float("nan")
+    #: (``principal``) second over first singular value of the segments' rates (the larger)
+    dominance: float = float("nan")
 
     def to_tree(self) -> dict:
         """The HDF5 results layout (plain numbers, lists and strings)."""
         return {
             "used_for": self.used_for,
+            "method": self.method,
+            "witness_deg": self.witness_deg,
+            "dominance": self.dominance,
             "joint": self.joint,
             "axis_proximal": np.asarray(self.axis_proximal, float),
             "axis_distal": np.asarray(self.axis_distal, float),
@@ -199,56 +210,51 @@ def anatomical_sign(
     return (1.0 if up >= down else -1.0), (big, small)
 
 
-def dominant_axes(
+def signed_axes(
     t: np.ndarray,
-    g1: np.ndarray,
-    g2: np.ndarray,
     q1: np.ndarray,
     q2: np.ndarray,
     j_p: np.ndarray,
     j_d: np.ndarray,
-    ref: np.ndarray,
+    prior_p: np.ndarray,
+    prior_d: np.ndarray,
     on: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray]:
-    """The flexion axis as the dominant axis of the relative angular velocity, with the turn
-    about the distal segment's long axis left out; in the proximal sensor, and carried into the
-    distal sensor through the reference pose.
-
-    ``g1``, ``g2`` (N, 3) rad/s are the sensors' rates, ``q1``, ``q2`` their 6-D orientations,
-    ``j_p``, ``j_d`` the signed hinge axes (sensor coordinates) that tie the headings
-    (:func:`.heading.hinge_anchors`), ``ref`` the samples of the reference pose (joint straight,
-    the distal segment's long axis vertical), ``on`` the samples that move. The relative angular
-    velocity ``R_rel ω_d − ω_p`` (proximal sensor) of a knee is flexion about a thigh-fixed
-    axis, ab/adduction about the floating axis and rotation about the shank's long axis (Grood &
-    Suntay 1983); the rotation part is removed exactly (the long axis is measured: up in the
-    reference pose), and the axis the rest turns about most (first right singular vector) is
-    the flexion axis. Unlike Seel's constraint on the segments' own rates it is not pulled off
-    by the segments' motion about other axes, and a screw-home rotation coupled to flexion stays
-    in the rotation angle instead of tilting the axis (``bench/knee_sources.py``). The distal
-    axis is that axis seen from the distal sensor in the reference pose, where both segment
-    frames coincide. One pass (tie the headings with Seel's axes, take the dominant axis): ties
-    made with the refined axes absorb part of a screw-home rotation, so further passes drift
-    (the tests' coupled knee: 0.2° off after one pass, 2.5° after two, 5.6° after five). Signs
-    follow ``j_p``, ``j_d``; Seel's axes are returned when the headings cannot be tied or too few
-    samples remain.
-    """
-    from motionlab.segments import heading
-
-    long_d = rot.rotate(rot.conj(rot.mean(q2[ref])), np.array([0.0, 0.0, 1.0]))
-    times, deltas = heading.hinge_anchors(t, q1, q2, j_p, j_d)
-    if not len(times):
-        return j_p, j_d
-    q2a = heading.apply_heading(q2, heading.heading_track(times, deltas, t))
-    q_rel = rot.mul(rot.conj(q1), q2a)  # distal sensor -> proximal sensor
-    long_p = rot.rotate(q_rel[on], np.broadcast_to(long_d, (int(on.sum()), 3)))
-    w_p = rot.rotate(q_rel[on], g2[on]) - g1[on]
-    w_p -= long_p * np.einsum("ij,ij->i", w_p, long_p)[:, None]
-    ok = np.isfinite(w_p).all(axis=1)
-    if ok.sum() < MIN_PART_SAMPLES:
-        return j_p, j_d
-    a_p = np.linalg.svd(w_p[ok], full_matrices=False)[2][0]
-    a_d = rot.rotate(rot.conj(rot.mean(q_rel[ref])), a_p)
-    return a_p * np.sign(a_p @ j_p), a_d * np.sign(a_d @ j_d)
+    reference: tuple[float, float] | None,
+    anatomical: bool,
+    reasons: list[str],
+) -> tuple[np.ndarray, np.ndarray, str, str, tuple[float, float]]:
+    """Hinge axes ``j_p``, ``j_d`` (sensor frames, either sign) signed as the module notes say:
+    ``(j_p, j_d, relative-sign source, sign source, excursions deg)``. The relative sign from
+    :func:`relative_sign` or :func:`swing_sign` (samples ``on``), else the priors (the nominal
+    placement); the absolute sign from :func:`anatomical_sign` for a joint that flexes one way
+    (``anatomical``) with a ``reference`` window (s) in its zero pose, else the priors. What came
+    from the priors is said in ``reasons``."""
+    s_rel, margin = relative_sign(q1[on], q2[on], j_p, j_d)
+    s_swing, margin_swing = swing_sign(t, q1, q2, j_p, j_d)
+    if margin_swing > margin:
+        s_rel, margin = s_swing, margin_swing
+    if margin >= SIGN_MARGIN:
+        j_d = s_rel * j_d
+        rel_source = "measured"
+    else:
+        j_d = j_d if (j_p @ prior_p) * (j_d @ prior_d) >= 0 else -j_d
+        rel_source = "nominal"
+        reasons.append(
+            "the movement did not tell which way the axis points on the distal segment, so it "
+            "is taken from the nominal placement"
+        )
+    sign, excursion = None, (float("nan"), float("nan"))
+    if anatomical and reference is not None:
+        sign, excursion = anatomical_sign(t, q1, q2, j_p, j_d, reference)
+    if sign is not None:
+        return sign * j_p, sign * j_d, rel_source, "anatomy", excursion
+    s = 1.0 if j_p @ prior_p + j_d @ prior_d >= 0 else -1.0
+    if anatomical:
+        reasons.append(
+            "the direction of flexion could not be told from the movement (no stand with "
+            "the joint straight, or no clear flexion), so it follows the nominal placement"
+        )
+    return s * j_p, s * j_d, rel_source, "nominal", excursion
 
 
 def _verdict(
@@ -311,16 +317,13 @@ def fit_hinge(
     prior_d: np.ndarray,
     reference: tuple[float, float] | None = None,
     anatomical: bool = False,
-    twist_long: bool = False,
 ) -> HingeFit:
     """Hinge axis of ``joint`` from the movement of its two segments (see the module notes).
 
     ``proximal`` and ``distal`` are ``(time s, gyr rad/s (N, 3), q_sensor (N, 4))``; ``prior_*``
     are the axis (positive direction) in sensor coordinates under the nominal placement;
-    ``reference`` is a still window (s) in the joint's zero pose (for the anatomical sign).
-    ``twist_long``: the joint also turns about the distal segment's long axis (vertical in the
-    reference pose; the knee): once the signs are known, the axes are refined by
-    :func:`dominant_axes`.
+    ``reference`` is a still window (s) in the joint's zero pose (for the anatomical sign). A
+    knee with a stand and a walk takes its axes from :func:`.gait_axes.fit_knee` instead.
     """
     t, g1, g2, q1, q2, active = _shared_movement(joint, proximal, distal)
     j_p, j_d, _ = hinge_axes(g1, g2, prior_p, prior_d, loss="soft_l1", f_scale=ROBUST_SCALE_RAD_S)
@@ -346,37 +349,9 @@ def fit_hinge(
     residual = float(np.sqrt(np.mean((perp1[on] - perp2[on]) ** 2)))
     scale = float(np.sqrt(np.mean(0.5 * (perp1[on] ** 2 + perp2[on] ** 2))))
     relative = residual / scale if scale > 0 else float("inf")
-    # signs
-    s_rel, margin = relative_sign(q1[on], q2[on], j_p, j_d)
-    s_swing, margin_swing = swing_sign(t, q1, q2, j_p, j_d)
-    if margin_swing > margin:
-        s_rel, margin = s_swing, margin_swing
-    if margin >= SIGN_MARGIN:
-        j_d = s_rel * j_d
-        rel_source = "measured"
-    else:
-        j_d = j_d if (j_p @ prior_p) * (j_d @ prior_d) >= 0 else -j_d
-        rel_source = "nominal"
-        reasons.append(
-            "the movement did not tell which way the axis points on the distal segment, so it "
-            "is taken from the nominal placement"
-        )
-    sign, excursion = None, (float("nan"), float("nan"))
-    if anatomical and reference is not None:
-        sign, excursion = anatomical_sign(t, q1, q2, j_p, j_d, reference)
-    if sign is not None:
-        j_p, j_d, sign_source = sign * j_p, sign * j_d, "anatomy"
-    else:
-        s = 1.0 if j_p @ prior_p + j_d @ prior_d >= 0 else -1.0
-        j_p, j_d, sign_source = s * j_p, s * j_d, "nominal"
-        if anatomical:
-            reasons.append(
-                "the direction of flexion could not be told from the movement (no stand with "
-                "the joint straight, or no clear flexion), so it follows the nominal placement"
-            )
-    if twist_long and reference is not None and sign_source == "anatomy":
-        ref = (t >= reference[0]) & (t <= reference[1])
-        j_p, j_d = dominant_axes(t, g1, g2, q1, q2, j_p, j_d, ref, on)
+    j_p, j_d, rel_source, sign_source, excursion = signed_axes(
+        t, q1, q2, j_p, j_d, prior_p, prior_d, on, reference, anatomical, reasons
+    )
     hinted = rel_source == "nominal" or (anatomical and sign_source == "nominal")
     verdict = _verdict(worst, relative, hinted, reasons, "the axis differs", "one axis")
     return HingeFit(

@@ -22,7 +22,7 @@ import numpy as np
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_types import flexion_axis, joint_sequence, joint_type
 from motionlab.protocol import Protocol, axis_vector
-from motionlab.segments import frames, movement
+from motionlab.segments import frames, gait_axes, movement
 from motionlab.segments.functional import orient
 from motionlab.session import Session
 
@@ -94,11 +94,11 @@ def movement_hinges(
                     name, side[p], side[d], prior_p,
                     protocol.segments[d].nominal_mounting().T @ axis_vector(twist), reference,
                 )  # fmt: skip
+            elif reference and twists_about_long_axis(protocol, joint, ref_name, spec):
+                fit = gait_axes.fit_knee(name, side[p], side[d], prior_p, prior_d, reference)
             else:
-                fit = movement.fit_hinge(
-                    name, side[p], side[d], prior_p, prior_d, reference, spec[1],
-                    twist_long=twists_about_long_axis(protocol, joint, ref_name, spec),
-                )  # fmt: skip
+                fit = movement.fit_hinge(name, side[p], side[d], prior_p, prior_d, reference,
+                                         spec[1])  # fmt: skip
         except InputError as exc:
             fits[name] = movement.failed(name, exc.message)
             continue
@@ -135,7 +135,8 @@ def movement_hinges(
 def twists_about_long_axis(protocol: Protocol, joint, ref_name: str | None, spec) -> bool:
     """Whether a one-way hinge-like joint (the knee) also turns about its distal segment's long
     axis y (its sequence ends in Y, the flexion axis is another) and the reference pose has that
-    axis vertical: then :func:`.movement.dominant_axes` refines its flexion axis."""
+    axis vertical: then its axes come from the walk's principal axes,
+    :func:`.gait_axes.fit_knee`."""
     if not spec[1] or ref_name is None or spec[0].strip("+-") == "y":
         return False
     step = next((s for s in protocol.calibration if s.name == ref_name), None)

@@ -155,8 +155,13 @@ def blocks(streams: Streams) -> list[Block]:
     return out
 
 
+def _shortest_s(step: CalibrationStep) -> float:
+    """The shortest rest (s) a static step takes: half its ``duration_s``, at least a pose."""
+    return max(SHORTEST_POSE_S, 0.5 * step.duration_s)
+
+
 def _static_match(step: CalibrationStep, block: Block, protocol: Protocol) -> bool:
-    if block.moving or block.end - block.start < max(SHORTEST_POSE_S, 0.5 * step.duration_s):
+    if block.moving or block.end - block.start < _shortest_s(step):
         return False
     for seg, axis in step.vertical_axis.items():
         if seg not in block.up:
@@ -294,7 +299,7 @@ def _fits_without_hint(
     """A rest long enough for a static step whose vertical axes are consistent with the static
     steps found before it: a segment named in both turned between them by the angle between
     the two steps' segment axes (standing → sitting: the thigh by 90°), whatever its mounting."""
-    if block.moving or block.end - block.start < max(SHORTEST_POSE_S, 0.5 * step.duration_s):
+    if block.moving or block.end - block.start < _shortest_s(step):
         return False
     for other, b in earlier:
         for seg, axis in step.vertical_axis.items():
@@ -389,9 +394,15 @@ def find_steps(
         pos = hit + 1
     if missing:
         names = ", ".join(f"'{s.name}' ({s.kind})" for s in missing)
+        needs = "".join(
+            f"; '{s.name}' needs the {s.pose} pose held still for at least {_shortest_s(s):.1f} s"
+            for s in missing
+            if s.kind == "static"
+        )
         fits = fitting_protocols(streams, protocol) if suggest else []
         raise InputError(
-            f"calibration step{'s' if len(missing) > 1 else ''} {names} not found; {describe(bl)}",
+            f"calibration step{'s' if len(missing) > 1 else ''} {names} not found; "
+            f"{describe(bl)}{needs}",
             protocol.path,
             "calibration",
             _remedy(fits, suggest, any(_is_pose(b) for b in bl)),
@@ -421,7 +432,8 @@ def _remedy(fits: list[str], suggested: bool, has_rest: bool) -> str:
 
 
 def fitting_protocols(streams: Streams, protocol: Protocol) -> list[str]:
-    """Shipped protocols (other than ``protocol``) whose segments and steps this recording has."""
+    """Shipped protocols (other than ``protocol``) whose required segments, the two segments of
+    at least one joint, and whose steps this recording has."""
     from motionlab.protocol import PACKAGED, load_protocol
 
     out = []
@@ -430,7 +442,9 @@ def fitting_protocols(streams: Streams, protocol: Protocol) -> list[str]:
         if other.name == protocol.name:
             continue
         needed = [s for s, spec in other.segments.items() if spec.required]
-        if not needed or any(s not in streams for s in needed):
+        if any(s not in streams for s in needed) or not any(
+            j.proximal in streams and j.distal in streams for j in other.joints.values()
+        ):
             continue
         try:
             find_steps({s: streams[s] for s in other.segments if s in streams}, other, None, False)

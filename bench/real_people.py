@@ -1,0 +1,215 @@
+"""Real people, no reference: every shipped protocol that fits each recording of
+``../shared/datasets/human/``, run as ``motionlab run`` runs it.
+
+Without a truth this bench cannot say "accurate". It says what a careful reader of the report
+would check: the grade of every angle; for a hinge-like joint, the per-cycle range of its first
+angle (a walking knee flexes about 55-70° per stride, Perry & Burnfield 2010; ``implausible``
+outside 45-80°) and the left/right difference; the angle between the independent estimates of
+the joint's axis (the principal rotation axes and the constrained hinge fit, ``witness``); the
+hinge fit's relative residual; and, where the recording carries the vendor's own 9-D
+orientations, the per-cycle range of the joint's rotation away from the stand from them (a
+figure no axis choice can move: flexion cannot be much larger). A protocol that refuses a
+recording prints its one line instead.
+
+Recordings (README of ``../shared``, section ``datasets/human``):
+
+- ``qmt_full_body``: 16 Xsens sensors, 100 Hz; a stand (40-44 s), sitting down, a seated rest,
+  standing up, then about 45 s of walking; the ``walk`` protocol (pelvis = ``hip``) and the
+  ``arm`` protocol (thorax = ``upper_back``);
+- ``imt_dot/knee_tracking1``, ``knee_tracking2``: one Xsens DOT on the thigh and one on the
+  shank (one leg; mapped as the right), free leg movement and walking, a stand only at the end;
+- ``imt_dot/shoulder_tracking``: chest and upper arm (no shipped protocol has a joint for them).
+
+Usage::
+
+    python bench/real_people.py [--data ../shared] [--only qmt,knee_tracking1,...]
+"""
+
+from __future__ import annotations
+
+import argparse
+import tempfile
+import warnings
+from pathlib import Path
+
+import numpy as np
+import scipy.io as sio
+import yaml
+
+from motionlab import rotations as rot
+from motionlab.errors import InputError
+from motionlab.kinematics.joint_types import angle_columns
+from motionlab.pipeline import PipelineOptions, analyse, load_inputs, prepare_sensors
+from motionlab.protocol import load_protocol
+from motionlab.session import SensorStream, Session
+
+WALK_RANGE_DEG = (45.0, 80.0)  # per-stride knee flexion range a walking knee can have
+QMT_WALK = ("hip", "upper_leg_right", "lower_leg_right", "upper_leg_left", "lower_leg_left")
+QMT_SEGMENTS = {
+    "walk": {"hip": "pelvis", "upper_leg_right": "thigh_r", "lower_leg_right": "shank_r",
+             "upper_leg_left": "thigh_l", "lower_leg_left": "shank_l"},
+    "arm": {"upper_back": "thorax", "upper_arm_right": "upperarm_r",
+            "forearm_right": "forearm_r", "upper_arm_left": "upperarm_l",
+            "forearm_left": "forearm_l"},
+}  # fmt: skip
+DOT = {
+    "knee_tracking1": {"femur": "thigh_r", "tibia": "shank_r"},
+    "knee_tracking2": {"femur": "thigh_r", "tibia": "shank_r"},
+    "shoulder_tracking": {"chest": "thorax", "upperarm": "upperarm_r"},
+}
+
+
+def qmt_session(data: Path, protocol: str) -> tuple[Session, dict[str, np.ndarray]]:
+    """The full-body recording's sensors for ``protocol`` as a session (time from 0 s), and the
+    vendor's orientations by segment."""
+    m = sio.loadmat(data / "full_body_example_data.mat", squeeze_me=True, struct_as_record=False)
+    t = np.asarray(m["t"], float)
+    session, vendor = Session(), {}
+    for name, seg in QMT_SEGMENTS[protocol].items():
+        d = m[name]
+        session.sensors[seg] = SensorStream(
+            label=seg, time=t - t[0], acc=np.asarray(d.acc, float), gyr=np.asarray(d.gyr, float),
+            segment=seg, vendor="Xsens", source_units={"acc": "m/s^2", "gyr": "rad/s"},
+        )  # fmt: skip
+        vendor[seg] = rot.make_continuous(np.asarray(d.quat, float))
+    prepare_sensors(session)
+    return session, vendor
+
+
+def dot_session(folder: Path, mapping: dict[str, str]) -> Session:
+    """A DOT recording read as ``motionlab ingest`` reads it, with a sensor map."""
+    sensors = {f.capitalize(): {"segment": seg} for f, seg in mapping.items()}
+    with tempfile.TemporaryDirectory() as tmp:
+        map_path = Path(tmp) / "map.yaml"
+        map_path.write_text(yaml.safe_dump({"sensors": sensors}))
+        return load_inputs([folder / f"{f}.csv" for f in mapping], map_path, "bench")
+
+
+def stride_ranges(session: Session, column: str, side: str) -> np.ndarray:
+    """Range (deg) of ``column`` in each stride of ``side`` (between consecutive initial
+    contacts 0.6-1.8 s apart); empty without a gait analysis."""
+    gait, angles = session.results.gait, session.results.angles
+    if gait is None or not gait.ok or side not in (gait.events or {}):
+        return np.array([])
+    t, x = np.asarray(angles.time), np.asarray(angles.data[column], float)
+    ic = np.asarray(gait.events[side]["ic"], float)
+    out = []
+    for a, b in zip(ic[:-1], ic[1:], strict=True):
+        sel = (t >= a) & (t <= b)
+        if 0.6 <= b - a <= 1.8 and sel.sum() > 10 and np.isfinite(x[sel]).all():
+            out.append(np.ptp(x[sel]))
+    return np.array(out)
+
+
+def vendor_ranges(session: Session, vendor: dict, joint, side: str) -> np.ndarray:
+    """Per-stride range (deg) of the joint's rotation away from the stand, from the vendor's
+    orientations (no axis involved)."""
+    gait, cal = session.results.gait, session.results.calibration
+    stand = (cal.steps or {}).get("standing")
+    if not vendor or gait is None or not gait.ok or not stand:
+        return np.array([])
+    t = session.sensors[joint.proximal].time
+    rel = rot.mul(rot.conj(vendor[joint.proximal]), vendor[joint.distal])
+    sel = (t >= stand[0]) & (t <= stand[1])
+    r = rot.mul(rel, rot.conj(rot.mean(rel[sel])))
+    angle = np.degrees(2.0 * np.arccos(np.clip(np.abs(r[:, 0]), 0.0, 1.0)))
+    ic = np.asarray(gait.events[side]["ic"], float)
+    pairs = [(a, b) for a, b in zip(ic[:-1], ic[1:], strict=True) if 0.6 <= b - a <= 1.8]
+    return np.array([np.ptp(angle[(t >= a) & (t <= b)]) for a, b in pairs])
+
+
+def _fmt(x: np.ndarray) -> str:
+    if not len(x):
+        return "–"
+    q1, q2, q3 = np.percentile(x, [25, 50, 75])
+    return f"{q2:.0f} ({q1:.0f}–{q3:.0f}), n={len(x)}"
+
+
+def report(name: str, protocol: str, session: Session, vendor: dict) -> list[str]:
+    """Table rows of one analysed recording."""
+    cal = session.results.calibration
+    prot = load_protocol(protocol)
+    rows, flex = [], {}
+    for jname, joint in prot.joints.items():
+        if jname not in cal.grades:
+            continue
+        grades = cal.grades[jname]["grades"]
+        fit = cal.hinges.get(jname, {})
+        first = angle_columns(joint)[0][1]
+        side = joint.side or ""
+        rng = stride_ranges(session, first, side) if side else np.array([])
+        flex[jname] = rng
+        verdict = ""
+        if len(rng) and joint.type == "knee":
+            inside = np.mean((rng >= WALK_RANGE_DEG[0]) & (rng <= WALK_RANGE_DEG[1]))
+            verdict = (
+                "plausible"
+                if np.median(rng) <= WALK_RANGE_DEG[1] and np.median(rng) >= WALK_RANGE_DEG[0]
+                else "implausible"
+            )
+            verdict += (
+                f" ({100 * inside:.0f}% of strides in {WALK_RANGE_DEG[0]:.0f}–"
+                f"{WALK_RANGE_DEG[1]:.0f}°)"
+            )
+        peer = vendor_ranges(session, vendor, joint, side) if side else np.array([])
+        rows.append(
+            f"| {name} | {protocol} | {jname} | {' / '.join(grades)} | {_fmt(rng)} | "
+            f"{_fmt(peer)} | {{lr_{jname}}} | {_num(fit.get('witness_deg'))} | "
+            f"{_num(fit.get('relative_residual'), 2)} | {_num(fit.get('consistency_deg'))} | "
+            f"{verdict} |"
+        )
+    out = []
+    for row in rows:
+        for jname in flex:
+            other = jname[:-1] + ("l" if jname.endswith("r") else "r")
+            diff = "–"
+            if len(flex.get(jname, [])) and len(flex.get(other, [])):
+                diff = f"{abs(np.median(flex[jname]) - np.median(flex[other])):.0f}°"
+            row = row.replace(f"{{lr_{jname}}}", diff)
+        out.append(row)
+    return out
+
+
+def _num(x, digits: int = 1) -> str:
+    return "–" if x is None or not np.isfinite(float(x)) else f"{float(x):.{digits}f}"
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[1].parent
+                    / "shared")  # fmt: skip
+    ap.add_argument("--only", default="", help="comma-separated recording names")
+    args = ap.parse_args()
+    human = args.data / "datasets" / "human"
+    if not human.is_dir():
+        raise SystemExit(f"no {human}: give --data (the shared folder)")
+    only = set(filter(None, args.only.split(",")))
+    jobs = [("qmt_full_body", p) for p in ("walk", "arm")]
+    jobs += [(k, "walk" if "knee" in k else "arm") for k in DOT]
+    print(
+        "| recording | protocol | joint | grades (3 planes) | first angle per cycle, median "
+        "(IQR) | vendor 9-D rotation from stand per cycle | L−R | witness ° | hinge residual "
+        "| part consistency ° | plausibility |"
+    )
+    print("|---|---|---|---|---|---|---|---:|---:|---:|---|")
+    for name, protocol in jobs:
+        if only and name not in only:
+            continue
+        vendor: dict = {}
+        try:
+            if name == "qmt_full_body":
+                session, vendor = qmt_session(human / name, protocol)
+            else:
+                session = dot_session(human / "imt_dot" / name, DOT[name])
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                analyse(session, PipelineOptions(protocol=protocol, progress=False))
+        except InputError as exc:
+            print(f"| {name} | {protocol} | – | refused: {exc} | | | | | | | |")
+            continue
+        for row in report(name, protocol, session, vendor):
+            print(row)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,152 @@
+"""A knee's flexion axis from a stand and a walk (motionlab/segments/gait_axes.py), and what
+bad recordings make of it: no straight walking, no stand, a sensor on the other leg, a sensor
+upside down."""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+
+import numpy as np
+import pytest
+
+from motionlab import rotations as rot
+from motionlab import stages
+from motionlab.errors import InputError
+from motionlab.kinematics.session_angles import sensor_orientation
+from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
+from motionlab.protocol import load_protocol
+from motionlab.segments import gait_axes, movement, streams_of
+from motionlab.segments.steps import find_steps
+from motionlab.simulate import simulate
+from motionlab.simulate.errors import get_preset
+
+Z = np.array([0.0, 0.0, 1.0])
+
+
+def _one_clock():
+    preset = get_preset("typical")
+    timing = dataclasses.replace(preset.timing, clock_offset_sigma_s=0.0, clock_drift_sigma=0.0)
+    return dataclasses.replace(preset, timing=timing)
+
+
+@pytest.fixture(scope="module")
+def walk():
+    """A stand, then 35 s of walking, sensors at random places and orientations, soft tissue."""
+    proto = load_protocol("walk")
+    session, truth = simulate(proto, 40.0, 4, _one_clock(), mounting="random", soft_tissue="motion")
+    prepare_sensors(session)
+    analyse(session, PipelineOptions(proto, progress=False, clock_sync=False))
+    return proto, session, truth
+
+
+def _rmse(session, truth, column: str) -> float:
+    ang = session.results.angles.columns()
+    step = truth.step("walk")
+    w = (ang["time_s"] > step["start_s"] + 3) & (ang["time_s"] < step["end_s"] - 3)
+    err = ang[column] - np.interp(ang["time_s"], truth.time, truth.joint_angles[column])
+    return float(np.sqrt(np.mean(err[w] ** 2)))
+
+
+def _side(session, seg: str):
+    s = session.sensors[seg]
+    return s.time, s.gyr, sensor_orientation(session, seg)
+
+
+def test_walk_determines_both_knees_flexion_and_not_their_other_planes(walk):
+    proto, session, truth = walk
+    cal = session.results.calibration
+    for side in "rl":
+        fit = cal.hinges[f"knee_{side}"]
+        assert fit["method"] == "principal" and fit["verdict"] == "determined", fit["reasons"]
+        assert fit["sign"] == "anatomy" and fit["relative_sign"] == "measured"
+        assert fit["witness_deg"] < 12.0 and fit["consistency_deg"] < 5.0
+        grades = cal.grades[f"knee_{side}"]["grades"]
+        assert grades[0] == "determined"
+        # the axis is known to 5° at best: 60° of flexion can put 5° into the other planes
+        assert grades[1] != "determined" and grades[2] != "determined"
+        assert _rmse(session, truth, f"knee_{side}_flexion_deg") < 2.5
+
+
+def test_the_principal_axis_is_perpendicular_to_the_long_axis_and_agrees_with_its_parts(walk):
+    proto, session, _ = walk
+    cal = session.results.calibration
+    t, g1, g2, q1, q2, speed = movement._shared_movement(
+        "knee_r", _side(session, "thigh_r"), _side(session, "shank_r")
+    )
+    stand = cal.steps["standing"]
+    ref = (t >= stand[0]) & (t <= stand[1])
+    axes = gait_axes.principal_axes(t, g1, g2, q1, q2, ref, speed > 0.3)
+    assert abs(axes.axis_proximal @ axes.long_proximal) < 1e-9
+    assert abs(axes.axis_distal @ axes.long_distal) < 1e-9
+    assert axes.dominance < 0.5 and axes.consistency_deg < 5.0
+    fit = cal.hinges["knee_r"]
+    assert abs(abs(axes.axis_proximal @ fit["axis_proximal"]) - 1.0) < 1e-3
+
+
+def test_a_walk_that_only_turns_leaves_the_knee_not_determined(walk):
+    """Walking round a tight circle all the time: no straight walking to take the axis from."""
+    _, session, truth = walk
+    stand = session.results.calibration.steps["standing"]
+    spun = []
+    for seg in ("thigh_r", "shank_r"):
+        t, gyr, q = _side(session, seg)
+        turn = rot.from_axis_angle(Z, 0.6 * np.clip(t - stand[1], 0.0, None))  # 0.6 rad/s
+        q_new = rot.mul(turn, q)
+        rate = 0.6 * (t > stand[1])
+        spun.append((t, gyr + rot.rotate(rot.conj(q_new), np.outer(rate, Z)), q_new))
+    fit = gait_axes.fit_knee("knee_r", *spun, np.array([0, 0, 1.0]), np.array([0, 0, 1.0]),
+                             tuple(stand))  # fmt: skip
+    assert fit.verdict == "not determined"
+    assert "straight walking" in fit.reasons[0]
+
+
+def test_a_walk_without_a_stand_is_refused_in_one_line(walk):
+    proto, session, truth = walk
+    stand_end = session.results.calibration.steps["standing"][1]
+    walk_end = truth.step("walk")["end_s"]
+    cut = {}
+    for seg, (t, acc, gyr) in streams_of(session, proto).items():
+        keep = (t > stand_end + 1.0) & (t < walk_end - 1.0)
+        cut[seg] = (t[keep], acc[keep], gyr[keep])
+    with pytest.raises(InputError) as exc:
+        find_steps(cut, proto)
+    assert "'standing' (static) not found" in str(exc.value)
+    assert "'standing' needs the standing pose held still for at least 2.5 s" in str(exc.value)
+    assert "\n" not in str(exc.value)
+
+
+def test_shanks_swapped_between_the_legs_give_no_determined_knee(walk):
+    """Each shank's sensor mapped to the other leg: thigh and shank then do not share a knee,
+    and no knee angle may be graded determined."""
+    proto, session, _ = walk
+    swapped = copy.deepcopy(session)
+    for a, b in (("shank_r", "shank_l"), ("shank_l", "shank_r")):
+        swapped.sensors[a].segment = b
+    cal = stages.calibrate(swapped, proto, force=True)
+    for side in "rl":
+        assert cal.hinges[f"knee_{side}"]["verdict"] != "determined"
+        assert "determined" not in cal.grades[f"knee_{side}"]["grades"]
+
+
+def test_a_sensor_upside_down_gives_the_same_knee_angles(walk):
+    """The shank sensor turned half a turn on the skin (its data and its fused orientation
+    turned with it): the calibration reads its placement from the data, so the angles stay."""
+    proto, session, _ = walk
+    flipped = copy.deepcopy(session)
+    r = rot.from_axis_angle(np.array([1.0, 0.0, 0.0]), np.pi)  # new sensor frame in the old
+    s = flipped.sensors["shank_r"]
+    for channel in ("acc", "gyr", "mag"):
+        if getattr(s, channel) is not None:
+            setattr(s, channel, rot.rotate(rot.conj(r), getattr(s, channel)))
+    entry = flipped.results.fusion["shank_r"]
+    entry.quat = rot.mul(entry.quat, r)
+    for name in ("acc_bias", "gyro_bias"):
+        if getattr(entry, name) is not None:
+            setattr(entry, name, rot.rotate(rot.conj(r), getattr(entry, name)))
+    stages.calibrate(flipped, proto, force=True)
+    stages.angles(flipped, proto, force=True)
+    before = session.results.angles.columns()["knee_r_flexion_deg"]
+    after = flipped.results.angles.columns()["knee_r_flexion_deg"]
+    assert flipped.results.calibration.grades["knee_r"]["grades"][0] == "determined"
+    assert np.nanmax(np.abs(after - before)) < 0.5
