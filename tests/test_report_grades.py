@@ -273,10 +273,8 @@ def test_knee_with_a_wrong_axis(walk):
     from motionlab.report.sentences import missing_lines
 
     line = next(m for m in missing_lines(view) if m.startswith("Right knee"))
-    assert line == (
-        "Right knee: flexion-extension not determined (axis) — walk 10 straight steps at an "
-        "even pace."
-    )
+    assert line.startswith("Right knee: flexion-extension not determined (axis)"), line
+    assert line.endswith(" — walk 10 straight steps at an even pace."), line
 
 
 def test_pelvis_not_calibrated(walk):

@@ -208,6 +208,9 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
     return items + problems[:2]
 
 
+#: words of a grade's reason that say the hinge axis itself was not measured well
+AXIS_WORDS = ("hinge", "differs", "not about", "single axis", "flexion axis", "puts the axis")
+
 #: what to do for each joint type so that its hinge axis is measured
 _BEND = {
     "knee": "walk 10 straight steps at an even pace",
@@ -232,7 +235,11 @@ def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[s
         return "direction of flexion", f"stand still 5 s with the {display} straight, then {bend}"
     if "its zero" in r:
         return "zero", f"stand still 5 s at the start with the {display} straight"
-    if "axis" in r and ("hinge" in r or "differs" in r or "not about" in r or "flexion axis" in r):
+    if "axis from the walk is known to" in r:  # a walk alone: the other planes carry flexion
+        return "flexion axis known only roughly", (
+            f"add a seated calibration: extend the {display} fully and let it flex back 5 times"
+        )
+    if "axis" in r and any(k in r for k in AXIS_WORDS):
         return "axis", bend
     if "forward direction" in r or "one measured axis" in r:
         return (
