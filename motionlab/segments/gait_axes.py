@@ -21,9 +21,12 @@ Three numbers judge the axis, each against what real walks give rather than a si
 - the dominance: second singular value over the first (real walks: 0.16-0.33; a segment with no
   preferred axis is near 1);
 - the witness: Seel's constraint refitted with both axes held perpendicular to their long axes
-  (two angles instead of four, started from the principal axes), whose axes a real knee leaves
-  within 4-10° of the principal ones (``witness_deg``) at a relative residual of 0.46-0.79.
-  Two segments that do not share a joint (a sensor on the other leg) leave it near or above 1.
+  (two angles instead of four, started from the principal axes), whose axes lie within 1.5-4.4°
+  of the principal ones on the real full-body walk and 9.7° on a real DOT walk
+  (``witness_deg``; simulated walks: 8-11°), at a relative residual of 0.46-0.79 (simulated:
+  0.2-0.4). A shank on the other leg is not told by the residual (both legs swing about
+  parallel axes: 0.28-0.41 on the simulator) but by the signs (flexion no longer one way) or
+  the witness (12°): ``weak``, never ``determined``.
 """
 
 from __future__ import annotations
