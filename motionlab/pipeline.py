@@ -38,7 +38,6 @@ from motionlab.errors import InputError
 from motionlab.ingest import DEFAULT_GAP_MAX, ingest
 from motionlab.isolated import check_hdf5, looks_like_hdf5
 from motionlab.protocol import Protocol, load_protocol
-from motionlab.results import Gait
 from motionlab.segments import sensor_for_segment
 from motionlab.session import (
     FORMAT_NAME,
@@ -450,7 +449,7 @@ def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
         quality_rows,
         rom_rows,
     )
-    from motionlab.report.sentences import findings, span, task_name
+    from motionlab.report.sentences import findings, missing_lines, span, task_name
 
     ses, proto = view.session, view.protocol
     q = quality_rows(view)
@@ -494,7 +493,7 @@ def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
     if not spans and cal is not None and cal.single_pose:
         spans = "none (the recording is its calibration pose)"
     lines.append("  tasks: " + spans)
-    lines.append(_gait_line(ses.results.gait))
+    lines.append(_gait_line(view))
     flexion = [r for r in rom_rows(view) if r["angle"] == "flexion"]
     if flexion:
         lines.append("  flexion range (typical, deg):")
@@ -522,8 +521,12 @@ def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
         lines.append(
             f"  validation RMSE (deg): {', '.join(rmse[:6])}" + (" ..." if len(rmse) > 6 else "")
         )
-    lines.append("  findings:")
+    lines.append("  findings (determined numbers only):")
     lines += [f"    - {f}" for f in findings(view, limit=4)]
+    missing = missing_lines(view)
+    if missing:
+        lines.append("  not determined by this recording:")
+        lines += [f"    - {m}" for m in missing]
     lines.append(f"outputs in {report.pdf_path.parent}:")
     lines.append(
         f"  {SESSION_FILE}, {report.pdf_path.name} ({len(report.pages)} pages), "
@@ -534,17 +537,30 @@ def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
     return "\n".join(lines)
 
 
-def _gait_line(gait: Gait | None) -> str:
-    """One summary line about gait: its main numbers, or why there are no gait pages."""
+def _gait_line(view) -> str:
+    """One summary line about gait: its main numbers (each only when enough steady strides and
+    determined inputs give it, else why not), or why there are no gait pages."""
+    from motionlab.report.model import gait_profile
+
+    gait = view.session.results.gait
     if gait is None:
         return "  gait: none in this recording (the protocol has no gait task); no gait pages"
     if not gait.ok:
         return f"  gait: {gait.status}; no gait pages"
     s = gait.summary
-    gps = (gait.map or {}).get("gps", {}).get("overall", float("nan"))
+    withheld = s.get("withheld") or {}
+
+    def number(key: str, fmt: str) -> str:
+        v = s.get(key, float("nan"))
+        return fmt.format(v) if v == v else withheld.get(key, "n/a")
+
+    mp = gait_profile(view) or {}
+    gps = mp.get("gps", {}).get("overall", float("nan"))
+    gps_text = f"GPS {gps:.1f} deg" if gps == gps else (mp.get("not_computed") or "GPS n/a")
     speed = s.get("walking_speed_m_s", float("nan"))
     speed_text = f", speed {speed:.2f} m/s (leg model)" if speed == speed else ""
     return (
-        f"  gait: {s['strides_kept']} strides, cadence {s['cadence_steps_per_min']:.1f} steps/min,"
-        f" step-time asymmetry {s['step_time_asymmetry_pct']:.1f} %{speed_text}, GPS {gps:.1f} deg"
+        f"  gait: {s['strides_kept']} strides, cadence "
+        f"{number('cadence_steps_per_min', '{:.1f} steps/min')}, step-time asymmetry "
+        f"{number('step_time_asymmetry_pct', '{:.1f} %')}{speed_text}; {gps_text}"
     )

@@ -45,8 +45,9 @@ TEXT_COLUMNS = {
     "kept",  # a stride kept or rejected (spatiotemporal.csv), with its reason
     "parameter",  # spatiotemporal_summary.csv: one row per parameter, its unit in its name
 }
-# in spatiotemporal_summary.csv the unit of mean and sd is the one in the row's parameter name
-PER_ROW_UNIT = {"spatiotemporal_summary.csv": {"mean", "sd"}}
+# in spatiotemporal_summary.csv the unit of mean, sd, se, median and quartiles is the one in
+# the row's parameter name
+PER_ROW_UNIT = {"spatiotemporal_summary.csv": {"mean", "sd", "se", "median", "q1", "q3"}}
 WORDS = {
     "knee": ["Right knee", "Left knee", "flexion", "adduction", "rotation", "varus"],
     "elbow": ["Right elbow", "Left elbow", "flexion", "carrying", "pronation"],

@@ -283,3 +283,73 @@ def test_walk_without_pelvis_drops_the_hips():
     reduced = sensed_protocol(proto, session)
     assert set(reduced.joints) == {"knee_r", "knee_l"}
     assert sensed_protocol(load_protocol("knee"), session) is not None
+
+
+def _hand_table(reject_left: int | None = None):
+    """Right contacts every 1.0 s, left ones 0.45 s later (step times 0.55 and 0.45 s)."""
+    ic_r = np.arange(0, 10) * 1.0
+    ic_l = ic_r + 0.45
+    sides, events = {}, {}
+    for s, ic in (("r", ic_r), ("l", ic_l)):
+        ev = ge.SideEvents(ic, np.ones(10), ic + 0.62, np.ones(10), ic, np.ones(10))
+        sides[s] = ge.strides(s, ev)
+        events[s] = {"ic": ic, "fc": ic + 0.62}
+    if reject_left is not None:
+        sides["l"].kept[reject_left] = False
+    return sp.stride_table(sides, events)
+
+
+def test_step_asymmetry_from_paired_steps_of_one_bout_only():
+    full = sp.summary(_hand_table())
+    cut = sp.summary(_hand_table(reject_left=4))  # the left stride 4.45-5.45 s is rejected
+    # lost: the pair (right 4.0, left 4.45: that left stride is out) and the pair (right 5.0,
+    # left 5.45: the step onto the right at 5.0 starts in the rejected left stride)
+    assert cut["step_pairs"] == full["step_pairs"] - 2
+    table = _hand_table(reject_left=4)
+    right5 = table[(table["side"] == "r") & np.isclose(table["start_s"], 5.0)]
+    assert np.isnan(right5["step_time_s"]).all()
+    assert cut["step_time_asymmetry_pct"] == pytest.approx(20.0)  # 100 × 0.1 / 0.5
+    assert cut["step_time_asymmetry_se_pct"] == pytest.approx(0.0, abs=1e-9)  # no scatter
+
+
+def test_no_summary_number_from_fewer_than_three_strides():
+    table = _hand_table()
+    keep = table.groupby("side").cumcount() < 2  # two strides per side
+    table.loc[~keep, "kept"] = False
+    summ = sp.summary(table)
+    assert np.isnan(summ["sides"]["r"]["stride_time_s"]["mean"])
+    assert summ["sides"]["r"]["stride_time_s"]["strides_n"] == 2
+    assert np.isnan(summ["step_time_asymmetry_pct"]) and np.isnan(summ["cadence_steps_per_min"])
+    assert summ["withheld"]["stride_time_cv_pct"] == (
+        "not enough steady strides (2 of 3 needed) on one side"
+    )
+
+
+def test_stride_time_variability_within_bouts():
+    """Two bouts per side, 1.0 s then 1.2 s strides, no scatter inside a bout: the CV within
+    bouts is 0 (the pooled CV of all strides would be 10 %)."""
+    import pandas as pd
+
+    rows = []
+    for side in ("r", "l"):
+        t = 0.0
+        for stride in [1.0] * 4 + [None] + [1.2] * 4:
+            if stride is None:  # a turn: the next bout starts 3 s later
+                t += 3.0
+                continue
+            rows.append({"side": side, "start_s": t, "stride_time_s": stride})
+            t += stride
+    cv, dof = sp._within_bout_cv(pd.DataFrame(rows))
+    assert cv == pytest.approx(0.0, abs=1e-9) and dof == 2 * 2 * 3
+
+
+def test_red_only_beyond_the_values_own_uncertainty():
+    from motionlab.report.pages_gait import beyond
+
+    band = [16.0, 28.0]  # double support, % of the stride
+    method = sp.method_error("double_support_pct", 31.0, 0.96)
+    assert method == pytest.approx(100 * 2 * 0.03 / 0.96)  # two IC-to-FC intervals
+    assert not beyond(31.0, 0.5, band, method)  # 31 − 0.98 − 6.25 < 28
+    assert beyond(40.0, 0.5, band, method)
+    assert not beyond(40.0, float("nan"), band, method)  # unknown uncertainty: never red
+    assert beyond(29.5, 0.5, band) and not beyond(28.5, 0.5, band)  # 1.96 SE alone

@@ -226,13 +226,22 @@ def test_grades_reach_the_csv_tables():
                for c in f.columns)  # fmt: skip
 
 
-def test_findings_of_an_undetermined_angle_say_why_instead():
+def test_findings_come_only_from_determined_angles_and_missing_ones_are_said_once():
+    from motionlab.report.sentences import missing_lines, weak_lines
+
     items = findings(_graded_view())
-    assert not any("Right knee internal-external rotation range" in i for i in items)
-    assert f"Right knee internal-external rotation is not reported: {NOT_WHY}." in items, items
-    thrust = next(i for i in items if i.startswith("Right knee varus thrust"))
-    assert thrust.endswith(f"(weak: {WEAK_WHY}).")
+    assert not any("Right knee internal-external rotation" in i for i in items)
+    assert not any("varus thrust" in i for i in items)  # from the weak ab-adduction
+    assert not any("not reported" in i or "weak" in i for i in items)
     assert any(i.startswith("Left knee flexion-extension range 0–64°") for i in items)
+    missing = missing_lines(_graded_view())
+    assert missing == [
+        "Right knee: internal-external rotation not determined (right shank sensor not "
+        "calibrated); varus-valgus weak (forward direction of the right shank sensor) — record "
+        "the calibration: stand still 5 s first."
+    ], missing
+    weak = weak_lines(_graded_view(), "knee_r")
+    assert weak == [f"Right knee varus-valgus range -2 to 4° during gait (weak: {WEAK_WHY})."]
 
 
 def test_summary_names_graded_columns_and_counts_nominal_segments(tmp_path):

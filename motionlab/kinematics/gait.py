@@ -7,7 +7,8 @@ by the calibrated mounting) → events per side (:mod:`.gait_events`; turns from
 angular velocity of the pelvis sensor, else of the side's shank sensor) → strides and
 spatio-temporal parameters (:mod:`.spatiotemporal`) → pelvis angles relative to the walking
 direction (:mod:`.pelvis`, with a pelvis sensor) → per side the mean curve over kept strides of
-pelvis, hip and knee angles → GPS and MAP (:mod:`.gps`).
+pelvis, hip and knee angles → GPS and MAP (:mod:`.gps`), only from determined variables and
+sides with enough strides (:func:`.gps.gated_profile`).
 
 A session without a gait task, without shank sensors or without strides gives
 ``Gait(status="no gait: <why>")`` and nothing else.
@@ -24,7 +25,12 @@ from motionlab import rotations as rot
 from motionlab.kinematics import gait_events as ge
 from motionlab.kinematics import spatiotemporal as sp
 from motionlab.kinematics.cycles import CURVE_POINTS
-from motionlab.kinematics.gps import PELVIS, movement_analysis_profile
+from motionlab.kinematics.gps import (
+    PELVIS,
+    gated_profile,
+    movement_analysis_profile,
+    variable_grades,
+)
 from motionlab.kinematics.metrics import is_gait, shank_angular_velocity
 from motionlab.kinematics.pelvis import (
     PELVIS_COLUMNS,
@@ -202,5 +208,8 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
                 )
     out["curves"] = curves
     means = {s: {k: v for k, v in c.items() if not k.endswith("_sd")} for s, c in curves.items()}
-    out["map"] = movement_analysis_profile(means)
+    kept_n = {side: int(np.sum(st.kept)) for side, st in strides.items()}
+    out["map"] = gated_profile(
+        movement_analysis_profile(means), variable_grades(protocol, cal), kept_n
+    )
     return Gait(**out)

@@ -16,17 +16,28 @@ both sides: 11 variables.
 
 Normative curves: ``report_data/gait_normative.csv`` (see its YAML for sources, licence and why
 they are approximate).
+
+A score is only as good as its inputs (:func:`gated_profile`): a variable's GVS is given only when
+its angle is ``determined`` (:mod:`motionlab.segments.grades`; the pelvis variables by the pelvis
+frame's grade) and its side has at least :data:`~.spatiotemporal.MIN_STRIDES` kept strides; a
+side's GPS only when every variable of that side is given, the overall GPS only when both are.
+``withheld`` then says which variables are missing and why ("GPS not computed: right knee flexion
+not determined").
 """
 
 from __future__ import annotations
 
 from functools import lru_cache
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import pandas as pd
 from scipy.interpolate import PchipInterpolator
+
+if TYPE_CHECKING:
+    from motionlab.protocol import Protocol
+    from motionlab.results import SegmentCalibration
 
 DATA = Path(__file__).resolve().parent.parent / "report_data"  # as motionlab.report.normative
 NORMATIVE = DATA / "gait_normative.csv"
@@ -83,23 +94,132 @@ def population_gps(variables: tuple[str, ...] = VARIABLES) -> float:
     return float(np.sqrt(np.mean([np.mean(normative(v)[1] ** 2) for v in variables])))
 
 
+def _profile(scores: dict[str, dict[str, float]]) -> dict[str, Any]:
+    overall = {f"r_{v}": x for v, x in scores.get("r", {}).items()}
+    overall |= {f"l_{v}": x for v, x in scores.get("l", {}).items() if v not in PELVIS}
+    if "r" not in scores:
+        overall |= {f"l_{v}": x for v, x in scores.get("l", {}).items() if v in PELVIS}
+    used = tuple(v for v in VARIABLES if any(v in x for x in scores.values()))
+    return {
+        "gvs": scores,
+        "gps": {side: gps(x) for side, x in scores.items()} | {"overall": gps(overall)},
+        "population_gps_deg": population_gps(used) if used else float("nan"),
+        "variables": list(used),
+    }
+
+
 def movement_analysis_profile(curves: dict[str, dict[str, np.ndarray]]) -> dict[str, Any]:
     """MAP and GPS from mean curves ``{side: {variable: (P,) deg over 0-100 %}}``.
 
     Returns ``{"gvs": {side: {variable: deg}}, "gps": {"r": deg, "l": deg, "overall": deg},
-    "population_gps_deg": deg, "variables": [...]}``; a missing variable is left out.
+    "population_gps_deg": deg, "variables": [...]}``; a missing variable is left out. Ungraded:
+    see :func:`gated_profile`.
     """
     scores: dict[str, dict[str, float]] = {}
     for side, by_var in curves.items():
         scores[side] = {v: gvs(by_var[v], v) for v in VARIABLES if v in by_var}
-    overall = {f"r_{v}": s for v, s in scores.get("r", {}).items()}
-    overall |= {f"l_{v}": s for v, s in scores.get("l", {}).items() if v not in PELVIS}
-    if "r" not in scores:
-        overall |= {f"l_{v}": s for v, s in scores.get("l", {}).items() if v in PELVIS}
-    used = tuple(v for v in VARIABLES if any(v in s for s in scores.values()))
-    return {
-        "gvs": scores,
-        "gps": {side: gps(s) for side, s in scores.items()} | {"overall": gps(overall)},
-        "population_gps_deg": population_gps(used) if used else float("nan"),
-        "variables": list(used),
-    }
+    return _profile(scores)
+
+
+def variable_grades(
+    protocol: Protocol, calibration: SegmentCalibration | None
+) -> dict[str, dict[str, tuple[str, str]]]:
+    """``{side: {variable: (grade, reason)}}`` of the GPS variables the protocol's joints give:
+    hip and knee angles by their joint angle's grade, the pelvis variables by the pelvis frame's
+    (:func:`motionlab.segments.grades._frame_grade`). A calibration without grades (a session
+    calibrated before they existed) has everything ``determined``."""
+    from motionlab.kinematics.joint_types import angle_columns
+    from motionlab.segments.grades import _frame_grade
+
+    graded = calibration.grades if calibration is not None else {}
+    out: dict[str, dict[str, tuple[str, str]]] = {"r": {}, "l": {}}
+    for joint in protocol.joints.values():
+        if joint.type not in ("hip", "knee") or joint.side not in out:
+            continue
+        entry = graded.get(joint.name) or {}
+        grades, reasons = entry.get("grades", []), entry.get("reasons", [])
+        for k, (angle, _) in enumerate(angle_columns(joint)):
+            v = f"{joint.type}_{angle}"
+            if v in VARIABLES:
+                g = str(grades[k]) if k < len(grades) else "determined"
+                out[joint.side][v] = (g, str(reasons[k]) if k < len(reasons) else "")
+    segments = calibration.segments if calibration is not None else {}
+    if "pelvis" in protocol.segments and (not graded or "pelvis" in segments):
+        frame = ("determined", "")
+        if graded:
+            frame = _frame_grade("pelvis", segments.get("pelvis"))
+        for side in out:
+            out[side] |= dict.fromkeys(PELVIS, frame)
+    return out
+
+
+def gated_profile(
+    mp: dict[str, Any],
+    grades: dict[str, dict[str, tuple[str, str]]],
+    strides: dict[str, int] | None = None,
+) -> dict[str, Any]:
+    """The MAP and GPS of :func:`movement_analysis_profile` keeping only what its inputs allow
+    (module docstring): the GVS of ``determined`` variables (``grades`` from
+    :func:`variable_grades`; a variable not graded counts as determined) of sides with at least
+    ``MIN_STRIDES`` kept strides (``strides`` ``{side: n}``; None: not checked), a side's GPS only
+    with all its variables, the overall GPS only with both sides'. Adds ``withheld`` ``{side:
+    {variable: why}}`` and ``not_computed``: a sentence naming what is missing, empty when the
+    overall GPS is given. Applying it again with the same inputs changes nothing."""
+    from motionlab.kinematics.spatiotemporal import MIN_STRIDES, too_few
+
+    strides = strides or {}
+    scores: dict[str, dict[str, float]] = {}
+    withheld: dict[str, dict[str, str]] = {}
+    for side in ("r", "l"):
+        before = (mp.get("withheld") or {}).get(side, {})
+        gone: dict[str, str] = {}
+        curves = mp["gvs"].get(side, {})
+        n = strides.get(side)
+        for v in VARIABLES:
+            grade = grades.get(side, {}).get(v, ("determined", ""))[0]
+            if v not in curves and v not in before and grade == "determined":
+                continue  # not measured (no sensor): left out
+            if grade == "determined" and v in before and "steady strides" in before[v]:
+                gone[v] = before[v]  # its score was withheld for its strides: still is
+            elif grade != "determined" or v in before:
+                gone[v] = grade if grade != "determined" else before[v]
+                gone[v] = grade
+            elif n is not None and n < MIN_STRIDES:
+                gone[v] = too_few(n)
+        kept = {v: x for v, x in curves.items() if v not in gone}
+        if kept:
+            scores[side] = kept
+        if gone:
+            withheld[side] = gone
+    out = _profile(scores)
+    for side in ("r", "l"):
+        if withheld.get(side):
+            out["gps"][side] = float("nan")
+    if withheld:
+        out["gps"]["overall"] = float("nan")
+    out["population_gps_deg"] = mp.get("population_gps_deg", out["population_gps_deg"])
+    named = [set(x) for x in scores.values()] + [set(x) for x in withheld.values()]
+    out["variables"] = [v for v in VARIABLES if any(v in x for x in named)]
+    out["withheld"] = withheld
+    out["not_computed"] = not_computed(withheld)
+    return out
+
+
+def not_computed(withheld: dict[str, dict[str, str]]) -> str:
+    """``'GPS not computed: pelvis tilt, hip flexion weak; right knee flexion not determined'``
+    (the grade only, the reasons are on the calibration page; a variable missing on both sides
+    for one reason is named once, without side); empty when nothing is withheld."""
+    names = {"r": "right ", "l": "left "}
+    groups: dict[str, list[str]] = {}
+    for v in VARIABLES:
+        why = {side: gone[v] for side, gone in withheld.items() if v in gone}
+        both = len(why) == 2 and len(set(why.values())) == 1
+        for side, w in why.items():
+            label = v.replace("_", " ")
+            if both:
+                if side == "r":
+                    groups.setdefault(w, []).append(label)
+            else:
+                groups.setdefault(w, []).append(names.get(side, "") + label)
+    parts = [f"{', '.join(vs)} {w}" for w, vs in groups.items()]
+    return "GPS not computed: " + "; ".join(parts) if parts else ""

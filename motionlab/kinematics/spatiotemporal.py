@@ -11,10 +11,24 @@ contact FC; ``o`` the other side), times in s:
   ``o`` inside the stride to ``FC_s``), in % of the stride;
 - cadence (steps/min) ``120 / stride time``.
 
-Summaries per side: mean, SD (ddof 1) and CV (% = 100 SD/mean). Both sides: cadence from the mean
+A step time is kept only when the step lies inside one steady bout: the other side's stride that
+starts with the step's first contact is kept too and still runs at the step's landing (else NaN:
+a step across a turn, a stop or a rejected stride is no step of the walk).
+
+Summaries per side, of the kept strides: mean, SD (ddof 1), CV (% = 100 SD/mean), the standard
+error ``SD/√n``, median and interquartile range (``q1``, ``q3``); all NaN with fewer than
+:data:`MIN_STRIDES` values (``strides_n`` still says how many). Both sides: cadence from the mean
 stride time of all kept strides; step-time asymmetry as the symmetry index of Robinson et al.
-(1987, J Manipulative Physiol Ther 10:172), ``100 |R − L| / ((R + L)/2)`` of the mean step times;
-stride-time variability as the CV of the stride time (Hausdorff 2005, J NeuroEng Rehabil 2:19).
+(1987, J Manipulative Physiol Ther 10:172), ``100 |R − L| / ((R + L)/2)`` of the mean step times
+of *paired* steps only (a step onto the right and the next step onto the left, both kept, the
+second starting at the first's landing), at least :data:`MIN_STRIDES` pairs, with its standard
+error from the paired differences; stride-time variability as the CV of the stride time (Hausdorff
+2005, J NeuroEng Rehabil 2:19) *within* steady bouts (the pooled SD of runs of consecutive kept
+strides over the mean: a change of pace after a turn is no variability), with both sides at
+:data:`MIN_STRIDES` strides or more, its standard error ``CV/√(2 dof)`` (the large-sample error
+of a CV of normal data, dof the pooled degrees of freedom); the cadence too
+needs both sides at :data:`MIN_STRIDES`. A number not given has its reason in ``withheld``
+(``"not enough steady strides (2 of 3 needed)"``).
 
 Step length, stride length and walking speed (with thigh and shank sensors and segment lengths):
 a double-pendulum leg model after Salarian et al. (2004, IEEE TBME 51:1434) and Aminian et al.
@@ -57,6 +71,17 @@ LENGTH_MODEL = (
     "double pendulum (thigh + shank inclination and lengths) at initial contact, × 1.25 for "
     "the foot roll (Salarian 2004, Aminian 2002); real walk: 18-23 % short without the factor"
 )
+
+#: fewest kept strides of a side (or paired steps) from which a summary number is given
+MIN_STRIDES = 3
+
+#: bounds (s) of the event detector's own timing error, rounded up from docs/kinematics.md:
+#: initial contact within 3 ms on the real walk (n = 4) and 0.4-1.5 ms on the simulator; final
+#: contact 9-16 ms after the force plates (n = 2), -14 to +8 ms from Zeni's (n = 4)
+IC_ERROR_S, FC_ERROR_S = 0.01, 0.02
+#: relative bound of the leg model's step and stride length and speed: 2 % on the one real walk
+#: its foot-roll factor was taken from (a training error), so 5 % is assumed
+LENGTH_ERROR = 0.05
 
 #: per-stride columns (units in the names)
 STRIDE_COLUMNS = (
@@ -132,6 +157,19 @@ def _first_after(x: np.ndarray, t: float) -> float:
     return float(x[m][0]) if m.any() else np.nan
 
 
+def _steady_step(other: Strides | None, t0: float, ic_o: np.ndarray) -> float:
+    """Time (s) of the step that lands at ``t0``, from the other side's last contact before it;
+    NaN unless the other side's stride starting there is kept and still runs at ``t0`` (the step
+    lies inside one steady bout)."""
+    start = _last_before(ic_o, t0)
+    if other is None or not np.isfinite(start):
+        return np.nan
+    j = np.flatnonzero(np.isclose(other.ic, start, atol=1e-9))
+    if len(j) == 0 or not other.kept[j[0]] or other.next_ic[j[0]] < t0:
+        return np.nan
+    return float(t0 - start)
+
+
 def stride_table(
     sides: dict[str, Strides],
     events: dict[str, dict[str, np.ndarray]],
@@ -166,7 +204,7 @@ def stride_table(
                     "kept": bool(st.kept[k]),
                     "reason": st.reason[k],
                     "stride_time_s": stride,
-                    "step_time_s": t0 - _last_before(ic_o, t0),
+                    "step_time_s": _steady_step(sides.get(other), t0, ic_o),
                     "stance_time_s": stance,
                     "swing_time_s": stride - stance,
                     "stance_pct": 100 * stance / stride,
@@ -182,46 +220,149 @@ def stride_table(
     return pd.DataFrame(rows, columns=cols).sort_values("start_s", ignore_index=True)
 
 
+def method_error(column: str, value: float, stride_s: float) -> float:
+    """Bound of the method's own error (the column's unit) on a per-side mean of ``column``
+    (:data:`STRIDE_COLUMNS`, or ``step_time_asymmetry_pct``), from the event timing bounds
+    :data:`IC_ERROR_S`, :data:`FC_ERROR_S` and :data:`LENGTH_ERROR`; ``stride_s`` the mean stride
+    time (s). A time between two initial contacts carries one IC error (their common bias
+    cancels), one from an IC to an FC both; double support has two such intervals. The
+    stride-time CV has none (a constant bias does not vary). NaN for an unknown column."""
+    ic, fc = IC_ERROR_S, FC_ERROR_S
+    pct = 100.0 / stride_s
+    bounds = {
+        "stride_time_s": ic,
+        "step_time_s": ic,
+        "stance_time_s": ic + fc,
+        "swing_time_s": ic + fc,
+        "stance_pct": (ic + fc) * pct,
+        "swing_pct": (ic + fc) * pct,
+        "double_support_pct": 2 * (ic + fc) * pct,
+        "cadence_steps_per_min": 120.0 * ic / stride_s**2,
+        "step_length_m": LENGTH_ERROR * abs(value),
+        "stride_length_m": LENGTH_ERROR * abs(value),
+        "walking_speed_m_s": LENGTH_ERROR * abs(value),
+        "step_time_asymmetry_pct": 200.0 * ic / stride_s,
+        "stride_time_cv_pct": 0.0,
+    }
+    return float(bounds.get(column, np.nan))
+
+
 def _stats(x: pd.Series) -> dict[str, float]:
+    """Mean, SD, CV, SE, median, q1, q3 (NaN below :data:`MIN_STRIDES` values) and
+    ``strides_n``."""
     x = x.dropna().to_numpy(dtype=float)
-    if len(x) == 0:
-        return {"mean": np.nan, "sd": np.nan, "cv_pct": np.nan, "strides_n": 0}
-    sd = float(np.std(x, ddof=1)) if len(x) > 1 else 0.0
+    keys = ("mean", "sd", "cv_pct", "se", "median", "q1", "q3")
+    if len(x) < MIN_STRIDES:
+        return dict.fromkeys(keys, np.nan) | {"strides_n": len(x)}
+    sd = float(np.std(x, ddof=1))
     mean = float(np.mean(x))
+    q1, median, q3 = (float(v) for v in np.percentile(x, [25, 50, 75]))
     return {
         "mean": mean,
         "sd": sd,
         "cv_pct": 100 * sd / mean if mean else np.nan,
+        "se": float(sd / np.sqrt(len(x))),
+        "median": median,
+        "q1": q1,
+        "q3": q3,
         "strides_n": len(x),
     }
 
 
+def _within_bout_cv(kept: pd.DataFrame) -> tuple[float, int]:
+    """``(CV %, degrees of freedom)`` of the stride time within steady bouts: the pooled SD of
+    each side's runs of consecutive kept strides (a stride starting where the one before ended)
+    over the mean stride time, so that a change of pace between bouts (after a turn or a stop)
+    is not counted as variability."""
+    ss, dof, values = 0.0, 0, []
+    for side in ("r", "l"):
+        part = kept[kept["side"] == side].dropna(subset=["stride_time_s"])
+        start = part["start_s"].to_numpy(dtype=float)
+        stride = part["stride_time_s"].to_numpy(dtype=float)
+        breaks = np.flatnonzero(~np.isclose(start[1:], (start + stride)[:-1], atol=1e-6)) + 1
+        for bout in np.split(stride, breaks):
+            if len(bout) > 1:
+                ss += float(np.sum((bout - bout.mean()) ** 2))
+                dof += len(bout) - 1
+        values += list(stride)
+    if dof == 0:
+        return np.nan, 0
+    return float(100 * np.sqrt(ss / dof) / np.mean(values)), dof
+
+
+def too_few(n: int, what: str = "steady strides") -> str:
+    """``'not enough steady strides (2 of 3 needed)'``."""
+    return f"not enough {what} ({n} of {MIN_STRIDES} needed)"
+
+
+def _paired_steps(kept: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
+    """``(right, left)`` step times (s) of consecutive pairs: a kept step onto the right and the
+    kept step onto the left that starts at its landing (both inside one steady bout)."""
+    steps = kept.dropna(subset=["step_time_s"])
+    left = steps[steps["side"] == "l"]
+    left_start = (left["start_s"] - left["step_time_s"]).to_numpy()
+    r_out, l_out = [], []
+    for _, row in steps[steps["side"] == "r"].iterrows():
+        j = np.flatnonzero(np.isclose(left_start, row["start_s"], atol=1e-6))
+        if len(j):
+            r_out.append(row["step_time_s"])
+            l_out.append(left["step_time_s"].to_numpy()[j[0]])
+    return np.asarray(r_out, dtype=float), np.asarray(l_out, dtype=float)
+
+
 def summary(table: pd.DataFrame) -> dict[str, Any]:
-    """Per side ``{column: {mean, sd, cv_pct, n}}`` of kept strides, and the bilateral numbers:
-    ``cadence_steps_per_min``, ``step_time_asymmetry_pct``, ``stride_time_cv_pct``,
-    ``walking_speed_m_s`` (NaN without leg lengths),
-    ``strides_kept``, ``strides_rejected`` ``{reason: count}``."""
+    """Per side ``{column: {mean, sd, cv_pct, se, median, q1, q3, strides_n}}`` of kept strides,
+    and the bilateral numbers: ``cadence_steps_per_min``, ``step_time_asymmetry_pct`` (with
+    ``step_time_asymmetry_se_pct`` and ``step_pairs``), ``stride_time_cv_pct`` (with
+    ``stride_time_cv_se_pct``), ``walking_speed_m_s`` (NaN without leg lengths),
+    ``strides_kept``, ``strides_rejected`` ``{reason: count}``, ``min_strides`` and
+    ``withheld`` ``{number: why it is not given}`` (module docstring)."""
     kept = table[table["kept"]]
-    out: dict[str, Any] = {"sides": {}}
+    out: dict[str, Any] = {"sides": {}, "min_strides": MIN_STRIDES}
+    withheld: dict[str, str] = {}
+    counts = {}
     for side in ("r", "l"):
         part = kept[kept["side"] == side]
         out["sides"][side] = {c: _stats(part[c]) for c in STRIDE_COLUMNS}
+        counts[side] = int(part["stride_time_s"].notna().sum())
     stride = kept["stride_time_s"].dropna()
-    out["cadence_steps_per_min"] = 120.0 / float(stride.mean()) if len(stride) else np.nan
-    r = out["sides"]["r"]["step_time_s"]["mean"]
-    left = out["sides"]["l"]["step_time_s"]["mean"]
-    out["step_time_asymmetry_pct"] = 100 * abs(r - left) / (0.5 * (r + left))
-    out["stride_time_cv_pct"] = _stats(stride)["cv_pct"]
+    fewest = min(counts.values())
+    out["cadence_steps_per_min"] = np.nan
+    if fewest >= MIN_STRIDES:
+        out["cadence_steps_per_min"] = 120.0 / float(stride.mean())
+    else:
+        withheld["cadence_steps_per_min"] = too_few(fewest) + " on one side"
+    r, left = _paired_steps(kept)
+    out["step_pairs"] = len(r)
+    out["step_time_asymmetry_pct"] = out["step_time_asymmetry_se_pct"] = np.nan
+    if len(r) >= MIN_STRIDES:
+        total = float(r.mean() + left.mean())
+        out["step_time_asymmetry_pct"] = 200 * abs(float(r.mean() - left.mean())) / total
+        diff_se = float(np.std(r - left, ddof=1)) / np.sqrt(len(r))
+        out["step_time_asymmetry_se_pct"] = float(200 * diff_se / total)
+    else:
+        withheld["step_time_asymmetry_pct"] = too_few(len(r), "paired steady steps")
+    out["stride_time_cv_pct"] = out["stride_time_cv_se_pct"] = np.nan
+    if fewest >= MIN_STRIDES:
+        cv, dof = _within_bout_cv(kept)
+        out["stride_time_cv_pct"] = cv
+        out["stride_time_cv_se_pct"] = float(cv / np.sqrt(2 * dof)) if dof else np.nan
+    else:
+        withheld["stride_time_cv_pct"] = too_few(fewest) + " on one side"
     speed = kept["walking_speed_m_s"].dropna()
-    out["walking_speed_m_s"] = float(speed.mean()) if len(speed) else np.nan
+    out["walking_speed_m_s"] = float(speed.mean()) if len(speed) >= MIN_STRIDES else np.nan
+    if 0 < len(speed) < MIN_STRIDES:
+        withheld["walking_speed_m_s"] = too_few(len(speed))
     out["strides_kept"] = int(len(kept))
     rejected = table[~table["kept"]]["reason"].value_counts()
     out["strides_rejected"] = {str(k): int(v) for k, v in rejected.items()}
+    out["withheld"] = withheld
     return out
 
 
 def summary_rows(summ: dict[str, Any]) -> pd.DataFrame:
-    """The summary as a table ``parameter, side, mean, sd, cv_pct, n`` (for CSV and report)."""
+    """The summary as a table ``parameter, side, mean, sd, cv_pct, se, median, q1, q3,
+    strides_n`` (for CSV and report); the bilateral numbers have their ``se`` where known."""
     rows = []
     for side, cols in summ["sides"].items():
         for c, s in cols.items():
@@ -232,5 +373,7 @@ def summary_rows(summ: dict[str, Any]) -> pd.DataFrame:
         if c not in summ:
             continue
         rows.append({"parameter": c, "side": "both", "mean": summ[c], "sd": np.nan,
-                     "cv_pct": np.nan, "strides_n": summ["strides_kept"]})  # fmt: skip
+                     "cv_pct": np.nan, "se": summ.get(c.removesuffix("_pct") + "_se_pct", np.nan),
+                     "median": np.nan, "q1": np.nan, "q3": np.nan,
+                     "strides_n": summ["strides_kept"]})  # fmt: skip
     return pd.DataFrame(rows)

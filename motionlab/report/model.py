@@ -19,8 +19,9 @@ read results the stages stored; they compute no kinematics of their own.
 - :func:`grade_rows`: per joint angle, its grade (``determined``, ``weak``, ``not determined``;
   :mod:`motionlab.segments.grades`) and the reason in plain words. Sessions calibrated before
   grades existed have none: every angle counts as ``determined`` there. Rows of :func:`rom_rows`
-  and :func:`symmetry_rows` carry the grade; a range of a ``not determined`` angle is not compared
-  with the normal range (``status`` empty).
+  and :func:`symmetry_rows` carry the grade. Only a ``determined`` angle is compared with its
+  normal range (``status``; empty otherwise, so that nothing weak or undetermined is flagged) and
+  only ranges ``determined`` on both sides give a symmetry index (NaN otherwise).
 """
 
 from __future__ import annotations
@@ -250,6 +251,12 @@ def angle_grade(view: SessionView, joint: str, angle: str) -> tuple[str, str]:
     return DETERMINED, ""
 
 
+def is_determined(grade: str) -> bool:
+    """Whether a number of this grade may be compared, flagged, scored or stated as a finding
+    (only ``determined``; a ``weak`` number is shown with its grade and described, no more)."""
+    return grade == DETERMINED
+
+
 def worst_grade(graded: list[tuple[str, str]]) -> tuple[str, str]:
     """The worst ``(grade, reason)`` of several; ``determined`` for none."""
     worst = (DETERMINED, "")
@@ -307,7 +314,7 @@ def rom_rows(view: SessionView) -> list[dict[str, Any]]:
                         "typical_max_deg": high,
                         "repetitions": int(m["repetitions"]),
                         "normal": normal,
-                        "status": "" if grade == NOT_DETERMINED else status,
+                        "status": status if is_determined(grade) else "",
                         "grade": grade,
                         "reason": reason,
                     }
@@ -330,7 +337,7 @@ def symmetry_rows(view: SessionView) -> list[dict[str, Any]]:
         grade, reason = worst_grade(
             [(right["grade"], right["reason"]), (left["grade"], left["reason"])]
         )
-        if grade == NOT_DETERMINED:
+        if not is_determined(grade):
             si = float("nan")
         rows.append(
             {
@@ -479,3 +486,21 @@ def excluded(view: SessionView) -> list[str]:
             "calibration steps and rests are left out"
         )
     return out
+
+
+def gait_profile(view: SessionView) -> dict[str, Any] | None:
+    """The session's Movement Analysis Profile and GPS as the angles' grades allow
+    (:func:`motionlab.kinematics.gps.gated_profile` with this session's grades and kept strides:
+    a session analysed before the gating, or whose grades changed since, is gated here); None
+    without a gait analysis."""
+    from motionlab.kinematics.gps import gated_profile, variable_grades
+
+    g = view.session.results.gait
+    if g is None or not g.ok or not g.map:
+        return None
+    strides = g.strides or {}
+    kept = np.asarray(strides.get("kept", []), dtype=bool)
+    sides = np.asarray(strides.get("side", []), dtype=str)
+    counts = {s: int(np.sum(kept & (sides == s))) for s in ("r", "l")} if len(kept) else None
+    cal = view.session.results.calibration
+    return gated_profile(g.map, variable_grades(view.protocol, cal), counts)

@@ -1,7 +1,15 @@
 """Gait pages: spatio-temporal parameters against normative bands with the Movement Analysis
 Profile (first page), then the pelvis, hip and knee cycle curves against the GPS's normative
 curves; and the ``spatiotemporal.csv`` table. Drawn only when ``results.gait`` holds a gait
-analysis (:mod:`motionlab.kinematics.gait`)."""
+analysis (:mod:`motionlab.kinematics.gait`).
+
+What is shown obeys the inputs: a side's parameter needs ``MIN_STRIDES`` (3) kept strides ("not
+enough steady strides (2 of 3 needed)" instead), the asymmetry as many paired steps; each is
+given as mean ± SD (CV) with its median and interquartile range, and is red only when outside
+its band by more than its own uncertainty (1.96 standard errors plus the method's timing or
+length error bound, :func:`beyond`). The GPS and the MAP's bars come only from determined
+variables (:func:`motionlab.report.model.gait_profile`); a curve of a variable the recording did
+not determine is not drawn, a weak one is labelled."""
 
 from __future__ import annotations
 
@@ -12,9 +20,15 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from motionlab.kinematics.gps import NORMATIVE_SOURCES, VARIABLES, normative
-from motionlab.kinematics.spatiotemporal import STRIDE_COLUMNS, summary_rows
-from motionlab.report.model import SessionView
+from motionlab.kinematics.gps import NORMATIVE_SOURCES, VARIABLES, normative, variable_grades
+from motionlab.kinematics.spatiotemporal import (
+    MIN_STRIDES,
+    STRIDE_COLUMNS,
+    method_error,
+    summary_rows,
+    too_few,
+)
+from motionlab.report.model import SessionView, gait_profile
 from motionlab.report.pdf import BAND_COLOUR, MUTED, SIDE_COLOUR, SIZE, Document
 from motionlab.results import Gait
 
@@ -47,14 +61,43 @@ def gait_result(view: SessionView) -> Gait | None:
     return g if g is not None and g.ok else None
 
 
+#: the uncertainty a value must exceed a band by to be flagged: 1.96 standard errors (95 %)
+Z95 = 1.96
+
+
 def _fmt(s: dict[str, float], digits: int) -> str:
-    if not np.isfinite(s.get("mean", np.nan)):
-        return "-"
-    return f"{s['mean']:.{digits}f} ± {s['sd']:.{digits}f} (CV {s['cv_pct']:.1f} %)"
+    """``'1.10 ± 0.02 (CV 1.8 %)\\nmedian 1.10 (1.09-1.11); n 9'``, or why not given."""
+    n = int(s.get("strides_n", 0))
+    if n < MIN_STRIDES or not np.isfinite(s.get("mean", np.nan)):
+        return too_few(n) if n < MIN_STRIDES else "-"
+    d = digits
+    return (
+        f"{s['mean']:.{d}f} ± {s['sd']:.{d}f} (CV {s['cv_pct']:.1f} %)\n"
+        f"median {s['median']:.{d}f} ({s['q1']:.{d}f}-{s['q3']:.{d}f}); n {n}"
+    )
 
 
-def _outside(value: float, band: list[float] | None) -> bool:
-    return bool(band) and np.isfinite(value) and not band[0] <= value <= band[1]
+def beyond(value: float, se: float, band: list[float] | None, method: float = 0.0) -> bool:
+    """Whether ``value`` lies outside ``band`` by more than its own uncertainty: :data:`Z95`
+    × its standard error ``se`` plus ``method``, the bound of the method's own error
+    (:func:`~motionlab.kinematics.spatiotemporal.method_error`); a NaN ``se`` or ``method``
+    counts as unknown: never flagged."""
+    if not band or not (np.isfinite(value) and np.isfinite(se) and np.isfinite(method)):
+        return False
+    margin = Z95 * se + method
+    return bool(value - margin > band[1] or value + margin < band[0])
+
+
+def _both(summ: dict[str, Any], c: str) -> str:
+    """A bilateral number with its 95 % margin, or why it is not given."""
+    v = summ.get(c, np.nan)
+    if not np.isfinite(v):
+        return (summ.get("withheld") or {}).get(c, "-")
+    se = summ.get(c.removesuffix("_pct") + "_se_pct", np.nan)
+    n = summ.get("step_pairs") if c == "step_time_asymmetry_pct" else summ["strides_kept"]
+    what = "step pairs" if c == "step_time_asymmetry_pct" else "strides"
+    margin = f" ± {Z95 * se:.1f}" if np.isfinite(se) else ""
+    return f"{v:.1f}{margin} (both sides; {n} {what})"
 
 
 def gait_pages(doc: Document, view: SessionView) -> None:
@@ -68,31 +111,56 @@ def gait_pages(doc: Document, view: SessionView) -> None:
         "Events from the shank gyroscopes (initial contact: the shank stops swinging forward; "
         "final contact: midway between the last minimum before mid-swing and the following zero "
         "crossing); straight, steady strides only. "
-        "Mean ± SD (CV) per side; normal bands are approximate ranges of healthy adults.",
+        f"Per side mean ± SD (CV), median and interquartile range of at least {MIN_STRIDES} "
+        "steady strides; step times only inside one steady bout, the asymmetry from paired "
+        "consecutive steps. Red: outside the normal band by more than the value's own "
+        "uncertainty (1.96 standard errors plus the method's event-timing error: 10 ms at "
+        "initial, 20 ms at final contact; lengths 5 %). Normal bands are approximate ranges of "
+        "healthy adults.",
     )
     rows, flags = [], []
+    counts = {k: int(summ["sides"][k]["stride_time_s"]["strides_n"]) for k in ("r", "l")}
+    few = [f"{'right' if k == 'r' else 'left'}: {too_few(n)}" for k, n in counts.items()
+           if n < MIN_STRIDES]  # fmt: skip
+    if few:
+        doc.paragraph("No mean is given for a side with too few strides (" + "; ".join(few)
+                      + ").", weight="bold")  # fmt: skip
+    times = [summ["sides"][k]["stride_time_s"]["mean"] for k in ("r", "l")]
+    stride = float(np.nanmean(times)) if np.isfinite(times).any() else np.nan
     for c in STRIDE_COLUMNS:
         digits = 2 if c.endswith(("_s", "_m")) else 1
         r, left = summ["sides"]["r"][c], summ["sides"]["l"][c]
         band = bands.get(c)
-        rows.append([_LABELS[c], _fmt(r, digits), _fmt(left, digits),
-                     f"{band[0]:g}-{band[1]:g}" if band else "-"])  # fmt: skip
-        flags.append([False, _outside(r["mean"], band), _outside(left["mean"], band), False])
+        cells = [_fmt(x, digits) if counts[k] >= MIN_STRIDES else "-"
+                 for k, x in (("r", r), ("l", left))]  # fmt: skip
+        rows.append([_LABELS[c], *cells, f"{band[0]:g}-{band[1]:g}" if band else "-"])
+        flags.append([False] + [beyond(x["mean"], x.get("se", np.nan), band,
+                                       method_error(c, x["mean"], stride)) for x in (r, left)]
+                     + [False])  # fmt: skip
     for c in ("step_time_asymmetry_pct", "stride_time_cv_pct"):
         band = bands.get(c)
-        rows.append([_LABELS[c], f"{summ[c]:.1f} (both sides)", "",
+        se = summ.get(c.removesuffix("_pct") + "_se_pct", np.nan)
+        value = summ.get(c, np.nan)
+        rows.append([_LABELS[c], _both(summ, c), "",
                      f"{band[0]:g}-{band[1]:g}" if band else "-"])  # fmt: skip
-        flags.append([False, _outside(summ[c], band), False, False])
-    doc.table(["parameter", "right", "left", "normal"], rows, [0.34, 0.25, 0.25, 0.16],
+        flags.append([False, beyond(value, se, band, method_error(c, value, stride)), False,
+                      False])  # fmt: skip
+    doc.table(["parameter", "right", "left", "normal"], rows, [0.28, 0.29, 0.29, 0.14],
               flagged=flags, align=["l", "r", "r", "r"])  # fmt: skip
     rejected = ", ".join(f"{k} {v}" for k, v in summ["strides_rejected"].items()) or "none"
+    cadence = summ["cadence_steps_per_min"]
+    cadence_text = (
+        f"{cadence:.1f} steps/min"
+        if np.isfinite(cadence)
+        else (summ.get("withheld") or {}).get("cadence_steps_per_min", "-")
+    )
     doc.paragraph(
         f"Strides kept: {summ['strides_kept']}; rejected: {rejected}. Overall cadence "
-        f"{summ['cadence_steps_per_min']:.1f} steps/min. *Lengths and speed: {length_note(g)}",
+        f"{cadence_text}. *Lengths and speed: {length_note(g)}",
         size=SIZE["small"],
     )
     doc.paragraph("Bands: " + _bands()["spatiotemporal_source"], size=SIZE["small"], colour=MUTED)
-    _map_chart(doc, g.map)
+    _map_chart(doc, gait_profile(view) or g.map)
 
 
 def length_note(g: Gait) -> str:
@@ -109,27 +177,46 @@ def length_note(g: Gait) -> str:
 
 
 def _map_chart(doc: Document, mp: dict[str, Any]) -> None:
-    """The Movement Analysis Profile: GVS per variable and side, and the GPS."""
+    """The Movement Analysis Profile: GVS per determined variable and side, and the GPS when
+    every variable is determined (else which are missing)."""
+    missing = mp.get("not_computed", "")
+    names = [v for v in mp["variables"] if any(v in mp["gvs"].get(s, {}) for s in "rl")]
+    if names:
+        doc.ensure(3.8)  # the heading stays with its chart
     doc.heading("Gait Profile Score and Movement Analysis Profile")
-    ((ax,),) = doc.axes_grid(1, 1, 3.0, left=0.6, bottom=0.9, top=0.2)
-    names = [*mp["variables"], "GPS"]
-    x = np.arange(len(names))
-    for k, side in enumerate(("r", "l")):
-        vals = [mp["gvs"].get(side, {}).get(v, np.nan) for v in mp["variables"]]
-        vals.append(mp["gps"].get(side, np.nan))
-        ax.bar(x + (k - 0.5) * 0.38, vals, 0.36, color=SIDE_COLOUR[side],
-               label={"r": "right", "l": "left"}[side])  # fmt: skip
-    expected = f"expected GPS of a normal subject {mp['population_gps_deg']:.1f}°"
-    ax.axhline(mp["population_gps_deg"], color=MUTED, ls="--", lw=0.8, label=expected)
-    ax.set_xticks(x, [n.replace("_", " ") for n in names], rotation=30, ha="right")
-    ax.set_ylabel("deg (RMS difference)")
-    ax.legend(loc="upper left", frameon=False)
+    if names:
+        ((ax,),) = doc.axes_grid(1, 1, 3.0, left=0.6, bottom=0.9, top=0.2)
+        names = [*names, *([] if missing else ["GPS"])]
+        x = np.arange(len(names))
+        for k, side in enumerate(("r", "l")):
+            vals = [mp["gvs"].get(side, {}).get(v, np.nan) for v in names if v != "GPS"]
+            if not missing:
+                vals.append(mp["gps"].get(side, np.nan))
+            ax.bar(x + (k - 0.5) * 0.38, vals, 0.36, color=SIDE_COLOUR[side],
+                   label={"r": "right", "l": "left"}[side])  # fmt: skip
+        if not missing:  # the population's GPS is a reference for a GPS, not for one GVS
+            expected = f"expected GPS of a normal subject {mp['population_gps_deg']:.1f}°"
+            ax.axhline(mp["population_gps_deg"], color=MUTED, ls="--", lw=0.8, label=expected)
+        ax.set_xticks(x, [n.replace("_", " ") for n in names], rotation=30, ha="right")
+        ax.set_ylabel("deg (RMS difference)")
+        ax.legend(loc="upper left", frameon=False)
+    if missing:
+        head = (
+            f"{missing}; only the determined variables' scores are drawn. "
+            if names
+            else f"{missing}. "
+        )
+    else:
+        head = (
+            f"GPS: right {mp['gps'].get('r', np.nan):.1f}°, "
+            f"left {mp['gps'].get('l', np.nan):.1f}°, overall {mp['gps']['overall']:.1f}° "
+            f"(Baker et al. 2009, Gait Posture 30:265; {len(mp['variables'])} variables per "
+            "side, no ankle or foot). "
+        )
     doc.paragraph(
-        f"GPS: right {mp['gps'].get('r', np.nan):.1f}°, left {mp['gps'].get('l', np.nan):.1f}°, "
-        f"overall {mp['gps']['overall']:.1f}° (Baker et al. 2009, Gait Posture 30:265; "
-        f"{len(mp['variables'])} variables per side, no ankle or foot). The normative curves are "
-        "approximate, built from published key values (report_data/gait_normative.yaml): the "
-        "score compares shapes, it is not a validated clinical GPS.",
+        head + "The normative curves are approximate, built from published key values "
+        "(report_data/gait_normative.yaml): the score compares shapes, it is not a validated "
+        "clinical GPS.",
         size=SIZE["small"],
         colour=MUTED,
     )
@@ -146,7 +233,9 @@ def curve_page(doc: Document, view: SessionView) -> None:
         return
     doc.section("Gait: pelvis, hip and knee over the stride",
                 "Mean ± SD over kept strides (0 % = initial contact) against the normative "
-                "mean ± SD used by the GPS.")  # fmt: skip
+                "mean ± SD used by the GPS; a curve the recording did not determine is not "
+                "drawn, a weak one is labelled.")  # fmt: skip
+    grades = variable_grades(view.protocol, view.session.results.calibration)
     nrows = (len(used) + 1) // 2
     grid = doc.axes_grid(nrows, 2, 2.2 * nrows + 0.4, left=0.6, hspace=0.6, top=0.35)
     pct = np.linspace(0, 100, 101)
@@ -154,13 +243,20 @@ def curve_page(doc: Document, view: SessionView) -> None:
         ax = grid[i // 2][i % 2]
         mean, sd = normative(v, pct)
         ax.fill_between(pct, mean - sd, mean + sd, color=BAND_COLOUR, alpha=0.6, lw=0)
+        marks = []
         for side in ("r", "l"):
             c = curves.get(side, {})
-            if v in c:
+            grade = grades.get(side, {}).get(v, ("determined", ""))[0]
+            if v in c and grade != "determined":
+                marks.append(f"{'right' if side == 'r' else 'left'} {grade}")
+            if v in c and grade != "not determined":
                 m, s = np.asarray(c[v]), np.asarray(c[f"{v}_sd"])
                 ax.plot(pct, m, color=SIDE_COLOUR[side], lw=1.2)
                 ax.fill_between(pct, m - s, m + s, color=SIDE_COLOUR[side], alpha=0.15, lw=0)
-        ax.set_title(v.replace("_", " "))
+        if marks and all("not determined" in m for m in marks):
+            ax.text(0.5, 0.5, "not determined: not drawn", transform=ax.transAxes,
+                    ha="center", va="center", size=SIZE["small"], color=MUTED)  # fmt: skip
+        ax.set_title(v.replace("_", " ") + (f" ({', '.join(marks)})" if marks else ""))
         ax.set_xlim(0, 100)
         ax.set_ylabel("deg")
     for j in range(len(used), nrows * 2):
@@ -175,7 +271,8 @@ def gait_report_pages(doc: Document, view: SessionView) -> None:
 
 def gait_frames(view: SessionView) -> dict[str, pd.DataFrame]:
     """``spatiotemporal.csv`` (one row per stride, kept or not, with the reason) and
-    ``spatiotemporal_summary.csv`` (per side mean, SD, CV); nothing without a gait analysis."""
+    ``spatiotemporal_summary.csv`` (per side mean, SD, CV, SE, median, quartiles and the number
+    of strides; NaN below 3 strides); nothing without a gait analysis."""
     g = gait_result(view)
     if g is None:
         return {}

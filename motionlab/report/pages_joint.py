@@ -3,8 +3,9 @@ range-of-motion table with normal ranges and flags; and the left-right compariso
 
 Curves are in degrees against time (s) or the cycle (0-100 %); a normative cycle band (grey) is
 drawn where ``report_data`` has one, else the protocol's normal range as a hatched band. Every
-angle carries its grade: the curves of a ``not determined`` angle are drawn grey and labelled so,
-its table rows greyed and not compared with the normal range; a ``weak`` angle is labelled.
+angle carries its grade: a ``not determined`` angle is not drawn (its axes say why) and its table
+rows are greyed; a ``weak`` angle is drawn and labelled, its range described with the reason under
+the table; neither is compared with the normal range nor flagged.
 """
 
 from __future__ import annotations
@@ -19,12 +20,14 @@ from motionlab.report.model import (
     SessionView,
     angle_grades,
     angle_label,
+    is_determined,
     joint_title,
     joint_type_title,
     normal_range,
     rom_rows,
     symmetric_type,
     symmetry_rows,
+    worst_grade,
 )
 from motionlab.report.normative import band_for
 from motionlab.report.pdf import (
@@ -36,7 +39,7 @@ from motionlab.report.pdf import (
     Document,
     label_spans,
 )
-from motionlab.report.sentences import STATUS_WORDS, span, task_name
+from motionlab.report.sentences import STATUS_WORDS, span, task_name, weak_lines
 
 TASKS_PER_PAGE = 3
 MIN_SPAN_DEG = 10.0
@@ -69,7 +72,10 @@ def _time_page(doc: Document, view: SessionView, joint) -> None:
                 ax.fill_between(
                     [a, b], rng[0], rng[1], color=BAND_COLOUR, alpha=0.5, lw=0, zorder=1
                 )
-        ax.plot(t, view.angles[col], color=colour, lw=0.6, zorder=2)
+        if suffix == " · not determined":
+            _no_data(ax, "not determined by this recording: not drawn (see the calibration page)")
+        else:
+            ax.plot(t, view.angles[col], color=colour, lw=0.6, zorder=2)
         ax.set_ylabel(_ylabel(joint, angle))
         ax.set_xlim(t[0], t[-1])
         if i == 0:
@@ -104,16 +110,19 @@ def _rom_table(doc: Document, view: SessionView, joint) -> None:
             continue
         normal = f"{r['normal'][0]:g} to {r['normal'][1]:g}" if r["normal"] else "-"
         bad = r["status"] not in ("within", "")
-        muted.append(r["grade"] == NOT_DETERMINED)
+        hide = r["grade"] == NOT_DETERMINED  # a number the recording did not determine
+        muted.append(hide)
         rows.append(
             [
                 task_name(r["task"]),
                 f"{r['angle'].replace('_', ' ')} ({r['plane']})",
-                span(r["typical_min_deg"], r["typical_max_deg"]),
-                f"{r['rom_deg']:.0f}",
+                "-" if hide else span(r["typical_min_deg"], r["typical_max_deg"]),
+                "-" if hide else f"{r['rom_deg']:.0f}",
                 str(r["repetitions"]),
                 normal,
-                STATUS_WORDS.get(r["status"], "-") if r["status"] else "-",
+                STATUS_WORDS.get(r["status"], "-")
+                if r["status"]
+                else ("not compared" if r["normal"] and not is_determined(r["grade"]) else "-"),
                 r["grade"],
             ]
         )
@@ -131,7 +140,7 @@ def _rom_table(doc: Document, view: SessionView, joint) -> None:
             "Grade",
         ],
         rows,
-        [0.12, 0.2, 0.13, 0.1, 0.08, 0.11, 0.1, 0.16],
+        [0.12, 0.19, 0.12, 0.09, 0.07, 0.1, 0.14, 0.17],
         flagged,
         align=["l", "l", "r", "r", "r", "r", "r", "r"],
         muted=muted,
@@ -140,10 +149,17 @@ def _rom_table(doc: Document, view: SessionView, joint) -> None:
         "Typical range: means of the lowest and highest angle of each cycle. Full ROM: highest "
         "minus lowest angle over the whole task. A range is flagged when it misses the normal "
         "range by more than 5°. Grade: whether the recording determined the angle (see the "
-        "calibration page); a range that is not determined (grey) is not compared.",
+        "calibration page); only a determined range is compared.",
         size=SIZE["small"],
         colour=MUTED,
     )
+    weak = weak_lines(view, joint.name)
+    if weak:
+        doc.paragraph(
+            "Weak angles (shown, not compared with the normal range, not findings): "
+            + " ".join(weak),
+            size=SIZE["small"],
+        )
 
 
 def min_span(ax: Axes, span_deg: float = MIN_SPAN_DEG) -> None:
@@ -186,13 +202,14 @@ def draw_cycle(ax: Axes, view: SessionView, joint, task: str, angle: str, col: s
         if rng is not None:
             ax.axhspan(rng[0], rng[1], facecolor="none", edgecolor=BAND_COLOUR, hatch="////", lw=0)
     colour, suffix = graded_style(view, joint, col)
-    if m is None or m["repetitions"] == 0 or not np.isfinite(m["curve_mean_deg"]).any():
+    if colour == NOT_DETERMINED_COLOUR:
+        _no_data(ax, "not determined:\nnot drawn")
+    elif m is None or m["repetitions"] == 0 or not np.isfinite(m["curve_mean_deg"]).any():
         _no_data(ax, "no cycles found")
     else:
         mean, sd = np.asarray(m["curve_mean_deg"]), np.asarray(m["curve_sd_deg"])
-        grey = colour == NOT_DETERMINED_COLOUR
-        ax.fill_between(pct, mean - sd, mean + sd, color=colour, alpha=0.1 if grey else 0.25, lw=0)
-        ax.plot(pct, mean, color=colour, lw=1.2, ls="--" if grey else "-")
+        ax.fill_between(pct, mean - sd, mean + sd, color=colour, alpha=0.25, lw=0)
+        ax.plot(pct, mean, color=colour, lw=1.2)
     min_span(ax)
     n = int(m["repetitions"]) if m is not None else 0
     ax.set_title(
@@ -284,9 +301,13 @@ def symmetry_page(doc: Document, view: SessionView) -> None:
         for i, (angle, _) in enumerate(angle_columns(sides["r"])):
             for j, task in enumerate(tasks):
                 ax = grid[i][j]
+                hidden = []
                 for side in ("r", "l"):
                     col = angle_columns(sides[side])[i][1]
                     m = view.metrics.joints[task].get(col)
+                    if angle_grades(view).get(col, ("determined", ""))[0] == NOT_DETERMINED:
+                        hidden.append({"r": "right", "l": "left"}[side])
+                        continue
                     if m is None or m["repetitions"] == 0:
                         continue
                     mean, sd = np.asarray(m["curve_mean_deg"]), np.asarray(m["curve_sd_deg"])
@@ -299,9 +320,18 @@ def symmetry_page(doc: Document, view: SessionView) -> None:
                         lw=0,
                     )
                     ax.plot(np.arange(101), mean, color=SIDE_COLOUR[side], lw=1.1)
+                if hidden:
+                    _no_data(ax, f"{' and '.join(hidden)}: not determined")
                 min_span(ax)
+                grade = worst_grade(
+                    [angle_grades(view).get(angle_columns(sides[x])[i][1], ("determined", ""))
+                     for x in ("r", "l")]
+                )[0]  # fmt: skip
+                mark = "" if is_determined(grade) else f" ({grade})"
                 ax.set_title(
-                    f"{task_name(task)}, {angle.replace('_', ' ')}", loc="left", size=SIZE["small"]
+                    f"{task_name(task)}, {angle.replace('_', ' ')}{mark}",
+                    loc="left",
+                    size=SIZE["small"],
                 )
                 ax.set_xlim(0, 100)
                 ax.set_xlabel("cycle (%)")
@@ -327,11 +357,11 @@ def symmetry_page(doc: Document, view: SessionView) -> None:
                 [
                     task_name(r["task"]),
                     f"{r['angle'].replace('_', ' ')} ({r['plane']})",
-                    f"{r['right_rom_deg']:.0f}",
-                    f"{r['left_rom_deg']:.0f}",
+                    "-" if r["grade"] == NOT_DETERMINED else f"{r['right_rom_deg']:.0f}",
+                    "-" if r["grade"] == NOT_DETERMINED else f"{r['left_rom_deg']:.0f}",
                     f"{0.0 if round(si) == 0 else si:+.0f}"
                     if np.isfinite(si)
-                    else ("-" if r["grade"] == NOT_DETERMINED else "n/a (range < 10°)"),
+                    else ("n/a (range < 10°)" if is_determined(r["grade"]) else "not compared"),
                     r["grade"],
                 ]
             )

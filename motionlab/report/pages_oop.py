@@ -3,7 +3,8 @@ out-of-plane offset and trunk compensation, each with what it means in one sente
 
 Each number carries the grade of its angle: ``(weak)`` after it, or ``not determined`` in
 place of a clinical metric (varus thrust, stance rotation, trunk compensation, offset) whose
-plane the recording did not determine; cross-talk rows name the grade of the other angle."""
+plane the recording did not determine (its per-stride dots are not drawn); only a determined
+number is flagged; cross-talk rows name the grade of the other angle."""
 
 from __future__ import annotations
 
@@ -20,7 +21,7 @@ from motionlab.report.model import (
     segment_grade,
     worst_grade,
 )
-from motionlab.report.pdf import MUTED, NOT_DETERMINED_COLOUR, SIDE_COLOUR, SIZE, Document
+from motionlab.report.pdf import MUTED, SIDE_COLOUR, SIZE, Document
 from motionlab.report.sentences import MEANING, task_name
 
 
@@ -79,7 +80,9 @@ def _cross_talk(doc: Document, view: SessionView) -> None:
                     _f(e.get("change_pct"), "+.0f"),
                 ]
             )
-            flagged.append([False] * 5 + [e["ratio_pct"] > 20] + [False] * 2)
+            flagged.append(
+                [False] * 5 + [grade == "determined" and e["ratio_pct"] > 20] + [False] * 2
+            )
     doc.table(
         [
             "Movement",
@@ -126,7 +129,7 @@ def _gait(doc: Document, view: SessionView) -> None:
                 ),
             ]
         )
-        above = varus != NOT_DETERMINED and g["varus_thrust_mean_deg"] > g["threshold_deg"]
+        above = varus == "determined" and g["varus_thrust_mean_deg"] > g["threshold_deg"]
         flagged.append([False] * 3 + [above] + [False] * 2)
         label = f"{joint_title(joint)}, {task_name(task)}"
         if varus != "determined":
@@ -148,13 +151,15 @@ def _gait(doc: Document, view: SessionView) -> None:
     )
     ax = doc.axes_grid(1, 1, 2.2, left=1.9, bottom=0.5, top=0.3)[0][0]
     for k, (_, side, g) in enumerate(strides):
+        if side is None:  # a plane the recording did not determine is not drawn
+            continue
         x = np.asarray(g["varus_thrust_deg"], float)
         ax.plot(
             x,
             np.full(len(x), k) + np.linspace(-0.15, 0.15, len(x)),
             "o",
             ms=3,
-            color=NOT_DETERMINED_COLOUR if side is None else SIDE_COLOUR.get(side, SIDE_COLOUR[""]),
+            color=SIDE_COLOUR.get(side, SIDE_COLOUR[""]),
         )
     limit = max(g["threshold_deg"] for _, _, g in strides)
     ax.axvline(limit, color="#b2182b", lw=0.8, ls="--")
@@ -185,7 +190,7 @@ def _offset(doc: Document, view: SessionView) -> None:
                 _graded(f"{_f(o['above_pct'], '.0f')} (limit {o['threshold_deg']:g}°)", grade),
             ]
         )
-        flagged.append([False] * 4 + [grade != NOT_DETERMINED and o["above_pct"] > 0])
+        flagged.append([False] * 4 + [grade == "determined" and o["above_pct"] > 0])
     doc.table(
         ["Task", "Axes compared", "Peak (°)", "Mean (°)", "Time above limit (%)"],
         rows,
@@ -220,7 +225,7 @@ def _trunk(doc: Document, view: SessionView) -> None:
                     _graded(f"{_f(a['above_pct'], '.0f')} (limit {a['threshold_deg']:g}°)", grade),
                 ]
             )
-            flagged.append([False] * 3 + [grade != NOT_DETERMINED and a["above_pct"] > 0] * 2)
+            flagged.append([False] * 3 + [grade == "determined" and a["above_pct"] > 0] * 2)
     doc.table(
         ["Task", "Trunk movement", "Range (°)", "Peak (°)", "Time above limit (%)"],
         rows,

@@ -1,4 +1,6 @@
-"""Page 1: who, when, what was measured with which sensors, and the findings in plain language."""
+"""Page 1: who, when, what was measured with which sensors, the findings in plain language (from
+determined numbers only), then one line per joint on what the recording could not determine and
+how to fix it (:func:`~motionlab.report.sentences.missing_lines`)."""
 
 from __future__ import annotations
 
@@ -7,7 +9,7 @@ import datetime as _dt
 from motionlab import __version__
 from motionlab.report.model import SIDE_NAMES, SessionView, joint_title
 from motionlab.report.pdf import MUTED, SIZE, Document
-from motionlab.report.sentences import findings, task_name
+from motionlab.report.sentences import findings, missing_lines, task_name
 from motionlab.segments import sensor_for_segment
 
 
@@ -43,10 +45,21 @@ def summary_page(doc: Document, view: SessionView) -> None:
         "Ranges are the typical lowest and highest angle of the repetitions (means of the "
         "per-cycle extremes), in degrees; a range counts as outside normal when it misses the "
         "protocol's normal range by more than 5°. Normal ranges are approximate, for orientation, "
-        "not diagnostic limits.",
+        "not diagnostic limits. Only numbers the recording determined are findings.",
         size=SIZE["small"],
         colour=MUTED,
     )
+    missing = missing_lines(view)
+    if missing:
+        doc.heading("Not determined by this recording")
+        doc.bullets(missing)
+        doc.paragraph(
+            "These angles are not findings: weak ones are shown with their grade on the joint "
+            "pages, undetermined ones not at all. The reasons in full are on the calibration "
+            "page.",
+            size=SIZE["small"],
+            colour=MUTED,
+        )
 
     doc.heading("Sensors and placements")
     rows = []

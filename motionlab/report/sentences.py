@@ -4,10 +4,14 @@ Numbers are rounded to whole degrees (the accuracy of wearable-sensor joint angl
 support more) and every sentence names the side, the joint, the movement and the task, so that it
 can be read on its own ("Right knee flexion range 5–58° during gait, below the normal 0–65°").
 
-Findings follow the grade of their angle (:func:`~motionlab.report.model.grade_rows`): a
-``weak`` angle's finding ends with "(weak: <reason>)"; for a ``not determined`` angle no finding
-is stated, one sentence says why instead ("Right knee internal-external rotation is not
-reported: no axis of shank_r was measured (nominal placement only).").
+Findings obey the grade of their angle (:func:`~motionlab.report.model.grade_rows`): only a
+``determined`` number is a finding (a range against its normal range, an asymmetry, a varus
+thrust, a trunk compensation, an out-of-plane offset). A ``weak`` angle is described on its joint
+page with its grade ("range −30 to 16° during walk (weak: <reason>)", :func:`weak_lines`), never
+compared with a normal range; what the recording did not determine is said once per joint, in a
+clinician's words with the one most useful remedy (:func:`missing_lines`: "Right knee:
+flexion-extension not determined (axis) — walk 10 straight steps at an even pace."), the long
+reasons staying on the calibration page.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ from motionlab.report.model import (
     angle_title,
     calibration_rows,
     grade_rows,
+    is_determined,
     joint_title,
     quality_rows,
     rom_rows,
@@ -109,29 +114,24 @@ def rom_sentence(row: dict[str, Any]) -> str:
     return text + "."
 
 
-def not_reported(what: str, reason: str) -> str:
-    """``'<What> is not reported: <reason>.'`` (``what`` capitalised)."""
-    why = reason or "the calibration did not determine it"
-    return f"{what[0].upper()}{what[1:]} is not reported: {why}."
-
-
 def angle_words(view: SessionView, joint: str, angle: str) -> str:
     """``'Right knee internal-external rotation'``, ``'Ball12 (ball joint) rotation about z'``."""
     j = view.protocol.joints[joint]
     return f"{joint_title(j)} {angle_title(j.type, angle)}"
 
 
-def graded(sentence: str, grade: str, reason: str, what: str) -> str:
-    """A finding as its grade allows: kept (``determined``), marked ``(weak: <reason>)``, or
-    replaced by :func:`not_reported` (``not determined``; ``what`` names the angle)."""
-    if grade == NOT_DETERMINED:
-        return not_reported(what, reason)
-    if grade == WEAK:
-        return f"{sentence.removesuffix('.')} (weak{': ' + reason if reason else ''})."
-    return sentence
+def graded(sentence: str, grade: str, reason: str) -> str:
+    """A description with its grade: as is (``determined``), else ending with
+    ``(weak: <reason>)`` or ``(not determined: <reason>)``; for joint pages, never a finding."""
+    if grade not in (WEAK, NOT_DETERMINED):
+        return sentence
+    return f"{sentence.removesuffix('.')} ({grade}{': ' + reason if reason else ''})."
 
 
 def _oop_findings(view: SessionView) -> list[str]:
+    """Varus thrust, trunk compensation and out-of-plane offset, each only from determined
+    angles (the varus thrust from the knee's ab-adduction, the offset from every angle of its
+    joint, the trunk compensation from the thorax frame)."""
     out = []
     m = view.metrics
     for task, joints in (m.gait or {}).items():
@@ -139,83 +139,168 @@ def _oop_findings(view: SessionView) -> list[str]:
             joint = view.protocol.joints[name]
             side = SIDE_NAMES.get(joint.side, "").capitalize()
             thrust = g.get("varus_thrust_mean_deg", np.nan)
-            if not np.isfinite(thrust):
+            varus = angle_grade(view, name, "adduction")[0]
+            if not np.isfinite(thrust) or not is_determined(varus):
                 continue
             limit = g.get("threshold_deg", 3.0)
             verdict = "above" if thrust > limit else "within"
-            sentence = (
+            out.append(
                 f"{side} knee varus thrust {thrust:.0f}° in stance during {task_name(task)} "
                 f"({verdict} the {limit:g}° this protocol flags; {g['strides']} strides)."
             )
-            grade, reason = angle_grade(view, name, "adduction")
-            what = f"{joint_title(joint)} varus thrust"
-            out.append(graded(sentence, grade, reason, what))
-    trunk_grade, trunk_reason = segment_grade(view, THORAX)
-    for task, t in (m.trunk_compensation or {}).items():
-        if trunk_grade == NOT_DETERMINED:
-            out.append(not_reported(f"trunk compensation during {task_name(task)}", trunk_reason))
-        elif t.get("compensated"):
-            parts = [
-                f"{TRUNK_WORDS[k]} up to {t[k]['peak_abs_deg']:.0f}°"
-                for k in TRUNK_WORDS
-                if t[k]["above_pct"] > 0
-            ]
-            sentence = (
-                f"Trunk compensation during {task_name(task)}: {', '.join(parts)} away from the "
-                "neutral posture."
-            )
-            out.append(graded(sentence, trunk_grade, trunk_reason, "trunk compensation"))
+    if is_determined(segment_grade(view, THORAX)[0]):
+        for task, t in (m.trunk_compensation or {}).items():
+            if t.get("compensated"):
+                parts = [
+                    f"{TRUNK_WORDS[k]} up to {t[k]['peak_abs_deg']:.0f}°"
+                    for k in TRUNK_WORDS
+                    if t[k]["above_pct"] > 0
+                ]
+                out.append(
+                    f"Trunk compensation during {task_name(task)}: {', '.join(parts)} away from "
+                    "the neutral posture."
+                )
     for task, joints in (m.out_of_plane_offset or {}).items():
         for name, o in joints.items():
-            grade, reason = worst_grade(
+            grade = worst_grade(
                 [(r["grade"], r["reason"]) for r in grade_rows(view) if r["joint"] == name]
-            )
-            what = f"trunk out-of-plane offset during {task_name(task)}"
-            if grade == NOT_DETERMINED:
-                out.append(not_reported(what, reason))
-            elif o["above_pct"] > 0:
-                sentence = (
+            )[0]
+            if is_determined(grade) and o["above_pct"] > 0:
+                out.append(
                     f"Trunk out-of-plane offset during {task_name(task)}: "
                     f"peak {o['peak_deg']:.0f}°, "
                     f"above {o['threshold_deg']:g}° for {o['above_pct']:.0f}% of the movement."
                 )
-                out.append(graded(sentence, grade, reason, what))
     return out
 
 
 def findings(view: SessionView, limit: int = 12) -> list[str]:
-    """The main findings of one session, most important first, at most ``limit``.
+    """The main findings of one session, most important first, at most ``limit``; every one
+    from ``determined`` numbers only (module docstring).
 
     Ranges outside normal come first, then left-right asymmetries, out-of-plane findings, the
     ranges within normal of the primary (flexion) angles, and data or calibration problems.
+    What the recording did not determine is not a finding: see :func:`missing_lines`.
     """
-    rows = [r for r in rom_rows(view) if r["normal"] is not None]
-
-    def sentence(r: dict[str, Any]) -> str:
-        what = angle_words(view, r["joint"], r["angle"])
-        return graded(rom_sentence(r), r["grade"], r["reason"], what)
-
-    outside = [sentence(r) for r in rows if r["status"] not in ("within", "")]
-    unknown = [sentence(r) for r in rows if r["grade"] == NOT_DETERMINED]
-    inside = [sentence(r) for r in rows if r["status"] == "within" and r["angle"] == "flexion"]
+    rows = [r for r in rom_rows(view) if r["normal"] is not None and is_determined(r["grade"])]
+    outside = [rom_sentence(r) for r in rows if r["status"] not in ("within", "")]
+    inside = [rom_sentence(r) for r in rows if r["status"] == "within" and r["angle"] == "flexion"]
     asym = []
     for s in symmetry_rows(view):
+        # a flag needs a symmetry index, which needs both sides determined (symmetry_rows)
         if s["flag"] and s["angle"] == "flexion":  # other planes: see the comparison page
             joint = _joint_words(s)[1]
             angle = angle_title(s["joint_type"], s["angle"])
-            text = (
+            asym.append(
                 f"{joint.capitalize()} {angle} range during {task_name(s['task'])} differs "
                 f"between sides: right {s['right_rom_deg']:.0f}°, left {s['left_rom_deg']:.0f}° "
                 f"(symmetry index {s['symmetry_index_pct']:+.0f}%)."
             )
-            asym.append(graded(text, s["grade"], s["reason"], ""))
     problems = quality_notes(view)
-    items = list(dict.fromkeys(outside + unknown + asym + _oop_findings(view) + inside))
+    items = list(dict.fromkeys(outside + asym + _oop_findings(view) + inside))
     if len(items) > limit - len(problems[:2]):
         items = items[: limit - len(problems[:2])]
     if not items:
-        items = ["No task with a normal range was found in this recording."]
+        items = [
+            "No finding can be stated: no angle with a normal range was determined by this "
+            "recording (see below)."
+        ]
     return items + problems[:2]
+
+
+#: words of a grade's reason that say the hinge axis itself was not measured well
+AXIS_WORDS = ("hinge", "differs", "not about", "single axis", "flexion axis", "puts the axis")
+
+#: what to do for each joint type so that its hinge axis is measured
+_BEND = {
+    "knee": "walk 10 straight steps at an even pace",
+    "hip": "walk 10 straight steps at an even pace",
+    "elbow": "bend and straighten the elbow slowly 5 times",
+}
+
+
+def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[str, str]:
+    """``(cause, remedy)`` in a clinician's words of a grade's ``reason``
+    (:mod:`motionlab.segments.grades`; its first clause, the main one):
+    ``("axis", "walk 10 straight steps at an even pace")``."""
+    joint = view.protocol.joints[joint_name]
+    jt = JOINT_TYPES.get(joint.type)
+    display = jt.display if jt is not None else joint.type
+    bend = _BEND.get(joint.type, f"move the {display} slowly through its range 5 times")
+    seg = next((sg for sg in (joint.proximal, joint.distal) if sg in reason), "")
+    spec = view.protocol.segments.get(seg)
+    where = f"{SIDE_NAMES.get(spec.side, '')} {seg.split('_')[0]}".strip() if spec else seg
+    r = reason.lower().removeprefix("hinge axis from movement: ").split("; ")[0]
+    if "which way the axis points" in r or "direction of flexion" in r:
+        return "direction of flexion", f"stand still 5 s with the {display} straight, then {bend}"
+    if "its zero" in r:
+        return "zero", f"stand still 5 s at the start with the {display} straight"
+    if "axis from the walk is known to" in r:  # a walk alone: the other planes carry flexion
+        return "flexion axis known only roughly", (
+            f"add a seated calibration: extend the {display} fully and let it flex back 5 times"
+        )
+    if "axis" in r and any(k in r for k in AXIS_WORDS):
+        return "axis", bend
+    if "forward direction" in r or "one measured axis" in r:
+        return (
+            f"forward direction of the {where} sensor",
+            f"place the {where} sensor exactly as the protocol says",
+        )
+    if "nominal placement only" in r or "has no calibration" in r:
+        return f"{where} sensor not calibrated", "record the calibration: stand still 5 s first"
+    if "flagged" in r:
+        return f"calibration of the {where} sensor flagged", "repeat the calibration"
+    return "calibration", "see the calibration page"
+
+
+def missing_lines(view: SessionView) -> list[str]:
+    """One line per joint with an angle that is not ``determined``: which angles, their grade
+    and short cause, and the single most useful remedy (for the worst of them):
+    ``'Right knee: flexion-extension not determined (axis) — walk 10 straight steps at an even
+    pace.'``; plus one line for trunk compensation from a thorax that is not determined."""
+    lines = []
+    for joint in view.joints():
+        rows = [r for r in grade_rows(view) if r["joint"] == joint.name]
+        bad = [r for r in rows if not is_determined(r["grade"])]
+        if not bad:
+            continue
+        groups: dict[tuple[str, str], list[str]] = {}
+        worst = max(bad, key=lambda r: r["grade"] == NOT_DETERMINED)
+        for r in sorted(bad, key=lambda r: r["grade"] != NOT_DETERMINED):
+            cause = cause_and_remedy(view, joint.name, r["reason"])[0]
+            groups.setdefault((r["grade"], cause), []).append(angle_title(joint.type, r["angle"]))
+        what = "; ".join(
+            f"{' and '.join(angles) if len(angles) < 3 else 'all angles'} {grade} ({cause})"
+            for (grade, cause), angles in groups.items()
+        )
+        remedy = cause_and_remedy(view, joint.name, worst["reason"])[1]
+        lines.append(f"{joint_title(joint)}: {what} — {remedy}.")
+    trunk, why = segment_grade(view, THORAX)
+    if view.metrics.trunk_compensation and not is_determined(trunk):
+        lines.append(f"Trunk compensation: {trunk} ({why}) — record the calibration.")
+    return lines
+
+
+def weak_lines(view: SessionView, joint: str) -> list[str]:
+    """Descriptions of a joint's ``weak`` ranges for its page, one sentence per task and reason,
+    not compared with the normal range: ``'Right hip flexion-extension range -13 to 41° and
+    ab-adduction range -13 to 5° during walk (weak: <reason>).'``."""
+    groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    for r in rom_rows(view):
+        if r["joint"] == joint and r["grade"] == WEAK:
+            groups.setdefault((r["task"], r["reason"]), []).append(r)
+    out = []
+    for (task, reason), rows in groups.items():
+        side, name = _joint_words(rows[0])
+        parts = [
+            f"{angle_title(r['joint_type'], r['angle'])} range "
+            f"{span(r['typical_min_deg'], r['typical_max_deg'])}"
+            for r in rows
+        ]
+        ranges = ", ".join(parts[:-1]) + " and " + parts[-1] if len(parts) > 1 else parts[0]
+        text = f"{side} {name} {ranges} during {task_name(task)}".strip()
+        out.append(graded(text[0].upper() + text[1:] + ".", WEAK, reason))
+    return out
 
 
 def quality_notes(view: SessionView) -> list[str]:

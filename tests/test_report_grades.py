@@ -1,0 +1,387 @@
+"""A check that cannot be fooled: over degraded sessions, no finding, score or red value comes from
+a weak or undetermined input, and no mean from fewer than 3 steady strides (issue 27).
+
+One simulated walk (stand, then walk with turns; pelvis, thighs, shanks) is analysed once per
+module; the degraded cases are built from it: its pelvis has no measured forward direction (its
+frame is one measured axis and the placement hint: hips and pelvis weak), a knee whose hinge axis
+the movement contradicts (its flexion forced ``not determined``), a pelvis not calibrated at all
+(regraded by :func:`motionlab.segments.grades.grade_joints`), a walk cut to two strides, a walk
+cut around one turn, and the shank sensors swapped left for right (analysed again). The same
+checks run over the real recordings in ``shared/datasets/human`` when present.
+
+:func:`problems` reads only what the report prints (the findings, the rendered summary, gait and
+joint pages: their texts, red cells and drawn curves) and the grades, strides and events behind
+them, so that it holds whatever the implementation.
+"""
+
+import copy
+import re
+
+import matplotlib
+import numpy as np
+import pytest
+from conftest import SHARED
+
+from motionlab.protocol import load_protocol
+from motionlab.report.model import grade_rows, load_view, segment_grade
+from motionlab.report.pdf import FLAG_COLOUR, RC, Document
+from motionlab.report.sentences import angle_words, findings
+
+MIN = 3  # steady strides per side (and paired steps) before a number is given
+HUMAN = SHARED / "datasets" / "human"
+GPS_NUMBER = re.compile(r"GPS: right \d|overall \d+\.\d°|GPS \d+\.\d deg")
+
+
+def _analysed(seed: int = 0, swap: bool = False):
+    from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
+    from motionlab.simulate import simulate
+
+    proto = load_protocol("walk")
+    session, _ = simulate(proto, 40.0, seed, "clean", rate_hz=60.0, gait="normal")
+    if swap:  # the right shank's sensor data under the left shank's label and back
+        a, b = session.sensors["shank_r"], session.sensors["shank_l"]
+        for attr in ("time", "acc", "gyr", "mag", "quat"):
+            va, vb = getattr(a, attr), getattr(b, attr)
+            setattr(a, attr, vb)
+            setattr(b, attr, va)
+    prepare_sensors(session)
+    analyse(session, PipelineOptions(proto, progress=False, clock_sync=False))
+    return session
+
+
+@pytest.fixture(scope="module")
+def walk():
+    return _analysed()
+
+
+def _regait(session, start: float, end: float):
+    """The session with its walk block cut to ``start``-``end`` s and gait analysed again."""
+    from motionlab.kinematics.gait import analyse_gait
+
+    ses = copy.deepcopy(session)
+    block = ses.results.metrics.blocks["walk"]
+    block["start_s"], block["end_s"] = float(start), float(end)
+    ses.results.gait = analyse_gait(ses, load_protocol("walk"))
+    return ses
+
+
+def _force(session, joint: str, k: int, grade: str, reason: str):
+    ses = copy.deepcopy(session)
+    entry = ses.results.calibration.grades[joint]
+    entry["grades"][k], entry["reasons"][k] = grade, reason
+    return ses
+
+
+def _pelvis_nominal(session):
+    from motionlab.segments.grades import grade_joints
+
+    ses = copy.deepcopy(session)
+    cal = ses.results.calibration
+    cal.segments["pelvis"]["method"] = "nominal"
+    cal.grades = grade_joints(load_protocol("walk"), cal)
+    return ses
+
+
+# --------------------------------------------------------------------------------- the check
+
+
+def _paired_steps(strides: dict) -> int:
+    """Pairs of consecutive steps (onto the right, then onto the left) inside one steady bout,
+    counted from the stride table's events alone: every stride that bounds a step is kept."""
+    side = np.asarray(strides["side"], str)
+    start = np.asarray(strides["start_s"], float)
+    kept = np.asarray(strides["kept"], bool)
+    stride = np.asarray(strides["stride_time_s"], float)
+    end = start + stride
+
+    def bout(s: str, t: float) -> bool:
+        """The other side's last stride starting before ``t`` is kept and runs past ``t``."""
+        o = (side != s) & (start < t)
+        if not o.any():
+            return False
+        j = np.flatnonzero(o)[np.argmax(start[o])]
+        return bool(kept[j] and end[j] >= t - 1e-9)
+
+    n = 0
+    for i in np.flatnonzero((side == "r") & kept):
+        nxt = (side == "l") & (start > start[i])
+        if not nxt.any() or not bout("r", start[i]):
+            continue
+        j = np.flatnonzero(nxt)[np.argmin(start[nxt])]
+        n += bool(kept[j] and start[j] < end[i] and bout("l", start[j]))
+    return n
+
+
+def _red_rows(fig) -> list[tuple[str, str, float]]:
+    """``(row text, red text, x)`` of every red (flagged) cell on a page."""
+    red = [t for t in fig.texts if t.get_color() == FLAG_COLOUR and t.get_text().strip()]
+    out = []
+    for t in red:
+        y = t.get_position()[1]
+        row = [u for u in fig.texts if abs(u.get_position()[1] - y) < 1e-6]
+        row.sort(key=lambda u: u.get_position()[0])
+        out.append((" | ".join(u.get_text() for u in row), t.get_text(), t.get_position()[0]))
+    return out
+
+
+def _header_x(fig, name: str) -> float | None:
+    for t in fig.texts:
+        if t.get_text() == name and t.get_weight() == "bold":
+            return t.get_position()[0]
+    return None
+
+
+def _cells(fig, x: float | None) -> list[str]:
+    """The texts of one right-aligned table column (its header's x) on a page."""
+    if x is None:
+        return []
+    return [t.get_text() for t in fig.texts if abs(t.get_position()[0] - x) < 1e-6]
+
+
+def _row(fig, label: str) -> str:
+    """The texts of the table row that starts with ``label``, joined."""
+    for t in fig.texts:
+        if t.get_text().startswith(label):
+            y = t.get_position()[1]
+            row = [u for u in fig.texts if abs(u.get_position()[1] - y) < 1e-6]
+            return " | ".join(u.get_text() for u in sorted(row, key=lambda u: u.get_position()[0]))
+    return ""
+
+
+def _variable_grades(view) -> dict[str, str]:
+    """``{'r_hip_flexion': grade, ...}`` of the GPS's variables, straight from the grades."""
+    out = {}
+    for r in grade_rows(view):
+        j = view.protocol.joints[r["joint"]]
+        if j.type in ("hip", "knee") and f"{j.type}_{r['angle']}" in (
+            "hip_flexion",
+            "hip_adduction",
+            "hip_rotation",
+            "knee_flexion",
+        ):
+            out[f"{j.side}_{j.type}_{r['angle']}"] = r["grade"]
+    cal = view.session.results.calibration
+    if "pelvis" in view.protocol.segments and cal is not None and "pelvis" in cal.segments:
+        out["pelvis"] = segment_grade(view, "pelvis")[0]
+    return out
+
+
+def _pages(view, joints: bool):
+    from motionlab.report.pages_gait import gait_report_pages
+    from motionlab.report.pages_joint import joint_pages
+    from motionlab.report.pages_summary import summary_page
+
+    with matplotlib.rc_context(RC):
+        doc = Document("motionlab report · test", "subject X")
+        summary_page(doc, view)
+        gait_report_pages(doc, view)
+        if joints:
+            joint_pages(doc, view)
+    return doc.pages
+
+
+def problems(session, joints: bool = True) -> list[str]:
+    """Everything the report says that its inputs do not allow (empty: the report obeys)."""
+    view = load_view(session)
+    out = []
+    bad = {(r["joint"], r["angle"]): r["grade"] for r in grade_rows(view)}
+    bad = {k: g for k, g in bad.items() if g != "determined"}
+    items = findings(view)
+    # 1. findings only from determined planes (a weak or undetermined angle is never a bullet)
+    for (joint, angle), grade in bad.items():
+        words = angle_words(view, joint, angle).lower()
+        out += [f"finding from a {grade} angle: {f}" for f in items if words in f.lower()]
+        j = view.protocol.joints[joint]
+        if j.type == "knee" and angle == "adduction":
+            side = {"r": "right", "l": "left"}[j.side]
+            out += [f"varus thrust from a {grade} plane: {f}" for f in items
+                    if f.lower().startswith(f"{side} knee varus thrust")]  # fmt: skip
+    # 2. symmetry only from planes determined on both sides
+    for f in items:
+        if "differs between sides" in f:
+            for (joint, angle), grade in bad.items():
+                j = view.protocol.joints[joint]
+                words = angle_words(view, joint, angle).lower().split(" ", 1)[1]
+                if f.lower().startswith(words):
+                    out.append(f"symmetry from a {grade} angle: {f}")
+    pages = _pages(view, joints)
+    from motionlab.report.pdf import page_text
+
+    text = "\n".join(page_text(p) for p in pages)
+    g = session.results.gait
+    if g is not None and g.ok:
+        # 3. GPS only when every variable is determined and each side has enough strides
+        grades = _variable_grades(view)
+        weak = sorted(k for k, v in grades.items() if v != "determined")
+        kept = np.asarray(g.strides["kept"], bool)
+        side = np.asarray(g.strides["side"], str)
+        few = [s for s in "rl" if np.sum(kept & (side == s)) < MIN]
+        if (weak or few) and GPS_NUMBER.search(text):
+            out.append(f"GPS printed with {weak or few} not determined or too few strides")
+        # 4. spatio-temporal: no mean from fewer than MIN strides, no asymmetry from fewer
+        # than MIN paired steps, no red value without enough strides
+        pairs = _paired_steps(g.strides)
+        for p in pages:
+            if "spatio-temporal" not in " ".join(t.get_text() for t in p.texts):
+                continue
+            xs = {s: _header_x(p, n) for s, n in (("r", "right"), ("l", "left"))}
+            for row, _cell, x in _red_rows(p):
+                s = "r" if xs["r"] is not None and abs(x - xs["r"]) < 1e-6 else "l"
+                if "asymmetry" in row and pairs < MIN:
+                    out.append(f"red asymmetry from {pairs} paired steps: {row}")
+                elif "asymmetry" not in row and np.sum(kept & (side == s)) < MIN:
+                    out.append(f"red value from {np.sum(kept & (side == s))} strides: {row}")
+            for s in "rl":
+                n = int(np.sum(kept & (side == s)))
+                cells = [c for c in _cells(p, xs[s]) if "±" in c]
+                if n < MIN and cells:
+                    out.append(f"means printed from {n} strides ({s}): {cells[0]}")
+            asym = _row(p, "step-time asymmetry")
+            if pairs < MIN and re.search(r"\d+\.\d", asym):
+                out.append(f"asymmetry printed from {pairs} paired steps: {asym}")
+    # 5. red cells of the joint pages only on determined rows
+    for p in pages:
+        for row, _cell, _ in _red_rows(p):
+            if "weak" in row.split(" | ")[-1] or "not determined" in row.split(" | ")[-1]:
+                out.append(f"red value of a graded angle: {row}")
+    # 6. an undetermined plane is not drawn as a curve
+    for p in pages:
+        for ax in p.axes:
+            if "not determined" in ax.get_title(loc="left") or (
+                "not determined" in ax.get_title() and "right" not in ax.get_title()
+            ):
+                drawn = [ln for ln in ax.get_lines() if len(ln.get_xdata()) > 2]
+                if drawn:
+                    out.append(f"curve drawn for an undetermined plane: {ax.get_title(loc='left')}")
+    return out
+
+
+# --------------------------------------------------------------------------------- the cases
+
+
+def test_pelvis_without_forward_direction(walk):
+    grades = {r["column"]: r["grade"] for r in grade_rows(load_view(walk))}
+    assert grades["hip_r_adduction_deg"] != "determined"  # the case is what it says
+    assert problems(walk) == []
+
+
+def test_knee_with_a_wrong_axis(walk):
+    why = "hinge axis from movement: the axis differs by up to 35° between parts of the movement"
+    ses = _force(walk, "knee_r", 0, "not determined", why)
+    assert problems(ses) == []
+    view = load_view(ses)
+    from motionlab.report.sentences import missing_lines
+
+    line = next(m for m in missing_lines(view) if m.startswith("Right knee"))
+    assert line.startswith("Right knee: flexion-extension not determined (axis)"), line
+    assert line.endswith(" — walk 10 straight steps at an even pace."), line
+
+
+def test_pelvis_not_calibrated(walk):
+    ses = _pelvis_nominal(walk)
+    assert (
+        load_view(ses).session.results.calibration.grades["hip_r"]["grades"]
+        == ["not determined"] * 3
+    )
+    assert problems(ses) == []
+
+
+def test_two_strides_only(walk):
+    kept = walk.results.gait.strides
+    start = np.asarray(kept["start_s"])[np.asarray(kept["kept"], bool)]
+    ses = _regait(walk, start[0] - 0.3, start[0] + 2.6)
+    g = ses.results.gait
+    assert g.ok and 0 < np.sum(g.strides["kept"]) <= 2 * (MIN - 1)
+    assert problems(ses, joints=False) == []
+
+
+def test_one_turn(walk):
+    strides = walk.results.gait.strides
+    turn = np.asarray(strides["start_s"])[np.asarray(strides["reason"], str) == "turn"]
+    ses = _regait(walk, turn[0] - 6.0, turn[0] + 6.0)
+    assert problems(ses, joints=False) == []
+
+
+@pytest.fixture(scope="module")
+def swapped():
+    return _analysed(swap=True)
+
+
+def test_a_sensor_swapped(swapped):
+    assert problems(swapped, joints=False) == []
+
+
+@pytest.mark.xfail(strict=True, reason="calibration: a shank swapped left for right is graded "
+                   "determined (hinge fits 'determined', knee flexion -36 to 71°)")  # fmt: skip
+def test_a_swapped_shank_is_not_determined(swapped):
+    """The report obeys the grades; the grades must catch the swap (segments, not the report).
+    Strict: when the calibration learns it, this passes and the mark must go."""
+    grades = swapped.results.calibration.grades
+    assert "determined" not in grades["knee_r"]["grades"][:1] + grades["knee_l"]["grades"][:1]
+
+
+DOT_PROTOCOL = """
+name: knee1
+title: "One knee: a Xsens DOT on the thigh and one on the shank, seated start, then movement"
+segments:
+  thigh_r: {side: r, placement: "right thigh, any orientation"}
+  shank_r: {side: r, placement: "right shank, any orientation"}
+calibration:
+  - {name: sitting, kind: static, pose: sitting, duration_s: 1, time_range: [0.0, 1.0],
+     vertical_axis: {thigh_r: x, shank_r: y}}
+joints:
+  knee_r: {type: knee, proximal: thigh_r, distal: shank_r, side: r, sequence: ZXY}
+tasks:
+  - {name: movement, kind: knee_flexion, time_range: [5.0, 30.0]}
+normative:
+  movement: {knee_flexion_deg: [0, 130]}
+"""
+
+
+@pytest.mark.skipif(not (HUMAN / "imt_dot").is_dir(), reason="shared data absent")
+def test_real_dot_knee(tmp_path):
+    """Xsens DOT knee_tracking1 (thigh and shank, 60 Hz), its first 30 s, through ingest."""
+    from motionlab.ingest import ingest
+    from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
+
+    folder = HUMAN / "imt_dot" / "knee_tracking1"
+    (tmp_path / "knee1.yaml").write_text(DOT_PROTOCOL)
+    (tmp_path / "map.yaml").write_text(
+        "sensors:\n  Femur: {segment: thigh, side: r}\n  Tibia: {segment: shank, side: r}\n"
+    )
+    session = ingest([folder / "femur.csv", folder / "tibia.csv"], tmp_path / "map.yaml")
+    for s in session.sensors.values():
+        keep = s.time < 30.0
+        s.time = s.time[keep]
+        for c in ("acc", "gyr", "mag", "quat"):
+            if getattr(s, c) is not None:
+                setattr(s, c, getattr(s, c)[keep])
+    prepare_sensors(session)
+    proto = load_protocol(tmp_path / "knee1.yaml")
+    analyse(session, PipelineOptions(proto, progress=False, clock_sync=False))
+    assert problems(session) == []
+
+
+@pytest.mark.skipif(not (HUMAN / "qmt_full_body").is_dir(), reason="shared data absent")
+def test_real_full_body_walk():
+    from scipy.io import loadmat
+
+    from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
+    from motionlab.session import SensorStream, Session
+
+    mat = loadmat(HUMAN / "qmt_full_body" / "full_body_example_data.mat",
+                  squeeze_me=True, struct_as_record=False)  # fmt: skip
+    names = {"hip": "pelvis", "upper_leg_right": "thigh_r", "upper_leg_left": "thigh_l",
+             "lower_leg_right": "shank_r", "lower_leg_left": "shank_l"}  # fmt: skip
+    t = np.asarray(mat["t"], float)
+    session = Session(metadata={"subject": {"id": "qmt", "height_m": 1.75}})
+    for src, label in names.items():
+        s = mat[src]
+        seg, _, side = label.partition("_")
+        session.sensors[label] = SensorStream(
+            label, t, acc=np.asarray(s.acc, float), gyr=np.asarray(s.gyr, float),
+            quat=np.asarray(s.quat, float), segment=seg, side=side,
+        )  # fmt: skip
+    prepare_sensors(session)
+    analyse(session, PipelineOptions(load_protocol("walk"), progress=False, clock_sync=False))
+    assert problems(session) == []
