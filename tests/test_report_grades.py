@@ -311,11 +311,9 @@ def test_a_sensor_swapped(swapped):
     assert problems(swapped, joints=False) == []
 
 
-@pytest.mark.xfail(strict=True, reason="calibration: a shank swapped left for right is graded "
-                   "determined (hinge fits 'determined', knee flexion -36 to 71°)")  # fmt: skip
 def test_a_swapped_shank_is_not_determined(swapped):
-    """The report obeys the grades; the grades must catch the swap (segments, not the report).
-    Strict: when the calibration learns it, this passes and the mark must go."""
+    """The report obeys the grades; the grades catch the swap (the knee would extend 35° past
+    its straight stand: :mod:`motionlab.segments.gait_axes`)."""
     grades = swapped.results.calibration.grades
     assert "determined" not in grades["knee_r"]["grades"][:1] + grades["knee_l"]["grades"][:1]
 

@@ -6,8 +6,9 @@ Hz. A *view* (:class:`SessionView`) wraps one session that has been through the 
 read results the stages stored; they compute no kinematics of their own.
 
 - :func:`rom_rows`: per task, joint and angle, the range of motion, the typical extremes (means of
-  the per-cycle peaks), the protocol's normal range and a flag when the extremes leave it (or
-  the flexion peak falls short of it) by more than :data:`TOLERANCE_DEG` (:func:`compare`);
+  the per-cycle peaks), the protocol's normal range and a flag when the extremes leave it by
+  more than :data:`TOLERANCE_DEG`, or the flexion peak falls short of its top by more than
+  :data:`REACH_TOLERANCE_DEG` (:func:`compare`);
 - :func:`symmetry_rows`: the left-right symmetry index of each range of motion (Robinson et al.
   1987, J Manipulative Physiol Ther 10:172): ``SI = 100 (R − L) / ((R + L) / 2)`` %, flagged above
   :data:`SYMMETRY_LIMIT_PCT`; not given when the mean range is below :data:`SYMMETRY_MIN_ROM_DEG`
@@ -44,6 +45,10 @@ from motionlab.session import Session
 DETERMINED, WEAK, NOT_DETERMINED = GRADES
 
 TOLERANCE_DEG = 5.0
+# a flexion peak short of the band's top by more than this is a reduced range: healthy adults'
+# peaks scatter about 5° (1 SD) around it (swing knee flexion 60 ± 5°, Kadaba et al. 1989,
+# J Orthop Res 7:849), so 5° told a healthy walker peaking at 59.6° "below the normal 0-65°"
+REACH_TOLERANCE_DEG = 10.0
 SYMMETRY_LIMIT_PCT = 10.0
 SYMMETRY_MIN_ROM_DEG = 10.0
 
@@ -194,8 +199,8 @@ def compare(low: float, high: float, normal: tuple[float, float] | None, reach: 
 
     An angle is flagged when its typical extremes leave the normal range by more than
     :data:`TOLERANCE_DEG` (``above``, ``below``, both: ``wider``); with ``reach`` (the flexion
-    angle) also when its typical peak falls short of the range's upper end by more than that
-    (``below``: a reduced range of motion).
+    angle) also when its typical peak falls short of the range's upper end by more than
+    :data:`REACH_TOLERANCE_DEG` (``below``: a reduced range of motion).
     """
     if normal is None or not (np.isfinite(low) and np.isfinite(high)):
         return ""
@@ -205,7 +210,7 @@ def compare(low: float, high: float, normal: tuple[float, float] | None, reach: 
         return "wider"
     if over_top:
         return "above"
-    if over_bottom or (reach and high < hi - TOLERANCE_DEG):
+    if over_bottom or (reach and high < hi - REACH_TOLERANCE_DEG):
         return "below"
     return "within"
 
