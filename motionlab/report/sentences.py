@@ -2,7 +2,7 @@
 
 Numbers are rounded to whole degrees (the accuracy of wearable-sensor joint angles does not
 support more) and every sentence names the side, the joint, the movement and the task, so that it
-can be read on its own ("Right knee flexion range 5–58° during gait, below the normal 0–65°").
+can be read on its own ("Right knee flexion range 5–52° during gait, below the normal 0–65°").
 
 Findings obey the grade of their angle (:func:`~motionlab.report.model.grade_rows`): only a
 ``determined`` number is a finding (a range against its normal range, an asymmetry, a varus

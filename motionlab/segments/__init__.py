@@ -192,9 +192,9 @@ def pelvis_forward(
     notes: list[str],
 ) -> dict[str, Any] | None:
     """The hips' proximal segment's forward direction from the walk's turns, or where they do not
-    give it (fewer than two, or disagreeing) from its first steps (:mod:`.walk_forward`), added to its ``records`` (kind
-    ``movement``, method ``turns`` or ``walk start``, secondary: gravity keeps
-    the tilt) when the recording measured only its vertical axis and the placement hint is
+    give it (fewer than two, or disagreeing) from its first steps (:mod:`.walk_forward`), added
+    to its ``records`` (kind ``movement``, method ``turns`` or ``walk start``, secondary: gravity
+    keeps the tilt) when the recording measured only its vertical axis and the placement hint is
     contradicted: by the stand (its vertical, :func:`.placement.contradicted`) or by the turns
     (their forward direction more than ``placement.CONTRADICTED_DEG`` from the hint's). The
     single turns may disagree more where the stand refuted the hint
