@@ -35,17 +35,18 @@ from __future__ import annotations
 
 import datetime as _dt
 import hashlib
+import io
 import json
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import h5py
 import numpy as np
 
 from motionlab import __version__
-from motionlab.atomic import atomic_path
+from motionlab.atomic import atomic_path, check_regular
 from motionlab.errors import InputError, shorten
 from motionlab.isolated import check_hdf5
 from motionlab.results import Results
@@ -198,6 +199,7 @@ def estimate_rate(time: np.ndarray) -> float:
 
 def sha256_file(path: str | Path) -> str:
     """SHA-256 hex digest of a file's bytes."""
+    check_regular(path)
     h = hashlib.sha256()
     with open(path, "rb") as f:
         for block in iter(lambda: f.read(1 << 20), b""):
@@ -245,8 +247,9 @@ def _write_tree(group: h5py.Group, tree: dict[str, Any]) -> None:
             group.attrs[key] = _json(value)
 
 
-def write_session(session: Session, path: str | Path) -> None:
-    """Write ``session`` to ``path`` directly (no atomic rename; see :func:`save_session`)."""
+def write_session(session: Session, path: str | Path | BinaryIO) -> None:
+    """Write ``session`` to ``path`` (or a binary file object) directly (no atomic rename; see
+    :func:`save_session`)."""
     with h5py.File(path, "w", track_order=True) as f:
         f.attrs["format"] = FORMAT_NAME
         f.attrs["schema_version"] = SCHEMA_VERSION
@@ -322,9 +325,13 @@ def save_session(session: Session, path: str | Path, force: bool = False) -> Non
     """Write ``session`` atomically: a temporary file in the same folder renamed onto ``path``.
 
     An existing ``path`` is replaced only with ``force=True`` (:class:`InputError` otherwise).
+    The file is built in memory and written with Python's own writes, so that a full disk is an
+    :class:`InputError` (:func:`motionlab.atomic.atomic_path`) and the old file stays whole.
     """
-    with atomic_path(path, force=force) as tmp:
-        write_session(session, tmp)
+    buffer = io.BytesIO()  # libhdf5 reports a failed write (a full disk) only as a warning
+    write_session(session, buffer)
+    with atomic_path(path, force=force) as tmp, open(tmp, "wb") as f:
+        f.write(buffer.getbuffer())  # raises on a full disk: the old file stays
 
 
 # ------------------------------------------------------------------------------------ reading
@@ -436,6 +443,7 @@ def load_session(path: str | Path) -> Session:
     that are not JSON, or channels that are not numbers of the right shape.
     """
     path = Path(path)
+    check_regular(path)
     if not path.is_file():
         raise InputError("no such session file", path, remedy="check the path")
     check_hdf5(path)  # a damaged file can crash libhdf5 itself: probed in a child first
