@@ -159,14 +159,15 @@ def protocol_sha256(protocol: Any) -> str | None:
 
 
 def rerun(stale: dict[str, str], needed: tuple[str, ...] | list[str]) -> list[str]:
-    """The commands that bring the ``needed`` stages' results up to date, in order."""
+    """The commands (:data:`COMMANDS`) to re-run, in order, to bring the ``needed`` stages'
+    results up to date."""
     wanted: set[str] = set()
     todo = [s for s in needed if s in stale]
     while todo:
         stage = todo.pop()
         wanted.add(stage)
         todo += [u for u in INPUTS[stage] if u in stale and u not in wanted]
-    return [f"motionlab {COMMANDS[s]} --force" for s in INPUTS if s in wanted]
+    return [COMMANDS[s] for s in INPUTS if s in wanted]
 
 
 def refuse_stale(session: Any, needed: tuple[str, ...] | list[str], path: Any = None) -> None:
@@ -176,10 +177,11 @@ def refuse_stale(session: Any, needed: tuple[str, ...] | list[str], path: Any = 
     bad = [s for s in needed if s in stale]
     if not bad:
         return
-    commands = rerun(stale, bad)
+    commands = ", then ".join(f"motionlab {c} force=True" for c in rerun(stale, bad))
     raise InputError(
         f"the {bad[0]} result is stale ({stale[bad[0]]})",
         path,
         f"results/{bad[0]}",
-        f"re-run {', then '.join(commands)} first",
+        f"re-run {commands} first",
+        argument="force",
     )

@@ -80,8 +80,8 @@ def stage_protocol(
             raise InputError(
                 "the calibration's protocol file has changed since the calibration",
                 protocol,
-                remedy="re-run motionlab calibrate --force (or give protocol= the protocol)",
-                argument="protocol",
+                remedy="re-run motionlab calibrate force=True, or give protocol=",
+                argument=("force", "protocol"),
             )
     if not isinstance(protocol, Protocol):
         protocol = load_protocol(protocol)

@@ -140,7 +140,8 @@ def format_summary(summary: dict) -> str:
     for stage, why in stale.items():
         lines.append(f"  stale: {stage} ({why})")
     if stale:
-        lines.append(f"  to bring them up to date: {', then '.join(rerun(stale, list(stale)))}")
+        commands = ", then ".join(f"motionlab {c} --force" for c in rerun(stale, list(stale)))
+        lines.append(f"  to bring them up to date: {commands}")
     lines.append(f"provenance entries: {len(summary['provenance'])}")
     for p in summary["provenance"]:
         lines.append(f"  {p.get('time', '')}  {p.get('software', '')}  {p.get('command', '')}")
