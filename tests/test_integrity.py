@@ -19,7 +19,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from integrity_helpers import fork_cli, make_sessions, one_error_line, sha, wait  # noqa: E402
 
 from motionlab.cli import main  # noqa: E402
-from motionlab.lock import session_lock  # noqa: E402
 from motionlab.session import load_session, save_session  # noqa: E402
 
 
@@ -123,6 +122,8 @@ def test_two_writers_on_one_session_both_keep_their_work(analysed, tmp_path):
 
 
 def test_a_second_writer_waits_then_names_the_first(analysed, tmp_path):
+    from motionlab.lock import session_lock
+
     read, write = os.pipe()
     holder = os.fork()
     if holder == 0:  # holds the lock for 5 s
@@ -148,6 +149,8 @@ def test_a_second_writer_waits_then_names_the_first(analysed, tmp_path):
 
 
 def test_the_lock_of_a_killed_writer_is_free_and_its_temporary_file_swept(analysed, tmp_path):
+    from motionlab.lock import session_lock
+
     child = os.fork()
     if child == 0:
         with session_lock(analysed):
