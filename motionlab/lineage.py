@@ -80,12 +80,19 @@ class Lineage:
             self.stamps[stage] = Stamp(self.counter, assumed=True)
         return self.stamps[stage].generation
 
-    def record(self, results: Any, stage: str, protocol: Path | str | None = None) -> Stamp:
+    def record(
+        self,
+        results: Any,
+        stage: str,
+        protocol: Any = None,
+        inputs: tuple[str, ...] | None = None,
+    ) -> Stamp:
         """Stamp the result ``stage`` just stored in ``results``: a new generation, the
-        generations of its :data:`INPUTS` and the SHA-256 of the ``protocol`` file."""
-        inputs = {up: self._generation(results, up) for up in INPUTS[stage]}
+        generations of the stages it read (``inputs``, default its :data:`INPUTS`) and the
+        SHA-256 of the ``protocol`` file (a path or a loaded protocol)."""
+        read = {up: self._generation(results, up) for up in inputs or INPUTS[stage]}
         self.counter += 1
-        self.stamps[stage] = Stamp(self.counter, inputs, protocol_sha256(protocol))
+        self.stamps[stage] = Stamp(self.counter, read, protocol_sha256(protocol))
         return self.stamps[stage]
 
     def stale(self, results: Any) -> dict[str, str]:

@@ -127,7 +127,7 @@ def session_lock(path: str | Path, wait: float | None = None) -> Iterator[None]:
     lock = lock_path(path)
     try:
         fd = _acquire(lock, wait_s() if wait is None else wait, path)
-    except PermissionError:  # a read-only folder: the write fails later with its own message
+    except OSError:  # a read-only folder: the write fails later with its own message
         yield
         return
     _HELD.add(key)

@@ -355,7 +355,10 @@ def angles(
             argument="calibrated",
         )
     refuse_to_redo(session.results.angles is not None, "angles", "angles", force, path)
-    refuse_stale(session, ("fusion", "calibration") if calibrated else ("fusion",), path)
+    read = ("fusion", "calibration") if calibrated else ("fusion",)
+    if method == "accel-only":  # the accelerometers (on the synchronised clock), calibration
+        read = ("clock_sync", "calibration")
+    refuse_stale(session, read, path)
     protocol = stage_protocol(session, protocol, path)
     corrections: dict[str, HeadingCorrection] = {}
     if method == "imu":
@@ -375,7 +378,7 @@ def angles(
     result = AngleTable.from_columns(table, method, events)
     session.results.angles = result
     session.results.heading = corrections
-    session.lineage.record(session.results, "angles", protocol)
+    session.lineage.record(session.results, "angles", protocol, read)
     return result
 
 

@@ -218,3 +218,32 @@ def test_fuse_says_the_real_error_before_the_sync_warning(sessions, tmp_path):
     assert res.exit_code == 2, res.output
     first = res.output.strip().splitlines()[0]
     assert first.startswith("error:") and "warning" not in res.output, res.output
+
+
+def test_stamps_follow_what_each_stage_read():
+    import json
+
+    import numpy as np
+
+    from motionlab.lineage import Lineage
+    from motionlab.results import AngleTable, ClockSync, FusionEntry, Results, SegmentCalibration
+
+    res, lin = Results(), Lineage()
+    res.fusion = {"a": FusionEntry("x", np.zeros((2, 4)))}
+    lin.record(res, "fusion")
+    res.calibration = SegmentCalibration("p")
+    lin.record(res, "calibration")
+    res.angles = AngleTable.from_columns({"time_s": np.arange(2.0)})
+    lin.record(res, "angles", inputs=("fusion",))  # without the calibration
+    assert lin.stale(res) == {}
+    lin.record(res, "calibration")  # redone: the uncalibrated angles did not read it
+    assert lin.stale(res) == {}
+    lin.record(res, "fusion")
+    assert lin.stale(res) == {"calibration": "computed before fuse was redone",
+                              "angles": "computed before fuse was redone"}  # fmt: skip
+    res.clock_sync = ClockSync()
+    lin.record(res, "clock_sync")  # a first sync after the fusion
+    assert lin.stale(res)["fusion"] == "computed before sync was run"
+    assert Lineage.from_tree(json.loads(json.dumps(lin.to_tree()))) == lin
+    generations = {k: s.generation for k, s in lin.stamps.items()}  # one counter, never reused
+    assert generations == {"fusion": 5, "calibration": 4, "angles": 3, "clock_sync": 6}
