@@ -25,6 +25,7 @@ from __future__ import annotations
 import contextlib
 import os
 import sys
+import threading
 import time
 from collections.abc import Iterator
 from pathlib import Path
@@ -116,12 +117,13 @@ def session_lock(path: str | Path, wait: float | None = None) -> Iterator[None]:
     """Hold the write lock of the session file ``path`` (which need not exist yet).
 
     Waits up to ``wait`` seconds (default :func:`wait_s`) for another writer, then raises
-    :class:`~motionlab.errors.InputError` naming it. Re-entrant within one process: an inner
-    lock of a path this process already holds is a no-op (``run`` inside ``batch``).
+    :class:`~motionlab.errors.InputError` naming it. Re-entrant within one thread: an inner
+    lock of a path the thread already holds is a no-op (``run`` inside ``batch``).
     """
     path = Path(path)
     key = str(path.absolute())
-    if fcntl is None or key in _HELD or not path.parent.is_dir():
+    held = _held()
+    if fcntl is None or key in held or not path.parent.is_dir():
         yield
         return
     lock = lock_path(path)
@@ -130,18 +132,24 @@ def session_lock(path: str | Path, wait: float | None = None) -> Iterator[None]:
     except OSError:  # a read-only folder: the write fails later with its own message
         yield
         return
-    _HELD.add(key)
+    held.add(key)
     try:
         os.ftruncate(fd, 0)
         os.write(fd, f"{os.getpid()} {_command()}\n".encode("utf-8", "replace"))
         _sweep(path)
         yield
     finally:
-        _HELD.discard(key)
+        held.discard(key)
         with contextlib.suppress(OSError):
             os.unlink(lock)
         os.close(fd)
 
 
-#: absolute paths of the sessions this process holds the lock of
-_HELD: set[str] = set()
+_LOCAL = threading.local()
+
+
+def _held() -> set[str]:
+    """Absolute paths of the sessions this thread holds the lock of."""
+    if not hasattr(_LOCAL, "held"):
+        _LOCAL.held = set()
+    return _LOCAL.held
