@@ -334,8 +334,6 @@ def analyse(session: Session, options: PipelineOptions, stages: _Stages | None =
         )
     with stages("calibrate"):
         cal = stages_lib.calibrate(session, protocol, force=True)
-        for line in cal.warnings if stages.progress else []:
-            print(f"warning: {line}", file=sys.stderr, flush=True)
     with stages("angles"):
         stages_lib.angles(session, protocol, force=True)
     with stages("metrics"):
@@ -349,6 +347,8 @@ def analyse(session: Session, options: PipelineOptions, stages: _Stages | None =
                 marker_set, kind = load_reference(Path(options.reference))
             stages_lib.validate(session, protocol, marker_set, seed=options.seed, force=True,
                                 reference_kind=kind)  # fmt: skip
+    for line in cal.warnings if stages.progress else []:  # after the stages: an error comes first
+        print(f"warning: {line}", file=sys.stderr, flush=True)
 
 
 def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> PipelineResult:
