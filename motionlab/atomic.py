@@ -9,6 +9,7 @@ file (an in-place stage) the mode it had.
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import stat
 import tempfile
@@ -17,6 +18,36 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from motionlab.errors import InputError, shorten
+
+#: what a path that is not a regular file is, by its ``stat`` type
+_KINDS = (
+    (stat.S_ISFIFO, "a named pipe (FIFO)"),
+    (stat.S_ISSOCK, "a socket"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+)
+
+
+def check_regular(path: str | Path, folder_ok: bool = False) -> None:
+    """Raise :class:`InputError` when ``path`` exists and is not a regular file: a FIFO, a
+    socket or a device (whose read could block forever, or never end), or a folder (unless
+    ``folder_ok``: a reader of device folders takes one). Looks with ``stat`` only, never
+    opens, so that it cannot block; a missing path is left to the reader, which says so."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return
+    if stat.S_ISDIR(mode):
+        if not folder_ok:
+            raise InputError("is a folder, expected a file", path, remedy="give the file's path")
+        return
+    for test, kind in _KINDS:
+        if test(mode):
+            raise InputError(
+                f"is {kind}, not a regular file; it is not read",
+                path,
+                remedy="give a recording saved as a file",
+            )
 
 
 def same_file(a: str | Path, b: str | Path) -> bool:
@@ -134,7 +165,30 @@ def atomic_path(path: str | Path, force: bool = False) -> Iterator[Path]:
     try:
         yield tmp
         os.chmod(tmp, output_mode(path))
+        _fsync(tmp)  # the data on disk before the rename: a crash leaves old or new, whole
         os.replace(tmp, path)
+    except OSError as exc:
+        if exc.errno not in _FULL:
+            raise
+        raise InputError(
+            f"cannot write the file ({exc.strerror or os.strerror(exc.errno)})",
+            path,
+            remedy="free some space or write elsewhere; "
+            + ("the old file is kept" if path.exists() else "nothing was written"),
+        ) from None
     finally:
         if tmp.exists():
             tmp.unlink()
+
+
+#: errno of a write that found no room: disk full, file too large (RLIMIT_FSIZE), quota
+_FULL = {errno.ENOSPC, errno.EFBIG, errno.EDQUOT}
+
+
+def _fsync(path: Path) -> None:
+    """Flush ``path``'s data to the disk."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)

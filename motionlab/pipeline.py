@@ -37,6 +37,7 @@ from motionlab.atomic import check_folder_writable, refuse_input_as_output
 from motionlab.errors import InputError
 from motionlab.ingest import DEFAULT_GAP_MAX, ingest
 from motionlab.isolated import check_hdf5, looks_like_hdf5
+from motionlab.lock import session_lock
 from motionlab.protocol import Protocol, load_protocol
 from motionlab.segments import sensor_for_segment
 from motionlab.session import (
@@ -332,8 +333,6 @@ def analyse(session: Session, options: PipelineOptions, stages: _Stages | None =
         )
     with stages("calibrate"):
         cal = stages_lib.calibrate(session, protocol, force=True)
-        for line in cal.warnings if stages.progress else []:
-            print(f"warning: {line}", file=sys.stderr, flush=True)
     with stages("angles"):
         stages_lib.angles(session, protocol, force=True)
     with stages("metrics"):
@@ -347,6 +346,8 @@ def analyse(session: Session, options: PipelineOptions, stages: _Stages | None =
                 marker_set, kind = load_reference(Path(options.reference))
             stages_lib.validate(session, protocol, marker_set, seed=options.seed, force=True,
                                 reference_kind=kind)  # fmt: skip
+    for line in cal.warnings if stages.progress else []:  # after the stages: an error comes first
+        print(f"warning: {line}", file=sys.stderr, flush=True)
 
 
 def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> PipelineResult:
@@ -407,11 +408,12 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
         ),
     )
     outdir.mkdir(parents=True, exist_ok=True)
-    save_session(session, session_path, force=options.force)
-    with stages("report"):
-        views = load_views([session], proto, [session_path])
-        out = write_report(views, report_path, csv_dir, force=options.force)
-        write_json(session, outdir / RESULTS_JSON, force=options.force)
+    with session_lock(session_path):  # the session, its report and JSON from one writer
+        save_session(session, session_path, force=options.force)
+        with stages("report"):
+            views = load_views([session], proto, [session_path])
+            out = write_report(views, report_path, csv_dir, force=options.force)
+            write_json(session, outdir / RESULTS_JSON, force=options.force)
     table = metrics_table(session.results.metrics)
     metrics = table[table["percent"].isna()].drop(columns="percent").reset_index(drop=True)
     summary = run_summary(views[0], out, stages.times, time.perf_counter() - t_start)

@@ -80,6 +80,7 @@ from typing import Any
 import numpy as np
 import yaml
 
+from motionlab.atomic import check_regular
 from motionlab.errors import InputError, shorten
 from motionlab.kinematics.joint_types import (
     JOINT_TYPES,
@@ -625,6 +626,7 @@ def _is_range(value: list, strict: bool = True) -> bool:
 def resolve_protocol_path(path: str | Path) -> Path:
     """A path as given, or the packaged protocol of that name (``knee`` → protocols/knee.yaml)."""
     p = Path(path)
+    check_regular(p)  # a FIFO or device given as the protocol: said so, never opened
     if p.is_file():
         return p
     packaged = PACKAGED / f"{p.stem}.yaml"

@@ -17,7 +17,7 @@ this module turns them into the file's tree and back (``Results.to_tree`` / ``fr
 
 HDF5 layout (``h5dump`` shows it)::
 
-    /                       attrs: format, schema_version, metadata (JSON)
+    /                       attrs: format, schema_version, metadata (JSON), lineage (JSON)
     /sensors/<label>/       time, acc, gyr, mag, quat, extra/<name>; attrs: serial, vendor, ...
     /markers/<name>/        time, positions, residuals, rigid_bodies/<name>; attrs: labels, ...
     /markers/<name>/model_outputs/<kind>   (N×K×3) one dataset per kind; attrs: labels, units
@@ -26,31 +26,37 @@ HDF5 layout (``h5dump`` shows it)::
 
 Round trip :func:`save_session` → :func:`load_session` is bit-exact.
 
-Schema versions: 2 (current) stores the angle table's ``units`` and ``events``; a schema-1 file
-loads with the units taken from the column names and the events from the calibration steps and
-metric blocks (:func:`_upgrade_v1`); it is written back as schema 2.
+Schema versions: 3 (current) stores what each result was computed from, the root attribute
+``lineage`` (:mod:`motionlab.lineage`); a schema-2 file has none and its results are taken as
+consistent (:meth:`~motionlab.lineage.Lineage.assumed`). 2 stores the angle table's ``units`` and
+``events``; a schema-1 file loads with the units taken from the column names and the events
+from the calibration steps and metric blocks (:func:`_upgrade_v1`). Older files are written
+back as schema 3 (a motionlab that knows only schema 2 then refuses the file instead of
+replacing a result without its stamp).
 """
 
 from __future__ import annotations
 
 import datetime as _dt
 import hashlib
+import io
 import json
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, BinaryIO
 
 import h5py
 import numpy as np
 
 from motionlab import __version__
-from motionlab.atomic import atomic_path
+from motionlab.atomic import atomic_path, check_regular
 from motionlab.errors import InputError, shorten
 from motionlab.isolated import check_hdf5
+from motionlab.lineage import Lineage
 from motionlab.results import Results
 
-SCHEMA_VERSION = 2
+SCHEMA_VERSION = 3
 FORMAT_NAME = "motionlab-session"
 
 #: SI unit of each sensor channel inside motionlab.
@@ -158,6 +164,7 @@ class Session:
     """One recording session: sensors, marker sets, metadata, stage results and provenance.
 
     ``results`` holds every stage's typed result (:class:`~motionlab.results.Results`);
+    ``lineage`` what each was computed from (:class:`~motionlab.lineage.Lineage`: stale results);
     ``schema_version`` is the schema of the file it was loaded from (a save writes the current
     :data:`SCHEMA_VERSION`).
     """
@@ -168,6 +175,7 @@ class Session:
     results: Results = field(default_factory=Results)
     provenance: list[dict[str, Any]] = field(default_factory=list)
     schema_version: int = SCHEMA_VERSION
+    lineage: Lineage = field(default_factory=Lineage)
 
     def add_provenance(
         self,
@@ -198,6 +206,7 @@ def estimate_rate(time: np.ndarray) -> float:
 
 def sha256_file(path: str | Path) -> str:
     """SHA-256 hex digest of a file's bytes."""
+    check_regular(path)
     h = hashlib.sha256()
     with open(path, "rb") as f:
         for block in iter(lambda: f.read(1 << 20), b""):
@@ -245,12 +254,14 @@ def _write_tree(group: h5py.Group, tree: dict[str, Any]) -> None:
             group.attrs[key] = _json(value)
 
 
-def write_session(session: Session, path: str | Path) -> None:
-    """Write ``session`` to ``path`` directly (no atomic rename; see :func:`save_session`)."""
+def write_session(session: Session, path: str | Path | BinaryIO) -> None:
+    """Write ``session`` to ``path`` (or a binary file object) directly (no atomic rename; see
+    :func:`save_session`)."""
     with h5py.File(path, "w", track_order=True) as f:
         f.attrs["format"] = FORMAT_NAME
         f.attrs["schema_version"] = SCHEMA_VERSION
         f.attrs["metadata"] = _json(session.metadata)
+        f.attrs["lineage"] = _json(session.lineage.to_tree())
         sensors = f.create_group("sensors", track_order=True)
         for label, s in session.sensors.items():
             g = sensors.create_group(label)
@@ -322,9 +333,13 @@ def save_session(session: Session, path: str | Path, force: bool = False) -> Non
     """Write ``session`` atomically: a temporary file in the same folder renamed onto ``path``.
 
     An existing ``path`` is replaced only with ``force=True`` (:class:`InputError` otherwise).
+    The file is built in memory and written with Python's own writes, so that a full disk is an
+    :class:`InputError` (:func:`motionlab.atomic.atomic_path`) and the old file stays whole.
     """
-    with atomic_path(path, force=force) as tmp:
-        write_session(session, tmp)
+    buffer = io.BytesIO()  # libhdf5 reports a failed write (a full disk) only as a warning
+    write_session(session, buffer)
+    with atomic_path(path, force=force) as tmp, open(tmp, "wb") as f:
+        f.write(buffer.getbuffer())  # raises on a full disk: the old file stays
 
 
 # ------------------------------------------------------------------------------------ reading
@@ -436,6 +451,7 @@ def load_session(path: str | Path) -> Session:
     that are not JSON, or channels that are not numbers of the right shape.
     """
     path = Path(path)
+    check_regular(path)
     if not path.is_file():
         raise InputError("no such session file", path, remedy="check the path")
     check_hdf5(path)  # a damaged file can crash libhdf5 itself: probed in a child first
@@ -576,6 +592,14 @@ def _load(f: h5py.File, path: Path, place: _Place) -> Session:
         raise place.fail(f"does not hold stage results this motionlab reads ({exc})") from None
     if version < 2:
         _upgrade_v1(session.results)
+    if version < 3:  # no stamps yet: the results as consistent as the older motionlab took them
+        session.lineage = Lineage.assumed(session.results)
+    else:
+        tree = _json_attr(f, "lineage", place)
+        try:
+            session.lineage = Lineage.from_tree(tree)
+        except (TypeError, ValueError, KeyError, AttributeError) as exc:
+            raise place.fail(f"is not a lineage this motionlab reads ({exc})") from None
     place.where = "/provenance"
     provenance = f["provenance"]
     if not isinstance(provenance, h5py.Dataset):

@@ -29,6 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 from motionlab.errors import InputError
 from motionlab.ingest import DEFAULT_GAP_MAX, check_and_fill
+from motionlab.lineage import protocol_sha256, refuse_stale
 from motionlab.protocol import Protocol, load_protocol
 from motionlab.results import AngleTable, FusionEntry, Gait, Metrics, SegmentCalibration, Validation
 from motionlab.session import Session
@@ -72,6 +73,16 @@ def stage_protocol(
         if cal is None:
             raise InputError("no protocol", path, remedy="give protocol=", argument="protocol")
         protocol = cal.protocol_source
+        stamp = session.lineage.stamps.get("calibration")
+        then = stamp.protocol_sha256 if stamp is not None else None
+        now = protocol_sha256(protocol)
+        if then is not None and now is not None and now != then:
+            raise InputError(
+                "the calibration's protocol file has changed since the calibration",
+                protocol,
+                remedy="re-run motionlab calibrate force=True, or give protocol=",
+                argument=("force", "protocol"),
+            )
     if not isinstance(protocol, Protocol):
         protocol = load_protocol(protocol)
     return sensed_protocol(protocol, session)
@@ -116,7 +127,10 @@ def sync(
     done = session.results.clock_sync is not None
     refuse_to_redo(done, "clock_sync", "a clock synchronisation", force, path)
     prepare(session)
-    return synchronise(session, stage_protocol(session, protocol, path))
+    protocol = stage_protocol(session, protocol, path)
+    fits = synchronise(session, protocol)
+    session.lineage.record(session.results, "clock_sync", protocol)
+    return fits
 
 
 @dataclass
@@ -174,7 +188,15 @@ def fuse(
     if orientation == "vendor":
         vendor = _vendor_orientations(session, sensors, force, path)
     usable = [k for k in fusable(session, sensors) if k not in vendor]
+    kept = [k for k in session.results.fusion if k not in usable and k not in vendor]
+    if kept and "fusion" in session.lineage.stale(session.results):
+        raise InputError(
+            f"the orientations of {', '.join(kept)} are stale too (computed before the clock "
+            "sync was redone)", path, "results/fusion", "fuse every sensor",
+        )  # fmt: skip
     if not usable:
+        if vendor:
+            session.lineage.record(session.results, "fusion")
         return Fused(vendor)
     recorded, notes, calibrated = dict(session.sensors), {}, {}
     refs: dict[str, Any] = {}
@@ -217,6 +239,8 @@ def fuse(
         store[label].markers = record
         seen = f"markers seen {100 * record['visible_fraction']:.0f} %"
         notes[label] = f"{notes[label]}, {seen}" if label in notes else seen
+    if vendor or done:
+        session.lineage.record(session.results, "fusion")
     return Fused(vendor + done, notes)
 
 
@@ -292,10 +316,12 @@ def calibrate(
 
     done = session.results.calibration is not None
     refuse_to_redo(done, "calibration", "a calibration", force, path)
+    refuse_stale(session, ("clock_sync", "fusion"), path)
     protocol = stage_protocol(session, protocol, path)
     result = calibrate_segments(session, protocol)
     result.protocol_path = str(protocol.path)
     session.results.calibration = result
+    session.lineage.record(session.results, "calibration", protocol)
     return result
 
 
@@ -328,8 +354,12 @@ def angles(
             "run motionlab calibrate first, or pass calibrated=False",
             argument="calibrated",
         )
-    protocol = stage_protocol(session, protocol, path)
     refuse_to_redo(session.results.angles is not None, "angles", "angles", force, path)
+    read = ("fusion", "calibration") if calibrated else ("fusion",)
+    if method == "accel-only":  # the accelerometers (on the synchronised clock), calibration
+        read = ("clock_sync", "calibration")
+    refuse_stale(session, read, path)
+    protocol = stage_protocol(session, protocol, path)
     corrections: dict[str, HeadingCorrection] = {}
     if method == "imu":
         table = session_angles(
@@ -348,6 +378,7 @@ def angles(
     result = AngleTable.from_columns(table, method, events)
     session.results.angles = result
     session.results.heading = corrections
+    session.lineage.record(session.results, "angles", protocol, read)
     return result
 
 
@@ -372,6 +403,7 @@ def metrics(
 
     _calibration(session, path)
     refuse_to_redo(session.results.metrics is not None, "metrics", "metrics", force, path)
+    refuse_stale(session, ("fusion", "calibration", "angles"), path)
     protocol = stage_protocol(session, protocol, path)
     names = {t.name for t in protocol.tasks}
     unknown = [n for n in tasks or {} if n not in names]
@@ -388,6 +420,7 @@ def metrics(
         session.results.angles.events.update(result.spans())
     if gait:
         gait_stage(session, protocol)
+    session.lineage.record(session.results, "metrics", protocol)
     return result
 
 
@@ -451,6 +484,7 @@ def validate(
 
     done = session.results.validation is not None
     refuse_to_redo(done, "validation", "validation results", force, path)
+    refuse_stale(session, ("fusion", "calibration", "angles"), path)
     if protocol is None and session.results.calibration is None:
         proto = None
     else:
@@ -465,10 +499,12 @@ def validate(
     if reference_kind == "angles":
         from motionlab.validation.model_angles import validate_model_angles
 
-        return validate_model_angles(
+        result = validate_model_angles(
             session, reference, proto, mapping=angle_map, sync=clock,
             movement_only=movement_only, seed=seed,
         )  # fmt: skip
+        session.lineage.record(session.results, "validation", proto)
+        return result
     if reference_kind == "segments" and marker_map is None:
         from motionlab.validation.segment_csv import segment_map
 
@@ -490,4 +526,5 @@ def validate(
     result.reference = {"kind": reference_kind}
     if reference_kind == "segments":
         result.reference["frames"] = frames
+    session.lineage.record(session.results, "validation", proto)
     return result

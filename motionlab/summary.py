@@ -78,5 +78,6 @@ def session_summary(session: Session) -> dict[str, Any]:
         "sensors": sensors,
         "markers": markers,
         "results": session.results.stages(),
+        "stale": session.lineage.stale(session.results),
         "provenance": session.provenance,
     }

@@ -21,6 +21,7 @@ from typing import Any
 import yaml
 from yaml.constructor import ConstructorError
 
+from motionlab.atomic import check_regular
 from motionlab.errors import InputError, shorten
 
 #: nodes a document may hold with its aliases expanded
@@ -97,6 +98,7 @@ def read_yaml_text(path: str | Path, what: str, remedy: str) -> str:
     path = Path(path)
     if path.is_dir():
         raise InputError(f"is a folder, expected a {what} file", path, remedy=remedy)
+    check_regular(path)
     try:
         size = path.stat().st_size
         if size > MAX_BYTES:

@@ -112,7 +112,7 @@ def test_a_schema_1_file_loads(tmp_path):
     assert not res.gait.ok
     save_session(old, tmp_path / "new.h5")
     with h5py.File(tmp_path / "new.h5") as f:
-        assert int(f.attrs["schema_version"]) == SCHEMA_VERSION == 2
+        assert int(f.attrs["schema_version"]) == SCHEMA_VERSION == 3
         assert "events" in f["results/angles"]
 
 

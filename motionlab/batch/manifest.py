@@ -38,6 +38,7 @@ from typing import Any
 
 import yaml
 
+from motionlab.atomic import check_regular
 from motionlab.errors import InputError
 from motionlab.protocol import LineLoader, load_protocol, resolve_protocol_path
 
@@ -101,6 +102,7 @@ def _fail(path: Path, line: int | None, key: str, message: str, remedy: str) -> 
 
 
 def _read(path: Path) -> Any:
+    check_regular(path)
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:

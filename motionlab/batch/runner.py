@@ -54,7 +54,8 @@ from motionlab.batch.state import (
     write_stamp,
 )
 from motionlab.errors import InputError
-from motionlab.pipeline import PipelineOptions
+from motionlab.lock import session_lock
+from motionlab.pipeline import SESSION_FILE, PipelineOptions
 
 #: ``run_pipeline(inputs, outdir, options)`` of motionlab.pipeline (tests pass a stand-in)
 Pipeline = Callable[..., Any]
@@ -158,7 +159,8 @@ def run_session(task: SessionTask, pipeline: Pipeline | None = None) -> Outcome:
     try:
         if pipeline is None:
             from motionlab.pipeline import run_pipeline as pipeline
-        result = pipeline([Path(f) for f in task.files], folder, task.options)
+        with session_lock(folder / SESSION_FILE):  # what a stage command on it holds too
+            result = pipeline([Path(f) for f in task.files], folder, task.options)
         with atomic_path(folder / METRICS, force=True) as tmp:
             result.metrics.to_csv(tmp, index=False, lineterminator="\n")
         seconds = time.perf_counter() - start

@@ -9,6 +9,7 @@ import pandas as pd
 from motionlab import stages
 from motionlab.atomic import atomic_path, check_output
 from motionlab.cli.paths import INPUT_FILE, OUTPUT_FILE
+from motionlab.lock import session_lock
 from motionlab.session import load_session, save_session
 
 
@@ -41,20 +42,21 @@ def command(
     """
     if csv_path:
         check_output(csv_path, force, inputs=[session, protocol_path])
-    ses = load_session(session)
-    table = stages.angles(
-        ses,
-        protocol_path,
-        method=method,
-        calibrated=not no_calibration,
-        force=force,
-        path=session,
-    )
-    if csv_path:
-        with atomic_path(csv_path, force=force) as tmp:
-            pd.DataFrame(table.columns()).to_csv(tmp, index=False, float_format="%.4f")
-    ses.add_provenance(parameters={"stage": "angles", "method": method})
-    save_session(ses, session, force=True)
+    with session_lock(session):  # read-modify-write: one writer at a time
+        ses = load_session(session)
+        table = stages.angles(
+            ses,
+            protocol_path,
+            method=method,
+            calibrated=not no_calibration,
+            force=force,
+            path=session,
+        )
+        if csv_path:
+            with atomic_path(csv_path, force=force) as tmp:
+                pd.DataFrame(table.columns()).to_csv(tmp, index=False, float_format="%.4f")
+        ses.add_provenance(parameters={"stage": "angles", "method": method})
+        save_session(ses, session, force=True)
     click.echo(f"{len(table.time)} samples, {len(table.data)} angles")
     for c, v in table.data.items():
         click.echo(f"{c:<34} min {np.nanmin(v):8.1f}  max {np.nanmax(v):8.1f}")

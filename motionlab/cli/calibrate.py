@@ -6,6 +6,7 @@ import click
 
 from motionlab import stages
 from motionlab.cli.paths import INPUT_FILE
+from motionlab.lock import session_lock
 from motionlab.protocol import load_protocol
 from motionlab.session import load_session, save_session
 
@@ -22,10 +23,11 @@ def command(session: str, protocol_path: str, force: bool) -> None:
       motionlab calibrate session.h5 --protocol knee
     """
     protocol = load_protocol(protocol_path)
-    ses = load_session(session)
-    result = stages.calibrate(ses, protocol, force=force, path=session)
-    ses.add_provenance(parameters={"protocol": str(protocol.path), "stage": "calibrate"})
-    save_session(ses, session, force=True)
+    with session_lock(session):  # read-modify-write: one writer at a time
+        ses = load_session(session)
+        result = stages.calibrate(ses, protocol, force=force, path=session)
+        ses.add_provenance(parameters={"protocol": str(protocol.path), "stage": "calibrate"})
+        save_session(ses, session, force=True)
     for line in result.warnings:
         click.echo(f"warning: {line}", err=True)
     for name, rng in result.steps.items():

@@ -13,6 +13,7 @@ from motionlab.cli.paths import FOLDER, INPUT_FILE, OUTPUT_FILE
 from motionlab.errors import InputError
 from motionlab.fusion import registry
 from motionlab.fusion.stage import fusable
+from motionlab.lock import session_lock
 from motionlab.session import load_session, save_session
 
 
@@ -111,65 +112,67 @@ def command(
         raise InputError("no session file given", remedy="motionlab fuse SESSION (or --list)")
     if output is not None:
         check_output(output, force, inputs=[session, markers_path])
-    ses = load_session(session)
-    unknown = [lab for lab in labels if lab not in ses.sensors]
-    if unknown:
-        raise InputError(
-            f"no sensor {', '.join(unknown)}",
-            session,
-            remedy=f"sensors are {', '.join(ses.sensors) or 'none'}",
-        )
-    chosen = list(labels) or list(ses.sensors)
-    usable = fusable(ses, chosen)
-    if orientation == "vendor":  # sensors with their own orientation need no raw signals
-        usable = [k for k in chosen if k in usable or ses.sensors[k].quat is not None]
-    if labels and len(usable) < len(chosen):
-        bad = sorted(set(chosen) - set(usable))
-        raise InputError(
-            f"sensor {', '.join(bad)} has no gyroscope or accelerometer",
-            session,
-            remedy="fusion needs both",
-        )
-    if not usable:
-        raise InputError("no sensor has gyroscope and accelerometer data", session)
-    parsed = parse_params(params)
-    mmap = None
-    if markers_path:
-        from motionlab.validation.markermap import load_marker_map
+    with session_lock(output or session):  # read-modify-write: one writer at a time
+        ses = load_session(session)
+        unknown = [lab for lab in labels if lab not in ses.sensors]
+        if unknown:
+            raise InputError(
+                f"no sensor {', '.join(unknown)}",
+                session,
+                remedy=f"sensors are {', '.join(ses.sensors) or 'none'}",
+            )
+        chosen = list(labels) or list(ses.sensors)
+        usable = fusable(ses, chosen)
+        if orientation == "vendor":  # sensors with their own orientation need no raw signals
+            usable = [k for k in chosen if k in usable or ses.sensors[k].quat is not None]
+        if labels and len(usable) < len(chosen):
+            bad = sorted(set(chosen) - set(usable))
+            raise InputError(
+                f"sensor {', '.join(bad)} has no gyroscope or accelerometer",
+                session,
+                remedy="fusion needs both",
+            )
+        if not usable:
+            raise InputError("no sensor has gyroscope and accelerometer data", session)
+        parsed = parse_params(params)
+        mmap = None
+        if markers_path:
+            from motionlab.validation.markermap import load_marker_map
 
-        mmap = load_marker_map(markers_path)
-    if not stages.synced(ses):
+            mmap = load_marker_map(markers_path)
+        unsynced = not stages.synced(ses)  # said after the checks: an error comes first
+        fused = stages.fuse(
+            ses,
+            name,
+            parsed,
+            usable,
+            magnetometer=magnetometer,
+            calibration_dir=calibration,
+            markers=with_markers or markers_path is not None,
+            marker_map=mmap,
+            force=force,
+            path=session,
+            progress=_progress,
+            orientation=orientation,
+        )
+        done, notes = fused.sensors, fused.notes
+        fusion = ses.results.fusion
+        with_refs = any(fusion[k].markers is not None for k in done)
+        ses.add_provenance(
+            parameters={"stage": "fuse", "filter": name, "params": parsed, "sensors": done}
+            | ({"calibration": calibration} if calibration else {})
+            | ({"with_markers": True, "markers": markers_path} if with_refs else {})
+            | {"magnetometer": magnetometer, "orientation": orientation},
+            inputs=[session] + ([markers_path] if markers_path else []),
+        )
+        save_session(ses, output or session, force=True)
+    if unsynced:
         click.echo(
             "warning: the session has not been clock-synchronised: run 'motionlab sync SESSION "
             "--protocol NAME' first, as motionlab run does (sensors on one radio-synchronised "
             "clock can skip it)",
             err=True,
         )
-    fused = stages.fuse(
-        ses,
-        name,
-        parsed,
-        usable,
-        magnetometer=magnetometer,
-        calibration_dir=calibration,
-        markers=with_markers or markers_path is not None,
-        marker_map=mmap,
-        force=force,
-        path=session,
-        progress=_progress,
-        orientation=orientation,
-    )
-    done, notes = fused.sensors, fused.notes
-    fusion = ses.results.fusion
-    with_refs = any(fusion[k].markers is not None for k in done)
-    ses.add_provenance(
-        parameters={"stage": "fuse", "filter": name, "params": parsed, "sensors": done}
-        | ({"calibration": calibration} if calibration else {})
-        | ({"with_markers": True, "markers": markers_path} if with_refs else {})
-        | {"magnetometer": magnetometer, "orientation": orientation},
-        inputs=[session] + ([markers_path] if markers_path else []),
-    )
-    save_session(ses, output or session, force=True)
     for label in chosen:
         state = "fused" if label in done else "skipped (no gyr/acc)"
         if label in done and fusion[label].name == "vendor":

@@ -8,6 +8,7 @@ import math
 import click
 
 from motionlab.cli.paths import INPUT_FILE
+from motionlab.lineage import rerun
 from motionlab.session import load_session
 from motionlab.summary import session_summary
 
@@ -135,6 +136,12 @@ def format_summary(summary: dict) -> str:
         lines += [f"    warning: {w}" for w in m.get("warnings", [])]
     if summary["results"]:
         lines.append(f"results: {', '.join(summary['results'])}")
+    stale = summary.get("stale", {})
+    for stage, why in stale.items():
+        lines.append(f"  stale: {stage} ({why})")
+    if stale:
+        commands = ", then ".join(f"motionlab {c} --force" for c in rerun(stale, list(stale)))
+        lines.append(f"  to bring them up to date: {commands}")
     lines.append(f"provenance entries: {len(summary['provenance'])}")
     for p in summary["provenance"]:
         lines.append(f"  {p.get('time', '')}  {p.get('software', '')}  {p.get('command', '')}")

@@ -10,6 +10,7 @@ from motionlab.atomic import check_output
 from motionlab.cli.paths import INPUT_FILE, OUTPUT_FILE
 from motionlab.errors import InputError
 from motionlab.ingest import DEFAULT_GAP_MAX, ingest
+from motionlab.lock import session_lock
 from motionlab.session import save_session
 
 
@@ -72,7 +73,8 @@ def command(files, map_path, rate, gap_max, output, force) -> None:  # fmt: skip
     args += ["--force"] if force else []
     session = ingest(files, map_path, rate=rate, gap_max=gap_max, command=shlex.join(args))
     try:
-        save_session(session, output, force=force)
+        with session_lock(output):  # one writer at a time (a stage command may be on it)
+            save_session(session, output, force=force)
     except OSError as exc:
         raise InputError(f"cannot write the session ({exc.strerror or exc})", output,
                          remedy="choose a writable folder") from None  # fmt: skip

@@ -10,6 +10,7 @@ from motionlab.atomic import atomic_path, check_output
 from motionlab.cli.paths import INPUT_FILE, OUTPUT_FILE
 from motionlab.errors import InputError
 from motionlab.kinematics.metrics import metrics_table
+from motionlab.lock import session_lock
 from motionlab.session import load_session, save_session
 
 
@@ -64,15 +65,16 @@ def command(
     """
     if csv_path:
         check_output(csv_path, force, inputs=[session, protocol_path])
-    ses = load_session(session)
-    result = stages.metrics(ses, protocol_path, _parse_tasks(tasks), force=force, path=session)
-    protocol = stages.stage_protocol(ses, protocol_path, session)
-    table = metrics_table(result)
-    if csv_path:
-        with atomic_path(csv_path, force=force) as tmp:
-            table.to_csv(tmp, index=False, float_format="%.4f")
-    ses.add_provenance(parameters={"stage": "metrics", "protocol": str(protocol.path)})
-    save_session(ses, session, force=True)
+    with session_lock(session):  # read-modify-write: one writer at a time
+        ses = load_session(session)
+        result = stages.metrics(ses, protocol_path, _parse_tasks(tasks), force=force, path=session)
+        protocol = stages.stage_protocol(ses, protocol_path, session)
+        table = metrics_table(result)
+        if csv_path:
+            with atomic_path(csv_path, force=force) as tmp:
+                table.to_csv(tmp, index=False, float_format="%.4f")
+        ses.add_provenance(parameters={"stage": "metrics", "protocol": str(protocol.path)})
+        save_session(ses, session, force=True)
     for block, rng in result.blocks.items():
         click.echo(f"task {block:<20} {rng['start_s']:8.2f}–{rng['end_s']:8.2f} s")
         for col, m in result.joints[block].items():

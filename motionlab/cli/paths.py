@@ -9,6 +9,7 @@ from typing import Any
 
 import click
 
+from motionlab.atomic import check_regular
 from motionlab.errors import InputError
 
 
@@ -20,8 +21,7 @@ class InputFile(click.ParamType):
 
     def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> str:
         path = Path(value)
-        if path.is_dir():
-            raise InputError("is a folder, expected a file", path, remedy="give the file's path")
+        check_regular(path)  # before any open: a FIFO without a writer blocks it forever
         if path.exists():
             try:
                 with open(path, "rb") as f:

@@ -8,6 +8,7 @@ import click
 
 from motionlab.atomic import refuse_input_as_output
 from motionlab.cli.paths import FOLDER, INPUT_FILE, OUTPUT_FILE
+from motionlab.lineage import refuse_stale
 from motionlab.protocol import load_protocol
 from motionlab.report import load_views, write_report
 from motionlab.session import load_session
@@ -45,7 +46,10 @@ def command(sessions, output, csv_dir, protocol_path, force) -> None:
         refuse_input_as_output(out, [*sessions, protocol_path])
     protocol = load_protocol(protocol_path) if protocol_path else None
     paths = [Path(s) for s in sessions]
-    views = load_views([load_session(p) for p in paths], protocol, paths)
+    loaded = [load_session(p) for p in paths]
+    for path, ses in zip(paths, loaded, strict=True):  # a report never shows a stale result
+        refuse_stale(ses, list(ses.lineage.stale(ses.results)), path)
+    views = load_views(loaded, protocol, paths)
     out = write_report(views, output, csv_dir, force=force)
     click.echo(f"wrote {out.pdf_path} ({len(out.pages)} pages) and {out.text_path}")
     if out.csv_paths:

@@ -8,6 +8,7 @@ import click
 
 from motionlab.atomic import check_output
 from motionlab.errors import InputError
+from motionlab.lock import session_lock
 from motionlab.protocol import resolve_protocol_path
 from motionlab.session import save_session
 from motionlab.simulate import MOUNTINGS, save_truth, simulate, write_truth_csv
@@ -120,7 +121,8 @@ def command(
     optical = session.markers.get("optical")
     if optical is not None and not session_markers:
         del session.markers["optical"]
-    save_session(session, output, force=force)
+    with session_lock(output):  # one writer at a time (a stage command may be on it)
+        save_session(session, output, force=force)
     written = [output]
     if truth_path:
         save_truth(truth, truth_path, force=force)

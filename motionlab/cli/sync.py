@@ -7,6 +7,7 @@ import click
 from motionlab import stages
 from motionlab.cli.paths import INPUT_FILE
 from motionlab.clocksync import describe
+from motionlab.lock import session_lock
 from motionlab.protocol import load_protocol
 from motionlab.session import load_session, save_session
 
@@ -31,10 +32,11 @@ def command(session: str, protocol_path: str, force: bool) -> None:
       motionlab sync session.h5 --protocol knee
     """
     protocol = load_protocol(protocol_path)
-    ses = load_session(session)
-    fits = stages.sync(ses, protocol, force=force, path=session)
-    ses.add_provenance(parameters={"protocol": str(protocol.path), "stage": "sync"})
-    save_session(ses, session, force=True)
+    with session_lock(session):  # read-modify-write: one writer at a time
+        ses = load_session(session)
+        fits = stages.sync(ses, protocol, force=force, path=session)
+        ses.add_provenance(parameters={"protocol": str(protocol.path), "stage": "sync"})
+        save_session(ses, session, force=True)
     if not fits:
         click.echo("no pair of neighbouring segments with sensors: nothing to synchronise")
     for fit in fits:

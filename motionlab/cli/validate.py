@@ -11,6 +11,7 @@ from motionlab import stages
 from motionlab.atomic import atomic_path, check_output
 from motionlab.cli.paths import FOLDER, INPUT_FILE
 from motionlab.errors import InputError
+from motionlab.lock import session_lock
 from motionlab.session import load_session, save_session
 from motionlab.validation.align import MODES
 from motionlab.validation.markermap import load_marker_map
@@ -83,66 +84,71 @@ def command(
       motionlab validate session.h5 --reference pig.c3d          # Plug-in Gait angles
       motionlab validate session.h5 --reference segments.csv     # time, thigh_r_qw, ...
     """
-    ses = load_session(session)
-    done = ses.results.validation is not None
-    stages.refuse_to_redo(done, "validation", "validation results", force, session)
-    mmap = load_marker_map(markers_path) if markers_path else None
-    name = mmap.marker_set if mmap else None
-    if reference is None:
-        if not ses.markers:
-            raise InputError(
-                "has no optical data", session, remedy="give --reference FILE.c3d or a session"
+    with session_lock(session):  # read-modify-write: one writer at a time
+        ses = load_session(session)
+        done = ses.results.validation is not None
+        stages.refuse_to_redo(done, "validation", "validation results", force, session)
+        mmap = load_marker_map(markers_path) if markers_path else None
+        name = mmap.marker_set if mmap else None
+        if reference is None:
+            if not ses.markers:
+                raise InputError(
+                    "has no optical data", session, remedy="give --reference FILE.c3d or a session"
+                )
+            ref = choose_marker_set(list(ses.markers.values()), name, session)
+            kind = reference_kind
+            if kind == "auto":
+                only_angles = has_model_angles(ref) and not (ref.n_markers or ref.rigid_bodies)
+                kind = "angles" if only_angles else "markers"
+        else:
+            ref, kind = load_reference(reference, reference_kind, name)
+        angle_map = load_angle_map(angle_map_path) if angle_map_path else None
+        static = None
+        if static_path is not None:
+            sets = read_reference(static_path)
+            static = choose_marker_set(
+                sets, name if name in {m.name for m in sets} else None, static_path
             )
-        ref = choose_marker_set(list(ses.markers.values()), name, session)
-        kind = reference_kind
-        if kind == "auto":
-            only_angles = has_model_angles(ref) and not (ref.n_markers or ref.rigid_bodies)
-            kind = "angles" if only_angles else "markers"
-    else:
-        ref, kind = load_reference(reference, reference_kind, name)
-    angle_map = load_angle_map(angle_map_path) if angle_map_path else None
-    static = None
-    if static_path is not None:
-        sets = read_reference(static_path)
-        static = choose_marker_set(
-            sets, name if name in {m.name for m in sets} else None, static_path
-        )
-    protocol = None
-    if protocol_path is not None or ses.results.calibration is not None:
-        protocol = stages.stage_protocol(ses, protocol_path, session)
-    written = []
-    extra_inputs = [reference, static_path, markers_path, protocol_path, angle_map_path]
-    if csv_dir:
-        folder = Path(csv_dir)
-        if folder.exists() and not folder.is_dir():
-            raise InputError("is not a folder", folder, remedy="give a folder for the CSV tables")
-        folder.mkdir(parents=True, exist_ok=True)
-        for fname in CSV_FILES:
-            check_output(folder / fname, force, inputs=[session, *extra_inputs])
-    mode = mode or stages.validation_mode(ses)
-    result = stages.validate(
-        ses, protocol, ref, marker_map=mmap, static=static, mode=mode, clock=not no_sync,
-        movement_only=movement_only, estimator=estimator, seed=seed, force=force, path=session,
-        reference_kind=kind, frames=frames, angle_map=angle_map, sync_on=sync_on,
-    )  # fmt: skip
-    if csv_dir:
-        for fname, table in tables(result).items():
-            with atomic_path(folder / fname, force=force) as tmp:
-                table.to_csv(tmp, index=False, float_format="%.6g")
-            written.append(str(folder / fname))
-    inputs = [session] + [p for p in (reference, static_path, markers_path, angle_map_path) if p]
-    parameters = {
-        "stage": "validate",
-        "mode": mode,
-        "reference_kind": kind,
-        "sync": not no_sync,
-        "sync_on": sync_on,
-        "movement_only": movement_only,
-        "seed": seed,
-        "protocol": protocol.name if protocol else None,
-    }
-    ses.add_provenance(parameters=parameters, inputs=inputs)  # fmt: skip
-    save_session(ses, session, force=True)
+        protocol = None
+        if protocol_path is not None or ses.results.calibration is not None:
+            protocol = stages.stage_protocol(ses, protocol_path, session)
+        written = []
+        extra_inputs = [reference, static_path, markers_path, protocol_path, angle_map_path]
+        if csv_dir:
+            folder = Path(csv_dir)
+            if folder.exists() and not folder.is_dir():
+                raise InputError(
+                    "is not a folder", folder, remedy="give a folder for the CSV tables"
+                )
+            folder.mkdir(parents=True, exist_ok=True)
+            for fname in CSV_FILES:
+                check_output(folder / fname, force, inputs=[session, *extra_inputs])
+        mode = mode or stages.validation_mode(ses)
+        result = stages.validate(
+            ses, protocol, ref, marker_map=mmap, static=static, mode=mode, clock=not no_sync,
+            movement_only=movement_only, estimator=estimator, seed=seed, force=force, path=session,
+            reference_kind=kind, frames=frames, angle_map=angle_map, sync_on=sync_on,
+        )  # fmt: skip
+        if csv_dir:
+            for fname, table in tables(result).items():
+                with atomic_path(folder / fname, force=force) as tmp:
+                    table.to_csv(tmp, index=False, float_format="%.6g")
+                written.append(str(folder / fname))
+        inputs = [session] + [
+            p for p in (reference, static_path, markers_path, angle_map_path) if p
+        ]
+        parameters = {
+            "stage": "validate",
+            "mode": mode,
+            "reference_kind": kind,
+            "sync": not no_sync,
+            "sync_on": sync_on,
+            "movement_only": movement_only,
+            "seed": seed,
+            "protocol": protocol.name if protocol else None,
+        }
+        ses.add_provenance(parameters=parameters, inputs=inputs)  # fmt: skip
+        save_session(ses, session, force=True)
     digest = summary(result)
     if as_json:
         click.echo(json.dumps(digest, indent=2))

@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from motionlab.atomic import check_regular
 from motionlab.errors import InputError, shorten
 from motionlab.isolated import check_hdf5
 from motionlab.session import MarkerSet, SensorStream
@@ -71,6 +72,7 @@ def detect_format(path: str | Path, options: dict[str, Any] | None = None) -> st
 
 
 def _detect(path: Path, options: dict[str, Any] | None):
+    check_regular(path, folder_ok=True)  # a FIFO, socket or device: refused before any read
     if path.is_dir():
         raise InputError("is a folder, expected a file", path, remedy="give the file's path")
     if not path.is_file():
