@@ -109,10 +109,10 @@ def _random_rotation(rng: np.random.Generator, max_deg: float) -> np.ndarray:
     return rot.from_axis_angle(axis, np.radians(rng.uniform(0.0, max_deg)))
 
 
-#: skin artefact (``soft_tissue="skin"``) per segment kind, relative to the preset's ``sta_deg``
-#: (the thigh's): largest on the thigh (Leardini et al. 2005), about half on the shank
-#: (Benoit et al. 2006; Reinschmidt et al. 1997), large about the humerus' long axis (Cutti et
-#: al. 2005, Med Biol Eng Comput 43:291), small on the trunk and foot.
+#: skin artefact (``soft_tissue="skin"``) per segment kind, relative to the preset's ``sta_deg``,
+#: ``sta_impact_deg`` and ``tissue_gain`` (the thigh's): largest on the thigh (Leardini et al.
+#: 2005), about half on the shank (Benoit et al. 2006; Reinschmidt et al. 1997), large about the
+#: humerus' long axis (Cutti et al. 2005, Med Biol Eng Comput 43:291), small on trunk and foot.
 STA_SCALE = {"thigh": 1.0, "shank": 0.5, "upperarm": 0.7, "forearm": 0.4, "foot": 0.3}
 STA_SCALE_OTHER = 0.3
 #: relative weights of the artefact's rotation about the segment's x (anterior), y (long) and z
@@ -166,22 +166,23 @@ def _mount(body: Body, protocol: Protocol, seg: str, i: int, seed: int, preset: 
         damping = t_rng.uniform(0.3, 0.5)
         slip_axis = rot.normalize(np.array([0.3, 1.0, 0.3]) * t_rng.normal(size=3))
         slip = np.radians(preset.slip_deg) * t_rng.uniform(0.5, 1.0)
-        artefact = None
-        if ch_grid is not None:
+        artefact, gain = None, preset.tissue_gain
+        if ch_grid is not None:  # skin: per segment kind, largest on the thigh
+            kind_scale = STA_SCALE.get(kind, STA_SCALE_OTHER)
+            gain *= kind_scale
             drivers = _skin_drivers(body, seg, ch_grid)
             s_rng = _rng(seed, "mount", i, _SUB_SKIN)
             dirs = s_rng.normal(size=(drivers.shape[1], 2, 3)) * STA_AXIS_WEIGHTS
             dirs /= np.linalg.norm(dirs, axis=-1, keepdims=True)
-            amplitude = np.radians(preset.sta_deg) * STA_SCALE.get(kind, STA_SCALE_OTHER)
-            artefact = skin_artefact(drivers, dirs, amplitude * s_rng.uniform(0.6, 1.0))
+            amplitude = np.radians(preset.sta_deg) * kind_scale * s_rng.uniform(0.6, 1.0)
+            artefact = skin_artefact(drivers, dirs, amplitude)
             direction = rot.normalize(s_rng.normal(size=3) * STA_AXIS_WEIGHTS)
-            scale = np.radians(preset.sta_impact_deg) * STA_SCALE.get(kind, STA_SCALE_OTHER)
-            artefact += impact_artefact(grid, impacts, direction, scale * s_rng.uniform(0.6, 1.0),
+            impact = np.radians(preset.sta_impact_deg) * kind_scale * s_rng.uniform(0.6, 1.0)
+            artefact += impact_artefact(grid, impacts, direction, impact,
                                         s_rng.uniform(*STA_IMPACT_HZ),
                                         s_rng.uniform(*STA_IMPACT_DECAY_S))  # fmt: skip
         mount.tissue = tissue_motion(kin, grid, mount.site, mount.normal, mount.wobble.freq_hz,
-                                     damping, preset.tissue_gain, slip_axis, slip,
-                                     artefact)  # fmt: skip
+                                     damping, gain, slip_axis, slip, artefact)  # fmt: skip
     return mount
 
 

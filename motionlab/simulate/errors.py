@@ -148,7 +148,7 @@ PRESETS["skin"] = replace(
     soft_tissue="skin",
     tissue_gain=2.0,
     sta_deg=8.0,
-    sta_impact_deg=6.0,
+    sta_impact_deg=8.0,
 )
 SOFT_TISSUE = ("impacts", "motion", "skin")
 # Preset fields added after the first release: left out of the stored error model at their

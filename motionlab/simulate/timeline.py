@@ -26,6 +26,7 @@ from motionlab.simulate.motion import (
     CH,
     DEG,
     Block,
+    envelope,
     posture_of,
     rest_block,
     smoothstep,
@@ -68,23 +69,23 @@ KNEE_MODELS = ("simple", "anatomical")
 # internally as the knee flexes, steeply near extension and little beyond (Wilson et al. 2000,
 # J Biomech 33:465: internal rotation coupled to passive flexion in every specimen); in gait
 # the bone-pin range of internal/external rotation is ≈ 8-10° (Lafortune et al. 1992, J Biomech
-# 25:347; Benoit et al. 2006, Gait Posture 24:152), of which this coupling gives ≈ 6-7° over
-# the 4-61° of a stride. Adduction (varus) grows with flexion to ≈ 5° at the swing peak, the
-# bone-pin ab/adduction range in gait being ≈ 6° (Lafortune 1992: 6.4°).
+# 25:347; Benoit et al. 2006, Gait Posture 24:152), of which this coupling gives 7.6° over
+# the 4-61° of a stride. Adduction (varus) grows with flexion to 3.5° at the swing peak; with
+# the gait's own 3° of ab/adduction the bone-pin range in gait of ≈ 6° (Lafortune 1992: 6.4°).
 #: screw-home rotation: ``KNEE_SCREW_HOME · tanh(flexion / KNEE_SCREW_HOME_SCALE)`` (rad) ...
 KNEE_SCREW_HOME = 8 * DEG
 KNEE_SCREW_HOME_SCALE = 15 * DEG
 #: ... plus this many rad of internal rotation per rad of flexion beyond it
 KNEE_ROTATION_SLOPE = 0.03
-#: adduction ``KNEE_ADDUCTION_PEAK · (sin(flexion) / sin 60°)²`` (rad): 5° at 60° of flexion
-KNEE_ADDUCTION_PEAK = 5 * DEG
-#: stride-to-stride variation of the anatomical knee: the couplings' gains vary by this fraction
-#: and the secondary angles drift by this many rad, slowly (:data:`KNEE_VARIATION_HZ`): for one
-#: flexion angle a real knee takes several ab/adduction and rotation positions (Benoit et al.
-#: 2007, Clin Orthop Relat Res 454:81)
-KNEE_VARIATION_GAIN = 0.3
-KNEE_VARIATION_OFFSET = 3 * DEG
-KNEE_VARIATION_HZ = (0.1, 1.5)
+#: adduction ``KNEE_ADDUCTION_PEAK · (sin(flexion) / sin 60°)²`` (rad): 3.5° at 60° of flexion
+KNEE_ADDUCTION_PEAK = 3.5 * DEG
+#: variation of the anatomical knee while walking: for one flexion angle a real knee takes
+#: several ab/adduction and rotation positions, within and between strides (Benoit et al. 2007,
+#: Clin Orthop Relat Res 454:81): the couplings' gains vary by this fraction (RMS) and the
+#: secondary angles by this many rad (RMS), at :data:`KNEE_VARIATION_HZ`
+KNEE_VARIATION_GAIN = 0.2
+KNEE_VARIATION_OFFSET = 1.2 * DEG
+KNEE_VARIATION_HZ = (0.5, 4.0)
 
 
 def knee_coupling(flexion: np.ndarray, model: str = "simple") -> tuple[np.ndarray, np.ndarray]:
@@ -93,8 +94,8 @@ def knee_coupling(flexion: np.ndarray, model: str = "simple") -> tuple[np.ndarra
     ``simple``: :data:`KNEE_ADDUCTION_COUPLING` · sin(flexion) and :data:`KNEE_ROTATION_COUPLING`
     · flexion (proportional, so a movement-fitted axis absorbs most of it as a turned axis).
     ``anatomical``: the screw-home curve and the varus of the anatomical knee (above), which no
-    fixed axis can follow: at 0, 10, 20, 30 and 60° of flexion the rotation is 0, 3.3, 5.9, 7.5
-    and 8.6° and the adduction 0, 0.1, 0.8, 1.7 and 5.0°.
+    fixed axis can follow: at 0, 10, 20, 30 and 60° of flexion the rotation is 0, 5.0, 7.6, 8.6
+    and 9.8° (7.6° over the 4-61° of a stride) and the adduction 0, 0.1, 0.5, 1.2 and 3.5°.
     """
     k = np.asarray(flexion, dtype=float)
     if model == "anatomical":
@@ -105,8 +106,8 @@ def knee_coupling(flexion: np.ndarray, model: str = "simple") -> tuple[np.ndarra
 
 
 def knee_variation(t: np.ndarray, seed: int, side: str) -> np.ndarray:
-    """Slow variation (N, 4) of one knee over time ``t`` (s), each column a sum of three sinusoids
-    of random frequency (:data:`KNEE_VARIATION_HZ`) and phase scaled to unit RMS (peaks ≈ ±2):
+    """Variation (N, 4) of one knee over time ``t`` (s), each column a sum of three sinusoids of
+    random frequency (:data:`KNEE_VARIATION_HZ`) and phase scaled to unit RMS (peaks below 2.5):
     gains of the adduction and rotation couplings, offsets of adduction and rotation."""
     rng = np.random.default_rng([seed, 7, "rl".index(side)])
     f = rng.uniform(*KNEE_VARIATION_HZ, size=(3, 4))
@@ -115,7 +116,7 @@ def knee_variation(t: np.ndarray, seed: int, side: str) -> np.ndarray:
 
 
 def couple(ch: np.ndarray, knee_model: str = "simple", t: np.ndarray | None = None,
-           seed: int = 0) -> np.ndarray:  # fmt: skip
+           seed: int = 0, walking: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
     """Couplings seen in real joints, added on top of every block.
 
     Knee (:func:`knee_coupling`), ``simple``: adduction grows with flexion
@@ -124,14 +125,15 @@ def couple(ch: np.ndarray, knee_model: str = "simple", t: np.ndarray | None = No
     flexion axis found from the movement (a functional axis) cannot tell a coupling proportional
     to flexion from a turned axis, so these put a definitional error into the functional
     calibrations (``bench/real_world.py --uncoupled-knee`` shows its size). ``anatomical``: the
-    screw-home curve and varus of a real knee, varying slowly over time ``t`` (s; drawn from
-    ``seed``, :func:`knee_variation`). Elbow: the carrying angle falls by 0.06° per degree of
+    screw-home curve and varus of a real knee, varying from stride to stride while walking
+    (``walking``, 0-1 over time ``t`` in s; drawn from ``seed``, :func:`knee_variation`), so a
+    still pose stays still. Elbow: the carrying angle falls by 0.06° per degree of
     flexion. Modifies and returns ``ch``.
     """
     for s in "rl":
         add, rot_int = knee_coupling(ch[:, CH[f"knee_{s}_0"]], knee_model)
-        if knee_model == "anatomical" and t is not None:
-            v = knee_variation(t, seed, s)
+        if knee_model == "anatomical" and t is not None and walking is not None:
+            v = knee_variation(t, seed, s) * walking[:, None]
             add = add * (1 + KNEE_VARIATION_GAIN * v[:, 0]) + KNEE_VARIATION_OFFSET * v[:, 2]
             rot_int = (
                 rot_int * (1 + KNEE_VARIATION_GAIN * v[:, 1]) + KNEE_VARIATION_OFFSET * v[:, 3]
@@ -191,7 +193,12 @@ class Timeline:
             if m.any():
                 s = smoothstep((t[m] - (b - w)) / w)[:, None]
                 out[m] = (1 - s) * out[m] + s * self._global(i + 1, t[m] - b)
-        return couple(out, self.knee_model, t, self.seed)
+        walking = np.zeros(len(t))
+        if self.knee_model == "anatomical":
+            for start, block in zip(self.starts, self.blocks, strict=True):
+                if block.generator == "gait":  # the gait block's own envelope (motion.gait_block)
+                    walking += envelope(t - start, block.duration, min(2.0, block.duration / 3))
+        return couple(out, self.knee_model, t, self.seed, walking)
 
     def impacts(self) -> np.ndarray:
         """Heel-strike times (s) of all walking blocks (they excite the soft-tissue wobble)."""
