@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from motionlab import rotations as rot
+from motionlab.errors import InputError
 from motionlab.kinematics.joint_angles import decompose_joint
 from motionlab.protocol import load_protocol
 from motionlab.segments.movement import fit_hinge
@@ -36,6 +37,8 @@ def test_anatomical_knee_follows_the_published_couplings():
     assert 2.5 <= a[1] - a[0] <= 6.4  # Lafortune 1992: 6.4° of ab/adduction in all
     # not a turned axis: the rotation per degree of flexion falls fivefold from 0-10° to 30-60°
     assert (rot_int[1] - rot_int[0]) / 10 > 5 * (rot_int[4] - rot_int[3]) / 30
+    with pytest.raises(InputError, match="knee model"):
+        simulate("walk", 20.0, knee_model="hinge")
     # the simple model is proportional, as before
     add_s, rot_s = knee_coupling(flex, "simple")
     np.testing.assert_allclose(rot_s, 0.12 * flex)

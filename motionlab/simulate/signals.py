@@ -31,6 +31,9 @@ the segment's long axis, and the site slides 2 mm per degree down the segment. T
 (``wobble = q_mount* ⊗ exp(θ) ⊗ q_mount ⊗ exp(w)``, in the sensor frame). With ``k = 1``
 (``--soft-tissue motion`` with ``typical``) a thigh or shank sensor turns by ≈1-3° (peaks
 0.5-4°) and moves by 1-3 mm in gait; ``loose`` (``k = 3``) about three times that, plus its slip.
+With ``soft_tissue: skin`` (preset ``skin``) a rotation is added to ``θ``: the skin's motion
+with the joint angles at both ends of the segment (:func:`skin_artefact`) and its shift after
+each heel strike (:func:`impact_artefact`), both bounded by their amplitudes (docs/simulator.md).
 The response is solved on a 200 Hz grid (exact first-order-hold discretisation) and represented
 by quintic splines, so the IMU signals (derivatives of the pose) and the truth are one function.
 """
