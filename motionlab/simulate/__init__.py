@@ -120,7 +120,7 @@ STA_SCALE_OTHER = 0.3
 #: rotation errors from skin markers several times those of ab/adduction)
 STA_AXIS_WEIGHTS = np.array([0.6, 1.0, 0.6])
 #: frequency (Hz) and decay (s) of the skin's shift after a heel strike (its peak ≈ 3 decays)
-STA_IMPACT_HZ = (3.0, 6.0)
+STA_IMPACT_HZ = (2.0, 4.0)
 STA_IMPACT_DECAY_S = (0.03, 0.05)
 
 

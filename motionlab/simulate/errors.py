@@ -24,8 +24,8 @@ crystals. ``harsh`` multiplies noise and biases, narrows the gyro range so fast 
 saturate, and adds packet loss, magnetic disturbances and soft-tissue wobble. ``loose`` is
 ``typical`` with a loosely strapped sensor: larger soft-tissue motion driven by the segment's
 acceleration, and a slow slip of the mounting (:mod:`.signals`). ``skin`` is ``typical`` on skin
-as it moves over the bone in real movement: the tissue motion of ``loose`` without the slip, plus
-the artefact that follows the joint angles (docs/simulator.md).
+as it moves over the bone in real movement: tissue motion scaled per segment, the skin's shift
+after heel strikes and with the joint angles (docs/simulator.md).
 """
 
 from __future__ import annotations
@@ -134,7 +134,8 @@ PRESETS["loose"] = replace(
     slip_deg=5.0,
 )
 # Sensors strapped on skin as people strap them: the sensors of ``typical``, the wobble after
-# heel strikes and the acceleration-driven tissue motion of ``loose`` without its slip, and the
+# heel strikes of ``loose``, the acceleration-driven tissue motion of ``typical`` (scaled per
+# segment, largest on the thigh), the skin's shift after heel strikes, and the
 # soft-tissue artefact that follows the joint angles (``sta_deg`` on the thigh, less on the other
 # segments; :func:`~motionlab.simulate.signals.skin_artefact`), largest on the thigh and of a few
 # degrees as in the bone-pin studies (Leardini et al. 2005, Gait Posture 21:212; Cappozzo et al.
@@ -146,9 +147,8 @@ PRESETS["skin"] = replace(
     name="skin",
     wobble_deg=1.5,
     soft_tissue="skin",
-    tissue_gain=2.0,
     sta_deg=8.0,
-    sta_impact_deg=8.0,
+    sta_impact_deg=3.0,
 )
 SOFT_TISSUE = ("impacts", "motion", "skin")
 # Preset fields added after the first release: left out of the stored error model at their

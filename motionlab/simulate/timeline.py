@@ -84,7 +84,7 @@ KNEE_ADDUCTION_PEAK = 3.5 * DEG
 #: Clin Orthop Relat Res 454:81): the couplings' gains vary by this fraction (RMS) and the
 #: secondary angles by this many rad (RMS), at :data:`KNEE_VARIATION_HZ`
 KNEE_VARIATION_GAIN = 0.2
-KNEE_VARIATION_OFFSET = 1.2 * DEG
+KNEE_VARIATION_OFFSET = 1.8 * DEG
 KNEE_VARIATION_HZ = (0.5, 4.0)
 
 
