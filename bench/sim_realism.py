@@ -16,7 +16,7 @@ Rows:
   (``WALK_FROM``) and the whole recording; the 16-IMU ``qmt_full_body`` recording (100 Hz),
   both legs, the rhythmic part (``QMT_RHYTHMIC_S``) and 40-140 s.
 - **simulated**: the walk of ``bench/real_world.py`` (the ``walk`` protocol, 74 s, random
-  mountings, ``typical`` sensor errors) with the former simulator (``knee_model="hinge"``,
+  mountings, ``typical`` sensor errors) with the former simulator (``knee_model="simple"``,
   ``soft_tissue="motion"`` at the ``typical`` level, as ``real_world.py`` ran before) and with the
   realistic one (``knee_model="anatomical"``, preset ``skin``), over the gait task.
 
@@ -52,7 +52,7 @@ QMT_WHOLE_S = (40.0, 140.0)
 SIM_DURATION_S = 74.0  # as bench/real_world.py
 #: the simulators compared: (label, simulate() keyword arguments)
 SIMULATORS = (
-    ("old sim (hinge knee, tissue typical)", {"preset": "typical", "soft_tissue": "motion"}),
+    ("old sim (simple knee, typical)", {"preset": "typical", "soft_tissue": "motion"}),
     ("new sim (anatomical knee, preset skin)", {"preset": "skin", "knee_model": "anatomical"}),
 )
 
@@ -91,8 +91,8 @@ def stride_range(angle: np.ndarray, rate: float) -> float:
     if hi <= lo:
         return float("nan")
     period = lo + int(np.argmax(ac[lo:hi]))
-    peaks, _ = find_peaks(np.abs(x) * np.sign(np.mean(x**3)), distance=int(0.7 * period))
-    peaks, _ = find_peaks(x * (1 if np.mean(x**3) >= 0 else -1), distance=int(0.7 * period))
+    sign = 1.0 if np.mean(x**3) >= 0 else -1.0  # the swing peak is the skewed side
+    peaks, _ = find_peaks(sign * x, distance=int(0.7 * period))
     ranges = [np.ptp(x[a:b]) for a, b in zip(peaks[:-1], peaks[1:], strict=True)]
     return float(np.median(ranges)) if ranges else float("nan")
 
