@@ -2,15 +2,21 @@
 
 For each seed, ``motionlab.simulate`` records the shipped ``walk`` protocol (a stand, then 60 s of
 gait with turns) or ``arm`` protocol (a stand, then free arm movement) with every sensor at a
-random orientation and place on its segment (``mounting="random"``), the ``typical`` sensor
-errors (every IMU on its own clock) and soft-tissue motion of the sensor on the segment
-(``soft_tissue="motion"``; ``--preset loose`` for the loose mounting; ``--shared-clock`` puts
+random orientation and place on its segment (``mounting="random"``), the anatomical knee
+(``knee_model="anatomical"``: screw-home rotation and varus coupled to flexion, varying from
+stride to stride) and the ``skin`` preset: the ``typical`` sensor errors (every IMU on its own
+clock) on skin that moves over the bone as on real walks (soft-tissue motion with the segment's
+acceleration, after heel strikes and with the joint angles; tuned so that the hinge fit leaves
+the residual real walks leave, docs/simulator.md). ``--old-simulator`` runs the simulator the
+tables before issue 23 came from (the simple knee, ``typical`` with ``soft_tissue="motion"``);
+``--preset loose`` the loose mounting (with its slip); ``--shared-clock`` puts
 the IMUs on one clock, as a radio-synchronised system does; ``--true-clocks`` keeps the own
 clocks but gives every sensor the simulator's true sampling instants on the first sensor's
 clock and skips the clock sync: what a perfect sync would give; ``--uncoupled-knee`` simulates
 knees without the ab/adduction and rotation the simulator couples to flexion, which a flexion
 axis found from movement takes for a turned axis, so that the knee rows show the product's own
-error without that definitional part, see docs/kinematics.md). The session goes through
+error without that definitional part, see docs/kinematics.md; the anatomical knee's slow
+stride-to-stride drift of ab/adduction and rotation stays). The session goes through
 the stages exactly as ``motionlab run`` chains them (:func:`motionlab.pipeline.analyse`: clock
 sync, 6-D fusion, calibration from the stand and the movement, angles, metrics), and every angle
 column is compared with the simulator's truth over the task (each joint read on its proximal
@@ -23,9 +29,9 @@ rotation and pronation ≤ 4° — or graded ``not determined``; and every angle
 
 Needs no data files. Usage::
 
-    python bench/real_world.py [--protocols walk,arm] [--seeds 0-9] [--preset typical]
+    python bench/real_world.py [--protocols walk,arm] [--seeds 0-9] [--preset skin]
                                [--workers 2] [--shared-clock | --true-clocks] [--per-seed]
-                               [--uncoupled-knee]
+                               [--uncoupled-knee] [--old-simulator]
 """
 
 from __future__ import annotations
@@ -67,17 +73,27 @@ def put_on_true_clocks(session, truth) -> None:
         session.sensors[label] = dataclasses.replace(s, time=t)
 
 
-def run_one(job: tuple[str, int, str, bool, bool, bool]) -> dict:
+def simulator_options(preset: str, old: bool) -> dict:
+    """``simulate()`` keywords: the old simulator (simple knee, ``typical`` with the soft tissue
+    moving with the acceleration) or the realistic one (anatomical knee, preset ``preset``)."""
+    if old:
+        return {"preset": "typical", "soft_tissue": "motion", "knee_model": "simple"}
+    tissue = None if get_preset(preset).soft_tissue != "impacts" else "motion"
+    return {"preset": preset, "soft_tissue": tissue, "knee_model": "anatomical"}
+
+
+def run_one(job: tuple[str, int, str, bool, bool, bool, bool]) -> dict:
     """RMSE and grade per angle column of one simulated session through the product path."""
-    name, seed, preset, shared, true_clocks, uncoupled = job
+    name, seed, preset, shared, true_clocks, uncoupled, old = job
     if uncoupled:  # this worker's simulator only (the pool's processes are the bench's own)
         timeline.KNEE_ADDUCTION_COUPLING = timeline.KNEE_ROTATION_COUPLING = 0.0
+        timeline.KNEE_SCREW_HOME = timeline.KNEE_ROTATION_SLOPE = 0.0
+        timeline.KNEE_ADDUCTION_PEAK = 0.0
+    options = simulator_options(preset, old)
     if shared:
-        preset = shared_clock(get_preset(preset))
+        options["preset"] = shared_clock(get_preset(options["preset"]))
     protocol = load_protocol(name)
-    session, truth = simulate(
-        protocol, DURATION_S[name], seed, preset, mounting="random", soft_tissue="motion"
-    )
+    session, truth = simulate(protocol, DURATION_S[name], seed, mounting="random", **options)
     if true_clocks:
         put_on_true_clocks(session, truth)
     stamps = {label: s.time.copy() for label, s in session.sensors.items()}
@@ -134,7 +150,12 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--protocols", default="walk,arm")
     ap.add_argument("--seeds", default="0-9")
-    ap.add_argument("--preset", default="typical")
+    ap.add_argument("--preset", default="skin")
+    ap.add_argument(
+        "--old-simulator",
+        action="store_true",
+        help="the simulator before issue 23: simple knee, typical preset, soft_tissue motion",
+    )
     ap.add_argument(
         "--shared-clock",
         action="store_true",
@@ -155,8 +176,9 @@ def main() -> None:
         "--per-seed", action="store_true", help="also a table of every seed's RMSE per angle"
     )
     args = ap.parse_args()
+    flags = (args.uncoupled_knee, args.old_simulator)
     jobs = [
-        (p, s, args.preset, args.shared_clock, args.true_clocks, args.uncoupled_knee)
+        (p, s, args.preset, args.shared_clock, args.true_clocks, *flags)
         for p in args.protocols.split(",")
         for s in seeds_arg(args.seeds)
     ]
@@ -165,8 +187,9 @@ def main() -> None:
     clocks = "one shared clock" if args.shared_clock else "every IMU on its own clock"
     clocks += ", true sampling instants, no sync" if args.true_clocks else ""
     clocks += ", knees without flexion couplings" if args.uncoupled_knee else ""
-    print(f"preset {args.preset} ({clocks}), random mountings, soft-tissue motion, "
-          f"seeds {args.seeds}")  # fmt: skip
+    sim = ("old simulator: simple knee, preset typical, soft-tissue motion" if args.old_simulator
+           else f"anatomical knee, preset {args.preset}")  # fmt: skip
+    print(f"{sim} ({clocks}), random mountings, seeds {args.seeds}")
     print()
     print("| protocol | angle | target | mean | max | worst seed | grades (seeds) | ok |")
     print("|---|---|---:|---:|---:|---:|---|---|")

@@ -23,6 +23,7 @@ FLAGS = {
     "gyr_sampling": "--gyr-sampling",
     "height": "--height",
     "kinds": "--kind",
+    "knee_model": "--knee-model",
     "magnetometer": "--magnetometer",
     "map_path": "--map",
     "marker_map": "--markers",

@@ -32,9 +32,16 @@ from motionlab.simulate.markers import write_c3d
                    "(any orientation, anywhere on the segment) or surface (anywhere on the "
                    "segment, flat on the skin, any turn).")  # fmt: skip
 @click.option("--soft-tissue", "soft_tissue", default=None,
-              help="Sensor motion on the segment: impacts (ringing after heel strikes) or motion "
+              help="Sensor motion on the segment: impacts (ringing after heel strikes), motion "
                    "(also following the segment's acceleration, and slipping with --preset "
-                   "loose). Default: the preset's (motion for loose, else impacts).")  # fmt: skip
+                   "loose) or skin (motion plus the skin's shift with the joint angles and after "
+                   "heel strikes). Default: the preset's (motion for loose, skin for skin, else "
+                   "impacts).")  # fmt: skip
+@click.option("--knee-model", "knee_model", type=click.Choice(["simple", "anatomical"]),
+              default="simple", show_default=True,
+              help="The knee: simple (flexion with couplings in proportion to it) or anatomical "
+                   "(screw-home rotation and varus with flexion, varying from stride to stride: "
+                   "not a hinge, as a real knee).")  # fmt: skip
 @click.option("--gait", default=None,
               help="Gait variant of the walking tasks, with gait events and pelvis angles in the "
                    "truth: normal, asymmetric (right stance longer, unequal steps), slow (90 "
@@ -59,6 +66,7 @@ def command(
     preset: str,
     mounting: str,
     soft_tissue: str | None,
+    knee_model: str,
     gait: str | None,
     gyr_sampling: str,
     height: float,
@@ -70,8 +78,9 @@ def command(
 
     The subject performs the protocol's calibration steps, then its tasks, for DURATION
     seconds; the same seed gives the same bytes. Presets: clean, typical, harsh (sensor errors)
-    and loose (typical sensors on a loose strap: soft tissue moving the sensor by a few degrees
-    with the segment's acceleration, and a slow slip of a few degrees). With --mounting random
+    loose (typical sensors on a loose strap: soft tissue moving the sensor by a few degrees
+    with the segment's acceleration, and a slow slip of a few degrees) and skin (typical sensors
+    on skin that moves over the bone as on real walks). With --mounting random
     every sensor sits anywhere on its segment in any orientation; the truth holds the true
     mounting, the sensor's orientation over time and its motion on the segment (wobble).
 
@@ -82,6 +91,8 @@ def command(
       motionlab simulate --protocol knee --duration 60 --no-calibration -o gait.h5
       motionlab simulate --protocol walk --duration 70 --seed 3 --mounting random \\
           --preset loose -o walk.h5 --truth truth.h5
+      motionlab simulate --protocol walk --duration 74 --mounting random --preset skin \\
+          --knee-model anatomical -o real_walk.h5 --truth truth.h5
     """
     if preset not in PRESETS:
         raise InputError(
@@ -115,6 +126,7 @@ def command(
         calibration=not no_calibration,
         mounting=mounting,
         soft_tissue=soft_tissue,
+        knee_model=knee_model,
         gait=gait,
         gyr_sampling=gyr_sampling,
     )

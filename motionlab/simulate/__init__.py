@@ -49,18 +49,20 @@ from motionlab.simulate.errors import (
     soft_hard_iron,
 )
 from motionlab.simulate.gait_truth import gait_truth
-from motionlab.simulate.motion import group, smoothstep
+from motionlab.simulate.motion import CH, group, smoothstep
 from motionlab.simulate.signals import (
     MagneticField,
     Mount,
     Wobble,
     _poses,
     ideal_imu,
+    impact_artefact,
     segment_kinematics,
     sensor_pose,
+    skin_artefact,
     tissue_motion,
 )
-from motionlab.simulate.timeline import Timeline, plan
+from motionlab.simulate.timeline import KNEE_MODELS, Timeline, plan
 from motionlab.simulate.truth import Truth, load_truth, save_truth, write_truth_csv
 
 __all__ = ["simulate", "Truth", "load_truth", "save_truth", "write_truth_csv", "MagneticField"]
@@ -68,7 +70,7 @@ __all__ = ["simulate", "Truth", "load_truth", "save_truth", "write_truth_csv", "
 PROVENANCE_TIME = "2000-01-01T00:00:00+00:00"  # fixed, so that the same seed gives the same bytes
 _STREAMS = {"mount": 1, "sensor": 2, "markers": 3, "field": 4}
 MOUNTINGS = ("nominal", "random", "surface")
-_SUB_SITE, _SUB_TISSUE = 1, 2  # sub-streams of "mount" for the newer draws
+_SUB_SITE, _SUB_TISSUE, _SUB_SKIN = 1, 2, 3  # sub-streams of "mount" for the newer draws
 TISSUE_RATE_HZ = 200.0  # grid of the soft-tissue dynamics
 #: named gait variants (``gait=``): options of the gait tasks (motion.gait_block); ``asymmetric``:
 #: the right stance ends at 67 % instead of 62 % and the left heel strikes at 47 % of the stride
@@ -107,10 +109,35 @@ def _random_rotation(rng: np.random.Generator, max_deg: float) -> np.ndarray:
     return rot.from_axis_angle(axis, np.radians(rng.uniform(0.0, max_deg)))
 
 
+#: skin artefact (``soft_tissue="skin"``) per segment kind, relative to the preset's ``sta_deg``,
+#: ``sta_impact_deg`` and ``tissue_gain`` (the thigh's): largest on the thigh (Leardini et al.
+#: 2005), about half on the shank (Benoit et al. 2006; Reinschmidt et al. 1997), large about the
+#: humerus' long axis (Cutti et al. 2005, Med Biol Eng Comput 43:291), small on trunk and foot.
+STA_SCALE = {"thigh": 1.0, "shank": 0.5, "upperarm": 0.7, "forearm": 0.4, "foot": 0.3}
+STA_SCALE_OTHER = 0.3
+#: relative weights of the artefact's rotation about the segment's x (anterior), y (long) and z
+#: (lateral) axes: the rotation about the long axis is the largest (Benoit et al. 2006: knee
+#: rotation errors from skin markers several times those of ab/adduction)
+STA_AXIS_WEIGHTS = np.array([0.6, 1.0, 0.6])
+#: frequency (Hz) and decay (s) of the skin's shift after a heel strike (its peak ≈ 3 decays)
+STA_IMPACT_HZ = (2.0, 4.0)
+STA_IMPACT_DECAY_S = (0.03, 0.05)
+
+
+def _skin_drivers(body: Body, seg: str, ch: np.ndarray) -> np.ndarray:
+    """Flexion angles (N, n; rad) of the joints at both ends of ``seg``, from the channels."""
+    groups = [body.parent(seg)[1]]
+    groups += [body.parent(c)[1] for c in SEGMENTS if body.parent(c)[0] == seg]
+    cols = [group(g).start for g in groups if g is not None and f"{g}_0" in CH]
+    return ch[:, cols]
+
+
 def _mount(body: Body, protocol: Protocol, seg: str, i: int, seed: int, preset: Preset,
            max_deg: float, impacts: np.ndarray, mounting: str = "nominal",
-           kin: tuple | None = None, grid: np.ndarray | None = None) -> Mount:  # fmt: skip
-    """Where sensor ``i`` sits; ``kin`` on ``grid`` (segment kinematics) for the soft tissue."""
+           kin: tuple | None = None, grid: np.ndarray | None = None,
+           ch_grid: np.ndarray | None = None) -> Mount:  # fmt: skip
+    """Where sensor ``i`` sits; ``kin`` on ``grid`` (segment kinematics) for the soft tissue and
+    the channels ``ch_grid`` on it for the skin artefact."""
     rng = _rng(seed, "mount", i)
     nominal = rot.from_matrix(protocol.segments[seg].nominal_mounting())
     kind, _ = kind_side(seg)
@@ -139,8 +166,23 @@ def _mount(body: Body, protocol: Protocol, seg: str, i: int, seed: int, preset: 
         damping = t_rng.uniform(0.3, 0.5)
         slip_axis = rot.normalize(np.array([0.3, 1.0, 0.3]) * t_rng.normal(size=3))
         slip = np.radians(preset.slip_deg) * t_rng.uniform(0.5, 1.0)
+        artefact, gain = None, preset.tissue_gain
+        if ch_grid is not None:  # skin: per segment kind, largest on the thigh
+            kind_scale = STA_SCALE.get(kind, STA_SCALE_OTHER)
+            gain *= kind_scale
+            drivers = _skin_drivers(body, seg, ch_grid)
+            s_rng = _rng(seed, "mount", i, _SUB_SKIN)
+            dirs = s_rng.normal(size=(drivers.shape[1], 2, 3)) * STA_AXIS_WEIGHTS
+            dirs /= np.linalg.norm(dirs, axis=-1, keepdims=True)
+            amplitude = np.radians(preset.sta_deg) * kind_scale * s_rng.uniform(0.6, 1.0)
+            artefact = skin_artefact(drivers, dirs, amplitude)
+            direction = rot.normalize(s_rng.normal(size=3) * STA_AXIS_WEIGHTS)
+            impact = np.radians(preset.sta_impact_deg) * kind_scale * s_rng.uniform(0.6, 1.0)
+            artefact += impact_artefact(grid, impacts, direction, impact,
+                                        s_rng.uniform(*STA_IMPACT_HZ),
+                                        s_rng.uniform(*STA_IMPACT_DECAY_S))  # fmt: skip
         mount.tissue = tissue_motion(kin, grid, mount.site, mount.normal, mount.wobble.freq_hz,
-                                     damping, preset.tissue_gain, slip_axis, slip)  # fmt: skip
+                                     damping, gain, slip_axis, slip, artefact)  # fmt: skip
     return mount
 
 
@@ -216,6 +258,7 @@ def simulate(
     soft_tissue: str | None = None,
     gait: str | dict | None = None,
     gyr_sampling: str = "point",
+    knee_model: str = "simple",
 ) -> tuple[Session, Truth]:
     """Simulate a recording of ``protocol`` lasting ``duration`` s (true time).
 
@@ -239,9 +282,15 @@ def simulate(
         (any orientation, anywhere on the segment) or ``surface`` (anywhere on the segment, flat
         on the skin, any turn about the skin normal); see the module docstring.
     soft_tissue
-        ``impacts`` (ringing after heel strikes) or ``motion`` (also moving with the segment's
-        acceleration, and slipping by the preset's ``slip_deg``); default the preset's
-        (``motion`` for ``loose``). See :mod:`.signals`.
+        ``impacts`` (ringing after heel strikes), ``motion`` (also moving with the segment's
+        acceleration, and slipping by the preset's ``slip_deg``) or ``skin`` (``motion`` scaled
+        per segment, plus the skin's motion with the joint angles and after heel strikes, by the
+        preset's ``sta_deg`` and ``sta_impact_deg``); default the preset's (``motion`` for
+        ``loose``, ``skin`` for ``skin``). See :mod:`.signals` and docs/simulator.md.
+    knee_model
+        ``simple`` (flexion with proportional couplings) or ``anatomical`` (screw-home rotation
+        and varus that no fixed axis follows); :func:`~.timeline.knee_coupling`. The truth's
+        knee angles are the bones' (the segments'), with these couplings in them.
     gait
         A gait variant (:data:`GAIT_VARIANTS`) or options of the gait tasks (``stride_hz``,
         ``speed``, ``toe_off_r``, ``toe_off_l``, ``step_offset``; see
@@ -292,11 +341,16 @@ def simulate(
                 f"segments.{seg}",
                 f"use one of {body_segments}",
             )
+    if knee_model not in KNEE_MODELS:
+        raise InputError(f"unknown knee model {knee_model!r}", where="argument knee_model",
+                         remedy=f"use one of {', '.join(KNEE_MODELS)}",
+                         argument="knee_model")  # fmt: skip
     gait_options = _gait_options(gait)
     if gait_options is not None:
         protocol = _with_gait(protocol, gait_options)
     body = Body(height)
-    timeline = plan(protocol, body, duration, seed, rest_s=rest_s, calibration=calibration)
+    timeline = plan(protocol, body, duration, seed, rest_s=rest_s, calibration=calibration,
+                    knee_model=knee_model)  # fmt: skip
     field = _field(field, preset, timeline, body, seed)
     t = np.arange(int(np.floor(duration * rate_hz + 1e-9)) + 1) / rate_hz
     ch = timeline.channels(t)
@@ -312,13 +366,14 @@ def simulate(
     session = Session()
     carried = _rng(seed, "field", 1).integers(len(protocol.segments))
     extended = mounting != "nominal" or soft_tissue != "impacts"  # the newer truth fields
-    kin, grid = None, None
-    if soft_tissue == "motion":
+    kin, grid, ch_grid = None, None, None
+    if soft_tissue in ("motion", "skin"):
         grid = np.arange(-1.0, duration + 1.0 + 1e-9, 1.0 / TISSUE_RATE_HZ)
         kin = segment_kinematics(body, timeline, grid, tuple(protocol.segments))
+        ch_grid = timeline.channels(grid) if soft_tissue == "skin" else None
     for i, seg in enumerate(protocol.segments):
         mount = _mount(body, protocol, seg, i, seed, preset, mounting_max_deg, timeline.impacts(),
-                       mounting, kin[seg] if kin else None, grid)  # fmt: skip
+                       mounting, kin[seg] if kin else None, grid, ch_grid)  # fmt: skip
         stream, info = _sensor(body, timeline, protocol, mount, seg, i, seed, preset, rate_hz,
                                duration, field, gravity, i == carried, gyr_sampling)  # fmt: skip
         q_grid, p_grid = sensor_pose(body, timeline, mount, tuple(poses))(t)
@@ -377,6 +432,7 @@ def simulate(
         **({"soft_tissue": soft_tissue} if soft_tissue != "impacts" else {}),
         **({"gait": gait_options} if gait_options is not None else {}),
         **({"gyr_sampling": gyr_sampling} if gyr_sampling != "point" else {}),
+        **({"knee_model": knee_model} if knee_model != "simple" else {}),
         "gravity_m_s2": gravity,
         "earth_field_uT": field.earth,
         "magnetic_dipoles": [{"position_m": p, "moment_Am2": m} for p, m in field.dipoles],

@@ -1,4 +1,4 @@
-"""Sensor error model and its presets (``clean``, ``typical``, ``harsh``, ``loose``).
+"""Sensor error model and its presets (``clean``, ``typical``, ``harsh``, ``loose``, ``skin``).
 
 Per triaxial channel (units of the channel: gyr rad/s, acc m/s², mag µT)::
 
@@ -23,7 +23,9 @@ geometrically distributed length, mean ``drop_burst`` samples) are removed, leav
 crystals. ``harsh`` multiplies noise and biases, narrows the gyro range so fast movements
 saturate, and adds packet loss, magnetic disturbances and soft-tissue wobble. ``loose`` is
 ``typical`` with a loosely strapped sensor: larger soft-tissue motion driven by the segment's
-acceleration, and a slow slip of the mounting (:mod:`.signals`).
+acceleration, and a slow slip of the mounting (:mod:`.signals`). ``skin`` is ``typical`` on skin
+as it moves over the bone in real movement: tissue motion scaled per segment, the skin's shift
+after heel strikes and with the joint angles (docs/simulator.md).
 """
 
 from __future__ import annotations
@@ -79,6 +81,8 @@ class Preset:
     soft_tissue: str = "impacts"  # impacts: ringing after heel strikes; motion: + acceleration
     tissue_gain: float = 1.0  # strength of the acceleration-driven motion (soft_tissue=motion)
     slip_deg: float = 0.0  # slow slip of the mounting over the recording (deg)
+    sta_deg: float = 0.0  # skin artefact driven by the joint angles (soft_tissue=skin), thigh, deg
+    sta_impact_deg: float = 0.0  # skin artefact after heel strikes (soft_tissue=skin), thigh, deg
     dipole_moment: float = 0.0  # A·m², a ferromagnetic object in the room (0 = none)
     carried_field_ut: float = 0.0  # a field that moves with one sensor for a while (0 = none)
     marker_noise_m: float = 0.0
@@ -129,10 +133,33 @@ PRESETS["loose"] = replace(
     tissue_gain=3.0,
     slip_deg=5.0,
 )
-SOFT_TISSUE = ("impacts", "motion")
+# Sensors strapped on skin as people strap them: the sensors of ``typical``, the wobble after
+# heel strikes of ``loose``, the acceleration-driven tissue motion of ``typical`` (scaled per
+# segment, largest on the thigh), the skin's shift after heel strikes, and the
+# soft-tissue artefact that follows the joint angles (``sta_deg`` on the thigh, less on the other
+# segments; :func:`~motionlab.simulate.signals.skin_artefact`), largest on the thigh and of a few
+# degrees as in the bone-pin studies (Leardini et al. 2005, Gait Posture 21:212; Cappozzo et al.
+# 1996, Clin Biomech 11:90; Benoit et al. 2006), its level set so that Seel's hinge fit on a
+# simulated walk with the anatomical knee leaves the residual real walks leave
+# (bench/sim_realism.py, docs/simulator.md).
+PRESETS["skin"] = replace(
+    PRESETS["typical"],
+    name="skin",
+    wobble_deg=1.5,
+    soft_tissue="skin",
+    sta_deg=8.0,
+    sta_impact_deg=3.0,
+)
+SOFT_TISSUE = ("impacts", "motion", "skin")
 # Preset fields added after the first release: left out of the stored error model at their
 # defaults, so that the files of the older presets keep their bytes.
-NEW_FIELDS = {"soft_tissue": "impacts", "tissue_gain": 1.0, "slip_deg": 0.0}
+NEW_FIELDS = {
+    "soft_tissue": "impacts",
+    "tissue_gain": 1.0,
+    "slip_deg": 0.0,
+    "sta_deg": 0.0,
+    "sta_impact_deg": 0.0,
+}
 
 
 def error_model(preset: Preset) -> dict:
@@ -141,7 +168,8 @@ def error_model(preset: Preset) -> dict:
 
 
 def get_preset(preset: str | Preset) -> Preset:
-    """A preset by name (``clean``, ``typical``, ``harsh``, ``loose``) or a :class:`Preset`."""
+    """A preset by name (``clean``, ``typical``, ``harsh``, ``loose``, ``skin``) or a
+    :class:`Preset`."""
     if isinstance(preset, Preset):
         return preset
     if preset not in PRESETS:

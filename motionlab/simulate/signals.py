@@ -31,6 +31,9 @@ the segment's long axis, and the site slides 2 mm per degree down the segment. T
 (``wobble = q_mount* ⊗ exp(θ) ⊗ q_mount ⊗ exp(w)``, in the sensor frame). With ``k = 1``
 (``--soft-tissue motion`` with ``typical``) a thigh or shank sensor turns by ≈1-3° (peaks
 0.5-4°) and moves by 1-3 mm in gait; ``loose`` (``k = 3``) about three times that, plus its slip.
+With ``soft_tissue: skin`` (preset ``skin``) a rotation is added to ``θ``: the skin's motion
+with the joint angles at both ends of the segment (:func:`skin_artefact`) and its shift after
+each heel strike (:func:`impact_artefact`), both bounded by their amplitudes (docs/simulator.md).
 The response is solved on a 200 Hz grid (exact first-order-hold discretisation) and represented
 by quintic splines, so the IMU signals (derivatives of the pose) and the truth are one function.
 """
@@ -154,6 +157,49 @@ def segment_kinematics(body: Body, timeline: Timeline, t: np.ndarray,
     return out
 
 
+STA_REF_RAD = np.radians(60.0)  # joint angle at which a driver of the skin artefact is tanh(1)
+
+
+def skin_artefact(drivers: np.ndarray, directions: np.ndarray, amplitude: float) -> np.ndarray:
+    """Rotation (N, 3; rad, segment frame) of the skin under a sensor, driven by joint angles.
+
+    ``drivers`` (N, n) are the flexion angles (rad) of the joints at both ends of the segment;
+    each enters through ``x = tanh(angle / 60°)`` and ``x²`` about its own axis, ``directions``
+    (n, 2, 3) unit vectors, so the artefact is no rotation about one fixed axis (which a hinge fit
+    would take for a turned axis) and is bounded: its norm never exceeds ``amplitude`` (rad)::
+
+        θ = amplitude / (2n) · Σ_j (x_j d_j1 + x_j² d_j2)
+
+    Correlated with the joint angles as the bone-pin and fluoroscopy studies find it (Leardini
+    et al. 2005, Gait Posture 21:212: the artefact has the frequency content of the movement
+    itself).
+    """
+    x = np.tanh(np.asarray(drivers, dtype=float) / STA_REF_RAD)
+    n = x.shape[1]
+    if n == 0:
+        return np.zeros((len(x), 3))
+    theta = x @ directions[:, 0] + (x**2) @ directions[:, 1]
+    return amplitude / (2 * n) * theta
+
+
+def impact_artefact(t: np.ndarray, impacts: np.ndarray, direction: np.ndarray, amplitude: float,
+                    freq_hz: float, decay_s: float) -> np.ndarray:  # fmt: skip
+    """Rotation (N, 3; rad, segment frame) of the skin under a sensor after each heel strike.
+
+    The skin shifts on the muscles as they take the load and swings back (Cappozzo et al. 1996,
+    Clin Biomech 11:90: the thigh's markers move most after heel strike): after each impact
+    ``amplitude · u³ e^{3−u} / 27 · sin(2π f (t − t_i))`` about ``direction`` (unit), ``u = (t −
+    t_i) / decay_s``; C³ at its onset, at most ``amplitude`` (rad) for strikes further apart than
+    its duration.
+    """
+    w = np.zeros(len(t))
+    for ti in impacts:  # a loop over heel strikes, vectorised over time
+        m = (t > ti) & (t < ti + 20 * decay_s)
+        u = (t[m] - ti) / decay_s
+        w[m] += u**3 * np.exp(3 - u) / 27 * np.sin(2 * np.pi * freq_hz * (t[m] - ti))
+    return amplitude * w[:, None] * direction
+
+
 def tissue_motion(
     kin: tuple[np.ndarray, ...],
     t: np.ndarray,
@@ -164,9 +210,11 @@ def tissue_motion(
     gain: float,
     slip_axis: np.ndarray,
     slip_rad: float,
+    artefact: np.ndarray | None = None,
 ) -> TissueMotion:
     """The soft-tissue motion of a sensor at ``site`` with skin normal ``normal`` (segment frame)
-    from the segment's kinematics ``kin`` (:func:`segment_kinematics` on the uniform grid ``t``)."""
+    from the segment's kinematics ``kin`` (:func:`segment_kinematics` on the uniform grid ``t``);
+    ``artefact`` (N, 3; rad) is a rotation added on that grid (:func:`skin_artefact`)."""
     q, omega, alpha, acc = kin
     a_site = (rot.rotate(rot.conj(q), acc) + np.cross(alpha, site)
               + np.cross(omega, np.cross(omega, site)))  # fmt: skip
@@ -177,6 +225,8 @@ def tissue_motion(
     resp = lfilter(np.ravel(num), den, drive, axis=0)
     d, rho = resp[:, :3], resp[:, 3:]
     theta = rho + np.cross(normal, d) / TISSUE_LEVER_M
+    if artefact is not None:
+        theta = theta + artefact
     if slip_rad > 0:
         work = cumulative_trapezoid(np.sum(omega**2, axis=1), t, initial=0.0)
         progress = work / work[-1] if work[-1] > 0 else np.zeros_like(work)

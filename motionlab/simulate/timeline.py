@@ -26,6 +26,7 @@ from motionlab.simulate.motion import (
     CH,
     DEG,
     Block,
+    envelope,
     posture_of,
     rest_block,
     smoothstep,
@@ -62,23 +63,83 @@ def _to_local(row: np.ndarray, origin: np.ndarray) -> np.ndarray:
 KNEE_ADDUCTION_COUPLING = 4 * DEG
 #: internal tibial rotation coupled to flexion (rad per rad, the screw-home mechanism)
 KNEE_ROTATION_COUPLING = 0.12
+KNEE_MODELS = ("simple", "anatomical")
+# The anatomical knee (``knee_model="anatomical"``; docs/simulator.md says where each number
+# comes from). Screw-home: the tibia rotates externally in the last ~20-30° of extension and
+# internally as the knee flexes, steeply near extension and little beyond (Wilson et al. 2000,
+# J Biomech 33:465: internal rotation coupled to passive flexion in every specimen); in gait
+# the bone-pin range of internal/external rotation is ≈ 8-10° (Lafortune et al. 1992, J Biomech
+# 25:347; Benoit et al. 2006, Gait Posture 24:152), of which this coupling gives 7.6° over
+# the 4-61° of a stride. Adduction (varus) grows with flexion to 3.5° at the swing peak; with
+# the gait's own 3° of ab/adduction the bone-pin range in gait of ≈ 6° (Lafortune 1992: 6.4°).
+#: screw-home rotation: ``KNEE_SCREW_HOME · tanh(flexion / KNEE_SCREW_HOME_SCALE)`` (rad) ...
+KNEE_SCREW_HOME = 8 * DEG
+KNEE_SCREW_HOME_SCALE = 15 * DEG
+#: ... plus this many rad of internal rotation per rad of flexion beyond it
+KNEE_ROTATION_SLOPE = 0.03
+#: adduction ``KNEE_ADDUCTION_PEAK · (sin(flexion) / sin 60°)²`` (rad): 3.5° at 60° of flexion
+KNEE_ADDUCTION_PEAK = 3.5 * DEG
+#: variation of the anatomical knee while walking: for one flexion angle a real knee takes
+#: several ab/adduction and rotation positions, within and between strides (Benoit et al. 2007,
+#: Clin Orthop Relat Res 454:81): the couplings' gains vary by this fraction (RMS) and the
+#: secondary angles by this many rad (RMS), at :data:`KNEE_VARIATION_HZ`
+KNEE_VARIATION_GAIN = 0.2
+KNEE_VARIATION_OFFSET = 1.8 * DEG
+KNEE_VARIATION_HZ = (0.5, 4.0)
 
 
-def couple(ch: np.ndarray) -> np.ndarray:
+def knee_coupling(flexion: np.ndarray, model: str = "simple") -> tuple[np.ndarray, np.ndarray]:
+    """(adduction, internal rotation) in rad coupled to knee ``flexion`` (rad) by ``model``.
+
+    ``simple``: :data:`KNEE_ADDUCTION_COUPLING` · sin(flexion) and :data:`KNEE_ROTATION_COUPLING`
+    · flexion (proportional, so a movement-fitted axis absorbs most of it as a turned axis).
+    ``anatomical``: the screw-home curve and the varus of the anatomical knee (above), which no
+    fixed axis can follow: at 0, 10, 20, 30 and 60° of flexion the rotation is 0, 5.0, 7.6, 8.6
+    and 9.8° (7.6° over the 4-61° of a stride) and the adduction 0, 0.1, 0.5, 1.2 and 3.5°.
+    """
+    k = np.asarray(flexion, dtype=float)
+    if model == "anatomical":
+        add = KNEE_ADDUCTION_PEAK * (np.sin(k) / np.sin(60 * DEG)) ** 2
+        rot_int = KNEE_SCREW_HOME * np.tanh(k / KNEE_SCREW_HOME_SCALE) + KNEE_ROTATION_SLOPE * k
+        return add, rot_int
+    return KNEE_ADDUCTION_COUPLING * np.sin(k), KNEE_ROTATION_COUPLING * k
+
+
+def knee_variation(t: np.ndarray, seed: int, side: str) -> np.ndarray:
+    """Variation (N, 4) of one knee over time ``t`` (s), each column a sum of three sinusoids of
+    random frequency (:data:`KNEE_VARIATION_HZ`) and phase scaled to unit RMS (peaks below 2.5):
+    gains of the adduction and rotation couplings, offsets of adduction and rotation."""
+    rng = np.random.default_rng([seed, 7, "rl".index(side)])
+    f = rng.uniform(*KNEE_VARIATION_HZ, size=(3, 4))
+    ph = rng.uniform(0.0, 2 * np.pi, size=(3, 4))
+    return np.sum(np.sin(2 * np.pi * f * t[:, None, None] + ph), axis=1) * np.sqrt(2.0 / 3.0)
+
+
+def couple(ch: np.ndarray, knee_model: str = "simple", t: np.ndarray | None = None,
+           seed: int = 0, walking: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
     """Couplings seen in real joints, added on top of every block.
 
-    Knee: adduction grows with flexion (:data:`KNEE_ADDUCTION_COUPLING`, up to 4° at 90°) and
-    the tibia rotates internally with flexion (:data:`KNEE_ROTATION_COUPLING`, 0.12° per degree,
-    the screw-home mechanism). A flexion axis found from the movement (a functional axis) cannot
-    tell a coupling proportional to flexion from a turned axis, so these put a definitional
-    error into the functional calibrations (``bench/real_world.py --uncoupled-knee`` shows its
-    size). Elbow: the carrying angle falls by 0.06° per degree of flexion. Modifies and returns
-    ``ch``.
+    Knee (:func:`knee_coupling`), ``simple``: adduction grows with flexion
+    (:data:`KNEE_ADDUCTION_COUPLING`, up to 4° at 90°) and the tibia rotates internally with
+    flexion (:data:`KNEE_ROTATION_COUPLING`, 0.12° per degree, the screw-home mechanism). A
+    flexion axis found from the movement (a functional axis) cannot tell a coupling proportional
+    to flexion from a turned axis, so these put a definitional error into the functional
+    calibrations (``bench/real_world.py --uncoupled-knee`` shows its size). ``anatomical``: the
+    screw-home curve and varus of a real knee, varying from stride to stride while walking
+    (``walking``, 0-1 over time ``t`` in s; drawn from ``seed``, :func:`knee_variation`), so a
+    still pose stays still. Elbow: the carrying angle falls by 0.06° per degree of
+    flexion. Modifies and returns ``ch``.
     """
     for s in "rl":
-        k = ch[:, CH[f"knee_{s}_0"]]
-        ch[:, CH[f"knee_{s}_1"]] += KNEE_ADDUCTION_COUPLING * np.sin(k)
-        ch[:, CH[f"knee_{s}_2"]] += KNEE_ROTATION_COUPLING * k
+        add, rot_int = knee_coupling(ch[:, CH[f"knee_{s}_0"]], knee_model)
+        if knee_model == "anatomical" and t is not None and walking is not None:
+            v = knee_variation(t, seed, s) * walking[:, None]
+            add = add * (1 + KNEE_VARIATION_GAIN * v[:, 0]) + KNEE_VARIATION_OFFSET * v[:, 2]
+            rot_int = (
+                rot_int * (1 + KNEE_VARIATION_GAIN * v[:, 1]) + KNEE_VARIATION_OFFSET * v[:, 3]
+            )
+        ch[:, CH[f"knee_{s}_1"]] += add
+        ch[:, CH[f"knee_{s}_2"]] += rot_int
         ch[:, CH[f"elbow_{s}_1"]] -= 0.06 * ch[:, CH[f"elbow_{s}_0"]]
     return ch
 
@@ -91,6 +152,8 @@ class Timeline:
     starts: np.ndarray
     origins: np.ndarray
     blend_s: float
+    knee_model: str = "simple"
+    seed: int = 0
 
     @property
     def duration(self) -> float:
@@ -130,7 +193,12 @@ class Timeline:
             if m.any():
                 s = smoothstep((t[m] - (b - w)) / w)[:, None]
                 out[m] = (1 - s) * out[m] + s * self._global(i + 1, t[m] - b)
-        return couple(out)
+        walking = np.zeros(len(t))
+        if self.knee_model == "anatomical":
+            for start, block in zip(self.starts, self.blocks, strict=True):
+                if block.generator == "gait":  # the gait block's own envelope (motion.gait_block)
+                    walking += envelope(t - start, block.duration, min(2.0, block.duration / 3))
+        return couple(out, self.knee_model, t, self.seed, walking)
 
     def impacts(self) -> np.ndarray:
         """Heel-strike times (s) of all walking blocks (they excite the soft-tissue wobble)."""
@@ -181,11 +249,13 @@ def plan(
     blend_s: float = 2.0,
     calibration: bool = True,
     heading_deg: float = 20.0,
+    knee_model: str = "simple",
 ) -> Timeline:
     """Lay out the protocol's calibration steps and tasks over ``duration`` seconds.
 
     ``rest_s`` is the stillness after every block (and before the first), ``blend_s`` the time a
-    change of pose between two blocks takes (see the module docstring).
+    change of pose between two blocks takes (see the module docstring); ``knee_model`` the
+    knee's couplings (:func:`knee_coupling`).
     """
     steps = protocol.calibration if calibration else []
     moves: list[Block] = []
@@ -231,4 +301,4 @@ def plan(
     blocks.append(rest_block(rest_s, _to_local(last, origin)))
     origins.append(origin)
     starts = np.concatenate([[0.0], np.cumsum([b.duration for b in blocks[:-1]])])
-    return Timeline(blocks, starts, np.array(origins), blend_s)
+    return Timeline(blocks, starts, np.array(origins), blend_s, knee_model, seed)
