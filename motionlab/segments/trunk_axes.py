@@ -54,8 +54,9 @@ REST_MIN_S = SHORTEST_POSE_S
 REST_MAX_S = 5.0  # a rest is grown up to this long
 REST_MAX_DEG_S = 15.0  # the stillest second turning faster than this (mean per sensor): no rest
 REST_GROW = 1.5  # the rest grows while the 0.2 s speed stays within this × the stillest second's
-AXIS_RATIO_MIN = 2.0  # first / second eigenvalue of the horizontal relative-rate covariance
-SIGN_RATIO_MIN = 1.3  # the trunk's excursion one way / the other, along the flexion axis
+ENERGY_MIN = 0.2  # a horizontal axis turning less than this share of the other's is no candidate
+AXIS_RATIO_MIN = 1.3  # the flexion axis's one-sidedness over the lateral axis's
+SIGN_RATIO_MIN = 1.3  # the thorax's excursion one way / the other, about the flexion axis
 HEADING_RHO_MIN = 0.5  # share of the horizontal rates the heading fit explains
 
 
@@ -102,17 +103,27 @@ def _on(t: np.ndarray, ts: np.ndarray, x: np.ndarray) -> np.ndarray:
     return x if len(ts) == len(t) and np.array_equal(ts, t) else interp_columns(t, ts, x)
 
 
-def _flexion_axis(w_rel: np.ndarray, up: np.ndarray, moving: np.ndarray):
-    """Principal axis of the relative angular velocity ``w_rel`` (N, 3) perpendicular to
-    ``up`` over the ``moving`` samples: ``(axis, ratio λ1/λ2)``."""
+def _horizontal_axes(w_rel: np.ndarray, up: np.ndarray, moving: np.ndarray):
+    """The two principal axes of the relative angular velocity ``w_rel`` (N, 3) perpendicular
+    to ``up`` over the ``moving`` samples, and their eigenvalues (rad²/s²), largest first."""
     p = np.eye(3) - np.outer(up, up)
     w = w_rel[moving] @ p
     c = w.T @ w / max(len(w), 1)
     vals, vecs = np.linalg.eigh(c)
-    order = np.argsort(vals)[::-1]
-    vals, vecs = vals[order], vecs[:, order]
-    ratio = float(vals[0] / vals[1]) if vals[1] > 0 else np.inf
-    return _unit(p @ vecs[:, 0]), ratio
+    order = np.argsort(vals)[::-1][:2]
+    return [_unit(p @ vecs[:, k]) for k in order], [float(vals[k]) for k in order]
+
+
+def _excursions(since: np.ndarray, axis: np.ndarray) -> tuple[float, float]:
+    """How far (deg, 98th percentile) the rotation since the rest ``since`` (N, 4) goes either
+    way about ``axis``: ``(positive, negative)``, both ≥ 0."""
+    phi = np.degrees(rot.to_rotvec(since) @ axis)
+    return float(np.percentile(phi, 98)), float(-np.percentile(phi, 2))
+
+
+def _one_sided(pos: float, neg: float) -> float:
+    """How one-sided a movement is: the larger excursion over the smaller (at least 1°)."""
+    return max(pos, neg) / max(min(pos, neg), 1.0)
 
 
 def _frame(y: np.ndarray, z: np.ndarray) -> np.ndarray:
@@ -222,14 +233,19 @@ def calibrate(
             where=f"protocol {protocol.name}",
             remedy="record trunk flexion, lateral bending and rotation besides the rest",
         )
-    axis, ratio = _flexion_axis(w_rel, up[d], moving)
+    axes, energy = _horizontal_axes(w_rel, up[d], moving)
     q_rest = rot.mean(q_rel[rest])
-    since = rot.mul(rot.conj(np.broadcast_to(q_rest, q_rel.shape)), q_rel)
-    phi = np.degrees(rot.to_rotvec(since) @ axis)
-    pos, neg = float(np.percentile(phi, 98)), float(-np.percentile(phi, 2))
+    # flexion is the one-sided movement: the thorax leans forward further than back (a
+    # backrest, gravity), while it bends about as far to either side
+    q_t0 = rot.mean(q[d][rest])
+    since = rot.mul(rot.conj(np.broadcast_to(q_t0, q[d].shape)), q[d])
+    reach = [_excursions(since, a) for a in axes]
+    sided = [_one_sided(*r) for r in reach]
+    k = int(np.argmax(sided)) if energy[1] >= ENERGY_MIN * energy[0] else 0
+    axis, (pos, neg), sign_ratio = axes[k], reach[k], sided[k]
+    ratio = sided[k] / max(sided[1 - k], 1e-9)  # how clearly it is the flexion axis
     # flexion turns the thorax about its −z: the larger excursion is flexion
     z_d = -axis if pos >= neg else axis
-    sign_ratio = max(pos, neg) / max(min(pos, neg), 1.0)
     m_d = _frame(up[d], z_d)
     z_p = rot.rotate(q_rest, m_d[:, 2])
     m_p = _frame(up[p], z_p)
@@ -254,9 +270,11 @@ def calibrate(
     centres: dict[str, dict[str, Any]] = {}
     t_rest = float(t[rest].mean())
     seg_q = {s: rot.mul(q[s], rot.from_matrix(m)) for s, m in ((p, m_p), (d, m_d))}
+    pose_delta = heading.heading_from_pose(seg_q[p][rest], seg_q[d][rest])
+    times, deltas = [t_rest], [pose_delta]
     centres[joint.name] = {
-        "heading_times": [t_rest],
-        "heading_deltas": [heading.heading_from_pose(seg_q[p][rest], seg_q[d][rest])],
+        "heading_times": times,
+        "heading_deltas": deltas,
         "method": "trunk rest",
     }
     for lean in leans:
@@ -282,6 +300,9 @@ def calibrate(
         "rest_s": [float(t[a]), float(t[b - 1])],
         "rest_speed_deg_s": level,
         "axis_ratio": ratio,
+        "energy_ratio": energy[0] / max(energy[1], 1e-12),
+        "axis_rank": k + 1,
+        "one_sided": sided,
         "excursion_deg": [pos, -neg],
         "sign_ratio": sign_ratio,
         "heading_deg": float(np.degrees(delta)),
