@@ -55,7 +55,7 @@ REST_MAX_S = 5.0  # a rest is grown up to this long
 REST_MAX_DEG_S = 15.0  # the stillest second turning faster than this (mean per sensor): no rest
 REST_GROW = 1.5  # the rest grows while the 0.2 s speed stays within this × the stillest second's
 ENERGY_MIN = 0.2  # a horizontal axis turning less than this share of the other's is no candidate
-AXIS_RATIO_MIN = 1.3  # the flexion axis's one-sidedness over the lateral axis's
+AXIS_RATIO_MIN = 1.5  # the flexion axis's one-sidedness over the other axis's
 SIGN_RATIO_MIN = 1.3  # the thorax's excursion one way / the other, about the flexion axis
 HEADING_RHO_MIN = 0.5  # share of the horizontal rates the heading fit explains
 
@@ -182,7 +182,8 @@ def calibrate(
     if not lumbar:
         raise InputError(
             "a trunk calibration (axis_method: trunk) needs a lumbar joint",
-            where=f"protocol {protocol.name}",
+            protocol.path,
+            "calibration",
             remedy="add joints: lumbar: {type: lumbar, proximal: pelvis, distal: thorax}",
         )
     joint = lumbar[0]
@@ -205,7 +206,8 @@ def calibrate(
         raise InputError(
             f"no rest: the stillest second ({t[a]:.1f}–{t[a] + REST_MIN_S:.1f} s) turns at "
             f"{level:.0f}°/s (a rest is under {REST_MAX_DEG_S:g}°/s)",
-            where=f"protocol {protocol.name}",
+            protocol.path,
+            "calibration",
             remedy="record a second or more sitting or standing still, before, between or "
             "after the trunk movements",
         )
@@ -230,7 +232,8 @@ def calibrate(
     if moving.sum() < 2 or np.degrees(np.sqrt(np.mean(np.sum(w_rel[moving] ** 2, 1)))) < 5.0:
         raise InputError(
             "no trunk movement: the thorax hardly turns relative to the pelvis",
-            where=f"protocol {protocol.name}",
+            protocol.path,
+            "calibration",
             remedy="record trunk flexion, lateral bending and rotation besides the rest",
         )
     axes, energy = _horizontal_axes(w_rel, up[d], moving)
