@@ -13,23 +13,26 @@ and **trunk movement** in any order, also as one continuous block:
    that turns the thorax's earth-frame angular velocity onto the pelvis's over the whole
    recording (:func:`motionlab.segments.heading.heading_from_rates`; trunk movement turns both
    about parallel axes: the pelvis tilts with the thorax).
-3. **Flexion axis:** the principal axis of the thorax's angular velocity relative to the pelvis
-   (in the thorax sensor frame, perpendicular to the rest's vertical) over the recording. Its
-   direction (flexion about −z, ISB) is the side the trunk moved further from the rest: people
-   flex forward further than they lean back. The pelvis's flexion axis is the thorax's carried
-   through the rest's relative orientation (the rest is the zero of all three angles: lateral
-   bending and axial rotation of the rest are taken as none), made perpendicular to its own
-   vertical. x = y × z in both; no ``sensor_axes`` hint is used.
+3. **Flexion axis:** of the two principal axes of the thorax's angular velocity relative to
+   the pelvis (in the thorax sensor frame, perpendicular to the rest's vertical, over the
+   recording), the one about which the thorax moves **one-sidedly** from the rest: people lean
+   forward further than back (a backrest, gravity) and bend about as far to either side. Its
+   direction (flexion about −z, ISB) is the side of the larger excursion. The pelvis's flexion
+   axis is the thorax's carried through the rest's relative orientation (the rest is the zero
+   of all three angles: lateral bending and axial rotation of the rest are taken as none), made
+   perpendicular to its own vertical. x = y × z in both; no ``sensor_axes`` hint is used.
 4. **Grades** (:func:`trunk_grades`): flexion and lateral bending are ``determined`` when the
-   principal axis stands out (the first eigenvalue of the horizontal relative-rate covariance at
-   least :data:`AXIS_RATIO_MIN` times the second) and its direction is clear (the trunk moved at
-   least :data:`SIGN_RATIO_MIN` times further one way than the other), ``weak`` otherwise; axial
-   rotation (about the vertical) when the rest and the heading from the movement hold.
+   chosen axis is at least :data:`AXIS_RATIO_MIN` times as one-sided as the other and the
+   thorax moved at least :data:`SIGN_RATIO_MIN` times further one way than the other about it,
+   ``weak`` otherwise; axial rotation when the heading from the movement explains at least
+   :data:`HEADING_RHO_MIN` of the horizontal rates.
 5. **Chair** (optional segment of a ``trunk_lean`` joint): its vertical from the rest; its
    heading is tied to the thorax's at the rest, so the trunk's lean is measured from the rest
    posture about the thorax's own flexion axis, relative to the chair.
 
-The segment headings are stored as one anchor per joint at the rest (``centres[joint]``, the
+The thresholds were set on the five trials of the trunk data set (``bench/real_trunk.py``, the
+tuning set; docs/kinematics.md). The segment headings are stored as one anchor per joint at the
+rest (``centres[joint]``, the
 store :func:`motionlab.segments.segment_orientations` reads for headings fitted at calibration).
 """
 
@@ -312,10 +315,7 @@ def calibrate(
         "heading_rho": heading_rho,
     }
     if axis_verdict != "determined":
-        notes.append(
-            f"{d}: the flexion axis from the movement is weak (principal axis {ratio:.1f}× the "
-            f"next, excursions {pos:.0f}° / {neg:.0f}° either way): record a clear forward bend"
-        )
+        notes.append(f"{d}: {_weak_axis(ratio, pos, neg)}: record a clear forward bend")
     steps = {rest_name: [float(t[a]), float(t[b - 1])],
              move_name: [float(t[moving][0]), float(t[moving][-1])]}  # fmt: skip
     result = SegmentCalibration(
@@ -336,15 +336,19 @@ def calibrate(
     return result
 
 
+def _weak_axis(ratio: float, pos: float, neg: float) -> str:
+    """Why the flexion axis is weak, in words."""
+    return (
+        f"the flexion axis is not clear from the movement (the thorax went {pos:.0f}° / "
+        f"{neg:.0f}° either way about it, {ratio:.1f}× as one-sided as about the other axis; "
+        f"{SIGN_RATIO_MIN:g}× and {AXIS_RATIO_MIN:g}× wanted)"
+    )
+
+
 def trunk_grades(protocol, joint, leans, summary: dict[str, Any], axis_verdict: str):
     """Grades of the lumbar joint (and the trunk's lean) from what the movement determined."""
-    why_axis = (
-        ""
-        if axis_verdict == "determined"
-        else f"the flexion axis from the movement is weak (principal axis "
-        f"{summary['axis_ratio']:.1f}× the next, excursions {summary['excursion_deg'][0]:.0f}° "
-        f"/ {-summary['excursion_deg'][1]:.0f}°)"
-    )
+    pos, neg = summary["excursion_deg"][0], -summary["excursion_deg"][1]
+    why_axis = "" if axis_verdict == "determined" else _weak_axis(summary["axis_ratio"], pos, neg)
     rot_grade, why_rot = "determined", ""
     if summary["heading_rho"] < HEADING_RHO_MIN:
         rot_grade = "weak"
