@@ -64,10 +64,11 @@ def test_seated_continuous_trunk_movement_gives_the_lumbar_angles(seated):
     assert rest[1] - rest[0] >= 1.0
     err = _errors(session, truth)
     rmse = {p: float(np.sqrt(np.mean(e**2))) for p, e in err.items()}
-    # measured (seed 2, 50 Hz): 1.0 / 2.0 / 1.4°; the target is 1.5° per plane: the
-    # lateral bending falls short by the seated rest's thorax inclination (docs/kinematics.md)
-    assert rmse["flexion"] < 1.5 and rmse["axial_rotation"] < 2.0
-    assert rmse["lateral_bending"] < 2.5
+    # measured (seed 2, 50 Hz): 1.1 / 1.4 / 0.9°, within the 1.5° per plane; other
+    # seeds reach 4.5° in lateral bending (the seated rest's thorax inclination,
+    # docs/kinematics.md), hence the looser bound there
+    assert rmse["flexion"] < 1.5 and rmse["axial_rotation"] < 1.5
+    assert rmse["lateral_bending"] < 2.0
 
 
 def test_a_recording_that_starts_moving_and_rests_only_at_the_end(seated):
