@@ -12,7 +12,10 @@ and **trunk movement** in any order, also as one continuous block:
 2. **Heading between the sensors** (6-D fusions have one each): the angle about the vertical
    that turns the thorax's earth-frame angular velocity onto the pelvis's over the whole
    recording (:func:`motionlab.segments.heading.heading_from_rates`; trunk movement turns both
-   about parallel axes: the pelvis tilts with the thorax).
+   about parallel axes: the pelvis tilts with the thorax). When the rest is still (under
+   :data:`STILL_DEG_S`) and both fusions are 6-D with their gyroscope bias reported, the
+   headings' drift apart is followed too: each gyroscope's mean over the rest, less the bias
+   its fusion removed there, integrated about the vertical (:func:`_heading_drift`).
 3. **Flexion axis:** of the two principal axes of the thorax's angular velocity relative to
    the pelvis (in the thorax sensor frame, perpendicular to the rest's vertical, over the
    recording), the one about which the thorax moves **one-sidedly** from the rest: people lean
@@ -57,6 +60,7 @@ REST_MIN_S = SHORTEST_POSE_S
 REST_MAX_S = 5.0  # a rest is grown up to this long
 REST_MAX_DEG_S = 15.0  # the stillest second turning faster than this (mean per sensor): no rest
 REST_GROW = 1.5  # the rest grows while the 0.2 s speed stays within this × the stillest second's
+STILL_DEG_S = 1.0  # a rest this still (mean deg/s) shows the gyroscope biases
 ENERGY_MIN = 0.2  # a horizontal axis turning less than this share of the other's is no candidate
 AXIS_RATIO_MIN = 1.5  # the flexion axis's one-sidedness over the other axis's
 SIGN_RATIO_MIN = 1.3  # the thorax's excursion one way / the other, about the flexion axis
@@ -278,6 +282,14 @@ def calibrate(
     seg_q = {s: rot.mul(q[s], rot.from_matrix(m)) for s, m in ((p, m_p), (d, m_d))}
     pose_delta = heading.heading_from_pose(seg_q[p][rest], seg_q[d][rest])
     times, deltas = [t_rest], [pose_delta]
+    drift = None
+    if level <= STILL_DEG_S:  # a still rest shows the gyroscope biases the fusion left
+        drift = _heading_drift(session, {s: sensor_for_segment(session, s) for s in (p, d)},
+                               t, q, gyr, rest)  # fmt: skip
+    if drift is not None:
+        step = max(int(round(0.5 / float(np.median(np.diff(t))))), 1)
+        times = [float(x) for x in t[::step]]
+        deltas = [pose_delta + float(x) for x in drift[::step]]
     centres[joint.name] = {
         "heading_times": times,
         "heading_deltas": deltas,
@@ -313,6 +325,7 @@ def calibrate(
         "sign_ratio": sign_ratio,
         "heading_deg": float(np.degrees(delta)),
         "heading_rho": heading_rho,
+        "heading_drift_deg": None if drift is None else float(np.degrees(np.ptp(drift))),
     }
     if axis_verdict != "determined":
         notes.append(f"{d}: {_weak_axis(ratio, pos, neg)}: record a clear forward bend")
@@ -334,6 +347,27 @@ def calibrate(
     if warnings is not None:
         warnings.extend(notes)
     return result
+
+
+def _heading_drift(session, labels: dict[str, str], t, q, gyr, rest: slice) -> np.ndarray | None:
+    """The heading (rad, per sample, 0 at the rest) that turns the distal sensor's 6-D earth
+    frame back onto the proximal's as their headings drift apart: each sensor's gyroscope
+    over a still rest, less the bias its fusion removed there, integrated about the earth
+    vertical through its orientation (``labels``: proximal then distal segment → sensor).
+    ``None`` unless both fusions are 6-D and report their gyroscope bias (a vendor's or a 9-D
+    orientation has its own heading reference)."""
+    drifts = []
+    for seg, label in labels.items():
+        fused = session.results.fusion.get(label)
+        if fused is None or fused.gyro_bias is None or fused.magnetometer:
+            return None
+        b = np.asarray(fused.gyro_bias, float)
+        bias = b if b.ndim == 1 else _on(t, session.sensors[label].time, b)[rest].mean(axis=0)
+        left = gyr[seg][rest].mean(axis=0) - bias
+        rate = rot.rotate(q[seg], np.broadcast_to(left, (len(t), 3)))[:, 2]
+        e = np.concatenate([[0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t))])
+        drifts.append(e - e[rest].mean())
+    return drifts[0] - drifts[1]
 
 
 def _weak_axis(ratio: float, pos: float, neg: float) -> str:
