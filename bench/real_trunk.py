@@ -66,6 +66,7 @@ DEFAULT_DATA = ROOT.parent / "shared" / "datasets" / "trunk"
 MAP = ROOT / "protocols" / "examples" / "trunk_map.yaml"
 PROTOCOL = "lumbar_seated"
 PLANES = ("flexion", "lateral_bending", "axial_rotation")
+LEANS = ("forward", "sideways")  # the lean's angles, as the lumbar decomposition orders them
 FLIP_DEG = 15.0
 FLIP_RATE_DEG_S = 400.0
 CLOCK_SEARCH_S = 3.0
@@ -161,10 +162,14 @@ def run_variant(imu: Path, variant: dict) -> tuple[np.ndarray, pd.DataFrame, dic
     cols = {c: np.asarray(v, float) for c, v in table.columns().items()}
     cal = session.results.calibration
     grades = {}
+    from motionlab.kinematics.joint_types import angle_columns
+    from motionlab.protocol import load_protocol
+
+    joints = load_protocol(PROTOCOL).joints
     for joint, g in cal.grades.items():
-        if joint == "lumbar":
-            for plane, grade in zip(PLANES, g["grades"], strict=True):
-                grades[f"lumbar_{plane}_deg"] = grade
+        if joint in joints:
+            cols_j = [c for _, c in angle_columns(joints[joint])]
+            grades.update(zip(cols_j, g["grades"], strict=True))
     return cols["time_s"], cols, grades, tuple(cal.steps["rest"]), cal.grades["lumbar"]["trunk"]
 
 
@@ -209,10 +214,11 @@ def lateral_axis(quats, pos, rest_opt: np.ndarray, chair_right: np.ndarray | Non
     return np.array([z[0], z[1], 0.0]) / np.hypot(z[0], z[1]), "wheelchair's right"
 
 
-def optical_angles(t_opt, quats, pos, rest_opt: np.ndarray, chair_right=None):
-    """Lumbar angles (deg) of ``back`` relative to ``low_back`` in the anatomical frame of
-    :func:`lateral_axis` (zero at the rest), and how the frame was found."""
-    q_b, q_l = quats["back"], quats["low_back"]
+def optical_angles(t_opt, quats, pos, rest_opt: np.ndarray, chair_right=None, proximal="low_back"):
+    """Lumbar-style angles (deg: flexion, lateral bending, axial rotation) of ``back`` relative
+    to ``proximal`` (``low_back``; ``rolstoel``, the wheelchair, for the trunk's lean) in the
+    anatomical frame of :func:`lateral_axis` (zero at the rest), and how the frame was found."""
+    q_b, q_l = quats["back"], quats[proximal]
     z, how = lateral_axis(quats, pos, rest_opt, chair_right)
     y = np.array([0.0, 0.0, 1.0])
     frame = rot.from_matrix(np.column_stack([np.cross(y, z), y, z]))  # anatomical → lab
@@ -319,6 +325,13 @@ def main(argv: list[str] | None = None) -> int:
             m = metrics(on_optical(tv, est, t_opt, best), ref_rest)
             rows.append({"trial": name, "variant": label, "angle": "rotation from rest",
                          "grade": "", **m})  # fmt: skip
+            if "trunk_lean_forward_deg" in cv:  # the trunk against the wheelchair
+                lean, _ = optical_angles(t_opt, quats, pos, rest_opt, chair_right, "rolstoel")
+                for k, what in enumerate(LEANS):
+                    col = f"trunk_lean_{what}_deg"
+                    m = metrics(on_optical(tv, cv[col], t_opt, best), lean[:, k])
+                    rows.append({"trial": name, "variant": label, "angle": f"lean {what}",
+                                 "grade": gv.get(col, "n/a"), **m})  # fmt: skip
     df = pd.DataFrame(rows)
     print("## Lumbar angles of real seated trunk movements against OptiTrack\n")
     print("Clock offsets and what the calibration found:\n")
@@ -329,17 +342,19 @@ def main(argv: list[str] | None = None) -> int:
         print(f"| {r['trial']} | {r['variant']} | {r['angle']} | {fmt(r['rmse'])} | "
               f"{fmt(r['free'])} | {fmt(r['r'], 2)} | {r['grade']} |")  # fmt: skip
     print("\n### Medians over the trials (offset-free RMSE deg / r)\n")
-    angles = [*PLANES, "rotation from rest"]
+    angles = [*PLANES, "rotation from rest", *(f"lean {w}" for w in LEANS)]
     print("| variant | " + " | ".join(angles) + " |")
     print("|---|" + "---|" * len(angles))
     for label in VARIANTS:
         cells = []
         for a in angles:
             sel = df[(df.variant == label) & (df.angle == a)] if len(df) else df
+            sel = sel[np.isfinite(sel.free)] if len(sel) else sel
             cells.append(f"{fmt(sel.free.median())} / {fmt(sel.r.median(), 2)}" if len(sel)
                          else "–")  # fmt: skip
         print(f"| {label} | " + " | ".join(cells) + " |")
-    det = df[(df.variant == "motionlab 6-D") & (df.grade == "determined")] if len(df) else df
+    det = df[(df.variant == "motionlab 6-D") & (df.grade == "determined")
+             & (df.angle != "rotation from rest")] if len(df) else df  # fmt: skip
     if len(det):
         worst = det.loc[det.free.idxmax()]
         print(f"\nGraded determined: {len(det)} angles, offset-free RMSE up to "

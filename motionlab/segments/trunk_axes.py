@@ -295,6 +295,7 @@ def calibrate(
         "heading_deltas": deltas,
         "method": "trunk rest",
     }
+    followed: dict[str, bool] = {}  # the trunk's lean: the chair's heading drift followed
     for lean in leans:
         c = lean.distal
         if c not in chairs:
@@ -306,12 +307,22 @@ def calibrate(
         segments[c] = _segment(m_c, sensor_for_segment(session, c), records, [])
         segments[c]["method"] = "primary_secondary"  # y measured, the rest tied to the thorax
         q_c = rot.mul(q[c], rot.from_matrix(m_c))
+        delta_c = heading.heading_from_pose(rot.mul(q[d], rot.from_matrix(m_d))[rest], q_c[rest])
+        times_c, deltas_c = [t_rest], [delta_c]
+        lean_drift = None
+        if level <= STILL_DEG_S:
+            labels = {d: sensor_for_segment(session, d), c: sensor_for_segment(session, c)}
+            lean_drift = _heading_drift(session, labels, t, q, gyr, rest)
+        if lean_drift is not None:
+            step = max(int(round(0.5 / float(np.median(np.diff(t))))), 1)
+            times_c = [float(x) for x in t[::step]]
+            deltas_c = [delta_c + float(x) for x in lean_drift[::step]]
+        followed[lean.name] = lean_drift is not None
         centres[lean.name] = {
-            "heading_times": [t_rest],
-            "heading_deltas": [heading.heading_from_pose(
-                rot.mul(q[d], rot.from_matrix(m_d))[rest], q_c[rest])],
+            "heading_times": times_c,
+            "heading_deltas": deltas_c,
             "method": "trunk rest",
-        }  # fmt: skip
+        }
 
     notes: list[str] = []
     summary = {
@@ -341,7 +352,7 @@ def calibrate(
         ok=True,
     )
     result.grades = grading.grade_joints(protocol, result)
-    result.grades.update(trunk_grades(protocol, joint, leans, summary, axis_verdict))
+    result.grades.update(trunk_grades(joint, leans, summary, axis_verdict, followed))
     for g in result.grades.values():
         g["trunk"] = summary
     if warnings is not None:
@@ -379,8 +390,12 @@ def _weak_axis(ratio: float, pos: float, neg: float) -> str:
     )
 
 
-def trunk_grades(protocol, joint, leans, summary: dict[str, Any], axis_verdict: str):
-    """Grades of the lumbar joint (and the trunk's lean) from what the movement determined."""
+def trunk_grades(
+    joint, leans, summary: dict[str, Any], axis_verdict: str, followed: dict[str, bool]
+) -> dict[str, dict[str, list[str]]]:
+    """Grades of the lumbar joint and of the trunk's lean (``leans``: ``trunk_lean`` joints)
+    from what the movement determined; a lean is ``weak`` unless the chair's heading drift was
+    followed (``followed``: by joint, a still rest)."""
     pos, neg = summary["excursion_deg"][0], -summary["excursion_deg"][1]
     why_axis = "" if axis_verdict == "determined" else _weak_axis(summary["axis_ratio"], pos, neg)
     rot_grade, why_rot = "determined", ""
@@ -397,8 +412,13 @@ def trunk_grades(protocol, joint, leans, summary: dict[str, Any], axis_verdict: 
         }
     }
     for lean in leans:
-        out[lean.name] = {
-            "grades": [axis_verdict, axis_verdict, axis_verdict],
-            "reasons": [why_axis] * 3,
-        }
+        grade, why = axis_verdict, why_axis
+        if grade == "determined" and not followed.get(lean.name, False):
+            grade = "weak"
+            why = (
+                "the rest was not still (under "
+                f"{STILL_DEG_S:g}°/s), so the chair's and the thorax's headings are tied at "
+                "the rest only and may drift apart"
+            )
+        out[lean.name] = {"grades": [grade] * 3, "reasons": [why] * 3}
     return out
