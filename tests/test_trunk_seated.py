@@ -128,3 +128,14 @@ def test_the_trunk_leans_against_a_still_chair(seated):
     assert forward.max() > 40  # the simulated forward bend
     assert np.sqrt(np.mean((forward - want[inside, 0]) ** 2)) < 2.0
     assert np.sqrt(np.mean((sideways - want[inside, 1]) ** 2)) < 3.0
+
+
+def test_the_lumbar_protocol_refusing_a_seated_recording_names_lumbar_seated(seated):
+    from motionlab import stages
+    from motionlab.errors import InputError
+
+    session, _ = seated
+    session = _crop(session, 0.0, 1e9)
+    stages.fuse(session)
+    with pytest.raises(InputError, match="the shipped protocol 'lumbar_seated' fits"):
+        stages.calibrate(session, "lumbar")

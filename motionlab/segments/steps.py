@@ -432,6 +432,9 @@ def fitting_protocols(streams: Streams, protocol: Protocol) -> list[str]:
         needed = [s for s, spec in other.segments.items() if spec.required]
         if not needed or any(s not in streams for s in needed):
             continue
+        if any(s.axis_method == "trunk" for s in other.calibration):
+            out.append(other.name)  # a rest anywhere and free movement (segments/trunk_axes.py)
+            continue
         try:
             find_steps({s: streams[s] for s in other.segments if s in streams}, other, None, False)
         except InputError:
