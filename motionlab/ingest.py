@@ -205,6 +205,7 @@ def _check_rate(
 
 def _unique_label(stream: SensorStream, path: Path, seen: dict[str, Path]) -> SensorStream:
     label = stream.label.strip().replace("/", "_") or stream.serial or path.stem
+    path = Path(stream.attrs.get("device_folder", path))  # a folder per device (x-IMU3)
     if label in seen:
         raise InputError(
             f"sensor label '{label}' also comes from {seen[label].name}",
@@ -308,12 +309,14 @@ def ingest(
     streams: list[tuple[SensorStream, Path]] = []
     markers: list[tuple[MarkerSet, Path]] = []
     files: dict[str, Any] = {}
+    read_files: list[Path] = []  # what was read, for the provenance (a folder: its files)
     for path in paths:
         rec = read_any(path, smap.reader or None)
         if not rec.sensors and not rec.markers:
             raise InputError("no sensors or markers found", path,
                              remedy="check that the file holds a recording")  # fmt: skip
         files[path.name] = {"format": rec.format, **rec.metadata}
+        read_files += [Path(f) for f in rec.metadata.get("files", [])] or [path]
         streams += [(s, path) for s in rec.sensors]
         markers += [(m, path) for m in rec.markers]
 
@@ -382,7 +385,7 @@ def ingest(
             name, n = f"{m.name}_{n}", n + 1
         session.markers[name] = dataclasses.replace(m, name=name)
 
-    inputs: list[Path] = list(paths) + ([map_path] if map_path else [])
+    inputs: list[Path] = read_files + ([map_path] if map_path else [])
     session.add_provenance(
         command,
         parameters={

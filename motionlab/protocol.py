@@ -30,7 +30,9 @@ A protocol is a YAML file (``protocols/*.yaml``; copy one and edit it). Schema::
         optional: false                 # true: the step may be left out of the recording
         reference_rho: {shank_r: 0.8}   # optional: expected reliability (quality report)
         time_range: [12.0, 20.5]        # optional: where the step is (s), skips detection
-        axis_method: svd                # svd (default) | hinge: Seel's fit of the knee/elbow
+        axis_method: svd                # svd (default) | hinge: Seel's fit of the knee/elbow |
+                                        # trunk: rest and flexion axis found anywhere in the
+                                        # recording (segments/trunk_axes.py, lumbar_seated)
         instructions: "seated, flex and extend the right knee 5 times"
     joints:
       knee_r:
@@ -92,7 +94,7 @@ from motionlab.kinematics.joint_types import (
 from motionlab.yamlsafe import BoundedSafeLoader, did_you_mean, load_yaml, read_yaml_text
 
 STEP_KINDS = ("static", "functional")
-AXIS_METHODS = ("svd", "hinge")
+AXIS_METHODS = ("svd", "hinge", "trunk")
 SIDES = ("l", "r", "")
 AXES = {"x": 0, "y": 1, "z": 2}
 #: the keys each part of a protocol may hold (anything else is a typo: an error with a hint)

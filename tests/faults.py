@@ -195,6 +195,7 @@ def run_case(case: Case, folder: Path, time_limit: float = 30.0) -> Verdict:
     """Run ``case`` in an empty ``folder`` and judge it against the promise."""
     folder.mkdir(parents=True, exist_ok=True)
     for name, data in case.files.items():
+        (folder / name).parent.mkdir(parents=True, exist_ok=True)  # x-IMU3: folder per device
         (folder / name).write_bytes(data)
     before = {p.name for p in folder.iterdir()}
     t0 = time.perf_counter()
@@ -304,10 +305,9 @@ def yaml_with(text: str, dotted: str, value: str) -> str:
     return body.replace(marker, value)
 
 
-def text_cases(reader: str, rng: np.random.Generator, n: int) -> list[Case]:
-    """``n`` broken copies of a text reader's fixture (every mutation kind, random places)."""
-    data = FIXTURES[reader].read_bytes()
-    kinds: list[tuple[str, Callable[[], bytes]]] = [
+def _text_mutations(data: bytes, rng: np.random.Generator) -> list[tuple[str, Callable[[], bytes]]]:
+    """Every kind of damage to a text file, each a maker of the damaged bytes."""
+    return [
         ("truncate", lambda: truncate(data, rng.uniform(0, 1))),
         ("flip", lambda: flip(data, int(rng.integers(len(data))), int(rng.integers(1, 256)))),
         ("nan", lambda: replace_number(data, int(rng.integers(1 << 30)), b"nan")),
@@ -325,10 +325,38 @@ def text_cases(reader: str, rng: np.random.Generator, n: int) -> list[Case]:
         ("head_only", lambda: data[: data.find(b"\n", data.find(b"\n") + 1) + 1]),
         ("binary_tail", lambda: data + b"\x00" * 4096),
     ]
+
+
+def text_cases(reader: str, rng: np.random.Generator, n: int) -> list[Case]:
+    """``n`` broken copies of a text reader's fixture (every mutation kind, random places)."""
+    kinds = _text_mutations(FIXTURES[reader].read_bytes(), rng)
     cases = []
     for i in range(n):
         kind, make = kinds[i % len(kinds)]
         cases.append(ingest_case(f"{reader}/{kind}/{i}", reader, make()))
+    return cases
+
+
+def ximu3_cases(rng: np.random.Generator, n: int) -> list[Case]:
+    """``n`` x-IMU3 exports (a folder per device, ``tests/ximu3_export.py``) with one of the
+    channel files of one device broken, or removed."""
+    from ximu3_export import export_files
+
+    good = export_files(seconds=2.0)
+    names = [k for k in good if k.endswith((".csv", ".json")) and "Battery" not in k]
+    cases = []
+    for i in range(n):
+        target = names[int(rng.integers(len(names)))]
+        files = dict(good)
+        if i % 17 == 16:
+            kind = "missing"
+            del files[target]
+        else:
+            kinds = _text_mutations(good[target], rng)
+            kind, make = kinds[i % len(kinds)]
+            files[target] = make()
+        short = target.split("/")[-1]
+        cases.append(Case(f"ximu3/{kind}:{short}/{i}", files, ["ingest", "imu", "-o", "out.h5"]))
     return cases
 
 
@@ -426,6 +454,7 @@ def campaign(
     cases = []
     for reader in TEXT_READERS:
         cases += text_cases(reader, rng, n_text)
+    cases += ximu3_cases(rng, n_text)
     cases += broad_cases(rng, tmp, n_h5)
     cases += apdm_h5_cases(rng, tmp / "apdm", n_h5)
     cases += yaml_cases()

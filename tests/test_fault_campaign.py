@@ -89,3 +89,11 @@ def test_the_value_of_a_replaced_cell_is_the_one_asked_for():
     data = b"a,b\n1.5,2.5\n"
     assert faults.replace_number(data, 1, b"nan") == b"a,b\n1.5,nan\n"
     assert np.isclose(len(faults.truncate(data, 0.5)), len(data) // 2)
+
+
+def test_broken_ximu3_exports_keep_the_promise(tmp_path):
+    cases = faults.ximu3_cases(np.random.default_rng(28), 34)
+    verdicts = [faults.run_case(c, tmp_path / f"c{i}") for i, c in enumerate(cases)]
+    broken = [v for v in verdicts if v.verdict not in CLEAN]
+    assert not broken, "\n" + faults.table(verdicts) + "\n".join(map(str, broken[:10]))
+    assert sum(v.verdict == "refused" for v in verdicts) > 10

@@ -317,3 +317,25 @@ def test_ankle_in_a_protocol(tmp_path):
         "sagittal", "frontal", "transverse"
     ]  # fmt: skip
     assert plane_index(joint, "inversion") == 1
+
+
+def test_trunk_lean_is_the_thorax_against_the_chair_with_lumbar_signs():
+    """Written chair relative to thorax (YXZ), the angles are the thorax's against the chair:
+    forward lean +, to the right +, turned to the left +, as the lumbar angles of the same
+    rotation."""
+    chair = np.array([[1.0, 0.0, 0.0, 0.0]])
+    for axis, deg, want in ((np.array([0.0, 0.0, -1.0]), 20.0, ("forward", 20.0)),
+                            (np.array([1.0, 0.0, 0.0]), 10.0, ("sideways", 10.0)),
+                            (np.array([0.0, 1.0, 0.0]), 15.0, ("rotation", 15.0))):  # fmt: skip
+        thorax = rot.from_axis_angle(axis, np.radians(deg))[None]
+        lean = np.degrees(decompose(thorax, chair, "trunk_lean"))[0]
+        names = JOINT_TYPES["trunk_lean"].angle_names
+        got = dict(zip(names, lean, strict=True))
+        assert got[want[0]] == pytest.approx(want[1], abs=1e-9)
+        others = [v for k, v in got.items() if k != want[0]]
+        assert np.allclose(others, 0.0, atol=1e-9)
+    # a combined pose: the same three numbers as the lumbar decomposition of thorax vs chair
+    thorax = compose(np.radians([[25.0, -8.0, 12.0]]), "lumbar")
+    lumbar = np.degrees(decompose(chair, thorax, "lumbar"))[0]
+    lean = np.degrees(decompose(thorax, chair, "trunk_lean"))[0]
+    assert lean[::-1] == pytest.approx(lumbar, abs=1e-9)

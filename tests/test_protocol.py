@@ -5,6 +5,7 @@ import pytest
 
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_angles import JOINT_ANGLE_NAMES
+from motionlab.kinematics.joint_types import JOINT_TYPES
 from motionlab.protocol import PACKAGED, axis_vector, list_protocols, load_protocol
 
 
@@ -31,7 +32,7 @@ def test_shipped_protocol_loads_and_is_complete(name):
         assert len(dirs) >= 2 or name == "knee" and seg.name == "pelvis", (name, seg.name, axes)
     for joint in p.joints.values():
         assert joint.type in JOINT_ANGLE_NAMES
-        assert joint.side or joint.type == "lumbar"
+        assert joint.side or not JOINT_TYPES[joint.type].sided
     for task, ranges in p.normative.items():
         for col in ranges:
             assert col.endswith("_deg"), (task, col)

@@ -14,13 +14,23 @@ from motionlab.errors import InputError
 
 
 class InputFile(click.ParamType):
-    """A file to read: a folder or an unreadable file is refused; a missing one is left to the
-    reader, which says so."""
+    """A file to read: a folder (other than an x-IMU3 export's) or an unreadable file is
+    refused; a missing one is left to the reader, which says so."""
 
     name = "file"
 
     def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> str:
         path = Path(value)
+        if path.is_dir():
+            from motionlab.io.ximu3 import is_export
+
+            if is_export(path):  # the x-IMU3 GUI writes a folder per device
+                return str(value)
+            raise InputError(
+                "is a folder, expected a file (or an x-IMU3 export folder)",
+                path,
+                remedy="give the file's path",
+            )
         check_regular(path)  # before any open: a FIFO without a writer blocks it forever
         if path.exists():
             try:

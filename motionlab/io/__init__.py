@@ -37,6 +37,7 @@ READER_MODULES = (
     "xsens",
     "dot",
     "apdm",
+    "ximu3",
     "xio",
     "generic",
 )
@@ -74,7 +75,15 @@ def detect_format(path: str | Path, options: dict[str, Any] | None = None) -> st
 def _detect(path: Path, options: dict[str, Any] | None):
     check_regular(path, folder_ok=True)  # a FIFO, socket or device: refused before any read
     if path.is_dir():
-        raise InputError("is a folder, expected a file", path, remedy="give the file's path")
+        from motionlab.io import ximu3
+
+        if ximu3.is_export(path):
+            return ximu3
+        raise InputError(
+            "is a folder, expected a file (or an x-IMU3 export folder)",
+            path,
+            remedy="give the file's path",
+        )
     if not path.is_file():
         raise InputError("no such file", path, remedy="check the path")
     try:

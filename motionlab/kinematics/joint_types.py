@@ -167,6 +167,27 @@ JOINT_TYPES: dict[str, JointType] = {
         sequence_rule="fixed",
         display="lumbar spine",
     ),
+    # The trunk's lean relative to a wheelchair (wheelchair-seating studies): the joint is
+    # written chair relative to thorax (proximal thorax, distal chair), so that the thorax,
+    # already the lumbar joint's distal segment, keeps one heading; R_chair/thorax = Ry(-c)
+    # Rx(-b) Rz(-a) of the thorax's Rz(a) Rx(b) Ry(c) relative to the chair, hence the YXZ
+    # sequence and the signs: forward lean (the thorax's flexion about the chair's z) +,
+    # sideways lean to the right +, rotation to the left +, as the lumbar angles.
+    "trunk_lean": JointType(
+        name="trunk_lean",
+        angle_names=("rotation", "sideways", "forward"),
+        sequence="YXZ",
+        signs={"": (-1.0, -1.0, 1.0)},
+        sided=False,
+        planes=("transverse", "frontal", "sagittal"),
+        positive=("to the left +", "to the right +", "forward +"),
+        titles=("trunk rotation against the chair", "sideways lean", "forward lean"),
+        hinge=False,
+        flexion_axis=None,
+        clinical=True,
+        sequence_rule="fixed",
+        display="trunk against the chair",
+    ),
     # ISB ankle joint complex (Wu et al. 2002, J Biomech 35:543): foot relative to shank,
     # dorsiflexion about the tibial z, inversion about the floating axis, internal rotation about
     # the foot's y. Euler a > 0 lifts the toes; b > 0 tilts the foot's top to the right

@@ -32,6 +32,7 @@ from motionlab.segments import (
     mounting,
     placement,
     single_pose,
+    trunk_axes,
     walk_forward,
 )
 from motionlab.segments.steps import find_steps
@@ -127,6 +128,8 @@ def calibrate_segments(
     Lines about the recording that the user should read (a nominal placement the data
     contradicts) are added to ``warnings`` and kept in the result's ``warnings``.
     """
+    if trunk_axes.applies(protocol):  # rest and trunk movement anywhere (lumbar_seated)
+        return trunk_axes.calibrate(session, protocol, warnings)
     notes: list[str] = []
     streams = streams_of(session, protocol)
     pose = single_pose.pose_step(session, protocol, streams)

@@ -446,6 +446,9 @@ def fitting_protocols(streams: Streams, protocol: Protocol) -> list[str]:
             j.proximal in streams and j.distal in streams for j in other.joints.values()
         ):
             continue
+        if any(s.axis_method == "trunk" for s in other.calibration):
+            out.append(other.name)  # a rest anywhere and free movement (segments/trunk_axes.py)
+            continue
         try:
             find_steps({s: streams[s] for s in other.segments if s in streams}, other, None, False)
         except InputError:

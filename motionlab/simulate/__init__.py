@@ -332,6 +332,14 @@ def simulate(
         raise InputError(f"unknown gyroscope sampling {gyr_sampling!r}",
                          where="argument gyr_sampling", remedy="use point or interval",
                          argument="gyr_sampling")  # fmt: skip
+    off_body = [k for k, v in protocol.segments.items() if k not in SEGMENTS and not v.required]
+    if off_body:  # optional sensors off the body (a wheelchair's) are not simulated
+        protocol = dataclasses.replace(
+            protocol,
+            segments={k: v for k, v in protocol.segments.items() if k not in off_body},
+            joints={k: j for k, j in protocol.joints.items()
+                    if j.proximal not in off_body and j.distal not in off_body},
+        )  # fmt: skip
     for seg in protocol.segments:
         if seg not in SEGMENTS:
             body_segments = ", ".join(SEGMENTS)

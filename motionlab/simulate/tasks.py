@@ -214,10 +214,13 @@ def free_arm(body: Body, name, phase, duration, reps, options, seed: int = 0) ->
     return Block(name, "free_arm", phase, duration, fn, generator="free_arm")
 
 
-def trunk(body: Body, name, phase, duration, reps, options, planes=(0, 1, 2)) -> Block:
-    """Lumbar flexion (0→60°), lateral bending (±25°) and axial rotation (±35°), in turn."""
+def trunk(
+    body: Body, name, phase, duration, reps, options, planes=(0, 1, 2), pose: str = "standing"
+) -> Block:
+    """Lumbar flexion (0→60°), lateral bending (±25°) and axial rotation (±35°), in turn, from
+    ``pose`` (standing or sitting), one continuous block."""
     reps = _reps(reps, duration * len(planes) / 3, 4.0)
-    stand = posture(body, "standing")
+    stand = posture(body, pose)
     part = duration / len(planes)
 
     def fn(tau):
@@ -352,7 +355,13 @@ def moving_joints(body: Body, step) -> list[tuple[str, int]]:
 
 
 def functional_block(body: Body, step, seed: int) -> Block:
-    """A functional calibration movement of one or more joints, ``repetitions`` times."""
+    """A functional calibration movement of one or more joints, ``repetitions`` times; a trunk
+    step calibrated from free movement (``axis_method: trunk``, ``lumbar_seated``) is the trunk's
+    three planes in one continuous block, in the step's pose."""
+    if step.axis_method == "trunk":
+        pose = posture_of(f"{step.pose} {step.instructions}")
+        return trunk(body, step.name, "calibration", step.duration_s, step.repetitions, {},
+                     pose=pose)  # fmt: skip
     joints = moving_joints(body, step)
     pose = posture_of(f"{step.pose} {step.instructions}")
     base = posture(body, pose)

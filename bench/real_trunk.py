@@ -1,0 +1,366 @@
+"""Real people seated (trunk data set): lumbar angles of the ``lumbar_seated`` protocol against
+OptiTrack, with the x-IMU3's own fusion and VQF 9-D as peers.
+
+Data: ``../shared/datasets/trunk/<subject>/<task>/`` (``imu/``: an x-IMU3 export, a folder per
+device; ``optitrack.csv``: Motive CSV 1.23 at 120 Hz). No licence: read from ../shared only.
+These five trials are the **tuning set** of the trunk calibration's numbers
+(``segments/trunk_axes.py``); they are not an independent test.
+
+For every trial the product is run in memory as ``motionlab run <trial>/imu --map MAP
+--protocol lumbar_seated`` does (``pipeline.analyse``: clock sync, fusion, calibration, angles),
+three times: default 6-D fusion (the product), ``orientation="vendor"`` (the x-IMU3's
+``Quaternion.csv``, its own 9-D fusion) and VQF offline 9-D (``estimator="vqf_offline"``,
+magnetometer on; skipped when ``vqf`` is not installed). The map: ``Back`` → thorax, ``Chest``
+(at the lower back) → pelvis, ``Chair`` → chair (``protocols/examples/trunk_map.yaml``).
+
+Optical reference (``back`` relative to ``low_back``):
+
+- **flips and gaps:** a frame whose orientation is more than ``FLIP_DEG`` plus
+  ``FLIP_RATE_DEG_S`` × the time since the last good frame away from the last good frame is a
+  flip (Motive swapping markers) and is left out, as are gaps (empty cells); the IMU angles are
+  compared where the optical body is good;
+- **clock:** optical = IMU + d, from the angular speeds of back, low_back and the chair (IMU
+  ``Back``, ``Chest``, ``Chair``), searched over ±``CLOCK_SEARCH_S`` by correlation
+  (``validation.joint_reference.fit_clock_offset``), then refined within ±0.1 s on the lumbar
+  rotation-from-rest angle (IMU orientations lag the speeds by about half a sample);
+- **anatomical frame:** y = the lab's vertical (Motive's Y), z = the horizontal direction from
+  the left to the right upper arm's rigid body (``l_arm`` → ``r_arm``) over the IMU's rest,
+  x = y × z; both bodies take this frame at the rest (the zero of the angles, as the IMU's).
+  This frame is built from neither the IMUs' axes nor the movement's: it can move the split
+  between flexion and lateral bending (an arm line θ off the true mediolateral axis mixes about
+  sin θ of one into the other) and the axial rotation's zero, but not the **rotation from the
+  rest** (the angle of ``R_rest⁻¹ R(t)`` of the joint), which is the same in every frame and is
+  reported alongside.
+
+Metrics per trial and plane: RMSE, offset-free RMSE (mean difference removed), r (no flipping:
+a sign error is an error), and the product's grade. Medians over the trials.
+
+Usage (from the repository root)::
+
+    python3 bench/real_trunk.py [--data ../shared/datasets/trunk] [--csv-dir DIR]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "bench"))
+
+from real_rig import fmt, on_optical  # noqa: E402
+
+from motionlab import rotations as rot  # noqa: E402
+from motionlab.ingest import ingest  # noqa: E402
+from motionlab.kinematics.joint_angles import decompose  # noqa: E402
+from motionlab.pipeline import PipelineOptions, analyse  # noqa: E402
+from motionlab.validation.joint_reference import fit_clock_offset  # noqa: E402
+from motionlab.validation.optical import angular_velocity  # noqa: E402
+
+DEFAULT_DATA = ROOT.parent / "shared" / "datasets" / "trunk"
+MAP = ROOT / "protocols" / "examples" / "trunk_map.yaml"
+PROTOCOL = "lumbar_seated"
+PLANES = ("flexion", "lateral_bending", "axial_rotation")
+LEANS = ("forward", "sideways")  # the lean's angles, as the lumbar decomposition orders them
+FLIP_DEG = 15.0
+FLIP_RATE_DEG_S = 400.0
+CLOCK_SEARCH_S = 3.0
+#: Motive's Y-up lab frame → Z-up: +90° about x (Y → Z, Z → -Y)
+Y_UP_TO_Z_UP = np.array([np.sqrt(0.5), np.sqrt(0.5), 0.0, 0.0])
+VARIANTS = {
+    "motionlab 6-D": {},
+    "x-IMU3 own fusion (9-D)": {"orientation": "vendor"},
+    "VQF offline 9-D": {"estimator": "vqf_offline", "magnetometer": True},
+}
+
+
+def read_motive(path: Path) -> tuple[np.ndarray, dict[str, np.ndarray], dict[str, np.ndarray]]:
+    """Time (s), ``{rigid body: quaternion (N, 4) [w, x, y, z], Z-up}`` and ``{rigid body:
+    position (N, 3) m, Z-up}`` from a Motive CSV export (format 1.23); NaN where empty."""
+    head = pd.read_csv(path, header=None, skiprows=2, nrows=5, dtype=str, keep_default_na=False)
+    kinds, names, fields, axes = (head.iloc[i].tolist() for i in (0, 1, 3, 4))
+    data = pd.read_csv(path, header=None, skiprows=7, low_memory=False).to_numpy(float)
+    t = data[:, 1]
+    quats: dict[str, np.ndarray] = {}
+    pos: dict[str, np.ndarray] = {}
+    for name in dict.fromkeys(n for n, k in zip(names, kinds, strict=True) if k == "Rigid Body"):
+        cols = {(f, a): j for j, (n, k, f, a) in enumerate(zip(names, kinds, fields, axes,
+                strict=True)) if n == name and k == "Rigid Body"}  # fmt: skip
+        q = data[:, [cols[("Rotation", a)] for a in "WXYZ"]]
+        p = data[:, [cols[("Position", a)] for a in "XYZ"]]
+        quats[name] = rot.mul(Y_UP_TO_Z_UP, q)
+        pos[name] = rot.rotate(Y_UP_TO_Z_UP, p)
+    return t, quats, pos
+
+
+def good_frames(t: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Frames of a rigid body that are neither gaps nor flips (see the module notes)."""
+    ok = np.isfinite(q).all(axis=1) & (np.linalg.norm(q, axis=1) > 0.5)
+    good = np.zeros(len(t), bool)
+    last = None
+    for i in np.flatnonzero(ok):
+        if last is not None:
+            d = float(np.degrees(rot.angle_between(q[i], q[last])))
+            if d > FLIP_DEG + FLIP_RATE_DEG_S * (t[i] - t[last]):
+                continue
+        good[i] = True
+        last = i
+    if good.sum() < 0.5 * ok.sum():  # started on a flipped stretch: track from the other end
+        return good_frames(t[::-1], q[::-1])[::-1]
+    return good
+
+
+def speed(t: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Angular speed (rad/s) of an orientation series at ``t`` (NaN where ``q`` is)."""
+    ok = np.isfinite(q).all(axis=1)
+    out = np.full(len(t), np.nan)
+    if ok.sum() > 3:
+        tm, w = angular_velocity(t[ok], rot.make_continuous(q[ok]))
+        out[ok] = np.interp(t[ok], tm, np.linalg.norm(w, axis=1))
+    return out
+
+
+def rest_angle(angles_deg: np.ndarray, rest: np.ndarray) -> np.ndarray:
+    """The joint's rotation angle (deg) away from its mean over ``rest`` (bool), from lumbar
+    angles (flexion, lateral bending, axial rotation, deg): frame-independent."""
+    from motionlab.kinematics.joint_angles import compose
+
+    ok = np.isfinite(angles_deg).all(axis=1)
+    q = np.full((len(ok), 4), np.nan)
+    q[ok] = compose(np.radians(angles_deg[ok]), "lumbar")
+    q0 = rot.mean(rot.make_continuous(q[rest & ok]))
+    out = np.full(len(q), np.nan)
+    out[ok] = np.degrees(rot.angle(rot.mul(rot.conj(np.broadcast_to(q0, q[ok].shape)), q[ok])))
+    return out
+
+
+def metrics(est: np.ndarray, ref: np.ndarray) -> dict[str, float]:
+    """RMSE, offset-free RMSE and r (deg; no flipping) on the samples where both are finite."""
+    ok = np.isfinite(est) & np.isfinite(ref)
+    if ok.sum() < 10:
+        return {"rmse": np.nan, "free": np.nan, "r": np.nan}
+    d = est[ok] - ref[ok]
+    r = float(np.corrcoef(est[ok], ref[ok])[0, 1]) if np.std(est[ok]) > 0 else np.nan
+    return {
+        "rmse": float(np.sqrt(np.mean(d**2))),
+        "free": float(np.sqrt(np.mean((d - d.mean()) ** 2))),
+        "r": r,
+    }
+
+
+def run_variant(imu: Path, variant: dict) -> tuple[np.ndarray, pd.DataFrame, dict, tuple, dict]:
+    """In-memory ``motionlab run``: time (s), the lumbar angle columns, grades by column, the
+    rest (s) and the trunk calibration's summary."""
+    session = ingest([imu], MAP)
+    analyse(session, PipelineOptions(protocol=PROTOCOL, progress=False, **variant))
+    table = session.results.angles
+    cols = {c: np.asarray(v, float) for c, v in table.columns().items()}
+    cal = session.results.calibration
+    grades = {}
+    from motionlab.kinematics.joint_types import angle_columns
+    from motionlab.protocol import load_protocol
+
+    joints = load_protocol(PROTOCOL).joints
+    for joint, g in cal.grades.items():
+        if joint in joints:
+            cols_j = [c for _, c in angle_columns(joints[joint])]
+            grades.update(zip(cols_j, g["grades"], strict=True))
+    return cols["time_s"], cols, grades, tuple(cal.steps["rest"]), cal.grades["lumbar"]["trunk"]
+
+
+def imu_speeds(imu: Path) -> tuple[np.ndarray, np.ndarray]:
+    """Session time (s) and the angular speeds (rad/s) of Back, Chest and Chair."""
+    session = ingest([imu], MAP)
+    by_seg = {s.segment: s for s in session.sensors.values()}
+    t = by_seg["thorax"].time
+    cols = [np.interp(t, by_seg[s].time, np.linalg.norm(by_seg[s].gyr, axis=1))
+            for s in ("thorax", "pelvis", "chair")]  # fmt: skip
+    return t, np.column_stack(cols)
+
+
+def arm_line(pos, rest_opt: np.ndarray) -> np.ndarray | None:
+    """The subject's right (lab, horizontal unit vector): from the left to the right upper
+    arm's rigid body over the rest; ``None`` when the right arm is not tracked then."""
+    arms = rest_opt & np.isfinite(pos["r_arm"]).all(axis=1) & np.isfinite(pos["l_arm"]).all(axis=1)
+    if arms.sum() < max(10, 0.5 * rest_opt.sum()):
+        return None
+    right = np.mean(pos["r_arm"][arms] - pos["l_arm"][arms], axis=0)
+    return np.array([right[0], right[1], 0.0]) / np.hypot(right[0], right[1])
+
+
+def in_chair(quats, rest_opt: np.ndarray, v: np.ndarray, to_chair: bool) -> np.ndarray:
+    """``v`` carried from the lab into the wheelchair body's frame (``to_chair``) or back, with
+    the wheelchair's mean orientation over the rest."""
+    q = quats["rolstoel"][rest_opt]
+    q0 = rot.mean(rot.make_continuous(q[np.isfinite(q).all(axis=1)]))
+    return rot.rotate(rot.conj(q0) if to_chair else q0, v)
+
+
+def lateral_axis(quats, pos, rest_opt: np.ndarray, chair_right: np.ndarray | None):
+    """The subject's right (lab, horizontal unit vector) and how it was found: the arm line
+    (:func:`arm_line`), else the wheelchair's right as the arm lines of the other trials saw
+    it (``chair_right``, in the wheelchair body's frame: everyone sits facing forward)."""
+    z = arm_line(pos, rest_opt)
+    if z is not None:
+        return z, "arm line"
+    if chair_right is None:
+        raise ValueError("no trial tracks both arms: no anatomical frame")
+    z = in_chair(quats, rest_opt, chair_right, to_chair=False)
+    return np.array([z[0], z[1], 0.0]) / np.hypot(z[0], z[1]), "wheelchair's right"
+
+
+def optical_angles(t_opt, quats, pos, rest_opt: np.ndarray, chair_right=None, proximal="low_back"):
+    """Lumbar-style angles (deg: flexion, lateral bending, axial rotation) of ``back`` relative
+    to ``proximal`` (``low_back``; ``rolstoel``, the wheelchair, for the trunk's lean) in the
+    anatomical frame of :func:`lateral_axis` (zero at the rest), and how the frame was found."""
+    q_b, q_l = quats["back"], quats[proximal]
+    z, how = lateral_axis(quats, pos, rest_opt, chair_right)
+    y = np.array([0.0, 0.0, 1.0])
+    frame = rot.from_matrix(np.column_stack([np.cross(y, z), y, z]))  # anatomical → lab
+    segs = []
+    for q in (q_l, q_b):
+        ok = rest_opt & np.isfinite(q).all(axis=1)
+        m = rot.mul(rot.conj(rot.mean(rot.make_continuous(q[ok]))), frame)  # anat → body
+        segs.append(rot.mul(q, np.broadcast_to(m, q.shape)))
+    return np.degrees(decompose(segs[0], segs[1], "lumbar")), how
+
+
+def common_rest(t_imu, sp_imu, t_opt_on_imu, quats, rest_s) -> tuple[float, float]:
+    """The reference rest (IMU clock, s) of the comparison: the product's rest when the optical
+    bodies cover it, else the stillest second (:func:`motionlab.segments.trunk_axes.find_rest`)
+    of the IMUs where they do (the optical recording stops before the product's rest)."""
+    from motionlab.segments.trunk_axes import find_rest
+
+    seen = np.isfinite(quats["back"]).all(axis=1) & np.isfinite(quats["low_back"]).all(axis=1)
+    t_seen = t_opt_on_imu[seen]
+    inside = (t_seen >= rest_s[0]) & (t_seen <= rest_s[1])
+    if inside.sum() >= 0.8 * (rest_s[1] - rest_s[0]) * 120:
+        return rest_s
+    cover = (t_imu >= t_seen[0] + 0.2) & (t_imu <= t_seen[-1] - 0.2)
+    a, b, _ = find_rest(t_imu[cover], sp_imu[cover][:, :2].mean(axis=1) * 180 / np.pi)
+    return float(t_imu[cover][a]), float(t_imu[cover][b - 1])
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--data", type=Path, default=DEFAULT_DATA, help="the trunk data set")
+    args = ap.parse_args(argv)
+    trials = sorted(p.parent for p in args.data.glob("*/*/optitrack.csv"))
+    if not trials:
+        print(f"error: no trials in {args.data} (<subject>/<task>/optitrack.csv); give --data",
+              file=sys.stderr)  # fmt: skip
+        return 2
+    try:
+        import vqf  # noqa: F401
+    except ImportError:
+        VARIANTS.pop("VQF offline 9-D")
+        print("(vqf is not installed: no VQF rows)\n")
+    rows: list[dict] = []
+    notes = []
+    seen = []  # the arm lines in the wheelchair's frame (the first second as rest)
+    for trial in trials:
+        t_opt, quats, pos = read_motive(trial / "optitrack.csv")
+        z = arm_line(pos, t_opt < 1.0)
+        if z is not None:
+            seen.append(in_chair(quats, t_opt < 1.0, z, to_chair=True))
+    chair_right = np.mean(seen, axis=0) if seen else None
+    for trial in trials:
+        name = f"{trial.parent.name}/{trial.name}"
+        t_opt, quats, pos = read_motive(trial / "optitrack.csv")
+        flips = {}
+        for body in ("back", "low_back", "rolstoel"):  # flips and gaps left out, once
+            good = good_frames(t_opt, quats[body])
+            flips[body] = int((np.isfinite(quats[body]).all(axis=1) & ~good).sum())
+            quats[body] = np.where(good[:, None], quats[body], np.nan)
+        t_imu, sp_imu = imu_speeds(trial / "imu")
+        sp_opt = np.column_stack([speed(t_opt, quats[b]) for b in ("back", "low_back", "rolstoel")])
+        coarse, r_clock = fit_clock_offset(t_imu, sp_imu, t_opt, sp_opt, CLOCK_SEARCH_S, 0.005)
+        runs = {}
+        for label, variant in VARIANTS.items():
+            try:
+                runs[label] = run_variant(trial / "imu", variant)
+            except Exception as exc:  # a failing variant is a row, the bench goes on
+                notes.append(f"- {name}, {label}: failed: {str(exc)[:150]}")
+        if "motionlab 6-D" not in runs:
+            continue
+        t, cols, grades, rest_s, summary = runs["motionlab 6-D"]
+        rest_s = common_rest(t_imu, sp_imu, t_opt - coarse, quats, rest_s)
+        # refine the offset on the rotation from rest (frame-free on both sides)
+        best, best_cost, best_ref, best_how = coarse, np.inf, None, ""
+        for lag in np.arange(coarse - 0.1, coarse + 0.1001, 0.002):
+            rest_opt = (t_opt - lag >= rest_s[0]) & (t_opt - lag <= rest_s[1])
+            if rest_opt.sum() < 10:
+                continue
+            ref, how = optical_angles(t_opt, quats, pos, rest_opt, chair_right)
+            ref_rest = rest_angle(ref, rest_opt)
+            est = rest_angle(np.column_stack([cols[f"lumbar_{p}_deg"] for p in PLANES]),
+                             (t >= rest_s[0]) & (t <= rest_s[1]))  # fmt: skip
+            m = metrics(on_optical(t, est, t_opt, lag), ref_rest)
+            if m["free"] < best_cost:
+                best, best_cost, best_ref, best_how = float(lag), m["free"], ref, how
+        own = runs["motionlab 6-D"][3]
+        notes.append(
+            f"- {name}: optical = IMU + {best:.3f} s (speeds {coarse:.3f} s, r = {r_clock:.2f}); "
+            f"rest {own[0]:.1f}–{own[1]:.1f} s (compared from {rest_s[0]:.1f}–{rest_s[1]:.1f} s); "
+            f"flexion axis: principal axis {summary['axis_rank']}, one-sided "
+            f"{summary['sign_ratio']:.1f}× ({summary['axis_ratio']:.1f}× the other axis), "
+            f"thorax {summary['excursion_deg'][0]:.0f}/{summary['excursion_deg'][1]:.0f}°; "
+            f"heading agreement {summary['heading_rho']:.2f}; optical frame: {best_how}; "
+            f"flipped frames left out: {', '.join(f'{k} {v}' for k, v in flips.items())}"
+        )
+        rest_opt = (t_opt - best >= rest_s[0]) & (t_opt - best <= rest_s[1])
+        ref_rest = rest_angle(best_ref, rest_opt)
+        for label, (tv, cv, gv, _, _) in runs.items():
+            angles = np.column_stack([cv[f"lumbar_{p}_deg"] for p in PLANES])
+            for k, plane in enumerate(PLANES):
+                m = metrics(on_optical(tv, angles[:, k], t_opt, best), best_ref[:, k])
+                rows.append({"trial": name, "variant": label, "angle": plane,
+                             "grade": gv.get(f"lumbar_{plane}_deg", "n/a"), **m})  # fmt: skip
+            est = rest_angle(angles, (tv >= rest_s[0]) & (tv <= rest_s[1]))
+            m = metrics(on_optical(tv, est, t_opt, best), ref_rest)
+            rows.append({"trial": name, "variant": label, "angle": "rotation from rest",
+                         "grade": "", **m})  # fmt: skip
+            if "trunk_lean_forward_deg" in cv:  # the trunk against the wheelchair
+                lean, _ = optical_angles(t_opt, quats, pos, rest_opt, chair_right, "rolstoel")
+                for k, what in enumerate(LEANS):
+                    col = f"trunk_lean_{what}_deg"
+                    m = metrics(on_optical(tv, cv[col], t_opt, best), lean[:, k])
+                    rows.append({"trial": name, "variant": label, "angle": f"lean {what}",
+                                 "grade": gv.get(col, "n/a"), **m})  # fmt: skip
+    df = pd.DataFrame(rows)
+    print("## Lumbar angles of real seated trunk movements against OptiTrack\n")
+    print("Clock offsets and what the calibration found:\n")
+    print("\n".join(notes) + "\n")
+    print("| trial | variant | angle | RMSE (deg) | offset-free RMSE | r | grade |")
+    print("|---|---|---|---|---|---|---|")
+    for r in rows:
+        print(f"| {r['trial']} | {r['variant']} | {r['angle']} | {fmt(r['rmse'])} | "
+              f"{fmt(r['free'])} | {fmt(r['r'], 2)} | {r['grade']} |")  # fmt: skip
+    print("\n### Medians over the trials (offset-free RMSE deg / r)\n")
+    angles = [*PLANES, "rotation from rest", *(f"lean {w}" for w in LEANS)]
+    print("| variant | " + " | ".join(angles) + " |")
+    print("|---|" + "---|" * len(angles))
+    for label in VARIANTS:
+        cells = []
+        for a in angles:
+            sel = df[(df.variant == label) & (df.angle == a)] if len(df) else df
+            sel = sel[np.isfinite(sel.free)] if len(sel) else sel
+            cells.append(f"{fmt(sel.free.median())} / {fmt(sel.r.median(), 2)}" if len(sel)
+                         else "–")  # fmt: skip
+        print(f"| {label} | " + " | ".join(cells) + " |")
+    det = df[(df.variant == "motionlab 6-D") & (df.grade == "determined")
+             & (df.angle != "rotation from rest")] if len(df) else df  # fmt: skip
+    if len(det):
+        worst = det.loc[det.free.idxmax()]
+        print(f"\nGraded determined: {len(det)} angles, offset-free RMSE up to "
+              f"{worst.free:.1f}° ({worst.trial}, {worst.angle}).")  # fmt: skip
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,424 @@
+"""Trunk calibration from recordings as people make them (protocol ``lumbar_seated``).
+
+A protocol whose functional step says ``axis_method: trunk`` is calibrated here instead of by
+finding its steps in order (:func:`motionlab.segments.calibrate_segments` hands it over). The
+recording needs only a **rest** somewhere (start, end or between movements; standing or seated)
+and **trunk movement** in any order, also as one continuous block:
+
+1. **Rest:** the stillest stretch of at least :data:`REST_MIN_S` (``SHORTEST_POSE_S``), by the
+   mean angular speed of the joint's sensors over a sliding second, grown while they stay as
+   still; refused when even the stillest second turns faster than :data:`REST_MAX_DEG_S`.
+   Each segment's vertical (its y) is gravity seen by its sensor over the rest.
+2. **Heading between the sensors** (6-D fusions have one each): the angle about the vertical
+   that turns the thorax's earth-frame angular velocity onto the pelvis's over the whole
+   recording (:func:`motionlab.segments.heading.heading_from_rates`; trunk movement turns both
+   about parallel axes: the pelvis tilts with the thorax). When the rest is still (under
+   :data:`STILL_DEG_S`) and both fusions are 6-D with their gyroscope bias reported, the
+   headings' drift apart is followed too: each gyroscope's mean over the rest, less the bias
+   its fusion removed there, integrated about the vertical (:func:`_heading_drift`).
+3. **Flexion axis:** of the two principal axes of the thorax's angular velocity relative to
+   the pelvis (in the thorax sensor frame, perpendicular to the rest's vertical, over the
+   recording), the one about which the thorax moves **one-sidedly** from the rest: people lean
+   forward further than back (a backrest, gravity) and bend about as far to either side. Its
+   direction (flexion about −z, ISB) is the side of the larger excursion. The pelvis's flexion
+   axis is the thorax's carried through the rest's relative orientation (the rest is the zero
+   of all three angles: lateral bending and axial rotation of the rest are taken as none), made
+   perpendicular to its own vertical. x = y × z in both; no ``sensor_axes`` hint is used.
+4. **Grades** (:func:`trunk_grades`): flexion and lateral bending are ``determined`` when the
+   chosen axis is at least :data:`AXIS_RATIO_MIN` times as one-sided as the other and the
+   thorax moved at least :data:`SIGN_RATIO_MIN` times further one way than the other about it,
+   ``weak`` otherwise; axial rotation when the heading from the movement explains at least
+   :data:`HEADING_RHO_MIN` of the horizontal rates.
+5. **Chair** (optional segment of a ``trunk_lean`` joint): its vertical from the rest; its
+   heading is tied to the thorax's at the rest, so the trunk's lean is measured from the rest
+   posture about the thorax's own flexion axis, relative to the chair.
+
+The thresholds were set on the five trials of the trunk data set (``bench/real_trunk.py``, the
+tuning set; docs/kinematics.md). The segment headings are stored as one anchor per joint at the
+rest (``centres[joint]``, the
+store :func:`motionlab.segments.segment_orientations` reads for headings fitted at calibration).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from scipy.ndimage import uniform_filter1d
+
+from motionlab import rotations as rot
+from motionlab.errors import InputError
+from motionlab.protocol import Protocol
+from motionlab.results import SegmentCalibration
+from motionlab.segments import heading
+from motionlab.segments.steps import SHORTEST_POSE_S
+from motionlab.session import Session
+from motionlab.timebase import interp_columns
+
+METHOD = "trunk"
+REST_MIN_S = SHORTEST_POSE_S
+REST_MAX_S = 5.0  # a rest is grown up to this long
+REST_MAX_DEG_S = 15.0  # the stillest second turning faster than this (mean per sensor): no rest
+REST_GROW = 1.5  # the rest grows while the 0.2 s speed stays within this × the stillest second's
+STILL_DEG_S = 1.0  # a rest this still (mean deg/s) shows the gyroscope biases
+ENERGY_MIN = 0.2  # a horizontal axis turning less than this share of the other's is no candidate
+AXIS_RATIO_MIN = 1.5  # the flexion axis's one-sidedness over the other axis's
+SIGN_RATIO_MIN = 1.3  # the thorax's excursion one way / the other, about the flexion axis
+HEADING_RHO_MIN = 0.5  # share of the horizontal rates the heading fit explains
+
+
+def applies(protocol: Protocol) -> bool:
+    """Whether ``protocol`` is calibrated from the trunk's movement (a functional step with
+    ``axis_method: trunk``)."""
+    return any(s.axis_method == METHOD for s in protocol.calibration)
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / max(float(np.linalg.norm(v)), 1e-12)
+
+
+def find_rest(t: np.ndarray, speed: np.ndarray) -> tuple[int, int, float]:
+    """``(start, stop, mean speed deg/s)`` of the stillest stretch of at least
+    :data:`REST_MIN_S` (indices into ``t``; ``speed`` deg/s, the mean over the sensors)."""
+    fs = 1.0 / float(np.median(np.diff(t)))
+    n = max(int(round(REST_MIN_S * fs)), 2)
+    if len(t) < n:
+        raise InputError(
+            f"the recording is {t[-1] - t[0]:.1f} s long, shorter than a rest of {REST_MIN_S:g} s",
+            remedy="record a rest of a second or more and the trunk movements",
+        )
+    mean = np.convolve(speed, np.ones(n) / n, mode="valid")  # window k .. k+n
+    k = int(np.argmin(mean))
+    level = float(mean[k])
+    short = uniform_filter1d(speed, max(int(round(0.2 * fs)), 1), mode="nearest")
+    limit = max(REST_GROW * level, level + 2.0)
+    a, b = k, k + n
+    longest = int(REST_MAX_S * fs)
+    while b - a < longest and (a > 0 or b < len(t)):
+        left = short[a - 1] if a > 0 else np.inf
+        right = short[b] if b < len(t) else np.inf
+        if min(left, right) > limit:
+            break
+        if left <= right:
+            a -= 1
+        else:
+            b += 1
+    return a, b, level
+
+
+def _on(t: np.ndarray, ts: np.ndarray, x: np.ndarray) -> np.ndarray:
+    return x if len(ts) == len(t) and np.array_equal(ts, t) else interp_columns(t, ts, x)
+
+
+def _horizontal_axes(w_rel: np.ndarray, up: np.ndarray, moving: np.ndarray):
+    """The two principal axes of the relative angular velocity ``w_rel`` (N, 3) perpendicular
+    to ``up`` over the ``moving`` samples, and their eigenvalues (rad²/s²), largest first."""
+    p = np.eye(3) - np.outer(up, up)
+    w = w_rel[moving] @ p
+    c = w.T @ w / max(len(w), 1)
+    vals, vecs = np.linalg.eigh(c)
+    order = np.argsort(vals)[::-1][:2]
+    return [_unit(p @ vecs[:, k]) for k in order], [float(vals[k]) for k in order]
+
+
+def _excursions(since: np.ndarray, axis: np.ndarray) -> tuple[float, float]:
+    """How far (deg, 98th percentile) the rotation since the rest ``since`` (N, 4) goes either
+    way about ``axis``: ``(positive, negative)``, both ≥ 0."""
+    phi = np.degrees(rot.to_rotvec(since) @ axis)
+    return float(np.percentile(phi, 98)), float(-np.percentile(phi, 2))
+
+
+def _one_sided(pos: float, neg: float) -> float:
+    """How one-sided a movement is: the larger excursion over the smaller (at least 1°)."""
+    return max(pos, neg) / max(min(pos, neg), 1.0)
+
+
+def _frame(y: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """Mounting matrix (segment → sensor: columns x, y, z in sensor coordinates) with y
+    exactly ``y`` and z the part of ``z`` perpendicular to it."""
+    y = _unit(y)
+    z = _unit(z - (z @ y) * y)
+    return np.column_stack([np.cross(y, z), y, z])
+
+
+def _record(step: str, kind: str, method: str, sensor_axis, segment_axis, rho, verdict):
+    return {
+        "step": step,
+        "kind": kind,
+        "method": method,
+        "sensor_axis": np.asarray(sensor_axis, float),
+        "segment_axis": np.asarray(segment_axis, float),
+        "rho": float(rho),
+        "reference_rho": None,
+        "joint_movement": kind == "movement",
+        "secondary": False,
+        "used": True,
+        "residual_deg": 0.0,
+        "verdict": verdict,
+    }
+
+
+def _segment(m: np.ndarray, sensor: str, records: dict[str, Any], messages: list[str]):
+    return {
+        "mounting": rot.from_matrix(m),
+        "method": "procrustes",
+        "axes": records,
+        "quality": {
+            "ok": not messages,
+            "messages": messages,
+            "min_rho": min(r["rho"] for r in records.values()),
+            "separation_deg": 90.0,
+            "lm_difference_deg": None,
+            "hinge_check_deg": {},
+        },
+        "sensor": sensor,
+    }
+
+
+def calibrate(
+    session: Session, protocol: Protocol, warnings: list[str] | None = None
+) -> SegmentCalibration:
+    """Calibration of a trunk protocol (see the module notes); raises :class:`InputError` when
+    the recording has no rest or no trunk movement."""
+    from motionlab.kinematics.joint_types import joint_type
+    from motionlab.kinematics.session_angles import sensor_quats
+    from motionlab.segments import grades as grading
+    from motionlab.segments import sensor_for_segment, streams_of
+
+    lumbar = [j for j in protocol.joints.values() if joint_type(j.type).name == "lumbar"]
+    if not lumbar:
+        raise InputError(
+            "a trunk calibration (axis_method: trunk) needs a lumbar joint",
+            protocol.path,
+            "calibration",
+            remedy="add joints: lumbar: {type: lumbar, proximal: pelvis, distal: thorax}",
+        )
+    joint = lumbar[0]
+    p, d = joint.proximal, joint.distal
+    leans = [j for j in protocol.joints.values()
+             if joint_type(j.type).name == "trunk_lean" and j.proximal == d]  # fmt: skip
+    streams = streams_of(session, protocol)
+    chairs = [j.distal for j in leans if j.distal in streams]
+    segs = [p, d, *chairs]
+    quats = sensor_quats(session, protocol, segs)
+    t = streams[d][0]
+    t = t[(t >= max(streams[s][0][0] for s in segs)) & (t <= min(streams[s][0][-1] for s in segs))]
+    acc = {s: _on(t, streams[s][0], streams[s][1]) for s in segs}
+    gyr = {s: _on(t, streams[s][0], streams[s][2]) for s in segs}
+    q = {s: rot.resample(*quats[s], t) for s in segs}
+
+    speed = np.mean([np.degrees(np.linalg.norm(gyr[s], axis=1)) for s in segs], axis=0)
+    a, b, level = find_rest(t, speed)
+    if level > REST_MAX_DEG_S:
+        raise InputError(
+            f"no rest: the stillest second ({t[a]:.1f}–{t[a] + REST_MIN_S:.1f} s) turns at "
+            f"{level:.0f}°/s (a rest is under {REST_MAX_DEG_S:g}°/s)",
+            protocol.path,
+            "calibration",
+            remedy="record a second or more sitting or standing still, before, between or "
+            "after the trunk movements",
+        )
+    rest = slice(a, b)
+    up = {s: _unit(acc[s][rest].mean(axis=0)) for s in segs}
+    rest_rho = {s: float(np.linalg.norm(np.mean([_unit(v) for v in acc[s][rest]], axis=0)))
+                for s in segs}  # fmt: skip
+
+    # heading of the thorax's fusion onto the pelvis's, from the movement's rates
+    w_p = rot.rotate(q[p], gyr[p])
+    w_d = rot.rotate(q[d], gyr[d])
+    delta = heading.heading_from_rates(w_p, w_d)
+    turned = rot.rotate(rot.from_axis_angle(np.array([0.0, 0.0, 1.0]), delta), w_d)
+    h_p, h_d = w_p[:, :2], turned[:, :2]
+    heading_rho = float(np.sum(h_p * h_d) / max(np.sqrt(np.sum(h_p**2) * np.sum(h_d**2)), 1e-12))
+    q_d = heading.apply_heading(q[d], delta)
+    q_rel = rot.mul(rot.conj(q[p]), q_d)  # thorax sensor → pelvis sensor
+    w_rel = gyr[d] - rot.rotate(rot.conj(q_rel), gyr[p])
+
+    moving = np.ones(len(t), bool)
+    moving[rest] = False
+    if moving.sum() < 2 or np.degrees(np.sqrt(np.mean(np.sum(w_rel[moving] ** 2, 1)))) < 5.0:
+        raise InputError(
+            "no trunk movement: the thorax hardly turns relative to the pelvis",
+            protocol.path,
+            "calibration",
+            remedy="record trunk flexion, lateral bending and rotation besides the rest",
+        )
+    axes, energy = _horizontal_axes(w_rel, up[d], moving)
+    q_rest = rot.mean(q_rel[rest])
+    # flexion is the one-sided movement: the thorax leans forward further than back (a
+    # backrest, gravity), while it bends about as far to either side
+    q_t0 = rot.mean(q[d][rest])
+    since = rot.mul(rot.conj(np.broadcast_to(q_t0, q[d].shape)), q[d])
+    reach = [_excursions(since, a) for a in axes]
+    sided = [_one_sided(*r) for r in reach]
+    k = int(np.argmax(sided)) if energy[1] >= ENERGY_MIN * energy[0] else 0
+    axis, (pos, neg), sign_ratio = axes[k], reach[k], sided[k]
+    ratio = sided[k] / max(sided[1 - k], 1e-9)  # how clearly it is the flexion axis
+    # flexion turns the thorax about its −z: the larger excursion is flexion
+    z_d = -axis if pos >= neg else axis
+    m_d = _frame(up[d], z_d)
+    z_p = rot.rotate(q_rest, m_d[:, 2])
+    m_p = _frame(up[p], z_p)
+
+    steps_named = {s.kind: s.name for s in protocol.calibration}
+    rest_name = steps_named.get("static", "rest")
+    move_name = steps_named.get("functional", "trunk_movement")
+    axis_verdict = (
+        "determined" if ratio >= AXIS_RATIO_MIN and sign_ratio >= SIGN_RATIO_MIN else "weak"
+    )
+    y, zs = np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    segments: dict[str, Any] = {}
+    for seg, m in ((d, m_d), (p, m_p)):
+        records = {
+            rest_name: _record(rest_name, "static", "gravity", up[seg], y, rest_rho[seg],
+                               "determined"),
+            move_name: _record(move_name, "movement", METHOD, m[:, 2], zs,
+                               min(1.0, 1.0 - 1.0 / max(ratio, 1.0)), axis_verdict),
+        }  # fmt: skip
+        segments[seg] = _segment(m, sensor_for_segment(session, seg), records, [])
+
+    centres: dict[str, dict[str, Any]] = {}
+    t_rest = float(t[rest].mean())
+    seg_q = {s: rot.mul(q[s], rot.from_matrix(m)) for s, m in ((p, m_p), (d, m_d))}
+    pose_delta = heading.heading_from_pose(seg_q[p][rest], seg_q[d][rest])
+    times, deltas = [t_rest], [pose_delta]
+    drift = None
+    if level <= STILL_DEG_S:  # a still rest shows the gyroscope biases the fusion left
+        drift = _heading_drift(session, {s: sensor_for_segment(session, s) for s in (p, d)},
+                               t, q, gyr, rest)  # fmt: skip
+    if drift is not None:
+        step = max(int(round(0.5 / float(np.median(np.diff(t))))), 1)
+        times = [float(x) for x in t[::step]]
+        deltas = [pose_delta + float(x) for x in drift[::step]]
+    centres[joint.name] = {
+        "heading_times": times,
+        "heading_deltas": deltas,
+        "method": "trunk rest",
+    }
+    followed: dict[str, bool] = {}  # the trunk's lean: the chair's heading drift followed
+    for lean in leans:
+        c = lean.distal
+        if c not in chairs:
+            continue
+        horizontal = np.eye(3)[int(np.argmin(np.abs(up[c])))]
+        m_c = _frame(up[c], horizontal)
+        records = {rest_name: _record(rest_name, "static", "gravity", up[c], y, rest_rho[c],
+                                      "determined")}  # fmt: skip
+        segments[c] = _segment(m_c, sensor_for_segment(session, c), records, [])
+        segments[c]["method"] = "primary_secondary"  # y measured, the rest tied to the thorax
+        q_c = rot.mul(q[c], rot.from_matrix(m_c))
+        delta_c = heading.heading_from_pose(rot.mul(q[d], rot.from_matrix(m_d))[rest], q_c[rest])
+        times_c, deltas_c = [t_rest], [delta_c]
+        lean_drift = None
+        if level <= STILL_DEG_S:
+            labels = {d: sensor_for_segment(session, d), c: sensor_for_segment(session, c)}
+            lean_drift = _heading_drift(session, labels, t, q, gyr, rest)
+        if lean_drift is not None:
+            step = max(int(round(0.5 / float(np.median(np.diff(t))))), 1)
+            times_c = [float(x) for x in t[::step]]
+            deltas_c = [delta_c + float(x) for x in lean_drift[::step]]
+        followed[lean.name] = lean_drift is not None
+        centres[lean.name] = {
+            "heading_times": times_c,
+            "heading_deltas": deltas_c,
+            "method": "trunk rest",
+        }
+
+    notes: list[str] = []
+    summary = {
+        "rest_s": [float(t[a]), float(t[b - 1])],
+        "rest_speed_deg_s": level,
+        "axis_ratio": ratio,
+        "energy_ratio": energy[0] / max(energy[1], 1e-12),
+        "axis_rank": k + 1,
+        "one_sided": sided,
+        "excursion_deg": [pos, -neg],
+        "sign_ratio": sign_ratio,
+        "heading_deg": float(np.degrees(delta)),
+        "heading_rho": heading_rho,
+        "heading_drift_deg": None if drift is None else float(np.degrees(np.ptp(drift))),
+    }
+    if axis_verdict != "determined":
+        notes.append(f"{d}: {_weak_axis(ratio, pos, neg)}: record a clear forward bend")
+    steps = {rest_name: [float(t[a]), float(t[b - 1])],
+             move_name: [float(t[moving][0]), float(t[moving][-1])]}  # fmt: skip
+    result = SegmentCalibration(
+        protocol.name,
+        steps=steps,
+        segments=segments,
+        hinges={},
+        centres=centres,
+        warnings=notes,
+        ok=True,
+    )
+    result.grades = grading.grade_joints(protocol, result)
+    result.grades.update(trunk_grades(joint, leans, summary, axis_verdict, followed))
+    for g in result.grades.values():
+        g["trunk"] = summary
+    if warnings is not None:
+        warnings.extend(notes)
+    return result
+
+
+def _heading_drift(session, labels: dict[str, str], t, q, gyr, rest: slice) -> np.ndarray | None:
+    """The heading (rad, per sample, 0 at the rest) that turns the distal sensor's 6-D earth
+    frame back onto the proximal's as their headings drift apart: each sensor's gyroscope
+    over a still rest, less the bias its fusion removed there, integrated about the earth
+    vertical through its orientation (``labels``: proximal then distal segment → sensor).
+    ``None`` unless both fusions are 6-D and report their gyroscope bias (a vendor's or a 9-D
+    orientation has its own heading reference)."""
+    drifts = []
+    for seg, label in labels.items():
+        fused = session.results.fusion.get(label)
+        if fused is None or fused.gyro_bias is None or fused.magnetometer:
+            return None
+        b = np.asarray(fused.gyro_bias, float)
+        bias = b if b.ndim == 1 else _on(t, session.sensors[label].time, b)[rest].mean(axis=0)
+        left = gyr[seg][rest].mean(axis=0) - bias
+        rate = rot.rotate(q[seg], np.broadcast_to(left, (len(t), 3)))[:, 2]
+        e = np.concatenate([[0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t))])
+        drifts.append(e - e[rest].mean())
+    return drifts[0] - drifts[1]
+
+
+def _weak_axis(ratio: float, pos: float, neg: float) -> str:
+    """Why the flexion axis is weak, in words."""
+    return (
+        f"the flexion axis is not clear from the movement (the thorax went {pos:.0f}° / "
+        f"{neg:.0f}° either way about it, {ratio:.1f}× as one-sided as about the other axis; "
+        f"{SIGN_RATIO_MIN:g}× and {AXIS_RATIO_MIN:g}× wanted)"
+    )
+
+
+def trunk_grades(
+    joint, leans, summary: dict[str, Any], axis_verdict: str, followed: dict[str, bool]
+) -> dict[str, dict[str, list[str]]]:
+    """Grades of the lumbar joint and of the trunk's lean (``leans``: ``trunk_lean`` joints)
+    from what the movement determined; a lean is ``weak`` unless the chair's heading drift was
+    followed (``followed``: by joint, a still rest)."""
+    pos, neg = summary["excursion_deg"][0], -summary["excursion_deg"][1]
+    why_axis = "" if axis_verdict == "determined" else _weak_axis(summary["axis_ratio"], pos, neg)
+    rot_grade, why_rot = "determined", ""
+    if summary["heading_rho"] < HEADING_RHO_MIN:
+        rot_grade = "weak"
+        why_rot = (
+            f"the sensors' headings agree only {summary['heading_rho']:.2f} over the movement "
+            "(the pelvis hardly moved with the thorax)"
+        )
+    out = {
+        joint.name: {
+            "grades": [axis_verdict, axis_verdict, rot_grade],
+            "reasons": [why_axis, why_axis, why_rot],
+        }
+    }
+    for lean in leans:
+        grade, why = axis_verdict, why_axis
+        if grade == "determined" and not followed.get(lean.name, False):
+            grade = "weak"
+            why = (
+                "the rest was not still (under "
+                f"{STILL_DEG_S:g}°/s), so the chair's and the thorax's headings are tied at "
+                "the rest only and may drift apart"
+            )
+        out[lean.name] = {"grades": [grade] * 3, "reasons": [why] * 3}
+    return out

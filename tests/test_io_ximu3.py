@@ -1,0 +1,116 @@
+"""x-IMU3 exports (a folder per device): synthetic exports written here, and the real trunk
+recordings of ../shared when present."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from motionlab import rotations as rot
+from motionlab.cli import main
+from motionlab.errors import InputError
+from motionlab.ingest import ingest
+from motionlab.io import detect_format, read_any
+from tests import ximu3_export as xe
+from tests.conftest import SHARED, needs_shared
+
+TRUNK = SHARED / "datasets" / "trunk"
+
+
+def test_a_trial_folder_is_one_sensor_per_device_in_si_units(tmp_path):
+    imu = xe.write(tmp_path, xe.export_files())
+    assert detect_format(imu) == "ximu3"
+    rec = read_any(imu)
+    assert [s.label for s in rec.sensors] == ["Back", "Chest"]
+    s = rec.sensors[0]
+    assert s.serial == "B4A2-5410-EC7B-D68C"
+    assert s.time[0] == pytest.approx(xe.T0_US * 1e-6)
+    assert np.allclose(s.gyr[:, 2], np.radians(xe.RATE_DEG_S))
+    assert np.allclose(s.acc[:, 2], 9.80665)
+    assert s.source_units == {"time": "us", "gyr": "deg/s", "acc": "g", "mag": "a.u.", "quat": "1"}
+    # the magnetometer (20 Hz) on the inertial clock (50 Hz): its norm kept, × the assumed 50 µT
+    assert s.mag.shape == s.acc.shape
+    assert np.allclose(np.linalg.norm(s.mag, axis=1), 50 * np.hypot(0.4, 0.9), rtol=1e-3)
+    # the quaternion (100 Hz, NWU) on the inertial clock, in ENU: the device's yaw + 90°
+    yaw = np.radians(xe.RATE_DEG_S) * (s.time - s.time[0]) + np.pi / 2
+    want = np.column_stack([np.cos(yaw / 2), 0 * yaw, 0 * yaw, np.sin(yaw / 2)])
+    assert np.degrees(rot.angle(rot.mul(rot.conj(want), s.quat))).max() < 1e-3
+    notes = " ".join(s.attrs["notes"])
+    assert "HighGAccelerometer.csv" in notes and "Battery.csv" in notes
+
+
+def test_a_device_folder_or_its_inertial_csv_reads_the_device(tmp_path):
+    imu = xe.write(tmp_path, xe.export_files())
+    folder = imu / "Chest 37CE-5410-EC7B-D8A2 (UDP)"
+    assert [s.label for s in read_any(folder).sensors] == ["Chest"]
+    assert detect_format(folder / "Inertial.csv") == "ximu3"
+    assert [s.label for s in read_any(folder / "Inertial.csv").sensors] == ["Chest"]
+
+
+def test_ingest_and_cli_take_the_folder_and_hash_the_files_read(tmp_path):
+    imu = xe.write(tmp_path, xe.export_files())
+    session = ingest([imu])
+    assert sorted(session.sensors) == ["Back", "Chest"]
+    hashed = session.provenance[-1]["inputs"]
+    assert any(k.endswith("Inertial.csv") for k in hashed) and len(hashed) == 8
+    out = tmp_path / "s.h5"
+    res = CliRunner().invoke(main, ["ingest", str(imu), "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    assert out.is_file()
+
+
+def _refusal(tmp_path, files, *where):
+    imu = xe.write(tmp_path, files)
+    res = CliRunner().invoke(main, ["ingest", str(imu), "-o", str(tmp_path / "o.h5")])
+    assert res.exit_code == 2, res.output
+    line = res.stderr.strip()
+    assert len(line.splitlines()) == 1 and line.startswith("error: ")
+    for w in where:
+        assert w in line
+    assert not (tmp_path / "o.h5").exists()
+    return line
+
+
+def test_a_device_folder_without_inertial_csv_is_refused(tmp_path):
+    files = xe.export_files()
+    del files["imu/Back B4A2-5410-EC7B-D68C (UDP)/Inertial.csv"]
+    _refusal(tmp_path, files, "Inertial.csv", "no Inertial.csv", "export the device again")
+
+
+def test_a_truncated_magnetometer_csv_is_refused(tmp_path):
+    files = xe.export_files()
+    key = "imu/Chest 37CE-5410-EC7B-D8A2 (UDP)/Magnetometer.csv"
+    files[key] = files[key][: len(files[key]) // 2]
+    line = _refusal(tmp_path, files, "Magnetometer.csv", "truncated?")
+    assert "move Magnetometer.csv out of the folder" in line
+
+
+def test_two_devices_of_one_name_are_refused_unless_the_map_relabels_one(tmp_path):
+    devices = (("Back", "B4A2-5410-EC7B-D68C"), ("Back", "37CE-5410-EC7B-D8A2"))
+    line = _refusal(tmp_path, xe.export_files(devices), "sensor label 'Back'", "sensor map")
+    assert "37CE-5410-EC7B-D8A2" in line  # the second device's folder is named
+    (tmp_path / "map.yaml").write_text("sensors:\n  37CE-5410-EC7B-D8A2: {label: Back2}\n")
+    session = ingest([tmp_path / "imu"], tmp_path / "map.yaml")
+    assert sorted(session.sensors) == ["Back", "Back2"]
+
+
+def test_a_folder_that_is_no_export_is_still_refused(tmp_path):
+    (tmp_path / "x").mkdir()
+    with pytest.raises(InputError, match="is a folder"):
+        read_any(tmp_path / "x")
+
+
+@needs_shared
+def test_real_trunk_export_reads_every_device_with_the_vendor_vertical_agreeing():
+    imu = TRUNK / "Aag" / "trunkmovement_ls" / "imu"
+    if not imu.is_dir():
+        pytest.skip("trunk data set not present")
+    rec = read_any(imu)
+    assert [s.label for s in rec.sensors] == ["Back", "Chair", "Chest", "L_arm", "R_Arm", "x-IMU3"]
+    for s in rec.sensors:
+        assert s.attrs["quat_rate_hz"] == pytest.approx(100, rel=0.05)
+        assert s.attrs["mag_rate_hz"] == pytest.approx(20, rel=0.05)
+        up = rot.rotate(s.quat, s.acc)
+        up /= np.linalg.norm(up, axis=1)[:, None]
+        assert np.median(up[:, 2]) > 0.98  # the vendor's earth z is up, as ENU's
