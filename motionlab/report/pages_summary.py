@@ -43,8 +43,9 @@ def summary_page(doc: Document, view: SessionView) -> None:
     doc.bullets(findings(view))
     doc.paragraph(
         "Ranges are the typical lowest and highest angle of the repetitions (means of the "
-        "per-cycle extremes), in degrees; a range counts as outside normal when it misses the "
-        "protocol's normal range by more than 5°. Normal ranges are approximate, for orientation, "
+        "per-cycle extremes), in degrees; a range counts as outside normal when it leaves the "
+        "protocol's normal range by more than 5°, or a flexion peak falls 10° short of its top. "
+        "Normal ranges are approximate, for orientation, "
         "not diagnostic limits. Only numbers the recording determined are findings.",
         size=SIZE["small"],
         colour=MUTED,
