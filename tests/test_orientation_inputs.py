@@ -114,7 +114,10 @@ def test_xsens_dot_pair_gives_knee_angles(tmp_path):
     assert cal.grades["knee_r"]["grades"][0] == "weak"
     flex = ses.results.angles.columns()[FLEX]
     assert np.all(np.isfinite(flex))
-    assert -5.0 < np.min(flex) < 5.0 and 25.0 < np.max(flex) < 45.0  # measured 1-35°
+    # measured 0-65.5°: the DOTs' own orientations turn the shank 65.7° away from the stand at
+    # most, a figure no axis choice moves (Seel's axis gave 1-35° before the walk's principal
+    # axes, segments/gait_axes.py)
+    assert -5.0 < np.min(flex) < 5.0 and 55.0 < np.max(flex) < 70.0
 
 
 @pytest.fixture(scope="module")
