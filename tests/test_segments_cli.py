@@ -75,7 +75,8 @@ def test_a_contradicted_hint_warns_once_per_segment_and_calibrates(tmp_path):
     warnings = [x for x in res.output.splitlines() if x.startswith("warning:")]
     assert warnings and len(warnings) == len({w.split(":")[1] for w in warnings})
     assert all("points up in the standing pose" in w and "using the data" in w for w in warnings)
-    assert "knee_r       angles: determined, determined, determined" in res.output
+    # flexion from the walk's principal axes; the other planes carry up to sin 5° of it
+    assert "knee_r       angles: determined, not determined, not determined" in res.output
     # run shows the same warnings while it reports its progress (the stage path it shares)
     res = CliRunner().invoke(
         main, ["run", str(path), "--protocol", "walk", "-o", str(tmp_path / "out")]
