@@ -71,7 +71,7 @@ def test_walk_determines_both_knees_flexion_and_not_their_other_planes(walk):
 def test_the_principal_axis_is_perpendicular_to_the_long_axis_and_agrees_with_its_parts(walk):
     proto, session, _ = walk
     cal = session.results.calibration
-    t, g1, g2, q1, q2, speed = movement._shared_movement(
+    t, g1, g2, q1, q2, speed = movement.shared_movement(
         "knee_r", _side(session, "thigh_r"), _side(session, "shank_r")
     )
     stand = cal.steps["standing"]

@@ -82,7 +82,6 @@ class PrincipalAxes:
     relative_residual: float
     residual_rad_s: float
     n_samples: int
-    turning_s: float
 
 
 def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:
@@ -187,7 +186,6 @@ def principal_axes(
             worst = max(worst, _angle_deg(principal_axis(g1[part], longs[0])[0], a1),
                         _angle_deg(principal_axis(g2[part], longs[1])[0], a2))  # fmt: skip
     w1, w2, rms, relative = constrained_hinge(g1[use], g2[use], a1, a2, *longs)
-    dt = np.gradient(t)
     return PrincipalAxes(
         axis_proximal=a1,
         axis_distal=a2,
@@ -201,7 +199,6 @@ def principal_axes(
         relative_residual=relative,
         residual_rad_s=rms,
         n_samples=int(use.sum()),
-        turning_s=float(np.sum(dt[turns & moving])),
     )
 
 
@@ -221,7 +218,7 @@ def fit_knee(
     axes are signed by :func:`.movement.signed_axes` (flexion from anatomy: the knee is straight
     in the stand and flexes one way).
     """
-    t, g1, g2, q1, q2, speed = movement._shared_movement(joint, proximal, distal)
+    t, g1, g2, q1, q2, speed = movement.shared_movement(joint, proximal, distal)
     ref = (t >= reference[0]) & (t <= reference[1])
     on = speed >= 0.1 * np.percentile(speed, 95)
     if ref.sum() < 5:

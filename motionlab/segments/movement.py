@@ -277,7 +277,7 @@ def _verdict(
     return "determined"
 
 
-def _shared_movement(
+def shared_movement(
     joint: str,
     proximal: tuple[np.ndarray, np.ndarray, np.ndarray],
     distal: tuple[np.ndarray, np.ndarray, np.ndarray],
@@ -325,7 +325,7 @@ def fit_hinge(
     ``reference`` is a still window (s) in the joint's zero pose (for the anatomical sign). A
     knee with a stand and a walk takes its axes from :func:`.gait_axes.fit_knee` instead.
     """
-    t, g1, g2, q1, q2, active = _shared_movement(joint, proximal, distal)
+    t, g1, g2, q1, q2, active = shared_movement(joint, proximal, distal)
     j_p, j_d, _ = hinge_axes(g1, g2, prior_p, prior_d, loss="soft_l1", f_scale=ROBUST_SCALE_RAD_S)
     reasons: list[str] = []
     # consistency over consecutive parts of the movement
@@ -504,7 +504,7 @@ def fit_two_dof(
     the residual relative to the relative angular rate and the consistency of ``N_PARTS`` part
     fits, as for :func:`fit_hinge`.
     """
-    t, g1, g2, q1, q2, speed = _shared_movement(joint, proximal, distal)
+    t, g1, g2, q1, q2, speed = shared_movement(joint, proximal, distal)
     w1, w2 = rot.rotate(q1, g1), rot.rotate(q2, g2)
     active = np.linalg.norm(w1 - w2, axis=1)  # heading offsets do not matter for a threshold
     keep = np.flatnonzero(speed >= 0.1 * np.percentile(speed, 95))
