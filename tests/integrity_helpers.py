@@ -96,7 +96,9 @@ def kill_at(pid: int, delay: float, folder: Path | None = None, after_tmp: bool 
     if after_tmp and folder is not None:
         deadline = time.monotonic() + 60.0
         while time.monotonic() < deadline and not any(folder.glob(".*.tmp")):
-            if os.waitpid(pid, os.WNOHANG)[0]:
+            # ended already (a write too quick to be seen): look without reaping it, so that
+            # wait() still gets its exit status
+            if os.waitid(os.P_PID, pid, os.WEXITED | os.WNOHANG | os.WNOWAIT) is not None:
                 return
             time.sleep(0.001)
     time.sleep(delay)
