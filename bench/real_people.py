@@ -125,49 +125,37 @@ def _fmt(x: np.ndarray) -> str:
     return f"{q2:.0f} ({q1:.0f}–{q3:.0f}), n={len(x)}"
 
 
+def _plausibility(ranges: np.ndarray) -> str:
+    """Whether a walking knee's per-stride flexion ranges (deg) are plausible (median within
+    ``WALK_RANGE_DEG``), with the share of strides inside."""
+    lo, hi = WALK_RANGE_DEG
+    inside = np.mean((ranges >= lo) & (ranges <= hi))
+    word = "plausible" if lo <= np.median(ranges) <= hi else "implausible"
+    return f"{word} ({100 * inside:.0f}% of strides in {lo:.0f}–{hi:.0f}°)"
+
+
 def report(name: str, protocol: str, session: Session, vendor: dict) -> list[str]:
     """Table rows of one analysed recording."""
     cal = session.results.calibration
-    prot = load_protocol(protocol)
-    rows, flex = [], {}
-    for jname, joint in prot.joints.items():
-        if jname not in cal.grades:
-            continue
-        grades = cal.grades[jname]["grades"]
-        fit = cal.hinges.get(jname, {})
-        first = angle_columns(joint)[0][1]
-        side = joint.side or ""
-        rng = stride_ranges(session, first, side) if side else np.array([])
-        flex[jname] = rng
-        verdict = ""
-        if len(rng) and joint.type == "knee":
-            inside = np.mean((rng >= WALK_RANGE_DEG[0]) & (rng <= WALK_RANGE_DEG[1]))
-            verdict = (
-                "plausible"
-                if np.median(rng) <= WALK_RANGE_DEG[1] and np.median(rng) >= WALK_RANGE_DEG[0]
-                else "implausible"
-            )
-            verdict += (
-                f" ({100 * inside:.0f}% of strides in {WALK_RANGE_DEG[0]:.0f}–"
-                f"{WALK_RANGE_DEG[1]:.0f}°)"
-            )
-        peer = vendor_ranges(session, vendor, joint, side) if side else np.array([])
+    joints = {k: j for k, j in load_protocol(protocol).joints.items() if k in cal.grades}
+    flex = {
+        k: stride_ranges(session, angle_columns(j)[0][1], j.side) if j.side else np.array([])
+        for k, j in joints.items()
+    }
+    rows = []
+    for jname, joint in joints.items():
+        rng, fit = flex[jname], cal.hinges.get(jname, {})
+        other = flex.get(jname[:-1] + ("l" if jname.endswith("r") else "r"), np.array([]))
+        diff = f"{abs(np.median(rng) - np.median(other)):.0f}°" if len(rng) and len(other) else "–"
+        verdict = _plausibility(rng) if len(rng) and joint.type == "knee" else ""
+        peer = vendor_ranges(session, vendor, joint, joint.side) if joint.side else np.array([])
         rows.append(
-            f"| {name} | {protocol} | {jname} | {' / '.join(grades)} | {_fmt(rng)} | "
-            f"{_fmt(peer)} | {{lr_{jname}}} | {_num(fit.get('witness_deg'))} | "
+            f"| {name} | {protocol} | {jname} | {' / '.join(cal.grades[jname]['grades'])} | "
+            f"{_fmt(rng)} | {_fmt(peer)} | {diff} | {_num(fit.get('witness_deg'))} | "
             f"{_num(fit.get('relative_residual'), 2)} | {_num(fit.get('consistency_deg'))} | "
             f"{verdict} |"
         )
-    out = []
-    for row in rows:
-        for jname in flex:
-            other = jname[:-1] + ("l" if jname.endswith("r") else "r")
-            diff = "–"
-            if len(flex.get(jname, [])) and len(flex.get(other, [])):
-                diff = f"{abs(np.median(flex[jname]) - np.median(flex[other])):.0f}°"
-            row = row.replace(f"{{lr_{jname}}}", diff)
-        out.append(row)
-    return out
+    return rows
 
 
 def _num(x, digits: int = 1) -> str:

@@ -31,6 +31,7 @@ import argparse
 from pathlib import Path
 
 import numpy as np
+from real_world import seeds_arg
 from scipy.signal import butter, find_peaks, sosfiltfilt
 
 from motionlab import rotations as rot
@@ -164,13 +165,6 @@ def print_table(rows: list[tuple[str, dict]]) -> None:
             rng += f" (truth {n['true_range_deg']:.0f})"
         print(f"| {name} | {n['residual']:.2f} | {n['consistency_deg']:.1f} | {rng} | "
               f"{n['thigh_rms_deg_s']:.0f} | {n['shank_rms_deg_s']:.0f} |")  # fmt: skip
-
-
-def seeds_arg(text: str) -> list[int]:
-    if "-" in text:
-        a, b = text.split("-")
-        return list(range(int(a), int(b) + 1))
-    return [int(s) for s in text.split(",")]
 
 
 def main() -> None:

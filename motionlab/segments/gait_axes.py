@@ -39,12 +39,12 @@ from scipy.signal import butter, sosfiltfilt
 
 from motionlab import rotations as rot
 from motionlab.segments import movement
+from motionlab.segments.walk_forward import LOWPASS_HZ as TURN_LOWPASS_HZ
+from motionlab.segments.walk_forward import TURN_RAD_S
 from motionlab.session import estimate_rate
 
 N_PARTS = 4
 MIN_SAMPLES = 100
-TURN_LOWPASS_HZ = 0.5
-TURN_RAD_S = 0.3  # low-passed rate about the vertical above which the walker turns
 ROBUST_SCALE_RAD_S = 0.1
 LOWPASS_HZ = 3.0  # gait's segment rotations lie below it; soft-tissue wobble and impacts above
 # verdicts: (determined up to, weak up to), each measured on real walks (module notes)
@@ -108,7 +108,8 @@ def principal_axis(gyr: np.ndarray, long_axis: np.ndarray) -> tuple[np.ndarray, 
 def turning(t: np.ndarray, q: np.ndarray, gyr: np.ndarray) -> np.ndarray:
     """Samples (bool) where the segment with orientation ``q`` (sensor → earth, Z up) and rates
     ``gyr`` rad/s turns about the vertical: low-passed at ``TURN_LOWPASS_HZ`` (below the stride
-    frequency, so the pelvis's swing in each stride averages out), above ``TURN_RAD_S``."""
+    frequency, so the pelvis's swing in each stride averages out), above ``TURN_RAD_S`` (both
+    the turn definition of :mod:`.walk_forward`)."""
     yaw = rot.rotate(q, gyr)[:, 2]
     ok = np.isfinite(yaw)
     yaw = np.where(ok, yaw, 0.0)
