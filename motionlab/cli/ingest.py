@@ -65,6 +65,7 @@ def command(files, map_path, rate, gap_max, output, force) -> None:  # fmt: skip
     \b
     Example:
       motionlab ingest shank.txt thigh.txt --map map.yaml -o session.h5
+      motionlab ingest trial/imu --map map.yaml -o session.h5   # x-IMU3 export folders
     """
     check_output(output, force, inputs=[*files, map_path])
     args = ["motionlab", "ingest", *files, "-o", output]

@@ -108,6 +108,8 @@ def command(
       motionlab run --protocol knee sim.h5 --filter madgwick -o results/sim_madgwick
       motionlab run --protocol walk --map map.yaml trial.sto --orientation vendor -o results/sto
       motionlab run --protocol knee sim.h5 -o results/sim --json sim_results.json
+      motionlab run --protocol lumbar_seated --map protocols/examples/trunk_map.yaml \\
+          trial/imu -o results/trunk
     """
     if json_path is not None:
         check_output(json_path, force, inputs=list(files))
