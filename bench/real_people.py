@@ -6,10 +6,12 @@ would check: the grade of every angle; for a hinge-like joint, the per-cycle ran
 angle (a walking knee flexes about 55-70° per stride, Perry & Burnfield 2010; ``implausible``
 outside 45-80°) and the left/right difference; the angle between the independent estimates of
 the joint's axis (the principal rotation axes and the constrained hinge fit, ``witness``); the
-hinge fit's relative residual; and, where the recording carries the vendor's own 9-D
+hinge fit's relative residual; where the recording carries the vendor's own 9-D
 orientations, the per-cycle range of the joint's rotation away from the stand from them (a
-figure no axis choice can move: flexion cannot be much larger). A protocol that refuses a
-recording prints its one line instead.
+figure no axis choice can move); and, for a hinge joint, the per-stride range of the
+gyroscopes' relative rate about the calibrated axes integrated over the stride (no fusion
+involved: a fused flexion range far from it points at the fusion, not the knee). A protocol
+that refuses a recording prints its one line instead.
 
 Recordings (README of ``../shared``, section ``datasets/human``):
 
@@ -118,6 +120,27 @@ def vendor_ranges(session: Session, vendor: dict, joint, side: str) -> np.ndarra
     return np.array([np.ptp(angle[(t >= a) & (t <= b)]) for a, b in pairs])
 
 
+def gyro_ranges(session: Session, jname: str, joint, side: str) -> np.ndarray:
+    """Per-stride range (deg) of the hinge angle integrated from the gyroscopes alone: the
+    distal rate about the distal axis less the proximal rate about the proximal axis (the
+    calibrated axes), integrated over each stride with the drift removed linearly (the joint
+    is back where it was at the next initial contact)."""
+    gait, fit = session.results.gait, session.results.calibration.hinges.get(jname, {})
+    if gait is None or not gait.ok or "axis_distal" not in fit:
+        return np.array([])
+    prox, dist = session.sensors[joint.proximal], session.sensors[joint.distal]
+    t = prox.time
+    rate = np.interp(t, dist.time, dist.gyr @ fit["axis_distal"]) - prox.gyr @ fit["axis_proximal"]
+    ic = np.asarray(gait.events[side]["ic"], float)
+    out = []
+    for a, b in zip(ic[:-1], ic[1:], strict=True):
+        sel = (t >= a) & (t <= b)
+        if 0.6 <= b - a <= 1.8 and sel.sum() > 10:
+            angle = np.degrees(np.cumsum(rate[sel] * np.gradient(t[sel])))
+            out.append(np.ptp(angle - np.linspace(0.0, angle[-1], len(angle))))
+    return np.array(out)
+
+
 def _fmt(x: np.ndarray) -> str:
     if not len(x):
         return "–"
@@ -149,9 +172,11 @@ def report(name: str, protocol: str, session: Session, vendor: dict) -> list[str
         diff = f"{abs(np.median(rng) - np.median(other)):.0f}°" if len(rng) and len(other) else "–"
         verdict = _plausibility(rng) if len(rng) and joint.type == "knee" else ""
         peer = vendor_ranges(session, vendor, joint, joint.side) if joint.side else np.array([])
+        gyro = gyro_ranges(session, jname, joint, joint.side) if joint.side else np.array([])
         rows.append(
             f"| {name} | {protocol} | {jname} | {' / '.join(cal.grades[jname]['grades'])} | "
-            f"{_fmt(rng)} | {_fmt(peer)} | {diff} | {_num(fit.get('witness_deg'))} | "
+            f"{_fmt(rng)} | {_fmt(gyro)} | {_fmt(peer)} | {diff} | "
+            f"{_num(fit.get('witness_deg'))} | "
             f"{_num(fit.get('relative_residual'), 2)} | {_num(fit.get('consistency_deg'))} | "
             f"{verdict} |"
         )
@@ -176,10 +201,11 @@ def main() -> None:
     jobs += [(k, "walk" if "knee" in k else "arm") for k in DOT]
     print(
         "| recording | protocol | joint | grades (3 planes) | first angle per cycle, median "
-        "(IQR) | vendor 9-D rotation from stand per cycle | L−R | witness ° | hinge residual "
+        "(IQR) | gyroscopes alone per cycle | vendor 9-D rotation from stand per cycle | L−R "
+        "| witness ° | hinge residual "
         "| part consistency ° | plausibility |"
     )
-    print("|---|---|---|---|---|---|---|---:|---:|---:|---|")
+    print("|---|---|---|---|---|---|---|---|---:|---:|---:|---|")
     for name, protocol in jobs:
         if only and name not in only:
             continue
@@ -193,7 +219,7 @@ def main() -> None:
                 warnings.simplefilter("ignore")
                 analyse(session, PipelineOptions(protocol=protocol, progress=False))
         except InputError as exc:
-            print(f"| {name} | {protocol} | – | refused: {exc} | | | | | | | |")
+            print(f"| {name} | {protocol} | – | refused: {exc} | | | | | | | | |")
             continue
         for row in report(name, protocol, session, vendor):
             print(row)
