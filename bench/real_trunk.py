@@ -74,6 +74,7 @@ CLOCK_SEARCH_S = 3.0
 Y_UP_TO_Z_UP = np.array([np.sqrt(0.5), np.sqrt(0.5), 0.0, 0.0])
 VARIANTS = {
     "motionlab 6-D": {},
+    "motionlab 9-D": {"magnetometer": True},
     "x-IMU3 own fusion (9-D)": {"orientation": "vendor"},
     "VQF offline 9-D": {"estimator": "vqf_offline", "magnetometer": True},
 }
