@@ -252,7 +252,16 @@ def fit_knee(
         method="principal",
         witness_deg=axes.witness_deg,
         dominance=axes.dominance,
+        proximal_tilt_deg=tilt_deg(q1, axes.long_proximal),
     )
+
+
+def tilt_deg(q: np.ndarray, long_axis: np.ndarray) -> float:
+    """How far (deg, 99th percentile over the samples) a segment's long axis (sensor
+    coordinates, vertical in the stand) tilts from the vertical, with 6-D orientations ``q``
+    (N, 4) sensor → earth."""
+    up = rot.rotate(q, long_axis)
+    return float(np.percentile(np.degrees(np.arccos(np.clip(up[:, 2], -1.0, 1.0))), 99))
 
 
 def _verdict(axes: PrincipalAxes, extension_deg: float, reasons: list[str], hinted: bool) -> str:

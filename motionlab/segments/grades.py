@@ -24,6 +24,15 @@ determined, up to ``CROSSTALK_DEG[1]`` weak, beyond it not determined. On real w
 1.5-10° apart, flexion 75-100° over the recording) that is 6.5-17°: a walk alone does not
 determine a real knee's ab/adduction and rotation.
 
+A hip whose pelvis took its forward direction from the walk (:mod:`.walk_forward`: the turns,
+about 5-20° off, or the first steps, about 5-10°) has its frame turned about the vertical by up
+to ``HEADING_BOUND_DEG``. Flexion is about an axis in the horizontal plane: a frame turned by
+``e`` about the vertical reads a flexion ``θ`` as ``θ cos(e)`` to first order, an error of at
+most ``θ (1 - cos e)`` (ZXY decomposition, checked numerically: 45° at 20° reads 43.2°), while
+``θ sin(e)`` goes into ab/adduction and rotation. So hip flexion is graded by
+``θ (1 - cos e)`` with ``θ`` how far the thigh tilted from the stand (its knee fit's
+``proximal_tilt_deg``), against ``CROSSTALK_DEG``; ab/adduction and rotation stay ``weak``.
+
 The reason is kept in plain words with each grade. The grades depend on the calibration only:
 the angle table and the report carry them next to every number, and findings are not stated for
 an angle that is not determined.
@@ -42,6 +51,8 @@ GRADES = ("determined", "weak", "not determined")
 FULL_FRAME = ("procrustes", "primary_secondary")
 CROSSTALK_DEG = (3.0, 6.0)  # determined up to, weak up to (deg of flexion in the other planes)
 AXIS_FLOOR_DEG = 5.0  # a walk-calibrated knee axis is never known better than this
+#: how far (deg) a pelvis forward direction from the walk may be off, by method (walk_forward)
+HEADING_BOUND_DEG = {"turns": 20.0, "walk start": 10.0}
 
 
 def _worse(a: str, b: str) -> str:
@@ -57,7 +68,7 @@ def _frame_grade(segment: str, cal: dict[str, Any] | None) -> tuple[str, str]:
         return "not determined", f"no axis of {segment} was measured (nominal placement only)"
     if method not in FULL_FRAME:
         return "weak", f"{segment}'s frame has one measured axis, the rest is the nominal placement"
-    methods = {r.get("method") for r in cal.get("axes", {}).values() if r.get("used", True)}
+    methods = _methods(cal)
     if "turns" in methods:
         return "weak", f"{segment}'s forward direction is from the walk's turns (about 5-20° off)"
     if "walk start" in methods:
@@ -67,6 +78,48 @@ def _frame_grade(segment: str, cal: dict[str, Any] | None) -> tuple[str, str]:
     if not cal.get("quality", {}).get("ok", True):
         return "weak", f"the calibration of {segment} was flagged"
     return "determined", ""
+
+
+def _methods(cal: dict[str, Any]) -> set[str]:
+    return {r.get("method") for r in cal.get("axes", {}).values() if r.get("used", True)}
+
+
+def _heading_only(segment: str, cal: dict[str, Any] | None) -> float | None:
+    """How far (deg) the segment's frame may be turned about the vertical when that is all that
+    keeps it from ``determined`` (its forward direction from the walk), else ``None``."""
+    if cal is None or cal.get("method") not in FULL_FRAME:
+        return None
+    if not cal.get("quality", {}).get("ok", True):
+        return None
+    bounds = [HEADING_BOUND_DEG[m] for m in _methods(cal) if m in HEADING_BOUND_DEG]
+    return max(bounds) if bounds else None
+
+
+def _flexion_under_heading(joint, protocol, calibration: SegmentCalibration) -> tuple[str, str]:
+    """Grade of a hip's flexion (first angle of ZXY) when the only doubt is its pelvis's heading
+    (see the module notes); ``("", "")`` where that does not apply."""
+    segs = calibration.segments
+    bound = _heading_only(joint.proximal, segs.get(joint.proximal))
+    if bound is None or joint.sequence != "ZXY":
+        return "", ""
+    if _frame_grade(joint.distal, segs.get(joint.distal))[0] != "determined":
+        return "", ""
+    tilts = [
+        float(fit.get("proximal_tilt_deg", float("nan")))
+        for name, fit in calibration.hinges.items()
+        if name in protocol.joints
+        and protocol.joints[name].proximal == joint.distal
+        and fit.get("verdict") == "determined"
+    ]
+    if not tilts or not np.isfinite(tilts[0]):
+        return "", ""
+    error = tilts[0] * (1.0 - np.cos(np.radians(bound)))
+    if error <= CROSSTALK_DEG[0]:
+        return "determined", ""
+    return "weak", (
+        f"{joint.proximal}'s forward direction from the walk may be {bound:.0f}° off, which "
+        f"can move flexion by {error:.0f}° where {joint.distal} tilts {tilts[0]:.0f}°"
+    )
 
 
 def _axis_grade(joint, calibration: SegmentCalibration) -> tuple[str, str]:
@@ -158,5 +211,8 @@ def grade_joints(protocol, calibration: SegmentCalibration) -> dict[str, dict[st
             reasons = [r_axis, r_frame, r_frame]
         else:
             grades, reasons = [g_frame] * 3, [r_frame] * 3
+            g_flex, r_flex = _flexion_under_heading(joint, protocol, calibration)
+            if g_flex and g_frame == "weak":
+                grades[0], reasons[0] = g_flex, r_flex
         out[name] = {"grades": grades, "reasons": reasons}
     return out

@@ -89,6 +89,10 @@ class HingeFit:
     witness_deg: float = float("nan")
     #: (``principal``) second over first singular value of the segments' rates (the larger)
     dominance: float = float("nan")
+    #: (``principal``) how far the proximal segment's long axis tilts from its direction in the
+    #: stand over the fit's window (deg, 99th percentile): how far a thigh swings, which bounds
+    #: the flexion of the hip above it (:mod:`.grades`)
+    proximal_tilt_deg: float = float("nan")
 
     def to_tree(self) -> dict:
         """The HDF5 results layout (plain numbers, lists and strings)."""
@@ -97,6 +101,7 @@ class HingeFit:
             "method": self.method,
             "witness_deg": self.witness_deg,
             "dominance": self.dominance,
+            "proximal_tilt_deg": self.proximal_tilt_deg,
             "joint": self.joint,
             "axis_proximal": np.asarray(self.axis_proximal, float),
             "axis_distal": np.asarray(self.axis_distal, float),

@@ -1,0 +1,73 @@
+"""A hip whose pelvis took its forward direction from the walk: flexion is graded by what that
+heading's doubt can do to it, ``θ (1 - cos e)``, ab/adduction and rotation stay ``weak``
+(:func:`motionlab.segments.grades.grade_joints`)."""
+
+import numpy as np
+import pytest
+
+from motionlab import rotations as rot
+from motionlab.kinematics.joint_angles import decompose
+from motionlab.protocol import load_protocol
+from motionlab.results import SegmentCalibration
+from motionlab.segments.grades import HEADING_BOUND_DEG, grade_joints
+
+MEASURED = {"kind": "movement", "method": "hinge", "used": True}
+GRAVITY = {"kind": "static", "method": "gravity", "used": True}
+
+
+def _calibration(forward: str, tilt_deg: float, knee: str = "determined") -> SegmentCalibration:
+    """pelvis: gravity and a forward direction by ``forward``; thigh_r and shank_r measured
+    whole; knee_r fitted from the walk with the thigh tilting ``tilt_deg``."""
+    turns = {"kind": "movement", "method": forward, "used": True}
+    segs = {
+        "pelvis": {"method": "primary_secondary", "axes": {"s": GRAVITY, "t": turns}},
+        "thigh_r": {"method": "primary_secondary", "axes": {"s": GRAVITY, "k": MEASURED}},
+        "shank_r": {"method": "primary_secondary", "axes": {"s": GRAVITY, "k": MEASURED}},
+    }
+    fit = {"verdict": knee, "used_for": "axes", "reasons": [], "method": "principal",
+           "witness_deg": 2.0, "excursion_deg": [60.0, 0.0],
+           "proximal_tilt_deg": tilt_deg}  # fmt: skip
+    return SegmentCalibration("walk", segments=segs, hinges={"knee_r": fit})
+
+
+def _hip(cal: SegmentCalibration) -> dict:
+    protocol = load_protocol("walk")
+    protocol.joints = {k: protocol.joints[k] for k in ("hip_r", "knee_r")}
+    return grade_joints(protocol, cal)["hip_r"]
+
+
+def test_a_walk_hip_flexion_is_determined_when_the_heading_doubt_moves_it_little():
+    # 40° of thigh tilt, turns up to 20° off: at most 40 (1 - cos 20°) = 2.4° of flexion
+    g = _hip(_calibration("turns", 40.0))
+    assert g["grades"] == ["determined", "weak", "weak"]
+    assert "turns" in g["reasons"][1]
+
+
+def test_a_hip_that_sits_down_keeps_its_flexion_weak_and_says_why():
+    # sitting tilts the thigh 82°: 82 (1 - cos 20°) = 4.9°, more than 3°
+    g = _hip(_calibration("turns", 82.0))
+    assert g["grades"] == ["weak", "weak", "weak"]
+    assert "20° off" in g["reasons"][0] and "5°" in g["reasons"][0]
+
+
+def test_the_first_steps_are_trusted_further_than_the_turns():
+    # walk start: up to 10° off; 82 (1 - cos 10°) = 1.2°
+    assert _hip(_calibration("walk start", 82.0))["grades"][0] == "determined"
+
+
+def test_no_determined_knee_fit_no_bound():
+    assert _hip(_calibration("turns", 40.0, knee="weak"))["grades"][0] == "weak"
+
+
+@pytest.mark.parametrize("heading_deg", sorted(HEADING_BOUND_DEG.values()))
+@pytest.mark.parametrize("flexion_deg", [20.0, 45.0, 60.0])
+def test_a_frame_turned_about_the_vertical_moves_zxy_flexion_by_at_most_the_bound(
+    heading_deg, flexion_deg
+):
+    """Flexion about a horizontal axis ``e`` from the pelvis frame's z, read as the hip's ZXY
+    (x anterior, y up, z right): its flexion is off by no more than ``θ (1 - cos e)``."""
+    e, theta = np.radians(heading_deg), np.radians(flexion_deg)
+    q = rot.from_rotvec(theta * np.array([np.sin(e), 0.0, np.cos(e)]))
+    z = abs(np.degrees(decompose(rot.IDENTITY, q, "hip", "r")[0, 0]))
+    assert abs(z - flexion_deg) <= flexion_deg * (1.0 - np.cos(e)) + 1e-9
+    assert abs(z - flexion_deg) > 0.2 * flexion_deg * (1.0 - np.cos(e))  # the bound is not loose
