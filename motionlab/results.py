@@ -215,7 +215,9 @@ class SegmentCalibration(_Record):
     ``protocol``: its name; ``protocol_path``: the file it was read from. ``steps``
     ``{step: [start_s, end_s] | None}`` found in the recording. ``segments`` ``{segment:
     record}``: ``mounting`` (4,) sensor → segment quaternion, ``method``, ``sensor``, ``axes``,
-    ``quality`` (``ok``, ``messages``) and the fit's details. ``hinges`` ``{joint: record}``:
+    ``quality`` (``ok``, ``messages``), ``hint_contradicted`` (the data put a measured axis more
+    than 60° from the placement hint: what was not measured is unknown) and the fit's details.
+    ``hinges`` ``{joint: record}``:
     axes from ordinary movement (``verdict``, ``used_for``, ``reasons``, headings).
     ``centres`` ``{joint: record}``: headings from a ball joint's shared centre. ``warnings``:
     lines the user should read; ``ok``: every segment's quality passed. ``grades`` ``{joint:

@@ -134,6 +134,7 @@ def calibrate_segments(
     streams = streams_of(session, protocol)
     pose = single_pose.pose_step(session, protocol, streams)
     hinges: dict[str, Any] = {}
+    contradicted: set[str] = set()
     unsure: dict[str, list[str]] = {}
     centres: dict[str, dict[str, Any]] = {}
     if pose is not None:  # orientations too short for more (OpenSense-style)
@@ -150,6 +151,7 @@ def calibrate_segments(
     for seg in streams:
         res = mounting.fit(seg, protocol, records[seg])
         res["sensor"] = sensor_for_segment(session, seg)
+        res["hint_contradicted"] = seg in contradicted
         segments[seg] = res
     for seg, names in unsure.items():
         q = segments[seg]["quality"]

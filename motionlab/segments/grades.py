@@ -11,7 +11,9 @@ Each angle of each joint is graded from what its two segments' calibrations actu
   message;
 - ``weak``: one measured axis and the nominal placement (the protocol's ``sensor_axes`` hint)
   for the rest, a ``weak`` hinge fit, or a calibration the quality checks flagged;
-- ``not determined``: a segment with no measured axis at all, or a failed or inconsistent fit.
+- ``not determined``: a segment with no measured axis at all, one with a single measured axis
+  whose placement hint the data contradict (the hint would give the rest of its frame), or a
+  failed or inconsistent fit.
 
 A knee calibrated from a walk (:mod:`.gait_axes`) knows its flexion axis only to within the angle
 between its two estimates (the principal axes and the constrained hinge fit), and never better
@@ -66,6 +68,11 @@ def _frame_grade(segment: str, cal: dict[str, Any] | None) -> tuple[str, str]:
     method = cal.get("method", "")
     if method == "nominal":
         return "not determined", f"no axis of {segment} was measured (nominal placement only)"
+    if method not in FULL_FRAME and cal.get("hint_contradicted", False):
+        return "not determined", (
+            f"{segment}'s frame has one measured axis, and the data contradict its placement "
+            "hint, which would give the rest"
+        )
     if method not in FULL_FRAME:
         return "weak", f"{segment}'s frame has one measured axis, the rest is the nominal placement"
     methods = _methods(cal)
