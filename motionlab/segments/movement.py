@@ -55,6 +55,7 @@ WEAK_RESIDUAL = 0.6
 SIGN_MARGIN = 0.3  # relative-sign test: (bad - good) / (bad + good)
 FLEXION_MIN_DEG = 15.0  # anatomical sign: the larger excursion at least this
 FLEXION_RATIO = 2.0  # ... and this many times the other
+NOMINAL_DISTAL = "the movement did not tell which way the axis points on the distal segment"
 
 
 @dataclass
@@ -72,7 +73,7 @@ class HingeFit:
     residual_rad_s: float
     relative_residual: float
     consistency_deg: float
-    relative_sign: str  # "measured" | "nominal"
+    relative_sign: str  # "measured" | "anatomy" (the one that flexes one way) | "nominal"
     sign: str  # "anatomy" | "nominal"
     excursion_deg: tuple[float, float] = (float("nan"), float("nan"))
     window_s: tuple[float, float] = (float("nan"), float("nan"))
@@ -232,8 +233,12 @@ def signed_axes(
     ``(j_p, j_d, relative-sign source, sign source, excursions deg)``. The relative sign from
     :func:`relative_sign` or :func:`swing_sign` (samples ``on``), else the priors (the nominal
     placement); the absolute sign from :func:`anatomical_sign` for a joint that flexes one way
-    (``anatomical``) with a ``reference`` window (s) in its zero pose, else the priors. What came
-    from the priors is said in ``reasons``."""
+    (``anatomical``) with a ``reference`` window (s) in its zero pose, else the priors. There,
+    of the two relative signs the one under which the joint flexes more nearly one way from its
+    straight pose is taken (relative-sign source ``anatomy`` where that overrules the rates):
+    axes of opposite relative sign turn the joint both ways (a 14-s simulated walk whose rates
+    gave the wrong sign: 47° and 48°, against 58° and 0°).
+    What came from the priors is said in ``reasons``."""
     s_rel, margin = relative_sign(q1[on], q2[on], j_p, j_d)
     s_swing, margin_swing = swing_sign(t, q1, q2, j_p, j_d)
     if margin_swing > margin:
@@ -244,13 +249,15 @@ def signed_axes(
     else:
         j_d = j_d if (j_p @ prior_p) * (j_d @ prior_d) >= 0 else -j_d
         rel_source = "nominal"
-        reasons.append(
-            "the movement did not tell which way the axis points on the distal segment, so it "
-            "is taken from the nominal placement"
-        )
+        reasons.append(NOMINAL_DISTAL + ", so it is taken from the nominal placement")
     sign, excursion = None, (float("nan"), float("nan"))
     if anatomical and reference is not None:
         sign, excursion = anatomical_sign(t, q1, q2, j_p, j_d, reference)
+        # a wrong relative sign turns the joint both ways from its straight pose
+        flipped, other = anatomical_sign(t, q1, q2, j_p, -j_d, reference)
+        if flipped is not None and (sign is None or other[1] < excursion[1]):
+            sign, excursion, j_d, rel_source = flipped, other, -j_d, "anatomy"
+            reasons[:] = [r for r in reasons if not r.startswith(NOMINAL_DISTAL)]
     if sign is not None:
         return sign * j_p, sign * j_d, rel_source, "anatomy", excursion
     s = 1.0 if j_p @ prior_p + j_d @ prior_d >= 0 else -1.0
