@@ -31,7 +31,7 @@ Needs no data files. Usage::
 
     python bench/real_world.py [--protocols walk,arm] [--seeds 0-9] [--preset skin]
                                [--workers 2] [--shared-clock | --true-clocks] [--per-seed]
-                               [--uncoupled-knee] [--old-simulator]
+                               [--uncoupled-knee] [--old-simulator] [--duration 28]
 """
 
 from __future__ import annotations
@@ -82,9 +82,9 @@ def simulator_options(preset: str, old: bool) -> dict:
     return {"preset": preset, "soft_tissue": tissue, "knee_model": "anatomical"}
 
 
-def run_one(job: tuple[str, int, str, bool, bool, bool, bool]) -> dict:
+def run_one(job: tuple[str, int, str, bool, bool, bool, bool, float | None]) -> dict:
     """RMSE and grade per angle column of one simulated session through the product path."""
-    name, seed, preset, shared, true_clocks, uncoupled, old = job
+    name, seed, preset, shared, true_clocks, uncoupled, old, duration = job
     if uncoupled:  # this worker's simulator only (the pool's processes are the bench's own)
         timeline.KNEE_ADDUCTION_COUPLING = timeline.KNEE_ROTATION_COUPLING = 0.0
         timeline.KNEE_SCREW_HOME = timeline.KNEE_ROTATION_SLOPE = 0.0
@@ -93,7 +93,8 @@ def run_one(job: tuple[str, int, str, bool, bool, bool, bool]) -> dict:
     if shared:
         options["preset"] = shared_clock(get_preset(options["preset"]))
     protocol = load_protocol(name)
-    session, truth = simulate(protocol, DURATION_S[name], seed, mounting="random", **options)
+    length = duration or DURATION_S[name]
+    session, truth = simulate(protocol, length, seed, mounting="random", **options)
     if true_clocks:
         put_on_true_clocks(session, truth)
     stamps = {label: s.time.copy() for label, s in session.sensors.items()}
@@ -171,6 +172,12 @@ def main() -> None:
         action="store_true",
         help="simulated knees without the adduction and rotation coupled to flexion",
     )
+    ap.add_argument(
+        "--duration",
+        type=float,
+        default=None,
+        help="recording length (s; default 74): 28 gives a 5-s stand and 14 s of walking",
+    )
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument(
         "--per-seed", action="store_true", help="also a table of every seed's RMSE per angle"
@@ -178,7 +185,7 @@ def main() -> None:
     args = ap.parse_args()
     flags = (args.uncoupled_knee, args.old_simulator)
     jobs = [
-        (p, s, args.preset, args.shared_clock, args.true_clocks, *flags)
+        (p, s, args.preset, args.shared_clock, args.true_clocks, *flags, args.duration)
         for p in args.protocols.split(",")
         for s in seeds_arg(args.seeds)
     ]
@@ -187,6 +194,7 @@ def main() -> None:
     clocks = "one shared clock" if args.shared_clock else "every IMU on its own clock"
     clocks += ", true sampling instants, no sync" if args.true_clocks else ""
     clocks += ", knees without flexion couplings" if args.uncoupled_knee else ""
+    clocks += f", {args.duration:g}-s recordings" if args.duration else ""
     sim = ("old simulator: simple knee, preset typical, soft-tissue motion" if args.old_simulator
            else f"anatomical knee, preset {args.preset}")  # fmt: skip
     print(f"{sim} ({clocks}), random mountings, seeds {args.seeds}")
