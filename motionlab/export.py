@@ -2,11 +2,12 @@
 
 - ``sto``: the sensor orientations (sensor → earth; the fusion results, else the vendor's
   quaternions) as OpenSense reads them (:func:`motionlab.io.opensim.write_sto`): one column per
-  IMU named after its OpenSim body (``tibia_r_imu``) where the segment maps
-  (:data:`OPENSIM_BODIES`), else the sensor label. Like the files OpenSense's own readers write,
-  the orientations stay in the IMU system's Z-up earth frame (ENU here); OpenSense turns them
-  into its Y-up ground with ``sensor_to_opensim_rotations = -1.5708 0 0`` (its default).
-  All sensors are SLERP-resampled onto the first one's time stamps, within the span they share.
+  IMU named after its OpenSim body (``tibia_r_imu``, ``humerus_l_imu``) where the segment kind
+  has one (:data:`motionlab.kinematics.segment_types.SEGMENT_TYPES`), else the sensor label.
+  Like the files OpenSense's own readers write, the orientations stay in the IMU system's Z-up
+  earth frame (ENU here); OpenSense turns them into its Y-up ground with
+  ``sensor_to_opensim_rotations = -1.5708 0 0`` (its default). All sensors are SLERP-resampled onto
+  the first one's time stamps, within the span they share.
 - ``mot``: the joint angles as an OpenSim motion file (``inDegrees=yes``, degrees): angles
   that are coordinates of OpenSim's Rajagopal (2015) full-body model, the model OpenSense's
   tutorials use, get its coordinate names and signs (:data:`OPENSIM_COORDINATES`:
@@ -33,6 +34,8 @@ from motionlab import __version__
 from motionlab import rotations as rot
 from motionlab.atomic import atomic_path
 from motionlab.errors import InputError
+from motionlab.kinematics.joint_types import opensim_coordinates
+from motionlab.kinematics.segment_types import opensim_imu_name
 from motionlab.results import SegmentCalibration
 from motionlab.session import MarkerSet, ModelOutput, Session
 
@@ -40,43 +43,10 @@ FORMATS = ("sto", "mot", "c3d", "json")
 JSON_FORMAT = "motionlab-results"
 JSON_VERSION = 1
 
-#: motionlab segment → OpenSim body of the gait and upper-limb models (Rajagopal, gait2392)
-OPENSIM_BODIES = {
-    "pelvis": "pelvis",
-    "thorax": "torso",
-    "trunk": "torso",
-    "thigh": "femur",
-    "shank": "tibia",
-    "foot": "calcn",
-    "upper_arm": "humerus",
-    "forearm": "radius",
-    "hand": "hand",
-}
-
-
-#: motionlab angle column → (OpenSim coordinate of the Rajagopal 2015 model, sign). Both use
-#: ISB-like frames (x anterior, y up, z right) and mirror the left side, so the signs agree
-#: except lumbar flexion (Rajagopal's lumbar_extension turns the torso backward about +z).
-#: Rajagopal's knee_angle is positive in flexion (gait2392's is negative: negate it there).
-#: Positive lumbar_bending bends to the right and lumbar_rotation turns to the left, as
-#: motionlab's; pro_sup is positive in pronation; elbow_flex in flexion.
-OPENSIM_COORDINATES: dict[str, tuple[str, float]] = {
-    **{
-        f"{joint}_{s}_{angle}_deg": (f"{coordinate}_{s}", 1.0)
-        for s in ("r", "l")
-        for joint, angle, coordinate in (
-            ("hip", "flexion", "hip_flexion"),
-            ("hip", "adduction", "hip_adduction"),
-            ("hip", "rotation", "hip_rotation"),
-            ("knee", "flexion", "knee_angle"),
-            ("elbow", "flexion", "elbow_flex"),
-            ("elbow", "pronation", "pro_sup"),
-        )
-    },
-    "lumbar_flexion_deg": ("lumbar_extension", -1.0),
-    "lumbar_lateral_bending_deg": ("lumbar_bending", 1.0),
-    "lumbar_axial_rotation_deg": ("lumbar_rotation", 1.0),
-}
+#: motionlab angle column → (OpenSim coordinate of the Rajagopal 2015 model, sign), from the
+#: joint table (:attr:`motionlab.kinematics.joint_types.JointType.opensim`, which says why the
+#: signs are what they are)
+OPENSIM_COORDINATES: dict[str, tuple[str, float]] = opensim_coordinates()
 
 
 def opensim_columns(columns: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -94,17 +64,9 @@ def opensim_columns(columns: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
 
 def imu_name(label: str, segment: str, side: str) -> str:
     """OpenSense column name: ``<body>_imu`` (``tibia_r_imu``) when the segment maps to an
-    OpenSim body (:data:`OPENSIM_BODIES`), else the sensor label."""
-    base, _, suffix = segment.rpartition("_")
-    if suffix in ("r", "l") and base:
-        segment, side = base, suffix
-    side = {"right": "r", "left": "l"}.get(side, side)
-    body = OPENSIM_BODIES.get(segment)
-    if body is None:
-        return label
-    if side in ("r", "l") and body not in ("pelvis", "torso"):
-        return f"{body}_{side}_imu"
-    return f"{body}_imu"
+    OpenSim body (:func:`motionlab.kinematics.segment_types.opensim_imu_name`), else the sensor
+    label."""
+    return opensim_imu_name(segment, side) or label
 
 
 def orientations(session: Session) -> tuple[np.ndarray, dict[str, np.ndarray]]:

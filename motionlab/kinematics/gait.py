@@ -26,6 +26,7 @@ from motionlab.kinematics import gait_events as ge
 from motionlab.kinematics import spatiotemporal as sp
 from motionlab.kinematics.cycles import CURVE_POINTS
 from motionlab.kinematics.gps import (
+    JOINT_VARIABLES,
     PELVIS,
     gated_profile,
     movement_analysis_profile,
@@ -187,7 +188,7 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
     for side, st in strides.items():
         keep = st.kept
         var_series: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-        for v in ("hip_flexion", "hip_adduction", "hip_rotation", "knee_flexion"):
+        for v in JOINT_VARIABLES:
             joint, angle = v.split("_")
             col = f"{joint}_{side}_{angle}_deg"
             if col in series:

@@ -42,16 +42,10 @@ if TYPE_CHECKING:
 DATA = Path(__file__).resolve().parent.parent / "report_data"  # as motionlab.report.normative
 NORMATIVE = DATA / "gait_normative.csv"
 NORMATIVE_SOURCES = DATA / "gait_normative.yaml"
-VARIABLES = (
-    "pelvis_tilt",
-    "pelvis_obliquity",
-    "pelvis_rotation",
-    "hip_flexion",
-    "hip_adduction",
-    "hip_rotation",
-    "knee_flexion",
-)
-PELVIS = VARIABLES[:3]
+PELVIS = ("pelvis_tilt", "pelvis_obliquity", "pelvis_rotation")
+#: the joint angles of the GPS, ``<joint type>_<angle>`` of the joint table's names
+JOINT_VARIABLES = ("hip_flexion", "hip_adduction", "hip_rotation", "knee_flexion")
+VARIABLES = PELVIS + JOINT_VARIABLES
 GPS_POINTS = np.arange(0, 101, 2)  # % of the cycle (Baker et al. 2009)
 
 
@@ -134,7 +128,7 @@ def variable_grades(
     graded = calibration.grades if calibration is not None else {}
     out: dict[str, dict[str, tuple[str, str]]] = {"r": {}, "l": {}}
     for joint in protocol.joints.values():
-        if joint.type not in ("hip", "knee") or joint.side not in out:
+        if joint.side not in out:
             continue
         entry = graded.get(joint.name) or {}
         grades, reasons = entry.get("grades", []), entry.get("reasons", [])
