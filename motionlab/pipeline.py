@@ -28,6 +28,7 @@ import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import h5py
 import pandas as pd
@@ -219,8 +220,40 @@ def _outputs(
 
 
 @dataclass(frozen=True)
+class RunOption:
+    """How one field of :class:`PipelineOptions` is set from outside: the one table the click
+    options of ``motionlab run`` and ``motionlab batch``, the CLI's flag table
+    (``cli/flags.FLAGS``), the manifest keys (``batch/manifest.OPTION_KEYS``) and
+    :meth:`PipelineOptions.command` are made from."""
+
+    #: the flag (``--filter``); a boolean's ``--name/--no-name`` pair, or the one flag that
+    #: turns it off (``--quiet`` for ``progress``, with ``kind="off"``)
+    flag: str
+    #: the ``--help`` text (``motionlab batch`` adds the default)
+    help: str
+    #: ``text``, ``int``, ``bool`` (a flag pair), ``flag`` (a flag alone), ``off`` (a flag that
+    #: sets False), ``file`` (to read), ``folder``, ``choice`` (one of :attr:`choices`)
+    kind: str = "text"
+    choices: tuple[str, ...] = ()
+    #: the study manifest's key (``filter``), or ``None``
+    manifest: str | None = None
+    #: also a ``motionlab batch`` flag and a manifest key for the study or one session
+    batch: bool = False
+    #: the stage commands that take the same flag (``tests/test_cli_flags.py`` checks them)
+    stages: tuple[str, ...] = ()
+    #: the ``--help`` shows the default
+    show_default: bool = False
+
+
+def _option(default: Any = dataclasses.MISSING, **option: Any) -> Any:
+    """A :class:`PipelineOptions` field with its :class:`RunOption`."""
+    return dataclasses.field(default=default, metadata={"option": RunOption(**option)})
+
+
+@dataclass(frozen=True)
 class PipelineOptions:
-    """Every option of ``motionlab run`` (and of each session of ``motionlab batch``).
+    """Every option of ``motionlab run`` (and of each session of ``motionlab batch``); each
+    field's flag, help text and manifest key are its :class:`RunOption` (:data:`RUN_OPTIONS`).
 
     protocol
         Protocol YAML file, the name of a packaged protocol (``knee``) or a loaded
@@ -233,11 +266,6 @@ class PipelineOptions:
         (:mod:`motionlab.validation.reference_kinds`).
     calibration_dir
         Folder of per-serial sensor calibrations (``motionlab sensorcal``) applied before fusion.
-    magnetometer
-        Fuse with the magnetometers (default 6-D, :data:`motionlab.stages.MAGNETOMETER`).
-    clock_sync
-        Put the IMUs on one clock from their shared joint centres and heel strikes first
-        (``motionlab sync``).
     seed
         Random seed of the stochastic steps (the validation's RANSAC clock fit).
     estimator
@@ -245,23 +273,106 @@ class PipelineOptions:
     orientation
         ``fused`` (default) or ``vendor``: use the orientation the sensors carry (the vendor's
         fusion, an OpenSense ``.sto``) instead of fusing (:func:`motionlab.stages.fuse`).
+    magnetometer
+        Fuse with the magnetometers (default 6-D, :data:`motionlab.stages.MAGNETOMETER`).
+    clock_sync
+        Put the IMUs on one clock from their shared joint centres and heel strikes first
+        (``motionlab sync``).
     force
         Replace existing outputs.
     progress
         Print the stage counter and fusion progress on stderr.
     """
 
-    protocol: str | Path | Protocol
-    map_path: Path | None = None
-    reference: Path | None = None
-    calibration_dir: Path | None = None
-    magnetometer: bool = stages_lib.MAGNETOMETER
-    clock_sync: bool = stages_lib.CLOCK_SYNC
-    seed: int = 0
-    estimator: str = stages_lib.DEFAULT_ESTIMATOR
-    orientation: str = "fused"
-    force: bool = False
-    progress: bool = True
+    protocol: str | Path | Protocol = _option(
+        flag="--protocol",
+        help="Protocol YAML file or packaged name.",
+        manifest="protocol",
+        stages=("sync", "calibrate", "angles", "metrics", "validate"),
+    )
+    map_path: Path | None = _option(
+        None,
+        flag="--map",
+        help="Sensor map YAML for raw recordings (see 'motionlab ingest --help').",
+        kind="file",
+        manifest="map",
+        stages=("ingest",),
+    )
+    reference: Path | None = _option(
+        None,
+        flag="--reference",
+        help="Reference to validate against: markers (C3D, TRC, a session), a CSV of segment "
+        "quaternions or a C3D of model joint angles (see 'motionlab validate --help').",
+        kind="file",
+        manifest="reference",
+        stages=("validate",),
+    )
+    calibration_dir: Path | None = _option(
+        None,
+        flag="--calibration",
+        help="Folder of per-serial sensor calibrations (motionlab sensorcal) for fusion.",
+        kind="folder",
+        manifest="calibration",
+        batch=True,
+        stages=("fuse",),
+    )
+    seed: int = _option(
+        0,
+        flag="--seed",
+        help="Random seed.",
+        kind="int",
+        manifest="seed",
+        batch=True,
+        stages=("validate",),
+        show_default=True,
+    )
+    estimator: str = _option(
+        stages_lib.DEFAULT_ESTIMATOR,
+        flag="--filter",
+        help="Estimator for the fusion stage (names: 'motionlab fuse --list').",
+        manifest="filter",
+        batch=True,
+        stages=("fuse",),
+        show_default=True,
+    )
+    orientation: str = _option(
+        "fused",
+        flag="--orientation",
+        help="'vendor': use the orientation the sensors carry (their own fusion, a .sto) instead "
+        "of fusing; recordings with orientations only always do.",
+        kind="choice",
+        choices=stages_lib.ORIENTATIONS,
+        manifest="orientation",
+        batch=True,
+        stages=("fuse",),
+        show_default=True,
+    )
+    magnetometer: bool = _option(
+        stages_lib.MAGNETOMETER,
+        flag="--magnetometer/--no-magnetometer",
+        help="Fuse with the magnetometers (default 6-D: indoor fields turn headings mid-task).",
+        kind="bool",
+        manifest="magnetometer",
+        batch=True,
+        stages=("fuse",),
+    )
+    clock_sync: bool = _option(
+        stages_lib.CLOCK_SYNC,
+        flag="--clock-sync/--no-clock-sync",
+        help="Put IMUs recorded on their own clocks on one clock (from the joints they share).",
+        kind="bool",
+        manifest="clock_sync",
+        batch=True,
+        show_default=True,
+    )
+    force: bool = _option(
+        False,
+        flag="--force",
+        help="Replace existing outputs.",
+        kind="flag",
+        stages=("ingest", "sync", "fuse", "calibrate", "angles", "metrics", "validate"),
+    )
+    progress: bool = _option(True, flag="--quiet", help="No progress on stderr.", kind="off")
 
     def load_protocol(self) -> Protocol:
         """The protocol, loaded (and so checked)."""
@@ -282,19 +393,27 @@ class PipelineOptions:
         return out
 
     def command(self, inputs: list[Path], outdir: Path) -> str:
-        """The ``motionlab run`` command line these options stand for."""
+        """The ``motionlab run`` command line these options stand for (the options that differ
+        from their defaults, in the order of the fields)."""
         protocol = self.protocol.path if isinstance(self.protocol, Protocol) else self.protocol
-        return shlex.join(
-            ["motionlab", "run", "--protocol", str(protocol), *map(str, inputs), "-o", str(outdir)]
-            + (["--map", str(self.map_path)] if self.map_path else [])
-            + (["--reference", str(self.reference)] if self.reference else [])
-            + (["--calibration", str(self.calibration_dir)] if self.calibration_dir else [])
-            + (["--seed", str(self.seed)] if self.seed else [])
-            + (["--filter", self.estimator] if self.estimator != "default" else [])
-            + (["--orientation", self.orientation] if self.orientation != "fused" else [])
-            + (["--magnetometer"] if self.magnetometer else [])
-            + ([] if self.clock_sync else ["--no-clock-sync"])
-        )
+        words = ["motionlab", "run", "--protocol", str(protocol), *map(str, inputs)]
+        words += ["-o", str(outdir)]
+        for f in dataclasses.fields(self):
+            value, option = getattr(self, f.name), RUN_OPTIONS[f.name]
+            if f.name in ("protocol", "force", "progress") or value == f.default:
+                continue
+            if option.kind == "bool":
+                on, off = option.flag.split("/")
+                words.append(on if value else off)
+            else:
+                words += [option.flag, str(value)]
+        return shlex.join(words)
+
+
+#: field of :class:`PipelineOptions` → its :class:`RunOption`, in the order of the fields
+RUN_OPTIONS: dict[str, RunOption] = {
+    f.name: f.metadata["option"] for f in dataclasses.fields(PipelineOptions)
+}
 
 
 def analyse(session: Session, options: PipelineOptions, stages: _Stages | None = None) -> None:
