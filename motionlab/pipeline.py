@@ -37,13 +37,12 @@ from motionlab import stages as stages_lib
 from motionlab.atomic import check_folder_writable, refuse_input_as_output
 from motionlab.errors import InputError
 from motionlab.ingest import DEFAULT_GAP_MAX, ingest
-from motionlab.isolated import check_hdf5, looks_like_hdf5
 from motionlab.lock import session_lock
 from motionlab.protocol import Protocol, load_protocol
 from motionlab.segments import sensor_for_segment
 from motionlab.session import (
-    FORMAT_NAME,
     Session,
+    is_session_file,
     load_session,
     save_session,
     sha256_file,
@@ -90,18 +89,6 @@ class _Stages:
         t0 = time.perf_counter()
         yield
         self.times[name] = time.perf_counter() - t0
-
-
-def is_session_file(path: Path) -> bool:
-    """Whether ``path`` is a motionlab session (HDF5 with the session format attribute)."""
-    if not looks_like_hdf5(path):
-        return False
-    check_hdf5(path)
-    try:
-        with h5py.File(path, "r") as f:
-            return f.attrs.get("format") == FORMAT_NAME
-    except OSError:
-        return False
 
 
 def _holds_markers(inputs: list[Path]) -> bool:

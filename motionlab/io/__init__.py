@@ -21,7 +21,7 @@ from typing import Any
 
 from motionlab.atomic import check_regular
 from motionlab.errors import InputError, shorten
-from motionlab.isolated import check_hdf5
+from motionlab.isolated import check_hdf5, open_hdf5
 from motionlab.session import MarkerSet, SensorStream
 
 HEAD_BYTES = 65536
@@ -126,16 +126,8 @@ def _detect(path: Path, options: dict[str, Any] | None):
 
 def _check_hdf5(path: Path) -> None:
     """Raise :class:`InputError` if h5py cannot open a file that starts like HDF5."""
-    import h5py
-
-    try:
-        h5py.File(path, "r").close()
-    except (OSError, RuntimeError):
-        raise InputError(
-            "HDF5 file is damaged or truncated (h5py cannot open it)",
-            path,
-            remedy="copy or export the file again",
-        ) from None
+    message = "HDF5 file is damaged or truncated (h5py cannot open it)"
+    open_hdf5(path, message, "copy or export the file again").close()
 
 
 def read_any(path: str | Path, options: dict[str, Any] | None = None) -> Recording:

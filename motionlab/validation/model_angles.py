@@ -6,7 +6,7 @@ the README, "Validate"; built from the joint table's
 :attr:`~motionlab.kinematics.joint_types.JointType.plugin_gait`) follows Vicon's Plug-in Gait
 reference guide: each ``*Angles`` point holds three angles in degrees as X, Y, Z, already in
 clinical signs on both sides (flexion, adduction/varus and internal rotation positive; the left side
-is mirrored by the model), which are motionlab's signs (DESIGN.md §1), so every sign is +1:
+is mirrored by the model), which are motionlab's signs (docs/conventions.md), so every sign is +1:
 
 ====================  ======  ===========================  ====
 label                 comp.   motionlab column             sign
