@@ -75,7 +75,9 @@ axis each one points along in the nominal placement (e.g. ``[-z, y, x]``); the d
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
@@ -306,12 +308,56 @@ class _Reader:
         return side
 
 
-def load_protocol(path: str | Path) -> Protocol:
-    """Load and validate a protocol YAML file (a path, or the name of a packaged protocol)."""
+def parse_protocol(path: str | Path) -> tuple[Path, dict]:
+    """The protocol file (a path, or the name of a packaged protocol) and its YAML document:
+    mappings that know the line of each key (``.lines``), bounded in size and depth
+    (:class:`~motionlab.yamlsafe.BoundedSafeLoader`); nothing checked beyond the YAML."""
     path = resolve_protocol_path(path)
     text = read_yaml_text(path, "protocol", "give a protocol YAML file (see protocols/knee.yaml)")
-    doc = load_yaml(text, _LineLoader, path, "check indentation and colons")
+    return path, load_yaml(text, _LineLoader, path, "check indentation and colons")
+
+
+def load_protocol(path: str | Path) -> Protocol:
+    """Load and validate a protocol YAML file (a path, or the name of a packaged protocol).
+
+    Parse (:func:`parse_protocol`), then validate and build each part in the file's order
+    (top level, segments, calibration steps, joints, tasks, normative ranges, the rest), so
+    that the first error in the file is the one reported, naming its key and line."""
+    path, doc = parse_protocol(path)
     r = _Reader(path)
+    name = _top_level(r, doc)
+    segments = _segments(r, doc)
+    check_segment = partial(_check_segment, r, segments)
+    steps = _steps(r, doc, check_segment)
+    joints = _joints(r, doc, check_segment)
+    tasks = _tasks(r, doc)
+    normative = _normative(r, doc)
+    return Protocol(
+        name=name,
+        segments=segments,
+        joints=joints,
+        calibration=steps,
+        tasks=tasks,
+        normative={
+            t: {c: [float(v) for v in rng] for c, rng in (ranges or {}).items()}
+            for t, ranges in normative.items()
+        },
+        metrics=[
+            _text(r, m, "metrics", doc.lines.get("metrics"))
+            for m in r.get(doc, "metrics", "", list, False, [])
+        ],
+        thresholds=_thresholds(r, r.get(doc, "thresholds", "", dict, False, {}), "thresholds"),
+        title=r.get(doc, "title", "", str, False, ""),
+        purpose=r.get(doc, "purpose", "", str, False, ""),
+        source=r.get(doc, "source", "", str, False, ""),
+        path=path,
+        raw=_plain(doc),
+    )
+
+
+def _top_level(r: _Reader, doc: Any) -> str:
+    """Check the document's top level (a mapping of known keys, named parts) and return the
+    protocol's name."""
     if not isinstance(doc, dict):
         r.fail("(top level)", 1, "is not a mapping", "start from protocols/knee.yaml")
     r.names(doc, "")
@@ -320,7 +366,11 @@ def load_protocol(path: str | Path) -> Protocol:
     for key in ("segments", "joints", "normative", "thresholds"):
         if isinstance(doc.get(key), dict):
             r.names(doc[key], key)
+    return name
 
+
+def _segments(r: _Reader, doc: dict) -> dict[str, Segment]:
+    """The validated ``segments`` (at least one)."""
     segments: dict[str, Segment] = {}
     for seg_name, spec in r.get(doc, "segments", "", dict).items():
         where = f"segments.{seg_name}"
@@ -351,16 +401,25 @@ def load_protocol(path: str | Path) -> Protocol:
     if not segments:
         r.fail("segments", doc.lines.get("segments"), "is empty", "name at least one segment")
 
-    def check_segment(seg: Any, where: str, line: int | None) -> str:
-        if not isinstance(seg, str) or seg not in segments:
-            r.fail(
-                where,
-                line,
-                f"names segment {shorten(repr(seg))}, which is not under segments",
-                f"use one of {', '.join(segments)}",
-            )
-        return seg
+    return segments
 
+
+def _check_segment(
+    r: _Reader, segments: dict[str, Segment], seg: Any, where: str, line: int | None
+) -> str:
+    """``seg`` when it names one of ``segments``, else the error at ``where``."""
+    if not isinstance(seg, str) or seg not in segments:
+        r.fail(
+            where,
+            line,
+            f"names segment {shorten(repr(seg))}, which is not under segments",
+            f"use one of {', '.join(segments)}",
+        )
+    return seg
+
+
+def _steps(r: _Reader, doc: dict, check_segment: Callable) -> list[CalibrationStep]:
+    """The validated ``calibration`` steps."""
     steps = []
     for i, spec in enumerate(r.get(doc, "calibration", "", list, False, [])):
         where = f"calibration[{i}]"
@@ -452,6 +511,11 @@ def load_protocol(path: str | Path) -> Protocol:
             )
         )
 
+    return steps
+
+
+def _joints(r: _Reader, doc: dict, check_segment: Callable) -> dict[str, Joint]:
+    """The validated ``joints``; two joints giving one angle column are an error."""
     joints = {}
     owners: dict[str, tuple[str, int | None]] = {}  # column → (joint key, line)
     for jname, spec in r.get(doc, "joints", "", dict).items():
@@ -473,6 +537,11 @@ def load_protocol(path: str | Path) -> Protocol:
                 )
             owners[col] = (where, line)
 
+    return joints
+
+
+def _tasks(r: _Reader, doc: dict) -> list[Task]:
+    """The validated ``tasks``."""
     tasks = []
     for i, spec in enumerate(r.get(doc, "tasks", "", list, False, [])):
         where = f"tasks[{i}]"
@@ -499,6 +568,11 @@ def load_protocol(path: str | Path) -> Protocol:
             )
         )
 
+    return tasks
+
+
+def _normative(r: _Reader, doc: dict) -> dict:
+    """The ``normative`` ranges as the file gives them (checked: ``column: [low, high]``)."""
     normative = r.get(doc, "normative", "", dict, False, {})
     for task, ranges in normative.items():
         if ranges is not None and not isinstance(ranges, dict):
@@ -513,27 +587,7 @@ def load_protocol(path: str | Path) -> Protocol:
                     f"range {shorten(repr(rng))} is not [low, high]",
                     "e.g. [0, 65]",
                 )
-    return Protocol(
-        name=name,
-        segments=segments,
-        joints=joints,
-        calibration=steps,
-        tasks=tasks,
-        normative={
-            t: {c: [float(v) for v in rng] for c, rng in (ranges or {}).items()}
-            for t, ranges in normative.items()
-        },
-        metrics=[
-            _text(r, m, "metrics", doc.lines.get("metrics"))
-            for m in r.get(doc, "metrics", "", list, False, [])
-        ],
-        thresholds=_thresholds(r, r.get(doc, "thresholds", "", dict, False, {}), "thresholds"),
-        title=r.get(doc, "title", "", str, False, ""),
-        purpose=r.get(doc, "purpose", "", str, False, ""),
-        source=r.get(doc, "source", "", str, False, ""),
-        path=path,
-        raw=_plain(doc),
-    )
+    return normative
 
 
 def _joint(r: _Reader, jname: str, spec: Any, line: int | None, check_segment) -> Joint:
