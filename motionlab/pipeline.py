@@ -314,7 +314,7 @@ class PipelineOptions:
         show_default=True,
     )
     estimator: str = _option(
-        stages_lib.DEFAULT_ESTIMATOR,
+        stages_lib.ESTIMATOR,
         flag="--filter",
         help="Estimator for the fusion stage (names: 'motionlab fuse --list').",
         manifest="filter",

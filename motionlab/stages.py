@@ -39,8 +39,10 @@ if TYPE_CHECKING:
     from motionlab.session import MarkerSet
     from motionlab.validation.markermap import MarkerMap
 
-#: fusion estimator of ``fuse`` and ``run`` (``motionlab fuse --list``)
-DEFAULT_ESTIMATOR = "default"
+#: the estimator ``fuse`` and ``run`` ask the registry for by default: its name ``default``
+#: stands for :data:`motionlab.fusion.registry.DEFAULT_ESTIMATOR` (the smoother), so the
+#: provenance and a study's options say ``default`` unless another estimator is chosen
+ESTIMATOR = "default"
 #: 6-D fusion by default: indoors an uncalibrated or disturbed magnetometer turned a sensor's
 #: heading by 20-60° mid-task, while joint angles need only the heading of each segment relative
 #: to its neighbour, which the heading alignment gives (see :func:`motionlab.pipeline.analyse`)
@@ -144,7 +146,7 @@ class Fused:
 
 def fuse(
     session: Session,
-    estimator: str = DEFAULT_ESTIMATOR,
+    estimator: str = ESTIMATOR,
     params: dict[str, str] | None = None,
     sensors: list[str] | None = None,
     *,
@@ -454,7 +456,7 @@ def validate(
     mode: str | None = None,
     clock: bool = True,
     movement_only: bool = False,
-    estimator: str = DEFAULT_ESTIMATOR,
+    estimator: str = ESTIMATOR,
     seed: int = 0,
     keep_reference: bool = True,
     force: bool = False,

@@ -47,7 +47,7 @@ from motionlab.validation.time_offset import SYNC_SOURCES
               "vertical shared), none [default: full after 9-D fusion, else heading].")  # fmt: skip
 @click.option("--no-sync", is_flag=True, help="The streams already share one clock.")
 @click.option("--movement-only", is_flag=True, help="Statistics over movement phases only.")
-@click.option("--estimator", default=stages.DEFAULT_ESTIMATOR, show_default=True,
+@click.option("--estimator", default=stages.ESTIMATOR, show_default=True,
               help="Fusion for sensors without fusion results.")  # fmt: skip
 @click.option("--seed", type=int, default=0, show_default=True,
               help="Random seed (the RANSAC clock fit).")  # fmt: skip
