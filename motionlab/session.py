@@ -38,7 +38,6 @@ replacing a result without its stamp).
 from __future__ import annotations
 
 import datetime as _dt
-import hashlib
 import io
 import json
 import sys
@@ -53,7 +52,7 @@ from motionlab import __version__
 from motionlab.atomic import atomic_path, check_regular
 from motionlab.errors import InputError, shorten
 from motionlab.isolated import check_hdf5, looks_like_hdf5, open_hdf5
-from motionlab.lineage import Lineage
+from motionlab.lineage import Lineage, sha256_file
 from motionlab.results import Results
 
 SCHEMA_VERSION = 3
@@ -202,16 +201,6 @@ def estimate_rate(time: np.ndarray) -> float:
         return float("nan")
     dt = np.median(np.diff(time))
     return float(1.0 / dt) if dt > 0 else float("nan")
-
-
-def sha256_file(path: str | Path) -> str:
-    """SHA-256 hex digest of a file's bytes."""
-    check_regular(path)
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 # ------------------------------------------------------------------------------------ writing

@@ -74,11 +74,10 @@ def detect_format(path: str | Path, options: dict[str, Any] | None = None) -> st
 
 def _detect(path: Path, options: dict[str, Any] | None):
     check_regular(path, folder_ok=True)  # a FIFO, socket or device: refused before any read
-    if path.is_dir():
-        from motionlab.io import ximu3
-
-        if ximu3.is_export(path):
-            return ximu3
+    if path.is_dir():  # a reader of folders has is_export(path) (x-IMU3: a folder per device)
+        for module in _readers():
+            if getattr(module, "is_export", None) and module.is_export(path):
+                return module
         raise InputError(
             "is a folder, expected a file (or an x-IMU3 export folder)",
             path,

@@ -107,15 +107,13 @@ def signals_from_orientation(
     quaternions, a vendor's fusion) stands in with for calibration: gravity along the earth
     vertical seen in the sensor frame (m/s², the specific force at rest; the vendor's own
     estimate of it) and the body-frame angular velocity of the orientation series (rad/s,
-    :func:`motionlab.validation.optical.angular_velocity` at the sample times). ``q`` maps
+    :func:`motionlab.rotations.angular_velocity` at the sample times). ``q`` maps
     sensor to the Z-up earth frame."""
-    from motionlab.validation.optical import angular_velocity
-
     q = rot.make_continuous(q)
     acc = gravity * rot.rotate(rot.conj(q), np.broadcast_to([0.0, 0.0, 1.0], (len(q), 3)))
     gyr = np.zeros((len(q), 3))
     if len(q) > 1:
-        mid, rates = angular_velocity(t, q)
+        mid, rates = rot.angular_velocity(t, q)
         gyr = interp_columns(t, mid, rates)
     return t, acc, gyr
 
