@@ -82,7 +82,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from motionlab.atomic import check_regular
 from motionlab.errors import InputError, shorten
@@ -93,7 +92,7 @@ from motionlab.kinematics.joint_types import (
     resolve_sequence,
     sequence_problem,
 )
-from motionlab.yamlsafe import BoundedSafeLoader, did_you_mean, load_yaml, read_yaml_text
+from motionlab.yamlsafe import LineLoader, LineMap, did_you_mean, load_yaml, read_yaml_text
 
 STEP_KINDS = ("static", "functional")
 AXIS_METHODS = ("svd", "hinge", "trunk")
@@ -192,34 +191,6 @@ def axis_vector(axis: str) -> np.ndarray:
     return v
 
 
-# ------------------------------------------------------------------------------ YAML with lines
-
-
-class _LineLoader(BoundedSafeLoader):
-    """SafeLoader whose mappings remember the line of each key (``_lines``)."""
-
-
-class _Map(dict):
-    lines: dict[str, int]
-
-
-def _construct_mapping(loader: _LineLoader, node: yaml.MappingNode) -> _Map:
-    loader.flatten_mapping(node)
-    out = _Map()
-    out.lines = {}
-    for key_node, value_node in node.value:
-        key = loader.construct_object(key_node, deep=True)
-        out[key] = loader.construct_object(value_node, deep=True)
-        out.lines[key] = key_node.start_mark.line + 1
-    return out
-
-
-_LineLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
-
-#: public name: other line-aware YAML files (marker maps) load with it; mappings get ``lines``
-LineLoader = _LineLoader
-
-
 class _Reader:
     """Validates one protocol document, raising InputError that names the key and its line."""
 
@@ -314,7 +285,7 @@ def parse_protocol(path: str | Path) -> tuple[Path, dict]:
     (:class:`~motionlab.yamlsafe.BoundedSafeLoader`); nothing checked beyond the YAML."""
     path = resolve_protocol_path(path)
     text = read_yaml_text(path, "protocol", "give a protocol YAML file (see protocols/knee.yaml)")
-    return path, load_yaml(text, _LineLoader, path, "check indentation and colons")
+    return path, load_yaml(text, LineLoader, path, "check indentation and colons")
 
 
 def load_protocol(path: str | Path) -> Protocol:
@@ -375,7 +346,7 @@ def _segments(r: _Reader, doc: dict) -> dict[str, Segment]:
     for seg_name, spec in r.get(doc, "segments", "", dict).items():
         where = f"segments.{seg_name}"
         line = doc["segments"].lines.get(seg_name)
-        spec = spec if spec is not None else _Map()
+        spec = spec if spec is not None else LineMap()
         if not isinstance(spec, dict):
             r.fail(where, line, "is not a mapping", "give side/placement keys")
         r.known(spec, where, SEGMENT_KEYS)

@@ -38,13 +38,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from motionlab.atomic import check_regular
 from motionlab.errors import InputError
 from motionlab.fusion import registry
 from motionlab.pipeline import RUN_OPTIONS
-from motionlab.protocol import LineLoader, load_protocol, resolve_protocol_path
+from motionlab.protocol import load_protocol, resolve_protocol_path
+from motionlab.yamlsafe import LineLoader, load_yaml
 
 #: manifest keys of the options of ``motionlab run`` → :class:`motionlab.pipeline.PipelineOptions`
 #: field (the options whose :class:`~motionlab.pipeline.RunOption` says ``batch``)
@@ -104,16 +103,7 @@ def _read(path: Path) -> Any:
         raise InputError("no such manifest file", path, remedy="give the study YAML file") from None
     except (UnicodeDecodeError, IsADirectoryError):
         raise InputError("not a text file", path, remedy="give the study YAML file") from None
-    try:
-        return yaml.load(text, Loader=LineLoader)  # noqa: S506 - a SafeLoader subclass
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        raise InputError(
-            f"not valid YAML ({getattr(exc, 'problem', exc)})",
-            path,
-            f"line {mark.line + 1}" if mark else None,
-            "check indentation and colons",
-        ) from None
+    return load_yaml(text, LineLoader, path, "check indentation and colons")
 
 
 def _name(path: Path, entry: dict, key: str, where: str, line: int) -> str:
