@@ -34,8 +34,12 @@ from motionlab import __version__
 from motionlab import rotations as rot
 from motionlab.atomic import atomic_path
 from motionlab.errors import InputError
-from motionlab.kinematics.joint_types import opensim_coordinates
+from motionlab.io.c3d import MODEL_KINDS
+from motionlab.io.opensim import write_mot, write_sto
+from motionlab.kinematics.joint_types import angle_columns, opensim_coordinates
+from motionlab.kinematics.metrics import metrics_table
 from motionlab.kinematics.segment_types import opensim_imu_name
+from motionlab.protocol import load_protocol
 from motionlab.results import SegmentCalibration
 from motionlab.session import MarkerSet, ModelOutput, Session
 
@@ -136,9 +140,6 @@ def joint_columns(session: Session) -> dict[str, list[str]]:
     _, columns = angle_table(session)
     cal = session.results.calibration or SegmentCalibration("")
     try:
-        from motionlab.kinematics.joint_types import angle_columns
-        from motionlab.protocol import load_protocol
-
         proto = load_protocol(cal.protocol_source)
         out = {name: [c for _, c in angle_columns(j)] for name, j in proto.joints.items()}
         if all(c in columns for cols in out.values() for c in cols):
@@ -170,8 +171,6 @@ def write_c3d(
     ``POINT:<KIND>`` with ``POINT:<KIND>_UNITS`` (``ANGLE_UNITS``…); ``descriptions`` fill
     ``POINT:DESCRIPTIONS`` by label. NaN → residual −1."""
     import ezc3d
-
-    from motionlab.io.c3d import MODEL_KINDS
 
     rate = 1.0 / float(np.median(np.diff(time))) if len(time) > 1 else 100.0
     labels, blocks = [], []
@@ -291,8 +290,6 @@ def results_json(session: Session) -> dict[str, Any]:
             joints[joint] = entry
         out["angles"] = {"time_s": time, "method": res.angles.method, "joints": joints}
     if res.metrics is not None:
-        from motionlab.kinematics.metrics import metrics_table
-
         table = metrics_table(res.metrics)
         out["metrics"] = table.astype(object).where(table.notna(), None).to_dict("records")
     if res.calibration is not None:
@@ -316,8 +313,6 @@ def write_json(session: Session, path: str | Path, force: bool = False) -> None:
 
 def export_session(session: Session, fmt: str, path: str | Path, force: bool = False) -> str:
     """Write ``session`` as ``fmt`` (:data:`FORMATS`) to ``path``; a one-line summary."""
-    from motionlab.io.opensim import write_mot, write_sto
-
     if fmt == "sto":
         time, quats = orientations(session)
         write_sto(path, time, quats, force=force)

@@ -35,6 +35,10 @@ import numpy as np
 import pandas as pd
 from scipy.interpolate import PchipInterpolator
 
+from motionlab.kinematics.joint_types import angle_columns
+from motionlab.kinematics.spatiotemporal import MIN_STRIDES, too_few
+from motionlab.segments.grades import _frame_grade
+
 if TYPE_CHECKING:
     from motionlab.protocol import Protocol
     from motionlab.results import SegmentCalibration
@@ -122,9 +126,6 @@ def variable_grades(
     hip and knee angles by their joint angle's grade, the pelvis variables by the pelvis frame's
     (:func:`motionlab.segments.grades._frame_grade`). A calibration without grades (a session
     calibrated before they existed) has everything ``determined``."""
-    from motionlab.kinematics.joint_types import angle_columns
-    from motionlab.segments.grades import _frame_grade
-
     graded = calibration.grades if calibration is not None else {}
     out: dict[str, dict[str, tuple[str, str]]] = {"r": {}, "l": {}}
     for joint in protocol.joints.values():
@@ -159,8 +160,6 @@ def gated_profile(
     with all its variables, the overall GPS only with both sides'. Adds ``withheld`` ``{side:
     {variable: why}}`` and ``not_computed``: a sentence naming what is missing, empty when the
     overall GPS is given. Applying it again with the same inputs changes nothing."""
-    from motionlab.kinematics.spatiotemporal import MIN_STRIDES, too_few
-
     strides = strides or {}
     scores: dict[str, dict[str, float]] = {}
     withheld: dict[str, dict[str, str]] = {}

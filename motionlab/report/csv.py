@@ -35,6 +35,7 @@ from motionlab.report.model import (
     symmetry_rows,
     worst_grade,
 )
+from motionlab.report.pages_gait import gait_frames
 
 FLOAT_FORMAT = "%.4f"
 
@@ -215,12 +216,6 @@ def calibration_frame(view: SessionView) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _gait_frames(view: SessionView) -> dict[str, pd.DataFrame]:
-    from motionlab.report.pages_gait import gait_frames  # pages_gait imports this package
-
-    return gait_frames(view)
-
-
 def tables(view: SessionView) -> dict[str, pd.DataFrame]:
     """Every CSV of one session, by file name."""
     return (
@@ -232,7 +227,7 @@ def tables(view: SessionView) -> dict[str, pd.DataFrame]:
             "quality.csv": quality_frame(view),
             "calibration.csv": calibration_frame(view),
         }
-        | _gait_frames(view)
+        | gait_frames(view)
     )
 
 

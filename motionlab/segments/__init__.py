@@ -23,6 +23,7 @@ import numpy as np
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
+from motionlab.kinematics.joint_types import flexion_axis, joint_type
 from motionlab.protocol import Protocol, axis_vector
 from motionlab.results import HeadingCorrection, SegmentCalibration
 from motionlab.segments import (
@@ -201,7 +202,6 @@ def pelvis_forward(
     single turns may disagree more where the stand refuted the hint
     (``walk_forward.MAX_SPREAD_CONTRADICTED_DEG``). Returns the measurement, if made; a line
     goes to ``notes`` when the hint is not kept."""
-    from motionlab.kinematics.joint_types import joint_type
     from motionlab.kinematics.session_angles import sensor_orientation
 
     hips = [j for j in protocol.joints.values() if joint_type(j.type).name == "hip"]
@@ -287,7 +287,6 @@ def hip_axes(
 ) -> dict[str, dict[str, Any]]:
     """The hips' flexion axes from the movement (:mod:`.hip_axis`), by joint name, for the hip
     joints whose thigh's flexion axis no functional step measured."""
-    from motionlab.kinematics.joint_types import flexion_axis, joint_type
     from motionlab.kinematics.session_angles import sensor_quats
 
     out: dict[str, dict[str, Any]] = {}

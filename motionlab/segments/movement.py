@@ -39,6 +39,7 @@ from scipy.signal import butter, sosfiltfilt
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
+from motionlab.segments import heading
 from motionlab.segments.hinge import hinge_axes
 from motionlab.session import estimate_rate
 from motionlab.timebase import interp_columns
@@ -153,8 +154,6 @@ def swing_sign(
     tilts, the relative rotation swings off the axis. The margin is ``(bad - good) / (bad +
     good)`` of the RMS swing angle (rad).
     """
-    from motionlab.segments import heading
-
     swings = []
     for sign in (1.0, -1.0):
         times, deltas = heading.hinge_anchors(t, q_p, q_d, j_p, sign * j_d)
@@ -190,8 +189,6 @@ def anatomical_sign(
     extension) are returned with the sign. ``None`` (and the excursions along ``+j``, then
     ``-j``) when neither dominates (see ``FLEXION_MIN_DEG``, ``FLEXION_RATIO``).
     """
-    from motionlab.segments import heading
-
     sel = (t >= reference[0]) & (t <= reference[1])
     if sel.sum() < 5:
         return None, (float("nan"), float("nan"))
@@ -535,8 +532,6 @@ def fit_two_dof(
         pj1, pj2 = _unit(fit.x[0], fit.x[1]), _unit(fit.x[2], fit.x[3])
         worst = max(worst, _angle_deg(pj1, j1), _angle_deg(pj2, j2))
     # the distal orientation with its heading tied to the proximal one
-    from motionlab.segments import heading
-
     q2_aligned = heading.apply_heading(q2, heading.heading_track(win_times, deltas, t))
     reasons: list[str] = []
     sign_source = "nominal"

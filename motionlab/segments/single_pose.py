@@ -27,6 +27,7 @@ from typing import Any
 import numpy as np
 
 from motionlab.protocol import CalibrationStep, Protocol
+from motionlab.segments import heading
 from motionlab.segments.mounting import static_records
 from motionlab.segments.steps import MIN_RECORDING_S, Block, longest_s, placement_warnings
 from motionlab.session import Session
@@ -100,8 +101,6 @@ def heading_anchor(
     """One heading anchor ``([time s], [δ rad])`` of a joint in a single-pose calibration: the
     distal segment turned to face as the proximal one over the pose (``step_range``, s; ``qp``
     and ``qd`` the segment orientations on the common time ``t``)."""
-    from motionlab.segments import heading
-
     sel = (t >= step_range[0]) & (t <= step_range[1])
     if not sel.any():
         return [], []

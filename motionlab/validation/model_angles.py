@@ -49,9 +49,11 @@ import numpy as np
 from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, column_name
+from motionlab.kinematics.session_angles import session_angles
 from motionlab.protocol import Protocol
 from motionlab.results import Validation
 from motionlab.session import MarkerSet, Session, estimate_rate
+from motionlab.validation import movement_mask
 from motionlab.validation.agreement import agreement, per_repetition, repetitions
 from motionlab.validation.time_alignment import no_sync, synchronise
 from motionlab.validation.time_offset import sync_notes
@@ -192,9 +194,6 @@ def validate_model_angles(
     none is compared), ``angles``, ``notes``) with ``reference``: ``kind``
     (``model_angles``), ``file`` and ``mapping`` (column → source).
     """
-    from motionlab.kinematics.session_angles import session_angles
-    from motionlab.validation import movement_mask
-
     stored = session.results.angles
     if stored is not None:
         table = stored.columns()

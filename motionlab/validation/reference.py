@@ -21,6 +21,7 @@ import numpy as np
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
+from motionlab.io import read_any
 from motionlab.protocol import Protocol
 from motionlab.session import MarkerSet, is_session_file, load_session
 from motionlab.validation.anatomy import anatomical_frame, recipe_for
@@ -80,8 +81,6 @@ def read_reference(path: str | Path, model_outputs_ok: bool = False) -> list[Mar
     if is_session_file(path):
         sets = list(load_session(path).markers.values())
     else:
-        from motionlab.io import read_any
-
         sets = read_any(path).markers
     if not sets:
         raise InputError(
