@@ -444,12 +444,13 @@ def analyse(session: Session, options: PipelineOptions, stages: _Stages | None =
     with stages("metrics"):
         stages_lib.metrics(session, protocol, force=True)
     if options.reference is not None or session.markers:
-        from motionlab.validation.reference_kinds import load_reference
+        from motionlab.validation.reference_kinds import load_reference, session_reference
 
-        with stages("validate"):
-            marker_set, kind = None, "markers"
-            if options.reference is not None:  # markers, segment quaternions or model angles
+        with stages("validate"):  # markers, segment quaternions or model angles
+            if options.reference is not None:
                 marker_set, kind = load_reference(Path(options.reference))
+            else:
+                marker_set, kind = session_reference(session)
             stages_lib.validate(session, protocol, marker_set, seed=options.seed, force=True,
                                 reference_kind=kind)  # fmt: skip
     for line in cal.warnings if stages.progress else []:  # after the stages: an error comes first

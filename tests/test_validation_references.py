@@ -254,3 +254,21 @@ def test_marker_map_segment_frame_key(tmp_path):
     path.write_text("segments:\n  thigh_r: {cluster: [A, B, C], segment_frame: true}\n")
     with pytest.raises(InputError, match="segment_frame"):
         load_marker_map(path)
+
+
+def test_session_reference_kind_as_for_a_file():
+    """validate without a reference file and run on inputs holding markers take the session's
+    own reference through one function: model angles alone are an angles reference."""
+    from motionlab.session import MarkerSet, ModelOutput, Session
+    from motionlab.validation.reference_kinds import session_reference
+
+    t = np.arange(5) / 100.0
+    angles = ModelOutput("RKneeAngles", "angles", "deg", np.zeros((5, 3)))
+    pig = MarkerSet("pig", t, model_outputs={"RKneeAngles": angles})
+    assert session_reference(Session(markers={"pig": pig}))[1] == "angles"
+    assert session_reference(Session(markers={"pig": pig}), "markers")[1] == "markers"
+    markers = MarkerSet("m", t, labels=["A"], positions=np.zeros((5, 1, 3)),
+                        model_outputs={"RKneeAngles": angles})  # fmt: skip
+    assert session_reference(Session(markers={"m": markers})) == (markers, "markers")
+    with pytest.raises(InputError, match="has no optical data"):
+        session_reference(Session(), path="s.h5")
