@@ -505,6 +505,7 @@ def validate(
             session, reference, proto, mapping=angle_map, sync=clock,
             movement_only=movement_only, seed=seed,
         )  # fmt: skip
+        session.results.validation = result
         session.lineage.record(session.results, "validation", proto)
         return result
     if reference_kind == "segments" and marker_map is None:
@@ -528,5 +529,6 @@ def validate(
     result.reference = {"kind": reference_kind}
     if reference_kind == "segments":
         result.reference["frames"] = frames
+    session.results.validation = result
     session.lineage.record(session.results, "validation", proto)
     return result

@@ -14,8 +14,8 @@ Steps (each in its own module):
    (:func:`motionlab.kinematics.joint_angles.joint_angles`) and their agreement per angle and
    per repetition (:mod:`.agreement`).
 
-The result (:class:`~motionlab.results.Validation`) is stored in ``session.results.validation``;
-:mod:`.figures` draws it.
+The result (:class:`~motionlab.results.Validation`) is returned; :func:`motionlab.stages.validate`
+stores it in ``session.results.validation``, and :mod:`.figures` draws it.
 """
 
 from __future__ import annotations
@@ -245,7 +245,7 @@ def validate(
     Returns
     -------
     Validation
-        Also stored in ``session.results.validation``: ``sync``, ``alignment``, ``optical``,
+        (:func:`motionlab.stages.validate` stores it): ``sync``, ``alignment``, ``optical``,
         ``orientation`` (per sensor) and ``angles`` (per angle column).
     """
     if reference is None:
@@ -321,6 +321,4 @@ def validate(
         )
         notes += angle_notes
     result["notes"] = notes
-    validation = Validation(**result)
-    session.results.validation = validation
-    return validation
+    return Validation(**result)

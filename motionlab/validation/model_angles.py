@@ -188,8 +188,8 @@ def validate_model_angles(
     """Compare the session's joint angles with model joint angles of ``reference``.
 
     The IMU angles are the session's ``angles`` results (else computed from the calibration
-    with ``protocol``). Returns the :class:`~motionlab.results.Validation` stored in
-    ``session.results.validation``, shaped as :func:`motionlab.validation.validate`'s
+    with ``protocol``). Returns the :class:`~motionlab.results.Validation` (which
+    :func:`motionlab.stages.validate` stores), shaped as :func:`motionlab.validation.validate`'s
     (``sync``, ``alignment`` (mode ``none``: no frames to align), ``orientation`` (no sensor:
     none is compared), ``angles``, ``notes``) with ``reference``: ``kind``
     (``model_angles``), ``file`` and ``mapping`` (column → source).
@@ -259,7 +259,7 @@ def validate_model_angles(
     sync_tree["signal"] = "joint angle rates" if sync else ""
     sync_tree["sensor_residual_s"] = {}
     notes += sync_notes(sync_tree) if sync else []
-    result = Validation(
+    return Validation(
         mode="angles",
         marker_set=reference.name,
         movement_only=movement_only,
@@ -283,8 +283,6 @@ def validate_model_angles(
         },
         notes=notes,
     )
-    session.results.validation = result
-    return result
 
 
 def _primaries(columns: list[str], protocol: Protocol | None) -> list[str]:
