@@ -232,9 +232,10 @@ class RunOption:
     show_default: bool = False
 
 
-def _option(default: Any = dataclasses.MISSING, **option: Any) -> Any:
-    """A :class:`PipelineOptions` field with its :class:`RunOption`."""
-    return dataclasses.field(default=default, metadata={"option": RunOption(**option)})
+def _option(default: Any, flag: str, help: str, **option: Any) -> Any:  # noqa: A002
+    """A :class:`PipelineOptions` field (``default``; ``dataclasses.MISSING``: required) with
+    its :class:`RunOption`."""
+    return dataclasses.field(default=default, metadata={"option": RunOption(flag, help, **option)})
 
 
 @dataclass(frozen=True)
@@ -271,95 +272,53 @@ class PipelineOptions:
         Print the stage counter and fusion progress on stderr.
     """
 
+    # each field: default, flag, help text, then its RunOption's other keys
     protocol: str | Path | Protocol = _option(
-        flag="--protocol",
-        help="Protocol YAML file or packaged name.",
-        manifest="protocol",
-        stages=("sync", "calibrate", "angles", "metrics", "validate"),
-    )
+        dataclasses.MISSING, "--protocol", "Protocol YAML file or packaged name.",
+        manifest="protocol", stages=("sync", "calibrate", "angles", "metrics", "validate"),
+    )  # fmt: skip
     map_path: Path | None = _option(
-        None,
-        flag="--map",
-        help="Sensor map YAML for raw recordings (see 'motionlab ingest --help').",
-        kind="file",
-        manifest="map",
-        stages=("ingest",),
-    )
+        None, "--map", "Sensor map YAML for raw recordings (see 'motionlab ingest --help').",
+        kind="file", manifest="map", stages=("ingest",),
+    )  # fmt: skip
     reference: Path | None = _option(
-        None,
-        flag="--reference",
-        help="Reference to validate against: markers (C3D, TRC, a session), a CSV of segment "
-        "quaternions or a C3D of model joint angles (see 'motionlab validate --help').",
-        kind="file",
-        manifest="reference",
-        stages=("validate",),
-    )
+        None, "--reference", "Reference to validate against: markers (C3D, TRC, a session), a "
+        "CSV of segment quaternions or a C3D of model joint angles (see 'motionlab validate "
+        "--help').", kind="file", manifest="reference", stages=("validate",),
+    )  # fmt: skip
     calibration_dir: Path | None = _option(
-        None,
-        flag="--calibration",
-        help="Folder of per-serial sensor calibrations (motionlab sensorcal) for fusion.",
-        kind="folder",
-        manifest="calibration",
-        batch=True,
-        stages=("fuse",),
-    )
+        None, "--calibration", "Folder of per-serial sensor calibrations (motionlab sensorcal) "
+        "for fusion.", kind="folder", manifest="calibration", batch=True, stages=("fuse",),
+    )  # fmt: skip
     seed: int = _option(
-        0,
-        flag="--seed",
-        help="Random seed.",
-        kind="int",
-        manifest="seed",
-        batch=True,
-        stages=("validate",),
-        show_default=True,
-    )
+        0, "--seed", "Random seed.", kind="int", manifest="seed", batch=True,
+        stages=("validate",), show_default=True,
+    )  # fmt: skip
     estimator: str = _option(
-        stages_lib.ESTIMATOR,
-        flag="--filter",
-        help="Estimator for the fusion stage (names: 'motionlab fuse --list').",
-        manifest="filter",
-        batch=True,
-        stages=("fuse",),
-        show_default=True,
-    )
+        stages_lib.ESTIMATOR, "--filter", "Estimator for the fusion stage (names: 'motionlab "
+        "fuse --list').", manifest="filter", batch=True, stages=("fuse",), show_default=True,
+    )  # fmt: skip
     orientation: str = _option(
-        "fused",
-        flag="--orientation",
-        help="'vendor': use the orientation the sensors carry (their own fusion, a .sto) instead "
-        "of fusing; recordings with orientations only always do.",
-        kind="choice",
-        choices=stages_lib.ORIENTATIONS,
-        manifest="orientation",
-        batch=True,
-        stages=("fuse",),
-        show_default=True,
-    )
+        "fused", "--orientation", "'vendor': use the orientation the sensors carry (their own "
+        "fusion, a .sto) instead of fusing; recordings with orientations only always do.",
+        kind="choice", choices=stages_lib.ORIENTATIONS, manifest="orientation", batch=True,
+        stages=("fuse",), show_default=True,
+    )  # fmt: skip
     magnetometer: bool = _option(
-        stages_lib.MAGNETOMETER,
-        flag="--magnetometer/--no-magnetometer",
-        help="Fuse with the magnetometers (default 6-D: indoor fields turn headings mid-task).",
-        kind="bool",
-        manifest="magnetometer",
-        batch=True,
-        stages=("fuse",),
-    )
+        stages_lib.MAGNETOMETER, "--magnetometer/--no-magnetometer", "Fuse with the "
+        "magnetometers (default 6-D: indoor fields turn headings mid-task).", kind="bool",
+        manifest="magnetometer", batch=True, stages=("fuse",),
+    )  # fmt: skip
     clock_sync: bool = _option(
-        stages_lib.CLOCK_SYNC,
-        flag="--clock-sync/--no-clock-sync",
-        help="Put IMUs recorded on their own clocks on one clock (from the joints they share).",
-        kind="bool",
-        manifest="clock_sync",
-        batch=True,
-        show_default=True,
-    )
+        stages_lib.CLOCK_SYNC, "--clock-sync/--no-clock-sync", "Put IMUs recorded on their own "
+        "clocks on one clock (from the joints they share).", kind="bool",
+        manifest="clock_sync", batch=True, show_default=True,
+    )  # fmt: skip
     force: bool = _option(
-        False,
-        flag="--force",
-        help="Replace existing outputs.",
-        kind="flag",
+        False, "--force", "Replace existing outputs.", kind="flag",
         stages=("ingest", "sync", "fuse", "calibrate", "angles", "metrics", "validate"),
-    )
-    progress: bool = _option(True, flag="--quiet", help="No progress on stderr.", kind="off")
+    )  # fmt: skip
+    progress: bool = _option(True, "--quiet", "No progress on stderr.", kind="off")
 
     def load_protocol(self) -> Protocol:
         """The protocol, loaded (and so checked)."""
