@@ -35,7 +35,6 @@ from motionlab.report.model import (
     symmetry_rows,
     worst_grade,
 )
-from motionlab.report.pages_gait import gait_frames
 
 FLOAT_FORMAT = "%.4f"
 
@@ -216,6 +215,12 @@ def calibration_frame(view: SessionView) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def _gait_frames(view: SessionView) -> dict[str, pd.DataFrame]:
+    from motionlab.report.pages_gait import gait_frames  # pages_gait imports this package
+
+    return gait_frames(view)
+
+
 def tables(view: SessionView) -> dict[str, pd.DataFrame]:
     """Every CSV of one session, by file name."""
     return (
@@ -227,7 +232,7 @@ def tables(view: SessionView) -> dict[str, pd.DataFrame]:
             "quality.csv": quality_frame(view),
             "calibration.csv": calibration_frame(view),
         }
-        | gait_frames(view)
+        | _gait_frames(view)
     )
 
 

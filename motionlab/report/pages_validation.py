@@ -12,7 +12,6 @@ from motionlab.kinematics.joint_types import angle_columns
 from motionlab.report.model import NOT_DETERMINED, SessionView, angle_grades, in_order, joint_title
 from motionlab.report.pdf import MUTED, SIZE, Document
 from motionlab.results import Validation
-from motionlab.validation import figures
 
 
 def _f(x: Any, spec: str = ".2f") -> str:
@@ -139,6 +138,8 @@ def _sync_alignment(doc: Document, val: Validation) -> None:
 
 def _figure_pages(doc: Document, view: SessionView, val: Validation) -> None:
     """Overlays, Bland-Altman plots (flexion of each joint), sync and alignment figures."""
+    from motionlab.validation import figures
+
     angles = val.angles or {}
     cols = [col for j in view.joints() for _, col in angle_columns(j) if col in angles]
     if cols:
