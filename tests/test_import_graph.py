@@ -9,6 +9,7 @@ that imports its own package's ``__init__`` while that imports the submodule is 
 from __future__ import annotations
 
 import ast
+from functools import cache
 from pathlib import Path
 
 from conftest import ROOT
@@ -82,6 +83,7 @@ KNOWN = {
 }
 
 
+@cache
 def _modules() -> dict[str, Path]:
     out = {}
     for path in PACKAGE.rglob("*.py"):
@@ -130,6 +132,7 @@ def _imports(module: str, path: Path, modules: dict[str, Path]) -> set[str]:
     return {t for t in found if t in modules and t != module}
 
 
+@cache
 def _graph() -> dict[str, set[str]]:
     modules = _modules()
     return {m: _imports(m, p, modules) for m, p in modules.items()}
