@@ -35,11 +35,11 @@ import pandas as pd
 
 from motionlab import stages as stages_lib
 from motionlab.atomic import check_folder_writable, refuse_input_as_output
+from motionlab.binding import sensed_protocol, sensor_for_segment
 from motionlab.errors import InputError
 from motionlab.ingest import DEFAULT_GAP_MAX, ingest
 from motionlab.lock import session_lock
 from motionlab.protocol import Protocol, load_protocol
-from motionlab.segments import sensor_for_segment
 from motionlab.session import (
     Session,
     is_session_file,
@@ -379,7 +379,6 @@ def analyse(session: Session, options: PipelineOptions, stages: _Stages | None =
     and 50 Hz: with the magnetometer 3 of 30 had a knee rotation RMSE of 21-23°, without it none
     above 2°). Validation then aligns each sensor's heading separately (mode ``heading``).
     """
-    from motionlab.kinematics.gait import sensed_protocol
 
     protocol = sensed_protocol(options.load_protocol(), session)
     stages = stages or _Stages([], progress=options.progress)
@@ -426,7 +425,6 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
     checked before any work.
     """
     from motionlab.export import write_json
-    from motionlab.kinematics.gait import sensed_protocol
     from motionlab.kinematics.metrics import metrics_table
     from motionlab.report import load_views, write_report
     from motionlab.report.console import run_summary

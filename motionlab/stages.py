@@ -11,7 +11,7 @@ Each function takes the session (in memory), stores its result in the stage's at
 ``calibration``, ``angles`` and ``heading``, ``metrics`` and ``gait``, ``validation``) and
 returns it; ``force`` replaces earlier results of the stage (without it they
 are an :class:`~motionlab.errors.InputError` naming ``path``, the session file). Every function
-that reads the protocol uses :func:`motionlab.kinematics.gait.sensed_protocol` (joints of
+that reads the protocol uses :func:`motionlab.binding.sensed_protocol` (joints of
 optional segments without a sensor left out), as ``run`` does.
 
 A session file that has not been through ingest (``motionlab simulate`` writes one) gets
@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from motionlab.binding import sensed_protocol
 from motionlab.errors import InputError
 from motionlab.ingest import DEFAULT_GAP_MAX, check_and_fill
 from motionlab.lineage import protocol_sha256, refuse_stale
@@ -67,8 +68,7 @@ def stage_protocol(
     session: Session, protocol: Protocol | str | Path | None, path: Any = None
 ) -> Protocol:
     """The protocol given (loaded), else the calibration's; without the joints of absent
-    optional segments (:func:`~motionlab.kinematics.gait.sensed_protocol`)."""
-    from motionlab.kinematics.gait import sensed_protocol
+    optional segments (:func:`~motionlab.binding.sensed_protocol`)."""
 
     if protocol is None:
         cal = session.results.calibration

@@ -32,7 +32,8 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "motionlab.kinematics.segment_types",
         "motionlab.kinematics.joint_angles",
     ),
-    # 1 data: the typed results, the session and its file, the protocol, the time base
+    # 1 data: the typed results, the session and its file, the protocol, the time base, the
+    # session bound to the protocol
     (
         "motionlab.results",
         "motionlab.clocknet",
@@ -42,6 +43,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "motionlab.protocol",
         "motionlab.sensor_map",
         "motionlab.summary",
+        "motionlab.binding",
     ),
     # 2 ingest: the readers and the assembly of a session
     ("motionlab.io", "motionlab.ingest"),
@@ -75,7 +77,6 @@ KNOWN = {
     ("motionlab.segments.trunk_axes", "motionlab.kinematics.session_angles"),
     # submodules that import their own package's __init__ (sensor_for_segment, ...)
     ("motionlab.segments.placement", "motionlab.segments"),
-    ("motionlab.segments.single_pose", "motionlab.segments"),
     ("motionlab.segments.trunk_axes", "motionlab.segments"),
     # placement → clocksync (joint_centre_forces) → segments (sensor_for_segment)
     ("motionlab.segments.placement", "motionlab.clocksync"),

@@ -25,13 +25,13 @@ from typing import Any
 import numpy as np
 
 from motionlab import rotations as rot
+from motionlab.binding import sensor_for_segment
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_angles import joint_angles
 from motionlab.kinematics.joint_types import angle_columns
 from motionlab.kinematics.session_angles import sensor_orientation, session_angles
 from motionlab.protocol import Protocol
 from motionlab.results import SegmentCalibration, Validation
-from motionlab.segments import sensor_for_segment
 from motionlab.session import MarkerSet, Session, estimate_rate
 from motionlab.validation.agreement import agreement, per_repetition, repetitions
 from motionlab.validation.align import Alignment
