@@ -120,3 +120,21 @@ def test_every_run_option_is_in_batch_the_manifest_and_its_stage_commands():
         for stage in option.stages:
             assert flags <= _flags(main.commands[stage]), (name, stage)
     assert "--orientation" in batch and OPTION_KEYS["orientation"] == "orientation"
+
+
+def test_run_and_batch_help_keep_their_examples_and_options():
+    """The generated options leave the help readable: examples, every flag, defaults."""
+    from click.testing import CliRunner
+
+    from motionlab.cli import main
+
+    shown = {
+        "run": ["--filter", "--orientation", "--no-clock-sync", "--quiet"],
+        "batch": ["--filter", "--orientation", "manifest key 'filter'"],
+    }
+    for name, flags in shown.items():
+        out = CliRunner().invoke(main, [name, "--help"], terminal_width=100).output
+        assert "Example:\n" in out and f"\n    motionlab {name} " in out, out
+        assert all(f in out for f in flags), out
+    out = CliRunner().invoke(main, ["run", "--help"], terminal_width=100).output
+    assert "[default: default]" in out  # the estimator's default shown
