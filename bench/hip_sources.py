@@ -26,7 +26,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from motionlab import rotations as rot  # noqa: E402
-from motionlab.kinematics.gait import sensed_protocol  # noqa: E402
+from motionlab.binding import sensed_protocol  # noqa: E402
 from motionlab.kinematics.joint_angles import decompose_joint  # noqa: E402
 from motionlab.kinematics.session_angles import angle_table, session_segments  # noqa: E402
 from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors  # noqa: E402

@@ -54,6 +54,7 @@ from motionlab.fusion import estimate  # noqa: E402
 from motionlab.io import generic  # noqa: E402
 from motionlab.kinematics.joint_angles import decompose  # noqa: E402
 from motionlab.protocol import axis_vector  # noqa: E402
+from motionlab.rotations import angular_velocity  # noqa: E402
 from motionlab.segments.heading import apply_heading, heading_from_hinge, heading_track  # noqa: E402
 from motionlab.segments.hinge import hinge_axes  # noqa: E402
 from motionlab.sensor_map import load_sensor_map  # noqa: E402
@@ -64,7 +65,7 @@ from motionlab.validation.joint_reference import (  # noqa: E402
     read_orientation_csv,
     wrap_deg,
 )
-from motionlab.validation.optical import angular_velocity, resample_quat  # noqa: E402
+from motionlab.validation.optical import resample_quat  # noqa: E402
 
 DEFAULT_DATA = ROOT.parent / "shared" / "datasets" / "ring" / "trial1"
 EXAMPLES = ROOT / "motionlab" / "protocols" / "examples"

@@ -59,8 +59,8 @@ from motionlab import rotations as rot  # noqa: E402
 from motionlab.ingest import ingest  # noqa: E402
 from motionlab.kinematics.joint_angles import decompose  # noqa: E402
 from motionlab.pipeline import PipelineOptions, analyse  # noqa: E402
+from motionlab.rotations import angular_velocity  # noqa: E402
 from motionlab.validation.joint_reference import fit_clock_offset  # noqa: E402
-from motionlab.validation.optical import angular_velocity  # noqa: E402
 
 DEFAULT_DATA = ROOT.parent / "shared" / "datasets" / "trunk"
 MAP = ROOT / "protocols" / "examples" / "trunk_map.yaml"

@@ -2,11 +2,12 @@
 
 - ``sto``: the sensor orientations (sensor → earth; the fusion results, else the vendor's
   quaternions) as OpenSense reads them (:func:`motionlab.io.opensim.write_sto`): one column per
-  IMU named after its OpenSim body (``tibia_r_imu``) where the segment maps
-  (:data:`OPENSIM_BODIES`), else the sensor label. Like the files OpenSense's own readers write,
-  the orientations stay in the IMU system's Z-up earth frame (ENU here); OpenSense turns them
-  into its Y-up ground with ``sensor_to_opensim_rotations = -1.5708 0 0`` (its default).
-  All sensors are SLERP-resampled onto the first one's time stamps, within the span they share.
+  IMU named after its OpenSim body (``tibia_r_imu``, ``humerus_l_imu``) where the segment kind
+  has one (:data:`motionlab.kinematics.segment_types.SEGMENT_TYPES`), else the sensor label.
+  Like the files OpenSense's own readers write, the orientations stay in the IMU system's Z-up
+  earth frame (ENU here); OpenSense turns them into its Y-up ground with
+  ``sensor_to_opensim_rotations = -1.5708 0 0`` (its default). All sensors are SLERP-resampled onto
+  the first one's time stamps, within the span they share.
 - ``mot``: the joint angles as an OpenSim motion file (``inDegrees=yes``, degrees): angles
   that are coordinates of OpenSim's Rajagopal (2015) full-body model, the model OpenSense's
   tutorials use, get its coordinate names and signs (:data:`OPENSIM_COORDINATES`:
@@ -33,6 +34,12 @@ from motionlab import __version__
 from motionlab import rotations as rot
 from motionlab.atomic import atomic_path
 from motionlab.errors import InputError
+from motionlab.io.c3d import MODEL_KINDS
+from motionlab.io.opensim import write_mot, write_sto
+from motionlab.kinematics.joint_types import angle_columns, opensim_coordinates
+from motionlab.kinematics.metrics import metrics_table
+from motionlab.kinematics.segment_types import opensim_imu_name
+from motionlab.protocol import load_protocol
 from motionlab.results import SegmentCalibration
 from motionlab.session import MarkerSet, ModelOutput, Session
 
@@ -40,43 +47,10 @@ FORMATS = ("sto", "mot", "c3d", "json")
 JSON_FORMAT = "motionlab-results"
 JSON_VERSION = 1
 
-#: motionlab segment → OpenSim body of the gait and upper-limb models (Rajagopal, gait2392)
-OPENSIM_BODIES = {
-    "pelvis": "pelvis",
-    "thorax": "torso",
-    "trunk": "torso",
-    "thigh": "femur",
-    "shank": "tibia",
-    "foot": "calcn",
-    "upper_arm": "humerus",
-    "forearm": "radius",
-    "hand": "hand",
-}
-
-
-#: motionlab angle column → (OpenSim coordinate of the Rajagopal 2015 model, sign). Both use
-#: ISB-like frames (x anterior, y up, z right) and mirror the left side, so the signs agree
-#: except lumbar flexion (Rajagopal's lumbar_extension turns the torso backward about +z).
-#: Rajagopal's knee_angle is positive in flexion (gait2392's is negative: negate it there).
-#: Positive lumbar_bending bends to the right and lumbar_rotation turns to the left, as
-#: motionlab's; pro_sup is positive in pronation; elbow_flex in flexion.
-OPENSIM_COORDINATES: dict[str, tuple[str, float]] = {
-    **{
-        f"{joint}_{s}_{angle}_deg": (f"{coordinate}_{s}", 1.0)
-        for s in ("r", "l")
-        for joint, angle, coordinate in (
-            ("hip", "flexion", "hip_flexion"),
-            ("hip", "adduction", "hip_adduction"),
-            ("hip", "rotation", "hip_rotation"),
-            ("knee", "flexion", "knee_angle"),
-            ("elbow", "flexion", "elbow_flex"),
-            ("elbow", "pronation", "pro_sup"),
-        )
-    },
-    "lumbar_flexion_deg": ("lumbar_extension", -1.0),
-    "lumbar_lateral_bending_deg": ("lumbar_bending", 1.0),
-    "lumbar_axial_rotation_deg": ("lumbar_rotation", 1.0),
-}
+#: motionlab angle column → (OpenSim coordinate of the Rajagopal 2015 model, sign), from the
+#: joint table (:attr:`motionlab.kinematics.joint_types.JointType.opensim`, which says why the
+#: signs are what they are)
+OPENSIM_COORDINATES: dict[str, tuple[str, float]] = opensim_coordinates()
 
 
 def opensim_columns(columns: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -94,17 +68,9 @@ def opensim_columns(columns: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
 
 def imu_name(label: str, segment: str, side: str) -> str:
     """OpenSense column name: ``<body>_imu`` (``tibia_r_imu``) when the segment maps to an
-    OpenSim body (:data:`OPENSIM_BODIES`), else the sensor label."""
-    base, _, suffix = segment.rpartition("_")
-    if suffix in ("r", "l") and base:
-        segment, side = base, suffix
-    side = {"right": "r", "left": "l"}.get(side, side)
-    body = OPENSIM_BODIES.get(segment)
-    if body is None:
-        return label
-    if side in ("r", "l") and body not in ("pelvis", "torso"):
-        return f"{body}_{side}_imu"
-    return f"{body}_imu"
+    OpenSim body (:func:`motionlab.kinematics.segment_types.opensim_imu_name`), else the sensor
+    label."""
+    return opensim_imu_name(segment, side) or label
 
 
 def orientations(session: Session) -> tuple[np.ndarray, dict[str, np.ndarray]]:
@@ -174,9 +140,6 @@ def joint_columns(session: Session) -> dict[str, list[str]]:
     _, columns = angle_table(session)
     cal = session.results.calibration or SegmentCalibration("")
     try:
-        from motionlab.kinematics.joint_types import angle_columns
-        from motionlab.protocol import load_protocol
-
         proto = load_protocol(cal.protocol_source)
         out = {name: [c for _, c in angle_columns(j)] for name, j in proto.joints.items()}
         if all(c in columns for cols in out.values() for c in cols):
@@ -208,8 +171,6 @@ def write_c3d(
     ``POINT:<KIND>`` with ``POINT:<KIND>_UNITS`` (``ANGLE_UNITS``…); ``descriptions`` fill
     ``POINT:DESCRIPTIONS`` by label. NaN → residual −1."""
     import ezc3d
-
-    from motionlab.io.c3d import MODEL_KINDS
 
     rate = 1.0 / float(np.median(np.diff(time))) if len(time) > 1 else 100.0
     labels, blocks = [], []
@@ -329,8 +290,6 @@ def results_json(session: Session) -> dict[str, Any]:
             joints[joint] = entry
         out["angles"] = {"time_s": time, "method": res.angles.method, "joints": joints}
     if res.metrics is not None:
-        from motionlab.kinematics.metrics import metrics_table
-
         table = metrics_table(res.metrics)
         out["metrics"] = table.astype(object).where(table.notna(), None).to_dict("records")
     if res.calibration is not None:
@@ -354,8 +313,6 @@ def write_json(session: Session, path: str | Path, force: bool = False) -> None:
 
 def export_session(session: Session, fmt: str, path: str | Path, force: bool = False) -> str:
     """Write ``session`` as ``fmt`` (:data:`FORMATS`) to ``path``; a one-line summary."""
-    from motionlab.io.opensim import write_mot, write_sto
-
     if fmt == "sto":
         time, quats = orientations(session)
         write_sto(path, time, quats, force=force)

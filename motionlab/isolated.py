@@ -28,6 +28,8 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any, TypeVar
 
+import h5py
+
 from motionlab.errors import InputError
 
 T = TypeVar("T")
@@ -181,11 +183,19 @@ def check_hdf5(path: str | Path) -> None:
     _PROBED.add(key)
 
 
+def open_hdf5(path: str | Path, message: str, remedy: str) -> h5py.File:
+    """``path`` opened for reading with h5py, or an :class:`InputError` (``message``, the path,
+    ``remedy``) when h5py cannot open it. Probe a file that may be damaged with
+    :func:`check_hdf5` first: a crash inside libhdf5 is no exception to catch."""
+    try:
+        return h5py.File(path, "r")
+    except (OSError, RuntimeError):
+        raise InputError(message, path, remedy=remedy) from None
+
+
 def _probe_hdf5(path: Path) -> None:
     """Touch every group, attribute and dataset value of ``path``; errors are ignored (the
     readers report them with their place), only a crash matters."""
-    import h5py
-
     try:
         f = h5py.File(path, "r")
     except Exception:  # noqa: BLE001

@@ -20,10 +20,12 @@ its results are taken as consistent with each other, as they were used before
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from motionlab.atomic import check_regular
 from motionlab.errors import InputError
 
 #: the stages whose results each stage reads, in the order the stages run
@@ -155,10 +157,18 @@ class Lineage:
         return cls(int(tree["counter"]), stamps)
 
 
+def sha256_file(path: str | Path) -> str:
+    """SHA-256 hex digest of a file's bytes."""
+    check_regular(path)
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
 def protocol_sha256(protocol: Any) -> str | None:
     """SHA-256 of the protocol's file (a path, or a loaded protocol's ``path``), if it has one."""
-    from motionlab.session import sha256_file
-
     path = getattr(protocol, "path", protocol)
     if path is None or not Path(path).is_file():
         return None

@@ -28,21 +28,21 @@ import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import h5py
 import pandas as pd
 
 from motionlab import stages as stages_lib
 from motionlab.atomic import check_folder_writable, refuse_input_as_output
+from motionlab.binding import sensed_protocol, sensor_for_segment
 from motionlab.errors import InputError
 from motionlab.ingest import DEFAULT_GAP_MAX, ingest
-from motionlab.isolated import check_hdf5, looks_like_hdf5
 from motionlab.lock import session_lock
 from motionlab.protocol import Protocol, load_protocol
-from motionlab.segments import sensor_for_segment
 from motionlab.session import (
-    FORMAT_NAME,
     Session,
+    is_session_file,
     load_session,
     save_session,
     sha256_file,
@@ -89,18 +89,6 @@ class _Stages:
         t0 = time.perf_counter()
         yield
         self.times[name] = time.perf_counter() - t0
-
-
-def is_session_file(path: Path) -> bool:
-    """Whether ``path`` is a motionlab session (HDF5 with the session format attribute)."""
-    if not looks_like_hdf5(path):
-        return False
-    check_hdf5(path)
-    try:
-        with h5py.File(path, "r") as f:
-            return f.attrs.get("format") == FORMAT_NAME
-    except OSError:
-        return False
 
 
 def _holds_markers(inputs: list[Path]) -> bool:
@@ -219,8 +207,41 @@ def _outputs(
 
 
 @dataclass(frozen=True)
+class RunOption:
+    """How one field of :class:`PipelineOptions` is set from outside: the one table the click
+    options of ``motionlab run`` and ``motionlab batch``, the CLI's flag table
+    (``cli/flags.FLAGS``), the manifest keys (``batch/manifest.OPTION_KEYS``) and
+    :meth:`PipelineOptions.command` are made from."""
+
+    #: the flag (``--filter``); a boolean's ``--name/--no-name`` pair, or the one flag that
+    #: turns it off (``--quiet`` for ``progress``, with ``kind="off"``)
+    flag: str
+    #: the ``--help`` text (``motionlab batch`` adds the default)
+    help: str
+    #: ``text``, ``int``, ``bool`` (a flag pair), ``flag`` (a flag alone), ``off`` (a flag that
+    #: sets False), ``file`` (to read), ``folder``, ``choice`` (one of :attr:`choices`)
+    kind: str = "text"
+    choices: tuple[str, ...] = ()
+    #: the study manifest's key (``filter``), or ``None``
+    manifest: str | None = None
+    #: also a ``motionlab batch`` flag and a manifest key for the study or one session
+    batch: bool = False
+    #: the stage commands that take the same flag (``tests/test_cli_flags.py`` checks them)
+    stages: tuple[str, ...] = ()
+    #: the ``--help`` shows the default
+    show_default: bool = False
+
+
+def _option(default: Any, flag: str, help: str, **option: Any) -> Any:  # noqa: A002
+    """A :class:`PipelineOptions` field (``default``; ``dataclasses.MISSING``: required) with
+    its :class:`RunOption`."""
+    return dataclasses.field(default=default, metadata={"option": RunOption(flag, help, **option)})
+
+
+@dataclass(frozen=True)
 class PipelineOptions:
-    """Every option of ``motionlab run`` (and of each session of ``motionlab batch``).
+    """Every option of ``motionlab run`` (and of each session of ``motionlab batch``); each
+    field's flag, help text and manifest key are its :class:`RunOption` (:data:`RUN_OPTIONS`).
 
     protocol
         Protocol YAML file, the name of a packaged protocol (``knee``) or a loaded
@@ -233,11 +254,6 @@ class PipelineOptions:
         (:mod:`motionlab.validation.reference_kinds`).
     calibration_dir
         Folder of per-serial sensor calibrations (``motionlab sensorcal``) applied before fusion.
-    magnetometer
-        Fuse with the magnetometers (default 6-D, :data:`motionlab.stages.MAGNETOMETER`).
-    clock_sync
-        Put the IMUs on one clock from their shared joint centres and heel strikes first
-        (``motionlab sync``).
     seed
         Random seed of the stochastic steps (the validation's RANSAC clock fit).
     estimator
@@ -245,23 +261,64 @@ class PipelineOptions:
     orientation
         ``fused`` (default) or ``vendor``: use the orientation the sensors carry (the vendor's
         fusion, an OpenSense ``.sto``) instead of fusing (:func:`motionlab.stages.fuse`).
+    magnetometer
+        Fuse with the magnetometers (default 6-D, :data:`motionlab.stages.MAGNETOMETER`).
+    clock_sync
+        Put the IMUs on one clock from their shared joint centres and heel strikes first
+        (``motionlab sync``).
     force
         Replace existing outputs.
     progress
         Print the stage counter and fusion progress on stderr.
     """
 
-    protocol: str | Path | Protocol
-    map_path: Path | None = None
-    reference: Path | None = None
-    calibration_dir: Path | None = None
-    magnetometer: bool = stages_lib.MAGNETOMETER
-    clock_sync: bool = stages_lib.CLOCK_SYNC
-    seed: int = 0
-    estimator: str = stages_lib.DEFAULT_ESTIMATOR
-    orientation: str = "fused"
-    force: bool = False
-    progress: bool = True
+    # each field: default, flag, help text, then its RunOption's other keys
+    protocol: str | Path | Protocol = _option(
+        dataclasses.MISSING, "--protocol", "Protocol YAML file or packaged name.",
+        manifest="protocol", stages=("sync", "calibrate", "angles", "metrics", "validate"),
+    )  # fmt: skip
+    map_path: Path | None = _option(
+        None, "--map", "Sensor map YAML for raw recordings (see 'motionlab ingest --help').",
+        kind="file", manifest="map", stages=("ingest",),
+    )  # fmt: skip
+    reference: Path | None = _option(
+        None, "--reference", "Reference to validate against: markers (C3D, TRC, a session), a "
+        "CSV of segment quaternions or a C3D of model joint angles (see 'motionlab validate "
+        "--help').", kind="file", manifest="reference", stages=("validate",),
+    )  # fmt: skip
+    calibration_dir: Path | None = _option(
+        None, "--calibration", "Folder of per-serial sensor calibrations (motionlab sensorcal) "
+        "for fusion.", kind="folder", manifest="calibration", batch=True, stages=("fuse",),
+    )  # fmt: skip
+    seed: int = _option(
+        0, "--seed", "Random seed.", kind="int", manifest="seed", batch=True,
+        stages=("validate",), show_default=True,
+    )  # fmt: skip
+    estimator: str = _option(
+        stages_lib.ESTIMATOR, "--filter", "Estimator for the fusion stage (names: 'motionlab "
+        "fuse --list').", manifest="filter", batch=True, stages=("fuse",), show_default=True,
+    )  # fmt: skip
+    orientation: str = _option(
+        "fused", "--orientation", "'vendor': use the orientation the sensors carry (their own "
+        "fusion, a .sto) instead of fusing; recordings with orientations only always do.",
+        kind="choice", choices=stages_lib.ORIENTATIONS, manifest="orientation", batch=True,
+        stages=("fuse",), show_default=True,
+    )  # fmt: skip
+    magnetometer: bool = _option(
+        stages_lib.MAGNETOMETER, "--magnetometer/--no-magnetometer", "Fuse with the "
+        "magnetometers (default 6-D: indoor fields turn headings mid-task).", kind="bool",
+        manifest="magnetometer", batch=True, stages=("fuse",),
+    )  # fmt: skip
+    clock_sync: bool = _option(
+        stages_lib.CLOCK_SYNC, "--clock-sync/--no-clock-sync", "Put IMUs recorded on their own "
+        "clocks on one clock (from the joints they share).", kind="bool",
+        manifest="clock_sync", batch=True, show_default=True,
+    )  # fmt: skip
+    force: bool = _option(
+        False, "--force", "Replace existing outputs.", kind="flag",
+        stages=("ingest", "sync", "fuse", "calibrate", "angles", "metrics", "validate"),
+    )  # fmt: skip
+    progress: bool = _option(True, "--quiet", "No progress on stderr.", kind="off")
 
     def load_protocol(self) -> Protocol:
         """The protocol, loaded (and so checked)."""
@@ -282,19 +339,27 @@ class PipelineOptions:
         return out
 
     def command(self, inputs: list[Path], outdir: Path) -> str:
-        """The ``motionlab run`` command line these options stand for."""
+        """The ``motionlab run`` command line these options stand for (the options that differ
+        from their defaults, in the order of the fields)."""
         protocol = self.protocol.path if isinstance(self.protocol, Protocol) else self.protocol
-        return shlex.join(
-            ["motionlab", "run", "--protocol", str(protocol), *map(str, inputs), "-o", str(outdir)]
-            + (["--map", str(self.map_path)] if self.map_path else [])
-            + (["--reference", str(self.reference)] if self.reference else [])
-            + (["--calibration", str(self.calibration_dir)] if self.calibration_dir else [])
-            + (["--seed", str(self.seed)] if self.seed else [])
-            + (["--filter", self.estimator] if self.estimator != "default" else [])
-            + (["--orientation", self.orientation] if self.orientation != "fused" else [])
-            + (["--magnetometer"] if self.magnetometer else [])
-            + ([] if self.clock_sync else ["--no-clock-sync"])
-        )
+        words = ["motionlab", "run", "--protocol", str(protocol), *map(str, inputs)]
+        words += ["-o", str(outdir)]
+        for f in dataclasses.fields(self):
+            value, option = getattr(self, f.name), RUN_OPTIONS[f.name]
+            if f.name in ("protocol", "force", "progress") or value == f.default:
+                continue
+            if option.kind == "bool":
+                on, off = option.flag.split("/")
+                words.append(on if value else off)
+            else:
+                words += [option.flag, str(value)]
+        return shlex.join(words)
+
+
+#: field of :class:`PipelineOptions` → its :class:`RunOption`, in the order of the fields
+RUN_OPTIONS: dict[str, RunOption] = {
+    f.name: f.metadata["option"] for f in dataclasses.fields(PipelineOptions)
+}
 
 
 def analyse(session: Session, options: PipelineOptions, stages: _Stages | None = None) -> None:
@@ -314,7 +379,6 @@ def analyse(session: Session, options: PipelineOptions, stages: _Stages | None =
     and 50 Hz: with the magnetometer 3 of 30 had a knee rotation RMSE of 21-23°, without it none
     above 2°). Validation then aligns each sensor's heading separately (mode ``heading``).
     """
-    from motionlab.kinematics.gait import sensed_protocol
 
     protocol = sensed_protocol(options.load_protocol(), session)
     stages = stages or _Stages([], progress=options.progress)
@@ -338,12 +402,13 @@ def analyse(session: Session, options: PipelineOptions, stages: _Stages | None =
     with stages("metrics"):
         stages_lib.metrics(session, protocol, force=True)
     if options.reference is not None or session.markers:
-        from motionlab.validation.reference_kinds import load_reference
+        from motionlab.validation.reference_kinds import load_reference, session_reference
 
-        with stages("validate"):
-            marker_set, kind = None, "markers"
-            if options.reference is not None:  # markers, segment quaternions or model angles
+        with stages("validate"):  # markers, segment quaternions or model angles
+            if options.reference is not None:
                 marker_set, kind = load_reference(Path(options.reference))
+            else:
+                marker_set, kind = session_reference(session)
             stages_lib.validate(session, protocol, marker_set, seed=options.seed, force=True,
                                 reference_kind=kind)  # fmt: skip
     for line in cal.warnings if stages.progress else []:  # after the stages: an error comes first
@@ -360,9 +425,9 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
     checked before any work.
     """
     from motionlab.export import write_json
-    from motionlab.kinematics.gait import sensed_protocol
     from motionlab.kinematics.metrics import metrics_table
     from motionlab.report import load_views, write_report
+    from motionlab.report.console import run_summary
 
     t_start = time.perf_counter()
     inputs = [Path(p) for p in inputs]
@@ -416,153 +481,13 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
             write_json(session, outdir / RESULTS_JSON, force=options.force)
     table = metrics_table(session.results.metrics)
     metrics = table[table["percent"].isna()].drop(columns="percent").reset_index(drop=True)
-    summary = run_summary(views[0], out, stages.times, time.perf_counter() - t_start)
+    summary = run_summary(
+        views[0],
+        out,
+        stages.times,
+        time.perf_counter() - t_start,
+        session_file=SESSION_FILE,
+        csv_dir=CSV_DIR,
+        results_json=RESULTS_JSON,
+    )
     return PipelineResult(session_path, report_path, csv_dir, metrics, summary)
-
-
-def grade_lines(view, width: int = 100) -> list[str]:
-    """Summary lines on the angles' grades: how many the recording determined, then the weak
-    and not determined ones by column name, grouped by reason (wrapped at ``width``)."""
-    import textwrap
-
-    from motionlab.report.model import grade_rows
-
-    rows = grade_rows(view)
-    good = sum(r["grade"] == "determined" for r in rows)
-    lines = [f"  angles determined by the recording: {good}/{len(rows)}"]
-    groups: dict[tuple[str, str], list[str]] = {}
-    for r in rows:
-        if r["grade"] != "determined":
-            groups.setdefault((r["grade"], r["reason"]), []).append(r["column"])
-    for (grade, reason), cols in groups.items():
-        text = f"{grade}: {', '.join(cols)}" + (f" - {reason}" if reason else "")
-        lines += textwrap.wrap(
-            text, width, initial_indent="    ", subsequent_indent="      ", break_on_hyphens=False
-        )
-    return lines
-
-
-def run_summary(view, report, times: dict[str, float], total_s: float) -> str:
-    """One screen: subject, data, calibration, tasks, flexion ranges, validation, outputs."""
-    from motionlab.report.model import (
-        angle_grades,
-        calibration_rows,
-        grade_mark,
-        quality_rows,
-        rom_rows,
-    )
-    from motionlab.report.sentences import findings, missing_lines, span, task_name
-
-    ses, proto = view.session, view.protocol
-    q = quality_rows(view)
-    flagged = sorted({f for r in q for f in r["flags"]})
-    rate = q[0]["rate_hz"] if q else float("nan")
-    lines = [
-        f"motionlab run: {proto.name} ({proto.title}) - subject {view.subject}, {view.date}",
-        f"  data: {len(ses.sensors)} sensors at {rate:.0f} Hz, {view.angles['time_s'][-1]:.0f} s;"
-        f" quality flags: {', '.join(flagged) or 'none'}",
-    ]
-    fusion = {
-        f"{e.name}{'' if e.magnetometer else ' (6-D, no magnetometer)'}"
-        for e in ses.results.fusion.values()
-    }
-    lines.append(f"  fusion: {', '.join(sorted(fusion)) or 'sensor orientations'}")
-    synced = ses.results.clock_sync.fits if ses.results.clock_sync is not None else {}
-    if synced:
-        moved = [f"{k} {1e3 * v.offset_s:+.1f} ms" for k, v in synced.items()
-                 if v.status == "applied"]  # fmt: skip
-        lines.append(
-            f"  clock sync: {', '.join(moved) if moved else 'no correction needed or reliable'}"
-            f" ({len(synced)} sensor pairs checked)"
-        )
-    segs = {r["segment"]: r["segment_ok"] for r in calibration_rows(view)}
-    bad = [s for s, ok in segs.items() if not ok]
-    lines.append(
-        f"  calibration: {len(segs) - len(bad)}/{len(segs)} segments ok"
-        + (f"; check {', '.join(bad)}" if bad else "")
-    )
-    cal = ses.results.calibration
-    lines += [f"  warning: {w}" for w in (cal.warnings if cal is not None else [])]
-    tied = [
-        f"{j} by its {h.source.replace('_', ' ')} ({h.range_deg:.1f}° range)"
-        for j, h in (ses.results.heading or {}).items()
-        if h.anchors and h.source != "steps"
-    ]
-    if tied:
-        lines.append("  heading tied by the joints: " + ", ".join(tied))
-    lines += grade_lines(view)
-    spans = ", ".join(f"{task_name(k)} {a:.0f}-{b:.0f} s" for k, (a, b) in view.blocks().items())
-    if not spans and cal is not None and cal.single_pose:
-        spans = "none (the recording is its calibration pose)"
-    lines.append("  tasks: " + spans)
-    lines.append(_gait_line(view))
-    flexion = [r for r in rom_rows(view) if r["angle"] == "flexion"]
-    if flexion:
-        lines.append("  flexion range (typical, deg):")
-    for r in flexion:
-        normal = (
-            f"normal {r['normal'][0]:g}-{r['normal'][1]:g}, {r['status'] or 'not compared'}"
-            if r["normal"]
-            else "no normal range"
-        )
-        lines.append(
-            f"    {task_name(r['task']):<14} {r['joint']:<8} "
-            f"{span(r['typical_min_deg'], r['typical_max_deg']):>10}  ({normal})"
-            + (f" {grade_mark(r['grade'])}" if grade_mark(r["grade"]) else "")
-        )
-    validation = ses.results.validation
-    val = (validation.angles or {}) if validation is not None else {}
-    grades = angle_grades(view)
-    rmse = [
-        f"{c.removesuffix('_deg')} {v['rmse_deg']:.1f}"
-        + (f" {grade_mark(grades[c][0])}" if c in grades and grade_mark(grades[c][0]) else "")
-        for c, v in val.items()
-        if isinstance(v, dict) and "rmse_deg" in v
-    ]
-    if rmse:
-        lines.append(
-            f"  validation RMSE (deg): {', '.join(rmse[:6])}" + (" ..." if len(rmse) > 6 else "")
-        )
-    lines.append("  findings (determined numbers only):")
-    lines += [f"    - {f}" for f in findings(view, limit=4)]
-    missing = missing_lines(view)
-    if missing:
-        lines.append("  not determined by this recording:")
-        lines += [f"    - {m}" for m in missing]
-    lines.append(f"outputs in {report.pdf_path.parent}:")
-    lines.append(
-        f"  {SESSION_FILE}, {report.pdf_path.name} ({len(report.pages)} pages), "
-        f"{report.text_path.name}, {CSV_DIR}/ ({len(report.csv_paths)} tables), {RESULTS_JSON}"
-    )
-    steps = ", ".join(f"{k} {v:.1f}" for k, v in times.items())
-    lines.append(f"time: {total_s:.1f} s ({steps})")
-    return "\n".join(lines)
-
-
-def _gait_line(view) -> str:
-    """One summary line about gait: its main numbers (each only when enough steady strides and
-    determined inputs give it, else why not), or why there are no gait pages."""
-    from motionlab.report.model import gait_profile
-
-    gait = view.session.results.gait
-    if gait is None:
-        return "  gait: none in this recording (the protocol has no gait task); no gait pages"
-    if not gait.ok:
-        return f"  gait: {gait.status}; no gait pages"
-    s = gait.summary
-    withheld = s.get("withheld") or {}
-
-    def number(key: str, fmt: str) -> str:
-        v = s.get(key, float("nan"))
-        return fmt.format(v) if v == v else withheld.get(key, "n/a")
-
-    mp = gait_profile(view) or {}
-    gps = mp.get("gps", {}).get("overall", float("nan"))
-    gps_text = f"GPS {gps:.1f} deg" if gps == gps else (mp.get("not_computed") or "GPS n/a")
-    speed = s.get("walking_speed_m_s", float("nan"))
-    speed_text = f", speed {speed:.2f} m/s (leg model)" if speed == speed else ""
-    return (
-        f"  gait: {s['strides_kept']} strides, cadence "
-        f"{number('cadence_steps_per_min', '{:.1f} steps/min')}, step-time asymmetry "
-        f"{number('step_time_asymmetry_pct', '{:.1f} %')}{speed_text}; {gps_text}"
-    )

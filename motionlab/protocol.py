@@ -75,12 +75,13 @@ axis each one points along in the nominal placement (e.g. ``[-z, y, x]``); the d
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
 from motionlab.atomic import check_regular
 from motionlab.errors import InputError, shorten
@@ -91,7 +92,7 @@ from motionlab.kinematics.joint_types import (
     resolve_sequence,
     sequence_problem,
 )
-from motionlab.yamlsafe import BoundedSafeLoader, did_you_mean, load_yaml, read_yaml_text
+from motionlab.yamlsafe import LineLoader, LineMap, did_you_mean, load_yaml, read_yaml_text
 
 STEP_KINDS = ("static", "functional")
 AXIS_METHODS = ("svd", "hinge", "trunk")
@@ -190,34 +191,6 @@ def axis_vector(axis: str) -> np.ndarray:
     return v
 
 
-# ------------------------------------------------------------------------------ YAML with lines
-
-
-class _LineLoader(BoundedSafeLoader):
-    """SafeLoader whose mappings remember the line of each key (``_lines``)."""
-
-
-class _Map(dict):
-    lines: dict[str, int]
-
-
-def _construct_mapping(loader: _LineLoader, node: yaml.MappingNode) -> _Map:
-    loader.flatten_mapping(node)
-    out = _Map()
-    out.lines = {}
-    for key_node, value_node in node.value:
-        key = loader.construct_object(key_node, deep=True)
-        out[key] = loader.construct_object(value_node, deep=True)
-        out.lines[key] = key_node.start_mark.line + 1
-    return out
-
-
-_LineLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
-
-#: public name: other line-aware YAML files (marker maps) load with it; mappings get ``lines``
-LineLoader = _LineLoader
-
-
 class _Reader:
     """Validates one protocol document, raising InputError that names the key and its line."""
 
@@ -306,12 +279,56 @@ class _Reader:
         return side
 
 
-def load_protocol(path: str | Path) -> Protocol:
-    """Load and validate a protocol YAML file (a path, or the name of a packaged protocol)."""
+def parse_protocol(path: str | Path) -> tuple[Path, dict]:
+    """The protocol file (a path, or the name of a packaged protocol) and its YAML document:
+    mappings that know the line of each key (``.lines``), bounded in size and depth
+    (:class:`~motionlab.yamlsafe.BoundedSafeLoader`); nothing checked beyond the YAML."""
     path = resolve_protocol_path(path)
     text = read_yaml_text(path, "protocol", "give a protocol YAML file (see protocols/knee.yaml)")
-    doc = load_yaml(text, _LineLoader, path, "check indentation and colons")
+    return path, load_yaml(text, LineLoader, path, "check indentation and colons")
+
+
+def load_protocol(path: str | Path) -> Protocol:
+    """Load and validate a protocol YAML file (a path, or the name of a packaged protocol).
+
+    Parse (:func:`parse_protocol`), then validate and build each part in the file's order
+    (top level, segments, calibration steps, joints, tasks, normative ranges, the rest), so
+    that the first error in the file is the one reported, naming its key and line."""
+    path, doc = parse_protocol(path)
     r = _Reader(path)
+    name = _top_level(r, doc)
+    segments = _segments(r, doc)
+    check_segment = partial(_check_segment, r, segments)
+    steps = _steps(r, doc, check_segment)
+    joints = _joints(r, doc, check_segment)
+    tasks = _tasks(r, doc)
+    normative = _normative(r, doc)
+    return Protocol(
+        name=name,
+        segments=segments,
+        joints=joints,
+        calibration=steps,
+        tasks=tasks,
+        normative={
+            t: {c: [float(v) for v in rng] for c, rng in (ranges or {}).items()}
+            for t, ranges in normative.items()
+        },
+        metrics=[
+            _text(r, m, "metrics", doc.lines.get("metrics"))
+            for m in r.get(doc, "metrics", "", list, False, [])
+        ],
+        thresholds=_thresholds(r, r.get(doc, "thresholds", "", dict, False, {}), "thresholds"),
+        title=r.get(doc, "title", "", str, False, ""),
+        purpose=r.get(doc, "purpose", "", str, False, ""),
+        source=r.get(doc, "source", "", str, False, ""),
+        path=path,
+        raw=_plain(doc),
+    )
+
+
+def _top_level(r: _Reader, doc: Any) -> str:
+    """Check the document's top level (a mapping of known keys, named parts) and return the
+    protocol's name."""
     if not isinstance(doc, dict):
         r.fail("(top level)", 1, "is not a mapping", "start from protocols/knee.yaml")
     r.names(doc, "")
@@ -320,12 +337,16 @@ def load_protocol(path: str | Path) -> Protocol:
     for key in ("segments", "joints", "normative", "thresholds"):
         if isinstance(doc.get(key), dict):
             r.names(doc[key], key)
+    return name
 
+
+def _segments(r: _Reader, doc: dict) -> dict[str, Segment]:
+    """The validated ``segments`` (at least one)."""
     segments: dict[str, Segment] = {}
     for seg_name, spec in r.get(doc, "segments", "", dict).items():
         where = f"segments.{seg_name}"
         line = doc["segments"].lines.get(seg_name)
-        spec = spec if spec is not None else _Map()
+        spec = spec if spec is not None else LineMap()
         if not isinstance(spec, dict):
             r.fail(where, line, "is not a mapping", "give side/placement keys")
         r.known(spec, where, SEGMENT_KEYS)
@@ -351,16 +372,25 @@ def load_protocol(path: str | Path) -> Protocol:
     if not segments:
         r.fail("segments", doc.lines.get("segments"), "is empty", "name at least one segment")
 
-    def check_segment(seg: Any, where: str, line: int | None) -> str:
-        if not isinstance(seg, str) or seg not in segments:
-            r.fail(
-                where,
-                line,
-                f"names segment {shorten(repr(seg))}, which is not under segments",
-                f"use one of {', '.join(segments)}",
-            )
-        return seg
+    return segments
 
+
+def _check_segment(
+    r: _Reader, segments: dict[str, Segment], seg: Any, where: str, line: int | None
+) -> str:
+    """``seg`` when it names one of ``segments``, else the error at ``where``."""
+    if not isinstance(seg, str) or seg not in segments:
+        r.fail(
+            where,
+            line,
+            f"names segment {shorten(repr(seg))}, which is not under segments",
+            f"use one of {', '.join(segments)}",
+        )
+    return seg
+
+
+def _steps(r: _Reader, doc: dict, check_segment: Callable) -> list[CalibrationStep]:
+    """The validated ``calibration`` steps."""
     steps = []
     for i, spec in enumerate(r.get(doc, "calibration", "", list, False, [])):
         where = f"calibration[{i}]"
@@ -452,6 +482,11 @@ def load_protocol(path: str | Path) -> Protocol:
             )
         )
 
+    return steps
+
+
+def _joints(r: _Reader, doc: dict, check_segment: Callable) -> dict[str, Joint]:
+    """The validated ``joints``; two joints giving one angle column are an error."""
     joints = {}
     owners: dict[str, tuple[str, int | None]] = {}  # column → (joint key, line)
     for jname, spec in r.get(doc, "joints", "", dict).items():
@@ -473,6 +508,11 @@ def load_protocol(path: str | Path) -> Protocol:
                 )
             owners[col] = (where, line)
 
+    return joints
+
+
+def _tasks(r: _Reader, doc: dict) -> list[Task]:
+    """The validated ``tasks``."""
     tasks = []
     for i, spec in enumerate(r.get(doc, "tasks", "", list, False, [])):
         where = f"tasks[{i}]"
@@ -499,6 +539,11 @@ def load_protocol(path: str | Path) -> Protocol:
             )
         )
 
+    return tasks
+
+
+def _normative(r: _Reader, doc: dict) -> dict:
+    """The ``normative`` ranges as the file gives them (checked: ``column: [low, high]``)."""
     normative = r.get(doc, "normative", "", dict, False, {})
     for task, ranges in normative.items():
         if ranges is not None and not isinstance(ranges, dict):
@@ -513,27 +558,7 @@ def load_protocol(path: str | Path) -> Protocol:
                     f"range {shorten(repr(rng))} is not [low, high]",
                     "e.g. [0, 65]",
                 )
-    return Protocol(
-        name=name,
-        segments=segments,
-        joints=joints,
-        calibration=steps,
-        tasks=tasks,
-        normative={
-            t: {c: [float(v) for v in rng] for c, rng in (ranges or {}).items()}
-            for t, ranges in normative.items()
-        },
-        metrics=[
-            _text(r, m, "metrics", doc.lines.get("metrics"))
-            for m in r.get(doc, "metrics", "", list, False, [])
-        ],
-        thresholds=_thresholds(r, r.get(doc, "thresholds", "", dict, False, {}), "thresholds"),
-        title=r.get(doc, "title", "", str, False, ""),
-        purpose=r.get(doc, "purpose", "", str, False, ""),
-        source=r.get(doc, "source", "", str, False, ""),
-        path=path,
-        raw=_plain(doc),
-    )
+    return normative
 
 
 def _joint(r: _Reader, jname: str, spec: Any, line: int | None, check_segment) -> Joint:

@@ -185,6 +185,18 @@ def mean(q: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
     return out if out[0] >= 0 else -out
 
 
+def angular_velocity(time: np.ndarray, quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Angular velocity (N−1, 3) in rad/s in the moving frame, at the interval midpoints (s).
+
+    ``ω_k = 2 log(q_k* ⊗ q_{k+1}) / (t_{k+1} − t_k)`` (Ricci 2015, eqs. 5.11-5.12); NaN where
+    either orientation is NaN.
+    """
+    time = np.asarray(time, dtype=float)
+    quat = np.asarray(quat, dtype=float)
+    dq = mul(conj(quat[:-1]), quat[1:])
+    return 0.5 * (time[1:] + time[:-1]), to_rotvec(dq) / np.diff(time)[:, None]
+
+
 def integrate_gyro(q0: np.ndarray, gyr: np.ndarray, dt: float | np.ndarray) -> np.ndarray:
     """Strapdown integration of body angular velocity ``gyr`` (N×3, rad/s) from ``q0``.
 

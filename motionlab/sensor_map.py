@@ -28,10 +28,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from motionlab.errors import InputError, shorten
-from motionlab.yamlsafe import BoundedSafeLoader, did_you_mean, load_yaml, read_yaml_text
+from motionlab.yamlsafe import LineMap, TextKeyLineLoader, did_you_mean, load_yaml, read_yaml_text
 
 TOP_KEYS = ("subject", "session", "sensors", "reader")
 SENSOR_KEYS = ("segment", "side", "label")
@@ -65,31 +63,6 @@ class SensorMap:
         return InputError(message, self.path, place, remedy)
 
 
-class _Loader(BoundedSafeLoader):
-    """SafeLoader whose mapping keys stay the text written and remember their line."""
-
-
-class _Mapping(dict):
-    lines: dict[str, int]
-
-
-def _construct_mapping(loader: _Loader, node: yaml.MappingNode) -> _Mapping:
-    loader.flatten_mapping(node)
-    out = _Mapping()
-    out.lines = {}
-    for key_node, value_node in node.value:
-        if isinstance(key_node, yaml.ScalarNode):
-            key = key_node.value
-        else:
-            key = str(loader.construct_object(key_node, deep=True))
-        out[key] = loader.construct_object(value_node, deep=True)
-        out.lines[key] = key_node.start_mark.line + 1
-    return out
-
-
-_Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
-
-
 def _jsonable(value: Any) -> Any:
     """YAML dates become ISO strings so that metadata can be stored as JSON."""
     if isinstance(value, dict):
@@ -113,7 +86,7 @@ def load_sensor_map(path: str | Path) -> SensorMap:
     path = Path(path)
     smap = SensorMap(path=path)
     text = read_yaml_text(path, "sensor map", "give a YAML sensor map (see the README)")
-    doc = load_yaml(text, _Loader, path, "check indentation")
+    doc = load_yaml(text, TextKeyLineLoader, path, "check indentation")
     if doc is None:
         return smap
     if not isinstance(doc, dict):
@@ -127,7 +100,7 @@ def load_sensor_map(path: str | Path) -> SensorMap:
     smap.subject = _jsonable(dict(doc.get("subject") or {}))
     smap.session = _jsonable(dict(doc.get("session") or {}))
     smap.reader = _jsonable(dict(doc.get("reader") or {}))
-    sensors = doc.get("sensors") or _Mapping()
+    sensors = doc.get("sensors") or LineMap()
     seen_labels: dict[str, str] = {}
     for key, spec in sensors.items():
         line = sensors.lines.get(key)

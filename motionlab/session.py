@@ -38,7 +38,6 @@ replacing a result without its stamp).
 from __future__ import annotations
 
 import datetime as _dt
-import hashlib
 import io
 import json
 import sys
@@ -52,8 +51,8 @@ import numpy as np
 from motionlab import __version__
 from motionlab.atomic import atomic_path, check_regular
 from motionlab.errors import InputError, shorten
-from motionlab.isolated import check_hdf5
-from motionlab.lineage import Lineage
+from motionlab.isolated import check_hdf5, looks_like_hdf5, open_hdf5
+from motionlab.lineage import Lineage, sha256_file
 from motionlab.results import Results
 
 SCHEMA_VERSION = 3
@@ -202,16 +201,6 @@ def estimate_rate(time: np.ndarray) -> float:
         return float("nan")
     dt = np.median(np.diff(time))
     return float(1.0 / dt) if dt > 0 else float("nan")
-
-
-def sha256_file(path: str | Path) -> str:
-    """SHA-256 hex digest of a file's bytes."""
-    check_regular(path)
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 # ------------------------------------------------------------------------------------ writing
@@ -443,6 +432,20 @@ def _read_tree(group: h5py.Group, place: _Place | None = None) -> dict[str, Any]
     return tree
 
 
+def is_session_file(path: str | Path) -> bool:
+    """Whether ``path`` is a motionlab session (HDF5 with the session format attribute); a
+    damaged HDF5 file that would crash libhdf5 is refused
+    (:func:`~motionlab.isolated.check_hdf5`)."""
+    if not looks_like_hdf5(path):
+        return False
+    check_hdf5(path)
+    try:
+        with h5py.File(path, "r") as f:
+            return f.attrs.get("format") == FORMAT_NAME
+    except (OSError, RuntimeError):
+        return False
+
+
 def load_session(path: str | Path) -> Session:
     """Read a session file written by :func:`save_session`.
 
@@ -455,12 +458,7 @@ def load_session(path: str | Path) -> Session:
     if not path.is_file():
         raise InputError("no such session file", path, remedy="check the path")
     check_hdf5(path)  # a damaged file can crash libhdf5 itself: probed in a child first
-    try:
-        f = h5py.File(path, "r")
-    except OSError:
-        raise InputError(
-            "not an HDF5 file", path, remedy="give a session written by 'motionlab ingest'"
-        ) from None
+    f = open_hdf5(path, "not an HDF5 file", "give a session written by 'motionlab ingest'")
     place = _Place(path)
     with f:
         try:

@@ -11,7 +11,7 @@ Each function takes the session (in memory), stores its result in the stage's at
 ``calibration``, ``angles`` and ``heading``, ``metrics`` and ``gait``, ``validation``) and
 returns it; ``force`` replaces earlier results of the stage (without it they
 are an :class:`~motionlab.errors.InputError` naming ``path``, the session file). Every function
-that reads the protocol uses :func:`motionlab.kinematics.gait.sensed_protocol` (joints of
+that reads the protocol uses :func:`motionlab.binding.sensed_protocol` (joints of
 optional segments without a sensor left out), as ``run`` does.
 
 A session file that has not been through ingest (``motionlab simulate`` writes one) gets
@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from motionlab.binding import sensed_protocol
 from motionlab.errors import InputError
 from motionlab.ingest import DEFAULT_GAP_MAX, check_and_fill
 from motionlab.lineage import protocol_sha256, refuse_stale
@@ -39,8 +40,10 @@ if TYPE_CHECKING:
     from motionlab.session import MarkerSet
     from motionlab.validation.markermap import MarkerMap
 
-#: fusion estimator of ``fuse`` and ``run`` (``motionlab fuse --list``)
-DEFAULT_ESTIMATOR = "default"
+#: the estimator ``fuse`` and ``run`` ask the registry for by default: its name ``default``
+#: stands for :data:`motionlab.fusion.registry.DEFAULT_ESTIMATOR` (the smoother), so the
+#: provenance and a study's options say ``default`` unless another estimator is chosen
+ESTIMATOR = "default"
 #: 6-D fusion by default: indoors an uncalibrated or disturbed magnetometer turned a sensor's
 #: heading by 20-60° mid-task, while joint angles need only the heading of each segment relative
 #: to its neighbour, which the heading alignment gives (see :func:`motionlab.pipeline.analyse`)
@@ -65,8 +68,7 @@ def stage_protocol(
     session: Session, protocol: Protocol | str | Path | None, path: Any = None
 ) -> Protocol:
     """The protocol given (loaded), else the calibration's; without the joints of absent
-    optional segments (:func:`~motionlab.kinematics.gait.sensed_protocol`)."""
-    from motionlab.kinematics.gait import sensed_protocol
+    optional segments (:func:`~motionlab.binding.sensed_protocol`)."""
 
     if protocol is None:
         cal = session.results.calibration
@@ -144,7 +146,7 @@ class Fused:
 
 def fuse(
     session: Session,
-    estimator: str = DEFAULT_ESTIMATOR,
+    estimator: str = ESTIMATOR,
     params: dict[str, str] | None = None,
     sensors: list[str] | None = None,
     *,
@@ -454,7 +456,7 @@ def validate(
     mode: str | None = None,
     clock: bool = True,
     movement_only: bool = False,
-    estimator: str = DEFAULT_ESTIMATOR,
+    estimator: str = ESTIMATOR,
     seed: int = 0,
     keep_reference: bool = True,
     force: bool = False,
@@ -503,6 +505,7 @@ def validate(
             session, reference, proto, mapping=angle_map, sync=clock,
             movement_only=movement_only, seed=seed,
         )  # fmt: skip
+        session.results.validation = result
         session.lineage.record(session.results, "validation", proto)
         return result
     if reference_kind == "segments" and marker_map is None:
@@ -526,5 +529,6 @@ def validate(
     result.reference = {"kind": reference_kind}
     if reference_kind == "segments":
         result.reference["frames"] = frames
+    session.results.validation = result
     session.lineage.record(session.results, "validation", proto)
     return result

@@ -61,6 +61,48 @@ class BoundedSafeLoader(yaml.SafeLoader):
             ) from None
 
 
+class LineMap(dict):
+    """A YAML mapping that knows the line (1-based) of each key: ``lines``."""
+
+    lines: dict[Any, int]
+
+
+class LineLoader(BoundedSafeLoader):
+    """:class:`BoundedSafeLoader` whose mappings are :class:`LineMap` (protocols, marker maps,
+    study manifests), so that an error names the line of its key."""
+
+    #: keep each scalar key as the text written (sensor maps: ``00B421AF``, ``1e3``)
+    text_keys = False
+
+
+class TextKeyLineLoader(LineLoader):
+    """:class:`LineLoader` whose scalar keys stay the text written (sensor labels and serials
+    that look like numbers)."""
+
+    text_keys = True
+
+
+def _construct_mapping(loader: LineLoader, node: yaml.MappingNode) -> LineMap:
+    loader.flatten_mapping(node)
+    out = LineMap()
+    out.lines = {}
+    for key_node, value_node in node.value:
+        if loader.text_keys:
+            key = (
+                key_node.value
+                if isinstance(key_node, yaml.ScalarNode)
+                else str(loader.construct_object(key_node, deep=True))
+            )
+        else:
+            key = loader.construct_object(key_node, deep=True)
+        out[key] = loader.construct_object(value_node, deep=True)
+        out.lines[key] = key_node.start_mark.line + 1
+    return out
+
+
+LineLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
+
+
 def _count_nodes(root: yaml.Node) -> int:
     """Nodes under ``root`` with aliases expanded; :class:`yaml.YAMLError` past the bound or
     for a recursive alias. Shared nodes are counted once per use, without expanding them."""

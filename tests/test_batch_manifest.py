@@ -42,13 +42,14 @@ def test_run_options_as_keys(tmp_path):
     (tmp_path / "study.yaml").write_text(
         "protocol: knee\nseed: 2\nclock_sync: false\ncalibration: cal\nsessions:\n"
         "  - {subject: A, visit: v1, files: x.h5, magnetometer: true, filter: madgwick}\n"
-        "  - {subject: B, visit: v1, files: x.h5, calibration: nocal}\n"
+        "  - {subject: B, visit: v1, files: x.h5, calibration: nocal, orientation: vendor}\n"
     )
     m = load_manifest(tmp_path / "study.yaml")
     assert m.options == {"seed": 2, "clock_sync": False, "calibration_dir": tmp_path / "cal"}
     a, b = m.sessions
     assert a.options == {"magnetometer": True, "estimator": "madgwick"} and not a.problem
     assert b.problem.startswith("study.yaml line 7, key sessions[1].calibration: no such")
+    assert b.options["orientation"] == "vendor"
 
 
 def test_missing_files_make_a_session_problem_not_an_error(tmp_path):
@@ -92,6 +93,8 @@ BROKEN = [
      "line 4, key sessions[0].magnetometer", "expected true or false"),
     ("protocol: knee\nfilter: nope\nsessions: [{subject: A, visit: v, files: x}]\n",
      "line 2, key filter", "unknown estimator"),
+    ("protocol: knee\norientation: own\nsessions: [{subject: A, visit: v, files: x}]\n",
+     "line 2, key orientation", "is 'own'"),
     ("protocol: knee\ncalibration: gone/\nsessions: [{subject: A, visit: v, files: x}]\n",
      "line 2, key calibration", "no such calibration folder"),
 ]  # fmt: skip

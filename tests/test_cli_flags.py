@@ -93,3 +93,48 @@ def test_batch_names_manifest_keys_not_flags_or_arguments():
     # an argument with no manifest key keeps the library's spelling
     kept = InputError("exists", remedy="pass force=True", argument="force")
     assert kept.respelled(manifest_spelling).remedy == "pass force=True"
+
+
+def _flags(command) -> set[str]:
+    return {o for p in command.params for o in (*p.opts, *p.secondary_opts)}
+
+
+def test_every_run_option_is_in_batch_the_manifest_and_its_stage_commands():
+    """The run options' table (pipeline.RUN_OPTIONS) makes run's and batch's click options, the
+    flag table and the manifest keys: each option is a flag of run, of batch and a manifest key
+    when the study can set it, and a flag of the stage commands it names."""
+    from motionlab.batch.manifest import OPTION_KEYS, SESSION_KEYS, TOP_KEYS
+    from motionlab.cli import main
+    from motionlab.pipeline import RUN_OPTIONS
+
+    run, batch = _flags(main.commands["run"]), _flags(main.commands["batch"])
+    for name, option in RUN_OPTIONS.items():
+        flags = set(option.flag.split("/"))
+        assert flags <= run, name
+        spelled = FLAGS.get(name) or NEGATIVE.get(name)
+        assert spelled in flags, name  # an error naming the argument names the run flag
+        if option.batch:
+            assert flags <= batch, name
+            assert OPTION_KEYS[option.manifest] == name
+            assert option.manifest in TOP_KEYS and option.manifest in SESSION_KEYS
+        for stage in option.stages:
+            assert flags <= _flags(main.commands[stage]), (name, stage)
+    assert "--orientation" in batch and OPTION_KEYS["orientation"] == "orientation"
+
+
+def test_run_and_batch_help_keep_their_examples_and_options():
+    """The generated options leave the help readable: examples, every flag, defaults."""
+    from click.testing import CliRunner
+
+    from motionlab.cli import main
+
+    shown = {
+        "run": ["--filter", "--orientation", "--no-clock-sync", "--quiet"],
+        "batch": ["--filter", "--orientation", "manifest key 'filter'"],
+    }
+    for name, flags in shown.items():
+        out = CliRunner().invoke(main, [name, "--help"], terminal_width=100).output
+        assert "Example:\n" in out and f"\n    motionlab {name} " in out, out
+        assert all(f in out for f in flags), out
+    out = CliRunner().invoke(main, ["run", "--help"], terminal_width=100).output
+    assert "[default: default]" in out  # the estimator's default shown

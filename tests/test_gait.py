@@ -274,7 +274,7 @@ def test_simulated_gait_truth_and_asymmetry():
 
 
 def test_walk_without_pelvis_drops_the_hips():
-    from motionlab.kinematics.gait import sensed_protocol
+    from motionlab.binding import sensed_protocol
     from motionlab.simulate import simulate
 
     proto = load_protocol("walk")

@@ -246,16 +246,17 @@ def test_findings_come_only_from_determined_angles_and_missing_ones_are_said_onc
 
 
 def test_summary_names_graded_columns_and_counts_nominal_segments(tmp_path):
-    from motionlab.pipeline import run_summary
     from motionlab.report import ReportOutput
+    from motionlab.report.console import run_summary
 
     out = ReportOutput(tmp_path / "report.pdf", tmp_path / "report.txt")
-    text = run_summary(_graded_view(), out, {}, 1.0)
+    names = {"session_file": "session.h5", "csv_dir": "csv", "results_json": "results.json"}
+    text = run_summary(_graded_view(), out, {}, 1.0, **names)
     assert "calibration: 4/5 segments ok; check shank_r" in text
     assert "angles determined by the recording: 4/6" in text
     assert f"not determined: knee_r_rotation_deg - {NOT_WHY}" in " ".join(text.split())
     assert "weak: knee_r_adduction_deg" in text
-    old = run_summary(_graded_view(graded=False), out, {}, 1.0)
+    old = run_summary(_graded_view(graded=False), out, {}, 1.0, **names)
     assert "angles determined by the recording: 6/6" in old and "weak:" not in old
 
 

@@ -4,9 +4,10 @@ from the gravity and angular velocity their orientation implies."""
 import numpy as np
 
 from motionlab import rotations as rot
+from motionlab.binding import signals_from_orientation
 from motionlab.kinematics.session_angles import session_angles
 from motionlab.protocol import load_protocol
-from motionlab.segments import calibrate_segments, signals_from_orientation
+from motionlab.segments import calibrate_segments
 from motionlab.simulate import simulate
 
 

@@ -31,29 +31,39 @@ from motionlab.validation.optical import resample_quat, rigid_fit
 OFFSET_S, DRIFT = 0.137, 100e-6
 
 
-def _fusion_stand_in(truth, label: str, t: np.ndarray, seed: int) -> np.ndarray:
+#: occluded, slightly noisy markers
+VALIDATION_PRESET = Preset(
+    "validation", marker_noise_m=0.001, occlusions_per_min=6.0, occlusion_mean_s=0.3
+)
+
+
+def _fusion_stand_in(truth, label: str, t: np.ndarray, seed: int, knots: int) -> np.ndarray:
     """True sensor orientation at its sample times times a slowly wandering ~1° error."""
     q = resample_quat(truth.time, truth.sensors[label]["orientation"], t)
     rng = np.random.default_rng(seed)
-    knots = np.linspace(t[0], t[-1], 30)
-    wander = np.column_stack([np.interp(t, knots, rng.normal(0, 0.6, 30)) for _ in range(3)])
+    at = np.linspace(t[0], t[-1], knots)
+    wander = np.column_stack([np.interp(t, at, rng.normal(0, 0.6, knots)) for _ in range(3)])
     return rot.make_continuous(rot.mul(rot.from_rotvec(np.radians(wander)), q))
+
+
+def calibrate_with_truth(session, truth, protocol, knots: int = 30) -> None:
+    """Calibrate ``session`` at the true step times (the calibration is not what is tested)
+    and give it fusion stand-ins (:func:`_fusion_stand_in`, ``knots`` wander knots)."""
+    for step in protocol.calibration:
+        s = truth.step(step.name)
+        step.time_range = (s["start_s"], s["end_s"])
+    session.results.calibration = calibrate_segments(session, protocol)
+    session.results.fusion = {
+        k: FusionEntry("truth", _fusion_stand_in(truth, k, s.time, i, knots))
+        for i, (k, s) in enumerate(session.sensors.items())
+    }
 
 
 @pytest.fixture(scope="module")
 def knee():
     protocol = load_protocol("knee")
-    preset = Preset("validation", marker_noise_m=0.001, occlusions_per_min=6.0,
-                    occlusion_mean_s=0.3)  # fmt: skip
-    session, truth = simulate(protocol, 150.0, 3, preset, markers=True)
-    for step in protocol.calibration:  # the steps' places are known: calibration is not tested
-        s = truth.step(step.name)
-        step.time_range = (s["start_s"], s["end_s"])
-    session.results.calibration = calibrate_segments(session, protocol)
-    session.results.fusion = {
-        k: FusionEntry("truth", _fusion_stand_in(truth, k, s.time, i))
-        for i, (k, s) in enumerate(session.sensors.items())
-    }
+    session, truth = simulate(protocol, 150.0, 3, VALIDATION_PRESET, markers=True)
+    calibrate_with_truth(session, truth, protocol)
     result = validate(session, protocol=protocol)
     return session, truth, protocol, result
 

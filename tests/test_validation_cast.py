@@ -14,17 +14,15 @@ import json
 import numpy as np
 import pytest
 from click.testing import CliRunner
-from test_validation import _fusion_stand_in
+from test_validation import VALIDATION_PRESET, calibrate_with_truth
 
 from motionlab import rotations as rot
 from motionlab.cli import main
 from motionlab.errors import InputError
 from motionlab.protocol import load_protocol
-from motionlab.results import FusionEntry, Results
-from motionlab.segments import calibrate_segments
+from motionlab.results import Results
 from motionlab.session import MarkerSet, Session, save_session
 from motionlab.simulate import simulate
-from motionlab.simulate.errors import Preset
 from motionlab.simulate.markers import write_c3d
 from motionlab.validation import validate
 from motionlab.validation.cast import (
@@ -79,9 +77,7 @@ def test_landmarks_fixed_in_the_cluster_frame_are_rebuilt_in_every_frame():
 @pytest.fixture(scope="module")
 def elbow():
     protocol = load_protocol("elbow")
-    preset = Preset("validation", marker_noise_m=0.001, occlusions_per_min=6.0,
-                    occlusion_mean_s=0.3)  # fmt: skip
-    session, truth = simulate(protocol, 180.0, 3, preset, markers=True)
+    session, truth = simulate(protocol, 180.0, 3, VALIDATION_PRESET, markers=True)
     full = session.markers["optical"]
     standing = truth.step("standing")
     frame_time = truth.markers["frame_time"]
@@ -90,14 +86,7 @@ def elbow():
     positions = full.positions.copy()
     positions[np.ix_(off, landmark)] = np.nan
     session.markers["optical"] = dataclasses.replace(full, positions=positions)
-    for step in protocol.calibration:
-        s = truth.step(step.name)
-        step.time_range = (s["start_s"], s["end_s"])
-    session.results.calibration = calibrate_segments(session, protocol)
-    session.results.fusion = {
-        k: FusionEntry("truth", _fusion_stand_in(truth, k, s.time, i))
-        for i, (k, s) in enumerate(session.sensors.items())
-    }
+    calibrate_with_truth(session, truth, protocol)
     return session, truth, protocol, full
 
 

@@ -7,7 +7,6 @@ from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.validation.anatomy import RECIPES, anatomical_frame, resolve_name, two_axis_frame
 from motionlab.validation.optical import (
-    angular_velocity,
     cluster_shape,
     fill_gaps,
     resample_quat,
@@ -98,7 +97,7 @@ def test_angular_velocity_of_a_constant_rotation():
     omega = np.array([0.3, -1.2, 2.0])
     t = np.cumsum(np.r_[0, np.full(49, 0.01), 0.02, np.full(49, 0.01)])  # uneven steps
     q = rot.mul(rot.from_axis_angle([1.0, 0, 0], 0.4), rot.from_rotvec(t[:, None] * omega))
-    t_mid, w = angular_velocity(t, q)
+    t_mid, w = rot.angular_velocity(t, q)
     np.testing.assert_allclose(w, np.tile(omega, (99, 1)), atol=1e-9)
     np.testing.assert_allclose(t_mid, 0.5 * (t[1:] + t[:-1]))
 

@@ -12,13 +12,12 @@ import pytest
 import yaml
 from click.testing import CliRunner
 from test_pipeline import PROTOCOL
+from test_validation import calibrate_with_truth
 
 from motionlab import rotations as rot
 from motionlab.cli import main
 from motionlab.errors import InputError
 from motionlab.protocol import load_protocol
-from motionlab.results import FusionEntry
-from motionlab.segments import calibrate_segments
 from motionlab.session import load_session, save_session
 from motionlab.simulate import simulate
 from motionlab.simulate.errors import Preset
@@ -32,15 +31,6 @@ OFFSET_S, DRIFT = 0.137, 100e-6
 LAB = rot.from_rotvec(np.radians([0.0, 0.0, 70.0]))  # lab → ENU: a turned lab
 
 
-def _stand_in(truth, label, t, seed):
-    """True sensor orientation with a slowly wandering ~1° error (a fusion stand-in)."""
-    q = resample_quat(truth.time, truth.sensors[label]["orientation"], t)
-    rng = np.random.default_rng(seed)
-    knots = np.linspace(t[0], t[-1], 12)
-    wander = np.column_stack([np.interp(t, knots, rng.normal(0, 0.6, 12)) for _ in range(3)])
-    return rot.make_continuous(rot.mul(rot.from_rotvec(np.radians(wander)), q))
-
-
 @pytest.fixture(scope="module")
 def knee(tmp_path_factory):
     root = tmp_path_factory.mktemp("refs")
@@ -48,15 +38,8 @@ def knee(tmp_path_factory):
     protocol = load_protocol(root / "knee_small.yaml")
     session, truth = simulate(protocol, 40.0, 4, Preset("clean"), rate_hz=100.0,
                               mounting_max_deg=10.0, gyr_sampling="interval")  # fmt: skip
-    for step in protocol.calibration:
-        s = truth.step(step.name)
-        step.time_range = (s["start_s"], s["end_s"])
-    session.results.calibration = calibrate_segments(session, protocol)
+    calibrate_with_truth(session, truth, protocol, knots=12)
     session.results.calibration.protocol_path = str(root / "knee_small.yaml")
-    session.results.fusion = {
-        k: FusionEntry("truth", _stand_in(truth, k, s.time, i))
-        for i, (k, s) in enumerate(session.sensors.items())
-    }
     path = root / "s.h5"
     save_session(session, path)
     return root, path, truth
@@ -254,3 +237,21 @@ def test_marker_map_segment_frame_key(tmp_path):
     path.write_text("segments:\n  thigh_r: {cluster: [A, B, C], segment_frame: true}\n")
     with pytest.raises(InputError, match="segment_frame"):
         load_marker_map(path)
+
+
+def test_session_reference_kind_as_for_a_file():
+    """validate without a reference file and run on inputs holding markers take the session's
+    own reference through one function: model angles alone are an angles reference."""
+    from motionlab.session import MarkerSet, ModelOutput, Session
+    from motionlab.validation.reference_kinds import session_reference
+
+    t = np.arange(5) / 100.0
+    angles = ModelOutput("RKneeAngles", "angles", "deg", np.zeros((5, 3)))
+    pig = MarkerSet("pig", t, model_outputs={"RKneeAngles": angles})
+    assert session_reference(Session(markers={"pig": pig}))[1] == "angles"
+    assert session_reference(Session(markers={"pig": pig}), "markers")[1] == "markers"
+    markers = MarkerSet("m", t, labels=["A"], positions=np.zeros((5, 1, 3)),
+                        model_outputs={"RKneeAngles": angles})  # fmt: skip
+    assert session_reference(Session(markers={"m": markers})) == (markers, "markers")
+    with pytest.raises(InputError, match="has no optical data"):
+        session_reference(Session(), path="s.h5")

@@ -17,10 +17,12 @@ A manifest is a YAML file (``study.yaml``)::
       - {subject: S02, visit: baseline, files: sim/S02_baseline.h5}   # a motionlab session file
 
 The options of ``motionlab run`` are keys too, at the top (the whole study) or in a session (that
-session): ``calibration`` (folder of sensor calibrations, ``--calibration``), ``magnetometer``
-(true/false, ``--magnetometer``), ``clock_sync`` (true/false, ``--no-clock-sync``), ``seed``
-(integer, ``--seed``) and ``filter`` (estimator name, ``--filter``). An unknown key is an error
-naming its line.
+session): ``calibration`` (folder of sensor calibrations, ``--calibration``), ``seed``
+(integer, ``--seed``), ``filter`` (estimator name, ``--filter``), ``orientation`` (``fused`` or
+``vendor``, ``--orientation``), ``magnetometer`` (true/false, ``--magnetometer``) and
+``clock_sync`` (true/false, ``--no-clock-sync``): the fields of
+:class:`~motionlab.pipeline.PipelineOptions` whose :class:`~motionlab.pipeline.RunOption` says
+``batch``. An unknown key is an error naming its line.
 
 Relative paths are relative to the manifest's folder. ``subject`` and ``visit`` name the output
 folder ``OUTDIR/<subject>/<visit>/``: letters, digits, space, ``_ . + -``. The structure is checked
@@ -36,26 +38,18 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from motionlab.atomic import check_regular
 from motionlab.errors import InputError
-from motionlab.protocol import LineLoader, load_protocol, resolve_protocol_path
+from motionlab.fusion import registry
+from motionlab.pipeline import RUN_OPTIONS
+from motionlab.protocol import load_protocol, resolve_protocol_path
+from motionlab.yamlsafe import LineLoader, load_yaml
 
 #: manifest keys of the options of ``motionlab run`` → :class:`motionlab.pipeline.PipelineOptions`
-OPTION_KEYS = {
-    "calibration": "calibration_dir",
-    "magnetometer": "magnetometer",
-    "clock_sync": "clock_sync",
-    "seed": "seed",
-    "filter": "estimator",
-}
+#: field (the options whose :class:`~motionlab.pipeline.RunOption` says ``batch``)
+OPTION_KEYS = {o.manifest: name for name, o in RUN_OPTIONS.items() if o.batch and o.manifest}
 #: library argument → the manifest key that sets it, for the failure messages
-ARGUMENT_KEYS = {v: k for k, v in OPTION_KEYS.items()} | {
-    "map_path": "map",
-    "protocol": "protocol",
-    "reference": "reference",
-}
+ARGUMENT_KEYS = {name: o.manifest for name, o in RUN_OPTIONS.items() if o.manifest}
 TOP_KEYS = ("protocol", "map", "sessions", *OPTION_KEYS)
 SESSION_KEYS = ("subject", "visit", "files", "reference", "map", *OPTION_KEYS)
 _NAME = re.compile(r"^\w[\w .+-]*$")
@@ -109,16 +103,7 @@ def _read(path: Path) -> Any:
         raise InputError("no such manifest file", path, remedy="give the study YAML file") from None
     except (UnicodeDecodeError, IsADirectoryError):
         raise InputError("not a text file", path, remedy="give the study YAML file") from None
-    try:
-        return yaml.load(text, Loader=LineLoader)  # noqa: S506 - a SafeLoader subclass
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        raise InputError(
-            f"not valid YAML ({getattr(exc, 'problem', exc)})",
-            path,
-            f"line {mark.line + 1}" if mark else None,
-            "check indentation and colons",
-        ) from None
+    return load_yaml(text, LineLoader, path, "check indentation and colons")
 
 
 def _name(path: Path, entry: dict, key: str, where: str, line: int) -> str:
@@ -170,26 +155,28 @@ def _optional_file(
 def _options(path: Path, base: Path, entry: dict, where: str) -> tuple[dict[str, Any], str]:
     """The run options among ``entry``'s keys (checked; errors name the line) and a missing
     calibration folder (a problem of the session, an error at the top)."""
-    from motionlab.fusion import registry
-
     out: dict[str, Any] = {}
     missing = ""
     for key, name in OPTION_KEYS.items():
         if key not in entry:
             continue
         value, line, at = entry[key], entry.lines[key], f"{where}{key}"
-        if key in ("magnetometer", "clock_sync") and not isinstance(value, bool):
+        kind = RUN_OPTIONS[name].kind
+        if kind == "bool" and not isinstance(value, bool):
             _fail(path, line, at, f"is {value!r}, expected true or false", f"e.g. {key}: true")
-        if key == "seed" and (isinstance(value, bool) or not isinstance(value, int)):
-            _fail(path, line, at, f"is {value!r}, expected an integer", "e.g. seed: 3")
-        if key in ("filter", "calibration") and not (isinstance(value, str) and value.strip()):
+        if kind == "int" and (isinstance(value, bool) or not isinstance(value, int)):
+            _fail(path, line, at, f"is {value!r}, expected an integer", f"e.g. {key}: 3")
+        if kind in ("text", "folder") and not (isinstance(value, str) and value.strip()):
             _fail(path, line, at, f"is {value!r}, expected a name", f"e.g. {key}: default")
-        if key == "filter":
+        choices = RUN_OPTIONS[name].choices
+        if kind == "choice" and value not in choices:
+            _fail(path, line, at, f"is {value!r}", f"use one of {', '.join(choices)}")
+        if name == "estimator":
             try:
                 registry.get(value)
             except InputError as exc:
                 _fail(path, line, at, exc.message, exc.remedy or "see the estimators' list")
-        if key == "calibration":
+        if kind == "folder":
             value = base / value
             if not value.is_dir():
                 missing = f"no such calibration folder {entry[key]!r}"

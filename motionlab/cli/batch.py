@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 import time
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -12,6 +13,7 @@ from motionlab.atomic import refuse_folder_holding_inputs
 from motionlab.batch import Progress, load_manifest, run_study
 from motionlab.batch.manifest import Manifest
 from motionlab.cli.paths import INPUT_FILE
+from motionlab.cli.run_options import batch_click_options, run_values
 from motionlab.errors import InputError
 from motionlab.fusion import registry
 
@@ -77,24 +79,7 @@ class _ProgressBar:
     show_default=True,
     help="Resubmit a session whose worker process died this many times.",
 )
-@click.option(
-    "--calibration",
-    "calibration_dir",
-    type=click.Path(file_okay=False),
-    help="Folder of per-serial sensor calibrations for fusion (manifest key 'calibration').",
-)
-@click.option(
-    "--magnetometer/--no-magnetometer",
-    default=None,
-    help="Fuse with the magnetometers [default: 6-D, as motionlab run].",
-)
-@click.option(
-    "--clock-sync/--no-clock-sync",
-    default=None,
-    help="Put IMUs recorded on their own clocks on one clock [default: on].",
-)
-@click.option("--seed", type=int, help="Random seed [default: 0].")
-@click.option("--filter", "estimator", help="Fusion estimator [default: default].")
+@batch_click_options
 @click.option("--force", is_flag=True, help="Re-run up-to-date sessions; write into any folder.")
 def command(
     manifest: str,
@@ -102,12 +87,8 @@ def command(
     workers: int | None,
     scheduler: str | None,
     retry: int,
-    calibration_dir: str | None,
-    magnetometer: bool | None,
-    clock_sync: bool | None,
-    seed: int | None,
-    estimator: str | None,
     force: bool,
+    **params: Any,
 ) -> None:
     """Process every session of the study MANIFEST (study.yaml) as 'motionlab run' does.
 
@@ -117,9 +98,10 @@ def command(
     OUTDIR/study_failures.csv and the others go on. All sessions' metrics are collected in
     OUTDIR/study_metrics.csv and summarised in OUTDIR/study_report.pdf.
 
-    The options of 'motionlab run' (--calibration, --magnetometer, --no-clock-sync, --seed,
-    --filter) are also manifest keys, for the study or for one session; a flag given here
-    replaces the manifest's study-wide setting, a session's own setting replaces both.
+    The options of 'motionlab run' (--calibration, --seed, --filter, --orientation,
+    --magnetometer, --no-clock-sync) are also manifest keys, for the study or for one session;
+    a flag given here replaces the manifest's study-wide setting, a session's own setting
+    replaces both.
 
     Exit code: 0 when every session succeeded, 3 when some failed, 2 for a bad manifest.
 
@@ -135,16 +117,11 @@ def command(
             where="--workers",
             remedy="leave it out with --scheduler: the Dask cluster has its own workers",
         )
-    flags = {
-        "calibration_dir": Path(calibration_dir) if calibration_dir else None,
-        "magnetometer": magnetometer,
-        "clock_sync": clock_sync,
-        "seed": seed,
-        "estimator": estimator,
-    }
-    if estimator is not None:
-        registry.get(estimator)  # an unknown name fails before any work
-    if calibration_dir is not None and not Path(calibration_dir).is_dir():
+    flags = run_values(params, batch=True)
+    if "estimator" in flags:
+        registry.get(flags["estimator"])  # an unknown name fails before any work
+    calibration_dir = flags.get("calibration_dir")
+    if calibration_dir is not None and not calibration_dir.is_dir():
         raise InputError(
             "no such calibration folder",
             calibration_dir,
@@ -152,7 +129,7 @@ def command(
             "run motionlab sensorcal",
         )
     study = load_manifest(manifest)
-    refuse_folder_holding_inputs(outdir, _inputs(study, flags["calibration_dir"]))
+    refuse_folder_holding_inputs(outdir, _inputs(study, calibration_dir))
     start = time.monotonic()
     result = run_study(
         study,
@@ -161,7 +138,7 @@ def command(
         scheduler=scheduler,
         retry=retry,
         force=force,
-        options={k: v for k, v in flags.items() if v is not None},
+        options=flags,
         progress=_ProgressBar(),
     )
     failed = result.count("failed")

@@ -9,34 +9,53 @@ spellings into the flag of :data:`FLAGS` (``pass --force to replace it``, ``--ra
 
 from __future__ import annotations
 
-from motionlab.errors import InputError
+import dataclasses
 
-#: library argument: the flag that sets it (``name=True`` becomes the flag alone)
-FLAGS = {
+from motionlab.errors import InputError
+from motionlab.pipeline import RUN_OPTIONS, PipelineOptions
+
+
+def _run_flags() -> tuple[dict[str, str], dict[str, str]]:
+    """The flags of the run options (:data:`motionlab.pipeline.RUN_OPTIONS`): a boolean that
+    is off by default is set by its positive flag (``--magnetometer``), one that is on by
+    default by its negative flag (``--no-clock-sync``, ``--quiet``)."""
+    flags, negative = {}, {}
+    for f in dataclasses.fields(PipelineOptions):
+        option = RUN_OPTIONS[f.name]
+        if option.kind == "bool":
+            on, off = option.flag.split("/")
+            if f.default:
+                negative[f.name] = off
+            else:
+                flags[f.name] = on
+        elif option.kind == "off":
+            negative[f.name] = option.flag
+        else:
+            flags[f.name] = option.flag
+    return flags, negative
+
+
+_RUN_FLAGS, _RUN_NEGATIVE = _run_flags()
+
+#: library argument: the flag that sets it (``name=True`` becomes the flag alone); the run
+#: options' from their table
+FLAGS = _RUN_FLAGS | {
     "angle_map": "--angle-map",
-    "calibration_dir": "--calibration",
     "duration": "--duration",
-    "estimator": "--filter",
-    "force": "--force",
     "gait": "--gait",
     "gap_max": "--gap-max",
     "gyr_sampling": "--gyr-sampling",
     "height": "--height",
     "kinds": "--kind",
     "knee_model": "--knee-model",
-    "magnetometer": "--magnetometer",
-    "map_path": "--map",
     "marker_map": "--markers",
     "method": "--method",
     "mode": "--mode",
     "mounting": "--mounting",
-    "orientation": "--orientation",
     "outdir": "-o",
     "preset": "--preset",
-    "protocol": "--protocol",
     "rate": "--rate",
     "rate_hz": "--rate",
-    "reference": "--reference",
     "reference_kind": "--reference-kind",
     "retry": "--retry",
     "scheduler": "--scheduler",
@@ -44,10 +63,9 @@ FLAGS = {
     "workers": "--workers",
 }
 #: ``name=False`` of a boolean argument whose flag is a negative one
-NEGATIVE = {
+NEGATIVE = _RUN_NEGATIVE | {
     "calibrated": "--no-calibration",
     "clock": "--no-sync",
-    "clock_sync": "--no-clock-sync",
 }
 
 

@@ -41,7 +41,7 @@ def _progress(labels: list[str], text: str) -> Iterator[str]:
 @click.command("fuse")
 @click.argument("session", type=INPUT_FILE, required=False)
 @click.option(
-    "--filter", "name", default=stages.DEFAULT_ESTIMATOR, show_default=True, help="Estimator name."
+    "--filter", "name", default=stages.ESTIMATOR, show_default=True, help="Estimator name."
 )
 @click.option(
     "--param",

@@ -3,36 +3,19 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 import click
 
-from motionlab import stages
 from motionlab.atomic import atomic_path, check_output
 from motionlab.cli.paths import FOLDER, INPUT_FILE
+from motionlab.cli.run_options import run_click_options, run_values
 from motionlab.pipeline import RESULTS_JSON, PipelineOptions, run_pipeline
 
 
 @click.command("run")
 @click.argument("files", nargs=-1, required=True, type=INPUT_FILE)
-@click.option("--protocol", "protocol", required=True, help="Protocol YAML file or packaged name.")
-@click.option(
-    "--map",
-    "map_path",
-    type=INPUT_FILE,
-    help="Sensor map YAML for raw recordings (see 'motionlab ingest --help').",
-)
-@click.option(
-    "--reference",
-    type=INPUT_FILE,
-    help="Reference to validate against: markers (C3D, TRC, a session), a CSV of segment "
-    "quaternions or a C3D of model joint angles (see 'motionlab validate --help').",
-)
-@click.option(
-    "--calibration",
-    "calibration_dir",
-    type=FOLDER,
-    help="Folder of per-serial sensor calibrations (motionlab sensorcal) for fusion.",
-)
+@run_click_options
 @click.option(
     "-o",
     "--output",
@@ -42,56 +25,12 @@ from motionlab.pipeline import RESULTS_JSON, PipelineOptions, run_pipeline
     help="Output folder: session.h5, report.pdf, report.txt, csv/, results.json.",
 )
 @click.option(
-    "--filter",
-    "estimator",
-    default=stages.DEFAULT_ESTIMATOR,
-    show_default=True,
-    help="Estimator for the fusion stage (names: 'motionlab fuse --list').",
-)
-@click.option(
-    "--magnetometer/--no-magnetometer",
-    default=stages.MAGNETOMETER,
-    help="Fuse with the magnetometers (default 6-D: indoor fields turn headings mid-task).",
-)
-@click.option(
-    "--orientation",
-    type=click.Choice(stages.ORIENTATIONS),
-    default="fused",
-    show_default=True,
-    help="'vendor': use the orientation the sensors carry (their own fusion, a .sto) instead "
-    "of fusing; recordings with orientations only always do.",
-)
-@click.option(
-    "--clock-sync/--no-clock-sync",
-    default=stages.CLOCK_SYNC,
-    show_default=True,
-    help="Put IMUs recorded on their own clocks on one clock (from the joints they share).",
-)
-@click.option(
     "--json",
     "json_path",
     type=click.Path(dir_okay=False),
     help="Also write the results JSON (as OUTDIR/results.json and 'motionlab export --to json').",
 )
-@click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
-@click.option("--force", is_flag=True, help="Replace existing outputs.")
-@click.option("--quiet", is_flag=True, help="No progress on stderr.")
-def command(
-    files,
-    protocol,
-    map_path,
-    reference,
-    calibration_dir,
-    estimator,
-    magnetometer,
-    orientation,
-    clock_sync,
-    outdir,
-    json_path,
-    seed,
-    force,
-    quiet,
-) -> None:
+def command(files: tuple[str, ...], outdir: str, json_path: str | None, **params: Any) -> None:
     """Analyse recording FILES (or one session file) from raw data to the report.
 
     ingest → clock sync → sensor calibration (with --calibration) → fuse → calibrate → angles →
@@ -111,23 +50,11 @@ def command(
       motionlab run --protocol lumbar_seated --map protocols/examples/trunk_map.yaml \\
           trial/imu -o results/trunk
     """
+    options = PipelineOptions(**run_values(params))
     if json_path is not None:
-        check_output(json_path, force, inputs=list(files))
-    options = PipelineOptions(
-        protocol=protocol,
-        map_path=Path(map_path) if map_path else None,
-        reference=Path(reference) if reference else None,
-        calibration_dir=Path(calibration_dir) if calibration_dir else None,
-        magnetometer=magnetometer,
-        clock_sync=clock_sync,
-        seed=seed,
-        estimator=estimator,
-        orientation=orientation,
-        force=force,
-        progress=not quiet,
-    )
+        check_output(json_path, options.force, inputs=list(files))
     result = run_pipeline([Path(f) for f in files], Path(outdir), options)
     if json_path is not None:  # the very bytes of OUTDIR/results.json
-        with atomic_path(json_path, force=force) as tmp:
+        with atomic_path(json_path, force=options.force) as tmp:
             tmp.write_bytes((Path(outdir) / RESULTS_JSON).read_bytes())
     click.echo(result.summary)

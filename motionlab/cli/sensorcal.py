@@ -5,16 +5,14 @@ from __future__ import annotations
 from pathlib import Path
 
 import click
-import h5py
 import numpy as np
 
 from motionlab.atomic import refuse_folder_holding_inputs
 from motionlab.cli.paths import INPUT_FILE
 from motionlab.errors import InputError
 from motionlab.io import read_any
-from motionlab.isolated import check_hdf5, looks_like_hdf5
 from motionlab.sensorcal import calfile, stage
-from motionlab.session import FORMAT_NAME, SensorStream, load_session
+from motionlab.session import SensorStream, is_session_file, load_session
 from motionlab.units import STANDARD_GRAVITY
 
 _DEG = 180.0 / np.pi
@@ -23,12 +21,8 @@ _DEG = 180.0 / np.pi
 def load_streams(path: str | Path) -> dict[str, SensorStream]:
     """The inertial sensors of a session file or of any vendor file ``read_any`` knows."""
     path = Path(path)
-    if path.is_file() and looks_like_hdf5(path):
-        check_hdf5(path)
-        with h5py.File(path, "r") as f:
-            is_session = f.attrs.get("format") == FORMAT_NAME
-        if is_session:
-            return load_session(path).sensors
+    if path.is_file() and is_session_file(path):
+        return load_session(path).sensors
     return {s.label: s for s in read_any(path).sensors}
 
 

@@ -15,9 +15,9 @@ from motionlab.lock import session_lock
 from motionlab.session import load_session, save_session
 from motionlab.validation.align import MODES
 from motionlab.validation.markermap import load_marker_map
-from motionlab.validation.model_angles import has_model_angles, load_angle_map
+from motionlab.validation.model_angles import load_angle_map
 from motionlab.validation.reference import choose_marker_set, read_reference
-from motionlab.validation.reference_kinds import REFERENCE_KINDS, load_reference
+from motionlab.validation.reference_kinds import REFERENCE_KINDS, load_reference, session_reference
 from motionlab.validation.segment_csv import FRAMES
 from motionlab.validation.tables import CSV_FILES, summary, tables
 from motionlab.validation.time_offset import SYNC_SOURCES
@@ -47,7 +47,7 @@ from motionlab.validation.time_offset import SYNC_SOURCES
               "vertical shared), none [default: full after 9-D fusion, else heading].")  # fmt: skip
 @click.option("--no-sync", is_flag=True, help="The streams already share one clock.")
 @click.option("--movement-only", is_flag=True, help="Statistics over movement phases only.")
-@click.option("--estimator", default=stages.DEFAULT_ESTIMATOR, show_default=True,
+@click.option("--estimator", default=stages.ESTIMATOR, show_default=True,
               help="Fusion for sensors without fusion results.")  # fmt: skip
 @click.option("--seed", type=int, default=0, show_default=True,
               help="Random seed (the RANSAC clock fit).")  # fmt: skip
@@ -91,15 +91,7 @@ def command(
         mmap = load_marker_map(markers_path) if markers_path else None
         name = mmap.marker_set if mmap else None
         if reference is None:
-            if not ses.markers:
-                raise InputError(
-                    "has no optical data", session, remedy="give --reference FILE.c3d or a session"
-                )
-            ref = choose_marker_set(list(ses.markers.values()), name, session)
-            kind = reference_kind
-            if kind == "auto":
-                only_angles = has_model_angles(ref) and not (ref.n_markers or ref.rigid_bodies)
-                kind = "angles" if only_angles else "markers"
+            ref, kind = session_reference(ses, reference_kind, name, session)
         else:
             ref, kind = load_reference(reference, reference_kind, name)
         angle_map = load_angle_map(angle_map_path) if angle_map_path else None

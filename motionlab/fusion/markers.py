@@ -186,12 +186,6 @@ def scenario(used: np.ndarray) -> np.ndarray:
     ).astype(np.int8)
 
 
-def scenario_counts(used: np.ndarray) -> dict[str, int]:
-    """``{"1": n_1, ...}``: how many samples ran in each scenario."""
-    values, counts = np.unique(scenario(used), return_counts=True)
-    return {str(int(v)): int(c) for v, c in zip(values, counts, strict=True)}
-
-
 # ------------------------------------------------------------------------------ marker pairs
 
 

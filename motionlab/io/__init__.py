@@ -21,7 +21,7 @@ from typing import Any
 
 from motionlab.atomic import check_regular
 from motionlab.errors import InputError, shorten
-from motionlab.isolated import check_hdf5
+from motionlab.isolated import check_hdf5, open_hdf5
 from motionlab.session import MarkerSet, SensorStream
 
 HEAD_BYTES = 65536
@@ -74,11 +74,10 @@ def detect_format(path: str | Path, options: dict[str, Any] | None = None) -> st
 
 def _detect(path: Path, options: dict[str, Any] | None):
     check_regular(path, folder_ok=True)  # a FIFO, socket or device: refused before any read
-    if path.is_dir():
-        from motionlab.io import ximu3
-
-        if ximu3.is_export(path):
-            return ximu3
+    if path.is_dir():  # a reader of folders has is_export(path) (x-IMU3: a folder per device)
+        for module in _readers():
+            if getattr(module, "is_export", None) and module.is_export(path):
+                return module
         raise InputError(
             "is a folder, expected a file (or an x-IMU3 export folder)",
             path,
@@ -126,16 +125,8 @@ def _detect(path: Path, options: dict[str, Any] | None):
 
 def _check_hdf5(path: Path) -> None:
     """Raise :class:`InputError` if h5py cannot open a file that starts like HDF5."""
-    import h5py
-
-    try:
-        h5py.File(path, "r").close()
-    except (OSError, RuntimeError):
-        raise InputError(
-            "HDF5 file is damaged or truncated (h5py cannot open it)",
-            path,
-            remedy="copy or export the file again",
-        ) from None
+    message = "HDF5 file is damaged or truncated (h5py cannot open it)"
+    open_hdf5(path, message, "copy or export the file again").close()
 
 
 def read_any(path: str | Path, options: dict[str, Any] | None = None) -> Recording:

@@ -27,6 +27,7 @@ import numpy as np
 from motionlab.errors import InputError, shorten
 from motionlab.io import Recording
 from motionlab.io.apdm import DEFAULT_UNITS, convert, nwu_to_enu
+from motionlab.isolated import open_hdf5
 from motionlab.session import SensorStream
 
 FORMAT = "apdm_h5"
@@ -49,13 +50,7 @@ def sniff(path: Path, head: bytes) -> bool:
 def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     """Read every sensor of an APDM HDF5 file (SI units, quaternions sensor → ENU)."""
     path = Path(path)
-    try:
-        f = h5py.File(path, "r")
-    except OSError:
-        raise InputError(
-            "not a readable HDF5 file", path, remedy="export the recording again as .h5"
-        ) from None
-    with f:
+    with open_hdf5(path, "not a readable HDF5 file", "export the recording again as .h5") as f:
         sensors = f.get("Sensors")
         if not isinstance(sensors, h5py.Group) or not len(sensors):
             raise InputError(

@@ -23,6 +23,7 @@ import numpy as np
 
 from motionlab.errors import InputError, shorten
 from motionlab.io import Recording
+from motionlab.isolated import open_hdf5
 from motionlab.session import MarkerSet, SensorStream
 
 FORMAT = "broad"
@@ -55,13 +56,7 @@ def sniff(path: Path, head: bytes) -> bool:
 def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     """Read a BROAD trial: the IMU stream and the optical reference on one timebase."""
     path = Path(path)
-    try:
-        f = h5py.File(path, "r")
-    except OSError:
-        raise InputError(
-            "not a readable HDF5 file", path, remedy="download the trial again"
-        ) from None
-    with f:
+    with open_hdf5(path, "not a readable HDF5 file", "download the trial again") as f:
         if "sampling_rate" not in f.attrs:
             raise InputError(
                 "missing attribute", path, "key /sampling_rate", "give a BROAD trial file"

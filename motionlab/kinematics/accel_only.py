@@ -26,10 +26,10 @@ import pandas as pd
 from scipy.signal import butter, sosfiltfilt
 
 from motionlab import rotations as rot
+from motionlab.binding import sensor_for_segment
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_types import angle_columns, signs_for
 from motionlab.protocol import Protocol
-from motionlab.segments import sensor_for_segment
 from motionlab.session import Session, estimate_rate
 
 LOCK = 0.05

@@ -16,16 +16,17 @@ A session without a gait task, without shank sensors or without strides gives
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any
 
 import numpy as np
 
 from motionlab import rotations as rot
+from motionlab.binding import sensor_for_segment
 from motionlab.kinematics import gait_events as ge
 from motionlab.kinematics import spatiotemporal as sp
 from motionlab.kinematics.cycles import CURVE_POINTS
 from motionlab.kinematics.gps import (
+    JOINT_VARIABLES,
     PELVIS,
     gated_profile,
     movement_analysis_profile,
@@ -41,32 +42,9 @@ from motionlab.kinematics.pelvis import (
 from motionlab.kinematics.session_angles import sensor_orientation, session_segments
 from motionlab.protocol import Protocol
 from motionlab.results import Gait, SegmentCalibration
-from motionlab.segments import sensor_for_segment
 from motionlab.session import Session
 
 PELVIS_SEGMENT = "pelvis"
-
-
-def sensed_protocol(protocol: Protocol, session: Session) -> Protocol:
-    """The protocol without the joints that use an optional segment with no sensor (the walk
-    protocol's hips when the pelvis sensor is left off); the protocol itself when no joint is
-    dropped. Segments stay (calibration steps may name them; a missing optional one is skipped
-    there as before)."""
-    missing = {
-        seg
-        for seg, spec in protocol.segments.items()
-        if not spec.required and sensor_for_segment(session, seg) is None
-    }
-    if not missing:
-        return protocol
-    joints = {
-        k: j
-        for k, j in protocol.joints.items()
-        if j.proximal not in missing and j.distal not in missing
-    }
-    if len(joints) == len(protocol.joints):
-        return protocol
-    return dataclasses.replace(protocol, joints=joints)  # segments kept: steps may name them
 
 
 def _yaw_rate(session: Session, label: str) -> tuple[np.ndarray, np.ndarray]:
@@ -187,7 +165,7 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
     for side, st in strides.items():
         keep = st.kept
         var_series: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-        for v in ("hip_flexion", "hip_adduction", "hip_rotation", "knee_flexion"):
+        for v in JOINT_VARIABLES:
             joint, angle = v.split("_")
             col = f"{joint}_{side}_{angle}_deg"
             if col in series:

@@ -35,6 +35,10 @@ import numpy as np
 import pandas as pd
 from scipy.interpolate import PchipInterpolator
 
+from motionlab.kinematics.joint_types import angle_columns
+from motionlab.kinematics.spatiotemporal import MIN_STRIDES, too_few
+from motionlab.segments.grades import _frame_grade
+
 if TYPE_CHECKING:
     from motionlab.protocol import Protocol
     from motionlab.results import SegmentCalibration
@@ -42,16 +46,10 @@ if TYPE_CHECKING:
 DATA = Path(__file__).resolve().parent.parent / "report_data"  # as motionlab.report.normative
 NORMATIVE = DATA / "gait_normative.csv"
 NORMATIVE_SOURCES = DATA / "gait_normative.yaml"
-VARIABLES = (
-    "pelvis_tilt",
-    "pelvis_obliquity",
-    "pelvis_rotation",
-    "hip_flexion",
-    "hip_adduction",
-    "hip_rotation",
-    "knee_flexion",
-)
-PELVIS = VARIABLES[:3]
+PELVIS = ("pelvis_tilt", "pelvis_obliquity", "pelvis_rotation")
+#: the joint angles of the GPS, ``<joint type>_<angle>`` of the joint table's names
+JOINT_VARIABLES = ("hip_flexion", "hip_adduction", "hip_rotation", "knee_flexion")
+VARIABLES = PELVIS + JOINT_VARIABLES
 GPS_POINTS = np.arange(0, 101, 2)  # % of the cycle (Baker et al. 2009)
 
 
@@ -128,13 +126,10 @@ def variable_grades(
     hip and knee angles by their joint angle's grade, the pelvis variables by the pelvis frame's
     (:func:`motionlab.segments.grades._frame_grade`). A calibration without grades (a session
     calibrated before they existed) has everything ``determined``."""
-    from motionlab.kinematics.joint_types import angle_columns
-    from motionlab.segments.grades import _frame_grade
-
     graded = calibration.grades if calibration is not None else {}
     out: dict[str, dict[str, tuple[str, str]]] = {"r": {}, "l": {}}
     for joint in protocol.joints.values():
-        if joint.type not in ("hip", "knee") or joint.side not in out:
+        if joint.side not in out:
             continue
         entry = graded.get(joint.name) or {}
         grades, reasons = entry.get("grades", []), entry.get("reasons", [])
@@ -165,8 +160,6 @@ def gated_profile(
     with all its variables, the overall GPS only with both sides'. Adds ``withheld`` ``{side:
     {variable: why}}`` and ``not_computed``: a sentence naming what is missing, empty when the
     overall GPS is given. Applying it again with the same inputs changes nothing."""
-    from motionlab.kinematics.spatiotemporal import MIN_STRIDES, too_few
-
     strides = strides or {}
     scores: dict[str, dict[str, float]] = {}
     withheld: dict[str, dict[str, str]] = {}

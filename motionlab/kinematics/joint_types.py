@@ -93,6 +93,14 @@ class JointType:
     #: on simulated walks the centre tie turned the pelvis by 70-100°, while anchored at the
     #: stand the hip angles do not depend on which way the pelvis sensor faces)
     centre_heading: bool = False
+    #: per angle, its coordinate in OpenSim's Rajagopal (2015) model (without the side suffix)
+    #: and the sign from motionlab's angle to it; ``None`` where the model has none (see
+    #: :func:`opensim_coordinates`)
+    opensim: tuple[tuple[str, float] | None, ...] = ()
+    #: Plug-in Gait's model output of the joint without its side letter (``KneeAngles``), and
+    #: how many of its X, Y, Z are motionlab's angles in order, all signs +1 (see
+    #: :mod:`motionlab.validation.model_angles`)
+    plugin_gait: tuple[str, int] | None = None
 
 
 JOINT_TYPES: dict[str, JointType] = {
@@ -113,6 +121,8 @@ JOINT_TYPES: dict[str, JointType] = {
         clinical=True,
         sequence_rule="fixed",
         display="knee",
+        opensim=(("knee_angle", 1.0), None, None),
+        plugin_gait=("KneeAngles", 3),
     ),
     # ISB hip JCS (Wu et al. 2002, J Biomech 35:543): thigh relative to pelvis, flexion about the
     # pelvic z, ab/adduction about the floating axis, internal rotation about the femoral y.
@@ -132,6 +142,8 @@ JOINT_TYPES: dict[str, JointType] = {
         clinical=True,
         sequence_rule="fixed",
         display="hip",
+        opensim=(("hip_flexion", 1.0), ("hip_adduction", 1.0), ("hip_rotation", 1.0)),
+        plugin_gait=("HipAngles", 3),
     ),
     # ISB (Wu et al. 2005) elbow: flexion, carrying angle, pronation-supination.
     "elbow": JointType(
@@ -150,6 +162,8 @@ JOINT_TYPES: dict[str, JointType] = {
         clinical=True,
         sequence_rule="fixed",
         display="elbow",
+        opensim=(("elbow_flex", 1.0), None, ("pro_sup", 1.0)),
+        plugin_gait=("ElbowAngles", 1),
     ),
     # Thorax relative to pelvis. Euler a > 0 turns the thorax's top backward (extension).
     "lumbar": JointType(
@@ -166,6 +180,7 @@ JOINT_TYPES: dict[str, JointType] = {
         clinical=True,
         sequence_rule="fixed",
         display="lumbar spine",
+        opensim=(("lumbar_extension", -1.0), ("lumbar_bending", 1.0), ("lumbar_rotation", 1.0)),
     ),
     # The trunk's lean relative to a wheelchair (wheelchair-seating studies): the joint is
     # written chair relative to thorax (proximal thorax, distal chair), so that the thorax,
@@ -206,6 +221,8 @@ JOINT_TYPES: dict[str, JointType] = {
         clinical=True,
         sequence_rule="fixed",
         display="ankle",
+        opensim=(("ankle_angle", 1.0), None, None),
+        plugin_gait=("AnkleAngles", 1),
     ),
     "hinge": JointType(
         name="hinge",
@@ -402,6 +419,27 @@ def title(type_name: str, angle: str) -> str:
     if jt.angle_names is None:
         return f"rotation about {angle}"
     return jt.titles[jt.angle_names.index(angle)] if angle in jt.angle_names else angle
+
+
+def opensim_coordinates() -> dict[str, tuple[str, float]]:
+    """Angle column → (OpenSim coordinate of the Rajagopal 2015 model, sign), from
+    :attr:`JointType.opensim`: ``knee_r_flexion_deg`` → ``("knee_angle_r", 1.0)``.
+
+    Both use ISB-like frames (x anterior, y up, z right) and mirror the left side, so the signs
+    agree except lumbar flexion (Rajagopal's ``lumbar_extension`` turns the torso backward about
+    +z). Rajagopal's ``knee_angle`` is positive in flexion (gait2392's is negative), its
+    ``ankle_angle`` in dorsiflexion; positive ``lumbar_bending`` bends to the right and
+    ``lumbar_rotation`` turns to the left, as motionlab's; ``pro_sup`` is positive in pronation,
+    ``elbow_flex`` in flexion. The knee's and ankle's other angles have no coordinate (one degree
+    of freedom each in the model)."""
+    out = {}
+    for jt in JOINT_TYPES.values():
+        for side in ("r", "l") if jt.sided else ("",):
+            for angle, target in zip(jt.angle_names or (), jt.opensim, strict=False):
+                if target is not None:
+                    name = f"{target[0]}_{side}" if side else target[0]
+                    out[column_name(jt.name, side, angle)] = (name, target[1])
+    return out
 
 
 def split_column(column: str) -> tuple[str, str]:

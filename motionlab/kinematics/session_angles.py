@@ -19,6 +19,7 @@ import numpy as np
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
+from motionlab.fusion import estimate
 from motionlab.kinematics.joint_angles import joint_angles
 from motionlab.protocol import Protocol
 from motionlab.results import HeadingCorrection, SegmentCalibration
@@ -45,8 +46,6 @@ def sensor_orientation(session: Session, label: str, estimator: str = "default")
         return q
     s = session.sensors[label]
     if s.acc is not None and s.gyr is not None:
-        from motionlab.fusion import estimate
-
         return estimate(estimator, s.gyr, s.acc, None, estimate_rate(s.time), time=s.time).quat
     if s.quat is not None:
         return np.asarray(s.quat, dtype=float)

@@ -22,7 +22,9 @@ from typing import Any
 import numpy as np
 
 from motionlab import rotations as rot
+from motionlab.binding import sensor_for_segment, signals_from_orientation
 from motionlab.errors import InputError
+from motionlab.kinematics.joint_types import flexion_axis, joint_type
 from motionlab.protocol import Protocol, axis_vector
 from motionlab.results import HeadingCorrection, SegmentCalibration
 from motionlab.segments import (
@@ -37,22 +39,8 @@ from motionlab.segments import (
 )
 from motionlab.segments.steps import find_steps
 from motionlab.session import Session
-from motionlab.timebase import interp_columns
 
 Streams = dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
-
-
-def sensor_for_segment(session: Session, segment: str) -> str | None:
-    """Label of the sensor on protocol segment ``segment`` (e.g. ``shank_r``).
-
-    A sensor matches when its ``segment`` attribute is the protocol name (``shank_r``), or is the
-    bare name with the side in ``side`` (``shank`` + ``r``, as a sensor map writes it), or when its
-    label is the segment name.
-    """
-    for label, s in session.sensors.items():
-        if s.segment == segment or (s.side and f"{s.segment}_{s.side}" == segment):
-            return label
-    return segment if segment in session.sensors else None
 
 
 def corrected_acc(session: Session, label: str) -> np.ndarray:
@@ -98,26 +86,6 @@ def streams_of(session: Session, protocol: Protocol) -> Streams:
                 remedy="calibration needs raw acc and gyr, or the vendor's orientation",
             )
     return out
-
-
-def signals_from_orientation(
-    t: np.ndarray, q: np.ndarray, gravity: float = 9.81
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """``(time, acc, gyr)`` a sensor with only an orientation (OpenSense ``.sto``, Xsens DOT
-    quaternions, a vendor's fusion) stands in with for calibration: gravity along the earth
-    vertical seen in the sensor frame (m/s², the specific force at rest; the vendor's own
-    estimate of it) and the body-frame angular velocity of the orientation series (rad/s,
-    :func:`motionlab.validation.optical.angular_velocity` at the sample times). ``q`` maps
-    sensor to the Z-up earth frame."""
-    from motionlab.validation.optical import angular_velocity
-
-    q = rot.make_continuous(q)
-    acc = gravity * rot.rotate(rot.conj(q), np.broadcast_to([0.0, 0.0, 1.0], (len(q), 3)))
-    gyr = np.zeros((len(q), 3))
-    if len(q) > 1:
-        mid, rates = angular_velocity(t, q)
-        gyr = interp_columns(t, mid, rates)
-    return t, acc, gyr
 
 
 def calibrate_segments(
@@ -205,7 +173,6 @@ def pelvis_forward(
     single turns may disagree more where the stand refuted the hint
     (``walk_forward.MAX_SPREAD_CONTRADICTED_DEG``). Returns the measurement, if made; a line
     goes to ``notes`` when the hint is not kept."""
-    from motionlab.kinematics.joint_types import joint_type
     from motionlab.kinematics.session_angles import sensor_orientation
 
     hips = [j for j in protocol.joints.values() if joint_type(j.type).name == "hip"]
@@ -291,7 +258,6 @@ def hip_axes(
 ) -> dict[str, dict[str, Any]]:
     """The hips' flexion axes from the movement (:mod:`.hip_axis`), by joint name, for the hip
     joints whose thigh's flexion axis no functional step measured."""
-    from motionlab.kinematics.joint_types import flexion_axis, joint_type
     from motionlab.kinematics.session_angles import sensor_quats
 
     out: dict[str, dict[str, Any]] = {}

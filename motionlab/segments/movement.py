@@ -32,6 +32,7 @@ parts of the movement (largest angle to the whole fit).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -39,6 +40,7 @@ from scipy.signal import butter, sosfiltfilt
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
+from motionlab.segments import heading
 from motionlab.segments.hinge import hinge_axes
 from motionlab.session import estimate_rate
 from motionlab.timebase import interp_columns
@@ -159,8 +161,6 @@ def swing_sign(
     tilts, the relative rotation swings off the axis. The margin is ``(bad - good) / (bad +
     good)`` of the RMS swing angle (rad).
     """
-    from motionlab.segments import heading
-
     swings = []
     for sign in (1.0, -1.0):
         times, deltas = heading.hinge_anchors(t, q_p, q_d, j_p, sign * j_d)
@@ -196,8 +196,6 @@ def anatomical_sign(
     extension) are returned with the sign. ``None`` (and the excursions along ``+j``, then
     ``-j``) when neither dominates (see ``FLEXION_MIN_DEG``, ``FLEXION_RATIO``).
     """
-    from motionlab.segments import heading
-
     sel = (t >= reference[0]) & (t <= reference[1])
     if sel.sum() < 5:
         return None, (float("nan"), float("nan"))
@@ -289,6 +287,24 @@ def _verdict(
     return "determined"
 
 
+def _consistency(
+    n: int,
+    refit: Callable[[int, int], tuple[np.ndarray, np.ndarray] | None],
+    axis_1: np.ndarray,
+    axis_2: np.ndarray,
+) -> float:
+    """The largest angle (deg) between the two axes and their refits (``refit(a, b)``: the
+    axes from samples ``a:b``, ``None`` for too little there) on ``N_PARTS`` consecutive
+    parts of the ``n`` samples: how consistent the movement is about them."""
+    worst = 0.0
+    bounds = np.linspace(0, n, N_PARTS + 1).astype(int)
+    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+        axes = refit(a, b)
+        if axes is not None:
+            worst = max(worst, _angle_deg(axes[0], axis_1), _angle_deg(axes[1], axis_2))
+    return worst
+
+
 def shared_movement(
     joint: str,
     proximal: tuple[np.ndarray, np.ndarray, np.ndarray],
@@ -340,20 +356,19 @@ def fit_hinge(
     t, g1, g2, q1, q2, active = shared_movement(joint, proximal, distal)
     j_p, j_d, _ = hinge_axes(g1, g2, prior_p, prior_d, loss="soft_l1", f_scale=ROBUST_SCALE_RAD_S)
     reasons: list[str] = []
-    # consistency over consecutive parts of the movement
-    worst = 0.0
-    bounds = np.linspace(0, len(t), N_PARTS + 1).astype(int)
-    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
-        part_active = active[a:b] >= 0.1 * np.percentile(active, 95)
-        if part_active.sum() < MIN_PART_SAMPLES:
-            continue
+
+    def refit(a: int, b: int) -> tuple[np.ndarray, np.ndarray] | None:
+        if (active[a:b] >= 0.1 * np.percentile(active, 95)).sum() < MIN_PART_SAMPLES:
+            return None
         try:
             pp, pd_, _ = hinge_axes(
                 g1[a:b], g2[a:b], j_p, j_d, n_starts=0, loss="soft_l1", f_scale=ROBUST_SCALE_RAD_S
             )
         except InputError:
-            continue
-        worst = max(worst, _angle_deg(pp, j_p), _angle_deg(pd_, j_d))
+            return None
+        return pp, pd_
+
+    worst = _consistency(len(t), refit, j_p, j_d)
     # residual of the whole fit, relative to the perpendicular rate
     perp1 = np.linalg.norm(np.cross(g1, j_p), axis=1)
     perp2 = np.linalg.norm(np.cross(g2, j_d), axis=1)
@@ -536,19 +551,16 @@ def fit_two_dof(
     relative = residual / scale if scale > 0 else float("inf")
     win_times = np.array([prob.t[prob.win == k].mean() for k in range(prob.n_win)])
     deltas = np.unwrap(best.x[4:])
-    # consistency: the axes refitted on consecutive parts of the movement
-    worst = 0.0
-    bounds = np.linspace(0, len(prob.t), N_PARTS + 1).astype(int)
-    for a, b in zip(bounds[:-1], bounds[1:], strict=True):
+
+    def refit(a: int, b: int) -> tuple[np.ndarray, np.ndarray] | None:
         if b - a < MIN_PART_SAMPLES:
-            continue
+            return None
         part = _TwoAxisProblem(prob.t[a:b], prob.w1[a:b], prob.w2[a:b], prob.m1[a:b], prob.m2[a:b])
         fit = part.solve([(j1, j2)])
-        pj1, pj2 = _unit(fit.x[0], fit.x[1]), _unit(fit.x[2], fit.x[3])
-        worst = max(worst, _angle_deg(pj1, j1), _angle_deg(pj2, j2))
-    # the distal orientation with its heading tied to the proximal one
-    from motionlab.segments import heading
+        return _unit(fit.x[0], fit.x[1]), _unit(fit.x[2], fit.x[3])
 
+    worst = _consistency(len(prob.t), refit, j1, j2)
+    # the distal orientation with its heading tied to the proximal one
     q2_aligned = heading.apply_heading(q2, heading.heading_track(win_times, deltas, t))
     reasons: list[str] = []
     sign_source = "nominal"

@@ -9,7 +9,7 @@ is far too short for :mod:`~motionlab.segments.steps` to tell rest from movement
 :func:`pose_step` takes the whole recording as the protocol's first static step instead:
 
 - each segment's axis the step names vertical (and its horizontal axes) comes from gravity as
-  the orientation implies it (:func:`motionlab.segments.signals_from_orientation`), so the
+  the orientation implies it (:func:`motionlab.binding.signals_from_orientation`), so the
   sensor's tilt on the segment is measured;
 - the rotation about the vertical has no movement to measure it: it is the protocol's
   ``sensor_axes`` hint (:func:`motionlab.segments.mounting.fit` with one axis), and each joint's
@@ -26,7 +26,9 @@ from typing import Any
 
 import numpy as np
 
+from motionlab.binding import sensor_for_segment, signals_from_orientation
 from motionlab.protocol import CalibrationStep, Protocol
+from motionlab.segments import heading
 from motionlab.segments.mounting import static_records
 from motionlab.segments.steps import MIN_RECORDING_S, Block, longest_s, placement_warnings
 from motionlab.session import Session
@@ -38,8 +40,6 @@ def pose_step(session: Session, protocol: Protocol, streams: Streams) -> Calibra
     """The protocol's first static step, when the recording is too short to find steps in
     (every stream under ``MIN_RECORDING_S``) and every sensor on its segments carries an
     orientation; else ``None`` (the steps are found as usual)."""
-    from motionlab.segments import sensor_for_segment
-
     if not streams or longest_s(streams) >= MIN_RECORDING_S:
         return None
     for seg in streams:
@@ -59,8 +59,6 @@ def measure(
     spans the whole recording (s), the protocol's other steps are ``None``; the records are the
     static step's, from the gravity of each sensor's orientation. Lines for the user (the
     calibration is single-pose; a vertical axis the hint contradicts) go to ``warnings``."""
-    from motionlab.segments import sensor_for_segment, signals_from_orientation
-
     pose: Streams = {}
     for seg in streams:
         s = session.sensors[sensor_for_segment(session, seg)]
@@ -100,8 +98,6 @@ def heading_anchor(
     """One heading anchor ``([time s], [δ rad])`` of a joint in a single-pose calibration: the
     distal segment turned to face as the proximal one over the pose (``step_range``, s; ``qp``
     and ``qd`` the segment orientations on the common time ``t``)."""
-    from motionlab.segments import heading
-
     sel = (t >= step_range[0]) & (t <= step_range[1])
     if not sel.any():
         return [], []

@@ -51,7 +51,7 @@ from scipy.ndimage import binary_closing, label, maximum
 from scipy.signal import butter, sosfiltfilt
 
 from motionlab.errors import InputError
-from motionlab.protocol import CalibrationStep, Protocol, axis_vector
+from motionlab.protocol import PACKAGED, CalibrationStep, Protocol, axis_vector, load_protocol
 from motionlab.segments.functional import functional_axis
 from motionlab.timebase import interp_columns
 
@@ -434,8 +434,6 @@ def _remedy(fits: list[str], suggested: bool, has_rest: bool) -> str:
 def fitting_protocols(streams: Streams, protocol: Protocol) -> list[str]:
     """Shipped protocols (other than ``protocol``) whose required segments, the two segments of
     at least one joint, and whose steps this recording has."""
-    from motionlab.protocol import PACKAGED, load_protocol
-
     out = []
     for path in sorted(PACKAGED.glob("*.yaml")):
         other = load_protocol(path)

@@ -30,10 +30,11 @@ from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_angles import decompose_joint
 from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns
+from motionlab.kinematics.segment_types import kind_side
 from motionlab.protocol import Protocol, load_protocol
 from motionlab.session import SensorStream, Session
 from motionlab.simulate import markers as _markers
-from motionlab.simulate.body import SEGMENTS, Body, kind_side
+from motionlab.simulate.body import SEGMENTS, Body
 from motionlab.simulate.chain import segment_poses
 from motionlab.simulate.errors import (
     SOFT_TISSUE,

@@ -24,6 +24,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from motionlab.errors import InputError
+from motionlab.kinematics.segment_types import kind_side
 
 SEGMENTS = (
     "pelvis",
@@ -40,13 +41,6 @@ SEGMENTS = (
     "upperarm_l",
     "forearm_l",
 )
-
-
-def kind_side(segment: str) -> tuple[str, str]:
-    """``'thigh_r'`` → ``('thigh', 'r')``; ``'pelvis'`` → ``('pelvis', '')``."""
-    if segment[-2:] in ("_l", "_r"):
-        return segment[:-2], segment[-1]
-    return segment, ""
 
 
 # Anatomical landmarks in the segment frame, as (x, y, lateral) in units of H; ``y`` may name a

@@ -19,7 +19,8 @@ import numpy as np
 
 from motionlab import rotations as rot
 from motionlab.kinematics.joint_angles import compose
-from motionlab.simulate.body import SEGMENTS, Body, kind_side
+from motionlab.kinematics.segment_types import kind_side
+from motionlab.simulate.body import SEGMENTS, Body
 from motionlab.simulate.motion import CH, group
 
 Q_BASE = rot.from_axis_angle(np.array([1.0, 0.0, 0.0]), np.pi / 2)  # body → ENU at heading 0

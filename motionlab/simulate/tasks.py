@@ -10,7 +10,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from motionlab.simulate.body import Body, kind_side
+from motionlab.kinematics.segment_types import kind_side
+from motionlab.simulate.body import Body
 from motionlab.simulate.motion import (
     CH,
     DEG,

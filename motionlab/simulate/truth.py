@@ -39,7 +39,7 @@ import pandas as pd
 
 from motionlab.atomic import atomic_path
 from motionlab.errors import InputError
-from motionlab.isolated import check_hdf5
+from motionlab.isolated import check_hdf5, open_hdf5
 
 FORMAT = "motionlab-truth"
 SCHEMA_VERSION = 1
@@ -127,13 +127,7 @@ def load_truth(path: str | Path) -> Truth:
     if not path.is_file():
         raise InputError("no such truth file", path, remedy="check the path")
     check_hdf5(path)
-    try:
-        f = h5py.File(path, "r")
-    except OSError:
-        raise InputError(
-            "not an HDF5 file", path, remedy="give a truth file the simulator wrote"
-        ) from None
-    with f:
+    with open_hdf5(path, "not an HDF5 file", "give a truth file the simulator wrote") as f:
         if f.attrs.get("format") != FORMAT:
             raise InputError(
                 "HDF5 file is not a motionlab truth file",

@@ -14,8 +14,8 @@ Steps (each in its own module):
    (:func:`motionlab.kinematics.joint_angles.joint_angles`) and their agreement per angle and
    per repetition (:mod:`.agreement`).
 
-The result (:class:`~motionlab.results.Validation`) is stored in ``session.results.validation``;
-:mod:`.figures` draws it.
+The result (:class:`~motionlab.results.Validation`) is returned; :func:`motionlab.stages.validate`
+stores it in ``session.results.validation``, and :mod:`.figures` draws it.
 """
 
 from __future__ import annotations
@@ -25,9 +25,11 @@ from typing import Any
 import numpy as np
 
 from motionlab import rotations as rot
+from motionlab.binding import sensor_for_segment
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_angles import joint_angles
 from motionlab.kinematics.joint_types import angle_columns
+from motionlab.kinematics.session_angles import sensor_orientation, session_angles
 from motionlab.protocol import Protocol
 from motionlab.results import SegmentCalibration, Validation
 from motionlab.session import MarkerSet, Session, estimate_rate
@@ -54,8 +56,6 @@ MOVEMENT_PAD_S = 0.25
 
 def _pairs(session: Session, mmap: MarkerMap) -> dict[str, str]:
     """``{sensor label: segment}`` for the mapped segments that carry a sensor."""
-    from motionlab.segments import sensor_for_segment
-
     out = {}
     for seg, spec in mmap.segments.items():
         label = spec.sensor or sensor_for_segment(session, seg)
@@ -166,8 +166,6 @@ def _angles(
     movement: tuple[np.ndarray, np.ndarray] | None,
 ) -> tuple[dict[str, Any], list[str]]:
     """IMU and optical joint angles on the IMU angle time base and their agreement."""
-    from motionlab.kinematics.session_angles import session_angles
-
     notes = []
     stored = session.results.angles
     if stored is not None:
@@ -247,11 +245,9 @@ def validate(
     Returns
     -------
     Validation
-        Also stored in ``session.results.validation``: ``sync``, ``alignment``, ``optical``,
+        (:func:`motionlab.stages.validate` stores it): ``sync``, ``alignment``, ``optical``,
         ``orientation`` (per sensor) and ``angles`` (per angle column).
     """
-    from motionlab.kinematics.session_angles import sensor_orientation
-
     if reference is None:
         name = marker_map.marker_set if marker_map else None
         reference = choose_marker_set(list(session.markers.values()), name)
@@ -325,6 +321,4 @@ def validate(
         )
         notes += angle_notes
     result["notes"] = notes
-    validation = Validation(**result)
-    session.results.validation = validation
-    return validation
+    return Validation(**result)

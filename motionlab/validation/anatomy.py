@@ -22,6 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from motionlab.kinematics.segment_types import kind_side
+
 # canonical landmark → aliases (upper case, without side)
 _ALIASES: dict[str, tuple[str, ...]] = {
     "ASIS": ("ASI",),
@@ -197,5 +199,4 @@ def anatomical_frame(
 
 def recipe_for(segment: str) -> FrameRecipe | None:
     """The default recipe of a segment by its kind (``thigh_r`` → thigh), or ``None``."""
-    kind = segment[:-2] if segment[-2:] in ("_l", "_r") else segment
-    return RECIPES.get(kind)
+    return RECIPES.get(kind_side(segment)[0])

@@ -34,13 +34,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from motionlab.errors import InputError
-from motionlab.protocol import AXES, LineLoader, Protocol
+from motionlab.protocol import AXES, Protocol
 from motionlab.session import MarkerSet
 from motionlab.validation.anatomy import Direction, FrameRecipe
 from motionlab.validation.optical import DEFAULT_LOWPASS_HZ, DEFAULT_MAX_GAP_S, MIN_MARKERS
+from motionlab.yamlsafe import LineLoader, load_yaml
 
 
 @dataclass
@@ -110,17 +109,10 @@ def load_marker_map(path: str | Path) -> MarkerMap:
     if not path.is_file():
         raise InputError("no such marker map", path, remedy="check the path")
     try:
-        doc = yaml.load(path.read_text(encoding="utf-8"), Loader=LineLoader)  # noqa: S506
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        raise InputError(
-            f"not valid YAML ({getattr(exc, 'problem', exc)})",
-            path,
-            f"line {mark.line + 1}" if mark else None,
-            "check indentation and colons",
-        ) from None
+        text = path.read_text(encoding="utf-8")
     except UnicodeDecodeError:
         raise InputError("not a text file", path, remedy="give a marker map YAML file") from None
+    doc = load_yaml(text, LineLoader, path, "check indentation and colons")
     c = _Checker(path)
     if not isinstance(doc, dict):
         c.fail("(top level)", 1, "is not a mapping", "start from the example in the docs")

@@ -1,11 +1,12 @@
 """A reference of joint angles computed by another model (Plug-in Gait and the like), as C3D
 ``POINT:ANGLES`` model outputs (:mod:`motionlab.io.c3d` keeps them apart from the markers).
 
-The mapping from model-output labels to motionlab angle columns (:data:`PLUGIN_GAIT`, written
-out in the README, "Validate") follows Vicon's Plug-in Gait reference guide: each ``*Angles`` point
-holds three angles in degrees as X, Y, Z, already in clinical signs on both sides (flexion,
-adduction/varus and internal rotation positive; the left side is mirrored by the model), which
-are motionlab's signs (DESIGN.md §1), so every sign is +1:
+The mapping from model-output labels to motionlab angle columns (:data:`PLUGIN_GAIT`, written out in
+the README, "Validate"; built from the joint table's
+:attr:`~motionlab.kinematics.joint_types.JointType.plugin_gait`) follows Vicon's Plug-in Gait
+reference guide: each ``*Angles`` point holds three angles in degrees as X, Y, Z, already in
+clinical signs on both sides (flexion, adduction/varus and internal rotation positive; the left side
+is mirrored by the model), which are motionlab's signs (docs/conventions.md), so every sign is +1:
 
 ====================  ======  ===========================  ====
 label                 comp.   motionlab column             sign
@@ -13,12 +14,14 @@ label                 comp.   motionlab column             sign
 R/LHipAngles          X Y Z   hip_<s>_flexion / adduction / rotation     +1
 R/LKneeAngles         X Y Z   knee_<s>_flexion / adduction / rotation    +1
 R/LElbowAngles        X       elbow_<s>_flexion                          +1
+R/LAnkleAngles        X       ankle_<s>_dorsiflexion                     +1
 ====================  ======  ===========================  ====
 
-Plug-in Gait's elbow Y and Z are not the carrying angle and pronation (pronation lives in its
-wrist angles), so they are left out. motionlab's own C3D export (``<joint>_angles`` with X, Y, Z
-the joint's three columns in decomposition order) maps by the protocol. Other labels or signs:
-a YAML angle map (:func:`load_angle_map`)::
+Plug-in Gait's elbow Y and Z are not the carrying angle and pronation (pronation lives in its wrist
+angles), so they are left out; of the ankle's only dorsiflexion (X) is mapped: its Y and Z have not
+been checked against the ISB ankle's inversion and rotation. motionlab's own C3D export
+(``<joint>_angles`` with X, Y, Z the joint's three columns in decomposition order) maps by the
+protocol. Other labels or signs: a YAML angle map (:func:`load_angle_map`)::
 
     knee_r_flexion_deg: {label: RKneeAngles, component: x, sign: 1}
     knee_r_rotation_deg: {label: RKneeAngles, component: z, sign: -1}
@@ -45,10 +48,12 @@ import numpy as np
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
-from motionlab.kinematics.joint_types import angle_columns
+from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, column_name
+from motionlab.kinematics.session_angles import session_angles
 from motionlab.protocol import Protocol
 from motionlab.results import Validation
 from motionlab.session import MarkerSet, Session, estimate_rate
+from motionlab.validation import movement_mask
 from motionlab.validation.agreement import agreement, per_repetition, repetitions
 from motionlab.validation.time_alignment import no_sync, synchronise
 from motionlab.validation.time_offset import sync_notes
@@ -77,11 +82,13 @@ class AngleSource:
 
 def _plugin_gait() -> dict[str, AngleSource]:
     out = {}
-    for side, s in (("R", "r"), ("L", "l")):
-        for joint, label in (("hip", "HipAngles"), ("knee", "KneeAngles")):
-            for i, name in enumerate(("flexion", "adduction", "rotation")):
-                out[f"{joint}_{s}_{name}_deg"] = AngleSource(f"{side}{label}", i)
-        out[f"elbow_{s}_flexion_deg"] = AngleSource(f"{side}ElbowAngles", 0)
+    for jt in JOINT_TYPES.values():
+        if jt.plugin_gait is None:
+            continue
+        label, n = jt.plugin_gait
+        for side in ("r", "l"):
+            for i, name in enumerate((jt.angle_names or ())[:n]):
+                out[column_name(jt.name, side, name)] = AngleSource(f"{side.upper()}{label}", i)
     return out
 
 
@@ -181,15 +188,12 @@ def validate_model_angles(
     """Compare the session's joint angles with model joint angles of ``reference``.
 
     The IMU angles are the session's ``angles`` results (else computed from the calibration
-    with ``protocol``). Returns the :class:`~motionlab.results.Validation` stored in
-    ``session.results.validation``, shaped as :func:`motionlab.validation.validate`'s
+    with ``protocol``). Returns the :class:`~motionlab.results.Validation` (which
+    :func:`motionlab.stages.validate` stores), shaped as :func:`motionlab.validation.validate`'s
     (``sync``, ``alignment`` (mode ``none``: no frames to align), ``orientation`` (no sensor:
     none is compared), ``angles``, ``notes``) with ``reference``: ``kind``
     (``model_angles``), ``file`` and ``mapping`` (column → source).
     """
-    from motionlab.kinematics.session_angles import session_angles
-    from motionlab.validation import movement_mask
-
     stored = session.results.angles
     if stored is not None:
         table = stored.columns()
@@ -255,7 +259,7 @@ def validate_model_angles(
     sync_tree["signal"] = "joint angle rates" if sync else ""
     sync_tree["sensor_residual_s"] = {}
     notes += sync_notes(sync_tree) if sync else []
-    result = Validation(
+    return Validation(
         mode="angles",
         marker_set=reference.name,
         movement_only=movement_only,
@@ -279,8 +283,6 @@ def validate_model_angles(
         },
         notes=notes,
     )
-    session.results.validation = result
-    return result
 
 
 def _primaries(columns: list[str], protocol: Protocol | None) -> list[str]:

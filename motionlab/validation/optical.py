@@ -255,18 +255,6 @@ def track_cluster(
     )
 
 
-def angular_velocity(time: np.ndarray, quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Angular velocity (N−1, 3) in rad/s in the moving frame, at the interval midpoints (s).
-
-    ``ω_k = 2 log(q_k* ⊗ q_{k+1}) / (t_{k+1} − t_k)`` (Ricci 2015, eqs. 5.11-5.12); NaN where
-    either orientation is NaN.
-    """
-    time = np.asarray(time, dtype=float)
-    quat = np.asarray(quat, dtype=float)
-    dq = rot.mul(rot.conj(quat[:-1]), quat[1:])
-    return 0.5 * (time[1:] + time[:-1]), rot.to_rotvec(dq) / np.diff(time)[:, None]
-
-
 def resample_quat(time: np.ndarray, quat: np.ndarray, t_new: np.ndarray) -> np.ndarray:
     """SLERP ``quat`` (N, 4) at ``t_new``; NaN outside ``time`` or next to a NaN sample.
 

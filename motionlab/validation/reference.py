@@ -17,14 +17,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import h5py
 import numpy as np
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
-from motionlab.isolated import check_hdf5, looks_like_hdf5
+from motionlab.io import read_any
 from motionlab.protocol import Protocol
-from motionlab.session import FORMAT_NAME, MarkerSet, load_session
+from motionlab.session import MarkerSet, is_session_file, load_session
 from motionlab.validation.anatomy import anatomical_frame, recipe_for
 from motionlab.validation.cast import (
     MAX_LANDMARK_SPREAD_M,
@@ -79,18 +78,9 @@ def read_reference(path: str | Path, model_outputs_ok: bool = False) -> list[Mar
     path = Path(path)
     if not path.is_file():
         raise InputError("no such reference file", path, remedy="check the path")
-    if looks_like_hdf5(path):
-        check_hdf5(path)
-    try:
-        with h5py.File(path, "r") as f:
-            is_session = f.attrs.get("format") == FORMAT_NAME
-    except OSError:
-        is_session = False
-    if is_session:
+    if is_session_file(path):
         sets = list(load_session(path).markers.values())
     else:
-        from motionlab.io import read_any
-
         sets = read_any(path).markers
     if not sets:
         raise InputError(

@@ -14,7 +14,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from motionlab.errors import InputError
-from motionlab.session import MarkerSet
+from motionlab.session import MarkerSet, Session
 from motionlab.validation.model_angles import has_model_angles
 from motionlab.validation.reference import choose_marker_set, read_reference
 from motionlab.validation.segment_csv import is_segment_csv, read_segment_csv
@@ -36,8 +36,7 @@ def load_reference(
     ref = choose_marker_set(read_reference(path, model_outputs_ok=True), name, path)
     ref.attrs.setdefault("source_file", str(path))
     markers = bool(ref.n_markers or ref.rigid_bodies)
-    if kind == "auto":
-        kind = "angles" if has_model_angles(ref) and not markers else "markers"
+    kind = _kind(ref) if kind == "auto" else kind
     if kind == "angles" and not has_model_angles(ref):
         raise InputError(
             "holds no joint angles (POINT:ANGLES)",
@@ -52,3 +51,28 @@ def load_reference(
             remedy="give the C3D with the marker trajectories",
         )
     return ref, kind
+
+
+def session_reference(
+    session: Session, kind: str = "auto", name: str | None = None, path: str | Path | None = None
+) -> tuple[MarkerSet, str]:
+    """The session's own reference (its marker set ``name``, or the only one) and its kind
+    (``auto``: as for a file, :func:`load_reference`); ``path`` names the session in errors.
+    ``motionlab validate`` without a reference file and ``motionlab run`` on inputs that hold
+    markers both take it from here."""
+    if not session.markers:
+        raise InputError(
+            "has no optical data",
+            path,
+            remedy="give reference=FILE.c3d or a session",
+            argument="reference",
+        )
+    ref = choose_marker_set(list(session.markers.values()), name, path)
+    return ref, _kind(ref) if kind == "auto" else kind
+
+
+def _kind(ref: MarkerSet) -> str:
+    """``angles`` for model joint angles without markers or rigid bodies, else ``markers``."""
+    return (
+        "angles" if has_model_angles(ref) and not (ref.n_markers or ref.rigid_bodies) else "markers"
+    )

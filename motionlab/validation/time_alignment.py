@@ -7,7 +7,7 @@ The clock model maps the IMU (session) clock to the reference clock::
 
 Method (Ricci 2015, §4.2 and §5.2): the angular-speed magnitude ``‖ω‖`` of each IMU (gyroscope)
 and of its optical counterpart (angular velocity of the optical orientations,
-:func:`~motionlab.validation.optical.angular_velocity`) is low-passed with the same zero-phase
+:func:`~motionlab.rotations.angular_velocity`) is low-passed with the same zero-phase
 Butterworth filter (no group delay) and put on a uniform grid at the IMU rate. A normalised
 cross-correlation of the whole recordings gives a coarse offset; then, window by window, the
 normalised cross-correlation peak is found near the current clock model and refined to a
@@ -28,8 +28,8 @@ from scipy.interpolate import make_interp_spline
 from scipy.signal import butter, correlate, sosfiltfilt
 
 from motionlab.errors import InputError
+from motionlab.rotations import angular_velocity
 from motionlab.validation import time_offset as ta
-from motionlab.validation.optical import angular_velocity
 
 CUTOFF_HZ = 3.0
 WINDOW_S = 10.0

@@ -26,7 +26,7 @@ from typing import Any
 
 import numpy as np
 
-from motionlab.validation.optical import angular_velocity
+from motionlab.rotations import angular_velocity
 
 GYRO_SAMPLING = ("interval", "point")
 SYNC_SOURCES = ("gyroscope", "orientation")

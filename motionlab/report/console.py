@@ -1,0 +1,168 @@
+"""The one screen ``motionlab run`` prints when it is done (:func:`run_summary`): subject, data,
+fusion, clock sync, calibration, the angles' grades, tasks, gait, flexion ranges, validation,
+findings, outputs and stage times, from the report's :class:`~motionlab.report.model.SessionView`
+as the PDF's pages read it."""
+
+from __future__ import annotations
+
+import textwrap
+from typing import TYPE_CHECKING
+
+from motionlab.report.model import (
+    angle_grades,
+    calibration_rows,
+    gait_profile,
+    grade_mark,
+    grade_rows,
+    quality_rows,
+    rom_rows,
+)
+from motionlab.report.sentences import findings, missing_lines, span, task_name
+
+if TYPE_CHECKING:
+    from motionlab.report import ReportOutput
+    from motionlab.report.model import SessionView
+
+
+def grade_lines(view: SessionView, width: int = 100) -> list[str]:
+    """Summary lines on the angles' grades: how many the recording determined, then the weak
+    and not determined ones by column name, grouped by reason (wrapped at ``width``)."""
+    rows = grade_rows(view)
+    good = sum(r["grade"] == "determined" for r in rows)
+    lines = [f"  angles determined by the recording: {good}/{len(rows)}"]
+    groups: dict[tuple[str, str], list[str]] = {}
+    for r in rows:
+        if r["grade"] != "determined":
+            groups.setdefault((r["grade"], r["reason"]), []).append(r["column"])
+    for (grade, reason), cols in groups.items():
+        text = f"{grade}: {', '.join(cols)}" + (f" - {reason}" if reason else "")
+        lines += textwrap.wrap(
+            text, width, initial_indent="    ", subsequent_indent="      ", break_on_hyphens=False
+        )
+    return lines
+
+
+def run_summary(
+    view: SessionView,
+    report: ReportOutput,
+    times: dict[str, float],
+    total_s: float,
+    *,
+    session_file: str,
+    csv_dir: str,
+    results_json: str,
+) -> str:
+    """One screen: subject, data, calibration, tasks, flexion ranges, validation, outputs
+    (``report``'s, and the run's ``session_file``, ``csv_dir`` and ``results_json`` names),
+    the stage ``times`` (s) and the ``total_s``."""
+    ses, proto = view.session, view.protocol
+    q = quality_rows(view)
+    flagged = sorted({f for r in q for f in r["flags"]})
+    rate = q[0]["rate_hz"] if q else float("nan")
+    lines = [
+        f"motionlab run: {proto.name} ({proto.title}) - subject {view.subject}, {view.date}",
+        f"  data: {len(ses.sensors)} sensors at {rate:.0f} Hz, {view.angles['time_s'][-1]:.0f} s;"
+        f" quality flags: {', '.join(flagged) or 'none'}",
+    ]
+    fusion = {
+        f"{e.name}{'' if e.magnetometer else ' (6-D, no magnetometer)'}"
+        for e in ses.results.fusion.values()
+    }
+    lines.append(f"  fusion: {', '.join(sorted(fusion)) or 'sensor orientations'}")
+    synced = ses.results.clock_sync.fits if ses.results.clock_sync is not None else {}
+    if synced:
+        moved = [f"{k} {1e3 * v.offset_s:+.1f} ms" for k, v in synced.items()
+                 if v.status == "applied"]  # fmt: skip
+        lines.append(
+            f"  clock sync: {', '.join(moved) if moved else 'no correction needed or reliable'}"
+            f" ({len(synced)} sensor pairs checked)"
+        )
+    segs = {r["segment"]: r["segment_ok"] for r in calibration_rows(view)}
+    bad = [s for s, ok in segs.items() if not ok]
+    lines.append(
+        f"  calibration: {len(segs) - len(bad)}/{len(segs)} segments ok"
+        + (f"; check {', '.join(bad)}" if bad else "")
+    )
+    cal = ses.results.calibration
+    lines += [f"  warning: {w}" for w in (cal.warnings if cal is not None else [])]
+    tied = [
+        f"{j} by its {h.source.replace('_', ' ')} ({h.range_deg:.1f}° range)"
+        for j, h in (ses.results.heading or {}).items()
+        if h.anchors and h.source != "steps"
+    ]
+    if tied:
+        lines.append("  heading tied by the joints: " + ", ".join(tied))
+    lines += grade_lines(view)
+    spans = ", ".join(f"{task_name(k)} {a:.0f}-{b:.0f} s" for k, (a, b) in view.blocks().items())
+    if not spans and cal is not None and cal.single_pose:
+        spans = "none (the recording is its calibration pose)"
+    lines.append("  tasks: " + spans)
+    lines.append(_gait_line(view))
+    flexion = [r for r in rom_rows(view) if r["angle"] == "flexion"]
+    if flexion:
+        lines.append("  flexion range (typical, deg):")
+    for r in flexion:
+        normal = (
+            f"normal {r['normal'][0]:g}-{r['normal'][1]:g}, {r['status'] or 'not compared'}"
+            if r["normal"]
+            else "no normal range"
+        )
+        lines.append(
+            f"    {task_name(r['task']):<14} {r['joint']:<8} "
+            f"{span(r['typical_min_deg'], r['typical_max_deg']):>10}  ({normal})"
+            + (f" {grade_mark(r['grade'])}" if grade_mark(r["grade"]) else "")
+        )
+    validation = ses.results.validation
+    val = (validation.angles or {}) if validation is not None else {}
+    grades = angle_grades(view)
+    rmse = [
+        f"{c.removesuffix('_deg')} {v['rmse_deg']:.1f}"
+        + (f" {grade_mark(grades[c][0])}" if c in grades and grade_mark(grades[c][0]) else "")
+        for c, v in val.items()
+        if isinstance(v, dict) and "rmse_deg" in v
+    ]
+    if rmse:
+        lines.append(
+            f"  validation RMSE (deg): {', '.join(rmse[:6])}" + (" ..." if len(rmse) > 6 else "")
+        )
+    lines.append("  findings (determined numbers only):")
+    lines += [f"    - {f}" for f in findings(view, limit=4)]
+    missing = missing_lines(view)
+    if missing:
+        lines.append("  not determined by this recording:")
+        lines += [f"    - {m}" for m in missing]
+    lines.append(f"outputs in {report.pdf_path.parent}:")
+    lines.append(
+        f"  {session_file}, {report.pdf_path.name} ({len(report.pages)} pages), "
+        f"{report.text_path.name}, {csv_dir}/ ({len(report.csv_paths)} tables), {results_json}"
+    )
+    steps = ", ".join(f"{k} {v:.1f}" for k, v in times.items())
+    lines.append(f"time: {total_s:.1f} s ({steps})")
+    return "\n".join(lines)
+
+
+def _gait_line(view: SessionView) -> str:
+    """One summary line about gait: its main numbers (each only when enough steady strides and
+    determined inputs give it, else why not), or why there are no gait pages."""
+    gait = view.session.results.gait
+    if gait is None:
+        return "  gait: none in this recording (the protocol has no gait task); no gait pages"
+    if not gait.ok:
+        return f"  gait: {gait.status}; no gait pages"
+    s = gait.summary
+    withheld = s.get("withheld") or {}
+
+    def number(key: str, fmt: str) -> str:
+        v = s.get(key, float("nan"))
+        return fmt.format(v) if v == v else withheld.get(key, "n/a")
+
+    mp = gait_profile(view) or {}
+    gps = mp.get("gps", {}).get("overall", float("nan"))
+    gps_text = f"GPS {gps:.1f} deg" if gps == gps else (mp.get("not_computed") or "GPS n/a")
+    speed = s.get("walking_speed_m_s", float("nan"))
+    speed_text = f", speed {speed:.2f} m/s (leg model)" if speed == speed else ""
+    return (
+        f"  gait: {s['strides_kept']} strides, cadence "
+        f"{number('cadence_steps_per_min', '{:.1f} steps/min')}, step-time asymmetry "
+        f"{number('step_time_asymmetry_pct', '{:.1f} %')}{speed_text}; {gps_text}"
+    )
