@@ -468,6 +468,8 @@ def _pair_residuals(
     d = np.empty(9)
     with_jac = jac.shape[1] > 0
     i = 0
+    if len(t):  # start the walk below from the first sample's interval (a block's window)
+        i = min(max(np.searchsorted(knots, t[0] + p[12] + p[13] * (t[0] - t_mid)) - 1, 0), m - 1)
     for k in range(len(t)):
         x = t[k] + (p[12] + p[13] * (t[k] - t_mid))
         # the spline's interval: knots[i] <= x < knots[i + 1], the first and last extended
