@@ -95,10 +95,11 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import asdict, dataclass, replace
 
+import numba
 import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.optimize import least_squares, minimize_scalar
-from scipy.signal import butter, sosfiltfilt
+from scipy.signal import butter, sosfilt, sosfilt_zi, sosfiltfilt
 
 from motionlab.clocknet import CENTRE_FLOOR_S, IMPACTS, NETWORK, solve_network
 from motionlab.protocol import Protocol
@@ -121,6 +122,9 @@ INPUT_LP_HZ = 8.0  # zero-phase low-pass of f and ω (order INPUT_ORDER): soft-t
 INPUT_ORDER = 8  # at 10–20 Hz would otherwise reach ω̇ × r by tens of m/s²
 BIAS_PRIOR_M_S2 = 1.0  # prior standard deviation of each accelerometer bias (m/s²), see _Pair
 BLOCK_S = 8.0  # movement time per block whose offset checks the fit (s)
+# a block's residuals are computed over its span and this much either side (s): the impulse
+# response of the LOWPASS_HZ low-pass falls below 1e-18 of its peak within 3 s (at any rate)
+BLOCK_MARGIN_S = 3.0
 DRIFT_PRIOR = 50e-6  # prior standard deviation of one clock's drift against another's
 MIN_SAMPLES = 100  # finite accelerometer and gyroscope samples a sensor needs
 SETTLE_S = 0.3  # samples this close to a gap are left out (s)
@@ -312,32 +316,34 @@ class _Pair:
     use: np.ndarray
 
     def __post_init__(self) -> None:
-        self.rate_of_change = self.spline.derivative()
+        self._zi = sosfilt_zi(self.sos)  # what sosfiltfilt computes on every call
 
     def _filtered(self, x: np.ndarray) -> np.ndarray:
-        return sosfiltfilt(self.sos, x, axis=0)[self.use]
+        """``sosfiltfilt(sos, x, axis=-1)[..., use]``, by scipy's own steps (odd extension of
+        3 × taps, ``sosfilt`` forward and backward from the steady state of the edge values)
+        with the steady state computed once per pair."""
+        sos = self.sos
+        taps = 2 * len(sos) + 1 - min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum()))
+        edge = 3 * taps
+        ext = np.concatenate(
+            (
+                2 * x[..., :1] - x[..., edge:0:-1],
+                x,
+                2 * x[..., -1:] - x[..., -2 : -(edge + 2) : -1],
+            ),
+            axis=-1,
+        )
+        zi = self._zi.reshape((len(sos),) + (1,) * (x.ndim - 1) + (2,))
+        y, _ = sosfilt(sos, ext, zi=zi * ext[..., :1])
+        y, _ = sosfilt(sos, y[..., ::-1], zi=zi * y[..., -1:])
+        return y[..., ::-1][..., edge:-edge][..., self.use]
 
     def residuals(self, p: np.ndarray, jacobian: bool = False) -> np.ndarray:
-        shift = p[-2] + p[-1] * (self.t - self.t_mid)
-        other = self.spline(self.t + shift)
-        f1, f2 = _centre(self.ref, p[:3], p[6:9]), _centre(other, p[3:6], p[9:12])
-        n1, n2 = np.linalg.norm(f1, axis=1), np.linalg.norm(f2, axis=1)
-        if not jacobian:
-            return self._filtered(n1 - n2)
-        d = self.rate_of_change(self.t + shift)  # d/dt of [f, ω, ω̇]
-        w, r = other[:, 3:6], p[3:6]
-        df2 = d[:, :3] + np.cross(d[:, 6:], r) + np.cross(d[:, 3:6], np.cross(w, r))
-        df2 += np.cross(w, np.cross(d[:, 3:6], r))
-        dc = -np.einsum("ij,ij->i", f2, df2) / n2
-        jac = np.column_stack([
-            _lever_gradient(self.ref, f1, n1),
-            -_lever_gradient(other, f2, n2),
-            f1 / n1[:, None],
-            -f2 / n2[:, None],
-            dc,
-            dc * (self.t - self.t_mid),
-        ])  # fmt: skip
-        return self._filtered(jac)
+        res = np.empty(len(self.t))
+        jac = np.empty((len(p), len(self.t) if jacobian else 0))  # one row per parameter
+        sp = self.spline
+        _pair_residuals(self.t, self.t_mid, sp.x, sp.c, self.ref, np.asarray(p, float), res, jac)
+        return self._filtered(jac).T if jacobian else self._filtered(res)
 
     def _with_prior(self, p: np.ndarray, jacobian: bool = False) -> np.ndarray:
         """:meth:`residuals` and the biases' prior rows ``b / BIAS_PRIOR_M_S2`` (0 ± 1 m/s²).
@@ -354,6 +360,14 @@ class _Pair:
         prior = np.zeros((6, len(p)))
         prior[:, 6:12] = np.eye(6) / BIAS_PRIOR_M_S2
         return np.vstack([self.residuals(p, jacobian=True), prior])
+
+    def window(self, use: np.ndarray, margin: int) -> _Pair:
+        """The pair on the samples ``use`` (indices into ``t``, sorted), computed over their
+        span and ``margin`` samples either side only: the low-pass's response to what lies
+        further away is below floating-point resolution (:data:`BLOCK_MARGIN_S`), so the
+        residuals are those of the whole recording at a fraction of the cost."""
+        lo, hi = max(0, int(use[0]) - margin), min(len(self.t), int(use[-1]) + margin + 1)
+        return replace(self, t=self.t[lo:hi], ref=self.ref[lo:hi], use=use - lo)
 
     def cost(self, p: np.ndarray) -> float:
         return float(np.sum(self.residuals(p) ** 2))
@@ -397,8 +411,9 @@ class _Pair:
             return p[-2:], np.inf, np.inf
         rows, offsets, weights = [], [], []
         correlation = max(1.0, 0.5 / (LOWPASS_HZ * dt))  # samples per independent residual
+        margin = int(round(BLOCK_MARGIN_S / float(self.t[1] - self.t[0])))
         for block in np.array_split(self.use, n_blocks):
-            part = replace(self, use=block)
+            part = self.window(block, margin)
             centre = self.t[block].mean() - self.t_mid
             sol = least_squares(
                 lambda c, part=part: part.residuals(np.r_[p[:BODY], c, 0.0]),
@@ -421,10 +436,98 @@ def _centre(values: np.ndarray, r: np.ndarray, bias: np.ndarray) -> np.ndarray:
     return f + bias + np.cross(a, r) + np.cross(w, np.cross(w, r))
 
 
-def _lever_gradient(values: np.ndarray, fj: np.ndarray, norm: np.ndarray) -> np.ndarray:
-    """∂‖f_J‖/∂r = (f_J × ω̇ + ω × (ω × f_J)) / ‖f_J‖ (N, 3)."""
-    w, a = values[:, 3:6], values[:, 6:]
-    return (np.cross(fj, a) + np.cross(w, np.cross(w, fj))) / norm[:, None]
+@numba.njit(cache=True, inline="always")
+def _cross3(a0, a1, a2, b0, b1, b2):
+    return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
+
+
+@numba.njit(cache=True)
+def _pair_residuals(
+    t: np.ndarray,
+    t_mid: float,
+    knots: np.ndarray,
+    coef: np.ndarray,
+    ref: np.ndarray,
+    p: np.ndarray,
+    res: np.ndarray,
+    jac: np.ndarray,
+) -> None:
+    """The unfiltered residuals of :class:`_Pair` into ``res`` (N) and, when ``jac`` has
+    columns, their Jacobian (14, N: one row per parameter) in ``p = [r₁, r₂, b₁, b₂, c₀, c₁]``.
+
+    Sensor 2 is the cubic spline (``knots`` (M+1), ``coef`` (4, M, 9) as
+    :class:`scipy.interpolate.CubicSpline`'s, extrapolated past the ends) of ``[f, ω, ω̇]``
+    read at ``t + c₀ + c₁ (t − t_mid)``; the reference's rows ``ref`` (N, 9) are at ``t``.
+    Residual ``‖f_J1‖ − ‖f_J2‖`` with ``f_J = f + b + ω̇ × r + ω × (ω × r)``; its gradient
+    in a lever ``r`` is ``±(f_J × ω̇ + ω × (ω × f_J)) / ‖f_J‖``, in a bias ``±f_J / ‖f_J‖``, and
+    in the clock ``−f_J2 · ḟ_J2 / ‖f_J2‖`` (times ``t − t_mid`` for the drift), ``ḟ_J2`` from
+    the spline's derivative.
+    """
+    m = coef.shape[1]
+    v = np.empty(9)
+    d = np.empty(9)
+    with_jac = jac.shape[1] > 0
+    i = 0
+    if len(t):  # start the walk below from the first sample's interval (a block's window)
+        i = min(max(np.searchsorted(knots, t[0] + p[12] + p[13] * (t[0] - t_mid)) - 1, 0), m - 1)
+    for k in range(len(t)):
+        x = t[k] + (p[12] + p[13] * (t[k] - t_mid))
+        # the spline's interval: knots[i] <= x < knots[i + 1], the first and last extended
+        # (times increase, so it moves forward from the previous sample's)
+        while i > 0 and x < knots[i]:
+            i -= 1
+        while i < m - 1 and x >= knots[i + 1]:
+            i += 1
+        s = x - knots[i]
+        for j in range(9):
+            v[j] = ((coef[0, i, j] * s + coef[1, i, j]) * s + coef[2, i, j]) * s + coef[3, i, j]
+            if with_jac:
+                d[j] = (3.0 * coef[0, i, j] * s + 2.0 * coef[1, i, j]) * s + coef[2, i, j]
+        # reference: f_J1
+        w0, w1, w2 = ref[k, 3], ref[k, 4], ref[k, 5]
+        a0, a1, a2 = ref[k, 6], ref[k, 7], ref[k, 8]
+        u0, u1, u2 = _cross3(w0, w1, w2, p[0], p[1], p[2])
+        c0, c1, c2 = _cross3(a0, a1, a2, p[0], p[1], p[2])
+        e0, e1, e2 = _cross3(w0, w1, w2, u0, u1, u2)
+        f0 = ref[k, 0] + p[6] + c0 + e0
+        f1 = ref[k, 1] + p[7] + c1 + e1
+        f2 = ref[k, 2] + p[8] + c2 + e2
+        n1 = np.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+        # sensor 2: f_J2
+        x0, x1, x2 = v[3], v[4], v[5]
+        y0, y1, y2 = v[6], v[7], v[8]
+        u0, u1, u2 = _cross3(x0, x1, x2, p[3], p[4], p[5])
+        c0, c1, c2 = _cross3(y0, y1, y2, p[3], p[4], p[5])
+        e0, e1, e2 = _cross3(x0, x1, x2, u0, u1, u2)
+        g0 = v[0] + p[9] + c0 + e0
+        g1 = v[1] + p[10] + c1 + e1
+        g2 = v[2] + p[11] + c2 + e2
+        n2 = np.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
+        res[k] = n1 - n2
+        if not with_jac:
+            continue
+        c0, c1, c2 = _cross3(f0, f1, f2, a0, a1, a2)
+        u0, u1, u2 = _cross3(w0, w1, w2, f0, f1, f2)
+        e0, e1, e2 = _cross3(w0, w1, w2, u0, u1, u2)
+        jac[0, k], jac[1, k], jac[2, k] = (c0 + e0) / n1, (c1 + e1) / n1, (c2 + e2) / n1
+        c0, c1, c2 = _cross3(g0, g1, g2, y0, y1, y2)
+        u0, u1, u2 = _cross3(x0, x1, x2, g0, g1, g2)
+        e0, e1, e2 = _cross3(x0, x1, x2, u0, u1, u2)
+        jac[3, k], jac[4, k], jac[5, k] = -(c0 + e0) / n2, -(c1 + e1) / n2, -(c2 + e2) / n2
+        jac[6, k], jac[7, k], jac[8, k] = f0 / n1, f1 / n1, f2 / n1
+        jac[9, k], jac[10, k], jac[11, k] = -g0 / n2, -g1 / n2, -g2 / n2
+        # d/dt of f_J2 = ḟ + ω̈ × r + ω̇ × (ω × r) + ω × (ω̇ × r)
+        u0, u1, u2 = _cross3(x0, x1, x2, p[3], p[4], p[5])  # ω × r
+        h0, h1, h2 = _cross3(d[3], d[4], d[5], u0, u1, u2)
+        c0, c1, c2 = _cross3(d[6], d[7], d[8], p[3], p[4], p[5])
+        u0, u1, u2 = _cross3(d[3], d[4], d[5], p[3], p[4], p[5])  # ω̇ × r
+        e0, e1, e2 = _cross3(x0, x1, x2, u0, u1, u2)
+        q0 = d[0] + c0 + h0 + e0
+        q1 = d[1] + c1 + h1 + e1
+        q2 = d[2] + c2 + h2 + e2
+        dc = -(g0 * q0 + g1 * q1 + g2 * q2) / n2
+        jac[12, k] = dc
+        jac[13, k] = dc * (t[k] - t_mid)
 
 
 def _edges(session: Session, protocol: Protocol) -> list[tuple[str, str]]:
@@ -709,9 +812,11 @@ def _envelope(stream: SensorStream) -> _Envelope:
 
 
 def _correlation(x: np.ndarray, y: np.ndarray) -> float:
+    """Correlation coefficient of two series (0 when either is constant). The sums by
+    ``einsum``, not BLAS: a threaded BLAS spent milliseconds per call on a busy machine."""
     x, y = x - x.mean(), y - y.mean()
-    norm = float(np.sqrt((x @ x) * (y @ y)))
-    return float(x @ y) / norm if norm > 0 else 0.0
+    norm = float(np.sqrt(np.einsum("i,i->", x, x) * np.einsum("i,i->", y, y)))
+    return float(np.einsum("i,i->", x, y)) / norm if norm > 0 else 0.0
 
 
 def _best_lag(t: np.ndarray, x: np.ndarray, spline: CubicSpline, lags: np.ndarray) -> tuple[

@@ -199,3 +199,65 @@ def test_short_movement_is_not_reliable(typical):
                          crop(session.sensors["shank_r"], 164, 175.5))  # fmt: skip
     assert 5.0 <= fit.moving_s < 8.0  # above the minimum, below one block
     assert fit.status == "not reliable: too little shared movement"
+
+
+def _random_pair(seed: int = 0, n: int = 1200, rate: float = 100.0):
+    """A :class:`_Pair` of smooth random signals (10 Hz band) on a 100 Hz grid."""
+    from scipy.interpolate import CubicSpline
+    from scipy.signal import butter, sosfiltfilt
+
+    from motionlab.clocksync import _Pair
+
+    rng = np.random.default_rng(seed)
+    t = np.arange(n) / rate
+    smooth = butter(4, 10.0, fs=rate, output="sos")
+    ref = sosfiltfilt(smooth, rng.standard_normal((n, 9)), axis=0) * 5.0
+    other = sosfiltfilt(smooth, rng.standard_normal((n, 9)), axis=0) * 5.0
+    other[:, 2] += 9.81
+    ref[:, 2] += 9.81
+    sos = butter(4, 6.0, fs=rate, output="sos")
+    return _Pair(
+        t, ref, CubicSpline(t, other, axis=0), float(t.mean()), sos, np.arange(100, 1100, 4)
+    )
+
+
+def test_pair_residuals_are_the_joint_centre_norms_low_passed():
+    """The compiled residuals against the formula written out with numpy (np.cross, the
+    spline called, scipy's sosfiltfilt)."""
+    from scipy.signal import sosfiltfilt
+
+    from motionlab.clocksync import _centre
+
+    pair = _random_pair()
+    p = np.array([0.1, -0.2, 0.05, -0.1, 0.15, 0.2, 0.3, -0.1, 0.2, -0.3, 0.1, 0.05, 0.012, 3e-5])
+    other = pair.spline(pair.t + p[12] + p[13] * (pair.t - pair.t_mid))
+    n1 = np.linalg.norm(_centre(pair.ref, p[:3], p[6:9]), axis=1)
+    n2 = np.linalg.norm(_centre(other, p[3:6], p[9:12]), axis=1)
+    want = sosfiltfilt(pair.sos, n1 - n2)[pair.use]
+    np.testing.assert_allclose(pair.residuals(p), want, rtol=1e-9, atol=1e-9)
+
+
+def test_pair_jacobian_matches_finite_differences():
+    pair = _random_pair(1)
+    p = np.array([0.1, -0.2, 0.05, -0.1, 0.15, 0.2, 0.3, -0.1, 0.2, -0.3, 0.1, 0.05, 0.012, 3e-5])
+    jac = pair.residuals(p, jacobian=True)
+    assert jac.shape == (len(pair.use), len(p))
+    for j, h in enumerate([1e-6] * 12 + [1e-7, 1e-8]):
+        step = np.zeros(len(p))
+        step[j] = h
+        numeric = (pair.residuals(p + step) - pair.residuals(p - step)) / (2 * h)
+        scale = np.abs(numeric).max()
+        assert np.abs(jac[:, j] - numeric).max() < 1e-5 * scale, j
+
+
+def test_a_block_window_gives_the_residuals_of_the_whole_recording():
+    """Residuals over a block's span ± BLOCK_MARGIN_S agree with the whole recording's."""
+    from motionlab.clocksync import BLOCK_MARGIN_S
+
+    pair = _random_pair(2, n=3000)
+    p = np.array([0.1, -0.2, 0.05, -0.1, 0.15, 0.2, 0.3, -0.1, 0.2, -0.3, 0.1, 0.05, 0.004, 0.0])
+    block = np.arange(1400, 1700, 3)
+    whole = dataclasses.replace(pair, use=block).residuals(p)
+    part = pair.window(block, int(BLOCK_MARGIN_S * 100)).residuals(p)
+    assert len(pair.window(block, 300).t) == (1697 + 300 + 1) - (1400 - 300)  # ± 3 s
+    np.testing.assert_allclose(part, whole, rtol=0, atol=1e-12 * np.abs(whole).max())

@@ -38,6 +38,8 @@ MAG_FIXED_NORM, MAG_FIXED_DIP, MAG_HEADING_RESET, ACC_BIAS_RW = range(21, 25)
 
 #: dimension of the error state ``[δθ, δb, δa]``
 N_ERR = 9
+#: floats of a stored covariance (its upper triangle)
+N_PACKED = N_ERR * (N_ERR + 1) // 2
 
 
 @numba.njit(cache=True, inline="always")
@@ -82,6 +84,24 @@ def _predict(
         p[6 + i, 6 + i] += qc
 
 
+@numba.njit(cache=True, inline="always")
+def _gain_update(
+    p: np.ndarray, dx: np.ndarray, ph: np.ndarray, s: float, innov: float, k: np.ndarray
+) -> None:
+    """The Kalman update of one scalar measurement from ``ph = P hᵀ``, ``s = h P hᵀ + var`` and
+    the innovation: ``K = ph / s``, ``dx ← dx + K innov``, ``P ← P − K phᵀ`` (upper triangle
+    computed and mirrored, so ``P`` stays exactly symmetric)."""
+    n = N_ERR
+    for i in range(n):
+        k[i] = ph[i] / s
+        dx[i] += k[i] * innov
+    for i in range(n):
+        for m in range(i, n):
+            v = p[i, m] - k[i] * ph[m]
+            p[i, m] = v
+            p[m, i] = v
+
+
 @numba.njit(cache=True)
 def _scalar_update(
     p: np.ndarray,
@@ -91,39 +111,37 @@ def _scalar_update(
     var: float,
     heading_only: bool,
     k: np.ndarray,
-    row: np.ndarray,
+    ph: np.ndarray,
 ) -> None:
     """Kalman update with a scalar measurement of error component ``j`` (``H = e_j``).
 
     ``innov`` is the residual at the prior error (``z − H dx``). With ``heading_only`` the gain
     of the inclination components (``δθ_x, δθ_y``) and of the accelerometer bias (which would
     move the inclination at the next sample) is forced to zero and the covariance is updated in
-    Joseph form, which stays valid for that suboptimal gain.
+    Joseph form, which stays valid for that suboptimal gain: with ``ph = P e_j`` and
+    ``s = P_jj + var``, ``(I − K e_jᵀ) P (I − K e_jᵀ)ᵀ + var K Kᵀ = P − K phᵀ − ph Kᵀ + s K Kᵀ``.
+    ``P`` is symmetric and stays exactly so.
     """
     n = N_ERR
-    s = p[j, j] + var
     for i in range(n):
-        k[i] = p[i, j] / s
-    if heading_only:
-        k[0] = 0.0
-        k[1] = 0.0
-        for i in range(6, n):
-            k[i] = 0.0
+        ph[i] = p[i, j]
+    s = ph[j] + var
+    if not heading_only:
+        _gain_update(p, dx, ph, s, innov, k)
+        return
+    for i in range(n):
+        k[i] = ph[i] / s
+    k[0] = 0.0
+    k[1] = 0.0
+    for i in range(6, n):
+        k[i] = 0.0
     for i in range(n):
         dx[i] += k[i] * innov
     for i in range(n):
-        row[i] = p[j, i]
-    for i in range(n):
-        for m in range(n):
-            p[i, m] -= k[i] * row[m]
-    if not heading_only:
-        return
-    # Joseph form: A = P − K P_j ; P = A − A_j Kᵀ + var K Kᵀ (A_j the j-th column of A)
-    for i in range(n):
-        row[i] = p[i, j]
-    for i in range(n):
-        for m in range(n):
-            p[i, m] += -row[i] * k[m] + var * k[i] * k[m]
+        for m in range(i, n):
+            v = p[i, m] - k[i] * ph[m] - ph[i] * k[m] + s * k[i] * k[m]
+            p[i, m] = v
+            p[m, i] = v
 
 
 @numba.njit(cache=True)
@@ -152,12 +170,45 @@ def _row_update(
     for i in range(n):
         s += h[i] * ph[i]
         innov -= h[i] * dx[i]
+    _gain_update(p, dx, ph, s, innov, k)
+
+
+@numba.njit(cache=True)
+def _axis_update(
+    p: np.ndarray,
+    dx: np.ndarray,
+    j: int,
+    c: float,
+    z: float,
+    var: float,
+    k: np.ndarray,
+    ph: np.ndarray,
+) -> None:
+    """:func:`_row_update` for the row ``h = c e_j`` (one error component, scaled by ``c``)."""
+    n = N_ERR
     for i in range(n):
-        k[i] = ph[i] / s
-        dx[i] += k[i] * innov
-    for i in range(n):
-        for m in range(n):
-            p[i, m] -= k[i] * ph[m]
+        ph[i] = c * p[i, j]
+    _gain_update(p, dx, ph, var + c * ph[j], z - c * dx[j], k)
+
+
+@numba.njit(cache=True, inline="always")
+def _pack_upper(p: np.ndarray, out: np.ndarray) -> None:
+    """The upper triangle of the symmetric ``p`` (N_ERR²), row by row, into ``out`` (N_PACKED)."""
+    c = 0
+    for i in range(N_ERR):
+        for m in range(i, N_ERR):
+            out[c] = p[i, m]
+            c += 1
+
+
+@numba.njit(cache=True, inline="always")
+def _inflate(p: np.ndarray, mode: int, att_init: float) -> None:
+    """A reset's process noise: ``att_init²`` on the attitude variances (all three for an
+    attitude reset, mode 1; the heading's for a heading reset, mode 2; none for mode 0)."""
+    if mode != 0:
+        first = 0 if mode == 1 else 2
+        for i in range(first, 3):
+            p[i, i] += att_init**2
 
 
 @numba.njit(cache=True)
@@ -180,16 +231,17 @@ def forward(
     mag_dist: np.ndarray,
     reset: np.ndarray,
     p_post: np.ndarray,
-    p_prior: np.ndarray,
     store: bool,
 ) -> None:
     """Run the error-state EKF over all samples, writing into the preallocated outputs.
 
     ``quat`` (N×4), ``bias`` (N×3, rad/s), ``acc_bias`` (N×3, m/s², sensor frame), ``mag_dist``
-    and ``reset`` (N) receive the posterior estimates and the samples where the attitude was
-    re-initialised; with ``store`` the posterior and prior covariances go into
-    ``p_post``/``p_prior`` (N×9×9) for the smoother. ``b0``, ``a0`` and ``p0`` (9×9) are the
-    initial biases and error covariance.
+    (N) receive the posterior estimates, ``reset`` (N, int8) the samples where the attitude was
+    re-initialised (1: attitude, 2: heading only; 0: none); with ``store`` the posterior
+    covariances go into ``p_post`` (N×N_PACKED, upper triangles) for the smoother, which
+    recomputes the priors from them (:func:`_prior`). ``b0``, ``a0`` and ``p0`` (9×9,
+    symmetric) are the initial biases and error covariance; the covariance stays exactly
+    symmetric.
 
     A reset found at sample k is applied at k+1 as process noise plus a measurement: the
     attitude covariance is inflated by ``ATT_INIT²`` in the prior (so the smoother's backward
@@ -248,13 +300,8 @@ def forward(
             _predict(p, r, dt, qa, qb, qc, t)
         for i in range(N_ERR):
             dx[i] = 0.0
-        reset[k] = mode != 0
-        if mode != 0:
-            first = 0 if mode == 1 else 2
-            for i in range(first, 3):
-                p[i, i] += prm[ATT_INIT] ** 2
-        if store:
-            p_prior[k] = p
+        reset[k] = mode
+        _inflate(p, mode, prm[ATT_INIT])
         if mode != 0:
             var = prm[RESET_NOISE] ** 2
             if mode == 1:
@@ -286,15 +333,18 @@ def forward(
         # be taken for a bias); the vertical row is not used (it would tie δa to |acc| − g,
         # i.e. to scale errors and the local gravity)
         if not mon_k.tilt_run(mon):
-            wb = 1.0 / g if rest[k] else 0.0
-            h[0], h[1], h[2] = 0.0, -1.0, 0.0
-            for i in range(3):
-                h[6 + i] = wb * r[0, i]
-            _row_update(p, dx, h, ax / g, var, kvec, row)
-            h[0], h[1] = 1.0, 0.0
-            for i in range(3):
-                h[6 + i] = wb * r[1, i]
-            _row_update(p, dx, h, ay / g, var, kvec, row)
+            if rest[k]:
+                h[0], h[1], h[2] = 0.0, -1.0, 0.0
+                for i in range(3):
+                    h[6 + i] = r[0, i] / g
+                _row_update(p, dx, h, ax / g, var, kvec, row)
+                h[0], h[1] = 1.0, 0.0
+                for i in range(3):
+                    h[6 + i] = r[1, i] / g
+                _row_update(p, dx, h, ay / g, var, kvec, row)
+            else:
+                _axis_update(p, dx, 1, -1.0, ax / g, var, kvec, row)
+                _axis_update(p, dx, 0, 1.0, ay / g, var, kvec, row)
         _inject(q, b, a, dx)
         mag_dist[k] = False
         mag_ok = False
@@ -367,7 +417,35 @@ def forward(
         bias[k] = b
         acc_bias[k] = a
         if store:
-            p_post[k] = p
+            _pack_upper(p, p_post[k])
+
+
+@numba.njit(cache=True, inline="always")
+def _spd_solve(a: np.ndarray, low: np.ndarray, inv: np.ndarray, y: np.ndarray) -> None:
+    """``y ← a⁻¹ y`` for symmetric positive definite ``a`` (N_ERR², lower triangle read) by
+    Cholesky, ``a = L Lᵀ``; ``low`` (N_ERR²) and ``inv`` (N_ERR, the reciprocal diagonal of
+    ``L``) are work arrays. A pivot below 1e-300 is taken as 1e-300."""
+    n = N_ERR
+    for i in range(n):
+        for j in range(i):
+            s = a[i, j]
+            for t in range(j):
+                s -= low[i, t] * low[j, t]
+            low[i, j] = s * inv[j]
+        s = a[i, i]
+        for t in range(i):
+            s -= low[i, t] * low[i, t]
+        inv[i] = 1.0 / np.sqrt(s if s > 1e-300 else 1e-300)
+    for i in range(n):
+        s = y[i]
+        for t in range(i):
+            s -= low[i, t] * y[t]
+        y[i] = s * inv[i]
+    for i in range(n - 1, -1, -1):
+        s = y[i]
+        for t in range(i + 1, n):
+            s -= low[t, i] * y[t]
+        y[i] = s * inv[i]
 
 
 @numba.njit(cache=True)
@@ -378,7 +456,8 @@ def backward(
     bias: np.ndarray,
     acc_bias: np.ndarray,
     p_post: np.ndarray,
-    p_prior: np.ndarray,
+    reset: np.ndarray,
+    prm: np.ndarray,
 ) -> None:
     """Rauch–Tung–Striebel backward pass, overwriting ``quat``/``bias``/``acc_bias`` with
     smoothed values.
@@ -387,16 +466,25 @@ def backward(
     (``P⁻_{k+1}``), the smoothed error ``e_{k+1} = x^s_{k+1} ⊖ x̄_{k+1}`` maps back as
     ``e_k = P_k Fᵀ (P⁻_{k+1})⁻¹ e_{k+1}`` and ``x^s_k = x̂_k ⊕ e_k`` (Rauch, Tung & Striebel
     1965, applied to the error state as in Särkkä 2013, *Bayesian Filtering and Smoothing*,
-    eq. 8.6).
+    eq. 8.6). ``p_post`` holds the forward pass's posterior covariances (upper triangles);
+    the prior ``P⁻_{k+1}`` is recomputed from ``P_k`` exactly as the forward pass computed it
+    (the same prediction and the reset inflation of ``reset``, with the parameters ``prm``),
+    so it need not be stored.
     """
     n = gyr.shape[0]
     qbar = np.empty(4)
     r = np.empty((3, 3))
+    t = np.empty((3, 6))
     n_e = N_ERR
-    l = np.empty((n_e, n_e))
+    pk = np.empty((n_e, n_e))
+    pp = np.empty((n_e, n_e))
+    low = np.empty((n_e, n_e))
+    inv = np.empty(n_e)
     e = np.empty(n_e)
-    e_col = e.reshape((n_e, 1))  # e as the one column of chol_solve's right-hand side
     f = np.empty(n_e)
+    qa = prm[GYR_NOISE] ** 2 * dt
+    qb = prm[BIAS_RW] ** 2 * dt
+    qc = prm[ACC_BIAS_RW] ** 2 * dt
     # smoothed state of sample k+1 is kept in quat[k+1], bias[k+1]
     for k in range(n - 2, -1, -1):
         for i in range(4):
@@ -423,14 +511,22 @@ def backward(
         for i in range(3):
             e[3 + i] = bias[k + 1, i] - bias[k, i]
             e[6 + i] = acc_bias[k + 1, i] - acc_bias[k, i]
-        cm.chol_solve(p_prior[k + 1], n_e, l, e_col, 1)
-        # f = Fᵀ y with F = [[I, −R dt, 0], [0, I, 0], [0, 0, I]]
+        # the prior of sample k+1, as the forward pass predicted it
+        c = 0
+        for i in range(n_e):
+            for m in range(i, n_e):
+                v = p_post[k, c]
+                pk[i, m] = pk[m, i] = pp[i, m] = pp[m, i] = v
+                c += 1
         cm.rot_matrix(qbar, r)
+        _predict(pp, r, dt, qa, qb, qc, t)
+        _inflate(pp, reset[k + 1], prm[ATT_INIT])
+        _spd_solve(pp, low, inv, e)
+        # f = Fᵀ y with F = [[I, −R dt, 0], [0, I, 0], [0, 0, I]]
         for i in range(3):
             f[i] = e[i]
             f[3 + i] = e[3 + i] - dt * (r[0, i] * e[0] + r[1, i] * e[1] + r[2, i] * e[2])
             f[6 + i] = e[6 + i]
-        pk = p_post[k]
         for i in range(n_e):
             s = 0.0
             for m in range(n_e):

@@ -47,9 +47,9 @@ Model (conventions of :mod:`motionlab.rotations`: scalar-first quaternions, sens
   not determine the bias (one static pose) the innovations have zero mean and the bias stays at
   0: the orientation is that of the 6-state filter (``acc_bias_init = 0`` gives exactly the
   6-state filter). The estimate, (N, 3) m/s², is
-  ``FusionResult.extra["acc_bias"]``. Cost (``bench/throughput.py``, BROAD 9-D, same run):
-  smoother 465k → 275k samples/s, mekf 1.61M → 1.34M; the smoother stores 2 × 81 floats per
-  sample instead of 2 × 36 (1.3 KB: about 470 MB for an hour at 100 Hz);
+  ``FusionResult.extra["acc_bias"]``. Cost when they came (``bench/throughput.py``, BROAD
+  9-D, same run): smoother 465k → 275k samples/s, mekf 1.61M → 1.34M (see "Where the time
+  goes" below for today's);
 - magnetometer: heading only — the angle of the horizontal part of the earth-frame field updates
   the vertical attitude error and the gyroscope bias, never the inclination (Joseph-form update
   with the gains of the inclination and of the accelerometer bias zeroed). Disturbances are
@@ -89,6 +89,26 @@ reaches the first rest) (Särkkä, *Bayesian Filtering and Smoothing*, 2013, eq.
 inflated prior of a reset decouples the two sides of it; after resets within
 ``early_reset_window`` of the start, the samples before the last of them take its smoothed state
 carried back by the gyroscope, which makes the smoother insensitive to a wrong start.
+
+Where the time goes (issue #25; BROAD, 8 trials, 425 595 samples, 9-D, one shared core, µs per
+sample): the smoother is a 6-D forward pass (0.78), its backward pass (0.89), the field gate
+(numpy, 0.64), the 9-D forward pass (1.07) and its backward pass (0.90), with the rest mask,
+input checks and result about 0.2; offlineVQF took 1.87 in the same run. Measured before the
+changes below: 6-D forward 2.5, backward 1.9, 9-D forward 3.8 (1.7 without storing the
+covariances), backward 1.6 — the passes wrote and read 2 × 81 floats per sample (the prior and
+the posterior covariance), and the backward pass solved each prior with a general Cholesky.
+Now the covariance is kept exactly symmetric (every update computes the upper triangle and
+mirrors it, which halves the rank-one updates), only the posterior's upper triangle is stored
+(45 floats, 360 B per sample and pass: about 130 MB for an hour at 100 Hz, was 1.3 KB), the
+backward pass recomputes each prior from it with the forward pass's own prediction (the same
+operations on the same numbers, so the same prior), the accelerometer rows in motion (one
+error component each) skip the general row product, and the 9 × 9 solve is unrolled with the
+pivots' reciprocals. Output against the previous kernels: quaternions within 2e-14, BROAD table
+identical. The smoother was 0.28 × offlineVQF's throughput and is 0.44 × (mekf 1.19 → 1.87 ×,
+interleaved timing on a loaded machine). What is left is arithmetic, four sequential passes of
+about 500 floating-point operations per sample with a dozen square roots and trigonometric
+functions; the 1.5 × of issue #25 would need fewer passes (the 6-D pass exists only to gate the
+magnetometer) or a vectorised formulation, which change the output.
 
 The default parameters were tuned on the 8 BROAD trials in ``../shared`` (Laidig et al. 2021),
 which are also the trials the accuracy is reported on; they are not an independent test set.
@@ -238,20 +258,19 @@ def _filter(
     """
     n = len(gyr)
     p0 = np.diag([p.att_init**2] * 3 + [p.bias_init**2] * 3 + [p.acc_bias_init**2] * 3)
-    ne = kern.N_ERR
+    use_mag = mag is not None
+    prm = _pack(p)
+    if p.acc_bias_init == 0.0:
+        prm[kern.ACC_BIAS_RW] = 0.0  # no accelerometer-bias states: the 6-state filter exactly
     out = {
         "quat": np.empty((n, 4)),
         "bias": np.empty((n, 3)),
         "acc_bias": np.empty((n, 3)),
         "dist": np.empty(n, dtype=np.bool_),
-        "reset": np.empty(n, dtype=np.bool_),
-        "p_post": np.empty((n if store else 1, ne, ne)),
-        "p_prior": np.empty((n if store else 1, ne, ne)),
+        "reset": np.empty(n, dtype=np.int8),
+        "p_post": np.empty((n if store else 1, kern.N_PACKED)),
+        "prm": prm,
     }
-    use_mag = mag is not None
-    prm = _pack(p)
-    if p.acc_bias_init == 0.0:
-        prm[kern.ACC_BIAS_RW] = 0.0  # no accelerometer-bias states: the 6-state filter exactly
     q0 = initial_orientation(acc, mag)
     scale = np.ones(1)
     if use_mag and gate is not None:
@@ -264,9 +283,18 @@ def _filter(
     kern.forward(
         gyr, acc, mag if use_mag else np.zeros((1, 3)), use_mag, scale, rest, 1.0 / rate,
         q0, np.zeros(3), np.zeros(3), p0, prm, out["quat"], out["bias"], out["acc_bias"],
-        out["dist"], out["reset"], out["p_post"], out["p_prior"], store,
+        out["dist"], out["reset"], out["p_post"], store,
     )  # fmt: skip
     return out
+
+
+def _backward(gyr: np.ndarray, rate: float, out: dict[str, np.ndarray]) -> None:
+    """The RTS backward pass over a stored forward pass ``out`` of :func:`_filter` (in place)."""
+    kern.backward(
+        gyr, 1.0 / rate, out["quat"], out["bias"], out["acc_bias"], out["p_post"], out["reset"],
+        out["prm"],
+    )  # fmt: skip
+    out["p_post"] = np.empty((0, kern.N_PACKED))  # no longer needed: free it
 
 
 def _result(out: dict, name: str, rest: np.ndarray, use_mag: bool, **extra) -> FusionResult:
@@ -331,10 +359,7 @@ def run_smoother(
     gate = None
     if mag is not None:
         six = _filter(gyr, acc, None, rate, p, rest, store=True)
-        kern.backward(
-            gyr, 1.0 / rate, six["quat"], six["bias"], six["acc_bias"], six["p_post"],
-            six["p_prior"],
-        )  # fmt: skip
+        _backward(gyr, rate, six)
         gated, dev, ref_n, ref_d = field_gate(
             mag, six["quat"], rate, p.mag_norm_tol, p.mag_dip_tol, p.mag_hysteresis,
             hold=p.mag_hold, heading_tol=p.mag_heading_tol,
@@ -343,9 +368,7 @@ def run_smoother(
             scale = np.where(gated, np.inf, 1.0 + p.mag_dev_weight * dev**2)
             gate = (scale, ref_n, ref_d, _start(six["quat"], mag, ~gated))
     out = _filter(gyr, acc, mag, rate, p, rest, store=True, gate=gate)
-    kern.backward(
-        gyr, 1.0 / rate, out["quat"], out["bias"], out["acc_bias"], out["p_post"], out["p_prior"]
-    )
+    _backward(gyr, rate, out)
     early = np.flatnonzero(out["reset"][: int(p.early_reset_window * rate) + 1])
     carried = int(early[-1]) if len(early) else 0
     if carried:
