@@ -62,6 +62,7 @@ STILL_RAD_S = 0.08
 MIN_REST_S = 1.5
 TWITCH_S = 0.3
 BIAS_QUANTILE = 0.1
+BIAS_MAX_S = 6.0  # the quietest samples that give the bias: at most this long (s)
 MAX_BIAS_RAD_S = 0.35
 POSE_TOLERANCE_DEG = 50.0
 LEAD_FRACTION = 0.6
@@ -91,12 +92,15 @@ class Block:
 
 def _rate(t: np.ndarray, gyr: np.ndarray, grid: np.ndarray) -> np.ndarray:
     """Low-passed gyro norm (rad/s) on ``grid``, less the bias: the median over the quietest
-    ``BIAS_QUANTILE`` of the samples, when it is small enough to be one (``MAX_BIAS_RAD_S``)."""
+    ``BIAS_QUANTILE`` of the samples, at most ``BIAS_MAX_S`` of them (a rest does not grow with
+    the recording: in a 10-min walk a tenth of the samples is mostly walking), when it is small
+    enough to be one (``MAX_BIAS_RAD_S``)."""
     slow = sosfiltfilt(
         butter(2, LOWPASS_HZ, fs=GRID_HZ, output="sos"), interp_columns(grid, t, gyr), 0
     )
     norm = np.linalg.norm(slow, axis=1)
-    bias = np.median(slow[norm <= np.quantile(norm, BIAS_QUANTILE)], axis=0)
+    quiet = min(BIAS_QUANTILE, BIAS_MAX_S * GRID_HZ / len(norm))
+    bias = np.median(slow[norm <= np.quantile(norm, quiet)], axis=0)
     if np.linalg.norm(bias) < MAX_BIAS_RAD_S:
         norm = np.linalg.norm(slow - bias, axis=1)
     return norm
