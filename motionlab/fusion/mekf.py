@@ -106,14 +106,17 @@ from motionlab.fusion import _mekf_monitor as mon_k
 from motionlab.fusion.attitude import initial_orientation
 from motionlab.fusion.detect import field_gate, rest_mask
 from motionlab.fusion.registry import FusionResult, param, register
+from motionlab.fusion.timegrid import GapNoise
 from motionlab.rotations import (
     conj,
     from_axis_angle,
+    from_rotvec,
     integrate_gyro,
     make_continuous,
     mul,
     rotate,
 )
+from motionlab.rotations import to_matrix as quat_to_matrix
 from motionlab.units import STANDARD_GRAVITY
 
 
@@ -227,8 +230,15 @@ def _filter(
     rest: np.ndarray,
     store: bool,
     gate: tuple[np.ndarray, float, float, np.ndarray] | None = None,
+    gaps: GapNoise | None = None,
 ) -> dict[str, np.ndarray]:
     """Run the forward kernel from the orientation of the first samples.
+
+    ``gaps`` (packet-loss gaps bridged in the inputs, :func:`.timegrid.gap_noise`): the kernel
+    runs from gap to gap, each run starting at the first recorded sample after a gap from the
+    previous run's last state carried one step by the gyroscope, with the attitude covariance
+    of that step's prior increased by the gap's ``sigma²`` on each axis (what the bridge may
+    have missed); the backward pass of the smoother reads it from ``p_prior``.
 
     ``gate`` is an offline magnetometer gate ``(scale (N,), ref_norm, ref_dip, q0)``: the
     reference is then fixed, only samples with a finite ``scale`` are used, their heading
@@ -261,12 +271,38 @@ def _filter(
         q0 = gate[3]
         p0[0, 0] = p0[1, 1] = p.reset_noise**2
         p0[2, 2] = p.mag_heading_init**2
-    kern.forward(
-        gyr, acc, mag if use_mag else np.zeros((1, 3)), use_mag, scale, rest, 1.0 / rate,
-        q0, np.zeros(3), np.zeros(3), p0, prm, out["quat"], out["bias"], out["acc_bias"],
-        out["dist"], out["reset"], out["p_post"], out["p_prior"], store,
-    )  # fmt: skip
+    cuts = [] if gaps is None or not store else [int(k) for k in gaps.after if 0 < k < n]
+    bounds = [0, *cuts, n]
+    b0, a0 = np.zeros(3), np.zeros(3)
+    for c, (lo, hi) in enumerate(zip(bounds[:-1], bounds[1:], strict=True)):
+        if c:  # carry the last state one step and widen its attitude by the gap's bridge
+            q0, b0, a0, p0 = _across_gap(out, gyr, lo, prm, rate, float(gaps.sigma[c - 1]))
+        kern.forward(
+            gyr[lo:hi], acc[lo:hi], mag[lo:hi] if use_mag else np.zeros((1, 3)), use_mag,
+            scale[lo:hi] if len(scale) == n else scale, rest[lo:hi], 1.0 / rate, q0, b0, a0,
+            p0, prm, out["quat"][lo:hi], out["bias"][lo:hi], out["acc_bias"][lo:hi],
+            out["dist"][lo:hi], out["reset"][lo:hi], out["p_post"][lo:hi] if store else
+            out["p_post"], out["p_prior"][lo:hi] if store else out["p_prior"], store,
+        )  # fmt: skip
     return out
+
+
+def _across_gap(out: dict, gyr: np.ndarray, k: int, prm: np.ndarray, rate: float,
+                sigma: float) -> tuple[np.ndarray, ...]:  # fmt: skip
+    """State and prior covariance at sample ``k`` from the stored posterior at ``k − 1`` (the
+    kernel's prediction step, parameters ``prm``), the attitude variance increased by
+    ``sigma²`` (rad²) per axis."""
+    dt = 1.0 / rate
+    b, a = out["bias"][k - 1].copy(), out["acc_bias"][k - 1].copy()
+    q = mul(out["quat"][k - 1], from_rotvec((gyr[k] - b) * dt))
+    q = q / np.linalg.norm(q)
+    ne = kern.N_ERR
+    f = np.eye(ne)
+    f[:3, 3:6] = -quat_to_matrix(q) * dt
+    noise = [prm[kern.GYR_NOISE] ** 2 * dt + sigma**2] * 3 + [prm[kern.BIAS_RW] ** 2 * dt] * 3
+    noise += [prm[kern.ACC_BIAS_RW] ** 2 * dt] * 3
+    p_prior = f @ out["p_post"][k - 1] @ f.T + np.diag(noise)
+    return q, b, a, p_prior
 
 
 def _result(out: dict, name: str, rest: np.ndarray, use_mag: bool, **extra) -> FusionResult:
@@ -316,9 +352,19 @@ def _start(q6: np.ndarray, mag: np.ndarray, usable: np.ndarray) -> np.ndarray:
 
 @register("smoother", SmootherParams, "RTS smoother over the multiplicative EKF (offline, default)")
 def run_smoother(
-    gyr: np.ndarray, acc: np.ndarray, mag: np.ndarray | None, rate: float, params: SmootherParams
+    gyr: np.ndarray,
+    acc: np.ndarray,
+    mag: np.ndarray | None,
+    rate: float,
+    params: SmootherParams,
+    gaps: GapNoise | None = None,
 ) -> FusionResult:
     """Forward error-state EKF, then the Rauch–Tung–Striebel backward pass over all samples.
+
+    ``gaps``: the packet-loss gaps bridged in the inputs and how uncertain each bridge is
+    (:func:`motionlab.fusion.timegrid.gap_noise`; given by :func:`motionlab.fusion.estimate`
+    with ``time=``), so that the accelerometer on either side decides where a bridge may have
+    missed rotation (:func:`_filter`).
 
     The backward pass does not cross a reset (its inflated prior decouples the two sides).
     Resets within ``early_reset_window`` of the start mean the initial state was wrong: the
@@ -330,7 +376,7 @@ def run_smoother(
     )
     gate = None
     if mag is not None:
-        six = _filter(gyr, acc, None, rate, p, rest, store=True)
+        six = _filter(gyr, acc, None, rate, p, rest, store=True, gaps=gaps)
         kern.backward(
             gyr, 1.0 / rate, six["quat"], six["bias"], six["acc_bias"], six["p_post"],
             six["p_prior"],
@@ -342,7 +388,7 @@ def run_smoother(
         if np.isfinite(ref_n):
             scale = np.where(gated, np.inf, 1.0 + p.mag_dev_weight * dev**2)
             gate = (scale, ref_n, ref_d, _start(six["quat"], mag, ~gated))
-    out = _filter(gyr, acc, mag, rate, p, rest, store=True, gate=gate)
+    out = _filter(gyr, acc, mag, rate, p, rest, store=True, gate=gate, gaps=gaps)
     kern.backward(
         gyr, 1.0 / rate, out["quat"], out["bias"], out["acc_bias"], out["p_post"], out["p_prior"]
     )
