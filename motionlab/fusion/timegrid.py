@@ -38,6 +38,9 @@ strike's ringing gets degrees, and there the accelerometer on either side decide
 ingest already filled (``--gap-max``, linearly; ``filled`` spans, as ``SensorStream.qc`` lists
 them in ``filled_spans_s``) are judged the same way with the linear bridge. On that walk: 3.03°
 → 1.44° for the shank, 1.57° → 0.99° for the thigh, sensors with only small gaps unchanged.
+The test gaps judge the bridge by the movement around the gap: a transient that falls inside
+the gap alone (a knock that starts and ends in it) is not seen, and its bridge noise is that of
+the quieter movement around it (that 21° gap got 7.4°, which was enough).
 
 Marker reference vectors (:class:`~motionlab.fusion.markers.MarkerReferences`) are measured at the
 recorded instants only: the filled instants get none (NaN), so inside a gap the filters run on
