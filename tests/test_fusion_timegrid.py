@@ -207,3 +207,22 @@ def test_gap_across_ringing_is_left_to_the_accelerometer(sig):
 def sig_gravity(q: np.ndarray) -> np.ndarray:
     """Gravity's specific force (m/s²) in the sensor frame of orientations ``q``."""
     return rot.rotate(rot.conj(q), np.array([0.0, 0.0, G]))
+
+
+def test_filled_spans_follow_the_clock_sync():
+    """Ingest lists its filled gaps on the recorded clock; the fusion reads them on the
+    stream's time, which the clock sync moved (offset 0.05 s, drift 100 ppm about 10 s)."""
+    from dataclasses import asdict
+
+    from motionlab.fusion.stage import filled_spans
+    from motionlab.results import ClockFit
+    from motionlab.session import SensorStream
+
+    fit = ClockFit("a", "b", 0.05, 1e-4, 10.0, 0.0, 0.0, 0.0, 1.0, "applied")
+    spans = [[2.0, 2.05], [30.0, 30.04]]
+    s = SensorStream("b", np.arange(5.0), qc={"filled_spans_s": spans})
+    np.testing.assert_array_equal(filled_spans(s), spans)
+    s.attrs["clock_sync"] = asdict(fit)
+    expected = (np.array(spans) - 0.05 + 1e-4 * 10.0) / (1 + 1e-4)
+    np.testing.assert_allclose(filled_spans(s), expected, rtol=0, atol=1e-12)
+    assert filled_spans(SensorStream("c", np.arange(5.0))) is None
