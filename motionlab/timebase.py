@@ -205,8 +205,9 @@ def fill_short_gaps(stream: SensorStream, gap_max: float) -> tuple[SensorStream,
     """Fill every gap up to ``gap_max`` s with samples at the nominal rate.
 
     Returns the filled stream and ``gaps`` (long gaps kept, ``[start_s, end_s]``),
-    ``gaps_filled``, ``samples_filled`` and ``dropped_samples`` (missing samples over all gaps,
-    from the nominal interval).
+    ``gaps_filled``, ``samples_filled``, ``dropped_samples`` (missing samples over all gaps,
+    from the nominal interval) and ``filled_spans_s`` (the filled gaps, ``[start_s, end_s]``:
+    the recorded stamps either side; the fusion treats them as the gaps they are).
     """
     t = np.asarray(stream.time, dtype=float)
     dt = nominal_interval(t)
@@ -219,6 +220,7 @@ def fill_short_gaps(stream: SensorStream, gap_max: float) -> tuple[SensorStream,
         "gaps_filled": int(short.sum()),
         "samples_filled": int(missing[short].sum()),
         "dropped_samples": int(missing.sum()),
+        "filled_spans_s": [[float(t[g]), float(t[g + 1])] for g in gaps[short]],
     }
     if not short.any():
         return stream, report

@@ -90,6 +90,7 @@ def test_short_gap_filled_linear_and_slerp_long_gap_kept():
     assert rep["gaps_filled"] == 1 and rep["samples_filled"] == 4
     assert rep["dropped_samples"] == 24
     assert rep["gaps"] == [[pytest.approx(0.49), pytest.approx(0.70)]]
+    assert rep["filled_spans_s"] == [[pytest.approx(0.19), pytest.approx(0.24)]]
     new = np.isin(np.round(out.time, 6), [0.2, 0.21, 0.22, 0.23])
     assert new.sum() == 4 and len(out.time) == len(t) + 4
     np.testing.assert_allclose(out.acc[new], ramp(out.time[new]), atol=1e-12)

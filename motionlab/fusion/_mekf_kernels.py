@@ -219,6 +219,7 @@ def forward(
     use_mag: bool,
     mag_scale: np.ndarray,
     rest: np.ndarray,
+    att_extra: np.ndarray,
     dt: float,
     q0: np.ndarray,
     b0: np.ndarray,
@@ -241,7 +242,9 @@ def forward(
     covariances go into ``p_post`` (N×N_PACKED, upper triangles) for the smoother, which
     recomputes the priors from them (:func:`_prior`). ``b0``, ``a0`` and ``p0`` (9×9,
     symmetric) are the initial biases and error covariance; the covariance stays exactly
-    symmetric.
+    symmetric. ``att_extra`` (N, rad², or length 1: none) is process noise added to each
+    attitude variance of sample k's prior: a packet-loss gap's bridge before sample k
+    (:func:`motionlab.fusion.timegrid.gap_noise`).
 
     A reset found at sample k is applied at k+1 as process noise plus a measurement: the
     attitude covariance is inflated by ``ATT_INIT²`` in the prior (so the smoother's backward
@@ -289,6 +292,7 @@ def forward(
     if fixed:
         ref_n, ref_d = prm[MAG_FIXED_NORM], prm[MAG_FIXED_DIP]
     heading_reset = prm[MAG_HEADING_RESET] > 0.0
+    extra = att_extra.shape[0] == n
     for k in range(n):
         wx = gyr[k, 0] - b[0]
         wy = gyr[k, 1] - b[1]
@@ -302,6 +306,9 @@ def forward(
             dx[i] = 0.0
         reset[k] = mode
         _inflate(p, mode, prm[ATT_INIT])
+        if extra:
+            for i in range(3):
+                p[i, i] += att_extra[k]
         if mode != 0:
             var = prm[RESET_NOISE] ** 2
             if mode == 1:
@@ -457,6 +464,7 @@ def backward(
     acc_bias: np.ndarray,
     p_post: np.ndarray,
     reset: np.ndarray,
+    att_extra: np.ndarray,
     prm: np.ndarray,
 ) -> None:
     """Rauch–Tung–Striebel backward pass, overwriting ``quat``/``bias``/``acc_bias`` with
@@ -468,8 +476,8 @@ def backward(
     1965, applied to the error state as in Särkkä 2013, *Bayesian Filtering and Smoothing*,
     eq. 8.6). ``p_post`` holds the forward pass's posterior covariances (upper triangles);
     the prior ``P⁻_{k+1}`` is recomputed from ``P_k`` exactly as the forward pass computed it
-    (the same prediction and the reset inflation of ``reset``, with the parameters ``prm``),
-    so it need not be stored.
+    (the same prediction, the reset inflation of ``reset`` and the gaps' ``att_extra``, with
+    the parameters ``prm``), so it need not be stored.
     """
     n = gyr.shape[0]
     qbar = np.empty(4)
@@ -485,6 +493,7 @@ def backward(
     qa = prm[GYR_NOISE] ** 2 * dt
     qb = prm[BIAS_RW] ** 2 * dt
     qc = prm[ACC_BIAS_RW] ** 2 * dt
+    extra = att_extra.shape[0] == n
     # smoothed state of sample k+1 is kept in quat[k+1], bias[k+1]
     for k in range(n - 2, -1, -1):
         for i in range(4):
@@ -521,6 +530,9 @@ def backward(
         cm.rot_matrix(qbar, r)
         _predict(pp, r, dt, qa, qb, qc, t)
         _inflate(pp, reset[k + 1], prm[ATT_INIT])
+        if extra:
+            for i in range(3):
+                pp[i, i] += att_extra[k + 1]
         _spd_solve(pp, low, inv, e)
         # f = Fᵀ y with F = [[I, −R dt, 0], [0, I, 0], [0, 0, I]]
         for i in range(3):

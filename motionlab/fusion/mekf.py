@@ -126,6 +126,7 @@ from motionlab.fusion import _mekf_monitor as mon_k
 from motionlab.fusion.attitude import initial_orientation
 from motionlab.fusion.detect import field_gate, rest_mask
 from motionlab.fusion.registry import FusionResult, param, register
+from motionlab.fusion.timegrid import GapNoise
 from motionlab.rotations import (
     conj,
     from_axis_angle,
@@ -247,8 +248,14 @@ def _filter(
     rest: np.ndarray,
     store: bool,
     gate: tuple[np.ndarray, float, float, np.ndarray] | None = None,
+    gaps: GapNoise | None = None,
 ) -> dict[str, np.ndarray]:
     """Run the forward kernel from the orientation of the first samples.
+
+    ``gaps`` (packet-loss gaps bridged in the inputs, :func:`.timegrid.gap_noise`), with
+    ``store`` (the smoother's passes): the prior of the first recorded sample after each gap
+    has its attitude variance increased by the gap's ``sigma²`` on each axis (what the bridge
+    may have missed), in the forward pass and in the backward pass's recomputed prior.
 
     ``gate`` is an offline magnetometer gate ``(scale (N,), ref_norm, ref_dip, q0)``: the
     reference is then fixed, only samples with a finite ``scale`` are used, their heading
@@ -270,7 +277,11 @@ def _filter(
         "reset": np.empty(n, dtype=np.int8),
         "p_post": np.empty((n if store else 1, kern.N_PACKED)),
         "prm": prm,
+        "att_extra": np.zeros(n if store and gaps is not None else 1),
     }
+    if store and gaps is not None:
+        inside = (gaps.after > 0) & (gaps.after < n)
+        out["att_extra"][gaps.after[inside].astype(int)] = gaps.sigma[inside] ** 2
     q0 = initial_orientation(acc, mag)
     scale = np.ones(1)
     if use_mag and gate is not None:
@@ -281,9 +292,9 @@ def _filter(
         p0[0, 0] = p0[1, 1] = p.reset_noise**2
         p0[2, 2] = p.mag_heading_init**2
     kern.forward(
-        gyr, acc, mag if use_mag else np.zeros((1, 3)), use_mag, scale, rest, 1.0 / rate,
-        q0, np.zeros(3), np.zeros(3), p0, prm, out["quat"], out["bias"], out["acc_bias"],
-        out["dist"], out["reset"], out["p_post"], store,
+        gyr, acc, mag if use_mag else np.zeros((1, 3)), use_mag, scale, rest, out["att_extra"],
+        1.0 / rate, q0, np.zeros(3), np.zeros(3), p0, prm, out["quat"], out["bias"],
+        out["acc_bias"], out["dist"], out["reset"], out["p_post"], store,
     )  # fmt: skip
     return out
 
@@ -292,7 +303,7 @@ def _backward(gyr: np.ndarray, rate: float, out: dict[str, np.ndarray]) -> None:
     """The RTS backward pass over a stored forward pass ``out`` of :func:`_filter` (in place)."""
     kern.backward(
         gyr, 1.0 / rate, out["quat"], out["bias"], out["acc_bias"], out["p_post"], out["reset"],
-        out["prm"],
+        out["att_extra"], out["prm"],
     )  # fmt: skip
     out["p_post"] = np.empty((0, kern.N_PACKED))  # no longer needed: free it
 
@@ -344,9 +355,19 @@ def _start(q6: np.ndarray, mag: np.ndarray, usable: np.ndarray) -> np.ndarray:
 
 @register("smoother", SmootherParams, "RTS smoother over the multiplicative EKF (offline, default)")
 def run_smoother(
-    gyr: np.ndarray, acc: np.ndarray, mag: np.ndarray | None, rate: float, params: SmootherParams
+    gyr: np.ndarray,
+    acc: np.ndarray,
+    mag: np.ndarray | None,
+    rate: float,
+    params: SmootherParams,
+    gaps: GapNoise | None = None,
 ) -> FusionResult:
     """Forward error-state EKF, then the Rauch–Tung–Striebel backward pass over all samples.
+
+    ``gaps``: the packet-loss gaps bridged in the inputs and how uncertain each bridge is
+    (:func:`motionlab.fusion.timegrid.gap_noise`; given by :func:`motionlab.fusion.estimate`
+    with ``time=``), so that the accelerometer on either side decides where a bridge may have
+    missed rotation (:func:`_filter`).
 
     The backward pass does not cross a reset (its inflated prior decouples the two sides).
     Resets within ``early_reset_window`` of the start mean the initial state was wrong: the
@@ -358,7 +379,7 @@ def run_smoother(
     )
     gate = None
     if mag is not None:
-        six = _filter(gyr, acc, None, rate, p, rest, store=True)
+        six = _filter(gyr, acc, None, rate, p, rest, store=True, gaps=gaps)
         _backward(gyr, rate, six)
         gated, dev, ref_n, ref_d = field_gate(
             mag, six["quat"], rate, p.mag_norm_tol, p.mag_dip_tol, p.mag_hysteresis,
@@ -367,7 +388,7 @@ def run_smoother(
         if np.isfinite(ref_n):
             scale = np.where(gated, np.inf, 1.0 + p.mag_dev_weight * dev**2)
             gate = (scale, ref_n, ref_d, _start(six["quat"], mag, ~gated))
-    out = _filter(gyr, acc, mag, rate, p, rest, store=True, gate=gate)
+    out = _filter(gyr, acc, mag, rate, p, rest, store=True, gate=gate, gaps=gaps)
     _backward(gyr, rate, out)
     early = np.flatnonzero(out["reset"][: int(p.early_reset_window * rate) + 1])
     carried = int(early[-1]) if len(early) else 0

@@ -24,7 +24,7 @@ from typing import Any
 import numpy as np
 
 from motionlab.errors import InputError
-from motionlab.fusion.timegrid import checked_time, gap_grid
+from motionlab.fusion.timegrid import CUBIC_MAX_S, checked_time, gap_grid, gap_noise
 
 DEFAULT_ESTIMATOR = "smoother"
 
@@ -244,6 +244,30 @@ def takes_references(name: str) -> bool:
     return "references" in inspect.signature(get(name).run).parameters
 
 
+def takes_gaps(name: str) -> bool:
+    """Whether estimator ``name`` widens its attitude where packet-loss gaps were bridged
+    (``gaps=``, :func:`motionlab.fusion.timegrid.gap_noise`)."""
+    return "gaps" in inspect.signature(get(name).run).parameters
+
+
+def _bridged(t: np.ndarray, spans: Any, grid: Any) -> tuple[np.ndarray, np.ndarray]:
+    """``(recorded, linear)`` (M,) bool on the estimator's samples: the samples recorded, and
+    the filled ones bridged linearly (ingest's filled ``spans``, ``[start_s, end_s]`` each, and
+    the grid's gaps over ``CUBIC_MAX_S``); see :func:`.timegrid.gap_noise`."""
+    recorded = np.ones(len(t), bool)
+    for start, end in np.asarray(spans if spans is not None else [], float).reshape(-1, 2):
+        recorded[(t > start) & (t < end)] = False
+    if grid is None:
+        return recorded, ~recorded
+    on_grid = np.zeros(len(grid.time), bool)
+    on_grid[grid.index] = recorded
+    linear = np.zeros(len(grid.time), bool)
+    linear[grid.index] = ~recorded
+    spans = grid.stamps[grid.before + 1] - grid.stamps[grid.before]
+    linear[np.setdiff1d(np.arange(len(grid.time)), grid.index)] = spans > CUBIC_MAX_S
+    return on_grid, linear
+
+
 def estimate(
     name: str,
     gyr: np.ndarray,
@@ -252,6 +276,7 @@ def estimate(
     rate: float = 100.0,
     references: Any = None,
     time: np.ndarray | None = None,
+    filled_spans: Any = None,
     **params: Any,
 ) -> FusionResult:
     """Run estimator ``name`` on gyroscope (rad/s), accelerometer (m/s²), magnetometer (µT).
@@ -271,7 +296,12 @@ def estimate(
         Optional (N,) sample times (s). Where packets were lost (intervals over 1.5/``rate``)
         the estimator runs on a grid with the gaps filled and the result is taken back to these
         times, with the filled spans in ``extra["resampled"]`` (:mod:`motionlab.fusion.timegrid`).
-        Without ``time`` every interval is taken as ``1/rate``.
+        Without ``time`` every interval is taken as ``1/rate``. An estimator that takes
+        ``gaps`` (the default smoother) also gets how uncertain each gap's bridge is
+        (:func:`~motionlab.fusion.timegrid.gap_noise`).
+    filled_spans
+        Optional ``[start_s, end_s]`` pairs of gaps already filled (linearly) in ``time``, as
+        ingest lists them in ``SensorStream.qc["filled_spans_s"]``: treated as gaps too.
     **params
         Overrides of the estimator's parameter dataclass.
     """
@@ -292,10 +322,15 @@ def estimate(
     if mag is not None:
         mag, filled["mag"] = _fill_nan(mag, "mag")
     p = make_params(est, params)
-    grid = None if time is None else gap_grid(checked_time(time, n), rate)
+    t = None if time is None else checked_time(time, n)
+    grid = None if t is None else gap_grid(t, rate)
     if grid is not None:
         gyr, acc, mag = grid.vectors(gyr), grid.vectors(acc), grid.vectors(mag)
     kwargs = {}
+    if t is not None and takes_gaps(est.name):
+        recorded, linear = _bridged(t, filled_spans, grid)
+        grid_time = t if grid is None else grid.time
+        kwargs["gaps"] = gap_noise(grid_time, gyr, recorded, float(rate), linear)
     if references is not None:
         takes = [k for k in available() if takes_references(k)]
         if est.name not in takes:

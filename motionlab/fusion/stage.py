@@ -33,7 +33,7 @@ import numpy as np
 
 from motionlab.errors import InputError
 from motionlab.fusion import registry
-from motionlab.results import FusionEntry
+from motionlab.results import ClockFit, FusionEntry
 from motionlab.session import Session
 from motionlab.timebase import runs
 
@@ -115,8 +115,9 @@ def fuse_session(
         ref = (references or {}).get(label)
         bridged = bridged_spans(label, s.time, {"gyr": s.gyr, "acc": s.acc, "mag": mag}, path)
         res = registry.estimate(
-            est.name, s.gyr, s.acc, mag, s.rate_hz, references=ref, time=s.time, **params
-        )
+            est.name, s.gyr, s.acc, mag, s.rate_hz, references=ref, time=s.time,
+            filled_spans=filled_spans(s), **params,
+        )  # fmt: skip
         _check_finite(label, est.name, s.time, res.quat, path)
         resampled = res.extra.get("resampled")  # packet-loss gaps the estimator ran across
         store[label] = FusionEntry(
@@ -137,7 +138,12 @@ def fuse_session(
 
 
 def calibration_acc_bias(
-    gyr: np.ndarray, acc: np.ndarray, rate: float, time: np.ndarray | None = None, **params: Any
+    gyr: np.ndarray,
+    acc: np.ndarray,
+    rate: float,
+    time: np.ndarray | None = None,
+    filled: Any = None,
+    **params: Any,
 ) -> np.ndarray:
     """The accelerometer bias (N, 3) m/s², sensor frame, that a sensor-to-segment calibration
     takes off the accelerometer at its rests (:func:`motionlab.segments.corrected_acc`).
@@ -153,10 +159,25 @@ def calibration_acc_bias(
     with it a constant offset in every angle calibrated there. With 0.5 the calibration sees
     the bias the movement determines (0.45°). Measured in ``bench/real_world.py``: worst knee
     flexion RMSE of seeds 0–9 2.52 → 1.79°, worst knee ab/adduction 3.12 → 2.86°.
+    ``filled``: the gaps ingest filled in ``time`` (:func:`filled_spans`), as for the fusion.
     """
     wider = dict(params) | {"acc_bias_init": CALIBRATION_ACC_BIAS_INIT}
-    res = registry.estimate("smoother", gyr, acc, None, rate, time=time, **wider)
+    res = registry.estimate(
+        "smoother", gyr, acc, None, rate, time=time, filled_spans=filled, **wider
+    )
     return np.asarray(res.extra["acc_bias"], dtype=float)
+
+
+def filled_spans(stream: Any) -> np.ndarray | None:
+    """The gaps ingest filled in ``stream`` (``qc["filled_spans_s"]``, ``[start_s, end_s]``
+    on the recorded clock), on the stream's time: moved by the clock sync where it was applied
+    (``attrs["clock_sync"]``); ``None`` for a stream that does not list them."""
+    spans = stream.qc.get("filled_spans_s")
+    if spans is None:
+        return None
+    spans = np.asarray(spans, dtype=float).reshape(-1, 2)
+    sync = stream.attrs.get("clock_sync")
+    return ClockFit(**sync).corrected_time(spans) if sync is not None else spans
 
 
 def _calibration_bias(res: Any, s: Any, params: dict[str, str]) -> np.ndarray | None:
@@ -165,7 +186,7 @@ def _calibration_bias(res: Any, s: Any, params: dict[str, str]) -> np.ndarray | 
     if res.extra.get("acc_bias") is None or not float(res.params.get("acc_bias_init", 0.0)):
         return None
     kept = {k: v for k, v in params.items() if k != "acc_bias_init"}
-    return calibration_acc_bias(s.gyr, s.acc, s.rate_hz, s.time, **kept)
+    return calibration_acc_bias(s.gyr, s.acc, s.rate_hz, s.time, filled_spans(s), **kept)
 
 
 def bridged_spans(
