@@ -82,6 +82,7 @@ def test_a_thigh_with_one_measured_axis_and_a_contradicted_hint_leaves_the_hip_u
                                "hint_contradicted": True}  # fmt: skip
     g = _hip(cal)
     assert g["grades"] == ["not determined"] * 3
-    assert "contradict" in g["reasons"][0]
+    assert g["reasons"][0].startswith("thigh_r's frame")  # the cause first, then the pelvis'
+    assert "contradict" in g["reasons"][0] and "turns" in g["reasons"][0]
     cal.segments["thigh_r"]["hint_contradicted"] = False
     assert _hip(cal)["grades"] == ["weak"] * 3

@@ -199,7 +199,9 @@ def grade_joints(protocol, calibration: SegmentCalibration) -> dict[str, dict[st
     for name, joint in protocol.joints.items():
         frames = [_frame_grade(s, segs.get(s)) for s in (joint.proximal, joint.distal)]
         g_frame = _worse(frames[0][0], frames[1][0])
-        r_frame = "; ".join(r for _, r in frames if r)
+        # the worse segment's reason first: the report names the first as the cause
+        ordered = sorted(frames, key=lambda f: -GRADES.index(f[0]))
+        r_frame = "; ".join(r for _, r in ordered if r)
         fit = calibration.hinges.get(name)
         if (
             fit is not None
