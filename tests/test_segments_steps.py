@@ -56,6 +56,23 @@ def test_two_second_rests_split_and_pauses_between_repetitions_do_not():
     assert all(b.rate["thigh"] < 0.03 for b in found if not b.moving)  # the bias is no movement
 
 
+def test_a_short_stand_before_a_long_walk_is_a_rest():
+    """A 5-s stand, then 10 minutes of walking whose quietest moments still turn at 0.25 rad/s
+    (a leg never stops in a stride): the gyroscope bias comes from the quietest seconds, the
+    stand's, not from the quietest tenth of the recording, which is walking (issue 23: the
+    stand was not found)."""
+    rng = np.random.default_rng(1)
+    t = np.arange(0, 610, 1 / 50.0)
+    walking = t >= 8.0
+    stride = 2.0 * np.pi * t / 1.1
+    rate = np.where(walking, 0.25 + 2.0 * np.sin(stride / 2.0) ** 2, 0.0)
+    gyr = rate[:, None] * np.array([0.0, 0.0, 1.0]) + rng.normal(0, 0.01, (len(t), 3))
+    acc = np.tile([0.0, 9.81, 0.0], (len(t), 1)) + rng.normal(0, 0.05, (len(t), 3))
+    found = blocks({"thigh": (t, acc, gyr)})
+    assert not found[0].moving and found[0].end > 6.5
+    assert found[1].moving and abs(found[1].start - 8.0) < 0.5
+
+
 @pytest.fixture(scope="module")
 def knee():
     return load_protocol("knee")
