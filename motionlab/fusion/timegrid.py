@@ -110,12 +110,7 @@ class GapGrid:
         left = np.where(i[:, None] > 0, _slope(t, arr, i - 1, i), chord)
         right = np.where(j[:, None] < len(t) - 1, _slope(t, arr, j, j + 1), chord)
         s = ((self.time[self._filled] - t[i]) / h[:, 0])[:, None]
-        cubic = (
-            (2 * s**3 - 3 * s**2 + 1) * arr[i]
-            + (s**3 - 2 * s**2 + s) * h * left
-            + (3 * s**2 - 2 * s**3) * arr[j]
-            + (s**3 - s**2) * h * right
-        )
+        cubic = _hermite(s, h, arr[i], arr[j], left, right)
         linear = arr[i] + s * (arr[j] - arr[i])
         out[self._filled] = np.where(h > CUBIC_MAX_S, linear, cubic)
         return out
@@ -199,6 +194,17 @@ def gap_grid(time: np.ndarray, rate: float) -> GapGrid | None:
     return GapGrid(t, grid, index, spans, gaps[owner])
 
 
+def _hermite(s, h, a, b, left, right) -> np.ndarray:
+    """Cubic Hermite interpolation at ``s`` (0 at ``a``, 1 at ``b``) over a span ``h`` (s) with
+    the slopes ``left`` and ``right`` at its ends (arrays broadcast together)."""
+    return (
+        (2 * s**3 - 3 * s**2 + 1) * a
+        + (s**3 - 2 * s**2 + s) * h * left
+        + (3 * s**2 - 2 * s**3) * b
+        + (s**3 - s**2) * h * right
+    )
+
+
 def _slope(t: np.ndarray, arr: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Difference quotients between samples ``a`` and ``b`` (clipped into range)."""
     a, b = np.clip(a, 0, len(t) - 1), np.clip(b, 0, len(t) - 1)
@@ -229,9 +235,7 @@ def _bridge(w: np.ndarray, t: np.ndarray, a: np.ndarray, b: np.ndarray, inner: n
         return wa + s[..., None] * (wb - wa)
     left = (w[a] - w[a - 1]) / (t[a] - t[a - 1])[:, None]
     right = (w[b + 1] - w[b]) / (t[b + 1] - t[b])[:, None]
-    s, h = s[..., None], h[..., None]
-    return ((2 * s**3 - 3 * s**2 + 1) * wa + (s**3 - 2 * s**2 + s) * h * left[:, None]
-            + (3 * s**2 - 2 * s**3) * wb + (s**3 - s**2) * h * right[:, None])  # fmt: skip
+    return _hermite(s[..., None], h[..., None], wa, wb, left[:, None], right[:, None])
 
 
 def gap_noise(time: np.ndarray, gyr: np.ndarray, recorded: np.ndarray, rate: float,

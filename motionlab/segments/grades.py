@@ -102,14 +102,14 @@ def _heading_only(segment: str, cal: dict[str, Any] | None) -> float | None:
     return max(bounds) if bounds else None
 
 
-def _flexion_under_heading(joint, protocol, calibration: SegmentCalibration) -> tuple[str, str]:
+def _flexion_under_heading(
+    joint, protocol, calibration: SegmentCalibration, distal_grade: str
+) -> tuple[str, str]:
     """Grade of a hip's flexion (first angle of ZXY) when the only doubt is its pelvis's heading
-    (see the module notes); ``("", "")`` where that does not apply."""
-    segs = calibration.segments
-    bound = _heading_only(joint.proximal, segs.get(joint.proximal))
-    if bound is None or joint.sequence != "ZXY":
-        return "", ""
-    if _frame_grade(joint.distal, segs.get(joint.distal))[0] != "determined":
+    (see the module notes) and its distal frame is ``determined``; ``("", "")`` where that does
+    not apply."""
+    bound = _heading_only(joint.proximal, calibration.segments.get(joint.proximal))
+    if bound is None or joint.sequence != "ZXY" or distal_grade != "determined":
         return "", ""
     tilts = [
         float(fit.get("proximal_tilt_deg", float("nan")))
@@ -220,7 +220,7 @@ def grade_joints(protocol, calibration: SegmentCalibration) -> dict[str, dict[st
             reasons = [r_axis, r_frame, r_frame]
         else:
             grades, reasons = [g_frame] * 3, [r_frame] * 3
-            g_flex, r_flex = _flexion_under_heading(joint, protocol, calibration)
+            g_flex, r_flex = _flexion_under_heading(joint, protocol, calibration, frames[1][0])
             if g_flex and g_frame == "weak":
                 grades[0], reasons[0] = g_flex, r_flex
         out[name] = {"grades": grades, "reasons": reasons}
