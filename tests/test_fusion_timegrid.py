@@ -226,3 +226,17 @@ def test_filled_spans_follow_the_clock_sync():
     expected = (np.array(spans) - 0.05 + 1e-4 * 10.0) / (1 + 1e-4)
     np.testing.assert_allclose(filled_spans(s), expected, rtol=0, atol=1e-12)
     assert filled_spans(SensorStream("c", np.arange(5.0))) is None
+
+
+@pytest.mark.parametrize("bad", [[1.0, 2.0, 3.0], [[1.0, float("nan")]], [[3.0, 2.0]], ["a"]])
+def test_a_damaged_list_of_filled_gaps_is_one_line(bad):
+    """A session file whose ``filled_spans_s`` is not finite ``[start, end]`` pairs."""
+    from motionlab.errors import InputError
+    from motionlab.fusion.stage import filled_spans
+    from motionlab.session import SensorStream
+
+    s = SensorStream("thigh", np.arange(5.0), qc={"filled_spans_s": bad})
+    with pytest.raises(InputError) as err:
+        filled_spans(s, "s.h5")
+    line = err.value.line()
+    assert "s.h5" in line and "sensor thigh" in line and "ingest the recording again" in line

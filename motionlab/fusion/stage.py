@@ -116,7 +116,7 @@ def fuse_session(
         bridged = bridged_spans(label, s.time, {"gyr": s.gyr, "acc": s.acc, "mag": mag}, path)
         res = registry.estimate(
             est.name, s.gyr, s.acc, mag, s.rate_hz, references=ref, time=s.time,
-            filled_spans=filled_spans(s), **params,
+            filled_spans=filled_spans(s, path), **params,
         )  # fmt: skip
         _check_finite(label, est.name, s.time, res.quat, path)
         resampled = res.extra.get("resampled")  # packet-loss gaps the estimator ran across
@@ -168,14 +168,25 @@ def calibration_acc_bias(
     return np.asarray(res.extra["acc_bias"], dtype=float)
 
 
-def filled_spans(stream: Any) -> np.ndarray | None:
+def filled_spans(stream: Any, path: str | Path | None = None) -> np.ndarray | None:
     """The gaps ingest filled in ``stream`` (``qc["filled_spans_s"]``, ``[start_s, end_s]``
     on the recorded clock), on the stream's time: moved by the clock sync where it was applied
-    (``attrs["clock_sync"]``); ``None`` for a stream that does not list them."""
+    (``attrs["clock_sync"]``); ``None`` for a stream that does not list them. A list that is
+    not finite ``[start, end]`` pairs (a damaged session file) is an :class:`InputError`."""
     spans = stream.qc.get("filled_spans_s")
     if spans is None:
         return None
-    spans = np.asarray(spans, dtype=float).reshape(-1, 2)
+    try:
+        spans = np.asarray(spans, dtype=float).reshape(-1, 2)
+    except (TypeError, ValueError):
+        spans = np.full((1, 2), np.nan)
+    if not np.isfinite(spans).all() or (spans[:, 1] < spans[:, 0]).any():
+        raise InputError(
+            "its list of filled gaps (qc filled_spans_s) is not [start_s, end_s] pairs",
+            path,
+            f"sensor {stream.label}",
+            "ingest the recording again",
+        )
     sync = stream.attrs.get("clock_sync")
     return ClockFit(**sync).corrected_time(spans) if sync is not None else spans
 
