@@ -1,16 +1,20 @@
 """Ingest: clock repair, gaps, resampling, quality checks, sensor map, common origin, provenance."""
 
+import importlib
+
 import numpy as np
 import pytest
 from conftest import SHARED, needs_shared
 
-from motionlab import ingest as ingest_module
 from motionlab import qc, rotations, timebase
 from motionlab.errors import InputError
 from motionlab.ingest import ingest
 from motionlab.io import Recording
 from motionlab.sensor_map import load_sensor_map
 from motionlab.session import MarkerSet, SensorStream, load_session, save_session, sha256_file
+
+# the module, not the function ``motionlab.ingest`` that the package exports under its name
+ingest_module = importlib.import_module("motionlab.ingest")
 
 
 def stream(t, label="s1", serial="", **channels) -> SensorStream:
