@@ -214,3 +214,21 @@ def test_the_lumbar_protocol_refusing_a_seated_recording_names_lumbar_seated(sea
     stages.fuse(session)
     with pytest.raises(InputError, match="the shipped protocol 'lumbar_seated' fits"):
         stages.calibrate(session, "lumbar")
+
+
+def test_the_trunk_movement_is_measured_as_one_block(seated):
+    """A trunk protocol without tasks measures the movement its calibration found: the ranges
+    of motion over that block, with no repetitions counted (movements in any order are not
+    cycles); a user needs no YAML edit for a range of motion."""
+    session, _ = seated
+    session = _crop(session, 0.0, 1e9)
+    analyse(session, OPTIONS)
+    start, end = session.results.calibration.steps["trunk_movement"]
+    block = session.results.metrics.joints["trunk_movement"]
+    cols = session.results.angles.columns()
+    inside = (cols["time_s"] >= start) & (cols["time_s"] < end)
+    for plane in PLANES:
+        m = block[f"lumbar_{plane}_deg"]
+        assert m["repetitions"] == 0
+        assert m["rom_deg"] == pytest.approx(np.ptp(cols[f"lumbar_{plane}_deg"][inside]), abs=0.5)
+    assert block["lumbar_flexion_deg"]["rom_deg"] > 40  # the simulated forward bend and back
