@@ -216,10 +216,13 @@ def test_the_lumbar_protocol_refusing_a_seated_recording_names_lumbar_seated(sea
         stages.calibrate(session, "lumbar")
 
 
-def test_the_trunk_movement_is_measured_as_one_block(seated):
+def test_the_trunk_movement_is_measured_as_one_block(seated, tmp_path):
     """A trunk protocol without tasks measures the movement its calibration found: the ranges
     of motion over that block, with no repetitions counted (movements in any order are not
-    cycles); a user needs no YAML edit for a range of motion."""
+    cycles); a user needs no YAML edit for a range of motion. The report shows the block's
+    range and no page of cycles it did not find."""
+    from motionlab.report import load_views, write_report
+
     session, _ = seated
     session = _crop(session, 0.0, 1e9)
     analyse(session, OPTIONS)
@@ -232,3 +235,8 @@ def test_the_trunk_movement_is_measured_as_one_block(seated):
         assert m["repetitions"] == 0
         assert m["rom_deg"] == pytest.approx(np.ptp(cols[f"lumbar_{plane}_deg"][inside]), abs=0.5)
     assert block["lumbar_flexion_deg"]["rom_deg"] > 40  # the simulated forward bend and back
+    out = write_report(load_views([session]), tmp_path / "report.pdf")
+    assert "Lumbar spine" in out.sections
+    assert not [s for s in out.sections if "cycles against normal" in s]
+    text = out.text_path.read_text()
+    assert "trunk movement" in text and "Range of motion" in text
