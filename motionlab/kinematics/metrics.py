@@ -35,15 +35,11 @@ from motionlab.errors import InputError
 from motionlab.kinematics import cycles as cyc
 from motionlab.kinematics import out_of_plane as oop
 from motionlab.kinematics.joint_types import angle_columns, split_column
-from motionlab.kinematics.session_angles import (
-    angle_table,
-    joint_segments,
-    nominal_calibration,
-    sensor_quats,
-)
+from motionlab.kinematics.session_angles import angle_table, nominal_calibration
 from motionlab.protocol import Joint, Protocol, Task
 from motionlab.results import Metrics, SegmentCalibration
 from motionlab.segments import reference_step, segment_orientations, sensor_for_segment, streams_of
+from motionlab.segments.sensors import joint_segments, sensor_quats
 from motionlab.segments.steps import find_tasks
 from motionlab.session import Session, estimate_rate
 

@@ -22,8 +22,7 @@ from typing import Any
 import numpy as np
 
 from motionlab import rotations as rot
-from motionlab.binding import sensor_for_segment, signals_from_orientation
-from motionlab.errors import InputError
+from motionlab.binding import sensor_for_segment
 from motionlab.kinematics.joint_types import flexion_axis, joint_type
 from motionlab.protocol import Protocol, axis_vector
 from motionlab.results import HeadingCorrection, SegmentCalibration
@@ -37,55 +36,9 @@ from motionlab.segments import (
     trunk_axes,
     walk_forward,
 )
-from motionlab.segments.steps import find_steps
+from motionlab.segments.sensors import corrected_acc, sensor_orientation, sensor_quats, streams_of
+from motionlab.segments.steps import find_steps, reference_step
 from motionlab.session import Session
-
-Streams = dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
-
-
-def corrected_acc(session: Session, label: str) -> np.ndarray:
-    """Sensor ``label``'s accelerometer (N, 3) m/s² less the bias its fusion estimated
-    (``results.fusion[label].acc_bias``, the default estimator's accelerometer-bias states at
-    the calibration's prior, :func:`motionlab.fusion.stage.calibration_acc_bias`; the
-    recording as it is when there is none): a stand's gravity direction is then not tilted by
-    the bias that the fused orientation of the movement next to it does not have."""
-    acc = np.asarray(session.sensors[label].acc, dtype=float)
-    fused = session.results.fusion.get(label)
-    bias = None if fused is None else fused.acc_bias
-    if bias is None:
-        return acc
-    bias = np.asarray(bias, dtype=float)
-    return acc - bias if bias.shape == acc.shape else acc
-
-
-def streams_of(session: Session, protocol: Protocol) -> Streams:
-    """``{segment: (time, acc, gyr)}`` for every protocol segment that has a sensor (``acc``
-    less the fusion's accelerometer bias, :func:`corrected_acc`)."""
-    out: Streams = {}
-    for seg, spec in protocol.segments.items():
-        label = sensor_for_segment(session, seg)
-        if label is None:
-            if spec.required:
-                raise InputError(
-                    f"no sensor on segment '{seg}'",
-                    where=f"protocol {protocol.name}",
-                    remedy="name the sensor after the segment or set its segment at ingest",
-                )
-            continue
-        s = session.sensors[label]
-        if s.acc is not None and s.gyr is not None:
-            out[seg] = (s.time, corrected_acc(session, label), s.gyr)
-        elif s.quat is not None:  # rows without a finite orientation are missing samples
-            q = np.asarray(s.quat, float)
-            ok = np.isfinite(q).all(axis=1)
-            out[seg] = signals_from_orientation(s.time[ok], q[ok])
-        else:
-            raise InputError(
-                f"sensor '{label}' has neither accelerometer and gyroscope nor an orientation",
-                where=f"sensor {label}",
-                remedy="calibration needs raw acc and gyr, or the vendor's orientation",
-            )
-    return out
 
 
 def calibrate_segments(
@@ -173,8 +126,6 @@ def pelvis_forward(
     single turns may disagree more where the stand refuted the hint
     (``walk_forward.MAX_SPREAD_CONTRADICTED_DEG``). Returns the measurement, if made; a line
     goes to ``notes`` when the hint is not kept."""
-    from motionlab.kinematics.session_angles import sensor_orientation
-
     hips = [j for j in protocol.joints.values() if joint_type(j.type).name == "hip"]
     if not hips:
         return None
@@ -258,8 +209,6 @@ def hip_axes(
 ) -> dict[str, dict[str, Any]]:
     """The hips' flexion axes from the movement (:mod:`.hip_axis`), by joint name, for the hip
     joints whose thigh's flexion axis no functional step measured."""
-    from motionlab.kinematics.session_angles import sensor_quats
-
     out: dict[str, dict[str, Any]] = {}
     for name, joint in protocol.joints.items():
         p, d = joint.proximal, joint.distal
@@ -275,20 +224,6 @@ def hip_axes(
         qp, qd = rot.resample(*seg_q[p], t), rot.resample(*seg_q[d], t)
         out[name] = hip_axis.flexion_turn(t, qp, qd)
     return out
-
-
-def reference_step(protocol: Protocol, proximal: str, distal: str) -> str | None:
-    """First static step naming the proximal segment's vertical axis and the distal's as the
-    same or not at all: the reference pose of the joint (e.g. standing)."""
-    for step in protocol.calibration:
-        va = step.vertical_axis
-        if (
-            step.kind == "static"
-            and proximal in va
-            and va.get(distal, va[proximal]) == va[proximal]
-        ):
-            return step.name
-    return None
 
 
 def heading_anchors(
