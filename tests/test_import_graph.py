@@ -29,6 +29,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "motionlab.quat_kernels",
         "motionlab.rotations",
         "motionlab.lineage",
+        "motionlab.plain",
         "motionlab.kinematics.joint_types",
         "motionlab.kinematics.segment_types",
         "motionlab.kinematics.joint_angles",
