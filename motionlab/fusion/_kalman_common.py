@@ -195,22 +195,14 @@ def acc_variance(
 
 
 @numba.njit(cache=True, inline="always")
-def mag_ok(
-    q: np.ndarray,
-    mag: np.ndarray,
-    k: int,
-    pre: np.ndarray,
-    ref_norm: float,
-    ref_dip: float,
-    norm_tol: float,
-    dip_tol: float,
-) -> bool:
-    """Whether sample ``k`` of the field is undisturbed (pre-flag and dip seen through ``q``)."""
+def mag_ok(q: np.ndarray, mag: np.ndarray, k: int, pre: np.ndarray, prm: np.ndarray) -> bool:
+    """Whether sample ``k`` of the field is undisturbed (pre-flag and dip seen through ``q``,
+    against the reference field and tolerances of ``prm``, :data:`PRM`)."""
     if pre[k]:
         return False
     return not detect.nb_field_disturbed(
         q[0], q[1], q[2], q[3], mag[k, 0], mag[k, 1], mag[k, 2],
-        ref_norm, ref_dip, norm_tol, dip_tol,
+        prm[REF_NORM], prm[REF_DIP], prm[MAG_NORM_TOL], prm[MAG_DIP_TOL],
     )  # fmt: skip
 
 

@@ -249,10 +249,7 @@ def _kernel(rec: tuple, own: tuple, markers: tuple, out: tuple) -> None:
                 _update(p, dx, hrow, acc[k, c] / an - r[2, c], var_a, ph, nfree)
         dist[k] = True
         if use_mag:
-            ok = kc.mag_ok(
-                q, mag, k, pre, prm[kc.REF_NORM], prm[kc.REF_DIP], prm[kc.MAG_NORM_TOL],
-                prm[kc.MAG_DIP_TOL],
-            )  # fmt: skip
+            ok = kc.mag_ok(q, mag, k, pre, prm)
             if ok and kc.horizontal_north(r, mag, k, north):
                 dist[k] = False
                 used[k] += USED_MAG

@@ -256,10 +256,7 @@ def _kernel(rec: tuple, own: tuple, q_paper: np.ndarray, out: tuple) -> None:
         dist[k] = True
         use_m = False
         if use_mag:
-            use_m = kc.mag_ok(
-                q, mag, k, pre, prm[kc.REF_NORM], prm[kc.REF_DIP], prm[kc.MAG_NORM_TOL],
-                prm[kc.MAG_DIP_TOL],
-            )  # fmt: skip
+            use_m = kc.mag_ok(q, mag, k, pre, prm)
             dist[k] = not use_m
         rate = np.sqrt(wx * wx + wy * wy + wz * wz)
         var_t = kc.acc_variance(

@@ -227,10 +227,7 @@ def _kernel(rec: tuple, own: tuple, markers: tuple, out: tuple) -> None:
             used[k] += USED_ACC
         dist[k] = True
         if use_mag:
-            ok = kc.mag_ok(
-                q, mag, k, pre, prm[kc.REF_NORM], prm[kc.REF_DIP], prm[kc.MAG_NORM_TOL],
-                prm[kc.MAG_DIP_TOL],
-            )  # fmt: skip
+            ok = kc.mag_ok(q, mag, k, pre, prm)
             cm.rot_matrix(q, r)
             if ok and kc.horizontal_north(r, mag, k, north):
                 dist[k] = False
