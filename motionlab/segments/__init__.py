@@ -17,6 +17,7 @@ segments about one axis, the reference pose and later rests in it;
 
 from __future__ import annotations
 
+import hashlib
 from typing import Any
 
 import numpy as np
@@ -36,7 +37,13 @@ from motionlab.segments import (
     trunk_axes,
     walk_forward,
 )
-from motionlab.segments.sensors import corrected_acc, sensor_orientation, sensor_quats, streams_of
+from motionlab.segments.sensors import (
+    corrected_acc,
+    joint_segments,
+    sensor_orientation,
+    sensor_quats,
+    streams_of,
+)
 from motionlab.segments.steps import find_steps, reference_step
 from motionlab.session import Session
 
@@ -50,7 +57,9 @@ def calibrate_segments(
     contradicts) are added to ``warnings`` and kept in the result's ``warnings``.
     """
     if trunk_axes.applies(protocol):  # rest and trunk movement anywhere (lumbar_seated)
-        return trunk_axes.calibrate(session, protocol, warnings)
+        result = trunk_axes.calibrate(session, protocol, warnings)
+        result.headings = heading_ties(session, protocol, result)
+        return result
     notes: list[str] = []
     streams = streams_of(session, protocol)
     pose = single_pose.pose_step(session, protocol, streams)
@@ -106,7 +115,35 @@ def calibrate_segments(
     result.grades = grades.grade_joints(protocol, result)
     if pose is None:
         result.hip_axes = hip_axes(session, protocol, result)
+    result.headings = heading_ties(session, protocol, result)
     return result
+
+
+def heading_ties(
+    session: Session, protocol: Protocol, calibration: SegmentCalibration
+) -> dict[str, Any]:
+    """Each joint's heading ties (see :func:`segment_orientations`) from the orientations of the
+    sensors on the protocol's joints, joints taken along the chain: ``{"sha256": of those
+    orientations (:func:`orientations_sha256`), "joints": {joint: {"source", "times" (K,) s,
+    "deltas" (K,) rad}}}``. Stored in the calibration, so the angles apply them without finding
+    them again; orientations other than these (another estimator) have theirs found anew."""
+    segs = [s for s in joint_segments(protocol) if sensor_for_segment(session, s) is not None]
+    quats = sensor_quats(session, protocol, segs)
+    ties: dict[str, dict[str, Any]] = {}
+    segment_orientations(protocol, calibration, quats, ties=ties)
+    return {"sha256": orientations_sha256(quats), "joints": ties}
+
+
+def orientations_sha256(sensor_quats: dict[str, tuple[np.ndarray, np.ndarray]]) -> str:
+    """SHA-256 of ``{segment: (time s, q (N, 4))}``: segment names in order, times and
+    quaternions as float64 bytes."""
+    digest = hashlib.sha256()
+    for seg in sorted(sensor_quats):
+        t, q = sensor_quats[seg]
+        digest.update(seg.encode() + b"\0")
+        for a in (t, q):
+            digest.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
+    return digest.hexdigest()
 
 
 def pelvis_forward(
@@ -287,6 +324,7 @@ def segment_orientations(
     sensor_quats: dict[str, tuple[np.ndarray, np.ndarray]],
     align_heading: bool = True,
     corrections: dict[str, HeadingCorrection] | None = None,
+    ties: dict[str, dict[str, Any]] | None = None,
 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """``{segment: (time, q_segment)}`` from sensor orientations ``{segment: (time, q_sensor)}``.
 
@@ -300,9 +338,17 @@ def segment_orientations(
     calibration (``None``) or its entry for a segment the sensor frame is used as the segment
     frame.
     ``corrections``, when given, receives per joint the heading correction applied
-    (:class:`~motionlab.results.HeadingCorrection`).
+    (:class:`~motionlab.results.HeadingCorrection`). The ties are those stored in
+    ``calibration.headings`` (:func:`heading_ties`) when they were found from these
+    orientations (same SHA-256), else found here; ``ties``, when given, receives them
+    (``{joint: {"source", "times", "deltas"}}``, before the proximal segment's turn is added
+    to fitted headings).
     """
     calibration = calibration or SegmentCalibration("")
+    stored_ties: dict[str, dict[str, Any]] = {}
+    if align_heading and calibration.headings:
+        if calibration.headings.get("sha256") == orientations_sha256(sensor_quats):
+            stored_ties = calibration.headings.get("joints", {})
     out = {}
     for seg, (t, q) in sensor_quats.items():
         cal = calibration.segments.get(seg)
@@ -317,7 +363,16 @@ def segment_orientations(
             continue
         tp, qp = out[p]
         td, qd = out[d]
-        source, times, deltas = _joint_ties(protocol, calibration, joint, tp, qp, td, qd)
+        stored = stored_ties.get(joint.name)
+        if stored is not None:
+            source = stored["source"]
+            times = np.asarray(stored["times"], float)
+            deltas = np.asarray(stored["deltas"], float)
+        else:
+            source, times, deltas = _joint_ties(protocol, calibration, joint, tp, qp, td, qd)
+            times, deltas = np.asarray(times, float), np.asarray(deltas, float)
+        if ties is not None:
+            ties[joint.name] = {"source": source, "times": times, "deltas": deltas}
         if source in ("two_axes", "centre") and p in turned:
             deltas = deltas + np.interp(times, *turned[p])  # fitted on the proximal's own heading
         if len(times):
