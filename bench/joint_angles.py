@@ -52,10 +52,11 @@ from motionlab import timebase
 from motionlab.clocksync import ClockFit, sync_tree, synchronise
 from motionlab.fusion import estimate, get
 from motionlab.ingest import DEFAULT_GAP_MAX
-from motionlab.kinematics.session_angles import angle_table, nominal_calibration, sensor_quats
+from motionlab.kinematics.session_angles import angle_table, nominal_calibration
 from motionlab.protocol import Protocol, load_protocol
 from motionlab.results import FusionEntry, Results
 from motionlab.segments import calibrate_segments, segment_orientations, sensor_for_segment
+from motionlab.segments.sensors import sensor_quats
 from motionlab.sensorcal import apply_calibration
 from motionlab.sensorcal.stage import calibrate_sensor, merge
 from motionlab.session import SensorStream

@@ -24,7 +24,6 @@
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 from typing import Any
 
@@ -39,6 +38,7 @@ from motionlab.io.opensim import write_mot, write_sto
 from motionlab.kinematics.joint_types import angle_columns, opensim_coordinates
 from motionlab.kinematics.metrics import metrics_table
 from motionlab.kinematics.segment_types import opensim_imu_name
+from motionlab.plain import plain
 from motionlab.protocol import load_protocol
 from motionlab.results import SegmentCalibration
 from motionlab.session import MarkerSet, ModelOutput, Session
@@ -226,23 +226,6 @@ def _interp(t: np.ndarray, values: np.ndarray, t_new: np.ndarray) -> np.ndarray:
     return out.reshape((len(t_new), *values.shape[1:]))
 
 
-def _json_clean(value: Any) -> Any:
-    """Arrays → lists, NaN/inf → ``None``, numpy scalars → Python (standard JSON)."""
-    if isinstance(value, dict):
-        return {str(k): _json_clean(v) for k, v in value.items()}
-    if isinstance(value, list | tuple):
-        return [_json_clean(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _json_clean(value.tolist())
-    if isinstance(value, np.generic):
-        return _json_clean(value.item())
-    if isinstance(value, float) and not math.isfinite(value):
-        return None
-    if isinstance(value, Path):
-        return str(value)
-    return value
-
-
 def _scalars(tree: Any) -> Any:
     """A results subtree without per-sample arrays (longer than 16 values)."""
     if isinstance(tree, dict):
@@ -301,7 +284,7 @@ def results_json(session: Session) -> dict[str, Any]:
         }
     if res.validation is not None:
         out["validation"] = _scalars(res.validation.to_tree())
-    return _json_clean(out)
+    return plain(out)
 
 
 def write_json(session: Session, path: str | Path, force: bool = False) -> None:

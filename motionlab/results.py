@@ -226,7 +226,12 @@ class SegmentCalibration(_Record):
     OpenSense-style single-pose calibration, :mod:`motionlab.segments.single_pose`), else ``None``.
     ``hip_axes`` ``{joint: record}``: the hips' flexion axes from the movement (``used``,
     ``turn_deg`` about the pelvis y, ``rho``, ``n_samples``, ``reason``;
-    :mod:`motionlab.segments.hip_axis`).
+    :mod:`motionlab.segments.hip_axis`). ``headings`` ``{"sha256": str, "joints": {joint:
+    {"source": str, "times": (K,) s, "deltas": (K,) rad}}}``: each joint's heading ties (the
+    anchors of the heading alignment, :func:`motionlab.segments.heading_ties`), found once here
+    from the sensor orientations whose SHA-256 is ``sha256``; the angles apply them to those
+    orientations (:func:`motionlab.segments.segment_orientations`) and find them anew for
+    others, or for a calibration stored without them.
     """
 
     protocol: str
@@ -240,6 +245,7 @@ class SegmentCalibration(_Record):
     protocol_path: str | None = None
     single_pose: str | None = None
     hip_axes: dict[str, dict[str, Any]] = field(default_factory=dict)
+    headings: dict[str, Any] = field(default_factory=dict)
     more: dict[str, Any] = field(default_factory=dict)
 
     @property

@@ -10,13 +10,15 @@ Conventions (fixed for all of motionlab):
   :func:`from_scipy` are the only places that convert.
 
 The numba helpers of the estimators' per-sample loops (quaternions as scalars, allocation-free)
-are in :mod:`motionlab.fusion._common`; :func:`integrate_gyro` runs one of them.
+are in :mod:`motionlab.quat_kernels`; :func:`integrate_gyro` runs its :func:`strapdown`.
 """
 
 from __future__ import annotations
 
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
+
+from motionlab.quat_kernels import strapdown
 
 IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 
@@ -206,9 +208,6 @@ def integrate_gyro(q0: np.ndarray, gyr: np.ndarray, dt: float | np.ndarray) -> n
     gyr = np.ascontiguousarray(gyr, dtype=float)
     if len(gyr) == 0:
         return np.empty((0, 4))
-    # the estimators' numba kernel (imported here: motionlab.fusion imports this module)
-    from motionlab.fusion._common import strapdown
-
     dt_arr = np.broadcast_to(np.asarray(dt, dtype=float), (max(len(gyr) - 1, 0),))
     out = np.empty((len(gyr), 4))
     strapdown(np.array(q0, dtype=float), gyr, np.ascontiguousarray(dt_arr), out)

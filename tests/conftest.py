@@ -2,8 +2,14 @@
 
 import os
 from pathlib import Path
+from types import ModuleType
 
+import h5py
+import numpy as np
 import pytest
+
+from motionlab.errors import InputError
+from motionlab.io import read_any
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "tests" / "data"
@@ -15,3 +21,29 @@ needs_shared = pytest.mark.skipif(not SHARED.is_dir(), reason="../shared is not 
 @pytest.fixture
 def data_dir() -> Path:
     return DATA
+
+
+def generic_reader(mag: bool = False) -> dict:
+    """The ``reader`` entry of a sensor map for the tests' CSV files: columns ``t`` (s),
+    ``ax..az`` (m/s²), ``gx..gz`` (rad/s), with ``mag`` also ``mx..mz`` (µT)."""
+    reader = {
+        "format": "generic",
+        "delimiter": ",",
+        "time": {"column": "t", "unit": "s"},
+        "acc": {"columns": ["ax", "ay", "az"], "unit": "m/s^2"},
+        "gyr": {"columns": ["gx", "gy", "gz"], "unit": "rad/s"},
+    }
+    if mag:
+        reader["mag"] = {"columns": ["mx", "my", "mz"], "unit": "uT"}
+    return reader
+
+
+def assert_other_hdf5_refused(path: Path, reader: ModuleType, match: str) -> None:
+    """An HDF5 file at ``path`` without the ``reader``'s layout: its ``sniff`` says no, and
+    :func:`read_any` with the format forced refuses it with an ``InputError`` matching
+    ``match``."""
+    with h5py.File(path, "w") as f:
+        f["something"] = np.zeros(3)
+    assert not reader.sniff(path, path.read_bytes()[:65536])
+    with pytest.raises(InputError, match=match):
+        read_any(path, {"format": reader.FORMAT})

@@ -13,10 +13,10 @@ import pytest
 from motionlab import rotations as rot
 from motionlab import stages
 from motionlab.errors import InputError
-from motionlab.kinematics.session_angles import sensor_orientation
 from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
 from motionlab.protocol import load_protocol
 from motionlab.segments import gait_axes, movement, streams_of
+from motionlab.segments.sensors import sensor_orientation
 from motionlab.segments.steps import find_steps
 from motionlab.simulate import simulate
 from motionlab.simulate.errors import get_preset

@@ -26,8 +26,10 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "motionlab.yamlsafe",
         "motionlab.lock",
         "motionlab.isolated",
+        "motionlab.quat_kernels",
         "motionlab.rotations",
         "motionlab.lineage",
+        "motionlab.plain",
         "motionlab.kinematics.joint_types",
         "motionlab.kinematics.segment_types",
         "motionlab.kinematics.joint_angles",
@@ -64,23 +66,12 @@ LAYERS: tuple[tuple[str, ...], ...] = (
 )
 
 #: cycles and upward imports that are left, in files being reworked elsewhere (issue #24,
-#: item 1: a low-level module binding a session to a protocol, the heading alignment in the
-#: calibration). Each is (importer, imported). Remove an entry when its import is gone.
+#: item 1: ``joint_centre_forces`` out of ``clocksync``). Each is (importer, imported). Remove an
+#: entry when its import is gone.
 KNOWN = {
-    # rotations.integrate_gyro runs the estimators' numba strapdown kernel (and so imports
-    # the fusion package)
-    ("motionlab.rotations", "motionlab.fusion._common"),
-    ("motionlab.rotations", "motionlab.fusion"),
-    # the calibration calls the angles code: segments ↔ kinematics.session_angles
-    ("motionlab.segments", "motionlab.kinematics.session_angles"),
-    ("motionlab.segments.placement", "motionlab.kinematics.session_angles"),
-    ("motionlab.segments.trunk_axes", "motionlab.kinematics.session_angles"),
-    # submodules that import their own package's __init__ (sensor_for_segment, ...)
-    ("motionlab.segments.placement", "motionlab.segments"),
-    ("motionlab.segments.trunk_axes", "motionlab.segments"),
-    # placement → clocksync (joint_centre_forces) → segments (sensor_for_segment)
+    # placement → clocksync (joint_centre_forces, imported inside the function) → segments
+    # (sensor_for_segment, at the top of clocksync) → placement (segments/__init__ imports it)
     ("motionlab.segments.placement", "motionlab.clocksync"),
-    ("motionlab.segments.grades", "motionlab.segments.placement"),
 }
 
 
@@ -207,6 +198,6 @@ def test_no_import_from_a_higher_layer():
 
 def test_the_graph_sees_function_local_and_skips_type_checking_imports():
     graph = _graph()
-    assert "motionlab.fusion._common" in graph["motionlab.rotations"]  # inside a function
+    assert "motionlab.clocksync" in graph["motionlab.segments.placement"]  # inside a function
     assert "motionlab.results" not in graph["motionlab.kinematics.gps"]  # TYPE_CHECKING only
     assert "motionlab.kinematics.joint_types" in graph["motionlab.protocol"]

@@ -5,7 +5,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
-from conftest import DATA, SHARED, needs_shared
+from conftest import DATA, SHARED, assert_other_hdf5_refused, needs_shared
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
@@ -172,12 +172,7 @@ def test_h5_errors(tmp_path):
         del f["Sensors/SI-000700/Time"]
     with pytest.raises(InputError, match="key /Sensors/SI-000700/Time"):
         apdm_h5.read(path)
-    empty = tmp_path / "empty.h5"
-    with h5py.File(empty, "w") as f:
-        f["imu"] = np.zeros(3)
-    assert not apdm_h5.sniff(empty, empty.read_bytes()[:65536])
-    with pytest.raises(InputError, match="group /Sensors"):
-        read_any(empty, {"format": "apdm_h5"})
+    assert_other_hdf5_refused(tmp_path / "empty.h5", apdm_h5, "group /Sensors")
     short = tmp_path / "short.h5"
     _write_apdm_h5(short)
     with h5py.File(short, "a") as f:

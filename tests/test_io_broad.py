@@ -3,7 +3,7 @@
 import h5py
 import numpy as np
 import pytest
-from conftest import DATA, SHARED, needs_shared
+from conftest import DATA, SHARED, assert_other_hdf5_refused, needs_shared
 
 from motionlab.errors import InputError
 from motionlab.io import broad, detect_format, read_any
@@ -60,12 +60,7 @@ def test_errors(tmp_path):
         f["opt_pos"] = np.zeros((100, 3))
     with pytest.raises(InputError, match="100 samples but imu_gyr has 285"):
         broad.read(path)
-    other = tmp_path / "other.hdf5"
-    with h5py.File(other, "w") as f:
-        f["something"] = np.zeros(3)
-    assert not broad.sniff(other, other.read_bytes()[:65536])
-    with pytest.raises(InputError, match="key /sampling_rate"):
-        read_any(other, {"format": "broad"})
+    assert_other_hdf5_refused(tmp_path / "other.hdf5", broad, "key /sampling_rate")
 
 
 @needs_shared

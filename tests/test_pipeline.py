@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 import yaml
 from click.testing import CliRunner
-from conftest import DATA, SHARED, needs_shared
+from conftest import DATA, SHARED, generic_reader, needs_shared
 
 from motionlab.cli import main
 from motionlab.errors import InputError
@@ -43,14 +43,7 @@ MAP = {
         "THIGH": {"segment": "thigh_r", "side": "r"},
         "SHANK": {"segment": "shank_r", "side": "r"},
     },
-    "reader": {
-        "format": "generic",
-        "delimiter": ",",
-        "time": {"column": "t", "unit": "s"},
-        "acc": {"columns": ["ax", "ay", "az"], "unit": "m/s^2"},
-        "gyr": {"columns": ["gx", "gy", "gz"], "unit": "rad/s"},
-        "mag": {"columns": ["mx", "my", "mz"], "unit": "uT"},
-    },
+    "reader": generic_reader(mag=True),
 }
 
 

@@ -7,22 +7,14 @@ import pandas as pd
 import pytest
 import yaml
 from click.testing import CliRunner
-from conftest import SHARED, needs_shared
+from conftest import SHARED, generic_reader, needs_shared
 
 from motionlab.cli import main
 from motionlab.ingest import ingest
 from motionlab.qc import check_stream
 from motionlab.session import SensorStream
 
-MAP = {
-    "reader": {
-        "format": "generic",
-        "delimiter": ",",
-        "time": {"column": "t", "unit": "s"},
-        "acc": {"columns": ["ax", "ay", "az"], "unit": "m/s^2"},
-        "gyr": {"columns": ["gx", "gy", "gz"], "unit": "rad/s"},
-    }
-}
+MAP = {"reader": generic_reader()}
 
 
 def _held_stream(rate: float = 1000 / 6, real: float = 50.0, seconds: float = 6.0):

@@ -1,5 +1,7 @@
 """Sensor-to-segment calibration on a synthetic knee session with known mountings."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -7,11 +9,12 @@ from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_angles import compose, decompose
 from motionlab.protocol import load_protocol
-from motionlab.segments import calibrate_segments, segment_orientations
+from motionlab.segments import calibrate_segments, orientations_sha256, segment_orientations
 from motionlab.segments.frames import lm_fit, wahba
 from motionlab.segments.functional import functional_axis
 from motionlab.segments.heading import apply_heading, heading_from_hinge
 from motionlab.segments.hinge import hinge_axes
+from motionlab.segments.sensors import sensor_quats
 from motionlab.session import SensorStream, Session
 
 RATE = 100.0
@@ -101,6 +104,27 @@ def test_knee_calibration_recovers_mountings_and_steps():
         assert res["quality"]["min_rho"] > 0.9
     assert cal.segments["shank_r"]["method"] == "procrustes"
     assert cal.segments["pelvis"]["method"] == "single_axis"
+
+
+def test_heading_ties_are_found_once_at_calibration():
+    """The calibration stores each joint's heading ties with the SHA-256 of the orientations
+    they came from; the angles apply them to those orientations (the same segment frames as
+    finding them again), and shifted ties turn the distal segment by the shift."""
+    session, protocol, *_ = knee_session(seed=2)
+    cal = calibrate_segments(session, protocol)
+    quats = sensor_quats(session, protocol)
+    assert cal.headings["sha256"] == orientations_sha256(quats)
+    assert set(cal.headings["joints"]) == set(protocol.joints)
+    stored = segment_orientations(protocol, cal, quats)
+    fresh = segment_orientations(protocol, dataclasses.replace(cal, headings={}), quats)
+    for seg, (_, q) in fresh.items():
+        assert np.array_equal(stored[seg][1], q), seg
+    name, ties = next((k, v) for k, v in cal.headings["joints"].items() if len(v["times"]))
+    ties["deltas"] = ties["deltas"] + np.radians(10.0)
+    distal = protocol.joints[name].distal
+    shifted = segment_orientations(protocol, cal, quats)[distal][1]
+    turn = np.degrees(rot.angle(rot.mul(shifted, rot.conj(stored[distal][1]))))
+    np.testing.assert_allclose(turn, 10.0, atol=1e-6)
 
 
 def test_knee_angles_after_calibration_and_heading_alignment():

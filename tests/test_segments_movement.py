@@ -33,6 +33,17 @@ def _gyr(t: np.ndarray, q: np.ndarray) -> np.ndarray:
     return np.vstack([step, step[-1:]])
 
 
+def _stand_then_tumble(seed: int, duration: float, amp: float):
+    """``(rng, t s, ramp, q)``: a proximal segment upright for ``STAND_S``, then tumbling (smooth
+    rotation vectors of amplitude ``amp`` rad, ramped in over 2 s); ``rng`` seeded by ``seed``
+    and drawn from for the tumbling, to draw the rest of the recording."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, duration, 1.0 / RATE)
+    ramp = np.clip((t - STAND_S) / 2.0, 0.0, 1.0)
+    rv = np.column_stack([ramp * _smooth(t, rng, amp) for _ in range(3)])
+    return rng, t, ramp, rot.mul(rot.from_rotvec(rv), UPRIGHT)
+
+
 def hinge_recording(seed: int, duration: float = 40.0, second_axis: bool = False):
     """A stand, then a hinge moving one way (0-60°) while its proximal segment tumbles.
 
@@ -40,11 +51,7 @@ def hinge_recording(seed: int, duration: float = 40.0, second_axis: bool = False
     ``second_axis``: after half the recording the distal segment turns about another axis, as a
     sensor that slipped by 40° would.
     """
-    rng = np.random.default_rng(seed)
-    t = np.arange(0.0, duration, 1.0 / RATE)
-    ramp = np.clip((t - STAND_S) / 2.0, 0.0, 1.0)
-    rv = np.column_stack([ramp * _smooth(t, rng, 0.8) for _ in range(3)])
-    q_p = rot.mul(rot.from_rotvec(rv), UPRIGHT)
+    rng, t, ramp, q_p = _stand_then_tumble(seed, duration, 0.8)
     theta = ramp * np.radians(30.0) * (1 - np.cos(2 * np.pi * 0.9 * (t - STAND_S)))
     q_d = rot.mul(q_p, rot.from_axis_angle(FLEXION_AXIS, theta))
     mounts = rot.normalize(rng.normal(size=(2, 4)))  # segment → sensor, anywhere
@@ -112,11 +119,7 @@ def elbow_recording(seed: int, duration: float = 40.0):
     a 10° carrying angle between the axes. Returns both sensors' ``(time, gyr, q)``, the true
     flexion axis in the upper-arm sensor and long axis in the forearm sensor, and each sensor's
     heading drift (rad/s) applied to its own 6-D earth frame."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(0.0, duration, 1.0 / RATE)
-    ramp = np.clip((t - STAND_S) / 2.0, 0.0, 1.0)
-    rv = np.column_stack([ramp * _smooth(t, rng, 0.7) for _ in range(3)])
-    q_u = rot.mul(rot.from_rotvec(rv), UPRIGHT)
+    rng, t, ramp, q_u = _stand_then_tumble(seed, duration, 0.7)
     flex = ramp * np.radians(60.0) * (1 - np.cos(2 * np.pi * 0.4 * (t - STAND_S)))
     pron = ramp * np.radians(60.0) * np.sin(2 * np.pi * 0.27 * (t - STAND_S))
     z, x, y = np.eye(3)[2], np.eye(3)[0], np.eye(3)[1]

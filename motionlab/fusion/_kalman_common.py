@@ -21,7 +21,7 @@ import numpy as np
 from motionlab.fusion import detect
 from motionlab.fusion._common import prepare_mag
 from motionlab.fusion.markers import MarkerReferences, interval_rates, scenario
-from motionlab.fusion.registry import FusionResult, KernelParams, param
+from motionlab.fusion.registry import FusionResult, KernelParams, param, register
 from motionlab.rotations import make_continuous
 
 
@@ -82,6 +82,46 @@ def prepare(
     return Prepared(q0, rest, mag, pre, use_mag, ref[0], ref[1])
 
 
+def recording(
+    gyr: np.ndarray, acc: np.ndarray, rate: float, prep: Prepared, params: KalmanCommon
+) -> tuple:
+    """The recording as every Kalman kernel takes it, one tuple (one numba argument):
+    ``(gyr, acc, mag, use_mag, pre, rest, dt, q0, prm)``: rates rad/s and specific force m/s²
+    (N, 3), the field µT (a dummy (1, 3) without one), whether it is used, its pre-flags and
+    the rest mask (N,), the step ``dt`` s, the initial orientation and the common parameters
+    (:func:`pack`)."""
+    dt, prm = 1.0 / rate, pack(params, prep)
+    return (gyr, acc, prep.mag, prep.use_mag, prep.pre, prep.rest, dt, prep.q0, prm)
+
+
+def register_filter(
+    name: str,
+    params_cls: type,
+    description: str,
+    kernel: Callable[..., None],
+    own: tuple[str, ...],
+) -> Callable[..., FusionResult]:
+    """Register the EKF's or the UKF's ``run(gyr, acc, mag, rate, params, references=None)``
+    (:func:`~motionlab.fusion.registry.register`, estimator ``name``): ``kernel`` over the
+    recording by :func:`run_with_markers`, the fields ``own`` of ``params`` as its own
+    parameters."""
+
+    @register(name, params_cls, description)
+    def run(
+        gyr: np.ndarray,
+        acc: np.ndarray,
+        mag: np.ndarray | None,
+        rate: float,
+        params: KalmanCommon,
+        references: MarkerReferences | None = None,
+    ) -> FusionResult:
+        values = tuple(float(getattr(params, field)) for field in own)
+        return run_with_markers(kernel, name, values, gyr, acc, mag, rate, params, references)
+
+    run.__doc__ = f"{description}: see :mod:`motionlab.fusion.{name}` and :func:`run_with_markers`."
+    return run
+
+
 def run_with_markers(
     kernel: Callable[..., None],
     name: str,
@@ -95,11 +135,13 @@ def run_with_markers(
 ) -> FusionResult:
     """Run the EKF's or the UKF's ``kernel`` over the recording (the estimator ``name``).
 
-    The kernel takes the prepared inputs (:func:`prepare`, :func:`pack`), the filter's own
-    parameters ``own``, the marker reference vectors and the outputs ``quat``, ``bias``,
-    ``dist``, ``used``. With marker ``references`` the gyroscope enters as the interval mean
-    (:func:`~motionlab.fusion.markers.interval_rates`), the start-up phase ends when the markers
-    are first seen, and ``extra["scenario"]`` gives Liu's scenario (Table 2) per sample.
+    The kernel takes four tuples: the recording (:func:`recording`), the filter's own
+    parameters ``own`` (floats), the marker reference vectors ``(body (K, 3), earth (N, K, 3),
+    NaN = not seen, variance (K,), initial bias (3,))`` (K = 0: IMU only) and the preallocated
+    outputs ``(quat, bias, dist, used)``. With marker ``references`` the gyroscope enters as
+    the interval mean (:func:`~motionlab.fusion.markers.interval_rates`), the start-up phase
+    ends when the markers are first seen, and ``extra["scenario"]`` gives Liu's scenario
+    (Table 2) per sample.
     """
     prep = prepare(gyr, acc, mag, rate, params)
     refs = references if references is not None else MarkerReferences.none(len(gyr))
@@ -113,10 +155,11 @@ def run_with_markers(
     dist = np.empty(n, dtype=np.bool_)
     used = np.empty(n, dtype=np.int8)
     kernel(
-        gyr if references is None else interval_rates(gyr, 0.0), acc, prep.mag, prep.use_mag,
-        prep.pre, prep.rest, 1.0 / rate, prep.q0, pack(params, prep), *(float(v) for v in own),
-        refs.body, refs.earth, refs.sigma**2, refs.gyro_bias, quat, bias, dist, used,
-    )  # fmt: skip
+        recording(gyr if references is None else interval_rates(gyr, 0.0), acc, rate, prep, params),
+        own,
+        (refs.body, refs.earth, refs.sigma**2, refs.gyro_bias),
+        (quat, bias, dist, used),
+    )
     extra = {"mag_used": prep.use_mag}
     if references is not None:
         extra["scenario"] = scenario(used)
@@ -152,22 +195,14 @@ def acc_variance(
 
 
 @numba.njit(cache=True, inline="always")
-def mag_ok(
-    q: np.ndarray,
-    mag: np.ndarray,
-    k: int,
-    pre: np.ndarray,
-    ref_norm: float,
-    ref_dip: float,
-    norm_tol: float,
-    dip_tol: float,
-) -> bool:
-    """Whether sample ``k`` of the field is undisturbed (pre-flag and dip seen through ``q``)."""
+def mag_ok(q: np.ndarray, mag: np.ndarray, k: int, pre: np.ndarray, prm: np.ndarray) -> bool:
+    """Whether sample ``k`` of the field is undisturbed (pre-flag and dip seen through ``q``,
+    against the reference field and tolerances of ``prm``, :data:`PRM`)."""
     if pre[k]:
         return False
     return not detect.nb_field_disturbed(
         q[0], q[1], q[2], q[3], mag[k, 0], mag[k, 1], mag[k, 2],
-        ref_norm, ref_dip, norm_tol, dip_tol,
+        prm[REF_NORM], prm[REF_DIP], prm[MAG_NORM_TOL], prm[MAG_DIP_TOL],
     )  # fmt: skip
 
 

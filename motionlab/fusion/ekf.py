@@ -47,10 +47,9 @@ from motionlab.fusion.markers import (
     USED_ACC,
     USED_MAG,
     USED_MARKERS,
-    MarkerReferences,
     marker_jump,
 )
-from motionlab.fusion.registry import FusionResult, param, register
+from motionlab.fusion.registry import param
 
 NX = 10
 
@@ -123,34 +122,15 @@ def _update(
 
 
 @numba.njit(cache=True)
-def _kernel(
-    gyr: np.ndarray,
-    acc: np.ndarray,
-    mag: np.ndarray,
-    use_mag: bool,
-    pre: np.ndarray,
-    rest: np.ndarray,
-    dt: float,
-    q0: np.ndarray,
-    prm: np.ndarray,
-    rate_rw: float,
-    bias_rw: float,
-    bias_init: float,
-    rest_noise: float,
-    ref_body: np.ndarray,
-    ref_earth: np.ndarray,
-    ref_var: np.ndarray,
-    bias0: np.ndarray,
-    quat: np.ndarray,
-    bias: np.ndarray,
-    dist: np.ndarray,
-    used: np.ndarray,
-) -> None:
-    """Run the EKF over all samples into the preallocated ``quat``, ``bias``, ``dist``, ``used``.
-
-    ``ref_body`` (K, 3), ``ref_earth`` (N, K, 3, NaN = not seen) and ``ref_var`` (K,) are the
-    marker reference vectors (K = 0: IMU only); ``bias0`` the initial bias.
-    """
+def _kernel(rec: tuple, own: tuple, markers: tuple, out: tuple) -> None:
+    """The EKF over the recording ``rec`` (:func:`~motionlab.fusion._kalman_common.recording`)
+    with its own parameters ``own`` = (rate_rw, bias_rw, bias_init, rest_noise) and the marker
+    reference vectors (:func:`~motionlab.fusion._kalman_common.run_with_markers`), into the
+    preallocated outputs ``out`` = (quat, bias, dist, used)."""
+    gyr, acc, mag, use_mag, pre, rest, dt, q0, prm = rec
+    rate_rw, bias_rw, bias_init, rest_noise = own
+    ref_body, ref_earth, ref_var, bias0 = markers
+    quat, bias, dist, used = out
     n = gyr.shape[0]
     x = np.zeros(NX)
     p = np.zeros((NX, NX))
@@ -269,10 +249,7 @@ def _kernel(
                 _update(p, dx, hrow, acc[k, c] / an - r[2, c], var_a, ph, nfree)
         dist[k] = True
         if use_mag:
-            ok = kc.mag_ok(
-                q, mag, k, pre, prm[kc.REF_NORM], prm[kc.REF_DIP], prm[kc.MAG_NORM_TOL],
-                prm[kc.MAG_DIP_TOL],
-            )  # fmt: skip
+            ok = kc.mag_ok(q, mag, k, pre, prm)
             if ok and kc.horizontal_north(r, mag, k, north):
                 dist[k] = False
                 used[k] += USED_MAG
@@ -327,18 +304,8 @@ def _project(p: np.ndarray, q: np.ndarray, tmp: np.ndarray) -> None:
             p[i, j] = acc
 
 
-@register("ekf", EkfParams, "Liu's quaternion EKF with rate (and gyro-bias) states")
-def run(
-    gyr: np.ndarray,
-    acc: np.ndarray,
-    mag: np.ndarray | None,
-    rate: float,
-    params: EkfParams,
-    references: MarkerReferences | None = None,
-) -> FusionResult:
-    """Quaternion EKF of Liu (2010) §5.2 with bias states; see the module docstring.
-
-    With marker ``references`` ``extra["scenario"]`` gives Liu's scenario (Table 2) per sample.
-    """
-    own = (params.rate_rw, params.bias_rw, params.bias_init, params.rest_noise)
-    return kc.run_with_markers(_kernel, "ekf", own, gyr, acc, mag, rate, params, references)
+#: Liu's quaternion EKF (2010, §5.2) with bias states, registered as ``ekf``
+run = kc.register_filter(
+    "ekf", EkfParams, "Liu's quaternion EKF with rate (and gyro-bias) states", _kernel,
+    ("rate_rw", "bias_rw", "bias_init", "rest_noise"),
+)  # fmt: skip

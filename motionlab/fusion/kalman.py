@@ -194,26 +194,14 @@ def _observation(
 
 
 @numba.njit(cache=True)
-def _kernel(
-    gyr: np.ndarray,
-    acc: np.ndarray,
-    mag: np.ndarray,
-    use_mag: bool,
-    pre: np.ndarray,
-    rest: np.ndarray,
-    dt: float,
-    q0: np.ndarray,
-    prm: np.ndarray,
-    iters: int,
-    w_m: float,
-    bias_tau: float,
-    paper: bool,
-    q_paper: np.ndarray,
-    quat: np.ndarray,
-    bias: np.ndarray,
-    dist: np.ndarray,
-) -> None:
-    """Run the quaternion KF over all samples into the preallocated ``quat``, ``bias``, ``dist``."""
+def _kernel(rec: tuple, own: tuple, q_paper: np.ndarray, out: tuple) -> None:
+    """The quaternion KF over the recording ``rec``
+    (:func:`~motionlab.fusion._kalman_common.recording`) with ``own`` = (Gauss–Newton iterations,
+    magnetometer weight, rest-bias time constant s, To's process noise ``q_paper`` or not), into
+    the preallocated ``out`` = (quat, bias, dist)."""
+    gyr, acc, mag, use_mag, pre, rest, dt, q0, prm = rec
+    iters, w_m, bias_tau, paper = own
+    quat, bias, dist = out
     n = gyr.shape[0]
     q = q0.copy()
     qo = np.empty(4)
@@ -268,10 +256,7 @@ def _kernel(
         dist[k] = True
         use_m = False
         if use_mag:
-            use_m = kc.mag_ok(
-                q, mag, k, pre, prm[kc.REF_NORM], prm[kc.REF_DIP], prm[kc.MAG_NORM_TOL],
-                prm[kc.MAG_DIP_TOL],
-            )  # fmt: skip
+            use_m = kc.mag_ok(q, mag, k, pre, prm)
             dist[k] = not use_m
         rate = np.sqrt(wx * wx + wy * wy + wz * wz)
         var_t = kc.acc_variance(
@@ -354,12 +339,12 @@ def run(
     quat = np.empty((n, 4))
     bias = np.empty((n, 3))
     dist = np.empty(n, dtype=np.bool_)
-    _kernel(
-        gyr, acc, prep.mag, prep.use_mag, prep.pre, prep.rest, 1.0 / rate, prep.q0,
-        kc.pack(params, prep), int(params.gn_iterations), float(params.mag_weight),
-        float(params.rest_bias_tau), bool(params.paper_noise), paper_process_noise(),
-        quat, bias, dist,
+    own = (
+        int(params.gn_iterations), float(params.mag_weight), float(params.rest_bias_tau),
+        bool(params.paper_noise),
     )  # fmt: skip
+    rec = kc.recording(gyr, acc, rate, prep, params)
+    _kernel(rec, own, paper_process_noise(), (quat, bias, dist))
     return FusionResult(
         make_continuous(quat), "kf", {}, gyro_bias=bias, rest=prep.rest,
         mag_disturbed=dist if prep.use_mag else None, extra={"mag_used": prep.use_mag},

@@ -35,6 +35,7 @@ from typing import Any
 import numpy as np
 
 from motionlab import rotations as rot
+from motionlab.binding import sensor_for_segment
 from motionlab.errors import InputError
 from motionlab.fusion.attitude import NORTH, UP, triad
 from motionlab.fusion.markers import (
@@ -43,6 +44,11 @@ from motionlab.fusion.markers import (
     marker_noise,
     pair_vectors,
 )
+from motionlab.segments.frames import wahba
+from motionlab.validation.markermap import check_marker_map, default_marker_map
+from motionlab.validation.optical import resample_quat, smooth_pose, track_cluster
+from motionlab.validation.reference import choose_marker_set
+from motionlab.validation.time_alignment import synchronise
 
 LAGS_S = (0.2, 1.0, 2.0, 4.0)
 LOWPASS_HZ = 4.0
@@ -77,8 +83,6 @@ def _relative(t: np.ndarray, q: np.ndarray, start: np.ndarray, end: np.ndarray) 
     """Rotation vectors ``log(q_i* ⊗ q_j)`` (rows, 3) for the index pairs ``(start, end)``, in
     the moving frame of ``q`` (N, 4) low-passed at ``LOWPASS_HZ`` (a linear filter of the
     components, so it commutes with the constant rotations between the two systems)."""
-    from motionlab.validation.optical import smooth_pose
-
     q = smooth_pose(t, q, np.zeros((len(t), 3)), LOWPASS_HZ)[0]
     return rot.to_rotvec(rot.mul(rot.conj(q[start]), q[end]))
 
@@ -123,9 +127,6 @@ def register_sensor(
     refine_clock
         Refine the clock model (False: keep it, e.g. for streams on one clock).
     """
-    from motionlab.segments.frames import wahba
-    from motionlab.validation.optical import resample_quat
-
     t = np.asarray(t, dtype=float)
     bad = ~np.isfinite(gyr).all(axis=1)
     i, j = _row_pairs(t, bad)
@@ -264,8 +265,6 @@ def lab_to_earth(
 
 def _cluster_sensors(session: Any, mmap: Any, labels: list[str] | None) -> dict[str, Any]:
     """``{sensor label: SegmentMap}`` for the mapped marker clusters that carry a chosen sensor."""
-    from motionlab.segments import sensor_for_segment
-
     out = {}
     for seg, spec in mmap.segments.items():
         label = spec.sensor or sensor_for_segment(session, seg)
@@ -318,11 +317,6 @@ def session_references(
         (``time_offset_s``, ``drift_ppm``), ``sensor_to_cluster``, the gyroscope bias, the
         registration residual, the marker noise and the visible fraction.
     """
-    from motionlab.validation.markermap import check_marker_map, default_marker_map
-    from motionlab.validation.optical import resample_quat, track_cluster
-    from motionlab.validation.reference import choose_marker_set
-    from motionlab.validation.time_alignment import synchronise
-
     if not session.markers:
         raise InputError("the session holds no marker data", remedy="ingest a C3D/TRC file with it")
     name = marker_map.marker_set if marker_map is not None else None

@@ -22,6 +22,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from motionlab.rotations import mul
+
 _U64 = np.uint64
 
 
@@ -255,12 +257,6 @@ def _bingham_batch(
     return out
 
 
-def _mul_right(q: np.ndarray, mu: np.ndarray) -> np.ndarray:
-    from motionlab.rotations import mul
-
-    return mul(q, mu)
-
-
 def sample_vmf(mu: np.ndarray, kappa: float, n: int, seed: int = 0) -> np.ndarray:
     """``n`` unit quaternions from the von Mises–Fisher density ``∝ exp(κ μᵀx)`` on S³.
 
@@ -282,7 +278,7 @@ def sample_vmf(mu: np.ndarray, kappa: float, n: int, seed: int = 0) -> np.ndarra
     mu = mu / np.linalg.norm(mu)
     if not np.isfinite(kappa) or kappa < 0:
         raise ValueError(f"kappa must be finite and ≥ 0, got {kappa}")
-    return _mul_right(_vmf_batch(float(kappa), int(n), int(seed)), mu)
+    return mul(_vmf_batch(float(kappa), int(n), int(seed)), mu)
 
 
 def sample_bingham(a: np.ndarray, n: int, seed: int = 0, zmax: float = np.inf) -> np.ndarray:

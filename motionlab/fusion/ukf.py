@@ -50,10 +50,9 @@ from motionlab.fusion.markers import (
     USED_ACC,
     USED_MAG,
     USED_MARKERS,
-    MarkerReferences,
     marker_jump,
 )
-from motionlab.fusion.registry import FusionResult, param, register
+from motionlab.fusion.registry import param
 
 NX = 6
 NS = 2 * NX
@@ -123,33 +122,13 @@ def intrinsic_mean(quats: np.ndarray, start: np.ndarray | None = None) -> np.nda
 
 
 @numba.njit(cache=True)
-def _kernel(
-    gyr: np.ndarray,
-    acc: np.ndarray,
-    mag: np.ndarray,
-    use_mag: bool,
-    pre: np.ndarray,
-    rest: np.ndarray,
-    dt: float,
-    q0: np.ndarray,
-    prm: np.ndarray,
-    bias_rw: float,
-    bias_init: float,
-    rest_noise: float,
-    ref_body: np.ndarray,
-    ref_earth: np.ndarray,
-    ref_var: np.ndarray,
-    bias0: np.ndarray,
-    quat: np.ndarray,
-    bias: np.ndarray,
-    dist: np.ndarray,
-    used: np.ndarray,
-) -> None:
-    """Run the UKF over all samples into the preallocated ``quat``, ``bias``, ``dist``, ``used``.
-
-    ``ref_body`` (K, 3), ``ref_earth`` (N, K, 3, NaN = not seen) and ``ref_var`` (K,) are the
-    marker reference vectors (K = 0: IMU only); ``bias0`` the initial bias.
-    """
+def _kernel(rec: tuple, own: tuple, markers: tuple, out: tuple) -> None:
+    """The UKF, arguments as the EKF's (``ekf._kernel``) but ``own`` = (bias_rw, bias_init,
+    rest_noise): it has no rate state."""
+    gyr, acc, mag, use_mag, pre, rest, dt, q0, prm = rec
+    bias_rw, bias_init, rest_noise = own
+    ref_body, ref_earth, ref_var, bias0 = markers
+    quat, bias, dist, used = out
     n = gyr.shape[0]
     nz = 9 + 3 * ref_body.shape[0]
     q = q0.copy()
@@ -248,10 +227,7 @@ def _kernel(
             used[k] += USED_ACC
         dist[k] = True
         if use_mag:
-            ok = kc.mag_ok(
-                q, mag, k, pre, prm[kc.REF_NORM], prm[kc.REF_DIP], prm[kc.MAG_NORM_TOL],
-                prm[kc.MAG_DIP_TOL],
-            )  # fmt: skip
+            ok = kc.mag_ok(q, mag, k, pre, prm)
             cm.rot_matrix(q, r)
             if ok and kc.horizontal_north(r, mag, k, north):
                 dist[k] = False
@@ -388,18 +364,8 @@ def _correct(
             p[j, i] = acc
 
 
-@register("ukf", UkfParams, "Quaternion UKF (Kraft) with intrinsic mean and gyro-bias states")
-def run(
-    gyr: np.ndarray,
-    acc: np.ndarray,
-    mag: np.ndarray | None,
-    rate: float,
-    params: UkfParams,
-    references: MarkerReferences | None = None,
-) -> FusionResult:
-    """Quaternion UKF with bias states; see the module docstring.
-
-    With marker ``references`` ``extra["scenario"]`` gives Liu's scenario (Table 2) per sample.
-    """
-    own = (params.bias_rw, params.bias_init, params.rest_noise)
-    return kc.run_with_markers(_kernel, "ukf", own, gyr, acc, mag, rate, params, references)
+#: the quaternion UKF with bias states, registered as ``ukf``
+run = kc.register_filter(
+    "ukf", UkfParams, "Quaternion UKF (Kraft) with intrinsic mean and gyro-bias states", _kernel,
+    ("bias_rw", "bias_init", "rest_noise"),
+)  # fmt: skip

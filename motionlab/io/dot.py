@@ -39,7 +39,7 @@ from motionlab.errors import InputError
 from motionlab.io import Recording
 from motionlab.io.clock import checked_counter_time, count_wraps
 from motionlab.io.delimited import find_line, parse_table, read_lines, require_values, split_fields
-from motionlab.io.xsens import DEFAULT_MAG_FIELD_UT
+from motionlab.io.xsens import read_mag_au
 from motionlab.session import SensorStream
 
 FORMAT = "dot"
@@ -126,12 +126,7 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
             require_values(table, _xyz(prefix), channel)
             setattr(stream, channel, table.block(_xyz(prefix)) * scale)
             stream.source_units[channel] = unit
-    if table.has("Mag_X"):
-        require_values(table, _xyz("Mag"), "mag")
-        field_ut = float(options.get("mag_field_ut", DEFAULT_MAG_FIELD_UT))
-        stream.mag = table.block(_xyz("Mag")) * field_ut
-        stream.source_units["mag"] = "a.u."
-        attrs.update(mag_scale_assumed=True, mag_field_ut=field_ut)
+    read_mag_au(table, stream, attrs, options)
     if table.has("Quat_W"):
         names = _xyz("Quat", "WXYZ")
         require_values(table, names, "quat")

@@ -87,6 +87,22 @@ def _xyz(prefix: str) -> list[str]:
     return [f"{prefix}_{a}" for a in "XYZ"]
 
 
+def read_mag_au(
+    table: Table, stream: SensorStream, attrs: dict[str, Any], options: dict[str, Any]
+) -> None:
+    """The ``Mag_X..Z`` columns, if any, into ``stream.mag`` (µT): Xsens exports the field in
+    arbitrary units normalised to the field at the last calibration, so it is scaled by the
+    assumed local field ``options["mag_field_ut"]`` (default :data:`DEFAULT_MAG_FIELD_UT`),
+    which ``attrs`` records (``mag_scale_assumed``, ``mag_field_ut``)."""
+    if not table.has("Mag_X"):
+        return
+    require_values(table, _xyz("Mag"), "mag")
+    field_ut = float(options.get("mag_field_ut", DEFAULT_MAG_FIELD_UT))
+    stream.mag = table.block(_xyz("Mag")) * field_ut
+    stream.source_units["mag"] = "a.u."
+    attrs.update(mag_scale_assumed=True, mag_field_ut=field_ut)
+
+
 def _header_line(text: str) -> bool:
     fields = re.split(r"[\t,; ]", text.strip())
     return any(k in fields for k in _KNOWN)
@@ -264,12 +280,7 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
             require_values(table, _xyz(prefix), channel)
             setattr(stream, channel, table.columns(_xyz(prefix)))
             stream.source_units[channel] = unit
-    if table.has("Mag_X"):
-        require_values(table, _xyz("Mag"), "mag")
-        scale = float(options.get("mag_field_ut", DEFAULT_MAG_FIELD_UT))
-        stream.mag = table.block(_xyz("Mag")) * scale
-        stream.source_units["mag"] = "a.u."
-        attrs.update(mag_scale_assumed=True, mag_field_ut=scale)
+    read_mag_au(table, stream, attrs, options)
     to_enu = _TO_ENU[frame]
     if table.has("FreeAcc_X"):
         require_values(table, _xyz("FreeAcc"), "free_acc")

@@ -39,9 +39,10 @@ from motionlab.kinematics.pelvis import (
     side_angles,
     walking_heading,
 )
-from motionlab.kinematics.session_angles import sensor_orientation, session_segments
+from motionlab.kinematics.session_angles import session_segments
 from motionlab.protocol import Protocol
 from motionlab.results import Gait, SegmentCalibration
+from motionlab.segments.sensors import sensor_orientation
 from motionlab.session import Session
 
 PELVIS_SEGMENT = "pelvis"

@@ -37,12 +37,7 @@ from motionlab.errors import InputError
 from motionlab.kinematics import cycles as cyc
 from motionlab.kinematics import out_of_plane as oop
 from motionlab.kinematics.joint_types import angle_columns, split_column
-from motionlab.kinematics.session_angles import (
-    angle_table,
-    joint_segments,
-    nominal_calibration,
-    sensor_quats,
-)
+from motionlab.kinematics.session_angles import angle_table, nominal_calibration
 from motionlab.protocol import Joint, Protocol, Task
 from motionlab.results import Metrics, SegmentCalibration
 from motionlab.segments import (
@@ -52,6 +47,7 @@ from motionlab.segments import (
     streams_of,
     trunk_axes,
 )
+from motionlab.segments.sensors import joint_segments, sensor_quats
 from motionlab.segments.steps import find_tasks
 from motionlab.session import Session, estimate_rate
 

@@ -17,13 +17,13 @@ segments about one axis, the reference pose and later rests in it;
 
 from __future__ import annotations
 
+import hashlib
 from typing import Any
 
 import numpy as np
 
 from motionlab import rotations as rot
-from motionlab.binding import sensor_for_segment, signals_from_orientation
-from motionlab.errors import InputError
+from motionlab.binding import sensor_for_segment
 from motionlab.kinematics.joint_types import flexion_axis, joint_type
 from motionlab.protocol import Protocol, axis_vector
 from motionlab.results import HeadingCorrection, SegmentCalibration
@@ -37,55 +37,15 @@ from motionlab.segments import (
     trunk_axes,
     walk_forward,
 )
-from motionlab.segments.steps import find_steps
+from motionlab.segments.sensors import (
+    corrected_acc,
+    joint_segments,
+    sensor_orientation,
+    sensor_quats,
+    streams_of,
+)
+from motionlab.segments.steps import find_steps, reference_step
 from motionlab.session import Session
-
-Streams = dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
-
-
-def corrected_acc(session: Session, label: str) -> np.ndarray:
-    """Sensor ``label``'s accelerometer (N, 3) m/s² less the bias its fusion estimated
-    (``results.fusion[label].acc_bias``, the default estimator's accelerometer-bias states at
-    the calibration's prior, :func:`motionlab.fusion.stage.calibration_acc_bias`; the
-    recording as it is when there is none): a stand's gravity direction is then not tilted by
-    the bias that the fused orientation of the movement next to it does not have."""
-    acc = np.asarray(session.sensors[label].acc, dtype=float)
-    fused = session.results.fusion.get(label)
-    bias = None if fused is None else fused.acc_bias
-    if bias is None:
-        return acc
-    bias = np.asarray(bias, dtype=float)
-    return acc - bias if bias.shape == acc.shape else acc
-
-
-def streams_of(session: Session, protocol: Protocol) -> Streams:
-    """``{segment: (time, acc, gyr)}`` for every protocol segment that has a sensor (``acc``
-    less the fusion's accelerometer bias, :func:`corrected_acc`)."""
-    out: Streams = {}
-    for seg, spec in protocol.segments.items():
-        label = sensor_for_segment(session, seg)
-        if label is None:
-            if spec.required:
-                raise InputError(
-                    f"no sensor on segment '{seg}'",
-                    where=f"protocol {protocol.name}",
-                    remedy="name the sensor after the segment or set its segment at ingest",
-                )
-            continue
-        s = session.sensors[label]
-        if s.acc is not None and s.gyr is not None:
-            out[seg] = (s.time, corrected_acc(session, label), s.gyr)
-        elif s.quat is not None:  # rows without a finite orientation are missing samples
-            q = np.asarray(s.quat, float)
-            ok = np.isfinite(q).all(axis=1)
-            out[seg] = signals_from_orientation(s.time[ok], q[ok])
-        else:
-            raise InputError(
-                f"sensor '{label}' has neither accelerometer and gyroscope nor an orientation",
-                where=f"sensor {label}",
-                remedy="calibration needs raw acc and gyr, or the vendor's orientation",
-            )
-    return out
 
 
 def calibrate_segments(
@@ -97,7 +57,9 @@ def calibrate_segments(
     contradicts) are added to ``warnings`` and kept in the result's ``warnings``.
     """
     if trunk_axes.applies(protocol):  # rest and trunk movement anywhere (lumbar_seated)
-        return trunk_axes.calibrate(session, protocol, warnings)
+        result = trunk_axes.calibrate(session, protocol, warnings)
+        result.headings = heading_ties(session, protocol, result)
+        return result
     notes: list[str] = []
     streams = streams_of(session, protocol)
     pose = single_pose.pose_step(session, protocol, streams)
@@ -153,7 +115,35 @@ def calibrate_segments(
     result.grades = grades.grade_joints(protocol, result)
     if pose is None:
         result.hip_axes = hip_axes(session, protocol, result)
+    result.headings = heading_ties(session, protocol, result)
     return result
+
+
+def heading_ties(
+    session: Session, protocol: Protocol, calibration: SegmentCalibration
+) -> dict[str, Any]:
+    """Each joint's heading ties (see :func:`segment_orientations`) from the orientations of the
+    sensors on the protocol's joints, joints taken along the chain: ``{"sha256": of those
+    orientations (:func:`orientations_sha256`), "joints": {joint: {"source", "times" (K,) s,
+    "deltas" (K,) rad}}}``. Stored in the calibration, so the angles apply them without finding
+    them again; orientations other than these (another estimator) have theirs found anew."""
+    segs = [s for s in joint_segments(protocol) if sensor_for_segment(session, s) is not None]
+    quats = sensor_quats(session, protocol, segs)
+    ties: dict[str, dict[str, Any]] = {}
+    segment_orientations(protocol, calibration, quats, ties=ties)
+    return {"sha256": orientations_sha256(quats), "joints": ties}
+
+
+def orientations_sha256(sensor_quats: dict[str, tuple[np.ndarray, np.ndarray]]) -> str:
+    """SHA-256 of ``{segment: (time s, q (N, 4))}``: segment names in order, times and
+    quaternions as float64 bytes."""
+    digest = hashlib.sha256()
+    for seg in sorted(sensor_quats):
+        t, q = sensor_quats[seg]
+        digest.update(seg.encode() + b"\0")
+        for a in (t, q):
+            digest.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
+    return digest.hexdigest()
 
 
 def pelvis_forward(
@@ -173,8 +163,6 @@ def pelvis_forward(
     single turns may disagree more where the stand refuted the hint
     (``walk_forward.MAX_SPREAD_CONTRADICTED_DEG``). Returns the measurement, if made; a line
     goes to ``notes`` when the hint is not kept."""
-    from motionlab.kinematics.session_angles import sensor_orientation
-
     hips = [j for j in protocol.joints.values() if joint_type(j.type).name == "hip"]
     if not hips:
         return None
@@ -258,8 +246,6 @@ def hip_axes(
 ) -> dict[str, dict[str, Any]]:
     """The hips' flexion axes from the movement (:mod:`.hip_axis`), by joint name, for the hip
     joints whose thigh's flexion axis no functional step measured."""
-    from motionlab.kinematics.session_angles import sensor_quats
-
     out: dict[str, dict[str, Any]] = {}
     for name, joint in protocol.joints.items():
         p, d = joint.proximal, joint.distal
@@ -275,20 +261,6 @@ def hip_axes(
         qp, qd = rot.resample(*seg_q[p], t), rot.resample(*seg_q[d], t)
         out[name] = hip_axis.flexion_turn(t, qp, qd)
     return out
-
-
-def reference_step(protocol: Protocol, proximal: str, distal: str) -> str | None:
-    """First static step naming the proximal segment's vertical axis and the distal's as the
-    same or not at all: the reference pose of the joint (e.g. standing)."""
-    for step in protocol.calibration:
-        va = step.vertical_axis
-        if (
-            step.kind == "static"
-            and proximal in va
-            and va.get(distal, va[proximal]) == va[proximal]
-        ):
-            return step.name
-    return None
 
 
 def heading_anchors(
@@ -352,6 +324,7 @@ def segment_orientations(
     sensor_quats: dict[str, tuple[np.ndarray, np.ndarray]],
     align_heading: bool = True,
     corrections: dict[str, HeadingCorrection] | None = None,
+    ties: dict[str, dict[str, Any]] | None = None,
 ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """``{segment: (time, q_segment)}`` from sensor orientations ``{segment: (time, q_sensor)}``.
 
@@ -365,9 +338,17 @@ def segment_orientations(
     calibration (``None``) or its entry for a segment the sensor frame is used as the segment
     frame.
     ``corrections``, when given, receives per joint the heading correction applied
-    (:class:`~motionlab.results.HeadingCorrection`).
+    (:class:`~motionlab.results.HeadingCorrection`). The ties are those stored in
+    ``calibration.headings`` (:func:`heading_ties`) when they were found from these
+    orientations (same SHA-256), else found here; ``ties``, when given, receives them
+    (``{joint: {"source", "times", "deltas"}}``, before the proximal segment's turn is added
+    to fitted headings).
     """
     calibration = calibration or SegmentCalibration("")
+    stored_ties: dict[str, dict[str, Any]] = {}
+    if align_heading and calibration.headings:
+        if calibration.headings.get("sha256") == orientations_sha256(sensor_quats):
+            stored_ties = calibration.headings.get("joints", {})
     out = {}
     for seg, (t, q) in sensor_quats.items():
         cal = calibration.segments.get(seg)
@@ -382,7 +363,16 @@ def segment_orientations(
             continue
         tp, qp = out[p]
         td, qd = out[d]
-        source, times, deltas = _joint_ties(protocol, calibration, joint, tp, qp, td, qd)
+        stored = stored_ties.get(joint.name)
+        if stored is not None:
+            source = stored["source"]
+            times = np.asarray(stored["times"], float)
+            deltas = np.asarray(stored["deltas"], float)
+        else:
+            source, times, deltas = _joint_ties(protocol, calibration, joint, tp, qp, td, qd)
+            times, deltas = np.asarray(times, float), np.asarray(deltas, float)
+        if ties is not None:
+            ties[joint.name] = {"source": source, "times": times, "deltas": deltas}
         if source in ("two_axes", "centre") and p in turned:
             deltas = deltas + np.interp(times, *turned[p])  # fitted on the proximal's own heading
         if len(times):

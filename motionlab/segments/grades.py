@@ -46,6 +46,8 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from motionlab.segments.placement import hinge_spec
+
 if TYPE_CHECKING:
     from motionlab.results import SegmentCalibration
 
@@ -192,8 +194,6 @@ def grade_joints(protocol, calibration: SegmentCalibration) -> dict[str, dict[st
     """``{joint: {"grades": [3 str], "reasons": [3 str]}}`` for every protocol joint; the first
     angle of a hinge-like joint (knee, elbow, hinge: :func:`.placement.hinge_spec`) is graded by
     its axis and its zero."""
-    from motionlab.segments.placement import hinge_spec
-
     out = {}
     segs = calibration.segments
     for name, joint in protocol.joints.items():

@@ -19,15 +19,18 @@ from typing import Any
 
 import numpy as np
 
+from motionlab import rotations as rot
+from motionlab.binding import sensor_for_segment
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_types import flexion_axis, joint_sequence, joint_type
 from motionlab.protocol import Protocol, axis_vector
-from motionlab.segments import frames, gait_axes, movement
+from motionlab.segments import frames, gait_axes, heading, movement
 from motionlab.segments.functional import orient
+from motionlab.segments.sensors import Streams, sensor_orientation
+from motionlab.segments.steps import reference_step
 from motionlab.session import Session
 
 CONTRADICTED_DEG = 60.0
-Streams = dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
 
 
 def hinge_spec(joint) -> tuple[str, bool] | None:
@@ -62,9 +65,6 @@ def movement_hinges(
     For the first, the axis records (``movement:<joint>:k``, kind ``movement``) are added to
     ``records`` unless the fit is ``not determined``; the fits are returned by joint name.
     """
-    from motionlab.kinematics.session_angles import sensor_orientation
-    from motionlab.segments import reference_step, sensor_for_segment
-
     fits: dict[str, movement.HingeFit] = {}
     for name, joint in protocol.joints.items():
         spec = hinge_spec(joint)
@@ -232,10 +232,8 @@ def centre_headings(
     whose two sensors share enough movement
     (:func:`motionlab.clocksync.joint_centre_forces`, :func:`.heading.centre_anchors`).
     """
-    from motionlab import rotations as rot
+    # local: clocksync imports motionlab.segments, whose __init__ imports this module
     from motionlab.clocksync import joint_centre_forces
-    from motionlab.kinematics.session_angles import sensor_orientation
-    from motionlab.segments import heading, sensor_for_segment
 
     out = {}
     for name, joint in protocol.joints.items():

@@ -503,3 +503,17 @@ def find_tasks(
         )
     found = dict(zip((t.name for t in todo), (tuple(m) for m in merged), strict=True))
     return {t.name: found.get(t.name) or fixed[t.name] for t in protocol.tasks}
+
+
+def reference_step(protocol: Protocol, proximal: str, distal: str) -> str | None:
+    """First static step naming the proximal segment's vertical axis and the distal's as the
+    same or not at all: the reference pose of the joint (e.g. standing)."""
+    for step in protocol.calibration:
+        va = step.vertical_axis
+        if (
+            step.kind == "static"
+            and proximal in va
+            and va.get(distal, va[proximal]) == va[proximal]
+        ):
+            return step.name
+    return None

@@ -48,10 +48,14 @@ import numpy as np
 from scipy.ndimage import uniform_filter1d
 
 from motionlab import rotations as rot
+from motionlab.binding import sensor_for_segment
 from motionlab.errors import InputError
+from motionlab.kinematics.joint_types import joint_type
 from motionlab.protocol import Protocol
 from motionlab.results import SegmentCalibration
+from motionlab.segments import grades as grading
 from motionlab.segments import heading
+from motionlab.segments.sensors import sensor_quats, streams_of
 from motionlab.segments.steps import SHORTEST_POSE_S
 from motionlab.session import Session
 from motionlab.timebase import interp_columns
@@ -226,11 +230,6 @@ def calibrate(
 ) -> SegmentCalibration:
     """Calibration of a trunk protocol (see the module notes); raises :class:`InputError` when
     the recording has no rest or no trunk movement."""
-    from motionlab.kinematics.joint_types import joint_type
-    from motionlab.kinematics.session_angles import sensor_quats
-    from motionlab.segments import grades as grading
-    from motionlab.segments import sensor_for_segment, streams_of
-
     lumbar = [j for j in protocol.joints.values() if joint_type(j.type).name == "lumbar"]
     if not lumbar:
         raise InputError(

@@ -36,6 +36,7 @@ import yaml
 
 from motionlab.atomic import atomic_path
 from motionlab.errors import InputError
+from motionlab.plain import plain
 from motionlab.session import SensorStream
 from motionlab.yamlsafe import BoundedSafeLoader, load_yaml, read_yaml_text
 
@@ -49,21 +50,6 @@ SUFFIXES = (".yaml", ".yml", ".json")
 def now() -> str:
     """The current UTC time, ISO 8601 to the second."""
     return _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds")
-
-
-def _plain(value: Any) -> Any:
-    """Numpy values and containers as plain Python (for YAML/JSON)."""
-    if isinstance(value, dict):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
-    if isinstance(value, np.generic):
-        return _plain(value.item())
-    if isinstance(value, float) and not np.isfinite(value):
-        return None
-    return value
 
 
 @dataclass
@@ -104,7 +90,7 @@ class SensorCalibration:
             }
             for ch, c in self.channels.items()
         }
-        return _plain(
+        return plain(
             {
                 "format": FORMAT,
                 "version": VERSION,

@@ -155,6 +155,18 @@ def _quat_columns(prefix: str) -> list[str]:
     return [f"{prefix}_q{c}" for c in "wxyz"]
 
 
+def _orientation_table(time: dict[str, np.ndarray], bodies: dict[str, dict]) -> pd.DataFrame:
+    """``time_s`` and the four quaternion columns of each body's ``orientation``."""
+    return pd.DataFrame(
+        time
+        | {
+            col: body["orientation"][:, i]
+            for name, body in bodies.items()
+            for i, col in enumerate(_quat_columns(name))
+        }
+    )
+
+
 def write_truth_csv(truth: Truth, folder: str | Path, force: bool = False) -> list[Path]:
     """Write the truth as CSV tables (degrees for angles, unit in every column name)."""
     folder = Path(folder)
@@ -162,22 +174,8 @@ def write_truth_csv(truth: Truth, folder: str | Path, force: bool = False) -> li
     time = {"time_s": truth.time}
     tables: dict[str, pd.DataFrame] = {
         "joint_angles.csv": pd.DataFrame(time | truth.joint_angles),
-        "segment_orientations.csv": pd.DataFrame(
-            time
-            | {
-                col: s["orientation"][:, i]
-                for name, s in truth.segments.items()
-                for i, col in enumerate(_quat_columns(name))
-            }
-        ),
-        "sensor_orientations.csv": pd.DataFrame(
-            time
-            | {
-                col: s["orientation"][:, i]
-                for name, s in truth.sensors.items()
-                for i, col in enumerate(_quat_columns(name))
-            }
-        ),
+        "segment_orientations.csv": _orientation_table(time, truth.segments),
+        "sensor_orientations.csv": _orientation_table(time, truth.sensors),
         "steps.csv": pd.DataFrame(truth.steps),
     }
     rows = []

@@ -29,9 +29,10 @@ from motionlab.binding import sensor_for_segment
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_angles import joint_angles
 from motionlab.kinematics.joint_types import angle_columns
-from motionlab.kinematics.session_angles import sensor_orientation, session_angles
+from motionlab.kinematics.session_angles import session_angles
 from motionlab.protocol import Protocol
 from motionlab.results import SegmentCalibration, Validation
+from motionlab.segments.sensors import sensor_orientation
 from motionlab.session import MarkerSet, Session, estimate_rate
 from motionlab.validation.agreement import agreement, per_repetition, repetitions
 from motionlab.validation.align import Alignment

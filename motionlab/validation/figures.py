@@ -30,35 +30,39 @@ def _columns(result: Validation, columns: list[str] | None) -> list[str]:
     return cols
 
 
+def _angle_panels(
+    result: Validation, columns: list[str] | None, height: float
+) -> tuple[np.ndarray, Figure, list[tuple]]:
+    """A figure with one panel per angle over time (s): ``(time, figure, [(axes, column, the
+    column's entry of result.angles)])``."""
+    cols = _columns(result, columns)
+    fig, axes = _figure(len(cols), height)
+    axes[-1].set_xlabel("time (s)")
+    panels = [(ax, col, result.angles[col]) for ax, col in zip(axes, cols, strict=True)]
+    return result.angles["time_s"], fig, panels
+
+
 def angle_overlay(result: Validation, columns: list[str] | None = None) -> Figure:
     """IMU and optical angle curves over time, one panel per angle."""
-    cols = _columns(result, columns)
-    t = result.angles["time_s"]
-    fig, axes = _figure(len(cols), 2.2)
-    for ax, col in zip(axes, cols, strict=True):
-        e = result.angles[col]
+    t, fig, panels = _angle_panels(result, columns, 2.2)
+    for ax, col, e in panels:
         ax.plot(t, e["ref_deg"], color=REF_COLOUR, lw=1.0, label="optical")
         ax.plot(t, e["imu_deg"], color=IMU_COLOUR, lw=1.0, label="IMU")
         ax.set_ylabel(f"{col.removesuffix('_deg')} (°)", fontsize=8)
         ax.set_title(f"RMSE {e['rmse_deg']:.1f}°, r {e['r']:.2f}", fontsize=8, loc="right")
-    axes[0].legend(loc="upper left", fontsize=8)
-    axes[-1].set_xlabel("time (s)")
+    panels[0][0].legend(loc="upper left", fontsize=8)
     return fig
 
 
 def angle_error(result: Validation, columns: list[str] | None = None) -> Figure:
     """IMU − optical error of each angle over time, with its bias and limits of agreement."""
-    cols = _columns(result, columns)
-    t = result.angles["time_s"]
-    fig, axes = _figure(len(cols), 2.0)
-    for ax, col in zip(axes, cols, strict=True):
-        e = result.angles[col]
+    t, fig, panels = _angle_panels(result, columns, 2.0)
+    for ax, col, e in panels:
         ax.plot(t, np.asarray(e["imu_deg"]) - np.asarray(e["ref_deg"]), color=IMU_COLOUR, lw=0.8)
         ax.axhline(e["bias_deg"], color="tab:red", lw=1.0)
         for limit in e["loa_deg"]:
             ax.axhline(limit, color="tab:red", lw=0.8, ls="--")
         ax.set_ylabel(f"{col.removesuffix('_deg')}\nerror (°)", fontsize=8)
-    axes[-1].set_xlabel("time (s)")
     return fig
 
 

@@ -1,0 +1,28 @@
+"""Plain Python values from numpy ones, for JSON and YAML writers."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+
+def plain(value: Any) -> Any:
+    """``value`` with arrays as lists, numpy scalars as Python ones, NaN and ±inf as ``None``,
+    paths as strings and mapping keys as strings, through dicts, lists and tuples (standard
+    JSON; YAML's safe dumper takes it too)."""
+    if isinstance(value, dict):
+        return {str(k): plain(v) for k, v in value.items()}
+    if isinstance(value, list | tuple):
+        return [plain(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return plain(value.tolist())
+    if isinstance(value, np.generic):
+        return plain(value.item())
+    if isinstance(value, float) and not math.isfinite(value):
+        return None
+    if isinstance(value, Path):
+        return str(value)
+    return value

@@ -1,0 +1,132 @@
+"""A segment's sensor signals as the calibration and the angles read them.
+
+The sensor on a segment is :func:`motionlab.binding.sensor_for_segment`'s. Its orientation
+(:func:`sensor_orientation`) comes from, in this order: the fusion stage's results
+(``session.results.fusion[label].quat``, as ``motionlab fuse`` stores them), running the
+default estimator 6-D on the raw accelerometer and gyroscope, or the vendor's ``quat``. Its
+accelerometer is read less the bias the fusion estimated (:func:`corrected_acc`).
+
+The lowest module of the calibration: it imports nothing of :mod:`motionlab.segments` or
+:mod:`motionlab.kinematics` beyond the tables, so both read a sensor's signals from here.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from motionlab.binding import sensor_for_segment, signals_from_orientation
+from motionlab.errors import InputError
+from motionlab.fusion import estimate
+from motionlab.protocol import Protocol
+from motionlab.session import Session, estimate_rate
+
+#: ``{segment: (time s, acc m/s², gyr rad/s)}``
+Streams = dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
+#: ``{segment: (time s, quaternion (N, 4))}``
+SegmentQuats = dict[str, tuple[np.ndarray, np.ndarray]]
+
+
+def _no_sensor(protocol: Protocol, segment: str) -> InputError:
+    """The error of a protocol segment that no sensor is on."""
+    return InputError(
+        f"no sensor on segment '{segment}'",
+        where=f"protocol {protocol.name}",
+        remedy="name the sensor after the segment or set its segment at ingest",
+    )
+
+
+def corrected_acc(session: Session, label: str) -> np.ndarray:
+    """Sensor ``label``'s accelerometer (N, 3) m/s² less the bias its fusion estimated
+    (``results.fusion[label].acc_bias``, the default estimator's accelerometer-bias states at
+    the calibration's prior, :func:`motionlab.fusion.stage.calibration_acc_bias`; the
+    recording as it is when there is none): a stand's gravity direction is then not tilted by
+    the bias that the fused orientation of the movement next to it does not have."""
+    acc = np.asarray(session.sensors[label].acc, dtype=float)
+    fused = session.results.fusion.get(label)
+    bias = None if fused is None else fused.acc_bias
+    if bias is None:
+        return acc
+    bias = np.asarray(bias, dtype=float)
+    return acc - bias if bias.shape == acc.shape else acc
+
+
+def streams_of(session: Session, protocol: Protocol) -> Streams:
+    """``{segment: (time, acc, gyr)}`` for every protocol segment that has a sensor (``acc``
+    less the fusion's accelerometer bias, :func:`corrected_acc`)."""
+    out: Streams = {}
+    for seg, spec in protocol.segments.items():
+        label = sensor_for_segment(session, seg)
+        if label is None:
+            if spec.required:
+                raise _no_sensor(protocol, seg)
+            continue
+        s = session.sensors[label]
+        if s.acc is not None and s.gyr is not None:
+            out[seg] = (s.time, corrected_acc(session, label), s.gyr)
+        elif s.quat is not None:  # rows without a finite orientation are missing samples
+            q = np.asarray(s.quat, float)
+            ok = np.isfinite(q).all(axis=1)
+            out[seg] = signals_from_orientation(s.time[ok], q[ok])
+        else:
+            raise InputError(
+                f"sensor '{label}' has neither accelerometer and gyroscope nor an orientation",
+                where=f"sensor {label}",
+                remedy="calibration needs raw acc and gyr, or the vendor's orientation",
+            )
+    return out
+
+
+def sensor_orientation(session: Session, label: str, estimator: str = "default") -> np.ndarray:
+    """(N, 4) sensor → earth orientation of one sensor (see the module docstring)."""
+    fused = session.results.fusion.get(label)
+    if fused is not None:
+        q = np.asarray(fused.quat, dtype=float)
+        if q.shape != (session.sensors[label].n_samples, 4):
+            raise InputError(
+                f"fusion result has shape {q.shape}, the sensor {session.sensors[label].n_samples}"
+                " samples",
+                where=f"results/fusion/{label}/quat",
+                remedy="fuse again with force=True after ingest",
+                argument="force",
+            )
+        return q
+    s = session.sensors[label]
+    if s.acc is not None and s.gyr is not None:
+        return estimate(estimator, s.gyr, s.acc, None, estimate_rate(s.time), time=s.time).quat
+    if s.quat is not None:
+        return np.asarray(s.quat, dtype=float)
+    raise InputError(
+        f"sensor '{label}' has neither an orientation nor acc and gyr",
+        where=f"sensor {label}",
+        remedy="run motionlab fuse or ingest a file with orientation",
+    )
+
+
+def joint_segments(protocol: Protocol) -> list[str]:
+    """The segments the protocol's joints use, in order of first use."""
+    return list(dict.fromkeys(s for j in protocol.joints.values() for s in (j.proximal, j.distal)))
+
+
+def sensor_quats(
+    session: Session,
+    protocol: Protocol,
+    segments: list[str] | None = None,
+    estimator: str = "default",
+) -> SegmentQuats:
+    """``{segment: (time, q_sensor)}`` of the joints' segments (or ``segments``).
+
+    Rows without a finite orientation (a vendor file's gaps, e.g. ``NaN`` rows of a ``.sto``)
+    are left out, as missing samples are: the angles SLERP across them."""
+    quats = {}
+    for seg in segments or joint_segments(protocol):
+        label = sensor_for_segment(session, seg)
+        if label is None:
+            raise _no_sensor(protocol, seg)
+        q = sensor_orientation(session, label, estimator)
+        ok = np.isfinite(q).all(axis=1)
+        quats[seg] = (
+            (session.sensors[label].time[ok], q[ok])
+            if not ok.all()
+            else (session.sensors[label].time, q)
+        )
+    return quats
