@@ -202,11 +202,11 @@ def test_short_movement_is_not_reliable(typical):
 
 
 def _random_pair(seed: int = 0, n: int = 1200, rate: float = 100.0):
-    """A :class:`_Pair` of smooth random signals (10 Hz band) on a 100 Hz grid."""
+    """A :class:`Pair` of smooth random signals (10 Hz band) on a 100 Hz grid."""
     from scipy.interpolate import CubicSpline
     from scipy.signal import butter, sosfiltfilt
 
-    from motionlab.clocksync import _Pair
+    from motionlab.clocksync.joint_centre import Pair
 
     rng = np.random.default_rng(seed)
     t = np.arange(n) / rate
@@ -216,7 +216,7 @@ def _random_pair(seed: int = 0, n: int = 1200, rate: float = 100.0):
     other[:, 2] += 9.81
     ref[:, 2] += 9.81
     sos = butter(4, 6.0, fs=rate, output="sos")
-    return _Pair(
+    return Pair(
         t, ref, CubicSpline(t, other, axis=0), float(t.mean()), sos, np.arange(100, 1100, 4)
     )
 
@@ -226,13 +226,13 @@ def test_pair_residuals_are_the_joint_centre_norms_low_passed():
     spline called, scipy's sosfiltfilt)."""
     from scipy.signal import sosfiltfilt
 
-    from motionlab.clocksync import _centre
+    from motionlab.clocksync.joint_centre import centre
 
     pair = _random_pair()
     p = np.array([0.1, -0.2, 0.05, -0.1, 0.15, 0.2, 0.3, -0.1, 0.2, -0.3, 0.1, 0.05, 0.012, 3e-5])
     other = pair.spline(pair.t + p[12] + p[13] * (pair.t - pair.t_mid))
-    n1 = np.linalg.norm(_centre(pair.ref, p[:3], p[6:9]), axis=1)
-    n2 = np.linalg.norm(_centre(other, p[3:6], p[9:12]), axis=1)
+    n1 = np.linalg.norm(centre(pair.ref, p[:3], p[6:9]), axis=1)
+    n2 = np.linalg.norm(centre(other, p[3:6], p[9:12]), axis=1)
     want = sosfiltfilt(pair.sos, n1 - n2)[pair.use]
     np.testing.assert_allclose(pair.residuals(p), want, rtol=1e-9, atol=1e-9)
 
@@ -252,7 +252,7 @@ def test_pair_jacobian_matches_finite_differences():
 
 def test_a_block_window_gives_the_residuals_of_the_whole_recording():
     """Residuals over a block's span ± BLOCK_MARGIN_S agree with the whole recording's."""
-    from motionlab.clocksync import BLOCK_MARGIN_S
+    from motionlab.clocksync.joint_centre import BLOCK_MARGIN_S
 
     pair = _random_pair(2, n=3000)
     p = np.array([0.1, -0.2, 0.05, -0.1, 0.15, 0.2, 0.3, -0.1, 0.2, -0.3, 0.1, 0.05, 0.004, 0.0])

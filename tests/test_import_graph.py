@@ -45,12 +45,12 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "motionlab.summary",
         "motionlab.binding",
     ),
-    # 2 ingest: the readers and the assembly of a session
-    ("motionlab.io", "motionlab.ingest"),
+    # 2 ingest and sync: the readers, the assembly of a session, the IMUs' clocks
+    ("motionlab.io", "motionlab.ingest", "motionlab.clocksync"),
     # 3 fuse: sensor calibrations and orientation estimators
     ("motionlab.sensorcal", "motionlab.fusion"),
-    # 4 sync and calibrate: IMU clocks, sensor-to-segment calibration
-    ("motionlab.clocksync", "motionlab.segments"),
+    # 4 calibrate: sensor-to-segment calibration
+    ("motionlab.segments",),
     # 5 angles, metrics and gait
     ("motionlab.kinematics",),
     # 6 validate against a reference; marker-aided fusion reads the optical reference
@@ -78,8 +78,6 @@ KNOWN = {
     # submodules that import their own package's __init__ (sensor_for_segment, ...)
     ("motionlab.segments.placement", "motionlab.segments"),
     ("motionlab.segments.trunk_axes", "motionlab.segments"),
-    # placement → clocksync (joint_centre_forces) → segments (sensor_for_segment)
-    ("motionlab.segments.placement", "motionlab.clocksync"),
     ("motionlab.segments.grades", "motionlab.segments.placement"),
 }
 
