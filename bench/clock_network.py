@@ -79,7 +79,7 @@ def run_one(kind: str, seed: int) -> dict:
     row: dict = {"kind": kind, "seed": seed}
     for name, sync in (("per pair", _per_pair), ("network", cs.synchronise)):
         ses = dataclasses.replace(session, sensors=dict(prepared))
-        sync(ses, protocol)
+        fits = sync(ses, protocol)
         grid = np.linspace(truth.time[0] + 10.0, truth.time[-1] - 10.0, 2000)  # true time (s)
         err = {}
         for k, s in ses.sensors.items():
@@ -89,7 +89,7 @@ def run_one(kind: str, seed: int) -> dict:
         if name == "network":
             row["notes"] = [
                 f"{f.sensor}: {part}"
-                for f in ses.results.clock_sync.fits.values()
+                for f in fits
                 for part in f.other.split("; ")
                 if part.startswith(("set aside", "disagreeing"))
             ]

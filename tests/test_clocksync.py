@@ -110,7 +110,7 @@ def test_synchronise_then_restore(knee, typical):
         true_label = np.interp(t, s.time, truth.sensors[label]["sample_time"])
         assert np.max(np.abs(true_label - true_pelvis)) < 0.003, label
         assert s.attrs["clock_sync"]["reference"] in ("pelvis", "thigh_r", "thigh_l")
-    assert set(session.results.clock_sync.fits) == {"thigh_r", "thigh_l", "shank_r", "shank_l"}
+    assert {f.sensor for f in fits} == {"thigh_r", "thigh_l", "shank_r", "shank_l"}
     unsynchronise(session)
     for k, s in session.sensors.items():
         np.testing.assert_allclose(s.time, recorded[k], atol=1e-9, rtol=0)
@@ -160,6 +160,26 @@ def test_sync_command(tmp_path, typical):
     forced = runner.invoke(main, ["sync", str(path), "--protocol", "knee", "--force"])
     assert forced.exit_code == 0
     assert forced.output == res.output  # redone from the recorded stamps: the same fits
+
+
+def test_the_stage_stores_what_it_returns(typical):
+    """``stages.sync`` stores its :class:`ClockSync` in ``results.clock_sync`` and returns that
+    record, as the other stages do; the library's ``synchronise`` leaves the results alone."""
+    from motionlab import stages
+    from motionlab.results import ClockSync
+
+    session, _ = typical
+    keep = {k: v for k, v in session.sensors.items() if k in ("thigh_r", "shank_r")}
+    ses = dataclasses.replace(session, sensors=keep, results=Results())
+    result = stages.sync(ses, "knee")
+    assert isinstance(result, ClockSync) and result is ses.results.clock_sync
+    assert list(result.fits) == ["shank_r"] and result.fits["shank_r"].status == "applied"
+    library = dataclasses.replace(session, sensors=dict(keep), results=Results())
+    fits = synchronise(library, load_protocol("knee"))
+    assert library.results.clock_sync is None
+    (fit,) = fits  # the same fit (the stage prepares the sensors first: last bits differ)
+    assert fit.status == result.fits["shank_r"].status
+    assert abs(fit.offset_s - result.fits["shank_r"].offset_s) < 1e-6
 
 
 def test_nan_sensor_left_out(knee, typical):

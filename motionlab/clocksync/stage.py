@@ -41,7 +41,7 @@ from motionlab.clocksync.impacts import impact_clock
 from motionlab.clocksync.joint_centre import estimate_clock
 from motionlab.clocksync.pairs import joint_pairs, kind_side, sync_tree
 from motionlab.protocol import Protocol
-from motionlab.results import ClockFit, ClockSync
+from motionlab.results import ClockFit
 from motionlab.session import Session
 
 # allowance for the errors of an impact lag that its block scatter does not show (medians
@@ -70,7 +70,8 @@ def synchronise(
     """Put the protocol's sensors on one clock, in place (see the module docstring).
 
     Each corrected stream's ``time`` is replaced and ``attrs["clock_sync"]`` records the fit (so
-    the recorded stamps can be restored); ``session.results.clock_sync`` holds every fit.
+    the recorded stamps can be restored); returns every fit, in the order made. The stage
+    (:func:`motionlab.stages.sync`) stores them in ``session.results.clock_sync``.
 
     With heel strikes (a reliable impact lag between any two sensors) every sensor's clock is
     solved at once on the root sensor's (:func:`motionlab.clocknet.solve_network`) from the
@@ -94,7 +95,6 @@ def synchronise(
         fits = _synchronise_network(session, protocol, tree, label, impacts, max_offset_s)
     else:
         fits = _synchronise_tree(session, tree, label, impacts, max_offset_s)
-    session.results.clock_sync = ClockSync({f.sensor: f for f in fits})
     return fits
 
 
@@ -221,7 +221,8 @@ def _summary(fit: ClockFit) -> str:
 
 
 def unsynchronise(session: Session) -> None:
-    """Restore every sensor's recorded stamps (undo :func:`synchronise`), in place."""
+    """Restore every sensor's recorded stamps (undo :func:`synchronise`), in place; the
+    stage's record (``session.results.clock_sync``) is left to the stage."""
     for label, stream in list(session.sensors.items()):
         if "clock_sync" in stream.attrs:
             fit = ClockFit(**stream.attrs["clock_sync"])
@@ -229,7 +230,6 @@ def unsynchronise(session: Session) -> None:
             session.sensors[label] = replace(
                 stream, time=fit.recorded_time(stream.time), attrs=attrs
             )
-    session.results.clock_sync = None
 
 
 def describe(fit: ClockFit) -> str:
