@@ -270,14 +270,29 @@ def test_pair_jacobian_matches_finite_differences():
         assert np.abs(jac[:, j] - numeric).max() < 1e-5 * scale, j
 
 
-def test_a_block_window_gives_the_residuals_of_the_whole_recording():
-    """Residuals over a block's span ± BLOCK_MARGIN_S agree with the whole recording's."""
-    from motionlab.clocksync.joint_centre import BLOCK_MARGIN_S
+def test_residuals_near_the_used_samples_only_are_those_of_the_whole_recording():
+    """The residuals and the Jacobian, computed over the used samples' spans ± MARGIN_S only
+    (two spans here, 10 s apart, and neither recording end), agree with scipy's sosfiltfilt
+    over the whole recording."""
+    from scipy.signal import sosfiltfilt
+
+    from motionlab.clocksync.joint_centre import MARGIN_S, centre
 
     pair = _random_pair(2, n=3000)
-    p = np.array([0.1, -0.2, 0.05, -0.1, 0.15, 0.2, 0.3, -0.1, 0.2, -0.3, 0.1, 0.05, 0.004, 0.0])
-    block = np.arange(1400, 1700, 3)
-    whole = dataclasses.replace(pair, use=block).residuals(p)
-    part = pair.window(block, int(BLOCK_MARGIN_S * 100)).residuals(p)
-    assert len(pair.window(block, 300).t) == (1697 + 300 + 1) - (1400 - 300)  # ± 3 s
-    np.testing.assert_allclose(part, whole, rtol=0, atol=1e-12 * np.abs(whole).max())
+    p = np.array([0.1, -0.2, 0.05, -0.1, 0.15, 0.2, 0.3, -0.1, 0.2, -0.3, 0.1, 0.05, 0.004, 1e-4])
+    use = np.r_[np.arange(400, 700, 3), np.arange(1700, 2000, 3)]
+    part = dataclasses.replace(pair, use=use)
+    margin = int(MARGIN_S * 100)
+    assert [(lo, hi) for lo, hi, _, _ in part.parts] == [
+        (400 - margin, 697 + margin + 1), (1700 - margin, 1997 + margin + 1)
+    ]  # fmt: skip
+    other = pair.spline(pair.t + p[12] + p[13] * (pair.t - pair.t_mid))
+    n1 = np.linalg.norm(centre(pair.ref, p[:3], p[6:9]), axis=1)
+    n2 = np.linalg.norm(centre(other, p[3:6], p[9:12]), axis=1)
+    whole = sosfiltfilt(pair.sos, n1 - n2)[use]
+    np.testing.assert_allclose(part.residuals(p), whole, rtol=0, atol=1e-12 * np.abs(whole).max())
+    jac = dataclasses.replace(pair, use=np.arange(3000)).residuals(p, jacobian=True)[use]
+    np.testing.assert_allclose(part.residuals(p, jacobian=True), jac, rtol=1e-12, atol=1e-12)
+    res, dc = part.offset_residuals(p)
+    np.testing.assert_array_equal(res, part.residuals(p))
+    np.testing.assert_allclose(dc, jac[:, 12], rtol=1e-12, atol=1e-12 * np.abs(dc).max())

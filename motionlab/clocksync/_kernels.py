@@ -99,3 +99,51 @@ def pair_residuals(
         dc = -(g0 * q0 + g1 * q1 + g2 * q2) / n2
         jac[12, k] = dc
         jac[13, k] = dc * (t[k] - t_mid)
+
+
+@numba.njit(cache=True)
+def filtfilt_at(
+    x: np.ndarray, sos: np.ndarray, zi: np.ndarray, edge: int, use: np.ndarray, out: np.ndarray
+) -> None:
+    """``scipy.signal.sosfiltfilt(sos, x, axis=-1, padlen=edge)[:, use]`` into ``out`` (R, K),
+    for ``x`` (R, N), by scipy's own steps and in its order of operations (odd extension by
+    ``edge`` samples at each end; the cascade run forward from ``zi × first``, then backward
+    from ``zi × last``, ``zi`` the steady state per unit step, :func:`scipy.signal.sosfilt_zi`;
+    each section in transposed direct form II, as ``scipy.signal.sosfilt``), one row at a time
+    in one buffer: no padded copies, no axis moves."""
+    n = x.shape[1]
+    m = n + 2 * edge
+    sections = sos.shape[0]
+    y = np.empty(m)
+    z = np.empty((sections, 2))
+    for r in range(x.shape[0]):
+        first, last = x[r, 0], x[r, n - 1]
+        for k in range(edge):
+            y[k] = 2 * first - x[r, edge - k]
+            y[n + edge + k] = 2 * last - x[r, n - 2 - k]
+        for k in range(n):
+            y[edge + k] = x[r, k]
+        for s in range(sections):
+            z[s, 0] = zi[s, 0] * y[0]
+            z[s, 1] = zi[s, 1] * y[0]
+        for k in range(m):
+            cur = y[k]
+            for s in range(sections):
+                new = sos[s, 0] * cur + z[s, 0]
+                z[s, 0] = sos[s, 1] * cur - sos[s, 4] * new + z[s, 1]
+                z[s, 1] = sos[s, 2] * cur - sos[s, 5] * new
+                cur = new
+            y[k] = cur
+        for s in range(sections):
+            z[s, 0] = zi[s, 0] * y[m - 1]
+            z[s, 1] = zi[s, 1] * y[m - 1]
+        for k in range(m - 1, -1, -1):
+            cur = y[k]
+            for s in range(sections):
+                new = sos[s, 0] * cur + z[s, 0]
+                z[s, 0] = sos[s, 1] * cur - sos[s, 4] * new + z[s, 1]
+                z[s, 1] = sos[s, 2] * cur - sos[s, 5] * new
+                cur = new
+            y[k] = cur
+        for j in range(len(use)):
+            out[r, j] = y[edge + use[j]]

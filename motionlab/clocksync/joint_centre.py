@@ -33,9 +33,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.optimize import least_squares
-from scipy.signal import butter, sosfilt, sosfilt_zi, sosfiltfilt
+from scipy.signal import butter, sosfilt_zi, sosfiltfilt
 
-from motionlab.clocksync._kernels import pair_residuals
+from motionlab.clocksync._kernels import filtfilt_at, pair_residuals
 from motionlab.clocksync.common import (
     BLOCK_S,
     MAX_OFFSET_S,
@@ -60,9 +60,9 @@ LOWPASS_HZ = 6.0  # zero-phase low-pass of the residuals (Hz)
 INPUT_LP_HZ = 8.0  # zero-phase low-pass of f and ω (order INPUT_ORDER): soft-tissue wobble
 INPUT_ORDER = 8  # at 10–20 Hz would otherwise reach ω̇ × r by tens of m/s²
 BIAS_PRIOR_M_S2 = 1.0  # prior standard deviation of each accelerometer bias (m/s²), see Pair
-# a block's residuals are computed over its span and this much either side (s): the impulse
-# response of the LOWPASS_HZ low-pass falls below 1e-18 of its peak within 3 s (at any rate)
-BLOCK_MARGIN_S = 3.0
+# residuals are computed this close to the samples used only (s): the impulse response of the
+# LOWPASS_HZ low-pass falls below 1e-18 of its peak within 3 s (at any rate)
+MARGIN_S = 3.0
 BODY = 12  # parameters besides the clock: two lever arms and two accelerometer biases
 
 
@@ -163,7 +163,12 @@ class Pair:
     LP the zero-phase low-pass ``sos``, and their Jacobian in the parameters ``[r₁, r₂ (m), b₁,
     b₂ (accelerometer biases, m/s²), c₀ (s), c₁]``; sensor 2 is read at ``t + c(t)``. The biases
     are fitted because an uncalibrated 0.1 m/s² projects onto the changing gravity direction in
-    step with the movement, and so would pull the offset."""
+    step with the movement, and so would pull the offset.
+
+    The residuals are computed over the spans of the samples ``use`` and ``MARGIN_S`` either
+    side only (:attr:`parts`), not over the stretches between them that are farther from every
+    used sample: the low-pass's response to what lies further away is below floating-point
+    resolution, so the residuals are those of the whole recording at a fraction of the cost."""
 
     t: np.ndarray
     ref: np.ndarray  # (N, 9) [f, ω, ω̇] of the reference at t
@@ -173,34 +178,47 @@ class Pair:
     use: np.ndarray
 
     def __post_init__(self) -> None:
-        self._zi = sosfilt_zi(self.sos)  # what sosfiltfilt computes on every call
-
-    def _filtered(self, x: np.ndarray) -> np.ndarray:
-        """``sosfiltfilt(sos, x, axis=-1)[..., use]``, by scipy's own steps (odd extension of
-        3 × taps, ``sosfilt`` forward and backward from the steady state of the edge values)
-        with the steady state computed once per pair."""
         sos = self.sos
+        self._zi = sosfilt_zi(sos)  # what sosfiltfilt computes on every call
         taps = 2 * len(sos) + 1 - min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum()))
-        edge = 3 * taps
-        ext = np.concatenate(
-            (
-                2 * x[..., :1] - x[..., edge:0:-1],
-                x,
-                2 * x[..., -1:] - x[..., -2 : -(edge + 2) : -1],
-            ),
-            axis=-1,
-        )
-        zi = self._zi.reshape((len(sos),) + (1,) * (x.ndim - 1) + (2,))
-        y, _ = sosfilt(sos, ext, zi=zi * ext[..., :1])
-        y, _ = sosfilt(sos, y[..., ::-1], zi=zi * y[..., -1:])
-        return y[..., ::-1][..., edge:-edge][..., self.use]
+        self._edge = 3 * taps  # sosfiltfilt's default padding
+        self.parts = _parts(self.use, int(round(MARGIN_S / float(self.t[1] - self.t[0]))),
+                            len(self.t))  # fmt: skip
 
     def residuals(self, p: np.ndarray, jacobian: bool = False) -> np.ndarray:
-        res = np.empty(len(self.t))
-        jac = np.empty((len(p), len(self.t) if jacobian else 0))  # one row per parameter
+        """The residuals (K) at ``p``, or with ``jacobian`` their Jacobian (K, 14)."""
+        p = np.asarray(p, float)
+        out = np.empty((len(p) if jacobian else 1, len(self.use)))
+        for lo, hi, at, use in self.parts:
+            res, jac = self._unfiltered(p, jacobian, lo, hi)
+            self._filter(jac if jacobian else res[None], use, out[:, at])
+        return out.T if jacobian else out[0]
+
+    def offset_residuals(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The residuals (K) at ``p`` and their derivative in the offset ``c₀`` (K)."""
+        p = np.asarray(p, float)
+        out = np.empty((2, len(self.use)))
+        for lo, hi, at, use in self.parts:
+            res, jac = self._unfiltered(p, True, lo, hi)
+            self._filter(np.vstack([res, jac[12]]), use, out[:, at])
+        return out[0], out[1]
+
+    def _unfiltered(
+        self, p: np.ndarray, jacobian: bool, lo: int, hi: int
+    ) -> tuple[np.ndarray, np.ndarray]:
+        """The residuals (and the Jacobian's rows) before the low-pass on ``t[lo:hi]``."""
+        res = np.empty(hi - lo)
+        jac = np.empty((len(p), hi - lo if jacobian else 0))  # one row per parameter
         sp = self.spline
-        pair_residuals(self.t, self.t_mid, sp.x, sp.c, self.ref, np.asarray(p, float), res, jac)
-        return self._filtered(jac).T if jacobian else self._filtered(res)
+        pair_residuals(self.t[lo:hi], self.t_mid, sp.x, sp.c, self.ref[lo:hi], p, res, jac)
+        return res, jac
+
+    def _filter(self, x: np.ndarray, use: np.ndarray, out: np.ndarray) -> None:
+        """``sosfiltfilt(sos, x, axis=-1)[:, use]`` into ``out``, by scipy's own steps with the
+        steady state computed once per pair (:func:`._kernels.filtfilt_at`)."""
+        filtered = np.empty((x.shape[0], len(use)))
+        filtfilt_at(x, self.sos, self._zi, self._edge, use, filtered)
+        out[:] = filtered
 
     def _with_prior(self, p: np.ndarray, jacobian: bool = False) -> np.ndarray:
         """:meth:`residuals` and the biases' prior rows ``b / BIAS_PRIOR_M_S2`` (0 ± 1 m/s²).
@@ -217,14 +235,6 @@ class Pair:
         prior = np.zeros((6, len(p)))
         prior[:, 6:12] = np.eye(6) / BIAS_PRIOR_M_S2
         return np.vstack([self.residuals(p, jacobian=True), prior])
-
-    def window(self, use: np.ndarray, margin: int) -> Pair:
-        """The pair on the samples ``use`` (indices into ``t``, sorted), computed over their
-        span and ``margin`` samples either side only: the low-pass's response to what lies
-        further away is below floating-point resolution (:data:`BLOCK_MARGIN_S`), so the
-        residuals are those of the whole recording at a fraction of the cost."""
-        lo, hi = max(0, int(use[0]) - margin), min(len(self.t), int(use[-1]) + margin + 1)
-        return replace(self, t=self.t[lo:hi], ref=self.ref[lo:hi], use=use - lo)
 
     def cost(self, p: np.ndarray) -> float:
         return float(np.sum(self.residuals(p) ** 2))
@@ -268,15 +278,10 @@ class Pair:
             return p[-2:], np.inf, np.inf
         rows, offsets, weights = [], [], []
         correlation = max(1.0, 0.5 / (LOWPASS_HZ * dt))  # samples per independent residual
-        margin = int(round(BLOCK_MARGIN_S / float(self.t[1] - self.t[0])))
         for block in np.array_split(self.use, n_blocks):
-            part = self.window(block, margin)
+            part = replace(self, use=block)
             centre = self.t[block].mean() - self.t_mid
-            sol = least_squares(
-                lambda c, part=part: part.residuals(np.r_[p[:BODY], c, 0.0]),
-                p[-2:-1] + p[-1] * centre,
-                x_scale=0.01,
-            )
+            sol = _offset_fit(part, p[:BODY], p[-2:-1] + p[-1] * centre)
             s2 = float(np.mean(sol.fun**2)) * correlation
             rows.append([1.0, centre])
             offsets.append(sol.x[0])
@@ -285,6 +290,36 @@ class Pair:
         line = np.linalg.solve(x.T @ (w[:, None] * x), x.T @ (w * y))
         chi2 = float(w @ (y - x @ line) ** 2) / (len(y) - 2)
         return line_with_prior(x, y, w, max(1.0, chi2))
+
+
+def _parts(use: np.ndarray, margin: int, n: int) -> list[tuple[int, int, slice, np.ndarray]]:
+    """The spans of ``t`` (``n`` samples) over which the residuals at ``use`` (sorted indices)
+    are computed: runs of used samples less than ``2 margin`` apart, each widened by
+    ``margin`` either side (within ``0, n``). Per span: ``lo``, ``hi``, the slice of ``use``
+    it holds, and those samples' indices from ``lo``."""
+    use = np.asarray(use, np.int64)
+    breaks = np.flatnonzero(np.diff(use) > 2 * margin) + 1
+    parts = []
+    for first, end in zip(np.r_[0, breaks], np.r_[breaks, len(use)], strict=True):
+        lo, hi = max(0, int(use[first]) - margin), min(n, int(use[end - 1]) + margin + 1)
+        parts.append((lo, hi, slice(int(first), int(end)), use[first:end] - lo))
+    return parts
+
+
+def _offset_fit(pair: Pair, body: np.ndarray, c_start: np.ndarray):
+    """``least_squares`` of the offset ``c₀`` alone (levers and biases ``body`` held, no drift)
+    with its analytic derivative; the residuals and the derivative come from one evaluation,
+    kept for the Jacobian call that follows at the same point."""
+    last: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+
+    def at(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        key = float(c[0])
+        if key not in last:
+            last.clear()
+            last[key] = pair.offset_residuals(np.r_[body, c, 0.0])
+        return last[key]
+
+    return least_squares(lambda c: at(c)[0], c_start, jac=lambda c: at(c)[1][:, None], x_scale=0.01)
 
 
 def centre(values: np.ndarray, r: np.ndarray, bias: np.ndarray) -> np.ndarray:
