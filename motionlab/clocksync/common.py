@@ -3,7 +3,12 @@ a sensor's signals on a uniform grid with its gap mask, and the line through blo
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from functools import lru_cache
+from typing import Any
+
 import numpy as np
+from scipy.signal import butter
 
 from motionlab.qc import measurable
 from motionlab.session import SensorStream
@@ -14,6 +19,34 @@ BLOCK_S = 8.0  # movement time per block whose offset checks the fit (s)
 DRIFT_PRIOR = 50e-6  # prior standard deviation of one clock's drift against another's
 MIN_SAMPLES = 100  # finite accelerometer and gyroscope samples a sensor needs
 SETTLE_S = 0.3  # samples this close to a gap are left out (s)
+
+
+def butter_sos(
+    order: int, hz: float | tuple[float, float], fs: float, btype: str = "lowpass"
+) -> np.ndarray:
+    """``scipy.signal.butter(order, hz, btype, fs=fs, output="sos")``, designed once per set of
+    arguments (a design took milliseconds, and every sensor and pair asked for it); a copy."""
+    return _butter(order, hz, fs, btype).copy()
+
+
+@lru_cache(maxsize=32)
+def _butter(order: int, hz: float | tuple[float, float], fs: float, btype: str) -> np.ndarray:
+    return butter(order, hz, btype, fs=fs, output="sos")
+
+
+class PerStream:
+    """``compute(stream)`` once per stream object: a sensor's signals are prepared once for all
+    the pairs it is in (a corrected stream is a new object, and is prepared anew)."""
+
+    def __init__(self, compute: Callable[[SensorStream], Any]) -> None:
+        self.compute = compute
+        self._done: dict[int, tuple[SensorStream, Any]] = {}  # id: (the stream, its result)
+
+    def __call__(self, stream: SensorStream) -> Any:
+        hit = self._done.get(id(stream))
+        if hit is None or hit[0] is not stream:
+            hit = self._done[id(stream)] = (stream, self.compute(stream))
+        return hit[1]
 
 
 def finite_samples(s: SensorStream) -> int:

@@ -28,12 +28,13 @@ simulated lags by 6-18 ms.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.optimize import minimize_scalar
-from scipy.signal import butter, sosfiltfilt
+from scipy.signal import sosfiltfilt
 
 from motionlab.clocknet import IMPACTS
 from motionlab.clocksync.common import (
@@ -41,6 +42,7 @@ from motionlab.clocksync.common import (
     MAX_OFFSET_S,
     MIN_CORRECTION_S,
     MIN_SAMPLES,
+    butter_sos,
     finite_samples,
     line_with_prior,
     on_grid,
@@ -63,9 +65,9 @@ IMPACT_FLOOR_S = 2e-4  # smallest scatter of block lags assumed (s)
 
 
 @dataclass
-class _Envelope:
+class Envelope:
     """High-frequency energy envelope of one sensor on a uniform grid: time (s), envelope
-    (dimensionless, see :func:`_envelope`), its cubic spline, and which samples are real."""
+    (dimensionless, see :func:`envelope`), its cubic spline, and which samples are real."""
 
     time: np.ndarray
     values: np.ndarray
@@ -73,7 +75,7 @@ class _Envelope:
     valid: np.ndarray
 
 
-def _envelope(stream: SensorStream) -> _Envelope:
+def envelope(stream: SensorStream) -> Envelope:
     """‖θ_band‖ low-passed at ``IMPACT_ENVELOPE_HZ`` (rad): the gyroscope integrated to a
     rotation angle θ and band-passed to ``IMPACT_BAND_HZ`` (zero phase, so that no sensor's
     envelope is delayed; the integration's drift is far below the band), gaps bridged linearly
@@ -83,13 +85,13 @@ def _envelope(stream: SensorStream) -> _Envelope:
     dt = 1.0 / stream.rate_hz
     high = min(IMPACT_BAND_HZ[1], 0.4 / dt)
     if high <= 1.2 * IMPACT_BAND_HZ[0]:  # sampled too slowly to see the transients
-        return _Envelope(grid, np.zeros(len(grid)), CubicSpline(grid, np.zeros(len(grid))),
+        return Envelope(grid, np.zeros(len(grid)), CubicSpline(grid, np.zeros(len(grid))),
                          np.zeros(len(grid), bool))  # fmt: skip
-    sos = butter(IMPACT_ORDER, (IMPACT_BAND_HZ[0], high), "bandpass", fs=1.0 / dt, output="sos")
+    sos = butter_sos(IMPACT_ORDER, (IMPACT_BAND_HZ[0], high), 1.0 / dt, "bandpass")
     band = sosfiltfilt(sos, np.cumsum(gyr, axis=0) * dt, axis=0)  # angle (rad), band
-    low = butter(4, IMPACT_ENVELOPE_HZ, fs=1.0 / dt, output="sos")
+    low = butter_sos(4, IMPACT_ENVELOPE_HZ, 1.0 / dt)
     env = np.where(valid, sosfiltfilt(low, np.linalg.norm(band, axis=1)), 0.0)
-    return _Envelope(grid, env, CubicSpline(grid, env), valid)
+    return Envelope(grid, env, CubicSpline(grid, env), valid)
 
 
 def _correlation(x: np.ndarray, y: np.ndarray) -> float:
@@ -121,16 +123,19 @@ def impact_clock(
     reference: SensorStream,
     sensor: SensorStream,
     max_offset_s: float = MAX_OFFSET_S,
+    envelope_of: Callable[[SensorStream], Envelope] | None = None,
 ) -> ClockFit:
     """Offset and drift of ``sensor``'s clock against ``reference``'s from the transients
     both see at every heel strike (see the module docstring); any two sensors of the body.
 
     The lag that maximises the correlation of the two high-frequency energy envelopes
-    (:func:`_envelope`) over the whole recording, then the lag of each ``BLOCK_S`` block with
+    (:func:`envelope`) over the whole recording, then the lag of each ``BLOCK_S`` block with
     shared transients (within ``IMPACT_BLOCK_SEARCH_S`` of it), and a line through the block
     lags with a prior on the drift whose scatter gives the standard errors. ``residual`` is
     1 − the whole recording's correlation coefficient; the status is ``"applied"`` only when
-    the fit is reliable and differs from zero.
+    the fit is reliable and differs from zero. ``envelope_of``: how a stream's
+    :class:`Envelope` is had (default :func:`envelope`; the stage computes it once per sensor,
+    :class:`~motionlab.clocksync.common.PerStream`).
     """
     name = (reference.label, sensor.label)
     t_mid = float(np.mean(reference.time[[0, -1]]))
@@ -141,7 +146,7 @@ def impact_clock(
 
     if min(finite_samples(reference), finite_samples(sensor)) < MIN_SAMPLES:
         return refused("no usable accelerometer and gyroscope samples")
-    a, b = _envelope(reference), _envelope(sensor)
+    a, b = (envelope_of or envelope)(reference), (envelope_of or envelope)(sensor)
     inside = (a.time - max_offset_s >= b.time[0]) & (a.time + max_offset_s <= b.time[-1])
     t_mid = float(0.5 * (a.time[0] + a.time[-1]))
     if inside.sum() < 3 * BLOCK_S / (a.time[1] - a.time[0]):

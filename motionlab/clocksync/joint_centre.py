@@ -28,12 +28,13 @@ by 20–30 ms on simulated walks, with a residual five times the usual).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.optimize import least_squares
-from scipy.signal import butter, sosfilt_zi, sosfiltfilt
+from scipy.signal import sosfilt_zi, sosfiltfilt
 
 from motionlab.clocksync._kernels import filtfilt_at, pair_residuals
 from motionlab.clocksync.common import (
@@ -41,6 +42,7 @@ from motionlab.clocksync.common import (
     MAX_OFFSET_S,
     MIN_CORRECTION_S,
     MIN_SAMPLES,
+    butter_sos,
     finite_samples,
     line_with_prior,
     on_grid,
@@ -83,9 +85,7 @@ def signals(stream: SensorStream) -> Signals:
     ok = measurable(stream.acc, "acc") & measurable(stream.gyr, "gyr")
     grid, values, valid = on_grid(stream, np.hstack([stream.acc, stream.gyr]), ok)
     dt = 1.0 / stream.rate_hz
-    values = sosfiltfilt(
-        butter(INPUT_ORDER, INPUT_LP_HZ, fs=1.0 / dt, output="sos"), values, axis=0
-    )
+    values = sosfiltfilt(butter_sos(INPUT_ORDER, INPUT_LP_HZ, 1.0 / dt), values, axis=0)
     # ω̇ from the spline, not np.gradient, whose central difference is 1.6 % low at 5 Hz: on the
     # simulated walk's shank that was 0.15-0.2 ms of the offset's error (clean, seeds 4 and 8)
     values = np.hstack([values, CubicSpline(grid, values[:, 3:], axis=0)(grid, 1)])
@@ -96,18 +96,21 @@ def estimate_clock(
     reference: SensorStream,
     sensor: SensorStream,
     max_offset_s: float = MAX_OFFSET_S,
+    signals_of: Callable[[SensorStream], Signals] | None = None,
 ) -> ClockFit:
     """Offset and drift of ``sensor``'s clock against ``reference``'s (see the module docstring).
 
     Both streams need ``acc`` (m/s²) and ``gyr`` (rad/s) and must sit on the two sides of one
     joint. The status is ``"applied"`` only when the fit is reliable and differs from zero
-    (:func:`synchronise` applies only those).
+    (:func:`motionlab.clocksync.stage.synchronise` applies only those). ``signals_of``: how a
+    stream's :class:`Signals` are had (default :func:`signals`; the stage computes them once
+    per sensor, :class:`~motionlab.clocksync.common.PerStream`).
     """
     name = (reference.label, sensor.label)
     if min(finite_samples(reference), finite_samples(sensor)) < MIN_SAMPLES:
         return ClockFit(*name, 0.0, 0.0, float(np.mean(reference.time[[0, -1]])), np.inf, np.inf,
                         np.nan, 0.0, "no usable accelerometer and gyroscope samples")  # fmt: skip
-    a, b = signals(reference), signals(sensor)
+    a, b = (signals_of or signals)(reference), (signals_of or signals)(sensor)
     inside = (a.time - max_offset_s >= b.time[0]) & (a.time + max_offset_s <= b.time[-1])
     t_mid = float(0.5 * (a.time[0] + a.time[-1]))
     if inside.sum() < 2 * MIN_MOVING_S / (a.time[1] - a.time[0]):
@@ -116,7 +119,7 @@ def estimate_clock(
     span = slice(np.argmax(inside), len(inside) - np.argmax(inside[::-1]))
     t, ref = a.time[span], a.values[span]
     dt = float(t[1] - t[0])
-    sos = butter(4, LOWPASS_HZ, fs=1.0 / dt, output="sos")
+    sos = butter_sos(4, LOWPASS_HZ, 1.0 / dt)
     rates = np.hypot(
         np.linalg.norm(ref[:, 3:6], axis=1), np.linalg.norm(b.spline(t)[:, 3:6], axis=1)
     )

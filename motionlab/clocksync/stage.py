@@ -36,9 +36,9 @@ import numpy as np
 
 from motionlab.binding import sensor_for_segment
 from motionlab.clocknet import CENTRE_FLOOR_S, NETWORK, solve_network
-from motionlab.clocksync.common import MAX_OFFSET_S, MIN_CORRECTION_S
-from motionlab.clocksync.impacts import impact_clock
-from motionlab.clocksync.joint_centre import estimate_clock
+from motionlab.clocksync.common import MAX_OFFSET_S, MIN_CORRECTION_S, PerStream
+from motionlab.clocksync.impacts import envelope, impact_clock
+from motionlab.clocksync.joint_centre import estimate_clock, signals
 from motionlab.clocksync.pairs import joint_pairs, kind_side, sync_tree
 from motionlab.protocol import Protocol
 from motionlab.results import ClockFit
@@ -85,24 +85,30 @@ def synchronise(
     label = {seg: sensor_for_segment(session, seg) for pair in tree for seg in pair}
     segments = list(dict.fromkeys(seg for pair in tree for seg in pair))
 
+    signals_of, envelope_of = PerStream(signals), PerStream(envelope)  # once per sensor
+
     def lag(a: str, b: str) -> ClockFit:
-        return impact_clock(session.sensors[label[a]], session.sensors[label[b]], max_offset_s)
+        sensors = session.sensors
+        return impact_clock(sensors[label[a]], sensors[label[b]], max_offset_s, envelope_of)
+
+    def centre(a: str, b: str) -> ClockFit:
+        sensors = session.sensors  # the clocks corrected so far
+        return estimate_clock(sensors[a], sensors[b], max_offset_s, signals_of)
 
     impacts = {(a, b): lag(a, b) for a, b in tree}
     if any(_reliable(f) for f in impacts.values()):  # heel strikes: every pair, all at once
         pairs = [(a, b) for i, a in enumerate(segments) for b in segments[i + 1 :]]
         impacts = {p: impacts[p] if p in impacts else lag(*p) for p in pairs}  # in this order
-        fits = _synchronise_network(session, protocol, tree, label, impacts, max_offset_s)
+        fits = _synchronise_network(session, protocol, tree, label, impacts, centre)
     else:
-        fits = _synchronise_tree(session, tree, label, impacts, max_offset_s)
+        fits = _synchronise_tree(session, tree, label, impacts, centre)
     return fits
 
 
-def _synchronise_tree(
-    session: Session, tree, label, impacts, max_offset_s: float
-) -> list[ClockFit]:
+def _synchronise_tree(session: Session, tree, label, impacts, centre) -> list[ClockFit]:
     """Each sensor against its reference's corrected clock, down the sync tree, by the joint
-    centre (``impacts``: the tree pairs' refused impact lags, kept in ``other``). A sensor whose own
+    centre (``centre(reference label, label)``; ``impacts``: the tree pairs' refused impact
+    lags, kept in ``other``). A sensor whose own
     fit is not reliable but whose reference was corrected gets the reference's correction: its
     recorded timing relative to its neighbour is kept (a thigh moved while its shank stayed
     would misalign the knee by the thigh's whole correction)."""
@@ -110,10 +116,8 @@ def _synchronise_tree(
     moved: dict[str, ClockFit] = {}  # label: the correction its stamps got
     for ref_seg, seg in tree:
         ref, lab = label[ref_seg], label[seg]
-        stream = session.sensors[lab]
         # the pair's impact lag was measured on the raw clocks; none is reliable (no heel strikes)
-        fit = choose(estimate_clock(session.sensors[ref], stream, max_offset_s),
-                     impacts[(ref_seg, seg)])  # fmt: skip
+        fit = choose(centre(ref, lab), impacts[(ref_seg, seg)])
         fits.append(fit)
         # the fit is against the reference's corrected clock: "consistent with one clock" means
         # the sensor already agrees with it; an unreliable fit tells nothing, so the sensor keeps
@@ -134,25 +138,24 @@ def _apply(session: Session, label: str, fit: ClockFit) -> None:
 
 
 def _synchronise_network(
-    session: Session, protocol: Protocol, tree, label, impacts, max_offset_s: float
+    session: Session, protocol: Protocol, tree, label, impacts, centre
 ) -> list[ClockFit]:
     """Every sensor's clock at once from all pairwise measurements on the raw clocks
-    (:func:`motionlab.clocknet.solve_network`). A sensor that no reliable measurement ties to
+    (:func:`motionlab.clocknet.solve_network`; ``centre(label, label)``: a joint-centre fit).
+    A sensor that no reliable measurement ties to
     the root follows its reference's clock (its recorded timing against it is kept)."""
     edges = [(a, b) for a, b in joint_pairs(session, protocol) if a in label and b in label]
-    centres = {
-        (a, b): estimate_clock(session.sensors[label[a]], session.sensors[label[b]], max_offset_s)
-        for a, b in edges
-    }
+    centres = {(a, b): centre(label[a], label[b]) for a, b in edges}
     pool = [f for f in [*impacts.values(), *centres.values()] if _reliable(f)]
-    envelope = {lab: ENVELOPE_SD_S[kind_side(seg)[0]] for seg, lab in label.items()
+    envelope_sd = {lab: ENVELOPE_SD_S[kind_side(seg)[0]] for seg, lab in label.items()
                 if kind_side(seg)[0] in ENVELOPE_SD_S}  # fmt: skip
     floor = {frozenset((label[a], label[b])): _centre_floor(a, b) for a, b in edges}
     root = label[tree[0][0]]
     t0 = float(np.mean(session.sensors[root].time[[0, -1]]))
     span = float(np.ptp(session.sensors[root].time))
     clocks: dict[str, tuple] = {root: (None, "")}  # label: (NetworkClock or None, follows)
-    clocks.update({k: (v, "") for k, v in solve_network(pool, root, t0, envelope, floor).items()})
+    solved = solve_network(pool, root, t0, envelope_sd, floor)
+    clocks.update({k: (v, "") for k, v in solved.items()})
     for ref_seg, seg in tree:  # not tied to the root: the reference's clock (tree order)
         if label[seg] not in clocks:
             clocks[label[seg]] = (clocks[label[ref_seg]][0], label[ref_seg])
