@@ -270,6 +270,33 @@ def test_pair_jacobian_matches_finite_differences():
         assert np.abs(jac[:, j] - numeric).max() < 1e-5 * scale, j
 
 
+@pytest.mark.parametrize("rows", [1, 2, 14])
+def test_the_compiled_low_pass_is_scipys_to_the_bit(rows):
+    """``filtfilt_at`` (one row at a time, or all rows at each sample) gives scipy's
+    ``sosfiltfilt`` exactly, at 100 and 60 Hz."""
+    from scipy.signal import butter, sosfilt_zi, sosfiltfilt
+
+    from motionlab.clocksync._kernels import filtfilt_at
+
+    rng = np.random.default_rng(rows)
+    for rate in (100.0, 60.0):
+        sos = butter(4, 6.0, fs=rate, output="sos")
+        x = rng.standard_normal((rows, 2000)) * 3.0
+        use = np.arange(10, 1990, 3)
+        out = np.empty((rows, len(use)))
+        filtfilt_at(x, sos, sosfilt_zi(sos), 15, use, out)
+        np.testing.assert_array_equal(out, sosfiltfilt(sos, x, axis=-1)[:, use])
+
+
+def test_costs_at_many_offsets_are_each_cost():
+    pair = _random_pair(3, n=4000)
+    pair = dataclasses.replace(pair, use=np.r_[np.arange(100, 1500, 4), np.arange(2500, 3900, 4)])
+    p = np.array([0.1, -0.2, 0.05, -0.1, 0.15, 0.2, 0.3, -0.1, 0.2, -0.3, 0.1, 0.05, 0.004, 0.0])
+    ps = np.tile(p, (21, 1))
+    ps[:, 12] = np.linspace(-0.05, 0.05, 21)
+    np.testing.assert_array_equal(pair.costs(ps), [pair.cost(q) for q in ps])
+
+
 def test_residuals_near_the_used_samples_only_are_those_of_the_whole_recording():
     """The residuals and the Jacobian, computed over the used samples' spans ± MARGIN_S only
     (two spans here, 10 s apart, and neither recording end), agree with scipy's sosfiltfilt

@@ -136,7 +136,8 @@ def estimate_clock(
     pair = Pair(t, ref, b.spline, t_mid, sos, use[::stride])
     body = pair.body(0.0)
     grid = np.arange(-max_offset_s, max_offset_s + 1e-12, GRID_STEP_S)
-    c0 = float(grid[int(np.argmin([pair.cost(np.r_[body, c, 0.0]) for c in grid]))])
+    c0 = float(grid[int(np.argmin(pair.costs(np.column_stack([
+        np.tile(body, (len(grid), 1)), grid, np.zeros(len(grid))]))))])  # fmt: skip
     fit = pair.solve(np.r_[pair.body(c0), c0, 0.0])
     half = 0.5 * (t[use[-1]] - t[use[0]])
     fit[-2:], offset_se, drift_se = pair.clock_from_blocks(fit)
@@ -188,13 +189,14 @@ class Pair:
         self.parts = _parts(self.use, int(round(MARGIN_S / float(self.t[1] - self.t[0]))),
                             len(self.t))  # fmt: skip
 
-    def residuals(self, p: np.ndarray, jacobian: bool = False) -> np.ndarray:
-        """The residuals (K) at ``p``, or with ``jacobian`` their Jacobian (K, 14)."""
+    def residuals(self, p: np.ndarray, jacobian: bool = False, columns: int = 14) -> np.ndarray:
+        """The residuals (K) at ``p``, or with ``jacobian`` their Jacobian (K, ``columns``: in
+        the first ``columns`` parameters)."""
         p = np.asarray(p, float)
-        out = np.empty((len(p) if jacobian else 1, len(self.use)))
+        out = np.empty((columns if jacobian else 1, len(self.use)))
         for lo, hi, at, use in self.parts:
-            res, jac = self._unfiltered(p, jacobian, lo, hi)
-            self._filter(jac if jacobian else res[None], use, out[:, at])
+            res, jac = self._unfiltered(p, 14 if jacobian else 0, lo, hi)
+            self._filter(jac[:columns] if jacobian else res[None], use, out[:, at])
         return out.T if jacobian else out[0]
 
     def offset_residuals(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -202,16 +204,15 @@ class Pair:
         p = np.asarray(p, float)
         out = np.empty((2, len(self.use)))
         for lo, hi, at, use in self.parts:
-            res, jac = self._unfiltered(p, True, lo, hi)
-            self._filter(np.vstack([res, jac[12]]), use, out[:, at])
+            res, dc = self._unfiltered(p, 1, lo, hi)
+            self._filter(np.vstack([res, dc]), use, out[:, at])
         return out[0], out[1]
 
-    def _unfiltered(
-        self, p: np.ndarray, jacobian: bool, lo: int, hi: int
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """The residuals (and the Jacobian's rows) before the low-pass on ``t[lo:hi]``."""
+    def _unfiltered(self, p: np.ndarray, rows: int, lo: int, hi: int) -> tuple[np.ndarray, ...]:
+        """The residuals on ``t[lo:hi]`` before the low-pass, and ``rows`` of their derivatives
+        (none, 1: in ``c₀``, 14: in every parameter; :func:`._kernels.pair_residuals`)."""
         res = np.empty(hi - lo)
-        jac = np.empty((len(p), hi - lo if jacobian else 0))  # one row per parameter
+        jac = np.empty((max(rows, 1), hi - lo if rows else 0))
         sp = self.spline
         pair_residuals(self.t[lo:hi], self.t_mid, sp.x, sp.c, self.ref[lo:hi], p, res, jac)
         return res, jac
@@ -223,8 +224,9 @@ class Pair:
         filtfilt_at(x, self.sos, self._zi, self._edge, use, filtered)
         out[:] = filtered
 
-    def _with_prior(self, p: np.ndarray, jacobian: bool = False) -> np.ndarray:
-        """:meth:`residuals` and the biases' prior rows ``b / BIAS_PRIOR_M_S2`` (0 ± 1 m/s²).
+    def _with_prior(self, p: np.ndarray, jacobian: bool = False, columns: int = 14) -> np.ndarray:
+        """:meth:`residuals` and the biases' prior rows ``b / BIAS_PRIOR_M_S2`` (0 ± 1 m/s²);
+        with ``jacobian`` the Jacobian in the first ``columns`` parameters.
 
         Without them the fit has a second valley at biases of ~10⁸ m/s², where ‖f + b + K r‖
         is the projection of the joint-centre acceleration on a fixed axis of each sensor: both
@@ -237,10 +239,24 @@ class Pair:
             return np.r_[self.residuals(p), p[6:12] / BIAS_PRIOR_M_S2]
         prior = np.zeros((6, len(p)))
         prior[:, 6:12] = np.eye(6) / BIAS_PRIOR_M_S2
-        return np.vstack([self.residuals(p, jacobian=True), prior])
+        return np.vstack([self.residuals(p, True, columns), prior[:, :columns]])
 
     def cost(self, p: np.ndarray) -> float:
+        """Sum of the squared residuals at ``p``."""
         return float(np.sum(self.residuals(p) ** 2))
+
+    def costs(self, ps: np.ndarray, lanes: int = 8) -> np.ndarray:
+        """:meth:`cost` at each row of ``ps`` (G, 14), the same numbers, ``lanes`` rows low-passed
+        together (:func:`._kernels.filtfilt_at`)."""
+        out = []
+        for chunk in np.array_split(ps, -(-len(ps) // lanes)):
+            res = np.empty((len(chunk), len(self.use)))
+            for lo, hi, at, use in self.parts:
+                rows = np.vstack([self._unfiltered(np.asarray(p, float), 0, lo, hi)[0]
+                                  for p in chunk])  # fmt: skip
+                self._filter(rows, use, res[:, at])
+            out.append(np.sum(res**2, axis=1))
+        return np.concatenate(out)
 
     def body(self, c0: float) -> np.ndarray:
         """r₁, r₂ (m), b₁, b₂ (m/s²) for the offset ``c0`` (s) and no drift."""
@@ -248,7 +264,7 @@ class Pair:
         sol = least_squares(
             lambda q: self._with_prior(np.r_[q, fixed]),
             np.zeros(BODY),
-            jac=lambda q: self._with_prior(np.r_[q, fixed], jacobian=True)[:, :BODY],
+            jac=lambda q: self._with_prior(np.r_[q, fixed], True, BODY),
             x_scale=0.1,
             method="lm",
         )
