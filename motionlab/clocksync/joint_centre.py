@@ -66,6 +66,10 @@ BIAS_PRIOR_M_S2 = 1.0  # prior standard deviation of each accelerometer bias (m/
 # LOWPASS_HZ low-pass falls below 1e-18 of its peak within 3 s (at any rate)
 MARGIN_S = 3.0
 BODY = 12  # parameters besides the clock: two lever arms and two accelerometer biases
+# the levers, biases and the first clock are fitted on at most this much shared movement (s), in
+# BLOCK_S blocks spread evenly over the recording (the blocks' offsets then use all of it): the
+# fits over a whole recording took more iterations the longer it was (see docs/performance.md)
+FIT_MOVING_S = 240.0
 
 
 @dataclass
@@ -134,11 +138,12 @@ def estimate_clock(
     # the low-passed residuals change little within a quarter of the filter's period
     stride = max(1, int(0.25 / (LOWPASS_HZ * dt)))
     pair = Pair(t, ref, b.spline, t_mid, sos, use[::stride])
-    body = pair.body(0.0)
+    fitting = pair.spread(FIT_MOVING_S)  # the levers, biases and first clock: bounded work
+    body = fitting.body(0.0)
     grid = np.arange(-max_offset_s, max_offset_s + 1e-12, GRID_STEP_S)
-    c0 = float(grid[int(np.argmin(pair.costs(np.column_stack([
+    c0 = float(grid[int(np.argmin(fitting.costs(np.column_stack([
         np.tile(body, (len(grid), 1)), grid, np.zeros(len(grid))]))))])  # fmt: skip
-    fit = pair.solve(np.r_[pair.body(c0), c0, 0.0])
+    fit = fitting.solve(np.r_[fitting.body(c0), c0, 0.0])
     half = 0.5 * (t[use[-1]] - t[use[0]])
     fit[-2:], offset_se, drift_se = pair.clock_from_blocks(fit)
     worst_se = float(np.hypot(offset_se, drift_se * half))
@@ -280,6 +285,22 @@ class Pair:
             method="lm",
         ).x
 
+    def blocks(self) -> list[np.ndarray]:
+        """The used samples in runs of ``BLOCK_S`` of movement (none when under three)."""
+        dt = float(np.median(np.diff(self.t[self.use])))  # spacing of the fitted samples
+        n_blocks = int(len(self.use) * dt // BLOCK_S)
+        return np.array_split(self.use, n_blocks) if n_blocks >= 3 else []
+
+    def spread(self, moving_s: float) -> Pair:
+        """The pair on at most ``moving_s`` of its movement: whole :meth:`blocks` spread evenly
+        over the recording (itself when it moves less)."""
+        blocks = self.blocks()
+        keep = int(moving_s // BLOCK_S)
+        if len(blocks) <= keep:
+            return self
+        chosen = np.unique(np.round(np.linspace(0, len(blocks) - 1, keep)).astype(int))
+        return replace(self, use=np.concatenate([blocks[i] for i in chosen]))
+
     def clock_from_blocks(self, p: np.ndarray) -> tuple[np.ndarray, float, float]:
         """c₀ (s), c₁ and their standard errors from offsets fitted block by block (the moving
         samples in runs of ``BLOCK_S``; levers and biases of ``p`` held).
@@ -292,12 +313,12 @@ class Pair:
         Fewer than three blocks: infinite errors.
         """
         dt = float(np.median(np.diff(self.t[self.use])))  # spacing of the fitted samples
-        n_blocks = int(len(self.use) * dt // BLOCK_S)
-        if n_blocks < 3:
+        blocks = self.blocks()
+        if not blocks:
             return p[-2:], np.inf, np.inf
         rows, offsets, weights = [], [], []
         correlation = max(1.0, 0.5 / (LOWPASS_HZ * dt))  # samples per independent residual
-        for block in np.array_split(self.use, n_blocks):
+        for block in blocks:
             part = replace(self, use=block)
             centre = self.t[block].mean() - self.t_mid
             sol = _offset_fit(part, p[:BODY], p[-2:-1] + p[-1] * centre)
