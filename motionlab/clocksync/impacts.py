@@ -107,7 +107,8 @@ def _best_lag(t: np.ndarray, x: np.ndarray, spline: CubicSpline, lags: np.ndarra
     """The lag (s) in ``lags`` (uniform, s) that maximises the correlation of ``x`` at ``t``
     with ``spline`` at ``t + lag``, refined between grid lags by a bounded scalar search;
     its correlation coefficient; whether the maximum is inside the range (not at an end)."""
-    r = np.array([_correlation(x, spline(t + c)) for c in lags])
+    values = spline(t[None, :] + lags[:, None])  # every grid lag in one call
+    r = np.array([_correlation(x, row) for row in values])
     i = int(np.argmax(r))
     inside = 0 < i < len(lags) - 1
     if not inside:
