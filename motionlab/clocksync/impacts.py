@@ -154,28 +154,31 @@ def impact_clock(
         return refused("not enough shared recording")
     t, x = a.time[inside], a.values[inside]
     dt = float(t[1] - t[0])
+    # blocks of the recording in which the reference's envelope has transients: fewer than
+    # three and no lag is searched (the lags below need three)
+    active = x > IMPACT_ACTIVE * np.median(x[x > 0]) if np.any(x > 0) else np.zeros(len(x), bool)
+    active_s = float(active.sum() * dt)
+    n_blocks = int(len(t) * dt // BLOCK_S)
+    blocks = [block for block in np.array_split(np.arange(len(t)), max(n_blocks, 1))
+              if active[block].sum() * dt >= IMPACT_MIN_ACTIVE_S]  # fmt: skip
+    too_few = "not reliable: too few heel strikes (or other shared transients)"
+    if len(blocks) < 3:
+        return refused(too_few, active_s)
     lags = np.arange(-max_offset_s, max_offset_s + 1e-12, dt)
     r = np.array([_correlation(x, np.interp(t + c, b.time, b.values)) for c in lags])
     i = int(np.argmax(r))
     others = np.abs(lags - lags[i]) > IMPACT_PEAK_WIDTH_S
     second = float(r[others].max()) if others.any() else -1.0
     lag, corr, _ = _best_lag(t, x, b.spline, lags[max(i - 1, 0) : i + 2])
-    # blocks of the recording in which the reference's envelope has transients
-    active = x > IMPACT_ACTIVE * np.median(x[x > 0]) if np.any(x > 0) else np.zeros(len(x), bool)
-    n_blocks = int(len(t) * dt // BLOCK_S)
     rows, offsets = [], []
     search = np.arange(-IMPACT_BLOCK_SEARCH_S, IMPACT_BLOCK_SEARCH_S + 1e-12, dt)
-    for block in np.array_split(np.arange(len(t)), max(n_blocks, 1)):
-        if active[block].sum() * dt < IMPACT_MIN_ACTIVE_S:
-            continue
+    for block in blocks:
         c, r_block, ok = _best_lag(t[block], x[block], b.spline, lag + search)
         if ok and r_block >= IMPACT_MIN_CORRELATION:
             rows.append([1.0, float(t[block].mean()) - t_mid])
             offsets.append(c)
-    active_s = float(active.sum() * dt)
     if len(offsets) < 3:
-        return refused("not reliable: too few heel strikes (or other shared transients)",
-                       active_s)  # fmt: skip
+        return refused(too_few, active_s)
     clock, offset_se, drift_se = _line(np.array(rows), np.array(offsets))
     ends = np.array([rows[0][1] - 0.5 * BLOCK_S, rows[-1][1] + 0.5 * BLOCK_S])  # - t_mid
     worst_se = float(np.hypot(offset_se, drift_se * 0.5 * (ends[1] - ends[0])))
