@@ -66,9 +66,9 @@ BIAS_PRIOR_M_S2 = 1.0  # prior standard deviation of each accelerometer bias (m/
 # LOWPASS_HZ low-pass falls below 1e-18 of its peak within 3 s (at any rate)
 MARGIN_S = 3.0
 BODY = 12  # parameters besides the clock: two lever arms and two accelerometer biases
-# the levers, biases and the first clock are fitted on at most this much shared movement (s), in
-# BLOCK_S blocks spread evenly over the recording (the blocks' offsets then use all of it): the
-# fits over a whole recording took more iterations the longer it was (see docs/performance.md)
+# the levers, biases and clock are searched for on at most this much shared movement (s), in
+# BLOCK_S blocks spread evenly over the recording, then refined on all of it from there: the
+# searches over a whole recording took more iterations the longer it was (docs/performance.md)
 FIT_MOVING_S = 240.0
 
 
@@ -138,12 +138,14 @@ def estimate_clock(
     # the low-passed residuals change little within a quarter of the filter's period
     stride = max(1, int(0.25 / (LOWPASS_HZ * dt)))
     pair = Pair(t, ref, b.spline, t_mid, sos, use[::stride])
-    fitting = pair.spread(FIT_MOVING_S)  # the levers, biases and first clock: bounded work
+    fitting = pair.spread(FIT_MOVING_S)  # the search for the levers, biases and clock: bounded
     body = fitting.body(0.0)
     grid = np.arange(-max_offset_s, max_offset_s + 1e-12, GRID_STEP_S)
     c0 = float(grid[int(np.argmin(fitting.costs(np.column_stack([
         np.tile(body, (len(grid), 1)), grid, np.zeros(len(grid))]))))])  # fmt: skip
     fit = fitting.solve(np.r_[fitting.body(c0), c0, 0.0])
+    if fitting is not pair:  # refined on all the movement from close by: a few iterations
+        fit = pair.solve(fit)
     half = 0.5 * (t[use[-1]] - t[use[0]])
     fit[-2:], offset_se, drift_se = pair.clock_from_blocks(fit)
     worst_se = float(np.hypot(offset_se, drift_se * half))
