@@ -182,6 +182,33 @@ def test_the_stage_stores_what_it_returns(typical):
     assert abs(fit.offset_s - result.fits["shank_r"].offset_s) < 1e-6
 
 
+def test_spread_keeps_whole_blocks_evenly_over_the_recording():
+    pair = _random_pair(4, n=20000)
+    pair = dataclasses.replace(pair, use=np.arange(100, 19900, 4))  # 198 s of movement
+    blocks = pair.blocks()
+    assert len(blocks) == 24
+    five = pair.spread(5 * 8.0)
+    np.testing.assert_array_equal(five.use, np.concatenate([blocks[i] for i in (0, 6, 12, 17, 23)]))
+    assert pair.spread(200.0) is pair
+
+
+def test_a_search_on_part_of_the_movement_refined_on_all_gives_the_same_clock(typical, monkeypatch):
+    """A long recording's levers, biases and clock are searched for on ``FIT_MOVING_S`` of its
+    movement and refined on all of it: with the bound below this session's movement (three
+    blocks of its twelve or so), the fit is the one without the bound."""
+    from motionlab.clocksync import joint_centre as jc
+
+    session, _ = typical
+    a, b = session.sensors["thigh_r"], session.sensors["shank_r"]
+    whole = jc.estimate_clock(a, b)
+    monkeypatch.setattr(jc, "FIT_MOVING_S", 3 * jc.BLOCK_S)
+    bounded = jc.estimate_clock(a, b)
+    assert whole.moving_s > 6 * jc.BLOCK_S and bounded.status == whole.status
+    assert abs(bounded.offset_s - whole.offset_s) < 1e-6
+    assert abs(bounded.drift - whole.drift) < 1e-8
+    assert abs(bounded.offset_se_s - whole.offset_se_s) < 1e-6
+
+
 def test_nan_sensor_left_out(knee, typical):
     session, _ = typical
     shank = session.sensors["shank_r"]
