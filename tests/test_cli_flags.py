@@ -107,7 +107,10 @@ def test_every_run_option_is_in_batch_the_manifest_and_its_stage_commands():
     from motionlab.cli import main
     from motionlab.pipeline import RUN_OPTIONS
 
-    run, batch = _flags(main.commands["run"]), _flags(main.commands["batch"])
+    def command(name: str):
+        return main.get_command(None, name)  # the command's module, imported on first use
+
+    run, batch = _flags(command("run")), _flags(command("batch"))
     for name, option in RUN_OPTIONS.items():
         flags = set(option.flag.split("/"))
         assert flags <= run, name
@@ -118,7 +121,7 @@ def test_every_run_option_is_in_batch_the_manifest_and_its_stage_commands():
             assert OPTION_KEYS[option.manifest] == name
             assert option.manifest in TOP_KEYS and option.manifest in SESSION_KEYS
         for stage in option.stages:
-            assert flags <= _flags(main.commands[stage]), (name, stage)
+            assert flags <= _flags(command(stage)), (name, stage)
     assert "--orientation" in batch and OPTION_KEYS["orientation"] == "orientation"
 
 

@@ -39,8 +39,9 @@ def _crop(session, t0: float, t1: float):
     return s
 
 
-def _errors(session, truth) -> dict[str, np.ndarray]:
-    """Per plane the error (deg) over the trunk block, with the truth's zero at the rest."""
+def _errors(session, truth, series: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
+    """Per plane the error (deg) over the trunk block, with the truth's zero at the rest
+    (``series``: the truth's angles per plane on ``truth.time``, default the anatomical)."""
     cols = session.results.angles.columns()
     t = cols["time_s"]
     rest = session.results.calibration.steps["rest"]
@@ -49,7 +50,8 @@ def _errors(session, truth) -> dict[str, np.ndarray]:
     at_rest = (t >= rest[0]) & (t <= rest[1])
     out = {}
     for plane in PLANES:
-        ref = np.interp(t, truth.time, truth.joint_angles[f"lumbar_{plane}_deg"])
+        want = truth.joint_angles[f"lumbar_{plane}_deg"] if series is None else series[plane]
+        ref = np.interp(t, truth.time, want)
         out[plane] = (cols[f"lumbar_{plane}_deg"] - (ref - ref[at_rest].mean()))[inside]
     return out
 
@@ -64,11 +66,84 @@ def test_seated_continuous_trunk_movement_gives_the_lumbar_angles(seated):
     assert rest[1] - rest[0] >= 1.0
     err = _errors(session, truth)
     rmse = {p: float(np.sqrt(np.mean(e**2))) for p, e in err.items()}
-    # measured (seed 2, 50 Hz): 1.1 / 1.4 / 0.9°, within the issue's 1.5° per plane; seed 2
-    # rests standing, the other seeds rest seated with the thorax flexed 10° and reach 6° in
-    # lateral bending (bench/seated_trunk_sim.py, docs/kinematics.md), hence the looser bound
+    # measured (seed 2, 50 Hz): 1.0 / 1.1 / 0.4° (1.1 / 1.3 / 1.0° with the covariance's axes)
     assert rmse["flexion"] < 1.5 and rmse["axial_rotation"] < 1.5
-    assert rmse["lateral_bending"] < 2.0
+    assert rmse["lateral_bending"] < 1.5
+
+
+def _bench(name: str):
+    """A bench script as a module (``bench/<name>.py``)."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "bench" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_everyday_movement_does_not_pull_the_flexion_axis():
+    """Seed 6 rests seated at the start and then moves about everyday (standing up, a turn)
+    after the trunk block: the principal axes of the rate's covariance were pulled 18° off the
+    thorax's flexion axis (3.6 / 6.0 / 3.2° RMSE); the axes voted for by the samples are not.
+    Against the anatomical truth what is left is the convention (the thorax flexed 10° over the
+    pelvis at the seated rest, which the rest's vertical, the protocol's y, does not follow);
+    in the protocol's convention the angles are within a degree (docs/kinematics.md)."""
+    session, truth = simulate("lumbar_seated", duration=40, seed=6, preset="typical", rate_hz=50)
+    analyse(session, OPTIONS)
+    m = np.asarray(session.results.calibration.segments["thorax"]["mounting"], float)
+    true_z = rot.to_matrix(rot.conj(np.asarray(truth.sensors["thorax"]["mounting"])))[:, 2]
+    z = (rot.to_matrix(m) if m.shape == (4,) else m)[:, 2]
+    assert np.degrees(np.arccos(abs(z @ true_z))) < 3.0  # measured 0.4° (17.9° before)
+    rmse = {p: float(np.sqrt(np.mean(e**2))) for p, e in _errors(session, truth).items()}
+    # measured 1.04 / 2.44 / 1.95°
+    assert rmse["flexion"] < 1.5 and rmse["lateral_bending"] < 3.0
+    assert rmse["axial_rotation"] < 2.5
+    rest = session.results.calibration.steps["rest"]
+    convention = _bench("seated_trunk_sim").rest_convention_truth(truth, tuple(rest))
+    rmse = {p: float(np.sqrt(np.mean(e**2)))
+            for p, e in _errors(session, truth, convention).items()}  # fmt: skip
+    # measured 0.85 / 0.17 / 0.23°
+    assert max(rmse.values()) < 1.2, rmse
+
+
+def test_the_axis_vote_finds_flexion_and_bending_among_other_movement():
+    """Flexion about z and lateral bending about x (a third of its energy), plus as much
+    energy again about directions spread around the vertical's plane: the voted pair is within
+    1° of (z, x), where the covariance's principal axes turn by several degrees."""
+    from motionlab.segments.trunk_axes import _horizontal_axes
+
+    rng = np.random.default_rng(4)
+    n = 3000
+    flex = np.c_[np.zeros(n), np.zeros(n), 1.5 * np.sin(np.linspace(0, 40, n))]
+    bend = np.c_[0.9 * np.sin(np.linspace(0, 31, n)), np.zeros(n), np.zeros(n)]
+    turn = rng.uniform(0, np.pi, n)
+    other = (
+        1.2 * np.c_[np.cos(turn + 0.5), np.zeros(n), np.sin(turn + 0.5)] * rng.normal(size=(n, 1))
+    )
+    other[turn > 1.2] *= 0.2
+    w = np.r_[flex, bend, other]
+    w[:, 1] += rng.normal(0, 0.5, len(w))  # rotation about the vertical does not vote
+    axes, energy = _horizontal_axes(w, np.array([0.0, 1.0, 0.0]), np.ones(len(w), bool))
+    got = np.degrees(np.arccos(np.clip(abs(axes[0] @ [0, 0, 1.0]), 0, 1)))
+    assert got < 1.0 and abs(axes[1] @ [1.0, 0, 0]) > np.cos(np.radians(1.0))
+    assert energy[0] > energy[1]
+    c = np.cov(w[:, [0, 2]].T)  # what the covariance says: pulled by the other movement
+    v = np.linalg.eigh(c)[1][:, -1]
+    assert np.degrees(np.arccos(abs(v[1]))) > 3.0
+
+
+def test_the_lean_ignores_a_turn_about_the_vertical():
+    """The thorax's lean since the rest is its tilt: a whole-body turn (or the turn between a
+    trunk block and a standing rest at the end) adds nothing to it."""
+    from motionlab.segments.trunk_axes import _lean
+
+    q_rest = rot.from_rotvec(np.array([0.0, 0.0, 0.7]))  # sensor x, y horizontal at the rest
+    lean = rot.mul(q_rest, rot.from_rotvec(np.array([0.3, 0.0, 0.0])))
+    turned = rot.mul(rot.from_rotvec(np.array([0.0, 0.0, 1.6])), lean)
+    for q in (lean, turned):
+        assert np.allclose(_lean(q[None], q_rest)[0], [0.3, 0.0, 0.0], atol=1e-9)
 
 
 def test_a_recording_that_starts_moving_and_rests_only_at_the_end(seated):
@@ -139,3 +214,29 @@ def test_the_lumbar_protocol_refusing_a_seated_recording_names_lumbar_seated(sea
     stages.fuse(session)
     with pytest.raises(InputError, match="the shipped protocol 'lumbar_seated' fits"):
         stages.calibrate(session, "lumbar")
+
+
+def test_the_trunk_movement_is_measured_as_one_block(seated, tmp_path):
+    """A trunk protocol without tasks measures the movement its calibration found: the ranges
+    of motion over that block, with no repetitions counted (movements in any order are not
+    cycles); a user needs no YAML edit for a range of motion. The report shows the block's
+    range and no page of cycles it did not find."""
+    from motionlab.report import load_views, write_report
+
+    session, _ = seated
+    session = _crop(session, 0.0, 1e9)
+    analyse(session, OPTIONS)
+    start, end = session.results.calibration.steps["trunk_movement"]
+    block = session.results.metrics.joints["trunk_movement"]
+    cols = session.results.angles.columns()
+    inside = (cols["time_s"] >= start) & (cols["time_s"] < end)
+    for plane in PLANES:
+        m = block[f"lumbar_{plane}_deg"]
+        assert m["repetitions"] == 0
+        assert m["rom_deg"] == pytest.approx(np.ptp(cols[f"lumbar_{plane}_deg"][inside]), abs=0.5)
+    assert block["lumbar_flexion_deg"]["rom_deg"] > 40  # the simulated forward bend and back
+    out = write_report(load_views([session]), tmp_path / "report.pdf")
+    assert "Lumbar spine" in out.sections
+    assert not [s for s in out.sections if "cycles against normal" in s]
+    text = out.text_path.read_text()
+    assert "trunk movement" in text and "Range of motion" in text

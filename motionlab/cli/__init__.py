@@ -3,6 +3,11 @@
 Each command only parses, calls the library, prints, and maps errors to exit codes:
 :class:`~motionlab.errors.InputError` → one line on stderr and exit 2; any other exception is a
 bug → exit 1 (``motionlab --debug ...`` shows the traceback).
+
+A command's module is imported when the command is looked up (:data:`COMMANDS`), so that
+``import motionlab.cli`` and ``motionlab --help`` import neither the pipeline nor numba, scipy or
+matplotlib; ``motionlab --help`` lists the commands with their one-line help from that table
+(``tests/test_cli_lazy.py`` holds it equal to each command's own).
 """
 
 from __future__ import annotations
@@ -10,25 +15,76 @@ from __future__ import annotations
 import sys
 import traceback
 import warnings
+from importlib import import_module
 
 import click
+from click.utils import make_default_short_help
 
 from motionlab import __version__
-from motionlab.cli.flags import cli_error
 from motionlab.errors import InputError
 
 EXIT_BAD_INPUT = 2
 EXIT_BUG = 1
 
 
+#: command → its one-line help (the first sentence of its docstring) for ``motionlab --help``;
+#: the command is ``motionlab.cli.<command>.command``
+COMMANDS = {
+    "angles": "Compute joint angles (degrees) and store them in the session.",
+    "batch": "Process every session of the study MANIFEST (study.yaml) as 'motionlab run' does.",
+    "calibrate": "Find the protocol's calibration steps, fit each segment's mounting, report "
+    "quality.",
+    "demo": "Run 'motionlab run' on the bundled examples: a simulated bilateral knee session and "
+    "a simulated elbow session, both with optical markers (so the report has its validation "
+    "pages).",
+    "export": "Write SESSION's results in another tool's format.",
+    "fuse": "Estimate each sensor's orientation (sensor → ENU earth) and store it in the session.",
+    "info": "Summarise a session file: sensors, rates, gaps, QC flags, markers, results.",
+    "ingest": "Read recording FILES into one session file.",
+    "metrics": "Per task, joint and plane: range of motion, peaks, repetitions, mean ± SD cycle "
+    "curve; and the protocol's out-of-plane metrics (cross-talk, lumbar out-of-plane offset, "
+    "trunk compensation, knee varus thrust and stance rotation).",
+    "report": "Write the report of analysed SESSIONS (from motionlab run, or calibrate + angles "
+    "+ metrics).",
+    "run": "Analyse recording FILES (or one session file) from raw data to the report.",
+    "sensorcal": "Calibrate each sensor of SOURCE (a session or a vendor file) and file it by "
+    "serial.",
+    "simulate": "Simulate a recording of PROTOCOL: IMU signals, optical markers and the exact "
+    "truth.",
+    "sync": "Estimate each IMU's clock offset and drift against its neighbour's and correct the "
+    "stamps.",
+    "validate": "Compare SESSION with an optical reference: clock sync, frame alignment, "
+    "orientation errors and joint-angle agreement; results go into the session for the report.",
+}
+
+
 class MotionlabGroup(click.Group):
-    """Click group that turns exceptions into one clear line and an exit code."""
+    """Click group that imports a command's module when the command is used, and turns
+    exceptions into one clear line and an exit code."""
+
+    def list_commands(self, ctx: click.Context) -> list[str]:
+        return sorted(COMMANDS)
+
+    def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
+        if cmd_name not in COMMANDS:
+            return None
+        return import_module(f"motionlab.cli.{cmd_name}").command
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        """The commands and their one-line help, from :data:`COMMANDS` (no module imported)."""
+        names = self.list_commands(ctx)
+        limit = formatter.width - 6 - max(len(n) for n in names)
+        rows = [(n, make_default_short_help(COMMANDS[n], limit)) for n in names]
+        with formatter.section("Commands"):
+            formatter.write_dl(rows)
 
     def invoke(self, ctx: click.Context):
         try:
             with warnings.catch_warnings():  # main() silences numpy's warnings in here
                 return super().invoke(ctx)
         except InputError as exc:
+            from motionlab.cli.flags import cli_error  # reads the run options' table
+
             if ctx.obj and ctx.obj.get("debug"):
                 traceback.print_exc()
             click.echo(f"error: {cli_error(exc).line()}", err=True)
@@ -65,36 +121,3 @@ def main(ctx: click.Context, debug: bool) -> None:
     ctx.obj["debug"] = debug
     if not debug:  # numpy's RuntimeWarnings are no message for the user: QC flags and errors are
         warnings.simplefilter("ignore", RuntimeWarning)
-
-
-def _register() -> None:
-    from motionlab.cli import (
-        angles,
-        calibrate,
-        demo,
-        fuse,
-        info,
-        ingest,
-        metrics,
-        report,
-        run,
-        sensorcal,
-        simulate,
-        sync,
-    )
-
-    for module in (info, ingest, sync, sensorcal, calibrate, angles, metrics, fuse, simulate, run,
-                   report, demo):  # fmt: skip
-        main.add_command(module.command)
-    from motionlab.cli import validate
-
-    main.add_command(validate.command)
-    from motionlab.cli import batch
-
-    main.add_command(batch.command)
-    from motionlab.cli import export
-
-    main.add_command(export.command)
-
-
-_register()

@@ -3,14 +3,9 @@
 from __future__ import annotations
 
 import click
-import numpy as np
-import pandas as pd
 
-from motionlab import stages
 from motionlab.atomic import atomic_path, check_output
 from motionlab.cli.paths import INPUT_FILE, OUTPUT_FILE
-from motionlab.lock import session_lock
-from motionlab.session import load_session, save_session
 
 
 @click.command("angles")
@@ -40,6 +35,13 @@ def command(
     Example:
       motionlab angles session.h5 --csv angles.csv
     """
+    import numpy as np
+    import pandas as pd
+
+    from motionlab import stages
+    from motionlab.lock import session_lock
+    from motionlab.session import load_session, save_session
+
     if csv_path:
         check_output(csv_path, force, inputs=[session, protocol_path])
     with session_lock(session):  # read-modify-write: one writer at a time

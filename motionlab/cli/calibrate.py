@@ -4,11 +4,7 @@ from __future__ import annotations
 
 import click
 
-from motionlab import stages
 from motionlab.cli.paths import INPUT_FILE
-from motionlab.lock import session_lock
-from motionlab.protocol import load_protocol
-from motionlab.session import load_session, save_session
 
 
 @click.command("calibrate")
@@ -22,6 +18,11 @@ def command(session: str, protocol_path: str, force: bool) -> None:
     Example:
       motionlab calibrate session.h5 --protocol knee
     """
+    from motionlab import stages
+    from motionlab.lock import session_lock
+    from motionlab.protocol import load_protocol
+    from motionlab.session import load_session, save_session
+
     protocol = load_protocol(protocol_path)
     with session_lock(session):  # read-modify-write: one writer at a time
         ses = load_session(session)

@@ -8,7 +8,6 @@ from pathlib import Path
 import click
 
 from motionlab.cli.paths import FOLDER
-from motionlab.pipeline import PipelineOptions, run_pipeline
 
 DEMO_DIR = Path(__file__).resolve().parent.parent / "data" / "demo"
 #: example name → (session file in DEMO_DIR, protocol)
@@ -38,6 +37,8 @@ def command(outdir: str, only: str | None, force: bool, quiet: bool) -> None:
       motionlab demo -o demo
       motionlab demo --only knee -o demo --force
     """
+    from motionlab.pipeline import PipelineOptions, run_pipeline
+
     t0 = time.perf_counter()
     reports = []
     for name, (file, protocol) in EXAMPLES.items():

@@ -9,8 +9,6 @@ import click
 
 from motionlab.cli.paths import INPUT_FILE
 from motionlab.lineage import rerun
-from motionlab.session import load_session
-from motionlab.summary import session_summary
 
 
 @click.command("info")
@@ -24,6 +22,9 @@ def command(session: str, as_json: bool) -> None:
       motionlab info session.h5
       motionlab info session.h5 --json
     """
+    from motionlab.session import load_session
+    from motionlab.summary import session_summary
+
     summary = session_summary(load_session(session))
     if as_json:
         click.echo(json.dumps(_no_nan(summary), indent=2, default=float))

@@ -3,15 +3,10 @@
 from __future__ import annotations
 
 import click
-import numpy as np
 
-from motionlab import stages
 from motionlab.atomic import atomic_path, check_output
 from motionlab.cli.paths import INPUT_FILE, OUTPUT_FILE
 from motionlab.errors import InputError
-from motionlab.kinematics.metrics import metrics_table
-from motionlab.lock import session_lock
-from motionlab.session import load_session, save_session
 
 
 def _parse_tasks(items: tuple[str, ...]) -> dict[str, tuple[float, float]] | None:
@@ -63,6 +58,13 @@ def command(
       motionlab metrics session.h5 --csv metrics.csv
       motionlab metrics session.h5 --task gait=95:150 --task squat=152:180 --force
     """
+    import numpy as np
+
+    from motionlab import stages
+    from motionlab.kinematics.metrics import metrics_table
+    from motionlab.lock import session_lock
+    from motionlab.session import load_session, save_session
+
     if csv_path:
         check_output(csv_path, force, inputs=[session, protocol_path])
     with session_lock(session):  # read-modify-write: one writer at a time

@@ -8,10 +8,6 @@ import click
 
 from motionlab.atomic import refuse_input_as_output
 from motionlab.cli.paths import FOLDER, INPUT_FILE, OUTPUT_FILE
-from motionlab.lineage import refuse_stale
-from motionlab.protocol import load_protocol
-from motionlab.report import load_views, write_report
-from motionlab.session import load_session
 
 
 @click.command("report")
@@ -41,6 +37,11 @@ def command(sessions, output, csv_dir, protocol_path, force) -> None:
       motionlab report results/P017/session.h5 -o P017.pdf --csv P017_tables
       motionlab report visit1/session.h5 visit2/session.h5 -o P017_progress.pdf
     """
+    from motionlab.lineage import refuse_stale
+    from motionlab.protocol import load_protocol
+    from motionlab.report import load_views, write_report
+    from motionlab.session import load_session
+
     outputs = [Path(output), Path(output).with_suffix(".txt")]
     for out in outputs:
         refuse_input_as_output(out, [*sessions, protocol_path])

@@ -4,12 +4,7 @@ from __future__ import annotations
 
 import click
 
-from motionlab import stages
 from motionlab.cli.paths import INPUT_FILE
-from motionlab.clocksync import describe
-from motionlab.lock import session_lock
-from motionlab.protocol import load_protocol
-from motionlab.session import load_session, save_session
 
 
 @click.command("sync")
@@ -31,6 +26,12 @@ def command(session: str, protocol_path: str, force: bool) -> None:
     Example:
       motionlab sync session.h5 --protocol knee
     """
+    from motionlab import stages
+    from motionlab.clocksync import describe
+    from motionlab.lock import session_lock
+    from motionlab.protocol import load_protocol
+    from motionlab.session import load_session, save_session
+
     protocol = load_protocol(protocol_path)
     with session_lock(session):  # read-modify-write: one writer at a time
         ses = load_session(session)

@@ -1,7 +1,9 @@
 """Metrics per task block, joint and plane, and the out-of-plane metrics; one tidy CSV table.
 
 Per task block (the protocol's ``tasks``; times from the simulator's truth, the protocol's
-``time_range`` or :func:`~motionlab.segments.steps.find_tasks`) and per angle column (degrees):
+``time_range`` or :func:`~motionlab.segments.steps.find_tasks`; a trunk protocol without tasks,
+such as ``lumbar_seated``, measures the trunk movement its calibration found, as one block
+without repetitions) and per angle column (degrees):
 
 - ``rom_deg``, ``min_deg``, ``max_deg`` over the block;
 - ``repetitions``: the cycles found — strides (heel strike to heel strike, from the shank's
@@ -43,7 +45,13 @@ from motionlab.kinematics.session_angles import (
 )
 from motionlab.protocol import Joint, Protocol, Task
 from motionlab.results import Metrics, SegmentCalibration
-from motionlab.segments import reference_step, segment_orientations, sensor_for_segment, streams_of
+from motionlab.segments import (
+    reference_step,
+    segment_orientations,
+    sensor_for_segment,
+    streams_of,
+    trunk_axes,
+)
 from motionlab.segments.steps import find_tasks
 from motionlab.session import Session, estimate_rate
 
@@ -176,6 +184,8 @@ def compute_metrics(
                     stance["heel_strike_s"] = time[win][cycles.start]
                     stance["toe_off_s"] = time[win][cycles.peak]
                     out.setdefault("gait", {}).setdefault(name, {})[joint.name] = stance
+            elif task is None and name in steps:
+                cycles = cyc.Cycles.empty()  # a calibration movement in any order: no cycles
             else:
                 plane = primary_plane(joint, task)
                 cycles = cyc.find_repetitions(table[cols[plane]][win], rate)
@@ -261,6 +271,12 @@ def session_metrics(
     steps = {k: tuple(v) for k, v in cal.steps.items() if v is not None}
     if tasks is None and cal.single_pose:
         tasks, source = {}, "detected"  # the recording is the calibration pose: no task in it
+    elif tasks is None and not protocol.tasks and trunk_axes.applies(protocol):
+        # the trunk movement, in any order, is both the calibration's movement and what a
+        # clinician wants measured: its range of motion is the block's
+        move = next(s.name for s in protocol.calibration if s.axis_method == trunk_axes.METHOD)
+        tasks = {move: steps[move]} if move in steps else {}
+        source = "calibration movement"
     elif tasks is None:
         after = max((v[1] for v in steps.values()), default=-np.inf)
         tasks = find_tasks(streams_of(session, protocol), protocol, after_s=after)

@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from motionlab.binding import sensed_protocol
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, plane, title
 from motionlab.kinematics.metrics import THORAX as THORAX  # re-exported for the pages
@@ -146,7 +147,9 @@ def symmetric_type(joint_type: str) -> bool:
 def load_view(session: Session, protocol: Protocol | None = None, path: Path | None = None):
     """A :class:`SessionView` of an analysed session (angles and metrics present).
 
-    ``protocol`` defaults to the one the calibration used (its file, else the packaged name).
+    ``protocol`` defaults to the one the calibration used (its file, else the packaged name);
+    its joints on an optional segment without a sensor are left out, as the analysis left them
+    (:func:`motionlab.binding.sensed_protocol`).
     """
     res = session.results
     missing = [k for k in ("calibration", "angles", "metrics") if k not in res.stages()]
@@ -174,6 +177,7 @@ def load_view(session: Session, protocol: Protocol | None = None, path: Path | N
                 "give the protocol file as protocol=",
                 argument="protocol",
             )
+    protocol = sensed_protocol(protocol, session)
     return SessionView(session, protocol, path, res.angles.columns(), res.metrics)
 
 

@@ -91,11 +91,14 @@ def _time_page(doc: Document, view: SessionView, joint) -> None:
             ax.set_xlabel("time (s)")
         else:
             ax.tick_params(labelbottom=False)
+    handles = [Patch(color="#f0f0f0", label="task block")] if blocks else []
+    if any(normal_range(view.protocol, task, col) is not None
+           for task in blocks for _, col in angle_columns(joint)):  # fmt: skip
+        handles.append(Patch(color=BAND_COLOUR, alpha=0.5, label="normal range of the task"))
+    if not handles:
+        return
     axes[0][0].legend(
-        handles=[
-            Patch(color="#f0f0f0", label="task block"),
-            Patch(color=BAND_COLOUR, alpha=0.5, label="normal range of the task"),
-        ],
+        handles=handles,
         loc="lower right",
         bbox_to_anchor=(1.0, 1.0),
         ncol=2,
@@ -140,14 +143,15 @@ def _rom_table(doc: Document, view: SessionView, joint) -> None:
             "Grade",
         ],
         rows,
-        [0.12, 0.19, 0.12, 0.09, 0.07, 0.1, 0.14, 0.17],
+        [0.11, 0.18, 0.12, 0.09, 0.09, 0.1, 0.14, 0.17],
         flagged,
         align=["l", "l", "r", "r", "r", "r", "r", "r"],
         muted=muted,
     )
     doc.paragraph(
-        "Typical range: means of the lowest and highest angle of each cycle. Full ROM: highest "
-        "minus lowest angle over the whole task. A range is flagged when it leaves the normal "
+        "Typical range: means of the lowest and highest angle of each cycle (a task without "
+        "cycles: its lowest and highest angle). Full ROM: highest minus lowest angle over the "
+        "whole task. A range is flagged when it leaves the normal "
         "range by more than 5°, or a flexion peak falls 10° short of its top. Grade: whether the "
         "recording determined the angle (see the "
         "calibration page); only a determined range is compared.",
@@ -223,8 +227,15 @@ def draw_cycle(ax: Axes, view: SessionView, joint, task: str, angle: str, col: s
     ax.set_ylabel(f"{angle.replace('_', ' ')} (°)")
 
 
+def _has_cycles(view: SessionView, joint, task: str) -> bool:
+    """Whether the metrics found repetitions of ``joint`` in ``task`` (a calibration movement
+    measured as one block has none, and no cycle page)."""
+    per_col = view.metrics.joints.get(task, {})
+    return any(per_col.get(col, {}).get("repetitions", 0) for _, col in angle_columns(joint))
+
+
 def _cycle_pages(doc: Document, view: SessionView, joint) -> None:
-    tasks = view.tasks()
+    tasks = [task for task in view.tasks() if _has_cycles(view, joint, task)]
     for k in range(0, len(tasks), TASKS_PER_PAGE):
         chunk = tasks[k : k + TASKS_PER_PAGE]
         doc.section(

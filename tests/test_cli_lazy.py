@@ -1,0 +1,63 @@
+"""The command line imports what a command needs when it runs: ``import motionlab.cli`` and
+``motionlab --help`` import neither the pipeline nor numba, scipy or matplotlib, and the light
+commands' ``--help`` neither (checked in a fresh interpreter through ``sys.modules``; no timing).
+``motionlab --help`` lists each command with the one-line help of ``cli.COMMANDS``, which must be
+the command's own."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import click
+import pytest
+from click.utils import make_default_short_help
+from conftest import ROOT
+
+from motionlab.cli import COMMANDS, main
+
+HEAVY = ("numba", "scipy", "matplotlib", "pandas", "h5py", "motionlab.pipeline", "motionlab.report")
+#: commands whose options need no library table (run and batch read the pipeline's options,
+#: fuse, ingest, simulate, validate, export and sensorcal their choices and defaults from
+#: library modules that import numpy and scipy)
+LIGHT = ("info", "angles", "calibrate", "metrics", "sync", "report", "demo")
+
+
+def _imported_after(code: str) -> list[str]:
+    probe = f"{code}\nimport sys\nprint(' '.join(m for m in {HEAVY!r} if m in sys.modules))"
+    out = subprocess.run(
+        [sys.executable, "-c", probe], cwd=ROOT, capture_output=True, text=True, check=True
+    )
+    return out.stdout.split()
+
+
+def test_import_cli_imports_nothing_heavy():
+    assert _imported_after("import motionlab.cli") == []
+
+
+@pytest.mark.parametrize("args", [["--help"], *[[c, "--help"] for c in LIGHT]])
+def test_help_imports_nothing_heavy(args):
+    code = (
+        "from click.testing import CliRunner\nfrom motionlab.cli import main\n"
+        f"r = CliRunner().invoke(main, {args!r})\nassert r.exit_code == 0, r.output\n"
+    )
+    assert _imported_after(code) == []
+
+
+def test_one_line_help_is_each_commands_own():
+    ctx = click.Context(main)
+    assert main.list_commands(ctx) == sorted(COMMANDS)
+    for name, short in COMMANDS.items():
+        command = main.get_command(ctx, name)
+        assert command.name == name
+        for limit in (30, 45, 60, 80, 400):
+            assert make_default_short_help(short, limit) == command.get_short_help_str(limit)
+    assert main.get_command(ctx, "no-such-command") is None
+
+
+def test_the_listing_names_every_command():
+    text = subprocess.run(
+        [sys.executable, "-m", "motionlab", "--help"], cwd=ROOT, capture_output=True, text=True
+    ).stdout
+    for name in COMMANDS:
+        assert f"\n  {name} " in text, name
