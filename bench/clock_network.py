@@ -31,6 +31,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
 from motionlab import clocksync as cs  # noqa: E402
+from motionlab.binding import sensor_for_segment  # noqa: E402
 from motionlab.pipeline import prepare_sensors  # noqa: E402
 from motionlab.protocol import load_protocol  # noqa: E402
 from motionlab.simulate import simulate  # noqa: E402
@@ -52,15 +53,15 @@ def _per_pair(session, protocol) -> None:
     clock (the code the network replaced, step for step), in place."""
     moved = {}
     for ref_seg, seg in cs.sync_tree(session, protocol):
-        ref = cs.sensor_for_segment(session, ref_seg)
-        label = cs.sensor_for_segment(session, seg)
+        ref = sensor_for_segment(session, ref_seg)
+        label = sensor_for_segment(session, seg)
         a, b = session.sensors[ref], session.sensors[label]
         fit = cs.choose(cs.estimate_clock(a, b), cs.impact_clock(a, b))
         use = fit if fit.status == "applied" else None
         if fit.status.startswith("not reliable"):
             use = moved.get(ref)
         if use is not None:
-            cs._apply(session, label, use)
+            cs.stage._apply(session, label, use)
             moved[label] = use
 
 
@@ -78,7 +79,7 @@ def run_one(kind: str, seed: int) -> dict:
     row: dict = {"kind": kind, "seed": seed}
     for name, sync in (("per pair", _per_pair), ("network", cs.synchronise)):
         ses = dataclasses.replace(session, sensors=dict(prepared))
-        sync(ses, protocol)
+        fits = sync(ses, protocol)
         grid = np.linspace(truth.time[0] + 10.0, truth.time[-1] - 10.0, 2000)  # true time (s)
         err = {}
         for k, s in ses.sensors.items():
@@ -88,7 +89,7 @@ def run_one(kind: str, seed: int) -> dict:
         if name == "network":
             row["notes"] = [
                 f"{f.sensor}: {part}"
-                for f in ses.results.clock_sync.fits.values()
+                for f in fits
                 for part in f.other.split("; ")
                 if part.startswith(("set aside", "disagreeing"))
             ]

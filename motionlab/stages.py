@@ -32,11 +32,18 @@ from motionlab.errors import InputError
 from motionlab.ingest import DEFAULT_GAP_MAX, check_and_fill
 from motionlab.lineage import protocol_sha256, refuse_stale
 from motionlab.protocol import Protocol, load_protocol
-from motionlab.results import AngleTable, FusionEntry, Gait, Metrics, SegmentCalibration, Validation
+from motionlab.results import (
+    AngleTable,
+    ClockSync,
+    FusionEntry,
+    Gait,
+    Metrics,
+    SegmentCalibration,
+    Validation,
+)
 from motionlab.session import Session
 
 if TYPE_CHECKING:
-    from motionlab.clocksync import ClockFit
     from motionlab.session import MarkerSet
     from motionlab.validation.markermap import MarkerMap
 
@@ -120,19 +127,20 @@ def sync(
     *,
     force: bool = False,
     path: Any = None,
-) -> list[ClockFit]:
-    """Put the protocol's IMUs on one clock (:func:`motionlab.clocksync.synchronise`);
-    ``results.clock_sync`` holds every fit. Prepares sensors without QC first
-    (:func:`prepare`). ``force`` redoes it from the recorded stamps."""
+) -> ClockSync:
+    """Put the protocol's IMUs on one clock (:func:`motionlab.clocksync.synchronise`), every
+    fit stored in ``results.clock_sync`` (by sensor, in the order made). Prepares sensors
+    without QC first (:func:`prepare`). ``force`` redoes it from the recorded stamps."""
     from motionlab.clocksync import synchronise
 
     done = session.results.clock_sync is not None
     refuse_to_redo(done, "clock_sync", "a clock synchronisation", force, path)
     prepare(session)
     protocol = stage_protocol(session, protocol, path)
-    fits = synchronise(session, protocol)
+    result = ClockSync({fit.sensor: fit for fit in synchronise(session, protocol)})
+    session.results.clock_sync = result
     session.lineage.record(session.results, "clock_sync", protocol)
-    return fits
+    return result
 
 
 @dataclass

@@ -110,7 +110,7 @@ def test_synchronise_then_restore(knee, typical):
         true_label = np.interp(t, s.time, truth.sensors[label]["sample_time"])
         assert np.max(np.abs(true_label - true_pelvis)) < 0.003, label
         assert s.attrs["clock_sync"]["reference"] in ("pelvis", "thigh_r", "thigh_l")
-    assert set(session.results.clock_sync.fits) == {"thigh_r", "thigh_l", "shank_r", "shank_l"}
+    assert {f.sensor for f in fits} == {"thigh_r", "thigh_l", "shank_r", "shank_l"}
     unsynchronise(session)
     for k, s in session.sensors.items():
         np.testing.assert_allclose(s.time, recorded[k], atol=1e-9, rtol=0)
@@ -162,6 +162,53 @@ def test_sync_command(tmp_path, typical):
     assert forced.output == res.output  # redone from the recorded stamps: the same fits
 
 
+def test_the_stage_stores_what_it_returns(typical):
+    """``stages.sync`` stores its :class:`ClockSync` in ``results.clock_sync`` and returns that
+    record, as the other stages do; the library's ``synchronise`` leaves the results alone."""
+    from motionlab import stages
+    from motionlab.results import ClockSync
+
+    session, _ = typical
+    keep = {k: v for k, v in session.sensors.items() if k in ("thigh_r", "shank_r")}
+    ses = dataclasses.replace(session, sensors=keep, results=Results())
+    result = stages.sync(ses, "knee")
+    assert isinstance(result, ClockSync) and result is ses.results.clock_sync
+    assert list(result.fits) == ["shank_r"] and result.fits["shank_r"].status == "applied"
+    library = dataclasses.replace(session, sensors=dict(keep), results=Results())
+    fits = synchronise(library, load_protocol("knee"))
+    assert library.results.clock_sync is None
+    (fit,) = fits  # the same fit (the stage prepares the sensors first: last bits differ)
+    assert fit.status == result.fits["shank_r"].status
+    assert abs(fit.offset_s - result.fits["shank_r"].offset_s) < 1e-6
+
+
+def test_spread_keeps_whole_blocks_evenly_over_the_recording():
+    pair = _random_pair(4, n=20000)
+    pair = dataclasses.replace(pair, use=np.arange(100, 19900, 4))  # 198 s of movement
+    blocks = pair.blocks()
+    assert len(blocks) == 24
+    five = pair.spread(5 * 8.0)
+    np.testing.assert_array_equal(five.use, np.concatenate([blocks[i] for i in (0, 6, 12, 17, 23)]))
+    assert pair.spread(200.0) is pair
+
+
+def test_a_search_on_part_of_the_movement_refined_on_all_gives_the_same_clock(typical, monkeypatch):
+    """A long recording's levers, biases and clock are searched for on ``FIT_MOVING_S`` of its
+    movement and refined on all of it: with the bound below this session's movement (three
+    blocks of its twelve or so), the fit is the one without the bound."""
+    from motionlab.clocksync import joint_centre as jc
+
+    session, _ = typical
+    a, b = session.sensors["thigh_r"], session.sensors["shank_r"]
+    whole = jc.estimate_clock(a, b)
+    monkeypatch.setattr(jc, "FIT_MOVING_S", 3 * jc.BLOCK_S)
+    bounded = jc.estimate_clock(a, b)
+    assert whole.moving_s > 6 * jc.BLOCK_S and bounded.status == whole.status
+    assert abs(bounded.offset_s - whole.offset_s) < 1e-6
+    assert abs(bounded.drift - whole.drift) < 1e-8
+    assert abs(bounded.offset_se_s - whole.offset_se_s) < 1e-6
+
+
 def test_nan_sensor_left_out(knee, typical):
     session, _ = typical
     shank = session.sensors["shank_r"]
@@ -202,11 +249,11 @@ def test_short_movement_is_not_reliable(typical):
 
 
 def _random_pair(seed: int = 0, n: int = 1200, rate: float = 100.0):
-    """A :class:`_Pair` of smooth random signals (10 Hz band) on a 100 Hz grid."""
+    """A :class:`Pair` of smooth random signals (10 Hz band) on a 100 Hz grid."""
     from scipy.interpolate import CubicSpline
     from scipy.signal import butter, sosfiltfilt
 
-    from motionlab.clocksync import _Pair
+    from motionlab.clocksync.joint_centre import Pair
 
     rng = np.random.default_rng(seed)
     t = np.arange(n) / rate
@@ -216,7 +263,7 @@ def _random_pair(seed: int = 0, n: int = 1200, rate: float = 100.0):
     other[:, 2] += 9.81
     ref[:, 2] += 9.81
     sos = butter(4, 6.0, fs=rate, output="sos")
-    return _Pair(
+    return Pair(
         t, ref, CubicSpline(t, other, axis=0), float(t.mean()), sos, np.arange(100, 1100, 4)
     )
 
@@ -226,13 +273,13 @@ def test_pair_residuals_are_the_joint_centre_norms_low_passed():
     spline called, scipy's sosfiltfilt)."""
     from scipy.signal import sosfiltfilt
 
-    from motionlab.clocksync import _centre
+    from motionlab.clocksync.joint_centre import centre
 
     pair = _random_pair()
     p = np.array([0.1, -0.2, 0.05, -0.1, 0.15, 0.2, 0.3, -0.1, 0.2, -0.3, 0.1, 0.05, 0.012, 3e-5])
     other = pair.spline(pair.t + p[12] + p[13] * (pair.t - pair.t_mid))
-    n1 = np.linalg.norm(_centre(pair.ref, p[:3], p[6:9]), axis=1)
-    n2 = np.linalg.norm(_centre(other, p[3:6], p[9:12]), axis=1)
+    n1 = np.linalg.norm(centre(pair.ref, p[:3], p[6:9]), axis=1)
+    n2 = np.linalg.norm(centre(other, p[3:6], p[9:12]), axis=1)
     want = sosfiltfilt(pair.sos, n1 - n2)[pair.use]
     np.testing.assert_allclose(pair.residuals(p), want, rtol=1e-9, atol=1e-9)
 
@@ -250,14 +297,56 @@ def test_pair_jacobian_matches_finite_differences():
         assert np.abs(jac[:, j] - numeric).max() < 1e-5 * scale, j
 
 
-def test_a_block_window_gives_the_residuals_of_the_whole_recording():
-    """Residuals over a block's span ± BLOCK_MARGIN_S agree with the whole recording's."""
-    from motionlab.clocksync import BLOCK_MARGIN_S
+@pytest.mark.parametrize("rows", [1, 2, 14])
+def test_the_compiled_low_pass_is_scipys_to_the_bit(rows):
+    """``filtfilt_at`` (one row at a time, or all rows at each sample) gives scipy's
+    ``sosfiltfilt`` exactly, at 100 and 60 Hz."""
+    from scipy.signal import butter, sosfilt_zi, sosfiltfilt
+
+    from motionlab.clocksync._kernels import filtfilt_at
+
+    rng = np.random.default_rng(rows)
+    for rate in (100.0, 60.0):
+        sos = butter(4, 6.0, fs=rate, output="sos")
+        x = rng.standard_normal((rows, 2000)) * 3.0
+        use = np.arange(10, 1990, 3)
+        out = np.empty((rows, len(use)))
+        filtfilt_at(x, sos, sosfilt_zi(sos), 15, use, out)
+        np.testing.assert_array_equal(out, sosfiltfilt(sos, x, axis=-1)[:, use])
+
+
+def test_costs_at_many_offsets_are_each_cost():
+    pair = _random_pair(3, n=4000)
+    pair = dataclasses.replace(pair, use=np.r_[np.arange(100, 1500, 4), np.arange(2500, 3900, 4)])
+    p = np.array([0.1, -0.2, 0.05, -0.1, 0.15, 0.2, 0.3, -0.1, 0.2, -0.3, 0.1, 0.05, 0.004, 0.0])
+    ps = np.tile(p, (21, 1))
+    ps[:, 12] = np.linspace(-0.05, 0.05, 21)
+    np.testing.assert_array_equal(pair.costs(ps), [pair.cost(q) for q in ps])
+
+
+def test_residuals_near_the_used_samples_only_are_those_of_the_whole_recording():
+    """The residuals and the Jacobian, computed over the used samples' spans ± MARGIN_S only
+    (two spans here, 10 s apart, and neither recording end), agree with scipy's sosfiltfilt
+    over the whole recording."""
+    from scipy.signal import sosfiltfilt
+
+    from motionlab.clocksync.joint_centre import MARGIN_S, centre
 
     pair = _random_pair(2, n=3000)
-    p = np.array([0.1, -0.2, 0.05, -0.1, 0.15, 0.2, 0.3, -0.1, 0.2, -0.3, 0.1, 0.05, 0.004, 0.0])
-    block = np.arange(1400, 1700, 3)
-    whole = dataclasses.replace(pair, use=block).residuals(p)
-    part = pair.window(block, int(BLOCK_MARGIN_S * 100)).residuals(p)
-    assert len(pair.window(block, 300).t) == (1697 + 300 + 1) - (1400 - 300)  # ± 3 s
-    np.testing.assert_allclose(part, whole, rtol=0, atol=1e-12 * np.abs(whole).max())
+    p = np.array([0.1, -0.2, 0.05, -0.1, 0.15, 0.2, 0.3, -0.1, 0.2, -0.3, 0.1, 0.05, 0.004, 1e-4])
+    use = np.r_[np.arange(400, 700, 3), np.arange(1700, 2000, 3)]
+    part = dataclasses.replace(pair, use=use)
+    margin = int(MARGIN_S * 100)
+    assert [(lo, hi) for lo, hi, _, _ in part.parts] == [
+        (400 - margin, 697 + margin + 1), (1700 - margin, 1997 + margin + 1)
+    ]  # fmt: skip
+    other = pair.spline(pair.t + p[12] + p[13] * (pair.t - pair.t_mid))
+    n1 = np.linalg.norm(centre(pair.ref, p[:3], p[6:9]), axis=1)
+    n2 = np.linalg.norm(centre(other, p[3:6], p[9:12]), axis=1)
+    whole = sosfiltfilt(pair.sos, n1 - n2)[use]
+    np.testing.assert_allclose(part.residuals(p), whole, rtol=0, atol=1e-12 * np.abs(whole).max())
+    jac = dataclasses.replace(pair, use=np.arange(3000)).residuals(p, jacobian=True)[use]
+    np.testing.assert_allclose(part.residuals(p, jacobian=True), jac, rtol=1e-12, atol=1e-12)
+    res, dc = part.offset_residuals(p)
+    np.testing.assert_array_equal(res, part.residuals(p))
+    np.testing.assert_allclose(dc, jac[:, 12], rtol=1e-12, atol=1e-12 * np.abs(dc).max())

@@ -230,10 +230,8 @@ def centre_headings(
     ``{joint: {"heading_times": (K,) s, "heading_deltas": (K,) rad, "anchors": K}}`` for the
     joints whose type ties headings by the centre (ball, hip; ``JointType.centre_heading``) and
     whose two sensors share enough movement
-    (:func:`motionlab.clocksync.joint_centre_forces`, :func:`.heading.centre_anchors`).
+    (:func:`.heading.joint_centre_forces`, :func:`.heading.centre_anchors`).
     """
-    # local: clocksync imports motionlab.segments, whose __init__ imports this module
-    from motionlab.clocksync import joint_centre_forces
 
     out = {}
     for name, joint in protocol.joints.items():
@@ -242,7 +240,7 @@ def centre_headings(
         if joint.proximal not in streams or joint.distal not in streams:
             continue
         labels = [sensor_for_segment(session, s) for s in (joint.proximal, joint.distal)]
-        forces = joint_centre_forces(*(session.sensors[k] for k in labels))
+        forces = heading.joint_centre_forces(*(session.sensors[k] for k in labels))
         if forces is None:
             continue
         t, f_p, f_d = forces

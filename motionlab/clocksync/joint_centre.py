@@ -1,0 +1,370 @@
+"""The joint-centre clock fit of two sensors on neighbouring segments (:func:`estimate_clock`).
+
+Two segments joined at a joint share the joint centre, and the centre's acceleration seen from
+either sensor has the same magnitude at every instant (Seel, Schauer & Raisch 2012, IEEE CCA,
+joint position estimation):
+
+    ‖f₁ + K(ω₁, ω̇₁) r₁‖ = ‖f₂ + K(ω₂, ω̇₂) r₂‖,    K(ω, ω̇) r = ω̇ × r + ω × (ω × r),
+
+with ``f`` the specific force (accelerometer, m/s²), ``ω`` the angular rate (rad/s) and ``r`` the
+vector from the sensor to the joint centre in the sensor frame (m). When sensor 2's clock reads
+``t + c(t)`` at sensor 1's time ``t``, with ``c(t) = c₀ + c₁ (t − t_mid)`` (offset s, drift), the
+equality holds only for the right ``c``. ``r₁``, ``r₂``, both accelerometer biases, ``c₀`` and
+``c₁`` minimise the squared differences (low-passed) over the samples where a segment moves
+(MINPACK Levenberg–Marquardt with the analytic Jacobian, started from a grid over ``c₀``; the
+biases with a prior of 0 ± 1 m/s², see :meth:`Pair._with_prior`). ``f`` and ``ω`` are first
+low-passed at ``INPUT_LP_HZ`` against soft-tissue wobble; on a real-like walk the shank's own
+motion reaches past it (the knee's terminal-swing reversal), which leaves 0.37-0.43 ms of
+thigh-shank clock error on clean simulated sensors (knee protocol, seeds 4-6 and 8); a 10 Hz
+low-pass gave 0.05-0.09 ms there (seeds 4, 8) but let a typical sensor's 10-16 Hz wobble
+through (0.30-0.46 ms instead of 0.15-0.37). The
+clock is then refitted from the offsets of 8 s blocks of movement: a weighted line with a prior
+
+A correction is applied only when the fit is reliable: standard error ≤ ``MAX_SE_S`` over the
+recording, and the joint-centre model fits (RMS residual ≤ ``MAX_RESIDUAL_M_S2``; a sensor
+rocking on soft tissue with the segment's acceleration breaks the model and biased the offset
+by 20–30 ms on simulated walks, with a residual five times the usual).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.interpolate import CubicSpline
+from scipy.optimize import least_squares
+from scipy.signal import sosfilt_zi, sosfiltfilt
+
+from motionlab.clocksync._kernels import filtfilt_at, pair_residuals
+from motionlab.clocksync.common import (
+    BLOCK_S,
+    MAX_OFFSET_S,
+    MIN_CORRECTION_S,
+    MIN_SAMPLES,
+    butter_sos,
+    finite_samples,
+    line_with_prior,
+    on_grid,
+)
+from motionlab.qc import measurable
+from motionlab.results import ClockFit
+from motionlab.session import SensorStream
+
+GRID_STEP_S = 0.01  # coarse grid over the offset (s)
+MAX_SE_S = 0.010  # largest standard error of c(t) for a correction to be applied (s)
+# largest RMS residual (low-passed, m/s²) for a correction: 0.009-0.026 on the simulated clinical
+# protocols; 0.09-0.13 where acceleration-driven soft tissue biased the offset by 20-30 ms
+MAX_RESIDUAL_M_S2 = 0.05
+MOVING_RAD_S = 0.35  # a segment moves above this angular rate (rad/s, 20 °/s)
+MIN_MOVING_S = 5.0  # shared movement needed (s)
+LOWPASS_HZ = 6.0  # zero-phase low-pass of the residuals (Hz)
+INPUT_LP_HZ = 8.0  # zero-phase low-pass of f and ω (order INPUT_ORDER): soft-tissue wobble
+INPUT_ORDER = 8  # at 10–20 Hz would otherwise reach ω̇ × r by tens of m/s²
+BIAS_PRIOR_M_S2 = 1.0  # prior standard deviation of each accelerometer bias (m/s²), see Pair
+# residuals are computed this close to the samples used only (s): the impulse response of the
+# LOWPASS_HZ low-pass falls below 1e-18 of its peak within 3 s (at any rate)
+MARGIN_S = 3.0
+BODY = 12  # parameters besides the clock: two lever arms and two accelerometer biases
+# the levers, biases and clock are searched for on at most this much shared movement (s), in
+# BLOCK_S blocks spread evenly over the recording, then refined on all of it from there: the
+# searches over a whole recording took more iterations the longer it was (docs/performance.md)
+FIT_MOVING_S = 240.0
+
+
+@dataclass
+class Signals:
+    """One sensor on a uniform grid: time (s), ``[f, ω, ω̇]`` (N, 9), their cubic spline, and
+    which samples are real (no gap within the low-pass filter's settling time)."""
+
+    time: np.ndarray
+    values: np.ndarray
+    spline: CubicSpline
+    valid: np.ndarray
+
+
+def signals(stream: SensorStream) -> Signals:
+    """``stream``'s accelerometer and gyroscope on its uniform grid, low-passed at
+    ``INPUT_LP_HZ`` (zero phase), with ω̇ (:class:`Signals`)."""
+    ok = measurable(stream.acc, "acc") & measurable(stream.gyr, "gyr")
+    grid, values, valid = on_grid(stream, np.hstack([stream.acc, stream.gyr]), ok)
+    dt = 1.0 / stream.rate_hz
+    values = sosfiltfilt(butter_sos(INPUT_ORDER, INPUT_LP_HZ, 1.0 / dt), values, axis=0)
+    # ω̇ from the spline, not np.gradient, whose central difference is 1.6 % low at 5 Hz: on the
+    # simulated walk's shank that was 0.15-0.2 ms of the offset's error (clean, seeds 4 and 8)
+    values = np.hstack([values, CubicSpline(grid, values[:, 3:], axis=0)(grid, 1)])
+    return Signals(grid, values, CubicSpline(grid, values, axis=0), valid)
+
+
+def estimate_clock(
+    reference: SensorStream,
+    sensor: SensorStream,
+    max_offset_s: float = MAX_OFFSET_S,
+    signals_of: Callable[[SensorStream], Signals] | None = None,
+) -> ClockFit:
+    """Offset and drift of ``sensor``'s clock against ``reference``'s (see the module docstring).
+
+    Both streams need ``acc`` (m/s²) and ``gyr`` (rad/s) and must sit on the two sides of one
+    joint. The status is ``"applied"`` only when the fit is reliable and differs from zero
+    (:func:`motionlab.clocksync.stage.synchronise` applies only those). ``signals_of``: how a
+    stream's :class:`Signals` are had (default :func:`signals`; the stage computes them once
+    per sensor, :class:`~motionlab.clocksync.common.PerStream`).
+    """
+    name = (reference.label, sensor.label)
+    if min(finite_samples(reference), finite_samples(sensor)) < MIN_SAMPLES:
+        return ClockFit(*name, 0.0, 0.0, float(np.mean(reference.time[[0, -1]])), np.inf, np.inf,
+                        np.nan, 0.0, "no usable accelerometer and gyroscope samples")  # fmt: skip
+    a, b = (signals_of or signals)(reference), (signals_of or signals)(sensor)
+    inside = (a.time - max_offset_s >= b.time[0]) & (a.time + max_offset_s <= b.time[-1])
+    t_mid = float(0.5 * (a.time[0] + a.time[-1]))
+    if inside.sum() < 2 * MIN_MOVING_S / (a.time[1] - a.time[0]):
+        return ClockFit(*name, 0.0, 0.0, t_mid, np.inf, np.inf, np.nan, 0.0,
+                        "not enough shared recording")  # fmt: skip
+    span = slice(np.argmax(inside), len(inside) - np.argmax(inside[::-1]))
+    t, ref = a.time[span], a.values[span]
+    dt = float(t[1] - t[0])
+    sos = butter_sos(4, LOWPASS_HZ, 1.0 / dt)
+    rates = np.hypot(
+        np.linalg.norm(ref[:, 3:6], axis=1), np.linalg.norm(b.spline(t)[:, 3:6], axis=1)
+    )
+    moving = np.convolve(sosfiltfilt(sos, rates) > MOVING_RAD_S, np.ones(int(0.5 / dt) | 1),
+                         mode="same") > 0  # fmt: skip
+    b_valid = np.interp(t, b.time, b.valid.astype(float)) > 0.99
+    use = np.flatnonzero(moving & a.valid[span] & b_valid)
+    moving_s = len(use) * dt
+    if moving_s < MIN_MOVING_S:
+        return ClockFit(*name, 0.0, 0.0, t_mid, np.inf, np.inf, np.nan, moving_s,
+                        "not enough shared movement")  # fmt: skip
+    # the low-passed residuals change little within a quarter of the filter's period
+    stride = max(1, int(0.25 / (LOWPASS_HZ * dt)))
+    pair = Pair(t, ref, b.spline, t_mid, sos, use[::stride])
+    fitting = pair.spread(FIT_MOVING_S)  # the search for the levers, biases and clock: bounded
+    body = fitting.body(0.0)
+    grid = np.arange(-max_offset_s, max_offset_s + 1e-12, GRID_STEP_S)
+    c0 = float(grid[int(np.argmin(fitting.costs(np.column_stack([
+        np.tile(body, (len(grid), 1)), grid, np.zeros(len(grid))]))))])  # fmt: skip
+    fit = fitting.solve(np.r_[fitting.body(c0), c0, 0.0])
+    if fitting is not pair:  # refined on all the movement from close by: a few iterations
+        fit = pair.solve(fit)
+    half = 0.5 * (t[use[-1]] - t[use[0]])
+    fit[-2:], offset_se, drift_se = pair.clock_from_blocks(fit)
+    worst_se = float(np.hypot(offset_se, drift_se * half))
+    c_ends = np.abs(fit[-2] + fit[-1] * (t[use[[0, -1]]] - t_mid))
+    rms = float(np.sqrt(pair.cost(fit) / len(pair.use)))
+    if worst_se > MAX_SE_S:
+        status = "not reliable: too little shared movement"
+    elif rms > MAX_RESIDUAL_M_S2:
+        status = (
+            f"not reliable: the shared joint centre fits poorly (residual {rms:.2f} m/s²: soft "
+            "tissue or a loose sensor)"
+        )
+    elif abs(fit[-2]) > max_offset_s - GRID_STEP_S:
+        status = f"not reliable: offset at the edge of the ±{max_offset_s:g} s search"
+    elif c_ends.max() <= max(MIN_CORRECTION_S, 2.0 * worst_se):
+        status = "consistent with one clock"
+    else:
+        status = "applied"
+    return ClockFit(*name, float(fit[-2]), float(fit[-1]), t_mid, offset_se, drift_se, rms,
+                    moving_s, status)  # fmt: skip
+
+
+@dataclass
+class Pair:
+    """Residuals LP(‖f₁ + b₁ + K₁ r₁‖ − ‖f₂ + b₂ + K₂ r₂‖) at reference times ``t[use]`` (s),
+    LP the zero-phase low-pass ``sos``, and their Jacobian in the parameters ``[r₁, r₂ (m), b₁,
+    b₂ (accelerometer biases, m/s²), c₀ (s), c₁]``; sensor 2 is read at ``t + c(t)``. The biases
+    are fitted because an uncalibrated 0.1 m/s² projects onto the changing gravity direction in
+    step with the movement, and so would pull the offset.
+
+    The residuals are computed over the spans of the samples ``use`` and ``MARGIN_S`` either
+    side only (:attr:`parts`), not over the stretches between them that are farther from every
+    used sample: the low-pass's response to what lies further away is below floating-point
+    resolution, so the residuals are those of the whole recording at a fraction of the cost."""
+
+    t: np.ndarray
+    ref: np.ndarray  # (N, 9) [f, ω, ω̇] of the reference at t
+    spline: CubicSpline
+    t_mid: float
+    sos: np.ndarray
+    use: np.ndarray
+
+    def __post_init__(self) -> None:
+        sos = self.sos
+        self._zi = sosfilt_zi(sos)  # what sosfiltfilt computes on every call
+        taps = 2 * len(sos) + 1 - min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum()))
+        self._edge = 3 * taps  # sosfiltfilt's default padding
+        self.parts = _parts(self.use, int(round(MARGIN_S / float(self.t[1] - self.t[0]))),
+                            len(self.t))  # fmt: skip
+
+    def residuals(self, p: np.ndarray, jacobian: bool = False, columns: int = 14) -> np.ndarray:
+        """The residuals (K) at ``p``, or with ``jacobian`` their Jacobian (K, ``columns``: in
+        the first ``columns`` parameters)."""
+        p = np.asarray(p, float)
+        out = np.empty((columns if jacobian else 1, len(self.use)))
+        for lo, hi, at, use in self.parts:
+            res, jac = self._unfiltered(p, 14 if jacobian else 0, lo, hi)
+            self._filter(jac[:columns] if jacobian else res[None], use, out[:, at])
+        return out.T if jacobian else out[0]
+
+    def offset_residuals(self, p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The residuals (K) at ``p`` and their derivative in the offset ``c₀`` (K)."""
+        p = np.asarray(p, float)
+        out = np.empty((2, len(self.use)))
+        for lo, hi, at, use in self.parts:
+            res, dc = self._unfiltered(p, 1, lo, hi)
+            self._filter(np.vstack([res, dc]), use, out[:, at])
+        return out[0], out[1]
+
+    def _unfiltered(self, p: np.ndarray, rows: int, lo: int, hi: int) -> tuple[np.ndarray, ...]:
+        """The residuals on ``t[lo:hi]`` before the low-pass, and ``rows`` of their derivatives
+        (none, 1: in ``c₀``, 14: in every parameter; :func:`._kernels.pair_residuals`)."""
+        res = np.empty(hi - lo)
+        jac = np.empty((max(rows, 1), hi - lo if rows else 0))
+        sp = self.spline
+        pair_residuals(self.t[lo:hi], self.t_mid, sp.x, sp.c, self.ref[lo:hi], p, res, jac)
+        return res, jac
+
+    def _filter(self, x: np.ndarray, use: np.ndarray, out: np.ndarray) -> None:
+        """``sosfiltfilt(sos, x, axis=-1)[:, use]`` into ``out``, by scipy's own steps with the
+        steady state computed once per pair (:func:`._kernels.filtfilt_at`)."""
+        filtered = np.empty((x.shape[0], len(use)))
+        filtfilt_at(x, self.sos, self._zi, self._edge, use, filtered)
+        out[:] = filtered
+
+    def _with_prior(self, p: np.ndarray, jacobian: bool = False, columns: int = 14) -> np.ndarray:
+        """:meth:`residuals` and the biases' prior rows ``b / BIAS_PRIOR_M_S2`` (0 ± 1 m/s²);
+        with ``jacobian`` the Jacobian in the first ``columns`` parameters.
+
+        Without them the fit has a second valley at biases of ~10⁸ m/s², where ‖f + b + K r‖
+        is the projection of the joint-centre acceleration on a fixed axis of each sensor: both
+        sensors' projections on the knee's flexion axis agree, so it nearly fits, but it times
+        the clock poorly. On the knee protocol's simulated walk (clean sensors, seeds 5 and 6)
+        the search fell into it (residual 0.076 m/s², offsets 1.6-1.7 ms off) once the knee
+        template had a real-like terminal swing; a real accelerometer's bias is < 1 m/s².
+        """
+        if not jacobian:
+            return np.r_[self.residuals(p), p[6:12] / BIAS_PRIOR_M_S2]
+        prior = np.zeros((6, len(p)))
+        prior[:, 6:12] = np.eye(6) / BIAS_PRIOR_M_S2
+        return np.vstack([self.residuals(p, True, columns), prior[:, :columns]])
+
+    def cost(self, p: np.ndarray) -> float:
+        """Sum of the squared residuals at ``p``."""
+        return float(np.sum(self.residuals(p) ** 2))
+
+    def costs(self, ps: np.ndarray, lanes: int = 8) -> np.ndarray:
+        """:meth:`cost` at each row of ``ps`` (G, 14), the same numbers, ``lanes`` rows low-passed
+        together (:func:`._kernels.filtfilt_at`)."""
+        out = []
+        for chunk in np.array_split(ps, -(-len(ps) // lanes)):
+            res = np.empty((len(chunk), len(self.use)))
+            for lo, hi, at, use in self.parts:
+                rows = np.vstack([self._unfiltered(np.asarray(p, float), 0, lo, hi)[0]
+                                  for p in chunk])  # fmt: skip
+                self._filter(rows, use, res[:, at])
+            out.append(np.sum(res**2, axis=1))
+        return np.concatenate(out)
+
+    def body(self, c0: float) -> np.ndarray:
+        """r₁, r₂ (m), b₁, b₂ (m/s²) for the offset ``c0`` (s) and no drift."""
+        fixed = np.array([c0, 0.0])
+        sol = least_squares(
+            lambda q: self._with_prior(np.r_[q, fixed]),
+            np.zeros(BODY),
+            jac=lambda q: self._with_prior(np.r_[q, fixed], True, BODY),
+            x_scale=0.1,
+            method="lm",
+        )
+        return sol.x
+
+    def solve(self, p0: np.ndarray) -> np.ndarray:
+        """All parameters, from ``p0``."""
+        return least_squares(
+            self._with_prior,
+            p0,
+            jac=lambda p: self._with_prior(p, jacobian=True),
+            x_scale=np.r_[np.full(BODY, 0.1), 0.01, 1e-4],
+            method="lm",
+        ).x
+
+    def blocks(self) -> list[np.ndarray]:
+        """The used samples in runs of ``BLOCK_S`` of movement (none when under three)."""
+        dt = float(np.median(np.diff(self.t[self.use])))  # spacing of the fitted samples
+        n_blocks = int(len(self.use) * dt // BLOCK_S)
+        return np.array_split(self.use, n_blocks) if n_blocks >= 3 else []
+
+    def spread(self, moving_s: float) -> Pair:
+        """The pair on at most ``moving_s`` of its movement: whole :meth:`blocks` spread evenly
+        over the recording (itself when it moves less)."""
+        blocks = self.blocks()
+        keep = int(moving_s // BLOCK_S)
+        if len(blocks) <= keep:
+            return self
+        chosen = np.unique(np.round(np.linspace(0, len(blocks) - 1, keep)).astype(int))
+        return replace(self, use=np.concatenate([blocks[i] for i in chosen]))
+
+    def clock_from_blocks(self, p: np.ndarray) -> tuple[np.ndarray, float, float]:
+        """c₀ (s), c₁ and their standard errors from offsets fitted block by block (the moving
+        samples in runs of ``BLOCK_S``; levers and biases of ``p`` held).
+
+        A line through the block offsets, weighted by each block's information and scaled by
+        its scatter (χ²/dof when above 1, so that the model's errors, which the residuals'
+        statistics understate, show), with a prior on the drift (0 ± ``DRIFT_PRIOR``: two
+        crystal clocks): where the movement sits in two clusters whose offsets carry different
+        model errors, an unrestrained line turned a few milliseconds into hundreds of ppm.
+        Fewer than three blocks: infinite errors.
+        """
+        dt = float(np.median(np.diff(self.t[self.use])))  # spacing of the fitted samples
+        blocks = self.blocks()
+        if not blocks:
+            return p[-2:], np.inf, np.inf
+        rows, offsets, weights = [], [], []
+        correlation = max(1.0, 0.5 / (LOWPASS_HZ * dt))  # samples per independent residual
+        for block in blocks:
+            part = replace(self, use=block)
+            centre = self.t[block].mean() - self.t_mid
+            sol = _offset_fit(part, p[:BODY], p[-2:-1] + p[-1] * centre)
+            s2 = float(np.mean(sol.fun**2)) * correlation
+            rows.append([1.0, centre])
+            offsets.append(sol.x[0])
+            weights.append(float(sol.jac[:, 0] @ sol.jac[:, 0]) / max(s2, 1e-30))
+        x, w, y = np.array(rows), np.array(weights), np.array(offsets)
+        line = np.linalg.solve(x.T @ (w[:, None] * x), x.T @ (w * y))
+        chi2 = float(w @ (y - x @ line) ** 2) / (len(y) - 2)
+        return line_with_prior(x, y, w, max(1.0, chi2))
+
+
+def _parts(use: np.ndarray, margin: int, n: int) -> list[tuple[int, int, slice, np.ndarray]]:
+    """The spans of ``t`` (``n`` samples) over which the residuals at ``use`` (sorted indices)
+    are computed: runs of used samples less than ``2 margin`` apart, each widened by
+    ``margin`` either side (within ``0, n``). Per span: ``lo``, ``hi``, the slice of ``use``
+    it holds, and those samples' indices from ``lo``."""
+    use = np.asarray(use, np.int64)
+    breaks = np.flatnonzero(np.diff(use) > 2 * margin) + 1
+    parts = []
+    for first, end in zip(np.r_[0, breaks], np.r_[breaks, len(use)], strict=True):
+        lo, hi = max(0, int(use[first]) - margin), min(n, int(use[end - 1]) + margin + 1)
+        parts.append((lo, hi, slice(int(first), int(end)), use[first:end] - lo))
+    return parts
+
+
+def _offset_fit(pair: Pair, body: np.ndarray, c_start: np.ndarray):
+    """``least_squares`` of the offset ``c₀`` alone (levers and biases ``body`` held, no drift)
+    with its analytic derivative; the residuals and the derivative come from one evaluation,
+    kept for the Jacobian call that follows at the same point."""
+    last: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+
+    def at(c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        key = float(c[0])
+        if key not in last:
+            last.clear()
+            last[key] = pair.offset_residuals(np.r_[body, c, 0.0])
+        return last[key]
+
+    return least_squares(lambda c: at(c)[0], c_start, jac=lambda c: at(c)[1][:, None], x_scale=0.01)
+
+
+def centre(values: np.ndarray, r: np.ndarray, bias: np.ndarray) -> np.ndarray:
+    """Specific force at the joint centre f + b + ω̇ × r + ω × (ω × r) (N, 3), rows [f, ω, ω̇]."""
+    f, w, a = values[:, :3], values[:, 3:6], values[:, 6:]
+    return f + bias + np.cross(a, r) + np.cross(w, np.cross(w, r))

@@ -1,0 +1,258 @@
+"""The clock sync of a session (:func:`synchronise`): which method times each sensor, and the
+corrections applied to its stamps (:func:`unsynchronise` restores them).
+
+The impact lag (:mod:`.impacts`) is tried on the sync tree's pairs (:mod:`.pairs`) first.
+
+*Without heel strikes* (no reliable impact lag: arm, elbow, lumbar and the clinical tasks, whose
+timing is as before) each sensor is put on its parent's corrected clock by the joint-centre fit
+(:func:`choose` keeps it).
+
+*With heel strikes* every sensor's clock is solved at once on the root's
+(:mod:`motionlab.clocknet`): the impact lags of every pair of sensors and the joint-centre fits
+of every pair of neighbours, all on the recorded clocks, in one weighted least squares with a
+floor under each standard error, a prior on each sensor's own delay of its transient envelope,
+and the measurements that break the loops set aside one at a time (data snooping). Why not the
+per-pair choice it replaced (joint centre when both agree, else the impact lag): on simulated
+walks the joint-centre fits of pelvis–thigh were 7-68 ms off with claimed standard errors of
+0.1 ms, the knee's 0.1-6 ms, and the impact lags of one shank can all be shifted together by its
+own tissue resonance (bench/gait.py seed 1 asymmetric: all four of shank_r's by 7.3 ms, its knee
+joint centre 1.1 ms off), so a per-pair rule picked a wrong answer either way. A shift shared by
+all of one sensor's impact lags cancels around every loop of impact lags: only that sensor's
+joint-centre fit shows it, and where the two disagree the data cannot tell which is wrong; the
+solution then weighs them by their priors (``ENVELOPE_SD_S``, ``HIP_CENTRE_FLOOR_S``,
+:data:`motionlab.clocknet.CENTRE_FLOOR_S`) and the sensor's line says that they disagree.
+Seed 1 asymmetric: shank_r 5.2 ms off instead of 7.9 ms, the other sensors within 0.9 ms. Each
+network :class:`ClockFit` is against the root sensor (``method`` ``network``) and says in
+``other`` what timed the sensor, what was set aside and what disagrees; it is applied when the
+correction at the recording's ends exceeds ``MIN_CORRECTION_S`` and its own standard error. A
+sensor that no reliable measurement ties to the others follows its tree parent's clock.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, replace
+
+import numpy as np
+
+from motionlab.binding import sensor_for_segment
+from motionlab.clocknet import CENTRE_FLOOR_S, NETWORK, solve_network
+from motionlab.clocksync.common import MAX_OFFSET_S, MIN_CORRECTION_S, PerStream
+from motionlab.clocksync.impacts import envelope, impact_clock
+from motionlab.clocksync.joint_centre import estimate_clock, signals
+from motionlab.clocksync.pairs import joint_pairs, kind_side, sync_tree
+from motionlab.protocol import Protocol
+from motionlab.results import ClockFit
+from motionlab.session import Session
+
+# allowance for the errors of an impact lag that its block scatter does not show (medians
+# 0.2-0.9 ms on simulated walks, see above): within it plus twice the standard errors, the
+# joint-centre fit is kept; 3 ms let pelvis-thigh fits 3.4 ms off through on bench/gait.py seed 0
+IMPACT_BIAS_S = 0.0015
+
+# The network solve's priors (motionlab.clocknet). Tuned on simulated walks, bench/gait.py seeds 5-9
+# (both variants) and bench/real_world.py walk seeds 10-14, for the smallest worst-case clock error
+# left on shank_r-shank_l, the knees and the hips (a 3 ms knee floor gave smaller medians but a
+# larger worst case; a 2 ms hip floor, or 1 ms for the pelvis's and thighs' envelope delays, let
+# wrong joint centres through: 5-8 ms); reported on seeds 0-4 and 0-9 (bench/clock_network.py).
+# The standard deviation of a sensor's own delay of its heel-strike envelope (s) by segment kind:
+# the shank's own tissue resonance shifted all of its impact lags by up to 7 ms, the other
+# sensors' by ≤ 0.7 ms (the others: motionlab.clocknet.ENVELOPE_BIAS_S, 0.5 ms)
+ENVELOPE_SD_S = {"shank": 0.0015, "foot": 0.0015}
+# and the floor of a joint-centre fit's offset error (s): its model error locked to the stride,
+# 0.1-6 ms at the knee, up to 31 ms at the hip on simulated walks (claimed errors ≈ 0.05 ms);
+# elsewhere motionlab.clocknet.CENTRE_FLOOR_S (2 ms)
+HIP_CENTRE_FLOOR_S = 0.005
+
+
+def synchronise(
+    session: Session, protocol: Protocol, max_offset_s: float = MAX_OFFSET_S
+) -> list[ClockFit]:
+    """Put the protocol's sensors on one clock, in place (see the module docstring).
+
+    Each corrected stream's ``time`` is replaced and ``attrs["clock_sync"]`` records the fit (so
+    the recorded stamps can be restored); returns every fit, in the order made. The stage
+    (:func:`motionlab.stages.sync`) stores them in ``session.results.clock_sync``.
+
+    With heel strikes (a reliable impact lag between any two sensors) every sensor's clock is
+    solved at once on the root sensor's (:func:`motionlab.clocknet.solve_network`) from the
+    impact lags of all pairs and the joint-centre fits of all neighbours, measurements that
+    break the loops set aside; each fit then has ``method`` ``network`` and says in ``other``
+    what timed it. Without (arm, elbow, lumbar, clinical tasks) the sync tree as before: each
+    sensor against its reference's corrected clock by the joint centre.
+    """
+    unsynchronise(session)
+    tree = sync_tree(session, protocol)
+    label = {seg: sensor_for_segment(session, seg) for pair in tree for seg in pair}
+    segments = list(dict.fromkeys(seg for pair in tree for seg in pair))
+
+    signals_of, envelope_of = PerStream(signals), PerStream(envelope)  # once per sensor
+
+    def lag(a: str, b: str) -> ClockFit:
+        sensors = session.sensors
+        return impact_clock(sensors[label[a]], sensors[label[b]], max_offset_s, envelope_of)
+
+    def centre(a: str, b: str) -> ClockFit:
+        sensors = session.sensors  # the clocks corrected so far
+        return estimate_clock(sensors[a], sensors[b], max_offset_s, signals_of)
+
+    impacts = {(a, b): lag(a, b) for a, b in tree}
+    if any(_reliable(f) for f in impacts.values()):  # heel strikes: every pair, all at once
+        pairs = [(a, b) for i, a in enumerate(segments) for b in segments[i + 1 :]]
+        impacts = {p: impacts[p] if p in impacts else lag(*p) for p in pairs}  # in this order
+        fits = _synchronise_network(session, protocol, tree, label, impacts, centre)
+    else:
+        fits = _synchronise_tree(session, tree, label, impacts, centre)
+    return fits
+
+
+def _synchronise_tree(session: Session, tree, label, impacts, centre) -> list[ClockFit]:
+    """Each sensor against its reference's corrected clock, down the sync tree, by the joint
+    centre (``centre(reference label, label)``; ``impacts``: the tree pairs' refused impact
+    lags, kept in ``other``). A sensor whose own
+    fit is not reliable but whose reference was corrected gets the reference's correction: its
+    recorded timing relative to its neighbour is kept (a thigh moved while its shank stayed
+    would misalign the knee by the thigh's whole correction)."""
+    fits = []
+    moved: dict[str, ClockFit] = {}  # label: the correction its stamps got
+    for ref_seg, seg in tree:
+        ref, lab = label[ref_seg], label[seg]
+        # the pair's impact lag was measured on the raw clocks; none is reliable (no heel strikes)
+        fit = choose(centre(ref, lab), impacts[(ref_seg, seg)])
+        fits.append(fit)
+        # the fit is against the reference's corrected clock: "consistent with one clock" means
+        # the sensor already agrees with it; an unreliable fit tells nothing, so the sensor keeps
+        # its recorded timing relative to its reference and follows the reference's correction
+        use = fit if fit.status == "applied" else None
+        if fit.status.startswith("not reliable"):
+            use = moved.get(ref)
+        if use is not None:
+            _apply(session, lab, use)
+            moved[lab] = use
+    return fits
+
+
+def _apply(session: Session, label: str, fit: ClockFit) -> None:
+    stream = session.sensors[label]
+    attrs = dict(stream.attrs, clock_sync=asdict(fit))
+    session.sensors[label] = replace(stream, time=fit.corrected_time(stream.time), attrs=attrs)
+
+
+def _synchronise_network(
+    session: Session, protocol: Protocol, tree, label, impacts, centre
+) -> list[ClockFit]:
+    """Every sensor's clock at once from all pairwise measurements on the raw clocks
+    (:func:`motionlab.clocknet.solve_network`; ``centre(label, label)``: a joint-centre fit).
+    A sensor that no reliable measurement ties to
+    the root follows its reference's clock (its recorded timing against it is kept)."""
+    edges = [(a, b) for a, b in joint_pairs(session, protocol) if a in label and b in label]
+    centres = {(a, b): centre(label[a], label[b]) for a, b in edges}
+    pool = [f for f in [*impacts.values(), *centres.values()] if _reliable(f)]
+    envelope_sd = {lab: ENVELOPE_SD_S[kind_side(seg)[0]] for seg, lab in label.items()
+                if kind_side(seg)[0] in ENVELOPE_SD_S}  # fmt: skip
+    floor = {frozenset((label[a], label[b])): _centre_floor(a, b) for a, b in edges}
+    root = label[tree[0][0]]
+    t0 = float(np.mean(session.sensors[root].time[[0, -1]]))
+    span = float(np.ptp(session.sensors[root].time))
+    clocks: dict[str, tuple] = {root: (None, "")}  # label: (NetworkClock or None, follows)
+    solved = solve_network(pool, root, t0, envelope_sd, floor)
+    clocks.update({k: (v, "") for k, v in solved.items()})
+    for ref_seg, seg in tree:  # not tied to the root: the reference's clock (tree order)
+        if label[seg] not in clocks:
+            clocks[label[seg]] = (clocks[label[ref_seg]][0], label[ref_seg])
+    fits = []
+    for _, seg in tree:
+        lab = label[seg]
+        clock, follows = clocks[lab]
+        fit = _network_fit(root, lab, clock, follows, t0, span)
+        fits.append(fit)
+        if fit.status == "applied" or (follows and clock is not None):
+            _apply(session, lab, replace(fit, status="applied") if follows else fit)
+    return fits
+
+
+def _network_fit(root: str, lab: str, clock, follows: str, t0: float, span: float) -> ClockFit:
+    """The :class:`ClockFit` of one sensor's network solution (``method`` ``network``) on the
+    root's clock; ``follows``: the sensor whose clock it takes when nothing ties it; ``t0``
+    and ``span`` the root's mid-time and duration (s)."""
+    if follows:
+        why = ("not reliable: no reliable heel-strike lag or joint-centre fit ties it to the "
+               f"others; follows {follows}'s clock")  # fmt: skip
+        if clock is None:
+            return ClockFit(root, lab, 0.0, 0.0, t0, np.inf, np.inf, np.nan, 0.0, why, NETWORK)
+        return ClockFit(root, lab, clock.offset_s, clock.drift, clock.t_mid_s, clock.offset_se_s,
+                        clock.drift_se, np.nan, 0.0, why, NETWORK)  # fmt: skip
+    # a correction smaller than its standard error is not applied; not twice it, as for one
+    # pair: the priors' share of the error (a shank's 1.3 ms) would leave real 2-3 ms offsets
+    # uncorrected (gait seed 0: shank_r 1.9 ms off)
+    worst = float(np.hypot(clock.offset_se_s, clock.drift_se * span / 2))
+    ends = np.abs(clock.offset_s) + np.abs(clock.drift) * span / 2
+    status = "applied" if ends > max(MIN_CORRECTION_S, worst) else "consistent with one clock"
+    return ClockFit(root, lab, clock.offset_s, clock.drift, clock.t_mid_s, clock.offset_se_s,
+                    clock.drift_se, np.nan, 0.0, status, NETWORK, clock.summary())  # fmt: skip
+
+
+def _reliable(fit: ClockFit) -> bool:
+    return fit.status in ("applied", "consistent with one clock")
+
+
+def choose(centre: ClockFit, impacts: ClockFit) -> ClockFit:
+    """The fit :func:`synchronise` uses for one pair, with the other's answer in ``other``.
+
+    The joint-centre fit when the impact lag is not reliable (no heel strikes: the arm, lumbar
+    and clinical tasks) or when both are reliable and agree (their offsets within twice their
+    combined standard error plus ``IMPACT_BIAS_S``: the joint centre is the more precise);
+    the impact lag when it is reliable and the joint-centre fit is not or disagrees (its
+    model error locked to the stride gave 7-68 ms wrong offsets with standard errors of
+    0.1 ms on simulated walks).
+    """
+    if not _reliable(impacts):
+        return replace(centre, other=_summary(impacts))
+    gap = abs(centre.offset_s - impacts.offset_s)
+    allowed = 2.0 * np.hypot(centre.offset_se_s, impacts.offset_se_s) + IMPACT_BIAS_S
+    if _reliable(centre) and gap <= allowed:
+        return replace(centre, other=_summary(impacts))
+    why = "not reliable" if not _reliable(centre) else f"{1e3 * gap:.1f} ms away"
+    return replace(impacts, other=f"{_summary(centre)} ({why})")
+
+
+def _summary(fit: ClockFit) -> str:
+    """``impacts: +12.3 ms ± 0.4 ms, applied`` (or the status alone when no offset)."""
+    if not np.isfinite(fit.offset_se_s):
+        return f"{fit.method}: {fit.status}"
+    return (f"{fit.method}: {1e3 * fit.offset_s:+.1f} ± {1e3 * fit.offset_se_s:.1f} ms, "
+            f"{fit.status}")  # fmt: skip
+
+
+def unsynchronise(session: Session) -> None:
+    """Restore every sensor's recorded stamps (undo :func:`synchronise`), in place; the
+    stage's record (``session.results.clock_sync``) is left to the stage."""
+    for label, stream in list(session.sensors.items()):
+        if "clock_sync" in stream.attrs:
+            fit = ClockFit(**stream.attrs["clock_sync"])
+            attrs = {k: v for k, v in stream.attrs.items() if k != "clock_sync"}
+            session.sensors[label] = replace(
+                stream, time=fit.recorded_time(stream.time), attrs=attrs
+            )
+
+
+def describe(fit: ClockFit) -> str:
+    """One line: ``shank_r vs thigh_r (impacts): +12.3 ms, drift −21 ppm (± 0.4 ms, 9 ppm) —
+    applied; joint centre: ...`` (the other method's answer last); for a network fit
+    ``shank_r on pelvis's clock (every pair at once): ... — applied; timed by heel strikes with
+    ...; set aside: ...`` (what timed it, what was set aside and why)."""
+    head = f"{fit.sensor} vs {fit.reference} ({fit.method}):"
+    if fit.method == NETWORK:
+        head = f"{fit.sensor} on {fit.reference}'s clock (every pair at once):"
+    other = f"; {fit.other}" if fit.other else ""
+    if not np.isfinite(fit.offset_se_s):
+        return f"{head} {fit.status} ({fit.moving_s:.0f} s of shared movement){other}"
+    return (
+        f"{head} {1e3 * fit.offset_s:+.1f} ms, drift {1e6 * fit.drift:+.0f} ppm "
+        f"(± {1e3 * fit.offset_se_s:.1f} ms, {1e6 * fit.drift_se:.0f} ppm) — {fit.status}" + other
+    )
+
+
+def _centre_floor(a: str, b: str) -> float:
+    """Floor (s) of the joint-centre fit's offset error between segments ``a`` and ``b``."""
+    kinds = {kind_side(a)[0], kind_side(b)[0]}
+    return HIP_CENTRE_FLOOR_S if kinds == {"pelvis", "thigh"} else CENTRE_FLOOR_S
