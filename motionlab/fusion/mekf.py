@@ -389,9 +389,19 @@ def run_smoother(
             scale = np.where(gated, np.inf, 1.0 + p.mag_dev_weight * dev**2)
             gate = (scale, ref_n, ref_d, _start(six["quat"], mag, ~gated))
     out = _filter(gyr, acc, mag, rate, p, rest, store=True, gate=gate, gaps=gaps)
+    end_cov = _unpacked(out["p_post"][-1])[6:, 6:]
     _backward(gyr, rate, out)
     early = np.flatnonzero(out["reset"][: int(p.early_reset_window * rate) + 1])
     carried = int(early[-1]) if len(early) else 0
     if carried:
         _carry_back(out["quat"], out["bias"], out["acc_bias"], gyr, carried, rate)
-    return _result(out, "smoother", rest, mag is not None, carried_back=carried)
+    return _result(
+        out, "smoother", rest, mag is not None, carried_back=carried, acc_bias_end_cov=end_cov
+    )
+
+
+def _unpacked(packed: np.ndarray) -> np.ndarray:
+    """The symmetric N_ERR × N_ERR matrix of a stored upper triangle (row by row)."""
+    m = np.zeros((kern.N_ERR, kern.N_ERR))
+    m[np.triu_indices(kern.N_ERR)] = packed
+    return m + np.triu(m, 1).T
