@@ -45,7 +45,7 @@ NAN_BRIDGE_MAX_S = 0.1
 #: prior standard deviation (m/s²) of the accelerometer bias estimated for a calibration's rests
 CALIBRATION_ACC_BIAS_INIT = 0.5
 #: movement (s) on either side of each rest over which that bias is estimated
-CALIBRATION_WINDOW_S = 30.0
+CALIBRATION_WINDOW_S = 45.0
 
 
 def fusable(session: Session, labels: list[str] | None = None) -> list[str]:
