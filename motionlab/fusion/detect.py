@@ -187,6 +187,33 @@ def nb_field_disturbed(
     return abs(n - ref_norm) > norm_tol or abs(np.arcsin(s) - ref_dip) > dip_tol
 
 
+@numba.njit(cache=True)
+def _earth_field(
+    q: np.ndarray, mag: np.ndarray, norm: np.ndarray, dip: np.ndarray, psi: np.ndarray
+) -> None:
+    """Per sample, the field ``mag`` (N, 3) in the earth frame under ``q`` (N, 4): its norm,
+    dip ``asin(m_up / |m|)`` (rad; NaN for a zero field) and heading ``atan2(m_east,
+    m_north)`` (rad)."""
+    for k in range(mag.shape[0]):
+        w, x, y, z = q[k, 0], q[k, 1], q[k, 2], q[k, 3]
+        vx, vy, vz = mag[k, 0], mag[k, 1], mag[k, 2]
+        # v + w t + u × t with t = 2 u × v, u = (x, y, z): q ⊗ v ⊗ q*, as rotations.rotate
+        tx, ty, tz = 2.0 * (y * vz - z * vy), 2.0 * (z * vx - x * vz), 2.0 * (x * vy - y * vx)
+        ex = vx + w * tx + (y * tz - z * ty)
+        ey = vy + w * ty + (z * tx - x * tz)
+        ez = vz + w * tz + (x * ty - y * tx)
+        n = np.sqrt(ex * ex + ey * ey + ez * ez)
+        norm[k] = n
+        r = ez / n if n > 0.0 else np.nan
+        dip[k] = np.arcsin(1.0 if r > 1.0 else (-1.0 if r < -1.0 else r))
+        psi[k] = np.arctan2(ex, ey)
+
+
+def _wrapped(angle: np.ndarray) -> np.ndarray:
+    """Angles (rad) wrapped to (−π, π]."""
+    return np.arctan2(np.sin(angle), np.cos(angle))
+
+
 def field_gate(
     mag: np.ndarray,
     q: np.ndarray,
@@ -215,10 +242,8 @@ def field_gate(
     Roetenberg et al. (IEEE TBME 52(3), 2005) and VQF (Laidig & Seel 2023), which rejects a
     field whose norm or dip departs from its learnt reference.
     """
-    em = rot.rotate(q, mag)
-    norm = np.linalg.norm(em, axis=1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        dip = np.arcsin(np.clip(em[:, 2] / norm, -1.0, 1.0))
+    norm, dip, psi = (np.empty(len(mag)) for _ in range(3))
+    _earth_field(np.ascontiguousarray(q, float), np.ascontiguousarray(mag, float), norm, dip, psi)
     good = np.isfinite(norm) & np.isfinite(dip) & (norm > 0)
     if not good.any():
         return np.ones(len(mag), dtype=bool), np.full(len(mag), np.inf), np.nan, np.nan
@@ -235,12 +260,11 @@ def field_gate(
         uniform_filter1d(np.nan_to_num(dev_n, posinf=1e6), w, mode="nearest"),
         uniform_filter1d(np.nan_to_num(dev_d, posinf=1e6), w, mode="nearest"),
     )
-    psi = np.arctan2(em[:, 0], em[:, 1])
     ok = good & (dev <= 1.0)
     if ok.any():
-        mean = np.angle(np.mean(np.exp(1j * psi[ok])))
-        mid = mean + np.median(np.angle(np.exp(1j * (psi[ok] - mean))))
-        off = np.abs(np.angle(np.exp(1j * (np.where(good, psi, 0.0) - mid))))
+        mean = np.arctan2(np.sin(psi[ok]).mean(), np.cos(psi[ok]).mean())
+        mid = mean + np.median(_wrapped(psi[ok] - mean))
+        off = np.abs(_wrapped(np.where(good, psi, 0.0) - mid))
         dev = np.maximum(dev, uniform_filter1d(off, w, mode="nearest") / heading_tol)
     low = dev > hysteresis
     runs, count = label(low)

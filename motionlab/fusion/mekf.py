@@ -90,12 +90,15 @@ inflated prior of a reset decouples the two sides of it; after resets within
 ``early_reset_window`` of the start, the samples before the last of them take its smoothed state
 carried back by the gyroscope, which makes the smoother insensitive to a wrong start.
 
-Where the time goes (issue #25; BROAD, 8 trials, 425 595 samples, 9-D, one shared core, µs per
-sample): the smoother is a 6-D forward pass (0.78), its backward pass (0.89), the field gate
-(numpy, 0.64), the 9-D forward pass (1.07) and its backward pass (0.90), with the rest mask,
-input checks and result about 0.2; offlineVQF took 1.87 in the same run. Measured before the
-changes below: 6-D forward 2.5, backward 1.9, 9-D forward 3.8 (1.7 without storing the
-covariances), backward 1.6 — the passes wrote and read 2 × 81 floats per sample (the prior and
+Where the time goes (issue #25; BROAD, 8 trials, 425 595 samples, 9-D, µs of one thread's CPU
+per sample, the machine shared by other jobs): the smoother is a 6-D forward pass (0.46), its
+backward pass (0.54), the field gate (0.33; its per-sample part one numba loop, the medians,
+moving averages and labelling numpy), the 9-D forward pass (0.72) and its backward pass (0.61),
+with the rest mask, input checks and result about 0.3; offlineVQF took 1.34 in the same run
+(smoother 0.45 × its throughput). Storing the covariances costs under a tenth of a forward pass
+(9-D forward 0.60 × offlineVQF storing, 0.55 × not), the magnetometer a third of it (6-D
+forward 0.37 ×). Before the previous round: 6-D forward 2.5, backward 1.9, 9-D forward 3.8,
+backward 1.6 (µs wall, then) — the passes wrote and read 2 × 81 floats per sample (the prior and
 the posterior covariance), and the backward pass solved each prior with a general Cholesky.
 Now the covariance is kept exactly symmetric (every update computes the upper triangle and
 mirrors it, which halves the rank-one updates), only the posterior's upper triangle is stored
@@ -103,12 +106,12 @@ mirrors it, which halves the rank-one updates), only the posterior's upper trian
 backward pass recomputes each prior from it with the forward pass's own prediction (the same
 operations on the same numbers, so the same prior), the accelerometer rows in motion (one
 error component each) skip the general row product, and the 9 × 9 solve is unrolled with the
-pivots' reciprocals. Output against the previous kernels: quaternions within 2e-14, BROAD table
-identical. The smoother was 0.28 × offlineVQF's throughput and is 0.44 × (mekf 1.19 → 1.87 ×,
-interleaved timing on a loaded machine). What is left is arithmetic, four sequential passes of
-about 500 floating-point operations per sample with a dozen square roots and trigonometric
-functions; the 1.5 × of issue #25 would need fewer passes (the 6-D pass exists only to gate the
-magnetometer) or a vectorised formulation, which change the output.
+pivots' reciprocals. What is left is arithmetic, four sequential passes of about 500
+floating-point operations per sample with a dozen square roots and trigonometric functions
+(numba's ``error_model="numpy"`` and ``fastmath`` gave nothing measurable); the 1.5 × of issue
+#25 would need fewer passes (the 6-D pass exists only to gate the magnetometer: smoothing it
+over its first 10 s only gives 0.47 × but moves BROAD trials by up to 0.03°) and a backward pass
+without the 9 × 9 solve (the Bryson–Frazier form), which change the output (docs/performance.md).
 
 The default parameters were tuned on the 8 BROAD trials in ``../shared`` (Laidig et al. 2021),
 which are also the trials the accuracy is reported on; they are not an independent test set.
@@ -369,6 +372,10 @@ def run_smoother(
     with ``time=``), so that the accelerometer on either side decides where a bridge may have
     missed rotation (:func:`_filter`).
 
+    ``extra["acc_bias_end_cov"]`` (3 × 3, m²/s⁴) is the accelerometer bias's covariance at the
+    last sample, where the filter's posterior holds all the data (what
+    :func:`motionlab.fusion.stage.calibration_acc_bias` joins its windows by).
+
     The backward pass does not cross a reset (its inflated prior decouples the two sides).
     Resets within ``early_reset_window`` of the start mean the initial state was wrong: the
     samples before the last of them take its smoothed state, carried back by the gyroscope.
@@ -389,9 +396,19 @@ def run_smoother(
             scale = np.where(gated, np.inf, 1.0 + p.mag_dev_weight * dev**2)
             gate = (scale, ref_n, ref_d, _start(six["quat"], mag, ~gated))
     out = _filter(gyr, acc, mag, rate, p, rest, store=True, gate=gate, gaps=gaps)
+    end_cov = _unpacked(out["p_post"][-1])[6:, 6:]
     _backward(gyr, rate, out)
     early = np.flatnonzero(out["reset"][: int(p.early_reset_window * rate) + 1])
     carried = int(early[-1]) if len(early) else 0
     if carried:
         _carry_back(out["quat"], out["bias"], out["acc_bias"], gyr, carried, rate)
-    return _result(out, "smoother", rest, mag is not None, carried_back=carried)
+    return _result(
+        out, "smoother", rest, mag is not None, carried_back=carried, acc_bias_end_cov=end_cov
+    )
+
+
+def _unpacked(packed: np.ndarray) -> np.ndarray:
+    """The symmetric N_ERR × N_ERR matrix of a stored upper triangle (row by row)."""
+    m = np.zeros((kern.N_ERR, kern.N_ERR))
+    m[np.triu_indices(kern.N_ERR)] = packed
+    return m + np.triu(m, 1).T

@@ -11,7 +11,7 @@ besides: ``gyro_bias``, ``rest``, ``mag_disturbed``, the marker ``scenario``, an
 An estimator with accelerometer-bias states (the default) also gives the entry's ``acc_bias``,
 the bias that a sensor-to-segment calibration takes off the accelerometer at its rests
 (:func:`calibration_acc_bias`: the 6-D smoother again, with the wider prior
-:data:`CALIBRATION_ACC_BIAS_INIT`).
+:data:`CALIBRATION_ACC_BIAS_INIT`, over the rests and the movement next to them only).
 
 Samples that are not numbers (NaN, ±inf in a channel fused) are not left to spread: a run of
 them up to :data:`NAN_BRIDGE_MAX_S` (from the last finite sample before to the first after, as
@@ -33,6 +33,7 @@ import numpy as np
 
 from motionlab.errors import InputError
 from motionlab.fusion import registry
+from motionlab.fusion.detect import rest_mask
 from motionlab.results import ClockFit, FusionEntry
 from motionlab.session import Session
 from motionlab.timebase import runs
@@ -43,6 +44,8 @@ Progress = Callable[[list[str], str], Iterable[str]]
 NAN_BRIDGE_MAX_S = 0.1
 #: prior standard deviation (m/s²) of the accelerometer bias estimated for a calibration's rests
 CALIBRATION_ACC_BIAS_INIT = 0.5
+#: movement (s) on either side of each rest over which that bias is estimated
+CALIBRATION_WINDOW_S = 45.0
 
 
 def fusable(session: Session, labels: list[str] | None = None) -> list[str]:
@@ -143,6 +146,7 @@ def calibration_acc_bias(
     rate: float,
     time: np.ndarray | None = None,
     filled: Any = None,
+    window_s: float | None = None,
     **params: Any,
 ) -> np.ndarray:
     """The accelerometer bias (N, 3) m/s², sensor frame, that a sensor-to-segment calibration
@@ -160,12 +164,84 @@ def calibration_acc_bias(
     the bias the movement determines (0.45°). Measured in ``bench/real_world.py``: worst knee
     flexion RMSE of seeds 0–9 2.52 → 1.79°, worst knee ab/adduction 3.12 → 2.86°.
     ``filled``: the gaps ingest filled in ``time`` (:func:`filled_spans`), as for the fusion.
+
+    The smoother only sees the bias at rests (in motion its rows leave the bias out, see
+    :mod:`motionlab.fusion.mekf`), so it runs only over every rest and ``window_s`` (default
+    :data:`CALIBRATION_WINDOW_S`) of the movement on either side, overlapping windows joined.
+    The windows are then joined through the bias they share (:func:`_joined_bias`), as the
+    whole recording's smoother joins rests in different poses or headings; between two
+    windows the bias is interpolated linearly, before the first and after the last it is held.
+    Without rests the bias is 0 (what the whole smoother gives).
     """
+    n = len(gyr)
+    p = registry.make_params(registry.get("smoother"), params)
+    rest = rest_mask(
+        np.asarray(gyr, dtype=float), np.asarray(acc, dtype=float), rate, p.rest_gyr_threshold,
+        p.rest_acc_threshold, min_duration=p.rest_min_duration,
+    )  # fmt: skip
+    pad = int(round((CALIBRATION_WINDOW_S if window_s is None else window_s) * rate))
+    spans = _merged_windows(runs(rest), pad, n)
     wider = dict(params) | {"acc_bias_init": CALIBRATION_ACC_BIAS_INIT}
-    res = registry.estimate(
-        "smoother", gyr, acc, None, rate, time=time, filled_spans=filled, **wider
-    )
-    return np.asarray(res.extra["acc_bias"], dtype=float)
+    bias = np.zeros((n, 3))
+    ends = []
+    for lo, hi in spans:
+        res = registry.estimate(
+            "smoother", gyr[lo:hi], acc[lo:hi], None, rate,
+            time=None if time is None else time[lo:hi], filled_spans=filled, **wider,
+        )  # fmt: skip
+        bias[lo:hi] = res.extra["acc_bias"]
+        ends.append((hi / rate, bias[hi - 1].copy(), res.extra["acc_bias_end_cov"]))
+    if len(spans) > 1:
+        rw = float(p.acc_bias_rw)
+        for (lo, hi), joined in zip(spans, _joined_bias(ends, rw), strict=True):
+            bias[lo:hi] += joined - bias[hi - 1]
+    if spans and (spans[0][0] > 0 or spans[-1][1] < n or len(spans) > 1):
+        known = np.concatenate([np.arange(lo, hi) for lo, hi in spans])
+        for i in range(3):
+            bias[:, i] = np.interp(np.arange(n), known, bias[known, i])
+    return bias
+
+
+def _joined_bias(ends: list[tuple[float, np.ndarray, np.ndarray]], rw: float) -> list[np.ndarray]:
+    """The bias (3,) of each window given all windows: ``ends`` holds each window's end time
+    (s), its bias there and that bias's covariance (3 × 3, m²/s⁴; at a window's last sample the
+    filter's posterior holds all of the window's data), each from the prior
+    ``N(0, CALIBRATION_ACC_BIAS_INIT² I)``. Each window's information on the bias,
+    ``J = C⁻¹ − P₀⁻¹`` (negative parts, numerical, dropped) and ``h = C⁻¹ a``, reaches another
+    window weakened by the bias's random walk ``rw`` (m/s²/√s) over the time between them,
+    ``J (I + rw² Δt J)⁻¹``; the prior is counted once. The windows' attitudes are taken as
+    independent: the movement's accelerometer ties each window's inclination down by itself."""
+    p0_inv = np.eye(3) / CALIBRATION_ACC_BIAS_INIT**2
+    info = []
+    for t, a, cov in ends:
+        c_inv = np.linalg.inv(cov)
+        w, v = np.linalg.eigh(0.5 * (c_inv + c_inv.T) - p0_inv)
+        j = (v * np.maximum(w, 0.0)) @ v.T
+        mean = np.linalg.lstsq(j, c_inv @ a, rcond=1e-12)[0] if w.max() > 0 else np.zeros(3)
+        info.append((t, j, mean))
+    out = []
+    for t, _, _ in ends:
+        big_j, big_h = p0_inv.copy(), np.zeros(3)
+        for s, j, mean in info:
+            jj = j @ np.linalg.inv(np.eye(3) + rw**2 * abs(t - s) * j)
+            jj = 0.5 * (jj + jj.T)
+            big_j += jj
+            big_h += jj @ mean
+        out.append(np.linalg.solve(big_j, big_h))
+    return out
+
+
+def _merged_windows(rests: np.ndarray, pad: int, n: int) -> list[tuple[int, int]]:
+    """``[lo, hi)`` sample spans: each ``[start, stop)`` of ``rests`` widened by ``pad`` on
+    both sides (within ``0 … n``), overlapping or touching spans joined."""
+    out: list[tuple[int, int]] = []
+    for a, b in rests:
+        lo, hi = max(0, int(a) - pad), min(n, int(b) + pad)
+        if out and lo <= out[-1][1]:
+            out[-1] = (out[-1][0], max(out[-1][1], hi))
+        else:
+            out.append((lo, hi))
+    return out
 
 
 def filled_spans(stream: Any, path: str | Path | None = None) -> np.ndarray | None:
