@@ -23,11 +23,13 @@ import pandas as pd
 from motionlab.atomic import atomic_path, check_output
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_types import angle_columns
+from motionlab.kinematics.spatiotemporal import STRIDE_COLUMNS, summary_rows
 from motionlab.report.model import (
     THORAX,
     SessionView,
     angle_grade,
     calibration_rows,
+    gait_result,
     grade_rows,
     quality_rows,
     rom_rows,
@@ -215,10 +217,19 @@ def calibration_frame(view: SessionView) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def _gait_frames(view: SessionView) -> dict[str, pd.DataFrame]:
-    from motionlab.report.pages_gait import gait_frames  # pages_gait imports this package
-
-    return gait_frames(view)
+def gait_frames(view: SessionView) -> dict[str, pd.DataFrame]:
+    """``spatiotemporal.csv`` (one row per stride, kept or not, with the reason) and
+    ``spatiotemporal_summary.csv`` (per side mean, SD, CV, SE, median, quartiles and the number
+    of strides; NaN below 3 strides); nothing without a gait analysis."""
+    g = gait_result(view)
+    if g is None:
+        return {}
+    strides = pd.DataFrame({k: np.asarray(v) for k, v in g.strides.items()})
+    strides = strides[["side", "start_s", "kept", "reason", *STRIDE_COLUMNS]]
+    return {
+        "spatiotemporal.csv": strides,
+        "spatiotemporal_summary.csv": summary_rows(g.summary),
+    }
 
 
 def tables(view: SessionView) -> dict[str, pd.DataFrame]:
@@ -232,7 +243,7 @@ def tables(view: SessionView) -> dict[str, pd.DataFrame]:
             "quality.csv": quality_frame(view),
             "calibration.csv": calibration_frame(view),
         }
-        | _gait_frames(view)
+        | gait_frames(view)
     )
 
 

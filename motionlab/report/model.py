@@ -38,7 +38,7 @@ from motionlab.errors import InputError
 from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, plane, title
 from motionlab.kinematics.metrics import THORAX as THORAX  # re-exported for the pages
 from motionlab.protocol import Joint, Protocol, load_protocol
-from motionlab.results import Metrics, SegmentCalibration
+from motionlab.results import Gait, Metrics, SegmentCalibration
 from motionlab.segments import sensor_for_segment
 from motionlab.segments.grades import GRADES, _frame_grade
 from motionlab.session import Session
@@ -513,3 +513,9 @@ def gait_profile(view: SessionView) -> dict[str, Any] | None:
     counts = {s: int(np.sum(kept & (sides == s))) for s in ("r", "l")} if len(kept) else None
     cal = view.session.results.calibration
     return gated_profile(g.map, variable_grades(view.protocol, cal), counts)
+
+
+def gait_result(view: SessionView) -> Gait | None:
+    """The session's gait analysis, or None when there is none (or no gait was found)."""
+    g = view.session.results.gait
+    return g if g is not None and g.ok else None

@@ -17,7 +17,6 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
-import pandas as pd
 import yaml
 
 from motionlab.kinematics.gps import NORMATIVE_SOURCES, VARIABLES, normative, variable_grades
@@ -25,10 +24,9 @@ from motionlab.kinematics.spatiotemporal import (
     MIN_STRIDES,
     STRIDE_COLUMNS,
     method_error,
-    summary_rows,
     too_few,
 )
-from motionlab.report.model import SessionView, gait_profile
+from motionlab.report.model import SessionView, gait_profile, gait_result
 from motionlab.report.pdf import BAND_COLOUR, MUTED, SIDE_COLOUR, SIZE, Document
 from motionlab.results import Gait
 
@@ -53,12 +51,6 @@ _LABELS = {
 def _bands() -> dict[str, Any]:
     with open(NORMATIVE_SOURCES, encoding="utf-8") as f:
         return yaml.safe_load(f)
-
-
-def gait_result(view: SessionView) -> Gait | None:
-    """The session's gait analysis, or None when there is none (or no gait was found)."""
-    g = view.session.results.gait
-    return g if g is not None and g.ok else None
 
 
 #: the uncertainty a value must exceed a band by to be flagged: 1.96 standard errors (95 %)
@@ -267,18 +259,3 @@ def gait_report_pages(doc: Document, view: SessionView) -> None:
     """Both gait pages."""
     gait_pages(doc, view)
     curve_page(doc, view)
-
-
-def gait_frames(view: SessionView) -> dict[str, pd.DataFrame]:
-    """``spatiotemporal.csv`` (one row per stride, kept or not, with the reason) and
-    ``spatiotemporal_summary.csv`` (per side mean, SD, CV, SE, median, quartiles and the number
-    of strides; NaN below 3 strides); nothing without a gait analysis."""
-    g = gait_result(view)
-    if g is None:
-        return {}
-    strides = pd.DataFrame({k: np.asarray(v) for k, v in g.strides.items()})
-    strides = strides[["side", "start_s", "kept", "reason", *STRIDE_COLUMNS]]
-    return {
-        "spatiotemporal.csv": strides,
-        "spatiotemporal_summary.csv": summary_rows(g.summary),
-    }
