@@ -35,6 +35,7 @@ import numpy as np
 
 from motionlab.binding import sensed_protocol
 from motionlab.errors import InputError
+from motionlab.kinematics.gps import gated_profile, variable_grades
 from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, plane, title
 from motionlab.kinematics.metrics import THORAX as THORAX  # re-exported for the pages
 from motionlab.protocol import Joint, Protocol, load_protocol
@@ -502,8 +503,6 @@ def gait_profile(view: SessionView) -> dict[str, Any] | None:
     (:func:`motionlab.kinematics.gps.gated_profile` with this session's grades and kept strides:
     a session analysed before the gating, or whose grades changed since, is gated here); None
     without a gait analysis."""
-    from motionlab.kinematics.gps import gated_profile, variable_grades
-
     g = view.session.results.gait
     if g is None or not g.ok or not g.map:
         return None
