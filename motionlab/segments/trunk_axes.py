@@ -134,6 +134,7 @@ def _horizontal_axes(w_rel: np.ndarray, up: np.ndarray, moving: np.ndarray):
     e1 = _unit(p @ np.eye(3)[int(np.argmin(np.abs(up)))])
     e2 = np.cross(up, e1)
     w = w_rel[moving]
+    w = w[np.isfinite(w).all(axis=1)]
     x, y = w @ e1, w @ e2
     theta4 = 4.0 * np.arctan2(y, x)
     weight = np.hypot(x, y)
