@@ -34,6 +34,7 @@ sys.path.insert(0, str(ROOT))
 from motionlab import rotations as rot  # noqa: E402
 from motionlab.kinematics.joint_angles import decompose  # noqa: E402
 from motionlab.pipeline import PipelineOptions, analyse  # noqa: E402
+from motionlab.segments.trunk_axes import _frame  # noqa: E402  (the calibration's frames)
 from motionlab.simulate import simulate  # noqa: E402
 
 PLANES = ("flexion", "lateral_bending", "axial_rotation")
@@ -45,14 +46,6 @@ def seed_list(text: str) -> list[int]:
         a, b = text.split("-")
         return list(range(int(a), int(b) + 1))
     return [int(x) for x in text.split(",")]
-
-
-def _frame(y: np.ndarray, z: np.ndarray) -> np.ndarray:
-    """Columns x, y, z: y exactly ``y``, z the part of ``z`` perpendicular to it."""
-    y = y / np.linalg.norm(y)
-    z = z - (z @ y) * y
-    z = z / np.linalg.norm(z)
-    return np.column_stack([np.cross(y, z), y, z])
 
 
 def rest_convention_truth(truth, rest: tuple[float, float]) -> dict[str, np.ndarray]:
