@@ -135,6 +135,7 @@ def sync(
 
     done = session.results.clock_sync is not None
     refuse_to_redo(done, "clock_sync", "a clock synchronisation", force, path)
+    session.results.clock_sync = None  # a redo that fails leaves no stale result
     prepare(session)
     protocol = stage_protocol(session, protocol, path)
     result = ClockSync({fit.sensor: fit for fit in synchronise(session, protocol)})

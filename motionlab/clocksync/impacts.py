@@ -67,12 +67,12 @@ IMPACT_FLOOR_S = 2e-4  # smallest scatter of block lags assumed (s)
 @dataclass
 class Envelope:
     """High-frequency energy envelope of one sensor on a uniform grid: time (s), envelope
-    (dimensionless, see :func:`envelope`), its cubic spline, and which samples are real."""
+    (dimensionless, see :func:`envelope`; zero where the samples are not real) and its cubic
+    spline."""
 
     time: np.ndarray
     values: np.ndarray
     spline: CubicSpline
-    valid: np.ndarray
 
 
 def envelope(stream: SensorStream) -> Envelope:
@@ -85,13 +85,12 @@ def envelope(stream: SensorStream) -> Envelope:
     dt = 1.0 / stream.rate_hz
     high = min(IMPACT_BAND_HZ[1], 0.4 / dt)
     if high <= 1.2 * IMPACT_BAND_HZ[0]:  # sampled too slowly to see the transients
-        return Envelope(grid, np.zeros(len(grid)), CubicSpline(grid, np.zeros(len(grid))),
-                         np.zeros(len(grid), bool))  # fmt: skip
+        return Envelope(grid, np.zeros(len(grid)), CubicSpline(grid, np.zeros(len(grid))))
     sos = butter_sos(IMPACT_ORDER, (IMPACT_BAND_HZ[0], high), 1.0 / dt, "bandpass")
     band = sosfiltfilt(sos, np.cumsum(gyr, axis=0) * dt, axis=0)  # angle (rad), band
     low = butter_sos(4, IMPACT_ENVELOPE_HZ, 1.0 / dt)
     env = np.where(valid, sosfiltfilt(low, np.linalg.norm(band, axis=1)), 0.0)
-    return Envelope(grid, env, CubicSpline(grid, env), valid)
+    return Envelope(grid, env, CubicSpline(grid, env))
 
 
 def _correlation(x: np.ndarray, y: np.ndarray) -> float:

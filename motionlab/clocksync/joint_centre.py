@@ -19,6 +19,7 @@ thigh-shank clock error on clean simulated sensors (knee protocol, seeds 4-6 and
 low-pass gave 0.05-0.09 ms there (seeds 4, 8) but let a typical sensor's 10-16 Hz wobble
 through (0.30-0.46 ms instead of 0.15-0.37). The
 clock is then refitted from the offsets of 8 s blocks of movement: a weighted line with a prior
+on the drift, whose scatter gives honest standard errors (see :meth:`Pair.clock_from_blocks`).
 
 A correction is applied only when the fit is reliable: standard error ≤ ``MAX_SE_S`` over the
 recording, and the joint-centre model fits (RMS residual ≤ ``MAX_RESIDUAL_M_S2``; a sensor

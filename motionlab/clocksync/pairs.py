@@ -9,6 +9,7 @@ from collections import deque
 
 from motionlab.binding import sensor_for_segment
 from motionlab.clocksync.common import MIN_SAMPLES, finite_samples
+from motionlab.kinematics.segment_types import kind_side
 from motionlab.protocol import Protocol
 from motionlab.session import Session
 
@@ -60,11 +61,6 @@ def sync_tree(session: Session, protocol: Protocol) -> list[tuple[str, str]]:
 def _usable(session: Session, segment: str) -> bool:
     label = sensor_for_segment(session, segment)
     return label is not None and finite_samples(session.sensors[label]) >= MIN_SAMPLES
-
-
-def kind_side(segment: str) -> tuple[str, str]:
-    """``("thigh", "r")`` for ``thigh_r``, ``("pelvis", "")`` for ``pelvis``."""
-    return (segment[:-2], segment[-1]) if segment[-2:] in ("_l", "_r") else (segment, "")
 
 
 def _neighbours(a: str, b: str) -> bool:

@@ -39,13 +39,14 @@ from motionlab.clocknet import CENTRE_FLOOR_S, NETWORK, solve_network
 from motionlab.clocksync.common import MAX_OFFSET_S, MIN_CORRECTION_S, PerStream
 from motionlab.clocksync.impacts import envelope, impact_clock
 from motionlab.clocksync.joint_centre import estimate_clock, signals
-from motionlab.clocksync.pairs import joint_pairs, kind_side, sync_tree
+from motionlab.clocksync.pairs import joint_pairs, sync_tree
+from motionlab.kinematics.segment_types import kind_side
 from motionlab.protocol import Protocol
 from motionlab.results import ClockFit
 from motionlab.session import Session
 
 # allowance for the errors of an impact lag that its block scatter does not show (medians
-# 0.2-0.9 ms on simulated walks, see above): within it plus twice the standard errors, the
+# 0.2-0.9 ms on simulated walks, see :mod:`.impacts`): within it plus twice the standard errors, the
 # joint-centre fit is kept; 3 ms let pelvis-thigh fits 3.4 ms off through on bench/gait.py seed 0
 IMPACT_BIAS_S = 0.0015
 

@@ -190,7 +190,8 @@ def calibration_acc_bias(
             time=None if time is None else time[lo:hi], filled_spans=filled, **wider,
         )  # fmt: skip
         bias[lo:hi] = res.extra["acc_bias"]
-        ends.append((hi / rate, bias[hi - 1].copy(), res.extra["acc_bias_end_cov"]))
+        end_s = (hi - 1) / rate if time is None else float(time[hi - 1])  # gaps: the stamps
+        ends.append((end_s, bias[hi - 1].copy(), res.extra["acc_bias_end_cov"]))
     if len(spans) > 1:
         rw = float(p.acc_bias_rw)
         for (lo, hi), joined in zip(spans, _joined_bias(ends, rw), strict=True):
