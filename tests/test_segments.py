@@ -107,24 +107,35 @@ def test_knee_calibration_recovers_mountings_and_steps():
 
 
 def test_heading_ties_are_found_once_at_calibration():
-    """The calibration stores each joint's heading ties with the SHA-256 of the orientations
-    they came from; the angles apply them to those orientations (the same segment frames as
-    finding them again), and shifted ties turn the distal segment by the shift."""
+    """The calibration stores each joint's heading ties with the SHA-256 of each segment's
+    orientations; the angles apply them to those orientations (the same segment frames as
+    finding them again), also when given only some segments, and shifted ties turn the distal
+    segment by the shift; a joint whose sensor orientations differ finds its ties anew."""
     session, protocol, *_ = knee_session(seed=2)
     cal = calibrate_segments(session, protocol)
     quats = sensor_quats(session, protocol)
-    assert cal.headings["sha256"] == orientations_sha256(quats)
+    assert cal.headings["sha256"] == {s: orientations_sha256(*tq) for s, tq in quats.items()}
     assert set(cal.headings["joints"]) == set(protocol.joints)
     stored = segment_orientations(protocol, cal, quats)
     fresh = segment_orientations(protocol, dataclasses.replace(cal, headings={}), quats)
     for seg, (_, q) in fresh.items():
         assert np.array_equal(stored[seg][1], q), seg
     name, ties = next((k, v) for k, v in cal.headings["joints"].items() if len(v["times"]))
+    joint = protocol.joints[name]
     ties["deltas"] = ties["deltas"] + np.radians(10.0)
-    distal = protocol.joints[name].distal
-    shifted = segment_orientations(protocol, cal, quats)[distal][1]
-    turn = np.degrees(rot.angle(rot.mul(shifted, rot.conj(stored[distal][1]))))
+    shifted = segment_orientations(protocol, cal, quats)[joint.distal][1]
+    turn = np.degrees(rot.angle(rot.mul(shifted, rot.conj(stored[joint.distal][1]))))
     np.testing.assert_allclose(turn, 10.0, atol=1e-6)
+    # the joint's two segments alone (as the gait and metrics stages ask): still the stored ties
+    pair = {s: quats[s] for s in (joint.proximal, joint.distal)}
+    alone = segment_orientations(protocol, cal, pair)[joint.distal][1]
+    np.testing.assert_allclose(rot.angle(rot.mul(alone, rot.conj(shifted))), 0.0, atol=1e-9)
+    # other orientations of the distal sensor (another estimator): the ties are found anew
+    t, q = quats[joint.distal]
+    other = dict(quats) | {joint.distal: (t, rot.mul(q, rot.from_rotvec(np.array([0, 1e-6, 0]))))}
+    anew = segment_orientations(protocol, cal, other)[joint.distal][1]
+    turn = np.degrees(rot.angle(rot.mul(anew, rot.conj(stored[joint.distal][1]))))
+    assert np.max(turn) < 0.01  # not the 10° shift of the stored ties
 
 
 def test_knee_angles_after_calibration_and_heading_alignment():

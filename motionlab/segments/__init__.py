@@ -113,9 +113,9 @@ def calibrate_segments(
         single_pose=pose.name if pose is not None else None,
     )
     result.grades = grades.grade_joints(protocol, result)
+    result.headings = heading_ties(session, protocol, result)  # first: the hip axes reuse them
     if pose is None:
         result.hip_axes = hip_axes(session, protocol, result)
-    result.headings = heading_ties(session, protocol, result)
     return result
 
 
@@ -123,26 +123,31 @@ def heading_ties(
     session: Session, protocol: Protocol, calibration: SegmentCalibration
 ) -> dict[str, Any]:
     """Each joint's heading ties (see :func:`segment_orientations`) from the orientations of the
-    sensors on the protocol's joints, joints taken along the chain: ``{"sha256": of those
-    orientations (:func:`orientations_sha256`), "joints": {joint: {"source", "times" (K,) s,
-    "deltas" (K,) rad}}}``. Stored in the calibration, so the angles apply them without finding
-    them again; orientations other than these (another estimator) have theirs found anew."""
+    sensors on the protocol's joints, joints taken along the chain: ``{"sha256": {segment: of
+    its orientations (:func:`orientations_sha256`)}, "joints": {joint: {"source", "times" (K,)
+    s, "deltas" (K,) rad}}}``. Stored in the calibration, so the angles (and metrics, gait, the
+    hip axes) apply them without finding them again. Ties already stored elsewhere in the
+    calibration (a two-axis fit's, a ball joint's centre) are not repeated."""
     segs = [s for s in joint_segments(protocol) if sensor_for_segment(session, s) is not None]
     quats = sensor_quats(session, protocol, segs)
     ties: dict[str, dict[str, Any]] = {}
     segment_orientations(protocol, calibration, quats, ties=ties)
-    return {"sha256": orientations_sha256(quats), "joints": ties}
+    return {
+        "sha256": {seg: orientations_sha256(*tq) for seg, tq in quats.items()},
+        "joints": {j: v for j, v in ties.items() if v["source"] not in FITTED_TIES},
+    }
 
 
-def orientations_sha256(sensor_quats: dict[str, tuple[np.ndarray, np.ndarray]]) -> str:
-    """SHA-256 of ``{segment: (time s, q (N, 4))}``: segment names in order, times and
-    quaternions as float64 bytes."""
+#: tie sources stored with their fit (``calibration.hinges``, ``calibration.centres``)
+FITTED_TIES = ("two_axes", "centre")
+
+
+def orientations_sha256(time: np.ndarray, quat: np.ndarray) -> str:
+    """SHA-256 of one segment's sensor orientations: times (s) and quaternions as float64
+    bytes."""
     digest = hashlib.sha256()
-    for seg in sorted(sensor_quats):
-        t, q = sensor_quats[seg]
-        digest.update(seg.encode() + b"\0")
-        for a in (t, q):
-            digest.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
+    for a in (time, quat):
+        digest.update(np.ascontiguousarray(a, dtype=np.float64).tobytes())
     return digest.hexdigest()
 
 
@@ -339,16 +344,18 @@ def segment_orientations(
     frame.
     ``corrections``, when given, receives per joint the heading correction applied
     (:class:`~motionlab.results.HeadingCorrection`). The ties are those stored in
-    ``calibration.headings`` (:func:`heading_ties`) when they were found from these
-    orientations (same SHA-256), else found here; ``ties``, when given, receives them
+    ``calibration.headings`` (:func:`heading_ties`) for a joint whose sensors, and every
+    segment's up the chain, have the orientations they were found from (same SHA-256 per
+    segment), else found here; ``ties``, when given, receives them
     (``{joint: {"source", "times", "deltas"}}``, before the proximal segment's turn is added
     to fitted headings).
     """
     calibration = calibration or SegmentCalibration("")
-    stored_ties: dict[str, dict[str, Any]] = {}
-    if align_heading and calibration.headings:
-        if calibration.headings.get("sha256") == orientations_sha256(sensor_quats):
-            stored_ties = calibration.headings.get("joints", {})
+    stored = calibration.headings or {}
+    hashes = stored.get("sha256") if isinstance(stored.get("sha256"), dict) else {}
+    stored_ties = stored.get("joints", {}) if align_heading else {}
+    same = {seg for seg, tq in sensor_quats.items() if stored_ties
+            and seg in hashes and hashes[seg] == orientations_sha256(*tq)}  # fmt: skip
     out = {}
     for seg, (t, q) in sensor_quats.items():
         cal = calibration.segments.get(seg)
@@ -363,7 +370,11 @@ def segment_orientations(
             continue
         tp, qp = out[p]
         td, qd = out[d]
-        stored = stored_ties.get(joint.name)
+        # stored ties hold when both sensors' orientations are those they were found from and
+        # so is every segment up the chain (the proximal's turn is theirs)
+        if p not in same:
+            same.discard(d)
+        stored = stored_ties.get(joint.name) if d in same else None
         if stored is not None:
             source = stored["source"]
             times = np.asarray(stored["times"], float)
