@@ -226,12 +226,13 @@ class SegmentCalibration(_Record):
     OpenSense-style single-pose calibration, :mod:`motionlab.segments.single_pose`), else ``None``.
     ``hip_axes`` ``{joint: record}``: the hips' flexion axes from the movement (``used``,
     ``turn_deg`` about the pelvis y, ``rho``, ``n_samples``, ``reason``;
-    :mod:`motionlab.segments.hip_axis`). ``headings`` ``{"sha256": str, "joints": {joint:
+    :mod:`motionlab.segments.hip_axis`). ``headings`` ``{"sha256": {segment: str}, "joints": {joint:
     {"source": str, "times": (K,) s, "deltas": (K,) rad}}}``: each joint's heading ties (the
     anchors of the heading alignment, :func:`motionlab.segments.heading_ties`), found once here
-    from the sensor orientations whose SHA-256 is ``sha256``; the angles apply them to those
-    orientations (:func:`motionlab.segments.segment_orientations`) and find them anew for
-    others, or for a calibration stored without them.
+    from the sensor orientations whose SHA-256 per segment is ``sha256`` (ties kept with a
+    two-axis fit or a centre are in ``hinges``/``centres``); the angles, metrics and gait apply
+    them to those orientations (:func:`motionlab.segments.segment_orientations`) and find them
+    anew for others, or for a calibration stored without them.
     """
 
     protocol: str
