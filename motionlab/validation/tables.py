@@ -7,6 +7,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from motionlab.plain import plain
 from motionlab.results import Validation
 
 ANGLE_STATS = (
@@ -20,20 +21,6 @@ ORIENTATION_STATS = (
     "total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg", "median_deg", "iqr_deg",
     "p95_deg", "n_samples",
 )  # fmt: skip
-
-
-def _plain(value: Any) -> Any:
-    if isinstance(value, dict):
-        return {k: _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple, np.ndarray)):
-        return [_plain(v) for v in value]
-    if isinstance(value, (np.floating, float)):
-        return None if not np.isfinite(value) else float(value)
-    if isinstance(value, np.integer):
-        return int(value)
-    if isinstance(value, np.bool_):
-        return bool(value)
-    return value
 
 
 def angle_columns(result: Validation) -> list[str]:
@@ -90,7 +77,7 @@ def summary(result: Validation) -> dict[str, Any]:
                 "rom_error_deg_mean": float(np.mean(reps["rom_error_deg"])),
                 "cmc": reps["cmc"],
             }
-    return _plain(out)
+    return plain(out)
 
 
 def tables(result: Validation) -> dict[str, pd.DataFrame]:
