@@ -193,6 +193,6 @@ def test_no_import_from_a_higher_layer():
 
 def test_the_graph_sees_function_local_and_skips_type_checking_imports():
     graph = _graph()
-    assert "motionlab.clocksync.joint_centre" in graph["motionlab.segments.heading"]  # local
+    assert "motionlab.validation.figures" in graph["motionlab.report.pages_validation"]  # local
     assert "motionlab.results" not in graph["motionlab.kinematics.gps"]  # TYPE_CHECKING only
     assert "motionlab.kinematics.joint_types" in graph["motionlab.protocol"]

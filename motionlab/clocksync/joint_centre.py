@@ -369,3 +369,33 @@ def centre(values: np.ndarray, r: np.ndarray, bias: np.ndarray) -> np.ndarray:
     """Specific force at the joint centre f + b + ω̇ × r + ω × (ω × r) (N, 3), rows [f, ω, ω̇]."""
     f, w, a = values[:, :3], values[:, 3:6], values[:, 6:]
     return f + bias + np.cross(a, r) + np.cross(w, np.cross(w, r))
+
+
+def joint_centre_forces(
+    reference: SensorStream, sensor: SensorStream
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Specific force at the shared joint centre seen by each sensor, in its own frame.
+
+    ``(time s, f_J reference (N, 3), f_J sensor (N, 3))`` on the reference's uniform grid, from
+    the lever arms and accelerometer biases fitted as for the clock (:class:`Pair`; the clocks
+    taken as one: clock sync first). ``None`` when the two share too little movement. Rotated
+    into the earth frame the two vectors are one (Seel et al. 2012), which ties their headings
+    (:func:`motionlab.segments.heading.centre_anchors`).
+    """
+    if min(finite_samples(reference), finite_samples(sensor)) < MIN_SAMPLES:
+        return None
+    a, b = signals(reference), signals(sensor)
+    inside = (a.time >= b.time[0]) & (a.time <= b.time[-1])
+    t, ref = a.time[inside], a.values[inside]
+    if len(t) < 10:
+        return None
+    dt = float(t[1] - t[0])
+    sos = butter_sos(4, LOWPASS_HZ, 1.0 / dt)
+    other = b.spline(t)
+    rates = np.hypot(np.linalg.norm(ref[:, 3:6], axis=1), np.linalg.norm(other[:, 3:6], axis=1))
+    use = np.flatnonzero(sosfiltfilt(sos, rates) > MOVING_RAD_S)
+    if len(use) * dt < MIN_MOVING_S:
+        return None
+    stride = max(1, int(0.25 / (LOWPASS_HZ * dt)))
+    p = Pair(t, ref, b.spline, float(t.mean()), sos, use[::stride]).body(0.0)
+    return t, centre(ref, p[:3], p[6:9]), centre(other, p[3:6], p[9:12])

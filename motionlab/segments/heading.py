@@ -38,7 +38,7 @@ from motionlab import rotations as rot
 from motionlab.timebase import runs
 
 if TYPE_CHECKING:
-    from motionlab.session import SensorStream
+    pass
 
 UP = np.array([0.0, 0.0, 1.0])
 REST_RATE_RAD_S = 0.15
@@ -128,52 +128,15 @@ def centre_anchors(
     """Times (s) and heading offsets δ (rad) from the acceleration of a shared joint centre.
 
     ``f_*`` (N, 3) are the specific force at the joint centre in each sensor's frame
-    (:func:`joint_centre_forces`) and ``q_*`` the sensors' 6-D orientations
-    on ``t``: in the earth frame the two are one vector, so the turn about the vertical that
-    brings the distal's horizontal part onto the proximal's is δ (after Weygers et al. 2020 and
-    Laidig et al. 2017, for joints without a hinge). One anchor per window whose horizontal
-    acceleration is at least ``CENTRE_MIN_M_S2`` on average.
+    (:func:`~motionlab.clocksync.joint_centre.joint_centre_forces`) and ``q_*`` the sensors' 6-D
+    orientations on ``t``: in the earth frame the two are one vector, so the turn about the
+    vertical that brings the distal's horizontal part onto the proximal's is δ (after Weygers et
+    al. 2020 and Laidig et al. 2017, for joints without a hinge). One anchor per window whose
+    horizontal acceleration is at least ``CENTRE_MIN_M_S2`` on average.
     """
     a = rot.rotate(q_proximal, f_proximal)
     d = rot.rotate(q_distal, f_distal)
     return _window_anchors(t, a, d, np.hypot(a[:, 0], a[:, 1]), CENTRE_MIN_M_S2)
-
-
-def joint_centre_forces(
-    reference: SensorStream, sensor: SensorStream
-) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
-    """Specific force at the shared joint centre seen by each sensor, in its own frame.
-
-    ``(time s, f_J reference (N, 3), f_J sensor (N, 3))`` on the reference's uniform grid, from
-    the lever arms and accelerometer biases fitted as for the clock
-    (:class:`motionlab.clocksync.joint_centre.Pair`; the clocks taken as one: clock sync first).
-    ``None`` when the two share too little movement. Rotated into the earth frame the two
-    vectors are one (Seel et al. 2012), which ties their headings (:func:`centre_anchors`).
-    """
-    # here, not at the top: the joint-centre model's numba kernels load only when a joint
-    # without a hinge needs them
-    from scipy.signal import butter, sosfiltfilt
-
-    from motionlab.clocksync import joint_centre as jc
-    from motionlab.clocksync.common import MIN_SAMPLES, finite_samples
-
-    if min(finite_samples(reference), finite_samples(sensor)) < MIN_SAMPLES:
-        return None
-    a, b = jc.signals(reference), jc.signals(sensor)
-    inside = (a.time >= b.time[0]) & (a.time <= b.time[-1])
-    t, ref = a.time[inside], a.values[inside]
-    if len(t) < 10:
-        return None
-    dt = float(t[1] - t[0])
-    sos = butter(4, jc.LOWPASS_HZ, fs=1.0 / dt, output="sos")
-    other = b.spline(t)
-    rates = np.hypot(np.linalg.norm(ref[:, 3:6], axis=1), np.linalg.norm(other[:, 3:6], axis=1))
-    use = np.flatnonzero(sosfiltfilt(sos, rates) > jc.MOVING_RAD_S)
-    if len(use) * dt < jc.MIN_MOVING_S:
-        return None
-    stride = max(1, int(0.25 / (jc.LOWPASS_HZ * dt)))
-    p = jc.Pair(t, ref, b.spline, float(t.mean()), sos, use[::stride]).body(0.0)
-    return t, jc.centre(ref, p[:3], p[6:9]), jc.centre(other, p[3:6], p[9:12])
 
 
 def _window_anchors(

@@ -21,6 +21,7 @@ import numpy as np
 
 from motionlab import rotations as rot
 from motionlab.binding import sensor_for_segment
+from motionlab.clocksync.joint_centre import joint_centre_forces
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_types import flexion_axis, joint_sequence, joint_type
 from motionlab.protocol import Protocol, axis_vector
@@ -230,7 +231,7 @@ def centre_headings(
     ``{joint: {"heading_times": (K,) s, "heading_deltas": (K,) rad, "anchors": K}}`` for the
     joints whose type ties headings by the centre (ball, hip; ``JointType.centre_heading``) and
     whose two sensors share enough movement
-    (:func:`.heading.joint_centre_forces`, :func:`.heading.centre_anchors`).
+    (:func:`motionlab.clocksync.joint_centre.joint_centre_forces`, :func:`.heading.centre_anchors`).
     """
 
     out = {}
@@ -240,7 +241,7 @@ def centre_headings(
         if joint.proximal not in streams or joint.distal not in streams:
             continue
         labels = [sensor_for_segment(session, s) for s in (joint.proximal, joint.distal)]
-        forces = heading.joint_centre_forces(*(session.sensors[k] for k in labels))
+        forces = joint_centre_forces(*(session.sensors[k] for k in labels))
         if forces is None:
             continue
         t, f_p, f_d = forces
