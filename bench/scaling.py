@@ -7,10 +7,10 @@ signals under labels on no protocol segment: ``run`` fuses every sensor, while c
 calibration, angles and metrics use the protocol's five. Each duration runs ``motionlab run``
 (:func:`motionlab.pipeline.run_pipeline`, default options: 6-D smoother, clock sync on) on the
 saved session in a fresh process, after a warm-up run on a 1-minute session in the same process
-(numba's compiled code loaded, as in a second ``run``). Per stage: wall time and the peak
-resident memory above the process's resident memory when the stage began (``/proc`` sampled
-every 5 ms, so a peak shorter than that can be missed); and the whole process's peak. The
-slope is the growth per hour of recording between the two longest durations measured.
+(numba's compiled code loaded, as in a second ``run``). Per stage: wall time, CPU time
+(``time.process_time``: the measure that holds on a shared machine) and the peak resident
+memory above the process's resident memory when the stage began (``/proc`` sampled every 5 ms,
+so a peak shorter than that can be missed); and the whole process's peak. The slope is the growth per hour of recording between the two longest durations measured.
 
 Usage::
 
@@ -30,6 +30,8 @@ import tempfile
 import threading
 import time
 from pathlib import Path
+
+import numpy as np
 
 EXTRA = {"extra_1": "thigh_r", "extra_2": "thigh_l", "extra_3": "pelvis"}
 PAGE = os.sysconf("SC_PAGE_SIZE")
@@ -70,7 +72,7 @@ def _protocol(session_path: Path):
 
 def measure(session_path: Path, warm_path: Path, outdir: Path) -> dict:
     """Run the pipeline on ``warm_path`` then on ``session_path`` in this process; stage times
-    (s) and peak extra resident memory (MB) of the second run."""
+    (wall and CPU s) and peak extra resident memory (MB) of the second run."""
     from motionlab import pipeline
 
     rows: dict[str, dict[str, float]] = {}
@@ -84,11 +86,15 @@ def measure(session_path: Path, warm_path: Path, outdir: Path) -> dict:
     class Stages(pipeline._Stages):
         @contextlib.contextmanager
         def __call__(self, name: str):
-            base = _rss_mb()
+            base, cpu = _rss_mb(), time.process_time()
             state["peak"] = base
             with super().__call__(name):
                 yield
-            rows[name] = {"seconds": self.times[name], "peak_mb": state["peak"] - base}
+            rows[name] = {
+                "seconds": self.times[name],
+                "cpu_s": time.process_time() - cpu,
+                "peak_mb": state["peak"] - base,
+            }
 
     options = pipeline.PipelineOptions(_protocol(warm_path), force=True, progress=False)
     pipeline.run_pipeline([warm_path], outdir / "warm", options)
@@ -97,13 +103,13 @@ def measure(session_path: Path, warm_path: Path, outdir: Path) -> dict:
     pipeline._Stages = Stages
     thread = threading.Thread(target=sample, daemon=True)
     thread.start()
-    t0 = time.perf_counter()
+    t0, cpu = time.perf_counter(), time.process_time()
     pipeline.run_pipeline([session_path], outdir / "run", options)
-    total = time.perf_counter() - t0
+    total, total_cpu = time.perf_counter() - t0, time.process_time() - cpu
     state["stop"] = True
     with open("/proc/self/status") as f:
         hwm = next(int(line.split()[1]) for line in f if line.startswith("VmHWM")) / 1024
-    return {"stages": rows, "total_s": total, "process_peak_mb": hwm}
+    return {"stages": rows, "total_s": total, "total_cpu_s": total_cpu, "process_peak_mb": hwm}
 
 
 def main(argv: list[str] | None = None) -> None:
@@ -145,9 +151,9 @@ def table(results: dict[float, dict]) -> str:
     """Markdown table: per stage, seconds and peak MB per duration, and the slope per hour."""
     minutes = sorted(results)
     stages = list(next(iter(results.values()))["stages"])
-    head = " | ".join(f"{m:g} min: s / MB" for m in minutes)
+    head = " | ".join(f"{m:g} min: s / CPU s / MB" for m in minutes)
     lines = [
-        f"| stage | {head} | slope (s per hour; MB per hour) |",
+        f"| stage | {head} | slope (s, CPU s, MB per hour) |",
         "|---|" + "---:|" * (len(minutes) + 1),
     ]
     a, b = minutes[-2:] if len(minutes) > 1 else (minutes[0], minutes[0])
@@ -159,19 +165,23 @@ def table(results: dict[float, dict]) -> str:
         return f"{(get(results[b]) - get(results[a])) / hours:.1f}"
 
     for st in stages:
+        row = {m: results[m]["stages"][st] for m in minutes}
         cells = " | ".join(
-            f"{results[m]['stages'][st]['seconds']:.2f} / {results[m]['stages'][st]['peak_mb']:.0f}"
-            for m in minutes
+            f"{r['seconds']:.2f} / {r.get('cpu_s', float('nan')):.2f} / {r['peak_mb']:.0f}"
+            for r in row.values()
         )
         s = slope(lambda r, st=st: r["stages"][st]["seconds"])
+        cpu = slope(lambda r, st=st: r["stages"][st].get("cpu_s", float("nan")))
         mb = slope(lambda r, st=st: r["stages"][st]["peak_mb"])
-        lines.append(f"| {st} | {cells} | {s}; {mb} |")
+        lines.append(f"| {st} | {cells} | {s}; {cpu}; {mb} |")
     cells = " | ".join(
-        f"{results[m]['total_s']:.2f} / {results[m]['process_peak_mb']:.0f}" for m in minutes
+        f"{r['total_s']:.2f} / {r.get('total_cpu_s', np.nan):.2f} / {r['process_peak_mb']:.0f}"
+        for r in (results[m] for m in minutes)
     )
     s = slope(lambda r: r["total_s"])
+    cpu = slope(lambda r: r.get("total_cpu_s", float("nan")))
     mb = slope(lambda r: r["process_peak_mb"])
-    lines.append(f"| whole run (MB: process peak) | {cells} | {s}; {mb} |")
+    lines.append(f"| whole run (MB: process peak) | {cells} | {s}; {cpu}; {mb} |")
     return "\n".join(lines)
 
 
