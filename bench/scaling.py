@@ -10,7 +10,8 @@ saved session in a fresh process, after a warm-up run on a 1-minute session in t
 (numba's compiled code loaded, as in a second ``run``). Per stage: wall time, CPU time
 (``time.process_time``: the measure that holds on a shared machine) and the peak resident
 memory above the process's resident memory when the stage began (``/proc`` sampled every 5 ms,
-so a peak shorter than that can be missed); and the whole process's peak. The slope is the growth per hour of recording between the two longest durations measured.
+so a peak shorter than that can be missed); and the whole process's peak. The slope is the
+growth per hour of recording between the two longest durations measured.
 
 Usage::
 
