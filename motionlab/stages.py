@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -144,15 +143,6 @@ def sync(
     return result
 
 
-@dataclass
-class Fused:
-    """What :func:`fuse` did: the sensors fused, in order, and a note per sensor (sensor
-    calibration applied or missing, markers seen)."""
-
-    sensors: list[str]
-    notes: dict[str, str] = field(default_factory=dict)
-
-
 def fuse(
     session: Session,
     estimator: str = ESTIMATOR,
@@ -167,9 +157,12 @@ def fuse(
     path: Any = None,
     progress: Progress | None = None,
     orientation: str = "fused",
-) -> Fused:
+) -> dict[str, FusionEntry]:
     """Orientation of every sensor with gyroscope and accelerometer (of ``sensors``) by
-    ``estimator``, stored in ``results.fusion`` (:func:`motionlab.fusion.stage.fuse_session`).
+    ``estimator`` (:func:`motionlab.fusion.stage.fuse_session`), stored in ``results.fusion``;
+    returns the entries stored (sensor label → :class:`FusionEntry`: the vendor's orientations
+    kept, then the sensors fused, in order; empty when there was nothing to do).
+    :func:`fusion_notes` says what else was done to each.
 
     ``orientation="vendor"``: sensors that carry the vendor's own orientation (``quat``: an
     Xsens export's, an OpenSense ``.sto``, Xsens DOT) keep it instead of being fused (entry
@@ -195,7 +188,7 @@ def fuse(
             remedy=f"use one of {', '.join(ORIENTATIONS)}", argument="orientation",
         )  # fmt: skip
     prepare(session)
-    vendor: list[str] = []
+    vendor: dict[str, FusionEntry] = {}
     if orientation == "vendor":
         vendor = _vendor_orientations(session, sensors, force, path)
     usable = [k for k in fusable(session, sensors) if k not in vendor]
@@ -205,54 +198,75 @@ def fuse(
             f"the orientations of {', '.join(kept)} are stale too (computed before the clock "
             "sync was redone)", path, "results/fusion", "fuse every sensor",
         )  # fmt: skip
-    if not usable:
-        if vendor:
-            session.lineage.record(session.results, "fusion")
-        return Fused(vendor)
-    recorded, notes, calibrated = dict(session.sensors), {}, {}
+    recorded, calibrated = dict(session.sensors), {}
     refs: dict[str, Any] = {}
     marker_info: dict[str, Any] = {}
+    done: dict[str, FusionEntry] = {}
     try:
-        if calibration_dir is not None:
+        if calibration_dir is not None and usable:
             from motionlab.sensorcal.calfile import apply_calibration_dir
 
-            calibrated, notes = apply_calibration_dir(session.sensors, calibration_dir, usable)
+            calibrated, _ = apply_calibration_dir(session.sensors, calibration_dir, usable)
             session.sensors.update(calibrated)
-        if markers or marker_map is not None:
+        if usable and (markers or marker_map is not None):
             refs, marker_info = _marker_references(session, estimator, marker_map, usable)
-        done = fuse_session(
-            session,
-            estimator,
-            params,
-            usable,
-            force=force,
-            path=path,
-            references=refs,
-            magnetometer=magnetometer,
-            progress=progress,
-        )
+        if usable:
+            done = fuse_session(
+                session,
+                estimator,
+                params,
+                usable,
+                force=force,
+                path=path,
+                references=refs,
+                magnetometer=magnetometer,
+                progress=progress,
+            )
     finally:
         session.sensors = recorded
-    store = session.results.fusion
     for label, stream in calibrated.items():
-        entry = store[label]
+        entry = done[label]
         entry.sensor_calibration = stream.attrs["calibration"]
         if stream.acc is not None:  # the segment calibration reads the recorded accelerometer
             bias = 0.0 if entry.acc_bias is None else entry.acc_bias
             entry.acc_bias = recorded[label].acc - stream.acc + bias
-    for label in done:
-        spans = store[label].nan_bridged_s
-        if spans:
-            held = f"{len(spans)} run(s) of non-finite samples bridged"
-            notes[label] = f"{notes[label]}, {held}" if label in notes else held
     for label in refs:
-        record = marker_info["sensors"][label] | {"lab_to_earth": marker_info["lab_to_earth"]}
-        store[label].markers = record
-        seen = f"markers seen {100 * record['visible_fraction']:.0f} %"
-        notes[label] = f"{notes[label]}, {seen}" if label in notes else seen
-    if vendor or done:
+        done[label].markers = marker_info["sensors"][label] | {
+            "lab_to_earth": marker_info["lab_to_earth"]
+        }
+    stored = vendor | done
+    if stored:
+        session.results.fusion.update(stored)
         session.lineage.record(session.results, "fusion")
-    return Fused(vendor + done, notes)
+    return stored
+
+
+def fusion_notes(
+    session: Session, labels: list[str], calibration_dir: str | Path | None = None
+) -> dict[str, str]:
+    """One line per fused sensor of ``labels`` on what :func:`fuse` did besides the
+    orientation, read from its stored entry: the sensor calibration applied (or none found in
+    ``calibration_dir`` for its serial), runs of non-finite samples bridged, the share of the
+    time its marker cluster was seen. Sensors with nothing to say are left out."""
+    from motionlab.sensorcal.calfile import calibration_key
+
+    notes = {}
+    for label in labels:
+        entry = session.results.fusion[label]
+        if entry.name == "vendor":
+            continue
+        parts = []
+        if entry.sensor_calibration is not None:
+            parts.append(f"calibrated ({', '.join(entry.sensor_calibration['channels'])})")
+        elif calibration_dir is not None:
+            parts.append(f"no calibration for {calibration_key(session.sensors[label])}")
+        if entry.nan_bridged_s:
+            parts.append(f"{len(entry.nan_bridged_s)} run(s) of non-finite samples bridged")
+        if entry.markers is not None:
+            parts.append(f"markers seen {100 * entry.markers['visible_fraction']:.0f} %")
+        if parts:
+            notes[label] = ", ".join(parts)
+    return notes
 
 
 ORIENTATIONS = ("fused", "vendor")
@@ -260,8 +274,8 @@ ORIENTATIONS = ("fused", "vendor")
 
 def _vendor_orientations(
     session: Session, sensors: list[str] | None, force: bool, path: Any
-) -> list[str]:
-    """Store the vendor's orientation of every sensor that has one as its fusion entry.
+) -> dict[str, FusionEntry]:
+    """The vendor's orientation of every sensor that has one, as its fusion entry.
 
     Non-finite rows are treated as in fusion (:mod:`motionlab.fusion.stage`): runs up to
     ``NAN_BRIDGE_MAX_S`` hold the last orientation and are listed in ``nan_bridged_s``, longer
@@ -271,13 +285,12 @@ def _vendor_orientations(
     from motionlab.fusion.registry import hold_last_finite
     from motionlab.fusion.stage import bridged_spans
 
-    store = session.results.fusion
-    out = []
+    out: dict[str, FusionEntry] = {}
     for label in sensors or list(session.sensors):
         s = session.sensors[label]
         if s.quat is None:
             continue
-        if label in store and not force:
+        if label in session.results.fusion and not force:
             raise InputError(
                 "already has orientations", path, f"results/fusion/{label}",
                 "use force=True to replace them", argument="force",
@@ -285,10 +298,9 @@ def _vendor_orientations(
         quat = np.asarray(s.quat, float)
         bridged = bridged_spans(label, s.time, {"quat": quat}, path)
         # the vendor's fusion shares one earth frame between its sensors (9-D)
-        store[label] = FusionEntry(
+        out[label] = FusionEntry(
             "vendor", hold_last_finite(quat), magnetometer=True, nan_bridged_s=bridged or None
         )
-        out.append(label)
     return out
 
 

@@ -216,6 +216,7 @@ def test_cli_with_markers(tmp_path, session):
     args = ["fuse", str(path), "--filter", "liu_gn", "--with-markers", "--sensor", "shank_r"]
     res = runner.invoke(main, [*args, "--magnetometer"])  # 9-D: Liu's scenarios 1 and 2
     assert res.exit_code == 0, res.output
+    assert "shank_r" in res.output and "markers seen" in res.output
     entry = load_session(path).results.fusion["shank_r"]
     assert set(np.unique(entry.scenario)) >= {1, 2}
     assert 0.5 < entry.markers["visible_fraction"] < 0.8

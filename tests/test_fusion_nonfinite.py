@@ -15,6 +15,7 @@ from fusion_signals import constant_rotation  # noqa: E402
 from test_input_boundaries import cli, refused  # noqa: E402
 
 from motionlab import rotations as rot  # noqa: E402
+from motionlab import stages  # noqa: E402
 from motionlab.errors import InputError  # noqa: E402
 from motionlab.fusion.stage import NAN_BRIDGE_MAX_S, fuse_session  # noqa: E402
 from motionlab.session import SensorStream, Session, load_session, save_session  # noqa: E402
@@ -46,8 +47,9 @@ def nan_rows(channel: str, start: int, stop: int):
 
 def test_a_short_nan_run_is_bridged_listed_and_the_orientation_stays_right():
     ses = session_with(nan_rows("gyr", 400, 405))  # 5 samples: 0.06 s from finite to finite
-    assert fuse_session(ses, "madgwick", magnetometer=False) == ["shank_r"]
-    entry = ses.results.fusion["shank_r"]
+    entries = fuse_session(ses, "madgwick", magnetometer=False)
+    assert list(entries) == ["shank_r"] and not ses.results.fusion  # stages.fuse stores them
+    entry = entries["shank_r"]
     assert entry.nan_bridged_s == [[4.0, 4.04]]
     q = entry.quat
     assert np.isfinite(q).all()
@@ -57,6 +59,14 @@ def test_a_short_nan_run_is_bridged_listed_and_the_orientation_stays_right():
     up_true = rot.rotate(rot.conj(truth), np.array([0.0, 0.0, 1.0]))
     tilt = np.degrees(np.arccos(np.clip((up_est * up_true).sum(axis=1), -1, 1)))
     assert tilt[300:].max() < 5.0
+
+
+def test_the_fuse_stage_stores_what_it_returns_and_notes_the_bridge():
+    ses = session_with(nan_rows("gyr", 400, 405))
+    out = stages.fuse(ses, "madgwick", magnetometer=False)
+    assert list(out) == ["shank_r"] and out["shank_r"] is ses.results.fusion["shank_r"]
+    notes = stages.fusion_notes(ses, list(out))
+    assert notes == {"shank_r": "1 run(s) of non-finite samples bridged"}
 
 
 def test_a_long_nan_run_is_refused_with_sensor_channel_and_span():
@@ -72,8 +82,8 @@ def test_a_long_nan_run_is_refused_with_sensor_channel_and_span():
 def test_infinite_values_count_as_not_a_number():
     ses = session_with(nan_rows("gyr", 100, 101))
     ses.sensors["shank_r"].gyr[100] = np.inf
-    fuse_session(ses, "madgwick", magnetometer=False)
-    assert ses.results.fusion["shank_r"].nan_bridged_s == [[1.0, 1.0]]
+    entry = fuse_session(ses, "madgwick", magnetometer=False)["shank_r"]
+    assert entry.nan_bridged_s == [[1.0, 1.0]]
 
 
 def test_an_estimate_that_turns_nan_midway_is_refused_with_where_it_starts(monkeypatch):
@@ -109,8 +119,6 @@ def test_cli_fuse_and_run_never_write_nan_orientations(tmp_path):
 
 
 def test_vendor_orientations_follow_the_same_rule(tmp_path):
-    from motionlab import stages
-
     def with_quat(start: int, stop: int):
         def edit(s: SensorStream) -> None:
             s.quat = constant_rotation(seconds=10.0, rate=RATE, seed=3)["quat"].copy()
@@ -119,7 +127,7 @@ def test_vendor_orientations_follow_the_same_rule(tmp_path):
         return edit
 
     ses = session_with(with_quat(500, 502))
-    assert stages.fuse(ses, orientation="vendor").sensors == ["shank_r"]
+    assert list(stages.fuse(ses, orientation="vendor")) == ["shank_r"]
     entry = ses.results.fusion["shank_r"]
     assert entry.name == "vendor" and entry.nan_bridged_s == [[5.0, 5.01]]
     assert np.isfinite(entry.quat).all()

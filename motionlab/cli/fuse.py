@@ -155,7 +155,7 @@ def command(
             progress=_progress,
             orientation=orientation,
         )
-        done, notes = fused.sensors, fused.notes
+        done, notes = list(fused), stages.fusion_notes(ses, list(fused), calibration)
         fusion = ses.results.fusion
         with_refs = any(fusion[k].markers is not None for k in done)
         ses.add_provenance(

@@ -1,12 +1,12 @@
-"""The fusion stage: every chosen sensor's orientation by one estimator, stored in the session.
+"""The fusion stage's computation: every chosen sensor's orientation by one estimator.
 
-``motionlab fuse`` and ``motionlab run`` (:mod:`motionlab.pipeline`) both call
-:func:`fuse_session`. Each sensor's :class:`~motionlab.results.FusionEntry` in
-``session.results.fusion`` holds the estimator's ``name``, ``quat`` ((N, 4), sensor → ENU earth,
-on the sensor's own time stamps, which are passed to the estimator so that packet-loss gaps are
-bridged), its ``params``, whether the ``magnetometer`` was used, and what the estimator reports
-besides: ``gyro_bias``, ``rest``, ``mag_disturbed``, the marker ``scenario``, and
-``gaps_bridged_s`` (the gaps it ran across).
+:func:`motionlab.stages.fuse` (``motionlab fuse`` and ``motionlab run``) calls
+:func:`fuse_session` and stores what it returns in ``session.results.fusion``. Each
+sensor's :class:`~motionlab.results.FusionEntry` holds the estimator's ``name``, ``quat``
+((N, 4), sensor → ENU earth, on the sensor's own time stamps, which are passed to the
+estimator so that packet-loss gaps are bridged), its ``params``, whether the ``magnetometer``
+was used, and what the estimator reports besides: ``gyro_bias``, ``rest``, ``mag_disturbed``,
+the marker ``scenario``, and ``gaps_bridged_s`` (the gaps it ran across).
 
 An estimator with accelerometer-bias states (the default) also gives the entry's ``acc_bias``,
 the bias that a sensor-to-segment calibration takes off the accelerometer at its rests
@@ -69,13 +69,14 @@ def fuse_session(
     references: dict[str, Any] | None = None,
     magnetometer: bool = True,
     progress: Progress | None = None,
-) -> list[str]:
-    """Run estimator ``name`` on ``sensors`` and store the results in ``session.results.fusion``.
+) -> dict[str, FusionEntry]:
+    """Run estimator ``name`` on ``sensors``: one :class:`FusionEntry` per sensor, not stored
+    (:func:`motionlab.stages.fuse` stores them).
 
     Parameters
     ----------
     session
-        The session; its ``results.fusion`` gets one entry per sensor (module docstring).
+        The session (its ``results.fusion`` is only read, for entries already there).
     name, params
         Registered estimator and its parameters as text (``{"beta": "0.1"}``), checked before
         any work.
@@ -93,8 +94,8 @@ def fuse_session(
 
     Returns
     -------
-    list of str
-        The sensors fused, in order.
+    dict
+        Sensor label → its entry (module docstring), in the order fused.
     """
     est = registry.get(name)
     params = dict(params or {})
@@ -111,7 +112,7 @@ def fuse_session(
                 argument="force",
             )
     text = f"fusing ({est.name}{'' if magnetometer else ', 6-D'})"
-    done = []
+    done: dict[str, FusionEntry] = {}
     for label in progress(sensors, text) if progress else sensors:
         s = session.sensors[label]
         mag = s.mag if magnetometer else None
@@ -123,7 +124,7 @@ def fuse_session(
         )  # fmt: skip
         _check_finite(label, est.name, s.time, res.quat, path)
         resampled = res.extra.get("resampled")  # packet-loss gaps the estimator ran across
-        store[label] = FusionEntry(
+        done[label] = FusionEntry(
             res.name,
             res.quat,
             res.params,
@@ -136,7 +137,6 @@ def fuse_session(
             mag_disturbed=res.mag_disturbed,
             acc_bias=_calibration_bias(res, s, params),
         )
-        done.append(label)
     return done
 
 
