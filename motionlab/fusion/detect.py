@@ -66,10 +66,12 @@ def steady_mask(
     sway: float = np.deg2rad(0.2),
     smooth: float = 0.25,
     window: float = 1.0,
+    min_duration: float = 1.5,
 ) -> np.ndarray:
     """Samples (N,) bool where the angular rate is steady: its moving mean over ``smooth`` s
     varies by less than ``sway`` (rad/s, RMS over the three axes) within the centred
-    ``window`` s around the sample.
+    ``window`` s around the sample, for at least ``min_duration`` s (a sway levelling off
+    for a moment is not steady).
 
     A gyroscope's bias is constant and its noise averages out within ``smooth``; a sensor on a
     person sitting or standing "still" sways and drifts at fractions of a degree per second,
@@ -81,11 +83,15 @@ def steady_mask(
     only steady samples.
     """
     g = uniform_filter1d(np.asarray(gyr, dtype=float), _window(smooth, rate), axis=0,
-                         mode="nearest")  # fmt: skip
+                         mode="reflect")  # fmt: skip
     w = _window(window, rate)
-    dev = g - uniform_filter1d(g, w, axis=0, mode="nearest")
-    var = uniform_filter1d(np.einsum("ij,ij->i", dev, dev), w, mode="nearest")
-    return var < sway**2
+    dev = g - uniform_filter1d(g, w, axis=0, mode="reflect")
+    var = uniform_filter1d(np.einsum("ij,ij->i", dev, dev), w, mode="reflect")
+    steady = var < sway**2
+    run = _window(min_duration, rate) | 1
+    if run > 1 and len(steady) >= run:
+        steady = _dilate(_erode(steady, run), run)  # opening: drop shorter steady runs
+    return steady
 
 
 def field_norm_dip(
