@@ -18,7 +18,14 @@ Model (conventions of :mod:`motionlab.rotations`: scalar-first quaternions, sens
 - rest: the gyroscope measures the bias directly, a strong bias update (the idea of VQF's rest
   bias estimation, Laidig & Seel 2023). ``mekf`` detects rest from past samples only
   (:func:`causal_rest`), the smoother with the centred window of
-  :func:`motionlab.fusion.detect.rest_mask`;
+  :func:`motionlab.fusion.detect.rest_mask`, and the smoother's bias update takes only the
+  rest's **steady** stretches (:func:`motionlab.fusion.detect.steady_mask`, ``rest_sway``): a
+  person sitting "still" sways and turns slowly at 0.3–0.7°/s, under the rest's 2°/s, and the
+  mean of that movement was taken for the bias (the shared trunk recordings: a seated back's
+  0.6°/s over a 2 s rest became a heading drift of 0.5°/s, 7° over the next 14 s against
+  OptiTrack, where VQF, which found no rest there, kept 1°; Danique/trunkmovement_hs). Where
+  a rest is not steady the bias comes from its prior and the movement, as in motion. A sensor
+  set down is steady (BROAD's rests vary by 0.02°/s; its results are unchanged);
 - accelerometer: the horizontal part of the earth-frame ``R (acc − a) / g`` against earth-up,
   two scalar rows ``e_z × δθ + R δa / g`` (the vertical row is not used: it would tie the bias
   to ``|acc| − g``, i.e. to scale errors and the local gravity), with a constant noise
