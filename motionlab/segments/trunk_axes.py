@@ -14,8 +14,9 @@ and **trunk movement** in any order, also as one continuous block:
    recording (:func:`motionlab.segments.heading.heading_from_rates`; trunk movement turns both
    about parallel axes: the pelvis tilts with the thorax). When the rest is still (under
    :data:`STILL_DEG_S`) and both fusions are 6-D with their gyroscope bias reported, the
-   headings' drift apart is followed too: each gyroscope's mean over the rest, less the bias
-   its fusion removed there, integrated about the vertical (:func:`_heading_drift`).
+   headings' drift apart is followed too: each gyroscope's mean over the rest's steady samples
+   (a seated back's sway is movement, not bias), less the bias its fusion removed there,
+   integrated about the vertical (:func:`_heading_drift`).
 3. **Flexion axis:** of the two perpendicular axes about which the thorax's angular velocity
    relative to the pelvis turns most often (in the thorax sensor frame, perpendicular to the rest's
    vertical, over the recording; :func:`_horizontal_axes`), the one about which the thorax moves
