@@ -402,7 +402,7 @@ def run_smoother(
     rest = rest_mask(
         gyr, acc, rate, p.rest_gyr_threshold, p.rest_acc_threshold, min_duration=p.rest_min_duration
     )
-    steady = steady_mask(gyr, rate, p.rest_sway, min_duration=p.rest_min_duration)
+    steady = steady_mask(gyr, rate, rest, p.rest_sway)
     gate = None
     if mag is not None:
         six = _filter(gyr, acc, None, rate, p, rest, store=True, gaps=gaps, steady=steady)

@@ -422,7 +422,9 @@ def _heading_drift(session, labels: dict[str, str], t, q, gyr, rest: slice) -> n
         fused = session.results.fusion.get(label)
         if fused is None or fused.gyro_bias is None or fused.magnetometer:
             return None
-        steady = steady_mask(gyr[seg], hz)[rest]
+        still = np.zeros(len(t), bool)
+        still[rest] = True
+        steady = steady_mask(gyr[seg], hz, still)[rest]
         if not steady.any():  # a person's sway: the rest shows no bias
             drifts.append(np.zeros(len(t)))
             continue
