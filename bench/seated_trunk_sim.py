@@ -86,7 +86,8 @@ def run_seed(seed: int, rate: float, preset: str) -> dict[str, float | str]:
             e = np.asarray(cols[f"lumbar_{plane}_deg"], float) - (ref - ref[at_rest].mean())
             out[key] = float(np.sqrt(np.mean(e[inside] ** 2)))
     out["grades"] = "/".join(g[:3] for g in cal.grades["lumbar"]["grades"])
-    out["drift"] = str(cal.grades["lumbar"]["trunk"].get("heading_drift_from"))
+    drift = cal.grades["lumbar"]["trunk"].get("heading_drift_deg")
+    out["drift"] = "not followed" if drift is None else f"{drift:.2f}"
     return out
 
 
@@ -103,7 +104,7 @@ def main(argv: list[str] | None = None) -> int:
           "vertical as y)\n")  # fmt: skip
     print(
         "| seed | flexion | lateral bending | axial rotation | flexion (rest) "
-        "| lateral bending (rest) | axial rotation (rest) | grades | heading drift from |"
+        "| lateral bending (rest) | axial rotation (rest) | grades | heading drift followed (deg) |"
     )
     print("|---|---|---|---|---|---|---|---|---|")
     for seed in seed_list(args.seeds):

@@ -66,3 +66,39 @@ def test_in_loop_check_agrees_with_the_vectorised_one():
     _, dip = detect.field_norm_dip(mag, sig["acc"], q)
     np.testing.assert_array_equal(flags, np.abs(dip - ref[1]) > np.deg2rad(6.0))
     assert not any(flags[:100])
+
+
+def _swaying_rest(rate: float, sway_deg_s: float) -> np.ndarray:
+    """10 s of a sensor's rate (rad/s) at rest: a bias of 0.5°/s about z, white noise of
+    0.1°/s, and a person's sway: sinusoids of ``sway_deg_s`` amplitude at 0.3 and 0.7 Hz."""
+    t = np.arange(int(10 * rate)) / rate
+    rng = np.random.default_rng(5)
+    gyr = np.deg2rad(0.1) * rng.standard_normal((len(t), 3))
+    gyr[:, 2] += np.deg2rad(0.5)
+    sway = np.sin(2 * np.pi * 0.3 * t) + np.sin(2 * np.pi * 0.7 * t + 1.0)
+    gyr += np.deg2rad(sway_deg_s) * np.column_stack([0.6 * sway, 0.4 * sway[::-1], sway])
+    return gyr
+
+
+def test_steady_mask_tells_a_bias_from_a_sway():
+    """A constant rate with white noise is steady at any rate; a sway of ±0.5°/s is not
+    (but for a few moments where the two sinusoids level off together)."""
+    for rate in (50.0, 285.7):
+        assert detect.steady_mask(_swaying_rest(rate, 0.0), rate).all()
+        assert detect.steady_mask(_swaying_rest(rate, 0.5), rate).mean() < 0.1
+
+
+def test_the_smoother_takes_no_bias_from_a_sway():
+    """At a rest whose rate sways, the bias update is left out: the smoother's bias about the
+    vertical stays at its prior (0), not the sway's mean over the rest; a steady rest gives
+    the constant rate as the bias (0.5°/s)."""
+    from motionlab.fusion import estimate
+
+    rate = 50.0
+    acc = np.tile([0.0, 0.0, 9.81], (int(10 * rate), 1))
+    steady = estimate("smoother", _swaying_rest(rate, 0.0), acc, None, rate=rate)
+    assert abs(np.degrees(steady.gyro_bias[:, 2]).mean() - 0.5) < 0.05
+    gyr = _swaying_rest(rate, 0.5)
+    gyr[:, 2] += np.deg2rad(0.4)  # the person turned slowly: the rest's mean is 0.9°/s
+    swaying = estimate("smoother", gyr, acc, None, rate=rate)
+    assert abs(np.degrees(swaying.gyro_bias[:, 2]).mean()) < 0.1

@@ -219,6 +219,7 @@ def forward(
     use_mag: bool,
     mag_scale: np.ndarray,
     rest: np.ndarray,
+    steady: np.ndarray,
     att_extra: np.ndarray,
     dt: float,
     q0: np.ndarray,
@@ -256,6 +257,9 @@ def forward(
     heading variance multiplied by it (the offline gating and weighting of
     :func:`motionlab.fusion.detect.field_gate`); otherwise ``mag_scale`` is ignored and the
     reference is learnt online.
+
+    ``rest`` (N) flags the samples at rest (the accelerometer and magnetometer at their rest
+    noise); the gyroscope measures the bias where ``steady`` (N) is set too.
     """
     n = gyr.shape[0]
     q = q0.copy()
@@ -321,7 +325,7 @@ def forward(
             _inject(q, b, a, dx)
             mon_k.monitor_clear(mon)
             mode = 0
-        if rest[k]:
+        if rest[k] and steady[k]:
             var = prm[REST_NOISE] ** 2
             for i in range(3):
                 _scalar_update(p, dx, 3 + i, gyr[k, i] - b[i] - dx[3 + i], var, False, kvec, row)

@@ -18,7 +18,14 @@ Model (conventions of :mod:`motionlab.rotations`: scalar-first quaternions, sens
 - rest: the gyroscope measures the bias directly, a strong bias update (the idea of VQF's rest
   bias estimation, Laidig & Seel 2023). ``mekf`` detects rest from past samples only
   (:func:`causal_rest`), the smoother with the centred window of
-  :func:`motionlab.fusion.detect.rest_mask`;
+  :func:`motionlab.fusion.detect.rest_mask`, and the smoother's bias update takes only the
+  rest's **steady** stretches (:func:`motionlab.fusion.detect.steady_mask`, ``rest_sway``): a
+  person sitting "still" sways and turns slowly at 0.3–0.7°/s, under the rest's 2°/s, and the
+  mean of that movement was taken for the bias (the shared trunk recordings: a seated back's
+  0.6°/s over a 2 s rest became a heading drift of 0.5°/s, 7° over the next 14 s against
+  OptiTrack, where VQF, which found no rest there, kept 1°; Danique/trunkmovement_hs). Where
+  a rest is not steady the bias comes from its prior and the movement, as in motion. A sensor
+  set down is steady (BROAD's rests vary by 0.02°/s; its results are unchanged);
 - accelerometer: the horizontal part of the earth-frame ``R (acc − a) / g`` against earth-up,
   two scalar rows ``e_z × δθ + R δa / g`` (the vertical row is not used: it would tie the bias
   to ``|acc| − g``, i.e. to scale errors and the local gravity), with a constant noise
@@ -127,7 +134,7 @@ import numpy as np
 from motionlab.fusion import _mekf_kernels as kern
 from motionlab.fusion import _mekf_monitor as mon_k
 from motionlab.fusion.attitude import initial_orientation
-from motionlab.fusion.detect import field_gate, rest_mask
+from motionlab.fusion.detect import field_gate, rest_mask, steady_mask
 from motionlab.fusion.registry import FusionResult, param, register
 from motionlab.fusion.timegrid import GapNoise
 from motionlab.rotations import (
@@ -215,6 +222,12 @@ class SmootherParams(MekfParams):
     early_reset_window: float = param(
         10.0, "s", "before a reset this soon after the start, carry the smoothed state back"
     )
+    rest_sway: float = param(
+        np.deg2rad(0.2),
+        "rad/s",
+        "the bias update at rest only where the rate's 0.25 s mean "
+        "varies less than this over 1 s (a person's sway is not a bias)",
+    )
 
 
 def _pack(p: MekfParams) -> np.ndarray:
@@ -252,8 +265,12 @@ def _filter(
     store: bool,
     gate: tuple[np.ndarray, float, float, np.ndarray] | None = None,
     gaps: GapNoise | None = None,
+    steady: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """Run the forward kernel from the orientation of the first samples.
+
+    ``steady`` (N, bool; default every sample): where a rest's gyroscope measures the bias
+    (:func:`motionlab.fusion.detect.steady_mask`).
 
     ``gaps`` (packet-loss gaps bridged in the inputs, :func:`.timegrid.gap_noise`), with
     ``store`` (the smoother's passes): the prior of the first recorded sample after each gap
@@ -295,7 +312,8 @@ def _filter(
         p0[0, 0] = p0[1, 1] = p.reset_noise**2
         p0[2, 2] = p.mag_heading_init**2
     kern.forward(
-        gyr, acc, mag if use_mag else np.zeros((1, 3)), use_mag, scale, rest, out["att_extra"],
+        gyr, acc, mag if use_mag else np.zeros((1, 3)), use_mag, scale, rest,
+        np.ones(len(gyr), dtype=np.bool_) if steady is None else steady, out["att_extra"],
         1.0 / rate, q0, np.zeros(3), np.zeros(3), p0, prm, out["quat"], out["bias"],
         out["acc_bias"], out["dist"], out["reset"], out["p_post"], store,
     )  # fmt: skip
@@ -384,9 +402,10 @@ def run_smoother(
     rest = rest_mask(
         gyr, acc, rate, p.rest_gyr_threshold, p.rest_acc_threshold, min_duration=p.rest_min_duration
     )
+    steady = steady_mask(gyr, rate, rest, p.rest_sway)
     gate = None
     if mag is not None:
-        six = _filter(gyr, acc, None, rate, p, rest, store=True, gaps=gaps)
+        six = _filter(gyr, acc, None, rate, p, rest, store=True, gaps=gaps, steady=steady)
         _backward(gyr, rate, six)
         gated, dev, ref_n, ref_d = field_gate(
             mag, six["quat"], rate, p.mag_norm_tol, p.mag_dip_tol, p.mag_hysteresis,
@@ -395,7 +414,7 @@ def run_smoother(
         if np.isfinite(ref_n):
             scale = np.where(gated, np.inf, 1.0 + p.mag_dev_weight * dev**2)
             gate = (scale, ref_n, ref_d, _start(six["quat"], mag, ~gated))
-    out = _filter(gyr, acc, mag, rate, p, rest, store=True, gate=gate, gaps=gaps)
+    out = _filter(gyr, acc, mag, rate, p, rest, store=True, gate=gate, gaps=gaps, steady=steady)
     end_cov = _unpacked(out["p_post"][-1])[6:, 6:]
     _backward(gyr, rate, out)
     early = np.flatnonzero(out["reset"][: int(p.early_reset_window * rate) + 1])

@@ -14,8 +14,9 @@ and **trunk movement** in any order, also as one continuous block:
    recording (:func:`motionlab.segments.heading.heading_from_rates`; trunk movement turns both
    about parallel axes: the pelvis tilts with the thorax). When the rest is still (under
    :data:`STILL_DEG_S`) and both fusions are 6-D with their gyroscope bias reported, the
-   headings' drift apart is followed too: each gyroscope's mean over the rest, less the bias
-   its fusion removed there, integrated about the vertical (:func:`_heading_drift`).
+   headings' drift apart is followed too: each gyroscope's mean over the rest's steady samples
+   (a seated back's sway is movement, not bias), less the bias its fusion removed there,
+   integrated about the vertical (:func:`_heading_drift`).
 3. **Flexion axis:** of the two perpendicular axes about which the thorax's angular velocity
    relative to the pelvis turns most often (in the thorax sensor frame, perpendicular to the rest's
    vertical, over the recording; :func:`_horizontal_axes`), the one about which the thorax moves
@@ -50,6 +51,7 @@ from scipy.ndimage import uniform_filter1d
 from motionlab import rotations as rot
 from motionlab.binding import sensor_for_segment
 from motionlab.errors import InputError
+from motionlab.fusion.detect import steady_mask
 from motionlab.kinematics.joint_types import joint_type
 from motionlab.protocol import Protocol
 from motionlab.results import SegmentCalibration
@@ -408,18 +410,27 @@ def calibrate(
 def _heading_drift(session, labels: dict[str, str], t, q, gyr, rest: slice) -> np.ndarray | None:
     """The heading (rad, per sample, 0 at the rest) that turns the distal sensor's 6-D earth
     frame back onto the proximal's as their headings drift apart: each sensor's gyroscope
-    over a still rest, less the bias its fusion removed there, integrated about the earth
-    vertical through its orientation (``labels``: proximal then distal segment → sensor).
+    over the steady samples of a still rest (:func:`motionlab.fusion.detect.steady_mask`: a
+    back's sway is movement, not bias; none steady, no drift), less the bias its fusion
+    removed there, integrated about the earth vertical through its orientation (``labels``:
+    proximal then distal segment → sensor).
     ``None`` unless both fusions are 6-D and report their gyroscope bias (a vendor's or a 9-D
     orientation has its own heading reference)."""
     drifts = []
+    hz = 1.0 / float(np.median(np.diff(t)))
     for seg, label in labels.items():
         fused = session.results.fusion.get(label)
         if fused is None or fused.gyro_bias is None or fused.magnetometer:
             return None
+        still = np.zeros(len(t), bool)
+        still[rest] = True
+        steady = steady_mask(gyr[seg], hz, still)[rest]
+        if not steady.any():  # a person's sway: the rest shows no bias
+            drifts.append(np.zeros(len(t)))
+            continue
         b = np.asarray(fused.gyro_bias, float)
-        bias = b if b.ndim == 1 else _on(t, session.sensors[label].time, b)[rest].mean(axis=0)
-        left = gyr[seg][rest].mean(axis=0) - bias
+        bias = b if b.ndim == 1 else _on(t, session.sensors[label].time, b)[rest][steady]
+        left = gyr[seg][rest][steady].mean(axis=0) - np.mean(np.atleast_2d(bias), axis=0)
         rate = rot.rotate(q[seg], np.broadcast_to(left, (len(t), 3)))[:, 2]
         e = np.concatenate([[0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t))])
         drifts.append(e - e[rest].mean())
