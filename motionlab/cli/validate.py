@@ -47,8 +47,6 @@ from motionlab.validation.time_offset import SYNC_SOURCES
               "vertical shared), none [default: full after 9-D fusion, else heading].")  # fmt: skip
 @click.option("--no-sync", is_flag=True, help="The streams already share one clock.")
 @click.option("--movement-only", is_flag=True, help="Statistics over movement phases only.")
-@click.option("--estimator", default=stages.ESTIMATOR, show_default=True,
-              help="Fusion for sensors without fusion results.")  # fmt: skip
 @click.option("--seed", type=int, default=0, show_default=True,
               help="Random seed (the RANSAC clock fit).")  # fmt: skip
 @click.option("--csv", "csv_dir", type=FOLDER, help="Write CSV tables here.")
@@ -67,7 +65,6 @@ def command(
     mode: str | None,
     no_sync: bool,
     movement_only: bool,
-    estimator: str,
     seed: int,
     csv_dir: str | None,
     as_json: bool,
@@ -118,7 +115,7 @@ def command(
         mode = mode or stages.validation_mode(ses)
         result = stages.validate(
             ses, protocol, ref, marker_map=mmap, static=static, mode=mode, clock=not no_sync,
-            movement_only=movement_only, estimator=estimator, seed=seed, force=force, path=session,
+            movement_only=movement_only, seed=seed, force=force, path=session,
             reference_kind=kind, frames=frames, angle_map=angle_map, sync_on=sync_on,
         )  # fmt: skip
         if csv_dir:

@@ -252,7 +252,6 @@ def session_metrics(
     session: Session,
     protocol: Protocol,
     tasks: dict[str, tuple[float, float]] | None = None,
-    estimator: str = "default",
 ) -> Metrics:
     """Metrics of a calibrated session; ``tasks`` ``{name: (start_s, end_s)}`` or found.
 
@@ -283,7 +282,7 @@ def session_metrics(
     if "trunk_compensation" in wanted(protocol) and THORAX in protocol.segments:
         if sensor_for_segment(session, THORAX) is not None and THORAX not in segs:
             segs.append(THORAX)
-    quats = sensor_quats(session, protocol, segs, estimator)
+    quats = sensor_quats(session, protocol, segs)
     seg_q = segment_orientations(protocol, cal, quats)
     table = angle_table(seg_q, protocol, cal)
     nominal = None

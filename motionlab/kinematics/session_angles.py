@@ -1,11 +1,12 @@
 """Joint angles of a whole session: sensor orientations → segment orientations → angle table.
 
-Sensor orientations come from, in this order (:mod:`motionlab.segments.sensors`): the fusion
-stage's results (``session.results.fusion[label].quat``, as ``motionlab fuse`` stores them),
-running the default estimator 6-D on the raw accelerometer and gyroscope, or the vendor's
-``quat``. 6-D as ``motionlab run`` fuses: the heading alignment gives each segment's heading
-relative to its neighbour, and an uncalibrated magnetometer only adds errors (carrying angle and
-pronation up to 5–10° in ``bench/joint_angles.py --mag``; docs/kinematics.md).
+Sensor orientations are (:mod:`motionlab.segments.sensors`) the fusion stage's results
+(``session.results.fusion[label].quat``, as ``motionlab fuse`` stores them) or, for a sensor
+without raw accelerometer and gyroscope, the vendor's ``quat``; a sensor with raw signals and
+no fusion result is refused. ``motionlab run`` fuses 6-D: the heading alignment gives each
+segment's heading relative to its neighbour, and an uncalibrated magnetometer only adds errors
+(carrying angle and pronation up to 5–10° in ``bench/joint_angles.py --mag``;
+docs/kinematics.md).
 A segment's sensor is the one whose ``segment`` attribute names it (set by ``ingest --map``), else
 the sensor labelled like the segment. Every joint is resampled onto one time base: the time of
 the first joint's proximal sensor, cut to the span all sensors cover.
@@ -42,7 +43,6 @@ def session_segments(
     session: Session,
     protocol: Protocol,
     calibration: SegmentCalibration | None,
-    estimator: str = "default",
     align_heading: bool = True,
     segments: list[str] | None = None,
     corrections: dict[str, HeadingCorrection] | None = None,
@@ -52,7 +52,7 @@ def session_segments(
     ``calibration`` is ``session.results.calibration`` (``None``: sensor frames are used as
     segment frames).
     """
-    quats = sensor_quats(session, protocol, segments, estimator)
+    quats = sensor_quats(session, protocol, segments)
     return segment_orientations(protocol, calibration, quats, align_heading, corrections)
 
 
@@ -84,13 +84,10 @@ def session_angles(
     session: Session,
     protocol: Protocol,
     calibration: SegmentCalibration | None,
-    estimator: str = "default",
     align_heading: bool = True,
     corrections: dict[str, HeadingCorrection] | None = None,
 ) -> dict[str, Any]:
     """The angle table (degrees) of every protocol joint, see :func:`angle_table`;
     ``corrections`` receives each joint's heading correction (:func:`segment_orientations`)."""
-    seg_q = session_segments(
-        session, protocol, calibration, estimator, align_heading, corrections=corrections
-    )
+    seg_q = session_segments(session, protocol, calibration, align_heading, corrections=corrections)
     return angle_table(seg_q, protocol, calibration)

@@ -1,10 +1,12 @@
 """A segment's sensor signals as the calibration and the angles read them.
 
 The sensor on a segment is :func:`motionlab.binding.sensor_for_segment`'s. Its orientation
-(:func:`sensor_orientation`) comes from, in this order: the fusion stage's results
-(``session.results.fusion[label].quat``, as ``motionlab fuse`` stores them), running the
-default estimator 6-D on the raw accelerometer and gyroscope, or the vendor's ``quat``. Its
-accelerometer is read less the bias the fusion estimated (:func:`corrected_acc`).
+(:func:`sensor_orientation`) is the fusion stage's result (``session.results.fusion[label].quat``,
+as ``motionlab fuse`` stores them) or, for a sensor without raw accelerometer and gyroscope,
+the vendor's ``quat``. A sensor with raw signals but no fusion result is refused: nothing is
+fused here behind the user's back (the fusion stage also prepares the signals and estimates
+the accelerometer bias the calibration subtracts). Its accelerometer is read less the bias the
+fusion estimated (:func:`corrected_acc`).
 
 The lowest module of the calibration: it imports nothing of :mod:`motionlab.segments` or
 :mod:`motionlab.kinematics` beyond the tables, so both read a sensor's signals from here.
@@ -16,9 +18,8 @@ import numpy as np
 
 from motionlab.binding import sensor_for_segment, signals_from_orientation
 from motionlab.errors import InputError
-from motionlab.fusion import estimate
 from motionlab.protocol import Protocol
-from motionlab.session import Session, estimate_rate
+from motionlab.session import Session
 
 #: ``{segment: (time s, acc m/s², gyr rad/s)}``
 Streams = dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
@@ -76,8 +77,9 @@ def streams_of(session: Session, protocol: Protocol) -> Streams:
     return out
 
 
-def sensor_orientation(session: Session, label: str, estimator: str = "default") -> np.ndarray:
-    """(N, 4) sensor → earth orientation of one sensor (see the module docstring)."""
+def sensor_orientation(session: Session, label: str) -> np.ndarray:
+    """(N, 4) sensor → earth orientation of one sensor (see the module docstring); an
+    :class:`InputError` for a sensor with raw acc and gyr that has not been fused."""
     fused = session.results.fusion.get(label)
     if fused is not None:
         q = np.asarray(fused.quat, dtype=float)
@@ -92,7 +94,11 @@ def sensor_orientation(session: Session, label: str, estimator: str = "default")
         return q
     s = session.sensors[label]
     if s.acc is not None and s.gyr is not None:
-        return estimate(estimator, s.gyr, s.acc, None, estimate_rate(s.time), time=s.time).quat
+        raise InputError(
+            f"sensor '{label}' has no fusion result",
+            where=f"results/fusion/{label}",
+            remedy="run 'motionlab fuse' (or motionlab.fuse(session)) first",
+        )
     if s.quat is not None:
         return np.asarray(s.quat, dtype=float)
     raise InputError(
@@ -111,7 +117,6 @@ def sensor_quats(
     session: Session,
     protocol: Protocol,
     segments: list[str] | None = None,
-    estimator: str = "default",
 ) -> SegmentQuats:
     """``{segment: (time, q_sensor)}`` of the joints' segments (or ``segments``).
 
@@ -122,7 +127,7 @@ def sensor_quats(
         label = sensor_for_segment(session, seg)
         if label is None:
             raise _no_sensor(protocol, seg)
-        q = sensor_orientation(session, label, estimator)
+        q = sensor_orientation(session, label)
         ok = np.isfinite(q).all(axis=1)
         quats[seg] = (
             (session.sensors[label].time[ok], q[ok])

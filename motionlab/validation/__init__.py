@@ -212,7 +212,6 @@ def validate(
     *,
     sync: bool = True,
     movement_only: bool = False,
-    estimator: str = "default",
     seed: int = 0,
     static: MarkerSet | None = None,
     sync_on: str = "gyroscope",
@@ -222,8 +221,9 @@ def validate(
     Parameters
     ----------
     session
-        The IMU session (its fusion results are used; sensors without them are fused with
-        ``estimator``).
+        The IMU session: its fusion results (``motionlab fuse``) or, for sensors without raw
+        acc and gyr, the vendor's orientations; a sensor with raw signals and no fusion
+        result is refused (:func:`motionlab.segments.sensors.sensor_orientation`).
     reference
         The optical marker set (default: the session's own, named by the map or the only one).
     marker_map
@@ -257,7 +257,7 @@ def validate(
     optical = optical_segments(reference, mmap, protocol, static)
     seg_of = _pairs(session, mmap)
     labels = list(seg_of)
-    imu_q = {k: sensor_orientation(session, k, estimator) for k in labels}
+    imu_q = {k: sensor_orientation(session, k) for k in labels}
 
     if sync_on not in SYNC_SOURCES:
         raise InputError(
