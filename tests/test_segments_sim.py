@@ -1,8 +1,10 @@
 """Calibration, heading anchors, task blocks and metrics on simulated sessions with known truth.
 
-Small one-sided protocols keep the simulations short. The "fused" orientations are the
-simulator's true sensor orientations (with, where a test says so, a 6-D heading offset and
-drift), so that these tests measure calibration and metrics, not the fusion filters.
+Small one-sided protocols keep the simulations short. Each simulated session is fused once
+(:func:`motionlab.stages.fuse`, as a user would before calibrating) and calibrated from those
+orientations; the angles and metrics then read the simulator's true sensor orientations (with,
+where a test says so, a 6-D heading offset and drift), so that these tests measure calibration
+and metrics, not the fusion filters.
 """
 
 import dataclasses
@@ -12,6 +14,7 @@ import pytest
 from protocol_texts import ELBOW_R
 
 from motionlab import rotations as rot
+from motionlab import stages
 from motionlab.clocksync import synchronise
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_angles import decompose
@@ -53,16 +56,31 @@ def write(tmp, name, text):
     return load_protocol(path)
 
 
-def true_fusion(session, truth, heading=None):
-    """``results.fusion`` from the true sensor orientations (optionally 6-D-like headings)."""
+def simulate_fused(protocol, **kwargs):
+    """A simulated session fused as a user would before calibrating (:func:`stages.fuse`, which
+    also fills the dropped samples' gaps); ``truth.sensors[label]["stamps"]`` keeps the
+    simulated time stamps of ``sample_time``."""
+    session, truth = simulate(protocol, **kwargs)
+    for label, s in session.sensors.items():
+        truth.sensors[label]["stamps"] = s.time
+    stages.fuse(session)
+    return session, truth
+
+
+def true_fusion(session, truth, heading=None, clocks=None):
+    """A copy of ``session`` whose ``results.fusion`` are the true sensor orientations at its
+    samples (optionally 6-D-like headings); the fixture's own fusion stays for the other tests.
+    A sample's true time is from its stamp in ``clocks`` (a session with the same samples on the
+    simulated clocks; default ``session``), between the simulated ones for a filled gap's."""
     fused = {}
     for label in session.sensors:
         tr = truth.sensors[label]
-        q = rot.resample(truth.time, tr["orientation"], tr["sample_time"])
+        t = np.interp((clocks or session).sensors[label].time, tr["stamps"], tr["sample_time"])
+        q = rot.resample(truth.time, tr["orientation"], t)
         if heading is not None:
-            q = rot.mul(rot.from_axis_angle(Z, heading(label, tr["sample_time"])), q)
+            q = rot.mul(rot.from_axis_angle(Z, heading(label, t)), q)
         fused[label] = FusionEntry("truth", q)
-    session.results.fusion = fused
+    return dataclasses.replace(session, results=dataclasses.replace(session.results, fusion=fused))
 
 
 def mount_error_deg(truth, cal, seg):
@@ -74,7 +92,7 @@ def mount_error_deg(truth, cal, seg):
 def knee(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("knee")
     protocol = write(tmp, "knee_r", KNEE % {"method": "", "extra": ""})
-    session, truth = simulate(protocol, duration=110, seed=2, rest_s=5.0)
+    session, truth = simulate_fused(protocol, duration=110, seed=2, rest_s=5.0)
     return tmp, protocol, session, truth
 
 
@@ -82,7 +100,7 @@ def knee(tmp_path_factory):
 def elbow(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("elbow")
     protocol = write(tmp, "elbow_r", ELBOW_R)
-    session, truth = simulate(protocol, duration=70, seed=1, rest_s=5.0)
+    session, truth = simulate_fused(protocol, duration=70, seed=1, rest_s=5.0)
     return tmp, protocol, session, truth
 
 
@@ -159,8 +177,7 @@ def test_heading_offset_and_drift_removed_by_anchors(knee):
         offset, rate = drift[label]
         return offset + rate * np.clip(t - 50.0, 0.0, None)
 
-    true_fusion(session, truth, heading)
-    table = session_angles(session, protocol, cal)
+    table = session_angles(true_fusion(session, truth, heading), protocol, cal)
     ref = np.interp(table["time_s"], truth.time, truth.joint_angles["knee_r_rotation_deg"])
     squat = (table["time_s"] > truth.step("squat")["start_s"]) & (
         table["time_s"] < truth.step("squat")["end_s"]
@@ -188,12 +205,13 @@ def test_metrics_agree_with_the_truth(knee):
     Unsynchronised, the shank's clock is 26 ms off the thigh's here, and that alone put the
     stance rotation range 0.6-0.9° off per stride with the former gait templates, 0.7-1.2° with
     the real-like terminal swing (on the sensors' true clocks: ≤ 0.2° with either)."""
-    _, protocol, session, truth = knee
-    session = dataclasses.replace(session, sensors=dict(session.sensors), results=Results())
+    _, protocol, unsynced, truth = knee
+    session = dataclasses.replace(unsynced, sensors=dict(unsynced.sensors), results=Results())
     (fit,) = synchronise(session, protocol)
     assert fit.status == "applied" and abs(fit.offset_s) > 0.02
+    stages.fuse(session)  # on the synchronised clocks, as run does
     session.results.calibration = calibrate_segments(session, protocol)
-    true_fusion(session, truth)
+    session = true_fusion(session, truth, clocks=unsynced)
     blocks = {n: (truth.step(n)["start_s"], truth.step(n)["end_s"]) for n in ("gait", "squat")}
     m = session_metrics(session, protocol, blocks)
     squat = m.joints["squat"]["knee_r_flexion_deg"]
@@ -235,8 +253,8 @@ def test_elbow_forearm_frame_keeps_the_carrying_angle(elbow):
     assert fore["axes"]["elbow_flexion_r"]["used"] is False
     assert mount_error_deg(truth, cal, "forearm_r") < 2.0
     assert mount_error_deg(truth, cal, "upperarm_r") < 1.5
-    true_fusion(session, truth, lambda label, t: 0.5 if label == "forearm_r" else -1.0)
-    table = session_angles(session, protocol, cal)
+    heading = lambda label, t: 0.5 if label == "forearm_r" else -1.0  # noqa: E731
+    table = session_angles(true_fusion(session, truth, heading), protocol, cal)
     standing = (table["time_s"] > 6) & (table["time_s"] < 8)
     assert table["elbow_r_carrying_deg"][standing].mean() == pytest.approx(10.0, abs=1.5)
     ref = np.interp(table["time_s"], truth.time, truth.joint_angles["elbow_r_flexion_deg"])
