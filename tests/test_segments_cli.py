@@ -70,6 +70,7 @@ def test_a_contradicted_hint_warns_once_per_segment_and_calibrates(tmp_path):
     session, _ = simulate(load_protocol("walk"), 30.0, 1, "clean", mounting="random")
     path = tmp_path / "walk.h5"
     save_session(session, path)
+    assert CliRunner().invoke(main, ["fuse", str(path)]).exit_code == 0
     res = CliRunner().invoke(main, ["calibrate", str(path), "--protocol", "walk"])
     assert res.exit_code == 0, res.output
     warnings = [x for x in res.output.splitlines() if x.startswith("warning:")]
