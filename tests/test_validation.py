@@ -47,16 +47,17 @@ def _fusion_stand_in(truth, label: str, t: np.ndarray, seed: int, knots: int) ->
 
 
 def calibrate_with_truth(session, truth, protocol, knots: int = 30) -> None:
-    """Calibrate ``session`` at the true step times (the calibration is not what is tested)
-    and give it fusion stand-ins (:func:`_fusion_stand_in`, ``knots`` wander knots)."""
-    for step in protocol.calibration:
-        s = truth.step(step.name)
-        step.time_range = (s["start_s"], s["end_s"])
-    session.results.calibration = calibrate_segments(session, protocol)
+    """Give ``session`` fusion stand-ins (:func:`_fusion_stand_in`, ``knots`` wander knots) and
+    calibrate it from them at the true step times (the calibration is not what is tested): the
+    orientations calibrated are the ones validated, as after ``motionlab fuse``."""
     session.results.fusion = {
         k: FusionEntry("truth", _fusion_stand_in(truth, k, s.time, i, knots))
         for i, (k, s) in enumerate(session.sensors.items())
     }
+    for step in protocol.calibration:
+        s = truth.step(step.name)
+        step.time_range = (s["start_s"], s["end_s"])
+    session.results.calibration = calibrate_segments(session, protocol)
 
 
 @pytest.fixture(scope="module")
