@@ -268,3 +268,23 @@ def test_simulate_never_writes_over_its_protocol_or_one_output_over_another(tmp_
                "--truth", str(out)],
     )  # fmt: skip
     assert res.exit_code == 2 and not out.exists()
+
+
+def test_stages_on_an_unfused_session_say_to_fuse_it_first(tmp_path):
+    """A session with raw acc and gyr but no fusion result: the calibration and the angles
+    refuse it in one line naming the sensor and the remedy (nothing is fused behind the user's
+    back, issue 24); once fused it calibrates."""
+    from motionlab.protocol import load_protocol
+    from motionlab.session import save_session
+    from motionlab.simulate import simulate
+
+    session, _ = simulate(load_protocol("walk"), 30.0, 1, "clean")
+    save_session(session, tmp_path / "s.h5")
+    before = (tmp_path / "s.h5").read_bytes()
+    remedy = "run 'motionlab fuse' (or motionlab.fuse(session)) first"
+    line = refused(cli(tmp_path, "calibrate", "s.h5", "--protocol", "walk"), remedy)
+    assert "sensor 'thigh_r' has no fusion result" in line and "results/fusion/thigh_r" in line
+    refused(cli(tmp_path, "angles", "s.h5", "--protocol", "walk", "--no-calibration"), remedy)
+    assert (tmp_path / "s.h5").read_bytes() == before
+    assert cli(tmp_path, "fuse", "s.h5").exit_code == 0
+    assert cli(tmp_path, "calibrate", "s.h5", "--protocol", "walk").exit_code == 0
