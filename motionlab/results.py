@@ -28,8 +28,10 @@ reads it back; keys a class does not know (written by a newer motionlab) are kep
 so that a round trip loses nothing. Units are SI except where a name says otherwise
 (``*_deg``: degrees, ``*_s``: seconds, ``*_ppm``, ``*_pct``).
 
-Nested records whose keys vary with the protocol (one per segment, joint, task or angle
-column) stay dictionaries; their keys are documented at the attribute.
+Maps keyed by the protocol's names (one entry per segment, joint, task or angle column) are
+dictionaries; where their entries have fixed fields these are typed too (:class:`SegmentRecord`
+with its :class:`SegmentQuality`, :class:`HingeFit`), else their keys are documented at the
+attribute.
 """
 
 from __future__ import annotations
@@ -44,6 +46,10 @@ __all__ = [
     "STAGES",
     "AngleTable",
     "SegmentCalibration",
+    "SegmentQuality",
+    "SegmentRecord",
+    "HingeFit",
+    "TwoAxisFit",
     "ClockFit",
     "ClockSync",
     "FusionEntry",
@@ -65,6 +71,8 @@ class _Record:
 
     #: field name → its key in the file, where the two differ (the layout predates the name)
     _keys: ClassVar[dict[str, str]] = {}
+    #: whether ``None`` fields are stored too (as JSON ``null``: the layout predates the class)
+    _store_none: ClassVar[bool] = False
 
     def to_tree(self) -> dict[str, Any]:
         """The tree stored under the stage's group in the session file."""
@@ -73,7 +81,7 @@ class _Record:
             value = getattr(self, f.name)
             if f.name == "more":
                 tree.update(value)
-            elif value is not None:
+            elif value is not None or self._store_none:
                 tree[self._keys.get(f.name, f.name)] = value
         return tree
 
@@ -207,6 +215,176 @@ class FusionEntry(_Record):
 # ----------------------------------------------------------------------------- calibration
 
 
+@dataclass(frozen=True)
+class SegmentQuality(_Record):
+    """Calibration quality of one segment (:func:`motionlab.segments.quality.assess`).
+
+    ``ok``: no check failed; ``messages``: one plain instruction per failed check (repeat a
+    step, check the placement); ``min_rho``: the smallest reliability ρ of its axes (Ricci 2015
+    eq. 6.2; NaN without axes); ``separation_deg``: the smallest angle (deg) between two segment
+    axes fitted together (``None`` with one axis); ``lm_difference_deg``: how far (deg) Ricci's
+    LM fit lies from the closed-form one (``None`` with one axis); ``hinge_check_deg`` ``{step:
+    deg}``: the angle between a flexion step's SVD axis and Seel's hinge axis.
+    """
+
+    _store_none: ClassVar[bool] = True
+
+    ok: bool
+    messages: list[str] = field(default_factory=list)
+    min_rho: float = float("nan")
+    separation_deg: float | None = None
+    lm_difference_deg: float | None = None
+    hinge_check_deg: dict[str, float] = field(default_factory=dict)
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class SegmentRecord(_Record):
+    """How one sensor sits on its segment (one value of :attr:`SegmentCalibration.segments`).
+
+    ``mounting`` (4,): the segment → sensor quaternion, scalar first (the segment's orientation
+    is ``q_sensor ⊗ mounting``); ``method``: how the frame was fitted (``procrustes``: two or
+    more axes, ``primary_secondary``: one axis turned by a secondary, ``single_axis``,
+    ``nominal``: the protocol's placement hint alone); ``axes`` ``{step: axis record}``: the
+    measured axes (``step``, ``kind``, ``method``, ``sensor_axis`` and ``segment_axis`` (3,),
+    ``rho``, ``reference_rho``, ``used``, ``secondary``, ``residual_deg``, ...;
+    :func:`motionlab.segments.mounting.measure`); ``quality``: its :class:`SegmentQuality`
+    (``None`` in a file written without one); ``sensor``: the sensor's label;
+    ``hint_contradicted``: the data put a measured axis more than 60° from the placement hint
+    (what was not measured is unknown; ``None``: not checked, as in a trunk calibration).
+    """
+
+    mounting: np.ndarray
+    method: str
+    axes: dict[str, dict[str, Any]] = field(default_factory=dict)
+    quality: SegmentQuality | None = None
+    sensor: str | None = None
+    hint_contradicted: bool | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+    def to_tree(self) -> dict[str, Any]:
+        """The record's tree, its quality a subtree."""
+        tree = super().to_tree()
+        if self.quality is not None:
+            tree["quality"] = self.quality.to_tree()
+        return tree
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> SegmentRecord:
+        """The record of a stored tree (see :meth:`to_tree`)."""
+        rec = super().from_tree(tree)
+        if isinstance(rec.quality, dict):
+            rec = dataclasses.replace(rec, quality=SegmentQuality.from_tree(rec.quality))
+        return rec
+
+
+@dataclass
+class HingeFit:
+    """Hinge axis of one joint from movement, in the two sensors' coordinates
+    (:func:`motionlab.segments.movement.fit_hinge`; one value of
+    :attr:`SegmentCalibration.hinges`).
+
+    ``joint``: its name; ``axis_proximal`` / ``axis_distal`` are unit vectors (3,) pointing along
+    the positive (flexion) direction of the joint angle; ``residual_rad_s``: RMS residual of the
+    hinge constraint (rad/s), ``relative_residual`` that over the RMS perpendicular rate;
+    ``consistency_deg``: the largest angle (deg) between the axes of the movement's parts;
+    ``relative_sign``: how the axes' relative sign was found (``measured``, ``anatomy``,
+    ``nominal``), ``sign``: the anatomical sign's (``anatomy``, ``nominal``);
+    ``excursion_deg``: the joint's excursion (deg) either way; ``window_s``: the movement's
+    first and last time (s); ``n_samples``: the samples fitted; ``verdict`` is ``determined``,
+    ``weak`` or ``not determined`` and ``reasons`` says why in plain words.
+    ``used_for``: ``axes`` (the fit gives the joint's axes) or ``direction`` (a functional step
+    measured them and the fit only tells which way they point: the placement hint was
+    contradicted). ``method``: ``seel`` (Seel's hinge constraint) or ``principal`` (each
+    segment's principal rotation axis over a walk, :mod:`motionlab.segments.gait_axes`, with the
+    constrained hinge fit as its witness); with ``principal``: ``witness_deg`` (deg between the
+    principal axes and the witness), ``dominance`` (second over first singular value of the
+    segments' rates, the larger) and ``proximal_tilt_deg`` (how far the proximal segment's long
+    axis tilts from its direction in the stand over the fit's window, deg, 99th percentile: how
+    far a thigh swings, which bounds the flexion of the hip above it,
+    :mod:`motionlab.segments.grades`).
+    """
+
+    joint: str
+    axis_proximal: np.ndarray
+    axis_distal: np.ndarray
+    residual_rad_s: float
+    relative_residual: float
+    consistency_deg: float
+    relative_sign: str  # "measured" | "anatomy" (the one that flexes one way) | "nominal"
+    sign: str  # "anatomy" | "nominal"
+    excursion_deg: tuple[float, float] = (float("nan"), float("nan"))
+    window_s: tuple[float, float] = (float("nan"), float("nan"))
+    n_samples: int = 0
+    verdict: str = "determined"
+    reasons: list[str] = field(default_factory=list)
+    used_for: str = "axes"
+    method: str = "seel"
+    witness_deg: float = float("nan")
+    dominance: float = float("nan")
+    proximal_tilt_deg: float = float("nan")
+    #: keys of a stored fit this version does not know (kept for the round trip)
+    more: dict[str, Any] = field(default_factory=dict)
+
+    def to_tree(self) -> dict[str, Any]:
+        """The HDF5 results layout (plain numbers, lists and strings)."""
+        return {
+            "used_for": self.used_for,
+            "method": self.method,
+            "witness_deg": self.witness_deg,
+            "dominance": self.dominance,
+            "proximal_tilt_deg": self.proximal_tilt_deg,
+            "joint": self.joint,
+            "axis_proximal": np.asarray(self.axis_proximal, float),
+            "axis_distal": np.asarray(self.axis_distal, float),
+            "residual_rad_s": self.residual_rad_s,
+            "relative_residual": self.relative_residual,
+            "consistency_deg": self.consistency_deg,
+            "relative_sign": self.relative_sign,
+            "sign": self.sign,
+            "excursion_deg": list(self.excursion_deg),
+            "window_s": list(self.window_s),
+            "n_samples": self.n_samples,
+            "verdict": self.verdict,
+            "reasons": list(self.reasons),
+        } | self.more
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> HingeFit:
+        """The fit of a stored tree: a :class:`TwoAxisFit` when its ``kind`` is ``two_axes``;
+        a stored fit names every field but ``more`` (and, before they existed, ``used_for``,
+        ``method`` and the ``principal`` fields, which keep their defaults)."""
+        kind = TwoAxisFit if tree.get("kind") == "two_axes" else HingeFit
+        names = {f.name for f in dataclasses.fields(kind)} - {"more"}
+        known = {k: v for k, v in tree.items() if k in names}
+        more = {k: v for k, v in tree.items() if k not in names and k != "kind"}
+        return kind(**known, more=more)
+
+
+@dataclass
+class TwoAxisFit(HingeFit):
+    """A two-degree-of-freedom joint (the elbow; :func:`motionlab.segments.movement.fit_two_dof`):
+    ``axis_proximal`` is the flexion axis in the proximal sensor, ``axis_distal`` the long
+    (pronation) axis in the distal sensor, pointing proximally; ``flexion_distal`` the flexion
+    axis in the distal sensor in the reference pose (the distal segment's z there).
+    ``heading_times`` / ``heading_deltas`` (s, rad) are the heading offsets fitted with the axes
+    (the distal sensor's earth frame turned by δ about the vertical matches the proximal one).
+    Stored with ``kind`` ``two_axes``."""
+
+    flexion_distal: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    heading_times: np.ndarray = field(default_factory=lambda: np.empty(0))
+    heading_deltas: np.ndarray = field(default_factory=lambda: np.empty(0))
+
+    def to_tree(self) -> dict[str, Any]:
+        """The hinge fit's layout with ``kind`` and the two-axis fields."""
+        return super().to_tree() | {
+            "kind": "two_axes",
+            "flexion_distal": np.asarray(self.flexion_distal, float),
+            "heading_times": np.asarray(self.heading_times, float),
+            "heading_deltas": np.asarray(self.heading_deltas, float),
+        }
+
+
 @dataclass
 class SegmentCalibration(_Record):
     """Sensor-to-segment calibration: how each sensor sits on its segment
@@ -214,11 +392,9 @@ class SegmentCalibration(_Record):
 
     ``protocol``: its name; ``protocol_path``: the file it was read from. ``steps``
     ``{step: [start_s, end_s] | None}`` found in the recording. ``segments`` ``{segment:
-    record}``: ``mounting`` (4,) sensor → segment quaternion, ``method``, ``sensor``, ``axes``,
-    ``quality`` (``ok``, ``messages``), ``hint_contradicted`` (the data put a measured axis more
-    than 60° from the placement hint: what was not measured is unknown) and the fit's details.
-    ``hinges`` ``{joint: record}``:
-    axes from ordinary movement (``verdict``, ``used_for``, ``reasons``, headings).
+    SegmentRecord}``: how each sensor sits on its segment (:class:`SegmentRecord`).
+    ``hinges`` ``{joint: HingeFit}``: axes from ordinary movement (:class:`HingeFit`,
+    :class:`TwoAxisFit` for a two-axis joint, with its headings).
     ``centres`` ``{joint: record}``: headings from a ball joint's shared centre. ``warnings``:
     lines the user should read; ``ok``: every segment's quality passed. ``grades`` ``{joint:
     {"grades": [3], "reasons": [3]}}`` per angle (:func:`motionlab.segments.grades.grade_joints`).
@@ -237,8 +413,8 @@ class SegmentCalibration(_Record):
 
     protocol: str
     steps: dict[str, Any] = field(default_factory=dict)
-    segments: dict[str, dict[str, Any]] = field(default_factory=dict)
-    hinges: dict[str, dict[str, Any]] = field(default_factory=dict)
+    segments: dict[str, SegmentRecord] = field(default_factory=dict)
+    hinges: dict[str, HingeFit] = field(default_factory=dict)
     centres: dict[str, dict[str, Any]] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     ok: bool = True
@@ -248,6 +424,22 @@ class SegmentCalibration(_Record):
     hip_axes: dict[str, dict[str, Any]] = field(default_factory=dict)
     headings: dict[str, Any] = field(default_factory=dict)
     more: dict[str, Any] = field(default_factory=dict)
+
+    def to_tree(self) -> dict[str, Any]:
+        """The calibration's tree, each segment record and hinge fit a subtree."""
+        tree = super().to_tree()
+        for name in ("segments", "hinges"):
+            if name in tree:
+                tree[name] = {k: v.to_tree() for k, v in tree[name].items()}
+        return tree
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> SegmentCalibration:
+        """The calibration of a stored tree (see :meth:`to_tree`)."""
+        cal = super().from_tree(tree)
+        cal.segments = {k: SegmentRecord.from_tree(v) for k, v in cal.segments.items()}
+        cal.hinges = {k: HingeFit.from_tree(v) for k, v in cal.hinges.items()}
+        return cal
 
     @property
     def protocol_source(self) -> str:

@@ -109,8 +109,8 @@ def _pelvis_forward_error(duration: float, seed: int):
     m = rot.mul(rot.conj(truth.sensors["pelvis"]["orientation"][sel]),
                 truth.segments["pelvis"]["orientation"][sel])  # fmt: skip
     x_true = rot.rotate(m, np.array([1.0, 0.0, 0.0])).mean(axis=0)
-    x_est = rot.rotate(np.asarray(pelvis["mounting"]), np.array([1.0, 0.0, 0.0]))
-    up = rot.rotate(np.asarray(pelvis["mounting"]), Y)
+    x_est = rot.rotate(np.asarray(pelvis.mounting), np.array([1.0, 0.0, 0.0]))
+    up = rot.rotate(np.asarray(pelvis.mounting), Y)
     h = [v - (v @ up) * up for v in (x_true, x_est)]
     return cal, np.degrees(np.arccos(h[0] @ h[1] / np.linalg.norm(h[0]) / np.linalg.norm(h[1])))
 
@@ -120,7 +120,7 @@ def test_pelvis_forward_from_the_turns_when_the_hint_is_contradicted():
     is 142° off; the walk's turns give it within 15° (measured 5°), graded weak."""
     cal, angle = _pelvis_forward_error(60.0, 1)
     pelvis = cal.segments["pelvis"]
-    assert "movement:turns" in pelvis["axes"] and pelvis["method"] == "primary_secondary"
+    assert "movement:turns" in pelvis.axes and pelvis.method == "primary_secondary"
     assert any(
         w.startswith("pelvis: ") and "forward direction is taken from the walk's turns" in w
         for w in cal.warnings
@@ -135,7 +135,7 @@ def test_pelvis_forward_from_turns_that_agree_less_well_when_the_hint_is_contrad
     still beat the hint: the forward direction is within 20° (measured 4.9°), and hip flexion
     RMSE fell from 6.4° to 2.2° on the bench."""
     cal, angle = _pelvis_forward_error(74.0, 4)
-    assert "movement:turns" in cal.segments["pelvis"]["axes"]
+    assert "movement:turns" in cal.segments["pelvis"].axes
     assert angle < 20.0
 
 
@@ -144,7 +144,7 @@ def test_pelvis_forward_from_the_first_steps_when_the_walk_has_no_two_turns():
     direction comes from the velocity of the first steps after the stand, within 10° (measured
     3.6°) where the contradicted hint is 142° off; still graded weak."""
     cal, angle = _pelvis_forward_error(20.0, 1)
-    assert cal.segments["pelvis"]["axes"]["movement:turns"]["method"] == "walk start"
+    assert cal.segments["pelvis"].axes["movement:turns"]["method"] == "walk start"
     assert any("taken from the first steps of the walk" in w for w in cal.warnings)
     assert cal.grades["hip_r"]["grades"] == ["weak"] * 3
     assert angle < 10.0

@@ -4,13 +4,14 @@ import matplotlib
 import numpy as np
 import pytest
 
+from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.protocol import load_protocol
 from motionlab.report.model import SessionView, compare, rom_rows, symmetry_rows
 from motionlab.report.normative import band_for, load_bands
 from motionlab.report.pdf import RC, Document, layout_problems, page_text, text_width, wrap
 from motionlab.report.sentences import findings, rom_sentence, span
-from motionlab.results import Metrics, SegmentCalibration
+from motionlab.results import Metrics, SegmentCalibration, SegmentQuality, SegmentRecord
 from motionlab.session import Session
 
 
@@ -183,11 +184,11 @@ def _graded_view(graded: bool = True) -> SessionView:
     view.angles = {"time_s": t} | {
         c: np.sin(t) for c in view.metrics.joints["gait"] if c.endswith("_deg")
     }
-    ok = {"ok": True, "messages": []}
+    ok = SegmentQuality(ok=True)
     axis = {"standing": {"kind": "static", "rho": 0.99, "residual_deg": 0.5}}
-    segments = {s: {"method": "primary_secondary", "axes": axis, "quality": ok} for s in
+    segments = {s: SegmentRecord(rot.IDENTITY, "primary_secondary", axis, ok) for s in
                 ("pelvis", "thigh_r", "thigh_l", "shank_l")}  # fmt: skip
-    segments["shank_r"] = {"method": "nominal", "axes": {}, "quality": {"ok": False}}
+    segments["shank_r"] = SegmentRecord(rot.IDENTITY, "nominal", {}, SegmentQuality(ok=False))
     cal = SegmentCalibration("knee", segments=segments)
     if graded:
         cal.grades = {

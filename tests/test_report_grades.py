@@ -16,6 +16,7 @@ them, so that it holds whatever the implementation.
 
 import copy
 import re
+from dataclasses import replace
 
 import matplotlib
 import numpy as np
@@ -77,7 +78,7 @@ def _pelvis_nominal(session):
 
     ses = copy.deepcopy(session)
     cal = ses.results.calibration
-    cal.segments["pelvis"]["method"] = "nominal"
+    cal.segments["pelvis"] = replace(cal.segments["pelvis"], method="nominal")
     cal.grades = grade_joints(load_protocol("walk"), cal)
     return ses
 

@@ -39,7 +39,7 @@ from motionlab.kinematics.gps import gated_profile, variable_grades
 from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, plane, title
 from motionlab.kinematics.metrics import THORAX as THORAX  # re-exported for the pages
 from motionlab.protocol import Joint, Protocol, load_protocol
-from motionlab.results import Gait, Metrics, SegmentCalibration
+from motionlab.results import Gait, Metrics, SegmentCalibration, SegmentRecord
 from motionlab.segments import sensor_for_segment
 from motionlab.segments.grades import GRADES, _frame_grade
 from motionlab.session import Session
@@ -409,12 +409,17 @@ def quality_rows(view: SessionView) -> list[dict[str, Any]]:
     return rows
 
 
-def _no_axis_row(view: SessionView, seg: str, res: dict[str, Any]) -> dict[str, Any]:
+def _segment_ok(res: SegmentRecord | None) -> bool:
+    """Whether a segment's calibration passed its quality checks (false without one)."""
+    return bool(res is not None and res.quality is not None and res.quality.ok)
+
+
+def _no_axis_row(view: SessionView, seg: str, res: SegmentRecord | None) -> dict[str, Any]:
     """The one row of a segment without a measured axis (``nominal``) or without a calibration."""
     return {
         "segment": seg,
-        "sensor": res.get("sensor") or sensor_for_segment(view.session, seg) or "",
-        "method": res.get("method", "not calibrated"),
+        "sensor": (res.sensor if res else None) or sensor_for_segment(view.session, seg) or "",
+        "method": res.method if res else "not calibrated",
         "step": "none",
         "kind": "nominal" if res else "",
         "rho": float("nan"),
@@ -422,7 +427,7 @@ def _no_axis_row(view: SessionView, seg: str, res: dict[str, Any]) -> dict[str, 
         "residual_deg": float("nan"),
         "used": False,
         "hinge_check_deg": float("nan"),
-        "segment_ok": bool(res.get("quality", {}).get("ok", False)),
+        "segment_ok": _segment_ok(res),
     }
 
 
@@ -443,9 +448,8 @@ def calibration_rows(view: SessionView) -> list[dict[str, Any]]:
     steps = [s.name for s in view.protocol.calibration]
     rows = []
     for seg in order + [s for s in segments if s not in order]:
-        res = segments.get(seg, {})
-        q = res.get("quality", {})
-        axes = res.get("axes", {})
+        res = segments.get(seg)
+        axes = res.axes if res else {}
         if not axes:
             rows.append(_no_axis_row(view, seg, res))
         for step in sorted(axes, key=lambda k: steps.index(k) if k in steps else len(steps)):
@@ -454,8 +458,8 @@ def calibration_rows(view: SessionView) -> list[dict[str, Any]]:
             rows.append(
                 {
                     "segment": seg,
-                    "sensor": res.get("sensor") or sensor_for_segment(view.session, seg) or "",
-                    "method": res.get("method", ""),
+                    "sensor": res.sensor or sensor_for_segment(view.session, seg) or "",
+                    "method": res.method,
                     "step": step,
                     "kind": a.get("kind", ""),
                     "rho": float(a.get("rho", np.nan)),
@@ -463,7 +467,7 @@ def calibration_rows(view: SessionView) -> list[dict[str, Any]]:
                     "residual_deg": float(a.get("residual_deg", np.nan)),
                     "used": bool(a.get("used", True)),
                     "hinge_check_deg": float(a.get("hinge_check_deg", np.nan)),
-                    "segment_ok": bool(q.get("ok", False)),
+                    "segment_ok": _segment_ok(res),
                 }
             )
     return rows

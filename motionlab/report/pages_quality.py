@@ -18,7 +18,7 @@ from motionlab.report.model import (
     quality_rows,
 )
 from motionlab.report.pdf import MUTED, SIZE, Document, label_spans
-from motionlab.results import SegmentCalibration
+from motionlab.results import HingeFit, SegmentCalibration
 from motionlab.segments.quality import FUNCTIONAL_RHO_MIN, RESIDUAL_MAX_DEG, STATIC_RHO_MIN
 from motionlab.timebase import runs
 
@@ -184,10 +184,10 @@ def _grades_table(doc: Document, view: SessionView) -> None:
     )
 
 
-def _direction(fit: dict) -> str:
+def _direction(fit: HingeFit) -> str:
     """How the hinge direction was decided, in words."""
-    sign = SIGN_WORDS.get(str(fit.get("sign", "")), str(fit.get("sign", "")) or "-")
-    rel = str(fit.get("relative_sign", ""))
+    sign = SIGN_WORDS.get(str(fit.sign), str(fit.sign) or "-")
+    rel = str(fit.relative_sign)
     both = {"measured": "the data", "nominal": "the placement hint"}.get(rel, "-")
     return f"positive direction: {sign}; matched between the two segments by {both}"
 
@@ -202,14 +202,14 @@ def _hinges_table(doc: Document, view: SessionView) -> None:
     for name in in_order(hinges, list(view.protocol.joints)):
         fit = hinges[name]
         joint = view.protocol.joints.get(name)
-        verdict = str(fit.get("verdict", ""))
-        reasons = "; ".join(str(r) for r in fit.get("reasons", []))
+        verdict = str(fit.verdict)
+        reasons = "; ".join(str(r) for r in fit.reasons)
         rows.append(
             [
                 joint_title(joint) if joint else name,
                 verdict,
-                _f(float(fit.get("consistency_deg", np.nan))),
-                _f(float(fit.get("relative_residual", np.nan)), ".2f"),
+                _f(float(fit.consistency_deg)),
+                _f(float(fit.relative_residual), ".2f"),
                 _direction(fit) + (f". {reasons}" if reasons else ""),
             ]
         )
@@ -335,7 +335,7 @@ def calibration_page(doc: Document, view: SessionView) -> None:
     _hinges_table(doc, view)
     _hip_axes_table(doc, view)
     messages = [str(w) for w in cal.warnings] + [
-        m for res in cal.segments.values() for m in res.get("quality", {}).get("messages", [])
+        m for res in cal.segments.values() for m in (res.quality.messages if res.quality else [])
     ]
     doc.heading("Warnings and what to repeat next time")
     doc.bullets(messages or ["none: every segment was calibrated within the quality limits"])

@@ -143,7 +143,7 @@ def _optical_segment_quats(
         cal = calibration.segments.get(seg) if calibration is not None else None
         if seg in label_of and cal is not None:
             x = al.sensor_to_cluster[label_of[seg]]
-            out[seg] = (o.time, rot.mul(o.quat, rot.mul(x, np.asarray(cal["mounting"]))))
+            out[seg] = (o.time, rot.mul(o.quat, rot.mul(x, np.asarray(cal.mounting))))
             source[seg] = "imu_calibration"
     return out, source
 
