@@ -57,6 +57,7 @@ __all__ = [
     "HeadingCorrection",
     "Metrics",
     "Results",
+    "OpticalSync",
     "Validation",
     "column_unit",
 ]
@@ -589,14 +590,55 @@ class Gait(_Record):
 # ------------------------------------------------------------------------------ validation
 
 
+@dataclass(frozen=True)
+class OpticalSync(_Record):
+    """The optical-to-IMU time alignment of a validation
+    (:func:`motionlab.validation.time_alignment.synchronise`): the reference's clock reads
+    ``t_ref = time_offset_s + (1 + drift_ppm · 1e-6) · t_imu``.
+
+    ``method``: ``cross-correlation`` (windowed, RANSAC over the windows) or ``none`` (the streams
+    taken as on one clock); ``time_offset_s`` (s) and ``drift_ppm`` (ppm) the clock model,
+    ``standard_error_s`` (s) the offset's standard error and ``grade`` (``good``, ``fair``,
+    ``poor``, ``none``; empty in a file written before it existed) what that allows;
+    ``inlier_ratio``: the share of windows the model fits; ``residual_rms_s`` (s): RMS lag
+    residual of the inliers; ``coarse_lag_s`` (s): the whole-recording correlation's lag;
+    ``n_windows``; per window: ``window_time_s`` (its centre on the IMU clock, s),
+    ``window_lag_s`` (t_ref − t_imu found there, s), ``window_sd_s`` (the lag's standard
+    deviation, s), ``window_corr`` (the correlation peak), ``window_pair`` (the sensor pair's
+    index), ``inliers`` (bool); ``fallback``: why a simpler method was used (empty: none);
+    ``signal``: what the IMU side was (``gyroscope``, ``joint angle rates``, ...; empty without
+    sync); ``sensor_residual_s`` ``{sensor: s}``: each sensor's median lag residual (sensors
+    whose own clocks disagree show here).
+    """
+
+    method: str = "none"
+    time_offset_s: float = 0.0
+    drift_ppm: float = 0.0
+    inlier_ratio: float = float("nan")
+    residual_rms_s: float = float("nan")
+    coarse_lag_s: float = 0.0
+    n_windows: int = 0
+    window_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    window_lag_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    window_sd_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    window_corr: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    window_pair: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    inliers: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    standard_error_s: float = float("nan")
+    grade: str = ""
+    fallback: str = ""
+    signal: str = ""
+    sensor_residual_s: dict[str, float] = field(default_factory=dict)
+    more: dict[str, Any] = field(default_factory=dict)
+
+
 @dataclass
 class Validation(_Record):
     """Agreement with an optical reference (:func:`motionlab.validation.validate`).
 
     ``mode`` (``full`` or ``heading`` alignment), ``marker_set``, ``movement_only``,
     ``pairs`` ``{sensor: segment}``; ``sync``: the optical-to-IMU time alignment
-    (:meth:`motionlab.validation.time_alignment.TimeAlignment.as_dict`, with
-    ``sensor_residual_s``); ``alignment``: the spatial alignment; ``optical`` ``{segment:
+    (:class:`OpticalSync`); ``alignment``: the spatial alignment; ``optical`` ``{segment:
     {source, landmarks, frame, ...}}``; ``orientation``: ``time_s`` and per sensor the
     orientation errors; ``angles``: ``time_s`` and per angle column the IMU and optical series
     and their agreement; ``notes``: lines the user should read; ``reference``: what the
@@ -608,7 +650,7 @@ class Validation(_Record):
     marker_set: str = ""
     movement_only: bool = False
     pairs: dict[str, str] = field(default_factory=dict)
-    sync: dict[str, Any] = field(default_factory=dict)
+    sync: OpticalSync = field(default_factory=OpticalSync)
     alignment: dict[str, Any] = field(default_factory=dict)
     optical: dict[str, Any] = field(default_factory=dict)
     orientation: dict[str, Any] = field(default_factory=dict)
@@ -616,6 +658,20 @@ class Validation(_Record):
     notes: list[str] = field(default_factory=list)
     reference: dict[str, Any] = field(default_factory=dict)
     more: dict[str, Any] = field(default_factory=dict)
+
+    def to_tree(self) -> dict[str, Any]:
+        """The validation's tree, its sync a subtree."""
+        tree = super().to_tree()
+        tree["sync"] = self.sync.to_tree()
+        return tree
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> Validation:
+        """The validation of a stored tree (see :meth:`to_tree`)."""
+        val = super().from_tree(tree)
+        if isinstance(val.sync, dict):
+            val.sync = OpticalSync.from_tree(val.sync)
+        return val
 
 
 # -------------------------------------------------------------------------------- container

@@ -20,6 +20,7 @@ from motionlab.results import (
     HeadingCorrection,
     HingeFit,
     Metrics,
+    OpticalSync,
     Results,
     SegmentCalibration,
     SegmentQuality,
@@ -31,7 +32,7 @@ from motionlab.session import SCHEMA_VERSION, SensorStream, Session, load_sessio
 
 RECORDS = (
     ClockFit, ClockSync, FusionEntry, SegmentCalibration, SegmentRecord, SegmentQuality, HingeFit,
-    TwoAxisFit, AngleTable, HeadingCorrection, Metrics, Gait, Validation,
+    TwoAxisFit, AngleTable, HeadingCorrection, Metrics, Gait, Validation, OpticalSync,
 )  # fmt: skip
 
 
@@ -196,3 +197,32 @@ def test_a_hinge_fit_round_trips_and_a_plain_one_has_no_kind():
     back = HingeFit.from_tree(tree)
     assert type(back) is HingeFit and back.to_tree().keys() == tree.keys()
     assert back.verdict == "determined" and back.n_samples == 900
+
+
+def test_the_validation_sync_is_typed_and_stored_as_before(tmp_path):
+    """``validation.sync`` is an :class:`OpticalSync`; its tree is the dict the file held
+    before (one attribute per scalar, one dataset per window array), a newer key kept."""
+    tree = {"method": "cross-correlation", "time_offset_s": 0.25, "drift_ppm": 12.0,
+            "inlier_ratio": 0.9, "residual_rms_s": 0.002, "coarse_lag_s": 0.2, "n_windows": 2,
+            "window_time_s": np.array([5.0, 10.0]), "window_lag_s": np.array([0.25, 0.25]),
+            "window_sd_s": np.array([1e-3, 1e-3]), "window_corr": np.array([0.9, 0.8]),
+            "window_pair": np.array([0, 0]), "inliers": np.array([True, False]),
+            "standard_error_s": 4e-4, "grade": "good", "fallback": "", "signal": "gyroscope",
+            "sensor_residual_s": {"shank_r": 0.0}, "future": 3}  # fmt: skip
+    val = Validation.from_tree({"mode": "full", "sync": tree})
+    sync = val.sync
+    assert isinstance(sync, OpticalSync) and sync.time_offset_s == 0.25 and sync.grade == "good"
+    assert sync.more == {"future": 3} and sync.sensor_residual_s == {"shank_r": 0.0}
+    back = val.to_tree()["sync"]
+    assert back.keys() == tree.keys()
+    for k, v in tree.items():
+        if isinstance(v, np.ndarray):
+            np.testing.assert_array_equal(back[k], v)
+        else:
+            assert back[k] == v, k
+    ses = Session(results=Results(validation=val))
+    save_session(ses, tmp_path / "v.h5")
+    again = load_session(tmp_path / "v.h5").results.validation.sync
+    np.testing.assert_array_equal(again.inliers, [True, False])
+    assert again.n_windows == 2 and again.more == {"future": 3}
+    assert Validation.from_tree({"mode": "full"}).sync.method == "none"  # no sync stored
