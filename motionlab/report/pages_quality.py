@@ -87,22 +87,22 @@ def data_quality_page(doc: Document, view: SessionView) -> None:
     for q in quality_rows(view):
         rows.append(
             [
-                q["sensor"],
-                _f(q["rate_hz"]),
-                _f(q["jitter_ms"], ".2f"),
-                _f(q["duration_s"]),
-                str(q["dropped_samples"]),
-                str(q["gaps_filled"]),
-                f"{q['gaps_kept']} ({q['gaps_kept_s']:.1f} s)",
-                str(q["saturated_samples"]),
-                _f(q["rest_pct"], ".0f"),
-                _f(q["mag_disturbed_pct"], ".0f"),
+                q.sensor,
+                _f(q.rate_hz),
+                _f(q.jitter_ms, ".2f"),
+                _f(q.duration_s),
+                str(q.dropped_samples),
+                str(q.gaps_filled),
+                f"{q.gaps_kept} ({q.gaps_kept_s:.1f} s)",
+                str(q.saturated_samples),
+                _f(q.rest_pct, ".0f"),
+                _f(q.mag_disturbed_pct, ".0f"),
             ]
         )
         flagged.append(
             [False] * 6
-            + [q["gaps_kept"] > 0, q["saturated_samples"] > 0, False]
-            + [bool(np.isfinite(q["mag_disturbed_pct"]) and q["mag_disturbed_pct"] > 20)]
+            + [q.gaps_kept > 0, q.saturated_samples > 0, False]
+            + [bool(np.isfinite(q.mag_disturbed_pct) and q.mag_disturbed_pct > 20)]
         )
     doc.table(
         [
@@ -129,9 +129,9 @@ def data_quality_page(doc: Document, view: SessionView) -> None:
         colour=MUTED,
     )
     flags = [
-        f"{q['sensor']}: {', '.join(f.replace('_', ' ') for f in q['flags'])}"
+        f"{q.sensor}: {', '.join(f.replace('_', ' ') for f in q.flags)}"
         for q in quality_rows(view)
-        if q["flags"]
+        if q.flags
     ]
     doc.heading("Quality checks raised")
     doc.bullets(flags or ["none: every check of every sensor passed"])
@@ -157,11 +157,11 @@ def _grades_table(doc: Document, view: SessionView) -> None:
     are one row."""
     groups: list[list] = []
     for r in grade_rows(view):
-        key = (r["joint"], r["grade"], r["reason"])
+        key = (r.joint, r.grade, r.reason)
         if groups and groups[-1][0] == key:
-            groups[-1][1].append(r["angle"])
+            groups[-1][1].append(r.angle)
         else:
-            groups.append([key, [r["angle"]]])
+            groups.append([key, [r.angle]])
     rows, muted = [], []
     for (joint, grade, reason), angles in groups:
         rows.append(
@@ -304,25 +304,25 @@ def calibration_page(doc: Document, view: SessionView) -> None:
     doc.heading("Per segment and step")
     rows, flagged = [], []
     for r in calibration_rows(view):
-        floor = STATIC_RHO_MIN if r["kind"] == "static" else FUNCTIONAL_RHO_MIN
-        if np.isfinite(r["reference_rho"]):
-            floor = r["reference_rho"] - 0.1
+        floor = STATIC_RHO_MIN if r.kind == "static" else FUNCTIONAL_RHO_MIN
+        if np.isfinite(r.reference_rho):
+            floor = r.reference_rho - 0.1
         rows.append(
             [
-                r["segment"],
-                r["method"].replace("_", " "),
-                r["step"].replace("_", " "),
-                _f(r["rho"], ".3f"),
-                f"≥ {floor:.2f}" if r["step"] != "none" else "-",
-                _f(r["residual_deg"]),
-                "yes" if r["used"] else "no",
-                "ok" if r["segment_ok"] else "check",
+                r.segment,
+                r.method.replace("_", " "),
+                r.step.replace("_", " "),
+                _f(r.rho, ".3f"),
+                f"≥ {floor:.2f}" if r.step != "none" else "-",
+                _f(r.residual_deg),
+                "yes" if r.used else "no",
+                "ok" if r.segment_ok else "check",
             ]
         )
         flagged.append(
             [False] * 3
-            + [r["rho"] < floor, False, r["residual_deg"] > RESIDUAL_MAX_DEG, False]
-            + [not r["segment_ok"]]
+            + [r.rho < floor, False, r.residual_deg > RESIDUAL_MAX_DEG, False]
+            + [not r.segment_ok]
         )
     doc.table(
         ["Segment", "Method", "Step", "ρ", "ρ wanted", "Residual (°)", "In fit", "Segment"],
