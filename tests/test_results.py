@@ -1,4 +1,5 @@
-"""Typed stage results: every attribute documented, the session file's old schema still loads."""
+"""Typed stage results: every attribute documented (and the report's rows'), the session file's
+old schema and the layout before the typed records still load."""
 
 import dataclasses
 import inspect
@@ -10,6 +11,7 @@ import pandas as pd
 import pytest
 
 import motionlab.results as results_module
+from motionlab.report.model import CalibrationRow, GradeRow, QualityRow, RomRow, SymmetryRow
 from motionlab.results import (
     STAGES,
     AngleTable,
@@ -33,6 +35,7 @@ from motionlab.session import SCHEMA_VERSION, SensorStream, Session, load_sessio
 RECORDS = (
     ClockFit, ClockSync, FusionEntry, SegmentCalibration, SegmentRecord, SegmentQuality, HingeFit,
     TwoAxisFit, AngleTable, HeadingCorrection, Metrics, Gait, Validation, OpticalSync,
+    GradeRow, RomRow, SymmetryRow, QualityRow, CalibrationRow,
 )  # fmt: skip
 
 
