@@ -138,7 +138,7 @@ def run_one(seed: int, variant: str) -> dict[str, object]:
             session, truth, orig, replaced(list(cal.segments)), protocol, step, False
         ),
     }
-    turns = {k: v["turn_deg"] for k, v in cal.hip_axes.items()}
+    turns = {k: v.turn_deg for k, v in cal.hip_axes.items()}
     return {"rows": rows, "errors": errors, "turns": turns, "definition": definition}
 
 

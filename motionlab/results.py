@@ -49,6 +49,7 @@ __all__ = [
     "SegmentQuality",
     "SegmentRecord",
     "HingeFit",
+    "HipAxis",
     "TwoAxisFit",
     "ClockFit",
     "ClockSync",
@@ -386,6 +387,27 @@ class TwoAxisFit(HingeFit):
         }
 
 
+@dataclass(frozen=True)
+class HipAxis(_Record):
+    """A hip's flexion axis measured from the movement (:func:`motionlab.segments.hip_axis.
+    flexion_turn`; one value of :attr:`SegmentCalibration.hip_axes`).
+
+    ``used``: the angles are taken about it; ``turn_deg``: its angle (deg) about the pelvis's y
+    axis from the pelvis's z (0 when not used); ``rho``: how dominant the axis is (1: the only
+    one; NaN when not measured); ``n_samples``: the fast samples it was measured from;
+    ``tilt_deg``: its angle (deg) out of the pelvis's transverse plane (``None`` when not
+    measured); ``reason``: why it is not used (empty when it is).
+    """
+
+    used: bool
+    turn_deg: float
+    rho: float
+    n_samples: int
+    reason: str = ""
+    tilt_deg: float | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+
 @dataclass
 class SegmentCalibration(_Record):
     """Sensor-to-segment calibration: how each sensor sits on its segment
@@ -401,9 +423,8 @@ class SegmentCalibration(_Record):
     {"grades": [3], "reasons": [3]}}`` per angle (:func:`motionlab.segments.grades.grade_joints`).
     ``single_pose``: the static step a recording too short for more was taken as (an
     OpenSense-style single-pose calibration, :mod:`motionlab.segments.single_pose`), else ``None``.
-    ``hip_axes`` ``{joint: record}``: the hips' flexion axes from the movement (``used``,
-    ``turn_deg`` about the pelvis y, ``rho``, ``n_samples``, ``reason``;
-    :mod:`motionlab.segments.hip_axis`). ``headings`` ``{"sha256": {segment: str}, "joints": {joint:
+    ``hip_axes`` ``{joint: HipAxis}``: the hips' flexion axes from the movement
+    (:class:`HipAxis`). ``headings`` ``{"sha256": {segment: str}, "joints": {joint:
     {"source": str, "times": (K,) s, "deltas": (K,) rad}}}``: each joint's heading ties (the
     anchors of the heading alignment, :func:`motionlab.segments.heading_ties`), found once here
     from the sensor orientations whose SHA-256 per segment is ``sha256`` (ties kept with a
@@ -422,14 +443,14 @@ class SegmentCalibration(_Record):
     grades: dict[str, dict[str, Any]] = field(default_factory=dict)
     protocol_path: str | None = None
     single_pose: str | None = None
-    hip_axes: dict[str, dict[str, Any]] = field(default_factory=dict)
+    hip_axes: dict[str, HipAxis] = field(default_factory=dict)
     headings: dict[str, Any] = field(default_factory=dict)
     more: dict[str, Any] = field(default_factory=dict)
 
     def to_tree(self) -> dict[str, Any]:
         """The calibration's tree, each segment record and hinge fit a subtree."""
         tree = super().to_tree()
-        for name in ("segments", "hinges"):
+        for name in ("segments", "hinges", "hip_axes"):
             if name in tree:
                 tree[name] = {k: v.to_tree() for k, v in tree[name].items()}
         return tree
@@ -440,6 +461,7 @@ class SegmentCalibration(_Record):
         cal = super().from_tree(tree)
         cal.segments = {k: SegmentRecord.from_tree(v) for k, v in cal.segments.items()}
         cal.hinges = {k: HingeFit.from_tree(v) for k, v in cal.hinges.items()}
+        cal.hip_axes = {k: HipAxis.from_tree(v) for k, v in cal.hip_axes.items()}
         return cal
 
     @property

@@ -41,9 +41,9 @@ def test_dominant_hip_axis_recovers_the_thigh_turn_and_removes_the_cross_talk():
     t, q_p, q_t, truth = _walk_like(8.0)
     before = decompose_joint(q_p, q_t, joint)
     fit = flexion_turn(t, q_p, q_t)
-    assert fit["used"] and fit["rho"] > 0.8
-    assert fit["turn_deg"] == pytest.approx(-8.0, abs=0.3)
-    after = decompose_joint(q_p, apply_turn(q_p, q_t, fit["turn_deg"]), joint)
+    assert fit.used and fit.rho > 0.8
+    assert fit.turn_deg == pytest.approx(-8.0, abs=0.3)
+    after = decompose_joint(q_p, apply_turn(q_p, q_t, fit.turn_deg), joint)
     rms = lambda x: float(np.degrees(np.sqrt(np.mean(x**2))))  # noqa: E731
     assert rms(before[:, 1] - truth[:, 1]) > 2.0  # sin 8° of the flexion in adduction
     assert rms(after[:, 1] - truth[:, 1]) < 0.2
@@ -53,7 +53,7 @@ def test_dominant_hip_axis_recovers_the_thigh_turn_and_removes_the_cross_talk():
 def test_a_still_hip_is_not_used():
     t, q_p, _, _ = _walk_like(0.0)
     fit = flexion_turn(t, q_p, q_p)
-    assert not fit["used"] and fit["turn_deg"] == 0.0 and "moved too little" in fit["reason"]
+    assert not fit.used and fit.turn_deg == 0.0 and "moved too little" in fit.reason
 
 
 def test_simulated_walk_hip_adduction_without_the_knee_axis_cross_talk():
@@ -71,7 +71,7 @@ def test_simulated_walk_hip_adduction_without_the_knee_axis_cross_talk():
     prepare_sensors(session)
     analyse(session, PipelineOptions(proto, progress=False, clock_sync=False))
     cal = session.results.calibration
-    assert cal.hip_axes["hip_r"]["used"] and abs(cal.hip_axes["hip_r"]["turn_deg"]) < 5.0
+    assert cal.hip_axes["hip_r"].used and abs(cal.hip_axes["hip_r"].turn_deg) < 5.0
     ang = session.results.angles.columns()
     step = truth.step("walk")
     w = (ang["time_s"] > step["start_s"] + 3) & (ang["time_s"] < step["end_s"] - 3)

@@ -21,6 +21,7 @@ from motionlab.results import (
     Gait,
     HeadingCorrection,
     HingeFit,
+    HipAxis,
     Metrics,
     OpticalSync,
     Results,
@@ -34,7 +35,7 @@ from motionlab.session import SCHEMA_VERSION, SensorStream, Session, load_sessio
 
 RECORDS = (
     ClockFit, ClockSync, FusionEntry, SegmentCalibration, SegmentRecord, SegmentQuality, HingeFit,
-    TwoAxisFit, AngleTable, HeadingCorrection, Metrics, Gait, Validation, OpticalSync,
+    TwoAxisFit, HipAxis, AngleTable, HeadingCorrection, Metrics, Gait, Validation, OpticalSync,
     GradeRow, RomRow, SymmetryRow, QualityRow, CalibrationRow,
 )  # fmt: skip
 
@@ -154,14 +155,16 @@ def _old_calibration_tree() -> dict:
              "kind": "two_axes", "flexion_distal": np.array([0.0, 0.0, 1.0]),
              "heading_times": np.array([2.0, 4.0]), "heading_deltas": np.array([0.1, 0.2]),
              "future_h": [1, 2]}  # fmt: skip
+    hip = {"used": False, "turn_deg": 0.0, "rho": 0.62, "n_samples": 900, "tilt_deg": 4.0,
+           "reason": "no dominant hip axis (rho 0.62)"}  # fmt: skip
     return {"protocol": "elbow", "ok": False, "segments": {"forearm_r": segment},
-            "hinges": {"elbow_r": hinge}}  # fmt: skip
+            "hinges": {"elbow_r": hinge}, "hip_axes": {"hip_r": hip}}  # fmt: skip
 
 
 def test_a_calibration_stored_before_the_typed_records_loads_and_is_stored_the_same(tmp_path):
-    """The segment records, their quality and the hinge fits are typed in memory, the file's
-    layout is the dicts' (``None`` quality fields as JSON null), and keys a newer motionlab
-    wrote are kept in ``more`` and written back."""
+    """The segment records, their quality, the hinge fits and the hip axes are typed in memory,
+    the file's layout is the dicts' (``None`` quality fields as JSON null), and keys a newer
+    motionlab wrote are kept in ``more`` and written back."""
     from motionlab.session import _read_tree, _write_tree
 
     old = _old_calibration_tree()
@@ -180,12 +183,14 @@ def test_a_calibration_stored_before_the_typed_records_loads_and_is_stored_the_s
     assert isinstance(fit, TwoAxisFit) and fit.verdict == "weak" and fit.reasons == ["short"]
     assert list(fit.excursion_deg) == [120.0, -5.0] and fit.more == {"future_h": [1, 2]}
     np.testing.assert_array_equal(fit.heading_deltas, [0.1, 0.2])
+    hip = cal.hip_axes["hip_r"]
+    assert isinstance(hip, HipAxis) and not hip.used and hip.rho == 0.62 and hip.tilt_deg == 4.0
     save_session(load_session(path), tmp_path / "again.h5")
     with h5py.File(tmp_path / "again.h5") as f:
         again = _read_tree(f["results/calibration"])
     with h5py.File(path) as f:
         stored = _read_tree(f["results/calibration"])
-    for name in ("segments", "hinges"):
+    for name in ("segments", "hinges", "hip_axes"):
         assert json.dumps(again[name], sort_keys=True, default=repr) == json.dumps(
             stored[name], sort_keys=True, default=repr
         )

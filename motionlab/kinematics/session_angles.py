@@ -74,8 +74,8 @@ def angle_table(
         qp = rot.resample(*seg_q[joint.proximal], t)
         qd = rot.resample(*seg_q[joint.distal], t)
         axis = calibration.hip_axes.get(joint.name) if calibration is not None else None
-        if axis and axis.get("used"):
-            qd = apply_turn(qp, qd, float(axis["turn_deg"]))
+        if axis is not None and axis.used:
+            qd = apply_turn(qp, qd, float(axis.turn_deg))
         out.update(joint_angles(qp, qd, joint))
     return out
 

@@ -247,14 +247,14 @@ def _hip_axes_table(doc: Document, view: SessionView) -> None:
     for name in in_order(axes, list(view.protocol.joints)):
         fit = axes[name]
         joint = view.protocol.joints.get(name)
-        used = bool(fit.get("used"))
+        used = bool(fit.used)
         rows.append(
             [
                 joint_title(joint) if joint else name,
                 "yes" if used else "no",
-                _f(float(fit.get("turn_deg", np.nan))),
-                _f(float(fit.get("rho", np.nan)), ".2f"),
-                str(fit.get("reason", "")) or "-",
+                _f(float(fit.turn_deg)),
+                _f(float(fit.rho), ".2f"),
+                str(fit.reason) or "-",
             ]
         )
         flagged.append([False, not used] + [False] * 3)

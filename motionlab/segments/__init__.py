@@ -27,7 +27,13 @@ from motionlab import rotations as rot
 from motionlab.binding import sensor_for_segment
 from motionlab.kinematics.joint_types import flexion_axis, joint_type
 from motionlab.protocol import Protocol, axis_vector
-from motionlab.results import HeadingCorrection, SegmentCalibration, SegmentRecord, TwoAxisFit
+from motionlab.results import (
+    HeadingCorrection,
+    HipAxis,
+    SegmentCalibration,
+    SegmentRecord,
+    TwoAxisFit,
+)
 from motionlab.segments import (
     grades,
     heading,
@@ -257,10 +263,10 @@ def _long_axis_measured(cal: SegmentRecord, axis: np.ndarray) -> bool:
 
 def hip_axes(
     session: Session, protocol: Protocol, calibration: SegmentCalibration
-) -> dict[str, dict[str, Any]]:
+) -> dict[str, HipAxis]:
     """The hips' flexion axes from the movement (:mod:`.hip_axis`), by joint name, for the hip
     joints whose thigh's flexion axis no functional step measured."""
-    out: dict[str, dict[str, Any]] = {}
+    out: dict[str, HipAxis] = {}
     for name, joint in protocol.joints.items():
         p, d = joint.proximal, joint.distal
         if joint_type(joint.type).name != "hip" or p not in calibration.segments:
