@@ -49,6 +49,8 @@ RC = {
     "axes.spines.right": False,
     "axes.titley": 1.0,  # titles at the axes' top: no measuring of the tick labels to place them
     "pdf.fonttype": 42,
+    "figure.autolayout": False,  # no layout engine: pages are placed by hand (place_figure)
+    "figure.constrained_layout.use": False,
 }
 
 #: a placed figure's room (in) left of its axes (tick and axis labels), right of them, above
@@ -371,7 +373,9 @@ class Document:
         PDF: written point by point it was another tenth, and it looks the same.
         """
         fig = self.fig
-        fig.set_layout_engine("none")
+        # None, not "none": a figure that had an engine keeps a placeholder under "none", and
+        # savefig then draws the page twice (once to lay it out)
+        fig.set_layout_engine(None)
         left, right, top, bottom, gap = FIGURE_PAD
         axes = fig.axes
         cell = (height - top - bottom - (len(axes) - 1) * gap) / len(axes)
