@@ -17,6 +17,8 @@ from pathlib import Path
 
 import matplotlib
 import numpy as np
+from matplotlib import colors as mcolors
+from matplotlib.artist import allow_rasterization
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg, RendererAgg
 from matplotlib.backends.backend_pdf import PdfPages
@@ -24,6 +26,9 @@ from matplotlib.figure import Figure
 from matplotlib.font_manager import FontProperties
 from matplotlib.lines import Line2D
 from matplotlib.text import Text
+from matplotlib.ticker import AutoLocator, Locator, MaxNLocator, ScalarFormatter
+
+from motionlab.report import pdftext
 
 PAGE_W, PAGE_H = 8.27, 11.69
 MARGIN = 0.6
@@ -49,6 +54,8 @@ RC = {
     "axes.spines.right": False,
     "axes.titley": 1.0,  # titles at the axes' top: no measuring of the tick labels to place them
     "pdf.fonttype": 42,
+    "figure.autolayout": False,  # no layout engine: pages are placed by hand (place_figure)
+    "figure.constrained_layout.use": False,
 }
 
 #: a placed figure's room (in) left of its axes (tick and axis labels), right of them, above
@@ -67,6 +74,126 @@ def text_width(text: str, size: float, weight: str = "normal") -> float:
     prop = FontProperties(size=size, weight=weight)
     w, _, _ = _MEASURE.get_text_width_height_descent(text, prop, ismath=False)
     return w / 72.0
+
+
+class PlainText(Text):
+    """A text drawn without matplotlib's layout pass when it is one unrotated line on its baseline.
+
+    :meth:`matplotlib.text.Text.draw` measures every text (its width, height and descent, one
+    FreeType layout of the string) to find where its lines go, before the PDF backend lays the
+    string out again to write its glyphs. A line on its baseline, left-aligned, needs no
+    measure: it starts at its position; right-aligned or centred, only its width (the renderer's
+    own measure, as matplotlib takes it). Into a PDF the line is written by
+    :func:`.pdftext.draw_line` (matplotlib's bytes, without its glyph loads). Anything else
+    (several lines, rotation, a box, math text, path effects) is drawn by :class:`Text`. The
+    PDF's bytes are the same.
+    """
+
+    @allow_rasterization
+    def draw(self, renderer) -> None:
+        text = self.get_text()
+        simple = (
+            self._verticalalignment == "baseline"
+            and not self.get_rotation()
+            and "\n" not in text
+            and not self._bbox_patch
+            and not self.get_path_effects()
+            and not self.get_usetex()
+            and not self.get_wrap()
+        )
+        if not simple:
+            return super().draw(renderer)
+        if renderer is not None:
+            self._renderer = renderer
+        if not self.get_visible() or text == "":
+            return
+        line, ismath = self._preprocess_math(text)
+        if ismath:
+            return super().draw(renderer)
+        x, y = self.get_transform().transform((float(self._x), float(self._y)))
+        if not (np.isfinite(x) and np.isfinite(y)):
+            return
+        ha = self._horizontalalignment
+        if ha != "left":
+            w = renderer.get_text_width_height_descent(line, self._fontproperties, False)[0]
+            x = -(w if ha == "right" else w / 2) + x
+        if renderer.flipy():
+            y = renderer.get_canvas_width_height()[1] - y
+        renderer.open_group("text", self.get_gid())
+        gc = renderer.new_gc()
+        gc.set_foreground(mcolors.to_rgba(self.get_color()), isRGBA=True)
+        gc.set_alpha(self.get_alpha())
+        gc.set_url(self._url)
+        gc.set_antialiased(self._antialiased)
+        gc.set_snap(self.get_snap())
+        self._set_gc_clip(gc)
+        pdf = pdftext.vector_renderer(renderer)
+        if not (
+            pdf is not None
+            and self.get_fontfeatures() is None
+            and self.get_language() is None
+            and pdftext.supported(pdf)
+            and pdftext.draw_line(pdf, gc, x, y, line, self._fontproperties)
+        ):
+            renderer.draw_text(gc, x, y, line, self._fontproperties, 0.0, ismath=False, mtext=self)
+        gc.restore()
+        renderer.close_group("text")
+        self.stale = False
+
+
+class InView(Locator):
+    """``locator``'s ticks within the axis's view only (a relative 1e-9 of its span beyond).
+
+    matplotlib creates a tick object (two lines, a marker, two texts) for every tick its locator
+    gives, and :class:`~matplotlib.ticker.MaxNLocator` gives one or two beyond each end of the
+    view, which are never drawn: on the demo's knee report 255 of 855. Used only with a
+    :class:`~matplotlib.ticker.ScalarFormatter` (:func:`ticks_in_view`), whose labels do not
+    depend on the ticks outside the view: its offset and order of magnitude look only at the
+    ticks in it, its decimals at the locator's step.
+    """
+
+    def __init__(self, locator: Locator) -> None:
+        self.locator = locator
+
+    def set_axis(self, axis) -> None:
+        super().set_axis(axis)
+        self.locator.set_axis(axis)
+
+    def __call__(self) -> np.ndarray:
+        ticks = np.asarray(self.locator())
+        lo, hi = sorted(self.axis.get_view_interval())
+        tol = 1e-9 * max(abs(hi - lo), abs(hi), abs(lo), 1e-300)
+        return ticks[(ticks >= lo - tol) & (ticks <= hi + tol)]
+
+    def tick_values(self, vmin: float, vmax: float) -> np.ndarray:
+        return self.locator.tick_values(vmin, vmax)
+
+    def view_limits(self, vmin: float, vmax: float) -> tuple[float, float]:
+        return self.locator.view_limits(vmin, vmax)
+
+    def nonsingular(self, v0: float, v1: float) -> tuple[float, float]:
+        return self.locator.nonsingular(v0, v1)
+
+
+def ticks_in_view(fig: Figure) -> None:
+    """Give every axis of ``fig`` with matplotlib's default ticks (an auto or max-N locator and
+    a scalar formatter) only the ticks it draws (:class:`InView`)."""
+    for ax in fig.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            loc = axis.get_major_locator()
+            if type(loc) in (AutoLocator, MaxNLocator) and isinstance(
+                axis.get_major_formatter(), ScalarFormatter
+            ):
+                axis.set_major_locator(InView(loc))
+
+
+def put_text(fig: Figure, x: float, y: float, text: str, **kw) -> PlainText:
+    """:meth:`Figure.text <matplotlib.figure.Figure.text>` (figure-fraction position, kept in
+    ``fig.texts``) as a :class:`PlainText`."""
+    t = PlainText(x, y, text, transform=fig.transSubfigure, **kw)
+    t.set_figure(fig)
+    fig.texts.append(t)
+    return t
 
 
 def wrap(text: str, width: float, size: float, weight: str = "normal") -> list[str]:
@@ -169,7 +296,8 @@ class Document:
         else:
             fig.set_size_inches(PAGE_W, PAGE_H)
         FigureCanvasAgg(fig)
-        fig.text(
+        put_text(
+            fig,
             MARGIN / PAGE_W,
             1 - 0.38 / PAGE_H,
             self.title,
@@ -178,7 +306,8 @@ class Document:
             va="baseline",
         )
         if self.subtitle:
-            fig.text(
+            put_text(
+                fig,
                 1 - MARGIN / PAGE_W,
                 1 - 0.38 / PAGE_H,
                 self.subtitle,
@@ -213,7 +342,9 @@ class Document:
 
     def _put(self, x: float, text: str, size: float, **kw) -> Text:
         """One line of text with its baseline at the cursor + one line height."""
-        return self.fig.text(x / PAGE_W, 1 - self.y / PAGE_H, text, size=size, va="baseline", **kw)
+        return put_text(
+            self.fig, x / PAGE_W, 1 - self.y / PAGE_H, text, size=size, va="baseline", **kw
+        )
 
     def _heading(self, text: str, size: float) -> None:
         self.y += size * LINE / 72
@@ -286,7 +417,8 @@ class Document:
             for j, lines in enumerate(row_lines):
                 for k, line in enumerate(lines):
                     x = xs[j] + (cols[j] - pad if align[j] == "r" else 0.0)
-                    self.fig.text(
+                    put_text(
+                        self.fig,
                         x / PAGE_W,
                         1 - (self.y + (k + 1) * step) / PAGE_H,
                         line,
@@ -371,7 +503,9 @@ class Document:
         PDF: written point by point it was another tenth, and it looks the same.
         """
         fig = self.fig
-        fig.set_layout_engine("none")
+        # None, not "none": a figure that had an engine keeps a placeholder under "none", and
+        # savefig then draws the page twice (once to lay it out)
+        fig.set_layout_engine(None)
         left, right, top, bottom, gap = FIGURE_PAD
         axes = fig.axes
         cell = (height - top - bottom - (len(axes) - 1) * gap) / len(axes)
@@ -394,7 +528,8 @@ class Document:
         texts = []
         with PdfPages(pdf_path, metadata={"Title": self.title, "Creator": "motionlab"}) as pdf:
             for i, fig in enumerate(self.pages, start=1):
-                fig.text(
+                put_text(
+                    fig,
                     0.5,
                     0.35 / PAGE_H,
                     f"page {i} of {n}",
@@ -403,6 +538,7 @@ class Document:
                     ha="center",
                 )
                 texts.append(page_text(fig))
+                ticks_in_view(fig)
                 pdf.savefig(fig, dpi=RASTER_DPI)  # the dpi of rasterised artists only
         if text_path is not None:
             Path(text_path).write_text("\f".join(texts), encoding="utf-8")
