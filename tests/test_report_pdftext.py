@@ -1,5 +1,4 @@
-"""The report's plain lines (PlainText, pdftext.draw_line) write the PDF bytes matplotlib writes;
-ticks_in_view draws the ticks and labels matplotlib draws."""
+"""The report's plain lines (PlainText, pdftext.draw_line) write the PDF bytes matplotlib writes."""
 
 import io
 
@@ -10,7 +9,7 @@ from matplotlib.figure import Figure
 from matplotlib.text import Text
 
 from motionlab.report import pdftext
-from motionlab.report.pdf import RC, PlainText, layout_problems, page_text, put_text, ticks_in_view
+from motionlab.report.pdf import RC, PlainText, layout_problems, page_text, put_text
 
 # kerning pairs (AV, Ty, To), a ligature (fi), characters past U+00FF (–, →, ≤, Σ, −) and
 # PDF string escapes ((, ), \)
@@ -62,32 +61,3 @@ def test_plain_text_is_an_ordinary_text_to_the_page_checks():
     assert "overlapping words" in page_text(fig)
     assert any(p.startswith("overlap") for p in problems)
     assert any(p.startswith("off the page") for p in problems)
-
-
-def _labels(lo: float, hi: float, in_view: bool) -> tuple[list[tuple[float, str]], int]:
-    """The drawn y ticks (position, label) of an axes spanning ``lo``-``hi``, and how many tick
-    objects its axis made."""
-    with matplotlib.rc_context(RC):
-        fig = Figure(figsize=(3, 2))
-        FigureCanvasAgg(fig)
-        ax = fig.add_axes((0.2, 0.2, 0.7, 0.7))
-        ax.plot([0, 1], [lo, hi])
-        if in_view:
-            ticks_in_view(fig)
-        fig.draw_without_rendering()
-        vlo, vhi = sorted(ax.get_ylim())
-        ticks = ax.yaxis.get_major_ticks()
-        drawn = [(t.get_loc(), t.label1.get_text()) for t in ticks if vlo <= t.get_loc() <= vhi]
-        return drawn, len(ticks)
-
-
-def test_ticks_in_view_draws_the_same_ticks_and_labels():
-    spans = [(0, 65), (-2.7, 7.4), (0.001, 0.0042), (-1e-5, 3e-5), (1000, 1000.8), (-180, 180)]
-    spans += [(95, 1005), (-0.31, -0.02), (1.0e6, 1.2e6), (12.3, 12.3)]
-    fewer = 0
-    for lo, hi in spans:
-        (same, n_all), (fast, n_view) = _labels(lo, hi, False), _labels(lo, hi, True)
-        assert fast == same, (lo, hi)
-        assert n_view == len(fast)
-        fewer += n_all - n_view
-    assert fewer > 0

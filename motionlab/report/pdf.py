@@ -26,7 +26,6 @@ from matplotlib.figure import Figure
 from matplotlib.font_manager import FontProperties
 from matplotlib.lines import Line2D
 from matplotlib.text import Text
-from matplotlib.ticker import AutoLocator, Locator, MaxNLocator, ScalarFormatter
 
 from motionlab.report import pdftext
 
@@ -139,52 +138,6 @@ class PlainText(Text):
         gc.restore()
         renderer.close_group("text")
         self.stale = False
-
-
-class InView(Locator):
-    """``locator``'s ticks within the axis's view only (a relative 1e-9 of its span beyond).
-
-    matplotlib creates a tick object (two lines, a marker, two texts) for every tick its locator
-    gives, and :class:`~matplotlib.ticker.MaxNLocator` gives one or two beyond each end of the
-    view, which are never drawn: on the demo's knee report 255 of 855. Used only with a
-    :class:`~matplotlib.ticker.ScalarFormatter` (:func:`ticks_in_view`), whose labels do not
-    depend on the ticks outside the view: its offset and order of magnitude look only at the
-    ticks in it, its decimals at the locator's step.
-    """
-
-    def __init__(self, locator: Locator) -> None:
-        self.locator = locator
-
-    def set_axis(self, axis) -> None:
-        super().set_axis(axis)
-        self.locator.set_axis(axis)
-
-    def __call__(self) -> np.ndarray:
-        ticks = np.asarray(self.locator())
-        lo, hi = sorted(self.axis.get_view_interval())
-        tol = 1e-9 * max(abs(hi - lo), abs(hi), abs(lo), 1e-300)
-        return ticks[(ticks >= lo - tol) & (ticks <= hi + tol)]
-
-    def tick_values(self, vmin: float, vmax: float) -> np.ndarray:
-        return self.locator.tick_values(vmin, vmax)
-
-    def view_limits(self, vmin: float, vmax: float) -> tuple[float, float]:
-        return self.locator.view_limits(vmin, vmax)
-
-    def nonsingular(self, v0: float, v1: float) -> tuple[float, float]:
-        return self.locator.nonsingular(v0, v1)
-
-
-def ticks_in_view(fig: Figure) -> None:
-    """Give every axis of ``fig`` with matplotlib's default ticks (an auto or max-N locator and
-    a scalar formatter) only the ticks it draws (:class:`InView`)."""
-    for ax in fig.axes:
-        for axis in (ax.xaxis, ax.yaxis):
-            loc = axis.get_major_locator()
-            if type(loc) in (AutoLocator, MaxNLocator) and isinstance(
-                axis.get_major_formatter(), ScalarFormatter
-            ):
-                axis.set_major_locator(InView(loc))
 
 
 def put_text(fig: Figure, x: float, y: float, text: str, **kw) -> PlainText:
@@ -538,7 +491,6 @@ class Document:
                     ha="center",
                 )
                 texts.append(page_text(fig))
-                ticks_in_view(fig)
                 pdf.savefig(fig, dpi=RASTER_DPI)  # the dpi of rasterised artists only
         if text_path is not None:
             Path(text_path).write_text("\f".join(texts), encoding="utf-8")
