@@ -27,8 +27,6 @@ from matplotlib.font_manager import FontProperties
 from matplotlib.lines import Line2D
 from matplotlib.text import Text
 
-from motionlab.report import pdftext
-
 PAGE_W, PAGE_H = 8.27, 11.69
 MARGIN = 0.6
 TOP = 0.75  # below the running header
@@ -82,10 +80,8 @@ class PlainText(Text):
     FreeType layout of the string) to find where its lines go, before the PDF backend lays the
     string out again to write its glyphs. A line on its baseline, left-aligned, needs no
     measure: it starts at its position; right-aligned or centred, only its width (the renderer's
-    own measure, as matplotlib takes it). Into a PDF the line is written by
-    :func:`.pdftext.draw_line` (matplotlib's bytes, without its glyph loads). Anything else
-    (several lines, rotation, a box, math text, path effects) is drawn by :class:`Text`. The
-    PDF's bytes are the same.
+    own measure, as matplotlib takes it). Anything else (several lines, rotation, a box, math
+    text, path effects) is drawn by :class:`Text`. The glyphs written are the same.
     """
 
     @allow_rasterization
@@ -126,15 +122,7 @@ class PlainText(Text):
         gc.set_antialiased(self._antialiased)
         gc.set_snap(self.get_snap())
         self._set_gc_clip(gc)
-        pdf = pdftext.vector_renderer(renderer)
-        if not (
-            pdf is not None
-            and self.get_fontfeatures() is None
-            and self.get_language() is None
-            and pdftext.supported(pdf)
-            and pdftext.draw_line(pdf, gc, x, y, line, self._fontproperties)
-        ):
-            renderer.draw_text(gc, x, y, line, self._fontproperties, 0.0, ismath=False, mtext=self)
+        renderer.draw_text(gc, x, y, line, self._fontproperties, 0.0, ismath=False, mtext=self)
         gc.restore()
         renderer.close_group("text")
         self.stale = False
