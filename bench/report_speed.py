@@ -24,19 +24,19 @@ from pathlib import Path
 from motionlab.report import load_views, write_report
 from motionlab.session import load_session
 
-#: (module or class path, function, label) timed by --parts
-PARTS = [
-    ("motionlab.report", "build_document", "building the pages"),
-    ("matplotlib.axes.Axes", "__init__", "  creating axes"),
-    ("motionlab.report", "write_csvs", "CSV tables"),
-    ("matplotlib.backends.backend_pdf.PdfPages", "savefig", "drawing the pages into the PDF"),
-    ("matplotlib.axes.Axes", "draw", "  axes"),
-    ("matplotlib.axis.Axis", "draw", "    axis (ticks, tick labels)"),
-    ("matplotlib.axis.Axis", "get_major_ticks", "      creating ticks"),
-    ("motionlab.report.pdf.PlainText", "draw", "  the report's plain lines"),
-    ("matplotlib.text.Text", "draw", "  other texts (tick labels, titles, ...)"),
-    ("matplotlib.backends.backend_pdf.PdfFile", "writeFonts", "the fonts' subsets"),
-]
+#: label → "module or class path:function", timed by --parts (indented: inside the row above)
+PARTS = {
+    "building the pages": "motionlab.report:build_document",
+    "  creating axes": "matplotlib.axes.Axes:__init__",
+    "CSV tables": "motionlab.report:write_csvs",
+    "drawing the pages into the PDF": "matplotlib.backends.backend_pdf.PdfPages:savefig",
+    "  axes": "matplotlib.axes.Axes:draw",
+    "    axis (ticks, tick labels)": "matplotlib.axis.Axis:draw",
+    "      creating ticks": "matplotlib.axis.Axis:get_major_ticks",
+    "  the report's plain lines": "motionlab.report.pdf.PlainText:draw",
+    "  other texts (tick labels, titles, ...)": "matplotlib.text.Text:draw",
+    "the fonts' subsets": "matplotlib.backends.backend_pdf.PdfFile:writeFonts",
+}
 CPU: dict[str, float] = {}
 
 
@@ -56,7 +56,8 @@ def _timed(owner, name: str, label: str) -> None:
 def _patch_parts() -> None:
     import importlib
 
-    for path, name, label in PARTS:
+    for label, target in PARTS.items():
+        path, name = target.split(":")
         mod, _, cls = path.rpartition(".")
         try:
             owner = importlib.import_module(path)
@@ -96,7 +97,7 @@ def main() -> None:
                 flush=True,
             )
             if args.parts and k == args.repeat - 1:
-                for _, _, label in PARTS:
+                for label in PARTS:
                     if label in CPU:
                         print(f"  {label:45s} {CPU[label]:6.2f} s CPU")
             if prof:
