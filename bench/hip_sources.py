@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -113,14 +114,14 @@ def run_one(seed: int, variant: str) -> dict[str, object]:
             definition = max(definition, float(np.abs(d).max()))
     true_m = {seg: true_mounting(truth, seg, stand) for seg in cal.segments}
     errors = {
-        seg: long_axis_error(np.asarray(cal.segments[seg]["mounting"]), true_m[seg])
+        seg: long_axis_error(np.asarray(cal.segments[seg].mounting), true_m[seg])
         for seg in ("pelvis", "thigh_r", "thigh_l")
     }
 
     def replaced(segs):
         c = copy.deepcopy(cal)
         for seg in segs:
-            c.segments[seg]["mounting"] = true_m[seg]
+            c.segments[seg] = dataclasses.replace(c.segments[seg], mounting=true_m[seg])
         return c
 
     rows = {
@@ -137,7 +138,7 @@ def run_one(seed: int, variant: str) -> dict[str, object]:
             session, truth, orig, replaced(list(cal.segments)), protocol, step, False
         ),
     }
-    turns = {k: v["turn_deg"] for k, v in cal.hip_axes.items()}
+    turns = {k: v.turn_deg for k, v in cal.hip_axes.items()}
     return {"rows": rows, "errors": errors, "turns": turns, "definition": definition}
 
 

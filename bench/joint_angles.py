@@ -239,7 +239,7 @@ def angles(
         out[key] = {c: float(np.sqrt(np.mean(e**2))) for c, e in err.items()}
     out["clocks"] = clock_errors(session, truth, protocol, stamps, tasks)
     out["status"] = {f"{f.reference}→{f.sensor}": f.status for f in fits}
-    out["messages"] = [m for s in cal.segments.values() for m in s["quality"]["messages"]]
+    out["messages"] = [m for s in cal.segments.values() for m in s.quality.messages]
     return out
 
 

@@ -193,25 +193,27 @@ def diagnose(job: tuple[int, bool]) -> dict:
         for seg in (joint.proximal, joint.distal):
             label = sensor_for_segment(session, seg)
             m_true = truth.sensors[label]["mounting"]  # sensor -> segment
-            q_mount = np.asarray(cal.segments[seg]["mounting"], float)  # segment -> sensor
+            q_mount = np.asarray(cal.segments[seg].mounting, float)  # segment -> sensor
             z_est = rot.rotate(rot.mul(m_true, q_mount), np.array([0.0, 0.0, 1.0]))
             y_est = rot.rotate(rot.mul(m_true, q_mount), np.array([0.0, 1.0, 0.0]))
             z, y = np.array([0.0, 0.0, 1.0]), np.array([0.0, 1.0, 0.0])
             f = _frame(fax[seg], y)[:, 2]  # the functional axis as the product frames it
             row["axes"][seg] = (_axis_deg(z_est, z), _axis_deg(z_est, f), _axis_deg(f, z),
                                 _axis_deg(y_est, y))  # fmt: skip
-        fit = cal.hinges.get(name, {})
+        fit = cal.hinges.get(name)
         row["verdict"][name] = (
-            fit.get("verdict", "?"),
-            float(fit.get("consistency_deg", np.nan)),
-            float(fit.get("relative_residual", np.nan)),
+            (fit.verdict, float(fit.consistency_deg), float(fit.relative_residual))
+            if fit is not None
+            else ("?", np.nan, np.nan)
         )
     # the true mountings in place of the calibrated ones
     for name in KNEES:
         joint = protocol.joints[name]
         for seg in (joint.proximal, joint.distal):
             label = sensor_for_segment(session, seg)
-            cal.segments[seg]["mounting"] = rot.conj(truth.sensors[label]["mounting"])
+            cal.segments[seg] = dataclasses.replace(
+                cal.segments[seg], mounting=rot.conj(truth.sensors[label]["mounting"])
+            )
     stages.angles(session, force=True)
     err_m = _errors(session, truth, protocol, stamps, tasks)
     row["true_mnt"] = {c: _rmse(err_m[c]) for c in cols}

@@ -125,12 +125,12 @@ def gyro_ranges(session: Session, jname: str, joint, side: str) -> np.ndarray:
     distal rate about the distal axis less the proximal rate about the proximal axis (the
     calibrated axes), integrated over each stride with the drift removed linearly (the joint
     is back where it was at the next initial contact)."""
-    gait, fit = session.results.gait, session.results.calibration.hinges.get(jname, {})
-    if gait is None or not gait.ok or "axis_distal" not in fit:
+    gait, fit = session.results.gait, session.results.calibration.hinges.get(jname)
+    if gait is None or not gait.ok or fit is None:
         return np.array([])
     prox, dist = session.sensors[joint.proximal], session.sensors[joint.distal]
     t = prox.time
-    rate = np.interp(t, dist.time, dist.gyr @ fit["axis_distal"]) - prox.gyr @ fit["axis_proximal"]
+    rate = np.interp(t, dist.time, dist.gyr @ fit.axis_distal) - prox.gyr @ fit.axis_proximal
     ic = np.asarray(gait.events[side]["ic"], float)
     out = []
     for a, b in zip(ic[:-1], ic[1:], strict=True):
@@ -167,7 +167,7 @@ def report(name: str, protocol: str, session: Session, vendor: dict) -> list[str
     }
     rows = []
     for jname, joint in joints.items():
-        rng, fit = flex[jname], cal.hinges.get(jname, {})
+        rng, fit = flex[jname], cal.hinges.get(jname)
         other = flex.get(jname[:-1] + ("l" if jname.endswith("r") else "r"), np.array([]))
         diff = f"{abs(np.median(rng) - np.median(other)):.0f}°" if len(rng) and len(other) else "–"
         verdict = _plausibility(rng) if len(rng) and joint.type == "knee" else ""
@@ -176,8 +176,9 @@ def report(name: str, protocol: str, session: Session, vendor: dict) -> list[str
         rows.append(
             f"| {name} | {protocol} | {jname} | {' / '.join(cal.grades[jname]['grades'])} | "
             f"{_fmt(rng)} | {_fmt(gyro)} | {_fmt(peer)} | {diff} | "
-            f"{_num(fit.get('witness_deg'))} | "
-            f"{_num(fit.get('relative_residual'), 2)} | {_num(fit.get('consistency_deg'))} | "
+            f"{_num(fit.witness_deg if fit else None)} | "
+            f"{_num(fit.relative_residual if fit else None, 2)} | "
+            f"{_num(fit.consistency_deg if fit else None)} | "
             f"{verdict} |"
         )
     return rows

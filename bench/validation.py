@@ -129,11 +129,11 @@ def simulated_case(seed: int, imu: str, estimator: str) -> dict:
         rmses.append(res.angles[col]["rmse_deg"])
     ori = [res.orientation[k]["total_rmse_deg"] for k in session.sensors]
     return {
-        "offset_ms": (res.sync["time_offset_s"] - OFFSET_S) * 1e3,
-        "drift_ppm": res.sync["drift_ppm"] - DRIFT_PPM,
-        "inliers": res.sync["inlier_ratio"],
-        "se_ms": res.sync["standard_error_s"] * 1e3,
-        "grade": res.sync["grade"],
+        "offset_ms": (res.sync.time_offset_s - OFFSET_S) * 1e3,
+        "drift_ppm": res.sync.drift_ppm - DRIFT_PPM,
+        "inliers": res.sync.inlier_ratio,
+        "se_ms": res.sync.standard_error_s * 1e3,
+        "grade": res.sync.grade,
         "rot_deg": float(np.degrees(np.max(rot_err))),
         "ori_deg": float(np.mean(ori)),
         "rmse_deg": float(np.mean(rmses)),
@@ -208,8 +208,8 @@ def broad_table(data: Path, name: str) -> str:
         diff = max(abs(plain[k] - exp[k]) for k in keys)
         lines.append(
             f"| {tr['name']} | {exp[keys[0]]:.3f} | {exp[keys[1]]:.3f} | {exp[keys[2]]:.3f} | "
-            f"{diff:.1e} | {synced.sync['time_offset_s'] * 1e3:+.2f} | "
-            f"{synced.sync['drift_ppm']:+.1f} | {so[keys[0]]:.3f} | {so[keys[1]]:.3f} | "
+            f"{diff:.1e} | {synced.sync.time_offset_s * 1e3:+.2f} | "
+            f"{synced.sync.drift_ppm:+.1f} | {so[keys[0]]:.3f} | {so[keys[1]]:.3f} | "
             f"{so[keys[2]]:.3f} |"
         )
     return "\n".join(lines)
@@ -262,10 +262,10 @@ def ring_table(folder: Path) -> str:
             res = validate(ses, ref, mmap, None, "heading", sync_on=source)
             sy = res.sync
             rmse = np.mean([res.orientation[k]["total_rmse_deg"] for k in ses.sensors])
-            at_mid = sy["time_offset_s"] + sy["drift_ppm"] * 1e-6 * mid
+            at_mid = sy.time_offset_s + sy.drift_ppm * 1e-6 * mid
             lines.append(
-                f"| {kind} | {name} | {sy['time_offset_s'] * 1e3:+.1f} | {sy['drift_ppm']:+.0f} | "
-                f"{at_mid * 1e3:+.1f} | {sy['standard_error_s'] * 1e3:.2f}, {sy['grade']} | "
+                f"| {kind} | {name} | {sy.time_offset_s * 1e3:+.1f} | {sy.drift_ppm:+.0f} | "
+                f"{at_mid * 1e3:+.1f} | {sy.standard_error_s * 1e3:.2f}, {sy.grade} | "
                 f"{rmse:.3f} |"
             )
         scan = []
@@ -336,12 +336,12 @@ def trunk_table(folder: Path) -> str:
                 lines.append(f"| {trial.parent.name}/{trial.name} | | {source} | {exc} | | | |")
                 continue
             sy = res.sync
-            how = sy["fallback"] or f"{sy['method']}, {sy['n_windows']} windows"
+            how = sy.fallback or f"{sy.method}, {sy.n_windows} windows"
             rmse = ", ".join(f"{res.orientation[k]['total_rmse_deg']:.2f}" for k in pairs)
             lines.append(
                 f"| {trial.parent.name}/{trial.name} | {t[-1] - t[0]:.0f} | {source} | "
-                f"{sy['time_offset_s']:+.4f} | {sy['standard_error_s'] * 1e3:.2f}, "
-                f"{sy['grade']} | {how} | {rmse} |"
+                f"{sy.time_offset_s:+.4f} | {sy.standard_error_s * 1e3:.2f}, "
+                f"{sy.grade} | {how} | {rmse} |"
             )
     return "\n".join(lines)
 

@@ -38,7 +38,7 @@ def main(outdir: Path) -> dict:
     print(f"calibration ok: {calibration.ok}")
     print(f"right knee flexion: {np.nanmin(flexion):.1f} to {np.nanmax(flexion):.1f} deg")
     sync = validation.sync
-    print(f"clock offset {sync['time_offset_s'] * 1e3:.1f} ms ({sync['grade']})")
+    print(f"clock offset {sync.time_offset_s * 1e3:.1f} ms ({sync.grade})")
     for col in ("knee_r_flexion_deg", "knee_l_flexion_deg"):
         entry = validation.angles[col]
         print(f"{col}: RMSE {entry['rmse_deg']:.2f} deg, r {entry['r']:.3f} against the markers")

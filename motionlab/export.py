@@ -40,7 +40,7 @@ from motionlab.kinematics.metrics import metrics_table
 from motionlab.kinematics.segment_types import opensim_imu_name
 from motionlab.plain import plain
 from motionlab.protocol import load_protocol
-from motionlab.results import SegmentCalibration
+from motionlab.results import OpticalSync, SegmentCalibration
 from motionlab.session import MarkerSet, ModelOutput, Session
 
 FORMATS = ("sto", "mot", "c3d", "json")
@@ -321,8 +321,8 @@ def export_session(session: Session, fmt: str, path: str | Path, force: bool = F
         marker_time = None
         if markers is not None:
             val = session.results.validation
-            sync = val.sync if val is not None else {}
-            offset, ppm = sync.get("time_offset_s", 0.0), sync.get("drift_ppm", 0.0)
+            sync = val.sync if val is not None else OpticalSync()
+            offset, ppm = sync.time_offset_s, sync.drift_ppm
             marker_time = offset + (1.0 + ppm * 1e-6) * time
         write_c3d(path, time, outputs, markers, marker_time, descriptions, force=force)
         n_markers = markers.n_markers if markers is not None else 0

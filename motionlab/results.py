@@ -28,8 +28,10 @@ reads it back; keys a class does not know (written by a newer motionlab) are kep
 so that a round trip loses nothing. Units are SI except where a name says otherwise
 (``*_deg``: degrees, ``*_s``: seconds, ``*_ppm``, ``*_pct``).
 
-Nested records whose keys vary with the protocol (one per segment, joint, task or angle
-column) stay dictionaries; their keys are documented at the attribute.
+Maps keyed by the protocol's names (one entry per segment, joint, task or angle column) are
+dictionaries; where their entries have fixed fields these are typed too (:class:`SegmentRecord`
+with its :class:`SegmentQuality`, :class:`HingeFit`), else their keys are documented at the
+attribute.
 """
 
 from __future__ import annotations
@@ -44,6 +46,11 @@ __all__ = [
     "STAGES",
     "AngleTable",
     "SegmentCalibration",
+    "SegmentQuality",
+    "SegmentRecord",
+    "HingeFit",
+    "HipAxis",
+    "TwoAxisFit",
     "ClockFit",
     "ClockSync",
     "FusionEntry",
@@ -51,6 +58,7 @@ __all__ = [
     "HeadingCorrection",
     "Metrics",
     "Results",
+    "OpticalSync",
     "Validation",
     "column_unit",
 ]
@@ -65,6 +73,8 @@ class _Record:
 
     #: field name → its key in the file, where the two differ (the layout predates the name)
     _keys: ClassVar[dict[str, str]] = {}
+    #: whether ``None`` fields are stored too (as JSON ``null``: the layout predates the class)
+    _store_none: ClassVar[bool] = False
 
     def to_tree(self) -> dict[str, Any]:
         """The tree stored under the stage's group in the session file."""
@@ -73,7 +83,7 @@ class _Record:
             value = getattr(self, f.name)
             if f.name == "more":
                 tree.update(value)
-            elif value is not None:
+            elif value is not None or self._store_none:
                 tree[self._keys.get(f.name, f.name)] = value
         return tree
 
@@ -207,6 +217,197 @@ class FusionEntry(_Record):
 # ----------------------------------------------------------------------------- calibration
 
 
+@dataclass(frozen=True)
+class SegmentQuality(_Record):
+    """Calibration quality of one segment (:func:`motionlab.segments.quality.assess`).
+
+    ``ok``: no check failed; ``messages``: one plain instruction per failed check (repeat a
+    step, check the placement); ``min_rho``: the smallest reliability ρ of its axes (Ricci 2015
+    eq. 6.2; NaN without axes); ``separation_deg``: the smallest angle (deg) between two segment
+    axes fitted together (``None`` with one axis); ``lm_difference_deg``: how far (deg) Ricci's
+    LM fit lies from the closed-form one (``None`` with one axis); ``hinge_check_deg`` ``{step:
+    deg}``: the angle between a flexion step's SVD axis and Seel's hinge axis.
+    """
+
+    _store_none: ClassVar[bool] = True
+
+    ok: bool
+    messages: list[str] = field(default_factory=list)
+    min_rho: float = float("nan")
+    separation_deg: float | None = None
+    lm_difference_deg: float | None = None
+    hinge_check_deg: dict[str, float] = field(default_factory=dict)
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class SegmentRecord(_Record):
+    """How one sensor sits on its segment (one value of :attr:`SegmentCalibration.segments`).
+
+    ``mounting`` (4,): the segment → sensor quaternion, scalar first (the segment's orientation
+    is ``q_sensor ⊗ mounting``); ``method``: how the frame was fitted (``procrustes``: two or
+    more axes, ``primary_secondary``: one axis turned by a secondary, ``single_axis``,
+    ``nominal``: the protocol's placement hint alone); ``axes`` ``{step: axis record}``: the
+    measured axes (``step``, ``kind``, ``method``, ``sensor_axis`` and ``segment_axis`` (3,),
+    ``rho``, ``reference_rho``, ``used``, ``secondary``, ``residual_deg``, ...;
+    :func:`motionlab.segments.mounting.measure`); ``quality``: its :class:`SegmentQuality`
+    (``None`` in a file written without one); ``sensor``: the sensor's label;
+    ``hint_contradicted``: the data put a measured axis more than 60° from the placement hint
+    (what was not measured is unknown; ``None``: not checked, as in a trunk calibration).
+    """
+
+    mounting: np.ndarray
+    method: str
+    axes: dict[str, dict[str, Any]] = field(default_factory=dict)
+    quality: SegmentQuality | None = None
+    sensor: str | None = None
+    hint_contradicted: bool | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+    def to_tree(self) -> dict[str, Any]:
+        """The record's tree, its quality a subtree."""
+        tree = super().to_tree()
+        if self.quality is not None:
+            tree["quality"] = self.quality.to_tree()
+        return tree
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> SegmentRecord:
+        """The record of a stored tree (see :meth:`to_tree`)."""
+        rec = super().from_tree(tree)
+        if isinstance(rec.quality, dict):
+            rec = dataclasses.replace(rec, quality=SegmentQuality.from_tree(rec.quality))
+        return rec
+
+
+@dataclass
+class HingeFit:
+    """Hinge axis of one joint from movement, in the two sensors' coordinates
+    (:func:`motionlab.segments.movement.fit_hinge`; one value of
+    :attr:`SegmentCalibration.hinges`).
+
+    ``joint``: its name; ``axis_proximal`` / ``axis_distal`` are unit vectors (3,) pointing along
+    the positive (flexion) direction of the joint angle; ``residual_rad_s``: RMS residual of the
+    hinge constraint (rad/s), ``relative_residual`` that over the RMS perpendicular rate;
+    ``consistency_deg``: the largest angle (deg) between the axes of the movement's parts;
+    ``relative_sign``: how the axes' relative sign was found (``measured``, ``anatomy``,
+    ``nominal``), ``sign``: the anatomical sign's (``anatomy``, ``nominal``);
+    ``excursion_deg``: the joint's excursion (deg) either way; ``window_s``: the movement's
+    first and last time (s); ``n_samples``: the samples fitted; ``verdict`` is ``determined``,
+    ``weak`` or ``not determined`` and ``reasons`` says why in plain words.
+    ``used_for``: ``axes`` (the fit gives the joint's axes) or ``direction`` (a functional step
+    measured them and the fit only tells which way they point: the placement hint was
+    contradicted). ``method``: ``seel`` (Seel's hinge constraint) or ``principal`` (each
+    segment's principal rotation axis over a walk, :mod:`motionlab.segments.gait_axes`, with the
+    constrained hinge fit as its witness); with ``principal``: ``witness_deg`` (deg between the
+    principal axes and the witness), ``dominance`` (second over first singular value of the
+    segments' rates, the larger) and ``proximal_tilt_deg`` (how far the proximal segment's long
+    axis tilts from its direction in the stand over the fit's window, deg, 99th percentile: how
+    far a thigh swings, which bounds the flexion of the hip above it,
+    :mod:`motionlab.segments.grades`).
+    """
+
+    joint: str
+    axis_proximal: np.ndarray
+    axis_distal: np.ndarray
+    residual_rad_s: float
+    relative_residual: float
+    consistency_deg: float
+    relative_sign: str  # "measured" | "anatomy" (the one that flexes one way) | "nominal"
+    sign: str  # "anatomy" | "nominal"
+    excursion_deg: tuple[float, float] = (float("nan"), float("nan"))
+    window_s: tuple[float, float] = (float("nan"), float("nan"))
+    n_samples: int = 0
+    verdict: str = "determined"
+    reasons: list[str] = field(default_factory=list)
+    used_for: str = "axes"
+    method: str = "seel"
+    witness_deg: float = float("nan")
+    dominance: float = float("nan")
+    proximal_tilt_deg: float = float("nan")
+    #: keys of a stored fit this version does not know (kept for the round trip)
+    more: dict[str, Any] = field(default_factory=dict)
+
+    def to_tree(self) -> dict[str, Any]:
+        """The HDF5 results layout (plain numbers, lists and strings)."""
+        return {
+            "used_for": self.used_for,
+            "method": self.method,
+            "witness_deg": self.witness_deg,
+            "dominance": self.dominance,
+            "proximal_tilt_deg": self.proximal_tilt_deg,
+            "joint": self.joint,
+            "axis_proximal": np.asarray(self.axis_proximal, float),
+            "axis_distal": np.asarray(self.axis_distal, float),
+            "residual_rad_s": self.residual_rad_s,
+            "relative_residual": self.relative_residual,
+            "consistency_deg": self.consistency_deg,
+            "relative_sign": self.relative_sign,
+            "sign": self.sign,
+            "excursion_deg": list(self.excursion_deg),
+            "window_s": list(self.window_s),
+            "n_samples": self.n_samples,
+            "verdict": self.verdict,
+            "reasons": list(self.reasons),
+        } | self.more
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> HingeFit:
+        """The fit of a stored tree: a :class:`TwoAxisFit` when its ``kind`` is ``two_axes``;
+        a stored fit names every field but ``more`` (and, before they existed, ``used_for``,
+        ``method`` and the ``principal`` fields, which keep their defaults)."""
+        kind = TwoAxisFit if tree.get("kind") == "two_axes" else HingeFit
+        names = {f.name for f in dataclasses.fields(kind)} - {"more"}
+        known = {k: v for k, v in tree.items() if k in names}
+        more = {k: v for k, v in tree.items() if k not in names and k != "kind"}
+        return kind(**known, more=more)
+
+
+@dataclass
+class TwoAxisFit(HingeFit):
+    """A two-degree-of-freedom joint (the elbow; :func:`motionlab.segments.movement.fit_two_dof`):
+    ``axis_proximal`` is the flexion axis in the proximal sensor, ``axis_distal`` the long
+    (pronation) axis in the distal sensor, pointing proximally; ``flexion_distal`` the flexion
+    axis in the distal sensor in the reference pose (the distal segment's z there).
+    ``heading_times`` / ``heading_deltas`` (s, rad) are the heading offsets fitted with the axes
+    (the distal sensor's earth frame turned by δ about the vertical matches the proximal one).
+    Stored with ``kind`` ``two_axes``."""
+
+    flexion_distal: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
+    heading_times: np.ndarray = field(default_factory=lambda: np.empty(0))
+    heading_deltas: np.ndarray = field(default_factory=lambda: np.empty(0))
+
+    def to_tree(self) -> dict[str, Any]:
+        """The hinge fit's layout with ``kind`` and the two-axis fields."""
+        return super().to_tree() | {
+            "kind": "two_axes",
+            "flexion_distal": np.asarray(self.flexion_distal, float),
+            "heading_times": np.asarray(self.heading_times, float),
+            "heading_deltas": np.asarray(self.heading_deltas, float),
+        }
+
+
+@dataclass(frozen=True)
+class HipAxis(_Record):
+    """A hip's flexion axis measured from the movement (:func:`motionlab.segments.hip_axis.
+    flexion_turn`; one value of :attr:`SegmentCalibration.hip_axes`).
+
+    ``used``: the angles are taken about it; ``turn_deg``: its angle (deg) about the pelvis's y
+    axis from the pelvis's z (0 when not used); ``rho``: how dominant the axis is (1: the only
+    one; NaN when not measured); ``n_samples``: the fast samples it was measured from;
+    ``tilt_deg``: its angle (deg) out of the pelvis's transverse plane (``None`` when not
+    measured); ``reason``: why it is not used (empty when it is).
+    """
+
+    used: bool
+    turn_deg: float
+    rho: float
+    n_samples: int
+    reason: str = ""
+    tilt_deg: float | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+
 @dataclass
 class SegmentCalibration(_Record):
     """Sensor-to-segment calibration: how each sensor sits on its segment
@@ -214,19 +415,16 @@ class SegmentCalibration(_Record):
 
     ``protocol``: its name; ``protocol_path``: the file it was read from. ``steps``
     ``{step: [start_s, end_s] | None}`` found in the recording. ``segments`` ``{segment:
-    record}``: ``mounting`` (4,) sensor → segment quaternion, ``method``, ``sensor``, ``axes``,
-    ``quality`` (``ok``, ``messages``), ``hint_contradicted`` (the data put a measured axis more
-    than 60° from the placement hint: what was not measured is unknown) and the fit's details.
-    ``hinges`` ``{joint: record}``:
-    axes from ordinary movement (``verdict``, ``used_for``, ``reasons``, headings).
+    SegmentRecord}``: how each sensor sits on its segment (:class:`SegmentRecord`).
+    ``hinges`` ``{joint: HingeFit}``: axes from ordinary movement (:class:`HingeFit`,
+    :class:`TwoAxisFit` for a two-axis joint, with its headings).
     ``centres`` ``{joint: record}``: headings from a ball joint's shared centre. ``warnings``:
     lines the user should read; ``ok``: every segment's quality passed. ``grades`` ``{joint:
     {"grades": [3], "reasons": [3]}}`` per angle (:func:`motionlab.segments.grades.grade_joints`).
     ``single_pose``: the static step a recording too short for more was taken as (an
     OpenSense-style single-pose calibration, :mod:`motionlab.segments.single_pose`), else ``None``.
-    ``hip_axes`` ``{joint: record}``: the hips' flexion axes from the movement (``used``,
-    ``turn_deg`` about the pelvis y, ``rho``, ``n_samples``, ``reason``;
-    :mod:`motionlab.segments.hip_axis`). ``headings`` ``{"sha256": {segment: str}, "joints": {joint:
+    ``hip_axes`` ``{joint: HipAxis}``: the hips' flexion axes from the movement
+    (:class:`HipAxis`). ``headings`` ``{"sha256": {segment: str}, "joints": {joint:
     {"source": str, "times": (K,) s, "deltas": (K,) rad}}}``: each joint's heading ties (the
     anchors of the heading alignment, :func:`motionlab.segments.heading_ties`), found once here
     from the sensor orientations whose SHA-256 per segment is ``sha256`` (ties kept with a
@@ -237,17 +435,34 @@ class SegmentCalibration(_Record):
 
     protocol: str
     steps: dict[str, Any] = field(default_factory=dict)
-    segments: dict[str, dict[str, Any]] = field(default_factory=dict)
-    hinges: dict[str, dict[str, Any]] = field(default_factory=dict)
+    segments: dict[str, SegmentRecord] = field(default_factory=dict)
+    hinges: dict[str, HingeFit] = field(default_factory=dict)
     centres: dict[str, dict[str, Any]] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     ok: bool = True
     grades: dict[str, dict[str, Any]] = field(default_factory=dict)
     protocol_path: str | None = None
     single_pose: str | None = None
-    hip_axes: dict[str, dict[str, Any]] = field(default_factory=dict)
+    hip_axes: dict[str, HipAxis] = field(default_factory=dict)
     headings: dict[str, Any] = field(default_factory=dict)
     more: dict[str, Any] = field(default_factory=dict)
+
+    def to_tree(self) -> dict[str, Any]:
+        """The calibration's tree, each segment record and hinge fit a subtree."""
+        tree = super().to_tree()
+        for name in ("segments", "hinges", "hip_axes"):
+            if name in tree:
+                tree[name] = {k: v.to_tree() for k, v in tree[name].items()}
+        return tree
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> SegmentCalibration:
+        """The calibration of a stored tree (see :meth:`to_tree`)."""
+        cal = super().from_tree(tree)
+        cal.segments = {k: SegmentRecord.from_tree(v) for k, v in cal.segments.items()}
+        cal.hinges = {k: HingeFit.from_tree(v) for k, v in cal.hinges.items()}
+        cal.hip_axes = {k: HipAxis.from_tree(v) for k, v in cal.hip_axes.items()}
+        return cal
 
     @property
     def protocol_source(self) -> str:
@@ -397,14 +612,55 @@ class Gait(_Record):
 # ------------------------------------------------------------------------------ validation
 
 
+@dataclass(frozen=True)
+class OpticalSync(_Record):
+    """The optical-to-IMU time alignment of a validation
+    (:func:`motionlab.validation.time_alignment.synchronise`): the reference's clock reads
+    ``t_ref = time_offset_s + (1 + drift_ppm · 1e-6) · t_imu``.
+
+    ``method``: ``cross-correlation`` (windowed, RANSAC over the windows) or ``none`` (the streams
+    taken as on one clock); ``time_offset_s`` (s) and ``drift_ppm`` (ppm) the clock model,
+    ``standard_error_s`` (s) the offset's standard error and ``grade`` (``good``, ``fair``,
+    ``poor``, ``none``; empty in a file written before it existed) what that allows;
+    ``inlier_ratio``: the share of windows the model fits; ``residual_rms_s`` (s): RMS lag
+    residual of the inliers; ``coarse_lag_s`` (s): the whole-recording correlation's lag;
+    ``n_windows``; per window: ``window_time_s`` (its centre on the IMU clock, s),
+    ``window_lag_s`` (t_ref − t_imu found there, s), ``window_sd_s`` (the lag's standard
+    deviation, s), ``window_corr`` (the correlation peak), ``window_pair`` (the sensor pair's
+    index), ``inliers`` (bool); ``fallback``: why a simpler method was used (empty: none);
+    ``signal``: what the IMU side was (``gyroscope``, ``joint angle rates``, ...; empty without
+    sync); ``sensor_residual_s`` ``{sensor: s}``: each sensor's median lag residual (sensors
+    whose own clocks disagree show here).
+    """
+
+    method: str = "none"
+    time_offset_s: float = 0.0
+    drift_ppm: float = 0.0
+    inlier_ratio: float = float("nan")
+    residual_rms_s: float = float("nan")
+    coarse_lag_s: float = 0.0
+    n_windows: int = 0
+    window_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    window_lag_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    window_sd_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    window_corr: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    window_pair: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    inliers: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    standard_error_s: float = float("nan")
+    grade: str = ""
+    fallback: str = ""
+    signal: str = ""
+    sensor_residual_s: dict[str, float] = field(default_factory=dict)
+    more: dict[str, Any] = field(default_factory=dict)
+
+
 @dataclass
 class Validation(_Record):
     """Agreement with an optical reference (:func:`motionlab.validation.validate`).
 
     ``mode`` (``full`` or ``heading`` alignment), ``marker_set``, ``movement_only``,
     ``pairs`` ``{sensor: segment}``; ``sync``: the optical-to-IMU time alignment
-    (:meth:`motionlab.validation.time_alignment.TimeAlignment.as_dict`, with
-    ``sensor_residual_s``); ``alignment``: the spatial alignment; ``optical`` ``{segment:
+    (:class:`OpticalSync`); ``alignment``: the spatial alignment; ``optical`` ``{segment:
     {source, landmarks, frame, ...}}``; ``orientation``: ``time_s`` and per sensor the
     orientation errors; ``angles``: ``time_s`` and per angle column the IMU and optical series
     and their agreement; ``notes``: lines the user should read; ``reference``: what the
@@ -416,7 +672,7 @@ class Validation(_Record):
     marker_set: str = ""
     movement_only: bool = False
     pairs: dict[str, str] = field(default_factory=dict)
-    sync: dict[str, Any] = field(default_factory=dict)
+    sync: OpticalSync = field(default_factory=OpticalSync)
     alignment: dict[str, Any] = field(default_factory=dict)
     optical: dict[str, Any] = field(default_factory=dict)
     orientation: dict[str, Any] = field(default_factory=dict)
@@ -424,6 +680,20 @@ class Validation(_Record):
     notes: list[str] = field(default_factory=list)
     reference: dict[str, Any] = field(default_factory=dict)
     more: dict[str, Any] = field(default_factory=dict)
+
+    def to_tree(self) -> dict[str, Any]:
+        """The validation's tree, its sync a subtree."""
+        tree = super().to_tree()
+        tree["sync"] = self.sync.to_tree()
+        return tree
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> Validation:
+        """The validation of a stored tree (see :meth:`to_tree`)."""
+        val = super().from_tree(tree)
+        if isinstance(val.sync, dict):
+            val.sync = OpticalSync.from_tree(val.sync)
+        return val
 
 
 # -------------------------------------------------------------------------------- container

@@ -115,10 +115,10 @@ def test_normal_simulated_elbow_motion_is_not_flagged(demo):
     from motionlab.report.model import rom_rows
 
     view = load_views([load_session(demo / "elbow" / "session.h5")])[0]
-    rows = [r for r in rom_rows(view) if r["normal"]]
-    assert {r["task"] for r in rows} == {"reaching", "hand_to_mouth"}
-    assert all(r["status"] == "within" for r in rows), [
-        (r["task"], r["column"], r["status"]) for r in rows if r["status"] != "within"
+    rows = [r for r in rom_rows(view) if r.normal]
+    assert {r.task for r in rows} == {"reaching", "hand_to_mouth"}
+    assert all(r.status == "within" for r in rows), [
+        (r.task, r.column, r.status) for r in rows if r.status != "within"
     ]
 
 

@@ -58,9 +58,9 @@ def test_walk_determines_both_knees_flexion_and_not_their_other_planes(walk):
     cal = session.results.calibration
     for side in "rl":
         fit = cal.hinges[f"knee_{side}"]
-        assert fit["method"] == "principal" and fit["verdict"] == "determined", fit["reasons"]
-        assert fit["sign"] == "anatomy" and fit["relative_sign"] == "measured"
-        assert fit["witness_deg"] < 12.0 and fit["consistency_deg"] < 5.0
+        assert fit.method == "principal" and fit.verdict == "determined", fit.reasons
+        assert fit.sign == "anatomy" and fit.relative_sign == "measured"
+        assert fit.witness_deg < 12.0 and fit.consistency_deg < 5.0
         grades = cal.grades[f"knee_{side}"]["grades"]
         assert grades[0] == "determined"
         # the axis is known to 5° at best: 60° of flexion can put 5° into the other planes
@@ -81,7 +81,7 @@ def test_the_principal_axis_is_perpendicular_to_the_long_axis_and_agrees_with_it
     assert abs(axes.axis_distal @ axes.long_distal) < 1e-9
     assert axes.dominance < 0.5 and axes.consistency_deg < 5.0
     fit = cal.hinges["knee_r"]
-    assert abs(abs(axes.axis_proximal @ fit["axis_proximal"]) - 1.0) < 1e-3
+    assert abs(abs(axes.axis_proximal @ fit.axis_proximal) - 1.0) < 1e-3
 
 
 def test_a_walk_that_only_turns_leaves_the_knee_not_determined(walk):
@@ -125,7 +125,7 @@ def test_shanks_swapped_between_the_legs_give_no_determined_knee(walk):
         swapped.sensors[a].segment = b
     cal = stages.calibrate(swapped, proto, force=True)
     for side in "rl":
-        assert cal.hinges[f"knee_{side}"]["verdict"] != "determined"
+        assert cal.hinges[f"knee_{side}"].verdict != "determined"
         assert "determined" not in cal.grades[f"knee_{side}"]["grades"]
 
 

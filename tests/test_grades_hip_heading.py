@@ -2,13 +2,15 @@
 heading's doubt can do to it, ``θ (1 - cos e)``, ab/adduction and rotation stay ``weak``
 (:func:`motionlab.segments.grades.grade_joints`)."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from motionlab import rotations as rot
 from motionlab.kinematics.joint_angles import decompose
 from motionlab.protocol import load_protocol
-from motionlab.results import SegmentCalibration
+from motionlab.results import HingeFit, SegmentCalibration, SegmentRecord
 from motionlab.segments.grades import HEADING_BOUND_DEG, grade_joints
 
 MEASURED = {"kind": "movement", "method": "hinge", "used": True}
@@ -20,13 +22,14 @@ def _calibration(forward: str, tilt_deg: float, knee: str = "determined") -> Seg
     whole; knee_r fitted from the walk with the thigh tilting ``tilt_deg``."""
     turns = {"kind": "movement", "method": forward, "used": True}
     segs = {
-        "pelvis": {"method": "primary_secondary", "axes": {"s": GRAVITY, "t": turns}},
-        "thigh_r": {"method": "primary_secondary", "axes": {"s": GRAVITY, "k": MEASURED}},
-        "shank_r": {"method": "primary_secondary", "axes": {"s": GRAVITY, "k": MEASURED}},
+        "pelvis": SegmentRecord(rot.IDENTITY, "primary_secondary", {"s": GRAVITY, "t": turns}),
+        "thigh_r": SegmentRecord(rot.IDENTITY, "primary_secondary", {"s": GRAVITY, "k": MEASURED}),
+        "shank_r": SegmentRecord(rot.IDENTITY, "primary_secondary", {"s": GRAVITY, "k": MEASURED}),
     }
-    fit = {"verdict": knee, "used_for": "axes", "reasons": [], "method": "principal",
-           "witness_deg": 2.0, "excursion_deg": [60.0, 0.0],
-           "proximal_tilt_deg": tilt_deg}  # fmt: skip
+    z = np.array([0.0, 0.0, 1.0])
+    fit = HingeFit("knee_r", z, z, 0.0, 0.0, 0.0, "measured", "anatomy", (60.0, 0.0),
+                   verdict=knee, method="principal", witness_deg=2.0,
+                   proximal_tilt_deg=tilt_deg)  # fmt: skip
     return SegmentCalibration("walk", segments=segs, hinges={"knee_r": fit})
 
 
@@ -78,11 +81,11 @@ def test_a_thigh_with_one_measured_axis_and_a_contradicted_hint_leaves_the_hip_u
     placement hint, the hint's heading means nothing (a 74-s walk shortened to 14 s, seed 1:
     the left hip's flexion was 31° off and graded weak)."""
     cal = _calibration("turns", 40.0, knee="not determined")
-    cal.segments["thigh_r"] = {"method": "single_axis", "axes": {"s": GRAVITY},
-                               "hint_contradicted": True}  # fmt: skip
+    cal.segments["thigh_r"] = SegmentRecord(rot.IDENTITY, "single_axis", {"s": GRAVITY},
+                                            hint_contradicted=True)  # fmt: skip
     g = _hip(cal)
     assert g["grades"] == ["not determined"] * 3
     assert g["reasons"][0].startswith("thigh_r's frame")  # the cause first, then the pelvis'
     assert "contradict" in g["reasons"][0] and "turns" in g["reasons"][0]
-    cal.segments["thigh_r"]["hint_contradicted"] = False
+    cal.segments["thigh_r"] = replace(cal.segments["thigh_r"], hint_contradicted=False)
     assert _hip(cal)["grades"] == ["weak"] * 3

@@ -5,21 +5,25 @@ from pathlib import Path
 
 import pytest
 
+from motionlab import rotations as rot
 from motionlab.protocol import load_protocol
-from motionlab.results import SegmentCalibration
+from motionlab.results import HingeFit, SegmentCalibration, SegmentRecord
 from motionlab.segments.grades import grade_joints
 
 RIG = Path(__file__).resolve().parents[1] / "motionlab/protocols/examples/ring_rig.yaml"
 MEASURED = {"kind": "movement", "used": True}
+Z = rot.IDENTITY[1:]
 
 
 def _calibration(seg4_method: str) -> SegmentCalibration:
     """hinge34 (seg3-seg4, axis y) with its axis fitted from movement (``determined``)."""
     segs = {
-        "seg3": {"method": "procrustes", "axes": {"hinge23": MEASURED, "hinge34": MEASURED}},
-        "seg4": {"method": seg4_method, "axes": {"hinge34": MEASURED}},
+        "seg3": SegmentRecord(
+            rot.IDENTITY, "procrustes", {"hinge23": MEASURED, "hinge34": MEASURED}
+        ),
+        "seg4": SegmentRecord(rot.IDENTITY, seg4_method, {"hinge34": MEASURED}),
     }
-    fit = {"verdict": "determined", "used_for": "axes", "reasons": []}
+    fit = HingeFit("hinge34", Z, Z, 0.0, 0.0, 0.0, "measured", "anatomy", verdict="determined")
     return SegmentCalibration("ring_rig", segments=segs, hinges={"hinge34": fit})
 
 

@@ -41,9 +41,9 @@ def test_dominant_hip_axis_recovers_the_thigh_turn_and_removes_the_cross_talk():
     t, q_p, q_t, truth = _walk_like(8.0)
     before = decompose_joint(q_p, q_t, joint)
     fit = flexion_turn(t, q_p, q_t)
-    assert fit["used"] and fit["rho"] > 0.8
-    assert fit["turn_deg"] == pytest.approx(-8.0, abs=0.3)
-    after = decompose_joint(q_p, apply_turn(q_p, q_t, fit["turn_deg"]), joint)
+    assert fit.used and fit.rho > 0.8
+    assert fit.turn_deg == pytest.approx(-8.0, abs=0.3)
+    after = decompose_joint(q_p, apply_turn(q_p, q_t, fit.turn_deg), joint)
     rms = lambda x: float(np.degrees(np.sqrt(np.mean(x**2))))  # noqa: E731
     assert rms(before[:, 1] - truth[:, 1]) > 2.0  # sin 8° of the flexion in adduction
     assert rms(after[:, 1] - truth[:, 1]) < 0.2
@@ -53,7 +53,7 @@ def test_dominant_hip_axis_recovers_the_thigh_turn_and_removes_the_cross_talk():
 def test_a_still_hip_is_not_used():
     t, q_p, _, _ = _walk_like(0.0)
     fit = flexion_turn(t, q_p, q_p)
-    assert not fit["used"] and fit["turn_deg"] == 0.0 and "moved too little" in fit["reason"]
+    assert not fit.used and fit.turn_deg == 0.0 and "moved too little" in fit.reason
 
 
 def test_simulated_walk_hip_adduction_without_the_knee_axis_cross_talk():
@@ -71,7 +71,7 @@ def test_simulated_walk_hip_adduction_without_the_knee_axis_cross_talk():
     prepare_sensors(session)
     analyse(session, PipelineOptions(proto, progress=False, clock_sync=False))
     cal = session.results.calibration
-    assert cal.hip_axes["hip_r"]["used"] and abs(cal.hip_axes["hip_r"]["turn_deg"]) < 5.0
+    assert cal.hip_axes["hip_r"].used and abs(cal.hip_axes["hip_r"].turn_deg) < 5.0
     ang = session.results.angles.columns()
     step = truth.step("walk")
     w = (ang["time_s"] > step["start_s"] + 3) & (ang["time_s"] < step["end_s"] - 3)
@@ -109,8 +109,8 @@ def _pelvis_forward_error(duration: float, seed: int):
     m = rot.mul(rot.conj(truth.sensors["pelvis"]["orientation"][sel]),
                 truth.segments["pelvis"]["orientation"][sel])  # fmt: skip
     x_true = rot.rotate(m, np.array([1.0, 0.0, 0.0])).mean(axis=0)
-    x_est = rot.rotate(np.asarray(pelvis["mounting"]), np.array([1.0, 0.0, 0.0]))
-    up = rot.rotate(np.asarray(pelvis["mounting"]), Y)
+    x_est = rot.rotate(np.asarray(pelvis.mounting), np.array([1.0, 0.0, 0.0]))
+    up = rot.rotate(np.asarray(pelvis.mounting), Y)
     h = [v - (v @ up) * up for v in (x_true, x_est)]
     return cal, np.degrees(np.arccos(h[0] @ h[1] / np.linalg.norm(h[0]) / np.linalg.norm(h[1])))
 
@@ -120,7 +120,7 @@ def test_pelvis_forward_from_the_turns_when_the_hint_is_contradicted():
     is 142° off; the walk's turns give it within 15° (measured 5°), graded weak."""
     cal, angle = _pelvis_forward_error(60.0, 1)
     pelvis = cal.segments["pelvis"]
-    assert "movement:turns" in pelvis["axes"] and pelvis["method"] == "primary_secondary"
+    assert "movement:turns" in pelvis.axes and pelvis.method == "primary_secondary"
     assert any(
         w.startswith("pelvis: ") and "forward direction is taken from the walk's turns" in w
         for w in cal.warnings
@@ -135,7 +135,7 @@ def test_pelvis_forward_from_turns_that_agree_less_well_when_the_hint_is_contrad
     still beat the hint: the forward direction is within 20° (measured 4.9°), and hip flexion
     RMSE fell from 6.4° to 2.2° on the bench."""
     cal, angle = _pelvis_forward_error(74.0, 4)
-    assert "movement:turns" in cal.segments["pelvis"]["axes"]
+    assert "movement:turns" in cal.segments["pelvis"].axes
     assert angle < 20.0
 
 
@@ -144,7 +144,7 @@ def test_pelvis_forward_from_the_first_steps_when_the_walk_has_no_two_turns():
     direction comes from the velocity of the first steps after the stand, within 10° (measured
     3.6°) where the contradicted hint is 142° off; still graded weak."""
     cal, angle = _pelvis_forward_error(20.0, 1)
-    assert cal.segments["pelvis"]["axes"]["movement:turns"]["method"] == "walk start"
+    assert cal.segments["pelvis"].axes["movement:turns"]["method"] == "walk start"
     assert any("taken from the first steps of the walk" in w for w in cal.warnings)
     assert cal.grades["hip_r"]["grades"] == ["weak"] * 3
     assert angle < 10.0

@@ -81,11 +81,11 @@ def test_opensense_calibration_pose_sto_gives_knee_angles_by_single_pose(tmp_pat
         assert np.all(np.isfinite(angles[col]))
         assert np.max(np.abs(angles[col])) < 0.5  # the pose is the angles' zero, by definition
     for seg in ("thigh_r", "shank_r"):  # the segment's vertical axis points up in the pose
-        q_mount = np.asarray(cal.segments[seg]["mounting"])
-        q_sensor = ses.sensors[cal.segments[seg]["sensor"]].quat
+        q_mount = np.asarray(cal.segments[seg].mounting)
+        q_sensor = ses.sensors[cal.segments[seg].sensor].quat
         y_earth = rot.rotate(rot.mul(q_sensor, q_mount), np.tile([0.0, 1.0, 0.0], (2, 1)))
         assert np.degrees(np.arccos(np.clip(y_earth[:, 2], -1, 1))).max() < 0.1
-        assert cal.segments[seg]["method"] == "single_axis"
+        assert cal.segments[seg].method == "single_axis"
 
 
 def test_a_short_recording_of_raw_signals_is_still_refused(tmp_path):

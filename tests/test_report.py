@@ -4,13 +4,14 @@ import matplotlib
 import numpy as np
 import pytest
 
+from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.protocol import load_protocol
 from motionlab.report.model import SessionView, compare, rom_rows, symmetry_rows
 from motionlab.report.normative import band_for, load_bands
 from motionlab.report.pdf import RC, Document, layout_problems, page_text, text_width, wrap
 from motionlab.report.sentences import findings, rom_sentence, span
-from motionlab.results import Metrics, SegmentCalibration
+from motionlab.results import Metrics, SegmentCalibration, SegmentQuality, SegmentRecord
 from motionlab.session import Session
 
 
@@ -74,9 +75,9 @@ def test_compare_flags_ranges_outside_normal_beyond_the_tolerance():
 
 def test_issue_example_sentence():
     row = next(
-        r for r in rom_rows(_view((5.0, 52.0), (0.0, 64.0))) if r["column"] == "knee_r_flexion_deg"
+        r for r in rom_rows(_view((5.0, 52.0), (0.0, 64.0))) if r.column == "knee_r_flexion_deg"
     )
-    assert row["status"] == "below" and row["normal"] == (0.0, 65.0)
+    assert row.status == "below" and row.normal == (0.0, 65.0)
     assert rom_sentence(row) == (
         "Right knee flexion-extension range 5–52° during gait, below the normal 0–65°."
     )
@@ -84,14 +85,14 @@ def test_issue_example_sentence():
 
 
 def test_symmetry_index_hand_computed():
-    rows = {r["angle"]: r for r in symmetry_rows(_view((5.0, 45.0), (0.0, 60.0)))}
+    rows = {r.angle: r for r in symmetry_rows(_view((5.0, 45.0), (0.0, 60.0)))}
     # right range 40°, left 60°: SI = 100 (40 − 60) / 50 = −40 %
-    assert rows["flexion"]["symmetry_index_pct"] == pytest.approx(-40.0)
-    assert rows["flexion"]["flag"]
+    assert rows["flexion"].symmetry_index_pct == pytest.approx(-40.0)
+    assert rows["flexion"].flag
     # adduction: ranges 6° and 6°, mean below 10°: no index
-    assert np.isnan(rows["adduction"]["symmetry_index_pct"]) and not rows["adduction"]["flag"]
+    assert np.isnan(rows["adduction"].symmetry_index_pct) and not rows["adduction"].flag
     # rotation: 34° vs 10°: SI = 100 × 24 / 22
-    assert rows["rotation"]["symmetry_index_pct"] == pytest.approx(100 * 24 / 22)
+    assert rows["rotation"].symmetry_index_pct == pytest.approx(100 * 24 / 22)
 
 
 def test_findings_put_abnormal_first_and_name_side_joint_task():
@@ -183,11 +184,11 @@ def _graded_view(graded: bool = True) -> SessionView:
     view.angles = {"time_s": t} | {
         c: np.sin(t) for c in view.metrics.joints["gait"] if c.endswith("_deg")
     }
-    ok = {"ok": True, "messages": []}
+    ok = SegmentQuality(ok=True)
     axis = {"standing": {"kind": "static", "rho": 0.99, "residual_deg": 0.5}}
-    segments = {s: {"method": "primary_secondary", "axes": axis, "quality": ok} for s in
+    segments = {s: SegmentRecord(rot.IDENTITY, "primary_secondary", axis, ok) for s in
                 ("pelvis", "thigh_r", "thigh_l", "shank_l")}  # fmt: skip
-    segments["shank_r"] = {"method": "nominal", "axes": {}, "quality": {"ok": False}}
+    segments["shank_r"] = SegmentRecord(rot.IDENTITY, "nominal", {}, SegmentQuality(ok=False))
     cal = SegmentCalibration("knee", segments=segments)
     if graded:
         cal.grades = {

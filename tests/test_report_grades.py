@@ -16,6 +16,7 @@ them, so that it holds whatever the implementation.
 
 import copy
 import re
+from dataclasses import replace
 
 import matplotlib
 import numpy as np
@@ -77,7 +78,7 @@ def _pelvis_nominal(session):
 
     ses = copy.deepcopy(session)
     cal = ses.results.calibration
-    cal.segments["pelvis"]["method"] = "nominal"
+    cal.segments["pelvis"] = replace(cal.segments["pelvis"], method="nominal")
     cal.grades = grade_joints(load_protocol("walk"), cal)
     return ses
 
@@ -152,14 +153,14 @@ def _variable_grades(view) -> dict[str, str]:
     """``{'r_hip_flexion': grade, ...}`` of the GPS's variables, straight from the grades."""
     out = {}
     for r in grade_rows(view):
-        j = view.protocol.joints[r["joint"]]
-        if j.type in ("hip", "knee") and f"{j.type}_{r['angle']}" in (
+        j = view.protocol.joints[r.joint]
+        if j.type in ("hip", "knee") and f"{j.type}_{r.angle}" in (
             "hip_flexion",
             "hip_adduction",
             "hip_rotation",
             "knee_flexion",
         ):
-            out[f"{j.side}_{j.type}_{r['angle']}"] = r["grade"]
+            out[f"{j.side}_{j.type}_{r.angle}"] = r.grade
     cal = view.session.results.calibration
     if "pelvis" in view.protocol.segments and cal is not None and "pelvis" in cal.segments:
         out["pelvis"] = segment_grade(view, "pelvis")[0]
@@ -184,7 +185,7 @@ def problems(session, joints: bool = True) -> list[str]:
     """Everything the report says that its inputs do not allow (empty: the report obeys)."""
     view = load_view(session)
     out = []
-    bad = {(r["joint"], r["angle"]): r["grade"] for r in grade_rows(view)}
+    bad = {(r.joint, r.angle): r.grade for r in grade_rows(view)}
     bad = {k: g for k, g in bad.items() if g != "determined"}
     items = findings(view)
     # 1. findings only from determined planes (a weak or undetermined angle is never a bullet)
@@ -260,7 +261,7 @@ def problems(session, joints: bool = True) -> list[str]:
 
 
 def test_pelvis_without_forward_direction(walk):
-    grades = {r["column"]: r["grade"] for r in grade_rows(load_view(walk))}
+    grades = {r.column: r.grade for r in grade_rows(load_view(walk))}
     assert grades["hip_r_adduction_deg"] != "determined"  # the case is what it says
     assert problems(walk) == []
 

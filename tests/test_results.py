@@ -1,4 +1,5 @@
-"""Typed stage results: every attribute documented, the session file's old schema still loads."""
+"""Typed stage results: every attribute documented (and the report's rows'), the session file's
+old schema and the layout before the typed records still load."""
 
 import dataclasses
 import inspect
@@ -10,6 +11,7 @@ import pandas as pd
 import pytest
 
 import motionlab.results as results_module
+from motionlab.report.model import CalibrationRow, GradeRow, QualityRow, RomRow, SymmetryRow
 from motionlab.results import (
     STAGES,
     AngleTable,
@@ -18,23 +20,31 @@ from motionlab.results import (
     FusionEntry,
     Gait,
     HeadingCorrection,
+    HingeFit,
+    HipAxis,
     Metrics,
+    OpticalSync,
     Results,
     SegmentCalibration,
+    SegmentQuality,
+    SegmentRecord,
+    TwoAxisFit,
     Validation,
 )
 from motionlab.session import SCHEMA_VERSION, SensorStream, Session, load_session, save_session
 
 RECORDS = (
-    ClockFit, ClockSync, FusionEntry, SegmentCalibration, AngleTable, HeadingCorrection, Metrics,
-    Gait, Validation,
+    ClockFit, ClockSync, FusionEntry, SegmentCalibration, SegmentRecord, SegmentQuality, HingeFit,
+    TwoAxisFit, HipAxis, AngleTable, HeadingCorrection, Metrics, Gait, Validation, OpticalSync,
+    GradeRow, RomRow, SymmetryRow, QualityRow, CalibrationRow,
 )  # fmt: skip
 
 
 @pytest.mark.parametrize("cls", RECORDS, ids=lambda c: c.__name__)
 def test_every_attribute_of_a_result_is_documented(cls):
-    """As gaitmap tests its ``results_``: each field is named in its class's docstring."""
-    doc = inspect.getdoc(cls) or ""
+    """As gaitmap tests its ``results_``: each field is named in its class's docstring (or, for
+    an inherited field, in its base class's)."""
+    doc = "".join(inspect.getdoc(c) or "" for c in cls.__mro__ if dataclasses.is_dataclass(c))
     missing = [
         f.name for f in dataclasses.fields(cls) if f.name != "more" and f"``{f.name}``" not in doc
     ]
@@ -124,3 +134,103 @@ def test_results_round_trip_through_the_file(tmp_path):
     assert back.heading == ses.results.heading
     assert back.clock_sync == ses.results.clock_sync
     assert back.gait == ses.results.gait
+
+
+def _old_calibration_tree() -> dict:
+    """A calibration as the session file held it before the typed records (segment records,
+    their quality and the hinge fits were dicts), with a key a newer motionlab wrote in each."""
+    quality = {"ok": False, "messages": ["shank_r: repeat the squat"], "min_rho": 0.91,
+               "separation_deg": None, "lm_difference_deg": None,
+               "hinge_check_deg": {"squat": 2.5}, "future_q": 1}  # fmt: skip
+    segment = {"mounting": np.array([1.0, 0.0, 0.0, 0.0]), "method": "single_axis",
+               "axes": {"stand": {"step": "stand", "kind": "static", "rho": 0.99}},
+               "quality": quality, "sensor": "shank_r", "hint_contradicted": True,
+               "future_s": "kept"}  # fmt: skip
+    hinge = {"used_for": "axes", "method": "seel", "witness_deg": np.nan, "dominance": np.nan,
+             "proximal_tilt_deg": np.nan, "joint": "elbow_r",
+             "axis_proximal": np.array([0.0, 0.0, 1.0]), "axis_distal": np.array([0.0, 1.0, 0.0]),
+             "residual_rad_s": 0.1, "relative_residual": 0.2, "consistency_deg": 3.0,
+             "relative_sign": "measured", "sign": "anatomy", "excursion_deg": [120.0, -5.0],
+             "window_s": [1.0, 9.0], "n_samples": 800, "verdict": "weak", "reasons": ["short"],
+             "kind": "two_axes", "flexion_distal": np.array([0.0, 0.0, 1.0]),
+             "heading_times": np.array([2.0, 4.0]), "heading_deltas": np.array([0.1, 0.2]),
+             "future_h": [1, 2]}  # fmt: skip
+    hip = {"used": False, "turn_deg": 0.0, "rho": 0.62, "n_samples": 900, "tilt_deg": 4.0,
+           "reason": "no dominant hip axis (rho 0.62)"}  # fmt: skip
+    return {"protocol": "elbow", "ok": False, "segments": {"forearm_r": segment},
+            "hinges": {"elbow_r": hinge}, "hip_axes": {"hip_r": hip}}  # fmt: skip
+
+
+def test_a_calibration_stored_before_the_typed_records_loads_and_is_stored_the_same(tmp_path):
+    """The segment records, their quality, the hinge fits and the hip axes are typed in memory,
+    the file's layout is the dicts' (``None`` quality fields as JSON null), and keys a newer
+    motionlab wrote are kept in ``more`` and written back."""
+    from motionlab.session import _read_tree, _write_tree
+
+    old = _old_calibration_tree()
+    path = tmp_path / "old.h5"
+    save_session(Session(), path)
+    with h5py.File(path, "r+") as f:  # the calibration as an older motionlab wrote it
+        _write_tree(f.require_group("results").create_group("calibration"), old)
+    cal = load_session(path).results.calibration
+    seg, fit = cal.segments["forearm_r"], cal.hinges["elbow_r"]
+    assert isinstance(seg, SegmentRecord) and isinstance(seg.quality, SegmentQuality)
+    assert seg.method == "single_axis" and seg.sensor == "shank_r" and seg.hint_contradicted
+    assert seg.quality.messages == ["shank_r: repeat the squat"] and not seg.quality.ok
+    assert seg.quality.separation_deg is None and seg.quality.hinge_check_deg == {"squat": 2.5}
+    assert seg.axes["stand"]["rho"] == 0.99 and seg.more == {"future_s": "kept"}
+    assert seg.quality.more == {"future_q": 1}
+    assert isinstance(fit, TwoAxisFit) and fit.verdict == "weak" and fit.reasons == ["short"]
+    assert list(fit.excursion_deg) == [120.0, -5.0] and fit.more == {"future_h": [1, 2]}
+    np.testing.assert_array_equal(fit.heading_deltas, [0.1, 0.2])
+    hip = cal.hip_axes["hip_r"]
+    assert isinstance(hip, HipAxis) and not hip.used and hip.rho == 0.62 and hip.tilt_deg == 4.0
+    save_session(load_session(path), tmp_path / "again.h5")
+    with h5py.File(tmp_path / "again.h5") as f:
+        again = _read_tree(f["results/calibration"])
+    with h5py.File(path) as f:
+        stored = _read_tree(f["results/calibration"])
+    for name in ("segments", "hinges", "hip_axes"):
+        assert json.dumps(again[name], sort_keys=True, default=repr) == json.dumps(
+            stored[name], sort_keys=True, default=repr
+        )
+
+
+def test_a_hinge_fit_round_trips_and_a_plain_one_has_no_kind():
+    z = np.array([0.0, 0.0, 1.0])
+    fit = HingeFit("knee_r", z, -z, 0.1, 0.2, 3.0, "measured", "anatomy", (60.0, 1.0), (0.5, 9.5),
+                   900, "determined")  # fmt: skip
+    tree = fit.to_tree()
+    assert "kind" not in tree and tree["excursion_deg"] == [60.0, 1.0]
+    back = HingeFit.from_tree(tree)
+    assert type(back) is HingeFit and back.to_tree().keys() == tree.keys()
+    assert back.verdict == "determined" and back.n_samples == 900
+
+
+def test_the_validation_sync_is_typed_and_stored_as_before(tmp_path):
+    """``validation.sync`` is an :class:`OpticalSync`; its tree is the dict the file held
+    before (one attribute per scalar, one dataset per window array), a newer key kept."""
+    tree = {"method": "cross-correlation", "time_offset_s": 0.25, "drift_ppm": 12.0,
+            "inlier_ratio": 0.9, "residual_rms_s": 0.002, "coarse_lag_s": 0.2, "n_windows": 2,
+            "window_time_s": np.array([5.0, 10.0]), "window_lag_s": np.array([0.25, 0.25]),
+            "window_sd_s": np.array([1e-3, 1e-3]), "window_corr": np.array([0.9, 0.8]),
+            "window_pair": np.array([0, 0]), "inliers": np.array([True, False]),
+            "standard_error_s": 4e-4, "grade": "good", "fallback": "", "signal": "gyroscope",
+            "sensor_residual_s": {"shank_r": 0.0}, "future": 3}  # fmt: skip
+    val = Validation.from_tree({"mode": "full", "sync": tree})
+    sync = val.sync
+    assert isinstance(sync, OpticalSync) and sync.time_offset_s == 0.25 and sync.grade == "good"
+    assert sync.more == {"future": 3} and sync.sensor_residual_s == {"shank_r": 0.0}
+    back = val.to_tree()["sync"]
+    assert back.keys() == tree.keys()
+    for k, v in tree.items():
+        if isinstance(v, np.ndarray):
+            np.testing.assert_array_equal(back[k], v)
+        else:
+            assert back[k] == v, k
+    ses = Session(results=Results(validation=val))
+    save_session(ses, tmp_path / "v.h5")
+    again = load_session(tmp_path / "v.h5").results.validation.sync
+    np.testing.assert_array_equal(again.inliers, [True, False])
+    assert again.n_windows == 2 and again.more == {"future": 3}
+    assert Validation.from_tree({"mode": "full"}).sync.method == "none"  # no sync stored

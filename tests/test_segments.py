@@ -104,12 +104,12 @@ def test_knee_calibration_recovers_mountings_and_steps():
         assert found[0] >= t0 - 1.0 and found[1] <= t1 + 1.0, (name, found)
     assert cal.steps["hip_flexion_r"] is None
     for seg, res in cal.segments.items():
-        err = np.degrees(rot.angle(rot.mul(rot.conj(mounts[seg]), res["mounting"])))
-        limit = 2.0 if res["method"] == "procrustes" else 40.0
-        assert err < limit, (seg, err, res["method"])
-        assert res["quality"]["min_rho"] > 0.9
-    assert cal.segments["shank_r"]["method"] == "procrustes"
-    assert cal.segments["pelvis"]["method"] == "single_axis"
+        err = np.degrees(rot.angle(rot.mul(rot.conj(mounts[seg]), res.mounting)))
+        limit = 2.0 if res.method == "procrustes" else 40.0
+        assert err < limit, (seg, err, res.method)
+        assert res.quality.min_rho > 0.9
+    assert cal.segments["shank_r"].method == "procrustes"
+    assert cal.segments["pelvis"].method == "single_axis"
 
 
 def test_heading_ties_are_found_once_at_calibration():

@@ -21,7 +21,7 @@ def test_calibrate_then_angles_cli(tmp_path):
     assert res.exit_code == 0, res.output
     assert "knee_flexion_r" in res.output and "shank_r" in res.output
     cal = load_session(path).results.calibration
-    assert cal.segments["shank_l"]["method"] == "procrustes"
+    assert cal.segments["shank_l"].method == "procrustes"
     again = runner.invoke(main, ["calibrate", str(path), "--protocol", "knee"])
     assert again.exit_code == 2 and "--force" in again.output
     csv = tmp_path / "angles.csv"

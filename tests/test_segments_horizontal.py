@@ -60,7 +60,7 @@ def test_forearm_tilt_follows_the_standing_accelerometer(sessions):
     before = calibrate_segments(session, plain).segments["forearm_r"]
     cal = calibrate_segments(session, leveled)
     after = cal.segments["forearm_r"]
-    rec = after["axes"]["standing:horizontal"]
+    rec = after.axes["standing:horizontal"]
     assert rec["method"] == "horizontal" and rec["residual_deg"] < 1e-6
     assert rec["rho"] > 0.99
     # the change is a turn about the segment's z axis by the tilt of the bias the fusion left
@@ -69,12 +69,12 @@ def test_forearm_tilt_follows_the_standing_accelerometer(sessions):
     estimated = session.results.fusion["forearm_r"].acc_bias[(s.time >= t0) & (s.time <= t1)]
     left = BIAS - np.mean(estimated @ forward)
     assert 0.03 < left < 0.15  # the fusion took part of it, not all
-    m0, m1 = rot.to_matrix(before["mounting"]), rot.to_matrix(after["mounting"])
+    m0, m1 = rot.to_matrix(before.mounting), rot.to_matrix(after.mounting)
     turn = rot.to_rotvec(rot.from_matrix(m0.T @ m1))  # in segment coordinates
     assert abs(np.degrees(turn[2])) == pytest.approx(np.degrees(np.arctan(left / 9.81)), abs=0.05)
     assert np.degrees(np.linalg.norm(turn[:2])) < 0.3
     truth_mount = rot.conj(truth.sensors["forearm_r"]["mounting"])
-    assert np.degrees(rot.angle(rot.mul(rot.conj(truth_mount), after["mounting"]))) < 2.0
+    assert np.degrees(rot.angle(rot.mul(rot.conj(truth_mount), after.mounting))) < 2.0
 
 
 def test_horizontal_axis_only_in_static_steps(tmp_path):

@@ -13,6 +13,7 @@ from motionlab.results import (
     HeadingCorrection,
     Results,
     SegmentCalibration,
+    SegmentRecord,
 )
 from motionlab.session import (
     MarkerSet,
@@ -86,7 +87,7 @@ def make_session(tmp_path) -> Session:
             calibration=SegmentCalibration(
                 "knee",
                 steps={"stand": [0.1, 0.5], "squat": None},
-                segments={"shank_r": {"mounting": quat[0], "method": "procrustes"}},
+                segments={"shank_r": SegmentRecord(quat[0], "procrustes")},
                 warnings=["µT, ° and ü survive"],
                 grades={"knee_r": {"grades": ["determined"] * 3, "reasons": [""] * 3}},
                 protocol_path="knee.yaml",

@@ -72,9 +72,9 @@ def knee():
 def test_clock_offset_and_drift_are_recovered(knee):
     _, _, _, result = knee
     sync = result.sync
-    assert abs(sync["time_offset_s"] - OFFSET_S) < 0.5 / 100.0  # half an IMU sample
-    assert abs(sync["drift_ppm"] - DRIFT * 1e6) < 20.0
-    assert sync["inlier_ratio"] > 0.9
+    assert abs(sync.time_offset_s - OFFSET_S) < 0.5 / 100.0  # half an IMU sample
+    assert abs(sync.drift_ppm - DRIFT * 1e6) < 20.0
+    assert sync.inlier_ratio > 0.9
 
 
 def test_alignment_rotations_are_recovered(knee):
@@ -184,8 +184,8 @@ def test_broad_mode_none_reproduces_the_benchmark():
         assert synced.orientation["imu"][key] == pytest.approx(expected[key], abs=0.05)
     # BROAD shares one clock; its optical stream sits about 4 ms (1.2 samples) before the IMU
     # in every trial here, which the synchronisation finds (see bench/validation.py)
-    assert abs(synced.sync["time_offset_s"]) < 0.01
-    assert abs(synced.sync["drift_ppm"]) < 10.0
+    assert abs(synced.sync.time_offset_s) < 0.01
+    assert abs(synced.sync.drift_ppm) < 10.0
 
 
 def test_figures_draw_the_stored_result(knee):

@@ -51,9 +51,10 @@ def test_marker_noise_costs_little_precision():
     res = synchronise([imu], [ref])
     assert res.model.offset_s == pytest.approx(OFFSET, abs=1e-3)
     assert res.model.drift == pytest.approx(DRIFT, abs=20e-6)
-    d = res.as_dict()
-    assert d["drift_ppm"] == pytest.approx(res.model.drift * 1e6)
-    assert len(d["window_lag_s"]) == len(d["inliers"]) == d["n_windows"]
+    d = res.record("gyroscope", ["s"])
+    assert d.drift_ppm == pytest.approx(res.model.drift * 1e6)
+    assert len(d.window_lag_s) == len(d.inliers) == d.n_windows
+    assert list(d.sensor_residual_s) == ["s"] and d.signal == "gyroscope"
 
 
 def test_a_large_offset_is_found_by_the_coarse_search():

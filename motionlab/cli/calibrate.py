@@ -21,6 +21,7 @@ def command(session: str, protocol_path: str, force: bool) -> None:
     from motionlab import stages
     from motionlab.lock import session_lock
     from motionlab.protocol import load_protocol
+    from motionlab.results import SegmentQuality
     from motionlab.session import load_session, save_session
 
     protocol = load_protocol(protocol_path)
@@ -35,12 +36,11 @@ def command(session: str, protocol_path: str, force: bool) -> None:
         where = f"{rng[0]:7.2f}–{rng[1]:7.2f} s" if rng else "not performed (optional)"
         click.echo(f"step {name:<22} {where}")
     for seg, res in result.segments.items():
-        q = res["quality"]
+        q = res.quality or SegmentQuality(ok=True)
         click.echo(
-            f"{seg:<12} {res['method']:<12} min ρ {q['min_rho']:.2f}  "
-            + ("ok" if q["ok"] else "CHECK")
+            f"{seg:<12} {res.method:<12} min ρ {q.min_rho:.2f}  " + ("ok" if q.ok else "CHECK")
         )
-        for msg in q["messages"]:
+        for msg in q.messages:
             click.echo(f"  - {msg}")
     for joint, g in result.grades.items():
         click.echo(f"{joint:<12} angles: {', '.join(g['grades'])}")

@@ -142,7 +142,7 @@ def command(
     if as_json:
         click.echo(json.dumps(digest, indent=2))
         return
-    _print(digest, result.sync["method"] != "none")
+    _print(digest, result.sync.method != "none")
     if written:
         click.echo(f"wrote {', '.join(written)}")
 

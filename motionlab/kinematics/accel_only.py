@@ -123,7 +123,7 @@ def session_elbow_angles(session: Session, protocol: Protocol) -> dict[str, Any]
             s = session.sensors[label]
             sos = butter(2, LOWPASS_HZ, fs=estimate_rate(s.time), output="sos")
             acc = sosfiltfilt(sos, s.acc, axis=0)
-            up = rot.rotate(rot.conj(np.asarray(cal[seg]["mounting"])), acc)  # sensor → segment
+            up = rot.rotate(rot.conj(np.asarray(cal[seg].mounting)), acc)  # sensor → segment
             ups.append((s.time, up))
         t = ups[0][0]
         up_d = np.column_stack([np.interp(t, ups[1][0], ups[1][1][:, k]) for k in range(3)])

@@ -243,7 +243,7 @@ def shank_angular_velocity(
         s = session.sensors[label]
         if s.gyr is None:
             continue
-        w = rot.rotate(rot.conj(np.asarray(cal["mounting"])), s.gyr)  # sensor → segment
+        w = rot.rotate(rot.conj(np.asarray(cal.mounting)), s.gyr)  # sensor → segment
         out[seg] = (s.time, w[:, 2])
     return out
 

@@ -19,7 +19,7 @@ from typing import Any
 from motionlab import rotations as rot
 from motionlab.kinematics.joint_angles import joint_angles
 from motionlab.protocol import Protocol
-from motionlab.results import HeadingCorrection, SegmentCalibration
+from motionlab.results import HeadingCorrection, SegmentCalibration, SegmentRecord
 from motionlab.segments import segment_orientations
 from motionlab.segments.hip_axis import apply_turn
 from motionlab.segments.sensors import SegmentQuats, sensor_quats
@@ -33,7 +33,7 @@ def nominal_calibration(protocol: Protocol, steps: dict[str, Any]) -> SegmentCal
     ``steps`` (the found step times) still serve the heading alignment.
     """
     segments = {
-        seg: {"mounting": rot.from_matrix(spec.nominal_mounting().T)}
+        seg: SegmentRecord(rot.from_matrix(spec.nominal_mounting().T), "nominal")
         for seg, spec in protocol.segments.items()
     }
     return SegmentCalibration(protocol.name, steps=steps, segments=segments)
@@ -74,8 +74,8 @@ def angle_table(
         qp = rot.resample(*seg_q[joint.proximal], t)
         qd = rot.resample(*seg_q[joint.distal], t)
         axis = calibration.hip_axes.get(joint.name) if calibration is not None else None
-        if axis and axis.get("used"):
-            qd = apply_turn(qp, qd, float(axis["turn_deg"]))
+        if axis is not None and axis.used:
+            qd = apply_turn(qp, qd, float(axis.turn_deg))
         out.update(joint_angles(qp, qd, joint))
     return out
 

@@ -28,12 +28,12 @@ def grade_lines(view: SessionView, width: int = 100) -> list[str]:
     """Summary lines on the angles' grades: how many the recording determined, then the weak
     and not determined ones by column name, grouped by reason (wrapped at ``width``)."""
     rows = grade_rows(view)
-    good = sum(r["grade"] == "determined" for r in rows)
+    good = sum(r.grade == "determined" for r in rows)
     lines = [f"  angles determined by the recording: {good}/{len(rows)}"]
     groups: dict[tuple[str, str], list[str]] = {}
     for r in rows:
-        if r["grade"] != "determined":
-            groups.setdefault((r["grade"], r["reason"]), []).append(r["column"])
+        if r.grade != "determined":
+            groups.setdefault((r.grade, r.reason), []).append(r.column)
     for (grade, reason), cols in groups.items():
         text = f"{grade}: {', '.join(cols)}" + (f" - {reason}" if reason else "")
         lines += textwrap.wrap(
@@ -57,8 +57,8 @@ def run_summary(
     the stage ``times`` (s) and the ``total_s``."""
     ses, proto = view.session, view.protocol
     q = quality_rows(view)
-    flagged = sorted({f for r in q for f in r["flags"]})
-    rate = q[0]["rate_hz"] if q else float("nan")
+    flagged = sorted({f for r in q for f in r.flags})
+    rate = q[0].rate_hz if q else float("nan")
     lines = [
         f"motionlab run: {proto.name} ({proto.title}) - subject {view.subject}, {view.date}",
         f"  data: {len(ses.sensors)} sensors at {rate:.0f} Hz, {view.angles['time_s'][-1]:.0f} s;"
@@ -77,7 +77,7 @@ def run_summary(
             f"  clock sync: {', '.join(moved) if moved else 'no correction needed or reliable'}"
             f" ({len(synced)} sensor pairs checked)"
         )
-    segs = {r["segment"]: r["segment_ok"] for r in calibration_rows(view)}
+    segs = {r.segment: r.segment_ok for r in calibration_rows(view)}
     bad = [s for s, ok in segs.items() if not ok]
     lines.append(
         f"  calibration: {len(segs) - len(bad)}/{len(segs)} segments ok"
@@ -98,19 +98,19 @@ def run_summary(
         spans = "none (the recording is its calibration pose)"
     lines.append("  tasks: " + spans)
     lines.append(_gait_line(view))
-    flexion = [r for r in rom_rows(view) if r["angle"] == "flexion"]
+    flexion = [r for r in rom_rows(view) if r.angle == "flexion"]
     if flexion:
         lines.append("  flexion range (typical, deg):")
     for r in flexion:
         normal = (
-            f"normal {r['normal'][0]:g}-{r['normal'][1]:g}, {r['status'] or 'not compared'}"
-            if r["normal"]
+            f"normal {r.normal[0]:g}-{r.normal[1]:g}, {r.status or 'not compared'}"
+            if r.normal
             else "no normal range"
         )
         lines.append(
-            f"    {task_name(r['task']):<14} {r['joint']:<8} "
-            f"{span(r['typical_min_deg'], r['typical_max_deg']):>10}  ({normal})"
-            + (f" {grade_mark(r['grade'])}" if grade_mark(r["grade"]) else "")
+            f"    {task_name(r.task):<14} {r.joint:<8} "
+            f"{span(r.typical_min_deg, r.typical_max_deg):>10}  ({normal})"
+            + (f" {grade_mark(r.grade)}" if grade_mark(r.grade) else "")
         )
     validation = ses.results.validation
     val = (validation.angles or {}) if validation is not None else {}

@@ -15,6 +15,7 @@ segment and calibration step). Existing files are replaced only with ``force``.
 
 from __future__ import annotations
 
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -53,30 +54,27 @@ def angle_frames(view: SessionView) -> dict[str, pd.DataFrame]:
 
 def metrics_frame(view: SessionView) -> pd.DataFrame:
     """Range of motion per task, joint and angle, with normal range, flag and symmetry."""
-    si = {
-        (s["task"], s["joint_type"], s["angle"]): s["symmetry_index_pct"]
-        for s in symmetry_rows(view)
-    }
+    si = {(s.task, s.joint_type, s.angle): s.symmetry_index_pct for s in symmetry_rows(view)}
     rows = []
     for r in rom_rows(view):
-        lo, hi = r["normal"] if r["normal"] else (np.nan, np.nan)
+        lo, hi = r.normal if r.normal else (np.nan, np.nan)
         rows.append(
             {
-                "task": r["task"],
-                "joint": r["joint"],
-                "angle": r["angle"],
-                "plane": r["plane"],
-                "rom_deg": r["rom_deg"],
-                "min_deg": r["min_deg"],
-                "max_deg": r["max_deg"],
-                "typical_min_deg": r["typical_min_deg"],
-                "typical_max_deg": r["typical_max_deg"],
-                "cycles_n": r["repetitions"],
+                "task": r.task,
+                "joint": r.joint,
+                "angle": r.angle,
+                "plane": r.plane,
+                "rom_deg": r.rom_deg,
+                "min_deg": r.min_deg,
+                "max_deg": r.max_deg,
+                "typical_min_deg": r.typical_min_deg,
+                "typical_max_deg": r.typical_max_deg,
+                "cycles_n": r.repetitions,
                 "normal_min_deg": lo,
                 "normal_max_deg": hi,
-                "vs_normal": r["status"] or ("not compared" if r["normal"] else "no normal range"),
-                "symmetry_index_pct": si.get((r["task"], r["joint_type"], r["angle"]), np.nan),
-                "grade": r["grade"],
+                "vs_normal": r.status or ("not compared" if r.normal else "no normal range"),
+                "symmetry_index_pct": si.get((r.task, r.joint_type, r.angle), np.nan),
+                "grade": r.grade,
             }
         )
     return pd.DataFrame(rows)
@@ -135,7 +133,7 @@ def out_of_plane_frame(view: SessionView) -> pd.DataFrame:
             )
     for task, joints in (m.out_of_plane_offset or {}).items():
         for joint, o in joints.items():
-            graded = [(r["grade"], "") for r in grade_rows(view) if r["joint"] == joint]
+            graded = [(r.grade, "") for r in grade_rows(view) if r.joint == joint]
             add(
                 "out_of_plane_offset",
                 task,
@@ -171,24 +169,24 @@ def quality_frame(view: SessionView) -> pd.DataFrame:
     for q in quality_rows(view):
         rows.append(
             {
-                "sensor": q["sensor"],
-                "serial": q["serial"],
-                "segment": q["segment"],
-                "side": q["side"],
-                "channels": q["channels"],
-                "rate_hz": q["rate_hz"],
-                "jitter_ms": q["jitter_ms"],
-                "duration_s": q["duration_s"],
-                "samples_n": q["samples"],
-                "missing_samples_n": q["dropped_samples"],
-                "gaps_filled_n": q["gaps_filled"],
-                "samples_filled_n": q["samples_filled"],
-                "gaps_kept_n": q["gaps_kept"],
-                "gaps_kept_s": q["gaps_kept_s"],
-                "saturated_samples_n": q["saturated_samples"],
-                "at_rest_pct": q["rest_pct"],
-                "mag_disturbed_pct": q["mag_disturbed_pct"],
-                "qc_flags": ";".join(q["flags"]),
+                "sensor": q.sensor,
+                "serial": q.serial,
+                "segment": q.segment,
+                "side": q.side,
+                "channels": q.channels,
+                "rate_hz": q.rate_hz,
+                "jitter_ms": q.jitter_ms,
+                "duration_s": q.duration_s,
+                "samples_n": q.samples,
+                "missing_samples_n": q.dropped_samples,
+                "gaps_filled_n": q.gaps_filled,
+                "samples_filled_n": q.samples_filled,
+                "gaps_kept_n": q.gaps_kept,
+                "gaps_kept_s": q.gaps_kept_s,
+                "saturated_samples_n": q.saturated_samples,
+                "at_rest_pct": q.rest_pct,
+                "mag_disturbed_pct": q.mag_disturbed_pct,
+                "qc_flags": ";".join(q.flags),
             }
         )
     return pd.DataFrame(rows)
@@ -196,21 +194,22 @@ def quality_frame(view: SessionView) -> pd.DataFrame:
 
 def grades_frame(view: SessionView) -> pd.DataFrame:
     """One row per angle column: ``joint, angle, column, grade, reason``."""
-    return pd.DataFrame(grade_rows(view), columns=["joint", "angle", "column", "grade", "reason"])
+    columns = ["joint", "angle", "column", "grade", "reason"]
+    return pd.DataFrame([asdict(r) for r in grade_rows(view)], columns=columns)
 
 
 def calibration_frame(view: SessionView) -> pd.DataFrame:
     rows = [
         {
-            "segment": r["segment"],
-            "sensor": r["sensor"],
-            "method": r["method"],
-            "step": r["step"],
-            "kind": r["kind"],
-            "rho_ratio": r["rho"],
-            "reference_rho_ratio": r["reference_rho"],
-            "residual_deg": r["residual_deg"],
-            "segment_ok": r["segment_ok"],
+            "segment": r.segment,
+            "sensor": r.sensor,
+            "method": r.method,
+            "step": r.step,
+            "kind": r.kind,
+            "rho_ratio": r.rho,
+            "reference_rho_ratio": r.reference_rho,
+            "residual_deg": r.residual_deg,
+            "segment_ok": r.segment_ok,
         }
         for r in calibration_rows(view)
     ]

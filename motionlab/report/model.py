@@ -39,7 +39,7 @@ from motionlab.kinematics.gps import gated_profile, variable_grades
 from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, plane, title
 from motionlab.kinematics.metrics import THORAX as THORAX  # re-exported for the pages
 from motionlab.protocol import Joint, Protocol, load_protocol
-from motionlab.results import Gait, Metrics, SegmentCalibration
+from motionlab.results import Gait, Metrics, SegmentCalibration, SegmentRecord
 from motionlab.segments import sensor_for_segment
 from motionlab.segments.grades import GRADES, _frame_grade
 from motionlab.session import Session
@@ -55,6 +55,118 @@ SYMMETRY_LIMIT_PCT = 10.0
 SYMMETRY_MIN_ROM_DEG = 10.0
 
 SIDE_NAMES = {"r": "right", "l": "left", "": ""}
+
+
+@dataclass(frozen=True)
+class GradeRow:
+    """One angle's grade (:func:`grade_rows`): ``joint`` (its name), ``angle`` (``flexion``,
+    ...), ``column`` (the angle table's column), ``grade`` (``determined``, ``weak``, ``not
+    determined``) and ``reason`` (plain words; empty when ``determined``)."""
+
+    joint: str
+    angle: str
+    column: str
+    grade: str
+    reason: str
+
+
+@dataclass(frozen=True)
+class RomRow:
+    """One task's range of motion of one angle (:func:`rom_rows`): ``task``, ``joint`` (its
+    name), ``joint_type``, ``side`` (``r``, ``l`` or empty), ``angle``, ``plane``, ``column``;
+    ``rom_deg``, ``min_deg``, ``max_deg`` over the task (deg); ``typical_min_deg`` /
+    ``typical_max_deg``: the means of the per-cycle peaks (deg); ``repetitions``; ``normal``:
+    the protocol's normal range ``(low, high)`` deg or ``None``; ``status``: ``within``,
+    ``below``, ``above``, ``wider`` (:func:`compare`), empty when not compared (no normal range,
+    or the angle not ``determined``); ``grade`` and ``reason`` (:func:`grade_rows`)."""
+
+    task: str
+    joint: str
+    joint_type: str
+    side: str
+    angle: str
+    plane: str
+    column: str
+    rom_deg: float
+    min_deg: float
+    max_deg: float
+    typical_min_deg: float
+    typical_max_deg: float
+    repetitions: int
+    normal: tuple[float, float] | None
+    status: str
+    grade: str
+    reason: str
+
+
+@dataclass(frozen=True)
+class SymmetryRow:
+    """Left-right symmetry of one task's range of motion (:func:`symmetry_rows`): ``task``,
+    ``joint_type``, ``angle``, ``plane``; ``right_rom_deg`` / ``left_rom_deg``: typical max −
+    typical min of each side (deg); ``symmetry_index_pct`` (%, NaN when not given); ``flag``:
+    beyond :data:`SYMMETRY_LIMIT_PCT`; ``grade`` and ``reason``: the worse side's."""
+
+    task: str
+    joint_type: str
+    angle: str
+    plane: str
+    right_rom_deg: float
+    left_rom_deg: float
+    symmetry_index_pct: float
+    flag: bool
+    grade: str
+    reason: str
+
+
+@dataclass(frozen=True)
+class QualityRow:
+    """One sensor's data quality (:func:`quality_rows`): ``sensor`` (label), ``serial``,
+    ``segment``, ``side``; ``rate_hz`` (Hz), ``jitter_ms`` (ms), ``samples``, ``duration_s``
+    (s); ``dropped_samples``; ``gaps_filled`` and ``samples_filled`` (by ingest);
+    ``gaps_kept`` and ``gaps_kept_s`` (s) left as gaps; ``saturated_samples``; ``rest_pct`` and
+    ``mag_disturbed_pct`` (% of the samples, NaN without a fusion result); ``channels`` (comma
+    separated); ``flags``: the QC flags raised."""
+
+    sensor: str
+    serial: str
+    segment: str
+    side: str
+    rate_hz: float
+    jitter_ms: float
+    samples: int
+    duration_s: float
+    dropped_samples: int
+    gaps_filled: int
+    samples_filled: int
+    gaps_kept: int
+    gaps_kept_s: float
+    saturated_samples: int
+    rest_pct: float
+    mag_disturbed_pct: float
+    channels: str
+    flags: list[str]
+
+
+@dataclass(frozen=True)
+class CalibrationRow:
+    """One calibration step of one segment (:func:`calibration_rows`): ``segment``,
+    ``sensor``, ``method`` (the segment's fit, ``not calibrated`` without one), ``step``
+    (``none`` for a segment without a measured axis), ``kind`` (``static``, ``functional``,
+    ``movement``; ``nominal`` without an axis), ``rho`` and ``reference_rho`` (NaN where
+    none), ``residual_deg`` (deg), ``used`` (the axis entered the fit), ``hinge_check_deg``
+    (deg, NaN where not checked) and ``segment_ok`` (the segment's quality passed)."""
+
+    segment: str
+    sensor: str
+    method: str
+    step: str
+    kind: str
+    rho: float
+    reference_rho: float
+    residual_deg: float
+    used: bool
+    hinge_check_deg: float
+    segment_ok: bool
 
 
 @dataclass
@@ -220,7 +332,7 @@ def compare(low: float, high: float, normal: tuple[float, float] | None, reach: 
     return "within"
 
 
-def grade_rows(view: SessionView) -> list[dict[str, Any]]:
+def grade_rows(view: SessionView) -> list[GradeRow]:
     """One row per angle column of every protocol joint: ``joint, angle, column, grade, reason``.
 
     From ``results.calibration.grades``; a joint without grades (a session calibrated
@@ -236,28 +348,20 @@ def grade_rows(view: SessionView) -> list[dict[str, Any]]:
         for k, (angle, col) in enumerate(angle_columns(joint)):
             grade = grades[k] if k < len(grades) and grades[k] in GRADES else DETERMINED
             reason = reasons[k] if k < len(reasons) and grade != DETERMINED else ""
-            rows.append(
-                {
-                    "joint": joint.name,
-                    "angle": angle,
-                    "column": col,
-                    "grade": grade,
-                    "reason": reason,
-                }
-            )
+            rows.append(GradeRow(joint.name, angle, col, grade, reason))
     return rows
 
 
 def angle_grades(view: SessionView) -> dict[str, tuple[str, str]]:
     """``{column: (grade, reason)}`` of every angle column (see :func:`grade_rows`)."""
-    return {r["column"]: (r["grade"], r["reason"]) for r in grade_rows(view)}
+    return {r.column: (r.grade, r.reason) for r in grade_rows(view)}
 
 
 def angle_grade(view: SessionView, joint: str, angle: str) -> tuple[str, str]:
     """``(grade, reason)`` of one angle of a protocol joint (``determined`` when unknown)."""
     for r in grade_rows(view):
-        if r["joint"] == joint and r["angle"] == angle:
-            return r["grade"], r["reason"]
+        if r.joint == joint and r.angle == angle:
+            return r.grade, r.reason
     return DETERMINED, ""
 
 
@@ -293,9 +397,9 @@ def grade_mark(grade: str, reason: str = "") -> str:
     return f"({grade}: {reason})" if reason and grade == WEAK else f"({grade})"
 
 
-def rom_rows(view: SessionView) -> list[dict[str, Any]]:
+def rom_rows(view: SessionView) -> list[RomRow]:
     """One row per task, joint and angle (see the module docstring)."""
-    grades = {r["column"]: (r["grade"], r["reason"]) for r in grade_rows(view)}
+    grades = angle_grades(view)
     rows = []
     for task in view.tasks():
         per_col = view.metrics.joints[task]
@@ -309,59 +413,57 @@ def rom_rows(view: SessionView) -> list[dict[str, Any]]:
                 grade, reason = grades.get(col, (DETERMINED, ""))
                 status = compare(low, high, normal, angle == "flexion")
                 rows.append(
-                    {
-                        "task": task,
-                        "joint": joint.name,
-                        "joint_type": joint.type,
-                        "side": joint.side,
-                        "angle": angle,
-                        "plane": plane(joint, angle),
-                        "column": col,
-                        "rom_deg": float(m["rom_deg"]),
-                        "min_deg": float(m["min_deg"]),
-                        "max_deg": float(m["max_deg"]),
-                        "typical_min_deg": low,
-                        "typical_max_deg": high,
-                        "repetitions": int(m["repetitions"]),
-                        "normal": normal,
-                        "status": status if is_determined(grade) else "",
-                        "grade": grade,
-                        "reason": reason,
-                    }
+                    RomRow(
+                        task=task,
+                        joint=joint.name,
+                        joint_type=joint.type,
+                        side=joint.side,
+                        angle=angle,
+                        plane=plane(joint, angle),
+                        column=col,
+                        rom_deg=float(m["rom_deg"]),
+                        min_deg=float(m["min_deg"]),
+                        max_deg=float(m["max_deg"]),
+                        typical_min_deg=low,
+                        typical_max_deg=high,
+                        repetitions=int(m["repetitions"]),
+                        normal=normal,
+                        status=status if is_determined(grade) else "",
+                        grade=grade,
+                        reason=reason,
+                    )
                 )
     return rows
 
 
-def symmetry_rows(view: SessionView) -> list[dict[str, Any]]:
+def symmetry_rows(view: SessionView) -> list[SymmetryRow]:
     """Left-right symmetry index per task and angle, for joints present on both sides."""
-    by_key = {(r["task"], r["joint_type"], r["angle"], r["side"]): r for r in rom_rows(view)}
+    by_key = {(r.task, r.joint_type, r.angle, r.side): r for r in rom_rows(view)}
     rows = []
     for (task, jtype, angle, side), right in by_key.items():
         left = by_key.get((task, jtype, angle, "l"))
         if side != "r" or left is None or not symmetric_type(jtype):
             continue
-        r = right["typical_max_deg"] - right["typical_min_deg"]
-        l = left["typical_max_deg"] - left["typical_min_deg"]
+        r = right.typical_max_deg - right.typical_min_deg
+        l = left.typical_max_deg - left.typical_min_deg
         mean = 0.5 * (r + l)
         si = 100.0 * (r - l) / mean if mean >= SYMMETRY_MIN_ROM_DEG else float("nan")
-        grade, reason = worst_grade(
-            [(right["grade"], right["reason"]), (left["grade"], left["reason"])]
-        )
+        grade, reason = worst_grade([(right.grade, right.reason), (left.grade, left.reason)])
         if not is_determined(grade):
             si = float("nan")
         rows.append(
-            {
-                "task": task,
-                "joint_type": jtype,
-                "angle": angle,
-                "plane": right["plane"],
-                "right_rom_deg": r,
-                "left_rom_deg": l,
-                "symmetry_index_pct": si,
-                "flag": bool(np.isfinite(si) and abs(si) > SYMMETRY_LIMIT_PCT),
-                "grade": grade,
-                "reason": reason,
-            }
+            SymmetryRow(
+                task=task,
+                joint_type=jtype,
+                angle=angle,
+                plane=right.plane,
+                right_rom_deg=r,
+                left_rom_deg=l,
+                symmetry_index_pct=si,
+                flag=bool(np.isfinite(si) and abs(si) > SYMMETRY_LIMIT_PCT),
+                grade=grade,
+                reason=reason,
+            )
         )
     return rows
 
@@ -375,7 +477,7 @@ def _spans_s(spans: list) -> float:
     return float(sum(b - a for a, b in spans)) if spans else 0.0
 
 
-def quality_rows(view: SessionView) -> list[dict[str, Any]]:
+def quality_rows(view: SessionView) -> list[QualityRow]:
     """Per sensor: placement, rate, jitter, gaps, saturation, rest and magnetic disturbance."""
     fusion = view.session.results.fusion
     rows = []
@@ -385,48 +487,53 @@ def quality_rows(view: SessionView) -> list[dict[str, Any]]:
         sat = qc.get("saturated_samples", {}) or {}
         flags = [k for k, v in (qc.get("flags") or {}).items() if v]
         rows.append(
-            {
-                "sensor": label,
-                "serial": s.serial,
-                "segment": s.segment,
-                "side": s.side,
-                "rate_hz": float(s.rate_hz),
-                "jitter_ms": float(qc.get("jitter_ms", np.nan)),
-                "samples": int(s.n_samples),
-                "duration_s": float(s.duration_s),
-                "dropped_samples": int(qc.get("dropped_samples", 0)),
-                "gaps_filled": int(qc.get("gaps_filled", 0)),
-                "samples_filled": int(qc.get("samples_filled", 0)),
-                "gaps_kept": len(qc.get("gaps", [])),
-                "gaps_kept_s": _spans_s(qc.get("gaps", [])),
-                "saturated_samples": int(sum(sat.values())),
-                "rest_pct": _share(fz.rest if fz else None),
-                "mag_disturbed_pct": _share(fz.mag_disturbed if fz else None),
-                "channels": ",".join(s.channels),
-                "flags": flags,
-            }
+            QualityRow(
+                sensor=label,
+                serial=s.serial,
+                segment=s.segment,
+                side=s.side,
+                rate_hz=float(s.rate_hz),
+                jitter_ms=float(qc.get("jitter_ms", np.nan)),
+                samples=int(s.n_samples),
+                duration_s=float(s.duration_s),
+                dropped_samples=int(qc.get("dropped_samples", 0)),
+                gaps_filled=int(qc.get("gaps_filled", 0)),
+                samples_filled=int(qc.get("samples_filled", 0)),
+                gaps_kept=len(qc.get("gaps", [])),
+                gaps_kept_s=_spans_s(qc.get("gaps", [])),
+                saturated_samples=int(sum(sat.values())),
+                rest_pct=_share(fz.rest if fz else None),
+                mag_disturbed_pct=_share(fz.mag_disturbed if fz else None),
+                channels=",".join(s.channels),
+                flags=flags,
+            )
         )
     return rows
 
 
-def _no_axis_row(view: SessionView, seg: str, res: dict[str, Any]) -> dict[str, Any]:
+def _segment_ok(res: SegmentRecord | None) -> bool:
+    """Whether a segment's calibration passed its quality checks (false without one)."""
+    return bool(res is not None and res.quality is not None and res.quality.ok)
+
+
+def _no_axis_row(view: SessionView, seg: str, res: SegmentRecord | None) -> CalibrationRow:
     """The one row of a segment without a measured axis (``nominal``) or without a calibration."""
-    return {
-        "segment": seg,
-        "sensor": res.get("sensor") or sensor_for_segment(view.session, seg) or "",
-        "method": res.get("method", "not calibrated"),
-        "step": "none",
-        "kind": "nominal" if res else "",
-        "rho": float("nan"),
-        "reference_rho": float("nan"),
-        "residual_deg": float("nan"),
-        "used": False,
-        "hinge_check_deg": float("nan"),
-        "segment_ok": bool(res.get("quality", {}).get("ok", False)),
-    }
+    return CalibrationRow(
+        segment=seg,
+        sensor=(res.sensor if res else None) or sensor_for_segment(view.session, seg) or "",
+        method=res.method if res else "not calibrated",
+        step="none",
+        kind="nominal" if res else "",
+        rho=float("nan"),
+        reference_rho=float("nan"),
+        residual_deg=float("nan"),
+        used=False,
+        hinge_check_deg=float("nan"),
+        segment_ok=_segment_ok(res),
+    )
 
 
-def calibration_rows(view: SessionView) -> list[dict[str, Any]]:
+def calibration_rows(view: SessionView) -> list[CalibrationRow]:
     """Per segment and calibration step: method, ρ, reference ρ and the residual angle.
 
     Every protocol segment with a sensor has at least one row: a segment whose calibration
@@ -443,28 +550,27 @@ def calibration_rows(view: SessionView) -> list[dict[str, Any]]:
     steps = [s.name for s in view.protocol.calibration]
     rows = []
     for seg in order + [s for s in segments if s not in order]:
-        res = segments.get(seg, {})
-        q = res.get("quality", {})
-        axes = res.get("axes", {})
+        res = segments.get(seg)
+        axes = res.axes if res else {}
         if not axes:
             rows.append(_no_axis_row(view, seg, res))
         for step in sorted(axes, key=lambda k: steps.index(k) if k in steps else len(steps)):
             a = axes[step]
             ref = a.get("reference_rho")
             rows.append(
-                {
-                    "segment": seg,
-                    "sensor": res.get("sensor") or sensor_for_segment(view.session, seg) or "",
-                    "method": res.get("method", ""),
-                    "step": step,
-                    "kind": a.get("kind", ""),
-                    "rho": float(a.get("rho", np.nan)),
-                    "reference_rho": float(ref) if ref is not None else float("nan"),
-                    "residual_deg": float(a.get("residual_deg", np.nan)),
-                    "used": bool(a.get("used", True)),
-                    "hinge_check_deg": float(a.get("hinge_check_deg", np.nan)),
-                    "segment_ok": bool(q.get("ok", False)),
-                }
+                CalibrationRow(
+                    segment=seg,
+                    sensor=res.sensor or sensor_for_segment(view.session, seg) or "",
+                    method=res.method,
+                    step=step,
+                    kind=a.get("kind", ""),
+                    rho=float(a.get("rho", np.nan)),
+                    reference_rho=float(ref) if ref is not None else float("nan"),
+                    residual_deg=float(a.get("residual_deg", np.nan)),
+                    used=bool(a.get("used", True)),
+                    hinge_check_deg=float(a.get("hinge_check_deg", np.nan)),
+                    segment_ok=_segment_ok(res),
+                )
             )
     return rows
 

@@ -109,24 +109,24 @@ def _time_page(doc: Document, view: SessionView, joint) -> None:
 def _rom_table(doc: Document, view: SessionView, joint) -> None:
     rows, flagged, muted = [], [], []
     for r in rom_rows(view):
-        if r["joint"] != joint.name:
+        if r.joint != joint.name:
             continue
-        normal = f"{r['normal'][0]:g} to {r['normal'][1]:g}" if r["normal"] else "-"
-        bad = r["status"] not in ("within", "")
-        hide = r["grade"] == NOT_DETERMINED  # a number the recording did not determine
+        normal = f"{r.normal[0]:g} to {r.normal[1]:g}" if r.normal else "-"
+        bad = r.status not in ("within", "")
+        hide = r.grade == NOT_DETERMINED  # a number the recording did not determine
         muted.append(hide)
         rows.append(
             [
-                task_name(r["task"]),
-                f"{r['angle'].replace('_', ' ')} ({r['plane']})",
-                "-" if hide else span(r["typical_min_deg"], r["typical_max_deg"]),
-                "-" if hide else f"{r['rom_deg']:.0f}",
-                str(r["repetitions"]),
+                task_name(r.task),
+                f"{r.angle.replace('_', ' ')} ({r.plane})",
+                "-" if hide else span(r.typical_min_deg, r.typical_max_deg),
+                "-" if hide else f"{r.rom_deg:.0f}",
+                str(r.repetitions),
                 normal,
-                STATUS_WORDS.get(r["status"], "-")
-                if r["status"]
-                else ("not compared" if r["normal"] and not is_determined(r["grade"]) else "-"),
-                r["grade"],
+                STATUS_WORDS.get(r.status, "-")
+                if r.status
+                else ("not compared" if r.normal and not is_determined(r.grade) else "-"),
+                r.grade,
             ]
         )
         flagged.append([False] * 6 + [bad, False])
@@ -361,23 +361,23 @@ def symmetry_page(doc: Document, view: SessionView) -> None:
         doc.space(0.4)
         table, flagged, muted = [], [], []
         for r in rows:
-            if r["joint_type"] != jtype:
+            if r.joint_type != jtype:
                 continue
-            muted.append(r["grade"] == NOT_DETERMINED)
-            si = r["symmetry_index_pct"]
+            muted.append(r.grade == NOT_DETERMINED)
+            si = r.symmetry_index_pct
             table.append(
                 [
-                    task_name(r["task"]),
-                    f"{r['angle'].replace('_', ' ')} ({r['plane']})",
-                    "-" if r["grade"] == NOT_DETERMINED else f"{r['right_rom_deg']:.0f}",
-                    "-" if r["grade"] == NOT_DETERMINED else f"{r['left_rom_deg']:.0f}",
+                    task_name(r.task),
+                    f"{r.angle.replace('_', ' ')} ({r.plane})",
+                    "-" if r.grade == NOT_DETERMINED else f"{r.right_rom_deg:.0f}",
+                    "-" if r.grade == NOT_DETERMINED else f"{r.left_rom_deg:.0f}",
                     f"{0.0 if round(si) == 0 else si:+.0f}"
                     if np.isfinite(si)
-                    else ("n/a (range < 10°)" if is_determined(r["grade"]) else "not compared"),
-                    r["grade"],
+                    else ("n/a (range < 10°)" if is_determined(r.grade) else "not compared"),
+                    r.grade,
                 ]
             )
-            flagged.append([False] * 4 + [r["flag"], False])
+            flagged.append([False] * 4 + [r.flag, False])
         doc.table(
             ["Task", "Movement (plane)", "Right range (°)", "Left range (°)", "SI (%)", "Grade"],
             table,

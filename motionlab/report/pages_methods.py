@@ -158,7 +158,7 @@ def methods_page(doc: Document, view: SessionView) -> None:
     doc.heading("Sensor-to-segment calibration")
     cal = view.session.results.calibration
     segments = cal.segments if cal is not None else {}
-    methods = sorted({r.get("method", "") for r in segments.values()})
+    methods = sorted({r.method for r in segments.values()})
     doc.paragraph(
         f"Protocol '{view.protocol.name}' ({view.protocol.path}); segment frames (ISB: x "
         "anterior, y proximal, z right) fitted from gravity in static poses and from the "

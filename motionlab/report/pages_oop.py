@@ -179,7 +179,7 @@ def _offset(doc: Document, view: SessionView) -> None:
     doc.paragraph(MEANING["out_of_plane_offset"], colour=MUTED)
     rows, flagged = [], []
     for task, name, o in _items(view, data):
-        graded = [(r["grade"], "") for r in grade_rows(view) if r["joint"] == name]
+        graded = [(r.grade, "") for r in grade_rows(view) if r.joint == name]
         grade = worst_grade(graded)[0]
         rows.append(
             [

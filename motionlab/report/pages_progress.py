@@ -21,7 +21,7 @@ def progress_page(doc: Document, views: list[SessionView]) -> None:
         "Typical range (bar: mean lowest to mean highest angle of the cycles) of each joint's "
         "flexion per task and visit; grey band: the protocol's normal range.",
     )
-    per_visit = [{(r["task"], r["joint"], r["angle"]): r for r in rom_rows(v)} for v in views]
+    per_visit = [{(r.task, r.joint, r.angle): r for r in rom_rows(v)} for v in views]
     keys = [k for k in per_visit[-1] if k[2] == "flexion"]
     keys = [k for k in keys if sum(k in pv for pv in per_visit) >= 2]
     if not keys:
@@ -45,9 +45,7 @@ def progress_page(doc: Document, views: list[SessionView]) -> None:
         task, joint_name, _ = key
         joint = proto.joints.get(joint_name)
         side = joint.side if joint else ""
-        normal = next(
-            (pv[key]["normal"] for pv in per_visit if key in pv and pv[key]["normal"]), None
-        )
+        normal = next((pv[key].normal for pv in per_visit if key in pv and pv[key].normal), None)
         if normal:
             ax.axhspan(normal[0], normal[1], color=BAND_COLOUR, alpha=0.45, lw=0)
         for i, pv in enumerate(per_visit):
@@ -56,7 +54,7 @@ def progress_page(doc: Document, views: list[SessionView]) -> None:
                 continue
             ax.plot(
                 [i, i],
-                [r["typical_min_deg"], r["typical_max_deg"]],
+                [r.typical_min_deg, r.typical_max_deg],
                 lw=6,
                 color=SIDE_COLOUR.get(side, SIDE_COLOUR[""]),
                 solid_capstyle="butt",
@@ -76,7 +74,7 @@ def progress_page(doc: Document, views: list[SessionView]) -> None:
         cells = [task_name(task), joint_title(joint) if joint else joint_name]
         for pv in per_visit:
             r = pv.get(key)
-            cells.append(span(r["typical_min_deg"], r["typical_max_deg"]) if r else "-")
+            cells.append(span(r.typical_min_deg, r.typical_max_deg) if r else "-")
         rows.append(cells)
     width = 0.64 / len(views)
     doc.table(

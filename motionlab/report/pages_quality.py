@@ -18,7 +18,7 @@ from motionlab.report.model import (
     quality_rows,
 )
 from motionlab.report.pdf import MUTED, SIZE, Document, label_spans
-from motionlab.results import SegmentCalibration
+from motionlab.results import HingeFit, SegmentCalibration
 from motionlab.segments.quality import FUNCTIONAL_RHO_MIN, RESIDUAL_MAX_DEG, STATIC_RHO_MIN
 from motionlab.timebase import runs
 
@@ -87,22 +87,22 @@ def data_quality_page(doc: Document, view: SessionView) -> None:
     for q in quality_rows(view):
         rows.append(
             [
-                q["sensor"],
-                _f(q["rate_hz"]),
-                _f(q["jitter_ms"], ".2f"),
-                _f(q["duration_s"]),
-                str(q["dropped_samples"]),
-                str(q["gaps_filled"]),
-                f"{q['gaps_kept']} ({q['gaps_kept_s']:.1f} s)",
-                str(q["saturated_samples"]),
-                _f(q["rest_pct"], ".0f"),
-                _f(q["mag_disturbed_pct"], ".0f"),
+                q.sensor,
+                _f(q.rate_hz),
+                _f(q.jitter_ms, ".2f"),
+                _f(q.duration_s),
+                str(q.dropped_samples),
+                str(q.gaps_filled),
+                f"{q.gaps_kept} ({q.gaps_kept_s:.1f} s)",
+                str(q.saturated_samples),
+                _f(q.rest_pct, ".0f"),
+                _f(q.mag_disturbed_pct, ".0f"),
             ]
         )
         flagged.append(
             [False] * 6
-            + [q["gaps_kept"] > 0, q["saturated_samples"] > 0, False]
-            + [bool(np.isfinite(q["mag_disturbed_pct"]) and q["mag_disturbed_pct"] > 20)]
+            + [q.gaps_kept > 0, q.saturated_samples > 0, False]
+            + [bool(np.isfinite(q.mag_disturbed_pct) and q.mag_disturbed_pct > 20)]
         )
     doc.table(
         [
@@ -129,9 +129,9 @@ def data_quality_page(doc: Document, view: SessionView) -> None:
         colour=MUTED,
     )
     flags = [
-        f"{q['sensor']}: {', '.join(f.replace('_', ' ') for f in q['flags'])}"
+        f"{q.sensor}: {', '.join(f.replace('_', ' ') for f in q.flags)}"
         for q in quality_rows(view)
-        if q["flags"]
+        if q.flags
     ]
     doc.heading("Quality checks raised")
     doc.bullets(flags or ["none: every check of every sensor passed"])
@@ -157,11 +157,11 @@ def _grades_table(doc: Document, view: SessionView) -> None:
     are one row."""
     groups: list[list] = []
     for r in grade_rows(view):
-        key = (r["joint"], r["grade"], r["reason"])
+        key = (r.joint, r.grade, r.reason)
         if groups and groups[-1][0] == key:
-            groups[-1][1].append(r["angle"])
+            groups[-1][1].append(r.angle)
         else:
-            groups.append([key, [r["angle"]]])
+            groups.append([key, [r.angle]])
     rows, muted = [], []
     for (joint, grade, reason), angles in groups:
         rows.append(
@@ -184,10 +184,10 @@ def _grades_table(doc: Document, view: SessionView) -> None:
     )
 
 
-def _direction(fit: dict) -> str:
+def _direction(fit: HingeFit) -> str:
     """How the hinge direction was decided, in words."""
-    sign = SIGN_WORDS.get(str(fit.get("sign", "")), str(fit.get("sign", "")) or "-")
-    rel = str(fit.get("relative_sign", ""))
+    sign = SIGN_WORDS.get(str(fit.sign), str(fit.sign) or "-")
+    rel = str(fit.relative_sign)
     both = {"measured": "the data", "nominal": "the placement hint"}.get(rel, "-")
     return f"positive direction: {sign}; matched between the two segments by {both}"
 
@@ -202,14 +202,14 @@ def _hinges_table(doc: Document, view: SessionView) -> None:
     for name in in_order(hinges, list(view.protocol.joints)):
         fit = hinges[name]
         joint = view.protocol.joints.get(name)
-        verdict = str(fit.get("verdict", ""))
-        reasons = "; ".join(str(r) for r in fit.get("reasons", []))
+        verdict = str(fit.verdict)
+        reasons = "; ".join(str(r) for r in fit.reasons)
         rows.append(
             [
                 joint_title(joint) if joint else name,
                 verdict,
-                _f(float(fit.get("consistency_deg", np.nan))),
-                _f(float(fit.get("relative_residual", np.nan)), ".2f"),
+                _f(float(fit.consistency_deg)),
+                _f(float(fit.relative_residual), ".2f"),
                 _direction(fit) + (f". {reasons}" if reasons else ""),
             ]
         )
@@ -247,14 +247,14 @@ def _hip_axes_table(doc: Document, view: SessionView) -> None:
     for name in in_order(axes, list(view.protocol.joints)):
         fit = axes[name]
         joint = view.protocol.joints.get(name)
-        used = bool(fit.get("used"))
+        used = bool(fit.used)
         rows.append(
             [
                 joint_title(joint) if joint else name,
                 "yes" if used else "no",
-                _f(float(fit.get("turn_deg", np.nan))),
-                _f(float(fit.get("rho", np.nan)), ".2f"),
-                str(fit.get("reason", "")) or "-",
+                _f(float(fit.turn_deg)),
+                _f(float(fit.rho), ".2f"),
+                str(fit.reason) or "-",
             ]
         )
         flagged.append([False, not used] + [False] * 3)
@@ -304,25 +304,25 @@ def calibration_page(doc: Document, view: SessionView) -> None:
     doc.heading("Per segment and step")
     rows, flagged = [], []
     for r in calibration_rows(view):
-        floor = STATIC_RHO_MIN if r["kind"] == "static" else FUNCTIONAL_RHO_MIN
-        if np.isfinite(r["reference_rho"]):
-            floor = r["reference_rho"] - 0.1
+        floor = STATIC_RHO_MIN if r.kind == "static" else FUNCTIONAL_RHO_MIN
+        if np.isfinite(r.reference_rho):
+            floor = r.reference_rho - 0.1
         rows.append(
             [
-                r["segment"],
-                r["method"].replace("_", " "),
-                r["step"].replace("_", " "),
-                _f(r["rho"], ".3f"),
-                f"≥ {floor:.2f}" if r["step"] != "none" else "-",
-                _f(r["residual_deg"]),
-                "yes" if r["used"] else "no",
-                "ok" if r["segment_ok"] else "check",
+                r.segment,
+                r.method.replace("_", " "),
+                r.step.replace("_", " "),
+                _f(r.rho, ".3f"),
+                f"≥ {floor:.2f}" if r.step != "none" else "-",
+                _f(r.residual_deg),
+                "yes" if r.used else "no",
+                "ok" if r.segment_ok else "check",
             ]
         )
         flagged.append(
             [False] * 3
-            + [r["rho"] < floor, False, r["residual_deg"] > RESIDUAL_MAX_DEG, False]
-            + [not r["segment_ok"]]
+            + [r.rho < floor, False, r.residual_deg > RESIDUAL_MAX_DEG, False]
+            + [not r.segment_ok]
         )
     doc.table(
         ["Segment", "Method", "Step", "ρ", "ρ wanted", "Residual (°)", "In fit", "Segment"],
@@ -335,7 +335,7 @@ def calibration_page(doc: Document, view: SessionView) -> None:
     _hinges_table(doc, view)
     _hip_axes_table(doc, view)
     messages = [str(w) for w in cal.warnings] + [
-        m for res in cal.segments.values() for m in res.get("quality", {}).get("messages", [])
+        m for res in cal.segments.values() for m in (res.quality.messages if res.quality else [])
     ]
     doc.heading("Warnings and what to repeat next time")
     doc.bullets(messages or ["none: every segment was calibrated within the quality limits"])

@@ -112,16 +112,15 @@ def _orientation_table(doc: Document, view: SessionView, orientation: dict[str, 
 def _sync_alignment(doc: Document, val: Validation) -> None:
     sync, al = val.sync, val.alignment
     rows = [
-        ["Clock offset", f"{_f(sync.get('time_offset_s'), '.4f')} s"],
-        ["Clock drift", f"{_f(sync.get('drift_ppm'), '.1f')} ppm"],
+        ["Clock offset", f"{_f(sync.time_offset_s, '.4f')} s"],
+        ["Clock drift", f"{_f(sync.drift_ppm, '.1f')} ppm"],
         [
             "Windows agreeing with the clock model",
-            f"{_f(sync.get('inlier_ratio'), '.2f')} of {sync.get('n_windows', '-')}",
+            f"{_f(sync.inlier_ratio, '.2f')} of {sync.n_windows}",
         ],
         [
             "Clock offset standard error, grade",
-            f"{_f(1e3 * sync.get('standard_error_s', float('nan')), '.2f')} ms, "
-            f"{sync.get('grade') or '-'}",
+            f"{_f(1e3 * sync.standard_error_s, '.2f')} ms, {sync.grade or '-'}",
         ],
         ["Reference", str(val.reference.get("kind", "markers"))],
         ["Spatial alignment mode", str(al.get("mode", val.mode))],
@@ -163,7 +162,7 @@ def _figure_pages(doc: Document, view: SessionView, val: Validation) -> None:
         doc.place_figure(4.2)
         _angle_table(doc, view, {c: angles[c] for _, c in angle_columns(joint) if c in angles})
     sync = val.sync
-    if len(np.asarray(sync.get("window_time_s", []))):
+    if len(np.asarray(sync.window_time_s)):
         doc.section(
             "Validation: time synchronisation",
             "The camera clock against the sensor clock: each window's lag (from the "

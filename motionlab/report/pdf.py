@@ -17,6 +17,8 @@ from pathlib import Path
 
 import matplotlib
 import numpy as np
+from matplotlib import colors as mcolors
+from matplotlib.artist import allow_rasterization
 from matplotlib.axes import Axes
 from matplotlib.backends.backend_agg import FigureCanvasAgg, RendererAgg
 from matplotlib.backends.backend_pdf import PdfPages
@@ -49,6 +51,8 @@ RC = {
     "axes.spines.right": False,
     "axes.titley": 1.0,  # titles at the axes' top: no measuring of the tick labels to place them
     "pdf.fonttype": 42,
+    "figure.autolayout": False,  # no layout engine: pages are placed by hand (place_figure)
+    "figure.constrained_layout.use": False,
 }
 
 #: a placed figure's room (in) left of its axes (tick and axis labels), right of them, above
@@ -67,6 +71,70 @@ def text_width(text: str, size: float, weight: str = "normal") -> float:
     prop = FontProperties(size=size, weight=weight)
     w, _, _ = _MEASURE.get_text_width_height_descent(text, prop, ismath=False)
     return w / 72.0
+
+
+class PlainText(Text):
+    """A text drawn without matplotlib's layout pass when it is one unrotated line on its baseline.
+
+    :meth:`matplotlib.text.Text.draw` measures every text (its width, height and descent, one
+    FreeType layout of the string) to find where its lines go, before the PDF backend lays the
+    string out again to write its glyphs. A line on its baseline, left-aligned, needs no
+    measure: it starts at its position; right-aligned or centred, only its width (the renderer's
+    own measure, as matplotlib takes it). Anything else (several lines, rotation, a box, math
+    text, path effects) is drawn by :class:`Text`. The glyphs written are the same.
+    """
+
+    @allow_rasterization
+    def draw(self, renderer) -> None:
+        text = self.get_text()
+        simple = (
+            self._verticalalignment == "baseline"
+            and not self.get_rotation()
+            and "\n" not in text
+            and not self._bbox_patch
+            and not self.get_path_effects()
+            and not self.get_usetex()
+            and not self.get_wrap()
+        )
+        if not simple:
+            return super().draw(renderer)
+        if renderer is not None:
+            self._renderer = renderer
+        if not self.get_visible() or text == "":
+            return
+        line, ismath = self._preprocess_math(text)
+        if ismath:
+            return super().draw(renderer)
+        x, y = self.get_transform().transform((float(self._x), float(self._y)))
+        if not (np.isfinite(x) and np.isfinite(y)):
+            return
+        ha = self._horizontalalignment
+        if ha != "left":
+            w = renderer.get_text_width_height_descent(line, self._fontproperties, False)[0]
+            x = -(w if ha == "right" else w / 2) + x
+        if renderer.flipy():
+            y = renderer.get_canvas_width_height()[1] - y
+        renderer.open_group("text", self.get_gid())
+        gc = renderer.new_gc()
+        gc.set_foreground(mcolors.to_rgba(self.get_color()), isRGBA=True)
+        gc.set_alpha(self.get_alpha())
+        gc.set_url(self._url)
+        gc.set_antialiased(self._antialiased)
+        gc.set_snap(self.get_snap())
+        self._set_gc_clip(gc)
+        renderer.draw_text(gc, x, y, line, self._fontproperties, 0.0, ismath=False, mtext=self)
+        gc.restore()
+        renderer.close_group("text")
+        self.stale = False
+
+
+def put_text(fig: Figure, x: float, y: float, text: str, **kw) -> PlainText:
+    """:meth:`Figure.text <matplotlib.figure.Figure.text>` (figure-fraction position, kept in
+    ``fig.texts``) as a :class:`PlainText`."""
+    t = PlainText(x, y, text, transform=fig.transSubfigure, **kw)
+    t.set_figure(fig)
+    fig.texts.append(t)
+    return t
 
 
 def wrap(text: str, width: float, size: float, weight: str = "normal") -> list[str]:
@@ -169,7 +237,8 @@ class Document:
         else:
             fig.set_size_inches(PAGE_W, PAGE_H)
         FigureCanvasAgg(fig)
-        fig.text(
+        put_text(
+            fig,
             MARGIN / PAGE_W,
             1 - 0.38 / PAGE_H,
             self.title,
@@ -178,7 +247,8 @@ class Document:
             va="baseline",
         )
         if self.subtitle:
-            fig.text(
+            put_text(
+                fig,
                 1 - MARGIN / PAGE_W,
                 1 - 0.38 / PAGE_H,
                 self.subtitle,
@@ -213,7 +283,9 @@ class Document:
 
     def _put(self, x: float, text: str, size: float, **kw) -> Text:
         """One line of text with its baseline at the cursor + one line height."""
-        return self.fig.text(x / PAGE_W, 1 - self.y / PAGE_H, text, size=size, va="baseline", **kw)
+        return put_text(
+            self.fig, x / PAGE_W, 1 - self.y / PAGE_H, text, size=size, va="baseline", **kw
+        )
 
     def _heading(self, text: str, size: float) -> None:
         self.y += size * LINE / 72
@@ -286,7 +358,8 @@ class Document:
             for j, lines in enumerate(row_lines):
                 for k, line in enumerate(lines):
                     x = xs[j] + (cols[j] - pad if align[j] == "r" else 0.0)
-                    self.fig.text(
+                    put_text(
+                        self.fig,
                         x / PAGE_W,
                         1 - (self.y + (k + 1) * step) / PAGE_H,
                         line,
@@ -371,7 +444,9 @@ class Document:
         PDF: written point by point it was another tenth, and it looks the same.
         """
         fig = self.fig
-        fig.set_layout_engine("none")
+        # None, not "none": a figure that had an engine keeps a placeholder under "none", and
+        # savefig then draws the page twice (once to lay it out)
+        fig.set_layout_engine(None)
         left, right, top, bottom, gap = FIGURE_PAD
         axes = fig.axes
         cell = (height - top - bottom - (len(axes) - 1) * gap) / len(axes)
@@ -394,7 +469,8 @@ class Document:
         texts = []
         with PdfPages(pdf_path, metadata={"Title": self.title, "Creator": "motionlab"}) as pdf:
             for i, fig in enumerate(self.pages, start=1):
-                fig.text(
+                put_text(
+                    fig,
                     0.5,
                     0.35 / PAGE_H,
                     f"page {i} of {n}",

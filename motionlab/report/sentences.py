@@ -26,6 +26,7 @@ from motionlab.report.model import (
     SIDE_NAMES,
     THORAX,
     WEAK,
+    RomRow,
     SessionView,
     angle_grade,
     angle_title,
@@ -89,28 +90,29 @@ def task_name(task: str) -> str:
     return task.replace("_", " ")
 
 
-def _joint_words(row: dict[str, Any]) -> tuple[str, str]:
-    """``("right", "knee")`` of a report row; generic joints by name: ``("", "wrist r hinge")``."""
-    jt = JOINT_TYPES.get(row["joint_type"])
+def _joint_words(joint_type: str, joint: str = "", side: str = "") -> tuple[str, str]:
+    """``("right", "knee")`` of a report row's joint type, joint name and side; generic joints by
+    name: ``("", "wrist r hinge")`` (by the type's name without a joint name)."""
+    jt = JOINT_TYPES.get(joint_type)
     if jt is not None and not jt.clinical:
-        name = str(row.get("joint", jt.name)).replace("_", " ")
+        name = str(joint or jt.name).replace("_", " ")
         return "", f"{name} {jt.display}"
-    side = SIDE_NAMES.get(row.get("side", ""), "") if jt is None or jt.sided else ""
-    return side, jt.display if jt is not None else row["joint_type"]
+    words = SIDE_NAMES.get(side, "") if jt is None or jt.sided else ""
+    return words, jt.display if jt is not None else joint_type
 
 
-def rom_sentence(row: dict[str, Any]) -> str:
+def rom_sentence(row: RomRow) -> str:
     """One row of :func:`~motionlab.report.model.rom_rows` as a sentence."""
-    side, joint = _joint_words(row)
-    angle = angle_title(row["joint_type"], row["angle"])
+    side, joint = _joint_words(row.joint_type, row.joint, row.side)
+    angle = angle_title(row.joint_type, row.angle)
     text = (
-        f"{side} {joint} {angle} range {span(row['typical_min_deg'], row['typical_max_deg'])} "
-        f"during {task_name(row['task'])}"
+        f"{side} {joint} {angle} range {span(row.typical_min_deg, row.typical_max_deg)} "
+        f"during {task_name(row.task)}"
     ).strip()
     text = text[0].upper() + text[1:]
-    if row["normal"] is not None and row["status"]:
-        lo, hi = row["normal"]
-        text += f", {STATUS_WORDS[row['status']]} the normal {span(lo, hi)}"
+    if row.normal is not None and row.status:
+        lo, hi = row.normal
+        text += f", {STATUS_WORDS[row.status]} the normal {span(lo, hi)}"
     return text + "."
 
 
@@ -162,9 +164,9 @@ def _oop_findings(view: SessionView) -> list[str]:
                 )
     for task, joints in (m.out_of_plane_offset or {}).items():
         for name, o in joints.items():
-            grade = worst_grade(
-                [(r["grade"], r["reason"]) for r in grade_rows(view) if r["joint"] == name]
-            )[0]
+            grade = worst_grade([(r.grade, r.reason) for r in grade_rows(view) if r.joint == name])[
+                0
+            ]
             if is_determined(grade) and o["above_pct"] > 0:
                 out.append(
                     f"Trunk out-of-plane offset during {task_name(task)}: "
@@ -182,19 +184,19 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
     ranges within normal of the primary (flexion) angles, and data or calibration problems.
     What the recording did not determine is not a finding: see :func:`missing_lines`.
     """
-    rows = [r for r in rom_rows(view) if r["normal"] is not None and is_determined(r["grade"])]
-    outside = [rom_sentence(r) for r in rows if r["status"] not in ("within", "")]
-    inside = [rom_sentence(r) for r in rows if r["status"] == "within" and r["angle"] == "flexion"]
+    rows = [r for r in rom_rows(view) if r.normal is not None and is_determined(r.grade)]
+    outside = [rom_sentence(r) for r in rows if r.status not in ("within", "")]
+    inside = [rom_sentence(r) for r in rows if r.status == "within" and r.angle == "flexion"]
     asym = []
     for s in symmetry_rows(view):
         # a flag needs a symmetry index, which needs both sides determined (symmetry_rows)
-        if s["flag"] and s["angle"] == "flexion":  # other planes: see the comparison page
-            joint = _joint_words(s)[1]
-            angle = angle_title(s["joint_type"], s["angle"])
+        if s.flag and s.angle == "flexion":  # other planes: see the comparison page
+            joint = _joint_words(s.joint_type)[1]
+            angle = angle_title(s.joint_type, s.angle)
             asym.append(
-                f"{joint.capitalize()} {angle} range during {task_name(s['task'])} differs "
-                f"between sides: right {s['right_rom_deg']:.0f}°, left {s['left_rom_deg']:.0f}° "
-                f"(symmetry index {s['symmetry_index_pct']:+.0f}%)."
+                f"{joint.capitalize()} {angle} range during {task_name(s.task)} differs "
+                f"between sides: right {s.right_rom_deg:.0f}°, left {s.left_rom_deg:.0f}° "
+                f"(symmetry index {s.symmetry_index_pct:+.0f}%)."
             )
     problems = quality_notes(view)
     items = list(dict.fromkeys(outside + asym + _oop_findings(view) + inside))
@@ -260,20 +262,20 @@ def missing_lines(view: SessionView) -> list[str]:
     pace.'``; plus one line for trunk compensation from a thorax that is not determined."""
     lines = []
     for joint in view.joints():
-        rows = [r for r in grade_rows(view) if r["joint"] == joint.name]
-        bad = [r for r in rows if not is_determined(r["grade"])]
+        rows = [r for r in grade_rows(view) if r.joint == joint.name]
+        bad = [r for r in rows if not is_determined(r.grade)]
         if not bad:
             continue
         groups: dict[tuple[str, str], list[str]] = {}
-        worst = max(bad, key=lambda r: r["grade"] == NOT_DETERMINED)
-        for r in sorted(bad, key=lambda r: r["grade"] != NOT_DETERMINED):
-            cause = cause_and_remedy(view, joint.name, r["reason"])[0]
-            groups.setdefault((r["grade"], cause), []).append(angle_title(joint.type, r["angle"]))
+        worst = max(bad, key=lambda r: r.grade == NOT_DETERMINED)
+        for r in sorted(bad, key=lambda r: r.grade != NOT_DETERMINED):
+            cause = cause_and_remedy(view, joint.name, r.reason)[0]
+            groups.setdefault((r.grade, cause), []).append(angle_title(joint.type, r.angle))
         what = "; ".join(
             f"{' and '.join(angles) if len(angles) < 3 else 'all angles'} {grade} ({cause})"
             for (grade, cause), angles in groups.items()
         )
-        remedy = cause_and_remedy(view, joint.name, worst["reason"])[1]
+        remedy = cause_and_remedy(view, joint.name, worst.reason)[1]
         lines.append(f"{joint_title(joint)}: {what} — {remedy}.")
     trunk, why = segment_grade(view, THORAX)
     if view.metrics.trunk_compensation and not is_determined(trunk):
@@ -285,16 +287,16 @@ def weak_lines(view: SessionView, joint: str) -> list[str]:
     """Descriptions of a joint's ``weak`` ranges for its page, one sentence per task and reason,
     not compared with the normal range: ``'Right hip flexion-extension range -13 to 41° and
     ab-adduction range -13 to 5° during walk (weak: <reason>).'``."""
-    groups: dict[tuple[str, str], list[dict[str, Any]]] = {}
+    groups: dict[tuple[str, str], list[RomRow]] = {}
     for r in rom_rows(view):
-        if r["joint"] == joint and r["grade"] == WEAK:
-            groups.setdefault((r["task"], r["reason"]), []).append(r)
+        if r.joint == joint and r.grade == WEAK:
+            groups.setdefault((r.task, r.reason), []).append(r)
     out = []
     for (task, reason), rows in groups.items():
-        side, name = _joint_words(rows[0])
+        side, name = _joint_words(rows[0].joint_type, rows[0].joint, rows[0].side)
         parts = [
-            f"{angle_title(r['joint_type'], r['angle'])} range "
-            f"{span(r['typical_min_deg'], r['typical_max_deg'])}"
+            f"{angle_title(r.joint_type, r.angle)} range "
+            f"{span(r.typical_min_deg, r.typical_max_deg)}"
             for r in rows
         ]
         ranges = ", ".join(parts[:-1]) + " and " + parts[-1] if len(parts) > 1 else parts[0]
@@ -307,27 +309,27 @@ def quality_notes(view: SessionView) -> list[str]:
     """Sentences on data and calibration problems, most important first (calibration,
     saturation, magnetic disturbance, then gaps); empty when all is well."""
     notes, gaps = [], []
-    bad = sorted({r["segment"] for r in calibration_rows(view) if not r["segment_ok"]})
+    bad = sorted({r.segment for r in calibration_rows(view) if not r.segment_ok})
     if bad:
         notes.append(
             f"Calibration of {', '.join(bad)} needs attention (see the calibration page); "
             "angles involving it are less certain."
         )
     for q in quality_rows(view):
-        if q["gaps_kept"]:
+        if q.gaps_kept:
             gaps.append(
-                f"Sensor {q['sensor']} lost {q['gaps_kept_s']:.1f} s of data in "
-                f"{q['gaps_kept']} gap(s); no angles are reported there."
+                f"Sensor {q.sensor} lost {q.gaps_kept_s:.1f} s of data in "
+                f"{q.gaps_kept} gap(s); no angles are reported there."
             )
-        if q["saturated_samples"]:
+        if q.saturated_samples:
             notes.append(
-                f"Sensor {q['sensor']} reached its measuring range on {q['saturated_samples']} "
+                f"Sensor {q.sensor} reached its measuring range on {q.saturated_samples} "
                 "samples; fast movements there may be underestimated."
             )
-        if np.isfinite(q["mag_disturbed_pct"]) and q["mag_disturbed_pct"] > 20:
+        if np.isfinite(q.mag_disturbed_pct) and q.mag_disturbed_pct > 20:
             notes.append(
-                f"The magnetic field near sensor {q['sensor']} was disturbed "
-                f"{q['mag_disturbed_pct']:.0f}% of the time (metal or electronics nearby)."
+                f"The magnetic field near sensor {q.sensor} was disturbed "
+                f"{q.mag_disturbed_pct:.0f}% of the time (metal or electronics nearby)."
             )
     return notes + gaps
 

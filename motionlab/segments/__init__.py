@@ -18,6 +18,7 @@ segments about one axis, the reference pose and later rests in it;
 from __future__ import annotations
 
 import hashlib
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -26,7 +27,13 @@ from motionlab import rotations as rot
 from motionlab.binding import sensor_for_segment
 from motionlab.kinematics.joint_types import flexion_axis, joint_type
 from motionlab.protocol import Protocol, axis_vector
-from motionlab.results import HeadingCorrection, SegmentCalibration
+from motionlab.results import (
+    HeadingCorrection,
+    HipAxis,
+    SegmentCalibration,
+    SegmentRecord,
+    TwoAxisFit,
+)
 from motionlab.segments import (
     grades,
     heading,
@@ -80,36 +87,36 @@ def calibrate_segments(
     segments = {}
     for seg in streams:
         res = mounting.fit(seg, protocol, records[seg])
-        res["sensor"] = sensor_for_segment(session, seg)
-        res["hint_contradicted"] = seg in contradicted
-        segments[seg] = res
-    for seg, names in unsure.items():
-        q = segments[seg]["quality"]
-        q["messages"].append(
-            f"{seg}: the direction of the axis from {', '.join(names)} follows the nominal "
-            "placement, which the data contradicts"
+        segments[seg] = replace(
+            res, sensor=sensor_for_segment(session, seg), hint_contradicted=seg in contradicted
         )
-        q["ok"] = False
+    for seg, names in unsure.items():
+        _flag(
+            segments,
+            seg,
+            f"{seg}: the direction of the axis from {', '.join(names)} follows the nominal "
+            "placement, which the data contradicts",
+        )
     for name, fit in hinges.items():
         if fit.verdict != "determined" and fit.used_for == "axes":
             joint = protocol.joints[name]
             for seg in (joint.proximal, joint.distal):
-                q = segments[seg]["quality"]
-                q["messages"].append(
+                _flag(
+                    segments,
+                    seg,
                     f"{seg}: the {name} axis from the movement is {fit.verdict}: "
-                    + ("; ".join(fit.reasons) or "see the calibration page")
+                    + ("; ".join(fit.reasons) or "see the calibration page"),
                 )
-                q["ok"] = False
     if warnings is not None:
         warnings.extend(notes)
     result = SegmentCalibration(
         protocol.name,
         steps={k: (list(v) if v else None) for k, v in steps.items()},
         segments=segments,
-        hinges={k: v.to_tree() for k, v in hinges.items()},
+        hinges=dict(hinges),
         centres=centres,
         warnings=notes,
-        ok=all(s["quality"]["ok"] for s in segments.values()),
+        ok=all(s.quality.ok for s in segments.values()),
         single_pose=pose.name if pose is not None else None,
     )
     result.grades = grades.grade_joints(protocol, result)
@@ -117,6 +124,14 @@ def calibrate_segments(
     if pose is None:
         result.hip_axes = hip_axes(session, protocol, result)
     return result
+
+
+def _flag(segments: dict[str, SegmentRecord], seg: str, message: str) -> None:
+    """``message`` added to a segment's quality messages, its quality no longer ``ok``."""
+    q = segments[seg].quality
+    segments[seg] = replace(
+        segments[seg], quality=replace(q, ok=False, messages=[*q.messages, message])
+    )
 
 
 def heading_ties(
@@ -237,21 +252,21 @@ def _add_note(notes: list[str], segment: str, text: str) -> None:
     notes.append(f"{segment}: {text}")
 
 
-def _long_axis_measured(cal: dict[str, Any], axis: np.ndarray) -> bool:
+def _long_axis_measured(cal: SegmentRecord, axis: np.ndarray) -> bool:
     """Whether a calibration movement (a functional step) measured this segment axis."""
     return any(
         r.get("kind") == "functional" and r.get("used", True)
         and abs(float(np.asarray(r["segment_axis"]) @ axis)) > 0.99
-        for r in cal.get("axes", {}).values()
+        for r in cal.axes.values()
     )  # fmt: skip
 
 
 def hip_axes(
     session: Session, protocol: Protocol, calibration: SegmentCalibration
-) -> dict[str, dict[str, Any]]:
+) -> dict[str, HipAxis]:
     """The hips' flexion axes from the movement (:mod:`.hip_axis`), by joint name, for the hip
     joints whose thigh's flexion axis no functional step measured."""
-    out: dict[str, dict[str, Any]] = {}
+    out: dict[str, HipAxis] = {}
     for name, joint in protocol.joints.items():
         p, d = joint.proximal, joint.distal
         if joint_type(joint.type).name != "hip" or p not in calibration.segments:
@@ -359,7 +374,7 @@ def segment_orientations(
     out = {}
     for seg, (t, q) in sensor_quats.items():
         cal = calibration.segments.get(seg)
-        q_mount = np.asarray(cal["mounting"]) if cal else rot.IDENTITY
+        q_mount = np.asarray(cal.mounting) if cal else rot.IDENTITY
         out[seg] = (t, rot.make_continuous(rot.mul(q, q_mount)))
     if not align_heading:
         return out
@@ -401,16 +416,15 @@ def _joint_ties(protocol: Protocol, calibration: SegmentCalibration, joint, tp, 
     centre, the hinge over the whole recording, the pose of a single-pose calibration, or the
     steps' anchors."""
     fit = calibration.hinges.get(joint.name)
-    if fit is not None and (
-        fit.get("used_for", "axes") != "axes" or fit["verdict"] == "not determined"
-    ):
+    if fit is not None and (fit.used_for != "axes" or fit.verdict == "not determined"):
         fit = None  # the steps measured the axes, or the movement did not: the steps' anchors
-    stored = fit if fit is not None and "heading_times" in fit else None
-    if fit is None:
-        stored = calibration.centres.get(joint.name)
+    if isinstance(fit, TwoAxisFit):
+        times = np.asarray(fit.heading_times, float)
+        return "two_axes", times, np.asarray(fit.heading_deltas, float)
+    stored = calibration.centres.get(joint.name) if fit is None else None
     if stored is not None:
         times = np.asarray(stored["heading_times"], float)
-        return ("two_axes" if fit else "centre"), times, np.asarray(stored["heading_deltas"], float)
+        return "centre", times, np.asarray(stored["heading_deltas"], float)
     qd_on_p = rot.resample(td, qd, tp)
     pose_range = calibration.steps.get(calibration.single_pose or "")
     if pose_range:

@@ -42,14 +42,14 @@ an angle that is not determined.
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from motionlab.segments.placement import hinge_spec
 
 if TYPE_CHECKING:
-    from motionlab.results import SegmentCalibration
+    from motionlab.results import HingeFit, SegmentCalibration, SegmentRecord
 
 GRADES = ("determined", "weak", "not determined")
 FULL_FRAME = ("procrustes", "primary_secondary")
@@ -63,14 +63,14 @@ def _worse(a: str, b: str) -> str:
     return a if GRADES.index(a) >= GRADES.index(b) else b
 
 
-def _frame_grade(segment: str, cal: dict[str, Any] | None) -> tuple[str, str]:
+def _frame_grade(segment: str, cal: SegmentRecord | None) -> tuple[str, str]:
     """Grade of a whole segment frame, with the reason."""
     if cal is None:
         return "not determined", f"{segment} has no calibration"
-    method = cal.get("method", "")
+    method = cal.method
     if method == "nominal":
         return "not determined", f"no axis of {segment} was measured (nominal placement only)"
-    if method not in FULL_FRAME and cal.get("hint_contradicted", False):
+    if method not in FULL_FRAME and cal.hint_contradicted:
         return "not determined", (
             f"{segment}'s frame has one measured axis, and the data contradict its placement "
             "hint, which would give the rest"
@@ -84,21 +84,26 @@ def _frame_grade(segment: str, cal: dict[str, Any] | None) -> tuple[str, str]:
         return "weak", (
             f"{segment}'s forward direction is from the first steps of the walk (about 5-10° off)"
         )
-    if not cal.get("quality", {}).get("ok", True):
+    if _flagged(cal):
         return "weak", f"the calibration of {segment} was flagged"
     return "determined", ""
 
 
-def _methods(cal: dict[str, Any]) -> set[str]:
-    return {r.get("method") for r in cal.get("axes", {}).values() if r.get("used", True)}
+def _flagged(cal: SegmentRecord) -> bool:
+    """Whether the segment's quality checks failed (a record without quality passed)."""
+    return cal.quality is not None and not cal.quality.ok
 
 
-def _heading_only(segment: str, cal: dict[str, Any] | None) -> float | None:
+def _methods(cal: SegmentRecord) -> set[str]:
+    return {r.get("method") for r in cal.axes.values() if r.get("used", True)}
+
+
+def _heading_only(segment: str, cal: SegmentRecord | None) -> float | None:
     """How far (deg) the segment's frame may be turned about the vertical when that is all that
     keeps it from ``determined`` (its forward direction from the walk), else ``None``."""
-    if cal is None or cal.get("method") not in FULL_FRAME:
+    if cal is None or cal.method not in FULL_FRAME:
         return None
-    if not cal.get("quality", {}).get("ok", True):
+    if _flagged(cal):
         return None
     bounds = [HEADING_BOUND_DEG[m] for m in _methods(cal) if m in HEADING_BOUND_DEG]
     return max(bounds) if bounds else None
@@ -114,11 +119,11 @@ def _flexion_under_heading(
     if bound is None or joint.sequence != "ZXY" or distal_grade != "determined":
         return "", ""
     tilts = [
-        float(fit.get("proximal_tilt_deg", float("nan")))
+        float(fit.proximal_tilt_deg)
         for name, fit in calibration.hinges.items()
         if name in protocol.joints
         and protocol.joints[name].proximal == joint.distal
-        and fit.get("verdict") == "determined"
+        and fit.verdict == "determined"
     ]
     if not tilts or not np.isfinite(tilts[0]):
         return "", ""
@@ -134,34 +139,34 @@ def _flexion_under_heading(
 def _axis_grade(joint, calibration: SegmentCalibration) -> tuple[str, str]:
     """Grade of the angle about a hinge axis: the axis measured in both segments."""
     fit = calibration.hinges.get(joint.name)
-    if fit is not None and fit.get("used_for", "axes") == "axes":
-        reasons = "; ".join(fit.get("reasons", []))
-        return fit["verdict"], (f"hinge axis from movement: {reasons}" if reasons else "")
+    if fit is not None and fit.used_for == "axes":
+        reasons = "; ".join(fit.reasons)
+        return fit.verdict, (f"hinge axis from movement: {reasons}" if reasons else "")
     segs = calibration.segments
     grade, reason = "determined", ""
     for seg in (joint.proximal, joint.distal):
         cal = segs.get(seg)
-        if cal is None or cal.get("method") == "nominal":
+        if cal is None or cal.method == "nominal":
             return "not determined", f"no axis of {seg} was measured (nominal placement only)"
         measured = [
             r
-            for r in cal.get("axes", {}).values()
+            for r in cal.axes.values()
             if r.get("kind") in ("functional", "movement") and r.get("used", True)
         ]
-        if not measured and cal.get("method") not in FULL_FRAME:
+        if not measured and cal.method not in FULL_FRAME:
             grade, reason = "weak", f"the flexion axis of {seg} is the nominal placement's"
-        elif not cal.get("quality", {}).get("ok", True):
+        elif _flagged(cal):
             grade, reason = _worse(grade, "weak"), f"the calibration of {seg} was flagged"
     return grade, reason
 
 
-def _crosstalk_grade(fit: dict[str, Any] | None) -> tuple[str, str]:
+def _crosstalk_grade(fit: HingeFit | None) -> tuple[str, str]:
     """Grade of the angles off a walk-calibrated knee's flexion axis from the axis' uncertainty
     (see the module notes); ``determined`` for any other joint."""
-    if fit is None or fit.get("method") != "principal" or fit.get("used_for", "axes") != "axes":
+    if fit is None or fit.method != "principal" or fit.used_for != "axes":
         return "determined", ""
-    witness = max(float(fit.get("witness_deg", float("nan"))), AXIS_FLOOR_DEG)
-    flexion = float(fit.get("excursion_deg", [float("nan")])[0])
+    witness = max(float(fit.witness_deg), AXIS_FLOOR_DEG)
+    flexion = float(fit.excursion_deg[0])
     crosstalk = abs(flexion) * np.sin(np.radians(witness))
     if not np.isfinite(crosstalk):
         return "not determined", "the flexion axis's uncertainty is unknown"
@@ -174,7 +179,7 @@ def _crosstalk_grade(fit: dict[str, Any] | None) -> tuple[str, str]:
     )
 
 
-def _zero_grade(joint, segs: dict[str, Any], grade: str, reason: str) -> tuple[str, str]:
+def _zero_grade(joint, segs: dict[str, SegmentRecord], grade: str, reason: str) -> tuple[str, str]:
     """The hinge angle's grade made ``weak`` when its zero rests on a placement hint: a segment
     whose frame has one measured axis (the hinge's, with no reference pose) is turned about it
     as the protocol's ``sensor_axes`` say, and the angle's offset follows that turn."""
@@ -182,7 +187,7 @@ def _zero_grade(joint, segs: dict[str, Any], grade: str, reason: str) -> tuple[s
         return grade, reason
     for seg in (joint.proximal, joint.distal):
         cal = segs.get(seg)
-        if cal is not None and cal.get("method") not in FULL_FRAME:
+        if cal is not None and cal.method not in FULL_FRAME:
             return "weak", (
                 f"its zero is {seg}'s placement hint (one measured axis, no reference pose): "
                 "the curve is measured, its offset is not"
@@ -203,14 +208,10 @@ def grade_joints(protocol, calibration: SegmentCalibration) -> dict[str, dict[st
         ordered = sorted(frames, key=lambda f: -GRADES.index(f[0]))
         r_frame = "; ".join(r for _, r in ordered if r)
         fit = calibration.hinges.get(name)
-        if (
-            fit is not None
-            and fit.get("used_for", "axes") == "axes"
-            and fit["verdict"] != "determined"
-        ):
-            g_frame = _worse(g_frame, fit["verdict"])
+        if fit is not None and fit.used_for == "axes" and fit.verdict != "determined":
+            g_frame = _worse(g_frame, fit.verdict)
             r_frame = "; ".join(filter(None, [r_frame, "the hinge axis from movement is "
-                                              + fit["verdict"]]))  # fmt: skip
+                                              + fit.verdict]))  # fmt: skip
         if hinge_spec(joint) is not None:
             g_axis, r_axis = _zero_grade(joint, segs, *_axis_grade(joint, calibration))
             g_cross, r_cross = _crosstalk_grade(fit)

@@ -29,13 +29,14 @@ lay 8° and −5° from the markers' pelvis z, see docs/kinematics.md).
 
 from __future__ import annotations
 
-from typing import Any
+from dataclasses import replace
 
 import numpy as np
 from scipy.signal import butter, sosfiltfilt
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
+from motionlab.results import HipAxis
 from motionlab.segments.functional import functional_axis
 
 LOWPASS_HZ = 6.0
@@ -54,38 +55,38 @@ def relative_rates(t: np.ndarray, q_proximal: np.ndarray, q_distal: np.ndarray) 
     return np.vstack([step, step[-1:]]) if len(step) else np.zeros((len(t), 3))
 
 
-def flexion_turn(t: np.ndarray, q_pelvis: np.ndarray, q_thigh: np.ndarray) -> dict[str, Any]:
+def flexion_turn(t: np.ndarray, q_pelvis: np.ndarray, q_thigh: np.ndarray) -> HipAxis:
     """The hip's flexion axis measured from the movement (module docstring).
 
     ``q_*`` are the heading-aligned segment orientations on the common time ``t`` (s). Returns
-    ``{"used": bool, "turn_deg": φ (about the pelvis y, from its z to the axis), "rho",
-    "n_samples", "reason"}``; ``turn_deg`` is 0 when not used.
+    the :class:`~motionlab.results.HipAxis` (``turn_deg`` φ about the pelvis y, from its z to
+    the axis; 0 when not used).
     """
-    out: dict[str, Any] = {"used": False, "turn_deg": 0.0, "rho": float("nan"), "n_samples": 0}
+    out = HipAxis(used=False, turn_deg=0.0, rho=float("nan"), n_samples=0)
     if len(t) < 30:
-        return out | {"reason": "too few samples"}
+        return replace(out, reason="too few samples")
     rate = 1.0 / float(np.median(np.diff(t)))
     w = relative_rates(t, q_pelvis, q_thigh)
     if rate > 2.5 * LOWPASS_HZ:
         w = sosfiltfilt(butter(2, LOWPASS_HZ, fs=rate, output="sos"), w, axis=0)
     moving = w[np.linalg.norm(w, axis=1) >= MIN_RATE_RAD_S]
-    out["n_samples"] = len(moving)
+    out = replace(out, n_samples=len(moving))
     if len(moving) < MIN_SAMPLES:
-        return out | {"reason": f"the hip moved too little ({len(moving)} fast samples)"}
+        return replace(out, reason=f"the hip moved too little ({len(moving)} fast samples)")
     try:
         axis, rho, _ = functional_axis(moving)
     except InputError:
-        return out | {"reason": "the hip did not move"}
+        return replace(out, reason="the hip did not move")
     axis = axis if axis[2] >= 0 else -axis
     turn = float(np.degrees(np.arctan2(axis[0], axis[2])))
     off = float(np.degrees(np.arccos(np.clip(np.hypot(axis[0], axis[2]), 0.0, 1.0))))
-    out |= {"rho": float(rho), "turn_deg": turn, "tilt_deg": off}
+    out = replace(out, rho=float(rho), turn_deg=turn, tilt_deg=off)
     if rho < MIN_RHO:
-        return out | {"turn_deg": 0.0, "reason": f"no dominant hip axis (rho {rho:.2f})"}
+        return replace(out, turn_deg=0.0, reason=f"no dominant hip axis (rho {rho:.2f})")
     if abs(turn) > MAX_TURN_DEG:
         why = f"the dominant axis is {turn:.0f} deg from the pelvis z"
-        return out | {"turn_deg": 0.0, "reason": why}
-    return out | {"used": True, "reason": ""}
+        return replace(out, turn_deg=0.0, reason=why)
+    return replace(out, used=True, reason="")
 
 
 def apply_turn(q_proximal: np.ndarray, q_distal: np.ndarray, turn_deg: float) -> np.ndarray:

@@ -37,6 +37,7 @@ from scipy.signal import butter, sosfiltfilt
 from motionlab import rotations as rot
 from motionlab.kinematics.joint_types import JOINT_TYPES, flexion_axis
 from motionlab.protocol import CalibrationStep, Protocol, axis_vector
+from motionlab.results import SegmentQuality, SegmentRecord
 from motionlab.segments import frames, quality
 from motionlab.segments.functional import functional_axis, orient
 from motionlab.segments.hinge import hinge_axes
@@ -206,29 +207,29 @@ def _arrays(recs: list[dict[str, Any]]) -> tuple[np.ndarray, np.ndarray, np.ndar
     return v, np.array([r["segment_axis"] for r in recs]), np.array([r["rho"] for r in recs])
 
 
-def nominal(segment: str, protocol: Protocol) -> dict[str, Any]:
+def nominal(segment: str, protocol: Protocol) -> SegmentRecord:
     """The nominal placement (the protocol's ``sensor_axes`` hint) of a segment the recording
     gives no axis for, with a quality message saying so."""
     m_nom = protocol.segments[segment].nominal_mounting().T
-    return {
-        "mounting": rot.from_matrix(m_nom),
-        "method": "nominal",
-        "axes": {},
-        "quality": {
-            "ok": False,
-            "messages": [
+    return SegmentRecord(
+        mounting=rot.from_matrix(m_nom),
+        method="nominal",
+        axes={},
+        quality=SegmentQuality(
+            ok=False,
+            messages=[
                 f"{segment}: no axis of it was measured (no stand, no movement of a hinge it "
                 "forms); its frame is the protocol's nominal placement"
             ],
-            "min_rho": float("nan"),
-            "separation_deg": None,
-            "lm_difference_deg": None,
-            "hinge_check_deg": {},
-        },
-    }
+            min_rho=float("nan"),
+            separation_deg=None,
+            lm_difference_deg=None,
+            hinge_check_deg={},
+        ),
+    )
 
 
-def fit(segment: str, protocol: Protocol, records: dict[str, dict[str, Any]]) -> dict[str, Any]:
+def fit(segment: str, protocol: Protocol, records: dict[str, dict[str, Any]]) -> SegmentRecord:
     """Mounting (segment → sensor quaternion), method, the records and the quality.
 
     Primary records (static poses, movements of the segment itself) fix the frame: with two or
@@ -279,9 +280,9 @@ def fit(segment: str, protocol: Protocol, records: dict[str, dict[str, Any]]) ->
         rec["used"] = True
         tilt = float(rec["sensor_axis"] @ (m @ rec["segment_axis"]))
         rec["residual_deg"] = float(np.degrees(np.arcsin(min(abs(tilt), 1.0))))
-    return {
-        "mounting": rot.from_matrix(m),
-        "method": method,
-        "axes": records,
-        "quality": quality.assess(segment, recs + level, separation, lm_diff),
-    }
+    return SegmentRecord(
+        mounting=rot.from_matrix(m),
+        method=method,
+        axes=records,
+        quality=quality.assess(segment, recs + level, separation, lm_diff),
+    )

@@ -33,13 +33,13 @@ parts of the movement (largest angle to the whole fit).
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.signal import butter, sosfiltfilt
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
+from motionlab.results import HingeFit, TwoAxisFit
 from motionlab.segments import heading
 from motionlab.segments.hinge import hinge_axes
 from motionlab.session import estimate_rate
@@ -58,67 +58,6 @@ SIGN_MARGIN = 0.3  # relative-sign test: (bad - good) / (bad + good)
 FLEXION_MIN_DEG = 15.0  # anatomical sign: the larger excursion at least this
 FLEXION_RATIO = 2.0  # ... and this many times the other
 NOMINAL_DISTAL = "the movement did not tell which way the axis points on the distal segment"
-
-
-@dataclass
-class HingeFit:
-    """Hinge axis of one joint from movement, in the two sensors' coordinates.
-
-    ``axis_proximal`` / ``axis_distal`` are unit vectors (3,) pointing along the positive
-    (flexion) direction of the joint angle; ``verdict`` is ``determined``, ``weak`` or
-    ``not determined`` and ``reasons`` says why in plain words.
-    """
-
-    joint: str
-    axis_proximal: np.ndarray
-    axis_distal: np.ndarray
-    residual_rad_s: float
-    relative_residual: float
-    consistency_deg: float
-    relative_sign: str  # "measured" | "anatomy" (the one that flexes one way) | "nominal"
-    sign: str  # "anatomy" | "nominal"
-    excursion_deg: tuple[float, float] = (float("nan"), float("nan"))
-    window_s: tuple[float, float] = (float("nan"), float("nan"))
-    n_samples: int = 0
-    verdict: str = "determined"
-    reasons: list[str] = field(default_factory=list)
-    #: ``axes``: the fit gives the joint's axes; ``direction``: a functional step measured them
-    #: and the fit only tells which way they point (the placement hint was contradicted)
-    used_for: str = "axes"
-    #: ``seel``: Seel's hinge constraint; ``principal``: each segment's principal rotation axis
-    #: over a walk (:mod:`.gait_axes`), with the constrained hinge fit as its witness
-    method: str = "seel"
-    #: (``principal``) degrees between the principal axes and the constrained hinge fit's
-    witness_deg: float = float("nan")
-    #: (``principal``) second over first singular value of the segments' rates (the larger)
-    dominance: float = float("nan")
-    #: (``principal``) how far the proximal segment's long axis tilts from its direction in the
-    #: stand over the fit's window (deg, 99th percentile): how far a thigh swings, which bounds
-    #: the flexion of the hip above it (:mod:`.grades`)
-    proximal_tilt_deg: float = float("nan")
-
-    def to_tree(self) -> dict:
-        """The HDF5 results layout (plain numbers, lists and strings)."""
-        return {
-            "used_for": self.used_for,
-            "method": self.method,
-            "witness_deg": self.witness_deg,
-            "dominance": self.dominance,
-            "proximal_tilt_deg": self.proximal_tilt_deg,
-            "joint": self.joint,
-            "axis_proximal": np.asarray(self.axis_proximal, float),
-            "axis_distal": np.asarray(self.axis_distal, float),
-            "residual_rad_s": self.residual_rad_s,
-            "relative_residual": self.relative_residual,
-            "consistency_deg": self.consistency_deg,
-            "relative_sign": self.relative_sign,
-            "sign": self.sign,
-            "excursion_deg": list(self.excursion_deg),
-            "window_s": list(self.window_s),
-            "n_samples": self.n_samples,
-            "verdict": self.verdict,
-            "reasons": list(self.reasons),
-        }
 
 
 def _lowpass(x: np.ndarray, rate: float) -> np.ndarray:
@@ -433,28 +372,6 @@ def _unit(phi: float, theta: float) -> np.ndarray:
 def _sph(v: np.ndarray) -> tuple[float, float]:
     v = v / np.linalg.norm(v)
     return float(np.arcsin(np.clip(v[2], -1, 1))), float(np.arctan2(v[1], v[0]))
-
-
-@dataclass
-class TwoAxisFit(HingeFit):
-    """A two-degree-of-freedom joint (the elbow): ``axis_proximal`` is the flexion axis in the
-    proximal sensor, ``axis_distal`` the long (pronation) axis in the distal sensor, pointing
-    proximally; ``flexion_distal`` the flexion axis in the distal sensor in the reference pose
-    (the distal segment's z there). ``heading_times`` / ``heading_deltas`` (s, rad) are the
-    heading offsets fitted with the axes (the distal sensor's earth frame turned by δ about the
-    vertical matches the proximal one)."""
-
-    flexion_distal: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
-    heading_times: np.ndarray = field(default_factory=lambda: np.empty(0))
-    heading_deltas: np.ndarray = field(default_factory=lambda: np.empty(0))
-
-    def to_tree(self) -> dict:
-        return super().to_tree() | {
-            "kind": "two_axes",
-            "flexion_distal": np.asarray(self.flexion_distal, float),
-            "heading_times": np.asarray(self.heading_times, float),
-            "heading_deltas": np.asarray(self.heading_deltas, float),
-        }
 
 
 class _TwoAxisProblem:

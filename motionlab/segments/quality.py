@@ -11,6 +11,8 @@ from __future__ import annotations
 
 from typing import Any
 
+from motionlab.results import SegmentQuality
+
 STATIC_RHO_MIN = 0.95
 FUNCTIONAL_RHO_MIN = 0.60
 RHO_MARGIN = 0.10  # below the reference by more than this: flagged
@@ -24,12 +26,12 @@ def assess(
     axes: list[dict[str, Any]],
     separation_deg: float | None,
     lm_difference_deg: float | None,
-) -> dict[str, Any]:
+) -> SegmentQuality:
     """Quality record of one segment.
 
     ``axes`` are the per-axis records made by :func:`motionlab.segments.mounting.measure`
     (``step``, ``kind``, ``rho``, ``reference_rho``, ``residual_deg``, ``instructions``).
-    Returns ``{"ok": bool, "messages": [...], "min_rho": float, ...}``.
+    Returns the :class:`~motionlab.results.SegmentQuality`.
     """
     messages = []
     for a in axes:
@@ -71,13 +73,11 @@ def assess(
             f"{segment}: the LM check differs from the closed-form fit by "
             f"{lm_difference_deg:.1f}°: the axes are inconsistent"
         )
-    return {
-        "ok": not messages,
-        "messages": messages,
-        "min_rho": min((a["rho"] for a in axes), default=float("nan")),
-        "separation_deg": separation_deg,
-        "lm_difference_deg": lm_difference_deg,
-        "hinge_check_deg": {
-            a["step"]: a["hinge_check_deg"] for a in axes if "hinge_check_deg" in a
-        },
-    }
+    return SegmentQuality(
+        ok=not messages,
+        messages=messages,
+        min_rho=min((a["rho"] for a in axes), default=float("nan")),
+        separation_deg=separation_deg,
+        lm_difference_deg=lm_difference_deg,
+        hinge_check_deg={a["step"]: a["hinge_check_deg"] for a in axes if "hinge_check_deg" in a},
+    )

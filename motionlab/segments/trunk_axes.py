@@ -54,7 +54,7 @@ from motionlab.errors import InputError
 from motionlab.fusion.detect import steady_mask
 from motionlab.kinematics.joint_types import joint_type
 from motionlab.protocol import Protocol
-from motionlab.results import SegmentCalibration
+from motionlab.results import SegmentCalibration, SegmentQuality, SegmentRecord
 from motionlab.segments import grades as grading
 from motionlab.segments import heading
 from motionlab.segments.sensors import sensor_quats, streams_of
@@ -211,21 +211,27 @@ def _record(step: str, kind: str, method: str, sensor_axis, segment_axis, rho, v
     }
 
 
-def _segment(m: np.ndarray, sensor: str, records: dict[str, Any], messages: list[str]):
-    return {
-        "mounting": rot.from_matrix(m),
-        "method": "procrustes",
-        "axes": records,
-        "quality": {
-            "ok": not messages,
-            "messages": messages,
-            "min_rho": min(r["rho"] for r in records.values()),
-            "separation_deg": 90.0,
-            "lm_difference_deg": None,
-            "hinge_check_deg": {},
-        },
-        "sensor": sensor,
-    }
+def _segment(
+    m: np.ndarray,
+    sensor: str,
+    records: dict[str, Any],
+    messages: list[str],
+    method: str = "procrustes",
+) -> SegmentRecord:
+    return SegmentRecord(
+        mounting=rot.from_matrix(m),
+        method=method,
+        axes=records,
+        quality=SegmentQuality(
+            ok=not messages,
+            messages=messages,
+            min_rho=min(r["rho"] for r in records.values()),
+            separation_deg=90.0,
+            lm_difference_deg=None,
+            hinge_check_deg={},
+        ),
+        sensor=sensor,
+    )
 
 
 def calibrate(
@@ -351,8 +357,10 @@ def calibrate(
         m_c = _frame(up[c], horizontal)
         records = {rest_name: _record(rest_name, "static", "gravity", up[c], y, rest_rho[c],
                                       "determined")}  # fmt: skip
-        segments[c] = _segment(m_c, sensor_for_segment(session, c), records, [])
-        segments[c]["method"] = "primary_secondary"  # y measured, the rest tied to the thorax
+        # y measured, the rest tied to the thorax
+        segments[c] = _segment(
+            m_c, sensor_for_segment(session, c), records, [], "primary_secondary"
+        )
         q_c = rot.mul(q[c], rot.from_matrix(m_c))
         delta_c = heading.heading_from_pose(rot.mul(q[d], rot.from_matrix(m_d))[rest], q_c[rest])
         times_c, deltas_c = [t_rest], [delta_c]

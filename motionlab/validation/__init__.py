@@ -143,7 +143,7 @@ def _optical_segment_quats(
         cal = calibration.segments.get(seg) if calibration is not None else None
         if seg in label_of and cal is not None:
             x = al.sensor_to_cluster[label_of[seg]]
-            out[seg] = (o.time, rot.mul(o.quat, rot.mul(x, np.asarray(cal["mounting"]))))
+            out[seg] = (o.time, rot.mul(o.quat, rot.mul(x, np.asarray(cal.mounting))))
             source[seg] = "imu_calibration"
     return out, source
 
@@ -286,12 +286,13 @@ def validate(
     for k, (a, b) in pairs.items():
         orientation[k] = _orientation(a, al.reference(k, b), moving)
 
+    sync_record = clock.record(sync_on if sync else "", labels)
     result: dict[str, Any] = {
         "mode": mode,
         "marker_set": reference.name,
         "movement_only": movement_only,
         "pairs": {k: seg_of[k] for k in labels},
-        "sync": clock.as_dict(),
+        "sync": sync_record,
         "alignment": al.as_dict(),
         "optical": {
             seg: {"source": o.source, "landmarks": o.landmarks, **o.info}
@@ -299,13 +300,9 @@ def validate(
         },
         "orientation": orientation,
     }
-    result["sync"]["signal"] = sync_on if sync else ""
-    residual = result["sync"].pop("pair_residual_s", np.zeros(0))
-    result["sync"]["sensor_residual_s"] = {
-        k: float(residual[i]) for i, k in enumerate(labels) if i < len(residual)
-    }
+    residual = clock.pair_residuals()
     notes = [f"segment {seg}: no sensor" for seg in mmap.segments if seg not in seg_of.values()]
-    notes += sync_notes(result["sync"]) if sync else []
+    notes += sync_notes(sync_record) if sync else []
     spread = np.ptp(residual[np.isfinite(residual)]) if np.isfinite(residual).any() else 0.0
     if spread * estimate_rate(t) > 1.0:
         notes.append(

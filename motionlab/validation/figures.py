@@ -86,18 +86,18 @@ def bland_altman(result: Validation, column: str) -> Figure:
 def sync_figure(result: Validation) -> Figure:
     """Window lags around the fitted clock model, inliers and outliers."""
     s = result.sync
-    t = np.asarray(s["window_time_s"])
+    t = np.asarray(s.window_time_s)
     fig, (ax,) = _figure(1, 3.5)
     if len(t):
-        model = s["time_offset_s"] + s["drift_ppm"] * 1e-6 * t
-        resid = (np.asarray(s["window_lag_s"]) - model) * 1e3
-        inl = np.asarray(s["inliers"], bool)
-        ax.errorbar(t[inl], resid[inl], yerr=np.asarray(s["window_sd_s"])[inl] * 1e3, fmt="o",
+        model = s.time_offset_s + s.drift_ppm * 1e-6 * t
+        resid = (np.asarray(s.window_lag_s) - model) * 1e3
+        inl = np.asarray(s.inliers, bool)
+        ax.errorbar(t[inl], resid[inl], yerr=np.asarray(s.window_sd_s)[inl] * 1e3, fmt="o",
                     ms=3, color=IMU_COLOUR, label="inlier windows")  # fmt: skip
         ax.plot(t[~inl], resid[~inl], "x", color="tab:red", label="outliers")
         ax.axhline(0.0, color=REF_COLOUR, lw=1.0)
         ax.legend(fontsize=8)
-    ax.set_title(f"offset {s['time_offset_s']:.4f} s, drift {s['drift_ppm']:.1f} ppm", fontsize=9)
+    ax.set_title(f"offset {s.time_offset_s:.4f} s, drift {s.drift_ppm:.1f} ppm", fontsize=9)
     ax.set_xlabel("IMU time (s)")
     ax.set_ylabel("lag − clock model (ms)")
     return fig

@@ -254,17 +254,14 @@ def validate_model_angles(
     unmapped = [c for c in columns if c not in ref]
     if unmapped:
         notes.append(f"no reference for {', '.join(unmapped)}")
-    sync_tree = clock.as_dict()
-    sync_tree.pop("pair_residual_s", None)
-    sync_tree["signal"] = "joint angle rates" if sync else ""
-    sync_tree["sensor_residual_s"] = {}
-    notes += sync_notes(sync_tree) if sync else []
+    sync_record = clock.record("joint angle rates" if sync else "", [])
+    notes += sync_notes(sync_record) if sync else []
     return Validation(
         mode="angles",
         marker_set=reference.name,
         movement_only=movement_only,
         pairs={},
-        sync=sync_tree,
+        sync=sync_record,
         alignment={
             "mode": "none",
             "lab_to_earth": {"quat": rot.IDENTITY.copy(), "angle_deg": 0.0},

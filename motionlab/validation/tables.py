@@ -41,14 +41,17 @@ def summary(result: Validation) -> dict[str, Any]:
     sync = result.sync
     al = result.alignment
     out = {
-        "time_offset_s": sync["time_offset_s"],
-        "drift_ppm": sync["drift_ppm"],
-        "sync": {k: sync[k] for k in ("method", "inlier_ratio", "residual_rms_s", "n_windows")}
-        | {
-            "standard_error_ms": 1e3 * sync.get("standard_error_s", float("nan")),
-            "grade": sync.get("grade", ""),
-            "fallback": sync.get("fallback", ""),
-            "signal": sync.get("signal", ""),
+        "time_offset_s": sync.time_offset_s,
+        "drift_ppm": sync.drift_ppm,
+        "sync": {
+            "method": sync.method,
+            "inlier_ratio": sync.inlier_ratio,
+            "residual_rms_s": sync.residual_rms_s,
+            "n_windows": sync.n_windows,
+            "standard_error_ms": 1e3 * sync.standard_error_s,
+            "grade": sync.grade,
+            "fallback": sync.fallback,
+            "signal": sync.signal,
         },
         "alignment": {
             "mode": al["mode"],
@@ -108,15 +111,15 @@ def tables(result: Validation) -> dict[str, pd.DataFrame]:
             ]  # fmt: skip
         )
     sync = result.sync
-    if len(sync.get("window_time_s", [])):
+    if len(sync.window_time_s):
         out["validation_sync.csv"] = pd.DataFrame(
             {
-                "time_s": sync["window_time_s"],
-                "lag_s": sync["window_lag_s"],
-                "lag_sd_s": sync["window_sd_s"],
-                "correlation": sync["window_corr"],
-                "pair": sync["window_pair"],
-                "inlier": sync["inliers"],
+                "time_s": sync.window_time_s,
+                "lag_s": sync.window_lag_s,
+                "lag_sd_s": sync.window_sd_s,
+                "correlation": sync.window_corr,
+                "pair": sync.window_pair,
+                "inlier": sync.inliers,
             }
         )
     return out

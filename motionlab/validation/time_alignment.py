@@ -21,13 +21,13 @@ drift and the bias of the parabola) and the fit repeated.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 from scipy.interpolate import make_interp_spline
 from scipy.signal import butter, correlate, sosfiltfilt
 
 from motionlab.errors import InputError
+from motionlab.results import OpticalSync
 from motionlab.rotations import angular_velocity
 from motionlab.validation import time_offset as ta
 
@@ -80,28 +80,33 @@ class TimeAlignment:
     fallback: str = ""
     signal: str = ""
 
-    def as_dict(self) -> dict[str, Any]:
-        """The tree stored in ``results.validation.sync``."""
-        return {
-            "method": self.method,
-            "time_offset_s": float(self.model.offset_s),
-            "drift_ppm": float(self.model.drift * 1e6),
-            "inlier_ratio": float(self.inlier_ratio),
-            "residual_rms_s": float(self.residual_rms_s),
-            "coarse_lag_s": float(self.coarse_lag_s),
-            "n_windows": int(len(self.window_time_s)),
-            "window_time_s": np.asarray(self.window_time_s, float),
-            "window_lag_s": np.asarray(self.window_lag_s, float),
-            "window_sd_s": np.asarray(self.window_sd_s, float),
-            "window_corr": np.asarray(self.window_corr, float),
-            "window_pair": np.asarray(self.window_pair, int),
-            "inliers": np.asarray(self.inliers, bool),
-            "pair_residual_s": self.pair_residuals(),
-            "standard_error_s": float(self.standard_error_s),
-            "grade": self.grade,
-            "fallback": self.fallback,
-            "signal": self.signal,
-        }
+    def record(self, signal: str, sensors: list[str]) -> OpticalSync:
+        """The record stored in ``results.validation.sync``: ``signal`` names the IMU side's
+        signal (empty without sync), ``sensors`` the sensor of each pair index (their
+        :meth:`pair_residuals` by name)."""
+        residual = self.pair_residuals()
+        return OpticalSync(
+            method=self.method,
+            time_offset_s=float(self.model.offset_s),
+            drift_ppm=float(self.model.drift * 1e6),
+            inlier_ratio=float(self.inlier_ratio),
+            residual_rms_s=float(self.residual_rms_s),
+            coarse_lag_s=float(self.coarse_lag_s),
+            n_windows=int(len(self.window_time_s)),
+            window_time_s=np.asarray(self.window_time_s, float),
+            window_lag_s=np.asarray(self.window_lag_s, float),
+            window_sd_s=np.asarray(self.window_sd_s, float),
+            window_corr=np.asarray(self.window_corr, float),
+            window_pair=np.asarray(self.window_pair, int),
+            inliers=np.asarray(self.inliers, bool),
+            standard_error_s=float(self.standard_error_s),
+            grade=self.grade,
+            fallback=self.fallback,
+            signal=signal,
+            sensor_residual_s={
+                k: float(residual[i]) for i, k in enumerate(sensors) if i < len(residual)
+            },
+        )
 
     def pair_residuals(self) -> np.ndarray:
         """Median lag residual (s) of each sensor pair's inlier windows (NaN: none): sensors

@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from motionlab.results import OpticalSync
 from motionlab.rotations import angular_velocity
 
 GYRO_SAMPLING = ("interval", "point")
@@ -153,13 +154,13 @@ def global_offset(
     return lag, se, float(corr[k])
 
 
-def sync_notes(sync: dict[str, Any]) -> list[str]:
-    """Notes on a sync tree (``results.validation.sync``): its fallback, a poor grade."""
+def sync_notes(sync: OpticalSync) -> list[str]:
+    """Notes on a sync record (``results.validation.sync``): its fallback, a poor grade."""
     out = []
-    if sync.get("fallback"):
-        out.append(f"time sync: {sync['fallback']}")
-    if sync.get("grade") == "poor":
-        se = sync.get("standard_error_s", float("nan")) * 1e3
+    if sync.fallback:
+        out.append(f"time sync: {sync.fallback}")
+    if sync.grade == "poor":
+        se = sync.standard_error_s * 1e3
         out.append(
             f"time sync is poor (standard error {se:.1f} ms): the errors may come from the "
             "clocks, not the sensors; record more movement seen by both systems"

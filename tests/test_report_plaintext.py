@@ -1,0 +1,60 @@
+"""The report's plain lines (PlainText, drawn without matplotlib's layout pass) write the PDF
+bytes matplotlib's Text writes, and the page checks read them as ordinary texts."""
+
+import io
+
+import matplotlib
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.backends.backend_pdf import PdfPages
+from matplotlib.figure import Figure
+from matplotlib.text import Text
+
+from motionlab.report.pdf import RC, PlainText, layout_problems, page_text, put_text
+
+# kerning pairs (AV, Ty, To), a ligature (fi), characters past U+00FF (–, →, ≤, Σ, −), PDF
+# string escapes ((, ), \), and texts PlainText hands to Text (several lines, rotated, top,
+# math)
+LINES = [
+    ("AVATAR Tyre: To 4–62° (fi) ≤ ±1.5 → Σ \\ x", {}),
+    ("Right knee flexion range", {"ha": "right", "weight": "bold", "color": "#b2182b"}),
+    ("centred −3.2°", {"ha": "center", "size": 8.0}),
+    ("", {}),
+    ("two\nlines", {}),
+    ("rotated", {"rotation": 90}),
+    ("on top", {"va": "top"}),
+    ("$x^2$ math", {}),
+]
+
+
+def _pdf(cls: type[Text]) -> bytes:
+    """A page of LINES drawn as ``cls``, uncompressed, without a creation date."""
+    with matplotlib.rc_context({**RC, "pdf.compression": 0}):
+        fig = Figure(figsize=(8.27, 11.69))
+        FigureCanvasAgg(fig)
+        for i, (s, kw) in enumerate(LINES):
+            t = cls(0.5, 0.9 - 0.05 * i, s, transform=fig.transSubfigure, va="baseline")
+            t.update(kw)
+            t.set_figure(fig)
+            fig.texts.append(t)
+        buf = io.BytesIO()
+        with PdfPages(buf, metadata={"CreationDate": None}) as pdf:
+            pdf.savefig(fig)
+    return buf.getvalue()
+
+
+def test_plain_text_writes_the_bytes_matplotlib_writes():
+    assert _pdf(PlainText) == _pdf(Text)
+
+
+def test_plain_text_is_an_ordinary_text_to_the_page_checks():
+    with matplotlib.rc_context(RC):
+        fig = Figure(figsize=(8.27, 11.69))
+        FigureCanvasAgg(fig)
+        put_text(fig, 0.5, 0.5, "overlapping words")
+        put_text(fig, 0.5, 0.5, "more words")
+        put_text(fig, 0.98, 0.2, "runs off the right edge of the page")
+        problems = layout_problems(fig)
+    assert len(fig.texts) == 3
+    assert "overlapping words" in page_text(fig)
+    assert any(p.startswith("overlap") for p in problems)
+    assert any(p.startswith("off the page") for p in problems)
