@@ -30,8 +30,8 @@ so that a round trip loses nothing. Units are SI except where a name says otherw
 
 Maps keyed by the protocol's names (one entry per segment, joint, task or angle column) are
 dictionaries; where their entries have fixed fields these are typed too (:class:`SegmentRecord`
-with its :class:`SegmentQuality`, :class:`HingeFit`), else their keys are documented at the
-attribute.
+with its :class:`SegmentQuality`, :class:`HingeFit`, :class:`JointGrades`), else their keys are
+documented at the attribute.
 """
 
 from __future__ import annotations
@@ -50,6 +50,8 @@ __all__ = [
     "SegmentRecord",
     "HingeFit",
     "HipAxis",
+    "JointGrades",
+    "TrunkMovement",
     "TwoAxisFit",
     "ClockFit",
     "ClockSync",
@@ -408,6 +410,79 @@ class HipAxis(_Record):
     more: dict[str, Any] = field(default_factory=dict)
 
 
+@dataclass(frozen=True)
+class TrunkMovement(_Record):
+    """What a trunk calibration found in the movement (:mod:`motionlab.segments.trunk_axes`;
+    the ``trunk`` of each of its :class:`JointGrades`).
+
+    ``rest_s`` ``[start, end]`` (s): the rest taken as the zero of the angles;
+    ``rest_speed_deg_s`` (deg/s): the mean angular speed of the joint's sensors over its
+    stillest second; ``axis_ratio``: how much more one-sided the movement is about the chosen
+    flexion axis than about the other horizontal axis; ``energy_ratio``: the mean squared
+    relative rate about the axis turning most over that about the other; ``axis_rank``: which
+    of the two was taken as the flexion axis (1: the one turning most); ``one_sided``: per
+    horizontal axis (the one turning most first) the larger excursion over the smaller about
+    it (each at least 1°); ``excursion_deg`` ``[positive, negative]`` (deg): the 98th and
+    2nd percentiles of the lean since the rest about the flexion axis found (the second below
+    0 when the thorax leaned the other way); ``sign_ratio``: the thorax's excursion one way
+    over the other about the flexion axis (its ``one_sided``); ``heading_deg`` (deg): the
+    heading about the vertical that turns the thorax sensor's earth frame onto the pelvis
+    sensor's, from the movement's rates; ``heading_rho``: the share of the horizontal rates
+    that heading explains (1: all); ``heading_drift_deg`` (deg): the peak-to-peak drift of
+    that heading followed from the gyroscopes over the recording (``None``: not followed, the
+    rest was not still or a fusion was 9-D or reported no bias).
+    """
+
+    _store_none: ClassVar[bool] = True
+
+    rest_s: list[float]
+    rest_speed_deg_s: float
+    axis_ratio: float
+    energy_ratio: float
+    axis_rank: int
+    one_sided: list[float]
+    excursion_deg: list[float]
+    sign_ratio: float
+    heading_deg: float
+    heading_rho: float
+    heading_drift_deg: float | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class JointGrades(_Record):
+    """What the recording determined of one joint's angles
+    (:func:`motionlab.segments.grades.grade_joints`; one value of
+    :attr:`SegmentCalibration.grades`).
+
+    ``grades``: one per angle column in the joint type's order (flexion first):
+    ``determined``, ``weak`` or ``not determined``; ``reasons``: why, in plain words, one per
+    angle (empty for a determined one); ``trunk``: what a trunk calibration found in the
+    movement (:class:`TrunkMovement`; ``None`` for any other calibration). A joint stored
+    without ``grades`` or ``reasons`` has them empty (its angles count as ``determined``).
+    """
+
+    grades: list[str] = field(default_factory=list)
+    reasons: list[str] = field(default_factory=list)
+    trunk: TrunkMovement | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+    def to_tree(self) -> dict[str, Any]:
+        """The grades' tree, the trunk's movement a subtree."""
+        tree = super().to_tree()
+        if self.trunk is not None:
+            tree["trunk"] = self.trunk.to_tree()
+        return tree
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> JointGrades:
+        """The grades of a stored tree (see :meth:`to_tree`)."""
+        rec = super().from_tree(tree)
+        if isinstance(rec.trunk, dict):
+            rec = dataclasses.replace(rec, trunk=TrunkMovement.from_tree(rec.trunk))
+        return rec
+
+
 @dataclass
 class SegmentCalibration(_Record):
     """Sensor-to-segment calibration: how each sensor sits on its segment
@@ -420,7 +495,7 @@ class SegmentCalibration(_Record):
     :class:`TwoAxisFit` for a two-axis joint, with its headings).
     ``centres`` ``{joint: record}``: headings from a ball joint's shared centre. ``warnings``:
     lines the user should read; ``ok``: every segment's quality passed. ``grades`` ``{joint:
-    {"grades": [3], "reasons": [3]}}`` per angle (:func:`motionlab.segments.grades.grade_joints`).
+    JointGrades}``: a grade and its reason per angle (:class:`JointGrades`).
     ``single_pose``: the static step a recording too short for more was taken as (an
     OpenSense-style single-pose calibration, :mod:`motionlab.segments.single_pose`), else ``None``.
     ``hip_axes`` ``{joint: HipAxis}``: the hips' flexion axes from the movement
@@ -440,7 +515,7 @@ class SegmentCalibration(_Record):
     centres: dict[str, dict[str, Any]] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     ok: bool = True
-    grades: dict[str, dict[str, Any]] = field(default_factory=dict)
+    grades: dict[str, JointGrades] = field(default_factory=dict)
     protocol_path: str | None = None
     single_pose: str | None = None
     hip_axes: dict[str, HipAxis] = field(default_factory=dict)
@@ -450,7 +525,7 @@ class SegmentCalibration(_Record):
     def to_tree(self) -> dict[str, Any]:
         """The calibration's tree, each segment record and hinge fit a subtree."""
         tree = super().to_tree()
-        for name in ("segments", "hinges", "hip_axes"):
+        for name in ("segments", "hinges", "grades", "hip_axes"):
             if name in tree:
                 tree[name] = {k: v.to_tree() for k, v in tree[name].items()}
         return tree
@@ -461,6 +536,7 @@ class SegmentCalibration(_Record):
         cal = super().from_tree(tree)
         cal.segments = {k: SegmentRecord.from_tree(v) for k, v in cal.segments.items()}
         cal.hinges = {k: HingeFit.from_tree(v) for k, v in cal.hinges.items()}
+        cal.grades = {k: JointGrades.from_tree(v) for k, v in cal.grades.items()}
         cal.hip_axes = {k: HipAxis.from_tree(v) for k, v in cal.hip_axes.items()}
         return cal
 

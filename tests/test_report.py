@@ -11,7 +11,13 @@ from motionlab.report.model import SessionView, compare, rom_rows, symmetry_rows
 from motionlab.report.normative import band_for, load_bands
 from motionlab.report.pdf import RC, Document, layout_problems, page_text, text_width, wrap
 from motionlab.report.sentences import findings, rom_sentence, span
-from motionlab.results import Metrics, SegmentCalibration, SegmentQuality, SegmentRecord
+from motionlab.results import (
+    JointGrades,
+    Metrics,
+    SegmentCalibration,
+    SegmentQuality,
+    SegmentRecord,
+)
 from motionlab.session import Session
 
 
@@ -192,11 +198,10 @@ def _graded_view(graded: bool = True) -> SessionView:
     cal = SegmentCalibration("knee", segments=segments)
     if graded:
         cal.grades = {
-            "knee_r": {
-                "grades": ["determined", "weak", "not determined"],
-                "reasons": ["", WEAK_WHY, NOT_WHY],
-            },
-            "knee_l": {"grades": ["determined"] * 3, "reasons": [""] * 3},
+            "knee_r": JointGrades(
+                ["determined", "weak", "not determined"], ["", WEAK_WHY, NOT_WHY]
+            ),
+            "knee_l": JointGrades(["determined"] * 3, [""] * 3),
         }
     view.session.results.calibration = cal
     return view

@@ -22,12 +22,14 @@ from motionlab.results import (
     HeadingCorrection,
     HingeFit,
     HipAxis,
+    JointGrades,
     Metrics,
     OpticalSync,
     Results,
     SegmentCalibration,
     SegmentQuality,
     SegmentRecord,
+    TrunkMovement,
     TwoAxisFit,
     Validation,
 )
@@ -35,8 +37,8 @@ from motionlab.session import SCHEMA_VERSION, SensorStream, Session, load_sessio
 
 RECORDS = (
     ClockFit, ClockSync, FusionEntry, SegmentCalibration, SegmentRecord, SegmentQuality, HingeFit,
-    TwoAxisFit, HipAxis, AngleTable, HeadingCorrection, Metrics, Gait, Validation, OpticalSync,
-    GradeRow, RomRow, SymmetryRow, QualityRow, CalibrationRow,
+    TwoAxisFit, HipAxis, JointGrades, TrunkMovement, AngleTable, HeadingCorrection, Metrics, Gait,
+    Validation, OpticalSync, GradeRow, RomRow, SymmetryRow, QualityRow, CalibrationRow,
 )  # fmt: skip
 
 
@@ -157,14 +159,23 @@ def _old_calibration_tree() -> dict:
              "future_h": [1, 2]}  # fmt: skip
     hip = {"used": False, "turn_deg": 0.0, "rho": 0.62, "n_samples": 900, "tilt_deg": 4.0,
            "reason": "no dominant hip axis (rho 0.62)"}  # fmt: skip
+    trunk = {"rest_s": [0.5, 2.0], "rest_speed_deg_s": 0.8, "axis_ratio": 2.1,
+             "energy_ratio": 1.4, "axis_rank": 1, "one_sided": [3.0, 1.2],
+             "excursion_deg": [40.0, -8.0], "sign_ratio": 3.0, "heading_deg": 12.0,
+             "heading_rho": 0.9, "heading_drift_deg": None, "future_t": 2}  # fmt: skip
+    grades = {"lumbar": {"grades": ["determined", "determined", "weak"],
+                         "reasons": ["", "", "few turns"], "trunk": trunk},
+              "elbow_r": {"grades": ["weak"] * 3, "reasons": ["short"] * 3}}  # fmt: skip
     return {"protocol": "elbow", "ok": False, "segments": {"forearm_r": segment},
-            "hinges": {"elbow_r": hinge}, "hip_axes": {"hip_r": hip}}  # fmt: skip
+            "hinges": {"elbow_r": hinge}, "hip_axes": {"hip_r": hip},
+            "grades": grades}  # fmt: skip
 
 
 def test_a_calibration_stored_before_the_typed_records_loads_and_is_stored_the_same(tmp_path):
-    """The segment records, their quality, the hinge fits and the hip axes are typed in memory,
-    the file's layout is the dicts' (``None`` quality fields as JSON null), and keys a newer
-    motionlab wrote are kept in ``more`` and written back."""
+    """The segment records, their quality, the hinge fits, the hip axes and the grades (with a
+    trunk calibration's movement) are typed in memory, the file's layout is the dicts' (``None``
+    fields as JSON null), and keys a newer motionlab wrote are kept in ``more`` and written
+    back."""
     from motionlab.session import _read_tree, _write_tree
 
     old = _old_calibration_tree()
@@ -185,12 +196,18 @@ def test_a_calibration_stored_before_the_typed_records_loads_and_is_stored_the_s
     np.testing.assert_array_equal(fit.heading_deltas, [0.1, 0.2])
     hip = cal.hip_axes["hip_r"]
     assert isinstance(hip, HipAxis) and not hip.used and hip.rho == 0.62 and hip.tilt_deg == 4.0
+    lumbar, elbow = cal.grades["lumbar"], cal.grades["elbow_r"]
+    assert isinstance(lumbar, JointGrades) and lumbar.reasons[2] == "few turns"
+    assert isinstance(lumbar.trunk, TrunkMovement) and lumbar.trunk.excursion_deg == [40.0, -8.0]
+    assert lumbar.trunk.heading_drift_deg is None and lumbar.trunk.more == {"future_t": 2}
+    assert elbow.grades == ["weak"] * 3 and elbow.trunk is None
+    assert JointGrades.from_tree({"grades": ["weak"] * 3}).reasons == []
     save_session(load_session(path), tmp_path / "again.h5")
     with h5py.File(tmp_path / "again.h5") as f:
         again = _read_tree(f["results/calibration"])
     with h5py.File(path) as f:
         stored = _read_tree(f["results/calibration"])
-    for name in ("segments", "hinges", "hip_axes"):
+    for name in ("segments", "hinges", "hip_axes", "grades"):
         assert json.dumps(again[name], sort_keys=True, default=repr) == json.dumps(
             stored[name], sort_keys=True, default=repr
         )

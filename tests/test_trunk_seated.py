@@ -61,7 +61,7 @@ def test_seated_continuous_trunk_movement_gives_the_lumbar_angles(seated):
     session = _crop(session, 0.0, 1e9)
     analyse(session, OPTIONS)
     cal = session.results.calibration
-    assert cal.grades["lumbar"]["grades"] == ["determined"] * 3
+    assert cal.grades["lumbar"].grades == ["determined"] * 3
     rest = cal.steps["rest"]
     assert rest[1] - rest[0] >= 1.0
     err = _errors(session, truth)
@@ -189,7 +189,7 @@ def test_the_trunk_leans_against_a_still_chair(seated):
     )  # fmt: skip
     analyse(session, OPTIONS)
     cols = session.results.angles.columns()
-    assert session.results.calibration.grades["trunk_chair"]["grades"][2] == "determined"
+    assert session.results.calibration.grades["trunk_chair"].grades[2] == "determined"
     t = cols["time_s"]
     rest = session.results.calibration.steps["rest"]
     q = rot.resample(truth.time, truth.segments["thorax"]["orientation"], t)

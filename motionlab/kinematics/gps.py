@@ -37,6 +37,7 @@ from scipy.interpolate import PchipInterpolator
 
 from motionlab.kinematics.joint_types import angle_columns
 from motionlab.kinematics.spatiotemporal import MIN_STRIDES, too_few
+from motionlab.results import JointGrades
 from motionlab.segments.grades import _frame_grade
 
 if TYPE_CHECKING:
@@ -131,8 +132,8 @@ def variable_grades(
     for joint in protocol.joints.values():
         if joint.side not in out:
             continue
-        entry = graded.get(joint.name) or {}
-        grades, reasons = entry.get("grades", []), entry.get("reasons", [])
+        entry = graded.get(joint.name) or JointGrades()
+        grades, reasons = entry.grades, entry.reasons
         for k, (angle, _) in enumerate(angle_columns(joint)):
             v = f"{joint.type}_{angle}"
             if v in VARIABLES:

@@ -39,7 +39,7 @@ from motionlab.kinematics.gps import gated_profile, variable_grades
 from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, plane, title
 from motionlab.kinematics.metrics import THORAX as THORAX  # re-exported for the pages
 from motionlab.protocol import Joint, Protocol, load_protocol
-from motionlab.results import Gait, Metrics, SegmentCalibration, SegmentRecord
+from motionlab.results import Gait, JointGrades, Metrics, SegmentCalibration, SegmentRecord
 from motionlab.segments import sensor_for_segment
 from motionlab.segments.grades import GRADES, _frame_grade
 from motionlab.session import Session
@@ -342,9 +342,9 @@ def grade_rows(view: SessionView) -> list[GradeRow]:
     graded = cal.grades if cal is not None else {}
     rows = []
     for joint in view.joints():
-        entry = graded.get(joint.name) or {}
-        grades = [str(g) for g in entry.get("grades", [])]
-        reasons = [str(r) for r in entry.get("reasons", [])]
+        entry = graded.get(joint.name) or JointGrades()
+        grades = [str(g) for g in entry.grades]
+        reasons = [str(r) for r in entry.reasons]
         for k, (angle, col) in enumerate(angle_columns(joint)):
             grade = grades[k] if k < len(grades) and grades[k] in GRADES else DETERMINED
             reason = reasons[k] if k < len(reasons) and grade != DETERMINED else ""

@@ -43,6 +43,7 @@ store :func:`motionlab.segments.segment_orientations` reads for headings fitted 
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -54,7 +55,13 @@ from motionlab.errors import InputError
 from motionlab.fusion.detect import steady_mask
 from motionlab.kinematics.joint_types import joint_type
 from motionlab.protocol import Protocol
-from motionlab.results import SegmentCalibration, SegmentQuality, SegmentRecord
+from motionlab.results import (
+    JointGrades,
+    SegmentCalibration,
+    SegmentQuality,
+    SegmentRecord,
+    TrunkMovement,
+)
 from motionlab.segments import grades as grading
 from motionlab.segments import heading
 from motionlab.segments.sensors import sensor_quats, streams_of
@@ -380,19 +387,19 @@ def calibrate(
         }
 
     notes: list[str] = []
-    summary = {
-        "rest_s": [float(t[a]), float(t[b - 1])],
-        "rest_speed_deg_s": level,
-        "axis_ratio": ratio,
-        "energy_ratio": energy[0] / max(energy[1], 1e-12),
-        "axis_rank": k + 1,
-        "one_sided": sided,
-        "excursion_deg": [pos, -neg],
-        "sign_ratio": sign_ratio,
-        "heading_deg": float(np.degrees(delta)),
-        "heading_rho": heading_rho,
-        "heading_drift_deg": None if drift is None else float(np.degrees(np.ptp(drift))),
-    }
+    summary = TrunkMovement(
+        rest_s=[float(t[a]), float(t[b - 1])],
+        rest_speed_deg_s=level,
+        axis_ratio=ratio,
+        energy_ratio=energy[0] / max(energy[1], 1e-12),
+        axis_rank=k + 1,
+        one_sided=sided,
+        excursion_deg=[pos, -neg],
+        sign_ratio=sign_ratio,
+        heading_deg=float(np.degrees(delta)),
+        heading_rho=heading_rho,
+        heading_drift_deg=None if drift is None else float(np.degrees(np.ptp(drift))),
+    )
     if axis_verdict != "determined":
         notes.append(f"{d}: {_weak_axis(ratio, pos, neg)}: record a clear forward bend")
     steps = {rest_name: [float(t[a]), float(t[b - 1])],
@@ -406,10 +413,9 @@ def calibrate(
         warnings=notes,
         ok=True,
     )
-    result.grades = grading.grade_joints(protocol, result)
-    result.grades.update(trunk_grades(joint, leans, summary, axis_verdict, followed))
-    for g in result.grades.values():
-        g["trunk"] = summary
+    graded = grading.grade_joints(protocol, result)
+    graded.update(trunk_grades(joint, leans, summary, axis_verdict, followed))
+    result.grades = {name: replace(g, trunk=summary) for name, g in graded.items()}
     if warnings is not None:
         warnings.extend(notes)
     return result
@@ -455,25 +461,24 @@ def _weak_axis(ratio: float, pos: float, neg: float) -> str:
 
 
 def trunk_grades(
-    joint, leans, summary: dict[str, Any], axis_verdict: str, followed: dict[str, bool]
-) -> dict[str, dict[str, list[str]]]:
+    joint, leans, summary: TrunkMovement, axis_verdict: str, followed: dict[str, bool]
+) -> dict[str, JointGrades]:
     """Grades of the lumbar joint and of the trunk's lean (``leans``: ``trunk_lean`` joints)
     from what the movement determined; a lean is ``weak`` unless the chair's heading drift was
     followed (``followed``: by joint, a still rest)."""
-    pos, neg = summary["excursion_deg"][0], -summary["excursion_deg"][1]
-    why_axis = "" if axis_verdict == "determined" else _weak_axis(summary["axis_ratio"], pos, neg)
+    pos, neg = summary.excursion_deg[0], -summary.excursion_deg[1]
+    why_axis = "" if axis_verdict == "determined" else _weak_axis(summary.axis_ratio, pos, neg)
     rot_grade, why_rot = "determined", ""
-    if summary["heading_rho"] < HEADING_RHO_MIN:
+    if summary.heading_rho < HEADING_RHO_MIN:
         rot_grade = "weak"
         why_rot = (
-            f"the sensors' headings agree only {summary['heading_rho']:.2f} over the movement "
+            f"the sensors' headings agree only {summary.heading_rho:.2f} over the movement "
             "(the pelvis hardly moved with the thorax)"
         )
     out = {
-        joint.name: {
-            "grades": [axis_verdict, axis_verdict, rot_grade],
-            "reasons": [why_axis, why_axis, why_rot],
-        }
+        joint.name: JointGrades(
+            [axis_verdict, axis_verdict, rot_grade], [why_axis, why_axis, why_rot]
+        )
     }
     for lean in leans:
         grade, why = axis_verdict, why_axis
@@ -484,5 +489,5 @@ def trunk_grades(
                 f"{STILL_DEG_S:g}°/s), so the chair's and the thorax's headings are tied at "
                 "the rest only and may drift apart"
             )
-        out[lean.name] = {"grades": [grade] * 3, "reasons": [why] * 3}
+        out[lean.name] = JointGrades([grade] * 3, [why] * 3)
     return out
