@@ -30,8 +30,8 @@ so that a round trip loses nothing. Units are SI except where a name says otherw
 
 Maps keyed by the protocol's names (one entry per segment, joint, task or angle column) are
 dictionaries; where their entries have fixed fields these are typed too (:class:`SegmentRecord`
-with its :class:`SegmentQuality`, :class:`HingeFit`, :class:`JointGrades`), else their keys are
-documented at the attribute.
+with its :class:`SegmentQuality`, :class:`HingeFit`, :class:`JointGrades`,
+:class:`CentreHeading`, :class:`HeadingTies`), else their keys are documented at the attribute.
 """
 
 from __future__ import annotations
@@ -50,6 +50,9 @@ __all__ = [
     "SegmentRecord",
     "HingeFit",
     "HipAxis",
+    "CentreHeading",
+    "HeadingTie",
+    "HeadingTies",
     "JointGrades",
     "TrunkMovement",
     "TwoAxisFit",
@@ -483,6 +486,65 @@ class JointGrades(_Record):
         return rec
 
 
+@dataclass(frozen=True)
+class CentreHeading(_Record):
+    """Heading ties fitted at calibration for a joint without a hinge (one value of
+    :attr:`SegmentCalibration.centres`): the distal sensor's earth frame turned by
+    ``heading_deltas`` (K,) rad about the vertical at ``heading_times`` (K,) s matches the
+    proximal one. ``anchors``: K, for ties from a ball joint's shared centre
+    (:func:`motionlab.segments.placement.centre_headings`); ``method``: ``trunk rest`` for a
+    trunk calibration's ties at its rest (:mod:`motionlab.segments.trunk_axes`); each ``None``
+    (not stored) for the other kind.
+    """
+
+    heading_times: Any
+    heading_deltas: Any
+    anchors: int | None = None
+    method: str | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class HeadingTie(_Record):
+    """One joint's heading ties (one value of :attr:`HeadingTies.joints`; what
+    :func:`motionlab.segments.segment_orientations` applies): ``source`` (``hinge``,
+    ``single pose``, ``steps``; ``two_axes`` and ``centre`` ties stay with their fit),
+    ``times`` (K,) s and ``deltas`` (K,) rad: the distal segment turned by ``deltas`` about
+    the vertical at ``times`` (interpolated between) matches the proximal one.
+    """
+
+    source: str
+    times: Any
+    deltas: Any
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class HeadingTies(_Record):
+    """Each joint's heading ties found at calibration (:func:`motionlab.segments.heading_ties`;
+    :attr:`SegmentCalibration.headings`): ``sha256`` ``{segment: hex}``: the SHA-256 of the
+    sensor orientations they were found from (:func:`motionlab.segments.orientations_sha256`);
+    ``joints`` ``{joint: HeadingTie}`` (:class:`HeadingTie`).
+    """
+
+    sha256: dict[str, str] = field(default_factory=dict)
+    joints: dict[str, HeadingTie] = field(default_factory=dict)
+    more: dict[str, Any] = field(default_factory=dict)
+
+    def to_tree(self) -> dict[str, Any]:
+        """The ties' tree, one subtree per joint."""
+        tree = super().to_tree()
+        tree["joints"] = {k: v.to_tree() for k, v in self.joints.items()}
+        return tree
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> HeadingTies:
+        """The ties of a stored tree (see :meth:`to_tree`)."""
+        ties = super().from_tree(tree)
+        ties.joints = {k: HeadingTie.from_tree(v) for k, v in ties.joints.items()}
+        return ties
+
+
 @dataclass
 class SegmentCalibration(_Record):
     """Sensor-to-segment calibration: how each sensor sits on its segment
@@ -493,41 +555,44 @@ class SegmentCalibration(_Record):
     SegmentRecord}``: how each sensor sits on its segment (:class:`SegmentRecord`).
     ``hinges`` ``{joint: HingeFit}``: axes from ordinary movement (:class:`HingeFit`,
     :class:`TwoAxisFit` for a two-axis joint, with its headings).
-    ``centres`` ``{joint: record}``: headings from a ball joint's shared centre. ``warnings``:
+    ``centres`` ``{joint: CentreHeading}``: heading ties from a ball joint's shared centre or a
+    trunk's rest (:class:`CentreHeading`). ``warnings``:
     lines the user should read; ``ok``: every segment's quality passed. ``grades`` ``{joint:
     JointGrades}``: a grade and its reason per angle (:class:`JointGrades`).
     ``single_pose``: the static step a recording too short for more was taken as (an
     OpenSense-style single-pose calibration, :mod:`motionlab.segments.single_pose`), else ``None``.
     ``hip_axes`` ``{joint: HipAxis}``: the hips' flexion axes from the movement
-    (:class:`HipAxis`). ``headings`` ``{"sha256": {segment: str}, "joints": {joint:
-    {"source": str, "times": (K,) s, "deltas": (K,) rad}}}``: each joint's heading ties (the
+    (:class:`HipAxis`). ``headings``: each joint's heading ties (:class:`HeadingTies`: the
     anchors of the heading alignment, :func:`motionlab.segments.heading_ties`), found once here
-    from the sensor orientations whose SHA-256 per segment is ``sha256`` (ties kept with a
+    from the sensor orientations whose SHA-256 per segment it holds (ties kept with a
     two-axis fit or a centre are in ``hinges``/``centres``); the angles, metrics and gait apply
     them to those orientations (:func:`motionlab.segments.segment_orientations`) and find them
-    anew for others, or for a calibration stored without them.
+    anew for others, or for a calibration stored without them (``None``; an empty stored
+    group reads as ``None`` too).
     """
 
     protocol: str
     steps: dict[str, Any] = field(default_factory=dict)
     segments: dict[str, SegmentRecord] = field(default_factory=dict)
     hinges: dict[str, HingeFit] = field(default_factory=dict)
-    centres: dict[str, dict[str, Any]] = field(default_factory=dict)
+    centres: dict[str, CentreHeading] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     ok: bool = True
     grades: dict[str, JointGrades] = field(default_factory=dict)
     protocol_path: str | None = None
     single_pose: str | None = None
     hip_axes: dict[str, HipAxis] = field(default_factory=dict)
-    headings: dict[str, Any] = field(default_factory=dict)
+    headings: HeadingTies | None = None
     more: dict[str, Any] = field(default_factory=dict)
 
     def to_tree(self) -> dict[str, Any]:
         """The calibration's tree, each segment record and hinge fit a subtree."""
         tree = super().to_tree()
-        for name in ("segments", "hinges", "grades", "hip_axes"):
+        for name in ("segments", "hinges", "centres", "grades", "hip_axes"):
             if name in tree:
                 tree[name] = {k: v.to_tree() for k, v in tree[name].items()}
+        if self.headings is not None:
+            tree["headings"] = self.headings.to_tree()
         return tree
 
     @classmethod
@@ -536,7 +601,10 @@ class SegmentCalibration(_Record):
         cal = super().from_tree(tree)
         cal.segments = {k: SegmentRecord.from_tree(v) for k, v in cal.segments.items()}
         cal.hinges = {k: HingeFit.from_tree(v) for k, v in cal.hinges.items()}
+        cal.centres = {k: CentreHeading.from_tree(v) for k, v in cal.centres.items()}
         cal.grades = {k: JointGrades.from_tree(v) for k, v in cal.grades.items()}
+        if isinstance(cal.headings, dict):
+            cal.headings = HeadingTies.from_tree(cal.headings) if cal.headings else None
         cal.hip_axes = {k: HipAxis.from_tree(v) for k, v in cal.hip_axes.items()}
         return cal
 

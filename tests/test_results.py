@@ -15,11 +15,14 @@ from motionlab.report.model import CalibrationRow, GradeRow, QualityRow, RomRow,
 from motionlab.results import (
     STAGES,
     AngleTable,
+    CentreHeading,
     ClockFit,
     ClockSync,
     FusionEntry,
     Gait,
     HeadingCorrection,
+    HeadingTie,
+    HeadingTies,
     HingeFit,
     HipAxis,
     JointGrades,
@@ -37,8 +40,9 @@ from motionlab.session import SCHEMA_VERSION, SensorStream, Session, load_sessio
 
 RECORDS = (
     ClockFit, ClockSync, FusionEntry, SegmentCalibration, SegmentRecord, SegmentQuality, HingeFit,
-    TwoAxisFit, HipAxis, JointGrades, TrunkMovement, AngleTable, HeadingCorrection, Metrics, Gait,
-    Validation, OpticalSync, GradeRow, RomRow, SymmetryRow, QualityRow, CalibrationRow,
+    TwoAxisFit, HipAxis, JointGrades, TrunkMovement, CentreHeading, HeadingTie, HeadingTies,
+    AngleTable, HeadingCorrection, Metrics, Gait, Validation, OpticalSync, GradeRow, RomRow,
+    SymmetryRow, QualityRow, CalibrationRow,
 )  # fmt: skip
 
 
@@ -166,16 +170,23 @@ def _old_calibration_tree() -> dict:
     grades = {"lumbar": {"grades": ["determined", "determined", "weak"],
                          "reasons": ["", "", "few turns"], "trunk": trunk},
               "elbow_r": {"grades": ["weak"] * 3, "reasons": ["short"] * 3}}  # fmt: skip
+    centres = {"hip_r": {"heading_times": np.array([1.0, 3.0]),
+                         "heading_deltas": np.array([0.2, 0.3]), "anchors": 2},
+               "lumbar": {"heading_times": [1.25], "heading_deltas": [0.05],
+                          "method": "trunk rest"}}  # fmt: skip
+    headings = {"sha256": {"thigh_r": "ab" * 32, "shank_r": "cd" * 32},
+                "joints": {"knee_r": {"source": "hinge", "times": np.array([0.5, 9.5]),
+                                      "deltas": np.array([0.01, 0.02])}}}  # fmt: skip
     return {"protocol": "elbow", "ok": False, "segments": {"forearm_r": segment},
             "hinges": {"elbow_r": hinge}, "hip_axes": {"hip_r": hip},
-            "grades": grades}  # fmt: skip
+            "grades": grades, "centres": centres, "headings": headings}  # fmt: skip
 
 
 def test_a_calibration_stored_before_the_typed_records_loads_and_is_stored_the_same(tmp_path):
-    """The segment records, their quality, the hinge fits, the hip axes and the grades (with a
-    trunk calibration's movement) are typed in memory, the file's layout is the dicts' (``None``
-    fields as JSON null), and keys a newer motionlab wrote are kept in ``more`` and written
-    back."""
+    """The segment records, their quality, the hinge fits, the hip axes, the grades (with a
+    trunk calibration's movement), the centres' and the joints' heading ties are typed in
+    memory, the file's layout is the dicts' (``None`` fields as JSON null), and keys a newer
+    motionlab wrote are kept in ``more`` and written back."""
     from motionlab.session import _read_tree, _write_tree
 
     old = _old_calibration_tree()
@@ -202,12 +213,21 @@ def test_a_calibration_stored_before_the_typed_records_loads_and_is_stored_the_s
     assert lumbar.trunk.heading_drift_deg is None and lumbar.trunk.more == {"future_t": 2}
     assert elbow.grades == ["weak"] * 3 and elbow.trunk is None
     assert JointGrades.from_tree({"grades": ["weak"] * 3}).reasons == []
+    hip_c, lumbar_c = cal.centres["hip_r"], cal.centres["lumbar"]
+    assert isinstance(hip_c, CentreHeading) and hip_c.anchors == 2 and hip_c.method is None
+    assert lumbar_c.method == "trunk rest" and lumbar_c.heading_deltas == [0.05]
+    np.testing.assert_array_equal(hip_c.heading_times, [1.0, 3.0])
+    assert isinstance(cal.headings, HeadingTies) and cal.headings.sha256["shank_r"] == "cd" * 32
+    knee = cal.headings.joints["knee_r"]
+    assert isinstance(knee, HeadingTie) and knee.source == "hinge"
+    np.testing.assert_array_equal(knee.deltas, [0.01, 0.02])
+    assert SegmentCalibration.from_tree({"protocol": "knee", "headings": {}}).headings is None
     save_session(load_session(path), tmp_path / "again.h5")
     with h5py.File(tmp_path / "again.h5") as f:
         again = _read_tree(f["results/calibration"])
     with h5py.File(path) as f:
         stored = _read_tree(f["results/calibration"])
-    for name in ("segments", "hinges", "hip_axes", "grades"):
+    for name in ("segments", "hinges", "hip_axes", "grades", "centres", "headings"):
         assert json.dumps(again[name], sort_keys=True, default=repr) == json.dumps(
             stored[name], sort_keys=True, default=repr
         )

@@ -56,6 +56,7 @@ from motionlab.fusion.detect import steady_mask
 from motionlab.kinematics.joint_types import joint_type
 from motionlab.protocol import Protocol
 from motionlab.results import (
+    CentreHeading,
     JointGrades,
     SegmentCalibration,
     SegmentQuality,
@@ -337,7 +338,7 @@ def calibrate(
         }  # fmt: skip
         segments[seg] = _segment(m, sensor_for_segment(session, seg), records, [])
 
-    centres: dict[str, dict[str, Any]] = {}
+    centres: dict[str, CentreHeading] = {}
     t_rest = float(t[rest].mean())
     seg_q = {s: rot.mul(q[s], rot.from_matrix(m)) for s, m in ((p, m_p), (d, m_d))}
     pose_delta = heading.heading_from_pose(seg_q[p][rest], seg_q[d][rest])
@@ -350,11 +351,7 @@ def calibrate(
         step = max(int(round(0.5 / float(np.median(np.diff(t))))), 1)
         times = [float(x) for x in t[::step]]
         deltas = [pose_delta + float(x) for x in drift[::step]]
-    centres[joint.name] = {
-        "heading_times": times,
-        "heading_deltas": deltas,
-        "method": "trunk rest",
-    }
+    centres[joint.name] = CentreHeading(times, deltas, method="trunk rest")
     followed: dict[str, bool] = {}  # the trunk's lean: the chair's heading drift followed
     for lean in leans:
         c = lean.distal
@@ -380,11 +377,7 @@ def calibrate(
             times_c = [float(x) for x in t[::step]]
             deltas_c = [delta_c + float(x) for x in lean_drift[::step]]
         followed[lean.name] = lean_drift is not None
-        centres[lean.name] = {
-            "heading_times": times_c,
-            "heading_deltas": deltas_c,
-            "method": "trunk rest",
-        }
+        centres[lean.name] = CentreHeading(times_c, deltas_c, method="trunk rest")
 
     notes: list[str] = []
     summary = TrunkMovement(
