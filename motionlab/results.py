@@ -62,6 +62,7 @@ __all__ = [
     "Gait",
     "HeadingCorrection",
     "Metrics",
+    "AngleMetrics",
     "Results",
     "OpticalSync",
     "Validation",
@@ -698,26 +699,76 @@ class HeadingCorrection(_Record):
 # --------------------------------------------------------------------------------- metrics
 
 
+def _nan_curve() -> np.ndarray:
+    return np.full(101, np.nan)
+
+
+@dataclass(frozen=True)
+class AngleMetrics(_Record):
+    """One angle column's metrics over one task block (:func:`motionlab.kinematics.metrics.
+    angle_metrics`; one value of ``Metrics.joints[task]``), all in degrees.
+
+    ``rom_deg``: its range over the block, ``min_deg`` / ``max_deg`` its extremes (NaN without
+    a finite sample); ``repetitions``: the cycles found (strides in gait, repetitions else; 0:
+    none); per cycle ``cycle_max_deg`` / ``cycle_min_deg`` (one value each) and their means
+    ``cycle_max_mean_deg`` / ``cycle_min_mean_deg`` (NaN without cycles); ``curve_mean_deg`` /
+    ``curve_sd_deg`` (101,): mean and SD over the cycles normalised to 0–100 % (NaN without
+    cycles); ``cycle_start_s`` (s): each cycle's start (``None`` when not given).
+    """
+
+    rom_deg: float
+    min_deg: float
+    max_deg: float
+    repetitions: int = 0
+    cycle_max_deg: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    cycle_min_deg: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    cycle_max_mean_deg: float = float("nan")
+    cycle_min_mean_deg: float = float("nan")
+    curve_mean_deg: np.ndarray = field(default_factory=_nan_curve)
+    curve_sd_deg: np.ndarray = field(default_factory=_nan_curve)
+    cycle_start_s: np.ndarray | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+
 @dataclass
 class Metrics(_Record):
     """Metrics per task block (:func:`motionlab.kinematics.metrics.session_metrics`).
 
     ``protocol``: its name. ``blocks`` ``{task: {start_s, end_s, source}}`` (``source``:
-    ``detected`` or ``given``). ``joints`` ``{task: {column: metrics}}`` (``rom_deg``,
-    ``min_deg``, ``max_deg``, ``repetitions``, cycle peaks, ``curve_mean_deg`` /
-    ``curve_sd_deg`` over 0–100 %, ``cycle_start_s``). When the protocol asks for them:
+    ``detected`` or ``given``). ``joints`` ``{task: {column: AngleMetrics}}``
+    (:class:`AngleMetrics`: range, extremes, cycles and the mean curve). When the protocol asks
+    for them:
     ``gait`` ``{task: {joint: stance metrics}}``, ``out_of_plane_offset`` ``{task: {joint:
     ...}}``, ``trunk_compensation`` ``{task: ...}``, ``cross_talk`` ``{block: {joint: ...}}``.
     """
 
     protocol: str
-    joints: dict[str, dict[str, Any]] = field(default_factory=dict)
+    joints: dict[str, dict[str, AngleMetrics]] = field(default_factory=dict)
     blocks: dict[str, dict[str, Any]] = field(default_factory=dict)
     gait: dict[str, Any] | None = None
     out_of_plane_offset: dict[str, Any] | None = None
     trunk_compensation: dict[str, Any] | None = None
     cross_talk: dict[str, Any] | None = None
     more: dict[str, Any] = field(default_factory=dict)
+
+    def to_tree(self) -> dict[str, Any]:
+        """The metrics' tree, each angle's metrics a subtree."""
+        tree = super().to_tree()
+        tree["joints"] = {
+            task: {col: m.to_tree() for col, m in cols.items()}
+            for task, cols in self.joints.items()
+        }
+        return tree
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> Metrics:
+        """The metrics of a stored tree (see :meth:`to_tree`)."""
+        out = super().from_tree(tree)
+        out.joints = {
+            task: {col: AngleMetrics.from_tree(m) for col, m in cols.items()}
+            for task, cols in out.joints.items()
+        }
+        return out
 
     def spans(self) -> dict[str, tuple[float, float]]:
         """``{task: (start_s, end_s)}`` of the blocks."""

@@ -12,6 +12,7 @@ from motionlab.report.normative import band_for, load_bands
 from motionlab.report.pdf import RC, Document, layout_problems, page_text, text_width, wrap
 from motionlab.report.sentences import findings, rom_sentence, span
 from motionlab.results import (
+    AngleMetrics,
     JointGrades,
     Metrics,
     SegmentCalibration,
@@ -21,18 +22,18 @@ from motionlab.results import (
 from motionlab.session import Session
 
 
-def _angle(lo: float, hi: float, reps: int = 10) -> dict:
+def _angle(lo: float, hi: float, reps: int = 10) -> AngleMetrics:
     """A metrics entry whose cycles all go from ``lo`` to ``hi`` (deg)."""
-    return {
-        "rom_deg": hi - lo + 2.0,
-        "min_deg": lo - 1.0,
-        "max_deg": hi + 1.0,
-        "repetitions": reps,
-        "cycle_max_mean_deg": hi,
-        "cycle_min_mean_deg": lo,
-        "curve_mean_deg": np.linspace(lo, hi, 101),
-        "curve_sd_deg": np.ones(101),
-    }
+    return AngleMetrics(
+        rom_deg=hi - lo + 2.0,
+        min_deg=lo - 1.0,
+        max_deg=hi + 1.0,
+        repetitions=reps,
+        cycle_max_mean_deg=hi,
+        cycle_min_mean_deg=lo,
+        curve_mean_deg=np.linspace(lo, hi, 101),
+        curve_sd_deg=np.ones(101),
+    )
 
 
 def _view(right: tuple, left: tuple) -> SessionView:

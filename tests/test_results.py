@@ -14,6 +14,7 @@ import motionlab.results as results_module
 from motionlab.report.model import CalibrationRow, GradeRow, QualityRow, RomRow, SymmetryRow
 from motionlab.results import (
     STAGES,
+    AngleMetrics,
     AngleTable,
     CentreHeading,
     ClockFit,
@@ -41,8 +42,8 @@ from motionlab.session import SCHEMA_VERSION, SensorStream, Session, load_sessio
 RECORDS = (
     ClockFit, ClockSync, FusionEntry, SegmentCalibration, SegmentRecord, SegmentQuality, HingeFit,
     TwoAxisFit, HipAxis, JointGrades, TrunkMovement, CentreHeading, HeadingTie, HeadingTies,
-    AngleTable, HeadingCorrection, Metrics, Gait, Validation, OpticalSync, GradeRow, RomRow,
-    SymmetryRow, QualityRow, CalibrationRow,
+    AngleTable, AngleMetrics, HeadingCorrection, Metrics, Gait, Validation, OpticalSync, GradeRow,
+    RomRow, SymmetryRow, QualityRow, CalibrationRow,
 )  # fmt: skip
 
 
@@ -271,3 +272,36 @@ def test_the_validation_sync_is_typed_and_stored_as_before(tmp_path):
     np.testing.assert_array_equal(again.inliers, [True, False])
     assert again.n_windows == 2 and again.more == {"future": 3}
     assert Validation.from_tree({"mode": "full"}).sync.method == "none"  # no sync stored
+
+
+def test_metrics_stored_before_the_typed_records_load_and_are_stored_the_same(tmp_path):
+    """``metrics.joints[task][column]`` is an :class:`AngleMetrics`; a file holding them as
+    dicts loads, a newer key is kept, and they are written back as they were."""
+    from motionlab.session import _read_tree, _write_tree
+
+    flex = {"rom_deg": 60.0, "min_deg": 2.0, "max_deg": 62.0, "repetitions": 2,
+            "cycle_max_deg": np.array([61.0, 62.0]), "cycle_min_deg": np.array([2.0, 3.0]),
+            "cycle_max_mean_deg": 61.5, "cycle_min_mean_deg": 2.5,
+            "curve_mean_deg": np.linspace(2.0, 62.0, 101), "curve_sd_deg": np.ones(101),
+            "cycle_start_s": np.array([1.0, 2.1]), "future_m": "kept"}  # fmt: skip
+    tree = {"protocol": "knee", "joints": {"squat": {"knee_r_flexion_deg": flex}},
+            "blocks": {"squat": {"start_s": 0.5, "end_s": 3.5, "source": "given"}}}  # fmt: skip
+    path = tmp_path / "old.h5"
+    save_session(Session(), path)
+    with h5py.File(path, "r+") as f:
+        _write_tree(f.require_group("results").create_group("metrics"), tree)
+    m = load_session(path).results.metrics.joints["squat"]["knee_r_flexion_deg"]
+    assert isinstance(m, AngleMetrics) and m.repetitions == 2 and m.cycle_min_mean_deg == 2.5
+    assert m.more == {"future_m": "kept"}
+    np.testing.assert_array_equal(m.cycle_start_s, [1.0, 2.1])
+    save_session(load_session(path), tmp_path / "again.h5")
+    with h5py.File(tmp_path / "again.h5") as f:
+        again = _read_tree(f["results/metrics"])
+    with h5py.File(path) as f:
+        stored = _read_tree(f["results/metrics"])
+    assert json.dumps(again, sort_keys=True, default=repr) == json.dumps(
+        stored, sort_keys=True, default=repr
+    )
+    bare = AngleMetrics(1.0, 0.0, 1.0)  # no cycles: NaN curves, no starts stored
+    assert bare.repetitions == 0 and np.isnan(bare.curve_mean_deg).all()
+    assert "cycle_start_s" not in bare.to_tree()

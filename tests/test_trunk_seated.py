@@ -232,9 +232,9 @@ def test_the_trunk_movement_is_measured_as_one_block(seated, tmp_path):
     inside = (cols["time_s"] >= start) & (cols["time_s"] < end)
     for plane in PLANES:
         m = block[f"lumbar_{plane}_deg"]
-        assert m["repetitions"] == 0
-        assert m["rom_deg"] == pytest.approx(np.ptp(cols[f"lumbar_{plane}_deg"][inside]), abs=0.5)
-    assert block["lumbar_flexion_deg"]["rom_deg"] > 40  # the simulated forward bend and back
+        assert m.repetitions == 0
+        assert m.rom_deg == pytest.approx(np.ptp(cols[f"lumbar_{plane}_deg"][inside]), abs=0.5)
+    assert block["lumbar_flexion_deg"].rom_deg > 40  # the simulated forward bend and back
     out = write_report(load_views([session]), tmp_path / "report.pdf")
     assert "Lumbar spine" in out.sections
     assert not [s for s in out.sections if "cycles against normal" in s]

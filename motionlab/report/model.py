@@ -39,7 +39,14 @@ from motionlab.kinematics.gps import gated_profile, variable_grades
 from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, plane, title
 from motionlab.kinematics.metrics import THORAX as THORAX  # re-exported for the pages
 from motionlab.protocol import Joint, Protocol, load_protocol
-from motionlab.results import Gait, JointGrades, Metrics, SegmentCalibration, SegmentRecord
+from motionlab.results import (
+    AngleMetrics,
+    Gait,
+    JointGrades,
+    Metrics,
+    SegmentCalibration,
+    SegmentRecord,
+)
 from motionlab.segments import sensor_for_segment
 from motionlab.segments.grades import GRADES, _frame_grade
 from motionlab.session import Session
@@ -304,11 +311,11 @@ def normal_range(protocol: Protocol, task: str, column: str) -> tuple[float, flo
     return (float(rng[0]), float(rng[1])) if rng else None
 
 
-def _extremes(m: dict[str, Any]) -> tuple[float, float]:
+def _extremes(m: AngleMetrics) -> tuple[float, float]:
     """Typical extremes: the means of the per-cycle peaks, else the block's min and max."""
-    if m.get("repetitions", 0) >= 1 and np.isfinite(m.get("cycle_max_mean_deg", np.nan)):
-        return float(m["cycle_min_mean_deg"]), float(m["cycle_max_mean_deg"])
-    return float(m["min_deg"]), float(m["max_deg"])
+    if m.repetitions >= 1 and np.isfinite(m.cycle_max_mean_deg):
+        return float(m.cycle_min_mean_deg), float(m.cycle_max_mean_deg)
+    return float(m.min_deg), float(m.max_deg)
 
 
 def compare(low: float, high: float, normal: tuple[float, float] | None, reach: bool) -> str:
@@ -421,12 +428,12 @@ def rom_rows(view: SessionView) -> list[RomRow]:
                         angle=angle,
                         plane=plane(joint, angle),
                         column=col,
-                        rom_deg=float(m["rom_deg"]),
-                        min_deg=float(m["min_deg"]),
-                        max_deg=float(m["max_deg"]),
+                        rom_deg=float(m.rom_deg),
+                        min_deg=float(m.min_deg),
+                        max_deg=float(m.max_deg),
                         typical_min_deg=low,
                         typical_max_deg=high,
-                        repetitions=int(m["repetitions"]),
+                        repetitions=int(m.repetitions),
                         normal=normal,
                         status=status if is_determined(grade) else "",
                         grade=grade,
