@@ -63,6 +63,7 @@ __all__ = [
     "HeadingCorrection",
     "Metrics",
     "AngleMetrics",
+    "TaskBlock",
     "Results",
     "OpticalSync",
     "Validation",
@@ -699,6 +700,20 @@ class HeadingCorrection(_Record):
 # --------------------------------------------------------------------------------- metrics
 
 
+@dataclass(frozen=True)
+class TaskBlock(_Record):
+    """One task's time range (one value of :attr:`Metrics.blocks`): ``start_s`` and ``end_s``
+    (s, on the session's clock); ``source``: ``detected`` (found in the recording) or ``given``
+    (the user's time range; ``None``, not stored, when the metrics were computed from given
+    ranges without a session, :func:`motionlab.kinematics.metrics.compute_metrics`).
+    """
+
+    start_s: float
+    end_s: float
+    source: str | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+
 def _nan_curve() -> np.ndarray:
     return np.full(101, np.nan)
 
@@ -734,8 +749,8 @@ class AngleMetrics(_Record):
 class Metrics(_Record):
     """Metrics per task block (:func:`motionlab.kinematics.metrics.session_metrics`).
 
-    ``protocol``: its name. ``blocks`` ``{task: {start_s, end_s, source}}`` (``source``:
-    ``detected`` or ``given``). ``joints`` ``{task: {column: AngleMetrics}}``
+    ``protocol``: its name. ``blocks`` ``{task: TaskBlock}``: each task's time range
+    (:class:`TaskBlock`). ``joints`` ``{task: {column: AngleMetrics}}``
     (:class:`AngleMetrics`: range, extremes, cycles and the mean curve). When the protocol asks
     for them:
     ``gait`` ``{task: {joint: stance metrics}}``, ``out_of_plane_offset`` ``{task: {joint:
@@ -744,7 +759,7 @@ class Metrics(_Record):
 
     protocol: str
     joints: dict[str, dict[str, AngleMetrics]] = field(default_factory=dict)
-    blocks: dict[str, dict[str, Any]] = field(default_factory=dict)
+    blocks: dict[str, TaskBlock] = field(default_factory=dict)
     gait: dict[str, Any] | None = None
     out_of_plane_offset: dict[str, Any] | None = None
     trunk_compensation: dict[str, Any] | None = None
@@ -758,6 +773,7 @@ class Metrics(_Record):
             task: {col: m.to_tree() for col, m in cols.items()}
             for task, cols in self.joints.items()
         }
+        tree["blocks"] = {k: b.to_tree() for k, b in self.blocks.items()}
         return tree
 
     @classmethod
@@ -768,11 +784,12 @@ class Metrics(_Record):
             task: {col: AngleMetrics.from_tree(m) for col, m in cols.items()}
             for task, cols in out.joints.items()
         }
+        out.blocks = {k: TaskBlock.from_tree(b) for k, b in out.blocks.items()}
         return out
 
     def spans(self) -> dict[str, tuple[float, float]]:
         """``{task: (start_s, end_s)}`` of the blocks."""
-        return {k: (float(b["start_s"]), float(b["end_s"])) for k, b in self.blocks.items()}
+        return {k: (float(b.start_s), float(b.end_s)) for k, b in self.blocks.items()}
 
 
 @dataclass

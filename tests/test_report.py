@@ -18,6 +18,7 @@ from motionlab.results import (
     SegmentCalibration,
     SegmentQuality,
     SegmentRecord,
+    TaskBlock,
 )
 from motionlab.session import Session
 
@@ -48,7 +49,7 @@ def _view(right: tuple, left: tuple) -> SessionView:
     }
     metrics = Metrics(
         "knee",
-        blocks={"gait": {"start_s": 10.0, "end_s": 40.0}},
+        blocks={"gait": TaskBlock(10.0, 40.0)},
         joints={"gait": joints},
         gait={
             "gait": {

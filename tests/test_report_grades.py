@@ -60,8 +60,8 @@ def _regait(session, start: float, end: float):
     from motionlab.kinematics.gait import analyse_gait
 
     ses = copy.deepcopy(session)
-    block = ses.results.metrics.blocks["walk"]
-    block["start_s"], block["end_s"] = float(start), float(end)
+    blocks = ses.results.metrics.blocks
+    blocks["walk"] = replace(blocks["walk"], start_s=float(start), end_s=float(end))
     ses.results.gait = analyse_gait(ses, load_protocol("walk"))
     return ses
 
@@ -281,8 +281,7 @@ def test_knee_with_a_wrong_axis(walk):
 def test_pelvis_not_calibrated(walk):
     ses = _pelvis_nominal(walk)
     assert (
-        load_view(ses).session.results.calibration.grades["hip_r"].grades
-        == ["not determined"] * 3
+        load_view(ses).session.results.calibration.grades["hip_r"].grades == ["not determined"] * 3
     )
     assert problems(ses) == []
 

@@ -33,6 +33,7 @@ from motionlab.results import (
     SegmentCalibration,
     SegmentQuality,
     SegmentRecord,
+    TaskBlock,
     TrunkMovement,
     TwoAxisFit,
     Validation,
@@ -43,7 +44,7 @@ RECORDS = (
     ClockFit, ClockSync, FusionEntry, SegmentCalibration, SegmentRecord, SegmentQuality, HingeFit,
     TwoAxisFit, HipAxis, JointGrades, TrunkMovement, CentreHeading, HeadingTie, HeadingTies,
     AngleTable, AngleMetrics, HeadingCorrection, Metrics, Gait, Validation, OpticalSync, GradeRow,
-    RomRow, SymmetryRow, QualityRow, CalibrationRow,
+    RomRow, SymmetryRow, QualityRow, CalibrationRow, TaskBlock,
 )  # fmt: skip
 
 
@@ -93,7 +94,7 @@ def _analysed_session() -> Session:
         ),
         angles=AngleTable(t, {"knee_r_flexion_deg": rng.normal(size=200)}),
         heading={"knee_r": HeadingCorrection("hinge", 3, 1.0, 0.5, 0.1)},
-        metrics=Metrics("knee", blocks={"walk": {"start_s": 0.8, "end_s": 1.9}}),
+        metrics=Metrics("knee", blocks={"walk": TaskBlock(0.8, 1.9)}),
         gait=Gait("no gait: no shank sensor under a knee joint"),
     )
     return Session(sensors={"shank_r": sensor}, results=res)
@@ -275,8 +276,9 @@ def test_the_validation_sync_is_typed_and_stored_as_before(tmp_path):
 
 
 def test_metrics_stored_before_the_typed_records_load_and_are_stored_the_same(tmp_path):
-    """``metrics.joints[task][column]`` is an :class:`AngleMetrics`; a file holding them as
-    dicts loads, a newer key is kept, and they are written back as they were."""
+    """``metrics.joints[task][column]`` is an :class:`AngleMetrics` and a block a
+    :class:`TaskBlock`; a file holding them as dicts loads, a newer key is kept, and they are
+    written back as they were."""
     from motionlab.session import _read_tree, _write_tree
 
     flex = {"rom_deg": 60.0, "min_deg": 2.0, "max_deg": 62.0, "repetitions": 2,
@@ -293,6 +295,8 @@ def test_metrics_stored_before_the_typed_records_load_and_are_stored_the_same(tm
     m = load_session(path).results.metrics.joints["squat"]["knee_r_flexion_deg"]
     assert isinstance(m, AngleMetrics) and m.repetitions == 2 and m.cycle_min_mean_deg == 2.5
     assert m.more == {"future_m": "kept"}
+    block = load_session(path).results.metrics.blocks["squat"]
+    assert isinstance(block, TaskBlock) and block.source == "given" and block.end_s == 3.5
     np.testing.assert_array_equal(m.cycle_start_s, [1.0, 2.1])
     save_session(load_session(path), tmp_path / "again.h5")
     with h5py.File(tmp_path / "again.h5") as f:

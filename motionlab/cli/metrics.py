@@ -78,7 +78,7 @@ def command(
         ses.add_provenance(parameters={"stage": "metrics", "protocol": str(protocol.path)})
         save_session(ses, session, force=True)
     for block, rng in result.blocks.items():
-        click.echo(f"task {block:<20} {rng['start_s']:8.2f}–{rng['end_s']:8.2f} s")
+        click.echo(f"task {block:<20} {rng.start_s:8.2f}–{rng.end_s:8.2f} s")
         for col, m in result.joints[block].items():
             if not np.isfinite(m.rom_deg):
                 continue

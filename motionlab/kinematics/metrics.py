@@ -40,7 +40,7 @@ from motionlab.kinematics import out_of_plane as oop
 from motionlab.kinematics.joint_types import angle_columns, split_column
 from motionlab.kinematics.session_angles import angle_table, nominal_calibration
 from motionlab.protocol import Joint, Protocol, Task
-from motionlab.results import AngleMetrics, Metrics, SegmentCalibration
+from motionlab.results import AngleMetrics, Metrics, SegmentCalibration, TaskBlock
 from motionlab.segments import (
     reference_step,
     segment_orientations,
@@ -207,7 +207,7 @@ def compute_metrics(
             out.setdefault("cross_talk", {}).setdefault(block, {})[joint.name] = oop.cross_talk(
                 table, nominal_table, joint, idx, _window(time, t0, t1)
             )
-    out["blocks"] = {k: {"start_s": float(v[0]), "end_s": float(v[1])} for k, v in blocks.items()}
+    out["blocks"] = {k: TaskBlock(float(v[0]), float(v[1])) for k, v in blocks.items()}
     return Metrics(**out)
 
 
@@ -303,8 +303,7 @@ def session_metrics(
         nominal,
         shank_angular_velocity(session, protocol, cal),
     )
-    for v in out.blocks.values():
-        v["source"] = source
+    out.blocks = {k: replace(v, source=source) for k, v in out.blocks.items()}
     return out
 
 

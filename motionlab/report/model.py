@@ -211,8 +211,8 @@ class SessionView:
     def blocks(self) -> dict[str, tuple[float, float]]:
         """Task blocks ``{task: (start_s, end_s)}`` of the metrics, in time order."""
         blocks = self.metrics.blocks
-        order = sorted(blocks, key=lambda k: blocks[k]["start_s"])
-        return {k: (blocks[k]["start_s"], blocks[k]["end_s"]) for k in order}
+        order = sorted(blocks, key=lambda k: blocks[k].start_s)
+        return {k: (blocks[k].start_s, blocks[k].end_s) for k in order}
 
     def tasks(self) -> list[str]:
         """Tasks with joint metrics, in time order."""
