@@ -60,6 +60,7 @@ __all__ = [
     "ClockSync",
     "FusionEntry",
     "Gait",
+    "GaitSummary",
     "HeadingCorrection",
     "Metrics",
     "AngleMetrics",
@@ -792,13 +793,45 @@ class Metrics(_Record):
         return {k: (float(b.start_s), float(b.end_s)) for k, b in self.blocks.items()}
 
 
+@dataclass(frozen=True)
+class GaitSummary(_Record):
+    """The kept strides summarised (:func:`motionlab.kinematics.spatiotemporal.summary`;
+    :attr:`Gait.summary`).
+
+    ``sides`` ``{side: {column: {mean, sd, cv_pct, se, median, q1, q3, strides_n}}}``: per side
+    (``r``, ``l``) and stride-table column the statistics of its kept strides (in the column's
+    unit). Both sides together: ``cadence_steps_per_min`` (steps/min), ``step_time_asymmetry_pct``
+    (%) with its standard error ``step_time_asymmetry_se_pct`` from ``step_pairs`` paired
+    steady steps, ``stride_time_cv_pct`` (%, within steady bouts) with
+    ``stride_time_cv_se_pct``, ``walking_speed_m_s`` (m/s; NaN without leg lengths) — each NaN
+    when withheld, and NaN in a file written before it existed. ``strides_kept``;
+    ``strides_rejected`` ``{reason: count}``; ``min_strides``: the fewest strides a mean needs
+    (``None`` in a file written without it); ``withheld`` ``{number: why it is not given}``.
+    """
+
+    sides: dict[str, dict[str, dict[str, float]]] = field(default_factory=dict)
+    min_strides: int | None = None
+    cadence_steps_per_min: float = float("nan")
+    step_pairs: int = 0
+    step_time_asymmetry_pct: float = float("nan")
+    step_time_asymmetry_se_pct: float = float("nan")
+    stride_time_cv_pct: float = float("nan")
+    stride_time_cv_se_pct: float = float("nan")
+    walking_speed_m_s: float = float("nan")
+    strides_kept: int = 0
+    strides_rejected: dict[str, int] = field(default_factory=dict)
+    withheld: dict[str, str] = field(default_factory=dict)
+    more: dict[str, Any] = field(default_factory=dict)
+
+
 @dataclass
 class Gait(_Record):
     """The gait analysis (:func:`motionlab.kinematics.gait.analyse_gait`).
 
     ``status``: ``ok`` or ``no gait: <why>``. With ``ok``: ``tasks`` ``{task: {start_s,
     end_s}}``, ``events`` ``{side: {ic, ic_confidence, fc, fc_confidence}}`` (s),
-    ``strides`` (one array per stride-table column), ``summary``, ``walking_speed`` (the step and
+    ``strides`` (one array per stride-table column), ``summary`` (:class:`GaitSummary`),
+    ``walking_speed`` (the step and
     stride length model and the segment lengths used, or why they are not measured), ``pelvis``
     (pelvis angles, deg, with its ``time_s`` and ``method``), ``curves`` ``{side: {variable:
     (101,) deg}}`` and ``map`` (the movement analysis profile).
@@ -808,12 +841,27 @@ class Gait(_Record):
     tasks: dict[str, Any] | None = None
     events: dict[str, Any] | None = None
     strides: dict[str, Any] | None = None
-    summary: Any = None
+    summary: GaitSummary | None = None
     walking_speed: str | None = None
     pelvis: dict[str, Any] | None = None
     curves: dict[str, Any] | None = None
     map: Any = None
     more: dict[str, Any] = field(default_factory=dict)
+
+    def to_tree(self) -> dict[str, Any]:
+        """The gait's tree, its summary a subtree."""
+        tree = super().to_tree()
+        if self.summary is not None:
+            tree["summary"] = self.summary.to_tree()
+        return tree
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> Gait:
+        """The gait of a stored tree (see :meth:`to_tree`)."""
+        gait = super().from_tree(tree)
+        if isinstance(gait.summary, dict):
+            gait.summary = GaitSummary.from_tree(gait.summary)
+        return gait
 
     @property
     def ok(self) -> bool:

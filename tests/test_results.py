@@ -21,6 +21,7 @@ from motionlab.results import (
     ClockSync,
     FusionEntry,
     Gait,
+    GaitSummary,
     HeadingCorrection,
     HeadingTie,
     HeadingTies,
@@ -44,7 +45,7 @@ RECORDS = (
     ClockFit, ClockSync, FusionEntry, SegmentCalibration, SegmentRecord, SegmentQuality, HingeFit,
     TwoAxisFit, HipAxis, JointGrades, TrunkMovement, CentreHeading, HeadingTie, HeadingTies,
     AngleTable, AngleMetrics, HeadingCorrection, Metrics, Gait, Validation, OpticalSync, GradeRow,
-    RomRow, SymmetryRow, QualityRow, CalibrationRow, TaskBlock,
+    RomRow, SymmetryRow, QualityRow, CalibrationRow, TaskBlock, GaitSummary,
 )  # fmt: skip
 
 
@@ -309,3 +310,22 @@ def test_metrics_stored_before_the_typed_records_load_and_are_stored_the_same(tm
     bare = AngleMetrics(1.0, 0.0, 1.0)  # no cycles: NaN curves, no starts stored
     assert bare.repetitions == 0 and np.isnan(bare.curve_mean_deg).all()
     assert "cycle_start_s" not in bare.to_tree()
+
+
+def test_a_gait_summary_stored_as_a_dict_loads_and_is_stored_the_same():
+    """``gait.summary`` is a :class:`GaitSummary`; the dict the file held loads (a newer key
+    kept) and its tree is that dict."""
+    stats = {"mean": 1.1, "sd": 0.05, "cv_pct": 4.5, "se": 0.02, "median": 1.1, "q1": 1.05,
+             "q3": 1.15, "strides_n": 8}  # fmt: skip
+    summ = {"sides": {"r": {"stride_time_s": stats}, "l": {"stride_time_s": stats}},
+            "min_strides": 3, "cadence_steps_per_min": 109.0, "step_pairs": 7,
+            "step_time_asymmetry_pct": 2.0, "step_time_asymmetry_se_pct": 0.5,
+            "stride_time_cv_pct": 3.0, "stride_time_cv_se_pct": 0.8, "walking_speed_m_s": 1.2,
+            "strides_kept": 16, "strides_rejected": {"turn": 2}, "withheld": {},
+            "future_g": 1}  # fmt: skip
+    gait = Gait.from_tree({"status": "ok", "summary": summ})
+    s = gait.summary
+    assert isinstance(s, GaitSummary) and s.step_pairs == 7 and s.strides_rejected == {"turn": 2}
+    assert s.sides["r"]["stride_time_s"]["strides_n"] == 8 and s.more == {"future_g": 1}
+    assert gait.to_tree()["summary"] == summ
+    assert Gait.from_tree({"status": "no gait: no shank"}).summary is None
