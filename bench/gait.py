@@ -164,8 +164,8 @@ def run_one(seed: int, variant: str, one_clock: bool = False) -> dict[str, float
     row["strides kept r"] = float(g.strides["kept"][g.strides["side"] == "r"].sum())
     row["strides kept l"] = float(g.strides["kept"][g.strides["side"] == "l"].sum())
     print(f"seed {seed} {variant}: {g.summary.strides_rejected}", file=sys.stderr)
-    row["GPS"] = g.map["gps"]["overall"]
-    row["population GPS"] = g.map["population_gps_deg"]
+    row["GPS"] = g.map.gps["overall"]
+    row["population GPS"] = g.map.population_gps_deg
     pct = np.linspace(0, 100, 101)
     bump = np.exp(-0.5 * ((pct - 73) / 8) ** 2)  # swing flexion, peak at 73 %
     for deficit in (10, 20):
@@ -174,7 +174,7 @@ def run_one(seed: int, variant: str, one_clock: bool = False) -> dict[str, float
         for s in means:
             if "knee_flexion" in means[s]:
                 means[s]["knee_flexion"] = means[s]["knee_flexion"] - deficit * bump
-        row[f"GPS -{deficit}°"] = movement_analysis_profile(means)["gps"]["overall"]
+        row[f"GPS -{deficit}°"] = movement_analysis_profile(means).gps["overall"]
     return row
 
 

@@ -61,6 +61,7 @@ __all__ = [
     "FusionEntry",
     "Gait",
     "GaitSummary",
+    "MovementProfile",
     "HeadingCorrection",
     "Metrics",
     "AngleMetrics",
@@ -824,6 +825,30 @@ class GaitSummary(_Record):
     more: dict[str, Any] = field(default_factory=dict)
 
 
+@dataclass(frozen=True)
+class MovementProfile(_Record):
+    """The Movement Analysis Profile and Gait Profile Score (Baker et al. 2009;
+    :mod:`motionlab.kinematics.gps`; :attr:`Gait.map`), in degrees.
+
+    ``gvs`` ``{side: {variable: deg}}``: each variable's Gait Variable Score (RMS difference of
+    its mean curve from the normative mean); ``gps`` ``{side: deg, "overall": deg}``: their RMS
+    per side and over both (NaN when withheld); ``population_gps_deg``: the GPS expected of a
+    normal subject over the same variables (``None`` in a file written without it);
+    ``variables``: the variables scored or withheld; ``withheld`` ``{side: {variable: why}}``
+    and ``not_computed`` (a sentence naming what is missing, empty when the overall GPS is
+    given): what the grades and strides did not allow (:func:`motionlab.kinematics.gps.
+    gated_profile`; ``None`` for a profile not gated).
+    """
+
+    gvs: dict[str, dict[str, float]] = field(default_factory=dict)
+    gps: dict[str, float] = field(default_factory=dict)
+    population_gps_deg: float | None = None
+    variables: list[str] = field(default_factory=list)
+    withheld: dict[str, dict[str, str]] | None = None
+    not_computed: str | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+
 @dataclass
 class Gait(_Record):
     """The gait analysis (:func:`motionlab.kinematics.gait.analyse_gait`).
@@ -834,7 +859,7 @@ class Gait(_Record):
     ``walking_speed`` (the step and
     stride length model and the segment lengths used, or why they are not measured), ``pelvis``
     (pelvis angles, deg, with its ``time_s`` and ``method``), ``curves`` ``{side: {variable:
-    (101,) deg}}`` and ``map`` (the movement analysis profile).
+    (101,) deg}}`` and ``map`` (the movement analysis profile, :class:`MovementProfile`).
     """
 
     status: str
@@ -845,7 +870,7 @@ class Gait(_Record):
     walking_speed: str | None = None
     pelvis: dict[str, Any] | None = None
     curves: dict[str, Any] | None = None
-    map: Any = None
+    map: MovementProfile | None = None
     more: dict[str, Any] = field(default_factory=dict)
 
     def to_tree(self) -> dict[str, Any]:
@@ -853,6 +878,8 @@ class Gait(_Record):
         tree = super().to_tree()
         if self.summary is not None:
             tree["summary"] = self.summary.to_tree()
+        if self.map is not None:
+            tree["map"] = self.map.to_tree()
         return tree
 
     @classmethod
@@ -861,6 +888,8 @@ class Gait(_Record):
         gait = super().from_tree(tree)
         if isinstance(gait.summary, dict):
             gait.summary = GaitSummary.from_tree(gait.summary)
+        if isinstance(gait.map, dict):
+            gait.map = MovementProfile.from_tree(gait.map)
         return gait
 
     @property

@@ -251,7 +251,7 @@ def test_real_walk_final_contact_stance_and_stride_length():
 def test_gps_zero_for_the_normative_mean_and_rising_with_a_deficit():
     pct = np.linspace(0, 100, 101)
     means = {s: {v: normative(v, pct)[0] for v in ("knee_flexion", "hip_flexion")} for s in "rl"}
-    assert movement_analysis_profile(means)["gps"]["overall"] == pytest.approx(0, abs=1e-9)
+    assert movement_analysis_profile(means).gps["overall"] == pytest.approx(0, abs=1e-9)
     bump = np.exp(-0.5 * ((pct - 73) / 8) ** 2)
     scores = [gvs(means["r"]["knee_flexion"] - d * bump, "knee_flexion") for d in (0, 10, 20)]
     assert scores[0] < scores[1] < scores[2]

@@ -29,6 +29,7 @@ from motionlab.results import (
     HipAxis,
     JointGrades,
     Metrics,
+    MovementProfile,
     OpticalSync,
     Results,
     SegmentCalibration,
@@ -45,7 +46,7 @@ RECORDS = (
     ClockFit, ClockSync, FusionEntry, SegmentCalibration, SegmentRecord, SegmentQuality, HingeFit,
     TwoAxisFit, HipAxis, JointGrades, TrunkMovement, CentreHeading, HeadingTie, HeadingTies,
     AngleTable, AngleMetrics, HeadingCorrection, Metrics, Gait, Validation, OpticalSync, GradeRow,
-    RomRow, SymmetryRow, QualityRow, CalibrationRow, TaskBlock, GaitSummary,
+    RomRow, SymmetryRow, QualityRow, CalibrationRow, TaskBlock, GaitSummary, MovementProfile,
 )  # fmt: skip
 
 
@@ -312,9 +313,9 @@ def test_metrics_stored_before_the_typed_records_load_and_are_stored_the_same(tm
     assert "cycle_start_s" not in bare.to_tree()
 
 
-def test_a_gait_summary_stored_as_a_dict_loads_and_is_stored_the_same():
-    """``gait.summary`` is a :class:`GaitSummary`; the dict the file held loads (a newer key
-    kept) and its tree is that dict."""
+def test_a_gait_summary_and_profile_stored_as_dicts_load_and_are_stored_the_same():
+    """``gait.summary`` is a :class:`GaitSummary` and ``gait.map`` a :class:`MovementProfile`;
+    the dicts the file held load (a newer key kept) and their trees are those dicts."""
     stats = {"mean": 1.1, "sd": 0.05, "cv_pct": 4.5, "se": 0.02, "median": 1.1, "q1": 1.05,
              "q3": 1.15, "strides_n": 8}  # fmt: skip
     summ = {"sides": {"r": {"stride_time_s": stats}, "l": {"stride_time_s": stats}},
@@ -323,9 +324,18 @@ def test_a_gait_summary_stored_as_a_dict_loads_and_is_stored_the_same():
             "stride_time_cv_pct": 3.0, "stride_time_cv_se_pct": 0.8, "walking_speed_m_s": 1.2,
             "strides_kept": 16, "strides_rejected": {"turn": 2}, "withheld": {},
             "future_g": 1}  # fmt: skip
-    gait = Gait.from_tree({"status": "ok", "summary": summ})
+    mp = {"gvs": {"r": {"knee_flexion": 5.0}}, "gps": {"r": 5.0, "overall": np.nan},
+          "population_gps_deg": 5.5, "variables": ["knee_flexion"],
+          "withheld": {"l": {"knee_flexion": "weak"}},
+          "not_computed": "GPS not computed: left knee flexion weak"}  # fmt: skip
+    gait = Gait.from_tree({"status": "ok", "summary": summ, "map": mp})
     s = gait.summary
     assert isinstance(s, GaitSummary) and s.step_pairs == 7 and s.strides_rejected == {"turn": 2}
     assert s.sides["r"]["stride_time_s"]["strides_n"] == 8 and s.more == {"future_g": 1}
     assert gait.to_tree()["summary"] == summ
+    assert isinstance(gait.map, MovementProfile) and gait.map.withheld == mp["withheld"]
+    assert json.dumps(gait.to_tree()["map"]) == json.dumps(mp)  # NaN as NaN
+    ungated = {k: mp[k] for k in ("gvs", "gps", "variables")}  # before the gating and its norm
+    old = MovementProfile.from_tree(ungated)
+    assert old.withheld is None and old.population_gps_deg is None and old.to_tree() == ungated
     assert Gait.from_tree({"status": "no gait: no shank"}).summary is None

@@ -154,9 +154,10 @@ def _gait_line(view: SessionView) -> str:
     def number(key: str, v: float, fmt: str) -> str:
         return fmt.format(v) if v == v else s.withheld.get(key, "n/a")
 
-    mp = gait_profile(view) or {}
-    gps = mp.get("gps", {}).get("overall", float("nan"))
-    gps_text = f"GPS {gps:.1f} deg" if gps == gps else (mp.get("not_computed") or "GPS n/a")
+    mp = gait_profile(view)
+    gps = mp.gps.get("overall", float("nan")) if mp is not None else float("nan")
+    missing = mp.not_computed if mp is not None else None
+    gps_text = f"GPS {gps:.1f} deg" if gps == gps else (missing or "GPS n/a")
     speed = s.walking_speed_m_s
     speed_text = f", speed {speed:.2f} m/s (leg model)" if speed == speed else ""
     return (

@@ -44,6 +44,7 @@ from motionlab.results import (
     Gait,
     JointGrades,
     Metrics,
+    MovementProfile,
     SegmentCalibration,
     SegmentRecord,
 )
@@ -611,13 +612,13 @@ def excluded(view: SessionView) -> list[str]:
     return out
 
 
-def gait_profile(view: SessionView) -> dict[str, Any] | None:
+def gait_profile(view: SessionView) -> MovementProfile | None:
     """The session's Movement Analysis Profile and GPS as the angles' grades allow
     (:func:`motionlab.kinematics.gps.gated_profile` with this session's grades and kept strides:
     a session analysed before the gating, or whose grades changed since, is gated here); None
     without a gait analysis."""
     g = view.session.results.gait
-    if g is None or not g.ok or not g.map:
+    if g is None or not g.ok or g.map is None:
         return None
     strides = g.strides or {}
     kept = np.asarray(strides.get("kept", []), dtype=bool)

@@ -28,7 +28,7 @@ from motionlab.kinematics.spatiotemporal import (
 )
 from motionlab.report.model import SessionView, gait_profile, gait_result
 from motionlab.report.pdf import BAND_COLOUR, MUTED, SIDE_COLOUR, SIZE, Document
-from motionlab.results import Gait, GaitSummary
+from motionlab.results import Gait, GaitSummary, MovementProfile
 
 _LABELS = {
     "cadence_steps_per_min": "cadence (steps/min)",
@@ -170,11 +170,11 @@ def length_note(g: Gait) -> str:
     )
 
 
-def _map_chart(doc: Document, mp: dict[str, Any]) -> None:
+def _map_chart(doc: Document, mp: MovementProfile) -> None:
     """The Movement Analysis Profile: GVS per determined variable and side, and the GPS when
     every variable is determined (else which are missing)."""
-    missing = mp.get("not_computed", "")
-    names = [v for v in mp["variables"] if any(v in mp["gvs"].get(s, {}) for s in "rl")]
+    missing = mp.not_computed or ""
+    names = [v for v in mp.variables if any(v in mp.gvs.get(s, {}) for s in "rl")]
     if names:
         doc.ensure(3.8)  # the heading stays with its chart
     doc.heading("Gait Profile Score and Movement Analysis Profile")
@@ -183,14 +183,14 @@ def _map_chart(doc: Document, mp: dict[str, Any]) -> None:
         names = [*names, *([] if missing else ["GPS"])]
         x = np.arange(len(names))
         for k, side in enumerate(("r", "l")):
-            vals = [mp["gvs"].get(side, {}).get(v, np.nan) for v in names if v != "GPS"]
+            vals = [mp.gvs.get(side, {}).get(v, np.nan) for v in names if v != "GPS"]
             if not missing:
-                vals.append(mp["gps"].get(side, np.nan))
+                vals.append(mp.gps.get(side, np.nan))
             ax.bar(x + (k - 0.5) * 0.38, vals, 0.36, color=SIDE_COLOUR[side],
                    label={"r": "right", "l": "left"}[side])  # fmt: skip
         if not missing:  # the population's GPS is a reference for a GPS, not for one GVS
-            expected = f"expected GPS of a normal subject {mp['population_gps_deg']:.1f}°"
-            ax.axhline(mp["population_gps_deg"], color=MUTED, ls="--", lw=0.8, label=expected)
+            expected = f"expected GPS of a normal subject {mp.population_gps_deg:.1f}°"
+            ax.axhline(mp.population_gps_deg, color=MUTED, ls="--", lw=0.8, label=expected)
         ax.set_xticks(x, [n.replace("_", " ") for n in names], rotation=30, ha="right")
         ax.set_ylabel("deg (RMS difference)")
         ax.legend(loc="upper left", frameon=False)
@@ -202,9 +202,9 @@ def _map_chart(doc: Document, mp: dict[str, Any]) -> None:
         )
     else:
         head = (
-            f"GPS: right {mp['gps'].get('r', np.nan):.1f}°, "
-            f"left {mp['gps'].get('l', np.nan):.1f}°, overall {mp['gps']['overall']:.1f}° "
-            f"(Baker et al. 2009, Gait Posture 30:265; {len(mp['variables'])} variables per "
+            f"GPS: right {mp.gps.get('r', np.nan):.1f}°, "
+            f"left {mp.gps.get('l', np.nan):.1f}°, overall {mp.gps['overall']:.1f}° "
+            f"(Baker et al. 2009, Gait Posture 30:265; {len(mp.variables)} variables per "
             "side, no ankle or foot). "
         )
     doc.paragraph(
