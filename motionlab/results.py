@@ -68,6 +68,8 @@ __all__ = [
     "TaskBlock",
     "Results",
     "OpticalSync",
+    "AlignmentRotation",
+    "SpatialAlignment",
     "Validation",
     "column_unit",
 ]
@@ -943,13 +945,66 @@ class OpticalSync(_Record):
     more: dict[str, Any] = field(default_factory=dict)
 
 
+@dataclass(frozen=True)
+class AlignmentRotation(_Record):
+    """One rotation of the spatial alignment: ``quat`` (4,) scalar first, its scalar part ≥ 0,
+    and its angle ``angle_deg`` (deg)."""
+
+    quat: np.ndarray
+    angle_deg: float
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class SpatialAlignment(_Record):
+    """The IMU-to-optical spatial alignment of a validation (:mod:`motionlab.validation.align`:
+    ``A_i = Y_i ⊗ B_i ⊗ X_i``; :attr:`Validation.alignment`).
+
+    ``mode``: ``full``, ``heading`` or ``none``; ``lab_to_earth``: Y, the lab → earth rotation
+    (:class:`AlignmentRotation`); ``sensor_to_cluster`` ``{sensor: AlignmentRotation}``: X_i,
+    each sensor's axes in its marker cluster's coordinates; ``heading_deg`` ``{sensor: deg}``:
+    the heading about the vertical per sensor in ``heading`` mode (empty otherwise);
+    ``residual_rms_deg`` ``{sensor: deg}``: the RMS residual angle after alignment;
+    ``conditioning`` ``{sensor: ratio}``: the smallest over the largest singular value of the
+    relative rotations X_i was fitted from (0: about one axis only, X_i not determined about it).
+    """
+
+    mode: str
+    lab_to_earth: AlignmentRotation
+    sensor_to_cluster: dict[str, AlignmentRotation] = field(default_factory=dict)
+    heading_deg: dict[str, float] = field(default_factory=dict)
+    residual_rms_deg: dict[str, float] = field(default_factory=dict)
+    conditioning: dict[str, float] = field(default_factory=dict)
+    more: dict[str, Any] = field(default_factory=dict)
+
+    def to_tree(self) -> dict[str, Any]:
+        """The alignment's tree, each rotation a subtree."""
+        tree = super().to_tree()
+        tree["lab_to_earth"] = self.lab_to_earth.to_tree()
+        tree["sensor_to_cluster"] = {k: r.to_tree() for k, r in self.sensor_to_cluster.items()}
+        return tree
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> SpatialAlignment:
+        """The alignment of a stored tree (see :meth:`to_tree`)."""
+        al = super().from_tree(tree)
+        return dataclasses.replace(
+            al,
+            lab_to_earth=AlignmentRotation.from_tree(al.lab_to_earth),
+            sensor_to_cluster={
+                k: AlignmentRotation.from_tree(r) for k, r in al.sensor_to_cluster.items()
+            },
+        )
+
+
 @dataclass
 class Validation(_Record):
     """Agreement with an optical reference (:func:`motionlab.validation.validate`).
 
     ``mode`` (``full`` or ``heading`` alignment), ``marker_set``, ``movement_only``,
     ``pairs`` ``{sensor: segment}``; ``sync``: the optical-to-IMU time alignment
-    (:class:`OpticalSync`); ``alignment``: the spatial alignment; ``optical`` ``{segment:
+    (:class:`OpticalSync`); ``alignment``: the spatial alignment (:class:`SpatialAlignment`;
+    ``None`` when a file holds none or an empty one); ``optical`` ``{segment:
     {source, landmarks, frame, ...}}``; ``orientation``: ``time_s`` and per sensor the
     orientation errors; ``angles``: ``time_s`` and per angle column the IMU and optical series
     and their agreement; ``notes``: lines the user should read; ``reference``: what the
@@ -962,7 +1017,7 @@ class Validation(_Record):
     movement_only: bool = False
     pairs: dict[str, str] = field(default_factory=dict)
     sync: OpticalSync = field(default_factory=OpticalSync)
-    alignment: dict[str, Any] = field(default_factory=dict)
+    alignment: SpatialAlignment | None = None
     optical: dict[str, Any] = field(default_factory=dict)
     orientation: dict[str, Any] = field(default_factory=dict)
     angles: dict[str, Any] | None = None
@@ -974,6 +1029,8 @@ class Validation(_Record):
         """The validation's tree, its sync a subtree."""
         tree = super().to_tree()
         tree["sync"] = self.sync.to_tree()
+        if self.alignment is not None:
+            tree["alignment"] = self.alignment.to_tree()
         return tree
 
     @classmethod
@@ -982,6 +1039,8 @@ class Validation(_Record):
         val = super().from_tree(tree)
         if isinstance(val.sync, dict):
             val.sync = OpticalSync.from_tree(val.sync)
+        if isinstance(val.alignment, dict):
+            val.alignment = SpatialAlignment.from_tree(val.alignment) if val.alignment else None
         return val
 
 

@@ -14,6 +14,7 @@ import motionlab.results as results_module
 from motionlab.report.model import CalibrationRow, GradeRow, QualityRow, RomRow, SymmetryRow
 from motionlab.results import (
     STAGES,
+    AlignmentRotation,
     AngleMetrics,
     AngleTable,
     CentreHeading,
@@ -35,6 +36,7 @@ from motionlab.results import (
     SegmentCalibration,
     SegmentQuality,
     SegmentRecord,
+    SpatialAlignment,
     TaskBlock,
     TrunkMovement,
     TwoAxisFit,
@@ -47,6 +49,7 @@ RECORDS = (
     TwoAxisFit, HipAxis, JointGrades, TrunkMovement, CentreHeading, HeadingTie, HeadingTies,
     AngleTable, AngleMetrics, HeadingCorrection, Metrics, Gait, Validation, OpticalSync, GradeRow,
     RomRow, SymmetryRow, QualityRow, CalibrationRow, TaskBlock, GaitSummary, MovementProfile,
+    AlignmentRotation, SpatialAlignment,
 )  # fmt: skip
 
 
@@ -275,6 +278,24 @@ def test_the_validation_sync_is_typed_and_stored_as_before(tmp_path):
     np.testing.assert_array_equal(again.inliers, [True, False])
     assert again.n_windows == 2 and again.more == {"future": 3}
     assert Validation.from_tree({"mode": "full"}).sync.method == "none"  # no sync stored
+
+
+def test_the_validation_alignment_is_typed_and_stored_as_before():
+    """``validation.alignment`` is a :class:`SpatialAlignment` of :class:`AlignmentRotation`;
+    the dict the file held loads (a newer key kept) and its tree is that dict; an empty one
+    (as a validation without it held) reads as ``None``."""
+    tree = {"mode": "heading",
+            "lab_to_earth": {"quat": np.array([1.0, 0.0, 0.0, 0.0]), "angle_deg": 0.0},
+            "sensor_to_cluster": {"shank_r": {"quat": np.array([0.0, 1.0, 0.0, 0.0]),
+                                              "angle_deg": 180.0}},
+            "heading_deg": {"shank_r": 12.0}, "residual_rms_deg": {"shank_r": 1.5},
+            "conditioning": {"shank_r": 0.4}, "future_a": True}  # fmt: skip
+    al = Validation.from_tree({"mode": "heading", "alignment": tree}).alignment
+    assert isinstance(al, SpatialAlignment) and al.more == {"future_a": True}
+    x = al.sensor_to_cluster["shank_r"]
+    assert isinstance(x, AlignmentRotation) and x.angle_deg == 180.0
+    assert json.dumps(al.to_tree(), default=repr) == json.dumps(tree, default=repr)
+    assert Validation.from_tree({"mode": "full", "alignment": {}}).alignment is None
 
 
 def test_metrics_stored_before_the_typed_records_load_and_are_stored_the_same(tmp_path):
