@@ -129,13 +129,12 @@ def run_one(seed: int, variant: str, one_clock: bool = False) -> dict[str, float
     ttable = _truth_strides(G, walk, _truth_reach(truth, session.metadata["subject"]["height_m"]))
     tsum = sp.summary(ttable)
     dsum = g.summary
-    row["cadence err /min"] = abs(dsum["cadence_steps_per_min"] - tsum["cadence_steps_per_min"])
+    row["cadence err /min"] = abs(dsum.cadence_steps_per_min - tsum.cadence_steps_per_min)
     row["stance err pts"] = max(
-        abs(dsum["sides"][s]["stance_pct"]["mean"] - tsum["sides"][s]["stance_pct"]["mean"])
-        for s in "rl"
+        abs(dsum.sides[s]["stance_pct"]["mean"] - tsum.sides[s]["stance_pct"]["mean"]) for s in "rl"
     )
-    row["asym err pts"] = abs(dsum["step_time_asymmetry_pct"] - tsum["step_time_asymmetry_pct"])
-    row["asym truth %"] = tsum["step_time_asymmetry_pct"]
+    row["asym err pts"] = abs(dsum.step_time_asymmetry_pct - tsum.step_time_asymmetry_pct)
+    row["asym truth %"] = tsum.step_time_asymmetry_pct
     length = float(g.strides["stride_length_m"][g.strides["kept"]].mean())
     legs = float(ttable.loc[ttable["kept"], "stride_length_m"].mean())
     pelvis = float(_pelvis_strides(truth, ttable).mean())
@@ -143,10 +142,8 @@ def run_one(seed: int, variant: str, one_clock: bool = False) -> dict[str, float
     row["stride err legs %"] = 100 * (length - legs) / legs
     row["pelvis stride cm"] = 100 * pelvis
     row["stride err pelvis %"] = 100 * (length - pelvis) / pelvis
-    row["speed err pelvis %"] = 100 * (
-        dsum["walking_speed_m_s"] * tsum_stride_s(ttable) / pelvis - 1
-    )
-    row["stance truth r %"] = tsum["sides"]["r"]["stance_pct"]["mean"]
+    row["speed err pelvis %"] = 100 * (dsum.walking_speed_m_s * tsum_stride_s(ttable) / pelvis - 1)
+    row["stance truth r %"] = tsum.sides["r"]["stance_pct"]["mean"]
     # angles on the steady walk
     ang = session.results.angles.columns()
     tt = _to_true(session, truth, orig, "thigh_r")(ang["time_s"])
@@ -166,9 +163,9 @@ def run_one(seed: int, variant: str, one_clock: bool = False) -> dict[str, float
         row[name] = float(np.sqrt(np.nanmean(e[w] ** 2)))
     row["strides kept r"] = float(g.strides["kept"][g.strides["side"] == "r"].sum())
     row["strides kept l"] = float(g.strides["kept"][g.strides["side"] == "l"].sum())
-    print(f"seed {seed} {variant}: {g.summary['strides_rejected']}", file=sys.stderr)
-    row["GPS"] = g.map["gps"]["overall"]
-    row["population GPS"] = g.map["population_gps_deg"]
+    print(f"seed {seed} {variant}: {g.summary.strides_rejected}", file=sys.stderr)
+    row["GPS"] = g.map.gps["overall"]
+    row["population GPS"] = g.map.population_gps_deg
     pct = np.linspace(0, 100, 101)
     bump = np.exp(-0.5 * ((pct - 73) / 8) ** 2)  # swing flexion, peak at 73 %
     for deficit in (10, 20):
@@ -177,7 +174,7 @@ def run_one(seed: int, variant: str, one_clock: bool = False) -> dict[str, float
         for s in means:
             if "knee_flexion" in means[s]:
                 means[s]["knee_flexion"] = means[s]["knee_flexion"] - deficit * bump
-        row[f"GPS -{deficit}°"] = movement_analysis_profile(means)["gps"]["overall"]
+        row[f"GPS -{deficit}°"] = movement_analysis_profile(means).gps["overall"]
     return row
 
 

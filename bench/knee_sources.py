@@ -219,7 +219,7 @@ def diagnose(job: tuple[int, bool]) -> dict:
     row["true_mnt"] = {c: _rmse(err_m[c]) for c in cols}
     row["grade"] = {}
     for name in KNEES:
-        g = cal.grades[name]["grades"]
+        g = cal.grades[name].grades
         for k, (_, col) in enumerate(angle_columns(protocol.joints[name])):
             row["grade"][col] = g[k]
     # soft tissue: impacts only

@@ -174,7 +174,7 @@ def report(name: str, protocol: str, session: Session, vendor: dict) -> list[str
         peer = vendor_ranges(session, vendor, joint, joint.side) if joint.side else np.array([])
         gyro = gyro_ranges(session, jname, joint, joint.side) if joint.side else np.array([])
         rows.append(
-            f"| {name} | {protocol} | {jname} | {' / '.join(cal.grades[jname]['grades'])} | "
+            f"| {name} | {protocol} | {jname} | {' / '.join(cal.grades[jname].grades)} | "
             f"{_fmt(rng)} | {_fmt(gyro)} | {_fmt(peer)} | {diff} | "
             f"{_num(fit.witness_deg if fit else None)} | "
             f"{_num(fit.relative_residual if fit else None, 2)} | "

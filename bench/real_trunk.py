@@ -170,8 +170,8 @@ def run_variant(imu: Path, variant: dict) -> tuple[np.ndarray, pd.DataFrame, dic
     for joint, g in cal.grades.items():
         if joint in joints:
             cols_j = [c for _, c in angle_columns(joints[joint])]
-            grades.update(zip(cols_j, g["grades"], strict=True))
-    return cols["time_s"], cols, grades, tuple(cal.steps["rest"]), cal.grades["lumbar"]["trunk"]
+            grades.update(zip(cols_j, g.grades, strict=True))
+    return cols["time_s"], cols, grades, tuple(cal.steps["rest"]), cal.grades["lumbar"].trunk
 
 
 def imu_speeds(imu: Path) -> tuple[np.ndarray, np.ndarray]:
@@ -308,10 +308,10 @@ def main(argv: list[str] | None = None) -> int:
         notes.append(
             f"- {name}: optical = IMU + {best:.3f} s (speeds {coarse:.3f} s, r = {r_clock:.2f}); "
             f"rest {own[0]:.1f}–{own[1]:.1f} s (compared from {rest_s[0]:.1f}–{rest_s[1]:.1f} s); "
-            f"flexion axis: principal axis {summary['axis_rank']}, one-sided "
-            f"{summary['sign_ratio']:.1f}× ({summary['axis_ratio']:.1f}× the other axis), "
-            f"thorax {summary['excursion_deg'][0]:.0f}/{summary['excursion_deg'][1]:.0f}°; "
-            f"heading agreement {summary['heading_rho']:.2f}; optical frame: {best_how}; "
+            f"flexion axis: principal axis {summary.axis_rank}, one-sided "
+            f"{summary.sign_ratio:.1f}× ({summary.axis_ratio:.1f}× the other axis), "
+            f"thorax {summary.excursion_deg[0]:.0f}/{summary.excursion_deg[1]:.0f}°; "
+            f"heading agreement {summary.heading_rho:.2f}; optical frame: {best_how}; "
             f"flipped frames left out: {', '.join(f'{k} {v}' for k, v in flips.items())}"
         )
         rest_opt = (t_opt - best >= rest_s[0]) & (t_opt - best <= rest_s[1])

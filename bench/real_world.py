@@ -113,7 +113,7 @@ def run_one(job: tuple[str, int, str, bool, bool, bool, bool, float | None]) -> 
     for jname, joint in protocol.joints.items():
         g = cal.grades[jname]
         for k, (_, col) in enumerate(angle_columns(joint)):
-            grades[col] = (g["grades"][k], g["reasons"][k])
+            grades[col] = (g.grades[k], g.reasons[k])
     return {
         "name": name,
         "seed": seed,

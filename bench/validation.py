@@ -109,17 +109,17 @@ def simulated_case(seed: int, imu: str, estimator: str) -> dict:
     al = res.alignment
     y_true = truth.markers["lab_rotation"]
     if mode == "heading":  # only the vertical is shared: compare where the lab's z points
-        up = rot.rotate(al["lab_to_earth"]["quat"], [0.0, 0, 1])
+        up = rot.rotate(al.lab_to_earth.quat, [0.0, 0, 1])
         rot_err = [np.arccos(np.clip(up @ rot.rotate(y_true, [0.0, 0, 1]), -1, 1))]
     else:
-        rot_err = [rot.angle_between(al["lab_to_earth"]["quat"], y_true)]
+        rot_err = [rot.angle_between(al.lab_to_earth.quat, y_true)]
     labels, segs = truth.markers["labels"], truth.markers["segments"]
     for label in session.sensors:
         idx = [i for i, (a, b) in enumerate(zip(labels, segs, strict=True))
                if b == label and "_C" in a]  # fmt: skip
         c = rigid_fit(truth.markers["local"][idx], res.optical[label]["shape_m"][None])[0][0]
         x_true = rot.mul(c, truth.sensors[label]["mounting"])
-        rot_err.append(rot.angle_between(al["sensor_to_cluster"][label]["quat"], x_true))
+        rot_err.append(rot.angle_between(al.sensor_to_cluster[label].quat, x_true))
     t = res.angles["time_s"]
     diffs, rmses = [], []
     for col, true_deg in truth.joint_angles.items():

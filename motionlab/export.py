@@ -267,9 +267,9 @@ def results_json(session: Session) -> dict[str, Any]:
         joints = {}
         for joint, cols in joint_columns(session).items():
             entry: dict[str, Any] = {"columns": {c: columns[c] for c in cols if c in columns}}
-            if joint in grades and len(grades[joint].get("grades", [])) == len(cols):
-                entry["grades"] = dict(zip(cols, grades[joint]["grades"], strict=True))
-                entry["reasons"] = dict(zip(cols, grades[joint].get("reasons", []), strict=False))
+            if joint in grades and len(grades[joint].grades) == len(cols):
+                entry["grades"] = dict(zip(cols, grades[joint].grades, strict=True))
+                entry["reasons"] = dict(zip(cols, grades[joint].reasons, strict=False))
             joints[joint] = entry
         out["angles"] = {"time_s": time, "method": res.angles.method, "joints": joints}
     if res.metrics is not None:

@@ -30,8 +30,8 @@ so that a round trip loses nothing. Units are SI except where a name says otherw
 
 Maps keyed by the protocol's names (one entry per segment, joint, task or angle column) are
 dictionaries; where their entries have fixed fields these are typed too (:class:`SegmentRecord`
-with its :class:`SegmentQuality`, :class:`HingeFit`), else their keys are documented at the
-attribute.
+with its :class:`SegmentQuality`, :class:`HingeFit`, :class:`JointGrades`,
+:class:`CentreHeading`, :class:`HeadingTies`), else their keys are documented at the attribute.
 """
 
 from __future__ import annotations
@@ -50,15 +50,26 @@ __all__ = [
     "SegmentRecord",
     "HingeFit",
     "HipAxis",
+    "CentreHeading",
+    "HeadingTie",
+    "HeadingTies",
+    "JointGrades",
+    "TrunkMovement",
     "TwoAxisFit",
     "ClockFit",
     "ClockSync",
     "FusionEntry",
     "Gait",
+    "GaitSummary",
+    "MovementProfile",
     "HeadingCorrection",
     "Metrics",
+    "AngleMetrics",
+    "TaskBlock",
     "Results",
     "OpticalSync",
+    "AlignmentRotation",
+    "SpatialAlignment",
     "Validation",
     "column_unit",
 ]
@@ -408,6 +419,138 @@ class HipAxis(_Record):
     more: dict[str, Any] = field(default_factory=dict)
 
 
+@dataclass(frozen=True)
+class TrunkMovement(_Record):
+    """What a trunk calibration found in the movement (:mod:`motionlab.segments.trunk_axes`;
+    the ``trunk`` of each of its :class:`JointGrades`).
+
+    ``rest_s`` ``[start, end]`` (s): the rest taken as the zero of the angles;
+    ``rest_speed_deg_s`` (deg/s): the mean angular speed of the joint's sensors over its
+    stillest second; ``axis_ratio``: how much more one-sided the movement is about the chosen
+    flexion axis than about the other horizontal axis; ``energy_ratio``: the mean squared
+    relative rate about the axis turning most over that about the other; ``axis_rank``: which
+    of the two was taken as the flexion axis (1: the one turning most); ``one_sided``: per
+    horizontal axis (the one turning most first) the larger excursion over the smaller about
+    it (each at least 1°); ``excursion_deg`` ``[positive, negative]`` (deg): the 98th and
+    2nd percentiles of the lean since the rest about the flexion axis found (the second below
+    0 when the thorax leaned the other way); ``sign_ratio``: the thorax's excursion one way
+    over the other about the flexion axis (its ``one_sided``); ``heading_deg`` (deg): the
+    heading about the vertical that turns the thorax sensor's earth frame onto the pelvis
+    sensor's, from the movement's rates; ``heading_rho``: the share of the horizontal rates
+    that heading explains (1: all); ``heading_drift_deg`` (deg): the peak-to-peak drift of
+    that heading followed from the gyroscopes over the recording (``None``: not followed, the
+    rest was not still or a fusion was 9-D or reported no bias).
+    """
+
+    _store_none: ClassVar[bool] = True
+
+    rest_s: list[float]
+    rest_speed_deg_s: float
+    axis_ratio: float
+    energy_ratio: float
+    axis_rank: int
+    one_sided: list[float]
+    excursion_deg: list[float]
+    sign_ratio: float
+    heading_deg: float
+    heading_rho: float
+    heading_drift_deg: float | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class JointGrades(_Record):
+    """What the recording determined of one joint's angles
+    (:func:`motionlab.segments.grades.grade_joints`; one value of
+    :attr:`SegmentCalibration.grades`).
+
+    ``grades``: one per angle column in the joint type's order (flexion first):
+    ``determined``, ``weak`` or ``not determined``; ``reasons``: why, in plain words, one per
+    angle (empty for a determined one); ``trunk``: what a trunk calibration found in the
+    movement (:class:`TrunkMovement`; ``None`` for any other calibration). A joint stored
+    without ``grades`` or ``reasons`` has them empty (its angles count as ``determined``).
+    """
+
+    grades: list[str] = field(default_factory=list)
+    reasons: list[str] = field(default_factory=list)
+    trunk: TrunkMovement | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+    def to_tree(self) -> dict[str, Any]:
+        """The grades' tree, the trunk's movement a subtree."""
+        tree = super().to_tree()
+        if self.trunk is not None:
+            tree["trunk"] = self.trunk.to_tree()
+        return tree
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> JointGrades:
+        """The grades of a stored tree (see :meth:`to_tree`)."""
+        rec = super().from_tree(tree)
+        if isinstance(rec.trunk, dict):
+            rec = dataclasses.replace(rec, trunk=TrunkMovement.from_tree(rec.trunk))
+        return rec
+
+
+@dataclass(frozen=True)
+class CentreHeading(_Record):
+    """Heading ties fitted at calibration for a joint without a hinge (one value of
+    :attr:`SegmentCalibration.centres`): the distal sensor's earth frame turned by
+    ``heading_deltas`` (K,) rad about the vertical at ``heading_times`` (K,) s matches the
+    proximal one. ``anchors``: K, for ties from a ball joint's shared centre
+    (:func:`motionlab.segments.placement.centre_headings`); ``method``: ``trunk rest`` for a
+    trunk calibration's ties at its rest (:mod:`motionlab.segments.trunk_axes`); each ``None``
+    (not stored) for the other kind.
+    """
+
+    heading_times: Any
+    heading_deltas: Any
+    anchors: int | None = None
+    method: str | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class HeadingTie(_Record):
+    """One joint's heading ties (one value of :attr:`HeadingTies.joints`; what
+    :func:`motionlab.segments.segment_orientations` applies): ``source`` (``hinge``,
+    ``single pose``, ``steps``; ``two_axes`` and ``centre`` ties stay with their fit),
+    ``times`` (K,) s and ``deltas`` (K,) rad: the distal segment turned by ``deltas`` about
+    the vertical at ``times`` (interpolated between) matches the proximal one.
+    """
+
+    source: str
+    times: Any
+    deltas: Any
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class HeadingTies(_Record):
+    """Each joint's heading ties found at calibration (:func:`motionlab.segments.heading_ties`;
+    :attr:`SegmentCalibration.headings`): ``sha256`` ``{segment: hex}``: the SHA-256 of the
+    sensor orientations they were found from (:func:`motionlab.segments.orientations_sha256`);
+    ``joints`` ``{joint: HeadingTie}`` (:class:`HeadingTie`).
+    """
+
+    sha256: dict[str, str] = field(default_factory=dict)
+    joints: dict[str, HeadingTie] = field(default_factory=dict)
+    more: dict[str, Any] = field(default_factory=dict)
+
+    def to_tree(self) -> dict[str, Any]:
+        """The ties' tree, one subtree per joint."""
+        tree = super().to_tree()
+        tree["joints"] = {k: v.to_tree() for k, v in self.joints.items()}
+        return tree
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> HeadingTies:
+        """The ties of a stored tree (see :meth:`to_tree`)."""
+        ties = super().from_tree(tree)
+        ties.joints = {k: HeadingTie.from_tree(v) for k, v in ties.joints.items()}
+        return ties
+
+
 @dataclass
 class SegmentCalibration(_Record):
     """Sensor-to-segment calibration: how each sensor sits on its segment
@@ -418,41 +561,44 @@ class SegmentCalibration(_Record):
     SegmentRecord}``: how each sensor sits on its segment (:class:`SegmentRecord`).
     ``hinges`` ``{joint: HingeFit}``: axes from ordinary movement (:class:`HingeFit`,
     :class:`TwoAxisFit` for a two-axis joint, with its headings).
-    ``centres`` ``{joint: record}``: headings from a ball joint's shared centre. ``warnings``:
+    ``centres`` ``{joint: CentreHeading}``: heading ties from a ball joint's shared centre or a
+    trunk's rest (:class:`CentreHeading`). ``warnings``:
     lines the user should read; ``ok``: every segment's quality passed. ``grades`` ``{joint:
-    {"grades": [3], "reasons": [3]}}`` per angle (:func:`motionlab.segments.grades.grade_joints`).
+    JointGrades}``: a grade and its reason per angle (:class:`JointGrades`).
     ``single_pose``: the static step a recording too short for more was taken as (an
     OpenSense-style single-pose calibration, :mod:`motionlab.segments.single_pose`), else ``None``.
     ``hip_axes`` ``{joint: HipAxis}``: the hips' flexion axes from the movement
-    (:class:`HipAxis`). ``headings`` ``{"sha256": {segment: str}, "joints": {joint:
-    {"source": str, "times": (K,) s, "deltas": (K,) rad}}}``: each joint's heading ties (the
+    (:class:`HipAxis`). ``headings``: each joint's heading ties (:class:`HeadingTies`: the
     anchors of the heading alignment, :func:`motionlab.segments.heading_ties`), found once here
-    from the sensor orientations whose SHA-256 per segment is ``sha256`` (ties kept with a
+    from the sensor orientations whose SHA-256 per segment it holds (ties kept with a
     two-axis fit or a centre are in ``hinges``/``centres``); the angles, metrics and gait apply
     them to those orientations (:func:`motionlab.segments.segment_orientations`) and find them
-    anew for others, or for a calibration stored without them.
+    anew for others, or for a calibration stored without them (``None``; an empty stored
+    group reads as ``None`` too).
     """
 
     protocol: str
     steps: dict[str, Any] = field(default_factory=dict)
     segments: dict[str, SegmentRecord] = field(default_factory=dict)
     hinges: dict[str, HingeFit] = field(default_factory=dict)
-    centres: dict[str, dict[str, Any]] = field(default_factory=dict)
+    centres: dict[str, CentreHeading] = field(default_factory=dict)
     warnings: list[str] = field(default_factory=list)
     ok: bool = True
-    grades: dict[str, dict[str, Any]] = field(default_factory=dict)
+    grades: dict[str, JointGrades] = field(default_factory=dict)
     protocol_path: str | None = None
     single_pose: str | None = None
     hip_axes: dict[str, HipAxis] = field(default_factory=dict)
-    headings: dict[str, Any] = field(default_factory=dict)
+    headings: HeadingTies | None = None
     more: dict[str, Any] = field(default_factory=dict)
 
     def to_tree(self) -> dict[str, Any]:
         """The calibration's tree, each segment record and hinge fit a subtree."""
         tree = super().to_tree()
-        for name in ("segments", "hinges", "hip_axes"):
+        for name in ("segments", "hinges", "centres", "grades", "hip_axes"):
             if name in tree:
                 tree[name] = {k: v.to_tree() for k, v in tree[name].items()}
+        if self.headings is not None:
+            tree["headings"] = self.headings.to_tree()
         return tree
 
     @classmethod
@@ -461,6 +607,10 @@ class SegmentCalibration(_Record):
         cal = super().from_tree(tree)
         cal.segments = {k: SegmentRecord.from_tree(v) for k, v in cal.segments.items()}
         cal.hinges = {k: HingeFit.from_tree(v) for k, v in cal.hinges.items()}
+        cal.centres = {k: CentreHeading.from_tree(v) for k, v in cal.centres.items()}
+        cal.grades = {k: JointGrades.from_tree(v) for k, v in cal.grades.items()}
+        if isinstance(cal.headings, dict):
+            cal.headings = HeadingTies.from_tree(cal.headings) if cal.headings else None
         cal.hip_axes = {k: HipAxis.from_tree(v) for k, v in cal.hip_axes.items()}
         return cal
 
@@ -554,30 +704,151 @@ class HeadingCorrection(_Record):
 # --------------------------------------------------------------------------------- metrics
 
 
+@dataclass(frozen=True)
+class TaskBlock(_Record):
+    """One task's time range (one value of :attr:`Metrics.blocks`): ``start_s`` and ``end_s``
+    (s, on the session's clock); ``source``: ``detected`` (found in the recording) or ``given``
+    (the user's time range; ``None``, not stored, when the metrics were computed from given
+    ranges without a session, :func:`motionlab.kinematics.metrics.compute_metrics`).
+    """
+
+    start_s: float
+    end_s: float
+    source: str | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+def _nan_curve() -> np.ndarray:
+    return np.full(101, np.nan)
+
+
+@dataclass(frozen=True)
+class AngleMetrics(_Record):
+    """One angle column's metrics over one task block (:func:`motionlab.kinematics.metrics.
+    angle_metrics`; one value of ``Metrics.joints[task]``), all in degrees.
+
+    ``rom_deg``: its range over the block, ``min_deg`` / ``max_deg`` its extremes (NaN without
+    a finite sample); ``repetitions``: the cycles found (strides in gait, repetitions else; 0:
+    none); per cycle ``cycle_max_deg`` / ``cycle_min_deg`` (one value each) and their means
+    ``cycle_max_mean_deg`` / ``cycle_min_mean_deg`` (NaN without cycles); ``curve_mean_deg`` /
+    ``curve_sd_deg`` (101,): mean and SD over the cycles normalised to 0–100 % (NaN without
+    cycles); ``cycle_start_s`` (s): each cycle's start (``None`` when not given).
+    """
+
+    rom_deg: float
+    min_deg: float
+    max_deg: float
+    repetitions: int = 0
+    cycle_max_deg: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    cycle_min_deg: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    cycle_max_mean_deg: float = float("nan")
+    cycle_min_mean_deg: float = float("nan")
+    curve_mean_deg: np.ndarray = field(default_factory=_nan_curve)
+    curve_sd_deg: np.ndarray = field(default_factory=_nan_curve)
+    cycle_start_s: np.ndarray | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+
 @dataclass
 class Metrics(_Record):
     """Metrics per task block (:func:`motionlab.kinematics.metrics.session_metrics`).
 
-    ``protocol``: its name. ``blocks`` ``{task: {start_s, end_s, source}}`` (``source``:
-    ``detected`` or ``given``). ``joints`` ``{task: {column: metrics}}`` (``rom_deg``,
-    ``min_deg``, ``max_deg``, ``repetitions``, cycle peaks, ``curve_mean_deg`` /
-    ``curve_sd_deg`` over 0–100 %, ``cycle_start_s``). When the protocol asks for them:
+    ``protocol``: its name. ``blocks`` ``{task: TaskBlock}``: each task's time range
+    (:class:`TaskBlock`). ``joints`` ``{task: {column: AngleMetrics}}``
+    (:class:`AngleMetrics`: range, extremes, cycles and the mean curve). When the protocol asks
+    for them:
     ``gait`` ``{task: {joint: stance metrics}}``, ``out_of_plane_offset`` ``{task: {joint:
     ...}}``, ``trunk_compensation`` ``{task: ...}``, ``cross_talk`` ``{block: {joint: ...}}``.
     """
 
     protocol: str
-    joints: dict[str, dict[str, Any]] = field(default_factory=dict)
-    blocks: dict[str, dict[str, Any]] = field(default_factory=dict)
+    joints: dict[str, dict[str, AngleMetrics]] = field(default_factory=dict)
+    blocks: dict[str, TaskBlock] = field(default_factory=dict)
     gait: dict[str, Any] | None = None
     out_of_plane_offset: dict[str, Any] | None = None
     trunk_compensation: dict[str, Any] | None = None
     cross_talk: dict[str, Any] | None = None
     more: dict[str, Any] = field(default_factory=dict)
 
+    def to_tree(self) -> dict[str, Any]:
+        """The metrics' tree, each angle's metrics a subtree."""
+        tree = super().to_tree()
+        tree["joints"] = {
+            task: {col: m.to_tree() for col, m in cols.items()}
+            for task, cols in self.joints.items()
+        }
+        tree["blocks"] = {k: b.to_tree() for k, b in self.blocks.items()}
+        return tree
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> Metrics:
+        """The metrics of a stored tree (see :meth:`to_tree`)."""
+        out = super().from_tree(tree)
+        out.joints = {
+            task: {col: AngleMetrics.from_tree(m) for col, m in cols.items()}
+            for task, cols in out.joints.items()
+        }
+        out.blocks = {k: TaskBlock.from_tree(b) for k, b in out.blocks.items()}
+        return out
+
     def spans(self) -> dict[str, tuple[float, float]]:
         """``{task: (start_s, end_s)}`` of the blocks."""
-        return {k: (float(b["start_s"]), float(b["end_s"])) for k, b in self.blocks.items()}
+        return {k: (float(b.start_s), float(b.end_s)) for k, b in self.blocks.items()}
+
+
+@dataclass(frozen=True)
+class GaitSummary(_Record):
+    """The kept strides summarised (:func:`motionlab.kinematics.spatiotemporal.summary`;
+    :attr:`Gait.summary`).
+
+    ``sides`` ``{side: {column: {mean, sd, cv_pct, se, median, q1, q3, strides_n}}}``: per side
+    (``r``, ``l``) and stride-table column the statistics of its kept strides (in the column's
+    unit). Both sides together: ``cadence_steps_per_min`` (steps/min), ``step_time_asymmetry_pct``
+    (%) with its standard error ``step_time_asymmetry_se_pct`` from ``step_pairs`` paired
+    steady steps, ``stride_time_cv_pct`` (%, within steady bouts) with
+    ``stride_time_cv_se_pct``, ``walking_speed_m_s`` (m/s; NaN without leg lengths) — each NaN
+    when withheld, and NaN in a file written before it existed. ``strides_kept``;
+    ``strides_rejected`` ``{reason: count}``; ``min_strides``: the fewest strides a mean needs
+    (``None`` in a file written without it); ``withheld`` ``{number: why it is not given}``.
+    """
+
+    sides: dict[str, dict[str, dict[str, float]]] = field(default_factory=dict)
+    min_strides: int | None = None
+    cadence_steps_per_min: float = float("nan")
+    step_pairs: int = 0
+    step_time_asymmetry_pct: float = float("nan")
+    step_time_asymmetry_se_pct: float = float("nan")
+    stride_time_cv_pct: float = float("nan")
+    stride_time_cv_se_pct: float = float("nan")
+    walking_speed_m_s: float = float("nan")
+    strides_kept: int = 0
+    strides_rejected: dict[str, int] = field(default_factory=dict)
+    withheld: dict[str, str] = field(default_factory=dict)
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class MovementProfile(_Record):
+    """The Movement Analysis Profile and Gait Profile Score (Baker et al. 2009;
+    :mod:`motionlab.kinematics.gps`; :attr:`Gait.map`), in degrees.
+
+    ``gvs`` ``{side: {variable: deg}}``: each variable's Gait Variable Score (RMS difference of
+    its mean curve from the normative mean); ``gps`` ``{side: deg, "overall": deg}``: their RMS
+    per side and over both (NaN when withheld); ``population_gps_deg``: the GPS expected of a
+    normal subject over the same variables (``None`` in a file written without it);
+    ``variables``: the variables scored or withheld; ``withheld`` ``{side: {variable: why}}``
+    and ``not_computed`` (a sentence naming what is missing, empty when the overall GPS is
+    given): what the grades and strides did not allow (:func:`motionlab.kinematics.gps.
+    gated_profile`; ``None`` for a profile not gated).
+    """
+
+    gvs: dict[str, dict[str, float]] = field(default_factory=dict)
+    gps: dict[str, float] = field(default_factory=dict)
+    population_gps_deg: float | None = None
+    variables: list[str] = field(default_factory=list)
+    withheld: dict[str, dict[str, str]] | None = None
+    not_computed: str | None = None
+    more: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass
@@ -586,22 +857,42 @@ class Gait(_Record):
 
     ``status``: ``ok`` or ``no gait: <why>``. With ``ok``: ``tasks`` ``{task: {start_s,
     end_s}}``, ``events`` ``{side: {ic, ic_confidence, fc, fc_confidence}}`` (s),
-    ``strides`` (one array per stride-table column), ``summary``, ``walking_speed`` (the step and
+    ``strides`` (one array per stride-table column), ``summary`` (:class:`GaitSummary`),
+    ``walking_speed`` (the step and
     stride length model and the segment lengths used, or why they are not measured), ``pelvis``
     (pelvis angles, deg, with its ``time_s`` and ``method``), ``curves`` ``{side: {variable:
-    (101,) deg}}`` and ``map`` (the movement analysis profile).
+    (101,) deg}}`` and ``map`` (the movement analysis profile, :class:`MovementProfile`).
     """
 
     status: str
     tasks: dict[str, Any] | None = None
     events: dict[str, Any] | None = None
     strides: dict[str, Any] | None = None
-    summary: Any = None
+    summary: GaitSummary | None = None
     walking_speed: str | None = None
     pelvis: dict[str, Any] | None = None
     curves: dict[str, Any] | None = None
-    map: Any = None
+    map: MovementProfile | None = None
     more: dict[str, Any] = field(default_factory=dict)
+
+    def to_tree(self) -> dict[str, Any]:
+        """The gait's tree, its summary a subtree."""
+        tree = super().to_tree()
+        if self.summary is not None:
+            tree["summary"] = self.summary.to_tree()
+        if self.map is not None:
+            tree["map"] = self.map.to_tree()
+        return tree
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> Gait:
+        """The gait of a stored tree (see :meth:`to_tree`)."""
+        gait = super().from_tree(tree)
+        if isinstance(gait.summary, dict):
+            gait.summary = GaitSummary.from_tree(gait.summary)
+        if isinstance(gait.map, dict):
+            gait.map = MovementProfile.from_tree(gait.map)
+        return gait
 
     @property
     def ok(self) -> bool:
@@ -654,13 +945,66 @@ class OpticalSync(_Record):
     more: dict[str, Any] = field(default_factory=dict)
 
 
+@dataclass(frozen=True)
+class AlignmentRotation(_Record):
+    """One rotation of the spatial alignment: ``quat`` (4,) scalar first, its scalar part ≥ 0,
+    and its angle ``angle_deg`` (deg)."""
+
+    quat: np.ndarray
+    angle_deg: float
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class SpatialAlignment(_Record):
+    """The IMU-to-optical spatial alignment of a validation (:mod:`motionlab.validation.align`:
+    ``A_i = Y_i ⊗ B_i ⊗ X_i``; :attr:`Validation.alignment`).
+
+    ``mode``: ``full``, ``heading`` or ``none``; ``lab_to_earth``: Y, the lab → earth rotation
+    (:class:`AlignmentRotation`); ``sensor_to_cluster`` ``{sensor: AlignmentRotation}``: X_i,
+    each sensor's axes in its marker cluster's coordinates; ``heading_deg`` ``{sensor: deg}``:
+    the heading about the vertical per sensor in ``heading`` mode (empty otherwise);
+    ``residual_rms_deg`` ``{sensor: deg}``: the RMS residual angle after alignment;
+    ``conditioning`` ``{sensor: ratio}``: the smallest over the largest singular value of the
+    relative rotations X_i was fitted from (0: about one axis only, X_i not determined about it).
+    """
+
+    mode: str
+    lab_to_earth: AlignmentRotation
+    sensor_to_cluster: dict[str, AlignmentRotation] = field(default_factory=dict)
+    heading_deg: dict[str, float] = field(default_factory=dict)
+    residual_rms_deg: dict[str, float] = field(default_factory=dict)
+    conditioning: dict[str, float] = field(default_factory=dict)
+    more: dict[str, Any] = field(default_factory=dict)
+
+    def to_tree(self) -> dict[str, Any]:
+        """The alignment's tree, each rotation a subtree."""
+        tree = super().to_tree()
+        tree["lab_to_earth"] = self.lab_to_earth.to_tree()
+        tree["sensor_to_cluster"] = {k: r.to_tree() for k, r in self.sensor_to_cluster.items()}
+        return tree
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> SpatialAlignment:
+        """The alignment of a stored tree (see :meth:`to_tree`)."""
+        al = super().from_tree(tree)
+        return dataclasses.replace(
+            al,
+            lab_to_earth=AlignmentRotation.from_tree(al.lab_to_earth),
+            sensor_to_cluster={
+                k: AlignmentRotation.from_tree(r) for k, r in al.sensor_to_cluster.items()
+            },
+        )
+
+
 @dataclass
 class Validation(_Record):
     """Agreement with an optical reference (:func:`motionlab.validation.validate`).
 
     ``mode`` (``full`` or ``heading`` alignment), ``marker_set``, ``movement_only``,
     ``pairs`` ``{sensor: segment}``; ``sync``: the optical-to-IMU time alignment
-    (:class:`OpticalSync`); ``alignment``: the spatial alignment; ``optical`` ``{segment:
+    (:class:`OpticalSync`); ``alignment``: the spatial alignment (:class:`SpatialAlignment`;
+    ``None`` when a file holds none or an empty one); ``optical`` ``{segment:
     {source, landmarks, frame, ...}}``; ``orientation``: ``time_s`` and per sensor the
     orientation errors; ``angles``: ``time_s`` and per angle column the IMU and optical series
     and their agreement; ``notes``: lines the user should read; ``reference``: what the
@@ -673,7 +1017,7 @@ class Validation(_Record):
     movement_only: bool = False
     pairs: dict[str, str] = field(default_factory=dict)
     sync: OpticalSync = field(default_factory=OpticalSync)
-    alignment: dict[str, Any] = field(default_factory=dict)
+    alignment: SpatialAlignment | None = None
     optical: dict[str, Any] = field(default_factory=dict)
     orientation: dict[str, Any] = field(default_factory=dict)
     angles: dict[str, Any] | None = None
@@ -685,6 +1029,8 @@ class Validation(_Record):
         """The validation's tree, its sync a subtree."""
         tree = super().to_tree()
         tree["sync"] = self.sync.to_tree()
+        if self.alignment is not None:
+            tree["alignment"] = self.alignment.to_tree()
         return tree
 
     @classmethod
@@ -693,6 +1039,8 @@ class Validation(_Record):
         val = super().from_tree(tree)
         if isinstance(val.sync, dict):
             val.sync = OpticalSync.from_tree(val.sync)
+        if isinstance(val.alignment, dict):
+            val.alignment = SpatialAlignment.from_tree(val.alignment) if val.alignment else None
         return val
 
 

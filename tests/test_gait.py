@@ -138,13 +138,13 @@ def test_spatiotemporal_formulas_on_hand_made_events():
         events[s] = {"ic": ic, "fc": fc}
     table = sp.stride_table(sides, events)
     summ = sp.summary(table)
-    r, left = summ["sides"]["r"], summ["sides"]["l"]
+    r, left = summ.sides["r"], summ.sides["l"]
     assert r["stance_pct"]["mean"] == pytest.approx(65)
     assert left["stance_pct"]["mean"] == pytest.approx(60)
     assert r["step_time_s"]["mean"] == pytest.approx(0.55)
     assert left["step_time_s"]["mean"] == pytest.approx(0.45)
-    assert summ["step_time_asymmetry_pct"] == pytest.approx(20.0)
-    assert summ["cadence_steps_per_min"] == pytest.approx(120.0)
+    assert summ.step_time_asymmetry_pct == pytest.approx(20.0)
+    assert summ.cadence_steps_per_min == pytest.approx(120.0)
     # right stride: initial DS = left FC (0.05 after the previous left IC ... ) - right IC
     ds = table[(table["side"] == "r") & (table["start_s"] > 0)]["double_support_pct"]
     assert ds.to_numpy() == pytest.approx(100 * ((1.05 - 1.0) + (1.65 - 1.45)))
@@ -182,7 +182,7 @@ def test_step_stride_length_and_speed_in_the_stride_table():
     table = sp.stride_table(sides, events, reach)
     assert table["step_length_m"].to_numpy() == pytest.approx(0.75)
     assert table["stride_length_m"].dropna().to_numpy() == pytest.approx(1.5)
-    assert sp.summary(table)["walking_speed_m_s"] == pytest.approx(1.5)
+    assert sp.summary(table).walking_speed_m_s == pytest.approx(1.5)
     assert np.isnan(sp.stride_table(sides, events)["stride_length_m"]).all()
 
 
@@ -223,7 +223,7 @@ def test_simulated_walk_end_to_end_events_and_stride_length():
     measured = np.nanmean(g.strides["stride_length_m"][kept])
     assert kept.sum() >= 8
     assert measured == pytest.approx(np.mean(true_len), rel=0.02)
-    assert g.summary["walking_speed_m_s"] == pytest.approx(
+    assert g.summary.walking_speed_m_s == pytest.approx(
         measured / np.nanmean(g.strides["stride_time_s"][kept]), rel=0.02
     )
 
@@ -251,7 +251,7 @@ def test_real_walk_final_contact_stance_and_stride_length():
 def test_gps_zero_for_the_normative_mean_and_rising_with_a_deficit():
     pct = np.linspace(0, 100, 101)
     means = {s: {v: normative(v, pct)[0] for v in ("knee_flexion", "hip_flexion")} for s in "rl"}
-    assert movement_analysis_profile(means)["gps"]["overall"] == pytest.approx(0, abs=1e-9)
+    assert movement_analysis_profile(means).gps["overall"] == pytest.approx(0, abs=1e-9)
     bump = np.exp(-0.5 * ((pct - 73) / 8) ** 2)
     scores = [gvs(means["r"]["knee_flexion"] - d * bump, "knee_flexion") for d in (0, 10, 20)]
     assert scores[0] < scores[1] < scores[2]
@@ -304,12 +304,12 @@ def test_step_asymmetry_from_paired_steps_of_one_bout_only():
     cut = sp.summary(_hand_table(reject_left=4))  # the left stride 4.45-5.45 s is rejected
     # lost: the pair (right 4.0, left 4.45: that left stride is out) and the pair (right 5.0,
     # left 5.45: the step onto the right at 5.0 starts in the rejected left stride)
-    assert cut["step_pairs"] == full["step_pairs"] - 2
+    assert cut.step_pairs == full.step_pairs - 2
     table = _hand_table(reject_left=4)
     right5 = table[(table["side"] == "r") & np.isclose(table["start_s"], 5.0)]
     assert np.isnan(right5["step_time_s"]).all()
-    assert cut["step_time_asymmetry_pct"] == pytest.approx(20.0)  # 100 × 0.1 / 0.5
-    assert cut["step_time_asymmetry_se_pct"] == pytest.approx(0.0, abs=1e-9)  # no scatter
+    assert cut.step_time_asymmetry_pct == pytest.approx(20.0)  # 100 × 0.1 / 0.5
+    assert cut.step_time_asymmetry_se_pct == pytest.approx(0.0, abs=1e-9)  # no scatter
 
 
 def test_no_summary_number_from_fewer_than_three_strides():
@@ -317,10 +317,10 @@ def test_no_summary_number_from_fewer_than_three_strides():
     keep = table.groupby("side").cumcount() < 2  # two strides per side
     table.loc[~keep, "kept"] = False
     summ = sp.summary(table)
-    assert np.isnan(summ["sides"]["r"]["stride_time_s"]["mean"])
-    assert summ["sides"]["r"]["stride_time_s"]["strides_n"] == 2
-    assert np.isnan(summ["step_time_asymmetry_pct"]) and np.isnan(summ["cadence_steps_per_min"])
-    assert summ["withheld"]["stride_time_cv_pct"] == (
+    assert np.isnan(summ.sides["r"]["stride_time_s"]["mean"])
+    assert summ.sides["r"]["stride_time_s"]["strides_n"] == 2
+    assert np.isnan(summ.step_time_asymmetry_pct) and np.isnan(summ.cadence_steps_per_min)
+    assert summ.withheld["stride_time_cv_pct"] == (
         "not enough steady strides (2 of 3 needed) on one side"
     )
 

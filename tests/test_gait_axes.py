@@ -61,7 +61,7 @@ def test_walk_determines_both_knees_flexion_and_not_their_other_planes(walk):
         assert fit.method == "principal" and fit.verdict == "determined", fit.reasons
         assert fit.sign == "anatomy" and fit.relative_sign == "measured"
         assert fit.witness_deg < 12.0 and fit.consistency_deg < 5.0
-        grades = cal.grades[f"knee_{side}"]["grades"]
+        grades = cal.grades[f"knee_{side}"].grades
         assert grades[0] == "determined"
         # the axis is known to 5° at best: 60° of flexion can put 5° into the other planes
         assert grades[1] != "determined" and grades[2] != "determined"
@@ -126,7 +126,7 @@ def test_shanks_swapped_between_the_legs_give_no_determined_knee(walk):
     cal = stages.calibrate(swapped, proto, force=True)
     for side in "rl":
         assert cal.hinges[f"knee_{side}"].verdict != "determined"
-        assert "determined" not in cal.grades[f"knee_{side}"]["grades"]
+        assert "determined" not in cal.grades[f"knee_{side}"].grades
 
 
 def test_a_sensor_upside_down_gives_the_same_knee_angles(walk):
@@ -148,5 +148,5 @@ def test_a_sensor_upside_down_gives_the_same_knee_angles(walk):
     stages.angles(flipped, proto, force=True)
     before = session.results.angles.columns()["knee_r_flexion_deg"]
     after = flipped.results.angles.columns()["knee_r_flexion_deg"]
-    assert flipped.results.calibration.grades["knee_r"]["grades"][0] == "determined"
+    assert flipped.results.calibration.grades["knee_r"].grades[0] == "determined"
     assert np.nanmax(np.abs(after - before)) < 0.5

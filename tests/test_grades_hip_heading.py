@@ -42,24 +42,24 @@ def _hip(cal: SegmentCalibration) -> dict:
 def test_a_walk_hip_flexion_is_determined_when_the_heading_doubt_moves_it_little():
     # 40° of thigh tilt, turns up to 20° off: at most 40 (1 - cos 20°) = 2.4° of flexion
     g = _hip(_calibration("turns", 40.0))
-    assert g["grades"] == ["determined", "weak", "weak"]
-    assert "turns" in g["reasons"][1]
+    assert g.grades == ["determined", "weak", "weak"]
+    assert "turns" in g.reasons[1]
 
 
 def test_a_hip_that_sits_down_keeps_its_flexion_weak_and_says_why():
     # sitting tilts the thigh 82°: 82 (1 - cos 20°) = 4.9°, more than 3°
     g = _hip(_calibration("turns", 82.0))
-    assert g["grades"] == ["weak", "weak", "weak"]
-    assert "20° off" in g["reasons"][0] and "5°" in g["reasons"][0]
+    assert g.grades == ["weak", "weak", "weak"]
+    assert "20° off" in g.reasons[0] and "5°" in g.reasons[0]
 
 
 def test_the_first_steps_are_trusted_further_than_the_turns():
     # walk start: up to 10° off; 82 (1 - cos 10°) = 1.2°
-    assert _hip(_calibration("walk start", 82.0))["grades"][0] == "determined"
+    assert _hip(_calibration("walk start", 82.0)).grades[0] == "determined"
 
 
 def test_no_determined_knee_fit_no_bound():
-    assert _hip(_calibration("turns", 40.0, knee="weak"))["grades"][0] == "weak"
+    assert _hip(_calibration("turns", 40.0, knee="weak")).grades[0] == "weak"
 
 
 @pytest.mark.parametrize("heading_deg", sorted(HEADING_BOUND_DEG.values()))
@@ -84,8 +84,8 @@ def test_a_thigh_with_one_measured_axis_and_a_contradicted_hint_leaves_the_hip_u
     cal.segments["thigh_r"] = SegmentRecord(rot.IDENTITY, "single_axis", {"s": GRAVITY},
                                             hint_contradicted=True)  # fmt: skip
     g = _hip(cal)
-    assert g["grades"] == ["not determined"] * 3
-    assert g["reasons"][0].startswith("thigh_r's frame")  # the cause first, then the pelvis'
-    assert "contradict" in g["reasons"][0] and "turns" in g["reasons"][0]
+    assert g.grades == ["not determined"] * 3
+    assert g.reasons[0].startswith("thigh_r's frame")  # the cause first, then the pelvis'
+    assert "contradict" in g.reasons[0] and "turns" in g.reasons[0]
     cal.segments["thigh_r"] = replace(cal.segments["thigh_r"], hint_contradicted=False)
-    assert _hip(cal)["grades"] == ["weak"] * 3
+    assert _hip(cal).grades == ["weak"] * 3

@@ -31,7 +31,7 @@ def _hinge34(method: str) -> tuple[str, str]:
     protocol = load_protocol(RIG)
     protocol.joints = {"hinge34": protocol.joints["hinge34"]}
     g = grade_joints(protocol, _calibration(method))["hinge34"]
-    return g["grades"][0], g["reasons"][0]
+    return g.grades[0], g.reasons[0]
 
 
 @pytest.mark.parametrize("method", ["procrustes", "primary_secondary"])

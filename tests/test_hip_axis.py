@@ -125,7 +125,7 @@ def test_pelvis_forward_from_the_turns_when_the_hint_is_contradicted():
         w.startswith("pelvis: ") and "forward direction is taken from the walk's turns" in w
         for w in cal.warnings
     )
-    assert cal.grades["hip_r"]["grades"] == ["weak"] * 3
+    assert cal.grades["hip_r"].grades == ["weak"] * 3
     assert angle < 15.0
 
 
@@ -146,5 +146,5 @@ def test_pelvis_forward_from_the_first_steps_when_the_walk_has_no_two_turns():
     cal, angle = _pelvis_forward_error(20.0, 1)
     assert cal.segments["pelvis"].axes["movement:turns"]["method"] == "walk start"
     assert any("taken from the first steps of the walk" in w for w in cal.warnings)
-    assert cal.grades["hip_r"]["grades"] == ["weak"] * 3
+    assert cal.grades["hip_r"].grades == ["weak"] * 3
     assert angle < 10.0

@@ -194,5 +194,5 @@ def test_no_import_from_a_higher_layer():
 def test_the_graph_sees_function_local_and_skips_type_checking_imports():
     graph = _graph()
     assert "motionlab.validation.figures" in graph["motionlab.report.pages_validation"]  # local
-    assert "motionlab.results" not in graph["motionlab.kinematics.gps"]  # TYPE_CHECKING only
+    assert "motionlab.fusion.markers" not in graph["motionlab.fusion.timegrid"]  # TYPE_CHECKING
     assert "motionlab.kinematics.joint_types" in graph["motionlab.protocol"]

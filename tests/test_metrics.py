@@ -25,12 +25,12 @@ def test_angle_metrics_rom_peaks_and_curve():
     x = 40 * (1 - np.cos(2 * np.pi * t / 4)) / 2 + 5  # 3 cycles 5 → 45 → 5
     c = Cycles(np.array([0, 400, 800]), np.array([200, 600, 1000]), np.array([400, 800, 1199]))
     m = angle_metrics(x, c)
-    assert m["rom_deg"] == pytest.approx(40, abs=1e-6)
-    assert m["repetitions"] == 3
-    assert np.allclose(m["cycle_max_deg"], 45, atol=1e-3)
-    assert m["cycle_min_mean_deg"] == pytest.approx(5, abs=1e-3)
-    assert m["curve_mean_deg"][50] == pytest.approx(45, abs=0.01)
-    assert m["curve_sd_deg"].max() < 0.2  # the last cycle is one sample short
+    assert m.rom_deg == pytest.approx(40, abs=1e-6)
+    assert m.repetitions == 3
+    assert np.allclose(m.cycle_max_deg, 45, atol=1e-3)
+    assert m.cycle_min_mean_deg == pytest.approx(5, abs=1e-3)
+    assert m.curve_mean_deg[50] == pytest.approx(45, abs=0.01)
+    assert m.curve_sd_deg.max() < 0.2  # the last cycle is one sample short
 
 
 def test_cross_talk_against_nominal():
@@ -123,7 +123,7 @@ def test_compute_metrics_on_a_lumbar_table_and_csv():
     steps = {"standing": (1.0, 7.0)}
     m = compute_metrics(protocol, table, seg_q, blocks, steps, nominal_table=table)
     lat = m.joints["lateral_bending"]["lumbar_lateral_bending_deg"]
-    assert lat["repetitions"] == 3 and lat["rom_deg"] == pytest.approx(40, abs=0.01)
+    assert lat.repetitions == 3 and lat.rom_deg == pytest.approx(40, abs=0.01)
     off = m.out_of_plane_offset["lateral_bending"]["lumbar"]
     assert off["axes"] == ["y", "z"] and off["peak_deg"] < 1e-6
     ct = m.cross_talk["lateral_bending"]["lumbar"]

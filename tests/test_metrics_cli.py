@@ -89,14 +89,14 @@ def test_imu_angles_and_metrics_through_the_cli(session_file):
     ct = m[(m.block == "elbow_flexion_r") & (m.metric == "cross_talk_change_pct")]
     assert len(ct) == 2  # carrying angle and pronation against the nominal placement
     stored = load_session(path).results.metrics
-    assert stored.blocks["curls"]["source"] == "given"
+    assert stored.blocks["curls"].source == "given"
     again = runner.invoke(main, ["metrics", str(path)])
     assert again.exit_code == 2 and "--force" in again.output
     # the curls are found in the recording as well
     res = runner.invoke(main, ["metrics", str(path), "--force"])
     assert res.exit_code == 0, res.output
     found = load_session(path).results.metrics.blocks["curls"]
-    assert abs(found["start_s"] - curls["start_s"]) < 2.5 and found["source"] == "detected"
+    assert abs(found.start_s - curls["start_s"]) < 2.5 and found.source == "detected"
 
 
 @pytest.mark.parametrize(

@@ -71,7 +71,7 @@ def test_opensense_calibration_pose_sto_gives_knee_angles_by_single_pose(tmp_pat
     cal = ses.results.calibration
     assert cal.single_pose == "standing"
     assert cal.steps == {"standing": [0.0, 0.01]}  # the whole recording (2 samples)
-    assert cal.grades["knee_r"]["grades"] == ["weak", "weak", "weak"]
+    assert cal.grades["knee_r"].grades == ["weak", "weak", "weak"]
     single = [w for w in cal.warnings if "single-pose" in w]
     assert len(single) == 1 and "OpenSense-style" in single[0] and "sensor_axes hint" in single[0]
     assert "single-pose calibration (OpenSense-style)" in out
@@ -111,7 +111,7 @@ def test_xsens_dot_pair_gives_knee_angles(tmp_path):
     cal = ses.results.calibration
     assert cal.single_pose is None  # 6 s: stand and movement are found
     assert cal.steps["standing"] is not None
-    assert cal.grades["knee_r"]["grades"][0] == "weak"
+    assert cal.grades["knee_r"].grades[0] == "weak"
     flex = ses.results.angles.columns()[FLEX]
     assert np.all(np.isfinite(flex))
     # measured 0-65.5°: the DOTs' own orientations turn the shank 65.7° away from the stand at

@@ -11,22 +11,30 @@ from motionlab.report.model import SessionView, compare, rom_rows, symmetry_rows
 from motionlab.report.normative import band_for, load_bands
 from motionlab.report.pdf import RC, Document, layout_problems, page_text, text_width, wrap
 from motionlab.report.sentences import findings, rom_sentence, span
-from motionlab.results import Metrics, SegmentCalibration, SegmentQuality, SegmentRecord
+from motionlab.results import (
+    AngleMetrics,
+    JointGrades,
+    Metrics,
+    SegmentCalibration,
+    SegmentQuality,
+    SegmentRecord,
+    TaskBlock,
+)
 from motionlab.session import Session
 
 
-def _angle(lo: float, hi: float, reps: int = 10) -> dict:
+def _angle(lo: float, hi: float, reps: int = 10) -> AngleMetrics:
     """A metrics entry whose cycles all go from ``lo`` to ``hi`` (deg)."""
-    return {
-        "rom_deg": hi - lo + 2.0,
-        "min_deg": lo - 1.0,
-        "max_deg": hi + 1.0,
-        "repetitions": reps,
-        "cycle_max_mean_deg": hi,
-        "cycle_min_mean_deg": lo,
-        "curve_mean_deg": np.linspace(lo, hi, 101),
-        "curve_sd_deg": np.ones(101),
-    }
+    return AngleMetrics(
+        rom_deg=hi - lo + 2.0,
+        min_deg=lo - 1.0,
+        max_deg=hi + 1.0,
+        repetitions=reps,
+        cycle_max_mean_deg=hi,
+        cycle_min_mean_deg=lo,
+        curve_mean_deg=np.linspace(lo, hi, 101),
+        curve_sd_deg=np.ones(101),
+    )
 
 
 def _view(right: tuple, left: tuple) -> SessionView:
@@ -41,7 +49,7 @@ def _view(right: tuple, left: tuple) -> SessionView:
     }
     metrics = Metrics(
         "knee",
-        blocks={"gait": {"start_s": 10.0, "end_s": 40.0}},
+        blocks={"gait": TaskBlock(10.0, 40.0)},
         joints={"gait": joints},
         gait={
             "gait": {
@@ -192,11 +200,10 @@ def _graded_view(graded: bool = True) -> SessionView:
     cal = SegmentCalibration("knee", segments=segments)
     if graded:
         cal.grades = {
-            "knee_r": {
-                "grades": ["determined", "weak", "not determined"],
-                "reasons": ["", WEAK_WHY, NOT_WHY],
-            },
-            "knee_l": {"grades": ["determined"] * 3, "reasons": [""] * 3},
+            "knee_r": JointGrades(
+                ["determined", "weak", "not determined"], ["", WEAK_WHY, NOT_WHY]
+            ),
+            "knee_l": JointGrades(["determined"] * 3, [""] * 3),
         }
     view.session.results.calibration = cal
     return view

@@ -60,8 +60,8 @@ def _regait(session, start: float, end: float):
     from motionlab.kinematics.gait import analyse_gait
 
     ses = copy.deepcopy(session)
-    block = ses.results.metrics.blocks["walk"]
-    block["start_s"], block["end_s"] = float(start), float(end)
+    blocks = ses.results.metrics.blocks
+    blocks["walk"] = replace(blocks["walk"], start_s=float(start), end_s=float(end))
     ses.results.gait = analyse_gait(ses, load_protocol("walk"))
     return ses
 
@@ -69,7 +69,7 @@ def _regait(session, start: float, end: float):
 def _force(session, joint: str, k: int, grade: str, reason: str):
     ses = copy.deepcopy(session)
     entry = ses.results.calibration.grades[joint]
-    entry["grades"][k], entry["reasons"][k] = grade, reason
+    entry.grades[k], entry.reasons[k] = grade, reason
     return ses
 
 
@@ -281,8 +281,7 @@ def test_knee_with_a_wrong_axis(walk):
 def test_pelvis_not_calibrated(walk):
     ses = _pelvis_nominal(walk)
     assert (
-        load_view(ses).session.results.calibration.grades["hip_r"]["grades"]
-        == ["not determined"] * 3
+        load_view(ses).session.results.calibration.grades["hip_r"].grades == ["not determined"] * 3
     )
     assert problems(ses) == []
 
@@ -316,7 +315,7 @@ def test_a_swapped_shank_is_not_determined(swapped):
     """The report obeys the grades; the grades catch the swap (the knee would extend 35° past
     its straight stand: :mod:`motionlab.segments.gait_axes`)."""
     grades = swapped.results.calibration.grades
-    assert "determined" not in grades["knee_r"]["grades"][:1] + grades["knee_l"]["grades"][:1]
+    assert "determined" not in grades["knee_r"].grades[:1] + grades["knee_l"].grades[:1]
 
 
 DOT_PROTOCOL = """

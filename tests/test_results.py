@@ -14,20 +14,31 @@ import motionlab.results as results_module
 from motionlab.report.model import CalibrationRow, GradeRow, QualityRow, RomRow, SymmetryRow
 from motionlab.results import (
     STAGES,
+    AlignmentRotation,
+    AngleMetrics,
     AngleTable,
+    CentreHeading,
     ClockFit,
     ClockSync,
     FusionEntry,
     Gait,
+    GaitSummary,
     HeadingCorrection,
+    HeadingTie,
+    HeadingTies,
     HingeFit,
     HipAxis,
+    JointGrades,
     Metrics,
+    MovementProfile,
     OpticalSync,
     Results,
     SegmentCalibration,
     SegmentQuality,
     SegmentRecord,
+    SpatialAlignment,
+    TaskBlock,
+    TrunkMovement,
     TwoAxisFit,
     Validation,
 )
@@ -35,8 +46,10 @@ from motionlab.session import SCHEMA_VERSION, SensorStream, Session, load_sessio
 
 RECORDS = (
     ClockFit, ClockSync, FusionEntry, SegmentCalibration, SegmentRecord, SegmentQuality, HingeFit,
-    TwoAxisFit, HipAxis, AngleTable, HeadingCorrection, Metrics, Gait, Validation, OpticalSync,
-    GradeRow, RomRow, SymmetryRow, QualityRow, CalibrationRow,
+    TwoAxisFit, HipAxis, JointGrades, TrunkMovement, CentreHeading, HeadingTie, HeadingTies,
+    AngleTable, AngleMetrics, HeadingCorrection, Metrics, Gait, Validation, OpticalSync, GradeRow,
+    RomRow, SymmetryRow, QualityRow, CalibrationRow, TaskBlock, GaitSummary, MovementProfile,
+    AlignmentRotation, SpatialAlignment,
 )  # fmt: skip
 
 
@@ -86,7 +99,7 @@ def _analysed_session() -> Session:
         ),
         angles=AngleTable(t, {"knee_r_flexion_deg": rng.normal(size=200)}),
         heading={"knee_r": HeadingCorrection("hinge", 3, 1.0, 0.5, 0.1)},
-        metrics=Metrics("knee", blocks={"walk": {"start_s": 0.8, "end_s": 1.9}}),
+        metrics=Metrics("knee", blocks={"walk": TaskBlock(0.8, 1.9)}),
         gait=Gait("no gait: no shank sensor under a knee joint"),
     )
     return Session(sensors={"shank_r": sensor}, results=res)
@@ -157,13 +170,29 @@ def _old_calibration_tree() -> dict:
              "future_h": [1, 2]}  # fmt: skip
     hip = {"used": False, "turn_deg": 0.0, "rho": 0.62, "n_samples": 900, "tilt_deg": 4.0,
            "reason": "no dominant hip axis (rho 0.62)"}  # fmt: skip
+    trunk = {"rest_s": [0.5, 2.0], "rest_speed_deg_s": 0.8, "axis_ratio": 2.1,
+             "energy_ratio": 1.4, "axis_rank": 1, "one_sided": [3.0, 1.2],
+             "excursion_deg": [40.0, -8.0], "sign_ratio": 3.0, "heading_deg": 12.0,
+             "heading_rho": 0.9, "heading_drift_deg": None, "future_t": 2}  # fmt: skip
+    grades = {"lumbar": {"grades": ["determined", "determined", "weak"],
+                         "reasons": ["", "", "few turns"], "trunk": trunk},
+              "elbow_r": {"grades": ["weak"] * 3, "reasons": ["short"] * 3}}  # fmt: skip
+    centres = {"hip_r": {"heading_times": np.array([1.0, 3.0]),
+                         "heading_deltas": np.array([0.2, 0.3]), "anchors": 2},
+               "lumbar": {"heading_times": [1.25], "heading_deltas": [0.05],
+                          "method": "trunk rest"}}  # fmt: skip
+    headings = {"sha256": {"thigh_r": "ab" * 32, "shank_r": "cd" * 32},
+                "joints": {"knee_r": {"source": "hinge", "times": np.array([0.5, 9.5]),
+                                      "deltas": np.array([0.01, 0.02])}}}  # fmt: skip
     return {"protocol": "elbow", "ok": False, "segments": {"forearm_r": segment},
-            "hinges": {"elbow_r": hinge}, "hip_axes": {"hip_r": hip}}  # fmt: skip
+            "hinges": {"elbow_r": hinge}, "hip_axes": {"hip_r": hip},
+            "grades": grades, "centres": centres, "headings": headings}  # fmt: skip
 
 
 def test_a_calibration_stored_before_the_typed_records_loads_and_is_stored_the_same(tmp_path):
-    """The segment records, their quality, the hinge fits and the hip axes are typed in memory,
-    the file's layout is the dicts' (``None`` quality fields as JSON null), and keys a newer
+    """The segment records, their quality, the hinge fits, the hip axes, the grades (with a
+    trunk calibration's movement), the centres' and the joints' heading ties are typed in
+    memory, the file's layout is the dicts' (``None`` fields as JSON null), and keys a newer
     motionlab wrote are kept in ``more`` and written back."""
     from motionlab.session import _read_tree, _write_tree
 
@@ -185,12 +214,27 @@ def test_a_calibration_stored_before_the_typed_records_loads_and_is_stored_the_s
     np.testing.assert_array_equal(fit.heading_deltas, [0.1, 0.2])
     hip = cal.hip_axes["hip_r"]
     assert isinstance(hip, HipAxis) and not hip.used and hip.rho == 0.62 and hip.tilt_deg == 4.0
+    lumbar, elbow = cal.grades["lumbar"], cal.grades["elbow_r"]
+    assert isinstance(lumbar, JointGrades) and lumbar.reasons[2] == "few turns"
+    assert isinstance(lumbar.trunk, TrunkMovement) and lumbar.trunk.excursion_deg == [40.0, -8.0]
+    assert lumbar.trunk.heading_drift_deg is None and lumbar.trunk.more == {"future_t": 2}
+    assert elbow.grades == ["weak"] * 3 and elbow.trunk is None
+    assert JointGrades.from_tree({"grades": ["weak"] * 3}).reasons == []
+    hip_c, lumbar_c = cal.centres["hip_r"], cal.centres["lumbar"]
+    assert isinstance(hip_c, CentreHeading) and hip_c.anchors == 2 and hip_c.method is None
+    assert lumbar_c.method == "trunk rest" and lumbar_c.heading_deltas == [0.05]
+    np.testing.assert_array_equal(hip_c.heading_times, [1.0, 3.0])
+    assert isinstance(cal.headings, HeadingTies) and cal.headings.sha256["shank_r"] == "cd" * 32
+    knee = cal.headings.joints["knee_r"]
+    assert isinstance(knee, HeadingTie) and knee.source == "hinge"
+    np.testing.assert_array_equal(knee.deltas, [0.01, 0.02])
+    assert SegmentCalibration.from_tree({"protocol": "knee", "headings": {}}).headings is None
     save_session(load_session(path), tmp_path / "again.h5")
     with h5py.File(tmp_path / "again.h5") as f:
         again = _read_tree(f["results/calibration"])
     with h5py.File(path) as f:
         stored = _read_tree(f["results/calibration"])
-    for name in ("segments", "hinges", "hip_axes"):
+    for name in ("segments", "hinges", "hip_axes", "grades", "centres", "headings"):
         assert json.dumps(again[name], sort_keys=True, default=repr) == json.dumps(
             stored[name], sort_keys=True, default=repr
         )
@@ -234,3 +278,85 @@ def test_the_validation_sync_is_typed_and_stored_as_before(tmp_path):
     np.testing.assert_array_equal(again.inliers, [True, False])
     assert again.n_windows == 2 and again.more == {"future": 3}
     assert Validation.from_tree({"mode": "full"}).sync.method == "none"  # no sync stored
+
+
+def test_the_validation_alignment_is_typed_and_stored_as_before():
+    """``validation.alignment`` is a :class:`SpatialAlignment` of :class:`AlignmentRotation`;
+    the dict the file held loads (a newer key kept) and its tree is that dict; an empty one
+    (as a validation without it held) reads as ``None``."""
+    tree = {"mode": "heading",
+            "lab_to_earth": {"quat": np.array([1.0, 0.0, 0.0, 0.0]), "angle_deg": 0.0},
+            "sensor_to_cluster": {"shank_r": {"quat": np.array([0.0, 1.0, 0.0, 0.0]),
+                                              "angle_deg": 180.0}},
+            "heading_deg": {"shank_r": 12.0}, "residual_rms_deg": {"shank_r": 1.5},
+            "conditioning": {"shank_r": 0.4}, "future_a": True}  # fmt: skip
+    al = Validation.from_tree({"mode": "heading", "alignment": tree}).alignment
+    assert isinstance(al, SpatialAlignment) and al.more == {"future_a": True}
+    x = al.sensor_to_cluster["shank_r"]
+    assert isinstance(x, AlignmentRotation) and x.angle_deg == 180.0
+    assert json.dumps(al.to_tree(), default=repr) == json.dumps(tree, default=repr)
+    assert Validation.from_tree({"mode": "full", "alignment": {}}).alignment is None
+
+
+def test_metrics_stored_before_the_typed_records_load_and_are_stored_the_same(tmp_path):
+    """``metrics.joints[task][column]`` is an :class:`AngleMetrics` and a block a
+    :class:`TaskBlock`; a file holding them as dicts loads, a newer key is kept, and they are
+    written back as they were."""
+    from motionlab.session import _read_tree, _write_tree
+
+    flex = {"rom_deg": 60.0, "min_deg": 2.0, "max_deg": 62.0, "repetitions": 2,
+            "cycle_max_deg": np.array([61.0, 62.0]), "cycle_min_deg": np.array([2.0, 3.0]),
+            "cycle_max_mean_deg": 61.5, "cycle_min_mean_deg": 2.5,
+            "curve_mean_deg": np.linspace(2.0, 62.0, 101), "curve_sd_deg": np.ones(101),
+            "cycle_start_s": np.array([1.0, 2.1]), "future_m": "kept"}  # fmt: skip
+    tree = {"protocol": "knee", "joints": {"squat": {"knee_r_flexion_deg": flex}},
+            "blocks": {"squat": {"start_s": 0.5, "end_s": 3.5, "source": "given"}}}  # fmt: skip
+    path = tmp_path / "old.h5"
+    save_session(Session(), path)
+    with h5py.File(path, "r+") as f:
+        _write_tree(f.require_group("results").create_group("metrics"), tree)
+    m = load_session(path).results.metrics.joints["squat"]["knee_r_flexion_deg"]
+    assert isinstance(m, AngleMetrics) and m.repetitions == 2 and m.cycle_min_mean_deg == 2.5
+    assert m.more == {"future_m": "kept"}
+    block = load_session(path).results.metrics.blocks["squat"]
+    assert isinstance(block, TaskBlock) and block.source == "given" and block.end_s == 3.5
+    np.testing.assert_array_equal(m.cycle_start_s, [1.0, 2.1])
+    save_session(load_session(path), tmp_path / "again.h5")
+    with h5py.File(tmp_path / "again.h5") as f:
+        again = _read_tree(f["results/metrics"])
+    with h5py.File(path) as f:
+        stored = _read_tree(f["results/metrics"])
+    assert json.dumps(again, sort_keys=True, default=repr) == json.dumps(
+        stored, sort_keys=True, default=repr
+    )
+    bare = AngleMetrics(1.0, 0.0, 1.0)  # no cycles: NaN curves, no starts stored
+    assert bare.repetitions == 0 and np.isnan(bare.curve_mean_deg).all()
+    assert "cycle_start_s" not in bare.to_tree()
+
+
+def test_a_gait_summary_and_profile_stored_as_dicts_load_and_are_stored_the_same():
+    """``gait.summary`` is a :class:`GaitSummary` and ``gait.map`` a :class:`MovementProfile`;
+    the dicts the file held load (a newer key kept) and their trees are those dicts."""
+    stats = {"mean": 1.1, "sd": 0.05, "cv_pct": 4.5, "se": 0.02, "median": 1.1, "q1": 1.05,
+             "q3": 1.15, "strides_n": 8}  # fmt: skip
+    summ = {"sides": {"r": {"stride_time_s": stats}, "l": {"stride_time_s": stats}},
+            "min_strides": 3, "cadence_steps_per_min": 109.0, "step_pairs": 7,
+            "step_time_asymmetry_pct": 2.0, "step_time_asymmetry_se_pct": 0.5,
+            "stride_time_cv_pct": 3.0, "stride_time_cv_se_pct": 0.8, "walking_speed_m_s": 1.2,
+            "strides_kept": 16, "strides_rejected": {"turn": 2}, "withheld": {},
+            "future_g": 1}  # fmt: skip
+    mp = {"gvs": {"r": {"knee_flexion": 5.0}}, "gps": {"r": 5.0, "overall": np.nan},
+          "population_gps_deg": 5.5, "variables": ["knee_flexion"],
+          "withheld": {"l": {"knee_flexion": "weak"}},
+          "not_computed": "GPS not computed: left knee flexion weak"}  # fmt: skip
+    gait = Gait.from_tree({"status": "ok", "summary": summ, "map": mp})
+    s = gait.summary
+    assert isinstance(s, GaitSummary) and s.step_pairs == 7 and s.strides_rejected == {"turn": 2}
+    assert s.sides["r"]["stride_time_s"]["strides_n"] == 8 and s.more == {"future_g": 1}
+    assert gait.to_tree()["summary"] == summ
+    assert isinstance(gait.map, MovementProfile) and gait.map.withheld == mp["withheld"]
+    assert json.dumps(gait.to_tree()["map"]) == json.dumps(mp)  # NaN as NaN
+    ungated = {k: mp[k] for k in ("gvs", "gps", "variables")}  # before the gating and its norm
+    old = MovementProfile.from_tree(ungated)
+    assert old.withheld is None and old.population_gps_deg is None and old.to_tree() == ungated
+    assert Gait.from_tree({"status": "no gait: no shank"}).summary is None

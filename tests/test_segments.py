@@ -120,15 +120,15 @@ def test_heading_ties_are_found_once_at_calibration():
     session, protocol, *_ = knee_session(seed=2)
     cal = calibrate_segments(session, protocol)
     quats = sensor_quats(session, protocol)
-    assert cal.headings["sha256"] == {s: orientations_sha256(*tq) for s, tq in quats.items()}
-    assert set(cal.headings["joints"]) == set(protocol.joints)
+    assert cal.headings.sha256 == {s: orientations_sha256(*tq) for s, tq in quats.items()}
+    assert set(cal.headings.joints) == set(protocol.joints)
     stored = segment_orientations(protocol, cal, quats)
-    fresh = segment_orientations(protocol, dataclasses.replace(cal, headings={}), quats)
+    fresh = segment_orientations(protocol, dataclasses.replace(cal, headings=None), quats)
     for seg, (_, q) in fresh.items():
         assert np.array_equal(stored[seg][1], q), seg
-    name, ties = next((k, v) for k, v in cal.headings["joints"].items() if len(v["times"]))
+    name, ties = next((k, v) for k, v in cal.headings.joints.items() if len(v.times))
     joint = protocol.joints[name]
-    ties["deltas"] = ties["deltas"] + np.radians(10.0)
+    cal.headings.joints[name] = dataclasses.replace(ties, deltas=ties.deltas + np.radians(10.0))
     shifted = segment_orientations(protocol, cal, quats)[joint.distal][1]
     turn = np.degrees(rot.angle(rot.mul(shifted, rot.conj(stored[joint.distal][1]))))
     np.testing.assert_allclose(turn, 10.0, atol=1e-6)

@@ -104,5 +104,5 @@ def test_horizontal_axis_alone_does_not_fix_a_segment(tmp_path):
     cal = calibrate_segments(session, one)
     assert not cal.ok
     grades = cal.grades["elbow_r"]
-    assert "determined" not in grades["grades"]
-    assert all(grades["reasons"])
+    assert "determined" not in grades.grades
+    assert all(grades.reasons)

@@ -29,7 +29,7 @@ def test_walk_from_vendor_orientations_only():
         session.sensors[label] = type(s)(label=label, time=s.time, quat=q, segment=s.segment,
                                          side=s.side)  # fmt: skip
     cal = calibrate_segments(session, protocol)
-    assert cal.grades["knee_r"]["grades"][0] == "determined"
+    assert cal.grades["knee_r"].grades[0] == "determined"
     table = session_angles(session, protocol, cal)
     col = "knee_r_flexion_deg"
     ref = np.interp(table["time_s"], truth.time, truth.joint_angles[col])

@@ -215,15 +215,15 @@ def test_metrics_agree_with_the_truth(knee):
     blocks = {n: (truth.step(n)["start_s"], truth.step(n)["end_s"]) for n in ("gait", "squat")}
     m = session_metrics(session, protocol, blocks)
     squat = m.joints["squat"]["knee_r_flexion_deg"]
-    assert squat["repetitions"] == 3
+    assert squat.repetitions == 3
     sel = (truth.time >= blocks["squat"][0]) & (truth.time <= blocks["squat"][1])
     true_flex = truth.joint_angles["knee_r_flexion_deg"][sel]
-    assert squat["rom_deg"] == pytest.approx(np.ptp(true_flex), abs=1.0)
-    assert squat["cycle_max_mean_deg"] == pytest.approx(true_flex.max(), abs=1.0)
+    assert squat.rom_deg == pytest.approx(np.ptp(true_flex), abs=1.0)
+    assert squat.cycle_max_mean_deg == pytest.approx(true_flex.max(), abs=1.0)
     gait = m.gait["gait"]["knee_r"]
     # 0.9 strides/s over 33 s, less the speed ramps at both ends
     assert 22 <= gait["strides"] <= 30
-    stride_s = np.diff(m.joints["gait"]["knee_r_flexion_deg"]["cycle_start_s"])
+    stride_s = np.diff(m.joints["gait"]["knee_r_flexion_deg"].cycle_start_s)
     assert np.median(stride_s) == pytest.approx(1 / 0.9, abs=0.02)
     # thrust and stance rotation against the same stances (heel strike → toe-off) of the truth
     t = truth.time

@@ -11,6 +11,7 @@ from motionlab.results import (
     AngleTable,
     FusionEntry,
     HeadingCorrection,
+    JointGrades,
     Results,
     SegmentCalibration,
     SegmentRecord,
@@ -89,7 +90,7 @@ def make_session(tmp_path) -> Session:
                 steps={"stand": [0.1, 0.5], "squat": None},
                 segments={"shank_r": SegmentRecord(quat[0], "procrustes")},
                 warnings=["µT, ° and ü survive"],
-                grades={"knee_r": {"grades": ["determined"] * 3, "reasons": [""] * 3}},
+                grades={"knee_r": JointGrades(["determined"] * 3, [""] * 3)},
                 protocol_path="knee.yaml",
             ),
             angles=AngleTable(

@@ -80,7 +80,7 @@ def test_clock_offset_and_drift_are_recovered(knee):
 def test_alignment_rotations_are_recovered(knee):
     session, truth, _, result = knee
     al = result.alignment
-    y_err = rot.angle_between(al["lab_to_earth"]["quat"], truth.markers["lab_rotation"])
+    y_err = rot.angle_between(al.lab_to_earth.quat, truth.markers["lab_rotation"])
     assert np.degrees(y_err) < 0.5
     for label in session.sensors:
         # true sensor → cluster: the cluster's estimated shape fitted onto its true layout
@@ -89,7 +89,7 @@ def test_alignment_rotations_are_recovered(knee):
         shape = result.optical[label]["shape_m"]
         segment_to_cluster = rigid_fit(truth.markers["local"][idx], shape[None])[0][0]
         x_true = rot.mul(segment_to_cluster, truth.sensors[label]["mounting"])
-        x_err = rot.angle_between(al["sensor_to_cluster"][label]["quat"], x_true)
+        x_err = rot.angle_between(al.sensor_to_cluster[label].quat, x_true)
         assert np.degrees(x_err) < 0.5, label
         assert rot.angle(x_true) > np.radians(10)  # a real rotation to recover
 

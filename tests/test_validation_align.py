@@ -46,8 +46,8 @@ def test_full_mode_recovers_both_rotations():
     for k, x in xs.items():
         assert np.degrees(rot.angle_between(al.sensor_to_cluster[k], x)) < 0.05
         assert al.residual_rms_deg[k] == pytest.approx(0.5 * np.sqrt(3), rel=0.1)
-    d = al.as_dict()
-    assert d["lab_to_earth"]["angle_deg"] == pytest.approx(np.degrees(rot.angle(y)), abs=0.05)
+    d = al.record()
+    assert d.lab_to_earth.angle_deg == pytest.approx(np.degrees(rot.angle(y)), abs=0.05)
 
 
 def test_heading_mode_allows_a_heading_per_sensor():

@@ -43,4 +43,4 @@ def command(session: str, protocol_path: str, force: bool) -> None:
         for msg in q.messages:
             click.echo(f"  - {msg}")
     for joint, g in result.grades.items():
-        click.echo(f"{joint:<12} angles: {', '.join(g['grades'])}")
+        click.echo(f"{joint:<12} angles: {', '.join(g.grades)}")

@@ -78,12 +78,12 @@ def command(
         ses.add_provenance(parameters={"stage": "metrics", "protocol": str(protocol.path)})
         save_session(ses, session, force=True)
     for block, rng in result.blocks.items():
-        click.echo(f"task {block:<20} {rng['start_s']:8.2f}–{rng['end_s']:8.2f} s")
+        click.echo(f"task {block:<20} {rng.start_s:8.2f}–{rng.end_s:8.2f} s")
         for col, m in result.joints[block].items():
-            if not np.isfinite(m["rom_deg"]):
+            if not np.isfinite(m.rom_deg):
                 continue
             click.echo(
-                f"  {col:<32} ROM {m['rom_deg']:6.1f}  min {m['min_deg']:6.1f}  "
-                f"max {m['max_deg']:6.1f}  cycles {m['repetitions']}"
+                f"  {col:<32} ROM {m.rom_deg:6.1f}  min {m.min_deg:6.1f}  "
+                f"max {m.max_deg:6.1f}  cycles {m.repetitions}"
             )
     click.echo(f"{len(table)} rows" + (f" written to {csv_path}" if csv_path else ""))

@@ -85,8 +85,8 @@ def gait_spans(session: Session, protocol: Protocol) -> dict[str, tuple[float, f
     out = {}
     for task in protocol.tasks:
         b = blocks.get(task.name)
-        if is_gait(task) and isinstance(b, dict) and "start_s" in b:
-            out[task.name] = (float(b["start_s"]), float(b["end_s"]))
+        if is_gait(task) and b is not None:
+            out[task.name] = (float(b.start_s), float(b.end_s))
     return out
 
 

@@ -27,9 +27,10 @@ not determined").
 
 from __future__ import annotations
 
+from dataclasses import replace
 from functools import lru_cache
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pandas as pd
@@ -37,6 +38,7 @@ from scipy.interpolate import PchipInterpolator
 
 from motionlab.kinematics.joint_types import angle_columns
 from motionlab.kinematics.spatiotemporal import MIN_STRIDES, too_few
+from motionlab.results import JointGrades, MovementProfile
 from motionlab.segments.grades import _frame_grade
 
 if TYPE_CHECKING:
@@ -92,25 +94,23 @@ def population_gps(variables: tuple[str, ...] = VARIABLES) -> float:
     return float(np.sqrt(np.mean([np.mean(normative(v)[1] ** 2) for v in variables])))
 
 
-def _profile(scores: dict[str, dict[str, float]]) -> dict[str, Any]:
+def _profile(scores: dict[str, dict[str, float]]) -> MovementProfile:
     overall = {f"r_{v}": x for v, x in scores.get("r", {}).items()}
     overall |= {f"l_{v}": x for v, x in scores.get("l", {}).items() if v not in PELVIS}
     if "r" not in scores:
         overall |= {f"l_{v}": x for v, x in scores.get("l", {}).items() if v in PELVIS}
     used = tuple(v for v in VARIABLES if any(v in x for x in scores.values()))
-    return {
-        "gvs": scores,
-        "gps": {side: gps(x) for side, x in scores.items()} | {"overall": gps(overall)},
-        "population_gps_deg": population_gps(used) if used else float("nan"),
-        "variables": list(used),
-    }
+    return MovementProfile(
+        gvs=scores,
+        gps={side: gps(x) for side, x in scores.items()} | {"overall": gps(overall)},
+        population_gps_deg=population_gps(used) if used else float("nan"),
+        variables=list(used),
+    )
 
 
-def movement_analysis_profile(curves: dict[str, dict[str, np.ndarray]]) -> dict[str, Any]:
-    """MAP and GPS from mean curves ``{side: {variable: (P,) deg over 0-100 %}}``.
-
-    Returns ``{"gvs": {side: {variable: deg}}, "gps": {"r": deg, "l": deg, "overall": deg},
-    "population_gps_deg": deg, "variables": [...]}``; a missing variable is left out. Ungraded:
+def movement_analysis_profile(curves: dict[str, dict[str, np.ndarray]]) -> MovementProfile:
+    """MAP and GPS from mean curves ``{side: {variable: (P,) deg over 0-100 %}}``
+    (:class:`~motionlab.results.MovementProfile`); a missing variable is left out. Ungraded:
     see :func:`gated_profile`.
     """
     scores: dict[str, dict[str, float]] = {}
@@ -131,8 +131,8 @@ def variable_grades(
     for joint in protocol.joints.values():
         if joint.side not in out:
             continue
-        entry = graded.get(joint.name) or {}
-        grades, reasons = entry.get("grades", []), entry.get("reasons", [])
+        entry = graded.get(joint.name) or JointGrades()
+        grades, reasons = entry.grades, entry.reasons
         for k, (angle, _) in enumerate(angle_columns(joint)):
             v = f"{joint.type}_{angle}"
             if v in VARIABLES:
@@ -149,24 +149,24 @@ def variable_grades(
 
 
 def gated_profile(
-    mp: dict[str, Any],
+    mp: MovementProfile,
     grades: dict[str, dict[str, tuple[str, str]]],
     strides: dict[str, int] | None = None,
-) -> dict[str, Any]:
+) -> MovementProfile:
     """The MAP and GPS of :func:`movement_analysis_profile` keeping only what its inputs allow
     (module docstring): the GVS of ``determined`` variables (``grades`` from
     :func:`variable_grades`; a variable not graded counts as determined) of sides with at least
     ``MIN_STRIDES`` kept strides (``strides`` ``{side: n}``; None: not checked), a side's GPS only
-    with all its variables, the overall GPS only with both sides'. Adds ``withheld`` ``{side:
+    with all its variables, the overall GPS only with both sides'. Sets ``withheld`` ``{side:
     {variable: why}}`` and ``not_computed``: a sentence naming what is missing, empty when the
     overall GPS is given. Applying it again with the same inputs changes nothing."""
     strides = strides or {}
     scores: dict[str, dict[str, float]] = {}
     withheld: dict[str, dict[str, str]] = {}
     for side in ("r", "l"):
-        before = (mp.get("withheld") or {}).get(side, {})
+        before = (mp.withheld or {}).get(side, {})
         gone: dict[str, str] = {}
-        curves = mp["gvs"].get(side, {})
+        curves = mp.gvs.get(side, {})
         n = strides.get(side)
         for v in VARIABLES:
             grade = grades.get(side, {}).get(v, ("determined", ""))[0]
@@ -185,17 +185,23 @@ def gated_profile(
         if gone:
             withheld[side] = gone
     out = _profile(scores)
+    scored = dict(out.gps)
     for side in ("r", "l"):
         if withheld.get(side):
-            out["gps"][side] = float("nan")
+            scored[side] = float("nan")
     if withheld:
-        out["gps"]["overall"] = float("nan")
-    out["population_gps_deg"] = mp.get("population_gps_deg", out["population_gps_deg"])
+        scored["overall"] = float("nan")
     named = [set(x) for x in scores.values()] + [set(x) for x in withheld.values()]
-    out["variables"] = [v for v in VARIABLES if any(v in x for x in named)]
-    out["withheld"] = withheld
-    out["not_computed"] = not_computed(withheld)
-    return out
+    return replace(
+        out,
+        gps=scored,
+        population_gps_deg=(
+            out.population_gps_deg if mp.population_gps_deg is None else mp.population_gps_deg
+        ),
+        variables=[v for v in VARIABLES if any(v in x for x in named)],
+        withheld=withheld,
+        not_computed=not_computed(withheld),
+    )
 
 
 def not_computed(withheld: dict[str, dict[str, str]]) -> str:

@@ -27,6 +27,7 @@ percent, value, unit``.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -39,7 +40,7 @@ from motionlab.kinematics import out_of_plane as oop
 from motionlab.kinematics.joint_types import angle_columns, split_column
 from motionlab.kinematics.session_angles import angle_table, nominal_calibration
 from motionlab.protocol import Joint, Protocol, Task
-from motionlab.results import Metrics, SegmentCalibration
+from motionlab.results import AngleMetrics, Metrics, SegmentCalibration, TaskBlock
 from motionlab.segments import (
     reference_step,
     segment_orientations,
@@ -72,7 +73,7 @@ def is_gait(task: Task) -> bool:
     return "gait" in task.kind.lower() or "walk" in task.kind.lower()
 
 
-def angle_metrics(values: np.ndarray, cycles: cyc.Cycles) -> dict[str, Any]:
+def angle_metrics(values: np.ndarray, cycles: cyc.Cycles) -> AngleMetrics:
     """ROM, extremes, per-cycle peaks and the cycle-normalised mean ± SD of one angle (deg)."""
     v = np.asarray(values, dtype=float)
     curves = cyc.normalise(v, cycles)
@@ -84,18 +85,18 @@ def angle_metrics(values: np.ndarray, cycles: cyc.Cycles) -> dict[str, Any]:
         [np.nanmin(v[a : b + 1]) for a, b in zip(cycles.start, cycles.end, strict=True)]
     )
     finite = np.isfinite(v).any()
-    return {
-        "rom_deg": float(np.nanmax(v) - np.nanmin(v)) if finite else float("nan"),
-        "min_deg": float(np.nanmin(v)) if finite else float("nan"),
-        "max_deg": float(np.nanmax(v)) if finite else float("nan"),
-        "repetitions": len(cycles),
-        "cycle_max_deg": peaks_max,
-        "cycle_min_deg": peaks_min,
-        "cycle_max_mean_deg": float(peaks_max.mean()) if len(cycles) else float("nan"),
-        "cycle_min_mean_deg": float(peaks_min.mean()) if len(cycles) else float("nan"),
-        "curve_mean_deg": mean,
-        "curve_sd_deg": sd,
-    }
+    return AngleMetrics(
+        rom_deg=float(np.nanmax(v) - np.nanmin(v)) if finite else float("nan"),
+        min_deg=float(np.nanmin(v)) if finite else float("nan"),
+        max_deg=float(np.nanmax(v)) if finite else float("nan"),
+        repetitions=len(cycles),
+        cycle_max_deg=peaks_max,
+        cycle_min_deg=peaks_min,
+        cycle_max_mean_deg=float(peaks_max.mean()) if len(cycles) else float("nan"),
+        cycle_min_mean_deg=float(peaks_min.mean()) if len(cycles) else float("nan"),
+        curve_mean_deg=mean,
+        curve_sd_deg=sd,
+    )
 
 
 def primary_plane(joint: Joint, task: Task | None) -> int:
@@ -186,8 +187,9 @@ def compute_metrics(
                 plane = primary_plane(joint, task)
                 cycles = cyc.find_repetitions(table[cols[plane]][win], rate)
             for col in cols:
-                per_col[col] = angle_metrics(table[col][win], cycles)
-                per_col[col]["cycle_start_s"] = time[win][cycles.start]
+                per_col[col] = replace(
+                    angle_metrics(table[col][win], cycles), cycle_start_s=time[win][cycles.start]
+                )
             if joint.type == "lumbar" and "out_of_plane_offset" in todo and task is not None:
                 plane = task.options.get("plane")
                 if plane and oop.plane_index("lumbar", str(plane)) is not None:
@@ -205,7 +207,7 @@ def compute_metrics(
             out.setdefault("cross_talk", {}).setdefault(block, {})[joint.name] = oop.cross_talk(
                 table, nominal_table, joint, idx, _window(time, t0, t1)
             )
-    out["blocks"] = {k: {"start_s": float(v[0]), "end_s": float(v[1])} for k, v in blocks.items()}
+    out["blocks"] = {k: TaskBlock(float(v[0]), float(v[1])) for k, v in blocks.items()}
     return Metrics(**out)
 
 
@@ -300,8 +302,7 @@ def session_metrics(
         nominal,
         shank_angular_velocity(session, protocol, cal),
     )
-    for v in out.blocks.values():
-        v["source"] = source
+    out.blocks = {k: replace(v, source=source) for k, v in out.blocks.items()}
     return out
 
 
@@ -326,12 +327,10 @@ def metrics_table(metrics: Metrics) -> pd.DataFrame:
         for col, m in cols.items():
             joint, angle = split_column(col)
             for key in ("rom_deg", "min_deg", "max_deg", "repetitions"):
-                add(block, joint, angle, key, m[key])
+                add(block, joint, angle, key, getattr(m, key))
             for key in ("cycle_max_mean_deg", "cycle_min_mean_deg"):
-                add(block, joint, angle, key, m[key])
-            for pct, (mu, sd) in enumerate(
-                zip(m["curve_mean_deg"], m["curve_sd_deg"], strict=True)
-            ):
+                add(block, joint, angle, key, getattr(m, key))
+            for pct, (mu, sd) in enumerate(zip(m.curve_mean_deg, m.curve_sd_deg, strict=True)):
                 add(block, joint, angle, "curve_mean_deg", mu, pct)
                 add(block, joint, angle, "curve_sd_deg", sd, pct)
     for block, joints in (metrics.cross_talk or {}).items():

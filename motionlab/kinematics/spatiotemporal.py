@@ -61,6 +61,7 @@ import pandas as pd
 
 from motionlab import rotations as rot
 from motionlab.kinematics.gait_events import Strides
+from motionlab.results import GaitSummary
 
 #: step length = ankle-to-ankle distance × this (module docstring; Vicon walking2, n = 4 steps)
 FOOT_ROLL_FACTOR = 1.25
@@ -310,70 +311,73 @@ def _paired_steps(kept: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(r_out, dtype=float), np.asarray(l_out, dtype=float)
 
 
-def summary(table: pd.DataFrame) -> dict[str, Any]:
-    """Per side ``{column: {mean, sd, cv_pct, se, median, q1, q3, strides_n}}`` of kept strides,
-    and the bilateral numbers: ``cadence_steps_per_min``, ``step_time_asymmetry_pct`` (with
-    ``step_time_asymmetry_se_pct`` and ``step_pairs``), ``stride_time_cv_pct`` (with
-    ``stride_time_cv_se_pct``), ``walking_speed_m_s`` (NaN without leg lengths),
-    ``strides_kept``, ``strides_rejected`` ``{reason: count}``, ``min_strides`` and
-    ``withheld`` ``{number: why it is not given}`` (module docstring)."""
+def summary(table: pd.DataFrame) -> GaitSummary:
+    """Per side the statistics of each stride-table column over the kept strides, and the
+    bilateral numbers (:class:`~motionlab.results.GaitSummary`; module docstring)."""
     kept = table[table["kept"]]
-    out: dict[str, Any] = {"sides": {}, "min_strides": MIN_STRIDES}
+    sides: dict[str, Any] = {}
     withheld: dict[str, str] = {}
     counts = {}
     for side in ("r", "l"):
         part = kept[kept["side"] == side]
-        out["sides"][side] = {c: _stats(part[c]) for c in STRIDE_COLUMNS}
+        sides[side] = {c: _stats(part[c]) for c in STRIDE_COLUMNS}
         counts[side] = int(part["stride_time_s"].notna().sum())
     stride = kept["stride_time_s"].dropna()
     fewest = min(counts.values())
-    out["cadence_steps_per_min"] = np.nan
+    cadence = np.nan
     if fewest >= MIN_STRIDES:
-        out["cadence_steps_per_min"] = 120.0 / float(stride.mean())
+        cadence = 120.0 / float(stride.mean())
     else:
         withheld["cadence_steps_per_min"] = too_few(fewest) + " on one side"
     r, left = _paired_steps(kept)
-    out["step_pairs"] = len(r)
-    out["step_time_asymmetry_pct"] = out["step_time_asymmetry_se_pct"] = np.nan
+    asym = asym_se = np.nan
     if len(r) >= MIN_STRIDES:
         total = float(r.mean() + left.mean())
-        out["step_time_asymmetry_pct"] = 200 * abs(float(r.mean() - left.mean())) / total
+        asym = 200 * abs(float(r.mean() - left.mean())) / total
         diff_se = float(np.std(r - left, ddof=1)) / np.sqrt(len(r))
-        out["step_time_asymmetry_se_pct"] = float(200 * diff_se / total)
+        asym_se = float(200 * diff_se / total)
     else:
         withheld["step_time_asymmetry_pct"] = too_few(len(r), "paired steady steps")
-    out["stride_time_cv_pct"] = out["stride_time_cv_se_pct"] = np.nan
+    cv = cv_se = np.nan
     if fewest >= MIN_STRIDES:
         cv, dof = _within_bout_cv(kept)
-        out["stride_time_cv_pct"] = cv
-        out["stride_time_cv_se_pct"] = float(cv / np.sqrt(2 * dof)) if dof else np.nan
+        cv_se = float(cv / np.sqrt(2 * dof)) if dof else np.nan
     else:
         withheld["stride_time_cv_pct"] = too_few(fewest) + " on one side"
     speed = kept["walking_speed_m_s"].dropna()
-    out["walking_speed_m_s"] = float(speed.mean()) if len(speed) >= MIN_STRIDES else np.nan
     if 0 < len(speed) < MIN_STRIDES:
         withheld["walking_speed_m_s"] = too_few(len(speed))
-    out["strides_kept"] = int(len(kept))
     rejected = table[~table["kept"]]["reason"].value_counts()
-    out["strides_rejected"] = {str(k): int(v) for k, v in rejected.items()}
-    out["withheld"] = withheld
-    return out
+    return GaitSummary(
+        sides=sides,
+        min_strides=MIN_STRIDES,
+        cadence_steps_per_min=cadence,
+        step_pairs=len(r),
+        step_time_asymmetry_pct=asym,
+        step_time_asymmetry_se_pct=asym_se,
+        stride_time_cv_pct=cv,
+        stride_time_cv_se_pct=cv_se,
+        walking_speed_m_s=float(speed.mean()) if len(speed) >= MIN_STRIDES else np.nan,
+        strides_kept=int(len(kept)),
+        strides_rejected={str(k): int(v) for k, v in rejected.items()},
+        withheld=withheld,
+    )
 
 
-def summary_rows(summ: dict[str, Any]) -> pd.DataFrame:
+def summary_rows(summ: GaitSummary) -> pd.DataFrame:
     """The summary as a table ``parameter, side, mean, sd, cv_pct, se, median, q1, q3,
     strides_n`` (for CSV and report); the bilateral numbers have their ``se`` where known."""
     rows = []
-    for side, cols in summ["sides"].items():
+    for side, cols in summ.sides.items():
         for c, s in cols.items():
             rows.append({"parameter": c, "side": side} | s)
-    both = ("cadence_steps_per_min", "step_time_asymmetry_pct", "stride_time_cv_pct",
-            "walking_speed_m_s")  # fmt: skip
-    for c in both:
-        if c not in summ:
-            continue
-        rows.append({"parameter": c, "side": "both", "mean": summ[c], "sd": np.nan,
-                     "cv_pct": np.nan, "se": summ.get(c.removesuffix("_pct") + "_se_pct", np.nan),
-                     "median": np.nan, "q1": np.nan, "q3": np.nan,
-                     "strides_n": summ["strides_kept"]})  # fmt: skip
+    both = (("cadence_steps_per_min", summ.cadence_steps_per_min, np.nan),
+            ("step_time_asymmetry_pct", summ.step_time_asymmetry_pct,
+             summ.step_time_asymmetry_se_pct),
+            ("stride_time_cv_pct", summ.stride_time_cv_pct, summ.stride_time_cv_se_pct),
+            ("walking_speed_m_s", summ.walking_speed_m_s, np.nan))  # fmt: skip
+    for c, value, se in both:
+        rows.append({"parameter": c, "side": "both", "mean": value, "sd": np.nan,
+                     "cv_pct": np.nan, "se": se, "median": np.nan, "q1": np.nan, "q3": np.nan,
+                     "strides_n": summ.strides_kept})  # fmt: skip
     return pd.DataFrame(rows)

@@ -150,19 +150,20 @@ def _gait_line(view: SessionView) -> str:
     if not gait.ok:
         return f"  gait: {gait.status}; no gait pages"
     s = gait.summary
-    withheld = s.get("withheld") or {}
 
-    def number(key: str, fmt: str) -> str:
-        v = s.get(key, float("nan"))
-        return fmt.format(v) if v == v else withheld.get(key, "n/a")
+    def number(key: str, v: float, fmt: str) -> str:
+        return fmt.format(v) if v == v else s.withheld.get(key, "n/a")
 
-    mp = gait_profile(view) or {}
-    gps = mp.get("gps", {}).get("overall", float("nan"))
-    gps_text = f"GPS {gps:.1f} deg" if gps == gps else (mp.get("not_computed") or "GPS n/a")
-    speed = s.get("walking_speed_m_s", float("nan"))
+    mp = gait_profile(view)
+    gps = mp.gps.get("overall", float("nan")) if mp is not None else float("nan")
+    missing = mp.not_computed if mp is not None else None
+    gps_text = f"GPS {gps:.1f} deg" if gps == gps else (missing or "GPS n/a")
+    speed = s.walking_speed_m_s
     speed_text = f", speed {speed:.2f} m/s (leg model)" if speed == speed else ""
     return (
-        f"  gait: {s['strides_kept']} strides, cadence "
-        f"{number('cadence_steps_per_min', '{:.1f} steps/min')}, step-time asymmetry "
-        f"{number('step_time_asymmetry_pct', '{:.1f} %')}{speed_text}; {gps_text}"
+        f"  gait: {s.strides_kept} strides, cadence "
+        f"{number('cadence_steps_per_min', s.cadence_steps_per_min, '{:.1f} steps/min')}, "
+        "step-time asymmetry "
+        f"{number('step_time_asymmetry_pct', s.step_time_asymmetry_pct, '{:.1f} %')}"
+        f"{speed_text}; {gps_text}"
     )

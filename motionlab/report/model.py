@@ -39,7 +39,15 @@ from motionlab.kinematics.gps import gated_profile, variable_grades
 from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, plane, title
 from motionlab.kinematics.metrics import THORAX as THORAX  # re-exported for the pages
 from motionlab.protocol import Joint, Protocol, load_protocol
-from motionlab.results import Gait, Metrics, SegmentCalibration, SegmentRecord
+from motionlab.results import (
+    AngleMetrics,
+    Gait,
+    JointGrades,
+    Metrics,
+    MovementProfile,
+    SegmentCalibration,
+    SegmentRecord,
+)
 from motionlab.segments import sensor_for_segment
 from motionlab.segments.grades import GRADES, _frame_grade
 from motionlab.session import Session
@@ -204,8 +212,8 @@ class SessionView:
     def blocks(self) -> dict[str, tuple[float, float]]:
         """Task blocks ``{task: (start_s, end_s)}`` of the metrics, in time order."""
         blocks = self.metrics.blocks
-        order = sorted(blocks, key=lambda k: blocks[k]["start_s"])
-        return {k: (blocks[k]["start_s"], blocks[k]["end_s"]) for k in order}
+        order = sorted(blocks, key=lambda k: blocks[k].start_s)
+        return {k: (blocks[k].start_s, blocks[k].end_s) for k in order}
 
     def tasks(self) -> list[str]:
         """Tasks with joint metrics, in time order."""
@@ -304,11 +312,11 @@ def normal_range(protocol: Protocol, task: str, column: str) -> tuple[float, flo
     return (float(rng[0]), float(rng[1])) if rng else None
 
 
-def _extremes(m: dict[str, Any]) -> tuple[float, float]:
+def _extremes(m: AngleMetrics) -> tuple[float, float]:
     """Typical extremes: the means of the per-cycle peaks, else the block's min and max."""
-    if m.get("repetitions", 0) >= 1 and np.isfinite(m.get("cycle_max_mean_deg", np.nan)):
-        return float(m["cycle_min_mean_deg"]), float(m["cycle_max_mean_deg"])
-    return float(m["min_deg"]), float(m["max_deg"])
+    if m.repetitions >= 1 and np.isfinite(m.cycle_max_mean_deg):
+        return float(m.cycle_min_mean_deg), float(m.cycle_max_mean_deg)
+    return float(m.min_deg), float(m.max_deg)
 
 
 def compare(low: float, high: float, normal: tuple[float, float] | None, reach: bool) -> str:
@@ -342,9 +350,9 @@ def grade_rows(view: SessionView) -> list[GradeRow]:
     graded = cal.grades if cal is not None else {}
     rows = []
     for joint in view.joints():
-        entry = graded.get(joint.name) or {}
-        grades = [str(g) for g in entry.get("grades", [])]
-        reasons = [str(r) for r in entry.get("reasons", [])]
+        entry = graded.get(joint.name) or JointGrades()
+        grades = [str(g) for g in entry.grades]
+        reasons = [str(r) for r in entry.reasons]
         for k, (angle, col) in enumerate(angle_columns(joint)):
             grade = grades[k] if k < len(grades) and grades[k] in GRADES else DETERMINED
             reason = reasons[k] if k < len(reasons) and grade != DETERMINED else ""
@@ -421,12 +429,12 @@ def rom_rows(view: SessionView) -> list[RomRow]:
                         angle=angle,
                         plane=plane(joint, angle),
                         column=col,
-                        rom_deg=float(m["rom_deg"]),
-                        min_deg=float(m["min_deg"]),
-                        max_deg=float(m["max_deg"]),
+                        rom_deg=float(m.rom_deg),
+                        min_deg=float(m.min_deg),
+                        max_deg=float(m.max_deg),
                         typical_min_deg=low,
                         typical_max_deg=high,
-                        repetitions=int(m["repetitions"]),
+                        repetitions=int(m.repetitions),
                         normal=normal,
                         status=status if is_determined(grade) else "",
                         grade=grade,
@@ -604,13 +612,13 @@ def excluded(view: SessionView) -> list[str]:
     return out
 
 
-def gait_profile(view: SessionView) -> dict[str, Any] | None:
+def gait_profile(view: SessionView) -> MovementProfile | None:
     """The session's Movement Analysis Profile and GPS as the angles' grades allow
     (:func:`motionlab.kinematics.gps.gated_profile` with this session's grades and kept strides:
     a session analysed before the gating, or whose grades changed since, is gated here); None
     without a gait analysis."""
     g = view.session.results.gait
-    if g is None or not g.ok or not g.map:
+    if g is None or not g.ok or g.map is None:
         return None
     strides = g.strides or {}
     kept = np.asarray(strides.get("kept", []), dtype=bool)

@@ -28,7 +28,7 @@ from motionlab.kinematics.spatiotemporal import (
 )
 from motionlab.report.model import SessionView, gait_profile, gait_result
 from motionlab.report.pdf import BAND_COLOUR, MUTED, SIDE_COLOUR, SIZE, Document
-from motionlab.results import Gait
+from motionlab.results import Gait, GaitSummary, MovementProfile
 
 _LABELS = {
     "cadence_steps_per_min": "cadence (steps/min)",
@@ -80,13 +80,11 @@ def beyond(value: float, se: float, band: list[float] | None, method: float = 0.
     return bool(value - margin > band[1] or value + margin < band[0])
 
 
-def _both(summ: dict[str, Any], c: str) -> str:
-    """A bilateral number with its 95 % margin, or why it is not given."""
-    v = summ.get(c, np.nan)
+def _both(summ: GaitSummary, c: str, v: float, se: float, n: int) -> str:
+    """A bilateral number ``c`` (value ``v``, standard error ``se``, from ``n`` step pairs or
+    strides) with its 95 % margin, or why it is not given."""
     if not np.isfinite(v):
-        return (summ.get("withheld") or {}).get(c, "-")
-    se = summ.get(c.removesuffix("_pct") + "_se_pct", np.nan)
-    n = summ.get("step_pairs") if c == "step_time_asymmetry_pct" else summ["strides_kept"]
+        return summ.withheld.get(c, "-")
     what = "step pairs" if c == "step_time_asymmetry_pct" else "strides"
     margin = f" ± {Z95 * se:.1f}" if np.isfinite(se) else ""
     return f"{v:.1f}{margin} (both sides; {n} {what})"
@@ -111,17 +109,17 @@ def gait_pages(doc: Document, view: SessionView) -> None:
         "healthy adults.",
     )
     rows, flags = [], []
-    counts = {k: int(summ["sides"][k]["stride_time_s"]["strides_n"]) for k in ("r", "l")}
+    counts = {k: int(summ.sides[k]["stride_time_s"]["strides_n"]) for k in ("r", "l")}
     few = [f"{'right' if k == 'r' else 'left'}: {too_few(n)}" for k, n in counts.items()
            if n < MIN_STRIDES]  # fmt: skip
     if few:
         doc.paragraph("No mean is given for a side with too few strides (" + "; ".join(few)
                       + ").", weight="bold")  # fmt: skip
-    times = [summ["sides"][k]["stride_time_s"]["mean"] for k in ("r", "l")]
+    times = [summ.sides[k]["stride_time_s"]["mean"] for k in ("r", "l")]
     stride = float(np.nanmean(times)) if np.isfinite(times).any() else np.nan
     for c in STRIDE_COLUMNS:
         digits = 2 if c.endswith(("_s", "_m")) else 1
-        r, left = summ["sides"]["r"][c], summ["sides"]["l"][c]
+        r, left = summ.sides["r"][c], summ.sides["l"][c]
         band = bands.get(c)
         cells = [_fmt(x, digits) if counts[k] >= MIN_STRIDES else "-"
                  for k, x in (("r", r), ("l", left))]  # fmt: skip
@@ -129,25 +127,29 @@ def gait_pages(doc: Document, view: SessionView) -> None:
         flags.append([False] + [beyond(x["mean"], x.get("se", np.nan), band,
                                        method_error(c, x["mean"], stride)) for x in (r, left)]
                      + [False])  # fmt: skip
-    for c in ("step_time_asymmetry_pct", "stride_time_cv_pct"):
+    bilateral = (
+        ("step_time_asymmetry_pct", summ.step_time_asymmetry_pct,
+         summ.step_time_asymmetry_se_pct, summ.step_pairs),
+        ("stride_time_cv_pct", summ.stride_time_cv_pct, summ.stride_time_cv_se_pct,
+         summ.strides_kept),
+    )  # fmt: skip
+    for c, value, se, n in bilateral:
         band = bands.get(c)
-        se = summ.get(c.removesuffix("_pct") + "_se_pct", np.nan)
-        value = summ.get(c, np.nan)
-        rows.append([_LABELS[c], _both(summ, c), "",
+        rows.append([_LABELS[c], _both(summ, c, value, se, n), "",
                      f"{band[0]:g}-{band[1]:g}" if band else "-"])  # fmt: skip
         flags.append([False, beyond(value, se, band, method_error(c, value, stride)), False,
                       False])  # fmt: skip
     doc.table(["parameter", "right", "left", "normal"], rows, [0.28, 0.29, 0.29, 0.14],
               flagged=flags, align=["l", "r", "r", "r"])  # fmt: skip
-    rejected = ", ".join(f"{k} {v}" for k, v in summ["strides_rejected"].items()) or "none"
-    cadence = summ["cadence_steps_per_min"]
+    rejected = ", ".join(f"{k} {v}" for k, v in summ.strides_rejected.items()) or "none"
+    cadence = summ.cadence_steps_per_min
     cadence_text = (
         f"{cadence:.1f} steps/min"
         if np.isfinite(cadence)
-        else (summ.get("withheld") or {}).get("cadence_steps_per_min", "-")
+        else summ.withheld.get("cadence_steps_per_min", "-")
     )
     doc.paragraph(
-        f"Strides kept: {summ['strides_kept']}; rejected: {rejected}. Overall cadence "
+        f"Strides kept: {summ.strides_kept}; rejected: {rejected}. Overall cadence "
         f"{cadence_text}. *Lengths and speed: {length_note(g)}",
         size=SIZE["small"],
     )
@@ -157,7 +159,7 @@ def gait_pages(doc: Document, view: SessionView) -> None:
 
 def length_note(g: Gait) -> str:
     """One sentence on the stride length and speed: the model, its measured error, or why not."""
-    speed = g.summary.get("walking_speed_m_s", np.nan)
+    speed = g.summary.walking_speed_m_s
     if not np.isfinite(speed):
         return (g.walking_speed or "not measured") + "."
     return (
@@ -168,11 +170,11 @@ def length_note(g: Gait) -> str:
     )
 
 
-def _map_chart(doc: Document, mp: dict[str, Any]) -> None:
+def _map_chart(doc: Document, mp: MovementProfile) -> None:
     """The Movement Analysis Profile: GVS per determined variable and side, and the GPS when
     every variable is determined (else which are missing)."""
-    missing = mp.get("not_computed", "")
-    names = [v for v in mp["variables"] if any(v in mp["gvs"].get(s, {}) for s in "rl")]
+    missing = mp.not_computed or ""
+    names = [v for v in mp.variables if any(v in mp.gvs.get(s, {}) for s in "rl")]
     if names:
         doc.ensure(3.8)  # the heading stays with its chart
     doc.heading("Gait Profile Score and Movement Analysis Profile")
@@ -181,14 +183,14 @@ def _map_chart(doc: Document, mp: dict[str, Any]) -> None:
         names = [*names, *([] if missing else ["GPS"])]
         x = np.arange(len(names))
         for k, side in enumerate(("r", "l")):
-            vals = [mp["gvs"].get(side, {}).get(v, np.nan) for v in names if v != "GPS"]
+            vals = [mp.gvs.get(side, {}).get(v, np.nan) for v in names if v != "GPS"]
             if not missing:
-                vals.append(mp["gps"].get(side, np.nan))
+                vals.append(mp.gps.get(side, np.nan))
             ax.bar(x + (k - 0.5) * 0.38, vals, 0.36, color=SIDE_COLOUR[side],
                    label={"r": "right", "l": "left"}[side])  # fmt: skip
         if not missing:  # the population's GPS is a reference for a GPS, not for one GVS
-            expected = f"expected GPS of a normal subject {mp['population_gps_deg']:.1f}°"
-            ax.axhline(mp["population_gps_deg"], color=MUTED, ls="--", lw=0.8, label=expected)
+            expected = f"expected GPS of a normal subject {mp.population_gps_deg:.1f}°"
+            ax.axhline(mp.population_gps_deg, color=MUTED, ls="--", lw=0.8, label=expected)
         ax.set_xticks(x, [n.replace("_", " ") for n in names], rotation=30, ha="right")
         ax.set_ylabel("deg (RMS difference)")
         ax.legend(loc="upper left", frameon=False)
@@ -200,9 +202,9 @@ def _map_chart(doc: Document, mp: dict[str, Any]) -> None:
         )
     else:
         head = (
-            f"GPS: right {mp['gps'].get('r', np.nan):.1f}°, "
-            f"left {mp['gps'].get('l', np.nan):.1f}°, overall {mp['gps']['overall']:.1f}° "
-            f"(Baker et al. 2009, Gait Posture 30:265; {len(mp['variables'])} variables per "
+            f"GPS: right {mp.gps.get('r', np.nan):.1f}°, "
+            f"left {mp.gps.get('l', np.nan):.1f}°, overall {mp.gps['overall']:.1f}° "
+            f"(Baker et al. 2009, Gait Posture 30:265; {len(mp.variables)} variables per "
             "side, no ankle or foot). "
         )
     doc.paragraph(

@@ -209,14 +209,14 @@ def draw_cycle(ax: Axes, view: SessionView, joint, task: str, angle: str, col: s
     colour, suffix = graded_style(view, joint, col)
     if colour == NOT_DETERMINED_COLOUR:
         _no_data(ax, "not determined:\nnot drawn")
-    elif m is None or m["repetitions"] == 0 or not np.isfinite(m["curve_mean_deg"]).any():
+    elif m is None or m.repetitions == 0 or not np.isfinite(m.curve_mean_deg).any():
         _no_data(ax, "no cycles found")
     else:
-        mean, sd = np.asarray(m["curve_mean_deg"]), np.asarray(m["curve_sd_deg"])
+        mean, sd = np.asarray(m.curve_mean_deg), np.asarray(m.curve_sd_deg)
         ax.fill_between(pct, mean - sd, mean + sd, color=colour, alpha=0.25, lw=0)
         ax.plot(pct, mean, color=colour, lw=1.2)
     min_span(ax)
-    n = int(m["repetitions"]) if m is not None else 0
+    n = int(m.repetitions) if m is not None else 0
     ax.set_title(
         f"{task_name(task)}, {angle.replace('_', ' ')} (n = {n}){suffix.replace(' · ', ', ')}",
         loc="left",
@@ -231,7 +231,7 @@ def _has_cycles(view: SessionView, joint, task: str) -> bool:
     """Whether the metrics found repetitions of ``joint`` in ``task`` (a calibration movement
     measured as one block has none, and no cycle page)."""
     per_col = view.metrics.joints.get(task, {})
-    return any(per_col.get(col, {}).get("repetitions", 0) for _, col in angle_columns(joint))
+    return any(per_col[col].repetitions for _, col in angle_columns(joint) if col in per_col)
 
 
 def _cycle_pages(doc: Document, view: SessionView, joint) -> None:
@@ -320,9 +320,9 @@ def symmetry_page(doc: Document, view: SessionView) -> None:
                     if angle_grades(view).get(col, ("determined", ""))[0] == NOT_DETERMINED:
                         hidden.append({"r": "right", "l": "left"}[side])
                         continue
-                    if m is None or m["repetitions"] == 0:
+                    if m is None or m.repetitions == 0:
                         continue
-                    mean, sd = np.asarray(m["curve_mean_deg"]), np.asarray(m["curve_sd_deg"])
+                    mean, sd = np.asarray(m.curve_mean_deg), np.asarray(m.curve_sd_deg)
                     ax.fill_between(
                         np.arange(101),
                         mean - sd,

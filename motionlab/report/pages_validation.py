@@ -123,14 +123,14 @@ def _sync_alignment(doc: Document, val: Validation) -> None:
             f"{_f(1e3 * sync.standard_error_s, '.2f')} ms, {sync.grade or '-'}",
         ],
         ["Reference", str(val.reference.get("kind", "markers"))],
-        ["Spatial alignment mode", str(al.get("mode", val.mode))],
+        ["Spatial alignment mode", str(al.mode if al is not None else val.mode)],
         [
             "Optical lab to earth rotation",
-            f"{_f(al.get('lab_to_earth', {}).get('angle_deg'), '.1f')}°",
+            f"{_f(al.lab_to_earth.angle_deg if al is not None else None, '.1f')}°",
         ],
     ]
-    for label, e in (al.get("sensor_to_cluster") or {}).items():
-        rows.append([f"Sensor {label} to its marker cluster", f"{_f(e.get('angle_deg'), '.1f')}°"])
+    for label, e in (al.sensor_to_cluster if al is not None else {}).items():
+        rows.append([f"Sensor {label} to its marker cluster", f"{_f(e.angle_deg, '.1f')}°"])
     doc.heading("Synchronisation and alignment")
     doc.table(["", ""], rows, [0.55, 0.3], align=["l", "r"])
 

@@ -28,7 +28,10 @@ from motionlab.binding import sensor_for_segment
 from motionlab.kinematics.joint_types import flexion_axis, joint_type
 from motionlab.protocol import Protocol, axis_vector
 from motionlab.results import (
+    CentreHeading,
     HeadingCorrection,
+    HeadingTie,
+    HeadingTies,
     HipAxis,
     SegmentCalibration,
     SegmentRecord,
@@ -73,7 +76,7 @@ def calibrate_segments(
     hinges: dict[str, Any] = {}
     contradicted: set[str] = set()
     unsure: dict[str, list[str]] = {}
-    centres: dict[str, dict[str, Any]] = {}
+    centres: dict[str, CentreHeading] = {}
     if pose is not None:  # orientations too short for more (OpenSense-style)
         steps, records = single_pose.measure(session, protocol, streams, pose, notes)
     else:
@@ -136,21 +139,21 @@ def _flag(segments: dict[str, SegmentRecord], seg: str, message: str) -> None:
 
 def heading_ties(
     session: Session, protocol: Protocol, calibration: SegmentCalibration
-) -> dict[str, Any]:
+) -> HeadingTies:
     """Each joint's heading ties (see :func:`segment_orientations`) from the orientations of the
-    sensors on the protocol's joints, joints taken along the chain: ``{"sha256": {segment: of
-    its orientations (:func:`orientations_sha256`)}, "joints": {joint: {"source", "times" (K,)
-    s, "deltas" (K,) rad}}}``. Stored in the calibration, so the angles (and metrics, gait, the
-    hip axes) apply them without finding them again. Ties already stored elsewhere in the
-    calibration (a two-axis fit's, a ball joint's centre) are not repeated."""
+    sensors on the protocol's joints, joints taken along the chain, with the SHA-256 of each
+    segment's orientations (:func:`orientations_sha256`). Stored in the calibration, so the
+    angles (and metrics, gait, the hip axes) apply them without finding them again. Ties
+    already stored elsewhere in the calibration (a two-axis fit's, a ball joint's centre) are
+    not repeated."""
     segs = [s for s in joint_segments(protocol) if sensor_for_segment(session, s) is not None]
     quats = sensor_quats(session, protocol, segs)
-    ties: dict[str, dict[str, Any]] = {}
+    ties: dict[str, HeadingTie] = {}
     segment_orientations(protocol, calibration, quats, ties=ties)
-    return {
-        "sha256": {seg: orientations_sha256(*tq) for seg, tq in quats.items()},
-        "joints": {j: v for j, v in ties.items() if v["source"] not in FITTED_TIES},
-    }
+    return HeadingTies(
+        sha256={seg: orientations_sha256(*tq) for seg, tq in quats.items()},
+        joints={j: v for j, v in ties.items() if v.source not in FITTED_TIES},
+    )
 
 
 #: tie sources stored with their fit (``calibration.hinges``, ``calibration.centres``)
@@ -361,14 +364,13 @@ def segment_orientations(
     (:class:`~motionlab.results.HeadingCorrection`). The ties are those stored in
     ``calibration.headings`` (:func:`heading_ties`) for a joint whose sensors, and every
     segment's up the chain, have the orientations they were found from (same SHA-256 per
-    segment), else found here; ``ties``, when given, receives them
-    (``{joint: {"source", "times", "deltas"}}``, before the proximal segment's turn is added
-    to fitted headings).
+    segment), else found here; ``ties``, when given, receives them (``{joint: HeadingTie}``,
+    before the proximal segment's turn is added to fitted headings).
     """
     calibration = calibration or SegmentCalibration("")
-    stored = calibration.headings or {}
-    hashes = stored.get("sha256") if isinstance(stored.get("sha256"), dict) else {}
-    stored_ties = stored.get("joints", {}) if align_heading else {}
+    kept = calibration.headings or HeadingTies()
+    hashes = kept.sha256
+    stored_ties = kept.joints if align_heading else {}
     same = {seg for seg, tq in sensor_quats.items() if stored_ties
             and seg in hashes and hashes[seg] == orientations_sha256(*tq)}  # fmt: skip
     out = {}
@@ -391,14 +393,14 @@ def segment_orientations(
             same.discard(d)
         stored = stored_ties.get(joint.name) if d in same else None
         if stored is not None:
-            source = stored["source"]
-            times = np.asarray(stored["times"], float)
-            deltas = np.asarray(stored["deltas"], float)
+            source = stored.source
+            times = np.asarray(stored.times, float)
+            deltas = np.asarray(stored.deltas, float)
         else:
             source, times, deltas = _joint_ties(protocol, calibration, joint, tp, qp, td, qd)
             times, deltas = np.asarray(times, float), np.asarray(deltas, float)
         if ties is not None:
-            ties[joint.name] = {"source": source, "times": times, "deltas": deltas}
+            ties[joint.name] = HeadingTie(source, times, deltas)
         if source in ("two_axes", "centre") and p in turned:
             deltas = deltas + np.interp(times, *turned[p])  # fitted on the proximal's own heading
         if len(times):
@@ -423,8 +425,8 @@ def _joint_ties(protocol: Protocol, calibration: SegmentCalibration, joint, tp, 
         return "two_axes", times, np.asarray(fit.heading_deltas, float)
     stored = calibration.centres.get(joint.name) if fit is None else None
     if stored is not None:
-        times = np.asarray(stored["heading_times"], float)
-        return "centre", times, np.asarray(stored["heading_deltas"], float)
+        times = np.asarray(stored.heading_times, float)
+        return "centre", times, np.asarray(stored.heading_deltas, float)
     qd_on_p = rot.resample(td, qd, tp)
     pose_range = calibration.steps.get(calibration.single_pose or "")
     if pose_range:

@@ -46,6 +46,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from motionlab.results import JointGrades
 from motionlab.segments.placement import hinge_spec
 
 if TYPE_CHECKING:
@@ -195,8 +196,8 @@ def _zero_grade(joint, segs: dict[str, SegmentRecord], grade: str, reason: str) 
     return grade, reason
 
 
-def grade_joints(protocol, calibration: SegmentCalibration) -> dict[str, dict[str, list[str]]]:
-    """``{joint: {"grades": [3 str], "reasons": [3 str]}}`` for every protocol joint; the first
+def grade_joints(protocol, calibration: SegmentCalibration) -> dict[str, JointGrades]:
+    """``{joint: JointGrades}`` (three grades and reasons) for every protocol joint; the first
     angle of a hinge-like joint (knee, elbow, hinge: :func:`.placement.hinge_spec`) is graded by
     its axis and its zero."""
     out = {}
@@ -224,5 +225,5 @@ def grade_joints(protocol, calibration: SegmentCalibration) -> dict[str, dict[st
             g_flex, r_flex = _flexion_under_heading(joint, protocol, calibration, frames[1][0])
             if g_flex and g_frame == "weak":
                 grades[0], reasons[0] = g_flex, r_flex
-        out[name] = {"grades": grades, "reasons": reasons}
+        out[name] = JointGrades(grades, reasons)
     return out

@@ -25,6 +25,7 @@ from motionlab.clocksync.joint_centre import joint_centre_forces
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_types import flexion_axis, joint_sequence, joint_type
 from motionlab.protocol import Protocol, axis_vector
+from motionlab.results import CentreHeading
 from motionlab.segments import frames, gait_axes, heading, movement
 from motionlab.segments.functional import orient
 from motionlab.segments.sensors import Streams, sensor_orientation
@@ -225,10 +226,11 @@ def orient_by_data(
 
 def centre_headings(
     session: Session, protocol: Protocol, streams: Streams
-) -> dict[str, dict[str, Any]]:
+) -> dict[str, CentreHeading]:
     """Heading ties of the joints without a hinge from their shared centre, by joint name.
 
-    ``{joint: {"heading_times": (K,) s, "heading_deltas": (K,) rad, "anchors": K}}`` for the
+    ``{joint: CentreHeading}`` (``heading_times`` (K,) s, ``heading_deltas`` (K,) rad and
+    ``anchors`` K) for the
     joints whose type ties headings by the centre (ball, hip; ``JointType.centre_heading``) and
     whose two sensors share enough movement
     (:func:`motionlab.clocksync.joint_centre.joint_centre_forces`, :func:`.heading.centre_anchors`).
@@ -250,5 +252,5 @@ def centre_headings(
         )
         times, deltas = heading.centre_anchors(t, q_p, q_d, f_p, f_d)
         if len(times):
-            out[name] = {"heading_times": times, "heading_deltas": deltas, "anchors": len(times)}
+            out[name] = CentreHeading(times, deltas, anchors=len(times))
     return out

@@ -43,6 +43,7 @@ store :func:`motionlab.segments.segment_orientations` reads for headings fitted 
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -54,7 +55,14 @@ from motionlab.errors import InputError
 from motionlab.fusion.detect import steady_mask
 from motionlab.kinematics.joint_types import joint_type
 from motionlab.protocol import Protocol
-from motionlab.results import SegmentCalibration, SegmentQuality, SegmentRecord
+from motionlab.results import (
+    CentreHeading,
+    JointGrades,
+    SegmentCalibration,
+    SegmentQuality,
+    SegmentRecord,
+    TrunkMovement,
+)
 from motionlab.segments import grades as grading
 from motionlab.segments import heading
 from motionlab.segments.sensors import sensor_quats, streams_of
@@ -330,7 +338,7 @@ def calibrate(
         }  # fmt: skip
         segments[seg] = _segment(m, sensor_for_segment(session, seg), records, [])
 
-    centres: dict[str, dict[str, Any]] = {}
+    centres: dict[str, CentreHeading] = {}
     t_rest = float(t[rest].mean())
     seg_q = {s: rot.mul(q[s], rot.from_matrix(m)) for s, m in ((p, m_p), (d, m_d))}
     pose_delta = heading.heading_from_pose(seg_q[p][rest], seg_q[d][rest])
@@ -343,11 +351,7 @@ def calibrate(
         step = max(int(round(0.5 / float(np.median(np.diff(t))))), 1)
         times = [float(x) for x in t[::step]]
         deltas = [pose_delta + float(x) for x in drift[::step]]
-    centres[joint.name] = {
-        "heading_times": times,
-        "heading_deltas": deltas,
-        "method": "trunk rest",
-    }
+    centres[joint.name] = CentreHeading(times, deltas, method="trunk rest")
     followed: dict[str, bool] = {}  # the trunk's lean: the chair's heading drift followed
     for lean in leans:
         c = lean.distal
@@ -373,26 +377,22 @@ def calibrate(
             times_c = [float(x) for x in t[::step]]
             deltas_c = [delta_c + float(x) for x in lean_drift[::step]]
         followed[lean.name] = lean_drift is not None
-        centres[lean.name] = {
-            "heading_times": times_c,
-            "heading_deltas": deltas_c,
-            "method": "trunk rest",
-        }
+        centres[lean.name] = CentreHeading(times_c, deltas_c, method="trunk rest")
 
     notes: list[str] = []
-    summary = {
-        "rest_s": [float(t[a]), float(t[b - 1])],
-        "rest_speed_deg_s": level,
-        "axis_ratio": ratio,
-        "energy_ratio": energy[0] / max(energy[1], 1e-12),
-        "axis_rank": k + 1,
-        "one_sided": sided,
-        "excursion_deg": [pos, -neg],
-        "sign_ratio": sign_ratio,
-        "heading_deg": float(np.degrees(delta)),
-        "heading_rho": heading_rho,
-        "heading_drift_deg": None if drift is None else float(np.degrees(np.ptp(drift))),
-    }
+    summary = TrunkMovement(
+        rest_s=[float(t[a]), float(t[b - 1])],
+        rest_speed_deg_s=level,
+        axis_ratio=ratio,
+        energy_ratio=energy[0] / max(energy[1], 1e-12),
+        axis_rank=k + 1,
+        one_sided=sided,
+        excursion_deg=[pos, -neg],
+        sign_ratio=sign_ratio,
+        heading_deg=float(np.degrees(delta)),
+        heading_rho=heading_rho,
+        heading_drift_deg=None if drift is None else float(np.degrees(np.ptp(drift))),
+    )
     if axis_verdict != "determined":
         notes.append(f"{d}: {_weak_axis(ratio, pos, neg)}: record a clear forward bend")
     steps = {rest_name: [float(t[a]), float(t[b - 1])],
@@ -406,10 +406,9 @@ def calibrate(
         warnings=notes,
         ok=True,
     )
-    result.grades = grading.grade_joints(protocol, result)
-    result.grades.update(trunk_grades(joint, leans, summary, axis_verdict, followed))
-    for g in result.grades.values():
-        g["trunk"] = summary
+    graded = grading.grade_joints(protocol, result)
+    graded.update(trunk_grades(joint, leans, summary, axis_verdict, followed))
+    result.grades = {name: replace(g, trunk=summary) for name, g in graded.items()}
     if warnings is not None:
         warnings.extend(notes)
     return result
@@ -455,25 +454,24 @@ def _weak_axis(ratio: float, pos: float, neg: float) -> str:
 
 
 def trunk_grades(
-    joint, leans, summary: dict[str, Any], axis_verdict: str, followed: dict[str, bool]
-) -> dict[str, dict[str, list[str]]]:
+    joint, leans, summary: TrunkMovement, axis_verdict: str, followed: dict[str, bool]
+) -> dict[str, JointGrades]:
     """Grades of the lumbar joint and of the trunk's lean (``leans``: ``trunk_lean`` joints)
     from what the movement determined; a lean is ``weak`` unless the chair's heading drift was
     followed (``followed``: by joint, a still rest)."""
-    pos, neg = summary["excursion_deg"][0], -summary["excursion_deg"][1]
-    why_axis = "" if axis_verdict == "determined" else _weak_axis(summary["axis_ratio"], pos, neg)
+    pos, neg = summary.excursion_deg[0], -summary.excursion_deg[1]
+    why_axis = "" if axis_verdict == "determined" else _weak_axis(summary.axis_ratio, pos, neg)
     rot_grade, why_rot = "determined", ""
-    if summary["heading_rho"] < HEADING_RHO_MIN:
+    if summary.heading_rho < HEADING_RHO_MIN:
         rot_grade = "weak"
         why_rot = (
-            f"the sensors' headings agree only {summary['heading_rho']:.2f} over the movement "
+            f"the sensors' headings agree only {summary.heading_rho:.2f} over the movement "
             "(the pelvis hardly moved with the thorax)"
         )
     out = {
-        joint.name: {
-            "grades": [axis_verdict, axis_verdict, rot_grade],
-            "reasons": [why_axis, why_axis, why_rot],
-        }
+        joint.name: JointGrades(
+            [axis_verdict, axis_verdict, rot_grade], [why_axis, why_axis, why_rot]
+        )
     }
     for lean in leans:
         grade, why = axis_verdict, why_axis
@@ -484,5 +482,5 @@ def trunk_grades(
                 f"{STILL_DEG_S:g}°/s), so the chair's and the thorax's headings are tied at "
                 "the rest only and may drift apart"
             )
-        out[lean.name] = {"grades": [grade] * 3, "reasons": [why] * 3}
+        out[lean.name] = JointGrades([grade] * 3, [why] * 3)
     return out

@@ -293,7 +293,7 @@ def validate(
         "movement_only": movement_only,
         "pairs": {k: seg_of[k] for k in labels},
         "sync": sync_record,
-        "alignment": al.as_dict(),
+        "alignment": al.record(),
         "optical": {
             seg: {"source": o.source, "landmarks": o.landmarks, **o.info}
             for seg, o in optical.items()

@@ -25,7 +25,6 @@ the quaternion mean (Markley 2007) of ``A_i X_i* B_i*``. Refinement: nonlinear l
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -33,6 +32,7 @@ from scipy.sparse import lil_matrix
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
+from motionlab.results import AlignmentRotation, SpatialAlignment
 from motionlab.segments.frames import wahba
 
 MODES = ("full", "heading", "none")
@@ -64,21 +64,22 @@ class Alignment:
         y = self.earth_from_lab(label)
         return rot.mul(rot.mul(y, q_optical), self.sensor_to_cluster[label])
 
-    def as_dict(self) -> dict[str, Any]:
-        """The tree stored in ``results.validation.alignment``."""
+    def record(self) -> SpatialAlignment:
+        """The record stored in ``results.validation.alignment`` (degrees, each quaternion with
+        its scalar part ≥ 0)."""
 
-        def entry(q: np.ndarray) -> dict[str, Any]:
+        def entry(q: np.ndarray) -> AlignmentRotation:
             q = rot.normalize(q) * (1.0 if q[0] >= 0 else -1.0)
-            return {"quat": q, "angle_deg": float(np.degrees(rot.angle(q)))}
+            return AlignmentRotation(q, float(np.degrees(rot.angle(q))))
 
-        return {
-            "mode": self.mode,
-            "lab_to_earth": entry(self.lab_to_earth),
-            "sensor_to_cluster": {k: entry(v) for k, v in self.sensor_to_cluster.items()},
-            "heading_deg": {k: float(np.degrees(v)) for k, v in self.heading.items()},
-            "residual_rms_deg": dict(self.residual_rms_deg),
-            "conditioning": dict(self.conditioning),
-        }
+        return SpatialAlignment(
+            mode=self.mode,
+            lab_to_earth=entry(self.lab_to_earth),
+            sensor_to_cluster={k: entry(v) for k, v in self.sensor_to_cluster.items()},
+            heading_deg={k: float(np.degrees(v)) for k, v in self.heading.items()},
+            residual_rms_deg=dict(self.residual_rms_deg),
+            conditioning=dict(self.conditioning),
+        )
 
 
 def _heading_of(q: np.ndarray) -> float:

@@ -116,12 +116,12 @@ def alignment_figure(result: Validation) -> Figure:
         for key, colour in (("total", REF_COLOUR), ("heading", "tab:orange"),
                             ("inclination", IMU_COLOUR)):  # fmt: skip
             ax.plot(t, o[f"{key}_deg"], lw=0.8, color=colour, label=key)
-        x = al["sensor_to_cluster"].get(label, {}).get("angle_deg", float("nan"))
+        x = al.sensor_to_cluster[label].angle_deg if label in al.sensor_to_cluster else np.nan
         ax.set_title(f"{label}: sensor → cluster {x:.1f}°", fontsize=8, loc="right")
         ax.set_ylabel("error (°)", fontsize=8)
     axes[0].legend(loc="upper left", fontsize=8, ncols=3)
     axes[0].set_title(
-        f"alignment {al['mode']}: lab → earth {al['lab_to_earth']['angle_deg']:.1f}°",
+        f"alignment {al.mode}: lab → earth {al.lab_to_earth.angle_deg:.1f}°",
         fontsize=9,
         loc="left",
     )

@@ -51,7 +51,7 @@ from motionlab.errors import InputError
 from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, column_name
 from motionlab.kinematics.session_angles import session_angles
 from motionlab.protocol import Protocol
-from motionlab.results import Validation
+from motionlab.results import AlignmentRotation, SpatialAlignment, Validation
 from motionlab.session import MarkerSet, Session, estimate_rate
 from motionlab.validation import movement_mask
 from motionlab.validation.agreement import agreement, per_repetition, repetitions
@@ -262,14 +262,7 @@ def validate_model_angles(
         movement_only=movement_only,
         pairs={},
         sync=sync_record,
-        alignment={
-            "mode": "none",
-            "lab_to_earth": {"quat": rot.IDENTITY.copy(), "angle_deg": 0.0},
-            "sensor_to_cluster": {},
-            "heading_deg": {},
-            "residual_rms_deg": {},
-            "conditioning": {},
-        },
+        alignment=SpatialAlignment("none", AlignmentRotation(rot.IDENTITY.copy(), 0.0)),
         optical={},
         orientation={"time_s": t},
         angles=angles,

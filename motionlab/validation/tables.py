@@ -54,11 +54,11 @@ def summary(result: Validation) -> dict[str, Any]:
             "signal": sync.signal,
         },
         "alignment": {
-            "mode": al["mode"],
-            "lab_to_earth": al["lab_to_earth"],
-            "sensor_to_cluster": al["sensor_to_cluster"],
-            "heading_deg": al.get("heading_deg", {}),
-            "residual_rms_deg": al.get("residual_rms_deg", {}),
+            "mode": al.mode,
+            "lab_to_earth": al.lab_to_earth.to_tree(),
+            "sensor_to_cluster": {k: r.to_tree() for k, r in al.sensor_to_cluster.items()},
+            "heading_deg": al.heading_deg,
+            "residual_rms_deg": al.residual_rms_deg,
         },
         "orientation": {
             k: {s: result.orientation[k].get(s) for s in ORIENTATION_STATS}
