@@ -232,11 +232,13 @@ def _write_array(group: h5py.Group, name: str, data: np.ndarray, unit: str | Non
 
 
 def _write_tree(group: h5py.Group, tree: dict[str, Any]) -> None:
-    """Dicts become groups, arrays datasets, everything else a JSON attribute."""
+    """Dicts become groups, arrays datasets, everything else a JSON attribute; groups keep the
+    order of their keys (``track_order``), so a result read back iterates as it was written
+    (a report rebuilt from the file lists joints, sensors and tasks as ``run``'s did)."""
     for key, value in tree.items():
         key = str(key)
         if isinstance(value, dict):
-            _write_tree(group.create_group(key), value)
+            _write_tree(group.create_group(key, track_order=True), value)
         elif isinstance(value, np.ndarray):
             _write_array(group, key, value)
         else:

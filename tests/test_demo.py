@@ -130,3 +130,23 @@ def test_no_text_overlaps_or_leaves_any_page(demo):
             f"page {i}: {p}" for i, fig in enumerate(doc.pages, 1) for p in layout_problems(fig)
         ]
     assert problems == []
+
+
+def _body(text: str, *folders: Path) -> list[str]:
+    """A report's text without the lines that name files (in ``folders``), times and the
+    software."""
+    noise = (*(str(f) for f in folders), "written", "Written", "seconds", "motionlab 0")
+    return [line for line in text.splitlines() if not any(n in line for n in noise)]
+
+
+def test_a_report_rebuilt_from_the_session_file_says_what_run_said(demo, tmp_path):
+    """The session file keeps the order of every result's keys, so a report rebuilt from it
+    lists joints, sensors, tasks and flags as ``run``'s report did (one path)."""
+    rebuilt = tmp_path / "rebuilt.pdf"
+    session = demo / "knee" / "session.h5"
+    res = CliRunner().invoke(main, ["report", str(session), "-o", str(rebuilt)])
+    assert res.exit_code == 0, res.output
+    ran = (demo / "knee" / "report.txt").read_text(encoding="utf-8")
+    again = rebuilt.with_suffix(".txt").read_text(encoding="utf-8")
+    assert len(_body(ran, demo)) > 500
+    assert _body(again, demo, tmp_path) == _body(ran, demo, tmp_path)

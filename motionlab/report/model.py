@@ -493,7 +493,7 @@ def quality_rows(view: SessionView) -> list[QualityRow]:
         qc = s.qc or {}
         fz = fusion.get(label)
         sat = qc.get("saturated_samples", {}) or {}
-        flags = [k for k, v in (qc.get("flags") or {}).items() if v]
+        flags = sorted(k for k, v in (qc.get("flags") or {}).items() if v)  # as the file keeps them
         rows.append(
             QualityRow(
                 sensor=label,
