@@ -32,8 +32,6 @@ import threading
 import time
 from pathlib import Path
 
-import numpy as np
-
 EXTRA = {"extra_1": "thigh_r", "extra_2": "thigh_l", "extra_3": "pelvis"}
 PAGE = os.sysconf("SC_PAGE_SIZE")
 
@@ -168,19 +166,18 @@ def table(results: dict[float, dict]) -> str:
     for st in stages:
         row = {m: results[m]["stages"][st] for m in minutes}
         cells = " | ".join(
-            f"{r['seconds']:.2f} / {r.get('cpu_s', float('nan')):.2f} / {r['peak_mb']:.0f}"
-            for r in row.values()
+            f"{r['seconds']:.2f} / {r['cpu_s']:.2f} / {r['peak_mb']:.0f}" for r in row.values()
         )
         s = slope(lambda r, st=st: r["stages"][st]["seconds"])
-        cpu = slope(lambda r, st=st: r["stages"][st].get("cpu_s", float("nan")))
+        cpu = slope(lambda r, st=st: r["stages"][st]["cpu_s"])
         mb = slope(lambda r, st=st: r["stages"][st]["peak_mb"])
         lines.append(f"| {st} | {cells} | {s}; {cpu}; {mb} |")
     cells = " | ".join(
-        f"{r['total_s']:.2f} / {r.get('total_cpu_s', np.nan):.2f} / {r['process_peak_mb']:.0f}"
+        f"{r['total_s']:.2f} / {r['total_cpu_s']:.2f} / {r['process_peak_mb']:.0f}"
         for r in (results[m] for m in minutes)
     )
     s = slope(lambda r: r["total_s"])
-    cpu = slope(lambda r: r.get("total_cpu_s", float("nan")))
+    cpu = slope(lambda r: r["total_cpu_s"])
     mb = slope(lambda r: r["process_peak_mb"])
     lines.append(f"| whole run (MB: process peak) | {cells} | {s}; {cpu}; {mb} |")
     return "\n".join(lines)

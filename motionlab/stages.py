@@ -202,28 +202,21 @@ def fuse(
     refs: dict[str, Any] = {}
     marker_info: dict[str, Any] = {}
     done: dict[str, FusionEntry] = {}
-    try:
-        if calibration_dir is not None and usable:
-            from motionlab.sensorcal.calfile import apply_calibration_dir
+    if usable:
+        try:
+            if calibration_dir is not None:
+                from motionlab.sensorcal.calfile import apply_calibration_dir
 
-            calibrated, _ = apply_calibration_dir(session.sensors, calibration_dir, usable)
-            session.sensors.update(calibrated)
-        if usable and (markers or marker_map is not None):
-            refs, marker_info = _marker_references(session, estimator, marker_map, usable)
-        if usable:
+                calibrated, _ = apply_calibration_dir(session.sensors, calibration_dir, usable)
+                session.sensors.update(calibrated)
+            if markers or marker_map is not None:
+                refs, marker_info = _marker_references(session, estimator, marker_map, usable)
             done = fuse_session(
-                session,
-                estimator,
-                params,
-                usable,
-                force=force,
-                path=path,
-                references=refs,
-                magnetometer=magnetometer,
-                progress=progress,
-            )
-    finally:
-        session.sensors = recorded
+                session, estimator, params, usable, force=force, path=path, references=refs,
+                magnetometer=magnetometer, progress=progress,
+            )  # fmt: skip
+        finally:
+            session.sensors = recorded
     for label, stream in calibrated.items():
         entry = done[label]
         entry.sensor_calibration = stream.attrs["calibration"]

@@ -78,7 +78,6 @@ class TimeAlignment:
     standard_error_s: float = float("nan")
     grade: str = "poor"
     fallback: str = ""
-    signal: str = ""
 
     def record(self, signal: str, sensors: list[str]) -> OpticalSync:
         """The record stored in ``results.validation.sync``: ``signal`` names the IMU side's
