@@ -2,15 +2,20 @@
 
 Conventions: lengths in inches (A4 portrait is 8.27 × 11.69 in), font sizes in points, the page
 cursor ``y`` in inches from the top of the page. Figures are plain :class:`matplotlib.figure.Figure`
-objects (no pyplot state). Text is wrapped by measuring it with the Agg renderer, so lines never
-run past the margin. :meth:`Document.save` writes the PDF and keeps every page's text (titles,
-paragraphs, tables, axis labels and legends; not tick numbers) for tests and for a plain-text copy.
+objects (no pyplot state). The text is set in the PDF's standard Helvetica, in the characters it
+has (:func:`pdf_text`: ``≥`` is written ``>=``); it is wrapped by measuring it with the Agg
+renderer in DejaVu Sans, a wider font, so lines never run past the margin. :meth:`Document.save`
+writes the PDF and keeps every page's text (titles, paragraphs, tables, axis labels and legends;
+not tick numbers) for tests and for a plain-text copy.
 :func:`layout_problems` lists text that leaves the page or overlaps other text.
 """
 
 from __future__ import annotations
 
+import logging
+import unicodedata
 from collections.abc import Sequence
+from contextlib import contextmanager
 from functools import lru_cache
 from itertools import combinations
 from pathlib import Path
@@ -50,7 +55,12 @@ RC = {
     "axes.spines.top": False,
     "axes.spines.right": False,
     "axes.titley": 1.0,  # titles at the axes' top: no measuring of the tick labels to place them
-    "pdf.fonttype": 42,
+    # the PDF's standard Helvetica (not embedded): matplotlib writes each line as one string,
+    # where an embedded TrueType font costs a glyph-by-glyph layout per text (docs/performance.md)
+    "pdf.use14corefonts": True,
+    "font.family": "sans-serif",
+    "font.sans-serif": ["Helvetica", "DejaVu Sans"],  # DejaVu Sans: the (wider) measuring font
+    "axes.unicode_minus": False,  # tick labels: '-' (U+2212 is not in the standard fonts)
     "figure.autolayout": False,  # no layout engine: pages are placed by hand (place_figure)
     "figure.constrained_layout.use": False,
 }
@@ -61,6 +71,50 @@ FIGURE_PAD = (0.75, 0.1, 0.25, 0.5, 0.32)
 #: a scatter with more points than this is drawn as an image in the PDF, at RASTER_DPI
 DENSE_POINTS = 2000
 RASTER_DPI = 200
+
+#: characters the standard PDF fonts (Windows-1252 encoding) lack, spelled with ones they have
+SPELLED = {
+    "≥": ">=",
+    "≤": "<=",
+    "≠": "!=",
+    "−": "-",
+    "→": "->",
+    "←": "<-",
+    "≈": "~",
+    "ρ": "rho",
+    "σ": "sigma",
+    "Σ": "sum ",
+    "Δ": "delta ",
+    "θ": "theta",
+    "ω": "omega",
+    "√": "sqrt ",
+    "✓": "yes",
+    "✗": "no",
+}
+
+
+def pdf_text(text: str) -> str:
+    """``text`` in the characters the PDF's standard fonts have (Windows-1252): the ones
+    they lack spelled as :data:`SPELLED` says, else by their compatibility decomposition, else
+    ``?``."""
+    try:
+        text.encode("cp1252")
+        return text
+    except UnicodeEncodeError:
+        return "".join(_spell(c) for c in text)
+
+
+def _spell(c: str) -> str:
+    try:
+        c.encode("cp1252")
+        return c
+    except UnicodeEncodeError:
+        pass
+    if c in SPELLED:
+        return SPELLED[c]
+    plain = unicodedata.normalize("NFKD", c).encode("cp1252", "ignore").decode("cp1252")
+    return plain or "?"
+
 
 _MEASURE = RendererAgg(int(PAGE_W * 72), int(PAGE_H * 72), 72)
 
@@ -464,11 +518,19 @@ class Document:
     # ------------------------------------------------------------------------------ output
 
     def save(self, pdf_path: str | Path, text_path: str | Path | None = None) -> list[str]:
-        """Number the pages, write the PDF (and the pages' text); return the text per page."""
+        """Number the pages, write the PDF (and the pages' text, spelled as the PDF spells it:
+        :func:`pdf_text`); return the text per page."""
         n = len(self.pages)
         texts = []
-        with PdfPages(pdf_path, metadata={"Title": self.title, "Creator": "motionlab"}) as pdf:
+        with (
+            _font_weight_names_quiet(),
+            PdfPages(pdf_path, metadata={"Title": self.title, "Creator": "motionlab"}) as pdf,
+        ):
             for i, fig in enumerate(self.pages, start=1):
+                for t in fig.findobj(Text):
+                    spelled = pdf_text(t.get_text())
+                    if spelled != t.get_text():
+                        t.set_text(spelled)
                 put_text(
                     fig,
                     0.5,
@@ -483,6 +545,19 @@ class Document:
         if text_path is not None:
             Path(text_path).write_text("\f".join(texts), encoding="utf-8")
         return texts
+
+
+@contextmanager
+def _font_weight_names_quiet():
+    """matplotlib's font finder warns that the standard Helvetica's regular weight is named
+    ``medium`` where a text asks for ``normal`` (the same weight to a reader); keep it quiet."""
+    log = logging.getLogger("matplotlib.font_manager")
+    level = log.level
+    log.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        log.setLevel(level)
 
 
 def _words(fig: Figure) -> list[tuple[float, float, str]]:
