@@ -8,10 +8,13 @@ outside 45-80°) and the left/right difference; the angle between the independen
 the joint's axis (the principal rotation axes and the constrained hinge fit, ``witness``); the
 hinge fit's relative residual; where the recording carries the vendor's own 9-D
 orientations, the per-cycle range of the joint's rotation away from the stand from them (a
-figure no axis choice can move); and, for a hinge joint, the per-stride range of the
-gyroscopes' relative rate about the calibrated axes integrated over the stride (no fusion
-involved: a fused flexion range far from it points at the fusion, not the knee). A protocol
-that refuses a recording prints its one line instead.
+figure no axis choice can move, but one that counts the knee's axial rotation at extension
+as a turn away from the stand) and the angle the vendor's relative orientation turns between the
+instants of the cycle's lowest and highest first angle (how far the joint turned between its
+extreme poses, whatever the axis: a witness for the flexion range); and, for a hinge joint,
+the per-stride range of the gyroscopes' relative rate about the calibrated axes integrated
+over the stride (no fusion involved: a fused flexion range far from it points at the fusion,
+not the knee). A protocol that refuses a recording prints its one line instead.
 
 Recordings (README of ``../shared``, section ``datasets/human``):
 
@@ -120,6 +123,29 @@ def vendor_ranges(session: Session, vendor: dict, joint, side: str) -> np.ndarra
     return np.array([np.ptp(angle[(t >= a) & (t <= b)]) for a, b in pairs])
 
 
+def vendor_swings(session: Session, vendor: dict, joint, column: str, side: str) -> np.ndarray:
+    """Per stride, the angle (deg) of the vendor's relative orientation between the instants of
+    our ``column``'s lowest and highest value: how far the joint turned between its extreme poses,
+    whatever the axis (no calibration, no frame, no stand involved)."""
+    gait, angles = session.results.gait, session.results.angles
+    if not vendor or gait is None or not gait.ok or side not in (gait.events or {}):
+        return np.array([])
+    t = session.sensors[joint.proximal].time
+    rel = rot.mul(rot.conj(vendor[joint.proximal]), vendor[joint.distal])
+    ta, x = np.asarray(angles.time), np.asarray(angles.data[column], float)
+    ic = np.asarray(gait.events[side]["ic"], float)
+    out = []
+    for a, b in zip(ic[:-1], ic[1:], strict=True):
+        k = np.flatnonzero((ta >= a) & (ta <= b) & np.isfinite(x))
+        if 0.6 <= b - a <= 1.8 and len(k) > 10:
+            lo, hi = (
+                rel[np.argmin(np.abs(t - ta[i]))] for i in (k[np.argmin(x[k])], k[np.argmax(x[k])])
+            )
+            d = rot.mul(rot.conj(lo), hi)
+            out.append(np.degrees(2.0 * np.arccos(min(1.0, abs(float(d[0]))))))
+    return np.array(out)
+
+
 def gyro_ranges(session: Session, jname: str, joint, side: str) -> np.ndarray:
     """Per-stride range (deg) of the hinge angle integrated from the gyroscopes alone: the
     distal rate about the distal axis less the proximal rate about the proximal axis (the
@@ -172,10 +198,12 @@ def report(name: str, protocol: str, session: Session, vendor: dict) -> list[str
         diff = f"{abs(np.median(rng) - np.median(other)):.0f}°" if len(rng) and len(other) else "–"
         verdict = _plausibility(rng) if len(rng) and joint.type == "knee" else ""
         peer = vendor_ranges(session, vendor, joint, joint.side) if joint.side else np.array([])
+        column = angle_columns(joint)[0][1]
+        swing = vendor_swings(session, vendor, joint, column, joint.side) if joint.side else []
         gyro = gyro_ranges(session, jname, joint, joint.side) if joint.side else np.array([])
         rows.append(
             f"| {name} | {protocol} | {jname} | {' / '.join(cal.grades[jname].grades)} | "
-            f"{_fmt(rng)} | {_fmt(gyro)} | {_fmt(peer)} | {diff} | "
+            f"{_fmt(rng)} | {_fmt(gyro)} | {_fmt(peer)} | {_fmt(np.asarray(swing))} | {diff} | "
             f"{_num(fit.witness_deg if fit else None)} | "
             f"{_num(fit.relative_residual if fit else None, 2)} | "
             f"{_num(fit.consistency_deg if fit else None)} | "
@@ -202,11 +230,12 @@ def main() -> None:
     jobs += [(k, "walk" if "knee" in k else "arm") for k in DOT]
     print(
         "| recording | protocol | joint | grades (3 planes) | first angle per cycle, median "
-        "(IQR) | gyroscopes alone per cycle | vendor 9-D rotation from stand per cycle | L−R "
+        "(IQR) | gyroscopes alone per cycle | vendor 9-D rotation from stand per cycle "
+        "| vendor 9-D turn between the cycle's extreme poses | L−R "
         "| witness ° | hinge residual "
         "| part consistency ° | plausibility |"
     )
-    print("|---|---|---|---|---|---|---|---|---:|---:|---:|---|")
+    print("|---|---|---|---|---|---|---|---|---|---:|---:|---:|---|")
     for name, protocol in jobs:
         if only and name not in only:
             continue
@@ -220,7 +249,7 @@ def main() -> None:
                 warnings.simplefilter("ignore")
                 analyse(session, PipelineOptions(protocol=protocol, progress=False))
         except InputError as exc:
-            print(f"| {name} | {protocol} | – | refused: {exc} | | | | | | | | |")
+            print(f"| {name} | {protocol} | – | refused: {exc} | | | | | | | | | |")
             continue
         for row in report(name, protocol, session, vendor):
             print(row)
