@@ -48,6 +48,7 @@ __all__ = [
     "SegmentCalibration",
     "SegmentQuality",
     "SegmentRecord",
+    "AxisMeasurement",
     "HingeFit",
     "HipAxis",
     "CentreHeading",
@@ -86,6 +87,8 @@ class _Record:
     _keys: ClassVar[dict[str, str]] = {}
     #: whether ``None`` fields are stored too (as JSON ``null``: the layout predates the class)
     _store_none: ClassVar[bool] = False
+    #: fields stored even when ``None`` (the layout predates the class and always had them)
+    _stored_when_none: ClassVar[frozenset[str]] = frozenset()
 
     def to_tree(self) -> dict[str, Any]:
         """The tree stored under the stage's group in the session file."""
@@ -94,7 +97,7 @@ class _Record:
             value = getattr(self, f.name)
             if f.name == "more":
                 tree.update(value)
-            elif value is not None or self._store_none:
+            elif value is not None or self._store_none or f.name in self._stored_when_none:
                 tree[self._keys.get(f.name, f.name)] = value
         return tree
 
@@ -251,6 +254,56 @@ class SegmentQuality(_Record):
     more: dict[str, Any] = field(default_factory=dict)
 
 
+@dataclass
+class AxisMeasurement(_Record):
+    """One axis of a segment measured by a calibration step (one value of
+    :attr:`SegmentRecord.axes`; :func:`motionlab.segments.mounting.measure`, the movement's hinge
+    fits, the walk's forward direction, a trunk calibration).
+
+    ``step``: the step (or ``movement:<joint>``, ``movement:turns``); ``kind``: ``static``,
+    ``functional`` or ``movement`` (found in the recording's movement, not a protocol step);
+    ``method``: ``gravity``, ``horizontal`` (an axis the pose lays level), ``svd`` (the principal
+    axis of the rate), ``hinge`` (Seel's hinge fit), ``principal`` (the trunk's flexion axis),
+    ``turns`` or ``walk start`` (the pelvis's forward direction); ``sensor_axis`` (3,): the unit
+    axis measured, in sensor coordinates; ``segment_axis`` (3,): the segment axis it is, in segment
+    coordinates; ``rho``: its reliability ρ (0-1, Ricci 2015 eq. 6.2); ``reference_rho``: the
+    protocol's reference ρ for the step (``None``: none given; always stored);
+    ``joint_movement``: the step moves the joint (an axis a still-joint step also measured is
+    left out of the fit); ``secondary``: the axis only turns the frame about a primary axis
+    (``primary_secondary``); ``hinge_check_deg``: the angle (deg) between the step's SVD axis and
+    Seel's hinge axis, ``hinge_residual_rad_s`` that fit's RMS residual (rad/s); ``used``: the
+    mounting fit used it (``None``: the fit did not decide, as for a ``horizontal`` axis);
+    ``residual_deg``: its angle (deg) to the fitted frame; ``verdict``: ``determined``, ``weak``
+    or ``not determined`` for an axis found in the movement; ``turns`` and ``spread_deg``: the
+    walk's turns the pelvis's forward direction came from and how far (deg) they disagreed.
+    """
+
+    _stored_when_none: ClassVar[frozenset[str]] = frozenset({"reference_rho"})
+
+    step: str
+    kind: str
+    method: str
+    sensor_axis: np.ndarray
+    segment_axis: np.ndarray
+    rho: float
+    reference_rho: float | None = None
+    joint_movement: bool = False
+    secondary: bool = False
+    hinge_check_deg: float | None = None
+    hinge_residual_rad_s: float | None = None
+    used: bool | None = None
+    residual_deg: float | None = None
+    verdict: str | None = None
+    turns: int | None = None
+    spread_deg: float | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def in_fit(self) -> bool:
+        """Whether the axis counts (``used`` is not ``False``)."""
+        return self.used is not False
+
+
 @dataclass(frozen=True)
 class SegmentRecord(_Record):
     """How one sensor sits on its segment (one value of :attr:`SegmentCalibration.segments`).
@@ -258,10 +311,8 @@ class SegmentRecord(_Record):
     ``mounting`` (4,): the segment → sensor quaternion, scalar first (the segment's orientation
     is ``q_sensor ⊗ mounting``); ``method``: how the frame was fitted (``procrustes``: two or
     more axes, ``primary_secondary``: one axis turned by a secondary, ``single_axis``,
-    ``nominal``: the protocol's placement hint alone); ``axes`` ``{step: axis record}``: the
-    measured axes (``step``, ``kind``, ``method``, ``sensor_axis`` and ``segment_axis`` (3,),
-    ``rho``, ``reference_rho``, ``used``, ``secondary``, ``residual_deg``, ...;
-    :func:`motionlab.segments.mounting.measure`); ``quality``: its :class:`SegmentQuality`
+    ``nominal``: the protocol's placement hint alone); ``axes`` ``{step: AxisMeasurement}``:
+    the measured axes; ``quality``: its :class:`SegmentQuality`
     (``None`` in a file written without one); ``sensor``: the sensor's label;
     ``hint_contradicted``: the data put a measured axis more than 60° from the placement hint
     (what was not measured is unknown; ``None``: not checked, as in a trunk calibration).
@@ -269,15 +320,16 @@ class SegmentRecord(_Record):
 
     mounting: np.ndarray
     method: str
-    axes: dict[str, dict[str, Any]] = field(default_factory=dict)
+    axes: dict[str, AxisMeasurement] = field(default_factory=dict)
     quality: SegmentQuality | None = None
     sensor: str | None = None
     hint_contradicted: bool | None = None
     more: dict[str, Any] = field(default_factory=dict)
 
     def to_tree(self) -> dict[str, Any]:
-        """The record's tree, its quality a subtree."""
+        """The record's tree, its axes and quality subtrees."""
         tree = super().to_tree()
+        tree["axes"] = {k: a.to_tree() for k, a in self.axes.items()}
         if self.quality is not None:
             tree["quality"] = self.quality.to_tree()
         return tree
@@ -286,9 +338,12 @@ class SegmentRecord(_Record):
     def from_tree(cls, tree: dict[str, Any]) -> SegmentRecord:
         """The record of a stored tree (see :meth:`to_tree`)."""
         rec = super().from_tree(tree)
-        if isinstance(rec.quality, dict):
-            rec = dataclasses.replace(rec, quality=SegmentQuality.from_tree(rec.quality))
-        return rec
+        axes = {k: AxisMeasurement.from_tree(a) if isinstance(a, dict) else a
+                for k, a in rec.axes.items()}  # fmt: skip
+        quality = rec.quality
+        if isinstance(quality, dict):
+            quality = SegmentQuality.from_tree(quality)
+        return dataclasses.replace(rec, axes=axes, quality=quality)
 
 
 @dataclass

@@ -144,7 +144,7 @@ def test_pelvis_forward_from_the_first_steps_when_the_walk_has_no_two_turns():
     direction comes from the velocity of the first steps after the stand, within 10° (measured
     3.6°) where the contradicted hint is 142° off; still graded weak."""
     cal, angle = _pelvis_forward_error(20.0, 1)
-    assert cal.segments["pelvis"].axes["movement:turns"]["method"] == "walk start"
+    assert cal.segments["pelvis"].axes["movement:turns"].method == "walk start"
     assert any("taken from the first steps of the walk" in w for w in cal.warnings)
     assert cal.grades["hip_r"].grades == ["weak"] * 3
     assert angle < 10.0

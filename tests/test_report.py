@@ -13,6 +13,7 @@ from motionlab.report.pdf import RC, Document, layout_problems, page_text, text_
 from motionlab.report.sentences import findings, rom_sentence, span
 from motionlab.results import (
     AngleMetrics,
+    AxisMeasurement,
     JointGrades,
     Metrics,
     SegmentCalibration,
@@ -193,7 +194,9 @@ def _graded_view(graded: bool = True) -> SessionView:
         c: np.sin(t) for c in view.metrics.joints["gait"] if c.endswith("_deg")
     }
     ok = SegmentQuality(ok=True)
-    axis = {"standing": {"kind": "static", "rho": 0.99, "residual_deg": 0.5}}
+    y = np.array([0.0, 1.0, 0.0])
+    axis = {"standing": AxisMeasurement("standing", "static", "gravity", y, y, 0.99,
+                                        residual_deg=0.5)}  # fmt: skip
     segments = {s: SegmentRecord(rot.IDENTITY, "primary_secondary", axis, ok) for s in
                 ("pelvis", "thigh_r", "thigh_l", "shank_l")}  # fmt: skip
     segments["shank_r"] = SegmentRecord(rot.IDENTITY, "nominal", {}, SegmentQuality(ok=False))

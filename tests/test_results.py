@@ -17,6 +17,7 @@ from motionlab.results import (
     AlignmentRotation,
     AngleMetrics,
     AngleTable,
+    AxisMeasurement,
     CentreHeading,
     ClockFit,
     ClockSync,
@@ -45,7 +46,8 @@ from motionlab.results import (
 from motionlab.session import SCHEMA_VERSION, SensorStream, Session, load_session, save_session
 
 RECORDS = (
-    ClockFit, ClockSync, FusionEntry, SegmentCalibration, SegmentRecord, SegmentQuality, HingeFit,
+    ClockFit, ClockSync, FusionEntry, SegmentCalibration, SegmentRecord, AxisMeasurement,
+    SegmentQuality, HingeFit,
     TwoAxisFit, HipAxis, JointGrades, TrunkMovement, CentreHeading, HeadingTie, HeadingTies,
     AngleTable, AngleMetrics, HeadingCorrection, Metrics, Gait, Validation, OpticalSync, GradeRow,
     RomRow, SymmetryRow, QualityRow, CalibrationRow, TaskBlock, GaitSummary, MovementProfile,
@@ -156,7 +158,12 @@ def _old_calibration_tree() -> dict:
                "separation_deg": None, "lm_difference_deg": None,
                "hinge_check_deg": {"squat": 2.5}, "future_q": 1}  # fmt: skip
     segment = {"mounting": np.array([1.0, 0.0, 0.0, 0.0]), "method": "single_axis",
-               "axes": {"stand": {"step": "stand", "kind": "static", "rho": 0.99}},
+               "axes": {"stand": {"step": "stand", "kind": "static", "method": "gravity",
+                                  "sensor_axis": np.array([0.0, 0.0, 1.0]),
+                                  "segment_axis": np.array([0.0, 1.0, 0.0]), "rho": 0.99,
+                                  "reference_rho": None, "joint_movement": False,
+                                  "secondary": False, "used": True, "residual_deg": 0.4,
+                                  "future_a": 3}},
                "quality": quality, "sensor": "shank_r", "hint_contradicted": True,
                "future_s": "kept"}  # fmt: skip
     hinge = {"used_for": "axes", "method": "seel", "witness_deg": np.nan, "dominance": np.nan,
@@ -207,7 +214,10 @@ def test_a_calibration_stored_before_the_typed_records_loads_and_is_stored_the_s
     assert seg.method == "single_axis" and seg.sensor == "shank_r" and seg.hint_contradicted
     assert seg.quality.messages == ["shank_r: repeat the squat"] and not seg.quality.ok
     assert seg.quality.separation_deg is None and seg.quality.hinge_check_deg == {"squat": 2.5}
-    assert seg.axes["stand"]["rho"] == 0.99 and seg.more == {"future_s": "kept"}
+    stand = seg.axes["stand"]
+    assert isinstance(stand, AxisMeasurement) and stand.rho == 0.99 and stand.in_fit
+    assert stand.reference_rho is None and stand.hinge_check_deg is None
+    assert stand.more == {"future_a": 3} and seg.more == {"future_s": "kept"}
     assert seg.quality.more == {"future_q": 1}
     assert isinstance(fit, TwoAxisFit) and fit.verdict == "weak" and fit.reasons == ["short"]
     assert list(fit.excursion_deg) == [120.0, -5.0] and fit.more == {"future_h": [1, 2]}

@@ -61,8 +61,8 @@ def test_forearm_tilt_follows_the_standing_accelerometer(sessions):
     cal = calibrate_segments(session, leveled)
     after = cal.segments["forearm_r"]
     rec = after.axes["standing:horizontal"]
-    assert rec["method"] == "horizontal" and rec["residual_deg"] < 1e-6
-    assert rec["rho"] > 0.99
+    assert rec.method == "horizontal" and rec.residual_deg < 1e-6
+    assert rec.rho > 0.99
     # the change is a turn about the segment's z axis by the tilt of the bias the fusion left
     # in the standing accelerometer (atan(0.074 / 9.81) = 0.43°; 1.17° for the whole bias)
     s, (t0, t1) = session.sensors["forearm_r"], cal.steps["standing"]

@@ -118,8 +118,8 @@ def test_knee_steps_mountings_and_joint_movement_axis(knee):
     shank = cal.segments["shank_r"]
     # the seated knee flexion turns the shank about the screw-home-coupled axis: left out,
     # since the straight-leg hip flexion gives the z axis with the knee still
-    assert shank.axes["knee_flexion_r"]["used"] is False
-    assert shank.axes["hip_flexion_r"]["secondary"] is True
+    assert shank.axes["knee_flexion_r"].used is False
+    assert shank.axes["hip_flexion_r"].secondary is True
     assert shank.method == "primary_secondary"
     assert shank.quality.hinge_check_deg["knee_flexion_r"] < 3.0
 
@@ -129,7 +129,7 @@ def test_knee_flexion_axis_alone_carries_the_screw_home_bias(knee):
     protocol = write(tmp, "no_hip", KNEE.split("  - {name: hip_flexion_r")[0] % {
         "method": "", "extra": ""} + KNEE.split("optional: true}\n")[1])  # fmt: skip
     cal = calibrate_segments(session, protocol)
-    assert cal.segments["shank_r"].axes["knee_flexion_r"]["used"] is True
+    assert cal.segments["shank_r"].axes["knee_flexion_r"].used is True
     # the sim's tibia rotates 0.12°/° with flexion: the functional axis is several degrees off
     assert 3.0 < mount_error_deg(truth, cal, "shank_r") < 15.0
 
@@ -142,13 +142,13 @@ def test_hinge_axis_method(knee):
     assert protocol.calibration[2].axis_method == "hinge"
     cal = calibrate_segments(session, protocol)
     shank = cal.segments["shank_r"].axes["knee_flexion_r"]
-    assert shank["method"] == "hinge" and shank["used"] is True
+    assert shank.method == "hinge" and shank.used is True
     # seated, the thigh is still: Seel's constraint leaves its axis free, so it gets none
     assert "knee_flexion_r:hinge" not in cal.segments["thigh_r"].axes
     # the hinge axis is the same (screw-home coupled) axis the SVD finds
-    assert shank["hinge_check_deg"] < 2.0
+    assert shank.hinge_check_deg < 2.0
     true_z = rot.rotate(rot.conj(truth.sensors["shank_r"]["mounting"]), -Z)
-    assert 3.0 < np.degrees(np.arccos(shank["sensor_axis"] @ true_z)) < 15.0
+    assert 3.0 < np.degrees(np.arccos(shank.sensor_axis @ true_z)) < 15.0
 
 
 def test_bad_axis_method_is_an_input_error(tmp_path):
@@ -250,7 +250,7 @@ def test_elbow_forearm_frame_keeps_the_carrying_angle(elbow):
     cal = calibrate_segments(session, protocol)
     fore = cal.segments["forearm_r"]
     assert fore.method == "primary_secondary"
-    assert fore.axes["elbow_flexion_r"]["used"] is False
+    assert fore.axes["elbow_flexion_r"].used is False
     assert mount_error_deg(truth, cal, "forearm_r") < 2.0
     assert mount_error_deg(truth, cal, "upperarm_r") < 1.5
     heading = lambda label, t: 0.5 if label == "forearm_r" else -1.0  # noqa: E731

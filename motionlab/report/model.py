@@ -564,19 +564,19 @@ def calibration_rows(view: SessionView) -> list[CalibrationRow]:
             rows.append(_no_axis_row(view, seg, res))
         for step in sorted(axes, key=lambda k: steps.index(k) if k in steps else len(steps)):
             a = axes[step]
-            ref = a.get("reference_rho")
+            ref, residual, check = a.reference_rho, a.residual_deg, a.hinge_check_deg
             rows.append(
                 CalibrationRow(
                     segment=seg,
                     sensor=res.sensor or sensor_for_segment(view.session, seg) or "",
                     method=res.method,
                     step=step,
-                    kind=a.get("kind", ""),
-                    rho=float(a.get("rho", np.nan)),
+                    kind=a.kind,
+                    rho=float(a.rho),
                     reference_rho=float(ref) if ref is not None else float("nan"),
-                    residual_deg=float(a.get("residual_deg", np.nan)),
-                    used=bool(a.get("used", True)),
-                    hinge_check_deg=float(a.get("hinge_check_deg", np.nan)),
+                    residual_deg=float(residual) if residual is not None else float("nan"),
+                    used=a.in_fit,
+                    hinge_check_deg=float(check) if check is not None else float("nan"),
                     segment_ok=_segment_ok(res),
                 )
             )

@@ -28,6 +28,7 @@ from motionlab.binding import sensor_for_segment
 from motionlab.kinematics.joint_types import flexion_axis, joint_type
 from motionlab.protocol import Protocol, axis_vector
 from motionlab.results import (
+    AxisMeasurement,
     CentreHeading,
     HeadingCorrection,
     HeadingTie,
@@ -173,7 +174,7 @@ def pelvis_forward(
     session: Session,
     protocol: Protocol,
     steps: dict[str, Any],
-    records: dict[str, dict[str, Any]],
+    records: dict[str, dict[str, AxisMeasurement]],
     contradicted: set[str],
     notes: list[str],
 ) -> dict[str, Any] | None:
@@ -191,16 +192,16 @@ def pelvis_forward(
         return None
     seg = hips[0].proximal
     recs = records.get(seg, {})
-    gravity = [r for r in recs.values() if r["method"] == "gravity" and r["kind"] == "static"]
+    gravity = [r for r in recs.values() if r.method == "gravity" and r.kind == "static"]
     if not gravity or mounting._distinct(list(recs.values())) != 1:
         return None
     label = sensor_for_segment(session, seg)
     s = session.sensors[label] if label is not None else None
-    rng = steps.get(gravity[0]["step"])
+    rng = steps.get(gravity[0].step)
     if s is None or s.acc is None or s.gyr is None or not rng:
         return None
-    up = np.asarray(gravity[0]["sensor_axis"], float) * float(
-        np.sign(gravity[0]["segment_axis"] @ np.array([0.0, 1.0, 0.0])) or 1.0
+    up = np.asarray(gravity[0].sensor_axis, float) * float(
+        np.sign(gravity[0].segment_axis @ np.array([0.0, 1.0, 0.0])) or 1.0
     )
     q = sensor_orientation(session, label)
     by_stand = seg in contradicted
@@ -228,20 +229,18 @@ def pelvis_forward(
         return found  # the hint agrees with the walk: it stays (the turns are 5-20° off)
     why = "" if by_stand else f"{words} are {off:.0f}° from the hint's forward; "
     _add_note(notes, seg, f"{why}its forward direction is taken from {words}")
-    recs["movement:turns"] = {
-        "step": "movement:turns",
-        "kind": "movement",
-        "method": method,
-        "sensor_axis": found["axis"],
-        "segment_axis": np.array([1.0, 0.0, 0.0]),
-        "rho": walk_forward.RHO,
-        "reference_rho": None,
-        "joint_movement": False,
-        "secondary": True,
-        "verdict": "weak",
-        "turns": found["turns"],
-        "spread_deg": found.get("spread_deg", float("nan")),
-    }
+    recs["movement:turns"] = AxisMeasurement(
+        step="movement:turns",
+        kind="movement",
+        method=method,
+        sensor_axis=found["axis"],
+        segment_axis=np.array([1.0, 0.0, 0.0]),
+        rho=walk_forward.RHO,
+        secondary=True,
+        verdict="weak",
+        turns=found["turns"],
+        spread_deg=found.get("spread_deg", float("nan")),
+    )
     return found
 
 
@@ -258,8 +257,8 @@ def _add_note(notes: list[str], segment: str, text: str) -> None:
 def _long_axis_measured(cal: SegmentRecord, axis: np.ndarray) -> bool:
     """Whether a calibration movement (a functional step) measured this segment axis."""
     return any(
-        r.get("kind") == "functional" and r.get("used", True)
-        and abs(float(np.asarray(r["segment_axis"]) @ axis)) > 0.99
+        r.kind == "functional" and r.in_fit
+        and abs(float(np.asarray(r.segment_axis) @ axis)) > 0.99
         for r in cal.axes.values()
     )  # fmt: skip
 

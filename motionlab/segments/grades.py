@@ -96,7 +96,7 @@ def _flagged(cal: SegmentRecord) -> bool:
 
 
 def _methods(cal: SegmentRecord) -> set[str]:
-    return {r.get("method") for r in cal.axes.values() if r.get("used", True)}
+    return {r.method for r in cal.axes.values() if r.in_fit}
 
 
 def _heading_only(segment: str, cal: SegmentRecord | None) -> float | None:
@@ -150,9 +150,7 @@ def _axis_grade(joint, calibration: SegmentCalibration) -> tuple[str, str]:
         if cal is None or cal.method == "nominal":
             return "not determined", f"no axis of {seg} was measured (nominal placement only)"
         measured = [
-            r
-            for r in cal.axes.values()
-            if r.get("kind") in ("functional", "movement") and r.get("used", True)
+            r for r in cal.axes.values() if r.kind in ("functional", "movement") and r.in_fit
         ]
         if not measured and cal.method not in FULL_FRAME:
             grade, reason = "weak", f"the flexion axis of {seg} is the nominal placement's"

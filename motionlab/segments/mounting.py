@@ -29,15 +29,13 @@ the heading about it stays as the nominal placement says.
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 from scipy.signal import butter, sosfiltfilt
 
 from motionlab import rotations as rot
 from motionlab.kinematics.joint_types import JOINT_TYPES, flexion_axis
 from motionlab.protocol import CalibrationStep, Protocol, axis_vector
-from motionlab.results import SegmentQuality, SegmentRecord
+from motionlab.results import AxisMeasurement, SegmentQuality, SegmentRecord
 from motionlab.segments import frames, quality
 from motionlab.segments.functional import functional_axis, orient
 from motionlab.segments.hinge import hinge_axes
@@ -85,17 +83,17 @@ def _record(
     moves: bool,
     secondary: bool = False,
 ):
-    return {
-        "step": step.name,
-        "kind": step.kind,
-        "method": method,
-        "sensor_axis": np.asarray(axis, float),
-        "segment_axis": np.asarray(seg_axis, float),
-        "rho": float(rho),
-        "reference_rho": step.reference_rho.get(segment),
-        "joint_movement": moves,
-        "secondary": secondary,
-    }
+    return AxisMeasurement(
+        step=step.name,
+        kind=step.kind,
+        method=method,
+        sensor_axis=np.asarray(axis, float),
+        segment_axis=np.asarray(seg_axis, float),
+        rho=float(rho),
+        reference_rho=step.reference_rho.get(segment),
+        joint_movement=moves,
+        secondary=secondary,
+    )
 
 
 def _hinge(protocol, step, joint, streams, rng) -> tuple[np.ndarray | None, np.ndarray, float]:
@@ -120,7 +118,7 @@ def static_records(
     step: CalibrationStep,
     streams: dict[str, Stream],
     rng: tuple[float, float],
-    out: dict[str, dict[str, dict[str, Any]]],
+    out: dict[str, dict[str, AxisMeasurement]],
     min_samples: int = 3,
 ) -> None:
     """Add to ``out`` the records of a static step over ``rng`` (s): gravity for each segment
@@ -144,9 +142,9 @@ def static_records(
 
 def measure(
     protocol: Protocol, streams: dict[str, Stream], steps: dict[str, tuple[float, float] | None]
-) -> dict[str, dict[str, dict[str, Any]]]:
+) -> dict[str, dict[str, AxisMeasurement]]:
     """Axis records ``{segment: {record name: record}}`` of every step found in ``steps``."""
-    out: dict[str, dict[str, dict[str, Any]]] = {seg: {} for seg in streams}
+    out: dict[str, dict[str, AxisMeasurement]] = {seg: {} for seg in streams}
     joints = list(protocol.joints.values())
     for step in protocol.calibration:
         rng = steps.get(step.name)
@@ -177,34 +175,32 @@ def measure(
                 continue
             j_p, j_d, residual = _hinge(protocol, step, joint, streams, rng)
             rec = out[joint.distal][step.name]
-            rec["hinge_check_deg"] = _angle_deg(rec["sensor_axis"], j_d)
-            rec["hinge_residual_rad_s"] = residual
+            rec.hinge_check_deg = _angle_deg(rec.sensor_axis, j_d)
+            rec.hinge_residual_rad_s = residual
             if step.axis_method == "hinge":
-                rec.update(sensor_axis=j_d, method="hinge")
+                rec.sensor_axis, rec.method = j_d, "hinge"
                 if j_p is not None:
                     out[joint.proximal][f"{step.name}:hinge"] = _record(
-                        step, joint.proximal, rec["segment_axis"], j_p, rec["rho"], "hinge", True
+                        step, joint.proximal, rec.segment_axis, j_p, rec.rho, "hinge", True
                     )
     return out
 
 
-def _mark_used(records: list[dict[str, Any]]) -> None:
+def _mark_used(records: list[AxisMeasurement]) -> None:
     """Leave out joint-movement axes measured better by a step that keeps the joint still."""
     for rec in records:
-        key = tuple(np.abs(rec["segment_axis"]))
-        better = any(
-            not o["joint_movement"] and tuple(np.abs(o["segment_axis"])) == key for o in records
-        )
-        rec["used"] = not (rec["joint_movement"] and better)
+        key = tuple(np.abs(rec.segment_axis))
+        better = any(not o.joint_movement and tuple(np.abs(o.segment_axis)) == key for o in records)
+        rec.used = not (rec.joint_movement and better)
 
 
-def _distinct(recs: list[dict[str, Any]]) -> int:
-    return len({tuple(np.abs(r["segment_axis"]).round(6)) for r in recs})
+def _distinct(recs: list[AxisMeasurement]) -> int:
+    return len({tuple(np.abs(r.segment_axis).round(6)) for r in recs})
 
 
-def _arrays(recs: list[dict[str, Any]]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    v = np.array([r["sensor_axis"] for r in recs])
-    return v, np.array([r["segment_axis"] for r in recs]), np.array([r["rho"] for r in recs])
+def _arrays(recs: list[AxisMeasurement]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    v = np.array([r.sensor_axis for r in recs])
+    return v, np.array([r.segment_axis for r in recs]), np.array([r.rho for r in recs])
 
 
 def nominal(segment: str, protocol: Protocol) -> SegmentRecord:
@@ -229,7 +225,7 @@ def nominal(segment: str, protocol: Protocol) -> SegmentRecord:
     )
 
 
-def fit(segment: str, protocol: Protocol, records: dict[str, dict[str, Any]]) -> SegmentRecord:
+def fit(segment: str, protocol: Protocol, records: dict[str, AxisMeasurement]) -> SegmentRecord:
     """Mounting (segment → sensor quaternion), method, the records and the quality.
 
     Primary records (static poses, movements of the segment itself) fix the frame: with two or
@@ -241,14 +237,14 @@ def fit(segment: str, protocol: Protocol, records: dict[str, dict[str, Any]]) ->
     """
     if not records:
         return nominal(segment, protocol)
-    level = [r for r in records.values() if r["method"] == "horizontal"]
-    recs = [r for r in records.values() if r["method"] != "horizontal"]
+    level = [r for r in records.values() if r.method == "horizontal"]
+    recs = [r for r in records.values() if r.method != "horizontal"]
     if not recs:  # a horizontal axis alone fixes no direction of the frame
         return nominal(segment, protocol)
     _mark_used(recs)
-    used = [r for r in recs if r["used"]]
-    primary = [r for r in used if not r["secondary"]]
-    secondary = [r for r in used if r["secondary"]]
+    used = [r for r in recs if r.used]
+    primary = [r for r in used if not r.secondary]
+    secondary = [r for r in used if r.secondary]
     if _distinct(primary) == 0:
         primary, secondary = secondary, []
     m_nom = protocol.segments[segment].nominal_mounting().T  # segment → sensor
@@ -272,14 +268,14 @@ def fit(segment: str, protocol: Protocol, records: dict[str, dict[str, Any]]) ->
         else:
             method = "single_axis"
     for rec in level:
-        m = frames.level(m, rec["sensor_axis"], rec["segment_axis"])
+        m = frames.level(m, rec.sensor_axis, rec.segment_axis)
     residuals = frames.residual_angles(m, *_arrays(recs)[:2])
     for rec, res in zip(recs, residuals, strict=True):
-        rec["residual_deg"] = float(res)
+        rec.residual_deg = float(res)
     for rec in level:  # off the horizontal, 0 unless two poses disagree
-        rec["used"] = True
-        tilt = float(rec["sensor_axis"] @ (m @ rec["segment_axis"]))
-        rec["residual_deg"] = float(np.degrees(np.arcsin(min(abs(tilt), 1.0))))
+        rec.used = True
+        tilt = float(rec.sensor_axis @ (m @ rec.segment_axis))
+        rec.residual_deg = float(np.degrees(np.arcsin(min(abs(tilt), 1.0))))
     return SegmentRecord(
         mounting=rot.from_matrix(m),
         method=method,

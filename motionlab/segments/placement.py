@@ -25,7 +25,7 @@ from motionlab.clocksync.joint_centre import joint_centre_forces
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_types import flexion_axis, joint_sequence, joint_type
 from motionlab.protocol import Protocol, axis_vector
-from motionlab.results import CentreHeading
+from motionlab.results import AxisMeasurement, CentreHeading
 from motionlab.segments import frames, gait_axes, heading, movement
 from motionlab.segments.functional import orient
 from motionlab.segments.sensors import Streams, sensor_orientation
@@ -45,10 +45,10 @@ def hinge_spec(joint) -> tuple[str, bool] | None:
     return axis, jt.flexes_one_way
 
 
-def _measured_by_steps(records: dict[str, Any], axis: np.ndarray) -> bool:
+def _measured_by_steps(records: dict[str, AxisMeasurement], axis: np.ndarray) -> bool:
     """Whether a functional step already measured this segment axis (either sign)."""
     return any(
-        r["kind"] == "functional" and abs(float(r["segment_axis"] @ axis)) > 0.99
+        r.kind == "functional" and abs(float(r.segment_axis @ axis)) > 0.99
         for r in records.values()
     )
 
@@ -58,7 +58,7 @@ def movement_hinges(
     protocol: Protocol,
     streams: Streams,
     steps: dict[str, Any],
-    records: dict[str, dict[str, Any]],
+    records: dict[str, dict[str, AxisMeasurement]],
     contradicted: set[str] = frozenset(),
 ) -> dict[str, movement.HingeFit]:
     """Hinge axes from ordinary movement for the hinge-like joints no functional step measures,
@@ -118,19 +118,17 @@ def movement_hinges(
         else:
             new.append((d, fit.axis_distal, seg_axis, True))
         for k, (seg, axis, segment_axis, secondary) in enumerate(new):
-            records[seg][f"movement:{name}:{k}"] = {
-                "step": f"movement:{name}",
-                "kind": "movement",
-                "method": "hinge",
-                "sensor_axis": np.asarray(axis, float),
-                "segment_axis": segment_axis,
-                "rho": rho,
-                "reference_rho": None,
-                "joint_movement": False,
+            records[seg][f"movement:{name}:{k}"] = AxisMeasurement(
+                step=f"movement:{name}",
+                kind="movement",
+                method="hinge",
+                sensor_axis=np.asarray(axis, float),
+                segment_axis=segment_axis,
+                rho=rho,
                 # a static pose's gravity, where there is one, stays exact
-                "secondary": secondary,
-                "verdict": fit.verdict,
-            }
+                secondary=secondary,
+                verdict=fit.verdict,
+            )
     return fits
 
 
@@ -146,17 +144,17 @@ def twists_about_long_axis(protocol: Protocol, joint, ref_name: str | None, spec
     return joint_sequence(joint).upper().endswith("Y") and vertical.strip("+") == "y"
 
 
-def contradicted(protocol: Protocol, records: dict[str, dict[str, Any]]) -> set[str]:
+def contradicted(protocol: Protocol, records: dict[str, dict[str, AxisMeasurement]]) -> set[str]:
     """Segments whose measured axes (gravity, signed; functional axes, either sign) lie more
     than ``CONTRADICTED_DEG`` from where the nominal placement puts them."""
     out = set()
     for seg, recs in records.items():
         m_nom = protocol.segments[seg].nominal_mounting().T  # segment → sensor
         for r in recs.values():
-            if r["method"] not in ("gravity", "svd", "hinge") or r["kind"] == "movement":
+            if r.method not in ("gravity", "svd", "hinge") or r.kind == "movement":
                 continue
-            c = float(r["sensor_axis"] @ (m_nom @ r["segment_axis"]))
-            if r["method"] != "gravity":
+            c = float(r.sensor_axis @ (m_nom @ r.segment_axis))
+            if r.method != "gravity":
                 c = abs(c)
             if c < np.cos(np.radians(CONTRADICTED_DEG)):
                 out.add(seg)
@@ -164,12 +162,15 @@ def contradicted(protocol: Protocol, records: dict[str, dict[str, Any]]) -> set[
 
 
 def _signed_axes(
-    protocol: Protocol, seg: str, records: dict[str, Any], fits: dict[str, movement.HingeFit]
+    protocol: Protocol,
+    seg: str,
+    records: dict[str, AxisMeasurement],
+    fits: dict[str, movement.HingeFit],
 ) -> list[tuple[np.ndarray, np.ndarray]]:
     """``(sensor axis, segment axis)`` pairs of a segment measured with their sign: gravity,
     and the axes fitted from movement with a sign from the data (anatomy, the stand)."""
-    out = [(r["sensor_axis"], r["segment_axis"]) for r in records.values()
-           if r["method"] == "gravity"]  # fmt: skip
+    out = [(r.sensor_axis, r.segment_axis) for r in records.values()
+           if r.method == "gravity"]  # fmt: skip
     for name, fit in fits.items():
         joint = protocol.joints[name]
         if fit.verdict == "not determined" or fit.sign != "anatomy":
@@ -190,7 +191,7 @@ def _signed_axes(
 
 def orient_by_data(
     protocol: Protocol,
-    records: dict[str, dict[str, Any]],
+    records: dict[str, dict[str, AxisMeasurement]],
     fits: dict[str, movement.HingeFit],
     contradicted: set[str],
 ) -> dict[str, list[str]]:
@@ -208,19 +209,17 @@ def orient_by_data(
         distinct = {tuple(np.abs(a).round(6)) for a in r}
         m = frames.wahba(v, r) if len(distinct) >= 2 else None
         for rec in records[seg].values():
-            if rec["kind"] != "functional" or rec["method"] not in ("svd", "hinge"):
+            if rec.kind != "functional" or rec.method not in ("svd", "hinge"):
                 continue
             if m is not None:
-                rec["sensor_axis"] = orient(rec["sensor_axis"], m @ rec["segment_axis"])
+                rec.sensor_axis = orient(rec.sensor_axis, m @ rec.segment_axis)
                 continue
-            par = [k for k in range(len(r)) if abs(float(r[k] @ rec["segment_axis"])) > 0.99]
+            par = [k for k in range(len(r)) if abs(float(r[k] @ rec.segment_axis)) > 0.99]
             if par:
                 k = par[0]
-                rec["sensor_axis"] = orient(
-                    rec["sensor_axis"], v[k] * float(r[k] @ rec["segment_axis"])
-                )
+                rec.sensor_axis = orient(rec.sensor_axis, v[k] * float(r[k] @ rec.segment_axis))
             else:
-                unsure.setdefault(seg, []).append(rec["step"])
+                unsure.setdefault(seg, []).append(rec.step)
     return unsure
 
 

@@ -9,9 +9,7 @@ between the SVD axis and Seel's hinge axis are checked.
 
 from __future__ import annotations
 
-from typing import Any
-
-from motionlab.results import SegmentQuality
+from motionlab.results import AxisMeasurement, SegmentQuality
 
 STATIC_RHO_MIN = 0.95
 FUNCTIONAL_RHO_MIN = 0.60
@@ -23,42 +21,41 @@ HINGE_CHECK_MAX_DEG = 10.0
 
 def assess(
     segment: str,
-    axes: list[dict[str, Any]],
+    axes: list[AxisMeasurement],
     separation_deg: float | None,
     lm_difference_deg: float | None,
 ) -> SegmentQuality:
     """Quality record of one segment.
 
-    ``axes`` are the per-axis records made by :func:`motionlab.segments.mounting.measure`
-    (``step``, ``kind``, ``rho``, ``reference_rho``, ``residual_deg``, ``instructions``).
+    ``axes`` are the segment's measured axes (:func:`motionlab.segments.mounting.measure`).
     Returns the :class:`~motionlab.results.SegmentQuality`.
     """
     messages = []
     for a in axes:
-        floor = STATIC_RHO_MIN if a["kind"] == "static" else FUNCTIONAL_RHO_MIN
-        ref = a.get("reference_rho")
+        floor = STATIC_RHO_MIN if a.kind == "static" else FUNCTIONAL_RHO_MIN
+        ref = a.reference_rho
         if ref is not None:
             floor = ref - RHO_MARGIN
-        if a["rho"] < floor:
+        if a.rho < floor:
             why = (
                 "the segment was not still"
-                if a["kind"] == "static"
+                if a.kind == "static"
                 else ("the movement was not planar enough")
             )
             expect = f"expected about {ref:.2f}" if ref is not None else f"want ≥ {floor:.2f}"
             messages.append(
-                f"{segment}: repeat the {a['step'].replace('_', ' ')}: {why} "
-                f"(ρ = {a['rho']:.2f}, {expect})"
+                f"{segment}: repeat the {a.step.replace('_', ' ')}: {why} "
+                f"(ρ = {a.rho:.2f}, {expect})"
             )
-        if a.get("hinge_check_deg", 0.0) > HINGE_CHECK_MAX_DEG:
+        if a.hinge_check_deg is not None and a.hinge_check_deg > HINGE_CHECK_MAX_DEG:
             messages.append(
-                f"{segment}: repeat the {a['step'].replace('_', ' ')}: its axis differs from "
-                f"the hinge-joint fit by {a['hinge_check_deg']:.0f}° (the movement was not "
+                f"{segment}: repeat the {a.step.replace('_', ' ')}: its axis differs from "
+                f"the hinge-joint fit by {a.hinge_check_deg:.0f}° (the movement was not "
                 "about one axis, or the upper segment moved)"
             )
-        if a.get("residual_deg", 0.0) > RESIDUAL_MAX_DEG:
+        if a.residual_deg is not None and a.residual_deg > RESIDUAL_MAX_DEG:
             messages.append(
-                f"{segment}: the axis from {a['step']} is {a['residual_deg']:.0f}° off the "
+                f"{segment}: the axis from {a.step} is {a.residual_deg:.0f}° off the "
                 "fitted frame: check the movement was about the instructed axis and the sensor "
                 "did not slip"
             )
@@ -76,8 +73,8 @@ def assess(
     return SegmentQuality(
         ok=not messages,
         messages=messages,
-        min_rho=min((a["rho"] for a in axes), default=float("nan")),
+        min_rho=min((a.rho for a in axes), default=float("nan")),
         separation_deg=separation_deg,
         lm_difference_deg=lm_difference_deg,
-        hinge_check_deg={a["step"]: a["hinge_check_deg"] for a in axes if "hinge_check_deg" in a},
+        hinge_check_deg={a.step: a.hinge_check_deg for a in axes if a.hinge_check_deg is not None},
     )

@@ -56,6 +56,7 @@ from motionlab.fusion.detect import steady_mask
 from motionlab.kinematics.joint_types import joint_type
 from motionlab.protocol import Protocol
 from motionlab.results import (
+    AxisMeasurement,
     CentreHeading,
     JointGrades,
     SegmentCalibration,
@@ -203,26 +204,24 @@ def _frame(y: np.ndarray, z: np.ndarray) -> np.ndarray:
 
 
 def _record(step: str, kind: str, method: str, sensor_axis, segment_axis, rho, verdict):
-    return {
-        "step": step,
-        "kind": kind,
-        "method": method,
-        "sensor_axis": np.asarray(sensor_axis, float),
-        "segment_axis": np.asarray(segment_axis, float),
-        "rho": float(rho),
-        "reference_rho": None,
-        "joint_movement": kind == "movement",
-        "secondary": False,
-        "used": True,
-        "residual_deg": 0.0,
-        "verdict": verdict,
-    }
+    return AxisMeasurement(
+        step=step,
+        kind=kind,
+        method=method,
+        sensor_axis=np.asarray(sensor_axis, float),
+        segment_axis=np.asarray(segment_axis, float),
+        rho=float(rho),
+        joint_movement=kind == "movement",
+        used=True,
+        residual_deg=0.0,
+        verdict=verdict,
+    )
 
 
 def _segment(
     m: np.ndarray,
     sensor: str,
-    records: dict[str, Any],
+    records: dict[str, AxisMeasurement],
     messages: list[str],
     method: str = "procrustes",
 ) -> SegmentRecord:
@@ -233,7 +232,7 @@ def _segment(
         quality=SegmentQuality(
             ok=not messages,
             messages=messages,
-            min_rho=min(r["rho"] for r in records.values()),
+            min_rho=min(r.rho for r in records.values()),
             separation_deg=90.0,
             lm_difference_deg=None,
             hinge_check_deg={},
