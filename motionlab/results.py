@@ -1272,10 +1272,7 @@ class Validation(_Record):
             val.sync = OpticalSync.from_tree(val.sync)
         if isinstance(val.alignment, dict):
             val.alignment = SpatialAlignment.from_tree(val.alignment) if val.alignment else None
-        val.optical = {
-            k: o if isinstance(o, OpticalSegmentInfo) else OpticalSegmentInfo.from_tree(o)
-            for k, o in val.optical.items()
-        }
+        val.optical = {k: OpticalSegmentInfo.from_tree(o) for k, o in val.optical.items()}
         if isinstance(val.orientation, dict):
             val.orientation = OrientationErrors.from_tree(val.orientation)
         if isinstance(val.angles, dict):

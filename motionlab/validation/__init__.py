@@ -27,6 +27,7 @@ import numpy as np
 from motionlab import rotations as rot
 from motionlab.binding import sensor_for_segment
 from motionlab.errors import InputError
+from motionlab.kinematics.cycles import Cycles
 from motionlab.kinematics.joint_angles import joint_angles
 from motionlab.kinematics.joint_types import angle_columns
 from motionlab.kinematics.session_angles import session_angles
@@ -175,7 +176,7 @@ def angle_agreement(
     imu_deg: np.ndarray,
     ref_deg: np.ndarray,
     mask: np.ndarray | None,
-    reps=None,
+    reps: Cycles | None = None,
     time: np.ndarray | None = None,
 ) -> AngleAgreement:
     """The agreement of an IMU angle curve with the reference's (deg, on one time base), per
@@ -196,11 +197,11 @@ def _angles(
 ) -> tuple[AngleAgreements, list[str]]:
     """IMU and optical joint angles on the IMU angle time base and their agreement."""
     notes = []
-    stored = session.results.angles
-    if stored is None:
+    table = session.results.angles
+    if table is None:
         columns = session_angles(session, protocol, session.results.calibration)
-        stored = AngleTable.from_columns(columns)
-    t = np.asarray(stored.time, dtype=float)
+        table = AngleTable.from_columns(columns)
+    t = np.asarray(table.time, dtype=float)
     rate = estimate_rate(t)
     mask = None
     if movement is not None:
@@ -218,10 +219,10 @@ def _angles(
         primary = angle_columns(joint)[0][1]
         reps = repetitions(ref[primary], rate)
         for col, ref_deg in ref.items():
-            if col not in stored.data:
+            if col not in table.data:
                 notes.append(f"{col}: not in the IMU angle table")
                 continue
-            imu_deg = np.asarray(stored.data[col], dtype=float)
+            imu_deg = np.asarray(table.data[col], dtype=float)
             out.columns[col] = angle_agreement(imu_deg, ref_deg, mask, reps, t)
     return out, notes
 

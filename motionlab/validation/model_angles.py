@@ -201,8 +201,8 @@ def validate_model_angles(
     none is compared), ``angles``, ``notes``) with ``reference``: ``kind``
     (``model_angles``), ``file`` and ``mapping`` (column → source).
     """
-    stored = session.results.angles
-    if stored is None:
+    table = session.results.angles
+    if table is None:
         if protocol is None:
             raise InputError(
                 "the session has no joint angles",
@@ -211,9 +211,9 @@ def validate_model_angles(
                 argument="protocol",
             )
         columns = session_angles(session, protocol, session.results.calibration)
-        stored = AngleTable.from_columns(columns)
-    t = np.asarray(stored.time, dtype=float)
-    columns = [k for k in stored.data if k.endswith("_deg")]
+        table = AngleTable.from_columns(columns)
+    t = np.asarray(table.time, dtype=float)
+    columns = [k for k in table.data if k.endswith("_deg")]
     mapping = mapping if mapping is not None else default_mapping(reference, protocol)
     ref = reference_angles(reference, mapping, columns)
     if not ref:
@@ -231,7 +231,7 @@ def validate_model_angles(
     if sync:
         imu_sig, ref_sig = [], []
         for col in primary:
-            imu_sig.append((t, _rate_rad_s(t, np.asarray(stored.data[col], float))))
+            imu_sig.append((t, _rate_rad_s(t, np.asarray(table.data[col], float))))
             ref_sig.append((t_ref, _rate_rad_s(t_ref, ref[col])))
         clock = synchronise(imu_sig, ref_sig, seed=seed, ref_is_rate=True)
     else:
@@ -249,7 +249,7 @@ def validate_model_angles(
     angles = AngleAgreements(time_s=t)
     for col, values in ref.items():
         ref_deg = _interp(t_ref, values, tq)
-        imu_deg = np.asarray(stored.data[col], dtype=float)
+        imu_deg = np.asarray(table.data[col], dtype=float)
         reps = repetitions(ref_deg, rate) if col in primary else None
         angles.columns[col] = angle_agreement(imu_deg, ref_deg, mask, reps, t)
     unmapped = [c for c in columns if c not in ref]
