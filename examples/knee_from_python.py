@@ -40,8 +40,8 @@ def main(outdir: Path) -> dict:
     sync = validation.sync
     print(f"clock offset {sync.time_offset_s * 1e3:.1f} ms ({sync.grade})")
     for col in ("knee_r_flexion_deg", "knee_l_flexion_deg"):
-        entry = validation.angles[col]
-        print(f"{col}: RMSE {entry['rmse_deg']:.2f} deg, r {entry['r']:.3f} against the markers")
+        entry = validation.angles.columns[col]  # an AngleAgreement
+        print(f"{col}: RMSE {entry.rmse_deg:.2f} deg, r {entry.r:.3f} against the markers")
 
     outdir.mkdir(parents=True, exist_ok=True)
     print(ml.export_session(session, "mot", outdir / "knee_angles.mot", force=True))

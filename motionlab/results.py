@@ -31,7 +31,9 @@ so that a round trip loses nothing. Units are SI except where a name says otherw
 Maps keyed by the protocol's names (one entry per segment, joint, task or angle column) are
 dictionaries; where their entries have fixed fields these are typed too (:class:`SegmentRecord`
 with its :class:`SegmentQuality`, :class:`HingeFit`, :class:`JointGrades`,
-:class:`CentreHeading`, :class:`HeadingTies`), else their keys are documented at the attribute.
+:class:`CentreHeading`, :class:`HeadingTies`, a validation's :class:`OpticalSegmentInfo`,
+:class:`SensorOrientationError` and :class:`AngleAgreement`), else their keys are documented at
+the attribute.
 """
 
 from __future__ import annotations
@@ -71,6 +73,13 @@ __all__ = [
     "OpticalSync",
     "AlignmentRotation",
     "SpatialAlignment",
+    "OpticalSegmentInfo",
+    "SensorOrientationError",
+    "OrientationErrors",
+    "RepetitionAgreement",
+    "AngleAgreement",
+    "AngleAgreements",
+    "ValidationReference",
     "Validation",
     "column_unit",
 ]
@@ -1053,18 +1062,235 @@ class SpatialAlignment(_Record):
 
 
 @dataclass
+class OpticalSegmentInfo(_Record):
+    """How the optical system saw one segment (:mod:`motionlab.validation.reference`; one value
+    of :attr:`Validation.optical`, keyed by segment).
+
+    ``source``: ``cluster`` (a marker cluster fitted frame by frame) or ``rigid_body`` (the
+    capture system's own rigid body); ``landmarks``: the landmarks its anatomical frame was built
+    from (empty: none); ``frame``: where the segment frame of the joint angles came from
+    (``landmarks``, ``segment_frame``: the rigid body's frame is the anatomical one, or
+    ``imu_calibration``: the cluster carried into the IMU's segment frame; ``None``: no joint
+    angles). Of the tracking: ``fitted_fraction`` (share of frames with a pose),
+    ``interpolated_fraction`` and ``flagged_fraction`` (shares of frames bridged over a short gap
+    and flagged as a long one), ``n_long_gaps``, ``residual_rms_mm`` (mm: RMS residual of the
+    cluster fit), ``shape_m`` (K, 3) m: the cluster's marker positions in its own frame
+    (:class:`motionlab.validation.optical.ClusterTrack`); for a rigid body ``rigid_body`` (its
+    name) and ``segment_frame`` (``True``: its frame is the anatomical one). Of the landmarks,
+    for a cluster with some: ``static_source`` (``static trial``, ``static_time_s``, ``still
+    window`` or ``whole recording``) and ``static_s`` ([start, end] s on that recording's clock):
+    where they were fixed in the cluster frame; ``landmark_spread_mm`` ``{landmark: mm}``: their
+    spread there; ``landmark_rms_mm`` ``{landmark: mm}`` (without a static trial): reconstructed
+    against measured where the landmark is seen outside that window. Fields a segment has no
+    value for are ``None`` and not stored.
+    """
+
+    source: str = ""
+    landmarks: list[str] = field(default_factory=list)
+    fitted_fraction: float | None = None
+    interpolated_fraction: float | None = None
+    flagged_fraction: float | None = None
+    n_long_gaps: int | None = None
+    residual_rms_mm: float | None = None
+    rigid_body: str | None = None
+    segment_frame: bool | None = None
+    shape_m: np.ndarray | None = None
+    static_source: str | None = None
+    static_s: list[float] | None = None
+    landmark_spread_mm: dict[str, float] | None = None
+    landmark_rms_mm: dict[str, float] | None = None
+    frame: str | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class SensorOrientationError(_Record):
+    """One sensor's orientation error against its optical segment after the alignment
+    (:mod:`motionlab.validation.orientation_error`; one value of
+    :attr:`OrientationErrors.sensors`), in degrees.
+
+    Per sample of :attr:`OrientationErrors.time_s` (NaN without a reference): ``total_deg``
+    (the geodesic angle), ``heading_deg`` (about the vertical) and ``inclination_deg`` (about a
+    horizontal axis), as BROAD defines them. Over the samples used (``n_samples``; the movement
+    only with ``movement_only``): ``total_rmse_deg``, ``heading_rmse_deg``,
+    ``inclination_rmse_deg``, and the total error's ``median_deg``, ``iqr_deg`` and ``p95_deg``
+    — all ``None`` (not stored) when no sample has both, ``n_samples`` then 0.
+    """
+
+    total_deg: np.ndarray
+    heading_deg: np.ndarray
+    inclination_deg: np.ndarray
+    total_rmse_deg: float | None = None
+    heading_rmse_deg: float | None = None
+    inclination_rmse_deg: float | None = None
+    median_deg: float | None = None
+    iqr_deg: float | None = None
+    p95_deg: float | None = None
+    n_samples: int = 0
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+def _timed_tree(time_s: np.ndarray | None, entries: dict[str, Any], more: dict) -> dict:
+    """``{"time_s": ..., name: entry tree, ..., <more>}``: the flat layout of a validation's
+    orientation errors and angles."""
+    tree: dict[str, Any] = {} if time_s is None else {"time_s": time_s}
+    tree.update({k: e.to_tree() for k, e in entries.items()})
+    tree.update(more)
+    return tree
+
+
+def _timed_entries(tree: dict[str, Any], entry: type) -> tuple[Any, dict, dict]:
+    """``(time_s, {name: entry}, more)`` of a flat tree: every subtree is an entry."""
+    entries = {k: entry.from_tree(v) for k, v in tree.items() if isinstance(v, dict)}
+    more = {k: v for k, v in tree.items() if k != "time_s" and not isinstance(v, dict)}
+    return tree.get("time_s"), entries, more
+
+
+@dataclass
+class OrientationErrors:
+    """The orientation errors of a validation (:attr:`Validation.orientation`): ``time_s``
+    (N,) s, the IMU clock's samples they are given at (``None``: no sensor was compared, as with
+    a model-angle reference stored without it), and ``sensors`` ``{sensor label:
+    SensorOrientationError}``. Stored flat, as before the record: ``time_s`` and one group per
+    sensor; other keys are kept in ``more``.
+    """
+
+    time_s: np.ndarray | None = None
+    sensors: dict[str, SensorOrientationError] = field(default_factory=dict)
+    more: dict[str, Any] = field(default_factory=dict)
+
+    def to_tree(self) -> dict[str, Any]:
+        """``{"time_s": ..., sensor: error tree, ...}``."""
+        return _timed_tree(self.time_s, self.sensors, self.more)
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> OrientationErrors:
+        """The errors of a stored tree (see :meth:`to_tree`)."""
+        return cls(*_timed_entries(tree, SensorOrientationError))
+
+
+@dataclass(frozen=True)
+class RepetitionAgreement(_Record):
+    """An angle's agreement per repetition of the movement
+    (:func:`motionlab.validation.agreement.per_repetition`; :attr:`AngleAgreement.repetitions`).
+
+    ``n``: the repetitions with three or more usable samples; per repetition (n,): ``start_s``
+    and ``end_s`` (s, IMU clock), ``rmse_deg`` and ``bias_deg`` (deg, IMU − optical),
+    ``rom_error_deg`` (the IMU's range of motion minus the optical one, deg) and
+    ``peak_error_deg`` (the difference at the optical curve's peak, deg); ``cmc``: Ferrari's
+    coefficient of multiple correlation over the gap-free repetitions (NaN when undefined).
+    """
+
+    n: int
+    start_s: np.ndarray
+    end_s: np.ndarray
+    rmse_deg: np.ndarray
+    bias_deg: np.ndarray
+    rom_error_deg: np.ndarray
+    peak_error_deg: np.ndarray
+    cmc: float = float("nan")
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class AngleAgreement(_Record):
+    """One joint angle's agreement between the IMU and the optical reference
+    (:func:`motionlab.validation.agreement.agreement`; one value of
+    :attr:`AngleAgreements.columns`), in degrees, error = IMU − optical.
+
+    ``rmse_deg``, ``bias_deg`` (mean error), ``sd_deg`` (its SD, ddof 1), ``max_abs_deg``,
+    ``rmse_centred_deg`` (RMSE without the bias), ``r`` (Pearson), ``cmc`` (Ferrari's CMC of the
+    two curves), ``loa_deg`` ([lower, upper]: Bland–Altman 95 % limits of agreement) over
+    ``n_samples`` samples (each NaN below two); ``imu_deg`` and ``ref_deg`` (N,): the two curves
+    on :attr:`AngleAgreements.time_s`; ``repetitions``: per repetition
+    (:class:`RepetitionAgreement`; ``None`` with fewer than two repetitions).
+    """
+
+    rmse_deg: float
+    bias_deg: float
+    sd_deg: float
+    max_abs_deg: float
+    rmse_centred_deg: float
+    r: float
+    cmc: float
+    loa_deg: list[float]
+    n_samples: int
+    imu_deg: np.ndarray | None = None
+    ref_deg: np.ndarray | None = None
+    repetitions: RepetitionAgreement | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+    def to_tree(self) -> dict[str, Any]:
+        """The agreement's tree, its repetitions a subtree."""
+        tree = super().to_tree()
+        if self.repetitions is not None:
+            tree["repetitions"] = self.repetitions.to_tree()
+        return tree
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> AngleAgreement:
+        """The agreement of a stored tree (see :meth:`to_tree`)."""
+        out = super().from_tree(tree)
+        if isinstance(out.repetitions, dict):
+            out = dataclasses.replace(
+                out, repetitions=RepetitionAgreement.from_tree(out.repetitions)
+            )
+        return out
+
+
+@dataclass
+class AngleAgreements:
+    """The joint angles of a validation (:attr:`Validation.angles`): ``time_s`` (N,) s, the IMU
+    angle table's time base, and ``columns`` ``{angle column: AngleAgreement}`` in the order
+    compared. Stored flat, as before the record: ``time_s`` and one group per column; other
+    keys are kept in ``more``.
+    """
+
+    time_s: np.ndarray | None = None
+    columns: dict[str, AngleAgreement] = field(default_factory=dict)
+    more: dict[str, Any] = field(default_factory=dict)
+
+    def to_tree(self) -> dict[str, Any]:
+        """``{"time_s": ..., column: agreement tree, ...}``."""
+        return _timed_tree(self.time_s, self.columns, self.more)
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> AngleAgreements:
+        """The agreements of a stored tree (see :meth:`to_tree`)."""
+        return cls(*_timed_entries(tree, AngleAgreement))
+
+
+@dataclass(frozen=True)
+class ValidationReference(_Record):
+    """What a validation's reference was (:attr:`Validation.reference`; every field ``None``
+    and nothing stored for a validation run outside :func:`motionlab.stages.validate`).
+
+    ``kind``: ``markers``, ``segments`` (a CSV of segment quaternions, with its ``frames``:
+    ``anatomical`` or ``body``) or ``model_angles`` (a C3D of model joint angles such as
+    Plug-in Gait's, with its ``file`` and ``mapping`` ``{angle column: source}``, the source
+    as ``label.X`` (its output and component; ``-`` in front: the sign flipped)).
+    """
+
+    kind: str | None = None
+    frames: str | None = None
+    file: str | None = None
+    mapping: dict[str, str] | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
 class Validation(_Record):
     """Agreement with an optical reference (:func:`motionlab.validation.validate`).
 
-    ``mode`` (``full`` or ``heading`` alignment), ``marker_set``, ``movement_only``,
-    ``pairs`` ``{sensor: segment}``; ``sync``: the optical-to-IMU time alignment
-    (:class:`OpticalSync`); ``alignment``: the spatial alignment (:class:`SpatialAlignment`;
-    ``None`` when a file holds none or an empty one); ``optical`` ``{segment:
-    {source, landmarks, frame, ...}}``; ``orientation``: ``time_s`` and per sensor the
-    orientation errors; ``angles``: ``time_s`` and per angle column the IMU and optical series
-    and their agreement; ``notes``: lines the user should read; ``reference``: what the
-    reference was when not markers (``kind``: ``segments`` with its ``frames``, or
-    ``model_angles`` with its ``file`` and ``mapping`` column → source).
+    ``mode`` (``full`` or ``heading`` alignment; ``angles`` against model joint angles),
+    ``marker_set``, ``movement_only``, ``pairs`` ``{sensor: segment}``; ``sync``: the
+    optical-to-IMU time alignment (:class:`OpticalSync`); ``alignment``: the spatial alignment
+    (:class:`SpatialAlignment`; ``None`` when a file holds none or an empty one); ``optical``
+    ``{segment: OpticalSegmentInfo}``; ``orientation``: the orientation errors per sensor
+    (:class:`OrientationErrors`); ``angles``: the IMU and optical angle curves and their
+    agreement per angle column (:class:`AngleAgreements`; ``None`` without a protocol);
+    ``notes``: lines the user should read; ``reference``: what the reference was
+    (:class:`ValidationReference`).
     """
 
     mode: str
@@ -1073,19 +1299,24 @@ class Validation(_Record):
     pairs: dict[str, str] = field(default_factory=dict)
     sync: OpticalSync = field(default_factory=OpticalSync)
     alignment: SpatialAlignment | None = None
-    optical: dict[str, Any] = field(default_factory=dict)
-    orientation: dict[str, Any] = field(default_factory=dict)
-    angles: dict[str, Any] | None = None
+    optical: dict[str, OpticalSegmentInfo] = field(default_factory=dict)
+    orientation: OrientationErrors = field(default_factory=OrientationErrors)
+    angles: AngleAgreements | None = None
     notes: list[str] = field(default_factory=list)
-    reference: dict[str, Any] = field(default_factory=dict)
+    reference: ValidationReference = field(default_factory=ValidationReference)
     more: dict[str, Any] = field(default_factory=dict)
 
     def to_tree(self) -> dict[str, Any]:
-        """The validation's tree, its sync a subtree."""
+        """The validation's tree, each record in it a subtree (the layout the dicts had)."""
         tree = super().to_tree()
         tree["sync"] = self.sync.to_tree()
         if self.alignment is not None:
             tree["alignment"] = self.alignment.to_tree()
+        tree["optical"] = {k: o.to_tree() for k, o in self.optical.items()}
+        tree["orientation"] = self.orientation.to_tree()
+        if self.angles is not None:
+            tree["angles"] = self.angles.to_tree()
+        tree["reference"] = self.reference.to_tree()
         return tree
 
     @classmethod
@@ -1096,6 +1327,13 @@ class Validation(_Record):
             val.sync = OpticalSync.from_tree(val.sync)
         if isinstance(val.alignment, dict):
             val.alignment = SpatialAlignment.from_tree(val.alignment) if val.alignment else None
+        val.optical = {k: OpticalSegmentInfo.from_tree(o) for k, o in val.optical.items()}
+        if isinstance(val.orientation, dict):
+            val.orientation = OrientationErrors.from_tree(val.orientation)
+        if isinstance(val.angles, dict):
+            val.angles = AngleAgreements.from_tree(val.angles)
+        if isinstance(val.reference, dict):
+            val.reference = ValidationReference.from_tree(val.reference)
         return val
 
 

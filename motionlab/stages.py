@@ -39,6 +39,7 @@ from motionlab.results import (
     Metrics,
     SegmentCalibration,
     Validation,
+    ValidationReference,
 )
 from motionlab.session import Session
 
@@ -538,9 +539,9 @@ def validate(
         static=static,
         sync_on=sync_on,
     )
-    result.reference = {"kind": reference_kind}
-    if reference_kind == "segments":
-        result.reference["frames"] = frames
+    result.reference = ValidationReference(
+        kind=reference_kind, frames=frames if reference_kind == "segments" else None
+    )
     session.results.validation = result
     session.lineage.record(session.results, "validation", proto)
     return result

@@ -116,14 +116,14 @@ def test_session_holds_every_stage_and_the_provenance(result, recorded):
     hashed = {k.split("/")[-1] for p in ses.provenance for k in p["inputs"]}
     assert {"THIGH.csv", "SHANK.csv", "map.yaml"} <= hashed
     val = ses.results.validation.angles
-    assert val["knee_r_flexion_deg"]["rmse_deg"] < 5.0
+    assert val.columns["knee_r_flexion_deg"].rmse_deg < 5.0
     # 6-D fusion and heading alignment: with the (uncalibrated) magnetometers the shank's
     # heading was turned in the walk and the rotation was 7.9° off
     assert all(e.magnetometer is False for e in ses.results.fusion.values())
     assert ses.results.validation.mode == "heading"
     # a knee calibrated from the walk alone has its axis to 5° at best, so its rotation is
     # graded not determined (segments/grades.py); it is still far from the 9-D error
-    assert val["knee_r_rotation_deg"]["rmse_deg"] < 5.0
+    assert val.columns["knee_r_rotation_deg"].rmse_deg < 5.0
     assert ses.results.calibration.grades["knee_r"].grades[2] == "not determined"
     assert str(root) in result.summary or "T01" in result.summary
 

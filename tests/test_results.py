@@ -15,6 +15,8 @@ from motionlab.report.model import CalibrationRow, GradeRow, QualityRow, RomRow,
 from motionlab.results import (
     STAGES,
     AlignmentRotation,
+    AngleAgreement,
+    AngleAgreements,
     AngleMetrics,
     AngleTable,
     AxisMeasurement,
@@ -32,16 +34,21 @@ from motionlab.results import (
     JointGrades,
     Metrics,
     MovementProfile,
+    OpticalSegmentInfo,
     OpticalSync,
+    OrientationErrors,
+    RepetitionAgreement,
     Results,
     SegmentCalibration,
     SegmentQuality,
     SegmentRecord,
+    SensorOrientationError,
     SpatialAlignment,
     TaskBlock,
     TrunkMovement,
     TwoAxisFit,
     Validation,
+    ValidationReference,
 )
 from motionlab.session import SCHEMA_VERSION, SensorStream, Session, load_session, save_session
 
@@ -51,7 +58,8 @@ RECORDS = (
     TwoAxisFit, HipAxis, JointGrades, TrunkMovement, CentreHeading, HeadingTie, HeadingTies,
     AngleTable, AngleMetrics, HeadingCorrection, Metrics, Gait, Validation, OpticalSync, GradeRow,
     RomRow, SymmetryRow, QualityRow, CalibrationRow, TaskBlock, GaitSummary, MovementProfile,
-    AlignmentRotation, SpatialAlignment,
+    AlignmentRotation, SpatialAlignment, OpticalSegmentInfo, SensorOrientationError,
+    OrientationErrors, RepetitionAgreement, AngleAgreement, AngleAgreements, ValidationReference,
 )  # fmt: skip
 
 
@@ -370,3 +378,101 @@ def test_a_gait_summary_and_profile_stored_as_dicts_load_and_are_stored_the_same
     old = MovementProfile.from_tree(ungated)
     assert old.withheld is None and old.population_gps_deg is None and old.to_tree() == ungated
     assert Gait.from_tree({"status": "no gait: no shank"}).summary is None
+
+
+def _old_validation_tree() -> dict:
+    """A validation as the session file held it before its optical, orientation, angle and
+    reference records (the dicts :func:`motionlab.validation.validate` built), with a key a
+    newer motionlab might add at each level."""
+    n = 6
+    t = np.arange(n) / 60.0
+    cluster = {"source": "cluster", "landmarks": ["LFE", "MFE"], "fitted_fraction": 0.99,
+               "interpolated_fraction": 0.01, "flagged_fraction": 0.0, "n_long_gaps": 1,
+               "residual_rms_mm": 1.1, "shape_m": np.eye(4, 3), "static_source": "still window",
+               "static_s": [1.0, 4.0], "landmark_spread_mm": {"LFE": 0.5, "MFE": 0.7},
+               "landmark_rms_mm": {}, "frame": "landmarks", "future_o": 1}  # fmt: skip
+    body = {"source": "rigid_body", "landmarks": [], "fitted_fraction": 1.0,
+            "rigid_body": "Shank", "segment_frame": True, "frame": "segment_frame"}  # fmt: skip
+    errors = {"total_deg": np.full(n, 2.0), "heading_deg": np.full(n, 1.0),
+              "inclination_deg": np.full(n, 1.5), "total_rmse_deg": 2.0,
+              "heading_rmse_deg": 1.0, "inclination_rmse_deg": 1.5, "median_deg": 2.0,
+              "iqr_deg": 0.1, "p95_deg": 2.2, "n_samples": n, "future_e": "x"}  # fmt: skip
+    unseen = {"total_deg": np.full(n, np.nan), "heading_deg": np.full(n, np.nan),
+              "inclination_deg": np.full(n, np.nan), "n_samples": 0}  # fmt: skip
+    reps = {"n": 2, "start_s": np.array([0.0, 0.05]), "end_s": np.array([0.04, 0.08]),
+            "rmse_deg": np.array([1.0, 1.2]), "bias_deg": np.array([0.1, -0.1]),
+            "rom_error_deg": np.array([0.5, 0.4]), "peak_error_deg": np.array([0.2, 0.3]),
+            "cmc": 0.99}  # fmt: skip
+    flex = {"rmse_deg": 1.0, "bias_deg": 0.2, "sd_deg": 0.9, "max_abs_deg": 2.5,
+            "rmse_centred_deg": 0.95, "r": 0.999, "cmc": 0.998, "loa_deg": [-1.6, 2.0],
+            "n_samples": n, "imu_deg": np.linspace(0, 60, n), "ref_deg": np.linspace(1, 61, n),
+            "repetitions": reps, "future_a": [1, 2]}  # fmt: skip
+    nan = float("nan")
+    rotation = {"rmse_deg": nan, "bias_deg": nan, "sd_deg": nan, "max_abs_deg": nan,
+                "rmse_centred_deg": nan, "r": nan, "cmc": nan, "loa_deg": [nan, nan],
+                "n_samples": 1, "imu_deg": np.zeros(n), "ref_deg": np.full(n, np.nan)}  # fmt: skip
+    return {
+        "mode": "angles", "marker_set": "optical", "movement_only": False,
+        "pairs": {"shank_r": "shank_r"}, "sync": OpticalSync().to_tree(),
+        "optical": {"thigh_r": cluster, "shank_r": body},
+        "orientation": {"time_s": t, "shank_r": errors, "thigh_r": unseen, "future_t": 2},
+        "angles": {"time_s": t, "knee_r_flexion_deg": flex, "knee_r_rotation_deg": rotation},
+        "notes": ["a note"],
+        "reference": {"kind": "model_angles", "file": "pig.c3d",
+                      "mapping": {"knee_r_flexion_deg": "RKneeAngles.X"}, "future_r": 0},
+    }  # fmt: skip
+
+
+def test_a_validation_stored_as_dicts_loads_typed_and_is_stored_the_same(tmp_path):
+    """``validation.optical``, ``orientation``, ``angles`` and ``reference`` are records; a
+    file holding them as dicts loads (newer keys kept) and is written back byte for byte:
+    the same groups, datasets and attributes in the same order."""
+    from motionlab.session import _read_tree, _write_tree
+
+    path = tmp_path / "old.h5"
+    save_session(Session(), path)
+    with h5py.File(path, "r+") as f:
+        group = f.require_group("results").create_group("validation", track_order=True)
+        _write_tree(group, _old_validation_tree())
+    val = load_session(path).results.validation
+    thigh, shank = val.optical["thigh_r"], val.optical["shank_r"]
+    assert isinstance(thigh, OpticalSegmentInfo) and thigh.frame == "landmarks"
+    assert thigh.static_s == [1.0, 4.0] and thigh.n_long_gaps == 1 and thigh.rigid_body is None
+    assert thigh.landmark_spread_mm["MFE"] == 0.7 and thigh.more == {"future_o": 1}
+    assert shank.segment_frame is True and shank.shape_m is None and shank.landmarks == []
+    assert isinstance(val.orientation, OrientationErrors) and val.orientation.more == {
+        "future_t": 2
+    }
+    errors = val.orientation.sensors["shank_r"]
+    assert isinstance(errors, SensorOrientationError) and errors.p95_deg == 2.2
+    assert errors.more == {"future_e": "x"} and len(val.orientation.time_s) == 6
+    unseen = val.orientation.sensors["thigh_r"]
+    assert unseen.total_rmse_deg is None and unseen.n_samples == 0
+    flex = val.angles.columns["knee_r_flexion_deg"]
+    assert isinstance(flex, AngleAgreement) and flex.loa_deg == [-1.6, 2.0] and flex.r == 0.999
+    assert isinstance(flex.repetitions, RepetitionAgreement) and flex.repetitions.n == 2
+    np.testing.assert_array_equal(flex.repetitions.rom_error_deg, [0.5, 0.4])
+    assert flex.more == {"future_a": [1, 2]}
+    assert val.angles.columns["knee_r_rotation_deg"].repetitions is None
+    assert np.isnan(val.angles.columns["knee_r_rotation_deg"].rmse_deg)
+    ref = val.reference
+    assert isinstance(ref, ValidationReference) and ref.kind == "model_angles"
+    assert ref.frames is None and ref.mapping == {"knee_r_flexion_deg": "RKneeAngles.X"}
+    assert ref.more == {"future_r": 0}
+    save_session(load_session(path), tmp_path / "again.h5")
+
+    def groups(name):  # every group's attributes and members, in the order the file keeps
+        out = []
+        with h5py.File(name) as f:
+            f["results/validation"].visititems(
+                lambda k, item: out.append((k, list(item.attrs.items())))
+            )
+            out.append(("", list(f["results/validation"].attrs.items())))
+            tree = _read_tree(f["results/validation"])
+        return json.dumps(out, default=repr), json.dumps(tree, default=repr)
+
+    assert groups(tmp_path / "again.h5") == groups(path)
+    # an empty validation (a file without these keys) is stored as before: empty groups
+    bare = Validation.from_tree({"mode": "full"})
+    assert bare.to_tree()["orientation"] == {} and bare.to_tree()["reference"] == {}
+    assert bare.angles is None and "angles" not in bare.to_tree()

@@ -86,7 +86,7 @@ def test_alignment_rotations_are_recovered(knee):
         # true sensor → cluster: the cluster's estimated shape fitted onto its true layout
         pairs = zip(truth.markers["labels"], truth.markers["segments"], strict=True)
         idx = [i for i, (lab, seg) in enumerate(pairs) if seg == label and "_C" in lab]
-        shape = result.optical[label]["shape_m"]
+        shape = result.optical[label].shape_m
         segment_to_cluster = rigid_fit(truth.markers["local"][idx], shape[None])[0][0]
         x_true = rot.mul(segment_to_cluster, truth.sensors[label]["mounting"])
         x_err = rot.angle_between(al.sensor_to_cluster[label].quat, x_true)
@@ -97,26 +97,26 @@ def test_alignment_rotations_are_recovered(knee):
 def test_joint_angle_rmse_equals_rmse_against_truth(knee):
     _, truth, _, result = knee
     angles = result.angles
-    t = angles["time_s"]
+    t = angles.time_s
     for col, true_deg in truth.joint_angles.items():
-        entry = angles[col]
-        err = entry["imu_deg"] - np.interp(t, truth.time, true_deg)
+        entry = angles.columns[col]
+        err = entry.imu_deg - np.interp(t, truth.time, true_deg)
         direct = float(np.sqrt(np.nanmean(err**2)))
-        assert abs(entry["rmse_deg"] - direct) < 0.2, (col, entry["rmse_deg"], direct)
-        assert entry["loa_deg"][0] < entry["bias_deg"] < entry["loa_deg"][1]
-    flex = angles["knee_r_flexion_deg"]
-    assert flex["cmc"] > 0.99 and flex["r"] > 0.99
-    reps = flex["repetitions"]
-    assert reps["n"] >= 5 and np.all(reps["rmse_deg"] < 5.0)
+        assert abs(entry.rmse_deg - direct) < 0.2, (col, entry.rmse_deg, direct)
+        assert entry.loa_deg[0] < entry.bias_deg < entry.loa_deg[1]
+    flex = angles.columns["knee_r_flexion_deg"]
+    assert flex.cmc > 0.99 and flex.r > 0.99
+    reps = flex.repetitions
+    assert reps.n >= 5 and np.all(reps.rmse_deg < 5.0)
 
 
 def test_optical_side_reports_gaps_and_frames(knee):
     _, _, _, result = knee
     for seg, info in result.optical.items():
-        assert info["frame"] == "landmarks", seg
-        assert 0.95 < info["fitted_fraction"] <= 1.0
-        assert 0.8 < info["residual_rms_mm"] < 1.6  # 1 mm noise per coordinate, 4 markers
-    assert sum(info["n_long_gaps"] for info in result.optical.values()) > 0
+        assert info.frame == "landmarks", seg
+        assert 0.95 < info.fitted_fraction <= 1.0
+        assert 0.8 < info.residual_rms_mm < 1.6  # 1 mm noise per coordinate, 4 markers
+    assert sum(info.n_long_gaps for info in result.optical.values()) > 0
 
 
 def test_movement_mask_follows_the_steps(knee):
@@ -151,7 +151,7 @@ def test_cli_json_csv_and_force(knee, tmp_path):
     assert {"rmse_deg", "bias_deg", "loa_deg", "r", "cmc"} <= set(flex)
     assert (tmp_path / "csv" / "validation_metrics.csv").is_file()
     stored = load_session(path).results.validation
-    assert stored.angles["knee_l_flexion_deg"]["rmse_deg"] == pytest.approx(flex["rmse_deg"])
+    assert stored.angles.columns["knee_l_flexion_deg"].rmse_deg == pytest.approx(flex["rmse_deg"])
     again = runner.invoke(main, ["validate", str(path), "--reference", str(c3d)])
     assert again.exit_code == 2 and "--force" in again.output
 
@@ -177,11 +177,16 @@ def test_broad_mode_none_reproduces_the_benchmark():
     s = ses.sensors["imu"]
     fused = estimate("madgwick", s.gyr, s.acc, s.mag, s.attrs["nominal_rate_hz"])
     ses.results.fusion = {"imu": FusionEntry("madgwick", fused.quat)}
-    exact = validate(ses, mode="none", sync=False, movement_only=True).orientation["imu"]
+    exact = validate(ses, mode="none", sync=False, movement_only=True).orientation.sensors["imu"]
     synced = validate(ses, mode="none", movement_only=True)
-    for key in ("total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg"):
-        assert exact[key] == pytest.approx(expected[key], abs=1e-9)
-        assert synced.orientation["imu"][key] == pytest.approx(expected[key], abs=0.05)
+    again = synced.orientation.sensors["imu"]
+    for key, ours, synced_deg in (
+        ("total_rmse_deg", exact.total_rmse_deg, again.total_rmse_deg),
+        ("heading_rmse_deg", exact.heading_rmse_deg, again.heading_rmse_deg),
+        ("inclination_rmse_deg", exact.inclination_rmse_deg, again.inclination_rmse_deg),
+    ):
+        assert ours == pytest.approx(expected[key], abs=1e-9)
+        assert synced_deg == pytest.approx(expected[key], abs=0.05)
     # BROAD shares one clock; its optical stream sits about 4 ms (1.2 samples) before the IMU
     # in every trial here, which the synchronisation finds (see bench/validation.py)
     assert abs(synced.sync.time_offset_s) < 0.01

@@ -92,11 +92,11 @@ def elbow():
 
 def _check_rmse_against_truth(result, truth):
     angles = result.angles
-    t = angles["time_s"]
+    t = angles.time_s
     for col, true_deg in truth.joint_angles.items():
-        entry = angles[col]
-        direct = np.sqrt(np.nanmean((entry["imu_deg"] - np.interp(t, truth.time, true_deg)) ** 2))
-        assert abs(entry["rmse_deg"] - direct) < 0.2, (col, entry["rmse_deg"], direct)
+        entry = angles.columns[col]
+        direct = np.sqrt(np.nanmean((entry.imu_deg - np.interp(t, truth.time, true_deg)) ** 2))
+        assert abs(entry.rmse_deg - direct) < 0.2, (col, entry.rmse_deg, direct)
 
 
 def test_elbow_landmarks_in_the_standing_pose_only(elbow):
@@ -105,14 +105,14 @@ def test_elbow_landmarks_in_the_standing_pose_only(elbow):
     _check_rmse_against_truth(result, truth)
     standing = truth.step("standing")
     for seg, info in result.optical.items():
-        assert info["frame"] == "landmarks", seg
-        assert info["static_source"] == "still window"
+        assert info.frame == "landmarks", seg
+        assert info.static_source == "still window"
         # on the camera clock (0.137 s ahead), inside the standing pose
-        start, end = np.array(info["static_s"]) - 0.137
+        start, end = np.array(info.static_s) - 0.137
         assert standing["start_s"] - 0.05 <= start < end <= standing["end_s"] + 0.05
         assert end - start > 3.0
-        assert max(info["landmark_spread_mm"].values()) < 3.0
-        assert info["landmark_rms_mm"] == {}  # never seen outside the window
+        assert max(info.landmark_spread_mm.values()) < 3.0
+        assert info.landmark_rms_mm == {}  # never seen outside the window
 
 
 def test_shared_epicondyles_are_rebuilt_on_their_own_segment(elbow):
@@ -152,7 +152,7 @@ def test_landmarks_from_a_separate_static_trial(elbow, tmp_path):
     result = validate(session, movement, protocol=protocol, static=static)
     _check_rmse_against_truth(result, truth)
     for seg, info in result.optical.items():
-        assert info["frame"] == "landmarks" and info["static_source"] == "static trial", seg
+        assert info.frame == "landmarks" and info.static_source == "static trial", seg
 
     ses = Session(sensors=session.sensors, metadata=session.metadata,
                   results=Results(fusion=session.results.fusion,
@@ -167,7 +167,7 @@ def test_landmarks_from_a_separate_static_trial(elbow, tmp_path):
     assert out.exit_code == 0, out.output
     digest = json.loads(out.output)
     for col, entry in digest["angles"].items():
-        assert entry["rmse_deg"] == pytest.approx(result.angles[col]["rmse_deg"], abs=0.05)
+        assert entry["rmse_deg"] == pytest.approx(result.angles.columns[col].rmse_deg, abs=0.05)
 
     for prefix_landmarks, message in ((False, "cluster marker thorax_C1"), (True, "none of the")):
         renamed = [

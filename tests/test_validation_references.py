@@ -62,8 +62,8 @@ def _validate(path, reference, *extra):
 
 def _error(result, truth, col):
     """The IMU angle minus the truth (deg)."""
-    t = result.angles["time_s"]
-    return result.angles[col]["imu_deg"] - np.interp(t, truth.time, truth.joint_angles[col])
+    t = result.angles.time_s
+    return result.angles.columns[col].imu_deg - np.interp(t, truth.time, truth.joint_angles[col])
 
 
 def _direct(result, truth, col, centred=False):
@@ -87,12 +87,12 @@ def test_segment_quaternion_csv_reference(knee):
     csv = root / "segments.csv"
     pd.DataFrame(table).to_csv(csv, index=False, float_format="%.9g")
     digest, result = _validate(path, csv)
-    assert result.reference["kind"] == "segments"
+    assert result.reference.kind == "segments" and result.reference.frames == "anatomical"
     assert abs(digest["time_offset_s"] - (OFFSET_S + 3.0)) <= 0.005
     assert digest["sync"]["grade"] in ("good", "fair") and digest["sync"]["standard_error_ms"] < 2
-    assert {result.optical[s]["frame"] for s in ("thigh_r", "shank_r")} == {"segment_frame"}
+    assert {result.optical[s].frame for s in ("thigh_r", "shank_r")} == {"segment_frame"}
     for col in truth.joint_angles:  # RMSE agreement as for markers (tests/test_validation.py)
-        assert abs(result.angles[col]["rmse_deg"] - _direct(result, truth, col)) < 0.2, col
+        assert abs(result.angles.columns[col].rmse_deg - _direct(result, truth, col)) < 0.2, col
     assert digest["angles"]["knee_r_flexion_deg"]["r"] > 0.99
 
 
@@ -122,24 +122,28 @@ def test_c3d_model_angles_reference(knee):
     xyz = np.column_stack([np.interp(t_true, truth.time, truth.joint_angles[c]) for c in cols])
     _write_pig(root / "pig.c3d", t_cam, xyz + frames_differ, rate)
     digest, result = _validate(path, root / "pig.c3d")
-    assert result.reference["kind"] == "model_angles"
-    assert result.reference["mapping"]["knee_r_rotation_deg"] == "RKneeAngles.Z"
+    assert result.reference.kind == "model_angles"
+    assert result.reference.mapping["knee_r_rotation_deg"] == "RKneeAngles.Z"
     assert abs(digest["time_offset_s"] - (OFFSET_S + 3.0 - start)) <= 0.005
     assert any("offsets are expected" in n for n in digest["notes"])
     for i, col in enumerate(cols):
-        entry = result.angles[col]
-        assert abs(entry["rmse_centred_deg"] - _direct(result, truth, col, centred=True)) < 0.2
+        entry = result.angles.columns[col]
+        assert abs(entry.rmse_centred_deg - _direct(result, truth, col, centred=True)) < 0.2
         own_bias = np.nanmean(_error(result, truth, col))
-        assert entry["bias_deg"] - own_bias == pytest.approx(-frames_differ[i], abs=0.2)
+        assert entry.bias_deg - own_bias == pytest.approx(-frames_differ[i], abs=0.2)
     # a sign flipped by an angle map
     (root / "map.yaml").write_text(
         "knee_r_flexion_deg: {label: RKneeAngles, component: x}\n"
         "knee_r_rotation_deg: {label: RKneeAngles, component: z, sign: -1}\n"
     )
-    _, flipped = _validate(path, root / "pig.c3d", "--angle-map", str(root / "map.yaml"))
-    assert flipped.reference["mapping"]["knee_r_rotation_deg"] == "-RKneeAngles.Z"
-    assert "knee_r_adduction_deg" not in flipped.angles
-    assert flipped.angles["knee_r_rotation_deg"]["r"] < 0
+    res = CliRunner().invoke(main, ["validate", str(path), "--reference", str(root / "pig.c3d"),
+                                    "--force", "--angle-map", str(root / "map.yaml")])  # fmt: skip
+    assert res.exit_code == 0, res.output  # the printed summary names the reference's angles
+    assert "reference: model joint angles knee_r_flexion_deg = RKneeAngles.X, " in res.output
+    flipped = load_session(path).results.validation
+    assert flipped.reference.mapping["knee_r_rotation_deg"] == "-RKneeAngles.Z"
+    assert "knee_r_adduction_deg" not in flipped.angles.columns
+    assert flipped.angles.columns["knee_r_rotation_deg"].r < 0
     # run takes it as its reference, and the report's validation pages take the result
     args = ["run", "--protocol", str(root / "knee_small.yaml"), str(path), "--quiet",
             "--reference", str(root / "pig.c3d"), "-o", str(root / "run"),
@@ -147,8 +151,8 @@ def test_c3d_model_angles_reference(knee):
     res = CliRunner().invoke(main, args)
     assert res.exit_code == 0, res.output
     ran = load_session(root / "run" / "session.h5").results.validation
-    assert ran.reference["kind"] == "model_angles"
-    assert ran.angles["knee_r_flexion_deg"]["rmse_centred_deg"] < 3.0
+    assert ran.reference.kind == "model_angles"
+    assert ran.angles.columns["knee_r_flexion_deg"].rmse_centred_deg < 3.0
     assert "knee_r_flexion" in (root / "run" / "report.txt").read_text()
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 from pathlib import Path
 
 import click
@@ -12,6 +13,7 @@ from motionlab.atomic import atomic_path, check_output
 from motionlab.cli.paths import FOLDER, INPUT_FILE
 from motionlab.errors import InputError
 from motionlab.lock import session_lock
+from motionlab.results import Validation
 from motionlab.session import load_session, save_session
 from motionlab.validation.align import MODES
 from motionlab.validation.markermap import load_marker_map
@@ -138,51 +140,51 @@ def command(
         }
         ses.add_provenance(parameters=parameters, inputs=inputs)  # fmt: skip
         save_session(ses, session, force=True)
-    digest = summary(result)
     if as_json:
-        click.echo(json.dumps(digest, indent=2))
+        click.echo(json.dumps(summary(result), indent=2))
         return
-    _print(digest, result.sync.method != "none")
+    _print(result)
     if written:
         click.echo(f"wrote {', '.join(written)}")
 
 
 def _num(value: float | None, fmt: str = ".2f") -> str:
-    return "n/a" if value is None else format(value, fmt)
+    """``value`` formatted, ``n/a`` when it is not given (``None`` or not finite)."""
+    return "n/a" if value is None or not math.isfinite(value) else format(value, fmt)
 
 
-def _print(digest: dict, synced: bool) -> None:
+def _print(result: Validation) -> None:
     """The human-readable summary (degrees)."""
-    if synced:
-        sync = digest["sync"]
+    sync = result.sync
+    if sync.method != "none":
         click.echo(
-            f"clock: offset {digest['time_offset_s']:.4f} s, drift {digest['drift_ppm']:.1f} ppm, "
-            f"inliers {_num(sync['inlier_ratio'], '.0%')}, ± {_num(sync.get('standard_error_ms'))} "
-            f"ms ({sync.get('grade', 'n/a')}; {sync['method']})"
+            f"clock: offset {sync.time_offset_s:.4f} s, drift {sync.drift_ppm:.1f} ppm, "
+            f"inliers {_num(sync.inlier_ratio, '.0%')}, ± {_num(1e3 * sync.standard_error_s)} "
+            f"ms ({sync.grade}; {sync.method})"
         )
     else:
         click.echo("clock: not synchronised (--no-sync)")
-    al = digest["alignment"]
-    if digest.get("reference", {}).get("kind") == "angles":
-        mapping = digest["reference"].get("mapping", {})
+    al = result.alignment
+    if result.reference.kind == "model_angles":
+        mapping = result.reference.mapping or {}
         click.echo(
             "reference: model joint angles " + ", ".join(f"{k} = {v}" for k, v in mapping.items())
         )
-    else:
-        click.echo(f"alignment ({al['mode']}): lab → earth {al['lab_to_earth']['angle_deg']:.2f}°")
-    for label, o in digest["orientation"].items():
+    elif al is not None:
+        click.echo(f"alignment ({al.mode}): lab → earth {al.lab_to_earth.angle_deg:.2f}°")
+    for label, o in result.orientation.sensors.items():
         click.echo(
-            f"{label:<16} total {_num(o['total_rmse_deg'])}°  heading "
-            f"{_num(o['heading_rmse_deg'])}°  inclination {_num(o['inclination_rmse_deg'])}°  "
-            f"median {_num(o['median_deg'])}°"
+            f"{label:<16} total {_num(o.total_rmse_deg)}°  heading "
+            f"{_num(o.heading_rmse_deg)}°  inclination {_num(o.inclination_rmse_deg)}°  "
+            f"median {_num(o.median_deg)}°"
         )
-    for col, a in digest["angles"].items():
-        lo, hi = a["loa_deg"]
+    for col, a in (result.angles.columns if result.angles is not None else {}).items():
+        lo, hi = a.loa_deg
         click.echo(
-            f"{col:<30} RMSE {_num(a['rmse_deg'])}°  offset-free {_num(a['rmse_centred_deg'])}°  "
-            f"bias {_num(a['bias_deg'], '+.2f')}°  "
-            f"LoA [{_num(lo, '+.1f')}, {_num(hi, '+.1f')}]°  r {_num(a['r'], '.3f')}  "
-            f"CMC {_num(a['cmc'], '.3f')}"
+            f"{col:<30} RMSE {_num(a.rmse_deg)}°  offset-free {_num(a.rmse_centred_deg)}°  "
+            f"bias {_num(a.bias_deg, '+.2f')}°  "
+            f"LoA [{_num(lo, '+.1f')}, {_num(hi, '+.1f')}]°  r {_num(a.r, '.3f')}  "
+            f"CMC {_num(a.cmc, '.3f')}"
         )
-    for note in digest["notes"]:
+    for note in result.notes:
         click.echo(f"note: {note}")

@@ -113,13 +113,12 @@ def run_summary(
             + (f" {grade_mark(r.grade)}" if grade_mark(r.grade) else "")
         )
     validation = ses.results.validation
-    val = (validation.angles or {}) if validation is not None else {}
+    val = validation.angles if validation is not None else None
     grades = angle_grades(view)
     rmse = [
-        f"{c.removesuffix('_deg')} {v['rmse_deg']:.1f}"
+        f"{c.removesuffix('_deg')} {v.rmse_deg:.1f}"
         + (f" {grade_mark(grades[c][0])}" if c in grades and grade_mark(grades[c][0]) else "")
-        for c, v in val.items()
-        if isinstance(v, dict) and "rmse_deg" in v
+        for c, v in (val.columns if val is not None else {}).items()
     ]
     if rmse:
         lines.append(

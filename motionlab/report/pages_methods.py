@@ -100,11 +100,11 @@ def accuracy_page(doc: Document, view: SessionView) -> None:
             doc.paragraph(str(acc["caveat"]), size=SIZE["small"], colour=MUTED)
     validation = view.session.results.validation
     val = validation.angles if validation is not None else None
+    val = val.columns if val is not None else {}
     if val:
         rows = [
-            [col.removesuffix("_deg").replace("_", " "), f"{v['rmse_deg']:.1f}"]
+            [col.removesuffix("_deg").replace("_", " "), f"{v.rmse_deg:.1f}"]
             for col, v in ((c, val[c]) for c in in_order(val, _columns(view)))
-            if isinstance(v, dict) and "rmse_deg" in v
         ]
         if rows:
             doc.heading("In this session, against the optical reference")

@@ -11,7 +11,7 @@ import numpy as np
 from motionlab.kinematics.joint_types import angle_columns
 from motionlab.report.model import NOT_DETERMINED, SessionView, angle_grades, in_order, joint_title
 from motionlab.report.pdf import MUTED, SIZE, Document
-from motionlab.results import Validation
+from motionlab.results import AngleAgreement, OrientationErrors, Validation
 
 
 def _f(x: Any, spec: str = ".2f") -> str:
@@ -22,26 +22,24 @@ def _f(x: Any, spec: str = ".2f") -> str:
     return format(x, spec) if np.isfinite(x) else "-"
 
 
-def _angle_table(doc: Document, view: SessionView, angles: dict[str, Any]) -> None:
+def _angle_table(doc: Document, view: SessionView, angles: dict[str, AngleAgreement]) -> None:
     rows, muted = [], []
     grades = angle_grades(view)
     order = [col for j in view.joints() for _, col in angle_columns(j)]
     for col, v in ((c, angles[c]) for c in in_order(angles, order)):
-        if not isinstance(v, dict) or "rmse_deg" not in v:
-            continue
         grade = grades.get(col, ("determined", ""))[0]
         muted.append(grade == NOT_DETERMINED)
-        lo, hi = (list(v.get("loa_deg", [np.nan, np.nan])) + [np.nan, np.nan])[:2]
+        lo, hi = (list(v.loa_deg) + [np.nan, np.nan])[:2]
         rows.append(
             [
                 col.removesuffix("_deg").replace("_", " "),
-                _f(v["rmse_deg"], ".1f"),
-                _f(v["bias_deg"], "+.1f"),
+                _f(v.rmse_deg, ".1f"),
+                _f(v.bias_deg, "+.1f"),
                 f"{_f(lo, '+.1f')} to {_f(hi, '+.1f')}",
-                _f(v.get("rmse_centred_deg"), ".1f"),
-                _f(v.get("max_abs_deg"), ".1f"),
-                _f(v.get("r"), ".3f"),
-                _f(v.get("cmc"), ".3f"),
+                _f(v.rmse_centred_deg, ".1f"),
+                _f(v.max_abs_deg, ".1f"),
+                _f(v.r, ".3f"),
+                _f(v.cmc, ".3f"),
                 grade,
             ]
         )
@@ -74,22 +72,21 @@ def _angle_table(doc: Document, view: SessionView, angles: dict[str, Any]) -> No
     )
 
 
-def _orientation_table(doc: Document, view: SessionView, orientation: dict[str, Any]) -> None:
+def _orientation_table(doc: Document, view: SessionView, orientation: OrientationErrors) -> None:
     rows = []
-    for label, v in (
-        (k, orientation[k]) for k in in_order(orientation, list(view.session.sensors))
-    ):
-        if not isinstance(v, dict) or "total_rmse_deg" not in v:
+    errors = orientation.sensors
+    for label, v in ((k, errors[k]) for k in in_order(errors, list(view.session.sensors))):
+        if v.total_rmse_deg is None:
             continue
         rows.append(
             [
                 label,
-                _f(v["total_rmse_deg"], ".1f"),
-                _f(v["heading_rmse_deg"], ".1f"),
-                _f(v["inclination_rmse_deg"], ".1f"),
-                _f(v["median_deg"], ".1f"),
-                _f(v["iqr_deg"], ".1f"),
-                _f(v["p95_deg"], ".1f"),
+                _f(v.total_rmse_deg, ".1f"),
+                _f(v.heading_rmse_deg, ".1f"),
+                _f(v.inclination_rmse_deg, ".1f"),
+                _f(v.median_deg, ".1f"),
+                _f(v.iqr_deg, ".1f"),
+                _f(v.p95_deg, ".1f"),
             ]
         )
     if rows:
@@ -122,7 +119,7 @@ def _sync_alignment(doc: Document, val: Validation) -> None:
             "Clock offset standard error, grade",
             f"{_f(1e3 * sync.standard_error_s, '.2f')} ms, {sync.grade or '-'}",
         ],
-        ["Reference", str(val.reference.get("kind", "markers"))],
+        ["Reference", str(val.reference.kind or "markers")],
         ["Spatial alignment mode", str(al.mode if al is not None else val.mode)],
         [
             "Optical lab to earth rotation",
@@ -139,7 +136,7 @@ def _figure_pages(doc: Document, view: SessionView, val: Validation) -> None:
     """Overlays, Bland-Altman plots (flexion of each joint), sync and alignment figures."""
     from motionlab.validation import figures
 
-    angles = val.angles or {}
+    angles = val.angles.columns if val.angles is not None else {}
     cols = [col for j in view.joints() for _, col in angle_columns(j) if col in angles]
     if cols:
         doc.section(
@@ -171,7 +168,7 @@ def _figure_pages(doc: Document, view: SessionView, val: Validation) -> None:
         )
         doc.place_figure(3.6)
         _sync_alignment(doc, val)
-    labels = [k for k, v in val.orientation.items() if isinstance(v, dict)]
+    labels = list(val.orientation.sensors)
     if labels:
         doc.section(
             "Validation: spatial alignment",
@@ -194,7 +191,7 @@ def validation_pages(doc: Document, view: SessionView) -> None:
     )
     _sync_alignment(doc, val)
     _orientation_table(doc, view, val.orientation)
-    _angle_table(doc, view, val.angles or {})
+    _angle_table(doc, view, val.angles.columns if val.angles is not None else {})
     notes = val.notes
     if notes:
         doc.heading("Notes")

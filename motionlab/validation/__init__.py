@@ -20,18 +20,28 @@ stores it in ``session.results.validation``, and :mod:`.figures` draws it.
 
 from __future__ import annotations
 
-from typing import Any
+import dataclasses
 
 import numpy as np
 
 from motionlab import rotations as rot
 from motionlab.binding import sensor_for_segment
 from motionlab.errors import InputError
+from motionlab.kinematics.cycles import Cycles
 from motionlab.kinematics.joint_angles import joint_angles
 from motionlab.kinematics.joint_types import angle_columns
 from motionlab.kinematics.session_angles import session_angles
 from motionlab.protocol import Protocol
-from motionlab.results import SegmentCalibration, Validation
+from motionlab.results import (
+    AngleAgreement,
+    AngleAgreements,
+    AngleTable,
+    OrientationErrors,
+    RepetitionAgreement,
+    SegmentCalibration,
+    SensorOrientationError,
+    Validation,
+)
 from motionlab.segments.sensors import sensor_orientation
 from motionlab.session import MarkerSet, Session, estimate_rate
 from motionlab.validation.agreement import agreement, per_repetition, repetitions
@@ -114,14 +124,17 @@ def _common_time(session: Session, labels: list[str]) -> np.ndarray:
     return t[(t >= t0) & (t <= t1)]
 
 
-def _orientation(q_est: np.ndarray, q_ref: np.ndarray, mask: np.ndarray | None) -> dict:
-    ang = error_angles(q_est, q_ref)
-    out: dict[str, Any] = {f"{k}_deg": v for k, v in ang.items()}
+def _orientation(
+    q_est: np.ndarray, q_ref: np.ndarray, mask: np.ndarray | None
+) -> SensorOrientationError:
+    """Per-sample total, heading and inclination errors (deg) and their statistics over
+    ``mask`` (none when no sample has both orientations)."""
+    per_sample = {f"{k}_deg": v for k, v in error_angles(q_est, q_ref).items()}
     try:
-        out.update(orientation_errors(q_est, q_ref, mask))
+        stats = orientation_errors(q_est, q_ref, mask)
     except InputError:
-        out["n_samples"] = 0
-    return out
+        stats = {}
+    return SensorOrientationError(**per_sample, **stats)
 
 
 def _optical_segment_quats(
@@ -138,7 +151,7 @@ def _optical_segment_quats(
         q = o.segment_quat()
         if q is not None:
             out[seg] = (o.time, q)
-            source[seg] = "segment_frame" if o.info.get("segment_frame") else "landmarks"
+            source[seg] = "segment_frame" if o.info.segment_frame else "landmarks"
             continue
         cal = calibration.segments.get(seg) if calibration is not None else None
         if seg in label_of and cal is not None:
@@ -159,27 +172,42 @@ def _joint_angles(qp: np.ndarray, qd: np.ndarray, joint) -> dict[str, np.ndarray
     return out
 
 
+def angle_agreement(
+    imu_deg: np.ndarray,
+    ref_deg: np.ndarray,
+    mask: np.ndarray | None,
+    reps: Cycles | None = None,
+    time: np.ndarray | None = None,
+) -> AngleAgreement:
+    """The agreement of an IMU angle curve with the reference's (deg, on one time base), per
+    repetition too when ``reps`` (:func:`repetitions`) holds two or more (``time``: its s)."""
+    per_rep = None
+    if reps is not None and len(reps) >= 2:
+        per_rep = RepetitionAgreement(**per_repetition(imu_deg, ref_deg, reps, time))
+    stats = agreement(imu_deg, ref_deg, mask)
+    return AngleAgreement(**stats, imu_deg=imu_deg, ref_deg=ref_deg, repetitions=per_rep)
+
+
 def _angles(
     session: Session,
     protocol: Protocol,
     seg_quats: dict[str, tuple[np.ndarray, np.ndarray]],
     to_reference,
     movement: tuple[np.ndarray, np.ndarray] | None,
-) -> tuple[dict[str, Any], list[str]]:
+) -> tuple[AngleAgreements, list[str]]:
     """IMU and optical joint angles on the IMU angle time base and their agreement."""
     notes = []
-    stored = session.results.angles
-    if stored is not None:
-        table = stored.columns()
-    else:
-        table = session_angles(session, protocol, session.results.calibration)
-    t = np.asarray(table["time_s"], dtype=float)
+    table = session.results.angles
+    if table is None:
+        columns = session_angles(session, protocol, session.results.calibration)
+        table = AngleTable.from_columns(columns)
+    t = np.asarray(table.time, dtype=float)
     rate = estimate_rate(t)
     mask = None
     if movement is not None:
         k = np.clip(np.searchsorted(movement[0], t), 0, len(movement[0]) - 1)
         mask = movement[1][k]
-    out: dict[str, Any] = {"time_s": t}
+    out = AngleAgreements(time_s=t)
     for joint in protocol.joints.values():
         if joint.proximal not in seg_quats or joint.distal not in seg_quats:
             notes.append(f"joint {joint.name}: no optical frame for both segments")
@@ -191,15 +219,11 @@ def _angles(
         primary = angle_columns(joint)[0][1]
         reps = repetitions(ref[primary], rate)
         for col, ref_deg in ref.items():
-            if col not in table:
+            if col not in table.data:
                 notes.append(f"{col}: not in the IMU angle table")
                 continue
-            imu_deg = np.asarray(table[col], dtype=float)
-            entry = agreement(imu_deg, ref_deg, mask)
-            entry.update({"imu_deg": imu_deg, "ref_deg": ref_deg})
-            if len(reps) >= 2:
-                entry["repetitions"] = per_repetition(imu_deg, ref_deg, reps, t)
-            out[col] = entry
+            imu_deg = np.asarray(table.data[col], dtype=float)
+            out.columns[col] = angle_agreement(imu_deg, ref_deg, mask, reps, t)
     return out, notes
 
 
@@ -215,7 +239,7 @@ def validate(
     seed: int = 0,
     static: MarkerSet | None = None,
     sync_on: str = "gyroscope",
-) -> dict[str, Any]:
+) -> Validation:
     """Compare the session's IMU orientations and joint angles with an optical reference.
 
     Parameters
@@ -282,24 +306,11 @@ def validate(
     }
     al = estimate_alignment(pairs, mode, rate=estimate_rate(t))
     moving = movement_mask(session, labels, t) if movement_only else None
-    orientation: dict[str, Any] = {"time_s": t}
+    orientation = OrientationErrors(time_s=t)
     for k, (a, b) in pairs.items():
-        orientation[k] = _orientation(a, al.reference(k, b), moving)
+        orientation.sensors[k] = _orientation(a, al.reference(k, b), moving)
 
     sync_record = clock.record(sync_on if sync else "", labels)
-    result: dict[str, Any] = {
-        "mode": mode,
-        "marker_set": reference.name,
-        "movement_only": movement_only,
-        "pairs": {k: seg_of[k] for k in labels},
-        "sync": sync_record,
-        "alignment": al.record(),
-        "optical": {
-            seg: {"source": o.source, "landmarks": o.landmarks, **o.info}
-            for seg, o in optical.items()
-        },
-        "orientation": orientation,
-    }
     residual = clock.pair_residuals()
     notes = [f"segment {seg}: no sensor" for seg in mmap.segments if seg not in seg_of.values()]
     notes += sync_notes(sync_record) if sync else []
@@ -309,14 +320,29 @@ def validate(
             f"the sensors' clocks disagree by {spread * 1e3:.0f} ms (sync/sensor_residual_s): "
             "they are not on one clock; repair the clocks at ingest"
         )
+    frames: dict[str, str] = {}
+    angles = None
     if protocol is not None and protocol.joints:
-        seg_quats, source = _optical_segment_quats(optical, al, seg_of, session.results.calibration)
-        for seg, src in source.items():
-            result["optical"][seg]["frame"] = src
+        seg_quats, frames = _optical_segment_quats(optical, al, seg_of, session.results.calibration)
         movement = (t, moving) if moving is not None else None
-        result["angles"], angle_notes = _angles(
+        angles, angle_notes = _angles(
             session, protocol, seg_quats, clock.model.to_reference, movement
         )
         notes += angle_notes
-    result["notes"] = notes
-    return Validation(**result)
+    return Validation(
+        mode=mode,
+        marker_set=reference.name,
+        movement_only=movement_only,
+        pairs={k: seg_of[k] for k in labels},
+        sync=sync_record,
+        alignment=al.record(),
+        optical={
+            seg: dataclasses.replace(
+                o.info, source=o.source, landmarks=o.landmarks, frame=frames.get(seg)
+            )
+            for seg, o in optical.items()
+        },
+        orientation=orientation,
+        angles=angles,
+        notes=notes,
+    )

@@ -34,22 +34,23 @@ def _angle_panels(
     result: Validation, columns: list[str] | None, height: float
 ) -> tuple[np.ndarray, Figure, list[tuple]]:
     """A figure with one panel per angle over time (s): ``(time, figure, [(axes, column, the
-    column's entry of result.angles)])``."""
+    column's AngleAgreement)])``."""
     cols = _columns(result, columns)
     fig, axes = _figure(len(cols), height)
     axes[-1].set_xlabel("time (s)")
-    panels = [(ax, col, result.angles[col]) for ax, col in zip(axes, cols, strict=True)]
-    return result.angles["time_s"], fig, panels
+    entries = result.angles.columns
+    panels = [(ax, col, entries[col]) for ax, col in zip(axes, cols, strict=True)]
+    return result.angles.time_s, fig, panels
 
 
 def angle_overlay(result: Validation, columns: list[str] | None = None) -> Figure:
     """IMU and optical angle curves over time, one panel per angle."""
     t, fig, panels = _angle_panels(result, columns, 2.2)
     for ax, col, e in panels:
-        ax.plot(t, e["ref_deg"], color=REF_COLOUR, lw=1.0, label="optical")
-        ax.plot(t, e["imu_deg"], color=IMU_COLOUR, lw=1.0, label="IMU")
+        ax.plot(t, e.ref_deg, color=REF_COLOUR, lw=1.0, label="optical")
+        ax.plot(t, e.imu_deg, color=IMU_COLOUR, lw=1.0, label="IMU")
         ax.set_ylabel(f"{col.removesuffix('_deg')} (°)", fontsize=8)
-        ax.set_title(f"RMSE {e['rmse_deg']:.1f}°, r {e['r']:.2f}", fontsize=8, loc="right")
+        ax.set_title(f"RMSE {e.rmse_deg:.1f}°, r {e.r:.2f}", fontsize=8, loc="right")
     panels[0][0].legend(loc="upper left", fontsize=8)
     return fig
 
@@ -58,9 +59,9 @@ def angle_error(result: Validation, columns: list[str] | None = None) -> Figure:
     """IMU − optical error of each angle over time, with its bias and limits of agreement."""
     t, fig, panels = _angle_panels(result, columns, 2.0)
     for ax, col, e in panels:
-        ax.plot(t, np.asarray(e["imu_deg"]) - np.asarray(e["ref_deg"]), color=IMU_COLOUR, lw=0.8)
-        ax.axhline(e["bias_deg"], color="tab:red", lw=1.0)
-        for limit in e["loa_deg"]:
+        ax.plot(t, np.asarray(e.imu_deg) - np.asarray(e.ref_deg), color=IMU_COLOUR, lw=0.8)
+        ax.axhline(e.bias_deg, color="tab:red", lw=1.0)
+        for limit in e.loa_deg:
             ax.axhline(limit, color="tab:red", lw=0.8, ls="--")
         ax.set_ylabel(f"{col.removesuffix('_deg')}\nerror (°)", fontsize=8)
     return fig
@@ -68,13 +69,13 @@ def angle_error(result: Validation, columns: list[str] | None = None) -> Figure:
 
 def bland_altman(result: Validation, column: str) -> Figure:
     """Bland–Altman plot of one angle: difference against mean, bias and 95 % limits."""
-    e = result.angles[column]
-    imu, ref = np.asarray(e["imu_deg"]), np.asarray(e["ref_deg"])
+    e = result.angles.columns[column]
+    imu, ref = np.asarray(e.imu_deg), np.asarray(e.ref_deg)
     ok = np.isfinite(imu) & np.isfinite(ref)
     fig, (ax,) = _figure(1, 4.0)
     ax.scatter(0.5 * (imu[ok] + ref[ok]), imu[ok] - ref[ok], s=2, alpha=0.3, color=IMU_COLOUR)
-    lo, hi = e["loa_deg"]
-    ax.axhline(e["bias_deg"], color="tab:red", label=f"bias {e['bias_deg']:+.2f}°")
+    lo, hi = e.loa_deg
+    ax.axhline(e.bias_deg, color="tab:red", label=f"bias {e.bias_deg:+.2f}°")
     ax.axhline(lo, color="tab:red", ls="--", label=f"95 % LoA [{lo:+.1f}, {hi:+.1f}]°")
     ax.axhline(hi, color="tab:red", ls="--")
     ax.set_xlabel(f"mean of IMU and optical {column.removesuffix('_deg')} (°)")
@@ -108,14 +109,15 @@ def alignment_figure(result: Validation) -> Figure:
     labels = sensor_labels(result)
     if not labels:
         raise ValueError("the result holds no orientation errors")
-    t = result.orientation["time_s"]
+    t = result.orientation.time_s
     al = result.alignment
     fig, axes = _figure(len(labels), 2.0)
     for ax, label in zip(axes, labels, strict=True):
-        o = result.orientation[label]
-        for key, colour in (("total", REF_COLOUR), ("heading", "tab:orange"),
-                            ("inclination", IMU_COLOUR)):  # fmt: skip
-            ax.plot(t, o[f"{key}_deg"], lw=0.8, color=colour, label=key)
+        o = result.orientation.sensors[label]
+        for key, deg, colour in (("total", o.total_deg, REF_COLOUR),
+                                 ("heading", o.heading_deg, "tab:orange"),
+                                 ("inclination", o.inclination_deg, IMU_COLOUR)):  # fmt: skip
+            ax.plot(t, deg, lw=0.8, color=colour, label=key)
         x = al.sensor_to_cluster[label].angle_deg if label in al.sensor_to_cluster else np.nan
         ax.set_title(f"{label}: sensor → cluster {x:.1f}°", fontsize=8, loc="right")
         ax.set_ylabel("error (°)", fontsize=8)

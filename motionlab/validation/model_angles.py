@@ -42,7 +42,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -51,10 +50,18 @@ from motionlab.errors import InputError
 from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, column_name
 from motionlab.kinematics.session_angles import session_angles
 from motionlab.protocol import Protocol
-from motionlab.results import AlignmentRotation, SpatialAlignment, Validation
+from motionlab.results import (
+    AlignmentRotation,
+    AngleAgreements,
+    AngleTable,
+    OrientationErrors,
+    SpatialAlignment,
+    Validation,
+    ValidationReference,
+)
 from motionlab.session import MarkerSet, Session, estimate_rate
-from motionlab.validation import movement_mask
-from motionlab.validation.agreement import agreement, per_repetition, repetitions
+from motionlab.validation import angle_agreement, movement_mask
+from motionlab.validation.agreement import repetitions
 from motionlab.validation.time_alignment import no_sync, synchronise
 from motionlab.validation.time_offset import sync_notes
 from motionlab.yamlsafe import BoundedSafeLoader, load_yaml, read_yaml_text
@@ -194,10 +201,8 @@ def validate_model_angles(
     none is compared), ``angles``, ``notes``) with ``reference``: ``kind``
     (``model_angles``), ``file`` and ``mapping`` (column → source).
     """
-    stored = session.results.angles
-    if stored is not None:
-        table = stored.columns()
-    else:
+    table = session.results.angles
+    if table is None:
         if protocol is None:
             raise InputError(
                 "the session has no joint angles",
@@ -205,9 +210,10 @@ def validate_model_angles(
                 remedy="compute the angles stage first, or pass protocol=",
                 argument="protocol",
             )
-        table = session_angles(session, protocol, session.results.calibration)
-    t = np.asarray(table["time_s"], dtype=float)
-    columns = [k for k, v in table.items() if k.endswith("_deg") and isinstance(v, np.ndarray)]
+        columns = session_angles(session, protocol, session.results.calibration)
+        table = AngleTable.from_columns(columns)
+    t = np.asarray(table.time, dtype=float)
+    columns = [k for k in table.data if k.endswith("_deg")]
     mapping = mapping if mapping is not None else default_mapping(reference, protocol)
     ref = reference_angles(reference, mapping, columns)
     if not ref:
@@ -225,7 +231,7 @@ def validate_model_angles(
     if sync:
         imu_sig, ref_sig = [], []
         for col in primary:
-            imu_sig.append((t, _rate_rad_s(t, np.asarray(table[col], float))))
+            imu_sig.append((t, _rate_rad_s(t, np.asarray(table.data[col], float))))
             ref_sig.append((t_ref, _rate_rad_s(t_ref, ref[col])))
         clock = synchronise(imu_sig, ref_sig, seed=seed, ref_is_rate=True)
     else:
@@ -240,17 +246,12 @@ def validate_model_angles(
         else:
             notes.append("movement_only: no gyroscope to find movement; all samples used")
     rate = estimate_rate(t)
-    angles: dict[str, Any] = {"time_s": t}
+    angles = AngleAgreements(time_s=t)
     for col, values in ref.items():
         ref_deg = _interp(t_ref, values, tq)
-        imu_deg = np.asarray(table[col], dtype=float)
-        entry = agreement(imu_deg, ref_deg, mask)
-        entry.update({"imu_deg": imu_deg, "ref_deg": ref_deg})
-        if col in primary:
-            reps = repetitions(ref_deg, rate)
-            if len(reps) >= 2:
-                entry["repetitions"] = per_repetition(imu_deg, ref_deg, reps, t)
-        angles[col] = entry
+        imu_deg = np.asarray(table.data[col], dtype=float)
+        reps = repetitions(ref_deg, rate) if col in primary else None
+        angles.columns[col] = angle_agreement(imu_deg, ref_deg, mask, reps, t)
     unmapped = [c for c in columns if c not in ref]
     if unmapped:
         notes.append(f"no reference for {', '.join(unmapped)}")
@@ -264,13 +265,13 @@ def validate_model_angles(
         sync=sync_record,
         alignment=SpatialAlignment("none", AlignmentRotation(rot.IDENTITY.copy(), 0.0)),
         optical={},
-        orientation={"time_s": t},
+        orientation=OrientationErrors(time_s=t),
         angles=angles,
-        reference={
-            "kind": "model_angles",
-            "file": str(reference.attrs.get("source_file", "")),
-            "mapping": {col: mapping[col].describe() for col in ref},
-        },
+        reference=ValidationReference(
+            kind="model_angles",
+            file=str(reference.attrs.get("source_file", "")),
+            mapping={col: mapping[col].describe() for col in ref},
+        ),
         notes=notes,
     )
 

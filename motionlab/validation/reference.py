@@ -15,7 +15,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -23,6 +22,7 @@ from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.io import read_any
 from motionlab.protocol import Protocol
+from motionlab.results import OpticalSegmentInfo
 from motionlab.session import MarkerSet, is_session_file, load_session
 from motionlab.validation.anatomy import anatomical_frame, recipe_for
 from motionlab.validation.cast import (
@@ -44,7 +44,9 @@ class OpticalSegment:
     (reference clock) and ``origin`` (N, 3, m) is the cluster origin there (``None`` for a rigid
     body); ``local`` holds the landmarks fixed in the cluster frame (label → (3,), m);
     ``anatomical`` (4,) maps the anatomical segment frame into the cluster frame, ``None`` when
-    the landmarks do not define it, and ``landmarks`` names those it was built from.
+    the landmarks do not define it, and ``landmarks`` names those it was built from; ``info``:
+    what the tracking and the landmarks gave (stored in :attr:`Validation.optical
+    <motionlab.results.Validation.optical>` with ``source``, ``landmarks`` and the frame used).
     """
 
     name: str
@@ -55,7 +57,7 @@ class OpticalSegment:
     anatomical: np.ndarray | None = None
     landmarks: list[str] = field(default_factory=list)
     local: dict[str, np.ndarray] = field(default_factory=dict)
-    info: dict[str, Any] = field(default_factory=dict)
+    info: OpticalSegmentInfo = field(default_factory=OpticalSegmentInfo)
 
     def segment_quat(self) -> np.ndarray | None:
         """Anatomical segment → lab orientation (N, 4), or ``None`` without landmarks."""
@@ -150,7 +152,7 @@ def _cluster_segment(markers: MarkerSet, seg: SegmentMap, mmap: MarkerMap) -> Op
     track = track_cluster(
         markers.time, markers.positions[:, idx], seg.cluster, mmap.max_gap_s, mmap.lowpass_hz
     )
-    info: dict[str, Any] = track.summary() | {"shape_m": track.shape}
+    info = OpticalSegmentInfo(**track.summary(), shape_m=track.shape)
     return OpticalSegment(seg.name, markers.time, track.quat, "cluster", track.origin, info=info)
 
 
@@ -165,7 +167,7 @@ def _static_pose(static: MarkerSet, seg: SegmentMap, o: OpticalSegment) -> tuple
             remedy="record the static trial with the same cluster labels",
         )
     idx = [static.labels.index(m) for m in seg.cluster]
-    quat, origin, _ = rigid_fit(o.info["shape_m"], static.positions[:, idx])
+    quat, origin, _ = rigid_fit(o.info.shape_m, static.positions[:, idx])
     return quat, origin
 
 
@@ -237,13 +239,13 @@ def _calibrate(
         local, spread = calibrate_landmarks(points, quat, origin, use)
         ok = spread <= MAX_LANDMARK_SPREAD_M
         o.local = {label: local[i] for i, label in enumerate(cols) if ok[i]}
-        o.info["static_source"] = source
-        o.info["static_s"] = [float(window[0]), float(window[1])]
-        o.info["landmark_spread_mm"] = {
+        o.info.static_source = source
+        o.info.static_s = [float(window[0]), float(window[1])]
+        o.info.landmark_spread_mm = {
             label: float(spread[i] * 1e3) for i, label in enumerate(cols) if np.isfinite(spread[i])
         }
         if static is None:
-            o.info["landmark_rms_mm"] = _landmark_rms(o, points, list(cols), window)
+            o.info.landmark_rms_mm = _landmark_rms(o, points, list(cols), window)
         recipe = seg.frame or recipe_for(name)
         if recipe is not None and o.local:
             found = anatomical_frame(recipe, o.local, _side(name, protocol), seg.frame is None)
@@ -265,11 +267,11 @@ def optical_segments(
         if seg.rigid_body:
             q = np.asarray(markers.rigid_bodies[seg.rigid_body], dtype=float)
             ok = np.isfinite(q).all(axis=1)
-            info = {"fitted_fraction": float(ok.mean()), "rigid_body": seg.rigid_body}
+            info = OpticalSegmentInfo(fitted_fraction=float(ok.mean()), rigid_body=seg.rigid_body)
             out[name] = OpticalSegment(name, markers.time, q, "rigid_body", info=info)
             if seg.segment_frame:  # the body frame is the anatomical one (segment_frame: true)
                 out[name].anatomical = rot.IDENTITY.copy()
-                info["segment_frame"] = True
+                info.segment_frame = True
         else:
             out[name] = _cluster_segment(markers, seg, mmap)
     clusters = {k: o for k, o in out.items() if o.source == "cluster"}

@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 
 from motionlab.plain import plain
-from motionlab.results import Validation
+from motionlab.results import AngleAgreement, SensorOrientationError, Validation
 
 ANGLE_STATS = (
     "rmse_deg", "bias_deg", "sd_deg", "max_abs_deg", "rmse_centred_deg", "r", "cmc", "n_samples",
@@ -25,13 +25,18 @@ ORIENTATION_STATS = (
 
 def angle_columns(result: Validation) -> list[str]:
     """The angle columns of a result (those with statistics)."""
-    angles = result.angles or {}
-    return [k for k, v in angles.items() if isinstance(v, dict) and "rmse_deg" in v]
+    return list(result.angles.columns) if result.angles is not None else []
 
 
 def sensor_labels(result: Validation) -> list[str]:
     """The sensors with orientation errors."""
-    return [k for k, v in result.orientation.items() if isinstance(v, dict)]
+    return list(result.orientation.sensors)
+
+
+def _stats(record: SensorOrientationError | AngleAgreement, names: tuple) -> dict[str, Any]:
+    """The statistics ``names`` of a record as the file stores them (``None``: not given)."""
+    tree = record.to_tree()
+    return {s: tree.get(s) for s in names}
 
 
 def summary(result: Validation) -> dict[str, Any]:
@@ -61,53 +66,50 @@ def summary(result: Validation) -> dict[str, Any]:
             "residual_rms_deg": al.residual_rms_deg,
         },
         "orientation": {
-            k: {s: result.orientation[k].get(s) for s in ORIENTATION_STATS}
-            for k in sensor_labels(result)
+            k: _stats(e, ORIENTATION_STATS) for k, e in result.orientation.sensors.items()
         },
         "angles": {},
         "notes": list(result.notes),
     }
-    if result.reference:
-        out["reference"] = dict(result.reference)
-    for col in angle_columns(result):
-        entry = result.angles[col]
-        out["angles"][col] = {s: entry[s] for s in ANGLE_STATS} | {"loa_deg": entry["loa_deg"]}
-        reps = entry.get("repetitions")
-        if isinstance(reps, dict) and reps.get("n"):
-            out["angles"][col]["repetitions"] = {
-                "n": reps["n"],
-                "rmse_deg_mean": float(np.mean(reps["rmse_deg"])),
-                "rom_error_deg_mean": float(np.mean(reps["rom_error_deg"])),
-                "cmc": reps["cmc"],
+    reference = result.reference.to_tree()
+    if reference:
+        out["reference"] = reference
+    for col, entry in (result.angles.columns if result.angles is not None else {}).items():
+        digest = _stats(entry, ANGLE_STATS) | {"loa_deg": entry.loa_deg}
+        reps = entry.repetitions
+        if reps is not None and reps.n:
+            digest["repetitions"] = {
+                "n": reps.n,
+                "rmse_deg_mean": float(np.mean(reps.rmse_deg)),
+                "rom_error_deg_mean": float(np.mean(reps.rom_error_deg)),
+                "cmc": reps.cmc,
             }
+        out["angles"][col] = digest
     return plain(out)
 
 
 def tables(result: Validation) -> dict[str, pd.DataFrame]:
     """CSV tables by file name: angle curves, angle metrics, orientation metrics, sync windows."""
     out: dict[str, pd.DataFrame] = {}
-    cols = angle_columns(result)
-    if cols:
-        angles = result.angles
-        curves = {"time_s": angles["time_s"]}
-        for col in cols:
+    angles = result.angles
+    if angles is not None and angles.columns:
+        curves = {"time_s": angles.time_s}
+        for col, e in angles.columns.items():
             stem = col.removesuffix("_deg")
-            curves[f"{stem}_imu_deg"] = angles[col]["imu_deg"]
-            curves[f"{stem}_ref_deg"] = angles[col]["ref_deg"]
+            curves[f"{stem}_imu_deg"] = e.imu_deg
+            curves[f"{stem}_ref_deg"] = e.ref_deg
         out["validation_angles.csv"] = pd.DataFrame(curves)
         rows = []
-        for col in cols:
-            e = angles[col]
-            lo, hi = e["loa_deg"]
-            rows.append({"angle": col} | {s: e[s] for s in ANGLE_STATS}
+        for col, e in angles.columns.items():
+            lo, hi = e.loa_deg
+            rows.append({"angle": col} | _stats(e, ANGLE_STATS)
                         | {"loa_low_deg": lo, "loa_high_deg": hi})  # fmt: skip
         out["validation_metrics.csv"] = pd.DataFrame(rows)
-    labels = sensor_labels(result)
-    if labels:
+    if result.orientation.sensors:
         out["validation_orientation.csv"] = pd.DataFrame(
             [
-                {"sensor": k} | {s: result.orientation[k].get(s) for s in ORIENTATION_STATS}
-                for k in labels
+                {"sensor": k} | _stats(e, ORIENTATION_STATS)
+                for k, e in result.orientation.sensors.items()
             ]  # fmt: skip
         )
     sync = result.sync

@@ -21,6 +21,7 @@ drift and the bias of the parabola) and the fit repeated.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 from scipy.interpolate import make_interp_spline
@@ -227,6 +228,18 @@ def coarse_lag(
     return float(lags[k] + _parabola(finite, k) / rate), float(ncc[k])
 
 
+class WindowLags(NamedTuple):
+    """The windows matched by :func:`window_lags`, one entry each: ``time`` (the window's centre,
+    IMU clock, s), ``lag`` (``t_ref − t_imu`` there, s), ``sd`` (the lag's standard error, s),
+    ``corr`` (the peak correlation) and ``pair`` (the stream pair's index)."""
+
+    time: np.ndarray
+    lag: np.ndarray
+    sd: np.ndarray
+    corr: np.ndarray
+    pair: np.ndarray
+
+
 def window_lags(
     imu: list[tuple],
     ref: list[tuple],
@@ -236,13 +249,12 @@ def window_lags(
     step_s: float,
     search_s: float,
     cutoff_hz: float,
-) -> dict[str, np.ndarray]:
+) -> WindowLags:
     """Lag ``t_ref − t_imu`` at the centre of each window (IMU clock) of each pair.
 
-    Returns arrays ``time``, ``lag``, ``sd`` (standard error of the lag, s), ``corr`` (peak
-    correlation) and ``pair``. The standard error is the Gauss-Newton one of fitting
-    ``y(t + τ) ≈ α x(t) + β``: ``σ_e² / Σ ẏ²``, inflated by ``rate / (2 cutoff)`` for the
-    correlation of low-passed noise. Windows without motion (IMU signal SD below 0.1 rad/s),
+    Returns the :class:`WindowLags` that matched. The standard error is the Gauss-Newton one
+    of fitting ``y(t + τ) ≈ α x(t) + β``: ``σ_e² / Σ ẏ²``, inflated by ``rate / (2 cutoff)``
+    for the correlation of low-passed noise. Windows without motion (IMU signal SD below 0.1 rad/s),
     with gaps, or whose peak correlation is below 0.6 or on the edge of the search are left out.
     """
     w = int(round(window_s * rate))
@@ -275,13 +287,7 @@ def window_lags(
             lag = float(model.to_reference(centre + shift)) - centre
             rows.append((centre, lag, np.sqrt(var), c[k], p))
     cols = np.array(rows, dtype=float).reshape(-1, 5)
-    return {
-        "time": cols[:, 0],
-        "lag": cols[:, 1],
-        "sd": cols[:, 2],
-        "corr": cols[:, 3],
-        "pair": cols[:, 4].astype(int),
-    }
+    return WindowLags(cols[:, 0], cols[:, 1], cols[:, 2], cols[:, 3], cols[:, 4].astype(int))
 
 
 def ransac_line(
@@ -400,13 +406,12 @@ def fit_clock(
     model = ClockModel(lag0, 0.0)
     search = search_s
     fallback = ""
-    win: dict[str, np.ndarray] = {}
     for _ in range(1 + REFINEMENTS):
         win = window_lags(imu_sig, ref_sig, model, rate, window_s, step_s, search, cutoff_hz)
-        if len(win["time"]) < 2:
-            fallback = f"only {len(win['time'])} window(s) matched"
+        if len(win.time) < 2:
+            fallback = f"only {len(win.time)} window(s) matched"
             break
-        a, b, inliers = ransac_line(win["time"], win["lag"], threshold, win["sd"], seed)
+        a, b, inliers = ransac_line(win.time, win.lag, threshold, win.sd, seed)
         if inliers.sum() < 2:
             fallback = f"only {int(inliers.sum())} window(s) agree"
             break
@@ -433,18 +438,18 @@ def fit_clock(
             window_time_s=empty, window_lag_s=empty, window_sd_s=empty, window_corr=empty,
             window_pair=np.zeros(0, int), inliers=np.zeros(0, bool),
         )  # fmt: skip
-    resid = win["lag"] - (a + b * win["time"])
-    se = ta.offset_standard_error(win["time"][inliers], win["sd"][inliers], resid[inliers], centre)
+    resid = win.lag - (a + b * win.time)
+    se = ta.offset_standard_error(win.time[inliers], win.sd[inliers], resid[inliers], centre)
     return TimeAlignment(
         model=model,
         inlier_ratio=float(inliers.mean()),
         residual_rms_s=float(np.sqrt(np.mean(resid[inliers] ** 2))),
         coarse_lag_s=lag0,
-        window_time_s=win["time"],
-        window_lag_s=win["lag"],
-        window_sd_s=win["sd"],
-        window_corr=win["corr"],
-        window_pair=win["pair"],
+        window_time_s=win.time,
+        window_lag_s=win.lag,
+        window_sd_s=win.sd,
+        window_corr=win.corr,
+        window_pair=win.pair,
         inliers=inliers,
         standard_error_s=se,
         grade=ta.grade(se, rate) if inliers.mean() >= 0.5 else "poor",
