@@ -31,7 +31,9 @@ so that a round trip loses nothing. Units are SI except where a name says otherw
 Maps keyed by the protocol's names (one entry per segment, joint, task or angle column) are
 dictionaries; where their entries have fixed fields these are typed too (:class:`SegmentRecord`
 with its :class:`SegmentQuality`, :class:`HingeFit`, :class:`JointGrades`,
-:class:`CentreHeading`, :class:`HeadingTies`), else their keys are documented at the attribute.
+:class:`CentreHeading`, :class:`HeadingTies`, :class:`AngleMetrics`, :class:`StanceMetrics`,
+:class:`OutOfPlaneOffset`, :class:`TrunkCompensation`, :class:`CrossTalk`, :class:`GaitEvents`,
+:class:`StrideStats`), else their keys are documented at the attribute.
 """
 
 from __future__ import annotations
