@@ -721,10 +721,11 @@ class HeadingCorrection(_Record):
 
 @dataclass(frozen=True)
 class TaskBlock(_Record):
-    """One task's time range (one value of :attr:`Metrics.blocks`): ``start_s`` and ``end_s``
-    (s, on the session's clock); ``source``: ``detected`` (found in the recording) or ``given``
-    (the user's time range; ``None``, not stored, when the metrics were computed from given
-    ranges without a session, :func:`motionlab.kinematics.metrics.compute_metrics`).
+    """One task's time range (one value of :attr:`Metrics.blocks` or :attr:`Gait.tasks`):
+    ``start_s`` and ``end_s`` (s, on the session's clock); ``source``: ``detected`` (found in
+    the recording) or ``given`` (the user's time range; ``None``, not stored, when the metrics
+    were computed from given ranges without a session,
+    :func:`motionlab.kinematics.metrics.compute_metrics`, and in :attr:`Gait.tasks`).
     """
 
     start_s: float
