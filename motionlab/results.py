@@ -923,12 +923,21 @@ class CrossTalk(_Record):
 
 def _map(tree: dict[str, Any] | None, read: Any, depth: int = 1) -> dict[str, Any] | None:
     """``read`` applied to the leaves of a ``depth``-level map of stored trees (``None``
-    stays ``None``)."""
+    stays ``None``); a map or leaf that is not a group (a damaged file) raises ``TypeError``."""
     if tree is None:
         return None
+    if not isinstance(tree, dict):
+        raise TypeError(f"a group expected, not {type(tree).__name__}")
     if depth == 1:
-        return {k: read(v) for k, v in tree.items()}
+        return {k: read(_group(v)) for k, v in tree.items()}
     return {k: _map(v, read, depth - 1) for k, v in tree.items()}
+
+
+def _group(tree: Any) -> dict[str, Any]:
+    """``tree`` when it is a group's tree, else ``TypeError``."""
+    if not isinstance(tree, dict):
+        raise TypeError(f"a group expected, not {type(tree).__name__}")
+    return tree
 
 
 def _tree(records: dict[str, Any] | None, depth: int = 1) -> dict[str, Any] | None:
@@ -1199,8 +1208,8 @@ class Gait(_Record):
         for name, kind in (("strides", StrideTable), ("summary", GaitSummary),
                            ("pelvis", GaitPelvis), ("map", MovementProfile)):  # fmt: skip
             value = getattr(gait, name)
-            if isinstance(value, dict):
-                setattr(gait, name, kind.from_tree(value))
+            if value is not None:
+                setattr(gait, name, kind.from_tree(_group(value)))
         return gait
 
     @property

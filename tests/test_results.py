@@ -502,3 +502,25 @@ def test_gait_events_strides_pelvis_and_side_statistics_load_typed_and_are_store
     assert isinstance(r, StrideStats) and r.strides_n == n and r.q3 == 1.15
     assert left.strides_n is None and left.se is None and left.more == {"n": n}
     assert _same(again, stored)
+
+
+@pytest.mark.parametrize(
+    ("stage", "tree"),
+    [
+        ("metrics", {"protocol": "knee", "gait": 5}),
+        ("metrics", {"protocol": "knee", "cross_talk": {"squat": {"knee_r": [1.0]}}}),
+        ("gait", {"status": "ok", "strides": 3}),
+        ("gait", {"status": "ok", "events": {"r": "ic"}}),
+    ],
+)
+def test_a_damaged_leaf_record_is_refused_with_an_input_error(tmp_path, stage, tree):
+    """A group the records expect stored as a value (a damaged file) is a one-line error."""
+    from motionlab.errors import InputError
+    from motionlab.session import _write_tree
+
+    path = tmp_path / "bad.h5"
+    save_session(Session(), path)
+    with h5py.File(path, "r+") as f:
+        _write_tree(f.require_group("results").create_group(stage), tree)
+    with pytest.raises(InputError, match="does not hold stage results"):
+        load_session(path)
