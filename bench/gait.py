@@ -85,8 +85,8 @@ def _truth_strides(G, walk, reach=None):
     sides, events = {}, {}
     for s in "rl":
         ic, fc = G[f"ic_{s}"], G[f"fc_{s}"]
-        events[s] = {"ic": ic, "fc": fc}
         ev = ge.SideEvents(ic, np.ones(len(ic)), fc, np.ones(len(fc)), ic, np.ones(len(ic)))
+        events[s] = ev
         yaw = (walk["time"], walk["yaw_rate"])
         sides[s] = ge.strides(s, ev, yaw, (walk["start"], walk["end"]))
         steady = G[f"ic_{s}_steady"]
@@ -113,8 +113,8 @@ def run_one(seed: int, variant: str, one_clock: bool = False) -> dict[str, float
     errs = {"ic": [], "fc": []}
     for s in "rl":
         m = _to_true(session, truth, orig, f"shank_{s}")
-        for ev in ("ic", "fc"):
-            det = m(g.events[s][ev])
+        for ev, found in (("ic", g.events[s].ic), ("fc", g.events[s].fc)):
+            det = m(found)
             tr = G[f"{ev}_{s}"][G[f"{ev}_{s}_steady"]]
             d = np.array([det[np.argmin(np.abs(det - x))] - x for x in tr])
             errs[ev] += list(d[np.abs(d) < 0.3])
@@ -131,11 +131,11 @@ def run_one(seed: int, variant: str, one_clock: bool = False) -> dict[str, float
     dsum = g.summary
     row["cadence err /min"] = abs(dsum.cadence_steps_per_min - tsum.cadence_steps_per_min)
     row["stance err pts"] = max(
-        abs(dsum.sides[s]["stance_pct"]["mean"] - tsum.sides[s]["stance_pct"]["mean"]) for s in "rl"
+        abs(dsum.sides[s]["stance_pct"].mean - tsum.sides[s]["stance_pct"].mean) for s in "rl"
     )
     row["asym err pts"] = abs(dsum.step_time_asymmetry_pct - tsum.step_time_asymmetry_pct)
     row["asym truth %"] = tsum.step_time_asymmetry_pct
-    length = float(g.strides["stride_length_m"][g.strides["kept"]].mean())
+    length = float(g.strides.stride_length_m[g.strides.kept].mean())
     legs = float(ttable.loc[ttable["kept"], "stride_length_m"].mean())
     pelvis = float(_pelvis_strides(truth, ttable).mean())
     row["stride len cm"] = 100 * length
@@ -143,7 +143,7 @@ def run_one(seed: int, variant: str, one_clock: bool = False) -> dict[str, float
     row["pelvis stride cm"] = 100 * pelvis
     row["stride err pelvis %"] = 100 * (length - pelvis) / pelvis
     row["speed err pelvis %"] = 100 * (dsum.walking_speed_m_s * tsum_stride_s(ttable) / pelvis - 1)
-    row["stance truth r %"] = tsum.sides["r"]["stance_pct"]["mean"]
+    row["stance truth r %"] = tsum.sides["r"]["stance_pct"].mean
     # angles on the steady walk
     ang = session.results.angles.columns()
     tt = _to_true(session, truth, orig, "thigh_r")(ang["time_s"])
@@ -154,15 +154,17 @@ def run_one(seed: int, variant: str, one_clock: bool = False) -> dict[str, float
              truth.joint_angles[f"hip_{s}_{cols}_deg"]) for s in "rl"]  # fmt: skip
         row[name] = max(float(np.sqrt(np.nanmean(x[w] ** 2))) for x in e)
     P = g.pelvis
-    tp = _to_true(session, truth, orig, "pelvis")(P["time_s"])
+    tp = _to_true(session, truth, orig, "pelvis")(P.time_s)
     w = (tp > step["start_s"] + 3) & (tp < step["end_s"] - 3)
-    for name, col in (("pelvis tilt RMSE", "pelvis_tilt_deg"),
-                      ("pelvis obl RMSE", "pelvis_obliquity_deg"),
-                      ("pelvis rot RMSE", "pelvis_rotation_deg")):  # fmt: skip
-        e = P[col] - np.interp(tp, truth.time, G[col])
+    for name, col, x in (
+        ("pelvis tilt RMSE", "pelvis_tilt_deg", P.pelvis_tilt_deg),
+        ("pelvis obl RMSE", "pelvis_obliquity_deg", P.pelvis_obliquity_deg),
+        ("pelvis rot RMSE", "pelvis_rotation_deg", P.pelvis_rotation_deg),
+    ):
+        e = x - np.interp(tp, truth.time, G[col])
         row[name] = float(np.sqrt(np.nanmean(e[w] ** 2)))
-    row["strides kept r"] = float(g.strides["kept"][g.strides["side"] == "r"].sum())
-    row["strides kept l"] = float(g.strides["kept"][g.strides["side"] == "l"].sum())
+    row["strides kept r"] = float(g.strides.kept[g.strides.side == "r"].sum())
+    row["strides kept l"] = float(g.strides.kept[g.strides.side == "l"].sum())
     print(f"seed {seed} {variant}: {g.summary.strides_rejected}", file=sys.stderr)
     row["GPS"] = g.map.gps["overall"]
     row["population GPS"] = g.map.population_gps_deg

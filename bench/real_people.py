@@ -97,7 +97,7 @@ def stride_ranges(session: Session, column: str, side: str) -> np.ndarray:
     if gait is None or not gait.ok or side not in (gait.events or {}):
         return np.array([])
     t, x = np.asarray(angles.time), np.asarray(angles.data[column], float)
-    ic = np.asarray(gait.events[side]["ic"], float)
+    ic = np.asarray(gait.events[side].ic, float)
     out = []
     for a, b in zip(ic[:-1], ic[1:], strict=True):
         sel = (t >= a) & (t <= b)
@@ -118,7 +118,7 @@ def vendor_ranges(session: Session, vendor: dict, joint, side: str) -> np.ndarra
     sel = (t >= stand[0]) & (t <= stand[1])
     r = rot.mul(rel, rot.conj(rot.mean(rel[sel])))
     angle = np.degrees(2.0 * np.arccos(np.clip(np.abs(r[:, 0]), 0.0, 1.0)))
-    ic = np.asarray(gait.events[side]["ic"], float)
+    ic = np.asarray(gait.events[side].ic, float)
     pairs = [(a, b) for a, b in zip(ic[:-1], ic[1:], strict=True) if 0.6 <= b - a <= 1.8]
     return np.array([np.ptp(angle[(t >= a) & (t <= b)]) for a, b in pairs])
 
@@ -157,7 +157,7 @@ def gyro_ranges(session: Session, jname: str, joint, side: str) -> np.ndarray:
     prox, dist = session.sensors[joint.proximal], session.sensors[joint.distal]
     t = prox.time
     rate = np.interp(t, dist.time, dist.gyr @ fit.axis_distal) - prox.gyr @ fit.axis_proximal
-    ic = np.asarray(gait.events[side]["ic"], float)
+    ic = np.asarray(gait.events[side].ic, float)
     out = []
     for a, b in zip(ic[:-1], ic[1:], strict=True):
         sel = (t >= a) & (t <= b)

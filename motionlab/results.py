@@ -31,18 +31,23 @@ so that a round trip loses nothing. Units are SI except where a name says otherw
 Maps keyed by the protocol's names (one entry per segment, joint, task or angle column) are
 dictionaries; where their entries have fixed fields these are typed too (:class:`SegmentRecord`
 with its :class:`SegmentQuality`, :class:`HingeFit`, :class:`JointGrades`,
-:class:`CentreHeading`, :class:`HeadingTies`, a validation's :class:`OpticalSegmentInfo`,
-:class:`SensorOrientationError` and :class:`AngleAgreement`), else their keys are documented at
-the attribute.
+:class:`CentreHeading`, :class:`HeadingTies`, :class:`AxisMeasurement`, :class:`AngleMetrics`,
+:class:`StanceMetrics`, :class:`OutOfPlaneOffset`, :class:`TrunkCompensation`,
+:class:`CrossTalk`, :class:`GaitEvents`, :class:`StrideStats`, a validation's
+:class:`OpticalSegmentInfo`, :class:`SensorOrientationError` and :class:`AngleAgreement`), else
+their keys are documented at the attribute.
 """
 
 from __future__ import annotations
 
 import dataclasses
 from dataclasses import asdict, dataclass, field
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 __all__ = [
     "STAGES",
@@ -64,6 +69,16 @@ __all__ = [
     "FusionEntry",
     "Gait",
     "GaitSummary",
+    "GaitEvents",
+    "GaitPelvis",
+    "StrideStats",
+    "StrideTable",
+    "StanceMetrics",
+    "OutOfPlaneOffset",
+    "TrunkAngleStats",
+    "TrunkCompensation",
+    "OffAxisRange",
+    "CrossTalk",
     "MovementProfile",
     "HeadingCorrection",
     "Metrics",
@@ -770,10 +785,11 @@ class HeadingCorrection(_Record):
 
 @dataclass(frozen=True)
 class TaskBlock(_Record):
-    """One task's time range (one value of :attr:`Metrics.blocks`): ``start_s`` and ``end_s``
-    (s, on the session's clock); ``source``: ``detected`` (found in the recording) or ``given``
-    (the user's time range; ``None``, not stored, when the metrics were computed from given
-    ranges without a session, :func:`motionlab.kinematics.metrics.compute_metrics`).
+    """One task's time range (one value of :attr:`Metrics.blocks` or :attr:`Gait.tasks`):
+    ``start_s`` and ``end_s`` (s, on the session's clock); ``source``: ``detected`` (found in
+    the recording) or ``given`` (the user's time range; ``None``, not stored, when the metrics
+    were computed from given ranges without a session,
+    :func:`motionlab.kinematics.metrics.compute_metrics`, and in :attr:`Gait.tasks`).
     """
 
     start_s: float
@@ -813,6 +829,190 @@ class AngleMetrics(_Record):
     more: dict[str, Any] = field(default_factory=dict)
 
 
+@dataclass(frozen=True)
+class StanceMetrics(_Record):
+    """A knee's varus thrust and stance rotation over a gait block's strides
+    (:func:`motionlab.kinematics.out_of_plane.stance_metrics`; one value of
+    ``Metrics.gait[task]``), in degrees.
+
+    ``strides``: the strides found (heel strike to heel strike); per stride ``varus_thrust_deg``
+    (the rise of the adduction angle from heel strike to its stance maximum) and
+    ``stance_rotation_range_deg`` (the rotation's range over stance); their means
+    ``varus_thrust_mean_deg`` / ``stance_rotation_range_mean_deg`` and SDs (ddof 1; 0 with one
+    stride) ``varus_thrust_sd_deg`` / ``stance_rotation_range_sd_deg`` (NaN without strides);
+    ``varus_thrust_above_pct`` (%): the share of strides whose thrust exceeds
+    ``threshold_deg`` (the protocol's ``varus_thrust_deg``; NaN without strides);
+    ``heel_strike_s`` / ``toe_off_s`` (s): each stride's heel strike and toe-off (``None``
+    when not given).
+    """
+
+    strides: int
+    varus_thrust_deg: np.ndarray
+    varus_thrust_mean_deg: float
+    varus_thrust_sd_deg: float
+    varus_thrust_above_pct: float
+    threshold_deg: float
+    stance_rotation_range_deg: np.ndarray
+    stance_rotation_range_mean_deg: float
+    stance_rotation_range_sd_deg: float
+    heel_strike_s: np.ndarray | None = None
+    toe_off_s: np.ndarray | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class OutOfPlaneOffset(_Record):
+    """To's axis-angle out-of-plane offset of a lumbar joint during a task in one plane
+    (:func:`motionlab.kinematics.out_of_plane.out_of_plane_offset`; one value of
+    ``Metrics.out_of_plane_offset[task]``), in degrees.
+
+    ``axes``: the two segment axes (``x``, ``y``, ``z``) perpendicular to the rotation axis
+    whose angles' difference is the offset; ``offset_deg`` (N,): that difference, as a change
+    from the standing reference, per sample of the block; over the repetitions' span (the
+    block without them): ``peak_deg`` and ``mean_deg`` of its size and ``above_pct`` (%) the
+    share of samples above ``threshold_deg`` (the protocol's ``out_of_plane_offset_deg``);
+    ``repetition_peak_deg``: its peak size per repetition.
+    """
+
+    axes: list[str]
+    peak_deg: float
+    mean_deg: float
+    above_pct: float
+    threshold_deg: float
+    repetition_peak_deg: np.ndarray
+    offset_deg: np.ndarray
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class TrunkAngleStats(_Record):
+    """One trunk angle's compensation over a task (one value of
+    :attr:`TrunkCompensation.per_angle`), in degrees: ``max_deg`` / ``min_deg`` its extremes,
+    ``peak_abs_deg`` its largest size, ``above_pct`` (%) the share of samples whose size
+    exceeds ``threshold_deg`` (the protocol's ``trunk_compensation_deg`` for the angle; ``inf``
+    when it gives none)."""
+
+    max_deg: float
+    min_deg: float
+    peak_abs_deg: float
+    above_pct: float
+    threshold_deg: float
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class TrunkCompensation(_Record):
+    """Trunk lean and twist relative to the neutral posture before a task (Liu 2010;
+    :func:`motionlab.kinematics.out_of_plane.trunk_compensation`; one value of
+    :attr:`Metrics.trunk_compensation`).
+
+    ``per_angle`` ``{angle: TrunkAngleStats}`` for the lumbar angles (``flexion``: forward lean,
+    ``lateral_bending``: lean to the right, ``axial_rotation``: twist to the left, positive;
+    :class:`TrunkAngleStats`), stored as the tree's subtrees by angle name (any subtree of a
+    stored tree is read as an angle); ``compensated``: an angle went above its threshold;
+    ``angles_deg`` (N, 3): the three angles (deg) per sample of the task.
+    """
+
+    per_angle: dict[str, TrunkAngleStats]
+    compensated: bool
+    angles_deg: np.ndarray
+    more: dict[str, Any] = field(default_factory=dict)
+
+    def to_tree(self) -> dict[str, Any]:
+        """``{angle: stats tree, ..., compensated, angles_deg}`` and the unknown keys."""
+        return (
+            {k: v.to_tree() for k, v in self.per_angle.items()}
+            | {"compensated": self.compensated, "angles_deg": self.angles_deg}
+            | self.more
+        )
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> TrunkCompensation:
+        """The compensation of a stored tree (see :meth:`to_tree`)."""
+        rest = {k: v for k, v in tree.items() if not isinstance(v, dict)}
+        known = {k: rest.pop(k) for k in ("compensated", "angles_deg")}
+        per_angle = {
+            k: TrunkAngleStats.from_tree(v) for k, v in tree.items() if isinstance(v, dict)
+        }
+        return cls(per_angle, **known, more=rest)
+
+
+@dataclass(frozen=True)
+class OffAxisRange(_Record):
+    """One off-axis angle's range during a single-plane movement (one value of
+    :attr:`CrossTalk.off_axis`), in degrees: ``rom_deg`` its range, ``ratio_pct`` (%) that over
+    the on-axis range (NaN when that is 0); with the protocol's nominal placement for
+    comparison, ``nominal_rom_deg`` the range with it and ``change_pct`` (%) the calibration's
+    change of the range (Ricci 2015: −39 % to −70 %; NaN when the nominal range is 0); each
+    ``None`` (not stored) without the comparison.
+    """
+
+    rom_deg: float
+    ratio_pct: float
+    nominal_rom_deg: float | None = None
+    change_pct: float | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class CrossTalk(_Record):
+    """Cross-talk of a joint during a single-plane movement (Ricci 2015 §6.3;
+    :func:`motionlab.kinematics.out_of_plane.cross_talk`; one value of
+    ``Metrics.cross_talk[block]``).
+
+    ``on_axis``: the moving angle's name (``flexion``, ...); ``on_axis_rom_deg`` (deg): its
+    range; ``off_axis`` ``{angle: OffAxisRange}``: the two other angles
+    (:class:`OffAxisRange`), stored as the tree's subtrees by angle name (any subtree of a
+    stored tree is read as an angle).
+    """
+
+    on_axis: str
+    on_axis_rom_deg: float
+    off_axis: dict[str, OffAxisRange] = field(default_factory=dict)
+    more: dict[str, Any] = field(default_factory=dict)
+
+    def to_tree(self) -> dict[str, Any]:
+        """``{on_axis, on_axis_rom_deg, angle: range tree, ...}`` and the unknown keys."""
+        head = {"on_axis": self.on_axis, "on_axis_rom_deg": self.on_axis_rom_deg}
+        return head | {k: v.to_tree() for k, v in self.off_axis.items()} | self.more
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> CrossTalk:
+        """The cross-talk of a stored tree (see :meth:`to_tree`)."""
+        rest = {k: v for k, v in tree.items() if not isinstance(v, dict)}
+        known = {k: rest.pop(k) for k in ("on_axis", "on_axis_rom_deg")}
+        off = {k: OffAxisRange.from_tree(v) for k, v in tree.items() if isinstance(v, dict)}
+        return cls(**known, off_axis=off, more=rest)
+
+
+def _map(tree: dict[str, Any] | None, read: Any, depth: int = 1) -> dict[str, Any] | None:
+    """``read`` applied to the leaves of a ``depth``-level map of stored trees (``None``
+    stays ``None``); a map or leaf that is not a group (a damaged file) raises ``TypeError``."""
+    if tree is None:
+        return None
+    if not isinstance(tree, dict):
+        raise TypeError(f"a group expected, not {type(tree).__name__}")
+    if depth == 1:
+        return {k: read(_group(v)) for k, v in tree.items()}
+    return {k: _map(v, read, depth - 1) for k, v in tree.items()}
+
+
+def _group(tree: Any) -> dict[str, Any]:
+    """``tree`` when it is a group's tree, else ``TypeError``."""
+    if not isinstance(tree, dict):
+        raise TypeError(f"a group expected, not {type(tree).__name__}")
+    return tree
+
+
+def _tree(records: dict[str, Any] | None, depth: int = 1) -> dict[str, Any] | None:
+    """The trees of a ``depth``-level map of records (``None`` stays ``None``)."""
+    if records is None:
+        return None
+    if depth == 1:
+        return {k: v.to_tree() for k, v in records.items()}
+    return {k: _tree(v, depth - 1) for k, v in records.items()}
+
+
 @dataclass
 class Metrics(_Record):
     """Metrics per task block (:func:`motionlab.kinematics.metrics.session_metrics`).
@@ -820,39 +1020,44 @@ class Metrics(_Record):
     ``protocol``: its name. ``blocks`` ``{task: TaskBlock}``: each task's time range
     (:class:`TaskBlock`). ``joints`` ``{task: {column: AngleMetrics}}``
     (:class:`AngleMetrics`: range, extremes, cycles and the mean curve). When the protocol asks
-    for them:
-    ``gait`` ``{task: {joint: stance metrics}}``, ``out_of_plane_offset`` ``{task: {joint:
-    ...}}``, ``trunk_compensation`` ``{task: ...}``, ``cross_talk`` ``{block: {joint: ...}}``.
+    for them (``None`` otherwise):
+    ``gait`` ``{task: {joint: StanceMetrics}}`` (:class:`StanceMetrics`: a knee's varus
+    thrust and stance rotation), ``out_of_plane_offset`` ``{task: {joint: OutOfPlaneOffset}}``
+    (:class:`OutOfPlaneOffset`), ``trunk_compensation`` ``{task: TrunkCompensation}``
+    (:class:`TrunkCompensation`), ``cross_talk`` ``{block: {joint: CrossTalk}}``
+    (:class:`CrossTalk`).
     """
 
     protocol: str
     joints: dict[str, dict[str, AngleMetrics]] = field(default_factory=dict)
     blocks: dict[str, TaskBlock] = field(default_factory=dict)
-    gait: dict[str, Any] | None = None
-    out_of_plane_offset: dict[str, Any] | None = None
-    trunk_compensation: dict[str, Any] | None = None
-    cross_talk: dict[str, Any] | None = None
+    gait: dict[str, dict[str, StanceMetrics]] | None = None
+    out_of_plane_offset: dict[str, dict[str, OutOfPlaneOffset]] | None = None
+    trunk_compensation: dict[str, TrunkCompensation] | None = None
+    cross_talk: dict[str, dict[str, CrossTalk]] | None = None
     more: dict[str, Any] = field(default_factory=dict)
 
     def to_tree(self) -> dict[str, Any]:
-        """The metrics' tree, each angle's metrics a subtree."""
+        """The metrics' tree, each record a subtree."""
         tree = super().to_tree()
-        tree["joints"] = {
-            task: {col: m.to_tree() for col, m in cols.items()}
-            for task, cols in self.joints.items()
-        }
-        tree["blocks"] = {k: b.to_tree() for k, b in self.blocks.items()}
+        tree["joints"] = _tree(self.joints, 2)
+        tree["blocks"] = _tree(self.blocks)
+        for name, depth in (("gait", 2), ("out_of_plane_offset", 2), ("cross_talk", 2),
+                            ("trunk_compensation", 1)):  # fmt: skip
+            if name in tree:
+                tree[name] = _tree(tree[name], depth)
         return tree
 
     @classmethod
     def from_tree(cls, tree: dict[str, Any]) -> Metrics:
         """The metrics of a stored tree (see :meth:`to_tree`)."""
         out = super().from_tree(tree)
-        out.joints = {
-            task: {col: AngleMetrics.from_tree(m) for col, m in cols.items()}
-            for task, cols in out.joints.items()
-        }
-        out.blocks = {k: TaskBlock.from_tree(b) for k, b in out.blocks.items()}
+        out.joints = _map(out.joints, AngleMetrics.from_tree, 2)
+        out.blocks = _map(out.blocks, TaskBlock.from_tree)
+        out.gait = _map(out.gait, StanceMetrics.from_tree, 2)
+        out.out_of_plane_offset = _map(out.out_of_plane_offset, OutOfPlaneOffset.from_tree, 2)
+        out.trunk_compensation = _map(out.trunk_compensation, TrunkCompensation.from_tree)
+        out.cross_talk = _map(out.cross_talk, CrossTalk.from_tree, 2)
         return out
 
     def spans(self) -> dict[str, tuple[float, float]]:
@@ -861,14 +1066,36 @@ class Metrics(_Record):
 
 
 @dataclass(frozen=True)
+class StrideStats(_Record):
+    """One stride-table column's statistics over a side's kept strides
+    (:func:`motionlab.kinematics.spatiotemporal.summary`; one value of
+    ``GaitSummary.sides[side]``), in the column's unit: ``mean``, ``sd`` (ddof 1), ``cv_pct``
+    (%, 100 SD/mean), ``se`` (SD/√n), ``median``, ``q1`` and ``q3`` (the quartiles), each NaN
+    below the summary's ``min_strides`` values; ``strides_n``: the values it had. In a file
+    written before they existed ``se``, the median and the quartiles are ``None``, and so is
+    ``strides_n`` where the count was stored as ``n`` (kept in ``more``).
+    """
+
+    mean: float
+    sd: float
+    cv_pct: float
+    se: float | None = None
+    median: float | None = None
+    q1: float | None = None
+    q3: float | None = None
+    strides_n: int | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
 class GaitSummary(_Record):
     """The kept strides summarised (:func:`motionlab.kinematics.spatiotemporal.summary`;
     :attr:`Gait.summary`).
 
-    ``sides`` ``{side: {column: {mean, sd, cv_pct, se, median, q1, q3, strides_n}}}``: per side
-    (``r``, ``l``) and stride-table column the statistics of its kept strides (in the column's
-    unit). Both sides together: ``cadence_steps_per_min`` (steps/min), ``step_time_asymmetry_pct``
-    (%) with its standard error ``step_time_asymmetry_se_pct`` from ``step_pairs`` paired
+    ``sides`` ``{side: {column: StrideStats}}``: per side (``r``, ``l``) and stride-table
+    column the statistics of its kept strides (:class:`StrideStats`, in the column's unit).
+    Both sides together: ``cadence_steps_per_min`` (steps/min), ``step_time_asymmetry_pct`` (%)
+    with its standard error ``step_time_asymmetry_se_pct`` from ``step_pairs`` paired
     steady steps, ``stride_time_cv_pct`` (%, within steady bouts) with
     ``stride_time_cv_se_pct``, ``walking_speed_m_s`` (m/s; NaN without leg lengths) — each NaN
     when withheld, and NaN in a file written before it existed. ``strides_kept``;
@@ -876,7 +1103,7 @@ class GaitSummary(_Record):
     (``None`` in a file written without it); ``withheld`` ``{number: why it is not given}``.
     """
 
-    sides: dict[str, dict[str, dict[str, float]]] = field(default_factory=dict)
+    sides: dict[str, dict[str, StrideStats]] = field(default_factory=dict)
     min_strides: int | None = None
     cadence_steps_per_min: float = float("nan")
     step_pairs: int = 0
@@ -889,6 +1116,16 @@ class GaitSummary(_Record):
     strides_rejected: dict[str, int] = field(default_factory=dict)
     withheld: dict[str, str] = field(default_factory=dict)
     more: dict[str, Any] = field(default_factory=dict)
+
+    def to_tree(self) -> dict[str, Any]:
+        """The summary's tree, each column's statistics a subtree."""
+        return super().to_tree() | {"sides": _tree(self.sides, 2)}
+
+    @classmethod
+    def from_tree(cls, tree: dict[str, Any]) -> GaitSummary:
+        """The summary of a stored tree (see :meth:`to_tree`)."""
+        summ = super().from_tree(tree)
+        return dataclasses.replace(summ, sides=_map(summ.sides, StrideStats.from_tree, 2))
 
 
 @dataclass(frozen=True)
@@ -915,47 +1152,128 @@ class MovementProfile(_Record):
     more: dict[str, Any] = field(default_factory=dict)
 
 
+@dataclass(frozen=True)
+class GaitEvents(_Record):
+    """One side's gait events over the whole recording (:func:`motionlab.kinematics.
+    gait_events.detect`; one value of :attr:`Gait.events`): ``ic`` (s) the initial contacts
+    and ``fc`` (s) the final contacts, each with its ``ic_confidence`` / ``fc_confidence``
+    (0–1: how clearly the shank's angular velocity shows it)."""
+
+    ic: np.ndarray
+    ic_confidence: np.ndarray
+    fc: np.ndarray
+    fc_confidence: np.ndarray
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class StrideTable(_Record):
+    """The stride table of a gait analysis (:func:`motionlab.kinematics.spatiotemporal.
+    stride_table`; :attr:`Gait.strides`): one value per stride of both sides in each array,
+    in time order.
+
+    ``start_s`` (s): its initial contact; ``kept``: it passed the checks, else ``reason`` says
+    why not (``turn``, ``start/stop``, ...; empty when kept); ``side`` (``r``, ``l``);
+    ``stride_time_s``, ``step_time_s``, ``stance_time_s``, ``swing_time_s`` (s),
+    ``stance_pct``, ``swing_pct``, ``double_support_pct`` (% of the stride),
+    ``cadence_steps_per_min`` (steps/min), ``step_length_m``, ``stride_length_m`` (m) and
+    ``walking_speed_m_s`` (m/s) as :mod:`motionlab.kinematics.spatiotemporal` defines them
+    (NaN where not measured; a column is ``None`` in a file written before it existed).
+    """
+
+    start_s: np.ndarray
+    kept: np.ndarray
+    stride_time_s: np.ndarray | None = None
+    step_time_s: np.ndarray | None = None
+    stance_time_s: np.ndarray | None = None
+    swing_time_s: np.ndarray | None = None
+    stance_pct: np.ndarray | None = None
+    swing_pct: np.ndarray | None = None
+    double_support_pct: np.ndarray | None = None
+    cadence_steps_per_min: np.ndarray | None = None
+    step_length_m: np.ndarray | None = None
+    stride_length_m: np.ndarray | None = None
+    walking_speed_m_s: np.ndarray | None = None
+    side: np.ndarray | None = None
+    reason: np.ndarray | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+    def frame(self) -> pd.DataFrame:
+        """The table as a ``pandas.DataFrame``, its columns in the stored order."""
+        import pandas as pd
+
+        return pd.DataFrame({k: np.asarray(v) for k, v in self.to_tree().items()})
+
+
+@dataclass(frozen=True)
+class GaitPelvis(_Record):
+    """The pelvis angles of a gait analysis relative to the walking direction
+    (:func:`motionlab.kinematics.pelvis.pelvis_angles`; :attr:`Gait.pelvis`): ``time_s`` (N,)
+    s, ``pelvis_tilt_deg``, ``pelvis_obliquity_deg`` and ``pelvis_rotation_deg`` (N,) deg
+    (:data:`motionlab.kinematics.pelvis.PELVIS_COLUMNS`), and ``method``: how the pelvis frame
+    and the walking direction were found."""
+
+    time_s: np.ndarray
+    pelvis_tilt_deg: np.ndarray
+    pelvis_obliquity_deg: np.ndarray
+    pelvis_rotation_deg: np.ndarray
+    method: str = ""
+    more: dict[str, Any] = field(default_factory=dict)
+
+    def angles_deg(self) -> np.ndarray:
+        """(N, 3) tilt, obliquity and rotation (deg), in ``PELVIS_COLUMNS`` order."""
+        return np.column_stack(
+            [self.pelvis_tilt_deg, self.pelvis_obliquity_deg, self.pelvis_rotation_deg]
+        )
+
+
 @dataclass
 class Gait(_Record):
     """The gait analysis (:func:`motionlab.kinematics.gait.analyse_gait`).
 
-    ``status``: ``ok`` or ``no gait: <why>``. With ``ok``: ``tasks`` ``{task: {start_s,
-    end_s}}``, ``events`` ``{side: {ic, ic_confidence, fc, fc_confidence}}`` (s),
-    ``strides`` (one array per stride-table column), ``summary`` (:class:`GaitSummary`),
+    ``status``: ``ok`` or ``no gait: <why>``. With ``ok``: ``tasks`` ``{task: TaskBlock}``
+    (the gait tasks' time ranges, :class:`TaskBlock`), ``events`` ``{side: GaitEvents}``
+    (:class:`GaitEvents`; also with ``no gait`` when strides were found but none kept),
+    ``strides`` (the stride table, :class:`StrideTable`), ``summary`` (:class:`GaitSummary`),
     ``walking_speed`` (the step and
     stride length model and the segment lengths used, or why they are not measured), ``pelvis``
-    (pelvis angles, deg, with its ``time_s`` and ``method``), ``curves`` ``{side: {variable:
-    (101,) deg}}`` and ``map`` (the movement analysis profile, :class:`MovementProfile`).
+    (pelvis angles, :class:`GaitPelvis`), ``curves`` ``{side: {variable: (101,) deg}}`` and
+    ``map`` (the movement analysis profile, :class:`MovementProfile`).
     """
 
     status: str
-    tasks: dict[str, Any] | None = None
-    events: dict[str, Any] | None = None
-    strides: dict[str, Any] | None = None
+    tasks: dict[str, TaskBlock] | None = None
+    events: dict[str, GaitEvents] | None = None
+    strides: StrideTable | None = None
     summary: GaitSummary | None = None
     walking_speed: str | None = None
-    pelvis: dict[str, Any] | None = None
+    pelvis: GaitPelvis | None = None
     curves: dict[str, Any] | None = None
     map: MovementProfile | None = None
     more: dict[str, Any] = field(default_factory=dict)
 
     def to_tree(self) -> dict[str, Any]:
-        """The gait's tree, its summary a subtree."""
+        """The gait's tree, each record a subtree."""
         tree = super().to_tree()
-        if self.summary is not None:
-            tree["summary"] = self.summary.to_tree()
-        if self.map is not None:
-            tree["map"] = self.map.to_tree()
+        for name in ("strides", "summary", "pelvis", "map"):
+            if name in tree:
+                tree[name] = tree[name].to_tree()
+        for name in ("tasks", "events"):
+            if name in tree:
+                tree[name] = _tree(tree[name])
         return tree
 
     @classmethod
     def from_tree(cls, tree: dict[str, Any]) -> Gait:
         """The gait of a stored tree (see :meth:`to_tree`)."""
         gait = super().from_tree(tree)
-        if isinstance(gait.summary, dict):
-            gait.summary = GaitSummary.from_tree(gait.summary)
-        if isinstance(gait.map, dict):
-            gait.map = MovementProfile.from_tree(gait.map)
+        gait.tasks = _map(gait.tasks, TaskBlock.from_tree)
+        gait.events = _map(gait.events, GaitEvents.from_tree)
+        for name, kind in (("strides", StrideTable), ("summary", GaitSummary),
+                           ("pelvis", GaitPelvis), ("map", MovementProfile)):  # fmt: skip
+            value = getattr(gait, name)
+            if value is not None:
+                setattr(gait, name, kind.from_tree(_group(value)))
         return gait
 
     @property

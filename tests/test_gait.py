@@ -135,14 +135,14 @@ def test_spatiotemporal_formulas_on_hand_made_events():
     for s, ic, fc in (("r", ic_r, fc_r), ("l", ic_l, fc_l)):
         ev = ge.SideEvents(ic, np.ones(10), fc, np.ones(10), ic, np.ones(10))
         sides[s] = ge.strides(s, ev)
-        events[s] = {"ic": ic, "fc": fc}
+        events[s] = ev
     table = sp.stride_table(sides, events)
     summ = sp.summary(table)
     r, left = summ.sides["r"], summ.sides["l"]
-    assert r["stance_pct"]["mean"] == pytest.approx(65)
-    assert left["stance_pct"]["mean"] == pytest.approx(60)
-    assert r["step_time_s"]["mean"] == pytest.approx(0.55)
-    assert left["step_time_s"]["mean"] == pytest.approx(0.45)
+    assert r["stance_pct"].mean == pytest.approx(65)
+    assert left["stance_pct"].mean == pytest.approx(60)
+    assert r["step_time_s"].mean == pytest.approx(0.55)
+    assert left["step_time_s"].mean == pytest.approx(0.45)
     assert summ.step_time_asymmetry_pct == pytest.approx(20.0)
     assert summ.cadence_steps_per_min == pytest.approx(120.0)
     # right stride: initial DS = left FC (0.05 after the previous left IC ... ) - right IC
@@ -178,7 +178,7 @@ def test_step_stride_length_and_speed_in_the_stride_table():
         fc = ic + 0.62
         ev = ge.SideEvents(ic, np.ones(8), fc, np.ones(8), ic, np.ones(8))
         sides[s] = ge.strides(s, ev)
-        events[s] = {"ic": ic, "fc": fc}
+        events[s] = ev
     table = sp.stride_table(sides, events, reach)
     assert table["step_length_m"].to_numpy() == pytest.approx(0.75)
     assert table["stride_length_m"].dropna().to_numpy() == pytest.approx(1.5)
@@ -207,8 +207,8 @@ def test_simulated_walk_end_to_end_events_and_stride_length():
     g = analyse_gait(session, proto)
     G = truth.gait
     for s in "rl":
-        for ev, limit in (("ic", 0.02), ("fc", 0.015)):
-            det, true = g.events[s][ev], G[f"{ev}_{s}"][G[f"{ev}_{s}_steady"]]
+        for ev, det, limit in (("ic", g.events[s].ic, 0.02), ("fc", g.events[s].fc, 0.015)):
+            true = G[f"{ev}_{s}"][G[f"{ev}_{s}_steady"]]
             err = [abs(det - x).min() for x in true]
             assert len(err) >= 15 and np.median(err) < limit, (s, ev, np.median(err))
     h = session.metadata["subject"]["height_m"]
@@ -219,12 +219,12 @@ def test_simulated_walk_end_to_end_events_and_stride_length():
     ic_r, ic_l = G["ic_r"][G["ic_r_steady"]], G["ic_l"]
     true_len = [sp._step(reach, "l", ic_l[(ic_l > a) & (ic_l < b)][0]) + sp._step(reach, "r", b)
                 for a, b in zip(ic_r[:-1], ic_r[1:], strict=True)]  # fmt: skip
-    kept = g.strides["kept"] & (g.strides["side"] == "r")
-    measured = np.nanmean(g.strides["stride_length_m"][kept])
+    kept = g.strides.kept & (g.strides.side == "r")
+    measured = np.nanmean(g.strides.stride_length_m[kept])
     assert kept.sum() >= 8
     assert measured == pytest.approx(np.mean(true_len), rel=0.02)
     assert g.summary.walking_speed_m_s == pytest.approx(
-        measured / np.nanmean(g.strides["stride_time_s"][kept]), rel=0.02
+        measured / np.nanmean(g.strides.stride_time_s[kept]), rel=0.02
     )
 
 
@@ -293,7 +293,7 @@ def _hand_table(reject_left: int | None = None):
     for s, ic in (("r", ic_r), ("l", ic_l)):
         ev = ge.SideEvents(ic, np.ones(10), ic + 0.62, np.ones(10), ic, np.ones(10))
         sides[s] = ge.strides(s, ev)
-        events[s] = {"ic": ic, "fc": ic + 0.62}
+        events[s] = ev
     if reject_left is not None:
         sides["l"].kept[reject_left] = False
     return sp.stride_table(sides, events)
@@ -317,8 +317,8 @@ def test_no_summary_number_from_fewer_than_three_strides():
     keep = table.groupby("side").cumcount() < 2  # two strides per side
     table.loc[~keep, "kept"] = False
     summ = sp.summary(table)
-    assert np.isnan(summ.sides["r"]["stride_time_s"]["mean"])
-    assert summ.sides["r"]["stride_time_s"]["strides_n"] == 2
+    assert np.isnan(summ.sides["r"]["stride_time_s"].mean)
+    assert summ.sides["r"]["stride_time_s"].strides_n == 2
     assert np.isnan(summ.step_time_asymmetry_pct) and np.isnan(summ.cadence_steps_per_min)
     assert summ.withheld["stride_time_cv_pct"] == (
         "not enough steady strides (2 of 3 needed) on one side"

@@ -47,11 +47,14 @@ def test_cross_talk_against_nominal():
         "knee_r_rotation_deg": 0.1 * flex,
     }
     m = oop.cross_talk(table, nominal, KNEE_R, 0, slice(None))
-    assert m["on_axis"] == "flexion" and m["on_axis_rom_deg"] == pytest.approx(80)
-    assert m["adduction"]["rom_deg"] == pytest.approx(4)
-    assert m["adduction"]["ratio_pct"] == pytest.approx(5)
-    assert m["adduction"]["change_pct"] == pytest.approx(-75)
-    assert m["rotation"]["change_pct"] == pytest.approx(0)
+    assert m.on_axis == "flexion" and m.on_axis_rom_deg == pytest.approx(80)
+    assert list(m.off_axis) == ["adduction", "rotation"]
+    assert m.off_axis["adduction"].rom_deg == pytest.approx(4)
+    assert m.off_axis["adduction"].ratio_pct == pytest.approx(5)
+    assert m.off_axis["adduction"].change_pct == pytest.approx(-75)
+    assert m.off_axis["rotation"].change_pct == pytest.approx(0)
+    bare = oop.cross_talk(table, None, KNEE_R, 0, slice(None)).off_axis["adduction"]
+    assert bare.nominal_rom_deg is None and "change_pct" not in bare.to_tree()
 
 
 def test_axis_angles_and_out_of_plane_offset():
@@ -64,14 +67,14 @@ def test_axis_angles_and_out_of_plane_offset():
     assert np.allclose(ang[:, 1], np.degrees(theta)) and np.allclose(ang[:, 2], np.degrees(theta))
     c = Cycles(np.array([0]), np.array([199]), np.array([199]))
     m = oop.out_of_plane_offset(ang, np.zeros(3), 1, slice(None), c, 5.0)
-    assert m["axes"] == ["y", "z"] and m["peak_deg"] < 1e-6
+    assert m.axes == ["y", "z"] and m.peak_deg < 1e-6
     # add 8° of axial rotation: the y axis stays closer, the offset is out-of-plane motion
     twist = rot.from_axis_angle(np.array([0, 1.0, 0]), np.radians(np.linspace(0, 8, 200)))
     ang = oop.axis_angles(pelvis, rot.mul(thorax, twist))
     m = oop.out_of_plane_offset(ang, np.zeros(3), 1, slice(None), c, 0.5)
     z_angle = ang[-1, 2]
-    assert m["peak_deg"] == pytest.approx(abs(30 - z_angle), abs=1e-6)
-    assert z_angle > 30 and 0 < m["above_pct"] < 100
+    assert m.peak_deg == pytest.approx(abs(30 - z_angle), abs=1e-6)
+    assert z_angle > 30 and 0 < m.above_pct < 100
 
 
 def test_trunk_compensation_relative_to_neutral():
@@ -81,13 +84,13 @@ def test_trunk_compensation_relative_to_neutral():
     neutral = rot.from_axis_angle(Z, 0.7)  # any heading: the neutral posture is the reference
     q = rot.mul(np.tile(neutral, (len(t), 1)), compose(angles, "lumbar"))
     m = oop.trunk_compensation(t, q, slice(200, None), {"flexion": 10.0, "axial_rotation": 10.0})
-    assert m["flexion"]["max_deg"] == pytest.approx(15, abs=0.05)
-    assert m["axial_rotation"]["peak_abs_deg"] == pytest.approx(7.5, abs=0.05)
-    assert m["axial_rotation"]["above_pct"] == 0.0
+    assert m.per_angle["flexion"].max_deg == pytest.approx(15, abs=0.05)
+    assert m.per_angle["axial_rotation"].peak_abs_deg == pytest.approx(7.5, abs=0.05)
+    assert m.per_angle["axial_rotation"].above_pct == 0.0
     # time above 10° of a 15 sin² bump: 1 - 2 asin(sqrt(2/3)) / π of the 8 s
     expect = 100 * (1 - 2 * np.arcsin(np.sqrt(2 / 3)) / np.pi)
-    assert m["flexion"]["above_pct"] == pytest.approx(expect, abs=1.0)
-    assert m["compensated"] is True
+    assert m.per_angle["flexion"].above_pct == pytest.approx(expect, abs=1.0)
+    assert m.compensated is True
 
 
 def test_stance_metrics_varus_thrust():
@@ -97,12 +100,12 @@ def test_stance_metrics_varus_thrust():
     hs = np.array([0, 110, 220, 330])
     c = Cycles(hs[:-1], hs[:-1] + 66, hs[1:])
     m = oop.stance_metrics(add, rotation, c, 3.0)
-    assert m["strides"] == 3
-    assert np.allclose(m["varus_thrust_deg"], 4 * (1 - np.exp(-0.5 * 9)), atol=0.05)
-    assert m["varus_thrust_above_pct"] == 100.0
+    assert m.strides == 3
+    assert np.allclose(m.varus_thrust_deg, 4 * (1 - np.exp(-0.5 * 9)), atol=0.05)
+    assert m.varus_thrust_above_pct == 100.0
     # stance = the first 60 % of the stride: from the sine's maximum 3 down to 3 sin(216°)
     expect = 3 - 3 * np.sin(2 * np.pi * 0.6)
-    assert m["stance_rotation_range_mean_deg"] == pytest.approx(expect, abs=0.05)
+    assert m.stance_rotation_range_mean_deg == pytest.approx(expect, abs=0.05)
 
 
 def test_compute_metrics_on_a_lumbar_table_and_csv():
@@ -125,9 +128,9 @@ def test_compute_metrics_on_a_lumbar_table_and_csv():
     lat = m.joints["lateral_bending"]["lumbar_lateral_bending_deg"]
     assert lat.repetitions == 3 and lat.rom_deg == pytest.approx(40, abs=0.01)
     off = m.out_of_plane_offset["lateral_bending"]["lumbar"]
-    assert off["axes"] == ["y", "z"] and off["peak_deg"] < 1e-6
+    assert off.axes == ["y", "z"] and off.peak_deg < 1e-6
     ct = m.cross_talk["lateral_bending"]["lumbar"]
-    assert ct["on_axis"] == "lateral_bending" and ct["flexion"]["rom_deg"] == 0
+    assert ct.on_axis == "lateral_bending" and ct.off_axis["flexion"].rom_deg == 0
     blocks_found = single_plane_blocks(protocol, blocks, steps)
     assert [(b, j.name, i) for b, j, i, _ in blocks_found] == [("lateral_bending", "lumbar", 1)]
     df = metrics_table(m)

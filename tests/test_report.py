@@ -19,6 +19,7 @@ from motionlab.results import (
     SegmentCalibration,
     SegmentQuality,
     SegmentRecord,
+    StanceMetrics,
     TaskBlock,
 )
 from motionlab.session import Session
@@ -54,16 +55,17 @@ def _view(right: tuple, left: tuple) -> SessionView:
         joints={"gait": joints},
         gait={
             "gait": {
-                "knee_r": {
-                    "strides": 12,
-                    "varus_thrust_deg": np.full(12, 6.0),
-                    "varus_thrust_mean_deg": 6.0,
-                    "varus_thrust_sd_deg": 0.5,
-                    "varus_thrust_above_pct": 100.0,
-                    "threshold_deg": 3.0,
-                    "stance_rotation_range_mean_deg": 8.0,
-                    "stance_rotation_range_sd_deg": 1.0,
-                }
+                "knee_r": StanceMetrics(
+                    strides=12,
+                    varus_thrust_deg=np.full(12, 6.0),
+                    varus_thrust_mean_deg=6.0,
+                    varus_thrust_sd_deg=0.5,
+                    varus_thrust_above_pct=100.0,
+                    threshold_deg=3.0,
+                    stance_rotation_range_deg=np.full(12, 8.0),
+                    stance_rotation_range_mean_deg=8.0,
+                    stance_rotation_range_sd_deg=1.0,
+                )
             }
         },
     )

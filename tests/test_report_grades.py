@@ -27,6 +27,7 @@ from motionlab.protocol import load_protocol
 from motionlab.report.model import grade_rows, load_view, segment_grade
 from motionlab.report.pdf import FLAG_COLOUR, RC, Document
 from motionlab.report.sentences import angle_words, findings
+from motionlab.results import StrideTable
 
 MIN = 3  # steady strides per side (and paired steps) before a number is given
 HUMAN = SHARED / "datasets" / "human"
@@ -86,13 +87,13 @@ def _pelvis_nominal(session):
 # --------------------------------------------------------------------------------- the check
 
 
-def _paired_steps(strides: dict) -> int:
+def _paired_steps(strides: StrideTable) -> int:
     """Pairs of consecutive steps (onto the right, then onto the left) inside one steady bout,
     counted from the stride table's events alone: every stride that bounds a step is kept."""
-    side = np.asarray(strides["side"], str)
-    start = np.asarray(strides["start_s"], float)
-    kept = np.asarray(strides["kept"], bool)
-    stride = np.asarray(strides["stride_time_s"], float)
+    side = np.asarray(strides.side, str)
+    start = np.asarray(strides.start_s, float)
+    kept = np.asarray(strides.kept, bool)
+    stride = np.asarray(strides.stride_time_s, float)
     end = start + stride
 
     def bout(s: str, t: float) -> bool:
@@ -214,8 +215,8 @@ def problems(session, joints: bool = True) -> list[str]:
         # 3. GPS only when every variable is determined and each side has enough strides
         grades = _variable_grades(view)
         weak = sorted(k for k, v in grades.items() if v != "determined")
-        kept = np.asarray(g.strides["kept"], bool)
-        side = np.asarray(g.strides["side"], str)
+        kept = np.asarray(g.strides.kept, bool)
+        side = np.asarray(g.strides.side, str)
         few = [s for s in "rl" if np.sum(kept & (side == s)) < MIN]
         if (weak or few) and GPS_NUMBER.search(text):
             out.append(f"GPS printed with {weak or few} not determined or too few strides")
@@ -288,16 +289,16 @@ def test_pelvis_not_calibrated(walk):
 
 def test_two_strides_only(walk):
     kept = walk.results.gait.strides
-    start = np.asarray(kept["start_s"])[np.asarray(kept["kept"], bool)]
+    start = np.asarray(kept.start_s)[np.asarray(kept.kept, bool)]
     ses = _regait(walk, start[0] - 0.3, start[0] + 2.6)
     g = ses.results.gait
-    assert g.ok and 0 < np.sum(g.strides["kept"]) <= 2 * (MIN - 1)
+    assert g.ok and 0 < np.sum(g.strides.kept) <= 2 * (MIN - 1)
     assert problems(ses, joints=False) == []
 
 
 def test_one_turn(walk):
     strides = walk.results.gait.strides
-    turn = np.asarray(strides["start_s"])[np.asarray(strides["reason"], str) == "turn"]
+    turn = np.asarray(strides.start_s)[np.asarray(strides.reason, str) == "turn"]
     ses = _regait(walk, turn[0] - 6.0, turn[0] + 6.0)
     assert problems(ses, joints=False) == []
 

@@ -23,8 +23,11 @@ from motionlab.results import (
     CentreHeading,
     ClockFit,
     ClockSync,
+    CrossTalk,
     FusionEntry,
     Gait,
+    GaitEvents,
+    GaitPelvis,
     GaitSummary,
     HeadingCorrection,
     HeadingTie,
@@ -34,9 +37,11 @@ from motionlab.results import (
     JointGrades,
     Metrics,
     MovementProfile,
+    OffAxisRange,
     OpticalSegmentInfo,
     OpticalSync,
     OrientationErrors,
+    OutOfPlaneOffset,
     RepetitionAgreement,
     Results,
     SegmentCalibration,
@@ -44,7 +49,12 @@ from motionlab.results import (
     SegmentRecord,
     SensorOrientationError,
     SpatialAlignment,
+    StanceMetrics,
+    StrideStats,
+    StrideTable,
     TaskBlock,
+    TrunkAngleStats,
+    TrunkCompensation,
     TrunkMovement,
     TwoAxisFit,
     Validation,
@@ -60,6 +70,8 @@ RECORDS = (
     RomRow, SymmetryRow, QualityRow, CalibrationRow, TaskBlock, GaitSummary, MovementProfile,
     AlignmentRotation, SpatialAlignment, OpticalSegmentInfo, SensorOrientationError,
     OrientationErrors, RepetitionAgreement, AngleAgreement, AngleAgreements, ValidationReference,
+    StanceMetrics, OutOfPlaneOffset, TrunkAngleStats, TrunkCompensation, OffAxisRange,
+    CrossTalk, StrideStats, GaitEvents, StrideTable, GaitPelvis,
 )  # fmt: skip
 
 
@@ -370,7 +382,7 @@ def test_a_gait_summary_and_profile_stored_as_dicts_load_and_are_stored_the_same
     gait = Gait.from_tree({"status": "ok", "summary": summ, "map": mp})
     s = gait.summary
     assert isinstance(s, GaitSummary) and s.step_pairs == 7 and s.strides_rejected == {"turn": 2}
-    assert s.sides["r"]["stride_time_s"]["strides_n"] == 8 and s.more == {"future_g": 1}
+    assert s.sides["r"]["stride_time_s"].strides_n == 8 and s.more == {"future_g": 1}
     assert gait.to_tree()["summary"] == summ
     assert isinstance(gait.map, MovementProfile) and gait.map.withheld == mp["withheld"]
     assert json.dumps(gait.to_tree()["map"]) == json.dumps(mp)  # NaN as NaN
@@ -476,3 +488,156 @@ def test_a_validation_stored_as_dicts_loads_typed_and_is_stored_the_same(tmp_pat
     bare = Validation.from_tree({"mode": "full"})
     assert bare.to_tree()["orientation"] == {} and bare.to_tree()["reference"] == {}
     assert bare.angles is None and "angles" not in bare.to_tree()
+
+
+def _stored_again(tmp_path, stage: str, tree: dict) -> tuple[dict, dict, object]:
+    """``(tree read from a file holding ``tree`` as ``/results/<stage>``, the tree read after
+    loading and saving that file, the loaded result)``."""
+    from motionlab.session import _read_tree, _write_tree
+
+    path = tmp_path / f"old_{stage}.h5"
+    save_session(Session(), path)
+    with h5py.File(path, "r+") as f:
+        _write_tree(f.require_group("results").create_group(stage, track_order=True), tree)
+    loaded = load_session(path)
+    save_session(loaded, tmp_path / f"again_{stage}.h5")
+    with h5py.File(path) as f:
+        stored = _read_tree(f[f"results/{stage}"])
+    with h5py.File(tmp_path / f"again_{stage}.h5") as f:
+        again = _read_tree(f[f"results/{stage}"])
+    return stored, again, getattr(loaded.results, stage)
+
+
+def _same(a: dict, b: dict) -> bool:
+    """The same keys in the same order with the same values (NaN equal to NaN)."""
+    return json.dumps(a, default=repr) == json.dumps(b, default=repr)
+
+
+def test_out_of_plane_metrics_stored_as_dicts_load_typed_and_are_stored_the_same(tmp_path):
+    """``metrics.gait``, ``out_of_plane_offset``, ``trunk_compensation`` and ``cross_talk``
+    entries are :class:`StanceMetrics`, :class:`OutOfPlaneOffset`, :class:`TrunkCompensation`
+    (its angles :class:`TrunkAngleStats`) and :class:`CrossTalk` (its off-axis angles
+    :class:`OffAxisRange`); the dicts the file held before load, a newer key is kept, and the
+    file written back holds the same keys in the same order."""
+    stance = {"strides": 2, "varus_thrust_deg": np.array([2.5, 3.5]),
+              "varus_thrust_mean_deg": 3.0, "varus_thrust_sd_deg": 0.7071,
+              "varus_thrust_above_pct": 50.0, "threshold_deg": 3.0,
+              "stance_rotation_range_deg": np.array([8.0, 9.0]),
+              "stance_rotation_range_mean_deg": 8.5, "stance_rotation_range_sd_deg": 0.7071,
+              "heel_strike_s": np.array([1.0, 2.1]), "toe_off_s": np.array([1.6, 2.7]),
+              "future_s": 1}  # fmt: skip
+    offset = {"axes": ["y", "z"], "peak_deg": 4.0, "mean_deg": 1.5, "above_pct": 0.0,
+              "threshold_deg": 5.0, "repetition_peak_deg": np.array([3.0, 4.0]),
+              "offset_deg": np.linspace(0.0, 4.0, 50)}  # fmt: skip
+    angle = {"max_deg": 15.0, "min_deg": -1.0, "peak_abs_deg": 15.0, "above_pct": 20.0,
+             "threshold_deg": 10.0}  # fmt: skip
+    trunk = {"flexion": angle, "lateral_bending": angle | {"threshold_deg": np.inf},
+             "axial_rotation": angle | {"future_a": "kept"}, "compensated": True,
+             "angles_deg": np.zeros((40, 3)), "future_t": [1, 2]}  # fmt: skip
+    cross = {"on_axis": "flexion", "on_axis_rom_deg": 80.0,
+             "adduction": {"rom_deg": 4.0, "ratio_pct": 5.0, "nominal_rom_deg": 16.0,
+                           "change_pct": -75.0},
+             "rotation": {"rom_deg": 8.0, "ratio_pct": 10.0}}  # fmt: skip
+    tree = {"protocol": "knee", "joints": {}, "blocks": {},
+            "gait": {"gait": {"knee_r": stance}},
+            "out_of_plane_offset": {"bend": {"lumbar": offset}},
+            "trunk_compensation": {"bend": trunk},
+            "cross_talk": {"knee_flexion_r": {"knee_r": cross}}}  # fmt: skip
+    stored, again, m = _stored_again(tmp_path, "metrics", tree)
+    g = m.gait["gait"]["knee_r"]
+    assert isinstance(g, StanceMetrics) and g.strides == 2 and g.more == {"future_s": 1}
+    np.testing.assert_array_equal(g.toe_off_s, [1.6, 2.7])
+    o = m.out_of_plane_offset["bend"]["lumbar"]
+    assert isinstance(o, OutOfPlaneOffset) and o.axes == ["y", "z"] and o.peak_deg == 4.0
+    t = m.trunk_compensation["bend"]
+    assert isinstance(t, TrunkCompensation) and t.compensated and t.more == {"future_t": [1, 2]}
+    assert list(t.per_angle) == ["flexion", "lateral_bending", "axial_rotation"]
+    assert t.per_angle["lateral_bending"].threshold_deg == np.inf
+    assert t.per_angle["axial_rotation"].more == {"future_a": "kept"}
+    c = m.cross_talk["knee_flexion_r"]["knee_r"]
+    assert (
+        isinstance(c, CrossTalk)
+        and c.on_axis == "flexion"
+        and list(c.off_axis)
+        == [
+            "adduction",
+            "rotation",
+        ]
+    )
+    assert c.off_axis["adduction"].change_pct == -75.0
+    assert c.off_axis["rotation"].nominal_rom_deg is None
+    assert _same(again, stored)
+
+
+def test_gait_events_strides_pelvis_and_side_statistics_load_typed_and_are_stored_the_same(
+    tmp_path,
+):
+    """``gait.tasks`` are :class:`TaskBlock`, ``events`` :class:`GaitEvents`, ``strides`` a
+    :class:`StrideTable`, ``pelvis`` a :class:`GaitPelvis` and a side's column statistics
+    :class:`StrideStats`; the dicts the file held before load (a file from before the median,
+    the standard error and ``strides_n`` too) and are written back as they were."""
+    n = 4
+    stats = {"mean": 1.1, "sd": 0.05, "cv_pct": 4.5, "se": 0.02, "median": 1.1, "q1": 1.05,
+             "q3": 1.15, "strides_n": n}  # fmt: skip
+    oldest = {"mean": 1.1, "sd": 0.05, "cv_pct": 4.5, "n": n}  # the first gait summaries
+    strides = {"start_s": np.arange(n, dtype=float), "kept": np.array([True, True, False, True]),
+               "stride_time_s": np.full(n, 1.1), "cadence_steps_per_min": np.full(n, 109.0),
+               "side": np.array(["r", "l", "r", "l"]),
+               "reason": np.array(["", "", "turn", ""])}  # fmt: skip
+    events = {"ic": np.array([0.0, 1.1]), "ic_confidence": np.ones(2),
+              "fc": np.array([0.7, 1.8]), "fc_confidence": np.ones(2)}  # fmt: skip
+    summary = {
+        "sides": {"r": {"stride_time_s": stats}, "l": {"stride_time_s": oldest}},
+        "min_strides": 3,
+        "cadence_steps_per_min": 109.0,
+        "step_pairs": 1,
+        "step_time_asymmetry_pct": np.nan,
+        "step_time_asymmetry_se_pct": np.nan,
+        "stride_time_cv_pct": 3.0,
+        "stride_time_cv_se_pct": 0.8,
+        "walking_speed_m_s": np.nan,
+        "strides_kept": 3,
+        "strides_rejected": {"turn": 1},
+        "withheld": {"step_time_asymmetry_pct": "not enough paired steady steps"},
+    }
+    pelvis = {"time_s": np.arange(5) / 100, "pelvis_tilt_deg": np.ones(5),
+              "pelvis_obliquity_deg": np.zeros(5), "pelvis_rotation_deg": -np.ones(5),
+              "method": "pelvis frame from the calibration"}  # fmt: skip
+    tree = {"status": "ok", "tasks": {"walk": {"start_s": 0.5, "end_s": 30.0}},
+            "events": {"r": events, "l": events},
+            "strides": strides, "summary": summary,
+            "walking_speed": "not measured", "pelvis": pelvis}  # fmt: skip
+    stored, again, g = _stored_again(tmp_path, "gait", tree)
+    assert isinstance(g.tasks["walk"], TaskBlock) and g.tasks["walk"].end_s == 30.0
+    assert isinstance(g.events["r"], GaitEvents)
+    np.testing.assert_array_equal(g.events["l"].fc, [0.7, 1.8])
+    assert isinstance(g.strides, StrideTable) and g.strides.step_length_m is None
+    assert list(g.strides.side) == ["r", "l", "r", "l"] and g.strides.kept.sum() == 3
+    assert list(g.strides.frame().columns) == list(strides)
+    assert isinstance(g.pelvis, GaitPelvis) and g.pelvis.angles_deg().shape == (5, 3)
+    r, left = g.summary.sides["r"]["stride_time_s"], g.summary.sides["l"]["stride_time_s"]
+    assert isinstance(r, StrideStats) and r.strides_n == n and r.q3 == 1.15
+    assert left.strides_n is None and left.se is None and left.more == {"n": n}
+    assert _same(again, stored)
+
+
+@pytest.mark.parametrize(
+    ("stage", "tree"),
+    [
+        ("metrics", {"protocol": "knee", "gait": 5}),
+        ("metrics", {"protocol": "knee", "cross_talk": {"squat": {"knee_r": [1.0]}}}),
+        ("gait", {"status": "ok", "strides": 3}),
+        ("gait", {"status": "ok", "events": {"r": "ic"}}),
+    ],
+)
+def test_a_damaged_leaf_record_is_refused_with_an_input_error(tmp_path, stage, tree):
+    """A group the records expect stored as a value (a damaged file) is a one-line error."""
+    from motionlab.errors import InputError
+    from motionlab.session import _write_tree
+
+    path = tmp_path / "bad.h5"
+    save_session(Session(), path)
+    with h5py.File(path, "r+") as f:
+        _write_tree(f.require_group("results").create_group(stage), tree)
+    with pytest.raises(InputError, match="does not hold stage results"):
+        load_session(path)

@@ -222,7 +222,7 @@ def test_metrics_agree_with_the_truth(knee):
     assert squat.cycle_max_mean_deg == pytest.approx(true_flex.max(), abs=1.0)
     gait = m.gait["gait"]["knee_r"]
     # 0.9 strides/s over 33 s, less the speed ramps at both ends
-    assert 22 <= gait["strides"] <= 30
+    assert 22 <= gait.strides <= 30
     stride_s = np.diff(m.joints["gait"]["knee_r_flexion_deg"].cycle_start_s)
     assert np.median(stride_s) == pytest.approx(1 / 0.9, abs=0.02)
     # thrust and stance rotation against the same stances (heel strike → toe-off) of the truth
@@ -230,19 +230,19 @@ def test_metrics_agree_with_the_truth(knee):
     add = truth.joint_angles["knee_r_adduction_deg"]
     rotation = truth.joint_angles["knee_r_rotation_deg"]
     thrust, rot_range = [], []
-    for hs, to in zip(gait["heel_strike_s"], gait["toe_off_s"], strict=True):
+    for hs, to in zip(gait.heel_strike_s, gait.toe_off_s, strict=True):
         stance = (t >= hs) & (t <= to)
         thrust.append(add[stance].max() - add[stance][0])
         rot_range.append(np.ptp(rotation[stance]))
     # the calibrated adduction carries ~3 % of the flexion (≈1° over the 33° a stance adds from
     # heel strike to toe-off; 0.4-1.1° here)
-    assert np.abs(gait["varus_thrust_deg"] - thrust).max() < 2.0
-    assert np.abs(gait["stance_rotation_range_deg"] - rot_range).max() < 1.0
+    assert np.abs(gait.varus_thrust_deg - thrust).max() < 2.0
+    assert np.abs(gait.stance_rotation_range_deg - rot_range).max() < 1.0
     # stance share of the stride (the simulated shank has no heel-strike impact: about 40 %)
-    assert 0.35 < np.median((gait["toe_off_s"] - gait["heel_strike_s"]) * 0.9) < 0.65
+    assert 0.35 < np.median((gait.toe_off_s - gait.heel_strike_s) * 0.9) < 0.65
     ct = m.cross_talk["knee_flexion_r"]["knee_r"]
-    assert ct["on_axis"] == "flexion" and ct["on_axis_rom_deg"] > 60
-    assert ct["adduction"]["rom_deg"] < ct["adduction"]["nominal_rom_deg"]
+    assert ct.on_axis == "flexion" and ct.on_axis_rom_deg > 60
+    assert ct.off_axis["adduction"].rom_deg < ct.off_axis["adduction"].nominal_rom_deg
 
 
 def test_elbow_forearm_frame_keeps_the_carrying_angle(elbow):

@@ -16,8 +16,6 @@ A session without a gait task, without shank sensors or without strides gives
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from motionlab import rotations as rot
@@ -41,7 +39,14 @@ from motionlab.kinematics.pelvis import (
 )
 from motionlab.kinematics.session_angles import session_segments
 from motionlab.protocol import Protocol
-from motionlab.results import Gait, SegmentCalibration
+from motionlab.results import (
+    Gait,
+    GaitEvents,
+    GaitPelvis,
+    SegmentCalibration,
+    StrideTable,
+    TaskBlock,
+)
 from motionlab.segments.sensors import sensor_orientation
 from motionlab.session import Session
 
@@ -122,26 +127,22 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
             np.concatenate([p.kept for p in parts]),
             [r for p in parts for r in p.reason],
         )
-        events[side] = {
-            "ic": ev.ic,
-            "ic_confidence": ev.ic_confidence,
-            "fc": ev.fc,
-            "fc_confidence": ev.fc_confidence,
-        }
+        events[side] = GaitEvents(ev.ic, ev.ic_confidence, ev.fc, ev.fc_confidence)
     reach, speed_note = _leg_reach(session, protocol, cal)
     table = sp.stride_table(strides, events, reach)
     if not table["kept"].any():
         return Gait("no gait: no stride passed the checks", events=events)
-    summary = sp.summary(table)
-    out: dict[str, Any] = {
-        "status": "ok",
-        "tasks": {k: {"start_s": a, "end_s": b} for k, (a, b) in spans.items()},
-        "events": events,
-        "strides": {c: table[c].to_numpy() for c in table.columns if c not in ("side", "reason")}
-        | {"side": table["side"].to_numpy(str), "reason": table["reason"].to_numpy(str)},
-        "summary": summary,
-        "walking_speed": speed_note,
-    }
+    columns = {c: table[c].to_numpy() for c in table.columns if c not in ("side", "reason")}
+    out = Gait(
+        "ok",
+        tasks={k: TaskBlock(a, b) for k, (a, b) in spans.items()},
+        events=events,
+        strides=StrideTable(
+            **columns, side=table["side"].to_numpy(str), reason=table["reason"].to_numpy(str)
+        ),
+        summary=sp.summary(table),
+        walking_speed=speed_note,
+    )
     angles = session.results.angles
     series: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     if angles is not None:
@@ -156,11 +157,14 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
         stride_s = float(table.loc[table["kept"], "stride_time_s"].median())
         heading = walking_heading(q_p, rate, stride_s)
         pel = np.degrees(pelvis_angles(q_p, heading))
-        out["pelvis"] = {"time_s": t_p} | {c: pel[:, i] for i, c in enumerate(PELVIS_COLUMNS)}
-        out["pelvis"]["method"] = (
-            "pelvis frame from the calibration (gravity in the stand; forward from the placement "
-            "hint, or from the walk's turns where the hint is contradicted); walking direction = "
-            "pelvis heading averaged over one stride"
+        out.pelvis = GaitPelvis(
+            t_p,
+            *(pel[:, i] for i in range(len(PELVIS_COLUMNS))),
+            method=(
+                "pelvis frame from the calibration (gravity in the stand; forward from the "
+                "placement hint, or from the walk's turns where the hint is contradicted); "
+                "walking direction = pelvis heading averaged over one stride"
+            ),
         )
     curves: dict[str, dict[str, np.ndarray]] = {}
     for side, st in strides.items():
@@ -171,11 +175,10 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
             col = f"{joint}_{side}_{angle}_deg"
             if col in series:
                 var_series[v] = series[col]
-        if "pelvis" in out:
-            pel = np.column_stack([out["pelvis"][c] for c in PELVIS_COLUMNS])
-            pel = side_angles(pel, side)
+        if out.pelvis is not None:
+            pel = side_angles(out.pelvis.angles_deg(), side)
             for i, v in enumerate(PELVIS):
-                var_series[v] = (out["pelvis"]["time_s"], pel[:, i])
+                var_series[v] = (out.pelvis.time_s, pel[:, i])
         curves[side] = {}
         for v, (t, x) in var_series.items():
             cyc = np.array([_curve(t, x, a, b) for a, b in zip(st.ic[keep], st.next_ic[keep],
@@ -185,10 +188,10 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
                 curves[side][f"{v}_sd"] = (
                     np.nanstd(cyc, axis=0, ddof=1) if len(cyc) > 1 else (np.zeros(CURVE_POINTS))
                 )
-    out["curves"] = curves
+    out.curves = curves
     means = {s: {k: v for k, v in c.items() if not k.endswith("_sd")} for s, c in curves.items()}
     kept_n = {side: int(np.sum(st.kept)) for side, st in strides.items()}
-    out["map"] = gated_profile(
+    out.map = gated_profile(
         movement_analysis_profile(means), variable_grades(protocol, cal), kept_n
     )
-    return Gait(**out)
+    return out

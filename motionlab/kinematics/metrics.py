@@ -40,7 +40,16 @@ from motionlab.kinematics import out_of_plane as oop
 from motionlab.kinematics.joint_types import angle_columns, split_column
 from motionlab.kinematics.session_angles import angle_table, nominal_calibration
 from motionlab.protocol import Joint, Protocol, Task
-from motionlab.results import AngleMetrics, Metrics, SegmentCalibration, TaskBlock
+from motionlab.results import (
+    AngleMetrics,
+    CrossTalk,
+    Metrics,
+    OutOfPlaneOffset,
+    SegmentCalibration,
+    StanceMetrics,
+    TaskBlock,
+    TrunkCompensation,
+)
 from motionlab.segments import (
     reference_step,
     segment_orientations,
@@ -154,7 +163,11 @@ def compute_metrics(
     todo = wanted(protocol)
     th = protocol.thresholds
     tasks = {t.name: t for t in protocol.tasks}
-    out: dict[str, Any] = {"protocol": protocol.name, "joints": {}}
+    joints: dict[str, dict[str, AngleMetrics]] = {}
+    stance: dict[str, dict[str, StanceMetrics]] = {}
+    offset: dict[str, dict[str, OutOfPlaneOffset]] = {}
+    trunk: dict[str, TrunkCompensation] = {}
+    cross: dict[str, dict[str, CrossTalk]] = {}
     for name, (t0, t1) in blocks.items():
         task, win = tasks.get(name), _window(time, t0, t1)
         if win.stop - win.start < 3:
@@ -172,15 +185,17 @@ def compute_metrics(
                 hs, to = cyc.gait_events(np.interp(time[win], tw, w), rate)
                 cycles = cyc.strides(hs, to, rate)
                 if "varus_thrust" in todo:
-                    stance = oop.stance_metrics(
+                    found = oop.stance_metrics(
                         table[cols[1]][win],
                         table[cols[2]][win],
                         cycles,
                         float(th.get("varus_thrust_deg", 3.0)),
                     )
-                    stance["heel_strike_s"] = time[win][cycles.start]
-                    stance["toe_off_s"] = time[win][cycles.peak]
-                    out.setdefault("gait", {}).setdefault(name, {})[joint.name] = stance
+                    stance.setdefault(name, {})[joint.name] = replace(
+                        found,
+                        heel_strike_s=time[win][cycles.start],
+                        toe_off_s=time[win][cycles.peak],
+                    )
             elif task is None and name in steps:
                 cycles = cyc.Cycles.empty()  # a calibration movement in any order: no cycles
             else:
@@ -193,25 +208,32 @@ def compute_metrics(
             if joint.type == "lumbar" and "out_of_plane_offset" in todo and task is not None:
                 plane = task.options.get("plane")
                 if plane and oop.plane_index("lumbar", str(plane)) is not None:
-                    out.setdefault("out_of_plane_offset", {}).setdefault(name, {})[joint.name] = (
-                        _offset(protocol, joint, seg_q, time, win, steps, str(plane), cycles, th)
+                    offset.setdefault(name, {})[joint.name] = _offset(
+                        protocol, joint, seg_q, time, win, steps, str(plane), cycles, th
                     )
-        out["joints"][name] = per_col
+        joints[name] = per_col
         if "trunk_compensation" in todo and THORAX in seg_q:
             tq, q = seg_q[THORAX]
-            out.setdefault("trunk_compensation", {})[name] = oop.trunk_compensation(
+            trunk[name] = oop.trunk_compensation(
                 tq, q, _window(tq, t0, t1), dict(th.get("trunk_compensation_deg", {}))
             )
     if "cross_talk" in todo:
         for block, joint, idx, (t0, t1) in single_plane_blocks(protocol, blocks, steps):
-            out.setdefault("cross_talk", {}).setdefault(block, {})[joint.name] = oop.cross_talk(
+            cross.setdefault(block, {})[joint.name] = oop.cross_talk(
                 table, nominal_table, joint, idx, _window(time, t0, t1)
             )
-    out["blocks"] = {k: TaskBlock(float(v[0]), float(v[1])) for k, v in blocks.items()}
-    return Metrics(**out)
+    return Metrics(
+        protocol.name,
+        joints=joints,
+        blocks={k: TaskBlock(float(v[0]), float(v[1])) for k, v in blocks.items()},
+        gait=stance or None,
+        out_of_plane_offset=offset or None,
+        trunk_compensation=trunk or None,
+        cross_talk=cross or None,
+    )
 
 
-def _offset(protocol, joint, seg_q, time, win, steps, plane, cycles, th) -> dict[str, Any]:
+def _offset(protocol, joint, seg_q, time, win, steps, plane, cycles, th) -> OutOfPlaneOffset:
     qp = rot.resample(*seg_q[joint.proximal], time)
     qd = rot.resample(*seg_q[joint.distal], time)
     axis_deg = oop.axis_angles(qp, qd)
@@ -334,29 +356,39 @@ def metrics_table(metrics: Metrics) -> pd.DataFrame:
                 add(block, joint, angle, "curve_mean_deg", mu, pct)
                 add(block, joint, angle, "curve_sd_deg", sd, pct)
     for block, joints in (metrics.cross_talk or {}).items():
-        for joint, m in joints.items():
-            add(block, joint, m["on_axis"], "cross_talk_on_axis_rom_deg", m["on_axis_rom_deg"])
-            for angle, e in m.items():
-                if isinstance(e, dict):
-                    for key, value in e.items():
-                        add(block, joint, angle, f"cross_talk_{key}", value)
+        for joint, c in joints.items():
+            add(block, joint, c.on_axis, "cross_talk_on_axis_rom_deg", c.on_axis_rom_deg)
+            for angle, e in c.off_axis.items():
+                add(block, joint, angle, "cross_talk_rom_deg", e.rom_deg)
+                add(block, joint, angle, "cross_talk_ratio_pct", e.ratio_pct)
+                if e.nominal_rom_deg is not None:
+                    add(block, joint, angle, "cross_talk_nominal_rom_deg", e.nominal_rom_deg)
+                if e.change_pct is not None:
+                    add(block, joint, angle, "cross_talk_change_pct", e.change_pct)
     for block, joints in (metrics.out_of_plane_offset or {}).items():
-        for joint, m in joints.items():
-            axes = "-".join(m["axes"])
-            for key in ("peak_deg", "mean_deg", "above_pct"):
-                add(block, joint, axes, f"out_of_plane_{key}", m[key])
-    for block, m in (metrics.trunk_compensation or {}).items():
+        for joint, o in joints.items():
+            axes = "-".join(o.axes)
+            add(block, joint, axes, "out_of_plane_peak_deg", o.peak_deg)
+            add(block, joint, axes, "out_of_plane_mean_deg", o.mean_deg)
+            add(block, joint, axes, "out_of_plane_above_pct", o.above_pct)
+    for block, t in (metrics.trunk_compensation or {}).items():
         for angle in oop.TRUNK_ANGLES:
-            for key in ("peak_abs_deg", "max_deg", "min_deg", "above_pct"):
-                add(block, "trunk", angle, f"trunk_{key}", m[angle][key])
-        add(block, "trunk", "", "compensated", m["compensated"])
+            a = t.per_angle[angle]
+            add(block, "trunk", angle, "trunk_peak_abs_deg", a.peak_abs_deg)
+            add(block, "trunk", angle, "trunk_max_deg", a.max_deg)
+            add(block, "trunk", angle, "trunk_min_deg", a.min_deg)
+            add(block, "trunk", angle, "trunk_above_pct", a.above_pct)
+        add(block, "trunk", "", "compensated", t.compensated)
     for block, joints in (metrics.gait or {}).items():
-        for joint, m in joints.items():
-            add(block, joint, "", "strides", m["strides"])
-            for key in ("varus_thrust_mean_deg", "varus_thrust_sd_deg", "varus_thrust_above_pct"):
-                add(block, joint, "adduction", key, m[key])
-            for key in ("stance_rotation_range_mean_deg", "stance_rotation_range_sd_deg"):
-                add(block, joint, "rotation", key, m[key])
+        for joint, g in joints.items():
+            add(block, joint, "", "strides", g.strides)
+            add(block, joint, "adduction", "varus_thrust_mean_deg", g.varus_thrust_mean_deg)
+            add(block, joint, "adduction", "varus_thrust_sd_deg", g.varus_thrust_sd_deg)
+            add(block, joint, "adduction", "varus_thrust_above_pct", g.varus_thrust_above_pct)
+            add(block, joint, "rotation", "stance_rotation_range_mean_deg",
+                g.stance_rotation_range_mean_deg)  # fmt: skip
+            add(block, joint, "rotation", "stance_rotation_range_sd_deg",
+                g.stance_rotation_range_sd_deg)  # fmt: skip
     return pd.DataFrame(
         rows, columns=["block", "joint", "angle", "metric", "percent", "value", "unit"]
     )

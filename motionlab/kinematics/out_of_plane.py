@@ -22,6 +22,7 @@ s; index windows are ``slice`` objects into the table's time base.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -35,6 +36,14 @@ from motionlab.kinematics.joint_types import (
     angle_names,
     joint_sequence,
     names_for,
+)
+from motionlab.results import (
+    CrossTalk,
+    OffAxisRange,
+    OutOfPlaneOffset,
+    StanceMetrics,
+    TrunkAngleStats,
+    TrunkCompensation,
 )
 
 _LUMBAR = JOINT_TYPES["lumbar"]
@@ -66,7 +75,7 @@ def cross_talk(
     joint,
     on_axis: int,
     window: slice,
-) -> dict[str, Any]:
+) -> CrossTalk:
     """Off-axis ranges during a single-plane movement of ``joint``, calibrated vs nominal.
 
     ``on_axis`` is the index of the moving plane; ``nominal`` the angle table computed with the
@@ -80,18 +89,18 @@ def cross_talk(
         return float(np.nanmax(v) - np.nanmin(v)) if np.isfinite(v).any() else float("nan")
 
     on = rom(angles, cols[on_axis])
-    out: dict[str, Any] = {"on_axis": names[on_axis], "on_axis_rom_deg": on}
+    off_axis = {}
     for i, (name, col) in enumerate(zip(names, cols, strict=True)):
         if i == on_axis:
             continue
         off = rom(angles, col)
-        entry = {"rom_deg": off, "ratio_pct": 100.0 * off / on if on > 0 else float("nan")}
+        entry = OffAxisRange(off, 100.0 * off / on if on > 0 else float("nan"))
         if nominal is not None:
             before = rom(nominal, col)
-            entry["nominal_rom_deg"] = before
-            entry["change_pct"] = 100.0 * (off - before) / before if before > 0 else float("nan")
-        out[name] = entry
-    return out
+            change = 100.0 * (off - before) / before if before > 0 else float("nan")
+            entry = replace(entry, nominal_rom_deg=before, change_pct=change)
+        off_axis[name] = entry
+    return CrossTalk(names[on_axis], on, off_axis)
 
 
 def axis_angles(q_proximal: np.ndarray, q_distal: np.ndarray) -> np.ndarray:
@@ -108,7 +117,7 @@ def out_of_plane_offset(
     window: slice,
     cycles: Cycles,
     threshold_deg: float,
-) -> dict[str, Any]:
+) -> OutOfPlaneOffset:
     """To's out-of-plane offset during a movement in ``plane`` (index of the lumbar angle).
 
     ``axis_deg`` is :func:`axis_angles` over the table, ``reference`` its value (3,) in the
@@ -125,15 +134,15 @@ def out_of_plane_offset(
         float(np.max(np.abs(offset[a : b + 1])))
         for a, b in zip(cycles.start, cycles.end, strict=True)
     ]
-    return {
-        "axes": [axes[p], axes[q]],
-        "peak_deg": float(np.nanmax(size)),
-        "mean_deg": float(np.nanmean(size)),
-        "above_pct": float(100.0 * np.mean(size > threshold_deg)),
-        "threshold_deg": float(threshold_deg),
-        "repetition_peak_deg": np.array(per_rep),
-        "offset_deg": offset,
-    }
+    return OutOfPlaneOffset(
+        axes=[axes[p], axes[q]],
+        peak_deg=float(np.nanmax(size)),
+        mean_deg=float(np.nanmean(size)),
+        above_pct=float(100.0 * np.mean(size > threshold_deg)),
+        threshold_deg=float(threshold_deg),
+        repetition_peak_deg=np.array(per_rep),
+        offset_deg=offset,
+    )
 
 
 def neutral(time: np.ndarray, q: np.ndarray, t_start: float) -> np.ndarray:
@@ -146,7 +155,7 @@ def neutral(time: np.ndarray, q: np.ndarray, t_start: float) -> np.ndarray:
 
 def trunk_compensation(
     time: np.ndarray, q_thorax: np.ndarray, window: slice, thresholds: dict[str, float]
-) -> dict[str, Any]:
+) -> TrunkCompensation:
     """Trunk lean and twist (deg) relative to the neutral posture before the task (Liu 2010).
 
     Angles as the lumbar joint (Z-X-Y of neutral* ⊗ q): ``flexion`` forward lean positive,
@@ -155,28 +164,26 @@ def trunk_compensation(
     q0 = neutral(time, q_thorax, float(time[window][0]))
     q = q_thorax[window]
     ang = np.degrees(decompose(np.broadcast_to(q0, q.shape), q, "lumbar"))
-    out: dict[str, Any] = {}
+    per_angle = {}
     flagged = False
     for i, name in enumerate(TRUNK_ANGLES):
         v = ang[:, i]
         limit = float(thresholds.get(name, np.inf))
         above = float(100.0 * np.mean(np.abs(v) > limit))
         flagged |= above > 0
-        out[name] = {
-            "max_deg": float(v.max()),
-            "min_deg": float(v.min()),
-            "peak_abs_deg": float(np.abs(v).max()),
-            "above_pct": above,
-            "threshold_deg": limit,
-        }
-    out["compensated"] = bool(flagged)
-    out["angles_deg"] = ang
-    return out
+        per_angle[name] = TrunkAngleStats(
+            max_deg=float(v.max()),
+            min_deg=float(v.min()),
+            peak_abs_deg=float(np.abs(v).max()),
+            above_pct=above,
+            threshold_deg=limit,
+        )
+    return TrunkCompensation(per_angle, bool(flagged), ang)
 
 
 def stance_metrics(
     adduction: np.ndarray, rotation: np.ndarray, strides: Cycles, threshold_deg: float
-) -> dict[str, Any]:
+) -> StanceMetrics:
     """Varus thrust and rotation range over each stride's stance (heel strike → toe-off).
 
     ``adduction`` and ``rotation`` (deg) are the knee's clinical angles over the block;
@@ -196,16 +203,16 @@ def stance_metrics(
 
     t_mean, t_sd = stats(thrust)
     r_mean, r_sd = stats(rot_range)
-    return {
-        "strides": len(strides),
-        "varus_thrust_deg": thrust,
-        "varus_thrust_mean_deg": t_mean,
-        "varus_thrust_sd_deg": t_sd,
-        "varus_thrust_above_pct": float(100.0 * np.mean(thrust > threshold_deg))
+    return StanceMetrics(
+        strides=len(strides),
+        varus_thrust_deg=thrust,
+        varus_thrust_mean_deg=t_mean,
+        varus_thrust_sd_deg=t_sd,
+        varus_thrust_above_pct=float(100.0 * np.mean(thrust > threshold_deg))
         if len(thrust)
         else float("nan"),
-        "threshold_deg": float(threshold_deg),
-        "stance_rotation_range_deg": rot_range,
-        "stance_rotation_range_mean_deg": r_mean,
-        "stance_rotation_range_sd_deg": r_sd,
-    }
+        threshold_deg=float(threshold_deg),
+        stance_rotation_range_deg=rot_range,
+        stance_rotation_range_mean_deg=r_mean,
+        stance_rotation_range_sd_deg=r_sd,
+    )

@@ -60,8 +60,8 @@ import numpy as np
 import pandas as pd
 
 from motionlab import rotations as rot
-from motionlab.kinematics.gait_events import Strides
-from motionlab.results import GaitSummary
+from motionlab.kinematics.gait_events import SideEvents, Strides
+from motionlab.results import GaitEvents, GaitSummary, StrideStats
 
 #: step length = ankle-to-ankle distance × this (module docstring; Vicon walking2, n = 4 steps)
 FOOT_ROLL_FACTOR = 1.25
@@ -135,8 +135,8 @@ def segment_lengths(subject: dict[str, Any] | None) -> tuple[float, float, str] 
         return None
     if not 0.5 <= h <= 2.5:
         return None
-    f = LENGTH_FRACTIONS
-    return f["thigh"] * h, f["shank"] * h, f"{h:g} m height × Winter's fractions"
+    thigh, shank = LENGTH_FRACTIONS["thigh"] * h, LENGTH_FRACTIONS["shank"] * h
+    return thigh, shank, f"{h:g} m height × Winter's fractions"
 
 
 def _step(reach: dict[str, tuple[np.ndarray, np.ndarray]], side: str, t: float) -> float:
@@ -173,21 +173,22 @@ def _steady_step(other: Strides | None, t0: float, ic_o: np.ndarray) -> float:
 
 def stride_table(
     sides: dict[str, Strides],
-    events: dict[str, dict[str, np.ndarray]],
+    events: dict[str, GaitEvents | SideEvents],
     reach: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
 ) -> pd.DataFrame:
     """One row per stride of both sides: ``side, start_s, kept, reason`` and :data:`STRIDE_COLUMNS`.
 
-    ``events`` ``{side: {"ic": (K,), "fc": (M,)}}`` of all detected events (s), for the other
-    side's contacts; ``reach`` ``{side: (time s, leg reach m)}`` (:func:`leg_reach`) for the
-    lengths and speed (NaN without it).
+    ``events`` ``{side: events}`` of all detected events (their ``ic`` (K,) and ``fc`` (M,),
+    s), for the other side's contacts; ``reach`` ``{side: (time s, leg reach m)}``
+    (:func:`leg_reach`) for the lengths and speed (NaN without it).
     """
     reach = reach or {}
     rows = []
     for side, st in sides.items():
         other = "l" if side == "r" else "r"
-        ic_o = np.asarray(events.get(other, {}).get("ic", np.zeros(0)))
-        fc_o = np.asarray(events.get(other, {}).get("fc", np.zeros(0)))
+        ev = events.get(other)
+        ic_o = np.asarray(ev.ic) if ev is not None else np.zeros(0)
+        fc_o = np.asarray(ev.fc) if ev is not None else np.zeros(0)
         for k in range(len(st)):
             t0, fc, t1 = st.ic[k], st.fc[k], st.next_ic[k]
             stride = t1 - t0
@@ -248,26 +249,26 @@ def method_error(column: str, value: float, stride_s: float) -> float:
     return float(bounds.get(column, np.nan))
 
 
-def _stats(x: pd.Series) -> dict[str, float]:
+def _stats(x: pd.Series) -> StrideStats:
     """Mean, SD, CV, SE, median, q1, q3 (NaN below :data:`MIN_STRIDES` values) and
     ``strides_n``."""
     x = x.dropna().to_numpy(dtype=float)
-    keys = ("mean", "sd", "cv_pct", "se", "median", "q1", "q3")
     if len(x) < MIN_STRIDES:
-        return dict.fromkeys(keys, np.nan) | {"strides_n": len(x)}
+        nan = np.nan
+        return StrideStats(nan, nan, nan, nan, nan, nan, nan, strides_n=len(x))
     sd = float(np.std(x, ddof=1))
     mean = float(np.mean(x))
     q1, median, q3 = (float(v) for v in np.percentile(x, [25, 50, 75]))
-    return {
-        "mean": mean,
-        "sd": sd,
-        "cv_pct": 100 * sd / mean if mean else np.nan,
-        "se": float(sd / np.sqrt(len(x))),
-        "median": median,
-        "q1": q1,
-        "q3": q3,
-        "strides_n": len(x),
-    }
+    return StrideStats(
+        mean=mean,
+        sd=sd,
+        cv_pct=100 * sd / mean if mean else np.nan,
+        se=float(sd / np.sqrt(len(x))),
+        median=median,
+        q1=q1,
+        q3=q3,
+        strides_n=len(x),
+    )
 
 
 def _within_bout_cv(kept: pd.DataFrame) -> tuple[float, int]:
@@ -315,7 +316,7 @@ def summary(table: pd.DataFrame) -> GaitSummary:
     """Per side the statistics of each stride-table column over the kept strides, and the
     bilateral numbers (:class:`~motionlab.results.GaitSummary`; module docstring)."""
     kept = table[table["kept"]]
-    sides: dict[str, Any] = {}
+    sides: dict[str, dict[str, StrideStats]] = {}
     withheld: dict[str, str] = {}
     counts = {}
     for side in ("r", "l"):
@@ -370,7 +371,9 @@ def summary_rows(summ: GaitSummary) -> pd.DataFrame:
     rows = []
     for side, cols in summ.sides.items():
         for c, s in cols.items():
-            rows.append({"parameter": c, "side": side} | s)
+            rows.append({"parameter": c, "side": side, "mean": s.mean, "sd": s.sd,
+                         "cv_pct": s.cv_pct, "se": s.se, "median": s.median, "q1": s.q1,
+                         "q3": s.q3, "strides_n": s.strides_n})  # fmt: skip
     both = (("cadence_steps_per_min", summ.cadence_steps_per_min, np.nan),
             ("step_time_asymmetry_pct", summ.step_time_asymmetry_pct,
              summ.step_time_asymmetry_se_pct),

@@ -80,6 +80,10 @@ def metrics_frame(view: SessionView) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+def _or_nan(value: float | None) -> float:
+    return np.nan if value is None else value
+
+
 def out_of_plane_frame(view: SessionView) -> pd.DataFrame:
     """One row per out-of-plane number: metric, task, joint, angle and its value columns."""
     m = view.metrics
@@ -100,36 +104,36 @@ def out_of_plane_frame(view: SessionView) -> pd.DataFrame:
                 task,
                 joint,
                 "adduction",
-                value_deg=g["varus_thrust_mean_deg"],
-                sd_deg=g["varus_thrust_sd_deg"],
-                threshold_deg=g["threshold_deg"],
-                above_threshold_pct=g["varus_thrust_above_pct"],
-                count_n=g["strides"],
+                value_deg=g.varus_thrust_mean_deg,
+                sd_deg=g.varus_thrust_sd_deg,
+                threshold_deg=g.threshold_deg,
+                above_threshold_pct=g.varus_thrust_above_pct,
+                count_n=g.strides,
             )
             add(
                 "stance_rotation_range",
                 task,
                 joint,
                 "rotation",
-                value_deg=g["stance_rotation_range_mean_deg"],
-                sd_deg=g["stance_rotation_range_sd_deg"],
-                count_n=g["strides"],
+                value_deg=g.stance_rotation_range_mean_deg,
+                sd_deg=g.stance_rotation_range_sd_deg,
+                count_n=g.strides,
             )
     trunk = segment_grade(view, THORAX)[0]
     for task, t in (m.trunk_compensation or {}).items():
         for angle in ("flexion", "lateral_bending", "axial_rotation"):
-            a = t[angle]
+            a = t.per_angle[angle]
             add(
                 "trunk_compensation",
                 task,
                 "trunk",
                 angle,
                 grade=trunk,
-                value_deg=a["peak_abs_deg"],
-                min_deg=a["min_deg"],
-                max_deg=a["max_deg"],
-                threshold_deg=a["threshold_deg"],
-                above_threshold_pct=a["above_pct"],
+                value_deg=a.peak_abs_deg,
+                min_deg=a.min_deg,
+                max_deg=a.max_deg,
+                threshold_deg=a.threshold_deg,
+                above_threshold_pct=a.above_pct,
             )
     for task, joints in (m.out_of_plane_offset or {}).items():
         for joint, o in joints.items():
@@ -138,28 +142,27 @@ def out_of_plane_frame(view: SessionView) -> pd.DataFrame:
                 "out_of_plane_offset",
                 task,
                 joint,
-                "-".join(o["axes"]),
+                "-".join(o.axes),
                 grade=worst_grade(graded)[0],
-                value_deg=o["peak_deg"],
-                mean_deg=o["mean_deg"],
-                threshold_deg=o["threshold_deg"],
-                above_threshold_pct=o["above_pct"],
+                value_deg=o.peak_deg,
+                mean_deg=o.mean_deg,
+                threshold_deg=o.threshold_deg,
+                above_threshold_pct=o.above_pct,
             )
     for block, joints in (m.cross_talk or {}).items():
         for joint, c in joints.items():
-            for angle, e in c.items():
-                if isinstance(e, dict):
-                    add(
-                        "cross_talk",
-                        block,
-                        joint,
-                        angle,
-                        value_deg=e["rom_deg"],
-                        of_moving_angle_pct=e["ratio_pct"],
-                        moving_angle_rom_deg=c["on_axis_rom_deg"],
-                        without_calibration_deg=e.get("nominal_rom_deg", np.nan),
-                        calibration_change_pct=e.get("change_pct", np.nan),
-                    )
+            for angle, e in c.off_axis.items():
+                add(
+                    "cross_talk",
+                    block,
+                    joint,
+                    angle,
+                    value_deg=e.rom_deg,
+                    of_moving_angle_pct=e.ratio_pct,
+                    moving_angle_rom_deg=c.on_axis_rom_deg,
+                    without_calibration_deg=_or_nan(e.nominal_rom_deg),
+                    calibration_change_pct=_or_nan(e.change_pct),
+                )
     return pd.DataFrame(rows)
 
 
@@ -223,8 +226,7 @@ def gait_frames(view: SessionView) -> dict[str, pd.DataFrame]:
     g = gait_result(view)
     if g is None:
         return {}
-    strides = pd.DataFrame({k: np.asarray(v) for k, v in g.strides.items()})
-    strides = strides[["side", "start_s", "kept", "reason", *STRIDE_COLUMNS]]
+    strides = g.strides.frame()[["side", "start_s", "kept", "reason", *STRIDE_COLUMNS]]
     return {
         "spatiotemporal.csv": strides,
         "spatiotemporal_summary.csv": summary_rows(g.summary),

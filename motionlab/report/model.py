@@ -620,10 +620,11 @@ def gait_profile(view: SessionView) -> MovementProfile | None:
     g = view.session.results.gait
     if g is None or not g.ok or g.map is None:
         return None
-    strides = g.strides or {}
-    kept = np.asarray(strides.get("kept", []), dtype=bool)
-    sides = np.asarray(strides.get("side", []), dtype=str)
-    counts = {s: int(np.sum(kept & (sides == s))) for s in ("r", "l")} if len(kept) else None
+    counts = None
+    if g.strides is not None and len(g.strides.kept):
+        kept = np.asarray(g.strides.kept, dtype=bool)
+        sides = np.asarray(g.strides.side, dtype=str)
+        counts = {s: int(np.sum(kept & (sides == s))) for s in ("r", "l")}
     cal = view.session.results.calibration
     return gated_profile(g.map, variable_grades(view.protocol, cal), counts)
 

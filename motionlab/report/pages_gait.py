@@ -28,7 +28,7 @@ from motionlab.kinematics.spatiotemporal import (
 )
 from motionlab.report.model import SessionView, gait_profile, gait_result
 from motionlab.report.pdf import BAND_COLOUR, MUTED, SIDE_COLOUR, SIZE, Document
-from motionlab.results import Gait, GaitSummary, MovementProfile
+from motionlab.results import Gait, GaitSummary, MovementProfile, StrideStats
 
 _LABELS = {
     "cadence_steps_per_min": "cadence (steps/min)",
@@ -57,15 +57,15 @@ def _bands() -> dict[str, Any]:
 Z95 = 1.96
 
 
-def _fmt(s: dict[str, float], digits: int) -> str:
+def _fmt(s: StrideStats, digits: int) -> str:
     """``'1.10 ± 0.02 (CV 1.8 %)\\nmedian 1.10 (1.09-1.11); n 9'``, or why not given."""
-    n = int(s.get("strides_n", 0))
-    if n < MIN_STRIDES or not np.isfinite(s.get("mean", np.nan)):
+    n = int(s.strides_n or 0)
+    if n < MIN_STRIDES or not np.isfinite(s.mean):
         return too_few(n) if n < MIN_STRIDES else "-"
     d = digits
     return (
-        f"{s['mean']:.{d}f} ± {s['sd']:.{d}f} (CV {s['cv_pct']:.1f} %)\n"
-        f"median {s['median']:.{d}f} ({s['q1']:.{d}f}-{s['q3']:.{d}f}); n {n}"
+        f"{s.mean:.{d}f} ± {s.sd:.{d}f} (CV {s.cv_pct:.1f} %)\n"
+        f"median {s.median:.{d}f} ({s.q1:.{d}f}-{s.q3:.{d}f}); n {n}"
     )
 
 
@@ -109,13 +109,13 @@ def gait_pages(doc: Document, view: SessionView) -> None:
         "healthy adults.",
     )
     rows, flags = [], []
-    counts = {k: int(summ.sides[k]["stride_time_s"]["strides_n"]) for k in ("r", "l")}
+    counts = {k: int(summ.sides[k]["stride_time_s"].strides_n or 0) for k in ("r", "l")}
     few = [f"{'right' if k == 'r' else 'left'}: {too_few(n)}" for k, n in counts.items()
            if n < MIN_STRIDES]  # fmt: skip
     if few:
         doc.paragraph("No mean is given for a side with too few strides (" + "; ".join(few)
                       + ").", weight="bold")  # fmt: skip
-    times = [summ.sides[k]["stride_time_s"]["mean"] for k in ("r", "l")]
+    times = [summ.sides[k]["stride_time_s"].mean for k in ("r", "l")]
     stride = float(np.nanmean(times)) if np.isfinite(times).any() else np.nan
     for c in STRIDE_COLUMNS:
         digits = 2 if c.endswith(("_s", "_m")) else 1
@@ -124,8 +124,8 @@ def gait_pages(doc: Document, view: SessionView) -> None:
         cells = [_fmt(x, digits) if counts[k] >= MIN_STRIDES else "-"
                  for k, x in (("r", r), ("l", left))]  # fmt: skip
         rows.append([_LABELS[c], *cells, f"{band[0]:g}-{band[1]:g}" if band else "-"])
-        flags.append([False] + [beyond(x["mean"], x.get("se", np.nan), band,
-                                       method_error(c, x["mean"], stride)) for x in (r, left)]
+        flags.append([False] + [beyond(x.mean, np.nan if x.se is None else x.se, band,
+                                       method_error(c, x.mean, stride)) for x in (r, left)]
                      + [False])  # fmt: skip
     bilateral = (
         ("step_time_asymmetry_pct", summ.step_time_asymmetry_pct,

@@ -61,28 +61,24 @@ def _cross_talk(doc: Document, view: SessionView) -> None:
     rows, flagged, muted = [], [], []
     for block, name, m in _items(view, data):
         joint = view.protocol.joints[name]
-        for angle, e in m.items():
-            if not isinstance(e, dict):
-                continue
+        for angle, e in m.off_axis.items():
             grade = angle_grade(view, name, angle)[0]
             muted.append(grade == NOT_DETERMINED)
-            on_grade = angle_grade(view, name, m["on_axis"])[0]
-            on_text = f"{m['on_axis'].replace('_', ' ')} {_f(m['on_axis_rom_deg'], '.0f')}"
+            on_grade = angle_grade(view, name, m.on_axis)[0]
+            on_text = f"{m.on_axis.replace('_', ' ')} {_f(m.on_axis_rom_deg, '.0f')}"
             rows.append(
                 [
                     task_name(block),
                     joint_title(joint),
                     on_text if on_grade == "determined" else f"{on_text} ({on_grade})",
                     angle.replace("_", " ") + ("" if grade == "determined" else f" ({grade})"),
-                    _f(e["rom_deg"]),
-                    _f(e["ratio_pct"], ".0f"),
-                    _f(e.get("nominal_rom_deg")),
-                    _f(e.get("change_pct"), "+.0f"),
+                    _f(e.rom_deg),
+                    _f(e.ratio_pct, ".0f"),
+                    _f(e.nominal_rom_deg),
+                    _f(e.change_pct, "+.0f"),
                 ]
             )
-            flagged.append(
-                [False] * 5 + [grade == "determined" and e["ratio_pct"] > 20] + [False] * 2
-            )
+            flagged.append([False] * 5 + [grade == "determined" and e.ratio_pct > 20] + [False] * 2)
     doc.table(
         [
             "Movement",
@@ -117,19 +113,17 @@ def _gait(doc: Document, view: SessionView) -> None:
             [
                 task_name(task),
                 joint_title(joint),
-                str(g["strides"]),
+                str(g.strides),
+                _graded(f"{_f(g.varus_thrust_mean_deg)} ± {_f(g.varus_thrust_sd_deg)}", varus),
+                _graded(_f(g.varus_thrust_above_pct, ".0f"), varus),
                 _graded(
-                    f"{_f(g['varus_thrust_mean_deg'])} ± {_f(g['varus_thrust_sd_deg'])}", varus
-                ),
-                _graded(_f(g["varus_thrust_above_pct"], ".0f"), varus),
-                _graded(
-                    f"{_f(g['stance_rotation_range_mean_deg'])} ± "
-                    f"{_f(g['stance_rotation_range_sd_deg'])}",
+                    f"{_f(g.stance_rotation_range_mean_deg)} ± "
+                    f"{_f(g.stance_rotation_range_sd_deg)}",
                     rotation,
                 ),
             ]
         )
-        above = varus == "determined" and g["varus_thrust_mean_deg"] > g["threshold_deg"]
+        above = varus == "determined" and g.varus_thrust_mean_deg > g.threshold_deg
         flagged.append([False] * 3 + [above] + [False] * 2)
         label = f"{joint_title(joint)}, {task_name(task)}"
         if varus != "determined":
@@ -153,7 +147,7 @@ def _gait(doc: Document, view: SessionView) -> None:
     for k, (_, side, g) in enumerate(strides):
         if side is None:  # a plane the recording did not determine is not drawn
             continue
-        x = np.asarray(g["varus_thrust_deg"], float)
+        x = np.asarray(g.varus_thrust_deg, float)
         ax.plot(
             x,
             np.full(len(x), k) + np.linspace(-0.15, 0.15, len(x)),
@@ -161,7 +155,7 @@ def _gait(doc: Document, view: SessionView) -> None:
             ms=3,
             color=SIDE_COLOUR.get(side, SIDE_COLOUR[""]),
         )
-    limit = max(g["threshold_deg"] for _, _, g in strides)
+    limit = max(g.threshold_deg for _, _, g in strides)
     ax.axvline(limit, color="#b2182b", lw=0.8, ls="--")
     ax.set_yticks(range(len(strides)), [s[0] for s in strides])
     ax.set_ylim(len(strides) - 0.4, -0.6)  # first row on top, as in the table
@@ -184,13 +178,13 @@ def _offset(doc: Document, view: SessionView) -> None:
         rows.append(
             [
                 task_name(task),
-                "-".join(o["axes"]),
-                _graded(_f(o["peak_deg"]), grade),
-                _graded(_f(o["mean_deg"]), grade),
-                _graded(f"{_f(o['above_pct'], '.0f')} (limit {o['threshold_deg']:g}°)", grade),
+                "-".join(o.axes),
+                _graded(_f(o.peak_deg), grade),
+                _graded(_f(o.mean_deg), grade),
+                _graded(f"{_f(o.above_pct, '.0f')} (limit {o.threshold_deg:g}°)", grade),
             ]
         )
-        flagged.append([False] * 4 + [grade == "determined" and o["above_pct"] > 0])
+        flagged.append([False] * 4 + [grade == "determined" and o.above_pct > 0])
     doc.table(
         ["Task", "Axes compared", "Peak (°)", "Mean (°)", "Time above limit (%)"],
         rows,
@@ -211,7 +205,7 @@ def _trunk(doc: Document, view: SessionView) -> None:
     for task in in_order(data, list(view.blocks())):
         t = data[task]
         for angle in ("flexion", "lateral_bending", "axial_rotation"):
-            a = t[angle]
+            a = t.per_angle[angle]
             rows.append(
                 [
                     task_name(task),
@@ -220,12 +214,12 @@ def _trunk(doc: Document, view: SessionView) -> None:
                         "lateral_bending": "side lean (right +)",
                         "axial_rotation": "twist (left +)",
                     }[angle],
-                    _graded(f"{_f(a['min_deg'])} to {_f(a['max_deg'])}", grade),
-                    _graded(_f(a["peak_abs_deg"]), grade),
-                    _graded(f"{_f(a['above_pct'], '.0f')} (limit {a['threshold_deg']:g}°)", grade),
+                    _graded(f"{_f(a.min_deg)} to {_f(a.max_deg)}", grade),
+                    _graded(_f(a.peak_abs_deg), grade),
+                    _graded(f"{_f(a.above_pct, '.0f')} (limit {a.threshold_deg:g}°)", grade),
                 ]
             )
-            flagged.append([False] * 3 + [grade == "determined" and a["above_pct"] > 0] * 2)
+            flagged.append([False] * 3 + [grade == "determined" and a.above_pct > 0] * 2)
     doc.table(
         ["Task", "Trunk movement", "Range (°)", "Peak (°)", "Time above limit (%)"],
         rows,
@@ -233,17 +227,13 @@ def _trunk(doc: Document, view: SessionView) -> None:
         flagged,
         align=["l", "l", "r", "r", "r"],
     )
-    tasks = [
-        k
-        for k in in_order(data, list(view.blocks()))
-        if len(np.asarray(data[k].get("angles_deg", [])))
-    ]
+    tasks = [k for k in in_order(data, list(view.blocks())) if len(np.asarray(data[k].angles_deg))]
     if not tasks:
         return
     grid = doc.axes_grid(1, len(tasks), 2.3, left=0.55, wspace=0.6, bottom=0.5, top=0.3)[0]
     rate = 1.0 / np.median(np.diff(view.angles["time_s"]))
     for ax, task in zip(grid, tasks, strict=True):
-        ang = np.asarray(data[task]["angles_deg"])
+        ang = np.asarray(data[task].angles_deg)
         t = np.arange(len(ang)) / rate
         for k, (name, colour) in enumerate(
             (("forward lean", "#2166ac"), ("side lean", "#1a9850"), ("twist", "#d95f02"))

@@ -140,23 +140,23 @@ def _oop_findings(view: SessionView) -> list[str]:
         for name, g in joints.items():
             joint = view.protocol.joints[name]
             side = SIDE_NAMES.get(joint.side, "").capitalize()
-            thrust = g.get("varus_thrust_mean_deg", np.nan)
+            thrust = g.varus_thrust_mean_deg
             varus = angle_grade(view, name, "adduction")[0]
             if not np.isfinite(thrust) or not is_determined(varus):
                 continue
-            limit = g.get("threshold_deg", 3.0)
+            limit = g.threshold_deg
             verdict = "above" if thrust > limit else "within"
             out.append(
                 f"{side} knee varus thrust {thrust:.0f}° in stance during {task_name(task)} "
-                f"({verdict} the {limit:g}° this protocol flags; {g['strides']} strides)."
+                f"({verdict} the {limit:g}° this protocol flags; {g.strides} strides)."
             )
     if is_determined(segment_grade(view, THORAX)[0]):
         for task, t in (m.trunk_compensation or {}).items():
-            if t.get("compensated"):
+            if t.compensated:
                 parts = [
-                    f"{TRUNK_WORDS[k]} up to {t[k]['peak_abs_deg']:.0f}°"
+                    f"{TRUNK_WORDS[k]} up to {t.per_angle[k].peak_abs_deg:.0f}°"
                     for k in TRUNK_WORDS
-                    if t[k]["above_pct"] > 0
+                    if t.per_angle[k].above_pct > 0
                 ]
                 out.append(
                     f"Trunk compensation during {task_name(task)}: {', '.join(parts)} away from "
@@ -167,11 +167,11 @@ def _oop_findings(view: SessionView) -> list[str]:
             grade = worst_grade([(r.grade, r.reason) for r in grade_rows(view) if r.joint == name])[
                 0
             ]
-            if is_determined(grade) and o["above_pct"] > 0:
+            if is_determined(grade) and o.above_pct > 0:
                 out.append(
                     f"Trunk out-of-plane offset during {task_name(task)}: "
-                    f"peak {o['peak_deg']:.0f}°, "
-                    f"above {o['threshold_deg']:g}° for {o['above_pct']:.0f}% of the movement."
+                    f"peak {o.peak_deg:.0f}°, "
+                    f"above {o.threshold_deg:g}° for {o.above_pct:.0f}% of the movement."
                 )
     return out
 
