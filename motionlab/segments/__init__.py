@@ -177,7 +177,7 @@ def pelvis_forward(
     records: dict[str, dict[str, AxisMeasurement]],
     contradicted: set[str],
     notes: list[str],
-) -> dict[str, Any] | None:
+) -> None:
     """The hips' proximal segment's forward direction from the walk's turns, or where they do not
     give it (fewer than two, or disagreeing) from its first steps (:mod:`.walk_forward`), added
     to its ``records`` (kind ``movement``, method ``turns`` or ``walk start``, secondary: gravity
@@ -185,21 +185,21 @@ def pelvis_forward(
     contradicted: by the stand (its vertical, :func:`.placement.contradicted`) or by the turns
     (their forward direction more than ``placement.CONTRADICTED_DEG`` from the hint's). The
     single turns may disagree more where the stand refuted the hint
-    (``walk_forward.MAX_SPREAD_CONTRADICTED_DEG``). Returns the measurement, if made; a line
-    goes to ``notes`` when the hint is not kept."""
+    (``walk_forward.MAX_SPREAD_CONTRADICTED_DEG``). A line goes to ``notes`` when the hint is not
+    kept."""
     hips = [j for j in protocol.joints.values() if joint_type(j.type).name == "hip"]
     if not hips:
-        return None
+        return
     seg = hips[0].proximal
     recs = records.get(seg, {})
     gravity = [r for r in recs.values() if r.method == "gravity" and r.kind == "static"]
     if not gravity or mounting._distinct(list(recs.values())) != 1:
-        return None
+        return
     label = sensor_for_segment(session, seg)
     s = session.sensors[label] if label is not None else None
     rng = steps.get(gravity[0].step)
     if s is None or s.acc is None or s.gyr is None or not rng:
-        return None
+        return
     up = np.asarray(gravity[0].sensor_axis, float) * float(
         np.sign(gravity[0].segment_axis @ np.array([0.0, 1.0, 0.0])) or 1.0
     )
@@ -208,40 +208,38 @@ def pelvis_forward(
     spread = walk_forward.MAX_SPREAD_CONTRADICTED_DEG if by_stand else walk_forward.MAX_SPREAD_DEG
     acc = corrected_acc(session, label)
     found = walk_forward.forward_from_turns(s.time, acc, q, s.gyr, up, float(rng[1]), spread)
-    method, words = "turns", f"the walk's turns ({found['turns']})"
-    if not found["used"]:
+    method, words = "turns", f"the walk's turns ({found.turns})"
+    if not found.used:
         start = walk_forward.forward_from_start(s.time, acc, q, up, float(rng[1]))
-        if start["used"]:
+        if start.used:
             found, method, words = start, "walk start", "the first steps of the walk"
-    if not found["used"]:
+    if not found.used:
         if by_stand:
             _add_note(
                 notes,
                 seg,
-                f"the walk did not give its forward direction ({found['reason']}): the pelvis "
+                f"the walk did not give its forward direction ({found.reason}): the pelvis "
                 "angles and the hips use the hint's",
             )
-        return found
+        return
     hint = protocol.segments[seg].nominal_mounting().T @ np.array([1.0, 0.0, 0.0])
-    off = float(np.degrees(np.arccos(np.clip(found["axis"] @ hint, -1.0, 1.0))))
-    found["hint_off_deg"] = off
+    off = float(np.degrees(np.arccos(np.clip(found.axis @ hint, -1.0, 1.0))))
     if not by_stand and off <= placement.CONTRADICTED_DEG:
-        return found  # the hint agrees with the walk: it stays (the turns are 5-20° off)
+        return  # the hint agrees with the walk: it stays (the turns are 5-20° off)
     why = "" if by_stand else f"{words} are {off:.0f}° from the hint's forward; "
     _add_note(notes, seg, f"{why}its forward direction is taken from {words}")
     recs["movement:turns"] = AxisMeasurement(
         step="movement:turns",
         kind="movement",
         method=method,
-        sensor_axis=found["axis"],
+        sensor_axis=found.axis,
         segment_axis=np.array([1.0, 0.0, 0.0]),
         rho=walk_forward.RHO,
         secondary=True,
         verdict="weak",
-        turns=found["turns"],
-        spread_deg=found.get("spread_deg", float("nan")),
+        turns=found.turns,
+        spread_deg=found.spread_deg if found.spread_deg is not None else float("nan"),
     )
-    return found
 
 
 def _add_note(notes: list[str], segment: str, text: str) -> None:

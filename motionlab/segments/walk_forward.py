@@ -30,7 +30,7 @@ arbitrary, and the hip means fell from 3.35 / 3.50° (flexion / adduction, right
 
 from __future__ import annotations
 
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 from scipy.signal import butter, sosfiltfilt
@@ -53,6 +53,26 @@ START_S = 1.5  # the first steps after the stand whose velocity gives the walkin
 MIN_START_SPEED_M_S = 0.3
 
 
+@dataclass(frozen=True)
+class ForwardDirection:
+    """The pelvis's forward direction as one of the walk's methods found it (or why not).
+
+    ``used``: found; ``axis`` (3,): the unit forward direction, horizontal in the stand, in
+    sensor coordinates (``None`` when not found); ``reason``: why not, in words (empty when
+    found); ``turns``: the turns the direction came from (0 for the walk's start);
+    ``spread_deg``: how far (deg) the turns' directions lay from the whole walk's (``None``
+    without two turns); ``speed_m_s``: the horizontal speed gained over the walk's first
+    seconds (``forward_from_start``; ``None`` otherwise).
+    """
+
+    used: bool
+    axis: np.ndarray | None = None
+    reason: str = ""
+    turns: int = 0
+    spread_deg: float | None = None
+    speed_m_s: float | None = None
+
+
 def forward_from_turns(
     t: np.ndarray,
     acc: np.ndarray,
@@ -61,21 +81,19 @@ def forward_from_turns(
     up: np.ndarray,
     after_s: float,
     max_spread_deg: float = MAX_SPREAD_DEG,
-) -> dict[str, Any]:
+) -> ForwardDirection:
     """The forward direction (unit, horizontal in the stand, sensor frame) from the turns.
 
     ``t`` (s), ``acc`` (m/s², specific force) and ``gyr`` (rad/s) of one sensor with its fused
     orientation ``q`` (sensor → earth, (N, 4)); ``up`` its vertical in the stand (sensor frame);
-    only samples after ``after_s`` (the stand's end) count. Returns ``{"used", "axis", "turns",
-    "spread_deg", "reason"}``.
+    only samples after ``after_s`` (the stand's end) count.
     """
-    out: dict[str, Any] = {"used": False, "turns": 0}
     walk = t > after_s
     if walk.sum() < 100:
-        return out | {"reason": "no walk after the stand"}
+        return ForwardDirection(False, reason="no walk after the stand")
     rate = estimate_rate(t)
     if not rate > 2.5 * LOWPASS_HZ:
-        return out | {"reason": "sampling too slow"}
+        return ForwardDirection(False, reason="sampling too slow")
     sos = butter(2, LOWPASS_HZ, fs=rate, output="sos")
     a = sosfiltfilt(sos, rot.rotate(q, acc) - np.array([0.0, 0.0, STANDARD_GRAVITY]), axis=0)
     yaw = sosfiltfilt(sos, rot.rotate(q, gyr)[:, 2])
@@ -92,38 +110,36 @@ def forward_from_turns(
 
     whole = horizontal(contrib[walk].sum(axis=0))
     if whole is None:
-        return out | {"reason": "no turns in the walk"}
+        return ForwardDirection(False, reason="no turns in the walk")
     parts = []
     for i, j in runs(walk & (np.abs(yaw) >= TURN_RAD_S)):
         if (j - i) / rate >= TURN_MIN_S:
             h = horizontal(contrib[i:j].sum(axis=0))
             if h is not None:
                 parts.append(h)
-    out["turns"] = len(parts)
     if len(parts) < MIN_TURNS:
-        return out | {"reason": f"{len(parts)} turn(s) in the walk, {MIN_TURNS} needed"}
+        why = f"{len(parts)} turn(s) in the walk, {MIN_TURNS} needed"
+        return ForwardDirection(False, reason=why, turns=len(parts))
     spread = max(float(np.degrees(np.arccos(np.clip(p @ whole, -1.0, 1.0)))) for p in parts)
-    out["spread_deg"] = spread
     if spread > max_spread_deg:
-        return out | {"reason": f"the turns disagree by up to {spread:.0f} deg"}
-    return out | {"used": True, "axis": whole, "reason": ""}
+        why = f"the turns disagree by up to {spread:.0f} deg"
+        return ForwardDirection(False, reason=why, turns=len(parts), spread_deg=spread)
+    return ForwardDirection(True, axis=whole, turns=len(parts), spread_deg=spread)
 
 
 def forward_from_start(
     t: np.ndarray, acc: np.ndarray, q: np.ndarray, up: np.ndarray, after_s: float
-) -> dict[str, Any]:
+) -> ForwardDirection:
     """The forward direction (unit, horizontal in the stand, sensor frame) from the first steps
     after the stand: the walk starts from rest, so the horizontal velocity gained over its first
     ``START_S`` seconds (the horizontal specific force in the sensor frame, less its mean over
     the end of the stand, integrated) points the way the walker goes. Needs no turn; on
     simulated walks with random mountings and soft tissue it lay 5-7° from the true pelvis x
-    (seeds 0-2), as close as the turns. Arguments as :func:`forward_from_turns`; returns
-    ``{"used", "axis", "speed_m_s", "reason"}``."""
-    out: dict[str, Any] = {"used": False, "turns": 0}
+    (seeds 0-2), as close as the turns. Arguments as :func:`forward_from_turns`."""
     start = (t > after_s) & (t <= after_s + START_S)
     still = (t > after_s - 2.0) & (t <= after_s)
     if start.sum() < 10 or still.sum() < 5:
-        return out | {"reason": "no walk right after the stand"}
+        return ForwardDirection(False, reason="no walk right after the stand")
     vertical = rot.rotate(rot.conj(q), np.broadcast_to([0.0, 0.0, 1.0], (len(q), 3)))
     horizontal = acc - np.einsum("ij,ij->i", acc, vertical)[:, None] * vertical
     gained = np.trapezoid(horizontal[start] - horizontal[still].mean(axis=0), t[start], axis=0)
@@ -131,5 +147,6 @@ def forward_from_start(
     gained = gained - (gained @ up) * up
     speed = float(np.linalg.norm(gained))
     if not speed >= MIN_START_SPEED_M_S:
-        return out | {"speed_m_s": speed, "reason": "the walk does not start right after the stand"}
-    return out | {"used": True, "axis": gained / speed, "speed_m_s": speed, "reason": ""}
+        why = "the walk does not start right after the stand"
+        return ForwardDirection(False, reason=why, speed_m_s=speed)
+    return ForwardDirection(True, axis=gained / speed, speed_m_s=speed)
