@@ -26,17 +26,21 @@ recording, and the joint-centre model fits (RMS residual ≤ ``MAX_RESIDUAL_M_S2
 rocking on soft tissue with the segment's acceleration breaks the model and biased the offset
 by 20–30 ms on simulated walks, with a residual five times the usual).
 
-**The spine** (``spine=True``: a thorax and a pelvis sensor, :func:`motionlab.clocksync.stage.
-synchronise` without heel strikes). A trunk recording is often short (10–20 s of movement: a
-seated rest and one block of trunk movement), under the three ``BLOCK_S`` blocks the standard
-error needs, so its movement is cut into three blocks (no shorter than ``SPINE_BLOCK_MIN_S``).
-And the spine bends along its length: no single centre joins the two sensors, so the model's
-residual is larger than a hinge's or a ball joint's without the seated trunk's offset being
-biased (no heel strikes drive the soft tissue): on the five real trials of the trunk data set
-(x-IMU3 sensors whose timestamps the vendor's software synchronised) the residual was
-0.12–0.26 m/s², and the offsets of the three trials it times (+15.4, +12.7, +13.0 ms, ± 1.2–3.5
-ms) agree within 0.6–5 ms with each sensor's lag against its own OptiTrack body (+16, +14,
-+18 ms); the limit there is ``SPINE_MAX_RESIDUAL_M_S2``. The simulator's lumbar joint is one
+**The spine** (``spine=True``: sensors among pelvis, lumbar and thorax, timed by
+:func:`motionlab.clocksync.stage.synchronise` without heel strikes). A trunk recording is often
+short (10–20 s of movement: a seated rest and one block of trunk movement), under the three
+``BLOCK_S`` blocks the standard error needs: a movement shorter than three blocks is cut into
+``SPINE_BLOCKS`` blocks, none shorter than ``SPINE_BLOCK_MIN_S`` (on the simulated seated
+sessions, seeds 0-9, three blocks let two wrong offsets through with small standard errors:
+8.4 → 27.7 ms and 20.3 → 46 ms off; five blocks apply on three seeds, each closer to the truth
+than no correction, and refuse or keep the rest). And the spine bends along its length: no
+single centre joins the two sensors, so the model's residual is larger than at a hinge or a
+ball joint while a seated trunk's offset is not biased by it (no heel strikes drive the soft
+tissue): on the five real trials of the trunk data set (x-IMU3 sensors whose timestamps the
+vendor's software synchronised) the residual was 0.12–0.27 m/s², and the offsets it applies on
+four of them (+14.2, +13.1, +17.8, +11.4 ms, ± 1.1–4.7 ms) agree within 1–8 ms with each
+sensor's lag behind its own OptiTrack body (+16, +14, +10, +18 ms; docs/kinematics.md); the
+residual limit there is ``SPINE_MAX_RESIDUAL_M_S2``. The simulator's lumbar joint is one
 centre (residual 0.01 m/s²).
 """
 
