@@ -25,7 +25,10 @@ Optical reference (``back`` relative to ``low_back``):
 - **clock:** optical = IMU + d, from the angular speeds of back, low_back and the chair (IMU
   ``Back``, ``Chest``, ``Chair``), searched over ±``CLOCK_SEARCH_S`` by correlation
   (``validation.joint_reference.fit_clock_offset``), then refined within ±0.1 s on the lumbar
-  rotation-from-rest angle (IMU orientations lag the speeds by about half a sample);
+  rotation-from-rest angle (IMU orientations lag the speeds by about half a sample); the IMUs
+  among themselves are on the clock the product's clock sync gives them (``Back`` on
+  ``Chest``'s by the spine rule, ``clocksync/joint_centre.py``, where it is reliable: the
+  vendor's synchronised stamps differ by 10–18 ms);
 - **anatomical frame:** y = the lab's vertical (Motive's Y), z = the horizontal direction from
   the left to the right upper arm's rigid body (``l_arm`` → ``r_arm``) over the IMU's rest,
   x = y × z; both bodies take this frame at the rest (the zero of the angles, as the IMU's).
