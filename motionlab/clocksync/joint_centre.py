@@ -132,8 +132,9 @@ def estimate_clock(
     joint. The status is ``"applied"`` only when the fit is reliable and differs from zero
     (:func:`motionlab.clocksync.stage.synchronise` applies only those). ``signals_of``: how a
     stream's :class:`Signals` are had (default :func:`signals`; the stage computes them once
-    per sensor, :class:`~motionlab.clocksync.common.PerStream`). ``spine``: a thorax and a
-    pelvis sensor (short movement in three blocks, ``SPINE_MAX_RESIDUAL_M_S2``; module notes).
+    per sensor, :class:`~motionlab.clocksync.common.PerStream`). ``spine``: sensors among
+    pelvis, lumbar and thorax (a short movement in ``SPINE_BLOCKS`` blocks, the residual limit
+    ``SPINE_MAX_RESIDUAL_M_S2``; module notes).
     """
     name = (reference.label, sensor.label)
     if min(finite_samples(reference), finite_samples(sensor)) < MIN_SAMPLES:
