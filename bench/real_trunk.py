@@ -15,14 +15,20 @@ magnetometer on; skipped when ``vqf`` is not installed). The map: ``Back`` → t
 
 Optical reference (``back`` relative to ``low_back``):
 
-- **flips and gaps:** a frame whose orientation is more than ``FLIP_DEG`` plus
+- **flips, jumps and gaps:** a frame whose orientation is more than ``FLIP_DEG`` plus
   ``FLIP_RATE_DEG_S`` × the time since the last good frame away from the last good frame is a
-  flip (Motive swapping markers) and is left out, as are gaps (empty cells); the IMU angles are
-  compared where the optical body is good;
+  flip (Motive swapping markers) and is left out, as are gaps (empty cells) and **jumps**: frames
+  more than ``JUMP_DEG`` from the body's smooth path over ``JUMP_WINDOW_S`` (Motive
+  switching between two marker solutions for a few frames, under the flip test's 15°: the
+  ``low_back`` body of the Aag trials, :func:`jumps`); the IMU angles are compared where the
+  optical body is good;
 - **clock:** optical = IMU + d, from the angular speeds of back, low_back and the chair (IMU
   ``Back``, ``Chest``, ``Chair``), searched over ±``CLOCK_SEARCH_S`` by correlation
   (``validation.joint_reference.fit_clock_offset``), then refined within ±0.1 s on the lumbar
-  rotation-from-rest angle (IMU orientations lag the speeds by about half a sample);
+  rotation-from-rest angle (IMU orientations lag the speeds by about half a sample); the IMUs
+  among themselves are on the clock the product's clock sync gives them (``Back`` on
+  ``Chest``'s by the spine rule, ``clocksync/joint_centre.py``, where it is reliable: the
+  vendor's synchronised stamps differ by 10–18 ms);
 - **anatomical frame:** y = the lab's vertical (Motive's Y), z = the horizontal direction from
   the left to the right upper arm's rigid body (``l_arm`` → ``r_arm``) over the IMU's rest,
   x = y × z; both bodies take this frame at the rest (the zero of the angles, as the IMU's).
@@ -69,6 +75,8 @@ PLANES = ("flexion", "lateral_bending", "axial_rotation")
 LEANS = ("forward", "sideways")  # the lean's angles, as the lumbar decomposition orders them
 FLIP_DEG = 15.0
 FLIP_RATE_DEG_S = 400.0
+JUMP_DEG = 2.0  # a frame this far from its body's smooth path is a jump …
+JUMP_WINDOW_S = 0.2  # … over this window (a jump lasting up to half of it is caught)
 CLOCK_SEARCH_S = 3.0
 #: Motive's Y-up lab frame → Z-up: +90° about x (Y → Z, Z → -Y)
 Y_UP_TO_Z_UP = np.array([np.sqrt(0.5), np.sqrt(0.5), 0.0, 0.0])
@@ -114,6 +122,42 @@ def good_frames(t: np.ndarray, q: np.ndarray) -> np.ndarray:
     if good.sum() < 0.5 * ok.sum():  # started on a flipped stretch: track from the other end
         return good_frames(t[::-1], q[::-1])[::-1]
     return good
+
+
+def jumps(t: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Frames (bool) of a rigid body's orientation ``q`` (N, 4; NaN in gaps) more than
+    :data:`JUMP_DEG` from the body's smooth path: a marker solution held for a few frames,
+    which a trunk or a wheelchair cannot follow. The path is a local quadratic over
+    :data:`JUMP_WINDOW_S` (Savitzky–Golay, on the sign-continuous quaternions of the finite
+    frames, normalised) through the frames not flagged: flagged frames are bridged linearly
+    and the path refitted until the flags settle (a jump first pulls the path towards it and
+    flags its neighbours too). A smooth movement stays within 0.7° of it
+    (200°/s turning with a ±40° swing at 1 Hz: ``tests/test_trunk_seated.py``), where the
+    running median's curvature left 2.1°."""
+    from scipy.signal import savgol_filter
+
+    ok = np.isfinite(q).all(axis=1)
+    out = np.zeros(len(t), bool)
+    fs = 1.0 / float(np.median(np.diff(t)))
+    size = 2 * int(round(0.5 * JUMP_WINDOW_S * fs)) + 1
+    if ok.sum() <= size:
+        return out
+    qc = rot.make_continuous(q[ok])
+    idx = np.arange(len(qc))
+    flagged = np.zeros(len(qc), bool)
+    for _ in range(10):
+        x = qc.copy()
+        if flagged.any():
+            for k in range(4):
+                x[flagged, k] = np.interp(idx[flagged], idx[~flagged], qc[~flagged, k])
+        path = savgol_filter(x, size, 2, axis=0)
+        path /= np.linalg.norm(path, axis=1, keepdims=True)
+        new = np.degrees(rot.angle(rot.mul(rot.conj(path), qc))) > JUMP_DEG
+        if np.array_equal(new, flagged):
+            break
+        flagged = new
+    out[ok] = flagged
+    return out
 
 
 def speed(t: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -273,11 +317,14 @@ def main(argv: list[str] | None = None) -> int:
     for trial in trials:
         name = f"{trial.parent.name}/{trial.name}"
         t_opt, quats, pos = read_motive(trial / "optitrack.csv")
-        flips = {}
-        for body in ("back", "low_back", "rolstoel"):  # flips and gaps left out, once
+        flips, jumped = {}, {}
+        for body in ("back", "low_back", "rolstoel"):  # flips, jumps and gaps left out, once
             good = good_frames(t_opt, quats[body])
             flips[body] = int((np.isfinite(quats[body]).all(axis=1) & ~good).sum())
             quats[body] = np.where(good[:, None], quats[body], np.nan)
+            jump = jumps(t_opt, quats[body])
+            jumped[body] = int(jump.sum())
+            quats[body] = np.where(jump[:, None], np.nan, quats[body])
         t_imu, sp_imu = imu_speeds(trial / "imu")
         sp_opt = np.column_stack([speed(t_opt, quats[b]) for b in ("back", "low_back", "rolstoel")])
         coarse, r_clock = fit_clock_offset(t_imu, sp_imu, t_opt, sp_opt, CLOCK_SEARCH_S, 0.005)
@@ -312,7 +359,8 @@ def main(argv: list[str] | None = None) -> int:
             f"{summary.sign_ratio:.1f}× ({summary.axis_ratio:.1f}× the other axis), "
             f"thorax {summary.excursion_deg[0]:.0f}/{summary.excursion_deg[1]:.0f}°; "
             f"heading agreement {summary.heading_rho:.2f}; optical frame: {best_how}; "
-            f"flipped frames left out: {', '.join(f'{k} {v}' for k, v in flips.items())}"
+            f"flipped frames left out: {', '.join(f'{k} {v}' for k, v in flips.items())}; "
+            f"jumps: {', '.join(f'{k} {v}' for k, v in jumped.items())}"
         )
         rest_opt = (t_opt - best >= rest_s[0]) & (t_opt - best <= rest_s[1])
         ref_rest = rest_angle(best_ref, rest_opt)

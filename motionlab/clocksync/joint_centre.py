@@ -25,6 +25,23 @@ A correction is applied only when the fit is reliable: standard error ≤ ``MAX_
 recording, and the joint-centre model fits (RMS residual ≤ ``MAX_RESIDUAL_M_S2``; a sensor
 rocking on soft tissue with the segment's acceleration breaks the model and biased the offset
 by 20–30 ms on simulated walks, with a residual five times the usual).
+
+**The spine** (``spine=True``: sensors among pelvis, lumbar and thorax, timed by
+:func:`motionlab.clocksync.stage.synchronise` without heel strikes). A trunk recording is often
+short (10–20 s of movement: a seated rest and one block of trunk movement), under the three
+``BLOCK_S`` blocks the standard error needs: a movement shorter than three blocks is cut into
+``SPINE_BLOCKS`` blocks, none shorter than ``SPINE_BLOCK_MIN_S`` (on the simulated seated
+sessions, seeds 0-9, three blocks let two wrong offsets through with small standard errors:
+8.4 → 27.7 ms and 20.3 → 46 ms off; five blocks apply on three seeds, each closer to the truth
+than no correction, and refuse or keep the rest). And the spine bends along its length: no
+single centre joins the two sensors, so the model's residual is larger than at a hinge or a
+ball joint while a seated trunk's offset is not biased by it (no heel strikes drive the soft
+tissue): on the five real trials of the trunk data set (x-IMU3 sensors whose timestamps the
+vendor's software synchronised) the residual was 0.12–0.27 m/s², and the offsets it applies on
+four of them (+14.2, +13.1, +17.8, +11.4 ms, ± 1.1–4.7 ms) agree within 1–8 ms with each
+sensor's lag behind its own OptiTrack body (+16, +14, +10, +18 ms; docs/kinematics.md); the
+residual limit there is ``SPINE_MAX_RESIDUAL_M_S2``. The simulator's lumbar joint is one
+centre (residual 0.01 m/s²).
 """
 
 from __future__ import annotations
@@ -57,6 +74,11 @@ MAX_SE_S = 0.010  # largest standard error of c(t) for a correction to be applie
 # largest RMS residual (low-passed, m/s²) for a correction: 0.009-0.026 on the simulated clinical
 # protocols; 0.09-0.13 where acceleration-driven soft tissue biased the offset by 20-30 ms
 MAX_RESIDUAL_M_S2 = 0.05
+# the spine (see the module notes): the residual limit (the five real trials of the trunk data
+# set: 0.12-0.27 m/s²), and a short movement's blocks: how many, the shortest (s)
+SPINE_MAX_RESIDUAL_M_S2 = 0.3
+SPINE_BLOCKS = 5
+SPINE_BLOCK_MIN_S = 2.0
 MOVING_RAD_S = 0.35  # a segment moves above this angular rate (rad/s, 20 °/s)
 MIN_MOVING_S = 5.0  # shared movement needed (s)
 LOWPASS_HZ = 6.0  # zero-phase low-pass of the residuals (Hz)
@@ -102,6 +124,7 @@ def estimate_clock(
     sensor: SensorStream,
     max_offset_s: float = MAX_OFFSET_S,
     signals_of: Callable[[SensorStream], Signals] | None = None,
+    spine: bool = False,
 ) -> ClockFit:
     """Offset and drift of ``sensor``'s clock against ``reference``'s (see the module docstring).
 
@@ -109,7 +132,9 @@ def estimate_clock(
     joint. The status is ``"applied"`` only when the fit is reliable and differs from zero
     (:func:`motionlab.clocksync.stage.synchronise` applies only those). ``signals_of``: how a
     stream's :class:`Signals` are had (default :func:`signals`; the stage computes them once
-    per sensor, :class:`~motionlab.clocksync.common.PerStream`).
+    per sensor, :class:`~motionlab.clocksync.common.PerStream`). ``spine``: sensors among
+    pelvis, lumbar and thorax (a short movement in ``SPINE_BLOCKS`` blocks, the residual limit
+    ``SPINE_MAX_RESIDUAL_M_S2``; module notes).
     """
     name = (reference.label, sensor.label)
     if min(finite_samples(reference), finite_samples(sensor)) < MIN_SAMPLES:
@@ -139,6 +164,10 @@ def estimate_clock(
     # the low-passed residuals change little within a quarter of the filter's period
     stride = max(1, int(0.25 / (LOWPASS_HZ * dt)))
     pair = Pair(t, ref, b.spline, t_mid, sos, use[::stride])
+    if spine and moving_s < 3 * BLOCK_S:  # a short trunk recording: in shorter blocks
+        covered = len(pair.use) * float(np.median(np.diff(t[pair.use])))  # as blocks() counts
+        block = covered / SPINE_BLOCKS * (1.0 - 1e-9)
+        pair = replace(pair, block_s=max(block, SPINE_BLOCK_MIN_S))
     fitting = pair.spread(FIT_MOVING_S)  # the search for the levers, biases and clock: bounded
     body = fitting.body(0.0)
     grid = np.arange(-max_offset_s, max_offset_s + 1e-12, GRID_STEP_S)
@@ -154,7 +183,7 @@ def estimate_clock(
     rms = float(np.sqrt(pair.cost(fit) / len(pair.use)))
     if worst_se > MAX_SE_S:
         status = "not reliable: too little shared movement"
-    elif rms > MAX_RESIDUAL_M_S2:
+    elif rms > (SPINE_MAX_RESIDUAL_M_S2 if spine else MAX_RESIDUAL_M_S2):
         status = (
             f"not reliable: the shared joint centre fits poorly (residual {rms:.2f} m/s²: soft "
             "tissue or a loose sensor)"
@@ -188,6 +217,7 @@ class Pair:
     t_mid: float
     sos: np.ndarray
     use: np.ndarray
+    block_s: float = BLOCK_S  # movement per block (s): :meth:`blocks`
 
     def __post_init__(self) -> None:
         sos = self.sos
@@ -289,16 +319,16 @@ class Pair:
         ).x
 
     def blocks(self) -> list[np.ndarray]:
-        """The used samples in runs of ``BLOCK_S`` of movement (none when under three)."""
+        """The used samples in runs of ``block_s`` of movement (none when under three)."""
         dt = float(np.median(np.diff(self.t[self.use])))  # spacing of the fitted samples
-        n_blocks = int(len(self.use) * dt // BLOCK_S)
+        n_blocks = int(len(self.use) * dt // self.block_s)
         return np.array_split(self.use, n_blocks) if n_blocks >= 3 else []
 
     def spread(self, moving_s: float) -> Pair:
         """The pair on at most ``moving_s`` of its movement: whole :meth:`blocks` spread evenly
         over the recording (itself when it moves less)."""
         blocks = self.blocks()
-        keep = int(moving_s // BLOCK_S)
+        keep = int(moving_s // self.block_s)
         if len(blocks) <= keep:
             return self
         chosen = np.unique(np.round(np.linspace(0, len(blocks) - 1, keep)).astype(int))
@@ -306,7 +336,7 @@ class Pair:
 
     def clock_from_blocks(self, p: np.ndarray) -> tuple[np.ndarray, float, float]:
         """c₀ (s), c₁ and their standard errors from offsets fitted block by block (the moving
-        samples in runs of ``BLOCK_S``; levers and biases of ``p`` held).
+        samples in runs of ``block_s``; levers and biases of ``p`` held).
 
         A line through the block offsets, weighted by each block's information and scaled by
         its scatter (χ²/dof when above 1, so that the model's errors, which the residuals'

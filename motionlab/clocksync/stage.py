@@ -5,7 +5,8 @@ The impact lag (:mod:`.impacts`) is tried on the sync tree's pairs (:mod:`.pairs
 
 *Without heel strikes* (no reliable impact lag: arm, elbow, lumbar and the clinical tasks, whose
 timing is as before) each sensor is put on its parent's corrected clock by the joint-centre fit
-(:func:`choose` keeps it).
+(:func:`choose` keeps it); a pair joined by the spine (pelvis, lumbar, thorax) by its spine
+rule (a short movement in shorter blocks, a looser residual limit: :mod:`.joint_centre`).
 
 *With heel strikes* every sensor's clock is solved at once on the root's
 (:mod:`motionlab.clocknet`): the impact lags of every pair of sensors and the joint-centre fits
@@ -92,9 +93,9 @@ def synchronise(
         sensors = session.sensors
         return impact_clock(sensors[label[a]], sensors[label[b]], max_offset_s, envelope_of)
 
-    def centre(a: str, b: str) -> ClockFit:
+    def centre(a: str, b: str, spine: bool = False) -> ClockFit:
         sensors = session.sensors  # the clocks corrected so far
-        return estimate_clock(sensors[a], sensors[b], max_offset_s, signals_of)
+        return estimate_clock(sensors[a], sensors[b], max_offset_s, signals_of, spine)
 
     impacts = {(a, b): lag(a, b) for a, b in tree}
     if any(_reliable(f) for f in impacts.values()):  # heel strikes: every pair, all at once
@@ -118,7 +119,7 @@ def _synchronise_tree(session: Session, tree, label, impacts, centre) -> list[Cl
     for ref_seg, seg in tree:
         ref, lab = label[ref_seg], label[seg]
         # the pair's impact lag was measured on the raw clocks; none is reliable (no heel strikes)
-        fit = choose(centre(ref, lab), impacts[(ref_seg, seg)])
+        fit = choose(centre(ref, lab, _spine(ref_seg, seg)), impacts[(ref_seg, seg)])
         fits.append(fit)
         # the fit is against the reference's corrected clock: "consistent with one clock" means
         # the sensor already agrees with it; an unreliable fit tells nothing, so the sensor keeps
@@ -190,6 +191,13 @@ def _network_fit(root: str, lab: str, clock, follows: str, t0: float, span: floa
     status = "applied" if ends > max(MIN_CORRECTION_S, worst) else "consistent with one clock"
     return ClockFit(root, lab, clock.offset_s, clock.drift, clock.t_mid_s, clock.offset_se_s,
                     clock.drift_se, np.nan, 0.0, status, NETWORK, clock.summary())  # fmt: skip
+
+
+def _spine(a: str, b: str) -> bool:
+    """Whether segments ``a`` and ``b`` are joined by the spine (pelvis, lumbar, thorax): the
+    joint-centre fit's spine rule (:func:`motionlab.clocksync.joint_centre.estimate_clock`)."""
+    kinds = {kind_side(a)[0], kind_side(b)[0]}
+    return len(kinds) == 2 and kinds <= {"pelvis", "lumbar", "thorax"}
 
 
 def _reliable(fit: ClockFit) -> bool:
