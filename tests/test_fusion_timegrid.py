@@ -240,3 +240,30 @@ def test_a_damaged_list_of_filled_gaps_is_one_line(bad):
         filled_spans(s, "s.h5")
     line = err.value.line()
     assert "s.h5" in line and "sensor thigh" in line and "ingest the recording again" in line
+
+
+def test_bridged_flags_are_the_span_by_span_comparison():
+    """registry._bridged finds the samples inside each filled span by bisection (linear in the
+    recording): the same flags as comparing every sample with every span, on a clock with
+    packet-loss gaps (spans at, between and beyond the samples; one past the end)."""
+    from motionlab.fusion.registry import _bridged
+    from motionlab.fusion.timegrid import CUBIC_MAX_S
+
+    rng = np.random.default_rng(4)
+    t = np.arange(3000) / RATE
+    t = t[rng.uniform(size=len(t)) > 0.05]  # dropped packets: the grid fills them
+    starts = np.concatenate([rng.uniform(-1.0, 31.0, 40), t[[5, 500]]])
+    spans = np.column_stack([starts, starts + rng.uniform(0.0, 0.5, len(starts))])
+    grid = gap_grid(t, RATE)
+    recorded = np.ones(len(t), bool)
+    for start, end in spans:
+        recorded[(t > start) & (t < end)] = False
+    filled = np.setdiff1d(np.arange(len(grid.time)), grid.index)
+    on_grid, linear = _bridged(t, spans, grid)
+    assert not recorded.all() and len(filled)  # both paths are used
+    np.testing.assert_array_equal(on_grid[grid.index], recorded)
+    assert not on_grid[filled].any()
+    np.testing.assert_array_equal(linear[grid.index], ~recorded)
+    gap = grid.stamps[grid.before + 1] - grid.stamps[grid.before]
+    np.testing.assert_array_equal(linear[filled], gap > CUBIC_MAX_S)
+    np.testing.assert_array_equal(_bridged(t, spans, None)[0], recorded)

@@ -10,7 +10,7 @@ from motionlab.kinematics.joint_angles import decompose_joint
 from motionlab.protocol import load_protocol
 from motionlab.segments.movement import fit_hinge
 from motionlab.simulate import simulate
-from motionlab.simulate.signals import impact_artefact, skin_artefact
+from motionlab.simulate.signals import after_impacts, impact_artefact, skin_artefact
 from motionlab.simulate.timeline import knee_coupling
 
 #: the lowest relative residual of Seel's hinge fit on a real walk (bench/sim_realism.py: the two
@@ -152,3 +152,23 @@ def test_default_options_keep_their_numbers():
         got.append(np.sum(np.abs(truth.sensors["thigh_r"]["orientation"][:, 1])))
         np.testing.assert_allclose(got, expected[preset], rtol=1e-12, atol=0)
         assert "knee_model" not in truth.config and "sta_deg" not in truth.config["error_model"]
+
+
+def test_pulses_after_impacts_are_the_loop_over_impacts_bit_for_bit():
+    """after_impacts visits only the strikes that reach an instant (linear in the recording);
+    it must add the same terms in the same order as a loop over every strike: overlapping
+    pulses, instants in any order, at a strike and at its pulse's end."""
+    rng = np.random.default_rng(3)
+    impacts = np.sort(rng.uniform(0.0, 20.0, 60))  # often closer than a pulse's length
+    t = np.concatenate([rng.uniform(-1.0, 22.0, 5000), impacts, impacts + 0.8])
+
+    def pulse(dt):
+        return dt**3 * np.exp(3 - dt / 0.04) * np.sin(2 * np.pi * 12.0 * dt)
+
+    loop = np.zeros(len(t))
+    for ti in impacts:
+        m = (t > ti) & (t < ti + 0.8)
+        loop[m] += pulse(t[m] - ti)
+    assert np.array_equal(after_impacts(t, impacts, 0.8, pulse), loop)
+    assert np.array_equal(after_impacts(t, impacts[::-1], 0.8, pulse), loop)  # any order given
+    assert not after_impacts(t, np.zeros(0), 0.8, pulse).any()

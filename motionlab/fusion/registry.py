@@ -255,8 +255,13 @@ def _bridged(t: np.ndarray, spans: Any, grid: Any) -> tuple[np.ndarray, np.ndarr
     the filled ones bridged linearly (ingest's filled ``spans``, ``[start_s, end_s]`` each, and
     the grid's gaps over ``CUBIC_MAX_S``); see :func:`.timegrid.gap_noise`."""
     recorded = np.ones(len(t), bool)
-    for start, end in np.asarray(spans if spans is not None else [], float).reshape(-1, 2):
-        recorded[(t > start) & (t < end)] = False
+    ends = np.asarray(spans if spans is not None else [], float).reshape(-1, 2)
+    # t strictly increasing (checked_time): the samples inside each span by bisection, so the
+    # cost grows with the samples plus the spans, not their product
+    first = np.searchsorted(t, ends[:, 0], side="right")  # t > start
+    stop = np.where(np.isnan(ends[:, 1]), 0, np.searchsorted(t, ends[:, 1], side="left"))  # t < end
+    for a, b in zip(first, stop, strict=True):
+        recorded[a:b] = False
     if grid is None:
         return recorded, ~recorded
     on_grid = np.zeros(len(grid.time), bool)
@@ -264,7 +269,9 @@ def _bridged(t: np.ndarray, spans: Any, grid: Any) -> tuple[np.ndarray, np.ndarr
     linear = np.zeros(len(grid.time), bool)
     linear[grid.index] = ~recorded
     spans = grid.stamps[grid.before + 1] - grid.stamps[grid.before]
-    linear[np.setdiff1d(np.arange(len(grid.time)), grid.index)] = spans > CUBIC_MAX_S
+    filled = np.ones(len(grid.time), bool)  # the filled instants, in grid order
+    filled[grid.index] = False
+    linear[filled] = spans > CUBIC_MAX_S
     return on_grid, linear
 
 

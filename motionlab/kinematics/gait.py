@@ -181,6 +181,8 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
                 var_series[v] = (out.pelvis.time_s, pel[:, i])
         curves[side] = {}
         for v, (t, x) in var_series.items():
+            # contiguous once: np.interp would copy a column (the pelvis's) for every stride
+            t, x = np.ascontiguousarray(t, float), np.ascontiguousarray(x, float)
             cyc = np.array([_curve(t, x, a, b) for a, b in zip(st.ic[keep], st.next_ic[keep],
                                                               strict=True)])  # fmt: skip
             if len(cyc):

@@ -29,6 +29,7 @@ from motionlab.simulate.timeline import Timeline
 EVENT_RATE_HZ = 1000.0
 HEEL, TOE = -0.2, 0.8  # fractions of the foot length behind / in front of the ankle
 RAMP_S = 2.0  # the gait block's envelope ramp (motion.gait_block)
+CHUNK = 2**20  # instants of the 1 kHz grid per evaluation (≈ 17 min of walking)
 
 
 def _forward(heading: np.ndarray) -> np.ndarray:
@@ -49,18 +50,24 @@ def gait_truth(body: Body, timeline: Timeline, t: np.ndarray) -> dict[str, Any]:
         if block.kind != "gait":
             continue
         tt = start + np.arange(0.0, block.duration, 1.0 / EVENT_RATE_HZ)
-        ch = timeline.channels(tt)
-        poses = segment_poses(body, ch, ["pelvis", "foot_r", "foot_l"])
-        fwd = _forward(ch[:, CH["heading"]])
         full = envelope(tt - start, block.duration, min(RAMP_S, block.duration / 3)) > 0.999
-        sacrum = poses["pelvis"][1]
+        ahead: dict[str, list[np.ndarray]] = {}  # heel ahead of / toe behind the sacrum (m)
+        for a in range(0, len(tt), CHUNK):  # the feet a chunk at a time: bounded memory
+            ch = timeline.channels(tt[a : a + CHUNK])
+            poses = segment_poses(body, ch, ["pelvis", "foot_r", "foot_l"])
+            fwd = _forward(ch[:, CH["heading"]])
+            sacrum = poses["pelvis"][1]
+            for side in "rl":
+                q, p = poses[f"foot_{side}"]
+                heel = p + rot.rotate(q, np.array([HEEL * L["foot"], -L["ankle_height"], 0.0]))
+                toe = p + rot.rotate(q, np.array([TOE * L["foot"], -L["ankle_height"], 0.0]))
+                ahead.setdefault(f"heel_{side}", []).append(np.sum((heel - sacrum) * fwd, axis=1))
+                ahead.setdefault(f"toe_{side}", []).append(-np.sum((toe - sacrum) * fwd, axis=1))
         for side in "rl":
-            q, p = poses[f"foot_{side}"]
-            heel = p + rot.rotate(q, np.array([HEEL * L["foot"], -L["ankle_height"], 0.0]))
-            toe = p + rot.rotate(q, np.array([TOE * L["foot"], -L["ankle_height"], 0.0]))
             gap = int(0.4 * EVENT_RATE_HZ)
-            ic, _ = find_peaks(np.sum((heel - sacrum) * fwd, axis=1), distance=gap, prominence=0.1)
-            fc, _ = find_peaks(-np.sum((toe - sacrum) * fwd, axis=1), distance=gap, prominence=0.1)
+            heel, toe = (np.concatenate(ahead[f"{x}_{side}"]) for x in ("heel", "toe"))
+            ic, _ = find_peaks(heel, distance=gap, prominence=0.1)
+            fc, _ = find_peaks(toe, distance=gap, prominence=0.1)
             for name, idx in ((f"ic_{side}", ic), (f"fc_{side}", fc)):
                 events.setdefault(name, []).append(tt[idx])
                 events.setdefault(f"{name}_steady", []).append(full[idx])

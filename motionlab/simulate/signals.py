@@ -40,6 +40,7 @@ by quintic splines, so the IMU signals (derivatives of the pose) and the truth a
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -49,7 +50,7 @@ from scipy.signal import cont2discrete, lfilter
 
 from motionlab import rotations as rot
 from motionlab.simulate.body import Body
-from motionlab.simulate.chain import derivatives, segment_poses
+from motionlab.simulate.chain import derivatives, derivatives_many, segment_poses
 from motionlab.simulate.timeline import Timeline
 
 MU0_4PI = 1e-7  # T·m/A
@@ -93,11 +94,41 @@ class Wobble:
         """Wobble rotation vector (N, 3) in rad (sensor frame)."""
         w = np.zeros(len(t))
         if self.amplitude > 0:
-            for ti in self.impacts:  # a loop over heel strikes, vectorised over time
-                m = (t > ti) & (t < ti + 40 * self.decay_s)
-                x = (t[m] - ti) / self.decay_s
-                w[m] += x**3 * np.exp(3 - x) / 27 * np.sin(2 * np.pi * self.freq_hz * (t[m] - ti))
+
+            def pulse(dt: np.ndarray) -> np.ndarray:
+                x = dt / self.decay_s
+                return x**3 * np.exp(3 - x) / 27 * np.sin(2 * np.pi * self.freq_hz * dt)
+
+            w = after_impacts(t, self.impacts, 40 * self.decay_s, pulse)
         return self.amplitude * w[:, None] * self.axis
+
+
+def after_impacts(t: np.ndarray, impacts: np.ndarray, length: float,
+                  pulse: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:  # fmt: skip
+    """``Σ_i pulse(t − t_i)`` (N,) over the impacts ``t_i`` (s) with ``t_i < t < t_i + length``.
+
+    Each instant visits only the impacts that can reach it (found by bisection in the sorted
+    impacts), so the cost grows with the samples times the impacts that overlap, not with the
+    samples times all impacts; the terms are added in the impacts' time order, as a loop over the
+    impacts would add them (same numbers, bit for bit). ``t`` need not be sorted.
+    """
+    t = np.asarray(t, dtype=float)
+    w = np.zeros(len(t))
+    ti = np.asarray(impacts, dtype=float)
+    if len(ti) == 0 or len(t) == 0:
+        return w
+    ti = ti[np.argsort(ti, kind="stable")]
+    hi = np.searchsorted(ti, t, side="left")  # impacts before each instant: t_i < t exactly
+    # a generous lower bound; the exact test t < t_i + length below decides
+    lo = np.searchsorted(ti, t - length - 1e-9 * (1.0 + abs(length) + np.abs(t)), side="left")
+    for j in range(int(np.max(hi - lo, initial=0))):
+        i = lo + j
+        m = i < hi
+        k = i[m]
+        m[m] = t[m] < ti[k] + length
+        k = i[m]
+        w[m] += pulse(t[m] - ti[k])
+    return w
 
 
 TISSUE_LEVER_M = 0.05  # height of the tissue column that shears under the sensor (m)
@@ -146,13 +177,13 @@ def segment_kinematics(body: Body, timeline: Timeline, t: np.ndarray,
     """``{segment: (q, omega, alpha, a)}`` on a uniform grid ``t`` (s): orientation, angular
     velocity (rad/s) and acceleration (rad/s², both segment frame), origin acceleration (m/s²,
     ENU, gravity left out)."""
+
+    def pose(seg: str):
+        return lambda tt: _poses(body, timeline, tt, segments)[seg]
+
     out = {}
-    for seg in segments:
-
-        def pose(tt, seg=seg):
-            return _poses(body, timeline, tt, segments)[seg]
-
-        q, _, omega, acc = derivatives(pose, t)
+    kin = derivatives_many([pose(seg) for seg in segments], t)
+    for seg, (q, _, omega, acc) in zip(segments, kin, strict=True):
         out[seg] = (q, omega, np.gradient(omega, t, axis=0), acc)
     return out
 
@@ -192,12 +223,12 @@ def impact_artefact(t: np.ndarray, impacts: np.ndarray, direction: np.ndarray, a
     t_i) / decay_s``; C³ at its onset, at most ``amplitude`` (rad) for strikes further apart than
     its duration.
     """
-    w = np.zeros(len(t))
-    for ti in impacts:  # a loop over heel strikes, vectorised over time
-        m = (t > ti) & (t < ti + 20 * decay_s)
-        u = (t[m] - ti) / decay_s
-        w[m] += u**3 * np.exp(3 - u) / 27 * np.sin(2 * np.pi * freq_hz * (t[m] - ti))
-    return amplitude * w[:, None] * direction
+
+    def pulse(dt: np.ndarray) -> np.ndarray:
+        u = dt / decay_s
+        return u**3 * np.exp(3 - u) / 27 * np.sin(2 * np.pi * freq_hz * dt)
+
+    return amplitude * after_impacts(t, impacts, 20 * decay_s, pulse)[:, None] * direction
 
 
 def tissue_motion(
