@@ -133,7 +133,7 @@ def vendor_swings(session: Session, vendor: dict, joint, column: str, side: str)
     t = session.sensors[joint.proximal].time
     rel = rot.mul(rot.conj(vendor[joint.proximal]), vendor[joint.distal])
     ta, x = np.asarray(angles.time), np.asarray(angles.data[column], float)
-    ic = np.asarray(gait.events[side]["ic"], float)
+    ic = np.asarray(gait.events[side].ic, float)
     out = []
     for a, b in zip(ic[:-1], ic[1:], strict=True):
         k = np.flatnonzero((ta >= a) & (ta <= b) & np.isfinite(x))

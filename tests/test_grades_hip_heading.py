@@ -10,17 +10,18 @@ import pytest
 from motionlab import rotations as rot
 from motionlab.kinematics.joint_angles import decompose
 from motionlab.protocol import load_protocol
-from motionlab.results import HingeFit, SegmentCalibration, SegmentRecord
+from motionlab.results import AxisMeasurement, HingeFit, SegmentCalibration, SegmentRecord
 from motionlab.segments.grades import HEADING_BOUND_DEG, grade_joints
 
-MEASURED = {"kind": "movement", "method": "hinge", "used": True}
-GRAVITY = {"kind": "static", "method": "gravity", "used": True}
+Y, Z = np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0])
+MEASURED = AxisMeasurement("walk", "movement", "hinge", Z, Z, 0.9, used=True)
+GRAVITY = AxisMeasurement("standing", "static", "gravity", Y, Y, 0.99, used=True)
 
 
 def _calibration(forward: str, tilt_deg: float, knee: str = "determined") -> SegmentCalibration:
     """pelvis: gravity and a forward direction by ``forward``; thigh_r and shank_r measured
     whole; knee_r fitted from the walk with the thigh tilting ``tilt_deg``."""
-    turns = {"kind": "movement", "method": forward, "used": True}
+    turns = AxisMeasurement("movement:turns", "movement", forward, Y, Y, 0.5, used=True)
     segs = {
         "pelvis": SegmentRecord(rot.IDENTITY, "primary_secondary", {"s": GRAVITY, "t": turns}),
         "thigh_r": SegmentRecord(rot.IDENTITY, "primary_secondary", {"s": GRAVITY, "k": MEASURED}),

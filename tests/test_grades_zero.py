@@ -7,12 +7,12 @@ import pytest
 
 from motionlab import rotations as rot
 from motionlab.protocol import load_protocol
-from motionlab.results import HingeFit, SegmentCalibration, SegmentRecord
+from motionlab.results import AxisMeasurement, HingeFit, SegmentCalibration, SegmentRecord
 from motionlab.segments.grades import grade_joints
 
 RIG = Path(__file__).resolve().parents[1] / "motionlab/protocols/examples/ring_rig.yaml"
-MEASURED = {"kind": "movement", "used": True}
 Z = rot.IDENTITY[1:]
+MEASURED = AxisMeasurement("hinge34", "movement", "hinge", Z, Z, 0.9, used=True)
 
 
 def _calibration(seg4_method: str) -> SegmentCalibration:
