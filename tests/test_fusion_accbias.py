@@ -14,6 +14,7 @@ from motionlab.fusion.stage import (
     _merged_windows,
     calibration_acc_bias,
     fuse_session,
+    levels_its_rests,
 )
 from motionlab.protocol import load_protocol
 from motionlab.segments import corrected_acc
@@ -240,3 +241,49 @@ def test_joined_bias_by_hand():
     b1, b2 = _joined_bias(ends, 0.01)
     np.testing.assert_allclose(b1, [0.096, weak * -0.2 / (4 + weak), 0.0], atol=1e-12)
     np.testing.assert_allclose(b2, [weak * 0.1 / (4 + weak), -0.192, 0.0], atol=1e-12)
+
+
+def _swing(centre_deg, amp_deg, seed=2):
+    """A rest with the sensor's y up (5 s), 40 s of a segment swinging about the sensor's x
+    axis between ``centre ± amp`` degrees from that pose (0.3 Hz), a rest again; the sensor
+    0.3 m below the joint it turns about, so the accelerometer also reads the swing's
+    centripetal (along +y) and tangential acceleration."""
+    t = np.arange(int(40 * RATE)) / RATE
+    ease = np.minimum(1.0, np.minimum(t, t[-1] - t) / 2.0)
+    theta = np.radians(centre_deg) * (1 - np.cos(np.pi * ease)) / 2
+    theta = np.concatenate([np.zeros(500), theta + np.radians(amp_deg) * ease * np.sin(
+        2 * np.pi * 0.3 * t), np.zeros(500)])  # fmt: skip
+    rate = np.gradient(theta, 1 / RATE)
+    quat = rot.mul(rot.from_axis_angle([0, 0, 1], 0.4), rot.from_rotvec(np.outer(theta, [1, 0, 0])))
+    lever = np.column_stack([0 * theta, 0.3 * rate**2, -0.3 * np.gradient(rate, 1 / RATE)])
+    rng = np.random.default_rng(seed)
+    acc = rot.rotate(rot.conj(quat), np.array([0, 0, G])) + lever + BIAS
+    gyr = np.outer(rate, [1, 0, 0]) + 0.002 * rng.standard_normal((len(theta), 3))
+    return gyr, acc + 0.05 * rng.standard_normal(acc.shape), quat
+
+
+@pytest.mark.parametrize(("centre", "levels"), [(5.0, True), (60.0, False)])
+def test_movement_far_from_its_rest_does_not_level_it(centre, levels):
+    """A swing about its rest pose (mean tilt 13°) judges the rest; one that spends the
+    movement 60° from it (mean tilt 58°, as a forearm in free arm movement) does not, and the
+    calibration then takes no bias (the recording as it is)."""
+    gyr, acc, quat = _swing(centre, 20.0)
+    rest = rest_mask(gyr, acc, RATE, np.deg2rad(2.0), 0.5, min_duration=1.5)
+    assert runs(rest).shape[0] == 2  # the two rests, in one pose
+    assert levels_its_rests(quat, acc, rest) is levels
+    bias = calibration_acc_bias(gyr, acc, RATE)
+    assert np.all(bias == 0.0) is not levels
+
+
+def test_rests_in_two_poses_level_themselves():
+    """Rests in different poses determine the bias through the gyroscope whatever the
+    movement between them: the five poses are judged to level their rests, while the first
+    rest alone, the other poses taken for movement (its vertical 48° from the earth's on
+    average), is not."""
+    gyr, acc, quat = _poses()
+    rest = rest_mask(gyr, acc, RATE, np.deg2rad(2.0), 0.5, min_duration=1.5)
+    assert runs(rest).shape[0] == 5
+    assert levels_its_rests(quat, acc, rest)
+    one = rest.copy()
+    one[int(runs(rest)[1][0]) :] = False  # only the first rest counts as one
+    assert not levels_its_rests(quat, acc, one)

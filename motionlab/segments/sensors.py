@@ -39,9 +39,10 @@ def _no_sensor(protocol: Protocol, segment: str) -> InputError:
 def corrected_acc(session: Session, label: str) -> np.ndarray:
     """Sensor ``label``'s accelerometer (N, 3) m/s² less the bias its fusion estimated
     (``results.fusion[label].acc_bias``, the default estimator's accelerometer-bias states at
-    the calibration's prior, :func:`motionlab.fusion.stage.calibration_acc_bias`; the
-    recording as it is when there is none): a stand's gravity direction is then not tilted by
-    the bias that the fused orientation of the movement next to it does not have."""
+    the calibration's prior, :func:`motionlab.fusion.stage.calibration_acc_bias`, zero where
+    the movement next to a rest cannot level it; the recording as it is when there is none):
+    a stand's gravity direction is then not tilted by the bias that the fused orientation of
+    the movement next to it does not have."""
     acc = np.asarray(session.sensors[label].acc, dtype=float)
     fused = session.results.fusion.get(label)
     bias = None if fused is None else fused.acc_bias
