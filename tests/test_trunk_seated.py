@@ -12,6 +12,7 @@ from click.testing import CliRunner
 
 from motionlab import rotations as rot
 from motionlab.cli import main
+from motionlab.errors import InputError
 from motionlab.kinematics.joint_angles import decompose
 from motionlab.pipeline import PipelineOptions, analyse
 from motionlab.session import SensorStream
@@ -155,6 +156,21 @@ def test_a_recording_that_starts_moving_and_rests_only_at_the_end(seated):
     rest = late.results.calibration.steps["rest"]
     assert rest[0] > block["end_s"]  # the only rest left is after the movement
     assert np.isfinite(late.results.angles.columns()["lumbar_flexion_deg"]).all()
+
+
+def test_a_rest_with_a_moment_of_movement_is_no_trunk_movement(seated):
+    """A recording cut to its rest and the first second of the trunk block is refused: no
+    trunk movement (without the check it ran and graded all three planes ``determined`` from
+    0.9 s of movement); six seconds of the block give the axes."""
+    session, truth = seated
+    start = truth.step("trunk_movement")["start_s"]
+    with pytest.raises(InputError, match=r"no trunk movement: .* for 0\.9 s besides the rest"):
+        analyse(_crop(session, start - 2.0, start + 1.0), OPTIONS)
+    with pytest.raises(InputError, match="no trunk movement: the thorax hardly turns"):
+        analyse(_crop(session, start - 6.0, start + 0.3), OPTIONS)
+    longer = _crop(session, start - 2.0, start + 6.0)
+    analyse(longer, OPTIONS)
+    assert np.isfinite(longer.results.angles.columns()["lumbar_flexion_deg"]).any()
 
 
 def test_no_rest_is_one_line_naming_the_protocol_and_the_remedy(tmp_path):

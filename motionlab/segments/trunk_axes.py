@@ -77,6 +77,8 @@ REST_MAX_S = 5.0  # a rest is grown up to this long
 REST_MAX_DEG_S = 15.0  # the stillest second turning faster than this (mean per sensor): no rest
 REST_GROW = 1.5  # the rest grows while the 0.2 s speed stays within this × the stillest second's
 STILL_DEG_S = 1.0  # a rest this still (mean deg/s) shows the gyroscope biases
+MOVING_DEG_S = 5.0  # the thorax turning faster than this relative to the pelvis is moving
+MOVEMENT_MIN_S = 2.0  # the least trunk movement (s) that can give the axes
 ENERGY_MIN = 0.2  # a horizontal axis turning less than this share of the other's is no candidate
 AXIS_RATIO_MIN = 1.5  # the flexion axis's one-sidedness over the other axis's
 SIGN_RATIO_MIN = 1.3  # the thorax's excursion one way / the other, about the flexion axis
@@ -297,9 +299,20 @@ def calibrate(
 
     moving = np.ones(len(t), bool)
     moving[rest] = False
+    turning = moving & (np.degrees(np.linalg.norm(w_rel, axis=1)) > MOVING_DEG_S)
+    moved_s = float(turning.sum() * np.median(np.diff(t)))
     if moving.sum() < 2 or np.degrees(np.sqrt(np.mean(np.sum(w_rel[moving] ** 2, 1)))) < 5.0:
+        why = "the thorax hardly turns relative to the pelvis"
+    elif moved_s < MOVEMENT_MIN_S:
+        why = (
+            f"the thorax turns relative to the pelvis for {moved_s:.1f} s besides the rest "
+            f"(at least {MOVEMENT_MIN_S:g} s needed)"
+        )
+    else:
+        why = ""
+    if why:
         raise InputError(
-            "no trunk movement: the thorax hardly turns relative to the pelvis",
+            f"no trunk movement: {why}",
             protocol.path,
             "calibration",
             remedy="record trunk flexion, lateral bending and rotation besides the rest",
