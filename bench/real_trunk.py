@@ -43,7 +43,7 @@ a sign error is an error), and the product's grade. Medians over the trials.
 
 Usage (from the repository root)::
 
-    python3 bench/real_trunk.py [--data ../shared/datasets/trunk] [--csv-dir DIR]
+    python3 bench/real_trunk.py [--data ../shared/datasets/trunk] [--start-moving]
 """
 
 from __future__ import annotations
@@ -66,6 +66,7 @@ from motionlab.ingest import ingest  # noqa: E402
 from motionlab.kinematics.joint_angles import decompose  # noqa: E402
 from motionlab.pipeline import PipelineOptions, analyse  # noqa: E402
 from motionlab.rotations import angular_velocity  # noqa: E402
+from motionlab.timebase import take  # noqa: E402
 from motionlab.validation.joint_reference import fit_clock_offset  # noqa: E402
 
 DEFAULT_DATA = ROOT.parent / "shared" / "datasets" / "trunk"
@@ -198,10 +199,16 @@ def metrics(est: np.ndarray, ref: np.ndarray) -> dict[str, float]:
     }
 
 
-def run_variant(imu: Path, variant: dict) -> tuple[np.ndarray, pd.DataFrame, dict, tuple, dict]:
+def run_variant(
+    imu: Path, variant: dict, start_s: float | None = None
+) -> tuple[np.ndarray, pd.DataFrame, dict, tuple, dict]:
     """In-memory ``motionlab run``: time (s), the lumbar angle columns, grades by column, the
-    rest (s) and the trunk calibration's summary."""
+    rest (s) and the trunk calibration's summary; with ``start_s`` on the recording cut to
+    start there (session time, s)."""
     session = ingest([imu], MAP)
+    if start_s is not None:
+        for label, stream in session.sensors.items():
+            session.sensors[label] = take(stream, np.flatnonzero(stream.time >= start_s))
     analyse(session, PipelineOptions(protocol=PROTOCOL, progress=False, **variant))
     table = session.results.angles
     cols = {c: np.asarray(v, float) for c, v in table.columns().items()}
@@ -294,6 +301,12 @@ def common_rest(t_imu, sp_imu, t_opt_on_imu, quats, rest_s) -> tuple[float, floa
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA, help="the trunk data set")
+    ap.add_argument(
+        "--start-moving",
+        action="store_true",
+        help="cut a trial whose rest starts the recording to 0.5 s after that rest (a recording "
+        "that starts in movement, its rest elsewhere or none)",
+    )
     args = ap.parse_args(argv)
     trials = sorted(p.parent for p in args.data.glob("*/*/optitrack.csv"))
     if not trials:
@@ -328,10 +341,16 @@ def main(argv: list[str] | None = None) -> int:
         t_imu, sp_imu = imu_speeds(trial / "imu")
         sp_opt = np.column_stack([speed(t_opt, quats[b]) for b in ("back", "low_back", "rolstoel")])
         coarse, r_clock = fit_clock_offset(t_imu, sp_imu, t_opt, sp_opt, CLOCK_SEARCH_S, 0.005)
-        runs = {}
+        runs, start_s = {}, None
+        if args.start_moving:
+            rest = run_variant(trial / "imu", VARIANTS["motionlab 6-D"])[3]
+            if rest[0] - t_imu[0] < 0.5:
+                start_s = rest[1] + 0.5
+                notes.append(f"- {name}: cut to start at {start_s:.1f} s (its rest {rest[0]:.1f}–"
+                             f"{rest[1]:.1f} s started the recording)")  # fmt: skip
         for label, variant in VARIANTS.items():
             try:
-                runs[label] = run_variant(trial / "imu", variant)
+                runs[label] = run_variant(trial / "imu", variant, start_s)
             except Exception as exc:  # a failing variant is a row, the bench goes on
                 notes.append(f"- {name}, {label}: failed: {str(exc)[:150]}")
         if "motionlab 6-D" not in runs:
