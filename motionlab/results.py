@@ -104,7 +104,8 @@ class _Record:
     """``to_tree`` / ``from_tree`` for a dataclass whose fields are its tree's keys.
 
     ``None`` fields are not stored; unknown keys of a tree go to ``more`` (when the class has
-    that field) and come back out in ``to_tree``.
+    that field) and come back out in ``to_tree``; the fields named in ``_nested`` hold records
+    (or maps of them) stored as subtrees.
     """
 
     #: field name → its key in the file, where the two differ (the layout predates the name)
@@ -113,6 +114,9 @@ class _Record:
     _store_none: ClassVar[bool] = False
     #: fields stored even when ``None`` (the layout predates the class and always had them)
     _stored_when_none: ClassVar[frozenset[str]] = frozenset()
+    #: field → (the record class stored under it, the levels of name-keyed maps holding the
+    #: records: 0 one record, 1 ``{name: record}``, 2 ``{name: {name: record}}``)
+    _nested: ClassVar[dict[str, tuple[Any, int]]] = {}
 
     def to_tree(self) -> dict[str, Any]:
         """The tree stored under the stage's group in the session file."""
@@ -122,6 +126,8 @@ class _Record:
             if f.name == "more":
                 tree.update(value)
             elif value is not None or self._store_none or f.name in self._stored_when_none:
+                if value is not None and f.name in self._nested:
+                    value = _tree(value, self._nested[f.name][1])
                 tree[self._keys.get(f.name, f.name)] = value
         return tree
 
@@ -134,6 +140,9 @@ class _Record:
         rest = {k: v for k, v in tree.items() if k not in field_of}
         if "more" in field_of:
             known["more"] = rest
+        for name, (record, depth) in cls._nested.items():
+            if known.get(name) is not None:
+                known[name] = _map(known[name], record.from_tree, depth)
         return cls(**known)
 
 
@@ -342,6 +351,11 @@ class SegmentRecord(_Record):
     (what was not measured is unknown; ``None``: not checked, as in a trunk calibration).
     """
 
+    _nested: ClassVar[dict[str, tuple[Any, int]]] = {
+        "axes": (AxisMeasurement, 1),
+        "quality": (SegmentQuality, 0),
+    }
+
     mounting: np.ndarray
     method: str
     axes: dict[str, AxisMeasurement] = field(default_factory=dict)
@@ -349,25 +363,6 @@ class SegmentRecord(_Record):
     sensor: str | None = None
     hint_contradicted: bool | None = None
     more: dict[str, Any] = field(default_factory=dict)
-
-    def to_tree(self) -> dict[str, Any]:
-        """The record's tree, its axes and quality subtrees."""
-        tree = super().to_tree()
-        tree["axes"] = {k: a.to_tree() for k, a in self.axes.items()}
-        if self.quality is not None:
-            tree["quality"] = self.quality.to_tree()
-        return tree
-
-    @classmethod
-    def from_tree(cls, tree: dict[str, Any]) -> SegmentRecord:
-        """The record of a stored tree (see :meth:`to_tree`)."""
-        rec = super().from_tree(tree)
-        axes = {k: AxisMeasurement.from_tree(a) if isinstance(a, dict) else a
-                for k, a in rec.axes.items()}  # fmt: skip
-        quality = rec.quality
-        if isinstance(quality, dict):
-            quality = SegmentQuality.from_tree(quality)
-        return dataclasses.replace(rec, axes=axes, quality=quality)
 
 
 @dataclass
@@ -555,20 +550,7 @@ class JointGrades(_Record):
     trunk: TrunkMovement | None = None
     more: dict[str, Any] = field(default_factory=dict)
 
-    def to_tree(self) -> dict[str, Any]:
-        """The grades' tree, the trunk's movement a subtree."""
-        tree = super().to_tree()
-        if self.trunk is not None:
-            tree["trunk"] = self.trunk.to_tree()
-        return tree
-
-    @classmethod
-    def from_tree(cls, tree: dict[str, Any]) -> JointGrades:
-        """The grades of a stored tree (see :meth:`to_tree`)."""
-        rec = super().from_tree(tree)
-        if isinstance(rec.trunk, dict):
-            rec = dataclasses.replace(rec, trunk=TrunkMovement.from_tree(rec.trunk))
-        return rec
+    _nested: ClassVar[dict[str, tuple[Any, int]]] = {"trunk": (TrunkMovement, 0)}
 
 
 @dataclass(frozen=True)
@@ -612,22 +594,11 @@ class HeadingTies(_Record):
     ``joints`` ``{joint: HeadingTie}`` (:class:`HeadingTie`).
     """
 
+    _nested: ClassVar[dict[str, tuple[Any, int]]] = {"joints": (HeadingTie, 1)}
+
     sha256: dict[str, str] = field(default_factory=dict)
     joints: dict[str, HeadingTie] = field(default_factory=dict)
     more: dict[str, Any] = field(default_factory=dict)
-
-    def to_tree(self) -> dict[str, Any]:
-        """The ties' tree, one subtree per joint."""
-        tree = super().to_tree()
-        tree["joints"] = {k: v.to_tree() for k, v in self.joints.items()}
-        return tree
-
-    @classmethod
-    def from_tree(cls, tree: dict[str, Any]) -> HeadingTies:
-        """The ties of a stored tree (see :meth:`to_tree`)."""
-        ties = super().from_tree(tree)
-        ties.joints = {k: HeadingTie.from_tree(v) for k, v in ties.joints.items()}
-        return ties
 
 
 @dataclass
@@ -656,6 +627,15 @@ class SegmentCalibration(_Record):
     group reads as ``None`` too).
     """
 
+    _nested: ClassVar[dict[str, tuple[Any, int]]] = {
+        "segments": (SegmentRecord, 1),
+        "hinges": (HingeFit, 1),
+        "centres": (CentreHeading, 1),
+        "grades": (JointGrades, 1),
+        "hip_axes": (HipAxis, 1),
+        "headings": (HeadingTies, 0),
+    }
+
     protocol: str
     steps: dict[str, Any] = field(default_factory=dict)
     segments: dict[str, SegmentRecord] = field(default_factory=dict)
@@ -670,28 +650,10 @@ class SegmentCalibration(_Record):
     headings: HeadingTies | None = None
     more: dict[str, Any] = field(default_factory=dict)
 
-    def to_tree(self) -> dict[str, Any]:
-        """The calibration's tree, each segment record and hinge fit a subtree."""
-        tree = super().to_tree()
-        for name in ("segments", "hinges", "centres", "grades", "hip_axes"):
-            if name in tree:
-                tree[name] = {k: v.to_tree() for k, v in tree[name].items()}
-        if self.headings is not None:
-            tree["headings"] = self.headings.to_tree()
-        return tree
-
     @classmethod
     def from_tree(cls, tree: dict[str, Any]) -> SegmentCalibration:
-        """The calibration of a stored tree (see :meth:`to_tree`)."""
-        cal = super().from_tree(tree)
-        cal.segments = {k: SegmentRecord.from_tree(v) for k, v in cal.segments.items()}
-        cal.hinges = {k: HingeFit.from_tree(v) for k, v in cal.hinges.items()}
-        cal.centres = {k: CentreHeading.from_tree(v) for k, v in cal.centres.items()}
-        cal.grades = {k: JointGrades.from_tree(v) for k, v in cal.grades.items()}
-        if isinstance(cal.headings, dict):
-            cal.headings = HeadingTies.from_tree(cal.headings) if cal.headings else None
-        cal.hip_axes = {k: HipAxis.from_tree(v) for k, v in cal.hip_axes.items()}
-        return cal
+        """The calibration of a stored tree (see :meth:`to_tree`; empty ``headings``: none)."""
+        return super().from_tree({k: v for k, v in tree.items() if k != "headings" or v})
 
     @property
     def protocol_source(self) -> str:
@@ -985,16 +947,15 @@ class CrossTalk(_Record):
         return cls(**known, off_axis=off, more=rest)
 
 
-def _map(tree: dict[str, Any] | None, read: Any, depth: int = 1) -> dict[str, Any] | None:
-    """``read`` applied to the leaves of a ``depth``-level map of stored trees (``None``
-    stays ``None``); a map or leaf that is not a group (a damaged file) raises ``TypeError``."""
+def _map(tree: dict[str, Any] | None, read: Any, depth: int = 1) -> Any:
+    """``read`` applied to the leaves of a ``depth``-level map of stored trees (depth 0: the
+    tree is the leaf; ``None`` stays ``None``); a map or leaf that is not a group (a damaged
+    file) raises ``TypeError``."""
     if tree is None:
         return None
-    if not isinstance(tree, dict):
-        raise TypeError(f"a group expected, not {type(tree).__name__}")
-    if depth == 1:
-        return {k: read(_group(v)) for k, v in tree.items()}
-    return {k: _map(v, read, depth - 1) for k, v in tree.items()}
+    if depth == 0:
+        return read(_group(tree))
+    return {k: _map(v, read, depth - 1) for k, v in _group(tree).items()}
 
 
 def _group(tree: Any) -> dict[str, Any]:
@@ -1004,12 +965,13 @@ def _group(tree: Any) -> dict[str, Any]:
     return tree
 
 
-def _tree(records: dict[str, Any] | None, depth: int = 1) -> dict[str, Any] | None:
-    """The trees of a ``depth``-level map of records (``None`` stays ``None``)."""
+def _tree(records: Any, depth: int = 1) -> Any:
+    """The trees of a ``depth``-level map of records (depth 0: one record; ``None`` stays
+    ``None``)."""
     if records is None:
         return None
-    if depth == 1:
-        return {k: v.to_tree() for k, v in records.items()}
+    if depth == 0:
+        return records.to_tree()
     return {k: _tree(v, depth - 1) for k, v in records.items()}
 
 
@@ -1028,6 +990,15 @@ class Metrics(_Record):
     (:class:`CrossTalk`).
     """
 
+    _nested: ClassVar[dict[str, tuple[Any, int]]] = {
+        "joints": (AngleMetrics, 2),
+        "blocks": (TaskBlock, 1),
+        "gait": (StanceMetrics, 2),
+        "out_of_plane_offset": (OutOfPlaneOffset, 2),
+        "trunk_compensation": (TrunkCompensation, 1),
+        "cross_talk": (CrossTalk, 2),
+    }
+
     protocol: str
     joints: dict[str, dict[str, AngleMetrics]] = field(default_factory=dict)
     blocks: dict[str, TaskBlock] = field(default_factory=dict)
@@ -1036,29 +1007,6 @@ class Metrics(_Record):
     trunk_compensation: dict[str, TrunkCompensation] | None = None
     cross_talk: dict[str, dict[str, CrossTalk]] | None = None
     more: dict[str, Any] = field(default_factory=dict)
-
-    def to_tree(self) -> dict[str, Any]:
-        """The metrics' tree, each record a subtree."""
-        tree = super().to_tree()
-        tree["joints"] = _tree(self.joints, 2)
-        tree["blocks"] = _tree(self.blocks)
-        for name, depth in (("gait", 2), ("out_of_plane_offset", 2), ("cross_talk", 2),
-                            ("trunk_compensation", 1)):  # fmt: skip
-            if name in tree:
-                tree[name] = _tree(tree[name], depth)
-        return tree
-
-    @classmethod
-    def from_tree(cls, tree: dict[str, Any]) -> Metrics:
-        """The metrics of a stored tree (see :meth:`to_tree`)."""
-        out = super().from_tree(tree)
-        out.joints = _map(out.joints, AngleMetrics.from_tree, 2)
-        out.blocks = _map(out.blocks, TaskBlock.from_tree)
-        out.gait = _map(out.gait, StanceMetrics.from_tree, 2)
-        out.out_of_plane_offset = _map(out.out_of_plane_offset, OutOfPlaneOffset.from_tree, 2)
-        out.trunk_compensation = _map(out.trunk_compensation, TrunkCompensation.from_tree)
-        out.cross_talk = _map(out.cross_talk, CrossTalk.from_tree, 2)
-        return out
 
     def spans(self) -> dict[str, tuple[float, float]]:
         """``{task: (start_s, end_s)}`` of the blocks."""
@@ -1103,6 +1051,8 @@ class GaitSummary(_Record):
     (``None`` in a file written without it); ``withheld`` ``{number: why it is not given}``.
     """
 
+    _nested: ClassVar[dict[str, tuple[Any, int]]] = {"sides": (StrideStats, 2)}
+
     sides: dict[str, dict[str, StrideStats]] = field(default_factory=dict)
     min_strides: int | None = None
     cadence_steps_per_min: float = float("nan")
@@ -1116,16 +1066,6 @@ class GaitSummary(_Record):
     strides_rejected: dict[str, int] = field(default_factory=dict)
     withheld: dict[str, str] = field(default_factory=dict)
     more: dict[str, Any] = field(default_factory=dict)
-
-    def to_tree(self) -> dict[str, Any]:
-        """The summary's tree, each column's statistics a subtree."""
-        return super().to_tree() | {"sides": _tree(self.sides, 2)}
-
-    @classmethod
-    def from_tree(cls, tree: dict[str, Any]) -> GaitSummary:
-        """The summary of a stored tree (see :meth:`to_tree`)."""
-        summ = super().from_tree(tree)
-        return dataclasses.replace(summ, sides=_map(summ.sides, StrideStats.from_tree, 2))
 
 
 @dataclass(frozen=True)
@@ -1242,6 +1182,15 @@ class Gait(_Record):
     """
 
     status: str
+    _nested: ClassVar[dict[str, tuple[Any, int]]] = {
+        "tasks": (TaskBlock, 1),
+        "events": (GaitEvents, 1),
+        "strides": (StrideTable, 0),
+        "summary": (GaitSummary, 0),
+        "pelvis": (GaitPelvis, 0),
+        "map": (MovementProfile, 0),
+    }
+
     tasks: dict[str, TaskBlock] | None = None
     events: dict[str, GaitEvents] | None = None
     strides: StrideTable | None = None
@@ -1251,30 +1200,6 @@ class Gait(_Record):
     curves: dict[str, Any] | None = None
     map: MovementProfile | None = None
     more: dict[str, Any] = field(default_factory=dict)
-
-    def to_tree(self) -> dict[str, Any]:
-        """The gait's tree, each record a subtree."""
-        tree = super().to_tree()
-        for name in ("strides", "summary", "pelvis", "map"):
-            if name in tree:
-                tree[name] = tree[name].to_tree()
-        for name in ("tasks", "events"):
-            if name in tree:
-                tree[name] = _tree(tree[name])
-        return tree
-
-    @classmethod
-    def from_tree(cls, tree: dict[str, Any]) -> Gait:
-        """The gait of a stored tree (see :meth:`to_tree`)."""
-        gait = super().from_tree(tree)
-        gait.tasks = _map(gait.tasks, TaskBlock.from_tree)
-        gait.events = _map(gait.events, GaitEvents.from_tree)
-        for name, kind in (("strides", StrideTable), ("summary", GaitSummary),
-                           ("pelvis", GaitPelvis), ("map", MovementProfile)):  # fmt: skip
-            value = getattr(gait, name)
-            if value is not None:
-                setattr(gait, name, kind.from_tree(_group(value)))
-        return gait
 
     @property
     def ok(self) -> bool:
@@ -1352,31 +1277,17 @@ class SpatialAlignment(_Record):
     """
 
     mode: str
+    _nested: ClassVar[dict[str, tuple[Any, int]]] = {
+        "lab_to_earth": (AlignmentRotation, 0),
+        "sensor_to_cluster": (AlignmentRotation, 1),
+    }
+
     lab_to_earth: AlignmentRotation
     sensor_to_cluster: dict[str, AlignmentRotation] = field(default_factory=dict)
     heading_deg: dict[str, float] = field(default_factory=dict)
     residual_rms_deg: dict[str, float] = field(default_factory=dict)
     conditioning: dict[str, float] = field(default_factory=dict)
     more: dict[str, Any] = field(default_factory=dict)
-
-    def to_tree(self) -> dict[str, Any]:
-        """The alignment's tree, each rotation a subtree."""
-        tree = super().to_tree()
-        tree["lab_to_earth"] = self.lab_to_earth.to_tree()
-        tree["sensor_to_cluster"] = {k: r.to_tree() for k, r in self.sensor_to_cluster.items()}
-        return tree
-
-    @classmethod
-    def from_tree(cls, tree: dict[str, Any]) -> SpatialAlignment:
-        """The alignment of a stored tree (see :meth:`to_tree`)."""
-        al = super().from_tree(tree)
-        return dataclasses.replace(
-            al,
-            lab_to_earth=AlignmentRotation.from_tree(al.lab_to_earth),
-            sensor_to_cluster={
-                k: AlignmentRotation.from_tree(r) for k, r in al.sensor_to_cluster.items()
-            },
-        )
 
 
 @dataclass
@@ -1538,22 +1449,7 @@ class AngleAgreement(_Record):
     repetitions: RepetitionAgreement | None = None
     more: dict[str, Any] = field(default_factory=dict)
 
-    def to_tree(self) -> dict[str, Any]:
-        """The agreement's tree, its repetitions a subtree."""
-        tree = super().to_tree()
-        if self.repetitions is not None:
-            tree["repetitions"] = self.repetitions.to_tree()
-        return tree
-
-    @classmethod
-    def from_tree(cls, tree: dict[str, Any]) -> AngleAgreement:
-        """The agreement of a stored tree (see :meth:`to_tree`)."""
-        out = super().from_tree(tree)
-        if isinstance(out.repetitions, dict):
-            out = dataclasses.replace(
-                out, repetitions=RepetitionAgreement.from_tree(out.repetitions)
-            )
-        return out
+    _nested: ClassVar[dict[str, tuple[Any, int]]] = {"repetitions": (RepetitionAgreement, 0)}
 
 
 @dataclass
@@ -1624,35 +1520,19 @@ class Validation(_Record):
     reference: ValidationReference = field(default_factory=ValidationReference)
     more: dict[str, Any] = field(default_factory=dict)
 
-    def to_tree(self) -> dict[str, Any]:
-        """The validation's tree, each record in it a subtree (the layout the dicts had)."""
-        tree = super().to_tree()
-        tree["sync"] = self.sync.to_tree()
-        if self.alignment is not None:
-            tree["alignment"] = self.alignment.to_tree()
-        tree["optical"] = {k: o.to_tree() for k, o in self.optical.items()}
-        tree["orientation"] = self.orientation.to_tree()
-        if self.angles is not None:
-            tree["angles"] = self.angles.to_tree()
-        tree["reference"] = self.reference.to_tree()
-        return tree
+    _nested: ClassVar[dict[str, tuple[Any, int]]] = {
+        "sync": (OpticalSync, 0),
+        "alignment": (SpatialAlignment, 0),
+        "optical": (OpticalSegmentInfo, 1),
+        "orientation": (OrientationErrors, 0),
+        "angles": (AngleAgreements, 0),
+        "reference": (ValidationReference, 0),
+    }
 
     @classmethod
     def from_tree(cls, tree: dict[str, Any]) -> Validation:
-        """The validation of a stored tree (see :meth:`to_tree`)."""
-        val = super().from_tree(tree)
-        if isinstance(val.sync, dict):
-            val.sync = OpticalSync.from_tree(val.sync)
-        if isinstance(val.alignment, dict):
-            val.alignment = SpatialAlignment.from_tree(val.alignment) if val.alignment else None
-        val.optical = {k: OpticalSegmentInfo.from_tree(o) for k, o in val.optical.items()}
-        if isinstance(val.orientation, dict):
-            val.orientation = OrientationErrors.from_tree(val.orientation)
-        if isinstance(val.angles, dict):
-            val.angles = AngleAgreements.from_tree(val.angles)
-        if isinstance(val.reference, dict):
-            val.reference = ValidationReference.from_tree(val.reference)
-        return val
+        """The validation of a stored tree (see :meth:`to_tree`; empty ``alignment``: none)."""
+        return super().from_tree({k: v for k, v in tree.items() if k != "alignment" or v})
 
 
 # -------------------------------------------------------------------------------- container
