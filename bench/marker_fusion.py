@@ -59,28 +59,29 @@ FILTERS = ("liu_gn", "ekf", "ukf", "particle")
 BROAD_SIGMA = np.deg2rad(0.3)
 
 
-def registration_table(session, truth, info) -> list[str]:
+def registration_table(session, truth, fused) -> list[str]:
     """Per sensor: clock error (ms, worst over the record), sensor → cluster error (deg)."""
     markers = session.markers["optical"]
     mmap = default_marker_map(markers, None, list(session.sensors))
     y_true = truth.markers["lab_rotation"]
-    y_err = np.degrees(rot.angle_between(info["lab_to_earth"]["quat"], y_true))
+    lab = next(iter(fused.values())).lab_to_earth
+    y_err = np.degrees(rot.angle_between(lab.quat, y_true))
     lines = [
-        f"lab → earth error {y_err:.3f}° (vertical: {info['lab_to_earth']['vertical_axis']})",
+        f"lab → earth error {y_err:.3f}° (vertical: {lab.vertical_axis})",
         "| sensor | clock error max (ms) | sensor → cluster error (°) | marker noise (mm) |",
         "|---|---|---|---|",
     ]
-    for label, rec in info["sensors"].items():
+    for label, rec in fused.items():
         q_true, t_opt = truth_at_samples(session, truth, label)
-        t_est = rec["time_offset_s"] + (1 + rec["drift_ppm"] * 1e-6) * session.sensors[label].time
+        t_est = rec.time_offset_s + (1 + rec.drift_ppm * 1e-6) * session.sensors[label].time
         cols = [markers.labels.index(m) for m in mmap.segments[label].cluster]
         track = track_cluster(markers.time, markers.positions[:, cols])
         b = resample_quat(track.time, track.quat, t_opt)
         ok = np.isfinite(b).all(axis=1)
         x_true = rot.mean(rot.mul(rot.conj(b[ok]), rot.mul(rot.conj(y_true), q_true[ok])))
-        x_err = np.degrees(rot.angle_between(x_true, rec["sensor_to_cluster"]))
+        x_err = np.degrees(rot.angle_between(x_true, rec.sensor_to_cluster))
         clock = 1e3 * np.abs(t_est - t_opt).max()
-        lines.append(f"| {label} | {clock:.2f} | {x_err:.3f} | {rec['marker_noise_mm']:.2f} |")
+        lines.append(f"| {label} | {clock:.2f} | {x_err:.3f} | {rec.marker_noise_mm:.2f} |")
     return lines
 
 
@@ -97,9 +98,9 @@ def simulated(filters, seeds, duration, preset) -> list[str]:
     for seed in seeds:
         session, truth, hidden = acceptance_session(duration, seed, preset=preset)
         t0 = time.perf_counter()
-        refs, info = session_references(session)
+        refs, fused = session_references(session)
         reg_lines += [f"seed {seed}: registration {time.perf_counter() - t0:.1f} s", ""]
-        reg_lines += registration_table(session, truth, info) + [""]
+        reg_lines += registration_table(session, truth, fused) + [""]
         for name in filters:
             for label, e in evaluate(session, truth, hidden, refs, name).items():
                 summary[name].append(e)

@@ -67,6 +67,10 @@ __all__ = [
     "ClockFit",
     "ClockSync",
     "FusionEntry",
+    "AppliedCalibration",
+    "ChannelCalibration",
+    "MarkerFusion",
+    "LabToEarth",
     "Gait",
     "GaitSummary",
     "GaitEvents",
@@ -223,6 +227,84 @@ class ClockSync:
 # ---------------------------------------------------------------------------------- fusion
 
 
+@dataclass(frozen=True)
+class ChannelCalibration(_Record):
+    """How one channel of a sensor was calibrated (:mod:`motionlab.sensorcal`): ``method``
+    (the calibration method's name) and ``date`` (when the calibration was recorded, ISO
+    8601)."""
+
+    method: str
+    date: str
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class AppliedCalibration(_Record):
+    """The per-serial sensor calibration applied at fuse (:func:`motionlab.sensorcal.calfile.
+    apply_calibration`, ``motionlab sensorcal``): the device's ``serial``, the calibration of
+    each channel it corrected (``channels``: ``{acc | gyr | mag: ChannelCalibration}``) and the
+    file it came from (``source``)."""
+
+    _nested: ClassVar[dict[str, tuple[Any, int]]] = {"channels": (ChannelCalibration, 1)}
+
+    serial: str
+    channels: dict[str, ChannelCalibration]
+    source: str
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class LabToEarth(_Record):
+    """The optical lab's rotation to the ENU earth frame, found from gravity and the magnetic
+    field seen in the lab (:func:`motionlab.fusion.marker_registration.lab_to_earth`).
+
+    ``quat`` (4,): lab → earth, scalar first; ``vertical_axis``: the lab axis the vertical was
+    snapped to (``+z`` …; ``None``: none within the snap angle, always stored);
+    ``vertical_lab`` (3,): the lab's up direction, unit; ``heading_from``: ``magnetometer`` or
+    ``lab axes (no magnetometer)``; with the magnetometer ``field_fraction_used`` (0-1: the
+    samples that agreed with the fitted field), ``field_uT`` (its norm, µT) and ``dip_deg``
+    (its inclination below the horizontal, deg).
+    """
+
+    _stored_when_none: ClassVar[frozenset[str]] = frozenset({"vertical_axis"})
+
+    quat: np.ndarray
+    vertical_axis: str | None
+    vertical_lab: np.ndarray
+    heading_from: str
+    field_fraction_used: float | None = None
+    field_uT: float | None = None
+    dip_deg: float | None = None
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class MarkerFusion(_Record):
+    """What the marker cluster fused with a sensor gave (:func:`motionlab.fusion.
+    marker_registration.session_references`): the ``segment`` the cluster is on, the sensor's
+    clock against the optical one (``time_offset_s`` s, ``drift_ppm``), ``sensor_to_cluster``
+    (4,) the sensor → cluster rotation (scalar first), ``gyro_bias_rad_s`` (3,) rad/s, the
+    registration's RMS residual ``registration_residual_deg`` (deg), the markers' noise
+    ``marker_noise_mm`` (mm), ``n_pairs`` (marker pairs giving directions), the share of the
+    sensor's samples with the cluster seen ``visible_fraction`` (0-1) and the lab's rotation
+    to the earth ``lab_to_earth`` (one for the session, repeated per sensor).
+    """
+
+    _nested: ClassVar[dict[str, tuple[Any, int]]] = {"lab_to_earth": (LabToEarth, 0)}
+
+    segment: str
+    time_offset_s: float
+    drift_ppm: float
+    sensor_to_cluster: np.ndarray
+    gyro_bias_rad_s: np.ndarray
+    registration_residual_deg: float
+    marker_noise_mm: float
+    n_pairs: int
+    visible_fraction: float
+    lab_to_earth: LabToEarth
+    more: dict[str, Any] = field(default_factory=dict)
+
+
 @dataclass
 class FusionEntry(_Record):
     """One sensor's orientation from the fusion stage (or the vendor's own).
@@ -239,25 +321,29 @@ class FusionEntry(_Record):
     ``mag_disturbed`` (N,) bool, marker ``scenario``, ``gaps_bridged_s`` (packet-loss gaps it
     ran across, s), ``nan_bridged_s`` (runs of non-finite samples held over, ``[start, end]``
     s each). ``sensor_calibration``: the per-serial sensor calibration applied
-    (``motionlab sensorcal``; key ``calibration`` in the file); ``markers``: the marker cluster
-    fused with it (visible fraction, lab-to-earth rotation).
+    (an :class:`AppliedCalibration`; key ``calibration`` in the file); ``markers``: what the
+    marker cluster fused with it gave (a :class:`MarkerFusion`).
     """
 
     _keys: ClassVar[dict[str, str]] = {"sensor_calibration": "calibration"}
+    _nested: ClassVar[dict[str, tuple[Any, int]]] = {
+        "sensor_calibration": (AppliedCalibration, 0),
+        "markers": (MarkerFusion, 0),
+    }
 
     name: str
     quat: np.ndarray
-    params: dict[str, Any] | None = None
+    params: dict[str, float | int | bool | str] | None = None
     magnetometer: bool = True
-    scenario: Any = None
-    gaps_bridged_s: Any = None
-    nan_bridged_s: Any = None
+    scenario: np.ndarray | None = None
+    gaps_bridged_s: np.ndarray | list[list[float]] | None = None
+    nan_bridged_s: np.ndarray | list[list[float]] | None = None
     gyro_bias: np.ndarray | None = None
     rest: np.ndarray | None = None
     mag_disturbed: np.ndarray | None = None
     acc_bias: np.ndarray | None = None
-    sensor_calibration: dict[str, Any] | None = None
-    markers: dict[str, Any] | None = None
+    sensor_calibration: AppliedCalibration | None = None
+    markers: MarkerFusion | None = None
     more: dict[str, Any] = field(default_factory=dict)
 
 
@@ -564,8 +650,8 @@ class CentreHeading(_Record):
     (not stored) for the other kind.
     """
 
-    heading_times: Any
-    heading_deltas: Any
+    heading_times: np.ndarray
+    heading_deltas: np.ndarray
     anchors: int | None = None
     method: str | None = None
     more: dict[str, Any] = field(default_factory=dict)
@@ -581,8 +667,8 @@ class HeadingTie(_Record):
     """
 
     source: str
-    times: Any
-    deltas: Any
+    times: np.ndarray
+    deltas: np.ndarray
     more: dict[str, Any] = field(default_factory=dict)
 
 
@@ -637,7 +723,7 @@ class SegmentCalibration(_Record):
     }
 
     protocol: str
-    steps: dict[str, Any] = field(default_factory=dict)
+    steps: dict[str, list[float] | None] = field(default_factory=dict)
     segments: dict[str, SegmentRecord] = field(default_factory=dict)
     hinges: dict[str, HingeFit] = field(default_factory=dict)
     centres: dict[str, CentreHeading] = field(default_factory=dict)
@@ -1197,7 +1283,7 @@ class Gait(_Record):
     summary: GaitSummary | None = None
     walking_speed: str | None = None
     pelvis: GaitPelvis | None = None
-    curves: dict[str, Any] | None = None
+    curves: dict[str, dict[str, np.ndarray]] | None = None
     map: MovementProfile | None = None
     more: dict[str, Any] = field(default_factory=dict)
 

@@ -33,9 +33,11 @@ from motionlab.lineage import protocol_sha256, refuse_stale
 from motionlab.protocol import Protocol, load_protocol
 from motionlab.results import (
     AngleTable,
+    AppliedCalibration,
     ClockSync,
     FusionEntry,
     Gait,
+    MarkerFusion,
     Metrics,
     SegmentCalibration,
     Validation,
@@ -201,7 +203,7 @@ def fuse(
         )  # fmt: skip
     recorded, calibrated = dict(session.sensors), {}
     refs: dict[str, Any] = {}
-    marker_info: dict[str, Any] = {}
+    marker_info: dict[str, MarkerFusion] = {}
     done: dict[str, FusionEntry] = {}
     if usable:
         try:
@@ -220,14 +222,12 @@ def fuse(
             session.sensors = recorded
     for label, stream in calibrated.items():
         entry = done[label]
-        entry.sensor_calibration = stream.attrs["calibration"]
+        entry.sensor_calibration = AppliedCalibration.from_tree(stream.attrs["calibration"])
         if stream.acc is not None:  # the segment calibration reads the recorded accelerometer
             bias = 0.0 if entry.acc_bias is None else entry.acc_bias
             entry.acc_bias = recorded[label].acc - stream.acc + bias
     for label in refs:
-        done[label].markers = marker_info["sensors"][label] | {
-            "lab_to_earth": marker_info["lab_to_earth"]
-        }
+        done[label].markers = marker_info[label]
     stored = vendor | done
     if stored:
         session.results.fusion.update(stored)
@@ -251,13 +251,13 @@ def fusion_notes(
             continue
         parts = []
         if entry.sensor_calibration is not None:
-            parts.append(f"calibrated ({', '.join(entry.sensor_calibration['channels'])})")
+            parts.append(f"calibrated ({', '.join(entry.sensor_calibration.channels)})")
         elif calibration_dir is not None:
             parts.append(f"no calibration for {calibration_key(session.sensors[label])}")
         if entry.nan_bridged_s:
             parts.append(f"{len(entry.nan_bridged_s)} run(s) of non-finite samples bridged")
         if entry.markers is not None:
-            parts.append(f"markers seen {100 * entry.markers['visible_fraction']:.0f} %")
+            parts.append(f"markers seen {100 * entry.markers.visible_fraction:.0f} %")
         if parts:
             notes[label] = ", ".join(parts)
     return notes
@@ -300,8 +300,9 @@ def _vendor_orientations(
 
 def _marker_references(
     session: Session, estimator: str, marker_map: MarkerMap | None, labels: list[str]
-) -> tuple[dict[str, Any], dict[str, Any]]:
-    """Marker reference vectors of the sensors that carry a cluster."""
+) -> tuple[dict[str, Any], dict[str, MarkerFusion]]:
+    """Marker reference vectors of the sensors that carry a cluster, and what each cluster
+    gave."""
     from motionlab.fusion import registry
     from motionlab.fusion.marker_registration import session_references
 

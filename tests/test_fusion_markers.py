@@ -166,34 +166,36 @@ def test_lab_to_earth_from_gravity_and_field(tilt_deg):
     mag = rot.rotate(rot.conj(q), field) + hard_iron + 0.5 * rng.normal(size=(3000, 3))
     mag[:300] += 30.0  # a disturbance: left out of the fit
     bx = rot.mul(rot.conj(y), q)  # sensor → lab
-    est, info = lab_to_earth([(bx, acc, mag)])
+    lab = lab_to_earth([(bx, acc, mag)])
     # linear accelerations (1 m/s² here) average out; a levelled lab needs only the heading
-    assert np.degrees(rot.angle_between(est, y)) < (0.1 if tilt_deg == 0 else 0.3)
-    assert info["vertical_axis"] == ("+z" if tilt_deg == 0 else None)  # a levelled lab snaps
-    assert info["dip_deg"] == pytest.approx(np.degrees(1.1), abs=0.2)
-    assert info["field_fraction_used"] == pytest.approx(0.9, abs=0.02)
+    assert np.degrees(rot.angle_between(lab.quat, y)) < (0.1 if tilt_deg == 0 else 0.3)
+    assert lab.vertical_axis == ("+z" if tilt_deg == 0 else None)  # a levelled lab snaps
+    assert lab.heading_from == "magnetometer"
+    assert lab.dip_deg == pytest.approx(np.degrees(1.1), abs=0.2)
+    assert lab.field_fraction_used == pytest.approx(0.9, abs=0.02)
 
 
 @pytest.fixture(scope="module")
 def session():
     ses, truth, hidden = acceptance_session()
-    refs, info = session_references(ses)
-    return ses, truth, hidden, refs, info
+    refs, fused = session_references(ses)
+    return ses, truth, hidden, refs, fused
 
 
 def test_session_registration(session):
-    ses, truth, _, refs, info = session
-    assert set(refs) == set(ses.sensors)
-    y_err = rot.angle_between(info["lab_to_earth"]["quat"], truth.markers["lab_rotation"])
-    assert np.degrees(y_err) < 0.2
-    for label, rec in info["sensors"].items():
+    ses, truth, _, refs, fused = session
+    assert set(refs) == set(fused) == set(ses.sensors)
+    for label, rec in fused.items():
+        y_err = rot.angle_between(rec.lab_to_earth.quat, truth.markers["lab_rotation"])
+        assert np.degrees(y_err) < 0.2
         sensor = truth.sensors[label]
         # t_opt = 0.137 + (1 + 1e-4) (t_imu − off_i) / (1 + d_i)
         t_imu = ses.sensors[label].time[[0, -1]]
         true = 0.137 + (1 + 1e-4) * (t_imu - sensor["clock_offset_s"]) / (1 + sensor["clock_drift"])
-        est = rec["time_offset_s"] + (1 + rec["drift_ppm"] * 1e-6) * t_imu
+        est = rec.time_offset_s + (1 + rec.drift_ppm * 1e-6) * t_imu
         assert np.abs(est - true).max() < 2e-3
-        assert rec["marker_noise_mm"] == pytest.approx(1.0, abs=0.1)
+        assert rec.marker_noise_mm == pytest.approx(1.0, abs=0.1)
+        assert rec.visible_fraction == pytest.approx(refs[label].visible.mean())
 
 
 @pytest.mark.parametrize("name", FILTERS)
@@ -219,4 +221,7 @@ def test_cli_with_markers(tmp_path, session):
     assert "shank_r" in res.output and "markers seen" in res.output
     entry = load_session(path).results.fusion["shank_r"]
     assert set(np.unique(entry.scenario)) >= {1, 2}
-    assert 0.5 < entry.markers["visible_fraction"] < 0.8
+    assert 0.5 < entry.markers.visible_fraction < 0.8  # stored and read back as records
+    assert entry.markers.segment == "shank_r"
+    assert entry.markers.lab_to_earth.heading_from == "magnetometer"
+    assert entry.markers.lab_to_earth.quat.shape == (4,)

@@ -101,7 +101,9 @@ def test_fuse_applies_the_calibration_by_serial(session_file, tmp_path, recordin
     assert "calibrated (gyr, acc, mag)" in out.output
     ses = load_session(session_file)
     entry = ses.results.fusion["shank_r"]
-    assert entry.sensor_calibration["serial"] == "SIM 001"
+    assert entry.sensor_calibration.serial == "SIM 001"
+    assert list(entry.sensor_calibration.channels) == ["gyr", "acc", "mag"]
+    assert all(isinstance(c.method, str) for c in entry.sensor_calibration.channels.values())
     _, q_true, sig = recording
     assert np.array_equal(ses.sensors["shank_r"].gyr, sig["gyr"])  # the data stay as recorded
     # the segment calibration's accelerometer is the one the fusion saw (madgwick: no bias states)

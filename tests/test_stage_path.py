@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 import yaml
 from click.testing import CliRunner
+from typed_results import untyped
 
 from motionlab.cli import main
 from motionlab.protocol import PACKAGED
@@ -67,6 +68,7 @@ def test_stage_commands_give_the_angles_of_run(tmp_path, name):
 
     run = load_session(tmp_path / "run" / "session.h5").results
     stage = load_session(staged).results
+    assert untyped(run) == [] and untyped(stage) == []  # typed records to the leaves
     assert run.clock_sync.fits.keys() == stage.clock_sync.fits.keys()
     applied = [k for k, v in run.clock_sync.fits.items() if v.status == "applied"]
     for k, fit in run.clock_sync.fits.items():

@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 from conftest import ROOT, SHARED, needs_shared
+from typed_results import untyped
 
 from motionlab import rotations as rot
 from motionlab.cli import main
@@ -152,6 +153,7 @@ def test_cli_json_csv_and_force(knee, tmp_path):
     assert (tmp_path / "csv" / "validation_metrics.csv").is_file()
     stored = load_session(path).results.validation
     assert stored.angles.columns["knee_l_flexion_deg"].rmse_deg == pytest.approx(flex["rmse_deg"])
+    assert untyped(stored, "validation") == []  # records to the leaves, as stored and read back
     again = runner.invoke(main, ["validate", str(path), "--reference", str(c3d)])
     assert again.exit_code == 2 and "--force" in again.output
 

@@ -44,6 +44,7 @@ from motionlab.fusion.markers import (
     marker_noise,
     pair_vectors,
 )
+from motionlab.results import LabToEarth, MarkerFusion
 from motionlab.segments.frames import wahba
 from motionlab.validation.markermap import check_marker_map, default_marker_map
 from motionlab.validation.optical import resample_quat, smooth_pose, track_cluster
@@ -227,8 +228,9 @@ def _lab_field(
 
 def lab_to_earth(
     sensors: list[tuple[np.ndarray, np.ndarray, np.ndarray | None]], field_tol_ut: float = 4.0
-) -> tuple[np.ndarray, dict[str, Any]]:
-    """Lab → earth rotation ``Y`` from gravity and the magnetic field seen in the lab frame.
+) -> LabToEarth:
+    """Lab → earth rotation ``Y`` (``quat``) from gravity and the magnetic field seen in the lab
+    frame, with how it was found.
 
     ``sensors`` holds per sensor ``(BX (N, 4), acc (N, 3), mag (N, 3) or None)``: the sensor →
     lab orientation from the markers (NaN where unknown) and the IMU's specific force and field.
@@ -246,18 +248,14 @@ def lab_to_earth(
     if not np.linalg.norm(up_sum) > 0:
         raise InputError("no sample where the markers and the IMU overlap", "markers")
     up, snapped = _snap(up_sum / np.linalg.norm(up_sum))
-    info: dict[str, Any] = {"vertical_axis": snapped, "vertical_lab": up}
-    if sum(len(m) for _, m in fields) >= 10:
-        field_lab, used = _lab_field(fields, field_tol_ut)
-        info |= {"heading_from": "magnetometer", "field_fraction_used": used}
-        y = triad(up, field_lab, UP, NORTH)
-        norm = float(np.linalg.norm(field_lab))
-        info |= {"field_uT": norm, "dip_deg": float(np.degrees(np.arcsin(-field_lab @ up / norm)))}
-    else:  # 6-D: keep the lab x axis in the east-up plane
+    if sum(len(m) for _, m in fields) < 10:  # 6-D: keep the lab x axis in the east-up plane
         x = np.eye(3)[0] if abs(up[0]) < 0.9 else np.eye(3)[1]
         y = triad(up, x, UP, np.array([1.0, 0.0, 0.0]))
-        info["heading_from"] = "lab axes (no magnetometer)"
-    return y, info
+        return LabToEarth(y, snapped, up, "lab axes (no magnetometer)")
+    field_lab, used = _lab_field(fields, field_tol_ut)
+    norm = float(np.linalg.norm(field_lab))
+    dip = float(np.degrees(np.arcsin(-field_lab @ up / norm)))
+    return LabToEarth(triad(up, field_lab, UP, NORTH), snapped, up, "magnetometer", used, norm, dip)
 
 
 # ------------------------------------------------------------------------------ session
@@ -290,7 +288,7 @@ def session_references(
     *,
     sync: bool = True,
     seed: int = 0,
-) -> tuple[dict[str, MarkerReferences], dict[str, Any]]:
+) -> tuple[dict[str, MarkerReferences], dict[str, MarkerFusion]]:
     """Marker reference vectors for the session's sensors that carry a marker cluster.
 
     Parameters
@@ -311,11 +309,11 @@ def session_references(
 
     Returns
     -------
-    references, info
-        ``{label: MarkerReferences}`` on each sensor's own samples, and a JSON-able record:
-        ``lab_to_earth`` (quaternion and how it was found) and per sensor the clock
-        (``time_offset_s``, ``drift_ppm``), ``sensor_to_cluster``, the gyroscope bias, the
-        registration residual, the marker noise and the visible fraction.
+    references, fused
+        ``{label: MarkerReferences}`` on each sensor's own samples, and per sensor what its
+        cluster gave (``{label: MarkerFusion}``: the clock, ``sensor_to_cluster``, the gyroscope
+        bias, the registration residual, the marker noise, the visible fraction and the lab's
+        rotation to the earth).
     """
     if not session.markers:
         raise InputError("the session holds no marker data", remedy="ingest a C3D/TRC file with it")
@@ -324,7 +322,7 @@ def session_references(
     mmap = marker_map or default_marker_map(markers, protocol, list(session.sensors))
     check_marker_map(mmap, markers)
     chosen = _cluster_sensors(session, mmap, labels)
-    parts, pooled, info = {}, [], {"marker_set": markers.name, "sensors": {}}
+    parts, pooled = {}, []
     for label, spec in chosen.items():
         s = session.sensors[label]
         points = markers.positions[:, [markers.labels.index(m) for m in spec.cluster]]
@@ -341,23 +339,17 @@ def session_references(
         tau = reg.to_reference(s.time)
         bx = rot.mul(resample_quat(track.time, track.quat, tau), reg.sensor_to_cluster)
         pooled.append((bx, s.acc, s.mag))
-        parts[label] = (reg, rot.rotate(rot.conj(reg.sensor_to_cluster), cluster_dirs),
+        parts[label] = (spec.name, reg, sigma_m, len(pairs),
+                        rot.rotate(rot.conj(reg.sensor_to_cluster), cluster_dirs),
                         interpolate_vectors(markers.time, lab_dirs, tau), sigma,
                         [(spec.cluster[i], spec.cluster[j]) for i, j in pairs])  # fmt: skip
-        info["sensors"][label] = {
-            "segment": spec.name,
-            "time_offset_s": reg.offset_s,
-            "drift_ppm": reg.drift * 1e6,
-            "sensor_to_cluster": reg.sensor_to_cluster,
-            "gyro_bias_rad_s": reg.gyro_bias,
-            "registration_residual_deg": reg.residual_deg,
-            "marker_noise_mm": sigma_m * 1e3,
-            "n_pairs": len(pairs),
-        }
-    y, info["lab_to_earth"] = lab_to_earth(pooled)
-    info["lab_to_earth"]["quat"] = y
-    refs = {}
-    for label, (reg, body, lab, sigma, names) in parts.items():
-        refs[label] = MarkerReferences(body, rot.rotate(y, lab), sigma, reg.gyro_bias, names)
-        info["sensors"][label]["visible_fraction"] = float(refs[label].visible.mean())
-    return refs, info
+    lab = lab_to_earth(pooled)
+    refs, fused = {}, {}
+    for label, (segment, reg, sigma_m, n_pairs, body, dirs, sigma, names) in parts.items():
+        lab_dirs = rot.rotate(lab.quat, dirs)
+        refs[label] = MarkerReferences(body, lab_dirs, sigma, reg.gyro_bias, names)
+        fused[label] = MarkerFusion(
+            segment, reg.offset_s, reg.drift * 1e6, reg.sensor_to_cluster, reg.gyro_bias,
+            reg.residual_deg, sigma_m * 1e3, n_pairs, float(refs[label].visible.mean()), lab,
+        )  # fmt: skip
+    return refs, fused

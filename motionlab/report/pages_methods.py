@@ -3,7 +3,6 @@ appendix (estimator and parameters, calibration, angle conventions, provenance w
 
 from __future__ import annotations
 
-import json
 from typing import Any
 
 from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, angle_names, joint_sequence
@@ -112,17 +111,14 @@ def accuracy_page(doc: Document, view: SessionView) -> None:
 
 
 def _params(view: SessionView) -> list[list[str]]:
-    seen: dict[str, list[str]] = {}
+    """One row per estimator and parameter set: its name, the sensors it fused, the parameters
+    (sorted by name)."""
+    seen: dict[tuple[str, str], list[str]] = {}
     for label, entry in view.session.results.fusion.items():
         name = entry.name + ("" if entry.magnetometer else " (6-D)")
-        key = json.dumps({"name": name, "params": entry.params or {}}, default=str, sort_keys=True)
-        seen.setdefault(key, []).append(label)
-    rows = []
-    for key, labels in seen.items():
-        e = json.loads(key)
-        params = ", ".join(f"{k} = {_value(v)}" for k, v in e["params"].items()) or "defaults"
-        rows.append([e["name"], ", ".join(labels), params])
-    return rows
+        params = ", ".join(f"{k} = {_value(v)}" for k, v in sorted((entry.params or {}).items()))
+        seen.setdefault((name, params or "defaults"), []).append(label)
+    return [[name, ", ".join(labels), params] for (name, params), labels in seen.items()]
 
 
 def _value(v: Any) -> str:
