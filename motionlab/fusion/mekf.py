@@ -131,6 +131,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from motionlab.fusion import _mekf_blocks as blk
 from motionlab.fusion import _mekf_kernels as kern
 from motionlab.fusion import _mekf_monitor as mon_k
 from motionlab.fusion.attitude import initial_orientation
@@ -143,7 +144,6 @@ from motionlab.rotations import (
     integrate_gyro,
     make_continuous,
     mul,
-    rotate,
 )
 from motionlab.units import STANDARD_GRAVITY
 
@@ -227,6 +227,9 @@ class SmootherParams(MekfParams):
         "rad/s",
         "the bias update at rest only where the rate's 0.25 s mean "
         "varies less than this over 1 s (a person's sway is not a bias)",
+    )
+    update_interval: float = param(
+        0.02, "s", "covariance, measurements and backward pass every this (0: every sample)"
     )
 
 
@@ -364,14 +367,81 @@ def _carry_back(
     acc_bias[:k] = acc_bias[k]
 
 
-def _start(q6: np.ndarray, mag: np.ndarray, usable: np.ndarray) -> np.ndarray:
-    """Start of the 9-D pass: the 6-D smoothed orientation of sample 0 turned about earth-up by
-    the heading of the first usable field sample under the 6-D estimate (the 6-D pass carries
-    that heading back by the gyroscope, so a wrong or disturbed start does not matter)."""
-    k = int(np.argmax(usable)) if usable.any() else 0
-    em = rotate(q6[k], mag[k])
-    psi = float(np.arctan2(em[0], em[1])) if np.isfinite(em).all() else 0.0
-    return mul(from_axis_angle(np.array([0.0, 0.0, 1.0]), psi), q6[0])
+def _blocks(
+    gyr: np.ndarray,
+    acc: np.ndarray,
+    mag: np.ndarray | None,
+    rate: float,
+    p: SmootherParams,
+    rest: np.ndarray,
+    steady: np.ndarray,
+    gaps: GapNoise | None,
+    q0: np.ndarray,
+    p0: np.ndarray,
+    gate: tuple[np.ndarray, float, float] | None = None,
+    field: bool = False,
+) -> dict[str, np.ndarray]:
+    """The multi-rate forward pass (:func:`._mekf_blocks.forward`) and its RTS backward pass
+    at the update instants, every ``update_interval`` s.
+
+    ``gate`` ``(scale (B,), ref_norm, ref_dip)``: the blocks' heading-variance factors
+    (infinite: not used) and the fixed reference field; without it the magnetometer is not
+    used. ``q0``, ``p0``: the initial orientation and error covariance (9 × 9). With ``field`` only
+    the instants are smoothed and ``out["field"]`` (B×3) holds each block's mean field in the
+    earth frame of the smoothed estimate (for the gate); otherwise every sample is.
+    """
+    n = len(gyr)
+    m = max(1, int(round(p.update_interval * rate)))
+    at = blk.instants(n, m)
+    nb = len(at)
+    prm = _pack(p)
+    if p.acc_bias_init == 0.0:
+        prm[kern.ACC_BIAS_RW] = 0.0  # no accelerometer-bias states: the 6-state filter exactly
+    if gate is not None:
+        prm[kern.MAG_FIXED_NORM], prm[kern.MAG_FIXED_DIP] = gate[1], gate[2]
+        prm[kern.MAG_HEADING_RESET] = 0.0
+    extra = np.zeros(1)
+    if gaps is not None:
+        inside = (gaps.after > 0) & (gaps.after < n)
+        if inside.any():
+            per_sample = np.zeros(n)
+            per_sample[gaps.after[inside].astype(int)] = gaps.sigma[inside] ** 2
+            extra = np.add.reduceat(per_sample, np.concatenate([[0], at[:-1] + 1]))
+    out = {
+        "quat": np.empty((n, 4)),
+        "qprior": np.empty((nb, 4)),
+        "gsum": np.empty((nb, 3, 3)),
+        "bias_blk": np.empty((nb, 3)),
+        "acc_bias_blk": np.empty((nb, 3)),
+        "reset_blk": np.empty(nb, dtype=np.int8),
+        "p_post": np.empty((nb, kern.N_PACKED)),
+        "field": np.empty((nb if field else 1, 3)),
+        "at": at,
+        "prm": prm,
+    }
+    use_mag = mag is not None and gate is not None
+    blk.forward(
+        gyr, acc, mag if (use_mag or field) else np.zeros((1, 3)), use_mag,
+        gate[0] if use_mag else np.ones(1), rest, steady, extra, 1.0 / rate, m, q0, p0, prm,
+        out["quat"], out["qprior"], out["gsum"], out["bias_blk"], out["acc_bias_blk"],
+        out["reset_blk"], out["p_post"], out["field"],
+    )  # fmt: skip
+    out["end_cov"] = _unpacked(out["p_post"][-1])[6:, 6:]
+    out["bias"] = np.empty((n if not field else 1, 3))
+    out["acc_bias"] = np.empty((n if not field else 1, 3))
+    blk.backward(
+        1.0 / rate, m, out["quat"], out["qprior"], out["gsum"], out["bias_blk"],
+        out["acc_bias_blk"], out["p_post"], out["reset_blk"], extra, prm, not field,
+        out["bias"], out["acc_bias"], out["field"],
+    )  # fmt: skip
+    out["p_post"] = None  # no longer needed: free it
+    out["reset"] = np.zeros(n, dtype=np.int8)
+    out["reset"][at] = out["reset_blk"]
+    return out
+
+
+def _p0(p: MekfParams) -> np.ndarray:
+    return np.diag([p.att_init**2] * 3 + [p.bias_init**2] * 3 + [p.acc_bias_init**2] * 3)
 
 
 @register("smoother", SmootherParams, "RTS smoother over the multiplicative EKF (offline, default)")
@@ -383,12 +453,17 @@ def run_smoother(
     params: SmootherParams,
     gaps: GapNoise | None = None,
 ) -> FusionResult:
-    """Forward error-state EKF, then the Rauch–Tung–Striebel backward pass over all samples.
+    """Multi-rate forward error-state EKF, then the Rauch–Tung–Striebel backward pass.
+
+    The orientation is integrated at every sample; the covariance, the measurements and the
+    backward pass run every ``update_interval`` s (:mod:`._mekf_blocks`), and the samples between
+    two update instants take the smoothed correction interpolated between them.
 
     ``gaps``: the packet-loss gaps bridged in the inputs and how uncertain each bridge is
     (:func:`motionlab.fusion.timegrid.gap_noise`; given by :func:`motionlab.fusion.estimate`
-    with ``time=``), so that the accelerometer on either side decides where a bridge may have
-    missed rotation (:func:`_filter`).
+    with ``time=``): the attitude variance of the prior after each gap grows by the gap's
+    ``sigma²``, so that the accelerometer on either side decides where a bridge may have missed
+    rotation.
 
     ``extra["acc_bias_end_cov"]`` (3 × 3, m²/s⁴) is the accelerometer bias's covariance at the
     last sample, where the filter's posterior holds all the data (what
@@ -403,27 +478,45 @@ def run_smoother(
         gyr, acc, rate, p.rest_gyr_threshold, p.rest_acc_threshold, min_duration=p.rest_min_duration
     )
     steady = steady_mask(gyr, rate, rest, p.rest_sway)
+    q0 = initial_orientation(acc, mag)
+    p0 = _p0(p)
     gate = None
+    dist = None
     if mag is not None:
-        six = _filter(gyr, acc, None, rate, p, rest, store=True, gaps=gaps, steady=steady)
-        _backward(gyr, rate, six)
+        six = _blocks(gyr, acc, mag, rate, p, rest, steady, gaps, q0, p0, field=True)
+        at = six["at"]
+        blk_rate = rate * (len(at) - 1) / max(1, at[-1])
         gated, dev, ref_n, ref_d = field_gate(
-            mag, six["quat"], rate, p.mag_norm_tol, p.mag_dip_tol, p.mag_hysteresis,
+            six["field"], blk_rate, p.mag_norm_tol, p.mag_dip_tol, p.mag_hysteresis,
             hold=p.mag_hold, heading_tol=p.mag_heading_tol,
         )  # fmt: skip
+        dist = np.repeat(gated, np.diff(np.concatenate([[-1], at])))
         if np.isfinite(ref_n):
-            scale = np.where(gated, np.inf, 1.0 + p.mag_dev_weight * dev**2)
-            gate = (scale, ref_n, ref_d, _start(six["quat"], mag, ~gated))
-    out = _filter(gyr, acc, mag, rate, p, rest, store=True, gate=gate, gaps=gaps, steady=steady)
-    end_cov = _unpacked(out["p_post"][-1])[6:, 6:]
-    _backward(gyr, rate, out)
+            gate = (np.where(gated, np.inf, 1.0 + p.mag_dev_weight * dev**2), ref_n, ref_d)
+            q0 = _start(six["quat"][0], six["field"], ~gated)
+            p0[0, 0] = p0[1, 1] = p.reset_noise**2
+            p0[2, 2] = p.mag_heading_init**2
+    out = _blocks(gyr, acc, mag, rate, p, rest, steady, gaps, q0, p0, gate=gate)
     early = np.flatnonzero(out["reset"][: int(p.early_reset_window * rate) + 1])
     carried = int(early[-1]) if len(early) else 0
     if carried:
         _carry_back(out["quat"], out["bias"], out["acc_bias"], gyr, carried, rate)
+    out["dist"] = dist
     return _result(
-        out, "smoother", rest, mag is not None, carried_back=carried, acc_bias_end_cov=end_cov
-    )
+        out, "smoother", rest, mag is not None, carried_back=carried,
+        acc_bias_end_cov=out["end_cov"],
+    )  # fmt: skip
+
+
+def _start(q6: np.ndarray, field: np.ndarray, usable: np.ndarray) -> np.ndarray:
+    """Start of the 9-D pass: the 6-D smoothed orientation of sample 0 ``q6`` turned about
+    earth-up by the heading of the first usable block's field (B×3, earth frame under the 6-D
+    estimate, which carries that heading back by the gyroscope, so a wrong or disturbed start
+    does not matter)."""
+    k = int(np.argmax(usable)) if usable.any() else 0
+    em = field[k]
+    psi = float(np.arctan2(em[0], em[1])) if np.isfinite(em).all() else 0.0
+    return mul(from_axis_angle(np.array([0.0, 0.0, 1.0]), psi), q6)
 
 
 def _unpacked(packed: np.ndarray) -> np.ndarray:
