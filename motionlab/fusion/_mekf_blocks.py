@@ -31,13 +31,28 @@ import numpy as np
 from motionlab.fusion import _common as cm
 from motionlab.fusion import _mekf_kernels as kn
 from motionlab.fusion import _mekf_monitor as mon_k
+from motionlab.quat_kernels import _exp_half
 
 N_ERR = kn.N_ERR
 
 
 def instants(n: int, m: int) -> np.ndarray:
     """The update instants (B,) int of ``n`` samples in blocks of ``m``: 0, m, 2m, …, n − 1."""
-    return np.unique(np.minimum(np.arange(0, n - 1 + m, m), n - 1))
+    return np.append(np.arange(0, n - 1, m), n - 1)
+
+
+@numba.njit(cache=True, inline="always")
+def _step(q: np.ndarray, rx: float, ry: float, rz: float) -> None:
+    """``q ← q ⊗ exp(r)`` (not normalised) for a rotation vector ``r`` (rad): below 0.1 rad
+    by the series of ``cos(|r|/2)`` and ``sin(|r|/2)/|r|`` in ``|r|²`` to the ``|r|⁶`` term
+    (truncation below 2e-16), else by :func:`motionlab.quat_kernels.mul_exp_right`."""
+    a2 = rx * rx + ry * ry + rz * rz
+    if a2 >= 0.01:
+        cm.mul_exp_right(q, rx, ry, rz, q)
+        return
+    c = 1.0 - a2 * (1.0 / 8.0 - a2 * (1.0 / 384.0 - a2 * (1.0 / 46080.0)))
+    sn = 0.5 - a2 * (1.0 / 48.0 - a2 * (1.0 / 3840.0 - a2 * (1.0 / 645120.0)))
+    q[0], q[1], q[2], q[3] = cm.qmul(q[0], q[1], q[2], q[3], c, sn * rx, sn * ry, sn * rz)
 
 
 @numba.njit(cache=True)
@@ -138,10 +153,9 @@ def forward(
         use_field = use_mag and np.isfinite(blk_scale[j])
         for s in range(lo, hi + 1):
             if s > 0:
-                cm.mul_exp_right(
-                    q, (gyr[s, 0] - b[0]) * dt, (gyr[s, 1] - b[1]) * dt, (gyr[s, 2] - b[2]) * dt, q
-                )
-                cm.normalize(q)
+                _step(q, (gyr[s, 0] - b[0]) * dt, (gyr[s, 1] - b[1]) * dt, (gyr[s, 2] - b[2]) * dt)
+                if s == hi:
+                    cm.normalize(q)
             cm.rot_matrix(q, r)
             if s > 0:
                 for i in range(3):
@@ -295,7 +309,8 @@ def backward(
     With ``interp`` every sample between two instants takes the forward estimate corrected by
     the attitude error interpolated linearly between the smoothed one after ``u_j`` and before
     ``u_{j+1}`` (what the block's bias error does to the integrated orientation, linear in time),
-    and ``bias_out``/``acc_bias_out`` (N×3) the smoothed biases interpolated linearly. Without,
+    ``bias_out``/``acc_bias_out`` (N×3) the smoothed biases interpolated linearly, and the
+    quaternions' signs are made continuous from sample 0. Without,
     only the instants are written. ``field`` (B×3, or 1 row: none), the blocks' mean earth-frame
     fields of the forward pass, is turned by each block's mean correction (under the smoothed
     estimate, for the magnetometer gate).
@@ -369,20 +384,30 @@ def backward(
             for i in range(3):
                 field[j + 1, i] = r[i, 0] * x + r[i, 1] * y + r[i, 2] * z
         if interp:
+            # the corrections of the two ends as quaternions, interpolated linearly (normalised
+            # with the product: the same as interpolating the rotation vector to second order
+            # in their difference, the block's bias drift)
+            d0w, d0x, d0y, d0z = _exp_half(e[0], e[1], e[2])
+            d1w, d1x, d1y, d1z = _exp_half(ep[0], ep[1], ep[2])
+            if d0w * d1w + d0x * d1x + d0y * d1y + d0z * d1z < 0.0:
+                d1w, d1x, d1y, d1z = -d1w, -d1x, -d1y, -d1z
             for s in range(uj + 1, up):
                 w = (s - uj) / cnt
-                cm.mul_exp_left(
-                    e[0] + w * (ep[0] - e[0]),
-                    e[1] + w * (ep[1] - e[1]),
-                    e[2] + w * (ep[2] - e[2]),
-                    quat[s],
+                v = 1.0 - w
+                r0, r1, r2, r3 = cm.qmul(
+                    v * d0w + w * d1w, v * d0x + w * d1x, v * d0y + w * d1y, v * d0z + w * d1z,
+                    quat[s, 0], quat[s, 1], quat[s, 2], quat[s, 3],
+                )  # fmt: skip
+                nrm = 1.0 / np.sqrt(r0 * r0 + r1 * r1 + r2 * r2 + r3 * r3)
+                quat[s, 0], quat[s, 1], quat[s, 2], quat[s, 3] = (
+                    r0 * nrm,
+                    r1 * nrm,
+                    r2 * nrm,
+                    r3 * nrm,
                 )
-                cm.normalize(quat[s])
                 for i in range(3):
-                    bias_out[s, i] = (1.0 - w) * (bias[j, i] + e[3 + i]) + w * bias[j + 1, i]
-                    acc_bias_out[s, i] = (1.0 - w) * (acc_bias[j, i] + e[6 + i]) + w * acc_bias[
-                        j + 1, i
-                    ]
+                    bias_out[s, i] = v * (bias[j, i] + e[3 + i]) + w * bias[j + 1, i]
+                    acc_bias_out[s, i] = v * (acc_bias[j, i] + e[6 + i]) + w * acc_bias[j + 1, i]
         cm.mul_exp_left(e[0], e[1], e[2], quat[uj])
         cm.normalize(quat[uj])
         for i in range(3):
@@ -392,6 +417,15 @@ def backward(
                 bias_out[uj, i] = bias[j, i]
                 acc_bias_out[uj, i] = acc_bias[j, i]
         up = uj
+    if interp:
+        # signs continuous from sample 0 (as motionlab.rotations.make_continuous)
+        for s in range(1, n):
+            dot = 0.0
+            for i in range(4):
+                dot += quat[s, i] * quat[s - 1, i]
+            if dot < 0.0:
+                for i in range(4):
+                    quat[s, i] = -quat[s, i]
     if turn:
         # block 0 (sample 0) carries its own correction: the instant's
         _error_angle(quat[0], qprior[0], e)

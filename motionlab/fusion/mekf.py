@@ -217,7 +217,7 @@ class SmootherParams(MekfParams):
         np.pi, "rad", "prior heading std of the 9-D pass (the field's data decide, not sample 1)"
     )
     mag_dev_weight: float = param(
-        3.0, "1", "heading variance × (1 + this · (field deviation / tolerance)²)"
+        2.0, "1", "heading variance × (1 + this · (field deviation / tolerance)²)"
     )
     early_reset_window: float = param(
         10.0, "s", "before a reset this soon after the start, carry the smoothed state back"
@@ -229,7 +229,7 @@ class SmootherParams(MekfParams):
         "varies less than this over 1 s (a person's sway is not a bias)",
     )
     update_interval: float = param(
-        0.02, "s", "covariance, measurements and backward pass every this (0: every sample)"
+        0.04, "s", "covariance, measurements and backward pass every this (0: every sample)"
     )
 
 
@@ -333,8 +333,11 @@ def _backward(gyr: np.ndarray, rate: float, out: dict[str, np.ndarray]) -> None:
 
 
 def _result(out: dict, name: str, rest: np.ndarray, use_mag: bool, **extra) -> FusionResult:
+    """The result of a pass ``out``; its quaternions' signs made continuous unless
+    ``out["continuous"]`` says they are."""
+    quat = out["quat"] if out.get("continuous") else make_continuous(out["quat"])
     return FusionResult(
-        make_continuous(out["quat"]), name, {}, gyro_bias=out["bias"], rest=rest,
+        quat, name, {}, gyro_bias=out["bias"], rest=rest,
         mag_disturbed=out["dist"] if use_mag else None,
         extra={
             "resets": np.flatnonzero(out["reset"]).tolist(), "acc_bias": out["acc_bias"], **extra
@@ -502,6 +505,7 @@ def run_smoother(
     if carried:
         _carry_back(out["quat"], out["bias"], out["acc_bias"], gyr, carried, rate)
     out["dist"] = dist
+    out["continuous"] = not carried  # the backward pass made them so
     return _result(
         out, "smoother", rest, mag is not None, carried_back=carried,
         acc_bias_end_cov=out["end_cov"],
