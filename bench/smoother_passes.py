@@ -17,8 +17,7 @@ from pathlib import Path
 
 from broad import DEFAULT_DATA, load_trials
 
-from motionlab.fusion import estimate
-from motionlab.fusion import mekf
+from motionlab.fusion import estimate, mekf
 
 #: the smoother's stages, timed by wrapping these functions of :mod:`motionlab.fusion.mekf`;
 #: a function called more than once per run is listed per call (``_filter #1``: the first)
