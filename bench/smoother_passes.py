@@ -21,7 +21,7 @@ from motionlab.fusion import estimate, mekf
 
 #: the smoother's stages, timed by wrapping these functions of :mod:`motionlab.fusion.mekf`;
 #: a function called more than once per run is listed per call (``_filter #1``: the first)
-STAGES = ("rest_mask", "steady_mask", "_blocks", "field_gate", "_result")
+STAGES = ("rest_mask", "steady_mask", "_filter", "_backward", "_blocks", "field_gate", "_result")
 
 
 def _wrapped(fn, name: str, acc: dict[str, float]):
