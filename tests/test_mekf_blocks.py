@@ -7,6 +7,7 @@ import pytest
 from test_fusion_mekf import _rest_then_motion
 
 from motionlab import rotations as rot
+from motionlab.errors import InputError
 from motionlab.fusion import _mekf_blocks as blk
 from motionlab.fusion import _mekf_kernels as kern
 from motionlab.fusion import estimate
@@ -44,6 +45,16 @@ def test_instants():
     assert blk.instants(11, 5).tolist() == [0, 5, 10]
     assert blk.instants(12, 5).tolist() == [0, 5, 10, 11]
     assert blk.instants(2, 4).tolist() == [0, 1]
+
+
+@pytest.mark.parametrize("value", ["nan", "inf", "-0.01"])
+def test_a_bad_update_interval_is_refused(value):
+    sig = _rest_then_motion(seconds_rest=2.0, seconds_move=1.0)
+    with pytest.raises(InputError, match="update_interval"):
+        estimate("smoother", sig["gyr"], sig["acc"], None, sig["rate"], update_interval=value)
+    # longer than the recording: one block after sample 0
+    res = estimate("smoother", sig["gyr"], sig["acc"], None, sig["rate"], update_interval=1e9)
+    assert np.isfinite(res.quat).all()
 
 
 def test_one_sample_blocks_are_the_per_sample_filter():
@@ -138,3 +149,22 @@ def test_multi_rate_smoother_equals_the_full_rate_one(mag):
     rms = [float(np.sqrt(np.mean(e**2))) for e in (e_full, e_multi)]
     assert rms[1] < rms[0] + 0.005
     np.testing.assert_allclose(multi.gyro_bias, full.gyro_bias, atol=1e-5)
+
+
+def test_field_gate_reads_an_earth_frame_field():
+    """The gate on block means (25 Hz): a 2-s disturbance (norm +20 %) is gated with its hold
+    (0.5 s, 12 blocks) and smoothing (0.2 s) on either side, the reference is the undisturbed
+    field's, a zero field is gated (with its hold)."""
+    from motionlab.fusion.detect import field_gate
+
+    rate, n = 25.0, 500
+    dip = np.deg2rad(-60.0)
+    field = np.tile([0.0, 48.0 * np.cos(dip), 48.0 * np.sin(dip)], (n, 1))
+    field += 0.3 * np.random.default_rng(2).standard_normal((n, 3))
+    field[200:250] *= 1.2
+    field[400] = 0.0
+    gated, dev, ref_n, ref_d = field_gate(field, rate)
+    assert abs(ref_n - 48.0) < 0.1 and abs(ref_d - dip) < np.deg2rad(0.5)
+    assert gated[188:262].all() and gated[388:413].all()
+    assert not gated[:185].any() and not gated[265:385].any() and not gated[417:].any()
+    assert np.all(dev[:150] < 0.5)

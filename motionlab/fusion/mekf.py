@@ -133,6 +133,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from motionlab.errors import InputError
 from motionlab.fusion import _mekf_blocks as blk
 from motionlab.fusion import _mekf_kernels as kern
 from motionlab.fusion import _mekf_monitor as mon_k
@@ -353,7 +354,12 @@ def _blocks(
     earth frame of the smoothed estimate (for the gate); otherwise every sample is.
     """
     n = len(gyr)
-    m = max(1, int(round(p.update_interval * rate)))
+    if not np.isfinite(p.update_interval) or p.update_interval < 0.0:
+        raise InputError(
+            f"smoother parameter update_interval={p.update_interval!r} s is not a duration ≥ 0",
+            remedy="give 0 (every sample) or a few hundredths of a second (default 0.04)",
+        )
+    m = max(1, min(n, int(round(p.update_interval * rate))))
     at = blk.instants(n, m)
     nb = len(at)
     prm = _pack(p)
