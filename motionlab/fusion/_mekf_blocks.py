@@ -9,18 +9,19 @@ as :mod:`._mekf_kernels`) moves with the accumulated transition
 integrated orientation) and process noise ``Q = c diag(qa I, qb I, qc I)`` (``c`` samples). The
 block's measurements, each taken under its own sample's integrated orientation, are applied at
 ``u_j`` as their means with the variance divided by their count: for a constant error state the
-exact equivalent of the ``c`` sequential scalar updates (accelerometer rows in motion and at rest
-separately, the steady rests' gyroscope bias, the magnetometer heading as the weighted mean
-direction of the samples' horizontal fields). What it neglects is the error state's change
-within the block (``dt R δb`` per sample: a bias error of 0.01 rad/s moves the attitude by 0.01°
-over a 20-ms block). Multi-rate error-state filtering as in strapdown navigation (Groves,
-*Principles of GNSS, Inertial, and Multisensor Integrated Navigation Systems*, 2nd ed. 2013,
-§14.1.4: the system propagation at a lower rate than the attitude update).
+exact equivalent of the ``c`` sequential scalar updates where their rows are the same (the
+accelerometer rows in motion, the steady rests' gyroscope bias, the magnetometer heading, taken
+as the weighted mean direction of the samples' horizontal fields); at rest the bias columns
+``R δa / g`` of the accelerometer rows are the block's mean (the sensor barely turns). What it
+neglects is the error state's change within the block (``dt R δb`` per sample: a bias error of
+0.01 rad/s moves the attitude by 0.02° over a 40-ms block). The same split as in strapdown
+navigation, where the attitude is integrated at the IMU's rate and the error-state Kalman filter
+runs at a lower one (e.g. Groves, *Principles of GNSS, Inertial, and Multisensor Integrated
+Navigation Systems*, 2nd ed., 2013).
 
 Conventions: quaternions scalar first, sensor → ENU earth; gyroscope rad/s, accelerometer m/s².
-Nothing in the loops allocates. With ``m = 1`` and no magnetometer the forward and backward
-passes do exactly the operations of :func:`._mekf_kernels.forward` and
-:func:`._mekf_kernels.backward` (``tests/test_mekf_blocks.py``).
+Nothing in the loops allocates. With ``m = 1`` and no magnetometer the forward pass is the online
+filter's :func:`._mekf_kernels.forward` to rounding (``tests/test_mekf_blocks.py``).
 """
 
 from __future__ import annotations

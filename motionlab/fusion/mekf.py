@@ -93,21 +93,20 @@ falls below 1° about 1.2 s after the data start to contradict it.
 
 The smoother is **multi-rate** (:mod:`._mekf_blocks`): the orientation is integrated at every
 sample, but the covariance is propagated, the measurements applied and the RTS backward pass run
-only every ``update_interval`` (40 ms: 4 samples at 100 Hz, 11 at BROAD's 286 Hz), with the
-block's accumulated transition ``Φ = [[I, −dt Σ R_s, 0], [0, I, 0], [0, 0, I]]``; each block's
-measurements enter as their means with the variance divided by their count (for a constant error
-state the same information as the per-sample updates). The backward pass runs on the error
-state at those instants, both biases included (so a bias that later rests or movement determine
-reaches the first rest) (Särkkä, *Bayesian Filtering and Smoothing*, 2013, eq. 8.6), and each
-sample between two instants takes the forward estimate corrected by the smoothed correction
-interpolated between them (the block's bias error turns the integrated orientation linearly in
-time). Against the same smoother at every sample (``update_interval = 0``): within 0.003° on a
-simulated tumbling recording (``tests/test_mekf_blocks.py``); BROAD's mean total 1.580° at
-every sample, 1.583° every 40 ms (trials move by up to 0.03°, mostly through the gate's
-block-mean field). The
-inflated prior of a reset decouples the two sides of it; after resets within
-``early_reset_window`` of the start, the samples before the last of them take its smoothed state
-carried back by the gyroscope, which makes the smoother insensitive to a wrong start.
+only every ``update_interval`` (40 ms: 4 samples at 100 Hz, 11 at BROAD's 286 Hz), with the block's
+accumulated transition ``Φ = [[I, −dt Σ R_s, 0], [0, I, 0], [0, 0, I]]``; each block's measurements
+enter as their means with the variance divided by their count (for a constant error state and the
+same rows the same information as the per-sample updates). The backward pass runs on the error state
+at those instants, both biases included (so a bias that later rests or movement determine reaches
+the first rest) (Särkkä, *Bayesian Filtering and Smoothing*, 2013, eq. 8.6), and each sample between
+two instants takes the forward estimate corrected by the smoothed correction interpolated between
+them (the block's bias error turns the integrated orientation linearly in time). Against the same
+smoother at every sample (``update_interval = 0``): within 0.003° on a simulated tumbling recording
+(``tests/test_mekf_blocks.py``); BROAD's mean total 1.580° at every sample, 1.583° every 40 ms
+(trials move by up to 0.03°, mostly through the gate's block-mean field). The inflated prior of a
+reset decouples the two sides of it; after resets within ``early_reset_window`` of the start, the
+samples before the last of them take its smoothed state carried back by the gyroscope, which makes
+the smoother insensitive to a wrong start.
 
 Where the time goes (issue #25; BROAD, 8 trials, 425 595 samples, 9-D, µs of one thread's CPU
 per sample, ``bench/smoother_passes.py``, the machine shared by other jobs): rest mask 0.07,
