@@ -1,4 +1,6 @@
-"""Numba kernels of the multiplicative EKF and its RTS smoother (see :mod:`motionlab.fusion.mekf`).
+"""Numba kernels of the multiplicative EKF (see :mod:`motionlab.fusion.mekf`): the online filter's
+per-sample loop and the covariance updates that the smoother's multi-rate kernels
+(:mod:`motionlab.fusion._mekf_blocks`) share with it.
 
 Conventions: quaternions scalar first, sensor → ENU earth; gyroscope rad/s, accelerometer m/s²,
 magnetometer µT. The error state (``N_ERR`` = 9) is ``[δθ, δb, δa]``: ``δθ`` (rad) a small
@@ -8,7 +10,10 @@ error, ``b_true = b + δb``; ``δa`` (m/s², sensor frame) the accelerometer-bia
 ``F = [[I, −R dt, 0], [0, I, 0], [0, 0, I]]`` (``R`` = rotation matrix of ``q``). The
 accelerometer's horizontal earth-frame rows see ``δθ_x, δθ_y`` and ``R δa / g`` (general scalar
 rows, :func:`_row_update`); the magnetometer's heading and the rest and reset updates see one
-component each (:func:`_scalar_update`). Nothing in the loop allocates.
+component each (:func:`_scalar_update`). Nothing in the loop allocates. The per-sample loop's
+offline options (a fixed reference field with per-sample weights, stored covariances, the gaps'
+process noise) were the smoother's before it became multi-rate; ``tests/test_mekf_blocks.py``
+checks the multi-rate pass with blocks of one sample against this loop.
 """
 
 from __future__ import annotations
@@ -240,16 +245,15 @@ def forward(
     ``quat`` (N×4), ``bias`` (N×3, rad/s), ``acc_bias`` (N×3, m/s², sensor frame), ``mag_dist``
     (N) receive the posterior estimates, ``reset`` (N, int8) the samples where the attitude was
     re-initialised (1: attitude, 2: heading only; 0: none); with ``store`` the posterior
-    covariances go into ``p_post`` (N×N_PACKED, upper triangles) for the smoother, which
-    recomputes the priors from them (:func:`_prior`). ``b0``, ``a0`` and ``p0`` (9×9,
+    covariances go into ``p_post`` (N×N_PACKED, upper triangles). ``b0``, ``a0`` and ``p0`` (9×9,
     symmetric) are the initial biases and error covariance; the covariance stays exactly
     symmetric. ``att_extra`` (N, rad², or length 1: none) is process noise added to each
     attitude variance of sample k's prior: a packet-loss gap's bridge before sample k
     (:func:`motionlab.fusion.timegrid.gap_noise`).
 
     A reset found at sample k is applied at k+1 as process noise plus a measurement: the
-    attitude covariance is inflated by ``ATT_INIT²`` in the prior (so the smoother's backward
-    pass decouples the samples before the reset, whose estimates were inconsistent), then the
+    attitude covariance is inflated by ``ATT_INIT²`` in the prior (so that a backward pass
+    decouples the samples before the reset, whose estimates were inconsistent), then the
     vector-attitude correction is measured with standard deviation ``RESET_NOISE``.
 
     With ``prm[MAG_FIXED_NORM] > 0`` the field's reference (norm, dip) is fixed and the
@@ -457,99 +461,3 @@ def _spd_solve(a: np.ndarray, low: np.ndarray, inv: np.ndarray, y: np.ndarray) -
         for t in range(i + 1, n):
             s -= low[t, i] * y[t]
         y[i] = s * inv[i]
-
-
-@numba.njit(cache=True)
-def backward(
-    gyr: np.ndarray,
-    dt: float,
-    quat: np.ndarray,
-    bias: np.ndarray,
-    acc_bias: np.ndarray,
-    p_post: np.ndarray,
-    reset: np.ndarray,
-    att_extra: np.ndarray,
-    prm: np.ndarray,
-) -> None:
-    """Rauch–Tung–Striebel backward pass, overwriting ``quat``/``bias``/``acc_bias`` with
-    smoothed values.
-
-    With filter posterior ``x̂_k`` (covariance ``P_k``) and prior ``x̄_{k+1} = f(x̂_k)``
-    (``P⁻_{k+1}``), the smoothed error ``e_{k+1} = x^s_{k+1} ⊖ x̄_{k+1}`` maps back as
-    ``e_k = P_k Fᵀ (P⁻_{k+1})⁻¹ e_{k+1}`` and ``x^s_k = x̂_k ⊕ e_k`` (Rauch, Tung & Striebel
-    1965, applied to the error state as in Särkkä 2013, *Bayesian Filtering and Smoothing*,
-    eq. 8.6). ``p_post`` holds the forward pass's posterior covariances (upper triangles);
-    the prior ``P⁻_{k+1}`` is recomputed from ``P_k`` exactly as the forward pass computed it
-    (the same prediction, the reset inflation of ``reset`` and the gaps' ``att_extra``, with
-    the parameters ``prm``), so it need not be stored.
-    """
-    n = gyr.shape[0]
-    qbar = np.empty(4)
-    r = np.empty((3, 3))
-    t = np.empty((3, 6))
-    n_e = N_ERR
-    pk = np.empty((n_e, n_e))
-    pp = np.empty((n_e, n_e))
-    low = np.empty((n_e, n_e))
-    inv = np.empty(n_e)
-    e = np.empty(n_e)
-    f = np.empty(n_e)
-    qa = prm[GYR_NOISE] ** 2 * dt
-    qb = prm[BIAS_RW] ** 2 * dt
-    qc = prm[ACC_BIAS_RW] ** 2 * dt
-    extra = att_extra.shape[0] == n
-    # smoothed state of sample k+1 is kept in quat[k+1], bias[k+1]
-    for k in range(n - 2, -1, -1):
-        for i in range(4):
-            qbar[i] = quat[k, i]
-        cm.mul_exp_right(
-            qbar,
-            (gyr[k + 1, 0] - bias[k, 0]) * dt,
-            (gyr[k + 1, 1] - bias[k, 1]) * dt,
-            (gyr[k + 1, 2] - bias[k, 2]) * dt,
-            qbar,
-        )
-        cm.normalize(qbar)
-        # attitude error: rotation vector of q^s_{k+1} ⊗ conj(qbar)
-        s0, s1, s2, s3 = quat[k + 1, 0], quat[k + 1, 1], quat[k + 1, 2], quat[k + 1, 3]
-        ew = s0 * qbar[0] + s1 * qbar[1] + s2 * qbar[2] + s3 * qbar[3]
-        ex = -s0 * qbar[1] + s1 * qbar[0] - s2 * qbar[3] + s3 * qbar[2]
-        ey = -s0 * qbar[2] + s1 * qbar[3] + s2 * qbar[0] - s3 * qbar[1]
-        ez = -s0 * qbar[3] - s1 * qbar[2] + s2 * qbar[1] + s3 * qbar[0]
-        if ew < 0.0:
-            ew, ex, ey, ez = -ew, -ex, -ey, -ez
-        vn = np.sqrt(ex * ex + ey * ey + ez * ez)
-        c = 2.0 * np.arctan2(vn, ew) / vn if vn > 1e-12 else 2.0
-        e[0], e[1], e[2] = c * ex, c * ey, c * ez
-        for i in range(3):
-            e[3 + i] = bias[k + 1, i] - bias[k, i]
-            e[6 + i] = acc_bias[k + 1, i] - acc_bias[k, i]
-        # the prior of sample k+1, as the forward pass predicted it
-        c = 0
-        for i in range(n_e):
-            for m in range(i, n_e):
-                v = p_post[k, c]
-                pk[i, m] = pk[m, i] = pp[i, m] = pp[m, i] = v
-                c += 1
-        cm.rot_matrix(qbar, r)
-        _predict(pp, r, dt, qa, qb, qc, t)
-        _inflate(pp, reset[k + 1], prm[ATT_INIT])
-        if extra:
-            for i in range(3):
-                pp[i, i] += att_extra[k + 1]
-        _spd_solve(pp, low, inv, e)
-        # f = Fᵀ y with F = [[I, −R dt, 0], [0, I, 0], [0, 0, I]]
-        for i in range(3):
-            f[i] = e[i]
-            f[3 + i] = e[3 + i] - dt * (r[0, i] * e[0] + r[1, i] * e[1] + r[2, i] * e[2])
-            f[6 + i] = e[6 + i]
-        for i in range(n_e):
-            s = 0.0
-            for m in range(n_e):
-                s += pk[i, m] * f[m]
-            e[i] = s
-        cm.mul_exp_left(e[0], e[1], e[2], quat[k])
-        cm.normalize(quat[k])
-        for i in range(3):
-            bias[k, i] += e[3 + i]
-            acc_bias[k, i] += e[6 + i]

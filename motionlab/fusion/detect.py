@@ -231,36 +231,13 @@ def nb_field_disturbed(
     return abs(n - ref_norm) > norm_tol or abs(np.arcsin(s) - ref_dip) > dip_tol
 
 
-@numba.njit(cache=True)
-def _earth_field(
-    q: np.ndarray, mag: np.ndarray, norm: np.ndarray, dip: np.ndarray, psi: np.ndarray
-) -> None:
-    """Per sample, the field ``mag`` (N, 3) in the earth frame under ``q`` (N, 4): its norm,
-    dip ``asin(m_up / |m|)`` (rad; NaN for a zero field) and heading ``atan2(m_east,
-    m_north)`` (rad)."""
-    for k in range(mag.shape[0]):
-        w, x, y, z = q[k, 0], q[k, 1], q[k, 2], q[k, 3]
-        vx, vy, vz = mag[k, 0], mag[k, 1], mag[k, 2]
-        # v + w t + u × t with t = 2 u × v, u = (x, y, z): q ⊗ v ⊗ q*, as rotations.rotate
-        tx, ty, tz = 2.0 * (y * vz - z * vy), 2.0 * (z * vx - x * vz), 2.0 * (x * vy - y * vx)
-        ex = vx + w * tx + (y * tz - z * ty)
-        ey = vy + w * ty + (z * tx - x * tz)
-        ez = vz + w * tz + (x * ty - y * tx)
-        n = np.sqrt(ex * ex + ey * ey + ez * ez)
-        norm[k] = n
-        r = ez / n if n > 0.0 else np.nan
-        dip[k] = np.arcsin(1.0 if r > 1.0 else (-1.0 if r < -1.0 else r))
-        psi[k] = np.arctan2(ex, ey)
-
-
 def _wrapped(angle: np.ndarray) -> np.ndarray:
     """Angles (rad) wrapped to (−π, π]."""
     return np.arctan2(np.sin(angle), np.cos(angle))
 
 
 def field_gate(
-    mag: np.ndarray,
-    q: np.ndarray,
+    field: np.ndarray,
     rate: float,
     norm_tol: float = 0.1,
     dip_tol: float = np.deg2rad(10.0),
@@ -271,26 +248,31 @@ def field_gate(
 ) -> tuple[np.ndarray, np.ndarray, float, float]:
     """Offline magnetometer gate from the recording's own field: ``(gate, dev, norm, dip)``.
 
-    Scale-free, so a field in arbitrary units works as well as one in µT. Under the orientation
-    ``q`` (N, 4; its inclination is what matters, e.g. a 6-D smoother's) each sample's field
-    norm and dip (rad, ``asin(m_up/|m|)``: negative for a downward field) are compared with the
+    Scale-free, so a field in arbitrary units works as well as one in µT. ``field`` (N, 3) is
+    the magnetometer in the earth frame (ENU) of an orientation estimate (its inclination is
+    what matters, e.g. a 6-D smoother's), sampled at ``rate`` Hz. Each sample's field norm and
+    dip (rad, ``asin(m_up/|m|)``: negative for a downward field) are compared with the
     recording's robust reference — the median of both over the samples consistent with it,
     iterated from the overall median. A sample is gated (``gate`` True: do not use its field)
     when its deviation, averaged over ``smooth`` s, exceeds ``hysteresis`` × the tolerance
     (``norm_tol`` relative to the reference norm, ``dip_tol`` rad) within a run that crosses the
     full tolerance somewhere (hysteresis thresholding), then extended by ``hold`` s on both
-    sides. A sample whose field heading under ``q`` (gyroscope-carried, so nearly constant for
-    a homogeneous field) is more than ``heading_tol`` rad from its recording median is also
-    gated. ``dev`` (N) is the smoothed deviation in units of the tolerance (the larger of norm
-    and dip). The reference norm is in the unit of ``mag``. Disturbance by norm and dip as in
-    Roetenberg et al. (IEEE TBME 52(3), 2005) and VQF (Laidig & Seel 2023), which rejects a
-    field whose norm or dip departs from its learnt reference.
+    sides. A sample whose field heading (``atan2(m_east, m_north)``; gyroscope-carried, so
+    nearly constant for a homogeneous field) is more than ``heading_tol`` rad from its
+    recording median is also gated. ``dev`` (N) is the smoothed deviation in units of the
+    tolerance (the larger of norm and dip). The reference norm is in the unit of ``field``.
+    Disturbance by norm and dip as in Roetenberg et al. (IEEE TBME 52(3), 2005) and VQF
+    (Laidig & Seel 2023), which rejects a field whose norm or dip departs from its learnt
+    reference.
     """
-    norm, dip, psi = (np.empty(len(mag)) for _ in range(3))
-    _earth_field(np.ascontiguousarray(q, float), np.ascontiguousarray(mag, float), norm, dip, psi)
+    field = np.asarray(field, dtype=float)
+    norm = np.sqrt(np.einsum("ij,ij->i", field, field))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        dip = np.arcsin(np.clip(field[:, 2] / norm, -1.0, 1.0))
+    psi = np.arctan2(field[:, 0], field[:, 1])
     good = np.isfinite(norm) & np.isfinite(dip) & (norm > 0)
     if not good.any():
-        return np.ones(len(mag), dtype=bool), np.full(len(mag), np.inf), np.nan, np.nan
+        return np.ones(len(field), dtype=bool), np.full(len(field), np.inf), np.nan, np.nan
     ref_n, ref_d = float(np.median(norm[good])), float(np.median(dip[good]))
     for _ in range(3):
         sel = good & (np.abs(norm / ref_n - 1.0) < norm_tol) & (np.abs(dip - ref_d) < dip_tol)

@@ -65,16 +65,17 @@ Model (conventions of :mod:`motionlab.rotations`: scalar-first quaternions, sens
   ``mag_new_field_time``) becomes the reference (``mekf``).
 
 The smoother (offline) gates the magnetometer from the whole recording instead: a 6-D smoother
-pass (the unchanged 6-D path) gives the inclination, under which every sample's field norm and
-dip are compared with the recording's own robust (median) reference — scale-free, so a field in
-arbitrary units or of any strength works (:func:`motionlab.fusion.detect.field_gate`, hysteresis
-and hold). Gated samples are not used (the gyroscope coasts, the RTS pass bridges them), the
-others get a heading variance growing with their deviation (``mag_dev_weight``), heading resets
-are off, and the 9-D pass starts from the 6-D estimate with a flat heading prior
-(``mag_heading_init``) so the data, not the first sample, fix the heading. Rejection by norm and
-dip follows Roetenberg et al. (IEEE TBME 52(3), 2005) and VQF (Laidig & Seel 2023). On the real
-RING rig (5 sensors, uncalibrated magnetometers) this took the per-segment heading error from up
-to 36.5° to ≤ 6.3° (VQF offline: 3.2–8.7°).
+pass (the same filter without the magnetometer) gives the inclination, under which each update
+block's mean field (its samples' fields in the earth frame, averaged) is compared in norm and dip
+with the recording's own robust (median) reference — scale-free, so a field in arbitrary units
+or of any strength works (:func:`motionlab.fusion.detect.field_gate`, hysteresis and hold).
+Gated blocks are not used (the gyroscope coasts, the RTS pass bridges them), the others get a
+heading variance growing with their deviation (``mag_dev_weight``), heading resets are off, and
+the 9-D pass starts from the 6-D estimate with a flat heading prior (``mag_heading_init``) so the
+data, not the first sample, fix the heading. Rejection by norm and dip follows Roetenberg et al.
+(IEEE TBME 52(3), 2005) and VQF (Laidig & Seel 2023). On the real RING rig (5 sensors,
+uncalibrated magnetometers) this took the per-segment heading error from up to 36.5° to ≤ 6.3°
+(VQF offline: 3.2–8.7°).
 
 Recovery from a wrong state (a wrong start, or a gross error later): the measurement weights are
 tuned for accuracy on BROAD and are weak, so on its own the filter would take tens of seconds to
@@ -90,39 +91,39 @@ matches the reference norm and dip (TRIAD, gravity exact) — with the attitude 
 of standard deviation ``reset_noise``. On BROAD no reset occurs; with the defaults a 90° error
 falls below 1° about 1.2 s after the data start to contradict it.
 
-The smoother stores the filter's prior and posterior covariances (9×9) and runs the RTS backward
-pass on the error state, both biases included (so a bias that later rests or movement determine
-reaches the first rest) (Särkkä, *Bayesian Filtering and Smoothing*, 2013, eq. 8.6). The
-inflated prior of a reset decouples the two sides of it; after resets within
-``early_reset_window`` of the start, the samples before the last of them take its smoothed state
-carried back by the gyroscope, which makes the smoother insensitive to a wrong start.
+The smoother is **multi-rate** (:mod:`._mekf_blocks`): the orientation is integrated at every
+sample, but the covariance is propagated, the measurements applied and the RTS backward pass run
+only every ``update_interval`` (40 ms: 4 samples at 100 Hz, 11 at BROAD's 286 Hz), with the block's
+accumulated transition ``Φ = [[I, −dt Σ R_s, 0], [0, I, 0], [0, 0, I]]``; each block's measurements
+enter as their means with the variance divided by their count (for a constant error state and the
+same rows the same information as the per-sample updates). The backward pass runs on the error state
+at those instants, both biases included (so a bias that later rests or movement determine reaches
+the first rest) (Särkkä, *Bayesian Filtering and Smoothing*, 2013, eq. 8.6), and each sample between
+two instants takes the forward estimate corrected by the smoothed correction interpolated between
+them (the block's bias error turns the integrated orientation linearly in time). Against the same
+smoother at every sample (``update_interval = 0``): within 0.003° on a simulated tumbling recording
+(``tests/test_mekf_blocks.py``); BROAD's mean total 1.580° at every sample, 1.583° every 40 ms
+(trials move by up to 0.03°, mostly through the gate's block-mean field). The inflated prior of a
+reset decouples the two sides of it; after resets within ``early_reset_window`` of the start, the
+samples before the last of them take its smoothed state carried back by the gyroscope, which makes
+the smoother insensitive to a wrong start.
 
 Where the time goes (issue #25; BROAD, 8 trials, 425 595 samples, 9-D, µs of one thread's CPU
-per sample, the machine shared by other jobs): the smoother is a 6-D forward pass (0.46), its
-backward pass (0.54), the field gate (0.33; its per-sample part one numba loop, the medians,
-moving averages and labelling numpy), the 9-D forward pass (0.72) and its backward pass (0.61),
-with the rest mask, input checks and result about 0.3; offlineVQF took 1.34 in the same run
-(smoother 0.45 × its throughput). Storing the covariances costs under a tenth of a forward pass
-(9-D forward 0.60 × offlineVQF storing, 0.55 × not), the magnetometer a third of it (6-D
-forward 0.37 ×). Before the previous round: 6-D forward 2.5, backward 1.9, 9-D forward 3.8,
-backward 1.6 (µs wall, then) — the passes wrote and read 2 × 81 floats per sample (the prior and
-the posterior covariance), and the backward pass solved each prior with a general Cholesky.
-Now the covariance is kept exactly symmetric (every update computes the upper triangle and
-mirrors it, which halves the rank-one updates), only the posterior's upper triangle is stored
-(45 floats, 360 B per sample and pass: about 130 MB for an hour at 100 Hz, was 1.3 KB), the
-backward pass recomputes each prior from it with the forward pass's own prediction (the same
-operations on the same numbers, so the same prior), the accelerometer rows in motion (one
-error component each) skip the general row product, and the 9 × 9 solve is unrolled with the
-pivots' reciprocals. What is left is arithmetic, four sequential passes of about 500
-floating-point operations per sample with a dozen square roots and trigonometric functions
-(numba's ``error_model="numpy"`` and ``fastmath`` gave nothing measurable); the 1.5 × of issue
-#25 would need fewer passes (the 6-D pass exists only to gate the magnetometer: smoothing it
-over its first 10 s only gives 0.47 × but moves BROAD trials by up to 0.03°) and a backward pass
-without the 9 × 9 solve (the Bryson–Frazier form), which change the output (docs/performance.md).
+per sample, ``bench/smoother_passes.py``, the machine shared by other jobs): rest mask 0.07,
+steady mask 0.10, the 6-D gate pass (forward and backward at the instants) 0.14, the field gate
+0.05, the 9-D pass (forward, backward, interpolation) 0.25, whole ``estimate`` 0.71; offlineVQF
+1.49 in the same run (smoother 2.1 × its throughput). Per sample what is left is the strapdown
+step (a series for the small rotation: no trigonometric function), the rotation matrix, the
+accelerometer and field in the earth frame and their sums, and in the backward pass a linear
+interpolation of two correction quaternions; the 9 × 9 covariance arithmetic (about 500
+floating-point operations and an unrolled 9 × 9 Cholesky solve per update) runs once per block.
+Before (every sample, a 6-D and a 9-D smoother): 6-D forward 0.46, backward 0.54, field gate
+0.33, 9-D forward 0.72, backward 0.61, whole 3.00 (0.44 × offlineVQF). docs/performance.md has
+the rounds.
 
 The default parameters were tuned on the 8 BROAD trials in ``../shared`` (Laidig et al. 2021),
 which are also the trials the accuracy is reported on; they are not an independent test set.
-Mean total RMSE there: smoother 1.58°, mekf 2.63° (offline VQF 2.38°, online VQF 2.54°).
+Mean total RMSE there: smoother 1.58°, mekf 2.62° (offline VQF 2.38°, online VQF 2.54°).
 """
 
 from __future__ import annotations
@@ -131,6 +132,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from motionlab.errors import InputError
+from motionlab.fusion import _mekf_blocks as blk
 from motionlab.fusion import _mekf_kernels as kern
 from motionlab.fusion import _mekf_monitor as mon_k
 from motionlab.fusion.attitude import initial_orientation
@@ -143,7 +146,6 @@ from motionlab.rotations import (
     integrate_gyro,
     make_continuous,
     mul,
-    rotate,
 )
 from motionlab.units import STANDARD_GRAVITY
 
@@ -217,7 +219,7 @@ class SmootherParams(MekfParams):
         np.pi, "rad", "prior heading std of the 9-D pass (the field's data decide, not sample 1)"
     )
     mag_dev_weight: float = param(
-        3.0, "1", "heading variance × (1 + this · (field deviation / tolerance)²)"
+        2.0, "1", "heading variance × (1 + this · (field deviation / tolerance)²)"
     )
     early_reset_window: float = param(
         10.0, "s", "before a reset this soon after the start, carry the smoothed state back"
@@ -227,6 +229,9 @@ class SmootherParams(MekfParams):
         "rad/s",
         "the bias update at rest only where the rate's 0.25 s mean "
         "varies less than this over 1 s (a person's sway is not a bias)",
+    )
+    update_interval: float = param(
+        0.04, "s", "covariance, measurements and backward pass every this (0: every sample)"
     )
 
 
@@ -262,29 +267,10 @@ def _filter(
     rate: float,
     p: MekfParams,
     rest: np.ndarray,
-    store: bool,
-    gate: tuple[np.ndarray, float, float, np.ndarray] | None = None,
-    gaps: GapNoise | None = None,
-    steady: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
-    """Run the forward kernel from the orientation of the first samples.
-
-    ``steady`` (N, bool; default every sample): where a rest's gyroscope measures the bias
-    (:func:`motionlab.fusion.detect.steady_mask`).
-
-    ``gaps`` (packet-loss gaps bridged in the inputs, :func:`.timegrid.gap_noise`), with
-    ``store`` (the smoother's passes): the prior of the first recorded sample after each gap
-    has its attitude variance increased by the gap's ``sigma²`` on each axis (what the bridge
-    may have missed), in the forward pass and in the backward pass's recomputed prior.
-
-    ``gate`` is an offline magnetometer gate ``(scale (N,), ref_norm, ref_dip, q0)``: the
-    reference is then fixed, only samples with a finite ``scale`` are used, their heading
-    variance multiplied by it, heading resets are off and the filter starts from ``q0`` with
-    the inclination known to ``reset_noise`` (it comes from the 6-D smoother).
-    Without it the reference is learnt online.
-    """
+    """Run the online filter's kernel from the orientation of the first samples, the
+    magnetometer's reference learnt online."""
     n = len(gyr)
-    p0 = np.diag([p.att_init**2] * 3 + [p.bias_init**2] * 3 + [p.acc_bias_init**2] * 3)
     use_mag = mag is not None
     prm = _pack(p)
     if p.acc_bias_init == 0.0:
@@ -295,43 +281,22 @@ def _filter(
         "acc_bias": np.empty((n, 3)),
         "dist": np.empty(n, dtype=np.bool_),
         "reset": np.empty(n, dtype=np.int8),
-        "p_post": np.empty((n if store else 1, kern.N_PACKED)),
-        "prm": prm,
-        "att_extra": np.zeros(n if store and gaps is not None else 1),
     }
-    if store and gaps is not None:
-        inside = (gaps.after > 0) & (gaps.after < n)
-        out["att_extra"][gaps.after[inside].astype(int)] = gaps.sigma[inside] ** 2
-    q0 = initial_orientation(acc, mag)
-    scale = np.ones(1)
-    if use_mag and gate is not None:
-        scale = np.ascontiguousarray(gate[0], dtype=float)
-        prm[kern.MAG_FIXED_NORM], prm[kern.MAG_FIXED_DIP] = gate[1], gate[2]
-        prm[kern.MAG_HEADING_RESET] = 0.0
-        q0 = gate[3]
-        p0[0, 0] = p0[1, 1] = p.reset_noise**2
-        p0[2, 2] = p.mag_heading_init**2
     kern.forward(
-        gyr, acc, mag if use_mag else np.zeros((1, 3)), use_mag, scale, rest,
-        np.ones(len(gyr), dtype=np.bool_) if steady is None else steady, out["att_extra"],
-        1.0 / rate, q0, np.zeros(3), np.zeros(3), p0, prm, out["quat"], out["bias"],
-        out["acc_bias"], out["dist"], out["reset"], out["p_post"], store,
+        gyr, acc, mag if use_mag else np.zeros((1, 3)), use_mag, np.ones(1), rest,
+        np.ones(n, dtype=np.bool_), np.zeros(1), 1.0 / rate, initial_orientation(acc, mag),
+        np.zeros(3), np.zeros(3), _p0(p), prm, out["quat"], out["bias"], out["acc_bias"],
+        out["dist"], out["reset"], np.empty((1, kern.N_PACKED)), False,
     )  # fmt: skip
     return out
 
 
-def _backward(gyr: np.ndarray, rate: float, out: dict[str, np.ndarray]) -> None:
-    """The RTS backward pass over a stored forward pass ``out`` of :func:`_filter` (in place)."""
-    kern.backward(
-        gyr, 1.0 / rate, out["quat"], out["bias"], out["acc_bias"], out["p_post"], out["reset"],
-        out["att_extra"], out["prm"],
-    )  # fmt: skip
-    out["p_post"] = np.empty((0, kern.N_PACKED))  # no longer needed: free it
-
-
 def _result(out: dict, name: str, rest: np.ndarray, use_mag: bool, **extra) -> FusionResult:
+    """The result of a pass ``out``; its quaternions' signs made continuous unless
+    ``out["continuous"]`` says they are."""
+    quat = out["quat"] if out.get("continuous") else make_continuous(out["quat"])
     return FusionResult(
-        make_continuous(out["quat"]), name, {}, gyro_bias=out["bias"], rest=rest,
+        quat, name, {}, gyro_bias=out["bias"], rest=rest,
         mag_disturbed=out["dist"] if use_mag else None,
         extra={
             "resets": np.flatnonzero(out["reset"]).tolist(), "acc_bias": out["acc_bias"], **extra
@@ -345,7 +310,7 @@ def run_mekf(
 ) -> FusionResult:
     """Forward error-state EKF (causal); see the module docstring for the model."""
     rest = causal_rest(gyr, acc, rate, params)
-    out = _filter(gyr, acc, mag, rate, params, rest, store=False)
+    out = _filter(gyr, acc, mag, rate, params, rest)
     return _result(out, "mekf", rest, mag is not None)
 
 
@@ -364,14 +329,86 @@ def _carry_back(
     acc_bias[:k] = acc_bias[k]
 
 
-def _start(q6: np.ndarray, mag: np.ndarray, usable: np.ndarray) -> np.ndarray:
-    """Start of the 9-D pass: the 6-D smoothed orientation of sample 0 turned about earth-up by
-    the heading of the first usable field sample under the 6-D estimate (the 6-D pass carries
-    that heading back by the gyroscope, so a wrong or disturbed start does not matter)."""
-    k = int(np.argmax(usable)) if usable.any() else 0
-    em = rotate(q6[k], mag[k])
-    psi = float(np.arctan2(em[0], em[1])) if np.isfinite(em).all() else 0.0
-    return mul(from_axis_angle(np.array([0.0, 0.0, 1.0]), psi), q6[0])
+def _blocks(
+    gyr: np.ndarray,
+    acc: np.ndarray,
+    mag: np.ndarray | None,
+    rate: float,
+    p: SmootherParams,
+    rest: np.ndarray,
+    steady: np.ndarray,
+    gaps: GapNoise | None,
+    q0: np.ndarray,
+    p0: np.ndarray,
+    gate: tuple[np.ndarray, float, float] | None = None,
+    field: bool = False,
+) -> dict[str, np.ndarray]:
+    """The multi-rate forward pass (:func:`._mekf_blocks.forward`) and its RTS backward pass
+    at the update instants, every ``update_interval`` s.
+
+    ``gate`` ``(scale (B,), ref_norm, ref_dip)``: the blocks' heading-variance factors
+    (infinite: not used) and the fixed reference field; without it the magnetometer is not
+    used. ``q0``, ``p0``: the initial orientation and error covariance (9 × 9). With ``field`` only
+    the instants are smoothed and ``out["field"]`` (B×3) holds each block's mean field in the
+    earth frame of the smoothed estimate (for the gate); otherwise every sample is.
+    """
+    n = len(gyr)
+    if not np.isfinite(p.update_interval) or p.update_interval < 0.0:
+        raise InputError(
+            f"smoother parameter update_interval={p.update_interval!r} s is not a duration ≥ 0",
+            remedy="give 0 (every sample) or a few hundredths of a second (default 0.04)",
+        )
+    m = max(1, min(n, int(round(p.update_interval * rate))))
+    at = blk.instants(n, m)
+    nb = len(at)
+    prm = _pack(p)
+    if p.acc_bias_init == 0.0:
+        prm[kern.ACC_BIAS_RW] = 0.0  # no accelerometer-bias states: the 6-state filter exactly
+    if gate is not None:
+        prm[kern.MAG_FIXED_NORM], prm[kern.MAG_FIXED_DIP] = gate[1], gate[2]
+        prm[kern.MAG_HEADING_RESET] = 0.0
+    extra = np.zeros(1)
+    if gaps is not None:
+        inside = (gaps.after > 0) & (gaps.after < n)
+        if inside.any():
+            per_sample = np.zeros(n)
+            per_sample[gaps.after[inside].astype(int)] = gaps.sigma[inside] ** 2
+            extra = np.add.reduceat(per_sample, np.concatenate([[0], at[:-1] + 1]))
+    out = {
+        "quat": np.empty((n, 4)),
+        "qprior": np.empty((nb, 4)),
+        "gsum": np.empty((nb, 3, 3)),
+        "bias_blk": np.empty((nb, 3)),
+        "acc_bias_blk": np.empty((nb, 3)),
+        "reset_blk": np.empty(nb, dtype=np.int8),
+        "p_post": np.empty((nb, kern.N_PACKED)),
+        "field": np.empty((nb if field else 1, 3)),
+        "at": at,
+        "prm": prm,
+    }
+    use_mag = mag is not None and gate is not None
+    blk.forward(
+        gyr, acc, mag if (use_mag or field) else np.zeros((1, 3)), use_mag,
+        gate[0] if use_mag else np.ones(1), rest, steady, extra, 1.0 / rate, m, q0, p0, prm,
+        out["quat"], out["qprior"], out["gsum"], out["bias_blk"], out["acc_bias_blk"],
+        out["reset_blk"], out["p_post"], out["field"],
+    )  # fmt: skip
+    out["end_cov"] = _unpacked(out["p_post"][-1])[6:, 6:]
+    out["bias"] = np.empty((n if not field else 1, 3))
+    out["acc_bias"] = np.empty((n if not field else 1, 3))
+    blk.backward(
+        1.0 / rate, m, out["quat"], out["qprior"], out["gsum"], out["bias_blk"],
+        out["acc_bias_blk"], out["p_post"], out["reset_blk"], extra, prm, not field,
+        out["bias"], out["acc_bias"], out["field"],
+    )  # fmt: skip
+    out["p_post"] = None  # no longer needed: free it
+    out["reset"] = np.zeros(n, dtype=np.int8)
+    out["reset"][at] = out["reset_blk"]
+    return out
+
+
+def _p0(p: MekfParams) -> np.ndarray:
+    return np.diag([p.att_init**2] * 3 + [p.bias_init**2] * 3 + [p.acc_bias_init**2] * 3)
 
 
 @register("smoother", SmootherParams, "RTS smoother over the multiplicative EKF (offline, default)")
@@ -383,12 +420,17 @@ def run_smoother(
     params: SmootherParams,
     gaps: GapNoise | None = None,
 ) -> FusionResult:
-    """Forward error-state EKF, then the Rauch–Tung–Striebel backward pass over all samples.
+    """Multi-rate forward error-state EKF, then the Rauch–Tung–Striebel backward pass.
+
+    The orientation is integrated at every sample; the covariance, the measurements and the
+    backward pass run every ``update_interval`` s (:mod:`._mekf_blocks`), and the samples between
+    two update instants take the smoothed correction interpolated between them.
 
     ``gaps``: the packet-loss gaps bridged in the inputs and how uncertain each bridge is
     (:func:`motionlab.fusion.timegrid.gap_noise`; given by :func:`motionlab.fusion.estimate`
-    with ``time=``), so that the accelerometer on either side decides where a bridge may have
-    missed rotation (:func:`_filter`).
+    with ``time=``): the attitude variance of the prior after each gap grows by the gap's
+    ``sigma²``, so that the accelerometer on either side decides where a bridge may have missed
+    rotation.
 
     ``extra["acc_bias_end_cov"]`` (3 × 3, m²/s⁴) is the accelerometer bias's covariance at the
     last sample, where the filter's posterior holds all the data (what
@@ -403,27 +445,46 @@ def run_smoother(
         gyr, acc, rate, p.rest_gyr_threshold, p.rest_acc_threshold, min_duration=p.rest_min_duration
     )
     steady = steady_mask(gyr, rate, rest, p.rest_sway)
+    q0 = initial_orientation(acc, mag)
+    p0 = _p0(p)
     gate = None
+    dist = None
     if mag is not None:
-        six = _filter(gyr, acc, None, rate, p, rest, store=True, gaps=gaps, steady=steady)
-        _backward(gyr, rate, six)
+        six = _blocks(gyr, acc, mag, rate, p, rest, steady, gaps, q0, p0, field=True)
+        at = six["at"]
+        blk_rate = rate * (len(at) - 1) / max(1, at[-1])
         gated, dev, ref_n, ref_d = field_gate(
-            mag, six["quat"], rate, p.mag_norm_tol, p.mag_dip_tol, p.mag_hysteresis,
+            six["field"], blk_rate, p.mag_norm_tol, p.mag_dip_tol, p.mag_hysteresis,
             hold=p.mag_hold, heading_tol=p.mag_heading_tol,
         )  # fmt: skip
+        dist = np.repeat(gated, np.diff(np.concatenate([[-1], at])))
         if np.isfinite(ref_n):
-            scale = np.where(gated, np.inf, 1.0 + p.mag_dev_weight * dev**2)
-            gate = (scale, ref_n, ref_d, _start(six["quat"], mag, ~gated))
-    out = _filter(gyr, acc, mag, rate, p, rest, store=True, gate=gate, gaps=gaps, steady=steady)
-    end_cov = _unpacked(out["p_post"][-1])[6:, 6:]
-    _backward(gyr, rate, out)
+            gate = (np.where(gated, np.inf, 1.0 + p.mag_dev_weight * dev**2), ref_n, ref_d)
+            q0 = _start(six["quat"][0], six["field"], ~gated)
+            p0[0, 0] = p0[1, 1] = p.reset_noise**2
+            p0[2, 2] = p.mag_heading_init**2
+    out = _blocks(gyr, acc, mag, rate, p, rest, steady, gaps, q0, p0, gate=gate)
     early = np.flatnonzero(out["reset"][: int(p.early_reset_window * rate) + 1])
     carried = int(early[-1]) if len(early) else 0
     if carried:
         _carry_back(out["quat"], out["bias"], out["acc_bias"], gyr, carried, rate)
+    out["dist"] = dist
+    out["continuous"] = not carried  # the backward pass made them so
     return _result(
-        out, "smoother", rest, mag is not None, carried_back=carried, acc_bias_end_cov=end_cov
-    )
+        out, "smoother", rest, mag is not None, carried_back=carried,
+        acc_bias_end_cov=out["end_cov"],
+    )  # fmt: skip
+
+
+def _start(q6: np.ndarray, field: np.ndarray, usable: np.ndarray) -> np.ndarray:
+    """Start of the 9-D pass: the 6-D smoothed orientation of sample 0 ``q6`` turned about
+    earth-up by the heading of the first usable block's field (B×3, earth frame under the 6-D
+    estimate, which carries that heading back by the gyroscope, so a wrong or disturbed start
+    does not matter)."""
+    k = int(np.argmax(usable)) if usable.any() else 0
+    em = field[k]
+    psi = float(np.arctan2(em[0], em[1])) if np.isfinite(em).all() else 0.0
+    return mul(from_axis_angle(np.array([0.0, 0.0, 1.0]), psi), q6)
 
 
 def _unpacked(packed: np.ndarray) -> np.ndarray:
