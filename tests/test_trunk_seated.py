@@ -302,6 +302,31 @@ def test_an_optical_jump_is_left_out_and_smooth_movement_kept():
     assert np.flatnonzero(jumps(t, held)).tolist() == list(range(200, 206))
 
 
+def test_the_comparisons_rest_lies_inside_a_cut_recording():
+    """bench/real_trunk.py's reference rest on a recording cut to start in movement
+    (Danique/trunkmovement_hs, ``--start-moving``): the product's rest at the end is past the
+    optical recording, and the stillest second both cover was the rest the cut had removed, so
+    the product's rotation from it was its mean over no sample (a turn of 180°: 166° RMSE). It
+    is now the stillest second inside the cut recording; no rest sample gives no angles."""
+    bench = _bench("real_trunk")
+    t = np.arange(0.0, 16.0, 0.02)
+    speed = np.full((len(t), 3), np.radians(30.0))
+    speed[(t >= 1.5) & (t <= 2.5)] = np.radians(0.5)  # the rest the cut removed
+    speed[(t >= 9.0) & (t <= 10.0)] = np.radians(3.0)  # a pause inside the cut recording
+    t_opt = np.arange(1.3, 14.8, 1.0 / 120.0)
+    quats = {b: np.tile([1.0, 0.0, 0.0, 0.0], (len(t_opt), 1)) for b in ("back", "low_back")}
+    a, b = bench.common_rest(t, speed, t_opt, quats, (14.3, 15.3), (2.8, 16.0))
+    assert 2.8 <= a < b <= 14.8
+    assert a == pytest.approx(9.0, abs=0.2) and b == pytest.approx(10.0, abs=0.2)
+    covered = bench.common_rest(t, speed, t_opt, quats, (5.0, 6.0), (2.8, 16.0))
+    assert covered == (5.0, 6.0)  # the product's rest, where the optical bodies see it
+    angles = np.full((len(t), 3), np.nan)
+    angles[t >= 2.8] = [10.0, 0.0, 0.0]  # the product's angles start at the cut
+    assert np.isnan(bench.rest_angle(angles, t < 1.0)).all()  # before the cut: no rest sample
+    got = bench.rest_angle(angles, (t >= 9.0) & (t <= 10.0))
+    assert np.allclose(got[t >= 2.8], 0.0, atol=1e-6) and np.isnan(got[t < 2.8]).all()
+
+
 @needs_shared
 def test_real_trunk_sensors_get_the_clock_offset_optitrack_shows():
     """Aag/trunkmovement_hs (x-IMU3, timestamps synchronised by the vendor's software): the
