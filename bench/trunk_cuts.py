@@ -49,7 +49,7 @@ from motionlab.pipeline import PipelineOptions, analyse  # noqa: E402
 from motionlab.validation.joint_reference import fit_clock_offset  # noqa: E402
 
 STILL_DEG_S = 15.0  # the trunk sensors' mean speed (0.5 s) under this is a still stretch
-SHORT_REST_S = 1.2  # a "short rest" cut keeps this much of a rest
+SHORT_REST_S = (1.2, 0.6)  # "short rest" cuts keep this much of a rest (s)
 MARGIN_S = 0.5  # a cut "in movement" starts or stops this far from the rest
 PLANES = rt.PLANES
 COLUMNS = [f"lumbar_{p}_deg" for p in PLANES]
@@ -78,12 +78,14 @@ def cuts(t: np.ndarray, speed_deg_s: np.ndarray) -> dict[str, tuple[float, float
     out = {"as recorded": (t0, t1)}
     if lead is not None:
         out["start moving"] = (lead + MARGIN_S, t1)
-        if lead - t0 >= SHORT_REST_S + 0.5:
-            out[f"{SHORT_REST_S:g} s rest at start"] = (lead - SHORT_REST_S, t1)
+        for short in SHORT_REST_S:
+            if lead - t0 >= short + 0.5:
+                out[f"{short:g} s rest at start"] = (lead - short, t1)
     if trail is not None:
         out["end moving"] = (t0, trail - MARGIN_S)
-        if t1 - trail >= SHORT_REST_S + 0.5:
-            out[f"{SHORT_REST_S:g} s rest at end"] = (t0, trail + SHORT_REST_S)
+        for short in SHORT_REST_S:
+            if t1 - trail >= short + 0.5:
+                out[f"{short:g} s rest at end"] = (t0, trail + short)
     if lead is not None and trail is not None:
         out["moving throughout"] = (lead + MARGIN_S, trail - MARGIN_S)
     length = t1 - t0
