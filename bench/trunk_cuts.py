@@ -8,7 +8,8 @@ under 15°/s); every cut is written as an x-IMU3 export (each device's time-stam
 their ``Timestamp (us)``, the other files copied) into a temporary folder, never touching the data
 set, and analysed as ``motionlab run <cut>/imu --map protocols/examples/trunk_map.yaml --protocol
 lumbar_seated`` does (``ingest`` + ``pipeline.analyse``, default 6-D fusion). A cut the product
-refuses is run once more through the CLI to check the refusal is one line with exit 2.
+refuses is run once more through the CLI to check the refusal is one line with exit 2 (a rest
+and 1 s of movement must be refused: too little trunk movement).
 
 Per cut: the rest the calibration chose, the grades, the offset-free RMSE against OptiTrack (as
 ``bench/real_trunk.py`` compares: its clock offset, flips, jumps and anatomical frame; the
@@ -78,6 +79,7 @@ def cuts(t: np.ndarray, speed_deg_s: np.ndarray) -> dict[str, tuple[float, float
     out = {"as recorded": (t0, t1)}
     if lead is not None:
         out["start moving"] = (lead + MARGIN_S, t1)
+        out["rest and 1 s of movement"] = (t0, lead + 1.0)  # too little movement: refused
         for short in SHORT_REST_S:
             if lead - t0 >= short + 0.5:
                 out[f"{short:g} s rest at start"] = (lead - short, t1)
