@@ -173,10 +173,14 @@ def speed(t: np.ndarray, q: np.ndarray) -> np.ndarray:
 
 def rest_angle(angles_deg: np.ndarray, rest: np.ndarray) -> np.ndarray:
     """The joint's rotation angle (deg) away from its mean over ``rest`` (bool), from lumbar
-    angles (flexion, lateral bending, axial rotation, deg): frame-independent."""
+    angles (flexion, lateral bending, axial rotation, deg): frame-independent. NaN throughout
+    when no finite sample lies in ``rest`` (the mean of no orientation is none, not a turn of
+    180°)."""
     from motionlab.kinematics.joint_angles import compose
 
     ok = np.isfinite(angles_deg).all(axis=1)
+    if not (rest & ok).any():
+        return np.full(len(ok), np.nan)
     q = np.full((len(ok), 4), np.nan)
     q[ok] = compose(np.radians(angles_deg[ok]), "lumbar")
     q0 = rot.mean(rot.make_continuous(q[rest & ok]))
@@ -282,10 +286,12 @@ def optical_angles(t_opt, quats, pos, rest_opt: np.ndarray, chair_right=None, pr
     return np.degrees(decompose(segs[0], segs[1], "lumbar")), how
 
 
-def common_rest(t_imu, sp_imu, t_opt_on_imu, quats, rest_s) -> tuple[float, float]:
+def common_rest(t_imu, sp_imu, t_opt_on_imu, quats, rest_s, span) -> tuple[float, float]:
     """The reference rest (IMU clock, s) of the comparison: the product's rest when the optical
     bodies cover it, else the stillest second (:func:`motionlab.segments.trunk_axes.find_rest`)
-    of the IMUs where they do (the optical recording stops before the product's rest)."""
+    of the IMUs where they do (the optical recording stops before the product's rest) and the
+    product's recording does (``span``: its first and last sample, s; a cut recording has no
+    angles before its cut, and a rest there compared the product's mean over no sample)."""
     from motionlab.segments.trunk_axes import find_rest
 
     seen = np.isfinite(quats["back"]).all(axis=1) & np.isfinite(quats["low_back"]).all(axis=1)
@@ -293,7 +299,7 @@ def common_rest(t_imu, sp_imu, t_opt_on_imu, quats, rest_s) -> tuple[float, floa
     inside = (t_seen >= rest_s[0]) & (t_seen <= rest_s[1])
     if inside.sum() >= 0.8 * (rest_s[1] - rest_s[0]) * 120:
         return rest_s
-    cover = (t_imu >= t_seen[0] + 0.2) & (t_imu <= t_seen[-1] - 0.2)
+    cover = (t_imu >= max(t_seen[0], span[0]) + 0.2) & (t_imu <= min(t_seen[-1], span[1]) - 0.2)
     a, b, _ = find_rest(t_imu[cover], sp_imu[cover][:, :2].mean(axis=1) * 180 / np.pi)
     return float(t_imu[cover][a]), float(t_imu[cover][b - 1])
 
@@ -356,7 +362,7 @@ def main(argv: list[str] | None = None) -> int:
         if "motionlab 6-D" not in runs:
             continue
         t, cols, grades, rest_s, summary = runs["motionlab 6-D"]
-        rest_s = common_rest(t_imu, sp_imu, t_opt - coarse, quats, rest_s)
+        rest_s = common_rest(t_imu, sp_imu, t_opt - coarse, quats, rest_s, (t[0], t[-1]))
         # refine the offset on the rotation from rest (frame-free on both sides)
         best, best_cost, best_ref, best_how = coarse, np.inf, None, ""
         for lag in np.arange(coarse - 0.1, coarse + 0.1001, 0.002):

@@ -589,7 +589,8 @@ class TrunkMovement(_Record):
     stillest second; ``axis_ratio``: how much more one-sided the movement is about the chosen
     flexion axis than about the other horizontal axis; ``energy_ratio``: the mean squared
     relative rate about the axis turning most over that about the other; ``axis_rank``: which
-    of the two was taken as the flexion axis (1: the one turning most); ``one_sided``: per
+    of the two was taken as the flexion axis (1: the one turning most, which the calibration
+    now always takes; kept in the stored layout); ``one_sided``: per
     horizontal axis (the one turning most first) the larger excursion over the smaller about
     it (each at least 1°); ``excursion_deg`` ``[positive, negative]`` (deg): the 98th and
     2nd percentiles of the lean since the rest about the flexion axis found (the second below

@@ -136,6 +136,49 @@ def test_the_axis_vote_finds_flexion_and_bending_among_other_movement():
     assert np.degrees(np.arccos(abs(v[1]))) > 3.0
 
 
+def test_flexion_is_the_longer_tail_from_the_usual_posture_not_from_a_leaning_rest():
+    """Forward bends to 45° and leaning back to 10° from an upright posture, the only rest a
+    pause held 20° forward (a recording that starts in movement): from that pause the thorax
+    goes 25° one way and 30° the other, so the larger excursion from the rest took leaning back
+    for flexion; the tails from the median posture (45° forward, 10° back) do not."""
+    from motionlab.segments.trunk_axes import _excursions, _flexion_side
+
+    t = np.linspace(0.0, 30.0, 3000)
+    wave = np.sin(2 * np.pi * t / 6.0)
+    phi = np.radians(np.where(wave > 0, 45.0 * wave, 10.0 * wave))  # forward about +z
+    phi[(t > 25.0) & (t < 27.0)] = np.radians(20.0)  # the pause, held leaning forward
+    lean = np.c_[np.zeros_like(t), np.zeros_like(t), phi - np.radians(20.0)]  # since the pause
+    z = np.array([0.0, 0.0, 1.0])
+    pos, neg = _excursions(lean, z)
+    assert neg > pos  # from the rest, "back" looks like the larger excursion
+    assert _flexion_side(lean, z) == 1 and _flexion_side(lean, -z) == -1
+
+
+def test_a_slow_rest_runs_with_every_angle_weak():
+    """A stillest second turning at 15-20°/s (Aag/trunkmovement_ls cut before its rest at the
+    end: 15.2°/s, or to its middle: 17°/s) is slow movement: it runs (its angles were within
+    1.7 / 1.0 / 2.5° of OptiTrack, 0.4° of the whole recording's), but graded ``weak`` with the
+    reason; over 20°/s it is refused (``no rest``)."""
+    from types import SimpleNamespace
+
+    from motionlab.results import TrunkMovement
+    from motionlab.segments.trunk_axes import REST_MAX_DEG_S, REST_SLOW_DEG_S, trunk_grades
+
+    assert REST_SLOW_DEG_S < 17.0 < REST_MAX_DEG_S
+    joint, lean = SimpleNamespace(name="lumbar"), SimpleNamespace(name="trunk_chair")
+    summary = TrunkMovement(rest_s=[3.1, 4.3], rest_speed_deg_s=4.0, axis_ratio=2.0,
+                            energy_ratio=2.4, axis_rank=1, one_sided=[2.0, 1.0],
+                            excursion_deg=[26.0, -52.0], sign_ratio=2.0, heading_deg=0.0,
+                            heading_rho=0.9, heading_drift_deg=None)  # fmt: skip
+    still = trunk_grades(joint, [lean], summary, "determined", {"trunk_chair": True})
+    assert still["lumbar"].grades == ["determined"] * 3
+    summary = dataclasses.replace(summary, rest_speed_deg_s=17.0)
+    slow = trunk_grades(joint, [lean], summary, "determined", {"trunk_chair": True})
+    for g in slow.values():
+        assert g.grades == ["weak"] * 3
+        assert all("17.0°/s" in r and "moving posture" in r for r in g.reasons)
+
+
 def test_the_lean_ignores_a_turn_about_the_vertical():
     """The thorax's lean since the rest is its tilt: a whole-body turn (or the turn between a
     trunk block and a standing rest at the end) adds nothing to it."""
@@ -302,6 +345,31 @@ def test_an_optical_jump_is_left_out_and_smooth_movement_kept():
     assert np.flatnonzero(jumps(t, held)).tolist() == list(range(200, 206))
 
 
+def test_the_comparisons_rest_lies_inside_a_cut_recording():
+    """bench/real_trunk.py's reference rest on a recording cut to start in movement
+    (Danique/trunkmovement_hs, ``--start-moving``): the product's rest at the end is past the
+    optical recording, and the stillest second both cover was the rest the cut had removed, so
+    the product's rotation from it was its mean over no sample (a turn of 180°: 166° RMSE). It
+    is now the stillest second inside the cut recording; no rest sample gives no angles."""
+    bench = _bench("real_trunk")
+    t = np.arange(0.0, 16.0, 0.02)
+    speed = np.full((len(t), 3), np.radians(30.0))
+    speed[(t >= 1.5) & (t <= 2.5)] = np.radians(0.5)  # the rest the cut removed
+    speed[(t >= 9.0) & (t <= 10.0)] = np.radians(3.0)  # a pause inside the cut recording
+    t_opt = np.arange(1.3, 14.8, 1.0 / 120.0)
+    quats = {b: np.tile([1.0, 0.0, 0.0, 0.0], (len(t_opt), 1)) for b in ("back", "low_back")}
+    a, b = bench.common_rest(t, speed, t_opt, quats, (14.3, 15.3), (2.8, 16.0))
+    assert 2.8 <= a < b <= 14.8
+    assert a == pytest.approx(9.0, abs=0.2) and b == pytest.approx(10.0, abs=0.2)
+    covered = bench.common_rest(t, speed, t_opt, quats, (5.0, 6.0), (2.8, 16.0))
+    assert covered == (5.0, 6.0)  # the product's rest, where the optical bodies see it
+    angles = np.full((len(t), 3), np.nan)
+    angles[t >= 2.8] = [10.0, 0.0, 0.0]  # the product's angles start at the cut
+    assert np.isnan(bench.rest_angle(angles, t < 1.0)).all()  # before the cut: no rest sample
+    got = bench.rest_angle(angles, (t >= 9.0) & (t <= 10.0))
+    assert np.allclose(got[t >= 2.8], 0.0, atol=1e-6) and np.isnan(got[t < 2.8]).all()
+
+
 @needs_shared
 def test_real_trunk_sensors_get_the_clock_offset_optitrack_shows():
     """Aag/trunkmovement_hs (x-IMU3, timestamps synchronised by the vendor's software): the
@@ -320,3 +388,30 @@ def test_real_trunk_sensors_get_the_clock_offset_optitrack_shows():
     fit = estimate_clock(chest, back, spine=True)
     assert fit.status == "applied"
     assert fit.offset_s == pytest.approx(0.016, abs=0.003)
+
+
+@needs_shared
+def test_a_real_pivot_cut_to_its_rest_at_the_end_keeps_its_flexion_axis():
+    """Danique/pivot_hs (wheeling, the trunk swaying 10-15°) cut to start in movement keeps only
+    the pause at its end, held leaning about 8° forward and 6° sideways of the rest at the start.
+    From it the forward sway looks two-sided and the sideways one one-sided: the thorax's flexion
+    axis chosen as the more one-sided one was the lateral one (79° off the recording as recorded,
+    graded ``determined``); it is the axis the thorax turns about most, within 15° of the one the
+    whole recording gives (sensor frame, measured (0.00, −0.98, 0.21)). The sign from that rest is
+    unclear (10° one way, 8° the other), so a flipped sign must be graded ``weak``."""
+    from motionlab.ingest import ingest
+
+    imu = SHARED / "datasets" / "trunk" / "Danique" / "pivot_hs" / "imu"
+    if not imu.is_dir():
+        pytest.skip("trunk data set not present")
+    session = ingest([imu], ROOT / "protocols" / "examples" / "trunk_map.yaml")
+    for label, stream in session.sensors.items():
+        session.sensors[label] = take(stream, np.flatnonzero(stream.time >= 3.9))
+    analyse(session, dataclasses.replace(OPTIONS, clock_sync=True))
+    cal = session.results.calibration
+    assert cal.steps["rest"][0] > 10.0  # the pause at the end
+    z = rot.to_matrix(np.asarray(cal.segments["thorax"].mounting, float))[:, 2]
+    whole = np.array([0.00, -0.98, 0.21]) / np.linalg.norm([0.00, -0.98, 0.21])
+    assert abs(z @ whole) > np.cos(np.radians(15.0))
+    grades = cal.grades["lumbar"].grades
+    assert z @ whole > 0 or grades[:2] == ["weak", "weak"]

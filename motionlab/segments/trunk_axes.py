@@ -7,7 +7,9 @@ and **trunk movement** in any order, also as one continuous block:
 
 1. **Rest:** the stillest stretch of at least :data:`REST_MIN_S` (``SHORTEST_POSE_S``), by the
    mean angular speed of the joint's sensors over a sliding second, grown while they stay as
-   still; refused when even the stillest second turns faster than :data:`REST_MAX_DEG_S`.
+   still; refused when even the stillest second turns faster than :data:`REST_MAX_DEG_S`, and
+   every angle ``weak`` when it turns faster than :data:`REST_SLOW_DEG_S` (slow movement, not
+   a rest: the zero and the verticals are of a moving posture).
    Each segment's vertical (its y) is gravity seen by its sensor over the rest.
 2. **Heading between the sensors** (6-D fusions have one each): the angle about the vertical
    that turns the thorax's earth-frame angular velocity onto the pelvis's over the whole
@@ -19,16 +21,19 @@ and **trunk movement** in any order, also as one continuous block:
    integrated about the vertical (:func:`_heading_drift`).
 3. **Flexion axis:** of the two perpendicular axes about which the thorax's angular velocity
    relative to the pelvis turns most often (in the thorax sensor frame, perpendicular to the rest's
-   vertical, over the recording; :func:`_horizontal_axes`), the one about which the thorax moves
-   **one-sidedly** from the rest: people lean forward further than back (a backrest, gravity) and
-   bend about as far to either side. Its direction (flexion about −z, ISB) is the side of the
-   larger excursion. The pelvis's flexion axis is the thorax's carried through the rest's relative
-   orientation (the rest is the zero of all three angles: lateral bending and axial rotation of the
-   rest are taken as none), made perpendicular to its own vertical. x = y × z in both; no
+   vertical, over the recording; :func:`_horizontal_axes`), the one it turns about most (not
+   the more one-sided one, which depends on the rest's posture: docs/kinematics.md). Its
+   direction (flexion about −z, ISB) is the side of the longer tail from the thorax's median
+   posture (:func:`_flexion_side`): people lean forward further than back (a backrest, gravity).
+   The pelvis's flexion axis is the thorax's carried through the rest's relative orientation
+   (the rest is the zero of all three angles: lateral bending and axial rotation of the rest
+   are taken as none), made perpendicular to its own vertical. x = y × z in both; no
    ``sensor_axes`` hint is used.
 4. **Grades** (:func:`trunk_grades`): flexion and lateral bending are ``determined`` when the
-   chosen axis is at least :data:`AXIS_RATIO_MIN` times as one-sided as the other and the
-   thorax moved at least :data:`SIGN_RATIO_MIN` times further one way than the other about it,
+   movement about the chosen axis is at least :data:`AXIS_RATIO_MIN` times as one-sided as about
+   the other (people bend about as far to either side), the thorax moved at least
+   :data:`SIGN_RATIO_MIN` times further one way than the other about it from the rest, and
+   that way is the flexion side (the rest's extremes and the median's tails agree);
    ``weak`` otherwise; axial rotation when the heading from the movement explains at least
    :data:`HEADING_RHO_MIN` of the horizontal rates.
 5. **Chair** (optional segment of a ``trunk_lean`` joint): its vertical from the rest; its
@@ -74,12 +79,12 @@ from motionlab.timebase import interp_columns
 METHOD = "trunk"
 REST_MIN_S = SHORTEST_POSE_S
 REST_MAX_S = 5.0  # a rest is grown up to this long
-REST_MAX_DEG_S = 15.0  # the stillest second turning faster than this (mean per sensor): no rest
+REST_MAX_DEG_S = 20.0  # the stillest second turning faster than this (mean per sensor): no rest
+REST_SLOW_DEG_S = 15.0  # a rest turning faster than this gives every angle ``weak``
 REST_GROW = 1.5  # the rest grows while the 0.2 s speed stays within this × the stillest second's
 STILL_DEG_S = 1.0  # a rest this still (mean deg/s) shows the gyroscope biases
 MOVING_DEG_S = 5.0  # the thorax turning faster than this relative to the pelvis is moving
 MOVEMENT_MIN_S = 2.0  # the least trunk movement (s) that can give the axes
-ENERGY_MIN = 0.2  # a horizontal axis turning less than this share of the other's is no candidate
 AXIS_RATIO_MIN = 1.5  # the flexion axis's one-sidedness over the other axis's
 SIGN_RATIO_MIN = 1.3  # the thorax's excursion one way / the other, about the flexion axis
 HEADING_RHO_MIN = 0.5  # share of the horizontal rates the heading fit explains
@@ -197,6 +202,20 @@ def _one_sided(pos: float, neg: float) -> float:
     return max(pos, neg) / max(min(pos, neg), 1.0)
 
 
+def _flexion_side(lean: np.ndarray, axis: np.ndarray) -> int:
+    """Which way about ``axis`` the thorax flexes (+1: its lean since the rest ``lean``, N×3 rad,
+    grows about +``axis``; −1: about −``axis``): the side of the longer tail from the thorax's
+    median posture (98th and 2nd percentiles against the median). People lean forward further
+    than back from where they usually sit; the extremes from the rest say the same only when
+    the rest is that posture. A pause held leaning forward (the only rest of a recording that
+    starts in movement) made the extremes two-sided and flipped flexion's sign on two of the
+    real trials cut so (Danique/trunkmovement_hs: 48° one way, 47° the other from its pause;
+    Danique/pivot_hs), while the tails from the median kept it on every cut whose axis was the
+    recording's but one (``bench/trunk_cuts.py``)."""
+    lo, mid, hi = np.percentile(np.degrees(lean @ axis), [2, 50, 98])
+    return 1 if hi - mid >= mid - lo else -1
+
+
 def _frame(y: np.ndarray, z: np.ndarray) -> np.ndarray:
     """Mounting matrix (segment → sensor: columns x, y, z in sensor coordinates) with y
     exactly ``y`` and z the part of ``z`` perpendicular to it."""
@@ -273,9 +292,10 @@ def calibrate(
     speed = np.mean([np.degrees(np.linalg.norm(gyr[s], axis=1)) for s in segs], axis=0)
     a, b, level = find_rest(t, speed)
     if level > REST_MAX_DEG_S:
+        speed_text = f"{level:.0f}" if level >= REST_MAX_DEG_S + 0.5 else f"{level:.1f}"
         raise InputError(
             f"no rest: the stillest second ({t[a]:.1f}–{t[a] + REST_MIN_S:.1f} s) turns at "
-            f"{level:.0f}°/s (a rest is under {REST_MAX_DEG_S:g}°/s)",
+            f"{speed_text}°/s (a rest is under {REST_MAX_DEG_S:g}°/s)",
             protocol.path,
             "calibration",
             remedy="record a second or more sitting or standing still, before, between or "
@@ -319,16 +339,21 @@ def calibrate(
         )
     axes, energy = _horizontal_axes(w_rel, up[d], moving)
     q_rest = rot.mean(q_rel[rest])
-    # flexion is the one-sided movement: the thorax leans forward further than back (a
-    # backrest, gravity), while it bends about as far to either side
     lean = _lean(q[d], rot.mean(q[d][rest]))
+    # the flexion axis is the one the thorax turns about most. One-sidedness from the rest
+    # gives its sign and the grade, not the axis: it depends on the rest's posture. A rest held
+    # leaning (a pause at the end, after wheeling) makes the flexion sway look two-sided and a
+    # sideways lean one-sided: chosen by one-sidedness, Danique/pivot_hs cut to keep only its
+    # rest at the end took the lateral axis (79° off, its flexion r −0.87 with the optical
+    # lateral bending), graded determined (bench/trunk_cuts.py)
     reach = [_excursions(lean, a) for a in axes]
     sided = [_one_sided(*r) for r in reach]
-    k = int(np.argmax(sided)) if energy[1] >= ENERGY_MIN * energy[0] else 0
+    k = 0
     axis, (pos, neg), sign_ratio = axes[k], reach[k], sided[k]
     ratio = sided[k] / max(sided[1 - k], 1e-9)  # how clearly it is the flexion axis
-    # flexion turns the thorax about its −z: the larger excursion is flexion
-    z_d = -axis if pos >= neg else axis
+    # flexion turns the thorax about its −z; its side is the longer tail from the usual posture
+    forward = _flexion_side(lean, axis)
+    z_d = -axis if forward > 0 else axis
     m_d = _frame(up[d], z_d)
     z_p = rot.rotate(q_rest, m_d[:, 2])
     m_p = _frame(up[p], z_p)
@@ -336,9 +361,8 @@ def calibrate(
     steps_named = {s.kind: s.name for s in protocol.calibration}
     rest_name = steps_named.get("static", "rest")
     move_name = steps_named.get("functional", "trunk_movement")
-    axis_verdict = (
-        "determined" if ratio >= AXIS_RATIO_MIN and sign_ratio >= SIGN_RATIO_MIN else "weak"
-    )
+    clear = ratio >= AXIS_RATIO_MIN and sign_ratio >= SIGN_RATIO_MIN
+    axis_verdict = "determined" if clear and (pos >= neg) == (forward > 0) else "weak"
     y, zs = np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0])
     segments: dict[str, Any] = {}
     for seg, m in ((d, m_d), (p, m_p)):
@@ -458,6 +482,12 @@ def _heading_drift(session, labels: dict[str, str], t, q, gyr, rest: slice) -> n
 
 def _weak_axis(ratio: float, pos: float, neg: float) -> str:
     """Why the flexion axis is weak, in words."""
+    if ratio >= AXIS_RATIO_MIN and _one_sided(pos, neg) >= SIGN_RATIO_MIN:
+        return (
+            f"the flexion axis's sign is not clear from the movement (the thorax went {pos:.0f}° "
+            f"/ {neg:.0f}° either way from the rest, but further the other way from its usual "
+            "posture: the rest was held leaning)"
+        )
     return (
         f"the flexion axis is not clear from the movement (the thorax went {pos:.0f}° / "
         f"{neg:.0f}° either way about it, {ratio:.1f}× as one-sided as about the other axis; "
@@ -470,7 +500,8 @@ def trunk_grades(
 ) -> dict[str, JointGrades]:
     """Grades of the lumbar joint and of the trunk's lean (``leans``: ``trunk_lean`` joints)
     from what the movement determined; a lean is ``weak`` unless the chair's heading drift was
-    followed (``followed``: by joint, a still rest)."""
+    followed (``followed``: by joint, a still rest); every angle ``weak`` when the rest turns
+    faster than :data:`REST_SLOW_DEG_S`."""
     pos, neg = summary.excursion_deg[0], -summary.excursion_deg[1]
     why_axis = "" if axis_verdict == "determined" else _weak_axis(summary.axis_ratio, pos, neg)
     rot_grade, why_rot = "determined", ""
@@ -495,4 +526,12 @@ def trunk_grades(
                 "the rest only and may drift apart"
             )
         out[lean.name] = JointGrades([grade] * 3, [why] * 3)
+    if summary.rest_speed_deg_s > REST_SLOW_DEG_S:
+        slow = (
+            f"the rest turns at {summary.rest_speed_deg_s:.1f}°/s (a still rest is under "
+            f"{REST_SLOW_DEG_S:g}°/s): the angles' zero and verticals are of a moving posture"
+        )
+        out = {name: JointGrades(["weak"] * len(g.grades),
+                                 [w if w else slow for w in g.reasons])
+               for name, g in out.items()}  # fmt: skip
     return out
