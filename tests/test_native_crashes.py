@@ -14,14 +14,14 @@ import numpy as np
 import pytest
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from conftest import needs_shared  # noqa: E402
+from conftest import SHARED, needs_shared  # noqa: E402
 from test_input_boundaries import XSENS, cli, refused  # noqa: E402
 
 from motionlab import isolated  # noqa: E402
 from motionlab.errors import InputError  # noqa: E402
 from motionlab.io import read_any  # noqa: E402
 
-SHARED_C3D = Path(__file__).resolve().parents[1] / ".." / "shared" / "formats" / "c3d"
+SHARED_C3D = SHARED / "formats" / "c3d"
 
 pytestmark = pytest.mark.skipif(not hasattr(os, "fork"), reason="the guards need os.fork")
 
