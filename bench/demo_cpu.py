@@ -6,7 +6,8 @@
 demo's two `run`s as the command does (`run_pipeline` on the bundled sessions) with each stage
 also timed by `time.process_time()` (this process's CPU, all threads), and prints both, then the
 whole process's CPU (imports included: the first `run` in a process pays for loading numpy,
-scipy, numba and matplotlib). Whether numba compiles is up to its cache: empty it
+scipy, numba and matplotlib). The command line's settings apply (``motionlab.cli`` is imported
+first: OpenBLAS's thread timeout). Whether numba compiles is up to its cache: empty it
 (`find motionlab -name '*.nb[ic]' -delete`) for the first run after an install.
 """
 
@@ -18,6 +19,7 @@ import sys
 import time
 from pathlib import Path
 
+import motionlab.cli  # noqa: F401  # first: the command's settings (OpenBLAS's thread timeout)
 from motionlab import pipeline
 from motionlab.cli.demo import DEMO_DIR, EXAMPLES
 

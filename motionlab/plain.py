@@ -18,6 +18,8 @@ def plain(value: Any) -> Any:
     if isinstance(value, list | tuple):
         return [plain(v) for v in value]
     if isinstance(value, np.ndarray):
+        if value.dtype.kind in "biu" or (value.dtype.kind == "f" and np.isfinite(value).all()):
+            return value.tolist()  # Python numbers already, none to replace: no walk per value
         return plain(value.tolist())
     if isinstance(value, np.generic):
         return plain(value.item())

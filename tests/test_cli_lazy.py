@@ -6,6 +6,7 @@ the command's own."""
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 
@@ -61,3 +62,18 @@ def test_the_listing_names_every_command():
     ).stdout
     for name in COMMANDS:
         assert f"\n  {name} " in text, name
+
+
+def test_cli_sets_openblas_thread_timeout_before_numpy_unless_the_user_did():
+    probe = (
+        "import os, sys\nimport motionlab.cli\n"
+        "print(os.environ['OPENBLAS_THREAD_TIMEOUT'], 'numpy' in sys.modules)"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_THREAD_TIMEOUT"}
+    for preset, expected in ((None, "16 False"), ("4", "4 False")):
+        run_env = env if preset is None else {**env, "OPENBLAS_THREAD_TIMEOUT": preset}
+        out = subprocess.run(
+            [sys.executable, "-c", probe], cwd=ROOT, env=run_env, capture_output=True, text=True,
+            check=True,
+        )  # fmt: skip
+        assert out.stdout.strip() == expected

@@ -12,6 +12,7 @@ matplotlib; ``motionlab --help`` lists the commands with their one-line help fro
 
 from __future__ import annotations
 
+import os
 import sys
 import traceback
 import warnings
@@ -25,6 +26,14 @@ from motionlab.errors import InputError
 
 EXIT_BAD_INPUT = 2
 EXIT_BUG = 1
+
+#: OpenBLAS's idle threads spin for 2**28 CPU cycles (about 0.1 s) after each call before they
+#: sleep; validation's least-squares alignment makes hundreds of short calls, and the spinning
+#: was a third of that stage's CPU time (docs/performance.md). 2**16 cycles: they sleep after
+#: some microseconds. Set before numpy loads OpenBLAS (a command's module imports it); the same
+#: threads share the same sums, so the numbers are the same. A value the user set is kept.
+BLAS_THREAD_TIMEOUT = "16"
+os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", BLAS_THREAD_TIMEOUT)
 
 
 #: command → its one-line help (the first sentence of its docstring) for ``motionlab --help``;

@@ -25,12 +25,14 @@ import numpy as np
 from matplotlib import colors as mcolors
 from matplotlib.artist import allow_rasterization
 from matplotlib.axes import Axes
+from matplotlib.axis import Axis, XAxis, YAxis
 from matplotlib.backends.backend_agg import FigureCanvasAgg, RendererAgg
 from matplotlib.backends.backend_pdf import PdfPages
 from matplotlib.figure import Figure
 from matplotlib.font_manager import FontProperties
 from matplotlib.lines import Line2D
 from matplotlib.text import Text
+from matplotlib.ticker import NullLocator
 
 PAGE_W, PAGE_H = 8.27, 11.69
 MARGIN = 0.6
@@ -180,6 +182,135 @@ class PlainText(Text):
         gc.restore()
         renderer.close_group("text")
         self.stale = False
+
+
+def _contains_close(interval: np.ndarray, value: float, rtol: float = 1e-10) -> bool:
+    """Whether ``value`` is in ``interval`` widened by ``rtol`` of its length (matplotlib's test
+    of which ticks an axis draws)."""
+    a, b = sorted(interval)
+    pad = (b - a) * rtol
+    return a - pad <= value <= b + pad
+
+
+#: whether a group of ticks (major or minor) has anything to draw (matplotlib ≥ 3.10 skips
+#: groups with none; earlier versions drew them anyway, which draws nothing)
+_group_visible = getattr(Axis, "_tick_group_visible", lambda kw: True)
+
+
+class _StampedTicks:
+    """An axis that draws its ticks by moving one tick object from position to position.
+
+    matplotlib's :meth:`Axis.draw <matplotlib.axis.Axis.draw>` makes a :class:`Tick` (tick
+    marks, grid line, two labels: five artists, copied from the first tick) for every tick
+    position the first time it draws, about 1 ms each: a report page of six axes makes ~100.
+    Every tick of an axis has its first tick's properties (``tick_params`` and
+    ``set_ticklabels`` set all of them, new ones copy the first), so drawing the first one at
+    each position and with each label, in matplotlib's order, writes the same bytes
+    (``tests/test_report_ticks.py``). The positions, labels and the filter to the view are
+    matplotlib's (``Axis._update_ticks``); tick labels are spelled as the PDF spells text
+    (:func:`pdf_text`). :meth:`get_children` leaves the ticks out, so finding a page's texts
+    makes none. Only :meth:`draw` stamps: anything else that asks for the ticks (a tight
+    bounding box, a layout engine) gets matplotlib's tick objects.
+    """
+
+    def get_children(self) -> list:
+        return [self.label, self.offsetText]
+
+    def _stamps(self) -> list[tuple]:
+        """``(tick, position, label)`` of each tick drawn, major ones first."""
+        low, high = sorted(self.get_view_interval())
+        scale = self.get_transform()
+        interval = scale.transform([low, high])
+        out = []
+        groups = (
+            (self._major_tick_kw, self.major, self.get_majorticklocs, self.get_major_ticks),
+            (self._minor_tick_kw, self.minor, self.get_minorticklocs, self.get_minor_ticks),
+        )
+        for kw, ticker, positions, ticks in groups:
+            if not _group_visible(kw) or isinstance(ticker.locator, NullLocator):
+                continue
+            locs = positions()  # the minor ones without those of major ticks
+            labels = ticker.formatter.format_ticks(locs)
+            if len(locs) == 0:
+                continue
+            tick = ticks(1)[0]
+            for loc, label in zip(locs, labels, strict=True):
+                try:
+                    loc_t = scale.transform(loc)
+                except AssertionError:  # masked values of some scales, as matplotlib skips them
+                    continue
+                if _contains_close(interval, loc_t):
+                    out.append((tick, loc, pdf_text(label)))
+        return out
+
+    @allow_rasterization
+    def draw(self, renderer) -> None:
+        if not self.get_visible():
+            return
+        renderer.open_group(Axis.__module__, gid=self.get_gid())
+        boxes1, boxes2 = [], []
+        stamps = self._stamps()
+        self._drawn = list(dict.fromkeys(tick for tick, _, _ in stamps))
+        for tick, loc, label in stamps:
+            tick.update_position(loc)
+            tick.label1.set_text(label)
+            tick.label2.set_text(label)
+            for text, boxes in ((tick.label1, boxes1), (tick.label2, boxes2)):
+                if text.get_visible() and text.get_in_layout():
+                    boxes.append(text.get_window_extent(renderer))
+            tick.draw(renderer)
+        self._boxes = (boxes1, boxes2)
+        self._update_label_position(renderer)
+        self.label.draw(renderer)
+        self._update_offset_text_position(boxes1, boxes2)
+        self.offsetText.set_text(self.major.formatter.get_offset())
+        self.offsetText.draw(renderer)
+        renderer.close_group(Axis.__module__)
+        self._drawn = self._boxes = None
+        self.stale = False
+
+    def _update_ticks(self) -> list:
+        # during draw, the spine asks which ticks are drawn (for their length): the template
+        # ticks; anyone else gets matplotlib's answer, one tick object per position
+        drawn = getattr(self, "_drawn", None)
+        return drawn if drawn is not None else super()._update_ticks()
+
+    def _get_tick_boxes_siblings(self, renderer) -> tuple[list, list]:
+        # the axis label's place: below (beside) this draw's tick labels
+        boxes = getattr(self, "_boxes", None)
+        return boxes if boxes is not None else super()._get_tick_boxes_siblings(renderer)
+
+
+class _StampedXAxis(_StampedTicks, XAxis):
+    pass
+
+
+class _StampedYAxis(_StampedTicks, YAxis):
+    pass
+
+
+_STAMPED = {XAxis: _StampedXAxis, YAxis: _StampedYAxis}
+_PLAIN = {v: k for k, v in _STAMPED.items()}
+
+
+def stamp_ticks(fig: Figure) -> None:
+    """Let every plain x and y axis of ``fig`` draw its ticks as :class:`_StampedTicks` (the
+    same pages, a fraction of matplotlib's tick objects); axes whose labels are aligned with
+    other axes' (``Figure.align_labels``) keep matplotlib's ticks."""
+    groups = fig._align_label_groups
+    for ax in fig.axes:
+        for name, axis in (("x", ax.xaxis), ("y", ax.yaxis)):
+            aligned = name in groups and len(groups[name].get_siblings(ax)) > 1
+            if type(axis) in _STAMPED and not aligned:  # aligned labels: matplotlib's ticks
+                axis.__class__ = _STAMPED[type(axis)]
+
+
+def unstamp_ticks(fig: Figure) -> None:
+    """Undo :func:`stamp_ticks`: matplotlib's own tick objects again."""
+    for ax in fig.axes:
+        for axis in (ax.xaxis, ax.yaxis):
+            if type(axis) in _PLAIN:
+                axis.__class__ = _PLAIN[type(axis)]
 
 
 def put_text(fig: Figure, x: float, y: float, text: str, **kw) -> PlainText:
@@ -527,7 +658,8 @@ class Document:
             PdfPages(pdf_path, metadata={"Title": self.title, "Creator": "motionlab"}) as pdf,
         ):
             for i, fig in enumerate(self.pages, start=1):
-                for t in fig.findobj(Text):
+                stamp_ticks(fig)
+                for t in fig.findobj(Text):  # tick labels are spelled as they are drawn
                     spelled = pdf_text(t.get_text())
                     if spelled != t.get_text():
                         t.set_text(spelled)
@@ -585,6 +717,7 @@ def page_text(fig: Figure) -> str:
 
 def layout_problems(fig: Figure) -> list[str]:
     """Text that leaves the page or overlaps other text (bounding boxes, 0.5 pt tolerance)."""
+    unstamp_ticks(fig)  # every tick label its own text, placed by matplotlib
     fig.draw_without_rendering()  # places axis labels and legends
     renderer = fig.canvas.get_renderer()
     w, h = fig.bbox.width, fig.bbox.height

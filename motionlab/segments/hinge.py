@@ -42,13 +42,17 @@ def _angles(v: np.ndarray) -> tuple[float, float]:
     return float(np.arcsin(np.clip(v[2], -1, 1))), float(np.arctan2(v[1], v[0]))
 
 
-def _perpendicular(g: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """‖g × j‖ (N,) and its gradient with respect to j (N, 3), for a unit ``j``."""
+def _perpendicular(g: np.ndarray, gg: np.ndarray, j: np.ndarray) -> tuple[np.ndarray, ...]:
+    """‖g × j‖ (N,) for a unit ``j``, with ``g · j`` and the norm floored at 1e-12 (what its
+    gradient, :func:`_gradient`, needs); ``gg`` is ``‖g‖²`` (N,)."""
     gj = g @ j
-    norm = np.sqrt(np.maximum(np.einsum("ij,ij->i", g, g) - gj**2, 0.0))
-    safe = np.maximum(norm, 1e-12)
-    grad = (np.einsum("ij,ij->i", g, g)[:, None] * j - gj[:, None] * g) / safe[:, None]
-    return norm, grad
+    norm = np.sqrt(np.maximum(gg - gj**2, 0.0))
+    return norm, gj, np.maximum(norm, 1e-12)
+
+
+def _gradient(g: np.ndarray, gg: np.ndarray, j: np.ndarray, gj: np.ndarray, safe: np.ndarray):
+    """The gradient of ‖g × j‖ with respect to j (N, 3), Seel's eq. 4."""
+    return (gg[:, None] * j - gj[:, None] * g) / safe[:, None]
 
 
 def _active(g1: np.ndarray, g2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -87,15 +91,32 @@ def hinge_axes(
         raise InputError("too few samples for the hinge-axis fit", remedy="record more movement")
     g1, g2 = _active(g1, g2)
 
+    gg = [np.einsum("ij,ij->i", g, g) for g in (g1, g2)]  # ‖g‖², the same at every step
+    memo: dict[bytes, list] = {}
+
+    def perpendicular(x: np.ndarray) -> list[tuple[np.ndarray, ...]]:
+        """:func:`_perpendicular` of both segments at ``x``, once per ``x`` (the fit asks for
+        the Jacobian where it has just evaluated the residual)."""
+        key = x.tobytes()
+        if key not in memo:
+            memo.clear()
+            memo[key] = [
+                _perpendicular(g, gg[k], _unit(x[2 * k], x[2 * k + 1]))
+                for k, g in enumerate((g1, g2))
+            ]
+        return memo[key]
+
     def residual(x: np.ndarray) -> np.ndarray:
-        j1, j2 = _unit(x[0], x[1]), _unit(x[2], x[3])
-        return _perpendicular(g1, j1)[0] - _perpendicular(g2, j2)[0]
+        (norm1, _, _), (norm2, _, _) = perpendicular(x)
+        return norm1 - norm2
 
     def jacobian(x: np.ndarray) -> np.ndarray:
         out = np.empty((len(g1), 4))
+        parts = perpendicular(x)
         for k, (g, sign) in enumerate(((g1, 1.0), (g2, -1.0))):
             phi, theta = x[2 * k], x[2 * k + 1]
-            _, grad = _perpendicular(g, _unit(phi, theta))
+            _, gj, safe = parts[k]
+            grad = _gradient(g, gg[k], _unit(phi, theta), gj, safe)
             d_phi, d_theta = _tangents(phi, theta)
             out[:, 2 * k] = sign * (grad @ d_phi)
             out[:, 2 * k + 1] = sign * (grad @ d_theta)

@@ -1,0 +1,81 @@
+"""Axes drawn with one tick object per axis (``stamp_ticks``) write the PDF bytes matplotlib's
+own tick objects write, and the page checks still see every tick label."""
+
+import io
+
+import matplotlib
+import numpy as np
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.backends.backend_pdf import PdfPages
+from matplotlib.figure import Figure
+
+from motionlab.report.pdf import RC, layout_problems, stamp_ticks, unstamp_ticks
+
+
+def _page(names: tuple[str, str] = ("thigh r", "some")) -> Figure:
+    """Axes as the report draws them, and some it does not: default ticks with negative
+    numbers and an offset, named and rotated ticks, hidden tick labels under shared x axes,
+    a grid, minor ticks, a log scale, ticks on the right, an inverted axis, labels aligned."""
+    fig = Figure(figsize=(8.27, 11.69))
+    FigureCanvasAgg(fig)
+    t = np.linspace(0.0, 12.3, 200)
+    ax = fig.add_axes([0.1, 0.85, 0.8, 0.1])
+    ax.plot(t, 40 * np.sin(t) - 5)
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel("angle (°)")
+    ax.set_title("default ticks")
+    ax = fig.add_axes([0.1, 0.7, 0.35, 0.08])
+    ax.plot(t, 1e5 + t)  # an offset text
+    ax.grid(True)
+    ax.minorticks_on()
+    ax = fig.add_axes([0.6, 0.7, 0.3, 0.08])
+    ax.bar(range(3), [3, 1, 2])
+    ax.set_xticks(range(3), ["pelvis", names[0], "shank_l"], rotation=30, ha="right")
+    ax.set_yticks([0, 1.5, 3], ["none", names[1], "all"])
+    axes = fig.subplots(3, 1, sharex=True, gridspec_kw={"top": 0.6, "bottom": 0.35})
+    for k, a in enumerate(axes):
+        a.plot(t, k * t)
+        a.set_ylabel(f"panel {k}")
+    axes[-1].set_xlabel("time (s)")
+    ax = fig.add_axes([0.1, 0.1, 0.35, 0.15])
+    ax.semilogy(t + 1, np.exp(t))
+    ax.yaxis.tick_right()
+    ax.invert_xaxis()
+    ax = fig.add_axes([0.6, 0.1, 0.3, 0.07])
+    ax.plot(t, 1000 * t)
+    fig.align_ylabels(axes)
+    return fig
+
+
+def _pdf(stamped: bool, names: tuple[str, str] = ("thigh r", "some")) -> bytes:
+    with matplotlib.rc_context({**RC, "pdf.compression": 0}):
+        fig = _page(names)
+        if stamped:
+            stamp_ticks(fig)
+        buf = io.BytesIO()
+        with PdfPages(buf, metadata={"CreationDate": None}) as pdf:
+            pdf.savefig(fig)
+    return buf.getvalue()
+
+
+def test_stamped_ticks_write_the_bytes_matplotlib_writes():
+    assert _pdf(True) == _pdf(False)
+
+
+def test_stamped_tick_labels_are_spelled_as_the_pdf_spells_text():
+    pdf = _pdf(True, ("thigh −r", "some ≥ 1"))
+    assert b"(thigh -r)" in pdf and b"(some >= 1)" in pdf
+
+
+def test_stamped_axes_make_one_tick_each_and_the_checks_see_every_label():
+    with matplotlib.rc_context(RC):
+        fig = _page()
+        stamp_ticks(fig)
+        fig.draw_without_rendering()
+        # one tick object per axis, but where set_xticks made them (the named ticks) or the
+        # labels are aligned with another axes' (matplotlib's own ticks)
+        assert [len(a.xaxis.majorTicks) for a in fig.axes] == [1, 1, 3, 1, 1, 1, 1, 1]
+        assert [len(a.yaxis.majorTicks) > 1 for a in fig.axes][2:6] == [True] * 4
+        assert layout_problems(fig) == []
+        assert len(fig.axes[0].xaxis.majorTicks) > 3  # matplotlib's own ticks, one per position
+        unstamp_ticks(fig)
