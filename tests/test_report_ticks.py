@@ -7,6 +7,7 @@ import matplotlib
 import numpy as np
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.backends.backend_pdf import PdfPages
+from matplotlib.axis import XAxis
 from matplotlib.figure import Figure
 
 from motionlab.report.pdf import RC, layout_problems, stamp_ticks, unstamp_ticks
@@ -79,3 +80,16 @@ def test_stamped_axes_make_one_tick_each_and_the_checks_see_every_label():
         assert layout_problems(fig) == []
         assert len(fig.axes[0].xaxis.majorTicks) > 3  # matplotlib's own ticks, one per position
         unstamp_ticks(fig)
+
+
+def test_a_matplotlib_without_the_parts_stamping_uses_keeps_its_own_ticks(monkeypatch):
+    from motionlab.report import pdf
+
+    fig = Figure()
+    ax = fig.add_subplot()
+    monkeypatch.setattr(pdf, "_AXIS_PARTS", (*pdf._AXIS_PARTS, "_a_part_matplotlib_dropped"))
+    pdf.stamp_ticks(fig)
+    assert type(ax.xaxis) is XAxis
+    monkeypatch.undo()
+    pdf.stamp_ticks(fig)
+    assert type(ax.xaxis) is not XAxis

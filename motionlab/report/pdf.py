@@ -293,11 +293,22 @@ _STAMPED = {XAxis: _StampedXAxis, YAxis: _StampedYAxis}
 _PLAIN = {v: k for k, v in _STAMPED.items()}
 
 
+#: the parts of matplotlib's axes :class:`_StampedTicks` relies on (private ones: a matplotlib
+#: without them keeps its own ticks, and the pages are drawn as before, only slower)
+_AXIS_PARTS = ("_major_tick_kw", "_minor_tick_kw", "_update_ticks", "_update_label_position",
+               "_update_offset_text_position", "_get_tick_boxes_siblings")  # fmt: skip
+
+
 def stamp_ticks(fig: Figure) -> None:
     """Let every plain x and y axis of ``fig`` draw its ticks as :class:`_StampedTicks` (the
     same pages, a fraction of matplotlib's tick objects); axes whose labels are aligned with
-    other axes' (``Figure.align_labels``) keep matplotlib's ticks."""
-    groups = fig._align_label_groups
+    other axes' (``Figure.align_labels``) keep matplotlib's ticks, and so does every axis with a
+    matplotlib that lacks a part the stamping uses (:data:`_AXIS_PARTS`)."""
+    groups = getattr(fig, "_align_label_groups", None)
+    if not fig.axes or groups is None:
+        return
+    if not all(hasattr(fig.axes[0].xaxis, part) for part in _AXIS_PARTS):
+        return
     for ax in fig.axes:
         for name, axis in (("x", ax.xaxis), ("y", ax.yaxis)):
             aligned = name in groups and len(groups[name].get_siblings(ax)) > 1
