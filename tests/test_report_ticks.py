@@ -5,9 +5,9 @@ import io
 
 import matplotlib
 import numpy as np
+from matplotlib.axis import XAxis
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.backends.backend_pdf import PdfPages
-from matplotlib.axis import XAxis
 from matplotlib.figure import Figure
 
 from motionlab.report.pdf import RC, layout_problems, stamp_ticks, unstamp_ticks
