@@ -12,7 +12,7 @@ from motionlab.fusion import _mekf_blocks as blk
 from motionlab.fusion import _mekf_kernels as kern
 from motionlab.fusion import estimate
 from motionlab.fusion.detect import rest_mask, steady_mask
-from motionlab.fusion.mekf import SmootherParams, _p0, _pack, _unpacked
+from motionlab.fusion.mekf import SmootherParams, _p0, _pack, _unpacked, block_outputs
 from motionlab.validation.orientation_error import error_angles
 
 
@@ -23,20 +23,12 @@ def _inputs(m: int, seconds_move: float = 8.0):
     steady = steady_mask(sig["gyr"], sig["rate"], rest, p.rest_sway)
     n = len(sig["gyr"])
     nb = len(blk.instants(n, m))
-    out = {
-        "quat": np.empty((n, 4)),
-        "qprior": np.empty((nb, 4)),
-        "gsum": np.empty((nb, 3, 3)),
-        "bias": np.empty((nb, 3)),
-        "acc_bias": np.empty((nb, 3)),
-        "reset": np.empty(nb, dtype=np.int8),
-        "p_post": np.empty((nb, kern.N_PACKED)),
-    }
+    out = block_outputs(n, nb)
     q0 = rot.from_axis_angle([0.3, -1.0, 0.2], 0.6)
     blk.forward(
         sig["gyr"], sig["acc"], np.zeros((1, 3)), False, np.ones(1), rest, steady, np.zeros(1),
         1.0 / sig["rate"], m, q0, _p0(p), _pack(p), out["quat"], out["qprior"], out["gsum"],
-        out["bias"], out["acc_bias"], out["reset"], out["p_post"], np.zeros((1, 3)),
+        out["bias_blk"], out["acc_bias_blk"], out["reset_blk"], out["p_post"], out["field"],
     )  # fmt: skip
     return sig, p, rest, steady, q0, out
 
@@ -74,10 +66,11 @@ def test_one_sample_blocks_are_the_per_sample_filter():
         ref["bias"], ref["acc_bias"], np.empty(n, dtype=np.bool_), np.empty(n, dtype=np.int8),
         ref["p_post"], True,
     )  # fmt: skip
-    assert not out["reset"].any()
+    assert not out["reset_blk"].any()
     assert rest.any() and steady.any() and not rest.all()
     for name in ("quat", "bias", "acc_bias", "p_post"):
-        np.testing.assert_allclose(out[name], ref[name], rtol=0, atol=1e-12, err_msg=name)
+        got = out[name if name in ("quat", "p_post") else f"{name}_blk"]
+        np.testing.assert_allclose(got, ref[name], rtol=0, atol=1e-12, err_msg=name)
 
 
 def _rotvec(q: np.ndarray) -> np.ndarray:
@@ -98,26 +91,27 @@ def test_backward_pass_is_the_dense_rts_step(m):
     prm = _pack(p)
     bias_out, acc_out = np.empty((n, 3)), np.empty((n, 3))
     blk.backward(
-        dt, m, out["quat"], out["qprior"], out["gsum"], out["bias"], out["acc_bias"],
-        out["p_post"], out["reset"], np.zeros(1), prm, True, bias_out, acc_out, np.zeros((1, 3)),
+        dt, m, out["quat"], out["qprior"], out["gsum"], out["bias_blk"], out["acc_bias_blk"],
+        out["p_post"], out["reset_blk"], np.zeros(1), prm, True, bias_out, acc_out, out["field"],
     )  # fmt: skip
     q_noise = np.array([prm[kern.GYR_NOISE] ** 2] * 3 + [prm[kern.BIAS_RW] ** 2] * 3
                        + [prm[kern.ACC_BIAS_RW] ** 2] * 3) * dt  # fmt: skip
-    qs, bs, as_ = fwd["quat"][at[-1]].copy(), fwd["bias"][-1].copy(), fwd["acc_bias"][-1].copy()
+    qs = fwd["quat"][at[-1]].copy()
+    bs, as_ = fwd["bias_blk"][-1].copy(), fwd["acc_bias_blk"][-1].copy()
     for j in range(len(at) - 2, -1, -1):
         phi = np.eye(9)
         phi[:3, 3:6] = -dt * fwd["gsum"][j + 1]
         pj = _unpacked(fwd["p_post"][j])
         prior = phi @ pj @ phi.T + np.diag((at[j + 1] - at[j]) * q_noise)
         err = np.concatenate(
-            [_rotvec(rot.mul(qs, rot.conj(fwd["qprior"][j + 1]))), bs - fwd["bias"][j],
-             as_ - fwd["acc_bias"][j]]
+            [_rotvec(rot.mul(qs, rot.conj(fwd["qprior"][j + 1]))), bs - fwd["bias_blk"][j],
+             as_ - fwd["acc_bias_blk"][j]]
         )  # fmt: skip
         e = pj @ phi.T @ np.linalg.solve(prior, err)
         angle = np.linalg.norm(e[:3])
         dq = rot.from_axis_angle(e[:3] / angle, angle) if angle > 0 else np.array([1.0, 0, 0, 0])
         qs = rot.mul(dq, fwd["quat"][at[j]])
-        bs, as_ = fwd["bias"][j] + e[3:6], fwd["acc_bias"][j] + e[6:]
+        bs, as_ = fwd["bias_blk"][j] + e[3:6], fwd["acc_bias_blk"][j] + e[6:]
         same = qs if np.dot(qs, out["quat"][at[j]]) >= 0 else -qs
         np.testing.assert_allclose(out["quat"][at[j]], same, atol=1e-10)
         np.testing.assert_allclose(bias_out[at[j]], bs, atol=1e-12)

@@ -1,13 +1,11 @@
 """The report's plain lines (PlainText, drawn without matplotlib's layout pass) write the PDF
 bytes matplotlib's Text writes, and the page checks read them as ordinary texts."""
 
-import io
-
 import matplotlib
 from matplotlib.backends.backend_agg import FigureCanvasAgg
-from matplotlib.backends.backend_pdf import PdfPages
 from matplotlib.figure import Figure
 from matplotlib.text import Text
+from pdf_bytes import pdf_bytes
 
 from motionlab.report.pdf import (
     RC,
@@ -37,7 +35,8 @@ LINES = [
 
 def _pdf(cls: type[Text]) -> bytes:
     """A page of LINES drawn as ``cls``, uncompressed, without a creation date."""
-    with matplotlib.rc_context({**RC, "pdf.compression": 0}):
+
+    def draw() -> Figure:
         fig = Figure(figsize=(8.27, 11.69))
         FigureCanvasAgg(fig)
         for i, (s, kw) in enumerate(LINES):
@@ -45,10 +44,9 @@ def _pdf(cls: type[Text]) -> bytes:
             t.update(kw)
             t.set_figure(fig)
             fig.texts.append(t)
-        buf = io.BytesIO()
-        with PdfPages(buf, metadata={"CreationDate": None}) as pdf:
-            pdf.savefig(fig)
-    return buf.getvalue()
+        return fig
+
+    return pdf_bytes(draw)
 
 
 def test_plain_text_writes_the_bytes_matplotlib_writes():

@@ -374,18 +374,7 @@ def _blocks(
             per_sample = np.zeros(n)
             per_sample[gaps.after[inside].astype(int)] = gaps.sigma[inside] ** 2
             extra = np.add.reduceat(per_sample, np.concatenate([[0], at[:-1] + 1]))
-    out = {
-        "quat": np.empty((n, 4)),
-        "qprior": np.empty((nb, 4)),
-        "gsum": np.empty((nb, 3, 3)),
-        "bias_blk": np.empty((nb, 3)),
-        "acc_bias_blk": np.empty((nb, 3)),
-        "reset_blk": np.empty(nb, dtype=np.int8),
-        "p_post": np.empty((nb, kern.N_PACKED)),
-        "field": np.empty((nb if field else 1, 3)),
-        "at": at,
-        "prm": prm,
-    }
+    out = block_outputs(n, nb, field) | {"at": at, "prm": prm}
     use_mag = mag is not None and gate is not None
     blk.forward(
         gyr, acc, mag if (use_mag or field) else np.zeros((1, 3)), use_mag,
@@ -405,6 +394,24 @@ def _blocks(
     out["reset"] = np.zeros(n, dtype=np.int8)
     out["reset"][at] = out["reset_blk"]
     return out
+
+
+def block_outputs(n: int, nb: int, field: bool = False) -> dict[str, np.ndarray]:
+    """The arrays :func:`._mekf_blocks.forward` writes for ``n`` samples and ``nb`` update
+    instants: ``quat`` per sample; per instant the prior orientation ``qprior``, the block's
+    summed rotation ``gsum``, the biases ``bias_blk`` and ``acc_bias_blk``, ``reset_blk`` and the
+    posterior covariance's upper triangle ``p_post``; with ``field`` each block's mean earth-frame
+    field (else one unused row)."""
+    return {
+        "quat": np.empty((n, 4)),
+        "qprior": np.empty((nb, 4)),
+        "gsum": np.empty((nb, 3, 3)),
+        "bias_blk": np.empty((nb, 3)),
+        "acc_bias_blk": np.empty((nb, 3)),
+        "reset_blk": np.empty(nb, dtype=np.int8),
+        "p_post": np.empty((nb, kern.N_PACKED)),
+        "field": np.empty((nb if field else 1, 3)),
+    }
 
 
 def _p0(p: MekfParams) -> np.ndarray:
