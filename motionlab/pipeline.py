@@ -28,10 +28,9 @@ import time
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import h5py
-import pandas as pd
 
 from motionlab import stages as stages_lib
 from motionlab.atomic import check_folder_writable, refuse_input_as_output
@@ -47,6 +46,9 @@ from motionlab.session import (
     save_session,
     sha256_file,
 )
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 SESSION_FILE = "session.h5"
 REPORT_FILE = "report.pdf"

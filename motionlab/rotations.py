@@ -15,10 +15,14 @@ are in :mod:`motionlab.quat_kernels`; :func:`integrate_gyro` runs its :func:`str
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
 
 from motionlab.quat_kernels import strapdown
+
+if TYPE_CHECKING:
+    from scipy.spatial.transform import Rotation
 
 IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 
@@ -78,6 +82,8 @@ def to_matrix(q: np.ndarray) -> np.ndarray:
 
 def from_matrix(m: np.ndarray) -> np.ndarray:
     """Unit quaternion(s) with ``w ≥ 0`` from rotation matrices (…, 3, 3)."""
+    from scipy.spatial.transform import Rotation  # here: scipy.spatial takes ~0.4 s to import
+
     m = np.asarray(m, dtype=float)
     q = from_scipy(Rotation.from_matrix(m.reshape(-1, 3, 3)))
     return q.reshape(m.shape[:-2] + (4,))
@@ -85,6 +91,8 @@ def from_matrix(m: np.ndarray) -> np.ndarray:
 
 def to_scipy(q: np.ndarray) -> Rotation:
     """scipy Rotation from scalar-first quaternion(s)."""
+    from scipy.spatial.transform import Rotation  # here: scipy.spatial takes ~0.4 s to import
+
     q = np.asarray(q, dtype=float)
     return Rotation.from_quat(q[..., [1, 2, 3, 0]])
 
@@ -166,6 +174,8 @@ def resample(t: np.ndarray, q: np.ndarray, t_new: np.ndarray) -> np.ndarray:
     The result is sign-continuous and its first sample takes the sign of the input sample
     it lies next to, so resampling a continuous series at its own times returns it unchanged.
     """
+    from scipy.spatial.transform import Slerp  # here: scipy.spatial takes ~0.4 s to import
+
     t = np.asarray(t, dtype=float)
     q = np.asarray(q, dtype=float)
     t_new = np.clip(np.asarray(t_new, dtype=float), t[0], t[-1])

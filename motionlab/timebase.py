@@ -28,7 +28,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from scipy import signal
 
 from motionlab import rotations
 from motionlab.errors import InputError
@@ -265,6 +264,8 @@ def regular_grid(t0: float, t1: float, rate: float) -> np.ndarray:
 
 def _lowpass(t: np.ndarray, a: np.ndarray, rate: float, segments: list[slice]) -> np.ndarray:
     """Zero-phase Butterworth low-pass at 0.4 × ``rate`` on each NaN-free gapless segment."""
+    from scipy import signal  # here: scipy.signal loads scipy.stats (~1 s), not needed to import
+
     fs = 1.0 / nominal_interval(t)
     sos = signal.butter(4, 0.4 * rate, fs=fs, output="sos")
     out = np.array(a, dtype=float, copy=True)

@@ -1,6 +1,8 @@
 """The command line imports what a command needs when it runs: ``import motionlab.cli`` and
 ``motionlab --help`` import neither the pipeline nor numba, scipy or matplotlib, and the light
-commands' ``--help`` neither (checked in a fresh interpreter through ``sys.modules``; no timing).
+commands' ``--help`` neither; ``import motionlab.pipeline`` (``run --help``, ``batch --help``)
+leaves scipy's signal, stats and spatial packages, pandas and matplotlib to the stages that use
+them (checked in a fresh interpreter through ``sys.modules``; no timing).
 ``motionlab --help`` lists each command with the one-line help of ``cli.COMMANDS``, which must be
 the command's own."""
 
@@ -22,10 +24,13 @@ HEAVY = ("numba", "scipy", "matplotlib", "pandas", "h5py", "motionlab.pipeline",
 #: fuse, ingest, simulate, validate, export and sensorcal their choices and defaults from
 #: library modules that import numpy and scipy)
 LIGHT = ("info", "angles", "calibrate", "metrics", "sync", "report", "demo")
+#: what importing the pipeline must not load: a stage imports them where it uses them
+#: (scipy.signal alone loads scipy.stats, ~1 s of start-up, and the run never uses scipy.stats)
+PIPELINE_LAZY = ("scipy.signal", "scipy.stats", "scipy.spatial", "pandas", "matplotlib")
 
 
-def _imported_after(code: str) -> list[str]:
-    probe = f"{code}\nimport sys\nprint(' '.join(m for m in {HEAVY!r} if m in sys.modules))"
+def _imported_after(code: str, heavy: tuple[str, ...] = HEAVY) -> list[str]:
+    probe = f"{code}\nimport sys\nprint(' '.join(m for m in {heavy!r} if m in sys.modules))"
     out = subprocess.run(
         [sys.executable, "-c", probe], cwd=ROOT, capture_output=True, text=True, check=True
     )
@@ -43,6 +48,16 @@ def test_help_imports_nothing_heavy(args):
         f"r = CliRunner().invoke(main, {args!r})\nassert r.exit_code == 0, r.output\n"
     )
     assert _imported_after(code) == []
+
+
+def test_import_pipeline_leaves_scipy_signal_spatial_and_pandas_to_the_stages():
+    assert _imported_after("import motionlab.pipeline", PIPELINE_LAZY) == []
+    for command in ("run", "batch"):
+        code = (
+            "from click.testing import CliRunner\nfrom motionlab.cli import main\n"
+            f"r = CliRunner().invoke(main, [{command!r}, '--help'])\nassert r.exit_code == 0\n"
+        )
+        assert _imported_after(code, PIPELINE_LAZY) == [], command
 
 
 def test_one_line_help_is_each_commands_own():
