@@ -651,14 +651,18 @@ def _is_range(value: list, strict: bool = True) -> bool:
 
 
 def resolve_protocol_path(path: str | Path) -> Path:
-    """A path as given, or the packaged protocol of that name (``knee`` → protocols/knee.yaml)."""
+    """A path as given, or the packaged protocol of that name (``knee`` → protocols/knee.yaml).
+
+    A file of the name comes first; a folder (or anything not a regular file) of a packaged
+    protocol's name in the working folder, such as the output folder of an earlier ``run``
+    called ``knee``, does not hide the packaged protocol."""
     p = Path(path)
-    check_regular(p)  # a FIFO or device given as the protocol: said so, never opened
     if p.is_file():
         return p
     packaged = PACKAGED / f"{p.stem}.yaml"
     if p.suffix in ("", ".yaml") and packaged.is_file() and not p.parent.parts[1:]:
         return packaged
+    check_regular(p)  # a FIFO or device given as the protocol: said so, never opened
     raise InputError(
         "no such protocol file", p, remedy=f"give a path or one of {', '.join(list_protocols())}"
     )

@@ -130,3 +130,17 @@ def test_task_time_range_and_step_options(tmp_path):
                    "    instructions: \"still")  # fmt: skip
     with pytest.raises(InputError, match=r"line \d+, key calibration\[2\].axis_method.*'seel'"):
         load_protocol(path)
+
+
+def test_a_folder_named_like_a_packaged_protocol_does_not_hide_it(tmp_path, monkeypatch):
+    """An earlier run's output folder ``knee`` in the working folder: ``--protocol knee`` is
+    still the packaged protocol; a folder given as a protocol of no packaged name is refused."""
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "knee").mkdir()
+    assert load_protocol("knee").name == load_protocol(PACKAGED / "knee.yaml").name
+    (tmp_path / "mine").mkdir()
+    with pytest.raises(InputError, match="is a folder"):
+        load_protocol("mine")
+    (tmp_path / "walk").write_text("not: [a protocol")  # a file of the name is read, as given
+    with pytest.raises(InputError, match="walk"):
+        load_protocol("walk")
