@@ -79,14 +79,17 @@ def test_the_listing_names_every_command():
         assert f"\n  {name} " in text, name
 
 
-def test_cli_sets_openblas_thread_timeout_before_numpy_unless_the_user_did():
+def test_cli_sets_one_blas_thread_before_numpy_unless_the_user_did():
     probe = (
         "import os, sys\nimport motionlab.cli\n"
-        "print(os.environ['OPENBLAS_THREAD_TIMEOUT'], 'numpy' in sys.modules)"
+        "print(os.environ['OPENBLAS_NUM_THREADS'], os.environ['OMP_NUM_THREADS'],"
+        " 'numpy' in sys.modules)"
     )
-    env = {k: v for k, v in os.environ.items() if k != "OPENBLAS_THREAD_TIMEOUT"}
-    for preset, expected in ((None, "16 False"), ("4", "4 False")):
-        run_env = env if preset is None else {**env, "OPENBLAS_THREAD_TIMEOUT": preset}
+    env = {
+        k: v for k, v in os.environ.items() if k not in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS")
+    }
+    for preset, expected in ((None, "1 1 False"), ("4", "4 1 False")):
+        run_env = env if preset is None else {**env, "OPENBLAS_NUM_THREADS": preset}
         out = subprocess.run(
             [sys.executable, "-c", probe], cwd=ROOT, env=run_env, capture_output=True, text=True,
             check=True,

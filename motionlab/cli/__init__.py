@@ -27,13 +27,15 @@ from motionlab.errors import InputError
 EXIT_BAD_INPUT = 2
 EXIT_BUG = 1
 
-#: OpenBLAS's idle threads spin for 2**28 CPU cycles (about 0.1 s) after each call before they
-#: sleep; validation's least-squares alignment makes hundreds of short calls, and the spinning
-#: was a third of that stage's CPU time (docs/performance.md). 2**16 cycles: they sleep after
-#: some microseconds. Set before numpy loads OpenBLAS (a command's module imports it); the same
-#: threads share the same sums, so the numbers are the same. A value the user set is kept.
-BLAS_THREAD_TIMEOUT = "16"
-os.environ.setdefault("OPENBLAS_THREAD_TIMEOUT", BLAS_THREAD_TIMEOUT)
+#: One BLAS/OpenMP thread: a threaded BLAS splits a product's sums by the machine's core count,
+#: so the same session gave numbers differing in the seventh digit on two machines, and between
+#: ``run`` and ``batch`` (whose workers have one thread); the matrices here are small (3 × 3 to a
+#: few hundred rows), and idle OpenBLAS threads spin for 2**28 cycles after each call (a third of
+#: the validate stage's CPU time, docs/performance.md). Set before numpy loads OpenBLAS (a
+#: command's module imports it); a value the user set is kept.
+BLAS_THREADS = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+for _name, _value in BLAS_THREADS.items():
+    os.environ.setdefault(_name, _value)
 
 
 #: command → its one-line help (the first sentence of its docstring) for ``motionlab --help``;
