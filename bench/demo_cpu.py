@@ -7,7 +7,7 @@ demo's two `run`s as the command does (`run_pipeline` on the bundled sessions) w
 also timed by `time.process_time()` (this process's CPU, all threads), and prints both, then the
 whole process's CPU (imports included: the first `run` in a process pays for loading numpy,
 scipy, numba and matplotlib). The command line's settings apply (``motionlab.cli`` is imported
-first: OpenBLAS's thread timeout). Whether numba compiles is up to its cache: empty it
+first: one BLAS thread). Whether numba compiles is up to its cache: empty it
 (`find motionlab -name '*.nb[ic]' -delete`) for the first run after an install.
 """
 
@@ -19,7 +19,7 @@ import sys
 import time
 from pathlib import Path
 
-import motionlab.cli  # noqa: F401  # first: the command's settings (OpenBLAS's thread timeout)
+import motionlab.cli  # noqa: F401  # first: the command's settings (one BLAS thread)
 from motionlab import pipeline
 from motionlab.cli.demo import DEMO_DIR, EXAMPLES
 
