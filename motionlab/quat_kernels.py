@@ -87,7 +87,7 @@ def rot_matrix(q: np.ndarray, r: np.ndarray) -> None:
 
 
 @numba.njit(cache=True, inline="always")
-def _exp_half(rx: float, ry: float, rz: float):
+def exp_rotvec(rx: float, ry: float, rz: float):
     """``exp(r)`` of the rotation vector ``r`` (rad): ``[cos(|r|/2), sin(|r|/2) r/|r|]``."""
     a = np.sqrt(rx * rx + ry * ry + rz * rz)
     c = np.cos(0.5 * a)
@@ -96,16 +96,26 @@ def _exp_half(rx: float, ry: float, rz: float):
 
 
 @numba.njit(cache=True, inline="always")
+def log_rotvec(w: float, x: float, y: float, z: float):
+    """The rotation vector (rad) of the unit quaternion ``[w, x, y, z]``, ``log`` as
+    ``2 atan2(|v|, w) v / |v|`` (the shorter rotation when ``w ≥ 0``; the caller picks the
+    sign)."""
+    vn = np.sqrt(x * x + y * y + z * z)
+    c = 2.0 * np.arctan2(vn, w) / vn if vn > 1e-12 else 2.0
+    return c * x, c * y, c * z
+
+
+@numba.njit(cache=True, inline="always")
 def mul_exp_right(q: np.ndarray, rx: float, ry: float, rz: float, out: np.ndarray) -> None:
     """``out ← q ⊗ exp(r)`` for the rotation vector ``r`` (rad); ``out`` may be ``q``."""
-    pw, px, py, pz = _exp_half(rx, ry, rz)
+    pw, px, py, pz = exp_rotvec(rx, ry, rz)
     out[0], out[1], out[2], out[3] = qmul(q[0], q[1], q[2], q[3], pw, px, py, pz)
 
 
 @numba.njit(cache=True, inline="always")
 def mul_exp_left(rx: float, ry: float, rz: float, q: np.ndarray) -> None:
     """In place ``q ← exp(r) ⊗ q`` for the rotation vector ``r`` (rad, earth frame)."""
-    pw, px, py, pz = _exp_half(rx, ry, rz)
+    pw, px, py, pz = exp_rotvec(rx, ry, rz)
     q[0], q[1], q[2], q[3] = qmul(pw, px, py, pz, q[0], q[1], q[2], q[3])
 
 

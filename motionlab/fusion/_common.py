@@ -17,7 +17,9 @@ from motionlab.fusion import detect
 from motionlab.fusion.attitude import initial_orientation
 from motionlab.quat_kernels import (  # noqa: F401 (the kernels read them as cm.<name>)
     conj_mul_shortest,
+    exp_rotvec,
     lmul,
+    log_rotvec,
     mul_exp_left,
     mul_exp_right,
     normalize,

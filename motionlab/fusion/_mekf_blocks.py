@@ -32,7 +32,6 @@ import numpy as np
 from motionlab.fusion import _common as cm
 from motionlab.fusion import _mekf_kernels as kn
 from motionlab.fusion import _mekf_monitor as mon_k
-from motionlab.quat_kernels import _exp_half
 
 N_ERR = kn.N_ERR
 
@@ -279,9 +278,22 @@ def _error_angle(qs: np.ndarray, qbar: np.ndarray, e: np.ndarray) -> None:
     ez = -s0 * qbar[3] - s1 * qbar[2] + s2 * qbar[1] + s3 * qbar[0]
     if ew < 0.0:
         ew, ex, ey, ez = -ew, -ex, -ey, -ez
-    vn = np.sqrt(ex * ex + ey * ey + ez * ez)
-    c = 2.0 * np.arctan2(vn, ew) / vn if vn > 1e-12 else 2.0
-    e[0], e[1], e[2] = c * ex, c * ey, c * ez
+    e[0], e[1], e[2] = cm.log_rotvec(ew, ex, ey, ez)
+
+
+@numba.njit(cache=True, inline="always")
+def _turn_row(
+    field: np.ndarray, j: int, rx: float, ry: float, rz: float, qs: np.ndarray, r: np.ndarray
+) -> None:
+    """``field[j] ← exp(r) field[j]``: the row turned by the rotation vector ``r`` (rad, earth
+    frame); ``qs`` (4) and ``r`` (3×3) are workspace."""
+    qs[0], qs[1], qs[2], qs[3] = 1.0, 0.0, 0.0, 0.0
+    cm.mul_exp_left(rx, ry, rz, qs)
+    cm.normalize(qs)
+    cm.rot_matrix(qs, r)
+    x, y, z = field[j, 0], field[j, 1], field[j, 2]
+    for i in range(3):
+        field[j, i] = r[i, 0] * x + r[i, 1] * y + r[i, 2] * z
 
 
 @numba.njit(cache=True)
@@ -373,23 +385,15 @@ def backward(
             for k in range(N_ERR):
                 s += pk[i, k] * f[k]
             e[i] = s
-        if turn:
-            # the block's samples carry, on average, the mean of the two ends' corrections
-            for i in range(4):
-                qs[i] = 0.0
-            qs[0] = 1.0
-            cm.mul_exp_left(0.5 * (e[0] + ep[0]), 0.5 * (e[1] + ep[1]), 0.5 * (e[2] + ep[2]), qs)
-            cm.normalize(qs)
-            cm.rot_matrix(qs, r)
-            x, y, z = field[j + 1, 0], field[j + 1, 1], field[j + 1, 2]
-            for i in range(3):
-                field[j + 1, i] = r[i, 0] * x + r[i, 1] * y + r[i, 2] * z
+        if turn:  # the block's samples carry, on average, the mean of the two ends' corrections
+            mean = 0.5 * (e[0] + ep[0]), 0.5 * (e[1] + ep[1]), 0.5 * (e[2] + ep[2])
+            _turn_row(field, j + 1, mean[0], mean[1], mean[2], qs, r)
         if interp:
             # the corrections of the two ends as quaternions, interpolated linearly (normalised
             # with the product: the same as interpolating the rotation vector to second order
             # in their difference, the block's bias drift)
-            d0w, d0x, d0y, d0z = _exp_half(e[0], e[1], e[2])
-            d1w, d1x, d1y, d1z = _exp_half(ep[0], ep[1], ep[2])
+            d0w, d0x, d0y, d0z = cm.exp_rotvec(e[0], e[1], e[2])
+            d1w, d1x, d1y, d1z = cm.exp_rotvec(ep[0], ep[1], ep[2])
             if d0w * d1w + d0x * d1x + d0y * d1y + d0z * d1z < 0.0:
                 d1w, d1x, d1y, d1z = -d1w, -d1x, -d1y, -d1z
             for s in range(uj + 1, up):
@@ -430,12 +434,4 @@ def backward(
     if turn:
         # block 0 (sample 0) carries its own correction: the instant's
         _error_angle(quat[0], qprior[0], e)
-        for i in range(4):
-            qs[i] = 0.0
-        qs[0] = 1.0
-        cm.mul_exp_left(e[0], e[1], e[2], qs)
-        cm.normalize(qs)
-        cm.rot_matrix(qs, r)
-        x, y, z = field[0, 0], field[0, 1], field[0, 2]
-        for i in range(3):
-            field[0, i] = r[i, 0] * x + r[i, 1] * y + r[i, 2] * z
+        _turn_row(field, 0, e[0], e[1], e[2], qs, r)

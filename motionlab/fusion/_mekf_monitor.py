@@ -11,6 +11,8 @@ from __future__ import annotations
 import numba
 import numpy as np
 
+from motionlab.quat_kernels import log_rotvec
+
 # slots of the inconsistency monitor's work array (earth-frame vectors under the estimate):
 # low-passed acc and horizontal field direction; sums and counts of the tilt run (acc, field)
 # and of the heading run (horizontal field directions), and the runs' durations
@@ -168,9 +170,7 @@ def reset_correction(
             heading = True
     # q_c = exp(ψ ẑ/2) ⊗ q_tilt, then its rotation vector
     cw, cx, cy, cz = hw * tw, hw * tx - hz * ty, hw * ty + hz * tx, hz * tw
-    vn = np.sqrt(cx * cx + cy * cy + cz * cz)
-    c = 2.0 * np.arctan2(vn, cw) / vn if vn > 1e-12 else 2.0
-    corr[0], corr[1], corr[2] = c * cx, c * cy, c * cz
+    corr[0], corr[1], corr[2] = log_rotvec(cw, cx, cy, cz)
     return heading
 
 

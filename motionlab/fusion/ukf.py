@@ -73,9 +73,7 @@ class UkfParams(KalmanCommon):
 def _log_rel(qa: np.ndarray, qb: np.ndarray, out: np.ndarray, j: int) -> None:
     """``out[j] ← log(qa* ⊗ qb)`` as a rotation vector (rad), shortest of ±."""
     w, x, y, z = cm.conj_mul_shortest(qa, qb)
-    vn = np.sqrt(x * x + y * y + z * z)
-    c = 2.0 * np.arctan2(vn, w) / vn if vn > 1e-12 else 2.0
-    out[j, 0], out[j, 1], out[j, 2] = c * x, c * y, c * z
+    out[j, 0], out[j, 1], out[j, 2] = cm.log_rotvec(w, x, y, z)
 
 
 @numba.njit(cache=True)
