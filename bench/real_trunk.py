@@ -380,7 +380,7 @@ def main(argv: list[str] | None = None) -> int:
         notes.append(
             f"- {name}: optical = IMU + {best:.3f} s (speeds {coarse:.3f} s, r = {r_clock:.2f}); "
             f"rest {own[0]:.1f}–{own[1]:.1f} s (compared from {rest_s[0]:.1f}–{rest_s[1]:.1f} s); "
-            f"flexion axis: principal axis {summary.axis_rank}, one-sided "
+            f"flexion axis: one-sided "
             f"{summary.sign_ratio:.1f}× ({summary.axis_ratio:.1f}× the other axis), "
             f"thorax {summary.excursion_deg[0]:.0f}/{summary.excursion_deg[1]:.0f}°; "
             f"heading agreement {summary.heading_rho:.2f}; optical frame: {best_how}; "

@@ -273,7 +273,7 @@ def main(argv: list[str] | None = None) -> int:
                 if run["grades"][k] == "determined" and np.isfinite(mv[k]):
                     worst[p] = max(worst.get(p, 0.0), mv[k])
             tr = run["trunk"]
-            axis = (f"rank {tr.axis_rank}, energy {tr.energy_ratio:.1f}×, one-sided "
+            axis = (f"energy {tr.energy_ratio:.1f}×, one-sided "
                     f"{'/'.join(f'{x:.1f}' for x in tr.one_sided)}, {tr.excursion_deg[0]:.0f}/"
                     f"{tr.excursion_deg[1]:.0f}°")  # fmt: skip
             rest = f"{run['rest'][0]:.1f}–{run['rest'][1]:.1f} ({tr.rest_speed_deg_s:.1f}°/s)"

@@ -23,8 +23,7 @@
 
 from __future__ import annotations
 
-import math
-from json.encoder import encode_basestring_ascii
+import json
 from pathlib import Path
 from typing import Any
 
@@ -288,65 +287,9 @@ def results_json(session: Session) -> dict[str, Any]:
     return plain(out)
 
 
-def json_text(value: Any) -> str:
-    """``json.dumps(value, indent=1, allow_nan=False)`` of a :func:`~motionlab.plain.plain`
-    value (dicts with string keys, lists, str, int, float, bool, None), the same text.
-
-    The standard library's encoder writes an indented document in Python, a generator step
-    per value: about 0.15 s for the demo's 2.3 MB of angle curves and metric rows. Here each
-    value is one call and a list of numbers one join. Raises ``ValueError`` on NaN or
-    infinity, as ``json.dumps`` does.
-    """
-    return _json_text(value, "\n")
-
-
-def _json_float(value: float) -> str:
-    if not math.isfinite(value):
-        raise ValueError(f"Out of range float values are not JSON compliant: {value!r}")
-    return float.__repr__(value)
-
-
-#: how json writes a value of each type (subclasses: :func:`_json_text` asks ``isinstance``)
-_JSON_SCALAR = {
-    type(None): lambda v: "null",
-    bool: lambda v: "true" if v else "false",
-    int: int.__repr__,
-    float: _json_float,
-    str: encode_basestring_ascii,
-}
-
-
-def _json_text(value: Any, newline: str) -> str:
-    """``value`` as ``json.dumps(indent=1)`` writes it at the level whose line break and
-    indent is ``newline``."""
-    write = _JSON_SCALAR.get(type(value))
-    if write is not None:
-        return write(value)
-    inner = newline + " "
-    if isinstance(value, dict):
-        if not value:
-            return "{}"
-        items = [
-            f"{encode_basestring_ascii(str(k))}: {_json_text(v, inner)}" for k, v in value.items()
-        ]
-        return "{" + inner + ("," + inner).join(items) + newline + "}"
-    if isinstance(value, list | tuple):
-        if not value:
-            return "[]"
-        if set(map(type, value)) == {float} and math.isfinite(sum(value)):  # a curve
-            items = map(float.__repr__, value)
-        else:
-            items = [_json_text(v, inner) for v in value]
-        return "[" + inner + ("," + inner).join(items) + newline + "]"
-    for kind in (bool, int, float, str):  # subclasses of the scalar types
-        if isinstance(value, kind):
-            return _JSON_SCALAR[kind](kind(value))
-    raise TypeError(f"Object of type {type(value).__name__} is not JSON serializable")
-
-
 def write_json(session: Session, path: str | Path, force: bool = False) -> None:
     """:func:`results_json` written to ``path`` (atomic, indented, UTF-8)."""
-    text = json_text(results_json(session))
+    text = json.dumps(results_json(session), indent=1, allow_nan=False)
     with atomic_path(path, force=force) as tmp:
         tmp.write_text(text + "\n", encoding="utf-8")
 

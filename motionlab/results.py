@@ -588,9 +588,8 @@ class TrunkMovement(_Record):
     ``rest_speed_deg_s`` (deg/s): the mean angular speed of the joint's sensors over its
     stillest second; ``axis_ratio``: how much more one-sided the movement is about the chosen
     flexion axis than about the other horizontal axis; ``energy_ratio``: the mean squared
-    relative rate about the axis turning most over that about the other; ``axis_rank``: which
-    of the two was taken as the flexion axis (1: the one turning most, which the calibration
-    now always takes; kept in the stored layout); ``one_sided``: per
+    relative rate about the axis turning most (the flexion axis) over that about the other
+    (files written before 2026-11-29 also hold ``axis_rank``, kept in ``more``); ``one_sided``: per
     horizontal axis (the one turning most first) the larger excursion over the smaller about
     it (each at least 1°); ``excursion_deg`` ``[positive, negative]`` (deg): the 98th and
     2nd percentiles of the lean since the rest about the flexion axis found (the second below
@@ -609,7 +608,6 @@ class TrunkMovement(_Record):
     rest_speed_deg_s: float
     axis_ratio: float
     energy_ratio: float
-    axis_rank: int
     one_sided: list[float]
     excursion_deg: list[float]
     sign_ratio: float

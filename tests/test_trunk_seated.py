@@ -167,7 +167,7 @@ def test_a_slow_rest_runs_with_every_angle_weak():
     assert REST_SLOW_DEG_S < 17.0 < REST_MAX_DEG_S
     joint, lean = SimpleNamespace(name="lumbar"), SimpleNamespace(name="trunk_chair")
     summary = TrunkMovement(rest_s=[3.1, 4.3], rest_speed_deg_s=4.0, axis_ratio=2.0,
-                            energy_ratio=2.4, axis_rank=1, one_sided=[2.0, 1.0],
+                            energy_ratio=2.4, one_sided=[2.0, 1.0],
                             excursion_deg=[26.0, -52.0], sign_ratio=2.0, heading_deg=0.0,
                             heading_rho=0.9, heading_drift_deg=None)  # fmt: skip
     still = trunk_grades(joint, [lean], summary, "determined", {"trunk_chair": True})

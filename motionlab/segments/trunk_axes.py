@@ -348,9 +348,8 @@ def calibrate(
     # lateral bending), graded determined (bench/trunk_cuts.py)
     reach = [_excursions(lean, a) for a in axes]
     sided = [_one_sided(*r) for r in reach]
-    k = 0
-    axis, (pos, neg), sign_ratio = axes[k], reach[k], sided[k]
-    ratio = sided[k] / max(sided[1 - k], 1e-9)  # how clearly it is the flexion axis
+    axis, (pos, neg), sign_ratio = axes[0], reach[0], sided[0]
+    ratio = sided[0] / max(sided[1], 1e-9)  # how clearly it is the flexion axis
     # flexion turns the thorax about its −z; its side is the longer tail from the usual posture
     forward = _flexion_side(lean, axis)
     z_d = -axis if forward > 0 else axis
@@ -421,7 +420,6 @@ def calibrate(
         rest_speed_deg_s=level,
         axis_ratio=ratio,
         energy_ratio=energy[0] / max(energy[1], 1e-12),
-        axis_rank=k + 1,
         one_sided=sided,
         excursion_deg=[pos, -neg],
         sign_ratio=sign_ratio,
