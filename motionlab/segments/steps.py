@@ -398,8 +398,11 @@ def find_steps(
         pos = hit + 1
     if missing:
         names = ", ".join(f"'{s.name}' ({s.kind})" for s in missing)
+        longest = max((b.end - b.start for b in bl if not b.moving), default=0.0)
         needs = "".join(
             f"; '{s.name}' needs the {s.pose} pose held still for at least {_shortest_s(s):.1f} s"
+            # a rest that prints as long enough is said exactly ("2.5 s" short of 2.5 s)
+            + (f" (the longest rest is {longest:.2f} s)" if 0 < longest < _shortest_s(s) else "")
             for s in missing
             if s.kind == "static"
         )
