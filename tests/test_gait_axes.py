@@ -116,6 +116,23 @@ def test_a_walk_without_a_stand_is_refused_in_one_line(walk):
     assert "\n" not in str(exc.value)
 
 
+def test_a_stand_a_little_too_short_is_said_exactly(walk):
+    """A short stand is refused, and the line says how long the rest was to two decimals (to
+    one, a 2.46-s rest read "2.5 s" beside "needs at least 2.5 s")."""
+    proto, session, truth = walk
+    walk_start, walk_end = truth.step("walk")["start_s"], truth.step("walk")["end_s"]
+    cut = {}
+    for seg, (t, acc, gyr) in streams_of(session, proto).items():
+        keep = (t > walk_start - 1.5) & (t < walk_end - 1.0)
+        cut[seg] = (t[keep], acc[keep], gyr[keep])
+    with pytest.raises(InputError) as exc:
+        find_steps(cut, proto)
+    text = str(exc.value)
+    assert "'standing' (static) not found" in text and "\n" not in text
+    longest = float(text.split("(the longest rest is ")[1].split(" s)")[0])
+    assert 1.0 < longest < 2.5
+
+
 def test_shanks_swapped_between_the_legs_give_no_determined_knee(walk):
     """Each shank's sensor mapped to the other leg: thigh and shank then do not share a knee,
     and no knee angle may be graded determined."""
@@ -150,3 +167,34 @@ def test_a_sensor_upside_down_gives_the_same_knee_angles(walk):
     after = flipped.results.angles.columns()["knee_r_flexion_deg"]
     assert flipped.results.calibration.grades["knee_r"].grades[0] == "determined"
     assert np.nanmax(np.abs(after - before)) < 0.5
+
+
+def _knee_after_slow_movement(t: np.ndarray) -> tuple[tuple, tuple]:
+    """A stand (0-3 s), 10 s of slow movement of the leg about another axis (x, ±25°, 4-s
+    period: sitting down, shuffling), then a walk: thigh swinging ±20° and the knee flexing
+    0-60° about y. ``(t, gyr rad/s, q)`` of thigh and shank."""
+    y, x = np.array([0.0, 1.0, 0.0]), np.array([1.0, 0.0, 0.0])
+    walking, slow = t >= 13.0, (t >= 3.0) & (t < 13.0)
+    phase = 2.0 * np.pi * (t - 13.0) / 1.1
+    flexion = np.where(walking, np.radians(30.0) * (1.0 - np.cos(phase)), 0.0)
+    swing = np.where(walking, np.radians(20.0) * np.sin(phase), 0.0)
+    other = np.where(slow, np.radians(25.0) * np.sin(2.0 * np.pi * (t - 3.0) / 4.0), 0.0)
+    q_p = rot.mul(rot.from_rotvec(other[:, None] * x), rot.from_rotvec(swing[:, None] * y))
+    q_d = rot.mul(q_p, rot.from_rotvec(flexion[:, None] * y))
+
+    def side(q):
+        mid, w = rot.angular_velocity(t, q)
+        return t, np.column_stack([np.interp(t, mid, w[:, k]) for k in range(3)]), q
+
+    return side(q_p), side(q_d)
+
+
+def test_the_knee_axes_come_from_the_swings_not_the_slow_movement_around_the_walk():
+    """Samples under ``SWING_FRACTION`` of the knee's 95th-percentile speed are left out: at a
+    tenth, the slow movement filled one of the four parts and turned its axis 90°."""
+    y = np.array([0.0, 1.0, 0.0])
+    thigh, shank = _knee_after_slow_movement(np.arange(0.0, 30.0, 0.01))
+    fit = gait_axes.fit_knee("knee_r", thigh, shank, y, y, (0.5, 2.5))
+    assert fit.verdict == "determined" and fit.consistency_deg < 1.0
+    assert abs(fit.axis_proximal @ y) > np.cos(np.radians(0.5))
+    assert abs(fit.axis_distal @ y) > np.cos(np.radians(0.5))

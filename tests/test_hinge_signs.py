@@ -36,3 +36,34 @@ def test_anatomy_overrules_a_wrong_relative_sign_from_the_rates(monkeypatch, rat
     assert sign == "anatomy" and j_p @ J == pytest.approx(1.0)  # flexion positive
     assert excursion[0] == pytest.approx(60.0, abs=0.5) and excursion[1] < 0.5
     assert reasons == []
+
+
+@pytest.mark.parametrize("placement_says", [1.0, -1.0])
+def test_anatomy_signs_the_axes_when_the_rates_cannot(monkeypatch, placement_says):
+    """Rates that do not tell (margin 0): the nominal placement's guess is confirmed or
+    overruled by the anatomy, and either way the relative sign counts as measured, not
+    hinted (a real 14-s walk was graded weak for a guess the anatomy had confirmed)."""
+    t, q_p, q_d = _knee()
+    monkeypatch.setattr(movement, "relative_sign", lambda *a: (1.0, 0.0))
+    monkeypatch.setattr(movement, "swing_sign", lambda *a: (1.0, 0.0))
+    reasons: list[str] = []
+    j_p, j_d, rel, sign, excursion = movement.signed_axes(
+        t, q_p, q_d, J, J, J, placement_says * J, np.ones(len(t), bool), (0.5, 2.5), True,
+        reasons,
+    )  # fmt: skip
+    assert j_p @ j_d == pytest.approx(1.0) and j_p @ J == pytest.approx(1.0)
+    assert (rel, sign) == ("anatomy", "anatomy")
+    assert excursion[0] == pytest.approx(60.0, abs=0.5) and excursion[1] < 0.5
+    assert reasons == []
+
+
+def test_without_a_stand_the_placement_guess_stays_a_hint(monkeypatch):
+    t, q_p, q_d = _knee()
+    monkeypatch.setattr(movement, "relative_sign", lambda *a: (1.0, 0.0))
+    monkeypatch.setattr(movement, "swing_sign", lambda *a: (1.0, 0.0))
+    reasons: list[str] = []
+    *_, rel, sign, _ = movement.signed_axes(
+        t, q_p, q_d, J, J, J, J, np.ones(len(t), bool), None, True, reasons
+    )
+    assert (rel, sign) == ("nominal", "nominal")
+    assert reasons[0].startswith(movement.NOMINAL_DISTAL)

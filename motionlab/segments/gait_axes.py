@@ -47,6 +47,11 @@ N_PARTS = 4
 MIN_SAMPLES = 100
 ROBUST_SCALE_RAD_S = 0.1
 LOWPASS_HZ = 3.0  # gait's segment rotations lie below it; soft-tissue wobble and impacts above
+# the samples the axes come from: the joint turning at least this share of its 95th-percentile
+# speed, i.e. the swings of the walk, not the slower movement around it (sitting down, standing
+# up, shuffling; the 16-IMU recording cut to its first 10 s of walking: both knees `weak` at 0.1,
+# the part fits 9-12° apart with the sit-to-stand in the first part; `determined` at 0.3)
+SWING_FRACTION = 0.3
 # verdicts: (determined up to, weak up to), each measured on real walks (module notes)
 CONSISTENCY_DEG = (5.0, 15.0)
 DOMINANCE = (0.5, 0.7)
@@ -221,7 +226,7 @@ def fit_knee(
     """
     t, g1, g2, q1, q2, speed = movement.shared_movement(joint, proximal, distal)
     ref = (t >= reference[0]) & (t <= reference[1])
-    on = speed >= 0.1 * np.percentile(speed, 95)
+    on = speed >= SWING_FRACTION * np.percentile(speed, 95)
     if ref.sum() < 5:
         return movement.failed(joint, "no stand with the knee straight before the walk")
     axes = principal_axes(t, g1, g2, q1, q2, ref, on)
