@@ -14,6 +14,8 @@ from motionlab.report.sentences import findings, rom_sentence, span
 from motionlab.results import (
     AngleMetrics,
     AxisMeasurement,
+    Gait,
+    GaitSummary,
     JointGrades,
     Metrics,
     SegmentCalibration,
@@ -120,6 +122,37 @@ def test_findings_put_abnormal_first_and_name_side_joint_task():
     assert any(
         i.startswith("Left knee flexion-extension range 0–64° during gait, within") for i in items
     )
+
+
+@pytest.mark.parametrize(
+    ("cadence", "pace"), [(132.0, "faster"), (88.0, "slower"), (118.0, ""), (float("nan"), "")]
+)
+def test_a_pace_outside_the_norms_walkers_is_said_first_and_tags_the_flagged_flexions(
+    cadence, pace
+):
+    """A healthy walker at 132 steps/min was told four ranges were above normal: the walk's
+    cadence outside the gait page's 100-125 band now comes first, and each flagged flexion
+    range says the pace may be part of it (other planes, and ranges within, stay as they are)."""
+    view = _view((5.0, 45.0), (-1.0, 78.0))
+    view.session.results.gait = Gait(
+        status="ok",
+        tasks={"gait": TaskBlock(10.0, 40.0)},
+        summary=GaitSummary(cadence_steps_per_min=cadence),
+    )
+    items = findings(view)
+    flagged = [i for i in items if " knee flexion-extension range " in i and "within" not in i]
+    assert len(flagged) == 2
+    if not pace:
+        assert not any("steps/min" in i or "pace" in i for i in items)
+        return
+    assert items[0] == (
+        f"Gait at {cadence:.0f} steps/min, {pace} than the 100–125 of the walkers the normal "
+        "ranges come from: joint ranges change with walking speed, so part of a flagged range "
+        "may be the pace."
+    )
+    assert all(i.endswith(f"({pace} pace than the norms).") for i in flagged)
+    rotation = next(i for i in items if "internal-external rotation range" in i)
+    assert "pace" not in rotation
 
 
 def test_normative_band_interpolates_key_instants_and_names_its_source():

@@ -30,6 +30,7 @@ DATA = Path(__file__).resolve().parent.parent / "report_data"
 CURVES = DATA / "normative_curves.csv"
 SOURCES = DATA / "normative.yaml"
 ACCURACY = DATA / "accuracy.yaml"
+GAIT_SOURCES = DATA / "gait_normative.yaml"
 CURVE_COLUMNS = ("task", "angle", "percent_pct", "mean_deg", "sd_deg")
 
 
@@ -88,6 +89,13 @@ def load_bands(curves: Path = CURVES, sources: Path = SOURCES) -> dict[tuple[str
             note=str(src.get("note", "")),
         )
     return out
+
+
+@lru_cache(maxsize=1)
+def gait_bands() -> dict[str, Any]:
+    """``report_data/gait_normative.yaml``: the spatio-temporal bands of healthy adults at a
+    self-selected speed (``spatiotemporal``: ``{column: [low, high]}``) and their sources."""
+    return _yaml(GAIT_SOURCES)
 
 
 def band_for(task: str, joint_type: str, angle: str) -> Band | None:

@@ -13,13 +13,9 @@ not determine is not drawn, a weak one is labelled."""
 
 from __future__ import annotations
 
-from functools import lru_cache
-from typing import Any
-
 import numpy as np
-import yaml
 
-from motionlab.kinematics.gps import NORMATIVE_SOURCES, VARIABLES, normative, variable_grades
+from motionlab.kinematics.gps import VARIABLES, normative, variable_grades
 from motionlab.kinematics.spatiotemporal import (
     MIN_STRIDES,
     STRIDE_COLUMNS,
@@ -27,6 +23,7 @@ from motionlab.kinematics.spatiotemporal import (
     too_few,
 )
 from motionlab.report.model import SessionView, gait_profile, gait_result
+from motionlab.report.normative import gait_bands
 from motionlab.report.pdf import BAND_COLOUR, MUTED, SIDE_COLOUR, SIZE, Document
 from motionlab.results import Gait, GaitSummary, MovementProfile, StrideStats
 
@@ -45,12 +42,6 @@ _LABELS = {
     "stride_length_m": "stride length (m)*",
     "walking_speed_m_s": "walking speed (m/s)*",
 }
-
-
-@lru_cache(maxsize=1)
-def _bands() -> dict[str, Any]:
-    with open(NORMATIVE_SOURCES, encoding="utf-8") as f:
-        return yaml.safe_load(f)
 
 
 #: the uncertainty a value must exceed a band by to be flagged: 1.96 standard errors (95 %)
@@ -95,7 +86,7 @@ def gait_pages(doc: Document, view: SessionView) -> None:
     g = gait_result(view)
     if g is None:
         return
-    summ, bands = g.summary, _bands()["spatiotemporal"]
+    summ, bands = g.summary, gait_bands()["spatiotemporal"]
     doc.section(
         "Gait: spatio-temporal parameters and profile",
         "Events from the shank gyroscopes (initial contact: the shank stops swinging forward; "
@@ -153,7 +144,9 @@ def gait_pages(doc: Document, view: SessionView) -> None:
         f"{cadence_text}. *Lengths and speed: {length_note(g)}",
         size=SIZE["small"],
     )
-    doc.paragraph("Bands: " + _bands()["spatiotemporal_source"], size=SIZE["small"], colour=MUTED)
+    doc.paragraph(
+        "Bands: " + gait_bands()["spatiotemporal_source"], size=SIZE["small"], colour=MUTED
+    )
     _map_chart(doc, gait_profile(view) or g.map)
 
 

@@ -9,7 +9,7 @@ import datetime as _dt
 from motionlab import __version__
 from motionlab.report.model import SIDE_NAMES, SessionView, joint_title
 from motionlab.report.pdf import MUTED, SIZE, Document
-from motionlab.report.sentences import findings, missing_lines, task_name
+from motionlab.report.sentences import PACE_SOURCE, findings, missing_lines, task_name
 from motionlab.segments import sensor_for_segment
 
 
@@ -40,13 +40,16 @@ def summary_page(doc: Document, view: SessionView) -> None:
     doc.table(["", ""], identity, [0.2, 0.8], align=["l", "l"], size=SIZE["body"])
 
     doc.heading("Findings")
-    doc.bullets(findings(view))
+    items = findings(view)
+    doc.bullets(items)
+    paced = any("steps/min, " in f for f in items)
     doc.paragraph(
         "Ranges are the typical lowest and highest angle of the repetitions (means of the "
         "per-cycle extremes), in degrees; a range counts as outside normal when it leaves the "
         "protocol's normal range by more than 5°, or a flexion peak falls 10° short of its top. "
         "Normal ranges are approximate, for orientation, "
-        "not diagnostic limits. Only numbers the recording determined are findings.",
+        "not diagnostic limits. Only numbers the recording determined are findings."
+        + (f" Pace: {PACE_SOURCE}." if paced else ""),
         size=SIZE["small"],
         colour=MUTED,
     )

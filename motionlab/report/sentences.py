@@ -40,6 +40,7 @@ from motionlab.report.model import (
     symmetry_rows,
     worst_grade,
 )
+from motionlab.report.normative import gait_bands
 
 #: what each out-of-plane metric means, in one sentence
 MEANING = {
@@ -116,6 +117,36 @@ def rom_sentence(row: RomRow) -> str:
     return text + "."
 
 
+#: where the pace caveat (:func:`pace_note`) comes from
+PACE_SOURCE = (
+    "Moissenet F, Leboeuf F, Armand S. Lower limb sagittal gait kinematics can be predicted "
+    "based on walking speed, gender, age and BMI. Sci Rep 2019, doi:10.1038/s41598-019-45397-4 "
+    "(a walking-speed mismatch alone moves sagittal angles by more than 5°)"
+)
+
+
+def pace_note(view: SessionView, task: str) -> tuple[str, str]:
+    """Why ``task``'s sagittal ranges may leave the normal ones for the pace alone: its walk's
+    cadence outside the band of the healthy walkers the normal ranges come from (the gait
+    page's ``cadence_steps_per_min``, ``report_data/gait_normative.yaml``). ``(sentence, tag)``:
+    the finding that says so and the words a flagged range carries; empty when the cadence is
+    within the band, not measured, or ``task`` is not a walk."""
+    g = view.session.results.gait
+    if g is None or not g.ok or g.summary is None or task not in (g.tasks or {}):
+        return "", ""
+    cadence = float(g.summary.cadence_steps_per_min)
+    lo, hi = gait_bands()["spatiotemporal"]["cadence_steps_per_min"]
+    if not np.isfinite(cadence) or lo <= cadence <= hi:
+        return "", ""
+    pace = "faster" if cadence > hi else "slower"
+    sentence = (
+        f"{task_name(task).capitalize()} at {cadence:.0f} steps/min, {pace} than the {lo:g}–{hi:g} "
+        "of the walkers the normal ranges come from: joint ranges change with walking speed, so "
+        "part of a flagged range may be the pace."
+    )
+    return sentence, f"{pace} pace than the norms"
+
+
 def angle_words(view: SessionView, joint: str, angle: str) -> str:
     """``'Right knee internal-external rotation'``, ``'Ball12 (ball joint) rotation about z'``."""
     j = view.protocol.joints[joint]
@@ -180,12 +211,19 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
     """The main findings of one session, most important first, at most ``limit``; every one
     from ``determined`` numbers only (module docstring).
 
-    Ranges outside normal come first, then left-right asymmetries, out-of-plane findings, the
-    ranges within normal of the primary (flexion) angles, and data or calibration problems.
+    A walk's pace outside the normal ranges' (:func:`pace_note`) comes first, then ranges
+    outside normal, left-right asymmetries, out-of-plane findings, the ranges within normal of
+    the primary (flexion) angles, and data or calibration problems.
     What the recording did not determine is not a finding: see :func:`missing_lines`.
     """
     rows = [r for r in rom_rows(view) if r.normal is not None and is_determined(r.grade)]
-    outside = [rom_sentence(r) for r in rows if r.status not in ("within", "")]
+    outside, paces = [], []
+    for r in rows:
+        if r.status in ("within", ""):
+            continue
+        pace, tag = pace_note(view, r.task) if r.angle == "flexion" else ("", "")
+        outside.append(rom_sentence(r).removesuffix(".") + f" ({tag})." if tag else rom_sentence(r))
+        paces += [pace] if pace else []
     inside = [rom_sentence(r) for r in rows if r.status == "within" and r.angle == "flexion"]
     asym = []
     for s in symmetry_rows(view):
@@ -199,7 +237,7 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
                 f"(symmetry index {s.symmetry_index_pct:+.0f}%)."
             )
     problems = quality_notes(view)
-    items = list(dict.fromkeys(outside + asym + _oop_findings(view) + inside))
+    items = list(dict.fromkeys(paces + outside + asym + _oop_findings(view) + inside))
     if len(items) > limit - len(problems[:2]):
         items = items[: limit - len(problems[:2])]
     if not items:
