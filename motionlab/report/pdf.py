@@ -730,7 +730,8 @@ class Document:
 
     def save(self, pdf_path: str | Path, text_path: str | Path | None = None) -> list[str]:
         """Number the pages, write the PDF (and the pages' text, spelled as the PDF spells it:
-        :func:`pdf_text`); return the text per page."""
+        :func:`pdf_text`); return the text per page. Ticks are stamped (:func:`stamp_ticks`) and
+        long curves drawn through their envelope (:func:`thin_curves`) as each page is written."""
         n = len(self.pages)
         texts = []
         with (
