@@ -29,6 +29,7 @@ PARTS = {
     "building the pages": "motionlab.report:build_document",
     "  creating axes": "matplotlib.axes.Axes:__init__",
     "CSV tables": "motionlab.report:write_csvs",
+    "long curves to their envelopes (thin_curves)": "motionlab.report.pdf:thin_curves",
     "drawing the pages into the PDF": "matplotlib.backends.backend_pdf.PdfPages:savefig",
     "  axes": "matplotlib.axes.Axes:draw",
     "    axis (ticks, tick labels)": "matplotlib.axis.Axis:draw",

@@ -336,3 +336,31 @@ def test_graded_pages_keep_a_clean_layout():
     assert "Internal-external rotation (transverse) · not determined" in text  # greyed curves
     assert "gait, rotation (n = 10), not determined" in text
     assert "6.0 ± 0.5 (weak)" in text  # varus thrust
+
+
+def test_write_report_pauses_the_cycle_collector_and_frees_its_pages(tmp_path):
+    import gc
+
+    from motionlab.report import write_report
+    from motionlab.report.pdf import PlainText
+
+    def texts() -> int:
+        return sum(isinstance(o, PlainText) for o in gc.get_objects())
+
+    gc.collect()
+    before = texts()
+    out = write_report([_graded_view()], tmp_path / "report.pdf")
+    assert len(out.pages) > 3 and gc.isenabled()
+    assert texts() == before  # the pages' figures, in cycles, were collected on the way out
+    gc.disable()  # a caller's choice is kept
+    try:
+        write_report([_graded_view()], tmp_path / "report.pdf", force=True)
+        assert not gc.isenabled()
+        with pytest.raises(InputError):
+            write_report([], tmp_path / "report.pdf", force=True)
+        assert not gc.isenabled()
+    finally:
+        gc.enable()
+    with pytest.raises(InputError):
+        write_report([], tmp_path / "report.pdf", force=True)
+    assert gc.isenabled()

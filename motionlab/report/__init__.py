@@ -17,6 +17,7 @@ Example::
 
 from __future__ import annotations
 
+import gc
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -99,7 +100,26 @@ def write_report(
 
     Several views give each session's pages in date order, then a progress page per protocol
     with two or more sessions; their CSVs go to one subfolder per session.
+
+    Python's cyclic garbage collector is paused meanwhile and run once afterwards over what was
+    made (its youngest generation, which holds everything allocated while paused): the pages'
+    hundred thousand objects otherwise set off a full collection of the whole process (0.3 s
+    on the demo's reports, docs/performance.md); the figures, which refer to each other in
+    cycles, are freed by that one collection.
     """
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        return _write_report(views, pdf_path, csv_dir, force)
+    finally:
+        if enabled:
+            gc.enable()
+            gc.collect(0)
+
+
+def _write_report(
+    views: list[SessionView], pdf_path: str | Path, csv_dir: str | Path | None, force: bool
+) -> ReportOutput:
     if not views:
         raise InputError("no session to report on", remedy="give one or more session files")
     pdf_path = Path(pdf_path)

@@ -15,6 +15,9 @@ segment and calibration step). Existing files are replaced only with ``force``.
 
 from __future__ import annotations
 
+import csv
+import io
+import os
 from dataclasses import asdict
 from pathlib import Path
 
@@ -261,5 +264,29 @@ def write_csvs(view: SessionView, csv_dir: str | Path, force: bool = False) -> l
     csv_dir.mkdir(parents=True, exist_ok=True)
     for path, frame in zip(paths, frames.values(), strict=True):
         with atomic_path(path, force=force) as tmp:
-            frame.to_csv(tmp, index=False, float_format=FLOAT_FORMAT)
+            write_frame(frame, tmp)
     return paths
+
+
+def write_frame(frame: pd.DataFrame, path: str | Path) -> None:
+    """``frame.to_csv(path, index=False, float_format=FLOAT_FORMAT)``, the same bytes; a frame
+    of float columns only (the angle time series) is formatted a row at a time, several times
+    faster than pandas' value at a time (missing values are empty fields, as pandas writes
+    them)."""
+    if frame.empty or not all(dt == np.float64 for dt in frame.dtypes):
+        frame.to_csv(path, index=False, float_format=FLOAT_FORMAT)
+        return
+    values = frame.to_numpy()
+    head = io.StringIO()
+    csv.writer(head, lineterminator=os.linesep).writerow(frame.columns)
+    row_format = ",".join([FLOAT_FORMAT] * values.shape[1])
+    missing = np.isnan(values).any(axis=1)
+    lines = [
+        ",".join("" if v != v else FLOAT_FORMAT % v for v in row)
+        if gap
+        else row_format % tuple(row)
+        for row, gap in zip(values.tolist(), missing.tolist(), strict=True)
+    ]
+    with open(path, "w", encoding="utf-8", newline="") as f:
+        f.write(head.getvalue())
+        f.write(os.linesep.join(lines) + os.linesep)

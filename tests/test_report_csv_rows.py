@@ -1,0 +1,34 @@
+"""The CSV tables' row-at-a-time writer writes the bytes pandas writes (``report/csv.py``)."""
+
+import numpy as np
+import pandas as pd
+
+from motionlab.report.csv import FLOAT_FORMAT, write_frame
+
+
+def _both(frame: pd.DataFrame, tmp_path) -> tuple[bytes, bytes]:
+    ours, theirs = tmp_path / "ours.csv", tmp_path / "pandas.csv"
+    write_frame(frame, ours)
+    frame.to_csv(theirs, index=False, float_format=FLOAT_FORMAT)
+    return ours.read_bytes(), theirs.read_bytes()
+
+
+def test_float_tables_are_written_as_pandas_writes_them(tmp_path):
+    rng = np.random.default_rng(3)
+    values = rng.normal(scale=100.0, size=(500, 3))
+    values[10, 1] = np.nan  # a gap in one column
+    values[11, :] = np.nan  # a row of gaps
+    values[12] = [-0.0, -1e-7, 123456789.123456]  # rounds to -0.0000, big numbers
+    values[13] = [np.inf, -np.inf, 0.00005]
+    frame = pd.DataFrame(values, columns=["time_s", "knee_r_flexion_deg", "a, quoted name"])
+    ours, theirs = _both(frame, tmp_path)
+    assert ours == theirs
+    assert b",," in ours and b"-0.0000" in ours  # the cases above were written
+
+
+def test_other_tables_go_to_pandas(tmp_path):
+    frame = pd.DataFrame({"joint": ["knee_r", "knee_l"], "n": [3, 4], "rom_deg": [60.0, np.nan]})
+    ours, theirs = _both(frame, tmp_path)
+    assert ours == theirs
+    empty = pd.DataFrame({"time_s": np.array([], dtype=float)})
+    assert _both(empty, tmp_path)[0] == _both(empty, tmp_path)[1]
