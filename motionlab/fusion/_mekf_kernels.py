@@ -222,14 +222,10 @@ def forward(
     acc: np.ndarray,
     mag: np.ndarray,
     use_mag: bool,
-    mag_scale: np.ndarray,
     rest: np.ndarray,
     steady: np.ndarray,
-    att_extra: np.ndarray,
     dt: float,
     q0: np.ndarray,
-    b0: np.ndarray,
-    a0: np.ndarray,
     p0: np.ndarray,
     prm: np.ndarray,
     quat: np.ndarray,
@@ -237,38 +233,29 @@ def forward(
     acc_bias: np.ndarray,
     mag_dist: np.ndarray,
     reset: np.ndarray,
-    p_post: np.ndarray,
-    store: bool,
 ) -> None:
     """Run the error-state EKF over all samples, writing into the preallocated outputs.
 
     ``quat`` (N×4), ``bias`` (N×3, rad/s), ``acc_bias`` (N×3, m/s², sensor frame), ``mag_dist``
     (N) receive the posterior estimates, ``reset`` (N, int8) the samples where the attitude was
-    re-initialised (1: attitude, 2: heading only; 0: none); with ``store`` the posterior
-    covariances go into ``p_post`` (N×N_PACKED, upper triangles). ``b0``, ``a0`` and ``p0`` (9×9,
-    symmetric) are the initial biases and error covariance; the covariance stays exactly
-    symmetric. ``att_extra`` (N, rad², or length 1: none) is process noise added to each
-    attitude variance of sample k's prior: a packet-loss gap's bridge before sample k
-    (:func:`motionlab.fusion.timegrid.gap_noise`).
+    re-initialised (1: attitude, 2: heading only; 0: none). The biases start at zero, the error
+    covariance at ``p0`` (9×9, symmetric); the covariance stays exactly symmetric.
 
     A reset found at sample k is applied at k+1 as process noise plus a measurement: the
     attitude covariance is inflated by ``ATT_INIT²`` in the prior (so that a backward pass
     decouples the samples before the reset, whose estimates were inconsistent), then the
     vector-attitude correction is measured with standard deviation ``RESET_NOISE``.
 
-    With ``prm[MAG_FIXED_NORM] > 0`` the field's reference (norm, dip) is fixed and the
-    magnetometer is used exactly on the samples where ``mag_scale`` (N) is finite, with its
-    heading variance multiplied by it (the offline gating and weighting of
-    :func:`motionlab.fusion.detect.field_gate`); otherwise ``mag_scale`` is ignored and the
-    reference is learnt online.
+    The field's reference (norm, dip) is learnt online (the smoother's passes,
+    :mod:`._mekf_blocks`, fix it instead).
 
     ``rest`` (N) flags the samples at rest (the accelerometer and magnetometer at their rest
     noise); the gyroscope measures the bias where ``steady`` (N) is set too.
     """
     n = gyr.shape[0]
     q = q0.copy()
-    b = b0.copy()
-    a = a0.copy()
+    b = np.zeros(3)
+    a = np.zeros(3)
     p = p0.copy()
     r = np.empty((3, 3))
     t = np.empty((3, 6))
@@ -296,11 +283,7 @@ def forward(
     ref_age = 0.0
     mode = 0
     with_heading = False
-    fixed = prm[MAG_FIXED_NORM] > 0.0
-    if fixed:
-        ref_n, ref_d = prm[MAG_FIXED_NORM], prm[MAG_FIXED_DIP]
     heading_reset = prm[MAG_HEADING_RESET] > 0.0
-    extra = att_extra.shape[0] == n
     for k in range(n):
         wx = gyr[k, 0] - b[0]
         wy = gyr[k, 1] - b[1]
@@ -314,9 +297,6 @@ def forward(
             dx[i] = 0.0
         reset[k] = mode
         _inflate(p, mode, prm[ATT_INIT])
-        if extra:
-            for i in range(3):
-                p[i, i] += att_extra[k]
         if mode != 0:
             var = prm[RESET_NOISE] ** 2
             if mode == 1:
@@ -372,44 +352,37 @@ def forward(
             hn = np.sqrt(mx * mx + my * my)
             if mn > 0.0 and hn > 0.0:
                 dip = np.arcsin(mz / mn)
-                if fixed:
-                    ok = np.isfinite(mag_scale[k])
+                if ref_n < 0.0:
+                    ref_n, ref_d, cand_n, cand_d = mn, dip, mn, dip
+                ok = (
+                    abs(mn - ref_n) < prm[MAG_NORM_TOL] * ref_n
+                    and abs(dip - ref_d) < prm[MAG_DIP_TOL]
+                )
+                if ok:
+                    ref_n += a_ref * (mn - ref_n)
+                    ref_d += a_ref * (dip - ref_d)
+                    ref_age += dt
+                    cand_t = 0.0
                 else:
-                    if ref_n < 0.0:
-                        ref_n, ref_d, cand_n, cand_d = mn, dip, mn, dip
-                    ok = (
-                        abs(mn - ref_n) < prm[MAG_NORM_TOL] * ref_n
-                        and abs(dip - ref_d) < prm[MAG_DIP_TOL]
+                    # a new homogeneous field: accepted once steady for as long as the
+                    # reference was seen, at least MAG_NEW_FIELD_MIN, at most MAG_NEW_FIELD_TIME
+                    same = (
+                        abs(mn - cand_n) < prm[MAG_NORM_TOL] * cand_n
+                        and abs(dip - cand_d) < prm[MAG_DIP_TOL]
                     )
-                    if ok:
-                        ref_n += a_ref * (mn - ref_n)
-                        ref_d += a_ref * (dip - ref_d)
-                        ref_age += dt
-                        cand_t = 0.0
+                    if same:
+                        cand_t += dt
+                        cand_n += a_ref * (mn - cand_n)
+                        cand_d += a_ref * (dip - cand_d)
                     else:
-                        # a new homogeneous field: accepted once steady for as long as the
-                        # reference was seen, at least MAG_NEW_FIELD_MIN, at most MAG_NEW_FIELD_TIME
-                        same = (
-                            abs(mn - cand_n) < prm[MAG_NORM_TOL] * cand_n
-                            and abs(dip - cand_d) < prm[MAG_DIP_TOL]
-                        )
-                        if same:
-                            cand_t += dt
-                            cand_n += a_ref * (mn - cand_n)
-                            cand_d += a_ref * (dip - cand_d)
-                        else:
-                            cand_n, cand_d, cand_t = mn, dip, 0.0
-                        if cand_t > min(
-                            prm[MAG_NEW_FIELD_TIME], max(prm[MAG_NEW_FIELD_MIN], ref_age)
-                        ):
-                            ref_n, ref_d, ref_age, cand_t = cand_n, cand_d, cand_t, 0.0
-                            ok = True
+                        cand_n, cand_d, cand_t = mn, dip, 0.0
+                    if cand_t > min(prm[MAG_NEW_FIELD_TIME], max(prm[MAG_NEW_FIELD_MIN], ref_age)):
+                        ref_n, ref_d, ref_age, cand_t = cand_n, cand_d, cand_t, 0.0
+                        ok = True
                 mag_dist[k] = not ok
                 mag_ok = ok
                 if ok:
                     var = (prm[MAG_REST_NOISE] if rest[k] else prm[MAG_NOISE]) ** 2
-                    if fixed:
-                        var *= mag_scale[k]
                     _scalar_update(p, dx, 2, np.arctan2(mx, my), var, True, kvec, row)
                     cm.mul_exp_left(0.0, 0.0, dx[2], q)
                     cm.normalize(q)
@@ -431,8 +404,6 @@ def forward(
         quat[k] = q
         bias[k] = b
         acc_bias[k] = a
-        if store:
-            _pack_upper(p, p_post[k])
 
 
 @numba.njit(cache=True, inline="always")

@@ -283,10 +283,9 @@ def _filter(
         "reset": np.empty(n, dtype=np.int8),
     }
     kern.forward(
-        gyr, acc, mag if use_mag else np.zeros((1, 3)), use_mag, np.ones(1), rest,
-        np.ones(n, dtype=np.bool_), np.zeros(1), 1.0 / rate, initial_orientation(acc, mag),
-        np.zeros(3), np.zeros(3), _p0(p), prm, out["quat"], out["bias"], out["acc_bias"],
-        out["dist"], out["reset"], np.empty((1, kern.N_PACKED)), False,
+        gyr, acc, mag if use_mag else np.zeros((1, 3)), use_mag, rest, np.ones(n, dtype=np.bool_),
+        1.0 / rate, initial_orientation(acc, mag), _p0(p), prm, out["quat"], out["bias"],
+        out["acc_bias"], out["dist"], out["reset"],
     )  # fmt: skip
     return out
 
