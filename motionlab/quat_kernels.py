@@ -134,3 +134,77 @@ def strapdown(q0: np.ndarray, gyr: np.ndarray, dt: np.ndarray, out: np.ndarray) 
         mul_exp_right(q, rx, ry, rz, q)
         normalize(q)
         out[k] = q
+
+
+# ---------------------------------------------------------------- SLERP as scipy's Slerp
+
+
+@numba.njit(cache=True, inline="always")
+def _scipy_normalize(q: np.ndarray) -> None:
+    """``q /= |q|`` in place, a scalar-last quaternion, as scipy's Rotation normalises."""
+    n = np.sqrt(q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3])
+    for i in range(4):
+        q[i] /= n
+
+
+@numba.njit(cache=True, inline="always")
+def _scipy_compose(p: np.ndarray, q: np.ndarray, r: np.ndarray) -> None:
+    """``r = p ⊗ q`` for scalar-last quaternions, in scipy's order of operations."""
+    c0 = p[1] * q[2] - p[2] * q[1]
+    c1 = p[2] * q[0] - p[0] * q[2]
+    c2 = p[0] * q[1] - p[1] * q[0]
+    r[0] = p[3] * q[0] + q[3] * p[0] + c0
+    r[1] = p[3] * q[1] + q[3] * p[1] + c1
+    r[2] = p[3] * q[2] + q[3] * p[2] + c2
+    r[3] = p[3] * q[3] - p[0] * q[0] - p[1] * q[1] - p[2] * q[2]
+
+
+@numba.njit(cache=True)
+def slerp_resample(t: np.ndarray, q: np.ndarray, t_new: np.ndarray, out: np.ndarray) -> None:
+    """``out`` (M, 4) ← the series ``q`` (N ≥ 2, 4; scalar first, any norm) at the strictly
+    increasing times ``t`` (N) interpolated at ``t_new`` (M, inside ``[t[0], t[-1]]``), as
+    ``scipy.spatial.transform.Slerp(t, Rotation.from_quat(q))(t_new).as_quat()`` (scalar
+    first here) computes it, to the bit: each quaternion normalised, each interval's relative
+    rotation vector ``log(r_i⁻¹ r_{i+1})``, then ``r_i exp(α rv_i)`` normalised at
+    ``α = (t − t_i) / (t_{i+1} − t_i)``; below 1e-3 rad the series scipy uses for
+    ``θ / sin(θ/2)`` and ``sin(θ/2) / θ``."""
+    n = q.shape[0]
+    r = np.empty((n, 4))  # scalar last
+    for i in range(n):
+        r[i, 0], r[i, 1], r[i, 2], r[i, 3] = q[i, 1], q[i, 2], q[i, 3], q[i, 0]
+        _scipy_normalize(r[i])
+    rv = np.empty((n - 1, 3))
+    inv = np.empty(4)
+    c = np.empty(4)
+    e = np.empty(4)
+    for i in range(n - 1):
+        inv[0], inv[1], inv[2], inv[3] = -r[i, 0], -r[i, 1], -r[i, 2], r[i, 3]
+        _scipy_compose(inv, r[i + 1], c)
+        _scipy_normalize(c)
+        if c[3] < 0:
+            for j in range(4):
+                c[j] = -c[j]
+        angle = 2 * np.arctan2(np.sqrt(c[0] * c[0] + c[1] * c[1] + c[2] * c[2]), c[3])
+        if angle <= 1e-3:
+            a2 = angle * angle
+            scale = 2 + a2 / 12 + 7 * a2 * a2 / 2880
+        else:
+            scale = angle / np.sin(angle / 2)
+        for j in range(3):
+            rv[i, j] = scale * c[j]
+    for k in range(t_new.shape[0]):
+        ind = np.searchsorted(t, t_new[k]) - 1
+        if t_new[k] == t[0]:
+            ind = 0
+        alpha = (t_new[k] - t[ind]) / (t[ind + 1] - t[ind])
+        v0, v1, v2 = rv[ind, 0] * alpha, rv[ind, 1] * alpha, rv[ind, 2] * alpha
+        angle = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
+        if angle <= 1e-3:
+            a2 = angle * angle
+            scale = 0.5 - a2 / 48 + a2 * a2 / 3840
+        else:
+            scale = np.sin(angle / 2) / angle
+        e[0], e[1], e[2], e[3] = scale * v0, scale * v1, scale * v2, np.cos(angle / 2)
+        _scipy_compose(r[ind], e, c)
+        _scipy_normalize(c)
+        out[k, 0], out[k, 1], out[k, 2], out[k, 3] = c[3], c[0], c[1], c[2]

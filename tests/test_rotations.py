@@ -286,3 +286,34 @@ def test_integrate_gyro_body_frame(w):
     out = R.integrate_gyro(q0, np.tile(w, (101, 1)), 0.01)
     rel = R.mul(R.conj(q0), out[-1])
     np.testing.assert_allclose(R.to_rotvec(rel), np.asarray(w) * 1.0, atol=1e-9)
+
+
+def test_resample_is_scipys_slerp_to_the_bit():
+    """:func:`R.resample` runs scipy's Slerp steps in a compiled loop: the same quaternions to
+    the bit (before the sign conventions), over steps below and above the series' 1e-3 rad
+    switch, at the knots, between them and at the ends, and the same refusals."""
+    from scipy.spatial.transform import Slerp
+
+    rng = np.random.default_rng(11)
+    for step in (1e-5, 4e-4, 3e-3, 0.3):
+        inc = R.from_rotvec(rng.normal(size=(600, 3)) * step)
+        inc[::40] = R.IDENTITY  # no motion at all
+        q = np.empty((600, 4))
+        q[0] = R.normalize(rng.normal(size=4))
+        for i in range(1, 600):
+            q[i] = R.mul(q[i - 1], inc[i])
+        q *= rng.uniform(0.5, 2.0, size=(600, 1))  # any norm: normalised as scipy does
+        t = np.cumsum(rng.uniform(0.005, 0.02, 600))
+        for t_new in (t, np.linspace(t[0], t[-1], 1001), t[::3] + 0.001, t[[0, -1]]):
+            ref = R.from_scipy(Slerp(t, R.to_scipy(q))(np.clip(t_new, t[0], t[-1])))
+            got = R.resample(t, q, t_new)
+            assert np.array_equal(got * np.where(got[:, :1] < 0, -1.0, 1.0), ref), step
+    for t, q in (
+        ([0.0, 1.0], np.zeros((2, 4))),
+        ([1.0, 1.0], np.ones((2, 4))),
+        ([0.0], np.ones((1, 4))),
+    ):
+        with pytest.raises(ValueError):
+            R.resample(np.array(t), q, np.array([0.0]))
+    with pytest.raises(ValueError, match="range"):
+        R.resample(np.array([0.0, 1.0]), np.ones((2, 4)), np.array([np.nan]))
