@@ -242,7 +242,18 @@ def _write_tree(group: h5py.Group, tree: dict[str, Any]) -> None:
         elif isinstance(value, np.ndarray):
             _write_array(group, key, value)
         else:
-            group.attrs[key] = _json(value)
+            _write_text_attr(group, key, _json(value))
+
+
+_TEXT = h5py.string_dtype()  # variable-length UTF-8, as h5py stores a str attribute
+_TEXT_TYPE = h5py.h5t.py_create(_TEXT, logical=True)
+
+
+def _write_text_attr(group: h5py.Group, name: str, text: str) -> None:
+    """``group.attrs[name] = text`` for a new attribute: the same attribute, without h5py's
+    per-call type guessing (half the time; a session's results hold a thousand of them)."""
+    space = h5py.h5s.create(h5py.h5s.SCALAR)
+    h5py.h5a.create(group.id, name.encode(), _TEXT_TYPE, space).write(np.array(text, dtype=_TEXT))
 
 
 def write_session(session: Session, path: str | Path | BinaryIO) -> None:

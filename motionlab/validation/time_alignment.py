@@ -263,6 +263,7 @@ def window_lags(
     rows = []
     for p, ((fx, vx, a0, a1), (fy, vy, _, _)) in enumerate(zip(imu, ref, strict=True)):
         starts = a0 + np.arange(0.0, max(a1 - a0 - window_s, 0.0) + 1e-9, step_s)
+        dfy = None  # the reference's derivative spline, made once per pair when first needed
         for s in starts:  # one correlation per window, not per sample
             tx = s + np.arange(w) / rate
             ty = model.to_reference(s + shifts)
@@ -281,7 +282,8 @@ def window_lags(
             design = np.column_stack([x, np.ones(w)])
             coef = np.linalg.lstsq(design, y, rcond=None)[0]
             resid = y - design @ coef
-            slope = fy.derivative()(t_best)
+            dfy = fy.derivative() if dfy is None else dfy
+            slope = dfy(t_best)
             var = np.mean(resid**2) / max(np.sum(slope**2), 1e-300) * max(rate / (2 * cutoff_hz), 1)
             centre = s + 0.5 * (w - 1) / rate
             lag = float(model.to_reference(centre + shift)) - centre
