@@ -208,3 +208,20 @@ def slerp_resample(t: np.ndarray, q: np.ndarray, t_new: np.ndarray, out: np.ndar
         _scipy_compose(r[ind], e, c)
         _scipy_normalize(c)
         out[k, 0], out[k, 1], out[k, 2], out[k, 3] = c[3], c[0], c[1], c[2]
+
+
+@numba.njit(cache=True)
+def mul_rows(p: np.ndarray, q: np.ndarray, out: np.ndarray) -> None:
+    """``out[i] = p[i] ⊗ q[i]`` (Hamilton, scalar first) for (N, 4) or (1, 4) ``p`` and ``q``
+    (a single row is used for every ``i``), in :func:`motionlab.rotations.mul`'s order of
+    operations (the same numbers to the bit)."""
+    one_p, one_q = p.shape[0] == 1, q.shape[0] == 1
+    for i in range(out.shape[0]):
+        a = 0 if one_p else i
+        b = 0 if one_q else i
+        pw, px, py, pz = p[a, 0], p[a, 1], p[a, 2], p[a, 3]
+        qw, qx, qy, qz = q[b, 0], q[b, 1], q[b, 2], q[b, 3]
+        out[i, 0] = pw * qw - px * qx - py * qy - pz * qz
+        out[i, 1] = pw * qx + px * qw + py * qz - pz * qy
+        out[i, 2] = pw * qy - px * qz + py * qw + pz * qx
+        out[i, 3] = pw * qz + px * qy - py * qx + pz * qw

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from motionlab.quat_kernels import slerp_resample, strapdown
+from motionlab.quat_kernels import mul_rows, slerp_resample, strapdown
 
 if TYPE_CHECKING:
     from scipy.spatial.transform import Rotation
@@ -43,6 +43,14 @@ def mul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Hamilton product ``p ⊗ q``, broadcasting over leading dimensions."""
     p = np.asarray(p, dtype=float)
     q = np.asarray(q, dtype=float)
+    if p.ndim <= 2 and q.ndim <= 2 and p.shape[-1] == q.shape[-1] == 4:
+        n_p, n_q = (len(p) if p.ndim == 2 else 1), (len(q) if q.ndim == 2 else 1)
+        if n_p == n_q or 1 in (n_p, n_q):  # one loop, the same numbers (quat_kernels.mul_rows)
+            out = np.empty((n_q if n_p == 1 else n_p, 4))
+            mul_rows(
+                np.ascontiguousarray(p).reshape(-1, 4), np.ascontiguousarray(q).reshape(-1, 4), out
+            )
+            return out if p.ndim == 2 or q.ndim == 2 else out[0]
     pw, px, py, pz = np.moveaxis(p, -1, 0)
     qw, qx, qy, qz = np.moveaxis(q, -1, 0)
     return np.stack(
