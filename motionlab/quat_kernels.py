@@ -160,9 +160,12 @@ def _scipy_compose(p: np.ndarray, q: np.ndarray, r: np.ndarray) -> None:
 
 
 @numba.njit(cache=True)
-def slerp_resample(t: np.ndarray, q: np.ndarray, t_new: np.ndarray, out: np.ndarray) -> None:
+def slerp_resample(
+    t: np.ndarray, q: np.ndarray, t_new: np.ndarray, ind: np.ndarray, out: np.ndarray
+) -> None:
     """``out`` (M, 4) ← the series ``q`` (N ≥ 2, 4; scalar first, any norm) at the strictly
-    increasing times ``t`` (N) interpolated at ``t_new`` (M, inside ``[t[0], t[-1]]``), as
+    increasing times ``t`` (N) interpolated at ``t_new`` (M, inside ``[t[0], t[-1]]``; ``ind``
+    (M) the interval of each, ``searchsorted(t, t_new) − 1`` and 0 at ``t[0]``), as
     ``scipy.spatial.transform.Slerp(t, Rotation.from_quat(q))(t_new).as_quat()`` (scalar
     first here) computes it, to the bit: each quaternion normalised, each interval's relative
     rotation vector ``log(r_i⁻¹ r_{i+1})``, then ``r_i exp(α rv_i)`` normalised at
@@ -193,11 +196,9 @@ def slerp_resample(t: np.ndarray, q: np.ndarray, t_new: np.ndarray, out: np.ndar
         for j in range(3):
             rv[i, j] = scale * c[j]
     for k in range(t_new.shape[0]):
-        ind = np.searchsorted(t, t_new[k]) - 1
-        if t_new[k] == t[0]:
-            ind = 0
-        alpha = (t_new[k] - t[ind]) / (t[ind + 1] - t[ind])
-        v0, v1, v2 = rv[ind, 0] * alpha, rv[ind, 1] * alpha, rv[ind, 2] * alpha
+        i = ind[k]
+        alpha = (t_new[k] - t[i]) / (t[i + 1] - t[i])
+        v0, v1, v2 = rv[i, 0] * alpha, rv[i, 1] * alpha, rv[i, 2] * alpha
         angle = np.sqrt(v0 * v0 + v1 * v1 + v2 * v2)
         if angle <= 1e-3:
             a2 = angle * angle
@@ -205,7 +206,7 @@ def slerp_resample(t: np.ndarray, q: np.ndarray, t_new: np.ndarray, out: np.ndar
         else:
             scale = np.sin(angle / 2) / angle
         e[0], e[1], e[2], e[3] = scale * v0, scale * v1, scale * v2, np.cos(angle / 2)
-        _scipy_compose(r[ind], e, c)
+        _scipy_compose(r[i], e, c)
         _scipy_normalize(c)
         out[k, 0], out[k, 1], out[k, 2], out[k, 3] = c[3], c[0], c[1], c[2]
 

@@ -193,8 +193,10 @@ def resample(t: np.ndarray, q: np.ndarray, t_new: np.ndarray) -> np.ndarray:
     t_new = np.clip(np.asarray(t_new, dtype=float).ravel(), t[0], t[-1])
     if not np.isfinite(t_new).all():
         raise ValueError(f"Interpolation times must be within the range [{t[0]}, {t[-1]}].")
+    ind = np.searchsorted(t, t_new) - 1  # each new time's interval, as Slerp finds it
+    ind[t_new == t[0]] = 0
     out = np.empty((len(t_new), 4))
-    slerp_resample(t, q, t_new, out)  # scipy's Slerp to the bit, without its per-call overhead
+    slerp_resample(t, q, t_new, ind, out)  # scipy's Slerp to the bit, without its overhead
     out = make_continuous(out * np.where(out[:, :1] < 0, -1.0, 1.0))
     if len(out):
         k = min(int(np.searchsorted(t, t_new[0], side="right")) - 1, len(t) - 1)
