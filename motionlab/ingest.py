@@ -104,9 +104,12 @@ def _check_channels(stream: SensorStream, path: Path) -> None:
         if len(a) != stream.n_samples:
             raise InputError(f"channel {ch} has {len(a)} samples, time has {stream.n_samples}",
                              path, where, "export the file again")  # fmt: skip
-        if not np.isfinite(a).any():
+        finite = np.isfinite(a).reshape(len(a), -1).any(axis=0)
+        if not finite.all():  # per axis: an all-inf axis passed, and made the channel NaN
+            axes = "wxyz" if len(finite) == 4 else "xyz"
+            axis = f" in axis {axes[int(np.argmin(finite))]}" if len(finite) > 1 else ""
             raise InputError(
-                f"channel {ch} holds no numbers (all NaN)",
+                f"channel {ch} holds no numbers{axis} (all NaN or ±inf)",
                 path,
                 f"{where}, channel {ch}",
                 "export the channel again or leave it out of the export",

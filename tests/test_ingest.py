@@ -321,6 +321,23 @@ def test_all_nan_channel_refused(fake_files, monkeypatch):
         ingest([fake_files[0]])
 
 
+def test_all_inf_axis_refused(fake_files, monkeypatch, tmp_path):
+    """One axis of ±inf only (and the others numbers) was taken, the axis NaN for the whole
+    recording; it is refused like an all-NaN column, by the ingest and by the reader."""
+    t = np.arange(10) / 100
+    acc = ramp(t)
+    acc[:, 1] = np.inf
+    rec = Recording(sensors=[stream(t, "x", gyr=np.zeros((10, 3)), acc=acc)])
+    monkeypatch.setattr(ingest_module, "read_any", lambda p, options=None: rec)
+    with pytest.raises(InputError, match=r"channel acc holds no numbers in axis y \(all NaN or"):
+        ingest([fake_files[0]])
+    monkeypatch.undo()
+    p = tmp_path / "inf.csv"
+    write_xio(p, t, np.zeros((10, 3)), np.column_stack([np.full(10, np.inf), np.ones((10, 2))]))
+    with pytest.raises(InputError, match=r"column 'Accelerometer X \(g\)': .*has no values"):
+        ingest([p])
+
+
 def write_xio(path, t, gyr_dps, acc_g):
     head = "Time (s)," + ",".join(f"Gyroscope {a} (deg/s)" for a in "XYZ") + ","
     head += ",".join(f"Accelerometer {a} (g)" for a in "XYZ")
