@@ -317,20 +317,27 @@ def test_all_nan_channel_refused(fake_files, monkeypatch):
     t = np.arange(10) / 100
     rec = Recording(sensors=[stream(t, "x", gyr=np.full((10, 3), np.nan), acc=ramp(t))])
     monkeypatch.setattr(ingest_module, "read_any", lambda p, options=None: rec)
-    with pytest.raises(InputError, match="channel gyr holds no numbers"):
+    with pytest.raises(InputError, match="channel gyr holds no usable numbers"):
         ingest([fake_files[0]])
 
 
-def test_all_inf_axis_refused(fake_files, monkeypatch, tmp_path):
-    """One axis of ±inf only (and the others numbers) was taken, the axis NaN for the whole
-    recording; it is refused like an all-NaN column, by the ingest and by the reader."""
+def test_axis_without_usable_numbers_refused(fake_files, monkeypatch, tmp_path):
+    """An axis of ±inf only, or of 1e308 only (the others numbers), was taken and left that
+    axis NaN or beyond any sensor for the whole recording; it is refused like an all-NaN
+    column, by the ingest and by the reader."""
     t = np.arange(10) / 100
     acc = ramp(t)
     acc[:, 1] = np.inf
-    rec = Recording(sensors=[stream(t, "x", gyr=np.zeros((10, 3)), acc=acc)])
-    monkeypatch.setattr(ingest_module, "read_any", lambda p, options=None: rec)
-    with pytest.raises(InputError, match=r"channel acc holds no numbers in axis y \(all NaN or"):
-        ingest([fake_files[0]])
+    gyr = np.zeros((10, 3))
+    gyr[:, 2] = 1e308
+    for channels, match in [
+        ({"acc": acc, "gyr": np.zeros((10, 3))}, r"channel acc .* in axis y \(all NaN, ±inf"),
+        ({"acc": ramp(t), "gyr": gyr}, r"channel gyr holds no usable numbers in axis z"),
+    ]:
+        rec = Recording(sensors=[stream(t, "x", **channels)])
+        monkeypatch.setattr(ingest_module, "read_any", lambda p, options=None, rec=rec: rec)
+        with pytest.raises(InputError, match=match):
+            ingest([fake_files[0]])
     monkeypatch.undo()
     p = tmp_path / "inf.csv"
     write_xio(p, t, np.zeros((10, 3)), np.column_stack([np.full(10, np.inf), np.ones((10, 2))]))
