@@ -158,7 +158,11 @@ def test_accelerometer_spike_is_flagged_and_fusion_without_result_exits_2(tmp_pa
         text[i] = "\t".join(cells)
     (tmp_path / "in.txt").write_text("\n".join(text) + "\n")
     r = cli(tmp_path, "ingest", "in.txt", "-o", "o.h5")
-    assert r.exit_code == 0 and r.stderr == "", r.output
+    assert r.exit_code == 0, r.output  # the ingest says so in one line, info lists the flag
+    assert (
+        r.stderr == "warning: in: values beyond what a sensor measures (as 1e308) in acc 40 %"
+        " of the rows: damaged? — check the file, or export it again\n"
+    )
     s = next(iter(load_session(tmp_path / "o.h5").sensors.values()))
     assert s.qc["flags"]["implausible_values"] and s.qc["implausible_share"]["acc"] > 0.3
     r = cli(tmp_path, "fuse", "o.h5")
@@ -288,3 +292,21 @@ def test_stages_on_an_unfused_session_say_to_fuse_it_first(tmp_path):
     assert (tmp_path / "s.h5").read_bytes() == before
     assert cli(tmp_path, "fuse", "s.h5").exit_code == 0
     assert cli(tmp_path, "calibrate", "s.h5", "--protocol", "walk").exit_code == 0
+
+
+def test_ingest_warns_of_a_wrong_unit_and_a_truncated_line(tmp_path):
+    """A plausible file ingests silently; an accelerometer in g labelled m/s² and a last line
+    cut short were found (QC flag, reader note) but only 'motionlab info' showed the flag and
+    nothing the note: the ingest now says each in one warning line."""
+    xio = (DATA / "xio" / "sensor_data_excerpt.csv").read_text()
+    (tmp_path / "ok.csv").write_text(xio)
+    r = cli(tmp_path, "ingest", "ok.csv", "-o", "ok.h5")
+    assert r.exit_code == 0 and r.stderr == "", r.output
+    (tmp_path / "in.csv").write_text(xio.replace("(g)", "(m/s^2)")[:-30])
+    r = cli(tmp_path, "ingest", "in.csv", "-o", "o.h5")
+    assert r.exit_code == 0, r.output
+    assert r.stderr.splitlines() == [
+        "warning: in: |a| at rest is 0.99 m/s² (read as m/s^2), 1 g is 9.81: is the "
+        "accelerometer in g? — check the export's accelerometer unit",
+        "warning: in: line 301: truncated last line (7 of 10 columns) dropped",
+    ]
