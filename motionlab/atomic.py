@@ -58,7 +58,7 @@ def same_file(a: str | Path, b: str | Path) -> bool:
             return os.path.samefile(a, b)
     except OSError:
         pass
-    return a.resolve() == b.resolve()
+    return os.path.realpath(a) == os.path.realpath(b)  # no RuntimeError on a symlink loop
 
 
 def refuse_input_as_output(path: str | Path, inputs: Iterable[str | Path | None]) -> None:
@@ -77,11 +77,11 @@ def refuse_folder_holding_inputs(folder: str | Path, inputs: Iterable[str | Path
     """Raise :class:`InputError` when the output ``folder`` is one of ``inputs`` or holds one
     (at any depth): outputs are written into it, so an input there could be replaced; refused
     even with ``--force``."""
-    root = Path(folder).resolve()
+    root = Path(os.path.realpath(folder))  # Path.resolve raises on a symlink loop
     for item in inputs:
         if item is None:
             continue
-        p = Path(item).resolve()
+        p = Path(os.path.realpath(item))
         if p == root or root in p.parents:
             raise InputError(
                 f"the output folder {'is' if p == root else 'holds'} the input "

@@ -310,3 +310,17 @@ def test_ingest_warns_of_a_wrong_unit_and_a_truncated_line(tmp_path):
         "accelerometer in g? — check the export's accelerometer unit",
         "warning: in: line 301: truncated last line (7 of 10 columns) dropped",
     ]
+
+
+def test_symlink_loop_is_one_line(tmp_path):
+    """A link that leads back to itself crashed the input-is-output check (RuntimeError from
+    Path.resolve, exit 1) for an input, a map and an output alike."""
+    (tmp_path / "in.txt").write_bytes(XSENS.read_bytes())
+    os.symlink(tmp_path / "b.txt", tmp_path / "a.txt")
+    os.symlink(tmp_path / "a.txt", tmp_path / "b.txt")
+    loop = "a.txt: is a symbolic link that leads back to itself (a loop) — give the file's own path"
+    refused(cli(tmp_path, "ingest", "a.txt", "-o", "o.h5"), loop)
+    refused(cli(tmp_path, "ingest", "in.txt", "--map", "a.txt", "-o", "o.h5"), loop)
+    refused(cli(tmp_path, "run", "a.txt", "--protocol", "knee", "-o", "r"), loop)
+    refused(cli(tmp_path, "ingest", "in.txt", "-o", "a.txt"), "a.txt: cannot write")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt", "b.txt", "in.txt"]
