@@ -263,5 +263,12 @@ def doubts(stream: SensorStream) -> list[str]:
         share = ", ".join(f"{ch} {100 * v:.3g} %" for ch, v in qc["implausible_share"].items())
         out.append(f"values beyond what a sensor measures (as 1e308) in {share} of the rows: "
                    "damaged? — check the file, or export it again")  # fmt: skip
+    if qc.get("quat_dropped"):  # the ingest's check of the norms (motionlab.ingest)
+        left = "no channel left" if not stream.channels else f"kept: {', '.join(stream.channels)}"
+        out.append(f"orientation dropped: {qc['quat_dropped']}; {left} — check the file, or "
+                   "export it again")  # fmt: skip
+    elif qc.get("quat_invalid_samples"):
+        out.append(f"{qc['quat_invalid_samples']} orientations with a norm far from 1 set "
+                   "missing — check the file, or export it again")  # fmt: skip
     out += [n for n in stream.attrs.get("notes", []) if "truncated" in n]
     return out

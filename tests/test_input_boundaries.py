@@ -324,3 +324,23 @@ def test_symlink_loop_is_one_line(tmp_path):
     refused(cli(tmp_path, "run", "a.txt", "--protocol", "knee", "-o", "r"), loop)
     refused(cli(tmp_path, "ingest", "in.txt", "-o", "a.txt"), "a.txt: cannot write")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt", "b.txt", "in.txt"]
+
+
+def test_ingest_warns_of_orientations_dropped(tmp_path):
+    """Quaternions far from unit norm were set missing, or the channel dropped (a sensor left
+    with no data at all), with exit 0 and not a word: the ingest now warns."""
+    from motionlab.io.opensim import write_sto
+
+    t = np.arange(5) / 100
+    good = np.tile([1.0, 0.0, 0.0, 0.0], (5, 1))
+    one = good.copy()
+    one[2] *= 1e5
+    write_sto(tmp_path / "q.sto", t, {"a": good * 1e5, "b": one, "c": good})
+    r = cli(tmp_path, "ingest", "q.sto", "-o", "o.h5")
+    assert r.exit_code == 0, r.output
+    assert r.stderr.splitlines() == [
+        "warning: a: orientation dropped: no quaternion has unit norm (e.g. all zero); no "
+        "channel left — check the file, or export it again",
+        "warning: b: 1 orientations with a norm far from 1 set missing — check the file, or "
+        "export it again",
+    ]
