@@ -344,3 +344,18 @@ def test_ingest_warns_of_orientations_dropped(tmp_path):
         "warning: b: 1 orientations with a norm far from 1 set missing — check the file, or "
         "export it again",
     ]
+
+
+def test_yaml_key_written_twice_is_refused(tmp_path):
+    """YAML keeps the last of two equal keys silently: a sensor mapped twice lost its first
+    segment, exit 0. A key written twice is refused (sensor maps, protocols, manifests); a
+    merged key (<<: *base) that the mapping redefines is YAML's override, and kept."""
+    from motionlab.yamlsafe import LineLoader, load_yaml
+
+    (tmp_path / "in.txt").write_bytes(XSENS.read_bytes())
+    (tmp_path / "m.yaml").write_text("sensors:\n  a: {segment: shank}\n  a: {segment: thigh}\n")
+    refused(cli(tmp_path, "ingest", "in.txt", "--map", "m.yaml", "-o", "o.h5"),
+            "m.yaml line 3: not valid YAML (key 'a' is written twice (lines 2 and 3))")  # fmt: skip
+    assert not (tmp_path / "o.h5").exists()
+    doc = load_yaml("b: &b {x: 1, y: 2}\nc: {<<: *b, y: 3}\n", LineLoader, tmp_path / "p", "")
+    assert doc["c"] == {"x": 1, "y": 3}
