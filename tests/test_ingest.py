@@ -296,6 +296,9 @@ def test_map_naming_absent_sensor(fake_files, tmp_path):
         ("sensor:\n  a: {segment: shank}\n", "sensor"),
         ("sensors:\n  a: {label: x}\n  b: {label: x}\n", "sensors.b.label"),
         ("subject: P1\n", "subject"),
+        # a length in cm, or not a number: the gait analysis left it out without a word
+        ("subject: {id: P1, height_m: 178}\n", "subject.height_m"),
+        ("subject:\n  thigh_m: 0.4\n  shank_m: tall\n", "subject.shank_m"),
     ],
 )
 def test_map_errors_name_the_key(tmp_path, text, key):
