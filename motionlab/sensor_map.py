@@ -149,8 +149,8 @@ def load_sensor_map(path: str | Path) -> SensorMap:
                 line,
             )
         label = spec.get("label", "").strip()
-        if "/" in label or label in (".", ".."):
-            raise smap.fail(f"{where}.label", f"label {label!r} cannot name a sensor",
+        if "/" in label or label in (".", "..") or not label.isprintable():  # "a\nb": 2 lines
+            raise smap.fail(f"{where}.label", f"label {shorten(repr(label))} cannot name a sensor",
                             "use letters, digits and _", line)  # fmt: skip
         if label:
             if label in seen_labels:

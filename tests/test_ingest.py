@@ -298,6 +298,7 @@ def test_map_naming_absent_sensor(fake_files, tmp_path):
         ("subject: P1\n", "subject"),
         # a length in cm, or not a number: the gait analysis left it out without a word
         ("subject: {id: P1, height_m: 178}\n", "subject.height_m"),
+        ('sensors:\n  a: {label: "x\\ny"}\n', "sensors.a.label"),  # printed on two lines
         ("subject:\n  thigh_m: 0.4\n  shank_m: tall\n", "subject.shank_m"),
     ],
 )
