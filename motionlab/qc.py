@@ -30,7 +30,8 @@ flag                        raised when
 ``non_finite``              any channel holds NaN or ±inf (``qc["non_finite_share"]``: the
                             share of samples per channel)
 ``implausible_values``      any sample beyond what a sensor measures (``IMPLAUSIBLE``: e.g.
-                            a 1e308 spike; ``qc["implausible_share"]`` per channel)
+                            a 1e308 spike, or ±inf, which 1e308 g becomes in m/s²;
+                            ``qc["implausible_share"]`` per channel)
 ==========================  ===============================================================
 """
 
@@ -196,7 +197,7 @@ def check_stream(stream: SensorStream, gap_max: float) -> dict[str, Any]:
         if bad.any():
             qc["non_finite_share"][ch] = float(bad.mean())
         with np.errstate(invalid="ignore"):
-            wild = (finite & (np.abs(a) > IMPLAUSIBLE[ch])).any(axis=1)
+            wild = (np.isinf(a) | (finite & (np.abs(a) > IMPLAUSIBLE[ch]))).any(axis=1)
         if wild.any():
             qc["implausible_share"][ch] = float(wild.mean())
     flags["non_finite"] = bool(qc["non_finite_share"])
@@ -261,7 +262,7 @@ def doubts(stream: SensorStream) -> list[str]:
                    "is it in °/s? — check the export's gyroscope unit")  # fmt: skip
     if flags.get("implausible_values"):
         share = ", ".join(f"{ch} {100 * v:.3g} %" for ch, v in qc["implausible_share"].items())
-        out.append(f"values beyond what a sensor measures (as 1e308) in {share} of the rows: "
+        out.append(f"values beyond what a sensor measures (1e308, ±inf) in {share} of the rows: "
                    "damaged? — check the file, or export it again")  # fmt: skip
     if qc.get("quat_dropped"):  # the ingest's check of the norms (motionlab.ingest)
         left = "no channel left" if not stream.channels else f"kept: {', '.join(stream.channels)}"
@@ -270,5 +271,8 @@ def doubts(stream: SensorStream) -> list[str]:
     elif qc.get("quat_invalid_samples"):
         out.append(f"{qc['quat_invalid_samples']} orientations with a norm far from 1 set "
                    "missing — check the file, or export it again")  # fmt: skip
+    if qc.get("nan_time_dropped"):  # the ingest's clock repair (motionlab.timebase)
+        out.append(f"{qc['nan_time_dropped']} rows without a time stamp (NaN) dropped — check "
+                   "the file's time column")  # fmt: skip
     out += [n for n in stream.attrs.get("notes", []) if "truncated" in n]
     return out

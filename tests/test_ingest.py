@@ -440,3 +440,19 @@ def test_related_clocks_are_not_flagged(fake_files):
     s = ingest(list(fake_files))
     assert s.metadata["clocks_unrelated"] is False
     assert s.metadata["start_spread_s"] == pytest.approx(0.5)
+
+
+def test_doubts_name_inf_values_and_rows_without_time(tmp_path):
+    """An inf sample (1e308 g is inf in m/s²) was counted nowhere, and rows with a NaN time
+    were dropped without a word: both are doubts the ingest prints."""
+    t = np.arange(200) / 100.0
+    acc = np.tile([0.0, 0.0, 1.0], (200, 1))
+    acc[50, 0] = 1e308
+    t[[10, 20]] = np.nan
+    write_xio(tmp_path / "s.csv", t, np.zeros((200, 3)), acc)
+    s = next(iter(ingest([tmp_path / "s.csv"]).sensors.values()))
+    assert s.qc["implausible_share"] == {"acc": 1 / 198}
+    assert [d.split(" — ")[0] for d in qc.doubts(s)] == [
+        "values beyond what a sensor measures (1e308, ±inf) in acc 0.505 % of the rows: damaged?",
+        "2 rows without a time stamp (NaN) dropped",
+    ]

@@ -160,7 +160,7 @@ def test_accelerometer_spike_is_flagged_and_fusion_without_result_exits_2(tmp_pa
     r = cli(tmp_path, "ingest", "in.txt", "-o", "o.h5")
     assert r.exit_code == 0, r.output  # the ingest says so in one line, info lists the flag
     assert (
-        r.stderr == "warning: in: values beyond what a sensor measures (as 1e308) in acc 40 %"
+        r.stderr == "warning: in: values beyond what a sensor measures (1e308, ±inf) in acc 40 %"
         " of the rows: damaged? — check the file, or export it again\n"
     )
     s = next(iter(load_session(tmp_path / "o.h5").sensors.values()))
