@@ -115,6 +115,12 @@ def _detect(path: Path, options: dict[str, Any] | None):
             path,
             remedy="give a BROAD trial or an APDM .h5 export",
         )
+    if b"\x00" in head:  # no column map makes text of it: say what it is (random bytes, a zip)
+        raise InputError(
+            "binary file of no format motionlab reads",
+            path,
+            remedy="give a vendor export (text, C3D, TRC, BROAD or APDM HDF5)",
+        )
     raise InputError(
         "unknown file format",
         path,
