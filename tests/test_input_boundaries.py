@@ -359,3 +359,14 @@ def test_yaml_key_written_twice_is_refused(tmp_path):
     assert not (tmp_path / "o.h5").exists()
     doc = load_yaml("b: &b {x: 1, y: 2}\nc: {<<: *b, y: 3}\n", LineLoader, tmp_path / "p", "")
     assert doc["c"] == {"x": 1, "y": 3}
+
+
+def test_ingest_warns_of_a_truncated_apdm_file(tmp_path):
+    """APDM keeps its repairs with the file (one file, many sensors): a truncated last line
+    was dropped without a word."""
+    text = (DATA / "apdm" / "imuData01_1s.csv").read_bytes()
+    (tmp_path / "in.csv").write_bytes(text.rstrip(b"\r\n")[:-200])
+    r = cli(tmp_path, "ingest", "in.csv", "-o", "o.h5")
+    assert r.exit_code == 0, r.output
+    warnings = r.stderr.splitlines()
+    assert len(warnings) == 1 and warnings[0].startswith("warning: in.csv: line 132: truncated")

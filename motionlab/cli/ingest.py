@@ -87,6 +87,10 @@ def command(files, map_path, rate, gap_max, output, force) -> None:  # fmt: skip
                    f"  gaps kept {n_gaps}, filled {s.qc.get('gaps_filled', 0)}")  # fmt: skip
         for line in doubts(s):
             click.echo(f"warning: {s.label}: {line}", err=True)
+    for name, meta in session.metadata.get("files", {}).items():  # a file's own (APDM: many
+        for note in meta.get("notes", []):  # sensors in one file, its repairs said once)
+            if "truncated" in note:
+                click.echo(f"warning: {name}: {note}", err=True)
     for m in session.markers.values():
         outputs = f", model outputs {len(m.model_outputs)}" if m.model_outputs else ""
         click.echo(f"{m.name:<16} markers {m.n_markers:>4}  {m.rate_hz:8.2f} Hz{outputs}")
