@@ -81,6 +81,11 @@ def normalise_side(value: Any) -> str | None:
     return _SIDES.get(str(value).strip().lower())
 
 
+#: every key a reader takes from ``reader:``: the generic reader's column map
+#: (:mod:`motionlab.io.generic`, top and single-sensor keys), Xsens/x-IMU3 ``mag_field_ut``
+READER_KEYS = ("format", "delimiter", "decimal", "comment", "skip_rows", "header_rows",
+               "rate_hz", "time", "sensors", "label", "serial", "vendor", "acc", "gyr", "mag",
+               "quat", "mag_field_ut")  # fmt: skip
 #: the subject's lengths the analysis uses (m) and the range a person's can have
 LENGTHS_M = {"height_m": (0.5, 2.5), "thigh_m": (0.1, 1.0), "shank_m": (0.1, 1.0)}
 
@@ -121,7 +126,12 @@ def load_sensor_map(path: str | Path) -> SensorMap:
     _check_lengths(smap, doc.get("subject") or LineMap())
     smap.subject = _jsonable(dict(doc.get("subject") or {}))
     smap.session = _jsonable(dict(doc.get("session") or {}))
-    smap.reader = _jsonable(dict(doc.get("reader") or {}))
+    reader = doc.get("reader") or LineMap()
+    for k in reader:  # a reader ignores what it does not take: a typo was silently no option
+        if k not in READER_KEYS:
+            raise smap.fail(f"reader.{k}", "unknown key", did_you_mean(k, READER_KEYS),
+                            getattr(reader, "lines", {}).get(k))  # fmt: skip
+    smap.reader = _jsonable(dict(reader))
     sensors = doc.get("sensors") or LineMap()
     seen_labels: dict[str, str] = {}
     for key, spec in sensors.items():

@@ -299,6 +299,7 @@ def test_map_naming_absent_sensor(fake_files, tmp_path):
         # a length in cm, or not a number: the gait analysis left it out without a word
         ("subject: {id: P1, height_m: 178}\n", "subject.height_m"),
         ('sensors:\n  a: {label: "x\\ny"}\n', "sensors.a.label"),  # printed on two lines
+        ("reader: {format: xsens, rate_hz: 60, mag_feild_ut: 48}\n", "reader.mag_feild_ut"),
         ("subject:\n  thigh_m: 0.4\n  shank_m: tall\n", "subject.shank_m"),
     ],
 )
@@ -456,3 +457,12 @@ def test_doubts_name_inf_values_and_rows_without_time(tmp_path):
         "values beyond what a sensor measures (1e308, ±inf) in acc 0.505 % of the rows: damaged?",
         "2 rows without a time stamp (NaN) dropped",
     ]
+
+
+def test_reader_keys_cover_every_reader_option():
+    """The sensor map refuses a reader key no reader takes; each one a reader takes is let
+    through (the generic reader's column map, Xsens and x-IMU3 ``mag_field_ut``)."""
+    from motionlab.io import generic
+    from motionlab.sensor_map import READER_KEYS
+
+    assert set(READER_KEYS) == generic._TOP_KEYS | generic._SENSOR_KEYS | {"mag_field_ut"}
