@@ -28,6 +28,16 @@ _KINDS = (
 )
 
 
+def special_kind(path: str | Path) -> str | None:
+    """What ``path`` is when it exists and is a FIFO, a socket or a device (by ``stat``, so a
+    link is followed), else ``None``."""
+    try:
+        mode = os.stat(path).st_mode
+    except OSError:
+        return None
+    return next((kind for test, kind in _KINDS if test(mode)), None)
+
+
 def check_regular(path: str | Path, folder_ok: bool = False) -> None:
     """Raise :class:`InputError` when ``path`` exists and is not a regular file: a FIFO, a
     socket or a device (whose read could block forever, or never end), or a folder (unless
@@ -58,7 +68,7 @@ def same_file(a: str | Path, b: str | Path) -> bool:
             return os.path.samefile(a, b)
     except OSError:
         pass
-    return a.resolve() == b.resolve()
+    return os.path.realpath(a) == os.path.realpath(b)  # no RuntimeError on a symlink loop
 
 
 def refuse_input_as_output(path: str | Path, inputs: Iterable[str | Path | None]) -> None:
@@ -77,11 +87,11 @@ def refuse_folder_holding_inputs(folder: str | Path, inputs: Iterable[str | Path
     """Raise :class:`InputError` when the output ``folder`` is one of ``inputs`` or holds one
     (at any depth): outputs are written into it, so an input there could be replaced; refused
     even with ``--force``."""
-    root = Path(folder).resolve()
+    root = Path(os.path.realpath(folder))  # Path.resolve raises on a symlink loop
     for item in inputs:
         if item is None:
             continue
-        p = Path(item).resolve()
+        p = Path(os.path.realpath(item))
         if p == root or root in p.parents:
             raise InputError(
                 f"the output folder {'is' if p == root else 'holds'} the input "
@@ -121,6 +131,10 @@ def check_output(path: str | Path, force: bool, inputs: Iterable[str | Path | No
         )
     if path.is_dir():
         raise InputError("output is a folder", path, remedy="give a file name")
+    kind = special_kind(path)
+    if kind:  # the rename would put a file in place of a device node (/dev/full), even as root
+        raise InputError(f"output is {kind}, not a regular file; it is never replaced", path,
+                         remedy="give a file name")  # fmt: skip
     parent = path.parent if str(path.parent) else Path(".")
     if not parent.is_dir():
         raise InputError("output folder does not exist", path, remedy=f"create {parent}")

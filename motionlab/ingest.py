@@ -30,7 +30,7 @@ import numpy as np
 from motionlab import timebase
 from motionlab.errors import InputError
 from motionlab.io import read_any
-from motionlab.qc import check_stream, mark_identical_streams
+from motionlab.qc import IMPLAUSIBLE, check_stream, mark_identical_streams
 from motionlab.sensor_map import SensorMap, load_sensor_map
 from motionlab.session import MarkerSet, SensorStream, Session
 
@@ -104,9 +104,15 @@ def _check_channels(stream: SensorStream, path: Path) -> None:
         if len(a) != stream.n_samples:
             raise InputError(f"channel {ch} has {len(a)} samples, time has {stream.n_samples}",
                              path, where, "export the file again")  # fmt: skip
-        if not np.isfinite(a).any():
+        b = np.asarray(a, dtype=float).reshape(len(a), -1)
+        with np.errstate(invalid="ignore"):  # per axis: one of ±inf or 1e308 only passed
+            usable = (np.abs(b) <= IMPLAUSIBLE.get(ch, np.inf)).any(axis=0)
+        if not usable.all():
+            axes = "wxyz" if len(usable) == 4 else "xyz"
+            axis = f" in axis {axes[int(np.argmin(usable))]}" if len(usable) > 1 else ""
             raise InputError(
-                f"channel {ch} holds no numbers (all NaN)",
+                f"channel {ch} holds no usable numbers{axis} (all NaN, ±inf or beyond what a "
+                f"sensor measures, as 1e308)",
                 path,
                 f"{where}, channel {ch}",
                 "export the channel again or leave it out of the export",

@@ -39,6 +39,7 @@ from motionlab.errors import InputError
 from motionlab.ingest import DEFAULT_GAP_MAX, ingest
 from motionlab.lock import session_lock
 from motionlab.protocol import Protocol, load_protocol
+from motionlab.qc import doubts as qc_doubts
 from motionlab.session import (
     Session,
     is_session_file,
@@ -413,7 +414,8 @@ def analyse(session: Session, options: PipelineOptions, stages: _Stages | None =
                 marker_set, kind = session_reference(session)
             stages_lib.validate(session, protocol, marker_set, seed=options.seed, force=True,
                                 reference_kind=kind)  # fmt: skip
-    for line in cal.warnings if stages.progress else []:  # after the stages: an error comes first
+    doubts = [f"{s.label}: {line}" for s in session.sensors.values() for line in qc_doubts(s)]
+    for line in [*doubts, *cal.warnings] if stages.progress else []:  # after the stages
         print(f"warning: {line}", file=sys.stderr, flush=True)
 
 

@@ -30,7 +30,8 @@ flag                        raised when
 ``non_finite``              any channel holds NaN or ±inf (``qc["non_finite_share"]``: the
                             share of samples per channel)
 ``implausible_values``      any sample beyond what a sensor measures (``IMPLAUSIBLE``: e.g.
-                            a 1e308 spike; ``qc["implausible_share"]`` per channel)
+                            a 1e308 spike, or ±inf, which 1e308 g becomes in m/s²;
+                            ``qc["implausible_share"]`` per channel)
 ==========================  ===============================================================
 """
 
@@ -196,7 +197,7 @@ def check_stream(stream: SensorStream, gap_max: float) -> dict[str, Any]:
         if bad.any():
             qc["non_finite_share"][ch] = float(bad.mean())
         with np.errstate(invalid="ignore"):
-            wild = (finite & (np.abs(a) > IMPLAUSIBLE[ch])).any(axis=1)
+            wild = (np.isinf(a) | (finite & (np.abs(a) > IMPLAUSIBLE[ch]))).any(axis=1)
         if wild.any():
             qc["implausible_share"][ch] = float(wild.mean())
     flags["non_finite"] = bool(qc["non_finite_share"])
@@ -209,8 +210,8 @@ def check_stream(stream: SensorStream, gap_max: float) -> dict[str, Any]:
         start, end = runs(w > GYR_MAX_PLAUSIBLE).T
         flags["gyr_looks_like_deg_s"] = bool(np.any(end - start >= GYR_SUSTAINED))
         rest = w < REST_GYR
-    if stream.acc is not None:
-        a = _norm(stream.acc)
+    if stream.acc is not None:  # the norm at rest of rows a sensor can give: 1e308 is damage
+        a = np.where(measurable(stream.acc, "acc"), _norm(stream.acc), np.nan)
         use = rest if rest is not None and rest.sum() >= 10 else np.isfinite(a)
         g = _median(a[use]) if use.any() else float("nan")
         qc["acc_rest_norm"] = g
@@ -237,3 +238,41 @@ def check_stream(stream: SensorStream, gap_max: float) -> dict[str, Any]:
         flags["dropped_packets"] = qc["dropped_packets"] > 0
     qc["flags"] = flags
     return qc
+
+
+def doubts(stream: SensorStream) -> list[str]:
+    """One line per finding of :func:`check_stream` (``stream.qc``) that suggests a wrong unit
+    or damaged values in the file, and per repair the reader made of a damaged file (a
+    truncated last line dropped): what ``motionlab ingest`` prints as warnings. Empty for a
+    plausible recording; the flags stay in ``qc`` for ``motionlab info`` either way."""
+    qc, flags, units = stream.qc, stream.qc.get("flags", {}), stream.source_units
+    out = []
+    g = qc.get("acc_rest_norm", float("nan"))
+    read_as = f"read as {units['acc']}" if "acc" in units else "in m/s²"
+    if flags.get("acc_looks_like_g"):
+        out.append(f"|a| at rest is {g:.2f} m/s² ({read_as}), 1 g is 9.81: is the accelerometer "
+                   "in g? — check the export's accelerometer unit")  # fmt: skip
+    elif flags.get("acc_norm_implausible"):
+        out.append(f"|a| at rest is {g:.3g} m/s² ({read_as}), not ≈ 9.81: a wrong unit or "
+                   "scale? — check the export's accelerometer unit")  # fmt: skip
+    if flags.get("gyr_looks_like_deg_s"):
+        read_as = f"read as {units['gyr']}" if "gyr" in units else "in rad/s"
+        peak = qc["gyr_max_rad_s"]
+        out.append(f"|ω| reaches {peak:.3g} rad/s ({read_as}), beyond a ±2000 °/s gyroscope: "
+                   "is it in °/s? — check the export's gyroscope unit")  # fmt: skip
+    if flags.get("implausible_values"):
+        share = ", ".join(f"{ch} {100 * v:.3g} %" for ch, v in qc["implausible_share"].items())
+        out.append(f"values beyond what a sensor measures (1e308, ±inf) in {share} of the rows: "
+                   "damaged? — check the file, or export it again")  # fmt: skip
+    if qc.get("quat_dropped"):  # the ingest's check of the norms (motionlab.ingest)
+        left = "no channel left" if not stream.channels else f"kept: {', '.join(stream.channels)}"
+        out.append(f"orientation dropped: {qc['quat_dropped']}; {left} — check the file, or "
+                   "export it again")  # fmt: skip
+    elif qc.get("quat_invalid_samples"):
+        out.append(f"{qc['quat_invalid_samples']} orientations with a norm far from 1 set "
+                   "missing — check the file, or export it again")  # fmt: skip
+    if qc.get("nan_time_dropped"):  # the ingest's clock repair (motionlab.timebase)
+        out.append(f"{qc['nan_time_dropped']} rows without a time stamp (NaN) dropped — check "
+                   "the file's time column")  # fmt: skip
+    out += [n for n in stream.attrs.get("notes", []) if "truncated" in n]
+    return out

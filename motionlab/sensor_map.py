@@ -81,6 +81,32 @@ def normalise_side(value: Any) -> str | None:
     return _SIDES.get(str(value).strip().lower())
 
 
+#: every key a reader takes from ``reader:``: the generic reader's column map
+#: (:mod:`motionlab.io.generic`, top and single-sensor keys), Xsens/x-IMU3 ``mag_field_ut``
+READER_KEYS = ("format", "delimiter", "decimal", "comment", "skip_rows", "header_rows",
+               "rate_hz", "time", "sensors", "label", "serial", "vendor", "acc", "gyr", "mag",
+               "quat", "mag_field_ut")  # fmt: skip
+#: the subject's lengths the analysis uses (m) and the range a person's can have
+LENGTHS_M = {"height_m": (0.5, 2.5), "thigh_m": (0.1, 1.0), "shank_m": (0.1, 1.0)}
+
+
+def _check_lengths(smap: SensorMap, subject: LineMap) -> None:
+    """Refuse a subject length that is not a number in metres (``height_m: 178`` in cm, or
+    ``tall``): the gait analysis would leave it out without a word."""
+    for key, (low, high) in LENGTHS_M.items():
+        value = subject.get(key)
+        if value is None:
+            continue
+        where, line = f"subject.{key}", getattr(subject, "lines", {}).get(key)
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise smap.fail(where, f"{shorten(value)!r} is not a number", "give metres, "
+                            "e.g. 1.78", line)  # fmt: skip
+        if not low <= value <= high:
+            hint = f"{value / 100:g} m if that is in cm" if value > 10 else f"{low:g}-{high:g} m"
+            raise smap.fail(where, f"{value:g} is not a length in metres a person has",
+                            f"give metres ({hint})", line)  # fmt: skip
+
+
 def load_sensor_map(path: str | Path) -> SensorMap:
     """Read and validate a sensor map; :class:`InputError` names the offending key and line."""
     path = Path(path)
@@ -97,9 +123,15 @@ def load_sensor_map(path: str | Path) -> SensorMap:
             raise smap.fail(key, "unknown key", did_you_mean(key, TOP_KEYS), lines[key])
         if value is not None and not isinstance(value, dict):
             raise smap.fail(key, "is not a mapping", "give 'name: value' lines", lines[key])
+    _check_lengths(smap, doc.get("subject") or LineMap())
     smap.subject = _jsonable(dict(doc.get("subject") or {}))
     smap.session = _jsonable(dict(doc.get("session") or {}))
-    smap.reader = _jsonable(dict(doc.get("reader") or {}))
+    reader = doc.get("reader") or LineMap()
+    for k in reader:  # a reader ignores what it does not take: a typo was silently no option
+        if k not in READER_KEYS:
+            raise smap.fail(f"reader.{k}", "unknown key", did_you_mean(k, READER_KEYS),
+                            getattr(reader, "lines", {}).get(k))  # fmt: skip
+    smap.reader = _jsonable(dict(reader))
     sensors = doc.get("sensors") or LineMap()
     seen_labels: dict[str, str] = {}
     for key, spec in sensors.items():
@@ -127,8 +159,8 @@ def load_sensor_map(path: str | Path) -> SensorMap:
                 line,
             )
         label = spec.get("label", "").strip()
-        if "/" in label or label in (".", ".."):
-            raise smap.fail(f"{where}.label", f"label {label!r} cannot name a sensor",
+        if "/" in label or label in (".", "..") or not label.isprintable():  # "a\nb": 2 lines
+            raise smap.fail(f"{where}.label", f"label {shorten(repr(label))} cannot name a sensor",
                             "use letters, digits and _", line)  # fmt: skip
         if label:
             if label in seen_labels:

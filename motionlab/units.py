@@ -80,5 +80,7 @@ def factor(unit: str, quantity: str | None = None) -> float:
 
 
 def to_si(values: np.ndarray, unit: str, quantity: str | None = None) -> np.ndarray:
-    """``values`` (any shape) converted from ``unit`` to SI (float64)."""
-    return np.asarray(values, dtype=float) * factor(unit, quantity)
+    """``values`` (any shape) converted from ``unit`` to SI (float64); a value beyond float64
+    in SI (1e308 g) becomes ±inf, which the ingest's QC counts as implausible."""
+    with np.errstate(over="ignore"):
+        return np.asarray(values, dtype=float) * factor(unit, quantity)

@@ -14,7 +14,7 @@ is an :class:`~motionlab.errors.InputError`.
 from __future__ import annotations
 
 import difflib
-from collections.abc import Iterable
+from collections.abc import Hashable, Iterable
 from pathlib import Path
 from typing import Any
 
@@ -83,9 +83,11 @@ class TextKeyLineLoader(LineLoader):
 
 
 def _construct_mapping(loader: LineLoader, node: yaml.MappingNode) -> LineMap:
+    written = {id(k) for k, _ in node.value}  # before merge keys (<<: *base) add theirs
     loader.flatten_mapping(node)
     out = LineMap()
     out.lines = {}
+    twice: dict[Any, int] = {}
     for key_node, value_node in node.value:
         if loader.text_keys:
             key = (
@@ -95,8 +97,14 @@ def _construct_mapping(loader: LineLoader, node: yaml.MappingNode) -> LineMap:
             )
         else:
             key = loader.construct_object(key_node, deep=True)
+        line = key_node.start_mark.line + 1
+        if id(key_node) in written and isinstance(key, Hashable):  # a merged key may be redefined
+            if key in twice:  # YAML keeps the last silently: one sensor's segment lost
+                raise _Refused(f"key {shorten(key)!r} is written twice (lines {twice[key]} and "
+                               f"{line})", key_node.start_mark, "keep one of them")  # fmt: skip
+            twice[key] = line
         out[key] = loader.construct_object(value_node, deep=True)
-        out.lines[key] = key_node.start_mark.line + 1
+        out.lines[key] = line
     return out
 
 

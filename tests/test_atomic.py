@@ -48,3 +48,20 @@ def test_umask_077_stays_private(tmp_path):
     finally:
         os.umask(old)
     assert _mode(tmp_path / "b.txt") == 0o600
+
+
+@pytest.mark.skipif(not hasattr(os, "mkfifo"), reason="no named pipes here")
+def test_force_never_replaces_a_device_or_pipe(tmp_path):
+    """``-o /dev/full --force`` as root renamed a session file onto the device node; a path
+    that is a pipe, socket or device (or a link to one) is refused, force or not."""
+    from motionlab.errors import InputError
+
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    os.symlink(fifo, tmp_path / "link")
+    for name in ("pipe", "link"):
+        with pytest.raises(InputError, match="output is a named pipe .FIFO., not a regular file"):
+            with atomic_path(tmp_path / name, force=True) as tmp:
+                tmp.write_bytes(b"x")
+    assert stat.S_ISFIFO(os.stat(fifo).st_mode) and os.path.islink(tmp_path / "link")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["link", "pipe"]

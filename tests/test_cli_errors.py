@@ -97,6 +97,12 @@ CASES = {
     "empty file": (_write("in.csv", ""), "empty"),
     "only a header": (_write("in.csv", XIO_HEADER + "\n"), "no data rows"),
     "unknown format": (_write("in.dat", "hello\nthis is no recording\n"), "unknown file format"),
+    # random bytes were told to give a column map, as if they were text
+    "binary, no format": (_write("in.csv", "\x00\x17\x9c garbage \x00\x01"), "binary file of no"),
+    "utf-16": (
+        lambda d: ((d / "in.csv").write_bytes(XIO_HEADER.encode("utf-16")), ["in.csv"])[1],
+        "in.csv: text in UTF-16",
+    ),
     "non-monotonic time": (
         _write(
             "in.csv",

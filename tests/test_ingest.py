@@ -296,6 +296,11 @@ def test_map_naming_absent_sensor(fake_files, tmp_path):
         ("sensor:\n  a: {segment: shank}\n", "sensor"),
         ("sensors:\n  a: {label: x}\n  b: {label: x}\n", "sensors.b.label"),
         ("subject: P1\n", "subject"),
+        # a length in cm, or not a number: the gait analysis left it out without a word
+        ("subject: {id: P1, height_m: 178}\n", "subject.height_m"),
+        ('sensors:\n  a: {label: "x\\ny"}\n', "sensors.a.label"),  # printed on two lines
+        ("reader: {format: xsens, rate_hz: 60, mag_feild_ut: 48}\n", "reader.mag_feild_ut"),
+        ("subject:\n  thigh_m: 0.4\n  shank_m: tall\n", "subject.shank_m"),
     ],
 )
 def test_map_errors_name_the_key(tmp_path, text, key):
@@ -317,8 +322,32 @@ def test_all_nan_channel_refused(fake_files, monkeypatch):
     t = np.arange(10) / 100
     rec = Recording(sensors=[stream(t, "x", gyr=np.full((10, 3), np.nan), acc=ramp(t))])
     monkeypatch.setattr(ingest_module, "read_any", lambda p, options=None: rec)
-    with pytest.raises(InputError, match="channel gyr holds no numbers"):
+    with pytest.raises(InputError, match="channel gyr holds no usable numbers"):
         ingest([fake_files[0]])
+
+
+def test_axis_without_usable_numbers_refused(fake_files, monkeypatch, tmp_path):
+    """An axis of ±inf only, or of 1e308 only (the others numbers), was taken and left that
+    axis NaN or beyond any sensor for the whole recording; it is refused like an all-NaN
+    column, by the ingest and by the reader."""
+    t = np.arange(10) / 100
+    acc = ramp(t)
+    acc[:, 1] = np.inf
+    gyr = np.zeros((10, 3))
+    gyr[:, 2] = 1e308
+    for channels, match in [
+        ({"acc": acc, "gyr": np.zeros((10, 3))}, r"channel acc .* in axis y \(all NaN, ±inf"),
+        ({"acc": ramp(t), "gyr": gyr}, r"channel gyr holds no usable numbers in axis z"),
+    ]:
+        rec = Recording(sensors=[stream(t, "x", **channels)])
+        monkeypatch.setattr(ingest_module, "read_any", lambda p, options=None, rec=rec: rec)
+        with pytest.raises(InputError, match=match):
+            ingest([fake_files[0]])
+    monkeypatch.undo()
+    p = tmp_path / "inf.csv"
+    write_xio(p, t, np.zeros((10, 3)), np.column_stack([np.full(10, np.inf), np.ones((10, 2))]))
+    with pytest.raises(InputError, match=r"column 'Accelerometer X \(g\)': .*has no values"):
+        ingest([p])
 
 
 def write_xio(path, t, gyr_dps, acc_g):
@@ -412,3 +441,28 @@ def test_related_clocks_are_not_flagged(fake_files):
     s = ingest(list(fake_files))
     assert s.metadata["clocks_unrelated"] is False
     assert s.metadata["start_spread_s"] == pytest.approx(0.5)
+
+
+def test_doubts_name_inf_values_and_rows_without_time(tmp_path):
+    """An inf sample (1e308 g is inf in m/s²) was counted nowhere, and rows with a NaN time
+    were dropped without a word: both are doubts the ingest prints."""
+    t = np.arange(200) / 100.0
+    acc = np.tile([0.0, 0.0, 1.0], (200, 1))
+    acc[50, 0] = 1e308
+    t[[10, 20]] = np.nan
+    write_xio(tmp_path / "s.csv", t, np.zeros((200, 3)), acc)
+    s = next(iter(ingest([tmp_path / "s.csv"]).sensors.values()))
+    assert s.qc["implausible_share"] == {"acc": 1 / 198}
+    assert [d.split(" — ")[0] for d in qc.doubts(s)] == [
+        "values beyond what a sensor measures (1e308, ±inf) in acc 0.505 % of the rows: damaged?",
+        "2 rows without a time stamp (NaN) dropped",
+    ]
+
+
+def test_reader_keys_cover_every_reader_option():
+    """The sensor map refuses a reader key no reader takes; each one a reader takes is let
+    through (the generic reader's column map, Xsens and x-IMU3 ``mag_field_ut``)."""
+    from motionlab.io import generic
+    from motionlab.sensor_map import READER_KEYS
+
+    assert set(READER_KEYS) == generic._TOP_KEYS | generic._SENSOR_KEYS | {"mag_field_ut"}

@@ -158,7 +158,11 @@ def test_accelerometer_spike_is_flagged_and_fusion_without_result_exits_2(tmp_pa
         text[i] = "\t".join(cells)
     (tmp_path / "in.txt").write_text("\n".join(text) + "\n")
     r = cli(tmp_path, "ingest", "in.txt", "-o", "o.h5")
-    assert r.exit_code == 0 and r.stderr == "", r.output
+    assert r.exit_code == 0, r.output  # the ingest says so in one line, info lists the flag
+    assert (
+        r.stderr == "warning: in: values beyond what a sensor measures (1e308, ±inf) in acc 40 %"
+        " of the rows: damaged? — check the file, or export it again\n"
+    )
     s = next(iter(load_session(tmp_path / "o.h5").sensors.values()))
     assert s.qc["flags"]["implausible_values"] and s.qc["implausible_share"]["acc"] > 0.3
     r = cli(tmp_path, "fuse", "o.h5")
@@ -288,3 +292,81 @@ def test_stages_on_an_unfused_session_say_to_fuse_it_first(tmp_path):
     assert (tmp_path / "s.h5").read_bytes() == before
     assert cli(tmp_path, "fuse", "s.h5").exit_code == 0
     assert cli(tmp_path, "calibrate", "s.h5", "--protocol", "walk").exit_code == 0
+
+
+def test_ingest_warns_of_a_wrong_unit_and_a_truncated_line(tmp_path):
+    """A plausible file ingests silently; an accelerometer in g labelled m/s² and a last line
+    cut short were found (QC flag, reader note) but only 'motionlab info' showed the flag and
+    nothing the note: the ingest now says each in one warning line."""
+    xio = (DATA / "xio" / "sensor_data_excerpt.csv").read_text()
+    (tmp_path / "ok.csv").write_text(xio)
+    r = cli(tmp_path, "ingest", "ok.csv", "-o", "ok.h5")
+    assert r.exit_code == 0 and r.stderr == "", r.output
+    (tmp_path / "in.csv").write_text(xio.replace("(g)", "(m/s^2)")[:-30])
+    r = cli(tmp_path, "ingest", "in.csv", "-o", "o.h5")
+    assert r.exit_code == 0, r.output
+    assert r.stderr.splitlines() == [
+        "warning: in: |a| at rest is 0.99 m/s² (read as m/s^2), 1 g is 9.81: is the "
+        "accelerometer in g? — check the export's accelerometer unit",
+        "warning: in: line 301: truncated last line (7 of 10 columns) dropped",
+    ]
+
+
+def test_symlink_loop_is_one_line(tmp_path):
+    """A link that leads back to itself crashed the input-is-output check (RuntimeError from
+    Path.resolve, exit 1) for an input, a map and an output alike."""
+    (tmp_path / "in.txt").write_bytes(XSENS.read_bytes())
+    os.symlink(tmp_path / "b.txt", tmp_path / "a.txt")
+    os.symlink(tmp_path / "a.txt", tmp_path / "b.txt")
+    loop = "a.txt: is a symbolic link that leads back to itself (a loop) — give the file's own path"
+    refused(cli(tmp_path, "ingest", "a.txt", "-o", "o.h5"), loop)
+    refused(cli(tmp_path, "ingest", "in.txt", "--map", "a.txt", "-o", "o.h5"), loop)
+    refused(cli(tmp_path, "run", "a.txt", "--protocol", "knee", "-o", "r"), loop)
+    refused(cli(tmp_path, "ingest", "in.txt", "-o", "a.txt"), "a.txt: cannot write")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt", "b.txt", "in.txt"]
+
+
+def test_ingest_warns_of_orientations_dropped(tmp_path):
+    """Quaternions far from unit norm were set missing, or the channel dropped (a sensor left
+    with no data at all), with exit 0 and not a word: the ingest now warns."""
+    from motionlab.io.opensim import write_sto
+
+    t = np.arange(5) / 100
+    good = np.tile([1.0, 0.0, 0.0, 0.0], (5, 1))
+    one = good.copy()
+    one[2] *= 1e5
+    write_sto(tmp_path / "q.sto", t, {"a": good * 1e5, "b": one, "c": good})
+    r = cli(tmp_path, "ingest", "q.sto", "-o", "o.h5")
+    assert r.exit_code == 0, r.output
+    assert r.stderr.splitlines() == [
+        "warning: a: orientation dropped: no quaternion has unit norm (e.g. all zero); no "
+        "channel left — check the file, or export it again",
+        "warning: b: 1 orientations with a norm far from 1 set missing — check the file, or "
+        "export it again",
+    ]
+
+
+def test_yaml_key_written_twice_is_refused(tmp_path):
+    """YAML keeps the last of two equal keys silently: a sensor mapped twice lost its first
+    segment, exit 0. A key written twice is refused (sensor maps, protocols, manifests); a
+    merged key (<<: *base) that the mapping redefines is YAML's override, and kept."""
+    from motionlab.yamlsafe import LineLoader, load_yaml
+
+    (tmp_path / "in.txt").write_bytes(XSENS.read_bytes())
+    (tmp_path / "m.yaml").write_text("sensors:\n  a: {segment: shank}\n  a: {segment: thigh}\n")
+    refused(cli(tmp_path, "ingest", "in.txt", "--map", "m.yaml", "-o", "o.h5"),
+            "m.yaml line 3: not valid YAML (key 'a' is written twice (lines 2 and 3))")  # fmt: skip
+    assert not (tmp_path / "o.h5").exists()
+    doc = load_yaml("b: &b {x: 1, y: 2}\nc: {<<: *b, y: 3}\n", LineLoader, tmp_path / "p", "")
+    assert doc["c"] == {"x": 1, "y": 3}
+
+
+def test_ingest_warns_of_a_truncated_apdm_file(tmp_path):
+    """APDM keeps its repairs with the file (one file, many sensors): a truncated last line
+    was dropped without a word."""
+    text = (DATA / "apdm" / "imuData01_1s.csv").read_bytes()
+    (tmp_path / "in.csv").write_bytes(text.rstrip(b"\r\n")[:-200])
+    r = cli(tmp_path, "ingest", "in.csv", "-o", "o.h5")
+    assert r.exit_code == 0, r.output
+    warnings = r.stderr.splitlines()
+    assert len(warnings) == 1 and warnings[0].startswith("warning: in.csv: line 132: truncated")

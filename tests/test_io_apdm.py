@@ -103,6 +103,23 @@ def test_csv_errors(tmp_path):
         apdm.read(_write_lines(tmp_path, [f7[0] + ",extra"] + f7[1:]))
 
 
+def test_format7_first_stamp_not_a_number(tmp_path):
+    """A NaN first stamp is that row's alone: it made every time NaN and crashed on the
+    start's conversion to an integer (ValueError, exit 1) before."""
+    f7 = FORMAT7.read_text().splitlines()
+    first = next(k for k, ln in enumerate(f7) if ln[:1].isdigit())
+    f7[first] = "nan" + f7[first][f7[first].index(",") :]
+    rec = apdm.read(_write_lines(tmp_path, f7))
+    lumbar = rec.sensors[0]
+    assert np.isnan(lumbar.time[0])
+    np.testing.assert_allclose(lumbar.time[1:], [0.0, 0.007813], atol=1e-6)
+    assert lumbar.attrs["start_unix_us"] == 1550879504446093
+    for k in range(first, len(f7)):
+        f7[k] = "nan" + f7[k][f7[k].index(",") :]
+    with pytest.raises(InputError, match=r"lines 4-6 column 1: no row has a time stamp"):
+        apdm.read(_write_lines(tmp_path, f7))
+
+
 def test_sniff_by_content(tmp_path):
     renamed = tmp_path / "data.txt"
     renamed.write_bytes(PENDULUM.read_bytes())

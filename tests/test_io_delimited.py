@@ -158,3 +158,12 @@ def test_plain_list_of_lines_still_works(tmp_path):
     t = parse_table(tmp_path / "x.csv", ["a;b", "1,5;2", "# c", "3;4"], 0)
     np.testing.assert_array_equal(t.data, [[1.5, 2], [3, 4]])
     np.testing.assert_array_equal(t.lines, [2, 4])
+
+
+def test_utf16_text_is_named(tmp_path):
+    """A UTF-16 export (x-IMU3's Inertial.csv re-saved as Excel 'Unicode text') was 'binary
+    file, not delimited text'; it is named, with the encoding to use."""
+    p = tmp_path / "Inertial.csv"
+    p.write_bytes("Timestamp (us),Gyroscope X (deg/s)\n1,2\n".encode("utf-16"))
+    with pytest.raises(InputError, match="text in UTF-16.* — save or export it as UTF-8"):
+        read_lines(p)

@@ -11,6 +11,7 @@ from motionlab.cli.paths import INPUT_FILE, OUTPUT_FILE
 from motionlab.errors import InputError
 from motionlab.ingest import DEFAULT_GAP_MAX, ingest
 from motionlab.lock import session_lock
+from motionlab.qc import doubts
 from motionlab.session import save_session
 
 
@@ -84,6 +85,12 @@ def command(files, map_path, rate, gap_max, output, force) -> None:  # fmt: skip
         n_gaps = len(s.qc.get("gaps", []))
         click.echo(f"{s.label:<16} {place:<14} {s.rate_hz:8.2f} Hz {s.n_samples:>9} samples"
                    f"  gaps kept {n_gaps}, filled {s.qc.get('gaps_filled', 0)}")  # fmt: skip
+        for line in doubts(s):
+            click.echo(f"warning: {s.label}: {line}", err=True)
+    for name, meta in session.metadata.get("files", {}).items():  # a file's own (APDM: many
+        for note in meta.get("notes", []):  # sensors in one file, its repairs said once)
+            if "truncated" in note:
+                click.echo(f"warning: {name}: {note}", err=True)
     for m in session.markers.values():
         outputs = f", model outputs {len(m.model_outputs)}" if m.model_outputs else ""
         click.echo(f"{m.name:<16} markers {m.n_markers:>4}  {m.rate_hz:8.2f} Hz{outputs}")

@@ -4,6 +4,8 @@ instead of click's usage text."""
 
 from __future__ import annotations
 
+import errno
+import os
 from pathlib import Path
 from typing import Any
 
@@ -21,6 +23,12 @@ class InputFile(click.ParamType):
 
     def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> str:
         path = Path(value)
+        try:
+            os.stat(path)
+        except OSError as exc:  # a missing file is the reader's to name
+            if exc.errno == errno.ELOOP:
+                raise InputError("is a symbolic link that leads back to itself (a loop)", path,
+                                 remedy="give the file's own path") from None  # fmt: skip
         if path.is_dir():
             from motionlab.io.ximu3 import is_export
 

@@ -115,6 +115,15 @@ def _detect(path: Path, options: dict[str, Any] | None):
             path,
             remedy="give a BROAD trial or an APDM .h5 export",
         )
+    if head.startswith((b"\xff\xfe", b"\xfe\xff")):  # a byte-order mark: Excel's "Unicode text"
+        raise InputError("text in UTF-16, which motionlab does not read", path,
+                         remedy="save or export it as UTF-8 text (CSV)")  # fmt: skip
+    if b"\x00" in head:  # no column map makes text of it: say what it is (random bytes, a zip)
+        raise InputError(
+            "binary file of no format motionlab reads",
+            path,
+            remedy="give a vendor export (text, C3D, TRC, BROAD or APDM HDF5)",
+        )
     raise InputError(
         "unknown file format",
         path,

@@ -115,10 +115,16 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
         )
 
     t_raw = values[:, 0]
-    time = convert(t_raw - t_raw[0], time_unit, "time", path, f"line {first_data} column 1")
+    stamped = np.flatnonzero(np.isfinite(t_raw))
+    if not len(stamped):  # a blank or NaN stamp is dropped by the ingest, the rest kept
+        raise InputError("no row has a time stamp (column 1 is empty or NaN)", path,
+                         f"lines {first_data + 1}-{first_data + len(t_raw)} column 1",
+                         "export the recording again with its time column")  # fmt: skip
+    t0 = t_raw[stamped[0]]  # the first stamp, not row 1's: a NaN there made every time NaN
+    time = convert(t_raw - t0, time_unit, "time", path, f"line {first_data} column 1")
     attrs: dict[str, Any] = {"source_earth_frame": "NWU"}
     if lines[0].startswith("Format="):
-        attrs["start_unix_us"] = int(t_raw[0])
+        attrs["start_unix_us"] = int(t0)
     if "sample_rate_hz" in meta:
         attrs["nominal_rate_hz"] = meta["sample_rate_hz"]
 

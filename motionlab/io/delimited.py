@@ -466,7 +466,7 @@ def _to_float(df: pd.DataFrame, decimal: str) -> tuple[np.ndarray, tuple[int, in
 def nan_only(table: Table, names: Sequence[str]) -> str | None:
     """The first of ``names`` whose column holds no number at all, or ``None``."""
     for n in names:
-        if np.all(np.isnan(table.column(n))):
+        if not np.isfinite(table.column(n)).any():
             return n
     return None
 
@@ -476,7 +476,7 @@ def require_values(table: Table, names: Sequence[str], channel: str) -> None:
     empty = nan_only(table, names)
     if empty is not None:
         raise InputError(
-            f"channel {channel}: column '{empty}' has no values (all empty or NaN)",
+            f"channel {channel}: column '{empty}' has no values (all empty, NaN or ±inf)",
             table.path,
             f"column '{empty}'",
             remedy="re-export with this channel enabled, or leave it out of the column map",

@@ -151,9 +151,9 @@ def _channel(m: _Map, table: Table, spec: Any, name: str, key: str) -> tuple[np.
     idx = [_column(m, table, c, f"{key}.columns[{k}]") for k, c in enumerate(cols)]
     values = table.data[:, idx]
     for k, j in enumerate(idx):
-        if np.all(np.isnan(values[:, k])):
+        if not np.isfinite(values[:, k]).any():
             raise InputError(
-                f"channel {name}: column '{table.names[j]}' has no values (all empty or NaN)",
+                f"channel {name}: column '{table.names[j]}' has no values (all empty, NaN or ±inf)",
                 table.path,
                 f"column '{table.names[j]}'",
                 remedy="check the column map, or leave the channel out",

@@ -170,7 +170,11 @@ def read_lines(path: str | Path) -> TextFile:
     )
     try:
         with open(path, "rb", buffering=0) as f:
-            if b"\x00" in f.read(HEAD_CHECK):  # the head first: never read a binary body
+            head = f.read(HEAD_CHECK)
+            if head.startswith((b"\xff\xfe", b"\xfe\xff")):  # UTF-16's byte-order mark
+                raise InputError("text in UTF-16, which motionlab does not read", path,
+                                 remedy="save or export it as UTF-8 text (CSV)")  # fmt: skip
+            if b"\x00" in head:  # the head first: never read a binary body
                 raise binary
             f.seek(0)
             b = np.empty(os.fstat(f.fileno()).st_size, dtype=np.uint8)  # no bytes object

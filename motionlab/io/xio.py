@@ -113,7 +113,7 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
             )
         cols = [axes[a][0] for a in "xyz"]
         for c in cols:
-            if np.all(np.isnan(table.data[:, c])):
+            if not np.isfinite(table.data[:, c]).any():
                 raise InputError(
                     f"column '{table.names[c]}' has no values",
                     path,
