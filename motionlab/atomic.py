@@ -28,14 +28,18 @@ _KINDS = (
 )
 
 
+def _kind(mode: int) -> str | None:
+    """What a ``stat`` mode is when it is a FIFO, a socket or a device, else ``None``."""
+    return next((kind for test, kind in _KINDS if test(mode)), None)
+
+
 def special_kind(path: str | Path) -> str | None:
     """What ``path`` is when it exists and is a FIFO, a socket or a device (by ``stat``, so a
     link is followed), else ``None``."""
     try:
-        mode = os.stat(path).st_mode
+        return _kind(os.stat(path).st_mode)
     except OSError:
         return None
-    return next((kind for test, kind in _KINDS if test(mode)), None)
 
 
 def check_regular(path: str | Path, folder_ok: bool = False) -> None:
@@ -51,13 +55,13 @@ def check_regular(path: str | Path, folder_ok: bool = False) -> None:
         if not folder_ok:
             raise InputError("is a folder, expected a file", path, remedy="give the file's path")
         return
-    for test, kind in _KINDS:
-        if test(mode):
-            raise InputError(
-                f"is {kind}, not a regular file; it is not read",
-                path,
-                remedy="give a recording saved as a file",
-            )
+    kind = _kind(mode)
+    if kind:
+        raise InputError(
+            f"is {kind}, not a regular file; it is not read",
+            path,
+            remedy="give a recording saved as a file",
+        )
 
 
 def same_file(a: str | Path, b: str | Path) -> bool:

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from motionlab.quat_kernels import mul_rows, slerp_resample, strapdown
+from motionlab.quat_kernels import mul_rows, strapdown
 
 if TYPE_CHECKING:
     from scipy.spatial.transform import Rotation
@@ -177,7 +177,8 @@ def slerp(q0: np.ndarray, q1: np.ndarray, t: np.ndarray | float) -> np.ndarray:
 
 
 def resample(t: np.ndarray, q: np.ndarray, t_new: np.ndarray) -> np.ndarray:
-    """SLERP-resample a quaternion time series onto ``t_new`` (clamped at the ends).
+    """SLERP-resample a quaternion time series onto ``t_new`` (clamped at the ends): each new
+    time between its two neighbours by :func:`slerp` (any input norm; unit quaternions out).
 
     The result is sign-continuous and its first sample takes the sign of the input sample
     it lies next to, so resampling a continuous series at its own times returns it unchanged.
@@ -187,16 +188,16 @@ def resample(t: np.ndarray, q: np.ndarray, t_new: np.ndarray) -> np.ndarray:
     if t.ndim != 1 or q.shape != (len(t), 4) or len(t) < 2:
         raise ValueError("resample needs at least 2 quaternions (N, 4) at N times")
     if not (np.isfinite(t).all() and np.all(np.diff(t) > 0)):
-        raise ValueError("Times must be finite and in strictly increasing order.")
-    if not np.all(np.linalg.norm(q, axis=1) > 0):  # as scipy: NaN too
-        raise ValueError("Found zero norm quaternions in `quat`.")
+        raise ValueError("resample needs finite, strictly increasing times")
+    if not np.all(np.linalg.norm(q, axis=1) > 0):  # NaN too
+        raise ValueError("resample needs quaternions of nonzero, finite norm")
     t_new = np.clip(np.asarray(t_new, dtype=float).ravel(), t[0], t[-1])
     if not np.isfinite(t_new).all():
-        raise ValueError(f"Interpolation times must be within the range [{t[0]}, {t[-1]}].")
-    ind = np.searchsorted(t, t_new) - 1  # each new time's interval, as Slerp finds it
-    ind[t_new == t[0]] = 0
-    out = np.empty((len(t_new), 4))
-    slerp_resample(t, q, t_new, ind, out)  # scipy's Slerp to the bit, without its overhead
+        raise ValueError(f"resample needs new times within the range [{t[0]}, {t[-1]}]")
+    ind = np.clip(np.searchsorted(t, t_new, side="right") - 1, 0, len(t) - 2)
+    alpha = (t_new - t[ind]) / (t[ind + 1] - t[ind])
+    qn = normalize(q)
+    out = slerp(qn[ind], qn[ind + 1], alpha)
     out = make_continuous(out * np.where(out[:, :1] < 0, -1.0, 1.0))
     if len(out):
         k = min(int(np.searchsorted(t, t_new[0], side="right")) - 1, len(t) - 1)

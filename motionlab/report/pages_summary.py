@@ -9,7 +9,13 @@ import datetime as _dt
 from motionlab import __version__
 from motionlab.report.model import SIDE_NAMES, SessionView, joint_title
 from motionlab.report.pdf import MUTED, SIZE, Document
-from motionlab.report.sentences import PACE_SOURCE, findings, missing_lines, task_name
+from motionlab.report.sentences import (
+    PACE_SOURCE,
+    findings,
+    missing_lines,
+    pace_note,
+    task_name,
+)
 from motionlab.segments import sensor_for_segment
 
 
@@ -42,7 +48,8 @@ def summary_page(doc: Document, view: SessionView) -> None:
     doc.heading("Findings")
     items = findings(view)
     doc.bullets(items)
-    paced = any("steps/min, " in f for f in items)
+    tasks = (view.session.results.gait.tasks or {}) if view.session.results.gait else {}
+    paced = any(pace_note(view, task)[0] in items for task in tasks)
     doc.paragraph(
         "Ranges are the typical lowest and highest angle of the repetitions (means of the "
         "per-cycle extremes), in degrees; a range counts as outside normal when it leaves the "
