@@ -1,5 +1,5 @@
 """``python -m motionlab``: the ``motionlab`` command (for a source tree that is not installed)."""
 
-from motionlab.cli import main
+from motionlab.cli import entry
 
-main()
+entry()

@@ -95,3 +95,26 @@ def test_cli_sets_one_blas_thread_before_numpy_unless_the_user_did():
             check=True,
         )  # fmt: skip
         assert out.stdout.strip() == expected
+
+
+def test_the_commands_own_process_freezes_what_its_imports_made_and_a_caller_keeps_its_collector():
+    """``entry`` (the executable, ``python -m motionlab``) freezes the garbage collector's
+    objects once the command's module is imported and at the end; ``main`` called in-process (a
+    test, a notebook) leaves the caller's collector alone."""
+    import gc
+
+    from click.testing import CliRunner
+
+    probe = (
+        "import atexit, gc, sys\n"
+        "atexit.register(lambda: print('frozen', gc.get_freeze_count()))\n"
+        "sys.argv = ['motionlab', 'info', '--help']\n"
+        "from motionlab.cli import entry\n"
+        "entry()\n"
+    )
+    out = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, capture_output=True, text=True)
+    assert out.returncode == 0 and "Usage:" in out.stdout
+    assert int(out.stdout.split("frozen")[-1]) > 1000
+    before = gc.get_freeze_count()
+    assert CliRunner().invoke(main, ["info", "--help"]).exit_code == 0
+    assert gc.get_freeze_count() == before
