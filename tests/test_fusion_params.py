@@ -24,6 +24,27 @@ def test_the_registry_holds_every_estimator():
     assert {"mekf", "particle", "smoother", "ukf"} <= set(ESTIMATORS)
 
 
+def test_the_default_estimator_loads_no_other_filter_nor_the_optional_peers():
+    """``get("default")`` imports the estimator modules in order until the smoother is there
+    (a fresh interpreter, through ``sys.modules``); asking for another name loads the rest."""
+    import subprocess
+    import sys
+
+    from conftest import ROOT
+
+    probe = (
+        "import sys\n"
+        "from motionlab.fusion import registry\n"
+        "registry.get('default')\n"
+        "print(' '.join(m for m in ('motionlab.fusion.ukf', 'motionlab.fusion.particle', "
+        "'motionlab.fusion.complementary', 'vqf') if m in sys.modules))\n"
+        "registry.get('madgwick')\n"
+        "print('madgwick' in registry.available())\n"
+    )
+    out = subprocess.run([sys.executable, "-c", probe], cwd=ROOT, capture_output=True, text=True)
+    assert out.stdout.splitlines() == ["", "True"], out.stderr
+
+
 @pytest.mark.parametrize("name", ESTIMATORS)
 def test_parameters_have_help_and_units(name):
     for f in dataclasses.fields(get(name).params_cls):

@@ -28,12 +28,13 @@ from motionlab.fusion.timegrid import CUBIC_MAX_S, checked_time, gap_grid, gap_n
 
 DEFAULT_ESTIMATOR = "smoother"
 
-#: modules that register estimators when imported
+#: modules that register estimators when imported; the default's first (:func:`get` imports
+#: them in this order until the estimator asked for is registered)
 ESTIMATOR_MODULES = (
+    "mekf",
     "complementary",
     "kalman",
     "ekf",
-    "mekf",
     "ukf",
     "particle",
     "vqf_backend",
@@ -145,9 +146,11 @@ def register(name: str, params_cls: type, description: str, needs_mag: bool = Fa
     return wrap
 
 
-def _load() -> None:
+def _load(until: str | None = None) -> None:
+    """Import the estimator modules: all of them, or in order until ``until`` is registered (a
+    run of the default smoother then loads neither the other filters nor the optional peers)."""
     global _loaded
-    if _loaded:
+    if _loaded or until in _REGISTRY:
         return
     for mod in ESTIMATOR_MODULES:
         try:
@@ -156,6 +159,8 @@ def _load() -> None:
             # a module not written yet, or an optional backend whose package is absent
             if exc.name not in (f"motionlab.fusion.{mod}", "vqf"):
                 raise
+        if until in _REGISTRY:
+            return
     _loaded = True
 
 
@@ -167,11 +172,12 @@ def available() -> dict[str, Estimator]:
 
 def get(name: str) -> Estimator:
     """The estimator registered as ``name`` (``"default"`` is the offline smoother)."""
-    est = available()
     key = DEFAULT_ESTIMATOR if name == "default" else name
-    if key not in est:
-        raise InputError(f"unknown estimator '{name}'", remedy=f"choose one of {', '.join(est)}")
-    return est[key]
+    _load(until=key)
+    if key not in _REGISTRY:
+        names = ", ".join(available())
+        raise InputError(f"unknown estimator '{name}'", remedy=f"choose one of {names}")
+    return _REGISTRY[key]
 
 
 def make_params(est: Estimator, overrides: dict[str, Any]) -> Any:
