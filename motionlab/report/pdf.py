@@ -16,7 +16,6 @@ import logging
 import unicodedata
 from collections.abc import Sequence
 from contextlib import contextmanager
-from functools import lru_cache
 from itertools import combinations
 from pathlib import Path
 
@@ -26,13 +25,14 @@ from matplotlib import colors as mcolors
 from matplotlib.artist import allow_rasterization
 from matplotlib.axes import Axes
 from matplotlib.axis import Axis, XAxis, YAxis
-from matplotlib.backends.backend_agg import FigureCanvasAgg, RendererAgg
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.backends.backend_pdf import PdfPages
 from matplotlib.figure import Figure
-from matplotlib.font_manager import FontProperties
 from matplotlib.lines import Line2D
 from matplotlib.text import Text
 from matplotlib.ticker import NullLocator
+
+from motionlab.report.widths import text_width
 
 PAGE_W, PAGE_H = 8.27, 11.69
 MARGIN = 0.6
@@ -122,17 +122,6 @@ def _spell(c: str) -> str:
         return SPELLED[c]
     plain = unicodedata.normalize("NFKD", c).encode("cp1252", "ignore").decode("cp1252")
     return plain or "?"
-
-
-_MEASURE = RendererAgg(int(PAGE_W * 72), int(PAGE_H * 72), 72)
-
-
-@lru_cache(maxsize=20000)
-def text_width(text: str, size: float, weight: str = "normal") -> float:
-    """Width (in) of one line of ``text`` at ``size`` pt (cached: measuring is slow)."""
-    prop = FontProperties(size=size, weight=weight)
-    w, _, _ = _MEASURE.get_text_width_height_descent(text, prop, ismath=False)
-    return w / 72.0
 
 
 class PlainText(Text):
