@@ -200,8 +200,10 @@ class _StampedTicks:
     position the first time it draws, about 1 ms each: a report page of six axes makes ~100.
     Every tick of an axis has its first tick's properties (``tick_params`` and
     ``set_ticklabels`` set all of them, new ones copy the first), so drawing the first one at
-    each position and with each label, in matplotlib's order, writes the same bytes
-    (``tests/test_report_ticks.py``). The positions, labels and the filter to the view are
+    each position and with each label draws the same page: its grid line and tick marks at
+    all positions as one line each (:func:`_draw_lines_at`), then its labels one by one, in
+    matplotlib's order (the same text in the PDF, the same pixels:
+    ``tests/test_report_ticks.py``). The positions, labels and the filter to the view are
     matplotlib's (``Axis._update_ticks``); tick labels are spelled as the PDF spells text
     (:func:`pdf_text`). :meth:`get_children` leaves the ticks out, so finding a page's texts
     makes none. Only :meth:`draw` stamps: anything else that asks for the ticks (a tight
@@ -244,16 +246,17 @@ class _StampedTicks:
             return
         renderer.open_group(Axis.__module__, gid=self.get_gid())
         boxes1, boxes2 = [], []
-        stamps = self._stamps()
+        stamps = [s for s in self._stamps() if s[0].get_visible()]
         self._drawn = list(dict.fromkeys(tick for tick, _, _ in stamps))
+        for tick in self._drawn:
+            _draw_lines_at(tick, [loc for t, loc, _ in stamps if t is tick], renderer)
         for tick, loc, label in stamps:
             tick.update_position(loc)
-            tick.label1.set_text(label)
-            tick.label2.set_text(label)
             for text, boxes in ((tick.label1, boxes1), (tick.label2, boxes2)):
+                text.set_text(label)
                 if text.get_visible() and text.get_in_layout():
                     boxes.append(text.get_window_extent(renderer))
-            tick.draw(renderer)
+                text.draw(renderer)
         self._boxes = (boxes1, boxes2)
         self._update_label_position(renderer)
         self.label.draw(renderer)
@@ -274,6 +277,31 @@ class _StampedTicks:
         # the axis label's place: below (beside) this draw's tick labels
         boxes = getattr(self, "_boxes", None)
         return boxes if boxes is not None else super()._get_tick_boxes_siblings(renderer)
+
+
+def _draw_lines_at(tick, locs: list[float], renderer) -> None:
+    """Draw ``tick``'s grid line and tick marks at every position of ``locs``, each as one
+    line: the marks as one line of markers, the grid lines as one line broken by gaps (NaN).
+
+    The same marks and grid lines as a tick drawn at each position (the tick's own lines,
+    moved with :meth:`Tick.update_position <matplotlib.axis.Tick.update_position>`), in one
+    draw each instead of one per position and line."""
+    lines = [ln for ln in (tick.gridline, tick.tick1line, tick.tick2line) if ln.get_visible()]
+    if not locs or not lines:
+        return
+    data = [([], []) for _ in lines]
+    for loc in locs:
+        tick.update_position(loc)
+        for line, (xs, ys) in zip(lines, data, strict=True):
+            x, y = np.broadcast_arrays(line.get_xdata(), line.get_ydata())  # as Line2D takes them
+            xs.extend(x)
+            ys.extend(y)
+            if line.get_linestyle() not in ("None", " ", ""):  # a gap to the next position
+                xs.append(np.nan)
+                ys.append(np.nan)
+    for line, (xs, ys) in zip(lines, data, strict=True):
+        line.set_data(xs, ys)
+        line.draw(renderer)
 
 
 class _StampedXAxis(_StampedTicks, XAxis):
