@@ -15,7 +15,8 @@ from __future__ import annotations
 import logging
 import unicodedata
 from collections.abc import Sequence
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
+from functools import lru_cache
 from itertools import combinations
 from pathlib import Path
 
@@ -99,6 +100,23 @@ SPELLED = {
     "✓": "yes",
     "✗": "no",
 }
+
+
+def report_rc():
+    """A context with the report's settings (:data:`RC`): none when they are set already, as
+    :func:`motionlab.report.write_report` sets them for the whole report (``rc_context``
+    copies all of matplotlib's settings, about 1 ms, for each page and axes)."""
+    rc = matplotlib.rcParams
+    if all(rc[k] == v for k, v in _rc_as_set().items()):
+        return nullcontext()
+    return matplotlib.rc_context(RC)
+
+
+@lru_cache(maxsize=1)
+def _rc_as_set() -> dict:
+    """:data:`RC` as matplotlib holds it once set (``"sans-serif"`` is ``["sans-serif"]``)."""
+    with matplotlib.rc_context(RC):
+        return {k: matplotlib.rcParams[k] for k in RC}
 
 
 def pdf_text(text: str) -> str:
@@ -514,7 +532,7 @@ class Document:
 
     def _new_page(self, fig: Figure | None = None) -> None:
         if fig is None:
-            with matplotlib.rc_context(RC):
+            with report_rc():
                 fig = Figure(figsize=(PAGE_W, PAGE_H))
         else:
             fig.set_size_inches(PAGE_W, PAGE_H)
@@ -708,7 +726,7 @@ class Document:
                 x = MARGIN + left + j * (cell_w + wspace)
                 y_top = self.y + top + i * (cell_h + hspace)
                 rect = [x / PAGE_W, 1 - (y_top + cell_h) / PAGE_H, cell_w / PAGE_W, cell_h / PAGE_H]
-                with matplotlib.rc_context(RC):
+                with report_rc():
                     row.append(self.fig.add_axes(rect))
             grid.append(row)
         self.y += height
