@@ -147,3 +147,12 @@ def test_the_cache_is_bounded(cache, monkeypatch):
     widths.text_width("four", 9.5)  # a fourth width: only this process's two are kept
     widths.save()
     assert sorted(_stored(cache)) == ["four", "three"]
+
+
+def test_a_process_that_used_more_than_the_bound_keeps_the_bound(cache, monkeypatch):
+    monkeypatch.setattr(widths, "MAX_ENTRIES", 2)
+    for word in ("one", "two", "three"):
+        widths.text_width(word, 9.5)
+    widths.text_width("four", 8.0)
+    widths.save()
+    assert len(_stored(cache)) == 2

@@ -23,6 +23,7 @@ import json
 import os
 import tempfile
 from functools import lru_cache
+from itertools import islice
 from pathlib import Path
 
 import matplotlib
@@ -138,7 +139,11 @@ class _Store:
             return
         groups = {**self.stored, **self.widths}
         if sum(len(t) for t in groups.values() if isinstance(t, dict)) > MAX_ENTRIES:
-            groups = {g: {s: t[s] for s in self.used[g]} for g, t in self.widths.items()}
+            # the widths this process used, at most MAX_ENTRIES of them
+            groups, room = {}, MAX_ENTRIES
+            for g, t in self.widths.items():
+                groups[g] = dict(islice(((s, t[s]) for s in self.used[g]), room))
+                room -= len(groups[g])
         tmp = None
         try:
             self.path.parent.mkdir(parents=True, exist_ok=True)
