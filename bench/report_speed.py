@@ -28,6 +28,15 @@ from motionlab.session import load_session
 PARTS = {
     "building the pages": "motionlab.report:build_document",
     "  creating axes": "matplotlib.axes.Axes:__init__",
+    "    clearing them (Axes.clear)": "matplotlib.axes.Axes:clear",
+    "      first tick objects": "matplotlib.axis.Axis:_get_tick",
+    "      grid settings": "matplotlib.axes.Axes:grid",
+    "  creating texts": "matplotlib.text.Text:__init__",
+    "  creating lines": "matplotlib.lines.Line2D:__init__",
+    "  creating figures": "matplotlib.figure.Figure:__init__",
+    "  legends made": "matplotlib.legend.Legend:__init__",
+    "  fill_between": "matplotlib.axes.Axes:fill_between",
+    "  measuring words (not in the widths cache)": "motionlab.report.widths:_measure",
     "CSV tables": "motionlab.report:write_csvs",
     "long curves to their envelopes (thin_curves)": "motionlab.report.pdf:thin_curves",
     "drawing the pages into the PDF": "matplotlib.backends.backend_pdf.PdfPages:savefig",
@@ -43,6 +52,11 @@ PARTS = {
     "  the report's plain lines": "motionlab.report.pdf.PlainText:draw",
     "  other texts (tick labels, titles, ...)": "matplotlib.text.Text:draw",
     "the fonts' subsets": "matplotlib.backends.backend_pdf.PdfFile:writeFonts",
+    "closing the PDF": "matplotlib.backends.backend_pdf.PdfPages:close",
+    "pages' text (page_text)": "motionlab.report.pdf:page_text",
+    "finding the texts (Artist.findobj)": "matplotlib.artist.Artist:findobj",
+    "garbage collection": "gc:collect",
+    "load_views": "motionlab.report:load_views",
 }
 CPU: dict[str, float] = {}
 

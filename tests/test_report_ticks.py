@@ -1,8 +1,14 @@
-"""Axes drawn with one tick object per axis (``stamp_ticks``) write the PDF bytes matplotlib's
-own tick objects write, and the page checks still see every tick label."""
+"""Axes drawn with one tick object per axis (``stamp_ticks``) draw the page matplotlib's own
+tick objects draw (the same text operators in the PDF, the same pixels), and the page checks
+still see every tick label."""
+
+import re
+import shutil
+import subprocess
 
 import matplotlib
 import numpy as np
+import pytest
 from matplotlib.axis import XAxis
 from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.figure import Figure
@@ -56,8 +62,39 @@ def _pdf(stamped: bool, names: tuple[str, str] = ("thigh r", "some")) -> bytes:
     return pdf_bytes(draw)
 
 
-def test_stamped_ticks_write_the_bytes_matplotlib_writes():
-    assert _pdf(True) == _pdf(False)
+def _texts(pdf: bytes) -> list[bytes]:
+    """The PDF's text objects (font, place and string of each), in order."""
+    return re.findall(rb"\bBT\b.*?\bET\b", pdf, re.S)
+
+
+def test_stamped_ticks_write_the_texts_matplotlib_writes():
+    # the tick marks and grid lines of an axis are drawn as one line each (other bytes)
+    texts = _texts(_pdf(True))
+    assert len(texts) > 60 and texts == _texts(_pdf(False))
+
+
+def _pixels(stamped: bool) -> np.ndarray:
+    with matplotlib.rc_context(RC):
+        fig = _page()
+        if stamped:
+            stamp_ticks(fig)
+        fig.canvas.draw()
+        return np.asarray(fig.canvas.buffer_rgba()).copy()
+
+
+def test_stamped_ticks_draw_the_pixels_matplotlib_draws():
+    assert np.array_equal(_pixels(True), _pixels(False))
+
+
+@pytest.mark.skipif(shutil.which("pdftoppm") is None, reason="poppler's pdftoppm is not installed")
+def test_stamped_ticks_render_as_matplotlib_s_in_a_pdf_reader(tmp_path):
+    pages = []
+    for stamped in (True, False):
+        pdf = tmp_path / f"{stamped}.pdf"
+        pdf.write_bytes(_pdf(stamped))
+        subprocess.run(["pdftoppm", "-r", "150", "-gray", str(pdf), str(pdf)], check=True)
+        pages.append(next(tmp_path.glob(f"{stamped}.pdf*.pgm")).read_bytes())
+    assert pages[0] == pages[1]
 
 
 def test_stamped_tick_labels_are_spelled_as_the_pdf_spells_text():

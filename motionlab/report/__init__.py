@@ -26,6 +26,7 @@ import matplotlib
 from motionlab.atomic import atomic_path, check_output
 from motionlab.errors import InputError
 from motionlab.protocol import Protocol
+from motionlab.report import widths
 from motionlab.report.csv import write_csvs
 from motionlab.report.model import SessionView, load_view
 from motionlab.report.pages_gait import gait_report_pages
@@ -138,6 +139,7 @@ def _write_report(
                 csv_paths += write_csvs(view, sub, force)
         with atomic_path(pdf_path, force) as tmp_pdf, atomic_path(text_path, force) as tmp_txt:
             pages = doc.save(tmp_pdf, tmp_txt)
+    widths.save()  # the words measured for the first time, for the next process
     return ReportOutput(pdf_path, text_path, csv_paths, pages, list(doc.sections))
 
 

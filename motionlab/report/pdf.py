@@ -15,7 +15,7 @@ from __future__ import annotations
 import logging
 import unicodedata
 from collections.abc import Sequence
-from contextlib import contextmanager
+from contextlib import contextmanager, nullcontext
 from functools import lru_cache
 from itertools import combinations
 from pathlib import Path
@@ -26,13 +26,14 @@ from matplotlib import colors as mcolors
 from matplotlib.artist import allow_rasterization
 from matplotlib.axes import Axes
 from matplotlib.axis import Axis, XAxis, YAxis
-from matplotlib.backends.backend_agg import FigureCanvasAgg, RendererAgg
+from matplotlib.backends.backend_agg import FigureCanvasAgg
 from matplotlib.backends.backend_pdf import PdfPages
 from matplotlib.figure import Figure
-from matplotlib.font_manager import FontProperties
 from matplotlib.lines import Line2D
 from matplotlib.text import Text
 from matplotlib.ticker import NullLocator
+
+from motionlab.report.widths import text_width
 
 PAGE_W, PAGE_H = 8.27, 11.69
 MARGIN = 0.6
@@ -101,6 +102,23 @@ SPELLED = {
 }
 
 
+def report_rc():
+    """A context with the report's settings (:data:`RC`): none when they are set already, as
+    :func:`motionlab.report.write_report` sets them for the whole report (``rc_context``
+    copies all of matplotlib's settings, about 1 ms, for each page and axes)."""
+    rc = matplotlib.rcParams
+    if all(rc[k] == v for k, v in _rc_as_set().items()):
+        return nullcontext()
+    return matplotlib.rc_context(RC)
+
+
+@lru_cache(maxsize=1)
+def _rc_as_set() -> dict:
+    """:data:`RC` as matplotlib holds it once set (``"sans-serif"`` is ``["sans-serif"]``)."""
+    with matplotlib.rc_context(RC):
+        return {k: matplotlib.rcParams[k] for k in RC}
+
+
 def pdf_text(text: str) -> str:
     """``text`` in the characters the PDF's standard fonts have (Windows-1252): the ones
     they lack spelled as :data:`SPELLED` says, else by their compatibility decomposition, else
@@ -122,17 +140,6 @@ def _spell(c: str) -> str:
         return SPELLED[c]
     plain = unicodedata.normalize("NFKD", c).encode("cp1252", "ignore").decode("cp1252")
     return plain or "?"
-
-
-_MEASURE = RendererAgg(int(PAGE_W * 72), int(PAGE_H * 72), 72)
-
-
-@lru_cache(maxsize=20000)
-def text_width(text: str, size: float, weight: str = "normal") -> float:
-    """Width (in) of one line of ``text`` at ``size`` pt (cached: measuring is slow)."""
-    prop = FontProperties(size=size, weight=weight)
-    w, _, _ = _MEASURE.get_text_width_height_descent(text, prop, ismath=False)
-    return w / 72.0
 
 
 class PlainText(Text):
@@ -211,8 +218,10 @@ class _StampedTicks:
     position the first time it draws, about 1 ms each: a report page of six axes makes ~100.
     Every tick of an axis has its first tick's properties (``tick_params`` and
     ``set_ticklabels`` set all of them, new ones copy the first), so drawing the first one at
-    each position and with each label, in matplotlib's order, writes the same bytes
-    (``tests/test_report_ticks.py``). The positions, labels and the filter to the view are
+    each position and with each label draws the same page: its grid line and tick marks at
+    all positions as one line each (:func:`_draw_lines_at`), then its labels one by one, in
+    matplotlib's order (the same text in the PDF, the same pixels:
+    ``tests/test_report_ticks.py``). The positions, labels and the filter to the view are
     matplotlib's (``Axis._update_ticks``); tick labels are spelled as the PDF spells text
     (:func:`pdf_text`). :meth:`get_children` leaves the ticks out, so finding a page's texts
     makes none. Only :meth:`draw` stamps: anything else that asks for the ticks (a tight
@@ -255,16 +264,17 @@ class _StampedTicks:
             return
         renderer.open_group(Axis.__module__, gid=self.get_gid())
         boxes1, boxes2 = [], []
-        stamps = self._stamps()
+        stamps = [s for s in self._stamps() if s[0].get_visible()]
         self._drawn = list(dict.fromkeys(tick for tick, _, _ in stamps))
+        for tick in self._drawn:
+            _draw_lines_at(tick, [loc for t, loc, _ in stamps if t is tick], renderer)
         for tick, loc, label in stamps:
             tick.update_position(loc)
-            tick.label1.set_text(label)
-            tick.label2.set_text(label)
             for text, boxes in ((tick.label1, boxes1), (tick.label2, boxes2)):
+                text.set_text(label)
                 if text.get_visible() and text.get_in_layout():
                     boxes.append(text.get_window_extent(renderer))
-            tick.draw(renderer)
+                text.draw(renderer)
         self._boxes = (boxes1, boxes2)
         self._update_label_position(renderer)
         self.label.draw(renderer)
@@ -285,6 +295,31 @@ class _StampedTicks:
         # the axis label's place: below (beside) this draw's tick labels
         boxes = getattr(self, "_boxes", None)
         return boxes if boxes is not None else super()._get_tick_boxes_siblings(renderer)
+
+
+def _draw_lines_at(tick, locs: list[float], renderer) -> None:
+    """Draw ``tick``'s grid line and tick marks at every position of ``locs``, each as one
+    line: the marks as one line of markers, the grid lines as one line broken by gaps (NaN).
+
+    The same marks and grid lines as a tick drawn at each position (the tick's own lines,
+    moved with :meth:`Tick.update_position <matplotlib.axis.Tick.update_position>`), in one
+    draw each instead of one per position and line."""
+    lines = [ln for ln in (tick.gridline, tick.tick1line, tick.tick2line) if ln.get_visible()]
+    if not locs or not lines:
+        return
+    data = [([], []) for _ in lines]
+    for loc in locs:
+        tick.update_position(loc)
+        for line, (xs, ys) in zip(lines, data, strict=True):
+            x, y = np.broadcast_arrays(line.get_xdata(), line.get_ydata())  # as Line2D takes them
+            xs.extend(x)
+            ys.extend(y)
+            if line.get_linestyle() not in ("None", " ", ""):  # a gap to the next position
+                xs.append(np.nan)
+                ys.append(np.nan)
+    for line, (xs, ys) in zip(lines, data, strict=True):
+        line.set_data(xs, ys)
+        line.draw(renderer)
 
 
 class _StampedXAxis(_StampedTicks, XAxis):
@@ -497,7 +532,7 @@ class Document:
 
     def _new_page(self, fig: Figure | None = None) -> None:
         if fig is None:
-            with matplotlib.rc_context(RC):
+            with report_rc():
                 fig = Figure(figsize=(PAGE_W, PAGE_H))
         else:
             fig.set_size_inches(PAGE_W, PAGE_H)
@@ -691,7 +726,7 @@ class Document:
                 x = MARGIN + left + j * (cell_w + wspace)
                 y_top = self.y + top + i * (cell_h + hspace)
                 rect = [x / PAGE_W, 1 - (y_top + cell_h) / PAGE_H, cell_w / PAGE_W, cell_h / PAGE_H]
-                with matplotlib.rc_context(RC):
+                with report_rc():
                     row.append(self.fig.add_axes(rect))
             grid.append(row)
         self.y += height
