@@ -265,16 +265,16 @@ def window_lags(
     rows = []
     for p, ((fx, vx, a0, a1), (fy, vy, _, _)) in enumerate(zip(imu, ref, strict=True)):
         starts = a0 + np.arange(0.0, max(a1 - a0 - window_s, 0.0) + 1e-9, step_s)
+        # every window's samples at once: the splines and masks are evaluated point by point
+        windows = starts[:, None] + np.arange(w) / rate
+        shifted = model.to_reference(starts[:, None] + shifts)
+        seen = vx(windows).all(axis=1) & vy(shifted).all(axis=1)
         dfy = None  # the reference's derivative spline, made once per pair when first needed
-        for s in starts:  # one correlation per window, not per sample
-            tx = s + np.arange(w) / rate
-            ty = model.to_reference(s + shifts)
-            if not (vx(tx).all() and vy(ty).all()):
+        for s, tx, x, y in zip(starts[seen], windows[seen], fx(windows[seen]), fy(shifted[seen]),
+                               strict=True):  # fmt: skip
+            if x.std() < MIN_MOTION_RAD_S:  # one correlation per window, not per sample
                 continue
-            x = fx(tx)
-            if x.std() < MIN_MOTION_RAD_S:
-                continue
-            c = _ncc(x, fy(ty))
+            c = _ncc(x, y)
             k = int(np.argmax(c))
             if c[k] < MIN_CORRELATION or k == 0 or k == len(c) - 1:
                 continue
