@@ -7,7 +7,8 @@ residuals, tens of evaluations each) that wrapper took as long as the residuals 
 :func:`lm` calls ``scipy.optimize.leastsq`` with the arguments ``least_squares`` gives ``lmder``
 (its tolerances 1e-8, ``factor`` 100, ``diag`` = 1 / ``x_scale``, none for scipy's default
 ``x_scale="jac"``, at most ``max_nfev`` evaluations, 100 × the parameters by default), so the
-iterates are the same numbers (``tests/test_minpack.py``).
+iterates are the same numbers (``tests/test_minpack.py``); the residuals and the Jacobian
+at ``x0``, which ``leastsq`` asks for twice, are computed once.
 """
 
 from __future__ import annotations
@@ -48,8 +49,23 @@ def lm(
     if x_scale is not None:
         diag = 1 / np.resize(np.asarray(x_scale, dtype=float), x0.shape)
     x, _, info, _, status = leastsq(
-        fun, x0, Dfun=jac, full_output=True, ftol=TOLERANCE, xtol=TOLERANCE, gtol=TOLERANCE,
-        maxfev=max_nfev or 100 * x0.size, diag=diag,
+        _once_at(fun, x0), x0, Dfun=_once_at(jac, x0), full_output=True, ftol=TOLERANCE,
+        xtol=TOLERANCE, gtol=TOLERANCE, maxfev=max_nfev or 100 * x0.size, diag=diag,
     )  # fmt: skip
     f = info["fvec"]
     return LMResult(x, f, 0.5 * float(np.dot(f, f)), int(info["nfev"]), int(status))
+
+
+def _once_at(f: Callable[[np.ndarray], np.ndarray], x0: np.ndarray):
+    """``f`` with its value at ``x0`` computed once: ``leastsq`` calls ``f`` and the Jacobian
+    there to check their shapes, and MINPACK then starts from the same point."""
+    start: list[np.ndarray] = []
+
+    def at(x: np.ndarray) -> np.ndarray:
+        if not np.array_equal(x, x0):
+            return f(x)
+        if not start:
+            start.append(f(x))
+        return start[0]
+
+    return at

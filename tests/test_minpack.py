@@ -38,3 +38,20 @@ def test_same_numbers_as_least_squares():
         assert got.cost == ref.cost
         assert got.nfev == ref.nfev
     assert abs(lm(fun, x0, jac).x[2] - 6.0) < 0.05  # and it fits
+
+
+def test_no_more_evaluations_than_least_squares():
+    """leastsq checks the shapes at x0 before MINPACK starts there: computed once."""
+    fun, jac, x0 = _problem()
+    counts = {}
+
+    def counted(f, name):
+        def g(x):
+            counts[name] = counts.get(name, 0) + 1
+            return f(x)
+
+        return g
+
+    least_squares(counted(fun, "ls f"), x0, jac=counted(jac, "ls J"), method="lm")
+    lm(counted(fun, "lm f"), x0, counted(jac, "lm J"))
+    assert counts["lm f"] <= counts["ls f"] and counts["lm J"] <= counts["ls J"], counts
