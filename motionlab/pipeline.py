@@ -419,6 +419,17 @@ def analyse(session: Session, options: PipelineOptions, stages: _Stages | None =
         print(f"warning: {line}", file=sys.stderr, flush=True)
 
 
+#: the modules :func:`run_pipeline` imports when it is called (the exports, the metrics table,
+#: the report with pandas and matplotlib), for a caller that loads them first
+#: (:func:`motionlab.cli.frozen_imports`)
+RUN_IMPORTS = (
+    "motionlab.export",
+    "motionlab.kinematics.metrics",
+    "motionlab.report",
+    "motionlab.report.console",
+)
+
+
 def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> PipelineResult:
     """Ingest → (clock sync) → fuse (with sensor calibrations) → calibrate → angles → metrics →
     (validate) → report.

@@ -97,10 +97,10 @@ def test_cli_sets_one_blas_thread_before_numpy_unless_the_user_did():
         assert out.stdout.strip() == expected
 
 
-def test_the_commands_own_process_freezes_what_its_imports_made_and_a_caller_keeps_its_collector():
+def test_the_commands_own_process_ends_frozen_and_a_caller_keeps_its_collector():
     """``entry`` (the executable, ``python -m motionlab``) freezes the garbage collector's
-    objects once the command's module is imported and at the end; ``main`` called in-process (a
-    test, a notebook) leaves the caller's collector alone."""
+    objects when the command ends (the shutdown walks none of them); ``main`` called in-process
+    (a test, a notebook) leaves the caller's collector as it was."""
     import gc
 
     from click.testing import CliRunner

@@ -30,6 +30,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "motionlab.rotations",
         "motionlab.lineage",
         "motionlab.plain",
+        "motionlab.minpack",
         "motionlab.kinematics.joint_types",
         "motionlab.kinematics.segment_types",
         "motionlab.kinematics.joint_angles",

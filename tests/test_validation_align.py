@@ -81,3 +81,15 @@ def test_rotation_about_one_fixed_axis_is_refused_or_flagged():
     hinge = rot.from_axis_angle([0, 0, 1.0], np.sin(np.arange(500) / 20.0))
     al = align({"imu": (hinge, hinge)}, "full", RATE)
     assert al.conditioning["imu"] < 0.01  # X about the hinge axis is not determined
+
+
+def test_sparsity_pattern():
+    """Y's three columns every row; a heading and three X columns only their sensor's rows."""
+    from motionlab.validation.align import _sparsity
+
+    got = _sparsity(["a", "b", "c"], ["b", "c"], {"a": 2, "b": 1, "c": 3}).toarray()
+    want = np.zeros((18, 14), dtype=int)  # rows: a 0-5, b 6-8, c 9-17
+    want[:, :3] = 1  # Y
+    want[6:9, 3] = want[9:, 4] = 1  # the headings of b and c
+    want[:6, 5:8] = want[6:9, 8:11] = want[9:, 11:14] = 1  # X of a, b, c
+    assert np.array_equal(got, want)

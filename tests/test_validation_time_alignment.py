@@ -7,7 +7,13 @@ from scipy.signal import butter, sosfiltfilt
 from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.validation.optical import resample_quat
-from motionlab.validation.time_alignment import ClockModel, _parabola, ransac_line, synchronise
+from motionlab.validation.time_alignment import (
+    ClockModel,
+    _parabola,
+    ransac_line,
+    speed_signal,
+    synchronise,
+)
 
 OFFSET, DRIFT = 0.137, 100e-6
 
@@ -92,3 +98,16 @@ def test_no_movement_cannot_be_synchronised():
     q = np.tile(rot.IDENTITY, (len(t), 1))
     with pytest.raises(InputError, match="clock=False"):
         synchronise([still], [(t, q)])
+
+
+def test_windows_evaluated_at_once_as_one_by_one():
+    """window_lags evaluates every window's spline values and validity in one call: to the bit
+    what each window's own call gives (including windows reaching past the recording)."""
+    (t, gyr), _ = _recording(1, 0.0, duration=30.0)
+    spline, valid = speed_signal(t, gyr)
+    starts = np.arange(-2.0, 29.0, 5.0)
+    windows = starts[:, None] + np.arange(300) / 100.0
+    at_once, masks = spline(windows), valid(windows)
+    for k, s in enumerate(starts):
+        one = s + np.arange(300) / 100.0
+        assert np.array_equal(at_once[k], spline(one)) and np.array_equal(masks[k], valid(one))

@@ -12,11 +12,13 @@ matplotlib; ``motionlab --help`` lists the commands with their one-line help fro
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import os
 import sys
 import traceback
 import warnings
+from collections.abc import Iterator
 from importlib import import_module
 
 import click
@@ -28,8 +30,6 @@ from motionlab.errors import InputError
 EXIT_BAD_INPUT = 2
 EXIT_BUG = 1
 
-#: whether this process is the ``motionlab`` command's own (:func:`entry`), not a caller's
-_OWN_PROCESS = False
 
 #: One BLAS/OpenMP thread: a threaded BLAS splits a product's sums by the machine's core count,
 #: so the same session gave numbers differing in the seventh digit on two machines, and between
@@ -73,6 +73,40 @@ COMMANDS = {
 }
 
 
+@contextlib.contextmanager
+def frozen_imports(*modules: str) -> Iterator[None]:
+    """Import ``modules`` with Python's cyclic garbage collector paused, then keep everything
+    alive at that point out of its collections (``gc.freeze``) for the block.
+
+    A command's libraries (numpy, scipy, numba, pandas, matplotlib) leave some 340 000 objects
+    that live as long as the process; the collector's full passes walked them all again and
+    again, during the imports (0.2-0.3 s of a ``run``'s CPU) and whenever a stage's allocations
+    set one off (0.15 s each). Frozen, they are left alone; after the block they are unfrozen
+    (``gc.unfreeze``), so that a process running several commands (the tests, through click's
+    runner) frees their garbage as before. docs/performance.md, sixth round.
+    """
+    with paused_gc():
+        for name in modules:
+            import_module(name)
+        gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
+
+
+@contextlib.contextmanager
+def paused_gc() -> Iterator[None]:
+    """Python's cyclic garbage collector off in the block (on after it if it was before)."""
+    enabled = gc.isenabled()
+    gc.disable()
+    try:
+        yield
+    finally:
+        if enabled:
+            gc.enable()
+
+
 class MotionlabGroup(click.Group):
     """Click group that imports a command's module when the command is used, and turns
     exceptions into one clear line and an exit code."""
@@ -83,10 +117,8 @@ class MotionlabGroup(click.Group):
     def get_command(self, ctx: click.Context, cmd_name: str) -> click.Command | None:
         if cmd_name not in COMMANDS:
             return None
-        command = import_module(f"motionlab.cli.{cmd_name}").command
-        if _OWN_PROCESS:  # what the imports made lives as long as the process (see entry)
-            gc.freeze()
-        return command
+        with paused_gc():  # its module imports the library (frozen_imports)
+            return import_module(f"motionlab.cli.{cmd_name}").command
 
     def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
         """The commands and their one-line help, from :data:`COMMANDS` (no module imported)."""
@@ -143,18 +175,15 @@ def main(ctx: click.Context, debug: bool) -> None:
 
 def entry() -> None:
     """The ``motionlab`` executable and ``python -m motionlab``: :func:`main` in a process of its
-    own, with the garbage collector told what lives until the process ends.
+    own, whose shutdown skips the garbage collector's last passes.
 
-    The objects the command's imports create (about 250 000: numpy, scipy, numba, the package)
-    are never garbage, yet every full collection walks them; and the interpreter's shutdown
-    collects once more over everything the run left. Frozen (:func:`gc.freeze`) after the
-    command's module is imported and again at the end, they cost the knee demo's `run` 0.6 s of
-    collections and 0.9 s of shutdown less (docs/performance.md). Only in the command's own
-    process: a caller of :func:`main` (a test, a notebook) keeps its collector as it is.
+    The interpreter's shutdown collects over every object the command and its imports left
+    (some 340 000 after a ``run``): about 1 s of wall time after the knee demo's last line. At
+    the command's end everything is frozen (:func:`gc.freeze`): nothing left there is garbage
+    anyone waits for. :func:`main` called in-process (a test, a notebook) keeps its collector
+    (docs/performance.md, "The garbage collector in the command's own process").
     """
-    global _OWN_PROCESS
-    _OWN_PROCESS = True
     try:
         main()
     finally:
-        gc.freeze()  # shutdown: nothing left to collect that matters to anyone
+        gc.freeze()

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import click
 
+from motionlab.cli import frozen_imports
 from motionlab.cli.paths import FOLDER
 
 DEMO_DIR = Path(__file__).resolve().parent.parent / "data" / "demo"
@@ -37,7 +38,7 @@ def command(outdir: str, only: str | None, force: bool, quiet: bool) -> None:
       motionlab demo -o demo
       motionlab demo --only knee -o demo --force
     """
-    from motionlab.pipeline import PipelineOptions, run_pipeline
+    from motionlab.pipeline import RUN_IMPORTS, PipelineOptions, run_pipeline
 
     t0 = time.perf_counter()
     reports = []
@@ -47,7 +48,8 @@ def command(outdir: str, only: str | None, force: bool, quiet: bool) -> None:
         if not quiet:
             click.echo(f"== example '{name}': {DEMO_DIR / file}", err=True)
         options = PipelineOptions(protocol, force=force, progress=not quiet)
-        result = run_pipeline([DEMO_DIR / file], Path(outdir) / name, options)
+        with frozen_imports(*RUN_IMPORTS):
+            result = run_pipeline([DEMO_DIR / file], Path(outdir) / name, options)
         click.echo(result.summary)
         click.echo("")
         reports.append(result.report_path)

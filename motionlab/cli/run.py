@@ -8,9 +8,10 @@ from typing import Any
 import click
 
 from motionlab.atomic import atomic_path, check_output
+from motionlab.cli import frozen_imports
 from motionlab.cli.paths import FOLDER, INPUT_FILE
 from motionlab.cli.run_options import run_click_options, run_values
-from motionlab.pipeline import RESULTS_JSON, PipelineOptions, run_pipeline
+from motionlab.pipeline import RESULTS_JSON, RUN_IMPORTS, PipelineOptions, run_pipeline
 
 
 @click.command("run")
@@ -53,7 +54,8 @@ def command(files: tuple[str, ...], outdir: str, json_path: str | None, **params
     options = PipelineOptions(**run_values(params))
     if json_path is not None:
         check_output(json_path, options.force, inputs=list(files))
-    result = run_pipeline([Path(f) for f in files], Path(outdir), options)
+    with frozen_imports(*RUN_IMPORTS):
+        result = run_pipeline([Path(f) for f in files], Path(outdir), options)
     if json_path is not None:  # the very bytes of OUTDIR/results.json
         with atomic_path(json_path, force=options.force) as tmp:
             tmp.write_bytes((Path(outdir) / RESULTS_JSON).read_bytes())

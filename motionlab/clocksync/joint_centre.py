@@ -65,6 +65,7 @@ from motionlab.clocksync.common import (
     line_with_prior,
     on_grid,
 )
+from motionlab.minpack import lm
 from motionlab.qc import measurable
 from motionlab.results import ClockFit
 from motionlab.session import SensorStream
@@ -299,23 +300,21 @@ class Pair:
     def body(self, c0: float) -> np.ndarray:
         """r₁, r₂ (m), b₁, b₂ (m/s²) for the offset ``c0`` (s) and no drift."""
         fixed = np.array([c0, 0.0])
-        sol = least_squares(
+        sol = lm(
             lambda q: self._with_prior(np.r_[q, fixed]),
             np.zeros(BODY),
-            jac=lambda q: self._with_prior(np.r_[q, fixed], True, BODY),
+            lambda q: self._with_prior(np.r_[q, fixed], True, BODY),
             x_scale=0.1,
-            method="lm",
         )
         return sol.x
 
     def solve(self, p0: np.ndarray) -> np.ndarray:
         """All parameters, from ``p0``."""
-        return least_squares(
+        return lm(
             self._with_prior,
             p0,
-            jac=lambda p: self._with_prior(p, jacobian=True),
+            lambda p: self._with_prior(p, jacobian=True),
             x_scale=np.r_[np.full(BODY, 0.1), 0.01, 1e-4],
-            method="lm",
         ).x
 
     def blocks(self) -> list[np.ndarray]:

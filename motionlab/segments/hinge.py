@@ -19,6 +19,7 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from motionlab.errors import InputError
+from motionlab.minpack import lm
 
 ACTIVE_FRACTION = 0.1
 MAX_SAMPLES = 2000
@@ -130,7 +131,7 @@ def hinge_axes(
     for s in starts:
         x0 = np.array([*_angles(s[:3]), *_angles(s[3:])])
         if loss == "linear":
-            fit = least_squares(residual, x0, jac=jacobian, method="lm", max_nfev=MAX_EVALUATIONS)
+            fit = lm(residual, x0, jacobian, max_nfev=MAX_EVALUATIONS)  # least_squares' "lm"
         else:
             fit = least_squares(
                 residual, x0, jac=jacobian, method="trf", loss=loss, f_scale=f_scale,

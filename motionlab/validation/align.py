@@ -28,7 +28,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.sparse import lil_matrix
+from scipy.sparse import csr_matrix
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
@@ -187,20 +187,18 @@ def align(
     return out
 
 
-def _sparsity(labels: list[str], heads: list[str], n: dict[str, int]) -> lil_matrix:
+def _sparsity(labels: list[str], heads: list[str], n: dict[str, int]) -> csr_matrix:
     """Which parameters move which residuals: Y all, a heading and an X only their sensor's."""
-    rows = 3 * sum(n.values())
-    out = lil_matrix((rows, 3 + len(heads) + 3 * len(labels)), dtype=int)
-    out[:, :3] = 1
-    start = 0
+    rows, cols, start = [], [], 0
     for i, k in enumerate(labels):
-        stop = start + 3 * n[k]
-        if k in heads:
-            out[start:stop, 3 + heads.index(k)] = 1
-        col = 3 + len(heads) + 3 * i
-        out[start:stop, col : col + 3] = 1
-        start = stop
-    return out
+        own = [0, 1, 2, *([3 + heads.index(k)] if k in heads else [])]
+        own += range(3 + len(heads) + 3 * i, 6 + len(heads) + 3 * i)
+        rows.append(np.repeat(np.arange(start, start + 3 * n[k]), len(own)))
+        cols.append(np.tile(own, 3 * n[k]))
+        start += 3 * n[k]
+    shape = (start, 3 + len(heads) + 3 * len(labels))
+    rows, cols = np.concatenate(rows), np.concatenate(cols)
+    return csr_matrix((np.ones(len(rows), dtype=int), (rows, cols)), shape=shape)
 
 
 def _residuals(al: Alignment, pairs: dict[str, tuple[np.ndarray, np.ndarray]]) -> dict:
