@@ -30,7 +30,7 @@ import numpy as np
 from motionlab import timebase
 from motionlab.errors import InputError
 from motionlab.io import read_any
-from motionlab.qc import IMPLAUSIBLE, check_stream, mark_identical_streams
+from motionlab.qc import IMPLAUSIBLE, check_stream, damage_checked, mark_identical_streams
 from motionlab.sensor_map import SensorMap, load_sensor_map
 from motionlab.session import MarkerSet, SensorStream, Session
 
@@ -99,8 +99,7 @@ def _check_channels(stream: SensorStream, path: Path) -> None:
             where,
             "the file holds no data rows; export it again",
         )
-    for ch in stream.channels:
-        a = getattr(stream, ch)
+    for ch, a in damage_checked(stream).items():
         if len(a) != stream.n_samples:
             raise InputError(f"channel {ch} has {len(a)} samples, time has {stream.n_samples}",
                              path, where, "export the file again")  # fmt: skip

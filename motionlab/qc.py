@@ -56,8 +56,18 @@ ACC_REST_RANGE = (7.8, 11.8)  # m/s²
 JITTER_LIMIT = 0.1  # relative to the nominal interval
 REST_GYR = 0.2  # rad/s: below this the sensor is taken to be at rest
 HELD_SHARE = 0.2  # share of rows repeating the previous one above which samples are "held"
-#: magnitudes no sensor reports (per axis): beyond them a value is damage, not motion
-IMPLAUSIBLE = {"acc": 1e4, "gyr": 1e3, "mag": 1e5, "quat": 10.0}  # m/s², rad/s, µT, 1
+#: magnitudes no sensor reports (per axis; m/s², rad/s, µT, 1): beyond them a value is damage,
+#: not motion; the vendor's free acceleration (``extra["free_acc"]``, gravity removed) like the
+#: accelerometer's
+IMPLAUSIBLE = {"acc": 1e4, "gyr": 1e3, "mag": 1e5, "quat": 10.0, "free_acc": 1e4}
+
+
+def damage_checked(stream: SensorStream) -> dict[str, np.ndarray]:
+    """The arrays checked for values no sensor gives: the sensor channels present and the
+    vendor's extras with a known range (:data:`IMPLAUSIBLE`), by name."""
+    out = {ch: getattr(stream, ch) for ch in stream.channels}
+    out.update({k: v for k, v in stream.extra.items() if k in IMPLAUSIBLE and v is not None})
+    return out
 
 
 def measurable(samples: np.ndarray, channel: str) -> np.ndarray:
@@ -187,9 +197,8 @@ def check_stream(stream: SensorStream, gap_max: float) -> dict[str, Any]:
     qc["nan_spans"] = spans
     flags["nan_spans"] = bool(spans)
     qc["non_finite_share"], qc["implausible_share"] = {}, {}
-    for ch in SENSOR_CHANNELS:
-        a = getattr(stream, ch)
-        if a is None or not len(a):
+    for ch, a in damage_checked(stream).items():
+        if not len(a):
             continue
         a = np.asarray(a, dtype=float).reshape(len(a), -1)
         finite = np.isfinite(a)

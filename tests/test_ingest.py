@@ -350,6 +350,27 @@ def test_axis_without_usable_numbers_refused(fake_files, monkeypatch, tmp_path):
         ingest([p])
 
 
+def test_free_acceleration_beyond_any_sensor_is_refused_or_doubted(fake_files, monkeypatch):
+    """The vendor's free acceleration (``extra["free_acc"]``, DOT and Xsens exports) is checked
+    like the accelerometer: an axis of 1e308 only is refused, one 1e308 sample is a doubt."""
+    t = np.arange(200) / 100
+    quat = np.tile([1.0, 0.0, 0.0, 0.0], (200, 1))
+    for row, refused in [(slice(None), True), (50, False)]:
+        free = np.zeros((200, 3))
+        free[row, 0] = 1e308
+        s = stream(t, "x", quat=quat)
+        s.extra["free_acc"] = free
+        rec = Recording(sensors=[s])
+        monkeypatch.setattr(ingest_module, "read_any", lambda p, options=None, rec=rec: rec)
+        if refused:
+            with pytest.raises(InputError, match=r"channel free_acc holds no usable numbers in "):
+                ingest([fake_files[0]])
+            continue
+        got = next(iter(ingest([fake_files[0]]).sensors.values()))
+        assert got.qc["implausible_share"] == {"free_acc": 1 / 200}
+        assert "in free_acc 0.5 % of the rows: damaged?" in qc.doubts(got)[0]
+
+
 def write_xio(path, t, gyr_dps, acc_g):
     head = "Time (s)," + ",".join(f"Gyroscope {a} (deg/s)" for a in "XYZ") + ","
     head += ",".join(f"Accelerometer {a} (g)" for a in "XYZ")
