@@ -364,3 +364,28 @@ def test_write_report_pauses_the_cycle_collector_and_frees_its_pages(tmp_path):
     with pytest.raises(InputError):
         write_report([], tmp_path / "report.pdf", force=True)
     assert gc.isenabled()
+
+
+def test_the_session_date_is_the_recordings_never_the_day_it_was_read_in(monkeypatch):
+    """Without ``session.date`` in the sensor map the date is "not recorded": the ingest's
+    provenance time (the day it was read in) was printed as "Session date" and ordered the
+    visits; dated sessions come oldest first, undated ones after them."""
+    import motionlab.report as report_pkg
+
+    def session(date: str | None) -> Session:
+        s = Session()
+        s.provenance.append({"step": "ingest", "time": "2026-11-29T04:00:00"})
+        if date:
+            s.metadata["session"] = {"date": date}
+        return s
+
+    def view(s, protocol=None, path=None) -> SessionView:
+        return SessionView(s, load_protocol("knee"), path, {}, _view((0, 60), (0, 60)).metrics)
+
+    assert view(session(None)).date == "not recorded"
+    assert view(session(None)).date_label == "date not recorded"
+    assert view(session("2024-05-02")).date == "2024-05-02"
+    assert view(session("2024-05-02")).visit == "2024-05-02"
+    monkeypatch.setattr(report_pkg, "load_view", view)
+    views = report_pkg.load_views([session("2025-01-10"), session(None), session("2024-03-01")])
+    assert [v.date for v in views] == ["2024-03-01", "2025-01-10", "not recorded"]

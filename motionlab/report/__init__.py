@@ -150,7 +150,7 @@ def build_document(views: list[SessionView]) -> Document:
     doc = Document(f"motionlab report · {first.protocol.name}", subtitle)
     for view in views:
         doc.title = f"motionlab report · {view.protocol.name}"
-        doc.subtitle = f"subject {view.subject} · {view.date}"
+        doc.subtitle = f"subject {view.subject} · {view.date_label}"
         _session_pages(doc, view)
     by_protocol: dict[str, list[SessionView]] = {}
     for view in views:

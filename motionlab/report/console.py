@@ -60,7 +60,7 @@ def run_summary(
     flagged = sorted({f for r in q for f in r.flags})
     rate = q[0].rate_hz if q else float("nan")
     lines = [
-        f"motionlab run: {proto.name} ({proto.title}) - subject {view.subject}, {view.date}",
+        f"motionlab run: {proto.name} ({proto.title}) - subject {view.subject}, {view.date_label}",
         f"  data: {len(ses.sensors)} sensors at {rate:.0f} Hz, {view.angles['time_s'][-1]:.0f} s;"
         f" quality flags: {', '.join(flagged) or 'none'}",
     ]

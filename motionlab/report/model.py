@@ -194,12 +194,18 @@ class SessionView:
 
     @property
     def date(self) -> str:
-        """Session date: the sensor map's ``session.date``, else the first provenance time."""
+        """Session date: the sensor map's ``session.date``, else ``not recorded``.
+
+        Not the day the recording was read in (the provenance's first time): that printed a
+        recording made weeks before as "Session date" today, and ordered a subject's visits by
+        when they were analysed."""
         ses = self.session.metadata.get("session") or {}
-        if ses.get("date"):
-            return str(ses["date"])
-        times = [p.get("time", "") for p in self.session.provenance if p.get("time")]
-        return times[0][:10] if times else "not recorded"
+        return str(ses["date"]) if ses.get("date") else "not recorded"
+
+    @property
+    def date_label(self) -> str:
+        """The date for a heading: :attr:`date`, or ``date not recorded``."""
+        return self.date if self.date != "not recorded" else "date not recorded"
 
     @property
     def visit(self) -> str:
