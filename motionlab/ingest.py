@@ -364,6 +364,9 @@ def ingest(
             "clocks_unrelated": max(starts) - origin > UNRELATED_CLOCKS_S,
         }
     )
+    recorded = sorted({s.attrs["recorded"] for s, _ in repaired if s.attrs.get("recorded")})
+    if recorded:  # the day the files say they were recorded (the earliest, if they differ)
+        session.metadata["recorded"] = recorded[0]
     for stream, report in repaired:
         stream = dataclasses.replace(
             stream,

@@ -121,3 +121,18 @@ def test_rate_quantities_export_is_read_in_si_units():
     np.testing.assert_allclose(s.time - s.time[0], (raw[:, 1] - raw[0, 1]) * 1e-6, atol=1e-9)
     # seated at the start: gravity along the thigh sensor's z, about 1 g
     assert 9.5 < np.linalg.norm(s.acc[:20].mean(axis=0)) < 10.1
+
+
+def test_the_recording_date_comes_from_start_time_and_reaches_the_report():
+    """The DOT app's ``StartTime: ,2021-08-20_20:21:13_839 GMT+8`` is the day the recording was
+    made: the ingest keeps it (``metadata["recorded"]``) and the report's session date is it
+    when the sensor map gives none."""
+    from motionlab.ingest import ingest
+    from motionlab.io.clock import recording_date
+
+    assert _one(FIXTURE).attrs["recorded"] == "2021-08-20"
+    assert ingest([FIXTURE]).metadata["recorded"] == "2021-08-20"
+    assert recording_date("2025-02-13 11:44:29") == "2025-02-13"
+    assert recording_date("2024/12/9_17:31") == "2024-12-09"
+    for stamp in ("Unknown", "", "2021-13-40_10:00", "20210820", "12021-08-20", None, 7):
+        assert recording_date(stamp) is None, stamp

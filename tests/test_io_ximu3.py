@@ -114,3 +114,24 @@ def test_real_trunk_export_reads_every_device_with_the_vendor_vertical_agreeing(
         up = rot.rotate(s.quat, s.acc)
         up /= np.linalg.norm(up, axis=1)[:, None]
         assert np.median(up[:, 2]) > 0.98  # the vendor's earth z is up, as ENU's
+
+
+def test_the_recording_date_is_the_time_the_gui_set_in_command_json(tmp_path):
+    """``Command.json``'s ``{"time": "2025-02-13 11:28:59"}`` dates the recording: each device
+    keeps it, the session's ``metadata["recorded"]`` is the earliest, and the report prints it
+    as the session date when the sensor map gives none."""
+    from motionlab.protocol import load_protocol
+    from motionlab.report.model import SessionView
+    from motionlab.session import Session
+
+    imu = xe.write(tmp_path, xe.export_files())
+    assert [s.attrs["recorded"] for s in read_any(imu).sensors] == ["2025-02-13"] * 2
+    session = ingest([imu])
+    assert session.metadata["recorded"] == "2025-02-13"
+    view = SessionView(session, load_protocol("lumbar_seated"), None, {}, None)
+    assert view.date == "2025-02-13"
+    session.metadata["session"] = {"date": "2025-02-14"}  # the sensor map's word comes first
+    assert view.date == "2025-02-14"
+    assert SessionView(Session(), load_protocol("lumbar_seated"), None, {}, None).date == (
+        "not recorded"
+    )

@@ -1,4 +1,5 @@
-"""Device clocks: unwrapping tick counters that wrap around at ``2**bits``.
+"""Device clocks: unwrapping tick counters that wrap around at ``2**bits``, and the date a
+vendor's start-time stamp gives.
 
 Vendor files count time in integer ticks of a fixed-width register (Xsens ``SampleTimeFine``:
 10 kHz ticks in 32 bits, wrapping every 4.97 days; Xsens DOT ``SampleTimeFine``: µs in
@@ -11,11 +12,29 @@ from a wrap and is read as the shorter interval.
 
 from __future__ import annotations
 
+import datetime as _dt
+import re
 from pathlib import Path
 
 import numpy as np
 
 from motionlab.errors import InputError
+
+_DATE = re.compile(r"\s*(\d{4})[-_/.](\d{1,2})[-_/.](\d{1,2})(?!\d)")
+
+
+def recording_date(stamp: object) -> str | None:
+    """The calendar date (ISO ``YYYY-MM-DD``) a vendor's start-time stamp begins with: the
+    DOT app's ``StartTime`` (``2021-08-20_20:21:13_839 GMT+8``), the time the x-IMU3 GUI set
+    in ``Command.json`` (``2025-02-13 11:44:29``). The device's own calendar, no time zone
+    applied; ``None`` when the stamp holds no real date (``Unknown``, ``2021-13-40``)."""
+    m = _DATE.match(stamp) if isinstance(stamp, str) else None
+    if m is None:
+        return None
+    try:
+        return _dt.date(*(int(g) for g in m.groups())).isoformat()
+    except ValueError:
+        return None
 
 
 def unwrap_counter(counter: np.ndarray, bits: int) -> np.ndarray:

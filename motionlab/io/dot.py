@@ -37,7 +37,7 @@ from scipy.spatial.transform import Rotation
 from motionlab import rotations
 from motionlab.errors import InputError
 from motionlab.io import Recording
-from motionlab.io.clock import checked_counter_time, count_wraps
+from motionlab.io.clock import checked_counter_time, count_wraps, recording_date
 from motionlab.io.delimited import find_line, parse_table, read_lines, require_values, split_fields
 from motionlab.io.xsens import read_mag_au
 from motionlab.session import SensorStream
@@ -118,6 +118,9 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
         "header": info,
         "notes": table.notes,
     }
+    recorded = recording_date(info.get("StartTime"))
+    if recorded:
+        attrs["recorded"] = recorded
     m = re.match(r"\s*([0-9.]+)", info.get("OutputRate", ""))
     if m:
         attrs["nominal_rate_hz"] = float(m.group(1))

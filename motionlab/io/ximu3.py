@@ -50,6 +50,7 @@ import numpy as np
 from motionlab import rotations
 from motionlab.errors import InputError
 from motionlab.io import Recording
+from motionlab.io.clock import recording_date
 from motionlab.io.delimited import Table, parse_table, read_lines, require_values
 from motionlab.io.xsens import DEFAULT_MAG_FIELD_UT
 from motionlab.session import SensorStream
@@ -135,10 +136,13 @@ def input_files(path: str | Path) -> list[Path]:
     return [d / f for d in device_folders(folder) for f in READ_FILES if (d / f).is_file()]
 
 
-def _identity(folder: Path) -> tuple[str, str, list[str]]:
-    """``(device name, serial, notes)`` from ``Command.json``, else the folder's name."""
+def _identity(folder: Path) -> tuple[str, str, str | None, list[str]]:
+    """``(device name, serial, date, notes)`` from ``Command.json`` (the date from the time
+    the GUI set on the device, :func:`~motionlab.io.clock.recording_date`), else the folder's
+    name and no date."""
     m = _FOLDER.match(folder.name)
     name, serial = (m["name"], m["serial"]) if m else (folder.name, "")
+    date = None
     notes: list[str] = []
     cmd = folder / "Command.json"
     if cmd.is_file():
@@ -152,7 +156,9 @@ def _identity(folder: Path) -> tuple[str, str, list[str]]:
             if isinstance(ping, dict):
                 name = str(ping.get("deviceName") or name).strip() or name
                 serial = str(ping.get("serialNumber") or serial).strip()
-    return name, serial, notes
+            if isinstance(entry, dict) and date is None:
+                date = recording_date(entry.get("time"))
+    return name, serial, date, notes
 
 
 def _table(path: Path, first: str) -> Table:
@@ -213,7 +219,7 @@ def _read_device(folder: Path, options: dict[str, Any]) -> SensorStream:
             remedy="export the device again with the inertial data (x-IMU3 GUI: Inertial "
             "message enabled), or move the folder out of the trial",
         )
-    name, serial, notes = _identity(folder)
+    name, serial, recorded, notes = _identity(folder)
     table = _table(inertial, "Timestamp (us)")
     t = _time(table)
     require_values(table, list(_INERTIAL), "gyr/acc")
@@ -224,6 +230,8 @@ def _read_device(folder: Path, options: dict[str, Any]) -> SensorStream:
     stream.acc = to_si(table.block(list(_INERTIAL[3:])), "g", "acc")
     stream.source_units.update(time="us", gyr="deg/s", acc="g")
     attrs: dict[str, Any] = {"time_source": "Timestamp (us)", "device_folder": str(folder)}
+    if recorded:
+        attrs["recorded"] = recorded
     notes += [f"Inertial.csv: {n}" for n in table.notes]
     if len(t) < 2 or not np.isfinite(t).all():
         raise InputError(

@@ -194,13 +194,16 @@ class SessionView:
 
     @property
     def date(self) -> str:
-        """Session date: the sensor map's ``session.date``, else ``not recorded``.
+        """Session date: the sensor map's ``session.date``, else the day the files say they
+        were recorded (``metadata["recorded"]``: DOT ``StartTime``, x-IMU3 ``Command.json``),
+        else ``not recorded``.
 
-        Not the day the recording was read in (the provenance's first time): that printed a
+        Never the day the recording was read in (the provenance's first time): that printed a
         recording made weeks before as "Session date" today, and ordered a subject's visits by
         when they were analysed."""
         ses = self.session.metadata.get("session") or {}
-        return str(ses["date"]) if ses.get("date") else "not recorded"
+        date = ses.get("date") or self.session.metadata.get("recorded")
+        return str(date) if date else "not recorded"
 
     @property
     def date_label(self) -> str:
