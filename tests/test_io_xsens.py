@@ -294,3 +294,16 @@ def test_session_round_trip_keeps_reader_output(tmp_path):
     back = load_session(tmp_path / "s.h5").sensors[s.label]
     np.testing.assert_array_equal(back.quat, s.quat)
     assert back.attrs == s.attrs and back.source_units == s.source_units
+
+
+def test_a_legacy_start_time_dates_the_recording_and_unknown_does_not(tmp_path):
+    """MT Manager 4.x writes ``// Start Time: Unknown`` unless the time was set: a date there is
+    the day of the recording (``attrs["recorded"]``); ``Unknown`` gives none."""
+    src = XS / "MT_012005D6_031-000_00B421AF_excerpt.txt"
+    assert "recorded" not in read_any(src).sensors[0].attrs
+    text = src.read_text(encoding="utf-8").replace(
+        "// Start Time: Unknown", "// Start Time: 2018-03-14 10:12:11"
+    )
+    dated = tmp_path / src.name
+    dated.write_text(text, encoding="utf-8")
+    assert read_any(dated).sensors[0].attrs["recorded"] == "2018-03-14"

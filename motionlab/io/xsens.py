@@ -53,7 +53,7 @@ from scipy.spatial.transform import Rotation
 from motionlab import rotations
 from motionlab.errors import InputError
 from motionlab.io import Recording
-from motionlab.io.clock import checked_counter_time, count_wraps
+from motionlab.io.clock import checked_counter_time, count_wraps, recording_date
 from motionlab.io.delimited import (
     Table,
     first_content_line,
@@ -275,6 +275,8 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
         vendor="Xsens",
     )
     attrs.update(time_source=time_source, earth_frame=frame, header=info)
+    if recorded := recording_date(info.get("Start Time")):  # legacy exports: may be "Unknown"
+        attrs["recorded"] = recorded
     for channel, prefix, unit in (("acc", "Acc", "m/s^2"), ("gyr", "Gyr", "rad/s")):
         if table.has(f"{prefix}_X"):
             require_values(table, _xyz(prefix), channel)
