@@ -386,6 +386,29 @@ def test_the_session_date_is_the_recordings_never_the_day_it_was_read_in(monkeyp
     assert view(session(None)).date_label == "date not recorded"
     assert view(session("2024-05-02")).date == "2024-05-02"
     assert view(session("2024-05-02")).visit == "2024-05-02"
+    from pathlib import Path
+
+    assert view(session(None), path=Path("/data/P017/visit2/session.h5")).visit == "visit2"
     monkeypatch.setattr(report_pkg, "load_view", view)
     views = report_pkg.load_views([session("2025-01-10"), session(None), session("2024-03-01")])
     assert [v.date for v in views] == ["2024-03-01", "2025-01-10", "not recorded"]
+
+
+def test_two_visits_on_one_day_are_told_apart_on_the_progress_pages():
+    """Two sessions of one day (before and after a treatment) were both labelled with the date:
+    the labels now add the session file's folder, or their place in the list."""
+    from pathlib import Path
+
+    from motionlab.report.model import visit_labels
+
+    def view(date: str, path: str | None) -> SessionView:
+        s = Session()
+        s.metadata["session"] = {"date": date}
+        return SessionView(s, load_protocol("knee"), Path(path) if path else None, {}, None)
+
+    views = [view("2025-02-13", "/d/pre/session.h5"), view("2025-02-13", "/d/post/session.h5")]
+    assert visit_labels(views) == ["2025-02-13 (pre)", "2025-02-13 (post)"]
+    views = [view("2025-02-13", None), view("2025-02-13", None), view("2025-03-01", None)]
+    assert visit_labels(views) == ["2025-02-13 (1)", "2025-02-13 (2)", "2025-03-01"]
+    same = [view("2025-02-13", "/a/out/session.h5"), view("2025-02-13", "/b/out/session.h5")]
+    assert visit_labels(same) == ["2025-02-13 (out) (1)", "2025-02-13 (out) (2)"]

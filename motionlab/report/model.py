@@ -212,8 +212,16 @@ class SessionView:
 
     @property
     def visit(self) -> str:
+        """The visit's label on the progress pages: the sensor map's ``session.visit`` or
+        ``session.id``, else the date, else (undated) the session file's folder (``motionlab
+        run -o visit2`` gives ``visit2``), never the same "not recorded" for every visit."""
         ses = self.session.metadata.get("session") or {}
-        return str(ses.get("visit") or ses.get("id") or self.date)
+        label = ses.get("visit") or ses.get("id")
+        if label:
+            return str(label)
+        if self.date == "not recorded" and self.path is not None:
+            return self.path.resolve().parent.name or self.path.stem
+        return self.date
 
     def joints(self) -> list[Joint]:
         return list(self.protocol.joints.values())
@@ -309,6 +317,18 @@ def load_view(session: Session, protocol: Protocol | None = None, path: Path | N
             )
     protocol = sensed_protocol(protocol, session)
     return SessionView(session, protocol, path, res.angles.columns(), res.metrics)
+
+
+def visit_labels(views: list[SessionView]) -> list[str]:
+    """Each view's :attr:`SessionView.visit`, told apart where two are the same (two sessions
+    on one day): with the session file's folder, else with their place in the list."""
+    labels = [v.visit for v in views]
+    out = list(labels)
+    for i, (view, label) in enumerate(zip(views, labels, strict=True)):
+        if labels.count(label) > 1:
+            folder = view.path.resolve().parent.name if view.path is not None else ""
+            out[i] = f"{label} ({folder or i + 1})"
+    return [f"{x} ({i + 1})" if out.count(x) > 1 else x for i, x in enumerate(out)]
 
 
 def normal_range(protocol: Protocol, task: str, column: str) -> tuple[float, float] | None:

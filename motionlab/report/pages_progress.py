@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from motionlab.report.model import SessionView, joint_title, rom_rows
+from motionlab.report.model import SessionView, joint_title, rom_rows, visit_labels
 from motionlab.report.pdf import BAND_COLOUR, MUTED, SIDE_COLOUR, SIZE, Document
 from motionlab.report.sentences import span, task_name
 
@@ -39,7 +39,7 @@ def progress_page(doc: Document, views: list[SessionView]) -> None:
         bottom=0.55,
         top=0.35,
     )
-    labels = [v.visit for v in views]
+    labels = visit_labels(views)
     for n, key in enumerate(keys):
         ax = grid[n // ncols][n % ncols]
         task, joint_name, _ = key
@@ -62,7 +62,6 @@ def progress_page(doc: Document, views: list[SessionView]) -> None:
         ax.set_xticks(range(len(views)), labels, rotation=20, ha="right")
         ax.set_xlim(-0.6, len(views) - 0.4)
         ax.set_ylabel("flexion (°)")
-        ax.set_xlabel("visit")
         title = joint_title(joint) if joint else joint_name
         ax.set_title(f"{title}, {task_name(task)}", loc="left", size=SIZE["small"])
     for n in range(len(keys), nrows * ncols):
