@@ -193,35 +193,41 @@ class SessionView:
         return str(subj.get("id") or subj.get("name") or "not recorded")
 
     @property
-    def date(self) -> str:
-        """Session date: the sensor map's ``session.date``, else the day the files say they
-        were recorded (``metadata["recorded"]``: DOT ``StartTime``, x-IMU3 ``Command.json``),
-        else ``not recorded``.
+    def recorded_on(self) -> str | None:
+        """The session's date, if known: the sensor map's ``session.date``, else the day the
+        files say they were recorded (``metadata["recorded"]``: DOT ``StartTime``, x-IMU3
+        ``Command.json``).
 
         Never the day the recording was read in (the provenance's first time): that printed a
         recording made weeks before as "Session date" today, and ordered a subject's visits by
         when they were analysed."""
         ses = self.session.metadata.get("session") or {}
         date = ses.get("date") or self.session.metadata.get("recorded")
-        return str(date) if date else "not recorded"
+        return str(date) if date else None
+
+    @property
+    def date(self) -> str:
+        """:attr:`recorded_on`, or ``not recorded``."""
+        return self.recorded_on or "not recorded"
 
     @property
     def date_label(self) -> str:
-        """The date for a heading: :attr:`date`, or ``date not recorded``."""
-        return self.date if self.date != "not recorded" else "date not recorded"
+        """The date for a heading: :attr:`recorded_on`, or ``date not recorded``."""
+        return self.recorded_on or "date not recorded"
+
+    @property
+    def folder(self) -> str:
+        """The session file's folder (``motionlab run -o visit2`` gives ``visit2``), or ``""``."""
+        return self.path.resolve().parent.name if self.path is not None else ""
 
     @property
     def visit(self) -> str:
         """The visit's label on the progress pages: the sensor map's ``session.visit`` or
-        ``session.id``, else the date, else (undated) the session file's folder (``motionlab
-        run -o visit2`` gives ``visit2``), never the same "not recorded" for every visit."""
+        ``session.id``, else the date, else the session file's :attr:`folder` (not the same
+        "not recorded" for every undated visit)."""
         ses = self.session.metadata.get("session") or {}
-        label = ses.get("visit") or ses.get("id")
-        if label:
-            return str(label)
-        if self.date == "not recorded" and self.path is not None:
-            return self.path.resolve().parent.name or self.path.stem
-        return self.date
+        label = ses.get("visit") or ses.get("id") or self.recorded_on or self.folder
+        return str(label) if label else "not recorded"
 
     def joints(self) -> list[Joint]:
         return list(self.protocol.joints.values())
@@ -326,8 +332,7 @@ def visit_labels(views: list[SessionView]) -> list[str]:
     out = list(labels)
     for i, (view, label) in enumerate(zip(views, labels, strict=True)):
         if labels.count(label) > 1:
-            folder = view.path.resolve().parent.name if view.path is not None else ""
-            out[i] = f"{label} ({folder or i + 1})"
+            out[i] = f"{label} ({view.folder or i + 1})"
     return [f"{x} ({i + 1})" if out.count(x) > 1 else x for i, x in enumerate(out)]
 
 
