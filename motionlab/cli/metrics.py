@@ -63,6 +63,7 @@ def command(
     from motionlab import stages
     from motionlab.kinematics.metrics import metrics_table
     from motionlab.lock import session_lock
+    from motionlab.segments.grades import column_grades
     from motionlab.session import load_session, save_session
 
     if csv_path:
@@ -77,6 +78,7 @@ def command(
                 table.to_csv(tmp, index=False, float_format="%.4f")
         ses.add_provenance(parameters={"stage": "metrics", "protocol": str(protocol.path)})
         save_session(ses, session, force=True)
+    grades = column_grades(protocol, ses.results.calibration)
     for block, rng in result.blocks.items():
         click.echo(f"task {block:<20} {rng.start_s:8.2f}–{rng.end_s:8.2f} s")
         for col, m in result.joints[block].items():
@@ -84,6 +86,6 @@ def command(
                 continue
             click.echo(
                 f"  {col:<32} ROM {m.rom_deg:6.1f}  min {m.min_deg:6.1f}  "
-                f"max {m.max_deg:6.1f}  cycles {m.repetitions}"
+                f"max {m.max_deg:6.1f}  cycles {m.repetitions}  {grades.get(col, '')}".rstrip()
             )
     click.echo(f"{len(table)} rows" + (f" written to {csv_path}" if csv_path else ""))
