@@ -412,3 +412,22 @@ def test_two_visits_on_one_day_are_told_apart_on_the_progress_pages():
     assert visit_labels(views) == ["2025-02-13 (1)", "2025-02-13 (2)", "2025-03-01"]
     same = [view("2025-02-13", "/a/out/session.h5"), view("2025-02-13", "/b/out/session.h5")]
     assert visit_labels(same) == ["2025-02-13 (out) (1)", "2025-02-13 (out) (2)"]
+
+
+def test_run_summary_says_how_many_findings_it_left_for_the_report(tmp_path):
+    """The one screen shows the first findings only; the rest (on the demo, a sit-to-stand range
+    below normal) are counted and pointed to, not dropped without a word."""
+    from motionlab.report import ReportOutput
+    from motionlab.report.console import run_summary
+
+    view = _graded_view(graded=False)
+    out = ReportOutput(tmp_path / "report.pdf", tmp_path / "report.txt")
+    names = {"session_file": "session.h5", "csv_dir": "csv", "results_json": "results.json"}
+    text = run_summary(view, out, {}, 1.0, **names)
+    listed = text.split("findings (determined numbers only):\n")[1].split("\noutputs in")[0]
+    shown = [ln for ln in listed.splitlines() if ln.startswith("    - ")]
+    every = findings(view)
+    assert len(every) > len(shown) - 1  # this view has more findings than one screen shows
+    assert shown[-1] == (
+        f"    - and {len(every) - (len(shown) - 1)} more on the report's summary page (report.pdf)"
+    )

@@ -125,7 +125,13 @@ def run_summary(
             f"  validation RMSE (deg): {', '.join(rmse[:6])}" + (" ..." if len(rmse) > 6 else "")
         )
     lines.append("  findings (determined numbers only):")
-    lines += [f"    - {f}" for f in findings(view, limit=4)]
+    shown = findings(view, limit=4)
+    lines += [f"    - {f}" for f in shown]
+    hidden = len(findings(view)) - len(shown)
+    if hidden > 0:  # an abnormal range left off the screen must not look like none
+        lines.append(
+            f"    - and {hidden} more on the report's summary page ({report.pdf_path.name})"
+        )
     missing = missing_lines(view)
     if missing:
         lines.append("  not determined by this recording:")
