@@ -148,15 +148,32 @@ def check_segments(session: Session, protocol: Protocol, inputs: list[Path]) -> 
     missing = [s for s in needed if sensor_for_segment(session, s) is None]
     if not missing:
         return
-    labels = ", ".join(f"{k} ({s.segment})" if s.segment else k for k, s in session.sensors.items())
+    # each sensor by the protocol segment name its map gives it (upperarm + r: upperarm_r)
+    placed = {k: _segment_name(s.segment, s.side) for k, s in session.sensors.items()}
+    labels = ", ".join(f"{k} ({seg})" if seg else k for k, seg in placed.items())
     gap = "none of them" if missing == needed else f"none on {', '.join(missing)}"
+    if all(placed.values()):  # every sensor is mapped: the recording lacks those segments
+        remedy = (
+            f"record sensors on {', '.join(missing)}, or copy the protocol and set "
+            "'required: false' on the segments the recording has no sensor on"
+        )
+    else:
+        remedy = "map each sensor to its segment with a sensor map, map_path=map.yaml (README)"
     raise InputError(
         f"the '{protocol.name}' protocol needs sensors on {', '.join(needed)}; the input has "
         f"{gap} (its sensors: {labels or 'none'})",
         inputs[0] if len(inputs) == 1 else None,
-        remedy="map each sensor to its segment with a sensor map, map_path=map.yaml (README)",
+        remedy=remedy,
         argument="map_path",
     )
+
+
+def _segment_name(segment: str, side: str) -> str:
+    """The protocol segment name of a sensor map's ``segment`` and ``side`` (``shank`` and ``r``:
+    ``shank_r``; a name that has its side already is kept)."""
+    if not segment or not side or segment.endswith(f"_{side}"):
+        return segment
+    return f"{segment}_{side}"
 
 
 def _announce(labels: list[str], text: str) -> list[str]:

@@ -230,6 +230,24 @@ def test_missing_one_segment_is_named(recorded, tmp_path):
     assert "(its sensors: thigh_r (thigh_r))" in res.output
 
 
+def test_missing_segment_of_a_mapped_recording_names_sides_and_what_to_do(recorded, tmp_path):
+    """A map that gives segment and side (``thigh`` + ``r``) is listed as the protocol's
+    ``thigh_r``, not as a bare ``thigh`` that reads as if the side were lost; and since every
+    sensor is mapped the remedy is the recording or the protocol, not a map."""
+    ses = load_session(recorded[0] / "sim.h5")
+    del ses.sensors["shank_r"]
+    ses.sensors["thigh_r"].segment, ses.sensors["thigh_r"].side = "thigh", "r"
+    save_session(ses, tmp_path / "no_shank.h5")
+    res = run("run", "--protocol", recorded[0] / "knee_small.yaml", tmp_path / "no_shank.h5",
+              "-o", tmp_path / "out", "--quiet")  # fmt: skip
+    assert res.exit_code == 2 and res.output.count("\n") == 1
+    assert "(its sensors: thigh_r (thigh_r))" in res.output
+    assert "record sensors on shank_r, or copy the protocol and set 'required: false'" in (
+        res.output
+    )
+    assert "--map" not in res.output
+
+
 def test_session_file_cannot_be_mixed_or_mapped(recorded, tmp_path):
     root, files, _ = recorded
     res = run(
