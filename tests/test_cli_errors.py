@@ -130,6 +130,11 @@ CASES = {
         ),
         "time goes backwards",
     ),
+    # every row the same (one row repeated): the clock does not advance; was "rate nan Hz"
+    "one repeated row": (
+        _write("in.csv", XIO_HEADER + "\n" + "0.00,0.1,0.2,0.3,0.0,0.0,1.0\n" * 40),
+        "1 distinct time stamp: the time does not advance",
+    ),
     "missing required column": (
         _with_map(generic_rows(), GENERIC_MAP.format(gz="gw")),
         "gw",
