@@ -78,6 +78,13 @@ def test_a_device_folder_without_inertial_csv_is_refused(tmp_path):
     _refusal(tmp_path, files, "Inertial.csv", "no Inertial.csv", "export the device again")
 
 
+def test_an_empty_inertial_csv_is_called_empty(tmp_path):
+    """An empty channel file (a copy that failed) was 'not an x-IMU3 Inertial file'."""
+    files = xe.export_files()
+    files["imu/Back B4A2-5410-EC7B-D68C (UDP)/Inertial.csv"] = b""
+    _refusal(tmp_path, files, "Inertial.csv in 'Back B4A2-5410-EC7B-D68C (UDP)': file is empty")
+
+
 def test_a_truncated_magnetometer_csv_is_refused(tmp_path):
     files = xe.export_files()
     key = "imu/Chest 37CE-5410-EC7B-D8A2 (UDP)/Magnetometer.csv"
