@@ -41,6 +41,7 @@ from motionlab.lock import session_lock
 from motionlab.protocol import Protocol, load_protocol
 from motionlab.qc import doubts as qc_doubts
 from motionlab.session import (
+    MarkerSet,
     Session,
     is_session_file,
     load_session,
@@ -382,7 +383,12 @@ RUN_OPTIONS: dict[str, RunOption] = {
 }
 
 
-def analyse(session: Session, options: PipelineOptions, stages: _Stages | None = None) -> None:
+def analyse(
+    session: Session,
+    options: PipelineOptions,
+    stages: _Stages | None = None,
+    reference: tuple[MarkerSet, str] | None = None,
+) -> None:
     """The stages after ingest, in memory, each by its function in :mod:`motionlab.stages` (as
     the stage commands call them): (sync) → fuse (with the sensor calibrations) → calibrate →
     angles → metrics (and gait) → (validate, with ``options.reference`` or the session's own
@@ -398,6 +404,10 @@ def analyse(session: Session, options: PipelineOptions, stages: _Stages | None =
     middle of a task (knee sessions simulated with the ``typical`` preset, seeds 0-9 at 100, 60
     and 50 Hz: with the magnetometer 3 of 30 had a knee rotation RMSE of 21-23°, without it none
     above 2°). Validation then aligns each sensor's heading separately (mode ``heading``).
+
+    ``reference``: ``options.reference`` already read (its marker set and kind,
+    :func:`~motionlab.validation.reference_kinds.load_reference`), as :func:`run_pipeline`
+    reads it before any work.
     """
 
     protocol = sensed_protocol(options.load_protocol(), session)
@@ -425,7 +435,9 @@ def analyse(session: Session, options: PipelineOptions, stages: _Stages | None =
         from motionlab.validation.reference_kinds import load_reference, session_reference
 
         with stages("validate"):  # markers, segment quaternions or model angles
-            if options.reference is not None:
+            if reference is not None:
+                marker_set, kind = reference
+            elif options.reference is not None:
                 marker_set, kind = load_reference(Path(options.reference))
             else:
                 marker_set, kind = session_reference(session)
@@ -471,6 +483,11 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
     session_path, report_path, csv_dir = _outputs(
         outdir, options.force, [*inputs, options.map_path, options.reference, proto.path]
     )
+    reference = None
+    if options.reference is not None:  # an unreadable reference is told before any work
+        from motionlab.validation.reference_kinds import load_reference
+
+        reference = load_reference(Path(options.reference))
     command = options.command(inputs, outdir)
     names = ["ingest", "fuse", "calibrate", "angles", "metrics", "report"]
     if options.clock_sync:
@@ -484,7 +501,7 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
         session = load_inputs(inputs, map_path, command)
         check_segments(session, proto, inputs)
         proto = sensed_protocol(proto, session)
-    analyse(session, dataclasses.replace(options, protocol=proto), stages)
+    analyse(session, dataclasses.replace(options, protocol=proto), stages, reference)
     validated = session.results.validation is not None
     session.add_provenance(
         command,

@@ -248,6 +248,20 @@ def test_missing_segment_of_a_mapped_recording_names_sides_and_what_to_do(record
     assert "--map" not in res.output
 
 
+def test_an_unreadable_reference_is_refused_before_any_work(recorded, tmp_path):
+    """An OptiTrack Motive CSV (the shared trunk trials' reference) was refused only at the
+    validate stage, after the fusion, and told to give a sensor map's column map."""
+    root, files, _ = recorded
+    motive = tmp_path / "optitrack.csv"
+    motive.write_text("Format Version,1.23,Take Name,t1\n\n,Type,Rigid Body\nFrame,Time\n0,0.0\n")
+    res = run("run", "--protocol", root / "knee_small.yaml", "--map", root / "map.yaml", *files,
+              "--reference", motive, "-o", tmp_path / "out")  # fmt: skip
+    assert res.exit_code == 2
+    assert res.output.startswith("error: optitrack.csv: an OptiTrack Motive CSV export"), res.output
+    assert "segment quaternions" in res.output and "--map" not in res.output
+    assert res.output.count("\n") == 1 and not (tmp_path / "out").exists()
+
+
 def test_session_file_cannot_be_mixed_or_mapped(recorded, tmp_path):
     root, files, _ = recorded
     res = run(
