@@ -34,7 +34,13 @@ import h5py
 
 from motionlab import stages as stages_lib
 from motionlab.atomic import check_folder_writable, refuse_input_as_output
-from motionlab.binding import sensed_protocol, sensor_for_segment
+from motionlab.binding import (
+    check_joints,
+    foreign_segments,
+    sensed_protocol,
+    sensor_for_segment,
+    sensor_list,
+)
 from motionlab.errors import InputError
 from motionlab.ingest import DEFAULT_GAP_MAX, ingest
 from motionlab.lock import session_lock
@@ -148,12 +154,12 @@ def check_segments(session: Session, protocol: Protocol, inputs: list[Path]) -> 
     needed = [s for s, spec in protocol.segments.items() if spec.required]
     missing = [s for s in needed if sensor_for_segment(session, s) is None]
     if not missing:
+        check_joints(protocol, session, inputs[0] if len(inputs) == 1 else None)
         return
-    # each sensor by the protocol segment name its map gives it (upperarm + r: upperarm_r)
-    placed = {k: _segment_name(s.segment, s.side) for k, s in session.sensors.items()}
-    labels = ", ".join(f"{k} ({seg})" if seg else k for k, seg in placed.items())
     gap = "none of them" if missing == needed else f"none on {', '.join(missing)}"
-    if all(placed.values()):  # every sensor is mapped: the recording lacks those segments
+    foreign = foreign_segments(protocol, session)
+    if all(s.segment for s in session.sensors.values()) and not foreign:
+        # every sensor is mapped to a segment of the protocol: the recording lacks the others
         remedy = (
             f"record sensors on {', '.join(missing)}, or copy the protocol and set "
             "'required: false' on the segments the recording has no sensor on"
@@ -162,19 +168,11 @@ def check_segments(session: Session, protocol: Protocol, inputs: list[Path]) -> 
         remedy = "map each sensor to its segment with a sensor map, map_path=map.yaml (README)"
     raise InputError(
         f"the '{protocol.name}' protocol needs sensors on {', '.join(needed)}; the input has "
-        f"{gap} (its sensors: {labels or 'none'})",
+        f"{gap}{foreign} (its sensors: {sensor_list(session)})",
         inputs[0] if len(inputs) == 1 else None,
         remedy=remedy,
         argument="map_path",
     )
-
-
-def _segment_name(segment: str, side: str) -> str:
-    """The protocol segment name of a sensor map's ``segment`` and ``side`` (``shank`` and ``r``:
-    ``shank_r``; a name that has its side already is kept)."""
-    if not segment or not side or segment.endswith(f"_{side}"):
-        return segment
-    return f"{segment}_{side}"
 
 
 def _announce(labels: list[str], text: str) -> list[str]:

@@ -262,6 +262,32 @@ def test_an_unreadable_reference_is_refused_before_any_work(recorded, tmp_path):
     assert res.output.count("\n") == 1 and not (tmp_path / "out").exists()
 
 
+def test_sensors_on_no_segment_of_an_all_optional_protocol_are_refused_before_fusion(
+    recorded, tmp_path
+):
+    """The walk protocol's segments are all optional: sensors mapped as femur and tibia passed
+    the segment check, were fused, then the calibration crashed ('max() arg is an empty
+    sequence'), in run and in the calibrate stage alike."""
+    from motionlab import stages
+
+    ses = load_session(recorded[0] / "sim.h5")
+    for label, seg, name in (("thigh_r", "femur", "THIGH"), ("shank_r", "tibia", "SHANK")):
+        stream = ses.sensors.pop(label)
+        stream.label, stream.segment, stream.side = name, seg, "r"
+        ses.sensors[name] = stream
+    save_session(ses, tmp_path / "mapped.h5")
+    res = run("run", "--protocol", "walk", tmp_path / "mapped.h5", "-o", tmp_path / "out")
+    assert res.exit_code == 2, res.output
+    lines = res.output.strip().splitlines()
+    assert lines[0] == "[1/8] ingest ..." and len(lines) == 2  # nothing fused
+    assert "no joint of the 'walk' protocol has sensors on both its segments" in lines[1]
+    assert "knee_r needs thigh_r and shank_r" in lines[1]
+    assert "femur_r, tibia_r are no segments of it" in lines[1]
+    assert not (tmp_path / "out").exists()
+    with pytest.raises(InputError, match="no joint of the 'walk' protocol"):
+        stages.calibrate(ses, "walk", path=tmp_path / "mapped.h5")
+
+
 def test_session_file_cannot_be_mixed_or_mapped(recorded, tmp_path):
     root, files, _ = recorded
     res = run(
