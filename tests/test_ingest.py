@@ -301,6 +301,11 @@ def test_map_naming_absent_sensor(fake_files, tmp_path):
         ('sensors:\n  a: {label: "x\\ny"}\n', "sensors.a.label"),  # printed on two lines
         ("reader: {format: xsens, rate_hz: 60, mag_feild_ut: 48}\n", "reader.mag_feild_ut"),
         ("subject:\n  thigh_m: 0.4\n  shank_m: tall\n", "subject.shank_m"),
+        # two sensors on one segment (a side copied wrong): one of them was analysed, silently
+        (
+            "sensors:\n  a: {segment: thigh, side: r}\n  b: {segment: thigh_r}\n",
+            "sensors.b.segment",
+        ),
     ],
 )
 def test_map_errors_name_the_key(tmp_path, text, key):
