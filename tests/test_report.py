@@ -431,3 +431,25 @@ def test_run_summary_says_how_many_findings_it_left_for_the_report(tmp_path):
     assert shown[-1] == (
         f"    - and {len(every) - (len(shown) - 1)} more on the report's summary page (report.pdf)"
     )
+
+
+def test_excluded_names_a_truncated_file_and_the_recording_it_cut_off():
+    """A truncated x-IMU3 file (the Back sensor stopping at 5.8 s of a real 11.7-s trunk trial)
+    ended every angle there; the report said only 'metrics use the task blocks', and with
+    run --quiet nothing at all told of the repair or of the 5.9 s of other sensors not used."""
+    from motionlab.report.model import excluded
+    from motionlab.session import SensorStream
+
+    view = _graded_view()
+    t = view.angles["time_s"]  # 0-50 s
+    for seg in ("thigh_r", "shank_r"):
+        time = np.linspace(0.0, 60.0 if seg == "shank_r" else 50.0, 601)
+        view.session.sensors[seg] = SensorStream(seg, time=time, segment=seg)
+    view.session.sensors["thigh_r"].attrs["notes"] = [
+        "line 501: truncated last line (2 of 7 columns) dropped"
+    ]
+    lines = excluded(view)
+    assert "thigh_r: line 501: truncated last line (2 of 7 columns) dropped" in lines
+    assert (f"shank_r: 10.0 s recorded after the angles end ({t[-1]:.1f} s, where another "
+            "sensor stops) - not used") in lines  # fmt: skip
+    assert not any(ln.startswith("thigh_r: 0") for ln in lines)  # it ends with the angles
