@@ -84,6 +84,11 @@ def test_compare_flags_ranges_outside_normal_beyond_the_tolerance():
     assert compare(-12.0, 5.0, (-10, 15), reach=False) == "within"  # 2° beyond: tolerated
     assert compare(-16.0, 5.0, (-10, 15), reach=False) == "below"
     assert compare(0.0, 10.0, None, reach=True) == ""
+    # judged as printed: the demo's sit-to-stand knees, both '4–90°' against 0–100°, were one
+    # 'below' (89.6°) and one 'within' (90.2°)
+    assert compare(3.8, 89.6, (0, 100), reach=True) == compare(4.1, 90.2, (0, 100), reach=True)
+    assert compare(3.8, 89.6, (0, 100), reach=True) == "within"  # 10° short, not more
+    assert compare(3.8, 89.4, (0, 100), reach=True) == "below"  # reads 89°: 11° short
 
 
 def test_issue_example_sentence():

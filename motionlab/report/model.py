@@ -359,11 +359,15 @@ def compare(low: float, high: float, normal: tuple[float, float] | None, reach: 
     An angle is flagged when its typical extremes leave the normal range by more than
     :data:`TOLERANCE_DEG` (``above``, ``below``, both: ``wider``); with ``reach`` (the flexion
     angle) also when its typical peak falls short of the range's upper end by more than
-    :data:`REACH_TOLERANCE_DEG` (``below``: a reduced range of motion).
+    :data:`REACH_TOLERANCE_DEG` (``below``: a reduced range of motion). The extremes are
+    compared in whole degrees, as the report prints them.
     """
     if normal is None or not (np.isfinite(low) and np.isfinite(high)):
         return ""
     lo, hi = normal
+    # judged as printed (whole degrees, :func:`~motionlab.report.sentences.span`): two ranges
+    # that read 4–90° got 'below' and 'within' the normal 0–100° (89.6° and 90.2°)
+    low, high = round(low), round(high)
     over_top, over_bottom = high > hi + TOLERANCE_DEG, low < lo - TOLERANCE_DEG
     if over_top and over_bottom:
         return "wider"
