@@ -458,3 +458,24 @@ def test_excluded_names_a_truncated_file_and_the_recording_it_cut_off():
     assert (f"shank_r: 10.0 s recorded after the angles end ({t[-1]:.1f} s, where another "
             "sensor stops) - not used") in lines  # fmt: skip
     assert not any(ln.startswith("thigh_r: 0") for ln in lines)  # it ends with the angles
+
+
+def test_the_gait_profile_legend_has_room_above_the_bars():
+    """The legend (upper left) sat on the right knee's bar of the demo's one-variable profile:
+    the axis reaches well above the highest bar."""
+    from motionlab.report.pages_gait import _map_chart
+    from motionlab.report.pdf import Document
+    from motionlab.results import MovementProfile
+
+    doc = Document("t")
+    nan = float("nan")
+    mp = MovementProfile(
+        gvs={"r": {"knee_flexion": 2.1}, "l": {"knee_flexion": 2.3}},
+        gps={"r": nan, "l": nan, "overall": nan},
+        population_gps_deg=5.0,
+        variables=["knee_flexion", "pelvis_tilt"],
+        not_computed="GPS not computed: pelvis tilt weak",
+    )
+    _map_chart(doc, mp)
+    (ax,) = [a for a in doc.fig.axes if a.get_ylabel() == "deg (RMS difference)"]
+    assert ax.get_ylim()[1] >= 1.4 * 2.3
