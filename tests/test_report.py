@@ -479,3 +479,25 @@ def test_the_gait_profile_legend_has_room_above_the_bars():
     _map_chart(doc, mp)
     (ax,) = [a for a in doc.fig.axes if a.get_ylabel() == "deg (RMS difference)"]
     assert ax.get_ylim()[1] >= 1.4 * 2.3
+
+
+def test_progress_page_marks_weak_ranges_and_unnamed_subjects():
+    """Two real trunk trials of two people, no subject in either, made 'Progress over 2 visits'
+    of one person; the second's weak lumbar flexion range was a plain number and a solid bar."""
+    from motionlab.report.pages_progress import WEAK_ALPHA, progress_page
+
+    first, second = _graded_view(), _graded_view()
+    for v, date in ((first, "2025-02-13"), (second, "2025-02-14")):
+        v.session.metadata["session"] = {"date": date}
+    second.session.results.calibration.grades["knee_l"] = JointGrades(
+        ["weak", "weak", "weak"], ["the flexion axis is not clear"] * 3
+    )
+    with matplotlib.rc_context(RC):
+        doc = Document("motionlab report · test", "subject not recorded")
+        progress_page(doc, [first, second])
+        text = " ".join(" ".join(page_text(f) for f in doc.pages).split())
+        bars = [ln for f in doc.pages for ax in f.axes for ln in ax.lines]
+        assert [p for f in doc.pages for p in layout_problems(f)] == []
+    assert "Left knee 0–64° 0–64° (weak)" in text and "5–45° (weak)" not in text
+    assert "cannot tell that they are one person's visits" in text
+    assert sorted({ln.get_alpha() or 1.0 for ln in bars}) == [WEAK_ALPHA, 1.0]
