@@ -70,7 +70,8 @@ class PipelineResult:
 
     ``metrics`` has one row per joint metric (scalar rows of
     :func:`motionlab.kinematics.metrics.metrics_table`: ``block, joint, angle, metric, value,
-    unit``; the cycle curves are left out).
+    unit``; the cycle curves are left out), and the ``grade`` of the row's angle
+    (``determined``, ``weak``, ``not determined``; empty for a row of no angle column).
     """
 
     session_path: Path
@@ -470,6 +471,7 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
     from motionlab.kinematics.metrics import metrics_table
     from motionlab.report import load_views, write_report
     from motionlab.report.console import run_summary
+    from motionlab.report.model import angle_grades
 
     t_start = time.perf_counter()
     inputs = [Path(p) for p in inputs]
@@ -528,6 +530,11 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
             write_json(session, outdir / RESULTS_JSON, force=options.force)
     table = metrics_table(session.results.metrics)
     metrics = table[table["percent"].isna()].drop(columns="percent").reset_index(drop=True)
+    graded = angle_grades(views[0])  # each row's angle's grade ("" for no angle column)
+    metrics["grade"] = [
+        graded.get(f"{j}_{a}_deg", ("", ""))[0]
+        for j, a in zip(metrics["joint"], metrics["angle"], strict=True)
+    ]
     summary = run_summary(
         views[0],
         out,

@@ -94,7 +94,7 @@ def test_outputs_and_metrics_table(result, recorded):
     names = {p.name for p in result.csv_dir.iterdir()}
     assert {"knee_r_angles.csv", "metrics.csv", "quality.csv", "calibration.csv"} <= names
     m = result.metrics
-    assert list(m.columns) == ["block", "joint", "angle", "metric", "value", "unit"]
+    assert list(m.columns) == ["block", "joint", "angle", "metric", "value", "unit", "grade"]
     assert not m["metric"].str.startswith("curve_").any()  # one row per joint metric
     rom = m[(m.joint == "knee_r") & (m.angle == "flexion") & (m.metric == "max_deg")]
     assert len(rom) == 1 and rom.iloc[0]["unit"] == "deg"
@@ -344,3 +344,11 @@ def test_run_warns_of_an_accelerometer_in_g(recorded, tmp_path, capsys):
     warnings = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("warning:")]
     assert warnings[0].startswith("warning: THIGH: |a| at rest is 1.00 m/s² (read as m/s^2)")
     assert not any("SHANK" in ln for ln in warnings)
+
+
+def test_the_metric_rows_carry_their_angles_grade(result):
+    """batch's study tables and report read each session's grades from these rows."""
+    m = result.metrics
+    assert set(m["grade"]) <= {"determined", "weak", "not determined", ""}
+    flexion = m[(m["joint"] == "knee_r") & (m["angle"] == "flexion")]
+    assert len(flexion) and (flexion["grade"] != "").all()
