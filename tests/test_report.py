@@ -501,3 +501,20 @@ def test_progress_page_marks_weak_ranges_and_unnamed_subjects():
     assert "Left knee 0–64° 0–64° (weak)" in text and "5–45° (weak)" not in text
     assert "cannot tell that they are one person's visits" in text
     assert sorted({ln.get_alpha() or 1.0 for ln in bars}) == [WEAK_ALPHA, 1.0]
+
+
+def test_data_quality_table_keeps_a_long_sensor_label_whole():
+    """A real walk's sensors named as in its source (upper_leg_right) were split mid-word
+    ('upper_leg_ri' / 'ght') in the data-quality table's first column."""
+    from motionlab.report.pages_quality import data_quality_page
+    from motionlab.session import SensorStream
+
+    view = _graded_view()
+    for label in ("upper_leg_right", "lower_leg_left"):
+        view.session.sensors[label] = SensorStream(label, time=np.linspace(0.0, 50.0, 501))
+    with matplotlib.rc_context(RC):
+        doc = Document("motionlab report · test", "subject X")
+        data_quality_page(doc, view)
+        words = "\n".join(page_text(f) for f in doc.pages).split()
+        assert [p for f in doc.pages for p in layout_problems(f)] == []
+    assert "upper_leg_right" in words and "lower_leg_left" in words
