@@ -518,3 +518,20 @@ def test_data_quality_table_keeps_a_long_sensor_label_whole():
         words = "\n".join(page_text(f) for f in doc.pages).split()
         assert [p for f in doc.pages for p in layout_problems(f)] == []
     assert "upper_leg_right" in words and "lower_leg_left" in words
+
+
+def test_no_empty_varus_thrust_chart_when_no_knee_determined_it():
+    """A real walk's knees had ab-adduction not determined: the out-of-plane page still drew the
+    per-stride varus chart, empty, on an axis of 2.85-3.15°."""
+    from motionlab.report.pages_oop import out_of_plane_page
+
+    view = _graded_view()
+    view.session.results.calibration.grades["knee_r"] = JointGrades(
+        ["determined", "not determined", "not determined"], ["", NOT_WHY, NOT_WHY]
+    )
+    with matplotlib.rc_context(RC):
+        doc = Document("motionlab report · test", "subject X")
+        out_of_plane_page(doc, view)
+        text = " ".join(page_text(f) for f in doc.pages)
+    assert "Knee varus thrust and rotation in stance" in text
+    assert "Each stride's varus thrust" not in text
