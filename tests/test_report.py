@@ -535,3 +535,18 @@ def test_no_empty_varus_thrust_chart_when_no_knee_determined_it():
         text = " ".join(page_text(f) for f in doc.pages)
     assert "Knee varus thrust and rotation in stance" in text
     assert "Each stride's varus thrust" not in text
+
+
+def test_no_finding_without_normal_ranges_does_not_say_nothing_was_determined():
+    """The seated trunk protocol has no normal ranges: its real trials' reports said 'no angle
+    with a normal range was determined' above a lumbar spine whose angles all were."""
+    import dataclasses
+
+    view = _view((0.0, 64.0), (0.0, 64.0))  # alike on both sides: no asymmetry finding
+    view.protocol = dataclasses.replace(view.protocol, normative={})
+    view.metrics.gait = {}  # no out-of-plane finding either
+    items = [i for i in findings(view) if not i.startswith(("Sensor", "Calibr"))]
+    assert items == [
+        "No finding can be stated: the protocol gives no normal range to compare the ranges "
+        "of motion with; they are on the joint pages with their grades."
+    ]
