@@ -128,5 +128,10 @@ def test_angles_and_metrics_print_each_angles_grade(session_file, tmp_path):
         assert lines["elbow_r_flexion_deg"].endswith(" determined"), res.output
         assert lines["elbow_r_carrying_deg"].endswith(" weak"), res.output
         assert lines["elbow_r_pronation_deg"].endswith(" not determined"), res.output
+    res = runner.invoke(main, ["metrics", str(copy), "--csv", str(tmp_path / "m.csv"), "--force"])
+    m = pd.read_csv(tmp_path / "m.csv", keep_default_na=False)
+    grade = m[m.metric == "rom_deg"].groupby("angle")["grade"].first()
+    assert grade.to_dict() == {"flexion": "determined", "carrying": "weak",
+                               "pronation": "not determined"}  # fmt: skip
     res = runner.invoke(main, ["angles", str(copy), "--no-calibration", "--force"])
     assert "not graded (sensor frames)" in res.output, res.output

@@ -51,7 +51,8 @@ def command(
 
     Needs a calibrated session (motionlab calibrate); the angles are computed as
     motionlab angles does. The CSV has one row per number:
-    block, joint, angle, metric, percent, value, unit.
+    block, joint, angle, metric, percent, value, unit, grade (the angle's: determined,
+    weak, not determined).
 
     \b
     Example:
@@ -73,12 +74,17 @@ def command(
         result = stages.metrics(ses, protocol_path, _parse_tasks(tasks), force=force, path=session)
         protocol = stages.stage_protocol(ses, protocol_path, session)
         table = metrics_table(result)
+        grades = column_grades(protocol, ses.results.calibration)
+        # each row's angle's grade, as run's tables carry it ("" for a row of no angle column)
+        table["grade"] = [
+            grades.get(f"{j}_{a}_deg", "")
+            for j, a in zip(table["joint"], table["angle"], strict=True)
+        ]
         if csv_path:
             with atomic_path(csv_path, force=force) as tmp:
                 table.to_csv(tmp, index=False, float_format="%.4f")
         ses.add_provenance(parameters={"stage": "metrics", "protocol": str(protocol.path)})
         save_session(ses, session, force=True)
-    grades = column_grades(protocol, ses.results.calibration)
     for block, rng in result.blocks.items():
         click.echo(f"task {block:<20} {rng.start_s:8.2f}–{rng.end_s:8.2f} s")
         for col, m in result.joints[block].items():
