@@ -550,3 +550,22 @@ def test_no_finding_without_normal_ranges_does_not_say_nothing_was_determined():
         "No finding can be stated: the protocol gives no normal range to compare the ranges "
         "of motion with; they are on the joint pages with their grades."
     ]
+
+
+def test_run_summary_withholds_an_undetermined_flexion_range(tmp_path):
+    """A real arm recording's elbows (flexion not determined) were listed as '-176 to 178°'
+    on the one screen, while the report withholds the number ('-')."""
+    from motionlab.report import ReportOutput
+    from motionlab.report.console import run_summary
+
+    view = _graded_view()
+    view.session.results.calibration.grades["knee_l"] = JointGrades(
+        ["not determined", "determined", "determined"], [NOT_WHY, "", ""]
+    )
+    out = ReportOutput(tmp_path / "report.pdf", tmp_path / "report.txt")
+    names = {"session_file": "session.h5", "csv_dir": "csv", "results_json": "results.json"}
+    lines = run_summary(view, out, {}, 1.0, **names).splitlines()
+    (left,) = [ln for ln in lines if ln.startswith("    gait") and "knee_l" in ln]
+    assert left.split()[2] == "-" and left.endswith("(not determined)"), left
+    (right,) = [ln for ln in lines if ln.startswith("    gait") and "knee_r" in ln]
+    assert "5–45°" in right

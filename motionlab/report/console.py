@@ -102,6 +102,9 @@ def run_summary(
     if flexion:
         lines.append("  flexion range (typical, deg):")
     for r in flexion:
+        shown = (  # as the report: a range the recording did not determine is withheld
+            span(r.typical_min_deg, r.typical_max_deg) if r.grade != "not determined" else "-"
+        )
         normal = (
             f"normal {r.normal[0]:g}-{r.normal[1]:g}, {r.status or 'not compared'}"
             if r.normal
@@ -109,8 +112,7 @@ def run_summary(
         )
         lines.append(
             f"    {task_name(r.task):<14} {r.joint:<8} "
-            f"{span(r.typical_min_deg, r.typical_max_deg):>10}  ({normal})"
-            + (f" {grade_mark(r.grade)}" if grade_mark(r.grade) else "")
+            f"{shown:>10}  ({normal})" + (f" {grade_mark(r.grade)}" if grade_mark(r.grade) else "")
         )
     validation = ses.results.validation
     val = validation.angles if validation is not None else None
