@@ -41,7 +41,6 @@ from typing import Any
 from motionlab.atomic import check_regular
 from motionlab.errors import InputError
 from motionlab.fusion import registry
-from motionlab.io.ximu3 import is_export
 from motionlab.pipeline import RUN_OPTIONS
 from motionlab.protocol import load_protocol, resolve_protocol_path
 from motionlab.yamlsafe import LineLoader, load_yaml
@@ -132,6 +131,8 @@ def _name(path: Path, entry: dict, key: str, where: str, line: int) -> str:
 def _expand(base: Path, patterns: list[str]) -> tuple[list[Path], str]:
     """Files matching each pattern (sorted per pattern; an x-IMU3 export folder counts as a
     file, as ``motionlab run`` reads it), and the first pattern that matched none."""
+    from motionlab.io.ximu3 import is_export  # the readers on first use (batch --help is quick)
+
     files: list[Path] = []
     for pattern in patterns:
         full = str(base / pattern)
