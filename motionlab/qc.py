@@ -286,20 +286,51 @@ def gyr_unit_finding(found: dict[str, Any] | None) -> str:
     once the axes are free: the two sensors' axes differ, warned) or ``""``.
 
     A verdict needs the other unit to explain the tilt :data:`SCALE_REFUSE`
-    (:data:`SCALE_DOUBT`) times better than the unit as read, the unit as read to miss it by at
-    least :data:`SCALE_MISS_DEG` per block pair (RMS; a sensor that barely moves, or a slowly
-    drifting bias, is not evidence), and, to refuse, the axes-free scale on the same side of
-    the geometric middle (√(π/180) ≈ 0.13, or √(180/π) ≈ 7.6)."""
-    if not found or found["miss_deg"]["as_read"] < SCALE_MISS_DEG:
+    (:data:`SCALE_DOUBT`) times better than the unit as read and, to refuse, the axes-free
+    scale on the same side of the geometric middle (√(π/180) ≈ 0.13, or √(180/π) ≈ 7.6). For
+    °/s, the unit as read must also miss the tilt by at least :data:`SCALE_MISS_DEG` per block
+    pair (RMS): a still sensor whose bias drifts by 1°/s over 5 minutes is explained 4.5 times
+    better by π/180 (it claims less), but misses by 0.1°."""
+    if not found:
         return ""
     fit, unit = max((found["deg_s_fit"], "deg_s"), (found["rad_s_fit"], "rad_s"))
-    if fit < SCALE_DOUBT:
+    if fit < SCALE_DOUBT or (unit == "deg_s" and found["miss_deg"]["as_read"] < SCALE_MISS_DEG):
         return ""
     free = found["axes_free_scale"]
     agrees = free < math.sqrt(DEG) if unit == "deg_s" else free > 1.0 / math.sqrt(DEG)
     if not agrees:
         return "axes?"
     return unit if fit >= SCALE_REFUSE else f"{unit}?"
+
+
+def gyr_unit_problem(stream: SensorStream) -> tuple[str, str] | None:
+    """What :func:`gyr_unit_finding` found in ``stream.qc["gyr_scale"]`` as ``(what, remedy)``
+    for one line (the ingest refuses ``deg_s``/``rad_s`` with it, ``doubts`` warns the rest), or
+    ``None``."""
+    found = stream.qc.get("gyr_scale")
+    finding = gyr_unit_finding(found)
+    if not finding:
+        return None
+    read = stream.source_units.get("gyr", "rad/s")
+    miss, free = found["miss_deg"], found["axes_free_scale"]
+    window = f"{2 * SCALE_BLOCK_S:g} s"
+    if finding == "axes?":
+        return (f"the gyroscope (read as {read}) does not turn with the tilt the accelerometer "
+                f"sees (missed by {miss['as_read']:.0f}° per {window}, RMS; best scale "
+                f"{found['scale']:.3g} on the same axes, {free:.3g} with the axes free): its "
+                "unit, or axes that are not the accelerometer's?",
+                "check the export's gyroscope unit and that its x, y, z are the "
+                "accelerometer's")  # fmt: skip
+    unit = finding.rstrip("?")
+    other = {"deg_s": "°/s", "rad_s": "rad/s"}[unit]
+    how = f"{1 / free:.3g}× more" if unit == "deg_s" else f"{free:.3g}× less"
+    says = {"deg_s": "deg/s", "rad_s": "rad/s"}[unit]
+    return (f"the gyroscope (read as {read}) turns {how} than the tilt the accelerometer sees "
+            f"(a gyroscope in {other} read as {read.replace('deg/s', '°/s')} turns 57.3×): it "
+            f"misses the tilt by {miss['as_read']:.0f}° per {window} (RMS), by "
+            f"{miss[unit]:.1f}° in {other}: is it in {other}?",
+            f"check the export's gyroscope unit (a column map says it as "
+            f"gyr: {{unit: {says}}})")  # fmt: skip
 
 
 def check_stream(stream: SensorStream, gap_max: float) -> dict[str, Any]:
@@ -412,6 +443,9 @@ def doubts(stream: SensorStream) -> list[str]:
         peak = qc["gyr_max_rad_s"]
         out.append(f"|ω| reaches {peak:.3g} rad/s ({read_as}), beyond a ±2000 °/s gyroscope: "
                    "is it in °/s? — check the export's gyroscope unit")  # fmt: skip
+    problem = gyr_unit_problem(stream)
+    if problem:
+        out.append(" — ".join(problem))
     if flags.get("implausible_values"):
         share = ", ".join(f"{ch} {100 * v:.3g} %" for ch, v in qc["implausible_share"].items())
         out.append(f"values beyond what a sensor measures (1e308, ±inf) in {share} of the rows: "
