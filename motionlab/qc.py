@@ -13,6 +13,13 @@ flag                        raised when
 ``irregular_sampling``      jitter (std of the sample interval) above 10 % of the interval
 ``acc/gyr/mag_saturated``   flat tops at the range: ≥ 3 identical extreme samples in a row
 ``gyr_looks_like_deg_s``    ‖ω‖ above 35 rad/s (beyond a ±2000 °/s range) for ≥ 5 samples
+``gyr_unit_mismatch``       the gyroscope's rotation explains how the accelerometer sees
+                            gravity turn only in the other unit (°/s read as rad/s, or the
+                            reverse; :func:`gyr_scale`, ``qc["gyr_scale"]``): the ingest
+                            refuses the file
+``gyr_unit_doubt``          the same, weaker (4–10 times better rather than ≥ 10), or only
+                            on the accelerometer's axes and not once the axes are free (the
+                            gyroscope's axes are not the accelerometer's?): a warning
 ``acc_looks_like_g``        ‖a‖ at rest between 0.5 and 2 (a value in g, not m/s²)
 ``acc_norm_implausible``    ‖a‖ at rest neither ≈ 1 g (7.8–11.8 m/s²) nor in g
 ``mag_norm_out_of_range``   median ‖m‖ outside 20–70 µT (Earth's field); skipped when the
