@@ -155,3 +155,39 @@ def test_real_slow_excerpts_deg_s_read_as_rad_s_are_refused(tmp_path):
                        f"sensor {name}", "is it in °/s?")  # fmt: skip
         result = ingest(write_recording(folder, name, t, acc, deg, "deg/s"))
         assert result.exit_code == 0 and "gyroscope" not in result.stderr, result.output
+
+
+def found(deg_s_fit=1.0, rad_s_fit=1.0, free=1.0, miss=20.0):
+    """A hand-made ``qc["gyr_scale"]``: the fits, the axes-free scale, the miss as read (°)."""
+    return {"scale": free, "axes_free_scale": free, "deg_s_fit": deg_s_fit,
+            "rad_s_fit": rad_s_fit, "tilt_deg": 100.0, "windows": 50,
+            "miss_deg": {"as_read": miss, "deg_s": miss / math.sqrt(deg_s_fit),
+                         "rad_s": miss / math.sqrt(rad_s_fit), "none": miss}}  # fmt: skip
+
+
+@pytest.mark.parametrize(
+    "kwargs, finding",
+    [
+        ({"deg_s_fit": 12.0, "free": 0.02}, "deg_s"),
+        ({"deg_s_fit": 6.0, "free": 0.02}, "deg_s?"),
+        ({"deg_s_fit": 3.9, "free": 0.02}, ""),  # under 4: no doubt
+        ({"deg_s_fit": 12.0, "free": 0.5}, "axes?"),  # fits on the same axes only
+        ({"deg_s_fit": 12.0, "free": 0.02, "miss": 4.0}, ""),  # misses by < 5°: no evidence
+        ({"deg_s_fit": 0.01, "rad_s_fit": 12.0, "free": 60.0, "miss": 4.0}, "rad_s"),
+        ({"deg_s_fit": 0.01, "rad_s_fit": 12.0, "free": 3.0}, "axes?"),
+    ],
+)
+def test_verdict_thresholds(kwargs, finding):
+    assert qc.gyr_unit_finding(found(**kwargs)) == finding
+
+
+def test_doubt_is_one_warning_line():
+    from motionlab.session import SensorStream
+
+    s = SensorStream(label="x", time=np.arange(3.0), source_units={"gyr": "rad/s"})
+    s.qc = {"flags": {}, "gyr_scale": found(deg_s_fit=6.0, free=0.02)}
+    (line,) = qc.doubts(s)
+    assert line.startswith("the gyroscope (read as rad/s) turns 50× more than the tilt")
+    assert "by 20° per 0.5 s (RMS), by 8.2° in °/s: is it in °/s? — check the export's" in line
+    s.qc["gyr_scale"] = found(deg_s_fit=12.0, free=0.5)
+    assert "its unit, or axes that are not the accelerometer's?" in qc.doubts(s)[0]
