@@ -30,7 +30,13 @@ import numpy as np
 from motionlab import timebase
 from motionlab.errors import InputError
 from motionlab.io import read_any
-from motionlab.qc import IMPLAUSIBLE, check_stream, damage_checked, mark_identical_streams
+from motionlab.qc import (
+    IMPLAUSIBLE,
+    check_stream,
+    damage_checked,
+    gyr_unit_problem,
+    mark_identical_streams,
+)
 from motionlab.sensor_map import SensorMap, load_sensor_map
 from motionlab.session import MarkerSet, SensorStream, Session
 
@@ -263,6 +269,15 @@ def _resample_markers(m: MarkerSet, rate: float) -> MarkerSet:
     )
 
 
+def _check_gyr_unit(stream: SensorStream, path: Path) -> None:
+    """Refuse a gyroscope whose rotation fits the accelerometer's tilt only in another unit
+    (``qc["flags"]["gyr_unit_mismatch"]``, :func:`motionlab.qc.gyr_scale`): every orientation
+    would turn 57.3 times too fast or too slow."""
+    problem = gyr_unit_problem(stream) if stream.qc["flags"].get("gyr_unit_mismatch") else None
+    if problem:
+        raise InputError(problem[0], path, f"sensor {stream.label}", problem[1])
+
+
 def check_and_fill(stream: SensorStream, report: dict[str, Any], gap_max: float) -> SensorStream:
     """Step 4 for one stream whose clock is repaired: quality checks on the data as recorded,
     then gaps up to ``gap_max`` s filled; the stream with its ``qc``, which also holds the
@@ -344,7 +359,7 @@ def ingest(
     for stream, path, quat_report in checked:
         stream, report = timebase.repair_clock(stream, path)
         _check_clock(stream, path)
-        repaired.append((stream, report | quat_report))
+        repaired.append((stream, report | quat_report, path))
     for m, path in markers:
         _check_marker_clock(m, path)
         if np.abs(m.time[[0, -1]]).max() > TIME_MAX_S:
@@ -355,9 +370,9 @@ def ingest(
                 "check the rate and the first frame, or export the file again",
             )
     if rate is not None:
-        _check_rate(rate, [s for s, _ in repaired], [m for m, _ in markers], paths)
+        _check_rate(rate, [s for s, _, _ in repaired], [m for m, _ in markers], paths)
 
-    starts = [float(s.time[0]) for s, _ in repaired] + [float(m.time[0]) for m, _ in markers]
+    starts = [float(s.time[0]) for s, _, _ in repaired] + [float(m.time[0]) for m, _ in markers]
     origin = min(starts)
     session = Session(
         metadata={
@@ -371,16 +386,17 @@ def ingest(
             "clocks_unrelated": max(starts) - origin > UNRELATED_CLOCKS_S,
         }
     )
-    recorded = sorted({s.attrs["recorded"] for s, _ in repaired if s.attrs.get("recorded")})
+    recorded = sorted({s.attrs["recorded"] for s, _, _ in repaired if s.attrs.get("recorded")})
     if recorded:  # the day the files say they were recorded (the earliest, if they differ)
         session.metadata["recorded"] = recorded[0]
-    for stream, report in repaired:
+    for stream, report, path in repaired:
         stream = dataclasses.replace(
             stream,
             time=stream.time - origin,
             attrs={**stream.attrs, "start_s": float(stream.time[0])},
         )
         stream = check_and_fill(stream, report, gap_max)
+        _check_gyr_unit(stream, path)
         if rate is not None:
             qc = stream.qc
             stream = timebase.resample(stream, rate)

@@ -13,6 +13,13 @@ flag                        raised when
 ``irregular_sampling``      jitter (std of the sample interval) above 10 % of the interval
 ``acc/gyr/mag_saturated``   flat tops at the range: ≥ 3 identical extreme samples in a row
 ``gyr_looks_like_deg_s``    ‖ω‖ above 35 rad/s (beyond a ±2000 °/s range) for ≥ 5 samples
+``gyr_unit_mismatch``       the gyroscope's rotation explains how the accelerometer sees
+                            gravity turn only in the other unit (°/s read as rad/s, or the
+                            reverse; :func:`gyr_scale`, ``qc["gyr_scale"]``): the ingest
+                            refuses the file
+``gyr_unit_doubt``          the same, weaker (4–10 times better rather than ≥ 10), or only
+                            on the accelerometer's axes and not once the axes are free (the
+                            gyroscope's axes are not the accelerometer's?): a warning
 ``acc_looks_like_g``        ‖a‖ at rest between 0.5 and 2 (a value in g, not m/s²)
 ``acc_norm_implausible``    ‖a‖ at rest neither ≈ 1 g (7.8–11.8 m/s²) nor in g
 ``mag_norm_out_of_range``   median ‖m‖ outside 20–70 µT (Earth's field); skipped when the
@@ -27,7 +34,7 @@ flag                        raised when
 ``rate_assumed``            the reader had to assume the sampling rate (e.g. an Xsens export
                             without 'Update Rate'); times rest on that assumption
 ``mag_scale_assumed``       the magnetometer's scale was assumed (arbitrary units)
-``rate_differs_from_header`` the rate from the time stamps is more than 10 % from the one the
+``header_rate_mismatch``    the rate from the time stamps is more than 10 % from the one the
                             file's header states (``attrs["nominal_rate_hz"]``: DOT
                             ``OutputRate``, APDM): a time column in another unit
 ``non_finite``              any channel holds NaN or ±inf (``qc["non_finite_share"]``: the
@@ -41,6 +48,7 @@ flag                        raised when
 from __future__ import annotations
 
 import hashlib
+import math
 from typing import Any
 
 import numpy as np
@@ -60,6 +68,13 @@ JITTER_LIMIT = 0.1  # relative to the nominal interval
 REST_GYR = 0.2  # rad/s: below this the sensor is taken to be at rest
 HELD_SHARE = 0.2  # share of rows repeating the previous one above which samples are "held"
 HEADER_RATE_TOLERANCE = 0.1  # relative: time stamps and the header's stated rate disagree
+#: the gyroscope's scale against the accelerometer's tilt (:func:`gyr_scale`)
+SCALE_BLOCK_S = 0.25  # s: the accelerometer's direction is averaged over blocks this long
+SCALE_ACC_TOL = 0.2  # samples with ‖a‖ within 20 % of its median: gravity dominates
+SCALE_REFUSE = 10.0  # the other unit explains the tilt this many times better: refused
+SCALE_DOUBT = 4.0  # … this many times better: a warning
+SCALE_MISS_DEG = 5.0  # °: and the unit as read misses the tilt by this much per window (RMS)
+DEG = math.pi / 180.0  # rad/s per °/s
 #: magnitudes no sensor reports (per axis; m/s², rad/s, µT, 1): beyond them a value is damage,
 #: not motion; the vendor's free acceleration (``extra["free_acc"]``, gravity removed) like the
 #: accelerometer's
@@ -169,6 +184,166 @@ def mark_identical_streams(sensors: dict[str, SensorStream]) -> dict[str, list[s
     return out
 
 
+def _skew(v: np.ndarray) -> np.ndarray:
+    """(N, 3, 3): the matrices ``[v]×`` of the rows of ``v`` (``[v]× x = v × x``)."""
+    zero = np.zeros(len(v))
+    return np.stack((np.column_stack((zero, -v[:, 2], v[:, 1])),
+                     np.column_stack((v[:, 2], zero, -v[:, 0])),
+                     np.column_stack((-v[:, 1], v[:, 0], zero))), axis=1)  # fmt: skip
+
+
+def gyr_scale(time: np.ndarray, acc: np.ndarray, gyr: np.ndarray) -> dict[str, Any] | None:
+    """The scale of the gyroscope that best explains how the accelerometer sees gravity turn.
+
+    A sensor that moves slowly sees gravity (the direction ``u = a/‖a‖``) turn in its frame as
+    ``du/dt = −ω × u = u × ω``. A gyroscope read in the wrong unit gives ``ω/s`` (``s = π/180``:
+    °/s read as rad/s; ``s = 180/π``: rad/s read as °/s), so
+    ``u(t) − u(0) = s ∫ u × ω_read dt + β × ∫ u dt`` (``β``: the bias, rad/s), linear in
+    ``(s, β)``. Samples whose ‖a‖ is within :data:`SCALE_ACC_TOL` of its median are integrated
+    (gaps up to 0.1 s bridged); the relation is averaged over :data:`SCALE_BLOCK_S` blocks (a
+    low-pass) and differenced between neighbouring blocks free of faster movement, and fitted by
+    least squares. Its residual with ``s`` held at 1, π/180, 180/π and 0 (``β`` refitted) says
+    how well each unit explains the tilt. The same fit with a free 3×3 map ``M`` in place of
+    ``s·I`` gives a scale that does not assume the two sensors' axes agree (the middle singular
+    value of ``M``): a column map that gives the accelerometer's axes in another order turns
+    the first scale towards 0, not this one.
+
+    Returns ``scale`` (the best ``s``: 1 for a gyroscope in the unit it was read in),
+    ``axes_free_scale``, ``miss_deg`` (RMS residual per block pair, °, with ``s`` at
+    ``as_read`` 1, ``deg_s`` π/180, ``rad_s`` 180/π, ``none`` 0), ``deg_s_fit`` and
+    ``rad_s_fit`` (how many times smaller the squared residual is in that unit than as read),
+    ``tilt_deg`` (the turn of gravity seen, summed over the block pairs, °) and ``windows``
+    (block pairs used); ``None`` with fewer than 4 pairs. A sensor that barely tilts gives fits
+    near 1 both ways: no evidence. Linear acceleration (a swinging limb) makes ``scale`` noisy,
+    not near π/180.
+    """
+    t = np.asarray(time, dtype=float)
+    a = np.asarray(acc, dtype=float).reshape(len(t), 3)
+    w = np.asarray(gyr, dtype=float).reshape(len(t), 3)
+    n = len(t)
+    dt = np.diff(t)
+    nominal = float(np.median(dt)) if n >= 8 else 0.0
+    if not nominal > 0:
+        return None
+    norm = _norm(a)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        u = a / norm[:, None]
+        slow = np.abs(norm / _median(norm) - 1.0) < SCALE_ACC_TOL
+    good = slow & np.isfinite(u).all(axis=1) & measurable(w, "gyr")
+    bridge = max(1.5 * nominal, min(0.1, 5.0 * nominal))  # s: a dropped sample or two
+    ok = good[1:] & good[:-1] & (dt > 0) & (dt <= bridge)
+    u = np.where(good[:, None], u, 0.0)
+    um = np.where(ok[:, None], 0.5 * (u[1:] + u[:-1]), 0.0) * dt[:, None]
+    wm = np.where(ok[:, None], 0.5 * (w[1:] + w[:-1]), 0.0)
+    m = max(2, round(SCALE_BLOCK_S / nominal))
+    k = n // m
+    if k < 5:
+        return None
+
+    def blocks(x: np.ndarray) -> np.ndarray:
+        return x[: k * m].reshape(k, m, -1)
+
+    # block j holds samples j·m … j·m+m-1 and the intervals that start there; the pair (j, j+1)
+    # spans its intervals j·m … j·m+2m-2
+    bad = blocks(np.append(~ok, True)).any(axis=(1, 2))
+    use = ~(bad[:-1] | bad[1:])
+    y = np.diff(blocks(u).mean(axis=1), axis=0)[use]
+    if len(y) < 4:
+        return None
+
+    # per pair, ∫ x dt from block j's mean time to block j+1's = the difference of the block
+    # means of the running integral: a triangle over the intervals of both blocks; x = u ω_jᵀ
+    # (row-major, for the map M) and u (for the bias), per interval, already × dt
+    x = np.column_stack(((um[:, :, None] * wm[:, None, :]).reshape(n - 1, 9), um))
+    xb = blocks(np.vstack((x, np.zeros((1, 12)))))
+    rise = np.arange(1, m + 1) / m
+    pair = (np.einsum("kmc,m->kc", xb[:-1], rise) + np.einsum("kmc,m->kc", xb[1:], 1 - rise))[use]
+    # u × (M ω) = [u]× M ω: linear in the 9 entries of M (row-major, index 3·row + column)
+    uw = pair[:, :9].reshape(-1, 3, 3)
+    c9 = np.stack([_skew(uw[:, :, j]) for j in range(3)], axis=3).reshape(-1, 3, 9)
+    bias = -_skew(pair[:, 9:])  # β × v = −[v]× β
+    yy = float(np.einsum("ki,ki->", y, y))
+
+    def fit(design: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return np.einsum("kij,kil->jl", design, design), np.einsum("kij,ki->j", design, y)
+
+    normal, rhs = fit(np.concatenate((c9[:, :, [0, 4, 8]].sum(axis=2)[:, :, None], bias), axis=2))
+
+    def rss(s: float) -> float:
+        """Squared residual with the scale held at ``s`` and the bias refitted."""
+        r = rhs[1:] - s * normal[1:, 0]
+        beta = np.linalg.lstsq(normal[1:, 1:], r, rcond=1e-12)[0]
+        return max(yy - 2.0 * s * rhs[0] + s * s * normal[0, 0] - float(r @ beta), 1e-300)
+
+    best = float(np.linalg.lstsq(normal, rhs, rcond=1e-12)[0][0])
+    free = np.linalg.lstsq(*fit(np.concatenate((c9, bias), axis=2)), rcond=1e-12)[0]
+    units = {"as_read": 1.0, "deg_s": DEG, "rad_s": 1.0 / DEG, "none": 0.0}
+    miss = {key: math.degrees(math.sqrt(rss(s) / len(y))) for key, s in units.items()}
+    return {
+        "scale": best,
+        "axes_free_scale": float(np.linalg.svd(free[:9].reshape(3, 3), compute_uv=False)[1]),
+        "deg_s_fit": (miss["as_read"] / miss["deg_s"]) ** 2,
+        "rad_s_fit": (miss["as_read"] / miss["rad_s"]) ** 2,
+        "miss_deg": miss,
+        "tilt_deg": math.degrees(float(_norm(y).sum())),
+        "windows": len(y),
+    }
+
+
+def gyr_unit_finding(found: dict[str, Any] | None) -> str:
+    """The verdict on :func:`gyr_scale`'s ``found``: ``"deg_s"`` (a °/s gyroscope read as
+    rad/s: refused), ``"rad_s"`` (rad/s read as °/s: refused), ``"deg_s?"`` / ``"rad_s?"``
+    (a doubt: warned), ``"axes?"`` (the other unit fits on the accelerometer's axes, but not
+    once the axes are free: the two sensors' axes differ, warned) or ``""``.
+
+    A verdict needs the other unit to explain the tilt :data:`SCALE_REFUSE`
+    (:data:`SCALE_DOUBT`) times better than the unit as read and, to refuse, the axes-free
+    scale on the same side of the geometric middle (√(π/180) ≈ 0.13, or √(180/π) ≈ 7.6). For
+    °/s, the unit as read must also miss the tilt by at least :data:`SCALE_MISS_DEG` per block
+    pair (RMS): a still sensor whose bias drifts by 1°/s over 5 minutes is explained 4.5 times
+    better by π/180 (it claims less), but misses by 0.1°."""
+    if not found:
+        return ""
+    fit, unit = max((found["deg_s_fit"], "deg_s"), (found["rad_s_fit"], "rad_s"))
+    if fit < SCALE_DOUBT or (unit == "deg_s" and found["miss_deg"]["as_read"] < SCALE_MISS_DEG):
+        return ""
+    free = found["axes_free_scale"]
+    agrees = free < math.sqrt(DEG) if unit == "deg_s" else free > 1.0 / math.sqrt(DEG)
+    if not agrees:
+        return "axes?"
+    return unit if fit >= SCALE_REFUSE else f"{unit}?"
+
+
+def gyr_unit_problem(stream: SensorStream) -> tuple[str, str] | None:
+    """What :func:`gyr_unit_finding` found in ``stream.qc["gyr_scale"]`` as ``(what, remedy)``
+    for one line (the ingest refuses ``deg_s``/``rad_s`` with it, ``doubts`` warns the rest), or
+    ``None``."""
+    found = stream.qc.get("gyr_scale")
+    finding = gyr_unit_finding(found)
+    if not finding:
+        return None
+    read = stream.source_units.get("gyr", "rad/s")
+    miss, free = found["miss_deg"], found["axes_free_scale"]
+    window = f"{2 * SCALE_BLOCK_S:g} s"
+    if finding == "axes?":
+        return (f"the gyroscope (read as {read}) does not turn with the tilt the accelerometer "
+                f"sees (missed by {miss['as_read']:.0f}° per {window}, RMS; best scale "
+                f"{found['scale']:.3g} on the same axes, {free:.3g} with the axes free): its "
+                "unit, or axes that are not the accelerometer's?",
+                "check the export's gyroscope unit and that its x, y, z are the "
+                "accelerometer's")  # fmt: skip
+    unit = finding.rstrip("?")
+    other = {"deg_s": "°/s", "rad_s": "rad/s"}[unit]
+    how = f"{1 / free:.3g}× more" if unit == "deg_s" else f"{free:.3g}× less"
+    says = {"deg_s": "deg/s", "rad_s": "rad/s"}[unit]
+    return (f"the gyroscope (read as {read}) turns {how} than the tilt the accelerometer sees "
+            f"(a gyroscope in {other} read as {read.replace('deg/s', '°/s')} turns 57.3×): it "
+            f"misses the tilt by {miss['as_read']:.0f}° per {window} (RMS), by "
+            f"{miss[unit]:.1f}° in {other}: is it in {other}?",
+            f"check the export's gyroscope unit (a column map says it as "
+            f"gyr: {{unit: {says}}})")  # fmt: skip
+
+
 def check_stream(stream: SensorStream, gap_max: float) -> dict[str, Any]:
     """Rate, jitter, saturation, unit plausibility and NaN spans of ``stream`` (see module)."""
     t = np.asarray(stream.time, dtype=float)
@@ -188,7 +363,7 @@ def check_stream(stream: SensorStream, gap_max: float) -> dict[str, Any]:
     if stated and np.isfinite(qc["rate_hz"]):  # a time column read in the wrong unit
         qc["header_rate_hz"] = float(stated)
         off = abs(qc["rate_hz"] / float(stated) - 1.0) > HEADER_RATE_TOLERANCE
-        flags["rate_differs_from_header"] = bool(off)
+        flags["header_rate_mismatch"] = bool(off)
 
     qc["saturated_samples"] = {}
     spans: dict[str, list] = {}
@@ -228,6 +403,12 @@ def check_stream(stream: SensorStream, gap_max: float) -> dict[str, Any]:
         start, end = runs(w > GYR_MAX_PLAUSIBLE).T
         flags["gyr_looks_like_deg_s"] = bool(np.any(end - start >= GYR_SUSTAINED))
         rest = w < REST_GYR
+        scale = gyr_scale(t, stream.acc, stream.gyr) if stream.acc is not None else None
+        if scale is not None:
+            qc["gyr_scale"] = scale
+            finding = gyr_unit_finding(scale)
+            flags["gyr_unit_mismatch"] = finding in ("deg_s", "rad_s")
+            flags["gyr_unit_doubt"] = finding.endswith("?")
     if stream.acc is not None:  # the norm at rest of rows a sensor can give: 1e308 is damage
         a = np.where(measurable(stream.acc, "acc"), _norm(stream.acc), np.nan)
         use = rest if rest is not None and rest.sum() >= 10 else np.isfinite(a)
@@ -278,6 +459,9 @@ def doubts(stream: SensorStream) -> list[str]:
         peak = qc["gyr_max_rad_s"]
         out.append(f"|ω| reaches {peak:.3g} rad/s ({read_as}), beyond a ±2000 °/s gyroscope: "
                    "is it in °/s? — check the export's gyroscope unit")  # fmt: skip
+    problem = gyr_unit_problem(stream)
+    if problem:
+        out.append(" — ".join(problem))
     if flags.get("implausible_values"):
         share = ", ".join(f"{ch} {100 * v:.3g} %" for ch, v in qc["implausible_share"].items())
         out.append(f"values beyond what a sensor measures (1e308, ±inf) in {share} of the rows: "
@@ -289,7 +473,7 @@ def doubts(stream: SensorStream) -> list[str]:
     elif qc.get("quat_invalid_samples"):
         out.append(f"{qc['quat_invalid_samples']} orientations with a norm far from 1 set "
                    "missing — check the file, or export it again")  # fmt: skip
-    if flags.get("rate_differs_from_header"):
+    if flags.get("header_rate_mismatch"):
         out.append(f"the time stamps give {qc['rate_hz']:.4g} Hz, the file's header says "
                    f"{qc['header_rate_hz']:g} Hz: is the time column in another unit? — check "
                    "the export's time column")  # fmt: skip
