@@ -455,7 +455,18 @@ RUN_IMPORTS = (
     "motionlab.kinematics.metrics",
     "motionlab.report",
     "motionlab.report.console",
+    "motionlab.report.model",
 )
+
+
+def _read_reference(options: PipelineOptions) -> tuple[MarkerSet, str] | None:
+    """``options.reference`` read (its marker set and kind), or None without one; the
+    validation's readers are imported only then."""
+    if options.reference is None:
+        return None
+    from motionlab.validation.reference_kinds import load_reference
+
+    return load_reference(Path(options.reference))
 
 
 def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> PipelineResult:
@@ -483,11 +494,7 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
     session_path, report_path, csv_dir = _outputs(
         outdir, options.force, [*inputs, options.map_path, options.reference, proto.path]
     )
-    reference = None
-    if options.reference is not None:  # an unreadable reference is told before any work
-        from motionlab.validation.reference_kinds import load_reference
-
-        reference = load_reference(Path(options.reference))
+    reference = _read_reference(options)  # an unreadable one is told before any work
     command = options.command(inputs, outdir)
     names = ["ingest", "fuse", "calibrate", "angles", "metrics", "report"]
     if options.clock_sync:
