@@ -13,6 +13,7 @@ import dataclasses
 import numpy as np
 
 from motionlab import rotations as rot
+from motionlab.errors import InputError
 from motionlab.protocol import Protocol
 from motionlab.session import Session
 from motionlab.timebase import interp_columns
@@ -29,6 +30,57 @@ def sensor_for_segment(session: Session, segment: str) -> str | None:
         if s.segment == segment or (s.side and f"{s.segment}_{s.side}" == segment):
             return label
     return segment if segment in session.sensors else None
+
+
+def segment_name(segment: str, side: str) -> str:
+    """The protocol segment name of a sensor map's ``segment`` and ``side`` (``shank`` and
+    ``r``: ``shank_r``; a name that has its side already is kept)."""
+    if not segment or not side or segment.endswith(f"_{side}"):
+        return segment
+    return f"{segment}_{side}"
+
+
+def sensor_list(session: Session) -> str:
+    """The session's sensors with the segment each is mapped to, for an error message:
+    ``"Femur (thigh_r), Tibia (shank_r)"``; ``"none"`` for no sensor."""
+    placed = {k: segment_name(s.segment, s.side) for k, s in session.sensors.items()}
+    return ", ".join(f"{k} ({seg})" if seg else k for k, seg in placed.items()) or "none"
+
+
+def foreign_segments(protocol: Protocol, session: Session) -> str:
+    """``"; femur_r, tibia_r are no segments of it"`` when the session's sensors are mapped to
+    segment names the protocol does not have (for an error message), else ``""``."""
+    mapped = {segment_name(s.segment, s.side) for s in session.sensors.values()} - {""}
+    foreign = sorted(mapped - set(protocol.segments))
+    if not foreign:
+        return ""
+    verb = "is no segment" if len(foreign) == 1 else "are no segments"
+    return f"; {', '.join(foreign)} {verb} of it"
+
+
+def check_joints(protocol: Protocol, session: Session, path: object = None) -> None:
+    """Raise :class:`InputError` when no joint of ``protocol`` has a sensor on both its segments
+    (a protocol of optional segments, as ``walk``, given sensors mapped to other segment names):
+    nothing could be calibrated or measured. The message names what each joint needs, the
+    segment names of the map that are no segment of the protocol, and the sensors."""
+    joints = protocol.joints.values()
+    if not joints or any(
+        sensor_for_segment(session, j.proximal) and sensor_for_segment(session, j.distal)
+        for j in joints
+    ):
+        return
+    needs = "; ".join(f"{name} needs {j.proximal} and {j.distal}"
+                      for name, j in protocol.joints.items())  # fmt: skip
+    raise InputError(
+        f"no joint of the '{protocol.name}' protocol has sensors on both its segments "
+        f"({needs}){foreign_segments(protocol, session)} (the sensors: {sensor_list(session)})",
+        path,
+        remedy="map the sensors to the protocol's segments "
+        f"({', '.join(protocol.segments)}) in a sensor map and read the recordings with it, "
+        "map_path=map.yaml (docs/ingest.md, 'The map'), or give a protocol for the segments "
+        "recorded",
+        argument="map_path",
+    )
 
 
 def sensed_protocol(protocol: Protocol, session: Session) -> Protocol:

@@ -138,6 +138,13 @@ def _check_clock(stream: SensorStream, path: Path) -> None:
             "check the time column and its unit, or export the file again",
         )
     rate = stream.rate_hz
+    if len(t) < 2:  # every row had the same stamp (duplicates are dropped): no rate to check
+        raise InputError(
+            f"{len(t)} distinct time stamp{'s' if len(t) != 1 else ''}: the time does not advance",
+            path,
+            where,
+            "check the time column, or export the file again",
+        )
     if not RATE_RANGE_HZ[0] <= rate <= RATE_RANGE_HZ[1]:
         raise InputError(
             f"sampling rate {rate:.3g} Hz from the time stamps",

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import shlex
 import sys
 import threading
 import time
@@ -104,12 +105,13 @@ def _acquire(lock: Path, wait: float, target: Path) -> int:
         os.close(fd)
 
 
-def _command() -> str:
-    """This process's command line, ``motionlab ...`` for ``python -m motionlab ...``."""
+def command_line() -> str:
+    """This process's command line, ``motionlab ...`` for ``python -m motionlab ...`` and for
+    the installed executable's full path (``/usr/local/bin/motionlab ...``)."""
     argv = list(sys.argv) or ["?"]
     if Path(argv[0]).name in ("__main__.py", "motionlab"):
         argv[0] = "motionlab"
-    return " ".join(argv)
+    return shlex.join(argv)
 
 
 @contextlib.contextmanager
@@ -135,7 +137,7 @@ def session_lock(path: str | Path, wait: float | None = None) -> Iterator[None]:
     held.add(key)
     try:
         os.ftruncate(fd, 0)
-        os.write(fd, f"{os.getpid()} {_command()}\n".encode("utf-8", "replace"))
+        os.write(fd, f"{os.getpid()} {command_line()}\n".encode("utf-8", "replace"))
         _sweep(path)
         yield
     finally:

@@ -34,13 +34,20 @@ import h5py
 
 from motionlab import stages as stages_lib
 from motionlab.atomic import check_folder_writable, refuse_input_as_output
-from motionlab.binding import sensed_protocol, sensor_for_segment
+from motionlab.binding import (
+    check_joints,
+    foreign_segments,
+    sensed_protocol,
+    sensor_for_segment,
+    sensor_list,
+)
 from motionlab.errors import InputError
 from motionlab.ingest import DEFAULT_GAP_MAX, ingest
 from motionlab.lock import session_lock
 from motionlab.protocol import Protocol, load_protocol
 from motionlab.qc import doubts as qc_doubts
 from motionlab.session import (
+    MarkerSet,
     Session,
     is_session_file,
     load_session,
@@ -63,7 +70,8 @@ class PipelineResult:
 
     ``metrics`` has one row per joint metric (scalar rows of
     :func:`motionlab.kinematics.metrics.metrics_table`: ``block, joint, angle, metric, value,
-    unit``; the cycle curves are left out).
+    unit``; the cycle curves are left out), and the ``grade`` of the row's angle
+    (``determined``, ``weak``, ``not determined``; empty for a row of no angle column).
     """
 
     session_path: Path
@@ -147,14 +155,23 @@ def check_segments(session: Session, protocol: Protocol, inputs: list[Path]) -> 
     needed = [s for s, spec in protocol.segments.items() if spec.required]
     missing = [s for s in needed if sensor_for_segment(session, s) is None]
     if not missing:
+        check_joints(protocol, session, inputs[0] if len(inputs) == 1 else None)
         return
-    labels = ", ".join(f"{k} ({s.segment})" if s.segment else k for k, s in session.sensors.items())
     gap = "none of them" if missing == needed else f"none on {', '.join(missing)}"
+    foreign = foreign_segments(protocol, session)
+    if all(s.segment for s in session.sensors.values()) and not foreign:
+        # every sensor is mapped to a segment of the protocol: the recording lacks the others
+        remedy = (
+            f"record sensors on {', '.join(missing)}, or copy the protocol and set "
+            "'required: false' on the segments the recording has no sensor on"
+        )
+    else:
+        remedy = "map each sensor to its segment with a sensor map, map_path=map.yaml (README)"
     raise InputError(
         f"the '{protocol.name}' protocol needs sensors on {', '.join(needed)}; the input has "
-        f"{gap} (its sensors: {labels or 'none'})",
+        f"{gap}{foreign} (its sensors: {sensor_list(session)})",
         inputs[0] if len(inputs) == 1 else None,
-        remedy="map each sensor to its segment with a sensor map, map_path=map.yaml (README)",
+        remedy=remedy,
         argument="map_path",
     )
 
@@ -365,7 +382,12 @@ RUN_OPTIONS: dict[str, RunOption] = {
 }
 
 
-def analyse(session: Session, options: PipelineOptions, stages: _Stages | None = None) -> None:
+def analyse(
+    session: Session,
+    options: PipelineOptions,
+    stages: _Stages | None = None,
+    reference: tuple[MarkerSet, str] | None = None,
+) -> None:
     """The stages after ingest, in memory, each by its function in :mod:`motionlab.stages` (as
     the stage commands call them): (sync) → fuse (with the sensor calibrations) → calibrate →
     angles → metrics (and gait) → (validate, with ``options.reference`` or the session's own
@@ -381,6 +403,10 @@ def analyse(session: Session, options: PipelineOptions, stages: _Stages | None =
     middle of a task (knee sessions simulated with the ``typical`` preset, seeds 0-9 at 100, 60
     and 50 Hz: with the magnetometer 3 of 30 had a knee rotation RMSE of 21-23°, without it none
     above 2°). Validation then aligns each sensor's heading separately (mode ``heading``).
+
+    ``reference``: ``options.reference`` already read (its marker set and kind,
+    :func:`~motionlab.validation.reference_kinds.load_reference`), as :func:`run_pipeline`
+    reads it before any work.
     """
 
     protocol = sensed_protocol(options.load_protocol(), session)
@@ -408,7 +434,9 @@ def analyse(session: Session, options: PipelineOptions, stages: _Stages | None =
         from motionlab.validation.reference_kinds import load_reference, session_reference
 
         with stages("validate"):  # markers, segment quaternions or model angles
-            if options.reference is not None:
+            if reference is not None:
+                marker_set, kind = reference
+            elif options.reference is not None:
                 marker_set, kind = load_reference(Path(options.reference))
             else:
                 marker_set, kind = session_reference(session)
@@ -427,7 +455,18 @@ RUN_IMPORTS = (
     "motionlab.kinematics.metrics",
     "motionlab.report",
     "motionlab.report.console",
+    "motionlab.report.model",
 )
+
+
+def _read_reference(options: PipelineOptions) -> tuple[MarkerSet, str] | None:
+    """``options.reference`` read (its marker set and kind), or None without one; the
+    validation's readers are imported only then."""
+    if options.reference is None:
+        return None
+    from motionlab.validation.reference_kinds import load_reference
+
+    return load_reference(Path(options.reference))
 
 
 def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> PipelineResult:
@@ -443,6 +482,7 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
     from motionlab.kinematics.metrics import metrics_table
     from motionlab.report import load_views, write_report
     from motionlab.report.console import run_summary
+    from motionlab.report.model import angle_grades
 
     t_start = time.perf_counter()
     inputs = [Path(p) for p in inputs]
@@ -454,6 +494,7 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
     session_path, report_path, csv_dir = _outputs(
         outdir, options.force, [*inputs, options.map_path, options.reference, proto.path]
     )
+    reference = _read_reference(options)  # an unreadable one is told before any work
     command = options.command(inputs, outdir)
     names = ["ingest", "fuse", "calibrate", "angles", "metrics", "report"]
     if options.clock_sync:
@@ -467,7 +508,7 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
         session = load_inputs(inputs, map_path, command)
         check_segments(session, proto, inputs)
         proto = sensed_protocol(proto, session)
-    analyse(session, dataclasses.replace(options, protocol=proto), stages)
+    analyse(session, dataclasses.replace(options, protocol=proto), stages, reference)
     validated = session.results.validation is not None
     session.add_provenance(
         command,
@@ -496,6 +537,11 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
             write_json(session, outdir / RESULTS_JSON, force=options.force)
     table = metrics_table(session.results.metrics)
     metrics = table[table["percent"].isna()].drop(columns="percent").reset_index(drop=True)
+    graded = angle_grades(views[0])  # each row's angle's grade ("" for no angle column)
+    metrics["grade"] = [
+        graded.get(f"{j}_{a}_deg", ("", ""))[0]
+        for j, a in zip(metrics["joint"], metrics["angle"], strict=True)
+    ]
     summary = run_summary(
         views[0],
         out,

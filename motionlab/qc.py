@@ -34,6 +34,9 @@ flag                        raised when
 ``rate_assumed``            the reader had to assume the sampling rate (e.g. an Xsens export
                             without 'Update Rate'); times rest on that assumption
 ``mag_scale_assumed``       the magnetometer's scale was assumed (arbitrary units)
+``header_rate_mismatch``    the rate from the time stamps is more than 10 % from the one the
+                            file's header states (``attrs["nominal_rate_hz"]``: DOT
+                            ``OutputRate``, APDM): a time column in another unit
 ``non_finite``              any channel holds NaN or ±inf (``qc["non_finite_share"]``: the
                             share of samples per channel)
 ``implausible_values``      any sample beyond what a sensor measures (``IMPLAUSIBLE``: e.g.
@@ -64,6 +67,7 @@ ACC_REST_RANGE = (7.8, 11.8)  # m/s²
 JITTER_LIMIT = 0.1  # relative to the nominal interval
 REST_GYR = 0.2  # rad/s: below this the sensor is taken to be at rest
 HELD_SHARE = 0.2  # share of rows repeating the previous one above which samples are "held"
+HEADER_RATE_TOLERANCE = 0.1  # relative: time stamps and the header's stated rate disagree
 #: the gyroscope's scale against the accelerometer's tilt (:func:`gyr_scale`)
 SCALE_BLOCK_S = 0.25  # s: the accelerometer's direction is averaged over blocks this long
 SCALE_ACC_TOL = 0.2  # samples with ‖a‖ within 20 % of its median: gravity dominates
@@ -355,6 +359,11 @@ def check_stream(stream: SensorStream, gap_max: float) -> dict[str, Any]:
         "gap_max_s": float(gap_max),
     }
     flags = {"irregular_sampling": bool(jitter > JITTER_LIMIT * nominal)}
+    stated = stream.attrs.get("nominal_rate_hz")
+    if stated and np.isfinite(qc["rate_hz"]):  # a time column read in the wrong unit
+        qc["header_rate_hz"] = float(stated)
+        off = abs(qc["rate_hz"] / float(stated) - 1.0) > HEADER_RATE_TOLERANCE
+        flags["header_rate_mismatch"] = bool(off)
 
     qc["saturated_samples"] = {}
     spans: dict[str, list] = {}
@@ -464,6 +473,10 @@ def doubts(stream: SensorStream) -> list[str]:
     elif qc.get("quat_invalid_samples"):
         out.append(f"{qc['quat_invalid_samples']} orientations with a norm far from 1 set "
                    "missing — check the file, or export it again")  # fmt: skip
+    if flags.get("header_rate_mismatch"):
+        out.append(f"the time stamps give {qc['rate_hz']:.4g} Hz, the file's header says "
+                   f"{qc['header_rate_hz']:g} Hz: is the time column in another unit? — check "
+                   "the export's time column")  # fmt: skip
     if qc.get("nan_time_dropped"):  # the ingest's clock repair (motionlab.timebase)
         out.append(f"{qc['nan_time_dropped']} rows without a time stamp (NaN) dropped — check "
                    "the file's time column")  # fmt: skip

@@ -134,6 +134,7 @@ def load_sensor_map(path: str | Path) -> SensorMap:
     smap.reader = _jsonable(dict(reader))
     sensors = doc.get("sensors") or LineMap()
     seen_labels: dict[str, str] = {}
+    seen_segments: dict[str, str] = {}  # protocol segment name (shank + r: shank_r) → key
     for key, spec in sensors.items():
         line = sensors.lines.get(key)
         where = f"sensors.{key}"
@@ -168,7 +169,15 @@ def load_sensor_map(path: str | Path) -> SensorMap:
                                 f"sensors.{seen_labels[label]}", "give each sensor its own label",
                                 line)  # fmt: skip
             seen_labels[label] = key
+        segment = spec.get("segment", "").strip()
+        # two sensors on one segment: the analysis would take one of them and say nothing
+        placed = f"{segment}_{side}" if side and not segment.endswith(f"_{side}") else segment
+        if placed and placed in seen_segments:
+            raise smap.fail(f"{where}.segment", f"segment {placed} is also given to "
+                            f"sensors.{seen_segments[placed]}",
+                            "give each sensor its own segment (check the sides)", line)  # fmt: skip
+        seen_segments[placed] = key
         smap.sensors[key] = SensorPlacement(
-            key=key, segment=spec.get("segment", "").strip(), side=side, label=label, line=line
+            key=key, segment=segment, side=side, label=label, line=line
         )
     return smap

@@ -40,7 +40,6 @@ from __future__ import annotations
 import datetime as _dt
 import io
 import json
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, BinaryIO
@@ -53,6 +52,7 @@ from motionlab.atomic import atomic_path, check_regular
 from motionlab.errors import InputError, shorten
 from motionlab.isolated import check_hdf5, looks_like_hdf5, open_hdf5
 from motionlab.lineage import Lineage, sha256_file
+from motionlab.lock import command_line
 from motionlab.results import Results
 
 SCHEMA_VERSION = 3
@@ -187,7 +187,7 @@ class Session:
             {
                 "time": _dt.datetime.now(_dt.UTC).isoformat(timespec="seconds"),
                 "software": f"motionlab {__version__}",
-                "command": command if command is not None else " ".join(sys.argv),
+                "command": command if command is not None else command_line(),
                 "parameters": parameters or {},
                 "inputs": {str(p): sha256_file(p) for p in inputs},
             }

@@ -26,7 +26,7 @@ from collections.abc import Callable, Iterable
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from motionlab.binding import sensed_protocol
+from motionlab.binding import check_joints, sensed_protocol
 from motionlab.errors import InputError
 from motionlab.ingest import DEFAULT_GAP_MAX, check_and_fill
 from motionlab.lineage import protocol_sha256, refuse_stale
@@ -335,6 +335,9 @@ def calibrate(
     done = session.results.calibration is not None
     refuse_to_redo(done, "calibration", "a calibration", force, path)
     refuse_stale(session, ("clock_sync", "fusion"), path)
+    if not isinstance(protocol, Protocol):
+        protocol = load_protocol(protocol)
+    check_joints(protocol, session, path)  # before the joints of absent segments are dropped
     protocol = stage_protocol(session, protocol, path)
     result = calibrate_segments(session, protocol)
     result.protocol_path = str(protocol.path)

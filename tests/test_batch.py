@@ -158,3 +158,30 @@ def test_cli_exit_codes_progress_and_summary(tmp_path, monkeypatch):
                                "--scheduler", "tcp://127.0.0.1:1"])  # fmt: skip
     assert res.exit_code == 2 and "--workers is for the local pool" in res.output
     assert os.listdir(tmp_path / "out" / "S9" / "v1")
+
+
+def test_the_study_statistics_leave_out_ranges_a_session_did_not_determine(tmp_path):
+    """The study report's median and quartiles of the real trunk trials' trunk-against-chair
+    rotation (weak in every session but one, up to 150°) mixed weak ranges in without a word."""
+    from types import SimpleNamespace as NS
+
+    from motionlab.batch.outputs import write_metrics
+    from motionlab.batch.state import METRICS
+
+    head = "block,joint,angle,metric,value,unit,grade\n"
+    sessions, outcomes = [], []
+    for k, (value, grade) in enumerate([(30.0, "determined"), (150.0, "weak"), (40.0, "")]):
+        folder = Path(f"S{k}") / "v1"
+        (tmp_path / folder).mkdir(parents=True)
+        rows = head + f"move,lumbar,flexion,rom_deg,{value},deg,{grade}\n"
+        if not grade:  # a session's table from before the grade column
+            rows = rows.replace(",grade", "").replace(",\n", "\n")
+        (tmp_path / folder / METRICS).write_text(rows)
+        sessions.append(NS(folder=folder, subject=f"S{k}", visit="v1"))
+        outcomes.append(NS(status="done"))
+    main = write_metrics(tmp_path, NS(sessions=sessions), outcomes, tmp_path / "study.csv")
+    assert main["value"].tolist()[0] == 30.0 and main["value"].isna().tolist() == [
+        False, True, False
+    ]  # fmt: skip
+    assert main["grade"].tolist() == ["determined", "weak", ""]
+    assert _rows(tmp_path / "study.csv")[1]["grade"] == "weak"  # the table keeps every number

@@ -116,3 +116,26 @@ def test_broken_manifest_names_key_and_line(tmp_path, text, where, message):
 def test_manifest_file_missing(tmp_path):
     with pytest.raises(InputError, match="no such manifest"):
         load_manifest(tmp_path / "nope.yaml")
+
+
+def test_an_x_imu3_export_folder_is_a_session_input(tmp_path):
+    """``files: trial/imu`` (an x-IMU3 export, as ``motionlab run trial/imu`` reads it) was
+    'no such file' for a folder that exists; its files' contents key the session."""
+    from motionlab.batch.state import FileHashes, session_key
+    from tests import ximu3_export as xe
+
+    imu = xe.write(tmp_path / "trial", xe.export_files())
+    (tmp_path / "study.yaml").write_text(
+        "protocol: lumbar_seated\nsessions:\n"
+        "  - {subject: A, visit: v1, files: trial/imu}\n"
+        "  - {subject: B, visit: v1, files: 'trial/imu/*'}\n"
+        "  - {subject: C, visit: v1, files: trial}\n"
+    )
+    a, b, c = load_manifest(tmp_path / "study.yaml").sessions
+    assert list(a.files) == [imu] and not a.problem
+    assert [f.name for f in b.files] == sorted(p.name for p in imu.iterdir()) and not b.problem
+    assert c.problem.endswith("no such file 'trial' — fix the path; the other sessions still run")
+    key = session_key(a.files, PACKAGED / "lumbar_seated.yaml", None, None, FileHashes())
+    inertial = next(imu.glob("Back*/Inertial.csv"))
+    inertial.write_bytes(inertial.read_bytes().replace(b"0.", b"1.", 1))
+    assert key != session_key(a.files, PACKAGED / "lumbar_seated.yaml", None, None, FileHashes())

@@ -96,9 +96,22 @@ CASES = {
     ),
     "empty file": (_write("in.csv", ""), "empty"),
     "only a header": (_write("in.csv", XIO_HEADER + "\n"), "no data rows"),
-    "unknown format": (_write("in.dat", "hello\nthis is no recording\n"), "unknown file format"),
+    "unknown format": (
+        _write("in.dat", "hello\nthis is no recording\n"),
+        "unknown file format — give a column map, 'reader:' in --map (docs/ingest.md, 'The map')",
+    ),
     # random bytes were told to give a column map, as if they were text
     "binary, no format": (_write("in.csv", "\x00\x17\x9c garbage \x00\x01"), "binary file of no"),
+    # a MATLAB file (the shared full-body recording is one) was "binary of no format"
+    "MATLAB .mat": (
+        lambda d: (
+            (d / "in.mat").write_bytes(
+                b"MATLAB 5.0 MAT-file, Platform: posix" + bytes(92) + b"\x00\x01IM"
+            ),
+            ["in.mat"],
+        )[1],
+        "in.mat: a MATLAB .mat file",
+    ),
     "utf-16": (
         lambda d: ((d / "in.csv").write_bytes(XIO_HEADER.encode("utf-16")), ["in.csv"])[1],
         "in.csv: text in UTF-16",
@@ -116,6 +129,11 @@ CASES = {
             ),
         ),
         "time goes backwards",
+    ),
+    # every row the same (one row repeated): the clock does not advance; was "rate nan Hz"
+    "one repeated row": (
+        _write("in.csv", XIO_HEADER + "\n" + "0.00,0.1,0.2,0.3,0.0,0.0,1.0\n" * 40),
+        "1 distinct time stamp: the time does not advance",
     ),
     "missing required column": (
         _with_map(generic_rows(), GENERIC_MAP.format(gz="gw")),

@@ -142,7 +142,7 @@ def test_choice_between_methods():
     # agreeing within the impact lag's allowance: the joint centre (more precise)
     near = choose(centre, _fit(0.0215, 3e-4, "applied", "impacts"))
     assert near.method == "joint centre" and near.offset_s == 0.020
-    assert near.other.startswith("impacts: +21.5")
+    assert near.other.startswith("heel strikes: +21.5")
     # 30 ms apart: the impact lag, with the joint centre's answer kept
     far = choose(centre, _fit(-0.010, 3e-4, "applied", "impacts"))
     assert far.method == "impacts" and far.offset_s == -0.010 and "30.0 ms away" in far.other

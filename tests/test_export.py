@@ -165,5 +165,19 @@ def test_export_errors(run_dir, tmp_path):
 
     save_session(Session(), empty)
     res = CliRunner().invoke(main, ["export", str(empty), "-o", str(tmp_path / "a.mot")])
-    assert res.exit_code == 2 and "no joint angles" in res.output
+    assert res.exit_code == 2 and "error: empty.h5: no joint angles" in res.output  # named
     assert not (tmp_path / "a.mot").exists()
+
+
+def test_export_never_replaces_its_session_even_with_force(tmp_path):
+    """``export s.h5 --to json -o s.h5 --force`` wrote the JSON over the analysed session."""
+    from motionlab.session import Session
+
+    path = tmp_path / "s.h5"
+    save_session(Session(), path)
+    before = path.read_bytes()
+    res = CliRunner().invoke(
+        main, ["export", str(path), "--to", "json", "-o", str(path), "--force"]
+    )
+    assert res.exit_code == 2 and "the output is also an input" in res.output
+    assert path.read_bytes() == before

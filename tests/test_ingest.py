@@ -195,6 +195,21 @@ def test_qc_gyro_in_deg_per_s_and_acc_in_g():
     assert not qc.check_stream(stream(t, gyr=one), 0.1)["flags"]["gyr_looks_like_deg_s"]
 
 
+def test_qc_time_stamps_against_the_headers_rate():
+    """A DOT export whose SampleTimeFine was in ms, not µs (a femur at 58824 Hz beside its
+    60-Hz tibia, 0.05 s long): the header's OutputRate said 60 Hz and nothing was said."""
+    t, acc, gyr, mag = _rest()  # 100 Hz
+    s = stream(t, acc=acc, gyr=gyr)
+    s.attrs["nominal_rate_hz"] = 100.0
+    assert not qc.check_stream(s, 0.1)["flags"]["header_rate_mismatch"]
+    fast = stream(t / 1000.0, acc=acc, gyr=gyr)
+    fast.attrs["nominal_rate_hz"] = 100.0
+    fast.qc = qc.check_stream(fast, 0.1)
+    assert fast.qc["flags"]["header_rate_mismatch"]
+    assert any("header says 100 Hz" in d for d in qc.doubts(fast))
+    assert "header_rate_mismatch" not in qc.check_stream(stream(t, acc=acc), 0.1)["flags"]
+
+
 def test_qc_mag_assumed_scale_is_not_judged():
     t, acc, gyr, mag = _rest()
     s = stream(t, mag=mag * 10)
@@ -301,6 +316,11 @@ def test_map_naming_absent_sensor(fake_files, tmp_path):
         ('sensors:\n  a: {label: "x\\ny"}\n', "sensors.a.label"),  # printed on two lines
         ("reader: {format: xsens, rate_hz: 60, mag_feild_ut: 48}\n", "reader.mag_feild_ut"),
         ("subject:\n  thigh_m: 0.4\n  shank_m: tall\n", "subject.shank_m"),
+        # two sensors on one segment (a side copied wrong): one of them was analysed, silently
+        (
+            "sensors:\n  a: {segment: thigh, side: r}\n  b: {segment: thigh_r}\n",
+            "sensors.b.segment",
+        ),
     ],
 )
 def test_map_errors_name_the_key(tmp_path, text, key):

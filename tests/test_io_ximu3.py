@@ -78,6 +78,13 @@ def test_a_device_folder_without_inertial_csv_is_refused(tmp_path):
     _refusal(tmp_path, files, "Inertial.csv", "no Inertial.csv", "export the device again")
 
 
+def test_an_empty_inertial_csv_is_called_empty(tmp_path):
+    """An empty channel file (a copy that failed) was 'not an x-IMU3 Inertial file'."""
+    files = xe.export_files()
+    files["imu/Back B4A2-5410-EC7B-D68C (UDP)/Inertial.csv"] = b""
+    _refusal(tmp_path, files, "Inertial.csv in 'Back B4A2-5410-EC7B-D68C (UDP)': file is empty")
+
+
 def test_a_truncated_magnetometer_csv_is_refused(tmp_path):
     files = xe.export_files()
     key = "imu/Chest 37CE-5410-EC7B-D8A2 (UDP)/Magnetometer.csv"
@@ -135,3 +142,17 @@ def test_the_recording_date_is_the_time_the_gui_set_in_command_json(tmp_path):
     assert SessionView(Session(), load_protocol("lumbar_seated"), None, {}, None).date == (
         "not recorded"
     )
+
+
+def test_a_renamed_column_names_the_header_line_and_a_remedy(tmp_path):
+    """'Gyroscope X (°/s)' in an Inertial.csv header (a copy through an editor in Latin-1)
+    was 'no column ...' with the column list where the remedy goes and no line."""
+    files = xe.export_files()
+    key = "imu/Back B4A2-5410-EC7B-D68C (UDP)/Inertial.csv"
+    files[key] = files[key].replace(b"Gyroscope X (deg/s)", b"Gyroscope X (\xb0/s)", 1)
+    line = _refusal(tmp_path, files, "Inertial.csv in 'Back B4A2-5410-EC7B-D68C (UDP)' line 1:")
+    assert "no column 'Gyroscope X (deg/s)' (the header has Timestamp (us), Gyroscope X (°/s)" in (
+        line
+    )
+    assert line.endswith("— export the file again with the vendor's column names, or correct "
+                         "the header")  # fmt: skip

@@ -10,7 +10,7 @@ from protocol_texts import ELBOW_R
 from motionlab import rotations as rot
 from motionlab.cli import main
 from motionlab.protocol import load_protocol
-from motionlab.results import FusionEntry
+from motionlab.results import FusionEntry, JointGrades
 from motionlab.session import load_session, save_session
 from motionlab.simulate import simulate
 
@@ -106,3 +106,32 @@ def test_metrics_bad_task_option(session_file, task, message):
     _, path, _ = session_file
     res = CliRunner().invoke(main, ["metrics", str(path), "--task", task, "--force"])
     assert res.exit_code == 2 and message in res.output
+
+
+def test_angles_and_metrics_print_each_angles_grade(session_file, tmp_path):
+    """Every angle number the stage commands print carries its grade, as run's summary and the
+    report do: a weak carrying angle and an undetermined pronation read as such."""
+    import shutil
+
+    _, path, _ = session_file
+    copy = tmp_path / "graded.h5"
+    shutil.copy(path, copy)
+    ses = load_session(copy)
+    grades = ses.results.calibration.grades
+    grades["elbow_r"] = JointGrades(["determined", "weak", "not determined"], ["", "hint", ""])
+    save_session(ses, copy, force=True)
+    runner = CliRunner()
+    for stage in ("angles", "metrics"):
+        res = runner.invoke(main, [stage, str(copy), "--force"])
+        assert res.exit_code == 0, res.output
+        lines = {ln.split()[0]: ln for ln in res.output.splitlines() if "elbow_r_" in ln}
+        assert lines["elbow_r_flexion_deg"].endswith(" determined"), res.output
+        assert lines["elbow_r_carrying_deg"].endswith(" weak"), res.output
+        assert lines["elbow_r_pronation_deg"].endswith(" not determined"), res.output
+    res = runner.invoke(main, ["metrics", str(copy), "--csv", str(tmp_path / "m.csv"), "--force"])
+    m = pd.read_csv(tmp_path / "m.csv", keep_default_na=False)
+    grade = m[m.metric == "rom_deg"].groupby("angle")["grade"].first()
+    assert grade.to_dict() == {"flexion": "determined", "carrying": "weak",
+                               "pronation": "not determined"}  # fmt: skip
+    res = runner.invoke(main, ["angles", str(copy), "--no-calibration", "--force"])
+    assert "not graded (sensor frames)" in res.output, res.output

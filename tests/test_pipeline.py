@@ -94,7 +94,7 @@ def test_outputs_and_metrics_table(result, recorded):
     names = {p.name for p in result.csv_dir.iterdir()}
     assert {"knee_r_angles.csv", "metrics.csv", "quality.csv", "calibration.csv"} <= names
     m = result.metrics
-    assert list(m.columns) == ["block", "joint", "angle", "metric", "value", "unit"]
+    assert list(m.columns) == ["block", "joint", "angle", "metric", "value", "unit", "grade"]
     assert not m["metric"].str.startswith("curve_").any()  # one row per joint metric
     rom = m[(m.joint == "knee_r") & (m.angle == "flexion") & (m.metric == "max_deg")]
     assert len(rom) == 1 and rom.iloc[0]["unit"] == "deg"
@@ -230,6 +230,64 @@ def test_missing_one_segment_is_named(recorded, tmp_path):
     assert "(its sensors: thigh_r (thigh_r))" in res.output
 
 
+def test_missing_segment_of_a_mapped_recording_names_sides_and_what_to_do(recorded, tmp_path):
+    """A map that gives segment and side (``thigh`` + ``r``) is listed as the protocol's
+    ``thigh_r``, not as a bare ``thigh`` that reads as if the side were lost; and since every
+    sensor is mapped the remedy is the recording or the protocol, not a map."""
+    ses = load_session(recorded[0] / "sim.h5")
+    del ses.sensors["shank_r"]
+    ses.sensors["thigh_r"].segment, ses.sensors["thigh_r"].side = "thigh", "r"
+    save_session(ses, tmp_path / "no_shank.h5")
+    res = run("run", "--protocol", recorded[0] / "knee_small.yaml", tmp_path / "no_shank.h5",
+              "-o", tmp_path / "out", "--quiet")  # fmt: skip
+    assert res.exit_code == 2 and res.output.count("\n") == 1
+    assert "(its sensors: thigh_r (thigh_r))" in res.output
+    assert "record sensors on shank_r, or copy the protocol and set 'required: false'" in (
+        res.output
+    )
+    assert "--map" not in res.output
+
+
+def test_an_unreadable_reference_is_refused_before_any_work(recorded, tmp_path):
+    """An OptiTrack Motive CSV (the shared trunk trials' reference) was refused only at the
+    validate stage, after the fusion, and told to give a sensor map's column map."""
+    root, files, _ = recorded
+    motive = tmp_path / "optitrack.csv"
+    motive.write_text("Format Version,1.23,Take Name,t1\n\n,Type,Rigid Body\nFrame,Time\n0,0.0\n")
+    res = run("run", "--protocol", root / "knee_small.yaml", "--map", root / "map.yaml", *files,
+              "--reference", motive, "-o", tmp_path / "out")  # fmt: skip
+    assert res.exit_code == 2
+    assert res.output.startswith("error: optitrack.csv: an OptiTrack Motive CSV export"), res.output
+    assert "segment quaternions" in res.output and "--map" not in res.output
+    assert res.output.count("\n") == 1 and not (tmp_path / "out").exists()
+
+
+def test_sensors_on_no_segment_of_an_all_optional_protocol_are_refused_before_fusion(
+    recorded, tmp_path
+):
+    """The walk protocol's segments are all optional: sensors mapped as femur and tibia passed
+    the segment check, were fused, then the calibration crashed ('max() arg is an empty
+    sequence'), in run and in the calibrate stage alike."""
+    from motionlab import stages
+
+    ses = load_session(recorded[0] / "sim.h5")
+    for label, seg, name in (("thigh_r", "femur", "THIGH"), ("shank_r", "tibia", "SHANK")):
+        stream = ses.sensors.pop(label)
+        stream.label, stream.segment, stream.side = name, seg, "r"
+        ses.sensors[name] = stream
+    save_session(ses, tmp_path / "mapped.h5")
+    res = run("run", "--protocol", "walk", tmp_path / "mapped.h5", "-o", tmp_path / "out")
+    assert res.exit_code == 2, res.output
+    lines = res.output.strip().splitlines()
+    assert lines[0] == "[1/8] ingest ..." and len(lines) == 2  # nothing fused
+    assert "no joint of the 'walk' protocol has sensors on both its segments" in lines[1]
+    assert "knee_r needs thigh_r and shank_r" in lines[1]
+    assert "femur_r, tibia_r are no segments of it" in lines[1]
+    assert not (tmp_path / "out").exists()
+    with pytest.raises(InputError, match="no joint of the 'walk' protocol"):
+        stages.calibrate(ses, "walk", path=tmp_path / "mapped.h5")
+
+
 def test_session_file_cannot_be_mixed_or_mapped(recorded, tmp_path):
     root, files, _ = recorded
     res = run(
@@ -286,3 +344,11 @@ def test_run_warns_of_an_accelerometer_in_g(recorded, tmp_path, capsys):
     warnings = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("warning:")]
     assert warnings[0].startswith("warning: THIGH: |a| at rest is 1.00 m/s² (read as m/s^2)")
     assert not any("SHANK" in ln for ln in warnings)
+
+
+def test_the_metric_rows_carry_their_angles_grade(result):
+    """batch's study tables and report read each session's grades from these rows."""
+    m = result.metrics
+    assert set(m["grade"]) <= {"determined", "weak", "not determined", ""}
+    flexion = m[(m["joint"] == "knee_r") & (m["angle"] == "flexion")]
+    assert len(flexion) and (flexion["grade"] != "").all()

@@ -84,6 +84,11 @@ def test_compare_flags_ranges_outside_normal_beyond_the_tolerance():
     assert compare(-12.0, 5.0, (-10, 15), reach=False) == "within"  # 2° beyond: tolerated
     assert compare(-16.0, 5.0, (-10, 15), reach=False) == "below"
     assert compare(0.0, 10.0, None, reach=True) == ""
+    # judged as printed: the demo's sit-to-stand knees, both '4–90°' against 0–100°, were one
+    # 'below' (89.6°) and one 'within' (90.2°)
+    assert compare(3.8, 89.6, (0, 100), reach=True) == compare(4.1, 90.2, (0, 100), reach=True)
+    assert compare(3.8, 89.6, (0, 100), reach=True) == "within"  # 10° short, not more
+    assert compare(3.8, 89.4, (0, 100), reach=True) == "below"  # reads 89°: 11° short
 
 
 def test_issue_example_sentence():
@@ -412,3 +417,155 @@ def test_two_visits_on_one_day_are_told_apart_on_the_progress_pages():
     assert visit_labels(views) == ["2025-02-13 (1)", "2025-02-13 (2)", "2025-03-01"]
     same = [view("2025-02-13", "/a/out/session.h5"), view("2025-02-13", "/b/out/session.h5")]
     assert visit_labels(same) == ["2025-02-13 (out) (1)", "2025-02-13 (out) (2)"]
+
+
+def test_run_summary_says_how_many_findings_it_left_for_the_report(tmp_path):
+    """The one screen shows the first findings only; the rest (on the demo, a sit-to-stand range
+    below normal) are counted and pointed to, not dropped without a word."""
+    from motionlab.report import ReportOutput
+    from motionlab.report.console import run_summary
+
+    view = _graded_view(graded=False)
+    out = ReportOutput(tmp_path / "report.pdf", tmp_path / "report.txt")
+    names = {"session_file": "session.h5", "csv_dir": "csv", "results_json": "results.json"}
+    text = run_summary(view, out, {}, 1.0, **names)
+    listed = text.split("findings (determined numbers only):\n")[1].split("\noutputs in")[0]
+    shown = [ln for ln in listed.splitlines() if ln.startswith("    - ")]
+    every = findings(view)
+    assert len(every) > len(shown) - 1  # this view has more findings than one screen shows
+    assert shown[-1] == (
+        f"    - and {len(every) - (len(shown) - 1)} more on the report's summary page (report.pdf)"
+    )
+
+
+def test_excluded_names_a_truncated_file_and_the_recording_it_cut_off():
+    """A truncated x-IMU3 file (the Back sensor stopping at 5.8 s of a real 11.7-s trunk trial)
+    ended every angle there; the report said only 'metrics use the task blocks', and with
+    run --quiet nothing at all told of the repair or of the 5.9 s of other sensors not used."""
+    from motionlab.report.model import excluded
+    from motionlab.session import SensorStream
+
+    view = _graded_view()
+    t = view.angles["time_s"]  # 0-50 s
+    for seg in ("thigh_r", "shank_r"):
+        time = np.linspace(0.0, 60.0 if seg == "shank_r" else 50.0, 601)
+        view.session.sensors[seg] = SensorStream(seg, time=time, segment=seg)
+    view.session.sensors["thigh_r"].attrs["notes"] = [
+        "line 501: truncated last line (2 of 7 columns) dropped"
+    ]
+    lines = excluded(view)
+    assert "thigh_r: line 501: truncated last line (2 of 7 columns) dropped" in lines
+    assert (f"shank_r: 10.0 s recorded after the angles end ({t[-1]:.1f} s, where another "
+            "sensor stops) - not used") in lines  # fmt: skip
+    assert not any(ln.startswith("thigh_r: 0") for ln in lines)  # it ends with the angles
+
+
+def test_the_gait_profile_legend_has_room_above_the_bars():
+    """The legend (upper left) sat on the right knee's bar of the demo's one-variable profile:
+    the axis reaches well above the highest bar."""
+    from motionlab.report.pages_gait import _map_chart
+    from motionlab.report.pdf import Document
+    from motionlab.results import MovementProfile
+
+    doc = Document("t")
+    nan = float("nan")
+    mp = MovementProfile(
+        gvs={"r": {"knee_flexion": 2.1}, "l": {"knee_flexion": 2.3}},
+        gps={"r": nan, "l": nan, "overall": nan},
+        population_gps_deg=5.0,
+        variables=["knee_flexion", "pelvis_tilt"],
+        not_computed="GPS not computed: pelvis tilt weak",
+    )
+    _map_chart(doc, mp)
+    (ax,) = [a for a in doc.fig.axes if a.get_ylabel() == "deg (RMS difference)"]
+    assert ax.get_ylim()[1] >= 1.4 * 2.3
+
+
+def test_progress_page_marks_weak_ranges_and_unnamed_subjects():
+    """Two real trunk trials of two people, no subject in either, made 'Progress over 2 visits'
+    of one person; the second's weak lumbar flexion range was a plain number and a solid bar."""
+    from motionlab.report.pages_progress import WEAK_ALPHA, progress_page
+
+    first, second = _graded_view(), _graded_view()
+    for v, date in ((first, "2025-02-13"), (second, "2025-02-14")):
+        v.session.metadata["session"] = {"date": date}
+    second.session.results.calibration.grades["knee_l"] = JointGrades(
+        ["weak", "weak", "weak"], ["the flexion axis is not clear"] * 3
+    )
+    with matplotlib.rc_context(RC):
+        doc = Document("motionlab report · test", "subject not recorded")
+        progress_page(doc, [first, second])
+        text = " ".join(" ".join(page_text(f) for f in doc.pages).split())
+        bars = [ln for f in doc.pages for ax in f.axes for ln in ax.lines]
+        assert [p for f in doc.pages for p in layout_problems(f)] == []
+    assert "Left knee 0–64° 0–64° (weak)" in text and "5–45° (weak)" not in text
+    assert "cannot tell that they are one person's visits" in text
+    assert sorted({ln.get_alpha() or 1.0 for ln in bars}) == [WEAK_ALPHA, 1.0]
+
+
+def test_data_quality_table_keeps_a_long_sensor_label_whole():
+    """A real walk's sensors named as in its source (upper_leg_right) were split mid-word
+    ('upper_leg_ri' / 'ght') in the data-quality table's first column."""
+    from motionlab.report.pages_quality import data_quality_page
+    from motionlab.session import SensorStream
+
+    view = _graded_view()
+    for label in ("upper_leg_right", "lower_leg_left"):
+        view.session.sensors[label] = SensorStream(label, time=np.linspace(0.0, 50.0, 501))
+    with matplotlib.rc_context(RC):
+        doc = Document("motionlab report · test", "subject X")
+        data_quality_page(doc, view)
+        words = "\n".join(page_text(f) for f in doc.pages).split()
+        assert [p for f in doc.pages for p in layout_problems(f)] == []
+    assert "upper_leg_right" in words and "lower_leg_left" in words
+
+
+def test_no_empty_varus_thrust_chart_when_no_knee_determined_it():
+    """A real walk's knees had ab-adduction not determined: the out-of-plane page still drew the
+    per-stride varus chart, empty, on an axis of 2.85-3.15°."""
+    from motionlab.report.pages_oop import out_of_plane_page
+
+    view = _graded_view()
+    view.session.results.calibration.grades["knee_r"] = JointGrades(
+        ["determined", "not determined", "not determined"], ["", NOT_WHY, NOT_WHY]
+    )
+    with matplotlib.rc_context(RC):
+        doc = Document("motionlab report · test", "subject X")
+        out_of_plane_page(doc, view)
+        text = " ".join(page_text(f) for f in doc.pages)
+    assert "Knee varus thrust and rotation in stance" in text
+    assert "Each stride's varus thrust" not in text
+
+
+def test_no_finding_without_normal_ranges_does_not_say_nothing_was_determined():
+    """The seated trunk protocol has no normal ranges: its real trials' reports said 'no angle
+    with a normal range was determined' above a lumbar spine whose angles all were."""
+    import dataclasses
+
+    view = _view((0.0, 64.0), (0.0, 64.0))  # alike on both sides: no asymmetry finding
+    view.protocol = dataclasses.replace(view.protocol, normative={})
+    view.metrics.gait = {}  # no out-of-plane finding either
+    items = [i for i in findings(view) if not i.startswith(("Sensor", "Calibr"))]
+    assert items == [
+        "No finding can be stated: the protocol gives no normal range to compare the ranges "
+        "of motion with; they are on the joint pages with their grades."
+    ]
+
+
+def test_run_summary_withholds_an_undetermined_flexion_range(tmp_path):
+    """A real arm recording's elbows (flexion not determined) were listed as '-176 to 178°'
+    on the one screen, while the report withholds the number ('-')."""
+    from motionlab.report import ReportOutput
+    from motionlab.report.console import run_summary
+
+    view = _graded_view()
+    view.session.results.calibration.grades["knee_l"] = JointGrades(
+        ["not determined", "determined", "determined"], [NOT_WHY, "", ""]
+    )
+    out = ReportOutput(tmp_path / "report.pdf", tmp_path / "report.txt")
+    names = {"session_file": "session.h5", "csv_dir": "csv", "results_json": "results.json"}
+    lines = run_summary(view, out, {}, 1.0, **names).splitlines()
+    (left,) = [ln for ln in lines if ln.startswith("    gait") and "knee_l" in ln]
+    assert left.split()[2] == "-" and left.endswith("(not determined)"), left
+    (right,) = [ln for ln in lines if ln.startswith("    gait") and "knee_r" in ln]
+    assert "5–45°" in right

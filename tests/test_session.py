@@ -221,3 +221,19 @@ def test_load_rejects_non_sessions(tmp_path, content):
 def test_estimate_rate():
     assert estimate_rate(np.arange(10) / 50.0) == pytest.approx(50.0)
     assert np.isnan(estimate_rate(np.array([1.0])))
+
+
+def test_a_stage_commands_provenance_reads_as_the_command_a_user_typed(monkeypatch):
+    """``python -m motionlab sync …`` (argv[0] the package's __main__.py) and the installed
+    executable are recorded as ``motionlab sync …``, as ingest and run record theirs: the report's
+    provenance table showed ``/…/motionlab/__main__.py sync`` for every stage command."""
+    monkeypatch.setattr(
+        "sys.argv",
+        ["/site-packages/motionlab/__main__.py", "sync", "my trial.h5", "--protocol", "knee"],
+    )
+    s = Session()
+    s.add_provenance(parameters={"stage": "sync"})
+    assert s.provenance[-1]["command"] == "motionlab sync 'my trial.h5' --protocol knee"
+    monkeypatch.setattr("sys.argv", ["/usr/local/bin/motionlab", "fuse", "s.h5"])
+    s.add_provenance(parameters={"stage": "fuse"})
+    assert s.provenance[-1]["command"] == "motionlab fuse s.h5"

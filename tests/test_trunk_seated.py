@@ -179,6 +179,31 @@ def test_a_slow_rest_runs_with_every_angle_weak():
         assert all("17.0°/s" in r and "moving posture" in r for r in g.reasons)
 
 
+def test_a_weak_lean_says_why_the_heading_drift_was_not_followed():
+    """The real trunk trials' leans read 'the rest was not still (under 1°/s)', which said
+    neither how fast the rest turned nor, for a still rest without a gyroscope bias, the cause."""
+    from types import SimpleNamespace
+
+    from motionlab.results import TrunkMovement
+    from motionlab.segments.trunk_axes import trunk_grades
+
+    joint, lean = SimpleNamespace(name="lumbar"), SimpleNamespace(name="trunk_chair")
+    summary = TrunkMovement(rest_s=[0.0, 1.1], rest_speed_deg_s=1.9, axis_ratio=2.0,
+                            energy_ratio=2.4, one_sided=[2.0, 1.0],
+                            excursion_deg=[26.0, -52.0], sign_ratio=2.0, heading_deg=0.0,
+                            heading_rho=0.9, heading_drift_deg=None)  # fmt: skip
+    moving = trunk_grades(joint, [lean], summary, "determined", {"trunk_chair": False})
+    assert moving["trunk_chair"].grades == ["weak"] * 3
+    assert (
+        moving["trunk_chair"]
+        .reasons[0]
+        .startswith("the rest turned at 1.9°/s, not still (under 1°/s), so the chair's")
+    )
+    summary = dataclasses.replace(summary, rest_speed_deg_s=0.4)
+    vendor = trunk_grades(joint, [lean], summary, "determined", {"trunk_chair": False})
+    assert vendor["trunk_chair"].reasons[0].startswith("the orientations report no gyroscope")
+
+
 def test_the_lean_ignores_a_turn_about_the_vertical():
     """The thorax's lean since the rest is its tilt: a whole-body turn (or the turn between a
     trunk block and a standing rest at the end) adds nothing to it."""

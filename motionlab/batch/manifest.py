@@ -7,7 +7,7 @@ A manifest is a YAML file (``study.yaml``)::
     sessions:
       - subject: S01
         visit: baseline
-        files: raw/S01/baseline/*.txt   # a glob, a file, or a list of them
+        files: raw/S01/baseline/*.txt   # a glob, a file, an x-IMU3 export folder, or a list
       - subject: S01
         visit: week6
         files: [raw/S01/week6/thigh.txt, raw/S01/week6/shank.txt]
@@ -129,12 +129,15 @@ def _name(path: Path, entry: dict, key: str, where: str, line: int) -> str:
 
 
 def _expand(base: Path, patterns: list[str]) -> tuple[list[Path], str]:
-    """Files matching each pattern (sorted per pattern), and the first pattern that matched none."""
+    """Files matching each pattern (sorted per pattern; an x-IMU3 export folder counts as a
+    file, as ``motionlab run`` reads it), and the first pattern that matched none."""
+    from motionlab.io.ximu3 import is_export  # the readers on first use (batch --help is quick)
+
     files: list[Path] = []
     for pattern in patterns:
         full = str(base / pattern)
         hits = sorted(glob.glob(full, recursive=True)) if glob.has_magic(pattern) else [full]
-        hits = [h for h in hits if Path(h).is_file()]
+        hits = [h for h in hits if Path(h).is_file() or is_export(Path(h))]  # x-IMU3 folders
         if not hits:
             kind = "no file matches" if glob.has_magic(pattern) else "no such file"
             return [], f"{kind} {pattern!r}"

@@ -6,7 +6,8 @@
   rows in each session's order, fields copied as text — so the file has the same bytes
   whichever machines ran the sessions.
 - ``study_failures.csv``: ``subject, visit, kind, attempts, error`` (a one-line error each).
-- ``study_report.pdf``: counts, a table of the ranges of motion across sessions, failures; the
+- ``study_report.pdf``: counts, a table of the ranges of motion across sessions (only the ranges
+  each session determined: the others are counted and left out, as from every plot), failures; the
   distribution across subjects of each angle's range of motion per task and joint (boxes, one
   dot per subject: its mean over visits); per subject, the change over visits of the primary
   angle's range of motion (flexion), with the median across subjects.
@@ -58,13 +59,22 @@ def _read_table(path: Path) -> tuple[list[str], list[list[str]]]:
 
 
 def _rom_rows(subject: str, visit: str, head: list[str], rows: list[list[str]]) -> list[tuple]:
-    """The scalar ``rom_deg`` rows as ``(subject, visit, block, joint, angle, value)``."""
+    """The scalar ``rom_deg`` rows as ``(subject, visit, block, joint, angle, value, grade)``;
+    ``grade`` empty in a table written before it had the column."""
     need = ("block", "joint", "angle", "metric", "value")
     if not set(need) <= set(head):
         return []
     k = {c: head.index(c) for c in head}
     return [
-        (subject, visit, r[k["block"]], r[k["joint"]], r[k["angle"]], float(r[k["value"]]))
+        (
+            subject,
+            visit,
+            r[k["block"]],
+            r[k["joint"]],
+            r[k["angle"]],
+            float(r[k["value"]]),
+            r[k["grade"]] if "grade" in k else "",
+        )  # fmt: skip
         for r in rows
         if r[k["metric"]] == MAIN_METRIC and ("percent" not in k or r[k["percent"]] == "")
     ]
@@ -73,7 +83,9 @@ def _rom_rows(subject: str, visit: str, head: list[str], rows: list[list[str]]) 
 def write_metrics(outdir: Path, manifest: Manifest, outcomes: list, path: Path) -> pd.DataFrame:
     """Concatenate the finished sessions' metric tables; return their ROM rows for the report.
 
-    The ROM rows are the scalar ``rom_deg`` rows: ``subject, visit, block, joint, angle, value``.
+    The ROM rows are the scalar ``rom_deg`` rows: ``subject, visit, block, joint, angle, value,
+    grade``; a range its session did not determine (``weak``, ``not determined``) has its
+    value NaN: the report's statistics and plots leave it out and count it.
     """
     tables = [
         (spec, *_read_table(outdir / spec.folder / METRICS))
@@ -94,7 +106,11 @@ def write_metrics(outdir: Path, manifest: Manifest, outcomes: list, path: Path) 
                 for r in rows
             )
             main += _rom_rows(spec.subject, spec.visit, head, rows)
-    return pd.DataFrame(main, columns=["subject", "visit", "block", "joint", "angle", "value"])
+    main = pd.DataFrame(
+        main, columns=["subject", "visit", "block", "joint", "angle", "value", "grade"]
+    )
+    main.loc[~main["grade"].isin(("", "determined")), "value"] = np.nan
+    return main
 
 
 def write_failures(outcomes: list, path: Path) -> None:
@@ -158,12 +174,14 @@ def _summary_page(manifest: Manifest, outcomes: list, main: pd.DataFrame) -> Fig
         stats = main.groupby(["block", "joint", "angle"], sort=False)["value"]
         for (block, joint, angle), v in list(stats)[:28]:
             q1, med, q3 = np.nanpercentile(v, [25, 50, 75]) if v.notna().any() else [np.nan] * 3
+            left = int(v.isna().sum())
             y -= 0.018
             fig.text(
                 0.08,
                 y,
                 f"{block:<16.16} {joint:<10.10} {angle:<16.16} "
-                f"{med:7.1f} [{q1:6.1f}, {q3:6.1f}]  n={v.notna().sum()}",
+                f"{med:7.1f} [{q1:6.1f}, {q3:6.1f}]  n={v.notna().sum()}"
+                + (f"  ({left} weak or not determined, left out)" if left else ""),
                 fontsize=8,
                 family="monospace",
             )

@@ -48,6 +48,16 @@ class FileHashes:
         return self._cache[path]
 
 
+def _file_entries(path: Path, hashes: FileHashes) -> list[list[str | None]]:
+    """``[[name, sha256]]`` of an input: the file itself, or for an x-IMU3 export folder each
+    file the reader reads in it (named relative to the folder's parent)."""
+    if not path.is_dir():
+        return [[path.name, hashes(path)]]
+    from motionlab.io.ximu3 import input_files
+
+    return [[str(p.relative_to(path.parent)), hashes(p)] for p in input_files(path)]
+
+
 def session_key(
     files: list[Path],
     protocol: Path,
@@ -63,7 +73,7 @@ def session_key(
     contents of its files). Without such options the key is the one of earlier versions."""
     doc: dict[str, Any] = {
         "motionlab": version,
-        "files": [[Path(f).name, hashes(f)] for f in files],
+        "files": [entry for f in files for entry in _file_entries(Path(f), hashes)],
         "protocol": hashes(protocol),
         "map": hashes(map_path),
         "reference": hashes(reference),

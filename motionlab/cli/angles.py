@@ -40,6 +40,7 @@ def command(
 
     from motionlab import stages
     from motionlab.lock import session_lock
+    from motionlab.segments.grades import column_grades
     from motionlab.session import load_session, save_session
 
     if csv_path:
@@ -57,8 +58,11 @@ def command(
         if csv_path:
             with atomic_path(csv_path, force=force) as tmp:
                 pd.DataFrame(table.columns()).to_csv(tmp, index=False, float_format="%.4f")
+        protocol = stages.stage_protocol(ses, protocol_path, session)
         ses.add_provenance(parameters={"stage": "angles", "method": method})
         save_session(ses, session, force=True)
+    grades = column_grades(protocol, ses.results.calibration) if not no_calibration else {}
     click.echo(f"{len(table.time)} samples, {len(table.data)} angles")
     for c, v in table.data.items():
-        click.echo(f"{c:<34} min {np.nanmin(v):8.1f}  max {np.nanmax(v):8.1f}")
+        grade = grades.get(c, "not graded (sensor frames)" if no_calibration else "")
+        click.echo(f"{c:<34} min {np.nanmin(v):8.1f}  max {np.nanmax(v):8.1f}  {grade}".rstrip())

@@ -7,6 +7,7 @@ from pathlib import Path
 import click
 
 from motionlab.atomic import check_output
+from motionlab.errors import InputError
 from motionlab.export import FORMATS, export_session
 from motionlab.session import load_session
 
@@ -46,6 +47,13 @@ def command(session: str, fmt: str | None, output: str, force: bool) -> None:
             f"cannot tell the format from '{output}'; give --to {'|'.join(FORMATS)}",
             param_hint="--to",
         )
-    check_output(output, force)
-    summary = export_session(load_session(session), fmt, output, force=force)
+    check_output(output, force, inputs=[session])  # --force never replaces the session itself
+    try:
+        summary = export_session(load_session(session), fmt, output, force=force)
+    except InputError as exc:  # what the session lacks: name the session
+        if exc.path is not None:
+            raise
+        raise InputError(
+            exc.message, session, exc.where, exc.remedy, exc.arguments or None
+        ) from None
     click.echo(f"wrote {output}: {summary}")

@@ -51,7 +51,8 @@ def command(
 
     Needs a calibrated session (motionlab calibrate); the angles are computed as
     motionlab angles does. The CSV has one row per number:
-    block, joint, angle, metric, percent, value, unit.
+    block, joint, angle, metric, percent, value, unit, grade (the angle's: determined,
+    weak, not determined).
 
     \b
     Example:
@@ -63,6 +64,7 @@ def command(
     from motionlab import stages
     from motionlab.kinematics.metrics import metrics_table
     from motionlab.lock import session_lock
+    from motionlab.segments.grades import column_grades
     from motionlab.session import load_session, save_session
 
     if csv_path:
@@ -72,6 +74,12 @@ def command(
         result = stages.metrics(ses, protocol_path, _parse_tasks(tasks), force=force, path=session)
         protocol = stages.stage_protocol(ses, protocol_path, session)
         table = metrics_table(result)
+        grades = column_grades(protocol, ses.results.calibration)
+        # each row's angle's grade, as run's tables carry it ("" for a row of no angle column)
+        table["grade"] = [
+            grades.get(f"{j}_{a}_deg", "")
+            for j, a in zip(table["joint"], table["angle"], strict=True)
+        ]
         if csv_path:
             with atomic_path(csv_path, force=force) as tmp:
                 table.to_csv(tmp, index=False, float_format="%.4f")
@@ -84,6 +92,6 @@ def command(
                 continue
             click.echo(
                 f"  {col:<32} ROM {m.rom_deg:6.1f}  min {m.min_deg:6.1f}  "
-                f"max {m.max_deg:6.1f}  cycles {m.repetitions}"
+                f"max {m.max_deg:6.1f}  cycles {m.repetitions}  {grades.get(col, '')}".rstrip()
             )
     click.echo(f"{len(table)} rows" + (f" written to {csv_path}" if csv_path else ""))

@@ -150,7 +150,7 @@ def impact_clock(
     inside = (a.time - max_offset_s >= b.time[0]) & (a.time + max_offset_s <= b.time[-1])
     t_mid = float(0.5 * (a.time[0] + a.time[-1]))
     if inside.sum() < 3 * BLOCK_S / (a.time[1] - a.time[0]):
-        return refused("not enough shared recording")
+        return refused(f"not enough shared recording ({3 * BLOCK_S:.0f} s needed)")
     t, x = a.time[inside], a.values[inside]
     dt = float(t[1] - t[0])
     # blocks of the recording in which the reference's envelope has transients: fewer than

@@ -36,7 +36,7 @@ from dataclasses import asdict, replace
 import numpy as np
 
 from motionlab.binding import sensor_for_segment
-from motionlab.clocknet import CENTRE_FLOOR_S, NETWORK, solve_network
+from motionlab.clocknet import CENTRE_FLOOR_S, IMPACTS, NETWORK, solve_network
 from motionlab.clocksync.common import MAX_OFFSET_S, MIN_CORRECTION_S, PerStream
 from motionlab.clocksync.impacts import envelope, impact_clock
 from motionlab.clocksync.joint_centre import estimate_clock, signals
@@ -225,10 +225,12 @@ def choose(centre: ClockFit, impacts: ClockFit) -> ClockFit:
 
 
 def _summary(fit: ClockFit) -> str:
-    """``impacts: +12.3 ms ± 0.4 ms, applied`` (or the status alone when no offset)."""
+    """``heel strikes: +12.3 ms ± 0.4 ms, applied`` (or the status alone when no offset); the
+    impact method named by what it times, for the report's reader."""
+    method = "heel strikes" if fit.method == IMPACTS else fit.method
     if not np.isfinite(fit.offset_se_s):
-        return f"{fit.method}: {fit.status}"
-    return (f"{fit.method}: {1e3 * fit.offset_s:+.1f} ± {1e3 * fit.offset_se_s:.1f} ms, "
+        return f"{method}: {fit.status}"
+    return (f"{method}: {1e3 * fit.offset_s:+.1f} ± {1e3 * fit.offset_se_s:.1f} ms, "
             f"{fit.status}")  # fmt: skip
 
 

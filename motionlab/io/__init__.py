@@ -118,6 +118,13 @@ def _detect(path: Path, options: dict[str, Any] | None):
     if head.startswith((b"\xff\xfe", b"\xfe\xff")):  # a byte-order mark: Excel's "Unicode text"
         raise InputError("text in UTF-16, which motionlab does not read", path,
                          remedy="save or export it as UTF-8 text (CSV)")  # fmt: skip
+    if head.startswith(b"MATLAB "):  # a MAT-file's text header (level 5 and 7.3)
+        raise InputError(
+            "a MATLAB .mat file, which motionlab does not read",
+            path,
+            remedy="save each sensor's time, acc and gyr as a CSV and read it through a column "
+            "map, 'reader:' in the sensor map (docs/ingest.md, 'The map')",
+        )
     if b"\x00" in head:  # no column map makes text of it: say what it is (random bytes, a zip)
         raise InputError(
             "binary file of no format motionlab reads",
@@ -127,7 +134,7 @@ def _detect(path: Path, options: dict[str, Any] | None):
     raise InputError(
         "unknown file format",
         path,
-        remedy="give a column map as map_path= (see README, 'Generic delimited text')",
+        remedy="give a column map, 'reader:' in map_path= (docs/ingest.md, 'The map')",
         argument="map_path",
     )
 

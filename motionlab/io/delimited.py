@@ -145,9 +145,12 @@ class Table:
             return self.names.index(name)
         except ValueError:
             raise InputError(
-                f"no column '{shorten(name)}'",
+                f"no column '{shorten(name)}' (the header has "
+                f"{shorten(', '.join(self.names), 160)})",
                 self.path,
-                remedy=f"columns are {shorten(', '.join(self.names), 160)}",
+                f"line {len(self.preamble) + 1}",  # the header
+                remedy="export the file again with the vendor's column names, or correct the "
+                "header",
             ) from None
 
     def column(self, name: str) -> np.ndarray:

@@ -163,7 +163,11 @@ def _identity(folder: Path) -> tuple[str, str, str | None, list[str]]:
 
 def _table(path: Path, first: str) -> Table:
     lines = read_lines(path)
-    if not len(lines) or not str(lines[0]).lstrip("\ufeff").startswith(first):
+    if not len(lines):
+        raise InputError(
+            "file is empty", path, remedy="export the device again from the x-IMU3 GUI"
+        )
+    if not str(lines[0]).lstrip("\ufeff").startswith(first):
         raise InputError(
             f"not an x-IMU3 {path.stem} file (the header does not start with '{first}')",
             path,

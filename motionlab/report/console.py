@@ -102,6 +102,9 @@ def run_summary(
     if flexion:
         lines.append("  flexion range (typical, deg):")
     for r in flexion:
+        shown = (  # as the report: a range the recording did not determine is withheld
+            span(r.typical_min_deg, r.typical_max_deg) if r.grade != "not determined" else "-"
+        )
         normal = (
             f"normal {r.normal[0]:g}-{r.normal[1]:g}, {r.status or 'not compared'}"
             if r.normal
@@ -109,8 +112,7 @@ def run_summary(
         )
         lines.append(
             f"    {task_name(r.task):<14} {r.joint:<8} "
-            f"{span(r.typical_min_deg, r.typical_max_deg):>10}  ({normal})"
-            + (f" {grade_mark(r.grade)}" if grade_mark(r.grade) else "")
+            f"{shown:>10}  ({normal})" + (f" {grade_mark(r.grade)}" if grade_mark(r.grade) else "")
         )
     validation = ses.results.validation
     val = validation.angles if validation is not None else None
@@ -125,7 +127,13 @@ def run_summary(
             f"  validation RMSE (deg): {', '.join(rmse[:6])}" + (" ..." if len(rmse) > 6 else "")
         )
     lines.append("  findings (determined numbers only):")
-    lines += [f"    - {f}" for f in findings(view, limit=4)]
+    shown = findings(view, limit=4)
+    lines += [f"    - {f}" for f in shown]
+    hidden = len(findings(view)) - len(shown)
+    if hidden > 0:  # an abnormal range left off the screen must not look like none
+        lines.append(
+            f"    - and {hidden} more on the report's summary page ({report.pdf_path.name})"
+        )
     missing = missing_lines(view)
     if missing:
         lines.append("  not determined by this recording:")

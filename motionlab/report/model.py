@@ -359,11 +359,15 @@ def compare(low: float, high: float, normal: tuple[float, float] | None, reach: 
     An angle is flagged when its typical extremes leave the normal range by more than
     :data:`TOLERANCE_DEG` (``above``, ``below``, both: ``wider``); with ``reach`` (the flexion
     angle) also when its typical peak falls short of the range's upper end by more than
-    :data:`REACH_TOLERANCE_DEG` (``below``: a reduced range of motion).
+    :data:`REACH_TOLERANCE_DEG` (``below``: a reduced range of motion). The extremes are
+    compared in whole degrees, as the report prints them.
     """
     if normal is None or not (np.isfinite(low) and np.isfinite(high)):
         return ""
     lo, hi = normal
+    # judged as printed (whole degrees, :func:`~motionlab.report.sentences.span`): two ranges
+    # that read 4–90° got 'below' and 'within' the normal 0–100° (89.6° and 90.2°)
+    low, high = round(low), round(high)
     over_top, over_bottom = high > hi + TOLERANCE_DEG, low < lo - TOLERANCE_DEG
     if over_top and over_bottom:
         return "wider"
@@ -631,6 +635,9 @@ def excluded(view: SessionView) -> list[str]:
             )
         for ch, spans in (s.qc or {}).get("nan_spans", {}).items():
             out.append(f"{s.label}: {ch} not a number for {_spans_s(spans):.2f} s - not used")
+        # the reader's repair of a damaged file (ingest warns of it; run --quiet does not)
+        out += [f"{s.label}: {n}" for n in s.attrs.get("notes", []) if "truncated" in n]
+    out += _outside_angles(view)
     cal = view.session.results.calibration or SegmentCalibration("")
     for step, rng in cal.steps.items():
         if rng is None:
@@ -644,6 +651,33 @@ def excluded(view: SessionView) -> list[str]:
             "calibration steps and rests are left out"
         )
     return out
+
+
+def _outside_angles(view: SessionView) -> list[str]:
+    """A sentence per analysed sensor that recorded more than :data:`OUTSIDE_S` before the
+    angles start or after they end (the angles need every sensor of a joint: one that stopped
+    early, as a truncated file, ends them for all)."""
+    t = np.asarray(view.angles.get("time_s", []), dtype=float)
+    if not len(t):
+        return []
+    out = []
+    for seg in view.protocol.segments:
+        label = sensor_for_segment(view.session, seg)
+        stream = view.session.sensors.get(label) if label else None
+        if stream is None or not len(stream.time):
+            continue
+        before, after = t[0] - stream.time[0], stream.time[-1] - t[-1]
+        if before > OUTSIDE_S:
+            out.append(f"{label}: {before:.1f} s recorded before the angles start "
+                       f"({t[0]:.1f} s, where another sensor starts) - not used")  # fmt: skip
+        if after > OUTSIDE_S:
+            out.append(f"{label}: {after:.1f} s recorded after the angles end "
+                       f"({t[-1]:.1f} s, where another sensor stops) - not used")  # fmt: skip
+    return out
+
+
+#: how much (s) of a sensor's recording outside the angles' span :func:`excluded` names
+OUTSIDE_S = 1.0
 
 
 def gait_profile(view: SessionView) -> MovementProfile | None:

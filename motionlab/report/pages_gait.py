@@ -175,15 +175,21 @@ def _map_chart(doc: Document, mp: MovementProfile) -> None:
         ((ax,),) = doc.axes_grid(1, 1, 3.0, left=0.6, bottom=0.9, top=0.2)
         names = [*names, *([] if missing else ["GPS"])]
         x = np.arange(len(names))
+        heights = [np.nan]
         for k, side in enumerate(("r", "l")):
             vals = [mp.gvs.get(side, {}).get(v, np.nan) for v in names if v != "GPS"]
             if not missing:
                 vals.append(mp.gps.get(side, np.nan))
             ax.bar(x + (k - 0.5) * 0.38, vals, 0.36, color=SIDE_COLOUR[side],
                    label={"r": "right", "l": "left"}[side])  # fmt: skip
+            heights += vals
         if not missing:  # the population's GPS is a reference for a GPS, not for one GVS
             expected = f"expected GPS of a normal subject {mp.population_gps_deg:.1f}°"
             ax.axhline(mp.population_gps_deg, color=MUTED, ls="--", lw=0.8, label=expected)
+        population = mp.population_gps_deg if not missing else None
+        top = np.nanmax([*heights, np.nan if population is None else population])
+        if np.isfinite(top) and top > 0:  # room above the bars for the legend (it hid a bar's top)
+            ax.set_ylim(0, 1.45 * top)
         ax.set_xticks(x, [n.replace("_", " ") for n in names], rotation=30, ha="right")
         ax.set_ylabel("deg (RMS difference)")
         ax.legend(loc="upper left", frameon=False)

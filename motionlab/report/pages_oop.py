@@ -143,6 +143,8 @@ def _gait(doc: Document, view: SessionView) -> None:
         flagged,
         align=["l", "l", "r", "r", "r", "r"],
     )
+    if all(side is None for _, side, _ in strides):  # nothing to draw: no empty chart
+        return
     ax = doc.axes_grid(1, 1, 2.2, left=1.9, bottom=0.5, top=0.3)[0][0]
     for k, (_, side, g) in enumerate(strides):
         if side is None:  # a plane the recording did not determine is not drawn

@@ -4,11 +4,19 @@ from __future__ import annotations
 
 import numpy as np
 
-from motionlab.report.model import SessionView, joint_title, rom_rows, visit_labels
+from motionlab.report.model import (
+    SessionView,
+    grade_mark,
+    is_determined,
+    joint_title,
+    rom_rows,
+    visit_labels,
+)
 from motionlab.report.pdf import BAND_COLOUR, MUTED, SIDE_COLOUR, SIZE, Document
 from motionlab.report.sentences import span, task_name
 
 PLOTS_PER_ROW = 2
+WEAK_ALPHA = 0.35  # a weak range's bar, paler than a determined one's
 
 
 def progress_page(doc: Document, views: list[SessionView]) -> None:
@@ -50,13 +58,14 @@ def progress_page(doc: Document, views: list[SessionView]) -> None:
             ax.axhspan(normal[0], normal[1], color=BAND_COLOUR, alpha=0.45, lw=0)
         for i, pv in enumerate(per_visit):
             r = pv.get(key)
-            if r is None:
+            if r is None or r.grade == "not determined":  # an undetermined range is not drawn
                 continue
             ax.plot(
                 [i, i],
                 [r.typical_min_deg, r.typical_max_deg],
                 lw=6,
                 color=SIDE_COLOUR.get(side, SIDE_COLOUR[""]),
+                alpha=1.0 if is_determined(r.grade) else WEAK_ALPHA,  # a weak one: paler
                 solid_capstyle="butt",
             )
         ax.set_xticks(range(len(views)), labels, rotation=20, ha="right")
@@ -73,7 +82,13 @@ def progress_page(doc: Document, views: list[SessionView]) -> None:
         cells = [task_name(task), joint_title(joint) if joint else joint_name]
         for pv in per_visit:
             r = pv.get(key)
-            cells.append(span(r.typical_min_deg, r.typical_max_deg) if r else "-")
+            if r is None or r.grade == "not determined":
+                cells.append(grade_mark(r.grade) if r else "-")
+            else:
+                mark = grade_mark(r.grade)
+                cells.append(
+                    span(r.typical_min_deg, r.typical_max_deg) + (f" {mark}" if mark else "")
+                )
         rows.append(cells)
     width = 0.64 / len(views)
     doc.table(
@@ -82,9 +97,23 @@ def progress_page(doc: Document, views: list[SessionView]) -> None:
         [0.18, 0.18] + [width] * len(views),
         align=["l", "l"] + ["r"] * len(views),
     )
+    unnamed = "not recorded" in {v.subject for v in views}
+    weak = any(pv[k].grade == "weak" for pv in per_visit for k in keys if k in pv)
     doc.paragraph(
         "Differences between visits smaller than the expected accuracy (see that page) may be "
-        "measurement error rather than change.",
+        "measurement error rather than change."
+        + (
+            " Pale bars, '(weak)': ranges the recording determined only weakly (see each "
+            "session's calibration page), not to be compared."
+            if weak
+            else ""
+        )
+        + (
+            " No subject is recorded in these sessions: motionlab cannot tell that they are one "
+            "person's visits (give subject: {id: ...} in the sensor map)."
+            if unnamed
+            else ""
+        ),
         size=SIZE["small"],
         colour=MUTED,
     )

@@ -118,7 +118,7 @@ def data_quality_page(doc: Document, view: SessionView) -> None:
             "Mag. disturbed (%)",
         ],
         rows,
-        [0.13, 0.08, 0.09, 0.09, 0.1, 0.08, 0.12, 0.11, 0.09, 0.11],
+        [0.21, 0.07, 0.08, 0.08, 0.09, 0.07, 0.11, 0.11, 0.08, 0.1],  # a label of 20 characters
         flagged,
     )
     doc.paragraph(

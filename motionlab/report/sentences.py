@@ -216,7 +216,8 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
     the primary (flexion) angles, and data or calibration problems.
     What the recording did not determine is not a finding: see :func:`missing_lines`.
     """
-    rows = [r for r in rom_rows(view) if r.normal is not None and is_determined(r.grade)]
+    ranges = rom_rows(view)
+    rows = [r for r in ranges if r.normal is not None and is_determined(r.grade)]
     outside, paces = [], []
     for r in rows:
         if r.status in ("within", ""):
@@ -240,7 +241,13 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
     items = list(dict.fromkeys(paces + outside + asym + _oop_findings(view) + inside))
     if len(items) > limit - len(problems[:2]):
         items = items[: limit - len(problems[:2])]
-    if not items:
+    if not items and not any(r.normal is not None for r in ranges):
+        # determined ranges, if any, have nothing to be compared with: not "none determined"
+        items = [
+            "No finding can be stated: the protocol gives no normal range to compare the ranges "
+            "of motion with; they are on the joint pages with their grades."
+        ]
+    elif not items:
         items = [
             "No finding can be stated: no angle with a normal range was determined by this "
             "recording (see below)."

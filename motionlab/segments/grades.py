@@ -225,3 +225,18 @@ def grade_joints(protocol, calibration: SegmentCalibration) -> dict[str, JointGr
                 grades[0], reasons[0] = g_flex, r_flex
         out[name] = JointGrades(grades, reasons)
     return out
+
+
+def column_grades(protocol, calibration: SegmentCalibration | None) -> dict[str, str]:
+    """``{angle column: grade}`` of every ``protocol`` joint (``{"knee_r_flexion_deg":
+    "determined", …}``) from ``calibration.grades``; an angle stored without a grade counts as
+    ``determined``, as the report reads it (:func:`motionlab.report.model.grade_rows`)."""
+    from motionlab.kinematics.joint_types import angle_columns
+
+    graded = calibration.grades if calibration is not None else {}
+    out = {}
+    for name, joint in protocol.joints.items():
+        grades = list(graded[name].grades) if name in graded else []
+        for k, (_, col) in enumerate(angle_columns(joint)):
+            out[col] = grades[k] if k < len(grades) and grades[k] in GRADES else GRADES[0]
+    return out

@@ -518,10 +518,15 @@ def trunk_grades(
         grade, why = axis_verdict, why_axis
         if grade == "determined" and not followed.get(lean.name, False):
             grade = "weak"
+            speed = summary.rest_speed_deg_s
+            cause = (  # the drift is followed from a still rest's gyroscopes (6-D fusions)
+                f"the rest turned at {speed:.1f}°/s, not still (under {STILL_DEG_S:g}°/s)"
+                if speed > STILL_DEG_S
+                else "the orientations report no gyroscope bias (a vendor's or a 9-D fusion)"
+            )
             why = (
-                "the rest was not still (under "
-                f"{STILL_DEG_S:g}°/s), so the chair's and the thorax's headings are tied at "
-                "the rest only and may drift apart"
+                f"{cause}, so the chair's and the thorax's headings are tied at the rest only "
+                "and may drift apart"
             )
         out[lean.name] = JointGrades([grade] * 3, [why] * 3)
     if summary.rest_speed_deg_s > REST_SLOW_DEG_S:

@@ -74,6 +74,26 @@ class OpticalSegment:
         return {label: points[:, i] for i, label in enumerate(self.local)}
 
 
+#: what a reference can be, for a file of no format the readers know
+REFERENCE_FORMATS = (
+    "give markers as C3D or TRC (Motive, Nexus and QTM export them), a session with markers, "
+    "or a CSV of segment quaternions: time, <segment>_qw, _qx, _qy, _qz (README, 'Validate')"
+)
+
+
+def _unknown_reference(path: Path) -> str:
+    """What a reference file of no known format is, in one phrase (an OptiTrack Motive CSV
+    export by its first line)."""
+    try:
+        with path.open(encoding="utf-8", errors="replace") as f:
+            first = f.readline(200)
+    except OSError:
+        first = ""
+    if first.lstrip("\ufeff").startswith("Format Version,"):
+        return "an OptiTrack Motive CSV export, which motionlab does not read as a reference"
+    return "unknown reference format"
+
+
 def read_reference(path: str | Path, model_outputs_ok: bool = False) -> list[MarkerSet]:
     """Marker sets of a reference file: a motionlab session, or any file the readers know
     (``model_outputs_ok``: a C3D of model outputs only is fine: joint angles as reference)."""
@@ -83,7 +103,12 @@ def read_reference(path: str | Path, model_outputs_ok: bool = False) -> list[Mar
     if is_session_file(path):
         sets = list(load_session(path).markers.values())
     else:
-        sets = read_any(path).markers
+        try:
+            sets = read_any(path).markers
+        except InputError as exc:  # its remedy is a sensor map's column map: no reference
+            if not exc.message.startswith("unknown file format"):
+                raise
+            raise InputError(_unknown_reference(path), path, remedy=REFERENCE_FORMATS) from None
     if not sets:
         raise InputError(
             "holds no optical data", path, remedy="give a C3D/TRC file or a session with markers"
