@@ -160,6 +160,53 @@ def test_a_pace_outside_the_norms_walkers_is_said_first_and_tags_the_flagged_fle
     assert "pace" not in rotation
 
 
+@pytest.mark.parametrize(
+    ("cadence", "speed", "first", "tag"),
+    [
+        (
+            124.0,
+            1.83,
+            "Gait at about 1.8 m/s, faster than the 1.1–1.6 m/s of the walkers",
+            "faster",
+        ),  # fmt: skip
+        (124.0, 1.70, "", ""),  # within the leg model's 10 % of the band
+        (
+            132.0,
+            1.90,
+            "Gait at 132 steps/min, faster than the 100–125, and about 1.9 m/s, faster than the "
+            "1.1–1.6 m/s, of the walkers",
+            "faster",
+        ),
+        (
+            95.0,
+            1.90,
+            "Gait at 95 steps/min, slower than the 100–125, and about 1.9 m/s, faster than the "
+            "1.1–1.6 m/s, of the walkers",
+            "a pace unlike the norms'",
+        ),
+    ],
+)
+def test_a_walking_speed_outside_the_norms_walkers_is_a_pace_note_too(cadence, speed, first, tag):
+    """The real full-body walker (124 steps/min, within the band, at about 1.83 m/s by the leg
+    model) was told both knees flexed above the normal 0-65° with no word on the pace: the
+    ranges grow with walking speed, and the norms' walkers walked at 1.1-1.6 m/s."""
+    view = _view((5.0, 45.0), (-1.0, 78.0))
+    view.session.results.gait = Gait(
+        status="ok",
+        tasks={"gait": TaskBlock(10.0, 40.0)},
+        summary=GaitSummary(cadence_steps_per_min=cadence, walking_speed_m_s=speed),
+    )
+    items = findings(view)
+    flagged = [i for i in items if " knee flexion-extension range " in i and "within" not in i]
+    if not first:
+        assert not any("m/s" in i or "pace" in i for i in items)
+        return
+    assert items[0].startswith(first)
+    assert items[0].endswith("so part of a flagged range may be the pace.")
+    suffix = f"({tag} pace than the norms)." if tag in ("faster", "slower") else f"({tag})."
+    assert flagged and all(i.endswith(suffix) for i in flagged)
+
+
 def test_normative_band_interpolates_key_instants_and_names_its_source():
     band = band_for("gait", "knee", "flexion")
     assert band is not None and len(band.mean) == 101

@@ -279,6 +279,23 @@ def test_knee_with_a_wrong_axis(walk):
     assert line.endswith(" — walk 10 straight steps at an even pace."), line
 
 
+def test_a_pelvis_forward_direction_from_the_walk_is_not_told_to_move_the_sensor(walk):
+    """The real full-body walker's hips (pelvis forward direction from the walk's turns) were
+    told 'place the pelvis sensor exactly as the protocol says', under a walk protocol whose
+    pelvis goes 'anywhere, any orientation': a new placement cannot help there."""
+    from motionlab.report.sentences import missing_lines
+
+    ses = _force(walk, "hip_r", 0, "weak", "pelvis's forward direction from the walk may be 20° "
+                 "off, which can move flexion by 5° where thigh_r tilts 82°")  # fmt: skip
+    turns = "pelvis's forward direction is from the walk's turns (about 5-20° off)"
+    for k in (1, 2):
+        ses = _force(ses, "hip_r", k, "weak", turns)
+    line = next(m for m in missing_lines(load_view(ses)) if m.startswith("Right hip"))
+    assert line.startswith("Right hip: all angles weak (forward direction of the pelvis sensor "
+                           "from the walk) — record only the stand and the walk"), line  # fmt: skip
+    assert "exactly as the protocol says" not in line
+
+
 def test_pelvis_not_calibrated(walk):
     ses = _pelvis_nominal(walk)
     assert (

@@ -125,26 +125,45 @@ PACE_SOURCE = (
 )
 
 
+#: the leg model's walking speed counts as outside the norms' band only beyond this share of
+#: it: its error is measured on one walker only (``length_note`` on the gait page)
+PACE_SPEED_MARGIN = 0.1
+
+
 def pace_note(view: SessionView, task: str) -> tuple[str, str]:
     """Why ``task``'s sagittal ranges may leave the normal ones for the pace alone: its walk's
-    cadence outside the band of the healthy walkers the normal ranges come from (the gait
-    page's ``cadence_steps_per_min``, ``report_data/gait_normative.yaml``). ``(sentence, tag)``:
-    the finding that says so and the words a flagged range carries; empty when the cadence is
-    within the band, not measured, or ``task`` is not a walk."""
+    cadence, or its walking speed by more than :data:`PACE_SPEED_MARGIN`, outside the band of
+    the healthy walkers the normal ranges come from (the gait page's ``cadence_steps_per_min``
+    and ``walking_speed_m_s``, ``report_data/gait_normative.yaml``). ``(sentence, tag)``: the
+    finding that says so and the words a flagged range carries; empty when both are within
+    the band, not measured, or ``task`` is not a walk."""
     g = view.session.results.gait
     if g is None or not g.ok or g.summary is None or task not in (g.tasks or {}):
         return "", ""
-    cadence = float(g.summary.cadence_steps_per_min)
-    lo, hi = gait_bands()["spatiotemporal"]["cadence_steps_per_min"]
-    if not np.isfinite(cadence) or lo <= cadence <= hi:
-        return "", ""
-    pace = "faster" if cadence > hi else "slower"
-    sentence = (
-        f"{task_name(task).capitalize()} at {cadence:.0f} steps/min, {pace} than the {lo:g}–{hi:g} "
-        "of the walkers the normal ranges come from: joint ranges change with walking speed, so "
-        "part of a flagged range may be the pace."
+    bands = gait_bands()["spatiotemporal"]
+    measures = (
+        ("cadence_steps_per_min", "{:.0f} steps/min", "{:g}–{:g}", 0.0),
+        ("walking_speed_m_s", "about {:.1f} m/s", "{:g}–{:g} m/s", PACE_SPEED_MARGIN),
     )
-    return sentence, f"{pace} pace than the norms"
+    found = []  # (the value, faster or slower, the band), in words
+    for column, value_fmt, band_fmt, margin in measures:
+        value = float(getattr(g.summary, column))
+        lo, hi = bands[column]
+        if not np.isfinite(value) or lo * (1 - margin) <= value <= hi * (1 + margin):
+            continue
+        found.append((value_fmt.format(value), "faster" if value > hi else "slower",
+                      band_fmt.format(lo, hi)))  # fmt: skip
+    if not found:
+        return "", ""
+    compared = ", and ".join(f"{v}, {pace} than the {b}" for v, pace, b in found)
+    sentence = (
+        f"{task_name(task).capitalize()} at {compared}{',' if len(found) > 1 else ''} of the "
+        "walkers the normal ranges come from: joint ranges change with walking speed, so part "
+        "of a flagged range may be the pace."
+    )
+    paces = {pace for _, pace, _ in found}
+    tag = f"{paces.pop()} pace than the norms" if len(paces) == 1 else "a pace unlike the norms'"
+    return sentence, tag
 
 
 def angle_words(view: SessionView, joint: str, angle: str) -> str:
@@ -288,6 +307,14 @@ def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[s
         )
     if "axis" in r and any(k in r for k in AXIS_WORDS):
         return "axis", bend
+    if "forward direction from the walk" in r or "forward direction is from the" in r:
+        # the hint was refuted and the walk replaced it (segments.grades): placing the sensor
+        # again cannot help; flexion is determined when the thigh tilts little over the
+        # recording (grades.HEADING_BOUND_DEG), its other planes stay weak in a stand and walk
+        return f"forward direction of the {where} sensor from the walk", (
+            "record only the stand and the walk (no sitting down) for a determined flexion; "
+            "the other planes stay weak in a stand-and-walk recording"
+        )
     if "forward direction" in r or "one measured axis" in r:
         return (
             f"forward direction of the {where} sensor",
