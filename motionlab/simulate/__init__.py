@@ -320,8 +320,10 @@ def simulate(
         ``impacts`` (ringing after heel strikes), ``motion`` (also moving with the segment's
         acceleration, and slipping by the preset's ``slip_deg``) or ``skin`` (``motion`` scaled
         per segment, plus the skin's motion with the joint angles and after heel strikes, by the
-        preset's ``sta_deg`` and ``sta_impact_deg``); default the preset's (``motion`` for
-        ``loose``, ``skin`` for ``skin``). See :mod:`.signals` and docs/simulator.md.
+        preset's ``sta_deg`` and ``sta_impact_deg``, and the upper arm's skin following only
+        :data:`STA_HUMERAL_FOLLOW` of the humerus' axial rotation); default the preset's
+        (``motion`` for ``loose``, ``skin`` for ``skin``). See :mod:`.signals` and
+        docs/simulator.md.
     knee_model
         ``simple`` (flexion with proportional couplings) or ``anatomical`` (screw-home rotation
         and varus that no fixed axis follows); :func:`~.timeline.knee_coupling`. The truth's
