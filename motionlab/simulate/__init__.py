@@ -122,11 +122,12 @@ STA_SCALE_OTHER = 0.3
 STA_AXIS_WEIGHTS = np.array([0.6, 1.0, 0.6])
 #: fraction of the humerus' axial (internal/external) rotation that a sensor on the upper arm's
 #: skin follows, at the proximal and the distal end of the strap zone (linear in between; 0.69 at
-#: mid-arm): a cluster on the upper arm reads 0.64-0.74 of the humeral axial rotation tracked
-#: through the proximal ulna ("Humeral axial rotation measurement through a proximal ulna marker
-#: cluster", regression slopes in three tasks), and the distal markers lose about half what the
-#: whole cluster loses (Warner & Heller 2025, J Biomech 112893: 25.9° against 48.7° of the range)
-STA_HUMERAL_FOLLOW = (0.6, 0.8)
+#: the nominal mid-arm site): a cluster on the upper arm reads 0.64-0.74 of the humeral axial
+#: rotation tracked through the proximal ulna ("Humeral axial rotation measurement through a
+#: proximal ulna marker cluster", regression slopes in three tasks), and the distal markers lose
+#: about half what the whole cluster loses (Warner & Heller 2025, J Biomech 112893: 25.9° against
+#: 48.7° of the range; here 0.15 at the distal end against 0.31 at mid-arm)
+STA_HUMERAL_FOLLOW = (0.55, 0.85)
 #: spread (SD) of that fraction between sensors (the slopes' SD 0.04-0.10 between subjects)
 STA_HUMERAL_FOLLOW_SD = 0.05
 #: frequency (Hz) and decay (s) of the skin's shift after a heel strike (its peak ≈ 3 decays)
