@@ -9,7 +9,8 @@ from motionlab.errors import InputError
 from motionlab.kinematics.joint_angles import decompose_joint
 from motionlab.protocol import load_protocol
 from motionlab.segments.movement import fit_hinge
-from motionlab.simulate import simulate
+from motionlab.simulate import humeral_follow, simulate
+from motionlab.simulate.body import Body
 from motionlab.simulate.signals import after_impacts, impact_artefact, skin_artefact
 from motionlab.simulate.timeline import knee_coupling
 
@@ -172,3 +173,43 @@ def test_pulses_after_impacts_are_the_loop_over_impacts_bit_for_bit():
     assert np.array_equal(after_impacts(t, impacts, 0.8, pulse), loop)
     assert np.array_equal(after_impacts(t, impacts[::-1], 0.8, pulse), loop)  # any order given
     assert not after_impacts(t, np.zeros(0), 0.8, pulse).any()
+
+
+def _axial(q_thorax: np.ndarray, q_arm: np.ndarray) -> np.ndarray:
+    """The upper arm's internal rotation (rad): the last angle of its Z-X-Y sequence relative to
+    the thorax (about the humerus' own long axis), unwrapped."""
+    m = rot.to_matrix(rot.mul(rot.conj(q_thorax), q_arm))  # R = Rz(a) Rx(b) Ry(c)
+    return np.unwrap(np.arctan2(-m[:, 2, 0], m[:, 2, 2]))
+
+
+def test_upper_arm_skin_follows_a_fraction_of_the_humeral_rotation():
+    """Under the skin model the upper-arm sensor turns about the humerus' long axis by the
+    stated fraction of the bone's axial rotation (0.55 at the strap zone's proximal end, 0.85 at its
+    distal end; docs/simulator.md); the `typical` preset's sensors follow the bone."""
+    rng = np.random.default_rng
+    body = Body(1.75)
+    y0, y1 = body.strap_zone("upperarm_r")
+    prox = humeral_follow(body, "upperarm_r", np.array([0.0, y0, 0.0]), rng(1))
+    dist = humeral_follow(body, "upperarm_r", np.array([0.0, y1, 0.0]), rng(1))
+    assert dist - prox == pytest.approx(0.3, abs=1e-12)  # the same draw, the site's share
+    follows = []
+    for preset in ("skin", "typical"):
+        _, truth = simulate("arm", 24.0, 1, preset, rate_hz=50.0, mounting="random")
+        t = truth.time
+        thorax = truth.segments["thorax"]["orientation"]
+        for side in "rl":
+            seg, s = f"upperarm_{side}", truth.sensors[f"upperarm_{side}"]
+            bone = _axial(thorax, truth.segments[seg]["orientation"])[t > 11]
+            # the segment as the sensor sees it: sensor ⊗ mounting⁻¹
+            seen = _axial(thorax, rot.mul(s["orientation"], rot.conj(s["mounting"])))[t > 11]
+            bone, seen = bone - bone.mean(), seen - seen.mean()
+            assert np.degrees(np.ptp(bone)) > 40.0  # the free movement turns the humerus
+            slope = float(bone @ seen / (bone @ bone))
+            if preset == "skin":
+                assert 0.5 <= s["humeral_follow"] <= 0.9
+                assert slope == pytest.approx(s["humeral_follow"], abs=0.03), (side, slope)
+                follows.append(slope)
+            else:
+                assert "humeral_follow" not in s
+                assert slope == pytest.approx(1.0, abs=0.03), (side, slope)
+    assert max(follows) < 0.9

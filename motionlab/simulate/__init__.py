@@ -120,6 +120,16 @@ STA_SCALE_OTHER = 0.3
 #: (lateral) axes: the rotation about the long axis is the largest (Benoit et al. 2006: knee
 #: rotation errors from skin markers several times those of ab/adduction)
 STA_AXIS_WEIGHTS = np.array([0.6, 1.0, 0.6])
+#: fraction of the humerus' axial (internal/external) rotation that a sensor on the upper arm's
+#: skin follows, at the proximal and the distal end of the strap zone (linear in between; 0.69 at
+#: the nominal mid-arm site): a cluster on the upper arm reads 0.64-0.74 of the humeral axial
+#: rotation tracked through the proximal ulna ("Humeral axial rotation measurement through a
+#: proximal ulna marker cluster", regression slopes in three tasks), and the distal markers lose
+#: about half what the whole cluster loses (Warner & Heller 2025, J Biomech 112893: 25.9° against
+#: 48.7° of the range; here 0.15 at the distal end against 0.31 at mid-arm)
+STA_HUMERAL_FOLLOW = (0.55, 0.85)
+#: spread (SD) of that fraction between sensors (the slopes' SD 0.04-0.10 between subjects)
+STA_HUMERAL_FOLLOW_SD = 0.05
 #: frequency (Hz) and decay (s) of the skin's shift after a heel strike (its peak ≈ 3 decays)
 STA_IMPACT_HZ = (2.0, 4.0)
 STA_IMPACT_DECAY_S = (0.03, 0.05)
@@ -131,6 +141,28 @@ def _skin_drivers(body: Body, seg: str, ch: np.ndarray) -> np.ndarray:
     groups += [body.parent(c)[1] for c in SEGMENTS if body.parent(c)[0] == seg]
     cols = [group(g).start for g in groups if g is not None and f"{g}_0" in CH]
     return ch[:, cols]
+
+
+def humeral_follow(body: Body, seg: str, site: np.ndarray, rng: np.random.Generator) -> float:
+    """Fraction (0.5-0.9) of the humerus' axial rotation that the skin at ``site`` (m, segment
+    frame) on upper arm ``seg`` follows: :data:`STA_HUMERAL_FOLLOW` by how far down the strap
+    zone it sits, and :data:`STA_HUMERAL_FOLLOW_SD` drawn from ``rng``."""
+    y0, y1 = body.strap_zone(seg)
+    along = float(np.clip((site[1] - y0) / (y1 - y0), 0.0, 1.0))
+    prox, dist = STA_HUMERAL_FOLLOW
+    return float(np.clip(prox + along * (dist - prox) + rng.normal(0.0, STA_HUMERAL_FOLLOW_SD),
+                         0.5, 0.9))  # fmt: skip
+
+
+def _humeral_lag(body: Body, seg: str, ch: np.ndarray, follow: float) -> np.ndarray:
+    """Rotation (N, 3; rad, segment frame) of the skin that stays behind the humerus' axial
+    rotation: ``−(1 − follow)`` times the shoulder's internal rotation (the last angle of its
+    Z-X-Y sequence, about the humerus' own long axis y), so that the sensor turns by ``follow``
+    times the humerus about that axis relative to the thorax."""
+    _, grp, _ = body.parent(seg)
+    _, side = kind_side(seg)
+    axial = ch[:, group(grp)][:, 2] * (-1.0 if side == "l" else 1.0)
+    return -(1.0 - follow) * axial[:, None] * np.array([0.0, 1.0, 0.0])
 
 
 def _mount(body: Body, protocol: Protocol, seg: str, i: int, seed: int, preset: Preset,
@@ -182,6 +214,9 @@ def _mount(body: Body, protocol: Protocol, seg: str, i: int, seed: int, preset: 
             artefact += impact_artefact(grid, impacts, direction, impact,
                                         s_rng.uniform(*STA_IMPACT_HZ),
                                         s_rng.uniform(*STA_IMPACT_DECAY_S))  # fmt: skip
+            if kind == "upperarm" and preset.sta_deg > 0:  # the humerus turns under the skin
+                mount.humeral_follow = humeral_follow(body, seg, mount.site, s_rng)
+                artefact += _humeral_lag(body, seg, ch_grid, mount.humeral_follow)
         mount.tissue = tissue_motion(kin, grid, mount.site, mount.normal, mount.wobble.freq_hz,
                                      damping, gain, slip_axis, slip, artefact)  # fmt: skip
     return mount
@@ -286,8 +321,10 @@ def simulate(
         ``impacts`` (ringing after heel strikes), ``motion`` (also moving with the segment's
         acceleration, and slipping by the preset's ``slip_deg``) or ``skin`` (``motion`` scaled
         per segment, plus the skin's motion with the joint angles and after heel strikes, by the
-        preset's ``sta_deg`` and ``sta_impact_deg``); default the preset's (``motion`` for
-        ``loose``, ``skin`` for ``skin``). See :mod:`.signals` and docs/simulator.md.
+        preset's ``sta_deg`` and ``sta_impact_deg``, and the upper arm's skin following only
+        :data:`STA_HUMERAL_FOLLOW` of the humerus' axial rotation); default the preset's
+        (``motion`` for ``loose``, ``skin`` for ``skin``). See :mod:`.signals` and
+        docs/simulator.md.
     knee_model
         ``simple`` (flexion with proportional couplings) or ``anatomical`` (screw-home rotation
         and varus that no fixed axis follows); :func:`~.timeline.knee_coupling`. The truth's
@@ -399,6 +436,8 @@ def simulate(
                 "tissue_damping": tissue.damping if tissue else 0.0,
                 "slip_deg": tissue.slip_deg if tissue else 0.0,
             }
+            if mount.humeral_follow < 1.0:
+                truth.sensors[seg]["humeral_follow"] = mount.humeral_follow
         session.sensors[seg] = stream
 
     system = optical or _markers.OpticalSystem(

@@ -315,6 +315,16 @@ class Body:
         normal = np.array([c / ax, 0.0, s * sn / az])
         return site, normal / np.linalg.norm(normal)
 
+    def strap_zone(self, segment: str) -> tuple[float, float]:
+        """Proximal and distal end (m, along the segment's y axis) of the zone where a strap may
+        sit (:meth:`surface_site`'s ``u`` = 0 and 1)."""
+        kind, _ = kind_side(segment)
+        if kind == "foot":
+            return -0.010 * self.height, -0.010 * self.height
+        y0, y1 = _SURFACES[kind][:2]
+        scale = self.segment_length(segment) if kind in _LONG else self.height
+        return y0 * scale, y1 * scale
+
     def site_normal(self, segment: str, site: np.ndarray) -> np.ndarray:
         """Outward skin normal (unit, segment frame) near ``site`` (m): radial about the strap
         zone's centre line (the dorsum's normal on the foot)."""

@@ -156,6 +156,8 @@ class Mount:
     wobble: Wobble = field(default_factory=Wobble)
     tissue: TissueMotion | None = None
     normal: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
+    #: fraction of the bone's axial rotation the skin under the sensor follows (upper arm, skin)
+    humeral_follow: float = 1.0
 
     def relative(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """``(wobble (N,4), d (N,3))``: the sensor's rotation away from its mounting (sensor
