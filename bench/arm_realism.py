@@ -37,8 +37,7 @@ import motionlab.simulate as sim
 from motionlab import rotations as rot
 from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
 from motionlab.simulate import simulate, tasks
-from motionlab.simulate.motion import CH
-from motionlab.simulate.tasks import DEG, Block, _tile, envelope, posture
+from motionlab.simulate.tasks import Block
 
 DEFAULT_DATA = Path(__file__).resolve().parents[1].parent / "shared"
 QMT = "datasets/human/qmt_full_body"
@@ -58,25 +57,7 @@ REAL_LIKE_HZ = (0.7, 1.2)
 def real_like_free_arm(body, name, phase, duration, reps, options, seed: int = 0) -> Block:
     """``tasks.free_arm`` with the real recording's movement (:data:`REAL_LIKE`)."""
     rng = np.random.default_rng([seed, 7])
-    stand = posture(body, "standing")
-    n = len(REAL_LIKE)
-    f = rng.uniform(*REAL_LIKE_HZ, n)
-    g = rng.uniform(0.03, 0.10, n)
-    beta = rng.uniform(0.5, 2.0, n)
-    ph = rng.uniform(0, 2 * np.pi, (2, n))
-    cols = [CH[c] for c, _, _ in REAL_LIKE]
-    centre = np.array([c for _, c, _ in REAL_LIKE]) * DEG
-    half = np.array([h for _, _, h in REAL_LIKE]) * DEG
-    ramp = min(1.5, duration / 4)
-
-    def fn(tau):
-        e = envelope(tau, duration, ramp)[:, None]
-        t = tau[:, None]
-        wave = np.sin(2 * np.pi * f * t + ph[0] + beta * np.sin(2 * np.pi * g * t + ph[1]))
-        out = _tile(stand, tau)
-        out[:, cols] += e * (centre + half * wave)
-        return out
-
+    fn = tasks.wandering(body, REAL_LIKE, REAL_LIKE_HZ, duration, rng)
     return Block(name, "free_arm", phase, duration, fn, generator="free_arm_real_like")
 
 

@@ -176,26 +176,20 @@ def reaching(body: Body, name, phase, duration, reps, options) -> Block:
     return Block(name, "reaching", phase, duration, fn, generator="reaching")
 
 
-def free_arm(body: Body, name, phase, duration, reps, options, seed: int = 0) -> Block:
-    """Free arm movement, both arms independently, smooth and random (seeded).
-
-    Elbow flexion 10-130°, pronation ±60° (positive = pronation), shoulder flexion 0-90°,
-    abduction 0-40° and rotation ±30°, with a little trunk motion: every channel a frequency-
-    modulated sinusoid ``sin(2π f t + β sin(2π g t + φ))`` (f 0.12-0.35 Hz) that reaches both ends
-    of its range every cycle; incommensurate frequencies turn the elbow's axes through many
-    directions in the room. Standing, arms hanging at the block's ends.
-    """
-    rng = np.random.default_rng([seed, 7])
+def wandering(
+    body: Body,
+    ranges: list[tuple[str, float, float]],
+    freq_hz: tuple[float, float],
+    duration: float,
+    rng: np.random.Generator,
+):
+    """Channel values over block time (the ``fn`` of a :class:`Block`): standing, and every
+    channel of ``ranges`` (``(channel, centre, half range)``, deg) a frequency-modulated sinusoid
+    ``centre + half · sin(2π f t + β sin(2π g t + φ))``, ``f`` drawn from ``freq_hz`` (Hz), ``g``
+    from 0.03-0.10 Hz, ``β`` from 0.5-2, faded in and out at the block's ends."""
     stand = posture(body, "standing")
-    # (channel, centre, half range) in deg; centre ± half range is the channel's range
-    ranges = [(f"elbow_{s}_0", 70.0, 60.0) for s in "rl"]
-    ranges += [(f"elbow_{s}_2", 0.0, 60.0) for s in "rl"]
-    ranges += [(f"shoulder_{s}_0", 45.0, 45.0) for s in "rl"]
-    ranges += [(f"shoulder_{s}_1", -20.0, 20.0) for s in "rl"]
-    ranges += [(f"shoulder_{s}_2", 0.0, 30.0) for s in "rl"]
-    ranges += [("lumbar_0", 3.0, 5.0), ("lumbar_1", 0.0, 4.0), ("lumbar_2", 0.0, 8.0)]
     n = len(ranges)
-    f = rng.uniform(0.12, 0.35, n)
+    f = rng.uniform(*freq_hz, n)
     g = rng.uniform(0.03, 0.10, n)
     beta = rng.uniform(0.5, 2.0, n)
     ph = rng.uniform(0, 2 * np.pi, (2, n))
@@ -212,6 +206,26 @@ def free_arm(body: Body, name, phase, duration, reps, options, seed: int = 0) ->
         out[:, cols] += e * (centre + half * wave)
         return out
 
+    return fn
+
+
+def free_arm(body: Body, name, phase, duration, reps, options, seed: int = 0) -> Block:
+    """Free arm movement, both arms independently, smooth and random (seeded).
+
+    Elbow flexion 10-130°, pronation ±60° (positive = pronation), shoulder flexion 0-90°,
+    abduction 0-40° and rotation ±30°, with a little trunk motion: every channel a frequency-
+    modulated sinusoid ``sin(2π f t + β sin(2π g t + φ))`` (f 0.12-0.35 Hz) that reaches both ends
+    of its range every cycle; incommensurate frequencies turn the elbow's axes through many
+    directions in the room. Standing, arms hanging at the block's ends.
+    """
+    # (channel, centre, half range) in deg; centre ± half range is the channel's range
+    ranges = [(f"elbow_{s}_0", 70.0, 60.0) for s in "rl"]
+    ranges += [(f"elbow_{s}_2", 0.0, 60.0) for s in "rl"]
+    ranges += [(f"shoulder_{s}_0", 45.0, 45.0) for s in "rl"]
+    ranges += [(f"shoulder_{s}_1", -20.0, 20.0) for s in "rl"]
+    ranges += [(f"shoulder_{s}_2", 0.0, 30.0) for s in "rl"]
+    ranges += [("lumbar_0", 3.0, 5.0), ("lumbar_1", 0.0, 4.0), ("lumbar_2", 0.0, 8.0)]
+    fn = wandering(body, ranges, (0.12, 0.35), duration, np.random.default_rng([seed, 7]))
     return Block(name, "free_arm", phase, duration, fn, generator="free_arm")
 
 
