@@ -139,3 +139,37 @@ def test_compute_metrics_on_a_lumbar_table_and_csv():
     assert row.value.item() == pytest.approx(40, abs=0.01) and row.joint.item() == "lumbar"
     assert (df[df.metric == "curve_mean_deg"].percent.dropna().max()) == 100
     assert "out_of_plane_peak_deg" in set(df.metric)
+
+
+def test_a_walks_rom_is_over_the_strides_of_the_joints_leg(monkeypatch):
+    """The real full-body walk's one task held sitting down and a seated rest between its
+    walking bouts: its 'Full ROM' read 119° for a knee that flexed 77-79° per stride and 90° for
+    a hip. A walk's ROM and extremes are now taken over the strides of the joint's leg (the
+    knee's own, the hip's from the knee below it); the typical range is the strides' anyway."""
+    from motionlab.kinematics import metrics as met
+
+    protocol = load_protocol("walk")
+    t = np.arange(0, 20, 1 / RATE)
+    walking = t < 10  # ten 1-s strides, then a seated rest (knee 95°, hip 85°)
+    phase = np.sin(np.pi * (t % 1.0)) ** 2
+    knee = np.where(walking, 60 * phase, 95.0)
+    hip = np.where(walking, -10 + 45 * phase, 85.0)
+    table = {"time_s": t}
+    for s in "rl":
+        table |= {f"knee_{s}_flexion_deg": knee, f"knee_{s}_adduction_deg": 0 * t,
+                  f"knee_{s}_rotation_deg": 0 * t, f"hip_{s}_flexion_deg": hip,
+                  f"hip_{s}_adduction_deg": 0 * t, f"hip_{s}_rotation_deg": 0 * t}  # fmt: skip
+    starts = np.arange(0, 900, 100)
+    strides = Cycles(starts, starts + 60, starts + 100)
+    monkeypatch.setattr(met.cyc, "gait_events", lambda w, rate: (None, None))
+    monkeypatch.setattr(met.cyc, "strides", lambda hs, to, rate: strides)
+    omega = {f"shank_{s}": (t, 0 * t) for s in "rl"}
+    m = compute_metrics(protocol, table, {}, {"walk": (0.0, 19.99)}, {}, shank_omega=omega)
+    knee_m, hip_m = m.joints["walk"]["knee_r_flexion_deg"], m.joints["walk"]["hip_l_flexion_deg"]
+    assert knee_m.rom_deg == pytest.approx(60, abs=0.1) and knee_m.max_deg < 61
+    assert hip_m.rom_deg == pytest.approx(45, abs=0.1) and hip_m.max_deg < 36
+    assert knee_m.repetitions == 9 and knee_m.cycle_max_mean_deg == pytest.approx(60, abs=0.1)
+    seated = {"knee_r_flexion_deg": 95.0}  # the same angles without strides: the whole block
+    monkeypatch.setattr(met.cyc, "strides", lambda hs, to, rate: Cycles.empty())
+    m = compute_metrics(protocol, table, {}, {"walk": (0.0, 19.99)}, {}, shank_omega=omega)
+    assert m.joints["walk"]["knee_r_flexion_deg"].max_deg == seated["knee_r_flexion_deg"]

@@ -5,7 +5,8 @@ Per task block (the protocol's ``tasks``; times from the simulator's truth, the 
 such as ``lumbar_seated``, measures the trunk movement its calibration found, as one block
 without repetitions) and per angle column (degrees):
 
-- ``rom_deg``, ``min_deg``, ``max_deg`` over the block;
+- ``rom_deg``, ``min_deg``, ``max_deg`` over the block (a gait task: over the strides of the
+  joint's leg, where there are any);
 - ``repetitions``: the cycles found — strides (heel strike to heel strike, from the shank's
   angular velocity) for a knee in a gait task, else the repetitions of the joint's primary angle
   (the task's ``plane`` option, else flexion; :func:`~motionlab.kinematics.cycles.
@@ -82,9 +83,15 @@ def is_gait(task: Task) -> bool:
     return "gait" in task.kind.lower() or "walk" in task.kind.lower()
 
 
-def angle_metrics(values: np.ndarray, cycles: cyc.Cycles) -> AngleMetrics:
-    """ROM, extremes, per-cycle peaks and the cycle-normalised mean ± SD of one angle (deg)."""
+def angle_metrics(
+    values: np.ndarray, cycles: cyc.Cycles, within: np.ndarray | None = None
+) -> AngleMetrics:
+    """ROM, extremes, per-cycle peaks and the cycle-normalised mean ± SD of one angle (deg).
+
+    ``within``: the samples (bool, like ``values``) the ROM and extremes are taken over (a
+    walk's strides, :func:`cycle_samples`), else all of ``values``."""
     v = np.asarray(values, dtype=float)
+    over = v[within] if within is not None and within.any() else v
     curves = cyc.normalise(v, cycles)
     mean, sd = cyc.mean_sd(curves)
     peaks_max = np.array(
@@ -93,11 +100,11 @@ def angle_metrics(values: np.ndarray, cycles: cyc.Cycles) -> AngleMetrics:
     peaks_min = np.array(
         [np.nanmin(v[a : b + 1]) for a, b in zip(cycles.start, cycles.end, strict=True)]
     )
-    finite = np.isfinite(v).any()
+    finite = np.isfinite(over).any()
     return AngleMetrics(
-        rom_deg=float(np.nanmax(v) - np.nanmin(v)) if finite else float("nan"),
-        min_deg=float(np.nanmin(v)) if finite else float("nan"),
-        max_deg=float(np.nanmax(v)) if finite else float("nan"),
+        rom_deg=float(np.nanmax(over) - np.nanmin(over)) if finite else float("nan"),
+        min_deg=float(np.nanmin(over)) if finite else float("nan"),
+        max_deg=float(np.nanmax(over)) if finite else float("nan"),
         repetitions=len(cycles),
         cycle_max_deg=peaks_max,
         cycle_min_deg=peaks_min,
@@ -106,6 +113,14 @@ def angle_metrics(values: np.ndarray, cycles: cyc.Cycles) -> AngleMetrics:
         curve_mean_deg=mean,
         curve_sd_deg=sd,
     )
+
+
+def cycle_samples(cycles: cyc.Cycles, n: int) -> np.ndarray:
+    """(n,) bool: the samples from each cycle's start to its end."""
+    out = np.zeros(n, bool)
+    for a, b in zip(cycles.start, cycles.end, strict=True):
+        out[a : b + 1] = True
+    return out
 
 
 def primary_plane(joint: Joint, task: Task | None) -> int:
@@ -177,13 +192,20 @@ def compute_metrics(
                 remedy="check the task times",
             )
         per_col: dict[str, Any] = {}
+        walk = task is not None and is_gait(task)
+        strides = {
+            shank: cyc.strides(*cyc.gait_events(np.interp(time[win], tw, w), rate), rate)
+            for shank, (tw, w) in (shank_omega or {}).items()
+        } if walk else {}  # fmt: skip
         for joint in protocol.joints.values():
             cols = [col for _, col in angle_columns(joint)]
-            gait = task is not None and is_gait(task) and joint.type == "knee"
-            if gait and shank_omega and joint.distal in shank_omega:
-                tw, w = shank_omega[joint.distal]
-                hs, to = cyc.gait_events(np.interp(time[win], tw, w), rate)
-                cycles = cyc.strides(hs, to, rate)
+            gait = walk and joint.type == "knee"
+            # a walk's ROM over the strides of the joint's leg: its block also holds what the
+            # walker did between bouts (sitting down, a seated rest) when there is one task
+            leg = _leg_shank(protocol, joint, strides)
+            within = cycle_samples(strides[leg], win.stop - win.start) if leg else None
+            if gait and joint.distal in strides:
+                cycles = strides[joint.distal]
                 if "varus_thrust" in todo:
                     found = oop.stance_metrics(
                         table[cols[1]][win],
@@ -203,7 +225,8 @@ def compute_metrics(
                 cycles = cyc.find_repetitions(table[cols[plane]][win], rate)
             for col in cols:
                 per_col[col] = replace(
-                    angle_metrics(table[col][win], cycles), cycle_start_s=time[win][cycles.start]
+                    angle_metrics(table[col][win], cycles, within),
+                    cycle_start_s=time[win][cycles.start],
                 )
             if joint.type == "lumbar" and "out_of_plane_offset" in todo and task is not None:
                 plane = task.options.get("plane")
@@ -231,6 +254,15 @@ def compute_metrics(
         trunk_compensation=trunk or None,
         cross_talk=cross or None,
     )
+
+
+def _leg_shank(protocol: Protocol, joint: Joint, strides: dict[str, Any]) -> str | None:
+    """The shank (a key of ``strides``) of the leg ``joint`` belongs to: its own distal
+    segment (the knee), or the distal segment of the knee below it (the hip)."""
+    if joint.distal in strides:
+        return joint.distal
+    below = [j.distal for j in protocol.joints.values() if j.proximal == joint.distal]
+    return next((s for s in below if s in strides), None)
 
 
 def _offset(protocol, joint, seg_q, time, win, steps, plane, cycles, th) -> OutOfPlaneOffset:

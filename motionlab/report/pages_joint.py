@@ -151,7 +151,8 @@ def _rom_table(doc: Document, view: SessionView, joint) -> None:
     doc.paragraph(
         "Typical range: means of the lowest and highest angle of each cycle (a task without "
         "cycles: its lowest and highest angle). Full ROM: highest minus lowest angle over the "
-        "whole task. A range is flagged when it leaves the normal "
+        "whole task (a walk: over the strides of the joint's leg). A range is flagged when it "
+        "leaves the normal "
         "range by more than 5°, or a flexion peak falls 10° short of its top. Grade: whether the "
         "recording determined the angle (see the "
         "calibration page); only a determined range is compared.",
