@@ -207,6 +207,30 @@ def test_a_walking_speed_outside_the_norms_walkers_is_a_pace_note_too(cadence, s
     assert flagged and all(i.endswith(suffix) for i in flagged)
 
 
+def test_a_walks_length_says_how_much_of_it_strides_cover():
+    """The real full-body walk's summary read 'walk (95 s)' for a block that held sitting down
+    and a seated rest; it now says how much of it the strides cover, leaving out the 'strides'
+    the gait events found across the rest (rejected for their duration)."""
+    from motionlab.report.sentences import strides_s, tasks_analysed
+    from motionlab.results import StrideTable
+
+    view = _view((5.0, 45.0), (-1.0, 78.0))
+    assert tasks_analysed(view) == "gait (30 s)"  # no gait analysis: the block alone
+    start = np.r_[10.0, 10.5, 11.0, 11.5, 12.0, 12.5, 13.0, 25.0]  # 1-s strides, one of 14 s
+    table = StrideTable(
+        start_s=start,
+        kept=np.r_[[True] * 5, False, False, False],
+        stride_time_s=np.r_[[1.0] * 7, 14.0],
+        reason=np.array([""] * 5 + ["turn", "start/stop", "duration"]),
+    )
+    view.session.results.gait = Gait(
+        status="ok", tasks={"gait": TaskBlock(10.0, 40.0)}, summary=GaitSummary(), strides=table
+    )
+    assert strides_s(view, "gait") == pytest.approx(4.0)  # 10-14 s; the 14-s one left out
+    assert tasks_analysed(view) == "gait (30 s, 4 s in strides)"
+    assert strides_s(view, "squat") is None
+
+
 def test_normative_band_interpolates_key_instants_and_names_its_source():
     band = band_for("gait", "knee", "flexion")
     assert band is not None and len(band.mean) == 101

@@ -14,7 +14,7 @@ from motionlab.report.sentences import (
     findings,
     missing_lines,
     pace_note,
-    task_name,
+    tasks_analysed,
 )
 from motionlab.segments import sensor_for_segment
 
@@ -29,8 +29,7 @@ def summary_page(doc: Document, view: SessionView) -> None:
     """Identity table, sensor placements and the findings."""
     proto = view.protocol
     doc.section("Summary", proto.title or proto.name)
-    blocks = view.blocks()
-    tasks = ", ".join(f"{task_name(k)} ({b - a:.0f} s)" for k, (a, b) in blocks.items())
+    tasks = tasks_analysed(view)
     joints = ", ".join(joint_title(j) for j in view.joints())
     identity = [
         ["Subject", view.subject],

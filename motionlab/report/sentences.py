@@ -91,6 +91,43 @@ def task_name(task: str) -> str:
     return task.replace("_", " ")
 
 
+#: stride rejections that still are walking (a stride of the wrong length, or without one
+#: final contact, may span anything: a seated rest between two bouts)
+WALKING_REJECTS = ("turn", "start/stop", "low confidence")
+
+
+def strides_s(view: SessionView, task: str) -> float | None:
+    """Seconds (s) of ``task``'s block covered by strides of either leg (the gait analysis'
+    stride table: kept, or rejected as :data:`WALKING_REJECTS`), or ``None`` where ``task`` is
+    no analysed walk."""
+    g = view.session.results.gait
+    block = (g.tasks or {}).get(task) if g is not None and g.ok else None
+    table = g.strides if block is not None else None
+    if table is None or table.stride_time_s is None:
+        return None
+    start, length = np.asarray(table.start_s, float), np.asarray(table.stride_time_s, float)
+    walking = np.asarray(table.kept, bool) | np.isin(np.asarray(table.reason), WALKING_REJECTS)
+    ok = walking & np.isfinite(start) & np.isfinite(length)
+    ok &= (start >= block.start_s) & (start <= block.end_s)
+    total, reached = 0.0, -np.inf
+    for a, b in sorted(zip(start[ok], start[ok] + length[ok], strict=True)):
+        total += max(0.0, b - max(a, reached))
+        reached = max(reached, b)
+    return total
+
+
+def tasks_analysed(view: SessionView) -> str:
+    """``'gait (21 s, 19 s in strides), squat (11 s)'``: each task block's length, and for a walk
+    how much of it its strides cover (a walk block also holds what the walker did between
+    bouts when the protocol has one task: turning, sitting down)."""
+    out = []
+    for name, (a, b) in view.blocks().items():
+        walked = strides_s(view, name)
+        more = f", {walked:.0f} s in strides" if walked is not None else ""
+        out.append(f"{task_name(name)} ({b - a:.0f} s{more})")
+    return ", ".join(out)
+
+
 def _joint_words(joint_type: str, joint: str = "", side: str = "") -> tuple[str, str]:
     """``("right", "knee")`` of a report row's joint type, joint name and side; generic joints by
     name: ``("", "wrist r hinge")`` (by the type's name without a joint name)."""
