@@ -455,7 +455,7 @@ RUN_IMPORTS = (
     "motionlab.kinematics.metrics",
     "motionlab.report",
     "motionlab.report.console",
-    "motionlab.report.model",
+    "motionlab.segments.grades",
 )
 
 
@@ -482,7 +482,7 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
     from motionlab.kinematics.metrics import metrics_table
     from motionlab.report import load_views, write_report
     from motionlab.report.console import run_summary
-    from motionlab.report.model import angle_grades
+    from motionlab.segments.grades import with_grades
 
     t_start = time.perf_counter()
     inputs = [Path(p) for p in inputs]
@@ -537,11 +537,7 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
             write_json(session, outdir / RESULTS_JSON, force=options.force)
     table = metrics_table(session.results.metrics)
     metrics = table[table["percent"].isna()].drop(columns="percent").reset_index(drop=True)
-    graded = angle_grades(views[0])  # each row's angle's grade ("" for no angle column)
-    metrics["grade"] = [
-        graded.get(f"{j}_{a}_deg", ("", ""))[0]
-        for j, a in zip(metrics["joint"], metrics["angle"], strict=True)
-    ]
+    metrics = with_grades(metrics, proto, session.results.calibration)
     summary = run_summary(
         views[0],
         out,

@@ -64,7 +64,7 @@ def command(
     from motionlab import stages
     from motionlab.kinematics.metrics import metrics_table
     from motionlab.lock import session_lock
-    from motionlab.segments.grades import column_grades
+    from motionlab.segments.grades import column_grades, with_grades
     from motionlab.session import load_session, save_session
 
     if csv_path:
@@ -73,13 +73,8 @@ def command(
         ses = load_session(session)
         result = stages.metrics(ses, protocol_path, _parse_tasks(tasks), force=force, path=session)
         protocol = stages.stage_protocol(ses, protocol_path, session)
-        table = metrics_table(result)
+        table = with_grades(metrics_table(result), protocol, ses.results.calibration)
         grades = column_grades(protocol, ses.results.calibration)
-        # each row's angle's grade, as run's tables carry it ("" for a row of no angle column)
-        table["grade"] = [
-            grades.get(f"{j}_{a}_deg", "")
-            for j, a in zip(table["joint"], table["angle"], strict=True)
-        ]
         if csv_path:
             with atomic_path(csv_path, force=force) as tmp:
                 table.to_csv(tmp, index=False, float_format="%.4f")

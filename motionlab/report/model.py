@@ -42,14 +42,13 @@ from motionlab.protocol import Joint, Protocol, load_protocol
 from motionlab.results import (
     AngleMetrics,
     Gait,
-    JointGrades,
     Metrics,
     MovementProfile,
     SegmentCalibration,
     SegmentRecord,
 )
 from motionlab.segments import sensor_for_segment
-from motionlab.segments.grades import GRADES, _frame_grade
+from motionlab.segments.grades import GRADES, _frame_grade, graded_angles
 from motionlab.session import Session
 
 DETERMINED, WEAK, NOT_DETERMINED = GRADES
@@ -379,23 +378,10 @@ def compare(low: float, high: float, normal: tuple[float, float] | None, reach: 
 
 
 def grade_rows(view: SessionView) -> list[GradeRow]:
-    """One row per angle column of every protocol joint: ``joint, angle, column, grade, reason``.
-
-    From ``results.calibration.grades``; a joint without grades (a session calibrated
-    before they existed) has every angle ``determined`` with an empty reason.
-    """
+    """One row per angle column of every protocol joint: ``joint, angle, column, grade, reason``
+    (:func:`motionlab.segments.grades.graded_angles`, as the stage commands print them)."""
     cal = view.session.results.calibration
-    graded = cal.grades if cal is not None else {}
-    rows = []
-    for joint in view.joints():
-        entry = graded.get(joint.name) or JointGrades()
-        grades = [str(g) for g in entry.grades]
-        reasons = [str(r) for r in entry.reasons]
-        for k, (angle, col) in enumerate(angle_columns(joint)):
-            grade = grades[k] if k < len(grades) and grades[k] in GRADES else DETERMINED
-            reason = reasons[k] if k < len(reasons) and grade != DETERMINED else ""
-            rows.append(GradeRow(joint.name, angle, col, grade, reason))
-    return rows
+    return [GradeRow(*row) for row in graded_angles(view.joints(), cal)]
 
 
 def angle_grades(view: SessionView) -> dict[str, tuple[str, str]]:

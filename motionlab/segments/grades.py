@@ -227,16 +227,37 @@ def grade_joints(protocol, calibration: SegmentCalibration) -> dict[str, JointGr
     return out
 
 
-def column_grades(protocol, calibration: SegmentCalibration | None) -> dict[str, str]:
-    """``{angle column: grade}`` of every ``protocol`` joint (``{"knee_r_flexion_deg":
-    "determined", …}``) from ``calibration.grades``; an angle stored without a grade counts as
-    ``determined``, as the report reads it (:func:`motionlab.report.model.grade_rows`)."""
+def graded_angles(joints, calibration: SegmentCalibration | None) -> list[tuple[str, ...]]:
+    """``(joint, angle, column, grade, reason)`` of every angle column of ``joints`` (protocol
+    joints, in order) from ``calibration.grades``; a joint without grades (a session calibrated
+    before they existed) has every angle ``determined`` with an empty reason."""
     from motionlab.kinematics.joint_types import angle_columns
 
     graded = calibration.grades if calibration is not None else {}
-    out = {}
-    for name, joint in protocol.joints.items():
-        grades = list(graded[name].grades) if name in graded else []
-        for k, (_, col) in enumerate(angle_columns(joint)):
-            out[col] = grades[k] if k < len(grades) and grades[k] in GRADES else GRADES[0]
-    return out
+    rows = []
+    for joint in joints:
+        entry = graded.get(joint.name) or JointGrades()
+        grades, reasons = [str(g) for g in entry.grades], [str(r) for r in entry.reasons]
+        for k, (angle, col) in enumerate(angle_columns(joint)):
+            grade = grades[k] if k < len(grades) and grades[k] in GRADES else GRADES[0]
+            reason = reasons[k] if k < len(reasons) and grade != GRADES[0] else ""
+            rows.append((joint.name, angle, col, grade, reason))
+    return rows
+
+
+def column_grades(protocol, calibration: SegmentCalibration | None) -> dict[str, str]:
+    """``{angle column: grade}`` of every ``protocol`` joint (:func:`graded_angles`):
+    ``{"knee_r_flexion_deg": "determined", …}``."""
+    return {row[2]: row[3] for row in graded_angles(protocol.joints.values(), calibration)}
+
+
+def with_grades(table, protocol, calibration: SegmentCalibration | None):
+    """A metrics table (:func:`motionlab.kinematics.metrics.metrics_table`, rows with ``joint``
+    and ``angle``) with each row's angle grade in a ``grade`` column (:func:`column_grades`;
+    empty for a row of no angle column), as ``run``'s and the ``metrics`` command's tables
+    carry it."""
+    grades = column_grades(protocol, calibration)
+    joints, angles = table["joint"], table["angle"]
+    return table.assign(
+        grade=[grades.get(f"{j}_{a}_deg", "") for j, a in zip(joints, angles, strict=True)]
+    )
