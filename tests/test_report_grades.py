@@ -401,3 +401,38 @@ def test_real_full_body_walk():
     prepare_sensors(session)
     analyse(session, PipelineOptions(load_protocol("walk"), progress=False, clock_sync=False))
     assert problems(session) == []
+
+
+def _calibration_row(**kw):
+    from motionlab.report.model import CalibrationRow
+
+    base = {
+        "segment": "thorax", "sensor": "Back", "method": "procrustes", "step": "trunk_movement",
+        "kind": "movement", "rho": 0.29, "reference_rho": float("nan"), "residual_deg": 0.0,
+        "used": True, "hinge_check_deg": float("nan"), "segment_ok": True, "verdict": "determined",
+    }  # fmt: skip
+    return CalibrationRow(**{**base, **kw})
+
+
+def test_calibration_table_judges_a_movement_axis_by_its_own_check():
+    """A seated trunk's flexion axis (one block of bending and turning: ρ 0.29) was drawn red
+    against the functional steps' ρ ≥ 0.60 beside 'Segment ok' and a determined grade; it is
+    red only when its own check found it weak, and its 'ρ wanted' is none."""
+    from motionlab.report.pages_quality import calibration_cells
+
+    cells, flags = calibration_cells(_calibration_row())
+    assert cells[4] == "-" and not flags[3]
+    _, flags = calibration_cells(_calibration_row(verdict="weak"))
+    assert flags[3]
+    cells, flags = calibration_cells(_calibration_row(kind="functional", verdict=None))
+    assert cells[4] == "≥ 0.60" and flags[3]  # a protocol step keeps its floor
+
+
+def test_calibration_table_does_not_flag_the_residual_of_an_axis_left_out():
+    """The knee's movement axis left out of the shank's fit (the hip-flexion step measured it
+    better) keeps its residual as information, not in red beside 'In fit: no'."""
+    from motionlab.report.pages_quality import calibration_cells
+
+    row = _calibration_row(kind="functional", verdict=None, rho=0.96, residual_deg=19.0)
+    assert calibration_cells(replace(row, used=False))[1][5] is False
+    assert calibration_cells(row)[1][5] is True

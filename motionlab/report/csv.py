@@ -10,7 +10,8 @@ angle a row refers to; the worst of the joint's angles for the lumbar offset, th
 for trunk compensation), ``grades.csv`` (``joint, angle, column, grade, reason``: one row per
 angle column; ``determined``, ``weak`` or ``not determined``, see
 :mod:`motionlab.segments.grades`), ``quality.csv`` (per sensor) and ``calibration.csv`` (per
-segment and calibration step). Existing files are replaced only with ``force``.
+segment and calibration step: ρ, residual, ``in_fit``, and for an axis found in the movement
+its own check's ``movement_axis_verdict``). Existing files are replaced only with ``force``.
 """
 
 from __future__ import annotations
@@ -215,6 +216,8 @@ def calibration_frame(view: SessionView) -> pd.DataFrame:
             "rho_ratio": r.rho,
             "reference_rho_ratio": r.reference_rho,
             "residual_deg": r.residual_deg,
+            "in_fit": r.used,
+            "movement_axis_verdict": r.verdict or "",
             "segment_ok": r.segment_ok,
         }
         for r in calibration_rows(view)

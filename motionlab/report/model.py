@@ -161,7 +161,9 @@ class CalibrationRow:
     (``none`` for a segment without a measured axis), ``kind`` (``static``, ``functional``,
     ``movement``; ``nominal`` without an axis), ``rho`` and ``reference_rho`` (NaN where
     none), ``residual_deg`` (deg), ``used`` (the axis entered the fit), ``hinge_check_deg``
-    (deg, NaN where not checked) and ``segment_ok`` (the segment's quality passed)."""
+    (deg, NaN where not checked), ``verdict`` (an axis found in the movement: its own check's
+    ``determined``, ``weak`` or ``not determined``; ``None`` for a protocol step, judged by ρ)
+    and ``segment_ok`` (the segment's quality passed)."""
 
     segment: str
     sensor: str
@@ -174,6 +176,7 @@ class CalibrationRow:
     used: bool
     hinge_check_deg: float
     segment_ok: bool
+    verdict: str | None = None
 
 
 @dataclass
@@ -602,6 +605,7 @@ def calibration_rows(view: SessionView) -> list[CalibrationRow]:
                     used=a.in_fit,
                     hinge_check_deg=float(check) if check is not None else float("nan"),
                     segment_ok=_segment_ok(res),
+                    verdict=a.verdict if a.kind == "movement" else None,
                 )
             )
     return rows

@@ -9,6 +9,7 @@ import numpy as np
 from motionlab.clocksync import describe
 from motionlab.report.model import (
     NOT_DETERMINED,
+    CalibrationRow,
     SessionView,
     calibration_rows,
     excluded,
@@ -304,26 +305,9 @@ def calibration_page(doc: Document, view: SessionView) -> None:
     doc.heading("Per segment and step")
     rows, flagged = [], []
     for r in calibration_rows(view):
-        floor = STATIC_RHO_MIN if r.kind == "static" else FUNCTIONAL_RHO_MIN
-        if np.isfinite(r.reference_rho):
-            floor = r.reference_rho - 0.1
-        rows.append(
-            [
-                r.segment,
-                r.method.replace("_", " "),
-                r.step.replace("_", " "),
-                _f(r.rho, ".3f"),
-                f"≥ {floor:.2f}" if r.step != "none" else "-",
-                _f(r.residual_deg),
-                "yes" if r.used else "no",
-                "ok" if r.segment_ok else "check",
-            ]
-        )
-        flagged.append(
-            [False] * 3
-            + [r.rho < floor, False, r.residual_deg > RESIDUAL_MAX_DEG, False]
-            + [not r.segment_ok]
-        )
+        cells, flags = calibration_cells(r)
+        rows.append(cells)
+        flagged.append(flags)
     doc.table(
         ["Segment", "Method", "Step", "ρ", "ρ wanted", "Residual (°)", "In fit", "Segment"],
         rows,
@@ -345,7 +329,36 @@ def calibration_page(doc: Document, view: SessionView) -> None:
         f"{RESIDUAL_MAX_DEG:.0f}°. Methods: "
         + "; ".join(f"'{k.replace('_', ' ')}': {v}" for k, v in METHODS.items())
         + ". 'In fit': no when a joint movement's axis was left out because a step keeping the "
-        "joint still measured the same axis better.",
+        "joint still measured the same axis better (its residual is then not the frame's error). "
+        "An axis found in the movement itself (no ρ wanted) is judged by its own checks, in the "
+        "grades below: its ρ is red only when they found it weak.",
         size=SIZE["small"],
         colour=MUTED,
     )
+
+
+def calibration_cells(r: CalibrationRow) -> tuple[list[str], list[bool]]:
+    """The cells of one row of the table "Per segment and step" and which to draw red.
+
+    A protocol step's ρ is red below its floor (static or functional, or 0.1 under the
+    protocol's reference ρ); an axis found in the movement itself has no ρ floor and is red
+    when its own check found it weak. A residual is red above ``RESIDUAL_MAX_DEG`` only for
+    an axis that entered the fit (one left out leaves no error in the segment's frame).
+    """
+    floor = STATIC_RHO_MIN if r.kind == "static" else FUNCTIONAL_RHO_MIN
+    if np.isfinite(r.reference_rho):
+        floor = r.reference_rho - 0.1
+    own_check = r.verdict is not None
+    cells = [
+        r.segment,
+        r.method.replace("_", " "),
+        r.step.replace("_", " "),
+        _f(r.rho, ".3f"),
+        f"≥ {floor:.2f}" if r.step != "none" and not own_check else "-",
+        _f(r.residual_deg),
+        "yes" if r.used else "no",
+        "ok" if r.segment_ok else "check",
+    ]
+    weak_rho = r.verdict != "determined" if own_check else bool(r.rho < floor)
+    residual = bool(r.used and r.residual_deg > RESIDUAL_MAX_DEG)
+    return cells, [False] * 3 + [weak_rho, False, residual, False, not r.segment_ok]
