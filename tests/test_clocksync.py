@@ -350,3 +350,42 @@ def test_residuals_near_the_used_samples_only_are_those_of_the_whole_recording()
     res, dc = part.offset_residuals(p)
     np.testing.assert_array_equal(res, part.residuals(p))
     np.testing.assert_allclose(dc, jac[:, 12], rtol=1e-12, atol=1e-12 * np.abs(dc).max())
+
+
+def test_clocks_the_vendor_synchronised_are_checked_not_moved(knee, typical):
+    """Sensors whose files say the vendor synchronised their clocks (an Xsens DOT export's
+    ``SyncStatus: Synced``) keep their recorded stamps: a real seated knee recording of two
+    synced DOTs was moved by +27 ms, the fit's error through soft tissue. The fits are still
+    made and say what the data asked for."""
+    from motionlab.clocksync.stage import VENDOR_KEPT
+
+    session, _ = typical
+    sensors = {
+        k: dataclasses.replace(s, attrs={**s.attrs, "vendor_clock_sync": "SyncStatus: Synced"})
+        for k, s in session.sensors.items()
+    }
+    session = dataclasses.replace(session, sensors=sensors, results=Results())
+    recorded = {k: s.time.copy() for k, s in session.sensors.items()}
+    fits = synchronise(session, knee)
+    assert fits and all(f.status.startswith(VENDOR_KEPT) for f in fits)
+    assert any(f.status.endswith("would have moved it") for f in fits)  # own clocks: it would
+    for k, s in session.sensors.items():
+        np.testing.assert_allclose(s.time, recorded[k], atol=1e-9, rtol=0)
+        assert "clock_sync" not in s.attrs
+    # one sensor without the vendor's word: the session's clocks are synchronised as before
+    del sensors["shank_l"].attrs["vendor_clock_sync"]
+    assert any(f.status == "applied" for f in synchronise(session, knee))
+
+
+def test_a_synced_dot_export_says_so(tmp_path):
+    from motionlab.io import dot
+
+    head = "sep=,\nDeviceTag:,Femur\nSyncStatus:,Synced\nOutputRate:,60Hz\n\n"
+    rows = "\n".join(f"{i},{1000 + i * 16667},0,0,9.81,0,0,0" for i in range(200))
+    path = tmp_path / "femur.csv"
+    path.write_text(head + "PacketCounter,SampleTimeFine,Acc_X,Acc_Y,Acc_Z,Gyr_X,Gyr_Y,Gyr_Z\n"
+                    + rows + "\n")  # fmt: skip
+    stream = dot.read(path).sensors[0]
+    assert stream.attrs["vendor_clock_sync"] == "Xsens DOT SyncStatus: Synced"
+    path.write_text(path.read_text().replace("Synced", "Unsynced"))
+    assert "vendor_clock_sync" not in dot.read(path).sensors[0].attrs

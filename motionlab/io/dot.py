@@ -21,6 +21,8 @@ column(s)                file unit                            motionlab
 The "sensor fusion" measurement modes export orientation and free acceleration only, without
 raw gyroscope: the stream then has ``quat`` and ``extra["free_acc"]`` and no ``acc``/``gyr``.
 ``serial`` is the device's ``DeviceTag`` (the DOT has no other id in its export).
+``SyncStatus: Synced`` (the app synchronised the DOTs' clocks before recording) is kept as
+``attrs["vendor_clock_sync"]``: clock sync then checks the clocks and leaves them as recorded.
 
 Options: ``mag_field_ut`` (float, default 50), ``label`` (str).
 """
@@ -118,6 +120,8 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
         "header": info,
         "notes": table.notes,
     }
+    if info.get("SyncStatus", "").strip().lower() == "synced":  # the DOT app's sync
+        attrs["vendor_clock_sync"] = "Xsens DOT SyncStatus: Synced"
     recorded = recording_date(info.get("StartTime"))
     if recorded:
         attrs["recorded"] = recorded
