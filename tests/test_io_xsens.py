@@ -169,6 +169,18 @@ def test_packet_counter_wraps_at_2_16(tmp_path):
     assert s.attrs["clock_wraps"] == 1
 
 
+def test_an_older_export_names_its_counter_counter(tmp_path):
+    """Older MT Software exports (MTx, MTi-G) call the sample counter ``Counter``; such a file
+    had been refused for lack of a time column. Its serial comes from the file name."""
+    pc = (65534 + np.arange(6)) % 65536
+    head = "// Start Time: Unknown\n// Update Rate: 100.0Hz\nCounter\tAcc_X\tAcc_Y\tAcc_Z\tRoll\n"
+    rows = "".join(f"{p:05d}\t0\t0\t9.81\t0\n" for p in pc)
+    s = _one(_write(tmp_path, "MT_00300556-000_00300556.txt", head + rows))
+    np.testing.assert_allclose(np.diff(s.time), 0.01)
+    assert s.attrs["time_source"] == "Counter" and s.attrs["clock_wraps"] == 1
+    assert s.serial == "00300556"
+
+
 def test_ned_export_is_rotated_to_enu(tmp_path):
     head = HEADER_2022.format(frame="NED")
     head += "PacketCounter,Acc_X,Acc_Y,Acc_Z,Quat_q0,Quat_q1,Quat_q2,Quat_q3,"

@@ -34,8 +34,9 @@ Time, from the device clock, in order of preference:
 
 1. ``SampleTimeFine``: 10 kHz ticks, 32-bit wrap (:mod:`motionlab.io.clock`);
 2. ``UTC_*`` fields with ``UTC_Nano`` (POSIX seconds), when every row has them;
-3. ``PacketCounter`` (16-bit wrap) divided by the rate: ``// Update Rate`` in the header, else
-   the ``rate_hz`` option, else 100 Hz (MTw default), flagged in ``attrs["rate_assumed"]``.
+3. ``PacketCounter`` (``Counter`` in older exports; 16-bit wrap) divided by the rate:
+   ``// Update Rate`` in the header, else the ``rate_hz`` option, else 100 Hz (MTw default),
+   flagged in ``attrs["rate_assumed"]``.
 
 Options: ``rate_hz`` (float), ``mag_field_ut`` (float), ``label`` (str).
 """
@@ -70,6 +71,8 @@ DEFAULT_RATE_HZ = 100.0
 SAMPLE_TIME_FINE_HZ = 10_000.0
 
 _KNOWN = ("PacketCounter", "SampleTimeFine", "Acc_X", "Gyr_X", "Mag_X", "Quat_q0", "Mat[1][1]")
+#: the sample counter's column: ``Counter`` in older MT Software exports (MTx, MTi-G)
+_COUNTERS = ("PacketCounter", "Counter")
 _QUAT = ["Quat_q0", "Quat_q1", "Quat_q2", "Quat_q3"]
 _MAT = [f"Mat[{i}][{j}]" for i in (1, 2, 3) for j in (1, 2, 3)]
 _EULER = ["Roll", "Pitch", "Yaw"]
@@ -192,17 +195,18 @@ def _time(table: Table, info: dict[str, str], options: dict[str, Any]) -> tuple:
             ) from None
         posix = (stamp - pd.Timestamp("1970-01-01")).dt.total_seconds().to_numpy()
         return posix + cols[:, 6] * 1e-9, "UTC", {}
-    if table.has("PacketCounter"):
+    counter = next((c for c in _COUNTERS if table.has(c)), None)
+    if counter is not None:
         rate, assumed = _rate(info, options, path)
-        pc = table.column("PacketCounter")
-        t = checked_counter_time(pc, rate, 16, path, "PacketCounter", table.lines)
+        pc = table.column(counter)
+        t = checked_counter_time(pc, rate, 16, path, counter, table.lines)
         attrs = {"clock_wraps": count_wraps(pc, 16), "counter_rate_hz": rate}
         if assumed:
             attrs["rate_assumed"] = True
             attrs["notes_rate"] = (
                 f"no 'Update Rate' in the header and no rate_hz option: {rate} Hz assumed"
             )
-        return t, "PacketCounter", attrs
+        return t, counter, attrs
     raise InputError(
         "no time column (SampleTimeFine, UTC_* or PacketCounter)",
         path,
