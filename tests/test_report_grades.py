@@ -296,6 +296,21 @@ def test_a_pelvis_forward_direction_from_the_walk_is_not_told_to_move_the_sensor
     assert "exactly as the protocol says" not in line
 
 
+def test_a_determined_hip_flexion_is_not_told_to_avoid_sitting_down(walk):
+    """A stand and a walk with no sitting down (hip flexion determined, the other planes weak
+    from the walk's forward direction) was told 'record only the stand and the walk (no
+    sitting down) for a determined flexion': it had done exactly that."""
+    from motionlab.report.sentences import missing_lines
+
+    ses = _force(walk, "hip_r", 0, "determined", "")
+    start = "pelvis's forward direction is from the first steps of the walk (about 5-10° off)"
+    for k in (1, 2):
+        ses = _force(ses, "hip_r", k, "weak", start)
+    line = next(m for m in missing_lines(load_view(ses)) if m.startswith("Right hip"))
+    assert line.startswith("Right hip: ab-adduction and internal-external rotation weak"), line
+    assert "sitting down" not in line and "cannot do better" in line, line
+
+
 def test_pelvis_not_calibrated(walk):
     ses = _pelvis_nominal(walk)
     assert (

@@ -348,9 +348,15 @@ def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[s
         # the hint was refuted and the walk replaced it (segments.grades): placing the sensor
         # again cannot help; flexion is determined when the thigh tilts little over the
         # recording (grades.HEADING_BOUND_DEG), its other planes stay weak in a stand and walk
-        return f"forward direction of the {where} sensor from the walk", (
-            "record only the stand and the walk (no sitting down) for a determined flexion; "
-            "the other planes stay weak in a stand-and-walk recording"
+        cause = f"forward direction of the {where} sensor from the walk"
+        if "can move flexion" in r:  # flexion weak: the thigh tilted far (sitting down)
+            return cause, (
+                "record only the stand and the walk (no sitting down) for a determined "
+                "flexion; the other planes stay weak in a stand-and-walk recording"
+            )
+        return cause, (
+            "a stand and a walk cannot do better: walking gives the pelvis's forward "
+            "direction to within 5-20°"
         )
     if "forward direction" in r or "one measured axis" in r:
         return (
