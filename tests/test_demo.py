@@ -39,6 +39,8 @@ TEXT_COLUMNS = {
     "step",
     "kind",
     "segment_ok",
+    "in_fit",  # calibration.csv: the axis entered the segment's fit
+    "movement_axis_verdict",  # and, for an axis found in the movement, its own check's grade
     "grade",
     "reason",
     "column",
