@@ -440,3 +440,33 @@ def test_a_real_pivot_cut_to_its_rest_at_the_end_keeps_its_flexion_axis():
     assert abs(z @ whole) > np.cos(np.radians(15.0))
     grades = cal.grades["lumbar"].grades
     assert z @ whole > 0 or grades[:2] == ["weak", "weak"]
+
+
+def test_a_weak_trunk_axis_is_told_to_bend_forward_not_to_move_through_its_range(seated):
+    """Danique/trunkmovement_hs (the thorax 45° / 48° either way about both axes) was told
+    'move the lumbar spine slowly through its range 5 times', which it had done; the remedy is
+    the calibration's own: a forward bend further than the sideways ones. A rest held leaning
+    (the axis's sign unclear) is told to rest upright."""
+    import copy
+
+    from motionlab.report.model import load_view
+    from motionlab.report.sentences import missing_lines
+
+    session, _ = seated
+    session = copy.deepcopy(session)
+    analyse(session, OPTIONS)
+    grades = session.results.calibration.grades["lumbar"]
+    unclear = ("the flexion axis is not clear from the movement (the thorax went 45° / 48° "
+               "either way about it, 0.8× as one-sided as about the other axis; 1.3× and 1.5× "
+               "wanted)")  # fmt: skip
+    grades.grades[0], grades.reasons[0] = "weak", unclear
+    line = next(m for m in missing_lines(load_view(session)) if m.startswith("Lumbar"))
+    assert line.endswith("— bend the trunk forward and back up a few times, further forward "
+                         "than to the sides."), line  # fmt: skip
+    grades.reasons[0] = ("the flexion axis's sign is not clear from the movement (the thorax "
+                         "went 30° / 20° either way from the rest, but further the other way "
+                         "from its usual posture: the rest was held leaning)")  # fmt: skip
+    line = next(m for m in missing_lines(load_view(session)) if m.startswith("Lumbar"))
+    assert "(direction of flexion)" in line and line.endswith(
+        "rest sitting or standing upright for a few seconds."
+    ), line

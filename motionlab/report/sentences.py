@@ -319,6 +319,10 @@ _BEND = {
     "knee": "walk 10 straight steps at an even pace",
     "hip": "walk 10 straight steps at an even pace",
     "elbow": "bend and straighten the elbow slowly 5 times",
+    # the trunk's flexion axis is the one it turns about most one-sidedly (segments.trunk_axes)
+    "lumbar": "bend the trunk forward and back up a few times, further forward than to the sides",
+    "trunk_lean": "bend the trunk forward and back up a few times, further forward than to the "
+    "sides",
 }
 
 
@@ -334,6 +338,8 @@ def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[s
     spec = view.protocol.segments.get(seg)
     where = f"{SIDE_NAMES.get(spec.side, '')} {seg.split('_')[0]}".strip() if spec else seg
     r = reason.lower().removeprefix("hinge axis from movement: ").split("; ")[0]
+    if "axis's sign is not clear" in r:  # a trunk rest held leaning (segments.trunk_axes)
+        return "direction of flexion", "rest sitting or standing upright for a few seconds"
     if "which way the axis points" in r or "direction of flexion" in r:
         return "direction of flexion", f"stand still 5 s with the {display} straight, then {bend}"
     if "its zero" in r:
