@@ -3,28 +3,37 @@ clinic records it (a stand, then 10-20 s of walking with a turn or none), only t
 lower-body sensors, run as ``motionlab run --protocol walk`` runs it, and compared with the whole
 recording's own result.
 
-There is no optical reference; the whole recording (a 2.8-s stand, then 45 s of walking with a
-180° turn at 75-77 s and the start of another at 98 s) is the best estimate there is, so each
-cut's differences from it measure what a short walk costs. Per cut and side:
+There is no optical reference; the whole recording (a quiet stand at 0.5-4.6 s, sitting down,
+a seated rest, standing up, then 45 s of walking from 55 s with a 180° turn at 75-77 s and the
+start of another at 98 s) is the best estimate there is, so each cut's differences from it
+measure what a short walk costs. The whole recording is the better estimate for a reason a
+short walk cannot have: its rests in two poses (standing and sitting) give each sensor's
+accelerometer bias, which moves its knee_l flexion by +1.4° and its hips by up to 2°. Per cut:
 
 - the grades of each knee and hip (flexion / ab-adduction / rotation), the whole recording's and
   the cut's;
-- the knee's per-stride flexion range (median), the whole recording's over the same strides and
-  the cut's;
-- the knee flexion of the cut against the whole recording's over the common walking samples
-  (from 1 s after the walk's first sample): RMSE and mean offset (deg); the same for the hip
-  flexion, where a wrong pelvis forward direction would show;
+- each knee's per-stride flexion range (median), the whole recording's over the same strides
+  and the cut's;
+- knee and hip flexion of the cut against the whole recording's over the walk's samples: RMSE,
+  mean, and the RMSE with the cut's own stand as the zero (less the whole recording's mean
+  over the cut's calibration stand: the walker stood a little differently each time, up to
+  4.6° in a shank's inclination between the stands of this recording); a wrong pelvis forward
+  direction shows in the hips;
 - the cadence (steps/min, both sides) of the cut against the whole recording's over the same
-  strides (its kept strides that lie within the cut's walk);
-- the strides the cut rejects as ``turn`` against the whole recording's within the cut's walk.
+  strides (the kept strides that lie within the cut's walk);
+- the strides each rejects within the cut's walk, and of them as a ``turn`` (a turn's strides
+  have a low swing: either may reject one as ``start/stop`` before it asks about the turn).
 
-The cuts (times of the recording, s): the stand is the still stand just before the walk
-(52.1-54.9 s, 2.8 s) or that stand with the earlier still stand (44.7-48.6 s) before it, to
-10.6 s (the samples real, the length assembled), or the recording as it is from 44.6 s (a stand,
-a shuffle, a stand); then a piece of the walk. A piece that does not start at the walk's own
-start (55 s) starts within ±0.5 s of its nominal time at the sample where the five segments'
-inclinations (the vendor's orientations) are closest to the stand's, so that the joint between
-stand and walk is as small as it can be.
+The cuts (times of the recording, s). The stand: the one just before the walk (52.1-54.9 s, the
+walker swaying: 40-90 mrad/s RMS on the thighs), that one after the stands following the
+standing up (44.7-48.6 s twice: 10.6 s, swaying), the quiet first stand twice and then the one
+before the walk (11.6 s), or the recording as it is from 44.6 s (a stand, a shuffle, a stand).
+The walk: from its own start at 55 s, or a later span (with a turn or none) joined to the walk's
+first steps: the first 2-4 s of the walk, then the span from within ±1 s of its nominal start,
+cut where the five segments' inclinations (the whole recording's fused orientations) are
+closest, i.e. at the same phase of a later stride, so that the sensors see no jump their
+gyroscopes did not measure (column ``jump``: the largest inclination change where the cut's
+pieces join; a stand-to-walk cut mid-walk would jump 30° or more on some segment).
 
 Usage::
 
@@ -179,9 +188,11 @@ def cadence(session: Session, pieces: list[tuple], origin=None) -> tuple[float, 
     return (120.0 / float(dur[kept].mean()) if kept.any() else np.nan), int(kept.sum())
 
 
-def turn_strides(session: Session, pieces: list[tuple], origin=None) -> int:
-    """Strides within ``pieces`` that the gait analysis rejected as a turn."""
-    return int(np.sum(strides_within(session, pieces, origin)[2] == "turn"))
+def rejected(session: Session, pieces: list[tuple], origin=None) -> str:
+    """The strides within ``pieces`` that the gait analysis rejected, and of them as a turn
+    (``"3 (2 turn)"``): a turn stride may be rejected for its low swing (``start/stop``) first."""
+    _, kept, reason = strides_within(session, pieces, origin)
+    return f"{int(np.sum(~kept))} ({int(np.sum(reason == 'turn'))} turn)"
 
 
 def angle_diff(full: Session, cut: Session, origin: np.ndarray, column: str, pieces) -> tuple:
@@ -233,8 +244,9 @@ LEGEND = (
     "recording → cut; range: median per-stride knee flexion range (deg), whole recording over "
     "the same strides → cut; Δ: the cut's flexion less the whole recording's over the walk's "
     "samples, RMSE (mean) and the RMSE with the cut's stand as the zero, deg; cadence "
-    "(steps/min) over the kept strides within the cut's walk (their number); turn: strides "
-    "rejected as a turn; jump: the largest inclination jump (deg) where the cut's pieces join"
+    "(steps/min) over the kept strides within the cut's walk (their number); rejected: strides "
+    "the gait analysis rejected within the cut's walk (of them as a turn); jump: the largest "
+    "inclination jump (deg) where the cut's pieces join"
 )
 
 
@@ -257,14 +269,14 @@ def main() -> None:
     print()
     print(
         "| cut | what | walk s | jump ° | knee r | knee l | hip r | hip l | range r | range l "
-        "| Δknee r | Δknee l | Δhip r | Δhip l | cadence whole → cut | turn whole → cut |"
+        "| Δknee r | Δknee l | Δhip r | Δhip l | cadence whole → cut | rejected whole → cut |"
     )
     print("|---|---|---:|---:|---|---|---|---|---|---|---|---|---|---|---|---|")
     whole = [(WALK_START_S, float(t[-1]) + 0.01)]
     print(f"| whole | 2.8-s stand, walk 55-100 | 45 | 0 | {' | '.join(g.values())} | "
           f"{_med(full_ranges(full, 'r', whole))} | {_med(full_ranges(full, 'l', whole))} "
           f"| | | | | {_n(cadence(full, whole)[0])} ({cadence(full, whole)[1]}) "
-          f"| {turn_strides(full, whole)} |")  # fmt: skip
+          f"| {rejected(full, whole)} |")  # fmt: skip
     for cut in CUTS:
         if only and cut.name not in only:
             continue
@@ -288,7 +300,7 @@ def main() -> None:
             cells.append(f"{_n(rmse)} ({_n(mean)}) {_n(own)}")
         (cf, nf), (cc, nc) = cadence(full, walk), cadence(session, walk, origin)
         cells.append(f"{_n(cf)} ({nf}) → {_n(cc)} ({nc})")
-        cells.append(f"{turn_strides(full, walk)} → {turn_strides(session, walk, origin)}")
+        cells.append(f"{rejected(full, walk)} → {rejected(session, walk, origin)}")
         print(f"{head} {' | '.join(cells)} |")
         for line in cal.warnings:
             if line.startswith(("pelvis", "hip")):
