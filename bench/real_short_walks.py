@@ -18,7 +18,8 @@ accelerometer bias, which moves its knee_l flexion by +1.4° and its hips by up 
   mean, and the RMSE with the cut's own stand as the zero (less the whole recording's mean
   over the cut's calibration stand: the walker stood a little differently each time, up to
   4.6° in a shank's inclination between the stands of this recording); a wrong pelvis forward
-  direction shows in the hips;
+  direction shows in the hips, and column ``pelvis fwd`` gives the angle between the whole
+  recording's forward direction of the pelvis (from its turns) and the cut's (its first steps);
 - the cadence (steps/min, both sides) of the cut against the whole recording's over the same
   strides (the kept strides that lie within the cut's walk);
 - the strides each rejects within the cut's walk, and of them as a ``turn`` (a turn's strides
@@ -225,6 +226,13 @@ def full_ranges(full: Session, side: str, pieces: list[tuple]) -> np.ndarray:
                        if _inside(pieces, np.array(a), np.array(b))])  # fmt: skip
 
 
+def forward_axis(session: Session) -> np.ndarray | None:
+    """The pelvis sensor's forward direction the calibration took from the walk (sensor frame),
+    ``None`` where it kept the placement hint's."""
+    rec = session.results.calibration.segments["pelvis"].axes.get("movement:turns")
+    return None if rec is None else np.asarray(rec.sensor_axis, float)
+
+
 def _g(grades) -> str:
     return "/".join({"determined": "D", "weak": "w", "not determined": "n"}.get(g, "?")
                     for g in grades.grades)  # fmt: skip
@@ -245,7 +253,8 @@ LEGEND = (
     "the same strides → cut; Δ: the cut's flexion less the whole recording's over the walk's "
     "samples, RMSE (mean) and the RMSE with the cut's stand as the zero, deg; cadence "
     "(steps/min) over the kept strides within the cut's walk (their number); rejected: strides "
-    "the gait analysis rejected within the cut's walk (of them as a turn); jump: the largest "
+    "the gait analysis rejected within the cut's walk (of them as a turn); pelvis fwd: angle "
+    "between the pelvis's forward directions from the walk, whole and cut; jump: the largest "
     "inclination jump (deg) where the cut's pieces join"
 )
 
@@ -269,13 +278,14 @@ def main() -> None:
     print()
     print(
         "| cut | what | walk s | jump ° | knee r | knee l | hip r | hip l | range r | range l "
-        "| Δknee r | Δknee l | Δhip r | Δhip l | cadence whole → cut | rejected whole → cut |"
+        "| Δknee r | Δknee l | Δhip r | Δhip l | pelvis fwd ° | cadence whole → cut "
+        "| rejected whole → cut |"
     )
-    print("|---|---|---:|---:|---|---|---|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---:|---:|---|---|---|---|---|---|---|---|---|---|---:|---|---|")
     whole = [(WALK_START_S, float(t[-1]) + 0.01)]
     print(f"| whole | 2.8-s stand, walk 55-100 | 45 | 0 | {' | '.join(g.values())} | "
           f"{_med(full_ranges(full, 'r', whole))} | {_med(full_ranges(full, 'l', whole))} "
-          f"| | | | | {_n(cadence(full, whole)[0])} ({cadence(full, whole)[1]}) "
+          f"| | | | | | {_n(cadence(full, whole)[0])} ({cadence(full, whole)[1]}) "
           f"| {rejected(full, whole)} |")  # fmt: skip
     for cut in CUTS:
         if only and cut.name not in only:
@@ -298,13 +308,16 @@ def main() -> None:
         for col in JOINTS:
             rmse, mean, own = angle_diff(full, session, origin, f"{col}_flexion_deg", walk)
             cells.append(f"{_n(rmse)} ({_n(mean)}) {_n(own)}")
+        fa, fc = forward_axis(full), forward_axis(session)
+        fwd = np.nan if fa is None or fc is None else np.degrees(np.arccos(np.clip(fa @ fc, -1, 1)))
+        cells.append(_n(fwd))
         (cf, nf), (cc, nc) = cadence(full, walk), cadence(session, walk, origin)
         cells.append(f"{_n(cf)} ({nf}) → {_n(cc)} ({nc})")
         cells.append(f"{rejected(full, walk)} → {rejected(session, walk, origin)}")
         print(f"{head} {' | '.join(cells)} |")
         for line in cal.warnings:
             if line.startswith(("pelvis", "hip")):
-                print(f"|  | {line} |||||||||||||||")
+                print(f"|  | {line} ||||||||||||||||")
 
 
 if __name__ == "__main__":
