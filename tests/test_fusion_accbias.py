@@ -14,6 +14,7 @@ from motionlab.fusion.stage import (
     _merged_windows,
     calibration_acc_bias,
     fuse_session,
+    heading_concentration,
     levels_its_rests,
 )
 from motionlab.protocol import load_protocol
@@ -243,36 +244,60 @@ def test_joined_bias_by_hand():
     np.testing.assert_allclose(b2, [weak * 0.1 / (4 + weak), -0.192, 0.0], atol=1e-12)
 
 
-def _swing(centre_deg, amp_deg, seed=2):
-    """A rest with the sensor's y up (5 s), 40 s of a segment swinging about the sensor's x
-    axis between ``centre ± amp`` degrees from that pose (0.3 Hz), a rest again; the sensor
-    0.3 m below the joint it turns about, so the accelerometer also reads the swing's
-    centripetal (along +y) and tangential acceleration."""
+def _swing(centre_deg, amp_deg, turn_deg=360.0, seed=2):
+    """A rest with the sensor's z up (5 s), 40 s of a segment swinging about the sensor's x
+    axis between ``centre ± amp`` degrees from that pose (0.3 Hz) while its heading turns
+    steadily by ``turn_deg`` (as walking round a room: 0 is a straight walk), a rest again;
+    the sensor 0.3 m from the joint it swings about, so the accelerometer also reads the
+    swing's centripetal (along +y) and tangential acceleration (the turn's own, under
+    0.01 m/s², left out)."""
     t = np.arange(int(40 * RATE)) / RATE
     ease = np.minimum(1.0, np.minimum(t, t[-1] - t) / 2.0)
     theta = np.radians(centre_deg) * (1 - np.cos(np.pi * ease)) / 2
     theta = np.concatenate([np.zeros(500), theta + np.radians(amp_deg) * ease * np.sin(
         2 * np.pi * 0.3 * t), np.zeros(500)])  # fmt: skip
-    rate = np.gradient(theta, 1 / RATE)
-    quat = rot.mul(rot.from_axis_angle([0, 0, 1], 0.4), rot.from_rotvec(np.outer(theta, [1, 0, 0])))
+    psi = np.radians(turn_deg) * np.concatenate([np.zeros(500), t / t[-1], np.ones(500)])
+    rate, yaw_rate = np.gradient(theta, 1 / RATE), np.gradient(psi, 1 / RATE)
+    quat = rot.mul(rot.from_rotvec(np.outer(0.4 + psi, [0, 0, 1])),
+                   rot.from_rotvec(np.outer(theta, [1, 0, 0])))  # fmt: skip
     lever = np.column_stack([0 * theta, 0.3 * rate**2, -0.3 * np.gradient(rate, 1 / RATE)])
     rng = np.random.default_rng(seed)
     acc = rot.rotate(rot.conj(quat), np.array([0, 0, G])) + lever + BIAS
-    gyr = np.outer(rate, [1, 0, 0]) + 0.002 * rng.standard_normal((len(theta), 3))
+    omega = np.column_stack([rate, yaw_rate * np.sin(theta), yaw_rate * np.cos(theta)])
+    gyr = omega + 0.002 * rng.standard_normal((len(theta), 3))
     return gyr, acc + 0.05 * rng.standard_normal(acc.shape), quat
 
 
-@pytest.mark.parametrize(("centre", "levels"), [(5.0, True), (60.0, False)])
-def test_movement_far_from_its_rest_does_not_level_it(centre, levels):
-    """A swing about its rest pose (mean tilt 13°) judges the rest; one that spends the
-    movement 60° from it (mean tilt 58°, as a forearm in free arm movement) does not, and the
-    calibration then takes no bias (the recording as it is)."""
-    gyr, acc, quat = _swing(centre, 20.0)
+@pytest.mark.parametrize(
+    ("centre", "turn", "levels"), [(5.0, 360.0, True), (60.0, 360.0, False), (5.0, 0.0, False)]
+)
+def test_movement_far_from_its_rest_or_straight_does_not_level_it(centre, turn, levels):
+    """A swing about its rest pose (mean tilt 13°) while turning round judges the rest; one
+    that spends the movement 60° from it (mean tilt 58°, as a forearm in free arm movement)
+    does not, nor one that never turns (a straight walk: a bias fixed in the sensor frame then
+    stays fixed in the earth frame too, as the walker's own acceleration at the start does),
+    and the calibration then takes no bias (the recording as it is)."""
+    gyr, acc, quat = _swing(centre, 20.0, turn)
     rest = rest_mask(gyr, acc, RATE, np.deg2rad(2.0), 0.5, min_duration=1.5)
     assert runs(rest).shape[0] == 2  # the two rests, in one pose
     assert levels_its_rests(quat, acc, rest) is levels
     bias = calibration_acc_bias(gyr, acc, RATE)
     assert np.all(bias == 0.0) is not levels
+
+
+def test_heading_concentration():
+    """The mean resultant length of the headings of a sensor axis perpendicular to the
+    vertical: 1 heading one way (tilts do not matter), 0 there and back in equal parts,
+    |3 e^{i0} + e^{iπ}| / 4 = 0.5 three quarters one way, |Σ e^{ikπ/2}| = 0 round the
+    compass."""
+    up = np.array([0.0, 0.0, 1.0])
+    tilted = rot.from_rotvec(np.outer(np.linspace(-0.5, 0.5, 40), [1.0, 0.0, 0.0]))
+    assert heading_concentration(tilted, up) == pytest.approx(1.0)
+    yaw = rot.from_rotvec(np.outer([0.0, np.pi, 0.0, 0.0], [0.0, 0.0, 1.0]))
+    assert heading_concentration(yaw, up) == pytest.approx(0.5)
+    assert heading_concentration(yaw[:2], up) == pytest.approx(0.0, abs=1e-12)
+    compass = rot.from_rotvec(np.outer(np.arange(4) * np.pi / 2, [0.0, 0.0, 1.0]))
+    assert heading_concentration(compass, up) == pytest.approx(0.0, abs=1e-12)
 
 
 def test_rests_in_two_poses_level_themselves():

@@ -49,13 +49,14 @@ from motionlab.segments import (
     walk_forward,
 )
 from motionlab.segments.sensors import (
+    Streams,
     corrected_acc,
     joint_segments,
     sensor_orientation,
     sensor_quats,
     streams_of,
 )
-from motionlab.segments.steps import find_steps, reference_step
+from motionlab.segments.steps import blocks, find_steps, reference_step
 from motionlab.session import Session
 
 
@@ -87,7 +88,7 @@ def calibrate_segments(
         hinges = placement.movement_hinges(session, protocol, streams, steps, records, contradicted)
         unsure = placement.orient_by_data(protocol, records, hinges, contradicted)
         centres = placement.centre_headings(session, protocol, streams)
-        pelvis_forward(session, protocol, steps, records, contradicted, notes)
+        pelvis_forward(session, protocol, streams, steps, records, contradicted, notes)
     segments = {}
     for seg in streams:
         res = mounting.fit(seg, protocol, records[seg])
@@ -173,13 +174,15 @@ def orientations_sha256(time: np.ndarray, quat: np.ndarray) -> str:
 def pelvis_forward(
     session: Session,
     protocol: Protocol,
+    streams: Streams,
     steps: dict[str, Any],
     records: dict[str, dict[str, AxisMeasurement]],
     contradicted: set[str],
     notes: list[str],
 ) -> None:
     """The hips' proximal segment's forward direction from the walk's turns, or where they do not
-    give it (fewer than two, or disagreeing) from its first steps (:mod:`.walk_forward`), added
+    give it (fewer than two, or disagreeing) from its first steps (:mod:`.walk_forward`; the walk
+    begins with the longest movement after the stand, :func:`walk_begins`), added
     to its ``records`` (kind ``movement``, method ``turns`` or ``walk start``, secondary: gravity
     keeps the tilt) when the recording measured only its vertical axis and the placement hint is
     contradicted: by the stand (its vertical, :func:`.placement.contradicted`) or by the turns
@@ -210,7 +213,8 @@ def pelvis_forward(
     found = walk_forward.forward_from_turns(s.time, acc, q, s.gyr, up, float(rng[1]), spread)
     method, words = "turns", f"the walk's turns ({found.turns})"
     if not found.used:
-        start = walk_forward.forward_from_start(s.time, acc, q, up, float(rng[1]))
+        begin = walk_begins(streams, float(rng[1]))
+        start = walk_forward.forward_from_start(s.time, acc, q, up, begin)
         if start.used:
             found, method, words = start, "walk start", "the first steps of the walk"
     if not found.used:
@@ -240,6 +244,21 @@ def pelvis_forward(
         turns=found.turns,
         spread_deg=found.spread_deg if found.spread_deg is not None else float("nan"),
     )
+
+
+def walk_begins(streams: Streams, after_s: float) -> float:
+    """When (s) the walk after a stand that ends at ``after_s`` begins: the start of the longest
+    movement block after it (:func:`.steps.blocks`), ``after_s`` itself without one. The
+    calibration takes the stand's first rest long enough; a person who shifts, sways or steps
+    in place before setting off splits the stand, and the walk's first steps, which give the
+    pelvis its forward direction (:func:`.walk_forward.forward_from_start`), then begin at the
+    end of its last rest, not of its first (the 16-IMU walk cut to 10.6 s of such a stand and
+    14-25 s of walking: the hips went from `not determined` to determined)."""
+    moving = [b for b in blocks(streams) if b.moving and b.end > after_s]
+    if not moving:
+        return after_s
+    longest = max(moving, key=lambda b: b.end - b.start)
+    return max(after_s, longest.start)
 
 
 def _add_note(notes: list[str], segment: str, text: str) -> None:
