@@ -25,23 +25,17 @@ Recordings (README of ``../shared``, section ``datasets/human``):
   shank (one leg; mapped as the right), free leg movement and walking, a stand only at the end;
 - ``imt_dot/shoulder_tracking``: chest and upper arm (no shipped protocol has a joint for them).
 
-``--short-walks`` adds the ``walk`` protocol on the full-body walk cut short, as a clinic
-records it (a stand, then a few seconds of walking with a turn or none): (a) the 2.3-s still
-stand just before the walk (52.4-54.7 s) repeated to 11.5 s, then the first ``N`` s of the walk
-(the samples are real, the stand's length is made up); (b) the recording as it is from 0 s to
-``N`` s into the walk (stand, sitting, standing up, walk). Per cut: each knee's and hip's grades
-and the knees' per-stride flexion range.
+The walk cut short as a clinic records it (a stand and 10-25 s of walking):
+``bench/real_short_walks.py``.
 
 Usage::
 
     python bench/real_people.py [--data ../shared] [--only qmt,knee_tracking1,...]
-                                [--short-walks]
 """
 
 from __future__ import annotations
 
 import argparse
-import copy
 import tempfile
 import warnings
 from pathlib import Path
@@ -221,50 +215,6 @@ def report(name: str, protocol: str, session: Session, vendor: dict) -> list[str
     return rows
 
 
-QMT_STILL_S = (52.4, 54.7)  # the still stand just before the full-body recording's walk
-QMT_WALK_START_S = 55.0
-
-
-def _cut(base: Session, pieces: list[tuple[float, float]]) -> Session:
-    """``base``'s sensors made of the time ``pieces`` (s) one after another, on a new 100 Hz
-    clock from 0 s."""
-    session = copy.deepcopy(base)
-    for st in session.sensors.values():
-        parts = [(st.time >= a) & (st.time < b) for a, b in pieces]
-        st.acc = np.concatenate([st.acc[k] for k in parts])
-        st.gyr = np.concatenate([st.gyr[k] for k in parts])
-        st.time = np.arange(len(st.acc)) / 100.0
-    return session
-
-
-def short_walks(data: Path) -> None:
-    """The ``walk`` protocol on the full-body walk cut short (module notes, ``--short-walks``)."""
-    base, _ = qmt_session(data, "walk")
-    print("| cut | walk (s) | knee_r | knee_l | hip_r | hip_l | knee flexion per stride r / l |")
-    print("|---|---:|---|---|---|---|---|")
-    for walk_s in (7.0, 10.0, 14.0, 20.0, 30.0):
-        end = QMT_WALK_START_S + walk_s
-        cuts = {
-            "11.5-s stand, walk": [QMT_STILL_S] * 4 + [(QMT_STILL_S[0], end)],
-            "as recorded from 0 s": [(0.0, end)],
-        }
-        for label, pieces in cuts.items():
-            session = _cut(base, pieces)
-            try:
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")
-                    analyse(session, PipelineOptions(protocol="walk", progress=False))
-            except InputError as exc:
-                print(f"| {label} | {walk_s:.0f} | refused: {exc} | | | | |")
-                continue
-            grades = session.results.calibration.grades
-            cells = [" / ".join(grades[j].grades) for j in ("knee_r", "knee_l", "hip_r", "hip_l")]
-            ranges = [stride_ranges(session, f"knee_{s}_flexion_deg", s) for s in "rl"]
-            print(f"| {label} | {walk_s:.0f} | {' | '.join(cells)} | "
-                  f"{' / '.join(_fmt(r) for r in ranges)} |")  # fmt: skip
-    print()
-
-
 def _num(x, digits: int = 1) -> str:
     return "–" if x is None or not np.isfinite(float(x)) else f"{float(x):.{digits}f}"
 
@@ -274,13 +224,10 @@ def main() -> None:
     ap.add_argument("--data", type=Path, default=Path(__file__).resolve().parents[1].parent
                     / "shared")  # fmt: skip
     ap.add_argument("--only", default="", help="comma-separated recording names")
-    ap.add_argument("--short-walks", action="store_true", help="also the walk cut short")
     args = ap.parse_args()
     human = args.data / "datasets" / "human"
     if not human.is_dir():
         raise SystemExit(f"no {human}: give --data (the shared folder)")
-    if args.short_walks:
-        short_walks(human / "qmt_full_body")
     only = set(filter(None, args.only.split(",")))
     jobs = [("qmt_full_body", p) for p in ("walk", "arm")]
     jobs += [(k, "walk" if "knee" in k else "arm") for k in DOT]
