@@ -427,6 +427,15 @@ def main(argv: list[str] | None = None) -> int:
             cells.append(f"{fmt(sel.free.median())} / {fmt(sel.r.median(), 2)}" if len(sel)
                          else "–")  # fmt: skip
         print(f"| {label} | " + " | ".join(cells) + " |")
+    if len(df):  # the frame-free figure the issue compares with the peers, to the hundredth
+        rest = df[(df.angle == "rotation from rest") & np.isfinite(df.free)]
+        med = rest.groupby("variant").free.median()
+        ours = med.get("motionlab 6-D", np.nan)
+        peers = med.drop(["motionlab 6-D", "motionlab 9-D"], errors="ignore")
+        ahead = bool(len(peers)) and bool((ours < peers).all())
+        print("\nRotation from rest, median offset-free RMSE (deg): "
+              + ", ".join(f"{k} {v:.2f}" for k, v in med.items())
+              + f" — motionlab 6-D ahead of every peer: {'yes' if ahead else 'no'}")  # fmt: skip
     det = df[(df.variant == "motionlab 6-D") & (df.grade == "determined")
              & (df.angle != "rotation from rest")] if len(df) else df  # fmt: skip
     if len(det):
