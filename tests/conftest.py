@@ -18,6 +18,21 @@ SHARED = Path(os.environ.get("MOTIONLAB_SHARED", ROOT.parent / "shared"))
 needs_shared = pytest.mark.skipif(not SHARED.is_dir(), reason="../shared is not present")
 
 
+def bench_module(name: str) -> ModuleType:
+    """The bench script ``bench/<name>.py`` as a module (tests use its reference code; loaded
+    once, registered in ``sys.modules`` as its dataclasses need)."""
+    import importlib.util
+    import sys
+
+    if name in sys.modules:
+        return sys.modules[name]
+    spec = importlib.util.spec_from_file_location(name, ROOT / "bench" / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
 @pytest.fixture
 def data_dir() -> Path:
     return DATA

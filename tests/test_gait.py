@@ -3,7 +3,7 @@ simulator's gait truth, and the gait pages/CSV of run."""
 
 import numpy as np
 import pytest
-from conftest import ROOT, SHARED, needs_shared
+from conftest import ROOT, SHARED, bench_module, needs_shared
 
 from motionlab import rotations as rot
 from motionlab.kinematics import gait_events as ge
@@ -93,23 +93,13 @@ def test_simulated_push_off_is_real_like():
     assert 0.55 <= u[pre_swing][np.argmin(rate[pre_swing])] <= 0.60
 
 
-def _bench(name: str):
-    """The module ``bench/<name>.py``."""
-    import importlib.util
-
-    spec = importlib.util.spec_from_file_location(name, ROOT / "bench" / f"{name}.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 @pytest.mark.parametrize("variant", ["normal", "asymmetric", "slow"])
 def test_simulated_shank_stops_swinging_at_initial_contact(variant):
     """The simulated shank's sagittal ω crosses zero (its forward swing ends) where the feet's
     kinematic initial contact (Zeni) is, as on a real walk: 1-7 ms before it on Vicon walking2
     (bench/gait_contact.py, both legs, 15 Hz low-pass), here within that range widened by one
     marker frame (4 ms) each way. With the former knee template it was 16-19 ms after it."""
-    bench = _bench("gait_contact")
+    bench = bench_module("gait_contact")
     rows = bench.simulated(variant, duration=20.0)
     lag = np.array([r["zc IC ms"] for r in rows if r["event"] == 0])
     assert len(lag) >= 8 and {r["side"] for r in rows} == {"r", "l"}
@@ -120,7 +110,7 @@ def test_simulated_shank_stops_swinging_at_initial_contact(variant):
 def test_real_walk_shank_stops_swinging_at_initial_contact():
     """The source of the band above: on Vicon walking2's three steady initial contacts the tibia
     cluster's sagittal ω crosses zero 1-7 ms before Zeni's IC, decelerating at 148-162 rad/s²."""
-    bench = _bench("gait_contact")
+    bench = bench_module("gait_contact")
     ic = [r for r in bench.real(SHARED) if r["event"] == 0]
     assert len(ic) == 3
     assert all(-7.5 < r["zc IC ms"] < -1.0 and 140 < r["decel"] < 170 for r in ic)

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import SHARED, needs_shared
+from conftest import SHARED, bench_module, needs_shared
 
 from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
 from motionlab.protocol import Task, load_protocol
@@ -156,14 +156,8 @@ def qmt():
 
 def _cut(base: Session, pieces: list[tuple[float, float]]) -> tuple[Session, np.ndarray]:
     """The sensors made of the time pieces one after another on a new 100-Hz clock, analysed,
-    and the recording's time of each sample."""
-    session = copy.deepcopy(base)
-    for st in session.sensors.values():
-        keep = [(st.time >= a) & (st.time < b) for a, b in pieces]
-        origin = np.concatenate([st.time[k] for k in keep])
-        st.acc = np.concatenate([st.acc[k] for k in keep])
-        st.gyr = np.concatenate([st.gyr[k] for k in keep])
-        st.time = np.arange(len(st.acc)) / 100.0
+    and the recording's time of each sample (the bench's cut)."""
+    session, origin = bench_module("real_short_walks").cut_session(base, pieces)
     analyse(session, PipelineOptions("walk", progress=False))
     return session, origin
 

@@ -18,7 +18,7 @@ from motionlab.pipeline import PipelineOptions, analyse
 from motionlab.session import SensorStream
 from motionlab.simulate import simulate
 from motionlab.timebase import take
-from tests.conftest import ROOT, SHARED, needs_shared
+from tests.conftest import ROOT, SHARED, bench_module, needs_shared
 
 PLANES = ("flexion", "lateral_bending", "axial_rotation")
 OPTIONS = PipelineOptions(protocol="lumbar_seated", progress=False, clock_sync=False)
@@ -73,18 +73,6 @@ def test_seated_continuous_trunk_movement_gives_the_lumbar_angles(seated):
     assert rmse["lateral_bending"] < 1.5
 
 
-def _bench(name: str):
-    """A bench script as a module (``bench/<name>.py``)."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[1] / "bench" / f"{name}.py"
-    spec = importlib.util.spec_from_file_location(name, path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def test_everyday_movement_does_not_pull_the_flexion_axis():
     """Seed 6 rests seated at the start and then moves about everyday (standing up, a turn)
     after the trunk block: the principal axes of the rate's covariance were pulled 18° off the
@@ -103,7 +91,7 @@ def test_everyday_movement_does_not_pull_the_flexion_axis():
     assert rmse["flexion"] < 1.5 and rmse["lateral_bending"] < 3.0
     assert rmse["axial_rotation"] < 2.5
     rest = session.results.calibration.steps["rest"]
-    convention = _bench("seated_trunk_sim").rest_convention_truth(truth, tuple(rest))
+    convention = bench_module("seated_trunk_sim").rest_convention_truth(truth, tuple(rest))
     rmse = {p: float(np.sqrt(np.mean(e**2)))
             for p, e in _errors(session, truth, convention).items()}  # fmt: skip
     # measured 0.85 / 0.17 / 0.23°
@@ -356,7 +344,7 @@ def test_an_optical_jump_is_left_out_and_smooth_movement_kept():
     """bench/real_trunk.py's jump test: a rigid body turning at 200°/s and swinging ±40° at
     1 Hz (120 Hz frames) keeps every frame; six frames held 9° off (a second marker solution,
     under the flip test's 15°) are left out, and only they."""
-    jumps = _bench("real_trunk").jumps
+    jumps = bench_module("real_trunk").jumps
     t = np.arange(0.0, 4.0, 1.0 / 120.0)
     yaw = np.radians(200.0) * t
     swing = np.radians(40.0) * np.sin(2 * np.pi * t)
@@ -376,7 +364,7 @@ def test_the_comparisons_rest_lies_inside_a_cut_recording():
     optical recording, and the stillest second both cover was the rest the cut had removed, so
     the product's rotation from it was its mean over no sample (a turn of 180°: 166° RMSE). It
     is now the stillest second inside the cut recording; no rest sample gives no angles."""
-    bench = _bench("real_trunk")
+    bench = bench_module("real_trunk")
     t = np.arange(0.0, 16.0, 0.02)
     speed = np.full((len(t), 3), np.radians(30.0))
     speed[(t >= 1.5) & (t <= 2.5)] = np.radians(0.5)  # the rest the cut removed
