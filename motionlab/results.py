@@ -553,13 +553,19 @@ class TwoAxisFit(HingeFit):
 
     def to_tree(self) -> dict[str, Any]:
         """The hinge fit's layout with ``kind`` and the two-axis fields."""
-        return super().to_tree() | {
-            "kind": "two_axes",
-            "flexion_distal": np.asarray(self.flexion_distal, float),
-            "heading_times": np.asarray(self.heading_times, float),
-            "heading_deltas": np.asarray(self.heading_deltas, float),
-            "axial_follow": float(self.axial_follow),
-        }
+        # axial_follow only where it was fitted: a fit stored before it existed is written back
+        # as it was read
+        follow = {"axial_follow": self.axial_follow} if np.isfinite(self.axial_follow) else {}
+        return (
+            super().to_tree()
+            | {
+                "kind": "two_axes",
+                "flexion_distal": np.asarray(self.flexion_distal, float),
+                "heading_times": np.asarray(self.heading_times, float),
+                "heading_deltas": np.asarray(self.heading_deltas, float),
+            }
+            | follow
+        )
 
 
 @dataclass(frozen=True)

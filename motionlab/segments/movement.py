@@ -374,6 +374,11 @@ TWO_AXIS_STARTS = 6
 #: within ``[0, AXIAL_LAG_MAX]`` (a sensor that follows at least 40 %).
 AXIAL_LAG_START = 0.3
 AXIAL_LAG_MAX = 1.5
+#: The elbow's flexion axis lies across the humerus: the trochlea's axis is 4-8° off the
+#: perpendicular to the shaft (the humeral part of the carrying angle). A fitted flexion axis
+#: further than this from the perpendicular to the stand's long axis is not an elbow's (the real
+#: 16-IMU recording of ``bench/real_people.py``: 7° from the long axis, i.e. 83° off).
+ACROSS_LONG_AXIS_DEG = 30.0
 
 
 def _heading_rot(delta: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -401,7 +406,10 @@ class _TwoAxisProblem:
 
     def __init__(self, t, w1, w2, m1, m2, spin=None):
         self.t, self.w1, self.w2, self.m1, self.m2, self.spin = t, w1, w2, m1, m2, spin
-        self.win = ((t - t[0]) // TWO_AXIS_WINDOW_S).astype(int)
+        # windows numbered over those that hold samples (a pause longer than a window leaves
+        # one empty: its heading would be free, its time undefined)
+        raw = ((t - t[0]) // TWO_AXIS_WINDOW_S).astype(int) if len(t) else np.zeros(0, int)
+        self.win = np.unique(raw, return_inverse=True)[1].ravel()
         self.n_win = int(self.win.max()) + 1 if len(t) else 0
         self.n_axes = 4 if spin is None else 5  # parameters before the windows' headings
 
@@ -560,6 +568,14 @@ def fit_two_dof(
     verdict = _verdict(
         worst, relative, sign_source == "nominal", reasons, "the axes differ", "the two axes"
     )
+    if spin is not None:
+        across = 90.0 - _angle_deg(j1, long_p)
+        if across > ACROSS_LONG_AXIS_DEG:
+            verdict = "not determined"
+            reasons.append(
+                f"the flexion axis lies {90.0 - across:.0f}° from the long axis the stand gives "
+                f"the proximal segment; a joint of this kind flexes across it"
+            )
     return TwoAxisFit(
         joint=joint,
         axis_proximal=j1,
