@@ -166,19 +166,18 @@ def test_elbow_axes_when_the_upper_arm_skin_lags_the_humerus():
     movement disagree by 20° (not determined); fitted as the humerus turning ``1 + k`` times as
     fast about its long axis (``axial_lag``), they agree within 15° and the fraction followed
     comes back."""
-    for seed in (3, 7):
-        (upper, fore), (j1, j2) = elbow_recording(seed, axial_follow=0.6)
-        prior = (np.eye(3)[0], np.eye(3)[1])
-        old = fit_two_dof("elbow_r", upper, fore, *prior, (0.5, 2.5))
-        new = fit_two_dof("elbow_r", upper, fore, *prior, (0.5, 2.5), axial_lag=True)
-        assert old.verdict == "not determined" and np.isnan(old.axial_follow)
-        assert old.consistency_deg > 18.0
-        assert new.verdict == "weak" and new.consistency_deg < 12.0, new.reasons
-        assert new.axial_follow == pytest.approx(0.6, abs=0.05)
-        assert new.relative_residual < 0.85 * old.relative_residual
-        # the axis turns with the lag (±24° about the long axis): its mean is what is fitted
-        assert _deg(new.axis_proximal, j1) < 4.0 and _deg(new.axis_distal, j2) < 2.0
-        assert new.sign == "anatomy"
+    (upper, fore), (j1, j2) = elbow_recording(3, axial_follow=0.6)
+    prior = (np.eye(3)[0], np.eye(3)[1])
+    old = fit_two_dof("elbow_r", upper, fore, *prior, (0.5, 2.5))
+    new = fit_two_dof("elbow_r", upper, fore, *prior, (0.5, 2.5), axial_lag=True)
+    assert old.verdict == "not determined" and np.isnan(old.axial_follow)
+    assert old.consistency_deg > 18.0
+    assert new.verdict == "weak" and new.consistency_deg < 12.0, new.reasons
+    assert new.axial_follow == pytest.approx(0.6, abs=0.05)
+    assert new.relative_residual < 0.85 * old.relative_residual
+    # the axis turns with the lag (±24° about the long axis): its mean is what is fitted
+    assert _deg(new.axis_proximal, j1) < 4.0 and _deg(new.axis_distal, j2) < 2.0
+    assert new.sign == "anatomy"
 
 
 def test_a_flexion_axis_along_the_upper_arm_is_not_an_elbow():
@@ -191,7 +190,6 @@ def test_a_flexion_axis_along_the_upper_arm_is_not_an_elbow():
     assert fit.consistency_deg < 5.0 and fit.relative_residual < 0.35  # a good two-axis fit
     assert fit.verdict == "not determined"
     assert any("20° from the long axis" in r for r in fit.reasons), fit.reasons
-    assert fit_two_dof("elbow_r", upper, fore, *prior, (0.5, 2.5)).verdict == "determined"
 
 
 def test_a_pause_longer_than_a_heading_window_leaves_no_empty_window():
