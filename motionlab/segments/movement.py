@@ -377,7 +377,7 @@ AXIAL_LAG_MAX = 1.5
 #: The elbow's flexion axis lies across the humerus: the trochlea's axis is 4-8° off the
 #: perpendicular to the shaft (the humeral part of the carrying angle). A fitted flexion axis
 #: further than this from the perpendicular to the stand's long axis is not an elbow's (the real
-#: 16-IMU recording of ``bench/real_people.py``: 7° from the long axis, i.e. 83° off).
+#: 16-IMU recording of ``bench/real_people.py``: 4-7° from the long axis, i.e. 83-86° off).
 ACROSS_LONG_AXIS_DEG = 30.0
 
 
@@ -574,7 +574,7 @@ def fit_two_dof(
             verdict = "not determined"
             reasons.append(
                 f"the flexion axis lies {90.0 - across:.0f}° from the long axis the stand gives "
-                f"the proximal segment; a joint of this kind flexes across it"
+                "the proximal segment; a joint of this kind flexes across it"
             )
     return TwoAxisFit(
         joint=joint,
