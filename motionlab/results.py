@@ -542,20 +542,30 @@ class TwoAxisFit(HingeFit):
     axis in the distal sensor in the reference pose (the distal segment's z there).
     ``heading_times`` / ``heading_deltas`` (s, rad) are the heading offsets fitted with the axes
     (the distal sensor's earth frame turned by δ about the vertical matches the proximal one).
-    Stored with ``kind`` ``two_axes``."""
+    ``axial_follow``: the fraction of the proximal segment's rotation about its long axis that
+    its sensor follows, fitted with the axes (NaN when not fitted). Stored with ``kind``
+    ``two_axes``."""
 
     flexion_distal: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
     heading_times: np.ndarray = field(default_factory=lambda: np.empty(0))
     heading_deltas: np.ndarray = field(default_factory=lambda: np.empty(0))
+    axial_follow: float = float("nan")
 
     def to_tree(self) -> dict[str, Any]:
         """The hinge fit's layout with ``kind`` and the two-axis fields."""
-        return super().to_tree() | {
-            "kind": "two_axes",
-            "flexion_distal": np.asarray(self.flexion_distal, float),
-            "heading_times": np.asarray(self.heading_times, float),
-            "heading_deltas": np.asarray(self.heading_deltas, float),
-        }
+        # axial_follow only where it was fitted: a fit stored before it existed is written back
+        # as it was read
+        follow = {"axial_follow": self.axial_follow} if np.isfinite(self.axial_follow) else {}
+        return (
+            super().to_tree()
+            | {
+                "kind": "two_axes",
+                "flexion_distal": np.asarray(self.flexion_distal, float),
+                "heading_times": np.asarray(self.heading_times, float),
+                "heading_deltas": np.asarray(self.heading_deltas, float),
+            }
+            | follow
+        )
 
 
 @dataclass(frozen=True)

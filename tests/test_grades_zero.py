@@ -43,3 +43,26 @@ def test_a_hinge_whose_zero_is_a_placement_hint_is_weak_and_says_why():
     grade, reason = _hinge34("single_axis")
     assert grade == "weak"
     assert reason.startswith("its zero is seg4's placement hint")
+
+
+@pytest.mark.parametrize("follow", [float("nan"), 0.95, 0.66])
+def test_an_upper_arm_sensor_that_lags_the_humerus_leaves_carrying_and_pronation_weak(follow):
+    """The arm protocol's elbow from a determined two-axis fit: flexion stays determined; the
+    carrying angle and pronation are weak where the fit found the upper-arm sensor following
+    less than 0.9 of the humerus' axial rotation (the rest turns up in them), and say so."""
+    from motionlab.results import TwoAxisFit
+
+    protocol = load_protocol("arm")
+    protocol.joints = {"elbow_r": protocol.joints["elbow_r"]}
+    segs = {s: SegmentRecord(rot.IDENTITY, "primary_secondary", {"m": MEASURED})
+            for s in ("upperarm_r", "forearm_r")}  # fmt: skip
+    fit = TwoAxisFit("elbow_r", Z, Z, 0.0, 0.0, 0.0, "measured", "anatomy",
+                     verdict="determined", axial_follow=follow)  # fmt: skip
+    cal = SegmentCalibration("arm", segments=segs, hinges={"elbow_r": fit})
+    g = grade_joints(protocol, cal)["elbow_r"]
+    assert g.grades[0] == "determined"
+    if follow < 0.9:
+        assert g.grades[1:] == ["weak", "weak"]
+        assert "upperarm_r's sensor follows 0.66" in g.reasons[1]
+    else:
+        assert g.grades[1:] == ["determined", "determined"], g.reasons

@@ -35,6 +35,11 @@ most ``θ (1 - cos e)`` (ZXY decomposition, checked numerically: 45° at 20° re
 ``θ (1 - cos e)`` with ``θ`` how far the thigh tilted from the stand (its knee fit's
 ``proximal_tilt_deg``), against ``CROSSTALK_DEG``; ab/adduction and rotation stay ``weak``.
 
+An elbow calibrated from free movement (:func:`.movement.fit_two_dof`) whose upper-arm sensor
+was found to follow less than ``AXIAL_FOLLOW_DETERMINED`` of the humerus' rotation about its
+long axis has its carrying angle and pronation ``weak``: the rotation the skin misses goes into
+them to first order, and into flexion only through the carrying angle (:func:`_lag_grade`).
+
 The reason is kept in plain words with each grade. The grades depend on the calibration only:
 the angle table and the report carry them next to every number, and findings are not stated for
 an angle that is not determined.
@@ -58,6 +63,10 @@ CROSSTALK_DEG = (3.0, 6.0)  # determined up to, weak up to (deg of flexion in th
 AXIS_FLOOR_DEG = 5.0  # a walk-calibrated knee axis is never known better than this
 #: how far (deg) a pelvis forward direction from the walk may be off, by method (walk_forward)
 HEADING_BOUND_DEG = {"turns": 20.0, "walk start": 10.0}
+#: a two-axis joint's proximal sensor that follows less of its segment's rotation about the long
+#: axis than this leaves the other two angles weak: the humerus' axial rotation in free arm
+#: movement spans 60-90° (docs/simulator.md), so 10 % missed is already 6-9° off them at times
+AXIAL_FOLLOW_DETERMINED = 0.9
 
 
 def _worse(a: str, b: str) -> str:
@@ -178,6 +187,22 @@ def _crosstalk_grade(fit: HingeFit | None) -> tuple[str, str]:
     )
 
 
+def _lag_grade(joint, fit: HingeFit | None) -> tuple[str, str]:
+    """``weak`` (with the reason) for the angles off the flexion axis of a two-axis joint whose
+    proximal sensor was found to follow less than ``AXIAL_FOLLOW_DETERMINED`` of its segment's
+    rotation about the long axis (:func:`.movement.fit_two_dof`, ``axial_follow``): the rotation
+    it misses, ``ε``, is about the humerus' long axis and goes into the carrying angle and the
+    pronation to first order (``ε sin θ`` and ``ε cos θ`` at flexion ``θ``), not into flexion
+    (``ε tan(c) cos θ`` with the carrying angle ``c``); ``("", "")`` otherwise."""
+    follow = float(getattr(fit, "axial_follow", np.nan)) if fit is not None else np.nan
+    if fit is None or fit.used_for != "axes" or not follow < AXIAL_FOLLOW_DETERMINED:
+        return "", ""
+    return "weak", (
+        f"{joint.proximal}'s sensor follows {follow:.2f} of the segment's rotation about its "
+        "long axis (fitted with the axes); the rest goes into this angle"
+    )
+
+
 def _zero_grade(joint, segs: dict[str, SegmentRecord], grade: str, reason: str) -> tuple[str, str]:
     """The hinge angle's grade made ``weak`` when its zero rests on a placement hint: a segment
     whose frame has one measured axis (the hinge's, with no reference pose) is turned about it
@@ -218,6 +243,10 @@ def grade_joints(protocol, calibration: SegmentCalibration) -> dict[str, JointGr
                 g_frame, r_frame = g_cross, "; ".join(filter(None, [r_frame, r_cross]))
             grades = [g_axis, g_frame, g_frame]
             reasons = [r_axis, r_frame, r_frame]
+            g_lag, r_lag = _lag_grade(joint, fit)
+            if g_lag and GRADES.index(g_lag) > GRADES.index(g_frame):
+                grades[1:] = [g_lag] * 2
+                reasons[1:] = ["; ".join(filter(None, [r_frame, r_lag]))] * 2
         else:
             grades, reasons = [g_frame] * 3, [r_frame] * 3
             g_flex, r_flex = _flexion_under_heading(joint, protocol, calibration, frames[1][0])

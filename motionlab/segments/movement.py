@@ -367,6 +367,18 @@ def failed(joint: str, why: str) -> HingeFit:
 TWO_AXIS_WINDOW_S = 10.0
 TWO_AXIS_MAX_SAMPLES = 3000
 TWO_AXIS_STARTS = 6
+#: The skin on the upper arm follows only part of the humerus' axial rotation (0.64-0.74 of it
+#: for a mid-arm cluster, less proximally: docs/simulator.md, "The upper arm under the skin"),
+#: so the humerus turns about its long axis ``1 + k`` times as fast as a sensor strapped on it
+#: (``k = 1/follow - 1``: 0.35-0.56 there). ``k`` is fitted with the axes, from this start and
+#: within ``[0, AXIAL_LAG_MAX]`` (a sensor that follows at least 40 %).
+AXIAL_LAG_START = 0.3
+AXIAL_LAG_MAX = 1.5
+#: The elbow's flexion axis lies across the humerus: the trochlea's axis is 4-8° off the
+#: perpendicular to the shaft (the humeral part of the carrying angle). A fitted flexion axis
+#: further than this from the perpendicular to the stand's long axis is not an elbow's (the real
+#: 16-IMU recording of ``bench/real_people.py``: 4-7° from the long axis, i.e. 83-86° off).
+ACROSS_LONG_AXIS_DEG = 30.0
 
 
 def _heading_rot(delta: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -385,21 +397,41 @@ def _sph(v: np.ndarray) -> tuple[float, float]:
 
 
 class _TwoAxisProblem:
-    """Samples and residual of the two-axis constraint (see :func:`fit_two_dof`)."""
+    """Samples and residual of the two-axis constraint (see :func:`fit_two_dof`).
 
-    def __init__(self, t, w1, w2, m1, m2):
-        self.t, self.w1, self.w2, self.m1, self.m2 = t, w1, w2, m1, m2
-        self.win = ((t - t[0]) // TWO_AXIS_WINDOW_S).astype(int)
+    ``spin`` (N, 3), when given, is the proximal sensor's rate about the proximal segment's long
+    axis times that axis, both in the earth frame: the segment turns about its long axis
+    ``1 + k`` times as fast as the sensor on its skin, ``k`` fitted (parameter 4, bounded by
+    ``AXIAL_LAG_MAX``)."""
+
+    def __init__(self, t, w1, w2, m1, m2, spin=None):
+        self.t, self.w1, self.w2, self.m1, self.m2, self.spin = t, w1, w2, m1, m2, spin
+        # windows numbered over those that hold samples (a pause longer than a window leaves
+        # one empty: its heading would be free, its time undefined)
+        raw = ((t - t[0]) // TWO_AXIS_WINDOW_S).astype(int) if len(t) else np.zeros(0, int)
+        self.win = np.unique(raw, return_inverse=True)[1].ravel()
         self.n_win = int(self.win.max()) + 1 if len(t) else 0
+        self.n_axes = 4 if spin is None else 5  # parameters before the windows' headings
+
+    def part(self, a: int, b: int, lag: float) -> _TwoAxisProblem:
+        """The problem on samples ``a:b`` with ``k`` held at ``lag`` (a property of where the
+        sensor sits, the same in every part of the movement)."""
+        w1 = self.w1[a:b] if self.spin is None else self.w1[a:b] + lag * self.spin[a:b]
+        return _TwoAxisProblem(self.t[a:b], w1, self.w2[a:b], self.m1[a:b], self.m2[a:b])
+
+    def lag(self, x: np.ndarray) -> float:
+        """The fitted ``k`` (0 without ``spin``)."""
+        return float(x[4]) if self.spin is not None else 0.0
 
     def residual(self, x: np.ndarray) -> np.ndarray:
         j1, j2 = _unit(x[0], x[1]), _unit(x[2], x[3])
-        delta = x[4:][self.win]
+        delta = x[self.n_axes :][self.win]
         a = self.m1 @ j1
         b = _heading_rot(delta, self.m2 @ j2)
         n = np.cross(a, b)
         n /= np.maximum(np.linalg.norm(n, axis=1), 1e-9)[:, None]
-        return np.einsum("ij,ij->i", n, self.w1 - _heading_rot(delta, self.w2))
+        w1 = self.w1 if self.spin is None else self.w1 + self.lag(x) * self.spin
+        return np.einsum("ij,ij->i", n, w1 - _heading_rot(delta, self.w2))
 
     def deltas(self, j1: np.ndarray, j2: np.ndarray) -> np.ndarray:
         """The best heading offset of each window for given axes, from a 5° grid."""
@@ -418,16 +450,20 @@ class _TwoAxisProblem:
             out[k] = grid[int(np.argmin(costs))]
         return out
 
-    def solve(self, starts: list[tuple[np.ndarray, np.ndarray]]):
+    def solve(self, starts: list[tuple[np.ndarray, np.ndarray]], lag: float = AXIAL_LAG_START):
         from scipy.optimize import least_squares
 
+        lo = np.full(self.n_axes + self.n_win, -np.inf)
+        hi = np.full(self.n_axes + self.n_win, np.inf)
+        if self.spin is not None:
+            lo[4], hi[4] = 0.0, AXIAL_LAG_MAX
         best = None
         for j1, j2 in starts:
             j1, j2 = j1 / np.linalg.norm(j1), j2 / np.linalg.norm(j2)
-            x0 = np.r_[_sph(j1), _sph(j2), self.deltas(j1, j2)]
+            x0 = np.r_[_sph(j1), _sph(j2), [lag] * (self.n_axes - 4), self.deltas(j1, j2)]
             fit = least_squares(
-                self.residual, x0, method="trf", loss="soft_l1", f_scale=ROBUST_SCALE_RAD_S,
-                max_nfev=200,
+                self.residual, x0, bounds=(lo, hi), method="trf", loss="soft_l1",
+                f_scale=ROBUST_SCALE_RAD_S, max_nfev=200,
             )  # fmt: skip
             if best is None or fit.cost < best.cost:
                 best = fit
@@ -441,6 +477,7 @@ def fit_two_dof(
     prior_1: np.ndarray,
     prior_2: np.ndarray,
     reference: tuple[float, float] | None = None,
+    axial_lag: bool = False,
 ) -> TwoAxisFit:
     """Flexion axis (proximal sensor) and long axis (distal sensor) of a joint that turns about
     one axis fixed in each segment: the elbow, flexion fixed in the upper arm and pronation in
@@ -453,6 +490,15 @@ def fit_two_dof(
     window of ``TWO_AXIS_WINDOW_S`` (it drifts). Starts: the nominal placement and random
     directions, each window's heading by a grid; then a soft-L1 least-squares refinement.
 
+    ``axial_lag`` (the proximal segment's long axis vertical in the ``reference`` pose, as the
+    upper arm hanging in the stand): the proximal sensor sits on skin that follows only part of
+    the segment's rotation about that axis, so the segment's rate is the sensor's plus ``k``
+    times its part about the axis, ``k`` fitted with the axes (``AXIAL_LAG_START``,
+    ``AXIAL_LAG_MAX``; the fraction followed, ``1 / (1 + k)``, is kept as ``axial_follow``).
+    Without it the skin's lag is read as a turn off the two axes, which tilts them: on the
+    simulated arm (``bench/elbow_sources.py``) the flexion axis lay up to 20° from the truth and
+    the parts of the movement disagreed by up to 20°.
+
     Signs: the long axis points proximally (up in the ``reference`` pose, arms hanging); the
     flexion axis by anatomy as for :func:`fit_hinge`, else by the nominal placement. Verdict from
     the residual relative to the relative angular rate and the consistency of ``N_PARTS`` part
@@ -463,8 +509,15 @@ def fit_two_dof(
     active = np.linalg.norm(w1 - w2, axis=1)  # heading offsets do not matter for a threshold
     keep = np.flatnonzero(speed >= 0.1 * np.percentile(speed, 95))
     keep = keep[np.linspace(0, len(keep) - 1, min(len(keep), TWO_AXIS_MAX_SAMPLES)).astype(int)]
+    ref = None
+    if reference is not None and ((t >= reference[0]) & (t <= reference[1])).sum() >= 5:
+        ref = (t >= reference[0]) & (t <= reference[1])
+    spin = None
+    if axial_lag and ref is not None:
+        long_p = rot.rotate(rot.conj(rot.mean(q1[ref])), np.array([0.0, 0.0, 1.0]))
+        spin = rot.rotate(q1[keep], np.outer(g1[keep] @ long_p, long_p))
     prob = _TwoAxisProblem(
-        t[keep], w1[keep], w2[keep], rot.to_matrix(q1[keep]), rot.to_matrix(q2[keep])
+        t[keep], w1[keep], w2[keep], rot.to_matrix(q1[keep]), rot.to_matrix(q2[keep]), spin
     )
     rng = np.random.default_rng(0)
     starts = [(prior_1, prior_2)] + [
@@ -477,13 +530,13 @@ def fit_two_dof(
     scale = float(np.sqrt(np.mean(active[keep] ** 2)))
     relative = residual / scale if scale > 0 else float("inf")
     win_times = np.array([prob.t[prob.win == k].mean() for k in range(prob.n_win)])
-    deltas = np.unwrap(best.x[4:])
+    deltas = np.unwrap(best.x[prob.n_axes :])
+    lag = prob.lag(best.x)
 
     def refit(a: int, b: int) -> tuple[np.ndarray, np.ndarray] | None:
         if b - a < MIN_PART_SAMPLES:
             return None
-        part = _TwoAxisProblem(prob.t[a:b], prob.w1[a:b], prob.w2[a:b], prob.m1[a:b], prob.m2[a:b])
-        fit = part.solve([(j1, j2)])
+        fit = prob.part(a, b, lag).solve([(j1, j2)])
         return _unit(fit.x[0], fit.x[1]), _unit(fit.x[2], fit.x[3])
 
     worst = _consistency(len(prob.t), refit, j1, j2)
@@ -493,8 +546,7 @@ def fit_two_dof(
     sign_source = "nominal"
     flex_d = np.full(3, np.nan)
     excursion = (float("nan"), float("nan"))
-    if reference is not None and ((t >= reference[0]) & (t <= reference[1])).sum() >= 5:
-        ref = (t >= reference[0]) & (t <= reference[1])
+    if ref is not None:
         up_d = rot.rotate(rot.conj(rot.mean(q2[ref])), np.array([0.0, 0.0, 1.0]))
         j2 = j2 if j2 @ up_d >= 0 else -j2
         sign, excursion = anatomical_sign(t, q1, q2_aligned, j1, j1, reference, align=False)
@@ -508,16 +560,22 @@ def fit_two_dof(
             "the direction of flexion could not be told from the movement (no stand with the "
             "joint straight, or no clear flexion), so it follows the nominal placement"
         )
-    if reference is not None:
-        ref = (t >= reference[0]) & (t <= reference[1])
-        if ref.sum() >= 5:
-            r_d = rot.to_matrix(q2_aligned[ref])
-            r_p = rot.to_matrix(q1[ref])
-            flex_d = np.mean(np.einsum("nji,njk,k->ni", r_d, r_p, j1), axis=0)
-            flex_d /= np.linalg.norm(flex_d)
+    if ref is not None:
+        r_d = rot.to_matrix(q2_aligned[ref])
+        r_p = rot.to_matrix(q1[ref])
+        flex_d = np.mean(np.einsum("nji,njk,k->ni", r_d, r_p, j1), axis=0)
+        flex_d /= np.linalg.norm(flex_d)
     verdict = _verdict(
         worst, relative, sign_source == "nominal", reasons, "the axes differ", "the two axes"
     )
+    if spin is not None:
+        across = 90.0 - _angle_deg(j1, long_p)
+        if across > ACROSS_LONG_AXIS_DEG:
+            verdict = "not determined"
+            reasons.append(
+                f"the flexion axis lies {90.0 - across:.0f}° from the long axis the stand gives "
+                "the proximal segment; a joint of this kind flexes across it"
+            )
     return TwoAxisFit(
         joint=joint,
         axis_proximal=j1,
@@ -535,4 +593,5 @@ def fit_two_dof(
         flexion_distal=flex_d,
         heading_times=win_times,
         heading_deltas=deltas,
+        axial_follow=1.0 / (1.0 + lag) if spin is not None else float("nan"),
     )

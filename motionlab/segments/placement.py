@@ -95,6 +95,7 @@ def movement_hinges(
                 fit = movement.fit_two_dof(
                     name, side[p], side[d], prior_p,
                     protocol.segments[d].nominal_mounting().T @ axis_vector(twist), reference,
+                    axial_lag=long_axis_vertical(protocol, p, ref_name),
                 )  # fmt: skip
             elif reference and twists_about_long_axis(protocol, joint, ref_name, spec):
                 fit = gait_axes.fit_knee(name, side[p], side[d], prior_p, prior_d, reference)
@@ -130,6 +131,14 @@ def movement_hinges(
                 verdict=fit.verdict,
             )
     return fits
+
+
+def long_axis_vertical(protocol: Protocol, segment: str, ref_name: str | None) -> bool:
+    """Whether the reference pose ``ref_name`` has ``segment``'s long axis y vertical (the upper
+    arm hanging in the stand): then its sensor's up there is the axis its skin lags about
+    (:func:`.movement.fit_two_dof`)."""
+    step = next((s for s in protocol.calibration if s.name == ref_name), None)
+    return step is not None and step.vertical_axis.get(segment, "").strip("+") == "y"
 
 
 def twists_about_long_axis(protocol: Protocol, joint, ref_name: str | None, spec) -> bool:

@@ -1,0 +1,181 @@
+"""Where the elbow errors of ``bench/real_world.py --protocols arm`` come from, per seed.
+
+For each seed the ``arm`` protocol is simulated as ``real_world.py`` does (random mountings, the
+``skin`` preset: ``typical`` sensors, every IMU on its own clock, the upper-arm sensor following
+only part of the humerus' axial rotation) and analysed by the product path
+(:func:`motionlab.pipeline.analyse`). Each elbow flexion's RMSE (deg) over the free movement is
+shown next to variants that each remove one suspected source:
+
+- ``as is``: the product against the simulator's truth; ``mean``: its mean error; the grade;
+- ``ax``: the angle (deg) between the product's segment axes and the true ones (read through the
+  true mounting): upper arm z (the flexion axis) and y (the long axis, from gravity), forearm y
+  (the pronation axis) and z (the flexion axis in the stand);
+- ``true mnt``: the product's orientations and heading ties, the sensors' true mountings in place
+  of the calibrated ones (what is left: fusion, skin, heading ties);
+- ``skin``: no product at all: the angles from the simulator's exact sensor orientations (skin
+  motion included) through the true mountings (what the skin alone costs);
+- ``follow 1``: the same seed with the upper-arm skin following the humerus' axial rotation
+  fully (``STA_HUMERAL_FOLLOW = (1, 1)``, no spread), through the product;
+- ``clocks`` (``--clocks``): the same recording with the true sampling instants and no sync.
+
+Needs no data files. Usage::
+
+    python bench/elbow_sources.py [--seeds 0-9] [--workers 2] [--clocks] [--no-follow]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import multiprocessing as mp
+
+import numpy as np
+from joint_angles import errors, joint_clocks
+from real_world import put_on_true_clocks, seeds_arg
+
+import motionlab.simulate as sim
+from motionlab import rotations as rot
+from motionlab import stages
+from motionlab.kinematics.joint_angles import joint_angles
+from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
+from motionlab.protocol import load_protocol
+from motionlab.segments import sensor_for_segment
+from motionlab.simulate import simulate
+
+DURATION_S = 74.0
+ELBOWS = ("elbow_r", "elbow_l")
+COLS = tuple(f"{e}_flexion_deg" for e in ELBOWS)
+
+
+def _run(seed: int, true_clocks: bool = False, follow_all: bool = False):
+    """Simulate and analyse one ``arm`` session; ``(session, truth, protocol, stamps, tasks)``."""
+    if follow_all:  # this worker's simulator only
+        sim.STA_HUMERAL_FOLLOW, sim.STA_HUMERAL_FOLLOW_SD = (1.0, 1.0), 0.0
+    try:
+        protocol = load_protocol("arm")
+        session, truth = simulate(
+            protocol, DURATION_S, seed, "skin", mounting="random", knee_model="anatomical"
+        )
+    finally:
+        sim.STA_HUMERAL_FOLLOW, sim.STA_HUMERAL_FOLLOW_SD = (0.55, 0.85), 0.05
+    if true_clocks:
+        put_on_true_clocks(session, truth)
+    stamps = {label: s.time.copy() for label, s in session.sensors.items()}
+    prepare_sensors(session)
+    analyse(session, PipelineOptions(protocol, progress=False, clock_sync=not true_clocks))
+    tasks = [(s["start_s"], s["end_s"]) for s in truth.steps if s["phase"] == "task"]
+    return session, truth, protocol, stamps, tasks
+
+
+def _errors(session, truth, protocol, stamps, tasks) -> dict[str, np.ndarray]:
+    table = session.results.angles.columns()
+    return errors(table, truth, joint_clocks(session, truth, stamps, protocol), protocol, tasks)
+
+
+def _rmse(e: np.ndarray) -> float:
+    return float(np.sqrt(np.nanmean(e**2)))
+
+
+def _axis_deg(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.degrees(np.arccos(np.clip(a @ b / np.linalg.norm(a), -1.0, 1.0))))
+
+
+def _skin_only(truth, protocol, session, tasks) -> dict[str, float]:
+    """RMSE of the angles from the exact sensor orientations through the true mountings."""
+    t = truth.time
+    inside = np.zeros(len(t), bool)
+    for a, b in tasks:
+        inside |= (t >= a) & (t <= b)
+    out = {}
+    for name in ELBOWS:
+        joint = protocol.joints[name]
+        q = []
+        for seg in (joint.proximal, joint.distal):
+            s = truth.sensors[sensor_for_segment(session, seg)]
+            q.append(rot.mul(s["orientation"], rot.conj(s["mounting"])))
+        ang = joint_angles(q[0], q[1], joint)
+        col = f"{name}_flexion_deg"
+        out[col] = _rmse((ang[col] - truth.joint_angles[col])[inside])
+    return out
+
+
+def diagnose(job: tuple[int, bool, bool]) -> dict:
+    """Every variant's RMSE per elbow flexion of one seed (see the module notes)."""
+    seed, clocks_too, follow_too = job
+    session, truth, protocol, stamps, tasks = _run(seed)
+    err = _errors(session, truth, protocol, stamps, tasks)
+    row: dict = {"seed": seed}
+    row["as_is"] = {c: _rmse(err[c]) for c in COLS}
+    row["mean"] = {c: float(np.nanmean(err[c])) for c in COLS}
+    cal = session.results.calibration
+    row["grade"] = {f"{n}_flexion_deg": cal.grades[n].grades[0] for n in ELBOWS}
+    row["fit"] = {}
+    for n in ELBOWS:
+        f = cal.hinges.get(n)
+        row["fit"][n] = (
+            (f.verdict, f.consistency_deg, f.relative_residual, f.sign) if f else ("?",) * 4
+        )
+    row["axes"] = {}
+    ex, ey, ez = np.eye(3)
+    for name in ELBOWS:
+        joint = protocol.joints[name]
+        for seg, axes in ((joint.proximal, (ez, ey)), (joint.distal, (ey, ez))):
+            m_true = truth.sensors[sensor_for_segment(session, seg)]["mounting"]
+            q = rot.mul(m_true, np.asarray(cal.segments[seg].mounting, float))
+            row["axes"][seg] = tuple(_axis_deg(rot.rotate(q, a), a) for a in axes)
+    row["skin"] = _skin_only(truth, protocol, session, tasks)
+    for name in ELBOWS:
+        joint = protocol.joints[name]
+        for seg in (joint.proximal, joint.distal):
+            label = sensor_for_segment(session, seg)
+            cal.segments[seg] = dataclasses.replace(
+                cal.segments[seg], mounting=rot.conj(truth.sensors[label]["mounting"])
+            )
+    stages.angles(session, force=True)
+    err_m = _errors(session, truth, protocol, stamps, tasks)
+    row["true_mnt"] = {c: _rmse(err_m[c]) for c in COLS}
+    if follow_too:
+        e = _errors(*_run(seed, follow_all=True))
+        row["follow1"] = {c: _rmse(e[c]) for c in COLS}
+    if clocks_too:
+        e = _errors(*_run(seed, true_clocks=True))
+        row["clocks"] = {c: _rmse(e[c]) for c in COLS}
+    return row
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--seeds", default="0-9")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--clocks", action="store_true", help="also with perfect clocks")
+    ap.add_argument("--no-follow", action="store_true", help="skip the full-follow variant")
+    args = ap.parse_args()
+    jobs = [(s, args.clocks, not args.no_follow) for s in seeds_arg(args.seeds)]
+    with mp.get_context("spawn").Pool(args.workers) as pool:
+        rows = pool.map(diagnose, jobs)
+    for side, col in zip("rl", COLS, strict=True):
+        ua, fa = f"upperarm_{side}", f"forearm_{side}"
+        print(f"\nelbow_{side} flexion, RMSE (deg); axes: angle (deg) to the true segment axis")
+        head = "| seed | as is | mean | grade | fit (cons°, res) | ua z | ua y | fa y | fa z |"
+        head += " true mnt | skin |"
+        extra = [k for k in ("follow1", "clocks") if k in rows[0]]
+        head += "".join(f" {k} |" for k in extra)
+        print(head)
+        print("|---:" * (head.count("|") - 1) + "|")
+        for r in rows:
+            v, cons, res, _ = r["fit"][f"elbow_{side}"]
+            cells = [
+                f"{r['as_is'][col]:.2f}", f"{r['mean'][col]:+.2f}", r["grade"][col],
+                f"{v} ({cons:.0f}, {res:.2f})",
+                f"{r['axes'][ua][0]:.1f}", f"{r['axes'][ua][1]:.1f}",
+                f"{r['axes'][fa][0]:.1f}", f"{r['axes'][fa][1]:.1f}",
+                f"{r['true_mnt'][col]:.2f}", f"{r['skin'][col]:.2f}",
+            ] + [f"{r[k][col]:.2f}" for k in extra]  # fmt: skip
+            print(f"| {r['seed']} | " + " | ".join(cells) + " |")
+        for key in ("as_is", "true_mnt", "skin", *extra):
+            vals = [r[key][col] for r in rows]
+            print(f"{key}: mean {np.mean(vals):.2f}, max {np.max(vals):.2f}")
+
+
+if __name__ == "__main__":
+    main()
