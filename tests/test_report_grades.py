@@ -279,6 +279,17 @@ def test_knee_with_a_wrong_axis(walk):
     assert line.endswith(" — walk 10 straight steps at an even pace."), line
 
 
+def test_a_two_axis_fit_whose_parts_disagree_is_an_axis_problem(walk):
+    """The real full-body elbows ('the axes differ by up to 10° between parts of the movement',
+    a two-axis fit) were told only 'see the calibration page': the plural missed the axis
+    words. They are an axis problem, with its movement as the remedy."""
+    from motionlab.report.sentences import cause_and_remedy
+
+    why = "hinge axis from movement: the axes differ by up to 10° between parts of the movement"
+    cause, remedy = cause_and_remedy(load_view(walk), "knee_r", why)
+    assert (cause, remedy) == ("axis", "walk 10 straight steps at an even pace")
+
+
 def test_a_pelvis_forward_direction_from_the_walk_is_not_told_to_move_the_sensor(walk):
     """The real full-body walker's hips (pelvis forward direction from the walk's turns) were
     told 'place the pelvis sensor exactly as the protocol says', under a walk protocol whose

@@ -312,7 +312,7 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
 
 
 #: words of a grade's reason that say the hinge axis itself was not measured well
-AXIS_WORDS = ("hinge", "differs", "not about", "single axis", "flexion axis", "puts the axis")
+AXIS_WORDS = ("hinge", "differ", "not about", "single axis", "flexion axis", "puts the axis")
 
 #: what to do for each joint type so that its hinge axis is measured
 _BEND = {
@@ -348,7 +348,7 @@ def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[s
         return "flexion axis known only roughly", (
             f"add a seated calibration: extend the {display} fully and let it flex back 5 times"
         )
-    if "axis" in r and any(k in r for k in AXIS_WORDS):
+    if ("axis" in r or "axes" in r) and any(k in r for k in AXIS_WORDS):
         return "axis", bend
     if "forward direction from the walk" in r or "forward direction is from the" in r:
         # the hint was refuted and the walk replaced it (segments.grades): placing the sensor
