@@ -30,14 +30,12 @@ import dataclasses
 import multiprocessing as mp
 
 import numpy as np
-from joint_angles import errors, joint_clocks
-from real_world import put_on_true_clocks, seeds_arg
+from real_world import analyse_simulated, rmse, seeds_arg, task_errors
 
 import motionlab.simulate as sim
 from motionlab import rotations as rot
 from motionlab import stages
 from motionlab.kinematics.joint_angles import joint_angles
-from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
 from motionlab.protocol import load_protocol
 from motionlab.segments import sensor_for_segment
 from motionlab.simulate import simulate
@@ -49,6 +47,7 @@ COLS = tuple(f"{e}_flexion_deg" for e in ELBOWS)
 
 def _run(seed: int, true_clocks: bool = False, follow_all: bool = False):
     """Simulate and analyse one ``arm`` session; ``(session, truth, protocol, stamps, tasks)``."""
+    saved = sim.STA_HUMERAL_FOLLOW, sim.STA_HUMERAL_FOLLOW_SD
     if follow_all:  # this worker's simulator only
         sim.STA_HUMERAL_FOLLOW, sim.STA_HUMERAL_FOLLOW_SD = (1.0, 1.0), 0.0
     try:
@@ -57,23 +56,9 @@ def _run(seed: int, true_clocks: bool = False, follow_all: bool = False):
             protocol, DURATION_S, seed, "skin", mounting="random", knee_model="anatomical"
         )
     finally:
-        sim.STA_HUMERAL_FOLLOW, sim.STA_HUMERAL_FOLLOW_SD = (0.55, 0.85), 0.05
-    if true_clocks:
-        put_on_true_clocks(session, truth)
-    stamps = {label: s.time.copy() for label, s in session.sensors.items()}
-    prepare_sensors(session)
-    analyse(session, PipelineOptions(protocol, progress=False, clock_sync=not true_clocks))
-    tasks = [(s["start_s"], s["end_s"]) for s in truth.steps if s["phase"] == "task"]
+        sim.STA_HUMERAL_FOLLOW, sim.STA_HUMERAL_FOLLOW_SD = saved
+    stamps, tasks = analyse_simulated(session, truth, protocol, true_clocks)
     return session, truth, protocol, stamps, tasks
-
-
-def _errors(session, truth, protocol, stamps, tasks) -> dict[str, np.ndarray]:
-    table = session.results.angles.columns()
-    return errors(table, truth, joint_clocks(session, truth, stamps, protocol), protocol, tasks)
-
-
-def _rmse(e: np.ndarray) -> float:
-    return float(np.sqrt(np.nanmean(e**2)))
 
 
 def _axis_deg(a: np.ndarray, b: np.ndarray) -> float:
@@ -95,7 +80,7 @@ def _skin_only(truth, protocol, session, tasks) -> dict[str, float]:
             q.append(rot.mul(s["orientation"], rot.conj(s["mounting"])))
         ang = joint_angles(q[0], q[1], joint)
         col = f"{name}_flexion_deg"
-        out[col] = _rmse((ang[col] - truth.joint_angles[col])[inside])
+        out[col] = rmse((ang[col] - truth.joint_angles[col])[inside])
     return out
 
 
@@ -103,9 +88,9 @@ def diagnose(job: tuple[int, bool, bool]) -> dict:
     """Every variant's RMSE per elbow flexion of one seed (see the module notes)."""
     seed, clocks_too, follow_too = job
     session, truth, protocol, stamps, tasks = _run(seed)
-    err = _errors(session, truth, protocol, stamps, tasks)
+    err = task_errors(session, truth, protocol, stamps, tasks)
     row: dict = {"seed": seed}
-    row["as_is"] = {c: _rmse(err[c]) for c in COLS}
+    row["as_is"] = {c: rmse(err[c]) for c in COLS}
     row["mean"] = {c: float(np.nanmean(err[c])) for c in COLS}
     cal = session.results.calibration
     row["grade"] = {f"{n}_flexion_deg": cal.grades[n].grades[0] for n in ELBOWS}
@@ -132,14 +117,14 @@ def diagnose(job: tuple[int, bool, bool]) -> dict:
                 cal.segments[seg], mounting=rot.conj(truth.sensors[label]["mounting"])
             )
     stages.angles(session, force=True)
-    err_m = _errors(session, truth, protocol, stamps, tasks)
-    row["true_mnt"] = {c: _rmse(err_m[c]) for c in COLS}
+    err_m = task_errors(session, truth, protocol, stamps, tasks)
+    row["true_mnt"] = {c: rmse(err_m[c]) for c in COLS}
     if follow_too:
-        e = _errors(*_run(seed, follow_all=True))
-        row["follow1"] = {c: _rmse(e[c]) for c in COLS}
+        e = task_errors(*_run(seed, follow_all=True))
+        row["follow1"] = {c: rmse(e[c]) for c in COLS}
     if clocks_too:
-        e = _errors(*_run(seed, true_clocks=True))
-        row["clocks"] = {c: _rmse(e[c]) for c in COLS}
+        e = task_errors(*_run(seed, true_clocks=True))
+        row["clocks"] = {c: rmse(e[c]) for c in COLS}
     return row
 
 

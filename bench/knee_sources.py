@@ -42,14 +42,12 @@ import dataclasses
 import multiprocessing as mp
 
 import numpy as np
-from joint_angles import errors, joint_clocks
-from real_world import put_on_true_clocks, seeds_arg, target
+from real_world import analyse_simulated, rmse, seeds_arg, target, task_errors
 
 from motionlab import rotations as rot
 from motionlab import stages
 from motionlab.kinematics.joint_angles import decompose_joint
 from motionlab.kinematics.joint_types import angle_columns
-from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
 from motionlab.protocol import load_protocol
 from motionlab.segments import sensor_for_segment
 from motionlab.segments.hinge import hinge_axes
@@ -71,23 +69,8 @@ def _run(seed: int, tissue: str, true_clocks: bool, acc_bias: bool = True):
     session, truth = simulate(
         protocol, DURATION_S, seed, preset, mounting="random", soft_tissue=tissue
     )
-    if true_clocks:
-        put_on_true_clocks(session, truth)
-    stamps = {label: s.time.copy() for label, s in session.sensors.items()}
-    prepare_sensors(session)
-    analyse(session, PipelineOptions(protocol, progress=False, clock_sync=not true_clocks))
-    tasks = [(s["start_s"], s["end_s"]) for s in truth.steps if s["phase"] == "task"]
+    stamps, tasks = analyse_simulated(session, truth, protocol, true_clocks)
     return session, truth, protocol, stamps, tasks
-
-
-def _errors(session, truth, protocol, stamps, tasks) -> dict[str, np.ndarray]:
-    table = session.results.angles.columns()
-    clocks = joint_clocks(session, truth, stamps, protocol)
-    return errors(table, truth, clocks, protocol, tasks)
-
-
-def _rmse(e: np.ndarray) -> float:
-    return float(np.sqrt(np.nanmean(e**2)))
 
 
 def _body_rate(t: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -155,36 +138,36 @@ def diagnose(job: tuple[int, bool]) -> dict:
     """Every variant's RMSE per knee column of one seed (see the module notes)."""
     seed, clocks_too = job
     session, truth, protocol, stamps, tasks = _run(seed, "motion", False)
-    err = _errors(session, truth, protocol, stamps, tasks)
+    err = task_errors(session, truth, protocol, stamps, tasks)
     cols = [c for c in err if c.startswith(KNEES)]
     row: dict = {"seed": seed, "cols": cols}
-    row["as_is"] = {c: _rmse(err[c]) for c in cols}
+    row["as_is"] = {c: rmse(err[c]) for c in cols}
     row["mean"] = {c: float(np.nanmean(err[c])) for c in cols}
     row["sd"] = {c: float(np.nanstd(err[c])) for c in cols}
     stand = [(s["start_s"] + 0.5, s["end_s"] - 0.5) for s in truth.steps if s["kind"] == "static"]
-    err_stand = _errors(session, truth, protocol, stamps, stand)
+    err_stand = task_errors(session, truth, protocol, stamps, stand)
     row["stand"] = {c: float(np.nanmean(err_stand[c])) for c in cols}
     # the truth about the functional axes
     func, fax = functional_truth(truth, protocol, tasks)
     anat = truth.joint_angles
     truth_f = dataclasses.replace(truth, joint_angles={**anat, **func})
-    err_f = _errors(session, truth_f, protocol, stamps, tasks)
-    row["func"] = {c: _rmse(err_f[c]) for c in cols}
+    err_f = task_errors(session, truth_f, protocol, stamps, tasks)
+    row["func"] = {c: rmse(err_f[c]) for c in cols}
     row["func_sd"] = {c: float(np.nanstd(err_f[c])) for c in cols}
     inside = np.zeros(len(truth.time), bool)
     for a, b in tasks:
         inside |= (truth.time >= a) & (truth.time <= b)
-    row["def"] = {c: _rmse((func[c] - anat[c])[inside]) for c in cols}
+    row["def"] = {c: rmse((func[c] - anat[c])[inside]) for c in cols}
     svd, _ = functional_truth(truth, protocol, tasks, "svd")
-    err_s = _errors(session, dataclasses.replace(truth, joint_angles={**anat, **svd}), protocol,
+    err_s = task_errors(session, dataclasses.replace(truth, joint_angles={**anat, **svd}), protocol,
                     stamps, tasks)  # fmt: skip
-    row["func_svd"] = {c: _rmse(err_s[c]) for c in cols}
-    row["def_svd"] = {c: _rmse((svd[c] - anat[c])[inside]) for c in cols}
+    row["func_svd"] = {c: rmse(err_s[c]) for c in cols}
+    row["def_svd"] = {c: rmse((svd[c] - anat[c])[inside]) for c in cols}
     jcs, jax = functional_truth(truth, protocol, tasks, "jcs")
-    err_j = _errors(session, dataclasses.replace(truth, joint_angles={**anat, **jcs}), protocol,
+    err_j = task_errors(session, dataclasses.replace(truth, joint_angles={**anat, **jcs}), protocol,
                     stamps, tasks)  # fmt: skip
-    row["func_jcs"] = {c: _rmse(err_j[c]) for c in cols}
-    row["def_jcs"] = {c: _rmse((jcs[c] - anat[c])[inside]) for c in cols}
+    row["func_jcs"] = {c: rmse(err_j[c]) for c in cols}
+    row["def_jcs"] = {c: rmse((jcs[c] - anat[c])[inside]) for c in cols}
     # the product's axes against the anatomical and functional ones
     cal = session.results.calibration
     row["axes"], row["verdict"] = {}, {}
@@ -215,8 +198,8 @@ def diagnose(job: tuple[int, bool]) -> dict:
                 cal.segments[seg], mounting=rot.conj(truth.sensors[label]["mounting"])
             )
     stages.angles(session, force=True)
-    err_m = _errors(session, truth, protocol, stamps, tasks)
-    row["true_mnt"] = {c: _rmse(err_m[c]) for c in cols}
+    err_m = task_errors(session, truth, protocol, stamps, tasks)
+    row["true_mnt"] = {c: rmse(err_m[c]) for c in cols}
     row["grade"] = {}
     for name in KNEES:
         g = cal.grades[name].grades
@@ -224,15 +207,15 @@ def diagnose(job: tuple[int, bool]) -> dict:
             row["grade"][col] = g[k]
     # soft tissue: impacts only
     s2, t2, p2, st2, tk2 = _run(seed, "impacts", False)
-    e2 = _errors(s2, t2, p2, st2, tk2)
-    row["impacts"] = {c: _rmse(e2[c]) for c in cols}
+    e2 = task_errors(s2, t2, p2, st2, tk2)
+    row["impacts"] = {c: rmse(e2[c]) for c in cols}
     s4, t4, p4, st4, tk4 = _run(seed, "motion", False, acc_bias=False)
-    e4 = _errors(s4, t4, p4, st4, tk4)
-    row["no_acc_bias"] = {c: _rmse(e4[c]) for c in cols}
+    e4 = task_errors(s4, t4, p4, st4, tk4)
+    row["no_acc_bias"] = {c: rmse(e4[c]) for c in cols}
     if clocks_too:
         s3, t3, p3, st3, tk3 = _run(seed, "motion", True)
-        e3 = _errors(s3, t3, p3, st3, tk3)
-        row["clocks"] = {c: _rmse(e3[c]) for c in cols}
+        e3 = task_errors(s3, t3, p3, st3, tk3)
+        row["clocks"] = {c: rmse(e3[c]) for c in cols}
     return row
 
 

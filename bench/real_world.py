@@ -73,6 +73,31 @@ def put_on_true_clocks(session, truth) -> None:
         session.sensors[label] = dataclasses.replace(s, time=t)
 
 
+def analyse_simulated(session, truth, protocol, true_clocks: bool = False) -> tuple[dict, list]:
+    """``session`` through the stages as ``motionlab run`` chains them (on the true sampling
+    instants and without clock sync when ``true_clocks``), in place; returns the recorded stamps
+    per sensor and the task windows ``(start_s, end_s)`` the errors are taken over."""
+    if true_clocks:
+        put_on_true_clocks(session, truth)
+    stamps = {label: s.time.copy() for label, s in session.sensors.items()}
+    prepare_sensors(session)
+    analyse(session, PipelineOptions(protocol, progress=False, clock_sync=not true_clocks))
+    tasks = [(s["start_s"], s["end_s"]) for s in truth.steps if s["phase"] == "task"]
+    return stamps, tasks
+
+
+def task_errors(session, truth, protocol, stamps: dict, tasks: list) -> dict[str, np.ndarray]:
+    """Error (deg) of every angle column against the truth over ``tasks``, each joint read on its
+    proximal sensor's clock."""
+    clocks = joint_clocks(session, truth, stamps, protocol)
+    return errors(session.results.angles.columns(), truth, clocks, protocol, tasks)
+
+
+def rmse(e: np.ndarray) -> float:
+    """Root mean square (deg) of the finite errors."""
+    return float(np.sqrt(np.nanmean(e**2)))
+
+
 def simulator_options(preset: str, old: bool) -> dict:
     """``simulate()`` keywords: the old simulator (simple knee, ``typical`` with the soft tissue
     moving with the acceleration) or the realistic one (anatomical knee, preset ``preset``)."""
@@ -95,19 +120,13 @@ def run_one(job: tuple[str, int, str, bool, bool, bool, bool, float | None]) -> 
     protocol = load_protocol(name)
     length = duration or DURATION_S[name]
     session, truth = simulate(protocol, length, seed, mounting="random", **options)
-    if true_clocks:
-        put_on_true_clocks(session, truth)
-    stamps = {label: s.time.copy() for label, s in session.sensors.items()}
-    prepare_sensors(session)
     t0 = time.perf_counter()
     try:
-        analyse(session, PipelineOptions(protocol, progress=False, clock_sync=not true_clocks))
+        stamps, tasks = analyse_simulated(session, truth, protocol, true_clocks)
     except Exception as exc:  # noqa: BLE001 - a failing seed is a row of the table, not a crash
         return {"name": name, "seed": seed, "error": f"{type(exc).__name__}: {exc}"}
     seconds = time.perf_counter() - t0
-    table = session.results.angles.columns()
-    tasks = [(s["start_s"], s["end_s"]) for s in truth.steps if s["phase"] == "task"]
-    err = errors(table, truth, joint_clocks(session, truth, stamps, protocol), protocol, tasks)
+    err = task_errors(session, truth, protocol, stamps, tasks)
     grades = {}
     cal = session.results.calibration
     for jname, joint in protocol.joints.items():

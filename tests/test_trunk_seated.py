@@ -142,6 +142,17 @@ def test_flexion_is_the_longer_tail_from_the_usual_posture_not_from_a_leaning_re
     assert _flexion_side(lean, z) == 1 and _flexion_side(lean, -z) == -1
 
 
+def _movement(rest_s: list[float], rest_speed_deg_s: float):
+    """A clear trunk movement's summary (flexion axis and side determined) after a rest
+    ``rest_s`` turning at ``rest_speed_deg_s``."""
+    from motionlab.results import TrunkMovement
+
+    return TrunkMovement(rest_s=rest_s, rest_speed_deg_s=rest_speed_deg_s, axis_ratio=2.0,
+                         energy_ratio=2.4, one_sided=[2.0, 1.0], excursion_deg=[26.0, -52.0],
+                         sign_ratio=2.0, heading_deg=0.0, heading_rho=0.9,
+                         heading_drift_deg=None)  # fmt: skip
+
+
 def test_a_slow_rest_runs_with_every_angle_weak():
     """A stillest second turning at 15-20°/s (Aag/trunkmovement_ls cut before its rest at the
     end: 15.2°/s, or to its middle: 17°/s) is slow movement: it runs (its angles were within
@@ -149,15 +160,11 @@ def test_a_slow_rest_runs_with_every_angle_weak():
     reason; over 20°/s it is refused (``no rest``)."""
     from types import SimpleNamespace
 
-    from motionlab.results import TrunkMovement
     from motionlab.segments.trunk_axes import REST_MAX_DEG_S, REST_SLOW_DEG_S, trunk_grades
 
     assert REST_SLOW_DEG_S < 17.0 < REST_MAX_DEG_S
     joint, lean = SimpleNamespace(name="lumbar"), SimpleNamespace(name="trunk_chair")
-    summary = TrunkMovement(rest_s=[3.1, 4.3], rest_speed_deg_s=4.0, axis_ratio=2.0,
-                            energy_ratio=2.4, one_sided=[2.0, 1.0],
-                            excursion_deg=[26.0, -52.0], sign_ratio=2.0, heading_deg=0.0,
-                            heading_rho=0.9, heading_drift_deg=None)  # fmt: skip
+    summary = _movement([3.1, 4.3], 4.0)
     still = trunk_grades(joint, [lean], summary, "determined", {"trunk_chair": True})
     assert still["lumbar"].grades == ["determined"] * 3
     summary = dataclasses.replace(summary, rest_speed_deg_s=17.0)
@@ -172,14 +179,10 @@ def test_a_weak_lean_says_why_the_heading_drift_was_not_followed():
     neither how fast the rest turned nor, for a still rest without a gyroscope bias, the cause."""
     from types import SimpleNamespace
 
-    from motionlab.results import TrunkMovement
     from motionlab.segments.trunk_axes import trunk_grades
 
     joint, lean = SimpleNamespace(name="lumbar"), SimpleNamespace(name="trunk_chair")
-    summary = TrunkMovement(rest_s=[0.0, 1.1], rest_speed_deg_s=1.9, axis_ratio=2.0,
-                            energy_ratio=2.4, one_sided=[2.0, 1.0],
-                            excursion_deg=[26.0, -52.0], sign_ratio=2.0, heading_deg=0.0,
-                            heading_rho=0.9, heading_drift_deg=None)  # fmt: skip
+    summary = _movement([0.0, 1.1], 1.9)
     moving = trunk_grades(joint, [lean], summary, "determined", {"trunk_chair": False})
     assert moving["trunk_chair"].grades == ["weak"] * 3
     assert (

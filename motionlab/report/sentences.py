@@ -314,15 +314,15 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
 #: words of a grade's reason that say the hinge axis itself was not measured well
 AXIS_WORDS = ("hinge", "differ", "not about", "single axis", "flexion axis", "puts the axis")
 
+#: the trunk's flexion axis is the one it turns about most one-sidedly (segments.trunk_axes)
+_TRUNK_BEND = "bend the trunk forward and back up a few times, further forward than to the sides"
 #: what to do for each joint type so that its hinge axis is measured
 _BEND = {
     "knee": "walk 10 straight steps at an even pace",
     "hip": "walk 10 straight steps at an even pace",
     "elbow": "bend and straighten the elbow slowly 5 times",
-    # the trunk's flexion axis is the one it turns about most one-sidedly (segments.trunk_axes)
-    "lumbar": "bend the trunk forward and back up a few times, further forward than to the sides",
-    "trunk_lean": "bend the trunk forward and back up a few times, further forward than to the "
-    "sides",
+    "lumbar": _TRUNK_BEND,
+    "trunk_lean": _TRUNK_BEND,
 }
 
 
