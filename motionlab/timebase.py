@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from motionlab import rotations
+from motionlab.dsp import butter, sosfiltfilt
 from motionlab.errors import InputError
 from motionlab.session import SENSOR_CHANNELS, SensorStream
 
@@ -264,15 +265,13 @@ def regular_grid(t0: float, t1: float, rate: float) -> np.ndarray:
 
 def _lowpass(t: np.ndarray, a: np.ndarray, rate: float, segments: list[slice]) -> np.ndarray:
     """Zero-phase Butterworth low-pass at 0.4 × ``rate`` on each NaN-free gapless segment."""
-    from scipy import signal  # here: scipy.signal loads scipy.stats (~1 s), not needed to import
-
     fs = 1.0 / nominal_interval(t)
-    sos = signal.butter(4, 0.4 * rate, fs=fs, output="sos")
+    sos = butter(4, 0.4 * rate, fs=fs)
     out = np.array(a, dtype=float, copy=True)
     for seg in segments:
         block = out[seg]
         if len(block) > 30 and np.isfinite(block).all():
-            out[seg] = signal.sosfiltfilt(sos, block, axis=0)
+            out[seg] = sosfiltfilt(sos, block, axis=0)
     return out
 
 

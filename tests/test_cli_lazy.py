@@ -60,6 +60,18 @@ def test_import_pipeline_leaves_scipy_signal_spatial_and_pandas_to_the_stages():
         assert _imported_after(code, PIPELINE_LAZY) == [], command
 
 
+def test_no_module_of_a_session_run_imports_scipy_signal():
+    """Only the simulator (and its command) uses scipy.signal; the stages use motionlab.dsp, so
+    a run never pays its import (scipy.stats and the array-API docstrings, 0.6-1.3 s)."""
+    modules = sorted(
+        ".".join(p.relative_to(ROOT).with_suffix("").parts).removesuffix(".__init__")
+        for p in (ROOT / "motionlab").rglob("*.py")
+        if "simulate" not in p.parts and p.name not in ("simulate.py", "__main__.py")
+    )
+    code = f"import importlib\nfor m in {modules!r}:\n    importlib.import_module(m)\n"
+    assert _imported_after(code, ("scipy.signal", "scipy.stats")) == []
+
+
 def test_one_line_help_is_each_commands_own():
     ctx = click.Context(main)
     assert main.list_commands(ctx) == sorted(COMMANDS)

@@ -303,7 +303,7 @@ def test_the_compiled_low_pass_is_scipys_to_the_bit(rows):
     ``sosfiltfilt`` exactly, at 100 and 60 Hz."""
     from scipy.signal import butter, sosfilt_zi, sosfiltfilt
 
-    from motionlab.clocksync._kernels import filtfilt_at
+    from motionlab.dsp import filtfilt_at
 
     rng = np.random.default_rng(rows)
     for rate in (100.0, 60.0):

@@ -27,6 +27,7 @@ LAYERS: tuple[tuple[str, ...], ...] = (
         "motionlab.lock",
         "motionlab.isolated",
         "motionlab.quat_kernels",
+        "motionlab.dsp",
         "motionlab.rotations",
         "motionlab.lineage",
         "motionlab.plain",

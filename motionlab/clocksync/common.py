@@ -8,8 +8,8 @@ from functools import lru_cache
 from typing import Any
 
 import numpy as np
-from scipy.signal import butter
 
+from motionlab.dsp import butter
 from motionlab.qc import measurable
 from motionlab.session import SensorStream
 
@@ -24,14 +24,14 @@ SETTLE_S = 0.3  # samples this close to a gap are left out (s)
 def butter_sos(
     order: int, hz: float | tuple[float, float], fs: float, btype: str = "lowpass"
 ) -> np.ndarray:
-    """``scipy.signal.butter(order, hz, btype, fs=fs, output="sos")``, designed once per set of
+    """``motionlab.dsp.butter(order, hz, fs, btype)``, designed once per set of
     arguments (a design took milliseconds, and every sensor and pair asked for it); a copy."""
     return _butter(order, hz, fs, btype).copy()
 
 
 @lru_cache(maxsize=32)
 def _butter(order: int, hz: float | tuple[float, float], fs: float, btype: str) -> np.ndarray:
-    return butter(order, hz, btype, fs=fs, output="sos")
+    return butter(order, hz, fs, btype)
 
 
 class PerStream:

@@ -34,7 +34,6 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.optimize import minimize_scalar
-from scipy.signal import sosfiltfilt
 
 from motionlab.clocknet import IMPACTS
 from motionlab.clocksync.common import (
@@ -47,6 +46,7 @@ from motionlab.clocksync.common import (
     line_with_prior,
     on_grid,
 )
+from motionlab.dsp import sosfiltfilt
 from motionlab.qc import measurable
 from motionlab.results import ClockFit
 from motionlab.session import SensorStream

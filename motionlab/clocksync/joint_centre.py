@@ -52,9 +52,8 @@ from dataclasses import dataclass, replace
 import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.optimize import least_squares
-from scipy.signal import sosfilt_zi, sosfiltfilt
 
-from motionlab.clocksync._kernels import filtfilt_at, pair_residuals
+from motionlab.clocksync._kernels import pair_residuals
 from motionlab.clocksync.common import (
     BLOCK_S,
     MAX_OFFSET_S,
@@ -65,6 +64,7 @@ from motionlab.clocksync.common import (
     line_with_prior,
     on_grid,
 )
+from motionlab.dsp import filtfilt_at, sosfilt_zi, sosfiltfilt
 from motionlab.minpack import lm
 from motionlab.qc import measurable
 from motionlab.results import ClockFit
@@ -258,7 +258,7 @@ class Pair:
 
     def _filter(self, x: np.ndarray, use: np.ndarray, out: np.ndarray) -> None:
         """``sosfiltfilt(sos, x, axis=-1)[:, use]`` into ``out``, by scipy's own steps with the
-        steady state computed once per pair (:func:`._kernels.filtfilt_at`)."""
+        steady state computed once per pair (:func:`motionlab.dsp.filtfilt_at`)."""
         filtered = np.empty((x.shape[0], len(use)))
         filtfilt_at(x, self.sos, self._zi, self._edge, use, filtered)
         out[:] = filtered
@@ -286,7 +286,7 @@ class Pair:
 
     def costs(self, ps: np.ndarray, lanes: int = 8) -> np.ndarray:
         """:meth:`cost` at each row of ``ps`` (G, 14), the same numbers, ``lanes`` rows low-passed
-        together (:func:`._kernels.filtfilt_at`)."""
+        together (:func:`motionlab.dsp.filtfilt_at`)."""
         out = []
         for chunk in np.array_split(ps, -(-len(ps) // lanes)):
             res = np.empty((len(chunk), len(self.use)))

@@ -23,10 +23,10 @@ from typing import Any
 import numba
 import numpy as np
 import pandas as pd
-from scipy.signal import butter, sosfiltfilt
 
 from motionlab import rotations as rot
 from motionlab.binding import sensor_for_segment
+from motionlab.dsp import butter, sosfiltfilt
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_types import angle_columns, signs_for
 from motionlab.protocol import Protocol
@@ -121,7 +121,7 @@ def session_elbow_angles(session: Session, protocol: Protocol) -> dict[str, Any]
                     remedy="run motionlab calibrate first",
                 )
             s = session.sensors[label]
-            sos = butter(2, LOWPASS_HZ, fs=estimate_rate(s.time), output="sos")
+            sos = butter(2, LOWPASS_HZ, fs=estimate_rate(s.time))
             acc = sosfiltfilt(sos, s.acc, axis=0)
             up = rot.rotate(rot.conj(np.asarray(cal[seg].mounting)), acc)  # sensor → segment
             ups.append((s.time, up))

@@ -26,7 +26,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import butter, find_peaks, sosfiltfilt
+
+from motionlab.dsp import butter, find_peaks, sosfiltfilt
 
 CURVE_POINTS = 101
 RETURN_FRACTION = 0.05
@@ -120,7 +121,7 @@ def gait_events(omega_z: np.ndarray, rate: float) -> tuple[np.ndarray, np.ndarra
     w = _filled(omega_z)
     if len(w) < int(2 * MIN_STRIDE_S * rate) or not np.isfinite(w).all():
         return np.zeros(0, dtype=int), np.zeros(0, dtype=int)
-    sos = butter(2, min(EVENT_LOWPASS_HZ, 0.4 * rate), fs=rate, output="sos")
+    sos = butter(2, min(EVENT_LOWPASS_HZ, 0.4 * rate), fs=rate)
     w = sosfiltfilt(sos, w)
     cand, props = find_peaks(w, height=SWING_PEAK_MIN_RAD_S, distance=int(MIN_STRIDE_S * rate))
     if len(cand) == 0:

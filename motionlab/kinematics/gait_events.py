@@ -49,7 +49,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.signal import butter, find_peaks, sosfiltfilt
+
+from motionlab.dsp import butter, find_peaks, sosfiltfilt
 
 LOWPASS_HZ = 6.0
 FC_REFINE_HZ = 15.0
@@ -97,7 +98,7 @@ def _typical(x: np.ndarray, median: float) -> np.ndarray:
 
 def lowpass(x: np.ndarray, rate: float, cutoff: float = LOWPASS_HZ) -> np.ndarray:
     """Zero-phase 2nd-order Butterworth low-pass (cutoff in Hz, at most 0.4 × ``rate``)."""
-    sos = butter(2, min(cutoff, 0.4 * rate), fs=rate, output="sos")
+    sos = butter(2, min(cutoff, 0.4 * rate), fs=rate)
     return sosfiltfilt(sos, x)
 
 

@@ -35,9 +35,9 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.optimize import least_squares
-from scipy.signal import butter, sosfiltfilt
 
 from motionlab import rotations as rot
+from motionlab.dsp import butter, sosfiltfilt
 from motionlab.segments import movement
 from motionlab.segments.walk_forward import LOWPASS_HZ as TURN_LOWPASS_HZ
 from motionlab.segments.walk_forward import TURN_RAD_S
@@ -120,7 +120,7 @@ def turning(t: np.ndarray, q: np.ndarray, gyr: np.ndarray) -> np.ndarray:
     yaw = np.where(ok, yaw, 0.0)
     rate = estimate_rate(t)
     if len(t) > 30 and rate > 2.5 * TURN_LOWPASS_HZ:
-        yaw = sosfiltfilt(butter(2, TURN_LOWPASS_HZ, fs=rate, output="sos"), yaw)
+        yaw = sosfiltfilt(butter(2, TURN_LOWPASS_HZ, fs=rate), yaw)
     return np.abs(yaw) >= TURN_RAD_S
 
 
@@ -178,7 +178,7 @@ def principal_axes(
     turns = turning(t, q1, g1)
     rate = estimate_rate(t)
     if len(t) > 30 and rate > 2.5 * LOWPASS_HZ:
-        sos = butter(2, LOWPASS_HZ, fs=rate, output="sos")
+        sos = butter(2, LOWPASS_HZ, fs=rate)
         g1, g2 = sosfiltfilt(sos, g1, axis=0), sosfiltfilt(sos, g2, axis=0)
     use = moving & ~turns & np.isfinite(g1).all(axis=1) & np.isfinite(g2).all(axis=1)
     if use.sum() < MIN_SAMPLES:

@@ -32,9 +32,9 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
-from scipy.signal import butter, sosfiltfilt
 
 from motionlab import rotations as rot
+from motionlab.dsp import butter, sosfiltfilt
 from motionlab.errors import InputError
 from motionlab.results import HipAxis
 from motionlab.segments.functional import functional_axis
@@ -68,7 +68,7 @@ def flexion_turn(t: np.ndarray, q_pelvis: np.ndarray, q_thigh: np.ndarray) -> Hi
     rate = 1.0 / float(np.median(np.diff(t)))
     w = relative_rates(t, q_pelvis, q_thigh)
     if rate > 2.5 * LOWPASS_HZ:
-        w = sosfiltfilt(butter(2, LOWPASS_HZ, fs=rate, output="sos"), w, axis=0)
+        w = sosfiltfilt(butter(2, LOWPASS_HZ, fs=rate), w, axis=0)
     moving = w[np.linalg.norm(w, axis=1) >= MIN_RATE_RAD_S]
     out = replace(out, n_samples=len(moving))
     if len(moving) < MIN_SAMPLES:

@@ -30,9 +30,9 @@ the heading about it stays as the nominal placement says.
 from __future__ import annotations
 
 import numpy as np
-from scipy.signal import butter, sosfiltfilt
 
 from motionlab import rotations as rot
+from motionlab.dsp import butter, sosfiltfilt
 from motionlab.kinematics.joint_types import JOINT_TYPES, flexion_axis
 from motionlab.protocol import CalibrationStep, Protocol, axis_vector
 from motionlab.results import AxisMeasurement, SegmentQuality, SegmentRecord
@@ -59,7 +59,7 @@ def _smooth_gyr(t: np.ndarray, gyr: np.ndarray, rng: tuple[float, float]) -> np.
     rate = estimate_rate(t[sel])
     if len(g) < 30 or not rate > 2.5 * GYR_LOWPASS_HZ:
         return g
-    return sosfiltfilt(butter(2, GYR_LOWPASS_HZ, fs=rate, output="sos"), g, axis=0)
+    return sosfiltfilt(butter(2, GYR_LOWPASS_HZ, fs=rate), g, axis=0)
 
 
 def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:

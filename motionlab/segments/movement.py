@@ -35,9 +35,9 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
-from scipy.signal import butter, sosfiltfilt
 
 from motionlab import rotations as rot
+from motionlab.dsp import butter, sosfiltfilt
 from motionlab.errors import InputError
 from motionlab.results import HingeFit, TwoAxisFit
 from motionlab.segments import heading
@@ -64,7 +64,7 @@ NOMINAL_DISTAL = "the movement did not tell which way the axis points on the dis
 def _lowpass(x: np.ndarray, rate: float) -> np.ndarray:
     if len(x) < 30 or not rate > 2.5 * LOWPASS_HZ:
         return x
-    return sosfiltfilt(butter(2, LOWPASS_HZ, fs=rate, output="sos"), x, axis=0)
+    return sosfiltfilt(butter(2, LOWPASS_HZ, fs=rate), x, axis=0)
 
 
 def _angle_deg(a: np.ndarray, b: np.ndarray) -> float:

@@ -48,8 +48,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from scipy.ndimage import binary_closing, label, maximum
-from scipy.signal import butter, sosfiltfilt
 
+from motionlab.dsp import butter, sosfiltfilt
 from motionlab.errors import InputError
 from motionlab.protocol import PACKAGED, CalibrationStep, Protocol, axis_vector, load_protocol
 from motionlab.segments.functional import functional_axis
@@ -95,9 +95,7 @@ def _rate(t: np.ndarray, gyr: np.ndarray, grid: np.ndarray) -> np.ndarray:
     ``BIAS_QUANTILE`` of the samples, at most ``BIAS_MAX_S`` of them (a rest does not grow with
     the recording: in a 10-min walk a tenth of the samples is mostly walking), when it is small
     enough to be one (``MAX_BIAS_RAD_S``)."""
-    slow = sosfiltfilt(
-        butter(2, LOWPASS_HZ, fs=GRID_HZ, output="sos"), interp_columns(grid, t, gyr), 0
-    )
+    slow = sosfiltfilt(butter(2, LOWPASS_HZ, fs=GRID_HZ), interp_columns(grid, t, gyr), 0)
     norm = np.linalg.norm(slow, axis=1)
     quiet = min(BIAS_QUANTILE, BIAS_MAX_S * GRID_HZ / len(norm))
     bias = np.median(slow[norm <= np.quantile(norm, quiet)], axis=0)

@@ -33,9 +33,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import butter, sosfiltfilt
 
 from motionlab import rotations as rot
+from motionlab.dsp import butter, sosfiltfilt
 from motionlab.session import estimate_rate
 from motionlab.timebase import runs
 from motionlab.units import STANDARD_GRAVITY
@@ -94,7 +94,7 @@ def forward_from_turns(
     rate = estimate_rate(t)
     if not rate > 2.5 * LOWPASS_HZ:
         return ForwardDirection(False, reason="sampling too slow")
-    sos = butter(2, LOWPASS_HZ, fs=rate, output="sos")
+    sos = butter(2, LOWPASS_HZ, fs=rate)
     a = sosfiltfilt(sos, rot.rotate(q, acc) - np.array([0.0, 0.0, STANDARD_GRAVITY]), axis=0)
     yaw = sosfiltfilt(sos, rot.rotate(q, gyr)[:, 2])
     a = a - a[walk].mean(axis=0)

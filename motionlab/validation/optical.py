@@ -23,9 +23,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.signal import butter, sosfiltfilt
 
 from motionlab import rotations as rot
+from motionlab.dsp import butter, sosfiltfilt
 from motionlab.errors import InputError
 from motionlab.timebase import runs
 
@@ -216,7 +216,7 @@ def smooth_pose(
     rate = 1.0 / np.median(np.diff(time)) if len(time) > 1 else 0.0
     if not cutoff_hz or cutoff_hz >= 0.45 * rate:
         return quat, origin
-    sos = butter(4, cutoff_hz, fs=rate, output="sos")
+    sos = butter(4, cutoff_hz, fs=rate)
     ok = np.isfinite(quat).all(axis=1) & np.isfinite(origin).all(axis=1)
     for a, b in runs(ok):  # one filter call per run
         if b - a > 30:

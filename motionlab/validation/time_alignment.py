@@ -25,8 +25,8 @@ from typing import NamedTuple
 
 import numpy as np
 from scipy.interpolate import make_interp_spline
-from scipy.signal import butter, correlate, sosfiltfilt
 
+from motionlab.dsp import butter, correlate, sosfiltfilt
 from motionlab.errors import InputError
 from motionlab.results import OpticalSync
 from motionlab.rotations import angular_velocity
@@ -155,7 +155,7 @@ def speed_signal(t: np.ndarray, omega: np.ndarray, cutoff_hz: float = CUTOFF_HZ)
     good = ok[k] & ok[k - 1] & (t[k] - t[k - 1] <= 5.0 / rate)
     filled = np.column_stack([np.interp(grid, t[ok], omega[ok, i]) for i in range(omega.shape[1])])
     if len(grid) > 30 and cutoff_hz < 0.45 * rate:
-        filled = sosfiltfilt(butter(4, cutoff_hz, fs=rate, output="sos"), filled, axis=0)
+        filled = sosfiltfilt(butter(4, cutoff_hz, fs=rate), filled, axis=0)
     values = filled[:, 0] if scalar else np.linalg.norm(filled, axis=1)
     spline = make_interp_spline(grid, values, k=3)
 
@@ -215,10 +215,10 @@ def coarse_lag(
         y = np.where(my > 0, fy(grid), 0.0)
         x = (x - x[mx > 0].mean()) * mx if mx.any() else x
         y = (y - y[my > 0].mean()) * my if my.any() else y
-        num += correlate(y, x, method="fft")
-        ex += correlate(my, x * x, method="fft")
-        ey += correlate(y * y, mx, method="fft")
-        overlap += correlate(my, mx, method="fft")
+        num += correlate(y, x)
+        ex += correlate(my, x * x)
+        ey += correlate(y * y, mx)
+        overlap += correlate(my, mx)
     lags = np.arange(-(n - 1), n) / rate
     enough = overlap > 0.3 * min(overlap.max(), n)
     if max_lag_s is not None:
