@@ -39,8 +39,9 @@ and **trunk movement** in any order, also as one continuous block:
    :data:`HEADING_RHO_MIN` of the horizontal rates and the headings' drift apart is followed
    (a still rest, step 2) or calibrated away (both gyroscopes calibrated per serial before the
    fusion, :func:`_gyros_calibrated`). Without either, a seated person's sway hides the
-   gyroscope biases, and an unseen 0.2-0.3°/s on the pelvis sensor turned the rotation from
-   the rest by up to 5° within 8 s on the real trials (docs/kinematics.md).
+   gyroscope biases: an unseen 0.2-0.3°/s about the pelvis sensor's vertical cost the three
+   real trials without a still rest 0.1-0.5° of their rotation from the rest
+   (docs/kinematics.md).
 5. **Chair** (optional segment of a ``trunk_lean`` joint): its vertical from the rest; its
    heading is tied to the thorax's at the rest, so the trunk's lean is measured from the rest
    posture about the thorax's own flexion axis, relative to the chair.
@@ -543,8 +544,8 @@ def trunk_grades(
         why_rot = (
             f"{cause}, so the pelvis's and the thorax's headings are tied at the rest only and "
             "may drift apart by their gyroscopes' biases (0.2-0.3°/s on a real seated trial): "
-            "sit still for a second, or calibrate the gyroscopes (motionlab sensorcal, then "
-            "--calibration)"
+            "record a still second with the 6-D fusion, or calibrate the gyroscopes (motionlab "
+            "sensorcal, then --calibration)"
         )
     out = {
         joint.name: JointGrades(
