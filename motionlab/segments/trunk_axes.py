@@ -18,7 +18,8 @@ and **trunk movement** in any order, also as one continuous block:
    :data:`STILL_DEG_S`) and both fusions are 6-D with their gyroscope bias reported, the
    headings' drift apart is followed too: each gyroscope's mean over the rest's steady samples
    (a seated back's sway is movement, not bias), less the bias its fusion removed there,
-   integrated about the vertical (:func:`_heading_drift`).
+   integrated about the vertical (:func:`_heading_drift`); gyroscopes calibrated per serial
+   before the fusion (``motionlab sensorcal``) have no bias left to follow.
 3. **Flexion axis:** of the two perpendicular axes about which the thorax's angular velocity
    relative to the pelvis turns most often (in the thorax sensor frame, perpendicular to the rest's
    vertical, over the recording; :func:`_horizontal_axes`), the one it turns about most (not
@@ -35,7 +36,12 @@ and **trunk movement** in any order, also as one continuous block:
    :data:`SIGN_RATIO_MIN` times further one way than the other about it from the rest, and
    that way is the flexion side (the rest's extremes and the median's tails agree);
    ``weak`` otherwise; axial rotation when the heading from the movement explains at least
-   :data:`HEADING_RHO_MIN` of the horizontal rates.
+   :data:`HEADING_RHO_MIN` of the horizontal rates and the headings' drift apart is followed
+   (a still rest, step 2) or calibrated away (both gyroscopes calibrated per serial before the
+   fusion, :func:`_gyros_calibrated`). Without either, a seated person's sway hides the
+   gyroscope biases: an unseen 0.2-0.3°/s about the pelvis sensor's vertical cost the three
+   real trials without a still rest 0.1-0.5° of their rotation from the rest
+   (docs/kinematics.md).
 5. **Chair** (optional segment of a ``trunk_lean`` joint): its vertical from the rest; its
    heading is tied to the thorax's at the rest, so the trunk's lean is measured from the rest
    posture about the thorax's own flexion axis, relative to the chair.
@@ -379,16 +385,18 @@ def calibrate(
     pose_delta = heading.heading_from_pose(seg_q[p][rest], seg_q[d][rest])
     times, deltas = [t_rest], [pose_delta]
     drift = None
-    if level <= STILL_DEG_S:  # a still rest shows the gyroscope biases the fusion left
+    calibrated = _gyros_calibrated(session, (p, d))
+    if level <= STILL_DEG_S and not calibrated:  # a still rest shows the biases the fusion left
         drift = _heading_drift(session, {s: sensor_for_segment(session, s) for s in (p, d)},
                                t, q, gyr, rest)  # fmt: skip
+    # the headings' drift apart followed, or calibrated away before the fusion
+    followed: dict[str, bool] = {joint.name: drift is not None or calibrated}
     if drift is not None:
         step = max(int(round(0.5 / float(np.median(np.diff(t))))), 1)
         times = [float(x) for x in t[::step]]
         deltas = [pose_delta + float(x) for x in drift[::step]]
     centres[joint.name] = CentreHeading(times, deltas, method="trunk rest")
-    followed: dict[str, bool] = {}  # the trunk's lean: the chair's heading drift followed
-    for lean in leans:
+    for lean in leans:  # the trunk's lean: the chair's heading drift followed
         c = lean.distal
         if c not in chairs:
             continue
@@ -404,14 +412,15 @@ def calibrate(
         delta_c = heading.heading_from_pose(rot.mul(q[d], rot.from_matrix(m_d))[rest], q_c[rest])
         times_c, deltas_c = [t_rest], [delta_c]
         lean_drift = None
-        if level <= STILL_DEG_S:
+        calibrated = _gyros_calibrated(session, (d, c))
+        if level <= STILL_DEG_S and not calibrated:
             labels = {d: sensor_for_segment(session, d), c: sensor_for_segment(session, c)}
             lean_drift = _heading_drift(session, labels, t, q, gyr, rest)
         if lean_drift is not None:
             step = max(int(round(0.5 / float(np.median(np.diff(t))))), 1)
             times_c = [float(x) for x in t[::step]]
             deltas_c = [delta_c + float(x) for x in lean_drift[::step]]
-        followed[lean.name] = lean_drift is not None
+        followed[lean.name] = lean_drift is not None or calibrated
         centres[lean.name] = CentreHeading(times_c, deltas_c, method="trunk rest")
 
     notes: list[str] = []
@@ -478,6 +487,20 @@ def _heading_drift(session, labels: dict[str, str], t, q, gyr, rest: slice) -> n
     return drifts[0] - drifts[1]
 
 
+def _gyros_calibrated(session: Session, segments: tuple[str, ...]) -> bool:
+    """Whether every one of ``segments``' sensors was fused from gyroscope rates a per-serial
+    sensor calibration (``motionlab sensorcal``, ``--calibration``) took the bias off: their
+    headings then drift apart only by what that calibration missed, whatever the rest. (The
+    rest's mean recorded rate, less the bias the fusion removed, would count the calibrated
+    bias twice, so such sensors are not followed from the rest.)"""
+    for seg in segments:
+        fused = session.results.fusion.get(sensor_for_segment(session, seg))
+        cal = None if fused is None else fused.sensor_calibration
+        if cal is None or "gyr" not in cal.channels:
+            return False
+    return True
+
+
 def _weak_axis(ratio: float, pos: float, neg: float) -> str:
     """Why the flexion axis is weak, in words."""
     if ratio >= AXIS_RATIO_MIN and _one_sided(pos, neg) >= SIGN_RATIO_MIN:
@@ -497,17 +520,32 @@ def trunk_grades(
     joint, leans, summary: TrunkMovement, axis_verdict: str, followed: dict[str, bool]
 ) -> dict[str, JointGrades]:
     """Grades of the lumbar joint and of the trunk's lean (``leans``: ``trunk_lean`` joints)
-    from what the movement determined; a lean is ``weak`` unless the chair's heading drift was
-    followed (``followed``: by joint, a still rest); every angle ``weak`` when the rest turns
-    faster than :data:`REST_SLOW_DEG_S`."""
+    from what the movement determined; the lumbar axial rotation and a lean are ``weak`` unless
+    the headings' drift apart was followed (``followed``: by joint, a still rest with 6-D
+    fusions, or gyroscopes calibrated before the fusion); every angle ``weak`` when the rest
+    turns faster than :data:`REST_SLOW_DEG_S`."""
     pos, neg = summary.excursion_deg[0], -summary.excursion_deg[1]
     why_axis = "" if axis_verdict == "determined" else _weak_axis(summary.axis_ratio, pos, neg)
+    speed = summary.rest_speed_deg_s
+    cause = (  # the drift is followed from a still rest's gyroscopes (6-D fusions)
+        f"the rest turned at {speed:.1f}°/s, not still (under {STILL_DEG_S:g}°/s)"
+        if speed > STILL_DEG_S
+        else "the orientations report no gyroscope bias (a vendor's or a 9-D fusion)"
+    )
     rot_grade, why_rot = "determined", ""
     if summary.heading_rho < HEADING_RHO_MIN:
         rot_grade = "weak"
         why_rot = (
             f"the sensors' headings agree only {summary.heading_rho:.2f} over the movement "
             "(the pelvis hardly moved with the thorax)"
+        )
+    elif not followed.get(joint.name, False):
+        rot_grade = "weak"
+        why_rot = (
+            f"{cause}, so the pelvis's and the thorax's headings are tied at the rest only and "
+            "may drift apart by their gyroscopes' biases (0.2-0.3°/s on a real seated trial): "
+            "record a still second with the 6-D fusion, or calibrate the gyroscopes (motionlab "
+            "sensorcal, then --calibration)"
         )
     out = {
         joint.name: JointGrades(
@@ -518,12 +556,6 @@ def trunk_grades(
         grade, why = axis_verdict, why_axis
         if grade == "determined" and not followed.get(lean.name, False):
             grade = "weak"
-            speed = summary.rest_speed_deg_s
-            cause = (  # the drift is followed from a still rest's gyroscopes (6-D fusions)
-                f"the rest turned at {speed:.1f}°/s, not still (under {STILL_DEG_S:g}°/s)"
-                if speed > STILL_DEG_S
-                else "the orientations report no gyroscope bias (a vendor's or a 9-D fusion)"
-            )
             why = (
                 f"{cause}, so the chair's and the thorax's headings are tied at the rest only "
                 "and may drift apart"
