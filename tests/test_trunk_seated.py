@@ -491,12 +491,16 @@ def test_a_real_pivot_cut_to_its_rest_at_the_end_keeps_its_flexion_axis():
 def test_a_weak_trunk_axis_is_told_to_bend_forward_not_to_move_through_its_range(seated):
     """Danique/trunkmovement_hs (the thorax 45° / 48° either way about both axes) was told
     'move the lumbar spine slowly through its range 5 times', which it had done; the remedy is
-    the calibration's own: a forward bend further than the sideways ones. A rest held leaning
-    (the axis's sign unclear) is told to rest upright."""
+    the calibration's own: a forward bend further than the sideways ones. An axial rotation
+    weak for a rest too restless to follow the headings' drift is told to hold still or to
+    calibrate the gyroscopes (it was 'see the calibration page'). A rest held leaning (the
+    axis's sign unclear) is told to rest upright."""
     import copy
+    from types import SimpleNamespace
 
     from motionlab.report.model import load_view
     from motionlab.report.sentences import missing_lines
+    from motionlab.segments.trunk_axes import trunk_grades
 
     session, _ = seated
     session = copy.deepcopy(session)
@@ -509,6 +513,14 @@ def test_a_weak_trunk_axis_is_told_to_bend_forward_not_to_move_through_its_range
     line = next(m for m in missing_lines(load_view(session)) if m.startswith("Lumbar"))
     assert line.endswith("— bend the trunk forward and back up a few times, further forward "
                          "than to the sides."), line  # fmt: skip
+    grades.grades[:], grades.reasons[:] = ["determined"] * 2 + ["weak"], ["", "", ""]
+    restless = _movement([14.4, 15.4], 2.1)
+    drift = trunk_grades(SimpleNamespace(name="lumbar"), [], restless, "determined", {})
+    grades.reasons[2] = drift["lumbar"].reasons[2]
+    line = next(m for m in missing_lines(load_view(session)) if m.startswith("Lumbar"))
+    assert "axial rotation weak (the sensors' headings may drift apart)" in line, line
+    assert "sit or stand still for 2 s during the recording" in line and "sensorcal" in line
+    grades.grades[:] = ["weak", "weak", "determined"]
     grades.reasons[0] = ("the flexion axis's sign is not clear from the movement (the thorax "
                          "went 30° / 20° either way from the rest, but further the other way "
                          "from its usual posture: the rest was held leaning)")  # fmt: skip

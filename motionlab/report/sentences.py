@@ -340,6 +340,12 @@ def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[s
     r = reason.lower().removeprefix("hinge axis from movement: ").split("; ")[0]
     if "axis's sign is not clear" in r:  # a trunk rest held leaning (segments.trunk_axes)
         return "direction of flexion", "rest sitting or standing upright for a few seconds"
+    if "headings are tied at the rest only" in r:  # segments.trunk_axes: drift not followed
+        return "the sensors' headings may drift apart", (
+            "sit or stand still for 2 s during the recording (the default 6-D fusion then "
+            "follows the drift), or calibrate the gyroscopes (motionlab sensorcal, then "
+            "--calibration)"
+        )
     if "which way the axis points" in r or "direction of flexion" in r:
         return "direction of flexion", f"stand still 5 s with the {display} straight, then {bend}"
     if "its zero" in r:
