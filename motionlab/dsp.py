@@ -88,7 +88,7 @@ def _zpk_to_sos(z: np.ndarray, p: np.ndarray, k: float) -> np.ndarray:
             p2 = np.conj(p1)
         zeros = []
         for _ in range(2):
-            j = int(np.argsort(np.abs(z - p1))[0])
+            j = int(np.argmin(np.abs(z - p1)))
             zeros.append(z[j])
             z = np.delete(z, j)
         sos[si, :3] = np.poly(zeros)
