@@ -16,11 +16,21 @@ shown next to variants that each remove one suspected source:
   motion included) through the true mountings (what the skin alone costs);
 - ``follow 1``: the same seed with the upper-arm skin following the humerus' axial rotation
   fully (``STA_HUMERAL_FOLLOW = (1, 1)``, no spread), through the product;
+- ``exact`` (``--exact``): the two-axis fit (:func:`motionlab.segments.movement.fit_two_dof`,
+  as the product calls it) on the simulator's exact sensor orientations and their rates, no
+  fusion, noise, clocks or heading offsets: its parts' disagreement (deg) and its axes' angles
+  (deg) to the true upper-arm z and forearm y; what the fit's model leaves when everything
+  before it is perfect;
+- ``lag R²`` (``--exact``): the share of the variance of the upper-arm skin's lag rate (the
+  humerus' rate about its long axis minus its sensor's, from the simulator's bone and sensor
+  orientations) that the fit's model of it, ``k`` times the sensor's rate about its stand long
+  axis, explains at the best ``k``: over the whole movement and over the samples with the upper
+  arm within 30° of hanging;
 - ``clocks`` (``--clocks``): the same recording with the true sampling instants and no sync.
 
 Needs no data files. Usage::
 
-    python bench/elbow_sources.py [--seeds 0-9] [--workers 2] [--clocks] [--no-follow]
+    python bench/elbow_sources.py [--seeds 0-9] [--workers 2] [--clocks] [--no-follow] [--exact]
 """
 
 from __future__ import annotations
@@ -36,8 +46,9 @@ import motionlab.simulate as sim
 from motionlab import rotations as rot
 from motionlab import stages
 from motionlab.kinematics.joint_angles import joint_angles
-from motionlab.protocol import load_protocol
-from motionlab.segments import sensor_for_segment
+from motionlab.protocol import axis_vector, load_protocol
+from motionlab.segments import movement, sensor_for_segment
+from motionlab.segments.placement import hinge_spec
 from motionlab.simulate import simulate
 
 DURATION_S = 74.0
@@ -84,9 +95,56 @@ def _skin_only(truth, protocol, session, tasks) -> dict[str, float]:
     return out
 
 
-def diagnose(job: tuple[int, bool, bool]) -> dict:
+def _rates(t: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Angular rate (rad/s, sensor frame) of orientations ``q`` sampled at ``t``."""
+    dq = rot.mul(rot.conj(q[:-1]), q[1:])
+    w = 2.0 * dq[:, 1:] * np.sign(dq[:, :1]) / np.diff(t)[:, None]
+    return np.vstack([w, w[-1:]])
+
+
+def _exact(truth, protocol, session, name: str, tasks) -> dict:
+    """The two-axis fit on the exact sensor orientations, and the lag model's share (R²)."""
+    joint = protocol.joints[name]
+    t = truth.time
+    step = next(s for s in truth.steps if s["kind"] == "static")
+    reference = (step["start_s"] + 0.5, step["end_s"] - 0.5)
+    sides, true_axes = [], []
+    for seg, axis in ((joint.proximal, "z"), (joint.distal, "y")):
+        s = truth.sensors[sensor_for_segment(session, seg)]
+        sides.append((t, _rates(t, s["orientation"]), s["orientation"]))
+        true_axes.append(rot.rotate(rot.conj(s["mounting"]), axis_vector(axis)))
+    prior_1 = protocol.segments[joint.proximal].nominal_mounting().T @ axis_vector(
+        hinge_spec(joint)[0]
+    )
+    prior_2 = protocol.segments[joint.distal].nominal_mounting().T @ axis_vector("y")
+    fit = movement.fit_two_dof(name, *sides, prior_1, prior_2, reference, axial_lag=True)
+    # the lag: the bone's rate about its long axis minus the sensor's (bone frame), per sample
+    s = truth.sensors[sensor_for_segment(session, joint.proximal)]
+    q_seg = rot.mul(s["orientation"], rot.conj(s["mounting"]))
+    rel = rot.mul(rot.conj(truth.segments[joint.proximal]["orientation"]), q_seg)
+    lag = np.diff(np.unwrap(2.0 * np.arctan2(rel[:, 2], rel[:, 0])))
+    stand = (t >= reference[0]) & (t <= reference[1])
+    long_s = rot.rotate(rot.conj(rot.mean(s["orientation"][stand])), np.array([0.0, 0.0, 1.0]))
+    spin = _rates(t, s["orientation"])[:-1] @ long_s * np.diff(t)
+    hanging = rot.rotate(s["orientation"][:-1], long_s)[:, 2] >= np.cos(np.radians(30.0))
+    inside = np.zeros(len(t) - 1, bool)
+    for a, b in tasks:
+        inside |= (t[:-1] >= a) & (t[:-1] <= b)
+    r2 = []
+    for sel in (inside, inside & hanging):
+        k = -(spin[sel] @ lag[sel]) / (spin[sel] @ spin[sel])
+        r2.append(1.0 - np.var(lag[sel] + k * spin[sel]) / np.var(lag[sel]))
+    return {
+        "cons": fit.consistency_deg,
+        "ua_z": _axis_deg(fit.axis_proximal, true_axes[0]),
+        "fa_y": _axis_deg(fit.axis_distal, true_axes[1]),
+        "r2": tuple(r2),
+    }
+
+
+def diagnose(job: tuple[int, bool, bool, bool]) -> dict:
     """Every variant's RMSE per elbow flexion of one seed (see the module notes)."""
-    seed, clocks_too, follow_too = job
+    seed, clocks_too, follow_too, exact_too = job
     session, truth, protocol, stamps, tasks = _run(seed)
     err = task_errors(session, truth, protocol, stamps, tasks)
     row: dict = {"seed": seed}
@@ -109,6 +167,8 @@ def diagnose(job: tuple[int, bool, bool]) -> dict:
             q = rot.mul(m_true, np.asarray(cal.segments[seg].mounting, float))
             row["axes"][seg] = tuple(_axis_deg(rot.rotate(q, a), a) for a in axes)
     row["skin"] = _skin_only(truth, protocol, session, tasks)
+    if exact_too:
+        row["exact"] = {n: _exact(truth, protocol, session, n, tasks) for n in ELBOWS}
     for name in ELBOWS:
         joint = protocol.joints[name]
         for seg in (joint.proximal, joint.distal):
@@ -134,8 +194,9 @@ def main() -> None:
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--clocks", action="store_true", help="also with perfect clocks")
     ap.add_argument("--no-follow", action="store_true", help="skip the full-follow variant")
+    ap.add_argument("--exact", action="store_true", help="also the fit on exact orientations")
     args = ap.parse_args()
-    jobs = [(s, args.clocks, not args.no_follow) for s in seeds_arg(args.seeds)]
+    jobs = [(s, args.clocks, not args.no_follow, args.exact) for s in seeds_arg(args.seeds)]
     with mp.get_context("spawn").Pool(args.workers) as pool:
         rows = pool.map(diagnose, jobs)
     for side, col in zip("rl", COLS, strict=True):
@@ -145,6 +206,8 @@ def main() -> None:
         head += " true mnt | skin |"
         extra = [k for k in ("follow1", "clocks") if k in rows[0]]
         head += "".join(f" {k} |" for k in extra)
+        if "exact" in rows[0]:
+            head += " exact: cons / ua z / fa y | lag R² (all / hanging) |"
         print(head)
         print("|---:" * (head.count("|") - 1) + "|")
         for r in rows:
@@ -156,6 +219,10 @@ def main() -> None:
                 f"{r['axes'][fa][0]:.1f}", f"{r['axes'][fa][1]:.1f}",
                 f"{r['true_mnt'][col]:.2f}", f"{r['skin'][col]:.2f}",
             ] + [f"{r[k][col]:.2f}" for k in extra]  # fmt: skip
+            if "exact" in r:
+                x = r["exact"][f"elbow_{side}"]
+                cells += [f"{x['cons']:.1f} / {x['ua_z']:.1f} / {x['fa_y']:.1f}",
+                          f"{x['r2'][0]:.2f} / {x['r2'][1]:.2f}"]  # fmt: skip
             print(f"| {r['seed']} | " + " | ".join(cells) + " |")
         for key in ("as_is", "true_mnt", "skin", *extra):
             vals = [r[key][col] for r in rows]
