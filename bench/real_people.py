@@ -3,7 +3,8 @@
 
 Without a truth this bench cannot say "accurate". It says what a careful reader of the report
 would check: the grade of every angle; for a hinge-like joint, the per-cycle range of its first
-angle (a walking knee flexes about 55-70° per stride, Perry & Burnfield 2010; ``implausible``
+angle (a walking knee flexes about 55-70° per stride at a usual pace, Perry & Burnfield 2010,
+further at a faster one: the verdict gives the walk's cadence and speed; ``implausible``
 outside 45-80°) and the left/right difference; the angle between the independent estimates of
 the joint's axis (the principal rotation axes and the constrained hinge fit, ``witness``); the
 hinge fit's relative residual; where the recording carries the vendor's own 9-D
@@ -177,13 +178,21 @@ def _fmt(x: np.ndarray) -> str:
     return f"{q2:.0f} ({q1:.0f}–{q3:.0f}), n={len(x)}"
 
 
-def _plausibility(ranges: np.ndarray) -> str:
+def _plausibility(ranges: np.ndarray, session: Session) -> str:
     """Whether a walking knee's per-stride flexion ranges (deg) are plausible (median within
-    ``WALK_RANGE_DEG``), with the share of strides inside."""
+    ``WALK_RANGE_DEG``), with the share of strides inside and the walk's pace (the band is for
+    walkers at a usual pace; a knee flexes further at a faster one)."""
     lo, hi = WALK_RANGE_DEG
     inside = np.mean((ranges >= lo) & (ranges <= hi))
     word = "plausible" if lo <= np.median(ranges) <= hi else "implausible"
-    return f"{word} ({100 * inside:.0f}% of strides in {lo:.0f}–{hi:.0f}°)"
+    gait = session.results.gait
+    pace = gait.summary if gait is not None and gait.summary is not None else None
+    at = ""
+    if pace is not None and np.isfinite(pace.cadence_steps_per_min):
+        at = f"; {pace.cadence_steps_per_min:.0f} steps/min"
+        if np.isfinite(pace.walking_speed_m_s):  # with the subject's height or leg lengths
+            at += f", {pace.walking_speed_m_s:.1f} m/s"
+    return f"{word} ({100 * inside:.0f}% of strides in {lo:.0f}–{hi:.0f}°{at})"
 
 
 def report(name: str, protocol: str, session: Session, vendor: dict) -> list[str]:
@@ -199,7 +208,7 @@ def report(name: str, protocol: str, session: Session, vendor: dict) -> list[str
         rng, fit = flex[jname], cal.hinges.get(jname)
         other = flex.get(jname[:-1] + ("l" if jname.endswith("r") else "r"), np.array([]))
         diff = f"{abs(np.median(rng) - np.median(other)):.0f}°" if len(rng) and len(other) else "–"
-        verdict = _plausibility(rng) if len(rng) and joint.type == "knee" else ""
+        verdict = _plausibility(rng, session) if len(rng) and joint.type == "knee" else ""
         peer = vendor_ranges(session, vendor, joint, joint.side) if joint.side else np.array([])
         column = angle_columns(joint)[0][1]
         swing = vendor_swings(session, vendor, joint, column, joint.side) if joint.side else []
