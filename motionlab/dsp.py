@@ -1,11 +1,11 @@
 """The few signal-processing steps the pipeline uses — Butterworth design, zero-phase filtering,
 peaks, correlation — computed as :mod:`scipy.signal` computes them, without importing it.
 
-Why not :mod:`scipy.signal` itself: from scipy 1.15 on, importing it loads :mod:`scipy.stats`
-and rewrites every function's docstring for its array-API dispatch, 0.6–1.3 s of every
-``motionlab run`` in a new process (``python -X importtime``), for five functions. Each function
-here follows scipy's algorithm and order of operations, so the numbers agree to rounding; the
-tests compare them with scipy's (``tests/test_dsp.py``). The simulator still uses
+Why not :mod:`scipy.signal` itself: in SciPy 1.17 (measured), importing it loads
+:mod:`scipy.stats` and rewrites every function's docstring for its array-API dispatch, 0.6–1.3 s
+of every ``motionlab run`` in a new process (``python -X importtime``), for five functions. Each
+function here follows scipy's algorithm and order of operations, so the numbers agree to
+rounding; the tests compare them with scipy's (``tests/test_dsp.py``). The simulator still uses
 :mod:`scipy.signal` (``cont2discrete``, ``lfilter``): it is not on a session's path.
 
 References: scipy.signal ``butter`` (analogue prototype, frequency pre-warping, bilinear

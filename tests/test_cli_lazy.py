@@ -62,7 +62,8 @@ def test_import_pipeline_leaves_scipy_signal_spatial_and_pandas_to_the_stages():
 
 def test_no_module_of_a_session_run_imports_scipy_signal():
     """Only the simulator (and its command) uses scipy.signal; the stages use motionlab.dsp, so
-    a run never pays its import (scipy.stats and the array-API docstrings, 0.6-1.3 s)."""
+    a run never pays its import (SciPy 1.17: scipy.stats and the array-API docstrings,
+    0.6-1.3 s)."""
     modules = sorted(
         ".".join(p.relative_to(ROOT).with_suffix("").parts).removesuffix(".__init__")
         for p in (ROOT / "motionlab").rglob("*.py")
