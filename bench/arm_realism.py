@@ -31,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 from real_people import qmt_session
-from real_world import seeds_arg
+from seeds import seeds_arg
 
 import motionlab.simulate as sim
 from motionlab import rotations as rot
@@ -149,13 +149,13 @@ def print_table(rows: list[tuple[str, dict]]) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="0-2")
+    ap.add_argument("--seeds", type=seeds_arg, default="0-2")
     ap.add_argument("--real-like", action="store_true", help="the real recording's movement")
     ap.add_argument("--follow", type=float, default=None, help="fraction followed (1: the bone)")
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA)
     args = ap.parse_args()
     warnings.simplefilter("ignore")
-    print_table(real_rows(args.data) + sim_rows(seeds_arg(args.seeds), args.real_like,
+    print_table(real_rows(args.data) + sim_rows(args.seeds, args.real_like,
                                                 args.follow))  # fmt: skip
 
 

@@ -37,7 +37,7 @@ from motionlab.protocol import load_protocol  # noqa: E402
 from motionlab.simulate import simulate  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from real_world import seeds_arg  # noqa: E402
+from seeds import seeds_arg  # noqa: E402
 
 PAIRS = {
     "sr-sl": ("shank_l", "shank_r"),
@@ -98,10 +98,10 @@ def run_one(kind: str, seed: int) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="0-4")
+    ap.add_argument("--seeds", type=seeds_arg, default="0-4")
     ap.add_argument("--kinds", default="normal,asymmetric,real_world")
     args = ap.parse_args()
-    rows = [run_one(k, s) for k in args.kinds.split(",") for s in seeds_arg(args.seeds)]
+    rows = [run_one(k, s) for k in args.kinds.split(",") for s in args.seeds]
     print("largest clock difference left over the walk (ms), per pair | network")
     print()
     print("| session | " + " | ".join(PAIRS) + " |")

@@ -40,7 +40,8 @@ import dataclasses
 import multiprocessing as mp
 
 import numpy as np
-from real_world import analyse_simulated, rmse, seeds_arg, task_errors
+from real_world import analyse_simulated, rmse, task_errors
+from seeds import seeds_arg
 
 import motionlab.simulate as sim
 from motionlab import rotations as rot
@@ -190,13 +191,13 @@ def diagnose(job: tuple[int, bool, bool, bool]) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--seeds", default="0-9")
+    ap.add_argument("--seeds", type=seeds_arg, default="0-9")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--clocks", action="store_true", help="also with perfect clocks")
     ap.add_argument("--no-follow", action="store_true", help="skip the full-follow variant")
     ap.add_argument("--exact", action="store_true", help="also the fit on exact orientations")
     args = ap.parse_args()
-    jobs = [(s, args.clocks, not args.no_follow, args.exact) for s in seeds_arg(args.seeds)]
+    jobs = [(s, args.clocks, not args.no_follow, args.exact) for s in args.seeds]
     with mp.get_context("spawn").Pool(args.workers) as pool:
         rows = pool.map(diagnose, jobs)
     for side, col in zip("rl", COLS, strict=True):

@@ -1,7 +1,7 @@
 """Gait acceptance tables (issue 15): events, spatio-temporal parameters, hip and pelvis angles on
 simulated gait with known truth, and the GPS of normal gait and of a knee flexion deficit.
 
-    python3 bench/gait.py [--seeds 0 1 2 3 4] [--variants normal asymmetric]
+    python3 bench/gait.py [--seeds 0-4] [--variants normal asymmetric]
 
 Each run: ``simulate("walk", 60 s, seed, "typical", gait=variant)`` (stand, then walk an ellipse
 with turns), the ``run`` pipeline in memory, :func:`motionlab.kinematics.gait.analyse_gait`.
@@ -40,6 +40,7 @@ from motionlab.simulate.errors import get_preset  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from joint_angles import shared_clock  # noqa: E402
+from seeds import seeds_arg  # noqa: E402
 
 TARGETS = {
     "IC med |err| ms": 20.0,
@@ -182,7 +183,7 @@ def run_one(seed: int, variant: str, one_clock: bool = False) -> dict[str, float
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
+    ap.add_argument("--seeds", type=seeds_arg, default="0-4")
     ap.add_argument("--variants", nargs="+", default=["normal", "asymmetric"])
     ap.add_argument(
         "--shared-clock",

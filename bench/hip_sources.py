@@ -1,6 +1,6 @@
 """Where the hip angle errors come from: one calibrated frame at a time replaced by the truth's.
 
-    python3 bench/hip_sources.py [--seeds 0 1 2 3 4] [--variants normal asymmetric]
+    python3 bench/hip_sources.py [--seeds 0-4] [--variants normal asymmetric]
 
 Each run: ``simulate("walk", 60 s, seed, "typical" on one clock, gait=variant)`` and the ``run``
 pipeline in memory without clock sync (as ``bench/gait.py --shared-clock``). Then the hip angles
@@ -38,6 +38,7 @@ from motionlab.simulate.errors import get_preset  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from joint_angles import shared_clock  # noqa: E402
+from seeds import seeds_arg  # noqa: E402
 
 ANGLES = ("flexion", "adduction", "rotation")
 
@@ -144,7 +145,7 @@ def run_one(seed: int, variant: str) -> dict[str, object]:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3, 4])
+    ap.add_argument("--seeds", type=seeds_arg, default="0-4")
     ap.add_argument("--variants", nargs="+", default=["normal", "asymmetric"])
     args = ap.parse_args()
     print(f"walk protocol, 60 s, preset typical on one clock, seeds {args.seeds}; hip RMSE (deg)")

@@ -46,6 +46,7 @@ from collections import Counter
 from functools import partial
 
 import numpy as np
+from seeds import seeds_arg
 
 from motionlab import rotations as rot
 from motionlab import timebase
@@ -271,7 +272,7 @@ def run_one(protocol: Protocol, seed: int, args) -> dict:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--protocols", default=",".join(PROTOCOLS))
-    parser.add_argument("--seeds", default="0,1,2")
+    parser.add_argument("--seeds", type=seeds_arg, default="0,1,2")
     parser.add_argument("--preset", default="typical")
     parser.add_argument("--mounting", type=float, default=30.0, help="largest mounting error (°)")
     parser.add_argument("--estimator", default="default")
@@ -280,7 +281,7 @@ def main() -> None:
         "--gap-max", type=float, default=DEFAULT_GAP_MAX, help="ingest --gap-max (s)"
     )
     args = parser.parse_args()
-    seeds = [int(s) for s in args.seeds.split(",")]
+    seeds = args.seeds
     args.estimator = get(args.estimator).name
     print(f"estimator: {args.estimator} ({'9' if args.mag else '6'}-D), preset {args.preset}, "
           f"mounting ≤ {args.mounting:g}°, gaps ≤ {args.gap_max:g} s filled, seeds {seeds}; "

@@ -42,7 +42,8 @@ import dataclasses
 import multiprocessing as mp
 
 import numpy as np
-from real_world import analyse_simulated, rmse, seeds_arg, target, task_errors
+from real_world import analyse_simulated, rmse, target, task_errors
+from seeds import seeds_arg
 
 from motionlab import rotations as rot
 from motionlab import stages
@@ -221,12 +222,12 @@ def diagnose(job: tuple[int, bool]) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--seeds", default="2,3,4,5,7,9")
+    ap.add_argument("--seeds", type=seeds_arg, default="2,3,4,5,7,9")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--all-cells", action="store_true", help="every knee cell, not only failing")
     ap.add_argument("--clocks", action="store_true", help="also run with perfect clocks")
     args = ap.parse_args()
-    jobs = [(s, args.clocks) for s in seeds_arg(args.seeds)]
+    jobs = [(s, args.clocks) for s in args.seeds]
     with mp.get_context("spawn").Pool(args.workers) as pool:
         rows = pool.map(diagnose, jobs)
     short = {"flexion": "flex", "adduction": "add", "rotation": "rot"}

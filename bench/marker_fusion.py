@@ -42,6 +42,7 @@ from marker_fusion_sim import (  # noqa: E402
     rms,
     truth_at_samples,
 )
+from seeds import seeds_arg  # noqa: E402
 
 from motionlab import rotations as rot  # noqa: E402
 from motionlab.fusion import estimate  # noqa: E402
@@ -186,13 +187,13 @@ def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA, help="BROAD folder")
     ap.add_argument("--filters", default=",".join(FILTERS))
-    ap.add_argument("--seeds", default="1,2,3")
+    ap.add_argument("--seeds", type=seeds_arg, default="1,2,3")
     ap.add_argument("--duration", type=float, default=60.0)
     ap.add_argument("--preset", default=CALIBRATED.name, help="typical-calibrated or a preset")
     ap.add_argument("--no-broad", action="store_true", help="only the simulated session")
     args = ap.parse_args(argv)
     filters = [f for f in args.filters.split(",") if f]
-    seeds = [int(s) for s in args.seeds.split(",") if s]
+    seeds = args.seeds
     preset = CALIBRATED if args.preset == CALIBRATED.name else get_preset(args.preset)
     print("\n".join(simulated(filters, seeds, args.duration, preset)))
     if not args.no_broad:

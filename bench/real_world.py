@@ -44,6 +44,7 @@ from collections import Counter
 
 import numpy as np
 from joint_angles import errors, joint_clocks, shared_clock
+from seeds import seeds_arg
 
 from motionlab.kinematics.joint_types import angle_columns
 from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
@@ -159,17 +160,10 @@ def _per_seed(results: list[dict]) -> None:
             print(f"| {r['seed']} | " + " | ".join(cells) + " |")
 
 
-def seeds_arg(text: str) -> list[int]:
-    if "-" in text:
-        a, b = text.split("-")
-        return list(range(int(a), int(b) + 1))
-    return [int(s) for s in text.split(",")]
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--protocols", default="walk,arm")
-    ap.add_argument("--seeds", default="0-9")
+    ap.add_argument("--seeds", type=seeds_arg, default="0-9")
     ap.add_argument("--preset", default="skin")
     ap.add_argument(
         "--old-simulator",
@@ -206,7 +200,7 @@ def main() -> None:
     jobs = [
         (p, s, args.preset, args.shared_clock, args.true_clocks, *flags, args.duration)
         for p in args.protocols.split(",")
-        for s in seeds_arg(args.seeds)
+        for s in args.seeds
     ]
     with mp.get_context("spawn").Pool(args.workers) as pool:
         results = pool.map(run_one, jobs)

@@ -34,6 +34,7 @@ from motionlab.simulate import simulate
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from joint_angles import errors, joint_clocks  # noqa: E402  (bench helper, same folder)
+from seeds import seeds_arg  # noqa: E402
 
 PRESET = "typical"
 MOUNTING_DEG = 30.0
@@ -69,10 +70,10 @@ def run_one(name: str, seed: int) -> dict[str, float]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--protocols", default="knee,elbow,lumbar")
-    parser.add_argument("--seeds", default="0,1,2")
+    parser.add_argument("--seeds", type=seeds_arg, default="0,1,2")
     parser.add_argument("--dry-run", action="store_true", help="print only, write no file")
     args = parser.parse_args()
-    seeds = [int(s) for s in args.seeds.split(",")]
+    seeds = args.seeds
     out: dict[str, dict] = {}
     print(f"motionlab {__version__}, preset {PRESET}, mounting ≤ {MOUNTING_DEG:g}°, seeds {seeds}")
     print("| protocol | angle | RMSE mean (deg) | RMSE max (deg) | runs |")

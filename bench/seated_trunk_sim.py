@@ -37,15 +37,10 @@ from motionlab.pipeline import PipelineOptions, analyse  # noqa: E402
 from motionlab.segments.trunk_axes import _frame  # noqa: E402  (the calibration's frames)
 from motionlab.simulate import simulate  # noqa: E402
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from seeds import seeds_arg  # noqa: E402
+
 PLANES = ("flexion", "lateral_bending", "axial_rotation")
-
-
-def seed_list(text: str) -> list[int]:
-    """``"0-9"`` or ``"0,2,5"`` → seeds."""
-    if "-" in text:
-        a, b = text.split("-")
-        return list(range(int(a), int(b) + 1))
-    return [int(x) for x in text.split(",")]
 
 
 def rest_convention_truth(truth, rest: tuple[float, float]) -> dict[str, np.ndarray]:
@@ -93,7 +88,7 @@ def run_seed(seed: int, rate: float, preset: str) -> dict[str, float | str]:
 
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--seeds", default="0-9")
+    ap.add_argument("--seeds", type=seeds_arg, default="0-9")
     ap.add_argument("--rate", type=float, default=50.0)
     ap.add_argument("--preset", default="typical")
     args = ap.parse_args(argv)
@@ -107,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
         "| lateral bending (rest) | axial rotation (rest) | grades | heading drift followed (deg) |"
     )
     print("|---|---|---|---|---|---|---|---|---|")
-    for seed in seed_list(args.seeds):
+    for seed in args.seeds:
         r = run_seed(seed, args.rate, args.preset)
         rows.append(r)
         print(f"| {seed} | " + " | ".join(f"{r[k]:.2f}" for k in keys)

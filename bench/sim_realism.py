@@ -31,8 +31,8 @@ import argparse
 from pathlib import Path
 
 import numpy as np
-from real_world import seeds_arg
 from scipy.signal import butter, find_peaks, sosfiltfilt
+from seeds import seeds_arg
 
 from motionlab import rotations as rot
 from motionlab.fusion import estimate
@@ -169,7 +169,7 @@ def print_table(rows: list[tuple[str, dict]]) -> None:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--seeds", default="0-2")
+    ap.add_argument("--seeds", type=seeds_arg, default="0-2")
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA)
     ap.add_argument("--no-sim", action="store_true", help="only the real recordings")
     args = ap.parse_args()
@@ -177,7 +177,7 @@ def main() -> None:
     if not rows:
         print(f"(no real recordings under {args.data}: the real rows are left out)")
     if not args.no_sim:
-        rows += sim_rows(seeds_arg(args.seeds))
+        rows += sim_rows(args.seeds)
     print_table(rows)
 
 

@@ -43,6 +43,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from seeds import seeds_arg
 
 from motionlab import rotations as rot
 from motionlab.fusion import estimate
@@ -352,7 +353,7 @@ def trunk_table(folder: Path) -> str:
 def main(argv: list[str] | None = None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA, help="folder of BROAD *.hdf5")
-    ap.add_argument("--seeds", default="1,2,3", help="simulation seeds")
+    ap.add_argument("--seeds", type=seeds_arg, default="1,2,3", help="simulation seeds")
     ap.add_argument("--estimator", default="madgwick", help="estimator for the BROAD table")
     ap.add_argument("--fused-estimator", default="default", help="estimator for simulations")
     ap.add_argument("--skip-sim", action="store_true")
@@ -362,7 +363,7 @@ def main(argv: list[str] | None = None) -> None:
     ap.add_argument("--sides", default=",".join(SIDES), help="simulated IMU sides")
     args = ap.parse_args(argv)
     if not args.skip_sim:
-        seeds = [int(s) for s in args.seeds.split(",") if s]
+        seeds = args.seeds
         print("Simulated knee sessions, 150 s, 5 IMUs (see the module docstring)\n")
         sides = tuple(x for x in args.sides.split(",") if x)
         print(simulated_table(seeds, args.fused_estimator, sides))
