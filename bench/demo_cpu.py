@@ -13,9 +13,9 @@ first: one BLAS thread). Whether numba compiles is up to its cache: empty it
 
 from __future__ import annotations
 
+import argparse
 import contextlib
 import os
-import sys
 import time
 from pathlib import Path
 
@@ -36,7 +36,9 @@ def _timed(self, name):
 
 
 def main() -> None:
-    out = Path(sys.argv[1])
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("outdir", type=Path, help="output folder, as `motionlab demo -o OUTDIR`")
+    out = ap.parse_args().outdir
     pipeline._Stages.__call__ = _timed
     rows = []
     for name, (file, protocol) in EXAMPLES.items():
