@@ -135,3 +135,32 @@ def test_vendor_orientations_follow_the_same_rule(tmp_path):
     save_session(session_with(with_quat(500, 700)), tmp_path / "v.h5")
     refused(cli(tmp_path, "fuse", "v.h5", "--orientation", "vendor", "-o", "o.h5"),
             "sensor shank_r: quat not a number from 5.00 s to 6.99 s")  # fmt: skip
+
+
+@pytest.mark.parametrize("compiled, note", [(False, True), (True, False), (None, False)])
+def test_the_first_fusion_after_installing_says_it_compiles(monkeypatch, compiled, note):
+    """The default smoother's kernels take numba about half a minute to compile on the first
+    run after installing: the progress line says so then, and only then (not when numba's cache
+    has them, nor when it cannot be asked)."""
+    from motionlab.fusion import _mekf_blocks
+
+    monkeypatch.setattr(_mekf_blocks, "compiled", lambda: compiled)
+    lines: list[str] = []
+
+    def progress(labels, text):
+        lines.append(text)
+        return labels
+
+    fuse_session(session_with(seconds=3.0), "smoother", magnetometer=False, progress=progress)
+    assert lines[0].startswith("fusing (smoother, 6-D)")
+    assert ("compiling it for this machine first" in lines[0]) is note
+    fuse_session(session_with(seconds=3.0), "madgwick", magnetometer=False, progress=progress)
+    assert "compiling" not in lines[1]  # other estimators compile in a second or two
+
+
+def test_numba_is_asked_whether_the_smoother_is_compiled():
+    """After a fusion with the smoother in this process its kernels are in numba's cache."""
+    from motionlab.fusion import _mekf_blocks
+
+    fuse_session(session_with(seconds=3.0), "smoother", magnetometer=False)
+    assert _mekf_blocks.compiled() in (True, None)  # None: a numba whose cache is not readable

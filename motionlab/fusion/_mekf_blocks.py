@@ -435,3 +435,14 @@ def backward(
         # block 0 (sample 0) carries its own correction: the instant's
         _error_angle(quat[0], qprior[0], e)
         _turn_row(field, 0, e[0], e[1], e[2], qs, r)
+
+
+def compiled() -> bool | None:
+    """Whether numba's on-disk cache holds code for :func:`forward` and :func:`backward` (so
+    this process loads them, as on every run after the first), ``False`` when numba will compile
+    them first (the first run after installing or upgrading: about half a minute), ``None`` when
+    this numba's cache cannot be asked (its cache classes are numba's own, not public API)."""
+    try:
+        return all(bool(k._cache._cache_file._load_index()) for k in (forward, backward))
+    except Exception:  # noqa: BLE001 - any failure to read numba's internals: unknown
+        return None

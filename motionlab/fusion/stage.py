@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from motionlab.errors import InputError
-from motionlab.fusion import registry
+from motionlab.fusion import _mekf_blocks, registry
 from motionlab.fusion.detect import rest_mask
 from motionlab.results import ClockFit, FusionEntry
 from motionlab.rotations import rotate
@@ -125,6 +125,8 @@ def fuse_session(
                 argument="force",
             )
     text = f"fusing ({est.name}{'' if magnetometer else ', 6-D'})"
+    if est.name == registry.DEFAULT_ESTIMATOR and _mekf_blocks.compiled() is False:
+        text += " - compiling it for this machine first (once after installing; 20-30 s)"
     done: dict[str, FusionEntry] = {}
     for label in progress(sensors, text) if progress else sensors:
         s = session.sensors[label]
