@@ -36,16 +36,14 @@ Needs no data files. Usage::
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import multiprocessing as mp
 
 import numpy as np
-from real_world import analyse_simulated, rmse, task_errors
+from real_world import analyse_simulated, rmse, task_errors, with_true_mountings
 from seeds import seeds_arg
 
 import motionlab.simulate as sim
 from motionlab import rotations as rot
-from motionlab import stages
 from motionlab.kinematics.joint_angles import joint_angles
 from motionlab.protocol import axis_vector, load_protocol
 from motionlab.segments import movement, sensor_for_segment
@@ -170,14 +168,7 @@ def diagnose(job: tuple[int, bool, bool, bool]) -> dict:
     row["skin"] = _skin_only(truth, protocol, session, tasks)
     if exact_too:
         row["exact"] = {n: _exact(truth, protocol, session, n, tasks) for n in ELBOWS}
-    for name in ELBOWS:
-        joint = protocol.joints[name]
-        for seg in (joint.proximal, joint.distal):
-            label = sensor_for_segment(session, seg)
-            cal.segments[seg] = dataclasses.replace(
-                cal.segments[seg], mounting=rot.conj(truth.sensors[label]["mounting"])
-            )
-    stages.angles(session, force=True)
+    with_true_mountings(session, truth, protocol, ELBOWS)
     err_m = task_errors(session, truth, protocol, stamps, tasks)
     row["true_mnt"] = {c: rmse(err_m[c]) for c in COLS}
     if follow_too:

@@ -42,11 +42,10 @@ import dataclasses
 import multiprocessing as mp
 
 import numpy as np
-from real_world import analyse_simulated, rmse, target, task_errors
+from real_world import analyse_simulated, rmse, target, task_errors, with_true_mountings
 from seeds import seeds_arg
 
 from motionlab import rotations as rot
-from motionlab import stages
 from motionlab.kinematics.joint_angles import decompose_joint
 from motionlab.kinematics.joint_types import angle_columns
 from motionlab.protocol import load_protocol
@@ -191,14 +190,7 @@ def diagnose(job: tuple[int, bool]) -> dict:
             else ("?", np.nan, np.nan)
         )
     # the true mountings in place of the calibrated ones
-    for name in KNEES:
-        joint = protocol.joints[name]
-        for seg in (joint.proximal, joint.distal):
-            label = sensor_for_segment(session, seg)
-            cal.segments[seg] = dataclasses.replace(
-                cal.segments[seg], mounting=rot.conj(truth.sensors[label]["mounting"])
-            )
-    stages.angles(session, force=True)
+    with_true_mountings(session, truth, protocol, KNEES)
     err_m = task_errors(session, truth, protocol, stamps, tasks)
     row["true_mnt"] = {c: rmse(err_m[c]) for c in cols}
     row["grade"] = {}

@@ -46,6 +46,9 @@ import numpy as np
 from joint_angles import errors, joint_clocks, shared_clock
 from seeds import seeds_arg
 
+from motionlab import rotations as rot
+from motionlab import stages
+from motionlab.binding import sensor_for_segment
 from motionlab.kinematics.joint_types import angle_columns
 from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
 from motionlab.protocol import load_protocol
@@ -92,6 +95,20 @@ def task_errors(session, truth, protocol, stamps: dict, tasks: list) -> dict[str
     proximal sensor's clock."""
     clocks = joint_clocks(session, truth, stamps, protocol)
     return errors(session.results.angles.columns(), truth, clocks, protocol, tasks)
+
+
+def with_true_mountings(session, truth, protocol, joints) -> None:
+    """``joints``' segments given their sensors' true mountings in place of the calibrated ones,
+    and the angles computed again (in place): what is left of the error is not the calibration's."""
+    cal = session.results.calibration
+    for name in joints:
+        joint = protocol.joints[name]
+        for seg in (joint.proximal, joint.distal):
+            label = sensor_for_segment(session, seg)
+            cal.segments[seg] = dataclasses.replace(
+                cal.segments[seg], mounting=rot.conj(truth.sensors[label]["mounting"])
+            )
+    stages.angles(session, force=True)
 
 
 def rmse(e: np.ndarray) -> float:
