@@ -53,7 +53,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.optimize import least_squares
 
-from motionlab.clocksync._kernels import pair_residuals
+from motionlab.clocksync._kernels import pair_residual_rows, pair_residuals
 from motionlab.clocksync.common import (
     BLOCK_S,
     MAX_OFFSET_S,
@@ -285,17 +285,22 @@ class Pair:
         return float(np.sum(self.residuals(p) ** 2))
 
     def costs(self, ps: np.ndarray, lanes: int = 8) -> np.ndarray:
-        """:meth:`cost` at each row of ``ps`` (G, 14), the same numbers, ``lanes`` rows low-passed
-        together (:func:`motionlab.dsp.filtfilt_at`)."""
-        out = []
-        for chunk in np.array_split(ps, -(-len(ps) // lanes)):
-            res = np.empty((len(chunk), len(self.use)))
-            for lo, hi, at, use in self.parts:
-                rows = np.vstack([self._unfiltered(np.asarray(p, float), 0, lo, hi)[0]
-                                  for p in chunk])  # fmt: skip
-                self._filter(rows, use, res[:, at])
-            out.append(np.sum(res**2, axis=1))
-        return np.concatenate(out)
+        """:meth:`cost` at each row of ``ps`` (G, 14), the same numbers: every row's residuals
+        in one pass over the samples (:func:`._kernels.pair_residual_rows`, the reference's
+        side once for rows that share its lever and bias), ``lanes`` rows low-passed together
+        (:func:`motionlab.dsp.filtfilt_at`)."""
+        ps = np.ascontiguousarray(ps, dtype=float)
+        own = np.r_[0:3, 6:9]  # the parameters of the reference's side
+        same_body = np.r_[False, (ps[1:, own] == ps[:-1, own]).all(axis=1)]
+        res = np.empty((len(ps), len(self.use)))
+        sp = self.spline
+        for lo, hi, at, use in self.parts:
+            rows = np.empty((len(ps), hi - lo))
+            pair_residual_rows(self.t[lo:hi], self.t_mid, sp.x, sp.c, self.ref[lo:hi], ps,
+                               same_body, rows)  # fmt: skip
+            for first in range(0, len(ps), lanes):
+                self._filter(rows[first : first + lanes], use, res[first : first + lanes, at])
+        return np.sum(res**2, axis=1)
 
     def body(self, c0: float) -> np.ndarray:
         """r₁, r₂ (m), b₁, b₂ (m/s²) for the offset ``c0`` (s) and no drift."""
