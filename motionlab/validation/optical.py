@@ -28,6 +28,7 @@ from motionlab import rotations as rot
 from motionlab.dsp import butter, sosfiltfilt
 from motionlab.errors import InputError
 from motionlab.timebase import runs
+from motionlab.validation._kernels import cross_covariance
 
 MIN_MARKERS = 3
 DEFAULT_MAX_GAP_S = 0.1
@@ -83,21 +84,16 @@ def rigid_fit(
     (N,) in the units of the points. Frames with fewer than three usable markers, or with the
     usable markers on a line, are NaN.
     """
-    shape = np.asarray(shape, dtype=float)
-    points = np.asarray(points, dtype=float)
+    shape = np.ascontiguousarray(shape, dtype=float)  # one compiled layout for the kernel
+    points = np.ascontiguousarray(points, dtype=float)
     ok = np.isfinite(points).all(axis=-1) & np.isfinite(shape).all(axis=-1)
     if visible is not None:
         ok &= np.asarray(visible, dtype=bool)
-    w = ok.astype(float)
-    n_ok = w.sum(axis=1)
-    p = np.where(ok[..., None], points, 0.0)
+    n_ok = ok.sum(axis=1)
     s = np.where(np.isfinite(shape), shape, 0.0)
     denom = np.maximum(n_ok, 1.0)[:, None]
-    cp = np.einsum("nk,nkj->nj", w, p) / denom
-    cs = (w @ s) / denom
-    dp = (p - cp[:, None]) * w[..., None]
-    ds = s[None] - cs[:, None]
-    h = np.einsum("nki,nkj->nij", ds, dp)  # Σ (s - s̄)(p - p̄)ᵀ
+    cp, cs, h = np.empty((len(ok), 3)), np.empty((len(ok), 3)), np.empty((len(ok), 3, 3))
+    cross_covariance(shape, points, ok, cp, cs, h)  # the centroids, Σ (s - s̄)(p - p̄)ᵀ
     u, sv, vt = np.linalg.svd(h)
     d = np.sign(np.linalg.det(np.swapaxes(vt, 1, 2) @ np.swapaxes(u, 1, 2)))
     d = np.where(d == 0, 1.0, d)
