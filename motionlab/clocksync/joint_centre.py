@@ -275,7 +275,7 @@ class Pair:
         template had a real-like terminal swing; a real accelerometer's bias is < 1 m/s².
         """
         if not jacobian:
-            return np.r_[self.residuals(p), p[6:12] / BIAS_PRIOR_M_S2]
+            return np.concatenate((self.residuals(p), p[6:12] / BIAS_PRIOR_M_S2))
         prior = np.zeros((6, len(p)))
         prior[:, 6:12] = np.eye(6) / BIAS_PRIOR_M_S2
         return np.vstack([self.residuals(p, True, columns), prior[:, :columns]])
@@ -306,9 +306,9 @@ class Pair:
         """r₁, r₂ (m), b₁, b₂ (m/s²) for the offset ``c0`` (s) and no drift."""
         fixed = np.array([c0, 0.0])
         sol = lm(
-            lambda q: self._with_prior(np.r_[q, fixed]),
+            lambda q: self._with_prior(np.concatenate((q, fixed))),
             np.zeros(BODY),
-            lambda q: self._with_prior(np.r_[q, fixed], True, BODY),
+            lambda q: self._with_prior(np.concatenate((q, fixed)), True, BODY),
             x_scale=0.1,
         )
         return sol.x
@@ -393,7 +393,7 @@ def _offset_fit(pair: Pair, body: np.ndarray, c_start: np.ndarray):
         key = float(c[0])
         if key not in last:
             last.clear()
-            last[key] = pair.offset_residuals(np.r_[body, c, 0.0])
+            last[key] = pair.offset_residuals(np.concatenate((body, c, (0.0,))))
         return last[key]
 
     return least_squares(lambda c: at(c)[0], c_start, jac=lambda c: at(c)[1][:, None], x_scale=0.01)
