@@ -127,8 +127,8 @@ def pair_residual_rows(
     start = np.zeros(n_rows, dtype=np.int64)  # each row's spline interval, walked forward
     if len(t):
         for g in range(n_rows):
-            x0 = t[0] + ps[g, 12] + ps[g, 13] * (t[0] - t_mid)
-            start[g] = min(max(np.searchsorted(knots, x0) - 1, 0), m - 1)
+            first = t[0] + ps[g, 12] + ps[g, 13] * (t[0] - t_mid)
+            start[g] = min(max(np.searchsorted(knots, first) - 1, 0), m - 1)
     n1 = 0.0
     for k in range(len(t)):
         w0, w1, w2 = ref[k, 3], ref[k, 4], ref[k, 5]
