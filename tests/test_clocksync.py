@@ -322,6 +322,9 @@ def test_costs_at_many_offsets_are_each_cost():
     ps = np.tile(p, (21, 1))
     ps[:, 12] = np.linspace(-0.05, 0.05, 21)
     np.testing.assert_array_equal(pair.costs(ps), [pair.cost(q) for q in ps])
+    ps[7:, :3] *= 1.5  # rows with other levers and biases on the reference's side too
+    ps[15:, 6:9] -= 0.2
+    np.testing.assert_array_equal(pair.costs(ps), [pair.cost(q) for q in ps])
 
 
 def test_residuals_near_the_used_samples_only_are_those_of_the_whole_recording():

@@ -38,6 +38,29 @@ def test_rigid_fit_recovers_a_hand_made_pose_with_three_or_more_markers():
     assert res[0] < 1e-12
 
 
+def test_rigid_fit_cross_covariance_is_the_masked_einsum():
+    """The compiled centroids and cross-covariance of the seen markers are numpy's masked
+    formulation (centroids to the bit: the mask's weights are 0 and 1)."""
+    from motionlab.validation._kernels import cross_covariance
+
+    q, t = _pose(500, seed=3)
+    pts = rot.rotate(q[:, None], SHAPE) + t[:, None]
+    pts += np.random.default_rng(4).normal(0.0, 1e-3, pts.shape)
+    pts[np.random.default_rng(5).random(pts.shape[:2]) < 0.2] = np.nan
+    ok = np.isfinite(pts).all(axis=-1)
+    w = ok.astype(float)
+    denom = np.maximum(w.sum(axis=1), 1.0)[:, None]
+    p = np.where(ok[..., None], pts, 0.0)
+    cp = np.einsum("nk,nkj->nj", w, p) / denom
+    cs = (w @ SHAPE) / denom
+    h = np.einsum("nki,nkj->nij", SHAPE[None] - cs[:, None], (p - cp[:, None]) * w[..., None])
+    out = np.empty((500, 3)), np.empty((500, 3)), np.empty((500, 3, 3))
+    cross_covariance(SHAPE, pts, ok, *out)
+    np.testing.assert_array_equal(out[0], cp)
+    np.testing.assert_array_equal(out[1], cs)
+    np.testing.assert_allclose(out[2], h, rtol=0, atol=1e-18)
+
+
 def test_rigid_fit_residual_of_a_saddle_is_its_height():
     a, d = 0.05, 0.002
     shape = np.array([[a, a, 0], [-a, -a, 0], [a, -a, 0], [-a, a, 0]])

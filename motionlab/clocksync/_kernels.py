@@ -104,3 +104,67 @@ def pair_residuals(
             jac[13, k] = dc * (t[k] - t_mid)
         else:
             jac[0, k] = dc
+
+
+@numba.njit(cache=True)
+def pair_residual_rows(
+    t: np.ndarray,
+    t_mid: float,
+    knots: np.ndarray,
+    coef: np.ndarray,
+    ref: np.ndarray,
+    ps: np.ndarray,
+    same_body: np.ndarray,
+    res: np.ndarray,
+) -> None:
+    """:func:`pair_residuals`' residuals (no Jacobian) at each row of ``ps`` (G, 14) into the
+    rows of ``res`` (G, N), the same numbers by the same operations, all rows sample by sample:
+    the reference's ``‖f_J1‖`` is computed once for consecutive rows with the same levers and
+    biases (``same_body[g]``: row ``g``'s ``r₁`` and ``b₁`` are row ``g − 1``'s), as on the grid
+    of offsets :meth:`~motionlab.clocksync.joint_centre.Pair.costs` searches."""
+    m = coef.shape[1]
+    n_rows = ps.shape[0]
+    start = np.zeros(n_rows, dtype=np.int64)  # each row's spline interval, walked forward
+    if len(t):
+        for g in range(n_rows):
+            first = t[0] + ps[g, 12] + ps[g, 13] * (t[0] - t_mid)
+            start[g] = min(max(np.searchsorted(knots, first) - 1, 0), m - 1)
+    n1 = 0.0
+    for k in range(len(t)):
+        w0, w1, w2 = ref[k, 3], ref[k, 4], ref[k, 5]
+        a0, a1, a2 = ref[k, 6], ref[k, 7], ref[k, 8]
+        for g in range(n_rows):
+            p = ps[g]
+            if g == 0 or not same_body[g]:  # reference: f_J1
+                u0, u1, u2 = _cross3(w0, w1, w2, p[0], p[1], p[2])
+                c0, c1, c2 = _cross3(a0, a1, a2, p[0], p[1], p[2])
+                e0, e1, e2 = _cross3(w0, w1, w2, u0, u1, u2)
+                f0 = ref[k, 0] + p[6] + c0 + e0
+                f1 = ref[k, 1] + p[7] + c1 + e1
+                f2 = ref[k, 2] + p[8] + c2 + e2
+                n1 = np.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
+            x = t[k] + (p[12] + p[13] * (t[k] - t_mid))
+            i = start[g]
+            while i > 0 and x < knots[i]:
+                i -= 1
+            while i < m - 1 and x >= knots[i + 1]:
+                i += 1
+            start[g] = i
+            s = x - knots[i]
+            v0 = ((coef[0, i, 0] * s + coef[1, i, 0]) * s + coef[2, i, 0]) * s + coef[3, i, 0]
+            v1 = ((coef[0, i, 1] * s + coef[1, i, 1]) * s + coef[2, i, 1]) * s + coef[3, i, 1]
+            v2 = ((coef[0, i, 2] * s + coef[1, i, 2]) * s + coef[2, i, 2]) * s + coef[3, i, 2]
+            x0 = ((coef[0, i, 3] * s + coef[1, i, 3]) * s + coef[2, i, 3]) * s + coef[3, i, 3]
+            x1 = ((coef[0, i, 4] * s + coef[1, i, 4]) * s + coef[2, i, 4]) * s + coef[3, i, 4]
+            x2 = ((coef[0, i, 5] * s + coef[1, i, 5]) * s + coef[2, i, 5]) * s + coef[3, i, 5]
+            y0 = ((coef[0, i, 6] * s + coef[1, i, 6]) * s + coef[2, i, 6]) * s + coef[3, i, 6]
+            y1 = ((coef[0, i, 7] * s + coef[1, i, 7]) * s + coef[2, i, 7]) * s + coef[3, i, 7]
+            y2 = ((coef[0, i, 8] * s + coef[1, i, 8]) * s + coef[2, i, 8]) * s + coef[3, i, 8]
+            # sensor 2: f_J2
+            u0, u1, u2 = _cross3(x0, x1, x2, p[3], p[4], p[5])
+            c0, c1, c2 = _cross3(y0, y1, y2, p[3], p[4], p[5])
+            e0, e1, e2 = _cross3(x0, x1, x2, u0, u1, u2)
+            g0 = v0 + p[9] + c0 + e0
+            g1 = v1 + p[10] + c1 + e1
+            g2 = v2 + p[11] + c2 + e2
+            res[g, k] = n1 - np.sqrt(g0 * g0 + g1 * g1 + g2 * g2)

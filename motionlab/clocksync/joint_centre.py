@@ -53,7 +53,7 @@ import numpy as np
 from scipy.interpolate import CubicSpline
 from scipy.optimize import least_squares
 
-from motionlab.clocksync._kernels import pair_residuals
+from motionlab.clocksync._kernels import pair_residual_rows, pair_residuals
 from motionlab.clocksync.common import (
     BLOCK_S,
     MAX_OFFSET_S,
@@ -275,7 +275,7 @@ class Pair:
         template had a real-like terminal swing; a real accelerometer's bias is < 1 m/s².
         """
         if not jacobian:
-            return np.r_[self.residuals(p), p[6:12] / BIAS_PRIOR_M_S2]
+            return np.concatenate((self.residuals(p), p[6:12] / BIAS_PRIOR_M_S2))
         prior = np.zeros((6, len(p)))
         prior[:, 6:12] = np.eye(6) / BIAS_PRIOR_M_S2
         return np.vstack([self.residuals(p, True, columns), prior[:, :columns]])
@@ -285,25 +285,30 @@ class Pair:
         return float(np.sum(self.residuals(p) ** 2))
 
     def costs(self, ps: np.ndarray, lanes: int = 8) -> np.ndarray:
-        """:meth:`cost` at each row of ``ps`` (G, 14), the same numbers, ``lanes`` rows low-passed
-        together (:func:`motionlab.dsp.filtfilt_at`)."""
-        out = []
-        for chunk in np.array_split(ps, -(-len(ps) // lanes)):
-            res = np.empty((len(chunk), len(self.use)))
-            for lo, hi, at, use in self.parts:
-                rows = np.vstack([self._unfiltered(np.asarray(p, float), 0, lo, hi)[0]
-                                  for p in chunk])  # fmt: skip
-                self._filter(rows, use, res[:, at])
-            out.append(np.sum(res**2, axis=1))
-        return np.concatenate(out)
+        """:meth:`cost` at each row of ``ps`` (G, 14), the same numbers: every row's residuals
+        in one pass over the samples (:func:`._kernels.pair_residual_rows`, the reference's
+        side once for rows that share its lever and bias), ``lanes`` rows low-passed together
+        (:func:`motionlab.dsp.filtfilt_at`)."""
+        ps = np.ascontiguousarray(ps, dtype=float)
+        own = np.r_[0:3, 6:9]  # the parameters of the reference's side
+        same_body = np.r_[False, (ps[1:, own] == ps[:-1, own]).all(axis=1)]
+        res = np.empty((len(ps), len(self.use)))
+        sp = self.spline
+        for lo, hi, at, use in self.parts:
+            rows = np.empty((len(ps), hi - lo))
+            pair_residual_rows(self.t[lo:hi], self.t_mid, sp.x, sp.c, self.ref[lo:hi], ps,
+                               same_body, rows)  # fmt: skip
+            for first in range(0, len(ps), lanes):
+                self._filter(rows[first : first + lanes], use, res[first : first + lanes, at])
+        return np.sum(res**2, axis=1)
 
     def body(self, c0: float) -> np.ndarray:
         """r₁, r₂ (m), b₁, b₂ (m/s²) for the offset ``c0`` (s) and no drift."""
         fixed = np.array([c0, 0.0])
         sol = lm(
-            lambda q: self._with_prior(np.r_[q, fixed]),
+            lambda q: self._with_prior(np.concatenate((q, fixed))),
             np.zeros(BODY),
-            lambda q: self._with_prior(np.r_[q, fixed], True, BODY),
+            lambda q: self._with_prior(np.concatenate((q, fixed)), True, BODY),
             x_scale=0.1,
         )
         return sol.x
@@ -388,7 +393,7 @@ def _offset_fit(pair: Pair, body: np.ndarray, c_start: np.ndarray):
         key = float(c[0])
         if key not in last:
             last.clear()
-            last[key] = pair.offset_residuals(np.r_[body, c, 0.0])
+            last[key] = pair.offset_residuals(np.concatenate((body, c, (0.0,))))
         return last[key]
 
     return least_squares(lambda c: at(c)[0], c_start, jac=lambda c: at(c)[1][:, None], x_scale=0.01)

@@ -28,6 +28,7 @@ from motionlab import rotations as rot
 from motionlab.dsp import butter, sosfiltfilt
 from motionlab.errors import InputError
 from motionlab.timebase import runs
+from motionlab.validation._kernels import cross_covariance
 
 MIN_MARKERS = 3
 DEFAULT_MAX_GAP_S = 0.1
@@ -74,40 +75,39 @@ class ClusterTrack:
 
 
 def rigid_fit(
-    shape: np.ndarray, points: np.ndarray, visible: np.ndarray | None = None
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    shape: np.ndarray,
+    points: np.ndarray,
+    visible: np.ndarray | None = None,
+    residual: bool = True,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     """Least-squares rigid transform of ``shape`` (K, 3) onto ``points`` (N, K, 3), per frame.
 
     ``points ≈ R shape + t`` over the markers ``visible`` (N, K) in each frame (default: the
     finite ones). Returns ``quat`` (N, 4) of R, ``origin`` (N, 3) = t, and the RMS residual
-    (N,) in the units of the points. Frames with fewer than three usable markers, or with the
-    usable markers on a line, are NaN.
+    (N,) in the units of the points (``None`` with ``residual=False``: a fit whose residual is
+    not used, as the shape's iterations, skips it). Frames with fewer than three usable
+    markers, or with the usable markers on a line, are NaN.
     """
-    shape = np.asarray(shape, dtype=float)
-    points = np.asarray(points, dtype=float)
+    shape = np.ascontiguousarray(shape, dtype=float)  # one compiled layout for the kernel
+    points = np.ascontiguousarray(points, dtype=float)
     ok = np.isfinite(points).all(axis=-1) & np.isfinite(shape).all(axis=-1)
     if visible is not None:
         ok &= np.asarray(visible, dtype=bool)
-    w = ok.astype(float)
-    n_ok = w.sum(axis=1)
-    p = np.where(ok[..., None], points, 0.0)
+    n_ok = ok.sum(axis=1)
     s = np.where(np.isfinite(shape), shape, 0.0)
     denom = np.maximum(n_ok, 1.0)[:, None]
-    cp = np.einsum("nk,nkj->nj", w, p) / denom
-    cs = (w @ s) / denom
-    dp = (p - cp[:, None]) * w[..., None]
-    ds = s[None] - cs[:, None]
-    h = np.einsum("nki,nkj->nij", ds, dp)  # Σ (s - s̄)(p - p̄)ᵀ
+    cp, cs, h = np.empty((len(ok), 3)), np.empty((len(ok), 3)), np.empty((len(ok), 3, 3))
+    cross_covariance(shape, points, ok, cp, cs, h)  # the centroids, Σ (s - s̄)(p - p̄)ᵀ
     u, sv, vt = np.linalg.svd(h)
-    d = np.sign(np.linalg.det(np.swapaxes(vt, 1, 2) @ np.swapaxes(u, 1, 2)))
-    d = np.where(d == 0, 1.0, d)
     fix = np.ones((len(h), 3))
-    fix[:, 2] = d
+    fix[:, 2] = np.where(_det3(vt) * _det3(u) < 0, -1.0, 1.0)  # the sign of det(V Uᵀ)
     r = np.swapaxes(vt, 1, 2) @ (fix[:, :, None] * np.swapaxes(u, 1, 2))
     t = cp - np.einsum("nij,nj->ni", r, cs)
-    fitted = np.einsum("nij,kj->nki", r, s) + t[:, None]
-    sq = np.sum((fitted - points) ** 2, axis=-1)
-    residual = np.sqrt(np.sum(np.where(ok, sq, 0.0), axis=1) / denom[:, 0])
+    rms = None
+    if residual:
+        fitted = np.einsum("nij,kj->nki", r, s) + t[:, None]
+        sq = np.sum((fitted - points) ** 2, axis=-1)
+        rms = np.sqrt(np.sum(np.where(ok, sq, 0.0), axis=1) / denom[:, 0])
     with np.errstate(invalid="ignore", divide="ignore"):
         planar = sv[:, 1] > _COLLINEAR * sv[:, 0]
     good = (n_ok >= MIN_MARKERS) & planar
@@ -115,8 +115,19 @@ def rigid_fit(
     if good.any():
         quat[good] = rot.from_matrix(r[good])
     t[~good] = np.nan
-    residual[~good] = np.nan
-    return rot.make_continuous(quat), t, residual
+    if rms is not None:
+        rms[~good] = np.nan
+    return rot.make_continuous(quat), t, rms
+
+
+def _det3(m: np.ndarray) -> np.ndarray:
+    """Determinants (N,) of 3 × 3 matrices (N, 3, 3) by cofactors: for the SVD's orthogonal
+    factors (±1) the sign is that of ``np.linalg.det``'s LU, without its cost."""
+    return (
+        m[:, 0, 0] * (m[:, 1, 1] * m[:, 2, 2] - m[:, 1, 2] * m[:, 2, 1])
+        - m[:, 0, 1] * (m[:, 1, 0] * m[:, 2, 2] - m[:, 1, 2] * m[:, 2, 0])
+        + m[:, 0, 2] * (m[:, 1, 0] * m[:, 2, 1] - m[:, 1, 1] * m[:, 2, 0])
+    )
 
 
 def _principal_axes(shape: np.ndarray) -> np.ndarray:
@@ -157,7 +168,7 @@ def cluster_shape(points: np.ndarray) -> np.ndarray:
     shape = np.where(seen[best][:, None], points[best], np.nan)
     for _ in range(_PROCRUSTES_ITERATIONS):
         shape = _principal_axes(shape)
-        q, t, _ = rigid_fit(shape, points)
+        q, t, _ = rigid_fit(shape, points, residual=False)
         local = local_coordinates(q, t, points)
         seen_once = np.isfinite(local).all(axis=-1).any(axis=0)
         shape[seen_once] = np.nanmedian(local[:, seen_once], axis=0)

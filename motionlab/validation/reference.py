@@ -192,7 +192,7 @@ def _static_pose(static: MarkerSet, seg: SegmentMap, o: OpticalSegment) -> tuple
             remedy="record the static trial with the same cluster labels",
         )
     idx = [static.labels.index(m) for m in seg.cluster]
-    quat, origin, _ = rigid_fit(o.info.shape_m, static.positions[:, idx])
+    quat, origin, _ = rigid_fit(o.info.shape_m, static.positions[:, idx], residual=False)
     return quat, origin
 
 
