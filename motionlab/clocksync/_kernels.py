@@ -11,6 +11,17 @@ def _cross3(a0, a1, a2, b0, b1, b2):
     return a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0
 
 
+@numba.njit(cache=True, inline="always")
+def _at_centre(s0, s1, s2, w0, w1, w2, a0, a1, a2, r0, r1, r2, b0, b1, b2):
+    """``f_J = f + b + ω̇ × r + ω × (ω × r)``: a sensor's specific force ``f`` (``s``) moved by
+    the lever ``r`` to the joint centre with its rate ``ω`` (``w``) and angular acceleration
+    ``ω̇`` (``a``), plus the bias ``b``; added in that order."""
+    u0, u1, u2 = _cross3(w0, w1, w2, r0, r1, r2)
+    c0, c1, c2 = _cross3(a0, a1, a2, r0, r1, r2)
+    e0, e1, e2 = _cross3(w0, w1, w2, u0, u1, u2)
+    return s0 + b0 + c0 + e0, s1 + b1 + c1 + e1, s2 + b2 + c2 + e2
+
+
 @numba.njit(cache=True)
 def pair_residuals(
     t: np.ndarray,
@@ -58,22 +69,17 @@ def pair_residuals(
         # reference: f_J1
         w0, w1, w2 = ref[k, 3], ref[k, 4], ref[k, 5]
         a0, a1, a2 = ref[k, 6], ref[k, 7], ref[k, 8]
-        u0, u1, u2 = _cross3(w0, w1, w2, p[0], p[1], p[2])
-        c0, c1, c2 = _cross3(a0, a1, a2, p[0], p[1], p[2])
-        e0, e1, e2 = _cross3(w0, w1, w2, u0, u1, u2)
-        f0 = ref[k, 0] + p[6] + c0 + e0
-        f1 = ref[k, 1] + p[7] + c1 + e1
-        f2 = ref[k, 2] + p[8] + c2 + e2
+        s0, s1, s2 = ref[k, 0], ref[k, 1], ref[k, 2]
+        f0, f1, f2 = _at_centre(
+            s0, s1, s2, w0, w1, w2, a0, a1, a2, p[0], p[1], p[2], p[6], p[7], p[8]
+        )
         n1 = np.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
         # sensor 2: f_J2
         x0, x1, x2 = v[3], v[4], v[5]
         y0, y1, y2 = v[6], v[7], v[8]
-        u0, u1, u2 = _cross3(x0, x1, x2, p[3], p[4], p[5])
-        c0, c1, c2 = _cross3(y0, y1, y2, p[3], p[4], p[5])
-        e0, e1, e2 = _cross3(x0, x1, x2, u0, u1, u2)
-        g0 = v[0] + p[9] + c0 + e0
-        g1 = v[1] + p[10] + c1 + e1
-        g2 = v[2] + p[11] + c2 + e2
+        g0, g1, g2 = _at_centre(
+            v[0], v[1], v[2], x0, x1, x2, y0, y1, y2, p[3], p[4], p[5], p[9], p[10], p[11]
+        )
         n2 = np.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
         res[k] = n1 - n2
         if not with_jac:
@@ -136,12 +142,10 @@ def pair_residual_rows(
         for g in range(n_rows):
             p = ps[g]
             if g == 0 or not same_body[g]:  # reference: f_J1
-                u0, u1, u2 = _cross3(w0, w1, w2, p[0], p[1], p[2])
-                c0, c1, c2 = _cross3(a0, a1, a2, p[0], p[1], p[2])
-                e0, e1, e2 = _cross3(w0, w1, w2, u0, u1, u2)
-                f0 = ref[k, 0] + p[6] + c0 + e0
-                f1 = ref[k, 1] + p[7] + c1 + e1
-                f2 = ref[k, 2] + p[8] + c2 + e2
+                s0, s1, s2 = ref[k, 0], ref[k, 1], ref[k, 2]
+                f0, f1, f2 = _at_centre(
+                    s0, s1, s2, w0, w1, w2, a0, a1, a2, p[0], p[1], p[2], p[6], p[7], p[8]
+                )
                 n1 = np.sqrt(f0 * f0 + f1 * f1 + f2 * f2)
             x = t[k] + (p[12] + p[13] * (t[k] - t_mid))
             i = start[g]
@@ -161,10 +165,7 @@ def pair_residual_rows(
             y1 = ((coef[0, i, 7] * s + coef[1, i, 7]) * s + coef[2, i, 7]) * s + coef[3, i, 7]
             y2 = ((coef[0, i, 8] * s + coef[1, i, 8]) * s + coef[2, i, 8]) * s + coef[3, i, 8]
             # sensor 2: f_J2
-            u0, u1, u2 = _cross3(x0, x1, x2, p[3], p[4], p[5])
-            c0, c1, c2 = _cross3(y0, y1, y2, p[3], p[4], p[5])
-            e0, e1, e2 = _cross3(x0, x1, x2, u0, u1, u2)
-            g0 = v0 + p[9] + c0 + e0
-            g1 = v1 + p[10] + c1 + e1
-            g2 = v2 + p[11] + c2 + e2
+            g0, g1, g2 = _at_centre(
+                v0, v1, v2, x0, x1, x2, y0, y1, y2, p[3], p[4], p[5], p[9], p[10], p[11]
+            )
             res[g, k] = n1 - np.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
