@@ -7,7 +7,8 @@ by the calibrated mounting) → events per side (:mod:`.gait_events`; turns from
 angular velocity of the pelvis sensor, else of the side's shank sensor) → strides and
 spatio-temporal parameters (:mod:`.spatiotemporal`) → pelvis angles relative to the walking
 direction (:mod:`.pelvis`, with a pelvis sensor) → per side the mean curve over kept strides of
-pelvis, hip and knee angles → GPS and MAP (:mod:`.gps`), only from determined variables and
+pelvis, hip and knee angles (low-passed at 6 Hz first, as the metrics take them:
+:func:`.metrics.smoothed`) → GPS and MAP (:mod:`.gps`), only from determined variables and
 sides with enough strides (:func:`.gps.gated_profile`).
 
 A session without a gait task, without shank sensors or without strides gives
@@ -30,7 +31,7 @@ from motionlab.kinematics.gps import (
     movement_analysis_profile,
     variable_grades,
 )
-from motionlab.kinematics.metrics import is_gait, shank_angular_velocity
+from motionlab.kinematics.metrics import is_gait, shank_angular_velocity, smoothed
 from motionlab.kinematics.pelvis import (
     PELVIS_COLUMNS,
     pelvis_angles,
@@ -48,7 +49,7 @@ from motionlab.results import (
     TaskBlock,
 )
 from motionlab.segments.sensors import sensor_orientation
-from motionlab.session import Session
+from motionlab.session import Session, estimate_rate
 
 PELVIS_SEGMENT = "pelvis"
 
@@ -181,8 +182,10 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
                 var_series[v] = (out.pelvis.time_s, pel[:, i])
         curves[side] = {}
         for v, (t, x) in var_series.items():
-            # contiguous once: np.interp would copy a column (the pelvis's) for every stride
-            t, x = np.ascontiguousarray(t, float), np.ascontiguousarray(x, float)
+            # contiguous once: np.interp would copy a column (the pelvis's) for every stride;
+            # low-passed as the metrics take their angles (a sensor's wobble is no movement)
+            t = np.ascontiguousarray(t, float)
+            x = smoothed(np.ascontiguousarray(x, float), estimate_rate(t))
             cyc = np.array([_curve(t, x, a, b) for a, b in zip(st.ic[keep], st.next_ic[keep],
                                                               strict=True)])  # fmt: skip
             if len(cyc):

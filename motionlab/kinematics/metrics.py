@@ -3,7 +3,8 @@
 Per task block (the protocol's ``tasks``; times from the simulator's truth, the protocol's
 ``time_range`` or :func:`~motionlab.segments.steps.find_tasks`; a trunk protocol without tasks,
 such as ``lumbar_seated``, measures the trunk movement its calibration found, as one block
-without repetitions) and per angle column (degrees):
+without repetitions) and per angle column (degrees), from the angles low-passed at
+:data:`METRICS_LOWPASS_HZ` (:func:`smoothed`; the angle tables stay as computed):
 
 - ``rom_deg``, ``min_deg``, ``max_deg`` over the block (a gait task: over the strides of the
   joint's leg, where there are any);
@@ -35,6 +36,7 @@ import numpy as np
 import pandas as pd
 
 from motionlab import rotations as rot
+from motionlab.dsp import butter, sosfiltfilt
 from motionlab.errors import InputError
 from motionlab.kinematics import cycles as cyc
 from motionlab.kinematics import out_of_plane as oop
@@ -61,9 +63,16 @@ from motionlab.segments import (
 from motionlab.segments.sensors import joint_segments, sensor_quats
 from motionlab.segments.steps import find_tasks
 from motionlab.session import Session, estimate_rate
+from motionlab.timebase import runs
 
 OUT_OF_PLANE = ("cross_talk", "out_of_plane_offset", "trunk_compensation", "varus_thrust")
 THORAX = "thorax"
+#: the angles' low-pass (Hz) before their metrics: human movement lies below it (walking
+#: kinematics, Winter 2009, Biomechanics and Motor Control of Human Movement, 4th ed., §3.4.4),
+#: a sensor's wobble on the skin after each heel strike above it (a 30-60 ms dip of 3-5° in
+#: a real walk's knee flexion, ``bench/real_people.py``), which is not the joint moving
+METRICS_LOWPASS_HZ = 6.0
+FILTER_EDGE = 9  # samples the forward-backward filter extends each end by (one section)
 
 
 def wanted(protocol: Protocol) -> set[str]:
@@ -72,6 +81,26 @@ def wanted(protocol: Protocol) -> set[str]:
     if "stance_rotation" in listed:
         listed.add("varus_thrust")
     return listed & set(OUT_OF_PLANE) if listed else set(OUT_OF_PLANE)
+
+
+def smoothed(values: np.ndarray, rate: float, cutoff: float = METRICS_LOWPASS_HZ) -> np.ndarray:
+    """``values`` (deg) low-passed at ``cutoff`` Hz (at most 0.4 × ``rate``; zero-phase
+    2nd-order Butterworth, forward and backward) over each run of finite samples; a run too
+    short to filter is kept as it is, and NaN stays NaN."""
+    v = np.asarray(values, dtype=float)
+    out = v.copy()
+    sos = butter(2, min(cutoff, 0.4 * rate), fs=rate)
+    for a, b in runs(np.isfinite(v)):
+        if b - a > FILTER_EDGE:
+            out[a:b] = sosfiltfilt(sos, v[a:b])
+    return out
+
+
+def smoothed_table(table: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """An angle table (``time_s`` and degree columns) with every column :func:`smoothed`."""
+    time = np.asarray(table["time_s"], dtype=float)
+    rate = estimate_rate(time)
+    return {k: v if k == "time_s" else smoothed(v, rate) for k, v in table.items()}
 
 
 def _window(time: np.ndarray, t0: float, t1: float) -> slice:
@@ -171,8 +200,11 @@ def compute_metrics(
     ``table`` is an angle table (``time_s`` and degree columns), ``seg_q`` calibrated segment
     orientations ``{segment: (time, q)}``, ``blocks`` the task time ranges (s), ``steps`` the
     calibration step ranges, ``nominal_table`` the angles with nominal mountings (cross-talk),
-    ``shank_omega`` ``{segment: (time, ω_z rad/s)}`` of shank segments (gait events).
+    ``shank_omega`` ``{segment: (time, ω_z rad/s)}`` of shank segments (gait events). The
+    metrics are taken from the angles :func:`smoothed` (the tables themselves are not changed).
     """
+    table = smoothed_table(table)
+    nominal_table = smoothed_table(nominal_table) if nominal_table is not None else None
     time = np.asarray(table["time_s"], dtype=float)
     rate = estimate_rate(time)
     todo = wanted(protocol)

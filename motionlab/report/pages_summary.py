@@ -51,7 +51,8 @@ def summary_page(doc: Document, view: SessionView) -> None:
     paced = any(pace_note(view, task)[0] in items for task in tasks)
     doc.paragraph(
         "Ranges are the typical lowest and highest angle of the repetitions (means of the "
-        "per-cycle extremes), in degrees; a range counts as outside normal when it leaves the "
+        "per-cycle extremes of the angle low-passed at 6 Hz), in degrees; a range counts as "
+        "outside normal when it leaves the "
         "protocol's normal range by more than 5°, or a flexion peak falls 10° short of its top. "
         "Normal ranges are approximate, for orientation, "
         "not diagnostic limits. Only numbers the recording determined are findings."
