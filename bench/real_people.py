@@ -15,7 +15,10 @@ instants of the cycle's lowest and highest first angle (how far the joint turned
 extreme poses, whatever the axis: a witness for the flexion range); and, for a hinge joint,
 the per-stride range of the gyroscopes' relative rate about the calibrated axes integrated
 over the stride (no fusion involved: a fused flexion range far from it points at the fusion,
-not the knee). A protocol that refuses a recording prints its one line instead.
+not the knee). Every per-cycle figure is taken from its angle low-passed as the product's
+metrics take theirs (:func:`motionlab.kinematics.metrics.smoothed`, 6 Hz: a sensor's wobble at
+heel strike is not a peak), so that the witnesses compare like with like. A protocol that
+refuses a recording prints its one line instead.
 
 Recordings (README of ``../shared``, section ``datasets/human``):
 
@@ -48,11 +51,13 @@ import yaml
 from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_types import angle_columns
+from motionlab.kinematics.metrics import smoothed
 from motionlab.pipeline import PipelineOptions, analyse, load_inputs, prepare_sensors
 from motionlab.protocol import load_protocol
-from motionlab.session import SensorStream, Session
+from motionlab.session import SensorStream, Session, estimate_rate
 
 WALK_RANGE_DEG = (45.0, 80.0)  # per-stride knee flexion range a walking knee can have
+GYRO_MARGIN_S = 0.25  # s integrated before and after each stride for the gyroscopes' witness
 QMT_WALK = ("hip", "upper_leg_right", "lower_leg_right", "upper_leg_left", "lower_leg_left")
 QMT_SEGMENTS = {
     "walk": {"hip": "pelvis", "upper_leg_right": "thigh_r", "lower_leg_right": "shank_r",
@@ -100,7 +105,8 @@ def stride_ranges(session: Session, column: str, side: str) -> np.ndarray:
     gait, angles = session.results.gait, session.results.angles
     if gait is None or not gait.ok or side not in (gait.events or {}):
         return np.array([])
-    t, x = np.asarray(angles.time), np.asarray(angles.data[column], float)
+    t = np.asarray(angles.time)
+    x = smoothed(np.asarray(angles.data[column], float), estimate_rate(t))
     ic = np.asarray(gait.events[side].ic, float)
     out = []
     for a, b in zip(ic[:-1], ic[1:], strict=True):
@@ -122,6 +128,7 @@ def vendor_ranges(session: Session, vendor: dict, joint, side: str) -> np.ndarra
     sel = (t >= stand[0]) & (t <= stand[1])
     r = rot.mul(rel, rot.conj(rot.mean(rel[sel])))
     angle = np.degrees(2.0 * np.arccos(np.clip(np.abs(r[:, 0]), 0.0, 1.0)))
+    angle = smoothed(angle, estimate_rate(t))
     ic = np.asarray(gait.events[side].ic, float)
     pairs = [(a, b) for a, b in zip(ic[:-1], ic[1:], strict=True) if 0.6 <= b - a <= 1.8]
     return np.array([np.ptp(angle[(t >= a) & (t <= b)]) for a, b in pairs])
@@ -136,7 +143,8 @@ def vendor_swings(session: Session, vendor: dict, joint, column: str, side: str)
         return np.array([])
     t = session.sensors[joint.proximal].time
     rel = rot.mul(rot.conj(vendor[joint.proximal]), vendor[joint.distal])
-    ta, x = np.asarray(angles.time), np.asarray(angles.data[column], float)
+    ta = np.asarray(angles.time)
+    x = smoothed(np.asarray(angles.data[column], float), estimate_rate(ta))
     ic = np.asarray(gait.events[side].ic, float)
     out = []
     for a, b in zip(ic[:-1], ic[1:], strict=True):
@@ -153,21 +161,28 @@ def vendor_swings(session: Session, vendor: dict, joint, column: str, side: str)
 def gyro_ranges(session: Session, jname: str, joint, side: str) -> np.ndarray:
     """Per-stride range (deg) of the hinge angle integrated from the gyroscopes alone: the
     distal rate about the distal axis less the proximal rate about the proximal axis (the
-    calibrated axes), integrated over each stride with the drift removed linearly (the joint
-    is back where it was at the next initial contact)."""
+    calibrated axes), integrated from :data:`GYRO_MARGIN_S` before each stride to as long after
+    it with the drift removed linearly (the joint is back where it was at the next initial
+    contact), low-passed there and its range taken over the stride (the margins keep the
+    filter's ends off the heel strikes)."""
     gait, fit = session.results.gait, session.results.calibration.hinges.get(jname)
     if gait is None or not gait.ok or fit is None:
         return np.array([])
     prox, dist = session.sensors[joint.proximal], session.sensors[joint.distal]
     t = prox.time
     rate = np.interp(t, dist.time, dist.gyr @ fit.axis_distal) - prox.gyr @ fit.axis_proximal
+    fs = estimate_rate(t)
     ic = np.asarray(gait.events[side].ic, float)
     out = []
     for a, b in zip(ic[:-1], ic[1:], strict=True):
-        sel = (t >= a) & (t <= b)
-        if 0.6 <= b - a <= 1.8 and sel.sum() > 10:
-            angle = np.degrees(np.cumsum(rate[sel] * np.gradient(t[sel])))
-            out.append(np.ptp(angle - np.linspace(0.0, angle[-1], len(angle))))
+        wide = (t >= a - GYRO_MARGIN_S) & (t <= b + GYRO_MARGIN_S)
+        if 0.6 <= b - a <= 1.8 and wide.sum() > 10:
+            tw = t[wide]
+            angle = np.degrees(np.cumsum(rate[wide] * np.gradient(tw)))
+            ends = np.interp([a, b], tw, angle)
+            trend = ends[0] + (ends[1] - ends[0]) * (tw - a) / (b - a)
+            angle = smoothed(angle - trend, fs)
+            out.append(np.ptp(angle[(tw >= a) & (tw <= b)]))
     return np.array(out)
 
 
