@@ -53,7 +53,7 @@ def decomposition_text(joints: list) -> str:
     parts.append(
         "Cycles: gait strides from the shank's angular velocity (heel strike to heel strike), "
         "other tasks from the repetitions of the primary angle; each cycle resampled to 101 "
-        "points (0-100 %). Metrics (ranges, extremes, cycle curves, out-of-plane measures) are "
+        "points (0-100 %). Metrics (ranges, extremes, cycle curves, cross-talk, varus thrust) are "
         "taken from the angles low-passed at 6 Hz (zero-phase Butterworth, Winter 2009): a "
         "sensor's wobble on the skin after a heel strike is not a peak of the joint. The "
         "angle curves and tables are the angles as computed."
