@@ -213,3 +213,4 @@ def test_smoothing_keeps_gaps_and_short_runs():
     assert np.array_equal(out[100:105], v[100:105])
     assert not np.array_equal(out[:50], v[:50])
     assert np.abs(out[10:40] - v[10:40]).max() < 0.1  # a slow movement passes
+    assert smoothed(np.array([3.0]), float("nan"))[0] == 3.0  # one instant: no rate, no filter

@@ -86,9 +86,12 @@ def wanted(protocol: Protocol) -> set[str]:
 def smoothed(values: np.ndarray, rate: float, cutoff: float = METRICS_LOWPASS_HZ) -> np.ndarray:
     """``values`` (deg) low-passed at ``cutoff`` Hz (at most 0.4 × ``rate``; zero-phase
     2nd-order Butterworth, forward and backward) over each run of finite samples; a run too
-    short to filter is kept as it is, and NaN stays NaN."""
+    short to filter is kept as it is, and NaN stays NaN; so is everything without a rate (a
+    single instant)."""
     v = np.asarray(values, dtype=float)
     out = v.copy()
+    if not (np.isfinite(rate) and rate > 0):
+        return out
     sos = butter(2, min(cutoff, 0.4 * rate), fs=rate)
     for a, b in runs(np.isfinite(v)):
         if b - a > FILTER_EDGE:
