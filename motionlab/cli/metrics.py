@@ -50,7 +50,8 @@ def command(
     compensation, knee varus thrust and stance rotation).
 
     Needs a calibrated session (motionlab calibrate); the angles are computed as
-    motionlab angles does. The CSV has one row per number:
+    motionlab angles does, then low-passed at 6 Hz for the metrics (a sensor's wobble
+    on the skin is not a peak of the joint). The CSV has one row per number:
     block, joint, angle, metric, percent, value, unit, grade (the angle's: determined,
     weak, not determined).
 
