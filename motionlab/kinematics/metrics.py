@@ -69,8 +69,8 @@ OUT_OF_PLANE = ("cross_talk", "out_of_plane_offset", "trunk_compensation", "varu
 THORAX = "thorax"
 #: the angles' low-pass (Hz) before their metrics: human movement lies below it (walking
 #: kinematics, Winter 2009, Biomechanics and Motor Control of Human Movement, 4th ed., §3.4.4),
-#: a sensor's wobble on the skin after each heel strike above it (a 30-60 ms dip of 3-5° in
-#: a real walk's knee flexion, ``bench/real_people.py``), which is not the joint moving
+#: a sensor's wobble on the skin after each heel strike above it (a dip of 8-10° for about
+#: 40 ms in a real walk's knee flexion, ``bench/real_people.py``), which is not the joint moving
 METRICS_LOWPASS_HZ = 6.0
 FILTER_EDGE = 9  # samples the forward-backward filter extends each end by (one section)
 
