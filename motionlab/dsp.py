@@ -120,8 +120,7 @@ def sosfiltfilt(sos: np.ndarray, x: np.ndarray, axis: int = -1) -> np.ndarray:
     """
     sos = np.ascontiguousarray(sos, float)
     x = np.asarray(x, float)
-    taps = 2 * len(sos) + 1 - min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum()))
-    edge = 3 * taps
+    edge = padlen(sos)
     n = x.shape[axis]
     if n <= edge:
         raise ValueError(
@@ -131,6 +130,14 @@ def sosfiltfilt(sos: np.ndarray, x: np.ndarray, axis: int = -1) -> np.ndarray:
     out = np.empty_like(rows)
     filtfilt_at(rows, sos, sosfilt_zi(sos), edge, np.arange(n), out)
     return np.moveaxis(out.reshape(np.moveaxis(x, axis, -1).shape), -1, axis)
+
+
+def padlen(sos: np.ndarray) -> int:
+    """Samples :func:`sosfiltfilt` extends each end by (scipy's default): 3 × (2 S + 1), less
+    the sections' trailing zero coefficients; a signal must be longer than this."""
+    sos = np.asarray(sos, float)
+    taps = 2 * len(sos) + 1 - min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum()))
+    return 3 * taps
 
 
 def filtfilt_at(

@@ -65,6 +65,13 @@ def test_too_short_a_signal_is_refused_as_scipy_does():
         dsp.sosfiltfilt(sos, np.zeros(9))
     with pytest.raises(ValueError, match="padlen"):
         signal.sosfiltfilt(sos, np.zeros(9))
+    for n_sections in (1, 2, 3):  # the shortest signal each takes, as scipy's
+        sos = dsp.butter(2 * n_sections, 6.0, 100.0)
+        edge = dsp.padlen(sos)
+        assert edge == 3 * (2 * n_sections + 1)
+        signal.sosfiltfilt(sos, np.zeros(edge + 1))
+        with pytest.raises(ValueError, match="padlen"):
+            signal.sosfiltfilt(sos, np.zeros(edge))
 
 
 def test_peaks_are_scipys():

@@ -64,7 +64,7 @@ from motionlab.clocksync.common import (
     line_with_prior,
     on_grid,
 )
-from motionlab.dsp import filtfilt_at, sosfilt_zi, sosfiltfilt
+from motionlab.dsp import filtfilt_at, padlen, sosfilt_zi, sosfiltfilt
 from motionlab.minpack import lm
 from motionlab.qc import measurable
 from motionlab.results import ClockFit
@@ -223,8 +223,7 @@ class Pair:
     def __post_init__(self) -> None:
         sos = self.sos
         self._zi = sosfilt_zi(sos)  # what sosfiltfilt computes on every call
-        taps = 2 * len(sos) + 1 - min(int((sos[:, 2] == 0).sum()), int((sos[:, 5] == 0).sum()))
-        self._edge = 3 * taps  # sosfiltfilt's default padding
+        self._edge = padlen(sos)  # sosfiltfilt's default padding
         self.parts = _parts(self.use, int(round(MARGIN_S / float(self.t[1] - self.t[0]))),
                             len(self.t))  # fmt: skip
 

@@ -36,7 +36,7 @@ import numpy as np
 import pandas as pd
 
 from motionlab import rotations as rot
-from motionlab.dsp import butter, sosfiltfilt
+from motionlab.dsp import butter, padlen, sosfiltfilt
 from motionlab.errors import InputError
 from motionlab.kinematics import cycles as cyc
 from motionlab.kinematics import out_of_plane as oop
@@ -72,7 +72,6 @@ THORAX = "thorax"
 #: a sensor's wobble on the skin after each heel strike above it (a dip of 8-10° for about
 #: 40 ms in a real walk's knee flexion, ``bench/real_people.py``), which is not the joint moving
 METRICS_LOWPASS_HZ = 6.0
-FILTER_EDGE = 9  # samples the forward-backward filter extends each end by (one section)
 
 
 def wanted(protocol: Protocol) -> set[str]:
@@ -93,8 +92,9 @@ def smoothed(values: np.ndarray, rate: float, cutoff: float = METRICS_LOWPASS_HZ
     if not (np.isfinite(rate) and rate > 0):
         return out
     sos = butter(2, min(cutoff, 0.4 * rate), fs=rate)
+    edge = padlen(sos)
     for a, b in runs(np.isfinite(v)):
-        if b - a > FILTER_EDGE:
+        if b - a > edge:
             out[a:b] = sosfiltfilt(sos, v[a:b])
     return out
 
