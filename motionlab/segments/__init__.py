@@ -185,8 +185,9 @@ def pelvis_forward(
     begins with the longest movement after the stand, :func:`walk_begins`), added
     to its ``records`` (kind ``movement``, method ``turns`` or ``walk start``, secondary: gravity
     keeps the tilt) when the recording measured only its vertical axis and the placement hint is
-    contradicted: by the stand (its vertical, :func:`.placement.contradicted`) or by the turns
-    (their forward direction more than ``placement.CONTRADICTED_DEG`` from the hint's). The
+    contradicted: by the stand (its vertical, :func:`.placement.contradicted`) or by the walk
+    (its forward direction further from the hint's than the walk's own bound,
+    ``grades.HEADING_BOUND_DEG``, plus a strapped hint's, ``walk_forward.HINT_HEADING_DEG``). The
     single turns may disagree more where the stand refuted the hint
     (``walk_forward.MAX_SPREAD_CONTRADICTED_DEG``). A line goes to ``notes`` when the hint is not
     kept."""
@@ -228,8 +229,8 @@ def pelvis_forward(
         return
     hint = protocol.segments[seg].nominal_mounting().T @ np.array([1.0, 0.0, 0.0])
     off = float(np.degrees(np.arccos(np.clip(found.axis @ hint, -1.0, 1.0))))
-    if not by_stand and off <= placement.CONTRADICTED_DEG:
-        return  # the hint agrees with the walk: it stays (the turns are 5-20° off)
+    if not by_stand and off <= grades.HEADING_BOUND_DEG[method] + walk_forward.HINT_HEADING_DEG:
+        return  # the hint agrees with the walk as well as a strapped hint and the walk can
     why = "" if by_stand else f"{words} are {off:.0f}° from the hint's forward; "
     _add_note(notes, seg, f"{why}its forward direction is taken from {words}")
     recs["movement:turns"] = AxisMeasurement(

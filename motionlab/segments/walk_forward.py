@@ -1,5 +1,5 @@
 """The pelvis's forward direction from the walk's turns (or, where they do not give it, from its
-first steps), for a pelvis sensor whose placement hint the stand contradicts.
+first steps), for a pelvis sensor whose placement hint the stand or the walk contradicts.
 
 With only gravity in the stand, the pelvis sensor's heading on the pelvis is the protocol's
 placement hint. When the stand shows the hint is wrong (the sensor's measured vertical more than
@@ -26,6 +26,12 @@ Used when the walk has at least ``MIN_TURNS`` turns (runs of ``|ω| ≥ TURN_RAD
 ``bench/real_world.py`` (random mountings, soft-tissue motion, 74 s) the turns of four such
 pelvises spread by 36-56°, their whole-walk direction was still 4.5-17° off where the hint was
 arbitrary, and the hip means fell from 3.35 / 3.50° (flexion / adduction, right) to 1.62 / 1.62°.
+
+The stand sees only the vertical: a hint it does not refute may still be turned about the
+vertical. The walk refutes it when its forward direction lies further from the hint's than the
+method's own bound (``grades.HEADING_BOUND_DEG``) plus ``HINT_HEADING_DEG``: then the hint is off
+by more than that bound, and the walk's direction is the better one (seed 5 there: a hint 59.5°
+off, the first steps 0.7° off; hip flexion 3.3 / 4.4° → 1.3 / 1.3°).
 """
 
 from __future__ import annotations
@@ -49,6 +55,11 @@ MAX_SPREAD_DEG = 30.0
 # turns that agree less well still beat it
 MAX_SPREAD_CONTRADICTED_DEG = 60.0
 RHO = 0.6  # weight of the axis in the frame fit (secondary to gravity)
+# how far (deg) a pelvis sensor strapped over the sacrum as the protocol says may sit from its
+# hint's heading; a walk whose forward direction lies further from the hint's than this plus
+# the walk's own bound (grades.HEADING_BOUND_DEG) shows the hint wrong even where the stand,
+# which sees only the vertical, did not
+HINT_HEADING_DEG = 20.0
 START_S = 1.5  # the first steps after the stand whose velocity gives the walking direction
 MIN_START_SPEED_M_S = 0.3
 
