@@ -13,7 +13,7 @@ import numpy as np
 
 from motionlab import clocknet
 from motionlab.clocknet import solve_network
-from motionlab.clocksync import describe, estimate_clock, sync_tree, synchronise
+from motionlab.clocksync import describe, estimate_clock, stage, sync_tree, synchronise
 from motionlab.pipeline import prepare_sensors
 from motionlab.protocol import load_protocol
 from motionlab.results import ClockFit
@@ -194,3 +194,37 @@ def test_sensor_tied_by_nothing_follows_its_reference():
     shift = session.sensors["shank_l"].time - recorded
     assert np.allclose(shift, thigh.corrected_time(recorded) - recorded, atol=1e-9)
     assert np.max(np.abs(shift)) > 1e-4  # it did move with the thigh
+
+
+def _clock(offset_s: float) -> clocknet.NetworkClock:
+    return clocknet.NetworkClock(offset_s, 0.0, T_MID, 0.001, 1e-5)
+
+
+def test_heel_strikes_must_agree_with_the_knee_joint_centre():
+    """The network's clocks are taken only where every knee pair's joint-centre fit (any with
+    a finite standard error, also one its residual refused) lies within CORROBORATE_S of
+    them: the real one-clock walk's heel strikes put shank_l 50 ms from thigh_l where the joint
+    centre put them 1 ms apart. A hip pair is no check (its joint centre is not trusted), and
+    a knee pair with no finite joint-centre fit cannot confirm the heel strikes."""
+    label = {s: s for s in SENSORS}
+    clocks = {"pelvis": (None, ""), "thigh_l": (_clock(0.061), ""), "shank_l": (_clock(0.011), "")}
+
+    def centre(a, b, offset, se=0.001, status="not reliable: the shared joint centre fits poorly"):
+        return {(a, b): ClockFit(a, b, offset, 0.0, T_MID, se, 1e-5, 0.9, 20.0, status)}
+
+    knee = centre("thigh_l", "shank_l", -0.0013)
+    why = stage._uncorroborated(clocks, label, knee, "thigh_l", "shank_l")
+    assert why == ("not reliable: the heel strikes put shank_l -50 ms from thigh_l, their joint "
+                   "centre -1 ms")  # fmt: skip
+    agree = centre("thigh_l", "shank_l", -0.045)
+    assert stage._uncorroborated(clocks, label, agree, "thigh_l", "shank_l") == ""
+    # the pair stored the other way round: its offset's sign turns
+    assert stage._uncorroborated(clocks, label, centre("shank_l", "thigh_l", 0.045), "thigh_l",
+                                 "shank_l") == ""  # fmt: skip
+    hip = centre("pelvis", "thigh_l", -0.005)
+    assert stage._uncorroborated(clocks, label, hip, "pelvis", "thigh_l") == ""
+    unknown = centre("thigh_l", "shank_l", 0.0, se=np.inf)
+    assert "no joint-centre fit of thigh_l and shank_l" in stage._uncorroborated(
+        clocks, label, unknown, "thigh_l", "shank_l"
+    )
+    assert "no joint-centre fit" in stage._uncorroborated(clocks, label, {}, "thigh_l", "shank_l")

@@ -28,6 +28,20 @@ network :class:`ClockFit` is against the root sensor (``method`` ``network``) an
 correction at the recording's ends exceeds ``MIN_CORRECTION_S`` and its own standard error. A
 sensor that no reliable measurement ties to the others follows its tree parent's clock.
 
+*The heel strikes must agree with the knees' joint centres.* On a real walk the envelopes of
+one heel strike do not peak together: on the 16-IMU recording, whose sensors share one radio
+clock, the heel-strike lags between sensors were 36-88 ms, and on a 35-s cut of it the network
+put thigh_l 61 ms and shank_l 10 ms off the pelvis's clock, 50 ms apart at the knee, where the
+knee's joint centre put them 1 ms apart (its residual refused it; on that recording the joint
+centres lay within 5 ms of one clock). So the network's clocks are taken only when every knee
+pair of the tree has a joint-centre fit with a finite standard error within ``CORROBORATE_S``
+of them (:func:`_uncorroborated`); otherwise no sensor is corrected and each fit says which
+pair disagreed. The hips' joint centres are no check (7-68 ms off on simulated walks, above).
+On the simulated walks the check changes nothing (bench/real_world.py walk seeds 0-19,
+bench/gait.py and bench/clock_network.py: identical tables); on 42 cuts of the real walk
+(24-45 s of walking after a stand) none is corrected, where five were before (thigh_l 60-74 ms,
+thigh_r −418 and −436 ms: a lag one step away).
+
 *Clocks the vendor synchronised* (every sensor's ``attrs["vendor_clock_sync"]`` set by its
 reader, e.g. an Xsens DOT export's ``SyncStatus: Synced``): the fits are made as a check and
 none is applied (status :data:`VENDOR_KEPT`, the data's answer kept in the fit). The DOT app's
@@ -71,6 +85,12 @@ ENVELOPE_SD_S = {"shank": 0.0015, "foot": 0.0015}
 # 0.1-6 ms at the knee, up to 31 ms at the hip on simulated walks (claimed errors ≈ 0.05 ms);
 # elsewhere motionlab.clocknet.CENTRE_FLOOR_S (2 ms)
 HIP_CENTRE_FLOOR_S = 0.005
+
+# the most (s) the heel strikes' clocks of a knee pair may differ from the pair's own
+# joint-centre fit (see the module notes): the real one-clock walk's knee disagreed by 49 ms;
+# on simulated walks (bench/real_world.py seeds 0-4, 74 s) the knees' two clocks lay within
+# 12 ms of each other
+CORROBORATE_S = 0.030
 
 #: the status of a fit not applied because the vendor synchronised the sensors' clocks
 VENDOR_KEPT = "not applied: the vendor synchronised these clocks"
@@ -175,6 +195,12 @@ def _synchronise_network(
     clocks: dict[str, tuple] = {root: (None, "")}  # label: (NetworkClock or None, follows)
     solved = solve_network(pool, root, t0, envelope_sd, floor)
     clocks.update({k: (v, "") for k, v in solved.items()})
+    # the heel strikes' clocks must agree with every joint centre's that measured its pair: where
+    # one does not, the envelopes did not peak together and none is taken
+    contradicted = [w for a, b in tree if label[a] in clocks and label[b] in clocks
+                    for w in [_uncorroborated(clocks, label, centres, a, b)] if w]  # fmt: skip
+    if contradicted:
+        clocks = {root: (None, "")}
     for ref_seg, seg in tree:  # not tied to the root: the reference's clock (tree order)
         if label[seg] not in clocks:
             clocks[label[seg]] = (clocks[label[ref_seg]][0], label[ref_seg])
@@ -182,20 +208,51 @@ def _synchronise_network(
     for _, seg in tree:
         lab = label[seg]
         clock, follows = clocks[lab]
-        fit = _network_fit(root, lab, clock, follows, t0, span)
+        fit = _network_fit(root, lab, clock, follows, t0, span, "; ".join(contradicted))
         fits.append(fit)
         if fit.status == "applied" or (follows and clock is not None):
             _apply(session, lab, replace(fit, status="applied") if follows else fit)
     return fits
 
 
-def _network_fit(root: str, lab: str, clock, follows: str, t0: float, span: float) -> ClockFit:
+def _uncorroborated(clocks: dict, label: dict, centres: dict, ref_seg: str, seg: str) -> str:
+    """Where the network's clocks (``clocks``: ``{label: (NetworkClock or None, _)}``, ``None``
+    the root's) put ``seg``'s sensor more than ``CORROBORATE_S`` from where the pair's own
+    joint-centre fit does (``centres``, by segment pair; any fit with a finite standard error,
+    also one its residual refused), or the pair has no such fit, in words; empty when they
+    agree."""
+    if {kind_side(ref_seg)[0], kind_side(seg)[0]} == {"pelvis", "thigh"}:
+        return ""  # the hip's joint centre is no check (HIP_CENTRE_FLOOR_S)
+    ref_clock, clock = clocks[label[ref_seg]][0], clocks[label[seg]][0]
+    fit = centres.get((ref_seg, seg))
+    sign = 1.0
+    if fit is None:
+        fit, sign = centres.get((seg, ref_seg)), -1.0
+    if fit is None or not np.isfinite(fit.offset_se_s):
+        return (f"not reliable: no joint-centre fit of {label[ref_seg]} and {label[seg]} to "
+                "confirm the heel strikes")  # fmt: skip
+
+    def at(c) -> float:
+        return 0.0 if c is None else c.offset_s + c.drift * (fit.t_mid_s - c.t_mid_s)
+
+    heel, centre = at(clock) - at(ref_clock), sign * fit.offset_s
+    if abs(heel - centre) <= CORROBORATE_S:
+        return ""
+    return (f"not reliable: the heel strikes put {label[seg]} {1e3 * heel:+.0f} ms from "
+            f"{label[ref_seg]}, their joint centre {1e3 * centre:+.0f} ms")  # fmt: skip
+
+
+def _network_fit(
+    root: str, lab: str, clock, follows: str, t0: float, span: float, why: str = ""
+) -> ClockFit:
     """The :class:`ClockFit` of one sensor's network solution (``method`` ``network``) on the
-    root's clock; ``follows``: the sensor whose clock it takes when nothing ties it; ``t0``
-    and ``span`` the root's mid-time and duration (s)."""
+    root's clock; ``follows``: the sensor whose clock it takes when nothing ties it, or when
+    ``why`` says why its own is not taken; ``t0`` and ``span`` the root's mid-time and
+    duration (s)."""
     if follows:
-        why = ("not reliable: no reliable heel-strike lag or joint-centre fit ties it to the "
-               f"others; follows {follows}'s clock")  # fmt: skip
+        why = why or ("not reliable: no reliable heel-strike lag or joint-centre fit ties it to "
+                      "the others")  # fmt: skip
+        why = f"{why}; follows {follows}'s clock"
         if clock is None:
             return ClockFit(root, lab, 0.0, 0.0, t0, np.inf, np.inf, np.nan, 0.0, why, NETWORK)
         return ClockFit(root, lab, clock.offset_s, clock.drift, clock.t_mid_s, clock.offset_se_s,
