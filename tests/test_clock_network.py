@@ -201,11 +201,11 @@ def _clock(offset_s: float) -> clocknet.NetworkClock:
 
 
 def test_heel_strikes_must_agree_with_the_knee_joint_centre():
-    """The network's clocks are taken only where every knee pair's joint-centre fit (any with
-    a finite standard error, also one its residual refused) lies within CORROBORATE_S of
-    them: the real one-clock walk's heel strikes put shank_l 50 ms from thigh_l where the joint
-    centre put them 1 ms apart. A hip pair is no check (its joint centre is not trusted), and
-    a knee pair with no finite joint-centre fit cannot confirm the heel strikes."""
+    """The network's clocks are taken only where every knee pair's joint-centre fit (any that
+    was made, also one refused for its residual or its standard error) lies within
+    CORROBORATE_S of them: the real one-clock walk's heel strikes put shank_l 50 ms from thigh_l
+    where the joint centre put them 1 ms apart. A hip pair is no check (its joint centre is not
+    trusted), and a knee pair with no joint-centre fit cannot confirm the heel strikes."""
     label = {s: s for s in SENSORS}
     clocks = {"pelvis": (None, ""), "thigh_l": (_clock(0.061), ""), "shank_l": (_clock(0.011), "")}
 
@@ -223,8 +223,13 @@ def test_heel_strikes_must_agree_with_the_knee_joint_centre():
                                  "shank_l") == ""  # fmt: skip
     hip = centre("pelvis", "thigh_l", -0.005)
     assert stage._uncorroborated(clocks, label, hip, "pelvis", "thigh_l") == ""
-    unknown = centre("thigh_l", "shank_l", 0.0, se=np.inf)
+    short = centre("thigh_l", "shank_l", -0.0013, se=np.inf)  # too little movement for an SE
+    assert stage._uncorroborated(clocks, label, short, "thigh_l", "shank_l").startswith(
+        "not reliable: the heel strikes put shank_l -50 ms"
+    )
+    made = ClockFit("thigh_l", "shank_l", 0.0, 0.0, T_MID, np.inf, np.inf, np.nan, 0.0, "")
+    none = {("thigh_l", "shank_l"): made}  # no fit made: not enough shared movement
     assert "no joint-centre fit of thigh_l and shank_l" in stage._uncorroborated(
-        clocks, label, unknown, "thigh_l", "shank_l"
+        clocks, label, none, "thigh_l", "shank_l"
     )
     assert "no joint-centre fit" in stage._uncorroborated(clocks, label, {}, "thigh_l", "shank_l")

@@ -28,26 +28,26 @@ network :class:`ClockFit` is against the root sensor (``method`` ``network``) an
 correction at the recording's ends exceeds ``MIN_CORRECTION_S`` and its own standard error. A
 sensor that no reliable measurement ties to the others follows its tree parent's clock.
 
-*The heel strikes must agree with the knees' joint centres.* On a real walk the envelopes of
-one heel strike do not peak together: on the 16-IMU recording, whose sensors share one radio
-clock, the heel-strike lags between sensors were 36-88 ms, and on a 35-s cut of it the network
-put thigh_l 61 ms and shank_l 10 ms off the pelvis's clock, 50 ms apart at the knee, where the
-knee's joint centre put them 1 ms apart (its residual refused it; on that recording the joint
-centres lay within 5 ms of one clock). So the network's clocks are taken only when every knee
-pair of the tree has a joint-centre fit with a finite standard error within ``CORROBORATE_S``
-of them (:func:`_uncorroborated`); otherwise no sensor is corrected and each fit says which
-pair disagreed. The hips' joint centres are no check (7-68 ms off on simulated walks, above).
-On the simulated walks the check changes nothing (bench/real_world.py walk seeds 0-19,
-bench/gait.py and bench/clock_network.py: identical tables); on 42 cuts of the real walk
-(24-45 s of walking after a stand) none is corrected, where five were before (thigh_l 60-74 ms,
-thigh_r −418 and −436 ms: a lag one step away).
-
 *Clocks the vendor synchronised* (every sensor's ``attrs["vendor_clock_sync"]`` set by its
 reader, e.g. an Xsens DOT export's ``SyncStatus: Synced``): the fits are made as a check and
 none is applied (status :data:`VENDOR_KEPT`, the data's answer kept in the fit). The DOT app's
 synchronisation is far finer than a joint-centre fit through soft tissue: on a real seated knee
 recording (two DOTs, ``SyncStatus: Synced``, first stamps one sample apart) the fit asked for
 +27 ± 2 ms.
+
+*The heel strikes must agree with the knees' joint centres.* On a real walk the envelopes of one
+heel strike do not peak together: on the 16-IMU recording, whose sensors share one radio clock,
+the heel-strike lags between sensors were 36-88 ms, and on a 35-s cut of it the network put
+thigh_l 61 ms and shank_l 10 ms off the pelvis's clock, 50 ms apart at the knee, where the
+knee's joint centre put them 1 ms apart (its residual refused it; on that recording the joint
+centres lay within 5 ms of one clock). So the network's clocks are taken only when every knee
+pair of the tree has a joint-centre fit (also one refused for its residual or its standard
+error) within ``CORROBORATE_S`` of them (:func:`_uncorroborated`); otherwise no sensor is
+corrected and each fit says which pair disagreed. The hips' joint centres are no check (7-68 ms
+off on simulated walks, above). On the simulated walks the check changes nothing
+(bench/real_world.py walk seeds 0-19, bench/gait.py and bench/clock_network.py: identical
+tables); on 42 cuts of the real walk (24-45 s of walking after a stand) none is corrected, where
+five were before (thigh_l 60-74 ms, thigh_r −418 and −436 ms: a lag one step away).
 """
 
 from __future__ import annotations
@@ -218,9 +218,9 @@ def _synchronise_network(
 def _uncorroborated(clocks: dict, label: dict, centres: dict, ref_seg: str, seg: str) -> str:
     """Where the network's clocks (``clocks``: ``{label: (NetworkClock or None, _)}``, ``None``
     the root's) put ``seg``'s sensor more than ``CORROBORATE_S`` from where the pair's own
-    joint-centre fit does (``centres``, by segment pair; any fit with a finite standard error,
-    also one its residual refused), or the pair has no such fit, in words; empty when they
-    agree."""
+    joint-centre fit does (``centres``, by segment pair; any fit that was made, also one its
+    residual or its standard error refused), or the pair has no such fit, in words; empty when
+    they agree."""
     if {kind_side(ref_seg)[0], kind_side(seg)[0]} == {"pelvis", "thigh"}:
         return ""  # the hip's joint centre is no check (HIP_CENTRE_FLOOR_S)
     ref_clock, clock = clocks[label[ref_seg]][0], clocks[label[seg]][0]
@@ -228,7 +228,7 @@ def _uncorroborated(clocks: dict, label: dict, centres: dict, ref_seg: str, seg:
     sign = 1.0
     if fit is None:
         fit, sign = centres.get((seg, ref_seg)), -1.0
-    if fit is None or not np.isfinite(fit.offset_se_s):
+    if fit is None or not np.isfinite(fit.residual):  # no fit made (too little shared signal)
         return (f"not reliable: no joint-centre fit of {label[ref_seg]} and {label[seg]} to "
                 "confirm the heel strikes")  # fmt: skip
 
