@@ -170,10 +170,12 @@ def test_no_heel_strikes_tree_unchanged():
             assert f == dataclasses.replace(estimate_clock(raw[root], raw[f.sensor]), other=f.other)
 
 
-def test_sensor_tied_by_nothing_follows_its_reference():
+def test_a_sensor_the_heel_strikes_cannot_time_leaves_every_clock_as_recorded():
     """A shank whose signals time nothing (it lies still: no heel strikes, no shared movement
-    at the knee) is not left on its own clock while its thigh moves: it takes the thigh's
-    correction, so the knee keeps its recorded timing, and its line says so."""
+    at the knee) while the heel strikes time its thigh: the knee's joint centre cannot confirm
+    the thigh's clock, and on real walks the heel strikes alone put sensors tens of ms off (the
+    real one-clock walk at 50 Hz: thigh_l +72 ms, its shank untimed). No sensor is corrected,
+    the shank is not left behind its thigh, and every line says why."""
     walk = load_protocol("walk")
     session, _ = simulate(walk, 60.0, 0, "typical")
     prepare_sensors(session)
@@ -185,15 +187,12 @@ def test_sensor_tied_by_nothing_follows_its_reference():
         gyr=0.001 * rng.standard_normal((n, 3)),
         acc=np.array([0.0, 0.0, 9.81]) + 0.01 * rng.standard_normal((n, 3)),
     )
-    recorded = session.sensors["shank_l"].time.copy()
+    recorded = {k: s.time.copy() for k, s in session.sensors.items()}
     fits = {f.sensor: f for f in synchronise(session, walk)}
-    shank, thigh = fits["shank_l"], fits["thigh_l"]
-    assert shank.method == "network" and shank.status.startswith("not reliable")
-    assert "follows thigh_l's clock" in describe(shank)
-    assert thigh.status == "applied"  # seed 0: the left thigh's clock is corrected
-    shift = session.sensors["shank_l"].time - recorded
-    assert np.allclose(shift, thigh.corrected_time(recorded) - recorded, atol=1e-9)
-    assert np.max(np.abs(shift)) > 1e-4  # it did move with the thigh
+    assert all(f.method == "network" and f.status.startswith("not reliable") for f in fits.values())
+    assert "the heel strikes time thigh_l but not shank_l" in describe(fits["shank_l"])
+    for k, s in session.sensors.items():
+        assert np.array_equal(s.time, recorded[k])
 
 
 def _clock(offset_s: float) -> clocknet.NetworkClock:
@@ -233,3 +232,8 @@ def test_heel_strikes_must_agree_with_the_knee_joint_centre():
         clocks, label, none, "thigh_l", "shank_l"
     )
     assert "no joint-centre fit" in stage._uncorroborated(clocks, label, {}, "thigh_l", "shank_l")
+    thigh_only = {k: v for k, v in clocks.items() if k != "shank_l"}
+    assert stage._uncorroborated(thigh_only, label, knee, "thigh_l", "shank_l") == (
+        "not reliable: the heel strikes time thigh_l but not shank_l, so their joint centre "
+        "cannot confirm them"
+    )

@@ -43,8 +43,10 @@ knee's joint centre put them 1 ms apart (its residual refused it; on that record
 centres lay within 5 ms of one clock). So the network's clocks are taken only when every knee
 pair of the tree has a joint-centre fit (also one refused for its residual or its standard
 error) within ``CORROBORATE_S`` of them (:func:`_uncorroborated`); otherwise no sensor is
-corrected and each fit says which pair disagreed. The hips' joint centres are no check (7-68 ms
-off on simulated walks, above). On the simulated walks the check changes nothing
+corrected and each fit says which pair disagreed; so too where the network times one sensor of
+such a pair and not the other (the real walk resampled to 50 Hz: thigh_l +72 ms, its shank
+untimed and following it, hip_l 72 ms out of step). The hips' joint centres are no check (7-68
+ms off on simulated walks, above). On the simulated walks the check changes nothing
 (bench/real_world.py walk seeds 0-19, bench/gait.py and bench/clock_network.py: identical
 tables); on 42 cuts of the real walk (24-45 s of walking after a stand) none is corrected, where
 five were before (thigh_l 60-74 ms, thigh_r −418 and −436 ms: a lag one step away).
@@ -197,7 +199,7 @@ def _synchronise_network(
     clocks.update({k: (v, "") for k, v in solved.items()})
     # the heel strikes' clocks must agree with every joint centre's that measured its pair: where
     # one does not, the envelopes did not peak together and none is taken
-    contradicted = [w for a, b in tree if label[a] in clocks and label[b] in clocks
+    contradicted = [w for a, b in tree if label[a] in solved or label[b] in solved
                     for w in [_uncorroborated(clocks, label, centres, a, b)] if w]  # fmt: skip
     if contradicted:
         clocks = {root: (None, "")}
@@ -216,13 +218,19 @@ def _synchronise_network(
 
 
 def _uncorroborated(clocks: dict, label: dict, centres: dict, ref_seg: str, seg: str) -> str:
-    """Where the network's clocks (``clocks``: ``{label: (NetworkClock or None, _)}``, ``None``
-    the root's) put ``seg``'s sensor more than ``CORROBORATE_S`` from where the pair's own
-    joint-centre fit does (``centres``, by segment pair; any fit that was made, also one its
-    residual or its standard error refused), or the pair has no such fit, in words; empty when
-    they agree."""
+    """For a tree pair of which the network timed at least one sensor: where the network's
+    clocks (``clocks``: ``{label: (NetworkClock or None, _)}``, ``None`` the root's) put
+    ``seg``'s sensor more than ``CORROBORATE_S`` from where the pair's own joint-centre fit
+    does (``centres``, by segment pair; any fit that was made, also one its residual or its
+    standard error refused), or time only one of the two, or the pair has no such fit, in
+    words; empty when they agree (and for a hip, whose joint centre is no check)."""
     if {kind_side(ref_seg)[0], kind_side(seg)[0]} == {"pelvis", "thigh"}:
         return ""  # the hip's joint centre is no check (HIP_CENTRE_FLOOR_S)
+    untimed = [lab for lab in (label[ref_seg], label[seg]) if lab not in clocks]
+    if untimed:  # it would follow the other's correction: nothing left to compare
+        timed = label[seg] if untimed[0] == label[ref_seg] else label[ref_seg]
+        return (f"not reliable: the heel strikes time {timed} but not {untimed[0]}, so their "
+                "joint centre cannot confirm them")  # fmt: skip
     ref_clock, clock = clocks[label[ref_seg]][0], clocks[label[seg]][0]
     fit = centres.get((ref_seg, seg))
     sign = 1.0
