@@ -24,7 +24,13 @@ from typing import Any
 import numpy as np
 
 from motionlab.errors import InputError
-from motionlab.fusion.timegrid import CUBIC_MAX_S, checked_time, gap_grid, gap_noise
+from motionlab.fusion.timegrid import (
+    CUBIC_MAX_S,
+    checked_time,
+    gap_grid,
+    gap_noise,
+    linear_gaps,
+)
 
 DEFAULT_ESTIMATOR = "smoother"
 
@@ -338,11 +344,13 @@ def estimate(
     p = make_params(est, params)
     t = None if time is None else checked_time(time, n)
     grid = None if t is None else gap_grid(t, rate)
-    if grid is not None:
-        gyr, acc, mag = grid.vectors(gyr), grid.vectors(acc), grid.vectors(mag)
+    if t is not None:
+        recorded, linear = _bridged(t, filled_spans, grid)
+    if grid is not None:  # each gap bridged as its neighbourhood says is better
+        linear |= linear_gaps(grid.time, grid.vectors(gyr), recorded, float(rate))
+        gyr, acc, mag = (grid.vectors(x, linear) for x in (gyr, acc, mag))
     kwargs = {}
     if t is not None and takes_gaps(est.name):
-        recorded, linear = _bridged(t, filled_spans, grid)
         grid_time = t if grid is None else grid.time
         kwargs["gaps"] = gap_noise(grid_time, gyr, recorded, float(rate), linear)
     if references is not None:
