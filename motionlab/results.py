@@ -320,9 +320,11 @@ class FusionEntry(_Record):
     existed hold none), ``rest`` (N,) bool,
     ``mag_disturbed`` (N,) bool, marker ``scenario``, ``gaps_bridged_s`` (packet-loss gaps it
     ran across, s), ``nan_bridged_s`` (runs of non-finite samples held over, ``[start, end]``
-    s each). ``sensor_calibration``: the per-serial sensor calibration applied
-    (an :class:`AppliedCalibration`; key ``calibration`` in the file); ``markers``: what the
-    marker cluster fused with it gave (a :class:`MarkerFusion`).
+    s each), ``gaps_missed_deg`` (per gap, bridged here or filled at ingest, ``[s after it,
+    deg]``: the turn its bridge may have missed, :func:`motionlab.fusion.timegrid.gap_noise`).
+    ``sensor_calibration``: the per-serial sensor calibration applied (an
+    :class:`AppliedCalibration`; key ``calibration`` in the file); ``markers``: what the marker
+    cluster fused with it gave (a :class:`MarkerFusion`).
     """
 
     _keys: ClassVar[dict[str, str]] = {"sensor_calibration": "calibration"}
@@ -338,6 +340,7 @@ class FusionEntry(_Record):
     scenario: np.ndarray | None = None
     gaps_bridged_s: np.ndarray | list[list[float]] | None = None
     nan_bridged_s: np.ndarray | list[list[float]] | None = None
+    gaps_missed_deg: np.ndarray | list[list[float]] | None = None
     gyro_bias: np.ndarray | None = None
     rest: np.ndarray | None = None
     mag_disturbed: np.ndarray | None = None
@@ -649,6 +652,19 @@ class JointGrades(_Record):
 
 
 @dataclass(frozen=True)
+class GapTurn(_Record):
+    """The largest turn a packet-loss gap may have hidden in a joint tied only at poses (one
+    value of :attr:`SegmentCalibration.gap_turns`; :func:`motionlab.segments.gap_headings`):
+    ``turn_deg`` (the gap's bridge's possible miss, total over the axes), the ``sensor`` and the
+    first recorded instant after the gap, ``time_s``."""
+
+    turn_deg: float
+    sensor: str
+    time_s: float
+    more: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
 class CentreHeading(_Record):
     """Heading ties fitted at calibration for a joint without a hinge (one value of
     :attr:`SegmentCalibration.centres`): the distal sensor's earth frame turned by
@@ -719,7 +735,9 @@ class SegmentCalibration(_Record):
     two-axis fit or a centre are in ``hinges``/``centres``); the angles, metrics and gait apply
     them to those orientations (:func:`motionlab.segments.segment_orientations`) and find them
     anew for others, or for a calibration stored without them (``None``; an empty stored
-    group reads as ``None`` too).
+    group reads as ``None`` too). ``gap_turns`` ``{joint: GapTurn}``: for the joints tied only
+    at poses, the largest turn a packet-loss gap after the first pose may have hidden
+    (:class:`GapTurn`; the grades read it).
     """
 
     _nested: ClassVar[dict[str, tuple[Any, int]]] = {
@@ -729,6 +747,7 @@ class SegmentCalibration(_Record):
         "grades": (JointGrades, 1),
         "hip_axes": (HipAxis, 1),
         "headings": (HeadingTies, 0),
+        "gap_turns": (GapTurn, 1),
     }
 
     protocol: str
@@ -743,6 +762,7 @@ class SegmentCalibration(_Record):
     single_pose: str | None = None
     hip_axes: dict[str, HipAxis] = field(default_factory=dict)
     headings: HeadingTies | None = None
+    gap_turns: dict[str, GapTurn] = field(default_factory=dict)
     more: dict[str, Any] = field(default_factory=dict)
 
     @classmethod

@@ -350,9 +350,12 @@ def estimate(
         linear |= linear_gaps(grid.time, grid.vectors(gyr), recorded, float(rate))
         gyr, acc, mag = (grid.vectors(x, linear) for x in (gyr, acc, mag))
     kwargs = {}
-    if t is not None and takes_gaps(est.name):
+    noise = None
+    if t is not None:
         grid_time = t if grid is None else grid.time
-        kwargs["gaps"] = gap_noise(grid_time, gyr, recorded, float(rate), linear)
+        noise = gap_noise(grid_time, gyr, recorded, float(rate), linear)
+        if takes_gaps(est.name):
+            kwargs["gaps"] = noise
     if references is not None:
         takes = [k for k in available() if takes_references(k)]
         if est.name not in takes:
@@ -365,6 +368,10 @@ def estimate(
     result = est.run(gyr, acc, mag, float(rate), p, **kwargs)
     if grid is not None:
         result = grid.back(result)
+    if noise is not None:  # the turn each bridge may have missed, after its gap (s, deg)
+        total = np.degrees(noise.sigma) * np.sqrt(3.0)
+        after = grid_time[noise.after]
+        result.extra["gaps_missed_deg"] = np.column_stack([after, total]).tolist()  # not per sample
     result.name = est.name
     result.params = dataclasses.asdict(p)
     if any(filled.values()):

@@ -151,6 +151,7 @@ def fuse_session(
             rest=res.rest,
             mag_disturbed=res.mag_disturbed,
             acc_bias=_calibration_bias(res, s, params),
+            gaps_missed_deg=res.extra.get("gaps_missed_deg"),
         )
     return done
 

@@ -30,6 +30,7 @@ from motionlab.protocol import Protocol, axis_vector
 from motionlab.results import (
     AxisMeasurement,
     CentreHeading,
+    GapTurn,
     HeadingCorrection,
     HeadingTie,
     HeadingTies,
@@ -124,11 +125,44 @@ def calibrate_segments(
         ok=all(s.quality.ok for s in segments.values()),
         single_pose=pose.name if pose is not None else None,
     )
-    result.grades = grades.grade_joints(protocol, result)
     result.headings = heading_ties(session, protocol, result)  # first: the hip axes reuse them
+    result.gap_turns = gap_headings(session, protocol, result.headings)
+    result.grades = grades.grade_joints(protocol, result)
     if pose is None:
         result.hip_axes = hip_axes(session, protocol, result)
     return result
+
+
+#: heading ties anchored at poses only (the stand, later rests in it, a single pose): a turn
+#: about the vertical that a packet-loss gap hid after their last anchor stays in the joint
+POSE_TIES = ("steps", "single pose")
+
+
+def gap_headings(session: Session, protocol: Protocol, ties: HeadingTies) -> dict[str, GapTurn]:
+    """``{joint: GapTurn}``: for each joint whose heading is tied at poses only
+    (:data:`POSE_TIES`), the largest turn a packet-loss gap of either sensor may have hidden
+    after the ties' first anchor (the fusion's ``gaps_missed_deg``: what the gap's bridge misses
+    on test gaps around it, :func:`motionlab.fusion.timegrid.gap_noise`); joints with none are
+    left out. In 6-D nothing measures that turn about the vertical where it happens: the hinge
+    ties of a knee take it out within seconds; a pose's hold it from the gap on, and a later
+    pose's only spread it over the time between the two (the track is linear between anchors)."""
+    out = {}
+    for name, tie in ties.joints.items():
+        if tie.source not in POSE_TIES or not len(tie.times):
+            continue
+        first = float(np.min(tie.times))
+        joint = protocol.joints[name]
+        worst = None
+        for seg in (joint.proximal, joint.distal):
+            label = sensor_for_segment(session, seg)
+            entry = session.results.fusion.get(label) if label is not None else None
+            missed = entry.gaps_missed_deg if entry is not None else None
+            for t, deg in np.asarray(missed if missed is not None else [], float).reshape(-1, 2):
+                if t > first and (worst is None or deg > worst.turn_deg):
+                    worst = GapTurn(float(deg), label, float(t))
+        if worst is not None:
+            out[name] = worst
+    return out
 
 
 def _flag(segments: dict[str, SegmentRecord], seg: str, message: str) -> None:

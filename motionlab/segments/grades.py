@@ -40,6 +40,12 @@ was found to follow less than ``AXIAL_FOLLOW_DETERMINED`` of the humerus' rotati
 long axis has its carrying angle and pronation ``weak``: the rotation the skin misses goes into
 them to first order, and into flexion only through the carrying angle (:func:`_lag_grade`).
 
+A joint whose heading is tied only where a pose was held (a hip) is graded by the largest turn a
+packet-loss gap after the first pose may have hidden (``calibration.gap_turns``,
+:func:`motionlab.segments.gap_headings`):
+``weak`` over ``GAP_TURN_DEG``, ``not determined`` over twice it; in 6-D that turn stays in the
+heading, while a knee's hinge ties take it out within seconds.
+
 The reason is kept in plain words with each grade. The grades depend on the calibration only:
 the angle table and the report carry them next to every number, and findings are not stated for
 an angle that is not determined.
@@ -67,6 +73,10 @@ HEADING_BOUND_DEG = {"turns": 20.0, "walk start": 10.0}
 #: axis than this leaves the other two angles weak: the humerus' axial rotation in free arm
 #: movement spans 60-90° (docs/simulator.md), so 10 % missed is already 6-9° off them at times
 AXIAL_FOLLOW_DETERMINED = 0.9
+#: a packet-loss gap whose bridge may have missed a turn over this (deg, total) after the last
+#: pose that ties a joint's heading leaves its angles weak, over twice it not determined
+#: (:func:`motionlab.segments.gap_headings`)
+GAP_TURN_DEG = 10.0
 
 
 def _worse(a: str, b: str) -> str:
@@ -252,6 +262,15 @@ def grade_joints(protocol, calibration: SegmentCalibration) -> dict[str, JointGr
             g_flex, r_flex = _flexion_under_heading(joint, protocol, calibration, frames[1][0])
             if g_flex and g_frame == "weak":
                 grades[0], reasons[0] = g_flex, r_flex
+        gap = (calibration.gap_turns or {}).get(name)
+        if gap is not None and gap.turn_deg > GAP_TURN_DEG:
+            g_gap = "weak" if gap.turn_deg <= 2 * GAP_TURN_DEG else "not determined"
+            why = (f"a packet-loss gap in {gap.sensor} at {gap.time_s:.1f} s may have hidden a "
+                   f"turn of {gap.turn_deg:.0f}°, which the joint's heading, tied only where a "
+                   "pose was held, keeps from then on")  # fmt: skip
+            for k in range(3):
+                if GRADES.index(g_gap) >= GRADES.index(grades[k]):
+                    grades[k], reasons[k] = g_gap, "; ".join(filter(None, [reasons[k], why]))
         out[name] = JointGrades(grades, reasons)
     return out
 
