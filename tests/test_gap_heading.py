@@ -14,6 +14,8 @@ from conftest import SHARED, needs_shared
 
 from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
 from motionlab.protocol import load_protocol
+from motionlab.report.model import SessionView
+from motionlab.report.sentences import cause_and_remedy
 from motionlab.results import GapTurn
 from motionlab.segments import gap_headings, grades
 from motionlab.session import SensorStream, Session, load_session, save_session
@@ -75,6 +77,12 @@ def test_a_gap_that_may_hide_a_turn_grades_the_hip_not_the_knee(walk):
                    for r in graded["hip_l"].reasons)  # fmt: skip
         for joint in ("knee_r", "knee_l", "hip_r"):
             assert graded[joint].grades == cal.grades[joint].grades
+        if expected == "not determined":  # the gap decides: its reason first, for the summary
+            assert all(r.startswith("a packet-loss gap") for r in graded["hip_l"].reasons)
+            view = SessionView(Session(), proto, None, {}, None)
+            cause, remedy = cause_and_remedy(view, "hip_l", graded["hip_l"].reasons[0])
+            assert cause == "lost packets may have turned a sensor's heading"
+            assert "fewer packets are lost" in remedy
 
 
 @needs_shared

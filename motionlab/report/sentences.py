@@ -338,6 +338,11 @@ def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[s
     spec = view.protocol.segments.get(seg)
     where = f"{SIDE_NAMES.get(spec.side, '')} {seg.split('_')[0]}".strip() if spec else seg
     r = reason.lower().removeprefix("hinge axis from movement: ").split("; ")[0]
+    if "packet-loss gap" in r:  # segments.gap_headings: a hidden turn the heading keeps
+        return "lost packets may have turned a sensor's heading", (
+            "keep the receiver close to the subject and in sight of the sensors, so that fewer "
+            "packets are lost"
+        )
     if "axis's sign is not clear" in r:  # a trunk rest held leaning (segments.trunk_axes)
         return "direction of flexion", "rest sitting or standing upright for a few seconds"
     if "headings are tied at the rest only" in r:  # segments.trunk_axes: drift not followed

@@ -268,9 +268,11 @@ def grade_joints(protocol, calibration: SegmentCalibration) -> dict[str, JointGr
             why = (f"a packet-loss gap in {gap.sensor} at {gap.time_s:.1f} s may have hidden a "
                    f"turn of {gap.turn_deg:.0f}°, which the joint's heading, tied only where a "
                    "pose was held, keeps from then on")  # fmt: skip
-            for k in range(3):
-                if GRADES.index(g_gap) >= GRADES.index(grades[k]):
-                    grades[k], reasons[k] = g_gap, "; ".join(filter(None, [reasons[k], why]))
+            for k in range(3):  # the gap's reason first where it decides the grade
+                worse = GRADES.index(g_gap) > GRADES.index(grades[k])
+                if worse or g_gap == grades[k]:
+                    order = [why, reasons[k]] if worse else [reasons[k], why]
+                    grades[k], reasons[k] = g_gap, "; ".join(filter(None, order))
         out[name] = JointGrades(grades, reasons)
     return out
 
