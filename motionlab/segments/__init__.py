@@ -72,6 +72,8 @@ def calibrate_segments(
     if trunk_axes.applies(protocol):  # rest and trunk movement anywhere (lumbar_seated)
         result = trunk_axes.calibrate(session, protocol, warnings)
         result.headings = heading_ties(session, protocol, result)
+        result.gap_turns = gap_headings(session, protocol, result.headings, result.centres)
+        result.grades = grades.gap_graded(result.grades, result.gap_turns)
         return result
     notes: list[str] = []
     streams = streams_of(session, protocol)
@@ -126,8 +128,8 @@ def calibrate_segments(
         single_pose=pose.name if pose is not None else None,
     )
     result.headings = heading_ties(session, protocol, result)  # first: the hip axes reuse them
-    result.gap_turns = gap_headings(session, protocol, result.headings)
-    result.grades = grades.grade_joints(protocol, result)
+    result.gap_turns = gap_headings(session, protocol, result.headings, result.centres)
+    result.grades = grades.gap_graded(grades.grade_joints(protocol, result), result.gap_turns)
     if pose is None:
         result.hip_axes = hip_axes(session, protocol, result)
     return result
@@ -138,19 +140,29 @@ def calibrate_segments(
 POSE_TIES = ("steps", "single pose")
 
 
-def gap_headings(session: Session, protocol: Protocol, ties: HeadingTies) -> dict[str, GapTurn]:
+def gap_headings(
+    session: Session,
+    protocol: Protocol,
+    ties: HeadingTies,
+    centres: dict[str, CentreHeading] | None = None,
+) -> dict[str, GapTurn]:
     """``{joint: GapTurn}``: for each joint whose heading is tied at poses only
-    (:data:`POSE_TIES`), the largest turn a packet-loss gap of either sensor may have hidden
-    after the ties' first anchor (the fusion's ``gaps_missed_deg``: what the gap's bridge misses
-    on test gaps around it, :func:`motionlab.fusion.timegrid.gap_noise`); joints with none are
-    left out. In 6-D nothing measures that turn about the vertical where it happens: the hinge
-    ties of a knee take it out within seconds; a pose's hold it from the gap on, and a later
-    pose's only spread it over the time between the two (the track is linear between anchors)."""
+    (:data:`POSE_TIES` in ``ties``, or a trunk's rest in ``centres``: method ``trunk rest``),
+    the largest turn a
+    packet-loss gap of either sensor may have hidden after the first anchor (the fusion's
+    ``gaps_missed_deg``: what the gap's bridge misses on test gaps around it,
+    :func:`motionlab.fusion.timegrid.gap_noise`); joints with none are left out. In 6-D nothing
+    measures that turn about the vertical where it happens: the hinge ties of a knee take it out
+    within seconds; a pose's hold it from the gap on, and a later pose's only spread it over the
+    time between the two (the track is linear between anchors)."""
+    anchored = {name: tie.times for name, tie in ties.joints.items() if tie.source in POSE_TIES}
+    anchored |= {name: c.heading_times for name, c in (centres or {}).items()
+                 if c.method == "trunk rest"}  # fmt: skip
     out = {}
-    for name, tie in ties.joints.items():
-        if tie.source not in POSE_TIES or not len(tie.times):
+    for name, times in anchored.items():
+        if not len(times) or name not in protocol.joints:
             continue
-        first = float(np.min(tie.times))
+        first = float(np.min(times))
         joint = protocol.joints[name]
         worst = None
         for seg in (joint.proximal, joint.distal):

@@ -53,6 +53,7 @@ an angle that is not determined.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -262,18 +263,30 @@ def grade_joints(protocol, calibration: SegmentCalibration) -> dict[str, JointGr
             g_flex, r_flex = _flexion_under_heading(joint, protocol, calibration, frames[1][0])
             if g_flex and g_frame == "weak":
                 grades[0], reasons[0] = g_flex, r_flex
-        gap = (calibration.gap_turns or {}).get(name)
-        if gap is not None and gap.turn_deg > GAP_TURN_DEG:
-            g_gap = "weak" if gap.turn_deg <= 2 * GAP_TURN_DEG else "not determined"
-            why = (f"a packet-loss gap in {gap.sensor} at {gap.time_s:.1f} s may have hidden a "
-                   f"turn of {gap.turn_deg:.0f}°, which the joint's heading, tied only where a "
-                   "pose was held, keeps from then on")  # fmt: skip
-            for k in range(3):  # the gap's reason first where it decides the grade
-                worse = GRADES.index(g_gap) > GRADES.index(grades[k])
-                if worse or g_gap == grades[k]:
-                    order = [why, reasons[k]] if worse else [reasons[k], why]
-                    grades[k], reasons[k] = g_gap, "; ".join(filter(None, order))
         out[name] = JointGrades(grades, reasons)
+    return out
+
+
+def gap_graded(graded: dict[str, JointGrades], gap_turns: dict) -> dict[str, JointGrades]:
+    """``graded`` with each joint of ``gap_turns`` (``{joint: GapTurn}``,
+    :func:`motionlab.segments.gap_headings`) graded by the turn a packet-loss gap may have
+    hidden: ``weak`` over ``GAP_TURN_DEG``, ``not determined`` over twice it, the gap's reason
+    first where it decides the grade (the summary names the first clause as the cause)."""
+    out = dict(graded)
+    for name, gap in (gap_turns or {}).items():
+        if name not in out or gap.turn_deg <= GAP_TURN_DEG:
+            continue
+        g_gap = "weak" if gap.turn_deg <= 2 * GAP_TURN_DEG else "not determined"
+        why = (f"a packet-loss gap in {gap.sensor} at {gap.time_s:.1f} s may have hidden a turn "
+               f"of {gap.turn_deg:.0f}°, which the joint's heading, tied only where a pose was "
+               "held, keeps from then on")  # fmt: skip
+        grades, reasons = list(out[name].grades), list(out[name].reasons)
+        for k in range(len(grades)):
+            worse = GRADES.index(g_gap) > GRADES.index(grades[k])
+            if worse or g_gap == grades[k]:
+                order = [why, reasons[k]] if worse else [reasons[k], why]
+                grades[k], reasons[k] = g_gap, "; ".join(filter(None, order))
+        out[name] = replace(out[name], grades=grades, reasons=reasons)
     return out
 
 
