@@ -150,14 +150,19 @@ def test_bad_time_is_an_input_error(sig, time, message):
         estimate("madgwick", sig["gyr"][:20], sig["acc"][:20], None, RATE, time=time)
 
 
+def alternating(c: float = 0.7, n: int = 300) -> tuple[np.ndarray, np.ndarray]:
+    """Time (s) and a rate (rad/s) alternating ±``c`` about x from one sample to the next."""
+    gyr = np.zeros((n, 3))
+    gyr[:, 0] = c * (-1.0) ** np.arange(n)
+    return np.arange(n) / RATE, gyr
+
+
 def test_gap_noise_by_hand():
     """A rate alternating ±c each sample, one sample filled: every test gap's bridge misses
     the inner sample by 2c (linear: both ends equal the inner's opposite) or 3c (cubic: ends
     +c, one-sided slopes ∓2c/dt, midpoint 2c), so sigma (per axis) is that over rate, /√3."""
     c, n = 0.7, 300
-    t = np.arange(n) / RATE
-    gyr = np.zeros((n, 3))
-    gyr[:, 0] = c * (-1.0) ** np.arange(n)
+    t, gyr = alternating(c, n)
     recorded = np.ones(n, bool)
     recorded[150] = False
     cubic = gap_noise(t, gyr, recorded, RATE)
@@ -180,19 +185,15 @@ def test_each_gap_takes_the_bridge_its_neighbourhood_misses_less_with(sig):
     grid = gap_grid(t, RATE)
     recorded = np.zeros(len(grid.time), bool)
     recorded[grid.index] = True
-    flags = linear_gaps(grid.time, grid.vectors(sig["gyr"][keep]), recorded, RATE)
-    assert not flags[recorded].any() and not flags.any()
-    c, n = 0.7, 300
-    tt = np.arange(n) / RATE
-    gyr = np.zeros((n, 3))
-    gyr[:, 0] = c * (-1.0) ** np.arange(n)
-    one = np.ones(n, bool)
+    assert not linear_gaps(grid.time, grid.vectors(sig["gyr"][keep]), recorded, RATE).any()
+    tt, gyr = alternating()
+    one = np.ones(len(tt), bool)
     one[150] = False
     np.testing.assert_array_equal(linear_gaps(tt, gyr, one, RATE), ~one)
-    long = np.ones(n, bool)
+    long = np.ones(len(tt), bool)
     long[100:190] = False  # 0.91 s between the recorded samples either side
-    np.testing.assert_array_equal(linear_gaps(tt, 0.3 + 2.0 * tt[:, None] + gyr * 0, long, RATE),
-                                  ~long)  # fmt: skip
+    ramp = np.repeat(0.3 + 2.0 * tt[:, None], 3, axis=1)
+    np.testing.assert_array_equal(linear_gaps(tt, ramp, long, RATE), ~long)
 
 
 def test_a_gap_in_a_ringing_signal_is_bridged_by_the_line(sig):
