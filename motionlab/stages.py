@@ -339,7 +339,12 @@ def calibrate(
         protocol = load_protocol(protocol)
     check_joints(protocol, session, path)  # before the joints of absent segments are dropped
     protocol = stage_protocol(session, protocol, path)
-    result = calibrate_segments(session, protocol)
+    try:
+        result = calibrate_segments(session, protocol)
+    except InputError as exc:  # what the session holds (its fusion results): name its file
+        if exc.path is not None or path is None:
+            raise
+        raise InputError(exc.message, path, exc.where, exc.remedy, exc.arguments or None) from None
     result.protocol_path = str(protocol.path)
     session.results.calibration = result
     session.lineage.record(session.results, "calibration", protocol)

@@ -15,7 +15,7 @@ from motionlab.errors import InputError
 from motionlab.fusion import estimate
 from motionlab.fusion.markers import MarkerReferences
 from motionlab.fusion.registry import get, make_params
-from motionlab.fusion.timegrid import gap_grid, gap_noise, linear_gaps
+from motionlab.fusion.timegrid import gap_grid, gap_noise
 from motionlab.validation.orientation_error import orientation_errors
 
 RATE = 100.0
@@ -176,6 +176,11 @@ def test_gap_noise_by_hand():
     assert gap_noise(t, gyr, np.ones(n, bool), RATE) is None
 
 
+def linear_gaps(time: np.ndarray, gyr: np.ndarray, recorded: np.ndarray) -> np.ndarray:
+    """The filled samples ``gap_noise(..., choose=True)`` bridges linearly."""
+    return gap_noise(time, gyr, recorded, RATE, choose=True).linear
+
+
 def test_each_gap_takes_the_bridge_its_neighbourhood_misses_less_with(sig):
     """On the smooth swing every short gap keeps the cubic (its test gaps miss less with it);
     the alternating rate of test_gap_noise_by_hand (the line misses 2c, the cubic 3c) and a
@@ -185,15 +190,15 @@ def test_each_gap_takes_the_bridge_its_neighbourhood_misses_less_with(sig):
     grid = gap_grid(t, RATE)
     recorded = np.zeros(len(grid.time), bool)
     recorded[grid.index] = True
-    assert not linear_gaps(grid.time, grid.vectors(sig["gyr"][keep]), recorded, RATE).any()
+    assert not linear_gaps(grid.time, grid.vectors(sig["gyr"][keep]), recorded).any()
     tt, gyr = alternating()
     one = np.ones(len(tt), bool)
     one[150] = False
-    np.testing.assert_array_equal(linear_gaps(tt, gyr, one, RATE), ~one)
+    np.testing.assert_array_equal(linear_gaps(tt, gyr, one), ~one)
     long = np.ones(len(tt), bool)
     long[100:190] = False  # 0.91 s between the recorded samples either side
     ramp = np.repeat(0.3 + 2.0 * tt[:, None], 3, axis=1)
-    np.testing.assert_array_equal(linear_gaps(tt, ramp, long, RATE), ~long)
+    np.testing.assert_array_equal(linear_gaps(tt, ramp, long), ~long)
 
 
 def test_a_gap_in_a_ringing_signal_is_bridged_by_the_line(sig):
@@ -209,7 +214,7 @@ def test_a_gap_in_a_ringing_signal_is_bridged_by_the_line(sig):
         grid = gap_grid(t[keep], RATE)
         recorded = np.zeros(len(grid.time), bool)
         recorded[grid.index] = True
-        flags = linear_gaps(grid.time, grid.vectors(gyr[keep]), recorded, RATE)
+        flags = linear_gaps(grid.time, grid.vectors(gyr[keep]), recorded)
         assert flags[~recorded].all()
         true = gyr[~keep].sum(axis=0) / RATE
         for kind, linear in (("cubic", np.zeros(len(grid.time), bool)), ("chosen", flags)):

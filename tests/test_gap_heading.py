@@ -142,3 +142,27 @@ def test_a_seated_trunk_with_lost_packets_is_graded_by_them():
     assert cal.gap_turns["lumbar"].sensor == "Back" and cal.gap_turns["lumbar"].turn_deg > 10
     assert cal.grades["lumbar"].grades == ["weak"] * 3
     assert all("a packet-loss gap in Back at" in r for r in cal.grades["lumbar"].reasons)
+
+
+@pytest.mark.parametrize("stored", ["[[1.0, 2.0, 3.0]]", "[[18.0, NaN]]", '"hello"'])
+def test_a_damaged_list_of_missed_turns_is_one_line(walk, tmp_path, stored):
+    """A session file whose fusion entry's gaps_missed_deg is not finite [s, deg] pairs:
+    calibrate names the file and the entry in one line, exits 2 and leaves the file as it was."""
+    import h5py
+    from click.testing import CliRunner
+
+    from motionlab.cli import main
+
+    session, _ = walk
+    path = tmp_path / "lost.h5"
+    save_session(session, path)
+    with h5py.File(path, "a") as f:
+        f["results/fusion/thigh_l"].attrs["gaps_missed_deg"] = stored
+    before = path.read_bytes()
+    res = CliRunner().invoke(main, ["calibrate", str(path), "--protocol", "walk", "--force"])
+    assert res.exit_code == 2
+    assert res.output.strip().splitlines() == [
+        f"error: {path.name} results/fusion/thigh_l/gaps_missed_deg: is not a list of finite "
+        "[time s, turn deg] pairs — fuse again with --force"
+    ]
+    assert path.read_bytes() == before

@@ -199,8 +199,11 @@ def _synchronise_network(
     clocks.update({k: (v, "") for k, v in solved.items()})
     # the heel strikes' clocks must agree with every joint centre's that measured its pair: where
     # one does not, the envelopes did not peak together and none is taken
-    contradicted = [w for a, b in tree if label[a] in solved or label[b] in solved
-                    for w in [_uncorroborated(clocks, label, centres, a, b)] if w]  # fmt: skip
+    contradicted = []
+    for a, b in tree:
+        if label[a] in solved or label[b] in solved:
+            contradicted.append(_uncorroborated(clocks, label, centres, a, b))
+    contradicted = [why for why in contradicted if why]
     if contradicted:
         clocks = {root: (None, "")}
     for ref_seg, seg in tree:  # not tied to the root: the reference's clock (tree order)

@@ -24,13 +24,7 @@ from typing import Any
 import numpy as np
 
 from motionlab.errors import InputError
-from motionlab.fusion.timegrid import (
-    CUBIC_MAX_S,
-    checked_time,
-    gap_grid,
-    gap_noise,
-    linear_gaps,
-)
+from motionlab.fusion.timegrid import CUBIC_MAX_S, checked_time, gap_grid, gap_noise
 
 DEFAULT_ESTIMATOR = "smoother"
 
@@ -344,18 +338,17 @@ def estimate(
     p = make_params(est, params)
     t = None if time is None else checked_time(time, n)
     grid = None if t is None else gap_grid(t, rate)
-    if t is not None:
-        recorded, linear = _bridged(t, filled_spans, grid)
-    if grid is not None:  # each gap bridged as its neighbourhood says is better
-        linear |= linear_gaps(grid.time, grid.vectors(gyr), recorded, float(rate))
-        gyr, acc, mag = (grid.vectors(x, linear) for x in (gyr, acc, mag))
     kwargs = {}
     noise = None
-    if t is not None:
+    if t is not None:  # each gap bridged as its neighbourhood says is better, and its noise
+        recorded, linear = _bridged(t, filled_spans, grid)
         grid_time = t if grid is None else grid.time
-        noise = gap_noise(grid_time, gyr, recorded, float(rate), linear)
+        on_grid = gyr if grid is None else grid.vectors(gyr)
+        noise = gap_noise(grid_time, on_grid, recorded, float(rate), linear, choose=True)
         if takes_gaps(est.name):
             kwargs["gaps"] = noise
+    if grid is not None:
+        gyr, acc, mag = (grid.vectors(x, noise.linear) for x in (gyr, acc, mag))
     if references is not None:
         takes = [k for k in available() if takes_references(k)]
         if est.name not in takes:

@@ -28,13 +28,13 @@ strikes and knocks): over 300 gaps of 0.12-0.5 s cut at random into the walk of 
 recording (five lower-body sensors, 100 Hz) the cubic missed a median 72° of rotation (90th
 percentile 519°, worst 1816°), the line 27° (104°, 229°), and a 0.14-s gap on the left thigh
 bridged by the cubic put 66° into its 6-D heading, which the hip (its heading tied at the stand
-only) then carried: hip_l 24° SD off the unbroken recording's. So each gap up to
-``CUBIC_MAX_S`` takes the bridge its own test gaps (below) say misses less
-(:func:`linear_gaps`): on that walk the line every time, on the simulated swings and walks
-mostly the cubic (``bench/real_world.py`` walk seeds 0-19: knee and hip flexion RMSE within
-0.06° of the cubic-only means). A gap across a fast turn still loses what the line cannot see,
-and in 6-D its turn about the vertical stays in the heading (a hip keeps it; a knee's hinge
-ties take it out within seconds).
+only) then carried: hip_l 24° SD off the unbroken recording's. So each gap up to ``CUBIC_MAX_S``
+takes the bridge its own test gaps (below) say misses less (:func:`gap_noise` with ``choose``):
+on that walk the line every time, on the simulated swings and walks mostly the cubic
+(``bench/real_world.py`` walk seeds 0-19: knee and hip flexion RMSE within 0.06° of the
+cubic-only means). A gap across a fast turn still loses what the line cannot see, and in 6-D its
+turn about the vertical stays in the heading (a hip keeps it; a knee's hinge ties take it out
+within seconds).
 
 What the bridge misses is not known, and a filter that takes the bridged rate as measured
 carries the missed rotation on as an inclination error that its weak accelerometer correction
@@ -114,7 +114,7 @@ class GapGrid:
     ) -> np.ndarray | None:
         """(N, 3) samples at the recorded stamps → (M, 3) on the grid (see the module notes);
         ``linear`` (M,) bool: the filled instants to bridge linearly (default: the gaps over
-        ``CUBIC_MAX_S``; :func:`linear_gaps` chooses)."""
+        ``CUBIC_MAX_S``; :func:`gap_noise` with ``choose`` chooses)."""
         if arr is None:
             return None
         t, i = self.stamps, self.before
@@ -234,11 +234,13 @@ class GapNoise:
     """How uncertain the bridge of each packet-loss gap is, for an estimator's process noise.
 
     ``after`` (K,) grid positions of the first recorded sample after each gap; ``sigma`` (K,)
-    rad, per axis, the rotation the bridge may have missed (:func:`gap_noise`).
+    rad, per axis, the rotation the bridge may have missed (:func:`gap_noise`); ``linear`` (M,)
+    bool, the filled samples bridged linearly.
     """
 
     after: np.ndarray
     sigma: np.ndarray
+    linear: np.ndarray
 
 
 def _bridge(w: np.ndarray, t: np.ndarray, a: np.ndarray, b: np.ndarray, inner: np.ndarray,
@@ -258,7 +260,7 @@ def _bridge(w: np.ndarray, t: np.ndarray, a: np.ndarray, b: np.ndarray, inner: n
 def _gap_tests(time: np.ndarray, gyr: np.ndarray, recorded: np.ndarray, rate: float):
     """Per gap of a filled grid (:func:`gap_noise`'s arguments): ``(first, last, span s,
     {cubic: σ² rad² per axis})`` with the test gaps' variance for each bridge that has test
-    gaps (the cubic only up to ``CUBIC_MAX_S``), else ``{}`` and the fallback in ``var``."""
+    gaps (the cubic only up to ``CUBIC_MAX_S``), else the fallback under ``None``."""
     filled = ~np.asarray(recorded, bool)
     n = len(time)
     starts = np.flatnonzero(filled & ~np.r_[False, filled[:-1]])  # first filled of each gap
@@ -287,22 +289,14 @@ def _gap_tests(time: np.ndarray, gyr: np.ndarray, recorded: np.ndarray, rate: fl
         yield first, last, span, var
 
 
-def linear_gaps(time: np.ndarray, gyr: np.ndarray, recorded: np.ndarray, rate: float) -> np.ndarray:
-    """(M,) bool: the filled instants of a grid (:func:`gap_noise`'s arguments) to bridge
-    linearly: every gap over ``CUBIC_MAX_S``, and every shorter one whose test gaps the straight
-    line bridges better than the cubic. The cubic's slopes are one-sided differences, which on a
-    real walk's gyroscope (tissue ringing, 300-800 °/s transients) are noise: on four 0.14-s gaps
-    of the 16-IMU walk's thigh the cubic missed 12-85° of rotation per axis, the line 4-30°, and
-    a missed 66° about the vertical stayed in the 6-D heading; on a smooth swing the cubic
-    wins (module notes)."""
-    out = np.zeros(len(time), bool)
-    for first, last, span, var in _gap_tests(time, gyr, recorded, rate):
-        out[first : last + 1] = span > CUBIC_MAX_S or (True in var and var[False] <= var[True])
-    return out
-
-
-def gap_noise(time: np.ndarray, gyr: np.ndarray, recorded: np.ndarray, rate: float,
-              linear: np.ndarray | None = None) -> GapNoise | None:  # fmt: skip
+def gap_noise(
+    time: np.ndarray,
+    gyr: np.ndarray,
+    recorded: np.ndarray,
+    rate: float,
+    linear: np.ndarray | None = None,
+    choose: bool = False,
+) -> GapNoise | None:
     """Per gap of a filled sample grid, the rotation its bridge may have missed (module notes).
 
     ``time`` (M,) s and ``gyr`` (M, 3) rad/s are the grid with the gaps bridged, ``recorded``
@@ -314,14 +308,25 @@ def gap_noise(time: np.ndarray, gyr: np.ndarray, recorded: np.ndarray, rate: flo
     ``sigma² = mean |missed|² / 3`` (rad², per axis). Where no such stretch exists, the rotation
     the recorded rate around it would make over the gap (``T · RMS |ω| / √3``). ``None`` when
     nothing was filled.
+
+    ``choose``: every gap up to ``CUBIC_MAX_S`` that its test gaps say the straight line bridges
+    better than the cubic is bridged linearly too (``GapNoise.linear``; the test gaps use only
+    recorded samples, so ``gyr`` may be bridged either way). The cubic's slopes are one-sided
+    differences, which on a real walk's gyroscope (tissue ringing, 300-800 °/s transients) are
+    noise: on four 0.14-s gaps of the 16-IMU walk's thigh the cubic missed 12-85° of rotation
+    per axis, the line 4-30°; on a smooth swing the cubic wins (module notes).
     """
     if np.all(recorded):
         return None
     n = len(time)
+    flat = np.zeros(n, bool) if linear is None else np.array(linear, bool)
     after, sigma = [], []
     for first, last, span, var in _gap_tests(time, gyr, recorded, rate):
-        cubic = span <= CUBIC_MAX_S if linear is None else not bool(linear[first])
+        straight = span > CUBIC_MAX_S if linear is None else bool(linear[first])
+        if choose and True in var and var[False] <= var[True]:
+            straight = True
+        flat[first : last + 1] = straight
         after.append(last + 1)
-        sigma.append(np.sqrt(var.get(cubic, var.get(False, var.get(None)))))
+        sigma.append(np.sqrt(var.get(not straight, var.get(False, var.get(None)))))
     keep = np.array(after) < n
-    return GapNoise(np.array(after)[keep], np.array(sigma)[keep])
+    return GapNoise(np.array(after)[keep], np.array(sigma)[keep], flat)

@@ -25,6 +25,7 @@ import numpy as np
 
 from motionlab import rotations as rot
 from motionlab.binding import sensor_for_segment
+from motionlab.errors import InputError
 from motionlab.kinematics.joint_types import flexion_axis, joint_type
 from motionlab.protocol import Protocol, axis_vector
 from motionlab.results import (
@@ -136,7 +137,7 @@ def calibrate_segments(
 
 
 #: heading ties anchored at poses only (the stand, later rests in it, a single pose): a turn
-#: about the vertical that a packet-loss gap hid after their last anchor stays in the joint
+#: about the vertical that a packet-loss gap hid after their first anchor stays in the joint
 POSE_TIES = ("steps", "single pose")
 
 
@@ -148,13 +149,13 @@ def gap_headings(
 ) -> dict[str, GapTurn]:
     """``{joint: GapTurn}``: for each joint whose heading is tied at poses only
     (:data:`POSE_TIES` in ``ties``, or a trunk's rest in ``centres``: method ``trunk rest``),
-    the largest turn a
-    packet-loss gap of either sensor may have hidden after the first anchor (the fusion's
-    ``gaps_missed_deg``: what the gap's bridge misses on test gaps around it,
+    the largest turn a packet-loss gap of either sensor may have hidden after the first anchor
+    (the fusion's ``gaps_missed_deg``: what the gap's bridge misses on test gaps around it,
     :func:`motionlab.fusion.timegrid.gap_noise`); joints with none are left out. In 6-D nothing
     measures that turn about the vertical where it happens: the hinge ties of a knee take it out
     within seconds; a pose's hold it from the gap on, and a later pose's only spread it over the
-    time between the two (the track is linear between anchors)."""
+    time between the two (the track is linear between anchors). A stored list that is not
+    finite ``[s, deg]`` pairs is an :class:`InputError` naming it."""
     anchored = {name: tie.times for name, tie in ties.joints.items() if tie.source in POSE_TIES}
     anchored |= {name: c.heading_times for name, c in (centres or {}).items()
                  if c.method == "trunk rest"}  # fmt: skip
@@ -168,13 +169,32 @@ def gap_headings(
         for seg in (joint.proximal, joint.distal):
             label = sensor_for_segment(session, seg)
             entry = session.results.fusion.get(label) if label is not None else None
-            missed = entry.gaps_missed_deg if entry is not None else None
-            for t, deg in np.asarray(missed if missed is not None else [], float).reshape(-1, 2):
+            for t, deg in _gap_turns(entry, label):
                 if t > first and (worst is None or deg > worst.turn_deg):
                     worst = GapTurn(float(deg), label, float(t))
         if worst is not None:
             out[name] = worst
     return out
+
+
+def _gap_turns(entry: Any, label: str | None) -> np.ndarray:
+    """(K, 2) ``[s, deg]`` of a fusion entry's ``gaps_missed_deg`` (none without one)."""
+    missed = getattr(entry, "gaps_missed_deg", None)
+    if missed is None:
+        return np.zeros((0, 2))
+    try:
+        pairs = np.asarray(missed, dtype=float)
+        ok = pairs.ndim == 2 and pairs.shape[1] == 2 and np.isfinite(pairs).all()
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise InputError(
+            "is not a list of finite [time s, turn deg] pairs",
+            where=f"results/fusion/{label}/gaps_missed_deg",
+            remedy="fuse again with force=True",
+            argument="force",
+        )
+    return pairs
 
 
 def _flag(segments: dict[str, SegmentRecord], seg: str, message: str) -> None:

@@ -40,9 +40,9 @@ was found to follow less than ``AXIAL_FOLLOW_DETERMINED`` of the humerus' rotati
 long axis has its carrying angle and pronation ``weak``: the rotation the skin misses goes into
 them to first order, and into flexion only through the carrying angle (:func:`_lag_grade`).
 
-A joint whose heading is tied only where a pose was held (a hip) is graded by the largest turn a
-packet-loss gap after the first pose may have hidden (``calibration.gap_turns``,
-:func:`motionlab.segments.gap_headings`):
+A joint whose heading is tied only where a pose was held (a hip; a seated trunk at its rest) is
+graded by the largest turn a packet-loss gap after the first pose may have hidden
+(``calibration.gap_turns``, :func:`motionlab.segments.gap_headings`, :func:`gap_graded`):
 ``weak`` over ``GAP_TURN_DEG``, ``not determined`` over twice it; in 6-D that turn stays in the
 heading, while a knee's hinge ties take it out within seconds.
 
@@ -74,7 +74,7 @@ HEADING_BOUND_DEG = {"turns": 20.0, "walk start": 10.0}
 #: axis than this leaves the other two angles weak: the humerus' axial rotation in free arm
 #: movement spans 60-90° (docs/simulator.md), so 10 % missed is already 6-9° off them at times
 AXIAL_FOLLOW_DETERMINED = 0.9
-#: a packet-loss gap whose bridge may have missed a turn over this (deg, total) after the last
+#: a packet-loss gap whose bridge may have missed a turn over this (deg, total) after the first
 #: pose that ties a joint's heading leaves its angles weak, over twice it not determined
 #: (:func:`motionlab.segments.gap_headings`)
 GAP_TURN_DEG = 10.0
