@@ -69,3 +69,40 @@ def heading_aligned(q_est: np.ndarray, q_ref: np.ndarray, mask: np.ndarray) -> n
     yaw = 2.0 * np.arctan2(e[:, 3], e[:, 0])
     off = np.arctan2(np.mean(np.sin(yaw)), np.mean(np.cos(yaw)))
     return rot.mul(rot.from_axis_angle([0.0, 0.0, 1.0], off), q_est)
+
+
+def swinging_start(
+    seconds: float = 12.0,
+    rate: float = 50.0,
+    moving: float = 3.0,
+    amplitude_deg: float = 15.0,
+    lever: float = 0.3,
+    seed: int = 0,
+) -> dict[str, np.ndarray | float]:
+    """A sensor ``lever`` m above a pivot that rocks for the first ``moving`` s (three axes at
+    0.9-1.7 Hz, ``amplitude_deg`` each: up to about 180 °/s, |acc| off g by up to ~10 %), then
+    holds still; the accelerometer reads gravity plus the lever's acceleration. Like a seated
+    trunk recording that starts in movement. Same keys as :func:`constant_rotation` (no bias,
+    no field noise)."""
+    rng = np.random.default_rng(seed)
+    n = int(round(seconds * rate))
+    t = np.arange(n) / rate
+    env = np.clip(1.0 - t / moving, 0.0, 1.0) ** 2  # the rocking fades out by ``moving``
+    amp = np.deg2rad(amplitude_deg) * env
+    angles = amp[:, None] * np.sin(2 * np.pi * np.array([1.3, 0.9, 1.7]) * t[:, None] + [0, 1, 2])
+    quat = rot.mul(rot.from_axis_angle([1.0, 2.0, 0.5], 0.4), rot.from_rotvec(angles))
+    quat = rot.make_continuous(quat)
+    _, w = rot.angular_velocity(t, quat)
+    gyr = np.vstack([w[:1], w])  # sample k: the rate over the interval ending at k
+    pos = rot.rotate(quat, np.array([0.0, 0.0, lever]))
+    lin = np.gradient(np.gradient(pos, t, axis=0), t, axis=0)
+    acc = rot.rotate(rot.conj(quat), lin + np.array([0.0, 0.0, G]))
+    mag = rot.rotate(rot.conj(quat), FIELD)
+    return {
+        "gyr": gyr + 0.005 * rng.standard_normal((n, 3)),
+        "acc": acc + 0.05 * rng.standard_normal((n, 3)),
+        "mag": mag,
+        "quat": quat,
+        "rate": rate,
+        "bias": np.zeros(3),
+    }

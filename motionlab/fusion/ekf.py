@@ -23,6 +23,10 @@ angular rate ``ω`` (rad/s) and gyroscope bias ``b`` (rad/s). Liu (2010, thesis 
   the vector's own noise variance per component; with them the gyroscope enters as the interval
   mean (:func:`~motionlab.fusion.markers.interval_rates`) and the bias starts from the
   registration's estimate;
+- the accelerometer carries no heading: where nothing else measured it (no field, no markers at
+  the sample) its updates' turn about earth-up is dropped (:func:`~motionlab.fusion._common.
+  keep_heading`; through the covariance's tilt-heading terms a start in movement had turned the
+  6-D heading by up to 190°);
 - every measurement component is a scalar update (diagonal ``R``), linearised at the prediction;
   ``q`` is normalised after the prediction and the update (as Liu does) and the covariance is
   projected onto the tangent space of the unit sphere.
@@ -143,6 +147,7 @@ def _kernel(rec: tuple, own: tuple, markers: tuple, out: tuple) -> None:
     r = np.empty((3, 3))
     north = np.empty(3)
     qc = np.empty(4)
+    prior = np.empty(4)
     q = x[0:4]
     for i in range(4):
         q[i] = q0[i]
@@ -241,6 +246,8 @@ def _kernel(rec: tuple, own: tuple, markers: tuple, out: tuple) -> None:
         scale = kc.startup_scale(prm, k, dt)
         var_a *= scale
         used[k] = 0
+        for i in range(4):
+            prior[i] = q[i] + dx[i]  # the update without the accelerometer, for the heading
         if var_a > 0.0:
             used[k] += USED_ACC
             an = np.sqrt(acc[k, 0] ** 2 + acc[k, 1] ** 2 + acc[k, 2] ** 2)
@@ -275,6 +282,14 @@ def _kernel(rec: tuple, own: tuple, markers: tuple, out: tuple) -> None:
                     hrow[i] = -hrow[i]
                 pred = r[c, 0] * ax + r[c, 1] * ay + r[c, 2] * az
                 _update(p, dx, hrow, ref_earth[k, j, c] - pred, ref_var[j], ph, nfree)
+        if not used[k] & (USED_MAG | USED_MARKERS):  # nothing measured the heading
+            for i in range(4):
+                qc[i] = q[i] + dx[i]
+            cm.normalize(qc)
+            cm.normalize(prior)
+            cm.keep_heading(prior, qc)  # the accelerometer's turn about up dropped
+            for i in range(4):
+                dx[i] = qc[i] - q[i]
         for i in range(NX):
             x[i] += dx[i]
         cm.normalize(q)

@@ -20,7 +20,9 @@ Noise models (defaults; ``paper_noise=True`` uses To's eqs. (197)–(198) instea
 ``|acc|`` from g and by the rotation rate, gated beyond ``acc_gate``), heading noise ``σ_h`` from
 the magnetometer. On samples with a disturbed field (:mod:`motionlab.fusion.detect`) or without a
 magnetometer ``q_obs`` corrects the tilt only and ``σ_h`` is effectively infinite, so the heading
-is carried by the gyroscope. After each step ``P`` is projected onto the tangent space of the unit
+is carried by the gyroscope; the update's turn about earth-up, which the covariance's
+tilt-heading terms still make, is dropped there (:func:`~motionlab.fusion._common.keep_heading`).
+After each step ``P`` is projected onto the tangent space of the unit
 sphere at ``q``. The KF has no bias state; on detected rest the gyroscope's mean is taken as its
 bias (low-pass with time constant ``rest_bias_tau``) and subtracted from then on.
 
@@ -300,10 +302,13 @@ def _kernel(rec: tuple, own: tuple, q_paper: np.ndarray, out: tuple) -> None:
                         acc_ij -= kt[m, i] * p[m, j]
                     tmp[i, j] = acc_ij
             for i in range(4):
+                qo[i] = q[i]  # the prior, kept for the heading
                 q[i] = qn[i]
                 for j in range(4):
                     p[i, j] = 0.5 * (tmp[i, j] + tmp[j, i])
             cm.normalize(q)
+            if not use_m:  # nothing measured the heading
+                cm.keep_heading(qo, q)
         if not paper:
             _project(p, q, tmp)
         for i in range(4):

@@ -17,7 +17,9 @@ rotation vector in the body frame, ``q_true = q ⊗ exp(δθ)``. The gyroscope d
   horizontal part seen through the prior mean, heading only) and, on detected rest, the
   gyroscope as a measurement of the bias (zero rate); ``K = P_xz P_zz⁻¹``, the correction is
   applied multiplicatively ``q = q̄ ⊗ exp(K_θ ν)``, ``b = b̄ + K_b ν`` (eq. (106) corrected) and
-  ``P = P⁻ − K P_zxᵀ − P_xz Kᵀ + K P_zz Kᵀ`` (valid for any gain; eq. (107) has no ``H`` in a UKF).
+  ``P = P⁻ − K P_zxᵀ − P_xz Kᵀ + K P_zz Kᵀ`` (valid for any gain; eq. (107) has no ``H`` in a UKF);
+  where no field and no marker measured the heading, the update's turn about earth-up is dropped
+  (:func:`~motionlab.fusion._common.keep_heading`: gravity carries no heading).
 
 Marker reference vectors (Liu Table 3, :mod:`motionlab.fusion.markers`) add the predicted
 earth-frame directions ``R(χ) a`` of the body-fixed marker pairs to ``Z_i`` with their own noise;
@@ -147,6 +149,7 @@ def _kernel(rec: tuple, own: tuple, markers: tuple, out: tuple) -> None:
     kt = np.empty((nz, NX))
     lowz = np.empty((nz, nz))
     dx = np.empty(NX)
+    prior = np.empty(4)
     r = np.empty((3, 3))
     north = np.empty(3)
     for i in range(3):
@@ -263,7 +266,11 @@ def _kernel(rec: tuple, own: tuple, markers: tuple, out: tuple) -> None:
                 rvar[m + i] = rest_noise**2
             m += 3
         if m > 0:
+            for i in range(4):
+                prior[i] = q[i]
             _correct(q, b, p, dev, zs, z, rvar, m, scale < 1.0, zbar, pzz, pxz, kt, lowz, dx)
+            if not used[k] & (USED_MAG | USED_MARKERS):  # nothing measured the heading
+                cm.keep_heading(prior, q)
         for i in range(4):
             quat[k, i] = q[i]
         for i in range(3):
