@@ -397,7 +397,8 @@ class AxisMeasurement(_Record):
     mounting fit used it (``None``: the fit did not decide, as for a ``horizontal`` axis);
     ``residual_deg``: its angle (deg) to the fitted frame; ``verdict``: ``determined``, ``weak``
     or ``not determined`` for an axis found in the movement; ``turns`` and ``spread_deg``: the
-    walk's turns the pelvis's forward direction came from and how far (deg) they disagreed.
+    walk's turns the pelvis's forward direction came from and how far (deg) they disagreed
+    (0 and NaN for its first steps).
     """
 
     _stored_when_none: ClassVar[frozenset[str]] = frozenset({"reference_rho"})

@@ -163,7 +163,8 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
             *(pel[:, i] for i in range(len(PELVIS_COLUMNS))),
             method=(
                 "pelvis frame from the calibration (gravity in the stand; forward from the "
-                "placement hint, or from the walk's turns where the hint is contradicted); "
+                "placement hint, or from the walk's first steps or turns where the hint is "
+                "contradicted); "
                 "walking direction = pelvis heading averaged over one stride"
             ),
         )

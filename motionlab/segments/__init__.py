@@ -246,9 +246,10 @@ def pelvis_forward(
     contradicted: set[str],
     notes: list[str],
 ) -> None:
-    """The hips' proximal segment's forward direction from the walk's turns, or where they do not
-    give it (fewer than two, or disagreeing) from its first steps (:mod:`.walk_forward`; the walk
-    begins with the longest movement after the stand, :func:`walk_begins`), added
+    """The hips' proximal segment's forward direction from the walk's first steps (the walk
+    begins with the longest movement after the stand, :func:`walk_begins`), or where they do
+    not give it (the walk does not start right after the stand) from its turns
+    (:mod:`.walk_forward`), added
     to its ``records`` (kind ``movement``, method ``turns`` or ``walk start``, secondary: gravity
     keeps the tilt) when the recording measured only its vertical axis and the placement hint is
     contradicted: by the stand (its vertical, :func:`.placement.contradicted`) or by the walk
@@ -277,13 +278,12 @@ def pelvis_forward(
     by_stand = seg in contradicted
     spread = walk_forward.MAX_SPREAD_CONTRADICTED_DEG if by_stand else walk_forward.MAX_SPREAD_DEG
     acc = corrected_acc(session, label)
-    found = walk_forward.forward_from_turns(s.time, acc, q, s.gyr, up, float(rng[1]), spread)
-    method, words = "turns", f"the walk's turns ({found.turns})"
+    begin = walk_begins(streams, float(rng[1]))
+    found = walk_forward.forward_from_start(s.time, acc, q, up, begin)
+    method, words = "walk start", "the first steps of the walk"
     if not found.used:
-        begin = walk_begins(streams, float(rng[1]))
-        start = walk_forward.forward_from_start(s.time, acc, q, up, begin)
-        if start.used:
-            found, method, words = start, "walk start", "the first steps of the walk"
+        found = walk_forward.forward_from_turns(s.time, acc, q, s.gyr, up, float(rng[1]), spread)
+        method, words = "turns", f"the walk's turns ({found.turns})"
     if not found.used:
         if by_stand:
             _add_note(

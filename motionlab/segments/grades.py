@@ -26,8 +26,8 @@ determined, up to ``CROSSTALK_DEG[1]`` weak, beyond it not determined. On real w
 1.5-10° apart, flexion 75-100° over the recording) that is 6.5-17°: a walk alone does not
 determine a real knee's ab/adduction and rotation.
 
-A hip whose pelvis took its forward direction from the walk (:mod:`.walk_forward`: the turns,
-about 5-20° off, or the first steps, about 5-10°) has its frame turned about the vertical by up
+A hip whose pelvis took its forward direction from the walk (:mod:`.walk_forward`: the first
+steps, about 5-10° off, or the turns, often 5-25°) has its frame turned about the vertical by up
 to ``HEADING_BOUND_DEG``. Flexion is about an axis in the horizontal plane: a frame turned by
 ``e`` about the vertical reads a flexion ``θ`` as ``θ cos(e)`` to first order, an error of at
 most ``θ (1 - cos e)`` (ZXY decomposition, checked numerically: 45° at 20° reads 43.2°), while
@@ -100,7 +100,7 @@ def _frame_grade(segment: str, cal: SegmentRecord | None) -> tuple[str, str]:
         return "weak", f"{segment}'s frame has one measured axis, the rest is the nominal placement"
     methods = _methods(cal)
     if "turns" in methods:
-        return "weak", f"{segment}'s forward direction is from the walk's turns (about 5-20° off)"
+        return "weak", f"{segment}'s forward direction is from the walk's turns (often 5-25° off)"
     if "walk start" in methods:
         return "weak", (
             f"{segment}'s forward direction is from the first steps of the walk (about 5-10° off)"
