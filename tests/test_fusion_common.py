@@ -102,3 +102,21 @@ def test_a_recording_that_starts_in_motion_keeps_its_6d_heading(name):
         np.sum(rot.rotate(rot.conj(q), up) * rot.rotate(rot.conj(sig["quat"]), up), axis=1), -1, 1
     )))  # fmt: skip
     assert tilt[np.arange(len(q)) > 4 * sig["rate"]].max() < 2.0
+
+
+def test_keep_heading_drops_exactly_the_turn_about_up():
+    """A correction ``δ = s ⊗ t`` (``t`` 40° about earth-up, ``s`` 12° about a horizontal axis)
+    of an orientation ``q`` leaves ``s ⊗ q``; a half turn about a horizontal axis has no turn
+    about up to drop."""
+    from motionlab.fusion._common import keep_heading
+
+    before = rot.from_axis_angle([0.3, -0.5, 0.8], 1.1)
+    swing = rot.from_axis_angle([np.cos(0.7), np.sin(0.7), 0.0], np.deg2rad(12.0))
+    twist = rot.from_axis_angle([0.0, 0.0, 1.0], np.deg2rad(40.0))
+    q = rot.mul(rot.mul(swing, twist), before)
+    keep_heading(before, q)
+    assert np.degrees(rot.angle_between(q, rot.mul(swing, before))) < 1e-9
+    flip = rot.mul(rot.from_axis_angle([1.0, 0.0, 0.0], np.pi), before)
+    out = flip.copy()
+    keep_heading(before, out)
+    assert np.degrees(rot.angle_between(out, flip)) < 1e-9
