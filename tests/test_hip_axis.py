@@ -181,3 +181,23 @@ def test_a_pelvis_strapped_as_the_hint_says_keeps_the_hint():
     cal = session.results.calibration
     assert list(cal.segments["pelvis"].axes) == ["standing"]
     assert not any(w.startswith("pelvis:") and "forward" in w for w in cal.warnings)
+
+
+@pytest.mark.parametrize(("turn_deg", "used"), [(3.0, True), (40.0, False)])
+def test_first_steps_that_turn_give_no_forward_direction(turn_deg, used):
+    """A 2-s stand, then 1.5 s of setting off at 1 m/s² along the sensor's x while turning by
+    ``turn_deg`` about the vertical: a straight start (3°, as real and simulated ones) gives x;
+    one that turns 40° (setting off towards a walkway beside the walker) gives no direction."""
+    rate, g = 100.0, 9.81
+    t = np.arange(int(3.5 * rate)) / rate
+    moving = t > 2.0
+    heading = np.where(moving, np.deg2rad(turn_deg) * (t - 2.0) / 1.5, 0.0)
+    q = rot.from_axis_angle(np.array([0.0, 0.0, 1.0]), heading)
+    acc = np.tile([0.0, 0.0, g], (len(t), 1))
+    acc[moving, 0] = 1.0
+    found = walk_forward.forward_from_start(t, acc, q, np.array([0.0, 0.0, 1.0]), 2.0)
+    assert found.used is used
+    if used:
+        assert np.degrees(np.arccos(found.axis @ [1.0, 0.0, 0.0])) < 1.0
+    else:
+        assert found.reason.startswith("the walker turned 39°")  # over the window's samples

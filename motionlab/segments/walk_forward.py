@@ -69,6 +69,12 @@ RHO = 0.6  # weight of the axis in the frame fit (secondary to gravity)
 HINT_HEADING_DEG = 20.0
 START_S = 1.5  # the first steps after the stand whose velocity gives the walking direction
 MIN_START_SPEED_M_S = 0.3
+# a walker who turns further than this (deg, about the vertical) in the first steps (setting off
+# towards a walkway beside them) gains velocity along no one pelvis direction: the direction
+# gained lies between the start's and the end's, up to half the turn from each, which is the
+# method's bound (grades.HEADING_BOUND_DEG, 10°) at 20°; straight starts turn 2.2° (the real
+# 16-IMU walk) and 2.7-4.0° (bench/real_world.py, seeds 0-19)
+MAX_START_TURN_DEG = 20.0
 
 
 @dataclass(frozen=True)
@@ -153,7 +159,8 @@ def forward_from_start(
     ``START_S`` seconds (the horizontal specific force in the sensor frame, less its mean over
     the end of the stand, integrated) points the way the walker goes. Needs no turn; on
     simulated walks with random mountings and soft tissue it lay 5-7° from the true pelvis x
-    (seeds 0-2), as close as the turns. Arguments as :func:`forward_from_turns`."""
+    (seeds 0-2), as close as the turns. Not where the walker turns more than
+    ``MAX_START_TURN_DEG`` in those seconds. Arguments as :func:`forward_from_turns`."""
     start = (t > after_s) & (t <= after_s + START_S)
     still = (t > after_s - 2.0) & (t <= after_s)
     if start.sum() < 10 or still.sum() < 5:
@@ -166,5 +173,11 @@ def forward_from_start(
     speed = float(np.linalg.norm(gained))
     if not speed >= MIN_START_SPEED_M_S:
         why = "the walk does not start right after the stand"
+        return ForwardDirection(False, reason=why, speed_m_s=speed)
+    ends = q[np.flatnonzero(start)[[0, -1]]]
+    turn = rot.mul(ends[1], rot.conj(ends[0]))  # earth frame: its part about up is the turn
+    turned = abs((float(np.degrees(2.0 * np.arctan2(turn[3], turn[0]))) + 180.0) % 360.0 - 180.0)
+    if turned > MAX_START_TURN_DEG:
+        why = f"the walker turned {turned:.0f}° in the first steps"
         return ForwardDirection(False, reason=why, speed_m_s=speed)
     return ForwardDirection(True, axis=gained / speed, speed_m_s=speed)
