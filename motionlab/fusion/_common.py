@@ -125,7 +125,7 @@ def keep_heading(before: np.ndarray, q: np.ndarray) -> None:
 
     For updates by gravity alone: it carries no heading, so a Kalman filter turns the heading
     only through the covariance's tilt-heading terms, which in 6-D turned the EKF's, UKF's and
-    KF's headings by 40-190° in the first seconds of real seated trunk recordings that start in
+    KF's headings by 18-193° in the first seconds of real seated trunk recordings that start in
     movement (the accelerometer's linear acceleration read as tilt).
     """
     dw, dx, dy, dz = qmul(q[0], q[1], q[2], q[3], before[0], -before[1], -before[2], -before[3])

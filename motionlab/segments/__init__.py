@@ -248,7 +248,8 @@ def pelvis_forward(
 ) -> None:
     """The hips' proximal segment's forward direction from the walk's first steps (the walk
     begins with the longest movement after the stand, :func:`walk_begins`), or where they do
-    not give it (the walk does not start right after the stand) from its turns
+    not give it (the walk does not start right after the stand, or turns in its first steps)
+    from its turns
     (:mod:`.walk_forward`), added
     to its ``records`` (kind ``movement``, method ``turns`` or ``walk start``, secondary: gravity
     keeps the tilt) when the recording measured only its vertical axis and the placement hint is
