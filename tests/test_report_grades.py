@@ -323,6 +323,20 @@ def test_a_determined_hip_flexion_is_not_told_to_avoid_sitting_down(walk):
     assert "sitting down" not in line and "cannot do better" in line, line
 
 
+def test_a_forward_direction_from_the_turns_is_told_to_set_off_straight_ahead(walk):
+    """Where the pelvis's forward direction came from the walk's turns (the walk did not set off
+    straight ahead right after the stand), the remedy says to: the first steps give it to
+    5-10°, the turns only to 5-25° (segments/walk_forward.py)."""
+    from motionlab.report.sentences import missing_lines
+
+    ses = _force(walk, "hip_r", 0, "determined", "")
+    turns = "pelvis's forward direction is from the walk's turns (often 5-25° off)"
+    for k in (1, 2):
+        ses = _force(ses, "hip_r", k, "weak", turns)
+    line = next(m for m in missing_lines(load_view(ses)) if m.startswith("Right hip"))
+    assert "set off walking straight ahead right after the stand" in line, line
+
+
 def test_pelvis_not_calibrated(walk):
     ses = _pelvis_nominal(walk)
     assert (

@@ -371,9 +371,14 @@ def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[s
                 "record only the stand and the walk (no sitting down) for a determined "
                 "flexion; the other planes stay weak in a stand-and-walk recording"
             )
+        if "turns" in r:  # the walk did not set off straight ahead right after the stand
+            return cause, (
+                "set off walking straight ahead right after the stand: the first steps give "
+                "the pelvis's forward direction to within 5-10°, the turns only to 5-25°"
+            )
         return cause, (
-            "a stand and a walk cannot do better: walking gives the pelvis's forward "
-            "direction to within 5-20°"
+            "a stand and a walk cannot do better: the first steps give the pelvis's forward "
+            "direction to within 5-10°"
         )
     if "forward direction" in r or "one measured axis" in r:
         return (
