@@ -44,6 +44,7 @@ a sign error is an error), and the product's grade. Medians over the trials.
 Usage (from the repository root)::
 
     python3 bench/real_trunk.py [--data ../shared/datasets/trunk] [--start-moving]
+                                [--estimators ekf,ukf,kf]
 """
 
 from __future__ import annotations
@@ -81,6 +82,8 @@ JUMP_WINDOW_S = 0.2  # … over this window (a jump lasting up to half of it is 
 CLOCK_SEARCH_S = 3.0
 #: Motive's Y-up lab frame → Z-up: +90° about x (Y → Z, Z → -Y)
 Y_UP_TO_Z_UP = np.array([np.sqrt(0.5), np.sqrt(0.5), 0.0, 0.0])
+#: the open estimators a user would pick instead (the issue's peers); the rest are motionlab's
+PEERS = ("x-IMU3 own fusion (9-D)", "VQF offline 9-D")
 VARIANTS = {
     "motionlab 6-D": {},
     "motionlab 9-D": {"magnetometer": True},
@@ -313,7 +316,15 @@ def main(argv: list[str] | None = None) -> int:
         help="cut a trial whose rest starts the recording to 0.5 s after that rest (a recording "
         "that starts in movement, its rest elsewhere or none)",
     )
+    ap.add_argument(
+        "--estimators",
+        default="",
+        help="comma-separated other estimators to add as 6-D rows (e.g. ekf,ukf,kf; "
+        "'motionlab fuse --list')",
+    )
     args = ap.parse_args(argv)
+    for name in filter(None, args.estimators.split(",")):
+        VARIANTS[f"{name} 6-D"] = {"estimator": name}
     trials = sorted(p.parent for p in args.data.glob("*/*/optitrack.csv"))
     if not trials:
         print(f"error: no trials in {args.data} (<subject>/<task>/optitrack.csv); give --data",
@@ -431,7 +442,7 @@ def main(argv: list[str] | None = None) -> int:
         rest = df[(df.angle == "rotation from rest") & np.isfinite(df.free)]
         med = rest.groupby("variant").free.median()
         ours = med.get("motionlab 6-D", np.nan)
-        peers = med.drop(["motionlab 6-D", "motionlab 9-D"], errors="ignore")
+        peers = med[[k for k in med.index if k in PEERS]]
         ahead = bool(len(peers)) and bool((ours < peers).all())
         print("\nRotation from rest, median offset-free RMSE (deg): "
               + ", ".join(f"{k} {v:.2f}" for k, v in med.items())
