@@ -121,7 +121,8 @@ def test_pelvis_forward_from_the_first_steps_rather_than_the_turns():
     """Random mounting, seed 18 (74 s, four turns): the stand contradicts the pelvis hint; the
     walk's first steps give its forward direction within 5° (measured 0.2°), where the turns
     alone were 98.6° off (a sensor behind the pelvis centre sees ω² r forward in a turn; on
-    ``bench/real_world.py`` seeds 0-19 the turns were 0.4-26° off, the first steps 0.3-3.2°)."""
+    ``bench/real_world.py`` seeds 0-19 the turns were 4.2-26° off, the first steps 0.3-3.2°:
+    ``bench/pelvis_forward.py``)."""
     cal, angle = _pelvis_forward_error(74.0, 18)
     assert cal.segments["pelvis"].axes["movement:turns"].method == "walk start"
     assert any("taken from the first steps of the walk" in w for w in cal.warnings)

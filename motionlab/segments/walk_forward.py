@@ -1,10 +1,11 @@
 """The pelvis's forward direction from the walk's first steps (or, where they do not give it,
 from its turns), for a pelvis sensor whose placement hint the stand or the walk contradicts.
 
-The first steps come first: on ``bench/real_world.py`` (random mountings, the ``skin`` preset,
-74 s, seeds 0-19) they lay 0.3-3.2° from the true pelvis x on every seed, the turns 0.4-26°
-(13 of 20 seeds over 5°; one ``typical`` seed, 18, 98.6°), and the hips' mean RMSE fell from
-1.39 / 1.48° (flexion, right / left) to 1.26 / 1.27° when the first steps replaced the turns.
+The first steps come first: on ``bench/real_world.py``'s walk (random mountings, the ``skin``
+preset, 74 s, seeds 0-19; ``bench/pelvis_forward.py``) they lay 0.3-3.2° from the true pelvis x
+on every seed, the turns 4.2-26° (over 5° on 17 of 18 seeds; one ``typical`` seed, 18, 98.6°),
+and the hips' mean RMSE fell from 1.39 / 1.48° (flexion, right / left) to 1.26 / 1.27° when the
+first steps replaced the turns.
 The turns remain for a walk that does not start right after the stand.
 
 With only gravity in the stand, the pelvis sensor's heading on the pelvis is the protocol's
