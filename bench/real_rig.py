@@ -31,6 +31,7 @@ the rest of the bench goes on.
 Usage (from the repository root)::
 
     python3 bench/real_rig.py [--data ../shared/datasets/ring/trial1] [--skip-run] [--keep DIR]
+                              [--estimators ekf,ukf,kf]
 """
 
 from __future__ import annotations
@@ -120,10 +121,13 @@ def on_optical(t_imu: np.ndarray, values: np.ndarray, t_opt: np.ndarray, offset:
     return np.interp(t_opt - offset, t_imu, values, left=np.nan, right=np.nan)
 
 
-def run_product(csv: Path, outdir: Path, magnetometer: bool) -> tuple[Path | None, str]:
+def run_product(
+    csv: Path, outdir: Path, magnetometer: bool, estimator: str = "default"
+) -> tuple[Path | None, str]:
     """``motionlab run`` through the CLI; (csv folder, "") or (None, one-line failure)."""
     cmd = [sys.executable, "-m", "motionlab.cli", "run", "--protocol", str(PROTOCOL), "--map",
-           str(MAP), str(csv), "-o", str(outdir), "--force", "--quiet"]  # fmt: skip
+           str(MAP), str(csv), "-o", str(outdir), "--force", "--quiet",
+           "--filter", estimator]  # fmt: skip
     if magnetometer:
         cmd.append("--magnetometer")
     env = {**os.environ, "PYTHONPATH": str(ROOT)}
@@ -237,6 +241,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--data", type=Path, default=DEFAULT_DATA, help="folder of trial 1")
     ap.add_argument("--skip-run", action="store_true", help="only the by-hand references")
     ap.add_argument("--keep", type=Path, help="keep the runs' outputs in this folder")
+    ap.add_argument(
+        "--estimators",
+        default="",
+        help="comma-separated other estimators to add as 6-D runs (e.g. ekf,ukf,kf)",
+    )
     args = ap.parse_args(argv)
     omc = args.data / "omc.csv"
     if not omc.is_file() or not all((args.data / m).is_file() for m in MOUNTINGS):
@@ -274,11 +283,13 @@ def main(argv: list[str] | None = None) -> int:
                 f"- {name}: optical = IMU + {offset * 1000:.0f} ms from the hinge angles "
                 f"(from the angular speeds: {speed_offset * 1000:.0f} ms, r = {r_clock:.3f})"
             )
-            variants = [] if args.skip_run else [("run 6-D", False), ("run 9-D", True)]
-            for variant, mag in variants:
-                csv_dir, error = run_product(
-                    args.data / mounting, work / f"{name}_{variant[-3:]}", mag
-                )
+            variants = [] if args.skip_run else [
+                ("run 6-D", False, "default"), ("run 9-D", True, "default"),
+                *((f"run {e} 6-D", False, e) for e in filter(None, args.estimators.split(","))),
+            ]  # fmt: skip
+            for variant, mag, estimator in variants:
+                out = work / f"{name}_{variant.replace(' ', '_')}"
+                csv_dir, error = run_product(args.data / mounting, out, mag, estimator)
                 g = grades(csv_dir)
                 cols = [(f"{j}_angle_deg", ref_hinge[j]) for j in HINGES]
                 cols += [
