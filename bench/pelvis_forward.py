@@ -51,20 +51,26 @@ def forward_error(seed: int, preset: str, turns_only: bool) -> tuple[str, float,
     finally:
         walk_forward.forward_from_start = shipped
     cal = session.results.calibration
-    pelvis = cal.segments["pelvis"]
-    rec = pelvis.axes.get("movement:turns")
+    rec = cal.segments["pelvis"].axes.get("movement:turns")
     if rec is None:
         return "hint", float("nan"), float("nan")
+    return rec.method, forward_error_deg(cal, truth), rec.spread_deg
+
+
+def forward_error_deg(cal, truth) -> float:
+    """The angle (deg) between the calibrated pelvis frame's forward direction and the truth's
+    (the sensor-to-pelvis rotation averaged over the stand), about the measured vertical."""
+    mounting = np.asarray(cal.segments["pelvis"].mounting)
     stand = cal.steps["standing"]
     sel = (truth.time >= stand[0]) & (truth.time <= stand[1])
     m = rot.mul(rot.conj(truth.sensors["pelvis"]["orientation"][sel]),
                 truth.segments["pelvis"]["orientation"][sel])  # fmt: skip
     x_true = rot.rotate(m, np.array([1.0, 0.0, 0.0])).mean(axis=0)
-    x_est = rot.rotate(np.asarray(pelvis.mounting), np.array([1.0, 0.0, 0.0]))
-    up = rot.rotate(np.asarray(pelvis.mounting), np.array([0.0, 1.0, 0.0]))
+    x_est = rot.rotate(mounting, np.array([1.0, 0.0, 0.0]))
+    up = rot.rotate(mounting, np.array([0.0, 1.0, 0.0]))
     h = [v - (v @ up) * up for v in (x_true, x_est)]
     cos = h[0] @ h[1] / np.linalg.norm(h[0]) / np.linalg.norm(h[1])
-    return rec.method, float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0)))), rec.spread_deg
+    return float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
 
 
 def run_job(job: tuple[int, str, bool]) -> tuple[int, bool, tuple[str, float, float]]:

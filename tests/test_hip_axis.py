@@ -6,6 +6,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from conftest import bench_module
 
 from motionlab import rotations as rot
 from motionlab.kinematics.joint_angles import decompose_joint
@@ -105,16 +106,7 @@ def _pelvis_forward_error(duration: float, seed: int):
     prepare_sensors(session)
     analyse(session, PipelineOptions(proto, progress=False))
     cal = session.results.calibration
-    pelvis = cal.segments["pelvis"]
-    stand = cal.steps["standing"]
-    sel = (truth.time >= stand[0]) & (truth.time <= stand[1])
-    m = rot.mul(rot.conj(truth.sensors["pelvis"]["orientation"][sel]),
-                truth.segments["pelvis"]["orientation"][sel])  # fmt: skip
-    x_true = rot.rotate(m, np.array([1.0, 0.0, 0.0])).mean(axis=0)
-    x_est = rot.rotate(np.asarray(pelvis.mounting), np.array([1.0, 0.0, 0.0]))
-    up = rot.rotate(np.asarray(pelvis.mounting), Y)
-    h = [v - (v @ up) * up for v in (x_true, x_est)]
-    return cal, np.degrees(np.arccos(h[0] @ h[1] / np.linalg.norm(h[0]) / np.linalg.norm(h[1])))
+    return cal, bench_module("pelvis_forward").forward_error_deg(cal, truth)
 
 
 def test_pelvis_forward_from_the_first_steps_rather_than_the_turns():

@@ -208,6 +208,7 @@ def _kernel(rec: tuple, own: tuple, q_paper: np.ndarray, out: tuple) -> None:
     q = q0.copy()
     qo = np.empty(4)
     qn = np.empty(4)
+    prior = np.empty(4)
     col = np.empty(4)
     r = np.empty((3, 3))
     p = np.empty((4, 4))
@@ -302,13 +303,13 @@ def _kernel(rec: tuple, own: tuple, q_paper: np.ndarray, out: tuple) -> None:
                         acc_ij -= kt[m, i] * p[m, j]
                     tmp[i, j] = acc_ij
             for i in range(4):
-                qo[i] = q[i]  # the prior, kept for the heading
+                prior[i] = q[i]
                 q[i] = qn[i]
                 for j in range(4):
                     p[i, j] = 0.5 * (tmp[i, j] + tmp[j, i])
             cm.normalize(q)
             if not use_m:  # nothing measured the heading
-                cm.keep_heading(qo, q)
+                cm.keep_heading(prior, q)
         if not paper:
             _project(p, q, tmp)
         for i in range(4):
