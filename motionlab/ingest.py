@@ -58,10 +58,16 @@ def _match(stream: SensorStream, smap: SensorMap) -> str | None:
     return hits[0] if hits else None
 
 
+def _origin(stream: SensorStream, path: Path) -> str:
+    """Where ``stream`` came from, for a message: its device folder (x-IMU3) or its file."""
+    folder = stream.attrs.get("device_folder")
+    return f"'{Path(folder).name}'" if folder else path.name
+
+
 def _apply_map(
     streams: list[tuple[SensorStream, Path]], smap: SensorMap
 ) -> list[tuple[SensorStream, Path]]:
-    used: dict[str, Path] = {}
+    used: dict[str, str] = {}
     out = []
     for stream, path in streams:
         key = _match(stream, smap)
@@ -69,11 +75,11 @@ def _apply_map(
             if key in used:
                 raise smap.fail(
                     f"sensors.{key}",
-                    f"names a sensor in both {used[key].name} and {path.name}",
+                    f"names a sensor in both {used[key]} and {_origin(stream, path)}",
                     "key the sensors by serial, or give each file's sensor its own key",
                     smap.sensors[key].line,
                 )
-            used[key] = path
+            used[key] = _origin(stream, path)
             place = smap.sensors[key]
             stream = dataclasses.replace(
                 stream,

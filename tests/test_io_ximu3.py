@@ -102,6 +102,18 @@ def test_two_devices_of_one_name_are_refused_unless_the_map_relabels_one(tmp_pat
     assert sorted(session.sensors) == ["Back", "Back2"]
 
 
+def test_a_map_key_matching_two_devices_names_both_device_folders(tmp_path):
+    """The map keys 'Back', which both devices are called: the line named the trial folder twice."""
+    devices = (("Back", "B4A2-5410-EC7B-D68C"), ("Back", "37CE-5410-EC7B-D8A2"))
+    imu = xe.write(tmp_path, xe.export_files(devices))
+    (tmp_path / "map.yaml").write_text("sensors:\n  Back: {segment: thorax}\n")
+    with pytest.raises(InputError) as err:
+        ingest([imu], tmp_path / "map.yaml")
+    line = str(err.value)
+    assert "'Back B4A2-5410-EC7B-D68C (UDP)'" in line and "'Back 37CE-5410-EC7B-D8A2 (UDP)'" in line
+    assert "key the sensors by serial" in line
+
+
 def test_a_folder_that_is_no_export_is_still_refused(tmp_path):
     (tmp_path / "x").mkdir()
     with pytest.raises(InputError, match="is a folder"):
