@@ -164,6 +164,11 @@ class Task:
     time_range: tuple[float, float] | None = None
     options: dict[str, Any] = field(default_factory=dict)
 
+    @property
+    def is_gait(self) -> bool:
+        """Whether the task is walking (its kind says ``gait`` or ``walk``)."""
+        return "gait" in self.kind.lower() or "walk" in self.kind.lower()
+
 
 @dataclass
 class Protocol:

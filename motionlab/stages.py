@@ -453,10 +453,9 @@ def metrics(
 def gait_stage(session: Session, protocol: Protocol | str | Path | None = None) -> Gait | None:
     """The gait analysis in ``results.gait`` when the protocol has a gait task (else none)."""
     from motionlab.kinematics.gait import analyse_gait
-    from motionlab.kinematics.metrics import is_gait
 
     protocol = stage_protocol(session, protocol, None)
-    if not any(is_gait(t) for t in protocol.tasks):
+    if not any(t.is_gait for t in protocol.tasks):
         return None
     session.results.gait = analyse_gait(session, protocol)
     return session.results.gait

@@ -315,6 +315,27 @@ def test_no_summary_number_from_fewer_than_three_strides():
     )
 
 
+def test_one_leg_measured_gives_its_cadence_and_no_asymmetry():
+    """Sensors on the right leg only: the left has no strides because it has no shank sensor,
+    not because its strides were rejected. The cadence (120 / stride time) and the stride-time
+    variability come from the right; the asymmetry says it needs both legs."""
+    ic = np.arange(0, 10) * 1.0
+    ev = ge.SideEvents(ic, np.ones(10), ic + 0.62, np.ones(10), ic, np.ones(10))
+    summ = sp.summary(sp.stride_table({"r": ge.strides("r", ev)}, {"r": ev}))
+    assert summ.cadence_steps_per_min == pytest.approx(120.0)
+    assert summ.stride_time_cv_pct == pytest.approx(0.0, abs=1e-9)
+    assert np.isnan(summ.step_time_asymmetry_pct)
+    assert (
+        summ.withheld["step_time_asymmetry_pct"] == "only the right leg measured: needs both legs"
+    )
+    # both legs measured, the left's strides all rejected: still withheld, as before
+    table = _hand_table()
+    table.loc[table["side"] == "l", "kept"] = False
+    both = sp.summary(table)
+    assert np.isnan(both.cadence_steps_per_min)
+    assert both.withheld["cadence_steps_per_min"].endswith("on one side")
+
+
 def test_stride_time_variability_within_bouts():
     """Two bouts per side, 1.0 s then 1.2 s strides, no scatter inside a bout: the CV within
     bouts is 0 (the pooled CV of all strides would be 10 %)."""

@@ -1,6 +1,6 @@
 """A knee's flexion axis from a stand and a walk (motionlab/segments/gait_axes.py), and what
-bad recordings make of it: no straight walking, no stand, a sensor on the other leg, a sensor
-upside down."""
+bad recordings make of it: no straight walking, no stand, a sensor on the other leg, thigh and
+shank swapped, a sensor upside down."""
 
 from __future__ import annotations
 
@@ -144,6 +144,46 @@ def test_shanks_swapped_between_the_legs_give_no_determined_knee(walk):
     for side in "rl":
         assert cal.hinges[f"knee_{side}"].verdict != "determined"
         assert "determined" not in cal.grades[f"knee_{side}"].grades
+
+
+def test_thigh_and_shank_swapped_on_one_leg_are_refused_in_one_line(walk):
+    """The right thigh's and shank's sensors mapped the wrong way round: the knee's flexion
+    looks right (the same rotation, inverted), but the hip would be the hip and knee together and
+    the gait events would come from the thigh. The thigh turning faster than the shank says so."""
+    proto, session, _ = walk
+    t, g1, g2, q1, q2, speed = movement.shared_movement(
+        "knee_r", _side(session, "thigh_r"), _side(session, "shank_r")
+    )
+    stand = session.results.calibration.steps["standing"]
+    ref = (t >= stand[0]) & (t <= stand[1])
+    ratio = gait_axes.principal_axes(t, g1, g2, q1, q2, ref, speed > 0.3).speed_ratio
+    assert 0.3 < ratio < gait_axes.SWING_SPEED_RATIO[0]  # as on real walks: 0.49-0.64
+    swapped = copy.deepcopy(session)
+    swapped.sensors["thigh_r"].segment, swapped.sensors["shank_r"].segment = "shank_r", "thigh_r"
+    with pytest.raises(InputError) as exc:
+        stages.calibrate(swapped, proto, force=True)
+    line = str(exc.value)
+    assert "\n" not in line and "look swapped" in line and "sensor map" in line
+    assert "thigh_r's sensor shank_r" in line and "shank_r's sensor thigh_r" in line
+    said = float(line.split(" turns ")[1].split(" times")[0])
+    assert said > gait_axes.SWING_SPEED_RATIO[1] and abs(said * ratio - 1.0) < 0.15
+
+
+def test_a_thigh_turning_about_as_fast_as_its_shank_makes_the_knee_weak(walk):
+    """Between a stiff knee (about 1) and a clear swap (above 1.25): weak, saying why."""
+    proto, session, _ = walk
+    t, g1, g2, q1, q2, speed = movement.shared_movement(
+        "knee_r", _side(session, "thigh_r"), _side(session, "shank_r")
+    )
+    stand = session.results.calibration.steps["standing"]
+    axes = gait_axes.principal_axes(t, g1, g2, q1, q2, (t >= stand[0]) & (t <= stand[1]),
+                                    speed > 0.3)  # fmt: skip
+    reasons: list[str] = []
+    assert gait_axes._verdict(axes, 0.0, reasons, hinted=False) == "determined"
+    reasons = []
+    slow_shank = dataclasses.replace(axes, speed_ratio=1.1)
+    assert gait_axes._verdict(slow_shank, 0.0, reasons, hinted=False) == "weak"
+    assert "swapped" in reasons[-1]
 
 
 def test_a_sensor_upside_down_gives_the_same_knee_angles(walk):

@@ -146,6 +146,20 @@ def test_all_missing_steps_named_at_once_with_what_the_recording_holds(knee):
     assert "'walk'" in msg  # the shipped protocol that fits a stand and a walk
 
 
+def test_too_few_task_blocks_name_the_shipped_protocol_that_fits(knee):
+    """A stand and a walk run with the knee protocol whose steps were found (here: given as
+    its first second) but whose three tasks are not there: the line names 'walk', which fits
+    (its stand and its one task), as a missing step's line does."""
+    with pytest.raises(InputError) as err:
+        find_tasks(_stand_then_walk(up_axis=1), knee, after_s=1.0)
+    msg = err.value.line()
+    assert "found 1 movement block(s) after the calibration for 3 task(s)" in msg
+    assert "the shipped protocol 'walk' fits this recording" in msg
+    with pytest.raises(InputError) as err:
+        find_tasks(_stand_then_walk(up_axis=1), knee, after_s=1.0, suggest=False)
+    assert "fits this recording" not in err.value.line()
+
+
 def test_a_recording_without_a_rest_says_no_shipped_protocol_fits_and_why():
     t = np.arange(0, 30, 1 / RATE)
     rate, _ = movement(t, -1.0, 30, 1.2, 0.1, 2.0)  # moving from the first sample to the last

@@ -31,7 +31,7 @@ from motionlab.kinematics.gps import (
     movement_analysis_profile,
     variable_grades,
 )
-from motionlab.kinematics.metrics import is_gait, shank_angular_velocity, smoothed
+from motionlab.kinematics.metrics import shank_angular_velocity, smoothed
 from motionlab.kinematics.pelvis import (
     PELVIS_COLUMNS,
     pelvis_angles,
@@ -91,7 +91,7 @@ def gait_spans(session: Session, protocol: Protocol) -> dict[str, tuple[float, f
     out = {}
     for task in protocol.tasks:
         b = blocks.get(task.name)
-        if is_gait(task) and b is not None:
+        if task.is_gait and b is not None:
             out[task.name] = (float(b.start_s), float(b.end_s))
     return out
 

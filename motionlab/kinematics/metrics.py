@@ -111,10 +111,6 @@ def _window(time: np.ndarray, t0: float, t1: float) -> slice:
     return slice(int(i0), int(max(i0, i1)))
 
 
-def is_gait(task: Task) -> bool:
-    return "gait" in task.kind.lower() or "walk" in task.kind.lower()
-
-
 def angle_metrics(
     values: np.ndarray, cycles: cyc.Cycles, within: np.ndarray | None = None
 ) -> AngleMetrics:
@@ -227,7 +223,7 @@ def compute_metrics(
                 remedy="check the task times",
             )
         per_col: dict[str, Any] = {}
-        walk = task is not None and is_gait(task)
+        walk = task is not None and task.is_gait
         strides = {
             shank: cyc.strides(*cyc.gait_events(np.interp(time[win], tw, w), rate), rate)
             for shank, (tw, w) in (shank_omega or {}).items()

@@ -24,11 +24,13 @@ of *paired* steps only (a step onto the right and the next step onto the left, b
 second starting at the first's landing), at least :data:`MIN_STRIDES` pairs, with its standard
 error from the paired differences; stride-time variability as the CV of the stride time (Hausdorff
 2005, J NeuroEng Rehabil 2:19) *within* steady bouts (the pooled SD of runs of consecutive kept
-strides over the mean: a change of pace after a turn is no variability), with both sides at
-:data:`MIN_STRIDES` strides or more, its standard error ``CV/√(2 dof)`` (the large-sample error
-of a CV of normal data, dof the pooled degrees of freedom); the cadence too
-needs both sides at :data:`MIN_STRIDES`. A number not given has its reason in ``withheld``
-(``"not enough steady strides (2 of 3 needed)"``).
+strides over the mean: a change of pace after a turn is no variability), with every measured
+side at :data:`MIN_STRIDES` strides or more, its standard error ``CV/√(2 dof)`` (the large-sample
+error of a CV of normal data, dof the pooled degrees of freedom); the cadence too needs every
+measured side at :data:`MIN_STRIDES`. A side is measured when the table has strides of it (its
+shank carries a sensor): a recording of one leg gives that leg's cadence and variability, and no
+asymmetry. A number not given has its reason in ``withheld`` (``"not enough steady strides (2
+of 3 needed)"``).
 
 Step length, stride length and walking speed (with thigh and shank sensors and segment lengths):
 a double-pendulum leg model after Salarian et al. (2004, IEEE TBME 51:1434) and Aminian et al.
@@ -324,7 +326,8 @@ def summary(table: pd.DataFrame) -> GaitSummary:
         sides[side] = {c: _stats(part[c]) for c in STRIDE_COLUMNS}
         counts[side] = int(part["stride_time_s"].notna().sum())
     stride = kept["stride_time_s"].dropna()
-    fewest = min(counts.values())
+    measured = [side for side in ("r", "l") if (table["side"] == side).any()]
+    fewest = min((counts[side] for side in measured), default=0)
     cadence = np.nan
     if fewest >= MIN_STRIDES:
         cadence = 120.0 / float(stride.mean())
@@ -337,6 +340,9 @@ def summary(table: pd.DataFrame) -> GaitSummary:
         asym = 200 * abs(float(r.mean() - left.mean())) / total
         diff_se = float(np.std(r - left, ddof=1)) / np.sqrt(len(r))
         asym_se = float(200 * diff_se / total)
+    elif len(measured) == 1:
+        leg = "right" if measured == ["r"] else "left"
+        withheld["step_time_asymmetry_pct"] = f"only the {leg} leg measured: needs both legs"
     else:
         withheld["step_time_asymmetry_pct"] = too_few(len(r), "paired steady steps")
     cv = cv_se = np.nan

@@ -31,7 +31,7 @@ Three numbers judge the axis, each against what real walks give rather than a si
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.optimize import least_squares
@@ -60,6 +60,23 @@ RESIDUAL = (0.9, 1.2)
 # a knee extends little past its straight stand (real walks: 0.2-1°; hyperextension is rarely
 # over 10°): more says thigh and shank do not share a knee (a sensor on the other leg)
 EXTENSION_DEG = (10.0, 20.0)
+# the thigh's angular speed over the shank's (95th percentiles over the swings, low-passed at
+# LOWPASS_HZ): real walks 0.51-0.64 (the full-body walk's legs, the DOT thigh and shank: the shank
+# adds the knee's rate to the thigh's); a stiff knee approaches 1, thigh and shank sensors
+# swapped in the map give the inverse (1.56-1.96)
+SWING_SPEED_RATIO = (1.0, 1.25)
+REAL_WALK_SPEED_RATIO = (0.51, 0.64)
+
+
+class SwappedSensors(Exception):
+    """A knee's thigh sensor turns faster over the walk than its shank sensor by more than
+    ``SWING_SPEED_RATIO[1]`` (``ratio``): the two are the wrong way round (in the sensor map or
+    on the leg), which no grade of this knee can say for the hip above it and the gait events
+    below it."""
+
+    def __init__(self, joint: str, ratio: float) -> None:
+        super().__init__(f"{joint}: the thigh turns {ratio:.1f} times as fast as the shank")
+        self.joint, self.ratio = joint, ratio
 
 
 @dataclass
@@ -72,7 +89,8 @@ class PrincipalAxes:
     the larger of the two segments' second-to-first singular value ratios; ``witness_proximal``
     / ``witness_distal`` the constrained hinge fit's axes (signs as the principal ones) and
     ``witness_deg`` the larger angle to them; ``relative_residual`` that fit's RMS residual over
-    the RMS perpendicular rate; ``n_samples`` the samples used (moving, not turning).
+    the RMS perpendicular rate; ``speed_ratio`` the proximal segment's 95th-percentile angular
+    speed over the distal's; ``n_samples`` the samples used (moving, not turning).
     """
 
     axis_proximal: np.ndarray
@@ -86,6 +104,7 @@ class PrincipalAxes:
     witness_deg: float
     relative_residual: float
     residual_rad_s: float
+    speed_ratio: float
     n_samples: int
 
 
@@ -192,6 +211,10 @@ def principal_axes(
             worst = max(worst, _angle_deg(principal_axis(g1[part], longs[0])[0], a1),
                         _angle_deg(principal_axis(g2[part], longs[1])[0], a2))  # fmt: skip
     w1, w2, rms, relative = constrained_hinge(g1[use], g2[use], a1, a2, *longs)
+    # over every swing, turns too: the turns are found on the proximal segment's rates, which
+    # would make the ratio depend on which of the two is taken for the thigh
+    swings = moving & np.isfinite(g1).all(axis=1) & np.isfinite(g2).all(axis=1)
+    speed_1, speed_2 = (np.percentile(np.linalg.norm(g[swings], axis=1), 95) for g in (g1, g2))
     return PrincipalAxes(
         axis_proximal=a1,
         axis_distal=a2,
@@ -204,6 +227,7 @@ def principal_axes(
         witness_deg=max(_angle_deg(a1, w1), _angle_deg(a2, w2)),
         relative_residual=relative,
         residual_rad_s=rms,
+        speed_ratio=float(speed_1 / speed_2) if speed_2 > 0 else float("inf"),
         n_samples=int(use.sum()),
     )
 
@@ -215,6 +239,7 @@ def fit_knee(
     prior_p: np.ndarray,
     prior_d: np.ndarray,
     reference: tuple[float, float],
+    walking: bool = True,
 ) -> movement.HingeFit:
     """A knee's flexion axis from a stand (``reference``, s) and a walk (see the module notes),
     as a :class:`~.movement.HingeFit` (``method`` ``principal``).
@@ -222,7 +247,10 @@ def fit_knee(
     ``proximal`` and ``distal`` are ``(time s, gyr rad/s (N, 3), q_sensor (N, 4))``; ``prior_*``
     the axis under the nominal placement (only used where the data cannot sign the axes). The
     axes are signed by :func:`.movement.signed_axes` (flexion from anatomy: the knee is straight
-    in the stand and flexes one way).
+    in the stand and flexes one way). Where the movement is ``walking``, a thigh that turns
+    about as fast as its shank makes the fit ``weak``, one that turns clearly faster raises
+    :class:`SwappedSensors` (other movements, a leg raised with the knee bending as the hip
+    flexes, turn the thigh faster).
     """
     t, g1, g2, q1, q2, speed = movement.shared_movement(joint, proximal, distal)
     ref = (t >= reference[0]) & (t <= reference[1])
@@ -234,6 +262,10 @@ def fit_knee(
         return movement.failed(
             joint, "the walk holds too little straight walking (turns are left out)"
         )
+    if not walking:
+        axes = replace(axes, speed_ratio=float("nan"))
+    elif axes.speed_ratio > SWING_SPEED_RATIO[1]:
+        raise SwappedSensors(joint, axes.speed_ratio)
     reasons: list[str] = []
     j_p, j_d, rel_source, sign_source, excursion = movement.signed_axes(
         t, q1, q2, axes.axis_proximal, axes.axis_distal, prior_p, prior_d, on, reference, True,
@@ -287,6 +319,9 @@ def _verdict(axes: PrincipalAxes, extension_deg: float, reasons: list[str], hint
         (extension_deg if np.isfinite(extension_deg) else 0.0, EXTENSION_DEG,
          f"the knee would extend {extension_deg:.0f}° past its straight stand: are thigh and "
          "shank sensors on the same leg?"),
+        (axes.speed_ratio if np.isfinite(axes.speed_ratio) else 0.0, SWING_SPEED_RATIO,
+         f"the thigh sensor turns {axes.speed_ratio:.1f} times as fast as the shank sensor in "
+         "the walk (a shank turns faster): are the thigh and shank sensors swapped in the map?"),
     )  # fmt: skip
     worst = 0
     for value, (good, bad), why in checks:

@@ -98,10 +98,14 @@ def movement_hinges(
                     axial_lag=long_axis_vertical(protocol, p, ref_name),
                 )  # fmt: skip
             elif reference and twists_about_long_axis(protocol, joint, ref_name, spec):
-                fit = gait_axes.fit_knee(name, side[p], side[d], prior_p, prior_d, reference)
+                walking = any(task.is_gait for task in protocol.tasks)
+                fit = gait_axes.fit_knee(name, side[p], side[d], prior_p, prior_d, reference,
+                                         walking)  # fmt: skip
             else:
                 fit = movement.fit_hinge(name, side[p], side[d], prior_p, prior_d, reference,
                                          spec[1])  # fmt: skip
+        except gait_axes.SwappedSensors as exc:
+            raise swapped(session, p, d, exc.ratio) from None
         except InputError as exc:
             fits[name] = movement.failed(name, exc.message)
             continue
@@ -131,6 +135,24 @@ def movement_hinges(
                 verdict=fit.verdict,
             )
     return fits
+
+
+def swapped(session: Session, proximal: str, distal: str, ratio: float) -> InputError:
+    """The refusal of a thigh (``proximal``) and a shank (``distal``) whose sensors turn the wrong
+    way round over the walk (:class:`.gait_axes.SwappedSensors`), naming their map keys."""
+    lo, hi = gait_axes.REAL_WALK_SPEED_RATIO
+    names = []
+    for seg in (proximal, distal):
+        label = sensor_for_segment(session, seg)
+        key = session.sensors[label].attrs.get("map_key", label) if label else seg
+        names.append(f"{seg}'s sensor {label}" + (f" (map key {key})" if key != label else ""))
+    return InputError(
+        f"{names[0]} turns {ratio:.1f} times as fast over the walk as {names[1]}, where a shank "
+        f"turns faster than its thigh (real walks: {lo:.2f}-{hi:.2f} times): the two look swapped",
+        where="the sensor map",
+        remedy="swap the two sensors' segments in the sensor map (or the sensors on the leg) "
+        "and start again from ingest",
+    )
 
 
 def long_axis_vertical(protocol: Protocol, segment: str, ref_name: str | None) -> bool:

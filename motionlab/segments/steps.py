@@ -438,7 +438,7 @@ def _remedy(fits: list[str], suggested: bool, has_rest: bool) -> str:
 
 def fitting_protocols(streams: Streams, protocol: Protocol) -> list[str]:
     """Shipped protocols (other than ``protocol``) whose required segments, the two segments of
-    at least one joint, and whose steps this recording has."""
+    at least one joint, whose steps and whose tasks after them this recording has."""
     out = []
     for path in sorted(PACKAGED.glob("*.yaml")):
         other = load_protocol(path)
@@ -452,8 +452,11 @@ def fitting_protocols(streams: Streams, protocol: Protocol) -> list[str]:
         if any(s.axis_method == "trunk" for s in other.calibration):
             out.append(other.name)  # a rest anywhere and free movement (segments/trunk_axes.py)
             continue
+        mine = {s: streams[s] for s in other.segments if s in streams}
         try:
-            find_steps({s: streams[s] for s in other.segments if s in streams}, other, None, False)
+            steps = find_steps(mine, other, None, False)
+            after = max((v[1] for v in steps.values() if v is not None), default=-np.inf)
+            find_tasks(mine, other, after, suggest=False)
         except InputError:
             continue
         out.append(other.name)
@@ -464,12 +467,15 @@ def find_tasks(
     streams: Streams,
     protocol: Protocol,
     after_s: float = -np.inf,
+    suggest: bool = True,
 ) -> dict[str, tuple[float, float]]:
     """Time range (s) of each protocol task: movement blocks after ``after_s``, in order.
 
     With more blocks than tasks, moves shorter than ``MIN_TASK_S`` are left out, then the two
     blocks separated by the shortest rest are joined until the counts agree. Tasks with a
-    ``time_range`` keep it and the blocks overlapping it are left out.
+    ``time_range`` keep it and the blocks overlapping it are left out. Too few blocks are an
+    :class:`InputError` naming what the recording holds and (``suggest``) a shipped protocol
+    that fits it.
     """
     fixed = {t.name: t.time_range for t in protocol.tasks if t.time_range is not None}
     todo = [t for t in protocol.tasks if t.time_range is None]
@@ -494,13 +500,20 @@ def find_tasks(
         merged[i : i + 2] = [[merged[i][0], merged[i + 1][1]]]
     if len(merged) < len(todo):
         names = ", ".join(t.name for t in todo)
+        remedy = (
+            "record the task after the calibration, pausing a few seconds between tasks, or "
+            "give each task's time_range"
+        )
+        fits = fitting_protocols(streams, protocol) if suggest else []
+        if fits:
+            shipped = " or ".join(map(repr, fits))
+            remedy = f"the shipped protocol {shipped} fits this recording; or {remedy}"
         raise InputError(
             f"found {len(merged)} movement block(s) after the calibration for {len(todo)} "
             f"task(s) ({names}); {describe(found_blocks)}",
             protocol.path,
             "tasks",
-            "record the task after the calibration, pausing a few seconds between tasks, or "
-            "give each task's time_range",
+            remedy,
         )
     found = dict(zip((t.name for t in todo), (tuple(m) for m in merged), strict=True))
     return {t.name: found.get(t.name) or fixed[t.name] for t in protocol.tasks}
