@@ -7,7 +7,9 @@ angle (a walking knee flexes about 55-70° per stride at a usual pace, Perry & B
 further at a faster one: the verdict gives the walk's cadence and speed; ``implausible``
 outside 45-80°) and the left/right difference; the angle between the independent estimates of
 the joint's axis (the principal rotation axes and the constrained hinge fit, ``witness``); the
-hinge fit's relative residual; where the recording carries the vendor's own 9-D
+hinge fit's relative residual; for a knee in a walk, the thigh's angular speed over the
+shank's (95th percentiles over the swings: above 1.25 the calibration refuses the two as
+swapped, :mod:`motionlab.segments.gait_axes`); where the recording carries the vendor's own 9-D
 orientations, the per-cycle range of the joint's rotation away from the stand from them (a
 figure no axis choice can move, but one that counts the knee's axial rotation at extension
 as a turn away from the stand) and the angle the vendor's relative orientation turns between the
@@ -234,6 +236,7 @@ def report(name: str, protocol: str, session: Session, vendor: dict) -> list[str
             f"{_num(fit.witness_deg if fit else None)} | "
             f"{_num(fit.relative_residual if fit else None, 2)} | "
             f"{_num(fit.consistency_deg if fit else None)} | "
+            f"{_num(fit.speed_ratio if fit else None, 2)} | "
             f"{verdict} |"
         )
     return rows
@@ -260,9 +263,9 @@ def main() -> None:
         "(IQR) | gyroscopes alone per cycle | vendor 9-D rotation from stand per cycle "
         "| vendor 9-D turn between the cycle's extreme poses | L−R "
         "| witness ° | hinge residual "
-        "| part consistency ° | plausibility |"
+        "| part consistency ° | thigh / shank speed | plausibility |"
     )
-    print("|---|---|---|---|---|---|---|---|---|---:|---:|---:|---|")
+    print("|---|---|---|---|---|---|---|---|---|---:|---:|---:|---:|---|")
     for name, protocol in jobs:
         if only and name not in only:
             continue

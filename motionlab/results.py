@@ -479,7 +479,9 @@ class HingeFit:
     segments' rates, the larger) and ``proximal_tilt_deg`` (how far the proximal segment's long
     axis tilts from its direction in the stand over the fit's window, deg, 99th percentile: how
     far a thigh swings, which bounds the flexion of the hip above it,
-    :mod:`motionlab.segments.grades`).
+    :mod:`motionlab.segments.grades`) and ``speed_ratio`` (the proximal segment's angular speed
+    over the distal's, 95th percentiles over the swings: a thigh turns slower than its shank in
+    a walk; NaN where the movement is not walking).
     """
 
     joint: str
@@ -500,6 +502,7 @@ class HingeFit:
     witness_deg: float = float("nan")
     dominance: float = float("nan")
     proximal_tilt_deg: float = float("nan")
+    speed_ratio: float = float("nan")
     #: keys of a stored fit this version does not know (kept for the round trip)
     more: dict[str, Any] = field(default_factory=dict)
 
@@ -511,6 +514,7 @@ class HingeFit:
             "witness_deg": self.witness_deg,
             "dominance": self.dominance,
             "proximal_tilt_deg": self.proximal_tilt_deg,
+            "speed_ratio": self.speed_ratio,
             "joint": self.joint,
             "axis_proximal": np.asarray(self.axis_proximal, float),
             "axis_distal": np.asarray(self.axis_distal, float),

@@ -196,7 +196,7 @@ def _old_calibration_tree() -> dict:
                "quality": quality, "sensor": "shank_r", "hint_contradicted": True,
                "future_s": "kept"}  # fmt: skip
     hinge = {"used_for": "axes", "method": "seel", "witness_deg": np.nan, "dominance": np.nan,
-             "proximal_tilt_deg": np.nan, "joint": "elbow_r",
+             "proximal_tilt_deg": np.nan, "speed_ratio": np.nan, "joint": "elbow_r",
              "axis_proximal": np.array([0.0, 0.0, 1.0]), "axis_distal": np.array([0.0, 1.0, 0.0]),
              "residual_rad_s": 0.1, "relative_residual": 0.2, "consistency_deg": 3.0,
              "relative_sign": "measured", "sign": "anatomy", "excursion_deg": [120.0, -5.0],

@@ -290,6 +290,7 @@ def fit_knee(
         witness_deg=axes.witness_deg,
         dominance=axes.dominance,
         proximal_tilt_deg=tilt_deg(q1, axes.long_proximal),
+        speed_ratio=axes.speed_ratio,
     )
 
 
