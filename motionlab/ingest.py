@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from motionlab import timebase
+from motionlab.binding import segment_name
 from motionlab.errors import InputError
 from motionlab.io import read_any
 from motionlab.qc import (
@@ -66,7 +67,11 @@ def _origin(stream: SensorStream, path: Path) -> str:
 
 def _apply_map(
     streams: list[tuple[SensorStream, Path]], smap: SensorMap
-) -> list[tuple[SensorStream, Path]]:
+) -> tuple[list[tuple[SensorStream, Path]], list[dict[str, Any]]]:
+    """The streams with the map's segment, side and label applied, and the map's keys that name
+    no sensor here (``key``, ``line``, ``segment``): a study's map names a device one recording
+    may lack (an optional chair sensor whose battery ran out). A map none of whose keys names a
+    sensor is the wrong map: an :class:`InputError` naming its first key."""
     used: dict[str, str] = {}
     out = []
     for stream, path in streams:
@@ -90,15 +95,39 @@ def _apply_map(
             )
         out.append((stream, path))
     missing = [k for k in smap.sensors if k not in used]
-    if missing:
+    if missing and not used:
         present = ", ".join(sorted({n for s, _ in streams for n in (s.serial, s.label) if n}))
         key = missing[0]
         raise smap.fail(
             f"sensors.{key}",
-            f"no sensor '{key}' in the input files",
-            f"present: {present or 'none'}; fix the key or add the file",
+            f"no sensor '{key}' in the input files (no key of the map names one)",
+            f"present: {present or 'none'}; fix the keys or give the map of these files",
             smap.sensors[key].line,
         )
+    unmatched = [
+        {"key": k, "line": smap.sensors[k].line,
+         "segment": segment_name(smap.sensors[k].segment or "", smap.sensors[k].side or "")}
+        for k in missing
+    ]  # fmt: skip
+    return out, unmatched
+
+
+def unmatched_keys(session: Session) -> list[str]:
+    """One line per sensor-map key that named no sensor in the ingested files
+    (``metadata["map_unmatched"]``): ``"sensor map key 'Chair' (line 8, chair) names no sensor in
+    the input files (present: Back, Chest)"``."""
+    present = ", ".join(
+        sorted({n for s in session.sensors.values() for n in (s.serial, s.label) if n})
+    )
+    out = []
+    for entry in session.metadata.get("map_unmatched", []):
+        where = ", ".join(
+            str(x)
+            for x in (f"line {entry['line']}" if entry.get("line") else "", entry.get("segment"))
+            if x
+        )
+        out.append(f"sensor map key '{entry['key']}'{f' ({where})' if where else ''} names no "
+                   f"sensor in the input files (present: {present or 'none'})")  # fmt: skip
     return out
 
 
@@ -353,7 +382,7 @@ def ingest(
         streams += [(s, path) for s in rec.sensors]
         markers += [(m, path) for m in rec.markers]
 
-    streams = _apply_map(streams, smap)
+    streams, unmatched = _apply_map(streams, smap)
     seen: dict[str, Path] = {}
     streams = [(_unique_label(s, p, seen), p) for s, p in streams]
     checked = []
@@ -392,6 +421,8 @@ def ingest(
             "clocks_unrelated": max(starts) - origin > UNRELATED_CLOCKS_S,
         }
     )
+    if unmatched:
+        session.metadata["map_unmatched"] = unmatched
     recorded = sorted({s.attrs["recorded"] for s, _, _ in repaired if s.attrs.get("recorded")})
     if recorded:  # the day the files say they were recorded (the earliest, if they differ)
         session.metadata["recorded"] = recorded[0]

@@ -42,7 +42,7 @@ from motionlab.binding import (
     sensor_list,
 )
 from motionlab.errors import InputError
-from motionlab.ingest import DEFAULT_GAP_MAX, ingest
+from motionlab.ingest import DEFAULT_GAP_MAX, ingest, unmatched_keys
 from motionlab.lock import session_lock
 from motionlab.protocol import Protocol, load_protocol
 from motionlab.qc import doubts as qc_doubts
@@ -158,6 +158,10 @@ def check_segments(session: Session, protocol: Protocol, inputs: list[Path]) -> 
         check_joints(protocol, session, inputs[0] if len(inputs) == 1 else None)
         return
     gap = "none of them" if missing == needed else f"none on {', '.join(missing)}"
+    unmatched = [e["key"] for e in session.metadata.get("map_unmatched", [])
+                 if e.get("segment") in missing]  # fmt: skip
+    if unmatched:
+        gap += f" (the sensor map's {', '.join(repr(k) for k in unmatched)} named no sensor)"
     foreign = foreign_segments(protocol, session)
     if all(s.segment for s in session.sensors.values()) and not foreign:
         # every sensor is mapped to a segment of the protocol: the recording lacks the others
@@ -443,6 +447,7 @@ def analyse(
             stages_lib.validate(session, protocol, marker_set, seed=options.seed, force=True,
                                 reference_kind=kind)  # fmt: skip
     doubts = [f"{s.label}: {line}" for s in session.sensors.values() for line in qc_doubts(s)]
+    doubts = unmatched_keys(session) + doubts
     for line in [*doubts, *cal.warnings] if stages.progress else []:  # after the stages
         print(f"warning: {line}", file=sys.stderr, flush=True)
 

@@ -8,7 +8,7 @@ from conftest import SHARED, needs_shared
 
 from motionlab import qc, rotations, timebase
 from motionlab.errors import InputError
-from motionlab.ingest import ingest
+from motionlab.ingest import ingest, unmatched_keys
 from motionlab.io import Recording
 from motionlab.sensor_map import load_sensor_map
 from motionlab.session import MarkerSet, SensorStream, load_session, save_session, sha256_file
@@ -295,12 +295,24 @@ def test_ingest_rate_puts_everything_on_one_clock(fake_files):
 
 
 def test_map_naming_absent_sensor(fake_files, tmp_path):
+    """A key that names no sensor here is kept as a warning (a study's map names a device one
+    recording lacks), with its line and segment; a map none of whose keys names a sensor is the
+    wrong map: an error naming its first key and what is there."""
     m = tmp_path / "map.yaml"
     m.write_text("sensors:\n  thigh: {segment: thigh}\n  00B4FFFF: {segment: foot, side: r}\n")
+    session = ingest(list(fake_files), m)
+    assert session.metadata["map_unmatched"] == [
+        {"key": "00B4FFFF", "line": 3, "segment": "foot_r"}
+    ]
+    (line,) = unmatched_keys(session)
+    assert line.startswith("sensor map key '00B4FFFF' (line 3, foot_r) names no sensor")
+    assert "00B421AF" in line and "\n" not in line
+    assert session.sensors["thigh"].segment == "thigh"  # the keys that match still apply
+    m.write_text("sensors:\n  00B4FFFE: {segment: thigh}\n  00B4FFFF: {segment: foot}\n")
     with pytest.raises(InputError) as e:
         ingest(list(fake_files), m)
-    assert e.value.where == "line 3, key sensors.00B4FFFF"
-    assert "00B421AF" in e.value.line()
+    assert e.value.where == "line 2, key sensors.00B4FFFE"
+    assert "no key of the map names one" in e.value.line() and "00B421AF" in e.value.line()
 
 
 @pytest.mark.parametrize(

@@ -12,10 +12,13 @@ from motionlab.cli import main
 from motionlab.errors import InputError
 from motionlab.ingest import ingest
 from motionlab.io import detect_format, read_any
+from motionlab.pipeline import check_segments
+from motionlab.protocol import load_protocol
 from tests import ximu3_export as xe
-from tests.conftest import SHARED, needs_shared
+from tests.conftest import ROOT, SHARED, needs_shared
 
 TRUNK = SHARED / "datasets" / "trunk"
+TRUNK_MAP = ROOT / "motionlab" / "protocols" / "examples" / "trunk_map.yaml"
 
 
 def test_a_trial_folder_is_one_sensor_per_device_in_si_units(tmp_path):
@@ -112,6 +115,24 @@ def test_a_map_key_matching_two_devices_names_both_device_folders(tmp_path):
     line = str(err.value)
     assert "'Back B4A2-5410-EC7B-D68C (UDP)'" in line and "'Back 37CE-5410-EC7B-D8A2 (UDP)'" in line
     assert "key the sensors by serial" in line
+
+
+def test_a_study_map_naming_a_device_this_trial_lacks_warns_and_a_required_one_refuses(tmp_path):
+    """The shipped trunk map names Back, Chest and Chair; a trial without its (optional) chair
+    device is read with a warning, and the protocol runs without it. A typo in the key of a
+    required segment ('Bakc') is refused where the protocol needs that segment, naming the key."""
+    imu = xe.write(tmp_path, xe.export_files())
+    out = tmp_path / "s.h5"
+    res = CliRunner().invoke(main, ["ingest", str(imu), "--map", str(TRUNK_MAP), "-o", str(out)])
+    assert res.exit_code == 0, res.output
+    assert "warning: sensor map key 'Chair' (line 8, chair) names no sensor" in res.stderr
+    (tmp_path / "typo.yaml").write_text(
+        "sensors:\n  Bakc: {segment: thorax}\n  Chest: {segment: pelvis}\n"
+    )
+    session = ingest([imu], tmp_path / "typo.yaml")
+    with pytest.raises(InputError) as err:
+        check_segments(session, load_protocol("lumbar_seated"), [imu])
+    assert "none on thorax (the sensor map's 'Bakc' named no sensor)" in err.value.line()
 
 
 def test_a_folder_that_is_no_export_is_still_refused(tmp_path):

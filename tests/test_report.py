@@ -640,3 +640,18 @@ def test_run_summary_withholds_an_undetermined_flexion_range(tmp_path):
     assert left.split()[2] == "-" and left.endswith("(not determined)"), left
     (right,) = [ln for ln in lines if ln.startswith("    gait") and "knee_r" in ln]
     assert "5–45°" in right
+
+
+def test_a_map_key_without_its_sensor_is_said_among_the_quality_notes():
+    """The study's map named a chair sensor this recording lacks: the report says the angles
+    that need it are left out (ingest kept the key in ``metadata["map_unmatched"]``)."""
+    from motionlab.report.sentences import quality_notes
+
+    session = Session()
+    assert quality_notes(SessionView(session, load_protocol("lumbar_seated"), None, {}, None)) == []
+    session.metadata["map_unmatched"] = [{"key": "Chair", "line": 8, "segment": "chair"}]
+    notes = quality_notes(SessionView(session, load_protocol("lumbar_seated"), None, {}, None))
+    assert notes == [
+        "The sensor map's 'Chair' (chair) named no sensor in the recording; angles that need it "
+        "are left out."
+    ]

@@ -9,7 +9,7 @@ import click
 from motionlab.atomic import check_output
 from motionlab.cli.paths import INPUT_FILE, OUTPUT_FILE
 from motionlab.errors import InputError
-from motionlab.ingest import DEFAULT_GAP_MAX, ingest
+from motionlab.ingest import DEFAULT_GAP_MAX, ingest, unmatched_keys
 from motionlab.lock import session_lock
 from motionlab.qc import doubts
 from motionlab.session import save_session
@@ -80,6 +80,8 @@ def command(files, map_path, rate, gap_max, output, force) -> None:  # fmt: skip
     except OSError as exc:
         raise InputError(f"cannot write the session ({exc.strerror or exc})", output,
                          remedy="choose a writable folder") from None  # fmt: skip
+    for line in unmatched_keys(session):
+        click.echo(f"warning: {line}", err=True)
     for s in session.sensors.values():
         place = " ".join(p for p in (s.side, s.segment) if p) or "unassigned"
         n_gaps = len(s.qc.get("gaps", []))

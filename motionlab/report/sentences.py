@@ -443,14 +443,21 @@ def weak_lines(view: SessionView, joint: str) -> list[str]:
 
 
 def quality_notes(view: SessionView) -> list[str]:
-    """Sentences on data and calibration problems, most important first (calibration,
-    saturation, magnetic disturbance, then gaps); empty when all is well."""
+    """Sentences on data and calibration problems, most important first (calibration, a sensor
+    the map names that the recording lacks, saturation, magnetic disturbance, then gaps); empty
+    when all is well."""
     notes, gaps = [], []
     bad = sorted({r.segment for r in calibration_rows(view) if not r.segment_ok})
     if bad:
         notes.append(
             f"Calibration of {', '.join(bad)} needs attention (see the calibration page); "
             "angles involving it are less certain."
+        )
+    for entry in view.session.metadata.get("map_unmatched", []):
+        segment = f" ({entry['segment']})" if entry.get("segment") else ""
+        notes.append(
+            f"The sensor map's '{entry['key']}'{segment} named no sensor in the recording; "
+            "angles that need it are left out."
         )
     for q in quality_rows(view):
         if q.gaps_kept:
