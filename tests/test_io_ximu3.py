@@ -126,6 +126,8 @@ def test_a_study_map_naming_a_device_this_trial_lacks_warns_and_a_required_one_r
     res = CliRunner().invoke(main, ["ingest", str(imu), "--map", str(TRUNK_MAP), "-o", str(out)])
     assert res.exit_code == 0, res.output
     assert "warning: sensor map key 'Chair' (line 8, chair) names no sensor" in res.stderr
+    info = CliRunner().invoke(main, ["info", str(out)])
+    assert "warning: sensor map key 'Chair' (line 8, chair) named no sensor" in info.output
     (tmp_path / "typo.yaml").write_text(
         "sensors:\n  Bakc: {segment: thorax}\n  Chest: {segment: pelvis}\n"
     )

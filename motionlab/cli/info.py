@@ -113,7 +113,13 @@ def format_summary(summary: dict) -> str:
             f"  warning: starts differ by {meta['start_spread_s']:.0f} s: the files do not share"
             " a clock, synchronise the streams before comparing them"
         )
-    shown = ("subject", "session", "files", "time_origin_s", "start_spread_s", "clocks_unrelated")
+    for entry in meta.get("map_unmatched", []):
+        where = ", ".join(str(x) for x in (entry.get("line") and f"line {entry['line']}",
+                                           entry.get("segment")) if x)  # fmt: skip
+        lines.append(f"  warning: sensor map key '{entry['key']}' ({where}) named no sensor in "
+                     "the input files")  # fmt: skip
+    shown = ("subject", "session", "files", "time_origin_s", "start_spread_s", "clocks_unrelated",
+             "map_unmatched")  # fmt: skip
     for key, value in meta.items():
         if key not in shown:
             lines.append(f"  {key}: {value}")
