@@ -15,7 +15,7 @@ from motionlab import stages
 from motionlab.errors import InputError
 from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
 from motionlab.protocol import load_protocol
-from motionlab.segments import gait_axes, movement, streams_of
+from motionlab.segments import gait_axes, movement, placement, streams_of
 from motionlab.segments.sensors import sensor_orientation
 from motionlab.segments.steps import find_steps
 from motionlab.simulate import simulate
@@ -167,6 +167,30 @@ def test_thigh_and_shank_swapped_on_one_leg_are_refused_in_one_line(walk):
     assert "thigh_r's sensor shank_r" in line and "shank_r's sensor thigh_r" in line
     said = float(line.split(" turns ")[1].split(" times")[0])
     assert said > gait_axes.SWING_SPEED_RATIO[1] and abs(said * ratio - 1.0) < 0.15
+
+
+def test_the_swap_check_is_for_a_stand_and_a_walk_only(walk):
+    """Other movement turns a thigh faster than its shank (the knee protocol's hip flexions,
+    a leg raised with the knee bending): there the ratio is not judged. A randomly mounted
+    knee-protocol session (its knee axes' direction from the whole recording) was refused as
+    swapped (2.1) while the check looked only for a gait task among the protocol's tasks."""
+    assert placement.stand_and_walk(load_protocol("walk"))
+    assert not placement.stand_and_walk(load_protocol("knee"))  # hip flexions, squats
+    assert not placement.stand_and_walk(load_protocol("lumbar_seated"))  # no task
+    proto, session, _ = walk
+    stand = tuple(session.results.calibration.steps["standing"])
+    z = np.array([0.0, 0.0, 1.0])
+    sides = (_side(session, "shank_r"), _side(session, "thigh_r"))  # swapped
+    with pytest.raises(gait_axes.SwappedSensors):
+        gait_axes.fit_knee("knee_r", *sides, z, z, stand)
+    fit = gait_axes.fit_knee("knee_r", *sides, z, z, stand, walking=False)
+    assert np.isnan(fit.speed_ratio) and not any("swapped" in r for r in fit.reasons)
+    knee = load_protocol("knee")
+    sim, _ = simulate(knee, 115.0, 1, "typical", mounting="random")
+    prepare_sensors(sim)
+    analyse(sim, PipelineOptions(knee, progress=False, clock_sync=False))
+    fit = sim.results.calibration.hinges["knee_r"]
+    assert fit.method == "principal" and np.isnan(fit.speed_ratio)
 
 
 def test_a_thigh_turning_about_as_fast_as_its_shank_makes_the_knee_weak(walk):

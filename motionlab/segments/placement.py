@@ -98,9 +98,8 @@ def movement_hinges(
                     axial_lag=long_axis_vertical(protocol, p, ref_name),
                 )  # fmt: skip
             elif reference and twists_about_long_axis(protocol, joint, ref_name, spec):
-                walking = any(task.is_gait for task in protocol.tasks)
                 fit = gait_axes.fit_knee(name, side[p], side[d], prior_p, prior_d, reference,
-                                         walking)  # fmt: skip
+                                         stand_and_walk(protocol))  # fmt: skip
             else:
                 fit = movement.fit_hinge(name, side[p], side[d], prior_p, prior_d, reference,
                                          spec[1])  # fmt: skip
@@ -135,6 +134,18 @@ def movement_hinges(
                 verdict=fit.verdict,
             )
     return fits
+
+
+def stand_and_walk(protocol: Protocol) -> bool:
+    """Whether the protocol's recording is poses and walking only (the ``walk`` protocol): then
+    the movement a knee's axes come from is the walk's swings, where a thigh turns slower than
+    its shank. Not where other tasks or functional steps move the leg too (the ``knee``
+    protocol's hip flexions turn the thigh twice as fast as the shank)."""
+    return (
+        bool(protocol.tasks)
+        and all(task.is_gait for task in protocol.tasks)
+        and all(step.kind == "static" for step in protocol.calibration)
+    )
 
 
 def swapped(session: Session, proximal: str, distal: str, ratio: float) -> InputError:
