@@ -15,7 +15,7 @@ from motionlab import stages
 from motionlab.errors import InputError
 from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
 from motionlab.protocol import load_protocol
-from motionlab.segments import gait_axes, movement, placement, streams_of
+from motionlab.segments import gait_axes, movement, streams_of, walk_checks
 from motionlab.segments.sensors import sensor_orientation
 from motionlab.segments.steps import find_steps
 from motionlab.simulate import simulate
@@ -174,9 +174,9 @@ def test_the_swap_check_is_for_a_stand_and_a_walk_only(walk):
     a leg raised with the knee bending): there the ratio is not judged. A randomly mounted
     knee-protocol session (its knee axes' direction from the whole recording) was refused as
     swapped (2.1) while the check looked only for a gait task among the protocol's tasks."""
-    assert placement.stand_and_walk(load_protocol("walk"))
-    assert not placement.stand_and_walk(load_protocol("knee"))  # hip flexions, squats
-    assert not placement.stand_and_walk(load_protocol("lumbar_seated"))  # no task
+    assert walk_checks.stand_and_walk(load_protocol("walk"))
+    assert not walk_checks.stand_and_walk(load_protocol("knee"))  # hip flexions, squats
+    assert not walk_checks.stand_and_walk(load_protocol("lumbar_seated"))  # no task
     proto, session, _ = walk
     stand = tuple(session.results.calibration.steps["standing"])
     z = np.array([0.0, 0.0, 1.0])
@@ -208,6 +208,39 @@ def test_a_thigh_turning_about_as_fast_as_its_shank_makes_the_knee_weak(walk):
     slow_shank = dataclasses.replace(axes, speed_ratio=1.1)
     assert gait_axes._verdict(slow_shank, 0.0, reasons, hinted=False) == "weak"
     assert "swapped" in reasons[-1]
+
+
+def test_a_seated_rest_is_no_stand_before_a_walk(walk):
+    """In the stand each segment's up lies within 20° of its mean up while walking (here under
+    15°). A rest with the thighs horizontal (both thigh sensors turned 80° about a horizontal
+    axis over the stand) is no stand: the step search passes it over, saying why, naming the
+    thighs; with no other rest the step is missing."""
+    proto, session, _ = walk
+    steps = session.results.calibration.steps
+    span = tuple(steps["standing"])
+    stand = next(s for s in proto.calibration if s.name == "standing")
+    streams = streams_of(session, proto)
+    tilts = walk_checks.stand_tilts(session, proto, streams, "standing", span)
+    assert set(tilts) == {"pelvis", "thigh_r", "thigh_l", "shank_r", "shank_l"}
+    assert max(tilts.values()) < 15.0
+    assert walk_checks.pose_check(session, proto, streams)(stand, span) is None
+    assert walk_checks.pose_check(session, load_protocol("knee"), streams) is None
+    seated = copy.deepcopy(session)
+    tilt = rot.from_axis_angle(np.array([1.0, 0.0, 0.0]), np.radians(80.0))
+    for seg in ("thigh_r", "thigh_l"):
+        entry, t = seated.results.fusion[seg], seated.sensors[seg].time
+        pose = (t >= span[0] - 1.0) & (t <= span[1] + 0.2)
+        entry.quat[pose] = rot.mul(tilt, entry.quat[pose])
+    streams = streams_of(seated, proto)
+    why = walk_checks.pose_check(seated, proto, streams)(stand, span)
+    named = dict(
+        part.rsplit(" ", 1) for part in why.split("after it (")[1].split(";")[0].split(", ")
+    )
+    assert "is no standing pose" in why and set(named) == {"thigh_r", "thigh_l"}
+    assert all(float(deg.rstrip("°")) > walk_checks.STAND_WALK_DEG for deg in named.values())
+    with pytest.raises(InputError) as err:
+        find_steps(streams, proto, pose_check=walk_checks.pose_check(seated, proto, streams))
+    assert "'standing' (static) not found" in str(err.value) and why in str(err.value)
 
 
 def test_a_sensor_upside_down_gives_the_same_knee_angles(walk):

@@ -287,7 +287,9 @@ def test_stages_on_an_unfused_session_say_to_fuse_it_first(tmp_path):
     before = (tmp_path / "s.h5").read_bytes()
     remedy = "run 'motionlab fuse' (or motionlab.fuse(session)) first"
     line = refused(cli(tmp_path, "calibrate", "s.h5", "--protocol", "walk"), remedy)
-    assert "sensor 'thigh_r' has no fusion result" in line and "results/fusion/thigh_r" in line
+    named = line.split("sensor '")[1].split("'")[0]  # the first the calibration reads
+    assert named in session.sensors and f"sensor '{named}' has no fusion result" in line
+    assert f"results/fusion/{named}" in line
     refused(cli(tmp_path, "angles", "s.h5", "--protocol", "walk", "--no-calibration"), remedy)
     assert (tmp_path / "s.h5").read_bytes() == before
     assert cli(tmp_path, "fuse", "s.h5").exit_code == 0

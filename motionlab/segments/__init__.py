@@ -48,6 +48,7 @@ from motionlab.segments import (
     placement,
     single_pose,
     trunk_axes,
+    walk_checks,
     walk_forward,
 )
 from motionlab.segments.sensors import (
@@ -86,7 +87,8 @@ def calibrate_segments(
     if pose is not None:  # orientations too short for more (OpenSense-style)
         steps, records = single_pose.measure(session, protocol, streams, pose, notes)
     else:
-        steps = find_steps(streams, protocol, notes)
+        check = walk_checks.pose_check(session, protocol, streams)
+        steps = find_steps(streams, protocol, notes, pose_check=check)
         records = mounting.measure(protocol, streams, steps)
         contradicted = placement.contradicted(protocol, records)
         hinges = placement.movement_hinges(session, protocol, streams, steps, records, contradicted)

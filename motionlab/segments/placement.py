@@ -26,7 +26,7 @@ from motionlab.errors import InputError
 from motionlab.kinematics.joint_types import flexion_axis, joint_sequence, joint_type
 from motionlab.protocol import Protocol, axis_vector
 from motionlab.results import AxisMeasurement, CentreHeading
-from motionlab.segments import frames, gait_axes, heading, movement
+from motionlab.segments import frames, gait_axes, heading, movement, walk_checks
 from motionlab.segments.functional import orient
 from motionlab.segments.sensors import Streams, sensor_orientation
 from motionlab.segments.steps import reference_step
@@ -99,12 +99,12 @@ def movement_hinges(
                 )  # fmt: skip
             elif reference and twists_about_long_axis(protocol, joint, ref_name, spec):
                 fit = gait_axes.fit_knee(name, side[p], side[d], prior_p, prior_d, reference,
-                                         stand_and_walk(protocol))  # fmt: skip
+                                         walk_checks.stand_and_walk(protocol))  # fmt: skip
             else:
                 fit = movement.fit_hinge(name, side[p], side[d], prior_p, prior_d, reference,
                                          spec[1])  # fmt: skip
         except gait_axes.SwappedSensors as exc:
-            raise swapped(session, p, d, exc.ratio) from None
+            raise walk_checks.swapped(session, p, d, exc.ratio) from None
         except InputError as exc:
             fits[name] = movement.failed(name, exc.message)
             continue
@@ -134,36 +134,6 @@ def movement_hinges(
                 verdict=fit.verdict,
             )
     return fits
-
-
-def stand_and_walk(protocol: Protocol) -> bool:
-    """Whether the protocol's recording is poses and walking only (the ``walk`` protocol): then
-    the movement a knee's axes come from is the walk's swings, where a thigh turns slower than
-    its shank. Not where other tasks or functional steps move the leg too (the ``knee``
-    protocol's hip flexions turn the thigh twice as fast as the shank)."""
-    return (
-        bool(protocol.tasks)
-        and all(task.is_gait for task in protocol.tasks)
-        and all(step.kind == "static" for step in protocol.calibration)
-    )
-
-
-def swapped(session: Session, proximal: str, distal: str, ratio: float) -> InputError:
-    """The refusal of a thigh (``proximal``) and a shank (``distal``) whose sensors turn the wrong
-    way round over the walk (:class:`.gait_axes.SwappedSensors`), naming their map keys."""
-    lo, hi = gait_axes.REAL_WALK_SPEED_RATIO
-    names = []
-    for seg in (proximal, distal):
-        label = sensor_for_segment(session, seg)
-        key = session.sensors[label].attrs.get("map_key", label) if label else seg
-        names.append(f"{seg}'s sensor {label}" + (f" (map key {key})" if key != label else ""))
-    return InputError(
-        f"{names[0]} turns {ratio:.1f} times as fast over the walk as {names[1]}, where a shank "
-        f"turns faster than its thigh (real walks: {lo:.2f}-{hi:.2f} times): the two look swapped",
-        where="the sensor map",
-        remedy="swap the two sensors' segments in the sensor map (or the sensors on the leg) "
-        "and start again from ingest",
-    )
 
 
 def long_axis_vertical(protocol: Protocol, segment: str, ref_name: str | None) -> bool:

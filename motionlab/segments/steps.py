@@ -44,6 +44,7 @@ joined across the shortest rests while there are more blocks than tasks); a task
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -333,22 +334,38 @@ def describe(bl: list[Block]) -> str:
     return text
 
 
+#: ``pose_check(step, span)``: why the rest at ``span`` (s) is not static ``step``'s pose, or None
+PoseCheck = Callable[[CalibrationStep, tuple[float, float]], str | None]
+
+
 def find_steps(
     streams: Streams,
     protocol: Protocol,
     warnings: list[str] | None = None,
     suggest: bool = True,
+    pose_check: PoseCheck | None = None,
 ) -> dict[str, tuple[float, float] | None]:
     """Time range (s) of each calibration step, ``None`` for an optional step not performed.
 
     A static step is first matched with the nominal placement's vertical axes (so standing and
     sitting are told apart); when no rest fits them, the next rest long enough is taken and the
     axes measured in it are used, with one line per contradicted segment added to ``warnings``
-    (the placement is a hint). Required steps still missing are named all at once in one
-    :class:`InputError`, with what the recording holds and (``suggest``) a shipped protocol
-    that fits it.
+    (the placement is a hint). A rest ``pose_check`` rejects is passed over (a seated rest
+    before a stand and a walk, :mod:`.walk_checks`). Required steps still missing are named all
+    at once in one :class:`InputError`, with what the recording holds, the rests rejected and
+    why, and (``suggest``) a shipped protocol that fits it.
     """
     found: dict[str, tuple[float, float] | None] = {}
+    rejected: list[str] = []
+
+    def accepted(step: CalibrationStep, i: int) -> bool:
+        if pose_check is None:
+            return True
+        why = pose_check(step, _pose_span(bl[i]))
+        if why:
+            rejected.append(why)
+        return not why
+
     missing: list[CalibrationStep] = []
     statics: list[tuple[CalibrationStep, Block]] = []  # static steps found so far
     bl = blocks(streams)
@@ -362,10 +379,19 @@ def find_steps(
             continue
         if step.kind == "static":
             hit = next(
-                (i for i in range(pos, len(bl)) if _static_match(step, bl[i], protocol)), None
+                (
+                    i
+                    for i in range(pos, len(bl))
+                    if _static_match(step, bl[i], protocol) and accepted(step, i)
+                ),
+                None,
             )
             if hit is None and not step.optional:
-                rests = (i for i in range(pos, len(bl)) if _fits_without_hint(step, bl[i], statics))
+                rests = (
+                    i
+                    for i in range(pos, len(bl))
+                    if _fits_without_hint(step, bl[i], statics) and accepted(step, i)
+                )
                 hit = next(rests, None)
                 if hit is not None and warnings is not None:
                     warnings.extend(placement_warnings(step, bl[hit], protocol))
@@ -385,10 +411,9 @@ def find_steps(
             found[step.name] = None
             continue
         b = bl[hit]
-        if step.kind == "static":  # keep the middle of the pose, away from its edges
+        if step.kind == "static":
             statics.append((step, b))
-            trim = min(0.5, 0.2 * (b.end - b.start))
-            found[step.name] = (b.start + trim, b.end - trim)
+            found[step.name] = _pose_span(b)
         else:
             _check_unambiguous(step, hit, bl, protocol.calibration[k + 1 :], protocol, streams)
             found[step.name] = (b.start, b.end)
@@ -405,14 +430,21 @@ def find_steps(
             if s.kind == "static"
         )
         fits = fitting_protocols(streams, protocol) if suggest else []
+        why = f"; {'; '.join(dict.fromkeys(rejected))}" if rejected else ""
         raise InputError(
             f"calibration step{'s' if len(missing) > 1 else ''} {names} not found; "
-            f"{describe(bl)}{needs}",
+            f"{describe(bl)}{needs}{why}",
             protocol.path,
             "calibration",
             _remedy(fits, suggest, any(_is_pose(b) for b in bl)),
         )
     return found
+
+
+def _pose_span(b: Block) -> tuple[float, float]:
+    """The span (s) a static step takes of rest ``b``: its middle, away from its edges."""
+    trim = min(0.5, 0.2 * (b.end - b.start))
+    return (b.start + trim, b.end - trim)
 
 
 def _is_pose(b: Block) -> bool:
