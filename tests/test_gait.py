@@ -364,3 +364,29 @@ def test_red_only_beyond_the_values_own_uncertainty():
     assert beyond(40.0, 0.5, band, method)
     assert not beyond(40.0, float("nan"), band, method)  # unknown uncertainty: never red
     assert beyond(29.5, 0.5, band) and not beyond(28.5, 0.5, band)  # 1.96 SE alone
+
+
+def test_a_one_leg_walk_reports_that_legs_numbers_and_says_what_needs_both(tmp_path):
+    """Sensors on the right leg only (as the DOT knee recordings): the gait page gave the left
+    leg "not enough steady strides (0 of 3 needed)", said the right's stride-time variability was
+    "both sides'", and asked the right leg's step time for more strides. It now says the left
+    carries no sensors, that the step, double support and asymmetry need both legs, and gives
+    the right's cadence and variability as that side's."""
+    from motionlab.pipeline import PipelineOptions, analyse
+    from motionlab.report import load_view, write_report
+    from motionlab.simulate import simulate
+
+    session, _ = simulate("walk", 40.0, 0, "clean", rate_hz=50.0)
+    for seg in ("pelvis", "thigh_l", "shank_l"):
+        del session.sensors[seg]
+    analyse(session, PipelineOptions(protocol="walk", progress=False))
+    summ = session.results.gait.summary
+    assert np.isfinite(summ.cadence_steps_per_min) and np.isfinite(summ.stride_time_cv_pct)
+    write_report([load_view(session)], tmp_path / "r.pdf")
+    text = " ".join((tmp_path / "r.txt").read_text().split())  # table cells wrap
+    assert "Only the right leg carries sensors: the left column stays empty" in text
+    assert "right side only;" in text and "both sides;" not in text
+    assert "step-time asymmetry only the right leg measured:" in text  # its cell, wrapped
+    assert "left: not enough steady strides" not in text
+    page = text.split("Gait: spatio-temporal parameters and profile")[1]
+    assert page.count("needs both legs") >= 5  # step time, double support, lengths, speed

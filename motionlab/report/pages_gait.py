@@ -22,7 +22,7 @@ from motionlab.kinematics.spatiotemporal import (
     method_error,
     too_few,
 )
-from motionlab.report.model import SessionView, gait_profile, gait_result
+from motionlab.report.model import SIDE_NAMES, SessionView, gait_profile, gait_result
 from motionlab.report.normative import gait_bands
 from motionlab.report.pdf import BAND_COLOUR, MUTED, SIDE_COLOUR, SIZE, Document
 from motionlab.results import Gait, GaitSummary, MovementProfile, StrideStats
@@ -43,6 +43,10 @@ _LABELS = {
     "walking_speed_m_s": "walking speed (m/s)*",
 }
 
+
+#: per-side columns that need the other leg's events or reach (a step lands from the other foot)
+BOTH_LEGS = ("step_time_s", "double_support_pct", "step_length_m", "stride_length_m",
+             "walking_speed_m_s")  # fmt: skip
 
 #: the uncertainty a value must exceed a band by to be flagged: 1.96 standard errors (95 %)
 Z95 = 1.96
@@ -71,14 +75,15 @@ def beyond(value: float, se: float, band: list[float] | None, method: float = 0.
     return bool(value - margin > band[1] or value + margin < band[0])
 
 
-def _both(summ: GaitSummary, c: str, v: float, se: float, n: int) -> str:
+def _both(summ: GaitSummary, c: str, v: float, se: float, n: int, measured: list[str]) -> str:
     """A bilateral number ``c`` (value ``v``, standard error ``se``, from ``n`` step pairs or
-    strides) with its 95 % margin, or why it is not given."""
+    strides of the ``measured`` sides) with its 95 % margin, or why it is not given."""
     if not np.isfinite(v):
         return summ.withheld.get(c, "-")
     what = "step pairs" if c == "step_time_asymmetry_pct" else "strides"
     margin = f" ± {Z95 * se:.1f}" if np.isfinite(se) else ""
-    return f"{v:.1f}{margin} (both sides; {n} {what})"
+    sides = "both sides" if len(measured) != 1 else f"{SIDE_NAMES[measured[0]]} side only"
+    return f"{v:.1f}{margin} ({sides}; {n} {what})"
 
 
 def gait_pages(doc: Document, view: SessionView) -> None:
@@ -101,8 +106,13 @@ def gait_pages(doc: Document, view: SessionView) -> None:
     )
     rows, flags = [], []
     counts = {k: int(summ.sides[k]["stride_time_s"].strides_n or 0) for k in ("r", "l")}
-    few = [f"{'right' if k == 'r' else 'left'}: {too_few(n)}" for k, n in counts.items()
-           if n < MIN_STRIDES]  # fmt: skip
+    measured = [k for k in ("r", "l") if k in (g.events or {})]  # a shank sensor on that leg
+    few = [f"{SIDE_NAMES[k]}: {too_few(n)}" for k, n in counts.items()
+           if n < MIN_STRIDES and k in measured]  # fmt: skip
+    if len(measured) == 1:
+        other = SIDE_NAMES["l" if measured == ["r"] else "r"]
+        doc.paragraph(f"Only the {SIDE_NAMES[measured[0]]} leg carries sensors: the {other} "
+                      "column stays empty and the asymmetry needs both legs.")  # fmt: skip
     if few:
         doc.paragraph("No mean is given for a side with too few strides (" + "; ".join(few)
                       + ").", weight="bold")  # fmt: skip
@@ -114,6 +124,8 @@ def gait_pages(doc: Document, view: SessionView) -> None:
         band = bands.get(c)
         cells = [_fmt(x, digits) if counts[k] >= MIN_STRIDES else "-"
                  for k, x in (("r", r), ("l", left))]  # fmt: skip
+        if len(measured) == 1 and c in BOTH_LEGS:
+            cells = ["needs both legs" if k in measured else "-" for k in ("r", "l")]
         rows.append([_LABELS[c], *cells, f"{band[0]:g}-{band[1]:g}" if band else "-"])
         flags.append([False] + [beyond(x.mean, np.nan if x.se is None else x.se, band,
                                        method_error(c, x.mean, stride)) for x in (r, left)]
@@ -126,7 +138,7 @@ def gait_pages(doc: Document, view: SessionView) -> None:
     )  # fmt: skip
     for c, value, se, n in bilateral:
         band = bands.get(c)
-        rows.append([_LABELS[c], _both(summ, c, value, se, n), "",
+        rows.append([_LABELS[c], _both(summ, c, value, se, n, measured), "",
                      f"{band[0]:g}-{band[1]:g}" if band else "-"])  # fmt: skip
         flags.append([False, beyond(value, se, band, method_error(c, value, stride)), False,
                       False])  # fmt: skip
