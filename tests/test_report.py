@@ -655,3 +655,18 @@ def test_a_map_key_without_its_sensor_is_said_among_the_quality_notes():
         "The sensor map's 'Chair' (chair) named no sensor in the recording; angles that need it "
         "are left out."
     ]
+
+
+def test_out_of_plane_csv_has_its_header_without_rows(tmp_path):
+    """A protocol with no out-of-plane metric (the rig's hinges) wrote an empty file, no header:
+    a spreadsheet opened nothing, a script reading it failed ("No columns to parse")."""
+    import pandas as pd
+
+    from motionlab.report.csv import OUT_OF_PLANE_COLUMNS, out_of_plane_frame, write_frame
+
+    frame = out_of_plane_frame(
+        SessionView(Session(), load_protocol("knee"), None, {}, Metrics("knee"))
+    )
+    assert frame.empty
+    write_frame(frame, tmp_path / "oop.csv")
+    assert list(pd.read_csv(tmp_path / "oop.csv").columns) == list(OUT_OF_PLANE_COLUMNS)

@@ -88,6 +88,10 @@ def _or_nan(value: float | None) -> float:
     return np.nan if value is None else value
 
 
+#: the columns every out-of-plane row has
+OUT_OF_PLANE_COLUMNS = ("metric", "task", "joint", "angle", "value_deg", "grade")
+
+
 def out_of_plane_frame(view: SessionView) -> pd.DataFrame:
     """One row per out-of-plane number: metric, task, joint, angle and its value columns."""
     m = view.metrics
@@ -167,7 +171,8 @@ def out_of_plane_frame(view: SessionView) -> pd.DataFrame:
                     without_calibration_deg=_or_nan(e.nominal_rom_deg),
                     calibration_change_pct=_or_nan(e.change_pct),
                 )
-    return pd.DataFrame(rows)
+    # a protocol with none of these metrics (a rig's hinges) still gets the table's header
+    return pd.DataFrame(rows, columns=None if rows else list(OUT_OF_PLANE_COLUMNS))
 
 
 def quality_frame(view: SessionView) -> pd.DataFrame:
