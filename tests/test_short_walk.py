@@ -256,3 +256,47 @@ def test_the_real_walk_at_50_hz_gets_no_clock_correction(qmt):
     for column in ("hip_l_flexion_deg", "knee_l_flexion_deg"):
         x = np.interp(t, half.results.angles.time, half.results.angles.data[column])
         assert np.nanstd((x - np.asarray(whole.results.angles.data[column]))[walk]) < 2.0
+
+
+@needs_shared
+@pytest.mark.skipif(not QMT.is_file(), reason="the qmt full-body recording is not in ../shared")
+def test_the_real_walk_as_mt_manager_text_files_runs_as_in_memory(qmt, tmp_path):
+    """The user's path of a walk recorded with Xsens sensors: one MT Manager text export per
+    sensor (header comments, ``PacketCounter`` wrapping at 65536 mid-recording, acc m/s², gyr
+    rad/s, an orientation matrix), a sensor map keyed by serial, ``motionlab run --protocol walk``.
+    The knees and hips come out as the in-memory session's (the bench's path) to 0.01°, and the
+    cadence to 0.1 step/min."""
+    import scipy.io as sio
+    from click.testing import CliRunner
+    from scipy.spatial.transform import Rotation
+
+    from motionlab.cli import main
+    from motionlab.session import load_session
+
+    _, whole = qmt
+    m = sio.loadmat(QMT, squeeze_me=True, struct_as_record=False)
+    head = ["PacketCounter", "Acc_X", "Acc_Y", "Acc_Z", "Gyr_X", "Gyr_Y", "Gyr_Z"]
+    head += [f"Mat[{i}][{j}]" for j in (1, 2, 3) for i in (1, 2, 3)]
+    lines = ["sensors:"]
+    for k, (name, seg) in enumerate(SEGMENT.items()):
+        serial = f"00B421E{k + 1}"
+        d = m[name]
+        mat = Rotation.from_quat(np.asarray(d.quat)[:, [1, 2, 3, 0]]).as_matrix()
+        cols = np.column_stack([d.acc, d.gyr, mat.transpose(0, 2, 1).reshape(-1, 9)])
+        rows = [f"{(60000 + n) % 65536:05d}\t" + "\t".join(f"{v:.6f}" for v in r)
+                for n, r in enumerate(cols)]  # fmt: skip
+        text = "// Start Time: Unknown\n// Update Rate: 100.0Hz\n" + "\t".join(head) + "\n"
+        (tmp_path / f"MT_012005D6_009-000_{serial}.txt").write_text(text + "\n".join(rows) + "\n")
+        segment, side = seg.split("_") if "_" in seg else (seg, "")
+        lines.append(f"  {serial}: {{segment: {segment}" + (f", side: {side}}}" if side else "}"))
+    (tmp_path / "map.yaml").write_text("\n".join(lines) + "\n")
+    files = sorted(str(p) for p in tmp_path.glob("MT_*.txt"))
+    args = ["run", "--protocol", "walk", "--map", str(tmp_path / "map.yaml"), *files]
+    res = CliRunner().invoke(main, [*args, "-o", str(tmp_path / "out"), "--quiet"])
+    assert res.exit_code == 0, res.output
+    ran = load_session(tmp_path / "out" / "session.h5")
+    for column in ("knee_r_flexion_deg", "knee_l_flexion_deg", "hip_r_flexion_deg"):
+        a, b = ran.results.angles.data[column], whole.results.angles.data[column]
+        assert np.nanmax(np.abs(np.asarray(a) - np.asarray(b))) < 0.01
+    cadence = ran.results.gait.summary.cadence_steps_per_min
+    assert cadence == pytest.approx(whole.results.gait.summary.cadence_steps_per_min, abs=0.1)
