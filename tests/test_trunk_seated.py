@@ -488,6 +488,30 @@ def test_a_real_pivot_cut_to_its_rest_at_the_end_keeps_its_flexion_axis():
     assert z @ whole > 0 or grades[:2] == ["weak", "weak"]
 
 
+@needs_shared
+def test_a_real_pivot_cut_to_a_sway_does_not_claim_which_way_is_forward():
+    """Aag/pivot_hs cut to its first 5.1 s: the thorax sways 1° one way and 6° the other about
+    the flexion axis while the chair turns. One-sided (6.2×) and agreeing with its median
+    posture, the backward lean was taken for flexion (r −0.94 against OptiTrack) and graded
+    ``determined``; a sway is no bend: flexion and lateral bending are ``weak``, saying why."""
+    from motionlab.ingest import ingest
+    from motionlab.segments import trunk_axes
+
+    imu = SHARED / "datasets" / "trunk" / "Aag" / "pivot_hs" / "imu"
+    if not imu.is_dir():
+        pytest.skip("trunk data set not present")
+    session = ingest([imu], ROOT / "protocols" / "examples" / "trunk_map.yaml")
+    end = min(s.time[-1] for s in session.sensors.values()) - 4.0
+    for label, stream in session.sensors.items():
+        session.sensors[label] = take(stream, np.flatnonzero(stream.time <= end))
+    analyse(session, dataclasses.replace(OPTIONS, clock_sync=True))
+    lumbar = session.results.calibration.grades["lumbar"]
+    pos, neg = lumbar.trunk.excursion_deg
+    assert max(pos, abs(neg)) < trunk_axes.BEND_MIN_DEG
+    assert lumbar.grades[:2] == ["weak", "weak"]
+    assert "too little to tell a forward bend from leaning back" in lumbar.reasons[0]
+
+
 def test_a_weak_trunk_axis_is_told_to_bend_forward_not_to_move_through_its_range(seated):
     """Danique/trunkmovement_hs (the thorax 45° / 48° either way about both axes) was told
     'move the lumbar spine slowly through its range 5 times', which it had done; the remedy is

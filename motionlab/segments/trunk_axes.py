@@ -33,8 +33,9 @@ and **trunk movement** in any order, also as one continuous block:
 4. **Grades** (:func:`trunk_grades`): flexion and lateral bending are ``determined`` when the
    movement about the chosen axis is at least :data:`AXIS_RATIO_MIN` times as one-sided as about
    the other (people bend about as far to either side), the thorax moved at least
-   :data:`SIGN_RATIO_MIN` times further one way than the other about it from the rest, and
-   that way is the flexion side (the rest's extremes and the median's tails agree);
+   :data:`SIGN_RATIO_MIN` times further one way than the other about it from the rest, at
+   least :data:`BEND_MIN_DEG` (a sway is no bend), and that way is the flexion side (the
+   rest's extremes and the median's tails agree);
    ``weak`` otherwise; axial rotation when the heading from the movement explains at least
    :data:`HEADING_RHO_MIN` of the horizontal rates and the headings' drift apart is followed
    (a still rest, step 2) or calibrated away (both gyroscopes calibrated per serial before the
@@ -93,6 +94,11 @@ MOVING_DEG_S = 5.0  # the thorax turning faster than this relative to the pelvis
 MOVEMENT_MIN_S = 2.0  # the least trunk movement (s) that can give the axes
 AXIS_RATIO_MIN = 1.5  # the flexion axis's one-sidedness over the other axis's
 SIGN_RATIO_MIN = 1.3  # the thorax's excursion one way / the other, about the flexion axis
+# the thorax's larger excursion about the flexion axis (deg) for its sign to count: a seated
+# person's sway and the lean of a wheelchair's turn reach 5-6° (Aag/pivot_hs's first 5 s: 1° /
+# 6°, one-sided 6.2×, took the backward lean for flexion: r −0.94, graded determined); the
+# trials' bends reach 12-52°
+BEND_MIN_DEG = 10.0
 HEADING_RHO_MIN = 0.5  # share of the horizontal rates the heading fit explains
 AXIS_KERNEL_DEG = 10.0  # width of the vote for the flexion and lateral-bending axes
 
@@ -366,7 +372,9 @@ def calibrate(
     steps_named = {s.kind: s.name for s in protocol.calibration}
     rest_name = steps_named.get("static", "rest")
     move_name = steps_named.get("functional", "trunk_movement")
-    clear = ratio >= AXIS_RATIO_MIN and sign_ratio >= SIGN_RATIO_MIN
+    clear = (
+        ratio >= AXIS_RATIO_MIN and sign_ratio >= SIGN_RATIO_MIN and max(pos, neg) >= BEND_MIN_DEG
+    )
     axis_verdict = "determined" if clear and (pos >= neg) == (forward > 0) else "weak"
     y, zs = np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0])
     segments: dict[str, Any] = {}
@@ -503,6 +511,11 @@ def _gyros_calibrated(session: Session, segments: tuple[str, ...]) -> bool:
 
 def _weak_axis(ratio: float, pos: float, neg: float) -> str:
     """Why the flexion axis is weak, in words."""
+    if max(pos, neg) < BEND_MIN_DEG:
+        return (
+            f"the thorax bent only {pos:.0f}° / {neg:.0f}° either way from the rest: too little "
+            f"to tell a forward bend from leaning back (at least {BEND_MIN_DEG:g}° wanted)"
+        )
     if ratio >= AXIS_RATIO_MIN and _one_sided(pos, neg) >= SIGN_RATIO_MIN:
         return (
             f"the flexion axis's sign is not clear from the movement (the thorax went {pos:.0f}° "
