@@ -137,6 +137,33 @@ def test_a_study_map_naming_a_device_this_trial_lacks_warns_and_a_required_one_r
     assert "none on thorax (the sensor map's 'Bakc' named no sensor)" in err.value.line()
 
 
+def test_devices_whose_clocks_do_not_overlap_are_refused_naming_them(tmp_path):
+    """A device whose clock was an hour off (not synchronised before recording): the trunk
+    calibration crashed on an empty shared span ("cannot convert float NaN to integer"). Now one
+    line names each segment's sensor and its span, and the remedy."""
+    from motionlab import stages
+
+    files = xe.export_files(seconds=4.0)
+    key = "imu/Back B4A2-5410-EC7B-D68C (UDP)/Inertial.csv"
+    head, *rows = files[key].decode().splitlines()
+    shifted = [f"{int(r.split(',')[0]) + 3_600_000_000},{r.split(',', 1)[1]}" for r in rows]
+    files[key] = ("\n".join([head, *shifted]) + "\n").encode()
+    del files["imu/Back B4A2-5410-EC7B-D68C (UDP)/Magnetometer.csv"]
+    del files["imu/Back B4A2-5410-EC7B-D68C (UDP)/Quaternion.csv"]
+    imu = xe.write(tmp_path, files)
+    (tmp_path / "map.yaml").write_text(
+        "sensors:\n  Back: {segment: thorax}\n  Chest: {segment: pelvis}\n"
+    )
+    session = ingest([imu], tmp_path / "map.yaml")
+    stages.fuse(session)
+    with pytest.raises(InputError) as err:
+        stages.calibrate(session, load_protocol("lumbar_seated"))
+    line = err.value.line()
+    assert line.startswith("sensor clocks: the sensors share 0.0 s of recording")
+    assert "thorax's Back 3600.0–3604.0 s" in line and "pelvis's Chest 0.0–4.0 s" in line
+    assert "synchronise the devices' clocks before recording" in line
+
+
 def test_a_folder_that_is_no_export_is_still_refused(tmp_path):
     (tmp_path / "x").mkdir()
     with pytest.raises(InputError, match="is a folder"):

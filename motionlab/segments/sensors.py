@@ -75,7 +75,37 @@ def streams_of(session: Session, protocol: Protocol) -> Streams:
                 where=f"sensor {label}",
                 remedy="calibration needs raw acc and gyr, or the vendor's orientation",
             )
+    _check_overlap(session, out)
     return out
+
+
+#: the protocol's sensors must share at least this much recording (s)
+MIN_SHARED_S = 1.0
+
+
+def _check_overlap(session: Session, streams: Streams) -> None:
+    """An :class:`InputError` naming each segment's sensor and span when the streams share less
+    than ``MIN_SHARED_S`` and less than half the shortest of them: a device whose clock was not
+    set before recording (an x-IMU3 an hour off), or files of different recordings. The clock
+    sync corrects fractions of a second."""
+    if len(streams) < 2:
+        return
+    start = max(float(t[0]) for t, _, _ in streams.values())
+    end = min(float(t[-1]) for t, _, _ in streams.values())
+    shortest = min(float(t[-1] - t[0]) for t, _, _ in streams.values())
+    # a short recording (a single pose) is too short, which the steps say; not a clock's fault
+    if end - start >= min(MIN_SHARED_S, 0.5 * shortest):
+        return
+    spans = ", ".join(
+        f"{seg}'s {sensor_for_segment(session, seg)} {t[0]:.1f}–{t[-1]:.1f} s"
+        for seg, (t, _, _) in streams.items()
+    )
+    raise InputError(
+        f"the sensors share {max(end - start, 0.0):.1f} s of recording ({spans}, session time)",
+        where="sensor clocks",
+        remedy="synchronise the devices' clocks before recording, or give the files of one "
+        "recording",
+    )
 
 
 def sensor_orientation(session: Session, label: str) -> np.ndarray:
