@@ -48,6 +48,11 @@ RATE_RANGE_HZ = (0.01, 1e6)
 TIME_MAX_S = 1e11  # about 3000 years: Unix time in s fits, a stamp near 1e300 does not
 #: ``rate`` may be at most this many times the highest native rate
 UPSAMPLE_MAX = 10.0
+#: a gyroscope that reads one value on this many samples or more while the sensor turns by
+#: more than FLAT_TILT_DEG (deg, the accelerometer's gravity) is off
+FLAT_MIN_SAMPLES = 100
+FLAT_TILT_DEG = 30.0
+FLAT_MEAN_S = 0.5  # s: gravity from the accelerometer's mean over stretches this long
 #: a quaternion whose norm is outside this range is not an orientation (e.g. all zero)
 QUAT_NORM_RANGE = (0.5, 1.5)
 
@@ -157,6 +162,40 @@ def _check_channels(stream: SensorStream, path: Path) -> None:
                 f"{where}, channel {ch}",
                 "export the channel again or leave it out of the export",
             )
+    _check_flat(stream, path)
+
+
+def _check_flat(stream: SensorStream, path: Path) -> None:
+    """Refuse a gyroscope that reads one value throughout while the accelerometer sees gravity
+    turn by more than :data:`FLAT_TILT_DEG`: the sensor turned, which no gyroscope misses (noise
+    alone moves it), so it was off or not recorded (a dead gyroscope read as zeros made a
+    walking shank look still beside its thigh)."""
+    if stream.gyr is None or stream.acc is None:
+        return
+    gyr, acc = (np.asarray(a, dtype=float) for a in (stream.gyr, stream.acc))
+    finite = gyr[np.isfinite(gyr).all(axis=1)]
+    if len(finite) < FLAT_MIN_SAMPLES or np.ptp(finite, axis=0).any():
+        return
+    ok = acc[np.isfinite(acc).all(axis=1)]
+    steps = np.diff(np.asarray(stream.time, dtype=float))
+    steps = steps[np.isfinite(steps)]
+    dt = float(np.median(steps)) if len(steps) else float("nan")
+    if not (np.isfinite(dt) and dt > 0):  # the clock is repaired later; judged as it comes
+        return
+    n = max(1, int(round(FLAT_MEAN_S / dt)))  # the mean directions of stretches of FLAT_MEAN_S
+    ups = np.array([np.mean(ok[k : k + n], axis=0) for k in range(0, len(ok) - n + 1, n)])
+    ups /= np.linalg.norm(ups, axis=1, keepdims=True)
+    turned = np.degrees(np.arccos(np.clip(ups @ ups.T, -1.0, 1.0))).max() if len(ups) else 0.0
+    if turned <= FLAT_TILT_DEG:
+        return
+    raise InputError(
+        f"channel gyr reads ({', '.join(f'{v:g}' for v in finite[0])}) on every one of its "
+        f"{len(finite)} samples while the accelerometer sees gravity turn by {turned:.0f}°: it "
+        "was off or not recorded",
+        path,
+        f"sensor {stream.label}, channel gyr",
+        "record with the gyroscope on, or leave it out of the export",
+    )
 
 
 def _check_clock(stream: SensorStream, path: Path) -> None:

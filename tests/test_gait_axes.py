@@ -193,6 +193,33 @@ def test_the_swap_check_is_for_a_stand_and_a_walk_only(walk):
     assert fit.method == "principal" and np.isnan(fit.speed_ratio)
 
 
+def test_a_shank_that_hardly_turns_is_no_swap(walk):
+    """A shank sensor that reads noise only (off, or no walk): the ratio was infinite and the
+    pair refused as swapped. A segment that hardly turns says nothing about the order."""
+    proto, session, _ = walk
+    t, g1, g2, q1, q2, speed = movement.shared_movement(
+        "knee_r", _side(session, "thigh_r"), _side(session, "shank_r")
+    )
+    stand = session.results.calibration.steps["standing"]
+    ref = (t >= stand[0]) & (t <= stand[1])
+    quiet = np.random.default_rng(0).normal(0.0, 0.01, g2.shape)
+    axes = gait_axes.principal_axes(t, g1, quiet, q1, q2, ref, speed > 0.3)
+    assert np.isnan(axes.speed_ratio)
+    assert gait_axes._verdict(axes, 0.0, [], hinted=False) != "determined"
+
+
+def test_the_axes_come_from_what_both_sensors_recorded():
+    """A gap the ingest kept (NaN rates) is bridged for the filters, not counted as swings: a
+    shank flat across a 200-s gap beside its walking thigh was refused as "swapped"."""
+    t_s = np.arange(0.0, 10.0, 0.01)
+    gyr = np.ones((len(t_s), 3))
+    gyr[300:500] = np.nan  # 3-5 s lost
+    t = np.arange(0.0, 10.0, 0.005)
+    got = gait_axes.recorded_on(t, t_s, gyr)
+    assert got[(t < 2.99) | (t > 5.01)].all() and not got[(t > 3.01) & (t < 4.99)].any()
+    assert not gait_axes.recorded_on(t, t_s, np.full_like(gyr, np.nan)).any()
+
+
 def test_a_thigh_turning_about_as_fast_as_its_shank_makes_the_knee_weak(walk):
     """Between a stiff knee (about 1) and a clear swap (above 1.25): weak, saying why."""
     proto, session, _ = walk

@@ -519,3 +519,23 @@ def test_reader_keys_cover_every_reader_option():
     from motionlab.sensor_map import READER_KEYS
 
     assert set(READER_KEYS) == generic._TOP_KEYS | generic._SENSOR_KEYS | {"mag_field_ut"}
+
+
+def test_a_gyroscope_reading_zeros_while_the_sensor_turns_is_refused(tmp_path):
+    """A dead gyroscope exported as zeros beside an accelerometer that sees gravity turn by 90°
+    (the sensor tilted over 2 s): refused in one line naming the file, the sensor and the channel.
+    The same zeros on a sensor whose gravity does not turn (a noiseless still sensor, or a spin
+    about the vertical) pass: they may be true."""
+    t = np.arange(400) / 100.0
+    tilt = np.clip(t - 1.0, 0.0, 2.0) * np.pi / 4  # 0 → 90° over 1-3 s
+    acc = np.column_stack([np.sin(tilt), np.zeros_like(t), np.cos(tilt)])  # in g
+    write_xio(tmp_path / "dead.csv", t, np.zeros((400, 3)), acc)
+    with pytest.raises(InputError) as err:
+        ingest([tmp_path / "dead.csv"])
+    line = err.value.line()
+    assert (
+        line.startswith("dead.csv sensor ") and "channel gyr: channel gyr reads (0, 0, 0)" in line
+    )
+    assert "gravity turn by 90°" in line and "record with the gyroscope on" in line
+    write_xio(tmp_path / "still.csv", t, np.zeros((400, 3)), np.tile([0.0, 0.0, 1.0], (400, 1)))
+    assert ingest([tmp_path / "still.csv"]).sensors

@@ -66,6 +66,10 @@ EXTENSION_DEG = (10.0, 20.0)
 # swapped in the map give the inverse (1.56-1.96)
 SWING_SPEED_RATIO = (1.0, 1.25)
 REAL_WALK_SPEED_RATIO = (0.51, 0.64)
+# the ratio is judged only when both segments turn at least this fast (95th percentile, rad/s;
+# a walking thigh 3.7-4.2, a shank 7.2 on the real walk): a sensor that hardly turns is no
+# swap but a sensor that was off, or a recording that is no walk
+SWING_MIN_RAD_S = 1.0
 
 
 class SwappedSensors(Exception):
@@ -90,7 +94,8 @@ class PrincipalAxes:
     / ``witness_distal`` the constrained hinge fit's axes (signs as the principal ones) and
     ``witness_deg`` the larger angle to them; ``relative_residual`` that fit's RMS residual over
     the RMS perpendicular rate; ``speed_ratio`` the proximal segment's 95th-percentile angular
-    speed over the distal's; ``n_samples`` the samples used (moving, not turning).
+    speed over the distal's (NaN where either is under ``SWING_MIN_RAD_S``); ``n_samples`` the
+    samples used (moving, not turning).
     """
 
     axis_proximal: np.ndarray
@@ -215,6 +220,7 @@ def principal_axes(
     # would make the ratio depend on which of the two is taken for the thigh
     swings = moving & np.isfinite(g1).all(axis=1) & np.isfinite(g2).all(axis=1)
     speed_1, speed_2 = (np.percentile(np.linalg.norm(g[swings], axis=1), 95) for g in (g1, g2))
+    judged = min(speed_1, speed_2) >= SWING_MIN_RAD_S  # a segment that hardly turns says nothing
     return PrincipalAxes(
         axis_proximal=a1,
         axis_distal=a2,
@@ -227,9 +233,22 @@ def principal_axes(
         witness_deg=max(_angle_deg(a1, w1), _angle_deg(a2, w2)),
         relative_residual=relative,
         residual_rad_s=rms,
-        speed_ratio=float(speed_1 / speed_2) if speed_2 > 0 else float("inf"),
+        speed_ratio=float(speed_1 / speed_2) if judged else float("nan"),
         n_samples=int(use.sum()),
     )
+
+
+def recorded_on(t: np.ndarray, t_s: np.ndarray, gyr: np.ndarray) -> np.ndarray:
+    """Samples of ``t`` (s) within one sample interval of a finite rate of a sensor recorded at
+    ``t_s`` (``gyr`` rad/s, NaN in a gap kept by the ingest)."""
+    ok = np.isfinite(gyr).all(axis=1)
+    if not ok.any():
+        return np.zeros(len(t), bool)
+    good = t_s[ok]
+    i = np.clip(np.searchsorted(good, t), 1, len(good) - 1)
+    near = np.minimum(np.abs(t - good[i - 1]), np.abs(good[i] - t))
+    dt = float(np.median(np.diff(t_s))) if len(t_s) > 1 else np.inf
+    return near <= 1.01 * dt
 
 
 def fit_knee(
@@ -254,7 +273,12 @@ def fit_knee(
     """
     t, g1, g2, q1, q2, speed = movement.shared_movement(joint, proximal, distal)
     ref = (t >= reference[0]) & (t <= reference[1])
-    on = speed >= SWING_FRACTION * np.percentile(speed, 95)
+    # the swings both sensors recorded: a gap is bridged for the filters, not for the axes
+    # (a shank flat across a long gap looked still beside its walking thigh: "swapped")
+    recorded = recorded_on(t, *proximal[:2]) & recorded_on(t, *distal[:2])
+    if recorded.sum() < MIN_SAMPLES:
+        return movement.failed(joint, "thigh and shank sensors recorded too little at one time")
+    on = (speed >= SWING_FRACTION * np.percentile(speed[recorded], 95)) & recorded
     if ref.sum() < 5:
         return movement.failed(joint, "no stand with the knee straight before the walk")
     axes = principal_axes(t, g1, g2, q1, q2, ref, on)
