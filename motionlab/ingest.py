@@ -38,7 +38,7 @@ from motionlab.qc import (
     gyr_unit_problem,
     mark_identical_streams,
 )
-from motionlab.sensor_map import SensorMap, load_sensor_map
+from motionlab.sensor_map import SensorMap, load_sensor_map, unmatched_place
 from motionlab.session import MarkerSet, SensorStream, Session
 
 DEFAULT_GAP_MAX = 0.1  # s
@@ -53,6 +53,7 @@ UPSAMPLE_MAX = 10.0
 FLAT_MIN_SAMPLES = 100
 FLAT_TILT_DEG = 30.0
 FLAT_MEAN_S = 0.5  # s: gravity from the accelerometer's mean over stretches this long
+FLAT_STRETCHES = 2000  # ... and no more of them (a long recording's stretches grow)
 #: a quaternion whose norm is outside this range is not an orientation (e.g. all zero)
 QUAT_NORM_RANGE = (0.5, 1.5)
 
@@ -126,11 +127,7 @@ def unmatched_keys(session: Session) -> list[str]:
     )
     out = []
     for entry in session.metadata.get("map_unmatched", []):
-        where = ", ".join(
-            str(x)
-            for x in (f"line {entry['line']}" if entry.get("line") else "", entry.get("segment"))
-            if x
-        )
+        where = unmatched_place(entry)
         out.append(f"sensor map key '{entry['key']}'{f' ({where})' if where else ''} names no "
                    f"sensor in the input files (present: {present or 'none'})")  # fmt: skip
     return out
@@ -182,10 +179,14 @@ def _check_flat(stream: SensorStream, path: Path) -> None:
     dt = float(np.median(steps)) if len(steps) else float("nan")
     if not (np.isfinite(dt) and dt > 0):  # the clock is repaired later; judged as it comes
         return
-    n = max(1, int(round(FLAT_MEAN_S / dt)))  # the mean directions of stretches of FLAT_MEAN_S
-    ups = np.array([np.mean(ok[k : k + n], axis=0) for k in range(0, len(ok) - n + 1, n)])
+    # gravity's direction over stretches of FLAT_MEAN_S (at most FLAT_STRETCHES of them)
+    n = max(1, int(round(FLAT_MEAN_S / dt)), -(-len(ok) // FLAT_STRETCHES))
+    k = len(ok) // n
+    if k == 0:
+        return
+    ups = ok[: k * n].reshape(k, n, 3).mean(axis=1)
     ups /= np.linalg.norm(ups, axis=1, keepdims=True)
-    turned = np.degrees(np.arccos(np.clip(ups @ ups.T, -1.0, 1.0))).max() if len(ups) else 0.0
+    turned = float(np.degrees(np.arccos(np.clip(ups @ ups.T, -1.0, 1.0))).max())
     if turned <= FLAT_TILT_DEG:
         return
     raise InputError(

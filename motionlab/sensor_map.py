@@ -181,3 +181,10 @@ def load_sensor_map(path: str | Path) -> SensorMap:
             key=key, segment=segment, side=side, label=label, line=line
         )
     return smap
+
+
+def unmatched_place(entry: dict[str, Any]) -> str:
+    """``"line 8, chair"``: where a key the ingest kept in ``metadata["map_unmatched"]`` (it named
+    no sensor) stands in the map and what segment it maps."""
+    line = f"line {entry['line']}" if entry.get("line") else ""
+    return ", ".join(x for x in (line, entry.get("segment") or "") if x)

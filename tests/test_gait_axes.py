@@ -218,6 +218,9 @@ def test_the_axes_come_from_what_both_sensors_recorded():
     got = gait_axes.recorded_on(t, t_s, gyr)
     assert got[(t < 2.99) | (t > 5.01)].all() and not got[(t > 3.01) & (t < 4.99)].any()
     assert not gait_axes.recorded_on(t, t_s, np.full_like(gyr, np.nan)).any()
+    kept = np.r_[0:300, 500:1000]  # the same gap as missing samples (a counter jump)
+    got = gait_axes.recorded_on(t, t_s[kept], np.ones((len(kept), 3)))
+    assert got[(t < 2.99) | (t > 5.01)].all() and not got[(t > 3.01) & (t < 4.99)].any()
 
 
 def test_a_thigh_turning_about_as_fast_as_its_shank_makes_the_knee_weak(walk):

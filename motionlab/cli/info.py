@@ -9,6 +9,7 @@ import click
 
 from motionlab.cli.paths import INPUT_FILE
 from motionlab.lineage import rerun
+from motionlab.sensor_map import unmatched_place
 
 
 @click.command("info")
@@ -114,10 +115,9 @@ def format_summary(summary: dict) -> str:
             " a clock, synchronise the streams before comparing them"
         )
     for entry in meta.get("map_unmatched", []):
-        where = ", ".join(str(x) for x in (entry.get("line") and f"line {entry['line']}",
-                                           entry.get("segment")) if x)  # fmt: skip
-        lines.append(f"  warning: sensor map key '{entry['key']}' ({where}) named no sensor in "
-                     "the input files")  # fmt: skip
+        where = unmatched_place(entry)
+        lines.append(f"  warning: sensor map key '{entry['key']}'{f' ({where})' if where else ''}"
+                     " named no sensor in the input files")  # fmt: skip
     shown = ("subject", "session", "files", "time_origin_s", "start_spread_s", "clocks_unrelated",
              "map_unmatched")  # fmt: skip
     for key, value in meta.items():

@@ -42,6 +42,7 @@ from motionlab.segments import movement
 from motionlab.segments.walk_forward import LOWPASS_HZ as TURN_LOWPASS_HZ
 from motionlab.segments.walk_forward import TURN_RAD_S
 from motionlab.session import estimate_rate
+from motionlab.timebase import nominal_interval
 
 N_PARTS = 4
 MIN_SAMPLES = 100
@@ -240,15 +241,13 @@ def principal_axes(
 
 def recorded_on(t: np.ndarray, t_s: np.ndarray, gyr: np.ndarray) -> np.ndarray:
     """Samples of ``t`` (s) within one sample interval of a finite rate of a sensor recorded at
-    ``t_s`` (``gyr`` rad/s, NaN in a gap kept by the ingest)."""
-    ok = np.isfinite(gyr).all(axis=1)
-    if not ok.any():
+    ``t_s`` (``gyr`` rad/s): not in a gap the ingest kept, as missing samples or as NaN."""
+    good = t_s[np.isfinite(gyr).all(axis=1)]
+    if len(good) < 2:
         return np.zeros(len(t), bool)
-    good = t_s[ok]
     i = np.clip(np.searchsorted(good, t), 1, len(good) - 1)
     near = np.minimum(np.abs(t - good[i - 1]), np.abs(good[i] - t))
-    dt = float(np.median(np.diff(t_s))) if len(t_s) > 1 else np.inf
-    return near <= 1.01 * dt
+    return near <= 1.01 * nominal_interval(t_s)
 
 
 def fit_knee(

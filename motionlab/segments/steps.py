@@ -356,19 +356,18 @@ def find_steps(
     why, and (``suggest``) a shipped protocol that fits it.
     """
     found: dict[str, tuple[float, float] | None] = {}
-    rejected: list[str] = []
+    bl = blocks(streams)
+    rejected: dict[tuple[str, int], str | None] = {}  # (step, block): why it is not the pose
 
     def accepted(step: CalibrationStep, i: int) -> bool:
         if pose_check is None:
             return True
-        why = pose_check(step, _pose_span(bl[i]))
-        if why:
-            rejected.append(why)
-        return not why
+        if (step.name, i) not in rejected:
+            rejected[step.name, i] = pose_check(step, _pose_span(bl[i]))
+        return not rejected[step.name, i]
 
     missing: list[CalibrationStep] = []
     statics: list[tuple[CalibrationStep, Block]] = []  # static steps found so far
-    bl = blocks(streams)
     pos = 0  # index of the first block not yet used
     t_used = -np.inf
     for k, step in enumerate(protocol.calibration):
@@ -430,7 +429,8 @@ def find_steps(
             if s.kind == "static"
         )
         fits = fitting_protocols(streams, protocol) if suggest else []
-        why = f"; {'; '.join(dict.fromkeys(rejected))}" if rejected else ""
+        reasons = [why for why in rejected.values() if why]
+        why = f"; {'; '.join(dict.fromkeys(reasons))}" if reasons else ""
         raise InputError(
             f"calibration step{'s' if len(missing) > 1 else ''} {names} not found; "
             f"{describe(bl)}{needs}{why}",
