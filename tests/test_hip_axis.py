@@ -178,19 +178,24 @@ def test_a_pelvis_strapped_as_the_hint_says_keeps_the_hint():
 
 @pytest.mark.parametrize(("turn_deg", "used"), [(3.0, True), (40.0, False)])
 def test_first_steps_that_turn_give_no_forward_direction(turn_deg, used):
-    """A 2-s stand, then 1.5 s of setting off at 1 m/s² along the sensor's x while turning by
-    ``turn_deg`` about the vertical: a straight start (3°, as real and simulated ones) gives x;
-    one that turns 40° (setting off towards a walkway beside the walker) gives no direction."""
-    rate, g = 100.0, 9.81
-    t = np.arange(int(3.5 * rate)) / rate
+    """A 2-s stand, then ``walk_forward.START_S`` of setting off at 1 m/s² along the way the
+    sensor's x points while turning by ``turn_deg`` about the vertical (the walker goes where the
+    pelvis faces): a straight start (3°, as real and simulated ones) gives x; one that turns 40°
+    (setting off towards a walkway beside the walker) gives no direction."""
+    rate, g, span = 100.0, 9.81, walk_forward.START_S
+    t = np.arange(int((2.0 + span) * rate)) / rate
     moving = t > 2.0
-    heading = np.where(moving, np.deg2rad(turn_deg) * (t - 2.0) / 1.5, 0.0)
+    heading = np.where(moving, np.deg2rad(turn_deg) * (t - 2.0) / span, 0.0)
     q = rot.from_axis_angle(np.array([0.0, 0.0, 1.0]), heading)
-    acc = np.tile([0.0, 0.0, g], (len(t), 1))
-    acc[moving, 0] = 1.0
+    # speed v = t - 2 along the heading: the earth-frame acceleration v' x + v ψ' (z × x)
+    v, turn_rate = np.where(moving, t - 2.0, 0.0), np.deg2rad(turn_deg) / span
+    c, s = np.cos(heading), np.sin(heading)
+    acc_earth = np.column_stack([c - v * turn_rate * s, s + v * turn_rate * c, 0 * t])
+    acc_earth[~moving] = 0.0
+    acc = rot.rotate(rot.conj(q), acc_earth) + [0.0, 0.0, g]
     found = walk_forward.forward_from_start(t, acc, q, np.array([0.0, 0.0, 1.0]), 2.0)
     assert found.used is used
     if used:
         assert np.degrees(np.arccos(found.axis @ [1.0, 0.0, 0.0])) < 1.0
     else:
-        assert found.reason.startswith("the walker turned 39°")  # over the window's samples
+        assert found.reason.startswith("the walker turned 40°")  # over the window's samples
