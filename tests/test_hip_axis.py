@@ -199,3 +199,20 @@ def test_first_steps_that_turn_give_no_forward_direction(turn_deg, used):
         assert np.degrees(np.arccos(found.axis @ [1.0, 0.0, 0.0])) < 1.0
     else:
         assert found.reason.startswith("the walker turned 40°")  # over the window's samples
+
+
+def test_a_walk_going_before_the_stand_ends_gives_no_forward_direction():
+    """A 2-s stand, then a walk that was going already (a recording cut in mid-walk after a
+    stand): the pelvis's forward and sideways accelerations swing about zero (±3 m/s² twice per
+    stride, ±1.5 once), so the velocity gained from the cut (0.4 m/s on average, over the 0.3 a
+    start needs) swings through nought instead of growing, and gives no direction (its own
+    would be the cut's phase's)."""
+    rate, g = 100.0, 9.81
+    t = np.arange(int((2.0 + walk_forward.START_S) * rate)) / rate
+    moving = t > 2.0
+    acc = np.tile([0.0, 0.0, g], (len(t), 1))
+    acc[moving, 0] = 3.0 * np.sin(2 * np.pi * 1.8 * (t[moving] - 2.0))
+    acc[moving, 1] = 1.5 * np.sin(2 * np.pi * 0.9 * (t[moving] - 2.0))
+    q = np.tile([1.0, 0.0, 0.0, 0.0], (len(t), 1))
+    found = walk_forward.forward_from_start(t, acc, q, np.array([0.0, 0.0, 1.0]), 2.0)
+    assert not found.used and "no walk from rest" in found.reason
