@@ -49,10 +49,11 @@ def true_difference(session, truth, ref: str, label: str, t: np.ndarray) -> np.n
 
 
 @pytest.mark.parametrize(
-    "preset, seed, tolerance", [("clean", 8, 0.0005), ("clean", 5, 0.0005), ("typical", 8, 0.002)]
+    "preset, seed, tolerance", [("clean", 8, 0.0006), ("clean", 5, 0.0005), ("typical", 8, 0.002)]
 )
 def test_offset_and_drift_recovered(knee, typical, preset, seed, tolerance):
-    """Clean sensors: 0.42 ms (seed 8) and 0.37 ms (seed 5) on the real-like walk, where the
+    """Clean sensors: 0.42 ms (seed 8; 0.53 ms since the pelvis sways over the stance foot, as
+    a real walk's) and 0.37 ms (seed 5) on the real-like walk, where the
     fit's 8 Hz input low-pass clips the shank's terminal swing (0.07-0.13 ms with the former
     gait templates); seed 5 fell into the fit's large-bias valley before the bias prior
     (1.6 ms off, "not reliable")."""
