@@ -133,17 +133,43 @@ def test_a_stand_a_little_too_short_is_said_exactly(walk):
     assert 1.0 < longest < 2.5
 
 
-def test_shanks_swapped_between_the_legs_give_no_determined_knee(walk):
-    """Each shank's sensor mapped to the other leg: thigh and shank then do not share a knee,
-    and no knee angle may be graded determined."""
+def test_shanks_swapped_between_the_legs_are_refused_naming_them(walk):
+    """Each shank's sensor mapped to the other leg: the pelvis is pushed towards the leg whose
+    shank swings (:mod:`motionlab.segments.walk_checks`), so the swap shows in one line naming
+    both shanks' sensors, before any knee is graded."""
     proto, session, _ = walk
     swapped = copy.deepcopy(session)
     for a, b in (("shank_r", "shank_l"), ("shank_l", "shank_r")):
         swapped.sensors[a].segment = b
-    cal = stages.calibrate(swapped, proto, force=True)
-    for side in "rl":
-        assert cal.hinges[f"knee_{side}"].verdict != "determined"
-        assert "determined" not in cal.grades[f"knee_{side}"].grades
+    with pytest.raises(InputError) as exc:
+        stages.calibrate(swapped, proto, force=True)
+    line = str(exc.value)
+    assert "\n" not in line and "look swapped left for right" in line and "sensor map" in line
+    assert "shank_r's sensor shank_l" in line and "shank_l's sensor shank_r" in line
+    corr = float(line.split("(correlation ")[1].split(";")[0])
+    assert corr < walk_checks.SIDES_CORR
+
+
+def test_legs_swapped_left_for_right_are_refused_and_the_map_as_made_is_not(walk):
+    """Thigh and shank of each leg mapped to the other side: every knee's fit holds and its
+    flexion is right, but every finding would be told of the other leg. The pelvis's sway
+    against the shanks' swing says so (correlation negative); the map as made gives +0.5 or
+    more (simulated walks +0.56 to +0.94, the real walk +0.50)."""
+    proto, session, _ = walk
+    streams = streams_of(session, proto)
+    cal = session.results.calibration
+    after = cal.steps["standing"][1]
+    corr, seconds = walk_checks.sway_swing_correlation(
+        session, streams, np.asarray(cal.segments["pelvis"].mounting, float), after
+    )
+    assert corr > 0.4 and seconds > 15.0
+    swapped = copy.deepcopy(session)
+    for seg in ("thigh", "shank"):
+        a, b = swapped.sensors[f"{seg}_r"], swapped.sensors[f"{seg}_l"]
+        a.segment, b.segment, a.side, b.side = f"{seg}_l", f"{seg}_r", "l", "r"
+    with pytest.raises(InputError) as exc:
+        stages.calibrate(swapped, proto, force=True)
+    assert "the legs' sensors look swapped left for right" in str(exc.value)
 
 
 def test_thigh_and_shank_swapped_on_one_leg_are_refused_in_one_line(walk):

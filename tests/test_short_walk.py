@@ -131,6 +131,38 @@ def test_a_real_short_walk_after_a_swaying_stand_determines_its_hips():
     assert cut.results.gait.summary.cadence_steps_per_min == pytest.approx(131.8, abs=1.0)
 
 
+def test_a_real_short_walk_with_its_legs_swapped_in_the_map_is_refused():
+    """The same real stand and 14 s of walking with each leg's thigh and shank given the other
+    side (a map written for the wrong leg): each knee's fit holds, so no grade could tell; the
+    pelvis pushed towards the leg whose shank swings does (correlation +0.5 as recorded, the
+    negative swapped: :mod:`motionlab.segments.walk_checks`). One line naming the shanks."""
+    from motionlab.segments import streams_of, walk_checks
+
+    data = np.load(EXCERPT)
+    n = np.round(100 * np.diff(data["pieces_s"], axis=1)[:, 0]).astype(int)
+    starts = np.r_[0, np.cumsum(n)]
+    keep = np.concatenate([np.arange(starts[i], starts[i + 1])
+                           for i in (AFTER, AFTER, BEFORE, FIRST_14_S)])  # fmt: skip
+    other = {"thigh_r": "thigh_l", "thigh_l": "thigh_r", "shank_r": "shank_l", "shank_l": "shank_r"}
+    signals = {other.get(seg, seg): (data[f"{seg}_acc"][keep], data[f"{seg}_gyr"][keep])
+               for seg in SEGMENT.values()}  # fmt: skip
+    session = _session(np.arange(len(keep)) / 100.0, signals)
+    with pytest.raises(InputError) as exc:
+        analyse(session, PipelineOptions("walk", progress=False))
+    line = str(exc.value)
+    assert "\n" not in line and "the legs' sensors look swapped left for right" in line
+    corr = float(line.split("(correlation ")[1].split(";")[0])
+    assert corr < walk_checks.SIDES_CORR
+    # as recorded, the same check finds the walk the right way round
+    cut = _excerpt_cut([AFTER, AFTER, BEFORE, FIRST_14_S])
+    cal = cut.results.calibration
+    corr, seconds = walk_checks.sway_swing_correlation(
+        cut, streams_of(cut, load_protocol("walk")),
+        np.asarray(cal.segments["pelvis"].mounting, float), cal.steps["standing"][1],
+    )  # fmt: skip
+    assert corr > 0.3 and seconds > 10.0
+
+
 def _stride_ranges(session: Session, column: str, side: str) -> np.ndarray:
     """Range (deg) of ``column`` over each of the side's strides (consecutive initial contacts
     0.6-1.8 s apart)."""

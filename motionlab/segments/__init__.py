@@ -84,6 +84,7 @@ def calibrate_segments(
     contradicted: set[str] = set()
     unsure: dict[str, list[str]] = {}
     centres: dict[str, CentreHeading] = {}
+    forward_from = ""  # what gave the pelvis its forward direction (pelvis_forward)
     if pose is not None:  # orientations too short for more (OpenSense-style)
         steps, records = single_pose.measure(session, protocol, streams, pose, notes)
     else:
@@ -94,13 +95,18 @@ def calibrate_segments(
         hinges = placement.movement_hinges(session, protocol, streams, steps, records, contradicted)
         unsure = placement.orient_by_data(protocol, records, hinges, contradicted)
         centres = placement.centre_headings(session, protocol, streams)
-        pelvis_forward(session, protocol, streams, steps, records, contradicted, notes)
+        forward_from = pelvis_forward(
+            session, protocol, streams, steps, records, contradicted, notes
+        )
     segments = {}
     for seg in streams:
         res = mounting.fit(seg, protocol, records[seg])
         segments[seg] = replace(
             res, sensor=sensor_for_segment(session, seg), hint_contradicted=seg in contradicted
         )
+    if forward_from == "walk start":  # the legs on their own side (needs the pelvis's right)
+        after = max((float(v[1]) for v in steps.values() if v), default=-np.inf)
+        walk_checks.sides_check(session, protocol, streams, segments["pelvis"], after)
     for seg, names in unsure.items():
         _flag(
             segments,
@@ -247,7 +253,7 @@ def pelvis_forward(
     records: dict[str, dict[str, AxisMeasurement]],
     contradicted: set[str],
     notes: list[str],
-) -> None:
+) -> str:
     """The hips' proximal segment's forward direction from the walk's first steps (the walk
     begins with the longest movement after the stand, :func:`walk_begins`), or where they do
     not give it (the walk does not start right after the stand, or turns in its first steps)
@@ -260,20 +266,22 @@ def pelvis_forward(
     ``grades.HEADING_BOUND_DEG``, plus a strapped hint's, ``walk_forward.HINT_HEADING_DEG``). The
     single turns may disagree more where the stand refuted the hint
     (``walk_forward.MAX_SPREAD_CONTRADICTED_DEG``). A line goes to ``notes`` when the hint is not
-    kept."""
+    kept. Returns the method the pelvis frame's forward direction now agrees with (``walk
+    start`` or ``turns``: taken from it, or the hint within its bound), ``""`` where none gave
+    one."""
     hips = [j for j in protocol.joints.values() if joint_type(j.type).name == "hip"]
     if not hips:
-        return
+        return ""
     seg = hips[0].proximal
     recs = records.get(seg, {})
     gravity = [r for r in recs.values() if r.method == "gravity" and r.kind == "static"]
     if not gravity or mounting._distinct(list(recs.values())) != 1:
-        return
+        return ""
     label = sensor_for_segment(session, seg)
     s = session.sensors[label] if label is not None else None
     rng = steps.get(gravity[0].step)
     if s is None or s.acc is None or s.gyr is None or not rng:
-        return
+        return ""
     up = np.asarray(gravity[0].sensor_axis, float) * float(
         np.sign(gravity[0].segment_axis @ np.array([0.0, 1.0, 0.0])) or 1.0
     )
@@ -295,11 +303,11 @@ def pelvis_forward(
                 f"the walk did not give its forward direction ({found.reason}): the pelvis "
                 "angles and the hips use the hint's",
             )
-        return
+        return ""
     hint = protocol.segments[seg].nominal_mounting().T @ np.array([1.0, 0.0, 0.0])
     off = float(np.degrees(np.arccos(np.clip(found.axis @ hint, -1.0, 1.0))))
     if not by_stand and off <= grades.HEADING_BOUND_DEG[method] + walk_forward.HINT_HEADING_DEG:
-        return  # the hint agrees with the walk as well as a strapped hint and the walk can
+        return method  # the hint agrees with the walk as well as a strapped hint and the walk can
     why = "" if by_stand else f"{words} are {off:.0f}° from the hint's forward; "
     _add_note(notes, seg, f"{why}its forward direction is taken from {words}")
     recs["movement:turns"] = AxisMeasurement(
@@ -314,6 +322,7 @@ def pelvis_forward(
         turns=found.turns,
         spread_deg=found.spread_deg if found.spread_deg is not None else float("nan"),
     )
+    return method
 
 
 def walk_begins(streams: Streams, after_s: float) -> float:
