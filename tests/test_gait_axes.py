@@ -133,18 +133,26 @@ def test_a_stand_a_little_too_short_is_said_exactly(walk):
     assert 1.0 < longest < 2.5
 
 
+def _refused_as_mapped(proto, session, segments: dict[str, str]) -> str:
+    """The one line the calibration refuses ``session`` with when each sensor labelled as a key
+    of ``segments`` is mapped to its value's segment (and side) instead."""
+    swapped = copy.deepcopy(session)
+    for label, seg in segments.items():
+        swapped.sensors[label].segment, swapped.sensors[label].side = seg, seg[-1]
+    with pytest.raises(InputError) as exc:
+        stages.calibrate(swapped, proto, force=True)
+    line = str(exc.value)
+    assert "\n" not in line and "sensor map" in line
+    return line
+
+
 def test_shanks_swapped_between_the_legs_are_refused_naming_them(walk):
     """Each shank's sensor mapped to the other leg: the pelvis is pushed towards the leg whose
     shank swings (:mod:`motionlab.segments.walk_checks`), so the swap shows in one line naming
     both shanks' sensors, before any knee is graded."""
     proto, session, _ = walk
-    swapped = copy.deepcopy(session)
-    for a, b in (("shank_r", "shank_l"), ("shank_l", "shank_r")):
-        swapped.sensors[a].segment = b
-    with pytest.raises(InputError) as exc:
-        stages.calibrate(swapped, proto, force=True)
-    line = str(exc.value)
-    assert "\n" not in line and "look swapped left for right" in line and "sensor map" in line
+    line = _refused_as_mapped(proto, session, {"shank_r": "shank_l", "shank_l": "shank_r"})
+    assert "look swapped left for right" in line
     assert "shank_r's sensor shank_l" in line and "shank_l's sensor shank_r" in line
     corr = float(line.split("(correlation ")[1].split(";")[0])
     assert corr < walk_checks.SIDES_CORR
@@ -163,13 +171,9 @@ def test_legs_swapped_left_for_right_are_refused_and_the_map_as_made_is_not(walk
         session, streams, np.asarray(cal.segments["pelvis"].mounting, float), after
     )
     assert corr > 0.4 and seconds > 15.0
-    swapped = copy.deepcopy(session)
-    for seg in ("thigh", "shank"):
-        a, b = swapped.sensors[f"{seg}_r"], swapped.sensors[f"{seg}_l"]
-        a.segment, b.segment, a.side, b.side = f"{seg}_l", f"{seg}_r", "l", "r"
-    with pytest.raises(InputError) as exc:
-        stages.calibrate(swapped, proto, force=True)
-    assert "the legs' sensors look swapped left for right" in str(exc.value)
+    other = {"thigh_r": "thigh_l", "thigh_l": "thigh_r", "shank_r": "shank_l", "shank_l": "shank_r"}
+    line = _refused_as_mapped(proto, session, other)
+    assert "the legs' sensors look swapped left for right" in line
 
 
 def test_thigh_and_shank_swapped_on_one_leg_are_refused_in_one_line(walk):
@@ -184,12 +188,8 @@ def test_thigh_and_shank_swapped_on_one_leg_are_refused_in_one_line(walk):
     ref = (t >= stand[0]) & (t <= stand[1])
     ratio = gait_axes.principal_axes(t, g1, g2, q1, q2, ref, speed > 0.3).speed_ratio
     assert 0.3 < ratio < gait_axes.SWING_SPEED_RATIO[0]  # as on real walks: 0.49-0.64
-    swapped = copy.deepcopy(session)
-    swapped.sensors["thigh_r"].segment, swapped.sensors["shank_r"].segment = "shank_r", "thigh_r"
-    with pytest.raises(InputError) as exc:
-        stages.calibrate(swapped, proto, force=True)
-    line = str(exc.value)
-    assert "\n" not in line and "look swapped" in line and "sensor map" in line
+    line = _refused_as_mapped(proto, session, {"thigh_r": "shank_r", "shank_r": "thigh_r"})
+    assert "look swapped" in line
     assert "thigh_r's sensor shank_r" in line and "shank_r's sensor thigh_r" in line
     said = float(line.split(" turns ")[1].split(" times")[0])
     assert said > gait_axes.SWING_SPEED_RATIO[1] and abs(said * ratio - 1.0) < 0.15

@@ -332,3 +332,13 @@ def test_the_real_walk_as_mt_manager_text_files_runs_as_in_memory(qmt, tmp_path)
         assert np.nanmax(np.abs(np.asarray(a) - np.asarray(b))) < 0.01
     cadence = ran.results.gait.summary.cadence_steps_per_min
     assert cadence == pytest.approx(whole.results.gait.summary.cadence_steps_per_min, abs=0.1)
+    # the map written for the wrong legs: exit 2, one line naming the map and the shanks' keys
+    swapped = (tmp_path / "map.yaml").read_text().replace("side: r}", "side: x}")
+    swapped = swapped.replace("side: l}", "side: r}").replace("side: x}", "side: l}")
+    (tmp_path / "legs_swapped.yaml").write_text(swapped)
+    args = ["run", "--protocol", "walk", "--map", str(tmp_path / "legs_swapped.yaml"), *files]
+    res = CliRunner().invoke(main, [*args, "-o", str(tmp_path / "out2"), "--quiet"])
+    assert res.exit_code == 2 and not (tmp_path / "out2").exists()
+    line = res.output.strip().splitlines()[-1]
+    assert line.startswith("error: the sensor map legs_swapped.yaml: ")
+    assert "shank_r's sensor 00B421E5" in line and "look swapped left for right" in line

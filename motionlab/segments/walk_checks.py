@@ -34,6 +34,8 @@ right way round.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 
 from motionlab import rotations as rot
@@ -132,6 +134,16 @@ def pose_check(session: Session, protocol: Protocol, streams: Streams) -> PoseCh
     return check
 
 
+def _map_place(session: Session) -> str:
+    """``"the sensor map <file>"``: the map the session was read with (its provenance), or
+    ``"the sensor map"`` when the session does not say."""
+    for run in reversed(session.provenance or []):
+        path = (run.get("parameters") or {}).get("map")
+        if path:
+            return f"the sensor map {Path(str(path)).name}"
+    return "the sensor map"
+
+
 def _named(session: Session, seg: str) -> str:
     """``"<segment>'s sensor <label> (map key <key>)"`` (the key when it differs)."""
     label = sensor_for_segment(session, seg)
@@ -147,7 +159,7 @@ def swapped(session: Session, proximal: str, distal: str, ratio: float) -> Input
     return InputError(
         f"{names[0]} turns {ratio:.1f} times as fast over the walk as {names[1]}, where a shank "
         f"turns faster than its thigh (real walks: {lo:.2f}-{hi:.2f} times): the two look swapped",
-        where="the sensor map",
+        where=_map_place(session),
         remedy="swap the two sensors' segments in the sensor map (or the sensors on the leg) "
         "and start again from ingest",
     )
@@ -223,7 +235,7 @@ def sides_check(
         f"{_named(session, 'shank_l')} does (correlation {corr:+.2f}; a walk pushes it towards "
         "the swinging leg, real walks +0.4 to +0.7): the legs' sensors look swapped left for "
         "right",
-        where="the sensor map",
+        where=_map_place(session),
         remedy="swap the sides of the leg sensors in the sensor map (right <-> left; the thighs "
         "too if they were swapped with the shanks) and start again from ingest",
     )
