@@ -14,7 +14,9 @@ the right heel strike):
 - the mean sideways acceleration over 10-50 % of each side's stride (its stance; the ground
   pushes the body back towards the other foot, so negative on the right, positive on the left);
 - the correlation the legs' side check uses (:func:`motionlab.segments.walk_checks.
-  sway_swing_correlation`), as mapped and, for the real walk, with the legs' sides swapped.
+  sway_swing_correlation`), as mapped and, for the real walk, with the legs' sides swapped;
+- how much each thigh and shank turns about the walking direction (frontal plane: the pelvis's
+  obliquity, hip ab/adduction) beside its swing across it (RMS ratio, :func:`frontal_ratio`).
 
 The real walk needs ``../shared`` (its licence: MIT); without it only the simulated rows print.
 """
@@ -37,6 +39,7 @@ from seeds import seeds_arg  # noqa: E402
 
 from motionlab import rotations as rot  # noqa: E402
 from motionlab.binding import sensor_for_segment  # noqa: E402
+from motionlab.dsp import butter, sosfiltfilt  # noqa: E402
 from motionlab.kinematics.pelvis import walking_heading  # noqa: E402
 from motionlab.kinematics.session_angles import session_segments  # noqa: E402
 from motionlab.pipeline import PipelineOptions, analyse  # noqa: E402
@@ -85,6 +88,37 @@ def profiles(session) -> dict[str, np.ndarray]:
     return out
 
 
+def frontal_ratio(session) -> str:
+    """Per thigh and shank (r, l): the RMS of the segment's angular velocity about the walking
+    direction over its RMS about the horizontal across it, over the kept strides (segment
+    frames of the product, the walking direction of the pelvis), low-passed at 3 Hz."""
+    protocol = load_protocol("walk")
+    cal, st = session.results.calibration, session.results.gait.strides
+    segs = ["pelvis", "thigh_r", "thigh_l", "shank_r", "shank_l"]
+    poses = session_segments(session, protocol, cal, segments=segs)
+    t_p, q_p = poses["pelvis"]
+    stride_s = float(np.median(st.stride_time_s[st.kept]))
+    heading = walking_heading(q_p, 1.0 / float(np.median(np.diff(t_p))), stride_s)
+    out = []
+    for seg in segs[1:]:
+        t, q = poses[seg]
+        q = rot.make_continuous(q)
+        tm, w = rot.angular_velocity(t, q)
+        w = rot.rotate(q[:-1], w)  # earth frame
+        h = np.interp(tm, t_p, heading)
+        fs = 1.0 / float(np.median(np.diff(tm)))
+        sos = butter(2, 3.0, fs=fs)
+        ok = np.isfinite(w).all(axis=1)
+        w = sosfiltfilt(sos, np.where(ok[:, None], w, 0.0), axis=0)
+        along = w[:, 0] * np.cos(h) + w[:, 1] * np.sin(h)
+        across = -w[:, 0] * np.sin(h) + w[:, 1] * np.cos(h)
+        inside = np.zeros(len(tm), bool)
+        for a, d in zip(st.start_s[st.kept], st.stride_time_s[st.kept], strict=True):
+            inside |= (tm >= a) & (tm < a + d)
+        out.append(np.sqrt(np.mean(along[inside] ** 2) / np.mean(across[inside] ** 2)))
+    return " / ".join(f"{v:.2f}" for v in out)
+
+
 def correlation(session) -> float:
     """The legs' side check's correlation on an analysed session."""
     cal = session.results.calibration
@@ -98,8 +132,9 @@ def correlation(session) -> float:
 def row(name: str, session) -> str:
     p = profiles(session)
     cells = [" ".join(f"{v:+.1f}" for v in p[k]) for k in ("sideways", "vertical", "obliquity")]
-    return (f"| {name} | {cells[0]} | {cells[1]} | {cells[2]} | {p['stance_r']:+.2f} / "
-            f"{p['stance_l']:+.2f} | {correlation(session):+.2f} |")  # fmt: skip
+    side = f"{p['stance_r']:+.2f} / {p['stance_l']:+.2f}"
+    return (f"| {name} | {cells[0]} | {cells[1]} | {cells[2]} | {side} | "
+            f"{correlation(session):+.2f} | {frontal_ratio(session)} |")  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -108,8 +143,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--seeds", type=seeds_arg, default="0-5")
     args = ap.parse_args(argv)
     print("| walk | sideways acc. by right-stride tenth (m/s²) | vertical acc. (m/s²) | "
-          "obliquity (deg) | stance r / l (m/s²) | side check |")  # fmt: skip
-    print("|---|---|---|---|---|---|")
+          "obliquity (deg) | stance r / l (m/s²) | side check | about the walking direction / "
+          "across it: thighs r, l, shanks r, l |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|")
     from real_people import qmt_session
 
     qmt = args.data / "datasets" / "human" / "qmt_full_body"
@@ -126,7 +162,7 @@ def main(argv: list[str] | None = None) -> int:
             analyse(swapped, PipelineOptions("walk", progress=False))
         finally:
             walk_checks.SIDES_CORR = limit
-        print(f"| real, legs swapped in the map | | | | | {correlation(swapped):+.2f} |")
+        print(f"| real, legs swapped in the map | | | | | {correlation(swapped):+.2f} | |")
     else:
         print(f"(no real walk: {qmt} holds no full_body_example_data.mat)")
     protocol = load_protocol("walk")

@@ -59,7 +59,9 @@ def test_walk_determines_both_knees_flexion_and_not_their_other_planes(walk):
     for side in "rl":
         fit = cal.hinges[f"knee_{side}"]
         assert fit.method == "principal" and fit.verdict == "determined", fit.reasons
-        assert fit.sign == "anatomy" and fit.relative_sign == "measured"
+        # the relative sign from the rates, or (the pelvis's obliquity tilting the swings) from
+        # the anatomy: the knee flexes one way from its straight stand
+        assert fit.sign == "anatomy" and fit.relative_sign in ("measured", "anatomy")
         assert fit.witness_deg < 12.0 and fit.consistency_deg < 5.0
         grades = cal.grades[f"knee_{side}"].grades
         assert grades[0] == "determined"

@@ -23,7 +23,7 @@ right way round.
   sideways acceleration (towards the pelvis's right, from its calibrated frame) with the right
   shank's angular speed less the left's, both low-passed at ``SIDES_LOWPASS_HZ`` and taken
   less their ``SIDES_DETREND_S`` means (turns, biases), over the walk: +0.37 to +0.69 in 6-s
-  windows of the real 16-IMU walk (+0.50 over all of it), +0.46 to +0.85 on simulated walks
+  windows of the real 16-IMU walk (+0.50 over all of it), +0.54 to +0.91 on simulated walks
   (seeds 0-5, ``bench/gait_pelvis.py``), the negative of these with the legs swapped in the map.
   Below ``SIDES_CORR`` the recording is refused, naming the shanks' sensors; the thighs say
   nothing reliable (their speed peaks in a different part of the stride on real and simulated

@@ -245,11 +245,17 @@ def cycles(tau, duration, reps, ramp=0.4):
 #: pelvis accelerates towards the other side through single support (the ground's medial push).
 #: Checked against the real 16-IMU walk (``bench/gait_pelvis.py``: its pelvis sensor's sideways
 #: acceleration over 10-50 % of the right stride -0.50 m/s², of the left +0.31; simulated
-#: seeds 0-5 now -0.60 to -0.84 and +0.12 to +0.43, before this sway was turned to the stance
-#: side +0.2 to +0.5 and -0.5 to -0.8). The pelvis's obliquity (here twice per stride, once
-#: on the real walk) and its up-and-down bounce (here lowest at mid-stance, on the real walk in
-#: double support) still differ from the real walk's: docs/simulator.md.
+#: seeds 0-5 now -0.53 to -0.79 and -0.03 to +0.37, before this sway was turned to the stance
+#: side +0.2 to +0.5 and -0.5 to -0.8). Its up-and-down bounce (here lowest at mid-stance, on
+#: the real walk in double support) still differs from the real walk's: docs/simulator.md.
 PELVIS_SWAY_M = 0.02
+#: Obliquity once per stride (deg, and where in the stride it peaks): the swing side drops,
+#: the stance side is up, most at the end of loading response (Perry & Burnfield 2010:
+#: contralateral drop about 4-5°; Kadaba et al. 1989, J Orthop Res 7:849: range about 8°); the
+#: real walk: +4.5° at 20-30 % of the right stride, -4.5° at 70-80 % (``bench/gait_pelvis.py``).
+#: It went round twice per stride before.
+PELVIS_OBLIQUITY_DEG = 4.0
+PELVIS_OBLIQUITY_PEAK = 0.22
 
 
 def gait_block(body: Body, name: str, phase: str, duration: float, options: dict) -> Block:
@@ -286,7 +292,8 @@ def gait_block(body: Body, name: str, phase: str, duration: float, options: dict
         out[:, CH["root_z"]] += e * (0.02 * np.cos(2 * th) - 0.015)
         out[:, CH["heading"]] = psi
         out[:, CH["tilt_z"]] = e * (-3 * DEG + 2 * DEG * np.sin(2 * th))
-        out[:, CH["tilt_x"]] = e * 4 * DEG * np.sin(2 * th + 0.6)
+        peak = 2 * np.pi * PELVIS_OBLIQUITY_PEAK  # the right side up (tilt_x > 0: down)
+        out[:, CH["tilt_x"]] = -e * PELVIS_OBLIQUITY_DEG * DEG * np.cos(th - peak)
         out[:, CH["rot_y"]] = e * 5 * DEG * np.cos(th)
         basis = gait_basis(th)
         for side, shift in (("r", 0.0), ("l", np.pi)):
