@@ -37,6 +37,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+from scipy.ndimage import uniform_filter1d
 
 from motionlab import rotations as rot
 from motionlab.binding import sensor_for_segment
@@ -48,6 +49,7 @@ from motionlab.segments import gait_axes
 from motionlab.segments.sensors import Streams, sensor_orientation
 from motionlab.segments.steps import PoseCheck
 from motionlab.session import Session, estimate_rate
+from motionlab.timebase import interp_columns
 
 #: largest angle (deg) between a segment's up in the stand and its mean up while moving after it
 STAND_WALK_DEG = 40.0
@@ -165,20 +167,17 @@ def swapped(session: Session, proximal: str, distal: str, ratio: float) -> Input
     )
 
 
-def _on(t: np.ndarray, ts: np.ndarray, x: np.ndarray) -> np.ndarray:
-    """``x`` (on ``ts``) at ``t``, through its finite samples; NaN outside them."""
-    ok = np.isfinite(x)
-    if ok.sum() < 2:
-        return np.full(len(t), np.nan)
-    out = np.interp(t, ts[ok], x[ok])
-    out[(t < ts[ok][0]) | (t > ts[ok][-1])] = np.nan
+def _speed_on(t: np.ndarray, stream: tuple[np.ndarray, np.ndarray, np.ndarray]) -> np.ndarray:
+    """A stream's angular speed (rad/s) at ``t`` (s), through its finite samples; NaN outside
+    its span."""
+    ts, _, gyr = stream
+    out = interp_columns(t, ts, np.linalg.norm(gyr, axis=1)[:, None])[:, 0]
+    out[(t < ts[0]) | (t > ts[-1])] = np.nan
     return out
 
 
 def _smooth(x: np.ndarray, fs: float) -> np.ndarray:
     """``x`` low-passed at ``SIDES_LOWPASS_HZ`` less its ``SIDES_DETREND_S`` moving mean."""
-    from scipy.ndimage import uniform_filter1d
-
     y = sosfiltfilt(butter(2, SIDES_LOWPASS_HZ, fs=fs), x)
     return y - uniform_filter1d(y, max(1, int(round(SIDES_DETREND_S * fs))), mode="nearest")
 
@@ -199,8 +198,7 @@ def sway_swing_correlation(
     right[:, 2] = 0.0
     right /= np.maximum(np.linalg.norm(right, axis=1), 1e-9)[:, None]
     side = np.einsum("ij,ij->i", rot.rotate(q, acc), right)
-    speed = {s: _on(t, streams[f"shank_{s}"][0], np.linalg.norm(streams[f"shank_{s}"][2], axis=1))
-             for s in "rl"}  # fmt: skip
+    speed = {side: _speed_on(t, streams[f"shank_{side}"]) for side in "rl"}
     ok = np.isfinite(side) & np.isfinite(speed["r"]) & np.isfinite(speed["l"])
     if ok.sum() < SIDES_MIN_S * fs:
         return float("nan"), 0.0
