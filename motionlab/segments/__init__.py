@@ -104,7 +104,7 @@ def calibrate_segments(
         segments[seg] = replace(
             res, sensor=sensor_for_segment(session, seg), hint_contradicted=seg in contradicted
         )
-    if forward_from == "walk start":  # the legs on their own side (needs the pelvis's right)
+    if forward_from == "walk start" and "pelvis" in segments:  # the legs on their own side
         after = max((float(v[1]) for v in steps.values() if v), default=-np.inf)
         walk_checks.sides_check(session, protocol, streams, segments["pelvis"], after)
     for seg, names in unsure.items():

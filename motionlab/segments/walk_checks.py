@@ -198,7 +198,7 @@ def sway_swing_correlation(
     right[:, 2] = 0.0
     right /= np.maximum(np.linalg.norm(right, axis=1), 1e-9)[:, None]
     side = np.einsum("ij,ij->i", rot.rotate(q, acc), right)
-    speed = {side: _speed_on(t, streams[f"shank_{side}"]) for side in "rl"}
+    speed = {leg: _speed_on(t, streams[f"shank_{leg}"]) for leg in "rl"}
     ok = np.isfinite(side) & np.isfinite(speed["r"]) & np.isfinite(speed["l"])
     if ok.sum() < SIDES_MIN_S * fs:
         return float("nan"), 0.0

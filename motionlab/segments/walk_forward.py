@@ -49,6 +49,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.integrate import cumulative_trapezoid
 
 from motionlab import rotations as rot
 from motionlab.dsp import butter, sosfiltfilt
@@ -185,18 +186,17 @@ def forward_from_start(
     # instant of the last second: the pelvis faces the way it goes, up to its swing
     dv = rot.rotate(q[start], horizontal[start] - horizontal[still].mean(axis=0))
     dv[:, 2] = 0.0
-    steps = 0.5 * (dv[1:] + dv[:-1]) * np.diff(ts)[:, None]
-    velocity = np.vstack([np.zeros(3), np.cumsum(steps, axis=0)])
+    velocity = cumulative_trapezoid(dv, ts, axis=0, initial=0.0)
     last = ts > ts[-1] - START_AVERAGE_S
-    gained = rot.rotate(rot.conj(q[start][last]), velocity[last]).mean(axis=0)
     up = np.asarray(up, float) / np.linalg.norm(up)
-    gained = gained - (gained @ up) * up
+    seen = rot.rotate(rot.conj(q[start][last]), velocity[last])
+    seen -= np.outer(seen @ up, up)
+    gained = seen.mean(axis=0)
     speed = float(np.linalg.norm(gained))
     if not speed >= MIN_START_SPEED_M_S:
         why = "the walk does not start right after the stand"
         return ForwardDirection(False, reason=why, speed_m_s=speed)
-    seen = rot.rotate(rot.conj(q[start][last]), velocity[last])
-    slowest = float(np.min(np.linalg.norm(seen - np.outer(seen @ up, up), axis=1)))
+    slowest = float(np.min(np.linalg.norm(seen, axis=1)))
     if slowest < START_STEADY * speed:
         why = (
             f"the velocity gained falls to {slowest:.2f} m/s in the last second of the first "
