@@ -133,5 +133,15 @@ def test_angles_and_metrics_print_each_angles_grade(session_file, tmp_path):
     grade = m[m.metric == "rom_deg"].groupby("angle")["grade"].first()
     assert grade.to_dict() == {"flexion": "determined", "carrying": "weak",
                                "pronation": "not determined"}  # fmt: skip
+    # a number not determined is withheld (an empty cell), a count and a weak number are not
+    rom = m[(m.metric == "rom_deg") & (m.joint == "elbow_r")].set_index("angle")["value"]
+    assert rom["pronation"] == "" and float(rom["carrying"]) > 0, rom
+    reps = m[(m.metric == "repetitions") & (m.joint == "elbow_r")].set_index("angle")["value"]
+    assert reps["pronation"] != "", reps
+    csv = tmp_path / "a.csv"
+    res = runner.invoke(main, ["angles", str(copy), "--csv", str(csv), "--force"])
+    assert res.exit_code == 0, res.output
+    a = pd.read_csv(csv)
+    assert a["elbow_r_pronation_deg"].isna().all() and a["elbow_r_carrying_deg"].notna().any()
     res = runner.invoke(main, ["angles", str(copy), "--no-calibration", "--force"])
     assert "not graded (sensor frames)" in res.output, res.output

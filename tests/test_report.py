@@ -349,6 +349,60 @@ def test_grades_reach_the_csv_tables():
                for c in f.columns)  # fmt: skip
 
 
+def test_a_number_not_determined_is_not_exported_as_one():
+    """The real full-body arm's elbows, every angle ``not determined``, went to metrics.csv as
+    ranges of 320-375° and its walk's varus thrust as '9.99°, 100 % above the limit', where the
+    report says 'not determined': an empty cell now, the row, grade and counts kept. A weak
+    number stays (with its grade)."""
+    from motionlab.report.csv import tables
+
+    frames = tables(_graded_view())
+    series = frames["knee_r_angles.csv"]
+    assert series["knee_r_rotation_deg"].isna().all()
+    assert series["knee_r_adduction_deg"].notna().all()  # weak: kept
+    assert series["knee_r_flexion_deg"].notna().all()
+    metrics = frames["metrics.csv"].set_index(["joint", "angle"])
+    nd = metrics.loc[("knee_r", "rotation")]
+    assert nd[["rom_deg", "min_deg", "max_deg", "typical_min_deg", "typical_max_deg"]].isna().all()
+    assert nd["cycles_n"] == 10 and nd["grade"] == "not determined"
+    assert np.isfinite(metrics.loc[("knee_r", "adduction"), "rom_deg"])
+    oop = frames["out_of_plane.csv"].set_index("metric")
+    assert np.isnan(oop.loc["stance_rotation_range", "value_deg"])
+    assert np.isnan(oop.loc["stance_rotation_range", "sd_deg"])
+    assert oop.loc["stance_rotation_range", "count_n"] == 12  # a count, not a measured angle
+    assert oop.loc["varus_thrust", "value_deg"] == 6.0  # weak: kept
+    assert oop.loc["varus_thrust", "threshold_deg"] == 3.0
+
+
+def test_trunk_compensation_not_determined_is_not_drawn():
+    """The real full-body arm's trunk compensation was 'not determined' in the table while its
+    curves were drawn below it, the twist jumping between ±180° (the walker turned round)."""
+    from dataclasses import replace
+
+    from motionlab.report.csv import tables
+    from motionlab.report.pages_oop import out_of_plane_page
+    from motionlab.results import TrunkAngleStats, TrunkCompensation
+
+    view = _graded_view()
+    angles = np.column_stack([np.linspace(0, 10, 300)] * 3)
+    stats = TrunkAngleStats(10.0, 0.0, 10.0, 50.0, 5.0)
+    trunk = TrunkCompensation({a: stats for a in ("flexion", "lateral_bending",
+                                                  "axial_rotation")}, True, angles)  # fmt: skip
+    view.metrics = replace(view.metrics, trunk_compensation={"gait": trunk})
+    with matplotlib.rc_context(RC):
+        doc = Document("motionlab report · test", "subject X")
+        out_of_plane_page(doc, view)
+        text = " ".join(page_text(f) for f in doc.pages)
+        curves = [ln for f in doc.pages for ax in f.axes for ln in ax.get_lines()
+                  if ax.get_ylabel() == "trunk angle (°)"]  # fmt: skip
+    assert "forward lean (forward +)" in text and "not determined" in text  # no thorax sensor
+    assert curves == []
+    rows = tables(view)["out_of_plane.csv"]
+    trunk_rows = rows[rows.metric == "trunk_compensation"]
+    assert len(trunk_rows) == 3 and trunk_rows.value_deg.isna().all()
+    assert (trunk_rows.threshold_deg == 5.0).all()
+
+
 def test_findings_come_only_from_determined_angles_and_missing_ones_are_said_once():
     from motionlab.report.sentences import missing_lines, weak_lines
 

@@ -55,13 +55,17 @@ def command(
             force=force,
             path=session,
         )
-        if csv_path:
-            with atomic_path(csv_path, force=force) as tmp:
-                pd.DataFrame(table.columns()).to_csv(tmp, index=False, float_format="%.4f")
         protocol = stages.stage_protocol(ses, protocol_path, session)
+        grades = column_grades(protocol, ses.results.calibration) if not no_calibration else {}
+        if csv_path:  # an angle not determined is an empty column, as in run's csv/
+            columns = {
+                c: np.where(grades.get(c) == "not determined", np.nan, v)
+                for c, v in table.columns().items()
+            }
+            with atomic_path(csv_path, force=force) as tmp:
+                pd.DataFrame(columns).to_csv(tmp, index=False, float_format="%.4f")
         ses.add_provenance(parameters={"stage": "angles", "method": method})
         save_session(ses, session, force=True)
-    grades = column_grades(protocol, ses.results.calibration) if not no_calibration else {}
     click.echo(f"{len(table.time)} samples, {len(table.data)} angles")
     for c, v in table.data.items():
         grade = grades.get(c, "not graded (sensor frames)" if no_calibration else "")

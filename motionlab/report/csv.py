@@ -3,6 +3,10 @@ the grade of every angle, data quality and calibration quality. Every numeric co
 unit in its name (``_deg``, ``_s``, ``_hz``, ``_ms``, ``_pct``, ``_n`` for counts, ``_ratio`` for
 unitless ratios).
 
+A measured number whose angle is ``not determined`` is an empty cell (the row, its grade and the
+counts stay; ``grades.csv`` says why, the session file keeps what was computed): the report does
+not print such a number, and a table read without the grade must not show it either.
+
 Files (in ``csv_dir``): ``<joint>_angles.csv`` (``time_s`` + one column per angle, degrees;
 numbers only), ``metrics.csv`` (range of motion per task, joint and angle, with the normal range,
 the symmetry index and the angle's ``grade``), ``out_of_plane.csv`` (with the ``grade`` of the
@@ -30,6 +34,7 @@ from motionlab.errors import InputError
 from motionlab.kinematics.joint_types import angle_columns
 from motionlab.kinematics.spatiotemporal import STRIDE_COLUMNS, summary_rows
 from motionlab.report.model import (
+    NOT_DETERMINED,
     THORAX,
     SessionView,
     angle_grade,
@@ -46,12 +51,25 @@ from motionlab.report.model import (
 FLOAT_FORMAT = "%.4f"
 
 
+def _withheld(grade: str, value):
+    """``value``, or NaN (an empty cell) where its angle is not determined: a number the
+    calibration could not stand behind is not exported as one (``grades.csv`` says why; the
+    session file keeps what was computed)."""
+    if grade != NOT_DETERMINED:
+        return value
+    return np.full(np.shape(value), np.nan) if np.ndim(value) else np.nan
+
+
 def angle_frames(view: SessionView) -> dict[str, pd.DataFrame]:
-    """``{"<joint>_angles.csv": DataFrame(time_s, <joint>_<angle>_deg ...)}``."""
+    """``{"<joint>_angles.csv": DataFrame(time_s, <joint>_<angle>_deg ...)}``; a column whose
+    angle is not determined is empty."""
     t = view.angles["time_s"]
     out = {}
     for joint in view.joints():
-        cols = {"time_s": t} | {col: view.angles[col] for _, col in angle_columns(joint)}
+        cols = {"time_s": t} | {
+            col: _withheld(angle_grade(view, joint.name, angle)[0], view.angles[col])
+            for angle, col in angle_columns(joint)
+        }
         out[f"{joint.name}_angles.csv"] = pd.DataFrame(cols)
     return out
 
@@ -62,22 +80,28 @@ def metrics_frame(view: SessionView) -> pd.DataFrame:
     rows = []
     for r in rom_rows(view):
         lo, hi = r.normal if r.normal else (np.nan, np.nan)
+        measured = {
+            "rom_deg": r.rom_deg,
+            "min_deg": r.min_deg,
+            "max_deg": r.max_deg,
+            "typical_min_deg": r.typical_min_deg,
+            "typical_max_deg": r.typical_max_deg,
+        }
+        if r.grade == NOT_DETERMINED:
+            vs_normal = "not compared"
+        else:
+            vs_normal = r.status or ("not compared" if r.normal else "no normal range")
         rows.append(
-            {
-                "task": r.task,
-                "joint": r.joint,
-                "angle": r.angle,
-                "plane": r.plane,
-                "rom_deg": r.rom_deg,
-                "min_deg": r.min_deg,
-                "max_deg": r.max_deg,
-                "typical_min_deg": r.typical_min_deg,
-                "typical_max_deg": r.typical_max_deg,
+            {"task": r.task, "joint": r.joint, "angle": r.angle, "plane": r.plane}
+            | {k: _withheld(r.grade, v) for k, v in measured.items()}
+            | {
                 "cycles_n": r.repetitions,
                 "normal_min_deg": lo,
                 "normal_max_deg": hi,
-                "vs_normal": r.status or ("not compared" if r.normal else "no normal range"),
-                "symmetry_index_pct": si.get((r.task, r.joint_type, r.angle), np.nan),
+                "vs_normal": vs_normal,
+                "symmetry_index_pct": _withheld(
+                    r.grade, si.get((r.task, r.joint_type, r.angle), np.nan)
+                ),
                 "grade": r.grade,
             }
         )
@@ -87,6 +111,9 @@ def metrics_frame(view: SessionView) -> pd.DataFrame:
 def _or_nan(value: float | None) -> float:
     return np.nan if value is None else value
 
+
+#: out-of-plane columns that are settings or counts, not measured angles: kept whatever the grade
+_SETTINGS = ("threshold_deg", "count_n")
 
 #: the columns every out-of-plane row has
 OUT_OF_PLANE_COLUMNS = ("metric", "task", "joint", "angle", "value_deg", "grade")
@@ -100,8 +127,9 @@ def out_of_plane_frame(view: SessionView) -> pd.DataFrame:
     def add(metric, task, joint, angle, grade=None, **values):
         if grade is None:
             grade = angle_grade(view, joint, angle)[0]
+        kept = {k: v if k in _SETTINGS else _withheld(grade, v) for k, v in values.items()}
         rows.append(
-            {"metric": metric, "task": task, "joint": joint, "angle": angle, **values}
+            {"metric": metric, "task": task, "joint": joint, "angle": angle, **kept}
             | {"grade": grade}
         )
 

@@ -230,7 +230,7 @@ def _trunk(doc: Document, view: SessionView) -> None:
         align=["l", "l", "r", "r", "r"],
     )
     tasks = [k for k in in_order(data, list(view.blocks())) if len(np.asarray(data[k].angles_deg))]
-    if not tasks:
+    if not tasks or grade == NOT_DETERMINED:  # an angle not determined is not drawn
         return
     grid = doc.axes_grid(1, len(tasks), 2.3, left=0.55, wspace=0.6, bottom=0.5, top=0.3)[0]
     rate = 1.0 / np.median(np.diff(view.angles["time_s"]))

@@ -315,12 +315,20 @@ def column_grades(protocol, calibration: SegmentCalibration | None) -> dict[str,
 
 
 def with_grades(table, protocol, calibration: SegmentCalibration | None):
-    """A metrics table (:func:`motionlab.kinematics.metrics.metrics_table`, rows with ``joint``
-    and ``angle``) with each row's angle grade in a ``grade`` column (:func:`column_grades`;
-    empty for a row of no angle column), as ``run``'s and the ``metrics`` command's tables
-    carry it."""
+    """A metrics table (:func:`motionlab.kinematics.metrics.metrics_table`, rows with ``joint``,
+    ``angle``, ``value`` and ``unit``) with each row's angle grade in a ``grade`` column
+    (:func:`column_grades`; the trunk's rows the thorax frame's grade; empty for a row of no
+    angle), as ``run``'s and the ``metrics`` command's tables carry it. A measured value of an
+    angle ``not determined`` is withheld (NaN; counts, unit ``1``, stay): the report does not
+    print it, and a table read without its grade must not show it either."""
     grades = column_grades(protocol, calibration)
+    trunk = ""
+    if calibration is not None and calibration.grades:
+        trunk = _frame_grade("thorax", calibration.segments.get("thorax"))[0]
     joints, angles = table["joint"], table["angle"]
-    return table.assign(
-        grade=[grades.get(f"{j}_{a}_deg", "") for j, a in zip(joints, angles, strict=True)]
-    )
+    graded = [
+        trunk if j == "trunk" and a else grades.get(f"{j}_{a}_deg", "")
+        for j, a in zip(joints, angles, strict=True)
+    ]
+    withheld = (np.asarray(graded) == "not determined") & (table["unit"] != "1").to_numpy()
+    return table.assign(grade=graded, value=table["value"].where(~withheld))
