@@ -672,8 +672,25 @@ def test_no_finding_without_normal_ranges_does_not_say_nothing_was_determined():
     view.metrics.gait = {}  # no out-of-plane finding either
     items = [i for i in findings(view) if not i.startswith(("Sensor", "Calibr"))]
     assert items == [
-        "No finding can be stated: the protocol gives no normal range to compare the ranges "
-        "of motion with; they are on the joint pages with their grades."
+        "No finding can be stated: the protocol gives no normal range for gait to compare the "
+        "ranges of motion with; they are on the joint pages with their grades."
+    ]
+
+
+def test_no_finding_when_nothing_was_determined_says_so():
+    """The real full-body arm (every elbow angle not determined) was told 'the protocol gives no
+    normal range', as if a range had been measured and had nothing to be compared with."""
+    import dataclasses
+
+    view = _graded_view()
+    view.protocol = dataclasses.replace(view.protocol, normative={})
+    view.metrics.gait = {}
+    view.session.results.calibration.grades = {
+        j: JointGrades(["not determined"] * 3, [NOT_WHY] * 3) for j in ("knee_r", "knee_l")
+    }
+    items = [i for i in findings(view) if not i.startswith(("Sensor", "Calibr"))]
+    assert items == [
+        "No finding can be stated: no angle was determined by this recording (see below)."
     ]
 
 

@@ -297,11 +297,14 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
     items = list(dict.fromkeys(paces + outside + asym + _oop_findings(view) + inside))
     if len(items) > limit - len(problems[:2]):
         items = items[: limit - len(problems[:2])]
-    if not items and not any(r.normal is not None for r in ranges):
-        # determined ranges, if any, have nothing to be compared with: not "none determined"
+    if not items and ranges and not any(is_determined(r.grade) for r in ranges):
+        items = ["No finding can be stated: no angle was determined by this recording (see below)."]
+    elif not items and not any(r.normal is not None for r in ranges):
+        # determined ranges have nothing to be compared with: not "none determined"
+        tasks = ", ".join(dict.fromkeys(task_name(r.task) for r in ranges)) or "its tasks"
         items = [
-            "No finding can be stated: the protocol gives no normal range to compare the ranges "
-            "of motion with; they are on the joint pages with their grades."
+            f"No finding can be stated: the protocol gives no normal range for {tasks} to "
+            "compare the ranges of motion with; they are on the joint pages with their grades."
         ]
     elif not items:
         items = [
