@@ -105,6 +105,24 @@ def refuse_folder_holding_inputs(folder: str | Path, inputs: Iterable[str | Path
             )
 
 
+def refuse_folder_in_input_folder(folder: str | Path, inputs: Iterable[str | Path | None]) -> None:
+    """Raise :class:`InputError` when the output ``folder`` is an input folder (an x-IMU3
+    export, a trial folder) or lies inside one: the outputs would be added to the recording,
+    and the next read of that folder would meet them; refused even with ``--force``."""
+    root = Path(os.path.realpath(folder))  # also for a folder not created yet
+    for item in inputs:
+        if item is None or not Path(item).is_dir():
+            continue
+        p = Path(os.path.realpath(item))
+        if p == root or p in root.parents:
+            raise InputError(
+                f"the output folder is {'the' if p == root else 'inside the'} input folder "
+                f"{shorten(p.name)}; inputs are never modified",
+                folder,
+                remedy="write the outputs into a folder outside the recording",
+            )
+
+
 def check_folder_writable(folder: str | Path, path: str | Path | None = None) -> None:
     """Raise :class:`InputError` unless a file can be created in ``folder`` (tried, so that
     read-only mounts and permissions count, also for root)."""
@@ -124,11 +142,13 @@ def check_folder_writable(folder: str | Path, path: str | Path | None = None) ->
 def check_output(path: str | Path, force: bool, inputs: Iterable[str | Path | None] = ()) -> Path:
     """Validate an output path before any work is done; raise :class:`InputError` if unusable.
 
-    ``inputs`` are the command's input files: an output naming one of them is refused even
-    with ``force``.
+    ``inputs`` are the command's input files and folders: an output naming one of them, or
+    inside an input folder, is refused even with ``force``.
     """
     path = Path(path)
     refuse_input_as_output(path, inputs)
+    inputs = list(inputs)
+    refuse_folder_in_input_folder(path.parent if str(path.parent) else Path("."), inputs)
     if path.exists() and not force:
         raise InputError(
             "output exists", path, remedy="use force=True to replace it", argument="force"

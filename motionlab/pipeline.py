@@ -33,7 +33,11 @@ from typing import TYPE_CHECKING, Any
 import h5py
 
 from motionlab import stages as stages_lib
-from motionlab.atomic import check_folder_writable, refuse_input_as_output
+from motionlab.atomic import (
+    check_folder_writable,
+    refuse_folder_in_input_folder,
+    refuse_input_as_output,
+)
 from motionlab.binding import (
     check_joints,
     foreign_segments,
@@ -214,6 +218,7 @@ def _outputs(
     )
     for p in (session_path, report_path, report_path.with_suffix(".txt")):
         refuse_input_as_output(p, inputs)
+    refuse_folder_in_input_folder(outdir, inputs)
     existing = outdir.absolute()
     while not existing.exists() and existing != existing.parent:
         existing = existing.parent

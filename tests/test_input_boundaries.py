@@ -372,3 +372,21 @@ def test_ingest_warns_of_a_truncated_apdm_file(tmp_path):
     assert r.exit_code == 0, r.output
     warnings = r.stderr.splitlines()
     assert len(warnings) == 1 and warnings[0].startswith("warning: in.csv: line 132: truncated")
+
+
+def test_outputs_into_an_input_folder_are_refused_even_with_force(tmp_path):
+    """``motionlab run <trial>/imu -o <trial>/imu`` wrote the session, report and CSVs into the
+    x-IMU3 export it read (also into a device folder below it, and with ``--force``): the next
+    read of that folder would meet them. Refused before any work; the folder is unchanged."""
+    from tests import ximu3_export as xe
+
+    imu = xe.write(tmp_path, xe.export_files())
+    before = sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*"))
+    device = next(imu.iterdir()).name
+    for out in ("imu", f"imu/{device}/out"):
+        for force in ((), ("--force",)):
+            res = cli(tmp_path, "run", "--quiet", "--protocol", "lumbar_seated", "imu", "-o",
+                      out, *force)  # fmt: skip
+            refused(res, "input folder imu", "inputs are never modified")
+    refused(cli(tmp_path, "ingest", "imu", "-o", "imu/s.h5"), "input folder imu")
+    assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before

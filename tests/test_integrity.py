@@ -191,8 +191,10 @@ def _special(kind: str, folder: Path) -> Path:
         ["ingest", "{r}", "--map", "{x}", "-o", "{t}/s.h5"],
         ["run", "--protocol", "walk", "{x}", "-o", "{t}/out"],
         ["batch", "{x}", "-o", "{t}/out"],
+        ["validate", "{s}", "--reference", "{x}"],
+        ["validate", "{s}", "--markers", "{x}"],
     ],
-    ids=["ingest", "info", "fuse", "protocol", "map", "run", "batch"],
+    ids=["ingest", "info", "fuse", "protocol", "map", "run", "batch", "reference", "markers"],
 )
 def test_a_special_file_is_refused_at_once(sessions, tmp_path, kind, args):
     x = _special(kind, tmp_path)

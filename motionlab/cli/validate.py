@@ -27,9 +27,10 @@ from motionlab.validation.time_offset import SYNC_SOURCES
 
 @click.command("validate")
 @click.argument("session", type=INPUT_FILE)
-@click.option("--reference", "reference", help="C3D/TRC/BROAD file or a session with markers, a "
-              "C3D of model joint angles, or a CSV of segment quaternions (default: the "
-              "session's own markers).")  # fmt: skip
+@click.option("--reference", "reference", type=INPUT_FILE,
+              help="C3D/TRC/BROAD file or a session with markers, a C3D of model joint "
+              "angles, or a CSV of segment quaternions (default: the session's own "
+              "markers).")  # fmt: skip
 @click.option("--reference-kind", type=click.Choice(REFERENCE_KINDS), default="auto",
               show_default=True, help="markers, segments (quaternion CSV) or angles (C3D "
               "POINT:ANGLES, e.g. Plug-in Gait); auto: from the file.")  # fmt: skip
@@ -41,9 +42,11 @@ from motionlab.validation.time_offset import SYNC_SOURCES
 @click.option("--sync-on", type=click.Choice(SYNC_SOURCES), default="gyroscope",
               show_default=True, help="IMU signal of the clock sync: the gyroscope (as interval "
               "averages) or the orientations' angular velocity.")  # fmt: skip
-@click.option("--static", "static_path", help="Static trial (C3D/TRC/session) showing the "
-              "clusters and landmarks (default: a still window of the reference).")  # fmt: skip
-@click.option("--markers", "markers_path", help="Marker map YAML (default: markers by name).")
+@click.option("--static", "static_path", type=INPUT_FILE,
+              help="Static trial (C3D/TRC/session) showing the clusters and landmarks "
+              "(default: a still window of the reference).")  # fmt: skip
+@click.option("--markers", "markers_path", type=INPUT_FILE,
+              help="Marker map YAML (default: markers by name).")  # fmt: skip
 @click.option("--protocol", "protocol_path", help="Protocol (default: the calibration's).")
 @click.option("--mode", type=click.Choice(MODES), help="Alignment: full (9-D), heading (6-D: "
               "vertical shared), none [default: full after 9-D fusion, else heading].")  # fmt: skip
