@@ -74,6 +74,10 @@ SCALE_ACC_TOL = 0.2  # samples with ‖a‖ within 20 % of its median: gravity d
 SCALE_REFUSE = 10.0  # the other unit explains the tilt this many times better: refused
 SCALE_DOUBT = 4.0  # … this many times better: a warning
 SCALE_MISS_DEG = 5.0  # °: and the unit as read misses the tilt by this much per window (RMS)
+#: the gyroscope's turn against the tilt the accelerometer sees: a sensor cannot tilt further
+#: than it turns (real recordings: 1.0-4.1 times as far; a rad/s gyroscope read as °/s: 0.02-0.07)
+SCALE_TURN_MIN = 0.25  # ∫‖ω‖dt / tilt below this: the gyroscope is far too small, refused …
+SCALE_TURN_TILT_DEG = 90.0  # … when the tilt seen over the windows adds up to at least this
 DEG = math.pi / 180.0  # rad/s per °/s
 #: magnitudes no sensor reports (per axis; m/s², rad/s, µT, 1): beyond them a value is damage,
 #: not motion; the vendor's free acceleration (``extra["free_acc"]``, gravity removed) like the
@@ -212,7 +216,10 @@ def gyr_scale(time: np.ndarray, acc: np.ndarray, gyr: np.ndarray) -> dict[str, A
     ``axes_free_scale``, ``miss_deg`` (RMS residual per block pair, °, with ``s`` at
     ``as_read`` 1, ``deg_s`` π/180, ``rad_s`` 180/π, ``none`` 0), ``deg_s_fit`` and
     ``rad_s_fit`` (how many times smaller the squared residual is in that unit than as read),
-    ``tilt_deg`` (the turn of gravity seen, summed over the block pairs, °) and ``windows``
+    ``tilt_deg`` (the turn of gravity seen, summed over the block pairs, °), ``turn_ratio``
+    (the gyroscope's turn ``∫‖ω‖dt`` over the same spans, as read, per unit of that tilt: at
+    least about 1 for a gyroscope in its unit, as a sensor cannot tilt further than it turns)
+    and ``windows``
     (block pairs used); ``None`` with fewer than 4 pairs. A sensor that barely tilts gives fits
     near 1 both ways: no evidence. Linear acceleration (a swinging limb) makes ``scale`` noisy,
     not near π/180.
@@ -235,6 +242,7 @@ def gyr_scale(time: np.ndarray, acc: np.ndarray, gyr: np.ndarray) -> dict[str, A
     u = np.where(good[:, None], u, 0.0)
     um = np.where(ok[:, None], 0.5 * (u[1:] + u[:-1]), 0.0) * dt[:, None]
     wm = np.where(ok[:, None], 0.5 * (w[1:] + w[:-1]), 0.0)
+    turn = _norm(wm) * dt  # rad per interval
     m = max(2, round(SCALE_BLOCK_S / nominal))
     k = n // m
     if k < 5:
@@ -258,6 +266,8 @@ def gyr_scale(time: np.ndarray, acc: np.ndarray, gyr: np.ndarray) -> dict[str, A
     xb = blocks(np.vstack((x, np.zeros((1, 12)))))
     rise = np.arange(1, m + 1) / m
     pair = (np.einsum("kmc,m->kc", xb[:-1], rise) + np.einsum("kmc,m->kc", xb[1:], 1 - rise))[use]
+    tb = blocks(np.append(turn, 0.0)[:, None])[:, :, 0]
+    turned = float((tb[:-1] @ rise + tb[1:] @ (1 - rise))[use].sum())  # over the same spans
     # u × (M ω) = [u]× M ω: linear in the 9 entries of M (row-major, index 3·row + column)
     uw = pair[:, :9].reshape(-1, 3, 3)
     c9 = np.stack([_skew(uw[:, :, j]) for j in range(3)], axis=3).reshape(-1, 3, 9)
@@ -286,6 +296,7 @@ def gyr_scale(time: np.ndarray, acc: np.ndarray, gyr: np.ndarray) -> dict[str, A
         "rad_s_fit": (miss["as_read"] / miss["rad_s"]) ** 2,
         "miss_deg": miss,
         "tilt_deg": math.degrees(float(_norm(y).sum())),
+        "turn_ratio": turned / max(float(_norm(y).sum()), 1e-12),
         "windows": len(y),
     }
 
@@ -301,9 +312,16 @@ def gyr_unit_finding(found: dict[str, Any] | None) -> str:
     scale on the same side of the geometric middle (√(π/180) ≈ 0.13, or √(180/π) ≈ 7.6). For
     °/s, the unit as read must also miss the tilt by at least :data:`SCALE_MISS_DEG` per block
     pair (RMS): a still sensor whose bias drifts by 1°/s over 5 minutes is explained 4.5 times
-    better by π/180 (it claims less), but misses by 0.1°."""
+    better by π/180 (it claims less), but misses by 0.1°. Before that, a gyroscope that turned
+    far less than the accelerometer saw gravity tilt (``turn_ratio`` under
+    :data:`SCALE_TURN_MIN` over :data:`SCALE_TURN_TILT_DEG` of tilt) is ``"rad_s"``: a sensor
+    cannot tilt further than it turns, and the fit alone missed most such gyroscopes (a moving
+    limb's acceleration leaves every unit a large residual: 53 of 76 real sensors divided by
+    57.3 passed it, ``bench/gyr_units.py``)."""
     if not found:
         return ""
+    if _turns_too_little(found):
+        return "rad_s"
     fit, unit = max((found["deg_s_fit"], "deg_s"), (found["rad_s_fit"], "rad_s"))
     if fit < SCALE_DOUBT or (unit == "deg_s" and found["miss_deg"]["as_read"] < SCALE_MISS_DEG):
         return ""
@@ -312,6 +330,14 @@ def gyr_unit_finding(found: dict[str, Any] | None) -> str:
     if not agrees:
         return "axes?"
     return unit if fit >= SCALE_REFUSE else f"{unit}?"
+
+
+def _turns_too_little(found: dict[str, Any]) -> bool:
+    """The gyroscope turned less than :data:`SCALE_TURN_MIN` times as far as the accelerometer
+    saw gravity tilt, over at least :data:`SCALE_TURN_TILT_DEG` of tilt (``turn_ratio`` is
+    missing from checks stored before it existed)."""
+    ratio = found.get("turn_ratio", np.inf)
+    return found["tilt_deg"] >= SCALE_TURN_TILT_DEG and ratio < SCALE_TURN_MIN
 
 
 def gyr_unit_problem(stream: SensorStream) -> tuple[str, str] | None:
@@ -335,6 +361,8 @@ def gyr_unit_problem(stream: SensorStream) -> tuple[str, str] | None:
     unit = finding.rstrip("?")
     other = {"deg_s": "°/s", "rad_s": "rad/s"}[unit]
     how = f"{1 / free:.3g}× more" if unit == "deg_s" else f"{free:.3g}× less"
+    if unit == "rad_s" and _turns_too_little(found):
+        how = f"{1 / max(found['turn_ratio'], 1e-9):.3g}× less"
     says = {"deg_s": "deg/s", "rad_s": "rad/s"}[unit]
     return (f"the gyroscope (read as {read}) turns {how} than the tilt the accelerometer sees "
             f"(a gyroscope in {other} read as {read.replace('deg/s', '°/s')} turns 57.3×): it "

@@ -87,6 +87,35 @@ def test_rad_s_read_as_deg_s_is_refused(tmp_path, seated):
                    "gyr: {unit: rad/s}")  # fmt: skip
 
 
+def test_a_gyroscope_turns_at_least_as_far_as_its_sensor_tilts():
+    """``turn_ratio``: a simulated knee session's thigh turns about as far as it tilts (more:
+    it also turns about the vertical), and 57 times less with a rad/s gyroscope read as °/s,
+    which is then refused whatever the fit says."""
+    session, _ = simulate("knee", duration=120.0, seed=1, rate_hz=50.0)
+    s = session.sensors["thigh_r"]
+    as_read = qc.gyr_scale(s.time, s.acc, s.gyr)
+    assert as_read["tilt_deg"] >= qc.SCALE_TURN_TILT_DEG and 1.0 < as_read["turn_ratio"] < 1.5
+    misread = qc.gyr_scale(s.time, s.acc, s.gyr * DEG)
+    assert misread["turn_ratio"] == pytest.approx(as_read["turn_ratio"] * DEG, rel=1e-6)
+    misread["rad_s_fit"] = 1.0  # as a moving limb's linear acceleration leaves it
+    assert qc.gyr_unit_finding(misread) == "rad_s"
+
+
+@needs_shared
+def test_real_knee_recording_with_its_gyroscope_57_times_too_small_is_refused(tmp_path):
+    """The hostile-input audit: a DOT thigh recording whose gyroscope was written in rad/s under
+    its °/s header went through the ingest with no flag (the fit: 3.7 times better in rad/s,
+    under the 4 of a doubt)."""
+    from motionlab.io import read_any
+
+    s = read_any(SHARED / "datasets/human/imt_dot/knee_tracking1/femur.csv").sensors[0]
+    t, acc = s.time - s.time[0], s.acc
+    result = ingest(write_recording(tmp_path, "femur", t, acc, s.gyr, "deg/s"))
+    assert_refused(result, tmp_path, "turns", "× less than the tilt")
+    result = ingest(write_recording(tmp_path, "femur", t, acc, np.degrees(s.gyr), "deg/s"))
+    assert result.exit_code == 0 and "gyroscope" not in result.stderr, result.output
+
+
 def test_accelerometer_axes_in_another_order_are_not_a_unit(seated):
     """The axes-free scale (a free 3×3 map) does not move when the accelerometer's columns are
     permuted, and no unit is blamed; the same with the gyroscope in °/s is still °/s."""
@@ -175,10 +204,15 @@ def found(deg_s_fit=1.0, rad_s_fit=1.0, free=1.0, miss=20.0):
         ({"deg_s_fit": 12.0, "free": 0.02, "miss": 4.0}, ""),  # misses by < 5°: no evidence
         ({"deg_s_fit": 0.01, "rad_s_fit": 12.0, "free": 60.0, "miss": 4.0}, "rad_s"),
         ({"deg_s_fit": 0.01, "rad_s_fit": 12.0, "free": 3.0}, "axes?"),
+        ({"turn": 0.02}, "rad_s"),  # turned 50 times less than it tilted, whatever the fit
+        ({"turn": 0.02, "tilt": 60.0}, ""),  # too little tilt to tell
+        ({"turn": 0.3}, ""),
     ],
 )
 def test_verdict_thresholds(kwargs, finding):
-    assert qc.gyr_unit_finding(found(**kwargs)) == finding
+    f = found(**{k: v for k, v in kwargs.items() if k not in ("turn", "tilt")})
+    f["turn_ratio"], f["tilt_deg"] = kwargs.get("turn", 1.2), kwargs.get("tilt", 100.0)
+    assert qc.gyr_unit_finding(f) == finding
 
 
 def test_doubt_is_one_warning_line():
