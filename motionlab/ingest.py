@@ -33,6 +33,7 @@ from motionlab.errors import InputError
 from motionlab.io import read_any
 from motionlab.qc import (
     IMPLAUSIBLE,
+    acc_unit_problem,
     check_stream,
     damage_checked,
     gyr_unit_problem,
@@ -344,11 +345,16 @@ def _resample_markers(m: MarkerSet, rate: float) -> MarkerSet:
     )
 
 
-def _check_gyr_unit(stream: SensorStream, path: Path) -> None:
-    """Refuse a gyroscope whose rotation fits the accelerometer's tilt only in another unit
-    (``qc["flags"]["gyr_unit_mismatch"]``, :func:`motionlab.qc.gyr_scale`): every orientation
-    would turn 57.3 times too fast or too slow."""
-    problem = gyr_unit_problem(stream) if stream.qc["flags"].get("gyr_unit_mismatch") else None
+def _check_units(stream: SensorStream, path: Path) -> None:
+    """Refuse an accelerometer whose ‖a‖ at rest cannot be gravity in m/s²
+    (:func:`motionlab.qc.acc_unit_problem`: rest detection, the fusion's trust in the
+    accelerometer and every threshold in m/s² would be off) and a gyroscope whose rotation fits
+    the accelerometer's tilt only in another unit (``qc["flags"]["gyr_unit_mismatch"]``,
+    :func:`motionlab.qc.gyr_scale`): every orientation would turn 57.3 times too fast or too
+    slow."""
+    problem = acc_unit_problem(stream)
+    if problem is None and stream.qc["flags"].get("gyr_unit_mismatch"):
+        problem = gyr_unit_problem(stream)
     if problem:
         raise InputError(problem[0], path, f"sensor {stream.label}", problem[1])
 
@@ -473,7 +479,7 @@ def ingest(
             attrs={**stream.attrs, "start_s": float(stream.time[0])},
         )
         stream = check_and_fill(stream, report, gap_max)
-        _check_gyr_unit(stream, path)
+        _check_units(stream, path)
         if rate is not None:
             qc = stream.qc
             stream = timebase.resample(stream, rate)

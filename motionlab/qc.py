@@ -64,6 +64,8 @@ GYR_MAX_PLAUSIBLE = 35.0  # rad/s: ±2000 °/s, the largest common gyroscope ran
 GYR_SUSTAINED = 5  # samples
 MAG_RANGE_UT = (20.0, 70.0)
 ACC_REST_RANGE = (7.8, 11.8)  # m/s²
+#: ‖a‖ at rest outside this (and not in g) is no accelerometer on Earth in m/s²: refused
+ACC_REST_REFUSE = (3.0, 50.0)  # m/s²
 JITTER_LIMIT = 0.1  # relative to the nominal interval
 REST_GYR = 0.2  # rad/s: below this the sensor is taken to be at rest
 HELD_SHARE = 0.2  # share of rows repeating the previous one above which samples are "held"
@@ -338,6 +340,27 @@ def _turns_too_little(found: dict[str, Any]) -> bool:
     missing from checks stored before it existed)."""
     ratio = found.get("turn_ratio", np.inf)
     return found["tilt_deg"] >= SCALE_TURN_TILT_DEG and ratio < SCALE_TURN_MIN
+
+
+def acc_unit_problem(stream: SensorStream) -> tuple[str, str] | None:
+    """``(what, remedy)`` for one line when the accelerometer's ‖a‖ at rest (``qc
+    ["acc_rest_norm"]``) cannot be gravity in m/s²: in g (0.5-2) or outside
+    :data:`ACC_REST_REFUSE` (a g value read as m/s² scaled again, mg, …); the ingest refuses
+    it. ``None`` otherwise (between that and :data:`ACC_REST_RANGE` :func:`doubts` warns)."""
+    flags = stream.qc.get("flags", {})
+    g = stream.qc.get("acc_rest_norm", float("nan"))
+    read = stream.source_units.get("acc", "m/s^2")
+    if flags.get("acc_looks_like_g"):
+        return (f"|a| at rest is {g:.2f} m/s² (read as {read}), where 1 g is 9.81: the "
+                "accelerometer is in g",
+                "check the export's accelerometer unit (a column map says it as "
+                "acc: {unit: g})")  # fmt: skip
+    if np.isfinite(g) and not ACC_REST_REFUSE[0] <= g <= ACC_REST_REFUSE[1]:
+        return (f"|a| at rest is {g:.3g} m/s² (read as {read}), not ≈ 9.81: a wrong unit or "
+                "scale",
+                "check the export's accelerometer unit (a column map says it as "
+                "acc: {unit: m/s^2} or g)")  # fmt: skip
+    return None
 
 
 def gyr_unit_problem(stream: SensorStream) -> tuple[str, str] | None:

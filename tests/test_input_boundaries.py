@@ -296,22 +296,27 @@ def test_stages_on_an_unfused_session_say_to_fuse_it_first(tmp_path):
     assert cli(tmp_path, "calibrate", "s.h5", "--protocol", "walk").exit_code == 0
 
 
-def test_ingest_warns_of_a_wrong_unit_and_a_truncated_line(tmp_path):
-    """A plausible file ingests silently; an accelerometer in g labelled m/s² and a last line
-    cut short were found (QC flag, reader note) but only 'motionlab info' showed the flag and
-    nothing the note: the ingest now says each in one warning line."""
+def test_ingest_warns_of_a_truncated_line_and_refuses_an_accelerometer_in_g(tmp_path):
+    """A plausible file ingests silently; a last line cut short is said in one warning line.
+    An accelerometer in g labelled m/s² was a warning too, and the run went on to angles graded
+    `determined` (the hostile-input audit): gravity cannot be 0.99 m/s², so it is refused."""
     xio = (DATA / "xio" / "sensor_data_excerpt.csv").read_text()
     (tmp_path / "ok.csv").write_text(xio)
     r = cli(tmp_path, "ingest", "ok.csv", "-o", "ok.h5")
     assert r.exit_code == 0 and r.stderr == "", r.output
-    (tmp_path / "in.csv").write_text(xio.replace("(g)", "(m/s^2)")[:-30])
+    (tmp_path / "in.csv").write_text(xio[:-30])
     r = cli(tmp_path, "ingest", "in.csv", "-o", "o.h5")
     assert r.exit_code == 0, r.output
     assert r.stderr.splitlines() == [
-        "warning: in: |a| at rest is 0.99 m/s² (read as m/s^2), 1 g is 9.81: is the "
-        "accelerometer in g? — check the export's accelerometer unit",
         "warning: in: line 301: truncated last line (7 of 10 columns) dropped",
     ]
+    (tmp_path / "g.csv").write_text(xio.replace("(g)", "(m/s^2)"))
+    refused(cli(tmp_path, "ingest", "g.csv", "-o", "g.h5"),
+            "error: g.csv sensor g: |a| at rest is 0.99 m/s² (read as m/s^2), where 1 g is "
+            "9.81: the accelerometer is in g — check the export's accelerometer unit")  # fmt: skip
+    (tmp_path / "ms2.csv").write_text(xio.replace("(g)", "(mg)"))
+    refused(cli(tmp_path, "ingest", "ms2.csv", "-o", "m.h5"), "not ≈ 9.81: a wrong unit")
+    assert not (tmp_path / "g.h5").exists() and not (tmp_path / "m.h5").exists()
 
 
 def test_symlink_loop_is_one_line(tmp_path):

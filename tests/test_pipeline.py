@@ -335,18 +335,18 @@ def test_report_command_two_visits_adds_progress_page(result, tmp_path):
     assert res.exit_code == 2 and "use --force" in res.output
 
 
-def test_run_warns_of_an_accelerometer_in_g(recorded, tmp_path, capsys):
-    """``run`` says what the ingest's QC doubts, as ``ingest`` does: a thigh file whose
-    accelerometer is in g (read as m/s²) went through to the report without a word."""
+def test_run_refuses_an_accelerometer_in_g(recorded, tmp_path):
+    """A thigh file whose accelerometer is in g (read as m/s²) went through to the report
+    without a word, later with a warning; gravity cannot be 1 m/s²: refused, as the ingest
+    refuses it, before any output."""
     root, files, _ = recorded
     table = pd.read_csv(files[0])
     table[["ax", "ay", "az"]] /= 9.80665
     table.to_csv(tmp_path / "THIGH.csv", index=False)
     options = PipelineOptions(root / "knee_small.yaml", map_path=root / "map.yaml", seed=2)
-    run_pipeline([tmp_path / "THIGH.csv", files[1]], tmp_path / "out", options)
-    warnings = [ln for ln in capsys.readouterr().err.splitlines() if ln.startswith("warning:")]
-    assert warnings[0].startswith("warning: THIGH: |a| at rest is 1.00 m/s² (read as m/s^2)")
-    assert not any("SHANK" in ln for ln in warnings)
+    with pytest.raises(InputError, match=r"THIGH.csv sensor THIGH: \|a\| at rest is 1.00 m/s²"):
+        run_pipeline([tmp_path / "THIGH.csv", files[1]], tmp_path / "out", options)
+    assert not (tmp_path / "out").exists()
 
 
 def test_the_metric_rows_carry_their_angles_grade(result):

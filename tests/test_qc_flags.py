@@ -43,7 +43,7 @@ def test_identical_streams_and_held_samples_in_info(tmp_path):
     for name in ("a.csv", "b.csv"):
         pd.DataFrame(np.column_stack([t, rows]), columns=cols).to_csv(tmp_path / name, index=False)
     rng = np.random.default_rng(2)
-    other = np.column_stack([t, rng.normal(size=(len(t), 6))])
+    other = np.column_stack([t, rng.normal(size=(len(t), 6)) + [0, 0, 9.81, 0, 0, 0]])
     pd.DataFrame(other, columns=cols).to_csv(tmp_path / "c.csv", index=False)
     (tmp_path / "map.yaml").write_text(yaml.safe_dump(MAP))
     files = [tmp_path / n for n in ("a.csv", "b.csv", "c.csv")]
