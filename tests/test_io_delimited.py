@@ -167,3 +167,18 @@ def test_utf16_text_is_named(tmp_path):
     p.write_bytes("Timestamp (us),Gyroscope X (deg/s)\n1,2\n".encode("utf-16"))
     with pytest.raises(InputError, match="text in UTF-16.* — save or export it as UTF-8"):
         read_lines(p)
+
+
+def test_a_file_cut_inside_a_number_loses_its_last_line_with_a_note(tmp_path):
+    """The hostile-input audit cut an x-IMU3 Inertial.csv after '0.' of '0.556448': the last
+    row still read as numbers and the sensor ended 6 s early without a word. A file that ends
+    without a line end and whose last number has fewer decimals than the line before loses
+    that line, with a note; one that ends whole without a line end (the DOT app's) keeps it."""
+    whole = "t,a,b\n0.000000,1.250000,0.556448\n0.020000,1.260000,0.556812"
+    table = _parse(tmp_path, whole.encode(), 0)
+    assert len(table.data) == 2 and table.notes == []
+    table = _parse(tmp_path, (whole[:-6]).encode(), 0)
+    assert len(table.data) == 1
+    assert table.notes == ["line 3: truncated last line ('0.' at the end of the file) dropped"]
+    table = _parse(tmp_path, (whole[:-6] + "\n").encode(), 0)  # a line end: written so
+    assert len(table.data) == 2 and table.notes == []

@@ -168,6 +168,20 @@ class Table:
         return self.data[:, j]
 
 
+def _cut_short(last: str, before: str, delimiter: str, decimal: str) -> str:
+    """The last field of ``last``, the final line of a file that ends without a line end,
+    when it has fewer decimals than the same field of the line ``before`` (a file cut inside a
+    number: "0." where the column writes "0.556448"); else ``""``. Files that end without a
+    line end but whole (the DOT app's exports) keep their last line."""
+    split = (lambda x: x.split()) if delimiter == "whitespace" else (lambda x: x.split(delimiter))
+    a, b = split(last.strip()), split(before.strip())
+    number = re.compile(rf"[-+]?\d+({re.escape(decimal)}\d*)?")  # no exponent, no NaN
+    if not a or len(a) != len(b) or not all(number.fullmatch(f) for f in (a[-1], b[-1])):
+        return ""
+    digits = [len(f.partition(decimal)[2]) if decimal in f else 0 for f in (a[-1], b[-1])]
+    return a[-1] if digits[0] < digits[1] else ""
+
+
 def parse_table(
     path: str | Path,
     lines: Sequence[str],
@@ -295,6 +309,12 @@ def parse_table(
             )
         notes.append(f"line {line}: truncated last line ('{value}') dropped")
         rows, data = rows[:-1], data[:-1]
+    elif text.unended and len(rows) > 1 and rows[-1] + 1 == len(text) and not notes:
+        cut = _cut_short(text[rows[-1]], text[rows[-2]], delimiter, decimal)
+        if cut:  # a number cut short still reads as one: "0." of "0.556448"
+            notes.append(f"line {rows[-1] + 1}: truncated last line ('{cut}' at the end of the "
+                         "file) dropped")  # fmt: skip
+            rows, data = rows[:-1], data[:-1]
     return Table(path, col_names, data, rows + 1, delimiter, decimal, text[:header], notes)
 
 
