@@ -14,6 +14,7 @@ import pytest
 from c3d_variants import convert, to_int16
 from conftest import SHARED, needs_shared
 
+from motionlab.errors import InputError
 from motionlab.io import c3d
 from motionlab.units import factor
 
@@ -163,3 +164,27 @@ def test_memory_is_the_result_not_the_file(tmp_path):
     result = m.positions.nbytes + m.residuals.nbytes
     assert m.positions.shape == (frames, n, 3) and size > 1.5e6
     assert peak < 1.5 * result + 5e6 and peak < 1.2 * size + 5e6, (peak, result, size)
+
+
+def test_damaged_marker_values_are_gaps_and_a_damaged_block_is_refused(tmp_path):
+    """The hostile-input audit wrote random bytes into a C3D's data block: it ingested with no
+    flag, markers up to 3e35 m away. Coordinates beyond 100 m are gaps now, with a warning;
+    a block that is mostly such values is refused."""
+    _write(tmp_path / "f.c3d")
+    f = ezc3d.c3d(str(tmp_path / "f.c3d"))
+    points = f["data"]["points"]
+    points[0, 0, 5] = 3e35
+    points[2, 2, 9] = -2e5  # mm: 200 m
+    f["data"]["points"] = points
+    f.write(str(tmp_path / "d.c3d"))
+    (m,) = c3d.read(tmp_path / "d.c3d").markers
+    assert np.isnan(m.positions[5, 0]).all() and np.isnan(m.positions[9, 2]).all()
+    assert np.nanmax(np.abs(m.positions)) < 3.01
+    assert (
+        "2 marker samples beyond 100 m of the origin set missing (damaged?)" in m.attrs["warnings"]
+    )
+    points[:3, :3] = 1e12
+    f["data"]["points"] = points
+    f.write(str(tmp_path / "x.c3d"))
+    with pytest.raises(InputError, match=r"marker samples lie beyond 100 m .* damaged"):
+        c3d.read(tmp_path / "x.c3d")

@@ -127,6 +127,7 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
         xyz, residuals = xyz[:, is_marker], residuals[:, is_marker]
     xyz *= scale
     residuals *= scale
+    _drop_far(path, xyz, residuals, warnings)
 
     analogs = layout.parameters.get("ANALOG", {})
     attrs: dict[str, Any] = {
@@ -154,6 +155,35 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
         model_outputs=outputs,
     )
     return Recording(markers=[markers], metadata={"c3d_unit": unit})
+
+
+#: m: a marker coordinate further than this from the lab's origin is damage, not a marker
+MARKER_MAX_M = 100.0
+
+
+def _drop_far(path: Path, xyz: np.ndarray, residuals: np.ndarray, warnings: list[str]) -> None:
+    """Marker samples with a coordinate beyond :data:`MARKER_MAX_M` (m; a damaged data block:
+    random bytes read as floats reach 1e35 m) set missing, in place, with a warning; refused
+    when they are most of the samples seen (the data block is not marker data)."""
+    with np.errstate(invalid="ignore"):
+        far = (np.abs(xyz) > MARKER_MAX_M).any(axis=2)
+    n_far = int(far.sum())
+    if not n_far:
+        return
+    seen = int(np.isfinite(xyz).all(axis=2).sum())
+    if n_far > 0.5 * seen:
+        frame, marker = np.argwhere(far)[0]
+        raise InputError(
+            f"{n_far} of {seen} marker samples lie beyond {MARKER_MAX_M:g} m of the origin "
+            f"(frame {frame + 1}, point {marker + 1}: {np.nanmax(np.abs(xyz[frame, marker])):.3g}"
+            " m): the data block is damaged",
+            path,
+            remedy="export the trial again from the motion-capture software",
+        )
+    xyz[far] = np.nan
+    residuals[far] = np.nan
+    warnings.append(f"{n_far} marker samples beyond {MARKER_MAX_M:g} m of the origin set missing "
+                    "(damaged?)")  # fmt: skip
 
 
 #: processor types (the parameter section's fourth byte)
