@@ -102,6 +102,8 @@ AXES = {"x": 0, "y": 1, "z": 2}
 TOP_KEYS = ("name", "title", "purpose", "segments", "calibration", "joints", "tasks",
             "normative", "metrics", "thresholds", "source")  # fmt: skip
 SEGMENT_KEYS = ("side", "placement", "sensor_axes", "landmarks", "required")
+#: s: the longest calibration step or task a protocol may ask for (a day)
+MAX_DURATION_S = 86400.0
 STEP_KEYS = ("name", "kind", "pose", "duration_s", "vertical_axis", "horizontal_axis",
              "instructions", "segments", "axis", "repetitions", "optional", "reference_rho",
              "time_range", "axis_method")  # fmt: skip
@@ -258,6 +260,17 @@ class _Reader:
             if not isinstance(key, str):
                 place = f"{where}.{key}".lstrip(".")
                 self.fail(place, lines.get(key), f"name {key!r} is not text", "quote it")
+
+    def duration(self, m: dict, where: str, required: bool = True) -> float:
+        """``duration_s`` of a step (required, > 0) or a task (optional, ≥ 0; 0: as long as
+        the recording gives), at most :data:`MAX_DURATION_S`."""
+        value = self.get(m, "duration_s", where, float, required, 0.0)
+        low_ok = value > 0 if required else value >= 0
+        if not (low_ok and value <= MAX_DURATION_S):
+            self.fail(f"{where}.duration_s".lstrip("."), getattr(m, "lines", {}).get("duration_s"),
+                      f"is {value:g} s", f"give {'a' if required else 'no or a'} duration between "
+                      f"0 and {MAX_DURATION_S:g} s")  # fmt: skip
+        return value
 
     def number(self, value: Any, where: str, line: int | None) -> float:
         """A finite number (not a bool)."""
@@ -464,7 +477,7 @@ def _steps(r: _Reader, doc: dict, check_segment: Callable) -> list[CalibrationSt
             CalibrationStep(
                 name=r.get(spec, "name", where, str),
                 kind=kind,
-                duration_s=r.get(spec, "duration_s", where, float),
+                duration_s=r.duration(spec, where),
                 instructions=r.get(spec, "instructions", where, str, False, ""),
                 pose=r.get(spec, "pose", where, str, False, ""),
                 vertical_axis=vertical,
@@ -537,7 +550,7 @@ def _tasks(r: _Reader, doc: dict) -> list[Task]:
             Task(
                 name=r.get(spec, "name", where, str),
                 kind=r.get(spec, "kind", where, str),
-                duration_s=r.get(spec, "duration_s", where, float, False, 0.0),
+                duration_s=r.duration(spec, where, required=False),
                 repetitions=r.get(spec, "repetitions", where, int, False, 0),
                 time_range=tuple(float(t) for t in time_range) if time_range else None,
                 options={k: v for k, v in spec.items() if k not in known},

@@ -101,6 +101,16 @@ def test_missing_key_and_bad_type(tmp_path):
         load_protocol(path)
 
 
+@pytest.mark.parametrize("value", ["-5", "0", "1000000000000"])
+def test_a_step_duration_out_of_range_is_refused(tmp_path, value):
+    """The hostile-input audit's protocols with a step of -5 s or 10¹² s ran; 'five' and inf
+    were refused."""
+    path = _broken(tmp_path, "    duration_s: 5\n", f"    duration_s: {value}\n")
+    with pytest.raises(InputError, match=r"key calibration\[0\].duration_s: is .* s — give a "
+                       r"duration between 0 and 86400 s"):  # fmt: skip
+        load_protocol(path)
+
+
 def test_yaml_syntax_error_names_line(tmp_path):
     path = _write(tmp_path, "name: knee\nsegments:\n  thigh_r: {side: r\n  shank_r: {}\n")
     with pytest.raises(InputError, match=r"bad.yaml line \d+: not valid YAML"):
