@@ -74,6 +74,14 @@ def test_unknown_parameter_is_refused_in_one_line(name):
     assert "no_such_parameter" in message and name in message and "\n" not in message
 
 
+@pytest.mark.parametrize("value", ["-5", "nan", "inf"])
+def test_a_negative_or_non_finite_parameter_is_refused(value):
+    """The hostile-input audit: ``--param beta=-5`` ran, ``beta=nan`` was blamed on the data."""
+    with pytest.raises(InputError, match=rf"beta='{value}' of estimator 'madgwick' is not a "
+                       r"finite number ≥ 0"):  # fmt: skip
+        make_params(get("madgwick"), {"beta": value})
+
+
 def test_listing_shows_every_parameter_with_its_unit():
     text = describe()
     for name in ESTIMATORS:

@@ -200,6 +200,17 @@ def make_params(est: Estimator, overrides: dict[str, Any]) -> Any:
                 f"parameter {key}={value!r} is not a {type(current).__name__}",
                 remedy=f"the default is {current!r}",
             ) from None
+        number = converted[key]
+        if isinstance(number, int | float) and not isinstance(number, bool):
+            # every parameter is a noise, gain, time, threshold or count: none is negative;
+            # infinite only where the default is (a time constant that never decays)
+            finite = np.isfinite(number) or (np.isinf(current) and number > 0)
+            if not (finite and number >= 0):
+                raise InputError(
+                    f"parameter {key}={value!r} of estimator '{est.name}' is not a finite "
+                    "number ≥ 0",
+                    remedy=f"the default is {current!r}",
+                )
     return dataclasses.replace(defaults, **converted)
 
 
