@@ -218,3 +218,13 @@ def test_a_renamed_column_names_the_header_line_and_a_remedy(tmp_path):
     )
     assert line.endswith("— export the file again with the vendor's column names, or correct "
                          "the header")  # fmt: skip
+
+
+def test_a_map_forcing_another_format_on_an_export_folder_is_refused(tmp_path):
+    """A map's ``reader: {format: generic, delimiter: 5, sensors: "x"}`` was silently ignored
+    for an x-IMU3 folder (its values were never checked): the folder names the clash."""
+    imu = xe.write(tmp_path, xe.export_files())
+    with pytest.raises(InputError, match="is a ximu3 export folder, but the map's reader says "
+                       "format 'generic'"):  # fmt: skip
+        read_any(imu, {"format": "generic", "delimiter": 5})
+    assert len(read_any(imu, {"format": "ximu3"}).sensors) == 2

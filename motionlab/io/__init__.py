@@ -77,6 +77,15 @@ def _detect(path: Path, options: dict[str, Any] | None):
     if path.is_dir():  # a reader of folders has is_export(path) (x-IMU3: a folder per device)
         for module in _readers():
             if getattr(module, "is_export", None) and module.is_export(path):
+                wanted = (options or {}).get("format")
+                if wanted and wanted != module.FORMAT:  # else its options are never looked at
+                    raise InputError(
+                        f"is a {module.FORMAT} export folder, but the map's reader says format "
+                        f"'{shorten(str(wanted))}'",
+                        path,
+                        remedy=f"remove 'format' from the map's reader: (or give "
+                        f"'{module.FORMAT}')",
+                    )
                 return module
         raise InputError(
             "is a folder, expected a file (or an x-IMU3 export folder)",
