@@ -228,3 +228,19 @@ def test_a_map_forcing_another_format_on_an_export_folder_is_refused(tmp_path):
                        "format 'generic'"):  # fmt: skip
         read_any(imu, {"format": "generic", "delimiter": 5})
     assert len(read_any(imu, {"format": "ximu3"}).sensors) == 2
+
+
+def test_a_jump_of_the_inertial_clock_names_inertial_csv(tmp_path):
+    """An Inertial.csv whose stamps jump by 10⁶ s was refused as 'Magnetometer.csv covers
+    0.02-11.68 s of the inertial data's 0-1000011.71 s: truncated?', whose remedy (move the
+    magnetometer out) threw good data away. The inertial file is named, at the line."""
+    files = xe.export_files()
+    key = next(k for k in files if k.endswith("Back B4A2-5410-EC7B-D68C (UDP)/Inertial.csv"))
+    lines = files[key].decode().splitlines()
+    stamp, rest = lines[51].split(",", 1)
+    lines[51] = f"{int(stamp) + 10**12},{rest}"
+    files[key] = ("\n".join(lines) + "\n").encode()
+    imu = xe.write(tmp_path, files)
+    jump = r"Inertial.csv.* line 52: the time stamps jump by 1e\+06 s"
+    with pytest.raises(InputError, match=jump):
+        read_any(imu)

@@ -69,6 +69,8 @@ _INERTIAL = ("Gyroscope X (deg/s)", "Gyroscope Y (deg/s)", "Gyroscope Z (deg/s)"
 READ_FILES = ("Inertial.csv", "Magnetometer.csv", "Quaternion.csv", "Command.json")
 #: a second stream may start or stop this much (s) away from the inertial data's span
 SPAN_SLACK_S = 0.5
+#: s: a step of Inertial.csv's clock longer than this is damage, not a pause of the radio
+JUMP_S = 3600.0
 #: NWU earth (x north, y west, z up) → ENU (x east, y north, z up): +90° about z
 _NWU_TO_ENU = np.array([np.sqrt(0.5), 0.0, 0.0, np.sqrt(0.5)])
 
@@ -240,6 +242,15 @@ def _read_device(folder: Path, options: dict[str, Any]) -> SensorStream:
     if len(t) < 2 or not np.isfinite(t).all():
         raise InputError(
             "fewer than two time-stamped rows", inertial, remedy="export the device again"
+        )
+    step = np.diff(t)
+    k = int(np.argmax(np.abs(step)))
+    if abs(step[k]) > JUMP_S:  # before the other files are laid onto this clock and blamed
+        raise InputError(
+            f"the time stamps jump by {step[k]:.6g} s from one row to the next: damaged?",
+            inertial,
+            f"line {int(table.lines[k + 1])}",
+            remedy="export the device again, or cut the file before that line",
         )
     mag_path = folder / "Magnetometer.csv"
     if mag_path.is_file():
