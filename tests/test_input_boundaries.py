@@ -209,6 +209,15 @@ def test_echoed_cell_is_cut_and_escaped(tmp_path):
     (tmp_path / "in.csv").write_text(head + "\n".join(rows) + "\n")
     line = refused(cli(tmp_path, "ingest", "in.csv", "-o", "o.h5"), "line 22", "\\x01")
     assert len(line) < 400
+    # an OpenSim .sto quaternion cell full of NUL bytes was echoed whole (1.1 KB)
+    sto = (DATA / "opensim" / "imuOrientations.sto").read_text().splitlines()
+    first = next(i for i, ln in enumerate(sto) if ln.lower().startswith("time")) + 1
+    cells = sto[first].split("\t")
+    cells[1] = "0" + "\x00" * 1000 + ",0,0,0"
+    sto[first] = "\t".join(cells)
+    (tmp_path / "in.sto").write_text("\n".join(sto) + "\n")
+    line = refused(cli(tmp_path, "ingest", "in.sto", "-o", "s.h5"), "is not a number", "\\x00")
+    assert len(line) < 400
 
 
 def _c3d(path: Path, frames: int = 40) -> None:

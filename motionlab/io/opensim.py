@@ -33,7 +33,7 @@ import numpy as np
 import pandas as pd
 
 from motionlab.atomic import atomic_path
-from motionlab.errors import InputError
+from motionlab.errors import InputError, shorten
 from motionlab.io import Recording
 from motionlab.session import SensorStream, estimate_rate
 
@@ -155,25 +155,28 @@ def _values(path: Path, rows: list[str], first: int, names: list[str]) -> np.nda
         cells = rows[i].split("\t")
         j = next(j for j in range(1, len(cells)) if cells[j].count(",") != 3)
         raise InputError(
-            f"cell '{cells[j]}' has {cells[j].count(',') + 1} numbers, expected w,x,y,z",
+            f"cell '{shorten(cells[j])}' has {cells[j].count(',') + 1} numbers, expected w,x,y,z",
             path,
-            f"line {first + i + 1} column {names[j]}",
+            f"line {first + i + 1} column {shorten(names[j])}",
             "each cell must be four comma-separated numbers",
         )
     body = "\n".join(rows).replace("\t", ",")
     try:
         return pd.read_csv(io.StringIO(body), header=None, dtype=np.float64).to_numpy()
     except ValueError:
-        cells = pd.read_csv(io.StringIO(body), header=None, dtype=str, na_filter=False)
-        cells = cells.to_numpy(dtype=str)
-        numbers = cells.copy()
-        numbers[np.char.lower(np.char.strip(cells)) == "nan"] = "0"
-        bad = np.isnan(pd.DataFrame(numbers).apply(pd.to_numeric, errors="coerce").to_numpy())
-        i, j = np.argwhere(bad)[0]
+        table = pd.read_csv(io.StringIO(body), header=None, dtype=str, na_filter=False)
+        nan = table.apply(lambda c: c.str.strip().str.lower() == "nan")
+        bad = table.where(~nan, "0").apply(pd.to_numeric, errors="coerce").isna()
+        # NUL bytes: the C parser stops the cell there, to_numeric alone does not
+        bad |= table.apply(lambda c: c.str.contains("\x00", regex=False))
+        if not bad.to_numpy().any():
+            raise InputError("the quaternion cells cannot be read as numbers", path,
+                             remedy="export the file again") from None  # fmt: skip
+        i, j = np.argwhere(bad.to_numpy())[0]
         raise InputError(
-            f"'{cells[i, j]}' is not a number",
+            f"'{shorten(table.iat[i, j])}' is not a number",
             path,
-            f"line {first + i + 1} column {names[(j + 3) // 4]}",
+            f"line {first + i + 1} column {shorten(names[(j + 3) // 4])}",
             "fix the cell or export the file again",
         ) from None
 
