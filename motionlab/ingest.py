@@ -313,8 +313,12 @@ def _unique_label(stream: SensorStream, path: Path, seen: dict[str, Path]) -> Se
 
 def _check_marker_clock(m: MarkerSet, path: Path) -> None:
     t = np.asarray(m.time, dtype=float)
+    if len(t) < 2:
+        raise InputError(f"{len(t)} frame{'s' if len(t) != 1 else ''}: too few to follow a "
+                         "marker", path, f"marker set {m.name}",
+                         "export the whole trial from the motion-capture software")  # fmt: skip
     bad = np.flatnonzero(~np.isfinite(t[1:]) | (np.diff(t) <= 0))
-    if len(t) < 2 or len(bad):
+    if len(bad):
         raise InputError(
             "frame times are not strictly increasing",
             path,

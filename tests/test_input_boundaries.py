@@ -404,3 +404,11 @@ def test_outputs_into_an_input_folder_are_refused_even_with_force(tmp_path):
             refused(res, "input folder imu", "inputs are never modified")
     refused(cli(tmp_path, "ingest", "imu", "-o", "imu/s.h5"), "input folder imu")
     assert sorted(p.relative_to(tmp_path) for p in tmp_path.rglob("*")) == before
+
+
+def test_an_optical_file_of_one_frame_says_so(tmp_path):
+    """A TRC file with its header and one frame was refused as 'frame times are not strictly
+    increasing', which does not say what is wrong."""
+    trc = (DATA / "c3d" / "markers_20frames.trc").read_text().splitlines()
+    (tmp_path / "one.trc").write_text("\n".join(trc[:7]) + "\n")
+    refused(cli(tmp_path, "ingest", "one.trc", "-o", "o.h5"), "1 frame: too few to follow a marker")
