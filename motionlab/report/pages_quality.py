@@ -211,7 +211,7 @@ def _hinges_table(doc: Document, view: SessionView) -> None:
                 verdict,
                 _f(float(fit.consistency_deg)),
                 _f(float(fit.relative_residual), ".2f"),
-                _direction(fit) + (f". {reasons}" if reasons else ""),
+                _direction(fit) + (f". {reasons[:1].upper()}{reasons[1:]}" if reasons else ""),
             ]
         )
         flagged.append([False, verdict != "determined"] + [False] * 3)

@@ -214,8 +214,9 @@ def nominal(segment: str, protocol: Protocol) -> SegmentRecord:
         quality=SegmentQuality(
             ok=False,
             messages=[
-                f"{segment}: no axis of it was measured (no stand, no movement of a hinge it "
-                "forms); its frame is the protocol's nominal placement"
+                f"{segment}: no axis of it was measured (no calibration step of the protocol "
+                "measured one in this recording, and no hinge fit from the movement held); its "
+                "frame is the protocol's nominal placement"
             ],
             min_rho=float("nan"),
             separation_deg=None,
