@@ -339,3 +339,21 @@ def test_trunk_lean_is_the_thorax_against_the_chair_with_lumbar_signs():
     lumbar = np.degrees(decompose(chair, thorax, "lumbar"))[0]
     lean = np.degrees(decompose(thorax, chair, "trunk_lean"))[0]
     assert lean[::-1] == pytest.approx(lumbar, abs=1e-9)
+
+
+def test_methods_text_names_only_the_conventions_and_cycles_of_the_protocol():
+    """The seated trunk report's methods page spoke of the knee (Grood & Suntay), heel strikes
+    and varus thrust: the conventions and the cycles are now those of the protocol's joints and
+    tasks."""
+    from motionlab.protocol import load_protocol
+
+    def text(name: str) -> str:
+        p = load_protocol(name)
+        return decomposition_text(list(p.joints.values()), any(t.is_gait for t in p.tasks))
+
+    seated = text("lumbar_seated")
+    assert "ISB, Wu et al. 2002 for the lumbar spine" in seated
+    assert not any(w in seated for w in ("Grood", "knee", "heel strike", "varus", "elbow"))
+    walk = text("walk")
+    assert "Grood & Suntay 1983 for the knee" in walk and "heel strike" in walk
+    assert "elbow" not in walk

@@ -20,8 +20,14 @@ def _dashed(sequence: str) -> str:
     return "-".join(sequence)
 
 
-def decomposition_text(joints: list) -> str:
-    """The methods paragraph on joint angles, naming the sequence each joint was decomposed with."""
+#: the convention each clinical joint type's decomposition follows
+_CONVENTION = {"knee": "Grood & Suntay 1983", "elbow": "ISB, Wu et al. 2005",
+               "lumbar": "ISB, Wu et al. 2002", "hip": "ISB, Wu et al. 2002"}  # fmt: skip
+
+
+def decomposition_text(joints: list, gait: bool = False) -> str:
+    """The methods paragraph on joint angles, naming the sequence each joint was decomposed
+    with; ``gait``: the protocol has a gait task (strides, heel strikes, varus thrust)."""
     listed = "; ".join(
         f"{joint_title(j)}: {j.distal} relative to {j.proximal}, intrinsic "
         f"{_dashed(joint_sequence(j))}"
@@ -31,12 +37,17 @@ def decomposition_text(joints: list) -> str:
     parts = [f"{listed}."]
     clinical = [j for j in joints if JOINT_TYPES[j.type].clinical]
     if clinical:
+        types = list(dict.fromkeys(j.type for j in clinical))
         seqs = ", ".join(dict.fromkeys(_dashed(joint_sequence(j)) for j in clinical))
+        refs = "; ".join(
+            f"{_CONVENTION[t]} for the {JOINT_TYPES[t].display}" for t in types if t in _CONVENTION
+        )
+        names = ", ".join(JOINT_TYPES[t].display for t in types)
         parts.append(
-            f"Knee, elbow and lumbar decomposition {seqs} (Grood & Suntay 1983 for the knee, ISB "
-            "Wu et al. 2005 for the elbow): flexion about the proximal z axis, ab/adduction about "
-            "the floating axis, rotation about the distal y axis; clinical signs as in "
-            "motionlab's sign table (the left side mirrored)."
+            f"Decomposition of the {names}: {seqs}" + (f" ({refs})" if refs else "") + ": the "
+            "first angle about the proximal segment's axis, the second about the floating axis, "
+            "the third about the distal segment's axis; clinical signs as in motionlab's sign "
+            "table (the left side mirrored)."
         )
     if any(JOINT_TYPES[j.type].sequence_rule == "axis" for j in joints):
         parts.append(
@@ -50,14 +61,22 @@ def decomposition_text(joints: list) -> str:
             "(first about the proximal axis, last about the distal one), positive about the "
             "positive segment axis."
         )
-    parts.append(
-        "Cycles: gait strides from the shank's angular velocity (heel strike to heel strike), "
-        "other tasks from the repetitions of the primary angle; each cycle resampled to 101 "
-        "points (0-100 %). Metrics (ranges, extremes, cycle curves, cross-talk, varus thrust) are "
-        "taken from the angles low-passed at 6 Hz (zero-phase Butterworth, Winter 2009): a "
-        "sensor's wobble on the skin after a heel strike is not a peak of the joint. The "
-        "angle curves and tables are the angles as computed."
-    )
+    if gait:
+        parts.append(
+            "Cycles: gait strides from the shank's angular velocity (heel strike to heel "
+            "strike), other tasks from the repetitions of the primary angle; each cycle "
+            "resampled to 101 points (0-100 %). Metrics (ranges, extremes, cycle curves, "
+            "cross-talk, varus thrust) are taken from the angles low-passed at 6 Hz (zero-phase "
+            "Butterworth, Winter 2009): a sensor's wobble on the skin after a heel strike is not "
+            "a peak of the joint."
+        )
+    else:
+        parts.append(
+            "Cycles: the repetitions of each task's primary angle, each resampled to 101 points "
+            "(0-100 %). Metrics (ranges, extremes, cycle curves, cross-talk) are taken from the "
+            "angles low-passed at 6 Hz (zero-phase Butterworth, Winter 2009)."
+        )
+    parts.append("The angle curves and tables are the angles as computed.")
     return " ".join(parts)
 
 
@@ -167,7 +186,7 @@ def methods_page(doc: Document, view: SessionView) -> None:
     if view.protocol.source:
         doc.paragraph(" ".join(view.protocol.source.split()), size=SIZE["small"], colour=MUTED)
     doc.heading("Joint angles and metrics")
-    doc.paragraph(decomposition_text(view.joints()))
+    doc.paragraph(decomposition_text(view.joints(), any(t.is_gait for t in view.protocol.tasks)))
     doc.heading("Provenance")
     rows = []
     for p in view.session.provenance:
