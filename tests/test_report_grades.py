@@ -474,3 +474,28 @@ def test_calibration_table_does_not_flag_the_residual_of_an_axis_left_out():
     row = _calibration_row(kind="functional", verdict=None, rho=0.96, residual_deg=19.0)
     assert calibration_cells(replace(row, used=False))[1][5] is False
     assert calibration_cells(row)[1][5] is True
+
+
+@pytest.mark.parametrize("pelvis", [True, False])
+def test_the_stride_curves_have_their_key_and_axis_labels(walk, pelvis):
+    """The stride-curve page had no key for its colours (given only on the page before) and no
+    x-axis label. With 7 curves the key takes the spare cell, with an even number it goes below
+    the last row; either way the page lays out cleanly."""
+    from motionlab.report.pages_gait import curve_page
+    from motionlab.report.pdf import layout_problems
+
+    ses = copy.deepcopy(walk)
+    if not pelvis:  # hips and knees only: 4 curves
+        for side in ses.results.gait.curves.values():
+            for k in [k for k in side if k.startswith("pelvis")]:
+                del side[k]
+    with matplotlib.rc_context(RC):
+        doc = Document("motionlab report · test", "subject X")
+        curve_page(doc, load_view(ses))
+        (page,) = doc.pages
+        assert layout_problems(page) == []
+        keys = [t.get_text() for ax in page.axes if ax.get_legend() for t in
+                ax.get_legend().get_texts()]  # fmt: skip
+        assert keys == ["right (mean ± SD)", "left (mean ± SD)", "normative mean ± SD"]
+        drawn = [ax for ax in page.axes if ax.get_lines()]
+        assert drawn and all(ax.get_xlabel() == "% of stride" for ax in drawn)

@@ -14,6 +14,8 @@ not determine is not drawn, a weak one is labelled."""
 from __future__ import annotations
 
 import numpy as np
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
 
 from motionlab.kinematics.gps import VARIABLES, normative, variable_grades
 from motionlab.kinematics.spatiotemporal import (
@@ -242,7 +244,9 @@ def curve_page(doc: Document, view: SessionView) -> None:
                 "drawn, a weak one is labelled.")  # fmt: skip
     grades = variable_grades(view.protocol, view.session.results.calibration)
     nrows = (len(used) + 1) // 2
-    grid = doc.axes_grid(nrows, 2, 2.2 * nrows + 0.4, left=0.6, hspace=0.6, top=0.35)
+    even = len(used) % 2 == 0  # no spare cell for the key: it goes below the last row
+    grid = doc.axes_grid(nrows, 2, 2.2 * nrows + 0.55 + 0.3 * even, left=0.6, hspace=0.75,
+                         top=0.35, bottom=0.55 + 0.3 * even)  # fmt: skip
     pct = np.linspace(0, 100, 101)
     for i, v in enumerate(used):
         ax = grid[i // 2][i % 2]
@@ -264,8 +268,20 @@ def curve_page(doc: Document, view: SessionView) -> None:
         ax.set_title(v.replace("_", " ") + (f" ({', '.join(marks)})" if marks else ""))
         ax.set_xlim(0, 100)
         ax.set_ylabel("deg")
+        ax.set_xlabel("% of stride", size=SIZE["small"])
     for j in range(len(used), nrows * 2):
         grid[j // 2][j % 2].set_visible(False)
+    key = [Line2D([], [], color=SIDE_COLOUR["r"], lw=1.2, label="right (mean ± SD)"),
+           Line2D([], [], color=SIDE_COLOUR["l"], lw=1.2, label="left (mean ± SD)"),
+           Patch(color=BAND_COLOUR, alpha=0.6, label="normative mean ± SD")]  # fmt: skip
+    if not even:  # the empty cell beside the last curve holds the key
+        spare = grid[nrows - 1][1]
+        spare.set_visible(True)
+        spare.axis("off")
+        spare.legend(handles=key, loc="center", frameon=False)
+    else:
+        grid[nrows - 1][1].legend(handles=key, loc="upper right", bbox_to_anchor=(1.0, -0.32),
+                                  ncol=3, frameon=False, fontsize=SIZE["small"])  # fmt: skip
 
 
 def gait_report_pages(doc: Document, view: SessionView) -> None:
