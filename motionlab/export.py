@@ -41,6 +41,7 @@ from motionlab.kinematics.segment_types import opensim_imu_name
 from motionlab.plain import plain
 from motionlab.protocol import load_protocol
 from motionlab.results import OpticalSync, SegmentCalibration
+from motionlab.segments.grades import GRADES
 from motionlab.session import MarkerSet, ModelOutput, Session
 
 FORMATS = ("sto", "mot", "c3d", "json")
@@ -240,8 +241,10 @@ def results_json(session: Session) -> dict[str, Any]:
     Keys: ``software``, ``metadata``, ``sensors`` (label, segment, side, rate_hz, QC flags),
     ``angles`` (``time_s`` and per joint its ``columns`` (name → values, deg) and ``grades``
     and ``reasons`` when the calibration graded them), ``metrics`` (rows ``block, joint, angle,
-    metric, percent, value, unit``), ``calibration`` (ok, warnings), ``validation`` (its scalars),
-    ``fusion`` (estimator per sensor). Standard JSON: NaN is ``null``.
+    metric, percent, value, unit, grade``), ``calibration`` (ok, warnings), ``validation`` (its
+    scalars), ``fusion`` (estimator per sensor). Standard JSON: NaN is ``null``, and so is a
+    measured value of an angle ``not determined`` (its column's series and its metric rows'
+    values; the grade and reason say why; the session file keeps what was computed).
     """
     out: dict[str, Any] = {
         "format": JSON_FORMAT,
@@ -261,12 +264,24 @@ def results_json(session: Session) -> dict[str, Any]:
         ],
     }
     res = session.results
+    grades = res.calibration.grades if res.calibration is not None else {}
+    graded = {  # column → grade, where the calibration graded the joint's angles
+        c: g
+        for joint, cols in joint_columns(session).items()
+        if joint in grades and len(grades[joint].grades) == len(cols)
+        for c, g in zip(cols, grades[joint].grades, strict=True)
+    }
     if res.angles is not None:
         time, columns = angle_table(session)
-        grades = res.calibration.grades if res.calibration is not None else {}
         joints = {}
         for joint, cols in joint_columns(session).items():
-            entry: dict[str, Any] = {"columns": {c: columns[c] for c in cols if c in columns}}
+            entry: dict[str, Any] = {
+                "columns": {
+                    c: None if graded.get(c) == GRADES[2] else columns[c]
+                    for c in cols
+                    if c in columns
+                }
+            }
             if joint in grades and len(grades[joint].grades) == len(cols):
                 entry["grades"] = dict(zip(cols, grades[joint].grades, strict=True))
                 entry["reasons"] = dict(zip(cols, grades[joint].reasons, strict=False))
@@ -274,6 +289,10 @@ def results_json(session: Session) -> dict[str, Any]:
         out["angles"] = {"time_s": time, "method": res.angles.method, "joints": joints}
     if res.metrics is not None:
         table = metrics_table(res.metrics)
+        pairs = zip(table.joint, table.angle, strict=True)
+        grade = [graded.get(f"{j}_{a}_deg", "") for j, a in pairs]
+        withheld = (np.asarray(grade) == GRADES[2]) & (table.unit != "1").to_numpy()
+        table = table.assign(value=table.value.where(~withheld), grade=grade)
         out["metrics"] = table.astype(object).where(table.notna(), None).to_dict("records")
     if res.calibration is not None:
         cal = res.calibration

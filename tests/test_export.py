@@ -76,8 +76,15 @@ def test_json_export_loads_with_grades_and_metrics(run_dir):
     assert set(knee["grades"].values()) <= {"determined", "weak", "not determined"}
     assert len(knee["columns"]["knee_r_flexion_deg"]) == len(doc["angles"]["time_s"])
     row = doc["metrics"][0]
-    assert {"block", "joint", "angle", "metric", "value", "unit"} <= set(row)
+    assert {"block", "joint", "angle", "metric", "value", "unit", "grade"} <= set(row)
     assert "validation" in doc and "sync" in doc["validation"]
+    # a measured value of an angle not determined is null, as in the CSV tables
+    for joint in doc["angles"]["joints"].values():
+        for col, grade in joint.get("grades", {}).items():
+            assert (joint["columns"][col] is None) == (grade == "not determined")
+    for r in doc["metrics"]:
+        if r["grade"] == "not determined" and r["unit"] != "1":
+            assert r["value"] is None, r
 
 
 def test_sto_round_trip_through_ingest(run_dir):
