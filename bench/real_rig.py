@@ -3,10 +3,11 @@
 The rig (``motionlab/protocols/examples/ring_rig.yaml``): seg1 free, seg2 on a ball joint, then
 hinges about x (hinge23), y (hinge34) and z (hinge45). For each IMU mounting (``imu_rigid.csv``,
 ``imu_nonrigid.csv``, 40 Hz) and for 6-D (default) and 9-D (``--magnetometer``) fusion, the
-product is run through its CLI (``python -m motionlab.cli run``) and its angle columns
-(``csv/<joint>_angles.csv``: ``<joint>_angle_deg`` for a hinge, ``<joint>_{z,x,y}_deg`` for the
-ball joint) are compared with the optical angles from ``omc.csv`` (30 Hz): ``q_rel = q_prox* ⊗
-q_dist`` decomposed with the hinge axis first (x → XYZ, y → YZX, z → ZXY; the ball joint ZXY).
+product is run through its CLI (``python -m motionlab.cli run``) and its angle columns, read
+from the run's ``session.h5`` (``<joint>_angle_deg`` for a hinge, ``<joint>_{z,x,y}_deg`` for the
+ball joint; ``csv/`` leaves an angle ``not determined`` empty, the bench measures it), are
+compared with the optical angles from ``omc.csv`` (30 Hz): ``q_rel = q_prox* ⊗ q_dist``
+decomposed with the hinge axis first (x → XYZ, y → YZX, z → ZXY; the ball joint ZXY).
 
 Clock: one offset per mounting, first from the gyroscope speeds ‖ω‖ of all five IMUs against
 the optical angular speeds (search ±0.2 s, ``validation.joint_reference.fit_clock_offset``), then
@@ -37,6 +38,7 @@ Usage (from the repository root)::
 from __future__ import annotations
 
 import argparse
+import functools
 import os
 import subprocess
 import sys
@@ -142,14 +144,23 @@ def run_product(
     return outdir / "csv", ""
 
 
+@functools.cache
+def _run_angles(session_path: Path) -> dict[str, np.ndarray]:
+    """The angle columns the run computed, ``time_s`` among them (from its session file)."""
+    from motionlab.session import load_session
+
+    table = load_session(session_path).results.angles
+    return {c: np.asarray(v, float) for c, v in table.columns().items()}
+
+
 def product_column(csv_dir: Path, column: str) -> tuple[np.ndarray, np.ndarray] | None:
-    """(time_s, values) of an angle column from the run's CSV tables, or None."""
-    for path in sorted(csv_dir.glob("*.csv")):
-        head = pd.read_csv(path, nrows=0).columns
-        if column in head and "time_s" in head:
-            df = pd.read_csv(path, usecols=["time_s", column])
-            return df["time_s"].to_numpy(float), df[column].to_numpy(float)
-    return None
+    """(time_s, values) of an angle column as the run computed it, or None: read from its
+    session file, as the CSV tables leave an angle ``not determined`` empty and the bench
+    measures it anyway (its grade beside it)."""
+    angles = _run_angles(csv_dir.parent / "session.h5")
+    if column not in angles:
+        return None
+    return angles["time_s"], angles[column]
 
 
 def grades(csv_dir: Path | None) -> dict[str, str]:
