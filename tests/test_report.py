@@ -741,3 +741,28 @@ def test_out_of_plane_csv_has_its_header_without_rows(tmp_path):
     assert frame.empty
     write_frame(frame, tmp_path / "oop.csv")
     assert list(pd.read_csv(tmp_path / "oop.csv").columns) == list(OUT_OF_PLANE_COLUMNS)
+
+
+def test_a_joint_with_no_angle_determined_gets_no_empty_plots():
+    """The real full-body arm (every elbow angle not determined) printed five pages of empty
+    'not determined: not drawn' plots: such a joint keeps its range-of-motion table (each row
+    saying so) and one line, and no left-right page compares nothing."""
+    from motionlab.report.pages_joint import joint_pages, symmetry_page
+
+    view = _graded_view()
+    view.session.results.calibration.grades["knee_r"] = JointGrades(
+        ["not determined"] * 3, [NOT_WHY] * 3
+    )
+    with matplotlib.rc_context(RC):
+        doc = Document("motionlab report · test", "subject X")
+        joint_pages(doc, view)
+        pages = list(doc.pages)
+        text = " ".join(page_text(f) for f in pages)
+        right = [f for f in pages if "Right knee" in page_text(f)]
+        doc = Document("motionlab report · test", "subject X")
+        symmetry_page(doc, view)
+        compared = " ".join(page_text(f) for f in doc.pages)
+    assert "No angle of the right knee was determined by this recording" in text
+    assert right and all(not f.axes for f in right)
+    assert "Left knee angles over the recording" in text  # the determined side is drawn
+    assert "left-right comparison" not in compared

@@ -278,9 +278,25 @@ def _cycle_pages(doc: Document, view: SessionView, joint) -> None:
             )
 
 
+def _none_determined(view: SessionView, joint) -> bool:
+    """Whether the recording determined none of ``joint``'s angles (nothing to draw)."""
+    grades = angle_grades(view)
+    return all(grades.get(col, ("determined", ""))[0] == NOT_DETERMINED
+               for _, col in angle_columns(joint))  # fmt: skip
+
+
 def joint_pages(doc: Document, view: SessionView) -> None:
-    """The time and cycle pages of every joint of the protocol."""
+    """The time and cycle pages of every joint of the protocol; a joint whose angles are all
+    not determined gets its range-of-motion table (every row saying so) and no empty plots."""
     for joint in view.joints():
+        if _none_determined(view, joint):
+            doc.section(
+                joint_title(joint),
+                f"No angle of the {joint_title(joint).lower()} was determined by this recording: "
+                "none is drawn (why, and what to record next time: the calibration page).",
+            )
+            _rom_table(doc, view, joint)
+            continue
         doc.section(
             joint_title(joint),
             f"{joint_title(joint)} angles over the recording in the three planes (degrees; "
@@ -303,6 +319,11 @@ def symmetry_page(doc: Document, view: SessionView) -> None:
     for jtype, sides in pairs.items():
         if "r" not in sides or "l" not in sides:
             continue
+        grades = angle_grades(view)
+        if not any(all(grades.get(angle_columns(sides[x])[i][1], ("determined", ""))[0]
+                       != NOT_DETERMINED for x in "rl")
+                   for i in range(len(angle_columns(sides["r"])))):  # fmt: skip
+            continue  # no angle determined on both sides: nothing to compare
         doc.section(
             f"{joint_type_title(jtype)}: left-right comparison",
             "Mean cycle curves of both sides. Symmetry index SI = 100 × (right − left) / mean of "
