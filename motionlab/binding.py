@@ -85,8 +85,10 @@ def check_joints(protocol: Protocol, session: Session, path: object = None) -> N
 
 def sensed_protocol(protocol: Protocol, session: Session) -> Protocol:
     """The protocol without the joints that use an optional segment with no sensor (the walk
-    protocol's hips when the pelvis sensor is left off); the protocol itself when no joint is
-    dropped. Segments stay (calibration steps may name them; a missing optional one is skipped
+    protocol's hips when the pelvis sensor is left off) and without the calibration steps that
+    name only such segments (a left knee's flexion step when only the right leg was recorded:
+    it was asked for and, not found, refused the recording); the protocol itself when nothing
+    is dropped. Segments stay (other steps may name them; a missing optional one is skipped
     there as before)."""
     missing = {
         seg
@@ -100,9 +102,15 @@ def sensed_protocol(protocol: Protocol, session: Session) -> Protocol:
         for k, j in protocol.joints.items()
         if j.proximal not in missing and j.distal not in missing
     }
-    if len(joints) == len(protocol.joints):
+    steps = [s for s in protocol.calibration if not (_named(s) and _named(s) <= missing)]
+    if len(joints) == len(protocol.joints) and len(steps) == len(protocol.calibration):
         return protocol
-    return dataclasses.replace(protocol, joints=joints)  # segments kept: steps may name them
+    return dataclasses.replace(protocol, joints=joints, calibration=steps)
+
+
+def _named(step) -> set[str]:
+    """The segments a calibration step names (its axes, vertical and horizontal, segments)."""
+    return {*step.vertical_axis, *step.horizontal_axis, *step.segments, *step.axis}
 
 
 def signals_from_orientation(

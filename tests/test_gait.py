@@ -275,6 +275,30 @@ def test_walk_without_pelvis_drops_the_hips():
     assert sensed_protocol(load_protocol("knee"), session) is not None
 
 
+def test_a_step_of_only_unrecorded_optional_segments_is_not_asked_for(tmp_path):
+    """A copy of the knee protocol with the left leg optional, run on a right-leg recording,
+    was refused for its 'knee_flexion_l' step not found: the step names only the left leg's
+    segments, which have no sensor, and is dropped with the left knee."""
+    from motionlab.binding import sensed_protocol
+    from motionlab.protocol import PACKAGED
+    from motionlab.simulate import simulate
+
+    text = (PACKAGED / "knee.yaml").read_text()
+    for seg in ("thigh_l", "shank_l"):
+        text = text.replace(
+            f"  {seg}:\n    side: l\n", f"  {seg}:\n    side: l\n    required: false\n"
+        )
+    (tmp_path / "knee_r.yaml").write_text(text)
+    proto = load_protocol(tmp_path / "knee_r.yaml")
+    session, _ = simulate(load_protocol("walk"), 20.0, 0, "clean", rate_hz=25.0)
+    for label in ("thigh_l", "shank_l"):
+        del session.sensors[label]
+    reduced = sensed_protocol(proto, session)
+    names = [s.name for s in reduced.calibration]
+    assert "knee_flexion_l" not in names and "knee_flexion_r" in names and "standing" in names
+    assert "knee_l" not in reduced.joints and "knee_r" in reduced.joints
+
+
 def _hand_table(reject_left: int | None = None):
     """Right contacts every 1.0 s, left ones 0.45 s later (step times 0.55 and 0.45 s)."""
     ic_r = np.arange(0, 10) * 1.0
