@@ -741,6 +741,9 @@ def test_out_of_plane_csv_has_its_header_without_rows(tmp_path):
     assert frame.empty
     write_frame(frame, tmp_path / "oop.csv")
     assert list(pd.read_csv(tmp_path / "oop.csv").columns) == list(OUT_OF_PLANE_COLUMNS)
+    # one layout whatever the metrics (the hostile-input audit: walk, arm and trunk runs gave
+    # three different headers)
+    assert list(out_of_plane_frame(_graded_view()).columns) == list(OUT_OF_PLANE_COLUMNS)
 
 
 def test_a_joint_with_no_angle_determined_gets_no_empty_plots():

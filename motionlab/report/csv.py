@@ -115,8 +115,11 @@ def _or_nan(value: float | None) -> float:
 #: out-of-plane columns that are settings or counts, not measured angles: kept whatever the grade
 _SETTINGS = ("threshold_deg", "count_n")
 
-#: the columns every out-of-plane row has
-OUT_OF_PLANE_COLUMNS = ("metric", "task", "joint", "angle", "value_deg", "grade")
+#: the columns of out_of_plane.csv, whatever the protocol (a row fills those of its metric)
+OUT_OF_PLANE_COLUMNS = ("metric", "task", "joint", "angle", "value_deg", "sd_deg", "min_deg",
+                        "max_deg", "mean_deg", "threshold_deg", "above_threshold_pct",
+                        "count_n", "of_moving_angle_pct", "moving_angle_rom_deg",
+                        "without_calibration_deg", "calibration_change_pct", "grade")  # fmt: skip
 
 
 def out_of_plane_frame(view: SessionView) -> pd.DataFrame:
@@ -199,8 +202,10 @@ def out_of_plane_frame(view: SessionView) -> pd.DataFrame:
                     without_calibration_deg=_or_nan(e.nominal_rom_deg),
                     calibration_change_pct=_or_nan(e.change_pct),
                 )
-    # a protocol with none of these metrics (a rig's hinges) still gets the table's header
-    return pd.DataFrame(rows, columns=None if rows else list(OUT_OF_PLANE_COLUMNS))
+    # one layout for every protocol (a batch stacks them), an empty cell where a metric has no
+    # such number; a protocol with none of these metrics (a rig's hinges) gets the header
+    extra = [k for r in rows for k in r if k not in OUT_OF_PLANE_COLUMNS]
+    return pd.DataFrame(rows, columns=[*OUT_OF_PLANE_COLUMNS, *dict.fromkeys(extra)])
 
 
 def quality_frame(view: SessionView) -> pd.DataFrame:
