@@ -681,6 +681,9 @@ def resolve_protocol_path(path: str | Path) -> Path:
     if p.suffix in ("", ".yaml") and packaged.is_file() and not p.parent.parts[1:]:
         return packaged
     check_regular(p)  # a FIFO or device given as the protocol: said so, never opened
+    if p.is_symlink() and not p.exists():  # a link to nowhere, or to itself (a loop)
+        raise InputError("is a symbolic link that leads nowhere (or back to itself)", p,
+                         remedy="give the protocol file's own path")  # fmt: skip
     raise InputError(
         "no such protocol file", p, remedy=f"give a path or one of {', '.join(list_protocols())}"
     )
