@@ -38,6 +38,7 @@ from motionlab.qc import (
     damage_checked,
     gyr_unit_problem,
     mark_identical_streams,
+    swapped_problem,
 )
 from motionlab.sensor_map import SensorMap, load_sensor_map, unmatched_place
 from motionlab.session import MarkerSet, SensorStream, Session
@@ -355,10 +356,12 @@ def _check_units(stream: SensorStream, path: Path) -> None:
     accelerometer and every threshold in m/s² would be off) and a gyroscope whose rotation fits
     the accelerometer's tilt only in another unit (``qc["flags"]["gyr_unit_mismatch"]``,
     :func:`motionlab.qc.gyr_scale`): every orientation would turn 57.3 times too fast or too
-    slow."""
+    slow; then an accelerometer that varies where the gyroscope reads the sensor still (the two
+    channels swapped, :func:`motionlab.qc.swapped_problem`)."""
     problem = acc_unit_problem(stream)
     if problem is None and stream.qc["flags"].get("gyr_unit_mismatch"):
         problem = gyr_unit_problem(stream)
+    problem = problem or swapped_problem(stream)
     if problem:
         raise InputError(problem[0], path, f"sensor {stream.label}", problem[1])
 

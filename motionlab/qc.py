@@ -66,6 +66,10 @@ MAG_RANGE_UT = (20.0, 70.0)
 ACC_REST_RANGE = (7.8, 11.8)  # m/s²
 #: ‖a‖ at rest outside this (and not in g) is no accelerometer on Earth in m/s²: refused
 ACC_REST_REFUSE = (3.0, 50.0)  # m/s²
+#: ‖a‖'s interquartile range / median over the samples the gyroscope calls still, above which
+#: the accelerometer is not measuring gravity there (real recordings ≤ 0.032, simulated
+#: ≤ 0.057; accelerometer and gyroscope columns swapped: 1.4-4.1): refused
+ACC_REST_SPREAD_MAX = 0.5
 JITTER_LIMIT = 0.1  # relative to the nominal interval
 REST_GYR = 0.2  # rad/s: below this the sensor is taken to be at rest
 HELD_SHARE = 0.2  # share of rows repeating the previous one above which samples are "held"
@@ -350,17 +354,37 @@ def acc_unit_problem(stream: SensorStream) -> tuple[str, str] | None:
     flags = stream.qc.get("flags", {})
     g = stream.qc.get("acc_rest_norm", float("nan"))
     read = stream.source_units.get("acc", "m/s^2")
-    if flags.get("acc_looks_like_g"):
+    if flags.get("acc_looks_like_g") and read != "g":
         return (f"|a| at rest is {g:.2f} m/s² (read as {read}), where 1 g is 9.81: the "
                 "accelerometer is in g",
                 "check the export's accelerometer unit (a column map says it as "
                 "acc: {unit: g})")  # fmt: skip
-    if np.isfinite(g) and not ACC_REST_REFUSE[0] <= g <= ACC_REST_REFUSE[1]:
+    beyond = np.isfinite(g) and not ACC_REST_REFUSE[0] <= g <= ACC_REST_REFUSE[1]
+    if (flags.get("acc_looks_like_g") or beyond) and read == "g":
+        return (f"|a| at rest is {g:.3g} m/s² (read as g), not ≈ 9.81: the accelerometer does "
+                "not measure gravity — are its columns another channel's (the gyroscope's)?",
+                "check the export's columns and units")  # fmt: skip
+    if beyond:
         return (f"|a| at rest is {g:.3g} m/s² (read as {read}), not ≈ 9.81: a wrong unit or "
                 "scale",
                 "check the export's accelerometer unit (a column map says it as "
                 "acc: {unit: m/s^2} or g)")  # fmt: skip
     return None
+
+
+def swapped_problem(stream: SensorStream) -> tuple[str, str] | None:
+    """``(what, remedy)`` when the accelerometer's ‖a‖ varies where the gyroscope reads the
+    sensor still (``qc["acc_rest_spread"]`` above :data:`ACC_REST_SPREAD_MAX`): the two
+    channels swapped (the ingest refuses it, after the units' checks, whose findings say
+    more); else ``None``."""
+    spread = stream.qc.get("acc_rest_spread", 0.0)
+    if spread <= ACC_REST_SPREAD_MAX:
+        return None
+    return (f"|a| varies by {100 * spread:.0f} % (interquartile range) where the gyroscope "
+            "reads the sensor still: the accelerometer does not measure gravity there — are "
+            "the accelerometer and gyroscope columns swapped?",
+            "check the export's columns (a column map names them as acc: {columns: [...]} "
+            "and gyr: {columns: [...]})")  # fmt: skip
 
 
 def gyr_unit_problem(stream: SensorStream) -> tuple[str, str] | None:
@@ -465,6 +489,9 @@ def check_stream(stream: SensorStream, gap_max: float) -> dict[str, Any]:
         use = rest if rest is not None and rest.sum() >= 10 else np.isfinite(a)
         g = _median(a[use]) if use.any() else float("nan")
         qc["acc_rest_norm"] = g
+        if rest is not None and np.isfinite(a[rest]).sum() >= 10 and g > 0:
+            q1, q3 = np.nanpercentile(a[rest], [25, 75])
+            qc["acc_rest_spread"] = float((q3 - q1) / g)
         flags["acc_looks_like_g"] = bool(0.5 <= g <= 2.0)
         flags["acc_norm_implausible"] = not (
             flags["acc_looks_like_g"] or ACC_REST_RANGE[0] <= g <= ACC_REST_RANGE[1]

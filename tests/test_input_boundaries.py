@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import os
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import ezc3d
@@ -414,3 +415,39 @@ def test_an_optical_file_of_one_frame_says_so(tmp_path):
     trc = (DATA / "c3d" / "markers_20frames.trc").read_text().splitlines()
     (tmp_path / "one.trc").write_text("\n".join(trc[:7]) + "\n")
     refused(cli(tmp_path, "ingest", "one.trc", "-o", "o.h5"), "1 frame: too few to follow a marker")
+
+
+def test_accelerometer_and_gyroscope_columns_swapped_are_refused(tmp_path):
+    """The hostile-input audit swapped an x-io export's accelerometer and gyroscope columns: it
+    ingested with no word (its gyroscope then read a constant 1 °/s, its 'accelerometer' the
+    rates ×9.81). Where the gyroscope reads the sensor still, ‖a‖ must be steady (real
+    recordings: interquartile range ≤ 3.2 % of the median, simulated ≤ 5.7 %)."""
+    from motionlab import qc
+    from motionlab.simulate import simulate
+
+    session, _ = simulate("knee", duration=170.0, seed=0, rate_hz=50.0)
+    s = session.sensors["shank_r"]
+    (tmp_path / "in.csv").write_text(
+        "t,ax,ay,az,gx,gy,gz\n"
+        + "\n".join(
+            f"{t:.4f}," + ",".join(f"{v:.6f}" for v in (*np.degrees(g), *a / 9.80665))
+            for t, a, g in zip(s.time, s.acc, s.gyr, strict=True)
+        )  # fmt: skip
+    )
+    reader = {"format": "generic", "label": "shank", "time": "t",
+              "acc": {"columns": ["ax", "ay", "az"], "unit": "g"},
+              "gyr": {"columns": ["gx", "gy", "gz"], "unit": "deg/s"}}  # fmt: skip
+    (tmp_path / "map.yaml").write_text(json.dumps({"reader": reader}))
+    line = refused(cli(tmp_path, "ingest", "in.csv", "--map", "map.yaml", "-o", "s.h5"))
+    assert "columns swapped?" in line or "another channel's (the gyroscope's)" in line, line
+    assert not (tmp_path / "s.h5").exists()
+    found = qc.check_stream(s, 0.1)["acc_rest_spread"]  # the same sensor as recorded
+    assert found < 0.1 and qc.swapped_problem(replace(s, qc={"acc_rest_spread": found})) is None
+    # the audit's case: the rates, read as g, happen to give ‖a‖ ≈ 9.81 at the median, so only
+    # their spread where the (swapped) gyroscope reads still tells
+    rates = np.degrees(s.gyr)
+    rates *= 1.0 / np.median(np.linalg.norm(rates, axis=1))
+    swapped = replace(s, acc=rates * 9.80665, gyr=np.radians(s.acc / 9.80665))
+    swapped = replace(swapped, qc=qc.check_stream(swapped, 0.1))
+    assert 9.0 < swapped.qc["acc_rest_norm"] < 11.0 and qc.acc_unit_problem(swapped) is None
+    assert "columns swapped?" in qc.swapped_problem(swapped)[0]
