@@ -12,6 +12,8 @@ A protocol is a YAML file (``protocols/*.yaml``; copy one and edit it). Schema::
         sensor_axes: [x, y, z]          # optional nominal sensor axes in segment axes (see below)
         landmarks: [GT_r, LE_r, ME_r]   # optional anatomical landmarks (marker names)
         required: true                  # false for optional sensors (e.g. a lumbar sensor)
+        any_orientation: false          # true: the sensor may sit any way round (sensor_axes
+                                        #   is a default; the data decide without a warning)
     calibration:                        # steps in the order the subject performs them
       - name: standing
         kind: static                    # static | functional
@@ -101,7 +103,7 @@ AXES = {"x": 0, "y": 1, "z": 2}
 #: the keys each part of a protocol may hold (anything else is a typo: an error with a hint)
 TOP_KEYS = ("name", "title", "purpose", "segments", "calibration", "joints", "tasks",
             "normative", "metrics", "thresholds", "source")  # fmt: skip
-SEGMENT_KEYS = ("side", "placement", "sensor_axes", "landmarks", "required")
+SEGMENT_KEYS = ("side", "placement", "sensor_axes", "landmarks", "required", "any_orientation")
 #: s: the longest calibration step or task a protocol may ask for (a day)
 MAX_DURATION_S = 86400.0
 STEP_KEYS = ("name", "kind", "pose", "duration_s", "vertical_axis", "horizontal_axis",
@@ -120,6 +122,9 @@ class Segment:
     sensor_axes: tuple[str, str, str] = ("x", "y", "z")
     landmarks: list[str] = field(default_factory=list)
     required: bool = True
+    #: the sensor may sit in any orientation: ``sensor_axes`` is only a default, and a pose
+    #: that finds it otherwise is no warning
+    any_orientation: bool = False
 
     def nominal_mounting(self) -> np.ndarray:
         """3×3 matrix: columns are the sensor axes in segment coordinates (nominal placement)."""
@@ -386,6 +391,7 @@ def _segments(r: _Reader, doc: dict) -> dict[str, Segment]:
                 for v in r.get(spec, "landmarks", where, list, False, [])
             ],
             required=r.get(spec, "required", where, bool, False, True),
+            any_orientation=r.get(spec, "any_orientation", where, bool, False, False),
         )
     if not segments:
         r.fail("segments", doc.lines.get("segments"), "is empty", "name at least one segment")

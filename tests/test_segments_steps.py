@@ -186,6 +186,17 @@ def test_a_contradicted_hint_gives_one_warning_and_the_data_is_used(knee):
     )
 
 
+def test_a_sensor_that_may_sit_any_way_round_is_no_warning():
+    """The walk protocol's sensors go 'anywhere, any orientation': the real full-body walk and
+    arm reports listed every sensor that did not point as the default hint under 'what to
+    repeat next time'. A segment marked any_orientation gives no such warning."""
+    walk = load_protocol("walk")
+    assert all(s.any_orientation for s in walk.segments.values())
+    warnings: list[str] = []
+    find_steps(_stand_then_walk(up_axis=0), walk, warnings)
+    assert not any("points up in the" in w for w in warnings), warnings
+
+
 def test_a_nan_span_in_one_sensor_does_not_hide_the_rests_and_movements():
     streams = _stand_then_walk(up_axis=1)
     t, acc, gyr = streams["thigh_r"]

@@ -282,10 +282,11 @@ def _axis_words(v: np.ndarray) -> str:
 
 
 def placement_warnings(step: CalibrationStep, block: Block, protocol: Protocol) -> list[str]:
-    """One warning per segment whose measured vertical axis in ``block`` contradicts the hint."""
+    """One warning per segment whose measured vertical axis in ``block`` contradicts the hint
+    (not for a segment whose sensor may sit in any orientation: there the hint is a default)."""
     out = []
     for seg, axis in step.vertical_axis.items():
-        if seg not in block.up:
+        if seg not in block.up or protocol.segments[seg].any_orientation:
             continue
         nominal_up = protocol.segments[seg].nominal_mounting().T @ axis_vector(axis)
         if np.degrees(np.arccos(np.clip(nominal_up @ block.up[seg], -1, 1))) > POSE_TOLERANCE_DEG:
