@@ -769,3 +769,17 @@ def test_a_joint_with_no_angle_determined_gets_no_empty_plots():
     assert right and all(not f.axes for f in right)
     assert "Left knee angles over the recording" in text  # the determined side is drawn
     assert "left-right comparison" not in compared
+
+
+def test_a_message_shared_by_segments_is_one_line():
+    """The real full-body arm listed each elbow's two-axis fit verdict twice, once for the upper
+    arm and once for the forearm, among 'what to repeat next time'."""
+    from motionlab.report.pages_quality import merged_messages
+
+    why = "the elbow_r axis from the movement is not determined: the axes differ by up to 10°"
+    assert merged_messages(
+        [f"upperarm_r: {why}", "forearm_r: no axis of it was measured", f"forearm_r: {why}"]
+    ) == [  # fmt: skip
+        f"upperarm_r, forearm_r: {why}",
+        "forearm_r: no axis of it was measured",
+    ]

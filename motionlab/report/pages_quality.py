@@ -318,9 +318,9 @@ def calibration_page(doc: Document, view: SessionView) -> None:
     _grades_table(doc, view)
     _hinges_table(doc, view)
     _hip_axes_table(doc, view)
-    messages = [str(w) for w in cal.warnings] + [
-        m for res in cal.segments.values() for m in (res.quality.messages if res.quality else [])
-    ]
+    messages = [str(w) for w in cal.warnings] + merged_messages(
+        [m for res in cal.segments.values() for m in (res.quality.messages if res.quality else [])]
+    )
     doc.heading("Warnings and what to repeat next time")
     doc.bullets(messages or ["none: every segment was calibrated within the quality limits"])
     doc.paragraph(
@@ -335,6 +335,19 @@ def calibration_page(doc: Document, view: SessionView) -> None:
         size=SIZE["small"],
         colour=MUTED,
     )
+
+
+def merged_messages(messages: list[str]) -> list[str]:
+    """Segment messages (``"<segment>: <text>"``) with one line per text: the segments that
+    share it named together (a two-axis fit's verdict was said once for each of its segments),
+    in the order they first appear."""
+    segments: dict[str, list[str]] = {}
+    for m in messages:
+        seg, sep, text = m.partition(": ")
+        key = text if sep else m
+        segments.setdefault(key, []).append(seg if sep else "")
+    return [f"{', '.join(dict.fromkeys(s))}: {text}" if any(s) else text
+            for text, s in segments.items()]  # fmt: skip
 
 
 def calibration_cells(r: CalibrationRow) -> tuple[list[str], list[bool]]:
