@@ -67,9 +67,10 @@ ACC_REST_RANGE = (7.8, 11.8)  # m/s²
 #: ‖a‖ at rest outside this (and not in g) is no accelerometer on Earth in m/s²: refused
 ACC_REST_REFUSE = (3.0, 50.0)  # m/s²
 #: ‖a‖'s interquartile range / median over the samples the gyroscope calls still, above which
-#: the accelerometer is not measuring gravity there (real recordings ≤ 0.032, simulated
-#: ≤ 0.057; accelerometer and gyroscope columns swapped: 1.4-4.1): refused
+#: the accelerometer is not measuring gravity there (real recordings ≤ 0.018, simulated
+#: ≤ 0.057; accelerometer and gyroscope columns swapped: 1.1-4.1): refused …
 ACC_REST_SPREAD_MAX = 0.5
+STILL_S = 0.5  # s: … over the runs of still samples at least this long
 JITTER_LIMIT = 0.1  # relative to the nominal interval
 REST_GYR = 0.2  # rad/s: below this the sensor is taken to be at rest
 HELD_SHARE = 0.2  # share of rows repeating the previous one above which samples are "held"
@@ -346,6 +347,19 @@ def _turns_too_little(found: dict[str, Any]) -> bool:
     return found["tilt_deg"] >= SCALE_TURN_TILT_DEG and ratio < SCALE_TURN_MIN
 
 
+def _still(rest: np.ndarray | None, t: np.ndarray) -> np.ndarray | None:
+    """The samples of ``rest`` (the gyroscope below :data:`REST_GYR`) in runs of at least
+    :data:`STILL_S`: a sensor held still, not a limb's rate passing through zero (a running
+    shank's stance, where ‖a‖ still carries the impact)."""
+    if rest is None or len(t) < 2:
+        return None
+    still = np.zeros(len(rest), bool)
+    for a, b in runs(rest):
+        if t[b - 1] - t[a] >= STILL_S:
+            still[a:b] = True
+    return still
+
+
 def acc_unit_problem(stream: SensorStream) -> tuple[str, str] | None:
     """``(what, remedy)`` for one line when the accelerometer's ‖a‖ at rest (``qc
     ["acc_rest_norm"]``) cannot be gravity in m/s²: in g (0.5-2) or outside
@@ -489,8 +503,9 @@ def check_stream(stream: SensorStream, gap_max: float) -> dict[str, Any]:
         use = rest if rest is not None and rest.sum() >= 10 else np.isfinite(a)
         g = _median(a[use]) if use.any() else float("nan")
         qc["acc_rest_norm"] = g
-        if rest is not None and np.isfinite(a[rest]).sum() >= 10 and g > 0:
-            q1, q3 = np.nanpercentile(a[rest], [25, 75])
+        still = _still(rest, t)
+        if still is not None and np.isfinite(a[still]).sum() >= 10 and g > 0:
+            q1, q3 = np.nanpercentile(a[still], [25, 75])
             qc["acc_rest_spread"] = float((q3 - q1) / g)
         flags["acc_looks_like_g"] = bool(0.5 <= g <= 2.0)
         flags["acc_norm_implausible"] = not (

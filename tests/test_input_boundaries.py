@@ -420,8 +420,8 @@ def test_an_optical_file_of_one_frame_says_so(tmp_path):
 def test_accelerometer_and_gyroscope_columns_swapped_are_refused(tmp_path):
     """The hostile-input audit swapped an x-io export's accelerometer and gyroscope columns: it
     ingested with no word (its gyroscope then read a constant 1 °/s, its 'accelerometer' the
-    rates ×9.81). Where the gyroscope reads the sensor still, ‖a‖ must be steady (real
-    recordings: interquartile range ≤ 3.2 % of the median, simulated ≤ 5.7 %)."""
+    rates ×9.81). Where the gyroscope reads the sensor still for 0.5 s, ‖a‖ must be steady
+    (real recordings: interquartile range ≤ 1.8 % of the median, simulated ≤ 5.7 %)."""
     from motionlab import qc
     from motionlab.simulate import simulate
 
