@@ -145,10 +145,9 @@ def check_output(path: str | Path, force: bool, inputs: Iterable[str | Path | No
     ``inputs`` are the command's input files and folders: an output naming one of them, or
     inside an input folder, is refused even with ``force``.
     """
-    path = Path(path)
+    path, inputs = Path(path), list(inputs)
     refuse_input_as_output(path, inputs)
-    inputs = list(inputs)
-    refuse_folder_in_input_folder(path.parent if str(path.parent) else Path("."), inputs)
+    refuse_folder_in_input_folder(path.parent, inputs)
     if path.exists() and not force:
         raise InputError(
             "output exists", path, remedy="use force=True to replace it", argument="force"

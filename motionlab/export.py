@@ -41,7 +41,7 @@ from motionlab.kinematics.segment_types import opensim_imu_name
 from motionlab.plain import plain
 from motionlab.protocol import load_protocol
 from motionlab.results import OpticalSync, SegmentCalibration
-from motionlab.segments.grades import GRADES
+from motionlab.segments.grades import NOT_DETERMINED, graded_table, trunk_grade
 from motionlab.session import MarkerSet, ModelOutput, Session
 
 FORMATS = ("sto", "mot", "c3d", "json")
@@ -277,7 +277,7 @@ def results_json(session: Session) -> dict[str, Any]:
         for joint, cols in joint_columns(session).items():
             entry: dict[str, Any] = {
                 "columns": {
-                    c: None if graded.get(c) == GRADES[2] else columns[c]
+                    c: None if graded.get(c) == NOT_DETERMINED else columns[c]
                     for c in cols
                     if c in columns
                 }
@@ -288,11 +288,7 @@ def results_json(session: Session) -> dict[str, Any]:
             joints[joint] = entry
         out["angles"] = {"time_s": time, "method": res.angles.method, "joints": joints}
     if res.metrics is not None:
-        table = metrics_table(res.metrics)
-        pairs = zip(table.joint, table.angle, strict=True)
-        grade = [graded.get(f"{j}_{a}_deg", "") for j, a in pairs]
-        withheld = (np.asarray(grade) == GRADES[2]) & (table.unit != "1").to_numpy()
-        table = table.assign(value=table.value.where(~withheld), grade=grade)
+        table = graded_table(metrics_table(res.metrics), graded, trunk_grade(res.calibration))
         out["metrics"] = table.astype(object).where(table.notna(), None).to_dict("records")
     if res.calibration is not None:
         cal = res.calibration

@@ -40,7 +40,7 @@ def command(
 
     from motionlab import stages
     from motionlab.lock import session_lock
-    from motionlab.segments.grades import column_grades
+    from motionlab.segments.grades import NOT_DETERMINED, column_grades
     from motionlab.session import load_session, save_session
 
     if csv_path:
@@ -59,7 +59,7 @@ def command(
         grades = column_grades(protocol, ses.results.calibration) if not no_calibration else {}
         if csv_path:  # an angle not determined is an empty column, as in run's csv/
             columns = {
-                c: np.where(grades.get(c) == "not determined", np.nan, v)
+                c: np.where(grades.get(c) == NOT_DETERMINED, np.nan, v)
                 for c, v in table.columns().items()
             }
             with atomic_path(csv_path, force=force) as tmp:

@@ -278,11 +278,14 @@ def _cycle_pages(doc: Document, view: SessionView, joint) -> None:
             )
 
 
+def _determined(view: SessionView, col: str) -> bool:
+    """Whether the angle column ``col`` is not ``not determined`` (weak counts: it is drawn)."""
+    return angle_grades(view).get(col, ("determined", ""))[0] != NOT_DETERMINED
+
+
 def _none_determined(view: SessionView, joint) -> bool:
     """Whether the recording determined none of ``joint``'s angles (nothing to draw)."""
-    grades = angle_grades(view)
-    return all(grades.get(col, ("determined", ""))[0] == NOT_DETERMINED
-               for _, col in angle_columns(joint))  # fmt: skip
+    return not any(_determined(view, col) for _, col in angle_columns(joint))
 
 
 def joint_pages(doc: Document, view: SessionView) -> None:
@@ -319,10 +322,8 @@ def symmetry_page(doc: Document, view: SessionView) -> None:
     for jtype, sides in pairs.items():
         if "r" not in sides or "l" not in sides:
             continue
-        grades = angle_grades(view)
-        if not any(all(grades.get(angle_columns(sides[x])[i][1], ("determined", ""))[0]
-                       != NOT_DETERMINED for x in "rl")
-                   for i in range(len(angle_columns(sides["r"])))):  # fmt: skip
+        pairs = zip(angle_columns(sides["r"]), angle_columns(sides["l"]), strict=True)
+        if not any(_determined(view, r) and _determined(view, l) for (_, r), (_, l) in pairs):
             continue  # no angle determined on both sides: nothing to compare
         doc.section(
             f"{joint_type_title(jtype)}: left-right comparison",

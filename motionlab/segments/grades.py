@@ -65,6 +65,7 @@ if TYPE_CHECKING:
     from motionlab.results import HingeFit, SegmentCalibration, SegmentRecord
 
 GRADES = ("determined", "weak", "not determined")
+NOT_DETERMINED = GRADES[2]
 FULL_FRAME = ("procrustes", "primary_secondary")
 CROSSTALK_DEG = (3.0, 6.0)  # determined up to, weak up to (deg of flexion in the other planes)
 AXIS_FLOOR_DEG = 5.0  # a walk-calibrated knee axis is never known better than this
@@ -315,20 +316,28 @@ def column_grades(protocol, calibration: SegmentCalibration | None) -> dict[str,
 
 
 def with_grades(table, protocol, calibration: SegmentCalibration | None):
-    """A metrics table (:func:`motionlab.kinematics.metrics.metrics_table`, rows with ``joint``,
-    ``angle``, ``value`` and ``unit``) with each row's angle grade in a ``grade`` column
-    (:func:`column_grades`; the trunk's rows the thorax frame's grade; empty for a row of no
-    angle), as ``run``'s and the ``metrics`` command's tables carry it. A measured value of an
-    angle ``not determined`` is withheld (NaN; counts, unit ``1``, stay): the report does not
-    print it, and a table read without its grade must not show it either."""
-    grades = column_grades(protocol, calibration)
-    trunk = ""
-    if calibration is not None and calibration.grades:
-        trunk = _frame_grade("thorax", calibration.segments.get("thorax"))[0]
-    joints, angles = table["joint"], table["angle"]
+    """A metrics table (:func:`motionlab.kinematics.metrics.metrics_table`) graded by
+    :func:`graded_table` with the protocol's column grades (:func:`column_grades`), as
+    ``run``'s and the ``metrics`` command's tables carry it."""
+    return graded_table(table, column_grades(protocol, calibration), trunk_grade(calibration))
+
+
+def trunk_grade(calibration: SegmentCalibration | None) -> str:
+    """The thorax frame's grade (the trunk's own metrics); ``""`` for an ungraded calibration."""
+    if calibration is None or not calibration.grades:
+        return ""
+    return _frame_grade("thorax", calibration.segments.get("thorax"))[0]
+
+
+def graded_table(table, grades: dict[str, str], trunk: str = ""):
+    """A metrics table (rows with ``joint``, ``angle``, ``value`` and ``unit``) with each row's
+    angle grade in a ``grade`` column (``grades`` by angle column; the trunk's rows ``trunk``;
+    empty for a row of no angle). A measured value of an angle ``not determined`` is withheld
+    (NaN; counts, unit ``1``, stay): the report does not print it, and a table read without its
+    grade must not show it either."""
     graded = [
         trunk if j == "trunk" and a else grades.get(f"{j}_{a}_deg", "")
-        for j, a in zip(joints, angles, strict=True)
+        for j, a in zip(table["joint"], table["angle"], strict=True)
     ]
-    withheld = (np.asarray(graded) == "not determined") & (table["unit"] != "1").to_numpy()
+    withheld = (np.asarray(graded) == NOT_DETERMINED) & (table["unit"] != "1").to_numpy()
     return table.assign(grade=graded, value=table["value"].where(~withheld))
