@@ -3,14 +3,8 @@
 import numpy as np
 import pytest
 
-from motionlab.kinematics.cycles import (
-    Cycles,
-    find_repetitions,
-    gait_events,
-    mean_sd,
-    normalise,
-    strides,
-)
+from motionlab.kinematics import gait_events as ge
+from motionlab.kinematics.cycles import Cycles, find_repetitions, mean_sd, normalise
 
 RATE = 100.0
 
@@ -70,42 +64,6 @@ def test_normalise_and_mean_sd():
     assert nan_mean.shape == (101,) and np.isnan(nan_mean).all()
 
 
-def shank_rate(stride=1.1, n=8, seed=1):
-    """Shank sagittal rate (rad/s): the forward swing between toe-off and heel strike (zero at
-    both), a slow backward turn in stance, a toe-off dip and a heel-strike impact dip 40 ms
-    after the contact (the first local minimum after mid-swing, Aminian's heel strike)."""
-    rng = np.random.default_rng(seed)
-    t = np.arange(0, n * stride + 1.0, 1 / RATE)
-    w = np.zeros(len(t))
-    hs, to = [], []
-    for k in range(n):
-        mid = 0.5 + k * stride
-        t_to, t_hs = mid - 0.22, mid + 0.2
-        swing = (t >= t_to) & (t <= t_hs)
-        w[swing] += 5.0 * np.sin(np.pi * (t[swing] - t_to) / (t_hs - t_to))
-        stance = (t > t_hs) & (t < t_to + stride)
-        w[stance] -= 0.6 * np.sin(np.pi * (t[stance] - t_hs) / (stride - 0.42))
-        w -= 1.5 * np.exp(-0.5 * ((t - t_to) / 0.03) ** 2)
-        w -= 2.0 * np.exp(-0.5 * ((t - (t_hs + 0.04)) / 0.015) ** 2)
-        to.append(t_to)
-        hs.append(t_hs)
-    return t, w + rng.normal(0, 0.05, len(t)), np.array(hs), np.array(to)
-
-
-def test_gait_events_and_strides():
-    t, w, hs_true, to_true = shank_rate()
-    hs, to = gait_events(w, RATE)
-    assert len(hs) == len(hs_true) and len(to) == len(to_true)
-    assert np.abs(t[hs] - hs_true).max() < 0.03
-    assert np.abs(t[to] - to_true).max() < 0.03
-    s = strides(hs, to, RATE)
-    assert len(s) == len(hs_true) - 1
-    assert np.all(t[s.peak] - t[s.start] == pytest.approx(1.1 - 0.42, abs=0.04))
-    # a standing recording has no gait events
-    hs0, to0 = gait_events(np.random.default_rng(0).normal(0, 0.05, 3000), RATE)
-    assert len(hs0) == 0 and len(to0) == 0
-
-
 GAIT = """name: gait
 segments:
   thigh_r: {side: r, sensor_axes: [x, y, z]}
@@ -140,10 +98,9 @@ def test_heel_strikes_match_the_simulated_gait(tmp_path):
         t_true = sensor["sample_time"]
         omega = rot.rotate(sensor["mounting"], session.sensors[f"shank_{side}"].gyr)  # segment
         grid = np.arange(t_true[0], t_true[-1], 1 / RATE)
-        hs, _ = gait_events(np.interp(grid, t_true, omega[:, 2]), RATE)
+        found = ge.detect(grid, np.interp(grid, t_true, omega[:, 2])).ic
         contacts = truth.gait[f"ic_{side}"]
         inner = contacts[(contacts > gait["start_s"] + 2.5) & (contacts < gait["end_s"] - 2.5)]
-        found = grid[hs]
         err = np.array([found[np.argmin(np.abs(found - c))] - c for c in inner])
         assert len(inner) >= 12 and np.abs(err).max() < 0.02  # the old minimum: 0.1 s late
         knee = np.interp(found[(found > inner[0] - 0.1) & (found < inner[-1] + 0.1)], truth.time,

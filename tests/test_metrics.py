@@ -1,9 +1,12 @@
 """Metrics and out-of-plane metrics on hand-made angle curves and orientations."""
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
 from motionlab import rotations as rot
+from motionlab.kinematics import gait_events as ge
 from motionlab.kinematics import out_of_plane as oop
 from motionlab.kinematics.cycles import Cycles
 from motionlab.kinematics.joint_angles import compose
@@ -141,12 +144,13 @@ def test_compute_metrics_on_a_lumbar_table_and_csv():
     assert "out_of_plane_peak_deg" in set(df.metric)
 
 
-def test_a_walks_rom_is_over_the_strides_of_the_joints_leg(monkeypatch):
+def test_a_walks_rom_is_over_the_strides_of_the_joints_leg():
     """The real full-body walk's one task held sitting down and a seated rest between its
     walking bouts: its 'Full ROM' read 119° for a knee that flexed 77-79° per stride and 90° for
     a hip. A walk's ROM and extremes are now taken over the strides of the joint's leg (the
-    knee's own, the hip's from the knee below it); the typical range is the strides' anyway."""
-    from motionlab.kinematics import metrics as met
+    knee's own, the hip's from the knee below it); the typical range is the strides' anyway.
+    The strides are the ones the gait analysis keeps: the real full-body walk's joint pages
+    counted 45 cycles (turns and gait initiation among them) where its gait page kept 41."""
 
     protocol = load_protocol("walk")
     t = np.arange(0, 20, 1 / RATE)
@@ -160,20 +164,27 @@ def test_a_walks_rom_is_over_the_strides_of_the_joints_leg(monkeypatch):
         table |= {f"knee_{s}_flexion_deg": knee, f"knee_{s}_adduction_deg": 0 * t,
                   f"knee_{s}_rotation_deg": 0 * t, f"hip_{s}_flexion_deg": hip,
                   f"hip_{s}_adduction_deg": 0 * t, f"hip_{s}_rotation_deg": 0 * t}  # fmt: skip
-    starts = np.arange(0, 900, 100)
-    strides = Cycles(starts, starts + 60, starts + 100)
-    monkeypatch.setattr(met.cyc, "gait_events", lambda w, rate: (None, None))
-    monkeypatch.setattr(met.cyc, "strides", lambda hs, to, rate: strides)
-    omega = {f"shank_{s}": (t, 0 * t) for s in "rl"}
-    m = compute_metrics(protocol, table, {}, {"walk": (0.0, 19.99)}, {}, shank_omega=omega)
+    ic = np.arange(0.0, 9.0)  # the strides' initial contacts, s
+    walked = ge.Strides("r", ic, ic + 0.6, ic + 1.0, np.ones(9, bool), ["kept"] * 9)
+    strides = {f"shank_{s}": walked for s in "rl"}
+    m = compute_metrics(protocol, table, {}, {"walk": (0.0, 19.99)}, {}, strides=strides)
     knee_m, hip_m = m.joints["walk"]["knee_r_flexion_deg"], m.joints["walk"]["hip_l_flexion_deg"]
     # within 0.3°: the metrics' 6 Hz low-pass moves the first sample's minimum by 0.14°
     assert knee_m.rom_deg == pytest.approx(60, abs=0.3) and knee_m.max_deg < 61
     assert hip_m.rom_deg == pytest.approx(45, abs=0.3) and hip_m.max_deg < 36
     assert knee_m.repetitions == 9 and knee_m.cycle_max_mean_deg == pytest.approx(60, abs=0.1)
+    assert hip_m.repetitions == 9  # the hip's cycles are its leg's strides
+    # the strides the gait analysis rejects (a turn) are not the joints' cycles either
+    turned = replace(walked, kept=np.arange(9) < 6)
+    m = compute_metrics(protocol, table, {}, {"walk": (0.0, 19.99)}, {},
+                        strides={f"shank_{s}": turned for s in "rl"})  # fmt: skip
+    assert m.joints["walk"]["knee_r_flexion_deg"].repetitions == 6
+    assert m.joints["walk"]["hip_r_flexion_deg"].repetitions == 6
     seated = {"knee_r_flexion_deg": 95.0}  # the same angles without strides: the whole block
-    monkeypatch.setattr(met.cyc, "strides", lambda hs, to, rate: Cycles.empty())
-    m = compute_metrics(protocol, table, {}, {"walk": (0.0, 19.99)}, {}, shank_omega=omega)
+    none = replace(walked, kept=np.zeros(9, bool))
+    m = compute_metrics(protocol, table, {}, {"walk": (0.0, 19.99)}, {},
+                        strides={f"shank_{s}": none for s in "rl"})  # fmt: skip
+    assert m.joints["walk"]["knee_r_flexion_deg"].repetitions == 0
     seated_max = m.joints["walk"]["knee_r_flexion_deg"].max_deg
     assert seated_max == pytest.approx(seated["knee_r_flexion_deg"], abs=0.3)  # 6 Hz low-pass
 

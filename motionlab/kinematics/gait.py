@@ -2,9 +2,9 @@
 angles, cycle curves and the GPS/MAP (:class:`~motionlab.results.Gait`, ``session.results.gait``).
 
 Steps: the gait tasks' time ranges (``results.metrics.blocks`` of tasks whose kind is gait
-or walk) → each knee's shank sagittal angular velocity (raw gyroscope turned into the shank frame
-by the calibrated mounting) → events per side (:mod:`.gait_events`; turns from the vertical
-angular velocity of the pelvis sensor, else of the side's shank sensor) → strides and
+or walk) → events and strides per side (:func:`.session_strides.session_strides`, the strides
+the joint metrics take too: each knee's shank sagittal angular velocity, turns from the
+vertical angular velocity of the pelvis sensor, else of the side's shank sensor) →
 spatio-temporal parameters (:mod:`.spatiotemporal`) → pelvis angles relative to the walking
 direction (:mod:`.pelvis`, with a pelvis sensor) → per side the mean curve over kept strides of
 pelvis, hip and knee angles (low-passed at 6 Hz first, as the metrics take them:
@@ -19,9 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from motionlab import rotations as rot
 from motionlab.binding import sensor_for_segment
-from motionlab.kinematics import gait_events as ge
 from motionlab.kinematics import spatiotemporal as sp
 from motionlab.kinematics.cycles import CURVE_POINTS
 from motionlab.kinematics.gps import (
@@ -31,7 +29,7 @@ from motionlab.kinematics.gps import (
     movement_analysis_profile,
     variable_grades,
 )
-from motionlab.kinematics.metrics import shank_angular_velocity, smoothed
+from motionlab.kinematics.metrics import smoothed
 from motionlab.kinematics.pelvis import (
     PELVIS_COLUMNS,
     pelvis_angles,
@@ -39,6 +37,7 @@ from motionlab.kinematics.pelvis import (
     walking_heading,
 )
 from motionlab.kinematics.session_angles import session_segments
+from motionlab.kinematics.session_strides import PELVIS_SEGMENT, session_strides
 from motionlab.protocol import Protocol
 from motionlab.results import (
     Gait,
@@ -48,17 +47,7 @@ from motionlab.results import (
     StrideTable,
     TaskBlock,
 )
-from motionlab.segments.sensors import sensor_orientation
 from motionlab.session import Session, estimate_rate
-
-PELVIS_SEGMENT = "pelvis"
-
-
-def _yaw_rate(session: Session, label: str) -> tuple[np.ndarray, np.ndarray]:
-    """``(time, vertical angular velocity rad/s)`` of one sensor (earth z of its gyroscope)."""
-    s = session.sensors[label]
-    q = sensor_orientation(session, label)
-    return s.time, rot.rotate(q, s.gyr)[:, 2]
 
 
 def _leg_reach(
@@ -108,27 +97,16 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
     if not spans:
         return Gait("no gait: the protocol has no gait task, or none was found")
     cal = session.results.calibration or SegmentCalibration("")
-    omega = shank_angular_velocity(session, protocol, cal)
-    side_of = {j.distal: j.side for j in protocol.joints.values() if j.type == "knee"}
-    if not omega:
+    legs = session_strides(session, protocol, cal, spans)
+    if not legs:
         return Gait("no gait: no shank sensor under a knee joint")
     pelvis_label = sensor_for_segment(session, PELVIS_SEGMENT)
-    events, strides = {}, {}
-    for seg, (time, wz) in omega.items():
-        side = side_of[seg]
-        ev = ge.detect(time, wz)
-        label = pelvis_label or sensor_for_segment(session, seg)
-        yaw = _yaw_rate(session, label) if label else None
-        parts = [ge.strides(side, ev, yaw, span) for span in spans.values()]
-        strides[side] = ge.Strides(
-            side,
-            np.concatenate([p.ic for p in parts]),
-            np.concatenate([p.fc for p in parts]),
-            np.concatenate([p.next_ic for p in parts]),
-            np.concatenate([p.kept for p in parts]),
-            [r for p in parts for r in p.reason],
-        )
-        events[side] = GaitEvents(ev.ic, ev.ic_confidence, ev.fc, ev.fc_confidence)
+    strides = {leg.side: leg.strides for leg in legs.values()}
+    events = {
+        leg.side: GaitEvents(leg.events.ic, leg.events.ic_confidence, leg.events.fc,
+                             leg.events.fc_confidence)
+        for leg in legs.values()
+    }  # fmt: skip
     reach, speed_note = _leg_reach(session, protocol, cal)
     table = sp.stride_table(strides, events, reach)
     if not table["kept"].any():

@@ -6,11 +6,12 @@ such as ``lumbar_seated``, measures the trunk movement its calibration found, as
 without repetitions) and per angle column (degrees), from the angles low-passed at
 :data:`METRICS_LOWPASS_HZ` (:func:`smoothed`; the angle tables stay as computed):
 
-- ``rom_deg``, ``min_deg``, ``max_deg`` over the block (a gait task: over the strides of the
-  joint's leg, where there are any);
-- ``repetitions``: the cycles found — strides (heel strike to heel strike, from the shank's
-  angular velocity) for a knee in a gait task, else the repetitions of the joint's primary angle
-  (the task's ``plane`` option, else flexion; :func:`~motionlab.kinematics.cycles.
+- ``rom_deg``, ``min_deg``, ``max_deg`` over the block (a gait task: over the kept strides of
+  the joint's leg, where there are any);
+- ``repetitions``: the cycles found — for a knee or hip in a gait task the strides of its leg
+  that the gait analysis keeps (heel strike to heel strike, turns and gait initiation left out:
+  :mod:`~motionlab.kinematics.session_strides`), else the repetitions of the joint's primary
+  angle (the task's ``plane`` option, else flexion; :func:`~motionlab.kinematics.cycles.
   find_repetitions`);
 - peaks: each cycle's maximum and minimum (``cycle_max_deg``, ``cycle_min_deg``) and their mean;
 - the cycle-normalised curve, ``curve_mean_deg`` ± ``curve_sd_deg`` at 0, 1, …, 100 %.
@@ -39,16 +40,17 @@ from motionlab import rotations as rot
 from motionlab.dsp import butter, padlen, sosfiltfilt
 from motionlab.errors import InputError
 from motionlab.kinematics import cycles as cyc
+from motionlab.kinematics import gait_events as ge
 from motionlab.kinematics import out_of_plane as oop
 from motionlab.kinematics.joint_types import angle_columns, split_column
 from motionlab.kinematics.session_angles import angle_table, nominal_calibration
+from motionlab.kinematics.session_strides import session_strides
 from motionlab.protocol import Joint, Protocol, Task
 from motionlab.results import (
     AngleMetrics,
     CrossTalk,
     Metrics,
     OutOfPlaneOffset,
-    SegmentCalibration,
     StanceMetrics,
     TaskBlock,
     TrunkCompensation,
@@ -192,15 +194,17 @@ def compute_metrics(
     blocks: dict[str, tuple[float, float]],
     steps: dict[str, Any],
     nominal_table: dict[str, np.ndarray] | None = None,
-    shank_omega: dict[str, tuple[np.ndarray, np.ndarray]] | None = None,
+    strides: dict[str, ge.Strides] | None = None,
 ) -> Metrics:
     """The metrics (see the module docstring).
 
     ``table`` is an angle table (``time_s`` and degree columns), ``seg_q`` calibrated segment
     orientations ``{segment: (time, q)}``, ``blocks`` the task time ranges (s), ``steps`` the
     calibration step ranges, ``nominal_table`` the angles with nominal mountings (cross-talk),
-    ``shank_omega`` ``{segment: (time, ω_z rad/s)}`` of shank segments (gait events). The
-    metrics are taken from the angles :func:`smoothed` (the tables themselves are not changed).
+    ``strides`` ``{shank segment: strides (s)}`` of the gait tasks
+    (:func:`~motionlab.kinematics.session_strides.session_strides`: the gait analysis's; the
+    kept ones are a walk's cycles). The metrics are taken from the angles :func:`smoothed` (the
+    tables themselves are not changed).
     """
     table = smoothed_table(table)
     nominal_table = smoothed_table(nominal_table) if nominal_table is not None else None
@@ -224,20 +228,19 @@ def compute_metrics(
             )
         per_col: dict[str, Any] = {}
         walk = task is not None and task.is_gait
-        strides = {
-            shank: cyc.strides(*cyc.gait_events(np.interp(time[win], tw, w), rate), rate)
-            for shank, (tw, w) in (shank_omega or {}).items()
+        kept = {
+            seg: kept_cycles(st, time[win]) for seg, st in (strides or {}).items()
         } if walk else {}  # fmt: skip
         for joint in protocol.joints.values():
             cols = [col for _, col in angle_columns(joint)]
-            gait = walk and joint.type == "knee"
-            # a walk's ROM over the strides of the joint's leg: its block also holds what the
-            # walker did between bouts (sitting down, a seated rest) when there is one task
-            leg = _leg_shank(protocol, joint, strides)
-            within = cycle_samples(strides[leg], win.stop - win.start) if leg else None
-            if gait and joint.distal in strides:
-                cycles = strides[joint.distal]
-                if "varus_thrust" in todo:
+            # a walk's cycles are the kept strides of the joint's leg (its ROM is over them: the
+            # block also holds what the walker did between bouts, turns, a seated rest); none
+            # kept: no cycles, the ROM over the block
+            leg = _leg_shank(protocol, joint, kept)
+            within = cycle_samples(kept[leg], win.stop - win.start) if leg else None
+            if leg:
+                cycles = kept[leg]
+                if joint.type == "knee" and "varus_thrust" in todo:
                     found = oop.stance_metrics(
                         table[cols[1]][win],
                         table[cols[2]][win],
@@ -287,13 +290,27 @@ def compute_metrics(
     )
 
 
-def _leg_shank(protocol: Protocol, joint: Joint, strides: dict[str, Any]) -> str | None:
+def _leg_shank(protocol: Protocol, joint: Joint, strides: dict[str, cyc.Cycles]) -> str | None:
     """The shank (a key of ``strides``) of the leg ``joint`` belongs to: its own distal
     segment (the knee), or the distal segment of the knee below it (the hip)."""
-    if joint.distal in strides:
-        return joint.distal
     below = [j.distal for j in protocol.joints.values() if j.proximal == joint.distal]
-    return next((s for s in below if s in strides), None)
+    return next((s for s in [joint.distal, *below] if s in strides), None)
+
+
+def kept_cycles(strides: ge.Strides, time: np.ndarray) -> cyc.Cycles:
+    """The kept strides that lie within ``time`` (s, a block's samples) as cycles of its sample
+    indices: ``start`` the initial contact, ``peak`` the final contact (toe-off), ``end`` the
+    next initial contact, each the nearest sample."""
+    inside = strides.kept & (strides.ic >= time[0]) & (strides.next_ic <= time[-1])
+    if not inside.any():
+        return cyc.Cycles.empty()
+
+    def nearest(t: np.ndarray) -> np.ndarray:
+        i = np.clip(np.searchsorted(time, t), 1, len(time) - 1)
+        return np.where(t - time[i - 1] < time[i] - t, i - 1, i).astype(int)
+
+    a, p, b = (nearest(x[inside]) for x in (strides.ic, strides.fc, strides.next_ic))
+    return cyc.Cycles(a, p, b)
 
 
 def _offset(protocol, joint, seg_q, time, win, steps, plane, cycles, th) -> OutOfPlaneOffset:
@@ -314,25 +331,6 @@ def _offset(protocol, joint, seg_q, time, win, steps, plane, cycles, th) -> OutO
         cycles,
         float(th.get("out_of_plane_offset_deg", 5.0)),
     )
-
-
-def shank_angular_velocity(
-    session: Session, protocol: Protocol, calibration: SegmentCalibration
-) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """``{segment: (time, ω_z)}``: gyroscope about the segment's z axis of each knee's shank."""
-    out = {}
-    for joint in protocol.joints.values():
-        seg = joint.distal
-        label = sensor_for_segment(session, seg)
-        cal = calibration.segments.get(seg)
-        if joint.type != "knee" or label is None or cal is None:
-            continue
-        s = session.sensors[label]
-        if s.gyr is None:
-            continue
-        w = rot.rotate(rot.conj(np.asarray(cal.mounting)), s.gyr)  # sensor → segment
-        out[seg] = (s.time, w[:, 2])
-    return out
 
 
 def session_metrics(
@@ -365,6 +363,7 @@ def session_metrics(
         source = "detected"
     else:
         source = "given"
+    gait_tasks = {t.name for t in protocol.tasks if t.is_gait}
     segs = joint_segments(protocol)
     if "trunk_compensation" in wanted(protocol) and THORAX in protocol.segments:
         if sensor_for_segment(session, THORAX) is not None and THORAX not in segs:
@@ -378,14 +377,10 @@ def session_metrics(
             segment_orientations(protocol, nominal_calibration(protocol, cal.steps), quats),
             protocol,
         )
+    walks = {k: v for k, v in tasks.items() if k in gait_tasks}
+    legs = session_strides(session, protocol, cal, walks) if walks else {}
     out = compute_metrics(
-        protocol,
-        table,
-        seg_q,
-        tasks,
-        steps,
-        nominal,
-        shank_angular_velocity(session, protocol, cal),
+        protocol, table, seg_q, tasks, steps, nominal, {k: v.strides for k, v in legs.items()}
     )
     out.blocks = {k: replace(v, source=source) for k, v in out.blocks.items()}
     return out

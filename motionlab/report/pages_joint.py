@@ -151,9 +151,9 @@ def _rom_table(doc: Document, view: SessionView, joint) -> None:
     doc.paragraph(
         "Typical range: means of the lowest and highest angle of each cycle (a task without "
         "cycles: its lowest and highest angle). Full ROM: highest minus lowest angle over the "
-        "whole task (a walk: over the strides of the joint's leg). A range is flagged when it "
-        "leaves the normal "
-        "range by more than 5°, or a flexion peak falls 10° short of its top. Grade: whether the "
+        "whole task (a walk: over the kept strides of the joint's leg). A range is flagged when "
+        "it leaves the normal range by more than 5°, or a flexion peak falls 10° short of its "
+        "top. Grade: whether the "
         "recording determined the angle (see the "
         "calibration page); only a determined range is compared.",
         size=SIZE["small"],
@@ -241,8 +241,9 @@ def _cycle_pages(doc: Document, view: SessionView, joint) -> None:
         chunk = tasks[k : k + TASKS_PER_PAGE]
         doc.section(
             f"{joint_title(joint)}: cycles against normal",
-            "Each task's repetitions (gait: heel strike to heel strike) resampled to 0-100 % "
-            "of the cycle: mean (line) ± 1 SD (shaded). Grey band: normal mean ± 1 SD; hatched: "
+            "Each task's repetitions (gait: the kept strides, heel strike to heel strike) "
+            "resampled to 0-100 % of the cycle: mean (line) ± 1 SD (shaded). Grey band: normal "
+            "mean ± 1 SD; hatched: "
             "the protocol's normal range where no normal curve is on file.",
         )
         grid = doc.axes_grid(3, len(chunk), 7.2, left=0.55, wspace=0.7, hspace=0.75, top=0.4)

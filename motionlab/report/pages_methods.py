@@ -63,8 +63,9 @@ def decomposition_text(joints: list, gait: bool = False) -> str:
         )
     if gait:
         parts.append(
-            "Cycles: gait strides from the shank's angular velocity (heel strike to heel "
-            "strike), other tasks from the repetitions of the primary angle; each cycle "
+            "Cycles: in a walk, the strides the gait page keeps (heel strike to heel strike, "
+            "from the shank's angular velocity; turns, starts and stops left out) for the knees "
+            "and hips alike, other tasks the repetitions of the primary angle; each cycle "
             "resampled to 101 points (0-100 %). Metrics (ranges, extremes, cycle curves, "
             "cross-talk, varus thrust) are taken from the angles low-passed at 6 Hz (zero-phase "
             "Butterworth, Winter 2009): a sensor's wobble on the skin after a heel strike is not "
