@@ -455,15 +455,30 @@ def _calibration_row(**kw):
 def test_calibration_table_judges_a_movement_axis_by_its_own_check():
     """A seated trunk's flexion axis (one block of bending and turning: ρ 0.29) was drawn red
     against the functional steps' ρ ≥ 0.60 beside 'Segment ok' and a determined grade; it is
-    red only when its own check found it weak, and its 'ρ wanted' is none."""
+    red only when its own check found it weak, and its 'ρ wanted' is that check's verdict."""
     from motionlab.report.pages_quality import calibration_cells
 
     cells, flags = calibration_cells(_calibration_row())
-    assert cells[4] == "-" and not flags[3]
+    assert cells[3] == "0.290" and cells[4] == "determined" and not (flags[3] or flags[4])
     _, flags = calibration_cells(_calibration_row(verdict="weak"))
-    assert flags[3]
+    assert flags[4] and not flags[3]
     cells, flags = calibration_cells(_calibration_row(kind="functional", verdict=None))
     assert cells[4] == "≥ 0.60" and flags[3]  # a protocol step keeps its floor
+
+
+def test_a_hinge_fits_axis_shows_its_verdict_and_no_made_up_rho(walk):
+    """The knees' flexion axes from the walk are weighted 0.9 (determined) or 0.6 in the frame
+    fit by their verdict, the pelvis's forward from the walk 0.6; the calibration table
+    printed that weight as the axis' "ρ", a number no movement measured. Their rows now have
+    no ρ, their verdict in 'ρ wanted'."""
+    from motionlab.report.model import calibration_rows
+    from motionlab.report.pages_quality import calibration_cells
+
+    rows = [r for r in calibration_rows(load_view(walk)) if r.step.startswith("movement:")]
+    assert rows and all(np.isnan(r.rho) for r in rows)
+    for r in rows:
+        cells, _ = calibration_cells(r)
+        assert cells[3] == "-" and cells[4] == r.verdict
 
 
 def test_calibration_table_does_not_flag_the_residual_of_an_axis_left_out():

@@ -49,6 +49,7 @@ from motionlab.results import (
 )
 from motionlab.segments import sensor_for_segment
 from motionlab.segments.grades import GRADES, _frame_grade, graded_angles
+from motionlab.segments.trunk_axes import METHOD as TRUNK
 from motionlab.session import Session
 
 DETERMINED, WEAK, NOT_DETERMINED = GRADES
@@ -599,7 +600,10 @@ def calibration_rows(view: SessionView) -> list[CalibrationRow]:
                     method=res.method,
                     step=step,
                     kind=a.kind,
-                    rho=float(a.rho),
+                    # an axis found in the movement (a hinge or two-axis fit, the pelvis's
+                    # forward from the walk) has its own checks, not a ρ: the weight the frame
+                    # fit gives it is set by its verdict, no measurement; the trunk's is one
+                    rho=float(a.rho) if a.kind != "movement" or a.method == TRUNK else np.nan,
                     reference_rho=float(ref) if ref is not None else float("nan"),
                     residual_deg=float(residual) if residual is not None else float("nan"),
                     used=a.in_fit,

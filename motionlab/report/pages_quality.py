@@ -330,8 +330,8 @@ def calibration_page(doc: Document, view: SessionView) -> None:
         + "; ".join(f"'{k.replace('_', ' ')}': {v}" for k, v in METHODS.items())
         + ". 'In fit': no when a joint movement's axis was left out because a step keeping the "
         "joint still measured the same axis better (its residual is then not the frame's error). "
-        "An axis found in the movement itself (no ρ wanted) is judged by its own checks, in the "
-        "grades below: its ρ is red only when they found it weak.",
+        "An axis found in the movement itself has no ρ: it is judged by its own checks (the "
+        "grades below), whose verdict stands in 'ρ wanted', red unless determined.",
         size=SIZE["small"],
         colour=MUTED,
     )
@@ -354,8 +354,9 @@ def calibration_cells(r: CalibrationRow) -> tuple[list[str], list[bool]]:
     """The cells of one row of the table "Per segment and step" and which to draw red.
 
     A protocol step's ρ is red below its floor (static or functional, or 0.1 under the
-    protocol's reference ρ); an axis found in the movement itself has no ρ floor and is red
-    when its own check found it weak. A residual is red above ``RESIDUAL_MAX_DEG`` only for
+    protocol's reference ρ); an axis found in the movement itself has no ρ (the weight the fit
+    gives it is set by its verdict): its own check's verdict stands in place of the floor, red
+    unless determined. A residual is red above ``RESIDUAL_MAX_DEG`` only for
     an axis that entered the fit (one left out leaves no error in the segment's frame).
     """
     floor = STATIC_RHO_MIN if r.kind == "static" else FUNCTIONAL_RHO_MIN
@@ -367,11 +368,12 @@ def calibration_cells(r: CalibrationRow) -> tuple[list[str], list[bool]]:
         r.method.replace("_", " "),
         r.step.replace("_", " "),
         _f(r.rho, ".3f"),
-        f"≥ {floor:.2f}" if r.step != "none" and not own_check else "-",
+        str(r.verdict) if own_check else f"≥ {floor:.2f}" if r.step != "none" else "-",
         _f(r.residual_deg),
         "yes" if r.used else "no",
         "ok" if r.segment_ok else "check",
     ]
-    weak_rho = r.verdict != "determined" if own_check else bool(r.rho < floor)
+    weak = own_check and r.verdict != "determined"
+    weak_rho = not own_check and bool(r.rho < floor)
     residual = bool(r.used and r.residual_deg > RESIDUAL_MAX_DEG)
-    return cells, [False] * 3 + [weak_rho, False, residual, False, not r.segment_ok]
+    return cells, [False] * 3 + [weak_rho, weak, residual, False, not r.segment_ok]
