@@ -1463,7 +1463,9 @@ class SensorOrientationError(_Record):
     horizontal axis), as BROAD defines them. Over the samples used (``n_samples``; the movement
     only with ``movement_only``): ``total_rmse_deg``, ``heading_rmse_deg``,
     ``inclination_rmse_deg``, and the total error's ``median_deg``, ``iqr_deg`` and ``p95_deg``
-    — all ``None`` (not stored) when no sample has both, ``n_samples`` then 0.
+    — all ``None`` (not stored) when no sample has both, ``n_samples`` then 0, or when the
+    validation cannot state them: ``withheld`` then says why (:func:`motionlab.validation.
+    withhold`).
     """
 
     total_deg: np.ndarray
@@ -1476,6 +1478,7 @@ class SensorOrientationError(_Record):
     iqr_deg: float | None = None
     p95_deg: float | None = None
     n_samples: int = 0
+    withheld: str | None = None
     more: dict[str, Any] = field(default_factory=dict)
 
 
@@ -1552,7 +1555,10 @@ class AngleAgreement(_Record):
     two curves), ``loa_deg`` ([lower, upper]: Bland–Altman 95 % limits of agreement) over
     ``n_samples`` samples (each NaN below two); ``imu_deg`` and ``ref_deg`` (N,): the two curves
     on :attr:`AngleAgreements.time_s`; ``repetitions``: per repetition
-    (:class:`RepetitionAgreement`; ``None`` with fewer than two repetitions).
+    (:class:`RepetitionAgreement`; ``None`` with fewer than two repetitions). ``withheld``: why
+    the validation cannot state this agreement (a poor clock sync, a sensor's alignment the
+    movement did not determine, too little compared; :func:`motionlab.validation.withhold`),
+    its statistics then NaN and its curves kept; ``None`` when stated.
     """
 
     rmse_deg: float
@@ -1567,6 +1573,7 @@ class AngleAgreement(_Record):
     imu_deg: np.ndarray | None = None
     ref_deg: np.ndarray | None = None
     repetitions: RepetitionAgreement | None = None
+    withheld: str | None = None
     more: dict[str, Any] = field(default_factory=dict)
 
     _nested: ClassVar[dict[str, tuple[Any, int]]] = {"repetitions": (RepetitionAgreement, 0)}

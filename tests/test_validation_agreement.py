@@ -47,3 +47,22 @@ def test_per_repetition():
     np.testing.assert_allclose(out["rom_error_deg"], 0.1 * np.ptp(ref[:20]))
     np.testing.assert_allclose(out["peak_error_deg"], 0.1 * 30.0 + 1.0)
     assert 0.9 < out["cmc"] < 1.0
+
+
+def test_an_angle_wrapping_at_180_in_one_system_only_is_no_360_error():
+    """A real rig's ball joint: the optical angle wrapped from +180° to -180° where the IMU's
+    went on to 185°: two such samples read a largest error of 352° and doubled the RMSE. The
+    curves are compared on one branch: the errors are the 1° they are."""
+    from motionlab.validation import angle_agreement
+
+    t = np.arange(0, 10, 0.01)
+    true = 150 + 40 * np.sin(2 * np.pi * 0.5 * t)  # 110-190°: crosses 180° each cycle
+    ref = (true + 180) % 360 - 180  # wraps to -180 ... -170
+    imu = true + 1.0  # never wraps, 1° off
+    imu[::97] = np.nan
+    a = angle_agreement(imu, ref, None)
+    assert a.max_abs_deg == pytest.approx(1.0, abs=1e-9)
+    assert a.rmse_deg == pytest.approx(1.0, abs=1e-9) and a.bias_deg == pytest.approx(1.0)
+    assert a.r == pytest.approx(1.0)
+    assert np.nanmax(a.ref_deg) - np.nanmin(a.ref_deg) == pytest.approx(80.0, abs=0.01)
+    assert np.isnan(a.imu_deg[::97]).all()

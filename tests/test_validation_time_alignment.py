@@ -111,3 +111,42 @@ def test_windows_evaluated_at_once_as_one_by_one():
     for k, s in enumerate(starts):
         one = s + np.arange(300) / 100.0
         assert np.array_equal(at_once[k], spline(one)) and np.array_equal(masks[k], valid(one))
+
+
+def test_a_reference_faster_than_its_imu_is_a_marker_jump():
+    """A rigid body cannot turn faster than the sensor on it: the optical rate's samples above
+    twice the IMU's fastest (99.5th percentile) are a marker solution jumping and become gaps;
+    the body's own movement, up to that fastest and a little over, stays."""
+    from motionlab.validation.time_alignment import without_jumps
+
+    imu, ref = _recording(3, 0.0, duration=15.0)
+    t_mid, omega = angular_velocity_of(ref)
+    omega = omega[10:]  # the simulated camera's first frames jump onto the track
+    fastest = np.percentile(np.linalg.norm(imu[1], axis=1), 99.5)
+    spiked = omega.copy()
+    spiked[[100, 101, 900]] = [[60.0, 0, 0], [-60.0, 0, 0], [0, 0, 3.0 * fastest]]
+    out = without_jumps(spiked, imu[1])
+    assert np.isnan(out[[100, 101, 900]]).all()
+    rest = np.delete(np.arange(len(out)), [100, 101, 900])
+    np.testing.assert_array_equal(out[rest], spiked[rest])
+    np.testing.assert_array_equal(without_jumps(omega, imu[1]), omega)
+
+
+def test_the_coarse_lag_needs_half_the_overlap():
+    """Real trunk trials of 12-16 s locked onto lags of ±10-14 s, where 1.7 s of the two
+    recordings overlapped and happened to correlate: a lag that shares less than half of what
+    the best lag shares is not considered."""
+    from motionlab.validation.time_alignment import MIN_OVERLAP, coarse_lag
+
+    imu, ref = _recording(4, 0.0, duration=12.0)
+    sig_i = [(*speed_signal(*imu), imu[0][0], imu[0][-1])]
+    t_mid, omega = angular_velocity_of(ref)
+    sig_r = [(*speed_signal(t_mid, omega), t_mid[0], t_mid[-1])]
+    lag, _ = coarse_lag(sig_i, sig_r, 100.0)
+    assert lag == pytest.approx(OFFSET, abs=0.02) and MIN_OVERLAP == 0.5
+
+
+def angular_velocity_of(ref):
+    from motionlab.rotations import angular_velocity
+
+    return angular_velocity(*ref)

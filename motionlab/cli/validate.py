@@ -176,12 +176,18 @@ def _print(result: Validation) -> None:
     elif al is not None:
         click.echo(f"alignment ({al.mode}): lab → earth {al.lab_to_earth.angle_deg:.2f}°")
     for label, o in result.orientation.sensors.items():
+        if o.withheld:
+            click.echo(f"{label:<16} not stated: {o.withheld}")
+            continue
         click.echo(
             f"{label:<16} total {_num(o.total_rmse_deg)}°  heading "
             f"{_num(o.heading_rmse_deg)}°  inclination {_num(o.inclination_rmse_deg)}°  "
             f"median {_num(o.median_deg)}°"
         )
     for col, a in (result.angles.columns if result.angles is not None else {}).items():
+        if a.withheld:
+            click.echo(f"{col:<30} not stated: {a.withheld}")
+            continue
         lo, hi = a.loa_deg
         click.echo(
             f"{col:<30} RMSE {_num(a.rmse_deg)}°  offset-free {_num(a.rmse_centred_deg)}°  "

@@ -117,15 +117,21 @@ def run_summary(
     validation = ses.results.validation
     val = validation.angles if validation is not None else None
     grades = angle_grades(view)
+    columns = val.columns if val is not None else {}
     rmse = [
         f"{c.removesuffix('_deg')} {v.rmse_deg:.1f}"
         + (f" {grade_mark(grades[c][0])}" if c in grades and grade_mark(grades[c][0]) else "")
-        for c, v in (val.columns if val is not None else {}).items()
+        for c, v in columns.items()
+        if not v.withheld
     ]
     if rmse:
         lines.append(
             f"  validation RMSE (deg): {', '.join(rmse[:6])}" + (" ..." if len(rmse) > 6 else "")
         )
+    withheld = list(dict.fromkeys(v.withheld for v in columns.values() if v.withheld))
+    if withheld:  # the validation could not state these: say why, not a number
+        n = sum(bool(v.withheld) for v in columns.values())
+        lines.append(f"  validation not stated for {n} angle(s): {'; '.join(withheld)}")
     lines.append("  findings (determined numbers only):")
     shown = findings(view, limit=4)
     lines += [f"    - {f}" for f in shown]

@@ -6,7 +6,14 @@ from __future__ import annotations
 from typing import Any
 
 from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, angle_names, joint_sequence
-from motionlab.report.model import SessionView, in_order, joint_title, joint_type_title
+from motionlab.report.model import (
+    NOT_DETERMINED,
+    SessionView,
+    angle_grades,
+    in_order,
+    joint_title,
+    joint_type_title,
+)
 from motionlab.report.normative import load_accuracy
 from motionlab.report.pdf import MUTED, SIZE, Document
 from motionlab.report.sentences import accuracy_sentence
@@ -124,9 +131,11 @@ def accuracy_page(doc: Document, view: SessionView) -> None:
     val = validation.angles if validation is not None else None
     val = val.columns if val is not None else {}
     if val:
+        grades = angle_grades(view)  # an uncertainty of a range the report withholds is moot
         rows = [
             [col.removesuffix("_deg").replace("_", " "), f"{v.rmse_deg:.1f}"]
             for col, v in ((c, val[c]) for c in in_order(val, _columns(view)))
+            if not v.withheld and grades.get(col, ("",))[0] != NOT_DETERMINED
         ]
         if rows:
             doc.heading("In this session, against the optical reference")

@@ -28,19 +28,19 @@ def _angle_table(doc: Document, view: SessionView, angles: dict[str, AngleAgreem
     order = [col for j in view.joints() for _, col in angle_columns(j)]
     for col, v in ((c, angles[c]) for c in in_order(angles, order)):
         grade = grades.get(col, ("determined", ""))[0]
-        muted.append(grade == NOT_DETERMINED)
+        muted.append(grade == NOT_DETERMINED or bool(v.withheld))
         lo, hi = (list(v.loa_deg) + [np.nan, np.nan])[:2]
         rows.append(
             [
                 col.removesuffix("_deg").replace("_", " "),
                 _f(v.rmse_deg, ".1f"),
                 _f(v.bias_deg, "+.1f"),
-                f"{_f(lo, '+.1f')} to {_f(hi, '+.1f')}",
+                f"{_f(lo, '+.1f')} to {_f(hi, '+.1f')}" if np.isfinite([lo, hi]).all() else "-",
                 _f(v.rmse_centred_deg, ".1f"),
                 _f(v.max_abs_deg, ".1f"),
                 _f(v.r, ".3f"),
                 _f(v.cmc, ".3f"),
-                grade,
+                grade if not v.withheld else "not stated",
             ]
         )
     if not rows:
@@ -70,13 +70,26 @@ def _angle_table(doc: Document, view: SessionView, angles: dict[str, AngleAgreem
         size=SIZE["small"],
         colour=MUTED,
     )
+    _not_stated(doc, {c: v.withheld for c, v in angles.items() if v.withheld})
+
+
+def _not_stated(doc: Document, why: dict[str, str]) -> None:
+    """One line per reason the validation could not state an agreement, naming what it left
+    out (``why``: ``{angle column or sensor: reason}``)."""
+    by_reason: dict[str, list[str]] = {}
+    for name, reason in why.items():
+        by_reason.setdefault(reason, []).append(name.removesuffix("_deg").replace("_", " "))
+    if by_reason:
+        doc.bullets(
+            [f"Not stated ({', '.join(names)}): {reason}." for reason, names in by_reason.items()]
+        )
 
 
 def _orientation_table(doc: Document, view: SessionView, orientation: OrientationErrors) -> None:
     rows = []
     errors = orientation.sensors
     for label, v in ((k, errors[k]) for k in in_order(errors, list(view.session.sensors))):
-        if v.total_rmse_deg is None:
+        if v.total_rmse_deg is None:  # none compared, or not stated (said under the table)
             continue
         rows.append(
             [
@@ -104,6 +117,7 @@ def _orientation_table(doc: Document, view: SessionView, orientation: Orientatio
             rows,
             [0.2, 0.14, 0.14, 0.16, 0.12, 0.12, 0.12],
         )
+    _not_stated(doc, {k: v.withheld for k, v in errors.items() if v.withheld})
 
 
 def _sync_alignment(doc: Document, val: Validation) -> None:
@@ -113,7 +127,9 @@ def _sync_alignment(doc: Document, val: Validation) -> None:
         ["Clock drift", f"{_f(sync.drift_ppm, '.1f')} ppm"],
         [
             "Windows agreeing with the clock model",
-            f"{_f(sync.inlier_ratio, '.2f')} of {sync.n_windows}",
+            f"{round(sync.inlier_ratio * sync.n_windows)} of {sync.n_windows}"
+            if sync.n_windows and np.isfinite(sync.inlier_ratio)
+            else "- (no window model: one lag over the whole recording)",
         ],
         [
             "Clock offset standard error, grade",
@@ -142,13 +158,13 @@ def _figure_pages(doc: Document, view: SessionView, val: Validation) -> None:
         doc.section(
             "Validation: angle curves",
             "Joint angles from the sensors (blue) over those from the cameras (black), with each "
-            "angle's RMSE and correlation r.",
+            'angle\'s RMSE and correlation r ("not stated" where the table below says why).',
             figure=figures.angle_overlay(val, cols),
         )
         doc.place_figure(min(9.4, 1.5 * len(cols) + 0.6))
     for joint in view.joints():
         col = angle_columns(joint)[0][1]
-        if col not in angles:
+        if col not in angles or angles[col].withheld:  # no statistics to draw
             continue
         doc.section(
             f"Validation: {joint_title(joint).lower()} flexion, Bland-Altman",

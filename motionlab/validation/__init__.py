@@ -45,7 +45,7 @@ from motionlab.results import (
 from motionlab.segments.sensors import sensor_orientation
 from motionlab.session import MarkerSet, Session, estimate_rate
 from motionlab.validation.agreement import agreement, per_repetition, repetitions
-from motionlab.validation.align import Alignment
+from motionlab.validation.align import MIN_CONDITIONING, Alignment
 from motionlab.validation.align import align as estimate_alignment
 from motionlab.validation.markermap import MarkerMap, check_marker_map, default_marker_map
 from motionlab.validation.optical import resample_quat
@@ -62,6 +62,8 @@ from motionlab.validation.time_offset import (
 __all__ = ["validate"]
 
 MOVEMENT_RAD_S = 0.3  # angular speed above which a sample counts as movement
+#: an agreement over fewer seconds compared than this is not stated
+MIN_COMPARED_S = 2.0
 MOVEMENT_PAD_S = 0.25
 
 
@@ -172,6 +174,20 @@ def _joint_angles(qp: np.ndarray, qd: np.ndarray, joint) -> dict[str, np.ndarray
     return out
 
 
+def same_branch(estimate: np.ndarray, reference: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(estimate, reference)`` (deg) on one branch: the reference made continuous over its
+    finite samples (no jump of a whole turn between them), the estimate moved by whole turns
+    to within ±180° of it at each sample; NaN stays NaN."""
+    est = np.array(estimate, dtype=float)
+    ref = np.array(reference, dtype=float)
+    ok = np.isfinite(ref)
+    if ok.any():
+        ref[ok] = np.degrees(np.unwrap(np.radians(ref[ok])))
+    both = ok & np.isfinite(est)
+    est[both] = ref[both] + (est[both] - ref[both] + 180.0) % 360.0 - 180.0
+    return est, ref
+
+
 def angle_agreement(
     imu_deg: np.ndarray,
     ref_deg: np.ndarray,
@@ -180,7 +196,12 @@ def angle_agreement(
     time: np.ndarray | None = None,
 ) -> AngleAgreement:
     """The agreement of an IMU angle curve with the reference's (deg, on one time base), per
-    repetition too when ``reps`` (:func:`repetitions`) holds two or more (``time``: its s)."""
+    repetition too when ``reps`` (:func:`repetitions`) holds two or more (``time``: its s).
+
+    Both are compared on one branch (:func:`same_branch`): an angle that wraps at ±180° in
+    one system and not in the other is no 360° error (a real rig's ball joint read a largest
+    error of 352° and twice its RMSE from two such samples)."""
+    imu_deg, ref_deg = same_branch(imu_deg, ref_deg)
     per_rep = None
     if reps is not None and len(reps) >= 2:
         per_rep = RepetitionAgreement(**per_repetition(imu_deg, ref_deg, reps, time))
@@ -225,6 +246,57 @@ def _angles(
             imu_deg = np.asarray(table.data[col], dtype=float)
             out.columns[col] = angle_agreement(imu_deg, ref_deg, mask, reps, t)
     return out, notes
+
+
+def withhold(val: Validation, protocol: Protocol | None) -> Validation:
+    """``val`` with the agreements it cannot state withheld: their statistics NaN (orientation
+    errors ``None``) and ``withheld`` saying why; the curves stay. Why, first that applies:
+
+    - the clock sync is graded ``poor``: the curves may be compared at the wrong times (real
+      trunk trials once locked onto ±10-14 s with 1.7 s shared, RMSE 28-131° printed);
+    - a sensor's alignment with its marker cluster was not determined: it turned about one
+      axis only (conditioning below :data:`~motionlab.validation.align.MIN_CONDITIONING`), so its
+      sensor-to-cluster rotation about that axis is what the fit made up (a wheelchair's sensor
+      read 1.1° "total" error and every lean angle against it 34-127°); its orientation errors
+      and the angles of its segment's joints;
+    - an angle compared over less than :data:`MIN_COMPARED_S`.
+    """
+    common = "the clock sync is poor" if val.sync.grade == "poor" else None
+    loose = {
+        label: f"{label} turned about one axis only, so its alignment with its marker cluster "
+        "is not determined"
+        for label, c in (val.alignment.conditioning if val.alignment else {}).items()
+        if val.mode in ("full", "heading") and c < MIN_CONDITIONING
+    }  # fmt: skip
+    orientation = val.orientation
+    for label, e in list(orientation.sensors.items()):
+        why = common or loose.get(label)
+        if why and e.withheld is None:
+            orientation.sensors[label] = dataclasses.replace(
+                e, total_rmse_deg=None, heading_rmse_deg=None, inclination_rmse_deg=None,
+                median_deg=None, iqr_deg=None, p95_deg=None, withheld=why,
+            )  # fmt: skip
+    if val.angles is None or not val.angles.columns:
+        return val
+    rate = estimate_rate(np.asarray(val.angles.time_s, float))
+    segment_reason = {seg: loose[label] for label, seg in val.pairs.items() if label in loose}
+    joint_reason: dict[str, str] = {}
+    for joint in protocol.joints.values() if protocol is not None else []:
+        why = segment_reason.get(joint.proximal) or segment_reason.get(joint.distal)
+        if why:
+            joint_reason.update({col: why for _, col in angle_columns(joint)})
+    for col, a in list(val.angles.columns.items()):
+        why = common or joint_reason.get(col)
+        if why is None and a.n_samples < MIN_COMPARED_S * rate:
+            why = f"compared over {a.n_samples / rate:.1f} s only"
+        if why and a.withheld is None:
+            nan = float("nan")
+            val.angles.columns[col] = dataclasses.replace(
+                a, rmse_deg=nan, bias_deg=nan, sd_deg=nan, max_abs_deg=nan,
+                rmse_centred_deg=nan, r=nan, cmc=nan, loa_deg=[nan, nan], repetitions=None,
+                withheld=why,
+            )  # fmt: skip
+    return val
 
 
 def validate(
@@ -329,7 +401,7 @@ def validate(
             session, protocol, seg_quats, clock.model.to_reference, movement
         )
         notes += angle_notes
-    return Validation(
+    result = Validation(
         mode=mode,
         marker_set=reference.name,
         movement_only=movement_only,
@@ -346,3 +418,4 @@ def validate(
         angles=angles,
         notes=notes,
     )
+    return withhold(result, protocol)

@@ -40,6 +40,10 @@ _Z = np.array([0.0, 0.0, 1.0])
 LAG_S = 0.2
 MAX_SAMPLES = 1000
 LOSS_SCALE_DEG = 2.0
+#: below this conditioning a sensor turned about one axis only, and its sensor-to-cluster
+#: rotation about that axis is not determined (a wheelchair's sensor, turning about the
+#: vertical: 0.001-0.002; real trunk sensors 0.05-0.41, a real rig's segments 0.24-0.64)
+MIN_CONDITIONING = 0.01
 
 
 @dataclass

@@ -50,7 +50,8 @@ def angle_overlay(result: Validation, columns: list[str] | None = None) -> Figur
         ax.plot(t, e.ref_deg, color=REF_COLOUR, lw=1.0, label="optical")
         ax.plot(t, e.imu_deg, color=IMU_COLOUR, lw=1.0, label="IMU")
         ax.set_ylabel(f"{col.removesuffix('_deg')} (°)", fontsize=8)
-        ax.set_title(f"RMSE {e.rmse_deg:.1f}°, r {e.r:.2f}", fontsize=8, loc="right")
+        title = f"RMSE {e.rmse_deg:.1f}°, r {e.r:.2f}" if not e.withheld else "not stated"
+        ax.set_title(title, fontsize=8, loc="right")
     panels[0][0].legend(loc="upper left", fontsize=8)
     return fig
 

@@ -60,7 +60,7 @@ from motionlab.results import (
     ValidationReference,
 )
 from motionlab.session import MarkerSet, Session, estimate_rate
-from motionlab.validation import angle_agreement, movement_mask
+from motionlab.validation import angle_agreement, movement_mask, withhold
 from motionlab.validation.agreement import repetitions
 from motionlab.validation.time_alignment import no_sync, synchronise
 from motionlab.validation.time_offset import sync_notes
@@ -257,7 +257,7 @@ def validate_model_angles(
         notes.append(f"no reference for {', '.join(unmapped)}")
     sync_record = clock.record("joint angle rates" if sync else "", [])
     notes += sync_notes(sync_record) if sync else []
-    return Validation(
+    result = Validation(
         mode="angles",
         marker_set=reference.name,
         movement_only=movement_only,
@@ -274,6 +274,7 @@ def validate_model_angles(
         ),
         notes=notes,
     )
+    return withhold(result, protocol)
 
 
 def _primaries(columns: list[str], protocol: Protocol | None) -> list[str]:

@@ -12,6 +12,7 @@ from motionlab.results import AngleAgreement, SensorOrientationError, Validation
 
 ANGLE_STATS = (
     "rmse_deg", "bias_deg", "sd_deg", "max_abs_deg", "rmse_centred_deg", "r", "cmc", "n_samples",
+    "withheld",
 )  # fmt: skip
 CSV_FILES = (
     "validation_angles.csv", "validation_metrics.csv", "validation_orientation.csv",
@@ -19,7 +20,7 @@ CSV_FILES = (
 )  # fmt: skip
 ORIENTATION_STATS = (
     "total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg", "median_deg", "iqr_deg",
-    "p95_deg", "n_samples",
+    "p95_deg", "n_samples", "withheld",
 )  # fmt: skip
 
 
@@ -34,7 +35,8 @@ def sensor_labels(result: Validation) -> list[str]:
 
 
 def _stats(record: SensorOrientationError | AngleAgreement, names: tuple) -> dict[str, Any]:
-    """The statistics ``names`` of a record as the file stores them (``None``: not given)."""
+    """The statistics ``names`` of a record as the file stores them (``None``: not given;
+    ``withheld``: why a statistic the validation cannot state is not given)."""
     tree = record.to_tree()
     return {s: tree.get(s) for s in names}
 
