@@ -281,6 +281,12 @@ class PipelineOptions:
         Reference for the validation stage: markers (C3D, TRC or a session with markers), a CSV
         of segment quaternions or a C3D of model joint angles
         (:mod:`motionlab.validation.reference_kinds`).
+    frames
+        A segment-quaternion reference's frames: ``anatomical`` (ISB) or ``body`` (arbitrary,
+        carried to the segments by the IMU calibration; :mod:`motionlab.validation.segment_csv`).
+    markers_path
+        Marker map YAML of the reference (:func:`motionlab.validation.markermap.load_marker_map`;
+        default: markers by name).
     calibration_dir
         Folder of per-serial sensor calibrations (``motionlab sensorcal``) applied before fusion.
     seed
@@ -314,6 +320,16 @@ class PipelineOptions:
         None, "--reference", "Reference to validate against: markers (C3D, TRC, a session), a "
         "CSV of segment quaternions or a C3D of model joint angles (see 'motionlab validate "
         "--help').", kind="file", manifest="reference", stages=("validate",),
+    )  # fmt: skip
+    frames: str = _option(
+        "anatomical", "--frames", "Segment-quaternion reference: its quaternions are anatomical "
+        "segment frames (ISB) or arbitrary body frames.", kind="choice",
+        choices=("anatomical", "body"), manifest="frames", batch=True, stages=("validate",),
+        show_default=True,
+    )  # fmt: skip
+    markers_path: Path | None = _option(
+        None, "--markers", "Marker map YAML of the reference (default: markers by name).",
+        kind="file", manifest="markers", stages=("validate",),
     )  # fmt: skip
     calibration_dir: Path | None = _option(
         None, "--calibration", "Folder of per-serial sensor calibrations (motionlab sensorcal) "
@@ -360,7 +376,7 @@ class PipelineOptions:
         ``map_path`` aside): ``{"seed": 3, "magnetometer": True, ...}`` (paths as text)."""
         out: dict[str, object] = {}
         for f in dataclasses.fields(self):
-            if f.name in ("protocol", "map_path", "reference", "force", "progress"):
+            if f.name in ("protocol", "map_path", "reference", "markers_path", "force", "progress"):
                 continue
             value = getattr(self, f.name)
             if value != f.default:
@@ -449,8 +465,14 @@ def analyse(
                 marker_set, kind = load_reference(Path(options.reference))
             else:
                 marker_set, kind = session_reference(session)
+            marker_map = None
+            if options.markers_path is not None:
+                from motionlab.validation.markermap import load_marker_map
+
+                marker_map = load_marker_map(options.markers_path)
             stages_lib.validate(session, protocol, marker_set, seed=options.seed, force=True,
-                                reference_kind=kind)  # fmt: skip
+                                reference_kind=kind, frames=options.frames,
+                                marker_map=marker_map)  # fmt: skip
     doubts = [f"{s.label}: {line}" for s in session.sensors.values() for line in qc_doubts(s)]
     doubts = unmatched_keys(session) + doubts
     for line in [*doubts, *cal.warnings] if stages.progress else []:  # after the stages
@@ -466,6 +488,7 @@ RUN_IMPORTS = (
     "motionlab.report",
     "motionlab.report.console",
     "motionlab.segments.grades",
+    "motionlab.validation.markermap",
 )
 
 
@@ -502,9 +525,15 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
     proto = options.load_protocol()
     _check_estimator(options.estimator, options.magnetometer)
     session_path, report_path, csv_dir = _outputs(
-        outdir, options.force, [*inputs, options.map_path, options.reference, proto.path]
+        outdir,
+        options.force,
+        [*inputs, options.map_path, options.reference, options.markers_path, proto.path],
     )
     reference = _read_reference(options)  # an unreadable one is told before any work
+    if options.markers_path is not None:  # and so is a marker map
+        from motionlab.validation.markermap import load_marker_map
+
+        load_marker_map(options.markers_path)
     command = options.command(inputs, outdir)
     names = ["ingest", "fuse", "calibrate", "angles", "metrics", "report"]
     if options.clock_sync:

@@ -112,8 +112,6 @@ def test_real_trunk_trials_sync_on_their_second_and_withhold_the_chair(trial, of
     ``low_back`` body's hundred jumps once put the sync at 8.3 s, the overlap rule Aag/
     trunkmovement_hs's at 12.3 s with 1.7 s compared. The wheelchair turns about the vertical
     only: the lean angles against it are not stated; the lumbar angles are, within 4°."""
-    import pandas as pd
-
     from motionlab import stages
     from motionlab.ingest import ingest
     from motionlab.pipeline import PipelineOptions, analyse
@@ -121,12 +119,7 @@ def test_real_trunk_trials_sync_on_their_second_and_withhold_the_chair(trial, of
 
     bench = bench_module("real_trunk")
     folder = SHARED / "datasets" / "trunk" / trial
-    t, quats, _ = bench.read_motive(folder / "optitrack.csv")
-    cols = {"time": t}
-    for body, seg in (("back", "thorax"), ("low_back", "pelvis"), ("rolstoel", "chair")):
-        cols |= {f"{seg}_q{c}": quats[body][:, i] for i, c in enumerate("wxyz")}
-    path = tmp_path / "segments.csv"
-    pd.DataFrame(cols).to_csv(path, index=False)
+    path = _segment_csv(bench, folder, tmp_path)
     session = ingest([folder / "imu"], bench.MAP)
     analyse(session, PipelineOptions(protocol="lumbar_seated", progress=False))
     ref, kind = load_reference(path)
@@ -137,3 +130,39 @@ def test_real_trunk_trials_sync_on_their_second_and_withhold_the_chair(trial, of
     assert all(a.withheld is None and a.rmse_deg < 4.0 for a in lumbar.values())
     assert all(a.withheld for c, a in val.angles.columns.items() if c.startswith("trunk_lean"))
     assert val.orientation.sensors["Chair"].withheld
+
+
+def _segment_csv(bench, folder, tmp_path):
+    """The trial's OptiTrack rigid bodies as a segment-quaternion reference CSV."""
+    import pandas as pd
+
+    t, quats, _ = bench.read_motive(folder / "optitrack.csv")
+    cols = {"time": t}
+    for body, seg in (("back", "thorax"), ("low_back", "pelvis"), ("rolstoel", "chair")):
+        cols |= {f"{seg}_q{c}": quats[body][:, i] for i, c in enumerate("wxyz")}
+    path = tmp_path / "segments.csv"
+    pd.DataFrame(cols).to_csv(path, index=False)
+    return path
+
+
+@needs_shared
+def test_run_validates_against_body_frames_as_validate_does(tmp_path):
+    """``run --reference segments.csv --frames body``: the rigid bodies' frames are no
+    anatomical frames; ``run`` had no ``--frames`` and took them for anatomical ones (lumbar
+    RMSE 160° where ``validate --frames body`` gives 1-3°)."""
+    import json
+
+    from motionlab.pipeline import PipelineOptions, run_pipeline
+
+    bench = bench_module("real_trunk")
+    folder = SHARED / "datasets" / "trunk" / "Aag/trunkmovement_hs"
+    path = _segment_csv(bench, folder, tmp_path)
+    options = PipelineOptions(
+        protocol="lumbar_seated", map_path=bench.MAP, reference=path, frames="body",
+        progress=False,
+    )  # fmt: skip
+    run_pipeline([folder / "imu"], tmp_path / "out", options)
+    angles = json.loads((tmp_path / "out" / "results.json").read_text())["validation"]["angles"]
+    assert angles["lumbar_flexion_deg"]["rmse_deg"] < 4.0
+    assert angles["trunk_lean_forward_deg"]["rmse_deg"] is None
+    assert "one axis only" in angles["trunk_lean_forward_deg"]["withheld"]
