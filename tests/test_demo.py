@@ -49,7 +49,10 @@ TEXT_COLUMNS = {
 }
 # in spatiotemporal_summary.csv the unit of mean, sd, se, median and quartiles is the one in
 # the row's parameter name
-PER_ROW_UNIT = {"spatiotemporal_summary.csv": {"mean", "sd", "se", "median", "q1", "q3"}}
+#: a long table whose values' unit is its ``unit`` column (the parameter's name's suffix)
+PER_ROW_UNIT = {
+    "spatiotemporal_summary.csv": {"unit", "mean", "sd", "se", "median", "q1", "q3", "count_of"}
+}
 WORDS = {
     "knee": ["Right knee", "Left knee", "flexion", "adduction", "rotation", "varus"],
     "elbow": ["Right elbow", "Left elbow", "flexion", "carrying", "pronation"],

@@ -371,22 +371,36 @@ def summary(table: pd.DataFrame) -> GaitSummary:
     )
 
 
+def _unit(parameter: str) -> str:
+    """The unit a parameter's name ends in (``stride_time_s`` → ``s``)."""
+    for suffix, unit in (("_steps_per_min", "steps/min"), ("_m_s", "m/s"), ("_pct", "%"),
+                         ("_m", "m"), ("_s", "s")):  # fmt: skip
+        if parameter.endswith(suffix):
+            return unit
+    return ""
+
+
 def summary_rows(summ: GaitSummary) -> pd.DataFrame:
-    """The summary as a table ``parameter, side, mean, sd, cv_pct, se, median, q1, q3,
-    strides_n`` (for CSV and report); the bilateral numbers have their ``se`` where known."""
+    """The summary as a table ``parameter, side, unit, mean, sd, cv_pct, se, median, q1, q3,
+    count_n, count_of`` (for CSV and report): ``unit`` of the parameter's values (its name's
+    suffix), ``count_n`` how many they come from, ``count_of`` of what (``strides``; ``step
+    pairs`` for the step-time asymmetry); the bilateral numbers have their ``se`` where known."""
     rows = []
     for side, cols in summ.sides.items():
         for c, s in cols.items():
-            rows.append({"parameter": c, "side": side, "mean": s.mean, "sd": s.sd,
-                         "cv_pct": s.cv_pct, "se": s.se, "median": s.median, "q1": s.q1,
-                         "q3": s.q3, "strides_n": s.strides_n})  # fmt: skip
-    both = (("cadence_steps_per_min", summ.cadence_steps_per_min, np.nan),
+            rows.append({"parameter": c, "side": side, "unit": _unit(c), "mean": s.mean,
+                         "sd": s.sd, "cv_pct": s.cv_pct, "se": s.se, "median": s.median,
+                         "q1": s.q1, "q3": s.q3, "count_n": s.strides_n,
+                         "count_of": "strides"})  # fmt: skip
+    both = (("cadence_steps_per_min", summ.cadence_steps_per_min, np.nan, summ.strides_kept),
             ("step_time_asymmetry_pct", summ.step_time_asymmetry_pct,
-             summ.step_time_asymmetry_se_pct),
-            ("stride_time_cv_pct", summ.stride_time_cv_pct, summ.stride_time_cv_se_pct),
-            ("walking_speed_m_s", summ.walking_speed_m_s, np.nan))  # fmt: skip
-    for c, value, se in both:
-        rows.append({"parameter": c, "side": "both", "mean": value, "sd": np.nan,
-                     "cv_pct": np.nan, "se": se, "median": np.nan, "q1": np.nan, "q3": np.nan,
-                     "strides_n": summ.strides_kept})  # fmt: skip
+             summ.step_time_asymmetry_se_pct, summ.step_pairs),
+            ("stride_time_cv_pct", summ.stride_time_cv_pct, summ.stride_time_cv_se_pct,
+             summ.strides_kept),
+            ("walking_speed_m_s", summ.walking_speed_m_s, np.nan, summ.strides_kept))  # fmt: skip
+    for c, value, se, n in both:
+        of = "step pairs" if c == "step_time_asymmetry_pct" else "strides"
+        rows.append({"parameter": c, "side": "both", "unit": _unit(c), "mean": value,
+                     "sd": np.nan, "cv_pct": np.nan, "se": se, "median": np.nan, "q1": np.nan,
+                     "q3": np.nan, "count_n": n, "count_of": of})  # fmt: skip
     return pd.DataFrame(rows)

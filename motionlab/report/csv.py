@@ -265,8 +265,9 @@ def calibration_frame(view: SessionView) -> pd.DataFrame:
 
 def gait_frames(view: SessionView) -> dict[str, pd.DataFrame]:
     """``spatiotemporal.csv`` (one row per stride, kept or not, with the reason) and
-    ``spatiotemporal_summary.csv`` (per side mean, SD, CV, SE, median, quartiles and the number
-    of strides; NaN below 3 strides); nothing without a gait analysis."""
+    ``spatiotemporal_summary.csv`` (per side and parameter its ``unit``, mean, SD, CV, SE,
+    median, quartiles and the number ``count_n`` of strides or step pairs (``count_of``); NaN
+    below 3 strides); nothing without a gait analysis."""
     g = gait_result(view)
     if g is None:
         return {}

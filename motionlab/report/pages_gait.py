@@ -39,7 +39,7 @@ _LABELS = {
     "swing_pct": "swing (% of stride)",
     "double_support_pct": "double support (% of stride)",
     "step_time_asymmetry_pct": "step-time asymmetry (symmetry index, %)",
-    "stride_time_cv_pct": "stride-time variability (CV, %)",
+    "stride_time_cv_pct": "stride-time variability (CV within bouts, %)",
     "step_length_m": "step length (m)*",
     "stride_length_m": "stride length (m)*",
     "walking_speed_m_s": "walking speed (m/s)*",

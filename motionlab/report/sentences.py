@@ -117,13 +117,14 @@ def strides_s(view: SessionView, task: str) -> float | None:
 
 
 def tasks_analysed(view: SessionView) -> str:
-    """``'gait (21 s, 19 s in strides), squat (11 s)'``: each task block's length, and for a walk
-    how much of it its strides cover (a walk block also holds what the walker did between
-    bouts when the protocol has one task: turning, sitting down)."""
+    """``'gait (21 s, 19 s of it walking), squat (11 s)'``: each task block's length, and for a
+    walk how much of it its strides cover, turns and starts included (a walk block also holds
+    what the walker did between bouts when the protocol has one task: sitting down); the gait
+    page says how many of those strides were kept."""
     out = []
     for name, (a, b) in view.blocks().items():
         walked = strides_s(view, name)
-        more = f", {walked:.0f} s in strides" if walked is not None else ""
+        more = f", {walked:.0f} s of it walking" if walked is not None else ""
         out.append(f"{task_name(name)} ({b - a:.0f} s{more})")
     return ", ".join(out)
 
@@ -234,7 +235,7 @@ def _oop_findings(view: SessionView) -> list[str]:
             limit = g.threshold_deg
             verdict = "above" if thrust > limit else "within"
             out.append(
-                f"{side} knee varus thrust {thrust:.0f}° in stance during {task_name(task)} "
+                f"{side} knee varus thrust {thrust:.1f}° in stance during {task_name(task)} "
                 f"({verdict} the {limit:g}° this protocol flags; {g.strides} strides)."
             )
     if is_determined(segment_grade(view, THORAX)[0]):
@@ -492,4 +493,5 @@ def accuracy_sentence(angle: str, entry: dict[str, Any], joint_type: str = "") -
         joint_type = next(known, "")
     name = angle_title(joint_type, angle)
     text = f"{name}: ±{np.ceil(bound):.0f}° (RMSE {rmse:.1f}°"
-    return text + (f", worst case {worst:.1f}°)" if np.isfinite(worst) else ")")
+    # two decimals: a worst case of 1.04° is rounded up to ±2°, and "1.0" would not show why
+    return text + (f", worst case {worst:.2f}°)" if np.isfinite(worst) else ")")

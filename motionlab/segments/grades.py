@@ -195,7 +195,8 @@ def _crosstalk_grade(fit: HingeFit | None) -> tuple[str, str]:
     grade = "weak" if crosstalk <= CROSSTALK_DEG[1] else "not determined"
     return grade, (
         f"the flexion axis from the walk is known to {witness:.0f}°, which can carry "
-        f"{crosstalk:.0f}° of the {abs(flexion):.0f}° flexion into this angle"
+        f"{crosstalk:.0f}° of the knee's largest flexion in the recording, "
+        f"{abs(flexion):.0f}°, into this angle"
     )
 
 
