@@ -8,13 +8,13 @@ accelerometer in g, magnetometer in µT, a few dropped samples), then times in t
   quality checks, gap filling, common clock), and ``save_session`` separately,
 
 and prints a table with ratio = read_csv time / ingest time (target ≥ 0.5: ingest at most 2×
-slower than parsing alone). With ``../shared`` present (or ``--shared DIR``) the real x-io
-example file is timed too.
+slower than parsing alone). With ``../shared`` present (or ``--data DIR``, the shared folder,
+read only) the real x-io example file is timed too.
 
 Usage::
 
     python bench/ingest.py                      # files in a temporary folder
-    python bench/ingest.py --data /tmp/ingest   # keep (and reuse) the generated files there
+    python bench/ingest.py --out /tmp/ingest    # keep (and reuse) the generated files there
     python bench/ingest.py --minutes 10 --sensors 4
 """
 
@@ -92,8 +92,8 @@ def measure(label: str, paths: list[Path], repeat: int, out: Path) -> dict:
 
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--data", type=Path, help="folder for the generated files (kept)")
-    ap.add_argument("--shared", type=Path, default=SHARED, help="reference data folder")
+    ap.add_argument("--out", type=Path, help="folder for the generated files (kept)")
+    ap.add_argument("--data", type=Path, default=SHARED, help="the shared data folder (read)")
     ap.add_argument("--sensors", type=int, default=8)
     ap.add_argument("--minutes", type=float, default=60.0)
     ap.add_argument("--rate", type=float, default=100.0)
@@ -101,7 +101,7 @@ def main() -> None:
     args = ap.parse_args()
 
     with tempfile.TemporaryDirectory() as tmp:
-        folder = args.data or Path(tmp)
+        folder = args.out or Path(tmp)
         t0 = time.perf_counter()
         paths = generate(folder, args.sensors, args.minutes, args.rate)
         print(f"files ready in {time.perf_counter() - t0:.1f} s ({folder})")
@@ -113,7 +113,7 @@ def main() -> None:
                 Path(tmp) / "s.h5",
             )
         ]
-        real = args.shared / "formats" / "xio" / "sensor_data.csv"
+        real = args.data / "formats" / "xio" / "sensor_data.csv"
         if real.is_file():
             results.append(measure("x-io example (real)", [real], args.repeat, Path(tmp) / "r.h5"))
 

@@ -530,6 +530,13 @@ def validate(
         session.results.validation = result
         session.lineage.record(session.results, "validation", proto)
         return result
+    if angle_map is not None:  # a map of model angles given with markers is a mix-up
+        raise InputError(
+            "an angle map applies to a reference of model joint angles",
+            path,
+            remedy="pass reference_kind='angles' (--reference-kind angles), or leave out the map",
+            argument="angle_map",
+        )
     if reference_kind == "segments" and marker_map is None:
         from motionlab.validation.segment_csv import segment_map
 
@@ -550,6 +557,13 @@ def validate(
     result.reference = ValidationReference(
         kind=reference_kind, frames=frames if reference_kind == "segments" else None
     )
+    from motionlab.validation.model_angles import has_model_angles
+
+    if reference is not None and has_model_angles(reference):  # say what else it holds
+        result.notes.append(
+            "the reference also holds another model's joint angles (POINT:ANGLES): "
+            "--reference-kind angles (reference_kind='angles') compares against those"
+        )
     session.results.validation = result
     session.lineage.record(session.results, "validation", proto)
     return result

@@ -185,3 +185,20 @@ def test_the_study_statistics_leave_out_ranges_a_session_did_not_determine(tmp_p
     ]  # fmt: skip
     assert main["grade"].tolist() == ["determined", "weak", ""]
     assert _rows(tmp_path / "study.csv")[1]["grade"] == "weak"  # the table keeps every number
+
+
+def test_a_server_that_is_no_dask_scheduler_is_one_line():
+    """``--scheduler`` at a server that is no Dask scheduler: its bytes read as a 3 EiB message
+    (MemoryError: "internal error"), or the handshake waited for ever (an HTTP server). Both
+    are now one line naming the address, before any session."""
+    import types
+
+    from motionlab.batch import runner
+    from motionlab.errors import InputError
+
+    def garbage(*a, **k):
+        raise MemoryError("Unable to allocate 3.07 EiB")
+
+    fake = types.SimpleNamespace(Client=garbage)
+    with pytest.raises(InputError, match="cannot reach the Dask scheduler 'tcp://h:1'.*3.07 EiB"):
+        runner._connect(fake, "tcp://h:1")

@@ -37,6 +37,23 @@ def test_valid_manifest_resolves_paths_globs_and_maps(tmp_path):
     assert b.map == tmp_path / "m2.yaml" and b.reference == tmp_path / "ref.c3d"
 
 
+def test_the_studys_map_is_for_raw_recordings_not_session_files(tmp_path):
+    """README's manifest gives a top-level map and a session made by ``motionlab simulate``:
+    every such session failed ("map applies to raw recordings; a session file already names
+    its sensors"). The study's map now goes to the raw recordings only."""
+    from motionlab.session import Session, save_session
+
+    _files(tmp_path, "raw/a/shank.txt", "m.yaml")
+    save_session(Session(sensors={}), tmp_path / "sim.h5")
+    (tmp_path / "study.yaml").write_text(
+        "protocol: knee\nmap: m.yaml\nsessions:\n"
+        "  - {subject: S01, visit: v1, files: raw/a/*.txt}\n"
+        "  - {subject: S02, visit: v1, files: sim.h5}\n"
+    )
+    raw, sim = load_manifest(tmp_path / "study.yaml").sessions
+    assert raw.map == tmp_path / "m.yaml" and sim.map is None and not sim.problem
+
+
 def test_run_options_as_keys(tmp_path):
     _files(tmp_path, "x.h5", "cal/ABC.yaml")
     (tmp_path / "study.yaml").write_text(

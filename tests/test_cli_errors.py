@@ -236,3 +236,26 @@ def test_unwritable_output_read_only_folder(tmp_path):
         assert snapshot(tmp_path) == before and list(ro.iterdir()) == []
     finally:
         ro.chmod(0o755)
+
+
+def test_a_reader_that_stops_reading_is_no_internal_error():
+    """``motionlab angles s.h5 | head -1`` printed "internal error (BrokenPipeError)" and exited
+    1 once head had its line: a reader that stops is no bug; the command stops quietly with
+    the shell's SIGPIPE status."""
+    import subprocess
+    import sys
+
+    from motionlab.cli import EXIT_BROKEN_PIPE
+
+    code = (
+        "import sys, click\n"
+        "from motionlab.cli import main\n"
+        "import motionlab.cli.info as info\n"
+        "def stop(*a, **k):\n"
+        "    raise BrokenPipeError(32, 'Broken pipe')\n"
+        "info.command.callback = stop\n"
+        "main(['info', 'x.h5'])\n"
+    )
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert res.returncode == EXIT_BROKEN_PIPE
+    assert "internal error" not in res.stderr and "Traceback" not in res.stderr

@@ -259,3 +259,41 @@ def test_session_reference_kind_as_for_a_file():
     assert session_reference(Session(markers={"m": markers})) == (markers, "markers")
     with pytest.raises(InputError, match="has no optical data"):
         session_reference(Session(), path="s.h5")
+
+
+def test_an_angle_map_makes_a_pig_c3d_with_markers_an_angle_reference(knee):
+    """A real Plug-in Gait C3D holds its markers as well as its POINT:ANGLES: README's
+    ``--reference pig.c3d --angle-map angles.yaml`` validated against the markers and dropped
+    the map without a word. The map now says the kind; the library refuses a map given with
+    a marker reference."""
+    root, path, truth = knee
+    rate = 100.0
+    t_cam, t_true = _camera_times(truth, rate)
+    cols = ("knee_r_flexion_deg", "knee_r_adduction_deg", "knee_r_rotation_deg")
+    xyz = np.column_stack([np.interp(t_true, truth.time, truth.joint_angles[c]) for c in cols])
+    n = len(t_cam)
+    f = ezc3d.c3d()
+    f["parameters"]["POINT"]["RATE"]["value"] = [rate]
+    f["parameters"]["POINT"]["LABELS"]["value"] = ["P01:RKneeAngles", "P01:RKNE"]
+    f["parameters"]["POINT"]["UNITS"]["value"] = ["mm"]
+    f.add_parameter("POINT", "ANGLES", ["P01:RKneeAngles"])
+    f.add_parameter("POINT", "ANGLE_UNITS", ["deg"])
+    points = np.ones((4, 2, n))
+    points[:3, 0] = xyz.T
+    points[:3, 1] = 100.0  # a marker standing still
+    f["data"]["points"] = points
+    f.write(str(root / "pig_markers.c3d"))
+    (root / "map2.yaml").write_text("knee_r_flexion_deg: {label: RKneeAngles, component: x}\n")
+    args = ["validate", str(path), "--reference", str(root / "pig_markers.c3d"), "--force",
+            "--angle-map", str(root / "map2.yaml")]  # fmt: skip
+    res = CliRunner().invoke(main, args)
+    assert res.exit_code == 0, res.output
+    assert "reference: model joint angles knee_r_flexion_deg = RKneeAngles.X" in res.output
+    from motionlab import stages
+    from motionlab.validation.reference_kinds import load_reference
+
+    ref, kind = load_reference(root / "pig_markers.c3d")
+    assert kind == "markers"  # without a map: its markers, with a note naming the angles
+    with pytest.raises(InputError, match="angle map applies to a reference of model joint"):
+        stages.validate(load_session(path), None, ref, reference_kind=kind, force=True,
+                        angle_map=load_angle_map(root / "map2.yaml"))  # fmt: skip

@@ -43,6 +43,7 @@ from motionlab.errors import InputError
 from motionlab.fusion import registry
 from motionlab.pipeline import RUN_OPTIONS
 from motionlab.protocol import load_protocol, resolve_protocol_path
+from motionlab.session import is_session_file
 from motionlab.yamlsafe import LineLoader, load_yaml
 
 #: manifest keys of the options of ``motionlab run`` → :class:`motionlab.pipeline.PipelineOptions`
@@ -261,7 +262,10 @@ def load_manifest(path: str | Path) -> Manifest:
         problems = [("files", missing)]
         reference, missing = _optional_file(base, entry, "reference", None)
         problems.append(("reference", missing))
-        session_map, missing = _optional_file(base, entry, "map", study_map)
+        # the study's map is for its raw recordings: a session file already names its sensors
+        own_session = len(files) == 1 and files[0].is_file() and is_session_file(files[0])
+        default_map = None if own_session else study_map
+        session_map, missing = _optional_file(base, entry, "map", default_map)
         problems.append(("map", missing))
         options, missing = _options(path, base, entry, f"{where}.")
         problems.append(("calibration", missing))

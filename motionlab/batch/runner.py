@@ -28,6 +28,7 @@ import contextlib
 import multiprocessing
 import os
 import signal
+import threading
 import time
 import uuid
 from collections.abc import Callable, Iterator
@@ -245,6 +246,37 @@ class _LocalPool:
             self.pool.shutdown(wait=True, cancel_futures=True)
 
 
+def _connect(distributed: Any, address: str) -> Any:
+    """A Dask client of the scheduler at ``address``, or one clear :class:`InputError`: a
+    closed port, and also a server that is no Dask scheduler (an HTTP server let the handshake
+    wait for ever; another answered bytes that read as a 3 EiB message, a MemoryError). The
+    connection is made in a daemon thread given twice :data:`_CONNECT_TIMEOUT_S`."""
+    box: dict[str, Any] = {}
+
+    def connect() -> None:
+        try:
+            box["client"] = distributed.Client(
+                address, timeout=_CONNECT_TIMEOUT_S, set_as_default=False
+            )
+        except Exception as exc:  # whatever a non-scheduler makes of the handshake
+            box["error"] = exc
+
+    thread = threading.Thread(target=connect, daemon=True)
+    thread.start()
+    thread.join(2 * _CONNECT_TIMEOUT_S)
+    if "client" in box:
+        return box["client"]
+    why = _one_line(box["error"]) if "error" in box else (
+        f"no Dask answer within {2 * _CONNECT_TIMEOUT_S:.0f} s"
+    )  # fmt: skip
+    raise InputError(
+        f"cannot reach the Dask scheduler {address!r} ({why})",
+        where="argument scheduler",
+        remedy="start one with 'dask scheduler' or check the address (a Dask scheduler's port)",
+        argument="scheduler",
+    )
+
+
 class _DaskCluster:
     """Sessions as tasks of a running Dask distributed scheduler."""
 
@@ -257,17 +289,7 @@ class _DaskCluster:
                 remedy="pip install 'motionlab[dask]'", argument="scheduler",
             ) from None  # fmt: skip
         self._killed = distributed.KilledWorker
-        try:
-            self.client = distributed.Client(
-                address, timeout=_CONNECT_TIMEOUT_S, set_as_default=False
-            )
-        except (OSError, TimeoutError, ValueError) as exc:
-            raise InputError(
-                f"cannot reach the Dask scheduler {address!r} ({_one_line(exc)})",
-                where="argument scheduler",
-                remedy="start one with 'dask scheduler' or check the address",
-                argument="scheduler",
-            ) from None
+        self.client = _connect(distributed, address)
 
     def submit(self, task: SessionTask, pipeline: Pipeline | None) -> Any:
         key = f"motionlab-batch-{task.subject}/{task.visit}-{uuid.uuid4().hex[:8]}"

@@ -29,6 +29,8 @@ from motionlab.errors import InputError
 
 EXIT_BAD_INPUT = 2
 EXIT_BUG = 1
+#: the reader of our output stopped reading (a pipe into head): 128 + SIGPIPE, as a shell reports it
+EXIT_BROKEN_PIPE = 141
 
 
 #: One BLAS/OpenMP thread: a threaded BLAS splits a product's sums by the machine's core count,
@@ -144,6 +146,10 @@ class MotionlabGroup(click.Group):
         except KeyboardInterrupt:
             click.echo("interrupted", err=True)
             sys.exit(130)
+        except BrokenPipeError:  # the reader stopped reading (| head): stop quietly, as
+            # a Unix tool does on SIGPIPE (outputs written before stay as written)
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+            sys.exit(EXIT_BROKEN_PIPE)
         except Exception as exc:  # a bug: say so, in one line unless --debug
             if ctx.obj and ctx.obj.get("debug"):
                 traceback.print_exc()

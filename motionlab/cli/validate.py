@@ -83,7 +83,7 @@ def command(
       motionlab validate session.h5 --reference trial.c3d --markers map.yaml --json
       motionlab validate session.h5 --reference walk.c3d --static static.c3d
       motionlab validate broad.h5 --mode none --no-sync --movement-only
-      motionlab validate session.h5 --reference pig.c3d          # Plug-in Gait angles
+      motionlab validate session.h5 --reference pig.c3d --reference-kind angles  # PiG angles
       motionlab validate session.h5 --reference segments.csv     # time, thigh_r_qw, ...
     """
     with session_lock(session):  # read-modify-write: one writer at a time
@@ -92,6 +92,8 @@ def command(
         stages.refuse_to_redo(done, "validation", "validation results", force, session)
         mmap = load_marker_map(markers_path) if markers_path else None
         name = mmap.marker_set if mmap else None
+        if angle_map_path and reference_kind == "auto":  # a map of model angles tells the kind
+            reference_kind = "angles"
         if reference is None:
             ref, kind = session_reference(ses, reference_kind, name, session)
         else:
