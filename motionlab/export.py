@@ -41,7 +41,12 @@ from motionlab.kinematics.segment_types import opensim_imu_name
 from motionlab.plain import plain
 from motionlab.protocol import load_protocol
 from motionlab.results import OpticalSync, SegmentCalibration
-from motionlab.segments.grades import NOT_DETERMINED, graded_table, trunk_grade
+from motionlab.segments.grades import (
+    NOT_DETERMINED,
+    graded_table,
+    method_column_grade,
+    trunk_grade,
+)
 from motionlab.session import MarkerSet, ModelOutput, Session
 
 FORMATS = ("sto", "mot", "c3d", "json")
@@ -265,12 +270,14 @@ def results_json(session: Session) -> dict[str, Any]:
     }
     res = session.results
     grades = res.calibration.grades if res.calibration is not None else {}
-    graded = {  # column → grade, where the calibration graded the joint's angles
-        c: g
+    method = res.angles.method if res.angles is not None else "imu"
+    judged = {  # column → (grade, reason), where the calibration graded the joint's angles
+        c: method_column_grade(method, c, g, r)
         for joint, cols in joint_columns(session).items()
         if joint in grades and len(grades[joint].grades) == len(cols)
-        for c, g in zip(cols, grades[joint].grades, strict=True)
+        for c, g, r in zip(cols, grades[joint].grades, grades[joint].reasons, strict=False)
     }
+    graded = {c: g for c, (g, _) in judged.items()}
     if res.angles is not None:
         time, columns = angle_table(session)
         joints = {}
@@ -282,9 +289,9 @@ def results_json(session: Session) -> dict[str, Any]:
                     if c in columns
                 }
             }
-            if joint in grades and len(grades[joint].grades) == len(cols):
-                entry["grades"] = dict(zip(cols, grades[joint].grades, strict=True))
-                entry["reasons"] = dict(zip(cols, grades[joint].reasons, strict=False))
+            if all(c in judged for c in cols):
+                entry["grades"] = {c: judged[c][0] for c in cols}
+                entry["reasons"] = {c: judged[c][1] for c in cols}
             joints[joint] = entry
         out["angles"] = {"time_s": time, "method": res.angles.method, "joints": joints}
     if res.metrics is not None:

@@ -576,7 +576,8 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
             write_json(session, outdir / RESULTS_JSON, force=options.force)
     table = metrics_table(session.results.metrics)
     metrics = table[table["percent"].isna()].drop(columns="percent").reset_index(drop=True)
-    metrics = with_grades(metrics, proto, session.results.calibration)
+    res = session.results
+    metrics = with_grades(metrics, proto, res.calibration, res.angles.method)
     summary = run_summary(
         views[0],
         out,

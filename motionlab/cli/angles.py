@@ -56,7 +56,9 @@ def command(
             path=session,
         )
         protocol = stages.stage_protocol(ses, protocol_path, session)
-        grades = column_grades(protocol, ses.results.calibration) if not no_calibration else {}
+        grades = (
+            column_grades(protocol, ses.results.calibration, method) if not no_calibration else {}
+        )
         if csv_path:  # an angle not determined is an empty column, as in run's csv/
             columns = {
                 c: np.where(grades.get(c) == NOT_DETERMINED, np.nan, v)
@@ -69,4 +71,7 @@ def command(
     click.echo(f"{len(table.time)} samples, {len(table.data)} angles")
     for c, v in table.data.items():
         grade = grades.get(c, "not graded (sensor frames)" if no_calibration else "")
+        if grade == NOT_DETERMINED:  # withheld, as in the CSV and the report
+            click.echo(f"{c:<34} min {'-':>8}  max {'-':>8}  {grade}")
+            continue
         click.echo(f"{c:<34} min {np.nanmin(v):8.1f}  max {np.nanmax(v):8.1f}  {grade}".rstrip())

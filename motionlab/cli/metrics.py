@@ -74,8 +74,9 @@ def command(
         ses = load_session(session)
         result = stages.metrics(ses, protocol_path, _parse_tasks(tasks), force=force, path=session)
         protocol = stages.stage_protocol(ses, protocol_path, session)
-        table = with_grades(metrics_table(result), protocol, ses.results.calibration)
-        grades = column_grades(protocol, ses.results.calibration)
+        method = ses.results.angles.method if ses.results.angles is not None else "imu"
+        table = with_grades(metrics_table(result), protocol, ses.results.calibration, method)
+        grades = column_grades(protocol, ses.results.calibration, method)
         if csv_path:
             with atomic_path(csv_path, force=force) as tmp:
                 table.to_csv(tmp, index=False, float_format="%.4f")

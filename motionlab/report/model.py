@@ -384,8 +384,9 @@ def compare(low: float, high: float, normal: tuple[float, float] | None, reach: 
 def grade_rows(view: SessionView) -> list[GradeRow]:
     """One row per angle column of every protocol joint: ``joint, angle, column, grade, reason``
     (:func:`motionlab.segments.grades.graded_angles`, as the stage commands print them)."""
-    cal = view.session.results.calibration
-    return [GradeRow(*row) for row in graded_angles(view.joints(), cal)]
+    res = view.session.results
+    method = res.angles.method if res.angles is not None else "imu"
+    return [GradeRow(*row) for row in graded_angles(view.joints(), res.calibration, method)]
 
 
 def angle_grades(view: SessionView) -> dict[str, tuple[str, str]]:

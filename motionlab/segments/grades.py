@@ -292,10 +292,54 @@ def gap_graded(graded: dict[str, JointGrades], gap_turns: dict) -> dict[str, Joi
     return out
 
 
-def graded_angles(joints, calibration: SegmentCalibration | None) -> list[tuple[str, ...]]:
+#: what an angle method other than the fused orientations cannot measure, by joint type and
+#: angle: ``(grade at best, reason)``. The accelerometer-only elbow (Lee 2012, ch. 5) fixes the
+#: carrying angle at 0° and reads pronation from gravity alone, held where the forearm hangs
+#: vertical, with the upper arm assumed to keep its heading (on the demo elbow 64° RMS from
+#: the fused angles, where flexion was 7°).
+METHOD_LIMITS = {
+    "accel-only": {
+        ("elbow", "carrying"): (
+            "not determined",
+            "the accelerometer-only method does not measure it (its model fixes it at 0°)",
+        ),
+        ("elbow", "pronation"): (
+            "weak",
+            "the accelerometer-only method reads it from gravity alone: held where the forearm "
+            "hangs vertical, and only while the upper arm keeps its heading",
+        ),
+    }
+}
+
+
+def method_grade(method: str, joint_type: str, angle: str, grade: str, reason: str):
+    """``(grade, reason)`` of an angle computed by angle ``method`` (``imu``,
+    ``accel-only``): the calibration's, or worse where the method cannot measure the angle
+    (:data:`METHOD_LIMITS`)."""
+    limit = METHOD_LIMITS.get(method, {}).get((joint_type, angle))
+    if limit is None or GRADES.index(limit[0]) <= GRADES.index(grade):
+        return grade, reason
+    return limit
+
+
+def method_column_grade(method: str, column: str, grade: str, reason: str):
+    """:func:`method_grade` of an angle known by its column only (``elbow_r_carrying_deg``:
+    a clinical joint type's columns name the type and the angle)."""
+    from motionlab.kinematics.joint_types import column_name
+
+    for joint_type, angle in METHOD_LIMITS.get(method, {}):
+        if column in {column_name(joint_type, side, angle) for side in ("r", "l", "")}:
+            return method_grade(method, joint_type, angle, grade, reason)
+    return grade, reason
+
+
+def graded_angles(
+    joints, calibration: SegmentCalibration | None, method: str = "imu"
+) -> list[tuple[str, ...]]:
     """``(joint, angle, column, grade, reason)`` of every angle column of ``joints`` (protocol
-    joints, in order) from ``calibration.grades``; a joint without grades (a session calibrated
-    before they existed) has every angle ``determined`` with an empty reason."""
+    joints, in order) from ``calibration.grades``, as angle ``method`` allows
+    (:func:`method_grade`); a joint without grades (a session calibrated before they existed)
+    has every angle ``determined`` with an empty reason."""
     from motionlab.kinematics.joint_types import angle_columns
 
     graded = calibration.grades if calibration is not None else {}
@@ -306,21 +350,26 @@ def graded_angles(joints, calibration: SegmentCalibration | None) -> list[tuple[
         for k, (angle, col) in enumerate(angle_columns(joint)):
             grade = grades[k] if k < len(grades) and grades[k] in GRADES else GRADES[0]
             reason = reasons[k] if k < len(reasons) and grade != GRADES[0] else ""
+            grade, reason = method_grade(method, joint.type, angle, grade, reason)
             rows.append((joint.name, angle, col, grade, reason))
     return rows
 
 
-def column_grades(protocol, calibration: SegmentCalibration | None) -> dict[str, str]:
+def column_grades(
+    protocol, calibration: SegmentCalibration | None, method: str = "imu"
+) -> dict[str, str]:
     """``{angle column: grade}`` of every ``protocol`` joint (:func:`graded_angles`):
     ``{"knee_r_flexion_deg": "determined", …}``."""
-    return {row[2]: row[3] for row in graded_angles(protocol.joints.values(), calibration)}
+    joints = protocol.joints.values()
+    return {row[2]: row[3] for row in graded_angles(joints, calibration, method)}
 
 
-def with_grades(table, protocol, calibration: SegmentCalibration | None):
+def with_grades(table, protocol, calibration: SegmentCalibration | None, method: str = "imu"):
     """A metrics table (:func:`motionlab.kinematics.metrics.metrics_table`) graded by
     :func:`graded_table` with the protocol's column grades (:func:`column_grades`), as
     ``run``'s and the ``metrics`` command's tables carry it."""
-    return graded_table(table, column_grades(protocol, calibration), trunk_grade(calibration))
+    grades = column_grades(protocol, calibration, method)
+    return graded_table(table, grades, trunk_grade(calibration))
 
 
 def trunk_grade(calibration: SegmentCalibration | None) -> str:
