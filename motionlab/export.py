@@ -246,10 +246,11 @@ def results_json(session: Session) -> dict[str, Any]:
     Keys: ``software``, ``metadata``, ``sensors`` (label, segment, side, rate_hz, QC flags),
     ``angles`` (``time_s`` and per joint its ``columns`` (name → values, deg) and ``grades``
     and ``reasons`` when the calibration graded them), ``metrics`` (rows ``block, joint, angle,
-    metric, percent, value, unit, grade``), ``calibration`` (ok, warnings), ``validation`` (its
-    scalars), ``fusion`` (estimator per sensor). Standard JSON: NaN is ``null``, and so is a
-    measured value of an angle ``not determined`` (its column's series and its metric rows'
-    values; the grade and reason say why; the session file keeps what was computed).
+    column, metric, percent, value, unit, grade``), ``calibration`` (ok, warnings),
+    ``validation`` (its scalars), ``fusion`` (estimator per sensor). Standard JSON: NaN is
+    ``null``, and so is a measured value of an angle ``not determined`` (its column's series
+    and its metric rows' values; the grade and reason say why; the session file keeps what was
+    computed).
     """
     out: dict[str, Any] = {
         "format": JSON_FORMAT,
@@ -295,7 +296,8 @@ def results_json(session: Session) -> dict[str, Any]:
             joints[joint] = entry
         out["angles"] = {"time_s": time, "method": res.angles.method, "joints": joints}
     if res.metrics is not None:
-        table = graded_table(metrics_table(res.metrics), graded, trunk_grade(res.calibration))
+        table = metrics_table(res.metrics, joint_columns(session))
+        table = graded_table(table, graded, trunk_grade(res.calibration))
         out["metrics"] = table.astype(object).where(table.notna(), None).to_dict("records")
     if res.calibration is not None:
         cal = res.calibration

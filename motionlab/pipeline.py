@@ -73,8 +73,8 @@ class PipelineResult:
     """Where :func:`run_pipeline` wrote its outputs, the metrics and the one-screen summary.
 
     ``metrics`` has one row per joint metric (scalar rows of
-    :func:`motionlab.kinematics.metrics.metrics_table`: ``block, joint, angle, metric, value,
-    unit``; the cycle curves are left out), and the ``grade`` of the row's angle
+    :func:`motionlab.kinematics.metrics.metrics_table`: ``block, joint, angle, column, metric,
+    value, unit``; the cycle curves are left out), and the ``grade`` of the row's angle
     (``determined``, ``weak``, ``not determined``; empty for a row of no angle column).
     """
 
@@ -512,7 +512,7 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
     checked before any work.
     """
     from motionlab.export import write_json
-    from motionlab.kinematics.metrics import metrics_table
+    from motionlab.kinematics.metrics import metrics_table, protocol_columns
     from motionlab.report import load_views, write_report
     from motionlab.report.console import run_summary
     from motionlab.segments.grades import with_grades
@@ -574,7 +574,7 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
             views = load_views([session], proto, [session_path])
             out = write_report(views, report_path, csv_dir, force=options.force)
             write_json(session, outdir / RESULTS_JSON, force=options.force)
-    table = metrics_table(session.results.metrics)
+    table = metrics_table(session.results.metrics, protocol_columns(proto))
     metrics = table[table["percent"].isna()].drop(columns="percent").reset_index(drop=True)
     res = session.results
     metrics = with_grades(metrics, proto, res.calibration, res.angles.method)

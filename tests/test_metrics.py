@@ -137,7 +137,16 @@ def test_compute_metrics_on_a_lumbar_table_and_csv():
     blocks_found = single_plane_blocks(protocol, blocks, steps)
     assert [(b, j.name, i) for b, j, i, _ in blocks_found] == [("lateral_bending", "lumbar", 1)]
     df = metrics_table(m)
-    assert list(df.columns) == ["block", "joint", "angle", "metric", "percent", "value", "unit"]
+    assert list(df.columns) == [
+        "block",
+        "joint",
+        "angle",
+        "column",
+        "metric",
+        "percent",
+        "value",
+        "unit",
+    ]
     row = df[(df.metric == "rom_deg") & (df.angle == "lateral_bending")]
     assert row.value.item() == pytest.approx(40, abs=0.01) and row.joint.item() == "lumbar"
     assert (df[df.metric == "curve_mean_deg"].percent.dropna().max()) == 100

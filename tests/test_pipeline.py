@@ -94,7 +94,16 @@ def test_outputs_and_metrics_table(result, recorded):
     names = {p.name for p in result.csv_dir.iterdir()}
     assert {"knee_r_angles.csv", "metrics.csv", "quality.csv", "calibration.csv"} <= names
     m = result.metrics
-    assert list(m.columns) == ["block", "joint", "angle", "metric", "value", "unit", "grade"]
+    assert list(m.columns) == [
+        "block",
+        "joint",
+        "angle",
+        "column",
+        "metric",
+        "value",
+        "unit",
+        "grade",
+    ]
     assert not m["metric"].str.startswith("curve_").any()  # one row per joint metric
     rom = m[(m.joint == "knee_r") & (m.angle == "flexion") & (m.metric == "max_deg")]
     assert len(rom) == 1 and rom.iloc[0]["unit"] == "deg"

@@ -52,7 +52,7 @@ def command(
     Needs a calibrated session (motionlab calibrate); the angles are computed as
     motionlab angles does, then low-passed at 6 Hz for the metrics (a sensor's wobble
     on the skin is not a peak of the joint). The CSV has one row per number:
-    block, joint, angle, metric, percent, value, unit, grade (the angle's: determined,
+    block, joint, angle, column, metric, percent, value, unit, grade (the angle's: determined,
     weak, not determined).
 
     \b
@@ -63,7 +63,7 @@ def command(
     import numpy as np
 
     from motionlab import stages
-    from motionlab.kinematics.metrics import metrics_table
+    from motionlab.kinematics.metrics import metrics_table, protocol_columns
     from motionlab.lock import session_lock
     from motionlab.segments.grades import column_grades, with_grades
     from motionlab.session import load_session, save_session
@@ -75,7 +75,8 @@ def command(
         result = stages.metrics(ses, protocol_path, _parse_tasks(tasks), force=force, path=session)
         protocol = stages.stage_protocol(ses, protocol_path, session)
         method = ses.results.angles.method if ses.results.angles is not None else "imu"
-        table = with_grades(metrics_table(result), protocol, ses.results.calibration, method)
+        table = metrics_table(result, protocol_columns(protocol))
+        table = with_grades(table, protocol, ses.results.calibration, method)
         grades = column_grades(protocol, ses.results.calibration, method)
         if csv_path:
             with atomic_path(csv_path, force=force) as tmp:

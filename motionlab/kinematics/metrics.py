@@ -24,7 +24,7 @@ the protocol's nominal placement; ``out_of_plane_offset`` of lumbar joints per t
 ``stance_rotation`` of knees in gait tasks. Thresholds come from the protocol's ``thresholds``.
 
 The result (:class:`~motionlab.results.Metrics`, ``session.results.metrics``) holds arrays and
-JSON values only; :func:`metrics_table` flattens it into rows ``block, joint, angle, metric,
+JSON values only; :func:`metrics_table` flattens it into rows ``block, joint, angle, column, metric,
 percent, value, unit``.
 """
 
@@ -389,30 +389,38 @@ def session_metrics(
 _UNITS = {"repetitions": "1", "strides": "1", "compensated": "1"}
 
 
-def metrics_table(metrics: Metrics) -> pd.DataFrame:
-    """Rows ``block, joint, angle, metric, percent, value, unit`` of every scalar and curve.
+def metrics_table(metrics: Metrics, joints: dict[str, list[str]] | None = None) -> pd.DataFrame:
+    """Rows ``block, joint, angle, column, metric, percent, value, unit`` of every scalar and
+    curve: ``joint`` the protocol's joint name and ``column`` the angle column the row is of
+    (as ``grades.csv`` and the angle tables name them; empty for a row of no angle column)
+    where ``joints`` (``{joint name: its angle columns}``, :func:`protocol_columns`) tells them,
+    else the column's own prefix (``trunk_lean`` for a ``trunk_lean`` joint named otherwise).
 
     Per-cycle arrays are summarised by their mean; the cycle-normalised curves give one row per
     percent. Long sample-by-sample series (offset, trunk angles) stay in the session only.
     """
     rows: list[tuple] = []
+    name_of = {c: j for j, cols in (joints or {}).items() for c in cols}
+    column_of = {(j, split_column(c)[1]): c for j, cols in (joints or {}).items() for c in cols}
 
-    def add(block, joint, angle, metric, value, percent=None):
+    def add(block, joint, angle, metric, value, percent=None, column=None):
         if isinstance(value, (bool, np.bool_)):
             value = float(value)
         unit = _UNITS.get(metric, "%" if metric.endswith("_pct") else "deg")
-        rows.append((block, joint, angle, metric, percent, float(value), unit))
+        column = column or column_of.get((joint, angle), "")
+        rows.append((block, joint, angle, column, metric, percent, float(value), unit))
 
     for block, cols in metrics.joints.items():
         for col, m in cols.items():
-            joint, angle = split_column(col)
+            prefix, angle = split_column(col)
+            joint = name_of.get(col, prefix)
             for key in ("rom_deg", "min_deg", "max_deg", "repetitions"):
-                add(block, joint, angle, key, getattr(m, key))
+                add(block, joint, angle, key, getattr(m, key), column=col)
             for key in ("cycle_max_mean_deg", "cycle_min_mean_deg"):
-                add(block, joint, angle, key, getattr(m, key))
+                add(block, joint, angle, key, getattr(m, key), column=col)
             for pct, (mu, sd) in enumerate(zip(m.curve_mean_deg, m.curve_sd_deg, strict=True)):
-                add(block, joint, angle, "curve_mean_deg", mu, pct)
-                add(block, joint, angle, "curve_sd_deg", sd, pct)
+                add(block, joint, angle, "curve_mean_deg", mu, pct, column=col)
+                add(block, joint, angle, "curve_sd_deg", sd, pct, column=col)
     for block, joints in (metrics.cross_talk or {}).items():
         for joint, c in joints.items():
             add(block, joint, c.on_axis, "cross_talk_on_axis_rom_deg", c.on_axis_rom_deg)
@@ -448,5 +456,11 @@ def metrics_table(metrics: Metrics) -> pd.DataFrame:
             add(block, joint, "rotation", "stance_rotation_range_sd_deg",
                 g.stance_rotation_range_sd_deg)  # fmt: skip
     return pd.DataFrame(
-        rows, columns=["block", "joint", "angle", "metric", "percent", "value", "unit"]
+        rows,
+        columns=["block", "joint", "angle", "column", "metric", "percent", "value", "unit"],
     )
+
+
+def protocol_columns(protocol: Protocol) -> dict[str, list[str]]:
+    """``{joint name: its angle columns}`` of a protocol, for :func:`metrics_table`."""
+    return {name: [c for _, c in angle_columns(j)] for name, j in protocol.joints.items()}

@@ -380,14 +380,16 @@ def trunk_grade(calibration: SegmentCalibration | None) -> str:
 
 
 def graded_table(table, grades: dict[str, str], trunk: str = ""):
-    """A metrics table (rows with ``joint``, ``angle``, ``value`` and ``unit``) with each row's
-    angle grade in a ``grade`` column (``grades`` by angle column; the trunk's rows ``trunk``;
+    """A metrics table (rows with ``joint``, ``angle``, ``value``, ``unit`` and, where it has
+    one, the row's angle ``column``) with each row's angle grade in a ``grade`` column
+    (``grades`` by angle column; the trunk's rows ``trunk``;
     empty for a row of no angle). A measured value of an angle ``not determined`` is withheld
     (NaN; counts, unit ``1``, stay): the report does not print it, and a table read without its
     grade must not show it either."""
+    columns = table["column"] if "column" in table else [""] * len(table)
     graded = [
-        trunk if j == "trunk" and a else grades.get(f"{j}_{a}_deg", "")
-        for j, a in zip(table["joint"], table["angle"], strict=True)
+        trunk if j == "trunk" and a else grades.get(c or f"{j}_{a}_deg", "")
+        for j, a, c in zip(table["joint"], table["angle"], columns, strict=True)
     ]
     withheld = (np.asarray(graded) == NOT_DETERMINED) & (table["unit"] != "1").to_numpy()
     return table.assign(grade=graded, value=table["value"].where(~withheld))
