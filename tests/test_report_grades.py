@@ -514,3 +514,22 @@ def test_the_stride_curves_have_their_key_and_axis_labels(walk, pelvis):
         assert keys == ["right (mean ± SD)", "left (mean ± SD)", "normative mean ± SD"]
         drawn = [ax for ax in page.axes if ax.get_lines()]
         assert drawn and all(ax.get_xlabel() == "% of stride" for ax in drawn)
+
+
+def test_a_segment_whose_frame_is_not_determined_is_no_ok_segment():
+    """The real full-body arm's thorax passed its quality checks, but its frame (one measured
+    axis, the placement hint contradicted) was not determined: the calibration table and the
+    run summary said "ok" beside a trunk compensation "not determined" for that very reason."""
+    from motionlab.report.model import _segment_ok
+    from motionlab.results import SegmentQuality, SegmentRecord
+
+    passed = SegmentQuality(ok=True, messages=[], min_rho=0.99)
+    one_axis = SegmentRecord(np.array([1.0, 0, 0, 0]), "single_axis", quality=passed)
+    assert _segment_ok("thorax", one_axis)  # one axis and the hint: weak, still usable
+    contradicted = SegmentRecord(
+        np.array([1.0, 0, 0, 0]), "single_axis", quality=passed, hint_contradicted=True
+    )
+    assert not _segment_ok("thorax", contradicted)
+    assert not _segment_ok(
+        "thorax", SegmentRecord(np.array([1.0, 0, 0, 0]), "nominal", quality=passed)
+    )

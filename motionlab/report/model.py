@@ -548,9 +548,14 @@ def quality_rows(view: SessionView) -> list[QualityRow]:
     return rows
 
 
-def _segment_ok(res: SegmentRecord | None) -> bool:
-    """Whether a segment's calibration passed its quality checks (false without one)."""
-    return bool(res is not None and res.quality is not None and res.quality.ok)
+def _segment_ok(seg: str, res: SegmentRecord | None) -> bool:
+    """Whether a segment's calibration passed its quality checks and determined its frame at
+    least in part (false without one): the real full-body arm's thorax passed its checks while
+    its frame, one measured axis against a contradicted placement hint, was not determined,
+    and read "ok" beside a trunk compensation "not determined" for that reason."""
+    if res is None or res.quality is None or not res.quality.ok:
+        return False
+    return _frame_grade(seg, res)[0] != NOT_DETERMINED
 
 
 def _no_axis_row(view: SessionView, seg: str, res: SegmentRecord | None) -> CalibrationRow:
@@ -566,7 +571,7 @@ def _no_axis_row(view: SessionView, seg: str, res: SegmentRecord | None) -> Cali
         residual_deg=float("nan"),
         used=False,
         hinge_check_deg=float("nan"),
-        segment_ok=_segment_ok(res),
+        segment_ok=_segment_ok(seg, res),
     )
 
 
@@ -609,7 +614,7 @@ def calibration_rows(view: SessionView) -> list[CalibrationRow]:
                     residual_deg=float(residual) if residual is not None else float("nan"),
                     used=a.in_fit,
                     hinge_check_deg=float(check) if check is not None else float("nan"),
-                    segment_ok=_segment_ok(res),
+                    segment_ok=_segment_ok(seg, res),
                     verdict=a.verdict if a.kind == "movement" else None,
                 )
             )
