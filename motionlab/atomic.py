@@ -148,10 +148,11 @@ def check_output(path: str | Path, force: bool, inputs: Iterable[str | Path | No
     path, inputs = Path(path), list(inputs)
     refuse_input_as_output(path, inputs)
     refuse_folder_in_input_folder(path.parent, inputs)
-    if path.exists() and not force:
+    if path.exists() and not force:  # where: the folder, or a user cannot tell which one
         raise InputError(
-            "output exists", path, remedy="use force=True to replace it", argument="force"
-        )
+            "output exists", path, f"in {path.parent}", "use force=True to replace it",
+            argument="force",
+        )  # fmt: skip
     if path.is_dir():
         raise InputError("output is a folder", path, remedy="give a file name")
     kind = special_kind(path)

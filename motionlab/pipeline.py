@@ -230,8 +230,9 @@ def _outputs(
         for p in (session_path, report_path, report_path.with_suffix(".txt"), csv_dir, results):
             if p.exists():
                 raise InputError(
-                    "output exists", p, remedy="use force=True to replace it", argument="force"
-                )
+                    "output exists", p, f"in {outdir}", "use force=True to replace it",
+                    argument="force",
+                )  # fmt: skip
     return session_path, report_path, csv_dir
 
 

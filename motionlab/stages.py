@@ -534,8 +534,8 @@ def validate(
         raise InputError(
             "an angle map applies to a reference of model joint angles",
             path,
-            remedy="pass reference_kind='angles' (--reference-kind angles), or leave out the map",
-            argument="angle_map",
+            remedy="pass reference_kind='angles', or leave out angle_map=",
+            argument=("reference_kind", "angle_map"),
         )
     if reference_kind == "segments" and marker_map is None:
         from motionlab.validation.segment_csv import segment_map
@@ -561,8 +561,8 @@ def validate(
 
     if reference is not None and has_model_angles(reference):  # say what else it holds
         result.notes.append(
-            "the reference also holds another model's joint angles (POINT:ANGLES): "
-            "--reference-kind angles (reference_kind='angles') compares against those"
+            "the reference also holds another model's joint angles (POINT:ANGLES): the "
+            "reference kind 'angles' compares against those"
         )
     session.results.validation = result
     session.lineage.record(session.results, "validation", proto)

@@ -75,7 +75,8 @@ def test_the_cli_line_of_a_library_error(tmp_path):
         save_session(Session(), path)
     assert err.value.arguments == ("force",)
     assert "force=True" in err.value.line() and "--force" not in err.value.line()
-    assert cli_error(err.value).line() == "s.h5: output exists — use --force to replace it"
+    line = cli_error(err.value).line()  # the folder named: which s.h5 is meant
+    assert line == f"s.h5 in {tmp_path}: output exists — use --force to replace it"
 
 
 def test_batch_names_manifest_keys_not_flags_or_arguments():
