@@ -21,8 +21,9 @@ ingest's clock repair, quality checks and gap filling in the first stage that re
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -61,6 +62,19 @@ MAGNETOMETER = False
 CLOCK_SYNC = True
 
 Progress = Callable[[list[str], str], Iterable[str]]
+
+
+@contextlib.contextmanager
+def in_session_file(path: Any) -> Iterator[None]:
+    """An :class:`InputError` about what the session holds (its fusion results, its
+    calibration) that names no file is named by the session's file ``path`` (when given): "no
+    fusion result" said where in the session, not which session."""
+    try:
+        yield
+    except InputError as exc:
+        if exc.path is not None or path is None:
+            raise
+        raise InputError(exc.message, path, exc.where, exc.remedy, exc.arguments or None) from None
 
 
 def refuse_to_redo(done: bool, stage: str, what: str, force: bool, path: Any = None) -> None:
@@ -339,12 +353,8 @@ def calibrate(
         protocol = load_protocol(protocol)
     check_joints(protocol, session, path)  # before the joints of absent segments are dropped
     protocol = stage_protocol(session, protocol, path)
-    try:
+    with in_session_file(path):
         result = calibrate_segments(session, protocol)
-    except InputError as exc:  # what the session holds (its fusion results): name its file
-        if exc.path is not None or path is None:
-            raise
-        raise InputError(exc.message, path, exc.where, exc.remedy, exc.arguments or None) from None
     result.protocol_path = str(protocol.path)
     session.results.calibration = result
     session.lineage.record(session.results, "calibration", protocol)
@@ -388,13 +398,15 @@ def angles(
     protocol = stage_protocol(session, protocol, path)
     corrections: dict[str, HeadingCorrection] = {}
     if method == "imu":
-        table = session_angles(
-            session, protocol, cal if calibrated else None, corrections=corrections
-        )
+        with in_session_file(path):
+            table = session_angles(
+                session, protocol, cal if calibrated else None, corrections=corrections
+            )
     elif method == "accel-only":
         from motionlab.kinematics.accel_only import session_elbow_angles
 
-        table = session_elbow_angles(session, protocol)
+        with in_session_file(path):
+            table = session_elbow_angles(session, protocol)
     else:
         raise InputError(
             f"unknown angle method {method!r}", remedy="use imu or accel-only", argument="method"
@@ -440,7 +452,8 @@ def metrics(
             "tasks",
             f"tasks are {', '.join(t.name for t in protocol.tasks)}",
         )
-    result = session_metrics(session, protocol, tasks)
+    with in_session_file(path):
+        result = session_metrics(session, protocol, tasks)
     session.results.metrics = result
     if session.results.angles is not None:
         session.results.angles.events.update(result.spans())
@@ -523,10 +536,11 @@ def validate(
     if reference_kind == "angles":
         from motionlab.validation.model_angles import validate_model_angles
 
-        result = validate_model_angles(
-            session, reference, proto, mapping=angle_map, sync=clock,
-            movement_only=movement_only, seed=seed,
-        )  # fmt: skip
+        with in_session_file(path):
+            result = validate_model_angles(
+                session, reference, proto, mapping=angle_map, sync=clock,
+                movement_only=movement_only, seed=seed,
+            )  # fmt: skip
         session.results.validation = result
         session.lineage.record(session.results, "validation", proto)
         return result
@@ -542,18 +556,19 @@ def validate(
 
         segs = list(proto.segments) if proto is not None else []
         marker_map = segment_map(reference, segs, list(session.sensors), frames)
-    result = validate_session(
-        session,
-        reference,
-        marker_map,
-        proto,
-        mode or validation_mode(session),
-        sync=clock,
-        movement_only=movement_only,
-        seed=seed,
-        static=static,
-        sync_on=sync_on,
-    )
+    with in_session_file(path):
+        result = validate_session(
+            session,
+            reference,
+            marker_map,
+            proto,
+            mode or validation_mode(session),
+            sync=clock,
+            movement_only=movement_only,
+            seed=seed,
+            static=static,
+            sync_on=sync_on,
+        )
     result.reference = ValidationReference(
         kind=reference_kind, frames=frames if reference_kind == "segments" else None
     )

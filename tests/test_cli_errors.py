@@ -259,3 +259,22 @@ def test_a_reader_that_stops_reading_is_no_internal_error():
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert res.returncode == EXIT_BROKEN_PIPE
     assert "internal error" not in res.stderr and "Traceback" not in res.stderr
+
+
+def test_a_usage_error_is_one_line_with_exit_2(tmp_path):
+    """click's usage errors were three lines (Usage, Try, Error); every other refusal is one."""
+    args = ["export", str(tmp_path / "s.h5"), "-o", str(tmp_path / "s.xyz")]
+    res = CliRunner().invoke(main, args)
+    assert res.exit_code == 2
+    lines = [x for x in res.output.splitlines() if x.strip()]
+    assert len(lines) == 1 and lines[0].startswith("error: ") and " export --help'" in lines[0]
+
+
+def test_a_task_that_ends_before_it_starts_says_so():
+    from motionlab.cli.metrics import _parse_tasks
+    from motionlab.errors import InputError
+
+    with pytest.raises(InputError, match="starts at or after its end"):
+        _parse_tasks(("gait=150:95",))
+    with pytest.raises(InputError, match="is not NAME=START:END"):
+        _parse_tasks(("gait=a:95",))

@@ -141,6 +141,11 @@ class MotionlabGroup(click.Group):
                 traceback.print_exc()
             click.echo(f"error: {cli_error(exc).line()}", err=True)
             sys.exit(EXIT_BAD_INPUT)
+        except click.UsageError as exc:  # one line, as every other refusal
+            where = exc.ctx.command_path if exc.ctx is not None else "motionlab"
+            what = exc.format_message().rstrip(".")
+            click.echo(f"error: {what} — see '{where} --help'", err=True)
+            sys.exit(exc.exit_code)
         except (click.exceptions.Exit, click.ClickException, click.Abort, SystemExit):
             raise
         except KeyboardInterrupt:

@@ -21,6 +21,10 @@ def _parse_tasks(items: tuple[str, ...]) -> dict[str, tuple[float, float]] | Non
             t0, t1 = float(start), float(end)
         except ValueError:
             t0 = t1 = float("nan")
+        if name and t0 >= t1:  # the form is right (NaN compares false)
+            raise InputError(
+                f"--task {item!r} starts at or after its end", remedy="give START < END (s)"
+            )
         if not name or not t0 < t1:
             raise InputError(f"--task {item!r} is not NAME=START:END", remedy="e.g. gait=95:150")
         out[name] = (t0, t1)
