@@ -99,7 +99,8 @@ def _apply_map(
                 segment=place.segment or stream.segment,
                 side=place.side or stream.side,
                 label=place.label or stream.label,
-                attrs={**stream.attrs, "map_key": key},
+                # the file's own name for it: a serial-less sensor's calibration is filed by it
+                attrs={**stream.attrs, "map_key": key, "file_label": stream.label},
             )
         out.append((stream, path))
     missing = [k for k in smap.sensors if k not in used]

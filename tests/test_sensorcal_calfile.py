@@ -157,3 +157,27 @@ def test_billion_laughs_calibration_file_is_refused(tmp_path):
     path.write_text(text)
     with pytest.raises(InputError, match="alias"):
         load_calibration(path)
+
+
+def test_a_serial_less_sensor_is_filed_by_its_files_label_not_the_maps(tmp_path):
+    """APDM's ``Upper`` has no serial; mapped to ``thigh_r`` its calibration was filed as
+    ``thigh_r.yaml`` (and printed as "serial thigh_r"), which the same file ingested without
+    that map never found. It is filed by the name its file gives it."""
+    from motionlab.ingest import ingest
+    from motionlab.sensorcal import calibration_key
+
+    csv = tmp_path / "imu.csv"
+    rows = ["t,ax,ay,az,gx,gy,gz"] + [f"{k / 100:.2f},0,0,9.81,0.01,0,0" for k in range(300)]
+    csv.write_text("\n".join(rows) + "\n")
+    reader = (
+        "reader:\n  format: generic\n  time: t\n  sensors:\n"
+        "    - {label: Upper, acc: {columns: [ax, ay, az], unit: m/s^2},"
+        " gyr: {columns: [gx, gy, gz], unit: rad/s}}\n"
+    )
+    (tmp_path / "plain.yaml").write_text("sensors:\n  Upper: {segment: thigh, side: r}\n" + reader)
+    (tmp_path / "mapped.yaml").write_text(
+        "sensors:\n  Upper: {segment: thigh, side: r, label: thigh_r}\n" + reader
+    )
+    mapped = ingest([csv], tmp_path / "mapped.yaml").sensors["thigh_r"]
+    plain = ingest([csv], tmp_path / "plain.yaml").sensors["Upper"]
+    assert mapped.serial == "" and calibration_key(mapped) == calibration_key(plain) == "Upper"

@@ -147,7 +147,8 @@ def command(
         pending.append((label, cal, results, skipped))
     for label, cal, results, skipped in pending:
         path = calfile.save_calibration(cal, out, force=True)
-        click.echo(f"{label} (serial {cal.serial}) -> {path}")
+        kind = "serial" if streams[label].serial else "file's label"
+        click.echo(f"{label} ({kind} {cal.serial}) -> {path}")
         for r in results:
             for line in _describe(r):
                 click.echo(f"  {line}")

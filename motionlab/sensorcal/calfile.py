@@ -171,8 +171,10 @@ def from_dict(data: Any, path: Path) -> SensorCalibration:
 
 
 def calibration_key(stream: SensorStream) -> str:
-    """The name a sensor's calibration is filed under: its serial, else its label."""
-    return stream.serial or stream.label
+    """The name a sensor's calibration is filed under: its serial, else the label its file
+    gives it (not the one a sensor map gives it: APDM's serial-less ``Upper`` mapped to
+    ``thigh_r`` was filed as ``thigh_r.yaml`` and not found when ingested without that map)."""
+    return stream.serial or str(stream.attrs.get("file_label") or stream.label)
 
 
 def calibration_path(caldir: str | Path, key: str, suffix: str = ".yaml") -> Path:
