@@ -471,7 +471,14 @@ def load_session(path: str | Path) -> Session:
     if not path.is_file():
         raise InputError("no such session file", path, remedy="check the path")
     check_hdf5(path)  # a damaged file can crash libhdf5 itself: probed in a child first
-    f = open_hdf5(path, "not an HDF5 file", "give a session written by 'motionlab ingest'")
+    damaged = looks_like_hdf5(path)  # what a run calls a damaged HDF5 file, info calls so too
+    f = open_hdf5(
+        path,
+        "HDF5 file is damaged or truncated (h5py cannot open it)" if damaged
+        else "not an HDF5 file",
+        "copy the file again, or run the stages again" if damaged
+        else "give a session written by 'motionlab ingest'",
+    )  # fmt: skip
     place = _Place(path)
     with f:
         try:

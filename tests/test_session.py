@@ -237,3 +237,20 @@ def test_a_stage_commands_provenance_reads_as_the_command_a_user_typed(monkeypat
     monkeypatch.setattr("sys.argv", ["/usr/local/bin/motionlab", "fuse", "s.h5"])
     s.add_provenance(parameters={"stage": "fuse"})
     assert s.provenance[-1]["command"] == "motionlab fuse s.h5"
+
+
+def test_a_truncated_session_file_is_called_damaged_not_foreign(tmp_path):
+    """``info`` called a truncated session "not an HDF5 file" where ``run`` said "damaged or
+    truncated": a file that starts as HDF5 is a damaged one, for every command."""
+    from motionlab.errors import InputError
+
+    path = tmp_path / "s.h5"
+    save_session(Session(), path)
+    cut = tmp_path / "cut.h5"
+    cut.write_bytes(path.read_bytes()[:1500])
+    with pytest.raises(InputError, match="damaged or truncated"):
+        load_session(cut)
+    other = tmp_path / "text.h5"
+    other.write_text("time,x\n0,1\n")
+    with pytest.raises(InputError, match="not an HDF5 file"):
+        load_session(other)
