@@ -93,7 +93,8 @@ def command(
     """Process every session of the study MANIFEST (study.yaml) as 'motionlab run' does.
 
     Each session goes to OUTDIR/<subject>/<visit>/. Sessions whose input files (SHA-256),
-    protocol and motionlab version are unchanged since their last successful run are skipped,
+    protocol, options and motionlab version are unchanged since their last successful run are
+    skipped,
     so an interrupted study resumes where it stopped. A failing session is listed in
     OUTDIR/study_failures.csv and the others go on. All sessions' metrics are collected in
     OUTDIR/study_metrics.csv and summarised in OUTDIR/study_report.pdf.
