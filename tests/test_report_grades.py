@@ -533,3 +533,19 @@ def test_a_segment_whose_frame_is_not_determined_is_no_ok_segment():
     assert not _segment_ok(
         "thorax", SegmentRecord(np.array([1.0, 0, 0, 0]), "nominal", quality=passed)
     )
+
+
+def test_cycles_counted_on_an_undetermined_angle_are_withheld():
+    """The real full-body arm's elbows showed "Cycles 5" on rows that all said "not determined":
+    the repetitions are counted on the elbow's flexion, which the recording did not determine.
+    A walk's knees and hips count their leg's strides (the shank's gyroscope) and keep them."""
+    from motionlab.protocol import load_protocol
+    from motionlab.report.model import cycles_counted
+
+    arm, walk = load_protocol("arm"), load_protocol("walk")
+    elbow, free = arm.joints["elbow_r"], arm.tasks[0]
+    nd = {"elbow_r_flexion_deg": ("not determined", "")}
+    assert not cycles_counted(free, elbow, nd)
+    assert cycles_counted(free, elbow, {"elbow_r_flexion_deg": ("weak", "")})
+    knee_nd = {"knee_r_flexion_deg": ("not determined", "")}
+    assert cycles_counted(walk.tasks[0], walk.joints["knee_r"], knee_nd)

@@ -83,7 +83,8 @@ class RomRow:
     """One task's range of motion of one angle (:func:`rom_rows`): ``task``, ``joint`` (its
     name), ``joint_type``, ``side`` (``r``, ``l`` or empty), ``angle``, ``plane``, ``column``;
     ``rom_deg``, ``min_deg``, ``max_deg`` over the task (deg); ``typical_min_deg`` /
-    ``typical_max_deg``: the means of the per-cycle peaks (deg); ``repetitions``; ``normal``:
+    ``typical_max_deg``: the means of the per-cycle peaks (deg); ``repetitions`` (``None``:
+    counted on an angle the recording did not determine, withheld with it); ``normal``:
     the protocol's normal range ``(low, high)`` deg or ``None``; ``status``: ``within``,
     ``below``, ``above``, ``wider`` (:func:`compare`), empty when not compared (no normal range,
     or the angle not ``determined``); ``grade`` and ``reason`` (:func:`grade_rows`)."""
@@ -100,7 +101,7 @@ class RomRow:
     max_deg: float
     typical_min_deg: float
     typical_max_deg: float
-    repetitions: int
+    repetitions: int | None
     normal: tuple[float, float] | None
     status: str
     grade: str
@@ -434,13 +435,29 @@ def grade_mark(grade: str, reason: str = "") -> str:
     return f"({grade}: {reason})" if reason and grade == WEAK else f"({grade})"
 
 
+def cycles_counted(task, joint, grades: dict) -> bool:
+    """Whether ``joint``'s cycles in ``task`` were counted on something the recording
+    determined: a walk's knees and hips count their leg's strides (the shank's gyroscope);
+    other joints and tasks the repetitions of the joint's primary angle
+    (:func:`~motionlab.kinematics.metrics.primary_plane`), whose grade then decides (the real
+    full-body arm's elbows showed "5 cycles" of an elbow flexion not determined)."""
+    from motionlab.kinematics.metrics import primary_plane
+
+    if task is not None and task.is_gait and joint.type in ("knee", "hip"):
+        return True
+    column = angle_columns(joint)[primary_plane(joint, task)][1]
+    return grades.get(column, (DETERMINED, ""))[0] != NOT_DETERMINED
+
+
 def rom_rows(view: SessionView) -> list[RomRow]:
     """One row per task, joint and angle (see the module docstring)."""
     grades = angle_grades(view)
     rows = []
+    tasks = {t.name: t for t in view.protocol.tasks}
     for task in view.tasks():
         per_col = view.metrics.joints[task]
         for joint in view.joints():
+            counted = cycles_counted(tasks.get(task), joint, grades)
             for angle, col in angle_columns(joint):
                 m = per_col.get(col)
                 if m is None:
@@ -463,7 +480,7 @@ def rom_rows(view: SessionView) -> list[RomRow]:
                         max_deg=float(m.max_deg),
                         typical_min_deg=low,
                         typical_max_deg=high,
-                        repetitions=int(m.repetitions),
+                        repetitions=int(m.repetitions) if counted else None,
                         normal=normal,
                         status=status if is_determined(grade) else "",
                         grade=grade,

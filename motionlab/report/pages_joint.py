@@ -121,7 +121,7 @@ def _rom_table(doc: Document, view: SessionView, joint) -> None:
                 f"{r.angle.replace('_', ' ')} ({r.plane})",
                 "-" if hide else span(r.typical_min_deg, r.typical_max_deg),
                 "-" if hide else f"{r.rom_deg:.0f}",
-                str(r.repetitions),
+                "-" if r.repetitions is None else str(r.repetitions),
                 normal,
                 STATUS_WORDS.get(r.status, "-")
                 if r.status
