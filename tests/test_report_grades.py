@@ -549,3 +549,29 @@ def test_cycles_counted_on_an_undetermined_angle_are_withheld():
     assert cycles_counted(free, elbow, {"elbow_r_flexion_deg": ("weak", "")})
     knee_nd = {"knee_r_flexion_deg": ("not determined", "")}
     assert cycles_counted(walk.tasks[0], walk.joints["knee_r"], knee_nd)
+
+
+def test_a_flag_needs_the_value_beyond_its_own_uncertainty():
+    """The demo's healthy knee was told its varus thrust of 3.3° (SD 0.3, 9 strides) was above
+    the 3° flagged, "linked to progression of medial knee osteoarthritis", with an adduction
+    the report itself gives as ±2°; its elbow was told of trunk compensation for a 10.2° lean
+    against a 10° limit. A flag now needs the value beyond the limit by more than its margin."""
+    import types
+
+    from motionlab.protocol import load_protocol
+    from motionlab.report.model import accuracy_bound, thrust_above, trunk_above
+    from motionlab.results import TrunkAngleStats
+
+    view = types.SimpleNamespace(protocol=load_protocol("knee"))
+    assert accuracy_bound(view, "knee", "adduction") == 2.0
+
+    def stance(mean, sd, n):
+        return types.SimpleNamespace(varus_thrust_mean_deg=mean, varus_thrust_sd_deg=sd,
+                                     strides=n, threshold_deg=3.0)  # fmt: skip
+
+    assert not thrust_above(view, "knee_r", stance(3.3, 0.3, 9))
+    assert thrust_above(view, "knee_r", stance(6.0, 0.5, 20))
+    walk = types.SimpleNamespace(protocol=load_protocol("walk"))  # no accuracy on file
+    assert not thrust_above(walk, "knee_r", stance(9.0, 0.5, 20))
+    assert not trunk_above(TrunkAngleStats(10.2, 0.0, 10.2, 90.0, 10.0))
+    assert trunk_above(TrunkAngleStats(12.5, 0.0, 12.5, 40.0, 10.0))

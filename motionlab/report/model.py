@@ -382,6 +382,53 @@ def compare(low: float, high: float, normal: tuple[float, float] | None, reach: 
     return "within"
 
 
+#: two-sided 95 % quantile of the normal distribution (a mean's margin: Z95 × its SE)
+Z95 = 1.96
+#: the largest error (deg) of a fused sensor's inclination to expect, for a thorax's lean away
+#: from its neutral posture: the default smoother's worst BROAD trial without magnetic
+#: disturbance, 1.75° total (docs/performance.md), rounded up
+INCLINATION_ERROR_DEG = 2.0
+
+
+def accuracy_bound(view: SessionView, joint_type: str, angle: str) -> float:
+    """The ± bound (deg) the Expected accuracy page states for one angle of this protocol (the
+    worst validation RMSE, rounded up); NaN when none is on file."""
+    from motionlab.report.normative import load_accuracy
+
+    proto = (load_accuracy().get("protocols") or {}).get(view.protocol.name) or {}
+    entry = proto.get(f"{joint_type}_{angle}")
+    if not entry:
+        return float("nan")
+    rmse = float(entry.get("rmse_deg", np.nan))
+    worst = float(entry.get("max_rmse_deg", np.nan))
+    return float(np.ceil(max(rmse, worst) if np.isfinite(worst) else rmse))
+
+
+def clearly_above(value: float, limit: float, margin: float) -> bool:
+    """Whether ``value`` exceeds ``limit`` by more than ``margin``, its own uncertainty (deg);
+    an unknown margin (NaN) is never clearly above: a healthy knee's varus thrust of 3.3° was
+    told it exceeded the 3° flagged, with an adduction known to ±2°."""
+    return bool(np.isfinite(value) and np.isfinite(margin) and value - margin > limit)
+
+
+def thrust_above(view: SessionView, name: str, g) -> bool:
+    """Whether a knee's mean varus thrust (:class:`~motionlab.results.StanceMetrics` ``g``)
+    clearly exceeds the protocol's limit: by more than its 95 % margin over the strides plus the
+    adduction's stated accuracy (:func:`accuracy_bound`)."""
+    joint = view.protocol.joints[name]
+    n = max(int(g.strides), 1)
+    sd = float(g.varus_thrust_sd_deg) if np.isfinite(g.varus_thrust_sd_deg) else 0.0
+    margin = Z95 * sd / np.sqrt(n) + accuracy_bound(view, joint.type, "adduction")
+    return clearly_above(float(g.varus_thrust_mean_deg), float(g.threshold_deg), margin)
+
+
+def trunk_above(a) -> bool:
+    """Whether a trunk angle's peak (:class:`~motionlab.results.TrunkAngleStats` ``a``) clearly
+    exceeds its limit: by more than :data:`INCLINATION_ERROR_DEG` (a lean of 10.2° against a
+    10° limit was flagged as compensation)."""
+    return clearly_above(float(a.peak_abs_deg), float(a.threshold_deg), INCLINATION_ERROR_DEG)
+
+
 def grade_rows(view: SessionView) -> list[GradeRow]:
     """One row per angle column of every protocol joint: ``joint, angle, column, grade, reason``
     (:func:`motionlab.segments.grades.graded_angles`, as the stage commands print them)."""

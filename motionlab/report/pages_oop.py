@@ -19,6 +19,8 @@ from motionlab.report.model import (
     in_order,
     joint_title,
     segment_grade,
+    thrust_above,
+    trunk_above,
     worst_grade,
 )
 from motionlab.report.pdf import MUTED, SIDE_COLOUR, SIZE, Document
@@ -123,7 +125,7 @@ def _gait(doc: Document, view: SessionView) -> None:
                 ),
             ]
         )
-        above = varus == "determined" and g.varus_thrust_mean_deg > g.threshold_deg
+        above = varus == "determined" and thrust_above(view, name, g)
         flagged.append([False] * 3 + [above] + [False] * 2)
         label = f"{joint_title(joint)}, {task_name(task)}"
         if varus != "determined":
@@ -221,7 +223,7 @@ def _trunk(doc: Document, view: SessionView) -> None:
                     _graded(f"{_f(a.above_pct, '.0f')} (limit {a.threshold_deg:g}°)", grade),
                 ]
             )
-            flagged.append([False] * 3 + [grade == "determined" and a.above_pct > 0] * 2)
+            flagged.append([False] * 3 + [grade == "determined" and trunk_above(a)] * 2)
     doc.table(
         ["Task", "Trunk movement", "Range (°)", "Peak (°)", "Time above limit (%)"],
         rows,

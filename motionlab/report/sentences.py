@@ -38,6 +38,8 @@ from motionlab.report.model import (
     rom_rows,
     segment_grade,
     symmetry_rows,
+    thrust_above,
+    trunk_above,
     worst_grade,
 )
 from motionlab.report.normative import gait_bands
@@ -233,19 +235,24 @@ def _oop_findings(view: SessionView) -> list[str]:
             if not np.isfinite(thrust) or not is_determined(varus):
                 continue
             limit = g.threshold_deg
-            verdict = "above" if thrust > limit else "within"
+            if thrust_above(view, name, g):
+                verdict = f"above the {limit:g}° this protocol flags"
+            elif thrust > limit:  # over the limit, but not by more than its own uncertainty
+                verdict = f"not clearly above the {limit:g}° flagged, given its accuracy"
+            else:
+                verdict = f"within the {limit:g}° this protocol flags"
             out.append(
                 f"{side} knee varus thrust {thrust:.1f}° in stance during {task_name(task)} "
-                f"({verdict} the {limit:g}° this protocol flags; {g.strides} strides)."
+                f"({verdict}; {g.strides} strides)."
             )
     if is_determined(segment_grade(view, THORAX)[0]):
         for task, t in (m.trunk_compensation or {}).items():
-            if t.compensated:
-                parts = [
-                    f"{TRUNK_WORDS[k]} up to {t.per_angle[k].peak_abs_deg:.0f}°"
-                    for k in TRUNK_WORDS
-                    if t.per_angle[k].above_pct > 0
-                ]
+            parts = [
+                f"{TRUNK_WORDS[k]} up to {t.per_angle[k].peak_abs_deg:.0f}°"
+                for k in TRUNK_WORDS
+                if trunk_above(t.per_angle[k])
+            ]
+            if parts:
                 out.append(
                     f"Trunk compensation during {task_name(task)}: {', '.join(parts)} away from "
                     "the neutral posture."
