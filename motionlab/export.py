@@ -175,21 +175,34 @@ def write_c3d(
     """A C3D file at the rate of ``time``: the markers (mm; sampled at ``marker_time``, their
     clock's stamps for each frame, linearly) then the model outputs, each kind listed in
     ``POINT:<KIND>`` with ``POINT:<KIND>_UNITS`` (``ANGLE_UNITS``…); ``descriptions`` fill
-    ``POINT:DESCRIPTIONS`` by label. NaN → residual −1."""
+    ``POINT:DESCRIPTIONS`` by label.
+
+    C3D frames are evenly spaced: the samples go to the frame nearest their time on the grid
+    from the first sample at the median rate (the header's first frame is that time's), and a
+    gap in ``time`` stays a gap (residual −1), where writing the samples back to back put
+    every later frame up to 0.7 s early. A point with every component NaN has residual −1; a
+    NaN component of a point otherwise valid is written as 0 (the description says which)."""
     import ezc3d
 
     rate = 1.0 / float(np.median(np.diff(time))) if len(time) > 1 else 100.0
+    frame = np.rint((np.asarray(time, float) - time[0]) * rate).astype(int)
+    grid = time[0] + np.arange(frame[-1] + 1) / rate
     labels, blocks = [], []
     if markers is not None and markers.n_markers:
-        t_m = time if marker_time is None else marker_time
+        t_m = grid if marker_time is None else np.interp(grid, time, marker_time)
         labels += list(markers.labels)
         blocks.append(_interp(markers.time, markers.positions, t_m) * 1000.0)
     labels += [o.name for o in outputs]
-    blocks += [np.asarray(o.data, dtype=float)[:, None, :] for o in outputs]
+    for o in outputs:
+        on_grid = np.full((len(grid), 1, 3), np.nan)
+        on_grid[frame, 0] = np.asarray(o.data, dtype=float)
+        blocks.append(on_grid)
     if not labels:
         raise InputError("nothing to write", path, remedy="the session has no angles or markers")
+    labels = _unique(labels)  # C3D tools look points up by label
     xyz = np.concatenate(blocks, axis=1)  # (N, P, 3)
     c3d = ezc3d.c3d()
+    c3d["header"]["points"]["first_frame"] = max(0, round(float(time[0]) * rate))
     point = c3d["parameters"]["POINT"]
     point["RATE"]["value"] = [float(np.round(rate, 6))]
     point["LABELS"]["value"] = labels
@@ -201,9 +214,9 @@ def write_c3d(
             c3d.add_parameter("POINT", unit_key, [of_kind[0].unit])
     described = descriptions or {}
     c3d.add_parameter("POINT", "DESCRIPTIONS", [described.get(lab, "") for lab in labels])
-    seen = np.isfinite(xyz).all(axis=2)
+    seen = np.isfinite(xyz).any(axis=2)
     pts = np.ones((4, xyz.shape[1], xyz.shape[0]))
-    pts[:3] = np.transpose(np.where(seen[..., None], xyz, 0.0), (2, 1, 0))
+    pts[:3] = np.transpose(np.where(np.isfinite(xyz), xyz, 0.0), (2, 1, 0))
     c3d["data"]["points"] = pts
     c3d["data"]["meta_points"] = {
         "residuals": np.where(seen, 0.0, -1.0).T[None],
@@ -216,6 +229,17 @@ def write_c3d(
             real.replace(tmp)
         finally:
             real.unlink(missing_ok=True)
+
+
+def _unique(labels: list[str]) -> list[str]:
+    """``labels`` with each repeat renamed ``<label>_2``, ``_3``… (as ingest renames them; a
+    session read from a file with repeated labels keeps them, and the demo's does)."""
+    seen: dict[str, int] = {}
+    out = []
+    for label in labels:
+        seen[label] = seen.get(label, 0) + 1
+        out.append(label if seen[label] == 1 else f"{label}_{seen[label]}")
+    return out
 
 
 def _interp(t: np.ndarray, values: np.ndarray, t_new: np.ndarray) -> np.ndarray:
@@ -238,6 +262,28 @@ def _scalars(tree: Any) -> Any:
         return {k: _scalars(v) for k, v in tree.items()
                 if not (isinstance(v, np.ndarray) and v.size > 16)}  # fmt: skip
     return tree
+
+
+def judged_columns(session: Session) -> dict[str, tuple[str, str]]:
+    """``{angle column: (grade, reason)}`` where the calibration graded the joint's angles, as
+    the angle method allows (:func:`~motionlab.segments.grades.method_column_grade`): what
+    every export withholds a value by."""
+    res = session.results
+    grades = res.calibration.grades if res.calibration is not None else {}
+    method = res.angles.method if res.angles is not None else "imu"
+    return {
+        c: method_column_grade(method, c, g, r)
+        for joint, cols in joint_columns(session).items()
+        if joint in grades and len(grades[joint].grades) == len(cols)
+        for c, g, r in zip(cols, grades[joint].grades, grades[joint].reasons, strict=False)
+    }
+
+
+def _determined_only(session: Session, columns: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """``columns`` without those of an angle ``not determined`` (a .mot's coordinates: a
+    coordinate left out is one the file does not give; OpenSim reads the others)."""
+    judged = judged_columns(session)
+    return {c: v for c, v in columns.items() if judged.get(c, ("",))[0] != NOT_DETERMINED}
 
 
 def results_json(session: Session) -> dict[str, Any]:
@@ -270,14 +316,7 @@ def results_json(session: Session) -> dict[str, Any]:
         ],
     }
     res = session.results
-    grades = res.calibration.grades if res.calibration is not None else {}
-    method = res.angles.method if res.angles is not None else "imu"
-    judged = {  # column → (grade, reason), where the calibration graded the joint's angles
-        c: method_column_grade(method, c, g, r)
-        for joint, cols in joint_columns(session).items()
-        if joint in grades and len(grades[joint].grades) == len(cols)
-        for c, g, r in zip(cols, grades[joint].grades, grades[joint].reasons, strict=False)
-    }
+    judged = judged_columns(session)
     graded = {c: g for c, (g, _) in judged.items()}
     if res.angles is not None:
         time, columns = angle_table(session)
@@ -326,6 +365,7 @@ def export_session(session: Session, fmt: str, path: str | Path, force: bool = F
         return f"{len(quats)} IMU orientations, {len(time)} samples: {', '.join(quats)}"
     if fmt == "mot":
         time, columns = angle_table(session)
+        columns = _determined_only(session, columns)
         order = [c for cols in joint_columns(session).values() for c in cols if c in columns]
         columns = {c: columns[c] for c in order + [c for c in columns if c not in order]}
         renamed = opensim_columns(columns)
@@ -336,11 +376,19 @@ def export_session(session: Session, fmt: str, path: str | Path, force: bool = F
         )
     if fmt == "c3d":
         time, columns = angle_table(session)
+        judged = judged_columns(session)
         outputs, descriptions = [], {}
         for joint, cols in joint_columns(session).items():
             xyz = [columns.get(c, np.full(len(time), np.nan)) for c in (cols + [""] * 3)[:3]]
+            gone = [c for c in cols[:3] if judged.get(c, ("",))[0] == NOT_DETERMINED]
+            xyz = [np.full(len(time), np.nan) if c in gone else v
+                   for c, v in zip(cols[:3], xyz, strict=False)] + xyz[len(cols[:3]):]  # fmt: skip
             outputs.append(ModelOutput(f"{joint}_angles", "angles", "deg", np.column_stack(xyz)))
-            descriptions[f"{joint}_angles"] = "X, Y, Z: " + ", ".join(cols[:3])
+            descriptions[f"{joint}_angles"] = (
+                "X, Y, Z: "
+                + ", ".join(cols[:3])
+                + (f" ({', '.join(gone)} not determined: written as 0)" if gone else "")
+            )
         markers = next((m for m in session.markers.values() if m.n_markers), None)
         marker_time = None
         if markers is not None:
