@@ -361,8 +361,13 @@ def export_session(session: Session, fmt: str, path: str | Path, force: bool = F
     """Write ``session`` as ``fmt`` (:data:`FORMATS`) to ``path``; a one-line summary."""
     if fmt == "sto":
         time, quats = orientations(session)
+        # a row where a sensor was in a gap is left out, not written as NaN: OpenSense and
+        # motionlab's reader take the time stamps as they come (a NaN row read back was refused)
+        whole = np.all([np.isfinite(q).all(axis=1) for q in quats.values()], axis=0)
+        time, quats = time[whole], {k: q[whole] for k, q in quats.items()}
         write_sto(path, time, quats, force=force)
-        return f"{len(quats)} IMU orientations, {len(time)} samples: {', '.join(quats)}"
+        gaps = f"; {int((~whole).sum())} rows in a sensor's gap left out" if not whole.all() else ""
+        return f"{len(quats)} IMU orientations, {len(time)} samples{gaps}: {', '.join(quats)}"
     if fmt == "mot":
         time, columns = angle_table(session)
         columns = _determined_only(session, columns)

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import ezc3d
@@ -252,3 +253,22 @@ def test_exports_withhold_angles_not_determined(run_dir, tmp_path):
     i = labels.index("knee_r_angles")
     assert "not determined" in raw["parameters"]["POINT"]["DESCRIPTIONS"]["value"][i]
     assert (raw["data"]["points"][1:3, i] == 0).all()
+
+
+def test_sto_leaves_out_rows_in_a_sensors_gap(run_dir, tmp_path):
+    """The demo's .sto had NaN rows wherever a sensor was in a gap, and motionlab refused its
+    own file ("quat not a number … fusion bridges at most 0.1 s"): those rows are left out."""
+    ses = load_session(run_dir / "session.h5")
+    label = next(iter(ses.results.fusion))
+    entry = ses.results.fusion[label]
+    quat = np.array(entry.quat, dtype=float)
+    quat[200:230] = np.nan  # 0.6 s at 50 Hz
+    ses.results.fusion[label] = dataclasses.replace(entry, quat=quat)
+    save_session(ses, tmp_path / "gap.h5")
+    out = tmp_path / "gap.sto"
+    res = CliRunner().invoke(main, ["export", str(tmp_path / "gap.h5"), "--to", "sto", "-o",
+                                    str(out)])  # fmt: skip
+    assert res.exit_code == 0 and "rows in a sensor's gap left out" in res.output, res.output
+    assert "nan" not in out.read_text().lower()
+    (rec,) = [read_any(out)]
+    assert all(np.isfinite(s.quat).all() for s in rec.sensors)
