@@ -99,6 +99,10 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
     cal = session.results.calibration or SegmentCalibration("")
     legs = session_strides(session, protocol, cal, spans)
     if not legs:
+        shanks = [sensor_for_segment(session, j.distal) for j in protocol.joints.values()
+                  if j.type == "knee"]  # fmt: skip
+        if any(label is not None for label in shanks):  # orientations only (an .sto)
+            return Gait("no gait: the shank sensors carry no gyroscope (orientations only)")
         return Gait("no gait: no shank sensor under a knee joint")
     pelvis_label = sensor_for_segment(session, PELVIS_SEGMENT)
     strides = {leg.side: leg.strides for leg in legs.values()}
