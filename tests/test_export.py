@@ -272,3 +272,15 @@ def test_sto_leaves_out_rows_in_a_sensors_gap(run_dir, tmp_path):
     assert "nan" not in out.read_text().lower()
     (rec,) = [read_any(out)]
     assert all(np.isfinite(s.quat).all() for s in rec.sensors)
+
+
+def test_an_opensense_imu_name_is_its_segment():
+    """motionlab's own .sto (OpenSense's names: tibia_r_imu) needed a hand-written map to be
+    run again ("no joint has sensors on both its segments"): the names place the sensors."""
+    from motionlab.kinematics.segment_types import opensim_imu_name, segment_of_opensim_imu
+
+    for segment, side in (("shank", "r"), ("thigh", "l"), ("pelvis", ""), ("thorax", ""),
+                          ("upperarm", "r"), ("forearm", "l")):  # fmt: skip
+        assert segment_of_opensim_imu(opensim_imu_name(segment, side)) == (segment, side)
+    assert segment_of_opensim_imu("femur_imu") is None  # a sided body without a side
+    assert segment_of_opensim_imu("Back") is None

@@ -35,6 +35,7 @@ import pandas as pd
 from motionlab.atomic import atomic_path
 from motionlab.errors import InputError, shorten
 from motionlab.io import Recording
+from motionlab.kinematics.segment_types import segment_of_opensim_imu
 from motionlab.session import SensorStream, estimate_rate
 
 FORMAT = "opensim"
@@ -106,11 +107,15 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
         raise InputError("no samples after the header", path, f"line {first + 1}", "re-export")
     values = _values(path, rows, first, names)
     time = values[:, 0]
+    # OpenSense names each IMU by its body (tibia_r_imu): that is its segment, as a map says
+    placed = {name: segment_of_opensim_imu(name) or ("", "") for name in names[1:]}
     sensors = [
         SensorStream(
             label=name.strip(),
             time=time,
             quat=values[:, 1 + 4 * k : 5 + 4 * k].copy(),
+            segment=placed[name][0],
+            side=placed[name][1],
             vendor="OpenSim",
             source_units={"time": "s", "quat": "1"},
             attrs={"earth_frame": EARTH_FRAME},

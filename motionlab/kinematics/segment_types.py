@@ -66,6 +66,20 @@ def segment_type(kind: str) -> SegmentType | None:
     return _BY_NAME.get(kind)
 
 
+def segment_of_opensim_imu(name: str) -> tuple[str, str] | None:
+    """``(segment kind, side)`` of an OpenSense IMU name (``tibia_r_imu`` → ``('shank',
+    'r')``, ``torso_imu`` → ``('thorax', '')``): the inverse of :func:`opensim_imu_name`;
+    ``None`` for any other name."""
+    stem = name.strip().lower().removesuffix("_imu")
+    if stem == name.strip().lower():
+        return None
+    body, side = kind_side(stem)
+    for st in _BY_NAME.values():
+        if st.opensim == body and (side == "") != st.sided:
+            return st.name, side
+    return None
+
+
 def opensim_imu_name(segment: str, side: str = "") -> str | None:
     """OpenSense's name of the IMU on ``segment`` (``upperarm_r``, or ``upperarm`` with ``side``
     ``r``/``right``): ``humerus_r_imu``, ``torso_imu``; ``None`` when the kind has no OpenSim
