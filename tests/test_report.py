@@ -691,7 +691,8 @@ def test_no_finding_when_nothing_was_determined_says_so():
     }
     items = [i for i in findings(view) if not i.startswith(("Sensor", "Calibr"))]
     assert items == [
-        "No finding can be stated: no angle was determined by this recording (see below)."
+        "No finding can be stated: no angle was graded determined by this recording (the "
+        "weak and undetermined ones are listed below)."
     ]
 
 

@@ -328,7 +328,10 @@ def calibration_page(doc: Document, view: SessionView) -> None:
         f"functional movements (or within 0.1 of the protocol's reference), residual ≤ "
         f"{RESIDUAL_MAX_DEG:.0f}°. Methods: "
         + "; ".join(f"'{k.replace('_', ' ')}': {v}" for k, v in METHODS.items())
-        + ". 'In fit': no when a joint movement's axis was left out because a step keeping the "
+        + ". 'Segment': ok, or check when its quality checks failed or the recording did not "
+        "determine its frame (the grades below say which angles that leaves weak or not "
+        "determined). 'In fit': no when a joint movement's axis was left out because a step "
+        "keeping the "
         "joint still measured the same axis better (its residual is then not the frame's error). "
         "An axis found in the movement itself has no ρ: it is judged by its own checks (the "
         "grades below), whose verdict stands in 'ρ wanted', red unless determined.",

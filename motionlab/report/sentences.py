@@ -306,7 +306,10 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
     if len(items) > limit - len(problems[:2]):
         items = items[: limit - len(problems[:2])]
     if not items and ranges and not any(is_determined(r.grade) for r in ranges):
-        items = ["No finding can be stated: no angle was determined by this recording (see below)."]
+        items = [
+            "No finding can be stated: no angle was graded determined by this recording (the "
+            "weak and undetermined ones are listed below)."
+        ]
     elif not items and not any(r.normal is not None for r in ranges):
         # determined ranges have nothing to be compared with: not "none determined"
         tasks = ", ".join(dict.fromkeys(task_name(r.task) for r in ranges)) or "its tasks"
