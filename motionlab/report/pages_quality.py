@@ -135,7 +135,7 @@ def data_quality_page(doc: Document, view: SessionView) -> None:
         if q.flags
     ]
     doc.heading("Quality checks raised")
-    doc.bullets(flags or ["none: every check of every sensor passed"])
+    doc.bullets(flags or ["none: every sensor's signals passed their checks (the clocks: below)"])
     synced = view.session.results.clock_sync
     if synced is not None and synced.fits:
         doc.heading("Sensor clocks")
