@@ -234,3 +234,19 @@ def test_smoothing_keeps_gaps_and_short_runs():
     assert not np.array_equal(out[:50], v[:50])
     assert np.abs(out[10:40] - v[10:40]).max() < 0.1  # a slow movement passes
     assert smoothed(np.array([3.0]), float("nan"))[0] == 3.0  # one instant: no rate, no filter
+
+
+def test_cross_talk_is_taken_over_the_repetitions_not_getting_into_posture():
+    """The demo elbow's pronation step began with the elbow flexing to 90° (the step is found
+    from where the arm starts moving): its "cross-talk" read 90° of flexion, 61 % of the
+    pronation. It is taken from the first repetition of the moving angle to the end of its
+    last."""
+    from motionlab.kinematics.metrics import _repeated
+
+    t = np.arange(0, 14, 1 / RATE)
+    posture = 90 * np.clip(t / 2.0, 0, 1)  # 0 → 90° in the first 2 s, then held
+    turning = t >= 3
+    pronation = np.where(turning, 70 * np.sin(2 * np.pi * 0.5 * (t - 3)) ** 2, 0.0)
+    win = _repeated(pronation, slice(0, len(t)), RATE)
+    assert t[win.start] >= 2.9 and np.ptp(posture[win]) < 1.0
+    assert _repeated(np.zeros(len(t)), slice(5, 50), RATE) == slice(5, 50)  # none: as it was

@@ -187,6 +187,17 @@ def single_plane_blocks(
     return out
 
 
+def _repeated(moving: np.ndarray, window: slice, rate: float) -> slice:
+    """The part of ``window`` from the first repetition of the ``moving`` angle to the end of
+    its last (:func:`~motionlab.kinematics.cycles.find_repetitions`), or all of it with fewer
+    than two: a step found from where the arm started moving also holds getting into its
+    posture (a pronation step's elbow flexed to 90° first, which read as 90° of cross-talk)."""
+    reps = cyc.find_repetitions(np.asarray(moving[window], float), rate)
+    if len(reps) < 2:
+        return window
+    return slice(window.start + int(reps.start[0]), window.start + int(reps.end[-1]) + 1)
+
+
 def compute_metrics(
     protocol: Protocol,
     table: dict[str, np.ndarray],
@@ -276,8 +287,9 @@ def compute_metrics(
             )
     if "cross_talk" in todo:
         for block, joint, idx, (t0, t1) in single_plane_blocks(protocol, blocks, steps):
+            win = _repeated(table[angle_columns(joint)[idx][1]], _window(time, t0, t1), rate)
             cross.setdefault(block, {})[joint.name] = oop.cross_talk(
-                table, nominal_table, joint, idx, _window(time, t0, t1)
+                table, nominal_table, joint, idx, win
             )
     return Metrics(
         protocol.name,
