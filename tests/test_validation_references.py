@@ -297,3 +297,19 @@ def test_an_angle_map_makes_a_pig_c3d_with_markers_an_angle_reference(knee):
     with pytest.raises(InputError, match="angle map applies to a reference of model joint"):
         stages.validate(load_session(path), None, ref, reference_kind=kind, force=True,
                         angle_map=load_angle_map(root / "map2.yaml"))  # fmt: skip
+
+
+def test_a_segment_csv_time_in_ms_or_ns_is_refused(tmp_path):
+    """A time column in ms (or ns since the epoch) made the sync allocate a grid over its span
+    ("internal error") or hang; a camera's step is 0.1 ms-1 s."""
+    q = np.tile([1.0, 0.0, 0.0, 0.0], (20, 1))
+    for name, t in (("ms", np.arange(20) * 8.33), ("ns", 1.7e18 + np.arange(20) * 8.33e6)):
+        path = tmp_path / f"{name}.csv"
+        pd.DataFrame({"time": t, **{f"thigh_r_q{c}": q[:, i] for i, c in enumerate("wxyz")}}
+                     ).to_csv(path, index=False)  # fmt: skip
+        with pytest.raises(InputError, match="time steps .* per row"):
+            read_segment_csv(path)
+    path = tmp_path / "s.csv"
+    pd.DataFrame({"time": np.arange(20) / 120, **{f"thigh_r_q{c}": q[:, i]
+                  for i, c in enumerate("wxyz")}}).to_csv(path, index=False)  # fmt: skip
+    assert len(read_segment_csv(path).time) == 20

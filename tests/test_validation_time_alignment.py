@@ -150,3 +150,14 @@ def angular_velocity_of(ref):
     from motionlab.rotations import angular_velocity
 
     return angular_velocity(*ref)
+
+
+def test_a_reference_clock_on_an_epoch_or_in_ms():
+    """A reference whose clock reads epoch seconds (1.7e9 s) asked for one grid over both
+    clocks' spans ("Maximum allowed size exceeded": internal error); one in ms hung. Each side
+    now has its own grid; a span of more than a day is no recording in seconds."""
+    imu, (t_ref, q) = _recording(2, 0.0, duration=30.0)
+    res = synchronise([imu], [(t_ref + 1.7e9, q)])
+    assert res.model.offset_s == pytest.approx(1.7e9 + OFFSET, abs=2e-3)
+    with pytest.raises(InputError, match="spans .* s — give the reference's time in seconds"):
+        synchronise([imu], [(t_ref * 1e4, q)])

@@ -34,6 +34,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from motionlab.errors import InputError
 from motionlab.protocol import AXES, Protocol
 from motionlab.session import MarkerSet
@@ -80,7 +82,12 @@ class _Checker:
 
     def number(self, doc: dict, key: str, default: float, remedy: str) -> float:
         value = doc.get(key, default)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or value < 0:
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, float))
+            or not np.isfinite(value)  # .nan or .inf: no cut-off, no gap length
+            or value < 0
+        ):
             self.fail(key, doc.lines.get(key), f"is {value!r}", remedy)
         return float(value)
 

@@ -36,6 +36,8 @@ from motionlab.validation.markermap import MarkerMap, SegmentMap
 COMPONENTS = ("qw", "qx", "qy", "qz")
 _QUAT = re.compile(r"^(?P<seg>.+)_(?P<c>q[wxyz])$", re.IGNORECASE)
 FRAMES = ("anatomical", "body")
+#: the median time step (s) of a reference: a camera at 10 kHz to 1 Hz
+MIN_STEP_S, MAX_STEP_S = 1e-4, 1.0
 
 
 def is_segment_csv(path: str | Path) -> bool:
@@ -111,6 +113,14 @@ def read_segment_csv(path: str | Path, name: str = "segments") -> MarkerSet:
             path,
             f"data row {row}",
             "sort the rows by time; drop repeats",
+        )
+    step = float(np.median(steps))
+    if not MIN_STEP_S <= step <= MAX_STEP_S:  # a camera samples at 1 Hz-10 kHz
+        raise InputError(
+            f"time steps {step:g} per row (a {1 / step:.3g} Hz camera?)",
+            path,
+            "column time",
+            "give the time in seconds (a column in ms or ns: divide it)",
         )
     bodies = {}
     for seg, comps in found.items():

@@ -39,6 +39,8 @@ SEARCH_S = 0.5
 MIN_CORRELATION = 0.6
 MIN_MOTION_RAD_S = 0.1
 JUMP_FACTOR = 2.0
+#: longest span (s) of one clock's recording the sync takes: a day
+MAX_SPAN_S = 86400.0
 REFINEMENTS = 2
 #: a coarse lag must let the recordings overlap (valid samples on both sides, all pairs) by at
 #: least this share of the most any lag gives: at a lag with little overlap a short stretch
@@ -219,6 +221,20 @@ def _parabola(c: np.ndarray, k: int) -> float:
     return float(np.clip(0.5 * (c[k - 1] - c[k + 1]) / den, -0.5, 0.5)) if den < 0 else 0.0
 
 
+def _grid(spans: list[tuple[float, float]], rate: float) -> np.ndarray:
+    """Times (s) at ``rate`` over the union of ``spans`` (``(t0, t1)`` of one clock); an
+    :class:`InputError` for a span no recording of motion has (more than
+    :data:`MAX_SPAN_S`: a time column in ms or ns read as s)."""
+    t0, t1 = min(a for a, _ in spans), max(b for _, b in spans)
+    if not t1 - t0 <= MAX_SPAN_S:
+        raise InputError(
+            f"a recording spans {t1 - t0:.3g} s",
+            where="time synchronisation",
+            remedy="give the reference's time in seconds",
+        )
+    return t0 + np.arange(int((t1 - t0) * rate) + 1) / rate
+
+
 def coarse_lag(
     imu: list[tuple], ref: list[tuple], rate: float, max_lag_s: float | None = None
 ) -> tuple[float, float]:
@@ -227,25 +243,26 @@ def coarse_lag(
 
     ``imu`` and ``ref`` are lists of ``(spline, valid, t0, t1)``. Returns (lag, peak).
     """
-    t0 = min(min(a[2], b[2]) for a, b in zip(imu, ref, strict=True))
-    t1 = max(max(a[3], b[3]) for a, b in zip(imu, ref, strict=True))
-    grid = t0 + np.arange(int((t1 - t0) * rate) + 1) / rate
-    n = len(grid)
-    num = np.zeros(2 * n - 1)
-    ex = np.zeros(2 * n - 1)
-    ey = np.zeros(2 * n - 1)
-    overlap = np.zeros(2 * n - 1)
+    # each side on its own clock's grid: the clocks may be hours apart (an epoch time on one),
+    # and one grid over both spans allocated the gap between them
+    gx = _grid([s[2:] for s in imu], rate)
+    gy = _grid([s[2:] for s in ref], rate)
+    nx, ny = len(gx), len(gy)
+    num = np.zeros(nx + ny - 1)
+    ex = np.zeros(nx + ny - 1)
+    ey = np.zeros(nx + ny - 1)
+    overlap = np.zeros(nx + ny - 1)
     for (fx, vx, *_), (fy, vy, *_) in zip(imu, ref, strict=True):
-        mx, my = vx(grid).astype(float), vy(grid).astype(float)
-        x = np.where(mx > 0, fx(grid), 0.0)
-        y = np.where(my > 0, fy(grid), 0.0)
+        mx, my = vx(gx).astype(float), vy(gy).astype(float)
+        x = np.where(mx > 0, fx(gx), 0.0)
+        y = np.where(my > 0, fy(gy), 0.0)
         x = (x - x[mx > 0].mean()) * mx if mx.any() else x
         y = (y - y[my > 0].mean()) * my if my.any() else y
         num += correlate(y, x)
         ex += correlate(my, x * x)
         ey += correlate(y * y, mx)
         overlap += correlate(my, mx)
-    lags = np.arange(-(n - 1), n) / rate
+    lags = gy[0] - gx[0] + np.arange(-(nx - 1), ny) / rate
     enough = overlap >= MIN_OVERLAP * overlap.max()
     if max_lag_s is not None:
         enough &= np.abs(lags) <= max_lag_s
