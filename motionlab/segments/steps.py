@@ -331,7 +331,7 @@ def describe(bl: list[Block]) -> str:
     text = "the recording holds " + (", ".join(parts) or "no rest or movement")
     if rest is not None:
         ups = ", ".join(f"{s} {_axis_words(u).removeprefix('sensor ')}" for s, u in rest.up.items())
-        text += f"; up in the first rest: {ups}"
+        text += f"; the sensor axis pointing up in the first still moment ({_fmt(rest)}): {ups}"
     return text
 
 
