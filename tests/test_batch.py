@@ -202,3 +202,20 @@ def test_a_server_that_is_no_dask_scheduler_is_one_line():
     fake = types.SimpleNamespace(Client=garbage)
     with pytest.raises(InputError, match="cannot reach the Dask scheduler 'tcp://h:1'.*3.07 EiB"):
         runner._connect(fake, "tcp://h:1")
+
+
+def test_a_study_folder_that_cannot_be_created_is_one_line(tmp_path, monkeypatch):
+    """``batch … -o ro/res`` on a read-only file system ended in an internal error (OSError)."""
+    from pathlib import Path
+
+    from motionlab.batch import state
+    from motionlab.errors import InputError
+
+    def read_only(self, *a, **k):
+        raise OSError(30, "Read-only file system")
+
+    monkeypatch.setattr(Path, "mkdir", read_only)
+    manifest = tmp_path / "study.yaml"
+    manifest.write_text("protocol: knee\nsessions: []\n")
+    with pytest.raises(InputError, match="cannot create the folder \\(Read-only file system\\)"):
+        state.prepare_outdir(tmp_path / "res", manifest, force=False)

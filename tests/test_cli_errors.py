@@ -278,3 +278,22 @@ def test_a_task_that_ends_before_it_starts_says_so():
         _parse_tasks(("gait=150:95",))
     with pytest.raises(InputError, match="is not NAME=START:END"):
         _parse_tasks(("gait=a:95",))
+
+
+def test_a_full_disk_is_one_line_not_an_internal_error(tmp_path):
+    """``info s.h5 > /dev/full`` ended in "internal error (OSError: No space left on device)"."""
+    import subprocess
+    import sys
+
+    code = (
+        "import errno\n"
+        "from motionlab.cli import main\n"
+        "import motionlab.cli.info as info\n"
+        "def full(*a, **k):\n"
+        "    raise OSError(errno.ENOSPC, 'No space left on device')\n"
+        "info.command.callback = full\n"
+        "main(['info', 'x.h5'])\n"
+    )
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert res.returncode == 2 and "internal error" not in res.stderr
+    assert "cannot write (No space left on device)" in res.stderr

@@ -127,6 +127,12 @@ def test_apply_a_folder_by_serial(tmp_path):
         (lambda d: d["channels"].update(baro={}), "key channels.baro"),
         (lambda d: d.update(serial=""), "key serial"),
         (lambda d: d.update(version=99), "key version"),
+        # these crashed fuse, run and sensorcal with an internal error
+        (lambda d: d.update(version="abc"), "key version"),
+        (lambda d: d.update(version=[1]), "key version"),
+        (lambda d: d.update(version=1.5), "key version"),
+        (lambda d: d["channels"]["gyr"].update(quality=[1, 2, 3]), "key channels.gyr.quality"),
+        (lambda d: d["channels"]["gyr"].update(quality="abc"), "key channels.gyr.quality"),
     ],
 )
 def test_broken_files_name_the_key(tmp_path, edit, where):
@@ -181,3 +187,13 @@ def test_a_serial_less_sensor_is_filed_by_its_files_label_not_the_maps(tmp_path)
     mapped = ingest([csv], tmp_path / "mapped.yaml").sensors["thigh_r"]
     plain = ingest([csv], tmp_path / "plain.yaml").sensors["Upper"]
     assert mapped.serial == "" and calibration_key(mapped) == calibration_key(plain) == "Upper"
+
+
+def test_sensorcal_refuses_a_file_under_this_name_holding_another_serial(tmp_path):
+    """A file filed under this sensor's serial but holding another's: sensorcal --force wrote
+    this sensor's bias into it, under the other serial, for fuse to apply to that device."""
+    from motionlab.sensorcal.stage import merge
+
+    other = example("OTHER-99")
+    with pytest.raises(InputError, match="holds serial OTHER-99, the sensor is 00B421AF"):
+        merge(other, stream(), [], "rec.csv", force=True, path=tmp_path / "00B421AF.yaml")

@@ -313,3 +313,18 @@ def test_a_segment_csv_time_in_ms_or_ns_is_refused(tmp_path):
     pd.DataFrame({"time": np.arange(20) / 120, **{f"thigh_r_q{c}": q[:, i]
                   for i, c in enumerate("wxyz")}}).to_csv(path, index=False)  # fmt: skip
     assert len(read_segment_csv(path).time) == 20
+
+
+def test_a_segment_csv_as_excel_saves_it_and_one_with_no_quaternion(tmp_path):
+    """Excel's byte-order mark hid the time column ("has no time column"); quaternion columns
+    of zeros became a sync on nothing that blamed the session."""
+    q = np.tile([1.0, 0.0, 0.0, 0.0], (20, 1))
+    frame = pd.DataFrame({"time": np.arange(20) / 120, **{f"thigh_r_q{c}": q[:, i]
+                          for i, c in enumerate("wxyz")}})  # fmt: skip
+    bom = tmp_path / "bom.csv"
+    bom.write_bytes(b"\xef\xbb\xbf" + frame.to_csv(index=False).encode())
+    assert len(read_segment_csv(bom).time) == 20
+    zeros = tmp_path / "zeros.csv"
+    frame.assign(**{f"thigh_r_q{c}": 0.0 for c in "wxyz"}).to_csv(zeros, index=False)
+    with pytest.raises(InputError, match="segment 'thigh_r' has 0 rows with a quaternion"):
+        read_segment_csv(zeros)

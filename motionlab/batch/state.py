@@ -109,7 +109,13 @@ def prepare_outdir(outdir: Path, manifest: Path, force: bool) -> None:
         )
     if not outdir.parent.is_dir():
         raise InputError("parent folder does not exist", outdir, "-o", f"create {outdir.parent}")
-    outdir.mkdir(exist_ok=True)
+    try:
+        outdir.mkdir(exist_ok=True)
+    except OSError as exc:  # a read-only file system, no permission
+        raise InputError(
+            f"cannot create the folder ({exc.strerror or exc})", outdir, "-o",
+            "choose a folder you can write to",
+        ) from None  # fmt: skip
     if not os.access(outdir, os.W_OK):
         raise InputError("folder is not writable", outdir, "-o", "choose another folder")
     if not (outdir / MARKER).is_file():

@@ -13,6 +13,7 @@ matplotlib; ``motionlab --help`` lists the commands with their one-line help fro
 from __future__ import annotations
 
 import contextlib
+import errno
 import gc
 import os
 import sys
@@ -31,6 +32,8 @@ EXIT_BAD_INPUT = 2
 EXIT_BUG = 1
 #: the reader of our output stopped reading (a pipe into head): 128 + SIGPIPE, as a shell reports it
 EXIT_BROKEN_PIPE = 141
+#: errors of a device that takes no more: no space, over quota
+FULL_DEVICE = (errno.ENOSPC, errno.EDQUOT)
 
 
 #: One BLAS/OpenMP thread: a threaded BLAS splits a product's sums by the machine's core count,
@@ -156,6 +159,9 @@ class MotionlabGroup(click.Group):
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
             sys.exit(EXIT_BROKEN_PIPE)
         except Exception as exc:  # a bug: say so, in one line unless --debug
+            if isinstance(exc, OSError) and exc.errno in FULL_DEVICE:  # no bug: a full disk
+                click.echo(f"error: cannot write ({exc.strerror}) — free some space", err=True)
+                sys.exit(EXIT_BAD_INPUT)
             if ctx.obj and ctx.obj.get("debug"):
                 traceback.print_exc()
             click.echo(

@@ -124,8 +124,12 @@ def command(
     if not out.exists() and not out.parent.is_dir():
         raise InputError("folder does not exist", out.parent, remedy="create it first")
     refuse_folder_holding_inputs(out, [source])
-    if not gravity > 0 or (field_norm is not None and not field_norm > 0):
-        raise InputError("must be positive", where="--gravity/--field-norm")
+    given = (("--gravity", gravity, "9.81"), ("--field-norm", field_norm, "50"))
+    for flag, value, example in given:
+        if value is not None and not 0 < value < float("inf"):  # nan, inf, 0, negative
+            raise InputError(
+                f"is {value:g}, not a positive number", where=flag, remedy=f"e.g. {flag} {example}"
+            )
     streams = load_streams(source)
     unknown = [lab for lab in labels if lab not in streams]
     if unknown:

@@ -103,6 +103,10 @@ class SensorCalibration:
         )
 
 
+#: what to do about a calibration file that does not read
+REMEDY = "recreate the file with 'motionlab sensorcal'"
+
+
 def _vector(value: Any, path: Path, where: str, shape: tuple[int, ...]) -> np.ndarray:
     try:
         arr = np.array(value, dtype=float)
@@ -113,7 +117,7 @@ def _vector(value: Any, path: Path, where: str, shape: tuple[int, ...]) -> np.nd
             f"expected {'×'.join(map(str, shape))} finite numbers",
             path,
             f"key {where}",
-            "recreate the file with 'motionlab sensorcal'",
+            REMEDY,
         )
     return arr
 
@@ -124,7 +128,12 @@ def from_dict(data: Any, path: Path) -> SensorCalibration:
         raise InputError(
             "not a motionlab sensor calibration", path, "key format", f"expected '{FORMAT}'"
         )
-    if int(data.get("version", 0)) > VERSION:
+    version = data.get("version", 0)
+    if isinstance(version, bool) or not isinstance(version, int):  # abc, [1], .inf
+        raise InputError(
+            f"version is {version!r}, expected a whole number", path, "key version", REMEDY
+        )
+    if version > VERSION:
         raise InputError(
             f"calibration version {data.get('version')} is newer than {VERSION}",
             path,
@@ -136,31 +145,35 @@ def from_dict(data: Any, path: Path) -> SensorCalibration:
         raise InputError("missing serial", path, "key serial", "give the device serial")
     raw = data.get("channels") or {}
     if not isinstance(raw, dict):
-        raise InputError("expected a mapping", path, "key channels")
+        raise InputError("expected a mapping", path, "key channels", REMEDY)
     channels = {}
     for ch, entry in raw.items():
         where = f"channels.{ch}"
         if ch not in CHANNELS:
             raise InputError(f"unknown channel {ch!r}", path, f"key {where}", "gyr, acc or mag")
         if not isinstance(entry, dict):
-            raise InputError("expected a mapping", path, f"key {where}")
+            raise InputError("expected a mapping", path, f"key {where}", REMEDY)
         if entry.get("unit", UNITS[ch]) != UNITS[ch]:
             raise InputError(
-                f"unit {entry.get('unit')!r}, expected {UNITS[ch]}", path, f"key {where}.unit"
-            )
+                f"unit {entry.get('unit')!r}, expected {UNITS[ch]}", path, f"key {where}.unit",
+                f"give {UNITS[ch]}, or recreate the file with 'motionlab sensorcal'",
+            )  # fmt: skip
         matrix = _vector(entry.get("matrix"), path, f"{where}.matrix", (3, 3))
         if abs(np.linalg.det(matrix)) < 1e-6:
-            raise InputError("matrix is singular", path, f"key {where}.matrix")
+            raise InputError("matrix is singular", path, f"key {where}.matrix", REMEDY)
+        quality = entry.get("quality") or {}
+        if not isinstance(quality, dict):
+            raise InputError("expected a mapping", path, f"key {where}.quality", REMEDY)
         channels[ch] = ChannelCalibration(
             offset=_vector(entry.get("offset"), path, f"{where}.offset", (3,)),
             matrix=matrix,
             method=str(entry.get("method", "")),
             date=str(entry.get("date", "")),
-            quality=dict(entry.get("quality") or {}),
+            quality=dict(quality),
         )
     noise = data.get("noise") or {}
     if not isinstance(noise, dict):
-        raise InputError("expected a mapping", path, "key noise")
+        raise InputError("expected a mapping", path, "key noise", REMEDY)
     return SensorCalibration(
         serial=serial,
         channels=channels,

@@ -183,6 +183,13 @@ def merge(
     A channel or noise entry already present is replaced only with ``force``.
     """
     key = calibration_key(s)
+    if existing is not None and existing.serial != key:  # filed under this sensor's name
+        raise InputError(
+            f"holds serial {existing.serial}, the sensor is {key}",
+            path,
+            "key serial",
+            "move the file away or correct its serial: a calibration is filed by its serial",
+        )
     cal = existing or SensorCalibration(serial=key, vendor=s.vendor)
     cal.source = f"{Path(source).name}#{s.label}"
     for r in results:

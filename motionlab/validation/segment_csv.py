@@ -46,7 +46,7 @@ def is_segment_csv(path: str | Path) -> bool:
     if path.suffix.lower() not in (".csv", ".txt", ".tsv"):
         return False
     try:
-        with path.open(encoding="utf-8", errors="replace") as f:
+        with path.open(encoding="utf-8-sig", errors="replace") as f:
             for line in f:
                 if line.strip() and not line.lstrip().startswith("#"):
                     return bool(re.search(r"_qw\b", line, re.IGNORECASE))
@@ -62,7 +62,14 @@ def read_segment_csv(path: str | Path, name: str = "segments") -> MarkerSet:
     if not path.is_file():
         raise InputError("no such reference file", path, remedy="check the path")
     try:
-        table = pd.read_csv(path, sep=None, engine="python", comment="#", skipinitialspace=True)
+        table = pd.read_csv(
+            path,
+            sep=None,
+            engine="python",
+            comment="#",
+            skipinitialspace=True,
+            encoding="utf-8-sig",
+        )  # as Excel saves it, with a byte-order mark
     except (pd.errors.ParserError, pd.errors.EmptyDataError, csv.Error, UnicodeDecodeError) as exc:
         raise InputError(
             f"cannot be read as CSV ({exc})".splitlines()[0],
@@ -129,6 +136,12 @@ def read_segment_csv(path: str | Path, name: str = "segments") -> MarkerSet:
         )
         norm = np.linalg.norm(q, axis=1)
         ok = np.isfinite(q).all(axis=1) & (norm > 1e-6)
+        if ok.sum() < 10:  # NaN, zeros, text: no orientation to compare with
+            raise InputError(
+                f"segment '{seg}' has {int(ok.sum())} rows with a quaternion (not all zero, all "
+                "numbers)", path, f"columns {seg}_qw-{seg}_qz",
+                "give unit quaternions w, x, y, z (not Euler angles)",
+            )  # fmt: skip
         out = np.full_like(q, np.nan)
         out[ok] = rot.make_continuous(q[ok] / norm[ok, None])
         bodies[seg] = out

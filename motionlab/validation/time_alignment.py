@@ -137,6 +137,11 @@ def no_sync() -> TimeAlignment:
 # ------------------------------------------------------------------------------ signals
 
 
+def _finite_rows(x: np.ndarray) -> int:
+    """How many rows (samples) of ``x`` are finite in every component."""
+    return int(np.isfinite(x).reshape(len(x), -1).all(axis=1).sum())
+
+
 def without_jumps(omega_ref: np.ndarray, omega_imu: np.ndarray) -> np.ndarray:
     """The reference's angular velocity (N, 3 rad/s, or (N,) a signed rate) with NaN where its
     magnitude exceeds :data:`JUMP_FACTOR` times the fastest the IMU on the same body turned (its
@@ -423,7 +428,16 @@ def synchronise(
         t_i = np.asarray(t_i, float)
         imu_sig.append((*speed_signal(t_i, w_i, cutoff_hz), t_i[0], t_i[-1]))
         t_mid, omega = (np.asarray(t_r, float), q) if ref_is_rate else angular_velocity(t_r, q)
-        omega = without_jumps(omega, w_i)
+        kept = without_jumps(omega, w_i)
+        if _finite_rows(kept) < 10 <= _finite_rows(omega):  # it had samples: all jumps
+            raise InputError(
+                "the reference's orientations turn faster than twice its IMU between almost "
+                "every two frames: no movement of a body",
+                where="time synchronisation",
+                remedy="give the reference as unit quaternions w, x, y, z (not Euler angles) "
+                "of the same bodies as the sensors",
+            )
+        omega = kept
         ref_sig.append((*speed_signal(t_mid, omega, cutoff_hz), t_mid[0], t_mid[-1]))
     return fit_clock(imu_sig, ref_sig, rate, window_s=window_s, step_s=step_s,
                      search_s=search_s, cutoff_hz=cutoff_hz, max_lag_s=max_lag_s,
