@@ -132,9 +132,9 @@ def _count_nodes(root: yaml.Node) -> int:
         active.discard(key)
         if n > MAX_NODES:
             raise _Refused(
-                f"aliases expand to more than {MAX_NODES} values",
+                f"holds more than {MAX_NODES} values (aliases expanded)",
                 node.start_mark,
-                "write the values out instead of aliases (*name)",
+                "split it into smaller files, or write aliases (*name) out",
             )
         sizes[key] = n
         return n
