@@ -219,3 +219,15 @@ def test_a_study_folder_that_cannot_be_created_is_one_line(tmp_path, monkeypatch
     manifest.write_text("protocol: knee\nsessions: []\n")
     with pytest.raises(InputError, match="cannot create the folder \\(Read-only file system\\)"):
         state.prepare_outdir(tmp_path / "res", manifest, force=False)
+
+
+def test_an_empty_scheduler_is_refused(tmp_path):
+    """``--scheduler ''`` ran the local pool without a word."""
+    from click.testing import CliRunner
+
+    from motionlab.cli import main
+
+    (tmp_path / "study.yaml").write_text("protocol: knee\nsessions: []\n")
+    res = CliRunner().invoke(main, ["batch", str(tmp_path / "study.yaml"), "-o",
+                                    str(tmp_path / "res"), "--scheduler", ""])  # fmt: skip
+    assert res.exit_code == 2 and "--scheduler: is empty" in res.output

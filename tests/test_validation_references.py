@@ -328,3 +328,34 @@ def test_a_segment_csv_as_excel_saves_it_and_one_with_no_quaternion(tmp_path):
     frame.assign(**{f"thigh_r_q{c}": 0.0 for c in "wxyz"}).to_csv(zeros, index=False)
     with pytest.raises(InputError, match="segment 'thigh_r' has 0 rows with a quaternion"):
         read_segment_csv(zeros)
+
+
+def test_an_angle_map_naming_a_label_the_file_lacks_is_refused(knee):
+    """``knee_l_flexion_deg: {label: NoSuchAngles}`` beside a valid entry was accepted, with
+    only a note "no reference for knee_l_flexion_deg": the typo was never named."""
+    root, path, truth = knee
+    rate = 100.0
+    t_cam, t_true = _camera_times(truth, rate)
+    cols = ("knee_r_flexion_deg", "knee_r_adduction_deg", "knee_r_rotation_deg")
+    xyz = np.column_stack([np.interp(t_true, truth.time, truth.joint_angles[c]) for c in cols])
+    _write_pig(root / "pig_typo.c3d", t_cam - t_cam[0], xyz, rate)
+    (root / "typo.yaml").write_text(
+        "knee_r_flexion_deg: {label: RKneeAngles, component: x}\n"
+        "knee_r_rotation_deg: {label: NoSuchAngles, component: z}\n"
+    )
+    args = ["validate", str(path), "--reference", str(root / "pig_typo.c3d"), "--force",
+            "--angle-map", str(root / "typo.yaml")]  # fmt: skip
+    res = CliRunner().invoke(main, args)
+    assert res.exit_code == 2
+    assert "the angle map names NoSuchAngles, which the file does not hold" in res.output
+
+
+def test_a_segment_csv_column_given_twice_is_refused(tmp_path):
+    """A repeated ``thigh_r_qw`` (or ``time``) column was resolved silently to its first copy."""
+    q = np.tile([1.0, 0.0, 0.0, 0.0], (20, 1))
+    rows = ["time,thigh_r_qw,thigh_r_qx,thigh_r_qy,thigh_r_qz,thigh_r_qw"]
+    rows += [f"{k / 120},{','.join(map(str, q[k]))},0.0" for k in range(20)]
+    path = tmp_path / "twice.csv"
+    path.write_text("\n".join(rows) + "\n")
+    with pytest.raises(InputError, match="column thigh_r_qw appears more than once"):
+        read_segment_csv(path)

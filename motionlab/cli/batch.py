@@ -112,6 +112,10 @@ def command(
       motionlab batch study.yaml -o results/ --scheduler tcp://10.0.0.5:8786
       motionlab batch study.yaml -o results/ --calibration calibration/ --seed 3
     """
+    if scheduler is not None and not scheduler.strip():  # '' ran the local pool unasked
+        raise InputError(
+            "is empty", where="--scheduler", remedy="give tcp://host:8786, or leave it out"
+        )
     if scheduler and workers is not None:
         raise InputError(
             "--workers is for the local pool",

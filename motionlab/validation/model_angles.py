@@ -214,7 +214,19 @@ def validate_model_angles(
         table = AngleTable.from_columns(columns)
     t = np.asarray(table.time, dtype=float)
     columns = [k for k in table.data if k.endswith("_deg")]
-    mapping = mapping if mapping is not None else default_mapping(reference, protocol)
+    given = mapping is not None
+    mapping = mapping if given else default_mapping(reference, protocol)
+    outputs = reference.outputs_of("angles")
+    absent = sorted({src.label for src in mapping.values() if src.label not in outputs})
+    if given and absent:  # a map the user wrote names what the file holds: a typo is no note
+        raise InputError(
+            f"the angle map names {', '.join(absent)}, which the file does not hold (its angle "
+            f"outputs: {', '.join(list(outputs)[:8]) or 'none'})",
+            reference.attrs.get("source_file"),
+            "POINT:ANGLES",
+            "correct the label in the angle map",
+            argument="angle_map",
+        )
     ref = reference_angles(reference, mapping, columns)
     if not ref:
         names = ", ".join(list(reference.outputs_of("angles"))[:8]) or "none"

@@ -77,6 +77,15 @@ def read_segment_csv(path: str | Path, name: str = "segments") -> MarkerSet:
             remedy="write one header line and comma-separated numbers",
         ) from None
     columns = {str(c).strip(): c for c in table.columns}
+    # pandas reads a repeated header name as name.1: two columns claim one quantity
+    twice = [c for c in columns if re.fullmatch(r".+\.\d+", c) and c.rsplit(".", 1)[0] in columns]
+    if twice:
+        raise InputError(
+            f"column {twice[0].rsplit('.', 1)[0]} appears more than once",
+            path,
+            "header",
+            "keep one column per name",
+        )
     tcol = next((columns[c] for c in ("time", "time_s", "Time") if c in columns), None)
     if tcol is None:
         raise InputError(
