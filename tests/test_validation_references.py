@@ -187,6 +187,16 @@ def test_angle_map_yaml_is_bounded_and_checked(tmp_path):
     path.write_text("knee_r_flexion_deg: {label: RKneeAngles, component: q}\n")
     with pytest.raises(InputError, match="key knee_r_flexion_deg"):
         load_angle_map(path)
+    # a column written twice (the later won) and a sign of true (taken as 1) were accepted
+    path.write_text(
+        "knee_r_flexion_deg: {label: RKneeAngles, component: x}\n"
+        "knee_r_flexion_deg: {label: LKneeAngles, component: y, sign: -1}\n"
+    )
+    with pytest.raises(InputError, match="written twice"):
+        load_angle_map(path)
+    path.write_text("knee_r_flexion_deg: {label: RKneeAngles, component: x, sign: true}\n")
+    with pytest.raises(InputError, match="key knee_r_flexion_deg"):
+        load_angle_map(path)
 
 
 def _turning(seed, duration, rate=100.0):

@@ -64,7 +64,7 @@ from motionlab.validation import angle_agreement, movement_mask, withhold
 from motionlab.validation.agreement import repetitions
 from motionlab.validation.time_alignment import no_sync, synchronise
 from motionlab.validation.time_offset import sync_notes
-from motionlab.yamlsafe import BoundedSafeLoader, load_yaml, read_yaml_text
+from motionlab.yamlsafe import LineLoader, load_yaml, read_yaml_text
 
 CAVEAT = (
     "the reference angles come from another model whose segment frames differ from the IMU "
@@ -107,7 +107,8 @@ def load_angle_map(path: str | Path) -> dict[str, AngleSource]:
     """An angle map YAML: ``column: {label: NAME, component: x|y|z, sign: 1|-1}``."""
     path = Path(path)
     remedy = "write 'column: {label: RKneeAngles, component: x, sign: 1}'"
-    doc = load_yaml(read_yaml_text(path, "angle map", remedy), BoundedSafeLoader, path, remedy)
+    # LineLoader: a column written twice is refused (YAML keeps the last one silently)
+    doc = load_yaml(read_yaml_text(path, "angle map", remedy), LineLoader, path, remedy)
     if not isinstance(doc, dict) or not doc:
         raise InputError(
             "is not a mapping of angle columns",
@@ -119,7 +120,13 @@ def load_angle_map(path: str | Path) -> dict[str, AngleSource]:
         ok = isinstance(spec, dict) and isinstance(spec.get("label"), str)
         comp = str(spec.get("component", "")).lower() if ok else ""
         sign = spec.get("sign", 1) if ok else 1
-        if not ok or comp not in _AXES or sign not in (1, -1) or not str(col).endswith("_deg"):
+        if (
+            not ok
+            or comp not in _AXES
+            or isinstance(sign, bool)  # true == 1 in Python, no sign in an angle map
+            or sign not in (1, -1)
+            or not str(col).endswith("_deg")
+        ):
             raise InputError(
                 f"entry {col!r} is {spec!r}",
                 path,
