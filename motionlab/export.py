@@ -33,7 +33,7 @@ from motionlab import __version__
 from motionlab import rotations as rot
 from motionlab.atomic import atomic_path
 from motionlab.errors import InputError
-from motionlab.io.c3d import MODEL_KINDS
+from motionlab.io.c3d import MODEL_KINDS, unique_labels
 from motionlab.io.opensim import write_mot, write_sto
 from motionlab.kinematics.joint_types import angle_columns, opensim_coordinates
 from motionlab.kinematics.metrics import metrics_table
@@ -199,7 +199,7 @@ def write_c3d(
         blocks.append(on_grid)
     if not labels:
         raise InputError("nothing to write", path, remedy="the session has no angles or markers")
-    labels = _unique(labels)  # C3D tools look points up by label
+    labels = unique_labels(labels)[0]  # C3D tools look points up by label
     xyz = np.concatenate(blocks, axis=1)  # (N, P, 3)
     c3d = ezc3d.c3d()
     c3d["header"]["points"]["first_frame"] = max(0, round(float(time[0]) * rate))
@@ -229,17 +229,6 @@ def write_c3d(
             real.replace(tmp)
         finally:
             real.unlink(missing_ok=True)
-
-
-def _unique(labels: list[str]) -> list[str]:
-    """``labels`` with each repeat renamed ``<label>_2``, ``_3``… (as ingest renames them; a
-    session read from a file with repeated labels keeps them, and the demo's does)."""
-    seen: dict[str, int] = {}
-    out = []
-    for label in labels:
-        seen[label] = seen.get(label, 0) + 1
-        out.append(label if seen[label] == 1 else f"{label}_{seen[label]}")
-    return out
 
 
 def _interp(t: np.ndarray, values: np.ndarray, t_new: np.ndarray) -> np.ndarray:
@@ -384,10 +373,11 @@ def export_session(session: Session, fmt: str, path: str | Path, force: bool = F
         judged = judged_columns(session)
         outputs, descriptions = [], {}
         for joint, cols in joint_columns(session).items():
-            xyz = [columns.get(c, np.full(len(time), np.nan)) for c in (cols + [""] * 3)[:3]]
             gone = [c for c in cols[:3] if judged.get(c, ("",))[0] == NOT_DETERMINED]
-            xyz = [np.full(len(time), np.nan) if c in gone else v
-                   for c, v in zip(cols[:3], xyz, strict=False)] + xyz[len(cols[:3]):]  # fmt: skip
+            xyz = [
+                columns[c] if c in columns and c not in gone else np.full(len(time), np.nan)
+                for c in (cols + [""] * 3)[:3]
+            ]
             outputs.append(ModelOutput(f"{joint}_angles", "angles", "deg", np.column_stack(xyz)))
             descriptions[f"{joint}_angles"] = (
                 "X, Y, Z: "

@@ -62,6 +62,8 @@ from motionlab.session import (
 if TYPE_CHECKING:
     import pandas as pd
 
+    from motionlab.validation.markermap import MarkerMap
+
 SESSION_FILE = "session.h5"
 REPORT_FILE = "report.pdf"
 RESULTS_JSON = "results.json"
@@ -413,6 +415,7 @@ def analyse(
     options: PipelineOptions,
     stages: _Stages | None = None,
     reference: tuple[MarkerSet, str] | None = None,
+    marker_map: MarkerMap | None = None,
 ) -> None:
     """The stages after ingest, in memory, each by its function in :mod:`motionlab.stages` (as
     the stage commands call them): (sync) → fuse (with the sensor calibrations) → calibrate →
@@ -431,8 +434,8 @@ def analyse(
     above 2°). Validation then aligns each sensor's heading separately (mode ``heading``).
 
     ``reference``: ``options.reference`` already read (its marker set and kind,
-    :func:`~motionlab.validation.reference_kinds.load_reference`), as :func:`run_pipeline`
-    reads it before any work.
+    :func:`~motionlab.validation.reference_kinds.load_reference`), and ``marker_map``
+    ``options.markers_path``, as :func:`run_pipeline` reads them before any work.
     """
 
     protocol = sensed_protocol(options.load_protocol(), session)
@@ -466,11 +469,8 @@ def analyse(
                 marker_set, kind = load_reference(Path(options.reference))
             else:
                 marker_set, kind = session_reference(session)
-            marker_map = None
-            if options.markers_path is not None:
-                from motionlab.validation.markermap import load_marker_map
-
-                marker_map = load_marker_map(options.markers_path)
+            if marker_map is None and options.markers_path is not None:
+                marker_map = _read_marker_map(options)
             stages_lib.validate(session, protocol, marker_set, seed=options.seed, force=True,
                                 reference_kind=kind, frames=options.frames,
                                 marker_map=marker_map)  # fmt: skip
@@ -489,7 +489,6 @@ RUN_IMPORTS = (
     "motionlab.report",
     "motionlab.report.console",
     "motionlab.segments.grades",
-    "motionlab.validation.markermap",
 )
 
 
@@ -501,6 +500,15 @@ def _read_reference(options: PipelineOptions) -> tuple[MarkerSet, str] | None:
     from motionlab.validation.reference_kinds import load_reference
 
     return load_reference(Path(options.reference))
+
+
+def _read_marker_map(options: PipelineOptions) -> MarkerMap | None:
+    """``options.markers_path`` read, or None without one."""
+    if options.markers_path is None:
+        return None
+    from motionlab.validation.markermap import load_marker_map
+
+    return load_marker_map(options.markers_path)
 
 
 def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> PipelineResult:
@@ -531,10 +539,7 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
         [*inputs, options.map_path, options.reference, options.markers_path, proto.path],
     )
     reference = _read_reference(options)  # an unreadable one is told before any work
-    if options.markers_path is not None:  # and so is a marker map
-        from motionlab.validation.markermap import load_marker_map
-
-        load_marker_map(options.markers_path)
+    marker_map = _read_marker_map(options)  # and so is a marker map
     command = options.command(inputs, outdir)
     names = ["ingest", "fuse", "calibrate", "angles", "metrics", "report"]
     if options.clock_sync:
@@ -548,7 +553,7 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
         session = load_inputs(inputs, map_path, command)
         check_segments(session, proto, inputs)
         proto = sensed_protocol(proto, session)
-    analyse(session, dataclasses.replace(options, protocol=proto), stages, reference)
+    analyse(session, dataclasses.replace(options, protocol=proto), stages, reference, marker_map)
     validated = session.results.validation is not None
     session.add_provenance(
         command,

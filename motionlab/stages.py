@@ -521,6 +521,13 @@ def validate(
 
     done = session.results.validation is not None
     refuse_to_redo(done, "validation", "validation results", force, path)
+    if angle_map is not None and reference_kind != "angles":  # a mix-up: refused before any work
+        raise InputError(
+            "an angle map applies to a reference of model joint angles",
+            path,
+            remedy="pass reference_kind='angles', or leave out angle_map=",
+            argument=("reference_kind", "angle_map"),
+        )
     refuse_stale(session, ("fusion", "calibration", "angles"), path)
     if protocol is None and session.results.calibration is None:
         proto = None
@@ -544,13 +551,6 @@ def validate(
         session.results.validation = result
         session.lineage.record(session.results, "validation", proto)
         return result
-    if angle_map is not None:  # a map of model angles given with markers is a mix-up
-        raise InputError(
-            "an angle map applies to a reference of model joint angles",
-            path,
-            remedy="pass reference_kind='angles', or leave out angle_map=",
-            argument=("reference_kind", "angle_map"),
-        )
     if reference_kind == "segments" and marker_map is None:
         from motionlab.validation.segment_csv import segment_map
 

@@ -106,7 +106,7 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     raw = _labels(point, n_markers)
     kinds, units = _kinds(point, raw, warnings)
     labels, prefixes = _strip_prefixes(raw, _known_prefixes(layout.parameters))
-    labels, duplicates = _unique(labels)
+    labels, duplicates = unique_labels(labels)
     for name, count in duplicates.items():
         warnings.append(
             f"label {name} appears {count} times; the repeats are renamed "
@@ -670,8 +670,10 @@ def _strip_prefixes(labels: list[str], known: list[str]) -> tuple[list[str], dic
     return bare, {name: p for p, name in split if p}
 
 
-def _unique(labels: list[str]) -> tuple[list[str], dict[str, int]]:
-    """Repeated labels renamed ``NAME_2``, ``NAME_3``…; the repeats' counts by name."""
+def unique_labels(labels: list[str]) -> tuple[list[str], dict[str, int]]:
+    """Repeated labels renamed ``NAME_2``, ``NAME_3``… (a name already taken gets ``_`` more);
+    the repeats' counts by name. The reader and the writer (:func:`motionlab.export.write_c3d`)
+    both use it: C3D tools look points up by label."""
     counts: dict[str, int] = {}
     for lab in labels:
         counts[lab] = counts.get(lab, 0) + 1

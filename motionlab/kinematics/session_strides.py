@@ -72,8 +72,8 @@ def session_strides(
     spans: dict[str, tuple[float, float]],
 ) -> dict[str, LegStrides]:
     """``{shank segment: LegStrides}`` of every knee's leg over the gait tasks' ``spans``
-    (``{task: (start_s, end_s)}``; strides inside each, joined in order); empty without a
-    shank sensor under a knee joint."""
+    (``{task: (start_s, end_s)}``, at least one; strides inside each, joined in order); empty
+    without a shank sensor under a knee joint."""
     side_of = {j.distal: j.side for j in protocol.joints.values() if j.type == "knee"}
     pelvis_label = sensor_for_segment(session, PELVIS_SEGMENT)
     out = {}
@@ -85,10 +85,9 @@ def session_strides(
         parts = [ge.strides(side, ev, yaw, span) for span in spans.values()]
         strides = ge.Strides(
             side,
-            *(np.concatenate([getattr(p, k) for p in parts]) if parts else np.zeros(0)
-              for k in ("ic", "fc", "next_ic")),
-            np.concatenate([p.kept for p in parts]) if parts else np.zeros(0, bool),
+            *(np.concatenate([getattr(p, k) for p in parts]) for k in ("ic", "fc", "next_ic")),
+            np.concatenate([p.kept for p in parts]),
             [r for p in parts for r in p.reason],
-        )  # fmt: skip
+        )
         out[seg] = LegStrides(seg, side, ev, strides)
     return out

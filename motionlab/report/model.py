@@ -386,7 +386,7 @@ def compare(low: float, high: float, normal: tuple[float, float] | None, reach: 
 Z95 = 1.96
 #: the largest error (deg) of a fused sensor's inclination to expect, for a thorax's lean away
 #: from its neutral posture: the default smoother's worst BROAD trial without magnetic
-#: disturbance, 1.75° total (docs/performance.md), rounded up
+#: disturbance, 1.42° total (07_undisturbed_fast_rotation_B, docs/performance.md), rounded up
 INCLINATION_ERROR_DEG = 2.0
 
 

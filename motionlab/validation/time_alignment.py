@@ -38,6 +38,7 @@ STEP_S = 5.0
 SEARCH_S = 0.5
 MIN_CORRELATION = 0.6
 MIN_MOTION_RAD_S = 0.1
+#: an optical rate above this many times its IMU's fastest is a marker jump (:func:`without_jumps`)
 JUMP_FACTOR = 2.0
 #: longest span (s) of one clock's recording the sync takes: a day
 MAX_SPAN_S = 86400.0
