@@ -130,15 +130,24 @@ def test_findings_put_abnormal_first_and_name_side_joint_task():
     )
 
 
+CONSEQUENCE = {
+    "faster": "joint ranges grow with walking speed, so a flexion range above the normal one is "
+    "shown but not flagged (one short of it still is).",
+    "slower": "joint ranges shrink at slower speeds, so a flexion range short of the normal one "
+    "is shown but not flagged (one above it still is).",
+}
+#: the right knee's 5-45° falls short of the normal 0-65°, the left's -1 to 78° goes above it
+EXPLAINED = {"faster": "Left", "slower": "Right"}
+
+
 @pytest.mark.parametrize(
     ("cadence", "pace"), [(132.0, "faster"), (88.0, "slower"), (118.0, ""), (float("nan"), "")]
 )
-def test_a_pace_outside_the_norms_walkers_is_said_first_and_tags_the_flagged_flexions(
-    cadence, pace
-):
+def test_a_pace_outside_the_norms_walkers_is_said_first_and_unflags_what_it_explains(cadence, pace):
     """A healthy walker at 132 steps/min was told four ranges were above normal: the walk's
-    cadence outside the gait page's 100-125 band now comes first, and each flagged flexion
-    range says the pace may be part of it (other planes, and ranges within, stay as they are)."""
+    cadence outside the gait page's 100-125 band now comes first, and a flexion range outside
+    normal the way that pace moves it (faster: above, slower: short) is shown, not flagged; the
+    other way it stays flagged, and other planes stay as they are."""
     view = _view((5.0, 45.0), (-1.0, 78.0))
     view.session.results.gait = Gait(
         status="ok",
@@ -146,29 +155,36 @@ def test_a_pace_outside_the_norms_walkers_is_said_first_and_tags_the_flagged_fle
         summary=GaitSummary(cadence_steps_per_min=cadence),
     )
     items = findings(view)
-    flagged = [i for i in items if " knee flexion-extension range " in i and "within" not in i]
-    assert len(flagged) == 2
+    outside = [i for i in items if " knee flexion-extension range " in i and "within" not in i]
+    assert len(outside) == 2
+    rows = {r.column: r for r in rom_rows(view)}
     if not pace:
         assert not any("steps/min" in i or "pace" in i for i in items)
+        assert rows["knee_r_flexion_deg"].flagged and rows["knee_l_flexion_deg"].flagged
         return
     assert items[0] == (
         f"Gait at {cadence:.0f} steps/min, {pace} than the 100–125 of the walkers the normal "
-        "ranges come from: joint ranges change with walking speed, so part of a flagged range "
-        "may be the pace."
+        f"ranges come from: {CONSEQUENCE[pace]}"
     )
-    assert all(i.endswith(f"({pace} pace than the norms).") for i in flagged)
+    side = EXPLAINED[pace]
+    explained = next(i for i in outside if i.startswith(side))
+    other = next(i for i in outside if not i.startswith(side))
+    assert explained.endswith(": not flagged at this pace.")
+    assert "pace" not in other and items.index(other) < items.index(explained)
+    explained_row = rows[f"knee_{side[0].lower()}_flexion_deg"]
+    assert explained_row.paced and not explained_row.flagged
     rotation = next(i for i in items if "internal-external rotation range" in i)
-    assert "pace" not in rotation
+    assert "pace" not in rotation and rows["knee_r_rotation_deg"].flagged
 
 
 @pytest.mark.parametrize(
-    ("cadence", "speed", "first", "tag"),
+    ("cadence", "speed", "first", "consequence"),
     [
         (
             124.0,
             1.83,
             "Gait at about 1.8 m/s, faster than the 1.1–1.6 m/s of the walkers",
-            "faster",
+            CONSEQUENCE["faster"],
         ),  # fmt: skip
         (124.0, 1.70, "", ""),  # within the leg model's 10 % of the band
         (
@@ -176,21 +192,25 @@ def test_a_pace_outside_the_norms_walkers_is_said_first_and_tags_the_flagged_fle
             1.90,
             "Gait at 132 steps/min, faster than the 100–125, and about 1.9 m/s, faster than the "
             "1.1–1.6 m/s, of the walkers",
-            "faster",
+            CONSEQUENCE["faster"],
         ),
         (
             95.0,
             1.90,
             "Gait at 95 steps/min, slower than the 100–125, and about 1.9 m/s, faster than the "
             "1.1–1.6 m/s, of the walkers",
-            "a pace unlike the norms'",
+            "so part of a flagged range may be the pace.",
         ),
     ],
 )
-def test_a_walking_speed_outside_the_norms_walkers_is_a_pace_note_too(cadence, speed, first, tag):
+def test_a_walking_speed_outside_the_norms_walkers_is_a_pace_note_too(
+    cadence, speed, first, consequence
+):
     """The real full-body walker (124 steps/min, within the band, at about 1.83 m/s by the leg
     model) was told both knees flexed above the normal 0-65° with no word on the pace: the
-    ranges grow with walking speed, and the norms' walkers walked at 1.1-1.6 m/s."""
+    ranges grow with walking speed, and the norms' walkers walked at 1.1-1.6 m/s. A pace
+    faster by one measure and slower by the other explains nothing: both ranges stay flagged,
+    tagged."""
     view = _view((5.0, 45.0), (-1.0, 78.0))
     view.session.results.gait = Gait(
         status="ok",
@@ -198,20 +218,22 @@ def test_a_walking_speed_outside_the_norms_walkers_is_a_pace_note_too(cadence, s
         summary=GaitSummary(cadence_steps_per_min=cadence, walking_speed_m_s=speed),
     )
     items = findings(view)
-    flagged = [i for i in items if " knee flexion-extension range " in i and "within" not in i]
+    outside = [i for i in items if " knee flexion-extension range " in i and "within" not in i]
     if not first:
         assert not any("m/s" in i or "pace" in i for i in items)
         return
-    assert items[0].startswith(first)
-    assert items[0].endswith("so part of a flagged range may be the pace.")
-    suffix = f"({tag} pace than the norms)." if tag in ("faster", "slower") else f"({tag})."
-    assert flagged and all(i.endswith(suffix) for i in flagged)
+    assert items[0].startswith(first) and items[0].endswith(consequence)
+    if consequence.startswith("so part"):
+        assert len(outside) == 2 and all(i.endswith("(a pace unlike the norms').") for i in outside)
+    else:
+        assert sum(i.endswith(": not flagged at this pace.") for i in outside) == 1
 
 
 def test_a_walks_length_says_how_much_of_it_strides_cover():
     """The real full-body walk's summary read 'walk (95 s)' for a block that held sitting down
     and a seated rest; it now says how much of it the strides cover, leaving out the 'strides'
     the gait events found across the rest (rejected for their duration)."""
+    from motionlab.report.model import walking_spans
     from motionlab.report.sentences import strides_s, tasks_analysed
     from motionlab.results import StrideTable
 
@@ -230,6 +252,10 @@ def test_a_walks_length_says_how_much_of_it_strides_cover():
     assert strides_s(view, "gait") == pytest.approx(4.0)  # 10-14 s; the 14-s one left out
     assert tasks_analysed(view) == "gait (30 s, 4 s of it walking)"
     assert strides_s(view, "squat") is None
+    # the spans the time plots draw a walk's normal range over: merged, the rest left out
+    table.start_s[-1], table.stride_time_s[-1], table.reason[-1] = 20.0, 1.0, "turn"
+    assert walking_spans(view, "gait") == [(10.0, 14.0), (20.0, 21.0)]
+    assert strides_s(view, "gait") == pytest.approx(5.0)
 
 
 def test_normative_band_interpolates_key_instants_and_names_its_source():

@@ -107,6 +107,7 @@ def run_summary(
         )
         normal = (
             f"normal {r.normal[0]:g}-{r.normal[1]:g}, {r.status or 'not compared'}"
+            + (", the pace: not flagged" if r.paced else "")
             if r.normal
             else "no normal range"
         )

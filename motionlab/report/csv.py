@@ -91,6 +91,7 @@ def metrics_frame(view: SessionView) -> pd.DataFrame:
             vs_normal = "not compared"
         else:
             vs_normal = r.status or ("not compared" if r.normal else "no normal range")
+            vs_normal += " (the pace: not flagged)" if r.paced else ""
         rows.append(
             {"task": r.task, "joint": r.joint, "angle": r.angle, "plane": r.plane}
             | {k: _withheld(r.grade, v) for k, v in measured.items()}

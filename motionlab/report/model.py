@@ -87,7 +87,9 @@ class RomRow:
     counted on an angle the recording did not determine, withheld with it); ``normal``:
     the protocol's normal range ``(low, high)`` deg or ``None``; ``status``: ``within``,
     ``below``, ``above``, ``wider`` (:func:`compare`), empty when not compared (no normal range,
-    or the angle not ``determined``); ``grade`` and ``reason`` (:func:`grade_rows`)."""
+    or the angle not ``determined``); ``grade`` and ``reason`` (:func:`grade_rows`); ``paced``:
+    a flexion range outside normal the way the walk's pace outside the norms' moves it
+    (:func:`pace_explains`), shown but not flagged."""
 
     task: str
     joint: str
@@ -106,6 +108,12 @@ class RomRow:
     status: str
     grade: str
     reason: str
+    paced: bool = False
+
+    @property
+    def flagged(self) -> bool:
+        """Outside the normal range and not explained by the walk's pace."""
+        return self.status not in ("within", "") and not self.paced
 
 
 @dataclass(frozen=True)
@@ -250,6 +258,34 @@ class SessionView:
         ]
 
 
+#: stride rejections that still are walking (a stride of the wrong length, or without one
+#: final contact, may span anything: a seated rest between two bouts)
+WALKING_REJECTS = ("turn", "start/stop", "low confidence")
+
+
+def walking_spans(view: SessionView, task: str) -> list[tuple[float, float]] | None:
+    """The spans ``[(start_s, end_s)]`` of ``task``'s block covered by strides of either leg
+    (the gait analysis' stride table: kept, or rejected as :data:`WALKING_REJECTS`), merged
+    where they overlap; ``None`` where ``task`` is no analysed walk. A walk block also holds
+    what the walker did between bouts when the protocol has one task (sitting down)."""
+    g = view.session.results.gait
+    block = (g.tasks or {}).get(task) if g is not None and g.ok else None
+    table = g.strides if block is not None else None
+    if table is None or table.stride_time_s is None:
+        return None
+    start, length = np.asarray(table.start_s, float), np.asarray(table.stride_time_s, float)
+    walking = np.asarray(table.kept, bool) | np.isin(np.asarray(table.reason), WALKING_REJECTS)
+    ok = walking & np.isfinite(start) & np.isfinite(length)
+    ok &= (start >= block.start_s) & (start <= block.end_s)
+    spans: list[tuple[float, float]] = []
+    for a, b in sorted(zip(start[ok], start[ok] + length[ok], strict=True)):
+        if spans and a <= spans[-1][1]:
+            spans[-1] = (spans[-1][0], max(spans[-1][1], b))
+        else:
+            spans.append((float(a), float(b)))
+    return spans
+
+
 def in_order(keys, order: list[str]) -> list[str]:
     """``keys`` sorted by their place in ``order`` (the others after them, as they come).
 
@@ -355,6 +391,62 @@ def _extremes(m: AngleMetrics) -> tuple[float, float]:
     if m.repetitions >= 1 and np.isfinite(m.cycle_max_mean_deg):
         return float(m.cycle_min_mean_deg), float(m.cycle_max_mean_deg)
     return float(m.min_deg), float(m.max_deg)
+
+
+#: the leg model's walking speed counts as outside the norms' band only beyond this share of
+#: it: its error is measured on one walker only (``length_note`` on the gait page)
+PACE_SPEED_MARGIN = 0.1
+#: the ranges a pace outside the norms' moves a sagittal range to: a faster walk flexes and
+#: extends further, a slower one less (Fukuchi et al. 2019, Syst Rev 8:153, a meta-analysis of
+#: 20 studies: joint angle amplitudes grow with speed)
+PACE_STATUSES = {"faster": ("above", "wider"), "slower": ("below",)}
+
+
+@dataclass(frozen=True)
+class PaceMismatch:
+    """One pace measure of a walk outside the band of the healthy walkers the normal ranges
+    come from (:func:`pace_mismatches`): ``column`` of the gait summary, its ``value``,
+    ``pace`` (``faster`` or ``slower``) and the ``band`` ``(low, high)``."""
+
+    column: str
+    value: float
+    pace: str
+    band: tuple[float, float]
+
+
+def pace_mismatches(view: SessionView, task: str) -> list[PaceMismatch]:
+    """The walk's cadence, and its walking speed by more than :data:`PACE_SPEED_MARGIN`, where
+    outside the self-selected-speed bands of ``report_data/gait_normative.yaml``; empty when
+    both are within them, not measured, or ``task`` is not a walk."""
+    from motionlab.report.normative import gait_bands
+
+    g = view.session.results.gait
+    if g is None or not g.ok or g.summary is None or task not in (g.tasks or {}):
+        return []
+    bands = gait_bands()["spatiotemporal"]
+    out = []
+    for column, margin in (("cadence_steps_per_min", 0.0),
+                           ("walking_speed_m_s", PACE_SPEED_MARGIN)):  # fmt: skip
+        value = float(getattr(g.summary, column))
+        lo, hi = (float(b) for b in bands[column])
+        if np.isfinite(value) and not lo * (1 - margin) <= value <= hi * (1 + margin):
+            out.append(PaceMismatch(column, value, "faster" if value > hi else "slower", (lo, hi)))
+    return out
+
+
+def walk_pace(view: SessionView, task: str) -> str:
+    """``faster`` or ``slower`` than the norms' walkers (:func:`pace_mismatches`); ``mixed``
+    when one measure says faster and the other slower; empty when neither is outside."""
+    paces = {m.pace for m in pace_mismatches(view, task)}
+    return paces.pop() if len(paces) == 1 else ("mixed" if paces else "")
+
+
+def pace_explains(pace: str, angle: str, status: str) -> bool:
+    """Whether a flexion range's ``status`` is the way a walk's ``pace`` moves it
+    (:data:`PACE_STATUSES`): a healthy walker at 1.8 m/s was told the knee's 4–79° was above
+    the normal 0–65° of walkers at 1.1–1.6 m/s. Such a range is shown, not flagged; the other
+    way (a range short of the norms at a faster pace) stays flagged."""
+    return angle == "flexion" and status in PACE_STATUSES.get(pace, ())
 
 
 def compare(low: float, high: float, normal: tuple[float, float] | None, reach: bool) -> str:
@@ -503,6 +595,7 @@ def rom_rows(view: SessionView) -> list[RomRow]:
     tasks = {t.name: t for t in view.protocol.tasks}
     for task in view.tasks():
         per_col = view.metrics.joints[task]
+        pace = walk_pace(view, task)
         for joint in view.joints():
             counted = cycles_counted(tasks.get(task), joint, grades)
             for angle, col in angle_columns(joint):
@@ -513,6 +606,7 @@ def rom_rows(view: SessionView) -> list[RomRow]:
                 normal = normal_range(view.protocol, task, col)
                 grade, reason = grades.get(col, (DETERMINED, ""))
                 status = compare(low, high, normal, angle == "flexion")
+                status = status if is_determined(grade) else ""
                 rows.append(
                     RomRow(
                         task=task,
@@ -529,9 +623,10 @@ def rom_rows(view: SessionView) -> list[RomRow]:
                         typical_max_deg=high,
                         repetitions=int(m.repetitions) if counted else None,
                         normal=normal,
-                        status=status if is_determined(grade) else "",
+                        status=status,
                         grade=grade,
                         reason=reason,
+                        paced=pace_explains(pace, angle, status),
                     )
                 )
     return rows

@@ -27,6 +27,7 @@ from motionlab.report.model import (
     rom_rows,
     symmetric_type,
     symmetry_rows,
+    walking_spans,
     worst_grade,
 )
 from motionlab.report.normative import band_for
@@ -68,9 +69,10 @@ def _time_page(doc: Document, view: SessionView, joint) -> None:
         for task, (a, b) in blocks.items():
             ax.axvspan(a, b, color="#f0f0f0", zorder=0)
             rng = normal_range(view.protocol, task, col)
-            if rng is not None:
+            # a walk's normal range holds while walking, not over a rest between its bouts
+            for a0, b0 in (walking_spans(view, task) or [(a, b)]) if rng is not None else []:
                 ax.fill_between(
-                    [a, b], rng[0], rng[1], color=BAND_COLOUR, alpha=0.5, lw=0, zorder=1
+                    [a0, b0], rng[0], rng[1], color=BAND_COLOUR, alpha=0.5, lw=0, zorder=1
                 )
         if suffix == " · not determined":
             _no_data(ax, "not determined by this recording: not drawn (see the calibration page)")
@@ -94,7 +96,9 @@ def _time_page(doc: Document, view: SessionView, joint) -> None:
     handles = [Patch(color="#f0f0f0", label="task block")] if blocks else []
     if any(normal_range(view.protocol, task, col) is not None
            for task in blocks for _, col in angle_columns(joint)):  # fmt: skip
-        handles.append(Patch(color=BAND_COLOUR, alpha=0.5, label="normal range of the task"))
+        walks = any(walking_spans(view, task) is not None for task in blocks)
+        label = "normal range of the task" + (" (a walk: while walking)" if walks else "")
+        handles.append(Patch(color=BAND_COLOUR, alpha=0.5, label=label))
     if not handles:
         return
     axes[0][0].legend(
@@ -112,7 +116,7 @@ def _rom_table(doc: Document, view: SessionView, joint) -> None:
         if r.joint != joint.name:
             continue
         normal = f"{r.normal[0]:g} to {r.normal[1]:g}" if r.normal else "-"
-        bad = r.status not in ("within", "")
+        bad = r.flagged
         hide = r.grade == NOT_DETERMINED  # a number the recording did not determine
         muted.append(hide)
         rows.append(
@@ -123,7 +127,7 @@ def _rom_table(doc: Document, view: SessionView, joint) -> None:
                 "-" if hide else f"{r.rom_deg:.0f}",
                 "-" if r.repetitions is None else str(r.repetitions),
                 normal,
-                STATUS_WORDS.get(r.status, "-")
+                STATUS_WORDS.get(r.status, "-") + (" (pace)" if r.paced else "")
                 if r.status
                 else ("not compared" if r.normal and not is_determined(r.grade) else "-"),
                 r.grade,
@@ -153,7 +157,8 @@ def _rom_table(doc: Document, view: SessionView, joint) -> None:
         "cycles: its lowest and highest angle). Full ROM: highest minus lowest angle over the "
         "whole task (a walk: over the kept strides of the joint's leg). A range is flagged when "
         "it leaves the normal range by more than 5°, or a flexion peak falls 10° short of its "
-        "top. Grade: whether the "
+        "top; not when a walk faster than the norms' walkers takes a flexion range above it, "
+        "or a slower one short of it: marked '(pace)'. Grade: whether the "
         "recording determined the angle (see the "
         "calibration page); only a determined range is compared.",
         size=SIZE["small"],

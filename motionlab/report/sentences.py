@@ -34,15 +34,17 @@ from motionlab.report.model import (
     grade_rows,
     is_determined,
     joint_title,
+    pace_mismatches,
     quality_rows,
     rom_rows,
     segment_grade,
     symmetry_rows,
     thrust_above,
     trunk_above,
+    walk_pace,
+    walking_spans,
     worst_grade,
 )
-from motionlab.report.normative import gait_bands
 
 #: what each out-of-plane metric means, in one sentence
 MEANING = {
@@ -93,29 +95,12 @@ def task_name(task: str) -> str:
     return task.replace("_", " ")
 
 
-#: stride rejections that still are walking (a stride of the wrong length, or without one
-#: final contact, may span anything: a seated rest between two bouts)
-WALKING_REJECTS = ("turn", "start/stop", "low confidence")
-
-
 def strides_s(view: SessionView, task: str) -> float | None:
-    """Seconds (s) of ``task``'s block covered by strides of either leg (the gait analysis'
-    stride table: kept, or rejected as :data:`WALKING_REJECTS`), or ``None`` where ``task`` is
-    no analysed walk."""
-    g = view.session.results.gait
-    block = (g.tasks or {}).get(task) if g is not None and g.ok else None
-    table = g.strides if block is not None else None
-    if table is None or table.stride_time_s is None:
-        return None
-    start, length = np.asarray(table.start_s, float), np.asarray(table.stride_time_s, float)
-    walking = np.asarray(table.kept, bool) | np.isin(np.asarray(table.reason), WALKING_REJECTS)
-    ok = walking & np.isfinite(start) & np.isfinite(length)
-    ok &= (start >= block.start_s) & (start <= block.end_s)
-    total, reached = 0.0, -np.inf
-    for a, b in sorted(zip(start[ok], start[ok] + length[ok], strict=True)):
-        total += max(0.0, b - max(a, reached))
-        reached = max(reached, b)
-    return total
+    """Seconds (s) of ``task``'s block covered by strides of either leg
+    (:func:`~motionlab.report.model.walking_spans`), or ``None`` where ``task`` is no analysed
+    walk."""
+    spans = walking_spans(view, task)
+    return None if spans is None else float(sum(b - a for a, b in spans))
 
 
 def tasks_analysed(view: SessionView) -> str:
@@ -161,49 +146,48 @@ def rom_sentence(row: RomRow) -> str:
 PACE_SOURCE = (
     "Moissenet F, Leboeuf F, Armand S. Lower limb sagittal gait kinematics can be predicted "
     "based on walking speed, gender, age and BMI. Sci Rep 2019, doi:10.1038/s41598-019-45397-4 "
-    "(a walking-speed mismatch alone moves sagittal angles by more than 5°)"
+    "(a walking-speed mismatch alone moves sagittal angles by more than 5°); Fukuchi CA, "
+    "Fukuchi RK, Duarte M. Effects of walking speed on gait biomechanics in healthy "
+    "participants: a systematic review and meta-analysis. Syst Rev 2019, "
+    "doi:10.1186/s13643-019-1063-z (joint angle amplitudes grow with speed)"
 )
-
-
-#: the leg model's walking speed counts as outside the norms' band only beyond this share of
-#: it: its error is measured on one walker only (``length_note`` on the gait page)
-PACE_SPEED_MARGIN = 0.1
 
 
 def pace_note(view: SessionView, task: str) -> tuple[str, str]:
     """Why ``task``'s sagittal ranges may leave the normal ones for the pace alone: its walk's
-    cadence, or its walking speed by more than :data:`PACE_SPEED_MARGIN`, outside the band of
-    the healthy walkers the normal ranges come from (the gait page's ``cadence_steps_per_min``
-    and ``walking_speed_m_s``, ``report_data/gait_normative.yaml``). ``(sentence, tag)``: the
-    finding that says so and the words a flagged range carries; empty when both are within
-    the band, not measured, or ``task`` is not a walk."""
-    g = view.session.results.gait
-    if g is None or not g.ok or g.summary is None or task not in (g.tasks or {}):
-        return "", ""
-    bands = gait_bands()["spatiotemporal"]
-    measures = (
-        ("cadence_steps_per_min", "{:.0f} steps/min", "{:g}–{:g}", 0.0),
-        ("walking_speed_m_s", "about {:.1f} m/s", "{:g}–{:g} m/s", PACE_SPEED_MARGIN),
-    )
-    found = []  # (the value, faster or slower, the band), in words
-    for column, value_fmt, band_fmt, margin in measures:
-        value = float(getattr(g.summary, column))
-        lo, hi = bands[column]
-        if not np.isfinite(value) or lo * (1 - margin) <= value <= hi * (1 + margin):
-            continue
-        found.append((value_fmt.format(value), "faster" if value > hi else "slower",
-                      band_fmt.format(lo, hi)))  # fmt: skip
+    cadence or walking speed outside the band of the healthy walkers the normal ranges come
+    from (:func:`~motionlab.report.model.pace_mismatches`). ``(sentence, tag)``: the finding
+    that says so, and the words a range flagged in spite of it carries when the walk is faster
+    by one measure and slower by the other (else empty: a range the pace explains is not
+    flagged, :func:`~motionlab.report.model.pace_explains`, and one it does not explain owes it
+    nothing); both empty when the pace is within the band, not measured, or ``task`` is not a
+    walk."""
+    found = pace_mismatches(view, task)
     if not found:
         return "", ""
-    compared = ", and ".join(f"{v}, {pace} than the {b}" for v, pace, b in found)
+    words = {
+        "cadence_steps_per_min": ("{:.0f} steps/min", "{:g}–{:g}"),
+        "walking_speed_m_s": ("about {:.1f} m/s", "{:g}–{:g} m/s"),
+    }
+    compared = ", and ".join(
+        f"{words[m.column][0].format(m.value)}, {m.pace} than the "
+        f"{words[m.column][1].format(*m.band)}"
+        for m in found
+    )
+    pace = walk_pace(view, task)
+    consequence = {
+        "faster": "joint ranges grow with walking speed, so a flexion range above the normal "
+        "one is shown but not flagged (one short of it still is)",
+        "slower": "joint ranges shrink at slower speeds, so a flexion range short of the normal "
+        "one is shown but not flagged (one above it still is)",
+    }.get(
+        pace, "joint ranges change with walking speed, so part of a flagged range may be the pace"
+    )
     sentence = (
         f"{task_name(task).capitalize()} at {compared}{',' if len(found) > 1 else ''} of the "
-        "walkers the normal ranges come from: joint ranges change with walking speed, so part "
-        "of a flagged range may be the pace."
+        f"walkers the normal ranges come from: {consequence}."
     )
-    paces = {pace for _, pace, _ in found}
-    tag = f"{paces.pop()} pace than the norms" if len(paces) == 1 else "a pace unlike the norms'"
-    return sentence, tag
+    return sentence, ("a pace unlike the norms'" if pace == "mixed" else "")
 
 
 def angle_words(view: SessionView, joint: str, angle: str) -> str:
@@ -282,13 +266,17 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
     """
     ranges = rom_rows(view)
     rows = [r for r in ranges if r.normal is not None and is_determined(r.grade)]
-    outside, paces = [], []
+    outside, paced, paces = [], [], []
     for r in rows:
         if r.status in ("within", ""):
             continue
         pace, tag = pace_note(view, r.task) if r.angle == "flexion" else ("", "")
-        outside.append(rom_sentence(r).removesuffix(".") + f" ({tag})." if tag else rom_sentence(r))
         paces += [pace] if pace else []
+        if r.paced:
+            paced.append(rom_sentence(r).removesuffix(".") + ": not flagged at this pace.")
+        else:
+            sentence = rom_sentence(r)
+            outside.append(sentence.removesuffix(".") + f" ({tag})." if tag else sentence)
     inside = [rom_sentence(r) for r in rows if r.status == "within" and r.angle == "flexion"]
     asym = []
     for s in symmetry_rows(view):
@@ -302,7 +290,7 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
                 f"(symmetry index {s.symmetry_index_pct:+.0f}%)."
             )
     problems = quality_notes(view)
-    items = list(dict.fromkeys(paces + outside + asym + _oop_findings(view) + inside))
+    items = list(dict.fromkeys(paces + outside + asym + _oop_findings(view) + paced + inside))
     if len(items) > limit - len(problems[:2]):
         items = items[: limit - len(problems[:2])]
     if not items and ranges and not any(is_determined(r.grade) for r in ranges):
