@@ -369,3 +369,19 @@ def test_a_segment_csv_column_given_twice_is_refused(tmp_path):
     path.write_text("\n".join(rows) + "\n")
     with pytest.raises(InputError, match="column thigh_r_qw appears more than once"):
         read_segment_csv(path)
+
+
+def test_a_segment_csv_cell_of_text_is_refused_and_an_empty_one_is_a_gap(tmp_path):
+    """A cell reading ``zero`` in a quaternion column was taken as a lost frame, silently; an
+    empty cell is one (Motive leaves a lost body's cells empty)."""
+    rows = ["time,thigh_r_qw,thigh_r_qx,thigh_r_qy,thigh_r_qz"]
+    rows += [f"{k / 120},1,0,0,0" for k in range(20)]
+    rows[8] = f"{7 / 120},,,,"
+    path = tmp_path / "gap.csv"
+    path.write_text("\n".join(rows) + "\n")
+    q = read_segment_csv(path).rigid_bodies["thigh_r"]
+    assert np.isnan(q[7]).all() and np.isfinite(np.delete(q, 7, axis=0)).all()
+    rows[6] = f"{5 / 120},1,zero,0,0"
+    path.write_text("\n".join(rows) + "\n")
+    with pytest.raises(InputError, match=r"data row 6, column thigh_r_qx: 'zero' is not a number"):
+        read_segment_csv(path)

@@ -140,9 +140,7 @@ def read_segment_csv(path: str | Path, name: str = "segments") -> MarkerSet:
         )
     bodies = {}
     for seg, comps in found.items():
-        q = np.column_stack(
-            [pd.to_numeric(table[comps[c]], errors="coerce").to_numpy(float) for c in COMPONENTS]
-        )
+        q = np.column_stack([_numbers(table[comps[c]], path) for c in COMPONENTS])
         norm = np.linalg.norm(q, axis=1)
         ok = np.isfinite(q).all(axis=1) & (norm > 1e-6)
         if ok.sum() < 10:  # NaN, zeros, text: no orientation to compare with
@@ -161,6 +159,21 @@ def read_segment_csv(path: str | Path, name: str = "segments") -> MarkerSet:
         source_units={"time": "s", "quaternion": "segment → lab"},
         attrs={"source_file": str(path), "reference_kind": "segments"},
     )
+
+
+def _numbers(column: pd.Series, path: Path) -> np.ndarray:
+    """A quaternion column as floats; an empty cell is a gap (NaN, as Motive leaves a lost
+    body), a cell of text is refused (it was read as a gap: a typo went unnoticed)."""
+    values = pd.to_numeric(column, errors="coerce")
+    text = np.flatnonzero(values.isna().to_numpy() & column.notna().to_numpy())
+    if len(text):
+        raise InputError(
+            f"'{column.iloc[text[0]]}' is not a number",
+            path,
+            f"data row {text[0] + 1}, column {str(column.name).strip()}",
+            "leave a lost frame's cells empty; write numbers elsewhere",
+        )
+    return values.to_numpy(float)
 
 
 def segment_map(
