@@ -463,14 +463,15 @@ def analyse(
         from motionlab.validation.reference_kinds import load_reference, session_reference
 
         with stages("validate"):  # markers, segment quaternions or model angles
+            if marker_map is None and options.markers_path is not None:
+                marker_map = _read_marker_map(options)
+            name = marker_map.marker_set if marker_map is not None else None
             if reference is not None:
                 marker_set, kind = reference
             elif options.reference is not None:
-                marker_set, kind = load_reference(Path(options.reference))
+                marker_set, kind = load_reference(Path(options.reference), name=name)
             else:
-                marker_set, kind = session_reference(session)
-            if marker_map is None and options.markers_path is not None:
-                marker_map = _read_marker_map(options)
+                marker_set, kind = session_reference(session, name=name)
             stages_lib.validate(session, protocol, marker_set, seed=options.seed, force=True,
                                 reference_kind=kind, frames=options.frames,
                                 marker_map=marker_map)  # fmt: skip
@@ -492,14 +493,17 @@ RUN_IMPORTS = (
 )
 
 
-def _read_reference(options: PipelineOptions) -> tuple[MarkerSet, str] | None:
-    """``options.reference`` read (its marker set and kind), or None without one; the
-    validation's readers are imported only then."""
+def _read_reference(
+    options: PipelineOptions, marker_map: MarkerMap | None
+) -> tuple[MarkerSet, str] | None:
+    """``options.reference`` read (the marker set ``marker_map`` names, or its only one, and
+    its kind), or None without one; the validation's readers are imported only then."""
     if options.reference is None:
         return None
     from motionlab.validation.reference_kinds import load_reference
 
-    return load_reference(Path(options.reference))
+    name = marker_map.marker_set if marker_map is not None else None
+    return load_reference(Path(options.reference), name=name)
 
 
 def _read_marker_map(options: PipelineOptions) -> MarkerMap | None:
@@ -538,8 +542,8 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
         options.force,
         [*inputs, options.map_path, options.reference, options.markers_path, proto.path],
     )
-    reference = _read_reference(options)  # an unreadable one is told before any work
-    marker_map = _read_marker_map(options)  # and so is a marker map
+    marker_map = _read_marker_map(options)  # an unreadable one is told before any work
+    reference = _read_reference(options, marker_map)  # and so is a reference
     command = options.command(inputs, outdir)
     names = ["ingest", "fuse", "calibrate", "angles", "metrics", "report"]
     if options.clock_sync:

@@ -113,3 +113,27 @@ def test_reference_files_session_and_trc(tmp_path, data_dir):
         choose_marker_set(sets, "lab", path)
     with pytest.raises(InputError, match="no such reference"):
         read_reference(tmp_path / "missing.c3d")
+
+
+def test_run_takes_the_marker_set_its_marker_map_names(tmp_path):
+    """``motionlab run --reference S --markers MAP`` refused a reference of two marker sets
+    ("name one with marker_set: in the map") although the map named one: run read the
+    reference without it (``validate`` passed it)."""
+    from motionlab.pipeline import PipelineOptions, _read_reference
+    from motionlab.protocol import load_protocol
+    from motionlab.session import Session, save_session
+
+    t = np.arange(50) / 100.0
+    ref = Session()
+    for name in ("lab", "optical"):
+        ref.markers[name] = MarkerSet(
+            name, t, ["M1"], np.zeros((50, 1, 3)) + (name == "optical")
+        )  # fmt: skip
+    path = tmp_path / "ref.h5"
+    save_session(ref, path)
+    options = PipelineOptions(load_protocol("knee"), reference=str(path), progress=False)
+    with pytest.raises(InputError, match="holds 2 marker sets"):
+        _read_reference(options, None)
+    marker_set, kind = _read_reference(options, load_marker_map(_write(tmp_path, GOOD)))
+    assert (marker_set.name, kind) == ("optical", "markers")
+    assert marker_set.positions[0, 0, 0] == 1.0
