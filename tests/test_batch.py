@@ -85,6 +85,7 @@ def test_session_key_follows_contents_names_protocol_and_version(tmp_path):
     assert key != session_key([b], p, None, None, FileHashes())  # same bytes, other name
     assert key != session_key([a], p, None, None, FileHashes(), version="9.9")
     assert key != session_key([a], p, None, a, FileHashes())
+    assert key != session_key([a], p, None, None, FileHashes(), markers=b)  # a marker map
     p.write_text("name: y")
     assert key != session_key([a], p, None, None, FileHashes())
 

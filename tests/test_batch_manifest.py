@@ -54,6 +54,28 @@ def test_the_studys_map_is_for_raw_recordings_not_session_files(tmp_path):
     assert raw.map == tmp_path / "m.yaml" and sim.map is None and not sim.problem
 
 
+def test_a_references_marker_map_is_a_key_for_the_study_or_a_session(tmp_path):
+    """``motionlab run --markers`` had no manifest key: ``markers:`` was an unknown key, so a
+    study could not validate against a reference whose markers are not named by the default."""
+    _files(tmp_path, "x.h5", "mk.yaml", "mk2.yaml", "ref.c3d")
+    (tmp_path / "study.yaml").write_text(
+        "protocol: knee\nmarkers: mk.yaml\nsessions:\n"
+        "  - {subject: A, visit: v1, files: x.h5, reference: ref.c3d}\n"
+        "  - {subject: B, visit: v1, files: x.h5, reference: ref.c3d, markers: mk2.yaml}\n"
+        "  - {subject: C, visit: v1, files: x.h5, reference: ref.c3d, markers: gone.yaml}\n"
+    )
+    m = load_manifest(tmp_path / "study.yaml")
+    a, b, c = m.sessions
+    assert m.markers == a.markers == tmp_path / "mk.yaml" and b.markers == tmp_path / "mk2.yaml"
+    assert not a.problem and not b.problem
+    assert c.problem.startswith("study.yaml line 6, key sessions[2].markers: no such markers")
+    (tmp_path / "study.yaml").write_text(
+        "protocol: knee\nmarkers: gone.yaml\nsessions: [{subject: A, visit: v1, files: x.h5}]\n"
+    )
+    with pytest.raises(InputError, match="line 2, key markers: no such file 'gone.yaml'"):
+        load_manifest(tmp_path / "study.yaml")
+
+
 def test_run_options_as_keys(tmp_path):
     _files(tmp_path, "x.h5", "cal/ABC.yaml")
     (tmp_path / "study.yaml").write_text(

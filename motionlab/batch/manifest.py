@@ -12,6 +12,7 @@ A manifest is a YAML file (``study.yaml``)::
         visit: week6
         files: [raw/S01/week6/thigh.txt, raw/S01/week6/shank.txt]
         reference: raw/S01/week6/mocap.c3d   # optional optical reference
+        markers: maps/markers.yaml           # optional marker map of the reference
         map: maps/other.yaml                 # optional, replaces the top-level map
         seed: 3                              # optional, replaces the study's setting
       - {subject: S02, visit: baseline, files: sim/S02_baseline.h5}   # a motionlab session file
@@ -51,8 +52,8 @@ from motionlab.yamlsafe import LineLoader, load_yaml
 OPTION_KEYS = {o.manifest: name for name, o in RUN_OPTIONS.items() if o.batch and o.manifest}
 #: library argument → the manifest key that sets it, for the failure messages
 ARGUMENT_KEYS = {name: o.manifest for name, o in RUN_OPTIONS.items() if o.manifest}
-TOP_KEYS = ("protocol", "map", "sessions", *OPTION_KEYS)
-SESSION_KEYS = ("subject", "visit", "files", "reference", "map", *OPTION_KEYS)
+TOP_KEYS = ("protocol", "map", "markers", "sessions", *OPTION_KEYS)
+SESSION_KEYS = ("subject", "visit", "files", "reference", "markers", "map", *OPTION_KEYS)
 _NAME = re.compile(r"^\w[\w .+-]*$")
 _EXAMPLE = "see the study manifest example in README.md"
 
@@ -71,6 +72,8 @@ class SessionSpec:
     #: this session's options of ``motionlab run`` (:class:`~motionlab.pipeline.PipelineOptions`
     #: field names), replacing the study's
     options: dict[str, Any] = field(default_factory=dict)
+    #: the marker map of its reference (``--markers``): the session's, else the study's
+    markers: Path | None = None
 
     @property
     def folder(self) -> Path:
@@ -89,6 +92,8 @@ class Manifest:
     #: the study's options of ``motionlab run`` (:class:`~motionlab.pipeline.PipelineOptions`
     #: field names)
     options: dict[str, Any] = field(default_factory=dict)
+    #: the study's marker map of the references (``--markers``)
+    markers: Path | None = None
 
 
 def _fail(path: Path, line: int | None, key: str, message: str, remedy: str) -> None:
@@ -212,6 +217,17 @@ def load_manifest(path: str | Path) -> Manifest:
         study_map = base / str(doc["map"])
         if not study_map.is_file():
             _fail(path, lines["map"], "map", f"no such file {doc['map']!r}", "fix the path")
+    study_markers = None
+    if doc.get("markers") is not None:
+        study_markers = base / str(doc["markers"])
+        if not study_markers.is_file():
+            _fail(
+                path,
+                lines["markers"],
+                "markers",
+                f"no such file {doc['markers']!r}",
+                "fix the path",
+            )
     study_options, missing = _options(path, base, doc, "")
     if missing:
         _fail(path, lines["calibration"], "calibration", missing, "fix the path")
@@ -262,6 +278,8 @@ def load_manifest(path: str | Path) -> Manifest:
         problems = [("files", missing)]
         reference, missing = _optional_file(base, entry, "reference", None)
         problems.append(("reference", missing))
+        markers, missing = _optional_file(base, entry, "markers", study_markers)
+        problems.append(("markers", missing))
         # the study's map is for its raw recordings: a session file already names its sensors
         own_session = len(files) == 1 and files[0].is_file() and is_session_file(files[0])
         default_map = None if own_session else study_map
@@ -284,7 +302,15 @@ def load_manifest(path: str | Path) -> Manifest:
         )
         sessions.append(
             SessionSpec(
-                subject, visit, tuple(files), reference, session_map, line, problem, options
+                subject,
+                visit,
+                tuple(files),
+                reference,
+                session_map,
+                line,
+                problem,
+                options,
+                markers,
             )
         )
     return Manifest(
@@ -293,6 +319,7 @@ def load_manifest(path: str | Path) -> Manifest:
         sessions=tuple(sessions),
         map=study_map,
         options=study_options,
+        markers=study_markers,
     )
 
 

@@ -427,6 +427,7 @@ def run_study(
             str(manifest.protocol.resolve()),
             map_path=spec.map.resolve() if spec.map else None,
             reference=spec.reference.resolve() if spec.reference else None,
+            markers_path=spec.markers.resolve() if spec.markers else None,
             force=True,
             progress=False,
             **settings,
@@ -444,6 +445,7 @@ def run_study(
                     spec.reference,
                     hashes,
                     options=run_options.analysis(),
+                    markers=spec.markers,
                 )
             except OSError as exc:
                 problem = f"cannot read an input ({_one_line(exc)})"

@@ -66,11 +66,13 @@ def session_key(
     hashes: FileHashes,
     version: str = __version__,
     options: dict[str, Any] | None = None,
+    markers: Path | None = None,
 ) -> str:
     """SHA-256 over the inputs' names and contents, the protocol, map, reference and version,
     and the run ``options`` that differ from the defaults
     (:meth:`~motionlab.pipeline.PipelineOptions.analysis`; a calibration folder by the names and
-    contents of its files). Without such options the key is the one of earlier versions."""
+    contents of its files), and the reference's marker map. Without such options or a marker
+    map the key is the one of earlier versions."""
     doc: dict[str, Any] = {
         "motionlab": version,
         "files": [entry for f in files for entry in _file_entries(Path(f), hashes)],
@@ -78,6 +80,8 @@ def session_key(
         "map": hashes(map_path),
         "reference": hashes(reference),
     }
+    if markers is not None:
+        doc["markers"] = hashes(markers)
     if options:
         doc["options"] = dict(options)
         if "calibration_dir" in options:

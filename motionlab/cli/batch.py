@@ -161,9 +161,9 @@ def command(
 
 def _inputs(study: Manifest, calibration_dir: Path | None) -> list[Path | None]:
     """Every file and folder the study reads: the manifest, protocol, maps, recordings,
-    references and calibration folders."""
+    references, marker maps and calibration folders."""
     paths: list[Path | None] = [study.path, study.protocol, study.map, calibration_dir]
-    paths.append(study.options.get("calibration_dir"))
+    paths += [study.options.get("calibration_dir"), study.markers]
     for s in study.sessions:
-        paths += [*s.files, s.reference, s.map, s.options.get("calibration_dir")]
+        paths += [*s.files, s.reference, s.markers, s.map, s.options.get("calibration_dir")]
     return paths
