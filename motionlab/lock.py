@@ -60,7 +60,7 @@ def lock_path(path: str | Path) -> Path:
     return path.with_name(f".{path.name}.lock")
 
 
-def _holder(lock: Path) -> str:
+def holder(lock: Path) -> str:
     """``pid 123: motionlab fuse s.h5`` from the lock file (empty if it cannot be read)."""
     try:
         text = lock.read_text(encoding="utf-8", errors="replace").strip()
@@ -87,7 +87,7 @@ def _acquire(lock: Path, wait: float, target: Path) -> int:
         except OSError:
             os.close(fd)
             if time.monotonic() >= deadline:
-                who = _holder(lock) or "another process"
+                who = holder(lock) or "another process"
                 raise InputError(
                     f"is being written by another motionlab ({who}); waited {wait:g} s",
                     target,

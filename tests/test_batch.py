@@ -232,3 +232,34 @@ def test_an_empty_scheduler_is_refused(tmp_path):
     res = CliRunner().invoke(main, ["batch", str(tmp_path / "study.yaml"), "-o",
                                     str(tmp_path / "res"), "--scheduler", ""])  # fmt: skip
     assert res.exit_code == 2 and "--scheduler: is empty" in res.output
+
+
+def test_a_second_batch_into_the_same_study_folder_is_refused(tmp_path):
+    """Two ``motionlab batch`` into one folder at once processed the same sessions twice, each
+    writing over the other's; the second is now refused naming the first, and runs once the
+    first has finished."""
+    import threading
+
+    from motionlab.batch.state import MARKER
+    from motionlab.lock import session_lock
+
+    manifest = make_study(tmp_path, good_sessions(1, ("v1",)))
+    out = tmp_path / "out"
+    assert _run(manifest, out, workers=1).ok
+    held, done = threading.Event(), threading.Event()
+
+    def first_batch():
+        with session_lock(out / MARKER):
+            held.set()
+            done.wait(10)
+
+    thread = threading.Thread(target=first_batch)
+    thread.start()
+    try:
+        held.wait(10)
+        with pytest.raises(InputError, match="out -o: is being written by another motionlab batch"):
+            _run(manifest, out, workers=1, force=True)
+    finally:
+        done.set()
+        thread.join()
+    assert _run(manifest, out, workers=1, force=True).ok

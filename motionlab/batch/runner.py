@@ -41,6 +41,7 @@ from typing import Any
 from motionlab.atomic import atomic_path
 from motionlab.batch.manifest import Manifest, manifest_spelling
 from motionlab.batch.state import (
+    MARKER,
     METRICS,
     STAMP,
     FileHashes,
@@ -55,7 +56,7 @@ from motionlab.batch.state import (
     write_stamp,
 )
 from motionlab.errors import InputError
-from motionlab.lock import session_lock
+from motionlab.lock import holder, lock_path, session_lock
 from motionlab.pipeline import SESSION_FILE, PipelineOptions
 
 #: ``run_pipeline(inputs, outdir, options)`` of motionlab.pipeline (tests pass a stand-in)
@@ -416,6 +417,42 @@ def run_study(
     if workers is not None and workers < 1:
         raise InputError(f"workers={workers} is below 1", remedy="give 1+", argument="workers")
     prepare_outdir(outdir, manifest.path, force)
+    with _one_batch(outdir):
+        return _run_sessions(manifest, outdir, workers, scheduler, retry, force, options,
+                             pipeline, progress)  # fmt: skip
+
+
+@contextlib.contextmanager
+def _one_batch(outdir: Path) -> Iterator[None]:
+    """Hold the study folder's lock for the whole batch: a second ``motionlab batch`` into the
+    same folder processed the same sessions at once, each writing over the other's."""
+    marker = outdir / MARKER
+    with contextlib.ExitStack() as stack:
+        try:
+            stack.enter_context(session_lock(marker, wait=0))
+        except InputError:
+            who = holder(lock_path(marker)) or "another process"
+            raise InputError(
+                f"is being written by another motionlab batch ({who})",
+                outdir,
+                "-o",
+                "wait for it to finish, or write this study to another folder",
+            ) from None
+        yield
+
+
+def _run_sessions(
+    manifest: Manifest,
+    outdir: Path,
+    workers: int | None,
+    scheduler: str | None,
+    retry: int,
+    force: bool,
+    options: dict[str, Any] | None,
+    pipeline: Pipeline | None,
+    progress: Callable[[Progress], None] | None,
+) -> StudyResult:
+    """:func:`run_study` once its folder is ready and locked."""
     hashes = FileHashes()
     outcomes: dict[int, Outcome] = {}
     tasks: list[SessionTask] = []
