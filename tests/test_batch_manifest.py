@@ -178,3 +178,26 @@ def test_an_x_imu3_export_folder_is_a_session_input(tmp_path):
     inertial = next(imu.glob("Back*/Inertial.csv"))
     inertial.write_bytes(inertial.read_bytes().replace(b"0.", b"1.", 1))
     assert key != session_key(a.files, PACKAGED / "lumbar_seated.yaml", None, None, FileHashes())
+
+
+def test_a_study_of_thousands_of_sessions_loads_and_an_oversized_file_is_refused(tmp_path):
+    """A manifest of 8000 sessions was refused as "more than 50000 values" (the bound that stops
+    a billion laughs in a protocol), after seconds of pure-Python parsing; a 10-MB one took 41 s
+    to say so. Now a study has room for a million values, read by libyaml, and a file over
+    4 MiB is refused before it is parsed; aliases that expand without end still are."""
+    from motionlab.yamlsafe import MAX_BYTES
+
+    _files(tmp_path, "x.h5")
+    rows = "".join(f"  - {{subject: S{i}, visit: v1, files: x.h5}}\n" for i in range(8000))
+    (tmp_path / "study.yaml").write_text("protocol: knee\nsessions:\n" + rows)
+    sessions = load_manifest(tmp_path / "study.yaml").sessions
+    assert len(sessions) == 8000 and not any(s.problem for s in sessions)
+    (tmp_path / "big.yaml").write_text("protocol: knee\n#" + "x" * MAX_BYTES + "\n")
+    with pytest.raises(InputError, match="too large for a manifest file"):
+        load_manifest(tmp_path / "big.yaml")
+    laughs = "a: &a [x, x, x, x, x, x, x, x, x, x]\n" + "".join(
+        f"{c}: &{c} [{', '.join(['*' + p] * 10)}]\n" for p, c in zip("abcde", "bcdef", strict=True)
+    )  # 10^6 values once expanded, and more
+    (tmp_path / "laughs.yaml").write_text("protocol: knee\n" + laughs.replace("a: &a", "x0: &a"))
+    with pytest.raises(InputError, match="holds more than 1000000 values"):
+        load_manifest(tmp_path / "laughs.yaml")

@@ -39,13 +39,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from motionlab.atomic import check_regular
 from motionlab.errors import InputError
 from motionlab.fusion import registry
 from motionlab.pipeline import RUN_OPTIONS
 from motionlab.protocol import load_protocol, resolve_protocol_path
 from motionlab.session import is_session_file
-from motionlab.yamlsafe import LineLoader, load_yaml
+from motionlab.yamlsafe import LineLoader, load_yaml, read_yaml_text
 
 #: manifest keys of the options of ``motionlab run`` → :class:`motionlab.pipeline.PipelineOptions`
 #: field (the options whose :class:`~motionlab.pipeline.RunOption` says ``batch``)
@@ -101,15 +100,18 @@ def _fail(path: Path, line: int | None, key: str, message: str, remedy: str) -> 
     raise InputError(message, path, where, remedy)
 
 
+class _ManifestLoader(LineLoader):
+    """:class:`LineLoader` with room for a study of tens of thousands of sessions (about ten
+    values each), still bounded against aliases that expand without end."""
+
+    max_nodes = 1_000_000
+
+
 def _read(path: Path) -> Any:
-    check_regular(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise InputError("no such manifest file", path, remedy="give the study YAML file") from None
-    except (UnicodeDecodeError, IsADirectoryError):
-        raise InputError("not a text file", path, remedy="give the study YAML file") from None
-    return load_yaml(text, LineLoader, path, "check indentation and colons")
+    text = read_yaml_text(
+        path, "manifest", "give the study YAML file (a study over 4 MiB: split it)"
+    )
+    return load_yaml(text, _ManifestLoader, path, "check indentation and colons")
 
 
 def _name(path: Path, entry: dict, key: str, where: str, line: int) -> str:
