@@ -137,3 +137,16 @@ def test_run_takes_the_marker_set_its_marker_map_names(tmp_path):
     marker_set, kind = _read_reference(options, load_marker_map(_write(tmp_path, GOOD)))
     assert (marker_set.name, kind) == ("optical", "markers")
     assert marker_set.positions[0, 0, 0] == 1.0
+
+
+def test_a_reference_without_the_protocols_segments_is_named_not_the_session():
+    """An elbow's C3D given to a knee session read "k.h5 marker map: no segment found in marker
+    set 'e' by name": the session was blamed for what the reference lacks."""
+    t = np.arange(10) / 100.0
+    elbow = MarkerSet("e", t, ["forearm_r_1", "forearm_r_2", "forearm_r_3"],
+                      np.zeros((10, 3, 3)), attrs={"source_file": "e.c3d"})  # fmt: skip
+    proto = Protocol("k", {s: Segment(s) for s in ("thigh_r", "shank_r")}, joints={})
+    with pytest.raises(InputError) as err:
+        default_marker_map(elbow, proto)
+    assert err.value.line().startswith("e.c3d: no segment found in marker set 'e' by name")
+    assert "for thigh_r, shank_r" in err.value.line()

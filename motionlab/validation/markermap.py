@@ -262,10 +262,12 @@ def default_marker_map(
     if not segments and len(names) == 1 and len(markers.rigid_bodies) == 1:
         body = next(iter(markers.rigid_bodies))
         segments[names[0]] = SegmentMap(names[0], rigid_body=body)
-    if not segments:
+    if not segments:  # the reference lacks them: named, not the session being validated
+        looked = ", ".join(names[:6]) + (" …" if len(names) > 6 else "")
         raise InputError(
-            f"no segment found in marker set '{markers.name}' by name",
-            where="marker map",
+            f"no segment found in marker set '{markers.name}' by name (a rigid body, or 3+ "
+            f"markers <segment>_…, for {looked})",
+            markers.attrs.get("source_file"),
             remedy="give marker_map=map.yaml naming each segment's cluster markers",
             argument="marker_map",
         )
