@@ -811,3 +811,19 @@ def test_a_message_shared_by_segments_is_one_line():
         f"upperarm_r, forearm_r: {why}",
         "forearm_r: no axis of it was measured",
     ]
+
+
+def test_accuracy_sentence_counts_the_runs_whose_angle_was_not_determined():
+    """The walk's and arm's accuracy leaves out the runs that graded an angle not determined
+    (the report does not draw it): the sentence says how many, so that a bound from two runs
+    of three is not read as one from three."""
+    from motionlab.report.sentences import accuracy_sentence
+
+    entry = {"rmse_deg": 1.42, "max_rmse_deg": 2.05, "runs": 5}
+    assert accuracy_sentence("flexion", entry, "elbow") == (
+        "flexion-extension: ±3° (RMSE 1.4°, worst case 2.05°)"
+    )
+    entry["not_determined"] = 1
+    assert accuracy_sentence("flexion", entry, "elbow").endswith(
+        "worst case 2.05°; not determined in 1 of 6 runs, which are not counted)"
+    )

@@ -571,7 +571,7 @@ def test_a_flag_needs_the_value_beyond_its_own_uncertainty():
 
     assert not thrust_above(view, "knee_r", stance(3.3, 0.3, 9))
     assert thrust_above(view, "knee_r", stance(6.0, 0.5, 20))
-    walk = types.SimpleNamespace(protocol=load_protocol("walk"))  # no accuracy on file
+    walk = types.SimpleNamespace(protocol=load_protocol("walk"))  # knee adduction: none on file
     assert not thrust_above(walk, "knee_r", stance(9.0, 0.5, 20))
     assert not trunk_above(TrunkAngleStats(10.2, 0.0, 10.2, 90.0, 10.0))
     assert trunk_above(TrunkAngleStats(12.5, 0.0, 12.5, 40.0, 10.0))

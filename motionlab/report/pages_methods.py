@@ -119,7 +119,8 @@ def accuracy_page(doc: Document, view: SessionView) -> None:
     if proto:
         doc.paragraph(
             "± value: the worst root-mean-square error over the validation runs, rounded up. "
-            f"Conditions: {acc.get('conditions', 'not stated')}. Source: motionlab "
+            f"Conditions: {proto.get('conditions') or acc.get('conditions', 'not stated')}. "
+            "Source: motionlab "
             f"{acc.get('motionlab', '?')}, {acc.get('generated', '?')}, "
             f"'{acc.get('command', '?')}'.",
             size=SIZE["small"],

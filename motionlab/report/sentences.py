@@ -492,4 +492,8 @@ def accuracy_sentence(angle: str, entry: dict[str, Any], joint_type: str = "") -
     name = angle_title(joint_type, angle)
     text = f"{name}: ±{np.ceil(bound):.0f}° (RMSE {rmse:.1f}°"
     # two decimals: a worst case of 1.04° is rounded up to ±2°, and "1.0" would not show why
-    return text + (f", worst case {worst:.2f}°)" if np.isfinite(worst) else ")")
+    text += f", worst case {worst:.2f}°" if np.isfinite(worst) else ""
+    dropped, runs = int(entry.get("not_determined", 0)), int(entry.get("runs", 0))
+    if dropped:  # those runs' angle was not drawn: its error is not one a reader meets
+        text += f"; not determined in {dropped} of {dropped + runs} runs, which are not counted"
+    return text + ")"
