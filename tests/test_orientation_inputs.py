@@ -103,6 +103,34 @@ def test_a_short_recording_of_raw_signals_is_still_refused(tmp_path):
         calibrate_segments(ses, protocol)
 
 
+def test_a_single_pose_is_read_from_the_orientation_the_angles_take(tmp_path):
+    """An APDM recording of 3 samples, raw signals beside the vendor's quaternions, read its
+    own pose as 20° of lateral bending: the pose was read from the vendor's orientations, the
+    angles from the 6-D fusion 10° off them. Both now come from the fused orientation."""
+    from motionlab import stages
+    from motionlab.results import FusionEntry
+
+    (tmp_path / "rknee.yaml").write_text(RKNEE)
+    protocol = load_protocol(tmp_path / "rknee.yaml")
+    t = np.arange(0.0, 0.03, 0.01)
+    x = np.array([1.0, 0.0, 0.0])
+    upright = np.tile(rot.from_axis_angle(x, np.pi / 2), (len(t), 1))  # sensor y up
+    off = np.tile(rot.from_axis_angle(x, np.radians(10.0)), (len(t), 1))
+    ses = Session()
+    for label, seg in (("T", "thigh"), ("S", "shank")):
+        ses.sensors[label] = SensorStream(
+            label=label, time=t, acc=rot.rotate(rot.conj(upright), np.tile([0, 0, 9.81], (3, 1))),
+            gyr=np.zeros((len(t), 3)), quat=rot.mul(off, upright) if label == "S" else upright,
+            segment=seg, side="r",
+        )  # fmt: skip
+        ses.results.fusion[label] = FusionEntry(name="smoother", quat=upright)
+    cal = stages.calibrate(ses, protocol)
+    assert cal.single_pose == "standing"
+    table = stages.angles(ses, protocol).columns()
+    for col in (FLEX, "knee_r_adduction_deg", "knee_r_rotation_deg"):
+        assert np.max(np.abs(table[col])) < 0.1, col  # the pose is the angles' zero (was 10°)
+
+
 @needs_shared
 def test_xsens_dot_pair_gives_knee_angles(tmp_path):
     dot = SHARED / "formats" / "dot"

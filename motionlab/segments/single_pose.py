@@ -5,7 +5,8 @@ neutral pose at the first time step, and each sensor's orientation then gives ho
 its segment, the heading set by a known axis of a base sensor. A file of orientations a few
 samples long (the calibration-pose ``.sto`` OpenSense users keep) is all some users have, and
 is far too short for :mod:`~motionlab.segments.steps` to tell rest from movement (under
-``MIN_RECORDING_S``). When every sensor of the protocol's segments carries an orientation,
+``MIN_RECORDING_S``). When every sensor of the protocol's segments has an orientation (fused,
+else the vendor's: the one the angles take, :func:`~.sensors.sensor_orientation`),
 :func:`pose_step` takes the whole recording as the protocol's first static step instead:
 
 - each segment's axis the step names vertical (and its horizontal axes) comes from gravity as
@@ -30,6 +31,7 @@ from motionlab.binding import sensor_for_segment, signals_from_orientation
 from motionlab.protocol import CalibrationStep, Protocol
 from motionlab.segments import heading
 from motionlab.segments.mounting import static_records
+from motionlab.segments.sensors import sensor_orientation
 from motionlab.segments.steps import MIN_RECORDING_S, Block, longest_s, placement_warnings
 from motionlab.session import Session
 
@@ -43,7 +45,8 @@ def pose_step(session: Session, protocol: Protocol, streams: Streams) -> Calibra
     if not streams or longest_s(streams) >= MIN_RECORDING_S:
         return None
     for seg in streams:
-        if session.sensors[sensor_for_segment(session, seg)].quat is None:
+        label = sensor_for_segment(session, seg)
+        if label not in session.results.fusion and session.sensors[label].quat is None:
             return None
     return next((s for s in protocol.calibration if s.kind == "static"), None)
 
@@ -60,9 +63,12 @@ def measure(
     static step's, from the gravity of each sensor's orientation. Lines for the user (the
     calibration is single-pose; a vertical axis the hint contradicts) go to ``warnings``."""
     pose: Streams = {}
-    for seg in streams:
-        s = session.sensors[sensor_for_segment(session, seg)]
-        pose[seg] = signals_from_orientation(s.time, np.asarray(s.quat, float))
+    for seg in streams:  # the orientation the angles take: a pose read from another one (the
+        # vendor's, beside a 6-D fusion 10° off it) gave its own pose 20° of lateral bending
+        label = sensor_for_segment(session, seg)
+        t, q = session.sensors[label].time, sensor_orientation(session, label)
+        ok = np.isfinite(q).all(axis=1)
+        pose[seg] = signals_from_orientation(t[ok], q[ok])
     rng = (
         float(min(t[0] for t, _, _ in pose.values())),
         float(max(t[-1] for t, _, _ in pose.values())),
