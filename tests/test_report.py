@@ -827,3 +827,31 @@ def test_accuracy_sentence_counts_the_runs_whose_angle_was_not_determined():
     assert accuracy_sentence("flexion", entry, "elbow").endswith(
         "worst case 2.05°; not determined in 1 of 6 runs, which are not counted)"
     )
+
+
+def test_a_step_not_found_says_whether_it_was_optional_and_a_recording_without_tasks_why():
+    """Required steps missing from a single-pose recording were listed "not performed
+    (optional)", and a recording with no task was told its protocol gives no normal range
+    (walk.yaml has them)."""
+    from motionlab.segments.steps import unfound_step
+
+    knee = load_protocol("knee")
+    assert unfound_step("hip_flexion_r", knee) == "not found (optional)"
+    assert unfound_step("sitting", knee) == "not found (required: see the grades)"
+    assert unfound_step("sitting", knee, "standing") == "not used (single-pose calibration)"
+    view = _view((5.0, 45.0), (0.0, 64.0))
+    view.metrics.joints, view.metrics.gait = {}, {}
+    assert findings(view)[0].startswith("No finding can be stated: the recording holds none of")
+
+
+def test_expected_accuracy_is_not_claimed_for_a_single_pose_calibration():
+    """Two single-pose recordings were told "±1-2°, read a range of motion as uncertain by
+    about these amounts"; the figures on file come from recordings calibrated as the protocol
+    asks."""
+    from motionlab.report.pages_methods import _calibration_caveat
+
+    view = _view((5.0, 45.0), (0.0, 64.0))
+    assert _calibration_caveat(view) == ""  # no grades on file: every angle counts as determined
+    view.session.results.calibration = SegmentCalibration("knee", single_pose="standing")
+    assert "calibrated from one pose ('standing')" in _calibration_caveat(view)
+    assert _calibration_caveat(view).endswith("their accuracy is not known.")

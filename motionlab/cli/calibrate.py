@@ -22,6 +22,7 @@ def command(session: str, protocol_path: str, force: bool) -> None:
     from motionlab.lock import session_lock
     from motionlab.protocol import load_protocol
     from motionlab.results import SegmentQuality
+    from motionlab.segments.steps import unfound_step
     from motionlab.session import load_session, save_session
 
     protocol = load_protocol(protocol_path)
@@ -33,7 +34,11 @@ def command(session: str, protocol_path: str, force: bool) -> None:
     for line in result.warnings:
         click.echo(f"warning: {line}", err=True)
     for name, rng in result.steps.items():
-        where = f"{rng[0]:7.2f}–{rng[1]:7.2f} s" if rng else "not performed (optional)"
+        where = (
+            f"{rng[0]:7.2f}–{rng[1]:7.2f} s"
+            if rng
+            else unfound_step(name, protocol, result.single_pose)
+        )
         click.echo(f"step {name:<22} {where}")
     for seg, res in result.segments.items():
         q = res.quality or SegmentQuality(ok=True)

@@ -49,6 +49,7 @@ from motionlab.results import (
 )
 from motionlab.segments import sensor_for_segment
 from motionlab.segments.grades import GRADES, _frame_grade, graded_angles
+from motionlab.segments.steps import unfound_step
 from motionlab.segments.trunk_axes import METHOD as TRUNK
 from motionlab.session import Session
 
@@ -800,7 +801,9 @@ def excluded(view: SessionView) -> list[str]:
     cal = view.session.results.calibration or SegmentCalibration("")
     for step, rng in cal.steps.items():
         if rng is None:
-            out.append(f"calibration step {step} not performed (optional) - not used")
+            out.append(
+                f"calibration step {step} {unfound_step(step, view.protocol, cal.single_pose)}"
+            )
     blocks = view.blocks()
     if blocks and len(view.angles.get("time_s", [])):
         t = view.angles["time_s"]

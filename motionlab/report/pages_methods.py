@@ -7,6 +7,7 @@ from typing import Any
 
 from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, angle_names, joint_sequence
 from motionlab.report.model import (
+    DETERMINED,
     NOT_DETERMINED,
     SessionView,
     angle_grades,
@@ -101,6 +102,9 @@ def accuracy_page(doc: Document, view: SessionView) -> None:
     types = {}  # type → its angle names (of its first joint)
     for j in view.joints():
         types.setdefault(j.type, angle_names(j))
+    caveat = _calibration_caveat(view) if proto else ""
+    if caveat:
+        doc.paragraph(caveat)
     if not proto:
         doc.paragraph(
             f"motionlab has no validation results on file for the '{view.protocol.name}' "
@@ -141,6 +145,28 @@ def accuracy_page(doc: Document, view: SessionView) -> None:
         if rows:
             doc.heading("In this session, against the optical reference")
             doc.table(["Angle", "RMSE (°)"], rows, [0.5, 0.2], align=["l", "r"])
+
+
+def _calibration_caveat(view: SessionView) -> str:
+    """Why the figures on file do not hold for this recording: a single-pose calibration, or
+    no angle determined (the figures come from recordings calibrated as the protocol asks);
+    empty when they may hold. Two single-pose recordings were told ±1-2° while one of them
+    read its own pose as 20° of lateral bending."""
+    cal = view.session.results.calibration
+    if cal is not None and cal.single_pose:
+        why = (
+            f"this recording was calibrated from one pose ('{cal.single_pose}'), its sensors' "
+            "headings on their segments taken from the protocol's placement hint"
+        )
+    elif not any(g == DETERMINED for g, _ in angle_grades(view).values()):
+        why = "this recording determined none of its angles (see the calibration page)"
+    else:
+        return ""
+    return (
+        "These figures hold for recordings calibrated as the protocol asks; " + why + ", so "
+        "its angles may be further off by what the calibration could not measure, and their "
+        "accuracy is not known."
+    )
 
 
 def _params(view: SessionView) -> list[list[str]]:

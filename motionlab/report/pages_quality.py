@@ -21,6 +21,7 @@ from motionlab.report.model import (
 from motionlab.report.pdf import MUTED, SIZE, Document, label_spans
 from motionlab.results import HingeFit, SegmentCalibration
 from motionlab.segments.quality import FUNCTIONAL_RHO_MIN, RESIDUAL_MAX_DEG, STATIC_RHO_MIN
+from motionlab.segments.steps import unfound_step
 from motionlab.timebase import runs
 
 METHODS = {
@@ -292,7 +293,9 @@ def calibration_page(doc: Document, view: SessionView) -> None:
         [
             name.replace("_", " "),
             kinds.get(name, ""),
-            f"{rng[0]:.1f}–{rng[1]:.1f}" if rng else "not performed (optional)",
+            f"{rng[0]:.1f}–{rng[1]:.1f}"
+            if rng
+            else unfound_step(name, view.protocol, cal.single_pose),
         ]
         for name, rng in ((k, steps[k]) for k in in_order(steps, list(kinds)))
     ]

@@ -293,7 +293,12 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
     items = list(dict.fromkeys(paces + outside + asym + _oop_findings(view) + paced + inside))
     if len(items) > limit - len(problems[:2]):
         items = items[: limit - len(problems[:2])]
-    if not items and ranges and not any(is_determined(r.grade) for r in ranges):
+    if not items and not ranges:  # not "no normal range": the protocol may have them
+        items = [
+            "No finding can be stated: the recording holds none of the protocol's tasks, so "
+            "there is no range of motion to describe."
+        ]
+    elif not items and not any(is_determined(r.grade) for r in ranges):
         items = [
             "No finding can be stated: no angle was graded determined by this recording (the "
             "weak and undetermined ones are listed below)."

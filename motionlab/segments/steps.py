@@ -318,6 +318,16 @@ def _fits_without_hint(
     return True
 
 
+def unfound_step(name: str, protocol: Protocol, single_pose: str = "") -> str:
+    """Why calibration step ``name`` has no span (the console's, the report's words): not used
+    by a single-pose calibration (``single_pose``: its step), optional, or required and missing
+    (the grades then say what that costs)."""
+    if single_pose:
+        return "not used (single-pose calibration)"
+    optional = any(s.name == name and s.optional for s in protocol.calibration)
+    return "not found (optional)" if optional else "not found (required: see the grades)"
+
+
 def describe(bl: list[Block]) -> str:
     """What a recording holds, in words: its rests and movements, and which axes point up."""
     parts = [
