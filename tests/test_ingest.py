@@ -1,6 +1,7 @@
 """Ingest: clock repair, gaps, resampling, quality checks, sensor map, common origin, provenance."""
 
 import importlib
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -539,3 +540,14 @@ def test_a_gyroscope_reading_zeros_while_the_sensor_turns_is_refused(tmp_path):
     assert "gravity turn by 90°" in line and "record with the gyroscope on" in line
     write_xio(tmp_path / "still.csv", t, np.zeros((400, 3)), np.tile([0.0, 0.0, 1.0], (400, 1)))
     assert ingest([tmp_path / "still.csv"]).sensors
+
+
+def test_an_apdm_format7_file_keeps_its_unix_clock_against_a_trc(tmp_path):
+    """docs/ingest.md's own example, an APDM Format=7 export beside optical frames from 0 s,
+    was laid on one time axis as if simultaneous: the reader had subtracted its first Unix
+    stamp. It keeps the Unix time now, so the clocks are told unrelated, and the date."""
+    data = Path(__file__).parent / "data"
+    s = ingest([data / "apdm" / "apdm_format7.csv", data / "c3d" / "markers_20frames.trc"])
+    assert s.metadata["clocks_unrelated"] is True
+    assert s.metadata["start_spread_s"] == pytest.approx(1550879504.438281, abs=1e-3)
+    assert s.sensors["Lumbar"].attrs["recorded"] == "2019-02-22"

@@ -40,14 +40,14 @@ def test_pendulum_export():
         assert s.rate_hz == pytest.approx(128.0, rel=1e-9)
         assert s.attrs["nominal_rate_hz"] == 128.0
         assert s.source_units == {"acc": "m/s^2", "gyr": "rad/s", "mag": "uT", "time": "s"}
-        assert s.time[0] == 0.0
+        assert s.time[0] == 0.007457625  # as written (s from the start of recording)
         np.testing.assert_allclose(np.linalg.norm(s.quat, axis=1), 1.0, atol=1e-6)
         # gravity (specific force) points up in ENU
         up = rot.rotate(s.quat, s.acc)
         np.testing.assert_allclose(np.median(up, axis=0), [0, 0, 9.8], atol=0.15)
     static = rec.sensors[0]
     np.testing.assert_array_equal(static.acc[0], [0.102542184, 0.048829611, 9.804986382])
-    np.testing.assert_allclose(static.time[1], 0.015270125 - 0.007457625, rtol=1e-12)
+    np.testing.assert_allclose(static.time[1], 0.015270125, rtol=1e-12)
     # after NWU → ENU the horizontal magnetic field points to +y (magnetic north)
     assert np.abs(_horizontal_heading_deg(static)).max() < 2.0
 
@@ -66,8 +66,12 @@ def test_format7_export():
     assert rec.metadata["format_version"] == "7"
     assert len(rec.metadata["ignored_columns"]) == 6  # one barometer per sensor
     lumbar = rec.sensors[0]
-    np.testing.assert_allclose(lumbar.time, [0.0, 0.007812, 0.015625], atol=1e-12)
+    # s since the Unix epoch (2019-02-22 23:51:44 UTC), so that a C3D from 0 s is unrelated
+    np.testing.assert_allclose(
+        lumbar.time - 1550879504.438281, [0.0, 0.007812, 0.015625], atol=1e-6
+    )
     assert lumbar.attrs["start_unix_us"] == 1550879504438281
+    assert lumbar.attrs["recorded"] == "2019-02-22"
     assert lumbar.source_units["gyr"] == "rad/s"
     np.testing.assert_array_equal(lumbar.gyr[0], [-0.928487, -0.085719, -0.059549])
     np.testing.assert_array_equal(lumbar.mag[0], [9.924619, 12.347788, -7.779168])
@@ -112,7 +116,7 @@ def test_format7_first_stamp_not_a_number(tmp_path):
     rec = apdm.read(_write_lines(tmp_path, f7))
     lumbar = rec.sensors[0]
     assert np.isnan(lumbar.time[0])
-    np.testing.assert_allclose(lumbar.time[1:], [0.0, 0.007813], atol=1e-6)
+    np.testing.assert_allclose(lumbar.time[1:] - 1550879504.446093, [0.0, 0.007813], atol=1e-6)
     assert lumbar.attrs["start_unix_us"] == 1550879504446093
     for k in range(first, len(f7)):
         f7[k] = "nan" + f7[k][f7[k].index(",") :]
@@ -170,7 +174,7 @@ def test_h5_layout_round_trip(tmp_path):
     ]
     for s in rec.sensors:
         want = truth[s.serial]
-        np.testing.assert_allclose(s.time, (want["time"] - want["time"][0]) * 1e-6, atol=1e-12)
+        np.testing.assert_allclose(s.time, want["time"] * 1e-6, rtol=0, atol=1e-6)
         assert s.attrs["start_unix_us"] == int(want["time"][0])
         assert s.attrs["nominal_rate_hz"] == 128.0
         assert s.rate_hz == pytest.approx(128.0, rel=1e-3)

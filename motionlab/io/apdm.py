@@ -13,8 +13,10 @@ Two layouts are read:
 
 One :class:`~motionlab.session.SensorStream` per sensor. Columns other than the three inertial
 vectors and the orientation (temperature, pressure, the barometer) are ignored and listed in
-``Recording.metadata["ignored_columns"]``. Time is returned in s from the first sample; the
-absolute start of a Format=7 file is kept in ``attrs["start_unix_us"]``.
+``Recording.metadata["ignored_columns"]``. Time is returned in s: a Format=7 file's in s since
+the Unix epoch (so that files recorded apart stay apart, and a C3D on its own clock is told
+unrelated, :mod:`motionlab.ingest`), its date in ``attrs["recorded"]`` (UTC) and its first
+stamp in ``attrs["start_unix_us"]``; a Motion Studio file's as it is written.
 
 Orientation: APDM quaternions are scalar first and map sensor to earth, but APDM's earth frame
 is **North-West-Up** (x magnetic north, y west, z up; checked on ``imuData01.csv``: the static
@@ -32,6 +34,7 @@ import numpy as np
 from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.io import Recording
+from motionlab.io.clock import unix_date
 from motionlab.io.delimited import parse_table, read_lines
 from motionlab.session import SensorStream
 from motionlab.units import to_si
@@ -121,10 +124,13 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
                          f"lines {first_data + 1}-{first_data + len(t_raw)} column 1",
                          "export the recording again with its time column")  # fmt: skip
     t0 = t_raw[stamped[0]]  # the first stamp, not row 1's: a NaN there made every time NaN
-    time = convert(t_raw - t0, time_unit, "time", path, f"line {first_data} column 1")
+    time = convert(t_raw, time_unit, "time", path, f"line {first_data} column 1")
     attrs: dict[str, Any] = {"source_earth_frame": "NWU"}
     if lines[0].startswith("Format="):
         attrs["start_unix_us"] = int(t0)
+        recorded = unix_date(float(time[stamped[0]]))
+        if recorded:
+            attrs["recorded"] = recorded
     if "sample_rate_hz" in meta:
         attrs["nominal_rate_hz"] = meta["sample_rate_hz"]
 

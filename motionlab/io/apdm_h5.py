@@ -11,8 +11,9 @@ Layout read (APDM HDF5 format, version 5)::
 
 A dataset's ``Units`` attribute, when present, overrides the documented unit. One
 :class:`~motionlab.session.SensorStream` per case id, labelled with ``Label 0`` (the case id when
-the label is empty), time in s from the sensor's first sample (the absolute start in
-``attrs["start_unix_us"]``), orientations converted from NWU to ENU as for the CSV export
+the label is empty), time in s since the Unix epoch (sensors that started apart stay apart; the
+first stamp in ``attrs["start_unix_us"]``, the UTC date in ``attrs["recorded"]``), orientations
+converted from NWU to ENU as for the CSV export
 (:func:`motionlab.io.apdm.nwu_to_enu`).
 """
 
@@ -27,6 +28,7 @@ import numpy as np
 from motionlab.errors import InputError, shorten
 from motionlab.io import Recording
 from motionlab.io.apdm import DEFAULT_UNITS, convert, nwu_to_enu
+from motionlab.io.clock import unix_date
 from motionlab.isolated import open_hdf5
 from motionlab.session import SensorStream
 
@@ -163,6 +165,9 @@ def _sensor(path: Path, case_id: str, g: h5py.Group, processed: h5py.Group | Non
         )
     config = g.get("Configuration")
     attrs: dict[str, Any] = {"source_earth_frame": "NWU", "start_unix_us": int(time_us[0])}
+    recorded = unix_date(float(time_us[0]) * 1e-6)
+    if recorded:
+        attrs["recorded"] = recorded
     label = ""
     if config is not None:
         label = _text(config.attrs.get("Label 0", ""))
@@ -178,7 +183,7 @@ def _sensor(path: Path, case_id: str, g: h5py.Group, processed: h5py.Group | Non
             attrs["nominal_rate_hz"] = float(rate[0])
     return SensorStream(
         label=label or case_id,
-        time=(time_us - time_us[0]) * 1e-6,
+        time=np.asarray(time_us, float) * 1e-6,
         serial=case_id,
         vendor="APDM",
         source_units=source_units,

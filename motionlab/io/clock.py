@@ -1,5 +1,5 @@
 """Device clocks: unwrapping tick counters that wrap around at ``2**bits``, and the date a
-vendor's start-time stamp gives.
+vendor's start-time stamp or a Unix time gives.
 
 Vendor files count time in integer ticks of a fixed-width register (Xsens ``SampleTimeFine``:
 10 kHz ticks in 32 bits, wrapping every 4.97 days; Xsens DOT ``SampleTimeFine``: µs in
@@ -35,6 +35,14 @@ def recording_date(stamp: object) -> str | None:
         return _dt.date(*(int(g) for g in m.groups())).isoformat()
     except ValueError:
         return None
+
+
+def unix_date(seconds: float) -> str | None:
+    """The UTC calendar date (ISO ``YYYY-MM-DD``) of a Unix time (s); ``None`` outside
+    1990-2100 (a clock that was never set, or no Unix time at all)."""
+    if not (np.isfinite(seconds) and 631152000.0 <= seconds < 4102444800.0):
+        return None
+    return _dt.datetime.fromtimestamp(float(seconds), _dt.UTC).date().isoformat()
 
 
 def unwrap_counter(counter: np.ndarray, bits: int) -> np.ndarray:
