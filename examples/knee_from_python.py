@@ -4,11 +4,11 @@ Usage::
 
     python examples/knee_from_python.py [OUTDIR]
 
-Loads the simulated knee session shipped with the package (5 IMUs and optical markers), fuses
-the sensors, calibrates them to the segments with the ``knee`` protocol, computes the joint
-angles and metrics, validates against the markers, and writes the angles as an OpenSim
-``.mot`` and the results as JSON into OUTDIR (default: a new temporary folder). The session
-file itself is only read.
+Loads the simulated knee session shipped with the package (5 IMUs and optical markers), puts
+the IMUs on one clock, fuses the sensors, calibrates them to the segments with the ``knee``
+protocol, computes the joint angles and metrics, validates against the markers, and writes the
+angles as an OpenSim ``.mot`` and the results as JSON into OUTDIR (default: a new temporary
+folder). The session file itself is only read.
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ def main(outdir: Path) -> dict:
     session = ml.load_session(DEMO)  # the demo as ingest left it: sensors and markers
     print(f"{len(session.sensors)} sensors: {', '.join(session.sensors)}")
 
+    ml.sync(session, "knee")  # the IMUs on one clock, as 'motionlab run' does first
     ml.fuse(session)  # 6-D fusion, the default of 'motionlab run'
     calibration = ml.calibrate(session, "knee")  # sensor-to-segment, from the protocol's poses
     angles = ml.angles(session)  # degrees, one column per angle
