@@ -77,6 +77,18 @@ def in_session_file(path: Any) -> Iterator[None]:
         raise InputError(exc.message, path, exc.where, exc.remedy, exc.arguments or None) from None
 
 
+def check_session(session: object) -> None:
+    """An :class:`InputError` unless ``session`` is a :class:`Session` (a path given where the
+    session goes raised ``AttributeError: 'str' object has no attribute 'results'``)."""
+    if not isinstance(session, Session):
+        what = "a path" if isinstance(session, (str, Path)) else type(session).__name__
+        raise InputError(
+            f"got {what} where a Session goes",
+            remedy="load it first: session = motionlab.load_session(path)",
+            argument="session",
+        )
+
+
 def refuse_to_redo(done: bool, stage: str, what: str, force: bool, path: Any = None) -> None:
     """Raise when the session already holds the ``stage``'s result (``done``) and not
     ``force``."""
@@ -147,6 +159,7 @@ def sync(
     """Put the protocol's IMUs on one clock (:func:`motionlab.clocksync.synchronise`), every
     fit stored in ``results.clock_sync`` (by sensor, in the order made). Prepares sensors
     without QC first (:func:`prepare`). ``force`` redoes it from the recorded stamps."""
+    check_session(session)
     from motionlab.clocksync import synchronise
 
     done = session.results.clock_sync is not None
@@ -190,6 +203,7 @@ def fuse(
     data fused; the session keeps the data as recorded. ``markers``: fuse the session's marker
     clusters too (``marker_map``, default by name). Prepares sensors without QC first.
     """
+    check_session(session)
     from motionlab.fusion import registry
     from motionlab.fusion.stage import fusable, fuse_session
 
@@ -344,6 +358,7 @@ def calibrate(
 ) -> SegmentCalibration:
     """Sensor-to-segment calibration (:func:`motionlab.segments.calibrate_segments`), stored in
     ``results.calibration`` with the protocol's path."""
+    check_session(session)
     from motionlab.segments import calibrate_segments
 
     done = session.results.calibration is not None
@@ -378,6 +393,7 @@ def angles(
     ``accel-only`` (elbow from accelerometers, Lee 2012). ``calibrated=False`` takes sensor
     frames as segment frames.
     """
+    check_session(session)
     from motionlab.kinematics.session_angles import session_angles
     from motionlab.results import HeadingCorrection
 
@@ -437,6 +453,7 @@ def metrics(
     ``protocol`` defaults to the calibration's; ``tasks`` ``{name: (start_s, end_s)}`` (default:
     found in the recording).
     """
+    check_session(session)
     from motionlab.kinematics.metrics import session_metrics
 
     _calibration(session, path)
@@ -485,7 +502,7 @@ def validation_mode(session: Session) -> str:
 def validate(
     session: Session,
     protocol: Protocol | str | Path | None = None,
-    reference: MarkerSet | None = None,
+    reference: MarkerSet | str | Path | None = None,
     *,
     marker_map: MarkerMap | None = None,
     static: MarkerSet | None = None,
@@ -511,16 +528,35 @@ def validate(
     Plug-in Gait's). ``sync_on``: the IMU signal of the clock sync (``gyroscope``, as interval
     averages, or ``orientation``).
 
-    ``reference`` defaults to the session's own markers; with ``keep_reference`` a reference
+    ``reference``: a marker set, or a file read as ``motionlab validate --reference`` reads it
+    (its kind told by the file unless ``reference_kind`` says ``segments`` or ``angles``);
+    default the session's own markers. With ``keep_reference`` a reference
     from elsewhere is added to ``session.markers`` (renamed if the name is taken) so that the
     report shows it. ``mode`` defaults to :func:`validation_mode`. ``clock``: estimate the
     optical-to-IMU clock model (``False``: one clock). ``protocol`` defaults to the
     calibration's (orientations only without one).
     """
+    check_session(session)
     from motionlab.validation import validate as validate_session
+    from motionlab.validation.reference_kinds import REFERENCE_KINDS, kind_of, load_reference
+    from motionlab.validation.segment_csv import FRAMES
 
     done = session.results.validation is not None
     refuse_to_redo(done, "validation", "validation results", force, path)
+    for arg, value, allowed in (("reference_kind", reference_kind, REFERENCE_KINDS),
+                                ("frames", frames, FRAMES)):  # fmt: skip
+        if value not in allowed:  # a typo was taken as the default's other choice
+            raise InputError(
+                f"{arg}={value!r} is unknown", path, remedy=f"use {', '.join(allowed)}",
+                argument=arg,
+            )  # fmt: skip
+    if isinstance(reference, (str, Path)):  # a file, read as 'motionlab validate' reads it
+        name = marker_map.marker_set if marker_map is not None else None
+        kind = "auto" if reference_kind == "markers" else reference_kind
+        kind = "angles" if angle_map is not None and kind == "auto" else kind  # as the CLI
+        reference, reference_kind = load_reference(reference, kind, name)
+    elif reference_kind == "auto":  # as a file's: model angles alone are an angle reference
+        reference_kind = kind_of(reference) if reference is not None else "markers"
     if angle_map is not None and reference_kind != "angles":  # a mix-up: refused before any work
         raise InputError(
             "an angle map applies to a reference of model joint angles",

@@ -46,3 +46,27 @@ def test_example_runs_on_the_demo(tmp_path):
         ran.results.angles.columns()["knee_r_flexion_deg"], flexion, atol=1e-9, equal_nan=True
     )
     assert saved["validation"]["sync"]["time_offset_s"] == ran.results.validation.sync.time_offset_s
+
+
+def test_natural_mistakes_in_python_are_input_errors(tmp_path):
+    """What a script writer tries first: a path where the session goes, a sensor the session
+    lacks, a typo in an option, a reference file's path. They raised AttributeError,
+    KeyError, or were taken silently; now each is an InputError naming the argument, and a
+    reference path is read as the CLI reads it."""
+    import pytest
+
+    from motionlab.errors import InputError
+
+    demo = ROOT / "motionlab" / "data" / "demo" / "knee.h5"
+    with pytest.raises(InputError, match="got a path where a Session goes"):
+        motionlab.fuse(str(demo))
+    session = motionlab.load_session(demo)
+    with pytest.raises(InputError, match="no sensor 'nope' in the session"):
+        motionlab.fuse(session, sensors=["nope"])
+    assert list(motionlab.fuse(session, sensors="shank_r")) == ["shank_r"]  # one label, whole
+    with pytest.raises(InputError, match="frames='bogus' is unknown"):
+        motionlab.validate(session, frames="bogus")
+    with pytest.raises(InputError, match="reference_kind='marker' is unknown"):
+        motionlab.validate(session, reference_kind="marker")
+    with pytest.raises(InputError, match="no such reference file"):
+        motionlab.validate(session, reference=str(tmp_path / "none.c3d"))

@@ -62,8 +62,23 @@ CALIBRATION_MAX_HEADING_CONCENTRATION = 0.6
 
 
 def fusable(session: Session, labels: list[str] | None = None) -> list[str]:
-    """The sensors (of ``labels``, default all) that have a gyroscope and an accelerometer."""
-    chosen = list(session.sensors) if labels is None else list(labels)
+    """The sensors (of ``labels``, default all) that have a gyroscope and an accelerometer; an
+    :class:`InputError` for a label the session lacks."""
+    chosen = (
+        list(session.sensors)
+        if labels is None
+        else [labels]
+        if isinstance(labels, str)
+        else list(labels)
+    )
+    unknown = [k for k in chosen if k not in session.sensors]
+    if unknown:
+        raise InputError(
+            f"no sensor '{unknown[0]}' in the session",
+            where="sensors",
+            remedy=f"name sensors of the session: {', '.join(session.sensors) or 'none'}",
+            argument="sensors",
+        )
     return [
         k
         for k in chosen

@@ -36,7 +36,7 @@ def load_reference(
     ref = choose_marker_set(read_reference(path, model_outputs_ok=True), name, path)
     ref.attrs.setdefault("source_file", str(path))
     markers = bool(ref.n_markers or ref.rigid_bodies)
-    kind = _kind(ref) if kind == "auto" else kind
+    kind = kind_of(ref) if kind == "auto" else kind
     if kind == "angles" and not has_model_angles(ref):
         raise InputError(
             "holds no joint angles (POINT:ANGLES)",
@@ -68,10 +68,10 @@ def session_reference(
             argument="reference",
         )
     ref = choose_marker_set(list(session.markers.values()), name, path)
-    return ref, _kind(ref) if kind == "auto" else kind
+    return ref, kind_of(ref) if kind == "auto" else kind
 
 
-def _kind(ref: MarkerSet) -> str:
+def kind_of(ref: MarkerSet) -> str:
     """``angles`` for model joint angles without markers or rigid bodies, else ``markers``."""
     return (
         "angles" if has_model_angles(ref) and not (ref.n_markers or ref.rigid_bodies) else "markers"
