@@ -16,8 +16,9 @@ light:
   :func:`angles`, :func:`metrics`, :func:`validate`;
 - the whole analysis: :func:`run_pipeline` with :class:`PipelineOptions` (files → output
   folder), :func:`analyse` (a session in memory);
-- out: :func:`load_views` and :func:`write_report` (PDF/CSV), :func:`export_session` (sto, mot,
-  c3d, json), :func:`results_json` (the results as a JSON-able dict);
+- out: :func:`load_views` and :func:`write_report` (PDF/CSV), :func:`session_tables` (the CSV
+  tables as pandas frames), :func:`export_session` (sto, mot, c3d, json), :func:`results_json`
+  (the results as a JSON-able dict);
 - :class:`InputError`: what every function raises for bad input (its message names the place).
 """
 
@@ -49,6 +50,7 @@ _EXPORTS = {
     "PipelineOptions": "motionlab.pipeline",
     "load_views": "motionlab.report",
     "write_report": "motionlab.report",
+    "session_tables": "motionlab.report",
     "export_session": "motionlab.export",
     "results_json": "motionlab.export",
     "InputError": "motionlab.errors",

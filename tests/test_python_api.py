@@ -70,3 +70,19 @@ def test_natural_mistakes_in_python_are_input_errors(tmp_path):
         motionlab.validate(session, reference_kind="marker")
     with pytest.raises(InputError, match="no such reference file"):
         motionlab.validate(session, reference=str(tmp_path / "none.c3d"))
+
+
+def test_the_csv_tables_are_pandas_frames_from_python(tmp_path):
+    """The metrics table could be had only through a private path of the report's; it is
+    ``session_tables`` now, the same frames ``write_report`` writes."""
+    from motionlab.session import load_session
+
+    session = load_session(ROOT / "motionlab" / "data" / "demo" / "knee.h5")
+    motionlab.analyse(session, motionlab.PipelineOptions("knee", progress=False))
+    frames = motionlab.session_tables(session)
+    metrics = frames["metrics.csv"]
+    assert {"task", "joint", "angle", "rom_deg", "vs_normal", "grade"} <= set(metrics.columns)
+    flexion = metrics[(metrics.joint == "knee_r") & (metrics.angle == "flexion")]
+    assert len(flexion) >= 1 and (flexion.rom_deg > 30).all()
+    out = motionlab.write_report(motionlab.load_views([session]), tmp_path / "r.pdf", tmp_path)
+    assert {p.name for p in out.csv_paths} == set(frames)

@@ -22,12 +22,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import matplotlib
+import pandas as pd
 
 from motionlab.atomic import atomic_path, check_output
 from motionlab.errors import InputError
 from motionlab.protocol import Protocol
 from motionlab.report import widths
-from motionlab.report.csv import write_csvs
+from motionlab.report.csv import tables, write_csvs
 from motionlab.report.model import SessionView, load_view
 from motionlab.report.pages_gait import gait_report_pages
 from motionlab.report.pages_joint import joint_pages, symmetry_page
@@ -76,6 +77,19 @@ def load_views(
             remedy="write one report per subject",
         )
     return sorted(views, key=lambda v: v.date)
+
+
+def session_tables(
+    session: Session | SessionView, protocol: Protocol | None = None
+) -> dict[str, pd.DataFrame]:
+    """The CSV tables of one analysed session as pandas frames, by the file name ``motionlab
+    run`` gives them in ``csv/`` (``metrics.csv``: range of motion per task, joint and angle in
+    degrees, with the normal range, the comparison and the grade; ``grades.csv``,
+    ``quality.csv``, ``calibration.csv``, ``out_of_plane.csv``, ``<joint>_angles.csv`` and, for a
+    walk, the spatio-temporal tables). A number the recording did not determine is empty, as
+    in the files. ``protocol`` defaults to the calibration's."""
+    view = session if isinstance(session, SessionView) else load_view(session, protocol)
+    return tables(view)
 
 
 def _session_pages(doc: Document, view: SessionView) -> None:
