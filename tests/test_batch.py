@@ -7,6 +7,7 @@ import os
 from functools import partial
 from pathlib import Path
 
+import numpy as np
 import pytest
 from batch_fakes import fake_pipeline, good_sessions, make_study
 from click.testing import CliRunner
@@ -263,3 +264,16 @@ def test_a_second_batch_into_the_same_study_folder_is_refused(tmp_path):
         done.set()
         thread.join()
     assert _run(manifest, out, workers=1, force=True).ok
+
+
+def test_a_range_not_determined_is_an_empty_cell_the_study_tables_take():
+    """Every real walk leaves its knees' adduction empty in metrics.csv (not determined): the
+    study tables crashed on it ("could not convert string to float: ''") after every session
+    had run, and wrote nothing."""
+    from motionlab.batch.outputs import _rom_rows
+
+    head = ["block", "joint", "angle", "metric", "value", "unit", "grade"]
+    rows = [["walk", "knee_r", "flexion", "rom_deg", "62.5", "deg", "determined"],
+            ["walk", "knee_r", "adduction", "rom_deg", "", "deg", "not determined"]]  # fmt: skip
+    got = _rom_rows("S1", "v1", head, rows)
+    assert got[0][5] == 62.5 and np.isnan(got[1][5]) and got[1][6] == "not determined"

@@ -72,7 +72,7 @@ def _rom_rows(subject: str, visit: str, head: list[str], rows: list[list[str]]) 
             r[k["block"]],
             r[k["joint"]],
             r[k["angle"]],
-            float(r[k["value"]]),
+            float(r[k["value"]] or "nan"),  # empty: a range its session did not determine
             r[k["grade"]] if "grade" in k else "",
         )  # fmt: skip
         for r in rows
