@@ -393,3 +393,26 @@ def test_a_synced_dot_export_says_so(tmp_path):
     assert stream.attrs["vendor_clock_sync"] == "Xsens DOT SyncStatus: Synced"
     path.write_text(path.read_text().replace("Synced", "Unsynced"))
     assert "vendor_clock_sync" not in dot.read(path).sensors[0].attrs
+
+
+@pytest.mark.parametrize(("shift_s", "drift_ppm"), [(0.15, 0.0), (-0.3, 0.0), (0.0, 350.0)])
+def test_a_knees_clocks_far_apart_or_drifting_are_found(shift_s, drift_ppm):
+    """Loggers started by hand sit hundreds of ms apart: a shank 150 ms (or -300 ms) off its
+    thigh was fitted 174 ms (303 ms) from the truth and refused for its residual, the levers
+    fitted at a zero offset having taken up part of the real one so that the grid kept 0.
+    A second search refits them at every offset when the first fit is poor; and the offset is
+    first searched for at the recording's middle, then on ever more of it, so that a drift
+    (a 30-min walk's two clocks 44 ppm apart: 86 ms off) does not smear the search."""
+    from motionlab.clocksync import estimate_clock
+    from motionlab.pipeline import prepare_sensors
+
+    session, _ = simulate(load_protocol("walk"), 120.0, 3, "typical", calibration=False)
+    prepare_sensors(session)
+    thigh, shank = session.sensors["thigh_l"], session.sensors["shank_l"]
+    base = estimate_clock(thigh, shank)
+    t = shank.time
+    moved = dataclasses.replace(shank, time=t + shift_s + drift_ppm * 1e-6 * (t - t[0]))
+    fit = estimate_clock(thigh, moved)
+    want = base.offset_s + shift_s + drift_ppm * 1e-6 * (fit.t_mid_s - t[0])
+    assert fit.status == "applied" and fit.offset_s == pytest.approx(want, abs=1e-3)
+    assert fit.drift == pytest.approx(base.drift + drift_ppm * 1e-6, abs=5e-6)
