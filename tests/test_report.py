@@ -855,3 +855,28 @@ def test_expected_accuracy_is_not_claimed_for_a_single_pose_calibration():
     view.session.results.calibration = SegmentCalibration("knee", single_pose="standing")
     assert "calibrated from one pose ('standing')" in _calibration_caveat(view)
     assert _calibration_caveat(view).endswith("their accuracy is not known.")
+
+
+def test_an_interrupted_pdf_is_an_interruption_not_an_internal_error(tmp_path, monkeypatch):
+    """Ctrl-C while the report's pages were written read "internal error (AssertionError: No
+    offset for object 74 (page contents))": closing the page cut short replaced the
+    interruption."""
+    from matplotlib.backends.backend_pdf import PdfPages
+
+    with matplotlib.rc_context(RC):
+        doc = Document("motionlab report · test", "subject X")
+        doc.section("Table", "A table longer than one page.")
+        doc.table(["Name", "Value"], [[f"row {i}", f"{i}"] for i in range(90)], [0.5, 0.5])
+        pages = {"n": 0}
+        savefig = PdfPages.savefig
+
+        def cut_short(self, fig, **kw):
+            pages["n"] += 1
+            if pages["n"] == 2:
+                self._file.reserveObject("page contents")  # begun, never written
+                raise KeyboardInterrupt
+            return savefig(self, fig, **kw)
+
+        monkeypatch.setattr(PdfPages, "savefig", cut_short)
+        with pytest.raises(KeyboardInterrupt):
+            doc.save(tmp_path / "r.pdf")

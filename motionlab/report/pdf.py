@@ -14,8 +14,8 @@ from __future__ import annotations
 
 import logging
 import unicodedata
-from collections.abc import Sequence
-from contextlib import contextmanager, nullcontext
+from collections.abc import Iterator, Sequence
+from contextlib import contextmanager, nullcontext, suppress
 from functools import lru_cache
 from itertools import combinations
 from pathlib import Path
@@ -771,7 +771,7 @@ class Document:
         texts = []
         with (
             _font_weight_names_quiet(),
-            PdfPages(pdf_path, metadata={"Title": self.title, "Creator": "motionlab"}) as pdf,
+            _closed_pdf(pdf_path, {"Title": self.title, "Creator": "motionlab"}) as pdf,
         ):
             for i, fig in enumerate(self.pages, start=1):
                 stamp_ticks(fig)
@@ -794,6 +794,21 @@ class Document:
         if text_path is not None:
             Path(text_path).write_text("\f".join(texts), encoding="utf-8")
         return texts
+
+
+@contextmanager
+def _closed_pdf(path: str | Path, metadata: dict[str, str]) -> Iterator[PdfPages]:
+    """``PdfPages`` closed at the end; when the writing fails or is interrupted (Ctrl-C) the
+    half-written file is closed quietly and the first error stands: closing a page cut short
+    raised "AssertionError: No offset for object 74", which replaced the interruption."""
+    pdf = PdfPages(path, metadata=metadata)
+    try:
+        yield pdf
+    except BaseException:
+        with suppress(Exception):
+            pdf.close()
+        raise
+    pdf.close()
 
 
 @contextmanager
