@@ -166,3 +166,27 @@ def test_a_damaged_list_of_missed_turns_is_one_line(walk, tmp_path, stored):
         "[time s, turn deg] pairs — fuse again with --force"
     ]
     assert path.read_bytes() == before
+
+
+def test_a_hip_far_from_every_pose_is_graded_by_the_time_its_heading_is_not_held(walk):
+    """A 30-min simulated walk with its stand the only pose read the right hip's rotation 28° RMS
+    off in its first 5 min and 89-154° later, graded weak as the 28-s walk's. Farther than
+    HEADING_HOLD_S from every pose a hip's adduction and rotation are not determined and its
+    flexion weak; farther than three times it, all not determined; knees (hinge ties) keep
+    theirs."""
+    from motionlab.segments import unheld_headings
+
+    session, proto = walk
+    cal = session.results.calibration
+    reach = unheld_headings(session, proto, cal.headings)
+    assert set(reach) == {"hip_r", "hip_l"} and max(reach.values()) < grades.HEADING_HOLD_S
+    assert grades.hold_graded(cal.grades, reach) == cal.grades  # a short walk: unchanged
+    for seconds, expected in ((300.0, ["weak", "not determined", "not determined"]),
+                              (900.0, ["not determined"] * 3)):  # fmt: skip
+        graded = grades.hold_graded(cal.grades, {"hip_r": seconds})
+        assert graded["hip_r"].grades == expected
+        assert "the recording reaches" in graded["hip_r"].reasons[1]
+        assert graded["hip_l"] == cal.grades["hip_l"] and graded["knee_r"] == cal.grades["knee_r"]
+    view = SessionView(Session(), proto, None, {}, None)
+    cause, remedy = cause_and_remedy(view, "hip_r", graded["hip_r"].reasons[0])
+    assert cause == "the sensors' headings drift between poses" and "every 2 minutes" in remedy

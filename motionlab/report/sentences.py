@@ -350,6 +350,11 @@ def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[s
             "keep the receiver close to the subject and in sight of the sensors, so that fewer "
             "packets are lost"
         )
+    if "tied only where a pose was held" in r:  # segments.grades.hold_graded: drift between
+        return "the sensors' headings drift between poses", (
+            "stand still for 5 s every 2 minutes of the recording (each stand ties the "
+            "headings again)"
+        )
     if "axis's sign is not clear" in r:  # a trunk rest held leaning (segments.trunk_axes)
         return "direction of flexion", "rest sitting or standing upright for a few seconds"
     if "headings are tied at the rest only" in r:  # segments.trunk_axes: drift not followed

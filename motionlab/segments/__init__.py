@@ -139,6 +139,9 @@ def calibrate_segments(
     result.headings = heading_ties(session, protocol, result)  # first: the hip axes reuse them
     result.gap_turns = gap_headings(session, protocol, result.headings, result.centres)
     result.grades = grades.gap_graded(grades.grade_joints(protocol, result), result.gap_turns)
+    result.grades = grades.hold_graded(
+        result.grades, unheld_headings(session, protocol, result.headings)
+    )
     if pose is None:
         result.hip_axes = hip_axes(session, protocol, result)
     return result
@@ -182,6 +185,29 @@ def gap_headings(
                     worst = GapTurn(float(deg), label, float(t))
         if worst is not None:
             out[name] = worst
+    return out
+
+
+def unheld_headings(session: Session, protocol: Protocol, ties: HeadingTies) -> dict[str, float]:
+    """``{joint: s}``: for each joint whose heading is tied at poses only (:data:`POSE_TIES`),
+    how far its recording (both sensors' spans) reaches from those poses: before the first,
+    after the last, half the longest time between two (the heading track is linear between
+    anchors, so a steady drift there is taken out and the rest peaks about midway)."""
+    out = {}
+    for name, tie in ties.joints.items():
+        if tie.source not in POSE_TIES or name not in protocol.joints or not len(tie.times):
+            continue
+        joint = protocol.joints[name]
+        labels = [sensor_for_segment(session, s) for s in (joint.proximal, joint.distal)]
+        spans = [session.sensors[k].time[[0, -1]] for k in labels if k in session.sensors]
+        if not spans:
+            continue
+        start, end = min(float(a) for a, _ in spans), max(float(b) for _, b in spans)
+        anchors = np.sort(np.asarray(tie.times, float))
+        reach = max(anchors[0] - start, end - anchors[-1], 0.0)
+        if len(anchors) > 1:
+            reach = max(reach, float(np.max(np.diff(anchors))) / 2)
+        out[name] = float(reach)
     return out
 
 

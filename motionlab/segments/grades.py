@@ -46,6 +46,14 @@ graded by the largest turn a packet-loss gap after the first pose may have hidde
 ``weak`` over ``GAP_TURN_DEG``, ``not determined`` over twice it; in 6-D that turn stays in the
 heading, while a knee's hinge ties take it out within seconds.
 
+Such a joint is graded by time too (:func:`hold_graded`): in 6-D nothing measures its heading
+between the poses, where the fusion's heading drifts about the vertical. A 30-min simulated walk
+whose stand was its only pose read the right hip's rotation 28° RMS off the truth in its first
+5 min and 89-154° in the next, its flexion 4° then 20-36° (the left hip stayed within 1-4°);
+walks of 60-95 s lie at most 47 s from their stand. Farther than ``HEADING_HOLD_S`` from every
+pose, the joint's other angles are ``not determined`` and its first ``weak``; farther than
+three times it, every angle ``not determined``.
+
 The reason is kept in plain words with each grade. The grades depend on the calibration only:
 the angle table and the report carry them next to every number, and findings are not stated for
 an angle that is not determined.
@@ -79,6 +87,9 @@ AXIAL_FOLLOW_DETERMINED = 0.9
 #: pose that ties a joint's heading leaves its angles weak, over twice it not determined
 #: (:func:`motionlab.segments.gap_headings`)
 GAP_TURN_DEG = 10.0
+#: a joint tied only at poses holds its heading this long from the nearest pose (s); see
+#: :func:`hold_graded`
+HEADING_HOLD_S = 120.0
 
 
 def _worse(a: str, b: str) -> str:
@@ -288,6 +299,29 @@ def gap_graded(graded: dict[str, JointGrades], gap_turns: dict) -> dict[str, Joi
             if worse or g_gap == grades[k]:
                 order = [why, reasons[k]] if worse else [reasons[k], why]
                 grades[k], reasons[k] = g_gap, "; ".join(filter(None, order))
+        out[name] = replace(out[name], grades=grades, reasons=reasons)
+    return out
+
+
+def hold_graded(graded: dict[str, JointGrades], unheld: dict[str, float]) -> dict[str, JointGrades]:
+    """``graded`` with each joint of ``unheld`` (``{joint: s}``: how far the recording reaches
+    from the poses that tie its heading, :func:`motionlab.segments.unheld_headings`) graded by
+    it: over ``HEADING_HOLD_S`` its angles after the first ``not determined`` and the first
+    ``weak``, over three times it all ``not determined`` (module notes)."""
+    out = dict(graded)
+    for name, seconds in unheld.items():
+        if name not in out or not seconds > HEADING_HOLD_S:
+            continue
+        why = (f"its heading is tied only where a pose was held, and the recording reaches "
+               f"{seconds / 60:.0f} min from such a pose (the 6-D fusion's heading drifts "
+               "about the vertical in between)")  # fmt: skip
+        grades, reasons = list(out[name].grades), list(out[name].reasons)
+        for k in range(len(grades)):
+            g_hold = "weak" if k == 0 and seconds <= 3 * HEADING_HOLD_S else "not determined"
+            worse = GRADES.index(g_hold) > GRADES.index(grades[k])
+            if worse or g_hold == grades[k]:
+                order = [why, reasons[k]] if worse else [reasons[k], why]
+                grades[k], reasons[k] = g_hold, "; ".join(filter(None, order))
         out[name] = replace(out[name], grades=grades, reasons=reasons)
     return out
 
