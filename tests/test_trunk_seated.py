@@ -552,3 +552,22 @@ def test_a_weak_trunk_axis_is_told_to_bend_forward_not_to_move_through_its_range
     assert "(direction of flexion)" in line and line.endswith(
         "rest sitting or standing upright for a few seconds."
     ), line
+
+
+def test_lumbar_seated_is_suggested_only_for_a_recording_with_enough_trunk_movement():
+    """OpenSense's 4-s calibration pose (0.7 s of movement) was told "the shipped protocol
+    'lumbar_seated' fits this recording", which then refused it for too little movement."""
+    from motionlab.protocol import load_protocol
+    from motionlab.segments.steps import TRUNK_MOVEMENT_S, fitting_protocols
+
+    t = np.arange(0.0, 10.0, 0.01)
+    acc = np.tile([0.0, 0.0, 9.81], (len(t), 1))
+
+    def streams(moving_s: float):
+        gyr = np.zeros((len(t), 3))
+        gyr[(t > 2.0) & (t < 2.0 + moving_s), 0] = 0.5  # rad/s
+        return {"pelvis": (t, acc, gyr / 3), "thorax": (t, acc, gyr)}
+
+    lumbar = load_protocol("lumbar")
+    assert "lumbar_seated" not in fitting_protocols(streams(0.7), lumbar)
+    assert "lumbar_seated" in fitting_protocols(streams(TRUNK_MOVEMENT_S + 3.0), lumbar)

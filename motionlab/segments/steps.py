@@ -77,6 +77,10 @@ SAME_AXIS_DEG = 20.0
 MIN_RECORDING_S = 1.0
 #: a rest shorter than this (s) is no pose: not a static step, not named in a message
 SHORTEST_POSE_S = 1.0
+#: the least trunk movement (s) besides its rest a trunk calibration takes its axes from
+#: (:mod:`motionlab.segments.trunk_axes`)
+TRUNK_MOVEMENT_S = 2.0
+TRUNK_MOVING_DEG_S = 5.0  # a trunk sensor turning faster than this (deg/s) moves
 
 Streams = dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]
 
@@ -479,6 +483,20 @@ def _remedy(fits: list[str], suggested: bool, has_rest: bool) -> str:
     return f"no shipped protocol fits this recording either; {check}"
 
 
+def _trunk_moves(streams: Streams, protocol: Protocol) -> bool:
+    """Whether the lumbar joint's sensors turn (either faster than ``TRUNK_MOVING_DEG_S``) for
+    ``TRUNK_MOVEMENT_S`` or more: what a trunk calibration needs besides its rest, at most
+    (the calibration counts the thorax's turning relative to the pelvis only)."""
+    joint = next((j for j in protocol.joints.values() if j.type == "lumbar"), None)
+    if joint is None or joint.proximal not in streams or joint.distal not in streams:
+        return False
+    t = streams[joint.distal][0]
+    rates = [np.degrees(np.linalg.norm(interp_columns(t, *streams[s][:3:2]), axis=1))
+             for s in (joint.proximal, joint.distal)]  # fmt: skip
+    moving = np.maximum(*rates) > TRUNK_MOVING_DEG_S
+    return bool(len(t) > 1 and moving.sum() * np.median(np.diff(t)) >= TRUNK_MOVEMENT_S)
+
+
 def fitting_protocols(streams: Streams, protocol: Protocol) -> list[str]:
     """Shipped protocols (other than ``protocol``) whose required segments, the two segments of
     at least one joint, whose steps and whose tasks after them this recording has."""
@@ -493,7 +511,10 @@ def fitting_protocols(streams: Streams, protocol: Protocol) -> list[str]:
         ):
             continue
         if any(s.axis_method == "trunk" for s in other.calibration):
-            out.append(other.name)  # a rest anywhere and free movement (segments/trunk_axes.py)
+            # a rest anywhere and free movement (segments/trunk_axes.py): OpenSense's 4-s
+            # calibration pose was told 'lumbar_seated' fits, which then found 0.8 s of movement
+            if _trunk_moves(streams, other):
+                out.append(other.name)
             continue
         mine = {s: streams[s] for s in other.segments if s in streams}
         try:

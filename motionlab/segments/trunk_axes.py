@@ -79,7 +79,7 @@ from motionlab.results import (
 from motionlab.segments import grades as grading
 from motionlab.segments import heading
 from motionlab.segments.sensors import sensor_quats, streams_of
-from motionlab.segments.steps import SHORTEST_POSE_S
+from motionlab.segments.steps import SHORTEST_POSE_S, TRUNK_MOVEMENT_S
 from motionlab.session import Session
 from motionlab.timebase import interp_columns
 
@@ -91,7 +91,7 @@ REST_SLOW_DEG_S = 15.0  # a rest turning faster than this gives every angle ``we
 REST_GROW = 1.5  # the rest grows while the 0.2 s speed stays within this × the stillest second's
 STILL_DEG_S = 1.0  # a rest this still (mean deg/s) shows the gyroscope biases
 MOVING_DEG_S = 5.0  # the thorax turning faster than this relative to the pelvis is moving
-MOVEMENT_MIN_S = 2.0  # the least trunk movement (s) that can give the axes
+MOVEMENT_MIN_S = TRUNK_MOVEMENT_S  # the least trunk movement (s) that can give the axes
 AXIS_RATIO_MIN = 1.5  # the flexion axis's one-sidedness over the other axis's
 SIGN_RATIO_MIN = 1.3  # the thorax's excursion one way / the other, about the flexion axis
 # the thorax's larger excursion about the flexion axis (deg) for its sign to count: a seated
