@@ -80,19 +80,24 @@ def _apply_map(
     no sensor here (``key``, ``line``, ``segment``): a study's map names a device one recording
     may lack (an optional chair sensor whose battery ran out). A map none of whose keys names a
     sensor is the wrong map: an :class:`InputError` naming its first key."""
-    used: dict[str, str] = {}
+    used: dict[str, tuple[str, str]] = {}
     out = []
     for stream, path in streams:
         key = _match(stream, smap)
         if key is not None:
             if key in used:
+                origin, serial = used[key]
+                same = bool(serial) and serial == stream.serial
                 raise smap.fail(
                     f"sensors.{key}",
-                    f"names a sensor in both {used[key]} and {_origin(stream, path)}",
-                    "key the sensors by serial, or give each file's sensor its own key",
+                    f"names {'device ' + serial if same else 'a sensor'} in both {origin} and "
+                    f"{_origin(stream, path)}",
+                    SAME_DEVICE
+                    if same
+                    else "key the sensors by serial, or give each file's sensor its own key",
                     smap.sensors[key].line,
                 )
-            used[key] = _origin(stream, path)
+            used[key] = (_origin(stream, path), stream.serial)
             place = smap.sensors[key]
             stream = dataclasses.replace(
                 stream,
@@ -299,17 +304,29 @@ def _check_rate(
         )
 
 
-def _unique_label(stream: SensorStream, path: Path, seen: dict[str, Path]) -> SensorStream:
+#: the remedy when two files hold one device: a map cannot tell them apart (it keys by serial)
+SAME_DEVICE = "give each device's recording once (the same recording exported twice?)"
+
+
+def _unique_label(
+    stream: SensorStream, path: Path, seen: dict[str, tuple[Path, str]]
+) -> SensorStream:
     label = stream.label.strip().replace("/", "_") or stream.serial or path.stem
     path = Path(stream.attrs.get("device_folder", path))  # a folder per device (x-IMU3)
     if label in seen:
+        other, serial = seen[label]
+        same = bool(serial) and serial == stream.serial
         raise InputError(
-            f"sensor label '{label}' also comes from {seen[label].name}",
+            f"{'device ' + serial if same else 'sensor label ' + repr(label)} also comes from "
+            f"{other.name}",
             path,
             f"sensor {label}",
-            "give each sensor its own label in the sensor map (sensors: <serial>: {label: ...})",
+            SAME_DEVICE
+            if same
+            else "give each sensor its own label in the sensor map "
+            "(sensors: <serial>: {label: ...})",
         )
-    seen[label] = path
+    seen[label] = (path, stream.serial)
     return dataclasses.replace(stream, label=label) if label != stream.label else stream
 
 
@@ -437,7 +454,7 @@ def ingest(
         markers += [(m, path) for m in rec.markers]
 
     streams, unmatched = _apply_map(streams, smap)
-    seen: dict[str, Path] = {}
+    seen: dict[str, tuple[Path, str]] = {}
     streams = [(_unique_label(s, p, seen), p) for s, p in streams]
     checked = []
     for stream, path in streams:

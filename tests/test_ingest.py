@@ -551,3 +551,25 @@ def test_an_apdm_format7_file_keeps_its_unix_clock_against_a_trc(tmp_path):
     assert s.metadata["clocks_unrelated"] is True
     assert s.metadata["start_spread_s"] == pytest.approx(1550879504.438281, abs=1e-3)
     assert s.sensors["Lumbar"].attrs["recorded"] == "2019-02-22"
+
+
+def test_one_device_in_two_files_is_named_as_such(fake_files, monkeypatch, tmp_path):
+    """Two exports of one Xsens recording (comma and semicolon, DeviceId 00B42D4B) were told to
+    be given their own labels by serial, then, with such a map, to be keyed by serial: a map
+    cannot tell one device apart from itself. Now the refusal says it is one device; two
+    devices that share a label are still told to take their own."""
+    t = np.arange(0, 1.0, 0.01)
+    recs = {
+        fake_files[0]: Recording(sensors=[stream(t, "00B42D4B", "00B42D4B", acc=ramp(t))]),
+        fake_files[1]: Recording(sensors=[stream(t, "00B42D4B", "00B42D4B", acc=ramp(t))]),
+    }
+    monkeypatch.setattr(ingest_module, "read_any", lambda p, options=None: recs[p])
+    with pytest.raises(InputError, match="device 00B42D4B also comes from .*recording once"):
+        ingest(list(fake_files))
+    smap = tmp_path / "map.yaml"
+    smap.write_text("sensors:\n  00B42D4B: {segment: thigh, side: r}\n")
+    with pytest.raises(InputError, match="names device 00B42D4B in both .*recording once"):
+        ingest(list(fake_files), smap)
+    recs[fake_files[1]].sensors[0] = stream(t, "00B42D4B", "00B4AAAA", acc=ramp(t))
+    with pytest.raises(InputError, match="sensor label '00B42D4B' also comes from .*own label"):
+        ingest(list(fake_files))
