@@ -85,7 +85,6 @@ def check_session(session: object) -> None:
         raise InputError(
             f"got {what} where a Session goes",
             remedy="load it first: session = motionlab.load_session(path)",
-            argument="session",
         )
 
 

@@ -59,6 +59,7 @@ FLAGS = _RUN_FLAGS | {
     "reference_kind": "--reference-kind",
     "retry": "--retry",
     "scheduler": "--scheduler",
+    "sensors": "--sensor",
     "soft_tissue": "--soft-tissue",
     "workers": "--workers",
 }
