@@ -416,6 +416,7 @@ def analyse(
     stages: _Stages | None = None,
     reference: tuple[MarkerSet, str] | None = None,
     marker_map: MarkerMap | None = None,
+    record: bool = True,
 ) -> None:
     """The stages after ingest, in memory, each by its function in :mod:`motionlab.stages` (as
     the stage commands call them): (sync) → fuse (with the sensor calibrations) → calibrate →
@@ -435,14 +436,16 @@ def analyse(
 
     ``reference``: ``options.reference`` already read (its marker set and kind,
     :func:`~motionlab.validation.reference_kinds.load_reference`), and ``marker_map``
-    ``options.markers_path``, as :func:`run_pipeline` reads them before any work.
+    ``options.markers_path``, as :func:`run_pipeline` reads them before any work. With
+    ``record`` one provenance entry (``stage`` ``analyse``, the protocol and the options that
+    differ from the defaults) is added; :func:`run_pipeline` writes its own.
     """
 
     protocol = sensed_protocol(options.load_protocol(), session)
     stages = stages or _Stages([], progress=options.progress)
     if options.clock_sync:
         with stages("clock sync"):
-            stages_lib.sync(session, protocol, force=True)
+            stages_lib.sync(session, protocol, force=True, record=False)
     with stages("fuse"):
         stages_lib.fuse(
             session,
@@ -452,13 +455,14 @@ def analyse(
             force=True,
             progress=_announce if stages.progress else None,
             orientation=options.orientation,
+            record=False,
         )
     with stages("calibrate"):
-        cal = stages_lib.calibrate(session, protocol, force=True)
+        cal = stages_lib.calibrate(session, protocol, force=True, record=False)
     with stages("angles"):
-        stages_lib.angles(session, protocol, force=True)
+        stages_lib.angles(session, protocol, force=True, record=False)
     with stages("metrics"):
-        stages_lib.metrics(session, protocol, force=True)
+        stages_lib.metrics(session, protocol, force=True, record=False)
     if options.reference is not None or session.markers:
         from motionlab.validation.reference_kinds import load_reference, session_reference
 
@@ -474,7 +478,11 @@ def analyse(
                 marker_set, kind = session_reference(session, name=name)
             stages_lib.validate(session, protocol, marker_set, seed=options.seed, force=True,
                                 reference_kind=kind, frames=options.frames,
-                                marker_map=marker_map)  # fmt: skip
+                                marker_map=marker_map, record=False)  # fmt: skip
+    if record:
+        session.add_provenance(
+            parameters={"stage": "analyse", "protocol": str(protocol.path)} | options.analysis()
+        )
     doubts = [f"{s.label}: {line}" for s in session.sensors.values() for line in qc_doubts(s)]
     doubts = unmatched_keys(session) + doubts
     for line in [*doubts, *cal.warnings] if stages.progress else []:  # after the stages
@@ -557,7 +565,8 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
         session = load_inputs(inputs, map_path, command)
         check_segments(session, proto, inputs)
         proto = sensed_protocol(proto, session)
-    analyse(session, dataclasses.replace(options, protocol=proto), stages, reference, marker_map)
+    analyse(session, dataclasses.replace(options, protocol=proto), stages, reference, marker_map,
+            record=False)  # fmt: skip
     validated = session.results.validation is not None
     session.add_provenance(
         command,

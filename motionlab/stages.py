@@ -88,6 +88,18 @@ def check_session(session: object) -> None:
         )
 
 
+def _recorded(session: Session, record: bool, stage: str, **parameters: Any) -> None:
+    """With ``record``, a provenance entry of the stage and its parameters (those not ``None``)
+    in ``session.provenance`` (the commands and :func:`motionlab.pipeline.run_pipeline` pass
+    ``record=False`` and write their own, with the command line and the inputs' hashes):
+    stages called from Python left none, and the report's provenance table then listed no
+    step after ingest."""
+    if record:
+        session.add_provenance(
+            parameters={"stage": stage} | {k: v for k, v in parameters.items() if v is not None}
+        )
+
+
 def refuse_to_redo(done: bool, stage: str, what: str, force: bool, path: Any = None) -> None:
     """Raise when the session already holds the ``stage``'s result (``done``) and not
     ``force``."""
@@ -154,6 +166,7 @@ def sync(
     *,
     force: bool = False,
     path: Any = None,
+    record: bool = True,
 ) -> ClockSync:
     """Put the protocol's IMUs on one clock (:func:`motionlab.clocksync.synchronise`), every
     fit stored in ``results.clock_sync`` (by sensor, in the order made). Prepares sensors
@@ -169,6 +182,7 @@ def sync(
     result = ClockSync({fit.sensor: fit for fit in synchronise(session, protocol)})
     session.results.clock_sync = result
     session.lineage.record(session.results, "clock_sync", protocol)
+    _recorded(session, record, "sync", protocol=protocol.name)
     return result
 
 
@@ -186,6 +200,7 @@ def fuse(
     path: Any = None,
     progress: Progress | None = None,
     orientation: str = "fused",
+    record: bool = True,
 ) -> dict[str, FusionEntry]:
     """Orientation of every sensor with gyroscope and accelerometer (of ``sensors``) by
     ``estimator`` (:func:`motionlab.fusion.stage.fuse_session`), stored in ``results.fusion``;
@@ -259,6 +274,9 @@ def fuse(
     if stored:
         session.results.fusion.update(stored)
         session.lineage.record(session.results, "fusion")
+        _recorded(session, record, "fuse", filter=estimator, params=params or {},
+                  sensors=list(stored), magnetometer=magnetometer, orientation=orientation,
+                  calibration=str(calibration_dir) if calibration_dir else None)  # fmt: skip
     return stored
 
 
@@ -354,6 +372,7 @@ def calibrate(
     *,
     force: bool = False,
     path: Any = None,
+    record: bool = True,
 ) -> SegmentCalibration:
     """Sensor-to-segment calibration (:func:`motionlab.segments.calibrate_segments`), stored in
     ``results.calibration`` with the protocol's path."""
@@ -372,6 +391,7 @@ def calibrate(
     result.protocol_path = str(protocol.path)
     session.results.calibration = result
     session.lineage.record(session.results, "calibration", protocol)
+    _recorded(session, record, "calibrate", protocol=str(protocol.path))
     return result
 
 
@@ -383,6 +403,7 @@ def angles(
     calibrated: bool = True,
     force: bool = False,
     path: Any = None,
+    record: bool = True,
 ) -> AngleTable:
     """The joint angle table (degrees), stored in ``results.angles`` (with its ``method`` and
     the calibration steps as events) and each joint's heading correction in
@@ -432,6 +453,7 @@ def angles(
     session.results.angles = result
     session.results.heading = corrections
     session.lineage.record(session.results, "angles", protocol, read)
+    _recorded(session, record, "angles", method=method)
     return result
 
 
@@ -443,6 +465,7 @@ def metrics(
     gait: bool = True,
     force: bool = False,
     path: Any = None,
+    record: bool = True,
 ) -> Metrics:
     """Per task, joint and plane metrics (:func:`motionlab.kinematics.metrics.session_metrics`)
     in ``results.metrics`` (their task blocks added to the angle table's events); with ``gait``
@@ -476,6 +499,7 @@ def metrics(
     if gait:
         gait_stage(session, protocol)
     session.lineage.record(session.results, "metrics", protocol)
+    _recorded(session, record, "metrics", protocol=str(protocol.path))
     return result
 
 
@@ -516,6 +540,7 @@ def validate(
     frames: str = "anatomical",
     angle_map: dict | None = None,
     sync_on: str = "gyroscope",
+    record: bool = True,
 ) -> Validation:
     """Validation against an optical reference (:func:`motionlab.validation.validate`), stored
     in ``results.validation``.
@@ -585,6 +610,7 @@ def validate(
             )  # fmt: skip
         session.results.validation = result
         session.lineage.record(session.results, "validation", proto)
+        _recorded(session, record, "validate", reference_kind=reference_kind, seed=seed)
         return result
     if reference_kind == "segments" and marker_map is None:
         from motionlab.validation.segment_csv import segment_map
@@ -616,4 +642,6 @@ def validate(
         )
     session.results.validation = result
     session.lineage.record(session.results, "validation", proto)
+    _recorded(session, record, "validate", reference_kind=reference_kind, mode=result.mode,
+              sync=clock, sync_on=sync_on, movement_only=movement_only, seed=seed)  # fmt: skip
     return result

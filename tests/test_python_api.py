@@ -46,6 +46,23 @@ def test_example_runs_on_the_demo(tmp_path):
         ran.results.angles.columns()["knee_r_flexion_deg"], flexion, atol=1e-9, equal_nan=True
     )
     assert saved["validation"]["sync"]["time_offset_s"] == ran.results.validation.sync.time_offset_s
+    # each stage called from Python leaves its provenance entry (none did: the report's
+    # provenance table listed no step after ingest); analyse leaves one
+    staged = motionlab.load_session(example.DEMO)
+    before = len(staged.provenance)
+    motionlab.sync(staged, "knee")
+    motionlab.fuse(staged)
+    motionlab.calibrate(staged, "knee")
+    motionlab.angles(staged)
+    motionlab.metrics(staged)
+    motionlab.validate(staged)
+    entries = [p["parameters"] for p in staged.provenance[before:]]
+    assert [e["stage"] for e in entries] == [
+        "sync", "fuse", "calibrate", "angles", "metrics", "validate"
+    ]  # fmt: skip
+    assert entries[1]["filter"] == "default" and entries[1]["magnetometer"] is False
+    assert ran.provenance[-1]["parameters"]["stage"] == "analyse"
+    assert [p["parameters"].get("stage") for p in ran.provenance].count("fuse") == 0
 
 
 def test_natural_mistakes_in_python_are_input_errors(tmp_path):

@@ -54,6 +54,7 @@ def command(
             calibrated=not no_calibration,
             force=force,
             path=session,
+            record=False,
         )
         protocol = stages.stage_protocol(ses, protocol_path, session)
         grades = (

@@ -28,7 +28,7 @@ def command(session: str, protocol_path: str, force: bool) -> None:
     protocol = load_protocol(protocol_path)
     with session_lock(session):  # read-modify-write: one writer at a time
         ses = load_session(session)
-        result = stages.calibrate(ses, protocol, force=force, path=session)
+        result = stages.calibrate(ses, protocol, force=force, path=session, record=False)
         ses.add_provenance(parameters={"protocol": str(protocol.path), "stage": "calibrate"})
         save_session(ses, session, force=True)
     for line in result.warnings:

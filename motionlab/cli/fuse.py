@@ -154,6 +154,7 @@ def command(
             path=session,
             progress=_progress,
             orientation=orientation,
+            record=False,
         )
         done, notes = list(fused), stages.fusion_notes(ses, list(fused), calibration)
         fusion = ses.results.fusion

@@ -76,7 +76,9 @@ def command(
         check_output(csv_path, force, inputs=[session, protocol_path])
     with session_lock(session):  # read-modify-write: one writer at a time
         ses = load_session(session)
-        result = stages.metrics(ses, protocol_path, _parse_tasks(tasks), force=force, path=session)
+        result = stages.metrics(
+            ses, protocol_path, _parse_tasks(tasks), force=force, path=session, record=False
+        )
         protocol = stages.stage_protocol(ses, protocol_path, session)
         method = ses.results.angles.method if ses.results.angles is not None else "imu"
         table = metrics_table(result, protocol_columns(protocol))

@@ -35,7 +35,9 @@ def command(session: str, protocol_path: str, force: bool) -> None:
     protocol = load_protocol(protocol_path)
     with session_lock(session):  # read-modify-write: one writer at a time
         ses = load_session(session)
-        fits = list(stages.sync(ses, protocol, force=force, path=session).fits.values())
+        fits = list(
+            stages.sync(ses, protocol, force=force, path=session, record=False).fits.values()
+        )
         ses.add_provenance(parameters={"protocol": str(protocol.path), "stage": "sync"})
         save_session(ses, session, force=True)
     if not fits:

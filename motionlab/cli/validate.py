@@ -124,6 +124,7 @@ def command(
             ses, protocol, ref, marker_map=mmap, static=static, mode=mode, clock=not no_sync,
             movement_only=movement_only, seed=seed, force=force, path=session,
             reference_kind=kind, frames=frames, angle_map=angle_map, sync_on=sync_on,
+            record=False,
         )  # fmt: skip
         if csv_dir:
             for fname, table in tables(result).items():
