@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import numbers
 import shlex
 import sys
 import time
@@ -367,6 +368,32 @@ class PipelineOptions:
         stages=("ingest", "sync", "fuse", "calibrate", "angles", "metrics", "validate"),
     )  # fmt: skip
     progress: bool = _option(True, "--quiet", "No progress on stderr.", kind="off")
+
+    def __post_init__(self) -> None:
+        """Each option of its kind (:class:`RunOption`): ``clock_sync="no"`` is truthy and ran
+        the sync, ``frames="bogus"`` was taken as ``body``, ``seed="x"`` failed deep inside."""
+        for f in dataclasses.fields(self):
+            spec, value = f.metadata["option"], getattr(self, f.name)
+            kind = spec.kind
+            if kind in ("bool", "flag", "off") and not isinstance(value, bool):
+                wrong = "expected True or False"
+            elif kind == "int" and (
+                isinstance(value, bool) or not isinstance(value, numbers.Integral)
+            ):
+                wrong = "expected an integer"
+            elif kind == "choice" and value not in spec.choices:
+                wrong = f"expected one of {', '.join(spec.choices)}"
+            elif kind in ("file", "folder") and not isinstance(value, (str, Path, type(None))):
+                wrong = "expected a path"
+            elif kind == "text" and f.name != "protocol" and not isinstance(value, str):
+                wrong = "expected a name"
+            else:
+                continue
+            raise InputError(
+                f"{f.name}={value!r}: {wrong}",
+                remedy="see help(motionlab.PipelineOptions)",
+                argument=f.name,
+            )
 
     def load_protocol(self) -> Protocol:
         """The protocol, loaded (and so checked)."""

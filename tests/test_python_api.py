@@ -103,3 +103,19 @@ def test_the_csv_tables_are_pandas_frames_from_python(tmp_path):
     assert len(flexion) >= 1 and (flexion.rom_deg > 30).all()
     out = motionlab.write_report(motionlab.load_views([session]), tmp_path / "r.pdf", tmp_path)
     assert {p.name for p in out.csv_paths} == set(frames)
+
+
+def test_pipeline_options_of_the_wrong_kind_are_refused():
+    """``clock_sync="no"`` is truthy and ran the sync; ``frames="bogus"`` was taken as
+    ``body``; ``seed="x"`` failed deep inside the validation."""
+    import pytest
+
+    from motionlab.errors import InputError
+
+    for kw, what in (({"clock_sync": "no"}, "expected True or False"),
+                     ({"frames": "bogus"}, "expected one of anatomical, body"),
+                     ({"seed": "x"}, "expected an integer"),
+                     ({"map_path": 123}, "expected a path")):  # fmt: skip
+        with pytest.raises(InputError, match=what):
+            motionlab.PipelineOptions("knee", **kw)
+    assert motionlab.PipelineOptions("knee", seed=3, clock_sync=False).seed == 3
