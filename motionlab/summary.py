@@ -45,6 +45,7 @@ def session_summary(session: Session) -> dict[str, Any]:
                 "rate_hz": _finite(s.rate_hz),
                 "n_samples": s.n_samples,
                 "duration_s": s.duration_s,
+                "start_s": float(s.time[0]) if s.n_samples else None,
                 "channels": s.channels,
                 "units": {ch: CHANNEL_UNITS[ch] for ch in ["time", *s.channels]},
                 "source_units": s.source_units,

@@ -573,3 +573,22 @@ def test_one_device_in_two_files_is_named_as_such(fake_files, monkeypatch, tmp_p
     recs[fake_files[1]].sensors[0] = stream(t, "00B42D4B", "00B4AAAA", acc=ramp(t))
     with pytest.raises(InputError, match="sensor label '00B42D4B' also comes from .*own label"):
         ingest(list(fake_files))
+
+
+def test_info_says_where_a_late_stream_starts(fake_files, monkeypatch, tmp_path):
+    """DOT streams that began 55 min after an Xsens one showed their durations only: nothing
+    told that the files do not overlap."""
+    from click.testing import CliRunner
+
+    from motionlab.cli import main
+    from motionlab.session import save_session
+
+    t = np.arange(0, 1.0, 0.01)
+    recs = {
+        fake_files[0]: Recording(sensors=[stream(t, "early", acc=ramp(t))]),
+        fake_files[1]: Recording(sensors=[stream(3300.0 + t, "late", acc=ramp(t))]),
+    }
+    monkeypatch.setattr(ingest_module, "read_any", lambda p, options=None: recs[p])
+    save_session(ingest(list(fake_files)), tmp_path / "s.h5")
+    text = CliRunner().invoke(main, ["info", str(tmp_path / "s.h5")]).stdout
+    assert "starts at 3300.00 s of the session" in text and text.count("starts at") == 1

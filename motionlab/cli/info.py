@@ -53,6 +53,10 @@ def _spans(spans: list, limit: int = 4) -> str:
     return text + (f" and {len(spans) - limit} more" if len(spans) > limit else "")
 
 
+#: a sensor starting this long (s) after the session's first sample is told so
+LATE_START_S = 1.0
+
+
 def _sensor_lines(s: dict) -> list[str]:
     qc = s["qc"]
     place = " ".join(p for p in (s["side"], s["segment"]) if p) or "unassigned"
@@ -60,6 +64,8 @@ def _sensor_lines(s: dict) -> list[str]:
         f"  {s['label']:<16} {place:<14} {_fmt(s['rate_hz'], '8.2f')} Hz"
         f"  {s['n_samples']:>8} samples  {s['duration_s']:8.2f} s  {','.join(s['channels'])}"
     ]
+    if (s.get("start_s") or 0.0) > LATE_START_S:  # streams that do not start together
+        lines.append(f"    starts at {s['start_s']:.2f} s of the session")
     if qc:
         clock = f"    clock: jitter {_fmt(qc.get('jitter_ms'), '.3f')} ms"
         if qc.get("dropped_samples"):
