@@ -202,11 +202,18 @@ def methods_page(doc: Document, view: SessionView) -> None:
         )
     else:
         doc.paragraph("No fusion results stored; the sensors' own orientations were used.")
+    vendor_only = not rows or all(r[0].startswith("vendor") for r in rows)
     doc.paragraph(
         "Each sensor's orientation (sensor to east-north-up earth frame, Hamilton quaternions) "
-        "is estimated from its gyroscope, accelerometer and, where given, magnetometer; "
-        "6-D estimates leave the magnetometer out (each segment's heading then comes from the "
-        "heading alignment with its neighbour).",
+        + (
+            "is the one its device or software computed and exported, read as recorded "
+            "(each segment's heading then comes from the heading alignment with its "
+            "neighbour)."
+            if vendor_only
+            else "is estimated from its gyroscope, accelerometer and, where given, "
+            "magnetometer; 6-D estimates leave the magnetometer out (each segment's heading "
+            "then comes from the heading alignment with its neighbour)."
+        ),
         size=SIZE["small"],
         colour=MUTED,
     )
