@@ -72,6 +72,8 @@ from motionlab.session import SensorStream
 
 GRID_STEP_S = 0.01  # coarse grid over the offset (s)
 LEVERS_GRID_STEP_S = 0.04  # grid of the second search, levers refitted at each offset (s)
+LEVERS_MAX_NFEV = 20  # evaluations per refit there: on a real walk (residual 0.8-1 m/s², soft
+# tissue) an unbounded refit took 3.5-9 s per pair over the grid, bounded 0.5-0.7 s
 # the second search's fit replaces the first only with a residual this much smaller: out of the
 # wrong valley it fell 0.24 → 0.04 and 0.26 → 0.03 m/s²; where soft tissue spoils the model
 # everywhere (0.33 m/s²) another valley of about the same cost lay 66 ms from the truth
@@ -310,14 +312,16 @@ class Pair:
                 self._filter(rows[first : first + lanes], use, res[first : first + lanes, at])
         return np.sum(res**2, axis=1)
 
-    def body(self, c0: float) -> np.ndarray:
-        """r₁, r₂ (m), b₁, b₂ (m/s²) for the offset ``c0`` (s) and no drift."""
+    def body(self, c0: float, max_nfev: int | None = None) -> np.ndarray:
+        """r₁, r₂ (m), b₁, b₂ (m/s²) for the offset ``c0`` (s) and no drift, in at most
+        ``max_nfev`` evaluations (default MINPACK's)."""
         fixed = np.array([c0, 0.0])
         sol = lm(
             lambda q: self._with_prior(np.concatenate((q, fixed))),
             np.zeros(BODY),
             lambda q: self._with_prior(np.concatenate((q, fixed)), True, BODY),
             x_scale=0.1,
+            max_nfev=max_nfev,
         )
         return sol.x
 
@@ -408,7 +412,9 @@ def _levers_grid_offset(searching: Pair, max_offset_s: float) -> float:
     valley then wins the plain grid (a pair 57 ms apart: residual 0.31 m/s² at 0 ms against
     1.08 at 60 ms; refitted, 0.16 at 60 ms and 0.31 at 0)."""
     coarse = np.arange(-max_offset_s, max_offset_s + 1e-12, LEVERS_GRID_STEP_S)
-    bodies = [searching.body(c) for c in coarse]
+    # each from zero (started from its neighbour's, the levers of a wrong offset carried on
+    # and a shank 150 ms off was not found), in a bounded number of evaluations
+    bodies = [searching.body(c, LEVERS_MAX_NFEV) for c in coarse]
     costs = [searching.cost(np.r_[b, c, 0.0]) for b, c in zip(bodies, coarse, strict=True)]
     best = int(np.argmin(costs))
     grid = coarse[best] + np.arange(-LEVERS_GRID_STEP_S, LEVERS_GRID_STEP_S + 1e-12, GRID_STEP_S)
