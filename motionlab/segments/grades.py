@@ -293,13 +293,7 @@ def gap_graded(graded: dict[str, JointGrades], gap_turns: dict) -> dict[str, Joi
         why = (f"a packet-loss gap in {gap.sensor} at {gap.time_s:.1f} s may have hidden a turn "
                f"of {gap.turn_deg:.0f}°, which the joint's heading, tied only where a pose was "
                "held, keeps from then on")  # fmt: skip
-        grades, reasons = list(out[name].grades), list(out[name].reasons)
-        for k in range(len(grades)):
-            worse = GRADES.index(g_gap) > GRADES.index(grades[k])
-            if worse or g_gap == grades[k]:
-                order = [why, reasons[k]] if worse else [reasons[k], why]
-                grades[k], reasons[k] = g_gap, "; ".join(filter(None, order))
-        out[name] = replace(out[name], grades=grades, reasons=reasons)
+        out[name] = _lowered(out[name], [g_gap] * len(out[name].grades), why)
     return out
 
 
@@ -315,15 +309,23 @@ def hold_graded(graded: dict[str, JointGrades], unheld: dict[str, float]) -> dic
         why = (f"its heading is tied only where a pose was held, and the recording reaches "
                f"{seconds / 60:.0f} min from such a pose (the 6-D fusion's heading drifts "
                "about the vertical in between)")  # fmt: skip
-        grades, reasons = list(out[name].grades), list(out[name].reasons)
-        for k in range(len(grades)):
-            g_hold = "weak" if k == 0 and seconds <= 3 * HEADING_HOLD_S else "not determined"
-            worse = GRADES.index(g_hold) > GRADES.index(grades[k])
-            if worse or g_hold == grades[k]:
-                order = [why, reasons[k]] if worse else [reasons[k], why]
-                grades[k], reasons[k] = g_hold, "; ".join(filter(None, order))
-        out[name] = replace(out[name], grades=grades, reasons=reasons)
+        first = "weak" if seconds <= 3 * HEADING_HOLD_S else "not determined"
+        lowest = [first] + ["not determined"] * (len(out[name].grades) - 1)
+        out[name] = _lowered(out[name], lowest, why)
     return out
+
+
+def _lowered(joint: JointGrades, lowest: list[str], why: str) -> JointGrades:
+    """``joint`` with each angle graded at most ``lowest[k]``, ``why`` added to its reason:
+    first where it lowers the grade (the summary names the first clause as the cause), last
+    where the grade was that already."""
+    grades, reasons = list(joint.grades), list(joint.reasons)
+    for k, low in enumerate(lowest):
+        worse = GRADES.index(low) > GRADES.index(grades[k])
+        if worse or low == grades[k]:
+            order = [why, reasons[k]] if worse else [reasons[k], why]
+            grades[k], reasons[k] = low, "; ".join(filter(None, order))
+    return replace(joint, grades=grades, reasons=reasons)
 
 
 #: what an angle method other than the fused orientations cannot measure, by joint type and
