@@ -129,6 +129,7 @@ def command(
         knee_model=knee_model,
         gait=gait,
         gyr_sampling=gyr_sampling,
+        progress=lambda text: click.echo(text, err=True),  # 30 min of walking takes 45 s
     )
     optical = session.markers.get("optical")
     if optical is not None and not session_markers:

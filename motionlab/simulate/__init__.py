@@ -21,6 +21,7 @@ mounting.
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -295,6 +296,7 @@ def simulate(
     gait: str | dict | None = None,
     gyr_sampling: str = "point",
     knee_model: str = "simple",
+    progress: Callable[[str], None] | None = None,
 ) -> tuple[Session, Truth]:
     """Simulate a recording of ``protocol`` lasting ``duration`` s (true time).
 
@@ -342,6 +344,8 @@ def simulate(
         instants over their spacing). Recorded in each stream's ``attrs["gyr_sampling"]``.
     optical
         Camera system (rate, clock, lab frame, noise); default from the preset.
+    progress
+        Called with one line once the arguments are checked and the work begins.
 
     Returns
     -------
@@ -398,6 +402,8 @@ def simulate(
     timeline = plan(protocol, body, duration, seed, rest_s=rest_s, calibration=calibration,
                     knee_model=knee_model)  # fmt: skip
     field = _field(field, preset, timeline, body, seed)
+    if progress is not None:  # the arguments are checked: what is being done, and how long
+        progress(f"simulating {duration:g} s of '{protocol.name}' (seed {seed}) ...")
     t = np.arange(int(np.floor(duration * rate_hz + 1e-9)) + 1) / rate_hz
     ch = timeline.channels(t)
     poses = _poses(body, timeline, t, tuple(protocol.segments))
