@@ -275,11 +275,17 @@ def _determined_only(session: Session, columns: dict[str, np.ndarray]) -> dict[s
     return {c: v for c, v in columns.items() if judged.get(c, ("",))[0] != NOT_DETERMINED}
 
 
+#: decimals of the JSON's angle series (deg, as the CSVs' ``%.4f``) and of its times (s)
+JSON_ANGLE_DECIMALS = 4
+JSON_TIME_DECIMALS = 6
+
+
 def results_json(session: Session) -> dict[str, Any]:
     """The machine-readable results (:data:`JSON_FORMAT`, version :data:`JSON_VERSION`).
 
     Keys: ``software``, ``metadata``, ``sensors`` (label, segment, side, rate_hz, QC flags),
-    ``angles`` (``time_s`` and per joint its ``columns`` (name → values, deg) and ``grades``
+    ``angles`` (``time_s`` to 1e-6 s and per joint its ``columns`` (name → values, deg, to
+    1e-4 deg as in the CSVs) and ``grades``
     and ``reasons`` when the calibration graded them), ``metrics`` (rows ``block, joint, angle,
     column, metric, percent, value, unit, grade``), ``calibration`` (ok, warnings),
     ``validation`` (its scalars), ``fusion`` (estimator per sensor). Standard JSON: NaN is
@@ -309,6 +315,10 @@ def results_json(session: Session) -> dict[str, Any]:
     graded = {c: g for c, (g, _) in judged.items()}
     if res.angles is not None:
         time, columns = angle_table(session)
+        # to the CSVs' 1e-4 deg (and 1e-6 s): the 100-Hz series of a 1-h walk made a 98-MB
+        # file of 17-digit floats
+        time = np.round(time, JSON_TIME_DECIMALS)
+        columns = {c: np.round(v, JSON_ANGLE_DECIMALS) for c, v in columns.items()}
         joints = {}
         for joint, cols in joint_columns(session).items():
             entry: dict[str, Any] = {

@@ -86,6 +86,10 @@ def test_json_export_loads_with_grades_and_metrics(run_dir):
     for r in doc["metrics"]:
         if r["grade"] == "not determined" and r["unit"] != "1":
             assert r["value"] is None, r
+    # the series to the CSVs' 1e-4 deg (a 1-h walk's 17-digit floats made 98 MB)
+    flexion = [v for v in knee["columns"]["knee_r_flexion_deg"] if v is not None]
+    assert flexion and all(round(v, 4) == v for v in flexion)
+    assert any(round(v, 3) != v for v in flexion)  # rounded, not truncated further
 
 
 def test_sto_round_trip_through_ingest(run_dir):

@@ -43,7 +43,7 @@ def test_example_runs_on_the_demo(tmp_path):
     ran = motionlab.load_session(example.DEMO)
     motionlab.analyse(ran, motionlab.PipelineOptions("knee", progress=False))
     np.testing.assert_allclose(
-        ran.results.angles.columns()["knee_r_flexion_deg"], flexion, atol=1e-9, equal_nan=True
+        ran.results.angles.columns()["knee_r_flexion_deg"], flexion, atol=5e-5, equal_nan=True
     )
     assert saved["validation"]["sync"]["time_offset_s"] == ran.results.validation.sync.time_offset_s
     # each stage called from Python leaves its provenance entry (none did: the report's
