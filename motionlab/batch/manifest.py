@@ -163,6 +163,17 @@ def _optional_file(
     return file, "" if file.is_file() else f"no such {key} file {str(value)!r}"
 
 
+def _study_file(path: Path, base: Path, doc: dict, key: str) -> Path | None:
+    """The study's file under ``key`` (``map``, ``markers``; relative to the manifest), or
+    ``None`` without one; a missing file is an error naming the key's line."""
+    if doc.get(key) is None:
+        return None
+    file = base / str(doc[key])
+    if not file.is_file():
+        _fail(path, doc.lines[key], key, f"no such file {doc[key]!r}", "fix the path")
+    return file
+
+
 def _options(path: Path, base: Path, entry: dict, where: str) -> tuple[dict[str, Any], str]:
     """The run options among ``entry``'s keys (checked; errors name the line) and a missing
     calibration folder (a problem of the session, an error at the top)."""
@@ -214,22 +225,7 @@ def load_manifest(path: str | Path) -> Manifest:
     local = base / doc["protocol"]
     protocol = resolve_protocol_path(local if local.is_file() else doc["protocol"])
     load_protocol(protocol)
-    study_map = None
-    if doc.get("map") is not None:
-        study_map = base / str(doc["map"])
-        if not study_map.is_file():
-            _fail(path, lines["map"], "map", f"no such file {doc['map']!r}", "fix the path")
-    study_markers = None
-    if doc.get("markers") is not None:
-        study_markers = base / str(doc["markers"])
-        if not study_markers.is_file():
-            _fail(
-                path,
-                lines["markers"],
-                "markers",
-                f"no such file {doc['markers']!r}",
-                "fix the path",
-            )
+    study_map, study_markers = (_study_file(path, base, doc, k) for k in ("map", "markers"))
     study_options, missing = _options(path, base, doc, "")
     if missing:
         _fail(path, lines["calibration"], "calibration", missing, "fix the path")

@@ -184,9 +184,10 @@ def estimate_clock(
     searching = pair.middle(SEARCH_MOVING_S)  # the offset at the middle, the drift aside
     fitting = pair.spread(FIT_MOVING_S)  # the levers, biases and clock over the recording
     limit = SPINE_MAX_RESIDUAL_M_S2 if spine else MAX_RESIDUAL_M_S2
-    fit = _fit_from(pair, fitting, searching, _grid_offset(searching, max_offset_s))
+    chain = [searching, *_widening(pair, fitting, searching)]
+    fit = _fit_from(chain, _grid_offset(searching, max_offset_s))
     if _rms(pair, fit) > limit:  # perhaps the valley of the zero offset's levers: search again
-        again = _fit_from(pair, fitting, searching, _levers_grid_offset(searching, max_offset_s))
+        again = _fit_from(chain, _levers_grid_offset(searching, max_offset_s))
         fit = again if _rms(pair, again) < VALLEY_RATIO * _rms(pair, fit) else fit
     half = 0.5 * (t[use[-1]] - t[use[0]])
     fit[-2:], offset_se, drift_se = pair.clock_from_blocks(fit)
@@ -422,24 +423,25 @@ def _levers_grid_offset(searching: Pair, max_offset_s: float) -> float:
     return float(grid[int(np.argmin(searching.costs(lanes)))])
 
 
-def _fit_from(pair: Pair, fitting: Pair, searching: Pair, c0: float) -> np.ndarray:
-    """All parameters fitted from the offset ``c0`` (s) on ``searching``, then refitted on ever
-    more of the movement (:func:`_widening`)."""
-    fit = searching.solve(np.r_[searching.body(c0), c0, 0.0])
-    for wider in _widening(pair, fitting, SEARCH_MOVING_S):  # each from the last, close by
+def _fit_from(chain: list[Pair], c0: float) -> np.ndarray:
+    """All parameters fitted from the offset ``c0`` (s) on the first pair of ``chain``, then
+    refitted on each of the others from the last fit (:func:`_widening`)."""
+    first = chain[0]
+    fit = first.solve(np.r_[first.body(c0), c0, 0.0])
+    for wider in chain[1:]:
         fit = wider.solve(fit)
     return fit
 
 
-def _widening(pair: Pair, fitting: Pair, moving_s: float) -> list[Pair]:
-    """The pairs the clock is refitted on after the search on ``moving_s`` at the middle, each
-    holding more samples than the last: contiguous movement around the middle, twice as much
-    each time below ``FIT_MOVING_S``, then ``fitting`` (blocks spread over the recording) and
-    ``pair`` (all of it). Each extrapolates the last fit's drift only about twice as far: from
-    the middle 40 s straight to blocks over 300 s, a drift of 350 ppm misjudged on the 40 s
-    ended in another valley."""
+def _widening(pair: Pair, fitting: Pair, searching: Pair) -> list[Pair]:
+    """The pairs the clock is refitted on after the search on ``searching`` (the middle's
+    ``SEARCH_MOVING_S``), each holding more samples than the last: contiguous movement around
+    the middle, twice as much each time below ``FIT_MOVING_S``, then ``fitting`` (blocks spread
+    over the recording) and ``pair`` (all of it). Each extrapolates the last fit's drift only
+    about twice as far: from the middle 40 s straight to blocks over 300 s, a drift of 350 ppm
+    misjudged on the 40 s ended in another valley."""
     out: list[Pair] = []
-    last = len(pair.middle(moving_s).use)
+    last, moving_s = len(searching.use), SEARCH_MOVING_S
     candidates = []
     while (moving_s := 2.0 * moving_s) < FIT_MOVING_S:
         candidates.append(pair.middle(moving_s))

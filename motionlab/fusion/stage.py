@@ -64,13 +64,9 @@ CALIBRATION_MAX_HEADING_CONCENTRATION = 0.6
 def fusable(session: Session, labels: list[str] | None = None) -> list[str]:
     """The sensors (of ``labels``, default all) that have a gyroscope and an accelerometer; an
     :class:`InputError` for a label the session lacks."""
-    chosen = (
-        list(session.sensors)
-        if labels is None
-        else [labels]
-        if isinstance(labels, str)
-        else list(labels)
-    )
+    if isinstance(labels, str):  # one label, not its letters
+        labels = [labels]
+    chosen = list(session.sensors) if labels is None else list(labels)
     unknown = [k for k in chosen if k not in session.sensors]
     if unknown:
         raise InputError(

@@ -63,6 +63,7 @@ def graded_style(view: SessionView, joint, col: str) -> tuple[str, str]:
 def _time_page(doc: Document, view: SessionView, joint) -> None:
     t = view.angles["time_s"]
     blocks = view.blocks()
+    walks = {task: walking_spans(view, task) for task in blocks}  # None: no analysed walk
     axes = doc.axes_grid(3, 1, 5.6, left=0.85, bottom=0.45, hspace=0.45, top=0.45)
     for i, ((angle, col), (ax,)) in enumerate(zip(angle_columns(joint), axes, strict=True)):
         colour, suffix = graded_style(view, joint, col)
@@ -70,7 +71,7 @@ def _time_page(doc: Document, view: SessionView, joint) -> None:
             ax.axvspan(a, b, color="#f0f0f0", zorder=0)
             rng = normal_range(view.protocol, task, col)
             # a walk's normal range holds while walking, not over a rest between its bouts
-            for a0, b0 in (walking_spans(view, task) or [(a, b)]) if rng is not None else []:
+            for a0, b0 in (walks[task] or [(a, b)]) if rng is not None else []:
                 ax.fill_between(
                     [a0, b0], rng[0], rng[1], color=BAND_COLOUR, alpha=0.5, lw=0, zorder=1
                 )
@@ -96,8 +97,8 @@ def _time_page(doc: Document, view: SessionView, joint) -> None:
     handles = [Patch(color="#f0f0f0", label="task block")] if blocks else []
     if any(normal_range(view.protocol, task, col) is not None
            for task in blocks for _, col in angle_columns(joint)):  # fmt: skip
-        walks = any(walking_spans(view, task) is not None for task in blocks)
-        label = "normal range of the task" + (" (a walk: while walking)" if walks else "")
+        walking = any(spans is not None for spans in walks.values())
+        label = "normal range of the task" + (" (a walk: while walking)" if walking else "")
         handles.append(Patch(color=BAND_COLOUR, alpha=0.5, label=label))
     if not handles:
         return

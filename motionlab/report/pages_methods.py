@@ -206,14 +206,12 @@ def methods_page(doc: Document, view: SessionView) -> None:
     doc.paragraph(
         "Each sensor's orientation (sensor to east-north-up earth frame, Hamilton quaternions) "
         + (
-            "is the one its device or software computed and exported, read as recorded "
-            "(each segment's heading then comes from the heading alignment with its "
-            "neighbour)."
+            "is the one its device or software computed and exported, read as recorded"
             if vendor_only
             else "is estimated from its gyroscope, accelerometer and, where given, "
-            "magnetometer; 6-D estimates leave the magnetometer out (each segment's heading "
-            "then comes from the heading alignment with its neighbour)."
-        ),
+            "magnetometer; 6-D estimates leave the magnetometer out"
+        )
+        + " (each segment's heading then comes from the heading alignment with its neighbour).",
         size=SIZE["small"],
         colour=MUTED,
     )

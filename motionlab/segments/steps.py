@@ -491,8 +491,10 @@ def _trunk_moves(streams: Streams, protocol: Protocol) -> bool:
     if joint is None or joint.proximal not in streams or joint.distal not in streams:
         return False
     t = streams[joint.distal][0]
-    rates = [np.degrees(np.linalg.norm(interp_columns(t, *streams[s][:3:2]), axis=1))
-             for s in (joint.proximal, joint.distal)]  # fmt: skip
+    rates = []
+    for seg in (joint.proximal, joint.distal):
+        ts, _, gyr = streams[seg]
+        rates.append(np.degrees(np.linalg.norm(interp_columns(t, ts, gyr), axis=1)))
     moving = np.maximum(*rates) > TRUNK_MOVING_DEG_S
     return bool(len(t) > 1 and moving.sum() * np.median(np.diff(t)) >= TRUNK_MOVEMENT_S)
 
