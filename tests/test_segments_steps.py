@@ -160,6 +160,23 @@ def test_too_few_task_blocks_name_the_shipped_protocol_that_fits(knee):
     assert "fits this recording" not in err.value.line()
 
 
+def test_a_still_pose_alone_is_named_as_such():
+    """OpenSense keeps its calibration pose (a few seconds still) apart from the movement: such
+    a recording finds its stand but no task, and the line says that the movement is missing."""
+    t = np.arange(0, 4, 1 / RATE)
+    streams = {
+        seg: (t, np.tile([0.0, 9.81, 0.0], (len(t), 1)), np.zeros((len(t), 3)))
+        for seg in ("pelvis", "thigh_r", "thigh_l", "shank_r", "shank_l")
+    }
+    walk = load_protocol("walk")
+    assert find_steps(streams, walk)["standing"] is not None
+    with pytest.raises(InputError) as err:
+        find_tasks(streams, walk)
+    msg = err.value.line()
+    assert "found 0 movement block(s)" in msg and "rest 0.0-4.0 s" in msg
+    assert "one still pose with no movement" in msg and "recording of the movement" in msg
+
+
 def test_a_recording_without_a_rest_says_no_shipped_protocol_fits_and_why():
     t = np.arange(0, 30, 1 / RATE)
     rate, _ = movement(t, -1.0, 30, 1.2, 0.1, 2.0)  # moving from the first sample to the last

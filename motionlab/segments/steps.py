@@ -571,7 +571,13 @@ def find_tasks(
             "give each task's time_range"
         )
         fits = fitting_protocols(streams, protocol) if suggest else []
-        if fits:
+        if not any(b.moving for b in found_blocks):  # a calibration pose on its own
+            remedy = (
+                "the recording is one still pose with no movement to take angles from (a "
+                "calibration pose on its own, e.g. OpenSense's calibration trial): give the "
+                "recording of the movement, starting with this pose held still"
+            )
+        elif fits:
             shipped = " or ".join(map(repr, fits))
             remedy = f"the shipped protocol {shipped} fits this recording; or {remedy}"
         raise InputError(
