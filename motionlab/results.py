@@ -850,7 +850,8 @@ class AngleTable:
 @dataclass
 class HeadingCorrection(_Record):
     """What one joint's heading alignment did (:func:`motionlab.segments.segment_orientations`):
-    ``source`` (``hinge``, ``two_axes``, ``centre``, ``steps``, ``single pose``), the number of
+    ``source`` (``hinge``, ``two_axes``, ``centre``, ``steps``, ``walk``: the steps and a hip's
+    straight walking, ``single pose``), the number of
     ``anchors``, and the correction's ``mean_deg``, ``range_deg`` and ``drift_deg_per_min`` (none
     without anchors).
     """

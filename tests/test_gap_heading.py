@@ -17,7 +17,7 @@ from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
 from motionlab.protocol import load_protocol
 from motionlab.report.model import SessionView
 from motionlab.report.sentences import cause_and_remedy
-from motionlab.results import GapTurn
+from motionlab.results import GapTurn, HeadingTie
 from motionlab.segments import gap_headings, grades
 from motionlab.session import SensorStream, Session, load_session, save_session
 from motionlab.simulate import simulate
@@ -62,15 +62,25 @@ def test_the_fusion_stores_what_each_gap_may_have_missed(walk, tmp_path):
 
 def test_a_gap_that_may_hide_a_turn_grades_the_hip_not_the_knee(walk):
     """The same walk with the gap's bridge said to miss 35° (as on a real walk's thigh): the
-    left hip, tied at the stand only, is not determined and says why; the knees (hinge ties) and
-    the right hip keep their grades; 15° leaves the hip weak."""
+    walk's own ties around the gap take it out; the left hip tied at the stand only is not
+    determined and says why; the knees (hinge ties) and the right hip keep their grades; 15°
+    leaves the hip weak."""
     session, proto = walk
     cal = session.results.calibration
+    tie = cal.headings.joints["hip_l"]
+    assert tie.source == "walk"
+    stand = np.asarray(tie.times) < 8.0
+    at_stand = HeadingTie("steps", np.asarray(tie.times)[stand], np.asarray(tie.deltas)[stand])
+    stand_only = dataclasses.replace(
+        cal.headings, joints={**cal.headings.joints, "hip_l": at_stand}
+    )
     for turn, expected in ((35.0, "not determined"), (15.0, "weak")):
         s = copy.deepcopy(session)
         entry = s.results.fusion["thigh_l"]
         s.results.fusion["thigh_l"] = dataclasses.replace(entry, gaps_missed_deg=[[18.151, turn]])
-        found = gap_headings(s, proto, cal.headings)
+        by_walk = gap_headings(s, proto, cal.headings).get("hip_l")
+        assert by_walk is None or by_walk.time_s != 18.151  # tied again within a second
+        found = gap_headings(s, proto, stand_only)
         assert found["hip_l"] == GapTurn(turn, "thigh_l", 18.151)
         graded = grades.gap_graded(cal.grades, found)
         assert set(graded["hip_l"].grades) == {expected}

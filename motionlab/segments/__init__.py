@@ -147,9 +147,12 @@ def calibrate_segments(
     return result
 
 
-#: heading ties anchored at poses only (the stand, later rests in it, a single pose): a turn
-#: about the vertical that a packet-loss gap hid after their first anchor stays in the joint
-POSE_TIES = ("steps", "single pose")
+#: heading ties anchored only where a pose was held (the stand, later rests in it, a single
+#: pose) or, a hip's, where the walk went straight: the heading drifts freely in between, and a
+#: turn about the vertical that a packet-loss gap hid stays until the next anchor
+HELD_TIES = ("steps", "single pose", "walk")
+#: a gap with a walk's anchors this close (s) on both sides is taken out by them (one a second)
+GAP_BRACKET_S = 5.0
 
 
 def gap_headings(
@@ -158,30 +161,37 @@ def gap_headings(
     ties: HeadingTies,
     centres: dict[str, CentreHeading] | None = None,
 ) -> dict[str, GapTurn]:
-    """``{joint: GapTurn}``: for each joint whose heading is tied at poses only
-    (:data:`POSE_TIES` in ``ties``, or a trunk's rest in ``centres``: method ``trunk rest``),
-    the largest turn a packet-loss gap of either sensor may have hidden after the first anchor
-    (the fusion's ``gaps_missed_deg``: what the gap's bridge misses on test gaps around it,
-    :func:`motionlab.fusion.timegrid.gap_noise`); joints with none are left out. In 6-D nothing
-    measures that turn about the vertical where it happens: the hinge ties of a knee take it out
-    within seconds; a pose's hold it from the gap on, and a later pose's only spread it over the
-    time between the two (the track is linear between anchors). A stored list that is not
-    finite ``[s, deg]`` pairs is an :class:`InputError` naming it."""
-    anchored = {name: tie.times for name, tie in ties.joints.items() if tie.source in POSE_TIES}
-    anchored |= {name: c.heading_times for name, c in (centres or {}).items()
+    """``{joint: GapTurn}``: for each joint whose heading is tied only at poses or straight
+    walking (:data:`HELD_TIES` in ``ties``, or a trunk's rest in ``centres``: method ``trunk
+    rest``), the largest turn a packet-loss gap of either sensor may have hidden after the
+    first anchor (the fusion's ``gaps_missed_deg``: what the gap's bridge misses on test gaps
+    around it, :func:`motionlab.fusion.timegrid.gap_noise`), unless a walk's anchors lie within
+    ``GAP_BRACKET_S`` on both sides of it; joints with none are left out. In 6-D nothing
+    measures that turn about the vertical where it happens: the hinge ties of a knee, and a
+    walk's ties around the gap, take it out within seconds; a pose's hold it from the gap on,
+    and a later pose's only spread it over the time between the two (the track is linear
+    between anchors). A stored list that is not finite ``[s, deg]`` pairs is an
+    :class:`InputError` naming it."""
+    anchored = {name: (tie.times, tie.source) for name, tie in ties.joints.items()
+                if tie.source in HELD_TIES}  # fmt: skip
+    anchored |= {name: (c.heading_times, "trunk rest") for name, c in (centres or {}).items()
                  if c.method == "trunk rest"}  # fmt: skip
     out = {}
-    for name, times in anchored.items():
+    for name, (times, source) in anchored.items():
         if not len(times) or name not in protocol.joints:
             continue
+        times = np.asarray(times, float)
         first = float(np.min(times))
+        walking = times if source == "walk" else np.empty(0)
         joint = protocol.joints[name]
         worst = None
         for seg in (joint.proximal, joint.distal):
             label = sensor_for_segment(session, seg)
             entry = session.results.fusion.get(label) if label is not None else None
             for t, deg in _gap_turns(entry, label):
-                if t > first and (worst is None or deg > worst.turn_deg):
+                before = np.any((walking < t) & (walking >= t - GAP_BRACKET_S))
+                after = np.any((walking > t) & (walking <= t + GAP_BRACKET_S))
+                if t > first and not (before and after) and (worst is None or deg > worst.turn_deg):
                     worst = GapTurn(float(deg), label, float(t))
         if worst is not None:
             out[name] = worst
@@ -189,13 +199,14 @@ def gap_headings(
 
 
 def unheld_headings(session: Session, protocol: Protocol, ties: HeadingTies) -> dict[str, float]:
-    """``{joint: s}``: for each joint whose heading is tied at poses only (:data:`POSE_TIES`),
-    how far its recording (both sensors' spans) reaches from those poses: before the first,
-    after the last, half the longest time between two (the heading track is linear between
-    anchors, so a steady drift there is taken out and the rest peaks about midway)."""
+    """``{joint: s}``: for each joint whose heading is tied only at poses or straight walking
+    (:data:`HELD_TIES`), how far its recording (both sensors' spans) reaches from those anchors:
+    before the first, after the last, half the longest time between two (the heading track is
+    linear between anchors, so a steady drift there is taken out and the rest peaks about
+    midway)."""
     out = {}
     for name, tie in ties.joints.items():
-        if tie.source not in POSE_TIES or name not in protocol.joints or not len(tie.times):
+        if tie.source not in HELD_TIES or name not in protocol.joints or not len(tie.times):
             continue
         joint = protocol.joints[name]
         labels = [sensor_for_segment(session, s) for s in (joint.proximal, joint.distal)]
@@ -478,7 +489,8 @@ def segment_orientations(
     (:func:`.heading.hinge_anchors`), or the headings fitted with a two-axis joint's axes or
     from a ball joint's shared centre (added to the track its proximal segment was turned by);
     a single-pose calibration (:mod:`.single_pose`) its pose; otherwise the anchors of the
-    protocol's steps and rests (:func:`heading_anchors`). Without a
+    protocol's steps and rests (:func:`heading_anchors`), for a hip with those of the walk's
+    straight stretches (:func:`.heading.walk_anchors`). Without a
     calibration (``None``) or its entry for a segment the sensor frame is used as the segment
     frame.
     ``corrections``, when given, receives per joint the heading correction applied
@@ -537,7 +549,9 @@ def _joint_ties(protocol: Protocol, calibration: SegmentCalibration, joint, tp, 
     """``(source, times s, δ rad)`` of one joint's heading anchors (see
     :func:`segment_orientations`): the headings stored with a two-axis fit or a ball joint's
     centre, the hinge over the whole recording, the pose of a single-pose calibration, or the
-    steps' anchors."""
+    steps' anchors, joined for a hip in a protocol with a walk by the walk's straight stretches
+    (:func:`.heading.walk_anchors`, put on the steps' track by :func:`.heading.pose_offset`:
+    source ``walk``)."""
     fit = calibration.hinges.get(joint.name)
     if fit is not None and (fit.used_for != "axes" or fit.verdict == "not determined"):
         fit = None  # the steps measured the axes, or the movement did not: the steps' anchors
@@ -560,7 +574,18 @@ def _joint_ties(protocol: Protocol, calibration: SegmentCalibration, joint, tp, 
         )
         long_axis = axis_vector("y") if twists else None
         return ("hinge", *heading.hinge_anchors(tp, qp, qd_on_p, axis, axis, long_axis))
-    return ("steps", *heading_anchors(protocol, joint, calibration.steps, tp, qp, qd_on_p))
+    times, deltas = heading_anchors(protocol, joint, calibration.steps, tp, qp, qd_on_p)
+    if joint_type(joint.type).name == "hip" and any(task.is_gait for task in protocol.tasks):
+        walk_times, walk_deltas = heading.walk_anchors(tp, qp, qd_on_p)
+        offset = heading.pose_offset(np.asarray(times), np.asarray(deltas), walk_times, walk_deltas)
+        if offset is not None:  # the walk's own ties, put on the stand's hip rotation
+            order = np.argsort(np.concatenate([times, walk_times]))
+            return (
+                "walk",
+                np.concatenate([times, walk_times])[order],
+                np.concatenate([deltas, walk_deltas + offset])[order],
+            )
+    return "steps", times, deltas
 
 
 def _correction(source: str, times, deltas, t: np.ndarray) -> HeadingCorrection:

@@ -306,9 +306,9 @@ def hold_graded(graded: dict[str, JointGrades], unheld: dict[str, float]) -> dic
     for name, seconds in unheld.items():
         if name not in out or not seconds > HEADING_HOLD_S:
             continue
-        why = (f"its heading is tied only where a pose was held, and the recording reaches "
-               f"{seconds / 60:.0f} min from such a pose (the 6-D fusion's heading drifts "
-               "about the vertical in between)")  # fmt: skip
+        why = (f"its heading is tied only where a pose was held or the walk went straight, and "
+               f"the recording reaches {seconds / 60:.0f} min from those (the 6-D fusion's "
+               "heading drifts about the vertical in between)")  # fmt: skip
         first = "weak" if seconds <= 3 * HEADING_HOLD_S else "not determined"
         lowest = [first] + ["not determined"] * (len(out[name].grades) - 1)
         out[name] = _lowered(out[name], lowest, why)

@@ -41,6 +41,7 @@ if TYPE_CHECKING:
     pass
 
 UP = np.array([0.0, 0.0, 1.0])
+RIGHT = np.array([0.0, 0.0, 1.0])  # a segment's z (ISB): to the subject's right
 REST_RATE_RAD_S = 0.15
 REST_TILT_DEG = 10.0
 REST_MIN_S = 2.0
@@ -54,6 +55,10 @@ HINGE_MEDIAN_WINDOWS = 5  # anchors are median-filtered over this many windows
 # reference pose (straight) tie the headings, where its coupled rotation (screw home) is small
 HINGE_STRAIGHT_DEG = 10.0
 CENTRE_MIN_M_S2 = 0.5  # mean horizontal joint-centre acceleration a window needs
+WALK_MIN_RATE_RAD_S = 0.7  # mean thigh rate of a walking window (slow walkers: about 0.75)
+WALK_MIN_FLEXION_SHARE = 0.6  # of the thigh's squared rate about its z (simulated walks 0.75-0.9)
+WALK_MAX_TURN_DEG_S = 15.0  # the pelvis's mean turning rate a window allows (a turn: 50-100)
+WALK_NEAR_POSE_S = 30.0  # walking anchors this close to a pose tie the walk's mean hip rotation
 
 
 def heading_from_pose(q_proximal: np.ndarray, q_distal: np.ndarray) -> float:
@@ -137,6 +142,65 @@ def centre_anchors(
     a = rot.rotate(q_proximal, f_proximal)
     d = rot.rotate(q_distal, f_distal)
     return _window_anchors(t, a, d, np.hypot(a[:, 0], a[:, 1]), CENTRE_MIN_M_S2)
+
+
+def walk_anchors(
+    t: np.ndarray, q_proximal: np.ndarray, q_distal: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
+    """Times (s) and heading offsets δ (rad) of a hip from straight walking.
+
+    ``q_*`` are the pelvis's and the thigh's segment orientations on the common time ``t``.
+    In walking the thigh swings about its own z (its flexion axis, from the walk itself,
+    :mod:`.gait_axes`) and the pelvis's z stays across the walking direction: over a window of
+    several strides, the hip's rotation and ab/adduction swing about their mean, so the two
+    z axes share one horizontal direction turned by the hip's mean rotation in walking. δ per
+    window of ``HINGE_WINDOW_S`` in which the thigh turns at ``WALK_MIN_RATE_RAD_S`` on average,
+    at least ``WALK_MIN_FLEXION_SHARE`` of it (squared) about its z, and the pelvis turns by no
+    more than ``WALK_MAX_TURN_DEG_S`` (a straight or gently curved path, no turn), as
+    :func:`hinge_anchors` does for a hinge's axis (after Laidig et al. 2022, whose constraint
+    the hip keeps only on average). The mean hip rotation in walking is in δ: the caller ties
+    it to a pose (:func:`pose_offset`)."""
+    a = rot.rotate(q_proximal, np.broadcast_to(RIGHT, (len(t), 3)))
+    d = rot.rotate(q_distal, np.broadcast_to(RIGHT, (len(t), 3)))
+    w_earth = earth_rates(t, q_distal)
+    rate = np.linalg.norm(w_earth, axis=1)
+    flexing = rot.rotate(rot.conj(q_distal), w_earth)[:, 2] ** 2  # about the thigh's own z
+    forward = np.unwrap(np.arctan2(a[:, 1], a[:, 0]))  # the pelvis's heading, from its z
+    times, deltas = [], []
+    for start in np.arange(t[0], t[-1] - HINGE_WINDOW_S / 2, HINGE_STEP_S) if len(t) else []:
+        w = slice(*np.searchsorted(t, [start, start + HINGE_WINDOW_S]))
+        ok = np.isfinite(rate[w]) & np.all(np.isfinite(d[w]), axis=1)
+        if ok.sum() < 3 or np.mean(rate[w][ok]) < WALK_MIN_RATE_RAD_S:
+            continue
+        if np.sum(flexing[w][ok]) < WALK_MIN_FLEXION_SHARE * np.sum(rate[w][ok] ** 2):
+            continue  # not a swinging thigh: the axes need not be parallel
+        if abs(np.degrees(np.polyfit(t[w][ok], forward[w][ok], 1)[0])) > WALK_MAX_TURN_DEG_S:
+            continue  # a turn (the pelvis's swing from stride to stride averages out in the fit)
+        times.append(float(np.mean(t[w][ok])))
+        deltas.append(_procrustes_2d(a[w][ok], d[w][ok]))
+    if not times:
+        return np.empty(0), np.empty(0)
+    return np.array(times), np.unwrap(deltas)
+
+
+def pose_offset(
+    pose_times: np.ndarray, pose_deltas: np.ndarray, times: np.ndarray, deltas: np.ndarray
+) -> float | None:
+    """The turn (rad) that puts anchors ``(times, deltas)`` (e.g. :func:`walk_anchors`) on the
+    pose anchors' track: at each pose anchor with anchors within ``WALK_NEAR_POSE_S``, the
+    pose's δ less their straight-line trend carried to the pose (a steady drift since the pose
+    taken out); the median over the poses. ``None`` without such anchors near a pose."""
+    offsets = []
+    for at, delta in zip(pose_times, pose_deltas, strict=True):
+        near = np.abs(times - at) <= WALK_NEAR_POSE_S
+        if not near.any():
+            continue
+        if near.sum() > 1 and np.ptp(times[near]) > 0:
+            line = np.polyval(np.polyfit(times[near], deltas[near], 1), at)
+        else:
+            line = float(np.mean(deltas[near]))
+        offsets.append(float(np.angle(np.exp(1j * (delta - line)))))
+    return float(np.median(offsets)) if offsets else None
 
 
 def _window_anchors(
