@@ -52,6 +52,10 @@ def test_straight_walking_measures_the_drift_plus_the_hips_mean_rotation():
     # δ turns the thigh back onto the pelvis: the drift, and the mean hip rotation with it
     expected = np.interp(times, t, drift) - np.radians(4.0)
     np.testing.assert_allclose(np.degrees(deltas - expected), 0.0, atol=0.5)
+    qp = qp.copy()
+    qp[1000:1100] = np.nan  # a gap in the pelvis's orientations: only its windows are lost
+    gap_times, _ = heading.walk_anchors(t, qp, qd)
+    assert len(gap_times) >= len(times) - 6 and gap_times[-1] == times[-1]
 
 
 def test_the_stand_ties_the_walks_mean_hip_rotation_back_to_zero():

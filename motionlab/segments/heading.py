@@ -165,11 +165,13 @@ def walk_anchors(
     w_earth = earth_rates(t, q_distal)
     rate = np.linalg.norm(w_earth, axis=1)
     flexing = rot.rotate(rot.conj(q_distal), w_earth)[:, 2] ** 2  # about the thigh's own z
-    forward = np.unwrap(np.arctan2(a[:, 1], a[:, 0]))  # the pelvis's heading, from its z
+    forward = np.arctan2(a[:, 1], a[:, 0])  # the pelvis's heading, from its z
+    finite = np.isfinite(forward)
+    forward[finite] = np.unwrap(forward[finite])  # (a NaN would spread through the unwrap)
     times, deltas = [], []
     for start in np.arange(t[0], t[-1] - HINGE_WINDOW_S / 2, HINGE_STEP_S) if len(t) else []:
         w = slice(*np.searchsorted(t, [start, start + HINGE_WINDOW_S]))
-        ok = np.isfinite(rate[w]) & np.all(np.isfinite(d[w]), axis=1)
+        ok = np.isfinite(rate[w]) & np.isfinite(forward[w]) & np.all(np.isfinite(d[w]), axis=1)
         if ok.sum() < 3 or np.mean(rate[w][ok]) < WALK_MIN_RATE_RAD_S:
             continue
         if np.sum(flexing[w][ok]) < WALK_MIN_FLEXION_SHARE * np.sum(rate[w][ok] ** 2):
