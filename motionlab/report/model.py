@@ -395,7 +395,8 @@ def _extremes(m: AngleMetrics) -> tuple[float, float]:
 
 
 #: the leg model's walking speed counts as outside the norms' band only beyond this share of
-#: it: its error is measured on one walker only (``length_note`` on the gait page)
+#: it: its error is measured on two walkers only, within 2 % and +12 % (``length_note`` on the
+#: gait page)
 PACE_SPEED_MARGIN = 0.1
 #: the ranges a pace outside the norms' moves a sagittal range to: a faster walk flexes and
 #: extends further, a slower one less (Fukuchi et al. 2019, Syst Rev 8:153, a meta-analysis of
