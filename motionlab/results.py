@@ -551,19 +551,23 @@ class TwoAxisFit(HingeFit):
     ``heading_times`` / ``heading_deltas`` (s, rad) are the heading offsets fitted with the axes
     (the distal sensor's earth frame turned by δ about the vertical matches the proximal one).
     ``axial_follow``: the fraction of the proximal segment's rotation about its long axis that
-    its sensor follows, fitted with the axes (NaN when not fitted). Stored with ``kind``
-    ``two_axes``."""
+    its sensor follows, fitted with the axes (NaN when not fitted); ``across_deg``: how far (deg)
+    the flexion axis lies from the perpendicular to that long axis in the reference pose (NaN
+    when not checked; over ``movement.ACROSS_LONG_AXIS_DEG`` the fit is refused as no joint of
+    its kind). Stored with ``kind`` ``two_axes``."""
 
     flexion_distal: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
     heading_times: np.ndarray = field(default_factory=lambda: np.empty(0))
     heading_deltas: np.ndarray = field(default_factory=lambda: np.empty(0))
     axial_follow: float = float("nan")
+    across_deg: float = float("nan")
 
     def to_tree(self) -> dict[str, Any]:
         """The hinge fit's layout with ``kind`` and the two-axis fields."""
-        # axial_follow only where it was fitted: a fit stored before it existed is written back
-        # as it was read
-        follow = {"axial_follow": self.axial_follow} if np.isfinite(self.axial_follow) else {}
+        # axial_follow and across_deg only where they were found: a fit stored before they
+        # existed is written back as it was read
+        follow = {k: v for k, v in (("axial_follow", self.axial_follow),
+                                    ("across_deg", self.across_deg)) if np.isfinite(v)}  # fmt: skip
         return (
             super().to_tree()
             | {

@@ -1,9 +1,13 @@
 """Hinge axes from ordinary movement, their signs and verdicts, on a hinge with a known truth."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from motionlab import rotations as rot
+from motionlab.protocol import load_protocol
+from motionlab.results import HingeFit
 from motionlab.segments.gait_axes import fit_knee
 from motionlab.segments.movement import (
     anatomical_sign,
@@ -12,6 +16,7 @@ from motionlab.segments.movement import (
     relative_sign,
     swing_sign,
 )
+from motionlab.segments.placement import fills_hint
 
 RATE = 100.0
 STAND_S = 3.0
@@ -190,6 +195,34 @@ def test_a_flexion_axis_along_the_upper_arm_is_not_an_elbow():
     assert fit.consistency_deg < 5.0 and fit.relative_residual < 0.35  # a good two-axis fit
     assert fit.verdict == "not determined"
     assert any("20° from the long axis" in r for r in fit.reasons), fit.reasons
+    assert fit.across_deg == pytest.approx(70.0, abs=3.0)  # off the perpendicular
+    assert HingeFit.from_tree(fit.to_tree()).across_deg == fit.across_deg
+    # not an elbow's axis: it stands in for no placement hint (placement.fills_hint)
+    arm = load_protocol("arm")
+    assert arm.segments["upperarm_r"].any_orientation and fit.sign == "anatomy"
+    assert not fills_hint(arm, "upperarm_r", fit, set())
+
+
+def test_a_fit_not_determined_stands_in_only_for_a_hint_that_says_nothing():
+    """Right seed 0 of ``bench/real_world.py --protocols arm``: the fit's parts disagree by
+    15.2° (``not determined``), but the anatomy signs it; the upper arm's hint, turned about the
+    stand's vertical as the protocol's ``sensor_axes`` say, put its flexion axis 165° from the
+    truth. A sensor that may sit any way round (``any_orientation``) or a contradicted hint
+    takes the fit's axes; a strapped hint (``elbow`` protocol) keeps its own, and so does a fit
+    whose direction of flexion follows the hint."""
+    (upper, fore), _ = elbow_recording(3, axial_follow=0.6)
+    fit = fit_two_dof("elbow_r", upper, fore, np.eye(3)[0], np.eye(3)[1], (0.5, 2.5))
+    assert fit.verdict == "not determined" and fit.sign == "anatomy"
+    assert np.isnan(fit.across_deg)  # not checked without the axial lag
+    arm, elbow = load_protocol("arm"), load_protocol("elbow")
+    assert fills_hint(arm, "upperarm_r", fit, set()) and fills_hint(arm, "forearm_r", fit, set())
+    assert not elbow.segments["upperarm_r"].any_orientation
+    assert not fills_hint(elbow, "upperarm_r", fit, set())
+    assert fills_hint(elbow, "upperarm_r", fit, {"upperarm_r"})
+    assert not fills_hint(arm, "upperarm_r", dataclasses.replace(fit, sign="nominal"), set())
+    assert not fills_hint(arm, "upperarm_r", dataclasses.replace(fit, verdict="weak"), set())
+    back = HingeFit.from_tree(fit.to_tree())
+    assert np.isnan(back.across_deg) and "across_deg" not in fit.to_tree()
 
 
 def test_a_pause_longer_than_a_heading_window_leaves_no_empty_window():

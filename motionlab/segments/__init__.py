@@ -118,11 +118,15 @@ def calibrate_segments(
         if fit.verdict != "determined" and fit.used_for == "axes":
             joint = protocol.joints[name]
             for seg in (joint.proximal, joint.distal):
+                used = any(r.step == f"movement:{name}" for r in segments[seg].axes.values())
+                # a fit not determined stands in for a hint that says nothing (fills_hint)
+                also = "; the frame takes it all the same: its placement hint says nothing"
                 _flag(
                     segments,
                     seg,
                     f"{seg}: the {name} axis from the movement is {fit.verdict}: "
-                    + ("; ".join(fit.reasons) or "see the calibration page"),
+                    + ("; ".join(fit.reasons) or "see the calibration page")
+                    + (also if used and fit.verdict == "not determined" else ""),
                 )
     if warnings is not None:
         warnings.extend(notes)
@@ -553,7 +557,10 @@ def _joint_ties(protocol: Protocol, calibration: SegmentCalibration, joint, tp, 
     (:func:`.heading.walk_anchors`, put on the steps' track by :func:`.heading.pose_offset`:
     source ``walk``)."""
     fit = calibration.hinges.get(joint.name)
-    if fit is not None and (fit.used_for != "axes" or fit.verdict == "not determined"):
+    if fit is not None and (
+        fit.used_for != "axes"
+        or (fit.verdict == "not determined" and not placement.fitted_axes_used(calibration, joint))
+    ):
         fit = None  # the steps measured the axes, or the movement did not: the steps' anchors
     if isinstance(fit, TwoAxisFit):
         times = np.asarray(fit.heading_times, float)

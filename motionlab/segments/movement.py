@@ -502,7 +502,9 @@ def fit_two_dof(
     Signs: the long axis points proximally (up in the ``reference`` pose, arms hanging); the
     flexion axis by anatomy as for :func:`fit_hinge`, else by the nominal placement. Verdict from
     the residual relative to the relative angular rate and the consistency of ``N_PARTS`` part
-    fits, as for :func:`fit_hinge`.
+    fits, as for :func:`fit_hinge`; with ``axial_lag``, a flexion axis further than
+    ``ACROSS_LONG_AXIS_DEG`` from the perpendicular to the stand's long axis (kept as
+    ``across_deg``) is refused as no elbow's (``not determined``).
     """
     t, g1, g2, q1, q2, speed = shared_movement(joint, proximal, distal)
     w1, w2 = rot.rotate(q1, g1), rot.rotate(q2, g2)
@@ -568,6 +570,7 @@ def fit_two_dof(
     verdict = _verdict(
         worst, relative, sign_source == "nominal", reasons, "the axes differ", "the two axes"
     )
+    across = float("nan")
     if spin is not None:
         across = 90.0 - _angle_deg(j1, long_p)
         if across > ACROSS_LONG_AXIS_DEG:
@@ -594,4 +597,5 @@ def fit_two_dof(
         heading_times=win_times,
         heading_deltas=deltas,
         axial_follow=1.0 / (1.0 + lag) if spin is not None else float("nan"),
+        across_deg=across,
     )

@@ -10,7 +10,11 @@ movement with their anatomical direction, :mod:`.movement`) where they fix it.
 
 Hinge-like joints (knee, elbow, generic hinges; :func:`hinge_spec`) get their axes from the
 movement (:func:`movement_hinges`) when no functional step measures them, or when the hint of
-one of their segments is contradicted (then only to orient the steps' axes).
+one of their segments is contradicted (then only to orient the steps' axes). A fit ``not
+determined`` still gives them to a segment whose hint says nothing of them (a sensor that may
+sit any way round, or a contradicted hint) when the anatomy signed it (:func:`fills_hint`): the
+hint's turn about the stand's vertical is arbitrary there, and took a right elbow's flexion axis
+165° the wrong way round (flexion 111° RMS off; the fit, 15.2° between its parts, 2.7°).
 """
 
 from __future__ import annotations
@@ -65,7 +69,8 @@ def movement_hinges(
     and for those with a segment in ``contradicted`` (to orient the steps' axes).
 
     For the first, the axis records (``movement:<joint>:k``, kind ``movement``) are added to
-    ``records`` unless the fit is ``not determined``; the fits are returned by joint name.
+    ``records``: of a fit ``not determined`` only to the segments it fills the hint of
+    (:func:`fills_hint`); the fits are returned by joint name.
     """
     fits: dict[str, movement.HingeFit] = {}
     for name, joint in protocol.joints.items():
@@ -111,8 +116,12 @@ def movement_hinges(
         fits[name] = fit
         if measured:
             fit.used_for = "direction"
-        if fit.verdict == "not determined" or measured:
+        if measured:
             continue
+        segs = {seg for seg in (p, d) if fills_hint(protocol, seg, fit, contradicted)}
+        if fit.verdict == "not determined" and not segs:
+            continue
+        # a fit not determined weighs as a weak one: it only stands in for the hint
         rho = 0.9 if fit.verdict == "determined" else 0.6
         new = [(p, fit.axis_proximal, seg_axis, True)]
         if twist:  # the distal's long axis, and its flexion axis in the reference pose
@@ -122,6 +131,8 @@ def movement_hinges(
         else:
             new.append((d, fit.axis_distal, seg_axis, True))
         for k, (seg, axis, segment_axis, secondary) in enumerate(new):
+            if fit.verdict == "not determined" and seg not in segs:
+                continue
             records[seg][f"movement:{name}:{k}"] = AxisMeasurement(
                 step=f"movement:{name}",
                 kind="movement",
@@ -134,6 +145,38 @@ def movement_hinges(
                 verdict=fit.verdict,
             )
     return fits
+
+
+def fills_hint(
+    protocol: Protocol, segment: str, fit: movement.HingeFit, contradicted: set[str]
+) -> bool:
+    """Whether a hinge fit ``not determined`` gives ``segment`` its axes all the same: the
+    anatomy told which way it flexes (``sign`` ``anatomy``, the same rule as a determined
+    fit's), its axes are finite, it was not refused as no joint of its kind (a flexion axis
+    along the upper arm, :data:`.movement.ACROSS_LONG_AXIS_DEG`), and the segment's placement
+    hint says nothing of them (its sensor may sit any way round, ``any_orientation``, or the
+    data contradict the hint). The hint's turn about a measured axis is then arbitrary (up to
+    half a turn off) where the fit's axes are off by about the disagreement of its parts. The
+    angles stay ``not determined`` (:mod:`.grades`); they are only not the hint's."""
+    if fit.verdict != "not determined" or fit.sign != "anatomy":
+        return False
+    if float(getattr(fit, "across_deg", np.nan)) > movement.ACROSS_LONG_AXIS_DEG:
+        return False
+    if not (np.all(np.isfinite(fit.axis_proximal)) and np.all(np.isfinite(fit.axis_distal))):
+        return False
+    return protocol.segments[segment].any_orientation or segment in contradicted
+
+
+def fitted_axes_used(calibration, joint) -> bool:
+    """Whether the movement fit of ``joint`` gave either of its segments an axis (a record
+    ``movement:<joint>`` in the calibration's segments)."""
+    step = f"movement:{joint.name}"
+    return any(
+        r.step == step
+        for seg in (joint.proximal, joint.distal)
+        if seg in calibration.segments
+        for r in calibration.segments[seg].axes.values()
+    )
 
 
 def long_axis_vertical(protocol: Protocol, segment: str, ref_name: str | None) -> bool:
