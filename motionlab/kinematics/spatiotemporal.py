@@ -371,7 +371,7 @@ def summary(table: pd.DataFrame) -> GaitSummary:
     )
 
 
-def _unit(parameter: str) -> str:
+def parameter_unit(parameter: str) -> str:
     """The unit a parameter's name ends in (``stride_time_s`` → ``s``)."""
     for suffix, unit in (("_steps_per_min", "steps/min"), ("_m_s", "m/s"), ("_pct", "%"),
                          ("_m", "m"), ("_s", "s")):  # fmt: skip
@@ -388,7 +388,7 @@ def summary_rows(summ: GaitSummary) -> pd.DataFrame:
     rows = []
     for side, cols in summ.sides.items():
         for c, s in cols.items():
-            rows.append({"parameter": c, "side": side, "unit": _unit(c), "mean": s.mean,
+            rows.append({"parameter": c, "side": side, "unit": parameter_unit(c), "mean": s.mean,
                          "sd": s.sd, "cv_pct": s.cv_pct, "se": s.se, "median": s.median,
                          "q1": s.q1, "q3": s.q3, "count_n": s.strides_n,
                          "count_of": "strides"})  # fmt: skip
@@ -400,7 +400,7 @@ def summary_rows(summ: GaitSummary) -> pd.DataFrame:
             ("walking_speed_m_s", summ.walking_speed_m_s, np.nan, summ.strides_kept))  # fmt: skip
     for c, value, se, n in both:
         of = "step pairs" if c == "step_time_asymmetry_pct" else "strides"
-        rows.append({"parameter": c, "side": "both", "unit": _unit(c), "mean": value,
+        rows.append({"parameter": c, "side": "both", "unit": parameter_unit(c), "mean": value,
                      "sd": np.nan, "cv_pct": np.nan, "se": se, "median": np.nan, "q1": np.nan,
                      "q3": np.nan, "count_n": n, "count_of": of})  # fmt: skip
     return pd.DataFrame(rows)

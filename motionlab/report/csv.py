@@ -31,6 +31,7 @@ import pandas as pd
 
 from motionlab.atomic import atomic_path, check_output
 from motionlab.errors import InputError
+from motionlab.kinematics.gait_course import walk_course
 from motionlab.kinematics.joint_types import angle_columns
 from motionlab.kinematics.spatiotemporal import STRIDE_COLUMNS, summary_rows
 from motionlab.report.model import (
@@ -268,15 +269,21 @@ def gait_frames(view: SessionView) -> dict[str, pd.DataFrame]:
     """``spatiotemporal.csv`` (one row per stride, kept or not, with the reason) and
     ``spatiotemporal_summary.csv`` (per side and parameter its ``unit``, mean, SD, CV, SE,
     median, quartiles and the number ``count_n`` of strides or step pairs (``count_of``); NaN
-    below 3 strides); nothing without a gait analysis."""
+    below 3 strides), for a walk of 3 min or more ``spatiotemporal_course.csv``
+    (:meth:`~motionlab.kinematics.gait_course.WalkCourse.rows`); nothing without a gait
+    analysis."""
     g = gait_result(view)
     if g is None:
         return {}
     strides = g.strides.frame()[["side", "start_s", "kept", "reason", *STRIDE_COLUMNS]]
-    return {
+    out = {
         "spatiotemporal.csv": strides,
         "spatiotemporal_summary.csv": summary_rows(g.summary),
     }
+    course = walk_course(g.strides)
+    if course is not None:  # a walk of 3 min or more, part by part
+        out["spatiotemporal_course.csv"] = course.rows()
+    return out
 
 
 def tables(view: SessionView) -> dict[str, pd.DataFrame]:
