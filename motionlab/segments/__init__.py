@@ -554,8 +554,7 @@ def _joint_ties(protocol: Protocol, calibration: SegmentCalibration, joint, tp, 
     :func:`segment_orientations`): the headings stored with a two-axis fit or a ball joint's
     centre, the hinge over the whole recording, the pose of a single-pose calibration, or the
     steps' anchors, joined for a hip in a protocol with a walk by the walk's straight stretches
-    (:func:`.heading.walk_anchors`, put on the steps' track by :func:`.heading.pose_offset`:
-    source ``walk``)."""
+    away from the poses (:func:`.heading.with_walk_anchors`: source ``walk``)."""
     fit = calibration.hinges.get(joint.name)
     if fit is not None and (
         fit.used_for != "axes"
@@ -583,15 +582,9 @@ def _joint_ties(protocol: Protocol, calibration: SegmentCalibration, joint, tp, 
         return ("hinge", *heading.hinge_anchors(tp, qp, qd_on_p, axis, axis, long_axis))
     times, deltas = heading_anchors(protocol, joint, calibration.steps, tp, qp, qd_on_p)
     if joint_type(joint.type).name == "hip" and any(task.is_gait for task in protocol.tasks):
-        walk_times, walk_deltas = heading.walk_anchors(tp, qp, qd_on_p)
-        offset = heading.pose_offset(np.asarray(times), np.asarray(deltas), walk_times, walk_deltas)
-        if offset is not None:  # the walk's own ties, put on the stand's hip rotation
-            order = np.argsort(np.concatenate([times, walk_times]))
-            return (
-                "walk",
-                np.concatenate([times, walk_times])[order],
-                np.concatenate([deltas, walk_deltas + offset])[order],
-            )
+        joined = heading.with_walk_anchors(times, deltas, *heading.walk_anchors(tp, qp, qd_on_p))
+        if joined is not None:  # the walk's own ties, put on the stand's hip rotation
+            return ("walk", *joined)
     return "steps", times, deltas
 
 

@@ -58,7 +58,7 @@ CENTRE_MIN_M_S2 = 0.5  # mean horizontal joint-centre acceleration a window need
 WALK_MIN_RATE_RAD_S = 0.7  # mean thigh rate of a walking window (slow walkers: about 0.75)
 WALK_MIN_FLEXION_SHARE = 0.6  # of the thigh's squared rate about its z (simulated walks 0.75-0.9)
 WALK_MAX_TURN_DEG_S = 15.0  # the pelvis's mean turning rate a window allows (a turn: 50-100)
-WALK_NEAR_POSE_S = 30.0  # walking anchors this close to a pose tie the walk's mean hip rotation
+WALK_NEAR_POSE_S = 30.0  # walk anchors this close to a pose tie the walk's mean hip rotation to it
 
 
 def heading_from_pose(q_proximal: np.ndarray, q_distal: np.ndarray) -> float:
@@ -203,6 +203,27 @@ def pose_offset(
             line = float(np.mean(deltas[near]))
         offsets.append(float(np.angle(np.exp(1j * (delta - line)))))
     return float(np.median(offsets)) if offsets else None
+
+
+def with_walk_anchors(
+    pose_times: np.ndarray, pose_deltas: np.ndarray, times: np.ndarray, deltas: np.ndarray
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The pose anchors joined by the walk's (:func:`walk_anchors`) farther than
+    ``WALK_NEAR_POSE_S`` from every pose, put on the poses' track (:func:`pose_offset`), in time
+    order; ``None`` where the walk gives none (no walking near a pose, or none away from one).
+    Near a pose its own tie is the better one (the heading has had no time to drift; a walk's
+    carries the hip's rotation swinging from window to window: on simulated 60-s walks that cost
+    up to 1° of hip rotation), farther away the walk's (its error does not grow)."""
+    pose_times, pose_deltas = np.asarray(pose_times, float), np.asarray(pose_deltas, float)
+    offset = pose_offset(pose_times, pose_deltas, times, deltas)
+    if offset is None:
+        return None
+    far = np.min(np.abs(times[:, None] - pose_times[None, :]), axis=1) > WALK_NEAR_POSE_S
+    if not far.any():
+        return None
+    all_times = np.concatenate([pose_times, times[far]])
+    order = np.argsort(all_times)
+    return all_times[order], np.concatenate([pose_deltas, deltas[far] + offset])[order]
 
 
 def _window_anchors(
