@@ -59,6 +59,7 @@ WALK_MIN_RATE_RAD_S = 0.7  # mean thigh rate of a walking window (slow walkers: 
 WALK_MIN_FLEXION_SHARE = 0.6  # of the thigh's squared rate about its z (simulated walks 0.75-0.9)
 WALK_MAX_TURN_DEG_S = 15.0  # the pelvis's mean turning rate a window allows (a turn: 50-100)
 WALK_NEAR_POSE_S = 30.0  # walk anchors this close to a pose tie the walk's mean hip rotation to it
+WALK_FAR_S = 60.0  # walk anchors are used this far from every pose (half grades.HEADING_HOLD_S)
 
 
 def heading_from_pose(q_proximal: np.ndarray, q_distal: np.ndarray) -> float:
@@ -209,16 +210,19 @@ def with_walk_anchors(
     pose_times: np.ndarray, pose_deltas: np.ndarray, times: np.ndarray, deltas: np.ndarray
 ) -> tuple[np.ndarray, np.ndarray] | None:
     """The pose anchors joined by the walk's (:func:`walk_anchors`) farther than
-    ``WALK_NEAR_POSE_S`` from every pose, put on the poses' track (:func:`pose_offset`), in time
+    ``WALK_FAR_S`` from every pose, put on the poses' track (:func:`pose_offset`), in time
     order; ``None`` where the walk gives none (no walking near a pose, or none away from one).
-    Near a pose its own tie is the better one (the heading has had no time to drift; a walk's
-    carries the hip's rotation swinging from window to window: on simulated 60-s walks that cost
-    up to 1° of hip rotation), farther away the walk's (its error does not grow)."""
+    Near a pose its own tie is the better one (the heading has had little time to drift; a
+    walk's carries the hip's rotation swinging from window to window: used from 30 s on, they
+    cost up to 1° of hip rotation on simulated 60-s walks and 0.25° on average on 74-s ones),
+    farther away the walk's (its error does not grow). ``WALK_FAR_S`` is half the time the
+    grades trust a pose's tie for (``grades.HEADING_HOLD_S``): a walk is never farther from an
+    anchor than that."""
     pose_times, pose_deltas = np.asarray(pose_times, float), np.asarray(pose_deltas, float)
     offset = pose_offset(pose_times, pose_deltas, times, deltas)
     if offset is None:
         return None
-    far = np.min(np.abs(times[:, None] - pose_times[None, :]), axis=1) > WALK_NEAR_POSE_S
+    far = np.min(np.abs(times[:, None] - pose_times[None, :]), axis=1) > WALK_FAR_S
     if not far.any():
         return None
     all_times = np.concatenate([pose_times, times[far]])
