@@ -81,6 +81,7 @@ def test_a_short_walk_has_no_course(minutes):
 def test_a_long_walk_gets_its_course_table_and_csv_a_short_one_does_not():
     from motionlab.kinematics.spatiotemporal import summary
     from motionlab.protocol import load_protocol
+    from motionlab.report.console import _gait_line
     from motionlab.report.csv import gait_frames
     from motionlab.report.model import SessionView
     from motionlab.results import Gait
@@ -90,8 +91,11 @@ def test_a_long_walk_gets_its_course_table_and_csv_a_short_one_does_not():
         strides = _strides(minutes, 0.02)
         session = Session()
         session.results.gait = Gait("ok", strides=strides, summary=summary(strides.frame()))
-        frames = gait_frames(SessionView(session, load_protocol("walk"), None, {}, None))
+        view = SessionView(session, load_protocol("walk"), None, {}, None)
+        frames = gait_frames(view)
         assert ("spatiotemporal_course.csv" in frames) is expected
+        line = _gait_line(view)  # the run's summary line says it too
+        assert ("first to last 1 min of the walk: cadence -" in line) is expected
         if expected:
             course = frames["spatiotemporal_course.csv"]
             change = course[(course["part"] == "change")].set_index("parameter")

@@ -8,6 +8,9 @@ from __future__ import annotations
 import textwrap
 from typing import TYPE_CHECKING
 
+import numpy as np
+
+from motionlab.kinematics.gait_course import walk_course
 from motionlab.report.model import (
     angle_grades,
     calibration_rows,
@@ -22,6 +25,7 @@ from motionlab.report.sentences import findings, missing_lines, span, task_name
 if TYPE_CHECKING:
     from motionlab.report import ReportOutput
     from motionlab.report.model import SessionView
+    from motionlab.results import Gait
 
 
 def grade_lines(view: SessionView, width: int = 100) -> list[str]:
@@ -179,5 +183,24 @@ def _gait_line(view: SessionView) -> str:
         f"{number('cadence_steps_per_min', s.cadence_steps_per_min, '{:.1f} steps/min')}, "
         "step-time asymmetry "
         f"{number('step_time_asymmetry_pct', s.step_time_asymmetry_pct, '{:.1f} %')}"
-        f"{speed_text}; {gps_text}"
+        f"{speed_text}; {gps_text}{_course_text(gait)}"
     )
+
+
+def _course_text(gait: Gait) -> str:
+    """For a long walk, its change from the first part to the last (:mod:`motionlab.kinematics.
+    gait_course`): cadence, and speed where measured, each ± its 95 % interval."""
+    course = walk_course(gait.strides)
+    if course is None:
+        return ""
+    minutes = (course.parts[0].end_s - course.parts[0].start_s) / 60.0
+    shown = (("cadence_steps_per_min", "cadence", "steps/min", 1),
+             ("walking_speed_m_s", "speed", "m/s", 2))  # fmt: skip
+    changes = [
+        f"{name} {round(course.change[c], d) + 0.0:+.{d}f} ± {course.change_ci[c]:.{d}f} {unit}"
+        for c, name, unit, d in shown
+        if np.isfinite(course.change[c])
+    ]
+    if not changes:
+        return ""
+    return f"; first to last {minutes:.0f} min of the walk: " + ", ".join(changes)
