@@ -95,6 +95,36 @@ def test_a_gap_that_may_hide_a_turn_grades_the_hip_not_the_knee(walk):
             assert "fewer packets are lost" in remedy
 
 
+def test_a_long_gap_between_walk_anchors_is_taken_out_by_them(walk):
+    """An 8-s gap with the walk's anchors up to its first lost sample and from its end: they
+    tie the heading on both sides, so the turn it hid is not kept (the bracket is measured from
+    the gap's start, not from the sample after it, which an 8-s gap puts 8 s later)."""
+    from motionlab.timebase import take
+
+    session, proto = walk
+    s = copy.deepcopy(session)
+    stream = s.sensors["thigh_l"]
+    s.sensors["thigh_l"] = take(
+        stream, np.flatnonzero((stream.time < 10.0) | (stream.time > 18.15))
+    )
+    s.results.fusion["thigh_l"] = dataclasses.replace(
+        s.results.fusion["thigh_l"], gaps_missed_deg=[[18.151, 400.0]]
+    )
+    cal = session.results.calibration
+
+    def tied(anchors: np.ndarray) -> dict:
+        tie = HeadingTie("walk", anchors, np.zeros(len(anchors)))
+        return gap_headings(s, proto, dataclasses.replace(
+            cal.headings, joints={**cal.headings.joints, "hip_l": tie}))  # fmt: skip
+
+    walked = tied(np.r_[np.arange(5.0, 10.0), np.arange(19.0, 28.0)]).get("hip_l")
+    assert walked is None or walked.time_s != 18.151
+    far = tied(np.r_[np.arange(2.0, 4.0), np.arange(19.0, 28.0)])  # none in the 5 s before it
+    assert far["hip_l"].turn_deg == 400.0
+    graded = grades.gap_graded(cal.grades, {"hip_l": GapTurn(400.0, "thigh_l", 18.151)})
+    assert "a turn of any size (over 180°)" in graded["hip_l"].reasons[0]
+
+
 @needs_shared
 @pytest.mark.skipif(not QMT.is_file(), reason="the qmt full-body recording is not in ../shared")
 def test_a_real_walk_with_lost_packets_does_not_call_its_hips_determined():

@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from motionlab.kinematics.gait_course import walk_course
+from motionlab.kinematics.gait_course import change_text, walk_courses
 from motionlab.report.model import (
     angle_grades,
     calibration_rows,
@@ -188,19 +188,19 @@ def _gait_line(view: SessionView) -> str:
 
 
 def _course_text(gait: Gait) -> str:
-    """For a long walk, its change from the first part to the last (:mod:`motionlab.kinematics.
-    gait_course`): cadence, and speed where measured, each ± its 95 % interval."""
-    course = walk_course(gait.strides)
-    if course is None:
-        return ""
-    minutes = (course.parts[0].end_s - course.parts[0].start_s) / 60.0
-    shown = (("cadence_steps_per_min", "cadence", "steps/min", 1),
-             ("walking_speed_m_s", "speed", "m/s", 2))  # fmt: skip
-    changes = [
-        f"{name} {round(course.change[c], d) + 0.0:+.{d}f} ± {course.change_ci[c]:.{d}f} {unit}"
-        for c, name, unit, d in shown
-        if np.isfinite(course.change[c])
-    ]
-    if not changes:
-        return ""
-    return f"; first to last {minutes:.0f} min of the walk: " + ", ".join(changes)
+    """For each long walk, its change from the first part to the last
+    (:mod:`motionlab.kinematics.gait_course`): cadence, and speed where measured, each ± its
+    95 % interval, or why not."""
+    out = []
+    for course in walk_courses(gait):
+        minutes = (course.parts[0].end_s - course.parts[0].start_s) / 60.0
+        where = f"; {task_name(course.task)}, first to last {minutes:.1f} min: "
+        if course.withheld:
+            out.append(where + f"no change given ({course.withheld})")
+            continue
+        shown = (("cadence_steps_per_min", "cadence", "steps/min"), ("walking_speed_m_s", "speed",
+                 "m/s"))  # fmt: skip
+        out.append(where + ", ".join(
+            f"{name} {change_text(course, c)} {unit}" for c, name, unit in shown
+            if np.isfinite(course.change[c])))  # fmt: skip
+    return "".join(out)

@@ -31,7 +31,7 @@ import pandas as pd
 
 from motionlab.atomic import atomic_path, check_output
 from motionlab.errors import InputError
-from motionlab.kinematics.gait_course import walk_course
+from motionlab.kinematics.gait_course import walk_courses
 from motionlab.kinematics.joint_types import angle_columns
 from motionlab.kinematics.spatiotemporal import STRIDE_COLUMNS, summary_rows
 from motionlab.report.model import (
@@ -280,9 +280,9 @@ def gait_frames(view: SessionView) -> dict[str, pd.DataFrame]:
         "spatiotemporal.csv": strides,
         "spatiotemporal_summary.csv": summary_rows(g.summary),
     }
-    course = walk_course(g.strides)
-    if course is not None:  # a walk of 3 min or more, part by part
-        out["spatiotemporal_course.csv"] = course.rows()
+    courses = walk_courses(g)
+    if courses:  # a walk of 3 min or more, part by part
+        out["spatiotemporal_course.csv"] = pd.concat([c.rows() for c in courses])
     return out
 
 

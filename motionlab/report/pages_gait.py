@@ -17,7 +17,7 @@ import numpy as np
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
-from motionlab.kinematics.gait_course import WalkCourse, walk_course
+from motionlab.kinematics.gait_course import DIGITS, WalkCourse, change_text, walk_courses
 from motionlab.kinematics.gps import VARIABLES, normative, variable_grades
 from motionlab.kinematics.spatiotemporal import (
     MIN_STRIDES,
@@ -28,6 +28,7 @@ from motionlab.kinematics.spatiotemporal import (
 from motionlab.report.model import SIDE_NAMES, SessionView, gait_profile, gait_result
 from motionlab.report.normative import gait_bands
 from motionlab.report.pdf import BAND_COLOUR, MUTED, SIDE_COLOUR, SIZE, Document
+from motionlab.report.sentences import task_name
 from motionlab.results import Gait, GaitSummary, MovementProfile, StrideStats
 
 _LABELS = {
@@ -162,42 +163,40 @@ def gait_pages(doc: Document, view: SessionView) -> None:
     doc.paragraph(
         "Bands: " + gait_bands()["spatiotemporal_source"], size=SIZE["small"], colour=MUTED
     )
-    course = walk_course(g.strides)
-    if course is not None:
+    for course in walk_courses(g):
         _course_table(doc, course)
     _map_chart(doc, gait_profile(view) or g.map)
 
 
 #: the walk's course shown per part (units in the header)
 _COURSE_HEADER = {
-    "cadence_steps_per_min": ("cadence", 1),
-    "stride_time_s": ("stride (s)", 2),
-    "walking_speed_m_s": ("speed (m/s)*", 2),
-    "stance_pct": ("stance (%)", 1),
+    "cadence_steps_per_min": "cadence",
+    "stride_time_s": "stride (s)",
+    "walking_speed_m_s": "speed (m/s)*",
+    "stance_pct": "stance (%)",
 }
 
 
 def _course_table(doc: Document, course: WalkCourse) -> None:
     """A long walk part by part (:mod:`motionlab.kinematics.gait_course`), both sides pooled,
     and the change from the first part to the last with its 95 % interval."""
-    doc.heading("Over the walk")
+    doc.heading(f"Over the walk: {task_name(course.task)}")
     doc.paragraph(
-        "Kept strides of both legs, part by part: mean ± standard error (dash: fewer than "
-        f"{MIN_STRIDES} strides). Last row: the last part less the first, ± its 95 % interval; "
-        "a change within its interval is none the recording can show. Speed is read with the "
-        "same leg model throughout, so its change is better known than its level.",
+        "Kept strides of both legs in equal parts from the first to the last (time on the "
+        f"recording's clock): mean ± standard error (dash: fewer than {MIN_STRIDES} strides). "
+        "Last row: the last part less the first, ± its 95 % interval; a change within its "
+        "interval is none the recording can show. Speed is read with the same leg model "
+        "throughout, so its change is better known than its level."
+        + (f" No change is given: {course.withheld}." if course.withheld else ""),
         size=SIZE["small"],
     )
     rows = []
     for p in course.parts:
-        cells = [f"{p.mean[c]:.{d}f} ± {p.se[c]:.{d}f}" if np.isfinite(p.mean[c]) else "-"
-                 for c, (_, d) in _COURSE_HEADER.items()]  # fmt: skip
-        rows.append([f"{p.start_s / 60:.0f}-{p.end_s / 60:.0f} min", str(p.strides), *cells])
-    change = [f"{round(course.change[c], d) + 0.0:+.{d}f} ± {course.change_ci[c]:.{d}f}"
-              if np.isfinite(course.change[c]) else "-"
-              for c, (_, d) in _COURSE_HEADER.items()]  # fmt: skip
-    rows.append(["change", "", *change])
-    header = ["part", "strides", *(h for h, _ in _COURSE_HEADER.values())]
+        cells = [f"{p.mean[c]:.{DIGITS[c]}f} ± {p.se[c]:.{DIGITS[c]}f}"
+                 if np.isfinite(p.mean[c]) else "-" for c in _COURSE_HEADER]  # fmt: skip
+        rows.append([p.label, str(p.strides), *cells])
+    rows.append(["change", "", *(change_text(course, c) for c in _COURSE_HEADER)])
+    header = ["part", "strides", *_COURSE_HEADER.values()]
     doc.table(header, rows, [0.16, 0.1, 0.185, 0.185, 0.185, 0.185])
 
 

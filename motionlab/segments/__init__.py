@@ -170,7 +170,8 @@ def gap_headings(
     rest``), the largest turn a packet-loss gap of either sensor may have hidden after the
     first anchor (the fusion's ``gaps_missed_deg``: what the gap's bridge misses on test gaps
     around it, :func:`motionlab.fusion.timegrid.gap_noise`), unless a walk's anchors lie within
-    ``GAP_BRACKET_S`` on both sides of it; joints with none are left out. In 6-D nothing
+    ``GAP_BRACKET_S`` before the gap's first lost sample and after its last; joints with none
+    are left out. In 6-D nothing
     measures that turn about the vertical where it happens: the hinge ties of a knee, and a
     walk's ties around the gap, take it out within seconds; a pose's hold it from the gap on,
     and a later pose's only spread it over the time between the two (the track is linear
@@ -192,8 +193,10 @@ def gap_headings(
         for seg in (joint.proximal, joint.distal):
             label = sensor_for_segment(session, seg)
             entry = session.results.fusion.get(label) if label is not None else None
-            for t, deg in _gap_turns(entry, label):
-                before = np.any((walking < t) & (walking >= t - GAP_BRACKET_S))
+            stamps = session.sensors[label].time if label in session.sensors else np.empty(0)
+            for t, deg in _gap_turns(entry, label):  # t: the first sample after the gap
+                begins = stamps[max(int(np.searchsorted(stamps, t)) - 1, 0)] if len(stamps) else t
+                before = np.any((walking < begins) & (walking >= begins - GAP_BRACKET_S))
                 after = np.any((walking > t) & (walking <= t + GAP_BRACKET_S))
                 if t > first and not (before and after) and (worst is None or deg > worst.turn_deg):
                     worst = GapTurn(float(deg), label, float(t))

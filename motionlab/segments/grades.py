@@ -290,9 +290,10 @@ def gap_graded(graded: dict[str, JointGrades], gap_turns: dict) -> dict[str, Joi
         if name not in out or gap.turn_deg <= GAP_TURN_DEG:
             continue
         g_gap = "weak" if gap.turn_deg <= 2 * GAP_TURN_DEG else "not determined"
+        turn = f"{gap.turn_deg:.0f}°" if gap.turn_deg <= 180 else "any size (over 180°)"
         why = (f"a packet-loss gap in {gap.sensor} at {gap.time_s:.1f} s may have hidden a turn "
-               f"of {gap.turn_deg:.0f}°, which the joint's heading, tied only where a pose was "
-               "held, keeps from then on")  # fmt: skip
+               f"of {turn}, which the joint's heading, tied only where a pose was held or the "
+               "walk went straight, keeps until its next anchor")  # fmt: skip
         out[name] = _lowered(out[name], [g_gap] * len(out[name].grades), why)
     return out
 
