@@ -167,7 +167,8 @@ def joint_clocks(session, truth, stamps: dict, protocol: Protocol) -> dict:
 
 
 def errors(table: dict, truth, clocks: dict, protocol: Protocol, tasks: list) -> dict:
-    """Per column: the error samples (deg) over the task blocks.
+    """Per column: the error samples (deg) over the task blocks, where an angle is given (none
+    inside a sensor's packet-loss gap, :func:`motionlab.kinematics.session_angles.in_gaps`).
 
     Each joint's angles are read on its proximal sensor's clock (``clocks[joint]``: session
     time → true time), so the truth is read at the true instants its sensors sampled: a joint
@@ -184,7 +185,7 @@ def errors(table: dict, truth, clocks: dict, protocol: Protocol, tasks: list) ->
         for t0, t1 in tasks:
             inside |= (true_time >= t0) & (true_time <= t1)
         ref = np.interp(true_time, truth.time, truth.joint_angles[col])
-        out[col] = (values - ref)[inside]
+        out[col] = (values - ref)[inside & np.isfinite(values)]  # none inside packet losses
     return out
 
 

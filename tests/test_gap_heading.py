@@ -60,6 +60,21 @@ def test_the_fusion_stores_what_each_gap_may_have_missed(walk, tmp_path):
     )
 
 
+def test_no_angle_inside_a_sensors_gap(walk):
+    """Inside the left thigh's 0.15-s gap its joints (left hip and knee) have no angles: the
+    thigh recorded nothing there (an 8-s gap had given 25-77° wrong knee angles, slerped
+    across it); the right leg's stay."""
+    session, _ = walk
+    table = session.results.angles.columns()
+    t = table["time_s"]
+    inside = (t > 18.01) & (t < 18.14)
+    around = ((t > 17.8) & (t < 17.95)) | ((t > 18.2) & (t < 18.35))
+    assert inside.sum() >= 10
+    for column in ("knee_l_flexion_deg", "hip_l_flexion_deg"):
+        assert np.isnan(table[column][inside]).all() and np.isfinite(table[column][around]).all()
+    assert np.isfinite(table["knee_r_flexion_deg"][inside]).all()
+
+
 def test_a_gap_that_may_hide_a_turn_grades_the_hip_not_the_knee(walk):
     """The same walk with the gap's bridge said to miss 35° (as on a real walk's thigh): the
     left hip, tied at the stand only (its 20-s walk lies within 30 s of it: no walk ties), is not

@@ -260,7 +260,9 @@ def test_elbow_forearm_frame_keeps_the_carrying_angle(elbow):
     standing = (table["time_s"] > 6) & (table["time_s"] < 8)
     assert table["elbow_r_carrying_deg"][standing].mean() == pytest.approx(10.0, abs=1.5)
     ref = np.interp(table["time_s"], truth.time, truth.joint_angles["elbow_r_flexion_deg"])
-    assert np.sqrt(np.mean((table["elbow_r_flexion_deg"] - ref) ** 2)) < 1.0
+    error = table["elbow_r_flexion_deg"] - ref
+    assert np.isnan(error).mean() < 0.05  # none inside the simulated packet losses
+    assert np.sqrt(np.nanmean(error**2)) < 1.0
 
 
 def test_truth_angles_match_decomposition(elbow):

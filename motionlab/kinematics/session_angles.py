@@ -9,12 +9,15 @@ segment's heading relative to its neighbour, and an uncalibrated magnetometer on
 docs/kinematics.md).
 A segment's sensor is the one whose ``segment`` attribute names it (set by ``ingest --map``), else
 the sensor labelled like the segment. Every joint is resampled onto one time base: the time of
-the first joint's proximal sensor, cut to the span all sensors cover.
+the first joint's proximal sensor, cut to the span all sensors cover; inside a packet-loss gap
+of either of a joint's sensors (:func:`in_gaps`) its angles are NaN.
 """
 
 from __future__ import annotations
 
 from typing import Any
+
+import numpy as np
 
 from motionlab import rotations as rot
 from motionlab.kinematics.joint_angles import joint_angles
@@ -24,6 +27,11 @@ from motionlab.segments import segment_orientations
 from motionlab.segments.hip_axis import apply_turn
 from motionlab.segments.sensors import SegmentQuats, sensor_quats
 from motionlab.session import Session
+from motionlab.timebase import find_gaps
+
+#: a sensor's gap longer than this (s; ingest's default ``--gap-max`` fills shorter ones) has no
+#: angles of its joints inside it
+ANGLE_GAP_S = 0.1
 
 
 def nominal_calibration(protocol: Protocol, steps: dict[str, Any]) -> SegmentCalibration:
@@ -76,8 +84,24 @@ def angle_table(
         axis = calibration.hip_axes.get(joint.name) if calibration is not None else None
         if axis is not None and axis.used:
             qd = apply_turn(qp, qd, float(axis.turn_deg))
-        out.update(joint_angles(qp, qd, joint))
+        lost = in_gaps(seg_q[joint.proximal][0], t) | in_gaps(seg_q[joint.distal][0], t)
+        for column, values in joint_angles(qp, qd, joint).items():
+            out[column] = np.where(lost, np.nan, values)
     return out
+
+
+def in_gaps(stamps: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """(N,) bool: the instants ``t`` (s) that fall inside a gap of a sensor's ``stamps`` longer
+    than ``ANGLE_GAP_S`` (and 1.5 sampling intervals): packet losses that ingest kept as gaps,
+    where the sensor recorded nothing and an angle would be the fusion's bridge or an
+    interpolation across the gap, not a measurement."""
+    if len(stamps) < 2:
+        return np.zeros(len(t), bool)
+    big = np.zeros(len(stamps), bool)  # interval i (stamps[i] to stamps[i + 1]) is a gap
+    gaps = find_gaps(stamps)
+    big[gaps[np.diff(stamps)[gaps] > ANGLE_GAP_S]] = True
+    i = np.clip(np.searchsorted(stamps, t, side="right") - 1, 0, len(stamps) - 1)
+    return big[i] & (t > stamps[i]) & (t < stamps[np.minimum(i + 1, len(stamps) - 1)])
 
 
 def session_angles(
