@@ -187,6 +187,13 @@ def _gait_line(view: SessionView) -> str:
     )
 
 
+#: what the summary line says of a long walk's change: (column, name, unit)
+_COURSE_SHOWN = (
+    ("cadence_steps_per_min", "cadence", "steps/min"),
+    ("walking_speed_m_s", "speed", "m/s"),
+)
+
+
 def _course_text(gait: Gait) -> str:
     """For each long walk, its change from the first part to the last
     (:mod:`motionlab.kinematics.gait_course`): cadence, and speed where measured, each ± its
@@ -198,9 +205,10 @@ def _course_text(gait: Gait) -> str:
         if course.withheld:
             out.append(where + f"no change given ({course.withheld})")
             continue
-        shown = (("cadence_steps_per_min", "cadence", "steps/min"), ("walking_speed_m_s", "speed",
-                 "m/s"))  # fmt: skip
-        out.append(where + ", ".join(
-            f"{name} {change_text(course, c)} {unit}" for c, name, unit in shown
-            if np.isfinite(course.change[c])))  # fmt: skip
+        changes = [
+            f"{name} {change_text(course, c)} {unit}"
+            for c, name, unit in _COURSE_SHOWN
+            if np.isfinite(course.change[c])
+        ]
+        out.append(where + ", ".join(changes))
     return "".join(out)

@@ -118,15 +118,14 @@ def calibrate_segments(
         if fit.verdict != "determined" and fit.used_for == "axes":
             joint = protocol.joints[name]
             for seg in (joint.proximal, joint.distal):
-                used = any(r.step == f"movement:{name}" for r in segments[seg].axes.values())
                 # a fit not determined stands in for a hint that says nothing (fills_hint)
-                also = "; the frame takes it all the same: its placement hint says nothing"
+                used = any(r.step == f"movement:{name}" for r in segments[seg].axes.values())
                 _flag(
                     segments,
                     seg,
                     f"{seg}: the {name} axis from the movement is {fit.verdict}: "
                     + ("; ".join(fit.reasons) or "see the calibration page")
-                    + (also if used and fit.verdict == "not determined" else ""),
+                    + (STANDS_IN if used and fit.verdict == "not determined" else ""),
                 )
     if warnings is not None:
         warnings.extend(notes)
@@ -151,6 +150,8 @@ def calibrate_segments(
     return result
 
 
+#: what a segment's flag adds when a fit not determined gave its frame the axes all the same
+STANDS_IN = "; the frame takes it all the same: its placement hint says nothing"
 #: heading ties anchored only where a pose was held (the stand, later rests in it, a single
 #: pose) or, a hip's, where the walk went straight: the heading drifts freely in between, and a
 #: turn about the vertical that a packet-loss gap hid stays until the next anchor
@@ -171,12 +172,11 @@ def gap_headings(
     first anchor (the fusion's ``gaps_missed_deg``: what the gap's bridge misses on test gaps
     around it, :func:`motionlab.fusion.timegrid.gap_noise`), unless a walk's anchors lie within
     ``GAP_BRACKET_S`` before the gap's first lost sample and after its last; joints with none
-    are left out. In 6-D nothing
-    measures that turn about the vertical where it happens: the hinge ties of a knee, and a
-    walk's ties around the gap, take it out within seconds; a pose's hold it from the gap on,
-    and a later pose's only spread it over the time between the two (the track is linear
-    between anchors). A stored list that is not finite ``[s, deg]`` pairs is an
-    :class:`InputError` naming it."""
+    are left out. In 6-D nothing measures that turn about the vertical where it happens: the
+    hinge ties of a knee, and a walk's ties around the gap, take it out within seconds; a
+    pose's hold it from the gap on, and a later pose's only spread it over the time between
+    the two (the track is linear between anchors). A stored list that is not finite
+    ``[s, deg]`` pairs is an :class:`InputError` naming it."""
     anchored = {name: (tie.times, tie.source) for name, tie in ties.joints.items()
                 if tie.source in HELD_TIES}  # fmt: skip
     anchored |= {name: (c.heading_times, "trunk rest") for name, c in (centres or {}).items()
