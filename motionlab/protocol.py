@@ -59,6 +59,8 @@ A protocol is a YAML file (``protocols/*.yaml``; copy one and edit it). Schema::
         distal: upperarm_r
     tasks:                              # blocks of the recording after calibration
       - {name: gait, kind: gait, duration_s: 30}   # optional time_range: [95.0, 150.0] (s)
+      - {name: sitting, kind: static, duration_s: 60}  # a pose held still (static, posture,
+                                                        # rest): found as a rest, not a movement
     normative:                          # normal ranges per task and angle column, degrees;
                                         # a column without side (knee_flexion_deg) means both
       gait: {knee_flexion_deg: [0, 65]}
@@ -162,6 +164,10 @@ class Joint:
     axis: str | None = None
 
 
+#: task kinds that are a pose held still (:attr:`Task.is_pose`)
+POSE_TASK_KINDS = ("static", "posture", "rest")
+
+
 @dataclass
 class Task:
     name: str
@@ -175,6 +181,12 @@ class Task:
     def is_gait(self) -> bool:
         """Whether the task is walking (its kind says ``gait`` or ``walk``)."""
         return "gait" in self.kind.lower() or "walk" in self.kind.lower()
+
+    @property
+    def is_pose(self) -> bool:
+        """Whether the task is a pose held still (kind ``static``, ``posture`` or ``rest``: quiet
+        sitting or standing), found as a rest block rather than a movement."""
+        return self.kind.lower() in POSE_TASK_KINDS
 
 
 @dataclass

@@ -224,3 +224,40 @@ def test_a_nan_span_in_one_sensor_does_not_hide_the_rests_and_movements():
     found = blocks(streams)
     assert [b.moving for b in found if b.end - b.start > 1.0] == [False, True, False]
     assert np.allclose(found[0].up["thigh_r"], [0.0, 1.0, 0.0])
+
+
+def _walk_sit_walk_protocol(tmp_path, sit_s: float):
+    """The shipped ``walk`` protocol with three tasks: walk, sit still ``sit_s`` s, walk."""
+    text = load_protocol("walk").path.read_text()
+    text = text.replace(
+        "tasks:\n",
+        "tasks:\n"
+        "  - {name: walk_before, kind: gait, duration_s: 20}\n"
+        f"  - {{name: sitting, kind: static, duration_s: {sit_s}}}\n",
+        1,
+    ).replace("name: walk\n", "name: walk_sit_walk\n", 1)
+    path = tmp_path / "walk_sit_walk.yaml"
+    path.write_text(text)
+    return load_protocol(path)
+
+
+def test_a_held_task_takes_the_rest_and_the_moves_around_it_stay_apart(tmp_path):
+    """Stand 0-5 s, walk 5-25 s, sit down 28-29.5 s (a short move), sit still 29.5-90 s,
+    get up and walk 90-120 s: the sitting task is the long rest (its middle), not the short
+    move of sitting down, and each walk is its own movement block."""
+    t = np.arange(0, 125, 1 / RATE)
+    rate = movement(t, 5.0, 16, 1.2, 0.05, 2.0)[0] + movement(t, 90.0, 24, 1.2, 0.05, 2.0)[0]
+    rate += movement(t, 28.0, 1, 1.5, 0.0, 1.0)[0]
+    streams = {
+        seg: (t, np.tile([0.0, 9.81, 0.0], (len(t), 1)), rate[:, None] * [0.0, 0.0, 1.0])
+        for seg in ("pelvis", "thigh_r", "thigh_l", "shank_r", "shank_l")
+    }
+    protocol = _walk_sit_walk_protocol(tmp_path, 60)
+    tasks = find_tasks(streams, protocol, after_s=4.0)
+    assert list(tasks) == ["walk_before", "sitting", "walk"]
+    assert abs(tasks["walk_before"][0] - 5.0) < 0.5 and abs(tasks["walk_before"][1] - 25.0) < 0.5
+    assert 29.5 <= tasks["sitting"][0] < 30.5 and 88.5 < tasks["sitting"][1] <= 90.0
+    assert abs(tasks["walk"][0] - 90.0) < 0.5
+    with pytest.raises(InputError) as err:  # a held task longer than any rest
+        find_tasks(streams, _walk_sit_walk_protocol(tmp_path, 200), after_s=4.0)
+    assert "found no rest of at least 100.0 s for the held task 'sitting'" in err.value.line()

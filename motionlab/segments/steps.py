@@ -36,10 +36,10 @@ chosen one also fits the step, moves no other segment, fits no later step and tu
 same axis (within ``SAME_AXIS_DEG``), and both last about the step's duration (0.5-2×), e.g. a
 movement done twice.
 
-Task blocks (:func:`find_tasks`) are the movement blocks after the last calibration step,
-matched to the protocol's tasks in order (moves shorter than ``MIN_TASK_S`` left out and blocks
-joined across the shortest rests while there are more blocks than tasks); a task's
-``time_range`` overrides detection.
+Task blocks (:func:`find_tasks`) are the blocks after the last calibration step, matched to the
+protocol's tasks in order: a task held still takes a long enough rest, the others the movement
+blocks (moves shorter than ``MIN_TASK_S`` left out and blocks joined across the shortest rests
+while there are more blocks than tasks); a task's ``time_range`` overrides detection.
 """
 
 from __future__ import annotations
@@ -535,13 +535,17 @@ def find_tasks(
     after_s: float = -np.inf,
     suggest: bool = True,
 ) -> dict[str, tuple[float, float]]:
-    """Time range (s) of each protocol task: movement blocks after ``after_s``, in order.
+    """Time range (s) of each protocol task: blocks after ``after_s``, in order.
 
-    With more blocks than tasks, moves shorter than ``MIN_TASK_S`` are left out, then the two
-    blocks separated by the shortest rest are joined until the counts agree. Tasks with a
-    ``time_range`` keep it and the blocks overlapping it are left out. Too few blocks are an
-    :class:`InputError` naming what the recording holds and (``suggest``) a shipped protocol
-    that fits it.
+    A task held still (:attr:`~motionlab.protocol.Task.is_pose`: quiet sitting or standing)
+    takes the middle of the first rest after the tasks before it that lasts at least half its
+    ``duration_s`` (at least ``SHORTEST_POSE_S``) and leaves a movement block before it for
+    each movement task between it and the previous pose. The movement tasks between two poses
+    take the movement blocks between them: with more blocks than tasks, moves shorter than
+    ``MIN_TASK_S`` are left out, then the two blocks separated by the shortest rest are joined
+    until the counts agree. Tasks with a ``time_range`` keep it and the blocks overlapping it
+    are left out. Too few blocks are an :class:`InputError` naming what the recording holds
+    and (``suggest``) a shipped protocol that fits it.
     """
     fixed = {t.name: t.time_range for t in protocol.tasks if t.time_range is not None}
     todo = [t for t in protocol.tasks if t.time_range is None]
@@ -549,46 +553,94 @@ def find_tasks(
         return {t.name: fixed[t.name] for t in protocol.tasks}
 
     def free(b: Block) -> bool:
-        return (
-            b.moving
-            and b.start >= after_s
-            and not any(b.start < r[1] and b.end > r[0] for r in fixed.values())
+        return b.start >= after_s and not any(
+            b.start < r[1] and b.end > r[0] for r in fixed.values()
         )
 
     found_blocks = blocks(streams)
-    merged = [[b.start, b.end] for b in found_blocks if free(b)]
-    if len(merged) > len(todo):  # short moves between tasks: getting up, sitting down
+    usable = [b for b in found_blocks if free(b)]
+    found: dict[str, tuple[float, float]] = {}
+    cursor, i = -np.inf, 0
+    while i < len(todo):
+        j = next((k for k in range(i, len(todo)) if todo[k].is_pose), len(todo))
+        moves = todo[i:j]
+        until = np.inf
+        if j < len(todo):  # the pose ends this run of movement tasks
+            rest = _pose_rest(usable, todo[j], cursor, len(moves))
+            if rest is None:
+                _too_few(found_blocks, protocol, streams, [todo[j]], suggest, pose=True)
+            until = rest.start
+            found[todo[j].name] = _pose_span(rest)
+        if moves:
+            spans = [[b.start, b.end] for b in usable if b.moving and cursor <= b.start < until]
+            merged = _joined(spans, len(moves))
+            if len(merged) < len(moves):
+                _too_few(found_blocks, protocol, streams, moves, suggest, found=len(merged))
+            found.update(zip((t.name for t in moves), map(tuple, merged), strict=True))
+        if j < len(todo):
+            cursor = rest.end
+        i = j + 1
+    return {t.name: found.get(t.name) or fixed[t.name] for t in protocol.tasks}
+
+
+def _pose_rest(usable: list[Block], task, after: float, moves_before: int) -> Block | None:
+    """The first rest after ``after`` (s) long enough for pose ``task`` with at least
+    ``moves_before`` movement blocks between ``after`` and it."""
+    shortest = max(SHORTEST_POSE_S, 0.5 * task.duration_s)
+    seen = 0
+    for b in usable:
+        if b.start < after:
+            continue
+        if b.moving:
+            seen += 1
+        elif b.end - b.start >= shortest and seen >= moves_before:
+            return b
+    return None
+
+
+def _joined(merged: list[list[float]], wanted: int) -> list[list[float]]:
+    """Movement spans ``[start, end]`` cut down to ``wanted``: moves under ``MIN_TASK_S`` left
+    out when enough are longer, then neighbours across the shortest rest joined."""
+    if len(merged) > wanted:  # short moves between tasks: getting up, sitting down
         long = [m for m in merged if m[1] - m[0] >= MIN_TASK_S]
-        merged = long if len(long) >= len(todo) else merged
-    while len(merged) > len(todo):
+        merged = long if len(long) >= wanted else merged
+    while len(merged) > wanted:
         gaps = [merged[i + 1][0] - merged[i][1] for i in range(len(merged) - 1)]
         i = int(np.argmin(gaps))
         merged[i : i + 2] = [[merged[i][0], merged[i + 1][1]]]
-    if len(merged) < len(todo):
-        names = ", ".join(t.name for t in todo)
+    return merged
+
+
+def _too_few(found_blocks, protocol, streams, tasks, suggest, found=0, pose=False) -> None:
+    """Refuse: the recording holds ``found`` movement blocks for ``tasks`` (with ``pose``, no
+    rest for the held task ``tasks[0]``)."""
+    names = ", ".join(t.name for t in tasks)
+    remedy = (
+        "record the task after the calibration, pausing a few seconds between tasks, or "
+        "give each task's time_range"
+    )
+    fits = fitting_protocols(streams, protocol) if suggest else []
+    if not any(b.moving for b in found_blocks):  # a calibration pose on its own
         remedy = (
-            "record the task after the calibration, pausing a few seconds between tasks, or "
-            "give each task's time_range"
+            "the recording is one still pose with no movement to take angles from (a "
+            "calibration pose on its own, e.g. OpenSense's calibration trial): give the "
+            "recording of the movement, starting with this pose held still"
         )
-        fits = fitting_protocols(streams, protocol) if suggest else []
-        if not any(b.moving for b in found_blocks):  # a calibration pose on its own
-            remedy = (
-                "the recording is one still pose with no movement to take angles from (a "
-                "calibration pose on its own, e.g. OpenSense's calibration trial): give the "
-                "recording of the movement, starting with this pose held still"
-            )
-        elif fits:
-            shipped = " or ".join(map(repr, fits))
-            remedy = f"the shipped protocol {shipped} fits this recording; or {remedy}"
-        raise InputError(
-            f"found {len(merged)} movement block(s) after the calibration for {len(todo)} "
-            f"task(s) ({names}); {describe(found_blocks)}",
-            protocol.path,
-            "tasks",
-            remedy,
+    elif fits:
+        shipped = " or ".join(map(repr, fits))
+        remedy = f"the shipped protocol {shipped} fits this recording; or {remedy}"
+    if pose:
+        shortest = max(SHORTEST_POSE_S, 0.5 * tasks[0].duration_s)
+        what = (
+            f"found no rest of at least {shortest:.1f} s for the held task '{names}' after the "
+            "calibration and the tasks before it"
         )
-    found = dict(zip((t.name for t in todo), (tuple(m) for m in merged), strict=True))
-    return {t.name: found.get(t.name) or fixed[t.name] for t in protocol.tasks}
+    else:
+        what = (
+            f"found {found} movement block(s) after the calibration for {len(tasks)} "
+            f"task(s) ({names})"
+        )
+    raise InputError(f"{what}; {describe(found_blocks)}", protocol.path, "tasks", remedy)
 
 
 def reference_step(protocol: Protocol, proximal: str, distal: str) -> str | None:
