@@ -414,3 +414,24 @@ def test_a_one_leg_walk_reports_that_legs_numbers_and_says_what_needs_both(tmp_p
     assert "left: not enough steady strides" not in text
     page = text.split("Gait: spatio-temporal parameters and profile")[1]
     assert page.count("needs both legs") >= 5  # step time, double support, lengths, speed
+
+
+def test_lengths_without_a_height_say_not_measured_not_too_few_strides(tmp_path):
+    """A two-leg walk without the subject's height: the real 16-IMU walk's gait page said
+    "not enough steady strides (0 of 3 needed)" under step and stride length and speed beside
+    82 kept strides. Those cells now say the lengths were not measured (the note says why)."""
+    from motionlab.pipeline import PipelineOptions, analyse
+    from motionlab.report import load_view, write_report
+    from motionlab.simulate import simulate
+
+    session, _ = simulate("walk", 40.0, 0, "clean", rate_hz=50.0)
+    session.metadata.pop("subject", None)
+    analyse(session, PipelineOptions(protocol="walk", progress=False))
+    assert session.results.gait.summary.strides_kept >= 3
+    write_report([load_view(session)], tmp_path / "r.pdf")
+    text = " ".join((tmp_path / "r.txt").read_text().split())
+    page = text.split("Gait: spatio-temporal parameters and profile")[1]
+    for label in ("step length (m)*", "stride length (m)*", "walking speed (m/s)*"):
+        assert f"{label} not measured* not measured*" in page
+    assert "not enough steady strides" not in page
+    assert "Lengths and speed: not measured: no subject height_m" in page

@@ -52,6 +52,9 @@ _LABELS = {
 BOTH_LEGS = ("step_time_s", "double_support_pct", "step_length_m", "stride_length_m",
              "walking_speed_m_s")  # fmt: skip
 
+#: the stride-table columns that need the legs' lengths (the leg model)
+LENGTH_COLUMNS = ("step_length_m", "stride_length_m", "walking_speed_m_s")
+
 #: the uncertainty a value must exceed a band by to be flagged: 1.96 standard errors (95 %)
 Z95 = 1.96
 
@@ -122,6 +125,8 @@ def gait_pages(doc: Document, view: SessionView) -> None:
                       + ").", weight="bold")  # fmt: skip
     times = [summ.sides[k]["stride_time_s"].mean for k in ("r", "l")]
     stride = float(np.nanmean(times)) if np.isfinite(times).any() else np.nan
+    # without the legs' lengths (or a sensor) there is no length at all, however many strides
+    lengths_measured = not str(g.walking_speed or "").startswith("not measured")
     for c in STRIDE_COLUMNS:
         digits = 2 if c.endswith(("_s", "_m")) else 1
         r, left = summ.sides["r"][c], summ.sides["l"][c]
@@ -130,6 +135,8 @@ def gait_pages(doc: Document, view: SessionView) -> None:
                  for k, x in (("r", r), ("l", left))]  # fmt: skip
         if len(measured) == 1 and c in BOTH_LEGS:
             cells = ["needs both legs" if k in measured else "-" for k in ("r", "l")]
+        elif c in LENGTH_COLUMNS and not lengths_measured:  # the note under the table says why
+            cells = ["not measured*" if k in measured else "-" for k in ("r", "l")]
         rows.append([_LABELS[c], *cells, f"{band[0]:g}-{band[1]:g}" if band else "-"])
         flags.append([False] + [beyond(x.mean, np.nan if x.se is None else x.se, band,
                                        method_error(c, x.mean, stride)) for x in (r, left)]
