@@ -82,4 +82,4 @@ def summary_page(doc: Document, view: SessionView) -> None:
         if sensor and not sensor.serial:
             ident = sensor.label
         rows.append([name, ident, spec.placement or "-"])
-    doc.table(["Segment", "Sensor", "Placement"], rows, [0.14, 0.27, 0.59], align=["l"] * 3)
+    doc.table(["Segment", "Sensor", "Placement"], rows, [0.14, 0.2, 0.66], align=["l"] * 3)
