@@ -207,12 +207,43 @@ class ClockFit:
         return cls(**tree)
 
 
+#: the status of the fit of a part of the body's root sensor whose clock nothing tied to the
+#: root sensor's (no sensor joins the parts, no reliable heel-strike lag across them):
+#: ``not linked: <why>``; the part's own sensors are timed against that root
+NOT_LINKED = "not linked"
+
+
 @dataclass
 class ClockSync:
     """The clock sync stage: ``fits`` ``{sensor label: ClockFit}`` in the order they were
     made (each against its reference's corrected clock)."""
 
     fits: dict[str, ClockFit] = field(default_factory=dict)
+
+    def clock_of(self, label: str) -> str:
+        """The sensor whose clock ``label``'s stamps are on after the sync: its references
+        followed up to the root sensor, or to a part's root whose fit is :data:`NOT_LINKED`
+        (a sensor without a fit is on its own clock)."""
+        seen = {label}
+        fit = self.fits.get(label)
+        while fit is not None and not fit.status.startswith(NOT_LINKED):
+            label = fit.reference
+            if label in seen:  # no cycle in a stored result; stop rather than loop
+                break
+            seen.add(label)
+            fit = self.fits.get(label)
+        return label
+
+    def not_linked(self, labels: list[str]) -> str:
+        """Why the sensors ``labels`` are not all on one clock after the sync (``thigh_l: no
+        sensor joins it to ...``: the first part's root that no measurement tied to the
+        others'), or empty."""
+        clocks = sorted({self.clock_of(lab) for lab in labels})
+        if len(clocks) < 2:
+            return ""
+        why = [f"{c}: {self.fits[c].status.removeprefix(NOT_LINKED + ': ')}" for c in clocks
+               if c in self.fits]  # fmt: skip
+        return why[0] if why else f"{', '.join(clocks)} keep their own clocks, never compared"
 
     def to_tree(self) -> dict[str, Any]:
         """``{sensor: fit tree}``."""

@@ -32,7 +32,7 @@ either. The bench (``bench/joint_angles.py``) reports the accuracy reached per p
 from motionlab.clocksync.common import MAX_OFFSET_S
 from motionlab.clocksync.impacts import impact_clock
 from motionlab.clocksync.joint_centre import estimate_clock
-from motionlab.clocksync.pairs import sync_tree
+from motionlab.clocksync.pairs import sync_forest, sync_tree
 from motionlab.clocksync.stage import choose, describe, synchronise, unsynchronise
 from motionlab.results import ClockFit, ClockSync
 
@@ -44,6 +44,7 @@ __all__ = [
     "describe",
     "estimate_clock",
     "impact_clock",
+    "sync_forest",
     "sync_tree",
     "synchronise",
     "unsynchronise",

@@ -28,6 +28,15 @@ network :class:`ClockFit` is against the root sensor (``method`` ``network``) an
 correction at the recording's ends exceeds ``MIN_CORRECTION_S`` and its own standard error. A
 sensor that no reliable measurement ties to the others follows its tree parent's clock.
 
+*Parts of the body no sensor joins* (the legs without a pelvis sensor, :func:`.pairs.sync_forest`)
+are timed against each other only by the heel strikes across them, in the same network solve,
+and a part is taken onto the root's clock only when every one of its sensors is known there to
+``LINK_MAX_SE_S``; else it is solved on its own root's clock, whose fit says why it is
+:data:`~motionlab.results.NOT_LINKED`, and the gait numbers that compare the legs are withheld
+(:func:`motionlab.kinematics.gait.legs_not_linked`). Before, only the root's part was timed: a
+simulated 400-s walk without its pelvis sensor read 10.2 % step-time asymmetry (0.7 % now, and
+with the pelvis). Without heel strikes (the arms without a thorax sensor) each part is its own.
+
 *Clocks the vendor synchronised* (every sensor's ``attrs["vendor_clock_sync"]`` set by its
 reader, e.g. an Xsens DOT export's ``SyncStatus: Synced``): the fits are made as a check and
 none is applied (status :data:`VENDOR_KEPT`, the data's answer kept in the fit). The DOT app's
@@ -63,10 +72,10 @@ from motionlab.clocknet import CENTRE_FLOOR_S, IMPACTS, NETWORK, solve_network
 from motionlab.clocksync.common import MAX_OFFSET_S, MIN_CORRECTION_S, PerStream
 from motionlab.clocksync.impacts import envelope, impact_clock
 from motionlab.clocksync.joint_centre import estimate_clock, signals
-from motionlab.clocksync.pairs import joint_pairs, sync_tree
+from motionlab.clocksync.pairs import joint_pairs, sync_forest
 from motionlab.kinematics.segment_types import kind_side
 from motionlab.protocol import Protocol
-from motionlab.results import ClockFit
+from motionlab.results import NOT_LINKED, ClockFit
 from motionlab.session import Session
 
 # allowance for the errors of an impact lag that its block scatter does not show (medians
@@ -94,6 +103,11 @@ HIP_CENTRE_FLOOR_S = 0.005
 # 12 ms of each other
 CORROBORATE_S = 0.030
 
+# the largest standard error (s) of a sensor's clock in a part of the body no sensor joins to the
+# root's (the legs without a pelvis sensor) for the heel strikes across to link it: 3 ms of one
+# leg's clock against the other's is 1 % of step-time asymmetry at 110 steps/min
+LINK_MAX_SE_S = 0.003
+
 #: the status of a fit not applied because the vendor synchronised the sensors' clocks
 VENDOR_KEPT = "not applied: the vendor synchronised these clocks"
 
@@ -115,9 +129,11 @@ def synchronise(
     sensor against its reference's corrected clock by the joint centre.
     """
     unsynchronise(session)
-    tree = sync_tree(session, protocol)
-    label = {seg: sensor_for_segment(session, seg) for pair in tree for seg in pair}
-    segments = list(dict.fromkeys(seg for pair in tree for seg in pair))
+    forest = sync_forest(session, protocol)
+    tree = [pair for _, pairs in forest for pair in pairs]  # every part's pairs, part by part
+    segments = list(dict.fromkeys(seg for root, pairs in forest
+                                  for seg in (root, *(s for p in pairs for s in p))))  # fmt: skip
+    label = {seg: sensor_for_segment(session, seg) for seg in segments} if len(segments) > 1 else {}
 
     signals_of, envelope_of = PerStream(signals), PerStream(envelope)  # once per sensor
 
@@ -129,13 +145,18 @@ def synchronise(
         sensors = session.sensors  # the clocks corrected so far
         return estimate_clock(sensors[a], sensors[b], max_offset_s, signals_of, spine)
 
-    impacts = {(a, b): lag(a, b) for a, b in tree}
+    # heel strikes: a reliable impact lag on a pair of the trees (of the parts' roots when no
+    # part has a pair: the two shanks alone)
+    part_of = {seg: root for root, pairs in forest for seg in (root, *(d for _, d in pairs))}
+    across = [(a, b) for i, a in enumerate(segments) for b in segments[i + 1 :]
+              if part_of[a] != part_of[b]]  # fmt: skip
+    impacts = {(a, b): lag(a, b) for a, b in (tree or across) if label}
     if any(_reliable(f) for f in impacts.values()):  # heel strikes: every pair, all at once
         pairs = [(a, b) for i, a in enumerate(segments) for b in segments[i + 1 :]]
         impacts = {p: impacts[p] if p in impacts else lag(*p) for p in pairs}  # in this order
-        fits = _synchronise_network(session, protocol, tree, label, impacts, centre)
+        fits = _synchronise_network(session, protocol, forest, label, impacts, centre)
     else:
-        fits = _synchronise_tree(session, tree, label, impacts, centre)
+        fits = _synchronise_tree(session, forest, label, impacts, centre)
     vendor = {session.sensors[lab].attrs.get("vendor_clock_sync") for lab in label.values()}
     if label and None not in vendor:  # every sensor on the vendor's synchronised clock
         unsynchronise(session)
@@ -146,16 +167,23 @@ def synchronise(
     return fits
 
 
-def _synchronise_tree(session: Session, tree, label, impacts, centre) -> list[ClockFit]:
-    """Each sensor against its reference's corrected clock, down the sync tree, by the joint
-    centre (``centre(reference label, label)``; ``impacts``: the tree pairs' refused impact
-    lags, kept in ``other``). A sensor whose own
+def _synchronise_tree(session: Session, forest, label, impacts, centre) -> list[ClockFit]:
+    """Each sensor against its reference's corrected clock, down each part's sync tree, by the
+    joint centre (``centre(reference label, label)``; ``impacts``: the tree pairs' refused
+    impact lags, kept in ``other``). A sensor whose own
     fit is not reliable but whose reference was corrected gets the reference's correction: its
     recorded timing relative to its neighbour is kept (a thigh moved while its shank stayed
-    would misalign the knee by the thigh's whole correction)."""
+    would misalign the knee by the thigh's whole correction). A part's root other than the
+    first has a :data:`~motionlab.results.NOT_LINKED` fit: nothing ties it to the first."""
     fits = []
     moved: dict[str, ClockFit] = {}  # label: the correction its stamps got
-    for ref_seg, seg in tree:
+    main = label[forest[0][0]] if label else ""
+    t0, _ = _middle(session, main) if label else (0.0, 0.0)
+    why = "no sensor joins it to {} and no reliable heel-strike lag ties their clocks"
+    for ref_seg, seg in _forest_order(forest) if label else []:
+        if ref_seg is None:  # a part's root
+            fits.append(_not_linked(main, label[seg], t0, why.format(main)))
+            continue
         ref, lab = label[ref_seg], label[seg]
         # the pair's impact lag was measured on the raw clocks; none is reliable (no heel strikes)
         fit = choose(centre(ref, lab, _spine(ref_seg, seg)), impacts[(ref_seg, seg)])
@@ -179,24 +207,35 @@ def _apply(session: Session, label: str, fit: ClockFit) -> None:
 
 
 def _synchronise_network(
-    session: Session, protocol: Protocol, tree, label, impacts, centre
+    session: Session, protocol: Protocol, forest, label, impacts, centre
 ) -> list[ClockFit]:
     """Every sensor's clock at once from all pairwise measurements on the raw clocks
     (:func:`motionlab.clocknet.solve_network`; ``centre(label, label)``: a joint-centre fit).
     A sensor that no reliable measurement ties to
-    the root follows its reference's clock (its recorded timing against it is kept)."""
+    the root follows its reference's clock (its recorded timing against it is kept). A part of
+    the body no sensor joins to the root's (``forest``, :func:`.pairs.sync_forest`) is on the
+    root's clock only when the heel strikes tie it well (:func:`_solve_parts`); else its
+    sensors are solved on its own root's clock and that root's fit says why it is
+    :data:`~motionlab.results.NOT_LINKED`."""
+    tree = [pair for _, pairs in forest for pair in pairs]
     edges = [(a, b) for a, b in joint_pairs(session, protocol) if a in label and b in label]
     centres = {(a, b): centre(label[a], label[b]) for a, b in edges}
     pool = [f for f in [*impacts.values(), *centres.values()] if _reliable(f)]
     envelope_sd = {lab: ENVELOPE_SD_S[kind_side(seg)[0]] for seg, lab in label.items()
                 if kind_side(seg)[0] in ENVELOPE_SD_S}  # fmt: skip
     floor = {frozenset((label[a], label[b])): _centre_floor(a, b) for a, b in edges}
-    root = label[tree[0][0]]
-    t0 = float(np.mean(session.sensors[root].time[[0, -1]]))
-    span = float(np.ptp(session.sensors[root].time))
-    clocks: dict[str, tuple] = {root: (None, "")}  # label: (NetworkClock or None, follows)
-    solved = solve_network(pool, root, t0, envelope_sd, floor)
-    clocks.update({k: (v, "") for k, v in solved.items()})
+    root = label[forest[0][0]]
+    t0, span = _middle(session, root)
+    part = {label[seg]: label[r] for r, pairs in forest for seg in (r, *(d for _, d in pairs))}
+
+    def solve(fits: list[ClockFit], on: str) -> dict:
+        return solve_network(fits, on, t0, envelope_sd, floor)
+
+    solved, unlinked = _solve_parts(pool, part, root, solve)
+    # label: (NetworkClock or None, follows, the part's root whose clock it is on)
+    clocks: dict[str, tuple] = {r: (None, "", r) for r in [root, *unlinked]}
+    clocks.update({k: (v, "", part[k] if part[k] in unlinked else root)
+                   for k, v in solved.items()})  # fmt: skip
     # the heel strikes' clocks must agree with every joint centre's that measured its pair: where
     # one does not, the envelopes did not peak together and none is taken
     contradicted = []
@@ -205,19 +244,85 @@ def _synchronise_network(
             contradicted.append(_uncorroborated(clocks, label, centres, a, b))
     contradicted = [why for why in contradicted if why]
     if contradicted:
-        clocks = {root: (None, "")}
+        clocks = {r: (None, "", r) for r in part.values()}
+        unlinked = {
+            r: f"no sensor joins it to {root} and the heel strikes were not taken (a "
+            "knee's joint centre disagreed with them)"
+            for r in part.values()
+            if r != root
+        }
     for ref_seg, seg in tree:  # not tied to the root: the reference's clock (tree order)
         if label[seg] not in clocks:
-            clocks[label[seg]] = (clocks[label[ref_seg]][0], label[ref_seg])
+            clock, _, on = clocks[label[ref_seg]]
+            clocks[label[seg]] = (clock, label[ref_seg], on)
     fits = []
-    for _, seg in tree:
+    for ref_seg, seg in _forest_order(forest):
         lab = label[seg]
-        clock, follows = clocks[lab]
-        fit = _network_fit(root, lab, clock, follows, t0, span, "; ".join(contradicted))
+        if ref_seg is None:  # a part's root
+            if lab in unlinked:
+                fits.append(_not_linked(root, lab, t0, unlinked[lab]))
+                continue
+        clock, follows, on = clocks[lab]
+        fit = _network_fit(on, lab, clock, follows, t0, span, "; ".join(contradicted))
         fits.append(fit)
         if fit.status == "applied" or (follows and clock is not None):
             _apply(session, lab, replace(fit, status="applied") if follows else fit)
     return fits
+
+
+def _solve_parts(pool: list[ClockFit], part: dict[str, str], root: str, solve) -> tuple[
+        dict, dict[str, str]]:  # fmt: skip
+    """The network clocks (``solve(fits, root)``) of every sensor, and ``{part's root: why it
+    is not linked}`` for the parts of the body (``part``: ``{label: its part's root}``) whose
+    clocks the heel strikes do not tie to ``root``'s well: no reliable lag across, or the
+    part's sensors known only to more than ``LINK_MAX_SE_S`` on the root's clock. Their lags
+    across are then left out, the rest solved again, and each such part solved on its own
+    root's clock (its sensors' clocks against its root's)."""
+    unlinked: dict[str, str] = {}
+    while True:
+        fits = [f for f in pool if part[f.reference] not in unlinked
+                and part[f.sensor] not in unlinked]  # fmt: skip
+        solved = solve(fits, root)
+        weak = {}
+        for r in dict.fromkeys(part.values()):
+            if r == root or r in unlinked:
+                continue
+            members = [lab for lab, p in part.items() if p == r]
+            se = [solved[lab].offset_se_s for lab in members if lab in solved]
+            if r not in solved:
+                weak[r] = (f"no sensor joins it to {root} and no reliable heel-strike lag ties "
+                           "their clocks")  # fmt: skip
+            elif max(se) > LINK_MAX_SE_S:
+                weak[r] = (f"no sensor joins it to {root} and the heel strikes tie their clocks "
+                           f"only to ± {1e3 * max(se):.1f} ms ({1e3 * LINK_MAX_SE_S:g} ms "
+                           "needed)")  # fmt: skip
+        if not weak:
+            break
+        unlinked.update(weak)
+    for r in unlinked:
+        own = [f for f in pool if part[f.reference] == r and part[f.sensor] == r]
+        solved.update(solve(own, r))
+    return solved, unlinked
+
+
+def _forest_order(forest) -> list[tuple[str | None, str]]:
+    """Each part's root (as ``(None, root)``; not the first part's) then its tree's pairs."""
+    out: list[tuple[str | None, str]] = []
+    for i, (root, pairs) in enumerate(forest):
+        out += ([(None, root)] if i else []) + list(pairs)
+    return out
+
+
+def _middle(session: Session, label: str) -> tuple[float, float]:
+    """Mid-time and duration (s) of sensor ``label``'s recording."""
+    time = session.sensors[label].time
+    return float(np.mean(time[[0, -1]])), float(np.ptp(time))
+
+
+def _not_linked(root: str, lab: str, t0: float, why: str) -> ClockFit:
+    """The fit of a part's root sensor ``lab`` whose clock nothing tied to ``root``'s."""
+    return ClockFit(root, lab, 0.0, 0.0, t0, np.inf, np.inf, np.nan, 0.0, f"{NOT_LINKED}: {why}",
+                    NETWORK)  # fmt: skip
 
 
 def _uncorroborated(clocks: dict, label: dict, centres: dict, ref_seg: str, seg: str) -> str:
@@ -335,10 +440,13 @@ def describe(fit: ClockFit) -> str:
     """One line: ``shank_r vs thigh_r (impacts): +12.3 ms, drift −21 ppm (± 0.4 ms, 9 ppm) —
     applied; joint centre: ...`` (the other method's answer last); for a network fit
     ``shank_r on pelvis's clock (every pair at once): ... — applied; timed by heel strikes with
-    ...; set aside: ...`` (what timed it, what was set aside and why)."""
+    ...; set aside: ...`` (what timed it, what was set aside and why); for a part's root that
+    nothing tied to the root's clock ``thigh_l against thigh_r's clock: not linked: ...``."""
     head = f"{fit.sensor} vs {fit.reference} ({fit.method}):"
     if fit.method == NETWORK:
         head = f"{fit.sensor} on {fit.reference}'s clock (every pair at once):"
+    if fit.status.startswith(NOT_LINKED):  # a part of the body on a clock of its own
+        return f"{fit.sensor} against {fit.reference}'s clock: {fit.status}"
     other = f"; {fit.other}" if fit.other else ""
     if not np.isfinite(fit.offset_se_s):
         return f"{head} {fit.status} ({fit.moving_s:.0f} s of shared movement){other}"
