@@ -46,6 +46,7 @@ TEXT_COLUMNS = {
     "column",
     "kept",  # a stride kept or rejected (spatiotemporal.csv), with its reason
     "parameter",  # spatiotemporal_summary.csv: one row per parameter, its unit in its name
+    "note",  # and why a number of it is withheld (as spatiotemporal_course.csv's)
 }
 # in spatiotemporal_summary.csv the unit of mean, sd, se, median and quartiles is the one in
 # the row's parameter name

@@ -73,6 +73,20 @@ def _leg_reach(
     return out, f"{sp.LENGTH_MODEL}; lengths: {lengths[2]}"
 
 
+def legs_not_linked(session: Session, protocol: Protocol) -> str:
+    """Why the two legs' knee sensors are not on one clock (``not given: ...``), or empty: the
+    clock sync ran and could not link them (:meth:`~motionlab.results.ClockSync.not_linked`:
+    no pelvis sensor joins them and the heel strikes did not time one leg against the other).
+    Empty without a clock sync (the recorded clocks are taken as one) and for one leg."""
+    sync = session.results.clock_sync
+    knees = [j for j in protocol.joints.values() if j.type == "knee"]
+    if sync is None or len({j.side for j in knees if sensor_for_segment(session, j.distal)}) < 2:
+        return ""
+    labels = [sensor_for_segment(session, s) for j in knees for s in (j.proximal, j.distal)]
+    why = sync.not_linked([lab for lab in labels if lab is not None])
+    return f"not given: the two legs' sensor clocks are not linked ({why})" if why else ""
+
+
 def gait_spans(session: Session, protocol: Protocol) -> dict[str, tuple[float, float]]:
     """``{task: (start_s, end_s)}`` of the protocol's gait tasks found in the session."""
     metrics = session.results.metrics
@@ -111,8 +125,13 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
                              leg.events.fc_confidence)
         for leg in legs.values()
     }  # fmt: skip
+    not_linked = legs_not_linked(session, protocol)
     reach, speed_note = _leg_reach(session, protocol, cal)
+    if not_linked:
+        reach, speed_note = {}, f"not measured: {not_linked}"
     table = sp.stride_table(strides, events, reach)
+    if not_linked:
+        table = sp.withhold_both_legs(table)
     if not table["kept"].any():
         return Gait("no gait: no stride passed the checks", events=events)
     columns = {c: table[c].to_numpy() for c in table.columns if c not in ("side", "reason")}
@@ -123,7 +142,7 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
         strides=StrideTable(
             **columns, side=table["side"].to_numpy(str), reason=table["reason"].to_numpy(str)
         ),
-        summary=sp.summary(table),
+        summary=sp.summary(table, not_linked),
         walking_speed=speed_note,
     )
     angles = session.results.angles

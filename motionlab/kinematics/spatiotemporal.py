@@ -30,7 +30,9 @@ error of a CV of normal data, dof the pooled degrees of freedom); the cadence to
 measured side at :data:`MIN_STRIDES`. A side is measured when the table has strides of it (its
 shank carries a sensor): a recording of one leg gives that leg's cadence and variability, and no
 asymmetry. A number not given has its reason in ``withheld`` (``"not enough steady strides (2
-of 3 needed)"``).
+of 3 needed)"``). Whatever compares one leg's events or reach with the other's
+(:data:`BOTH_LEGS` and the asymmetry) needs both legs' sensors on one clock: where the clock
+sync could not link them (:meth:`motionlab.results.ClockSync.not_linked`) it is withheld.
 
 Step length, stride length and walking speed (with thigh and shank sensors and segment lengths):
 a double-pendulum leg model after Salarian et al. (2004, IEEE TBME 51:1434) and Aminian et al.
@@ -100,6 +102,10 @@ STRIDE_COLUMNS = (
     "stride_length_m",
     "walking_speed_m_s",
 )
+#: per-stride columns that need the other leg's events or reach at one instant (a step lands
+#: from the other foot): with the legs' clocks not linked they are withheld, with the asymmetry
+BOTH_LEGS = ("step_time_s", "double_support_pct", "step_length_m", "stride_length_m",
+             "walking_speed_m_s")  # fmt: skip
 
 
 def sagittal_inclination(q: np.ndarray) -> np.ndarray:
@@ -294,6 +300,14 @@ def _within_bout_cv(kept: pd.DataFrame) -> tuple[float, int]:
     return float(100 * np.sqrt(ss / dof) / np.mean(values)), dof
 
 
+def withhold_both_legs(table: pd.DataFrame) -> pd.DataFrame:
+    """The stride table with its :data:`BOTH_LEGS` columns NaN: with the two legs' sensors on
+    clocks nothing linked, a step time, double support or step length compares one leg's event
+    with the other's at an unknown offset (on a simulated walk without a pelvis sensor, 25 ms
+    read as 10 % step-time asymmetry)."""
+    return table.assign(**{c: np.nan for c in BOTH_LEGS})
+
+
 def too_few(n: int, what: str = "steady strides") -> str:
     """``'not enough steady strides (2 of 3 needed)'``."""
     return f"not enough {what} ({n} of {MIN_STRIDES} needed)"
@@ -314,9 +328,13 @@ def _paired_steps(kept: pd.DataFrame) -> tuple[np.ndarray, np.ndarray]:
     return np.asarray(r_out, dtype=float), np.asarray(l_out, dtype=float)
 
 
-def summary(table: pd.DataFrame) -> GaitSummary:
+def summary(table: pd.DataFrame, not_linked: str = "") -> GaitSummary:
     """Per side the statistics of each stride-table column over the kept strides, and the
-    bilateral numbers (:class:`~motionlab.results.GaitSummary`; module docstring)."""
+    bilateral numbers (:class:`~motionlab.results.GaitSummary`; module docstring).
+    ``not_linked``: why the two legs' clocks are not one (:func:`withhold_both_legs`): the
+    :data:`BOTH_LEGS` columns and the asymmetry are then withheld with it."""
+    if not_linked:
+        table = withhold_both_legs(table)
     kept = table[table["kept"]]
     sides: dict[str, dict[str, StrideStats]] = {}
     withheld: dict[str, str] = {}
@@ -354,6 +372,8 @@ def summary(table: pd.DataFrame) -> GaitSummary:
     speed = kept["walking_speed_m_s"].dropna()
     if 0 < len(speed) < MIN_STRIDES:
         withheld["walking_speed_m_s"] = too_few(len(speed))
+    if not_linked and len(measured) == 2:
+        withheld |= {c: not_linked for c in (*BOTH_LEGS, "step_time_asymmetry_pct")}
     rejected = table[~table["kept"]]["reason"].value_counts()
     return GaitSummary(
         sides=sides,
@@ -382,9 +402,11 @@ def parameter_unit(parameter: str) -> str:
 
 def summary_rows(summ: GaitSummary) -> pd.DataFrame:
     """The summary as a table ``parameter, side, unit, mean, sd, cv_pct, se, median, q1, q3,
-    count_n, count_of`` (for CSV and report): ``unit`` of the parameter's values (its name's
-    suffix), ``count_n`` how many they come from, ``count_of`` of what (``strides``; ``step
-    pairs`` for the step-time asymmetry); the bilateral numbers have their ``se`` where known."""
+    count_n, count_of, note`` (for CSV and report): ``unit`` of the parameter's values (its
+    name's suffix), ``count_n`` how many they come from, ``count_of`` of what (``strides``;
+    ``step pairs`` for the step-time asymmetry), ``note`` why a bilateral number, or a per-side
+    one of :data:`BOTH_LEGS`, is withheld (empty when given); the bilateral numbers have their
+    ``se`` where known."""
     rows = []
     for side, cols in summ.sides.items():
         for c, s in cols.items():
@@ -403,4 +425,7 @@ def summary_rows(summ: GaitSummary) -> pd.DataFrame:
         rows.append({"parameter": c, "side": "both", "unit": parameter_unit(c), "mean": value,
                      "sd": np.nan, "cv_pct": np.nan, "se": se, "median": np.nan, "q1": np.nan,
                      "q3": np.nan, "count_n": n, "count_of": of})  # fmt: skip
+    for row in rows:
+        c = row["parameter"]
+        row["note"] = summ.withheld.get(c, "") if row["side"] == "both" or c in BOTH_LEGS else ""
     return pd.DataFrame(rows)

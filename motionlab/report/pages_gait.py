@@ -20,6 +20,7 @@ from matplotlib.patches import Patch
 from motionlab.kinematics.gait_course import DIGITS, WalkCourse, change_text, walk_courses
 from motionlab.kinematics.gps import VARIABLES, normative, variable_grades
 from motionlab.kinematics.spatiotemporal import (
+    BOTH_LEGS,
     MIN_STRIDES,
     STRIDE_COLUMNS,
     method_error,
@@ -48,9 +49,8 @@ _LABELS = {
 }
 
 
-#: per-side columns that need the other leg's events or reach (a step lands from the other foot)
-BOTH_LEGS = ("step_time_s", "double_support_pct", "step_length_m", "stride_length_m",
-             "walking_speed_m_s")  # fmt: skip
+#: the table's cell of a number that compares the legs when their clocks are not linked
+NOT_LINKED_CELL = "withheld: the legs' clocks are not linked"
 
 #: the stride-table columns that need the legs' lengths (the leg model)
 LENGTH_COLUMNS = ("step_length_m", "stride_length_m", "walking_speed_m_s")
@@ -86,7 +86,8 @@ def _both(summ: GaitSummary, c: str, v: float, se: float, n: int, measured: list
     """A bilateral number ``c`` (value ``v``, standard error ``se``, from ``n`` step pairs or
     strides of the ``measured`` sides) with its 95 % margin, or why it is not given."""
     if not np.isfinite(v):
-        return summ.withheld.get(c, "-")
+        why = summ.withheld.get(c, "-")
+        return NOT_LINKED_CELL if why == summ.withheld.get("step_time_s") else why
     what = "step pairs" if c == "step_time_asymmetry_pct" else "strides"
     margin = f" ± {Z95 * se:.1f}" if np.isfinite(se) else ""
     sides = "both sides" if len(measured) != 1 else f"{SIDE_NAMES[measured[0]]} side only"
@@ -123,6 +124,12 @@ def gait_pages(doc: Document, view: SessionView) -> None:
     if few:
         doc.paragraph("No mean is given for a side with too few strides (" + "; ".join(few)
                       + ").", weight="bold")  # fmt: skip
+    not_linked = summ.withheld.get("step_time_s", "")  # only withheld when the clocks are not one
+    if not_linked:
+        doc.paragraph("Step time, double support, step and stride length, walking speed and the "
+                      "step-time asymmetry compare one leg's events with the other's; "
+                      f"{not_linked.removeprefix('not given: ')}, so none is given.",
+                      weight="bold")  # fmt: skip
     times = [summ.sides[k]["stride_time_s"].mean for k in ("r", "l")]
     stride = float(np.nanmean(times)) if np.isfinite(times).any() else np.nan
     # without the legs' lengths (or a sensor) there is no length at all, however many strides
@@ -135,6 +142,8 @@ def gait_pages(doc: Document, view: SessionView) -> None:
                  for k, x in (("r", r), ("l", left))]  # fmt: skip
         if len(measured) == 1 and c in BOTH_LEGS:
             cells = ["needs both legs" if k in measured else "-" for k in ("r", "l")]
+        elif not_linked and c in BOTH_LEGS:
+            cells = [NOT_LINKED_CELL] * 2
         elif c in LENGTH_COLUMNS and not lengths_measured:  # the note under the table says why
             cells = ["not measured*" if k in measured else "-" for k in ("r", "l")]
         rows.append([_LABELS[c], *cells, f"{band[0]:g}-{band[1]:g}" if band else "-"])
