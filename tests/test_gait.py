@@ -248,6 +248,26 @@ def test_gps_zero_for_the_normative_mean_and_rising_with_a_deficit():
     assert 3 < population_gps() < 7
 
 
+def test_no_gps_from_the_knees_alone():
+    """Without a pelvis sensor the real walk printed "GPS 11.6 deg": a GPS of knee flexion
+    alone, the number a clinician reads against the 7-variable GPS's healthy 3-7 deg. The
+    missing variables now withhold it, named; gating again keeps the same answer."""
+    from motionlab.kinematics.gps import VARIABLES, gated_profile
+
+    pct = np.linspace(0, 100, 101)
+    knees = {s: {"knee_flexion": normative("knee_flexion", pct)[0] + 10} for s in "rl"}
+    mp = gated_profile(movement_analysis_profile(knees), {})
+    assert np.isnan(mp.gps["overall"]) and np.isnan(mp.gps["r"])
+    assert mp.gvs["r"]["knee_flexion"] == pytest.approx(10, abs=0.01)  # its MAP bar stays
+    assert mp.not_computed == (
+        "GPS not computed: pelvis tilt, pelvis obliquity, pelvis rotation, hip flexion, hip "
+        "adduction, hip rotation not measured (no sensor)"
+    )
+    assert gated_profile(mp, {}).not_computed == mp.not_computed
+    full = {s: {v: normative(v, pct)[0] for v in VARIABLES} for s in "rl"}
+    assert gated_profile(movement_analysis_profile(full), {}).gps["overall"] == pytest.approx(0)
+
+
 def test_simulated_gait_truth_and_asymmetry():
     from motionlab.simulate import simulate
 

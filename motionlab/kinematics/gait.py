@@ -84,7 +84,12 @@ def legs_not_linked(session: Session, protocol: Protocol) -> str:
         return ""
     labels = [sensor_for_segment(session, s) for j in knees for s in (j.proximal, j.distal)]
     why = sync.not_linked([lab for lab in labels if lab is not None])
-    return f"not given: the two legs' sensor clocks are not linked ({why})" if why else ""
+    if not why:
+        return ""
+    return (
+        f"not given: the two legs' sensor clocks are not linked ({why}; sensors on one radio "
+        "clock, e.g. one Xsens Awinda station, need no clock sync: skip it)"
+    )
 
 
 def gait_spans(session: Session, protocol: Protocol) -> dict[str, tuple[float, float]]:

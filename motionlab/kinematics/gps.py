@@ -20,7 +20,9 @@ they are approximate).
 A score is only as good as its inputs (:func:`gated_profile`): a variable's GVS is given only when
 its angle is ``determined`` (:mod:`motionlab.segments.grades`; the pelvis variables by the pelvis
 frame's grade) and its side has at least :data:`~.spatiotemporal.MIN_STRIDES` kept strides; a
-side's GPS only when every variable of that side is given, the overall GPS only when both are.
+side's GPS only when every variable of that side is given (one whose sensor is missing, the
+pelvis's for the pelvis and the hips, too: a knee-only score is no GPS), the overall GPS only
+when both are.
 ``withheld`` then says which variables are missing and why ("GPS not computed: right knee flexion
 not determined").
 """
@@ -53,6 +55,9 @@ PELVIS = ("pelvis_tilt", "pelvis_obliquity", "pelvis_rotation")
 JOINT_VARIABLES = ("hip_flexion", "hip_adduction", "hip_rotation", "knee_flexion")
 VARIABLES = PELVIS + JOINT_VARIABLES
 GPS_POINTS = np.arange(0, 101, 2)  # % of the cycle (Baker et al. 2009)
+#: why a variable of a measured side has no score: its sensor is missing (the pelvis's, for the
+#: pelvis and the hips): the GPS is then not computed, as a knee-only "GPS" is no GPS
+NOT_MEASURED = "not measured (no sensor)"
 
 
 @lru_cache(maxsize=1)
@@ -171,12 +176,15 @@ def gated_profile(
         for v in VARIABLES:
             grade = grades.get(side, {}).get(v, ("determined", ""))[0]
             if v not in curves and v not in before and grade == "determined":
-                continue  # not measured (no sensor): left out
-            if grade == "determined" and v in before and "steady strides" in before[v]:
+                if curves:  # a side's GPS of fewer variables is not the GPS (knee alone)
+                    gone[v] = NOT_MEASURED
+                continue  # a leg without sensors: no score of that side
+            if grade == "determined" and before.get(v) == NOT_MEASURED:
+                gone[v] = before[v]
+            elif grade == "determined" and v in before and "steady strides" in before[v]:
                 gone[v] = before[v]  # its score was withheld for its strides: still is
             elif grade != "determined" or v in before:
                 gone[v] = grade if grade != "determined" else before[v]
-                gone[v] = grade
             elif n is not None and n < MIN_STRIDES:
                 gone[v] = too_few(n)
         kept = {v: x for v, x in curves.items() if v not in gone}
