@@ -384,11 +384,22 @@ def _check_units(stream: SensorStream, path: Path) -> None:
         raise InputError(problem[0], path, f"sensor {stream.label}", problem[1])
 
 
-def check_and_fill(stream: SensorStream, report: dict[str, Any], gap_max: float) -> SensorStream:
+def check_and_fill(
+    stream: SensorStream, report: dict[str, Any], gap_max: float, path: Path | None = None
+) -> SensorStream:
     """Step 4 for one stream whose clock is repaired: quality checks on the data as recorded,
-    then gaps up to ``gap_max`` s filled; the stream with its ``qc``, which also holds the
-    clock repair ``report`` of :func:`motionlab.timebase.repair_clock`."""
+    then runs of samples not a number in the accelerometer or gyroscope longer than the fusion
+    bridges or ``gap_max`` s dropped (:func:`motionlab.timebase.drop_nan_runs`: the gap of the
+    lost packets they are; ``qc["nan_rows_dropped"]``, ``qc["nan_dropped_s"]``), then gaps up
+    to ``gap_max`` s filled; the stream with its ``qc``, which also holds the clock repair
+    ``report`` of :func:`motionlab.timebase.repair_clock`."""
     qc = check_stream(stream, gap_max)
+    n = stream.n_samples
+    longer_than = min(gap_max, timebase.NAN_BRIDGE_MAX_S)
+    stream, dropped = timebase.drop_nan_runs(stream, longer_than, path)
+    if dropped:
+        qc["nan_rows_dropped"] = n - stream.n_samples
+        qc["nan_dropped_s"] = dropped
     stream, gaps = timebase.fill_short_gaps(stream, gap_max)
     qc.update(report)
     qc.update(gaps)
@@ -400,6 +411,23 @@ def check_and_fill(stream: SensorStream, report: dict[str, Any], gap_max: float)
         clock_repaired=bool(repaired),
     )
     return dataclasses.replace(stream, qc=qc)
+
+
+def drop_kept_nan_runs(stream: SensorStream) -> SensorStream:
+    """An ingested stream (with ``qc``) without the long NaN runs of its accelerometer or
+    gyroscope that its ingest kept (:func:`check_and_fill` drops them: a session ingested before
+    it did, or one resampled with ``--rate``, which puts NaN inside a kept gap), filled or kept as
+    the gaps they are, with ``qc["gaps"]`` the kept gaps again; the stream itself without them."""
+    gap_max = float(stream.qc.get("gap_max_s", DEFAULT_GAP_MAX))
+    out, dropped = timebase.drop_nan_runs(stream, min(gap_max, timebase.NAN_BRIDGE_MAX_S))
+    if not dropped:
+        return stream
+    out, gaps = timebase.fill_short_gaps(out, gap_max)
+    qc = {**stream.qc, "gaps": gaps["gaps"], "flags": dict(stream.qc.get("flags", {}))}
+    for key in ("gaps_filled", "samples_filled", "filled_spans_s"):
+        qc[key] = qc.get(key, 0 if key != "filled_spans_s" else []) + gaps[key]
+    qc["flags"]["gaps"] = bool(gaps["gaps"])
+    return dataclasses.replace(out, qc=qc)
 
 
 def ingest(
@@ -503,7 +531,7 @@ def ingest(
             time=stream.time - origin,
             attrs={**stream.attrs, "start_s": float(stream.time[0])},
         )
-        stream = check_and_fill(stream, report, gap_max)
+        stream = check_and_fill(stream, report, gap_max, path)
         _check_units(stream, path)
         if rate is not None:
             qc = stream.qc

@@ -29,7 +29,7 @@ from typing import TYPE_CHECKING, Any
 
 from motionlab.binding import check_joints, sensed_protocol
 from motionlab.errors import InputError
-from motionlab.ingest import DEFAULT_GAP_MAX, check_and_fill
+from motionlab.ingest import DEFAULT_GAP_MAX, check_and_fill, drop_kept_nan_runs
 from motionlab.lineage import protocol_sha256, refuse_stale
 from motionlab.protocol import Protocol, load_protocol
 from motionlab.results import (
@@ -148,7 +148,8 @@ def _calibration(session: Session, path: Any) -> SegmentCalibration:
 def prepare(session: Session, gap_max: float = DEFAULT_GAP_MAX) -> list[str]:
     """Clock repair, quality checks and short-gap filling, as ingest does
     (:func:`motionlab.timebase.repair_clock`, :func:`motionlab.ingest.check_and_fill`), for the
-    sensors that have not been through ingest (no ``qc``); returns their labels."""
+    sensors that have not been through ingest (no ``qc``); returns their labels. The others
+    lose the long NaN runs their ingest kept (:func:`motionlab.ingest.drop_kept_nan_runs`)."""
     from motionlab import timebase
 
     done = []
@@ -157,6 +158,8 @@ def prepare(session: Session, gap_max: float = DEFAULT_GAP_MAX) -> list[str]:
             stream, report = timebase.repair_clock(stream)
             session.sensors[label] = check_and_fill(stream, report, gap_max)
             done.append(label)
+        else:
+            session.sensors[label] = drop_kept_nan_runs(stream)
     return done
 
 

@@ -35,6 +35,10 @@ from motionlab.errors import InputError
 from motionlab.session import SENSOR_CHANNELS, SensorStream
 
 GAP_FACTOR = 1.5  # an interval longer than this many nominal intervals is a gap
+#: longest run of non-finite samples (s, from the finite sample before to the one after) the
+#: fusion bridges by holding the last finite sample (:mod:`motionlab.fusion.stage`); a longer
+#: run in the accelerometer or gyroscope is dropped at ingest (:func:`drop_nan_runs`)
+NAN_BRIDGE_MAX_S = 0.1
 
 
 def runs(mask: np.ndarray) -> np.ndarray:
@@ -167,6 +171,57 @@ def find_gaps(time: np.ndarray, dt: float | None = None) -> np.ndarray:
     """Indices i whose interval ``time[i+1] - time[i]`` exceeds 1.5 × the nominal interval."""
     dt = nominal_interval(time) if dt is None else dt
     return np.flatnonzero(np.diff(time) > GAP_FACTOR * dt)
+
+
+def long_nan_runs(
+    time: np.ndarray, channels: list[np.ndarray], longer_than: float
+) -> list[tuple[int, int]]:
+    """``[start, stop)`` of every run of samples non-finite in any of ``channels`` (N, ...)
+    lasting more than ``longer_than`` s from the finite sample before to the one after (the
+    recording's first or last stamp for a run at either end), as a time gap is measured."""
+    t = np.asarray(time, dtype=float)
+    bad = np.zeros(len(t), dtype=bool)
+    for a in channels:
+        bad |= ~np.isfinite(np.asarray(a, dtype=float).reshape(len(t), -1)).all(axis=1)
+    return [
+        (int(a), int(b))
+        for a, b in runs(bad)
+        if t[min(b, len(t) - 1)] - t[max(a - 1, 0)] > longer_than * (1 + 1e-9)
+    ]
+
+
+def drop_nan_runs(
+    stream: SensorStream, longer_than: float = NAN_BRIDGE_MAX_S, path: str | Path | None = None
+) -> tuple[SensorStream, list[list[float]]]:
+    """``stream`` without its runs of samples whose accelerometer or gyroscope (the
+    orientation for a stream with neither) is not a number in any axis, where a run lasts more
+    than ``longer_than`` s (:func:`long_nan_runs`), and the ``[first_s, last_s]`` dropped.
+
+    Vendors write such rows for lost packets (an Xsens export leaves their fields empty): the
+    rows dropped leave the time gap lost packets leave, which the gap filling, the fusion, the
+    headings and the joint angles then treat as one. Shorter runs stay for the fusion to bridge.
+    A stream left with fewer than two samples is an :class:`InputError`.
+    """
+    fused = {k: getattr(stream, k) for k in ("acc", "gyr") if getattr(stream, k) is not None}
+    if not fused and stream.quat is not None:
+        fused = {"quat": stream.quat}
+    channels = list(fused.values())
+    t = np.asarray(stream.time, dtype=float)
+    long = long_nan_runs(t, channels, longer_than) if channels else []
+    if not long:
+        return stream, []
+    keep = np.ones(len(t), dtype=bool)
+    for a, b in long:
+        keep[a:b] = False
+    if keep.sum() < 2:
+        raise InputError(
+            f"{'/'.join(fused)} not a number in {int((~keep).sum())} of its {len(t)} samples: "
+            "nothing to fuse",
+            path,
+            f"sensor {stream.label}",
+            "export the recording again, or leave the sensor out of it",
+        )
+    return take(stream, np.flatnonzero(keep)), [[float(t[a]), float(t[b - 1])] for a, b in long]
 
 
 def interpolate_rows(

@@ -1,6 +1,7 @@
 """Non-finite samples never spread silently through fusion (issue 16): a short run of NaN is
-bridged and listed; a long run, or an estimate that turns NaN, is refused with the sensor and
-the time span (exit 2, one line) instead of written with exit 0."""
+bridged and listed; a long run that reaches the fusion (ingest makes one of the accelerometer or
+gyroscope a packet-loss gap), or an estimate that turns NaN, is refused with the sensor and the
+time span (exit 2, one line) instead of written with exit 0."""
 
 from __future__ import annotations
 
@@ -104,12 +105,27 @@ def test_an_estimate_that_turns_nan_midway_is_refused_with_where_it_starts(monke
 
 
 def test_cli_fuse_and_run_never_write_nan_orientations(tmp_path):
+    """A session file's long NaN run in the gyroscope is the gap of the packets lost there
+    (prepared as ingest does, tests/test_nan_span_gap.py): fused across, not refused, and no
+    NaN orientation written; the 9-D fusion's magnetometer run is refused."""
     save_session(session_with(nan_rows("gyr", 200, 320)), tmp_path / "s.h5")
     before = (tmp_path / "s.h5").read_bytes()
-    r = cli(tmp_path, "fuse", "s.h5", "-o", "o.h5")
-    refused(r, "s.h5 sensor shank_r: gyr not a number")
+    r = cli(tmp_path, "fuse", "s.h5", "-o", "gap.h5")
+    assert r.exit_code == 0, r.output
+    out = load_session(tmp_path / "gap.h5")
+    assert out.sensors["shank_r"].qc["gaps"] == [[1.99, 3.2]]
+    assert np.isfinite(out.results.fusion["shank_r"].quat).all()
+    assert (tmp_path / "s.h5").read_bytes() == before
+
+    def mag_nan(s: SensorStream) -> None:
+        s.mag = np.tile([0.0, 20.0, -40.0], (len(s.time), 1))
+        s.mag[200:320] = np.nan
+
+    save_session(session_with(mag_nan), tmp_path / "m.h5")
+    r = cli(tmp_path, "fuse", "m.h5", "--magnetometer", "-o", "o9.h5")
+    refused(r, "m.h5 sensor shank_r: mag not a number", "fuse without the magnetometer")
     assert r.stdout == ""  # nothing ("fusing (…)") before the error
-    assert not (tmp_path / "o.h5").exists() and (tmp_path / "s.h5").read_bytes() == before
+    assert not (tmp_path / "o9.h5").exists()
     save_session(session_with(nan_rows("gyr", 200, 203)), tmp_path / "b.h5")
     r = cli(tmp_path, "fuse", "b.h5", "-o", "o.h5")
     assert r.exit_code == 0, r.output

@@ -75,7 +75,13 @@ def _sensor_lines(s: dict) -> list[str]:
             )
         repairs = [
             f"{qc[k]} {k.replace('_', ' ')}"
-            for k in ("duplicates_dropped", "reordered", "restamped", "nan_time_dropped")
+            for k in (
+                "duplicates_dropped",
+                "reordered",
+                "restamped",
+                "nan_time_dropped",
+                "nan_rows_dropped",
+            )
             if qc.get(k)
         ]
         if repairs:

@@ -17,11 +17,14 @@ that movement can level the rests, :func:`levels_its_rests`).
 Samples that are not numbers (NaN, ±inf in a channel fused) are not left to spread: a run of
 them up to :data:`NAN_BRIDGE_MAX_S` (from the last finite sample before to the first after, as
 ingest fills time gaps up to its ``--gap-max`` default) is bridged by holding the last finite
-sample, and listed in the entry's ``nan_bridged_s``; a longer run is refused
-(:class:`~motionlab.errors.InputError` naming the sensor, the channels and the time span), as
-the orientation there would be a guess. An estimate that is not finite everywhere (a filter
-driven to NaN by implausible values such as 1e308) is refused too, with its first bad time and
-share: no NaN orientation reaches the joint angles and metrics.
+sample, and listed in the entry's ``nan_bridged_s``. Ingest drops longer runs in the
+accelerometer or gyroscope, which leaves the packet-loss gap they are
+(:func:`motionlab.timebase.drop_nan_runs`; :func:`motionlab.stages.prepare` for a session
+file). One that reaches the fusion all the same (a session not prepared, or the magnetometer of
+a 9-D fusion) is refused (:class:`~motionlab.errors.InputError` naming the sensor, the channels
+and the time span), as the orientation there would be a guess. An estimate that is not finite
+everywhere (a filter driven to NaN by implausible values such as 1e308) is refused too, with its
+first bad time and share: no NaN orientation reaches the joint angles and metrics.
 """
 
 from __future__ import annotations
@@ -38,12 +41,10 @@ from motionlab.fusion.detect import rest_mask
 from motionlab.results import ClockFit, FusionEntry
 from motionlab.rotations import rotate
 from motionlab.session import Session
-from motionlab.timebase import runs
+from motionlab.timebase import NAN_BRIDGE_MAX_S, long_nan_runs, runs
 
 Progress = Callable[[list[str], str], Iterable[str]]
 
-#: longest run of non-finite input samples (s) the fusion bridges; longer runs are refused
-NAN_BRIDGE_MAX_S = 0.1
 #: prior standard deviation (m/s²) of the accelerometer bias estimated for a calibration's rests
 CALIBRATION_ACC_BIAS_INIT = 0.5
 #: movement (s) on either side of each rest over which that bias is estimated
@@ -387,7 +388,9 @@ def bridged_spans(
 ) -> list[list[float]]:
     """``[first, last]`` time (s) of every run of samples non-finite in any of ``channels``,
     each no longer than :data:`NAN_BRIDGE_MAX_S` from the finite sample before to the one
-    after; a longer run raises :class:`InputError` naming the sensor, channels and span."""
+    after; a longer run raises :class:`InputError` naming the sensor, channels and span (ingest
+    drops such runs of the accelerometer and gyroscope: this is a session not prepared, or a
+    magnetometer's run, which the 6-D fusion leaves out)."""
     t = np.asarray(time, dtype=float)
     used = {k: np.asarray(a) for k, a in channels.items() if a is not None}
     bad = np.zeros(len(t), dtype=bool)
@@ -395,26 +398,27 @@ def bridged_spans(
         bad |= ~np.isfinite(a.reshape(len(a), -1)).all(axis=1)
     if not bad.any():
         return []
-    spans = runs(bad).tolist()  # [start, end)
-    long = [
-        (a, b)
-        for a, b in spans
-        if t[min(b, len(t) - 1)] - t[max(a - 1, 0)] > NAN_BRIDGE_MAX_S * (1 + 1e-9)
-    ]
+    long = long_nan_runs(t, list(used.values()), NAN_BRIDGE_MAX_S)
     if long:
         a, b = long[0]
         names = [k for k, arr in used.items() if not np.isfinite(arr[a:b]).all()]
         more = f"; {len(long) - 1} more run(s)" if len(long) > 1 else ""
+        remedy = (
+            "fuse without the magnetometer (the default), or trim the recording to the part "
+            "with data"
+            if names == ["mag"]
+            else "export the recording again, or trim it to the part with data (see "
+            "'motionlab info', QC)"
+        )
         raise InputError(
             f"{'/'.join(names)} not a number from {t[a]:.2f} s to {t[b - 1]:.2f} s "
             f"({b - a} samples, {100 * bad.mean():.1f} % of the recording{more}): fusion "
             f"bridges at most {NAN_BRIDGE_MAX_S:g} s",
             path,
             f"sensor {label}",
-            "export the recording again, or trim it to the part with data "
-            "(see 'motionlab info', QC)",
+            remedy,
         )
-    return [[float(t[a]), float(t[b - 1])] for a, b in spans]
+    return [[float(t[a]), float(t[b - 1])] for a, b in runs(bad)]
 
 
 def _check_finite(label: str, name: str, time: np.ndarray, quat: np.ndarray, path: Any) -> None:
