@@ -182,3 +182,25 @@ def test_a_resampled_session_with_a_kept_gap_is_fused(tmp_path):
     (stream,) = out.sensors.values()
     assert stream.qc["gaps"] == [[2.98, 4.0]]
     assert np.isfinite(out.results.fusion[stream.label].quat).all()
+
+
+def test_a_stand_lost_by_one_sensor_is_said_with_the_sensor(walks):
+    """The left thigh NaN (or lost) over the whole stand: the stand is looked for where every
+    sensor has data, and its refusal now says which sensor has none there (the final rest,
+    with no walk after it, is not the stand: ``walk_checks`` as the calibration asks)."""
+    from motionlab.segments.steps import find_steps
+
+    _, dropped = walks
+    streams = {s.label: (s.time, s.acc, s.gyr) for s in dropped.sensors.values()}
+    t, acc, gyr = streams["thigh_l"]
+    later = t > 12.0
+    streams["thigh_l"] = (t[later], acc[later], gyr[later])
+    with pytest.raises(InputError) as exc:
+        find_steps(
+            streams,
+            load_protocol("walk"),
+            suggest=False,
+            pose_check=lambda step, span: "no walk after it" if span[0] > 20 else None,
+        )
+    assert "'standing'" in exc.value.line()
+    assert "thigh_l has data only from 12.0 s (the others from 0.0 s)" in exc.value.line()

@@ -128,6 +128,22 @@ def longest_s(streams: Streams) -> float:
     return max(s[0][-1] - s[0][0] for s in streams.values())
 
 
+def cut_short(streams: Streams) -> str:
+    """The segments whose data start later or end earlier than the others' by more than
+    :data:`SHORTEST_POSE_S` (lost packets or samples not a number at either end), in words
+    (``"; thigh_r has data only from 12.0 s (the others from 0.0 s)"``), or ``""``: the
+    steps and tasks are looked for where every segment has data (:func:`blocks`)."""
+    first = min(s[0][0] for s in streams.values())
+    last = max(s[0][-1] for s in streams.values())
+    out = []
+    for seg, (t, _, _) in streams.items():
+        if t[0] - first > SHORTEST_POSE_S:
+            out.append(f"{seg} has data only from {t[0]:.1f} s (the others from {first:.1f} s)")
+        if last - t[-1] > SHORTEST_POSE_S:
+            out.append(f"{seg} has data only until {t[-1]:.1f} s (the others {last:.1f} s)")
+    return "".join(f"; {x}" for x in out)
+
+
 def blocks(streams: Streams) -> list[Block]:
     """Rest and movement blocks of a recording; ``streams[segment] = (time, acc, gyr)``."""
     start = max(s[0][0] for s in streams.values())
@@ -448,7 +464,7 @@ def find_steps(
         why = f"; {'; '.join(dict.fromkeys(reasons))}" if reasons else ""
         raise InputError(
             f"calibration step{'s' if len(missing) > 1 else ''} {names} not found; "
-            f"{describe(bl)}{needs}{why}",
+            f"{describe(bl)}{needs}{why}{cut_short(streams)}",
             protocol.path,
             "calibration",
             _remedy(fits, suggest, any(_is_pose(b) for b in bl)),
