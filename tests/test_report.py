@@ -756,6 +756,21 @@ def test_a_map_key_without_its_sensor_is_said_among_the_quality_notes():
     ]
 
 
+def test_the_longest_loss_comes_first_among_the_quality_notes():
+    """The findings keep two quality notes: a thigh's 360 s lost went unsaid behind a pelvis's
+    0.6 s, listed first because its sensor came first."""
+    from motionlab.report.sentences import quality_notes
+    from motionlab.session import SensorStream
+
+    session = Session()
+    for label, gaps in (("pelvis", [[10.0, 10.6]]), ("thigh_r", [[30.0, 390.0]])):
+        t = np.arange(0.0, 400.0, 0.01)
+        session.sensors[label] = SensorStream(label, t, acc=np.zeros((len(t), 3)),
+                                              qc={"gaps": gaps})  # fmt: skip
+    notes = quality_notes(SessionView(session, load_protocol("walk"), None, {}, None))
+    assert [n.split(" lost")[0] for n in notes] == ["Sensor thigh_r", "Sensor pelvis"]
+
+
 def test_out_of_plane_csv_has_its_header_without_rows(tmp_path):
     """A protocol with no out-of-plane metric (the rig's hinges) wrote an empty file, no header:
     a spreadsheet opened nothing, a script reading it failed ("No columns to parse")."""

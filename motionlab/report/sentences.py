@@ -456,9 +456,10 @@ def weak_lines(view: SessionView, joint: str) -> list[str]:
 
 def quality_notes(view: SessionView) -> list[str]:
     """Sentences on data and calibration problems, most important first (calibration, a sensor
-    the map names that the recording lacks, saturation, magnetic disturbance, then gaps); empty
-    when all is well."""
-    notes, gaps = [], []
+    the map names that the recording lacks, saturation, magnetic disturbance, then gaps, the
+    longest loss first); empty when all is well."""
+    notes: list[str] = []
+    gaps: list[tuple[float, str]] = []
     bad = sorted({r.segment for r in calibration_rows(view) if not r.segment_ok})
     if bad:
         notes.append(
@@ -473,10 +474,11 @@ def quality_notes(view: SessionView) -> list[str]:
         )
     for q in quality_rows(view):
         if q.gaps_kept:
-            gaps.append(
+            text = (
                 f"Sensor {q.sensor} lost {q.gaps_kept_s:.1f} s of data in "
                 f"{q.gaps_kept} gap(s); no angles are reported there."
             )
+            gaps.append((q.gaps_kept_s, text))
         if q.saturated_samples:
             notes.append(
                 f"Sensor {q.sensor} reached its measuring range on {q.saturated_samples} "
@@ -487,7 +489,9 @@ def quality_notes(view: SessionView) -> list[str]:
                 f"The magnetic field near sensor {q.sensor} was disturbed "
                 f"{q.mag_disturbed_pct:.0f}% of the time (metal or electronics nearby)."
             )
-    return notes + gaps
+    # the longest loss first: the findings keep two notes (a thigh's 360 s went unsaid
+    # behind a pelvis's 0.6 s, listed first as its sensor came first)
+    return notes + [text for _, text in sorted(gaps, key=lambda g: -g[0])]
 
 
 def accuracy_sentence(angle: str, entry: dict[str, Any], joint_type: str = "") -> str:
