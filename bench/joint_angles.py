@@ -154,8 +154,7 @@ def true_clock(session, truth, stamps: dict, label: str):
     sync = session.sensors[label].attrs.get("clock_sync")
     if sync is not None:
         st = ClockFit(**sync).corrected_time(st)
-    true = truth.sensors[label]["sample_time"]
-    return lambda t: np.interp(t, st, true)
+    return lambda t: truth.true_time(label, st, t)
 
 
 def joint_clocks(session, truth, stamps: dict, protocol: Protocol) -> dict:
