@@ -125,9 +125,9 @@ def simulator_options(preset: str, old: bool) -> dict:
     return {"preset": preset, "soft_tissue": tissue, "knee_model": "anatomical"}
 
 
-def run_one(job: tuple[str, int, str, bool, bool, bool, bool, float | None]) -> dict:
+def run_one(job: tuple[str, int, str, bool, bool, bool, bool, float | None, str]) -> dict:
     """RMSE and grade per angle column of one simulated session through the product path."""
-    name, seed, preset, shared, true_clocks, uncoupled, old, duration = job
+    name, seed, preset, shared, true_clocks, uncoupled, old, duration, sampling = job
     if uncoupled:  # this worker's simulator only (the pool's processes are the bench's own)
         timeline.KNEE_ADDUCTION_COUPLING = timeline.KNEE_ROTATION_COUPLING = 0.0
         timeline.KNEE_SCREW_HOME = timeline.KNEE_ROTATION_SLOPE = 0.0
@@ -137,7 +137,9 @@ def run_one(job: tuple[str, int, str, bool, bool, bool, bool, float | None]) -> 
         options["preset"] = shared_clock(get_preset(options["preset"]))
     protocol = load_protocol(name)
     length = duration or DURATION_S[name]
-    session, truth = simulate(protocol, length, seed, mounting="random", **options)
+    session, truth = simulate(
+        protocol, length, seed, mounting="random", gyr_sampling=sampling, **options
+    )
     t0 = time.perf_counter()
     try:
         stamps, tasks = analyse_simulated(session, truth, protocol, true_clocks)
@@ -208,6 +210,13 @@ def main() -> None:
         default=None,
         help="recording length (s; default 74): 28 gives a 5-s stand and 14 s of walking",
     )
+    ap.add_argument(
+        "--gyr-sampling",
+        choices=("point", "interval"),
+        default="point",
+        help="the simulated gyroscope's samples: the rate at each instant (point) or the mean "
+        "rate over the interval ending there (interval, as MEMS gyroscopes report)",
+    )
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument(
         "--per-seed", action="store_true", help="also a table of every seed's RMSE per angle"
@@ -215,7 +224,16 @@ def main() -> None:
     args = ap.parse_args()
     flags = (args.uncoupled_knee, args.old_simulator)
     jobs = [
-        (p, s, args.preset, args.shared_clock, args.true_clocks, *flags, args.duration)
+        (
+            p,
+            s,
+            args.preset,
+            args.shared_clock,
+            args.true_clocks,
+            *flags,
+            args.duration,
+            args.gyr_sampling,
+        )
         for p in args.protocols.split(",")
         for s in args.seeds
     ]
@@ -225,6 +243,7 @@ def main() -> None:
     clocks += ", true sampling instants, no sync" if args.true_clocks else ""
     clocks += ", knees without flexion couplings" if args.uncoupled_knee else ""
     clocks += f", {args.duration:g}-s recordings" if args.duration else ""
+    clocks += ", interval-sampled gyroscopes" if args.gyr_sampling == "interval" else ""
     sim = ("old simulator: simple knee, preset typical, soft-tissue motion" if args.old_simulator
            else f"anatomical knee, preset {args.preset}")  # fmt: skip
     print(f"{sim} ({clocks}), random mountings, seeds {args.seeds}")
