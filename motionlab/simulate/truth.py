@@ -84,7 +84,6 @@ class Truth:
                 f"sensor {label!r} has {stamps.size} stamps, its truth {sample_time.size} samples",
                 where="argument stamps",
                 remedy="give the stamps of the simulated session this truth was written with",
-                argument="stamps",
             )
         return np.interp(np.asarray(t, float), stamps, sample_time)
 
