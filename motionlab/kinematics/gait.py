@@ -133,7 +133,7 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
     not_linked = legs_not_linked(session, protocol)
     reach, speed_note = _leg_reach(session, protocol, cal)
     if not_linked:
-        reach, speed_note = {}, f"not measured: {not_linked}"
+        reach, speed_note = {}, "not measured: " + not_linked.removeprefix("not given: ")
     table = sp.stride_table(strides, events, reach)
     if not_linked:
         table = sp.withhold_both_legs(table)
