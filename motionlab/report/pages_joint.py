@@ -33,14 +33,17 @@ from motionlab.report.model import (
 from motionlab.report.normative import band_for
 from motionlab.report.pdf import (
     BAND_COLOUR,
+    HEADING_H,
     MUTED,
     NOT_DETERMINED_COLOUR,
+    PAGE_W,
     SIDE_COLOUR,
     SIZE,
     Document,
     label_spans,
 )
 from motionlab.report.sentences import STATUS_WORDS, span, task_name, weak_lines
+from motionlab.report.widths import text_width
 
 TASKS_PER_PAGE = 3
 MIN_SPAN_DEG = 10.0
@@ -64,7 +67,8 @@ def _time_page(doc: Document, view: SessionView, joint) -> None:
     t = view.angles["time_s"]
     blocks = view.blocks()
     walks = {task: walking_spans(view, task) for task in blocks}  # None: no analysed walk
-    axes = doc.axes_grid(3, 1, 5.6, left=0.85, bottom=0.45, hspace=0.45, top=0.45)
+    height = _time_plot_height(doc, view, joint)
+    axes = doc.axes_grid(3, 1, height, left=0.85, bottom=0.45, hspace=0.45, top=0.45)
     for i, ((angle, col), (ax,)) in enumerate(zip(angle_columns(joint), axes, strict=True)):
         colour, suffix = graded_style(view, joint, col)
         for task, (a, b) in blocks.items():
@@ -111,7 +115,24 @@ def _time_page(doc: Document, view: SessionView, joint) -> None:
     )
 
 
-def _rom_table(doc: Document, view: SessionView, joint) -> None:
+ROM_HEADER = ["Task", "Movement (plane)", "Typical range", "Full ROM (°)", "Cycles",
+              "Normal (°)", "vs normal", "Grade"]  # fmt: skip
+ROM_WIDTHS = [0.11, 0.18, 0.12, 0.09, 0.09, 0.1, 0.14, 0.17]
+ROM_NOTE = (
+    "Typical range: means of the lowest and highest angle of each cycle (a task without "
+    "cycles: its lowest and highest angle). Full ROM: highest minus lowest angle over the "
+    "whole task (a walk: over the kept strides of the joint's leg). A range is flagged when "
+    "it leaves the normal range by more than 5°, or a flexion peak falls 10° short of its "
+    "top; not when a walk faster than the norms' walkers takes a flexion range above it, "
+    "or a slower one short of it: marked '(pace)'. Grade: whether the "
+    "recording determined the angle (see the "
+    "calibration page); only a determined range is compared."
+)
+TIME_PLOT_H = (4.2, 5.6)  # in: the time curves' least and usual height
+
+
+def _rom_cells(view: SessionView, joint) -> tuple[list, list, list]:
+    """The range-of-motion table's rows of ``joint``, the cells drawn red and the rows greyed."""
     rows, flagged, muted = [], [], []
     for r in rom_rows(view):
         if r.joint != joint.name:
@@ -135,43 +156,64 @@ def _rom_table(doc: Document, view: SessionView, joint) -> None:
             ]
         )
         flagged.append([False] * 6 + [bad, False])
+    return rows, flagged, muted
+
+
+def _weak_note(view: SessionView, joint) -> str:
+    weak = weak_lines(view, joint.name)
+    if not weak:
+        return ""
+    return "Weak angles (shown, not compared with the normal range, not findings): " + " ".join(
+        weak
+    )
+
+
+def _rom_height(view: SessionView, joint) -> float:
+    """The height (in) of the range-of-motion table with its heading and notes."""
+    weak = _weak_note(view, joint)
+    return (
+        HEADING_H
+        + Document.table_height(ROM_HEADER, _rom_cells(view, joint)[0], ROM_WIDTHS)
+        + Document.paragraph_height(ROM_NOTE, SIZE["small"])
+        + (Document.paragraph_height(weak, SIZE["small"]) if weak else 0.0)
+    )
+
+
+def _time_plot_height(doc: Document, view: SessionView, joint) -> float:
+    """The time curves' height: the usual one, less what keeps the range-of-motion table and
+    its notes on the page (a long table left its note alone on the next page), not under
+    :data:`TIME_PLOT_H`'s least; 0.15 in spare for the table's own look-ahead."""
+    low, usual = TIME_PLOT_H
+    spare = doc.room() - usual - _rom_height(view, joint) - 0.15
+    return usual if spare >= 0 or usual + spare < low else usual + spare
+
+
+def _rom_table(doc: Document, view: SessionView, joint) -> None:
+    rows, flagged, muted = _rom_cells(view, joint)
     doc.heading("Range of motion")
     doc.table(
-        [
-            "Task",
-            "Movement (plane)",
-            "Typical range",
-            "Full ROM (°)",
-            "Cycles",
-            "Normal (°)",
-            "vs normal",
-            "Grade",
-        ],
+        ROM_HEADER,
         rows,
-        [0.11, 0.18, 0.12, 0.09, 0.09, 0.1, 0.14, 0.17],
+        ROM_WIDTHS,
         flagged,
         align=["l", "l", "r", "r", "r", "r", "r", "r"],
         muted=muted,
     )
-    doc.paragraph(
-        "Typical range: means of the lowest and highest angle of each cycle (a task without "
-        "cycles: its lowest and highest angle). Full ROM: highest minus lowest angle over the "
-        "whole task (a walk: over the kept strides of the joint's leg). A range is flagged when "
-        "it leaves the normal range by more than 5°, or a flexion peak falls 10° short of its "
-        "top; not when a walk faster than the norms' walkers takes a flexion range above it, "
-        "or a slower one short of it: marked '(pace)'. Grade: whether the "
-        "recording determined the angle (see the "
-        "calibration page); only a determined range is compared.",
-        size=SIZE["small"],
-        colour=MUTED,
-    )
-    weak = weak_lines(view, joint.name)
+    doc.paragraph(ROM_NOTE, size=SIZE["small"], colour=MUTED)
+    weak = _weak_note(view, joint)
     if weak:
-        doc.paragraph(
-            "Weak angles (shown, not compared with the normal range, not findings): "
-            + " ".join(weak),
-            size=SIZE["small"],
-        )
+        doc.paragraph(weak, size=SIZE["small"])
+
+
+def _fitted(ax: Axes, title: str, grade: str) -> str:
+    """``title`` and its ``grade`` mark on one line, or the mark on a second line when the
+    line would run past the axes ('sit to stand, rotation (n = 5), not determined' left the
+    page from the third column)."""
+    width = ax.get_position().width * PAGE_W
+    one = title + grade
+    if not grade or text_width(one, SIZE["small"]) <= width:
+        return one
+    return f"{title}{grade[0] if grade[0] == ',' else ''}\n{grade.lstrip(', ')}"
 
 
 def min_span(ax: Axes, span_deg: float = MIN_SPAN_DEG) -> None:
@@ -224,11 +266,8 @@ def draw_cycle(ax: Axes, view: SessionView, joint, task: str, angle: str, col: s
         ax.plot(pct, mean, color=colour, lw=1.2)
     min_span(ax)
     n = int(m.repetitions) if m is not None else 0
-    ax.set_title(
-        f"{task_name(task)}, {angle.replace('_', ' ')} (n = {n}){suffix.replace(' · ', ', ')}",
-        loc="left",
-        size=SIZE["small"],
-    )
+    title = f"{task_name(task)}, {angle.replace('_', ' ')} (n = {n})"
+    ax.set_title(_fitted(ax, title, suffix.replace(" · ", ", ")), loc="left", size=SIZE["small"])
     ax.set_xlim(0, 100)
     ax.set_xlabel("cycle (%)")
     ax.set_ylabel(f"{angle.replace('_', ' ')} (°)")
@@ -370,11 +409,8 @@ def symmetry_page(doc: Document, view: SessionView) -> None:
                      for x in ("r", "l")]
                 )[0]  # fmt: skip
                 mark = "" if is_determined(grade) else f" ({grade})"
-                ax.set_title(
-                    f"{task_name(task)}, {angle.replace('_', ' ')}{mark}",
-                    loc="left",
-                    size=SIZE["small"],
-                )
+                title = f"{task_name(task)}, {angle.replace('_', ' ')}"
+                ax.set_title(_fitted(ax, title, mark), loc="left", size=SIZE["small"])
                 ax.set_xlim(0, 100)
                 ax.set_xlabel("cycle (%)")
                 ax.set_ylabel(f"{angle.replace('_', ' ')} (°)")

@@ -18,7 +18,7 @@ from motionlab.report.model import (
     joint_title,
     quality_rows,
 )
-from motionlab.report.pdf import MUTED, SIZE, Document, label_spans
+from motionlab.report.pdf import HEADING_H, MUTED, SIZE, Document, label_spans
 from motionlab.results import HingeFit, SegmentCalibration
 from motionlab.segments.quality import FUNCTIONAL_RHO_MIN, RESIDUAL_MAX_DEG, STATIC_RHO_MIN
 from motionlab.segments.steps import unfound_step
@@ -43,10 +43,26 @@ def _f(x: float, spec: str = ".1f") -> str:
     return format(x, spec) if np.isfinite(x) else "-"
 
 
-def _timeline(doc: Document, view: SessionView) -> None:
-    """One lane per sensor: rest, magnetic disturbance and gaps over time, tasks shaded."""
+TIMELINE_CAPTION = (
+    "Blue: recorded; grey: sensor at rest; orange: magnetic field disturbed; red: gap kept "
+    "as missing; green background: task blocks used for the metrics."
+)
+
+
+def _timeline(doc: Document, view: SessionView, follows: float = 0.0) -> None:
+    """One lane per sensor: rest, magnetic disturbance and gaps over time, tasks shaded.
+
+    ``follows`` (in) is what must stay with it on its page (a heading and a short list, not
+    to be left alone on the next): the chart is drawn up to a quarter lower to make room for
+    it, else it goes onto the next page with it."""
     sensors = list(view.session.sensors.values())
     height = 1.3 + 0.28 * len(sensors)
+    need = height + doc.paragraph_height(TIMELINE_CAPTION, SIZE["small"]) + follows
+    short = need - doc.room()
+    if 0 < short <= 0.25 * height:
+        height -= short
+    elif short > 0:
+        doc.ensure(need)
     ax = doc.axes_grid(1, 1, height, left=0.9, bottom=0.5, top=0.25)[0][0]
     fusion = view.session.results.fusion
     for k, s in enumerate(sensors):
@@ -71,12 +87,7 @@ def _timeline(doc: Document, view: SessionView) -> None:
     label_spans(ax, {k.replace("_", " "): v for k, v in view.blocks().items()}, SIZE["small"] - 1)
     ax.set_xlabel("time (s)")
     ax.set_title("The recording, sensor by sensor", loc="left")
-    doc.paragraph(
-        "Blue: recorded; grey: sensor at rest; orange: magnetic field disturbed; red: gap kept "
-        "as missing; green background: task blocks used for the metrics.",
-        size=SIZE["small"],
-        colour=MUTED,
-    )
+    doc.paragraph(TIMELINE_CAPTION, size=SIZE["small"], colour=MUTED)
 
 
 def data_quality_page(doc: Document, view: SessionView) -> None:
@@ -149,9 +160,11 @@ def data_quality_page(doc: Document, view: SessionView) -> None:
             colour=MUTED,
         )
         doc.bullets([describe(fit) for fit in synced.fits.values()])
-    _timeline(doc, view)
-    doc.heading("Excluded from the analysis, and why")
-    doc.bullets(excluded(view) or ["nothing"])
+    reasons = excluded(view) or ["nothing"]
+    follows = doc.bullets_height(reasons)
+    _timeline(doc, view, min(1.2, HEADING_H + follows) + 0.05)  # as the heading keeps it
+    doc.heading("Excluded from the analysis, and why", follows=follows)
+    doc.bullets(reasons)
 
 
 def _grades_table(doc: Document, view: SessionView) -> None:

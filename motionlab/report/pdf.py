@@ -42,6 +42,7 @@ BOTTOM = 0.7  # above the footer
 WIDTH = PAGE_W - 2 * MARGIN
 SIZE = {"title": 15.0, "heading": 11.5, "body": 9.5, "small": 8.0, "table": 8.5}
 LINE = 1.35  # line height / font size
+HEADING_H = 0.08 + (LINE + 0.45) * SIZE["heading"] / 72  # a sub-heading's height (in)
 FLAG_COLOUR = "#b2182b"
 SIDE_COLOUR = {"r": "#1a9850", "l": "#d73027", "": "#2166ac"}  # right green, left red
 BAND_COLOUR = "#bdbdbd"
@@ -592,11 +593,52 @@ class Document:
         self._put(MARGIN, text, size, weight="bold")
         self.y += 0.45 * size / 72
 
-    def heading(self, text: str) -> None:
-        """A sub-heading; kept on the page with at least 1.2 in of what follows."""
-        self.ensure(1.2)
+    def room(self) -> float:
+        """The height (in) left on the current page."""
+        return PAGE_H - BOTTOM - self.y if self.pages else 0.0
+
+    def heading(self, text: str, follows: float | None = None) -> None:
+        """A sub-heading; kept on the page with what follows: 1.2 in with the heading, or all
+        of it when ``follows`` (its height, in: :meth:`bullets_height`) is less (a short list
+        left under the last one then stays on the page, not alone on the next)."""
+        self.ensure(1.2 if follows is None else min(1.2, HEADING_H + follows))
         self.space(0.08)
         self._heading(text, SIZE["heading"])
+
+    @staticmethod
+    def paragraph_height(
+        text: str, size: float = SIZE["body"], indent: float = 0.0, weight: str = "normal"
+    ) -> float:
+        """The height (in) :meth:`paragraph` takes for ``text``."""
+        step = size * LINE / 72
+        return len(wrap(text, WIDTH - indent, size, weight)) * step + 0.35 * step
+
+    @staticmethod
+    def bullets_height(items: Sequence[str], size: float = SIZE["body"]) -> float:
+        """The height (in) :meth:`bullets` takes for ``items``."""
+        step = size * LINE / 72
+        lines = sum(len(wrap(item, WIDTH - 0.22, size)) for item in items)
+        return lines * step + len(items) * 0.25 * step + 0.2 * step
+
+    @staticmethod
+    def table_height(
+        header: Sequence[str],
+        rows: Sequence[Sequence[str]],
+        widths: Sequence[float],
+        size: float = SIZE["table"],
+    ) -> float:
+        """The height (in) :meth:`table` takes on one page."""
+        cols = [w * WIDTH for w in widths]
+        step = size * LINE / 72
+
+        def height(row: Sequence[str], weight: str) -> float:
+            cells = zip(row, cols, strict=True)
+            return max(len(wrap(str(c), w - 0.06, size, weight)) for c, w in cells) * step + (
+                0.25 * step
+            )
+
+        head = height(header, "bold") + 0.06 if any(str(h).strip() for h in header) else 0.0
+        return head + sum(height(r, "normal") for r in rows) + 0.12
 
     def paragraph(
         self,
