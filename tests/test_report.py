@@ -895,3 +895,24 @@ def test_an_interrupted_pdf_is_an_interruption_not_an_internal_error(tmp_path, m
         monkeypatch.setattr(PdfPages, "savefig", cut_short)
         with pytest.raises(KeyboardInterrupt):
             doc.save(tmp_path / "r.pdf")
+
+
+def test_expected_accuracy_says_which_figures_this_recordings_grades_undo():
+    """A real walk's hip ab-adduction and rotation, weak (the pelvis's forward direction from
+    the first steps, 5-10° off), were told '±2°' on the accuracy page with no word of it."""
+    from motionlab.report.pages_methods import accuracy_page
+
+    view = (
+        _graded_view()
+    )  # right knee: adduction weak, rotation not determined; left: all determined
+    with matplotlib.rc_context(RC):
+        doc = Document("motionlab report · test", "subject X")
+        accuracy_page(doc, view)
+        text = " ".join(" ".join(page_text(f) for f in doc.pages).split())
+    assert (
+        "worst case 1.43°) — weak for the right knee in this recording: it may be further off"
+        in text
+    )
+    assert "— not determined for the right knee in this recording: not shown" in text
+    flexion = text.split("flexion-extension: ")[1].split("•")[0]
+    assert "in this recording" not in flexion  # determined on both sides: the figure stands

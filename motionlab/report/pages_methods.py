@@ -113,7 +113,7 @@ def accuracy_page(doc: Document, view: SessionView) -> None:
         )
     for jtype, names in types.items():
         items = [
-            accuracy_sentence(a, proto[f"{jtype}_{a}"], jtype)
+            accuracy_sentence(a, proto[f"{jtype}_{a}"], jtype) + _here(view, jtype, a)
             for a in names
             if f"{jtype}_{a}" in proto
         ]
@@ -145,6 +145,28 @@ def accuracy_page(doc: Document, view: SessionView) -> None:
         if rows:
             doc.heading("In this session, against the optical reference")
             doc.table(["Angle", "RMSE (°)"], rows, [0.5, 0.2], align=["l", "r"])
+
+
+def _here(view: SessionView, jtype: str, angle: str) -> str:
+    """What this recording's grade of ``angle`` of the ``jtype`` joints does to the figure on
+    file: nothing when determined; a real walk's weak hip ab-adduction (pelvis's forward
+    direction 5-10° off) was told ±2° with no word of it."""
+    grades = angle_grades(view)
+    if not any(g == DETERMINED for g, _ in grades.values()):
+        return ""  # none determined: the caveat above the list says it for all
+    by_grade: dict[str, list[str]] = {}
+    for j in view.joints():
+        for a, c in angle_columns(j):
+            if j.type == jtype and a == angle and c in grades:
+                by_grade.setdefault(grades[c][0], []).append(joint_title(j).lower())
+    parts = []
+    for grade, words in ((NOT_DETERMINED, "not shown"),
+                         ("weak", "it may be further off than this")):  # fmt: skip
+        joints = by_grade.pop(grade, [])
+        if joints:
+            whom = "" if len(by_grade) == 0 and not parts else f" for the {' and '.join(joints)}"
+            parts.append(f"{grade}{whom} in this recording: {words}")
+    return f" — {'; '.join(parts)} (see the calibration page)" if parts else ""
 
 
 def _calibration_caveat(view: SessionView) -> str:
