@@ -180,7 +180,7 @@ def test_report_text_and_one_screen_summary(result):
         assert word in text, word
     lines = result.summary.splitlines()
     assert len(lines) <= 30 and lines[0].startswith("motionlab run: knee_small")
-    assert any("knee_r" in line and "normal 0-65" in line for line in lines)
+    assert any("knee_r" in line and "normal 0–65°" in line for line in lines)
 
 
 def test_existing_outputs_need_force(result, recorded):

@@ -916,3 +916,24 @@ def test_expected_accuracy_says_which_figures_this_recordings_grades_undo():
     assert "— not determined for the right knee in this recording: not shown" in text
     flexion = text.split("flexion-extension: ")[1].split("•")[0]
     assert "in this recording" not in flexion  # determined on both sides: the figure stands
+
+
+def test_a_range_called_within_though_its_ends_pass_the_normal_says_the_allowance(tmp_path):
+    """A real walker's hip 'range -14 to 40° during walk, within the normal -10 to 35°' read
+    as a contradiction on the summary page and the console (which also printed the normal
+    range as '-10-35')."""
+    from motionlab.report import ReportOutput
+    from motionlab.report.console import run_summary
+
+    view = _graded_view(graded=False)
+    view.metrics.joints["gait"]["knee_r_flexion_deg"] = _angle(-4.4, 69.6)  # past 0-65° by < 5°
+    row = next(r for r in rom_rows(view) if r.column == "knee_r_flexion_deg")
+    assert row.status == "within"
+    assert rom_sentence(row).endswith("within the normal 0–65° (allowing 5°).")
+    inside = next(r for r in rom_rows(view) if r.column == "knee_l_flexion_deg")
+    assert rom_sentence(inside).endswith("within the normal 0–65°.")
+    out = ReportOutput(tmp_path / "report.pdf", tmp_path / "report.txt")
+    names = {"session_file": "session.h5", "csv_dir": "csv", "results_json": "results.json"}
+    text = run_summary(view, out, {}, 1.0, **names)
+    assert "-4 to 70°  (normal 0–65°, within, allowing 5°)" in text
+    assert "0–64°  (normal 0–65°, within)" in text

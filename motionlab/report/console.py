@@ -20,7 +20,7 @@ from motionlab.report.model import (
     quality_rows,
     rom_rows,
 )
-from motionlab.report.sentences import findings, missing_lines, span, task_name
+from motionlab.report.sentences import allowance, findings, missing_lines, span, task_name
 
 if TYPE_CHECKING:
     from motionlab.report import ReportOutput
@@ -110,7 +110,8 @@ def run_summary(
             span(r.typical_min_deg, r.typical_max_deg) if r.grade != "not determined" else "-"
         )
         normal = (
-            f"normal {r.normal[0]:g}-{r.normal[1]:g}, {r.status or 'not compared'}"
+            f"normal {span(*r.normal)}, {r.status or 'not compared'}"
+            + (f", {allowance(r)}" if allowance(r) else "")
             + (", the pace: not flagged" if r.paced else "")
             if r.normal
             else "no normal range"

@@ -25,6 +25,7 @@ from motionlab.report.model import (
     NOT_DETERMINED,
     SIDE_NAMES,
     THORAX,
+    TOLERANCE_DEG,
     WEAK,
     RomRow,
     SessionView,
@@ -138,8 +139,21 @@ def rom_sentence(row: RomRow) -> str:
     text = text[0].upper() + text[1:]
     if row.normal is not None and row.status:
         lo, hi = row.normal
+        allowed = allowance(row)
         text += f", {STATUS_WORDS[row.status]} the normal {span(lo, hi)}"
+        text += f" ({allowed})" if allowed else ""
     return text + "."
+
+
+def allowance(row: RomRow) -> str:
+    """``'allowing 5°'`` for a range called within the normal one whose printed ends pass
+    it (by no more than :data:`~motionlab.report.model.TOLERANCE_DEG`): 'range -14 to 40°,
+    within the normal -10 to 35°' read as a contradiction; else ``''``."""
+    if row.status != "within" or row.normal is None:
+        return ""
+    low, high = round(row.typical_min_deg), round(row.typical_max_deg)
+    past = low < row.normal[0] or high > row.normal[1]
+    return f"allowing {TOLERANCE_DEG:g}°" if past else ""
 
 
 #: where the pace caveat (:func:`pace_note`) comes from
