@@ -481,6 +481,19 @@ def test_a_hinge_fits_axis_shows_its_verdict_and_no_made_up_rho(walk):
         assert cells[3] == "-" and cells[4] == r.verdict
 
 
+def test_a_movement_axis_step_is_named_in_words():
+    """The step column printed the records' keys, 'movement:knee r:0' and 'movement:turns',
+    wrapped over two lines; it names the joint whose movement gave the axis, or the walk."""
+    from motionlab.report.pages_quality import step_words
+
+    walk = load_protocol("walk").joints
+    assert step_words("movement:knee_r:0", walk) == "movement (right knee)"
+    assert step_words("movement:knee_l", walk) == "movement (left knee)"
+    assert step_words("movement:turns", walk) == "the walk (forward)"
+    assert step_words("knee_flexion_l") == "knee flexion l"
+    assert step_words("movement:wrist_x:1") == "movement (wrist x)"
+
+
 def test_calibration_table_does_not_flag_the_residual_of_an_axis_left_out():
     """The knee's movement axis left out of the shank's fit (the hip-flexion step measured it
     better) keeps its residual as information, not in red beside 'In fit: no'."""

@@ -321,7 +321,7 @@ def calibration_page(doc: Document, view: SessionView) -> None:
     doc.heading("Per segment and step")
     rows, flagged = [], []
     for r in calibration_rows(view):
-        cells, flags = calibration_cells(r)
+        cells, flags = calibration_cells(r, view.protocol.joints)
         rows.append(cells)
         flagged.append(flags)
     doc.table(
@@ -369,7 +369,23 @@ def merged_messages(messages: list[str]) -> list[str]:
             for text, s in segments.items()]  # fmt: skip
 
 
-def calibration_cells(r: CalibrationRow) -> tuple[list[str], list[bool]]:
+def step_words(step: str, joints: dict | None = None) -> str:
+    """A calibration row's step as a clinician reads it: a protocol step by its name, an axis
+    found in a joint's own movement (``movement:knee_r:0``) as ``movement (right knee)``, the
+    pelvis's forward direction from the walk (``movement:turns``) as ``the walk (forward)``."""
+    kind, _, rest = step.partition(":")
+    if kind != "movement" or not rest:
+        return step.replace("_", " ")
+    name = rest.split(":")[0]
+    if name == "turns":
+        return "the walk (forward)"
+    joint = (joints or {}).get(name)
+    return f"movement ({joint_title(joint).lower() if joint else name.replace('_', ' ')})"
+
+
+def calibration_cells(
+    r: CalibrationRow, joints: dict | None = None
+) -> tuple[list[str], list[bool]]:
     """The cells of one row of the table "Per segment and step" and which to draw red.
 
     A protocol step's ρ is red below its floor (static or functional, or 0.1 under the
@@ -385,7 +401,7 @@ def calibration_cells(r: CalibrationRow) -> tuple[list[str], list[bool]]:
     cells = [
         r.segment,
         r.method.replace("_", " "),
-        r.step.replace("_", " "),
+        step_words(r.step, joints),
         _f(r.rho, ".3f"),
         str(r.verdict) if own_check else f"≥ {floor:.2f}" if r.step != "none" else "-",
         _f(r.residual_deg),
