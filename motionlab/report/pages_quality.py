@@ -20,6 +20,7 @@ from motionlab.report.model import (
 )
 from motionlab.report.pdf import HEADING_H, MUTED, SIZE, Document, label_spans
 from motionlab.results import HingeFit, SegmentCalibration
+from motionlab.segments import hip_axis
 from motionlab.segments.quality import FUNCTIONAL_RHO_MIN, RESIDUAL_MAX_DEG, STATIC_RHO_MIN
 from motionlab.segments.steps import unfound_step
 from motionlab.timebase import runs
@@ -267,7 +268,7 @@ def _hip_axes_table(doc: Document, view: SessionView) -> None:
             [
                 joint_title(joint) if joint else name,
                 "yes" if used else "no",
-                _f(float(fit.turn_deg)),
+                _f(float(fit.turn_deg)) if used else "-",  # an axis not used turns nothing
                 _f(float(fit.rho), ".2f"),
                 str(fit.reason) or "-",
             ]
@@ -278,7 +279,8 @@ def _hip_axes_table(doc: Document, view: SessionView) -> None:
         "Each hip is measured about the dominant axis of the thigh's rotation relative to the "
         "pelvis in the recording (the thigh's frame from the knee axis is left to the knee). "
         "Turn: that axis's angle about the pelvis's vertical axis from the pelvis's "
-        "medio-lateral axis; ρ: how dominant it is (1: one axis only).",
+        f"medio-lateral axis; ρ: how dominant it is (1: one axis only; used from "
+        f"{hip_axis.MIN_RHO:.2f}).",
         size=SIZE["small"],
         colour=MUTED,
     )

@@ -82,7 +82,8 @@ def flexion_turn(t: np.ndarray, q_pelvis: np.ndarray, q_thigh: np.ndarray) -> Hi
     off = float(np.degrees(np.arccos(np.clip(np.hypot(axis[0], axis[2]), 0.0, 1.0))))
     out = replace(out, rho=float(rho), turn_deg=turn, tilt_deg=off)
     if rho < MIN_RHO:
-        return replace(out, turn_deg=0.0, reason=f"no dominant hip axis (rho {rho:.2f})")
+        why = f"no dominant hip axis (rho {rho:.2f}, {MIN_RHO:.2f} needed)"
+        return replace(out, turn_deg=0.0, reason=why)
     if abs(turn) > MAX_TURN_DEG:
         why = f"the dominant axis is {turn:.0f} deg from the pelvis z"
         return replace(out, turn_deg=0.0, reason=why)
