@@ -147,3 +147,31 @@ def test_real_c3d_cut_at_half_nine_tenths_and_past_the_header(tmp_path, name):
     size = source.stat().st_size
     for n in (size // 2, int(size * 0.9), 513):
         assert "truncated: the " in _refusal(_cut(tmp_path, source, n)), n
+
+
+# ---------------------------------------------------------------------------------- TRC
+
+
+TRC = DATA / "c3d" / "markers_20frames.trc"
+
+
+@pytest.mark.parametrize("keep", [2, 6, 40, -3])
+def test_trc_cut_inside_its_last_row_drops_that_row_with_a_note(tmp_path, keep):
+    """A TRC copy stopped inside a row was read as a frame: cut in its time ("20,0." of
+    "20,0.19") it was refused as 'frame times are not strictly increasing', cut later it kept a
+    frame of cut-off markers. The cut row is dropped with a note, as the other readers do."""
+    data = TRC.read_bytes()
+    start = data.rstrip(b"\n").rindex(b"\n") + 1
+    row = data[start:].rstrip(b"\n")
+    path = _cut(tmp_path, data, start + (keep if keep > 0 else len(row) + keep))
+    whole = read_any(TRC).markers[0]
+    cut = read_any(path).markers[0]
+    assert cut.positions.shape[0] == whole.positions.shape[0] - 1
+    assert np.array_equal(cut.time, whole.time[:-1])
+    assert any("truncated last line" in w for w in cut.attrs["warnings"])
+
+
+def test_trc_whole_last_row_without_a_line_end_is_kept(tmp_path):
+    data = TRC.read_bytes()
+    cut = read_any(_cut(tmp_path, data, len(data.rstrip(b"\n")))).markers[0]
+    assert cut.positions.shape[0] == read_any(TRC).markers[0].positions.shape[0]

@@ -13,7 +13,8 @@ Layout::
 Returned: one :class:`~motionlab.session.MarkerSet` named after the file with positions
 (N, M, 3) in m (``Units`` ``mm``, ``cm`` or ``m``), NaN for empty or ``NaN`` cells (markers not
 seen), time from the ``Time`` column in s, no residuals. A file with fewer rows than
-``NumFrames`` (an excerpt, or a cut copy) is read with a warning in ``attrs["warnings"]``.
+``NumFrames`` (an excerpt, or a cut copy) is read with a warning in ``attrs["warnings"]``; a
+last row the file ends inside (no line end, cells or decimals missing) is dropped with one.
 """
 
 from __future__ import annotations
@@ -83,9 +84,13 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     )  # fmt: skip
     # rows whose last markers are missing may stop early or carry empty trailing cells;
     # a row of nothing but delimiters is no frame
-    data = table.data[~np.isnan(table.data).all(axis=1)]
-
+    framed = ~np.isnan(table.data).all(axis=1)
+    data, rows = table.data[framed], table.lines[framed]
     warnings = list(table.notes)
+    cut = _cut_last_row(lines, rows, delim)
+    if cut:
+        data = data[:-1]
+        warnings.append(f"line {rows[-1]}: truncated last line ({cut}) dropped")
     n_frames = len(data)
     if "NumFrames" in info and _number(path, info["NumFrames"], "NumFrames") > n_frames:
         warnings.append(f"header announces {info['NumFrames']} frames, the file holds {n_frames}")
@@ -106,6 +111,22 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
         attrs=attrs,
     )
     return Recording(markers=[markers], metadata={"trc_units": info["Units"]})
+
+
+def _cut_last_row(lines: Any, rows: np.ndarray, delim: str) -> str:
+    """How the file's last row is cut short when the file ends inside it (no line end): fewer
+    cells than the row before, or its last cell with fewer decimals than that row's ("55,0."
+    of "55,0.54", a time going backwards); ``""`` for a whole last row or a file that ends
+    with a line end (a row that stops early there only lacks its last markers)."""
+    if not lines.unended or len(rows) < 2 or rows[-1] != len(lines):
+        return ""
+    before, last = (split_fields(lines[int(k) - 1], delim) for k in rows[-2:])
+    if len(last) < len(before):
+        return f"{len(last)} of {len(before)} cells"
+    a, b = last[-1], before[len(last) - 1]
+    if a and b and len(a.partition(".")[2]) < len(b.partition(".")[2]):
+        return f"'{a}' at the end of the file"
+    return ""
 
 
 def _names(labels: list[str]) -> list[str]:
