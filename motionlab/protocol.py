@@ -72,6 +72,10 @@ Angle columns: ``<type>_<side>_<angle>_deg`` for knee, elbow and lumbar (``knee_
 ``lumbar_flexion_deg``); ``<joint>_<angle>_deg`` for hinge and ball joints (``wrist_r_angle_deg``,
 ``wrist_r_off_axis_1_deg``, ``shoulder_r_y_deg``). Two joints giving one column are an error.
 
+Names of segments, joints, steps and tasks name groups of the session file and CSV files: not
+empty, no ``/`` or ``\\``; a step's or task's name is given once. A ``normative`` key names a task
+(or ``range_of_motion``, the joint's full range) and its columns angle columns of the joints.
+
 Axis strings are ``x``, ``y``, ``z`` of the ISB segment frame (x anterior, y proximal, z right),
 optionally with a sign: ``-z``. ``sensor_axes`` gives, for the sensor's x, y, z axes, the segment
 axis each one points along in the nominal placement (e.g. ``[-z, y, x]``); the default is aligned.
@@ -79,6 +83,7 @@ axis each one points along in the nominal placement (e.g. ``[-z, y, x]``); the d
 
 from __future__ import annotations
 
+import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import partial
@@ -108,6 +113,10 @@ TOP_KEYS = ("name", "title", "purpose", "segments", "calibration", "joints", "ta
 SEGMENT_KEYS = ("side", "placement", "sensor_axes", "landmarks", "required", "any_orientation")
 #: s: the longest calibration step or task a protocol may ask for (a day)
 MAX_DURATION_S = 86400.0
+#: a ``normative`` key that names no task: the joint's full range (arm, elbow, children)
+NORMATIVE_NOT_A_TASK = ("range_of_motion",)
+#: the most repetitions a step or task may ask for
+MAX_REPETITIONS = 10000
 STEP_KEYS = ("name", "kind", "pose", "duration_s", "vertical_axis", "horizontal_axis",
              "instructions", "segments", "axis", "repetitions", "optional", "reference_rho",
              "time_range", "axis_method")  # fmt: skip
@@ -252,6 +261,11 @@ class _Reader:
             isinstance(value, bool) and bool not in (kind if isinstance(kind, tuple) else (kind,))
         ):
             names = kind.__name__ if isinstance(kind, type) else "/".join(k.__name__ for k in kind)
+            if kind is float and _e_notation(value):
+                point = value.lower().replace("e", ".0e", 1)
+                self.fail(f"{where}.{key}".lstrip("."), line, f"is text {value!r}: YAML reads "
+                          "a number in e-notation without a decimal point as text",
+                          f"write it with one, e.g. {point}")  # fmt: skip
             self.fail(
                 f"{where}.{key}".lstrip("."),
                 line,
@@ -277,6 +291,33 @@ class _Reader:
             if not isinstance(key, str):
                 place = f"{where}.{key}".lstrip(".")
                 self.fail(place, lines.get(key), f"name {key!r} is not text", "quote it")
+
+    def label(self, value: Any, where: str, line: int | None) -> str:
+        """A segment, joint, step or task name: text that can name a group of the session file
+        and a CSV file (not empty, no '/' or '\\', not '.' or '..', no control characters)."""
+        if not isinstance(value, str):
+            self.fail(where, line, f"name {shorten(repr(value))} is not text", "quote it")
+        bad = sorted({c for c in value if c in "/\\" or ord(c) < 32 or ord(c) == 127})
+        if not value.strip() or value.strip(".") == "" or bad:
+            what = f"holds {', '.join(map(repr, bad))}" if bad else "is empty or only dots"
+            self.fail(where, line, f"name {value!r} {what}: it names a group of the session file "
+                      "and a CSV file", "use letters, digits and '_', e.g. knee_r")  # fmt: skip
+        return value
+
+    def unique(self, name: str, seen: dict[str, str], where: str, line: int | None) -> None:
+        """Fail when ``name`` was given before (at ``seen[name]``): results are kept by name."""
+        if name in seen:
+            self.fail(f"{where}.name", line, f"name {name!r} is given twice ({seen[name]} too)",
+                      "give each its own name")  # fmt: skip
+        seen[name] = where
+
+    def repetitions(self, m: dict, where: str) -> int:
+        """``repetitions`` of a step or task: a whole number ≥ 0 (0: not counted)."""
+        value = self.get(m, "repetitions", where, int, False, 0)
+        if not 0 <= value <= MAX_REPETITIONS:
+            self.fail(f"{where}.repetitions", getattr(m, "lines", {}).get("repetitions"),
+                      f"is {value}", f"give a count between 0 and {MAX_REPETITIONS}")  # fmt: skip
+        return value
 
     def duration(self, m: dict, where: str, required: bool = True) -> float:
         """``duration_s`` of a step (required, > 0) or a task (optional, ≥ 0; 0: as long as
@@ -314,6 +355,11 @@ class _Reader:
         return side
 
 
+def _e_notation(value: Any) -> bool:
+    """Whether ``value`` is text YAML 1.1 did not read as a number: ``1e3``, ``2E-4``."""
+    return isinstance(value, str) and re.fullmatch(r"[-+]?\d+[eE][-+]?\d+", value) is not None
+
+
 def parse_protocol(path: str | Path) -> tuple[Path, dict]:
     """The protocol file (a path, or the name of a packaged protocol) and its YAML document:
     mappings that know the line of each key (``.lines``), bounded in size and depth
@@ -338,6 +384,7 @@ def load_protocol(path: str | Path) -> Protocol:
     joints = _joints(r, doc, check_segment)
     tasks = _tasks(r, doc)
     normative = _normative(r, doc)
+    _normative_names(r, doc, normative, tasks, joints)
     return Protocol(
         name=name,
         segments=segments,
@@ -384,6 +431,7 @@ def _segments(r: _Reader, doc: dict) -> dict[str, Segment]:
         spec = spec if spec is not None else LineMap()
         if not isinstance(spec, dict):
             r.fail(where, line, "is not a mapping", "give side/placement keys")
+        r.label(seg_name, where, line)
         r.known(spec, where, SEGMENT_KEYS)
         axes = r.get(spec, "sensor_axes", where, list, False, ["x", "y", "z"])
         if len(axes) != 3:
@@ -427,7 +475,8 @@ def _check_segment(
 
 def _steps(r: _Reader, doc: dict, check_segment: Callable) -> list[CalibrationStep]:
     """The validated ``calibration`` steps."""
-    steps = []
+    steps: list[CalibrationStep] = []
+    seen: dict[str, str] = {}
     for i, spec in enumerate(r.get(doc, "calibration", "", list, False, [])):
         where = f"calibration[{i}]"
         line = getattr(spec, "lines", {}).get("name", doc.lines.get("calibration"))
@@ -493,7 +542,7 @@ def _steps(r: _Reader, doc: dict, check_segment: Callable) -> list[CalibrationSt
             )
         steps.append(
             CalibrationStep(
-                name=r.get(spec, "name", where, str),
+                name=r.label(r.get(spec, "name", where, str), f"{where}.name", line),
                 kind=kind,
                 duration_s=r.duration(spec, where),
                 instructions=r.get(spec, "instructions", where, str, False, ""),
@@ -505,7 +554,7 @@ def _steps(r: _Reader, doc: dict, check_segment: Callable) -> list[CalibrationSt
                     for s in r.get(spec, "segments", where, list, False, list(axis))
                 ],
                 axis=axis,
-                repetitions=r.get(spec, "repetitions", where, int, False, 0),
+                repetitions=r.repetitions(spec, where),
                 time_range=tuple(float(t) for t in time_range) if time_range else None,
                 optional=r.get(spec, "optional", where, bool, False, False),
                 reference_rho={
@@ -517,6 +566,7 @@ def _steps(r: _Reader, doc: dict, check_segment: Callable) -> list[CalibrationSt
                 axis_method=axis_method,
             )
         )
+        r.unique(steps[-1].name, seen, where, line)
 
     return steps
 
@@ -530,6 +580,7 @@ def _joints(r: _Reader, doc: dict, check_segment: Callable) -> dict[str, Joint]:
         line = doc["joints"].lines.get(jname)
         if not isinstance(spec, dict):
             r.fail(where, line, "is not a mapping", "give type/proximal/distal keys")
+        r.label(jname, where, line)
         r.known(spec, where, JOINT_KEYS)
         joints[jname] = _joint(r, jname, spec, line, check_segment)
         for _, col in angle_columns(joints[jname]):
@@ -549,12 +600,14 @@ def _joints(r: _Reader, doc: dict, check_segment: Callable) -> dict[str, Joint]:
 
 def _tasks(r: _Reader, doc: dict) -> list[Task]:
     """The validated ``tasks``."""
-    tasks = []
+    tasks: list[Task] = []
+    seen: dict[str, str] = {}
     for i, spec in enumerate(r.get(doc, "tasks", "", list, False, [])):
         where = f"tasks[{i}]"
         if not isinstance(spec, dict):
             r.fail(where, doc.lines.get("tasks"), "is not a mapping", "give name/kind keys")
         r.known(spec, where, TASK_KEYS)
+        line = spec.lines.get("name", doc.lines.get("tasks"))
         known = {"name", "kind", "duration_s", "repetitions", "time_range"}
         time_range = r.get(spec, "time_range", where, list, False, None)
         if time_range is not None and not _is_range(time_range):
@@ -566,14 +619,15 @@ def _tasks(r: _Reader, doc: dict) -> list[Task]:
             )
         tasks.append(
             Task(
-                name=r.get(spec, "name", where, str),
+                name=r.label(r.get(spec, "name", where, str), f"{where}.name", line),
                 kind=r.get(spec, "kind", where, str),
                 duration_s=r.duration(spec, where, required=False),
-                repetitions=r.get(spec, "repetitions", where, int, False, 0),
+                repetitions=r.repetitions(spec, where),
                 time_range=tuple(float(t) for t in time_range) if time_range else None,
                 options={k: v for k, v in spec.items() if k not in known},
             )
         )
+        r.unique(tasks[-1].name, seen, where, line)
 
     return tasks
 
@@ -595,6 +649,27 @@ def _normative(r: _Reader, doc: dict) -> dict:
                     "e.g. [0, 65]",
                 )
     return normative
+
+
+def _normative_names(
+    r: _Reader, doc: dict, normative: dict, tasks: list[Task], joints: dict[str, Joint]
+) -> None:
+    """Each normal range names a task and an angle column of the protocol (a column with or
+    without its side, as :func:`motionlab.report.model.normal_range` looks it up): a typo
+    (``giat``) would leave the task without normal ranges and say nothing."""
+    names = [t.name for t in tasks] + list(NORMATIVE_NOT_A_TASK)
+    columns = {c for j in joints.values() for _, c in angle_columns(j)}
+    columns |= {c.replace("_r_", "_").replace("_l_", "_") for c in columns}
+    for task, ranges in normative.items():
+        line = doc["normative"].lines.get(task)
+        if task not in names:
+            r.fail(f"normative.{task}", line, "names no task of the protocol",
+                   did_you_mean(task, names) if names else "add the task under tasks")  # fmt: skip
+        for col in ranges or {}:
+            if col not in columns:
+                r.fail(f"normative.{task}.{col}", getattr(ranges, "lines", {}).get(col),
+                       "names no angle column of the protocol's joints",
+                       did_you_mean(col, sorted(columns)))  # fmt: skip
 
 
 def _joint(r: _Reader, jname: str, spec: Any, line: int | None, check_segment) -> Joint:

@@ -154,3 +154,39 @@ def test_a_folder_named_like_a_packaged_protocol_does_not_hide_it(tmp_path, monk
     (tmp_path / "walk").write_text("not: [a protocol")  # a file of the name is read, as given
     with pytest.raises(InputError, match="walk"):
         load_protocol("walk")
+
+
+@pytest.mark.parametrize(
+    ("old", "new", "expect"),
+    [  # each ran before: '' and '.' as internal errors (an HDF5 group or attribute without a
+        # name), 'knee/flex' wrote a session that 'info' and 'report' then could not read
+        ("name: knee_flexion_r\n", "name: ''\n", r"calibration\[2\].name: name '' is empty"),
+        ("name: knee_flexion_r\n", "name: knee/flex\n", r"calibration\[2\].name: .* holds '/'"),
+        ("  knee_r: {type", "  '.': {type", r"joints\..: name '.' is empty or only dots"),
+        ("  thigh_r:\n", "  thigh/r:\n", r"segments.thigh/r: name 'thigh/r' holds '/'"),
+        ("{name: gait, kind: gait,", "{name: '', kind: gait,", r"tasks\[0\].name: name ''"),
+        # two tasks or steps of one name: one's results were kept under the other's
+        ("{name: squat, kind: squat,", "{name: gait, kind: squat,",
+         r"tasks\[1\].name: name 'gait' is given twice \(tasks\[0\] too\)"),
+        ("name: sitting\n", "name: standing\n", r"calibration\[1\].name: .* given twice"),
+        ("repetitions: 5, duration_s: 30", "repetitions: -5, duration_s: 30",
+         r"tasks\[1\].repetitions: is -5 — give a count between 0 and"),
+        # a normal range of a task or column that does not exist was never shown, silently
+        ("  gait:\n    knee_flexion_deg", "  giat:\n    knee_flexion_deg",
+         r"normative.giat: names no task of the protocol — did you mean 'gait'"),
+        ("    knee_flexion_deg: [0, 65]", "    knee_flex_deg: [0, 65]",
+         r"normative.gait.knee_flex_deg: names no angle column .* did you mean"),
+    ],
+)  # fmt: skip
+def test_names_that_cannot_name_results_are_refused(tmp_path, old, new, expect):
+    path = _broken(tmp_path, old, new)
+    with pytest.raises(InputError, match=expect):
+        load_protocol(path)
+
+
+def test_a_number_in_e_notation_without_a_point_says_how_to_write_it(tmp_path):
+    """YAML 1.1 reads 1e3 as text: 'is str '1e3', expected float — fix the value' did not say
+    what was wrong with it."""
+    path = _broken(tmp_path, "duration_s: 60,", "duration_s: 1e3,")
+    with pytest.raises(InputError, match=r"is text '1e3': YAML reads .* e.g. 1.0e3"):
+        load_protocol(path)
