@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from motionlab import rotations as rot
+from motionlab.errors import InputError
 from motionlab.kinematics import gait_events as ge
 from motionlab.kinematics import out_of_plane as oop
 from motionlab.kinematics.cycles import Cycles
@@ -250,3 +251,21 @@ def test_cross_talk_is_taken_over_the_repetitions_not_getting_into_posture():
     win = _repeated(pronation, slice(0, len(t)), RATE)
     assert t[win.start] >= 2.9 and np.ptp(posture[win]) < 1.0
     assert _repeated(np.zeros(len(t)), slice(5, 50), RATE) == slice(5, 50)  # none: as it was
+
+
+def test_a_task_time_range_outside_the_angles_names_the_protocol_key_and_the_data_span():
+    """A protocol's time_range beyond the recording said 'task sitting: ... is outside the
+    angle data — check the task times', naming neither the file nor the key to fix."""
+    protocol = load_protocol("lumbar")
+    protocol = replace(protocol, tasks=[replace(protocol.tasks[1], time_range=(100.0, 120.0))])
+    t = np.arange(0, 60, 1 / RATE)
+    table = {"time_s": t} | {c: 0 * t for c in ("lumbar_flexion_deg",
+             "lumbar_lateral_bending_deg", "lumbar_axial_rotation_deg")}  # fmt: skip
+    name = protocol.tasks[0].name
+    with pytest.raises(InputError) as err:
+        compute_metrics(protocol, table, {}, {name: (100.0, 120.0)}, {})
+    assert str(err.value).startswith(f"lumbar.yaml key tasks[0].time_range: task '{name}' "
+                                     "(100.0 to 120.0 s) is outside the angle data (0.0 to "
+                                     "60.0 s) — give a time_range inside")  # fmt: skip
+    with pytest.raises(InputError, match=r"^task \w+: .* — check the task times"):
+        compute_metrics(load_protocol("lumbar"), table, {}, {name: (100.0, 120.0)}, {})

@@ -198,6 +198,21 @@ def _repeated(moving: np.ndarray, window: slice, rate: float) -> slice:
     return slice(window.start + int(reps.start[0]), window.start + int(reps.end[-1]) + 1)
 
 
+def _outside(
+    protocol: Protocol, name: str, span: tuple[float, float], time: np.ndarray
+) -> InputError:
+    """The error for a task block with fewer than 3 angle samples: a ``time_range`` of the
+    protocol's is named by its file and key, a block found in the data by the task."""
+    data = f"{time[0]:.1f} to {time[-1]:.1f} s" if len(time) else "none"
+    message = (f"task '{name}' ({span[0]:.1f} to {span[1]:.1f} s) is outside the angle data "
+               f"({data})")  # fmt: skip
+    given = [i for i, t in enumerate(protocol.tasks) if t.name == name and t.time_range]
+    if given:
+        remedy = f"give a time_range inside {data}, or leave it out to find the task"
+        return InputError(message, protocol.path, f"key tasks[{given[0]}].time_range", remedy)
+    return InputError(message, where=f"task {name}", remedy="check the task times")
+
+
 def compute_metrics(
     protocol: Protocol,
     table: dict[str, np.ndarray],
@@ -232,11 +247,7 @@ def compute_metrics(
     for name, (t0, t1) in blocks.items():
         task, win = tasks.get(name), _window(time, t0, t1)
         if win.stop - win.start < 3:
-            raise InputError(
-                f"task '{name}' ({t0:.1f}-{t1:.1f} s) is outside the angle data",
-                where=f"task {name}",
-                remedy="check the task times",
-            )
+            raise _outside(protocol, name, (t0, t1), time)
         per_col: dict[str, Any] = {}
         walk = task is not None and task.is_gait
         kept = {
