@@ -193,7 +193,10 @@ def _check_flat(stream: SensorStream, path: Path) -> None:
     if k == 0:
         return
     ups = ok[: k * n].reshape(k, n, 3).mean(axis=1)
-    ups /= np.linalg.norm(ups, axis=1, keepdims=True)
+    norm = np.linalg.norm(ups, axis=1)
+    ups = ups[norm > 0] / norm[norm > 0, None]  # an accelerometer of zeros sees no gravity
+    if len(ups) < 2:
+        return
     turned = float(np.degrees(np.arccos(np.clip(ups @ ups.T, -1.0, 1.0))).max())
     if turned <= FLAT_TILT_DEG:
         return

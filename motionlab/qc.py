@@ -368,6 +368,9 @@ def acc_unit_problem(stream: SensorStream) -> tuple[str, str] | None:
     flags = stream.qc.get("flags", {})
     g = stream.qc.get("acc_rest_norm", float("nan"))
     read = stream.source_units.get("acc", "m/s^2")
+    if g == 0.0:  # zeros: a channel off or not recorded, whatever its unit
+        return ("|a| at rest is 0: the accelerometer reads zeros, it was off or not recorded",
+                "record with the accelerometer on, or export its channel again")  # fmt: skip
     if flags.get("acc_looks_like_g") and read != "g":
         return (f"|a| at rest is {g:.2f} m/s² (read as {read}), where 1 g is 9.81: the "
                 "accelerometer is in g",
@@ -425,12 +428,26 @@ def gyr_unit_problem(stream: SensorStream) -> tuple[str, str] | None:
     if unit == "rad_s" and _turns_too_little(found):
         how = f"{1 / max(found['turn_ratio'], 1e-9):.3g}× less"
     says = {"deg_s": "deg/s", "rad_s": "rad/s"}[unit]
+    misses = (f"it misses the tilt by {miss['as_read']:.0f}° per {window} (RMS), by "
+              f"{miss[unit]:.1f}° scaled by 57.3")  # fmt: skip
+    if _unit_is(read, unit):  # read in the unit the scale points to: scaled twice, not mislabelled
+        return (f"the gyroscope (read as {read}) turns {how} than the tilt the accelerometer "
+                f"sees, and 57.3× is the step between rad/s and °/s: {misses}: were its values "
+                "converted between °/s and rad/s twice, or not at all?",
+                f"check the gyroscope's values against its unit ({read})")  # fmt: skip
     return (f"the gyroscope (read as {read}) turns {how} than the tilt the accelerometer sees "
             f"(a gyroscope in {other} read as {read.replace('deg/s', '°/s')} turns 57.3×): it "
             f"misses the tilt by {miss['as_read']:.0f}° per {window} (RMS), by "
             f"{miss[unit]:.1f}° in {other}: is it in {other}?",
             f"check the export's gyroscope unit (a column map says it as "
             f"gyr: {{unit: {says}}})")  # fmt: skip
+
+
+def _unit_is(read: str, unit: str) -> bool:
+    """Whether the gyroscope unit ``read`` (as a reader or column map wrote it) is ``unit``
+    (``deg_s`` or ``rad_s``)."""
+    degrees = read.strip().lower().replace("°", "deg") in ("deg/s", "dps", "deg s^-1")
+    return degrees == (unit == "deg_s")
 
 
 def check_stream(stream: SensorStream, gap_max: float) -> dict[str, Any]:

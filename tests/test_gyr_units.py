@@ -225,3 +225,18 @@ def test_doubt_is_one_warning_line():
     assert "by 20° per 0.5 s (RMS), by 8.2° in °/s: is it in °/s? — check the export's" in line
     s.qc["gyr_scale"] = found(deg_s_fit=12.0, free=0.5)
     assert "its unit, or axes that are not the accelerometer's?" in qc.doubts(s)[0]
+
+
+@pytest.mark.parametrize(("scale", "unit"), [(1 / DEG, "deg/s"), (DEG, "rad/s")])
+def test_a_gyroscope_57_times_off_its_own_unit_is_not_asked_if_it_is_in_that_unit(
+    tmp_path, seated, scale, unit
+):
+    """Degrees per second read as °/s that still turn 57× too far (converted twice) were told
+    '(a gyroscope in °/s read as °/s turns 57.3×) ... is it in °/s?', which they were."""
+    t, acc, gyr = seated["thorax"]
+    gyr = gyr * scale * (1 / DEG if unit == "deg/s" else 1.0)
+    result = ingest(write_recording(tmp_path, "thorax", t, acc, gyr, unit))
+    assert_refused(result, tmp_path, f"(read as {unit}) turns", "57.3× is the step between "
+                   "rad/s and °/s", "converted between °/s and rad/s twice, or not at all? — "
+                   f"check the gyroscope's values against its unit ({unit})")  # fmt: skip
+    assert "is it in" not in result.stderr

@@ -592,3 +592,25 @@ def test_info_says_where_a_late_stream_starts(fake_files, monkeypatch, tmp_path)
     save_session(ingest(list(fake_files)), tmp_path / "s.h5")
     text = CliRunner().invoke(main, ["info", str(tmp_path / "s.h5")]).stdout
     assert "starts at 3300.00 s of the session" in text and text.count("starts at") == 1
+
+
+def test_an_accelerometer_and_gyroscope_of_zeros_say_the_accelerometer_reads_zeros(tmp_path):
+    """Both channels exported as zeros: 'channel gyr reads (0, 0, 0) ... while the
+    accelerometer sees gravity turn by nan°' (the mean of zeros normalised), then a unit remedy
+    for |a| = 0. Now one line that the accelerometer reads zeros."""
+    from click.testing import CliRunner
+
+    from motionlab.cli import main
+
+    rows = "".join(f"{k / 100:.2f},0,0,0,0,0,0\n" for k in range(400))
+    (tmp_path / "z.csv").write_text(
+        "Time (s),Gyroscope X (deg/s),Gyroscope Y (deg/s),Gyroscope Z (deg/s),"
+        "Accelerometer X (g),Accelerometer Y (g),Accelerometer Z (g)\n" + rows
+    )
+    result = CliRunner().invoke(main, ["ingest", str(tmp_path / "z.csv"), "-o",
+                                       str(tmp_path / "s.h5")])  # fmt: skip
+    assert result.exit_code == 2, result.output
+    assert result.stderr.splitlines() == [
+        "error: z.csv sensor z: |a| at rest is 0: the accelerometer reads zeros, it was off or "
+        "not recorded — record with the accelerometer on, or export its channel again"
+    ]
