@@ -377,6 +377,13 @@ def acc_unit_problem(stream: SensorStream) -> tuple[str, str] | None:
                 "check the export's accelerometer unit (a column map says it as "
                 "acc: {unit: g})")  # fmt: skip
     beyond = np.isfinite(g) and not ACC_REST_REFUSE[0] <= g <= ACC_REST_REFUSE[1]
+    lo, hi = (STANDARD_GRAVITY * v for v in ACC_REST_RANGE)
+    steady = stream.qc.get("acc_rest_spread", 0.0) <= ACC_REST_SPREAD_MAX  # not swapped
+    if read == "g" and lo <= g <= hi and steady:  # 9.81 m/s² read as g: 96 "m/s²"
+        return (f"|a| at rest is {g:.3g} m/s² (read as g), 9.81 times gravity: the "
+                "accelerometer is in m/s², read as g",
+                "check the export's accelerometer unit (a column map says it as "
+                "acc: {unit: m/s^2})")  # fmt: skip
     if (flags.get("acc_looks_like_g") or beyond) and read == "g":
         return (f"|a| at rest is {g:.3g} m/s² (read as g), not ≈ 9.81: the accelerometer does "
                 "not measure gravity — are its columns another channel's (the gyroscope's)?",

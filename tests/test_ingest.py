@@ -5,7 +5,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from conftest import SHARED, needs_shared
+from conftest import DATA, SHARED, needs_shared
 
 from motionlab import qc, rotations, timebase
 from motionlab.errors import InputError
@@ -614,3 +614,22 @@ def test_an_accelerometer_and_gyroscope_of_zeros_say_the_accelerometer_reads_zer
         "error: z.csv sensor z: |a| at rest is 0: the accelerometer reads zeros, it was off or "
         "not recorded — record with the accelerometer on, or export its channel again"
     ]
+
+
+def test_an_accelerometer_in_m_s2_read_as_g_says_so(tmp_path):
+    """The x-io excerpt with its accelerometer written in m/s² under its '(g)' header: the line
+    asked whether the columns were the gyroscope's; |a| at rest is 9.81 times gravity."""
+    from click.testing import CliRunner
+
+    from motionlab.cli import main
+
+    lines = (DATA / "xio" / "sensor_data_excerpt.csv").read_text().splitlines()
+    rows = [c[:4] + [f"{float(v) * 9.80665:.6f}" for v in c[4:7]] + c[7:]
+            for c in (line.split(",") for line in lines[1:])]  # fmt: skip
+    (tmp_path / "x.csv").write_text("\n".join([lines[0], *map(",".join, rows)]) + "\n")
+    result = CliRunner().invoke(main, ["ingest", str(tmp_path / "x.csv"), "-o",
+                                       str(tmp_path / "s.h5")])  # fmt: skip
+    assert result.exit_code == 2, result.output
+    (line,) = result.stderr.splitlines()
+    assert "(read as g), 9.81 times gravity: the accelerometer is in m/s², read as g" in line
+    assert "acc: {unit: m/s^2}" in line
