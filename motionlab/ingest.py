@@ -398,12 +398,13 @@ def check_and_fill(
     ``report`` of :func:`motionlab.timebase.repair_clock`."""
     qc = check_stream(stream, gap_max)
     n = stream.n_samples
+    dt = timebase.nominal_interval(stream.time)  # the rate recorded, NaN rows and all
     longer_than = min(gap_max, timebase.NAN_BRIDGE_MAX_S)
     stream, dropped = timebase.drop_nan_runs(stream, longer_than, path)
     if dropped:
         qc["nan_rows_dropped"] = n - stream.n_samples
         qc["nan_dropped_s"] = dropped
-    stream, gaps = timebase.fill_short_gaps(stream, gap_max)
+    stream, gaps = timebase.fill_short_gaps(stream, gap_max, dt)
     qc.update(report)
     qc.update(gaps)
     repaired = report["duplicates_dropped"] + report["reordered"] + report["restamped"]
@@ -425,7 +426,7 @@ def drop_kept_nan_runs(stream: SensorStream) -> SensorStream:
     out, dropped = timebase.drop_nan_runs(stream, min(gap_max, timebase.NAN_BRIDGE_MAX_S))
     if not dropped:
         return stream
-    out, gaps = timebase.fill_short_gaps(out, gap_max)
+    out, gaps = timebase.fill_short_gaps(out, gap_max, timebase.nominal_interval(stream.time))
     qc = {**stream.qc, "gaps": gaps["gaps"], "flags": dict(stream.qc.get("flags", {}))}
     for key in ("gaps_filled", "samples_filled", "filled_spans_s"):
         qc[key] = qc.get(key, 0 if key != "filled_spans_s" else []) + gaps[key]

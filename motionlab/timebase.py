@@ -256,8 +256,11 @@ def interpolate_rows(
     return out
 
 
-def fill_short_gaps(stream: SensorStream, gap_max: float) -> tuple[SensorStream, dict[str, Any]]:
-    """Fill every gap up to ``gap_max`` s with samples at the nominal rate.
+def fill_short_gaps(
+    stream: SensorStream, gap_max: float, dt: float | None = None
+) -> tuple[SensorStream, dict[str, Any]]:
+    """Fill every gap up to ``gap_max`` s with samples at the nominal rate (``dt`` s: the
+    stream's median interval unless given, e.g. measured before NaN rows were dropped).
 
     Returns the filled stream and ``gaps`` (long gaps kept, ``[start_s, end_s]``),
     ``gaps_filled``, ``samples_filled``, ``dropped_samples`` (missing samples over all gaps,
@@ -265,7 +268,7 @@ def fill_short_gaps(stream: SensorStream, gap_max: float) -> tuple[SensorStream,
     the recorded stamps either side; the fusion treats them as the gaps they are).
     """
     t = np.asarray(stream.time, dtype=float)
-    dt = nominal_interval(t)
+    dt = nominal_interval(t) if dt is None else float(dt)
     gaps = find_gaps(t, dt)
     span = t[gaps + 1] - t[gaps]
     missing = np.maximum(np.round(span / dt).astype(np.int64) - 1, 1)

@@ -126,6 +126,20 @@ def test_a_magnetometer_nan_run_makes_no_gap():
     assert "fuse without the magnetometer" in exc.value.line()
 
 
+def test_gaps_are_measured_at_the_rate_recorded_before_the_nan_rows_go():
+    """A sensor whose rows are NaN but for three samples: measured on what was left, its
+    rate read 1/3 Hz and it had no gap at all; at the 100 Hz recorded its two losses are
+    the gaps kept."""
+    s = _stream()
+    keep = np.zeros(1000, bool)
+    keep[[0, 400, 999]] = True
+    s.acc[~keep] = np.nan
+    out = _prepared(s)
+    assert out.n_samples == 3 and out.qc["nan_rows_dropped"] == 997
+    assert np.allclose(out.qc["gaps"], [[0.0, 4.0], [4.0, 9.99]])
+    assert out.qc["dropped_samples"] == 997
+
+
 def test_a_sensor_with_no_finite_sample_left_is_refused_in_one_line(tmp_path):
     s = _stream()
     s.acc[1:] = np.nan
