@@ -74,7 +74,9 @@ Angle columns: ``<type>_<side>_<angle>_deg`` for knee, elbow and lumbar (``knee_
 
 Names of segments, joints, steps and tasks name groups of the session file and CSV files: not
 empty, no ``/`` or ``\\``; a step's or task's name is given once. A ``normative`` key names a task
-(or ``range_of_motion``, the joint's full range) and its columns angle columns of the joints.
+(or ``range_of_motion``, the joint's anatomical range: an angle more than 10° past it is
+reported as a sensor or calibration problem and states no finding,
+:func:`motionlab.report.sentences.beyond_anatomy`) and its columns angle columns of the joints.
 
 Axis strings are ``x``, ``y``, ``z`` of the ISB segment frame (x anterior, y proximal, z right),
 optionally with a sign: ``-z``. ``sensor_axes`` gives, for the sensor's x, y, z axes, the segment

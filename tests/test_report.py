@@ -130,6 +130,31 @@ def test_findings_put_abnormal_first_and_name_side_joint_task():
     )
 
 
+def test_an_angle_beyond_the_joints_anatomy_is_said_and_states_no_finding():
+    """The elbow, arm and children's protocols gave each joint's anatomical range
+    (``normative.range_of_motion``) and nothing read it: a knee 'flexing' to 166° (a slipped
+    sensor) was a range above normal among the findings. It is now a data problem, and the
+    angle states no finding; the other knee keeps its."""
+    from motionlab.report.sentences import beyond_anatomy
+
+    view = _view((5.0, 165.0), (0.0, 64.0))
+    view.protocol.normative["range_of_motion"] = {"knee_flexion_deg": [-5.0, 140.0]}
+    notes = beyond_anatomy(view)
+    assert list(notes) == ["knee_r_flexion_deg"]
+    assert notes["knee_r_flexion_deg"].startswith(
+        "Right knee flexion-extension reached 166° during gait, beyond the joint's anatomical "
+        "range -5 to 140°"
+    )
+    items = findings(view)
+    assert not any(i.startswith("Right knee flexion-extension range") for i in items)
+    assert not any("differs between sides" in i for i in items)
+    assert any(i.startswith("Right knee flexion-extension reached 166°") for i in items)
+    assert any(i.startswith("Left knee flexion-extension range 0–64°") for i in items)
+    view = _view((5.0, 145.0), (0.0, 64.0))  # within the 10° allowed
+    view.protocol.normative["range_of_motion"] = {"knee_flexion_deg": [-5.0, 140.0]}
+    assert beyond_anatomy(view) == {}
+
+
 CONSEQUENCE = {
     "faster": "joint ranges grow with walking speed, so a flexion range above the normal one is "
     "shown but not flagged (one short of it still is).",

@@ -35,6 +35,7 @@ from motionlab.report.model import (
     grade_rows,
     is_determined,
     joint_title,
+    normal_range,
     pace_mismatches,
     quality_rows,
     rom_rows,
@@ -279,7 +280,9 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
     What the recording did not determine is not a finding: see :func:`missing_lines`.
     """
     ranges = rom_rows(view)
-    rows = [r for r in ranges if r.normal is not None and is_determined(r.grade)]
+    suspect = beyond_anatomy(view)
+    rows = [r for r in ranges if r.normal is not None and is_determined(r.grade)
+            and r.column not in suspect]  # fmt: skip
     outside, paced, paces = [], [], []
     for r in rows:
         if r.status in ("within", ""):
@@ -295,7 +298,9 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
     asym = []
     for s in symmetry_rows(view):
         # a flag needs a symmetry index, which needs both sides determined (symmetry_rows)
-        if s.flag and s.angle == "flexion":  # other planes: see the comparison page
+        off = any(c.startswith(f"{s.joint_type}_") and c.endswith(f"_{s.angle}_deg")
+                  for c in suspect)  # fmt: skip
+        if s.flag and s.angle == "flexion" and not off:  # other planes: the comparison page
             joint = _joint_words(s.joint_type)[1]
             angle = angle_title(s.joint_type, s.angle)
             asym.append(
@@ -480,6 +485,7 @@ def quality_notes(view: SessionView) -> list[str]:
             f"Calibration of {', '.join(bad)} needs attention (see the calibration page); "
             "angles involving it are less certain."
         )
+    notes += list(beyond_anatomy(view).values())
     for entry in view.session.metadata.get("map_unmatched", []):
         segment = f" ({entry['segment']})" if entry.get("segment") else ""
         notes.append(
@@ -506,6 +512,36 @@ def quality_notes(view: SessionView) -> list[str]:
     # the longest loss first: the findings keep two notes (a thigh's 360 s went unsaid
     # behind a pelvis's 0.6 s, listed first as its sensor came first)
     return notes + [text for _, text in sorted(gaps, key=lambda g: -g[0])]
+
+
+#: how far (deg) an angle may pass the joint's anatomical range before it is called beyond it:
+#: the ranges are those of the average adult, and skin motion adds a few degrees
+ANATOMY_TOLERANCE_DEG = 10.0
+
+
+def beyond_anatomy(view: SessionView) -> dict[str, str]:
+    """``{angle column: sentence}`` for every angle (not graded not determined) that passed the
+    joint's anatomical range (the protocol's ``normative.range_of_motion``, e.g. elbow flexion
+    -10 to 145°) by more than :data:`ANATOMY_TOLERANCE_DEG` in a task: no joint moves so, the
+    sensors or their calibration do (a sensor slipped, the wrong segment or side). Such an
+    angle states no finding (:func:`findings`)."""
+    out: dict[str, str] = {}
+    for r in rom_rows(view):
+        limits = normal_range(view.protocol, "range_of_motion", r.column)
+        if limits is None or r.grade == NOT_DETERMINED or r.column in out:
+            continue
+        lo, hi = limits
+        past = [x for x in (r.min_deg, r.max_deg) if np.isfinite(x)
+                and not lo - ANATOMY_TOLERANCE_DEG <= x <= hi + ANATOMY_TOLERANCE_DEG]  # fmt: skip
+        if past:
+            worst = max(past, key=lambda x: max(lo - x, x - hi))
+            out[r.column] = (
+                f"{angle_words(view, r.joint, r.angle)} reached {worst:.0f}° during "
+                f"{task_name(r.task)}, beyond the joint's anatomical range {span(lo, hi)}: "
+                "check the sensors' placement and the calibration; no finding is stated from "
+                "this angle."
+            )
+    return out
 
 
 def accuracy_sentence(angle: str, entry: dict[str, Any], joint_type: str = "") -> str:
