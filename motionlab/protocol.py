@@ -117,6 +117,10 @@ SEGMENT_KEYS = ("side", "placement", "sensor_axes", "landmarks", "required", "an
 MAX_DURATION_S = 86400.0
 #: a ``normative`` key that names no task: the joint's full range (arm, elbow, children)
 NORMATIVE_NOT_A_TASK = ("range_of_motion",)
+#: the names ``metrics`` may list (the out-of-plane ones, :data:`motionlab.kinematics.metrics.
+#: OUT_OF_PLANE`, are computed only when listed, or all when the list is empty)
+METRICS = ("rom", "peaks", "cycles", "repetitions", "cross_talk", "out_of_plane_offset",
+           "trunk_compensation", "varus_thrust", "stance_rotation")  # fmt: skip
 #: the most repetitions a step or task may ask for
 MAX_REPETITIONS = 10000
 STEP_KEYS = ("name", "kind", "pose", "duration_s", "vertical_axis", "horizontal_axis",
@@ -398,7 +402,7 @@ def load_protocol(path: str | Path) -> Protocol:
             for t, ranges in normative.items()
         },
         metrics=[
-            _text(r, m, "metrics", doc.lines.get("metrics"))
+            _metric(r, m, doc.lines.get("metrics"))
             for m in r.get(doc, "metrics", "", list, False, [])
         ],
         thresholds=_thresholds(r, r.get(doc, "thresholds", "", dict, False, {}), "thresholds"),
@@ -736,6 +740,15 @@ def _text(r: _Reader, value: Any, where: str, line: int | None) -> str:
     if not isinstance(value, str):
         r.fail(where, line, f"item {shorten(repr(value))} is not text", "quote it")
     return value
+
+
+def _metric(r: _Reader, value: Any, line: int | None) -> str:
+    """An item of ``metrics``: one of :data:`METRICS` (a misspelt one switched its metric off
+    without a word)."""
+    name = _text(r, value, "metrics", line)
+    if name not in METRICS:
+        r.fail("metrics", line, f"unknown metric {name!r}", did_you_mean(name, METRICS))
+    return name
 
 
 def _thresholds(r: _Reader, m: dict, where: str) -> dict[str, Any]:

@@ -190,3 +190,16 @@ def test_a_number_in_e_notation_without_a_point_says_how_to_write_it(tmp_path):
     path = _broken(tmp_path, "duration_s: 60,", "duration_s: 1e3,")
     with pytest.raises(InputError, match=r"is text '1e3': YAML reads .* e.g. 1.0e3"):
         load_protocol(path)
+
+
+def test_a_misspelt_metric_is_refused_with_the_names_it_may_be(tmp_path):
+    """'cross_talks' in ``metrics`` switched the cross-talk off without a word."""
+    from motionlab.kinematics.metrics import OUT_OF_PLANE
+    from motionlab.protocol import METRICS
+
+    assert set(OUT_OF_PLANE) <= set(METRICS)
+    path = _broken(tmp_path, "cross_talk, varus_thrust", "cross_talks, varus_thrust")
+    with pytest.raises(InputError) as err:
+        load_protocol(path)
+    assert "key metrics: unknown metric 'cross_talks'" in err.value.line()
+    assert "cross_talk" in err.value.line().split("—")[-1]
