@@ -526,7 +526,7 @@ def beyond_anatomy(view: SessionView) -> dict[str, str]:
     sensors or their calibration do (a sensor slipped, the wrong segment or side). Such an
     angle states no finding (:func:`findings`)."""
     out: dict[str, str] = {}
-    for r in rom_rows(view):
+    for r in rom_rows(view) if view.metrics is not None else []:
         limits = normal_range(view.protocol, "range_of_motion", r.column)
         if limits is None or r.grade == NOT_DETERMINED or r.column in out:
             continue
