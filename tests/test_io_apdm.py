@@ -131,6 +131,16 @@ def test_sniff_by_content(tmp_path):
     assert not apdm.sniff(renamed, b"Time,Acc_X\n0,1\n")
 
 
+def test_a_format7_export_behind_a_byte_order_mark_is_read(tmp_path):
+    """An editor's UTF-8 byte-order mark before 'Format=7' made it an unknown file format (the
+    other readers already skipped it)."""
+    marked = tmp_path / "format7_bom.csv"
+    marked.write_bytes(b"\xef\xbb\xbf" + FORMAT7.read_bytes())
+    plain, read = read_any(FORMAT7), read_any(marked)
+    assert [s.label for s in read.sensors] == [s.label for s in plain.sensors]
+    assert np.array_equal(read.sensors[0].gyr, plain.sensors[0].gyr)
+
+
 # ----------------------------------------------------------------------------------- HDF5
 
 

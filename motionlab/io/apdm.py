@@ -85,7 +85,7 @@ def convert(values: np.ndarray, unit: str, quantity: str, path: Path, where: str
 
 def sniff(path: Path, head: bytes) -> bool:
     """An APDM CSV starts with ``Format=`` or has ``Sample Rate:`` and ``/Acceleration/`` rows."""
-    lines = head.decode("latin-1").splitlines()[:10]
+    lines = head.removeprefix(b"\xef\xbb\xbf").decode("latin-1").splitlines()[:10]
     if not lines:
         return False
     if lines[0].startswith("Format="):
