@@ -79,7 +79,8 @@ def run_seed(seed: int, rate: float, preset: str) -> dict[str, float | str]:
                             (f"{plane} (rest)", rest_truth[plane])):  # fmt: skip
             ref = np.interp(t, truth.time, series)
             e = np.asarray(cols[f"lumbar_{plane}_deg"], float) - (ref - ref[at_rest].mean())
-            out[key] = float(np.sqrt(np.mean(e[inside] ** 2)))
+            given = inside & np.isfinite(e)  # no angle inside a sensor's packet-loss gap
+            out[key] = float(np.sqrt(np.mean(e[given] ** 2)))
     out["grades"] = "/".join(g[:3] for g in cal.grades["lumbar"].grades)
     drift = cal.grades["lumbar"].trunk.heading_drift_deg
     out["drift"] = "not followed" if drift is None else f"{drift:.2f}"
