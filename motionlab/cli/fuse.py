@@ -100,9 +100,9 @@ def command(
     \b
     Example:
       motionlab sync session.h5 --protocol knee && motionlab fuse session.h5
-      motionlab fuse session.h5 --filter madgwick --param beta=0.1 --sensor shank_r
-      motionlab fuse session.h5 --filter liu_gn --with-markers --markers map.yaml
-      motionlab fuse session.h5 --magnetometer   # 9-D, with a calibrated magnetometer outdoors
+      motionlab fuse session.h5 --filter madgwick --param beta=0.1 --sensor shank_r --force
+      motionlab fuse session.h5 --filter liu_gn --with-markers --markers map.yaml --force
+      motionlab fuse session.h5 --magnetometer --force   # 9-D: a calibrated magnetometer outdoors
       motionlab fuse --list
     """
     if list_:
