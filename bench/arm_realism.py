@@ -27,17 +27,19 @@ from __future__ import annotations
 
 import argparse
 import warnings
+from importlib import import_module
 from pathlib import Path
 
 import numpy as np
 from real_people import qmt_session
 from seeds import seeds_arg
 
-import motionlab.simulate as sim
 from motionlab import rotations as rot
 from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
 from motionlab.simulate import simulate, tasks
 from motionlab.simulate.tasks import Block
+
+sim = import_module("motionlab.simulate")  # the package: motionlab.simulate is the function
 
 DEFAULT_DATA = Path(__file__).resolve().parents[1].parent / "shared"
 QMT = "datasets/human/qmt_full_body"

@@ -37,18 +37,20 @@ from __future__ import annotations
 
 import argparse
 import multiprocessing as mp
+from importlib import import_module
 
 import numpy as np
 from real_world import analyse_simulated, rmse, task_errors, with_true_mountings
 from seeds import seeds_arg
 
-import motionlab.simulate as sim
 from motionlab import rotations as rot
 from motionlab.kinematics.joint_angles import joint_angles
 from motionlab.protocol import axis_vector, load_protocol
 from motionlab.segments import movement, sensor_for_segment
 from motionlab.segments.placement import hinge_spec
 from motionlab.simulate import simulate
+
+sim = import_module("motionlab.simulate")  # the package: motionlab.simulate is the function
 
 DURATION_S = 74.0
 ELBOWS = ("elbow_r", "elbow_l")

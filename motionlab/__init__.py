@@ -22,7 +22,9 @@ light:
 - :class:`InputError`: what every function raises for bad input (its message names the place).
 """
 
+import sys
 from importlib import import_module
+from types import ModuleType
 from typing import Any
 
 #: public name → module that defines it (imported on first use)
@@ -73,6 +75,23 @@ def __getattr__(name: str) -> Any:
         raise AttributeError(f"module 'motionlab' has no attribute {name!r}")
     globals()[name] = value  # later look-ups skip this function
     return value
+
+
+class _Package(ModuleType):
+    """The package's module type: the import system binds every submodule it loads to the
+    package under its name, which put the module ``motionlab.ingest`` (``motionlab.simulate``)
+    where the function ``motionlab.ingest`` (``simulate``) belongs once a stage had imported
+    it; such a binding is left out, so the name stays the function (``import
+    motionlab.simulate as sim`` then gives the function too: import the module's names from
+    it)."""
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        if name in _EXPORTS and isinstance(value, ModuleType):
+            return
+        super().__setattr__(name, value)
+
+
+sys.modules[__name__].__class__ = _Package
 
 
 def __dir__() -> list[str]:

@@ -119,3 +119,16 @@ def test_pipeline_options_of_the_wrong_kind_are_refused():
         with pytest.raises(InputError, match=what):
             motionlab.PipelineOptions("knee", **kw)
     assert motionlab.PipelineOptions("knee", seed=3, clock_sync=False).seed == 3
+
+
+def test_a_stage_imported_first_leaves_ingest_and_simulate_the_functions():
+    """After any stage (``motionlab.sync``) the import system had bound the submodule
+    ``motionlab.ingest`` over the function of that name: ``ml.ingest(paths)`` then raised
+    "'module' object is not callable", as did ``ml.simulate`` after a bench imported its
+    package."""
+    code = (
+        "import motionlab as ml, motionlab.stages, motionlab.ingest, motionlab.simulate.truth;"
+        "print(callable(ml.ingest), callable(ml.simulate), ml.ingest.__module__)"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["True", "True", "motionlab.ingest"]
