@@ -52,12 +52,11 @@ def test_heading_keeps_a_short_list_when_it_fits():
         assert len(doc.pages) == 2
 
 
-def test_a_long_range_of_motion_table_keeps_its_note_on_its_page():
-    """The demo knee (three tasks, nine rows) had 'Right knee (continued)' pages holding only the
-    table's note: the time curves now leave room for it."""
+def _three_task_joint_pages(view) -> list[str]:
+    """The joint pages' texts of ``view`` with a squat and a sit-to-stand added to its gait
+    (three tasks, as the demo knee), checked for layout problems."""
     from motionlab.report.pages_joint import joint_pages
 
-    view = _graded_view(graded=False)  # every angle determined, as in the demo
     gait = view.metrics.joints["gait"]
     view.metrics.blocks |= {"squat": TaskBlock(20.0, 30.0), "sit_to_stand": TaskBlock(32.0, 45.0)}
     for task in ("squat", "sit_to_stand"):
@@ -65,8 +64,14 @@ def test_a_long_range_of_motion_table_keeps_its_note_on_its_page():
     with matplotlib.rc_context(RC):
         doc = Document("motionlab report · test", "subject X")
         joint_pages(doc, view)
-        texts = [page_text(f) for f in doc.pages]
         assert [p for f in doc.pages for p in layout_problems(f)] == []
+        return [page_text(f) for f in doc.pages]
+
+
+def test_a_long_range_of_motion_table_keeps_its_note_on_its_page():
+    """The demo knee (three tasks, nine rows) had 'Right knee (continued)' pages holding only the
+    table's note: the time curves now leave room for it."""
+    texts = _three_task_joint_pages(_graded_view(graded=False))  # all determined, as the demo
     assert not any("knee (continued)" in t for t in texts)
     tables = [t for t in texts if "Range of motion" in t]
     assert len(tables) == 2
@@ -76,16 +81,6 @@ def test_a_long_range_of_motion_table_keeps_its_note_on_its_page():
 def test_a_grade_mark_that_would_leave_the_page_goes_under_its_cycle_title():
     """'sit to stand, rotation (n = 5), not determined', the third column's title, ran off the
     page's right edge."""
-    from motionlab.report.pages_joint import joint_pages
-
-    view = _graded_view()  # right knee rotation not determined, adduction weak
-    gait = view.metrics.joints["gait"]
-    view.metrics.blocks |= {"squat": TaskBlock(20.0, 30.0), "sit_to_stand": TaskBlock(32.0, 45.0)}
-    for task in ("squat", "sit_to_stand"):
-        view.metrics.joints[task] = {c: _angle(0.0, 90.0, 5) for c in gait}
-    with matplotlib.rc_context(RC):
-        doc = Document("motionlab report · test", "subject X")
-        joint_pages(doc, view)
-        text = "\n".join(page_text(f) for f in doc.pages)
-        assert [p for f in doc.pages for p in layout_problems(f)] == []
+    # right knee rotation not determined, adduction weak
+    text = "\n".join(_three_task_joint_pages(_graded_view()))
     assert "sit to stand, rotation (n = 5),\nnot determined" in text
