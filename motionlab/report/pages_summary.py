@@ -78,8 +78,8 @@ def summary_page(doc: Document, view: SessionView) -> None:
         label = sensor_for_segment(view.session, seg)
         sensor = view.session.sensors[label] if label else None
         name = f"{SIDE_NAMES.get(spec.side, '')} {seg.split('_')[0]}".strip()
-        ident = f"{sensor.label} ({sensor.serial})" if sensor and sensor.serial else "-"
+        ident = f"{sensor.label}\n{sensor.serial}" if sensor and sensor.serial else "-"
         if sensor and not sensor.serial:
             ident = sensor.label
         rows.append([name, ident, spec.placement or "-"])
-    doc.table(["Segment", "Sensor", "Placement"], rows, [0.14, 0.2, 0.66], align=["l"] * 3)
+    doc.table(["Segment", "Sensor", "Placement"], rows, [0.13, 0.23, 0.64], align=["l"] * 3)
