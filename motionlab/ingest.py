@@ -397,14 +397,8 @@ def check_and_fill(
     to ``gap_max`` s filled; the stream with its ``qc``, which also holds the clock repair
     ``report`` of :func:`motionlab.timebase.repair_clock`."""
     qc = check_stream(stream, gap_max)
-    n = stream.n_samples
-    dt = timebase.nominal_interval(stream.time)  # the rate recorded, NaN rows and all
-    longer_than = min(gap_max, timebase.NAN_BRIDGE_MAX_S)
-    stream, dropped = timebase.drop_nan_runs(stream, longer_than, path)
-    if dropped:
-        qc["nan_rows_dropped"] = n - stream.n_samples
-        qc["nan_dropped_s"] = dropped
-    stream, gaps = timebase.fill_short_gaps(stream, gap_max, dt)
+    stream, dropped, gaps = _nan_runs_as_gaps(stream, gap_max, path)
+    qc.update(dropped)
     qc.update(report)
     qc.update(gaps)
     repaired = report["duplicates_dropped"] + report["reordered"] + report["restamped"]
@@ -417,17 +411,35 @@ def check_and_fill(
     return dataclasses.replace(stream, qc=qc)
 
 
+def _nan_runs_as_gaps(
+    stream: SensorStream, gap_max: float, path: Path | None = None
+) -> tuple[SensorStream, dict[str, Any], dict[str, Any]]:
+    """``stream`` without its runs of samples not a number in the accelerometer or gyroscope
+    longer than the fusion bridges or ``gap_max`` s (:func:`motionlab.timebase.drop_nan_runs`:
+    the gap of the lost packets they are), then its gaps up to ``gap_max`` s filled at the rate
+    recorded before the drop; with ``{"nan_rows_dropped", "nan_dropped_s"}`` (empty when none
+    was dropped) and the gap report of :func:`motionlab.timebase.fill_short_gaps`."""
+    dt = timebase.nominal_interval(stream.time)  # the rate recorded, NaN rows and all
+    out, spans = timebase.drop_nan_runs(stream, min(gap_max, timebase.NAN_BRIDGE_MAX_S), path)
+    dropped = (
+        {"nan_rows_dropped": stream.n_samples - out.n_samples, "nan_dropped_s": spans}
+        if spans
+        else {}
+    )
+    out, gaps = timebase.fill_short_gaps(out, gap_max, dt)
+    return out, dropped, gaps
+
+
 def drop_kept_nan_runs(stream: SensorStream) -> SensorStream:
     """An ingested stream (with ``qc``) without the long NaN runs of its accelerometer or
     gyroscope that its ingest kept (:func:`check_and_fill` drops them: a session ingested before
     it did, or one resampled with ``--rate``, which puts NaN inside a kept gap), filled or kept as
     the gaps they are, with ``qc["gaps"]`` the kept gaps again; the stream itself without them."""
     gap_max = float(stream.qc.get("gap_max_s", DEFAULT_GAP_MAX))
-    out, dropped = timebase.drop_nan_runs(stream, min(gap_max, timebase.NAN_BRIDGE_MAX_S))
+    out, dropped, gaps = _nan_runs_as_gaps(stream, gap_max)
     if not dropped:
         return stream
-    out, gaps = timebase.fill_short_gaps(out, gap_max, timebase.nominal_interval(stream.time))
-    qc = {**stream.qc, "gaps": gaps["gaps"], "flags": dict(stream.qc.get("flags", {}))}
+    qc = {**stream.qc, **dropped, "gaps": gaps["gaps"], "flags": dict(stream.qc.get("flags", {}))}
     for key in ("gaps_filled", "samples_filled", "filled_spans_s"):
         qc[key] = qc.get(key, 0 if key != "filled_spans_s" else []) + gaps[key]
     qc["flags"]["gaps"] = bool(gaps["gaps"])

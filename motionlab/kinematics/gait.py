@@ -131,9 +131,10 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
         for leg in legs.values()
     }  # fmt: skip
     not_linked = legs_not_linked(session, protocol)
-    reach, speed_note = _leg_reach(session, protocol, cal)
-    if not_linked:
+    if not_linked:  # a leg's reach at the other's events: at an unknown offset
         reach, speed_note = {}, "not measured: " + not_linked.removeprefix("not given: ")
+    else:
+        reach, speed_note = _leg_reach(session, protocol, cal)
     table = sp.stride_table(strides, events, reach)
     if not_linked:
         table = sp.withhold_both_legs(table)

@@ -132,8 +132,8 @@ def gait_pages(doc: Document, view: SessionView) -> None:
                       weight="bold")  # fmt: skip
     times = [summ.sides[k]["stride_time_s"].mean for k in ("r", "l")]
     stride = float(np.nanmean(times)) if np.isfinite(times).any() else np.nan
-    # without the legs' lengths (or a sensor) there is no length at all, however many strides
-    lengths_measured = not str(g.walking_speed or "").startswith("not measured")
+    # without the legs' lengths (or a sensor) no stride has a length, however many were kept
+    lengths_measured = bool(np.isfinite(g.strides.walking_speed_m_s).any())
     for c in STRIDE_COLUMNS:
         digits = 2 if c.endswith(("_s", "_m")) else 1
         r, left = summ.sides["r"][c], summ.sides["l"][c]
