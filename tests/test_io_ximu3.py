@@ -206,6 +206,26 @@ def test_the_recording_date_is_the_time_the_gui_set_in_command_json(tmp_path):
     )
 
 
+def test_a_device_without_command_json_says_where_its_name_came_from(tmp_path):
+    """Without ``Command.json`` the name and serial come from the folder's name, and the notes
+    say so (and that the recording has no date)."""
+    files = {k: v for k, v in xe.export_files().items() if not k.endswith("Command.json")}
+    imu = xe.write(tmp_path, files)
+    back = read_any(imu).sensors[0]
+    assert (back.label, back.serial) == ("Back", "B4A2-5410-EC7B-D68C")
+    assert "recorded" not in back.attrs or not back.attrs["recorded"]
+    notes = " ".join(back.attrs["notes"])
+    assert "no Command.json" in notes and "B4A2-5410-EC7B-D68C" in notes
+    assert "no Command.json" not in " ".join(
+        read_any(xe.write(tmp_path / "b", xe.export_files())).sensors[0].attrs["notes"]
+    )
+    out = tmp_path / "s.h5"
+    assert CliRunner().invoke(main, ["ingest", str(imu), "-o", str(out)]).exit_code == 0
+    info = CliRunner().invoke(main, ["info", str(out)]).output
+    assert "note: no Command.json: device name 'Back'" in info
+    assert "note: not read: Battery.csv, HighGAccelerometer.csv" in info
+
+
 def test_a_renamed_column_names_the_header_line_and_a_remedy(tmp_path):
     """'Gyroscope X (°/s)' in an Inertial.csv header (a copy through an editor in Latin-1)
     was 'no column ...' with the column list where the remedy goes and no line."""

@@ -102,9 +102,12 @@ def _sensor_lines(s: dict) -> list[str]:
         )
     if qc.get("identical_to"):
         lines.append(f"    identical to: {', '.join(qc['identical_to'])} (the same data twice?)")
+    notes = list(s.get("notes", []))
     if s["flags"].get("rate_assumed"):
-        notes = [n for n in s.get("notes", []) if "assumed" in n] or ["the file gives no rate"]
-        lines.append(f"    rate assumed: {notes[0]}")
+        assumed = [n for n in notes if "assumed" in n] or ["the file gives no rate"]
+        lines.append(f"    rate assumed: {assumed[0]}")
+        notes = [n for n in notes if n != assumed[0]]
+    lines += [f"    note: {n}" for n in notes]  # what the reader did not read or assumed
     return lines
 
 

@@ -160,6 +160,12 @@ def _identity(folder: Path) -> tuple[str, str, str | None, list[str]]:
                 serial = str(ping.get("serialNumber") or serial).strip()
             if isinstance(entry, dict) and date is None:
                 date = recording_date(entry.get("time"))
+    else:
+        notes.append(
+            f"no Command.json: device name {name!r}"
+            + (f" and serial {serial}" if serial else ", no serial")
+            + " from the folder's name, no recording date"
+        )
     return name, serial, date, notes
 
 
