@@ -403,9 +403,12 @@ def test_red_only_beyond_the_values_own_uncertainty():
 
     band = [16.0, 28.0]  # double support, % of the stride
     method = sp.method_error("double_support_pct", 31.0, 0.96)
-    assert method == pytest.approx(100 * 2 * 0.03 / 0.96)  # two IC-to-FC intervals
-    assert not beyond(31.0, 0.5, band, method)  # 31 − 0.98 − 6.25 < 28
-    assert beyond(40.0, 0.5, band, method)
+    assert method == pytest.approx(100 * 2 * 0.065 / 0.96)  # two IC-to-FC intervals, IC bias
+    assert not beyond(31.0, 0.5, band, method)  # 31 − 0.98 − 13.5 < 28
+    assert beyond(43.0, 0.5, band, method)
+    # the walker's early initial contact cancels between initial contacts
+    assert sp.method_error("stride_time_s", 1.0, 1.0) == pytest.approx(sp.IC_ERROR_S)
+    assert sp.method_error("cadence_steps_per_min", 120.0, 1.0) == pytest.approx(1.2)
     assert not beyond(40.0, float("nan"), band, method)  # unknown uncertainty: never red
     assert beyond(29.5, 0.5, band) and not beyond(28.5, 0.5, band)  # 1.96 SE alone
 

@@ -109,8 +109,9 @@ def gait_pages(doc: Document, view: SessionView) -> None:
         "steady strides; step times only inside one steady bout, the asymmetry from paired "
         "consecutive steps. Red: outside the normal band by more than the value's own "
         "uncertainty (1.96 standard errors plus the method's event-timing error: 10 ms at "
-        "initial, 20 ms at final contact; lengths 5 %). Normal bands are approximate ranges of "
-        "healthy adults.",
+        "initial, 20 ms at final contact, and up to 35 ms by which a walker's shank may stop "
+        "swinging before the heel lands in the times from initial to final contact; lengths "
+        "12 %). Normal bands are approximate ranges of healthy adults.",
     )
     rows, flags = [], []
     counts = {k: int(summ.sides[k]["stride_time_s"].strides_n or 0) for k in ("r", "l")}
