@@ -3,6 +3,8 @@
 Steps, for files read by :func:`motionlab.io.read_any` (one file per sensor, one file with many
 sensors, or optical files that become marker sets):
 
+0. each reader marks sensors it knows share one clock (one time column for several sensors, the
+   vendor's synchronisation; across files, :func:`motionlab.io.xsens.mark_awinda_recording`);
 1. the sensor map (:mod:`motionlab.sensor_map`) names each sensor's segment, side and label and
    gives subject/session metadata; a map key that matches no sensor is an error;
 2. every stream's clock is repaired (:func:`motionlab.timebase.repair_clock`);
@@ -30,7 +32,7 @@ import numpy as np
 from motionlab import timebase
 from motionlab.binding import segment_name
 from motionlab.errors import InputError
-from motionlab.io import read_any
+from motionlab.io import read_any, xsens
 from motionlab.qc import (
     IMPLAUSIBLE,
     acc_unit_problem,
@@ -487,6 +489,7 @@ def ingest(
     markers: list[tuple[MarkerSet, Path]] = []
     files: dict[str, Any] = {}
     read_files: list[Path] = []  # what was read, for the provenance (a folder: its files)
+    awinda: list[SensorStream] = []  # Xsens exports, maybe of one Awinda recording
     for path in paths:
         rec = read_any(path, smap.reader or None)
         if not rec.sensors and not rec.markers:
@@ -496,6 +499,8 @@ def ingest(
         read_files += [Path(f) for f in rec.metadata.get("files", [])] or [path]
         streams += [(s, path) for s in rec.sensors]
         markers += [(m, path) for m in rec.markers]
+        awinda += rec.sensors if rec.format == xsens.FORMAT else []
+    xsens.mark_awinda_recording(awinda)
 
     streams, unmatched = _apply_map(streams, smap)
     seen: dict[str, tuple[Path, str]] = {}

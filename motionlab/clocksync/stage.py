@@ -38,8 +38,11 @@ simulated 400-s walk without its pelvis sensor read 10.2 % step-time asymmetry (
 with the pelvis). Without heel strikes (the arms without a thorax sensor) each part is its own.
 
 *Clocks the vendor synchronised* (every sensor's ``attrs["vendor_clock_sync"]`` set by its
-reader, e.g. an Xsens DOT export's ``SyncStatus: Synced``): the fits are made as a check and
-none is applied (status :data:`VENDOR_KEPT`, the data's answer kept in the fit). The DOT app's
+reader to one and the same value: an Xsens DOT export's ``SyncStatus: Synced``, the MTw files of
+one Awinda recording, one time column for all the sensors of an APDM CSV, an OpenSense ``.sto`` or
+a generic CSV; docs/ingest.md, "Sensors on one clock"): the fits are made as a check and none is
+applied (status :data:`VENDOR_KEPT`, the data's answer kept in the fit), and the legs are on one
+clock without a pelvis sensor. The DOT app's
 synchronisation is far finer than a joint-centre fit through soft tissue: on a real seated knee
 recording (two DOTs, ``SyncStatus: Synced``, first stamps one sample apart) the fit asked for
 +27 ± 2 ms.
@@ -73,6 +76,7 @@ from motionlab.clocksync.common import MAX_OFFSET_S, MIN_CORRECTION_S, PerStream
 from motionlab.clocksync.impacts import envelope, impact_clock
 from motionlab.clocksync.joint_centre import estimate_clock, signals
 from motionlab.clocksync.pairs import joint_pairs, sync_forest
+from motionlab.io.clock import SHARED_CLOCK
 from motionlab.kinematics.segment_types import kind_side
 from motionlab.protocol import Protocol
 from motionlab.results import NOT_LINKED, ClockFit
@@ -157,8 +161,8 @@ def synchronise(
         fits = _synchronise_network(session, protocol, forest, label, impacts, centre)
     else:
         fits = _synchronise_tree(session, forest, label, impacts, centre)
-    vendor = {session.sensors[lab].attrs.get("vendor_clock_sync") for lab in label.values()}
-    if label and None not in vendor:  # every sensor on the vendor's synchronised clock
+    vendor = {session.sensors[lab].attrs.get(SHARED_CLOCK) for lab in label.values()}
+    if label and len(vendor) == 1 and None not in vendor:  # every sensor on one clock a file shows
         unsynchronise(session)
         said = ", ".join(sorted(vendor))
         fits = [replace(f, status=f"{VENDOR_KEPT} ({said}); the data's fit "

@@ -11,11 +11,12 @@ Two layouts are read:
   the Unix epoch. There is no units row: APDM's documented units (acc m/s², gyr rad/s, mag µT)
   are assumed and recorded as such.
 
-One :class:`~motionlab.session.SensorStream` per sensor. Columns other than the three inertial
-vectors and the orientation (temperature, pressure, the barometer) are ignored and listed in
-``Recording.metadata["ignored_columns"]``. Time is returned in s: a Format=7 file's in s since
-the Unix epoch (so that files recorded apart stay apart, and a C3D on its own clock is told
-unrelated, :mod:`motionlab.ingest`), its date in ``attrs["recorded"]`` (UTC) and its first
+One :class:`~motionlab.session.SensorStream` per sensor, all on the file's one time column (so
+on one clock: :func:`motionlab.io.clock.mark_shared_clock`). Columns other than the three
+inertial vectors and the orientation (temperature, pressure, the barometer) are ignored and
+listed in ``Recording.metadata["ignored_columns"]``. Time is returned in s: a Format=7 file's in
+s since the Unix epoch (so that files recorded apart stay apart, and a C3D on its own clock is
+told unrelated, :mod:`motionlab.ingest`), its date in ``attrs["recorded"]`` (UTC) and its first
 stamp in ``attrs["start_unix_us"]``; a Motion Studio file's as it is written.
 
 Orientation: APDM quaternions are scalar first and map sensor to earth, but APDM's earth frame
@@ -34,7 +35,7 @@ import numpy as np
 from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.io import Recording
-from motionlab.io.clock import unix_date
+from motionlab.io.clock import mark_shared_clock, unix_date
 from motionlab.io.delimited import parse_table, read_lines
 from motionlab.session import SensorStream
 from motionlab.units import to_si
@@ -135,6 +136,7 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
         attrs["nominal_rate_hz"] = meta["sample_rate_hz"]
 
     sensors = _streams(path, columns, values, time, attrs, units_line=first_data)
+    mark_shared_clock(sensors, f"one Time column for {len(sensors)} sensors in {path.name}")
     ignored = sorted({f"{c[0]}/{c[2]}" for c in columns if c[2] not in _QUANTITIES})
     meta["ignored_columns"] = ignored
     if table.notes:

@@ -8,6 +8,11 @@ Unwrapping takes every step modulo ``2**bits`` into ``[-2**(bits-1), 2**(bits-1)
 step is a sample interval or a gap of dropped samples, a negative step an out-of-order packet
 (kept, for the ingest stage to repair). A gap longer than half the wrap period cannot be told
 from a wrap and is read as the shorter interval.
+
+A reader that knows its sensors share one clock (one time column for all of them in the file, or
+the vendor's documented synchronisation) says so with :func:`mark_shared_clock`: clock sync then
+keeps their stamps as recorded (:mod:`motionlab.clocksync.stage`; evidence per format in
+docs/ingest.md, "Sensors on one clock").
 """
 
 from __future__ import annotations
@@ -19,8 +24,22 @@ from pathlib import Path
 import numpy as np
 
 from motionlab.errors import InputError
+from motionlab.session import SensorStream
+
+#: ``SensorStream.attrs`` key saying which one clock the sensor shares with every other sensor
+#: that has the same value, and what in the file shows it
+SHARED_CLOCK = "vendor_clock_sync"
 
 _DATE = re.compile(r"\s*(\d{4})[-_/.](\d{1,2})[-_/.](\d{1,2})(?!\d)")
+
+
+def mark_shared_clock(streams: list[SensorStream], evidence: str) -> None:
+    """Mark two or more ``streams`` as on one clock, ``attrs[SHARED_CLOCK] = evidence``: what in
+    the file shows it, naming the file (``one Time column for 4 sensors in walk.csv``), so that
+    sensors of two files are not taken as one clock by the same words."""
+    if len(streams) > 1:
+        for stream in streams:
+            stream.attrs[SHARED_CLOCK] = evidence
 
 
 def recording_date(stamp: object) -> str | None:

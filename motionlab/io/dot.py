@@ -39,7 +39,7 @@ from scipy.spatial.transform import Rotation
 from motionlab import rotations
 from motionlab.errors import InputError
 from motionlab.io import Recording
-from motionlab.io.clock import checked_counter_time, count_wraps, recording_date
+from motionlab.io.clock import SHARED_CLOCK, checked_counter_time, count_wraps, recording_date
 from motionlab.io.delimited import find_line, parse_table, read_lines, require_values, split_fields
 from motionlab.io.xsens import read_mag_au
 from motionlab.session import SensorStream
@@ -121,7 +121,7 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
         "notes": table.notes,
     }
     if info.get("SyncStatus", "").strip().lower() == "synced":  # the DOT app's sync
-        attrs["vendor_clock_sync"] = "Xsens DOT SyncStatus: Synced"
+        attrs[SHARED_CLOCK] = "Xsens DOT SyncStatus: Synced"
     recorded = recording_date(info.get("StartTime"))
     if recorded:
         attrs["recorded"] = recorded

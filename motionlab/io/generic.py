@@ -33,7 +33,9 @@ Column map schema (every key optional unless marked *required*)::
         gyr: {columns: ["shank gyr_x", "shank gyr_y", "shank gyr_z"], unit: rad/s}
 
 Without a time column the time is row / rate (s), the first row at 0; ``attrs["time_source"]``
-says where the rate came from (``rate_hz 40.0`` or ``comment line 1: 40.0 Hz``).
+says where the rate came from (``rate_hz 40.0`` or ``comment line 1: 40.0 Hz``). Several sensors
+of one file share its time base, so they are on one clock
+(:func:`motionlab.io.clock.mark_shared_clock`).
 
 Magnetometer in arbitrary units (``unit: a.u.``, e.g. raw counts, or a field normalised to 1):
 only the direction is known. Inside motionlab the field is in µT (fusion's disturbance tolerances
@@ -60,7 +62,7 @@ import numpy as np
 from motionlab import rotations
 from motionlab.errors import InputError
 from motionlab.io import Recording
-from motionlab.io.clock import checked_counter_time
+from motionlab.io.clock import checked_counter_time, mark_shared_clock
 from motionlab.io.delimited import (
     COMMENT_PREFIXES,
     DELIMITERS,
@@ -347,6 +349,8 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
             raise m.fail(key or "acc", "no channel", "map at least one of acc, gyr, mag, quat")
         s.attrs = {**time_attrs, **mag_attrs, "notes": notes}
         streams.append(s)
+    base = f"one time base ({time_attrs['time_source']})"
+    mark_shared_clock(streams, f"{base} for {len(streams)} sensors in {path.name}")
     labels = [s.label for s in streams]
     if len(set(labels)) != len(labels):
         raise m.fail("sensors", "labels repeat", "give every sensor its own label")

@@ -11,7 +11,8 @@ File layout (OpenSim Storage version 3, ``DataType=Quaternion``)::
     0<TAB>w,x,y,z<TAB>w,x,y,z ...
 
 Each IMU column becomes a :class:`~motionlab.session.SensorStream` with only ``quat``
-(scalar first, sensor → earth), read **as stored**. The files OpenSense's readers write (Xsens,
+(scalar first, sensor → earth), read **as stored**, all on the file's one time column (so on one
+clock: :func:`motionlab.io.clock.mark_shared_clock`). The files OpenSense's readers write (Xsens,
 APDM) keep the IMU system's own Z-up world frame: OpenSim's Y-up ground is reached only inside
 OpenSense, by the ``sensor_to_opensim_rotations`` of the IMU placer and IK tools (−90° about X
 by default). ``attrs["earth_frame"]`` says so (:data:`EARTH_FRAME`); for Xsens that frame is
@@ -35,6 +36,7 @@ import pandas as pd
 from motionlab.atomic import atomic_path
 from motionlab.errors import InputError, shorten
 from motionlab.io import Recording
+from motionlab.io.clock import mark_shared_clock
 from motionlab.kinematics.segment_types import segment_of_opensim_imu
 from motionlab.session import SensorStream, estimate_rate
 
@@ -122,6 +124,7 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
         )
         for k, name in enumerate(names[1:])
     ]
+    mark_shared_clock(sensors, f"one time column for {len(sensors)} IMUs in {path.name}")
     meta: dict[str, Any] = {"header": header}
     if "DataRate" in header:
         try:

@@ -39,6 +39,14 @@ Time, from the device clock, in order of preference:
    flagged in ``attrs["rate_assumed"]``.
 
 Options: ``rate_hz`` (float), ``mag_field_ut`` (float), ``label`` (str).
+
+MTw Awinda: the MTws of one station sample on the station's clock (the MTw Awinda user manual,
+on synchronising two Awinda Stations: each station's MTw data are time synchronised, two
+stations in one MT Manager are not tested), and MT Manager writes each file's rows against the
+recording's sample counter, so the files of one recording start at one ``PacketCounter`` (the
+two MTw2 files ``formats/xsens/MT2022_*`` at 51400). :func:`mark_awinda_recording` (called by
+ingest over the session's Xsens files) marks them as on one clock when every file says it is
+an MTw and they start together.
 """
 
 from __future__ import annotations
@@ -54,7 +62,12 @@ from scipy.spatial.transform import Rotation
 from motionlab import rotations
 from motionlab.errors import InputError
 from motionlab.io import Recording
-from motionlab.io.clock import checked_counter_time, count_wraps, recording_date
+from motionlab.io.clock import (
+    checked_counter_time,
+    count_wraps,
+    mark_shared_clock,
+    recording_date,
+)
 from motionlab.io.delimited import (
     Table,
     first_content_line,
@@ -279,6 +292,10 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
         vendor="Xsens",
     )
     attrs.update(time_source=time_source, earth_frame=frame, header=info)
+    counter = next((c for c in _COUNTERS if table.has(c)), None)
+    counts = table.column(counter) if counter else np.empty(0)
+    if np.isfinite(counts).any():  # the Awinda station's count on an MTw: mark_awinda_recording
+        attrs["first_packet_counter"] = int(counts[np.isfinite(counts)][0])
     if recorded := recording_date(info.get("Start Time")):  # legacy exports: may be "Unknown"
         attrs["recorded"] = recorded
     for channel, prefix, unit in (("acc", "Acc", "m/s^2"), ("gyr", "Gyr", "rad/s")):
@@ -321,3 +338,21 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     attrs["notes"] = table.notes + ([attrs.pop("notes_rate")] if "notes_rate" in attrs else [])
     stream.attrs = attrs
     return Recording(sensors=[stream], metadata={"source": str(path)}, format=FORMAT)
+
+
+def mark_awinda_recording(streams: list[SensorStream]) -> None:
+    """Mark the MTw exports of one Awinda recording as on one clock
+    (:func:`motionlab.io.clock.mark_shared_clock`): two or more devices, every header's
+    ``ProductCode`` an MTw's (``MTW2-3A7G6``), every file's first ``PacketCounter`` the same and
+    its first stamp the same on the same time source (``SampleTimeFine`` ticks, or the counter).
+    Otherwise none is marked: a legacy export names no product, and files that start apart
+    may come from two recordings or two stations (whose synchronisation the manual leaves
+    untested)."""
+    starts = {(s.attrs.get("first_packet_counter"), s.attrs.get("time_source"), float(s.time[0]))
+              for s in streams}  # fmt: skip
+    mtw = all(s.attrs.get("header", {}).get("ProductCode", "").upper().startswith("MTW")
+              for s in streams)  # fmt: skip
+    counter = next(iter(starts))[0] if len(starts) == 1 else None
+    if mtw and counter is not None and len({s.serial for s in streams}) == len(streams):
+        mark_shared_clock(streams, f"Xsens Awinda: {len(streams)} MTw exports starting at "
+                                   f"PacketCounter {counter}")  # fmt: skip

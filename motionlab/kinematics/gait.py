@@ -88,7 +88,8 @@ def legs_not_linked(session: Session, protocol: Protocol) -> str:
         return ""
     return (
         f"not given: the two legs' sensor clocks are not linked ({why}; sensors on one radio "
-        "clock, e.g. one Xsens Awinda station, need no clock sync: --no-clock-sync)"
+        "clock their files do not show, e.g. a legacy Xsens Awinda export, need no clock sync: "
+        "--no-clock-sync)"
     )
 
 

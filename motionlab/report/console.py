@@ -10,6 +10,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from motionlab.clocksync.stage import VENDOR_KEPT
 from motionlab.kinematics.gait_course import change_text, walk_courses
 from motionlab.report.model import (
     angle_grades,
@@ -77,9 +78,11 @@ def run_summary(
     if synced:
         moved = [f"{k} {1e3 * v.offset_s:+.1f} ms" for k, v in synced.items()
                  if v.status == "applied"]  # fmt: skip
+        said = "no correction needed or reliable"
+        if all(v.status.startswith(VENDOR_KEPT) for v in synced.values()):
+            said = "kept as recorded: the files show one clock"
         lines.append(
-            f"  clock sync: {', '.join(moved) if moved else 'no correction needed or reliable'}"
-            f" ({len(synced)} sensor pairs checked)"
+            f"  clock sync: {', '.join(moved) or said} ({len(synced)} sensor pairs checked)"
         )
     segs = {r.segment: r.segment_ok for r in calibration_rows(view)}
     bad = [s for s, ok in segs.items() if not ok]
