@@ -112,6 +112,8 @@ CASES = {
         )[1],
         "in.mat: a MATLAB .mat file",
     ),
+    # a header line of megabytes (a file joined into one line) was "unknown file format"
+    "one endless line": (_write("in.csv", "Time," + "x" * 200_000 + "\n1,2\n"), "past 64 kB"),
     "utf-16": (
         lambda d: ((d / "in.csv").write_bytes(XIO_HEADER.encode("utf-16")), ["in.csv"])[1],
         "in.csv: text in UTF-16",

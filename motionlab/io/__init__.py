@@ -140,6 +140,13 @@ def _detect(path: Path, options: dict[str, Any] | None):
             path,
             remedy="give a vendor export (text, C3D, TRC, BROAD or APDM HDF5)",
         )
+    if len(head) == HEAD_BYTES and b"\n" not in head and b"\r" not in head:
+        raise InputError(
+            f"its first line runs on past {HEAD_BYTES // 1024} kB without a line break: no "
+            "export's header is that long",
+            path,
+            remedy="export the recording again (the file may be damaged or joined into one line)",
+        )
     raise InputError(
         "unknown file format",
         path,
