@@ -223,7 +223,11 @@ def load_manifest(path: str | Path) -> Manifest:
     if not isinstance(doc["protocol"], str):
         _fail(path, lines["protocol"], "protocol", "is not a path", "e.g. protocol: knee")
     local = base / doc["protocol"]
-    protocol = resolve_protocol_path(local if local.is_file() else doc["protocol"])
+    try:
+        protocol = resolve_protocol_path(local if local.is_file() else doc["protocol"])
+    except InputError as exc:  # the name as the manifest gives it, with its line
+        _fail(path, lines["protocol"], "protocol", f"{doc['protocol']!r}: {exc.message}",
+              exc.remedy or "give a protocol file or packaged name")  # fmt: skip
     load_protocol(protocol)
     study_map, study_markers = (_study_file(path, base, doc, k) for k in ("map", "markers"))
     study_options, missing = _options(path, base, doc, "")
