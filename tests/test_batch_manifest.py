@@ -120,6 +120,9 @@ BROKEN = [
     ("protocol: knee\nsessions:\n  - {visit: v, files: x}\n", "sessions[0].subject", "expected"),
     ("protocol: knee\nsessions:\n  - {subject: A, visit: v, files: x}\n"
      "  - {subject: A, visit: v, files: y}\n", "line 4, key sessions[1]", "first is on line 3"),
+    ("protocol: knee\nsessions:\n  - {subject: A, visit: v, files: m.yaml}\n"
+     "  - {subject: A, visit: w, files: m.yaml}\n", "line 4, key sessions[1]",
+     "repeats the files and settings of sessions[0] (line 3)"),
     ("protocol: knee\nsessions:\n  - {subject: A, visit: v, files: []}\n",
      "line 3, key sessions[0].files", "needs a file"),
     ("protocol: knee\nsessions:\n  - subject: A\n    visit: v\n    fils: x\n",
@@ -144,6 +147,7 @@ BROKEN = [
 def test_broken_manifest_names_key_and_line(tmp_path, text, where, message):
     path = tmp_path / "study.yaml"
     path.write_text(text)
+    (tmp_path / "m.yaml").write_text("sensors: {}\n")
     with pytest.raises(InputError) as info:
         load_manifest(path)
     err = info.value
@@ -189,7 +193,9 @@ def test_a_study_of_thousands_of_sessions_loads_and_an_oversized_file_is_refused
     from motionlab.yamlsafe import MAX_BYTES
 
     _files(tmp_path, "x.h5")
-    rows = "".join(f"  - {{subject: S{i}, visit: v1, files: x.h5}}\n" for i in range(8000))
+    rows = "".join(
+        f"  - {{subject: S{i}, visit: v1, files: x.h5, seed: {i}}}\n" for i in range(8000)
+    )
     (tmp_path / "study.yaml").write_text("protocol: knee\nsessions:\n" + rows)
     sessions = load_manifest(tmp_path / "study.yaml").sessions
     assert len(sessions) == 8000 and not any(s.problem for s in sessions)
@@ -202,3 +208,27 @@ def test_a_study_of_thousands_of_sessions_loads_and_an_oversized_file_is_refused
     (tmp_path / "laughs.yaml").write_text("protocol: knee\n" + laughs.replace("a: &a", "x0: &a"))
     with pytest.raises(InputError, match="holds more than 1000000 values"):
         load_manifest(tmp_path / "laughs.yaml")
+
+
+def test_one_recording_twice_is_refused_unless_its_settings_differ(tmp_path):
+    """The real trunk trial Aag/pivot_hs listed as two visits ran twice and counted twice in the
+    study's medians; the same recording with another option (a second estimator, say) is a
+    session of its own, and two missing recordings are two session problems."""
+    _files(tmp_path, "x.h5")
+    (tmp_path / "study.yaml").write_text(
+        "protocol: knee\nsessions:\n"
+        "  - {subject: A, visit: v1, files: x.h5}\n"
+        "  - {subject: A, visit: v2, files: x.h5, filter: madgwick}\n"
+        "  - {subject: B, visit: v1, files: gone.h5}\n"
+        "  - {subject: B, visit: v2, files: gone.h5}\n"
+    )
+    a, b, c, d = load_manifest(tmp_path / "study.yaml").sessions
+    assert not a.problem and not b.problem and c.problem and d.problem
+    (tmp_path / "study.yaml").write_text(
+        "protocol: knee\nsessions:\n"
+        "  - {subject: A, visit: v1, files: x.h5}\n"
+        "  - {subject: B, visit: v1, files: [x.h5]}\n"
+    )
+    with pytest.raises(InputError, match="line 4, key sessions.1.: repeats the files and "
+                       "settings of sessions.0. .line 3."):  # fmt: skip
+        load_manifest(tmp_path / "study.yaml")

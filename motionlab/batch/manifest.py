@@ -26,7 +26,9 @@ session): ``calibration`` (folder of sensor calibrations, ``--calibration``), ``
 ``batch``. An unknown key is an error naming its line.
 
 Relative paths are relative to the manifest's folder. ``subject`` and ``visit`` name the output
-folder ``OUTDIR/<subject>/<visit>/``: letters, digits, space, ``_ . + -``. The structure is checked
+folder ``OUTDIR/<subject>/<visit>/``: letters, digits, space, ``_ . + -``. A session that repeats
+another's files with the same map, reference, marker map and options is an error (its numbers
+would count twice in the study tables). The structure is checked
 on load (:class:`~motionlab.errors.InputError` naming the key and its line); a session whose files
 do not exist is kept with its ``problem`` set, so that the rest of the study still runs.
 """
@@ -239,6 +241,7 @@ def load_manifest(path: str | Path) -> Manifest:
         _fail(path, lines["sessions"], "sessions", "needs a list of sessions", _EXAMPLE)
     sessions: list[SessionSpec] = []
     seen: dict[tuple[str, str], int] = {}
+    runs: dict[tuple, tuple[str, int]] = {}  # a session's inputs and settings → its first place
     for i, entry in enumerate(entries):
         where = f"sessions[{i}]"
         if not isinstance(entry, dict):
@@ -302,6 +305,18 @@ def load_manifest(path: str | Path) -> Manifest:
             ),
             "",
         )
+        run = (tuple(files), reference, session_map, markers, tuple(sorted(options.items())))
+        if not problem and run in runs:  # the same numbers again, counted twice in the study
+            first, first_line = runs[run]
+            _fail(
+                path,
+                line,
+                where,
+                f"repeats the files and settings of {first} (line {first_line})",
+                "list each recording once (a second run of it needs its own map, reference or "
+                "option)",
+            )
+        runs.setdefault(run, (where, line))
         sessions.append(
             SessionSpec(
                 subject,
