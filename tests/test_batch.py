@@ -118,6 +118,25 @@ def test_outdir_of_other_files_needs_force(tmp_path):
     assert (tmp_path / "busy" / "thesis.docx").read_text() == "keep me"
 
 
+def test_another_manifests_study_folder_needs_force(tmp_path):
+    """The real walk study run into the trunk study's folder replaced its study_metrics.csv,
+    study_failures.csv and study_report.pdf without a word; now that needs force, as a folder
+    of other files does, and the folder then belongs to the new manifest."""
+    first = make_study(tmp_path / "a", good_sessions(1, ("v1",)))
+    second = make_study(tmp_path / "b", good_sessions(2, ("v1",)))
+    out = tmp_path / "out"
+    assert _run(first, out, workers=1).ok
+    tables = (out / "study_metrics.csv").read_bytes()
+    with pytest.raises(InputError, match="out argument outdir: holds the study of another "
+                       "manifest .*a.study.yaml"):  # fmt: skip
+        _run(second, out, workers=1)
+    assert (out / "study_metrics.csv").read_bytes() == tables
+    assert _run(first, out, workers=1).count("skipped") == 1  # its own manifest: no force
+    assert _run(second, out, workers=1, force=True).ok
+    assert len(_rows(out / "study_metrics.csv")) == 2 * 6
+    assert _run(second, out, workers=1).count("skipped") == 2
+
+
 def test_runner_calls_the_pipeline_with_its_signature():
     pipeline = pytest.importorskip("motionlab.pipeline")
     params = inspect.signature(pipeline.run_pipeline).parameters

@@ -2,7 +2,8 @@
 
 Layout of a study output folder::
 
-    OUTDIR/.motionlab-batch           marks the folder as written by motionlab batch
+    OUTDIR/.motionlab-batch           marks the folder as written by motionlab batch, for which
+                                      manifest (another manifest's study needs force)
     OUTDIR/<subject>/<visit>/         the session's outputs (as motionlab run writes them)
         batch_metrics.csv             the session's metric table (one row per joint metric)
         batch_stamp.json              written last, atomically: the session finished
@@ -93,8 +94,19 @@ def session_key(
     return hashlib.sha256(json.dumps(doc, sort_keys=True).encode()).hexdigest()
 
 
+def _marked_manifest(outdir: Path) -> str | None:
+    """The manifest the study folder's marker names, or None (no marker, or none readable)."""
+    try:
+        doc = json.loads((outdir / MARKER).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    name = doc.get("manifest") if isinstance(doc, dict) else None
+    return name if isinstance(name, str) else None
+
+
 def prepare_outdir(outdir: Path, manifest: Path, force: bool) -> None:
-    """Create the study folder, or accept one written by motionlab batch (any folder with force)."""
+    """Create the study folder, or accept one that motionlab batch wrote for this manifest (any
+    folder with force: the marker then names this manifest)."""
     if outdir.exists() and not outdir.is_dir():
         raise InputError(
             "is not a folder",
@@ -111,6 +123,16 @@ def prepare_outdir(outdir: Path, manifest: Path, force: bool) -> None:
             "choose another folder, or add force=True to write into it",
             argument=("outdir", "force"),
         )
+    other = _marked_manifest(outdir) if outdir.is_dir() else None
+    if other is not None and other != str(manifest.resolve()) and not force:
+        raise InputError(
+            f"holds the study of another manifest ({other}), whose study tables this one would "
+            "replace",
+            outdir,
+            "argument outdir",
+            "choose another folder, or add force=True to write this study into it",
+            argument=("outdir", "force"),
+        )
     if not outdir.parent.is_dir():
         raise InputError("parent folder does not exist", outdir, "-o", f"create {outdir.parent}")
     try:
@@ -122,7 +144,7 @@ def prepare_outdir(outdir: Path, manifest: Path, force: bool) -> None:
         ) from None  # fmt: skip
     if not os.access(outdir, os.W_OK):
         raise InputError("folder is not writable", outdir, "-o", "choose another folder")
-    if not (outdir / MARKER).is_file():
+    if _marked_manifest(outdir) != str(manifest.resolve()):
         write_json(outdir / MARKER, {"manifest": str(manifest.resolve()), "motionlab": __version__})
 
 
