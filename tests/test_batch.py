@@ -137,6 +137,25 @@ def test_another_manifests_study_folder_needs_force(tmp_path):
     assert _run(second, out, workers=1).count("skipped") == 2
 
 
+def test_a_study_folder_inside_an_input_folder_is_refused_before_anything_is_written(tmp_path):
+    """``batch study.yaml -o trial/imu/out`` (a real trunk trial's x-IMU3 export) wrote the
+    study folder and its tables into the recording, each session failing on it (exit 3)."""
+    from tests import ximu3_export as xe
+
+    imu = xe.write(tmp_path / "trial", xe.export_files())
+    before = sorted(p.relative_to(imu) for p in imu.rglob("*"))
+    (tmp_path / "study.yaml").write_text(
+        "protocol: lumbar_seated\nsessions:\n  - {subject: A, visit: v1, files: trial/imu}\n"
+    )
+    device = next(p for p in imu.iterdir() if p.is_dir())
+    for out in (imu / "out", device / "out"):
+        res = CliRunner().invoke(main, ["batch", str(tmp_path / "study.yaml"), "-o", str(out)])
+        assert res.exit_code == 2, res.output
+        assert "the output folder is inside the input folder imu" in res.output
+        assert len(res.output.strip().splitlines()) == 1
+    assert sorted(p.relative_to(imu) for p in imu.rglob("*")) == before
+
+
 def test_runner_calls_the_pipeline_with_its_signature():
     pipeline = pytest.importorskip("motionlab.pipeline")
     params = inspect.signature(pipeline.run_pipeline).parameters

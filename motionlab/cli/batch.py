@@ -9,7 +9,7 @@ from typing import Any
 
 import click
 
-from motionlab.atomic import refuse_folder_holding_inputs
+from motionlab.atomic import refuse_folder_holding_inputs, refuse_folder_in_input_folder
 from motionlab.batch import Progress, load_manifest, run_study
 from motionlab.batch.manifest import Manifest
 from motionlab.cli.paths import INPUT_FILE
@@ -134,7 +134,9 @@ def command(
             "run motionlab sensorcal",
         )
     study = load_manifest(manifest)
-    refuse_folder_holding_inputs(outdir, _inputs(study, calibration_dir))
+    inputs = _inputs(study, calibration_dir)
+    refuse_folder_holding_inputs(outdir, inputs)
+    refuse_folder_in_input_folder(outdir, inputs)  # an x-IMU3 export, a calibration folder
     start = time.monotonic()
     result = run_study(
         study,
