@@ -156,6 +156,23 @@ def test_a_study_folder_inside_an_input_folder_is_refused_before_anything_is_wri
     assert sorted(p.relative_to(imu) for p in imu.rglob("*")) == before
 
 
+def test_dask_not_installed_is_one_line_before_any_folder(tmp_path, monkeypatch):
+    """``--scheduler`` without Dask printed a '0/1' progress bar above the one-line error and
+    left the study folder made, holding only its marker."""
+    import sys
+
+    monkeypatch.setitem(sys.modules, "distributed", None)  # import distributed: ImportError
+    monkeypatch.setattr("motionlab.cli.batch.run_study", partial(run_study, pipeline=fake_pipeline))
+    manifest = make_study(tmp_path, good_sessions(1, ("v1",)))
+    res = CliRunner().invoke(main, ["batch", str(manifest), "-o", str(tmp_path / "out"),
+                                    "--scheduler", "tcp://127.0.0.1:8786"])  # fmt: skip
+    assert res.exit_code == 2
+    assert (
+        res.output == "error: --scheduler: Dask is not installed — pip install 'motionlab[dask]'\n"
+    )
+    assert not (tmp_path / "out").exists()
+
+
 def test_runner_calls_the_pipeline_with_its_signature():
     pipeline = pytest.importorskip("motionlab.pipeline")
     params = inspect.signature(pipeline.run_pipeline).parameters

@@ -47,7 +47,12 @@ def test_dask_resubmits_after_a_killed_worker(tmp_path, scheduler):
 
 
 def test_unreachable_scheduler_is_an_input_error(tmp_path, monkeypatch):
+    """... told before the study folder is made or a progress line drawn (the real trunk study
+    printed a '0/5' bar above the error and left a folder holding only the marker)."""
     monkeypatch.setattr("motionlab.batch.runner._CONNECT_TIMEOUT_S", 0.5)
     study = load_manifest(make_study(tmp_path, good_sessions(1, ("v1",))))
+    seen = []
     with pytest.raises(InputError, match="cannot reach the Dask scheduler"):
-        run_study(study, tmp_path / "out", scheduler="tcp://127.0.0.1:9", pipeline=fake_pipeline)
+        run_study(study, tmp_path / "out", scheduler="tcp://127.0.0.1:9", pipeline=fake_pipeline,
+                  progress=seen.append)  # fmt: skip
+    assert not (tmp_path / "out").exists() and not seen

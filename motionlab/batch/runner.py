@@ -416,10 +416,16 @@ def run_study(
         raise InputError(f"retry={retry} is negative", remedy="give 0 or more", argument="retry")
     if workers is not None and workers < 1:
         raise InputError(f"workers={workers} is below 1", remedy="give 1+", argument="workers")
-    prepare_outdir(outdir, manifest.path, force)
-    with _one_batch(outdir):
-        return _run_sessions(manifest, outdir, workers, scheduler, retry, force, options,
-                             pipeline, progress)  # fmt: skip
+    # the cluster first: Dask missing or unreachable is one line before any folder or progress
+    cluster = _DaskCluster(scheduler) if scheduler else None
+    try:
+        prepare_outdir(outdir, manifest.path, force)
+        with _one_batch(outdir):
+            return _run_sessions(manifest, outdir, workers, cluster, retry, force, options,
+                                 pipeline, progress)  # fmt: skip
+    finally:
+        if cluster is not None:
+            cluster.close()
 
 
 @contextlib.contextmanager
@@ -445,14 +451,15 @@ def _run_sessions(
     manifest: Manifest,
     outdir: Path,
     workers: int | None,
-    scheduler: str | None,
+    cluster: _DaskCluster | None,
     retry: int,
     force: bool,
     options: dict[str, Any] | None,
     pipeline: Pipeline | None,
     progress: Callable[[Progress], None] | None,
 ) -> StudyResult:
-    """:func:`run_study` once its folder is ready and locked."""
+    """:func:`run_study` once its folder is ready and locked (``cluster``: the Dask one, which
+    the caller closes; else a local pool)."""
     hashes = FileHashes()
     outcomes: dict[int, Outcome] = {}
     tasks: list[SessionTask] = []
@@ -508,11 +515,12 @@ def _run_sessions(
     report = progress or (lambda _state: None)
     report(state)
     if tasks:
-        backend = _DaskCluster(scheduler) if scheduler else _LocalPool(workers or default_workers())
+        backend = cluster or _LocalPool(workers or default_workers())
         try:
             outcomes |= _execute(backend, tasks, retry, pipeline, state, report)
         finally:
-            backend.close()
+            if cluster is None:
+                backend.close()
             for task in tasks:
                 sweep_temp(Path(task.outdir))
                 release(Path(task.outdir))
