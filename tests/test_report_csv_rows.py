@@ -32,3 +32,31 @@ def test_other_tables_go_to_pandas(tmp_path):
     assert ours == theirs
     empty = pd.DataFrame({"time_s": np.array([], dtype=float)})
     assert _both(empty, tmp_path)[0] == _both(empty, tmp_path)[1]
+
+
+def test_a_length_not_measured_says_why_in_the_gait_summary_table():
+    """The real 16-IMU walk (no subject height in its session) left step length, stride length
+    and speed empty in spatiotemporal_summary.csv with an empty note, the reason only in the
+    report's footnote; a table read alone (or a study's gait table) had blanks without a word.
+    A withheld number's own reason (the legs' clocks not linked) is kept."""
+    from types import SimpleNamespace as NS
+
+    from motionlab.kinematics import spatiotemporal as sp
+    from motionlab.report.csv import LENGTH_PARAMETERS, gait_summary_frame
+    from motionlab.results import Gait
+
+    n = 8
+    table = pd.DataFrame({"side": ["r"] * n + ["l"] * n, "start_s": np.arange(2 * n, dtype=float),
+                          "kept": True, "reason": ""})  # fmt: skip
+    for c in sp.STRIDE_COLUMNS:
+        table[c] = np.nan if c in LENGTH_PARAMETERS else 1.0 + 0.01 * np.arange(2 * n)
+    why = "not measured: no subject height_m (or thigh_m and shank_m) in the sensor map"
+    for not_linked, expect in (("", why), ("not given: clocks", "not given: clocks")):
+        g = Gait(status="ok", summary=sp.summary(table, not_linked), walking_speed=why)
+        rows = gait_summary_frame(NS(session=NS(results=NS(gait=g)))).set_index(
+            ["parameter", "side"]
+        )
+        assert rows.loc[("step_length_m", "r"), "note"] == expect
+        assert rows.loc[("walking_speed_m_s", "both"), "note"] == expect
+        assert rows.loc[("stride_time_s", "r"), "note"] == ""  # given: no note
+        assert np.isnan(rows.loc[("stride_length_m", "l"), "mean"])

@@ -265,11 +265,32 @@ def calibration_frame(view: SessionView) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+#: the summary's numbers from the leg model's lengths (``Gait.walking_speed`` says why not)
+LENGTH_PARAMETERS = ("step_length_m", "stride_length_m", "walking_speed_m_s")
+
+
+def gait_summary_frame(view: SessionView) -> pd.DataFrame | None:
+    """``spatiotemporal_summary.csv`` (:func:`~motionlab.kinematics.spatiotemporal.summary_rows`)
+    with the reason a length or speed was not measured (``Gait.walking_speed``: no subject
+    height, a leg's sensor missing) in the ``note`` its row had empty; None without a gait
+    analysis."""
+    g = gait_result(view)
+    if g is None:
+        return None
+    rows = summary_rows(g.summary)
+    why = g.walking_speed or ""
+    if why.startswith("not measured"):
+        blank = rows["parameter"].isin(LENGTH_PARAMETERS) & rows["mean"].isna()
+        rows.loc[blank & (rows["note"] == ""), "note"] = why
+    return rows
+
+
 def gait_frames(view: SessionView) -> dict[str, pd.DataFrame]:
     """``spatiotemporal.csv`` (one row per stride, kept or not, with the reason) and
     ``spatiotemporal_summary.csv`` (per side and parameter its ``unit``, mean, SD, CV, SE,
     median, quartiles and the number ``count_n`` of strides or step pairs (``count_of``); NaN
-    below 3 strides), for a walk of 3 min or more ``spatiotemporal_course.csv``
+    below 3 strides; ``note``: why a number is withheld, :func:`gait_summary_frame`), for a
+    walk of 3 min or more ``spatiotemporal_course.csv``
     (:meth:`~motionlab.kinematics.gait_course.WalkCourse.rows`); nothing without a gait
     analysis."""
     g = gait_result(view)
@@ -278,7 +299,7 @@ def gait_frames(view: SessionView) -> dict[str, pd.DataFrame]:
     strides = g.strides.frame()[["side", "start_s", "kept", "reason", *STRIDE_COLUMNS]]
     out = {
         "spatiotemporal.csv": strides,
-        "spatiotemporal_summary.csv": summary_rows(g.summary),
+        "spatiotemporal_summary.csv": gait_summary_frame(view),
     }
     courses = walk_courses(g)
     if courses:  # a walk of 3 min or more, part by part
