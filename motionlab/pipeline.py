@@ -79,6 +79,9 @@ class PipelineResult:
     :func:`motionlab.kinematics.metrics.metrics_table`: ``block, joint, angle, column, metric,
     value, unit``; the cycle curves are left out), and the ``grade`` of the row's angle
     (``determined``, ``weak``, ``not determined``; empty for a row of no angle column).
+    ``gait``: the rows of ``spatiotemporal_summary.csv`` (cadence, stride and step times, ...
+    per side, each withheld number's ``note``; :func:`motionlab.report.csv.gait_summary_frame`),
+    None without a gait analysis.
     """
 
     session_path: Path
@@ -86,6 +89,7 @@ class PipelineResult:
     csv_dir: Path
     metrics: pd.DataFrame
     summary: str
+    gait: pd.DataFrame | None = None
 
 
 class _Stages:
@@ -563,6 +567,7 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
     from motionlab.kinematics.metrics import metrics_table, protocol_columns
     from motionlab.report import load_views, write_report
     from motionlab.report.console import run_summary
+    from motionlab.report.csv import gait_summary_frame
     from motionlab.segments.grades import with_grades
 
     t_start = time.perf_counter()
@@ -633,4 +638,5 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
         csv_dir=CSV_DIR,
         results_json=RESULTS_JSON,
     )
-    return PipelineResult(session_path, report_path, csv_dir, metrics, summary)
+    gait = gait_summary_frame(views[0])
+    return PipelineResult(session_path, report_path, csv_dir, metrics, summary, gait)

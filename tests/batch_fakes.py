@@ -4,7 +4,9 @@ A fake "recording" is a text file. Numbers: the session's knee angles (deg); its
 their range, minimum and maximum, computed here by hand. A first word changes the behaviour:
 ``corrupt`` raises InputError, ``bug`` raises ValueError, ``crash`` kills the worker process the
 first time (a ``.crashed`` flag file beside the input remembers it), ``crash-always`` every time,
-``sleep S`` waits S seconds before the numbers. Each start appends a line to ``<input>.runs``.
+``sleep S`` waits S seconds before the numbers, ``walk`` gives a gait summary too (its cadence
+the first number; its step-time asymmetry withheld with a note). Each start appends a line to
+``<input>.runs``.
 """
 
 from __future__ import annotations
@@ -39,6 +41,14 @@ def fake_pipeline(inputs, outdir, options):
     if words[0] == "sleep":
         time.sleep(float(words[1]))
         words = words[2:]
+    gait = None
+    if words[0] == "walk":
+        words = words[1:]
+        gait = pd.DataFrame({
+            "parameter": ["cadence_steps_per_min", "step_time_asymmetry_pct"], "side": "both",
+            "unit": ["steps/min", "%"], "mean": [float(words[0]), float("nan")],
+            "note": ["", "not given: the two legs' sensor clocks are not linked"],
+        })  # fmt: skip
     values = [float(w) for w in words]
     rows = []
     for angle, v in (("flexion", values), ("adduction", [x / 4 for x in values])):
@@ -53,8 +63,9 @@ def fake_pipeline(inputs, outdir, options):
             f"magnetometer {options.magnetometer}, filter {options.estimator}\n"
         )
     return SimpleNamespace(
-        session_path=None, report_path=report, csv_dir=None, metrics=metrics, summary=""
-    )
+        session_path=None, report_path=report, csv_dir=None, metrics=metrics, summary="",
+        gait=gait,
+    )  # fmt: skip
 
 
 def make_study(root: Path, sessions: dict[tuple[str, str], str], protocol: str = "knee") -> Path:

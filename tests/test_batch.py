@@ -3,6 +3,7 @@
 import csv
 import dataclasses
 import inspect
+import json
 import os
 from functools import partial
 from pathlib import Path
@@ -171,6 +172,38 @@ def test_dask_not_installed_is_one_line_before_any_folder(tmp_path, monkeypatch)
         res.output == "error: --scheduler: Dask is not installed — pip install 'motionlab[dask]'\n"
     )
     assert not (tmp_path / "out").exists()
+
+
+def test_the_walks_gait_numbers_and_their_withheld_cells_reach_the_study(tmp_path):
+    """The real 16-IMU walk study (with and without its pelvis sensor) had no cadence, stride
+    time or step-time asymmetry in any study table: study_metrics.csv holds joint metrics only.
+    study_gait.csv now gathers each walk's gait summary, a withheld number an empty cell with
+    its note; a session whose walk is gone (re-run as no walk) leaves it, and a stamp from
+    before the gait table is not current."""
+    sessions = {("S1", "v1"): "walk 112 0 30 2", ("S1", "v2"): "0 40 2",
+                ("S2", "v1"): "walk 98.5 0 35 1"}  # fmt: skip
+    manifest = make_study(tmp_path, sessions)
+    out = tmp_path / "out"
+    assert _run(manifest, out, workers=1).ok
+    rows = _rows(out / "study_gait.csv")
+    got = [(r["subject"], r["visit"], r["parameter"], r["mean"], r["note"]) for r in rows]
+    clocks = "not given: the two legs' sensor clocks are not linked"
+    assert got == [
+        ("S1", "v1", "cadence_steps_per_min", "112.0000", ""),
+        ("S1", "v1", "step_time_asymmetry_pct", "", clocks),
+        ("S2", "v1", "cadence_steps_per_min", "98.5000", ""),
+        ("S2", "v1", "step_time_asymmetry_pct", "", clocks),
+    ]
+    assert _run(manifest, out, workers=1).count("skipped") == 3
+    (tmp_path / "raw" / "S2" / "v1" / "rec.txt").write_text("0 35 1")  # no walk now
+    assert _run(manifest, out, workers=1).count("done") == 1
+    assert [r["subject"] for r in _rows(out / "study_gait.csv")] == ["S1", "S1"]
+    stamp = out / "S1" / "v1" / STAMP
+    doc = json.loads(stamp.read_text())
+    del doc["gait_sha256"]  # as written before the gait table
+    stamp.write_text(json.dumps(doc))
+    assert _run(manifest, out, workers=1).count("done") == 1
+    assert len(_rows(out / "study_gait.csv")) == 2
 
 
 def test_runner_calls_the_pipeline_with_its_signature():

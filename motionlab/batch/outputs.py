@@ -5,6 +5,10 @@
   metric, value, unit``), one row per session and joint metric; sessions in manifest order,
   rows in each session's order, fields copied as text — so the file has the same bytes
   whichever machines ran the sessions.
+- ``study_gait.csv``: ``subject, visit``, then the columns of the walks' gait summaries (the
+  sessions' ``spatiotemporal_summary.csv``: ``parameter, side, unit, mean, sd, ..., count_n,
+  count_of, note``), one row per walk session and parameter, copied as text: a number a session
+  withheld stays an empty cell with its ``note``; only the header without a walk.
 - ``study_failures.csv``: ``subject, visit, kind, attempts, error`` (a one-line error each).
 - ``study_report.pdf``: counts, a table of the ranges of motion across sessions (only the ranges
   each session determined: the others are counted and left out, as from every plot), failures; the
@@ -12,8 +16,8 @@
   dot per subject: its mean over visits); per subject, the change over visits of the primary
   angle's range of motion (flexion), with the median across subjects.
 
-All three are written atomically and replaced on every run (failed sessions drop out of the
-metric table until they succeed).
+All four are written atomically and replaced on every run (failed sessions drop out of the
+metric and gait tables until they succeed).
 """
 
 from __future__ import annotations
@@ -30,11 +34,12 @@ from matplotlib.figure import Figure
 from motionlab import __version__
 from motionlab.atomic import atomic_path
 from motionlab.batch.manifest import Manifest
-from motionlab.batch.state import METRICS
+from motionlab.batch.state import GAIT, METRICS
 from motionlab.kinematics.joint_types import JOINT_TYPES
 from motionlab.protocol import load_protocol
 
 METRICS_CSV = "study_metrics.csv"
+GAIT_CSV = "study_gait.csv"
 FAILURES_CSV = "study_failures.csv"
 REPORT_PDF = "study_report.pdf"
 MAIN_METRIC = "rom_deg"
@@ -43,9 +48,10 @@ _PANELS = (3, 2)
 
 
 def write_study_outputs(outdir: Path, manifest: Manifest, outcomes: list) -> dict[str, Path]:
-    """Write the three study files into ``outdir``; ``outcomes`` in manifest order."""
-    paths = {name: outdir / name for name in (METRICS_CSV, FAILURES_CSV, REPORT_PDF)}
+    """Write the four study files into ``outdir``; ``outcomes`` in manifest order."""
+    paths = {name: outdir / name for name in (METRICS_CSV, GAIT_CSV, FAILURES_CSV, REPORT_PDF)}
     main = write_metrics(outdir, manifest, outcomes, paths[METRICS_CSV])
+    _write_gathered(paths[GAIT_CSV], _finished_tables(outdir, manifest, outcomes, GAIT))
     write_failures(outcomes, paths[FAILURES_CSV])
     write_report(manifest, outcomes, main, paths[REPORT_PDF])
     return paths
@@ -80,22 +86,21 @@ def _rom_rows(subject: str, visit: str, head: list[str], rows: list[list[str]]) 
     ]
 
 
-def write_metrics(outdir: Path, manifest: Manifest, outcomes: list, path: Path) -> pd.DataFrame:
-    """Concatenate the finished sessions' metric tables; return their ROM rows for the report.
-
-    The ROM rows are the scalar ``rom_deg`` rows: ``subject, visit, block, joint, angle, value,
-    grade``; a range its session did not determine (``weak``, ``not determined``) has its
-    value NaN: the report's statistics and plots leave it out and count it.
-    """
-    tables = [
-        (spec, *_read_table(outdir / spec.folder / METRICS))
+def _finished_tables(outdir: Path, manifest: Manifest, outcomes: list, name: str) -> list:
+    """``[(session, header, rows)]`` of table ``name`` of every finished session that has one."""
+    return [
+        (spec, *_read_table(outdir / spec.folder / name))
         for spec, o in zip(manifest.sessions, outcomes, strict=True)
-        if o.status in ("done", "skipped")
+        if o.status in ("done", "skipped") and (outdir / spec.folder / name).is_file()
     ]
+
+
+def _write_gathered(path: Path, tables: list) -> None:
+    """The sessions' tables under one header (``subject, visit`` and every column of any),
+    fields copied as text; a column a session lacks is empty."""
     columns: list[str] = []
     for _, head, _ in tables:
         columns += [c for c in head if c not in columns]
-    main: list[tuple] = []
     with atomic_path(path, force=True) as tmp, open(tmp, "w", newline="", encoding="utf-8") as f:
         out = csv.writer(f, lineterminator="\n")
         out.writerow(["subject", "visit", *columns])
@@ -105,7 +110,20 @@ def write_metrics(outdir: Path, manifest: Manifest, outcomes: list, path: Path) 
                 [spec.subject, spec.visit, *(r[j] if j is not None else "" for j in pick)]
                 for r in rows
             )
-            main += _rom_rows(spec.subject, spec.visit, head, rows)
+
+
+def write_metrics(outdir: Path, manifest: Manifest, outcomes: list, path: Path) -> pd.DataFrame:
+    """Concatenate the finished sessions' metric tables; return their ROM rows for the report.
+
+    The ROM rows are the scalar ``rom_deg`` rows: ``subject, visit, block, joint, angle, value,
+    grade``; a range its session did not determine (``weak``, ``not determined``) has its
+    value NaN: the report's statistics and plots leave it out and count it.
+    """
+    tables = _finished_tables(outdir, manifest, outcomes, METRICS)
+    _write_gathered(path, tables)
+    main: list[tuple] = []
+    for spec, head, rows in tables:
+        main += _rom_rows(spec.subject, spec.visit, head, rows)
     main = pd.DataFrame(
         main, columns=["subject", "visit", "block", "joint", "angle", "value", "grade"]
     )

@@ -41,6 +41,7 @@ from typing import Any
 from motionlab.atomic import atomic_path
 from motionlab.batch.manifest import Manifest, manifest_spelling
 from motionlab.batch.state import (
+    GAIT,
     MARKER,
     METRICS,
     STAMP,
@@ -149,7 +150,8 @@ def run_session(task: SessionTask, pipeline: Pipeline | None = None) -> Outcome:
     """Process one session in this process; return its outcome, never raise for bad input.
 
     ``pipeline`` defaults to :func:`motionlab.pipeline.run_pipeline`. The session's metric
-    table goes to ``batch_metrics.csv``, then the stamp is written (both atomically).
+    table goes to ``batch_metrics.csv``, a walk's gait summary to ``batch_gait.csv`` (as the
+    session's ``spatiotemporal_summary.csv``), then the stamp is written (all atomically).
     """
     folder = Path(task.outdir)
     start = time.perf_counter()
@@ -165,6 +167,13 @@ def run_session(task: SessionTask, pipeline: Pipeline | None = None) -> Outcome:
             result = pipeline([Path(f) for f in task.files], folder, task.options)
         with atomic_path(folder / METRICS, force=True) as tmp:
             result.metrics.to_csv(tmp, index=False, lineterminator="\n")
+        if result.gait is None:
+            (folder / GAIT).unlink(missing_ok=True)  # an earlier run's walk
+        else:
+            from motionlab.report.csv import write_frame
+
+            with atomic_path(folder / GAIT, force=True) as tmp:
+                write_frame(result.gait, tmp)
         seconds = time.perf_counter() - start
         write_stamp(folder, task.key, seconds)
         return Outcome(task.subject, task.visit, "done", seconds=seconds)

@@ -6,12 +6,14 @@ Layout of a study output folder::
                                       manifest (another manifest's study needs force)
     OUTDIR/<subject>/<visit>/         the session's outputs (as motionlab run writes them)
         batch_metrics.csv             the session's metric table (one row per joint metric)
+        batch_gait.csv                a walk's gait summary (spatiotemporal_summary.csv's rows)
         batch_stamp.json              written last, atomically: the session finished
         .batch_running                exists while a worker processes the session (its pid)
 
 A session is *current* when its stamp holds the key of its present inputs — the SHA-256 of every
 input file (with its name), of the protocol, map and reference files, and the motionlab version —
-and its metric table still has the hash the stamp recorded. Current sessions are skipped.
+and its metric table (and gait table, or its absence) still has the hash the stamp recorded.
+Current sessions are skipped; so is no session whose stamp is older than the gait table.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from motionlab.session import sha256_file
 MARKER = ".motionlab-batch"
 STAMP = "batch_stamp.json"
 METRICS = "batch_metrics.csv"
+GAIT = "batch_gait.csv"
 CLAIM = ".batch_running"
 
 
@@ -172,7 +175,13 @@ def is_current(folder: Path, key: str) -> bool:
         and stamp.get("key") == key
         and metrics.is_file()
         and stamp.get("metrics_sha256") == sha256_file(metrics)
+        and "gait_sha256" in stamp  # a stamp from before the gait table: run it again
+        and stamp["gait_sha256"] == _sha256_or_none(folder / GAIT)
     )
+
+
+def _sha256_or_none(path: Path) -> str | None:
+    return sha256_file(path) if path.is_file() else None
 
 
 def write_stamp(folder: Path, key: str, seconds: float) -> None:
@@ -182,6 +191,7 @@ def write_stamp(folder: Path, key: str, seconds: float) -> None:
         {
             "key": key,
             "metrics_sha256": sha256_file(folder / METRICS),
+            "gait_sha256": _sha256_or_none(folder / GAIT),
             "motionlab": __version__,
             "seconds": round(seconds, 3),
             "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),

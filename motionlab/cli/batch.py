@@ -97,7 +97,8 @@ def command(
     skipped,
     so an interrupted study resumes where it stopped. A failing session is listed in
     OUTDIR/study_failures.csv and the others go on. All sessions' metrics are collected in
-    OUTDIR/study_metrics.csv and summarised in OUTDIR/study_report.pdf.
+    OUTDIR/study_metrics.csv, the walks' gait summaries in OUTDIR/study_gait.csv, and the
+    ranges summarised in OUTDIR/study_report.pdf.
 
     The options of 'motionlab run' (--calibration, --seed, --filter, --orientation,
     --magnetometer, --no-clock-sync) are also manifest keys, for the study or for one session;
