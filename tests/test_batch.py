@@ -206,6 +206,54 @@ def test_the_walks_gait_numbers_and_their_withheld_cells_reach_the_study(tmp_pat
     assert len(_rows(out / "study_gait.csv")) == 2
 
 
+def _alive(pid: int) -> bool:
+    """A process that runs (a zombie waiting for its new parent to reap it does not)."""
+    try:
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] != "Z"
+    except (FileNotFoundError, ProcessLookupError):
+        return False
+
+
+@pytest.mark.skipif(not Path("/proc/self/stat").is_file(), reason="reads /proc")
+def test_a_worker_stops_when_its_batch_process_is_killed(tmp_path):
+    """A ``motionlab batch`` of the real trunk study killed with SIGKILL left its worker running:
+    it processed the sessions queued to it, then waited on the dead pool's queue for ever."""
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    sessions = {(f"S{k}", "v1"): "sleep 2 0 30 1" for k in range(1, 5)}
+    manifest = make_study(tmp_path, sessions)
+    code = (
+        "import sys; sys.path.insert(0, sys.argv[3]); from batch_fakes import fake_pipeline;"
+        "from motionlab.batch import load_manifest, run_study;"
+        "run_study(load_manifest(sys.argv[1]), sys.argv[2], workers=1, pipeline=fake_pipeline)"
+    )
+    here = str(Path(__file__).parent)
+    batch = subprocess.Popen([sys.executable, "-c", code, str(manifest), str(tmp_path / "out"),
+                              here])  # fmt: skip
+    first = tmp_path / "raw" / "S1" / "v1" / "rec.runs"
+    for _ in range(200):  # the worker has started the first session
+        if first.is_file() and first.read_text().strip():
+            break
+        time.sleep(0.1)
+    worker = int(first.read_text().split()[0])
+    batch.send_signal(signal.SIGKILL)
+    batch.wait()
+    for _ in range(40):
+        if not _alive(worker):
+            break
+        time.sleep(0.1)
+    alive = _alive(worker)
+    if alive:
+        os.kill(worker, signal.SIGKILL)
+    assert not alive
+    started = [p for p in (tmp_path / "raw").rglob("rec.runs")]
+    assert len(started) == 1  # none of the queued sessions was taken on after the kill
+    assert not (tmp_path / "out" / "S1" / "v1" / CLAIM).exists()
+
+
 def test_runner_calls_the_pipeline_with_its_signature():
     pipeline = pytest.importorskip("motionlab.pipeline")
     params = inspect.signature(pipeline.run_pipeline).parameters

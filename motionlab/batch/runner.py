@@ -13,7 +13,8 @@ finished (its stamp is current) is not run again.
 
 - local pool (:class:`concurrent.futures.ProcessPoolExecutor`, ``spawn``): one dead worker breaks
   the pool, so the pool is restarted and its unfinished sessions resubmitted. The pool stops the
-  healthy workers with SIGTERM, on which they drop their claim and exit.
+  healthy workers with SIGTERM, on which they drop their claim and exit; a worker whose batch
+  process died (killed) does the same within half a second.
 - Dask (``--scheduler``): the scheduler itself re-runs a task whose worker died, up to its
   ``distributed.scheduler.allowed-failures``; when it gives up (``KilledWorker``) the session is
   resubmitted as above. Input and output paths must be the same on every machine (a shared
@@ -64,6 +65,7 @@ from motionlab.pipeline import SESSION_FILE, PipelineOptions
 Pipeline = Callable[..., Any]
 _THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
 _POLL_S = 0.2
+_PARENT_POLL_S = 0.5
 _CONNECT_TIMEOUT_S = 10.0
 
 
@@ -195,8 +197,18 @@ def _on_terminate(signum: int, frame: object) -> None:
     os._exit(128 + signum)
 
 
-def _init_worker() -> None:
+def _watch_parent(parent: int) -> None:
+    """Stop this worker when the batch process that started it is gone (SIGKILL, out of
+    memory): a worker of a dead pool went on with the sessions queued to it, then waited on
+    the dead pool's queue for ever."""
+    while os.getppid() == parent:
+        time.sleep(_PARENT_POLL_S)
+    _on_terminate(signal.SIGTERM, None)
+
+
+def _init_worker(parent: int) -> None:
     signal.signal(signal.SIGTERM, _on_terminate)
+    threading.Thread(target=_watch_parent, args=(parent,), daemon=True).start()
 
 
 # ------------------------------------------------------------------------------ backends
@@ -238,6 +250,7 @@ class _LocalPool:
                 self.workers,
                 mp_context=multiprocessing.get_context("spawn"),
                 initializer=_init_worker,
+                initargs=(os.getpid(),),
             )
         with _one_thread_per_worker():  # workers start during submit
             return self.pool.submit(run_session, task, pipeline)
