@@ -254,6 +254,22 @@ def test_a_worker_stops_when_its_batch_process_is_killed(tmp_path):
     assert not (tmp_path / "out" / "S1" / "v1" / CLAIM).exists()
 
 
+def test_a_range_no_session_determined_is_a_dash_in_the_study_report():
+    """The real walk study's report printed 'nan [ nan, nan] n=0' for the knees' adduction and
+    rotation, which no session determined."""
+    import pandas as pd
+
+    from motionlab.batch.outputs import range_summary
+
+    assert range_summary(pd.Series([np.nan, np.nan])).split() == [
+        "—", "n=0", "(2", "weak", "or", "not", "determined,", "left", "out)"
+    ]  # fmt: skip
+    assert range_summary(pd.Series([10.0, 20.0, 30.0, np.nan])).split()[:5] == [
+        "20.0", "[", "15.0,", "25.0]", "n=3"
+    ]  # fmt: skip
+    assert "left out" not in range_summary(pd.Series([10.0]))
+
+
 def test_runner_calls_the_pipeline_with_its_signature():
     pipeline = pytest.importorskip("motionlab.pipeline")
     params = inspect.signature(pipeline.run_pipeline).parameters

@@ -165,6 +165,18 @@ def _pages(groups: list, title: str) -> Iterator[tuple[Figure, list]]:
         yield fig, list(zip(chunk, axes, strict=True))
 
 
+def range_summary(values: pd.Series) -> str:
+    """``median [q1, q3]  n=…`` of the ranges (deg) the sessions determined, and how many were
+    left out (NaN: weak or not determined); a dash where no session determined it."""
+    n, left = int(values.notna().sum()), int(values.isna().sum())
+    if n:
+        q1, med, q3 = np.nanpercentile(values, [25, 50, 75])
+        text = f"{med:7.1f} [{q1:6.1f}, {q3:6.1f}]  n={n}"
+    else:
+        text = f"{'—':>7} {'':16}  n=0"
+    return text + (f"  ({left} weak or not determined, left out)" if left else "")
+
+
 def _summary_page(manifest: Manifest, outcomes: list, main: pd.DataFrame) -> Figure:
     fig = Figure(figsize=_A4)
     protocol = load_protocol(manifest.protocol)
@@ -191,15 +203,11 @@ def _summary_page(manifest: Manifest, outcomes: list, main: pd.DataFrame) -> Fig
         )
         stats = main.groupby(["block", "joint", "angle"], sort=False)["value"]
         for (block, joint, angle), v in list(stats)[:28]:
-            q1, med, q3 = np.nanpercentile(v, [25, 50, 75]) if v.notna().any() else [np.nan] * 3
-            left = int(v.isna().sum())
             y -= 0.018
             fig.text(
                 0.08,
                 y,
-                f"{block:<16.16} {joint:<10.10} {angle:<16.16} "
-                f"{med:7.1f} [{q1:6.1f}, {q3:6.1f}]  n={v.notna().sum()}"
-                + (f"  ({left} weak or not determined, left out)" if left else ""),
+                f"{block:<16.16} {joint:<10.10} {angle:<16.16} {range_summary(v)}",
                 fontsize=8,
                 family="monospace",
             )
