@@ -61,6 +61,8 @@ def short_knee_protocol(path: Path) -> Path:
         "name": "knee_short",
         "calibration": [steps[k] for k in ("standing", "knee_flexion_r", "knee_flexion_l")],
         "tasks": [t | {"duration_s": 8} for t in doc["tasks"] if t["name"] == "gait"],
+        # the normal ranges of the tasks kept (a range of a task dropped is a protocol error)
+        "normative": {k: v for k, v in doc.get("normative", {}).items() if k == "gait"},
     }
     path.write_text(yaml.safe_dump(doc, sort_keys=False), encoding="utf-8")
     return path
