@@ -60,3 +60,23 @@ def test_a_length_not_measured_says_why_in_the_gait_summary_table():
         assert rows.loc[("walking_speed_m_s", "both"), "note"] == expect
         assert rows.loc[("stride_time_s", "r"), "note"] == ""  # given: no note
         assert np.isnan(rows.loc[("stride_length_m", "l"), "mean"])
+
+
+def test_a_mean_of_too_few_strides_says_so_in_the_gait_summary_table():
+    """A short walk (the batch bench's 8-s walks: one stride a side) left stride time, stance,
+    ... empty with count 1 and no note; the note now says the mean needs 3 strides."""
+    from types import SimpleNamespace as NS
+
+    from motionlab.kinematics import spatiotemporal as sp
+    from motionlab.report.csv import gait_summary_frame
+    from motionlab.results import Gait
+
+    table = pd.DataFrame({"side": ["r", "l", "l", "l"], "start_s": [0.0, 0.5, 1.5, 2.5],
+                          "kept": True, "reason": ""})  # fmt: skip
+    for c in sp.STRIDE_COLUMNS:
+        table[c] = 1.0
+    g = Gait(status="ok", summary=sp.summary(table), walking_speed="model")
+    rows = gait_summary_frame(NS(session=NS(results=NS(gait=g)))).set_index(["parameter", "side"])
+    assert rows.loc[("stride_time_s", "r"), "note"] == "not enough steady strides (1 of 3 needed)"
+    assert rows.loc[("stride_time_s", "l"), "note"] == "" and rows.loc[("stride_time_s", "l"),
+                                                                    "mean"] == 1.0  # fmt: skip

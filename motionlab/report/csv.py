@@ -33,7 +33,7 @@ from motionlab.atomic import atomic_path, check_output
 from motionlab.errors import InputError
 from motionlab.kinematics.gait_course import walk_courses
 from motionlab.kinematics.joint_types import angle_columns
-from motionlab.kinematics.spatiotemporal import STRIDE_COLUMNS, summary_rows
+from motionlab.kinematics.spatiotemporal import MIN_STRIDES, STRIDE_COLUMNS, summary_rows, too_few
 from motionlab.report.model import (
     NOT_DETERMINED,
     THORAX,
@@ -271,9 +271,9 @@ LENGTH_PARAMETERS = ("step_length_m", "stride_length_m", "walking_speed_m_s")
 
 def gait_summary_frame(view: SessionView) -> pd.DataFrame | None:
     """``spatiotemporal_summary.csv`` (:func:`~motionlab.kinematics.spatiotemporal.summary_rows`)
-    with the reason a length or speed was not measured (``Gait.walking_speed``: no subject
-    height, a leg's sensor missing) in the ``note`` its row had empty; None without a gait
-    analysis."""
+    with the reason a number is not given in the ``note`` its row had empty: a length or speed
+    not measured (``Gait.walking_speed``: no subject height, a leg's sensor missing), a mean of
+    too few strides; None without a gait analysis."""
     g = gait_result(view)
     if g is None:
         return None
@@ -282,6 +282,9 @@ def gait_summary_frame(view: SessionView) -> pd.DataFrame | None:
     if why.startswith("not measured"):
         blank = rows["parameter"].isin(LENGTH_PARAMETERS) & rows["mean"].isna()
         rows.loc[blank & (rows["note"] == ""), "note"] = why
+    fewest = g.summary.min_strides or MIN_STRIDES
+    few = rows["mean"].isna() & (rows["note"] == "") & rows["count_n"].between(1, fewest - 1)
+    rows.loc[few, "note"] = [too_few(int(n)) for n in rows.loc[few, "count_n"]]
     return rows
 
 
