@@ -401,6 +401,30 @@ def test_grades_reach_the_csv_tables():
                for c in f.columns)  # fmt: skip
 
 
+def test_forced_tables_replace_an_earlier_runs_and_leave_other_files(tmp_path):
+    """``--force`` into a folder of an earlier run (another protocol's joints, a walk's gait
+    tables) left those tables beside the new ones; now they go, and files of other names stay."""
+    from motionlab.report.csv import TABLE_NAMES, tables, write_csvs
+
+    view = _graded_view()
+    written = write_csvs(view, tmp_path)
+    stale = [tmp_path / "elbow_r_angles.csv", tmp_path / "spatiotemporal_summary.csv"]
+    for p in stale:
+        p.write_text("an earlier run's table\n")
+    mine = tmp_path / "notes.txt"
+    mine.write_text("the user's\n")
+    with pytest.raises(InputError):
+        write_csvs(view, tmp_path)  # no force: nothing replaced, nothing removed
+    assert all(p.is_file() for p in stale)
+    assert write_csvs(view, tmp_path, force=True) == written
+    assert not any(p.exists() for p in stale) and mine.is_file()
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(
+        [p.name for p in written] + ["notes.txt"]
+    )
+    # every table the module writes is one it knows to remove
+    assert all(n.endswith("_angles.csv") or n in TABLE_NAMES for n in tables(view))
+
+
 def test_a_number_not_determined_is_not_exported_as_one():
     """The real full-body arm's elbows, every angle ``not determined``, went to metrics.csv as
     ranges of 320-375° and its walk's varus thrust as '9.99°, 100 % above the limit', where the

@@ -15,7 +15,9 @@ for trunk compensation), ``grades.csv`` (``joint, angle, column, grade, reason``
 angle column; ``determined``, ``weak`` or ``not determined``, see
 :mod:`motionlab.segments.grades`), ``quality.csv`` (per sensor) and ``calibration.csv`` (per
 segment and calibration step: ρ, residual, ``in_fit``, and for an axis found in the movement
-its own check's ``movement_axis_verdict``). Existing files are replaced only with ``force``.
+its own check's ``movement_axis_verdict``). Existing files are replaced only with ``force``,
+which also removes the tables of these names an earlier run wrote and this one does not
+(another protocol's joints, a gait table), so the folder never mixes two runs.
 """
 
 from __future__ import annotations
@@ -339,7 +341,30 @@ def write_csvs(view: SessionView, csv_dir: str | Path, force: bool = False) -> l
     for path, frame in zip(paths, frames.values(), strict=True):
         with atomic_path(path, force=force) as tmp:
             write_frame(frame, tmp)
+    if force:
+        for stale in set(_own_tables(csv_dir)) - set(paths):
+            stale.unlink(missing_ok=True)
     return paths
+
+
+#: the tables :func:`tables` can write, besides ``<joint>_angles.csv``
+TABLE_NAMES = (
+    "metrics.csv",
+    "out_of_plane.csv",
+    "grades.csv",
+    "quality.csv",
+    "calibration.csv",
+    "spatiotemporal.csv",
+    "spatiotemporal_summary.csv",
+    "spatiotemporal_course.csv",
+)
+
+
+def _own_tables(csv_dir: Path) -> list[Path]:
+    """The files in ``csv_dir`` named as this module's tables (an earlier run's)."""
+    return [p for p in csv_dir.glob("*_angles.csv") if p.is_file()] + [
+        csv_dir / n for n in TABLE_NAMES if (csv_dir / n).is_file()
+    ]
 
 
 def write_frame(frame: pd.DataFrame, path: str | Path) -> None:
