@@ -32,7 +32,7 @@ import numpy as np
 from motionlab import timebase
 from motionlab.binding import segment_name
 from motionlab.errors import InputError
-from motionlab.io import read_any, xsens
+from motionlab.io import read_any
 from motionlab.qc import (
     IMPLAUSIBLE,
     acc_unit_problem,
@@ -499,8 +499,11 @@ def ingest(
         read_files += [Path(f) for f in rec.metadata.get("files", [])] or [path]
         streams += [(s, path) for s in rec.sensors]
         markers += [(m, path) for m in rec.markers]
-        awinda += rec.sensors if rec.format == xsens.FORMAT else []
-    xsens.mark_awinda_recording(awinda)
+        awinda += rec.sensors if rec.format == "xsens" else []
+    if awinda:  # the reader (pandas, scipy) only when an Xsens file was read
+        from motionlab.io.xsens import mark_awinda_recording
+
+        mark_awinda_recording(awinda)
 
     streams, unmatched = _apply_map(streams, smap)
     seen: dict[str, tuple[Path, str]] = {}

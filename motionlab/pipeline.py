@@ -528,6 +528,7 @@ RUN_IMPORTS = (
     "motionlab.kinematics.metrics",
     "motionlab.report",
     "motionlab.report.console",
+    "motionlab.report.csv",
     "motionlab.segments.grades",
 )
 
