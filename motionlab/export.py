@@ -18,7 +18,8 @@
   angles as X, Y, Z in deg, ``ANGLE_UNITS`` deg) and the markers, if any (mm), all on the angles'
   time stamps (markers interpolated through the validation's clock fit when there is one).
 - ``json``: :func:`results_json` — metadata, sensors, angle columns with their grades, the
-  metric table, calibration and validation summaries; units in every name; NaN as ``null``.
+  metric table, calibration and validation summaries; units in every name; NaN as ``null``;
+  indented, each list of numbers on one line (:func:`json_text`).
 """
 
 from __future__ import annotations
@@ -349,9 +350,31 @@ def results_json(session: Session) -> dict[str, Any]:
     return plain(out)
 
 
+def _numbers(values: list) -> bool:
+    """Whether ``values`` are numbers and ``null`` only (no bool, which is an int)."""
+    return all(
+        v is None or (isinstance(v, int | float) and not isinstance(v, bool)) for v in values
+    )
+
+
+def json_text(tree: Any, level: int = 0) -> str:
+    """``tree`` (plain values: :func:`~motionlab.plain.plain`) as ``json.dumps(tree, indent=1,
+    allow_nan=False)`` writes it, but a list of numbers (and ``null``) on one line: the angle
+    series of a 10-minute walk were 45 % indentation and line breaks (docs/performance.md,
+    "Long recordings"). The same values when read."""
+    pad, end = " " * (level + 1), "\n" + " " * level
+    if isinstance(tree, dict) and tree:
+        items = (f"{pad}{json.dumps(k)}: {json_text(v, level + 1)}" for k, v in tree.items())
+        return "{\n" + ",\n".join(items) + end + "}"
+    if isinstance(tree, list) and tree and not _numbers(tree):
+        return "[\n" + ",\n".join(pad + json_text(v, level + 1) for v in tree) + end + "]"
+    return json.dumps(tree, allow_nan=False, separators=(",", ": "))
+
+
 def write_json(session: Session, path: str | Path, force: bool = False) -> None:
-    """:func:`results_json` written to ``path`` (atomic, indented, UTF-8)."""
-    text = json.dumps(results_json(session), indent=1, allow_nan=False)
+    """:func:`results_json` written to ``path`` (atomic, indented, lists of numbers on one line:
+    :func:`json_text`; UTF-8)."""
+    text = json_text(results_json(session))
     with atomic_path(path, force=force) as tmp:
         tmp.write_text(text + "\n", encoding="utf-8")
 

@@ -20,6 +20,12 @@ def plain(value: Any) -> Any:
     if isinstance(value, np.ndarray):
         if value.dtype.kind in "biu" or (value.dtype.kind == "f" and np.isfinite(value).all()):
             return value.tolist()  # Python numbers already, none to replace: no walk per value
+        if value.dtype.kind == "f" and value.dtype.itemsize <= 8:  # Python floats, None in
+            # place of the non-finite: no walk per value either (3.6 M calls, 4.5 s of CPU for
+            # a 1-h walk's angle series with gaps)
+            values = value.astype(object)
+            values[~np.isfinite(value)] = None
+            return values.tolist()
         return plain(value.tolist())
     if isinstance(value, np.generic):
         return plain(value.item())

@@ -15,7 +15,7 @@ from conftest import SHARED, needs_shared
 from test_pipeline import PROTOCOL
 
 from motionlab.cli import main
-from motionlab.export import opensim_columns, orientations, results_json
+from motionlab.export import json_text, opensim_columns, orientations, results_json
 from motionlab.io import read_any
 from motionlab.io.opensim import read_mot
 from motionlab.session import load_session, save_session
@@ -90,6 +90,42 @@ def test_json_export_loads_with_grades_and_metrics(run_dir):
     flexion = [v for v in knee["columns"]["knee_r_flexion_deg"] if v is not None]
     assert flexion and all(round(v, 4) == v for v in flexion)
     assert any(round(v, 3) != v for v in flexion)  # rounded, not truncated further
+
+
+def test_json_series_take_under_nine_bytes_a_value(run_dir):
+    """The series on one line each (``json_text``): a 10-minute walk's 660 000 values took
+    9.9 MB indented a value a line (15 bytes a value), 5.4 MB so (docs/performance.md, "Long
+    recordings"); the file reads back as before."""
+    path = _export(run_dir, "json", "size.json")
+    doc = json.loads(path.read_text())
+    angles = doc["angles"]
+    columns = [c for j in angles["joints"].values() for c in j["columns"].values() if c]
+    values = len(angles["time_s"]) * (1 + len(columns))
+    assert values > 3000
+    angles["time_s"] = []
+    for j in angles["joints"].values():
+        j["columns"] = {k: [] if v else v for k, v in j["columns"].items()}
+    series_bytes = path.stat().st_size - len(json_text(doc) + "\n")
+    assert series_bytes <= 9 * values
+
+
+def test_json_text_puts_number_lists_on_one_line_and_reads_back_the_same():
+    tree = {
+        "format": "motionlab-results",
+        "series": [0.0, -1.2345, None, 1e-07, 3],
+        "rows": [{"a": 1, "b": [True, False], "c": "é\n"}, [], {}, [[1, 2], ["x"]]],
+        "empty": [],
+        "none": None,
+    }
+    text = json_text(tree)
+    assert json.loads(text) == tree
+    assert '"series": [0.0,-1.2345,null,1e-07,3]' in text
+    assert '"b": [\n' in text  # booleans are no numbers: as json.dumps indents them
+    plain = {k: v for k, v in tree.items() if k != "series"}
+    plain["rows"] = plain["rows"][:3]  # without number lists: json.dumps's very bytes
+    assert json_text(plain) == json.dumps(plain, indent=1, allow_nan=False)
+    with pytest.raises(ValueError):
+        json_text({"x": [float("nan")]})  # standard JSON: NaN is null before it gets here
 
 
 def test_sto_round_trip_through_ingest(run_dir):

@@ -36,3 +36,5 @@ def test_arrays_become_lists_of_python_numbers_with_nan_and_inf_as_none():
     }
     assert type(out["ints"][0]) is int and type(out["flags"][0]) is bool
     assert type(out["f32"][0]) is float
+    assert type(out["gaps"][0]) is float and type(out["grid"][0][1]) is float
+    assert plain(np.float32([0.1, np.nan])) == [0.10000000149011612, None]  # as tolist() gives
