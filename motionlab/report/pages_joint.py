@@ -34,6 +34,7 @@ from motionlab.report.normative import band_for
 from motionlab.report.pdf import (
     BAND_COLOUR,
     HEADING_H,
+    LONG_RECORDING_S,
     MUTED,
     NOT_DETERMINED_COLOUR,
     PAGE_W,
@@ -41,6 +42,8 @@ from motionlab.report.pdf import (
     SIZE,
     Document,
     label_spans,
+    overview_window,
+    window_range,
 )
 from motionlab.report.sentences import STATUS_WORDS, span, task_name, weak_lines
 from motionlab.report.widths import text_width
@@ -63,7 +66,101 @@ def graded_style(view: SessionView, joint, col: str) -> tuple[str, str]:
     return colour, "" if grade == "determined" else f" · {grade}"
 
 
+#: the excerpt drawn sample by sample next to the overview (s): some 9 strides of a walk
+EXCERPT_S = 10.0
+
+
+def is_long(view: SessionView) -> bool:
+    """Whether the angles span more than :data:`~motionlab.report.pdf.LONG_RECORDING_S` (s)."""
+    t = np.asarray(view.angles.get("time_s", []), dtype=float)
+    return len(t) > 1 and t[-1] - t[0] > LONG_RECORDING_S
+
+
+def excerpt_span(view: SessionView) -> tuple[float, float]:
+    """The :data:`EXCERPT_S` (s) drawn as recorded: the middle of the longest walking span
+    (a walk), else of the longest task block, else of the recording."""
+    t = view.angles["time_s"]
+    spans = [(float(t[0]), float(t[-1]))]
+    for task, block in view.blocks().items():
+        spans += walking_spans(view, task) or [block]
+    a, b = max(spans[1:] or spans, key=lambda ab: ab[1] - ab[0])
+    centre = 0.5 * (a + b)
+    return centre - 0.5 * EXCERPT_S, centre + 0.5 * EXCERPT_S
+
+
+def _long_time_page(doc: Document, view: SessionView, joint) -> None:
+    """The time curves of a long recording: per angle an overview in minutes (each window's
+    lowest to highest angle, :func:`window_range`) and :data:`EXCERPT_S` as recorded."""
+    t = np.asarray(view.angles["time_s"], dtype=float)
+    minutes = t / 60.0
+    window = overview_window(t[-1] - t[0])
+    a, b = excerpt_span(view)
+    inside = (t >= a) & (t <= b)
+    blocks = view.blocks()
+    walks = {task: walking_spans(view, task) for task in blocks}
+    height = _time_plot_height(doc, view, joint)
+    axes = doc.axes_grid(
+        3, 2, height, left=0.85, bottom=0.45, hspace=0.45, wspace=0.3, top=0.45, widths=(3, 1)
+    )
+    for i, ((angle, col), (ax, ex)) in enumerate(zip(angle_columns(joint), axes, strict=True)):
+        colour, suffix = graded_style(view, joint, col)
+        for task, (a0, b0) in blocks.items():
+            ax.axvspan(a0 / 60.0, b0 / 60.0, color="#f0f0f0", zorder=0)
+            rng = normal_range(view.protocol, task, col)
+            for w0, w1 in (walks[task] or [(a0, b0)]) if rng is not None else []:
+                ax.fill_between(
+                    [w0 / 60.0, w1 / 60.0], rng[0], rng[1], color=BAND_COLOUR, alpha=0.5, lw=0,
+                    zorder=1,
+                )  # fmt: skip
+        if suffix == " · not determined":
+            _no_data(ax, "not determined by this recording: not drawn (see the calibration page)")
+            _no_data(ex, "not drawn")
+        else:
+            centre, lo, hi = window_range(t, view.angles[col], window)
+            ax.fill_between(centre / 60.0, lo, hi, color=colour, alpha=0.35, lw=0, zorder=2)
+            for edge in (lo, hi):
+                ax.plot(centre / 60.0, edge, color=colour, lw=0.5, zorder=2)
+            ax.axvline(0.5 * (a + b) / 60.0, color=MUTED, lw=0.6, ls="--", zorder=3)
+            ex.plot(t[inside], view.angles[col][inside], color=colour, lw=0.6, zorder=2)
+        ax.set_ylabel(_ylabel(joint, angle))
+        ax.set_xlim(minutes[0], minutes[-1])
+        ex.set_xlim(a, b)
+        ex.set_xticks(np.arange(np.ceil(a / 5.0) * 5.0, b, 5.0))
+        ex.set_ylim(ax.get_ylim())  # the overview's scale: the excerpt's range compares
+        ex.tick_params(labelleft=False)
+        if i == 0:
+            label_spans(ax, {task_name(k): (a0 / 60.0, b0 / 60.0)
+                             for k, (a0, b0) in blocks.items()}, SIZE["small"] - 1)  # fmt: skip
+        ax.set_title(
+            angle_label(joint, angle) + suffix,
+            loc="left",
+            size=SIZE["small"],
+            weight="bold",
+            color=MUTED if suffix == " · not determined" else "black",
+        )
+        if i == 2:
+            ax.set_xlabel("time (min)")
+            ex.set_xlabel("time (s)")
+        else:
+            ax.tick_params(labelbottom=False)
+            ex.tick_params(labelbottom=False)
+    # the task blocks are named on the axes: two entries, as many as a short recording's
+    handles = [Patch(color=SIDE_COLOUR.get(joint.side, SIDE_COLOUR[""]), alpha=0.35,
+                     label=f"{window:g}-s range")]  # fmt: skip
+    if any(normal_range(view.protocol, task, col) is not None
+           for task in blocks for _, col in angle_columns(joint)):  # fmt: skip
+        walking = any(spans is not None for spans in walks.values())
+        label = "normal range of the task" + (" (a walk: while walking)" if walking else "")
+        handles.append(Patch(color=BAND_COLOUR, alpha=0.5, label=label))
+    axes[0][1].legend(
+        handles=handles, loc="lower right", bbox_to_anchor=(1.0, 1.0), ncol=2, frameon=False
+    )
+
+
 def _time_page(doc: Document, view: SessionView, joint) -> None:
+    if is_long(view):
+        _long_time_page(doc, view, joint)
+        return
     t = view.angles["time_s"]
     blocks = view.blocks()
     walks = {task: walking_spans(view, task) for task in blocks}  # None: no analysed walk
@@ -280,8 +377,13 @@ def _has_cycles(view: SessionView, joint, task: str) -> bool:
     return any(per_col[col].repetitions for _, col in angle_columns(joint) if col in per_col)
 
 
+def _cycle_tasks(view: SessionView, joint) -> list[str]:
+    """The tasks with a cycle page of ``joint``, in time order."""
+    return [task for task in view.tasks() if _has_cycles(view, joint, task)]
+
+
 def _cycle_pages(doc: Document, view: SessionView, joint) -> None:
-    tasks = [task for task in view.tasks() if _has_cycles(view, joint, task)]
+    tasks = _cycle_tasks(view, joint)
     for k in range(0, len(tasks), TASKS_PER_PAGE):
         chunk = tasks[k : k + TASKS_PER_PAGE]
         doc.section(
@@ -334,6 +436,22 @@ def _none_determined(view: SessionView, joint) -> bool:
     return not any(_determined(view, col) for _, col in angle_columns(joint))
 
 
+def _time_intro(view: SessionView, joint) -> str:
+    """The joint's section text: what its time curves show."""
+    head = f"{joint_title(joint)} angles over the recording in the three planes (degrees; signs "
+    if not is_long(view):
+        return head + "as in the legend of each axis), and the range of motion per task."
+    t = view.angles["time_s"]
+    a, b = excerpt_span(view)
+    return (
+        head + f"as in the legend of each axis). Left: the whole {(t[-1] - t[0]) / 60.0:.0f} "
+        f"minutes, each {overview_window(t[-1] - t[0]):g}-s window's lowest to highest angle; "
+        f"right: {EXCERPT_S:g} s as recorded ({a:.0f}-{b:.0f} s, the dashed line)"
+        + ("; the typical cycle on the next pages" if _cycle_tasks(view, joint) else "")
+        + ". Then the range of motion per task."
+    )
+
+
 def joint_pages(doc: Document, view: SessionView) -> None:
     """The time and cycle pages of every joint of the protocol; a joint whose angles are all
     not determined gets its range-of-motion table (every row saying so) and no empty plots."""
@@ -346,11 +464,7 @@ def joint_pages(doc: Document, view: SessionView) -> None:
             )
             _rom_table(doc, view, joint)
             continue
-        doc.section(
-            joint_title(joint),
-            f"{joint_title(joint)} angles over the recording in the three planes (degrees; "
-            "signs as in the legend of each axis), and the range of motion per task.",
-        )
+        doc.section(joint_title(joint), _time_intro(view, joint))
         _time_page(doc, view, joint)
         _rom_table(doc, view, joint)
         _cycle_pages(doc, view, joint)

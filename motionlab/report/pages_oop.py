@@ -9,6 +9,7 @@ number is flagged; cross-talk rows name the grade of the other angle."""
 from __future__ import annotations
 
 import numpy as np
+from matplotlib.patches import Patch
 
 from motionlab.report.model import (
     NOT_DETERMINED,
@@ -23,7 +24,15 @@ from motionlab.report.model import (
     trunk_above,
     worst_grade,
 )
-from motionlab.report.pdf import MUTED, SIDE_COLOUR, SIZE, Document
+from motionlab.report.pdf import (
+    LONG_RECORDING_S,
+    MUTED,
+    SIDE_COLOUR,
+    SIZE,
+    Document,
+    overview_window,
+    window_range,
+)
 from motionlab.report.sentences import MEANING, task_name
 
 
@@ -198,6 +207,9 @@ def _offset(doc: Document, view: SessionView) -> None:
     )
 
 
+TRUNK_CURVES = (("forward lean", "#2166ac"), ("side lean", "#1a9850"), ("twist", "#d95f02"))
+
+
 def _trunk(doc: Document, view: SessionView) -> None:
     data = view.metrics.trunk_compensation or {}
     if not data:
@@ -236,18 +248,28 @@ def _trunk(doc: Document, view: SessionView) -> None:
         return
     grid = doc.axes_grid(1, len(tasks), 2.3, left=0.55, wspace=0.6, bottom=0.5, top=0.3)[0]
     rate = 1.0 / np.median(np.diff(view.angles["time_s"]))
+    handles = []
     for ax, task in zip(grid, tasks, strict=True):
         ang = np.asarray(data[task].angles_deg)
         t = np.arange(len(ang)) / rate
-        for k, (name, colour) in enumerate(
-            (("forward lean", "#2166ac"), ("side lean", "#1a9850"), ("twist", "#d95f02"))
-        ):
-            ax.plot(t, ang[:, k], lw=0.8, color=colour, label=name)
-        ax.set_title(task_name(task), loc="left", size=SIZE["small"])
-        ax.set_xlabel("time in task (s)")
+        long = len(t) > 1 and t[-1] > LONG_RECORDING_S  # per window: its lowest to highest
+        window = overview_window(t[-1])
+        handles = []
+        for k, (name, colour) in enumerate(TRUNK_CURVES):
+            if long:
+                centre, lo, hi = window_range(t, ang[:, k], window)
+                ax.fill_between(centre / 60.0, lo, hi, color=colour, alpha=0.25, lw=0)
+                for edge in (lo, hi):
+                    ax.plot(centre / 60.0, edge, lw=0.6, color=colour)
+                handles.append(Patch(color=colour, alpha=0.5, label=name))
+            else:
+                handles += ax.plot(t, ang[:, k], lw=0.8, color=colour, label=name)
+        title = task_name(task) + (f" (each {window:g} s: lowest to highest)" if long else "")
+        ax.set_title(title, loc="left", size=SIZE["small"])
+        ax.set_xlabel(f"time in task ({'min' if long else 's'})")
         ax.set_ylabel("trunk angle (°)")
     doc.fig.legend(
-        handles=grid[0].get_lines(),
+        handles=handles,
         loc="upper left",
         ncol=3,
         frameon=False,

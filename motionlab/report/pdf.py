@@ -398,6 +398,40 @@ def envelope(x: np.ndarray, y: np.ndarray, x0: float, x1: float, columns: int) -
     return np.flatnonzero(keep)
 
 
+#: a recording longer than this (s) is drawn as an overview of windows and an excerpt
+#: (``pages_joint``, ``pages_oop``): on the page's 6.5 in, 5 minutes of walking are some 270
+#: strides of 0.6 mm each, one band of ink
+LONG_RECORDING_S = 300.0
+#: the overview's window (s): the shortest of these that gives at most OVERVIEW_WINDOWS
+WINDOWS_S = (1.0, 2.0, 5.0, 10.0, 15.0, 20.0, 30.0, 60.0, 120.0, 300.0, 600.0, 1800.0)
+OVERVIEW_WINDOWS = 150
+
+
+def overview_window(duration_s: float) -> float:
+    """The overview's window (s) for a recording of ``duration_s``: the shortest of
+    :data:`WINDOWS_S` that cuts it into at most :data:`OVERVIEW_WINDOWS` windows."""
+    return next((w for w in WINDOWS_S if duration_s / w <= OVERVIEW_WINDOWS), WINDOWS_S[-1])
+
+
+def window_range(
+    t: np.ndarray, y: np.ndarray, window_s: float
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Each window's centre (s), lowest and highest finite value of ``y`` over consecutive
+    windows of ``window_s`` from ``t[0]`` (``t`` nondecreasing, s); NaN where a window has no
+    finite sample (a gap stays a gap)."""
+    t, y = np.asarray(t, dtype=float), np.asarray(y, dtype=float)
+    k = np.floor((t - t[0]) / window_s).astype(np.int64)
+    n = int(k[-1]) + 1
+    lo, hi = np.full(n, np.nan), np.full(n, np.nan)
+    ok = np.isfinite(y)
+    if ok.any():
+        kk, yy = k[ok], y[ok]
+        starts = np.r_[0, np.flatnonzero(np.diff(kk)) + 1]
+        lo[kk[starts]] = np.minimum.reduceat(yy, starts)
+        hi[kk[starts]] = np.maximum.reduceat(yy, starts)
+    return t[0] + (np.arange(n) + 0.5) * window_s, lo, hi
+
+
 def thin_curves(fig: Figure, dpi: float = ENVELOPE_DPI) -> None:
     """Replace the data of each plain curve of ``fig`` (solid, no markers, default draw style,
     in its axes' data coordinates on linear axes, ``x`` nondecreasing) that has more than 4
@@ -752,20 +786,27 @@ class Document:
         hspace: float = 0.55,
         wspace: float = 0.75,
         top: float = 0.3,
+        widths: Sequence[float] | None = None,
     ) -> list[list[Axes]]:
         """An ``nrows × ncols`` grid of axes filling the page width and ``height`` in.
 
         ``left``/``bottom`` leave room for the tick and axis labels of each cell, ``top`` for
-        its title; ``hspace``/``wspace`` are gaps (in) between cells.
+        its title; ``hspace``/``wspace`` are gaps (in) between cells; ``widths``: the columns'
+        relative widths (default: equal).
         """
         self.ensure(height)
-        cell_w = (WIDTH - left - (ncols - 1) * wspace) / ncols
+        room = WIDTH - left - (ncols - 1) * wspace
+        if widths is None:
+            cell_ws = [room / ncols] * ncols
+            xs = [MARGIN + left + j * (cell_ws[0] + wspace) for j in range(ncols)]
+        else:
+            cell_ws = [room * w / sum(widths) for w in widths]
+            xs = list(MARGIN + left + np.r_[0.0, np.cumsum(np.add(cell_ws, wspace))[:-1]])
         cell_h = (height - top - bottom - (nrows - 1) * hspace) / nrows
         grid = []
         for i in range(nrows):
             row = []
-            for j in range(ncols):
-                x = MARGIN + left + j * (cell_w + wspace)
+            for x, cell_w in zip(xs, cell_ws, strict=True):
                 y_top = self.y + top + i * (cell_h + hspace)
                 rect = [x / PAGE_W, 1 - (y_top + cell_h) / PAGE_H, cell_w / PAGE_W, cell_h / PAGE_H]
                 with report_rc():
