@@ -154,6 +154,53 @@ def test_choice_between_methods():
     assert choose(refused, _fit(0.012, 3e-4, "applied", "impacts")).offset_s == 0.012
 
 
+def test_two_fits_refused_alone_are_taken_together_when_they_agree():
+    """A joint-centre fit refused for its residual and a heel-strike lag refused for regular
+    steps (a simulated 1-h walk's knee: 122.7 and 120.5 ms) are taken when their clocks agree
+    within ``TOGETHER_S`` over the recording; the heel strikes are compared on the reference's
+    corrected clock (the thigh moved by -46.2 ms before its shank was fitted)."""
+    from motionlab.clocksync.impacts import REGULAR_STEPS
+    from motionlab.clocksync.joint_centre import POOR_FIT
+    from motionlab.clocksync.stage import TOGETHER_S
+
+    poor = _fit(0.0765, 1e-5, f"{POOR_FIT} (residual 0.06 m/s²)", "joint centre")
+    regular = _fit(0.1205, 4e-5, f"{REGULAR_STEPS} (correlation 0.973)", "impacts")
+    thigh = _fit(-0.0462, 1e-5, "applied", "joint centre")
+    taken = choose(poor, regular, thigh)
+    assert (
+        taken.status == "applied" and taken.offset_s == 0.0765 and "taken together" in taken.other
+    )
+    assert choose(poor, regular).status == poor.status  # on the thigh's raw clock: 44 ms apart
+    # apart by more than TOGETHER_S, or refused for another reason: not taken
+    apart = dataclasses.replace(regular, offset_s=0.1205 + 2 * TOGETHER_S)
+    assert choose(poor, apart, thigh).status == poor.status
+    few = dataclasses.replace(regular, status="not reliable: too few heel strikes")
+    assert choose(poor, few, thigh).status == poor.status
+    # agreeing on no difference: one clock
+    one = choose(dataclasses.replace(poor, offset_s=0.0),
+                 dataclasses.replace(regular, offset_s=0.0004))  # fmt: skip
+    assert one.status == "consistent with one clock"
+
+
+def test_a_long_drifting_pulse_train_is_followed_block_by_block():
+    """Over 20 min at 300 ppm (as over an hour at 100 ppm) the lag moves by 360 ms: the whole
+    lag is searched on the middle two minutes and each block about the line through the blocks
+    timed so far. The correlation at one lag over the whole recording was 0.36, refused as
+    "the transients correlate poorly"; a simulated 1-h walk's knee read 0.64."""
+    rng = np.random.default_rng(5)
+    duration = 1200.0
+    strikes = 2.0 + np.cumsum(rng.uniform(0.5, 0.6, 2400))
+    strikes = strikes[strikes < duration - 2.0]
+    t = np.arange(0.0, duration, 1.0 / RATE)
+    a = _stream("a", t, _ringing(t, strikes, 10.0, np.array([1.0, 0.0, 0.0])), rng)
+    c = 0.010 + 300e-6 * (t - 600.0)
+    b = _stream("b", t + c, _ringing(t, strikes, 15.0, np.array([0.0, 0.6, 0.8])), rng)
+    fit = impact_clock(a, b)
+    assert fit.status == "applied" and fit.residual < 0.05  # 1 − the middle's correlation
+    ends = np.array([10.0, 600.0, duration - 10.0])
+    assert np.max(np.abs(fit.error_s(ends) - (0.010 + 300e-6 * (ends - 600.0)))) < 0.001
+
+
 def test_old_fit_reads_as_joint_centre():
     tree = dataclasses.asdict(_fit(0.01, 1e-4, "applied", "joint centre"))
     del tree["method"], tree["other"]

@@ -10,9 +10,11 @@ envelopes (within ``±max_offset_s``, refined between samples) is their clock of
 sensors, not only neighbours. The angle rather than the rate: the envelope of a rate is the
 angle's times the ringing frequency plus the envelope's own slope, so two sensors ringing at 10
 and 15 Hz gave lags 2.8 ms apart (tests/test_clock_impacts.py); the angle's envelope does not
-depend on the frequency. Block lags (``BLOCK_S`` blocks with transients, each within
-``IMPACT_BLOCK_SEARCH_S`` of the whole recording's lag) give the drift and, from their scatter,
-the standard error. The lag is refused when the transients are too few, correlate poorly, or
+depend on the frequency. The lag is searched over the recording's middle ``IMPACT_SEARCH_S``
+(all of a recording up to 2 min); block lags (``BLOCK_S`` blocks with transients, from the
+middle outwards, each within ``IMPACT_BLOCK_SEARCH_S`` of the line through the blocks timed so
+far, so that a long recording's drift is followed) give the drift and, from their scatter, the
+standard error. The lag is refused when the transients are too few, correlate poorly, or
 recur so regularly that a lag one step away fits as well (``IMPACT_MARGIN``). **Assumption:**
 the transient reaches every sensor at the same instant. In the body it travels up the leg at
 tens of metres per second, and the pelvis may see it a few milliseconds after the shank (a
@@ -62,6 +64,12 @@ IMPACT_MAX_SE_S = 0.002  # largest standard error of c(t) for an impact lag to b
 IMPACT_PEAK_WIDTH_S = 0.15  # other correlation peaks lie farther than this from the best (s)
 IMPACT_MARGIN = 0.02  # the best correlation must beat every other peak's by this much
 IMPACT_FLOOR_S = 2e-4  # smallest scatter of block lags assumed (s)
+# the whole lag is searched over this much of the recording's middle (s): two crystal clocks'
+# drift (150 ppm, three times the prior's SD) moves the lag by 18 ms over it; over a 1-h walk
+# 66 ppm moved it by 240 ms, which smeared the correlation peak into its neighbours'
+IMPACT_SEARCH_S = 120.0
+#: the status of a lag refused because a lag one step away fits about as well
+REGULAR_STEPS = "not reliable: steps as regular as the clock search"
 
 
 @dataclass
@@ -129,10 +137,11 @@ def impact_clock(
     both see at every heel strike (see the module docstring); any two sensors of the body.
 
     The lag that maximises the correlation of the two high-frequency energy envelopes
-    (:func:`envelope`) over the whole recording, then the lag of each ``BLOCK_S`` block with
-    shared transients (within ``IMPACT_BLOCK_SEARCH_S`` of it), and a line through the block
-    lags with a prior on the drift whose scatter gives the standard errors. ``residual`` is
-    1 − the whole recording's correlation coefficient; the status is ``"applied"`` only when
+    (:func:`envelope`) over the middle ``IMPACT_SEARCH_S`` of the recording, then the lag of
+    each ``BLOCK_S`` block with shared transients (within ``IMPACT_BLOCK_SEARCH_S`` of the line
+    through the blocks nearer the middle), and a line through the block lags with a prior on
+    the drift whose scatter gives the standard errors. ``residual`` is 1 − that middle's
+    correlation coefficient; the status is ``"applied"`` only when
     the fit is reliable and differs from zero. ``envelope_of``: how a stream's
     :class:`Envelope` is had (default :func:`envelope`; the stage computes it once per sensor,
     :class:`~motionlab.clocksync.common.PerStream`).
@@ -164,20 +173,32 @@ def impact_clock(
     if len(blocks) < 3:
         return refused(too_few, active_s)
     lags = np.arange(-max_offset_s, max_offset_s + 1e-12, dt)
-    r = np.array([_correlation(x, np.interp(t + c, b.time, b.values)) for c in lags])
+    mid = np.abs(t - t_mid) <= 0.5 * IMPACT_SEARCH_S  # all of a recording up to 2 min
+    tm, xm = t[mid], x[mid]
+    r = np.array([_correlation(xm, np.interp(tm + c, b.time, b.values)) for c in lags])
     i = int(np.argmax(r))
     others = np.abs(lags - lags[i]) > IMPACT_PEAK_WIDTH_S
     second = float(r[others].max()) if others.any() else -1.0
-    lag, corr, _ = _best_lag(t, x, b.spline, lags[max(i - 1, 0) : i + 2])
+    lag, corr, _ = _best_lag(tm, xm, b.spline, lags[max(i - 1, 0) : i + 2])
     rows, offsets = [], []
     search = np.arange(-IMPACT_BLOCK_SEARCH_S, IMPACT_BLOCK_SEARCH_S + 1e-12, dt)
-    for block in blocks:
-        c, r_block, ok = _best_lag(t[block], x[block], b.spline, lag + search)
+    # from the middle outwards, each block searched about the line through the blocks timed so
+    # far, so that the drift of a long recording is followed block by block
+    for block in sorted(blocks, key=lambda k: abs(float(t[k].mean()) - t_mid)):
+        centre = float(t[block].mean()) - t_mid
+        expected = (
+            lag
+            if len(offsets) < 2
+            else float(np.polyval(np.polyfit(np.array(rows)[:, 1], offsets, 1), centre))
+        )
+        c, r_block, ok = _best_lag(t[block], x[block], b.spline, expected + search)
         if ok and r_block >= IMPACT_MIN_CORRELATION:
-            rows.append([1.0, float(t[block].mean()) - t_mid])
+            rows.append([1.0, centre])
             offsets.append(c)
     if len(offsets) < 3:
         return refused(too_few, active_s)
+    order = np.argsort(np.array(rows)[:, 1])
+    rows, offsets = [rows[k] for k in order], [offsets[k] for k in order]
     clock, offset_se, drift_se = _line(np.array(rows), np.array(offsets))
     ends = np.array([rows[0][1] - 0.5 * BLOCK_S, rows[-1][1] + 0.5 * BLOCK_S])  # - t_mid
     worst_se = float(np.hypot(offset_se, drift_se * 0.5 * (ends[1] - ends[0])))
@@ -186,8 +207,7 @@ def impact_clock(
         status = "not reliable: the heel-strike transients disagree between blocks"
     elif corr - second < IMPACT_MARGIN:
         status = (
-            f"not reliable: steps as regular as the clock search (correlation {corr:.3f} at "
-            f"the best lag, {second:.3f} at another)"
+            f"{REGULAR_STEPS} (correlation {corr:.3f} at the best lag, {second:.3f} at another)"
         )
     elif corr < IMPACT_MIN_CORRELATION:
         status = f"not reliable: the transients correlate poorly ({corr:.2f})"

@@ -101,6 +101,8 @@ BODY = 12  # parameters besides the clock: two lever arms and two accelerometer 
 # BLOCK_S blocks spread evenly over the recording, then refined on all of it from there: the
 # searches over a whole recording took more iterations the longer it was (docs/performance.md)
 FIT_MOVING_S = 240.0
+#: the status of a fit refused for its residual alone
+POOR_FIT = "not reliable: the shared joint centre fits poorly"
 # the offset's grid search and first fit take this much contiguous movement at the recording's
 # middle (s), where a drift of 50 ppm moves the offset by 1 ms: on blocks spread over a 30-min
 # walk, two clocks drifting 44 ppm apart (80 ms over it) smeared the grid's zero-drift costs and
@@ -197,10 +199,7 @@ def estimate_clock(
     if worst_se > MAX_SE_S:
         status = "not reliable: too little shared movement"
     elif rms > limit:
-        status = (
-            f"not reliable: the shared joint centre fits poorly (residual {rms:.2f} m/s²: soft "
-            "tissue or a loose sensor)"
-        )
+        status = f"{POOR_FIT} (residual {rms:.2f} m/s²: soft tissue or a loose sensor)"
     elif abs(fit[-2]) > max_offset_s - GRID_STEP_S:
         status = f"not reliable: offset at the edge of the ±{max_offset_s:g} s search"
     elif c_ends.max() <= max(MIN_CORRECTION_S, 2.0 * worst_se):

@@ -73,8 +73,8 @@ import numpy as np
 from motionlab.binding import sensor_for_segment
 from motionlab.clocknet import CENTRE_FLOOR_S, IMPACTS, NETWORK, solve_network
 from motionlab.clocksync.common import MAX_OFFSET_S, MIN_CORRECTION_S, PerStream
-from motionlab.clocksync.impacts import envelope, impact_clock
-from motionlab.clocksync.joint_centre import estimate_clock, signals
+from motionlab.clocksync.impacts import REGULAR_STEPS, envelope, impact_clock
+from motionlab.clocksync.joint_centre import POOR_FIT, estimate_clock, signals
 from motionlab.clocksync.pairs import joint_pairs, sync_forest
 from motionlab.io.clock import SHARED_CLOCK
 from motionlab.kinematics.segment_types import kind_side
@@ -86,6 +86,14 @@ from motionlab.session import Session
 # 0.2-0.9 ms on simulated walks, see :mod:`.impacts`): within it plus twice the standard errors, the
 # joint-centre fit is kept; 3 ms let pelvis-thigh fits 3.4 ms off through on bench/gait.py seed 0
 IMPACT_BIAS_S = 0.0015
+
+# two fits each refused on its own (the joint centre for its residual, the heel strikes for
+# steps as regular as the search) whose clocks lie this close (s) over the whole recording are
+# taken together: a lag one step away lies hundreds of ms off, a model error of the joint
+# centre 7-68 ms. On a simulated 1-h walk the knee's two agreed within 2.2 ms of each other
+# (1.5 ms of the truth) where the clocks were 240 ms apart at its end, and the knee had been
+# left 120-240 ms out of step
+TOGETHER_S = 0.005
 
 # The network solve's priors (motionlab.clocknet). Tuned on simulated walks, bench/gait.py seeds 5-9
 # (both variants) and bench/real_world.py walk seeds 10-14, for the smallest worst-case clock error
@@ -190,7 +198,9 @@ def _synchronise_tree(session: Session, forest, label, impacts, centre) -> list[
             continue
         ref, lab = label[ref_seg], label[seg]
         # the pair's impact lag was measured on the raw clocks; none is reliable (no heel strikes)
-        fit = choose(centre(ref, lab, _spine(ref_seg, seg)), impacts[(ref_seg, seg)])
+        fit = choose(
+            centre(ref, lab, _spine(ref_seg, seg)), impacts[(ref_seg, seg)], moved.get(ref)
+        )
         fits.append(fit)
         # the fit is against the reference's corrected clock: "consistent with one clock" means
         # the sensor already agrees with it; an unreliable fit tells nothing, so the sensor keeps
@@ -398,17 +408,32 @@ def _reliable(fit: ClockFit) -> bool:
     return fit.status in ("applied", "consistent with one clock")
 
 
-def choose(centre: ClockFit, impacts: ClockFit) -> ClockFit:
-    """The fit :func:`synchronise` uses for one pair, with the other's answer in ``other``.
+def choose(
+    centre: ClockFit, impacts: ClockFit, reference_moved: ClockFit | None = None
+) -> ClockFit:
+    """The fit :func:`synchronise` uses for one pair, with the other's answer in ``other``;
+    ``reference_moved``: the correction the reference's stamps got before ``centre`` was fitted
+    against them (``impacts`` is on the raw clocks).
 
     The joint-centre fit when the impact lag is not reliable (no heel strikes: the arm, lumbar
     and clinical tasks) or when both are reliable and agree (their offsets within twice their
     combined standard error plus ``IMPACT_BIAS_S``: the joint centre is the more precise);
     the impact lag when it is reliable and the joint-centre fit is not or disagrees (its
     model error locked to the stride gave 7-68 ms wrong offsets with standard errors of
-    0.1 ms on simulated walks).
+    0.1 ms on simulated walks); the joint-centre fit, applied, when the two were each refused
+    for what the other does not suffer from (its residual; steps as regular as the search) and
+    agree within ``TOGETHER_S`` over the recording (:func:`_together`).
     """
     if not _reliable(impacts):
+        if not _reliable(centre) and _together(centre, _on_corrected(impacts, reference_moved)):
+            ends = np.abs(centre.error_s(np.array([0.0, 2.0 * centre.t_mid_s])))
+            status = "applied" if ends.max() > MIN_CORRECTION_S else "consistent with one clock"
+            return replace(
+                centre,
+                status=status,
+                other=f"{_summary(impacts)}; the two agree "
+                f"within {1e3 * TOGETHER_S:g} ms: each refused alone, taken together",
+            )
         return replace(centre, other=_summary(impacts))
     gap = abs(centre.offset_s - impacts.offset_s)
     allowed = 2.0 * np.hypot(centre.offset_se_s, impacts.offset_se_s) + IMPACT_BIAS_S
@@ -416,6 +441,27 @@ def choose(centre: ClockFit, impacts: ClockFit) -> ClockFit:
         return replace(centre, other=_summary(impacts))
     why = "not reliable" if not _reliable(centre) else f"{1e3 * gap:.1f} ms away"
     return replace(impacts, other=f"{_summary(centre)} ({why})")
+
+
+def _on_corrected(fit: ClockFit, moved: ClockFit | None) -> ClockFit:
+    """``fit``, made on the reference's recorded clock, against its clock corrected by
+    ``moved`` (the sensor reads ``t + c(t)`` on the recorded clock, which reads ``t + m(t)``
+    on the corrected one)."""
+    if moved is None:
+        return fit
+    return replace(fit, offset_s=fit.offset_s + float(moved.error_s(fit.t_mid_s)),
+                   drift=fit.drift + moved.drift)  # fmt: skip
+
+
+def _together(centre: ClockFit, impacts: ClockFit) -> bool:
+    """Whether a joint-centre fit refused only for its residual and a heel-strike fit refused
+    only for regular steps give clocks within ``TOGETHER_S`` of each other from the start of
+    the recording (0 s) to twice its middle."""
+    soft = centre.status.startswith(POOR_FIT) and impacts.status.startswith(REGULAR_STEPS)
+    if not soft or not (np.isfinite(centre.offset_se_s) and np.isfinite(impacts.offset_se_s)):
+        return False
+    t = np.array([0.0, centre.t_mid_s, 2.0 * centre.t_mid_s])
+    return bool(np.abs(centre.error_s(t) - impacts.error_s(t)).max() <= TOGETHER_S)
 
 
 def _summary(fit: ClockFit) -> str:
