@@ -265,3 +265,24 @@ def test_the_pelvis_tilts_once_per_stride_the_stance_side_up():
         peak, trough, between = np.interp(ic + np.array([0.22, 0.72, 0.47]) * stride, t, obliquity)
         assert peak > 0.8 * PELVIS_OBLIQUITY_DEG and trough < -0.8 * PELVIS_OBLIQUITY_DEG
         assert abs(between) < 0.4 * PELVIS_OBLIQUITY_DEG  # not twice per stride
+
+
+def test_stride_times_vary_as_asked_and_the_heel_strikes_follow_them():
+    """``gait={"stride_cv": 0.02}``: the feet's initial contacts (the truth, from the feet's
+    motion) come 2 % CV apart, as a healthy adult's (Hausdorff 2005: 1-3 %); the default walk
+    is a metronome; the block's impact transients come every half stride of the varied phase."""
+    from motionlab.simulate.body import Body as _Body
+    from motionlab.simulate.motion import GAIT_SHAPE_OPTIONS, gait_block
+
+    def cv(gait):
+        _, truth = simulate("walk", 60.0, 3, "clean", rate_hz=50.0, gait=gait)
+        st = np.diff(np.asarray(truth.gait["ic_r"])[np.asarray(truth.gait["ic_r_steady"])])
+        return 100 * st.std() / st.mean()
+
+    assert 1.0 < cv({"stride_cv": 0.02}) < 3.0
+    assert cv({}) < 0.2
+    impacts = gait_block(_Body(), "walk", "walk", 60.0, {"stride_cv": 0.02}, seed=3).impacts
+    half = np.diff(impacts)[5:-5]  # between the ramps
+    assert abs(half.mean() - 0.5 / 0.9) < 0.01 and 0.01 < half.std() / half.mean() < 0.04
+    with pytest.raises(ValueError):
+        gait_block(_Body(), "walk", "walk", 60.0, {"stride_cv": 0.02, GAIT_SHAPE_OPTIONS[0]: 0.6})

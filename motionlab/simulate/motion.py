@@ -258,7 +258,21 @@ PELVIS_OBLIQUITY_DEG = 4.0
 PELVIS_OBLIQUITY_PEAK = 0.22
 
 
-def gait_block(body: Body, name: str, phase: str, duration: float, options: dict) -> Block:
+def stride_phase(duration: float, stride_hz: float, cv: float, seed: int):
+    """The gait phase θ(τ) (rad, 2π a stride) of a walk whose stride times vary from stride to
+    stride (each ``1 / stride_hz`` times a factor of mean 1 and SD ``cv``, within ±3 SD, from
+    seed ``seed``): a cubic spline through the strides' starts, so the joints' rates stay
+    smooth. Healthy adults' stride-time CV is 1-3 % (Hausdorff 2005, J NeuroEng Rehabil 2:19)."""
+    rng = np.random.default_rng([seed, 2305])
+    n = int(np.ceil(duration * stride_hz * 1.5)) + 3
+    factors = 1.0 + np.clip(cv * rng.standard_normal(n), -3 * cv, 3 * cv)
+    starts = np.r_[0.0, np.cumsum(factors / stride_hz)]
+    return CubicSpline(starts, 2 * np.pi * np.arange(len(starts)))
+
+
+def gait_block(
+    body: Body, name: str, phase: str, duration: float, options: dict, seed: int = 0
+) -> Block:
     """Walking around an ellipse (straight-ish sides, turns at the ends) at a steady cadence.
 
     Speed up to ``speed`` m/s (default 1.2), stride frequency ``stride_hz`` (default 0.9 Hz);
@@ -269,6 +283,8 @@ def gait_block(body: Body, name: str, phase: str, duration: float, options: dict
     velocity is checked against a real walk by ``bench/gait_contact.py``.
     ``toe_off_r``, ``toe_off_l`` and ``step_offset`` change the timing of each leg
     (:func:`_shaped_gait`); without them the motion is the original one, sample for sample.
+    ``stride_cv`` (default 0: every stride alike) varies the stride times from stride to stride
+    (:func:`stride_phase`, from ``seed``); not with the timing options.
     """
     a, b = float(options.get("path_a", 4.0)), float(options.get("path_b", 2.0))
     speed, f = float(options.get("speed", 1.2)), float(options.get("stride_hz", 0.9))
@@ -280,9 +296,14 @@ def gait_block(body: Body, name: str, phase: str, duration: float, options: dict
         x, y = a * np.sin(phi), b - b * np.cos(phi)
         return x, y, phi + wrap(np.arctan2(b * np.sin(phi), a * np.cos(phi)) - phi)
 
+    cv = float(options.get("stride_cv", 0.0))
+    if cv > 0 and any(k in options for k in GAIT_SHAPE_OPTIONS):
+        raise ValueError("stride_cv does not combine with the legs' timing options")
+    theta = stride_phase(duration, f, cv, seed) if cv > 0 else None
+
     def fn(tau):
         e = envelope(tau, duration, ramp)
-        th = 2 * np.pi * f * tau
+        th = 2 * np.pi * f * tau if theta is None else theta(tau)
         x, y, psi = path(phidot * envelope_integral(tau, duration, ramp))
         out = _tile(stand, tau)
         # the pelvis over the stance leg (th = 0 at the right heel strike): see PELVIS_SWAY_M
@@ -315,6 +336,9 @@ def gait_block(body: Body, name: str, phase: str, duration: float, options: dict
         fn = _shaped_gait(fn, options, f, duration, ramp)
     end = path(phidot * float(envelope_integral(np.array(duration), duration, ramp)))
     strikes = np.arange(0.0, duration, 0.5 / f)  # both legs
+    if theta is not None:  # where θ passes each half stride
+        grid = np.arange(0.0, duration, 1e-3)
+        strikes = np.interp(np.arange(0.0, theta(duration), np.pi), theta(grid), grid)
     strikes = strikes[envelope(strikes, duration, ramp) > 0.5]
     return Block(name, "gait", phase, duration, fn, end, strikes, "gait")
 

@@ -295,7 +295,7 @@ def task_block(body: Body, task, phase: str, duration: float, seed: int) -> Bloc
     reps, opts = task.repetitions, task.options
     pose_words = ("static", "standing", "sitting", "supine", "rest", "quiet")
     if any(w in key for w in ("gait", "walk", "turn")):
-        return gait_block(body, task.name, phase, duration, opts)
+        return gait_block(body, task.name, phase, duration, opts, seed)
     if "free_arm" in key or "free" in key and "arm" in key:
         return free_arm(body, task.name, phase, duration, reps, opts, seed)
     if "squat" in key:
