@@ -88,6 +88,26 @@ def excerpt_span(view: SessionView) -> tuple[float, float]:
     return centre - 0.5 * EXCERPT_S, centre + 0.5 * EXCERPT_S
 
 
+def _blocks_and_bands(ax, view: SessionView, blocks: dict, walks: dict, col: str,
+                      unit_s: float) -> None:  # fmt: skip
+    """The task blocks' grey spans and each task's normal range of ``col`` on a time axis in
+    units of ``unit_s`` seconds (1: s, 60: min); a walk's normal range holds while walking, not
+    over a rest between its bouts (``walks``: each task's walking spans, None without)."""
+    for task, (a, b) in blocks.items():
+        ax.axvspan(a / unit_s, b / unit_s, color="#f0f0f0", zorder=0)
+        rng = normal_range(view.protocol, task, col)
+        for a0, b0 in (walks[task] or [(a, b)]) if rng is not None else []:
+            ax.fill_between([a0 / unit_s, b0 / unit_s], rng[0], rng[1], color=BAND_COLOUR,
+                            alpha=0.5, lw=0, zorder=1)  # fmt: skip
+
+
+def _angle_title(ax, joint, angle: str, suffix: str) -> None:
+    """An angle's plot title with its grade's suffix (muted when not determined)."""
+    muted = suffix == " · not determined"
+    ax.set_title(angle_label(joint, angle) + suffix, loc="left", size=SIZE["small"],
+                 weight="bold", color=MUTED if muted else "black")  # fmt: skip
+
+
 def _long_time_page(doc: Document, view: SessionView, joint) -> None:
     """The time curves of a long recording: per angle an overview in minutes (each window's
     lowest to highest angle, :func:`window_range`) and :data:`EXCERPT_S` as recorded."""
@@ -104,14 +124,7 @@ def _long_time_page(doc: Document, view: SessionView, joint) -> None:
     )
     for i, ((angle, col), (ax, ex)) in enumerate(zip(angle_columns(joint), axes, strict=True)):
         colour, suffix = graded_style(view, joint, col)
-        for task, (a0, b0) in blocks.items():
-            ax.axvspan(a0 / 60.0, b0 / 60.0, color="#f0f0f0", zorder=0)
-            rng = normal_range(view.protocol, task, col)
-            for w0, w1 in (walks[task] or [(a0, b0)]) if rng is not None else []:
-                ax.fill_between(
-                    [w0 / 60.0, w1 / 60.0], rng[0], rng[1], color=BAND_COLOUR, alpha=0.5, lw=0,
-                    zorder=1,
-                )  # fmt: skip
+        _blocks_and_bands(ax, view, blocks, walks, col, 60.0)
         if suffix == " · not determined":
             _no_data(ax, "not determined by this recording: not drawn (see the calibration page)")
             _no_data(ex, "not drawn")
@@ -131,13 +144,7 @@ def _long_time_page(doc: Document, view: SessionView, joint) -> None:
         if i == 0:
             label_spans(ax, {task_name(k): (a0 / 60.0, b0 / 60.0)
                              for k, (a0, b0) in blocks.items()}, SIZE["small"] - 1)  # fmt: skip
-        ax.set_title(
-            angle_label(joint, angle) + suffix,
-            loc="left",
-            size=SIZE["small"],
-            weight="bold",
-            color=MUTED if suffix == " · not determined" else "black",
-        )
+        _angle_title(ax, joint, angle, suffix)
         if i == 2:
             ax.set_xlabel("time (min)")
             ex.set_xlabel("time (s)")
@@ -168,14 +175,7 @@ def _time_page(doc: Document, view: SessionView, joint) -> None:
     axes = doc.axes_grid(3, 1, height, left=0.85, bottom=0.45, hspace=0.45, top=0.45)
     for i, ((angle, col), (ax,)) in enumerate(zip(angle_columns(joint), axes, strict=True)):
         colour, suffix = graded_style(view, joint, col)
-        for task, (a, b) in blocks.items():
-            ax.axvspan(a, b, color="#f0f0f0", zorder=0)
-            rng = normal_range(view.protocol, task, col)
-            # a walk's normal range holds while walking, not over a rest between its bouts
-            for a0, b0 in (walks[task] or [(a, b)]) if rng is not None else []:
-                ax.fill_between(
-                    [a0, b0], rng[0], rng[1], color=BAND_COLOUR, alpha=0.5, lw=0, zorder=1
-                )
+        _blocks_and_bands(ax, view, blocks, walks, col, 1.0)
         if suffix == " · not determined":
             _no_data(ax, "not determined by this recording: not drawn (see the calibration page)")
         else:
@@ -184,13 +184,7 @@ def _time_page(doc: Document, view: SessionView, joint) -> None:
         ax.set_xlim(t[0], t[-1])
         if i == 0:
             label_spans(ax, {task_name(k): v for k, v in blocks.items()}, SIZE["small"] - 1)
-        ax.set_title(
-            angle_label(joint, angle) + suffix,
-            loc="left",
-            size=SIZE["small"],
-            weight="bold",
-            color=MUTED if suffix == " · not determined" else "black",
-        )
+        _angle_title(ax, joint, angle, suffix)
         if i == 2:
             ax.set_xlabel("time (s)")
         else:
