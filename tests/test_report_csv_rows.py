@@ -58,6 +58,8 @@ def test_a_length_not_measured_says_why_in_the_gait_summary_table():
         )
         assert rows.loc[("step_length_m", "r"), "note"] == expect
         assert rows.loc[("walking_speed_m_s", "both"), "note"] == expect
+        assert rows.loc[("walking_speed_m_s", "both"), "count_n"] == 0  # was every kept stride
+        assert rows.loc[("cadence_steps_per_min", "both"), "count_n"] == 2 * n
         assert rows.loc[("stride_time_s", "r"), "note"] == ""  # given: no note
         assert np.isnan(rows.loc[("stride_length_m", "l"), "mean"])
 
@@ -80,3 +82,32 @@ def test_a_mean_of_too_few_strides_says_so_in_the_gait_summary_table():
     assert rows.loc[("stride_time_s", "r"), "note"] == "not enough steady strides (1 of 3 needed)"
     assert rows.loc[("stride_time_s", "l"), "note"] == "" and rows.loc[("stride_time_s", "l"),
                                                                     "mean"] == 1.0  # fmt: skip
+
+
+def test_a_one_leg_walk_says_why_the_other_legs_rows_are_empty():
+    """A walk of the right leg's sensors only left every left-leg row of the gait summary, and
+    the right leg's step time, double support and lengths, empty with no note."""
+    from types import SimpleNamespace as NS
+
+    from motionlab.kinematics import spatiotemporal as sp
+    from motionlab.report.csv import gait_summary_frame
+    from motionlab.results import Gait, StrideTable
+
+    n = 8
+    table = pd.DataFrame({"side": "r", "start_s": np.arange(n, dtype=float), "kept": True,
+                          "reason": ""})  # fmt: skip
+    for c in sp.STRIDE_COLUMNS:
+        table[c] = np.nan if c in sp.BOTH_LEGS else 1.0 + 0.01 * np.arange(n)
+    columns = {c: table[c].to_numpy() for c in table.columns if c not in ("side", "reason")}
+    strides = StrideTable(**columns, side=table["side"].to_numpy(str),
+                          reason=table["reason"].to_numpy(str))  # fmt: skip
+    g = Gait(status="ok", summary=sp.summary(table), strides=strides,
+             walking_speed="not measured: needs both legs")  # fmt: skip
+    rows = gait_summary_frame(NS(session=NS(results=NS(gait=g)))).set_index(["parameter", "side"])
+    left = rows.xs("l", level="side")
+    assert left["mean"].isna().all() and (left["count_n"] == 0).all()
+    assert set(left["note"]) == {"not measured: only the right leg measured"}
+    for c in ("step_time_s", "double_support_pct", "step_length_m", "walking_speed_m_s"):
+        assert rows.loc[(c, "r"), "note"] == "only the right leg measured: needs both legs"
+    assert rows.loc[("stride_time_s", "r"), "note"] == "" and rows.loc[("stride_time_s", "r"),
+                                                                    "count_n"] == n  # fmt: skip

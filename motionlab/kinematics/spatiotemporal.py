@@ -411,10 +411,11 @@ def parameter_unit(parameter: str) -> str:
 def summary_rows(summ: GaitSummary) -> pd.DataFrame:
     """The summary as a table ``parameter, side, unit, mean, sd, cv_pct, se, median, q1, q3,
     count_n, count_of, note`` (for CSV and report): ``unit`` of the parameter's values (its
-    name's suffix), ``count_n`` how many they come from, ``count_of`` of what (``strides``;
-    ``step pairs`` for the step-time asymmetry), ``note`` why a bilateral number, or a per-side
-    one of :data:`BOTH_LEGS`, is withheld (empty when given); the bilateral numbers have their
-    ``se`` where known."""
+    name's suffix), ``count_n`` how many kept strides have a value of the parameter (what the
+    mean is of; the walking speed's 0 where no stride has a length, not every kept stride),
+    ``count_of`` of what (``strides``; ``step pairs`` for the step-time asymmetry), ``note`` why
+    a bilateral number, or a per-side one of :data:`BOTH_LEGS`, is withheld (empty when given);
+    the bilateral numbers have their ``se`` where known."""
     rows = []
     for side, cols in summ.sides.items():
         for c, s in cols.items():
@@ -422,12 +423,18 @@ def summary_rows(summ: GaitSummary) -> pd.DataFrame:
                          "sd": s.sd, "cv_pct": s.cv_pct, "se": s.se, "median": s.median,
                          "q1": s.q1, "q3": s.q3, "count_n": s.strides_n,
                          "count_of": "strides"})  # fmt: skip
-    both = (("cadence_steps_per_min", summ.cadence_steps_per_min, np.nan, summ.strides_kept),
+
+    def valued(c: str) -> int:  # the kept strides with a value of c, both sides
+        return sum(cols[c].strides_n for cols in summ.sides.values())
+
+    both = (("cadence_steps_per_min", summ.cadence_steps_per_min, np.nan,
+             valued("stride_time_s")),
             ("step_time_asymmetry_pct", summ.step_time_asymmetry_pct,
              summ.step_time_asymmetry_se_pct, summ.step_pairs),
             ("stride_time_cv_pct", summ.stride_time_cv_pct, summ.stride_time_cv_se_pct,
-             summ.strides_kept),
-            ("walking_speed_m_s", summ.walking_speed_m_s, np.nan, summ.strides_kept))  # fmt: skip
+             valued("stride_time_s")),
+            ("walking_speed_m_s", summ.walking_speed_m_s, np.nan,
+             valued("walking_speed_m_s")))  # fmt: skip
     for c, value, se, n in both:
         of = "step pairs" if c == "step_time_asymmetry_pct" else "strides"
         rows.append({"parameter": c, "side": "both", "unit": parameter_unit(c), "mean": value,

@@ -35,7 +35,13 @@ from motionlab.atomic import atomic_path, check_output
 from motionlab.errors import InputError
 from motionlab.kinematics.gait_course import walk_courses
 from motionlab.kinematics.joint_types import angle_columns
-from motionlab.kinematics.spatiotemporal import MIN_STRIDES, STRIDE_COLUMNS, summary_rows, too_few
+from motionlab.kinematics.spatiotemporal import (
+    BOTH_LEGS,
+    MIN_STRIDES,
+    STRIDE_COLUMNS,
+    summary_rows,
+    too_few,
+)
 from motionlab.report.model import (
     NOT_DETERMINED,
     THORAX,
@@ -273,19 +279,28 @@ LENGTH_PARAMETERS = ("step_length_m", "stride_length_m", "walking_speed_m_s")
 
 def gait_summary_frame(view: SessionView) -> pd.DataFrame | None:
     """``spatiotemporal_summary.csv`` (:func:`~motionlab.kinematics.spatiotemporal.summary_rows`)
-    with the reason a number is not given in the ``note`` its row had empty: a length or speed
+    with the reason a number is not given in the ``note`` its row had empty: a leg not measured
+    (one leg's sensors: its rows, and the other's numbers that need both legs), a length or speed
     not measured (``Gait.walking_speed``: no subject height, a leg's sensor missing), a mean of
-    too few strides; None without a gait analysis."""
+    too few strides (none too); None without a gait analysis."""
     g = gait_result(view)
     if g is None:
         return None
     rows = summary_rows(g.summary)
+    measured = set(g.strides.side.tolist()) if g.strides is not None else set()
+    if len(measured) == 1:  # one leg's sensors: the other leg's rows, and what needs both
+        leg = "right" if measured == {"r"} else "left"
+        blank = rows["mean"].isna() & (rows["note"] == "")
+        other = rows["side"].isin({"r", "l"} - measured)
+        rows.loc[blank & other, "note"] = f"not measured: only the {leg} leg measured"
+        both = rows["parameter"].isin(BOTH_LEGS) & ~other
+        rows.loc[blank & both, "note"] = f"only the {leg} leg measured: needs both legs"
     why = g.walking_speed or ""
     if why.startswith("not measured"):
         blank = rows["parameter"].isin(LENGTH_PARAMETERS) & rows["mean"].isna()
         rows.loc[blank & (rows["note"] == ""), "note"] = why
     fewest = g.summary.min_strides or MIN_STRIDES
-    few = rows["mean"].isna() & (rows["note"] == "") & rows["count_n"].between(1, fewest - 1)
+    few = rows["mean"].isna() & (rows["note"] == "") & (rows["count_n"] < fewest)
     rows.loc[few, "note"] = [too_few(int(n)) for n in rows.loc[few, "count_n"]]
     return rows
 
