@@ -1,6 +1,7 @@
 """A session bound to a protocol: which sensor is on which segment (:func:`sensor_for_segment`),
-the protocol as the session's sensors allow it (:func:`sensed_protocol`), and the signals a
-sensor with only an orientation stands in with (:func:`signals_from_orientation`).
+the protocol as the session's sensors allow it (:func:`sensed_protocol`, the joints it drops:
+:func:`unsensed_joints`), and the signals a sensor with only an orientation stands in with
+(:func:`signals_from_orientation`).
 
 Low in the layers (docs/architecture.md, "Layers"): the sync, the calibration, the angles, the
 gait analysis and the validation all ask it, none of them above another.
@@ -90,22 +91,37 @@ def sensed_protocol(protocol: Protocol, session: Session) -> Protocol:
     it was asked for and, not found, refused the recording); the protocol itself when nothing
     is dropped. Segments stay (other steps may name them; a missing optional one is skipped
     there as before)."""
-    missing = {
-        seg
-        for seg, spec in protocol.segments.items()
-        if not spec.required and sensor_for_segment(session, seg) is None
-    }
+    missing = _unsensed(protocol, session)
     if not missing:
         return protocol
-    joints = {
-        k: j
-        for k, j in protocol.joints.items()
-        if j.proximal not in missing and j.distal not in missing
-    }
+    dropped = unsensed_joints(protocol, session)
+    joints = {k: j for k, j in protocol.joints.items() if k not in dropped}
     steps = [s for s in protocol.calibration if not (_named(s) and _named(s) <= missing)]
     if len(joints) == len(protocol.joints) and len(steps) == len(protocol.calibration):
         return protocol
     return dataclasses.replace(protocol, joints=joints, calibration=steps)
+
+
+def _unsensed(protocol: Protocol, session: Session) -> set[str]:
+    """The protocol's optional segments with no sensor in the session."""
+    return {
+        seg
+        for seg, spec in protocol.segments.items()
+        if not spec.required and sensor_for_segment(session, seg) is None
+    }
+
+
+def unsensed_joints(protocol: Protocol, session: Session) -> dict[str, list[str]]:
+    """``{joint: its segments with no sensor}`` of the joints :func:`sensed_protocol` drops
+    (the walk protocol's ``{"hip_r": ["pelvis"], "hip_l": ["pelvis"]}`` without a pelvis
+    sensor), in protocol order; empty when every joint is measured."""
+    missing = _unsensed(protocol, session)
+    out = {}
+    for name, j in protocol.joints.items():
+        segs = [s for s in (j.proximal, j.distal) if s in missing]
+        if segs:
+            out[name] = segs
+    return out
 
 
 def _named(step) -> set[str]:

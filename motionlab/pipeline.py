@@ -45,6 +45,7 @@ from motionlab.binding import (
     sensed_protocol,
     sensor_for_segment,
     sensor_list,
+    unsensed_joints,
 )
 from motionlab.errors import InputError
 from motionlab.ingest import DEFAULT_GAP_MAX, ingest, unmatched_keys
@@ -77,8 +78,12 @@ class PipelineResult:
 
     ``metrics`` has one row per joint metric (scalar rows of
     :func:`motionlab.kinematics.metrics.metrics_table`: ``block, joint, angle, column, metric,
-    value, unit``; the cycle curves are left out), and the ``grade`` of the row's angle
-    (``determined``, ``weak``, ``not determined``; empty for a row of no angle column).
+    value, unit``; the cycle curves are left out), the ``grade`` of the row's angle
+    (``determined``, ``weak``, ``not determined``; empty for a row of no angle column), its
+    normal range and comparison as ``metrics.csv`` gives them and a ``note`` why it is not
+    determined (:func:`motionlab.report.csv.with_normals`); a joint of the protocol dropped for
+    a segment with no sensor has its rows too, empty, graded ``not measured``
+    (:func:`motionlab.kinematics.metrics.with_not_measured`).
     ``gait``: the rows of ``spatiotemporal_summary.csv`` (cadence, stride and step times, ...
     per side, each withheld number's ``note``; :func:`motionlab.report.csv.gait_summary_frame`),
     None without a gait analysis.
@@ -565,10 +570,10 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
     checked before any work.
     """
     from motionlab.export import write_json
-    from motionlab.kinematics.metrics import metrics_table, protocol_columns
+    from motionlab.kinematics.metrics import metrics_table, protocol_columns, with_not_measured
     from motionlab.report import load_views, write_report
     from motionlab.report.console import run_summary
-    from motionlab.report.csv import gait_summary_frame
+    from motionlab.report.csv import gait_summary_frame, with_normals
     from motionlab.segments.grades import with_grades
 
     t_start = time.perf_counter()
@@ -597,7 +602,8 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
         map_path = Path(options.map_path) if options.map_path else None
         session = load_inputs(inputs, map_path, command)
         check_segments(session, proto, inputs)
-        proto = sensed_protocol(proto, session)
+        unsensed = unsensed_joints(proto, session)
+        full, proto = proto, sensed_protocol(proto, session)
     analyse(session, dataclasses.replace(options, protocol=proto), stages, reference, marker_map,
             record=False)  # fmt: skip
     validated = session.results.validation is not None
@@ -630,6 +636,8 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
     metrics = table[table["percent"].isna()].drop(columns="percent").reset_index(drop=True)
     res = session.results
     metrics = with_grades(metrics, proto, res.calibration, res.angles.method)
+    metrics = with_normals(views[0], metrics)
+    metrics = with_not_measured(metrics, full, unsensed, list(res.metrics.joints))
     summary = run_summary(
         views[0],
         out,

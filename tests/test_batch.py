@@ -14,7 +14,7 @@ from batch_fakes import fake_pipeline, good_sessions, make_study
 from click.testing import CliRunner
 
 from motionlab.batch import load_manifest, run_study
-from motionlab.batch.state import CLAIM, STAMP, FileHashes, session_key
+from motionlab.batch.state import CLAIM, STAMP, TABLES, FileHashes, session_key
 from motionlab.cli import main
 from motionlab.errors import InputError
 
@@ -200,10 +200,27 @@ def test_the_walks_gait_numbers_and_their_withheld_cells_reach_the_study(tmp_pat
     assert [r["subject"] for r in _rows(out / "study_gait.csv")] == ["S1", "S1"]
     stamp = out / "S1" / "v1" / STAMP
     doc = json.loads(stamp.read_text())
-    del doc["gait_sha256"]  # as written before the gait table
+    del doc["gait_sha256"], doc["tables"]  # as written before the gait table
     stamp.write_text(json.dumps(doc))
     assert _run(manifest, out, workers=1).count("done") == 1
     assert len(_rows(out / "study_gait.csv")) == 2
+
+
+def test_a_session_of_older_tables_is_run_again(tmp_path):
+    """The metric rows gained their normal ranges, notes and the joints not measured, and the
+    gait counts changed meaning, under the same motionlab version: a study resumed after that
+    skipped its sessions and gathered their old tables (no normal range, no hips) with new
+    ones. A stamp of older tables is not current."""
+    manifest = make_study(tmp_path, {("S1", "v1"): "walk 112 0 30 2", ("S2", "v1"): "0 40 2"})
+    out = tmp_path / "out"
+    assert _run(manifest, out, workers=1).count("done") == 2
+    stamp = out / "S2" / "v1" / STAMP
+    doc = json.loads(stamp.read_text())
+    assert doc["tables"] == TABLES
+    del doc["tables"]  # as written before
+    stamp.write_text(json.dumps(doc))
+    again = _run(manifest, out, workers=1)
+    assert (again.count("done"), again.count("skipped")) == (1, 1)
 
 
 def _alive(pid: int) -> bool:
@@ -262,7 +279,7 @@ def test_a_range_no_session_determined_is_a_dash_in_the_study_report():
     from motionlab.batch.outputs import range_summary
 
     assert range_summary(pd.Series([np.nan, np.nan])).split() == [
-        "—", "n=0", "(2", "weak", "or", "not", "determined,", "left", "out)"
+        "—", "n=0", "(2", "weak,", "not", "determined", "or", "not", "measured,", "left", "out)"
     ]  # fmt: skip
     assert range_summary(pd.Series([10.0, 20.0, 30.0, np.nan])).split()[:5] == [
         "20.0", "[", "15.0,", "25.0]", "n=3"

@@ -103,6 +103,10 @@ def test_outputs_and_metrics_table(result, recorded):
         "value",
         "unit",
         "grade",
+        "normal_min_deg",
+        "normal_max_deg",
+        "vs_normal",
+        "note",
     ]
     assert not m["metric"].str.startswith("curve_").any()  # one row per joint metric
     rom = m[(m.joint == "knee_r") & (m.angle == "flexion") & (m.metric == "max_deg")]

@@ -2,9 +2,13 @@
 
 - ``study_metrics.csv``: ``subject, visit``, then the columns of the sessions' metric tables
   (``PipelineResult.metrics`` of :func:`motionlab.pipeline.run_pipeline`: ``block, joint, angle,
-  metric, value, unit``), one row per session and joint metric; sessions in manifest order,
-  rows in each session's order, fields copied as text — so the file has the same bytes
-  whichever machines ran the sessions.
+  column, metric, value, unit, grade``, the normal range of the row's angle in its task
+  ``normal_min_deg, normal_max_deg`` and ``vs_normal`` as the session's ``metrics.csv`` gives
+  them, and a ``note``: why the angle is weak, not determined or not measured), one row per
+  session and joint metric; a joint of the protocol with no sensor in a session keeps its rows
+  there, empty, graded ``not measured`` (``not measured: no pelvis sensor``); sessions in
+  manifest order, rows in each session's order, fields copied as text — so the file has the
+  same bytes whichever machines ran the sessions.
 - ``study_gait.csv``: ``subject, visit``, then the columns of the walks' gait summaries (the
   sessions' ``spatiotemporal_summary.csv``: ``parameter, side, unit, mean, sd, ..., count_n,
   count_of, note``), one row per walk session and parameter, copied as text: a number a session
@@ -116,8 +120,8 @@ def write_metrics(outdir: Path, manifest: Manifest, outcomes: list, path: Path) 
     """Concatenate the finished sessions' metric tables; return their ROM rows for the report.
 
     The ROM rows are the scalar ``rom_deg`` rows: ``subject, visit, block, joint, angle, value,
-    grade``; a range its session did not determine (``weak``, ``not determined``) has its
-    value NaN: the report's statistics and plots leave it out and count it.
+    grade``; a range its session did not determine (``weak``, ``not determined``, ``not
+    measured``) has its value NaN: the report's statistics and plots leave it out and count it.
     """
     tables = _finished_tables(outdir, manifest, outcomes, METRICS)
     _write_gathered(path, tables)
@@ -167,14 +171,15 @@ def _pages(groups: list, title: str) -> Iterator[tuple[Figure, list]]:
 
 def range_summary(values: pd.Series) -> str:
     """``median [q1, q3]  n=…`` of the ranges (deg) the sessions determined, and how many were
-    left out (NaN: weak or not determined); a dash where no session determined it."""
+    left out (NaN: weak, not determined, or not measured: no sensor); a dash where no session
+    determined it."""
     n, left = int(values.notna().sum()), int(values.isna().sum())
     if n:
         q1, med, q3 = np.nanpercentile(values, [25, 50, 75])
         text = f"{med:7.1f} [{q1:6.1f}, {q3:6.1f}]  n={n}"
     else:
         text = f"{'—':>7} {'':16}  n=0"
-    return text + (f"  ({left} weak or not determined, left out)" if left else "")
+    return text + (f"  ({left} weak, not determined or not measured, left out)" if left else "")
 
 
 def _summary_page(manifest: Manifest, outcomes: list, main: pd.DataFrame) -> Figure:

@@ -13,7 +13,7 @@ Layout of a study output folder::
 A session is *current* when its stamp holds the key of its present inputs — the SHA-256 of every
 input file (with its name), of the protocol, map and reference files, and the motionlab version —
 and its metric table (and gait table, or its absence) still has the hash the stamp recorded.
-Current sessions are skipped; so is no session whose stamp is older than the gait table.
+Current sessions are skipped; so is no session whose stamp is of older tables (:data:`TABLES`).
 """
 
 from __future__ import annotations
@@ -35,6 +35,12 @@ STAMP = "batch_stamp.json"
 METRICS = "batch_metrics.csv"
 GAIT = "batch_gait.csv"
 CLAIM = ".batch_running"
+#: the layout of the session tables a stamp vouches for, raised when their columns or their
+#: meaning change: a study resumed by a newer motionlab (whose version may be the same) re-runs
+#: its sessions rather than gathering old tables with new ones. 2: the metric rows' normal
+#: range, comparison and note, the rows of joints not measured, the gait counts of strides
+#: with a value
+TABLES = 2
 
 
 class FileHashes:
@@ -175,8 +181,8 @@ def is_current(folder: Path, key: str) -> bool:
         and stamp.get("key") == key
         and metrics.is_file()
         and stamp.get("metrics_sha256") == sha256_file(metrics)
-        and "gait_sha256" in stamp  # a stamp from before the gait table: run it again
-        and stamp["gait_sha256"] == _sha256_or_none(folder / GAIT)
+        and stamp.get("tables") == TABLES  # a stamp of older tables: run it again
+        and stamp.get("gait_sha256") == _sha256_or_none(folder / GAIT)
     )
 
 
@@ -192,6 +198,7 @@ def write_stamp(folder: Path, key: str, seconds: float) -> None:
             "key": key,
             "metrics_sha256": sha256_file(folder / METRICS),
             "gait_sha256": _sha256_or_none(folder / GAIT),
+            "tables": TABLES,
             "motionlab": __version__,
             "seconds": round(seconds, 3),
             "finished": time.strftime("%Y-%m-%dT%H:%M:%S%z"),

@@ -410,6 +410,18 @@ def session_metrics(
 
 
 _UNITS = {"repetitions": "1", "strides": "1", "compensated": "1"}
+#: the scalar rows of every angle in every block of :func:`metrics_table` (its curves aside)
+ANGLE_METRICS = ("rom_deg", "min_deg", "max_deg", "repetitions", "cycle_max_mean_deg",
+                 "cycle_min_mean_deg")  # fmt: skip
+#: the grade of a row of a joint with no sensor on one of its segments (:func:`with_not_measured`;
+#: not one of :data:`motionlab.segments.grades.GRADES`: nothing was computed to grade)
+NOT_MEASURED = "not measured"
+
+
+def metric_unit(metric: str) -> str:
+    """The unit of a metrics-table row: ``1`` for counts and flags, ``%`` for ``*_pct``, else
+    ``deg``."""
+    return _UNITS.get(metric, "%" if metric.endswith("_pct") else "deg")
 
 
 def metrics_table(metrics: Metrics, joints: dict[str, list[str]] | None = None) -> pd.DataFrame:
@@ -429,17 +441,15 @@ def metrics_table(metrics: Metrics, joints: dict[str, list[str]] | None = None) 
     def add(block, joint, angle, metric, value, percent=None, column=None):
         if isinstance(value, (bool, np.bool_)):
             value = float(value)
-        unit = _UNITS.get(metric, "%" if metric.endswith("_pct") else "deg")
         column = column or column_of.get((joint, angle), "")
+        unit = metric_unit(metric)
         rows.append((block, joint, angle, column, metric, percent, float(value), unit))
 
     for block, cols in metrics.joints.items():
         for col, m in cols.items():
             prefix, angle = split_column(col)
             joint = name_of.get(col, prefix)
-            for key in ("rom_deg", "min_deg", "max_deg", "repetitions"):
-                add(block, joint, angle, key, getattr(m, key), column=col)
-            for key in ("cycle_max_mean_deg", "cycle_min_mean_deg"):
+            for key in ANGLE_METRICS:
                 add(block, joint, angle, key, getattr(m, key), column=col)
             for pct, (mu, sd) in enumerate(zip(m.curve_mean_deg, m.curve_sd_deg, strict=True)):
                 add(block, joint, angle, "curve_mean_deg", mu, pct, column=col)
@@ -482,6 +492,32 @@ def metrics_table(metrics: Metrics, joints: dict[str, list[str]] | None = None) 
         rows,
         columns=["block", "joint", "angle", "column", "metric", "percent", "value", "unit"],
     )
+
+
+def with_not_measured(
+    table: pd.DataFrame, protocol: Protocol, unsensed: dict[str, list[str]], blocks: list[str]
+) -> pd.DataFrame:
+    """``table`` (:class:`motionlab.pipeline.PipelineResult`'s ``metrics``) followed by the
+    scalar rows :func:`metrics_table` would have had for the joints the recording did not
+    measure (``unsensed``: ``{joint: its segments with no sensor}``,
+    :func:`motionlab.binding.unsensed_joints`): per block and angle the :data:`ANGLE_METRICS`,
+    ``value`` empty (NaN), ``grade`` :data:`NOT_MEASURED`, ``vs_normal`` ``not compared`` and a
+    ``note`` why (``not measured: no pelvis sensor``), so that a table gathered over sessions
+    says why a joint is missing from one. ``table`` itself without such joints."""
+    if not unsensed:
+        return table
+    columns = protocol_columns(protocol)
+    rows = [
+        (block, joint, split_column(col)[1], col, metric, np.nan, metric_unit(metric),
+         NOT_MEASURED, "not compared", f"not measured: no {' or '.join(segs)} sensor")
+        for block in blocks
+        for joint, segs in unsensed.items()
+        for col in columns[joint]
+        for metric in ANGLE_METRICS
+    ]  # fmt: skip
+    missing = pd.DataFrame(rows, columns=["block", "joint", "angle", "column", "metric", "value",
+                                          "unit", "grade", "vs_normal", "note"])  # fmt: skip
+    return pd.concat([table, missing], ignore_index=True)
 
 
 def protocol_columns(protocol: Protocol) -> dict[str, list[str]]:

@@ -43,6 +43,7 @@ from motionlab.kinematics.spatiotemporal import (
     too_few,
 )
 from motionlab.report.model import (
+    DETERMINED,
     NOT_DETERMINED,
     THORAX,
     SessionView,
@@ -83,6 +84,15 @@ def angle_frames(view: SessionView) -> dict[str, pd.DataFrame]:
     return out
 
 
+#: the columns of metrics.csv, whatever the protocol (the header alone without a task)
+METRICS_COLUMNS = ("task", "joint", "angle", "plane", "rom_deg", "min_deg", "max_deg",
+                   "typical_min_deg", "typical_max_deg", "cycles_n", "normal_min_deg",
+                   "normal_max_deg", "vs_normal", "symmetry_index_pct", "grade")  # fmt: skip
+#: metrics.csv's columns of an angle in a task that a table of one row per number repeats on
+#: each of the angle's rows (:func:`with_normals`)
+NORMAL_COLUMNS = ("normal_min_deg", "normal_max_deg", "vs_normal")
+
+
 def metrics_frame(view: SessionView) -> pd.DataFrame:
     """Range of motion per task, joint and angle, with normal range, flag and symmetry."""
     si = {(s.task, s.joint_type, s.angle): s.symmetry_index_pct for s in symmetry_rows(view)}
@@ -115,7 +125,28 @@ def metrics_frame(view: SessionView) -> pd.DataFrame:
                 "grade": r.grade,
             }
         )
-    return pd.DataFrame(rows)
+    return pd.DataFrame(rows, columns=list(METRICS_COLUMNS))
+
+
+def with_normals(view: SessionView, table: pd.DataFrame) -> pd.DataFrame:
+    """A metrics table of one row per number (``block, joint, angle, column, ..., grade``:
+    :attr:`motionlab.pipeline.PipelineResult.metrics`) with what ``metrics.csv`` says of the
+    row's angle in its task, from the same rows (:func:`metrics_frame`): its normal range
+    (``normal_min_deg``, ``normal_max_deg``, deg) and ``vs_normal``, empty for a row of no
+    angle there; and a ``note``: why the row's angle is weak or not determined (the reason of
+    ``grades.csv``; the thorax frame's for the trunk's rows), else empty."""
+    angles = metrics_frame(view)[["task", "joint", "angle", *NORMAL_COLUMNS]]
+    keys = ["block", "joint", "angle"]
+    out = table.merge(angles.rename(columns={"task": "block"}), on=keys, how="left")
+    reasons = {r.column: (r.grade, r.reason) for r in grade_rows(view)}
+    trunk = segment_grade(view, THORAX)
+    graded = [
+        trunk if j == "trunk" and a else reasons.get(c, (DETERMINED, ""))
+        for j, a, c in zip(out["joint"], out["angle"], out["column"], strict=True)
+    ]
+    out["note"] = [reason if grade != DETERMINED else "" for grade, reason in graded]
+    out["vs_normal"] = out["vs_normal"].fillna("")
+    return out
 
 
 def _or_nan(value: float | None) -> float:
