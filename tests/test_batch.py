@@ -278,13 +278,31 @@ def test_a_range_no_session_determined_is_a_dash_in_the_study_report():
 
     from motionlab.batch.outputs import range_summary
 
-    assert range_summary(pd.Series([np.nan, np.nan])).split() == [
-        "—", "n=0", "(2", "weak,", "not", "determined", "or", "not", "measured,", "left", "out)"
-    ]  # fmt: skip
-    assert range_summary(pd.Series([10.0, 20.0, 30.0, np.nan])).split()[:5] == [
-        "20.0", "[", "15.0,", "25.0]", "n=3"
-    ]  # fmt: skip
-    assert "left out" not in range_summary(pd.Series([10.0]))
+    assert range_summary(pd.Series([np.nan, np.nan])) == (f"{'—':>7} {'':16}", 0, 2)
+    text, n, left = range_summary(pd.Series([10.0, 20.0, 30.0, np.nan]))
+    assert (text.split(), n, left) == (["20.0", "[", "15.0,", "25.0]"], 3, 1)
+    assert range_summary(pd.Series([10.0]))[2] == 0
+
+
+def test_the_study_range_table_fits_the_page_and_names_every_joint_whole():
+    """The seated trunk study's summary page cut its lines at the page's edge ('(2 weak, not
+    determined or not measure') and the joint 'trunk_chair' to 'trunk_chai'; past 28 rows the
+    rest were dropped without a word."""
+    import pandas as pd
+
+    from motionlab.batch.outputs import SUMMARY_ROWS, range_table
+
+    rows = [("trunk_movement", "trunk_chair", "sideways", v) for v in (11.6, np.nan, np.nan)]
+    rows += [("walk", f"joint{k}", "flexion", 40.0) for k in range(SUMMARY_ROWS + 2)]
+    main = pd.DataFrame(rows, columns=["block", "joint", "angle", "value"])
+    lines = range_table(main)
+    assert lines[0].split() == ["task", "joint", "angle", "median", "[quartiles]", "n", "left",
+                                "out"]  # fmt: skip
+    assert lines[1].split() == ["trunk_movement", "trunk_chair", "sideways", "11.6", "[",
+                                "11.6,", "11.6]", "1", "2"]  # fmt: skip
+    assert len(lines) == 1 + SUMMARY_ROWS + 1
+    assert lines[-1] == "… and 3 more in study_metrics.csv"
+    assert max(map(len, lines)) <= 110
 
 
 def test_runner_calls_the_pipeline_with_its_signature():
@@ -446,3 +464,34 @@ def test_a_range_not_determined_is_an_empty_cell_the_study_tables_take():
             ["walk", "knee_r", "adduction", "rom_deg", "", "deg", "not determined"]]  # fmt: skip
     got = _rom_rows("S1", "v1", head, rows)
     assert got[0][5] == 62.5 and np.isnan(got[1][5]) and got[1][6] == "not determined"
+
+
+def test_the_change_over_visits_draws_no_median_of_one_subject():
+    """A visit that one subject alone determined had its value drawn as the 'median' and joined
+    to another visit's other subject: a change over visits that was a difference between
+    subjects. The median is drawn only where two subjects or more have a value; every visit's
+    tick says how many."""
+    import pandas as pd
+
+    from motionlab.batch.outputs import _changes
+
+    rows = [("S1", "v1", 10.0), ("S2", "v1", 20.0), ("S1", "v2", 30.0), ("S2", "v3", 50.0)]
+    main = pd.DataFrame(
+        [("walk", "knee_r", "flexion", s, v, x) for s, v, x in rows],
+        columns=["block", "joint", "angle", "subject", "visit", "value"],
+    )
+
+    class Pages:
+        figures: list = []
+
+        def savefig(self, fig):
+            self.figures.append(fig)
+
+    pages = Pages()
+    _changes(pages, main, ["v1", "v2", "v3"])
+    ax = pages.figures[0].axes[0]
+    median = [ln for ln in ax.get_lines() if ln.get_label().startswith("median")]
+    assert len(median) == 1
+    assert list(median[0].get_xdata()) == [0] and list(median[0].get_ydata()) == [15.0]
+    assert [t.get_text() for t in ax.get_xticklabels()] == ["v1\nn=2", "v2\nn=1", "v3\nn=1"]
+    assert {ln.get_label() for ln in ax.get_lines()} >= {"S1", "S2"}

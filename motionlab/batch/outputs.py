@@ -169,17 +169,44 @@ def _pages(groups: list, title: str) -> Iterator[tuple[Figure, list]]:
         yield fig, list(zip(chunk, axes, strict=True))
 
 
-def range_summary(values: pd.Series) -> str:
-    """``median [q1, q3]  n=…`` of the ranges (deg) the sessions determined, and how many were
-    left out (NaN: weak, not determined, or not measured: no sensor); a dash where no session
-    determined it."""
+def range_summary(values: pd.Series) -> tuple[str, int, int]:
+    """``(median [q1, q3], n, left out)`` of the ranges (deg) the sessions determined: the
+    summary text (a dash where no session determined it), how many sessions it is of, and how
+    many were left out (NaN: weak, not determined, or not measured: no sensor)."""
     n, left = int(values.notna().sum()), int(values.isna().sum())
-    if n:
-        q1, med, q3 = np.nanpercentile(values, [25, 50, 75])
-        text = f"{med:7.1f} [{q1:6.1f}, {q3:6.1f}]  n={n}"
-    else:
-        text = f"{'—':>7} {'':16}  n=0"
-    return text + (f"  ({left} weak, not determined or not measured, left out)" if left else "")
+    if not n:
+        return f"{'—':>7} {'':16}", 0, left
+    q1, med, q3 = np.nanpercentile(values, [25, 50, 75])
+    return f"{med:7.1f} [{q1:6.1f}, {q3:6.1f}]", n, left
+
+
+#: what the summary page's "left out" counts
+RANGE_LEGEND = (
+    "left out: the sessions where the angle was weak, not determined or not measured (no "
+    "sensor); each one's reason is in study_metrics.csv (note)"
+)
+#: up to this many subjects, the change-over-visits panels name each subject's line
+LEGEND_SUBJECTS = 8
+#: rows of the summary page's range table (the rest: study_metrics.csv)
+SUMMARY_ROWS = 28
+
+
+def range_table(main: pd.DataFrame) -> list[str]:
+    """The summary page's range table, one monospace line each: a header, a row per block, joint
+    and angle (columns as wide as their longest name) and, past :data:`SUMMARY_ROWS`, a line
+    saying how many more rows ``study_metrics.csv`` holds."""
+    stats = list(main.groupby(["block", "joint", "angle"], sort=False)["value"])
+    heads = ("task", "joint", "angle")
+    w = [max([len(h)] + [len(k[i]) for k, _ in stats]) for i, h in enumerate(heads)]
+    head = (f"{'task':<{w[0]}} {'joint':<{w[1]}} {'angle':<{w[2]}} {'median':>7} "
+            f"{'[quartiles]':^16}  {'n':>3}  {'left out':>8}")  # fmt: skip
+    lines = [head]
+    for (block, joint, angle), v in stats[:SUMMARY_ROWS]:
+        text, n, left = range_summary(v)
+        lines.append(f"{block:<{w[0]}} {joint:<{w[1]}} {angle:<{w[2]}} {text}  {n:>3}  {left:>8}")
+    if len(stats) > SUMMARY_ROWS:
+        lines.append(f"… and {len(stats) - SUMMARY_ROWS} more in study_metrics.csv")
+    return lines
 
 
 def _summary_page(manifest: Manifest, outcomes: list, main: pd.DataFrame) -> Figure:
@@ -206,16 +233,13 @@ def _summary_page(manifest: Manifest, outcomes: list, main: pd.DataFrame) -> Fig
             fontsize=11,
             weight="bold",
         )
-        stats = main.groupby(["block", "joint", "angle"], sort=False)["value"]
-        for (block, joint, angle), v in list(stats)[:28]:
+        lines = range_table(main)
+        size = 8 if max(map(len, lines)) <= 110 else 8 * 110 / max(map(len, lines))
+        for text in lines:
             y -= 0.018
-            fig.text(
-                0.08,
-                y,
-                f"{block:<16.16} {joint:<10.10} {angle:<16.16} {range_summary(v)}",
-                fontsize=8,
-                family="monospace",
-            )
+            fig.text(0.08, y, text, fontsize=size, family="monospace")
+        y -= 0.022
+        fig.text(0.08, y, RANGE_LEGEND, fontsize=7, wrap=True)
         y -= 0.03
     failed = [o for o in outcomes if o.status == "failed"]
     if failed:
@@ -260,16 +284,21 @@ def _changes(pdf: PdfPages, main: pd.DataFrame, visits: list[str]) -> None:
     x_of = {v: k for k, v in enumerate(visits)}
     for fig, panels in _pages(groups, "Change over visits, per subject"):
         for ((block, joint), g), ax in panels:
-            for _, s in g.groupby("subject", sort=False):
-                ax.plot([x_of[v] for v in s["visit"]], s["value"], "o-", lw=0.8, ms=3, alpha=0.6)
-            median = g.groupby("visit", sort=False)["value"].median()
-            ax.plot(
-                [x_of[v] for v in median.index], median.to_numpy(), "k-", lw=2.5, label="median"
-            )
-            ax.set_xticks(range(len(visits)), visits, fontsize=8, rotation=30)
+            subjects = list(g.groupby("subject", sort=False))
+            for subject, s in subjects:
+                ax.plot([x_of[v] for v in s["visit"]], s["value"], "o-", lw=0.8, ms=3, alpha=0.6,
+                        label=subject if len(subjects) <= LEGEND_SUBJECTS else None)  # fmt: skip
+            n = g.groupby("visit", sort=False)["value"].count().reindex(visits, fill_value=0)
+            median = g.groupby("visit", sort=False)["value"].median()[n[n >= 2].index]
+            if len(median):  # of two subjects or more: one subject's value is no median
+                ax.plot([x_of[v] for v in median.index], median.to_numpy(), "k-", lw=2.5,
+                        marker="_", ms=12, label="median (visits of 2+ subjects)")  # fmt: skip
+            if ax.get_legend_handles_labels()[1]:
+                ax.legend(fontsize=7)
+            labels = [f"{v}\nn={n[v]}" for v in visits]
+            ax.set_xticks(range(len(visits)), labels, fontsize=8, rotation=30, ha="right")
             ax.set_title(f"{block} — {joint}: {first[joint]} ROM", fontsize=10)
             ax.set_ylabel("ROM (deg)")
-            ax.legend(fontsize=7)
         pdf.savefig(fig)
 
 
