@@ -473,7 +473,7 @@ def test_the_change_over_visits_draws_no_median_of_one_subject():
     tick says how many."""
     import pandas as pd
 
-    from motionlab.batch.outputs import _changes
+    from motionlab.batch.outputs import _changes, _distributions
 
     rows = [("S1", "v1", 10.0), ("S2", "v1", 20.0), ("S1", "v2", 30.0), ("S2", "v3", 50.0)]
     main = pd.DataFrame(
@@ -495,3 +495,7 @@ def test_the_change_over_visits_draws_no_median_of_one_subject():
     assert list(median[0].get_xdata()) == [0] and list(median[0].get_ydata()) == [15.0]
     assert [t.get_text() for t in ax.get_xticklabels()] == ["v1\nn=2", "v2\nn=1", "v3\nn=1"]
     assert {ln.get_label() for ln in ax.get_lines()} >= {"S1", "S2"}
+    pages.figures.clear()
+    _distributions(pages, main.assign(value=[10.0, np.nan, 30.0, 50.0]))
+    ticks = [t.get_text() for t in pages.figures[0].axes[0].get_xticklabels()]
+    assert ticks == ["flexion\nn=2"]  # S2's mean over v1 (NaN) and v3: one value per subject

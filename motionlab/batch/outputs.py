@@ -268,7 +268,8 @@ def _distributions(pdf: PdfPages, main: pd.DataFrame) -> None:
             angles = list(dict.fromkeys(g["angle"]))
             values = [per_subject[a].dropna().to_numpy() for a in angles]
             ax.boxplot(values, showfliers=False)
-            ax.set_xticks(range(1, len(angles) + 1), angles)
+            labels = [f"{a}\nn={len(v)}" for a, v in zip(angles, values, strict=True)]
+            ax.set_xticks(range(1, len(angles) + 1), labels)
             for k, v in enumerate(values):
                 ax.plot(k + 1 + rng.uniform(-0.15, 0.15, len(v)), v, ".", ms=3, alpha=0.5)
             ax.set_title(f"{block} — {joint}", fontsize=10)
