@@ -588,3 +588,25 @@ def test_a_flag_needs_the_value_beyond_its_own_uncertainty():
     assert not thrust_above(walk, "knee_r", stance(9.0, 0.5, 20))
     assert not trunk_above(TrunkAngleStats(10.2, 0.0, 10.2, 90.0, 10.0))
     assert trunk_above(TrunkAngleStats(12.5, 0.0, 12.5, 40.0, 10.0))
+
+
+def test_a_joint_with_no_sensor_is_said_not_measured_on_the_summary(walk):
+    """A walk recorded without its pelvis sensor (or with one leg only) listed the knees on the
+    summary and said nothing of the hips the protocol names: now each such joint has its line
+    under 'Not determined by this recording', naming the segment without a sensor."""
+    from motionlab.report.sentences import missing_lines
+
+    ses = copy.deepcopy(walk)
+    assert not any(m.startswith(("Right hip: not measured", "Left knee: not measured"))
+                   for m in missing_lines(load_view(ses)))  # fmt: skip
+    for label in ("pelvis", "thigh_l", "shank_l"):
+        del ses.sensors[label]
+    view = load_view(ses)
+    assert [j.name for j in view.joints()] == ["knee_r"]
+    lines = missing_lines(view)
+    assert (
+        "Right hip: not measured (no sensor on the pelvis) — strap one there to measure it."
+        in lines
+    )
+    assert ("Left knee: not measured (no sensor on the left thigh and left shank) — strap one on "
+            "each to measure it.") in lines  # fmt: skip

@@ -33,7 +33,7 @@ from typing import Any
 
 import numpy as np
 
-from motionlab.binding import sensed_protocol
+from motionlab.binding import sensed_protocol, unsensed_joints
 from motionlab.errors import InputError
 from motionlab.kinematics.gps import gated_profile, variable_grades
 from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, plane, title
@@ -199,6 +199,9 @@ class SessionView:
     path: Path | None = None
     angles: dict[str, np.ndarray] = field(default_factory=dict)  # AngleTable.columns()
     metrics: Metrics = field(default_factory=lambda: Metrics(""))
+    #: the protocol's joints left out for a segment with no sensor, with those segments
+    #: (:func:`motionlab.binding.unsensed_joints`): the walk's hips without a pelvis sensor
+    unmeasured: list[tuple[Joint, list[str]]] = field(default_factory=list)
 
     @property
     def subject(self) -> str:
@@ -307,6 +310,14 @@ def joint_title(joint: Joint) -> str:
     return f"{side} {jt.display}".strip().capitalize()
 
 
+def segment_title(protocol: Protocol, segment: str) -> str:
+    """``right thigh``, ``pelvis``: a protocol segment in words (its side, then its name
+    without the side suffix)."""
+    spec = protocol.segments.get(segment)
+    side = SIDE_NAMES.get(spec.side, "") if spec else ""
+    return f"{side} {segment.split('_')[0]}".strip()
+
+
 def joint_type_title(joint_type: str) -> str:
     """``Knee``, ``Lumbar spine``: a heading for all joints of one type."""
     jt = JOINT_TYPES.get(joint_type)
@@ -334,7 +345,7 @@ def load_view(session: Session, protocol: Protocol | None = None, path: Path | N
 
     ``protocol`` defaults to the one the calibration used (its file, else the packaged name);
     its joints on an optional segment without a sensor are left out, as the analysis left them
-    (:func:`motionlab.binding.sensed_protocol`).
+    (:func:`motionlab.binding.sensed_protocol`), and kept in :attr:`SessionView.unmeasured`.
     """
     res = session.results
     missing = [k for k in ("calibration", "angles", "metrics") if k not in res.stages()]
@@ -362,8 +373,10 @@ def load_view(session: Session, protocol: Protocol | None = None, path: Path | N
                 "give the protocol file as protocol=",
                 argument="protocol",
             )
+    unsensed = unsensed_joints(protocol, session)
+    unmeasured = [(protocol.joints[k], segs) for k, segs in unsensed.items()]
     protocol = sensed_protocol(protocol, session)
-    return SessionView(session, protocol, path, res.angles.columns(), res.metrics)
+    return SessionView(session, protocol, path, res.angles.columns(), res.metrics, unmeasured)
 
 
 def visit_labels(views: list[SessionView]) -> list[str]:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import datetime as _dt
 
 from motionlab import __version__
-from motionlab.report.model import SIDE_NAMES, SessionView, joint_title
+from motionlab.report.model import SessionView, joint_title, segment_title
 from motionlab.report.pdf import MUTED, SIZE, Document
 from motionlab.report.sentences import (
     PACE_SOURCE,
@@ -77,7 +77,7 @@ def summary_page(doc: Document, view: SessionView) -> None:
     for seg, spec in proto.segments.items():
         label = sensor_for_segment(view.session, seg)
         sensor = view.session.sensors[label] if label else None
-        name = f"{SIDE_NAMES.get(spec.side, '')} {seg.split('_')[0]}".strip()
+        name = segment_title(proto, seg)
         ident = f"{sensor.label}\n{sensor.serial}" if sensor and sensor.serial else "-"
         if sensor and not sensor.serial:
             ident = sensor.label

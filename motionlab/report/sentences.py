@@ -40,6 +40,7 @@ from motionlab.report.model import (
     quality_rows,
     rom_rows,
     segment_grade,
+    segment_title,
     symmetry_rows,
     thrust_above,
     trunk_above,
@@ -427,7 +428,9 @@ def missing_lines(view: SessionView) -> list[str]:
     """One line per joint with an angle that is not ``determined``: which angles, their grade
     and short cause, and the single most useful remedy (for the worst of them):
     ``'Right knee: flexion-extension not determined (axis) — walk 10 straight steps at an even
-    pace.'``; plus one line for trunk compensation from a thorax that is not determined."""
+    pace.'``; one per joint left out for a segment with no sensor (``'Right hip: not measured
+    (no sensor on the pelvis) — …'``); plus one line for trunk compensation from a thorax that
+    is not determined."""
     lines = []
     for joint in view.joints():
         rows = [r for r in grade_rows(view) if r.joint == joint.name]
@@ -445,6 +448,12 @@ def missing_lines(view: SessionView) -> list[str]:
         )
         remedy = cause_and_remedy(view, joint.name, worst.reason)[1]
         lines.append(f"{joint_title(joint)}: {what} — {remedy}.")
+    for joint, segments in view.unmeasured:
+        names = " and ".join(segment_title(view.protocol, s) for s in segments)
+        lines.append(
+            f"{joint_title(joint)}: not measured (no sensor on the {names}) — strap one "
+            f"{'there' if len(segments) == 1 else 'on each'} to measure it."
+        )
     trunk, why = segment_grade(view, THORAX)
     if view.metrics.trunk_compensation and not is_determined(trunk):
         lines.append(f"Trunk compensation: {trunk} ({why}) — record the calibration.")
