@@ -629,15 +629,15 @@ def run_pipeline(inputs: list[Path], outdir: Path, options: PipelineOptions) -> 
     with session_lock(session_path):  # the session, its report and JSON from one writer
         save_session(session, session_path, force=options.force)
         with stages("report"):
-            views = load_views([session], proto, [session_path])
+            views = load_views([session], full, [session_path])
             out = write_report(views, report_path, csv_dir, force=options.force)
             write_json(session, outdir / RESULTS_JSON, force=options.force)
     table = metrics_table(session.results.metrics, protocol_columns(proto))
     metrics = table[table["percent"].isna()].drop(columns="percent").reset_index(drop=True)
     res = session.results
     metrics = with_grades(metrics, proto, res.calibration, res.angles.method)
-    metrics = with_normals(views[0], metrics)
     metrics = with_not_measured(metrics, full, unsensed, list(res.metrics.joints))
+    metrics = with_normals(views[0], metrics)
     summary = run_summary(
         views[0],
         out,

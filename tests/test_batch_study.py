@@ -48,16 +48,22 @@ def test_a_joint_without_a_sensor_says_so_in_the_study_metrics(study):
         ("", "not measured", "not measured: no pelvis sensor")
     }
     assert knees and all(r["grade"] != "not measured" for r in knees)
+    grades = _rows(study / "S01" / "v1" / "csv" / "grades.csv")
+    assert {(r["grade"], r["reason"]) for r in grades if r["joint"].startswith("hip")} == {
+        ("not measured", "not measured: no pelvis sensor")
+    }
 
 
 def test_the_study_metrics_carry_the_sessions_normal_ranges_and_flags(study):
     """study_metrics.csv had no normal range or comparison, which the session's metrics.csv
-    has: each angle's rows now carry them, the same text."""
+    has: each angle's rows now carry them, the same text; the session's own metrics.csv has the
+    hips' rows too, empty and 'not measured', with their normal range."""
     rows = _rows(study / "study_metrics.csv")
     own = {(r["task"], r["joint"], r["angle"]): r
            for r in _rows(study / "S01" / "v1" / "csv" / "metrics.csv")}  # fmt: skip
-    rom = [r for r in rows if r["metric"] == "rom_deg" and r["grade"] != "not measured"]
-    assert len(rom) == len(own) == 6
+    rom = [r for r in rows if r["metric"] == "rom_deg"]
+    assert len(rom) == len(own) == 12
+    assert sum(r["grade"] == "not measured" for r in own.values()) == 6
     for r in rom:
         trial = own[r["block"], r["joint"], r["angle"]]
         assert r["grade"] == trial["grade"] and r["vs_normal"] == trial["vs_normal"]

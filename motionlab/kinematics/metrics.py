@@ -494,29 +494,36 @@ def metrics_table(metrics: Metrics, joints: dict[str, list[str]] | None = None) 
     )
 
 
+def not_measured_note(segments: list[str]) -> str:
+    """Why a joint was not measured: ``not measured: no pelvis sensor`` (``segments``: its
+    segments with no sensor, :func:`motionlab.binding.unsensed_joints`)."""
+    return f"not measured: no {' or '.join(segments)} sensor"
+
+
 def with_not_measured(
     table: pd.DataFrame, protocol: Protocol, unsensed: dict[str, list[str]], blocks: list[str]
 ) -> pd.DataFrame:
-    """``table`` (:class:`motionlab.pipeline.PipelineResult`'s ``metrics``) followed by the
-    scalar rows :func:`metrics_table` would have had for the joints the recording did not
-    measure (``unsensed``: ``{joint: its segments with no sensor}``,
+    """``table`` (:class:`motionlab.pipeline.PipelineResult`'s ``metrics``: ``block, joint,
+    angle, column, metric, value, unit, grade``) followed by the scalar rows
+    :func:`metrics_table` would have had for the joints the recording did not measure
+    (``unsensed``: ``{joint: its segments with no sensor}``,
     :func:`motionlab.binding.unsensed_joints`): per block and angle the :data:`ANGLE_METRICS`,
-    ``value`` empty (NaN), ``grade`` :data:`NOT_MEASURED`, ``vs_normal`` ``not compared`` and a
-    ``note`` why (``not measured: no pelvis sensor``), so that a table gathered over sessions
-    says why a joint is missing from one. ``table`` itself without such joints."""
+    ``value`` empty (NaN), ``grade`` :data:`NOT_MEASURED`, so that a table gathered over
+    sessions says that a joint is missing from one (why: :func:`not_measured_note`, which
+    :func:`motionlab.report.csv.with_normals` adds). ``table`` itself without such joints."""
     if not unsensed:
         return table
     columns = protocol_columns(protocol)
     rows = [
         (block, joint, split_column(col)[1], col, metric, np.nan, metric_unit(metric),
-         NOT_MEASURED, "not compared", f"not measured: no {' or '.join(segs)} sensor")
+         NOT_MEASURED)
         for block in blocks
-        for joint, segs in unsensed.items()
+        for joint in unsensed
         for col in columns[joint]
         for metric in ANGLE_METRICS
     ]  # fmt: skip
     missing = pd.DataFrame(rows, columns=["block", "joint", "angle", "column", "metric", "value",
-                                          "unit", "grade", "vs_normal", "note"])  # fmt: skip
+                                          "unit", "grade"])  # fmt: skip
     return pd.concat([table, missing], ignore_index=True)
 
 

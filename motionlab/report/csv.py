@@ -34,7 +34,8 @@ import pandas as pd
 from motionlab.atomic import atomic_path, check_output
 from motionlab.errors import InputError
 from motionlab.kinematics.gait_course import walk_courses
-from motionlab.kinematics.joint_types import angle_columns
+from motionlab.kinematics.joint_types import angle_columns, plane
+from motionlab.kinematics.metrics import NOT_MEASURED, not_measured_note
 from motionlab.kinematics.spatiotemporal import (
     BOTH_LEGS,
     MIN_STRIDES,
@@ -51,6 +52,7 @@ from motionlab.report.model import (
     calibration_rows,
     gait_result,
     grade_rows,
+    normal_range,
     quality_rows,
     rom_rows,
     segment_grade,
@@ -94,7 +96,9 @@ NORMAL_COLUMNS = ("normal_min_deg", "normal_max_deg", "vs_normal")
 
 
 def metrics_frame(view: SessionView) -> pd.DataFrame:
-    """Range of motion per task, joint and angle, with normal range, flag and symmetry."""
+    """Range of motion per task, joint and angle, with normal range, flag and symmetry; the
+    angles of a joint with no sensor on a segment (:attr:`SessionView.unmeasured`) empty, graded
+    ``not measured``."""
     si = {(s.task, s.joint_type, s.angle): s.symmetry_index_pct for s in symmetry_rows(view)}
     rows = []
     for r in rom_rows(view):
@@ -125,7 +129,36 @@ def metrics_frame(view: SessionView) -> pd.DataFrame:
                 "grade": r.grade,
             }
         )
+    for task in view.tasks():
+        for joint, _, angle, column in _unmeasured_angles(view):
+            lo, hi = normal_range(view.protocol, task, column) or (np.nan, np.nan)
+            rows.append(
+                {"task": task, "joint": joint.name, "angle": angle, "plane": plane(joint, angle)}
+                | dict.fromkeys(
+                    (
+                        "rom_deg",
+                        "min_deg",
+                        "max_deg",
+                        "typical_min_deg",
+                        "typical_max_deg",
+                        "cycles_n",
+                    ),
+                    np.nan,
+                )  # fmt: skip
+                | {"normal_min_deg": lo, "normal_max_deg": hi, "vs_normal": "not compared"}
+                | {"symmetry_index_pct": np.nan, "grade": NOT_MEASURED}
+            )
     return pd.DataFrame(rows, columns=list(METRICS_COLUMNS))
+
+
+def _unmeasured_angles(view: SessionView) -> list[tuple]:
+    """``(joint, its segments with no sensor, angle, column)`` of every angle of the joints the
+    recording did not measure (:attr:`SessionView.unmeasured`)."""
+    return [
+        (joint, segments, angle, column)
+        for joint, segments in view.unmeasured
+        for angle, column in angle_columns(joint)
+    ]
 
 
 def with_normals(view: SessionView, table: pd.DataFrame) -> pd.DataFrame:
@@ -134,11 +167,14 @@ def with_normals(view: SessionView, table: pd.DataFrame) -> pd.DataFrame:
     row's angle in its task, from the same rows (:func:`metrics_frame`): its normal range
     (``normal_min_deg``, ``normal_max_deg``, deg) and ``vs_normal``, empty for a row of no
     angle there; and a ``note``: why the row's angle is weak or not determined (the reason of
-    ``grades.csv``; the thorax frame's for the trunk's rows), else empty."""
+    ``grades.csv``, ``not measured: no pelvis sensor`` for a joint with no sensor; the thorax
+    frame's for the trunk's rows), else empty."""
     angles = metrics_frame(view)[["task", "joint", "angle", *NORMAL_COLUMNS]]
     keys = ["block", "joint", "angle"]
     out = table.merge(angles.rename(columns={"task": "block"}), on=keys, how="left")
-    reasons = {r.column: (r.grade, r.reason) for r in grade_rows(view)}
+    grades = grades_frame(view)
+    reasons = dict(zip(grades["column"], zip(grades["grade"], grades["reason"], strict=True),
+                       strict=True))  # fmt: skip
     trunk = segment_grade(view, THORAX)
     graded = [
         trunk if j == "trunk" and a else reasons.get(c, (DETERMINED, ""))
@@ -279,9 +315,14 @@ def quality_frame(view: SessionView) -> pd.DataFrame:
 
 
 def grades_frame(view: SessionView) -> pd.DataFrame:
-    """One row per angle column: ``joint, angle, column, grade, reason``."""
+    """One row per angle column: ``joint, angle, column, grade, reason``; the angles of a joint
+    with no sensor on a segment (:attr:`SessionView.unmeasured`) graded ``not measured``."""
     columns = ["joint", "angle", "column", "grade", "reason"]
-    return pd.DataFrame([asdict(r) for r in grade_rows(view)], columns=columns)
+    rows = [asdict(r) for r in grade_rows(view)] + [
+        dict(zip(columns, (j.name, a, c, NOT_MEASURED, not_measured_note(segs)), strict=True))
+        for j, segs, a, c in _unmeasured_angles(view)
+    ]
+    return pd.DataFrame(rows, columns=columns)
 
 
 def calibration_frame(view: SessionView) -> pd.DataFrame:
