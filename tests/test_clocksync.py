@@ -406,7 +406,13 @@ def test_a_knees_clocks_far_apart_or_drifting_are_found(shift_s, drift_ppm):
     from motionlab.clocksync import estimate_clock
     from motionlab.pipeline import prepare_sensors
 
-    session, _ = simulate(load_protocol("walk"), 120.0, 3, "typical", calibration=False)
+    # the metronome walk: with the default stride-to-stride variation this seed's left knee
+    # leaves a joint-centre residual of 0.054 m/s², over MAX_RESIDUAL_M_S2 (0.05), and the fit
+    # is refused although its offset is right to 0.01 ms (the typical preset's knees read
+    # 0.031-0.057 over seeds 3-4 and stride CVs 0-4 %, the metronome's 0.031-0.047: the limit's
+    # margin, not the search this test is about; docs/simulator.md, "Stride-to-stride variation")
+    session, _ = simulate(load_protocol("walk"), 120.0, 3, "typical", calibration=False,
+                          gait={"stride_cv": 0})  # fmt: skip
     prepare_sensors(session)
     thigh, shank = session.sensors["thigh_l"], session.sensors["shank_l"]
     base = estimate_clock(thigh, shank)

@@ -138,7 +138,9 @@ def test_default_options_keep_their_numbers():
     options give the numbers they gave before the anatomical knee and the skin preset (sums
     taken with the code of commit f090281), but for the pelvis in gait, made as the real walk's
     on 29 Nov 2026: its sideways sway turned to the stance side, its obliquity once per stride
-    (the leg sensors' sums and the thigh's orientation; the knee's truth is unchanged)."""
+    (the leg sensors' sums and the thigh's orientation; the knee's truth is unchanged). The
+    walk is the metronome of before (``stride_cv: 0``; the default walk's strides vary since
+    issue 23: ``test_stride_times_vary_by_default_and_the_heel_strikes_follow_them``)."""
     expected = {
         "typical": (872.6539733528045, 16705.163799877926, 1222.7499344613134,
                     15220.188950585934, 1211.7565422532466, 646.9906752624072),
@@ -146,7 +148,9 @@ def test_default_options_keep_their_numbers():
                   1211.7565422532466, 781.9037847822067),
     }  # fmt: skip
     for preset, kw in (("typical", {}), ("loose", {"mounting": "random"})):
-        session, truth = simulate("walk", 24.0, 5, preset, rate_hz=50.0, **kw)
+        session, truth = simulate(
+            "walk", 24.0, 5, preset, rate_hz=50.0, gait={"stride_cv": 0}, **kw
+        )
         got = []
         for label in ("thigh_r", "shank_l"):
             s = session.sensors[label]
@@ -267,22 +271,75 @@ def test_the_pelvis_tilts_once_per_stride_the_stance_side_up():
         assert abs(between) < 0.4 * PELVIS_OBLIQUITY_DEG  # not twice per stride
 
 
-def test_stride_times_vary_as_asked_and_the_heel_strikes_follow_them():
-    """``gait={"stride_cv": 0.02}``: the feet's initial contacts (the truth, from the feet's
-    motion) come 2 % CV apart, as a healthy adult's (Hausdorff 2005: 1-3 %); the default walk
-    is a metronome; the block's impact transients come every half stride of the varied phase."""
-    from motionlab.simulate.body import Body as _Body
-    from motionlab.simulate.motion import GAIT_SHAPE_OPTIONS, gait_block
+def _stride_cv(truth, side="r"):
+    """CV (%) of the truth's steady stride times (initial contacts from the feet's motion)."""
+    ic = np.asarray(truth.gait[f"ic_{side}"])[np.asarray(truth.gait[f"ic_{side}_steady"])]
+    st = np.diff(ic)
+    return 100 * st.std() / st.mean()
+
+
+def test_stride_times_vary_by_default_and_the_heel_strikes_follow_them():
+    """The default walk's feet's initial contacts (the truth, from the feet's motion) come
+    ``STRIDE_CV`` apart, as a healthy adult's (Hausdorff 2005: 1-3 %) and the real 16-IMU
+    walker's (2.6 % as the pipeline reads it, docs/simulator.md); ``stride_cv: 0`` is the
+    metronome of before; the block's impact transients come every half stride of the varied
+    phase."""
+    from motionlab.simulate.motion import STRIDE_CV, gait_block
 
     def cv(gait):
-        _, truth = simulate("walk", 60.0, 3, "clean", rate_hz=50.0, gait=gait)
-        st = np.diff(np.asarray(truth.gait["ic_r"])[np.asarray(truth.gait["ic_r_steady"])])
-        return 100 * st.std() / st.mean()
+        return _stride_cv(simulate("walk", 60.0, 3, "clean", rate_hz=50.0, gait=gait)[1])
 
-    assert 1.0 < cv({"stride_cv": 0.02}) < 3.0
-    assert cv({}) < 0.2
-    impacts = gait_block(_Body(), "walk", "walk", 60.0, {"stride_cv": 0.02}, seed=3).impacts
+    assert 1.0 < 100 * STRIDE_CV < 3.0
+    assert 0.7 * 100 * STRIDE_CV < cv({}) < 1.3 * 100 * STRIDE_CV
+    assert 0.7 * 3.0 < cv({"stride_cv": 0.03}) < 1.3 * 3.0
+    assert cv({"stride_cv": 0}) < 0.2
+    impacts = gait_block(Body(), "walk", "walk", 60.0, {}, seed=3).impacts
     half = np.diff(impacts)[5:-5]  # between the ramps
     assert abs(half.mean() - 0.5 / 0.9) < 0.01 and 0.01 < half.std() / half.mean() < 0.04
-    with pytest.raises(ValueError):
-        gait_block(_Body(), "walk", "walk", 60.0, {"stride_cv": 0.02, GAIT_SHAPE_OPTIONS[0]: 0.6})
+    metronome = gait_block(Body(), "walk", "walk", 60.0, {"stride_cv": 0}, seed=3).impacts
+    np.testing.assert_allclose(np.diff(metronome), 0.5 / 0.9, rtol=1e-12)
+
+
+@pytest.mark.parametrize("value", [-0.02, float("nan"), 0.4])
+def test_a_stride_cv_that_is_no_fraction_of_a_stride_is_refused(value):
+    from motionlab.simulate.motion import gait_block
+
+    with pytest.raises(ValueError, match="stride_cv"):
+        gait_block(Body(), "walk", "walk", 60.0, {"stride_cv": value})
+
+
+def test_stride_variation_combines_with_the_legs_timing():
+    """``stride_cv`` with ``toe_off_r`` and ``step_offset`` (the ``asymmetric`` variant): both
+    legs follow the varied phase, so the truth's strides vary on each side while the right step
+    keeps its 47 % of the stride and the right stance its 67 %; the left leg's impact transient
+    comes at its own heel strike (47 % of the stride), not at half a stride."""
+    from motionlab.simulate.motion import gait_block
+
+    options = {"toe_off_r": 0.67, "step_offset": 0.47}
+    for cv in (0.0, 0.02):
+        gait = {**options, "stride_cv": cv}
+        _, truth = simulate("walk", 60.0, 3, "clean", rate_hz=100.0, gait=gait)
+        g = {k: np.asarray(v) for k, v in truth.gait.items()}
+        ic_r, ic_l = g["ic_r"][g["ic_r_steady"]], g["ic_l"][g["ic_l_steady"]]
+        strides = np.diff(ic_r)
+        # each right stride's left contact and toe-off, as fractions of that stride
+        step, stance = [], []
+        for a, b in zip(ic_r[:-1], ic_r[1:], strict=True):
+            left = ic_l[(ic_l > a) & (ic_l < b)]
+            off = g["fc_r"][(g["fc_r"] > a) & (g["fc_r"] < b)]
+            if len(left) == 1 and len(off) == 1:
+                step.append((left[0] - a) / (b - a))
+                stance.append((off[0] - a) / (b - a))
+        assert len(step) >= 10
+        assert abs(np.mean(step) - 0.47) < 0.02 and abs(np.mean(stance) - 0.67) < 0.03
+        if cv:
+            assert 1.0 < _stride_cv(truth, "r") < 3.0 and 1.0 < _stride_cv(truth, "l") < 3.0
+            assert np.std(step) < 0.02  # the step keeps its share of the varying stride
+        else:
+            assert strides.std() / strides.mean() < 0.002
+        impacts = gait_block(Body(), "walk", "walk", 60.0, gait, seed=3).impacts
+        steps = np.diff(impacts)[4:-4]
+        frac = steps / (steps[::2].mean() + steps[1::2].mean())
+        assert sorted([frac[::2].mean(), frac[1::2].mean()]) == pytest.approx(
+            [0.47, 0.53], abs=0.01
+        )

@@ -333,9 +333,11 @@ def simulate(
         knee angles are the bones' (the segments'), with these couplings in them.
     gait
         A gait variant (:data:`GAIT_VARIANTS`) or options of the gait tasks (``stride_hz``,
-        ``speed``, ``toe_off_r``, ``toe_off_l``, ``step_offset``; see
-        :func:`~motionlab.simulate.motion.gait_block`). When given, the truth also holds the gait
-        events from the feet's motion and the pelvis angles (:mod:`.gait_truth`).
+        ``speed``, ``toe_off_r``, ``toe_off_l``, ``step_offset``, ``stride_cv``; see
+        :func:`~motionlab.simulate.motion.gait_block`). The strides vary by
+        :data:`~motionlab.simulate.motion.STRIDE_CV` by default; ``{"stride_cv": 0}`` walks the
+        metronome of before. When given, the truth also holds the gait events from the feet's
+        motion and the pelvis angles (:mod:`.gait_truth`).
     field, gravity
         Magnetic field model (default 50 µT, dip 60°) and gravity (m/s²).
     gyr_sampling

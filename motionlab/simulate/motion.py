@@ -281,10 +281,12 @@ def gait_block(
     as on a real walk; the comment above :data:`_GAIT_POINTS` says which values come from where),
     with pelvis bounce/sway/rotation and arm swing. Around contact the shank's sagittal angular
     velocity is checked against a real walk by ``bench/gait_contact.py``.
-    ``toe_off_r``, ``toe_off_l`` and ``step_offset`` change the timing of each leg
-    (:func:`_shaped_gait`); without them the motion is the original one, sample for sample.
-    ``stride_cv`` (default 0: every stride alike) varies the stride times from stride to stride
-    (:func:`stride_phase`, from ``seed``); not with the timing options.
+    ``toe_off_r``, ``toe_off_l`` and ``step_offset`` change the timing of each leg within the
+    stride (:func:`_shaped_gait`). ``stride_cv`` (default :data:`STRIDE_CV`; 0: every stride
+    alike, the metronome of before) varies the stride times from stride to stride
+    (:func:`stride_phase`, from ``seed``); both legs follow the varied phase, with or without the
+    timing options. The impacts (heel strikes) come where the phase reaches each leg's heel
+    strike: the right's at 0, the left's at ``step_offset`` of each stride.
     """
     a, b = float(options.get("path_a", 4.0)), float(options.get("path_b", 2.0))
     speed, f = float(options.get("speed", 1.2)), float(options.get("stride_hz", 0.9))
@@ -296,10 +298,17 @@ def gait_block(
         x, y = a * np.sin(phi), b - b * np.cos(phi)
         return x, y, phi + wrap(np.arctan2(b * np.sin(phi), a * np.cos(phi)) - phi)
 
-    cv = float(options.get("stride_cv", 0.0))
-    if cv > 0 and any(k in options for k in GAIT_SHAPE_OPTIONS):
-        raise ValueError("stride_cv does not combine with the legs' timing options")
+    cv = float(options.get("stride_cv", STRIDE_CV))
+    if not 0 <= cv < 1 / 3:  # NaN too; from 1/3 a stride 3 SD short would take no time
+        raise ValueError(
+            f"stride_cv is a fraction of the stride time (0.02: 2 %), 0 or more and "
+            f"below 1/3, not {cv:g}"
+        )
     theta = stride_phase(duration, f, cv, seed) if cv > 0 else None
+
+    def cycles(tau):
+        """Strides walked by block time ``tau`` (1 a stride, 0 at a right heel strike)."""
+        return f * tau if theta is None else theta(tau) / (2 * np.pi)
 
     def fn(tau):
         e = envelope(tau, duration, ramp)
@@ -333,16 +342,26 @@ def gait_block(
         return out
 
     if any(k in options for k in GAIT_SHAPE_OPTIONS):
-        fn = _shaped_gait(fn, options, f, duration, ramp)
+        fn = _shaped_gait(fn, options, cycles, duration, ramp)
     end = path(phidot * float(envelope_integral(np.array(duration), duration, ramp)))
-    strikes = np.arange(0.0, duration, 0.5 / f)  # both legs
-    if theta is not None:  # where θ passes each half stride
+    offset = float(options.get("step_offset", 0.5))
+    n = np.arange(np.ceil(cycles(duration)))
+    strikes = np.sort(np.r_[n, n + offset])  # in strides: the right leg's, the left's
+    if theta is None and offset == 0.5:  # the metronome's, as before (bit for bit)
+        strikes = np.arange(0.0, duration, 0.5 / f)
+    elif theta is None:
+        strikes = strikes / f
+    else:  # where the varied phase reaches them
         grid = np.arange(0.0, duration, 1e-3)
-        strikes = np.interp(np.arange(0.0, theta(duration), np.pi), theta(grid), grid)
-    strikes = strikes[envelope(strikes, duration, ramp) > 0.5]
+        strikes = np.interp(strikes, cycles(grid), grid)
+    strikes = strikes[(strikes < duration) & (envelope(strikes, duration, ramp) > 0.5)]
     return Block(name, "gait", phase, duration, fn, end, strikes, "gait")
 
 
+#: the stride-to-stride variation of the stride time (CV as a fraction) of the simulated walk
+#: (gait option ``stride_cv``; :func:`stride_phase`): see docs/simulator.md, "Stride-to-stride
+#: variation", for the real walks it comes from.
+STRIDE_CV = 0.025
 #: gait options that change the legs' timing (:func:`_shaped_gait`)
 GAIT_SHAPE_OPTIONS = ("toe_off_r", "toe_off_l", "step_offset")
 #: where the templates' toe-off falls (fraction of the stride, Perry & Burnfield 2010: 60-62 %)
@@ -362,11 +381,12 @@ def leg_phase(u: np.ndarray, toe_off: float) -> np.ndarray:
     return u + c * np.sin(np.pi * u) ** 2
 
 
-def _shaped_gait(fn, options: dict, f: float, duration: float, ramp: float):
+def _shaped_gait(fn, options: dict, cycles, duration: float, ramp: float):
     """The gait block's ``fn`` with each leg on its own timing.
 
-    The right leg's heel strikes at stride phase 0, the left's at ``step_offset`` (default 0.5;
-    below 0.5 the left step is the shorter one); each leg's template runs through
+    ``cycles(tau)``: the strides walked by block time ``tau`` (1 a stride, varied from stride to
+    stride or not). The right leg's heel strikes at stride phase 0, the left's at ``step_offset``
+    (default 0.5; below 0.5 the left step is the shorter one); each leg's template runs through
     :func:`leg_phase` with its ``toe_off_<side>`` (default :data:`TEMPLATE_TOE_OFF`). The pelvis,
     trunk and arms keep the right leg's phase.
     """
@@ -377,7 +397,7 @@ def _shaped_gait(fn, options: dict, f: float, duration: float, ramp: float):
         out = fn(tau)
         e = envelope(tau, duration, ramp)
         for side, d in (("r", 0.0), ("l", offset)):
-            u = np.mod(f * tau - d, 1.0)
+            u = np.mod(cycles(tau) - d, 1.0)
             th = 2 * np.pi * leg_phase(u, toe[side])
             basis = gait_basis(th)
             out[:, CH[f"knee_{side}_0"]] = e * gait_curve("knee", basis)
