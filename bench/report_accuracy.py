@@ -78,7 +78,7 @@ REAL_WORLD_CONDITIONS = (
 def run_real_world(name: str, seed: int) -> tuple[dict[str, float], set[str]]:
     """RMSE (deg) per angle column of one session of ``bench/real_world.py`` (preset ``skin``),
     and the columns graded ``not determined`` (left out)."""
-    r = real_world_one((name, seed, "skin", False, False, False, False, None))
+    r = real_world_one((name, seed, "skin", False, False, False, False, None, "point"))
     if "error" in r:
         raise RuntimeError(r["error"])
     undetermined = {c for c, (g, _) in r["grades"].items() if g == "not determined"}

@@ -245,11 +245,10 @@ def _synchronise_network(
     def solve(fits: list[ClockFit], on: str) -> dict:
         return solve_network(fits, on, t0, envelope_sd, floor)
 
-    solved, unlinked = _solve_parts(pool, part, root, solve)
-    # label: (NetworkClock or None, follows, the part's root whose clock it is on)
+    solved, unlinked, clock_on = _solve_parts(pool, part, root, solve)
+    # label: (NetworkClock or None, follows, the sensor whose clock it is on)
     clocks: dict[str, tuple] = {r: (None, "", r) for r in [root, *unlinked]}
-    clocks.update({k: (v, "", part[k] if part[k] in unlinked else root)
-                   for k, v in solved.items()})  # fmt: skip
+    clocks.update({k: (v, "", clock_on[k]) for k, v in solved.items()})
     # the heel strikes' clocks must agree with every joint centre's that measured its pair: where
     # one does not, the envelopes did not peak together and none is taken
     contradicted = []
@@ -270,12 +269,11 @@ def _synchronise_network(
             clock, _, on = clocks[label[ref_seg]]
             clocks[label[seg]] = (clock, label[ref_seg], on)
     fits = []
-    for ref_seg, seg in _forest_order(forest):
+    for _, seg in _forest_order(forest):
         lab = label[seg]
-        if ref_seg is None:  # a part's root
-            if lab in unlinked:
-                fits.append(_not_linked(root, lab, t0, unlinked[lab]))
-                continue
+        if lab in unlinked:  # a part's root, or the first of sensors tied only to each other
+            fits.append(_not_linked(root, lab, t0, unlinked[lab]))
+            continue
         clock, follows, on = clocks[lab]
         fit = _network_fit(on, lab, clock, follows, t0, span, "; ".join(contradicted))
         fits.append(fit)
@@ -285,13 +283,17 @@ def _synchronise_network(
 
 
 def _solve_parts(pool: list[ClockFit], part: dict[str, str], root: str, solve) -> tuple[
-        dict, dict[str, str]]:  # fmt: skip
-    """The network clocks (``solve(fits, root)``) of every sensor, and ``{part's root: why it
-    is not linked}`` for the parts of the body (``part``: ``{label: its part's root}``) whose
+        dict, dict[str, str], dict[str, str]]:  # fmt: skip
+    """The network clocks (``solve(fits, root)``) of every sensor, ``{part's root: why it is
+    not linked}`` for the parts of the body (``part``: ``{label: its part's root}``) whose
     clocks the heel strikes do not tie to ``root``'s well: no reliable lag across, or the
     part's sensors known only to more than ``LINK_MAX_SE_S`` on the root's clock. Their lags
     across are then left out, the rest solved again, and each such part solved on its own
-    root's clock (its sensors' clocks against its root's)."""
+    root's clock (its sensors' clocks against its root's). Sensors of a part that nothing ties
+    to its root but that are tied to each other are solved on the first one's clock, which is
+    then not linked too (a walk whose pelvis no heel strike times: the knees still need each
+    thigh and shank on one clock). The third dict: ``{label: the sensor whose clock its
+    solution is on}``."""
     unlinked: dict[str, str] = {}
     while True:
         fits = [f for f in pool if part[f.reference] not in unlinked
@@ -313,10 +315,30 @@ def _solve_parts(pool: list[ClockFit], part: dict[str, str], root: str, solve) -
         if not weak:
             break
         unlinked.update(weak)
+    on = {lab: root for lab in solved}
     for r in unlinked:
         own = [f for f in pool if part[f.reference] == r and part[f.sensor] == r]
-        solved.update(solve(own, r))
-    return solved, unlinked
+        found = solve(own, r)
+        solved.update(found)
+        on.update(dict.fromkeys(found, r))
+    # sensors of a part that nothing ties to its root but that reliable measurements tie to
+    # each other (the legs by their heel strikes, none of them to the pelvis): each such group
+    # on its first sensor's clock, that sensor not linked to the part's root
+    for r in [root, *unlinked]:
+        loose = [lab for lab, p in part.items() if p == r and lab != r and lab not in solved]
+        ties = [f for f in pool if f.reference in loose and f.sensor in loose]
+        for lab in loose:
+            if lab in solved:
+                continue
+            found = solve(ties, lab)
+            if found:
+                solved.update(found)
+                on.update(dict.fromkeys(found, lab))
+                unlinked[lab] = (
+                    f"no reliable heel-strike lag or joint-centre fit ties it to {r}; the "
+                    f"heel strikes and joint centres tie {', '.join(found)} to it"
+                )
+    return solved, unlinked, on
 
 
 def _forest_order(forest) -> list[tuple[str | None, str]]:
@@ -341,13 +363,17 @@ def _not_linked(root: str, lab: str, t0: float, why: str) -> ClockFit:
 
 def _uncorroborated(clocks: dict, label: dict, centres: dict, ref_seg: str, seg: str) -> str:
     """For a tree pair of which the network timed at least one sensor: where the network's
-    clocks (``clocks``: ``{label: (NetworkClock or None, _)}``, ``None`` the root's) put
+    clocks (``clocks``: ``{label: (NetworkClock or None, follows, the sensor whose clock it is
+    on)}``, ``None`` that sensor's own) put
     ``seg``'s sensor more than ``CORROBORATE_S`` from where the pair's own joint-centre fit
     does (``centres``, by segment pair; any fit that was made, also one its residual or its
     standard error refused), or time only one of the two, or the pair has no such fit, in
     words; empty when they agree (and for a hip, whose joint centre is no check)."""
     if {kind_side(ref_seg)[0], kind_side(seg)[0]} == {"pelvis", "thigh"}:
         return ""  # the hip's joint centre is no check (HIP_CENTRE_FLOOR_S)
+    ons = {clocks[lab][2] for lab in (label[ref_seg], label[seg]) if lab in clocks}
+    if len(ons) == 2:  # on two clocks that nothing tied: nothing to compare
+        return ""
     untimed = [lab for lab in (label[ref_seg], label[seg]) if lab not in clocks]
     if untimed:  # it would follow the other's correction: nothing left to compare
         timed = label[seg] if untimed[0] == label[ref_seg] else label[ref_seg]
