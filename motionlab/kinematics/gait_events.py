@@ -32,16 +32,37 @@ angular velocity of the shank or pelvis. Low-passed at 6 Hz (2nd-order Butterwor
   75 ms (Catalfamo et al. 2010, Sensors 10:5683), 3.8 ± 28.7 ms (Greene et al. 2012, J Appl
   Biomech 28:349).
 
+Data gaps (lost packets: Bluetooth IMUs such as the Xsens DOT or x-IMU3 drop runs of samples;
+ingest keeps a gap longer than ``--gap-max`` as a jump of the time stamps, fills a shorter one
+linearly and lists it in ``qc["filled_spans_s"]``; a short run of NaN may remain): the signal
+is put on its regular time base first (the instants inside a jump added, every missing sample
+interpolated linearly), so that the filters run in time, not across a jump as if its two sides
+were neighbours. A gap up to :data:`BRIDGE_S` long (from the recorded sample before to the one
+after) is bridged. Cut over the simulator's heel strikes and toe-offs and filled linearly
+(typical sensors, 3 seeds, both legs, 5 positions of the gap, about 1000 cuts per length and
+event, at 50, 60 and 100 Hz), a gap of 0.1 s moved IC by at most 9.8 ms (the detector's own
+bound ``spatiotemporal.IC_ERROR_S`` is 10 ms; 14.7 ms at 0.11 s, 33 ms at 0.14 s), FC by 5 ms
+in the median and 22 ms at the 95th percentile (its minimum may move to a neighbouring sample
+with a gap of 0.04 s already). A longer gap (its samples, filled or missing) is no data: no
+swing peak is taken within :data:`GAP_MARGIN_S` of it, an event only when the samples it is
+found from lie that far clear of it (IC: from its swing peak to the zero crossing; FC: from the
+minimum to the swing peak; beyond 0.04 s from a 0.3-s gap an IC moved by at most 1.9 ms, at
+0.02 s by up to 8.3 ms, 100 Hz), and a stride that holds such a gap is rejected (``data gap``,
+below). Before, a 0.18-s gap over a left heel strike of a simulated walk put that contact
+0.13 s late and its step-time asymmetry read 4.3 % for a true 0.4 %
+(``tests/test_gait_clocks.py``).
+
 Confidence (0-1) of an event: how typical its stride's swing peak and the event's own feature
 (the slope of ``ω_z`` at IC, the depth of the minimum at FC) are, each ``exp(-|ln(x / median)|)``
 (1 for the median, 0.5 for half or twice it), multiplied.
 
 Strides (IC to the next IC of the same side) are rejected, with the first reason that applies:
-``duration`` (outside 0.6-2.5 s or more than 25 % from the median stride), ``final contact`` (not
-exactly one FC inside), ``start/stop`` (a swing peak of the stride or its neighbours below 80 % of
-the median: gait initiation, termination, a pause), ``turn`` (the heading changed by more than
-20° over the stride), ``low confidence`` (an event below 0.5). The thresholds are this module's
-constants.
+``data gap`` (a gap longer than :data:`BRIDGE_S` inside the stride: an event or part of its
+movement is missing), ``duration`` (outside 0.6-2.5 s or more than 25 % from the median
+stride), ``final contact`` (not exactly one FC inside), ``start/stop`` (a swing peak of the
+stride or its neighbours below 80 % of the median: gait initiation, termination, a pause),
+``turn`` (the heading changed by more than 20° over the stride), ``low confidence`` (an event
+below 0.5). The thresholds are this module's constants.
 """
 
 from __future__ import annotations
@@ -51,6 +72,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from motionlab.dsp import butter, find_peaks, sosfiltfilt
+from motionlab.timebase import runs
 
 LOWPASS_HZ = 6.0
 FC_REFINE_HZ = 15.0
@@ -62,11 +84,20 @@ STRIDE_TOLERANCE = 0.25
 STEADY_FRACTION = 0.8
 TURN_DEG = 20.0
 MIN_CONFIDENCE = 0.5
+#: the longest gap (s, from the recorded sample before to the one after) bridged by linear
+#: interpolation as if the samples were there (module docstring: IC within 10 ms)
+BRIDGE_S = 0.1
+#: how far (s) the samples an event is found from must lie from a longer gap (module docstring)
+GAP_MARGIN_S = 0.04
+#: the reason of a stride rejected for a gap inside it
+GAP_REASON = "data gap"
 
 
 @dataclass
 class SideEvents:
-    """Events of one side: times (s) and confidences (0-1), and the swing peaks (s, rad/s)."""
+    """Events of one side: times (s) and confidences (0-1), the swing peaks (s, rad/s), and the
+    gaps longer than :data:`BRIDGE_S` (``(G, 2)`` ``[start_s, end_s]``: no event is placed near
+    them, a stride holding one is rejected)."""
 
     ic: np.ndarray
     ic_confidence: np.ndarray
@@ -74,6 +105,7 @@ class SideEvents:
     fc_confidence: np.ndarray
     swing: np.ndarray
     swing_height: np.ndarray
+    gaps: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
 
 
 @dataclass
@@ -102,23 +134,84 @@ def lowpass(x: np.ndarray, rate: float, cutoff: float = LOWPASS_HZ) -> np.ndarra
     return sosfiltfilt(sos, x)
 
 
-def detect(time: np.ndarray, omega_z: np.ndarray) -> SideEvents:
-    """IC and FC of one side from its shank's ``ω_z`` (rad/s) on a regular time base (s)."""
+def data_gaps(
+    time: np.ndarray, omega_z: np.ndarray, filled: np.ndarray | None = None
+) -> np.ndarray:
+    """``(G, 2)`` ``[start_s, end_s]`` of the gaps longer than :data:`BRIDGE_S`: the jumps of
+    ``time`` (s) beyond 1.5 sampling intervals, the runs of non-finite ``omega_z`` (from the
+    finite sample before to the one after) and the spans ingest ``filled`` (``(F, 2)``, s, on
+    ``time``'s clock), those that touch joined."""
+    t = np.asarray(time, dtype=float)
+    if len(t) < 2:
+        return np.zeros((0, 2))
+    d = np.diff(t)
+    jump = np.flatnonzero(d > 1.5 * float(np.median(d)))
+    spans = [np.column_stack((t[jump], t[jump + 1]))]
+    bad = runs(~np.isfinite(np.asarray(omega_z, dtype=float)))
+    spans.append(np.column_stack((t[np.maximum(bad[:, 0] - 1, 0)],
+                                  t[np.minimum(bad[:, 1], len(t) - 1)])))  # fmt: skip
+    if filled is not None:
+        spans.append(np.asarray(filled, dtype=float).reshape(-1, 2))
+    merged: list[list[float]] = []
+    for a, b in sorted(map(tuple, np.vstack(spans))):
+        if merged and a <= merged[-1][1]:
+            merged[-1][1] = max(merged[-1][1], b)
+        else:
+            merged.append([a, b])
+    out = np.array([m for m in merged if m[1] - m[0] > BRIDGE_S * (1 + 1e-9)], dtype=float)
+    return out.reshape(-1, 2)
+
+
+def _regular(time: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``time`` with the instants missing inside each jump beyond 1.5 sampling intervals
+    added (evenly spaced), ``x`` NaN there; unchanged without such a jump."""
+    d = np.diff(time)
+    dt = float(np.median(d))
+    add = np.where(d > 1.5 * dt, np.round(d / dt).astype(int) - 1, 0)
+    if not add.any():
+        return time, x
+    ts, xs, start = [], [], 0
+    for i in np.flatnonzero(add):
+        n = int(add[i])
+        ts += [time[start : i + 1], time[i] + d[i] * np.arange(1, n + 1) / (n + 1)]
+        xs += [x[start : i + 1], np.full(n, np.nan)]
+        start = i + 1
+    return np.concatenate([*ts, time[start:]]), np.concatenate([*xs, x[start:]])
+
+
+def _clear(a: float, b: float, gaps: np.ndarray) -> bool:
+    """The span ``[a, b]`` (s) lies :data:`GAP_MARGIN_S` clear of every one of ``gaps``."""
+    return not np.any((gaps[:, 0] < b + GAP_MARGIN_S) & (gaps[:, 1] > a - GAP_MARGIN_S))
+
+
+def detect(time: np.ndarray, omega_z: np.ndarray, filled: np.ndarray | None = None) -> SideEvents:
+    """IC and FC of one side from its shank's ``ω_z`` (rad/s) at ``time`` (s, sampled at one
+    rate, with gaps: a jump of the stamps, NaN, or the spans ``filled`` by ingest, ``(F, 2)``
+    ``[start_s, end_s]``); no event from a gap longer than :data:`BRIDGE_S` (module
+    docstring)."""
     time = np.asarray(time, dtype=float)
     empty = np.zeros(0)
+    omega_z = np.asarray(omega_z, dtype=float)
     ok = np.isfinite(omega_z)
-    rate = 1.0 / float(np.median(np.diff(time))) if len(time) > 1 else 0.0
-    if len(time) < int(2 * MIN_STRIDE_S * rate) + 3 or ok.sum() < 3:
+    if len(time) < 2 or ok.sum() < 3:
         return SideEvents(empty, empty, empty, empty, empty, empty)
+    gaps = data_gaps(time, omega_z, filled)
+    time, omega_z = _regular(time, omega_z)
+    ok = np.isfinite(omega_z)
+    rate = 1.0 / float(np.median(np.diff(time)))
+    if len(time) < int(2 * MIN_STRIDE_S * rate) + 3:
+        return SideEvents(empty, empty, empty, empty, empty, empty, gaps)
     idx = np.arange(len(time))
-    raw = np.interp(idx, idx[ok], np.asarray(omega_z)[ok])
+    raw = np.interp(idx, idx[ok], omega_z[ok])
     w = lowpass(raw, rate)
     fine = lowpass(raw, rate, FC_REFINE_HZ)
     half = max(1, int(round(FC_REFINE_S * rate)))
     cand, props = find_peaks(w, height=SWING_MIN_RAD_S, distance=int(MIN_STRIDE_S * rate))
-    if len(cand) == 0:
-        return SideEvents(empty, empty, empty, empty, empty, empty)
     heights = props["peak_heights"]
+    measured = np.array([_clear(t, t, gaps) for t in time[cand]], dtype=bool)
+    cand, heights = cand[measured], heights[measured]  # a peak in a gap is the interpolation's
+    if len(cand) == 0:
+        return SideEvents(empty, empty, empty, empty, empty, empty, gaps)
     top = np.sort(heights)[-max(1, len(cand) // 2) :]
     keep = heights >= SWING_FRACTION * np.median(top)
     swing, heights = cand[keep], heights[keep]
@@ -129,7 +222,7 @@ def detect(time: np.ndarray, omega_z: np.ndarray) -> SideEvents:
     ic, ic_slope, ic_peak, fc, fc_depth, fc_peak = [], [], [], [], [], []
     for p, h in zip(swing, heights, strict=True):
         after = down[(down > p) & (down <= p + reach)]
-        if len(after):
+        if len(after) and _clear(time[p], time[after[0] + 1], gaps):
             k = after[0]
             frac = w[k] / (w[k] - w[k + 1])
             ic.append(time[k] + frac * (time[k + 1] - time[k]))
@@ -143,9 +236,10 @@ def detect(time: np.ndarray, omega_z: np.ndarray) -> SideEvents:
             den = fine[k - 1] - 2 * fine[k] + fine[k + 1]
             shift = 0.5 * (fine[k - 1] - fine[k + 1]) / den if den > 0 else 0.0
             t_min = time[k] + np.clip(shift, -0.5, 0.5) * (time[k + 1] - time[k - 1]) / 2
-            fc.append(_toe_off(time, w, k0, p, t_min))
-            fc_depth.append(h - w[k0])
-            fc_peak.append(h)
+            if _clear(min(time[k - 1], time[k0]), time[p], gaps):
+                fc.append(_toe_off(time, w, k0, p, t_min))
+                fc_depth.append(h - w[k0])
+                fc_peak.append(h)
     med_h = float(np.median(heights))
     ic_c = _typical(np.array(ic_slope), float(np.median(ic_slope)) if ic_slope else 1.0)
     fc_c = _typical(np.array(fc_depth), float(np.median(fc_depth)) if fc_depth else 1.0)
@@ -156,6 +250,7 @@ def detect(time: np.ndarray, omega_z: np.ndarray) -> SideEvents:
         fc_confidence=fc_c * _typical(np.array(fc_peak), med_h),
         swing=time[swing],
         swing_height=heights,
+        gaps=gaps,
     )
 
 
@@ -214,7 +309,9 @@ def strides(
         inside = (ev.fc > t0) & (ev.fc < t1)
         near = (ev.swing > t0 - 0.6 * med) & (ev.swing < t1 + 0.6 * med)
         reason = ""
-        if not (MIN_STRIDE_S <= t1 - t0 <= MAX_STRIDE_S) or abs(t1 - t0 - med) > (
+        if np.any((ev.gaps[:, 0] < t1) & (ev.gaps[:, 1] > t0)):
+            reason = GAP_REASON
+        elif not (MIN_STRIDE_S <= t1 - t0 <= MAX_STRIDE_S) or abs(t1 - t0 - med) > (
             STRIDE_TOLERANCE * med
         ):
             reason = "duration"

@@ -3,11 +3,12 @@
 The gait analysis (:mod:`.gait`: spatio-temporal parameters, stride curves) and the joint
 metrics of a walk (:mod:`.metrics`: per-stride ranges and peaks of the knees and hips) take the
 same strides: each knee's shank sagittal angular velocity (the raw gyroscope turned into the
-shank frame by the calibrated mounting) → events (:func:`.gait_events.detect`) → strides kept or
-rejected with the reason (:func:`.gait_events.strides`; turns from the vertical angular
-velocity of the pelvis sensor, else of the side's shank sensor). A report whose joint pages
-counted 45 strides where its gait page kept 41 (turns and gait initiation left out there only)
-described two different walks.
+shank frame by the calibrated mounting) → events (:func:`.gait_events.detect`, told the gaps
+ingest filled: one longer than it bridges is no data) → strides kept or rejected with the
+reason (:func:`.gait_events.strides`; turns from the vertical angular velocity of the pelvis
+sensor, else of the side's shank sensor). A report whose joint pages counted 45 strides where
+its gait page kept 41 (turns and gait initiation left out there only) described two different
+walks.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import numpy as np
 
 from motionlab import rotations as rot
 from motionlab.binding import sensor_for_segment
+from motionlab.fusion.stage import filled_spans
 from motionlab.kinematics import gait_events as ge
 from motionlab.protocol import Protocol
 from motionlab.results import SegmentCalibration
@@ -79,7 +81,8 @@ def session_strides(
     out = {}
     for seg, (time, wz) in shank_angular_velocity(session, protocol, calibration).items():
         side = side_of[seg]
-        ev = ge.detect(time, wz)
+        shank = sensor_for_segment(session, seg)
+        ev = ge.detect(time, wz, filled_spans(session.sensors[shank]) if shank else None)
         label = pelvis_label or sensor_for_segment(session, seg)
         yaw = yaw_rate(session, label) if label else None
         parts = [ge.strides(side, ev, yaw, span) for span in spans.values()]
