@@ -958,9 +958,12 @@ def test_expected_accuracy_says_which_figures_this_recordings_grades_undo():
         doc = Document("motionlab report · test", "subject X")
         accuracy_page(doc, view)
         text = " ".join(" ".join(page_text(f) for f in doc.pages).split())
+    from motionlab.report.normative import load_accuracy
+
+    worst = load_accuracy()["protocols"]["knee"]["knee_adduction"]["max_rmse_deg"]
     assert (
-        "worst case 1.43°) — weak for the right knee in this recording: it may be further off"
-        in text
+        f"worst case {worst:.2f}°) — weak for the right knee in this recording: it may be "
+        "further off" in text
     )
     assert "— not determined for the right knee in this recording: not shown" in text
     flexion = text.split("flexion-extension: ")[1].split("•")[0]

@@ -372,8 +372,9 @@ def _uncorroborated(clocks: dict, label: dict, centres: dict, ref_seg: str, seg:
     if {kind_side(ref_seg)[0], kind_side(seg)[0]} == {"pelvis", "thigh"}:
         return ""  # the hip's joint centre is no check (HIP_CENTRE_FLOOR_S)
     ons = {clocks[lab][2] for lab in (label[ref_seg], label[seg]) if lab in clocks}
-    if len(ons) == 2:  # on two clocks that nothing tied: nothing to compare
-        return ""
+    if len(ons) == 2:  # a joint's two sensors on clocks nothing ties: its angles need one
+        return (f"not reliable: the heel strikes put {label[ref_seg]} and {label[seg]} on clocks "
+                "nothing ties together, so their joint centre cannot confirm them")  # fmt: skip
     untimed = [lab for lab in (label[ref_seg], label[seg]) if lab not in clocks]
     if untimed:  # it would follow the other's correction: nothing left to compare
         timed = label[seg] if untimed[0] == label[ref_seg] else label[ref_seg]
