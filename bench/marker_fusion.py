@@ -37,6 +37,7 @@ from broad import DEFAULT_DATA, load_trials  # noqa: E402
 from marker_fusion_sim import (  # noqa: E402
     CALIBRATED,
     acceptance_session,
+    cluster_error,
     evaluate,
     hidden_blocks,
     rms,
@@ -52,8 +53,7 @@ from motionlab.fusion.marker_registration import (  # noqa: E402
 )
 from motionlab.fusion.markers import MarkerReferences  # noqa: E402
 from motionlab.simulate.errors import get_preset  # noqa: E402
-from motionlab.validation.markermap import default_marker_map  # noqa: E402
-from motionlab.validation.optical import resample_quat, track_cluster  # noqa: E402
+from motionlab.validation.optical import resample_quat  # noqa: E402
 from motionlab.validation.time_alignment import synchronise  # noqa: E402
 
 FILTERS = ("liu_gn", "ekf", "ukf", "particle")
@@ -62,8 +62,6 @@ BROAD_SIGMA = np.deg2rad(0.3)
 
 def registration_table(session, truth, fused) -> list[str]:
     """Per sensor: clock error (ms, worst over the record), sensor → cluster error (deg)."""
-    markers = session.markers["optical"]
-    mmap = default_marker_map(markers, None, list(session.sensors))
     y_true = truth.markers["lab_rotation"]
     lab = next(iter(fused.values())).lab_to_earth
     y_err = np.degrees(rot.angle_between(lab.quat, y_true))
@@ -73,14 +71,9 @@ def registration_table(session, truth, fused) -> list[str]:
         "|---|---|---|---|",
     ]
     for label, rec in fused.items():
-        q_true, t_opt = truth_at_samples(session, truth, label)
+        _, t_opt = truth_at_samples(session, truth, label)
         t_est = rec.time_offset_s + (1 + rec.drift_ppm * 1e-6) * session.sensors[label].time
-        cols = [markers.labels.index(m) for m in mmap.segments[label].cluster]
-        track = track_cluster(markers.time, markers.positions[:, cols])
-        b = resample_quat(track.time, track.quat, t_opt)
-        ok = np.isfinite(b).all(axis=1)
-        x_true = rot.mean(rot.mul(rot.conj(b[ok]), rot.mul(rot.conj(y_true), q_true[ok])))
-        x_err = np.degrees(rot.angle_between(x_true, rec.sensor_to_cluster))
+        x_err = cluster_error(session, truth, label, rec.sensor_to_cluster)
         clock = 1e3 * np.abs(t_est - t_opt).max()
         lines.append(f"| {label} | {clock:.2f} | {x_err:.3f} | {rec.marker_noise_mm:.2f} |")
     return lines

@@ -245,7 +245,7 @@ def _gn_imu(w, x, y, z, ax, ay, az, wa, use_a, mag, k, wm, use_m, cos_dip, sin_d
 @numba.njit(cache=True)
 def liu_kernel(
     gyr, acc, mag, pre, q0, dt, gain, wa, wm, acc_tol, gravity, n_start, startup_gain, gating,
-    ref_body, ref_earth, ref_w, ref_gain, ref_drift,
+    ref_body, ref_earth, ref_w, ref_gain, ref_drift, gap_var,
 ):  # fmt: skip
     nn = gyr.shape[0]
     out = np.empty((nn, 4))
@@ -269,6 +269,7 @@ def liu_kernel(
         if n_ref == 0:  # the attitude error grows while the markers are hidden
             sp = np.sqrt(var) + ref_drift * dt
             var = sp * sp
+        var += gap_var[k]  # what the bridge of a packet-loss gap just ended may have missed
         if use_a or use_m or n_ref > 0:
             px, py, pz = _solve_sym(nrm, g)
             s = min(1.0, gain * dt * (startup_gain if k < n_start else 1.0))

@@ -40,6 +40,7 @@ from motionlab.fusion._cf_kernels import (
 from motionlab.fusion._common import prepare_mag
 from motionlab.fusion.markers import MarkerReferences, interval_rates, scenario
 from motionlab.fusion.registry import FusionResult, param, register
+from motionlab.fusion.timegrid import GapNoise, gap_variance
 
 
 @dataclass
@@ -139,8 +140,9 @@ def run_mahony(gyr, acc, mag, rate, params: MahonyParams) -> FusionResult:
 
 @register("liu_gn", LiuParams, "Liu's reduced-order Gauss-Newton complementary filter")
 def run_liu(
-    gyr, acc, mag, rate, params: LiuParams, references: MarkerReferences | None = None
-) -> FusionResult:
+    gyr, acc, mag, rate, params: LiuParams, references: MarkerReferences | None = None,
+    gaps: GapNoise | None = None,
+) -> FusionResult:  # fmt: skip
     """Liu (2010) §5.1: predict ``q⁻ = q + Δt/2 q ⊗ ω`` (30), reduced-order Gauss–Newton step
     ``p = (X_pᵀWᵀWX_p)⁻¹X_pᵀWᵀε`` (55) with ``X_p = 2[ŷ]×``, update ``q = q⁻ + gΔt q⁻ ⊗ p`` (45).
 
@@ -154,6 +156,11 @@ def run_liu(
     steady state averages the marker noise. The gyroscope enters as the interval mean less the
     registration's bias (:func:`~motionlab.fusion.markers.interval_rates`: the filter has no bias
     state). ``extra["scenario"]`` gives Liu's scenario (Table 2) per sample.
+
+    ``gaps`` (packet-loss gaps bridged in the inputs, :func:`~motionlab.fusion.timegrid.gap_noise`)
+    add the rotation each bridge may have missed to that variance at the first recorded sample
+    after the gap (it changes nothing without markers): a 0.13-s gap in a simulated shank's
+    swing left the estimate 4° off, still 1° 0.8 s later with the markers in view.
     """
     q0, n_start, mag, pre, use_mag, gating, rest = _prepare(gyr, acc, mag, rate, params)
     refs = references if references is not None else MarkerReferences.none(len(gyr))
@@ -162,6 +169,7 @@ def run_liu(
         1.0 / rate, params.gain, 1.0 / params.acc_sigma**2, 1.0 / params.mag_sigma**2,
         params.acc_tol, params.gravity, n_start, params.startup_gain, gating, refs.body,
         refs.earth, 1.0 / refs.sigma**2, params.marker_gain, params.marker_drift,
+        gap_variance(gaps, len(gyr)),
     )  # fmt: skip
     if references is None:
         return _result(quat, dist, use_mag, rest)

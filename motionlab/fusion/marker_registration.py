@@ -44,8 +44,10 @@ from motionlab.fusion.markers import (
     marker_noise,
     pair_vectors,
 )
+from motionlab.fusion.stage import filled_spans
 from motionlab.results import LabToEarth, MarkerFusion
 from motionlab.segments.frames import wahba
+from motionlab.timebase import find_gaps
 from motionlab.validation.markermap import check_marker_map, default_marker_map
 from motionlab.validation.optical import resample_quat, smooth_pose, track_cluster
 from motionlab.validation.reference import choose_marker_set
@@ -90,7 +92,8 @@ def _relative(t: np.ndarray, q: np.ndarray, start: np.ndarray, end: np.ndarray) 
 
 def _row_pairs(t: np.ndarray, bad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Start and end sample of the relative rotations: every lag of ``LAGS_S``, a start every
-    quarter of the shortest lag, no lost gyroscope sample in between."""
+    quarter of the shortest lag, no ``bad`` sample (an interval the gyroscope did not measure
+    starts or ends there) from start to end."""
     rate = 1.0 / np.median(np.diff(t))
     lags = [max(1, int(round(lag_s * rate))) for lag_s in LAGS_S]
     stride = max(1, lags[0] // 4)
@@ -106,6 +109,20 @@ def _row_pairs(t: np.ndarray, bad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return np.concatenate(starts), np.concatenate(ends)
 
 
+def unmeasured(t: np.ndarray, gyr: np.ndarray, filled_spans: Any = None) -> np.ndarray:
+    """Samples (bool, N) next to an interval the gyroscope did not measure: a lost (non-finite)
+    sample, the sample before a gap in ``t`` (an interval over ``GAP_FACTOR`` nominal ones),
+    and the instants ingest made up inside its ``filled_spans`` (``[start_s, end_s]`` pairs,
+    the recorded stamps either side, :func:`motionlab.fusion.stage.filled_spans`). A rotation
+    between two samples with one of these between them is not the sensor's: at heel strike a
+    60-ms gap bridged by a line missed 2.5° of a simulated thigh's turn."""
+    bad = ~np.isfinite(gyr).all(axis=1)
+    bad[find_gaps(t)] = True
+    for start, end in np.asarray([] if filled_spans is None else filled_spans).reshape(-1, 2):
+        bad |= (t > start) & (t < end)
+    return bad
+
+
 def register_sensor(
     t: np.ndarray,
     gyr: np.ndarray,
@@ -114,6 +131,7 @@ def register_sensor(
     offset_s: float = 0.0,
     drift: float = 0.0,
     refine_clock: bool = True,
+    filled_spans: Any = None,
 ) -> SensorRegistration:
     """Sensor → cluster rotation, gyroscope bias and refined clock of one sensor.
 
@@ -127,11 +145,14 @@ def register_sensor(
         Starting clock model (e.g. from :func:`motionlab.validation.time_alignment.synchronise`).
     refine_clock
         Refine the clock model (False: keep it, e.g. for streams on one clock).
+    filled_spans
+        Gaps ingest filled in ``t`` (``[start_s, end_s]`` pairs): no relative rotation spans
+        them (:func:`unmeasured`).
     """
     t = np.asarray(t, dtype=float)
-    bad = ~np.isfinite(gyr).all(axis=1)
+    bad = unmeasured(t, gyr, filled_spans)
     i, j = _row_pairs(t, bad)
-    gyr = np.where(bad[:, None], 0.0, gyr)
+    gyr = np.where(np.isfinite(gyr), gyr, 0.0)
 
     def imu_relative(bias: np.ndarray, seen: np.ndarray) -> np.ndarray:
         # the IMU's orientations only where the optical ones exist, so that both are low-passed
@@ -139,11 +160,17 @@ def register_sensor(
         a = rot.integrate_gyro(rot.IDENTITY, gyr - bias, np.diff(t))
         return _relative(t, np.where(seen[:, None], a, np.nan), i, j)
 
+    def optical(tau: np.ndarray) -> np.ndarray:
+        # NaN next to the unmeasured intervals too: both systems low-passed by the same runs
+        b = resample_quat(t_opt, q_opt, tau)
+        b[bad] = np.nan
+        return b
+
     span, tc = (t[j] - t[i])[:, None], t[i] - t[i].mean()
     m, bias, keep = np.eye(3), np.zeros(3), np.ones(len(i), bool)
     for it in range(CLOCK_ITERATIONS if refine_clock else 1):
         tau = offset_s + (1.0 + drift) * t
-        b = resample_quat(t_opt, q_opt, tau)
+        b = optical(tau)
         seen = np.isfinite(b).all(axis=1)
         db = _relative(t, b, i, j)
         da = imu_relative(bias, seen)
@@ -166,8 +193,8 @@ def register_sensor(
             ok &= keep
         if not refine_clock:
             break
-        ahead = _relative(t, resample_quat(t_opt, q_opt, tau + _STEP_S), i, j)
-        behind = _relative(t, resample_quat(t_opt, q_opt, tau - _STEP_S), i, j)
+        ahead = _relative(t, optical(tau + _STEP_S), i, j)
+        behind = _relative(t, optical(tau - _STEP_S), i, j)
         ddb = (ahead - behind) @ m / (2.0 * _STEP_S)
         okd = ok & np.isfinite(ddb).all(axis=1)
         jac = np.column_stack([ddb[okd].ravel(), (ddb[okd] * tc[okd, None]).ravel()])
@@ -333,7 +360,9 @@ def session_references(
                 [(s.time, s.gyr)], [(track.time, track.quat)], seed=seed, **SYNC_WINDOWS
             )
             offset, drift = clock.model.offset_s, clock.model.drift
-        reg = register_sensor(s.time, s.gyr, track.time, track.quat, offset, drift, sync)
+        reg = register_sensor(
+            s.time, s.gyr, track.time, track.quat, offset, drift, sync, filled_spans(s)
+        )
         sigma_m = marker_noise(track.residual, track.n_visible)
         pairs, cluster_dirs, lab_dirs, sigma = pair_vectors(track.shape, points, sigma_m)
         tau = reg.to_reference(s.time)

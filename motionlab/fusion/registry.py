@@ -322,8 +322,8 @@ def estimate(
         the estimator runs on a grid with the gaps filled and the result is taken back to these
         times, with the filled spans in ``extra["resampled"]`` (:mod:`motionlab.fusion.timegrid`).
         Without ``time`` every interval is taken as ``1/rate``. An estimator that takes
-        ``gaps`` (the default smoother) also gets how uncertain each gap's bridge is
-        (:func:`~motionlab.fusion.timegrid.gap_noise`).
+        ``gaps`` (the default smoother; ``liu_gn``, whose marker steps use it) also gets how
+        uncertain each gap's bridge is (:func:`~motionlab.fusion.timegrid.gap_noise`).
     filled_spans
         Optional ``[start_s, end_s]`` pairs of gaps already filled (linearly) in ``time``, as
         ingest lists them in ``SensorStream.qc["filled_spans_s"]``: treated as gaps too.

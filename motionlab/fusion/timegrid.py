@@ -40,15 +40,16 @@ What the bridge misses is not known, and a filter that takes the bridged rate as
 carries the missed rotation on as an inclination error that its weak accelerometer correction
 removes only over tens of seconds: a 0.14 s gap in a simulated shank's swing put it 21° off and
 raised its inclination error over the walk from 0.9° (no packets lost) to 3.0° (RMS). An estimator
-that takes ``gaps`` (the default smoother) is therefore told, per gap, how uncertain its bridge
-is (:func:`gap_noise`): the rotation the same bridge misses on gaps of the same length cut, as
-a test, out of the recorded samples within ``NOISE_WINDOW_S`` either side (leave-out
-cross-validation of the bridge on the movement around the gap; per axis, the RMS over those
-test gaps), added to the attitude covariance at the first recorded sample after the gap. A gap
-at rest or in a smooth swing gets almost nothing (the bridge is good there), a gap across a heel
-strike's ringing gets degrees, and there the accelerometer on either side decides. Gaps that
-ingest already filled (``--gap-max``, linearly; ``filled`` spans, as ``SensorStream.qc`` lists
-them in ``filled_spans_s``) are judged the same way with the linear bridge. On that walk: 3.03°
+that takes ``gaps`` (the default smoother; ``liu_gn`` for its marker steps) is therefore told,
+per gap, how uncertain its bridge is (:func:`gap_noise`): the rotation the same bridge misses on
+gaps of the same length cut, as a test, out of the recorded samples within ``NOISE_WINDOW_S``
+either side (leave-out cross-validation of the bridge on the movement around the gap; per axis,
+the RMS over those test gaps), added to the attitude covariance at the first recorded sample
+after the gap. A gap at rest or in a smooth swing gets almost nothing (the bridge is good
+there), a gap across a heel strike's ringing gets degrees, and there the accelerometer on either
+side decides. Gaps that ingest already filled (``--gap-max``, linearly; ``filled`` spans, as
+``SensorStream.qc`` lists them in ``filled_spans_s``) are judged the same way with the linear
+bridge. On that walk: 3.03°
 → 1.44° for the shank, 1.57° → 0.99° for the thigh, sensors with only small gaps unchanged.
 The test gaps judge the bridge by the movement around the gap: a transient that falls inside
 the gap alone (a knock that starts and ends in it) is not seen, and its bridge noise is that of
@@ -241,6 +242,16 @@ class GapNoise:
     after: np.ndarray
     sigma: np.ndarray
     linear: np.ndarray
+
+
+def gap_variance(gaps: GapNoise | None, n: int) -> np.ndarray:
+    """Per sample of ``n`` (rad², per axis): each gap's bridge variance ``sigma²`` at its
+    first recorded sample after (``after``), zero elsewhere and without ``gaps``."""
+    out = np.zeros(n)
+    if gaps is not None:
+        inside = (gaps.after > 0) & (gaps.after < n)
+        out[gaps.after[inside].astype(int)] = gaps.sigma[inside] ** 2
+    return out
 
 
 def _bridge(w: np.ndarray, t: np.ndarray, a: np.ndarray, b: np.ndarray, inner: np.ndarray,
