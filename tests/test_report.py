@@ -59,8 +59,8 @@ def _view(right: tuple, left: tuple) -> SessionView:
             "gait": {
                 "knee_r": StanceMetrics(
                     strides=12,
-                    varus_thrust_deg=np.full(12, 6.0),
-                    varus_thrust_mean_deg=6.0,
+                    varus_thrust_deg=np.full(12, 8.0),
+                    varus_thrust_mean_deg=8.0,
                     varus_thrust_sd_deg=0.5,
                     varus_thrust_above_pct=100.0,
                     threshold_deg=3.0,
@@ -122,7 +122,7 @@ def test_findings_put_abnormal_first_and_name_side_joint_task():
     )
     assert any("differs between sides: right 40°, left 64°" in i for i in items)
     assert any(
-        i.startswith("Right knee varus thrust 6.") and "in stance during gait (above" in i
+        i.startswith("Right knee varus thrust 8.") and "in stance during gait (above" in i
         for i in items
     )
     assert any(
@@ -446,7 +446,7 @@ def test_a_number_not_determined_is_not_exported_as_one():
     assert np.isnan(oop.loc["stance_rotation_range", "value_deg"])
     assert np.isnan(oop.loc["stance_rotation_range", "sd_deg"])
     assert oop.loc["stance_rotation_range", "count_n"] == 12  # a count, not a measured angle
-    assert oop.loc["varus_thrust", "value_deg"] == 6.0  # weak: kept
+    assert oop.loc["varus_thrust", "value_deg"] == 8.0  # weak: kept
     assert oop.loc["varus_thrust", "threshold_deg"] == 3.0
 
 
@@ -541,7 +541,7 @@ def test_graded_pages_keep_a_clean_layout():
     assert "What the recording determined" in text
     assert "Internal-external rotation (transverse) · not determined" in text  # greyed curves
     assert "gait, rotation (n = 10), not determined" in text
-    assert "6.0 ± 0.5 (weak)" in text  # varus thrust
+    assert "8.0 ± 0.5 (weak)" in text  # varus thrust
 
 
 def test_write_report_pauses_the_cycle_collector_and_frees_its_pages(tmp_path):
