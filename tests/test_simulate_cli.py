@@ -135,6 +135,9 @@ def test_help_has_an_example():
         ["--exists"],
         ["--duration", "5"],
         ["--height", "7"],
+        ["--stride-cv", "-0.01"],
+        ["--stride-cv", "0.5"],
+        ["--gait", "fast"],
     ],
 )
 def test_bad_arguments_exit_2_with_one_line(tmp_path, protocol, args):
@@ -151,3 +154,28 @@ def test_bad_arguments_exit_2_with_one_line(tmp_path, protocol, args):
     assert len(lines) == 1 and lines[0].startswith("error:"), res.output
     if out.exists():
         assert out.read_bytes() == b"keep me"
+
+
+def test_stride_cv_sets_how_much_the_strides_vary(tmp_path, protocol):
+    """--stride-cv: the walking task's stride times vary by that fraction (the feet's true
+    initial contacts in the truth), 0 gives the metronome; with --gait it keeps the variant's
+    timing (the asymmetric walk's right step, 47 % of the stride)."""
+
+    def stride_cv(*args):
+        out, truth = tmp_path / "s.h5", tmp_path / "t.h5"
+        res = run("simulate", "--protocol", protocol, "--duration", 60, "-o", out, "--truth",
+                  truth, "--force", *args)  # fmt: skip
+        assert res.exit_code == 0, res.output
+        gait = load_truth(truth).gait
+        ic = np.asarray(gait["ic_r"], float)[np.asarray(gait["ic_r_steady"], bool)]
+        t = np.diff(ic)
+        return float(np.std(t) / np.mean(t)), ic, gait
+
+    metronome, _, _ = stride_cv("--stride-cv", 0)
+    varied, _, _ = stride_cv("--stride-cv", 0.06)
+    assert metronome < 0.002 and 0.035 < varied < 0.09
+    _, ic_r, gait = stride_cv("--stride-cv", 0.03, "--gait", "asymmetric")
+    ic_l = np.asarray(gait["ic_l"], float)
+    step = [(ic_l[ic_l > a][0] - a) / (b - a) for a, b in zip(ic_r[:-1], ic_r[1:], strict=True)
+            if (ic_l > a).any() and ic_l[ic_l > a][0] < b]  # fmt: skip
+    assert abs(np.median(step) - 0.47) < 0.01
