@@ -614,3 +614,33 @@ def test_a_joint_with_no_sensor_is_said_not_measured_on_the_summary(walk):
     )
     assert ("Left knee: not measured (no sensor on the left thigh and left shank) — strap one on "
             "each to measure it.") in lines  # fmt: skip
+
+
+def test_clocks_the_sync_could_not_check_are_said_among_the_findings(walk):
+    """The real 16-IMU walk (one radio clock, which its files do not show): every joint-centre
+    and heel-strike fit was refused, each sensor kept its recorded clock and the knees were
+    graded as if the clocks were known to agree; nothing on the summary said the angles assume
+    it. A sensor the sync could not check is named in one quality note; an applied fit, a
+    vendor's clock kept, a part on its own clock (said by the withheld numbers across the legs)
+    or no sync at all (--no-clock-sync) add none."""
+    from motionlab.clocksync.stage import VENDOR_KEPT
+    from motionlab.report.sentences import quality_notes
+    from motionlab.results import NOT_LINKED, ClockFit, ClockSync
+
+    def with_fits(*statuses):
+        ses = copy.deepcopy(walk)
+        sensors = ("thigh_r", "thigh_l", "shank_r")[: len(statuses)]
+        fits = {s: ClockFit("pelvis", s, 0.0, 0.0, 20.0, 1e-3, 1e-6, np.nan, 0.0, status, "network")
+                for s, status in zip(sensors, statuses, strict=True)}  # fmt: skip
+        ses.results.clock_sync = ClockSync(fits)
+        return [n for n in quality_notes(load_view(ses)) if "not checked" in n]
+
+    refused = "not reliable: the shared joint centre fits poorly (residual 0.76 m/s²)"
+    assert with_fits(refused, "applied", "not enough shared movement") == [
+        "Clocks of thigh_r, shank_r not checked (no reliable timing): taken as one clock; sensors "
+        "not synchronised may be off by degrees in fast movement (at 300°/s, 3° per 10 ms)."
+    ]
+    assert with_fits("applied", "consistent with one clock") == []
+    assert with_fits(f"{VENDOR_KEPT} (one time column); the data's fit said: {refused}") == []
+    assert with_fits(f"{NOT_LINKED}: no sensor joins it to pelvis") == []
+    assert with_fits() == []  # nothing synced

@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from motionlab.clocksync.stage import VENDOR_KEPT
 from motionlab.kinematics.joint_types import JOINT_TYPES
 from motionlab.report.model import (
     NOT_DETERMINED,
@@ -48,6 +49,7 @@ from motionlab.report.model import (
     walking_spans,
     worst_grade,
 )
+from motionlab.results import NOT_LINKED
 
 #: what each out-of-plane metric means, in one sentence
 MEANING = {
@@ -483,9 +485,9 @@ def weak_lines(view: SessionView, joint: str) -> list[str]:
 
 
 def quality_notes(view: SessionView) -> list[str]:
-    """Sentences on data and calibration problems, most important first (calibration, a sensor
-    the map names that the recording lacks, saturation, magnetic disturbance, then gaps, the
-    longest loss first); empty when all is well."""
+    """Sentences on data and calibration problems, most important first (calibration, clocks
+    the sync could not check, a sensor the map names that the recording lacks, saturation,
+    magnetic disturbance, then gaps, the longest loss first); empty when all is well."""
     notes: list[str] = []
     gaps: list[tuple[float, str]] = []
     bad = sorted({r.segment for r in calibration_rows(view) if not r.segment_ok})
@@ -493,6 +495,13 @@ def quality_notes(view: SessionView) -> list[str]:
         notes.append(
             f"Calibration of {', '.join(bad)} needs attention (see the calibration page); "
             "angles involving it are less certain."
+        )
+    unchecked = unchecked_clocks(view)
+    if unchecked:
+        notes.append(
+            f"Clock{'s' if len(unchecked) > 1 else ''} of {', '.join(unchecked)} not checked "
+            "(no reliable timing): taken as one clock; sensors not synchronised may be off by "
+            "degrees in fast movement (at 300°/s, 3° per 10 ms)."
         )
     notes += list(beyond_anatomy(view).values())
     for entry in view.session.metadata.get("map_unmatched", []):
@@ -521,6 +530,20 @@ def quality_notes(view: SessionView) -> list[str]:
     # the longest loss first: the findings keep two notes (a thigh's 360 s went unsaid
     # behind a pelvis's 0.6 s, listed first as its sensor came first)
     return notes + [text for _, text in sorted(gaps, key=lambda g: -g[0])]
+
+
+def unchecked_clocks(view: SessionView) -> list[str]:
+    """The sensors whose clock the sync could check against no other (their fit ``not
+    reliable``, or too little shared movement: kept as recorded, following their reference's),
+    in the sync's order; none when the session was not synchronised (``--no-clock-sync``: the
+    user takes the clocks as one) or the vendor's synchronisation was kept. A part of the body
+    on a clock of its own (``not linked``, the legs without a pelvis sensor) is said where it
+    matters, by the numbers across the legs withheld."""
+    sync = view.session.results.clock_sync
+    fits = sync.fits.values() if sync is not None else []
+    checked = ("applied", "consistent with one clock")
+    return [f.sensor for f in fits if f.status not in checked
+            and not f.status.startswith((NOT_LINKED, VENDOR_KEPT))]  # fmt: skip
 
 
 #: how far (deg) an angle may pass the joint's anatomical range before it is called beyond it:
