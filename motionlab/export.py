@@ -33,11 +33,12 @@ import numpy as np
 from motionlab import __version__
 from motionlab import rotations as rot
 from motionlab.atomic import atomic_path
+from motionlab.binding import unsensed_joints
 from motionlab.errors import InputError
 from motionlab.io.c3d import MODEL_KINDS, unique_labels
 from motionlab.io.opensim import write_mot, write_sto
 from motionlab.kinematics.joint_types import angle_columns, opensim_coordinates
-from motionlab.kinematics.metrics import metrics_table
+from motionlab.kinematics.metrics import metrics_table, not_measured_note
 from motionlab.kinematics.segment_types import opensim_imu_name
 from motionlab.plain import plain
 from motionlab.protocol import load_protocol
@@ -159,6 +160,22 @@ def joint_columns(session: Session) -> dict[str, list[str]]:
         joint = next((j for j in joints if col.startswith(f"{j}_")), col.rsplit("_", 2)[0])
         out.setdefault(joint, []).append(col)
     return out
+
+
+def not_measured(session: Session) -> dict[str, dict[str, Any]]:
+    """``{joint: {"segments": [...], "reason": "not measured: no pelvis sensor"}}`` of the
+    joints of the protocol the session was calibrated with that have no sensor on a segment
+    (:func:`motionlab.binding.unsensed_joints`: the walk's hips without a pelvis sensor); empty
+    when every joint was measured or the protocol cannot be found."""
+    cal = session.results.calibration
+    if cal is None:
+        return {}
+    try:
+        proto = load_protocol(cal.protocol_source)
+    except (InputError, OSError, TypeError, KeyError):
+        return {}
+    return {joint: {"segments": segs, "reason": not_measured_note(segs)}
+            for joint, segs in unsensed_joints(proto, session).items()}  # fmt: skip
 
 
 # ------------------------------------------------------------------------------ writers
@@ -288,7 +305,9 @@ def results_json(session: Session) -> dict[str, Any]:
     ``angles`` (``time_s`` to 1e-6 s and per joint its ``columns`` (name → values, deg, to
     1e-4 deg as in the CSVs) and ``grades``
     and ``reasons`` when the calibration graded them), ``metrics`` (rows ``block, joint, angle,
-    column, metric, percent, value, unit, grade``), ``calibration`` (ok, warnings),
+    column, metric, percent, value, unit, grade``), ``not_measured`` (the protocol's joints
+    with no sensor on a segment, :func:`not_measured`; absent when none), ``calibration`` (ok,
+    warnings),
     ``validation`` (its scalars), ``fusion`` (estimator per sensor). Standard JSON: NaN is
     ``null``, and so is a measured value of an angle ``not determined`` (its column's series
     and its metric rows' values; the grade and reason say why; the session file keeps what was
@@ -338,6 +357,9 @@ def results_json(session: Session) -> dict[str, Any]:
         table = metrics_table(res.metrics, joint_columns(session))
         table = graded_table(table, graded, trunk_grade(res.calibration))
         out["metrics"] = table.astype(object).where(table.notna(), None).to_dict("records")
+    missing = not_measured(session)
+    if missing:
+        out["not_measured"] = missing
     if res.calibration is not None:
         cal = res.calibration
         out["calibration"] = {"ok": cal.ok, "protocol": cal.protocol, "warnings": cal.warnings}

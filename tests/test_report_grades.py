@@ -644,3 +644,17 @@ def test_clocks_the_sync_could_not_check_are_said_among_the_findings(walk):
     assert with_fits(f"{VENDOR_KEPT} (one time column); the data's fit said: {refused}") == []
     assert with_fits(f"{NOT_LINKED}: no sensor joins it to pelvis") == []
     assert with_fits() == []  # nothing synced
+
+
+def test_results_json_names_the_joints_not_measured(walk):
+    """results.json (programs) said nothing of a joint with no sensor, where the report, the
+    CSV tables and the study table now do."""
+    from motionlab.export import results_json
+
+    assert "not_measured" not in results_json(walk)
+    ses = copy.deepcopy(walk)
+    del ses.sensors["pelvis"]
+    assert results_json(ses)["not_measured"] == {
+        "hip_r": {"segments": ["pelvis"], "reason": "not measured: no pelvis sensor"},
+        "hip_l": {"segments": ["pelvis"], "reason": "not measured: no pelvis sensor"},
+    }
