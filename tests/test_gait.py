@@ -177,6 +177,16 @@ def test_a_gap_over_a_heel_strike_places_no_event_from_it(shanks, how):
     assert both.loc[lost & (both["side"] == "r"), "double_support_pct"].isna().all()
     assert both.loc[lost & (both["side"] == "r"), "double_support_pct_0"].notna().all()
 
+    # a number withheld for too few strides says how many a gap took
+    def near(t):
+        return t[(t["side"] == "r") | ((t["start_s"] > x - 2.5) & (t["start_s"] < x + 0.5))]
+
+    why = sp.summary(near(table)).withheld["cadence_steps_per_min"]
+    assert why.startswith("not enough steady strides") and why.endswith(
+        "on one side; 1 stride lost to data gaps"
+    ), why
+    assert "data gaps" not in " ".join(sp.summary(near(table0)).withheld.values())
+
 
 def test_a_gap_the_detector_bridges(shanks):
     """A gap of 0.06 s over a heel strike (filled linearly, as ingest fills it) is bridged: the

@@ -64,7 +64,7 @@ import numpy as np
 import pandas as pd
 
 from motionlab import rotations as rot
-from motionlab.kinematics.gait_events import SideEvents, Strides
+from motionlab.kinematics.gait_events import GAP_REASON, SideEvents, Strides
 from motionlab.results import GaitEvents, GaitSummary, StrideStats
 
 #: step length = ankle-to-ankle distance × this (module docstring; Vicon walking2, n = 4 steps)
@@ -383,6 +383,10 @@ def summary(table: pd.DataFrame, not_linked: str = "") -> GaitSummary:
     if not_linked and len(measured) == 2:
         withheld |= {c: not_linked for c in (*BOTH_LEGS, "step_time_asymmetry_pct")}
     rejected = table[~table["kept"]]["reason"].value_counts()
+    lost = int(rejected.get(GAP_REASON, 0))
+    if lost:  # say what the strides missing from a "not enough" were lost to
+        gaps = f"; {lost} stride{'s' if lost > 1 else ''} lost to data gaps"
+        withheld = {k: v + gaps if v.startswith("not enough") else v for k, v in withheld.items()}
     return GaitSummary(
         sides=sides,
         min_strides=MIN_STRIDES,
