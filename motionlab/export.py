@@ -41,7 +41,7 @@ from motionlab.kinematics.joint_types import angle_columns, opensim_coordinates
 from motionlab.kinematics.metrics import metrics_table, not_measured_note
 from motionlab.kinematics.segment_types import opensim_imu_name
 from motionlab.plain import plain
-from motionlab.protocol import load_protocol
+from motionlab.protocol import Protocol, load_protocol
 from motionlab.results import OpticalSync, SegmentCalibration
 from motionlab.segments.grades import (
     NOT_DETERMINED,
@@ -147,13 +147,11 @@ def joint_columns(session: Session) -> dict[str, list[str]]:
     was calibrated with), else the columns grouped by the joint names of the grades."""
     _, columns = angle_table(session)
     cal = session.results.calibration or SegmentCalibration("")
-    try:
-        proto = load_protocol(cal.protocol_source)
+    proto = _calibrated_protocol(session)
+    if proto is not None:
         out = {name: [c for _, c in angle_columns(j)] for name, j in proto.joints.items()}
         if all(c in columns for cols in out.values() for c in cols):
             return out
-    except (InputError, OSError, TypeError, KeyError):
-        pass
     joints = sorted(cal.grades, key=len, reverse=True)
     out: dict[str, list[str]] = {}
     for col in columns:
@@ -167,15 +165,23 @@ def not_measured(session: Session) -> dict[str, dict[str, Any]]:
     joints of the protocol the session was calibrated with that have no sensor on a segment
     (:func:`motionlab.binding.unsensed_joints`: the walk's hips without a pelvis sensor); empty
     when every joint was measured or the protocol cannot be found."""
-    cal = session.results.calibration
-    if cal is None:
-        return {}
-    try:
-        proto = load_protocol(cal.protocol_source)
-    except (InputError, OSError, TypeError, KeyError):
+    proto = _calibrated_protocol(session)
+    if proto is None:
         return {}
     return {joint: {"segments": segs, "reason": not_measured_note(segs)}
             for joint, segs in unsensed_joints(proto, session).items()}  # fmt: skip
+
+
+def _calibrated_protocol(session: Session) -> Protocol | None:
+    """The protocol the session was calibrated with, or ``None`` (not calibrated, or its file
+    is gone)."""
+    cal = session.results.calibration
+    if cal is None:
+        return None
+    try:
+        return load_protocol(cal.protocol_source)
+    except (InputError, OSError, TypeError, KeyError):
+        return None
 
 
 # ------------------------------------------------------------------------------ writers

@@ -431,8 +431,12 @@ def _spine(a: str, b: str) -> bool:
     return len(kinds) == 2 and kinds <= {"pelvis", "lumbar", "thorax"}
 
 
+#: the statuses of a fit that timed its pair (applied, or found the two on one clock already)
+RELIABLE = ("applied", "consistent with one clock")
+
+
 def _reliable(fit: ClockFit) -> bool:
-    return fit.status in ("applied", "consistent with one clock")
+    return fit.status in RELIABLE
 
 
 def choose(

@@ -72,7 +72,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from motionlab.dsp import butter, find_peaks, sosfiltfilt
-from motionlab.timebase import runs
+from motionlab.fusion.timegrid import gap_grid
+from motionlab.timebase import find_gaps, nominal_interval, runs
 
 LOWPASS_HZ = 6.0
 FC_REFINE_HZ = 15.0
@@ -144,8 +145,7 @@ def data_gaps(
     t = np.asarray(time, dtype=float)
     if len(t) < 2:
         return np.zeros((0, 2))
-    d = np.diff(t)
-    jump = np.flatnonzero(d > 1.5 * float(np.median(d)))
+    jump = find_gaps(t)
     spans = [np.column_stack((t[jump], t[jump + 1]))]
     bad = runs(~np.isfinite(np.asarray(omega_z, dtype=float)))
     spans.append(np.column_stack((t[np.maximum(bad[:, 0] - 1, 0)],
@@ -163,20 +163,14 @@ def data_gaps(
 
 
 def _regular(time: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """``time`` with the instants missing inside each jump beyond 1.5 sampling intervals
-    added (evenly spaced), ``x`` NaN there; unchanged without such a jump."""
-    d = np.diff(time)
-    dt = float(np.median(d))
-    add = np.where(d > 1.5 * dt, np.round(d / dt).astype(int) - 1, 0)
-    if not add.any():
+    """``time`` with the instants missing inside each jump added
+    (:func:`motionlab.fusion.timegrid.gap_grid`), ``x`` NaN there; unchanged without a jump."""
+    grid = gap_grid(time, 1.0 / nominal_interval(time))
+    if grid is None:
         return time, x
-    ts, xs, start = [], [], 0
-    for i in np.flatnonzero(add):
-        n = int(add[i])
-        ts += [time[start : i + 1], time[i] + d[i] * np.arange(1, n + 1) / (n + 1)]
-        xs += [x[start : i + 1], np.full(n, np.nan)]
-        start = i + 1
-    return np.concatenate([*ts, time[start:]]), np.concatenate([*xs, x[start:]])
+    out = np.full(len(grid.time), np.nan)
+    out[grid.index] = x
+    return grid.time, out
 
 
 def _clear(a: float, b: float, gaps: np.ndarray) -> bool:

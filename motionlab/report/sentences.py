@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from motionlab.clocksync.stage import VENDOR_KEPT
+from motionlab.clocksync.stage import RELIABLE, VENDOR_KEPT
 from motionlab.kinematics.joint_types import JOINT_TYPES
 from motionlab.report.model import (
     NOT_DETERMINED,
@@ -541,8 +541,7 @@ def unchecked_clocks(view: SessionView) -> list[str]:
     matters, by the numbers across the legs withheld."""
     sync = view.session.results.clock_sync
     fits = sync.fits.values() if sync is not None else []
-    checked = ("applied", "consistent with one clock")
-    return [f.sensor for f in fits if f.status not in checked
+    return [f.sensor for f in fits if f.status not in RELIABLE
             and not f.status.startswith((NOT_LINKED, VENDOR_KEPT))]  # fmt: skip
 
 
