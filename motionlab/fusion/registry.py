@@ -24,7 +24,13 @@ from typing import Any
 import numpy as np
 
 from motionlab.errors import InputError
-from motionlab.fusion.timegrid import CUBIC_MAX_S, checked_time, gap_grid, gap_noise
+from motionlab.fusion.timegrid import (
+    CUBIC_MAX_S,
+    checked_time,
+    gap_grid,
+    gap_noise,
+    with_patterns,
+)
 
 DEFAULT_ESTIMATOR = "smoother"
 
@@ -360,6 +366,7 @@ def estimate(
             kwargs["gaps"] = noise
     if grid is not None:
         gyr, acc, mag = (grid.vectors(x, noise.linear) for x in (gyr, acc, mag))
+    gyr, acc, mag = (with_patterns(x, noise) for x in (gyr, acc, mag))
     if references is not None:
         takes = [k for k in available() if takes_references(k)]
         if est.name not in takes:

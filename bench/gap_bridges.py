@@ -1,0 +1,116 @@
+"""Packet-loss gaps cut into the real 16-IMU walk: the rotation each bridge misses.
+
+The walk of ``../shared/datasets/human/qmt_full_body`` (five lower-body Xsens sensors, 100 Hz,
+no packet lost) has test gaps of 3, 7 and 14 samples cut at seeded random places of its walking
+(55-100 s: straight walking, a 180° turn, the start of another); the cut samples are the truth.
+Per sensor and gap length, the rotation (deg, the norm of the missed rate summed over the gap)
+that each bridge of :mod:`motionlab.fusion.timegrid` misses, median / 90th percentile / RMS:
+
+- ``line`` and ``cubic``: the straight line and the cubic Hermite through the samples either side;
+- ``pattern``: the recorded stretch within ``PATTERN_SEARCH_S`` whose surroundings
+  (``PATTERN_CONTEXT_S`` either side) match the gap's best, shifted to meet the gap's ends;
+- ``chosen``: what the fusion does (:func:`~motionlab.fusion.timegrid.gap_noise` with
+  ``choose``: whichever of the three its own test gaps around the gap say misses least), and
+  how often it took the pattern.
+
+Usage::
+
+    python bench/gap_bridges.py [--data ../shared] [--tests 200]
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from real_people import qmt_session  # noqa: E402
+
+from motionlab.fusion.timegrid import (  # noqa: E402
+    _bridge,
+    _pattern,
+    _pattern_sources,
+    gap_noise,
+    with_patterns,
+)
+
+LENGTHS = (3, 7, 14)  # samples cut
+WALK_S = (55.0, 100.0)  # the real recording's walking (s from its start)
+
+
+def missed(gyr: np.ndarray, rate: float, a: int, m: int) -> dict[str, float]:
+    """Rotation (deg) each bridge misses on the gap of ``m`` samples after sample ``a``."""
+    n = len(gyr)
+    t = np.arange(n) / rate
+    inner = (a + 1 + np.arange(m))[None, :]
+    true = gyr[inner[0]].sum(0) / rate
+    out = {}
+    for name, cubic in (("line", False), ("cubic", True)):
+        bridge = _bridge(gyr, t, np.array([a]), np.array([a + m + 1]), inner, cubic)[0]
+        out[name] = np.linalg.norm(true - bridge.sum(0) / rate)
+    recorded = np.ones(n, bool)
+    recorded[a + 1 : a + m + 1] = False
+    csum = np.r_[0, np.cumsum(recorded)]
+    source = _pattern_sources(gyr, np.array([a]), m, csum, rate, (a + 1, a + m))[0]
+    out["pattern"] = (
+        np.linalg.norm(true - _pattern(gyr, a, m, source).sum(0) / rate) if source >= 0 else np.nan
+    )
+    cut = gyr.copy()
+    cut[a + 1 : a + m + 1] = (
+        gyr[a] + (gyr[a + m + 1] - gyr[a]) * (np.arange(1, m + 1) / (m + 1))[:, None]
+    )
+    noise = gap_noise(t, cut, recorded, rate, choose=True)
+    bridged = cut.copy()
+    if not noise.linear[a + 1]:
+        bridged[a + 1 : a + m + 1] = _bridge(gyr, t, np.array([a]), np.array([a + m + 1]), inner,
+                                             True)[0]  # fmt: skip
+    bridged = with_patterns(bridged, noise)
+    out["chosen"] = np.linalg.norm(true - bridged[a + 1 : a + m + 1].sum(0) / rate)
+    out["took pattern"] = float(len(noise.patterns) > 0)
+    return {k: float(np.degrees(v)) if k != "took pattern" else v for k, v in out.items()}
+
+
+def table(streams: dict[str, tuple[np.ndarray, float, tuple[float, float]]], tests: int) -> None:
+    """Print one row per sensor and gap length."""
+    print("| sensor | gap | line | cubic | pattern | chosen | pattern taken |")
+    print("|---|---:|---|---|---|---|---:|")
+    rng = np.random.default_rng(0)
+    for label, (gyr, rate, (lo_s, hi_s)) in streams.items():
+        for m in LENGTHS:
+            starts = rng.integers(int(lo_s * rate), int(hi_s * rate) - m - 2, tests)
+            rows = [missed(gyr, rate, int(a), m) for a in starts]
+            cells = []
+            for key in ("line", "cubic", "pattern", "chosen"):
+                v = np.array([r[key] for r in rows])
+                v = v[np.isfinite(v)]
+                rms = np.sqrt(np.mean(v**2))
+                cells.append(f"{np.median(v):.1f} / {np.percentile(v, 90):.1f} / {rms:.1f}")
+            took = np.mean([r["took pattern"] for r in rows])
+            print(f"| {label} | {m} ({m / rate * 1000:.0f} ms) | " + " | ".join(cells)
+                  + f" | {took:.0%} |")  # fmt: skip
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--data", type=Path, default=Path("../shared"))
+    ap.add_argument("--tests", type=int, default=200)
+    args = ap.parse_args()
+    print("Rotation (deg) missed per test gap, median / 90th percentile / RMS\n")
+    folder = args.data / "datasets" / "human" / "qmt_full_body"
+    if not folder.exists():
+        sys.exit(f"{folder}: not found; give --data, the folder holding datasets/human")
+    session, _ = qmt_session(folder, "walk")
+    streams = {}
+    for label, s in session.sensors.items():
+        rate = 1.0 / float(np.median(np.diff(s.time)))
+        streams[label] = (np.asarray(s.gyr, float), rate, WALK_S)
+    print("Real 16-IMU walk (five lower-body sensors, 100 Hz, 55-100 s)\n")
+    table(streams, args.tests)
+
+
+if __name__ == "__main__":
+    main()
