@@ -693,14 +693,18 @@ class JointGrades(_Record):
 
 @dataclass(frozen=True)
 class GapTurn(_Record):
-    """The largest turn a packet-loss gap may have hidden in a joint tied only at poses (one
-    value of :attr:`SegmentCalibration.gap_turns`; :func:`motionlab.segments.gap_headings`):
-    ``turn_deg`` (the gap's bridge's possible miss, total over the axes), the ``sensor`` and the
-    first recorded instant after the gap, ``time_s``."""
+    """The turn packet-loss gaps may have hidden in a joint tied only at poses (one value of
+    :attr:`SegmentCalibration.gap_turns`; :func:`motionlab.segments.gap_headings`):
+    ``turn_deg`` (their bridges' possible misses, each total over the axes, combined as
+    independent errors: the root of the sum of squares), the ``sensor`` of the largest and the
+    first recorded instant after it, ``time_s``; ``gaps`` how many were combined (``None``,
+    not stored: one, as a calibration stored before 30 Nov 2026 always took the largest
+    alone)."""
 
     turn_deg: float
     sensor: str
     time_s: float
+    gaps: int | None = None
     more: dict[str, Any] = field(default_factory=dict)
 
 
@@ -776,7 +780,7 @@ class SegmentCalibration(_Record):
     them to those orientations (:func:`motionlab.segments.segment_orientations`) and find them
     anew for others, or for a calibration stored without them (``None``; an empty stored
     group reads as ``None`` too). ``gap_turns`` ``{joint: GapTurn}``: for the joints tied only
-    at poses, the largest turn a packet-loss gap after the first pose may have hidden
+    at poses, the turn the packet-loss gaps after the first pose may together have hidden
     (:class:`GapTurn`; the grades read it).
     """
 

@@ -95,15 +95,19 @@ def test_a_gap_that_may_hide_a_turn_grades_the_hip_not_the_knee(walk):
         walked = gap_headings(s, proto, by_walk).get("hip_l")
         assert walked is None or walked.time_s != 18.151  # tied again within a second
         found = gap_headings(s, proto, cal.headings)
-        assert found["hip_l"] == GapTurn(turn, "thigh_l", 18.151)
+        # the walk's other gaps (a simulated thigh swings smoothly: their bridges miss under a
+        # degree) add to it as independent errors
+        assert found["hip_l"].turn_deg == pytest.approx(turn, abs=0.01)
+        assert (found["hip_l"].sensor, found["hip_l"].time_s) == ("thigh_l", 18.151)
         graded = grades.gap_graded(cal.grades, found)
         assert set(graded["hip_l"].grades) == {expected}
-        assert all("a packet-loss gap in thigh_l at 18.2 s may have hidden a turn of" in r
-                   for r in graded["hip_l"].reasons)  # fmt: skip
+        said = f"{found['hip_l'].gaps} packet-loss gaps (the largest in thigh_l at 18.2 s) may"
+        assert all(f"{said} together have hidden a turn of" in r for r in graded["hip_l"].reasons)
         for joint in ("knee_r", "knee_l", "hip_r"):
             assert graded[joint].grades == cal.grades[joint].grades
         if expected == "not determined":  # the gap decides: its reason first, for the summary
-            assert all(r.startswith("a packet-loss gap") for r in graded["hip_l"].reasons)
+            assert all(r.startswith(f"{found['hip_l'].gaps} packet-loss gaps")
+                       for r in graded["hip_l"].reasons)  # fmt: skip
             view = SessionView(Session(), proto, None, {}, None)
             cause, remedy = cause_and_remedy(view, "hip_l", graded["hip_l"].reasons[0])
             assert cause == "lost packets may have turned a sensor's heading"
@@ -135,7 +139,7 @@ def test_a_long_gap_between_walk_anchors_is_taken_out_by_them(walk):
     walked = tied(np.r_[np.arange(5.0, 10.0), np.arange(19.0, 28.0)]).get("hip_l")
     assert walked is None or walked.time_s != 18.151
     far = tied(np.r_[np.arange(2.0, 4.0), np.arange(19.0, 28.0)])  # none in the 5 s before it
-    assert far["hip_l"].turn_deg == 400.0
+    assert far["hip_l"].turn_deg == pytest.approx(400.0, abs=0.01)
     graded = grades.gap_graded(cal.grades, {"hip_l": GapTurn(400.0, "thigh_l", 18.151)})
     assert "a turn of any size (over 180°)" in graded["hip_l"].reasons[0]
 
@@ -144,8 +148,9 @@ def test_a_long_gap_between_walk_anchors_is_taken_out_by_them(walk):
 @pytest.mark.skipif(not QMT.is_file(), reason="the qmt full-body recording is not in ../shared")
 def test_a_real_walk_with_lost_packets_does_not_call_its_hips_determined():
     """The real 16-IMU walk with 15 bursts of 2-14 lost packets per sensor: its thighs' gaps may
-    have hidden 27-35° turns (the hips then 2.5-22° off the unbroken recording's); the hips are
-    not determined and the knees still are."""
+    together have hidden turns of 22° and 32° (the hips then 2.6-35° RMS off the unbroken
+    recording's; the largest gap alone, 11° on the right, had left the right hip weak with its
+    rotation 35° off); the hips are not determined and the knees still are."""
     import scipy.io as sio
 
     m = sio.loadmat(QMT, squeeze_me=True, struct_as_record=False)
@@ -177,9 +182,10 @@ TRUNK = SHARED / "datasets" / "trunk" / "Danique" / "pivot_hs" / "imu"
 @pytest.mark.skipif(not TRUNK.is_dir(), reason="the trunk data set is not in ../shared")
 def test_a_seated_trunk_with_lost_packets_is_graded_by_them():
     """A real seated trial (x-IMU3, 50 Hz; the wheelchair pivots) with 8 bursts of 2-9 lost
-    packets per sensor: the lumbar heading is tied at the trunk's rest, and a gap in the Back
-    sensor during a pivot may have hidden a 19° turn (axial rotation 4.8° off the unbroken
-    trial's on average): the lumbar angles are weak, not determined as before, and say why."""
+    packets per sensor: the lumbar heading is tied at the trunk's rest, and the gaps after it
+    (33, the largest in the Back sensor during a pivot) may together have hidden a 16° turn
+    (axial rotation 4.3° off the unbroken trial's on average, 5.7° RMS): the lumbar angles are
+    weak, not determined as before, and say why."""
     from motionlab.ingest import ingest
     from motionlab.timebase import take
 
@@ -195,7 +201,9 @@ def test_a_seated_trunk_with_lost_packets_is_graded_by_them():
     cal = session.results.calibration
     assert cal.gap_turns["lumbar"].sensor == "Back" and cal.gap_turns["lumbar"].turn_deg > 10
     assert cal.grades["lumbar"].grades == ["weak"] * 3
-    assert all("a packet-loss gap in Back at" in r for r in cal.grades["lumbar"].reasons)
+    assert all(
+        "packet-loss gaps (the largest in Back at" in r for r in cal.grades["lumbar"].reasons
+    )
 
 
 @pytest.mark.parametrize("stored", ["[[1.0, 2.0, 3.0]]", "[[18.0, NaN]]", '"hello"'])

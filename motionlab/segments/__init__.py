@@ -168,15 +168,20 @@ def gap_headings(
 ) -> dict[str, GapTurn]:
     """``{joint: GapTurn}``: for each joint whose heading is tied only at poses or straight
     walking (:data:`HELD_TIES` in ``ties``, or a trunk's rest in ``centres``: method ``trunk
-    rest``), the largest turn a packet-loss gap of either sensor may have hidden after the
-    first anchor (the fusion's ``gaps_missed_deg``: what the gap's bridge misses on test gaps
-    around it, :func:`motionlab.fusion.timegrid.gap_noise`), unless a walk's anchors lie within
-    ``GAP_BRACKET_S`` before the gap's first lost sample and after its last; joints with none
-    are left out. In 6-D nothing measures that turn about the vertical where it happens: the
-    hinge ties of a knee, and a walk's ties around the gap, take it out within seconds; a
-    pose's hold it from the gap on, and a later pose's only spread it over the time between
-    the two (the track is linear between anchors). A stored list that is not finite
-    ``[s, deg]`` pairs is an :class:`InputError` naming it."""
+    rest``), the turn the packet-loss gaps of either sensor after the first anchor may together
+    have hidden (each gap's from the fusion's ``gaps_missed_deg``: what its bridge misses on test
+    gaps around it, :func:`motionlab.fusion.timegrid.gap_noise`; combined as independent errors,
+    the root of the sum of squares), leaving out a gap whose walk's anchors lie within
+    ``GAP_BRACKET_S`` before its first lost sample and after its last; joints with none are left
+    out. In 6-D nothing measures such a turn about the vertical where it happens: the hinge ties
+    of a knee, and a walk's ties around the gap, take it out within seconds; a pose's hold it
+    from the gap on, and a later pose's only spread it over the time between the two (the track
+    is linear between anchors), so the turns of several gaps add up. Each gap's figure is the
+    root mean square of its test gaps' misses, and one gap in ten misses 1.7 times that or more
+    (the real 16-IMU walk with 15 bursts of lost packets per sensor, 10 draws: 660 gaps): the
+    largest gap alone had graded a hip `weak` whose rotation then read 35° RMS off the unbroken
+    recording's. A stored list that is not finite ``[s, deg]`` pairs is an :class:`InputError`
+    naming it."""
     anchored = {name: (tie.times, tie.source) for name, tie in ties.joints.items()
                 if tie.source in HELD_TIES}  # fmt: skip
     anchored |= {name: (c.heading_times, "trunk rest") for name, c in (centres or {}).items()
@@ -189,7 +194,7 @@ def gap_headings(
         first = float(np.min(times))
         walking = times if source == "walk" else np.empty(0)
         joint = protocol.joints[name]
-        worst = None
+        hidden = []  # (deg, sensor, first instant after the gap)
         for seg in (joint.proximal, joint.distal):
             label = sensor_for_segment(session, seg)
             entry = session.results.fusion.get(label) if label is not None else None
@@ -198,10 +203,12 @@ def gap_headings(
                 begins = stamps[max(int(np.searchsorted(stamps, t)) - 1, 0)] if len(stamps) else t
                 before = np.any((walking < begins) & (walking >= begins - GAP_BRACKET_S))
                 after = np.any((walking > t) & (walking <= t + GAP_BRACKET_S))
-                if t > first and not (before and after) and (worst is None or deg > worst.turn_deg):
-                    worst = GapTurn(float(deg), label, float(t))
-        if worst is not None:
-            out[name] = worst
+                if t > first and not (before and after) and deg > 0:
+                    hidden.append((float(deg), label, float(t)))
+        if hidden:
+            deg, label, t = max(hidden)
+            total = float(np.sqrt(sum(d**2 for d, _, _ in hidden)))
+            out[name] = GapTurn(total, label, t, gaps=len(hidden))
     return out
 
 

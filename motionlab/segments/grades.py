@@ -41,8 +41,9 @@ long axis has its carrying angle and pronation ``weak``: the rotation the skin m
 them to first order, and into flexion only through the carrying angle (:func:`_lag_grade`).
 
 A joint whose heading is tied only where a pose was held (a hip; a seated trunk at its rest) is
-graded by the largest turn a packet-loss gap after the first pose may have hidden
-(``calibration.gap_turns``, :func:`motionlab.segments.gap_headings`, :func:`gap_graded`):
+graded by the turn the packet-loss gaps after the first pose may together have hidden (each
+gap's possible miss, combined as independent errors; ``calibration.gap_turns``,
+:func:`motionlab.segments.gap_headings`, :func:`gap_graded`):
 ``weak`` over ``GAP_TURN_DEG``, ``not determined`` over twice it; in 6-D that turn stays in the
 heading, while a knee's hinge ties take it out within seconds.
 
@@ -83,8 +84,8 @@ HEADING_BOUND_DEG = {"turns": 20.0, "walk start": 10.0}
 #: axis than this leaves the other two angles weak: the humerus' axial rotation in free arm
 #: movement spans 60-90° (docs/simulator.md), so 10 % missed is already 6-9° off them at times
 AXIAL_FOLLOW_DETERMINED = 0.9
-#: a packet-loss gap whose bridge may have missed a turn over this (deg, total) after the first
-#: pose that ties a joint's heading leaves its angles weak, over twice it not determined
+#: packet-loss gaps whose bridges may together have missed a turn over this (deg, total) after
+#: the first pose that ties a joint's heading leave its angles weak, over twice it not determined
 #: (:func:`motionlab.segments.gap_headings`)
 GAP_TURN_DEG = 10.0
 #: a joint tied only at poses holds its heading this long from the nearest pose (s); see
@@ -282,8 +283,8 @@ def grade_joints(protocol, calibration: SegmentCalibration) -> dict[str, JointGr
 
 def gap_graded(graded: dict[str, JointGrades], gap_turns: dict) -> dict[str, JointGrades]:
     """``graded`` with each joint of ``gap_turns`` (``{joint: GapTurn}``,
-    :func:`motionlab.segments.gap_headings`) graded by the turn a packet-loss gap may have
-    hidden: ``weak`` over ``GAP_TURN_DEG``, ``not determined`` over twice it, the gap's reason
+    :func:`motionlab.segments.gap_headings`) graded by the turn packet-loss gaps may together
+    have hidden: ``weak`` over ``GAP_TURN_DEG``, ``not determined`` over twice it, the gap's reason
     first where it decides the grade (the summary names the first clause as the cause)."""
     out = dict(graded)
     for name, gap in (gap_turns or {}).items():
@@ -291,9 +292,12 @@ def gap_graded(graded: dict[str, JointGrades], gap_turns: dict) -> dict[str, Joi
             continue
         g_gap = "weak" if gap.turn_deg <= 2 * GAP_TURN_DEG else "not determined"
         turn = f"{gap.turn_deg:.0f}°" if gap.turn_deg <= 180 else "any size (over 180°)"
-        why = (f"a packet-loss gap in {gap.sensor} at {gap.time_s:.1f} s may have hidden a turn "
-               f"of {turn}, which the joint's heading, tied only where a pose was held or the "
-               "walk went straight, keeps until its next anchor")  # fmt: skip
+        which = f"a packet-loss gap in {gap.sensor} at {gap.time_s:.1f} s may have"
+        if (gap.gaps or 1) > 1:
+            which = (f"{gap.gaps} packet-loss gaps (the largest in {gap.sensor} at "
+                     f"{gap.time_s:.1f} s) may together have")  # fmt: skip
+        why = (f"{which} hidden a turn of {turn}, which the joint's heading, tied only where a "
+               "pose was held or the walk went straight, keeps until its next anchor")  # fmt: skip
         out[name] = _lowered(out[name], [g_gap] * len(out[name].grades), why)
     return out
 
