@@ -54,7 +54,11 @@ bursts, what the line and cubic missed had been the largest part of the knees' a
 flexion error: ``bench/real_world.py --protocols walk --seeds 0-9``, worst knee flexion
 1.93 / 2.84° → 1.58 / 1.93° (right / left), hips 1.82 / 2.36° → 1.49 / 1.63°; without any packet
 lost seed 9's left knee was 1.74°, with the losses bridged by line and cubic 2.84°, by the
-pattern 1.81°.
+pattern 1.81°. Where the simulated walk's markers are hidden (``bench/marker_fusion.py``, 15
+sensors, mean) the IMU-only orientations gained most: ekf 1.91 → 1.62°, ukf 1.61 → 1.32°,
+particle 1.62 → 1.44°, liu_gn 3.99 → 3.93°. On free arm movement and the real seated trunk
+trials, which do not repeat, the pattern is taken for few gaps or none (``bench/real_world.py``'s
+arm rows identical; ``bench/real_trunk.py`` medians within 0.1°).
 
 What the bridge misses is not known, and a filter that takes the bridged rate as measured
 carries the missed rotation on as an inclination error that its weak accelerometer correction
