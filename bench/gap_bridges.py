@@ -55,7 +55,7 @@ def missed(gyr: np.ndarray, rate: float, a: int, m: int) -> dict[str, float]:
     recorded = np.ones(n, bool)
     recorded[a + 1 : a + m + 1] = False
     csum = np.r_[0, np.cumsum(recorded)]
-    source = _pattern_sources(gyr, np.array([a]), m, csum, rate, (a + 1, a + m))[0]
+    source = _pattern_sources(gyr, np.array([a]), m, csum, rate)[0]
     out["pattern"] = (
         np.linalg.norm(true - _pattern(gyr, a, m, source).sum(0) / rate) if source >= 0 else np.nan
     )
