@@ -321,12 +321,14 @@ def test_bridged_flags_are_the_span_by_span_comparison():
     np.testing.assert_array_equal(_bridged(t, spans, None)[0], recorded)
 
 
-def stepping(seconds: float = 40.0, seed: int = 2) -> tuple[np.ndarray, np.ndarray]:
+def stepping(
+    seconds: float = 40.0, seed: int = 2, rate: float = RATE
+) -> tuple[np.ndarray, np.ndarray]:
     """A thigh-like rate (rad/s, (N, 3)) at RATE: strides of 1.1 s ± 3 % (seeded), each the
     same shape of three harmonics with a heel-strike transient, plus 15-Hz ringing after each
     strike and white noise: a repeating movement that no line or cubic follows through 0.1 s."""
     rng = np.random.default_rng(seed)
-    t = np.arange(int(seconds * RATE)) / RATE
+    t = np.arange(int(seconds * rate)) / rate
     periods = 1.1 * (1.0 + 0.03 * rng.standard_normal(int(seconds / 0.9)))
     starts = np.r_[0.0, np.cumsum(periods)]
     k = np.searchsorted(starts, t, side="right") - 1
@@ -342,19 +344,21 @@ def stepping(seconds: float = 40.0, seed: int = 2) -> tuple[np.ndarray, np.ndarr
     return t, gyr + 0.02 * rng.standard_normal(gyr.shape)
 
 
-def missed_deg(t: np.ndarray, gyr: np.ndarray, keep: np.ndarray, patterns: bool) -> float:
+def missed_deg(
+    t: np.ndarray, gyr: np.ndarray, keep: np.ndarray, patterns: bool, rate: float = RATE
+) -> float:
     """The rotation (deg) the bridge of the single gap ``~keep`` misses, with or without the
     pattern bridge (the line or cubic its test gaps choose otherwise)."""
     from motionlab.fusion.timegrid import with_patterns
 
-    grid = gap_grid(t[keep], RATE)
+    grid = gap_grid(t[keep], rate)
     recorded = np.zeros(len(grid.time), bool)
     recorded[grid.index] = True
-    noise = gap_noise(grid.time, grid.vectors(gyr[keep]), recorded, RATE, choose=True)
+    noise = gap_noise(grid.time, grid.vectors(gyr[keep]), recorded, rate, choose=True)
     bridged = grid.vectors(gyr[keep], noise.linear)
     if patterns:
         bridged = with_patterns(bridged, noise)
-    return float(np.degrees(np.linalg.norm((bridged[~recorded] - gyr[~keep]).sum(0) / RATE)))
+    return float(np.degrees(np.linalg.norm((bridged[~recorded] - gyr[~keep]).sum(0) / rate)))
 
 
 @pytest.mark.parametrize("length", [0.05, 0.09, 0.14])
@@ -420,3 +424,18 @@ def test_a_movement_that_does_not_repeat_keeps_the_line_or_cubic():
     assert len(noise.after) == 5 and not len(noise.patterns)
     plain = gap_noise(grid.time, on_grid, recorded, RATE, linear=noise.linear)
     np.testing.assert_array_equal(noise.sigma, plain.sigma)
+
+
+def test_at_a_high_rate_the_pattern_matches_every_kth_sample():
+    """At 1000 Hz the 0.2 s either side of a gap are 200 samples; every 10th is matched
+    (PATTERN_CONTEXT_SAMPLES), and the pattern still misses under a third of the line's or
+    cubic's rotation over four 0.1-s gaps in the repeating rate."""
+    rate = 1000.0
+    t, gyr = stepping(seconds=20.0, rate=rate)
+    plain, chosen = [], []
+    for start in (6.03, 9.41, 12.77, 15.2):
+        keep = ~((t > start) & (t < start + 0.1))
+        plain.append(missed_deg(t, gyr, keep, False, rate))
+        chosen.append(missed_deg(t, gyr, keep, True, rate))
+    assert np.sqrt(np.mean(np.square(chosen))) < np.sqrt(np.mean(np.square(plain))) / 3, (
+        plain, chosen)  # fmt: skip

@@ -58,9 +58,11 @@ pattern 1.81°. Where the simulated walk's markers are hidden (``bench/marker_fu
 sensors, mean) the IMU-only orientations gained most: ekf 1.91 → 1.62°, ukf 1.61 → 1.32°,
 particle 1.62 → 1.44°, liu_gn 3.99 → 3.93°. On free arm movement and the real seated trunk
 trials, which do not repeat, the pattern is taken for few gaps or none (``bench/real_world.py``'s
-arm rows identical; ``bench/real_trunk.py`` medians within 0.1°). Cost: about 1 ms per gap (the test
-gaps' searches and the gap's own share one matrix product per side; a 10-min simulated walk's
-thigh with 100 gaps fuses in 0.15 s against 0.045 s without the pattern).
+arm rows identical; ``bench/real_trunk.py`` medians within 0.1°). Cost: about 1-2 ms per
+gap (the test gaps' searches and the gap's own share one matrix product; a 10-min simulated
+walk's thigh with 100 gaps fuses in 0.19 s against 0.044 s without the pattern). Above 100 Hz
+every k-th sample of the surroundings is matched (at most ``PATTERN_CONTEXT_SAMPLES`` per side),
+so that a 2-kHz recording searches no more numbers per candidate than a 100-Hz one.
 
 What the bridge misses is not known, and a filter that takes the bridged rate as measured
 carries the missed rotation on as an inclination error that its weak accelerometer correction
@@ -104,6 +106,7 @@ NOISE_WINDOW_S = 0.5  # test gaps for a gap's bridge noise start within this of 
 PATTERN_CONTEXT_S = 0.2  # the recorded rate matched on either side of a gap (s)
 PATTERN_SEARCH_S = 10.0  # a gap's pattern is sought within this of it (s)
 PATTERN_TESTS = 12  # test gaps (at most) that judge a gap's pattern bridge
+PATTERN_CONTEXT_SAMPLES = 20  # samples matched at most per side (every k-th at high rates)
 
 if TYPE_CHECKING:
     from motionlab.fusion.markers import MarkerReferences
@@ -308,12 +311,14 @@ def _pattern_sources(
     squared difference over :data:`PATTERN_CONTEXT_S` of rate either side, among the stretches
     within :data:`PATTERN_SEARCH_S` of the gaps that are recorded with their surroundings
     (``recorded_csum``: the cumulative count of recorded samples, with a leading 0) and do not
-    touch the gap's own. All gaps share one search (one matrix product per side: the squared
-    difference is the stretches' energy less twice their correlation with the surroundings,
-    plus the surroundings' own energy)."""
+    touch the gap's own; above ``PATTERN_CONTEXT_SAMPLES`` samples per side, every k-th sample
+    counted from the gap is matched (the memory of the search stays that of 100 Hz). All gaps
+    share one search (one matrix product: the squared difference is the stretches' energy less
+    twice their correlation with the surroundings, plus the surroundings' own energy)."""
     n, d = w.shape
     a = np.asarray(a, np.int64)
     k = max(2, int(round(PATTERN_CONTEXT_S * rate)))
+    step = max(1, k // PATTERN_CONTEXT_SAMPLES)  # at high rates every step-th sample is matched
     reach = int(round(PATTERN_SEARCH_S * rate))
     out = np.full(len(a), -1, np.int64)
     ok = (a - k + 1 >= 0) & (a + m + k < n)
@@ -322,17 +327,18 @@ def _pattern_sources(
         return out
     c = np.arange(lo, hi + 1)
     whole = recorded_csum[c + m + k + 1] - recorded_csum[c - k + 1] == m + 2 * k
-    base = lo - k + 1  # the energy from here on, the stretches' sums as differences
-    energy = np.r_[0.0, np.cumsum(np.sum(w[base : hi + m + k + 1] ** 2, axis=1))]
-    ssd = (energy[c + 1 - base] - energy[c - k + 1 - base]
-           + energy[c + m + k + 1 - base] - energy[c + m + 1 - base])  # fmt: skip
-    windows = np.lib.stride_tricks.sliding_window_view
-    before = windows(w[lo - k + 1 : hi + 1], k, axis=0).reshape(len(c), d * k)
-    after = windows(w[lo + m + 1 : hi + m + k + 1], k, axis=0).reshape(len(c), d * k)
+
+    def sides(ends: np.ndarray, starts: np.ndarray) -> np.ndarray:
+        """The matched samples: the k before ``ends`` (inclusive) and the k from ``starts``,
+        every step-th counted from the gap, as one row per stretch."""
+        view = np.lib.stride_tricks.sliding_window_view(w, k, axis=0)  # (n-k+1, d, k), no copy
+        before = view[:, :, k - 1 :: -step][ends - k + 1]  # copies the matched samples only
+        after = view[:, :, ::step][starts]
+        return np.concatenate([before.reshape(len(ends), -1), after.reshape(len(ends), -1)], 1)
+
     rows = a[ok]
-    ctx_before = windows(w, k, axis=0)[rows - k + 1].reshape(len(rows), d * k)
-    ctx_after = windows(w, k, axis=0)[rows + m + 1].reshape(len(rows), d * k)
-    cost = ssd[:, None] - 2.0 * (before @ ctx_before.T + after @ ctx_after.T)
+    stretches, context = sides(c, c + m + 1), sides(rows, rows + m + 1)
+    cost = np.sum(stretches**2, axis=1)[:, None] - 2.0 * (stretches @ context.T)
     first, last = rows - k + 1, rows + m + k  # each gap's own stretch with its surroundings
     own = (c[:, None] + m + k >= first) & (c[:, None] - k + 1 <= last)
     cost[~whole[:, None] | own] = np.inf
