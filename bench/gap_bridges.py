@@ -13,9 +13,13 @@ that each bridge of :mod:`motionlab.fusion.timegrid` misses, median / 90th perce
   ``choose``: whichever of the three its own test gaps around the gap say misses least), and
   how often it took the pattern.
 
+``--trunk``: the same on three real seated trunk trials of ``../shared/datasets/trunk`` (x-IMU3
+``Back`` and ``Chest``, 50 Hz, each sensor's longest stretch without a lost packet): movement
+that does not repeat, where the pattern should be taken seldom and cost nothing.
+
 Usage::
 
-    python bench/gap_bridges.py [--data ../shared] [--tests 200]
+    python bench/gap_bridges.py [--data ../shared] [--tests 200] [--trunk]
 """
 
 from __future__ import annotations
@@ -40,6 +44,7 @@ from motionlab.fusion.timegrid import (  # noqa: E402
 
 LENGTHS = (3, 7, 14)  # samples cut
 WALK_S = (55.0, 100.0)  # the real recording's walking (s from its start)
+TRUNK_TRIALS = ("Aag/pivot_hs", "Aag/trunkmovement_ls", "Danique/trunkmovement_hs")
 
 
 def missed(gyr: np.ndarray, rate: float, a: int, m: int) -> dict[str, float]:
@@ -94,12 +99,39 @@ def table(streams: dict[str, tuple[np.ndarray, float, tuple[float, float]]], tes
                   + f" | {took:.0%} |")  # fmt: skip
 
 
+def trunk_streams(folder: Path) -> dict[str, tuple[np.ndarray, float, tuple[float, float]]]:
+    """``Back`` and ``Chest`` of :data:`TRUNK_TRIALS`, each its longest stretch without a gap
+    (from 1 s in to 1 s before its end), as :func:`table` takes them."""
+    from motionlab.ingest import ingest
+
+    if not folder.exists():
+        sys.exit(f"{folder}: not found; give --data, the folder holding datasets/trunk")
+    sensor_map = Path(__file__).resolve().parents[1] / "protocols/examples/trunk_map.yaml"
+    print("Real seated trunk trials (x-IMU3 Back and Chest, 50 Hz)\n")
+    streams = {}
+    for trial in TRUNK_TRIALS:
+        session = ingest([folder / trial / "imu"], sensor_map)
+        for label in ("Back", "Chest"):
+            t = np.asarray(session.sensors[label].time)
+            rate = 1.0 / float(np.median(np.diff(t)))
+            edges = np.r_[0, np.flatnonzero(np.diff(t) > 1.5 / rate) + 1, len(t)]
+            i = int(np.argmax(np.diff(edges)))
+            lo, hi = int(edges[i]), int(edges[i + 1])
+            gyr = np.asarray(session.sensors[label].gyr, float)[lo:hi]
+            streams[f"{trial} {label}"] = (gyr, rate, (1.0, (hi - lo) / rate - 1.0))
+    return streams
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--data", type=Path, default=Path("../shared"))
     ap.add_argument("--tests", type=int, default=200)
+    ap.add_argument("--trunk", action="store_true", help="the seated trunk trials instead")
     args = ap.parse_args()
     print("Rotation (deg) missed per test gap, median / 90th percentile / RMS\n")
+    if args.trunk:
+        table(trunk_streams(args.data / "datasets" / "trunk"), args.tests // 2)
+        return
     folder = args.data / "datasets" / "human" / "qmt_full_body"
     if not folder.exists():
         sys.exit(f"{folder}: not found; give --data, the folder holding datasets/human")

@@ -57,11 +57,16 @@ lost seed 9's left knee was 1.74°, with the losses bridged by line and cubic 2.
 pattern 1.81°. Where the simulated walk's markers are hidden (``bench/marker_fusion.py``, 15
 sensors, mean) the IMU-only orientations gained most: ekf 1.91 → 1.62°, ukf 1.61 → 1.32°,
 particle 1.62 → 1.44°, liu_gn 3.99 → 3.93°. On free arm movement and the real seated trunk
-trials, which do not repeat, the pattern is taken for few gaps or none (``bench/real_world.py``'s
-arm rows identical; ``bench/real_trunk.py`` medians within 0.1°). Cost: about 1 ms per gap
-(the test gaps' searches and the gap's own share one matrix product; a 10-min simulated walk's
-thigh with 100 gaps fuses in 0.13 s against 0.043 s without the pattern, a 1-h recording at
-100 Hz with 587 gaps in 0.96 s against 0.35 s). Above 100 Hz
+trials, which do not repeat, the pattern is taken far less often (``bench/real_world.py``'s
+arm rows identical; ``bench/real_trunk.py`` medians within 0.1°): on test gaps cut into three
+trunk trials' ``Back`` and ``Chest`` (``bench/gap_bridges.py --trunk``, 50 Hz) it was taken for
+0-43 % of them, and the chosen bridge missed within 0.3° RMS of the better of line and cubic
+but for two sensors' 14-sample gaps (5.2° against the cubic's 4.6°, 7.2° against the line's
+5.8°; the pattern taken for 9 % and 4 % of them: the test gaps' choice is noisy there).
+
+Cost: about 1 ms per gap (the test gaps' searches and the gap's own share one matrix product; a
+10-min simulated walk's thigh with 100 gaps fuses in 0.13 s against 0.043 s without the
+pattern, a 1-h recording at 100 Hz with 587 gaps in 0.96 s against 0.35 s). Above 100 Hz
 every k-th sample of the surroundings is matched (at most ``PATTERN_CONTEXT_SAMPLES`` per side),
 so that a 2-kHz recording searches no more numbers per candidate than a 100-Hz one.
 
