@@ -48,6 +48,18 @@ def runs(mask: np.ndarray) -> np.ndarray:
     return np.column_stack((np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)))
 
 
+def joined_spans(spans: np.ndarray) -> np.ndarray:
+    """``(K, 2)`` ``[start, end]`` spans (any order, any unit) with those that overlap or touch
+    joined into one, sorted by start."""
+    out: list[list[float]] = []
+    for a, b in sorted(map(tuple, np.asarray(spans, dtype=float).reshape(-1, 2))):
+        if out and a <= out[-1][1]:
+            out[-1][1] = max(out[-1][1], b)
+        else:
+            out.append([a, b])
+    return np.array(out, dtype=float).reshape(-1, 2)
+
+
 def per_sample_arrays(stream: SensorStream) -> dict[str, np.ndarray]:
     """Every per-sample array of a stream: channels by name, extras as ``extra/<name>``."""
     out = {ch: getattr(stream, ch) for ch in SENSOR_CHANNELS if getattr(stream, ch) is not None}

@@ -41,7 +41,7 @@ from motionlab.fusion.detect import rest_mask
 from motionlab.results import ClockFit, FusionEntry
 from motionlab.rotations import rotate
 from motionlab.session import Session
-from motionlab.timebase import NAN_BRIDGE_MAX_S, long_nan_runs, runs
+from motionlab.timebase import NAN_BRIDGE_MAX_S, joined_spans, long_nan_runs, runs
 
 Progress = Callable[[list[str], str], Iterable[str]]
 
@@ -341,14 +341,8 @@ def _joined_bias(ends: list[tuple[float, np.ndarray, np.ndarray]], rw: float) ->
 def _merged_windows(rests: np.ndarray, pad: int, n: int) -> list[tuple[int, int]]:
     """``[lo, hi)`` sample spans: each ``[start, stop)`` of ``rests`` widened by ``pad`` on
     both sides (within ``0 … n``), overlapping or touching spans joined."""
-    out: list[tuple[int, int]] = []
-    for a, b in rests:
-        lo, hi = max(0, int(a) - pad), min(n, int(b) + pad)
-        if out and lo <= out[-1][1]:
-            out[-1] = (out[-1][0], max(out[-1][1], hi))
-        else:
-            out.append((lo, hi))
-    return out
+    widened = np.clip(np.asarray(rests, dtype=np.int64).reshape(-1, 2) + [-pad, pad], 0, n)
+    return [(int(lo), int(hi)) for lo, hi in joined_spans(widened)]
 
 
 def filled_spans(stream: Any, path: str | Path | None = None) -> np.ndarray | None:

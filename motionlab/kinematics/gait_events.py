@@ -73,7 +73,7 @@ import numpy as np
 
 from motionlab.dsp import butter, find_peaks, sosfiltfilt
 from motionlab.fusion.timegrid import gap_grid
-from motionlab.timebase import find_gaps, nominal_interval, runs
+from motionlab.timebase import find_gaps, joined_spans, nominal_interval, runs
 
 LOWPASS_HZ = 6.0
 FC_REFINE_HZ = 15.0
@@ -152,14 +152,8 @@ def data_gaps(
                                   t[np.minimum(bad[:, 1], len(t) - 1)])))  # fmt: skip
     if filled is not None:
         spans.append(np.asarray(filled, dtype=float).reshape(-1, 2))
-    merged: list[list[float]] = []
-    for a, b in sorted(map(tuple, np.vstack(spans))):
-        if merged and a <= merged[-1][1]:
-            merged[-1][1] = max(merged[-1][1], b)
-        else:
-            merged.append([a, b])
-    out = np.array([m for m in merged if m[1] - m[0] > BRIDGE_S * (1 + 1e-9)], dtype=float)
-    return out.reshape(-1, 2)
+    joined = joined_spans(np.vstack(spans))
+    return joined[joined[:, 1] - joined[:, 0] > BRIDGE_S * (1 + 1e-9)]
 
 
 def _regular(time: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
