@@ -133,20 +133,10 @@ def metrics_frame(view: SessionView) -> pd.DataFrame:
         for joint, _, angle, column in _unmeasured_angles(view):
             lo, hi = normal_range(view.protocol, task, column) or (np.nan, np.nan)
             rows.append(
-                {"task": task, "joint": joint.name, "angle": angle, "plane": plane(joint, angle)}
-                | dict.fromkeys(
-                    (
-                        "rom_deg",
-                        "min_deg",
-                        "max_deg",
-                        "typical_min_deg",
-                        "typical_max_deg",
-                        "cycles_n",
-                    ),
-                    np.nan,
-                )  # fmt: skip
+                dict.fromkeys(METRICS_COLUMNS, np.nan)  # nothing measured: every number empty
+                | {"task": task, "joint": joint.name, "angle": angle, "plane": plane(joint, angle)}
                 | {"normal_min_deg": lo, "normal_max_deg": hi, "vs_normal": "not compared"}
-                | {"symmetry_index_pct": np.nan, "grade": NOT_MEASURED}
+                | {"grade": NOT_MEASURED}
             )
     return pd.DataFrame(rows, columns=list(METRICS_COLUMNS))
 
