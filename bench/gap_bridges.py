@@ -35,9 +35,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from real_people import qmt_session  # noqa: E402
 
 from motionlab.fusion.timegrid import (  # noqa: E402
-    _bridge,
     _pattern,
     _pattern_sources,
+    gap_grid,
     gap_noise,
     with_patterns,
 )
@@ -48,35 +48,29 @@ TRUNK_TRIALS = ("Aag/pivot_hs", "Aag/trunkmovement_ls", "Danique/trunkmovement_h
 
 
 def missed(gyr: np.ndarray, rate: float, a: int, m: int) -> dict[str, float]:
-    """Rotation (deg) each bridge misses on the gap of ``m`` samples after sample ``a``."""
-    n = len(gyr)
-    t = np.arange(n) / rate
-    inner = (a + 1 + np.arange(m))[None, :]
-    true = gyr[inner[0]].sum(0) / rate
-    out = {}
-    for name, cubic in (("line", False), ("cubic", True)):
-        bridge = _bridge(gyr, t, np.array([a]), np.array([a + m + 1]), inner, cubic)[0]
-        out[name] = np.linalg.norm(true - bridge.sum(0) / rate)
-    recorded = np.ones(n, bool)
-    recorded[a + 1 : a + m + 1] = False
+    """Rotation (deg) each bridge misses on the gap of ``m`` samples after sample ``a``: the
+    recording with those samples dropped, put on its grid and bridged as the fusion does
+    (:class:`~motionlab.fusion.timegrid.GapGrid`, :func:`gap_noise`, :func:`with_patterns`)."""
+    t = np.arange(len(gyr)) / rate
+    keep = np.ones(len(gyr), bool)
+    keep[a + 1 : a + m + 1] = False
+    grid = gap_grid(t[keep], rate)
+    recorded = np.zeros(len(grid.time), bool)
+    recorded[grid.index] = True
+    noise = gap_noise(grid.time, grid.vectors(gyr[keep]), recorded, rate, choose=True)
     csum = np.r_[0, np.cumsum(recorded)]
     source = _pattern_sources(gyr, np.array([a]), m, csum, rate)[0]
-    out["pattern"] = (
-        np.linalg.norm(true - _pattern(gyr, a, m, source).sum(0) / rate) if source >= 0 else np.nan
-    )
-    cut = gyr.copy()
-    cut[a + 1 : a + m + 1] = (
-        gyr[a] + (gyr[a + m + 1] - gyr[a]) * (np.arange(1, m + 1) / (m + 1))[:, None]
-    )
-    noise = gap_noise(t, cut, recorded, rate, choose=True)
-    bridged = cut.copy()
-    if not noise.linear[a + 1]:
-        bridged[a + 1 : a + m + 1] = _bridge(gyr, t, np.array([a]), np.array([a + m + 1]), inner,
-                                             True)[0]  # fmt: skip
-    bridged = with_patterns(bridged, noise)
-    out["chosen"] = np.linalg.norm(true - bridged[a + 1 : a + m + 1].sum(0) / rate)
-    out["took pattern"] = float(len(noise.patterns) > 0)
-    return {k: float(np.degrees(v)) if k != "took pattern" else v for k, v in out.items()}
+    bridges = {
+        "line": grid.vectors(gyr[keep], np.ones(len(grid.time), bool)),
+        "cubic": grid.vectors(gyr[keep], np.zeros(len(grid.time), bool)),
+        "chosen": with_patterns(grid.vectors(gyr[keep], noise.linear), noise),
+    }
+    true = gyr[~keep].sum(0) / rate
+    out = {k: np.linalg.norm(true - b[~recorded].sum(0) / rate) for k, b in bridges.items()}
+    out["pattern"] = np.linalg.norm(true - _pattern(gyr, a, m, source).sum(0) / rate) if (
+        source >= 0) else np.nan  # fmt: skip
+    out = {k: float(np.degrees(v)) for k, v in out.items()}
+    return out | {"took pattern": float(len(noise.patterns) > 0)}
 
 
 def table(streams: dict[str, tuple[np.ndarray, float, tuple[float, float]]], tests: int) -> None:

@@ -40,29 +40,38 @@ A repeating movement offers a third bridge, the **pattern** (:func:`with_pattern
 recorded stretch within ``PATTERN_SEARCH_S`` (10 s) whose surroundings (``PATTERN_CONTEXT_S``,
 0.2 s of rate either side, least squared difference) match the gap's best is copied into the
 gap and shifted by a line to meet the samples either side, the idea of waveform-similarity
-packet-loss concealment in speech coding. A walk's strides repeat more closely than any line
-through one of them: over 200 test gaps of 3, 7 and 14 samples cut into the walking of the
-real 16-IMU recording (``bench/gap_bridges.py``, five lower-body sensors) the pattern missed a
-median 1.3-1.6° / 4.3-4.6° / 9.0-9.1° of rotation on the thighs where the line missed
-3.2 / 10.4-12.7 / 21.1-21.3° (RMS 4.0-4.1 / 8.9-9.0 / 14.2-15.7° against 7.6-7.7 / 19.0-20.8 /
-30.1-31.6°). It is chosen as the others are, by the gap's own test gaps (at most
-``PATTERN_TESTS`` of them, each matched away from itself and from the gap): on that walk for
-88-98 % of the leg sensors' gaps, on a rate that does not repeat never
-(``tests/test_fusion_timegrid.py``). The copied stretch must be recorded with its surroundings
-and lie clear of the gap's. On the simulated walks, whose sensors lose 0.5 % of their packets in
-bursts, what the line and cubic missed had been the largest part of the knees' and hips'
-flexion error: ``bench/real_world.py --protocols walk --seeds 0-9``, worst knee flexion
-1.93 / 2.84° → 1.57 / 1.94° (right / left), hips 1.82 / 2.36° → 1.49 / 1.63°; without any packet
-lost seed 9's left knee was 1.74°, with the losses bridged by line and cubic 2.84°, by the
-pattern 1.81°. Where the simulated walk's markers are hidden (``bench/marker_fusion.py``, 15
-sensors, mean) the IMU-only orientations gained most: ekf 1.91 → 1.62°, ukf 1.61 → 1.32°,
-particle 1.62 → 1.44°, liu_gn 3.99 → 3.93°. On free arm movement and the real seated trunk
-trials, which do not repeat, the pattern is taken far less often (``bench/real_world.py``'s
-arm rows identical; ``bench/real_trunk.py`` medians within 0.1°): on test gaps cut into three
-trunk trials' ``Back`` and ``Chest`` (``bench/gap_bridges.py --trunk``, 50 Hz) it was taken for
-0-43 % of them, and the chosen bridge missed within 0.3° RMS of the better of line and cubic
-but for two sensors' 14-sample gaps (5.2° against the cubic's 4.6°, 7.2° against the line's
-5.8°; the pattern taken for 9 % and 4 % of them: the test gaps' choice is noisy there).
+packet-loss concealment in speech coding. The copied stretch must be recorded with its
+surroundings and lie clear of the gap's. It is chosen as the others are, by the gap's own test
+gaps (at most ``PATTERN_TESTS`` of them, those whose surroundings were recorded too, so that the
+filled samples, however bridged, take no part; each matched away from itself and from the gap).
+
+A walk's strides repeat more closely than any line through one of them: over 200 test gaps of
+3, 7 and 14 samples cut into the walking of the real 16-IMU recording (``bench/gap_bridges.py``,
+five lower-body sensors, 100 Hz) the bridge the fusion chooses missed a median 1.3-1.5° /
+4.2° / 9.1-9.3° of rotation on the thighs where the line missed 3.2 / 10.4-12.7 / 21.1-21.3°
+(RMS 3.8-4.1 / 9.0-9.3 / 14.5-15.7° against 7.6-7.7 / 19.0-20.8 / 30.1-31.6°), taking the
+pattern for 86-99 % of the leg sensors' gaps; on a rate that does not repeat it takes it never
+(``tests/test_fusion_timegrid.py``). Judged with test gaps whose surroundings held the gap's
+filled samples, the choice had missed more in the tails (left thigh, 14 samples: RMS 20.6°
+against the pattern's own 15.7°).
+
+On the simulated walks, whose sensors lose 0.5 % of their packets in bursts, what the line and
+cubic missed had been the largest part of the knees' and hips' flexion error
+(``bench/real_world.py --protocols walk --seeds 0-9``): worst knee flexion 1.93 / 2.84° →
+1.57 / 1.94° (right / left), hips 1.82 / 2.36° → 1.49 / 1.63°; without any packet lost seed 9's
+left knee was 1.74°, with the losses bridged by line and cubic 2.84°, by the pattern 1.81°.
+Where the simulated walk's markers are hidden (``bench/marker_fusion.py``, 15 sensors, mean)
+the IMU-only orientations gained most: ekf 1.91 → 1.61°, ukf 1.61 → 1.32°, particle 1.62 →
+1.47°, liu_gn 3.99 → 3.93°.
+
+Movement that does not repeat takes the pattern less often: ``bench/real_world.py``'s free arm
+movement is unchanged to 0.01°, and on test gaps cut into three real seated trunk trials'
+``Back`` and ``Chest`` (``bench/gap_bridges.py --trunk``, 50 Hz) it is taken for 0-50 % of them.
+There the chosen bridge misses within 0.3° RMS of the better of line and cubic for the 3- and
+7-sample gaps; for the 14-sample ones (0.28 s) up to 2° more (Aag/trunkmovement_ls ``Back``: 7.8°
+against the line's 5.8°, the pattern taken for 21 %); judged with test gaps nearer the gap (as
+the line and cubic are) five of those six had missed 0.1-0.8° less and one 0.7° more.
+``bench/real_trunk.py``'s medians stay within 0.1° (rotation from rest 1.63 → 1.62°).
 
 Cost: about 1 ms per gap (the test gaps' searches and the gap's own share one matrix product; a
 10-min simulated walk's thigh with 100 gaps fuses in 0.13 s against 0.043 s without the
@@ -309,6 +318,11 @@ def _bridge(w: np.ndarray, t: np.ndarray, a: np.ndarray, b: np.ndarray, inner: n
     return _hermite(s[..., None], h[..., None], wa, wb, left[:, None], right[:, None])
 
 
+def _context_samples(rate: float) -> int:
+    """Samples of :data:`PATTERN_CONTEXT_S` at ``rate`` (Hz), at least 2."""
+    return max(2, int(round(PATTERN_CONTEXT_S * rate)))
+
+
 def _pattern_sources(
     w: np.ndarray, a: np.ndarray, m: int, recorded_csum: np.ndarray, rate: float
 ) -> np.ndarray:
@@ -323,7 +337,7 @@ def _pattern_sources(
     twice their correlation with the surroundings, plus the surroundings' own energy)."""
     n, d = w.shape
     a = np.asarray(a, np.int64)
-    k = max(2, int(round(PATTERN_CONTEXT_S * rate)))
+    k = _context_samples(rate)
     step = max(1, k // PATTERN_CONTEXT_SAMPLES)  # at high rates every step-th sample is matched
     reach = int(round(PATTERN_SEARCH_S * rate))
     out = np.full(len(a), -1, np.int64)
@@ -375,17 +389,21 @@ def with_patterns(arr: np.ndarray | None, noise: GapNoise | None) -> np.ndarray 
     return out
 
 
-def _gap_tests(time: np.ndarray, gyr: np.ndarray, recorded: np.ndarray, rate: float):
+def _gap_tests(
+    time: np.ndarray, gyr: np.ndarray, recorded: np.ndarray, rate: float, patterns: bool
+):
     """Per gap of a filled grid (:func:`gap_noise`'s arguments): ``(first, last, span s,
     {bridge: σ² rad² per axis}, pattern source)`` with the test gaps' variance for each bridge
     that has test gaps (``False`` the line, ``True`` the cubic only up to ``CUBIC_MAX_S``,
-    ``"pattern"`` the pattern on up to :data:`PATTERN_TESTS` of them), else the fallback under
-    ``None``; the source of the gap's own pattern (−1: none)."""
+    ``"pattern"`` the pattern on up to :data:`PATTERN_TESTS` of those whose surroundings were
+    recorded as well, only with ``patterns``),
+    else the fallback under ``None``; the source of the gap's own pattern (−1: none)."""
     filled = ~np.asarray(recorded, bool)
     n = len(time)
     starts = np.flatnonzero(filled & ~np.r_[False, filled[:-1]])  # first filled of each gap
     ends = np.flatnonzero(filled & ~np.r_[filled[1:], False])  # last filled of each gap
     half = int(round(NOISE_WINDOW_S * rate))
+    k = _context_samples(rate)
     csum = np.r_[0, np.cumsum(recorded)]
     for first, last in zip(starts.tolist(), ends.tolist(), strict=True):
         m = last - first + 1
@@ -403,8 +421,13 @@ def _gap_tests(time: np.ndarray, gyr: np.ndarray, recorded: np.ndarray, rate: fl
                 bridge = _bridge(gyr, time, a, a + m + 1, inner, cubic)
                 missed = (gyr[inner] - bridge).sum(1) / rate
                 var[cubic] = float(np.mean(np.sum(missed**2, axis=1)) / 3.0)
-            if inside:  # the test gaps' patterns and the gap's own, in one search
-                tests = a[np.unique(np.linspace(0, len(a) - 1, PATTERN_TESTS).round().astype(int))]
+            # the pattern's test gaps: those whose surroundings were recorded too, so that the
+            # filled samples (however bridged) take no part in judging it
+            clear = a[(a - k + 1 >= 0) & (a + m + k + 1 <= n)]
+            clear = clear[csum[clear + m + k + 1] - csum[clear - k + 1] == m + 2 * k]
+            if patterns and inside and len(clear):  # their patterns and the gap's, one search
+                pick = np.linspace(0, len(clear) - 1, PATTERN_TESTS).round().astype(int)
+                tests = clear[np.unique(pick)]
                 src = _pattern_sources(gyr, np.r_[tests, first - 1], m, csum, rate)
                 if (src[:-1] >= 0).all():
                     missed = np.array([
@@ -445,21 +468,23 @@ def gap_noise(
     recorded samples, so ``gyr`` may be bridged either way). The cubic's slopes are one-sided
     differences, which on a real walk's gyroscope (tissue ringing, 300-800 °/s transients) are
     noise: on four 0.14-s gaps of the 16-IMU walk's thigh the cubic missed 12-85° of rotation
-    per axis, the line 4-30°; on a smooth swing the cubic wins (module notes).
+    per axis, the line 4-30°; on a smooth swing the cubic wins (module notes). With ``choose`` a
+    gap whose test gaps miss less with its pattern (:func:`with_patterns`) is listed in
+    ``GapNoise.patterns`` and its sigma is the pattern's.
     """
     if np.all(recorded):
         return None
     n = len(time)
     flat = np.zeros(n, bool) if linear is None else np.array(linear, bool)
     after, sigma, patterns = [], [], []
-    for first, last, span, var, source in _gap_tests(time, gyr, recorded, rate):
+    for first, last, span, var, source in _gap_tests(time, gyr, recorded, rate, choose):
         straight = span > CUBIC_MAX_S if linear is None else bool(linear[first])
         if choose and True in var and var[False] <= var[True]:
             straight = True
         flat[first : last + 1] = straight
         after.append(last + 1)
         chosen = var.get(not straight, var.get(False, var.get(None)))
-        if choose and source >= 0 and var["pattern"] < chosen:
+        if source >= 0 and var["pattern"] < chosen:
             patterns.append((first, last, source))
             chosen = var["pattern"]
         sigma.append(np.sqrt(chosen))
