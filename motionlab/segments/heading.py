@@ -330,6 +330,34 @@ def heading_track(times: np.ndarray, deltas: np.ndarray, t: np.ndarray) -> np.nd
     return np.interp(t, times, deltas)
 
 
+def smoothed_track(
+    times: np.ndarray, deltas: np.ndarray, variances: np.ndarray, drift: float
+) -> np.ndarray:
+    """Heading offsets (rad) at ``times`` (s) smoothed as a random walk: each measured ``δ_k``
+    (unwrapped) has variance ``variances[k]`` (rad²) and the true offset wanders by ``drift``
+    (rad/√s) between them (the relative heading drift of two 6-D estimates); a scalar
+    Rauch-Tung-Striebel smoother over the anchors (Rauch, Tung & Striebel, AIAA J 1965 3:1445).
+    """
+    times = np.asarray(times, float)
+    z = np.unwrap(np.asarray(deltas, float))
+    r = np.maximum(np.asarray(variances, float), 1e-12)
+    n = len(z)
+    if n < 2:
+        return z
+    x_f, p_f, p_p = np.empty(n), np.empty(n), np.empty(n)
+    x_f[0] = z[0]  # the first window alone: no prior
+    p_f[0] = p_p[0] = r[0]
+    for k in range(1, n):
+        p_p[k] = p_f[k - 1] + drift**2 * (times[k] - times[k - 1])
+        gain = p_p[k] / (p_p[k] + r[k])
+        x_f[k] = x_f[k - 1] + gain * (z[k] - x_f[k - 1])
+        p_f[k] = (1.0 - gain) * p_p[k]
+    out = x_f.copy()
+    for k in range(n - 2, -1, -1):
+        out[k] = x_f[k] + p_f[k] / p_p[k + 1] * (out[k + 1] - x_f[k])
+    return out
+
+
 def apply_heading(q: np.ndarray, delta: float | np.ndarray) -> np.ndarray:
     """Orientations turned by ``delta`` (rad, scalar or per sample) about the earth vertical."""
     return rot.mul(rot.from_axis_angle(UP, delta), q)

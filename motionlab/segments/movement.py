@@ -367,6 +367,10 @@ def failed(joint: str, why: str) -> HingeFit:
 TWO_AXIS_WINDOW_S = 10.0
 TWO_AXIS_MAX_SAMPLES = 3000
 TWO_AXIS_STARTS = 6
+#: How fast the heading offset between two 6-D estimates wanders (deg/√s, a random walk): on
+#: the simulated arm (``bench/elbow_sources.py``) the true offset moved by about 2° from one
+#: 10-s window to the next.
+TWO_AXIS_DRIFT_DEG_S = 0.6
 #: The skin on the upper arm follows only part of the humerus' axial rotation (0.64-0.74 of it
 #: for a mid-arm cluster, less proximally: docs/simulator.md, "The upper arm under the skin"),
 #: so the humerus turns about its long axis ``1 + k`` times as fast as a sensor strapped on it
@@ -379,6 +383,23 @@ AXIAL_LAG_MAX = 1.5
 #: further than this from the perpendicular to the stand's long axis is not an elbow's (the real
 #: 16-IMU recording of ``bench/real_people.py``: 4-7° from the long axis, i.e. 83-86° off).
 ACROSS_LONG_AXIS_DEG = 30.0
+
+
+def autocorrelation_time(x: np.ndarray, c: float = 5.0) -> float:
+    """Integrated autocorrelation time (samples, ≥ 1) of the series ``x``, with Sokal's
+    automatic window (the first lag ``M ≥ c·τ(M)``; Sokal, Monte Carlo methods in statistical
+    mechanics, 1997): how many samples carry the information of one independent sample."""
+    x = np.asarray(x, float) - np.mean(x)
+    n = len(x)
+    if n < 4 or not np.any(x):
+        return 1.0
+    f = np.fft.rfft(x, 2 * n)
+    acf = np.fft.irfft(f * np.conj(f))[:n]
+    acf /= acf[0]
+    tau = 1.0 + 2.0 * np.cumsum(acf[1:])
+    lags = np.arange(1, n)
+    stop = np.flatnonzero(lags >= c * tau)
+    return float(max(1.0, tau[stop[0]] if len(stop) else tau[-1]))
 
 
 def _heading_rot(delta: np.ndarray, v: np.ndarray) -> np.ndarray:
@@ -432,6 +453,23 @@ class _TwoAxisProblem:
         n /= np.maximum(np.linalg.norm(n, axis=1), 1e-9)[:, None]
         w1 = self.w1 if self.spin is None else self.w1 + self.lag(x) * self.spin
         return np.einsum("ij,ij->i", n, w1 - _heading_rot(delta, self.w2))
+
+    def delta_variances(self, x: np.ndarray) -> np.ndarray:
+        """Variance (rad²) of each window's fitted heading offset at the solution ``x``: the
+        residuals' robust variance, times their integrated autocorrelation time (neighbouring
+        residuals are not independent: skin and fusion errors last), over the window's
+        information about its offset (the robust weights times the residuals' slope in it)."""
+        r = self.residual(x)
+        weight = 1.0 / np.sqrt(1.0 + (r / ROBUST_SCALE_RAD_S) ** 2)  # soft-L1's IRLS weights
+        sigma2 = float(np.sum(weight * r**2) / np.sum(weight))
+        out = np.empty(self.n_win)
+        for k in range(self.n_win):
+            h = np.zeros_like(x)
+            h[self.n_axes + k] = 1e-4
+            slope = (self.residual(x + h) - r) / 1e-4
+            info = float(np.sum(weight * slope**2))
+            out[k] = sigma2 * autocorrelation_time(r[self.win == k]) / max(info, 1e-12)
+        return out
 
     def deltas(self, j1: np.ndarray, j2: np.ndarray) -> np.ndarray:
         """The best heading offset of each window for given axes, from a 5° grid."""
@@ -532,7 +570,10 @@ def fit_two_dof(
     scale = float(np.sqrt(np.mean(active[keep] ** 2)))
     relative = residual / scale if scale > 0 else float("inf")
     win_times = np.array([prob.t[prob.win == k].mean() for k in range(prob.n_win)])
-    deltas = np.unwrap(best.x[prob.n_axes :])
+    deltas = heading.smoothed_track(
+        win_times, best.x[prob.n_axes :], prob.delta_variances(best.x),
+        np.radians(TWO_AXIS_DRIFT_DEG_S),
+    )  # fmt: skip
     lag = prob.lag(best.x)
 
     def refit(a: int, b: int) -> tuple[np.ndarray, np.ndarray] | None:
