@@ -330,6 +330,23 @@ def heading_track(times: np.ndarray, deltas: np.ndarray, t: np.ndarray) -> np.nd
     return np.interp(t, times, deltas)
 
 
+def outlying_anchors(deltas: np.ndarray, span: int = 3, limit_deg: float = 45.0) -> np.ndarray:
+    """Which heading offsets (rad) lie further than ``limit_deg`` from the circular median of
+    their ``span`` neighbours on each side (itself left out): a window whose fit settled on
+    another solution (the two-axis fit's heading half a turn off), not a drift, which moves a
+    few degrees a minute. Fewer than two neighbours tell nothing (``False``)."""
+    d = np.asarray(deltas, float)
+    out = np.zeros(len(d), bool)
+    for k in range(len(d)):
+        near = np.r_[d[max(0, k - span) : k], d[k + 1 : k + 1 + span]]
+        if len(near) < 2:
+            continue
+        spread = np.abs((near[:, None] - near[None, :] + np.pi) % (2 * np.pi) - np.pi)
+        centre = near[np.argmin(spread.sum(axis=1))]  # the neighbour closest to the others
+        out[k] = abs((d[k] - centre + np.pi) % (2 * np.pi) - np.pi) > np.radians(limit_deg)
+    return out
+
+
 def smoothed_track(
     times: np.ndarray, deltas: np.ndarray, variances: np.ndarray, drift: float
 ) -> np.ndarray:
@@ -337,10 +354,18 @@ def smoothed_track(
     (unwrapped) has variance ``variances[k]`` (rad²) and the true offset wanders by ``drift``
     (rad/√s) between them (the relative heading drift of two 6-D estimates); a scalar
     Rauch-Tung-Striebel smoother over the anchors (Rauch, Tung & Striebel, AIAA J 1965 3:1445).
+    Offsets that :func:`outlying_anchors` flags are left out (given their nearest kept
+    neighbour's value and no weight).
     """
     times = np.asarray(times, float)
-    z = np.unwrap(np.asarray(deltas, float))
+    z = np.asarray(deltas, float).copy()
     r = np.maximum(np.asarray(variances, float), 1e-12)
+    bad = outlying_anchors(z)
+    if bad.any() and not bad.all():  # left out: weighed as nothing, unwrapped as a neighbour
+        keep = np.flatnonzero(~bad)
+        z[bad] = z[keep[np.abs(keep[None, :] - np.flatnonzero(bad)[:, None]).argmin(axis=1)]]
+        r = np.where(bad, 1e6, r)
+    z = np.unwrap(z)
     n = len(z)
     if n < 2:
         return z
