@@ -331,8 +331,9 @@ def heading_track(times: np.ndarray, deltas: np.ndarray, t: np.ndarray) -> np.nd
 
 
 def outlying_anchors(deltas: np.ndarray, span: int = 3, limit_deg: float = 45.0) -> np.ndarray:
-    """Which heading offsets (rad) lie further than ``limit_deg`` from the circular median of
-    their ``span`` neighbours on each side (itself left out): a window whose fit settled on
+    """Which heading offsets (rad) lie further than ``limit_deg`` from the middle of their
+    ``span`` neighbours on each side (itself left out; the middle: the neighbour nearest the
+    others round the circle, a circular median): a window whose fit settled on
     another solution (the two-axis fit's heading half a turn off), not a drift, which moves a
     few degrees a minute. Fewer than two neighbours tell nothing (``False``)."""
     d = np.asarray(deltas, float)

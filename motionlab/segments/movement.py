@@ -462,14 +462,12 @@ class _TwoAxisProblem:
         r = self.residual(x)
         weight = 1.0 / np.sqrt(1.0 + (r / ROBUST_SCALE_RAD_S) ** 2)  # soft-L1's IRLS weights
         sigma2 = float(np.sum(weight * r**2) / np.sum(weight))
-        out = np.empty(self.n_win)
-        for k in range(self.n_win):
-            h = np.zeros_like(x)
-            h[self.n_axes + k] = 1e-4
-            slope = (self.residual(x + h) - r) / 1e-4
-            info = float(np.sum(weight * slope**2))
-            out[k] = sigma2 * autocorrelation_time(r[self.win == k]) / max(info, 1e-12)
-        return out
+        h = np.zeros_like(x)
+        h[self.n_axes :] = 1e-4  # a sample's residual depends on its own window's offset only
+        slope = (self.residual(x + h) - r) / 1e-4
+        info = np.bincount(self.win, weight * slope**2, minlength=self.n_win)
+        tau = [autocorrelation_time(r[self.win == k]) for k in range(self.n_win)]
+        return sigma2 * np.asarray(tau) / np.maximum(info, 1e-12)
 
     def deltas(self, j1: np.ndarray, j2: np.ndarray) -> np.ndarray:
         """The best heading offset of each window for given axes, from a 5° grid."""
