@@ -186,7 +186,9 @@ def check_segments(session: Session, protocol: Protocol, inputs: list[Path]) -> 
             "'required: false' on the segments the recording has no sensor on"
         )
     else:
-        remedy = "map each sensor to its segment with a sensor map, map_path=map.yaml (README)"
+        form = map_form(session, missing)
+        remedy = (f"map each sensor to its segment in a sensor map, map_path=map.yaml, of the "
+                  f"form 'sensors: {form}' (docs/ingest.md, 'The map')")  # fmt: skip
     raise InputError(
         f"the '{protocol.name}' protocol needs sensors on {', '.join(needed)}; the input has "
         f"{gap}{foreign} (its sensors: {sensor_list(session)})",
@@ -194,6 +196,17 @@ def check_segments(session: Session, protocol: Protocol, inputs: list[Path]) -> 
         remedy=remedy,
         argument="map_path",
     )
+
+
+def map_form(session: Session, missing: list[str]) -> str:
+    """The sensor map a user has to write, in YAML's one-line form, with the recording's own
+    sensor labels (at most three) and the segments to choose from: ``{Back: {segment: <pelvis or
+    thorax>}, Chair: {segment: ...}, ...}``."""
+    labels = [k for k, s in session.sensors.items() if not s.segment] or list(session.sensors)
+    choice = " or ".join(missing) if len(missing) <= 3 else f"{missing[0]}, {missing[1]}, ..."
+    entries = [f"{labels[0]}: {{segment: <{choice}>}}"]
+    entries += [f"{k}: {{segment: ...}}" for k in labels[1:3]] + ["..."] * (len(labels) > 3)
+    return "{" + ", ".join(entries) + "}"
 
 
 def _announce(labels: list[str], text: str) -> list[str]:

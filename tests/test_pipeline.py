@@ -10,8 +10,8 @@ from conftest import DATA, SHARED, generic_reader, needs_shared
 
 from motionlab.cli import main
 from motionlab.errors import InputError
-from motionlab.pipeline import PipelineOptions, PipelineResult, run_pipeline
-from motionlab.session import load_session, save_session
+from motionlab.pipeline import PipelineOptions, PipelineResult, map_form, run_pipeline
+from motionlab.session import SensorStream, Session, load_session, save_session
 from motionlab.simulate import simulate
 from motionlab.simulate.markers import OpticalSystem, write_c3d
 
@@ -216,6 +216,22 @@ def test_missing_segments_one_line_exit_2(tmp_path):
     assert len(lines) == 2 and lines[0] == "[1/7] ingest ..."
     assert "needs sensors on pelvis, thigh_r, thigh_l, shank_r, shank_l" in lines[1]
     assert "--map" in lines[1] and not (tmp_path / "out").exists()
+    # the map to write, with the recording's own label
+    assert "of the form 'sensors: {00B421AF: {segment: <pelvis, thigh_r, ...>}}'" in lines[1]
+
+
+def test_map_form_names_the_recordings_labels_and_the_segments_to_choose():
+    """The remedy's map form: the unmapped sensors' own labels (three at most), the missing
+    segments to choose from on the first."""
+    session = Session()
+    for label in ("Back", "Chair", "Chest", "L_arm"):
+        session.sensors[label] = SensorStream(label=label, time=np.arange(3.0))
+    assert map_form(session, ["pelvis", "thorax"]) == (
+        "{Back: {segment: <pelvis or thorax>}, Chair: {segment: ...}, Chest: {segment: ...}, ...}"
+    )
+    session.sensors["Back"].segment = "thorax"  # a mapped sensor is not offered again
+    del session.sensors["L_arm"]
+    assert map_form(session, ["pelvis"]) == "{Chair: {segment: <pelvis>}, Chest: {segment: ...}}"
 
 
 @needs_shared
