@@ -254,6 +254,31 @@ def test_a_walking_speed_outside_the_norms_walkers_is_a_pace_note_too(
         assert sum(i.endswith(": not flagged at this pace.") for i in outside) == 1
 
 
+@pytest.mark.parametrize("speed", [float("nan"), 1.4])
+def test_a_flexion_above_normal_says_when_the_walking_speed_was_not_measured(speed):
+    """The real full-body walker (no height in its map, 124 steps/min: within the band) was told
+    both knees flexed above the normal 0-65° with nothing on the speed that would have explained
+    it (1.8 m/s with a height). A flexion range above normal now says the speed was not measured;
+    one short of normal, another plane, or a walk whose speed was measured say nothing of it."""
+    view = _view((5.0, 45.0), (-1.0, 78.0))
+    view.session.results.gait = Gait(
+        status="ok",
+        tasks={"gait": TaskBlock(10.0, 40.0)},
+        summary=GaitSummary(cadence_steps_per_min=118.0, walking_speed_m_s=speed),
+    )
+    items = findings(view)
+    tagged = [i for i in items if "walking speed not measured" in i]
+    if np.isfinite(speed):
+        assert not tagged
+        return
+    assert tagged == [
+        "Left knee flexion-extension range -1 to 78° during gait, above the normal 0–65° "
+        "(walking speed not measured without a subject height in the sensor map; ranges grow with "
+        "it)."
+    ]
+    assert any(i.startswith("Right knee flexion-extension range 5–45°") for i in items)
+
+
 def test_a_walks_length_says_how_much_of_it_strides_cover():
     """The real full-body walk's summary read 'walk (95 s)' for a block that held sitting down
     and a seated rest; it now says how much of it the strides cover, leaving out the 'strides'

@@ -24,6 +24,7 @@ from motionlab.clocksync.stage import RELIABLE, VENDOR_KEPT
 from motionlab.kinematics.joint_types import JOINT_TYPES
 from motionlab.report.model import (
     NOT_DETERMINED,
+    PACE_STATUSES,
     SIDE_NAMES,
     THORAX,
     TOLERANCE_DEG,
@@ -208,6 +209,21 @@ def pace_note(view: SessionView, task: str) -> tuple[str, str]:
     return sentence, ("a pace unlike the norms'" if pace == "mixed" else "")
 
 
+def unknown_speed_tag(view: SessionView, row: RomRow) -> str:
+    """The words a flexion range above the normal one carries when its walk's speed was not
+    measured (no subject height) and its cadence did not say the walk was faster than the
+    norms' walkers (:func:`pace_note`): the pace that would explain it cannot be ruled out (a
+    healthy walker at 1.8 m/s flexed the knee 4-79°, the normal being 0-65° at 1.1-1.6 m/s);
+    else empty."""
+    g = view.session.results.gait
+    if (row.angle != "flexion" or row.status not in PACE_STATUSES["faster"] or g is None
+            or not g.ok or g.summary is None or row.task not in (g.tasks or {})
+            or np.isfinite(float(g.summary.walking_speed_m_s))):  # fmt: skip
+        return ""
+    return ("walking speed not measured without a subject height in the sensor map; ranges grow "
+            "with it")  # fmt: skip
+
+
 def angle_words(view: SessionView, joint: str, angle: str) -> str:
     """``'Right knee internal-external rotation'``, ``'Ball12 (ball joint) rotation about z'``."""
     j = view.protocol.joints[joint]
@@ -292,6 +308,7 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
             continue
         pace, tag = pace_note(view, r.task) if r.angle == "flexion" else ("", "")
         paces += [pace] if pace else []
+        tag = tag or ("" if pace else unknown_speed_tag(view, r))
         if r.paced:
             paced.append(rom_sentence(r).removesuffix(".") + ": not flagged at this pace.")
         else:
