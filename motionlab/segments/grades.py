@@ -16,14 +16,17 @@ Each angle of each joint is graded from what its two segments' calibrations actu
   failed or inconsistent fit.
 
 A knee calibrated from a walk (:mod:`.gait_axes`) knows its flexion axis only to within the angle
-between its two estimates (the principal axes and the constrained hinge fit), and never better
-than ``AXIS_FLOOR_DEG``: both estimates see the plane the leg swings in, which lies some degrees
-from the knee's own axis with the foot's progression angle and the hip's rotation (functional and
-anatomical knee axes differ by about 5°, Della Croce et al. 2005, Med Biol Eng Comput 43:275). An
-axis turned by ``e`` moves ``sin(e)`` of the flexion into ab/adduction and rotation, so those two
+between its two estimates (the principal axes and the constrained hinge fit), the ``witness``,
+and on top of it ``AXIS_FLOOR_DEG``, which both estimates share: they see the plane the leg swings
+in, which lies some degrees from the knee's own axis with the foot's progression angle and the
+hip's rotation (functional and anatomical knee axes differ by about 5°, Della Croce et al. 2005,
+Med Biol Eng Comput 43:275). The two are independent and add in quadrature,
+``e = √(witness² + AXIS_FLOOR_DEG²)`` (the larger of the two alone called a short walk's 60° of
+flexion with estimates 3° apart ``weak``, 5.2°, where the two together carry 6.1°). An axis
+turned by ``e`` moves ``sin(e)`` of the flexion into ab/adduction and rotation, so those two
 angles are graded by that cross-talk, ``flexion excursion × sin(e)``: up to ``CROSSTALK_DEG[0]``
 determined, up to ``CROSSTALK_DEG[1]`` weak, beyond it not determined. On real walks (estimates
-1.5-10° apart, flexion 75-100° over the recording) that is 6.5-17°: a walk alone does not
+1.5-10° apart, flexion 75-100° over the recording) that is 6.8-19°: a walk alone does not
 determine a real knee's ab/adduction and rotation.
 
 A hip whose pelvis took its forward direction from the walk (:mod:`.walk_forward`: the first
@@ -197,7 +200,7 @@ def _crosstalk_grade(fit: HingeFit | None) -> tuple[str, str]:
     (see the module notes); ``determined`` for any other joint."""
     if fit is None or fit.method != "principal" or fit.used_for != "axes":
         return "determined", ""
-    witness = max(float(fit.witness_deg), AXIS_FLOOR_DEG)
+    witness = float(np.hypot(fit.witness_deg, AXIS_FLOOR_DEG))  # independent: in quadrature
     flexion = float(fit.excursion_deg[0])
     crosstalk = abs(flexion) * np.sin(np.radians(witness))
     if not np.isfinite(crosstalk):
