@@ -277,7 +277,8 @@ def _map_chart(doc: Document, mp: MovementProfile) -> None:
     doc.paragraph(
         head + "The normative curves are approximate, built from published key values "
         "(report_data/gait_normative.yaml): the score compares shapes, it is not a validated "
-        "clinical GPS.",
+        "clinical GPS. The curves change with walking speed: a walk faster or slower than the "
+        "norms' walkers (self-selected speed) raises a healthy walker's scores too.",
         size=SIZE["small"],
         colour=MUTED,
     )
