@@ -202,7 +202,8 @@ def map_form(session: Session, missing: list[str]) -> str:
     """The sensor map a user has to write, in YAML's one-line form, with the recording's own
     sensor labels (at most three) and the segments to choose from: ``{Back: {segment: <pelvis or
     thorax>}, Chair: {segment: ...}, ...}``."""
-    labels = [k for k, s in session.sensors.items() if not s.segment] or list(session.sensors)
+    labels = [k for k, s in session.sensors.items() if not s.segment] or [*session.sensors]
+    labels = labels or ["<sensor label>"]
     choice = " or ".join(missing) if len(missing) <= 3 else f"{missing[0]}, {missing[1]}, ..."
     entries = [f"{labels[0]}: {{segment: <{choice}>}}"]
     entries += [f"{k}: {{segment: ...}}" for k in labels[1:3]] + ["..."] * (len(labels) > 3)

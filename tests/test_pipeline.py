@@ -232,6 +232,7 @@ def test_map_form_names_the_recordings_labels_and_the_segments_to_choose():
     session.sensors["Back"].segment = "thorax"  # a mapped sensor is not offered again
     del session.sensors["L_arm"]
     assert map_form(session, ["pelvis"]) == "{Chair: {segment: <pelvis>}, Chest: {segment: ...}}"
+    assert map_form(Session(), ["pelvis"]) == "{<sensor label>: {segment: <pelvis>}}"
 
 
 @needs_shared

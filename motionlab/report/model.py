@@ -42,6 +42,7 @@ from motionlab.protocol import Joint, Protocol, load_protocol
 from motionlab.results import (
     AngleMetrics,
     Gait,
+    GaitSummary,
     Metrics,
     MovementProfile,
     SegmentCalibration,
@@ -429,20 +430,29 @@ class PaceMismatch:
     band: tuple[float, float]
 
 
+def walk_summary(view: SessionView, task: str) -> GaitSummary | None:
+    """The gait summary when ``task`` is a walk the gait analysis covered,
+    else ``None``."""
+    g = view.session.results.gait
+    if g is None or not g.ok or g.summary is None or task not in (g.tasks or {}):
+        return None
+    return g.summary
+
+
 def pace_mismatches(view: SessionView, task: str) -> list[PaceMismatch]:
     """The walk's cadence, and its walking speed by more than :data:`PACE_SPEED_MARGIN`, where
     outside the self-selected-speed bands of ``report_data/gait_normative.yaml``; empty when
     both are within them, not measured, or ``task`` is not a walk."""
     from motionlab.report.normative import gait_bands
 
-    g = view.session.results.gait
-    if g is None or not g.ok or g.summary is None or task not in (g.tasks or {}):
+    summary = walk_summary(view, task)
+    if summary is None:
         return []
     bands = gait_bands()["spatiotemporal"]
     out = []
     for column, margin in (("cadence_steps_per_min", 0.0),
                            ("walking_speed_m_s", PACE_SPEED_MARGIN)):  # fmt: skip
-        value = float(getattr(g.summary, column))
+        value = float(getattr(summary, column))
         lo, hi = (float(b) for b in bands[column])
         if np.isfinite(value) and not lo * (1 - margin) <= value <= hi * (1 + margin):
             out.append(PaceMismatch(column, value, "faster" if value > hi else "slower", (lo, hi)))

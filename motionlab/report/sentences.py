@@ -47,6 +47,7 @@ from motionlab.report.model import (
     thrust_above,
     trunk_above,
     walk_pace,
+    walk_summary,
     walking_spans,
     worst_grade,
 )
@@ -215,10 +216,9 @@ def unknown_speed_tag(view: SessionView, row: RomRow) -> str:
     norms' walkers (:func:`pace_note`): the pace that would explain it cannot be ruled out (a
     healthy walker at 1.8 m/s flexed the knee 4-79°, the normal being 0-65° at 1.1-1.6 m/s);
     else empty."""
-    g = view.session.results.gait
-    if (row.angle != "flexion" or row.status not in PACE_STATUSES["faster"] or g is None
-            or not g.ok or g.summary is None or row.task not in (g.tasks or {})
-            or np.isfinite(float(g.summary.walking_speed_m_s))):  # fmt: skip
+    summary = walk_summary(view, row.task)
+    if (row.angle != "flexion" or row.status not in PACE_STATUSES["faster"] or summary is None
+            or np.isfinite(float(summary.walking_speed_m_s))):  # fmt: skip
         return ""
     return ("walking speed not measured without a subject height in the sensor map; ranges grow "
             "with it")  # fmt: skip

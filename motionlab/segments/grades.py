@@ -200,16 +200,16 @@ def _crosstalk_grade(fit: HingeFit | None) -> tuple[str, str]:
     (see the module notes); ``determined`` for any other joint."""
     if fit is None or fit.method != "principal" or fit.used_for != "axes":
         return "determined", ""
-    witness = float(np.hypot(fit.witness_deg, AXIS_FLOOR_DEG))  # independent: in quadrature
+    axis_doubt = float(np.hypot(fit.witness_deg, AXIS_FLOOR_DEG))  # independent: in quadrature
     flexion = float(fit.excursion_deg[0])
-    crosstalk = abs(flexion) * np.sin(np.radians(witness))
+    crosstalk = abs(flexion) * np.sin(np.radians(axis_doubt))
     if not np.isfinite(crosstalk):
         return "not determined", "the flexion axis's uncertainty is unknown"
     if crosstalk <= CROSSTALK_DEG[0]:
         return "determined", ""
     grade = "weak" if crosstalk <= CROSSTALK_DEG[1] else "not determined"
     return grade, (
-        f"the flexion axis from the walk is known to {witness:.0f}°, which can carry "
+        f"the flexion axis from the walk is known to {axis_doubt:.0f}°, which can carry "
         f"{crosstalk:.0f}° of the knee's largest flexion in the recording, "
         f"{abs(flexion):.0f}°, into this angle"
     )
