@@ -585,20 +585,25 @@ class TwoAxisFit(HingeFit):
     its sensor follows, fitted with the axes (NaN when not fitted); ``across_deg``: how far (deg)
     the flexion axis lies from the perpendicular to that long axis in the reference pose (NaN
     when not checked; over ``movement.ACROSS_LONG_AXIS_DEG`` the fit is refused as no joint of
-    its kind). Stored with ``kind`` ``two_axes``."""
+    its kind); ``lag_anchor``: the segment (the thorax) against whose sensor the angles undo the
+    lag ``axial_follow`` measures (:mod:`motionlab.segments.skin_lag`; empty: not undone, no
+    sensor there). Stored with ``kind`` ``two_axes``."""
 
     flexion_distal: np.ndarray = field(default_factory=lambda: np.full(3, np.nan))
     heading_times: np.ndarray = field(default_factory=lambda: np.empty(0))
     heading_deltas: np.ndarray = field(default_factory=lambda: np.empty(0))
     axial_follow: float = float("nan")
     across_deg: float = float("nan")
+    lag_anchor: str = ""
 
     def to_tree(self) -> dict[str, Any]:
         """The hinge fit's layout with ``kind`` and the two-axis fields."""
-        # axial_follow and across_deg only where they were found: a fit stored before they
-        # existed is written back as it was read
+        # axial_follow, across_deg and lag_anchor only where they were found: a fit stored
+        # before they existed is written back as it was read
         follow = {k: v for k, v in (("axial_follow", self.axial_follow),
                                     ("across_deg", self.across_deg)) if np.isfinite(v)}  # fmt: skip
+        if self.lag_anchor:
+            follow["lag_anchor"] = self.lag_anchor
         return (
             super().to_tree()
             | {

@@ -58,11 +58,10 @@ from motionlab.results import (
 from motionlab.segments import (
     reference_step,
     segment_orientations,
-    sensor_for_segment,
     streams_of,
     trunk_axes,
 )
-from motionlab.segments.sensors import joint_segments, sensor_quats
+from motionlab.segments.sensors import angle_segments, sensor_quats
 from motionlab.segments.steps import find_tasks
 from motionlab.session import Session, estimate_rate
 from motionlab.timebase import runs
@@ -387,11 +386,7 @@ def session_metrics(
     else:
         source = "given"
     gait_tasks = {t.name for t in protocol.tasks if t.is_gait}
-    segs = joint_segments(protocol)
-    if "trunk_compensation" in wanted(protocol) and THORAX in protocol.segments:
-        if sensor_for_segment(session, THORAX) is not None and THORAX not in segs:
-            segs.append(THORAX)
-    quats = sensor_quats(session, protocol, segs)
+    quats = sensor_quats(session, protocol, angle_segments(session, protocol))  # the thorax too
     seg_q = segment_orientations(protocol, cal, quats)
     table = angle_table(seg_q, protocol, cal)
     nominal = None

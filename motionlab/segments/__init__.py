@@ -47,6 +47,7 @@ from motionlab.segments import (
     mounting,
     placement,
     single_pose,
+    skin_lag,
     trunk_axes,
     walk_checks,
     walk_forward,
@@ -528,6 +529,7 @@ def segment_orientations(
     if not align_heading:
         return out
     turned: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # segment: (time, δ applied)
+    lagging: list = []  # joints whose fitted axes and ties are used, their skin lag to undo
     for joint in chain_order(protocol):
         p, d = joint.proximal, joint.distal
         if p not in out or d not in out:
@@ -556,6 +558,26 @@ def segment_orientations(
             turned[d] = (td, track)
         if corrections is not None:
             corrections[joint.name] = _correction(source, times, deltas, td)
+        if source == "two_axes":
+            lagging.append(joint)
+    return _lag_undone(protocol, calibration, lagging, out)
+
+
+def _lag_undone(protocol: Protocol, calibration: SegmentCalibration, joints: list, out: dict):
+    """``out`` with the proximal segment of each of ``joints`` turned about its long axis by
+    the part of its twist against the trunk that its sensor's skin did not follow
+    (:mod:`.skin_lag`), where the fit measured that part and the trunk has a sensor."""
+    for joint in joints:
+        fit = calibration.hinges.get(joint.name)
+        reference = calibration.steps.get(
+            reference_step(protocol, joint.proximal, joint.distal) or ""
+        )
+        if not skin_lag.lag_undone(fit) or fit.lag_anchor not in out or not reference:
+            continue
+        t, q = out[joint.proximal]
+        out[joint.proximal] = (
+            t, skin_lag.undo_lag(t, q, tuple(reference), fit.axial_follow, out[fit.lag_anchor])
+        )  # fmt: skip
     return out
 
 

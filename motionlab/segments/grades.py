@@ -221,13 +221,21 @@ def _lag_grade(joint, fit: HingeFit | None) -> tuple[str, str]:
     rotation about the long axis (:func:`.movement.fit_two_dof`, ``axial_follow``): the rotation
     it misses, ``ε``, is about the humerus' long axis and goes into the carrying angle and the
     pronation to first order (``ε sin θ`` and ``ε cos θ`` at flexion ``θ``), not into flexion
-    (``ε tan(c) cos θ`` with the carrying angle ``c``); ``("", "")`` otherwise."""
+    (``ε tan(c) cos θ`` with the carrying angle ``c``), less what the angles undo of it against
+    the trunk (:mod:`.skin_lag`, which the skin's lag does not follow exactly: on the simulated
+    arm the twist explains 32-88 % of its variance); ``("", "")`` otherwise."""
     follow = float(getattr(fit, "axial_follow", np.nan)) if fit is not None else np.nan
     if fit is None or fit.used_for != "axes" or not follow < AXIAL_FOLLOW_DETERMINED:
         return "", ""
+    undone = (
+        f"; the angles add the rest back from its twist against the {fit.lag_anchor}, and what "
+        "the skin does otherwise goes into this angle"
+        if getattr(fit, "lag_anchor", "")
+        else "; the rest goes into this angle"
+    )
     return "weak", (
         f"{joint.proximal}'s sensor follows {follow:.2f} of the segment's rotation about its "
-        "long axis (fitted with the axes); the rest goes into this angle"
+        f"long axis (fitted with the axes){undone}"
     )
 
 

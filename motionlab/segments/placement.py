@@ -30,7 +30,7 @@ from motionlab.errors import InputError
 from motionlab.kinematics.joint_types import flexion_axis, joint_sequence, joint_type
 from motionlab.protocol import Protocol, axis_vector
 from motionlab.results import AxisMeasurement, CentreHeading
-from motionlab.segments import frames, gait_axes, heading, movement, walk_checks
+from motionlab.segments import frames, gait_axes, heading, movement, skin_lag, walk_checks
 from motionlab.segments.functional import orient
 from motionlab.segments.sensors import Streams, sensor_orientation
 from motionlab.segments.steps import reference_step
@@ -102,6 +102,8 @@ def movement_hinges(
                     protocol.segments[d].nominal_mounting().T @ axis_vector(twist), reference,
                     axial_lag=long_axis_vertical(protocol, p, ref_name),
                 )  # fmt: skip
+                if np.isfinite(fit.axial_follow) and skin_lag.TRUNK in streams:
+                    fit.lag_anchor = skin_lag.TRUNK
             elif reference and twists_about_long_axis(protocol, joint, ref_name, spec):
                 fit = gait_axes.fit_knee(name, side[p], side[d], prior_p, prior_d, reference,
                                          walk_checks.stand_and_walk(protocol))  # fmt: skip

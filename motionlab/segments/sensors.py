@@ -19,6 +19,7 @@ import numpy as np
 from motionlab.binding import sensor_for_segment, signals_from_orientation
 from motionlab.errors import InputError
 from motionlab.protocol import Protocol
+from motionlab.segments.skin_lag import TRUNK
 from motionlab.session import Session
 
 #: ``{segment: (time s, acc m/s², gyr rad/s)}``
@@ -144,17 +145,27 @@ def joint_segments(protocol: Protocol) -> list[str]:
     return list(dict.fromkeys(s for j in protocol.joints.values() for s in (j.proximal, j.distal)))
 
 
+def angle_segments(session: Session, protocol: Protocol) -> list[str]:
+    """The segments the joint angles need: the joints' (:func:`joint_segments`), and the trunk
+    when it has a sensor, against which an upper arm's skin lag is undone (:mod:`.skin_lag`)."""
+    segs = joint_segments(protocol)
+    if TRUNK in protocol.segments and TRUNK not in segs and sensor_for_segment(session, TRUNK):
+        segs.append(TRUNK)
+    return segs
+
+
 def sensor_quats(
     session: Session,
     protocol: Protocol,
     segments: list[str] | None = None,
 ) -> SegmentQuats:
-    """``{segment: (time, q_sensor)}`` of the joints' segments (or ``segments``).
+    """``{segment: (time, q_sensor)}`` of the segments the angles need (:func:`angle_segments`),
+    or of ``segments``.
 
     Rows without a finite orientation (a vendor file's gaps, e.g. ``NaN`` rows of a ``.sto``)
     are left out, as missing samples are: the angles SLERP across them."""
     quats = {}
-    for seg in segments or joint_segments(protocol):
+    for seg in segments or angle_segments(session, protocol):
         label = sensor_for_segment(session, seg)
         if label is None:
             raise _no_sensor(protocol, seg)
