@@ -143,3 +143,24 @@ def test_a_simulated_arm_with_a_thorax_sensor_loses_the_skin_lag_off_its_elbow_a
     off_axis = [1, 2, 4, 5]
     assert np.all(undone[off_axis] < 0.9 * kept[off_axis]), (undone, kept)
     assert np.all(np.abs(undone[[0, 3]] - kept[[0, 3]]) < 0.2), (undone, kept)
+
+
+def test_the_calibration_page_says_what_was_given_back():
+    """The hinge table's words on the skin lag: given back against the thorax, not given back
+    without one, and a fit the angles do not use (not determined, axes from no segment) named
+    as such."""
+    from motionlab.report.pages_quality import _skin_lag
+
+    joint = load_protocol("arm").joints["elbow_r"]
+    fit = _fit(axial_follow=0.77, lag_anchor="thorax")
+    cal = SegmentCalibration("arm", hinges={"elbow_r": fit})
+    assert "follows 0.77 of its segment's twist" in _skin_lag(fit, joint, cal)
+    assert "given back in the angles from its twist against the thorax" in _skin_lag(
+        fit, joint, cal
+    )
+    alone = dataclasses.replace(fit, lag_anchor="")
+    assert "not given back (no thorax sensor" in _skin_lag(alone, joint, cal)
+    unused = dataclasses.replace(fit, verdict="not determined")
+    cal_unused = SegmentCalibration("arm", hinges={"elbow_r": unused})
+    assert "which the angles do not use" in _skin_lag(unused, joint, cal_unused)
+    assert _skin_lag(_fit(), joint, cal) == ""  # no lag fitted

@@ -20,7 +20,7 @@ from motionlab.report.model import (
 )
 from motionlab.report.pdf import HEADING_H, MUTED, SIZE, Document, label_spans
 from motionlab.results import HingeFit, SegmentCalibration
-from motionlab.segments import hip_axis
+from motionlab.segments import hip_axis, placement
 from motionlab.segments.quality import FUNCTIONAL_RHO_MIN, RESIDUAL_MAX_DEG, STATIC_RHO_MIN
 from motionlab.segments.steps import unfound_step
 from motionlab.timebase import runs
@@ -226,7 +226,9 @@ def _hinges_table(doc: Document, view: SessionView) -> None:
                 verdict,
                 _f(float(fit.consistency_deg)),
                 _f(float(fit.relative_residual), ".2f"),
-                _direction(fit) + (f". {reasons[:1].upper()}{reasons[1:]}" if reasons else ""),
+                _direction(fit)
+                + (f". {reasons[:1].upper()}{reasons[1:]}" if reasons else "")
+                + _skin_lag(fit, joint, cal),
             ]
         )
         flagged.append([False, verdict != "determined"] + [False] * 3)
@@ -250,6 +252,33 @@ def _hinges_table(doc: Document, view: SessionView) -> None:
         [0.2, 0.12, 0.13, 0.12, 0.43],
         flagged,
         align=["l", "l", "r", "r", "l"],
+    )
+
+
+def _skin_lag(fit, joint, cal) -> str:
+    """What a two-axis fit found of the proximal sensor's skin lag (``axial_follow``) and whether
+    the angles give it back (:mod:`motionlab.segments.skin_lag`: where they take the fit's axes
+    and heading ties, :func:`~motionlab.segments.placement.fit_in_use`); empty where not
+    fitted."""
+    follow = float(getattr(fit, "axial_follow", float("nan")))
+    if joint is None or not np.isfinite(follow):
+        return ""
+    share = f"{follow:.2f} of" if follow < 0.995 else "all of"
+    if placement.fit_in_use(cal, joint) is None:
+        return (
+            f". By this fit, which the angles do not use, the {joint.proximal} sensor follows "
+            f"{share} its segment's twist about the long axis"
+        )
+    if follow >= 0.995:
+        return f". The {joint.proximal} sensor follows its segment's twist about the long axis"
+    back = (
+        f"the rest is given back in the angles from its twist against the {fit.lag_anchor}"
+        if getattr(fit, "lag_anchor", "")
+        else "the rest is not given back (no thorax sensor to take its twist against)"
+    )
+    return (
+        f". The {joint.proximal} sensor follows {share} its segment's twist about the long axis "
+        f"(the skin lags); {back}"
     )
 
 

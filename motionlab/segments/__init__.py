@@ -587,12 +587,7 @@ def _joint_ties(protocol: Protocol, calibration: SegmentCalibration, joint, tp, 
     centre, the hinge over the whole recording, the pose of a single-pose calibration, or the
     steps' anchors, joined for a hip in a protocol with a walk by the walk's straight stretches
     away from the poses (:func:`.heading.with_walk_anchors`: source ``walk``)."""
-    fit = calibration.hinges.get(joint.name)
-    if fit is not None and (
-        fit.used_for != "axes"
-        or (fit.verdict == "not determined" and not placement.fitted_axes_used(calibration, joint))
-    ):
-        fit = None  # the steps measured the axes, or the movement did not: the steps' anchors
+    fit = placement.fit_in_use(calibration, joint)  # None: the steps' anchors
     if isinstance(fit, TwoAxisFit):
         times = np.asarray(fit.heading_times, float)
         return "two_axes", times, np.asarray(fit.heading_deltas, float)

@@ -181,6 +181,18 @@ def fitted_axes_used(calibration, joint) -> bool:
     )
 
 
+def fit_in_use(calibration, joint) -> movement.HingeFit | None:
+    """The movement fit of ``joint`` when the angles take its axes and, for a two-axis fit, its
+    heading ties: fitted for the axes (not only their direction) and not ``not determined``
+    unless its axes stood in for a placement hint (:func:`fitted_axes_used`); else ``None``."""
+    fit = calibration.hinges.get(joint.name)
+    if fit is None or fit.used_for != "axes":
+        return None
+    if fit.verdict == "not determined" and not fitted_axes_used(calibration, joint):
+        return None
+    return fit
+
+
 def long_axis_vertical(protocol: Protocol, segment: str, ref_name: str | None) -> bool:
     """Whether the reference pose ``ref_name`` has ``segment``'s long axis y vertical (the upper
     arm hanging in the stand): then its sensor's up there is the axis its skin lags about
