@@ -9,7 +9,7 @@ from motionlab import rotations as rot
 from motionlab.protocol import load_protocol
 from motionlab.results import HingeFit, SegmentCalibration, SegmentRecord, TwoAxisFit
 from motionlab.segments.grades import grade_joints
-from motionlab.segments.skin_lag import lag_undone, twist_angle, undo_lag
+from motionlab.segments.skin_lag import covers, lag_undone, twist_angle, undo_lag
 
 X, Y, Z = np.eye(3)
 RATE = 100.0
@@ -72,6 +72,17 @@ def test_a_sensor_that_follows_is_left_as_it_is():
     t, body, humerus, skin = _arm(1.0)
     back = undo_lag(t, skin, (0.0, 1.5), 1.0, (t, body))
     assert _deg(back, humerus).max() < 1e-6
+
+
+def test_a_trunk_sensor_that_missed_the_stand_gives_nothing_back():
+    """A thorax recording that starts after the stand (or a stand with no sample) has no pose to
+    take the twist from: the calibration names no anchor and the angles are left as they are."""
+    t, body, humerus, skin = _arm(0.6)
+    late = (t[t > 3.0], body[t > 3.0])
+    assert covers((t, body), (0.0, 1.5)) and not covers(late, (0.0, 1.5))
+    assert not covers(None, (0.0, 1.5)) and not covers((t, body), None)
+    assert np.array_equal(undo_lag(t, skin, (0.0, 1.5), 0.6, late), skin)
+    assert np.array_equal(undo_lag(t, skin, (30.0, 31.0), 0.6, (t, body)), skin)
 
 
 def _fit(**kw) -> TwoAxisFit:

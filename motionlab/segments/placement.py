@@ -102,7 +102,9 @@ def movement_hinges(
                     protocol.segments[d].nominal_mounting().T @ axis_vector(twist), reference,
                     axial_lag=long_axis_vertical(protocol, p, ref_name),
                 )  # fmt: skip
-                if np.isfinite(fit.axial_follow) and skin_lag.TRUNK in streams:
+                if np.isfinite(fit.axial_follow) and skin_lag.covers(
+                    streams.get(skin_lag.TRUNK), reference
+                ):
                     fit.lag_anchor = skin_lag.TRUNK
             elif reference and twists_about_long_axis(protocol, joint, ref_name, spec):
                 fit = gait_axes.fit_knee(name, side[p], side[d], prior_p, prior_d, reference,

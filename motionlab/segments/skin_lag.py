@@ -43,13 +43,23 @@ def undo_lag(
     segment's twist against the ``trunk`` (``(time s, q)``, any frame) that the sensor did not
     follow: ``(1/follow − 1) τ``, ``τ`` the twist away from the ``reference`` pose (s)."""
     t_trunk, q_trunk = trunk
-    relative = rot.mul(rot.conj(rot.resample(t_trunk, q_trunk, t)), q_segment)
     ref = (t >= reference[0]) & (t <= reference[1])
+    if not ref.any() or not covers(trunk, reference):
+        return q_segment  # no pose to take the twist from (calibration checked it: defensive)
+    relative = rot.mul(rot.conj(rot.resample(t_trunk, q_trunk, t)), q_segment)
     away = rot.mul(rot.conj(rot.mean(relative[ref])), relative)
     angle = (1.0 / follow - 1.0) * twist_angle(away, np.array([0.0, 1.0, 0.0]))
     half = angle / 2.0
     turn = np.stack([np.cos(half), np.zeros_like(half), np.sin(half), np.zeros_like(half)], 1)
     return rot.mul(q_segment, turn)
+
+
+def covers(stream: tuple | None, reference: tuple[float, float] | None) -> bool:
+    """Whether a trunk sensor's ``stream`` (``(time s, ...)``) spans the ``reference`` pose (s),
+    so that the twist can be taken against it."""
+    if stream is None or reference is None or len(stream[0]) < 2:
+        return False
+    return bool(stream[0][0] <= reference[0] and stream[0][-1] >= reference[1])
 
 
 def lag_undone(fit: object) -> bool:
