@@ -37,7 +37,7 @@ from collections.abc import Callable
 import numpy as np
 
 from motionlab import rotations as rot
-from motionlab.dsp import butter, sosfiltfilt
+from motionlab.dsp import butter, correlate, sosfiltfilt
 from motionlab.errors import InputError
 from motionlab.results import HingeFit, TwoAxisFit
 from motionlab.segments import heading
@@ -393,8 +393,7 @@ def autocorrelation_time(x: np.ndarray, c: float = 5.0) -> float:
     n = len(x)
     if n < 4 or not np.any(x):
         return 1.0
-    f = np.fft.rfft(x, 2 * n)
-    acf = np.fft.irfft(f * np.conj(f))[:n]
+    acf = correlate(x, x)[n - 1 :]  # lags 0 … n − 1
     acf /= acf[0]
     tau = 1.0 + 2.0 * np.cumsum(acf[1:])
     lags = np.arange(1, n)

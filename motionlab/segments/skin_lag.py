@@ -48,10 +48,9 @@ def undo_lag(
         return q_segment  # no pose to take the twist from (calibration checked it: defensive)
     relative = rot.mul(rot.conj(rot.resample(t_trunk, q_trunk, t)), q_segment)
     away = rot.mul(rot.conj(rot.mean(relative[ref])), relative)
-    angle = (1.0 / follow - 1.0) * twist_angle(away, np.array([0.0, 1.0, 0.0]))
-    half = angle / 2.0
-    turn = np.stack([np.cos(half), np.zeros_like(half), np.sin(half), np.zeros_like(half)], 1)
-    return rot.mul(q_segment, turn)
+    long_axis = np.array([0.0, 1.0, 0.0])
+    angle = (1.0 / follow - 1.0) * twist_angle(away, long_axis)
+    return rot.mul(q_segment, rot.from_axis_angle(long_axis, angle))
 
 
 def covers(stream: tuple | None, reference: tuple[float, float] | None) -> bool:
