@@ -10,6 +10,7 @@ from click.testing import CliRunner
 
 from motionlab.cli import main
 from motionlab.clocksync import (
+    describe,
     estimate_clock,
     sync_tree,
     synchronise,
@@ -20,6 +21,7 @@ from motionlab.results import Results
 from motionlab.session import save_session
 from motionlab.simulate import simulate
 from motionlab.simulate.errors import get_preset
+from motionlab.timebase import take
 
 DURATION = 200.0  # s: the knee protocol's calibration steps, then gait, squat, sit-to-stand
 
@@ -130,6 +132,18 @@ def test_no_movement_no_correction(knee, typical):
     fit = estimate_clock(ref, still)
     assert fit.status == "not enough shared movement"
     assert fit.offset_s == 0.0
+
+
+def test_short_recording_says_how_short(typical):
+    """A pair sharing 6 s of recording is refused with its length and what is needed, and the
+    report's line does not call that '0 s of shared movement' (a 9-s trunk trial read so)."""
+    session, _ = typical
+    ref, sensor = (session.sensors[k] for k in ("thigh_r", "shank_r"))
+    short = np.flatnonzero(ref.time < ref.time[0] + 6.0)
+    fit = estimate_clock(take(ref, short), take(sensor, short))
+    assert fit.status == "not enough shared recording (6 s; 11 s needed)"
+    line = describe(fit)
+    assert "shared movement" not in line and line.endswith("(6 s; 11 s needed)")
 
 
 def test_tree_follows_neighbours(knee):

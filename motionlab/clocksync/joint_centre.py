@@ -159,8 +159,11 @@ def estimate_clock(
     inside = (a.time - max_offset_s >= b.time[0]) & (a.time + max_offset_s <= b.time[-1])
     t_mid = float(0.5 * (a.time[0] + a.time[-1]))
     if inside.sum() < 2 * MIN_MOVING_S / (a.time[1] - a.time[0]):
+        # needed: the shared movement twice over, plus the offset's search at either end
+        shared_s = min(a.time[-1], b.time[-1]) - max(a.time[0], b.time[0])
         return ClockFit(*name, 0.0, 0.0, t_mid, np.inf, np.inf, np.nan, 0.0,
-                        "not enough shared recording")  # fmt: skip
+                        f"not enough shared recording ({max(shared_s, 0.0):.0f} s; "
+                        f"{2 * (MIN_MOVING_S + max_offset_s):.0f} s needed)")  # fmt: skip
     span = slice(np.argmax(inside), len(inside) - np.argmax(inside[::-1]))
     t, ref = a.time[span], a.values[span]
     dt = float(t[1] - t[0])

@@ -530,7 +530,8 @@ def describe(fit: ClockFit) -> str:
         return f"{fit.sensor} against {fit.reference}'s clock: {fit.status}"
     other = f"; {fit.other}" if fit.other else ""
     if not np.isfinite(fit.offset_se_s):
-        return f"{head} {fit.status} ({fit.moving_s:.0f} s of shared movement){other}"
+        moving = f" ({fit.moving_s:.0f} s of shared movement)" if fit.moving_s > 0 else ""
+        return f"{head} {fit.status}{moving}{other}"
     return (
         f"{head} {1e3 * fit.offset_s:+.1f} ms, drift {1e6 * fit.drift:+.0f} ppm "
         f"(± {1e3 * fit.offset_se_s:.1f} ms, {1e6 * fit.drift_se:.0f} ppm) — {fit.status}" + other
