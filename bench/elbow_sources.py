@@ -26,20 +26,29 @@ shown next to variants that each remove one suspected source:
   orientations) that the fit's model of it, ``k`` times the sensor's rate about its stand long
   axis, explains at the best ``k``: over the whole movement and over the samples with the upper
   arm within 30° of hanging;
-- ``clocks`` (``--clocks``): the same recording with the true sampling instants and no sync.
+- ``clocks`` (``--clocks``): the same recording with the true sampling instants and no sync;
+- ``incl``: no calibration and no heading: each sensor's fused orientation turned about the
+  vertical to its true heading (what is left of the fusion: its inclination), through the true
+  mountings; between ``skin`` and ``true mnt`` it shows what the inclination costs and what the
+  heading ties cost;
+- ``--ideal-sensors``: every variant on sensors without biases, scale factors or misalignments
+  (noise, clocks and skin as before): what is left when the fusion has nothing to estimate.
 
 Needs no data files. Usage::
 
     python bench/elbow_sources.py [--seeds 0-9] [--workers 2] [--clocks] [--no-follow] [--exact]
+                                  [--ideal-sensors]
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import multiprocessing as mp
 from importlib import import_module
 
 import numpy as np
+from joint_angles import joint_clocks
 from real_world import analyse_simulated, rmse, task_errors, with_true_mountings
 from seeds import seeds_arg
 
@@ -48,9 +57,12 @@ from motionlab.kinematics.joint_angles import joint_angles
 from motionlab.protocol import axis_vector, load_protocol
 from motionlab.segments import movement, sensor_for_segment
 from motionlab.segments.placement import hinge_spec
+from motionlab.segments.sensors import sensor_orientation
+from motionlab.segments.skin_lag import twist_angle
 from motionlab.simulate import simulate
 
 sim = import_module("motionlab.simulate")  # the package: motionlab.simulate is the function
+sensor_errors = import_module("motionlab.simulate.errors")
 
 DURATION_S = 74.0
 ELBOWS = ("elbow_r", "elbow_l")
@@ -73,6 +85,17 @@ def _run(seed: int, true_clocks: bool = False, follow_all: bool = False):
     return session, truth, protocol, stamps, tasks
 
 
+def ideal_sensors() -> None:
+    """This process's ``skin`` preset without sensor biases, scale factors or misalignments."""
+    skin = sensor_errors.PRESETS["skin"]
+    perfect = {"bias_sigma": 0.0, "bias_walk": 0.0, "scale_sigma": 0.0, "misalignment_sigma": 0.0}
+    sensor_errors.PRESETS["skin"] = dataclasses.replace(
+        skin,
+        gyr=dataclasses.replace(skin.gyr, **perfect),
+        acc=dataclasses.replace(skin.acc, **perfect),
+    )
+
+
 def _axis_deg(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.degrees(np.arccos(np.clip(a @ b / np.linalg.norm(a), -1.0, 1.0))))
 
@@ -93,6 +116,36 @@ def _skin_only(truth, protocol, session, tasks) -> dict[str, float]:
         ang = joint_angles(q[0], q[1], joint)
         col = f"{name}_flexion_deg"
         out[col] = rmse((ang[col] - truth.joint_angles[col])[inside])
+    return out
+
+
+def _inclination_only(truth, protocol, session, stamps, tasks) -> dict[str, float]:
+    """RMSE of the angles from the fused orientations turned to their sensors' true headings,
+    through the true mountings (the fusion's inclination error and the skin)."""
+    t = truth.time
+    inside = np.zeros(len(t), bool)
+    for a, b in tasks:
+        inside |= (t >= a) & (t <= b)
+    clocks = joint_clocks(session, truth, stamps, protocol)
+    up = np.array([0.0, 0.0, 1.0])
+    out = {}
+    for name in ELBOWS:
+        joint = protocol.joints[name]
+        q = []
+        for seg in (joint.proximal, joint.distal):
+            label = sensor_for_segment(session, seg)
+            s = truth.sensors[label]
+            t_true = clocks[name](session.sensors[label].time)
+            q_fused = sensor_orientation(session, label)
+            ok = np.flatnonzero(np.isfinite(q_fused).all(axis=1))  # not in packet losses
+            # the clock's map holds its ends flat beyond the span it knows: one sample each
+            t_true, first = np.unique(t_true[ok], return_index=True)
+            fused = rot.resample(t_true, q_fused[ok][first], t)
+            heading = twist_angle(rot.mul(s["orientation"], rot.conj(fused)), up)
+            q.append(rot.mul(rot.mul(rot.from_axis_angle(up, heading), fused),
+                             rot.conj(s["mounting"])))  # fmt: skip
+        col = f"{name}_flexion_deg"
+        out[col] = rmse((joint_angles(q[0], q[1], joint)[col] - truth.joint_angles[col])[inside])
     return out
 
 
@@ -145,7 +198,9 @@ def _exact(truth, protocol, session, name: str, tasks) -> dict:
 
 def diagnose(job: tuple[int, bool, bool, bool]) -> dict:
     """Every variant's RMSE per elbow flexion of one seed (see the module notes)."""
-    seed, clocks_too, follow_too, exact_too = job
+    seed, clocks_too, follow_too, exact_too, ideal = job
+    if ideal:
+        ideal_sensors()
     session, truth, protocol, stamps, tasks = _run(seed)
     err = task_errors(session, truth, protocol, stamps, tasks)
     row: dict = {"seed": seed}
@@ -168,6 +223,7 @@ def diagnose(job: tuple[int, bool, bool, bool]) -> dict:
             q = rot.mul(m_true, np.asarray(cal.segments[seg].mounting, float))
             row["axes"][seg] = tuple(_axis_deg(rot.rotate(q, a), a) for a in axes)
     row["skin"] = _skin_only(truth, protocol, session, tasks)
+    row["incl"] = _inclination_only(truth, protocol, session, stamps, tasks)
     if exact_too:
         row["exact"] = {n: _exact(truth, protocol, session, n, tasks) for n in ELBOWS}
     with_true_mountings(session, truth, protocol, ELBOWS)
@@ -189,15 +245,19 @@ def main() -> None:
     ap.add_argument("--clocks", action="store_true", help="also with perfect clocks")
     ap.add_argument("--no-follow", action="store_true", help="skip the full-follow variant")
     ap.add_argument("--exact", action="store_true", help="also the fit on exact orientations")
+    ap.add_argument("--ideal-sensors", action="store_true",
+                    help="sensors without biases, scale factors or misalignments")  # fmt: skip
     args = ap.parse_args()
-    jobs = [(s, args.clocks, not args.no_follow, args.exact) for s in args.seeds]
+    jobs = [
+        (s, args.clocks, not args.no_follow, args.exact, args.ideal_sensors) for s in args.seeds
+    ]
     with mp.get_context("spawn").Pool(args.workers) as pool:
         rows = pool.map(diagnose, jobs)
     for side, col in zip("rl", COLS, strict=True):
         ua, fa = f"upperarm_{side}", f"forearm_{side}"
         print(f"\nelbow_{side} flexion, RMSE (deg); axes: angle (deg) to the true segment axis")
         head = "| seed | as is | mean | grade | fit (cons°, res) | ua z | ua y | fa y | fa z |"
-        head += " true mnt | skin |"
+        head += " true mnt | incl | skin |"
         extra = [k for k in ("follow1", "clocks") if k in rows[0]]
         head += "".join(f" {k} |" for k in extra)
         if "exact" in rows[0]:
@@ -211,14 +271,14 @@ def main() -> None:
                 f"{v} ({cons:.0f}, {res:.2f})",
                 f"{r['axes'][ua][0]:.1f}", f"{r['axes'][ua][1]:.1f}",
                 f"{r['axes'][fa][0]:.1f}", f"{r['axes'][fa][1]:.1f}",
-                f"{r['true_mnt'][col]:.2f}", f"{r['skin'][col]:.2f}",
+                f"{r['true_mnt'][col]:.2f}", f"{r['incl'][col]:.2f}", f"{r['skin'][col]:.2f}",
             ] + [f"{r[k][col]:.2f}" for k in extra]  # fmt: skip
             if "exact" in r:
                 x = r["exact"][f"elbow_{side}"]
                 cells += [f"{x['cons']:.1f} / {x['ua_z']:.1f} / {x['fa_y']:.1f}",
                           f"{x['r2'][0]:.2f} / {x['r2'][1]:.2f}"]  # fmt: skip
             print(f"| {r['seed']} | " + " | ".join(cells) + " |")
-        for key in ("as_is", "true_mnt", "skin", *extra):
+        for key in ("as_is", "true_mnt", "incl", "skin", *extra):
             vals = [r[key][col] for r in rows]
             print(f"{key}: mean {np.mean(vals):.2f}, max {np.max(vals):.2f}")
 
