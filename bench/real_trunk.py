@@ -39,7 +39,10 @@ Optical reference (``back`` relative to ``low_back``):
   reported alongside.
 
 Metrics per trial and plane: RMSE, offset-free RMSE (mean difference removed), r (no flipping:
-a sign error is an error), and the product's grade. Medians over the trials.
+a sign error is an error), and the product's grade. Medians over the trials. The trunk against
+the chair (``trunk_lean_*``): OptiTrack ``back`` relative to the wheelchair's body
+(``rolstoel``) in the same decomposition, its flexion, lateral bending and axial rotation
+against the forward lean, sideways lean and rotation against the chair.
 
 Usage (from the repository root)::
 
@@ -74,7 +77,7 @@ DEFAULT_DATA = ROOT.parent / "shared" / "datasets" / "trunk"
 MAP = ROOT / "protocols" / "examples" / "trunk_map.yaml"
 PROTOCOL = "lumbar_seated"
 PLANES = ("flexion", "lateral_bending", "axial_rotation")
-LEANS = ("forward", "sideways")  # the lean's angles, as the lumbar decomposition orders them
+LEANS = ("forward", "sideways", "rotation")  # as the lumbar decomposition orders them
 FLIP_DEG = 15.0
 FLIP_RATE_DEG_S = 400.0
 JUMP_DEG = 2.0  # a frame this far from its body's smooth path is a jump …

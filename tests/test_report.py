@@ -763,19 +763,87 @@ def test_no_empty_varus_thrust_chart_when_no_knee_determined_it():
     assert "Each stride's varus thrust" not in text
 
 
-def test_no_finding_without_normal_ranges_does_not_say_nothing_was_determined():
+def test_determined_ranges_without_normal_ranges_are_stated_as_measured():
     """The seated trunk protocol has no normal ranges: its real trials' reports said 'no angle
-    with a normal range was determined' above a lumbar spine whose angles all were."""
+    with a normal range was determined' above a lumbar spine whose angles all were, then 'No
+    finding can be stated' above determined ranges (Danique/trunkmovement_hs: the axial
+    rotation determined). What was determined is now stated, as measured."""
     import dataclasses
 
     view = _view((0.0, 64.0), (0.0, 64.0))  # alike on both sides: no asymmetry finding
     view.protocol = dataclasses.replace(view.protocol, normative={})
     view.metrics.gait = {}  # no out-of-plane finding either
     items = [i for i in findings(view) if not i.startswith(("Sensor", "Calibr"))]
-    assert items == [
-        "No finding can be stated: the protocol gives no normal range for gait to compare the "
-        "ranges of motion with; they are on the joint pages with their grades."
+    said = " (measured; the protocol gives no normal range)."
+    assert items == [  # a hinge: its flexion (its other angles check the hinge)
+        "Right knee flexion-extension range 0–64° during gait" + said,
+        "Left knee flexion-extension range 0–64° during gait" + said,
     ]
+    # a joint with a normal range for one of its angles in the task: the others are not
+    # findings (the lumbar protocol's flexion task and its lateral bending, say)
+    view.protocol.normative["gait"] = {"knee_flexion_deg": [0.0, 65.0]}
+    items = [i for i in findings(view) if not i.startswith(("Sensor", "Calibr"))]
+    assert all("measured" not in i for i in items) and len(items) == 2
+
+
+def test_a_spines_determined_planes_are_all_stated_as_measured():
+    """The seated trunk (no normal ranges, no dominant axis): every determined plane is stated,
+    the weak one is not."""
+    joints = {
+        "lumbar_flexion_deg": _angle(-5.0, 30.0, 1),
+        "lumbar_lateral_bending_deg": _angle(-8.0, 9.0, 1),
+        "lumbar_axial_rotation_deg": _angle(-17.0, 26.0, 1),
+    }
+    metrics = Metrics("lumbar_seated", blocks={"trunk_movement": TaskBlock(2.0, 14.0)},
+                      joints={"trunk_movement": joints})  # fmt: skip
+    view = SessionView(Session(), load_protocol("lumbar_seated"), None, {}, metrics)
+    view.session.results.calibration = SegmentCalibration(
+        "lumbar_seated",
+        grades={"lumbar": JointGrades(["determined", "weak", "determined"], ["", WEAK_WHY, ""])},
+    )
+    items = findings(view)
+    assert [i.split(" range")[0] for i in items] == [
+        "Lumbar spine flexion-extension",
+        "Lumbar spine axial rotation",
+    ]
+    assert items[1].startswith("Lumbar spine axial rotation range -17 to 26° during trunk")
+
+
+def test_only_secondary_planes_within_normal_are_stated():
+    """Flexion not determined, the other planes determined and within their normal ranges: the
+    summary said 'no angle with a normal range was determined', which was false."""
+    view = _graded_view()
+    view.metrics.gait = {}
+    cal = view.session.results.calibration
+    for joint in ("knee_r", "knee_l"):
+        cal.grades[joint] = JointGrades(
+            ["not determined", "determined", "determined"], [NOT_WHY, "", ""]
+        )
+    view.protocol.normative["gait"] = {
+        "knee_flexion_deg": [0.0, 65.0],
+        "knee_adduction_deg": [-10.0, 10.0],
+        "knee_rotation_deg": [-30.0, 30.0],
+    }
+    items = [i for i in findings(view) if not i.startswith(("Sensor", "Calibr"))]
+    assert items and all(", within the normal" in i for i in items)
+    assert any(i.startswith("Right knee varus-valgus range -2 to 4° during gait") for i in items)
+
+
+def test_no_finding_when_every_determined_angle_passed_the_anatomy():
+    """Both knees 'flexing' to 166° (slipped sensors), their other planes without a normal
+    range: no finding, and the summary says why rather than that nothing was determined."""
+    view = _view((5.0, 165.0), (5.0, 165.0))
+    view.metrics.gait = {}
+    view.protocol.normative = {
+        "gait": {"knee_flexion_deg": [0.0, 65.0]},
+        "range_of_motion": {"knee_flexion_deg": [-5.0, 140.0]},
+    }
+    items = findings(view)
+    assert items[0] == (
+        "No finding can be stated: every angle the recording determined passed its joint's "
+        "anatomical range; check the sensors' placement and the calibration."
+    )
+    assert any(i.startswith("Right knee flexion-extension reached 166°") for i in items)
 
 
 def test_no_finding_when_nothing_was_determined_says_so():

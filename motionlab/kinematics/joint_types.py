@@ -196,7 +196,11 @@ JOINT_TYPES: dict[str, JointType] = {
         sided=False,
         planes=("transverse", "frontal", "sagittal"),
         positive=("to the left +", "to the right +", "forward +"),
-        titles=("trunk rotation against the chair", "sideways lean", "forward lean"),
+        titles=(
+            "trunk rotation against the chair",
+            "sideways trunk lean against the chair",
+            "forward trunk lean against the chair",
+        ),
         hinge=False,
         flexion_axis=None,
         clinical=True,

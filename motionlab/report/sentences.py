@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from motionlab.clocksync.stage import RELIABLE, VENDOR_KEPT
-from motionlab.kinematics.joint_types import JOINT_TYPES
+from motionlab.kinematics.joint_types import JOINT_TYPES, angle_names, joint_type
 from motionlab.report.model import (
     NOT_DETERMINED,
     PACE_STATUSES,
@@ -138,6 +138,8 @@ def rom_sentence(row: RomRow) -> str:
     """One row of :func:`~motionlab.report.model.rom_rows` as a sentence."""
     side, joint = _joint_words(row.joint_type, row.joint, row.side)
     angle = angle_title(row.joint_type, row.angle)
+    if " against " in angle:  # the title names both segments: 'trunk rotation against the chair'
+        side, joint = "", ""
     text = (
         f"{side} {joint} {angle} range {span(row.typical_min_deg, row.typical_max_deg)} "
         f"during {task_name(row.task)}"
@@ -289,13 +291,31 @@ def _oop_findings(view: SessionView) -> list[str]:
     return out
 
 
+def _unnormed(view: SessionView, ranges: list[RomRow]) -> list[RomRow]:
+    """The ranges of a joint and task the protocol gives no normal range for (the seated
+    trunk's, the trunk's lean against the chair): every plane of a joint without one dominant
+    axis, the flexion of a hinge (its other angles check the hinge; a squat's knee)."""
+    normed = {(r.task, r.joint) for r in ranges if r.normal is not None}
+    out = []
+    for r in ranges:
+        joint = view.protocol.joints[r.joint]
+        if (r.task, r.joint) in normed:
+            continue
+        if joint_type(joint.type).hinge and r.angle != angle_names(joint)[0]:
+            continue
+        out.append(r)
+    return out
+
+
 def findings(view: SessionView, limit: int = 12) -> list[str]:
     """The main findings of one session, most important first, at most ``limit``; every one
     from ``determined`` numbers only (module docstring).
 
     A walk's pace outside the normal ranges' (:func:`pace_note`) comes first, then ranges
     outside normal, left-right asymmetries, out-of-plane findings, the ranges within normal of
-    the primary (flexion) angles, and data or calibration problems.
+    the primary (flexion) angles, the determined ranges of a joint and task the protocol gives
+    no normal range for (the seated trunk's: measured, compared with nothing), and data or
+    calibration problems.
     What the recording did not determine is not a finding: see :func:`missing_lines`.
     """
     ranges = rom_rows(view)
@@ -315,6 +335,11 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
             sentence = rom_sentence(r)
             outside.append(sentence.removesuffix(".") + f" ({tag})." if tag else sentence)
     inside = [rom_sentence(r) for r in rows if r.status == "within" and r.angle == "flexion"]
+    measured = [
+        rom_sentence(r).removesuffix(".") + " (measured; the protocol gives no normal range)."
+        for r in _unnormed(view, ranges)
+        if is_determined(r.grade) and r.column not in suspect
+    ]
     asym = []
     for s in symmetry_rows(view):
         # a flag needs a symmetry index, which needs both sides determined (symmetry_rows)
@@ -329,7 +354,9 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
                 f"(symmetry index {s.symmetry_index_pct:+.0f}%)."
             )
     problems = quality_notes(view)
-    items = list(dict.fromkeys(paces + outside + asym + _oop_findings(view) + paced + inside))
+    items = list(
+        dict.fromkeys(paces + outside + asym + _oop_findings(view) + paced + inside + measured)
+    )
     if len(items) > limit - len(problems[:2]):
         items = items[: limit - len(problems[:2])]
     if not items and not ranges:  # not "no normal range": the protocol may have them
@@ -342,17 +369,12 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
             "No finding can be stated: no angle was graded determined by this recording (the "
             "weak and undetermined ones are listed below)."
         ]
-    elif not items and not any(r.normal is not None for r in ranges):
-        # determined ranges have nothing to be compared with: not "none determined"
-        tasks = ", ".join(dict.fromkeys(task_name(r.task) for r in ranges)) or "its tasks"
+    elif not items and any(r.status == "within" for r in rows):  # only secondary planes
+        items = [rom_sentence(r) for r in rows if r.status == "within"][: limit - 2]
+    elif not items:  # every determined angle passed its joint's anatomical range
         items = [
-            f"No finding can be stated: the protocol gives no normal range for {tasks} to "
-            "compare the ranges of motion with; they are on the joint pages with their grades."
-        ]
-    elif not items:
-        items = [
-            "No finding can be stated: no angle with a normal range was determined by this "
-            "recording (see below)."
+            "No finding can be stated: every angle the recording determined passed its joint's "
+            "anatomical range; check the sensors' placement and the calibration."
         ]
     return items + problems[:2]
 
