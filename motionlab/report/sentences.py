@@ -296,15 +296,12 @@ def _unnormed(view: SessionView, ranges: list[RomRow]) -> list[RomRow]:
     trunk's, the trunk's lean against the chair): every plane of a joint without one dominant
     axis, the flexion of a hinge (its other angles check the hinge; a squat's knee)."""
     normed = {(r.task, r.joint) for r in ranges if r.normal is not None}
-    out = []
-    for r in ranges:
-        joint = view.protocol.joints[r.joint]
-        if (r.task, r.joint) in normed:
-            continue
-        if joint_type(joint.type).hinge and r.angle != angle_names(joint)[0]:
-            continue
-        out.append(r)
-    return out
+    joints = view.protocol.joints
+    return [
+        r for r in ranges
+        if (r.task, r.joint) not in normed
+        and (not joint_type(r.joint_type).hinge or r.angle == angle_names(joints[r.joint])[0])
+    ]  # fmt: skip
 
 
 def findings(view: SessionView, limit: int = 12) -> list[str]:
@@ -370,7 +367,8 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
             "weak and undetermined ones are listed below)."
         ]
     elif not items and any(r.status == "within" for r in rows):  # only secondary planes
-        items = [rom_sentence(r) for r in rows if r.status == "within"][: limit - 2]
+        items = [rom_sentence(r) for r in rows if r.status == "within"]
+        items = items[: limit - len(problems[:2])]
     elif not items:  # every determined angle passed its joint's anatomical range
         items = [
             "No finding can be stated: every angle the recording determined passed its joint's "
