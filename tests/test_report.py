@@ -806,7 +806,9 @@ def test_a_spines_determined_planes_are_all_stated_as_measured():
         "Lumbar spine flexion-extension",
         "Lumbar spine axial rotation",
     ]
-    assert items[1].startswith("Lumbar spine axial rotation range -17 to 26° during trunk")
+    # which way is positive, where the angle's name does not say and the range crosses zero
+    assert items[1].startswith("Lumbar spine axial rotation range -17 to 26° (to the left +) dur")
+    assert items[0].startswith("Lumbar spine flexion-extension range -5 to 30° during trunk")
 
 
 def test_only_secondary_planes_within_normal_are_stated():

@@ -134,6 +134,18 @@ def _joint_words(joint_type: str, joint: str = "", side: str = "") -> tuple[str,
     return words, jt.display if jt is not None else joint_type
 
 
+def _sign_words(row: RomRow) -> str:
+    """``' (to the right +)'``: which way is positive, for a clinical joint's range with a
+    negative end whose angle's name does not say it ('-15 to 14°' of lateral bending names
+    neither side; flexion-extension, varus-valgus name the positive one first); else ''."""
+    jt = JOINT_TYPES.get(row.joint_type)
+    if jt is None or not jt.clinical or jt.angle_names is None or round(row.typical_min_deg) >= 0:
+        return ""
+    i = jt.angle_names.index(row.angle)
+    sense = jt.positive[i]
+    return "" if jt.titles[i].startswith(sense.removesuffix(" +")) else f" ({sense})"
+
+
 def rom_sentence(row: RomRow) -> str:
     """One row of :func:`~motionlab.report.model.rom_rows` as a sentence."""
     side, joint = _joint_words(row.joint_type, row.joint, row.side)
@@ -141,8 +153,8 @@ def rom_sentence(row: RomRow) -> str:
     if " against " in angle:  # the title names both segments: 'trunk rotation against the chair'
         side, joint = "", ""
     text = (
-        f"{side} {joint} {angle} range {span(row.typical_min_deg, row.typical_max_deg)} "
-        f"during {task_name(row.task)}"
+        f"{side} {joint} {angle} range {span(row.typical_min_deg, row.typical_max_deg)}"
+        f"{_sign_words(row)} during {task_name(row.task)}"
     ).strip()
     text = text[0].upper() + text[1:]
     if row.normal is not None and row.status:
