@@ -345,8 +345,7 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
             outside.append(sentence.removesuffix(".") + f" ({tag})." if tag else sentence)
     inside = [rom_sentence(r) for r in rows if r.status == "within" and r.angle == "flexion"]
     measured = [
-        rom_sentence(r).removesuffix(".")
-        + f" (measured; the protocol gives no normal range for {task_name(r.task)})."
+        rom_sentence(r).removesuffix(".") + f" (measured; no normal range for {task_name(r.task)})."
         for r in _unnormed(view, ranges)
         if is_determined(r.grade) and r.column not in suspect
     ]
