@@ -806,6 +806,13 @@ def test_a_spines_determined_planes_are_all_stated_as_measured():
         "Lumbar spine flexion-extension",
         "Lumbar spine axial rotation",
     ]
+    # an angle with no finite value in the task states nothing (and breaks nothing)
+    joints["lumbar_lateral_bending_deg"] = _angle(np.nan, np.nan, 1)
+    view.session.results.calibration.grades["lumbar"] = JointGrades(["determined"] * 3, [""] * 3)
+    assert [i.split(" range")[0] for i in findings(view)] == [
+        "Lumbar spine flexion-extension",
+        "Lumbar spine axial rotation",
+    ]
     # which way is positive, where the angle's name does not say and the range crosses zero
     assert items[1].startswith("Lumbar spine axial rotation range -17 to 26° (to the left +) dur")
     assert items[0].startswith("Lumbar spine flexion-extension range -5 to 30° during trunk")

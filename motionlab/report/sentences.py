@@ -139,7 +139,8 @@ def _sign_words(row: RomRow) -> str:
     negative end whose angle's name does not say it ('-15 to 14°' of lateral bending names
     neither side; flexion-extension, varus-valgus name the positive one first); else ''."""
     jt = JOINT_TYPES.get(row.joint_type)
-    if jt is None or not jt.clinical or jt.angle_names is None or round(row.typical_min_deg) >= 0:
+    low = row.typical_min_deg
+    if jt is None or not jt.clinical or jt.angle_names is None or not low < -0.5:  # or NaN
         return ""
     i = jt.angle_names.index(row.angle)
     sense = jt.positive[i]
@@ -347,7 +348,9 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
     measured = [
         rom_sentence(r).removesuffix(".") + f" (measured; no normal range for {task_name(r.task)})."
         for r in _unnormed(view, ranges)
-        if is_determined(r.grade) and r.column not in suspect
+        if is_determined(r.grade)
+        and r.column not in suspect
+        and np.isfinite([r.typical_min_deg, r.typical_max_deg]).all()
     ]
     asym = []
     for s in symmetry_rows(view):
