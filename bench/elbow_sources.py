@@ -58,7 +58,6 @@ from motionlab.protocol import axis_vector, load_protocol
 from motionlab.segments import movement, sensor_for_segment
 from motionlab.segments.placement import hinge_spec
 from motionlab.segments.sensors import sensor_orientation
-from motionlab.segments.skin_lag import twist_angle
 from motionlab.simulate import simulate
 
 sim = import_module("motionlab.simulate")  # the package: motionlab.simulate is the function
@@ -141,7 +140,7 @@ def _inclination_only(truth, protocol, session, stamps, tasks) -> dict[str, floa
             # the clock's map holds its ends flat beyond the span it knows: one sample each
             t_true, first = np.unique(t_true[ok], return_index=True)
             fused = rot.resample(t_true, q_fused[ok][first], t)
-            heading = twist_angle(rot.mul(s["orientation"], rot.conj(fused)), up)
+            heading = rot.twist_angle(rot.mul(s["orientation"], rot.conj(fused)), up)
             q.append(rot.mul(rot.mul(rot.from_axis_angle(up, heading), fused),
                              rot.conj(s["mounting"])))  # fmt: skip
         col = f"{name}_flexion_deg"

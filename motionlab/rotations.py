@@ -145,6 +145,14 @@ def angle(q: np.ndarray) -> np.ndarray:
     return 2.0 * np.arctan2(np.linalg.norm(q[..., 1:], axis=-1), np.abs(q[..., 0]))
 
 
+def twist_angle(q: np.ndarray, axis: np.ndarray) -> np.ndarray:
+    """Twist (N,; rad, unwrapped) of rotations ``q`` (N, 4) about ``axis`` (unit, their own
+    frame) in the swing-twist decomposition ``q = swing ⊗ twist``."""
+    q = np.asarray(q, float)
+    q = q * np.where(q[:, :1] < 0.0, -1.0, 1.0)  # one hemisphere: twist in [-π, π]
+    return np.unwrap(2.0 * np.arctan2(q[:, 1:] @ np.asarray(axis, float), q[:, 0]))
+
+
 def angle_between(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Geodesic distance (rad) between orientations: the angle of ``p ⊗ q*``."""
     return angle(mul(p, conj(q)))

@@ -8,8 +8,9 @@ import pytest
 from motionlab import rotations as rot
 from motionlab.protocol import load_protocol
 from motionlab.results import HingeFit, SegmentCalibration, SegmentRecord, TwoAxisFit
+from motionlab.rotations import twist_angle
 from motionlab.segments.grades import grade_joints
-from motionlab.segments.skin_lag import covers, lag_undone, twist_angle, undo_lag
+from motionlab.segments.skin_lag import covers, lag_undone, undo_lag
 
 X, Y, Z = np.eye(3)
 RATE = 100.0

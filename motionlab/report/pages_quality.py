@@ -274,7 +274,8 @@ def _skin_lag(fit, joint, cal) -> str:
     back = (
         f"the rest is given back in the angles from its twist against the {fit.lag_anchor}"
         if getattr(fit, "lag_anchor", "")
-        else "the rest is not given back (no thorax sensor to take its twist against)"
+        else "the rest is not given back (no thorax sensor recording the stand to take its "
+        "twist against)"
     )
     return (
         f". The {joint.proximal} sensor follows {share} its segment's twist about the long axis "

@@ -24,14 +24,6 @@ from motionlab.results import TwoAxisFit
 TRUNK = "thorax"
 
 
-def twist_angle(q: np.ndarray, axis: np.ndarray) -> np.ndarray:
-    """Twist (N,; rad, unwrapped) of rotations ``q`` (N, 4) about ``axis`` (unit, their own
-    frame) in the swing-twist decomposition ``q = swing · twist``."""
-    q = np.asarray(q, float)
-    q = q * np.where(q[:, :1] < 0.0, -1.0, 1.0)  # one hemisphere: twist in [-π, π]
-    return np.unwrap(2.0 * np.arctan2(q[:, 1:] @ np.asarray(axis, float), q[:, 0]))
-
-
 def undo_lag(
     t: np.ndarray,
     q_segment: np.ndarray,
@@ -49,7 +41,7 @@ def undo_lag(
     relative = rot.mul(rot.conj(rot.resample(t_trunk, q_trunk, t)), q_segment)
     away = rot.mul(rot.conj(rot.mean(relative[ref])), relative)
     long_axis = np.array([0.0, 1.0, 0.0])
-    angle = (1.0 / follow - 1.0) * twist_angle(away, long_axis)
+    angle = (1.0 / follow - 1.0) * rot.twist_angle(away, long_axis)
     return rot.mul(q_segment, rot.from_axis_angle(long_axis, angle))
 
 

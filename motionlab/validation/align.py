@@ -86,11 +86,6 @@ class Alignment:
         )
 
 
-def _heading_of(q: np.ndarray) -> float:
-    """Angle (rad) of the rotation about the earth vertical closest to ``q`` (swing-twist)."""
-    return float(2.0 * np.arctan2(q[3], q[0]))
-
-
 def initial_x(a: np.ndarray, b: np.ndarray, lag: int) -> tuple[np.ndarray, float]:
     """Closed-form ``X`` from relative rotations over ``lag`` samples, and its conditioning.
 
@@ -148,7 +143,9 @@ def align(
         psi0 = {}
     else:
         y_init = y0[first]
-        psi0 = {k: _heading_of(rot.mul(y0[k], rot.conj(y_init))) for k in labels[1:]}
+        up = np.array([0.0, 0.0, 1.0])  # each one's heading against the first: its twist
+        turns = {k: rot.mul(y0[k], rot.conj(y_init))[None] for k in labels[1:]}
+        psi0 = {k: float(rot.twist_angle(q, up)[0]) for k, q in turns.items()}
     samples = {}
     for label, (a, b) in pairs.items():
         ok = np.flatnonzero(np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1))
