@@ -352,6 +352,28 @@ def test_no_gps_from_the_knees_alone():
     assert gated_profile(movement_analysis_profile(full), {}).gps["overall"] == pytest.approx(0)
 
 
+def test_gps_names_a_joint_the_protocol_lacks():
+    """The knee protocol's gait page said "hip flexion … not measured (no sensor)" on a session
+    with its pelvis and both thigh sensors: the protocol has no hip joint. A one-sided protocol
+    names nothing on the side it does not measure."""
+    from motionlab.kinematics.gps import NOT_IN_PROTOCOL, gated_profile, variable_grades
+
+    grades = variable_grades(load_protocol("knee"), None)
+    assert grades["r"]["hip_flexion"] == (NOT_IN_PROTOCOL, "")
+    assert grades["r"]["knee_flexion"] == ("determined", "")
+    pct = np.linspace(0, 100, 101)
+    knees = {s: {"knee_flexion": normative("knee_flexion", pct)[0]} for s in "rl"}
+    text = gated_profile(movement_analysis_profile(knees), grades).not_computed
+    assert text.endswith(  # the pelvis's curves are missing from this input: no sensor
+        "pelvis rotation not measured (no sensor); hip flexion, hip adduction, hip rotation not "
+        "measured (no such joint in the protocol)"
+    )
+    walk = variable_grades(load_protocol("walk"), None)
+    assert all(g == ("determined", "") for side in walk.values() for g in side.values())
+    one_sided = variable_grades(load_protocol("elbow"), None)
+    assert one_sided == {"r": {}, "l": {}}
+
+
 def test_simulated_gait_truth_and_asymmetry():
     from motionlab.simulate import simulate
 

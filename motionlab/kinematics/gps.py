@@ -58,6 +58,9 @@ GPS_POINTS = np.arange(0, 101, 2)  # % of the cycle (Baker et al. 2009)
 #: why a variable of a measured side has no score: its sensor is missing (the pelvis's, for the
 #: pelvis and the hips): the GPS is then not computed, as a knee-only "GPS" is no GPS
 NOT_MEASURED = "not measured (no sensor)"
+#: why a joint variable has no score when the protocol has no such joint on that side (the knee
+#: protocol's hips, though its pelvis and thigh sensors are there)
+NOT_IN_PROTOCOL = "not measured (no such joint in the protocol)"
 
 
 @lru_cache(maxsize=1)
@@ -129,8 +132,9 @@ def variable_grades(
 ) -> dict[str, dict[str, tuple[str, str]]]:
     """``{side: {variable: (grade, reason)}}`` of the GPS variables the protocol's joints give:
     hip and knee angles by their joint angle's grade, the pelvis variables by the pelvis frame's
-    (:func:`motionlab.segments.grades._frame_grade`). A calibration without grades (a session
-    calibrated before they existed) has everything ``determined``."""
+    (:func:`motionlab.segments.grades._frame_grade`), a hip or knee the protocol has on the
+    other side only or not at all :data:`NOT_IN_PROTOCOL`. A calibration without grades (a
+    session calibrated before they existed) has everything else ``determined``."""
     graded = calibration.grades if calibration is not None else {}
     out: dict[str, dict[str, tuple[str, str]]] = {"r": {}, "l": {}}
     for joint in protocol.joints.values():
@@ -143,6 +147,9 @@ def variable_grades(
             if v in VARIABLES:
                 g = str(grades[k]) if k < len(grades) else "determined"
                 out[joint.side][v] = (g, str(reasons[k]) if k < len(reasons) else "")
+    for graded_side in filter(None, out.values()):  # a side the protocol measures
+        for v in JOINT_VARIABLES:
+            graded_side.setdefault(v, (NOT_IN_PROTOCOL, ""))
     segments = calibration.segments if calibration is not None else {}
     if "pelvis" in protocol.segments and (not graded or "pelvis" in segments):
         frame = ("determined", "")
