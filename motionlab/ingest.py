@@ -481,8 +481,8 @@ def ingest(
         )
     map_path = None
     if sensor_map is not None and not isinstance(sensor_map, SensorMap):
-        map_path = Path(sensor_map)
-        sensor_map = load_sensor_map(map_path)
+        sensor_map = load_sensor_map(sensor_map)
+        map_path = sensor_map.path  # the installed copy of an example map outside the repository
     smap = sensor_map or SensorMap()
 
     streams: list[tuple[SensorStream, Path]] = []

@@ -776,8 +776,20 @@ def _is_range(value: list, strict: bool = True) -> bool:
     return value[0] < value[1] if strict else value[0] <= value[1]
 
 
+def packaged_copy(path: str | Path) -> Path | None:
+    """The installed copy of a file in the repository's ``protocols/`` folder, for a relative path
+    into it that does not exist here (``protocols/examples/trunk_map.yaml``, as the help's
+    examples write it, given outside the repository); else ``None``."""
+    p = Path(path)
+    if p.is_absolute() or p.exists() or p.is_symlink() or p.parts[:1] != ("protocols",):
+        return None
+    copy = PACKAGED.joinpath(*p.parts[1:])
+    return copy if copy.is_file() else None
+
+
 def resolve_protocol_path(path: str | Path) -> Path:
-    """A path as given, or the packaged protocol of that name (``knee`` → protocols/knee.yaml).
+    """A path as given, or the packaged protocol of that name (``knee`` → protocols/knee.yaml),
+    or the installed copy of a path into the repository's ``protocols/`` (:func:`packaged_copy`).
 
     A file of the name comes first; a folder (or anything not a regular file) of a packaged
     protocol's name in the working folder, such as the output folder of an earlier ``run``
@@ -785,6 +797,8 @@ def resolve_protocol_path(path: str | Path) -> Path:
     p = Path(path)
     if p.is_file():
         return p
+    if (copy := packaged_copy(p)) is not None:
+        return copy
     packaged = PACKAGED / f"{p.stem}.yaml"
     if p.suffix in ("", ".yaml") and packaged.is_file() and not p.parent.parts[1:]:
         return packaged

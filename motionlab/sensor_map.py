@@ -108,8 +108,12 @@ def _check_lengths(smap: SensorMap, subject: LineMap) -> None:
 
 
 def load_sensor_map(path: str | Path) -> SensorMap:
-    """Read and validate a sensor map; :class:`InputError` names the offending key and line."""
-    path = Path(path)
+    """Read and validate a sensor map; :class:`InputError` names the offending key and line. A
+    relative path into the repository's ``protocols/`` that does not exist here is the installed
+    copy (:func:`motionlab.protocol.packaged_copy`: the help's example maps)."""
+    from motionlab.protocol import packaged_copy
+
+    path = packaged_copy(path) or Path(path)
     smap = SensorMap(path=path)
     text = read_yaml_text(path, "sensor map", "give a YAML sensor map (see the README)")
     doc = load_yaml(text, TextKeyLineLoader, path, "check indentation")

@@ -1,5 +1,7 @@
 """Shipped protocols load; a broken protocol names the key and the line."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -154,6 +156,29 @@ def test_a_folder_named_like_a_packaged_protocol_does_not_hide_it(tmp_path, monk
     (tmp_path / "walk").write_text("not: [a protocol")  # a file of the name is read, as given
     with pytest.raises(InputError, match="walk"):
         load_protocol("walk")
+
+
+def test_the_help_examples_paths_into_protocols_work_outside_the_repository(tmp_path, monkeypatch):
+    """``run --help`` writes ``--map protocols/examples/trunk_map.yaml`` and ``--protocol
+    protocols/examples/ring_rig.yaml``: outside the repository they said "no such sensor map
+    file". A relative path into ``protocols/`` that does not exist is the installed copy; one
+    that exists is read as given."""
+    from motionlab.protocol import packaged_copy
+    from motionlab.sensor_map import load_sensor_map
+
+    monkeypatch.chdir(tmp_path)
+    smap = load_sensor_map("protocols/examples/trunk_map.yaml")
+    assert smap.path == PACKAGED / "examples" / "trunk_map.yaml"
+    assert load_protocol("protocols/examples/ring_rig.yaml").name == "ring_rig"
+    assert packaged_copy("protocols/examples/none.yaml") is None
+    assert packaged_copy("elsewhere/trunk_map.yaml") is None
+    mine = tmp_path / "protocols" / "examples" / "trunk_map.yaml"
+    mine.parent.mkdir(parents=True)
+    mine.write_text("sensors: {Back: {segment: pelvis}}\n")
+    assert packaged_copy("protocols/examples/trunk_map.yaml") is None
+    assert load_sensor_map("protocols/examples/trunk_map.yaml").path == Path(
+        "protocols/examples/trunk_map.yaml"
+    )
 
 
 @pytest.mark.parametrize(
