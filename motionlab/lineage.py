@@ -21,6 +21,7 @@ its results are taken as consistent with each other, as they were used before
 from __future__ import annotations
 
 import hashlib
+import shlex
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -187,18 +188,45 @@ def rerun(stale: dict[str, str], needed: tuple[str, ...] | list[str]) -> list[st
     return [COMMANDS[s] for s in INPUTS if s in wanted]
 
 
+#: the stages whose command needs the protocol named (the others take the calibration's)
+NEEDS_PROTOCOL = ("clock_sync", "calibration")
+#: where the shipped protocols lie: one of them is named by its name in a command
+_PACKAGED = Path(__file__).resolve().parent / "protocols"
+
+
+def rerun_commands(session: Any, stale: dict[str, str], needed: Any, path: Any = None) -> str:
+    """The commands to run, in order, to bring the ``needed`` stages' results of ``session`` up
+    to date, as they can be run: ``motionlab calibrate session.h5 protocol=knee force=True,
+    then motionlab angles session.h5 force=True`` (the session file ``path``; the protocol the
+    calibration used, by its name where it is a shipped one; library spelling, the CLI turns
+    ``name=value`` into its flags, :class:`~motionlab.errors.InputError` ``argument``)."""
+    cal = getattr(session.results, "calibration", None)
+    protocol = None
+    if cal is not None:
+        file = Path(cal.protocol_path) if cal.protocol_path else None
+        shipped = file is None or file.resolve() == _PACKAGED / f"{cal.protocol}.yaml"
+        protocol = cal.protocol if shipped else str(file)
+    where = f" {shlex.quote(str(path))}" if path is not None else ""
+    commands = []
+    for stage in (s for s in INPUTS if COMMANDS[s] in rerun(stale, needed)):
+        words = f"motionlab {COMMANDS[stage]}{where}"
+        if stage in NEEDS_PROTOCOL:
+            words += f" protocol={shlex.quote(protocol)}" if protocol else " protocol=<protocol>"
+        commands.append(f"{words} force=True")
+    return ", then ".join(commands)
+
+
 def refuse_stale(session: Any, needed: tuple[str, ...] | list[str], path: Any = None) -> None:
     """Raise :class:`InputError` when a result among ``needed`` is stale: one line naming the
-    first and the commands to re-run."""
+    first and the commands to re-run (:func:`rerun_commands`)."""
     stale = session.lineage.stale(session.results)
     bad = [s for s in needed if s in stale]
     if not bad:
         return
-    commands = ", then ".join(f"motionlab {c} force=True" for c in rerun(stale, bad))
     raise InputError(
         f"the {bad[0]} result is stale ({stale[bad[0]]})",
         path,
         f"results/{bad[0]}",
-        f"re-run {commands} first",
-        argument="force",
+        f"re-run {rerun_commands(session, stale, bad, path)} first",
+        argument=("force", "protocol"),
     )

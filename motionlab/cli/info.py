@@ -8,7 +8,8 @@ import math
 import click
 
 from motionlab.cli.paths import INPUT_FILE
-from motionlab.lineage import rerun
+from motionlab.cli.flags import to_flags
+from motionlab.lineage import rerun_commands
 from motionlab.sensor_map import unmatched_place
 
 
@@ -26,7 +27,11 @@ def command(session: str, as_json: bool) -> None:
     from motionlab.session import load_session
     from motionlab.summary import session_summary
 
-    summary = session_summary(load_session(session))
+    ses = load_session(session)
+    summary = session_summary(ses)
+    if summary.get("stale"):  # runnable as printed: the file, the protocol, the flags
+        commands = rerun_commands(ses, summary["stale"], list(summary["stale"]), session)
+        summary["rerun"] = to_flags(commands, ("force", "protocol"))
     if as_json:
         click.echo(json.dumps(_no_nan(summary), indent=2, default=float))
         return
@@ -161,9 +166,8 @@ def format_summary(summary: dict) -> str:
     stale = summary.get("stale", {})
     for stage, why in stale.items():
         lines.append(f"  stale: {stage} ({why})")
-    if stale:
-        commands = ", then ".join(f"motionlab {c} --force" for c in rerun(stale, list(stale)))
-        lines.append(f"  to bring them up to date: {commands}")
+    if stale and summary.get("rerun"):
+        lines.append(f"  to bring them up to date: {summary['rerun']}")
     lines.append(f"provenance entries: {len(summary['provenance'])}")
     for p in summary["provenance"]:
         lines.append(f"  {p.get('time', '')}  {p.get('software', '')}  {p.get('command', '')}")
