@@ -7,8 +7,8 @@ import math
 
 import click
 
-from motionlab.cli.paths import INPUT_FILE
 from motionlab.cli.flags import to_flags
+from motionlab.cli.paths import INPUT_FILE
 from motionlab.lineage import rerun_commands
 from motionlab.sensor_map import unmatched_place
 
