@@ -1,12 +1,17 @@
 """Elbow angles from two accelerometers only (after Lee 2012, ch. 5).
 
 Model (Lee §5.1-5.3, restated in motionlab's frames): the upper arm has no heading change (it moves
-in a vertical plane) and the elbow has no carrying angle, so the forearm is ``R_U · Rz(n) · Ry(m)``
-with flexion ``n`` and pronation ``m`` (the Z-X-Y elbow decomposition with the middle angle zero).
-Gravity measured in each segment's frame (calibrated accelerometers, low-passed to remove
-movement acceleration) then gives, in closed form instead of Lee's constrained Newton iteration,
+in a vertical plane) and the carrying angle keeps its value ``c`` of the stand, so the forearm is
+``R_U · Rz(n) · Rx(c) · Ry(m)`` with flexion ``n`` and pronation ``m`` (the Z-X-Y elbow
+decomposition with the middle angle fixed). Lee fixes ``c`` at 0°; with the 10-15° valgus of a
+real (and the simulated) elbow that read the carrying angle as flexion wherever the elbow is
+nearly straight (9° RMS below 20° of flexion on simulated elbows, and pronation 70-90° off
+there), so ``c`` is taken from gravity in the stand, elbow straight and palms forward. Gravity
+measured in each segment's frame (calibrated accelerometers, low-passed to remove movement
+acceleration) then gives, in closed form instead of Lee's constrained Newton iteration,
 
-- flexion from the forearm's long-axis component: ``v_y cos n − v_x sin n = u_y``;
+- flexion from the forearm's long-axis component,
+  ``(v_y cos n − v_x sin n) cos c + v_z sin c = u_y``;
 - pronation from the angle between the remaining components in the forearm's x-z plane;
 
 where ``v`` is "up" in upper-arm and ``u`` in forearm coordinates. Of the two flexion branches the
@@ -65,22 +70,28 @@ def _choose_branch(n: np.ndarray, m: np.ndarray, ok: np.ndarray) -> np.ndarray:
     return out
 
 
-def elbow_from_gravity(up_upper: np.ndarray, up_fore: np.ndarray, side: str) -> np.ndarray:
-    """Clinical elbow angles (N, 3) in rad from "up" (N, 3) in upper-arm and forearm coordinates.
+def elbow_from_gravity(
+    up_upper: np.ndarray, up_fore: np.ndarray, side: str, carrying: float = 0.0
+) -> np.ndarray:
+    """Clinical elbow angles (N, 3) in rad from "up" (N, 3) in upper-arm and forearm coordinates,
+    with the carrying angle fixed at ``carrying`` (rad, clinical sign: :func:`stand_carrying`).
 
-    Columns: flexion, carrying angle (0 by the model), pronation; signs as
+    Columns: flexion, carrying angle (``carrying`` throughout), pronation; signs as
     :mod:`motionlab.kinematics.joint_angles`.
     """
+    signs = signs_for("elbow", side)
+    c = signs[1] * carrying
     v = up_upper / np.linalg.norm(up_upper, axis=1, keepdims=True)
     u = up_fore / np.linalg.norm(up_fore, axis=1, keepdims=True)
     amp = np.hypot(v[:, 0], v[:, 1])
     phi = np.arctan2(v[:, 0], v[:, 1])
-    acos = np.arccos(np.clip(u[:, 1] / np.maximum(amp, 1e-9), -1.0, 1.0))
+    target = (u[:, 1] - v[:, 2] * np.sin(c)) / np.cos(c)  # v_y cos n − v_x sin n
+    acos = np.arccos(np.clip(target / np.maximum(amp, 1e-9), -1.0, 1.0))
     cands = [_wrap(-phi + acos), _wrap(-phi - acos)]
     prons = []
     for n in cands:
-        wx = v[:, 0] * np.cos(n) + v[:, 1] * np.sin(n)
-        prons.append(_wrap(np.arctan2(u[:, 2], u[:, 0]) - np.arctan2(v[:, 2], wx)))
+        bx, bz = _flexed_up(v, n, c)
+        prons.append(_wrap(np.arctan2(u[:, 2], u[:, 0]) - np.arctan2(bz, bx)))
     ok = [
         (n >= FLEX_RANGE[0]) & (n <= FLEX_RANGE[1]) & (np.abs(m) <= np.pi / 2)
         for n, m in zip(cands, prons, strict=True)
@@ -89,12 +100,27 @@ def elbow_from_gravity(up_upper: np.ndarray, up_fore: np.ndarray, side: str) -> 
     n = np.where(second, cands[1], cands[0])
     m = np.where(second, prons[1], prons[0])
     flex_lock = amp < LOCK
-    wx = v[:, 0] * np.cos(n) + v[:, 1] * np.sin(n)
-    pron_lock = flex_lock | (np.hypot(wx, v[:, 2]) < LOCK) | (np.hypot(u[:, 0], u[:, 2]) < LOCK)
+    bx, bz = _flexed_up(v, n, c)
+    pron_lock = flex_lock | (np.hypot(bx, bz) < LOCK) | (np.hypot(u[:, 0], u[:, 2]) < LOCK)
     n = _hold(n, flex_lock)
     m = _hold(m, pron_lock)
-    signs = signs_for("elbow", side)
-    return np.column_stack([signs[0] * n, np.zeros_like(n), signs[2] * m])
+    return np.column_stack([signs[0] * n, np.full_like(n, signs[1] * c), signs[2] * m])
+
+
+def _flexed_up(v: np.ndarray, n: np.ndarray, c: float) -> tuple[np.ndarray, np.ndarray]:
+    """The x and z components of "up" ``v`` (upper-arm coordinates) in the frame turned by
+    ``Rz(n) · Rx(c)``, before the pronation about its y: ``Rx(c)ᵀ Rz(n)ᵀ v``."""
+    ay = v[:, 1] * np.cos(n) - v[:, 0] * np.sin(n)
+    return v[:, 0] * np.cos(n) + v[:, 1] * np.sin(n), v[:, 2] * np.cos(c) - ay * np.sin(c)
+
+
+def stand_carrying(up_upper: np.ndarray, up_fore: np.ndarray, side: str) -> float:
+    """The carrying angle (rad, clinical sign) of an elbow held straight with the palms forward,
+    from "up" (N, 3) in upper-arm and forearm coordinates over the pose: with ``n = m = 0`` the
+    forearm's "up" is the upper arm's turned by ``Rx(c)ᵀ`` about x."""
+    v, u = np.mean(up_upper, axis=0), np.mean(up_fore, axis=0)
+    c = np.arctan2(v[2], v[1]) - np.arctan2(u[2], u[1])
+    return float(signs_for("elbow", side)[1] * _wrap(c))
 
 
 def session_elbow_angles(session: Session, protocol: Protocol) -> dict[str, Any]:
@@ -127,8 +153,24 @@ def session_elbow_angles(session: Session, protocol: Protocol) -> dict[str, Any]
             ups.append((s.time, up))
         t = ups[0][0]
         up_d = np.column_stack([np.interp(t, ups[1][0], ups[1][1][:, k]) for k in range(3)])
-        angles = np.degrees(elbow_from_gravity(ups[0][1], up_d, joint.side))
+        carrying = 0.0  # Lee's model, where the recording has no stand with the arm hanging
+        stand = _stand(protocol, calibration, joint.proximal)
+        if stand is not None and ((t >= stand[0]) & (t <= stand[1])).any():
+            pose = (t >= stand[0]) & (t <= stand[1])
+            carrying = stand_carrying(ups[0][1][pose], up_d[pose], joint.side)
+        angles = np.degrees(elbow_from_gravity(ups[0][1], up_d, joint.side, carrying))
         out.setdefault("time_s", t)
         for i, (_, col) in enumerate(angle_columns(joint)):
             out[col] = np.interp(out["time_s"], t, angles[:, i])
     return out
+
+
+def _stand(protocol: Protocol, calibration: Any, upper_arm: str) -> tuple[float, float] | None:
+    """The time (s) of the first static calibration step found in which ``upper_arm`` hangs
+    (its vertical axis given): the elbow straight and the palms forward, as the arm and elbow
+    protocols ask; ``None`` when the recording has none."""
+    for step in protocol.calibration:
+        found = (calibration.steps or {}).get(step.name) if calibration is not None else None
+        if step.kind == "static" and upper_arm in step.vertical_axis and found:
+            return float(found[0]), float(found[1])
+    return None

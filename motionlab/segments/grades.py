@@ -345,15 +345,23 @@ def _lowered(joint: JointGrades, lowest: list[str], why: str) -> JointGrades:
 
 
 #: what an angle method other than the fused orientations cannot measure, by joint type and
-#: angle: ``(grade at best, reason)``. The accelerometer-only elbow (Lee 2012, ch. 5) fixes the
-#: carrying angle at 0° and reads pronation from gravity alone, held where the forearm hangs
-#: vertical, with the upper arm assumed to keep its heading (on the demo elbow 64° RMS from
-#: the fused angles, where flexion was 7°).
+#: angle: ``(grade at best, reason)``. The accelerometer-only elbow (Lee 2012, ch. 5) holds the
+#: carrying angle at its value in the stand and reads pronation from gravity alone, held where
+#: the forearm hangs vertical. Its flexion is right while the elbow's axis stays horizontal
+#: (simulated elbow protocol, seeds 0-2: 2.0-2.3° RMS, 0.8° with the axis within 6° of
+#: horizontal) and not in free arm movement (arm protocol: 10-12°; the carrying angle falls
+#: with flexion, 2-9° against 10-11° in the stand, and enters flexion as the axis tilts), which
+#: the grade cannot tell apart: weak at best.
 METHOD_LIMITS = {
     "accel-only": {
+        ("elbow", "flexion"): (
+            "weak",
+            "the accelerometer-only method reads it right only while the elbow's axis stays "
+            "horizontal (its model holds the carrying angle at the stand's)",
+        ),
         ("elbow", "carrying"): (
             "not determined",
-            "the accelerometer-only method does not measure it (its model fixes it at 0°)",
+            "the accelerometer-only method does not measure it (its model holds it at the stand's)",
         ),
         ("elbow", "pronation"): (
             "weak",
