@@ -97,8 +97,14 @@ def test_issue_example_sentence():
     )
     assert row.status == "below" and row.normal == (0.0, 65.0)
     assert rom_sentence(row) == (
-        "Right knee flexion-extension range 5–52° during gait, below the normal 0–65°."
+        "Right knee flexion-extension range 5–52° during gait, below the normal 0–65° (its peak "
+        "more than 10° short of 65°)."
     )
+    # below for its low end: no word on the peak
+    low = next(
+        r for r in rom_rows(_view((-12.0, 60.0), (0.0, 64.0))) if r.column == "knee_r_flexion_deg"
+    )
+    assert low.status == "below" and rom_sentence(low).endswith("below the normal 0–65°.")
     assert span(-3.2, 5.4) == "-3 to 5°"
 
 

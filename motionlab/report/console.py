@@ -13,6 +13,7 @@ import numpy as np
 from motionlab.clocksync.stage import VENDOR_KEPT
 from motionlab.kinematics.gait_course import change_text, walk_courses
 from motionlab.report.model import (
+    REACH_TOLERANCE_DEG,
     angle_grades,
     calibration_rows,
     gait_profile,
@@ -21,7 +22,14 @@ from motionlab.report.model import (
     quality_rows,
     rom_rows,
 )
-from motionlab.report.sentences import allowance, findings, missing_lines, span, task_name
+from motionlab.report.sentences import (
+    allowance,
+    findings,
+    missing_lines,
+    short_of_reach,
+    span,
+    task_name,
+)
 
 if TYPE_CHECKING:
     from motionlab.report import ReportOutput
@@ -115,6 +123,7 @@ def run_summary(
         normal = (
             f"normal {span(*r.normal)}, {r.status or 'not compared'}"
             + (f", {allowance(r)}" if allowance(r) else "")
+            + (f", peak over {REACH_TOLERANCE_DEG:g}° short" if short_of_reach(r) else "")
             + (", the pace: not flagged" if r.paced else "")
             if r.normal
             else "no normal range"

@@ -25,6 +25,7 @@ from motionlab.kinematics.joint_types import JOINT_TYPES, angle_names, joint_typ
 from motionlab.report.model import (
     NOT_DETERMINED,
     PACE_STATUSES,
+    REACH_TOLERANCE_DEG,
     SIDE_NAMES,
     THORAX,
     TOLERANCE_DEG,
@@ -162,8 +163,18 @@ def rom_sentence(row: RomRow) -> str:
         lo, hi = row.normal
         allowed = allowance(row)
         text += f", {STATUS_WORDS[row.status]} the normal {span(lo, hi)}"
+        if short_of_reach(row):  # '3–89°, below the normal 0–100°' read as a contradiction
+            allowed = f"its peak more than {REACH_TOLERANCE_DEG:g}° short of {hi:g}°"
         text += f" ({allowed})" if allowed else ""
     return text + "."
+
+
+def short_of_reach(row: RomRow) -> bool:
+    """Whether a range is ``below`` normal only for its peak falling short of the normal
+    range's top (:func:`~motionlab.report.model.compare`'s reach), its low end within."""
+    if row.status != "below" or row.normal is None:
+        return False
+    return round(row.typical_min_deg) >= row.normal[0] - TOLERANCE_DEG
 
 
 def allowance(row: RomRow) -> str:
