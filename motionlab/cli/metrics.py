@@ -62,7 +62,8 @@ def command(
     \b
     Example:
       motionlab metrics session.h5 --csv metrics.csv
-      motionlab metrics session.h5 --task gait=95:150 --task squat=152:180 --force
+      motionlab metrics session.h5 --task gait=95:117 --task squat=120:131 --force
+      (the blocks of the demo's knee session, motionlab-demo/knee/session.h5, by hand)
     """
     import numpy as np
 
