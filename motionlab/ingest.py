@@ -31,7 +31,7 @@ import numpy as np
 
 from motionlab import timebase
 from motionlab.binding import segment_name
-from motionlab.errors import InputError
+from motionlab.errors import InputError, shorten
 from motionlab.io import read_any
 from motionlab.qc import (
     IMPLAUSIBLE,
@@ -233,6 +233,14 @@ def _check_clock(stream: SensorStream, path: Path) -> None:
             where,
             "check the time column, or export the file again",
         )
+    stated = float(stream.attrs.get("nominal_rate_hz") or np.nan)
+    if np.isfinite(stated) and stated > 0 and max(rate / stated, stated / rate) > UNIT_FACTOR:
+        raise InputError(  # a factor of 10 is no clock's error: ms read as µs, say
+            f"the time stamps give {rate:.4g} Hz, the file's header says {stated:g} Hz",
+            path,
+            where,
+            "the time column is in another unit than the format's: export the file again",
+        )
     if not RATE_RANGE_HZ[0] <= rate <= RATE_RANGE_HZ[1]:
         raise InputError(
             f"sampling rate {rate:.3g} Hz from the time stamps",
@@ -310,6 +318,11 @@ def _check_rate(
 
 
 #: the remedy when two files hold one device: a map cannot tell them apart (it keys by serial)
+#: the time stamps' rate this many times the header's, or less than its share, is a time column
+#: in another unit (a 10 % difference is a warning, :mod:`motionlab.qc`)
+UNIT_FACTOR = 10.0
+#: longest sensor name (characters): it titles report rows and names the session file's groups
+LABEL_MAX = 100
 SAME_DEVICE = "give each device's recording once (the same recording exported twice?)"
 
 
@@ -318,6 +331,16 @@ def _unique_label(
 ) -> SensorStream:
     label = stream.label.strip().replace("/", "_") or stream.serial or path.stem
     path = Path(stream.attrs.get("device_folder", path))  # a folder per device (x-IMU3)
+    if label.strip(".") == "" or not label.isprintable() or len(label) > LABEL_MAX:
+        what = "is only dots" if label.strip(".") == "" else (
+            f"is {len(label)} characters long" if len(label) > LABEL_MAX
+            else "holds control or undecodable characters")  # fmt: skip
+        raise InputError(
+            f"sensor name {shorten(repr(label), 40)} {what}: it cannot name a sensor",
+            path,
+            remedy="give the sensor a label in the sensor map (sensors: <serial or name>: "
+            "{label: ...}) or rename the device",
+        )
     if label in seen:
         other, serial = seen[label]
         same = bool(serial) and serial == stream.serial

@@ -633,3 +633,37 @@ def test_an_accelerometer_in_m_s2_read_as_g_says_so(tmp_path):
     (line,) = result.stderr.splitlines()
     assert "(read as g), 9.81 times gravity: the accelerometer is in m/s², read as g" in line
     assert "acc: {unit: m/s^2}" in line
+
+
+@pytest.mark.parametrize(
+    ("label", "said"),
+    [  # each crashed: a NUL (h5py: "VLEN strings do not support embedded NULLs"), "." (an
+        # HDF5 group of that name exists), a non-UTF-8 folder name in the report (matplotlib),
+        # 70 000 characters (the report's wrapping for minutes)
+        ("Ba\x00ck", "holds control or undecodable characters"),
+        (".", "is only dots"),
+        ("Ch\udce4ir", "holds control or undecodable characters"),
+        ("x" * 70000, "is 70000 characters long"),
+    ],
+)
+def test_a_device_name_that_cannot_name_a_sensor_is_one_line(fake_files, monkeypatch, label, said):
+    t = np.arange(0, 1.0, 0.01)
+    recs = {fake_files[0]: Recording(sensors=[stream(t, label, acc=ramp(t))])}
+    monkeypatch.setattr(ingest_module, "read_any", lambda p, options=None: recs[p])
+    with pytest.raises(InputError, match=f"{said}: it cannot name a sensor .*sensor map") as err:
+        ingest([fake_files[0]])
+    assert len(str(err.value)) < 400 and "\n" not in str(err.value)
+
+
+def test_time_stamps_in_another_unit_than_the_header_rate_are_refused(fake_files, monkeypatch):
+    """A DOT export's SampleTimeFine in ms (read as µs) gave 58 823 Hz against the header's
+    60 Hz: a warning, then the clock sync crashed (arrays of different lengths)."""
+    t = np.arange(0, 3263) / 58823.5
+    recs = {fake_files[0]: Recording(sensors=[stream(t, "Femur", acc=ramp(t))])}
+    recs[fake_files[0]].sensors[0].attrs["nominal_rate_hz"] = 60.0
+    monkeypatch.setattr(ingest_module, "read_any", lambda p, options=None: recs[p])
+    with pytest.raises(InputError, match="give 5.882e.04 Hz, the file's header says 60 Hz .*unit"):
+        ingest([fake_files[0]])
+    recs[fake_files[0]].sensors[0] = stream(np.arange(0, 600) / 66.0, "Femur", acc=ramp(t[:600]))
+    recs[fake_files[0]].sensors[0].attrs["nominal_rate_hz"] = 60.0  # 10 % off: a warning
+    assert ingest([fake_files[0]]).sensors["Femur"].qc["flags"]["header_rate_mismatch"]

@@ -92,7 +92,10 @@ def _group(size: float, weight: str, settings: tuple) -> str:
 
 
 def _measure(text: str, size: float, weight: str) -> float:
-    """Width (in) of one line of ``text`` measured by FreeType (matplotlib's Agg renderer)."""
+    """Width (in) of one line of ``text`` measured by FreeType (matplotlib's Agg renderer); a
+    character no font can hold (an undecodable byte of a file name, kept as a lone surrogate)
+    measured as the ``?`` the PDF writes for it."""
+    text = text.encode("utf-8", "replace").decode("utf-8")
     prop = FontProperties(size=size, weight=weight)
     w, _, _ = _MEASURE.get_text_width_height_descent(text, prop, ismath=False)
     return w / 72.0
