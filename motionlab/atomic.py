@@ -139,17 +139,50 @@ def check_folder_writable(folder: str | Path, path: str | Path | None = None) ->
     os.unlink(probe)
 
 
+#: what the temporary file's name adds to the output's (``.NAME.XXXXXXXX.tmp``)
+TMP_NAME_EXTRA = 14
+
+
+def check_name_length(path: str | Path, extra: int = 0) -> None:
+    """Raise :class:`InputError` when a part of ``path`` is longer than its file system takes
+    (``NAME_MAX``, 255 bytes on most), with ``extra`` bytes more for the last part (a temporary
+    file's name); a part that does not exist yet is measured against the nearest folder that
+    does."""
+    parts = Path(path).parts
+    for k, part in enumerate(parts):
+        folder = Path(*parts[:k]) if k else Path(".")
+        while not folder.is_dir() and folder != folder.parent:
+            folder = folder.parent
+        try:
+            limit = os.pathconf(folder if folder.is_dir() else ".", "PC_NAME_MAX")
+        except (OSError, ValueError):
+            limit = 255
+        size = len(os.fsencode(part)) + (extra if k == len(parts) - 1 else 0)
+        if size > limit:
+            raise InputError(
+                f"a name of {len(os.fsencode(part))} bytes: too long for the file system "
+                f"(at most {limit - (extra if k == len(parts) - 1 else 0)})",
+                shorten(part, 40),
+                remedy="give a shorter name",
+            )
+
+
 def check_output(path: str | Path, force: bool, inputs: Iterable[str | Path | None] = ()) -> Path:
     """Validate an output path before any work is done; raise :class:`InputError` if unusable.
 
     ``inputs`` are the command's input files and folders: an output naming one of them, or
-    inside an input folder, is refused even with ``force``.
+    inside an input folder, is refused even with ``force``. A path ending in a separator
+    names a folder; a symbolic link, even to nowhere, is an existing output.
     """
+    if str(path).endswith(("/", os.sep)):
+        raise InputError("ends in a separator: a folder, expected a file", Path(path),
+                         remedy="give a file name")  # fmt: skip
     path, inputs = Path(path), list(inputs)
+    check_name_length(path, TMP_NAME_EXTRA)
     refuse_input_as_output(path, inputs)
     refuse_folder_in_input_folder(path.parent, inputs)
-    if path.exists() and not force:  # where: the folder, or a user cannot tell which one
-        raise InputError(
+    if (path.exists() or path.is_symlink()) and not force:  # where: the folder (a user cannot
+        raise InputError(  # tell which one otherwise)
             "output exists", path, f"in {path.parent}", "use force=True to replace it",
             argument="force",
         )  # fmt: skip

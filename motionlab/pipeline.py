@@ -36,6 +36,7 @@ import h5py
 from motionlab import stages as stages_lib
 from motionlab.atomic import (
     check_folder_writable,
+    check_name_length,
     refuse_folder_in_input_folder,
     refuse_input_as_output,
 )
@@ -237,6 +238,7 @@ def _outputs(
     ``inputs``, and none replaced without ``force``."""
     if outdir.exists() and not outdir.is_dir():
         raise InputError("is not a folder", outdir, remedy="give a folder for the outputs")
+    check_name_length(outdir)
     session_path, report_path, csv_dir = (
         outdir / SESSION_FILE,
         outdir / REPORT_FILE,

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from motionlab.atomic import atomic_path, current_umask
+from motionlab.errors import InputError
 from motionlab.session import SensorStream, Session, load_session, save_session
 
 
@@ -65,3 +66,22 @@ def test_force_never_replaces_a_device_or_pipe(tmp_path):
                 tmp.write_bytes(b"x")
     assert stat.S_ISFIFO(os.stat(fifo).st_mode) and os.path.islink(tmp_path / "link")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["link", "pipe"]
+
+
+def test_output_names_the_file_system_cannot_hold_or_that_name_a_folder(tmp_path):
+    """A 300-character output name was an internal error (ENAMETOOLONG), a dangling link was
+    replaced without force, and 'new.h5/' wrote a file called new.h5."""
+    from motionlab.atomic import check_name_length, check_output
+
+    with pytest.raises(InputError, match="a name of 303 bytes: too long for the file system"):
+        check_output(tmp_path / ("x" * 300 + ".h5"), force=True)
+    with pytest.raises(InputError, match="too long"):  # a folder on the way, not created yet
+        check_name_length(tmp_path / ("y" * 300) / "session.h5")
+    check_name_length(tmp_path / ("y" * 200) / "session.h5")
+    link = tmp_path / "dangling.h5"
+    link.symlink_to(tmp_path / "nowhere" / "x.h5")
+    with pytest.raises(InputError, match="output exists"):
+        check_output(link, force=False)
+    assert check_output(link, force=True) == link
+    with pytest.raises(InputError, match="ends in a separator: a folder, expected a file"):
+        check_output(f"{tmp_path}/new.h5/", force=True)

@@ -11,7 +11,7 @@ from typing import Any
 
 import click
 
-from motionlab.atomic import check_regular
+from motionlab.atomic import TMP_NAME_EXTRA, check_name_length, check_regular
 from motionlab.errors import InputError
 
 
@@ -23,6 +23,7 @@ class InputFile(click.ParamType):
 
     def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> str:
         path = Path(value)
+        check_name_length(path)
         try:
             os.stat(path)
         except OSError as exc:  # a missing file is the reader's to name
@@ -59,6 +60,7 @@ class OutputFile(click.ParamType):
     name = "file"
 
     def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> str:
+        check_name_length(value, TMP_NAME_EXTRA)  # written as a temporary file first
         if Path(value).is_dir():
             raise InputError("output is a folder", value, remedy="give a file name")
         return str(value)
@@ -71,6 +73,7 @@ class Folder(click.ParamType):
 
     def convert(self, value: Any, param: click.Parameter | None, ctx: click.Context | None) -> str:
         path = Path(value)
+        check_name_length(path)
         if path.exists() and not path.is_dir():
             raise InputError("is a file, expected a folder", path, remedy="give a folder")
         return str(value)
