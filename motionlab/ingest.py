@@ -496,11 +496,14 @@ def ingest(
     paths = [Path(p) for p in paths]
     if not paths:
         raise InputError("no input files", remedy="give one or more recording files")
-    if gap_max < 0 or (rate is not None and not rate > 0):
+    if not 0 <= gap_max < np.inf:
+        raise InputError(f"gap_max={gap_max:g} s is not a gap", remedy="give 0 s or more",
+                         argument="gap_max")  # fmt: skip
+    if rate is not None and not 0 < rate < np.inf:
         raise InputError(
-            f"gap_max={gap_max:g} must be ≥ 0 and rate={rate} > 0",
-            remedy="fix the option",
-            argument=("gap_max", "rate"),
+            f"rate={rate:g} Hz is not a sampling rate",
+            remedy="give a rate above 0 Hz, or leave it out to keep the recorded clock",
+            argument="rate",
         )
     map_path = None
     if sensor_map is not None and not isinstance(sensor_map, SensorMap):

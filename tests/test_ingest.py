@@ -667,3 +667,17 @@ def test_time_stamps_in_another_unit_than_the_header_rate_are_refused(fake_files
     recs[fake_files[0]].sensors[0] = stream(np.arange(0, 600) / 66.0, "Femur", acc=ramp(t[:600]))
     recs[fake_files[0]].sensors[0].attrs["nominal_rate_hz"] = 60.0  # 10 % off: a warning
     assert ingest([fake_files[0]]).sensors["Femur"].qc["flags"]["header_rate_mismatch"]
+
+
+@pytest.mark.parametrize(
+    ("options", "said"),
+    [  # '--rate 0' said "--gap-max 0.1 must be ≥ 0 and --rate 0.0 > 0"; NaN was taken
+        ({"rate": 0.0}, "rate=0 Hz is not a sampling rate"),
+        ({"rate": float("inf")}, "rate=inf Hz is not a sampling rate"),
+        ({"gap_max": -1.0}, "gap_max=-1 s is not a gap"),
+        ({"gap_max": float("nan")}, "gap_max=nan s is not a gap"),
+    ],
+)
+def test_rate_and_gap_options_are_checked_each_on_its_own(fake_files, options, said):
+    with pytest.raises(InputError, match=said):
+        ingest([fake_files[0]], **options)
