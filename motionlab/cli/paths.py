@@ -11,7 +11,7 @@ from typing import Any
 
 import click
 
-from motionlab.atomic import TMP_NAME_EXTRA, check_name_length, check_regular
+from motionlab.atomic import TMP_NAME_EXTRA, check_name_length, check_regular, special_kind
 from motionlab.errors import InputError
 
 
@@ -75,7 +75,8 @@ class Folder(click.ParamType):
         path = Path(value)
         check_name_length(path)
         if path.exists() and not path.is_dir():
-            raise InputError("is a file, expected a folder", path, remedy="give a folder")
+            what = special_kind(path) or "a file"  # /dev/full said "is a file"
+            raise InputError(f"is {what}, expected a folder", path, remedy="give a folder")
         return str(value)
 
 
