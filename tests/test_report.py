@@ -189,9 +189,10 @@ def test_a_pace_outside_the_norms_walkers_is_said_first_and_unflags_what_it_expl
     outside = [i for i in items if " knee flexion-extension range " in i and "within" not in i]
     assert len(outside) == 2
     rows = {r.column: r for r in rom_rows(view)}
-    if not pace:
+    if not pace:  # and no walking speed: the range above normal is not flagged, said why
         assert not any("steps/min" in i or "pace" in i for i in items)
-        assert rows["knee_r_flexion_deg"].flagged and rows["knee_l_flexion_deg"].flagged
+        assert rows["knee_r_flexion_deg"].flagged and rows["knee_l_flexion_deg"].paced
+        assert any(i.endswith("ranges grow with it): not flagged.") for i in outside)
         return
     assert items[0] == (
         f"Gait at {cadence:.0f} steps/min, {pace} than the 100–125 of the walkers the normal "
@@ -264,8 +265,9 @@ def test_a_walking_speed_outside_the_norms_walkers_is_a_pace_note_too(
 def test_a_flexion_above_normal_says_when_the_walking_speed_was_not_measured(speed):
     """The real full-body walker (no height in its map, 124 steps/min: within the band) was told
     both knees flexed above the normal 0-65° with nothing on the speed that would have explained
-    it (1.8 m/s with a height). A flexion range above normal now says the speed was not measured;
-    one short of normal, another plane, or a walk whose speed was measured say nothing of it."""
+    it (1.8 m/s with a height), then with the speed's caveat but still flagged. A flexion range
+    above normal now says the speed was not measured and is not flagged; one short of normal,
+    another plane, or a walk whose speed was measured say nothing of it."""
     view = _view((5.0, 45.0), (-1.0, 78.0))
     view.session.results.gait = Gait(
         status="ok",
@@ -280,9 +282,12 @@ def test_a_flexion_above_normal_says_when_the_walking_speed_was_not_measured(spe
     assert tagged == [
         "Left knee flexion-extension range -1 to 78° during gait, above the normal 0–65° "
         "(walking speed not measured without a subject height in the sensor map; ranges grow with "
-        "it)."
+        "it): not flagged."
     ]
     assert any(i.startswith("Right knee flexion-extension range 5–45°") for i in items)
+    rows = {r.column: r for r in rom_rows(view)}
+    assert rows["knee_l_flexion_deg"].paced and not rows["knee_l_flexion_deg"].flagged
+    assert rows["knee_r_flexion_deg"].status == "below" and rows["knee_r_flexion_deg"].flagged
 
 
 def test_a_walks_length_says_how_much_of_it_strides_cover():

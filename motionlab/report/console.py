@@ -26,6 +26,7 @@ from motionlab.report.sentences import (
     allowance,
     findings,
     missing_lines,
+    paced_words,
     short_of_reach,
     span,
     task_name,
@@ -124,7 +125,7 @@ def run_summary(
             f"normal {span(*r.normal)}, {r.status or 'not compared'}"
             + (f", {allowance(r)}" if allowance(r) else "")
             + (f", peak over {REACH_TOLERANCE_DEG:g}° short" if short_of_reach(r) else "")
-            + (", the pace: not flagged" if r.paced else "")
+            + (f", {paced_words(view, r)}" if r.paced else "")
             if r.normal
             else "no normal range"
         )

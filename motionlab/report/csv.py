@@ -59,6 +59,7 @@ from motionlab.report.model import (
     symmetry_rows,
     worst_grade,
 )
+from motionlab.report.sentences import paced_words
 
 FLOAT_FORMAT = "%.4f"
 
@@ -114,7 +115,7 @@ def metrics_frame(view: SessionView) -> pd.DataFrame:
             vs_normal = "not compared"
         else:
             vs_normal = r.status or ("not compared" if r.normal else "no normal range")
-            vs_normal += " (the pace: not flagged)" if r.paced else ""
+            vs_normal += f" ({paced_words(view, r)})" if r.paced else ""
         rows.append(
             {"task": r.task, "joint": r.joint, "angle": r.angle, "plane": r.plane}
             | {k: _withheld(r.grade, v) for k, v in measured.items()}

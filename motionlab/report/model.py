@@ -91,7 +91,8 @@ class RomRow:
     ``below``, ``above``, ``wider`` (:func:`compare`), empty when not compared (no normal range,
     or the angle not ``determined``); ``grade`` and ``reason`` (:func:`grade_rows`); ``paced``:
     a flexion range outside normal the way the walk's pace outside the norms' moves it
-    (:func:`pace_explains`), shown but not flagged."""
+    (:func:`pace_explains`), or above normal in a walk whose speed was not measured
+    (:func:`pace_unmeasured`), shown but not flagged."""
 
     task: str
     joint: str
@@ -466,6 +467,16 @@ def walk_pace(view: SessionView, task: str) -> str:
     return paces.pop() if len(paces) == 1 else ("mixed" if paces else "")
 
 
+def pace_unmeasured(view: SessionView, task: str) -> bool:
+    """Whether ``task`` is a walk whose speed was not measured (no subject height) and whose
+    cadence lay within the norms' band: a faster pace that would explain a flexion range above
+    normal can then not be ruled out (the real full-body walker, 124 steps/min, walked at
+    1.8 m/s by its height)."""
+    summary = walk_summary(view, task)
+    return (summary is not None and not np.isfinite(float(summary.walking_speed_m_s))
+            and not pace_mismatches(view, task))  # fmt: skip
+
+
 def pace_explains(pace: str, angle: str, status: str) -> bool:
     """Whether a flexion range's ``status`` is the way a walk's ``pace`` moves it
     (:data:`PACE_STATUSES`): a healthy walker at 1.8 m/s was told the knee's 4–79° was above
@@ -620,7 +631,7 @@ def rom_rows(view: SessionView) -> list[RomRow]:
     tasks = {t.name: t for t in view.protocol.tasks}
     for task in view.tasks():
         per_col = view.metrics.joints[task]
-        pace = walk_pace(view, task)
+        pace = walk_pace(view, task) or ("faster" if pace_unmeasured(view, task) else "")
         for joint in view.joints():
             counted = cycles_counted(tasks.get(task), joint, grades)
             for angle, col in angle_columns(joint):

@@ -214,8 +214,9 @@ ROM_NOTE = (
     "cycles: its lowest and highest angle). Full ROM: highest minus lowest angle over the "
     "whole task (a walk: over the kept strides of the joint's leg). A range is flagged when "
     "it leaves the normal range by more than 5°, or a flexion peak falls 10° short of its "
-    "top; not when a walk faster than the norms' walkers takes a flexion range above it, "
-    "or a slower one short of it: marked '(pace)'. Grade: whether the "
+    "top; not when a walk faster than the norms' walkers (or of a speed not measured, at "
+    "their cadence) takes a flexion range above it, or a slower one short of it: marked "
+    "'(pace)'. Grade: whether the "
     "recording determined the angle (see the "
     "calibration page); only a determined range is compared."
 )

@@ -236,11 +236,19 @@ def pace_note(view: SessionView, task: str) -> tuple[str, str]:
     return sentence, ("a pace unlike the norms'" if pace == "mixed" else "")
 
 
+def paced_words(view: SessionView, row: RomRow) -> str:
+    """Why a range outside normal is shown but not flagged, in a few words for a table:
+    ``'the pace: not flagged'``, or ``'speed not measured: not flagged'``
+    (:func:`unknown_speed_tag`)."""
+    return f"{'speed not measured' if unknown_speed_tag(view, row) else 'the pace'}: not flagged"
+
+
 def unknown_speed_tag(view: SessionView, row: RomRow) -> str:
     """The words a flexion range above the normal one carries when its walk's speed was not
     measured (no subject height) and its cadence did not say the walk was faster than the
     norms' walkers (:func:`pace_note`): the pace that would explain it cannot be ruled out (a
-    healthy walker at 1.8 m/s flexed the knee 4-79°, the normal being 0-65° at 1.1-1.6 m/s);
+    healthy walker at 1.8 m/s flexed the knee 4-79°, the normal being 0-65° at 1.1-1.6 m/s),
+    so the range is shown, not flagged (:func:`~motionlab.report.model.pace_unmeasured`);
     else empty."""
     summary = walk_summary(view, row.task)
     if (row.angle != "flexion" or row.status not in PACE_STATUSES["faster"] or summary is None
@@ -350,8 +358,9 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
         pace, tag = pace_note(view, r.task) if r.angle == "flexion" else ("", "")
         paces += [pace] if pace else []
         tag = tag or ("" if pace else unknown_speed_tag(view, r))
-        if r.paced:
-            paced.append(rom_sentence(r).removesuffix(".") + ": not flagged at this pace.")
+        if r.paced:  # the pace outside the norms', or a speed not measured (tagged so)
+            why = f" ({tag}): not flagged." if tag else ": not flagged at this pace."
+            paced.append(rom_sentence(r).removesuffix(".") + why)
         else:
             sentence = rom_sentence(r)
             outside.append(sentence.removesuffix(".") + f" ({tag})." if tag else sentence)
