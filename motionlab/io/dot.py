@@ -23,6 +23,9 @@ raw gyroscope: the stream then has ``quat`` and ``extra["free_acc"]`` and no ``a
 ``serial`` is the device's ``DeviceTag`` (the DOT has no other id in its export).
 ``SyncStatus: Synced`` (the app synchronised the DOTs' clocks before recording) is kept as
 ``attrs["vendor_clock_sync"]``: clock sync then checks the clocks and leaves them as recorded.
+``OutputRate`` is only compared with the rate the time stamps give: one that is no rate in Hz is
+ignored with a note. A ``SampleTimeFine`` outside its 32-bit range, or a ``DeviceTag`` longer
+than :data:`TAG_MAX` characters, is refused.
 
 Options: ``mag_field_ut`` (float, default 50), ``label`` (str).
 """
@@ -37,7 +40,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from motionlab import rotations
-from motionlab.errors import InputError
+from motionlab.errors import InputError, shorten
 from motionlab.io import Recording
 from motionlab.io.clock import SHARED_CLOCK, checked_counter_time, count_wraps, recording_date
 from motionlab.io.delimited import find_line, parse_table, read_lines, require_values, split_fields
@@ -47,6 +50,8 @@ from motionlab.session import SensorStream
 FORMAT = "dot"
 
 TICK_HZ = 1e6  # SampleTimeFine in µs
+#: longest ``DeviceTag`` read (the tag is the sensor's label and serial)
+TAG_MAX = 100
 
 _CHANNELS = {
     # name: (column prefix, file unit, factor to SI)
@@ -73,13 +78,20 @@ def sniff(path: Path, head: bytes) -> bool:
     lines = head.decode("utf-8", errors="replace").lstrip("\ufeff").splitlines()
     i = find_line(lines, _is_table_header, limit=40)
     if i < 0:
-        return False
+        return _starts_like_dot(lines)
     fields = split_fields(lines[i], ",")
     dot_cols = {"Quat_W", "Euler_X", "FreeAcc_X"} & set(fields) or (
         {"Acc_X", "Gyr_X"} <= set(fields) and {"Acc_X"}
     )
     keyed = any(re.match(r"^[A-Za-z ]+:\s*,", line) for line in lines[:i])
     return bool(dot_cols) and (keyed or lines[0].strip().lower() == "sep=,")
+
+
+def _starts_like_dot(lines: list[str]) -> bool:
+    """``sep=,`` then ``DeviceTag:,``: a DOT export whose table header is beyond the head read
+    (a damaged, overlong header line), for :func:`read` to say what is wrong."""
+    first = [line.strip() for line in lines[:2]]
+    return len(first) == 2 and first[0].lower() == "sep=," and first[1].startswith("DeviceTag:")
 
 
 def _header_info(preamble: list[str]) -> dict[str, str]:
@@ -91,11 +103,27 @@ def _header_info(preamble: list[str]) -> dict[str, str]:
     return info
 
 
+def _check_tag(path: Path, lines: list[str]) -> None:
+    """Refuse a ``DeviceTag`` longer than :data:`TAG_MAX` characters (before the table header is
+    looked for: an overlong tag pushes it out of the head that detection reads)."""
+    for k, line in enumerate(lines[:200]):
+        key, _, tag = line.partition(",")
+        if key.strip() == "DeviceTag:" and len(tag.strip()) > TAG_MAX:
+            raise InputError(
+                f"DeviceTag is {len(tag.strip())} characters long, at most {TAG_MAX} are read: "
+                "damaged header?",
+                path,
+                f"line {k + 1}",
+                remedy="export again from the Xsens DOT app, or shorten the tag in that line",
+            )
+
+
 def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     """Read one Xsens DOT CSV export into a :class:`Recording` with one sensor (SI units)."""
     path = Path(path)
     options = options or {}
     lines = read_lines(path)
+    _check_tag(path, lines)
     header = find_line(lines, _is_table_header, limit=200)
     if header < 0:
         raise InputError(
@@ -106,6 +134,15 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     table = parse_table(path, lines, header, delimiter=",", decimal=".")
     info = _header_info(table.preamble)
     stf = table.column("SampleTimeFine")
+    out = np.flatnonzero((stf < 0) | (stf >= 2**32))  # NaN: checked_counter_time says it
+    if len(out):
+        raise InputError(
+            f"column 'SampleTimeFine': tick value {stf[out[0]]:.6g} is out of range (0 to "
+            "2^32-1 µs, wrapping)",
+            path,
+            f"line {table.lines[out[0]]}",
+            remedy="repair the row, or export the file again",
+        )
     time = checked_counter_time(stf, TICK_HZ, 32, path, "SampleTimeFine", table.lines)
     serial = info.get("DeviceTag", "")
     stream = SensorStream(
@@ -125,9 +162,14 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     recorded = recording_date(info.get("StartTime"))
     if recorded:
         attrs["recorded"] = recorded
-    m = re.match(r"\s*([0-9.]+)", info.get("OutputRate", ""))
-    if m:
-        attrs["nominal_rate_hz"] = float(m.group(1))
+    stated = info.get("OutputRate", "")
+    m = re.fullmatch(r"\s*(\d+(?:\.\d+)?)\s*(?:Hz)?\s*", stated, re.IGNORECASE)
+    rate = float(m.group(1)) if m else float("nan")
+    if 0 < rate < float("inf"):
+        attrs["nominal_rate_hz"] = rate
+    elif stated:
+        attrs["notes"].append(f"OutputRate '{shorten(stated)}' is no rate in Hz: ignored, the "
+                              "rate is the time stamps'")  # fmt: skip
     for channel, (prefix, unit, scale) in _CHANNELS.items():
         if table.has(f"{prefix}_X"):
             require_values(table, _xyz(prefix), channel)

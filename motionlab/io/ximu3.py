@@ -31,9 +31,12 @@ into motionlab's East-North-Up (the vertical is unchanged; the heading is magnet
 the device saw it). The magnetometer's a.u. are scaled by an **assumed** local field
 (``mag_field_ut``, default 50 µT; ``attrs["mag_scale_assumed"]``), as for Xsens.
 
-Time is the device's microsecond clock. A magnetometer or quaternion file that stops more than
-:data:`SPAN_SLACK_S` before (or starts after) the inertial data is refused as truncated: its
-channel would otherwise be held constant over the missing part.
+Time is the device's microsecond clock. Inertial time stamps that give a rate outside
+:data:`RATE_HZ` (stamps in ms or ns), run backwards or are negative are refused naming
+``Inertial.csv``. A magnetometer or quaternion file that stops more than :data:`SPAN_SLACK_S`
+before (or starts after) the inertial data is refused as truncated: its channel would otherwise
+be held constant over the missing part; so is one without a single usable row, or a channel
+file that is a folder, a FIFO, a device or a broken link (never opened).
 
 Options: ``mag_field_ut`` (float), ``label`` (str, a single device folder only).
 """
@@ -48,6 +51,7 @@ from typing import Any
 import numpy as np
 
 from motionlab import rotations
+from motionlab.atomic import special_kind
 from motionlab.errors import InputError
 from motionlab.io import Recording
 from motionlab.io.clock import recording_date
@@ -71,6 +75,9 @@ READ_FILES = ("Inertial.csv", "Magnetometer.csv", "Quaternion.csv", "Command.jso
 SPAN_SLACK_S = 0.5
 #: s: a step of Inertial.csv's clock longer than this is damage, not a pause of the radio
 JUMP_S = 3600.0
+#: Hz: the rates Inertial.csv's median step may give (the device samples at up to a few kHz;
+#: stamps in ms give 1000× the rate, in ns 1/1000 of it)
+RATE_HZ = (1.0, 20_000.0)
 #: NWU earth (x north, y west, z up) → ENU (x east, y north, z up): +90° about z
 _NWU_TO_ENU = np.array([np.sqrt(0.5), 0.0, 0.0, np.sqrt(0.5)])
 
@@ -150,7 +157,7 @@ def _identity(folder: Path) -> tuple[str, str, str | None, list[str]]:
     if cmd.is_file():
         try:
             entries = json.loads(cmd.read_text(encoding="utf-8", errors="replace"))
-        except (json.JSONDecodeError, OSError):
+        except (ValueError, RecursionError, OSError):  # also too deep, or a 5000-digit number
             notes.append("Command.json is not readable JSON: name and serial from the folder")
             entries = []
         for entry in entries if isinstance(entries, list) else []:
@@ -190,11 +197,38 @@ def _time(table: Table) -> np.ndarray:
     return table.column("Timestamp (us)") * 1e-6
 
 
+def _channel_file(path: Path, remedy: str) -> bool:
+    """Whether the channel file ``path`` is there; a folder, FIFO, device or broken link of its
+    name is refused, never opened (a FIFO's read would block)."""
+    if path.is_symlink() and not path.exists():
+        raise InputError("is a link to no file (missing, or a loop)", path, remedy=remedy)
+    if path.is_dir():
+        raise InputError("is a folder, expected a CSV file", path, remedy=remedy)
+    kind = special_kind(path)
+    if kind:
+        raise InputError(f"is {kind}, expected a CSV file; it is not read", path, remedy=remedy)
+    return path.is_file()
+
+
+def _without(name: str, what: str) -> str:
+    """The remedy for an unusable optional channel file."""
+    return f"export the device again, or move {name} out of the folder to read without the {what}"
+
+
 def _onto(t: np.ndarray, table: Table, values: np.ndarray, name: str, what: str) -> np.ndarray:
     """``values`` (stamped ``Timestamp (us)`` in ``table``) at the inertial instants ``t``; a
-    file that covers the inertial span short of :data:`SPAN_SLACK_S` is refused."""
+    file without a usable row, or that covers the inertial span short of :data:`SPAN_SLACK_S`,
+    is refused."""
     ts = _time(table)
     ok = np.isfinite(ts) & np.isfinite(values).all(axis=1)
+    if not ok.any():
+        zero = ", ±inf or zero" if what == "orientation" else " or ±inf"
+        raise InputError(
+            f"no row has a time stamp and a whole {what} sample (values missing, NaN{zero})",
+            table.path,
+            f"lines {int(table.lines[0])}–{int(table.lines[-1])}",
+            remedy=_without(name, what),
+        )
     order = np.argsort(ts[ok], kind="stable")
     ts, values = ts[ok][order], values[ok][order]
     keep = np.r_[True, np.diff(ts) > 0]
@@ -205,8 +239,7 @@ def _onto(t: np.ndarray, table: Table, values: np.ndarray, name: str, what: str)
             f"{name} covers {span} of the inertial data's 0–{t[-1] - t[0]:.2f} s: truncated?",
             table.path,
             f"line {int(table.lines[-1]) if len(table.lines) else 1}",
-            remedy=f"export the device again, or move {name} out of the folder to read "
-            f"without the {what}",
+            remedy=_without(name, what),
         )
     tt = np.clip(t, ts[0], ts[-1])
     return interpolate_rows(ts, {"quat" if what == "orientation" else "v": values}, tt).popitem()[1]
@@ -224,7 +257,7 @@ def _device(folder: Path, options: dict[str, Any]) -> SensorStream:
 
 def _read_device(folder: Path, options: dict[str, Any]) -> SensorStream:
     inertial = folder / "Inertial.csv"
-    if not inertial.is_file():
+    if not _channel_file(inertial, "export the device again from the x-IMU3 GUI"):
         raise InputError(
             "no Inertial.csv in the x-IMU3 device folder",
             inertial,
@@ -249,6 +282,7 @@ def _read_device(folder: Path, options: dict[str, Any]) -> SensorStream:
         raise InputError(
             "fewer than two time-stamped rows", inertial, remedy="export the device again"
         )
+    _check_clock(t, table)
     step = np.diff(t)
     k = int(np.argmax(np.abs(step)))
     if abs(step[k]) > JUMP_S:  # before the other files are laid onto this clock and blamed
@@ -259,7 +293,7 @@ def _read_device(folder: Path, options: dict[str, Any]) -> SensorStream:
             remedy="export the device again, or cut the file before that line",
         )
     mag_path = folder / "Magnetometer.csv"
-    if mag_path.is_file():
+    if _channel_file(mag_path, _without(mag_path.name, "magnetometer")):
         mt = _table(mag_path, "Timestamp (us)")
         cols = ["X (a.u.)", "Y (a.u.)", "Z (a.u.)"]
         require_values(mt, cols, "mag")
@@ -270,7 +304,7 @@ def _read_device(folder: Path, options: dict[str, Any]) -> SensorStream:
                      mag_rate_hz=_rate(_time(mt)))  # fmt: skip
         notes += [f"Magnetometer.csv: {n}" for n in mt.notes]
     quat_path = folder / "Quaternion.csv"
-    if quat_path.is_file():
+    if _channel_file(quat_path, _without(quat_path.name, "orientation")):
         qt = _table(quat_path, "Timestamp (us)")
         cols = ["W", "X", "Y", "Z"]
         require_values(qt, cols, "quat")
@@ -287,6 +321,36 @@ def _read_device(folder: Path, options: dict[str, Any]) -> SensorStream:
     attrs["notes"] = notes
     stream.attrs = attrs
     return stream
+
+
+def _check_clock(t: np.ndarray, table: Table) -> None:
+    """Refuse Inertial.csv time stamps that are negative, run backwards, or give a rate outside
+    :data:`RATE_HZ` (not in µs), before the other files are laid onto this clock and blamed."""
+    neg = np.flatnonzero(t < 0)
+    if len(neg):
+        raise InputError(
+            f"negative time stamp {t[neg[0]] * 1e6:.6g} µs: the device's clock counts up from 0",
+            table.path,
+            f"line {int(table.lines[neg[0]])}",
+            remedy="export the device again from the x-IMU3 GUI",
+        )
+    step = float(np.median(np.diff(t)))
+    if step <= 0:
+        raise InputError(
+            f"the time stamps run backwards or stand still (median step {step * 1e6:.6g} µs)",
+            table.path,
+            "column 'Timestamp (us)'",
+            remedy="export the device again from the x-IMU3 GUI, or sort the rows by time",
+        )
+    if not RATE_HZ[0] <= 1.0 / step <= RATE_HZ[1]:
+        raise InputError(
+            f"the time stamps give {1.0 / step:.6g} Hz, an x-IMU3 samples at "
+            f"{RATE_HZ[0]:g}–{RATE_HZ[1]:g} Hz: not in µs?",
+            table.path,
+            "column 'Timestamp (us)'",
+            remedy="the Timestamp (us) column must be in microseconds: export again from the "
+            "x-IMU3 GUI, or convert the column",
+        )
 
 
 def _rate(t: np.ndarray) -> float:

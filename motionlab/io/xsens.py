@@ -83,6 +83,9 @@ DEFAULT_MAG_FIELD_UT = 50.0
 DEFAULT_RATE_HZ = 100.0
 SAMPLE_TIME_FINE_HZ = 10_000.0
 
+#: a SampleTimeFine step of this many 10-kHz ticks or more (under 10 Hz) in a file without MT
+#: Manager's '//' header is a DOT table's µs clock (16 667 at the DOT's 60 Hz)
+DOT_LIKE_TICKS = 1000
 _KNOWN = ("PacketCounter", "SampleTimeFine", "Acc_X", "Gyr_X", "Mag_X", "Quat_q0", "Mat[1][1]")
 #: the sample counter's column: ``Counter`` in older MT Software exports (MTx, MTi-G)
 _COUNTERS = ("PacketCounter", "Counter")
@@ -189,6 +192,16 @@ def _time(table: Table, info: dict[str, str], options: dict[str, Any]) -> tuple:
     path = table.path
     if _all_present(table, ["SampleTimeFine"]):
         stf = table.column("SampleTimeFine")
+        step = np.median(np.diff(stf)) if len(stf) > 1 else 0.0
+        if not info and step >= DOT_LIKE_TICKS:  # no '//' header, and µs ticks: a DOT table
+            raise InputError(
+                f"SampleTimeFine steps by {step:.0f} ticks, {SAMPLE_TIME_FINE_HZ / step:.2g} Hz "
+                "at MT Manager's 10 kHz: an Xsens DOT export (ticks in µs) without its 'sep=,' "
+                "and 'Key:,value' header lines?",
+                path,
+                "column 'SampleTimeFine'",
+                remedy="export again from the Xsens DOT app, or restore the header lines",
+            )
         t = checked_counter_time(stf, SAMPLE_TIME_FINE_HZ, 32, path, "SampleTimeFine", table.lines)
         return t, "SampleTimeFine", {"clock_wraps": count_wraps(stf, 32)}
     if _all_present(table, _UTC):
