@@ -279,6 +279,21 @@ def test_knee_with_a_wrong_axis(walk):
     assert line.endswith(" — walk 10 straight steps at an even pace."), line
 
 
+def test_what_to_repeat_lists_the_angles_left_weak_or_not_determined(walk):
+    """The calibration page said "none: every segment was calibrated within the quality
+    limits" under "what to repeat next time" beside a weak lumbar rotation whose remedy the
+    summary gave: the joints with such angles are listed there too, with the same remedy."""
+    from motionlab.report.pages_quality import repeat_lines
+    from motionlab.report.sentences import missing_lines
+
+    why = "hinge axis from movement: the axis differs by up to 35° between parts of the movement"
+    view = load_view(_force(walk, "knee_r", 0, "not determined", why))
+    lines = repeat_lines(view, view.session.results.calibration)
+    assert set(missing_lines(view)) <= set(lines)
+    assert any(x.startswith("Right knee: flexion-extension not determined") for x in lines)
+    assert not any(x.startswith("none") for x in lines)
+
+
 def test_a_two_axis_fit_whose_parts_disagree_is_an_axis_problem(walk):
     """The real full-body elbows ('the axes differ by up to 10° between parts of the movement',
     a two-axis fit) were told only 'see the calibration page': the plural missed the axis

@@ -19,6 +19,7 @@ from motionlab.report.model import (
     quality_rows,
 )
 from motionlab.report.pdf import HEADING_H, MUTED, SIZE, Document, label_spans
+from motionlab.report.sentences import missing_lines
 from motionlab.results import HingeFit, SegmentCalibration
 from motionlab.segments import hip_axis, placement
 from motionlab.segments.quality import FUNCTIONAL_RHO_MIN, RESIDUAL_MAX_DEG, STATIC_RHO_MIN
@@ -366,11 +367,8 @@ def calibration_page(doc: Document, view: SessionView) -> None:
     _grades_table(doc, view)
     _hinges_table(doc, view)
     _hip_axes_table(doc, view)
-    messages = [str(w) for w in cal.warnings] + merged_messages(
-        [m for res in cal.segments.values() for m in (res.quality.messages if res.quality else [])]
-    )
     doc.heading("Warnings and what to repeat next time")
-    doc.bullets(messages or ["none: every segment was calibrated within the quality limits"])
+    doc.bullets(repeat_lines(view, cal))
     doc.paragraph(
         f"Limits: ρ ≥ {STATIC_RHO_MIN:.2f} for static poses and ≥ {FUNCTIONAL_RHO_MIN:.2f} for "
         f"functional movements (or within 0.1 of the protocol's reference), residual ≤ "
@@ -413,6 +411,19 @@ def step_words(step: str, joints: dict | None = None) -> str:
         return "the walk (forward)"
     joint = (joints or {}).get(name)
     return f"movement ({joint_title(joint).lower() if joint else name.replace('_', ' ')})"
+
+
+def repeat_lines(view: SessionView, cal: SegmentCalibration) -> list[str]:
+    """The calibration page's "Warnings and what to repeat next time": the calibration's
+    warnings and segment checks, then each joint an angle of which the recording left weak or
+    not determined, with its remedy (the summary's :func:`missing_lines`: 'none' stood beside
+    a weak lumbar rotation whose remedy the summary gave)."""
+    messages = [str(w) for w in cal.warnings] + merged_messages(
+        [m for res in cal.segments.values() for m in (res.quality.messages if res.quality else [])]
+    )
+    return messages + missing_lines(view) or [
+        "none: every segment was calibrated within the quality limits"
+    ]
 
 
 def calibration_cells(
