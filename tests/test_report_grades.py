@@ -673,3 +673,26 @@ def test_results_json_names_the_joints_not_measured(walk):
         "hip_r": {"segments": ["pelvis"], "reason": "not measured: no pelvis sensor"},
         "hip_l": {"segments": ["pelvis"], "reason": "not measured: no pelvis sensor"},
     }
+
+
+def test_a_walks_cycles_get_the_gait_band_and_a_weak_angle_no_normal(walk):
+    """The walk protocol's knee cycles were drawn against a hatched range (the knee protocol's
+    'gait' task had the normal curve), the weak hip ab-adduction and rotation against the normal
+    range they are not compared with, and the key named a normal curve no panel drew."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.figure import Figure
+
+    from motionlab.report.pages_joint import cycle_band, draw_cycle
+
+    view = load_view(walk)
+    assert cycle_band(view, "walk", "knee", "flexion") is not None
+    joints = view.protocol.joints
+    ax = Figure().add_subplot()
+    assert draw_cycle(ax, view, joints["knee_r"], "walk", "flexion", "knee_r_flexion_deg") == "band"
+    ses = _force(walk, "hip_r", 1, "weak", "pelvis's forward direction from the first steps")
+    ax = Figure().add_subplot()
+    hip = joints["hip_r"]
+    assert draw_cycle(ax, load_view(ses), hip, "walk", "adduction", "hip_r_adduction_deg") == ""
+    assert not ax.patches

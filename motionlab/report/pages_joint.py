@@ -2,7 +2,8 @@
 range-of-motion table with normal ranges and flags; and the left-right comparison.
 
 Curves are in degrees against time (s) or the cycle (0-100 %); a normative cycle band (grey) is
-drawn where ``report_data`` has one, else the protocol's normal range as a hatched band. Every
+drawn behind a determined angle where ``report_data`` has one (a walk: its gait band), else the
+protocol's normal range as a hatched band. Every
 angle carries its grade: a ``not determined`` angle is not drawn (its axes say why) and its table
 rows are greyed; a ``weak`` angle is drawn and labelled, its range described with the reason under
 the table; neither is compared with the normal range nor flagged.
@@ -329,12 +330,30 @@ def _no_data(ax: Axes, text: str) -> None:
     )
 
 
-def draw_cycle(ax: Axes, view: SessionView, joint, task: str, angle: str, col: str) -> None:
-    """Mean ± SD over the cycles of one angle in one task, over its normative band."""
+def cycle_band(view: SessionView, task: str, joint_type: str, angle: str):
+    """The normative cycle band of an angle in ``task`` (``report_data``): the task's own, or for
+    a walk the gait band whatever the protocol calls its walk (the ``walk`` protocol's knee was
+    drawn against a hatched range while the ``knee`` protocol's ``gait`` had the curve)."""
+    band = band_for(task, joint_type, angle)
+    kind = next((t for t in view.protocol.tasks if t.name == task), None)
+    if band is None and kind is not None and kind.is_gait:
+        band = band_for("gait", joint_type, angle)
+    return band
+
+
+def draw_cycle(ax: Axes, view: SessionView, joint, task: str, angle: str, col: str) -> str:
+    """Mean ± SD over the cycles of one angle in one task, over its normative band (a
+    determined angle only: a weak one is not compared, so no normal is drawn behind it). Returns
+    what normal it drew: ``band``, ``range`` (the protocol's, hatched) or ``''``."""
     m = view.metrics.joints.get(task, {}).get(col)
     pct = np.arange(101)
-    band = band_for(task, joint.type, angle)
-    if band is not None:
+    colour, suffix = graded_style(view, joint, col)
+    band = cycle_band(view, task, joint.type, angle)
+    rng = normal_range(view.protocol, task, col)
+    drawn = ""
+    if suffix:  # weak or not determined: not compared with the normal
+        pass
+    elif band is not None:
         ax.fill_between(
             band.percent,
             band.mean - band.sd,
@@ -343,11 +362,10 @@ def draw_cycle(ax: Axes, view: SessionView, joint, task: str, angle: str, col: s
             lw=0,
             alpha=0.7,
         )
-    else:
-        rng = normal_range(view.protocol, task, col)
-        if rng is not None:
-            ax.axhspan(rng[0], rng[1], facecolor="none", edgecolor=BAND_COLOUR, hatch="////", lw=0)
-    colour, suffix = graded_style(view, joint, col)
+        drawn = "band"
+    elif rng is not None:
+        ax.axhspan(rng[0], rng[1], facecolor="none", edgecolor=BAND_COLOUR, hatch="////", lw=0)
+        drawn = "range"
     if colour == NOT_DETERMINED_COLOUR:
         _no_data(ax, "not determined:\nnot drawn")
     elif m is None or m.repetitions == 0 or not np.isfinite(m.curve_mean_deg).any():
@@ -363,6 +381,7 @@ def draw_cycle(ax: Axes, view: SessionView, joint, task: str, angle: str, col: s
     ax.set_xlim(0, 100)
     ax.set_xlabel("cycle (%)")
     ax.set_ylabel(f"{angle.replace('_', ' ')} (°)")
+    return drawn
 
 
 def _has_cycles(view: SessionView, joint, task: str) -> bool:
@@ -385,20 +404,25 @@ def _cycle_pages(doc: Document, view: SessionView, joint) -> None:
             f"{joint_title(joint)}: cycles against normal",
             "Each task's repetitions (gait: the kept strides, heel strike to heel strike) "
             "resampled to 0-100 % of the cycle: mean (line) ± 1 SD (shaded). Grey band: normal "
-            "mean ± 1 SD; hatched: "
-            "the protocol's normal range where no normal curve is on file.",
+            "mean ± 1 SD; hatched: the protocol's normal range where no normal curve is on "
+            "file; behind a determined angle only (a weak one is not compared with normal).",
         )
         grid = doc.axes_grid(3, len(chunk), 7.2, left=0.55, wspace=0.7, hspace=0.75, top=0.4)
-        for i, (angle, col) in enumerate(angle_columns(joint)):
-            for j, task in enumerate(chunk):
-                draw_cycle(grid[i][j], view, joint, task, angle, col)
+        drawn = {
+            draw_cycle(grid[i][j], view, joint, task, angle, col)
+            for i, (angle, col) in enumerate(angle_columns(joint))
+            for j, task in enumerate(chunk)
+        }
         colour = SIDE_COLOUR.get(joint.side, SIDE_COLOUR[""])
+        normals = {  # the key names what the page draws (it listed both, drawing one)
+            "band": Patch(color=BAND_COLOUR, alpha=0.7, label="normal mean ± SD"),
+            "range": Patch(
+                facecolor="none", edgecolor=BAND_COLOUR, hatch="////", label="normal range"
+            ),  # fmt: skip
+        }
         doc.fig.legend(
-            handles=[
-                Patch(color=colour, alpha=0.4, label=f"{joint_title(joint)} mean ± SD"),
-                Patch(color=BAND_COLOUR, alpha=0.7, label="normal mean ± SD"),
-                Patch(facecolor="none", edgecolor=BAND_COLOUR, hatch="////", label="normal range"),
-            ],
+            handles=[Patch(color=colour, alpha=0.4, label=f"{joint_title(joint)} mean ± SD")]
+            + [patch for kind, patch in normals.items() if kind in drawn],
             loc="upper left",
             bbox_to_anchor=(0.07, 1 - doc.y / 11.69),
             ncol=3,
@@ -408,8 +432,9 @@ def _cycle_pages(doc: Document, view: SessionView, joint) -> None:
         sources = {
             band.source
             for task in chunk
-            for angle, _ in angle_columns(joint)
-            if (band := band_for(task, joint.type, angle)) is not None
+            for angle, col in angle_columns(joint)
+            if (band := cycle_band(view, task, joint.type, angle)) is not None
+            and graded_style(view, joint, col)[1] == ""
         }
         for src in sorted(sources):
             doc.paragraph(f"Normal curve: {src}", size=SIZE["small"], colour=MUTED)
