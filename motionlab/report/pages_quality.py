@@ -304,14 +304,15 @@ def _hip_axes_table(doc: Document, view: SessionView) -> None:
                 str(fit.reason) or "-",
             ]
         )
-        flagged.append([False, not used] + [False] * 3)
+        flagged.append([False] * 5)  # a refinement not used is no fault: the grades say what is
     doc.heading("Hip flexion axes from the walk")
     doc.paragraph(
         "Each hip is measured about the dominant axis of the thigh's rotation relative to the "
         "pelvis in the recording (the thigh's frame from the knee axis is left to the knee). "
         "Turn: that axis's angle about the pelvis's vertical axis from the pelvis's "
         f"medio-lateral axis; ρ: how dominant it is (1: one axis only; used from "
-        f"{hip_axis.MIN_RHO:.2f}).",
+        f"{hip_axis.MIN_RHO:.2f}). Where it is not used the hip is measured about the pelvis's "
+        "medio-lateral axis, as calibrated; the grades above say what that determines.",
         size=SIZE["small"],
         colour=MUTED,
     )
