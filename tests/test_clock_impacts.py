@@ -149,6 +149,11 @@ def test_choice_between_methods():
     # no transients (an arm task): the joint centre as before
     none = choose(centre, _fit(0.0, np.inf, "not reliable: too few heel strikes", "impacts"))
     assert none.method == "joint centre" and none.offset_s == 0.020
+    assert none.other == "heel strikes: not reliable: too few heel strikes"
+    # a recording too short for the heel strikes (a seated trunk's 12 s): not named at all
+    short = choose(centre, _fit(0.0, np.inf, "not enough shared recording (24 s needed)",
+                                "impacts"))  # fmt: skip
+    assert short.offset_s == 0.020 and short.other == ""
     # the joint centre refused, the impact lag reliable: the impact lag
     refused = dataclasses.replace(centre, status="not reliable: the joint centre fits poorly")
     assert choose(refused, _fit(0.012, 3e-4, "applied", "impacts")).offset_s == 0.012

@@ -68,6 +68,8 @@ IMPACT_FLOOR_S = 2e-4  # smallest scatter of block lags assumed (s)
 # drift (150 ppm, three times the prior's SD) moves the lag by 18 ms over it; over a 1-h walk
 # 66 ppm moved it by 240 ms, which smeared the correlation peak into its neighbours'
 IMPACT_SEARCH_S = 120.0
+#: the status of a pair whose shared recording is too short for the method to run
+TOO_SHORT = "not enough shared recording"
 #: the status of a lag refused because a lag one step away fits about as well
 REGULAR_STEPS = "not reliable: steps as regular as the clock search"
 
@@ -159,7 +161,7 @@ def impact_clock(
     inside = (a.time - max_offset_s >= b.time[0]) & (a.time + max_offset_s <= b.time[-1])
     t_mid = float(0.5 * (a.time[0] + a.time[-1]))
     if inside.sum() < 3 * BLOCK_S / (a.time[1] - a.time[0]):
-        return refused(f"not enough shared recording ({3 * BLOCK_S:.0f} s needed)")
+        return refused(f"{TOO_SHORT} ({3 * BLOCK_S:.0f} s needed)")
     t, x = a.time[inside], a.values[inside]
     dt = float(t[1] - t[0])
     # blocks of the recording in which the reference's envelope has transients: fewer than
