@@ -612,7 +612,7 @@ def test_a_flag_needs_the_value_beyond_its_own_uncertainty():
 def test_a_joint_with_no_sensor_is_said_not_measured_on_the_summary(walk):
     """A walk recorded without its pelvis sensor (or with one leg only) listed the knees on the
     summary and said nothing of the hips the protocol names: now each such joint has its line
-    under 'Not determined by this recording', naming the segment without a sensor."""
+    under 'Weak or not determined in this recording', naming the segment without a sensor."""
     from motionlab.report.sentences import missing_lines
 
     ses = copy.deepcopy(walk)

@@ -161,7 +161,7 @@ def run_summary(
         )
     missing = missing_lines(view)
     if missing:
-        lines.append("  not determined by this recording:")
+        lines.append("  weak or not determined in this recording:")
         lines += [f"    - {m}" for m in missing]
     lines.append(f"outputs in {report.pdf_path.parent}:")
     lines.append(

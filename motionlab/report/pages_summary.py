@@ -62,7 +62,7 @@ def summary_page(doc: Document, view: SessionView) -> None:
     )
     missing = missing_lines(view)
     if missing:
-        doc.heading("Not determined by this recording")
+        doc.heading("Weak or not determined in this recording")
         doc.bullets(missing)
         doc.paragraph(
             "These angles are not findings: weak ones are shown with their grade on the joint "
