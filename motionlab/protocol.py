@@ -73,10 +73,16 @@ Angle columns: ``<type>_<side>_<angle>_deg`` for knee, elbow and lumbar (``knee_
 ``wrist_r_off_axis_1_deg``, ``shoulder_r_y_deg``). Two joints giving one column are an error.
 
 Names of segments, joints, steps and tasks name groups of the session file and CSV files: not
-empty, no ``/`` or ``\\``; a step's or task's name is given once. A ``normative`` key names a task
-(or ``range_of_motion``, the joint's anatomical range: an angle more than 10° past it is
-reported as a sensor or calibration problem and states no finding,
+empty, no ``/`` or ``\\``, at most 100 characters; a step's or task's name is given once. A
+``normative`` key names a task (or ``range_of_motion``, the joint's anatomical range: an angle
+more than 10° past it is reported as a sensor or calibration problem and states no finding,
 :func:`motionlab.report.sentences.beyond_anatomy`) and its columns angle columns of the joints.
+``thresholds`` holds only the keys :data:`THRESHOLD_KEYS`, each angle limit a size (0 to 180°).
+
+The protocol's ``name`` (not empty, at most 80 characters) and ``title`` (200) are one line
+each; the other texts the report shows (``purpose``, ``source``, ``placement``, ``pose``,
+``instructions``) at most 2000 characters; no text holds a control character. Every number is
+finite (``.nan`` and a 400-digit integer are refused).
 
 Axis strings are ``x``, ``y``, ``z`` of the ISB segment frame (x anterior, y proximal, z right),
 optionally with a sign: ``-z``. ``sensor_axes`` gives, for the sensor's x, y, z axes, the segment
@@ -85,7 +91,6 @@ axis each one points along in the nominal placement (e.g. ``[-z, y, x]``); the d
 
 from __future__ import annotations
 
-import re
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import partial
@@ -94,16 +99,26 @@ from typing import Any
 
 import numpy as np
 
-from motionlab.atomic import check_regular
+from motionlab.atomic import check_name_length, check_regular
 from motionlab.errors import InputError, shorten
 from motionlab.kinematics.joint_types import (
     JOINT_TYPES,
     angle_columns,
     joint_type,
+    names_for,
     resolve_sequence,
     sequence_problem,
 )
-from motionlab.yamlsafe import LineLoader, LineMap, did_you_mean, load_yaml, read_yaml_text
+from motionlab.yamlsafe import (
+    LineLoader,
+    LineMap,
+    did_you_mean,
+    e_notation,
+    finite,
+    load_yaml,
+    read_yaml_text,
+    text_problem,
+)
 
 STEP_KINDS = ("static", "functional")
 AXIS_METHODS = ("svd", "hinge", "trunk")
@@ -128,6 +143,25 @@ STEP_KEYS = ("name", "kind", "pose", "duration_s", "vertical_axis", "horizontal_
              "time_range", "axis_method")  # fmt: skip
 JOINT_KEYS = ("type", "proximal", "distal", "side", "sequence", "axis")
 TASK_KEYS = ("name", "kind", "duration_s", "repetitions", "time_range", "instructions", "plane")
+#: the keys ``thresholds`` may hold (:mod:`motionlab.kinematics.metrics`): limits in degrees
+#: (``_deg``: a magnitude, 0 to :data:`MAX_THRESHOLD_DEG`; the trunk's one per angle of
+#: :data:`TRUNK_ANGLES`), and percentages for comparison (``_pct``: any sign, not used)
+THRESHOLD_KEYS = ("varus_thrust_deg", "out_of_plane_offset_deg", "trunk_compensation_deg",
+                  "cross_talk_reference_pct")  # fmt: skip
+#: the angles ``thresholds.trunk_compensation_deg`` gives a limit for
+#: (:data:`motionlab.kinematics.out_of_plane.TRUNK_ANGLES`)
+TRUNK_ANGLES = names_for("lumbar")
+#: deg: the largest angle limit a threshold may be
+MAX_THRESHOLD_DEG = 180.0
+#: the most characters of the protocol's ``name`` (a short id, in every report page's heading),
+#: its ``title`` (one line), its other texts shown in the report (``purpose``, ``source``,
+#: ``placement``, ``pose``, ``instructions``: a few paragraphs at most) and of a segment's,
+#: joint's, step's or task's name (it names a file); 100 000 characters kept the report's text
+#: wrapping busy for minutes
+MAX_NAME_CHARS = 80
+MAX_TITLE_CHARS = 200
+MAX_TEXT_CHARS = 2000
+MAX_LABEL_CHARS = 100
 PACKAGED = Path(__file__).resolve().parent / "protocols"
 
 
@@ -262,24 +296,21 @@ class _Reader:
             return default
         value = m[key]
         if kind is float and isinstance(value, int) and not isinstance(value, bool):
-            value = float(value)
+            value = self.number(value, f"{where}.{key}".lstrip("."), line)  # 10**400: no float
         if not isinstance(value, kind) or (
             isinstance(value, bool) and bool not in (kind if isinstance(kind, tuple) else (kind,))
         ):
             names = kind.__name__ if isinstance(kind, type) else "/".join(k.__name__ for k in kind)
-            if kind is float and _e_notation(value):
-                point = value.lower().replace("e", ".0e", 1)
-                self.fail(f"{where}.{key}".lstrip("."), line, f"is text {value!r}: YAML reads "
-                          "a number in e-notation without a decimal point as text",
-                          f"write it with one, e.g. {point}")  # fmt: skip
+            if kind is float and (e := e_notation(value)):
+                self.fail(f"{where}.{key}".lstrip("."), line, *e)
             self.fail(
                 f"{where}.{key}".lstrip("."),
                 line,
                 f"is {type(value).__name__} {shorten(repr(value))}, expected {names}",
                 "fix the value",
             )
-        if isinstance(value, float) and not np.isfinite(value):
-            self.fail(f"{where}.{key}".lstrip("."), line, f"is {value}", "give a finite number")
+        if isinstance(value, float):
+            value = self.number(value, f"{where}.{key}".lstrip("."), line)
         return value
 
     def known(self, m: dict, where: str, allowed: tuple[str, ...]) -> None:
@@ -306,8 +337,13 @@ class _Reader:
         bad = sorted({c for c in value if c in "/\\" or ord(c) < 32 or ord(c) == 127})
         if not value.strip() or value.strip(".") == "" or bad:
             what = f"holds {', '.join(map(repr, bad))}" if bad else "is empty or only dots"
-            self.fail(where, line, f"name {value!r} {what}: it names a group of the session file "
-                      "and a CSV file", "use letters, digits and '_', e.g. knee_r")  # fmt: skip
+            self.fail(where, line, f"name {shorten(repr(value))} {what}: it names a group of the "
+                      "session file and a CSV file", "use letters, digits and '_', e.g. "
+                      "knee_r")  # fmt: skip
+        problem = text_problem(value, MAX_LABEL_CHARS)
+        if problem:
+            self.fail(where, line, f"name {shorten(repr(value))} {problem}: it names a group of "
+                      "the session file and a CSV file", "shorten it, e.g. knee_r")  # fmt: skip
         return value
 
     def unique(self, name: str, seen: dict[str, str], where: str, line: int | None) -> None:
@@ -322,7 +358,8 @@ class _Reader:
         value = self.get(m, "repetitions", where, int, False, 0)
         if not 0 <= value <= MAX_REPETITIONS:
             self.fail(f"{where}.repetitions", getattr(m, "lines", {}).get("repetitions"),
-                      f"is {value}", f"give a count between 0 and {MAX_REPETITIONS}")  # fmt: skip
+                      f"is {shorten(value)}",
+                      f"give a count between 0 and {MAX_REPETITIONS}")  # fmt: skip
         return value
 
     def duration(self, m: dict, where: str, required: bool = True) -> float:
@@ -337,10 +374,53 @@ class _Reader:
         return value
 
     def number(self, value: Any, where: str, line: int | None) -> float:
-        """A finite number (not a bool)."""
-        if isinstance(value, bool) or not isinstance(value, int | float) or not np.isfinite(value):
-            self.fail(where, line, f"{shorten(repr(value))} is not a number", "give a number")
-        return float(value)
+        """A finite number (not a bool), as a float: an integer too large for a float
+        (``10**400``), ``.nan`` and ``.inf`` are refused."""
+        x = finite(value)
+        if x is None:
+            if e := e_notation(value):
+                self.fail(where, line, *e)
+            if isinstance(value, bool) or not isinstance(value, int | float):
+                self.fail(where, line, f"{shorten(repr(value))} is not a number", "give a number")
+            self.fail(where, line, f"{shorten(repr(value))} is not a finite number",
+                      "give a finite number")  # fmt: skip
+        return x
+
+    def numbers(self, values: list, where: str, line: int | None) -> None:
+        """Fail on an item of ``values`` that is a number but not a finite one (``.nan``,
+        ``10**400``); others are the caller's to judge."""
+        for v in values:
+            if (isinstance(v, int | float) and not isinstance(v, bool)) or e_notation(v):
+                self.number(v, where, line)
+
+    def magnitude(self, value: Any, where: str, line: int | None) -> float:
+        """An angle limit (deg) of ``thresholds``: a number from 0 to :data:`MAX_THRESHOLD_DEG`
+        (a size: a negative one flagged every sample)."""
+        x = self.number(value, where, line)
+        if not 0 <= x <= MAX_THRESHOLD_DEG:
+            self.fail(where, line, f"is {x:g}: a limit is a size in degrees, not signed",
+                      f"give 0 to {MAX_THRESHOLD_DEG:g}, e.g. 3.0")  # fmt: skip
+        return x
+
+    def text(
+        self,
+        m: dict,
+        key: str,
+        where: str,
+        limit: int = MAX_TEXT_CHARS,
+        lines: bool = True,
+        required: bool = False,
+    ) -> str:
+        """Free text shown in the report (``title``, ``purpose``, ``placement`` ...): at most
+        ``limit`` characters, no control character (a tab or line break where ``lines``)."""
+        value = self.get(m, key, where, str, required, "")
+        value = value if lines else value.strip()  # a folded one-liner ('title: >') ends in \n
+        problem = text_problem(value, limit, lines)
+        if problem:
+            remedy = "shorten it" if "long" in problem else "remove it"
+            self.fail(f"{where}.{key}".lstrip("."), getattr(m, "lines", {}).get(key), problem,
+                      remedy if lines else f"{remedy} (one line of text)")  # fmt: skip
+        return value
 
     def axis(self, value: Any, where: str, line: int | None) -> str:
         if not isinstance(value, str) or value.strip().lstrip("+-") not in AXES:
@@ -359,11 +439,6 @@ class _Reader:
         if side not in SIDES:
             self.fail(where, line, f"side {value!r} is not l or r", "write 'l' or 'r'")
         return side
-
-
-def _e_notation(value: Any) -> bool:
-    """Whether ``value`` is text YAML 1.1 did not read as a number: ``1e3``, ``2E-4``."""
-    return isinstance(value, str) and re.fullmatch(r"[-+]?\d+[eE][-+]?\d+", value) is not None
 
 
 def parse_protocol(path: str | Path) -> tuple[Path, dict]:
@@ -405,10 +480,10 @@ def load_protocol(path: str | Path) -> Protocol:
             _metric(r, m, doc.lines.get("metrics"))
             for m in r.get(doc, "metrics", "", list, False, [])
         ],
-        thresholds=_thresholds(r, r.get(doc, "thresholds", "", dict, False, {}), "thresholds"),
-        title=r.get(doc, "title", "", str, False, ""),
-        purpose=r.get(doc, "purpose", "", str, False, ""),
-        source=r.get(doc, "source", "", str, False, ""),
+        thresholds=_thresholds(r, r.get(doc, "thresholds", "", dict, False, {})),
+        title=r.text(doc, "title", "", MAX_TITLE_CHARS, lines=False),
+        purpose=r.text(doc, "purpose", ""),
+        source=r.text(doc, "source", ""),
         path=path,
         raw=_plain(doc),
     )
@@ -421,7 +496,10 @@ def _top_level(r: _Reader, doc: Any) -> str:
         r.fail("(top level)", 1, "is not a mapping", "start from protocols/knee.yaml")
     r.names(doc, "")
     r.known(doc, "", TOP_KEYS)
-    name = r.get(doc, "name", "", str)
+    name = r.text(doc, "name", "", MAX_NAME_CHARS, lines=False, required=True)
+    if not name.strip():
+        r.fail("name", doc.lines.get("name"), "is empty: the report's title names the protocol",
+               "give a short name, e.g. knee")  # fmt: skip
     for key in ("segments", "joints", "normative", "thresholds"):
         if isinstance(doc.get(key), dict):
             r.names(doc[key], key)
@@ -450,7 +528,7 @@ def _segments(r: _Reader, doc: dict) -> dict[str, Segment]:
         segments[seg_name] = Segment(
             name=seg_name,
             side=r.side(spec.get("side"), f"{where}.side", line),
-            placement=r.get(spec, "placement", where, str, False, ""),
+            placement=r.text(spec, "placement", where),
             sensor_axes=axes,
             landmarks=[
                 _text(r, v, f"{where}.landmarks", line)
@@ -531,6 +609,7 @@ def _steps(r: _Reader, doc: dict, check_segment: Callable) -> list[CalibrationSt
                 "name the segment axis the movement defines, e.g. {shank_r: -z}",
             )
         time_range = r.get(spec, "time_range", where, list, False, None)
+        r.numbers(time_range or [], f"{where}.time_range", spec.lines.get("time_range", line))
         if time_range is not None and not _is_range(time_range):
             r.fail(
                 f"{where}.time_range",
@@ -546,13 +625,15 @@ def _steps(r: _Reader, doc: dict, check_segment: Callable) -> list[CalibrationSt
                 f"unknown axis method {axis_method!r}",
                 f"use one of {', '.join(AXIS_METHODS)}",
             )
+        rho = r.get(spec, "reference_rho", where, dict, False, {})
+        rho_lines = getattr(rho, "lines", {})
         steps.append(
             CalibrationStep(
                 name=r.label(r.get(spec, "name", where, str), f"{where}.name", line),
                 kind=kind,
                 duration_s=r.duration(spec, where),
-                instructions=r.get(spec, "instructions", where, str, False, ""),
-                pose=r.get(spec, "pose", where, str, False, ""),
+                instructions=r.text(spec, "instructions", where),
+                pose=r.text(spec, "pose", where),
                 vertical_axis=vertical,
                 horizontal_axis=horizontal,
                 segments=[
@@ -565,9 +646,9 @@ def _steps(r: _Reader, doc: dict, check_segment: Callable) -> list[CalibrationSt
                 optional=r.get(spec, "optional", where, bool, False, False),
                 reference_rho={
                     check_segment(s, f"{where}.reference_rho", line): r.number(
-                        v, f"{where}.reference_rho.{s}", line
+                        v, f"{where}.reference_rho.{s}", rho_lines.get(s, line)
                     )
-                    for s, v in r.get(spec, "reference_rho", where, dict, False, {}).items()
+                    for s, v in rho.items()
                 },
                 axis_method=axis_method,
             )
@@ -615,7 +696,9 @@ def _tasks(r: _Reader, doc: dict) -> list[Task]:
         r.known(spec, where, TASK_KEYS)
         line = spec.lines.get("name", doc.lines.get("tasks"))
         known = {"name", "kind", "duration_s", "repetitions", "time_range"}
+        r.text(spec, "instructions", where)
         time_range = r.get(spec, "time_range", where, list, False, None)
+        r.numbers(time_range or [], f"{where}.time_range", spec.lines.get("time_range", line))
         if time_range is not None and not _is_range(time_range):
             r.fail(
                 f"{where}.time_range",
@@ -647,6 +730,8 @@ def _normative(r: _Reader, doc: dict) -> dict:
                    "give 'column: [low, high]' lines, e.g. knee_flexion_deg: [0, 65]")  # fmt: skip
         r.names(ranges or {}, f"normative.{task}")
         for col, rng in (ranges or {}).items():
+            if isinstance(rng, list):
+                r.numbers(rng, f"normative.{task}.{col}", getattr(ranges, "lines", {}).get(col))
             if not (isinstance(rng, list) and len(rng) == 2 and _is_range(rng, strict=False)):
                 r.fail(
                     f"normative.{task}.{col}",
@@ -751,26 +836,47 @@ def _metric(r: _Reader, value: Any, line: int | None) -> str:
     return name
 
 
-def _thresholds(r: _Reader, m: dict, where: str) -> dict[str, Any]:
-    """``thresholds``: numbers, lists of numbers, or mappings of them, each key text."""
-    r.names(m, where)
+def _thresholds(r: _Reader, m: dict) -> dict[str, Any]:
+    """``thresholds``: the known keys (:data:`THRESHOLD_KEYS`; a misspelt one left its metric
+    at the default without a word), each angle limit a magnitude (:meth:`_Reader.magnitude`),
+    the trunk's one per angle (:data:`TRUNK_ANGLES`)."""
+    r.known(m, "thresholds", THRESHOLD_KEYS)
     out: dict[str, Any] = {}
     for key, value in m.items():
-        line = getattr(m, "lines", {}).get(key)
-        if isinstance(value, dict):
-            out[key] = _thresholds(r, value, f"{where}.{key}")
-        elif isinstance(value, list):
-            out[key] = [r.number(v, f"{where}.{key}", line) for v in value]
+        where, line = f"thresholds.{key}", getattr(m, "lines", {}).get(key)
+        if key == "trunk_compensation_deg":
+            if not isinstance(value, dict):
+                r.fail(where, line, f"is {type(value).__name__} {shorten(repr(value))}, expected "
+                       "a limit per trunk angle", "e.g. {flexion: 10.0, lateral_bending: 8.0, "
+                       "axial_rotation: 10.0}")  # fmt: skip
+            r.names(value, where)
+            r.known(value, where, TRUNK_ANGLES)
+            lines = getattr(value, "lines", {})
+            out[key] = {
+                angle: r.magnitude(v, f"{where}.{angle}", lines.get(angle, line))
+                for angle, v in value.items()
+            }
+        elif key.endswith("_deg"):
+            out[key] = r.magnitude(value, where, line)
         else:
-            out[key] = r.number(value, f"{where}.{key}", line)
+            out[key] = _numbers(r, value, where, line)
     return out
+
+
+def _numbers(r: _Reader, value: Any, where: str, line: int | None) -> Any:
+    """A number, a list of numbers or a mapping of them (keys text), each finite."""
+    if isinstance(value, dict):
+        r.names(value, where)
+        lines = getattr(value, "lines", {})
+        return {k: _numbers(r, v, f"{where}.{k}", lines.get(k, line)) for k, v in value.items()}
+    if isinstance(value, list):
+        return [r.number(v, where, line) for v in value]
+    return r.number(value, where, line)
 
 
 def _is_range(value: list, strict: bool = True) -> bool:
     """``[start, end]``: two finite numbers with start < end (``strict``) or start ≤ end."""
-    numbers = all(
-        isinstance(v, (int, float)) and not isinstance(v, bool) and np.isfinite(v) for v in value
-    )
+    numbers = all(finite(v) is not None for v in value)
     if not (len(value) == 2 and numbers):
         return False
     return value[0] < value[1] if strict else value[0] <= value[1]
@@ -795,6 +901,7 @@ def resolve_protocol_path(path: str | Path) -> Path:
     protocol's name in the working folder, such as the output folder of an earlier ``run``
     called ``knee``, does not hide the packaged protocol."""
     p = Path(path)
+    check_name_length(p)  # is_file() raises on a name the file system cannot hold
     if p.is_file():
         return p
     if (copy := packaged_copy(p)) is not None:

@@ -17,8 +17,11 @@ Schema (every block optional)::
 
 ``side`` is normalised to ``l``/``r`` (``left``, ``L``, ``right`` … accepted; omit it for midline
 segments); ``label`` renames the sensor in the session (default: the reader's label). Keys are read
-as text exactly as written, so ``00123456`` stays a serial and is not read as a number. Every error
-names the key and its line.
+as text exactly as written, so ``00123456`` stays a serial and is not read as a number. Keys,
+labels and segments are at most 100 characters, without control characters. The numbers under
+``reader:`` are checked here, where their line is known: ``mag_field_ut`` and a magnetometer's
+``field_ut`` 1-10000 µT, ``rate_hz`` and ``time.tick_hz`` positive. Every error names the key and
+its line.
 """
 
 from __future__ import annotations
@@ -29,7 +32,16 @@ from pathlib import Path
 from typing import Any
 
 from motionlab.errors import InputError, shorten
-from motionlab.yamlsafe import LineMap, TextKeyLineLoader, did_you_mean, load_yaml, read_yaml_text
+from motionlab.yamlsafe import (
+    LineMap,
+    TextKeyLineLoader,
+    did_you_mean,
+    e_notation,
+    finite,
+    load_yaml,
+    read_yaml_text,
+    text_problem,
+)
 
 TOP_KEYS = ("subject", "session", "sensors", "reader")
 SENSOR_KEYS = ("segment", "side", "label")
@@ -88,6 +100,17 @@ READER_KEYS = ("format", "delimiter", "decimal", "comment", "skip_rows", "header
                "quat", "mag_field_ut")  # fmt: skip
 #: the subject's lengths the analysis uses (m) and the range a person's can have
 LENGTHS_M = {"height_m": (0.5, 2.5), "thigh_m": (0.1, 1.0), "shank_m": (0.1, 1.0)}
+#: µT: the range of ``field_ut`` / ``mag_field_ut``, the size of the local field a magnetometer
+#: in arbitrary units is scaled to (the earth's is 25-65 µT; a magnetometer's full scale is at
+#: most a few thousand): a negative one flipped the field, 1e308 made it inf
+FIELD_UT = (1.0, 10000.0)
+#: Hz: the largest nominal rate (``rate_hz``) and tick rate (``time.tick_hz``) of a column map
+MAX_RATE_HZ = 1e5
+MAX_TICK_HZ = 1e12
+#: the most characters of a sensor's key, label or segment (it names a group of the session
+#: file and a sensor in the report) and of the subject's id or name and the session's date
+#: (the report's headings)
+MAX_NAME_CHARS = 100
 
 
 def _check_lengths(smap: SensorMap, subject: LineMap) -> None:
@@ -101,10 +124,77 @@ def _check_lengths(smap: SensorMap, subject: LineMap) -> None:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise smap.fail(where, f"{shorten(value)!r} is not a number", "give metres, "
                             "e.g. 1.78", line)  # fmt: skip
+        value = finite(value)  # 10**400 is no float: it raised OverflowError
+        if value is None:
+            raise smap.fail(where, f"{shorten(repr(subject[key]))} is not a finite number",
+                            "give metres, e.g. 1.78", line)  # fmt: skip
         if not low <= value <= high:
             hint = f"{value / 100:g} m if that is in cm" if value > 10 else f"{low:g}-{high:g} m"
             raise smap.fail(where, f"{value:g} is not a length in metres a person has",
                             f"give metres ({hint})", line)  # fmt: skip
+
+
+def _number(
+    smap: SensorMap,
+    m: Any,
+    key: str,
+    where: str,
+    span: tuple[float, float],
+    unit: str,
+    what: str,
+    note: str = "",
+) -> None:
+    """Refuse ``m[key]`` (if given) unless it is a number from ``span[0]`` (excluded when 0) to
+    ``span[1]`` in ``unit``: the readers take it as it is (``float(10**400)``, ``'strong'``
+    raised; a negative field flipped the magnetometer)."""
+    if not isinstance(m, dict) or m.get(key) is None:
+        return
+    value, line = m[key], getattr(m, "lines", {}).get(key)
+    low, high = span
+    within = f"above 0 and at most {high:.12g}" if low == 0 else f"from {low:g} to {high:.12g}"
+    remedy = f"give {what} {within} {unit}{note}"
+    if e := e_notation(value):
+        raise smap.fail(where, e[0], e[1], line)
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise smap.fail(where, f"{shorten(repr(value))} is not a number", remedy, line)
+    x = finite(value)
+    if x is None:
+        raise smap.fail(where, f"{shorten(repr(value))} is not a finite number", remedy, line)
+    if not (low < x if low == 0 else low <= x) or x > high:
+        raise smap.fail(where, f"is {x:g} {unit}", remedy, line)
+
+
+def _check_reader(smap: SensorMap, reader: LineMap) -> None:
+    """The numbers of ``reader:`` (the readers' options, the generic reader's column map): each
+    in its range (:func:`_number`), where the map names its line."""
+    field = ("the local field's size", " (the earth's: 25-65 µT)")
+    _number(smap, reader, "mag_field_ut", "reader.mag_field_ut", FIELD_UT, "µT", *field)
+    _number(smap, reader, "rate_hz", "reader.rate_hz", (0.0, MAX_RATE_HZ), "Hz", "the rate")
+    time = reader.get("time")
+    _number(smap, time, "tick_hz", "reader.time.tick_hz", (0.0, MAX_TICK_HZ), "Hz", "the rate")
+    for key, remedy in (("skip_rows", "give 0 or more"), ("header_rows", "give 0, 1 or 2")):
+        value = reader.get(key)
+        count = not isinstance(value, bool) and isinstance(value, int) and value >= 0
+        if value is not None and not (count and (key == "skip_rows" or value <= 2)):
+            raise smap.fail(f"reader.{key}", f"{shorten(repr(value))} is not a line count",
+                            remedy, reader.lines.get(key))  # fmt: skip
+    sensors = reader.get("sensors")
+    specs = [("reader", reader)] + [
+        (f"reader.sensors[{i}]", spec)
+        for i, spec in enumerate(sensors if isinstance(sensors, list) else [])
+    ]
+    for where, spec in specs:
+        mag = spec.get("mag") if isinstance(spec, dict) else None
+        _number(smap, mag, "field_ut", f"{where}.mag.field_ut", FIELD_UT, "µT", *field)
+
+
+def _check_name(smap: SensorMap, value: str, what: str, where: str, line: int | None) -> None:
+    """Refuse a key, label or segment (``what``) with a control character or more than
+    :data:`MAX_NAME_CHARS` characters."""
+    problem = text_problem(value, MAX_NAME_CHARS)
+    if problem:
+        raise smap.fail(where, f"{what} {shorten(repr(value))} {problem}",
+                        "shorten it" if "long" in problem else "remove it", line)  # fmt: skip
 
 
 def load_sensor_map(path: str | Path) -> SensorMap:
@@ -128,6 +218,11 @@ def load_sensor_map(path: str | Path) -> SensorMap:
         if value is not None and not isinstance(value, dict):
             raise smap.fail(key, "is not a mapping", "give 'name: value' lines", lines[key])
     _check_lengths(smap, doc.get("subject") or LineMap())
+    for part, key in (("subject", "id"), ("subject", "name"), ("session", "date")):
+        value = (doc.get(part) or {}).get(key)
+        if isinstance(value, str):
+            line = doc[part].lines.get(key)
+            _check_name(smap, value, key, f"{part}.{key}", line)
     smap.subject = _jsonable(dict(doc.get("subject") or {}))
     smap.session = _jsonable(dict(doc.get("session") or {}))
     reader = doc.get("reader") or LineMap()
@@ -135,13 +230,15 @@ def load_sensor_map(path: str | Path) -> SensorMap:
         if k not in READER_KEYS:
             raise smap.fail(f"reader.{k}", "unknown key", did_you_mean(k, READER_KEYS),
                             getattr(reader, "lines", {}).get(k))  # fmt: skip
+    _check_reader(smap, reader)
     smap.reader = _jsonable(dict(reader))
     sensors = doc.get("sensors") or LineMap()
     seen_labels: dict[str, str] = {}
     seen_segments: dict[str, str] = {}  # protocol segment name (shank + r: shank_r) → key
     for key, spec in sensors.items():
         line = sensors.lines.get(key)
-        where = f"sensors.{key}"
+        where = f"sensors.{shorten(key)}"
+        _check_name(smap, key, "key", where, line)
         if spec is None:
             spec = {}
         if not isinstance(spec, dict):
@@ -167,6 +264,7 @@ def load_sensor_map(path: str | Path) -> SensorMap:
         if "/" in label or label in (".", "..") or not label.isprintable():  # "a\nb": 2 lines
             raise smap.fail(f"{where}.label", f"label {shorten(repr(label))} cannot name a sensor",
                             "use letters, digits and _", line)  # fmt: skip
+        _check_name(smap, label, "label", f"{where}.label", line)
         if label:
             if label in seen_labels:
                 raise smap.fail(f"{where}.label", f"label {label!r} is also used by "
@@ -174,6 +272,7 @@ def load_sensor_map(path: str | Path) -> SensorMap:
                                 line)  # fmt: skip
             seen_labels[label] = key
         segment = spec.get("segment", "").strip()
+        _check_name(smap, segment, "segment", f"{where}.segment", line)
         # two sensors on one segment: the analysis would take one of them and say nothing
         placed = f"{segment}_{side}" if side and not segment.endswith(f"_{side}") else segment
         if placed and placed in seen_segments:

@@ -14,6 +14,8 @@ is an :class:`~motionlab.errors.InputError`.
 from __future__ import annotations
 
 import difflib
+import math
+import re
 from collections.abc import Hashable, Iterable
 from pathlib import Path
 from typing import Any
@@ -205,3 +207,53 @@ def did_you_mean(key: object, allowed: Iterable[str]) -> str:
     if close:
         return f"did you mean '{close[0]}'?"
     return f"use one of {', '.join(allowed)}"
+
+
+#: control characters (C0, DEL, C1, the Unicode line and paragraph separators, lone surrogates):
+#: no text a user gives holds one; in the report's fonts and on a terminal they leak out as
+#: warnings and escapes (a tab and a line break: only where a text may run over lines)
+_CONTROL = re.compile(r"[\x00-\x1f\x7f-\x9f\u2028\u2029\ud800-\udfff]")
+#: text that Python reads as a number in e-notation (YAML 1.1 reads it as text: ``1e3``)
+_E_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)[eE][-+]?\d+")
+
+
+def finite(value: Any) -> float | None:
+    """``value`` as a float when it is a finite number (an int or a float, not a bool), else
+    ``None``: ``.nan``, ``.inf`` and an integer too large for a float (400 digits) are none."""
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    try:
+        x = float(value)
+    except OverflowError:
+        return None
+    return x if math.isfinite(x) else None
+
+
+def e_notation(value: Any) -> tuple[str, str] | None:
+    """For text that is a number in e-notation YAML 1.1 read as text (``1e3``, ``1.0e3``: YAML
+    needs a decimal point and a signed exponent), what is wrong and how to write it
+    (``1.0e+3``); else ``None``."""
+    if not isinstance(value, str) or not _E_NUMBER.fullmatch(value.strip()):
+        return None
+    mantissa, exponent = re.split("[eE]", value.strip())
+    mantissa += "" if "." in mantissa else ".0"
+    written = f"{mantissa}e{exponent if exponent[0] in '+-' else '+' + exponent}"
+    return (
+        f"is text {shorten(repr(value))}: YAML reads e-notation as a number only with a "
+        "decimal point and a signed exponent",
+        f"write {written} (YAML reads e.g. 1.0e3 as text too)",
+    )
+
+
+def text_problem(value: str, limit: int, lines: bool = False) -> str | None:
+    """What is wrong with the free text ``value`` (a name, title, label) to show in a report or
+    on a terminal: a control character (a tab or line break allowed where ``lines``), or more
+    than ``limit`` characters (a name of 100 000 characters kept the report's wrapping busy for
+    minutes); ``None`` when nothing is."""
+    bad = sorted({c for c in _CONTROL.findall(value) if not (lines and c in "\t\n")})
+    if bad:
+        plural = "s" if len(bad) > 1 else ""
+        return f"holds the control character{plural} {', '.join(repr(c) for c in bad[:3])}"
+    if len(value) > limit:
+        return f"is {len(value)} characters long, at most {limit}"
+    return None
