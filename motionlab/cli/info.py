@@ -7,7 +7,6 @@ import math
 
 import click
 
-from motionlab.cli.flags import to_flags
 from motionlab.cli.paths import INPUT_FILE
 from motionlab.lineage import rerun_commands
 from motionlab.sensor_map import unmatched_place
@@ -24,6 +23,7 @@ def command(session: str, as_json: bool) -> None:
       motionlab info session.h5
       motionlab info session.h5 --json
     """
+    from motionlab.cli.flags import to_flags  # the run options' table: the pipeline
     from motionlab.session import load_session
     from motionlab.summary import session_summary
 
