@@ -294,10 +294,12 @@ def apply_calibration_dir(
             continue
         done[label] = apply_calibration(stream, cal)
         notes[label] = f"calibrated ({', '.join(done[label].attrs['calibration']['channels'])})"
-    if not done:
+    if not done:  # name what was looked for: the folder may hold another set's files
+        wanted = [calibration_path(caldir, calibration_key(streams[k])).name for k in labels]
+        shown = ", ".join(wanted[:4]) + (f" and {len(wanted) - 4} more" if len(wanted) > 4 else "")
         raise InputError(
             "holds no calibration for these sensors",
             caldir,
-            remedy=f"expected files named like {calibration_path(caldir, 'SERIAL').name}",
+            remedy=f"looked for {shown}: run 'motionlab sensorcal' on these sensors' recording",
         )
     return done, notes
