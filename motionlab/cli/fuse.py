@@ -178,6 +178,8 @@ def command(
         state = "fused" if label in done else "skipped (no gyr/acc)"
         if label in done and fusion[label].name == "vendor":
             state = "vendor orientation kept"
-        elif label in done and not magnetometer:
-            state += " (6-D, no magnetometer)"
+        elif label in done:
+            state += (
+                " (9-D, magnetometer)" if fusion[label].magnetometer else " (6-D, no magnetometer)"
+            )
         click.echo(f"{label:<16} {state}" + (f", {notes[label]}" if label in notes else ""))
