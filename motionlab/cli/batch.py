@@ -152,7 +152,8 @@ def command(
     failed = result.count("failed")
     names = ", ".join(p.name for p in result.outputs.values())
     click.echo(
-        f"{len(result.outcomes)} sessions: {result.count('done')} processed, "
+        f"{len(result.outcomes)} session{'s' if len(result.outcomes) != 1 else ''}: "
+        f"{result.count('done')} processed, "
         f"{result.count('skipped')} up to date, {failed} failed "
         f"in {_clock(time.monotonic() - start)} -> {names} in {Path(outdir)}"
     )

@@ -47,7 +47,7 @@ def command(files: tuple[str, ...], outdir: str, json_path: str | None, **params
       motionlab run --protocol knee sim.h5 -o results/sim
       motionlab run --protocol knee sim.h5 --filter madgwick -o results/sim_madgwick
       motionlab run --protocol walk --map map.yaml trial.sto --orientation vendor -o results/sto
-      motionlab run --protocol knee sim.h5 -o results/sim --json sim_results.json
+      motionlab run --protocol knee sim.h5 -o results/sim_json --json sim_results.json
       motionlab run --protocol lumbar_seated --map protocols/examples/trunk_map.yaml \\
           trial/imu -o results/trunk
     """

@@ -130,6 +130,8 @@ def _joint_words(joint_type: str, joint: str = "", side: str = "") -> tuple[str,
     jt = JOINT_TYPES.get(joint_type)
     if jt is not None and not jt.clinical:
         name = str(joint or jt.name).replace("_", " ")
+        if jt.display.lower() in name.lower():  # 'hinge34', not 'hinge34 hinge' (hinge angle)
+            return "", name
         return "", f"{name} {jt.display}"
     words = SIDE_NAMES.get(side, "") if jt is None or jt.sided else ""
     return words, jt.display if jt is not None else joint_type
