@@ -1102,3 +1102,15 @@ def test_a_range_called_within_though_its_ends_pass_the_normal_says_the_allowanc
     text = run_summary(view, out, {}, 1.0, **names)
     assert "-4 to 70°  (normal 0–65°, within, allowing 5°)" in text
     assert "0–64°  (normal 0–65°, within)" in text
+
+
+def test_an_angle_the_method_limits_names_the_method_and_its_remedy():
+    """The accelerometer-only elbow's weak flexion read '(calibration) — see the calibration
+    page': the cause is the method, the remedy the fused orientations."""
+    from motionlab.report.sentences import cause_and_remedy
+    from motionlab.segments.grades import METHOD_LIMITS
+
+    view = _view((5.0, 45.0), (0.0, 60.0))
+    reason = METHOD_LIMITS["accel-only"][("elbow", "flexion")][1]
+    cause, remedy = cause_and_remedy(view, "knee_r", reason)
+    assert cause == "the accelerometer-only method" and "without --method accel-only" in remedy

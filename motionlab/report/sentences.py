@@ -441,6 +441,11 @@ def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[s
     spec = view.protocol.segments.get(seg)
     where = f"{SIDE_NAMES.get(spec.side, '')} {seg.split('_')[0]}".strip() if spec else seg
     r = reason.lower().removeprefix("hinge axis from movement: ").split("; ")[0]
+    if r.startswith("the accelerometer-only method"):  # segments.grades.METHOD_LIMITS
+        return "the accelerometer-only method", (
+            "compute the angles from the fused orientations (motionlab angles without "
+            "--method accel-only)"
+        )
     if "packet-loss gap" in r:  # segments.gap_headings: a hidden turn the heading keeps
         return "lost packets may have turned a sensor's heading", (
             "keep the receiver close to the subject and in sight of the sensors, so that fewer "
