@@ -180,7 +180,16 @@ def check_segments(session: Session, protocol: Protocol, inputs: list[Path]) -> 
     if unmatched:
         gap += f" (the sensor map's {', '.join(repr(k) for k in unmatched)} named no sensor)"
     foreign = foreign_segments(protocol, session)
-    if all(s.segment for s in session.sensors.values()) and not foreign:
+    has = {seg for seg in protocol.segments if sensor_for_segment(session, seg)}
+    joints = [j for j in protocol.joints.values() if {j.proximal, j.distal} <= has]
+    if all(s.segment for s in session.sensors.values()) and not foreign and not joints:
+        # no joint of the protocol has both its segments: making them optional measures nothing
+        pairs = ", ".join(f"{j.proximal}–{j.distal}" for j in protocol.joints.values())
+        remedy = (f"none of its joints ({pairs}) has sensors on both its segments, so no copy "
+                  "of it measures this recording: record sensors on both segments of one of "
+                  "them, or write a protocol with a joint between the segments "
+                  "recorded")  # fmt: skip
+    elif all(s.segment for s in session.sensors.values()) and not foreign:
         # every sensor is mapped to a segment of the protocol: the recording lacks the others
         remedy = (
             f"record sensors on {', '.join(missing)}, or copy the protocol and set "

@@ -275,10 +275,24 @@ def test_missing_segment_of_a_mapped_recording_names_sides_and_what_to_do(record
               "-o", tmp_path / "out", "--quiet")  # fmt: skip
     assert res.exit_code == 2 and res.output.count("\n") == 1
     assert "(its sensors: thigh_r (thigh_r))" in res.output
-    assert "record sensors on shank_r, or copy the protocol and set 'required: false'" in (
-        res.output
-    )
+    # its one joint lacks the shank: no copy of the protocol measures it (the shoulder DOT
+    # recording was told to set 'required: false', then refused for no joint)
+    assert "none of its joints (thigh_r–shank_r) has sensors on both its segments" in res.output
     assert "--map" not in res.output
+
+
+def test_a_recording_with_one_joint_of_several_is_told_to_make_the_rest_optional():
+    from pathlib import Path
+
+    from motionlab.pipeline import check_segments
+    from motionlab.protocol import load_protocol
+
+    proto = load_protocol("knee")
+    ses, _ = simulate(proto, 30.0, 0, "clean", rate_hz=50.0, calibration=False)
+    for seg in ("thigh_l", "shank_l"):
+        del ses.sensors[seg]
+    with pytest.raises(InputError, match="none on thigh_l, shank_l .*set 'required: false'"):
+        check_segments(ses, proto, [Path("walk.h5")])
 
 
 def test_an_unreadable_reference_is_refused_before_any_work(recorded, tmp_path):
