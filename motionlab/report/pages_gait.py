@@ -18,7 +18,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from motionlab.kinematics.gait_course import DIGITS, WalkCourse, change_text, walk_courses
-from motionlab.kinematics.gps import VARIABLES, normative, variable_grades
+from motionlab.kinematics.gps import VARIABLES, normative, population_gps, variable_grades
 from motionlab.kinematics.spatiotemporal import (
     BOTH_LEGS,
     MIN_STRIDES,
@@ -251,11 +251,12 @@ def _map_chart(doc: Document, mp: MovementProfile) -> None:
             ax.bar(x + (k - 0.5) * 0.38, vals, 0.36, color=SIDE_COLOUR[side],
                    label={"r": "right", "l": "left"}[side])  # fmt: skip
             heights += vals
-        if not missing:  # the population's GPS is a reference for a GPS, not for one GVS
-            expected = f"expected GPS of a normal subject {mp.population_gps_deg:.1f}°"
-            ax.axhline(mp.population_gps_deg, color=MUTED, ls="--", lw=0.8, label=expected)
-        population = mp.population_gps_deg if not missing else None
-        top = np.nanmax([*heights, np.nan if population is None else population])
+        # each bar's own reference, a normal subject's expected score (the RMS of the normative
+        # SD): a bar read alone had none (the knee's 12.8° against what?)
+        expected = [population_gps((v,)) if v != "GPS" else mp.population_gps_deg for v in names]
+        ax.hlines(expected, x - 0.42, x + 0.42, colors=MUTED, linestyles="--", lw=0.9,
+                  label="expected of a normal subject")  # fmt: skip
+        top = np.nanmax([*heights, *expected])
         if np.isfinite(top) and top > 0:  # room above the bars for the legend (it hid a bar's top)
             ax.set_ylim(0, 1.45 * top)
         ax.set_xticks(x, [n.replace("_", " ") for n in names], rotation=30, ha="right")
