@@ -374,16 +374,16 @@ def acc_unit_problem(stream: SensorStream) -> tuple[str, str] | None:
     if flags.get("acc_looks_like_g") and read != "g":
         return (f"|a| at rest is {g:.2f} m/s² (read as {read}), where 1 g is 9.81: the "
                 "accelerometer is in g",
-                "check the export's accelerometer unit (a column map says it as "
-                "acc: {unit: g})")  # fmt: skip
+                "check the export's accelerometer unit (for a file read by a column "
+                "map, acc: {unit: g} says it; a vendor's export: export it again)")  # fmt: skip
     beyond = np.isfinite(g) and not ACC_REST_REFUSE[0] <= g <= ACC_REST_REFUSE[1]
     lo, hi = (STANDARD_GRAVITY * v for v in ACC_REST_RANGE)
     steady = stream.qc.get("acc_rest_spread", 0.0) <= ACC_REST_SPREAD_MAX  # not swapped
     if read == "g" and lo <= g <= hi and steady:  # 9.81 m/s² read as g: 96 "m/s²"
         return (f"|a| at rest is {g:.3g} m/s² (read as g), 9.81 times gravity: the "
                 "accelerometer is in m/s², read as g",
-                "check the export's accelerometer unit (a column map says it as "
-                "acc: {unit: m/s^2})")  # fmt: skip
+                "check the export's accelerometer unit (for a file read by a column "
+                "map, acc: {unit: m/s^2} says it; a vendor's export: export it again)")  # fmt: skip
     if (flags.get("acc_looks_like_g") or beyond) and read == "g":
         return (f"|a| at rest is {g:.3g} m/s² (read as g), not ≈ 9.81: the accelerometer does "
                 "not measure gravity — are its columns another channel's (the gyroscope's)?",
@@ -391,8 +391,9 @@ def acc_unit_problem(stream: SensorStream) -> tuple[str, str] | None:
     if beyond:
         return (f"|a| at rest is {g:.3g} m/s² (read as {read}), not ≈ 9.81: a wrong unit or "
                 "scale",
-                "check the export's accelerometer unit (a column map says it as "
-                "acc: {unit: m/s^2} or g)")  # fmt: skip
+                "check the export's accelerometer unit (for a file read by a column "
+                "map, acc: {unit: m/s^2} or g says it; a vendor's export: export it "
+                "again)")  # fmt: skip
     return None
 
 
@@ -446,8 +447,8 @@ def gyr_unit_problem(stream: SensorStream) -> tuple[str, str] | None:
             f"(a gyroscope in {other} read as {read.replace('deg/s', '°/s')} turns 57.3×): it "
             f"misses the tilt by {miss['as_read']:.0f}° per {window} (RMS), by "
             f"{miss[unit]:.1f}° in {other}: is it in {other}?",
-            f"check the export's gyroscope unit (a column map says it as "
-            f"gyr: {{unit: {says}}})")  # fmt: skip
+            f"check the export's gyroscope unit (for a file read by a column map, "
+            f"gyr: {{unit: {says}}} says it; a vendor's export: export it again)")  # fmt: skip
 
 
 def _unit_is(read: str, unit: str) -> bool:
