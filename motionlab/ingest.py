@@ -496,7 +496,7 @@ def ingest(
     paths = [Path(p) for p in paths]
     if not paths:
         raise InputError("no input files", remedy="give one or more recording files")
-    if not 0 <= gap_max < np.inf:
+    if not gap_max >= 0:  # inf: every gap interpolated; NaN: no number
         raise InputError(f"gap_max={gap_max:g} s is not a gap", remedy="give 0 s or more",
                          argument="gap_max")  # fmt: skip
     if rate is not None and not 0 < rate < np.inf:

@@ -368,9 +368,10 @@ class _Reader:
         value = self.get(m, "duration_s", where, float, required, 0.0)
         low_ok = value > 0 if required else value >= 0
         if not (low_ok and value <= MAX_DURATION_S):
+            low = "above 0 s" if required else "of 0 s or more"
             self.fail(f"{where}.duration_s".lstrip("."), getattr(m, "lines", {}).get("duration_s"),
-                      f"is {value:g} s", f"give {'a' if required else 'no or a'} duration between "
-                      f"0 and {MAX_DURATION_S:g} s")  # fmt: skip
+                      f"is {value:g} s", f"give a duration {low}, at most {MAX_DURATION_S:g} "
+                      "s")  # fmt: skip
         return value
 
     def number(self, value: Any, where: str, line: int | None) -> float:

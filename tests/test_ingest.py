@@ -681,3 +681,4 @@ def test_time_stamps_in_another_unit_than_the_header_rate_are_refused(fake_files
 def test_rate_and_gap_options_are_checked_each_on_its_own(fake_files, options, said):
     with pytest.raises(InputError, match=said):
         ingest([fake_files[0]], **options)
+    assert ingest([fake_files[0]], gap_max=float("inf")).sensors  # every gap interpolated

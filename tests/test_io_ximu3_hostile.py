@@ -173,3 +173,11 @@ def test_an_optional_channel_file_that_is_no_file_is_refused_as_an_unusable_one(
             f"{name} {IN_BACK}: {kind}, expected a CSV file",
             f"move {name} out of the folder to read without the {what}",
         )
+
+
+def test_channel_files_that_do_not_overlap_the_inertial_data_say_so(tmp_path):
+    """Inertial.csv's stamps shifted by 2e19 µs were blamed on Magnetometer.csv ('truncated?'):
+    two clocks that never meet name neither file as the one at fault."""
+    files = xe.export_files()
+    files[f"{BACK}/Inertial.csv"] = _restamp(files[f"{BACK}/Inertial.csv"], lambda us: us + 2e19)
+    _refusal(xe.write(tmp_path, files), "do not overlap in time", "Inertial.csv (2e+13")

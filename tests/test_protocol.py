@@ -109,7 +109,7 @@ def test_a_step_duration_out_of_range_is_refused(tmp_path, value):
     were refused."""
     path = _broken(tmp_path, "    duration_s: 5\n", f"    duration_s: {value}\n")
     with pytest.raises(InputError, match=r"key calibration\[0\].duration_s: is .* s — give a "
-                       r"duration between 0 and 86400 s"):  # fmt: skip
+                       r"duration above 0 s, at most 86400 s"):  # fmt: skip
         load_protocol(path)
 
 

@@ -233,6 +233,14 @@ def _onto(t: np.ndarray, table: Table, values: np.ndarray, name: str, what: str)
     ts, values = ts[ok][order], values[ok][order]
     keep = np.r_[True, np.diff(ts) > 0]
     ts, values = ts[keep], values[keep]
+    if len(ts) >= 2 and (ts[-1] < t[0] or ts[0] > t[-1]):  # apart: one clock is wrong
+        raise InputError(
+            f"{name} ({ts[0]:.6g}–{ts[-1]:.6g} s) and Inertial.csv ({t[0]:.6g}–{t[-1]:.6g} s) do "
+            "not overlap in time: one of their Timestamp (us) columns is not the device's clock",
+            table.path,
+            "column 'Timestamp (us)'",
+            remedy="export the device again from the x-IMU3 GUI",
+        )
     if len(ts) < 2 or ts[-1] < t[-1] - SPAN_SLACK_S or ts[0] > t[0] + SPAN_SLACK_S:
         span = f"{ts[0] - t[0]:.2f}–{ts[-1] - t[0]:.2f} s" if len(ts) else "nothing"
         raise InputError(
