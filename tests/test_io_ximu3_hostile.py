@@ -181,3 +181,12 @@ def test_channel_files_that_do_not_overlap_the_inertial_data_say_so(tmp_path):
     files = xe.export_files()
     files[f"{BACK}/Inertial.csv"] = _restamp(files[f"{BACK}/Inertial.csv"], lambda us: us + 2e19)
     _refusal(xe.write(tmp_path, files), "do not overlap in time", "Inertial.csv (2e+13")
+
+
+def test_one_empty_time_stamp_is_named_by_its_line(tmp_path):
+    """One empty stamp among 874 rows said 'fewer than two time-stamped rows'."""
+    files = xe.export_files()
+    head, *rows = files[f"{BACK}/Inertial.csv"].decode().splitlines()
+    rows[10] = "," + rows[10].split(",", 1)[1]
+    files[f"{BACK}/Inertial.csv"] = ("\n".join([head, *rows]) + "\n").encode()
+    _refusal(xe.write(tmp_path, files), "Inertial.csv", "line 12: no time stamp")

@@ -286,7 +286,15 @@ def _read_device(folder: Path, options: dict[str, Any]) -> SensorStream:
     if recorded:
         attrs["recorded"] = recorded
     notes += [f"Inertial.csv: {n}" for n in table.notes]
-    if len(t) < 2 or not np.isfinite(t).all():
+    missing = np.flatnonzero(~np.isfinite(t))
+    if len(missing) and len(t) >= 2:  # one empty stamp said "fewer than two time-stamped rows"
+        raise InputError(
+            "no time stamp (empty or not a number)",
+            inertial,
+            f"line {int(table.lines[missing[0]])}",
+            remedy="export the device again, or repair the row",
+        )
+    if len(t) < 2:
         raise InputError(
             "fewer than two time-stamped rows", inertial, remedy="export the device again"
         )
