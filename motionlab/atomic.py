@@ -42,10 +42,11 @@ def special_kind(path: str | Path) -> str | None:
         return None
 
 
-def check_regular(path: str | Path, folder_ok: bool = False) -> None:
+def check_regular(path: str | Path, folder_ok: bool = False, what: str = "a recording") -> None:
     """Raise :class:`InputError` when ``path`` exists and is not a regular file: a FIFO, a
     socket or a device (whose read could block forever, or never end), or a folder (unless
-    ``folder_ok``: a reader of device folders takes one). Looks with ``stat`` only, never
+    ``folder_ok``: a reader of device folders takes one; ``what`` the file should be, for the
+    remedy). Looks with ``stat`` only, never
     opens, so that it cannot block; a missing path is left to the reader, which says so."""
     try:
         mode = os.stat(path).st_mode
@@ -60,7 +61,7 @@ def check_regular(path: str | Path, folder_ok: bool = False) -> None:
         raise InputError(
             f"is {kind}, not a regular file; it is not read",
             path,
-            remedy="give a recording saved as a file",
+            remedy=f"give {what} saved as a file",
         )
 
 

@@ -910,7 +910,7 @@ def resolve_protocol_path(path: str | Path) -> Path:
     packaged = PACKAGED / f"{p.stem}.yaml"
     if p.suffix in ("", ".yaml") and packaged.is_file() and not p.parent.parts[1:]:
         return packaged
-    check_regular(p)  # a FIFO or device given as the protocol: said so, never opened
+    check_regular(p, what="a protocol")  # a FIFO or device given as one: said so, never opened
     if p.is_symlink() and not p.exists():  # a link to nowhere, or to itself (a loop)
         raise InputError("is a symbolic link that leads nowhere (or back to itself)", p,
                          remedy="give the protocol file's own path")  # fmt: skip

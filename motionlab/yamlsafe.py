@@ -159,7 +159,7 @@ def read_yaml_text(path: str | Path, what: str, remedy: str) -> str:
     path = Path(path)
     if path.is_dir():
         raise InputError(f"is a folder, expected a {what} file", path, remedy=remedy)
-    check_regular(path)
+    check_regular(path, what=f"a {what}")
     try:
         size = path.stat().st_size
         if size > MAX_BYTES:

@@ -451,3 +451,12 @@ def test_accelerometer_and_gyroscope_columns_swapped_are_refused(tmp_path):
     swapped = replace(swapped, qc=qc.check_stream(swapped, 0.1))
     assert 9.0 < swapped.qc["acc_rest_norm"] < 11.0 and qc.acc_unit_problem(swapped) is None
     assert "columns swapped?" in qc.swapped_problem(swapped)[0]
+
+
+def test_a_device_given_as_a_map_or_protocol_is_called_what_it_should_be(tmp_path):
+    """'--map /dev/zero' was told to 'give a recording saved as a file'."""
+    (tmp_path / "in.txt").write_bytes(XSENS.read_bytes())
+    refused(cli(tmp_path, "ingest", "in.txt", "--map", "/dev/zero", "-o", "o.h5"),
+            "give a sensor map saved as a file")  # fmt: skip
+    refused(cli(tmp_path, "run", "in.txt", "--protocol", "/dev/zero", "-o", "r"),
+            "give a protocol saved as a file")  # fmt: skip

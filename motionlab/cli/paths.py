@@ -14,6 +14,9 @@ import click
 from motionlab.atomic import TMP_NAME_EXTRA, check_name_length, check_regular, special_kind
 from motionlab.errors import InputError
 
+#: what a file option's file is, for the remedy of a device or FIFO given as one
+_WHAT = {"map_path": "a sensor map", "marker_map": "a marker map", "reference": "a reference"}
+
 
 class InputFile(click.ParamType):
     """A file to read: a folder (other than an x-IMU3 export's) or an unreadable file is
@@ -40,7 +43,8 @@ class InputFile(click.ParamType):
                 path,
                 remedy="give the file's path",
             )
-        check_regular(path)  # before any open: a FIFO without a writer blocks it forever
+        what = _WHAT.get(param.name if param is not None else "", "a recording")
+        check_regular(path, what=what)  # before any open: a FIFO without a writer blocks it
         if path.exists():
             try:
                 with open(path, "rb") as f:
