@@ -1114,3 +1114,21 @@ def test_an_angle_the_method_limits_names_the_method_and_its_remedy():
     reason = METHOD_LIMITS["accel-only"][("elbow", "flexion")][1]
     cause, remedy = cause_and_remedy(view, "knee_r", reason)
     assert cause == "the accelerometer-only method" and "without --method accel-only" in remedy
+
+
+def test_a_walk_block_without_a_stride_is_not_compared_and_says_why():
+    """The knee protocol with sensors placed at random found its hip calibration movements as
+    the walk: '-1 to 90° during gait, above the normal 0-65°' from no stride, and the gait
+    pages went missing without a word."""
+    from dataclasses import replace
+
+    view = _view((5.0, 60.0), (-1.0, 90.0))
+    for col, m in view.metrics.joints["gait"].items():
+        view.metrics.joints["gait"][col] = replace(m, repetitions=0)
+    view.session.results.gait = Gait(status="no gait: no stride passed the checks")
+    rows = {r.column: r for r in rom_rows(view)}
+    assert rows["knee_l_flexion_deg"].status == "" and not rows["knee_l_flexion_deg"].flagged
+    items = findings(view)
+    assert not any("above the normal" in i for i in items)
+    assert any(i.startswith("No gait analysis: no stride passed the checks in the walk found at "
+                            "gait 10–40 s") for i in items)  # fmt: skip

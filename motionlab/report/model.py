@@ -643,6 +643,9 @@ def rom_rows(view: SessionView) -> list[RomRow]:
                 grade, reason = grades.get(col, (DETERMINED, ""))
                 status = compare(low, high, normal, angle == "flexion")
                 status = status if is_determined(grade) else ""
+                if tasks.get(task) is not None and tasks[task].is_gait and not m.repetitions:
+                    status = ""  # a walk block without one stride is no walk to compare (a
+                    # calibration period found as the walk: '-1 to 90° during gait, above')
                 rows.append(
                     RomRow(
                         task=task,

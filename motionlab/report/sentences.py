@@ -583,6 +583,16 @@ def quality_notes(view: SessionView) -> list[str]:
             "degrees in fast movement (at 300°/s, 3° per 10 ms)."
         )
     notes += list(beyond_anatomy(view).values())
+    g = view.session.results.gait
+    walks = {t.name for t in view.protocol.tasks if t.is_gait}
+    if g is not None and not g.ok and walks:  # the gait pages went missing with no word why
+        spans = ", ".join(f"{task_name(k)} {a:.0f}–{b:.0f} s"
+                          for k, (a, b) in view.blocks().items() if k in walks)  # fmt: skip
+        notes.append(
+            f"No gait analysis: {g.status.removeprefix('no gait: ')}"
+            + (f" in the walk found at {spans}" if spans else "")
+            + "; check that the walk is where the recording has it (a task's time_range)."
+        )
     for entry in view.session.metadata.get("map_unmatched", []):
         segment = f" ({entry['segment']})" if entry.get("segment") else ""
         notes.append(
