@@ -118,11 +118,13 @@ def angle_metrics(
     """ROM, extremes, per-cycle peaks and the cycle-normalised mean ± SD of one angle (deg).
 
     ``within``: the samples (bool, like ``values``) the ROM and extremes are taken over (a
-    walk's strides, :func:`cycle_samples`), else all of ``values``."""
+    walk's strides, :func:`cycle_samples`), else all of ``values``. The mean ± SD curve is of
+    the cycles the angle covers whole (one through a gap of a sensor left a hole in it)."""
     v = np.asarray(values, dtype=float)
     over = v[within] if within is not None and within.any() else v
     curves = cyc.normalise(v, cycles)
-    mean, sd = cyc.mean_sd(curves)
+    whole = np.isfinite(curves).all(axis=1)  # a cycle through a gap of this angle's sensors
+    mean, sd = cyc.mean_sd(curves[whole] if whole.any() else curves)  # left a hole in the mean
     peaks_max = np.array(
         [np.nanmax(v[a : b + 1]) for a, b in zip(cycles.start, cycles.end, strict=True)]
     )
