@@ -275,7 +275,7 @@ def test_a_cycle_through_a_gap_leaves_no_hole_in_the_mean_curve():
     """One stride through a 0.4-s gap of the thigh sensor broke the hip's and the knee's mean
     cycle curves at 82-94 % (the gait page drew the same strides whole)."""
     t = np.arange(1200) / 100.0
-    v = 30 * np.sin(2 * np.pi * t)
+    v = 30 * np.sin(np.pi * t)  # one period per 2-s cycle
     v[350:362] = np.nan  # inside the second cycle
     c = Cycles(np.array([0, 200, 400]), np.array([60, 260, 460]), np.array([200, 400, 600]))
     m = angle_metrics(v, c)
