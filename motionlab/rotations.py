@@ -225,7 +225,8 @@ def mean(q: np.ndarray, weights: np.ndarray | None = None) -> np.ndarray:
 
 
 def angular_velocity(time: np.ndarray, quat: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Angular velocity (N−1, 3) in rad/s in the moving frame, at the interval midpoints (s).
+    """``(midpoints, ω)``: the interval midpoints (N−1,) in s and the angular velocity (N−1, 3)
+    in rad/s in the moving frame there.
 
     ``ω_k = 2 log(q_k* ⊗ q_{k+1}) / (t_{k+1} − t_k)`` (Ricci 2015, eqs. 5.11-5.12); NaN where
     either orientation is NaN.

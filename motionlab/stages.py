@@ -519,8 +519,9 @@ def gait_stage(session: Session, protocol: Protocol | str | Path | None = None) 
 
 def validation_mode(session: Session) -> str:
     """Alignment mode for the session's fusion: ``full`` when every sensor was fused with its
-    magnetometer (one earth frame; also when nothing was fused yet: the validation fuses with
-    the magnetometers), else ``heading`` (each sensor its own heading)."""
+    magnetometer (one earth frame), else ``heading`` (each sensor its own heading). A session
+    with no fusion result reads ``full`` (``all`` of nothing); the validation refuses a sensor
+    that was not fused, so the mode is then never used."""
     entries = session.results.fusion.values()
     return "full" if all(e.magnetometer for e in entries) else "heading"
 
