@@ -234,3 +234,29 @@ def test_cli_bad_inputs_give_one_line_and_exit_2(tmp_path):
         out = runner.invoke(main, ["validate", *args])
         assert out.exit_code == 2, (args, out.output)
         assert message in out.output, out.output
+
+
+def test_a_sensor_that_hardly_turned_does_not_refuse_the_alignment_of_the_others():
+    """A simulated standing lumbar session with its optical reference refused the whole run
+    ('too little rotation to align the IMU with the optical data'): its pelvis hardly turned.
+    That sensor's alignment is not determined (conditioning 0, its agreements withheld); the
+    moving one's is still found; with no sensor turning the refusal stands."""
+    from motionlab.errors import InputError
+    from motionlab.validation.align import align
+
+    t = np.arange(0, 20, 0.01)
+    moving = rot.from_rotvec(np.column_stack([0.6 * np.sin(1.1 * t), 0.4 * np.sin(0.7 * t + 1),
+                                              0.5 * np.sin(0.9 * t + 2)]))  # fmt: skip
+    still = np.tile(rot.from_rotvec(np.array([0.1, 0.2, 0.3])), (len(t), 1))
+    y = rot.from_rotvec(np.array([0.2, -0.1, 0.7]))
+    x = rot.from_rotvec(np.array([-0.3, 0.1, 0.2]))
+
+    def optical(a):  # a = Y b X
+        return rot.mul(rot.mul(rot.conj(np.broadcast_to(y, a.shape)), a),
+                       rot.conj(np.broadcast_to(x, a.shape)))  # fmt: skip
+
+    al = align({"pelvis": (still, optical(still)), "thorax": (moving, optical(moving))})
+    assert al.conditioning["pelvis"] == 0 and al.conditioning["thorax"] > 0.1
+    assert np.degrees(rot.angle(rot.mul(rot.conj(al.sensor_to_cluster["thorax"]), x))) < 0.5
+    with pytest.raises(InputError, match="too little rotation"):
+        align({"pelvis": (still, optical(still))})

@@ -255,16 +255,17 @@ def withhold(val: Validation, protocol: Protocol | None) -> Validation:
     - the clock sync is graded ``poor``: the curves may be compared at the wrong times (real
       trunk trials once locked onto ±10-14 s with 1.7 s shared, RMSE 28-131° printed);
     - a sensor's alignment with its marker cluster was not determined: it turned about one
-      axis only (conditioning below :data:`~motionlab.validation.align.MIN_CONDITIONING`), so its
-      sensor-to-cluster rotation about that axis is what the fit made up (a wheelchair's sensor
-      read 1.1° "total" error and every lean angle against it 34-127°); its orientation errors
-      and the angles of its segment's joints;
+      axis only, or hardly at all (a still pelvis under a moving trunk; conditioning below
+      :data:`~motionlab.validation.align.MIN_CONDITIONING`), so its sensor-to-cluster rotation
+      about that axis is what the fit made up (a wheelchair's sensor read 1.1° "total" error
+      and every lean angle against it 34-127°); its orientation errors and the angles of its
+      segment's joints;
     - an angle compared over less than :data:`MIN_COMPARED_S`.
     """
     common = "the clock sync is poor" if val.sync.grade == "poor" else None
     loose = {
-        label: f"{label} turned about one axis only, so its alignment with its marker cluster "
-        "is not determined"
+        label: f"{label} turned about one axis only (or hardly at all), so its alignment with "
+        "its marker cluster is not determined"
         for label, c in (val.alignment.conditioning if val.alignment else {}).items()
         if val.mode in ("full", "heading") and c < MIN_CONDITIONING
     }  # fmt: skip

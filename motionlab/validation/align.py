@@ -86,23 +86,20 @@ class Alignment:
         )
 
 
-def initial_x(a: np.ndarray, b: np.ndarray, lag: int) -> tuple[np.ndarray, float]:
+def initial_x(a: np.ndarray, b: np.ndarray, lag: int) -> tuple[np.ndarray | None, float]:
     """Closed-form ``X`` from relative rotations over ``lag`` samples, and its conditioning.
 
     Conditioning is the smallest over the largest singular value of the rotation-vector
-    scatter (0: rotation about one axis only, X is then not determined about it).
+    scatter (0: rotation about one axis only, X is then not determined about it); a sensor that
+    hardly turned (a still pelvis under a moving trunk) has no ``X`` to find: ``None`` and
+    conditioning 0, so that its agreements are withheld, not the whole validation refused.
     """
     da = rot.to_rotvec(rot.mul(rot.conj(a[:-lag]), a[lag:]))
     db = rot.to_rotvec(rot.mul(rot.conj(b[:-lag]), b[lag:]))
     ok = np.isfinite(da).all(axis=1) & np.isfinite(db).all(axis=1)
     ok &= np.linalg.norm(da, axis=1) > np.radians(2.0)
     if ok.sum() < 3:
-        raise InputError(
-            "too little rotation to align the IMU with the optical data",
-            where="spatial alignment",
-            remedy="record movements about several axes, or use mode='none'",
-            argument="mode",
-        )
+        return None, 0.0
     m = wahba(db[ok], da[ok])
     sv = np.linalg.svd(da[ok], compute_uv=False)
     return rot.from_matrix(m), float(sv[-1] / sv[0])
@@ -133,13 +130,24 @@ def align(
         return out
     lag = max(1, int(round(LAG_S * rate)))
     x0, y0, cond = {}, {}, {}
+    turned = []  # a sensor that hardly turned gives no Y
     for label, (a, b) in pairs.items():
-        x0[label], cond[label] = initial_x(a, b, lag)
+        x, cond[label] = initial_x(a, b, lag)
+        turned += [label] if x is not None else []
+        x0[label] = x if x is not None else rot.IDENTITY.copy()
         ok = np.isfinite(a).all(axis=1) & np.isfinite(b).all(axis=1)
         y0[label] = rot.mean(rot.mul(rot.mul(a[ok], rot.conj(x0[label])), rot.conj(b[ok])))
+    if not turned:
+        raise InputError(
+            "too little rotation to align the IMU with the optical data",
+            where="spatial alignment",
+            remedy="record movements about several axes, or use mode='none'",
+            argument="mode",
+        )
+    labels = turned + [k for k in labels if k not in turned]  # the first one sets the headings
     first = labels[0]
     if mode == "full":
-        y_init = rot.mean(np.array([y0[k] for k in labels]))
+        y_init = rot.mean(np.array([y0[k] for k in turned]))
         psi0 = {}
     else:
         y_init = y0[first]
