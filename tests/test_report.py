@@ -1132,3 +1132,13 @@ def test_a_walk_block_without_a_stride_is_not_compared_and_says_why():
     assert not any("above the normal" in i for i in items)
     assert any(i.startswith("No gait analysis: no stride passed the checks in the walk found at "
                             "gait 10–40 s") for i in items)  # fmt: skip
+
+
+def test_the_summary_says_where_zero_is():
+    """A seated rest held 10° flexed reads as 0°: the trunk's '-11 to 59°' read as 11° of
+    extension with no word on what zero is."""
+    from motionlab.report.sentences import zero_words
+
+    view = _view((5.0, 45.0), (0.0, 60.0))
+    assert zero_words(view) == (" 0° is each joint's position in the calibration pose "
+                                "'standing', where the segments' axes were set.")  # fmt: skip

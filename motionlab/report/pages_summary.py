@@ -15,6 +15,7 @@ from motionlab.report.sentences import (
     missing_lines,
     pace_note,
     tasks_analysed,
+    zero_words,
 )
 from motionlab.segments import sensor_for_segment
 
@@ -56,6 +57,7 @@ def summary_page(doc: Document, view: SessionView) -> None:
         "protocol's normal range by more than 5°, or a flexion peak falls 10° short of its top. "
         "Normal ranges are approximate, for orientation, "
         "not diagnostic limits. Only numbers the recording determined are findings."
+        + zero_words(view)
         + (f" Pace: {PACE_SOURCE}." if paced else ""),
         size=SIZE["small"],
         colour=MUTED,

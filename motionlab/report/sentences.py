@@ -238,6 +238,20 @@ def pace_note(view: SessionView, task: str) -> tuple[str, str]:
     return sentence, ("a pace unlike the norms'" if pace == "mixed" else "")
 
 
+def zero_words(view: SessionView) -> str:
+    """`` 0° is each joint's position in the calibration pose 'standing', where …``: the
+    protocol's first still pose, where the segments' frames are set, so a seated rest held
+    10° flexed reads as 0° (its trunk's '-11 to 59°' read as 11° of extension); empty for a
+    protocol without one."""
+    step = next((s for s in view.protocol.calibration if s.kind == "static"), None)
+    if step is None:
+        return ""
+    pose = f"'{step.name.replace('_', ' ')}'"
+    pose += f" ({step.pose})" if step.pose and step.pose != step.name else ""
+    return (f" 0° is each joint's position in the calibration pose {pose}, where the segments' "
+            "axes were set.")  # fmt: skip
+
+
 def paced_words(view: SessionView, row: RomRow) -> str:
     """Why a range outside normal is shown but not flagged, in a few words for a table:
     ``'the pace: not flagged'``, or ``'speed not measured: not flagged'``
