@@ -1142,3 +1142,15 @@ def test_the_summary_says_where_zero_is():
     view = _view((5.0, 45.0), (0.0, 60.0))
     assert zero_words(view) == (" 0° is each joint's position in the calibration pose "
                                 "'standing', where the segments' axes were set.")  # fmt: skip
+
+
+def test_the_drift_remedy_names_the_protocols_own_pose():
+    """A supine children's protocol was told to 'stand still for 5 s every 2 minutes'."""
+    from motionlab.report.sentences import cause_and_remedy
+
+    view = _view((5.0, 45.0), (0.0, 60.0))
+    why = "its heading is tied only where a pose was held or the walk went straight, and …"
+    assert cause_and_remedy(view, "knee_r", why)[1].startswith("hold the standing pose still")
+    view.protocol = load_protocol("upper_body_children")
+    joint = next(iter(view.protocol.joints))
+    assert cause_and_remedy(view, joint, why)[1].startswith("hold the supine pose still for 5 s")

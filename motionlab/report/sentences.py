@@ -466,9 +466,11 @@ def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[s
             "packets are lost"
         )
     if "tied only where a pose was held" in r:  # segments.grades.hold_graded: drift between
+        still = next((s for s in view.protocol.calibration if s.kind == "static"), None)
+        pose = (still.pose or still.name.replace("_", " ")) if still else "standing"
         return "the sensors' headings drift between poses", (
-            "stand still for 5 s every 2 minutes of the recording (each stand ties the "
-            "headings again)"
+            f"hold the {pose} pose still for 5 s every 2 minutes of the recording (each pose "
+            "held ties the headings again)"
         )
     if "axis's sign is not clear" in r:  # a trunk rest held leaning (segments.trunk_axes)
         return "direction of flexion", "rest sitting or standing upright for a few seconds"
