@@ -648,12 +648,13 @@ def test_clocks_the_sync_could_not_check_are_said_among_the_findings(walk):
         fits = {s: ClockFit("pelvis", s, 0.0, 0.0, 20.0, 1e-3, 1e-6, np.nan, 0.0, status, "network")
                 for s, status in zip(sensors, statuses, strict=True)}  # fmt: skip
         ses.results.clock_sync = ClockSync(fits)
-        return [n for n in quality_notes(load_view(ses)) if "not checked" in n]
+        return [n for n in quality_notes(load_view(ses)) if "not synchronised (" in n]
 
     refused = "not reliable: the shared joint centre fits poorly (residual 0.76 m/s²)"
     assert with_fits(refused, "applied", "not enough shared movement") == [
-        "Clocks of thigh_r, shank_r not checked (no reliable timing): taken as one clock; sensors "
-        "not synchronised may be off by degrees in fast movement (at 300°/s, 3° per 10 ms)."
+        "Clocks of thigh_r, shank_r not synchronised (no reliable timing in the recording, see "
+        "'Sensor clocks'): taken as recorded; sensors not synchronised may be off by degrees in "
+        "fast movement (at 300°/s, 3° per 10 ms)."
     ]
     assert with_fits("applied", "consistent with one clock") == []
     assert with_fits(f"{VENDOR_KEPT} (one time column); the data's fit said: {refused}") == []

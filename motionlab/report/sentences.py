@@ -594,9 +594,10 @@ def quality_notes(view: SessionView) -> list[str]:
     unchecked = unchecked_clocks(view)
     if unchecked:
         notes.append(
-            f"Clock{'s' if len(unchecked) > 1 else ''} of {', '.join(unchecked)} not checked "
-            "(no reliable timing): taken as one clock; sensors not synchronised may be off by "
-            "degrees in fast movement (at 300°/s, 3° per 10 ms)."
+            f"Clock{'s' if len(unchecked) > 1 else ''} of {', '.join(unchecked)} not "
+            "synchronised (no reliable timing in the recording, see 'Sensor clocks'): taken as "
+            "recorded; sensors not synchronised may be off by degrees in fast movement (at "
+            "300°/s, 3° per 10 ms)."
         )
     notes += list(beyond_anatomy(view).values())
     g = view.session.results.gait
