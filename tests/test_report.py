@@ -1154,3 +1154,17 @@ def test_the_drift_remedy_names_the_protocols_own_pose():
     view.protocol = load_protocol("upper_body_children")
     joint = next(iter(view.protocol.joints))
     assert cause_and_remedy(view, joint, why)[1].startswith("hold the supine pose still for 5 s")
+
+
+def test_a_bias_that_is_a_difference_of_zeros_is_named():
+    from motionlab.report.pages_validation import zero_offsets
+    from motionlab.results import AngleAgreement
+
+    def agreement(bias, centred, withheld=None):
+        return AngleAgreement(np.hypot(bias, centred), bias, centred, 9.0, centred, 0.99, 0.96,
+                              [bias - 2, bias + 2], 500, withheld=withheld)  # fmt: skip
+
+    angles = {"hip_r_flexion_deg": agreement(-6.0, 0.9), "knee_r_flexion_deg": agreement(1.5, 1.2),
+              "hip_l_flexion_deg": agreement(3.0, 2.0),
+              "knee_l_flexion_deg": agreement(-6.0, 0.9, "the clock sync is poor")}  # fmt: skip
+    assert zero_offsets(angles) == ["hip r flexion"]
