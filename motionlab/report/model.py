@@ -846,10 +846,12 @@ def excluded(view: SessionView) -> list[str]:
     if blocks and len(view.angles.get("time_s", [])):
         t = view.angles["time_s"]
         inside = sum(b - a for a, b in blocks.values())
-        out.append(
-            f"metrics use the task blocks only ({inside:.0f} s of {t[-1] - t[0]:.0f} s); "
-            "calibration steps and rests are left out"
-        )
+        # a protocol whose calibration movement is the block measured (lumbar_seated) left
+        # nothing out: '100 s of 100 s; calibration steps and rests are left out' said otherwise
+        left = ("; calibration steps and rests are left out" if inside < 0.99 * (t[-1] - t[0])
+                else "")  # fmt: skip
+        out.append(f"metrics use the task blocks only ({inside:.0f} s of {t[-1] - t[0]:.0f} s)"
+                   f"{left}")  # fmt: skip
     return out
 
 
