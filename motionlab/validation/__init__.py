@@ -390,8 +390,9 @@ def validate(
     spread = np.ptp(residual[np.isfinite(residual)]) if np.isfinite(residual).any() else 0.0
     if spread * estimate_rate(t) > 1.0:
         notes.append(
-            f"the sensors' clocks disagree by {spread * 1e3:.0f} ms (sync/sensor_residual_s): "
-            "they are not on one clock; repair the clocks at ingest"
+            f"the sensors' clocks disagree with the cameras' by up to {spread * 1e3:.0f} ms "
+            "between sensors: they are not on one clock; synchronise them first (motionlab "
+            "sync, which run does by default)"
         )
     frames: dict[str, str] = {}
     angles = None
