@@ -168,16 +168,21 @@ def test_pelvis_forward_from_the_first_steps_when_the_stand_agrees_but_the_headi
     assert angle < 10.0
 
 
-def test_a_pelvis_strapped_as_the_hint_says_keeps_the_hint():
-    """Nominal mounting (the hint right), a stand and a 20-s walk: the first steps agree with the
-    hint within their bound, so the hint's forward direction stays (no walk axis, no note)."""
+def test_a_pelvis_strapped_as_the_hint_says_takes_the_walks_forward_direction():
+    """Nominal mounting (the hint within 30°), a stand and a 20-s walk: the hint was kept for
+    agreeing with the first steps, which left the hips graded by the nominal placement (`weak`)
+    where a sensor strapped any way round got them `determined` from the walk; the walk's
+    direction (bound 10-20°) is no worse than a strapped hint's (20°), so it is taken (seeds 0-7
+    of a 40-s walk: hip flexion 1.48 / 1.54 → 1.35 / 1.45° RMSE, ab-adduction 0.99 / 1.11 →
+    0.67 / 0.93°, every hip flexion `determined`)."""
     proto = load_protocol("walk")
     session, _ = simulate(proto, 20.0, 20, "typical", soft_tissue="motion")
     prepare_sensors(session)
     analyse(session, PipelineOptions(proto, progress=False))
     cal = session.results.calibration
-    assert list(cal.segments["pelvis"].axes) == ["standing"]
-    assert not any(w.startswith("pelvis:") and "forward" in w for w in cal.warnings)
+    assert list(cal.segments["pelvis"].axes) == ["standing", "movement:turns"]
+    assert any(w.startswith("pelvis:") and "forward direction is taken from" in w
+               for w in cal.warnings)  # fmt: skip
 
 
 @pytest.mark.parametrize(("turn_deg", "used"), [(3.0, True), (40.0, False)])

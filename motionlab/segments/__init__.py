@@ -358,8 +358,10 @@ def pelvis_forward(
         return ""
     hint = protocol.segments[seg].nominal_mounting().T @ np.array([1.0, 0.0, 0.0])
     off = float(np.degrees(np.arccos(np.clip(found.axis @ hint, -1.0, 1.0))))
-    if not by_stand and off <= grades.HEADING_BOUND_DEG[method] + walk_forward.HINT_HEADING_DEG:
-        return method  # the hint agrees with the walk as well as a strapped hint and the walk can
+    # the walk's forward direction is taken wherever it was found: its bound (10° from the first
+    # steps, 20° from the turns) is no wider than a strapped hint's (20°), and a hint kept for
+    # agreeing with it left the hips graded by the nominal placement (weak) where a sensor
+    # strapped any way round got them determined
     why = "" if by_stand else f"{words} are {off:.0f}° from the hint's forward; "
     _add_note(notes, seg, f"{why}its forward direction is taken from {words}")
     recs["movement:turns"] = AxisMeasurement(
