@@ -288,11 +288,13 @@ def graded(sentence: str, grade: str, reason: str) -> str:
     return f"{sentence.removesuffix('.')} ({grade}{': ' + reason if reason else ''})."
 
 
-def _oop_findings(view: SessionView) -> list[str]:
+def _oop_findings(view: SessionView) -> tuple[list[str], list[str]]:
     """Varus thrust, trunk compensation and out-of-plane offset, each only from determined
     angles (the varus thrust from the knee's ab-adduction, the offset from every angle of its
-    joint, the trunk compensation from the thorax frame)."""
-    out = []
+    joint, the trunk compensation from the thorax frame): ``(flagged, not flagged)``, a varus
+    thrust within its limit or not clearly above it among the second (it led the healthy
+    demo's findings)."""
+    out, calm = [], []
     m = view.metrics
     for task, joints in (m.gait or {}).items():
         for name, g in joints.items():
@@ -309,7 +311,7 @@ def _oop_findings(view: SessionView) -> list[str]:
                 verdict = f"not clearly above the {limit:g}° flagged, given its accuracy"
             else:
                 verdict = f"within the {limit:g}° this protocol flags"
-            out.append(
+            (out if thrust_above(view, name, g) else calm).append(
                 f"{side} knee varus thrust {thrust:.1f}° in stance during {task_name(task)} "
                 f"({verdict}; {g.strides} strides)."
             )
@@ -336,7 +338,7 @@ def _oop_findings(view: SessionView) -> list[str]:
                     f"peak {o.peak_deg:.0f}°, "
                     f"above {o.threshold_deg:g}° for {o.above_pct:.0f}% of the movement."
                 )
-    return out
+    return out, calm
 
 
 def _unnormed(view: SessionView, ranges: list[RomRow]) -> list[RomRow]:
@@ -357,10 +359,10 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
     from ``determined`` numbers only (module docstring).
 
     A walk's pace outside the normal ranges' (:func:`pace_note`) comes first, then ranges
-    outside normal, left-right asymmetries, out-of-plane findings, the ranges within normal of
-    the primary (flexion) angles, the determined ranges of a joint and task the protocol gives
-    no normal range for (the seated trunk's: measured, compared with nothing), and data or
-    calibration problems.
+    outside normal, left-right asymmetries, out-of-plane findings that are flagged, the ranges
+    within normal of the primary (flexion) angles, the out-of-plane measures within their
+    limits, the determined ranges of a joint and task the protocol gives no normal range for
+    (the seated trunk's: measured, compared with nothing), and data or calibration problems.
     What the recording did not determine is not a finding: see :func:`missing_lines`.
     """
     ranges = rom_rows(view)
@@ -401,10 +403,9 @@ def findings(view: SessionView, limit: int = 12) -> list[str]:
                 f"between sides: right {s.right_rom_deg:.0f}°, left {s.left_rom_deg:.0f}° "
                 f"(symmetry index {s.symmetry_index_pct:+.0f}%)."
             )
+    oop, calm = _oop_findings(view)
     problems = quality_notes(view)
-    items = list(
-        dict.fromkeys(paces + outside + asym + _oop_findings(view) + paced + inside + measured)
-    )
+    items = list(dict.fromkeys(paces + outside + asym + oop + paced + inside + calm + measured))
     if len(items) > limit - len(problems[:2]):
         items = items[: limit - len(problems[:2])]
     if not items and not ranges:  # not "no normal range": the protocol may have them
