@@ -167,10 +167,13 @@ def reaching(body: Body, name, phase, duration, reps, options) -> Block:
             out[:, CH[f"elbow_{s}_0"]] = stand[CH[f"elbow_{s}_0"]] - 50 * DEG * m
             out[:, CH[f"elbow_{s}_2"]] = 50 * DEG * m
         side = reach * (2 * alt - 1)  # +1 right reach, -1 left reach
-        out[:, CH["lumbar_0"]] = 15 * DEG * reach
-        out[:, CH["lumbar_2"]] = 12 * DEG * side  # right reach turns the thorax to the left
-        out[:, CH["lumbar_1"]] = -5 * DEG * side
-        out[:, CH["tilt_z"]] = -5 * DEG * reach
+        # a healthy reach within arm's length moves the trunk little (Cirstea & Levin 2000:
+        # the elbow protocol's limits, 10° forward and turned, 8° sideways): 20° of lean (15°
+        # lumbar, 5° pelvis) gave the demo's simulated healthy subject a trunk compensation
+        out[:, CH["lumbar_0"]] = 6 * DEG * reach
+        out[:, CH["lumbar_2"]] = 8 * DEG * side  # right reach turns the thorax to the left
+        out[:, CH["lumbar_1"]] = -4 * DEG * side
+        out[:, CH["tilt_z"]] = -2 * DEG * reach
         return out
 
     return Block(name, "reaching", phase, duration, fn, generator="reaching")
