@@ -177,15 +177,15 @@ def protocol_sha256(protocol: Any) -> str | None:
 
 
 def rerun(stale: dict[str, str], needed: tuple[str, ...] | list[str]) -> list[str]:
-    """The commands (:data:`COMMANDS`) to re-run, in order, to bring the ``needed`` stages'
-    results up to date."""
+    """The stages to redo, in the order they run, to bring the ``needed`` stages' results up to
+    date (each stale one and the stale results it reads)."""
     wanted: set[str] = set()
     todo = [s for s in needed if s in stale]
     while todo:
         stage = todo.pop()
         wanted.add(stage)
         todo += [u for u in INPUTS[stage] if u in stale and u not in wanted]
-    return [COMMANDS[s] for s in INPUTS if s in wanted]
+    return [s for s in INPUTS if s in wanted]
 
 
 #: the stages whose command needs the protocol named (the others take the calibration's)
@@ -208,7 +208,7 @@ def rerun_commands(session: Any, stale: dict[str, str], needed: Any, path: Any =
         protocol = cal.protocol if shipped else str(file)
     where = f" {shlex.quote(str(path))}" if path is not None else ""
     commands = []
-    for stage in (s for s in INPUTS if COMMANDS[s] in rerun(stale, needed)):
+    for stage in rerun(stale, needed):
         words = f"motionlab {COMMANDS[stage]}{where}"
         if stage in NEEDS_PROTOCOL:
             words += f" protocol={shlex.quote(protocol)}" if protocol else " protocol=<protocol>"

@@ -238,12 +238,18 @@ def pace_note(view: SessionView, task: str) -> tuple[str, str]:
     return sentence, ("a pace unlike the norms'" if pace == "mixed" else "")
 
 
+def first_pose(view: SessionView):
+    """The protocol's first still calibration step (where the segments' frames are set), or
+    ``None``."""
+    return next((s for s in view.protocol.calibration if s.kind == "static"), None)
+
+
 def zero_words(view: SessionView) -> str:
     """`` 0° is each joint's position in the calibration pose 'standing', where …``: the
     protocol's first still pose, where the segments' frames are set, so a seated rest held
     10° flexed reads as 0° (its trunk's '-11 to 59°' read as 11° of extension); empty for a
     protocol without one."""
-    step = next((s for s in view.protocol.calibration if s.kind == "static"), None)
+    step = first_pose(view)
     if step is None:
         return ""
     pose = f"'{step.name.replace('_', ' ')}'"
@@ -467,7 +473,7 @@ def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[s
             "packets are lost"
         )
     if "tied only where a pose was held" in r:  # segments.grades.hold_graded: drift between
-        still = next((s for s in view.protocol.calibration if s.kind == "static"), None)
+        still = first_pose(view)
         pose = (still.pose or still.name.replace("_", " ")) if still else "standing"
         return "the sensors' headings drift between poses", (
             f"hold the {pose} pose still for 5 s every 2 minutes of the recording (each pose "
