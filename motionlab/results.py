@@ -963,7 +963,8 @@ class StanceMetrics(_Record):
     ``Metrics.gait[task]``), in degrees.
 
     ``strides``: the strides found (heel strike to heel strike); per stride ``varus_thrust_deg``
-    (the rise of the adduction angle from heel strike to its stance maximum) and
+    (the rise of the adduction angle from heel strike to its maximum in weight acceptance,
+    :func:`~motionlab.kinematics.out_of_plane.weight_acceptance`) and
     ``stance_rotation_range_deg`` (the rotation's range over stance); their means
     ``varus_thrust_mean_deg`` / ``stance_rotation_range_mean_deg`` and SDs (ddof 1; 0 with one
     stride) ``varus_thrust_sd_deg`` / ``stance_rotation_range_sd_deg`` (NaN without strides);

@@ -99,17 +99,38 @@ def test_trunk_compensation_relative_to_neutral():
 
 def test_stance_metrics_varus_thrust():
     t = np.arange(0, 4.4, 1 / RATE)
-    add = 2 + 4 * np.exp(-0.5 * ((t % 1.1 - 0.15) / 0.05) ** 2)  # +4° early in each stance
+    phase = t % 1.1
+    add = 2 + 4 * np.exp(-0.5 * ((phase - 0.15) / 0.05) ** 2)  # +4° early in each stance
     rotation = 3 * np.sin(2 * np.pi * t / 1.1)
+    # the loading-response flexion peak at 0.18 s, pre-swing flexion rising to toe-off (0.66 s)
+    flexion = 15 * np.exp(-0.5 * ((phase - 0.18) / 0.06) ** 2) + 40 * np.clip(phase - 0.45, 0, 1)
     hs = np.array([0, 110, 220, 330])
     c = Cycles(hs[:-1], hs[:-1] + 66, hs[1:])
-    m = oop.stance_metrics(add, rotation, c, 3.0)
+    m = oop.stance_metrics(add, rotation, flexion, c, 3.0)
     assert m.strides == 3
     assert np.allclose(m.varus_thrust_deg, 4 * (1 - np.exp(-0.5 * 9)), atol=0.05)
     assert m.varus_thrust_above_pct == 100.0
     # stance = the first 60 % of the stride: from the sine's maximum 3 down to 3 sin(216°)
     expect = 3 - 3 * np.sin(2 * np.pi * 0.6)
     assert m.stance_rotation_range_mean_deg == pytest.approx(expect, abs=0.05)
+
+
+def test_varus_thrust_is_weight_acceptance_not_late_stance():
+    """Adduction that rises with the knee's flexion before toe-off (a healthy knee's coupling) is
+    not thrust; only the rise up to the loading-response flexion peak counts."""
+    t = np.arange(0, 4.4, 1 / RATE)
+    phase = t % 1.1
+    flexion = 15 * np.exp(-0.5 * ((phase - 0.18) / 0.06) ** 2) + 40 * np.clip(phase - 0.45, 0, 1)
+    add = 2 + 0.1 * flexion  # 1.5° at the loading peak, 3.4° at toe-off
+    hs = np.array([0, 110, 220, 330])
+    c = Cycles(hs[:-1], hs[:-1] + 66, hs[1:])
+    m = oop.stance_metrics(add, np.zeros_like(t), flexion, c, 3.0)
+    at_peak = 0.1 * 15 * (1 - np.exp(-0.5 * 9))  # flexion at heel strike is 15 e^-4.5
+    assert np.allclose(m.varus_thrust_deg, at_peak, atol=0.02)
+    assert m.varus_thrust_above_pct == 0.0
+    # a knee that does not flex on loading: the first sixth of stance is weight acceptance
+    assert oop.weight_acceptance(np.linspace(5, 0, 67)) == 11
+    assert oop.weight_acceptance(flexion[:67]) == 18
 
 
 def test_compute_metrics_on_a_lumbar_table_and_csv():

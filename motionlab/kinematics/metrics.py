@@ -267,6 +267,7 @@ def compute_metrics(
                     found = oop.stance_metrics(
                         table[cols[1]][win],
                         table[cols[2]][win],
+                        table[cols[0]][win],
                         cycles,
                         float(th.get("varus_thrust_deg", 3.0)),
                     )
