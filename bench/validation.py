@@ -11,10 +11,11 @@
    (the same with gyroscope samples that are interval averages, as real MEMS gyroscopes
    report: ``simulate(gyr_sampling="interval")``; the sync models them as such, see
    motionlab/validation/time_alignment.py; the row ``... modelled as point samples`` shows the
-   old half-sample error). Reported: clock offset and drift
-   errors, the largest error of the lab → earth (in heading mode: its tilt) and sensor → cluster
-   rotations, and the largest difference between the joint-angle RMSE that ``validate`` reports
-   and the RMSE against the simulator's truth.
+   old half-sample error). Reported: clock offset and drift errors (the drift with its
+   standard error and whether the recording determined it), the clock's standard errors at
+   the centre and the ends of the recording, the largest error of the lab → earth (in heading
+   mode: its tilt) and sensor → cluster rotations, and the largest difference between the
+   joint-angle RMSE that ``validate`` reports and the RMSE against the simulator's truth.
 2. BROAD trials: ``validate`` with mode ``none`` against ``bench/broad.py``'s numbers for the
    same estimator, without and with clock synchronisation.
 3. The RING rig (``../shared/datasets/ring``, no licence: read in place, nothing copied): IMU
@@ -133,8 +134,11 @@ def simulated_case(seed: int, imu: str, estimator: str) -> dict:
     return {
         "offset_ms": (res.sync.time_offset_s - OFFSET_S) * 1e3,
         "drift_ppm": res.sync.drift_ppm - DRIFT_PPM,
+        "drift_se_ppm": res.sync.drift_se_ppm,
+        "drift_grade": res.sync.drift_grade,
         "inliers": res.sync.inlier_ratio,
         "se_ms": res.sync.standard_error_s * 1e3,
+        "ends_se_ms": res.sync.ends_standard_error_s * 1e3,
         "grade": res.sync.grade,
         "rot_deg": float(np.degrees(np.max(rot_err))),
         "ori_deg": float(np.mean(ori)),
@@ -149,10 +153,11 @@ SIDES = ("stand-in", "9-D", "6-D", "6-D interval", "6-D interval as point")
 
 def simulated_table(seeds: list[int], estimator: str, sides: tuple = SIDES) -> str:
     lines = [
-        "| IMU side | seed | offset error (ms) | drift error (ppm) | inliers | standard error "
-        "(ms), grade | worst rotation error (°) | mean orientation RMSE (°) | mean angle RMSE "
-        "(°) | worst RMSE difference vs truth (°) | validate (s) |",
-        "|---|---|---:|---:|---:|---|---:|---:|---:|---:|---:|",
+        "| IMU side | seed | offset error (ms) | drift error ± standard error (ppm), grade | "
+        "inliers | standard error at the centre, ends (ms), grade | worst rotation error (°) | "
+        "mean orientation RMSE (°) | mean angle RMSE (°) | worst RMSE difference vs truth (°) | "
+        "validate (s) |",
+        "|---|---|---:|---|---:|---|---:|---:|---:|---:|---:|",
     ]
     for imu in sides:
         name = imu if imu == "stand-in" else f"fused {imu} ({estimator})"
@@ -161,8 +166,9 @@ def simulated_table(seeds: list[int], estimator: str, sides: tuple = SIDES) -> s
         for seed in seeds:
             r = simulated_case(seed, imu, estimator)
             lines.append(
-                f"| {name} | {seed} | {r['offset_ms']:+.2f} | {r['drift_ppm']:+.1f} | "
-                f"{r['inliers']:.2f} | {r['se_ms']:.2f}, {r['grade']} | {r['rot_deg']:.3f} | "
+                f"| {name} | {seed} | {r['offset_ms']:+.2f} | {r['drift_ppm']:+.1f} ± "
+                f"{r['drift_se_ppm']:.1f}, {r['drift_grade']} | {r['inliers']:.2f} | "
+                f"{r['se_ms']:.2f}, {r['ends_se_ms']:.2f}, {r['grade']} | {r['rot_deg']:.3f} | "
                 f"{r['ori_deg']:.2f} | "
                 f"{r['rmse_deg']:.2f} | {r['diff_deg']:.3f} | {r['seconds']:.1f} |"
             )

@@ -1394,7 +1394,12 @@ class OpticalSync(_Record):
     index), ``inliers`` (bool); ``fallback``: why a simpler method was used (empty: none);
     ``signal``: what the IMU side was (``gyroscope``, ``joint angle rates``, ...; empty without
     sync); ``sensor_residual_s`` ``{sensor: s}``: each sensor's median lag residual (sensors
-    whose own clocks disagree show here).
+    whose own clocks disagree show here). ``standard_error_s`` is the clock's standard error at
+    the centre of the recording and ``ends_standard_error_s`` (s) the larger one at its ends,
+    which ``grade`` grades; ``drift_measured_ppm`` ± ``drift_se_ppm`` the drift the windows
+    show and ``drift_grade`` (``determined``, ``not determined``: then ``drift_ppm`` is 0, the
+    drift not corrected; ``none`` without sync). The four are ``None`` in a file written before
+    them (its grade is of the centre's standard error), and are then not stored.
     """
 
     method: str = "none"
@@ -1415,7 +1420,24 @@ class OpticalSync(_Record):
     fallback: str = ""
     signal: str = ""
     sensor_residual_s: dict[str, float] = field(default_factory=dict)
+    ends_standard_error_s: float | None = None
+    drift_measured_ppm: float | None = None
+    drift_se_ppm: float | None = None
+    drift_grade: str | None = None
     more: dict[str, Any] = field(default_factory=dict)
+
+    def drift_words(self) -> str:
+        """The drift in words: ``+12.3 ± 4.1 ppm``; ``not determined (−28 ± 78 ppm seen), not
+        corrected``; ``not determined (one offset), not corrected``; a record written before
+        drift grades, ``12.3 ppm``."""
+        seen = np.array([self.drift_measured_ppm, self.drift_se_ppm], dtype=float)  # None: NaN
+        if self.drift_grade == "not determined":
+            what = f"{seen[0]:+.0f} ± {seen[1]:.0f} ppm seen" if np.isfinite(seen).all() else (
+                "one offset")  # fmt: skip
+            return f"not determined ({what}), not corrected"
+        if self.drift_grade == "determined" and np.isfinite(seen[1]):
+            return f"{self.drift_ppm:+.1f} ± {seen[1]:.1f} ppm"
+        return f"{self.drift_ppm:.1f} ppm"
 
 
 @dataclass(frozen=True)

@@ -163,10 +163,12 @@ def _print(result: Validation) -> None:
     """The human-readable summary (degrees)."""
     sync = result.sync
     if sync.method != "none":
+        ends = sync.ends_standard_error_s  # None: a file written before the ends were graded
+        where = "ms" if ends is None else f"ms at the centre, ± {_num(1e3 * ends)} ms at the ends"
         click.echo(
-            f"clock: offset {sync.time_offset_s:.4f} s, drift {sync.drift_ppm:.1f} ppm, "
+            f"clock: offset {sync.time_offset_s:.4f} s, drift {sync.drift_words()}, "
             f"inliers {_num(sync.inlier_ratio, '.0%')}, ± {_num(1e3 * sync.standard_error_s)} "
-            f"ms ({sync.grade}; {sync.method})"
+            f"{where} ({sync.grade}; {sync.method})"
         )
     else:
         click.echo("clock: not synchronised (--no-sync)")

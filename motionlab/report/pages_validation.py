@@ -146,7 +146,7 @@ def _sync_alignment(doc: Document, val: Validation) -> None:
     sync, al = val.sync, val.alignment
     rows = [
         ["Clock offset", f"{_f(sync.time_offset_s, '.4f')} s"],
-        ["Clock drift", f"{_f(sync.drift_ppm, '.1f')} ppm"],
+        ["Clock drift", sync.drift_words()],
         [
             "Windows agreeing with the clock model",
             f"{round(sync.inlier_ratio * sync.n_windows)} of {sync.n_windows}"
@@ -154,6 +154,12 @@ def _sync_alignment(doc: Document, val: Validation) -> None:
             else "- (no window model: one lag over the whole recording)",
         ],
         [
+            "Clock standard error at the centre, at the ends; grade",
+            f"{_f(1e3 * sync.standard_error_s, '.2f')} ms, "
+            f"{_f(1e3 * sync.ends_standard_error_s, '.2f')} ms; {sync.grade or '-'}",
+        ]
+        if sync.ends_standard_error_s is not None
+        else [  # a file written before the grade was of the ends
             "Clock offset standard error, grade",
             f"{_f(1e3 * sync.standard_error_s, '.2f')} ms, {sync.grade or '-'}",
         ],

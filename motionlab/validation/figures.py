@@ -99,7 +99,7 @@ def sync_figure(result: Validation) -> Figure:
         ax.plot(t[~inl], resid[~inl], "x", color="tab:red", label="outliers")
         ax.axhline(0.0, color=REF_COLOUR, lw=1.0)
         ax.legend(fontsize=8)
-    ax.set_title(f"offset {s.time_offset_s:.4f} s, drift {s.drift_ppm:.1f} ppm", fontsize=9)
+    ax.set_title(f"offset {s.time_offset_s:.4f} s, drift {s.drift_words()}", fontsize=9)
     ax.set_xlabel("IMU time (s)")
     ax.set_ylabel("lag − clock model (ms)")
     return fig

@@ -56,6 +56,12 @@ def summary(result: Validation) -> dict[str, Any]:
             "residual_rms_s": sync.residual_rms_s,
             "n_windows": sync.n_windows,
             "standard_error_ms": 1e3 * sync.standard_error_s,
+            "ends_standard_error_ms": None
+            if sync.ends_standard_error_s is None
+            else 1e3 * sync.ends_standard_error_s,
+            "drift_grade": sync.drift_grade,
+            "drift_measured_ppm": sync.drift_measured_ppm,
+            "drift_se_ppm": sync.drift_se_ppm,
             "grade": sync.grade,
             "fallback": sync.fallback,
             "signal": sync.signal,

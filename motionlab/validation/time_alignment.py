@@ -13,9 +13,13 @@ cross-correlation of the whole recordings gives a coarse offset; then, window by
 normalised cross-correlation peak is found near the current clock model and refined to a
 sub-sample lag by a parabola through the peak and its neighbours. The window correspondences of
 all sensor pairs are fitted with the linear clock model by RANSAC (Fischler & Bolles 1981,
-Comm ACM 24:381; exhaustive over pairs of windows when there are few), followed by least squares
-on the inliers; the windows are then re-correlated under the new model (removing the smearing of
-drift and the bias of the parabola) and the fit repeated.
+Comm ACM 24:381; exhaustive over pairs of windows when there are few), followed by a
+random-effects least-squares line on the inliers (each sensor's clock may keep an offset and a
+drift of its own from the IMU-to-IMU sync: :func:`~.time_offset.clock_line`); the windows are
+then re-correlated under the new model (removing the smearing of drift and the bias of the
+parabola) and the fit repeated. The drift is corrected only where the recording determines it
+(:func:`~.time_offset.settle_drift`), and the grade is of the clock's standard error at the ends
+of the recording, where a wrong drift tells most.
 """
 
 from __future__ import annotations
@@ -71,7 +75,11 @@ class TimeAlignment:
 
     ``window_time_s`` is the window centre on the IMU clock, ``window_lag_s`` = t_ref − t_imu
     found there, ``window_corr`` the correlation peak, ``window_pair`` the index of the sensor
-    pair, ``inliers`` the RANSAC inliers.
+    pair, ``inliers`` the RANSAC inliers. ``standard_error_s`` is the clock's standard error at
+    the centre of the recording, ``ends_standard_error_s`` the larger one at its ends (what
+    ``grade`` grades); ``measured_drift`` ± ``drift_se`` the drift the windows show, applied
+    (``model.drift``) only when ``drift_grade`` is ``determined``
+    (:func:`~motionlab.validation.time_offset.settle_drift`).
     """
 
     model: ClockModel
@@ -88,6 +96,10 @@ class TimeAlignment:
     standard_error_s: float = float("nan")
     grade: str = "poor"
     fallback: str = ""
+    ends_standard_error_s: float = float("nan")
+    measured_drift: float = float("nan")
+    drift_se: float = float("nan")
+    drift_grade: str = "none"
 
     def record(self, signal: str, sensors: list[str]) -> OpticalSync:
         """The record stored in ``results.validation.sync``: ``signal`` names the IMU side's
@@ -109,6 +121,10 @@ class TimeAlignment:
             window_pair=np.asarray(self.window_pair, int),
             inliers=np.asarray(self.inliers, bool),
             standard_error_s=float(self.standard_error_s),
+            ends_standard_error_s=float(self.ends_standard_error_s),
+            drift_measured_ppm=float(self.measured_drift * 1e6),
+            drift_se_ppm=float(self.drift_se * 1e6),
+            drift_grade=self.drift_grade,
             grade=self.grade,
             fallback=self.fallback,
             signal=signal,
@@ -459,13 +475,18 @@ def fit_clock(
     seed: int = 0,
 ) -> TimeAlignment:
     """The clock model from signals ``(spline, valid, t0, t1)`` (:func:`speed_signal`): coarse
-    lag, window lags, RANSAC line, refined twice. When fewer than two windows match (or fewer
-    than two agree), one global offset over the whole recordings instead
-    (:func:`~motionlab.validation.time_offset.global_offset`, ``fallback`` says why). Sets
-    ``standard_error_s`` (of the offset at the centre of the recording) and ``grade``."""
+    lag, window lags, RANSAC line, refined twice; the line through the inlier windows lets each
+    pair's clock stray from it (:func:`~motionlab.validation.time_offset.clock_line`), and its
+    drift is corrected only when the recording determines it
+    (:func:`~motionlab.validation.time_offset.settle_drift`). When fewer than two windows match
+    (or fewer than two agree), one global offset over the whole recordings instead
+    (:func:`~motionlab.validation.time_offset.global_offset`, ``fallback`` says why; the drift
+    not determined). Sets ``standard_error_s`` (of the clock at the centre of the recording),
+    ``ends_standard_error_s`` (at its ends) and ``grade`` (of the latter)."""
     threshold = 2.0 / rate if threshold_s is None else threshold_s
     lag0, _ = coarse_lag(imu_sig, ref_sig, rate, max_lag_s)
-    centre = 0.5 * (min(s[2] for s in imu_sig) + max(s[3] for s in imu_sig))
+    t0, t1 = min(s[2] for s in imu_sig), max(s[3] for s in imu_sig)
+    centre = 0.5 * (t0 + t1)
     model = ClockModel(lag0, 0.0)
     search = search_s
     fallback = ""
@@ -478,6 +499,10 @@ def fit_clock(
         if inliers.sum() < 2:
             fallback = f"only {int(inliers.sum())} window(s) agree"
             break
+        if np.ptp(win.time[inliers]) > 0:  # the line with each pair's own clock let stray
+            line = ta.clock_line(win.time[inliers], win.lag[inliers], win.sd[inliers],
+                                 win.pair[inliers], centre)  # fmt: skip
+            a, b = line.lag_s - line.drift * centre, line.drift
         model = ClockModel(a, b)
         search = 3.0 / rate
     if fallback:
@@ -492,17 +517,25 @@ def fit_clock(
                 argument="clock",
             )
         empty = np.zeros(0)
+        ends_se = ta.unmeasured_drift_se(se, t0, t1)  # no drift measured: a crystal's may be
         return TimeAlignment(
             model=ClockModel(offset, 0.0), inlier_ratio=float("nan"), residual_rms_s=float("nan"),
             coarse_lag_s=lag0, method="global cross-correlation", standard_error_s=se,
-            grade=ta.grade(se, rate) if peak >= MIN_CORRELATION else "poor",
+            ends_standard_error_s=ends_se, drift_grade="not determined",
+            grade=ta.grade(ends_se, rate) if peak >= MIN_CORRELATION else "poor",
             fallback=f"{fallback}: one offset for the whole recording (peak correlation "
             f"{peak:.2f})",
             window_time_s=empty, window_lag_s=empty, window_sd_s=empty, window_corr=empty,
             window_pair=np.zeros(0, int), inliers=np.zeros(0, bool),
         )  # fmt: skip
-    resid = win.lag - (a + b * win.time)
-    se = ta.offset_standard_error(win.time[inliers], win.sd[inliers], resid[inliers], centre)
+    if np.ptp(win.time[inliers]) > 0:
+        choice = ta.settle_drift(line, t0, t1, rate)
+    else:  # every inlier window at one time: an offset only, the drift as for no window
+        se = float(np.sqrt(1.0 / np.sum(1.0 / np.maximum(win.sd[inliers], 1e-9) ** 2)))
+        choice = ta.ClockChoice(a, 0.0, "not determined", float("nan"), float("nan"), se,
+                                ta.unmeasured_drift_se(se, t0, t1))  # fmt: skip
+    model = ClockModel(choice.offset_s, choice.drift)
+    resid = win.lag - (model.offset_s + model.drift * win.time)
     return TimeAlignment(
         model=model,
         inlier_ratio=float(inliers.mean()),
@@ -514,6 +547,10 @@ def fit_clock(
         window_corr=win.corr,
         window_pair=win.pair,
         inliers=inliers,
-        standard_error_s=se,
-        grade=ta.grade(se, rate) if inliers.mean() >= 0.5 else "poor",
+        standard_error_s=choice.centre_se_s,
+        ends_standard_error_s=choice.ends_se_s,
+        measured_drift=choice.measured_drift,
+        drift_se=choice.drift_se,
+        drift_grade=choice.drift_grade,
+        grade=ta.grade(choice.ends_se_s, rate) if inliers.mean() >= 0.5 else "poor",
     )
