@@ -7,8 +7,11 @@ rad/s) and by π/180 (a rad/s gyroscope read as °/s). Per row: the best scale (
 read, 0.0175 = π/180 for °/s read as rad/s, 57.3 for the reverse), how many times better
 each wrong-unit hypothesis explains the tilt than the unit as read (``deg_fit``, ``rad_fit``),
 the gravity turn the accelerometer saw over the windows used, and the verdict:
-``refused`` (≥ ``qc.SCALE_REFUSE``, ``motionlab ingest`` exits 2), ``warning``
-(≥ ``qc.SCALE_DOUBT``), ``pass``, or ``no evidence`` (too few slow windows).
+``refused`` (≥ ``qc.SCALE_REFUSE``, or the turn budget; ``motionlab ingest`` exits 2),
+``warning`` (≥ ``qc.SCALE_DOUBT``), ``warn unchecked`` (a gyroscope read as °/s that the
+recording cannot tell from rad/s: ``qc.gyr_unit_unchecked``, a warning), ``pass``, or ``no
+evidence`` (too few slow windows). The ÷57.3 case is read as °/s (rad/s values under a °/s
+header), the ×57.3 case as rad/s; as read, each stream keeps the unit its reader gave.
 
 Recordings (README of ``../shared``): ``datasets/broad`` (8 BROAD trials), ``datasets/human``
 (the qmt full-body .mat, 16 sensors; the imt DOT csv files), ``datasets/trunk`` (x-IMU3
@@ -17,11 +20,12 @@ vendor files of ``formats/`` that hold both channels.
 
 Usage::
 
-    python3 bench/gyr_units.py [--data ../shared] [--axes] [--simulated]
+    python3 bench/gyr_units.py [--data ../shared] [--axes] [--simulated] [--cut SECONDS]
 
 ``--axes``: the accelerometer's columns permuted (yzx, yxz) or one flipped, the gyroscope as read
 (a wrong column map's axes are not a unit). ``--simulated``: every shipped protocol through the
-simulator instead of ../shared.
+simulator instead of ../shared. ``--cut 3``: every recording cut into 3-s excerpts (at most 60
+per sensor), the verdicts counted per case (the rows not printed): what a short file gets.
 """
 
 from __future__ import annotations
@@ -101,12 +105,25 @@ def verdict(stream: SensorStream) -> tuple[dict | None, str]:
     """The ingest's scale check of ``stream`` (its clock repaired) and its verdict."""
     found = qc.check_stream(stream, 0.1)
     flags, scale = found["flags"], found.get("gyr_scale")
+    if flags.get("gyr_unit_unchecked"):
+        return scale, "warn unchecked"
     if scale is None:
         return None, "no evidence"
     finding = qc.gyr_unit_finding(scale)
     if flags["gyr_unit_mismatch"]:
         return scale, f"refused {finding}"
     return scale, f"warn {finding}" if flags["gyr_unit_doubt"] else "pass"
+
+
+def excerpts(stream: SensorStream, seconds: float, most: int = 60) -> Iterator[SensorStream]:
+    """``stream`` cut into consecutive ``seconds``-long pieces (at most ``most``)."""
+    t = stream.time - stream.time[0]
+    for i in range(min(int(t[-1] // seconds), most)):
+        keep = (t >= i * seconds) & (t < (i + 1) * seconds)
+        if keep.sum() >= 10:
+            yield dataclasses.replace(stream, time=stream.time[keep], acc=stream.acc[keep],
+                                      gyr=stream.gyr[keep], mag=None, quat=None,
+                                      extra={})  # fmt: skip
 
 
 def main() -> None:
@@ -117,6 +134,9 @@ def main() -> None:
                          "gyroscope's): what a wrong column map gives")  # fmt: skip
     ap.add_argument("--simulated", action="store_true",
                     help="instead of ../shared: every shipped protocol simulated")  # fmt: skip
+    ap.add_argument("--cut", type=float, default=None, metavar="SECONDS",
+                    help="cut each recording into excerpts this long; print the counts "
+                         "only")  # fmt: skip
     args = ap.parse_args()
     if not args.simulated and not (args.data / "datasets").is_dir():
         sys.exit(f"{args.data}/datasets not found: give --data DIR")
@@ -125,16 +145,31 @@ def main() -> None:
         cases = {"acc yzx": 1.0, "acc yxz": 1.0, "acc -x": 1.0}
     head = f"{'recording':<44} {'sensor':<16}"
     columns = f"{'scale':>8} {'free':>7} {'deg_fit':>8} {'rad_fit':>8} {'miss°':>6} {'tilt°':>6}"
-    print(head + "".join(f" | {c:<8} {columns} {'verdict':<13}" for c in cases))
+    if not args.cut:
+        print(head + "".join(f" | {c:<8} {columns} {'verdict':<13}" for c in cases))
     counts: dict[str, dict[str, int]] = {c: {} for c in cases}
     slowest = 0.0
+    read = {"×57.3": "rad/s", "÷57.3": "deg/s"}
     for name, raw in simulated() if args.simulated else recordings(args.data):
         stream, _ = timebase.repair_clock(raw)
+        if args.cut:
+            for piece in excerpts(stream, args.cut):
+                for case, factor in cases.items():
+                    unit = read.get(case, piece.source_units.get("gyr", "rad/s"))
+                    units = {**piece.source_units, "gyr": unit}
+                    v = verdict(dataclasses.replace(piece, gyr=piece.gyr * factor,
+                                                    source_units=units))[1]  # fmt: skip
+                    counts[case][v] = counts[case].get(v, 0) + 1
+            continue
         row = f"{name[:44]:<44} {raw.label[:16]:<16}"
         for case, factor in cases.items():
             acc = {"acc yzx": stream.acc[:, [1, 2, 0]], "acc yxz": stream.acc[:, [1, 0, 2]],
                    "acc -x": stream.acc * [-1, 1, 1]}.get(case, stream.acc)  # fmt: skip
-            s, v = verdict(dataclasses.replace(stream, gyr=stream.gyr * factor, acc=acc))
+            units = {**stream.source_units, "gyr": read[case]} if case in read else None
+            changed = dataclasses.replace(stream, gyr=stream.gyr * factor, acc=acc)
+            if units:
+                changed = dataclasses.replace(changed, source_units=units)
+            s, v = verdict(changed)
             counts[case][v] = counts[case].get(v, 0) + 1
             if s is None:
                 row += f" | {case:<8} {'':>8} {'':>7} {'':>8} {'':>8} {'':>6} {'':>6} {v:<13}"
@@ -150,6 +185,8 @@ def main() -> None:
             slowest = max(slowest, (time.perf_counter() - t0) * THREE_MINUTES / len(stream.time))
     for case, c in counts.items():
         print(f"{case}: " + ", ".join(f"{v} {n}" for v, n in sorted(c.items())))
+    if args.cut:
+        return
     print(
         f"qc.gyr_scale on the recordings of ≥ 10000 samples: at most {1e3 * slowest:.0f} ms per "
         "18000 samples (3 min at 100 Hz)"

@@ -422,6 +422,8 @@ def check_and_fill(
     to ``gap_max`` s filled; the stream with its ``qc``, which also holds the clock repair
     ``report`` of :func:`motionlab.timebase.repair_clock`."""
     qc = check_stream(stream, gap_max)
+    if qc["flags"].get("gyr_unit_unchecked") and path is not None:  # the warning names it
+        qc["gyr_unit_source"] = _origin(stream, path)
     stream, dropped, gaps = _nan_runs_as_gaps(stream, gap_max, path)
     qc.update(dropped)
     qc.update(report)

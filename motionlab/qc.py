@@ -20,6 +20,9 @@ flag                        raised when
 ``gyr_unit_doubt``          the same, weaker (4–10 times better rather than ≥ 10), or only
                             on the accelerometer's axes and not once the axes are free (the
                             gyroscope's axes are not the accelerometer's?): a warning
+``gyr_unit_unchecked``      a gyroscope read as °/s that the tilt cannot tell from one in
+                            rad/s (:func:`gyr_unit_unchecked`: a short or still recording,
+                            never above 35 °/s): a warning
 ``acc_looks_like_g``        ‖a‖ at rest between 0.5 and 2 (a value in g, not m/s²)
 ``acc_norm_implausible``    ‖a‖ at rest neither ≈ 1 g (7.8–11.8 m/s²) nor in g
 ``mag_norm_out_of_range``   median ‖m‖ outside 20–70 µT (Earth's field); skipped when the
@@ -84,7 +87,17 @@ SCALE_MISS_DEG = 5.0  # °: and the unit as read misses the tilt by this much pe
 #: the gyroscope's turn against the tilt the accelerometer sees: a sensor cannot tilt further
 #: than it turns (real recordings: 1.0-4.1 times as far; a rad/s gyroscope read as °/s: 0.02-0.07)
 SCALE_TURN_MIN = 0.25  # ∫‖ω‖dt / tilt below this: the gyroscope is far too small, refused …
-SCALE_TURN_TILT_DEG = 90.0  # … when the tilt seen over the windows adds up to at least this
+SCALE_TURN_TILT_DEG = 90.0  # … when the tilt seen over the windows adds up to at least this, …
+#: … or when the block pairs in which gravity turned by at least SCALE_PAIR_MOVED_DEG each (a
+#: movement, not the accelerometer's noise, which adds up over a long still recording: 0.43° a
+#: pair on APDM's still sensor) add up to this much (3-s excerpts of real recordings with it:
+#: ``turn_ratio`` 0.58 or more as read, 0.11 or less divided by 57.3)
+SCALE_TURN_MOVED_DEG = 30.0
+SCALE_PAIR_MOVED_DEG = 1.0
+#: rad/s explains the tilt this many times worse (squared residual) than the unit as read, or
+#: worse: a gyroscope read as °/s is not one in rad/s (2- to 5-s excerpts of real recordings
+#: divided by 57.3: 0.024 at the least)
+SCALE_EXCLUDE = 0.01
 DEG = math.pi / 180.0  # rad/s per °/s
 #: magnitudes no sensor reports (per axis; m/s², rad/s, µT, 1): beyond them a value is damage,
 #: not motion; the vendor's free acceleration (``extra["free_acc"]``, gravity removed) like the
@@ -225,11 +238,12 @@ def gyr_scale(time: np.ndarray, acc: np.ndarray, gyr: np.ndarray) -> dict[str, A
     ``rad_s_fit`` (how many times smaller the squared residual is in that unit than as read),
     ``tilt_deg`` (the turn of gravity seen, summed over the block pairs, °), ``turn_ratio``
     (the gyroscope's turn ``∫‖ω‖dt`` over the same spans, as read, per unit of that tilt: at
-    least about 1 for a gyroscope in its unit, as a sensor cannot tilt further than it turns)
-    and ``windows``
-    (block pairs used); ``None`` with fewer than 4 pairs. A sensor that barely tilts gives fits
-    near 1 both ways: no evidence. Linear acceleration (a swinging limb) makes ``scale`` noisy,
-    not near π/180.
+    least about 1 for a gyroscope in its unit, as a sensor cannot tilt further than it turns),
+    ``moving_tilt_deg`` (the tilt of the block pairs in which gravity turned by at least
+    :data:`SCALE_PAIR_MOVED_DEG`, a movement rather than the accelerometer's noise) and
+    ``windows`` (block pairs used); ``None`` with fewer than 4 pairs. A sensor that barely
+    tilts gives fits near 1 both ways: no evidence. Linear acceleration (a swinging limb) makes
+    ``scale`` noisy, not near π/180.
     """
     t = np.asarray(time, dtype=float)
     a = np.asarray(acc, dtype=float).reshape(len(t), 3)
@@ -296,14 +310,17 @@ def gyr_scale(time: np.ndarray, acc: np.ndarray, gyr: np.ndarray) -> dict[str, A
     free = np.linalg.lstsq(*fit(np.concatenate((c9, bias), axis=2)), rcond=1e-12)[0]
     units = {"as_read": 1.0, "deg_s": DEG, "rad_s": 1.0 / DEG, "none": 0.0}
     miss = {key: math.degrees(math.sqrt(rss(s) / len(y))) for key, s in units.items()}
+    tilts = _norm(y)
+    moved = tilts >= math.radians(SCALE_PAIR_MOVED_DEG)
     return {
         "scale": best,
         "axes_free_scale": float(np.linalg.svd(free[:9].reshape(3, 3), compute_uv=False)[1]),
         "deg_s_fit": (miss["as_read"] / miss["deg_s"]) ** 2,
         "rad_s_fit": (miss["as_read"] / miss["rad_s"]) ** 2,
         "miss_deg": miss,
-        "tilt_deg": math.degrees(float(_norm(y).sum())),
-        "turn_ratio": turned / max(float(_norm(y).sum()), 1e-12),
+        "tilt_deg": math.degrees(float(tilts.sum())),
+        "turn_ratio": turned / max(float(tilts.sum()), 1e-12),
+        "moving_tilt_deg": math.degrees(float(tilts[moved].sum())),
         "windows": len(y),
     }
 
@@ -321,7 +338,8 @@ def gyr_unit_finding(found: dict[str, Any] | None) -> str:
     pair (RMS): a still sensor whose bias drifts by 1°/s over 5 minutes is explained 4.5 times
     better by π/180 (it claims less), but misses by 0.1°. Before that, a gyroscope that turned
     far less than the accelerometer saw gravity tilt (``turn_ratio`` under
-    :data:`SCALE_TURN_MIN` over :data:`SCALE_TURN_TILT_DEG` of tilt) is ``"rad_s"``: a sensor
+    :data:`SCALE_TURN_MIN` over :data:`SCALE_TURN_TILT_DEG` of tilt, or over
+    :data:`SCALE_TURN_MOVED_DEG` of it in block pairs that moved) is ``"rad_s"``: a sensor
     cannot tilt further than it turns, and the fit alone missed most such gyroscopes (a moving
     limb's acceleration leaves every unit a large residual: 53 of 76 real sensors divided by
     57.3 passed it, ``bench/gyr_units.py``)."""
@@ -341,10 +359,42 @@ def gyr_unit_finding(found: dict[str, Any] | None) -> str:
 
 def _turns_too_little(found: dict[str, Any]) -> bool:
     """The gyroscope turned less than :data:`SCALE_TURN_MIN` times as far as the accelerometer
-    saw gravity tilt, over at least :data:`SCALE_TURN_TILT_DEG` of tilt (``turn_ratio`` is
-    missing from checks stored before it existed)."""
+    saw gravity tilt, over at least :data:`SCALE_TURN_TILT_DEG` of tilt or
+    :data:`SCALE_TURN_MOVED_DEG` of it in block pairs that moved: a 3-s excerpt's tilt rarely
+    adds up to 90°, and noise, which adds up over a long still recording, is not counted there
+    (``turn_ratio`` and ``moving_tilt_deg`` are missing from checks stored before they
+    existed)."""
     ratio = found.get("turn_ratio", np.inf)
-    return found["tilt_deg"] >= SCALE_TURN_TILT_DEG and ratio < SCALE_TURN_MIN
+    enough = (found["tilt_deg"] >= SCALE_TURN_TILT_DEG
+              or found.get("moving_tilt_deg", 0.0) >= SCALE_TURN_MOVED_DEG)  # fmt: skip
+    return enough and ratio < SCALE_TURN_MIN
+
+
+def sustained_peak(w: np.ndarray) -> float:
+    """The largest value ``w`` (N,) reaches for :data:`GYR_SUSTAINED` samples in a row (NaN
+    ignored; 0 when it has fewer samples): a peak that one damaged sample does not make."""
+    if len(w) < GYR_SUSTAINED:
+        return 0.0
+    lows = np.lib.stride_tricks.sliding_window_view(w, GYR_SUSTAINED).min(axis=1)
+    lows = lows[np.isfinite(lows)]
+    return float(lows.max()) if len(lows) else 0.0
+
+
+def gyr_unit_unchecked(found: dict[str, Any] | None, peak: float) -> bool:
+    """Whether a gyroscope read as °/s, which :func:`gyr_unit_finding` found nothing wrong
+    with (``found``: :func:`gyr_scale`'s, or ``None``), could as well be in rad/s, and it would
+    matter. Its rate as read (``peak``, rad/s: :func:`sustained_peak` of ‖ω‖) stays at or
+    below 35 °/s, which a gyroscope in rad/s of a ±2000 °/s range read as °/s gives, and the
+    accelerometer's tilt does not exclude rad/s (:data:`SCALE_EXCLUDE`) or could not be
+    compared (too few slow stretches: a short or vigorous recording), so nothing in the
+    recording tells the two units apart: a short recording (its slow tilt does not add up to
+    :data:`SCALE_TURN_MOVED_DEG`), a still one, or one turning only about the vertical. Unless
+    the sensor is at rest in either unit (``peak`` at most :data:`REST_GYR` in rad/s were the
+    values rad/s: 0.2 °/s as read; a gyroscope that reads zeros): its unit then changes nothing
+    (real 3-s excerpts at rest turned 1.6° in the median, at most 14.5°)."""
+    if gyr_unit_finding(found) or peak > GYR_MAX_PLAUSIBLE * DEG or peak <= REST_GYR * DEG:
+        return False
+    return found is None or found["rad_s_fit"] > SCALE_EXCLUDE
 
 
 def _still(rest: np.ndarray | None, t: np.ndarray) -> np.ndarray | None:
@@ -451,6 +501,25 @@ def gyr_unit_problem(stream: SensorStream) -> tuple[str, str] | None:
             f"gyr: {{unit: {says}}} says it; a vendor's export: export it again)")  # fmt: skip
 
 
+def unchecked_line(stream: SensorStream) -> str:
+    """The warning of ``qc["flags"]["gyr_unit_unchecked"]`` (:func:`gyr_unit_unchecked`): the
+    file (``qc["gyr_unit_source"]``, set by the ingest), why the recording cannot tell, the
+    remedy."""
+    qc = stream.qc
+    found = qc.get("gyr_scale")
+    peak = math.degrees(qc.get("gyr_sustained_peak_rad_s", 0.0))
+    where = qc.get("gyr_unit_source") or "the recording"
+    if found is None:
+        why = "too few slow stretches to compare with the accelerometer's tilt"
+    else:
+        why = (f"the accelerometer saw gravity tilt by {found['tilt_deg']:.0f}° in its slow "
+               "stretches, too little to compare")  # fmt: skip
+    return (f"{where}: the gyroscope's unit cannot be checked in {qc.get('duration_s', 0.0):.3g} "
+            f"s: read as {stream.source_units.get('gyr', '°/s')}, it never turns faster than "
+            f"{peak:.3g} °/s, as rad/s values read as °/s (57.3× too small) could, and {why} — "
+            "check the export's gyroscope unit")  # fmt: skip
+
+
 def _unit_is(read: str, unit: str) -> bool:
     """Whether the gyroscope unit ``read`` (as a reader or column map wrote it) is ``unit``
     (``deg_s`` or ``rad_s``)."""
@@ -523,6 +592,9 @@ def check_stream(stream: SensorStream, gap_max: float) -> dict[str, Any]:
             finding = gyr_unit_finding(scale)
             flags["gyr_unit_mismatch"] = finding in ("deg_s", "rad_s")
             flags["gyr_unit_doubt"] = finding.endswith("?")
+        if stream.acc is not None and _unit_is(stream.source_units.get("gyr", "rad/s"), "deg_s"):
+            qc["gyr_sustained_peak_rad_s"] = peak = sustained_peak(w)
+            flags["gyr_unit_unchecked"] = gyr_unit_unchecked(scale, peak)
     if stream.acc is not None:  # the norm at rest of rows a sensor can give: 1e308 is damage
         a = np.where(measurable(stream.acc, "acc"), _norm(stream.acc), np.nan)
         use = rest if rest is not None and rest.sum() >= 10 else np.isfinite(a)
@@ -580,6 +652,8 @@ def doubts(stream: SensorStream) -> list[str]:
     problem = gyr_unit_problem(stream)
     if problem:
         out.append(" — ".join(problem))
+    if flags.get("gyr_unit_unchecked"):
+        out.append(unchecked_line(stream))
     if flags.get("implausible_values"):
         share = ", ".join(f"{ch} {100 * v:.3g} %" for ch, v in qc["implausible_share"].items())
         out.append(f"values beyond what a sensor measures (1e308, ±inf) in {share} of the rows: "

@@ -2,13 +2,14 @@
 gyroscope in °/s read as rad/s stays under the 35 rad/s check, and is refused by ``motionlab
 ingest`` because its rotation does not match how the accelerometer sees gravity turn."""
 
+import dataclasses
 import math
 
 import numpy as np
 import pytest
 import yaml
 from click.testing import CliRunner
-from conftest import SHARED, generic_reader, needs_shared
+from conftest import DATA, SHARED, generic_reader, needs_shared
 
 from motionlab import qc
 from motionlab.cli import main
@@ -206,12 +207,16 @@ def found(deg_s_fit=1.0, rad_s_fit=1.0, free=1.0, miss=20.0):
         ({"deg_s_fit": 0.01, "rad_s_fit": 12.0, "free": 3.0}, "axes?"),
         ({"turn": 0.02}, "rad_s"),  # turned 50 times less than it tilted, whatever the fit
         ({"turn": 0.02, "tilt": 60.0}, ""),  # too little tilt to tell
+        ({"turn": 0.02, "tilt": 60.0, "moved": 40.0}, "rad_s"),  # but 40° in pairs that moved
+        ({"turn": 0.02, "tilt": 60.0, "moved": 20.0}, ""),
         ({"turn": 0.3}, ""),
     ],
 )
 def test_verdict_thresholds(kwargs, finding):
-    f = found(**{k: v for k, v in kwargs.items() if k not in ("turn", "tilt")})
+    f = found(**{k: v for k, v in kwargs.items() if k not in ("turn", "tilt", "moved")})
     f["turn_ratio"], f["tilt_deg"] = kwargs.get("turn", 1.2), kwargs.get("tilt", 100.0)
+    if "moved" in kwargs:  # absent from checks stored before it existed
+        f["moving_tilt_deg"] = kwargs["moved"]
     assert qc.gyr_unit_finding(f) == finding
 
 
@@ -240,3 +245,152 @@ def test_a_gyroscope_57_times_off_its_own_unit_is_not_asked_if_it_is_in_that_uni
                    "rad/s and °/s", "converted between °/s and rad/s twice, or not at all? — "
                    f"check the gyroscope's values against its unit ({unit})")  # fmt: skip
     assert "is it in" not in result.stderr
+
+
+DOT_HEADER = (
+    "sep=,\nDeviceTag:,Femur\nFirmwareVersion:,3.0.0\nSyncStatus:,Synced\nOutputRate:,60Hz\n"
+    "Measurement Mode:,Inertial data Mode - Rate Quantities(with mag)\n\n"
+    "PacketCounter,SampleTimeFine,Acc_X,Acc_Y,Acc_Z,Gyr_X,Gyr_Y,Gyr_Z\n"
+)
+
+
+def write_dot(path, t, acc, gyr_values):
+    """A DOT "rate quantities" export (its gyroscope columns are °/s by the format) holding
+    ``gyr_values`` as given in them: ``np.degrees(gyr)`` is a good file, ``gyr`` (rad/s) the
+    audit's."""
+    ticks = 1_000_000 + np.round(np.asarray(t) * 1e6).astype(np.int64)
+    rows = [f"{k + 1},{tick}," + ",".join(f"{v:.6f}" for v in (*a, *g))
+            for k, (tick, a, g) in enumerate(zip(ticks, acc, gyr_values, strict=True))]  # fmt: skip
+    path.write_text(DOT_HEADER + "\n".join(rows) + "\n")
+    return path
+
+
+def swing(seconds=3.0, rate=60.0, amplitude_deg=20.0, hz=0.5, lever=0.4, yaw_rad_s=0.0):
+    """A sensor ``lever`` m below a pivot swinging about its x axis (``amplitude_deg`` at
+    ``hz``: a shank), turning about the vertical at ``yaw_rad_s``, with noise: ``(t, acc m/s²,
+    gyr rad/s)``. At θ, gravity is ``g (0, sin θ, cos θ)`` in the sensor, and the swing adds
+    ``(0, θ'' r, θ'² r)``: linear acceleration, as a limb's, which leaves every unit a large
+    residual in the tilt fit. A turn about the vertical adds ``ω ∥ u``, unseen by the
+    accelerometer."""
+    rng = np.random.default_rng(0)
+    t = np.arange(round(seconds * rate)) / rate
+    w0, amp = 2 * np.pi * hz, np.radians(amplitude_deg)
+    theta, rate_x = amp * np.sin(w0 * t), amp * w0 * np.cos(w0 * t)
+    u = np.column_stack((np.zeros_like(t), np.sin(theta), np.cos(theta)))
+    swinging = np.column_stack((np.zeros_like(t), -w0 * w0 * theta, rate_x**2)) * lever
+    acc = 9.81 * u + swinging + rng.normal(0, 0.02, (len(t), 3))
+    gyr = rate_x[:, None] * [1.0, 0.0, 0.0] + yaw_rad_s * u + rng.normal(0, 0.005, (len(t), 3))
+    return t, acc, gyr
+
+
+def dot_ingest(path, folder):
+    return ingest([str(path), "-o", str(folder / "s.h5"), "--force"])
+
+
+def test_a_short_dot_file_swinging_with_its_gyroscope_in_rad_s_is_refused(tmp_path):
+    """The audit's file: 3 s of a DOT export whose gyroscope columns hold rad/s under the
+    format's °/s passed the ingest without a word. The swing's linear acceleration left the
+    fit only 2.1 times better in rad/s (a doubt needs 4), and the turn budget asked for 90° of
+    tilt over the slow block pairs, which the 3 s add up to (50°) only on longer recordings.
+    Now the tilt of the block pairs that moved (≥ 1° each) counts from 30°."""
+    t, acc, gyr = swing()
+    result = dot_ingest(write_dot(tmp_path / "femur.csv", t, acc, gyr), tmp_path)
+    assert_refused(result, tmp_path, "error: femur.csv sensor Femur: the gyroscope (read as "
+                   "deg/s) turns", "× less than the tilt", "is it in rad/s?")  # fmt: skip
+    found = qc.gyr_scale(t, acc, gyr * DEG)
+    assert found["tilt_deg"] < qc.SCALE_TURN_TILT_DEG and found["rad_s_fit"] < qc.SCALE_DOUBT
+    assert found["moving_tilt_deg"] >= qc.SCALE_TURN_MOVED_DEG
+    result = dot_ingest(write_dot(tmp_path / "femur.csv", t, acc, np.degrees(gyr)), tmp_path)
+    assert result.exit_code == 0 and result.stderr == "", result.output
+
+
+def test_a_short_dot_file_the_tilt_cannot_check_is_one_warning_naming_it(tmp_path):
+    """A sensor that only turns about the vertical (a chair pivoting, 1 rad/s) shows the
+    accelerometer no tilt: 3 s of it with rad/s under the °/s header read at 1 °/s, which a
+    gyroscope in °/s may give as well. Nothing tells the units apart: one warning line names
+    the file, and the ingest goes on. In °/s its 57 °/s are beyond what a gyroscope in rad/s
+    read as °/s gives (35 °/s: a ±2000 °/s range): no warning."""
+    t, acc, gyr = swing(amplitude_deg=0.0, lever=0.0, yaw_rad_s=1.0)
+    result = dot_ingest(write_dot(tmp_path / "femur.csv", t, acc, gyr), tmp_path)
+    assert result.exit_code == 0, result.output
+    (line,) = result.stderr.splitlines()
+    assert line.startswith(
+        "warning: Femur: femur.csv: the gyroscope's unit cannot be "
+        "checked in 2.98 s: read as deg/s, it never turns faster "
+    ), line
+    assert line.endswith("too little to compare — check the export's gyroscope unit"), line
+    result = dot_ingest(write_dot(tmp_path / "femur.csv", t, acc, np.degrees(gyr)), tmp_path)
+    assert result.exit_code == 0 and result.stderr == "", result.output
+
+
+def test_a_dot_excerpt_in_rad_s_is_warned_and_as_recorded_passes(tmp_path):
+    """The real DOT fixture (3.3 s of a seated thigh, 25° of slow tilt, never above 28 °/s):
+    as recorded, °/s explains the tilt far better than rad/s would (no warning); with its
+    gyroscope columns rewritten in rad/s nothing tells, and it is said in one line."""
+    fixture = DATA / "dot" / "femur_rate_quantities_excerpt.csv"
+    lines = fixture.read_text().splitlines()
+    head = next(i for i, x in enumerate(lines) if x.startswith("PacketCounter"))
+    gyr_at = [lines[head].split(",").index(f"Gyr_{a}") for a in "XYZ"]
+    rows = [x.split(",") for x in lines[head + 1 :]]
+    for r in rows:
+        r[gyr_at[0] : gyr_at[-1] + 1] = [f"{math.radians(float(r[i])):.6f}" for i in gyr_at]
+    moved = tmp_path / "femur.csv"
+    moved.write_text("\n".join(lines[: head + 1] + [",".join(r) for r in rows]) + "\n")
+    result = dot_ingest(moved, tmp_path)
+    assert result.exit_code == 0, result.output
+    (line,) = result.stderr.splitlines()
+    assert line.startswith("warning: Femur: femur.csv: the gyroscope's unit cannot be checked")
+    result = dot_ingest(fixture, tmp_path)
+    assert result.exit_code == 0 and result.stderr == "", result.output
+
+
+def test_at_rest_in_either_unit_or_fast_gives_no_unchecked_warning():
+    """A gyroscope that reads zeros, or at most 0.2 °/s (at rest were it rad/s too), is not
+    warned of: its unit changes nothing. One that turns faster than 35 °/s is no rad/s one."""
+    t, acc, gyr = swing(amplitude_deg=0.0, lever=0.0)
+    from motionlab.session import SensorStream
+
+    def flags(w):
+        s = SensorStream(label="x", time=t, acc=acc, gyr=w, source_units={"gyr": "deg/s"})
+        return qc.check_stream(s, 0.1)["flags"]
+
+    assert not flags(np.zeros_like(gyr))["gyr_unit_unchecked"]
+    assert not flags(gyr * 0.02)["gyr_unit_unchecked"]  # ≤ 0.2 °/s
+    assert flags(gyr * 0.02 + [0.0, 0.0, 2 * DEG])["gyr_unit_unchecked"]  # 2 °/s about z
+    assert not flags(gyr + [0.0, 0.0, 40 * DEG])["gyr_unit_unchecked"]  # 40 °/s
+    s = SensorStream(label="x", time=t, acc=acc, gyr=gyr * 0.02 + [0, 0, 2 * DEG])
+    assert "gyr_unit_unchecked" not in qc.check_stream(s, 0.1)["flags"]  # read as rad/s
+
+
+@needs_shared
+def test_real_dot_excerpts_of_3_s_are_never_refused_as_recorded_nor_silent_in_rad_s():
+    """Every 3-s excerpt of the six real DOT files (116): as recorded, none is refused or
+    warned that its unit cannot be checked (one, a shank at heel strike, keeps the "axes?"
+    doubt it had before); with the gyroscope in rad/s under the °/s header, each is refused or
+    warned. Before, 107 of them passed without a word (3 refused, 6 warned)."""
+    from motionlab import timebase
+    from motionlab.io import read_any
+
+    counts = {"refused": 0, "warned": 0, "doubt as recorded": 0}
+    for path in sorted((SHARED / "datasets/human/imt_dot").glob("*/*.csv")):
+        whole = read_any(path).sensors[0]
+        t = whole.time - whole.time[0]
+        for start in np.arange(0.0, t[-1] - 3.0, 3.0):
+            keep = (t >= start) & (t < start + 3.0)
+            piece = dataclasses.replace(whole, time=whole.time[keep], acc=whole.acc[keep],
+                                        gyr=whole.gyr[keep], mag=None, extra={})  # fmt: skip
+            for gyr in (piece.gyr, piece.gyr * DEG):
+                s, _ = timebase.repair_clock(dataclasses.replace(piece, gyr=gyr))
+                s.qc = qc.check_stream(s, 0.1)
+                flags, says = s.qc["flags"], " ".join(qc.doubts(s))
+                if gyr is piece.gyr:
+                    assert not flags.get("gyr_unit_mismatch"), (path, start)
+                    assert not flags["gyr_unit_unchecked"], (path, start)
+                    counts["doubt as recorded"] += "gyroscope" in says
+                elif flags.get("gyr_unit_mismatch"):
+                    counts["refused"] += 1
+                else:
+                    assert "gyroscope" in says, (path, start)
+                    counts["warned"] += 1
+    assert counts["refused"] + counts["warned"] == 116 and counts["refused"] >= 20, counts
+    assert counts["doubt as recorded"] <= 1, counts
