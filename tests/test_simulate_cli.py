@@ -9,9 +9,10 @@ from click.testing import CliRunner
 
 from motionlab import rotations as rot
 from motionlab.cli import main
+from motionlab.io import read_any
 from motionlab.session import load_session, save_session, sha256_file
 from motionlab.simulate import load_truth, save_truth, simulate, write_truth_csv
-from motionlab.simulate.markers import OpticalSystem, write_c3d
+from motionlab.simulate.markers import OpticalSystem, c3d_labels, write_c3d
 
 PROTOCOL = {
     "name": "knee_cli",
@@ -179,3 +180,34 @@ def test_stride_cv_sets_how_much_the_strides_vary(tmp_path, protocol):
     step = [(ic_l[ic_l > a][0] - a) / (b - a) for a, b in zip(ic_r[:-1], ic_r[1:], strict=True)
             if (ic_l > a).any() and ic_l[ic_l > a][0] < b]  # fmt: skip
     assert abs(np.median(step) - 0.47) < 0.01
+
+
+def test_a_landmark_two_segments_name_gets_unique_c3d_labels(tmp_path):
+    """The femoral epicondyle that the thigh and the shank both list is simulated once on each,
+    and both copies were written to the C3D file as ``RLE``: two points with one label, which
+    the ingest renamed with a warning per label and other tools would confuse. The shank's copy
+    is now ``RLE_shank_r``; the file reads back without a warning, the thigh's ``RLE`` still
+    where the protocol's landmark lists find it."""
+    knee = {**PROTOCOL, "name": "knee_shared_landmark"}
+    knee["segments"] = {**PROTOCOL["segments"],
+                        "shank_r": {**PROTOCOL["segments"]["shank_r"],
+                                    "landmarks": ["RLE", "RLM"]}}  # fmt: skip
+    path = tmp_path / "knee.yaml"
+    path.write_text(yaml.safe_dump(knee, sort_keys=False))  # the thigh first, as in knee.yaml
+    res = run("simulate", "--protocol", path, "--duration", 30, "--seed", 1, "-o",
+              tmp_path / "s.h5", "--truth", tmp_path / "t.h5", "--markers",
+              tmp_path / "m.c3d")  # fmt: skip
+    assert res.exit_code == 0, res.output
+    truth = load_truth(tmp_path / "t.h5")
+    assert truth.markers["labels"].count("RLE") == 2  # a copy on each segment
+    labels = ezc3d.c3d(str(tmp_path / "m.c3d"))["parameters"]["POINT"]["LABELS"]["value"]
+    assert len(set(labels)) == len(labels) == len(truth.markers["labels"])
+    assert labels == c3d_labels(truth.markers["labels"], truth.markers["segments"])
+    rle = [j for j, lab in enumerate(truth.markers["labels"]) if lab == "RLE"]
+    assert [labels[j] for j in rle] == ["RLE", "RLE_shank_r"]
+    assert [truth.markers["segments"][j] for j in rle] == ["thigh_r", "shank_r"]
+    back = read_any(tmp_path / "m.c3d").markers[0]
+    assert back.labels == labels and "warnings" not in back.attrs
+    assert back.attrs["flags"]["duplicate_labels"] is False
+    res = run("ingest", tmp_path / "m.c3d", "-o", tmp_path / "m.h5")
+    assert res.exit_code == 0 and res.stderr == "", res.output

@@ -6,10 +6,17 @@ own clock (``offset + (1 + drift) t``, defaults 0.137 s and 100 ppm) and rate (d
 and reports positions in a lab frame: ``p_lab = R_labᵀ (p_ENU − origin)`` with ``R_lab`` (lab →
 ENU) by default a rotation about the vertical. Noise is white (σ per coordinate) and markers
 disappear (NaN) for exponentially distributed stretches. :func:`write_c3d` writes mm.
+
+A landmark that two segments list (the femoral epicondyles ``RLE``, ``RME`` in the thigh's and
+the shank's lists) is simulated once on each, a copy that rides on that segment, and both
+copies carry its name in the marker set (the validation gives the i-th copy to the i-th segment
+naming it). A C3D file names its points uniquely (:func:`c3d_labels`): the first copy keeps the
+name, the others are named after their segment (``RLE_shank_r``).
 """
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -37,7 +44,9 @@ class MarkerLayout:
 
 
 def layout(body: Body, protocol: Protocol, rng: np.random.Generator) -> MarkerLayout:
-    """Clusters on every protocol segment and the protocol's landmarks."""
+    """Clusters on every protocol segment and the protocol's landmarks: per segment, in the
+    protocol's order, its cluster markers ``<segment>_C1`` … ``_C4``, then its landmarks (the
+    order :func:`marker_segments` reads)."""
     labels, segs, local, kinds, known = [], [], [], [], []
     square = np.array([[-1.0, -1.0], [1.0, -1.0], [1.0, 1.0], [-1.2, 0.8]]) * [0.04, 0.03]
     for name, seg in protocol.segments.items():
@@ -127,12 +136,46 @@ def record(
     return markers, t_true
 
 
+def marker_segments(labels: list[str]) -> list[str]:
+    """The segment each marker of a simulated marker set rides on, from :func:`layout`'s order:
+    a cluster marker ``<segment>_C<k>`` names it, the landmarks after it are on the same
+    segment ("" before any cluster)."""
+    out, segment = [], ""
+    for label in labels:
+        cluster = re.fullmatch(r"(.+)_C\d+", label)
+        segment = cluster.group(1) if cluster else segment
+        out.append(segment)
+    return out
+
+
+def c3d_labels(labels: list[str], segments: list[str]) -> list[str]:
+    """Unique point labels for a C3D file, which tools look points up by. The first copy of a
+    landmark (the first segment naming it in the protocol: the thigh for the femoral
+    epicondyles, the upper arm for the humeral ones) keeps its name, which the protocol's
+    landmark lists and the validation read; a copy on a later segment is named after that
+    segment, ``RLE`` on ``shank_r`` → ``RLE_shank_r`` (``_`` added while a name is taken)."""
+    taken, seen, out = set(labels), set(), []
+    for label, segment in zip(labels, segments, strict=True):
+        name = label
+        if label in seen:
+            name = f"{label}_{segment}" if segment else f"{label}_2"
+            while name in taken:
+                name += "_"
+        seen.add(label)
+        taken.add(name)
+        out.append(name)
+    return out
+
+
 def write_c3d(markers: MarkerSet, path: str | Path, force: bool = False) -> None:
-    """Write marker positions as a C3D file (mm; NaN = not seen; residual −1 when missing)."""
+    """Write marker positions as a C3D file (mm; NaN = not seen; residual −1 when missing), its
+    point labels unique (:func:`c3d_labels`: a landmark's copy on a later segment named after
+    it, ``RLE_shank_r``)."""
     c3d = ezc3d.c3d()
     rate = float(np.round(markers.rate_hz, 6))
+    labels = c3d_labels(list(markers.labels), marker_segments(list(markers.labels)))
     c3d["parameters"]["POINT"]["RATE"]["value"] = [rate]
-    c3d["parameters"]["POINT"]["LABELS"]["value"] = list(markers.labels)
+    c3d["parameters"]["POINT"]["LABELS"]["value"] = labels
     c3d["parameters"]["POINT"]["UNITS"]["value"] = ["mm"]
     pts = np.ones((4, len(markers.labels), len(markers.time)))
     pts[:3] = np.transpose(markers.positions, (2, 1, 0)) * 1000.0
