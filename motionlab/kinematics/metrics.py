@@ -384,7 +384,7 @@ def session_metrics(
         source = "calibration movement"
     elif tasks is None:
         after = max((v[1] for v in steps.values()), default=-np.inf)
-        tasks = find_tasks(streams_of(session, protocol), protocol, after_s=after)
+        tasks = find_tasks(streams_of(session, protocol), protocol, after_s=after, steps=cal.steps)
         source = "detected"
     else:
         source = "given"

@@ -39,19 +39,32 @@ movement done twice.
 Task blocks (:func:`find_tasks`) are the blocks after the last calibration step, matched to the
 protocol's tasks in order: a task held still takes a long enough rest, the others the movement
 blocks (moves shorter than ``MIN_TASK_S`` left out and blocks joined across the shortest rests
-while there are more blocks than tasks); a task's ``time_range`` overrides detection.
+while there are more blocks than tasks); a task's ``time_range`` overrides detection. Two rules
+keep a calibration movement from being taken for a task:
+
+- the functional steps not found after the last step found come, in the protocol's order,
+  before the tasks: the movement blocks that fit them by what does not depend on the sensors'
+  placement (their segments leading and some other segment still, their length, segments named
+  with one axis turning as one) are theirs, not a task's (:func:`calibration_stretches`). An
+  optional step recorded with sensors strapped any way round is not accepted (its axis is not
+  the nominal placement's), and its movement used to become the first task: the knee
+  protocol's two hip flexions, joined, were its walk;
+- a walking task takes, of its blocks, those in which both legs move (:func:`walking`; where
+  both sides have leg sensors), and with none it is refused in one line naming the task and
+  the leg that moved alone, rather than given a window without a stride.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.ndimage import binary_closing, label, maximum
 
 from motionlab.dsp import butter, sosfiltfilt
 from motionlab.errors import InputError
+from motionlab.kinematics.segment_types import kind_side
 from motionlab.protocol import PACKAGED, CalibrationStep, Protocol, axis_vector, load_protocol
 from motionlab.segments.functional import functional_axis
 from motionlab.timebase import interp_columns
@@ -73,6 +86,10 @@ DURATION_RANGE = (0.4, 2.5)
 AXIS_TOLERANCE_DEG = 45.0
 RIGID_TOLERANCE = 0.25
 MIN_TASK_S = 2.0
+#: a walking task's block: the slower leg's fastest segment turns at least this share of the
+#: faster leg's mean rate (:func:`walking`)
+WALK_SIDES_FRACTION = 0.3
+LEG_KINDS = ("thigh", "shank", "foot")
 SAME_AXIS_DEG = 20.0
 MIN_RECORDING_S = 1.0
 #: a rest shorter than this (s) is no pose: not a static step, not named in a message
@@ -216,9 +233,9 @@ def _rigid(a: np.ndarray, b: np.ndarray) -> bool:
     return float(np.median(np.abs(a[on] - b[on]) / np.maximum(a[on], b[on]))) < RIGID_TOLERANCE
 
 
-def _looks_like(step: CalibrationStep, block: Block, protocol: Protocol, streams: Streams) -> bool:
-    """Whether a block that fits an optional step by its rates also has the step's length,
-    axes and rigid segments (see the module docstring)."""
+def _shaped_like(step: CalibrationStep, block: Block, streams: Streams) -> bool:
+    """Whether a block has the functional step's length and its segments named with the same
+    axis turn as one: what is left of :func:`_looks_like` without the placement (the axes)."""
     low, high = DURATION_RANGE
     if not low * step.duration_s <= block.end - block.start <= high * step.duration_s:
         return False
@@ -226,6 +243,15 @@ def _looks_like(step: CalibrationStep, block: Block, protocol: Protocol, streams
     for a, b in zip(named[:-1], named[1:], strict=True):
         if step.axis[a] == step.axis[b] and not _rigid(block.norms[a], block.norms[b]):
             return False
+    return True
+
+
+def _looks_like(step: CalibrationStep, block: Block, protocol: Protocol, streams: Streams) -> bool:
+    """Whether a block that fits an optional step by its rates also has the step's length,
+    axes and rigid segments (see the module docstring)."""
+    if not _shaped_like(step, block, streams):
+        return False
+    named = [s for s in step.axis if s in streams]
     for seg in named:
         t, _, gyr = streams[seg]
         sel = (t >= block.start) & (t <= block.end)
@@ -538,7 +564,7 @@ def fitting_protocols(streams: Streams, protocol: Protocol) -> list[str]:
         try:
             steps = find_steps(mine, other, None, False)
             after = max((v[1] for v in steps.values() if v is not None), default=-np.inf)
-            find_tasks(mine, other, after, suggest=False)
+            find_tasks(mine, other, after, suggest=False, steps=steps)
         except InputError:
             continue
         out.append(other.name)
@@ -550,8 +576,15 @@ def find_tasks(
     protocol: Protocol,
     after_s: float = -np.inf,
     suggest: bool = True,
+    steps: dict[str, tuple[float, float] | list[float] | None] | None = None,
 ) -> dict[str, tuple[float, float]]:
     """Time range (s) of each protocol task: blocks after ``after_s``, in order.
+
+    ``steps`` (the calibration's :func:`find_steps`, ``None`` for a step not found): the
+    movements of the protocol's steps not found after the last one found come before the tasks
+    and are left out of them (:func:`calibration_stretches`), so that an optional step recorded
+    but not accepted (its axis off the nominal placement, as with sensors strapped any way
+    round) is not taken for the first task.
 
     A task held still (:attr:`~motionlab.protocol.Task.is_pose`: quiet sitting or standing)
     takes the middle of the first rest after the tasks before it that lasts at least half its
@@ -559,9 +592,11 @@ def find_tasks(
     each movement task between it and the previous pose. The movement tasks between two poses
     take the movement blocks between them: with more blocks than tasks, moves shorter than
     ``MIN_TASK_S`` are left out, then the two blocks separated by the shortest rest are joined
-    until the counts agree. Tasks with a ``time_range`` keep it and the blocks overlapping it
-    are left out. Too few blocks are an :class:`InputError` naming what the recording holds
-    and (``suggest``) a shipped protocol that fits it.
+    until the counts agree. A walking task (:attr:`~motionlab.protocol.Task.is_gait`) takes
+    the blocks of its share in which both legs move (:func:`walking`), and where none does the
+    recording is refused naming the task. Tasks with a ``time_range`` keep it and the blocks
+    overlapping it are left out. Too few blocks are an :class:`InputError` naming what the
+    recording holds and (``suggest``) a shipped protocol that fits it.
     """
     fixed = {t.name: t.time_range for t in protocol.tasks if t.time_range is not None}
     todo = [t for t in protocol.tasks if t.time_range is None]
@@ -575,6 +610,9 @@ def find_tasks(
 
     found_blocks = blocks(streams)
     usable = [b for b in found_blocks if free(b)]
+    if steps is not None:
+        claimed = calibration_stretches(usable, protocol, steps, streams)
+        usable = [b for b in usable if not any(b is c for _, c in claimed)]
     found: dict[str, tuple[float, float]] = {}
     cursor, i = -np.inf, 0
     while i < len(todo):
@@ -588,15 +626,104 @@ def find_tasks(
             until = rest.start
             found[todo[j].name] = _pose_span(rest)
         if moves:
-            spans = [[b.start, b.end] for b in usable if b.moving and cursor <= b.start < until]
-            merged = _joined(spans, len(moves))
-            if len(merged) < len(moves):
-                _too_few(found_blocks, protocol, streams, moves, suggest, found=len(merged))
-            found.update(zip((t.name for t in moves), map(tuple, merged), strict=True))
+            spans = [b for b in usable if b.moving and cursor <= b.start < until]
+            shares = _joined(spans, len(moves))
+            if len(shares) < len(moves):
+                _too_few(found_blocks, protocol, streams, moves, suggest, found=len(shares))
+            for task, share in zip(moves, shares, strict=True):
+                if task.is_gait:
+                    share = _walk_of(task, share, found_blocks, protocol)
+                found[task.name] = (share[0].start, share[-1].end)
         if j < len(todo):
             cursor = rest.end
         i = j + 1
     return {t.name: found.get(t.name) or fixed[t.name] for t in protocol.tasks}
+
+
+def calibration_stretches(
+    usable: list[Block],
+    protocol: Protocol,
+    steps: dict[str, tuple[float, float] | list[float] | None],
+    streams: Streams,
+) -> list[tuple[CalibrationStep, Block]]:
+    """The movement blocks of ``usable`` (those after the calibration) that belong to the
+    protocol's functional steps not found after the last step found, each with its step.
+
+    The protocol's order puts those steps between the last step found and the tasks, so they are
+    matched in that order against the movement blocks of at least ``MIN_TASK_S``: a step takes
+    the next block when the block fits it as :func:`find_steps` asks of an optional step, less
+    what depends on the sensor's placement: the step's segments turning fastest and some other
+    segment nearly still, the step's length within ``DURATION_RANGE``, and segments named with
+    the same axis turning as one (a straight-leg hip flexion: not a walk, whose knees flex). A
+    block that does not fit leaves the step as not recorded, and the next step is tried on it.
+    """
+    done = [k for k, s in enumerate(protocol.calibration) if steps.get(s.name) is not None]
+    pending = [
+        s
+        for s in protocol.calibration[(done[-1] + 1 if done else 0) :]
+        if s.kind == "functional" and s.time_range is None
+    ]
+    moves = iter(b for b in usable if b.moving and b.end - b.start >= MIN_TASK_S)
+    out: list[tuple[CalibrationStep, Block]] = []
+    block = next(moves, None)
+    for step in pending:
+        if block is None:
+            break
+        quiet = replace(step, optional=True)  # some other segment still, as for an optional step
+        if _functional_match(quiet, block) and _shaped_like(step, block, streams):
+            out.append((step, block))
+            block = next(moves, None)
+    return out
+
+
+def _leg_sides(block: Block) -> dict[str, float]:
+    """The mean rate (rad/s) of each side's fastest leg segment (thigh, shank, foot) in a block."""
+    out: dict[str, float] = {}
+    for seg, rate in block.rate.items():
+        kind, side = kind_side(seg)
+        if side and kind in LEG_KINDS:
+            out[side] = max(out.get(side, 0.0), rate)
+    return out
+
+
+def walking(block: Block) -> bool:
+    """Whether a movement block can be a walk: where the legs of both sides have sensors, both
+    move, the slower side's fastest segment at least ``WALK_SIDES_FRACTION`` of the faster's
+    mean rate (a calibration movement of one leg turns the other at 0-14 % of it, simulated
+    walks 97-100 %, the real 16-IMU walk 99 %). With one side or none sensed it cannot tell: True.
+    """
+    sides = _leg_sides(block)
+    if len(sides) < 2 or max(sides.values()) == 0:
+        return True
+    return min(sides.values()) >= WALK_SIDES_FRACTION * max(sides.values())
+
+
+def _walk_of(
+    task, share: list[Block], found_blocks: list[Block], protocol: Protocol
+) -> list[Block]:
+    """The blocks of ``share`` from the first to the last in which both legs move
+    (:func:`walking`); none is an :class:`InputError` naming the task and what moved instead."""
+    walks = [k for k, b in enumerate(share) if walking(b)]
+    if walks:
+        return share[walks[0] : walks[-1] + 1]
+    words = {"r": "right", "l": "left"}
+    parts = []
+    for b in share:
+        sides = _leg_sides(b)
+        fast, slow = max(sides, key=sides.get), min(sides, key=sides.get)
+        parts.append(
+            f"at {_fmt(b)} only the {words.get(fast, fast)} leg moves (the "
+            f"{words.get(slow, slow)} at {100 * sides[slow] / sides[fast]:.0f} % of its rate)"
+        )
+    raise InputError(
+        f"task '{task.name}' ({task.kind}) not found where the protocol's order puts it: "
+        f"{' and '.join(parts)}, as in a calibration movement of one leg, where a walk moves "
+        f"both; {describe(found_blocks)}",
+        protocol.path,
+        "tasks",
+        "record the walk after the calibration, pausing a few seconds between tasks, or give "
+        "the task's time_range",
+    )
 
 
 def _pose_rest(usable: list[Block], task, after: float, moves_before: int) -> Block | None:
@@ -614,17 +741,19 @@ def _pose_rest(usable: list[Block], task, after: float, moves_before: int) -> Bl
     return None
 
 
-def _joined(merged: list[list[float]], wanted: int) -> list[list[float]]:
-    """Movement spans ``[start, end]`` cut down to ``wanted``: moves under ``MIN_TASK_S`` left
-    out when enough are longer, then neighbours across the shortest rest joined."""
-    if len(merged) > wanted:  # short moves between tasks: getting up, sitting down
-        long = [m for m in merged if m[1] - m[0] >= MIN_TASK_S]
-        merged = long if len(long) >= wanted else merged
-    while len(merged) > wanted:
-        gaps = [merged[i + 1][0] - merged[i][1] for i in range(len(merged) - 1)]
+def _joined(spans: list[Block], wanted: int) -> list[list[Block]]:
+    """Movement blocks cut down to ``wanted`` shares (each a run of blocks): moves under
+    ``MIN_TASK_S`` left out when enough are longer, then neighbours across the shortest rest
+    joined."""
+    if len(spans) > wanted:  # short moves between tasks: getting up, sitting down
+        long = [b for b in spans if b.end - b.start >= MIN_TASK_S]
+        spans = long if len(long) >= wanted else spans
+    shares = [[b] for b in spans]
+    while len(shares) > wanted:
+        gaps = [shares[i + 1][0].start - shares[i][-1].end for i in range(len(shares) - 1)]
         i = int(np.argmin(gaps))
-        merged[i : i + 2] = [[merged[i][0], merged[i + 1][1]]]
-    return merged
+        shares[i : i + 2] = [shares[i] + shares[i + 1]]
+    return shares
 
 
 def _too_few(found_blocks, protocol, streams, tasks, suggest, found=0, pose=False) -> None:
