@@ -56,6 +56,14 @@ def _f(x: float, spec: str = ".1f") -> str:
     return text[1:] if text.startswith("-") and float(text) == 0 else text
 
 
+def _mean_sd(mean: float, sd: float) -> str:
+    """``'6.8 ± 0.2'``; ``'not computed'`` without a mean (a stride the angles do not cover
+    made it NaN: '- ± -' told a reader nothing)."""
+    if mean is None or not np.isfinite(mean):
+        return "not computed"
+    return f"{_f(mean)} ± {_f(sd)}"
+
+
 def _graded(text: str, grade: str) -> str:
     """A number with its grade: as is, ``'<text> (weak)'``, or ``'not determined'``."""
     if grade == NOT_DETERMINED:
@@ -68,7 +76,10 @@ def _cross_talk(doc: Document, view: SessionView) -> None:
     if not data:
         return
     doc.heading("Cross-talk during single-plane movements")
-    doc.paragraph(MEANING["cross_talk"], colour=MUTED)
+    doc.paragraph(
+        MEANING["cross_talk"] + " Red: the other angle's range above 20 % of the moving angle's.",
+        colour=MUTED,
+    )
     rows, flagged, muted = [], [], []
     for block, name, m in _items(view, data):
         joint = view.protocol.joints[name]
@@ -84,7 +95,7 @@ def _cross_talk(doc: Document, view: SessionView) -> None:
                     on_text if on_grade == "determined" else f"{on_text} ({on_grade})",
                     angle.replace("_", " ") + ("" if grade == "determined" else f" ({grade})"),
                     _f(e.rom_deg),
-                    _f(e.ratio_pct, ".0f"),
+                    _f(e.ratio_pct),  # one decimal: the red is above 20 %, and 19.6 read 20
                     _f(e.nominal_rom_deg),
                     _f(e.change_pct, "+.0f"),
                 ]
@@ -125,11 +136,10 @@ def _gait(doc: Document, view: SessionView) -> None:
                 task_name(task),
                 joint_title(joint),
                 str(g.strides),
-                _graded(f"{_f(g.varus_thrust_mean_deg)} ± {_f(g.varus_thrust_sd_deg)}", varus),
+                _graded(_mean_sd(g.varus_thrust_mean_deg, g.varus_thrust_sd_deg), varus),
                 _graded(_f(g.varus_thrust_above_pct, ".0f"), varus),
                 _graded(
-                    f"{_f(g.stance_rotation_range_mean_deg)} ± "
-                    f"{_f(g.stance_rotation_range_sd_deg)}",
+                    _mean_sd(g.stance_rotation_range_mean_deg, g.stance_rotation_range_sd_deg),
                     rotation,
                 ),
             ]

@@ -205,8 +205,21 @@ def _direction(fit: HingeFit) -> str:
     """How the hinge direction was decided, in words."""
     sign = SIGN_WORDS.get(str(fit.sign), str(fit.sign) or "-")
     rel = str(fit.relative_sign)
-    both = {"measured": "the data", "nominal": "the placement hint"}.get(rel, "-")
-    return f"positive direction: {sign}; matched between the two segments by {both}"
+    both = {
+        "measured": "the data",
+        "nominal": "the placement hint",
+        "anatomy": "anatomy",  # was shown as "by -"
+    }.get(rel, "nothing (not matched)")
+    if rel == "anatomy" and str(fit.sign) == "anatomy":
+        text = f"positive direction, and its match between the two segments: {sign}"
+    else:
+        text = f"positive direction: {sign}; matched between the two segments by {both}"
+    if fit.used_for == "direction":
+        text = (
+            "axes measured by the calibration steps, the fit only says which way they point "
+            f"(the placement hint was contradicted); {text}"
+        )
+    return text
 
 
 def _hinges_table(doc: Document, view: SessionView) -> None:
@@ -235,9 +248,10 @@ def _hinges_table(doc: Document, view: SessionView) -> None:
         flagged.append([False, verdict != "determined"] + [False] * 3)
     doc.heading("Hinge axes from movement")
     doc.paragraph(
-        "Where no functional movement measured a hinge's axis, it was fitted to the ordinary "
-        "movement of its two segments. Consistency: largest angle between the axes fitted on "
-        "parts of the movement; residual: RMS misfit relative to the angular rate off the axis.",
+        "A hinge's axis fitted to the ordinary movement of its two segments: its axes where no "
+        "functional movement measured them, else only which way they point. Consistency: "
+        "largest angle between the axes fitted on parts of the movement; residual: RMS misfit "
+        "relative to the angular rate off the axis.",
         size=SIZE["small"],
         colour=MUTED,
     )

@@ -154,9 +154,9 @@ def _sync_alignment(doc: Document, val: Validation) -> None:
             else "- (no window model: one lag over the whole recording)",
         ],
         [
-            "Clock standard error at the centre, at the ends; grade",
-            f"{_f(1e3 * sync.standard_error_s, '.2f')} ms, "
-            f"{_f(1e3 * sync.ends_standard_error_s, '.2f')} ms; {sync.grade or '-'}",
+            "Clock standard error at the centre; at the ends, graded",
+            f"{_f(1e3 * sync.standard_error_s, '.2f')} ms; "
+            f"{_f(1e3 * sync.ends_standard_error_s, '.2f')} ms: {sync.grade or '-'}",
         ]
         if sync.ends_standard_error_s is not None
         else [  # a file written before the grade was of the ends
@@ -174,6 +174,14 @@ def _sync_alignment(doc: Document, val: Validation) -> None:
         rows.append([f"Sensor {label} to its marker cluster", f"{_f(e.angle_deg, '.1f')}°"])
     doc.heading("Synchronisation and alignment")
     doc.table(["", ""], rows, [0.55, 0.3], align=["l", "r"])
+    if sync.ends_standard_error_s is None:  # a file written before the grade was of the ends
+        return
+    doc.paragraph(
+        "Grade of the sync: good when the clock's standard error at the recording's ends is "
+        "within a tenth of an IMU sample interval, fair within half of one, else poor.",
+        size=SIZE["small"],
+        colour=MUTED,
+    )
 
 
 def _figure_pages(doc: Document, view: SessionView, val: Validation) -> None:
@@ -207,7 +215,12 @@ def _figure_pages(doc: Document, view: SessionView, val: Validation) -> None:
         doc.section(
             "Validation: time synchronisation",
             "The camera clock against the sensor clock: each window's lag (from the "
-            "cross-correlation of angular speed) minus the fitted offset and drift.",
+            "cross-correlation of angular speed) minus the clock model: the fitted offset, and "
+            + (
+                "the drift, held at 0 (not determined, not corrected)."
+                if sync.drift_grade == "not determined"
+                else "the fitted drift."
+            ),
             figure=figures.sync_figure(val),
         )
         doc.place_figure(3.6)

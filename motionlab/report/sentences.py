@@ -58,13 +58,17 @@ from motionlab.results import NOT_LINKED
 MEANING = {
     "cross_talk": (
         "Cross-talk is motion the sensors report in the other planes while the joint moves in "
-        "one plane only; large values mean the sensor axes were not aligned with the joint, "
-        "and the calibration's reduction of it shows how much the calibration corrected."
+        "one plane; it holds the joint's own coupled motion too (e.g. a knee's screw-home "
+        "rotation and varus as it flexes), and values well beyond that mean the sensor axes "
+        "were not aligned with the joint. 'Change' compares it with the protocol's nominal sensor "
+        "placement: negative where the calibration reduced it, positive where it raised it."
     ),
     "varus_thrust": (
         "Varus thrust is the sudden increase of knee varus (bow-leg angle) just after the heel "
-        "strikes the ground; a thrust of more than a few degrees is linked to progression of "
-        "medial knee osteoarthritis."
+        "strikes the ground, measured in each stride from heel strike to the knee's "
+        "loading-response flexion peak (weight acceptance, at least the first sixth of stance); "
+        "a thrust of more than a few degrees is linked to "
+        "progression of medial knee osteoarthritis."
     ),
     "stance_rotation": (
         "Stance rotation range is how much the shank twists on the thigh while the foot is on "
