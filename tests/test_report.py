@@ -1168,3 +1168,22 @@ def test_a_bias_that_is_a_difference_of_zeros_is_named():
               "hip_l_flexion_deg": agreement(3.0, 2.0),
               "knee_l_flexion_deg": agreement(-6.0, 0.9, "the clock sync is poor")}  # fmt: skip
     assert zero_offsets(angles) == ["hip r flexion"]
+
+
+@pytest.mark.parametrize("name", ["knee", "walk"])
+def test_the_shipped_leg_protocols_know_the_knees_anatomical_range(name):
+    """A knee protocol with sensors strapped any way round read a healthy left knee 'flexing'
+    from -44° in gait (a shank frame turned half a turn about its long axis), and nothing
+    checked it: the knee and walk protocols had no ``range_of_motion``. Now such an angle
+    states no finding."""
+    from motionlab.protocol import load_protocol
+    from motionlab.report.model import normal_range
+
+    protocol = load_protocol(name)
+    for side in "rl":
+        assert normal_range(protocol, "range_of_motion", f"knee_{side}_flexion_deg") == (-10, 140)
+    view = _view((-44.0, 49.0), (0.0, 64.0))
+    view.protocol.normative["range_of_motion"] = protocol.normative["range_of_motion"]
+    from motionlab.report.sentences import beyond_anatomy
+
+    assert list(beyond_anatomy(view)) == ["knee_r_flexion_deg"]
