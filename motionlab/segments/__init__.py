@@ -94,6 +94,11 @@ def calibrate_segments(
         records = mounting.measure(protocol, streams, steps)
         contradicted = placement.contradicted(protocol, records)
         hinges = placement.movement_hinges(session, protocol, streams, steps, records, contradicted)
+        contradicted |= placement.sign_contradicted(protocol, records, hinges)
+        hinges = {  # a fit that only checked a step's sign, and found it right, is not kept
+            name: fit for name, fit in hinges.items() if fit.used_for != "direction"
+            or {protocol.joints[name].proximal, protocol.joints[name].distal} & contradicted
+        }  # fmt: skip
         unsure = placement.orient_by_data(protocol, records, hinges, contradicted)
         centres = placement.centre_headings(session, protocol, streams)
         forward_from = pelvis_forward(

@@ -10,7 +10,9 @@ movement with their anatomical direction, :mod:`.movement`) where they fix it.
 
 Hinge-like joints (knee, elbow, generic hinges; :func:`hinge_spec`) get their axes from the
 movement (:func:`movement_hinges`) when no functional step measures them, or when the hint of
-one of their segments is contradicted (then only to orient the steps' axes). A fit ``not
+one of their segments is contradicted (then only to orient the steps' axes); hinges without a
+twist axis are fitted where a step measures them too, so that a step's axis signed against the
+fit's anatomical direction counts as contradicted (:func:`sign_contradicted`). A fit ``not
 determined`` still gives them to a segment whose hint says nothing of them (a sensor that may
 sit any way round, or a contradicted hint) when the anatomy signed it (:func:`fills_hint`): the
 hint's turn about the stand's vertical is arbitrary there, and took a right elbow's flexion axis
@@ -66,7 +68,8 @@ def movement_hinges(
     contradicted: set[str] = frozenset(),
 ) -> dict[str, movement.HingeFit]:
     """Hinge axes from ordinary movement for the hinge-like joints no functional step measures,
-    and for those with a segment in ``contradicted`` (to orient the steps' axes).
+    and for those with a segment in ``contradicted`` or without a twist axis (to orient or check
+    the sign of the steps' axes, :func:`sign_contradicted`).
 
     For the first, the axis records (``movement:<joint>:k``, kind ``movement``) are added to
     ``records``: of a fit ``not determined`` only to the segments it fills the hint of
@@ -80,7 +83,8 @@ def movement_hinges(
             continue
         seg_axis = axis_vector(spec[0])
         measured = _measured_by_steps(records[d], seg_axis)
-        if measured and not {p, d} & contradicted:
+        twist = joint_type(joint.type).twist_axis
+        if measured and not {p, d} & contradicted and twist:
             continue
         side = {}
         for seg in (p, d):
@@ -94,7 +98,6 @@ def movement_hinges(
         reference = steps.get(ref_name) if ref_name else None
         prior_p = protocol.segments[p].nominal_mounting().T @ seg_axis
         prior_d = protocol.segments[d].nominal_mounting().T @ seg_axis
-        twist = joint_type(joint.type).twist_axis
         try:
             if twist:
                 fit = movement.fit_two_dof(
@@ -229,6 +232,38 @@ def contradicted(protocol: Protocol, records: dict[str, dict[str, AxisMeasuremen
                 c = abs(c)
             if c < np.cos(np.radians(CONTRADICTED_DEG)):
                 out.add(seg)
+    return out
+
+
+def sign_contradicted(
+    protocol: Protocol,
+    records: dict[str, dict[str, AxisMeasurement]],
+    fits: dict[str, movement.HingeFit],
+) -> set[str]:
+    """Segments whose functional hinge axis, signed by the placement hint, points against the
+    same axis signed by anatomy in the movement (a hinge fit whose ``sign`` is ``anatomy``: a
+    knee flexes one way).
+
+    :func:`contradicted` compares a functional axis with the hint without its sign, and gravity
+    says nothing of a turn about the vertical: a shank sensor strapped half a turn round its long
+    axis from where the hint puts it agrees with the hint in both, and took its flexion axis the
+    wrong way round (the knee protocol with sensors strapped any way round: 2 knees of 20 read
+    180° less their flexion, 40° RMS, graded determined)."""
+    out = set()
+    cos = np.cos(np.radians(CONTRADICTED_DEG))
+    for name, fit in fits.items():
+        if fit.verdict == "not determined" or fit.sign != "anatomy":
+            continue
+        joint = protocol.joints[name]
+        axis = axis_vector(hinge_spec(joint)[0])
+        for seg, signed in ((joint.proximal, fit.axis_proximal), (joint.distal, fit.axis_distal)):
+            for rec in records[seg].values():
+                if rec.kind != "functional" or rec.method not in ("svd", "hinge"):
+                    continue
+                if abs(float(rec.segment_axis @ axis)) > 0.99 and (
+                    float(rec.sensor_axis @ signed) * float(rec.segment_axis @ axis) < -cos
+                ):
+                    out.add(seg)
     return out
 
 
