@@ -302,3 +302,23 @@ def test_a_cycle_through_a_gap_leaves_no_hole_in_the_mean_curve():
     m = angle_metrics(v, c)
     assert np.isfinite(m.curve_mean_deg).all() and m.repetitions == 3
     assert np.max(np.abs(m.curve_mean_deg - 30 * np.sin(np.linspace(0, 2 * np.pi, 101)))) < 0.5
+
+
+def test_a_stride_through_a_gap_leaves_the_others_means():
+    """A sensor's gap inside one stance made that stride's rotation range NaN, and with it the
+    mean the report printed ('- ± -' for a healthy walker's 25 strides)."""
+    t = np.arange(0, 4.4, 1 / RATE)
+    phase = t % 1.1
+    add = 2 + 4 * np.exp(-0.5 * ((phase - 0.15) / 0.05) ** 2)
+    rotation = 3 * np.sin(2 * np.pi * t / 1.1)
+    flexion = 15 * np.exp(-0.5 * ((phase - 0.18) / 0.06) ** 2)
+    rotation[140:150] = np.nan  # inside the second stance (110-176)
+    add[140:150] = np.nan
+    hs = np.array([0, 110, 220, 330])
+    c = Cycles(hs[:-1], hs[:-1] + 66, hs[1:])
+    m = oop.stance_metrics(add, rotation, flexion, c, 3.0)
+    assert np.isnan(m.stance_rotation_range_deg[1]) and m.strides == 3
+    expect = 3 - 3 * np.sin(2 * np.pi * 0.6)
+    assert m.stance_rotation_range_mean_deg == pytest.approx(expect, abs=0.05)
+    assert m.varus_thrust_mean_deg == pytest.approx(4 * (1 - np.exp(-0.5 * 9)), abs=0.05)
+    assert m.varus_thrust_above_pct == 100.0

@@ -210,7 +210,8 @@ def stance_metrics(
     threshold_deg: float,
 ) -> StanceMetrics:
     """Varus thrust over each stride's weight acceptance and rotation range over its stance
-    (heel strike → toe-off).
+    (heel strike → toe-off); a stride through a sensor's gap has none (NaN) and the means, SDs
+    and share above the threshold are of the others.
 
     ``adduction``, ``rotation`` and ``flexion`` (deg) are the knee's clinical angles over the
     block; ``strides.peak`` holds each stride's toe-off.
@@ -218,11 +219,12 @@ def stance_metrics(
     thrust, rot_range = [], []
     for a, b in zip(strides.start, strides.peak, strict=True):
         add = adduction[a : a + weight_acceptance(flexion[a : b + 1]) + 1]
-        thrust.append(float(np.max(add) - add[0]))
+        thrust.append(float(np.max(add) - add[0]))  # NaN: a sensor's gap in the stance
         rot_range.append(float(np.ptp(rotation[a : b + 1])))
     thrust, rot_range = np.array(thrust), np.array(rot_range)
 
     def stats(x: np.ndarray) -> tuple[float, float]:
+        x = x[np.isfinite(x)]  # a stride through a gap gives none (it made the mean NaN)
         if len(x) == 0:
             return float("nan"), float("nan")
         return float(x.mean()), float(x.std(ddof=1)) if len(x) > 1 else 0.0
@@ -234,8 +236,8 @@ def stance_metrics(
         varus_thrust_deg=thrust,
         varus_thrust_mean_deg=t_mean,
         varus_thrust_sd_deg=t_sd,
-        varus_thrust_above_pct=float(100.0 * np.mean(thrust > threshold_deg))
-        if len(thrust)
+        varus_thrust_above_pct=float(100.0 * np.mean(thrust[np.isfinite(thrust)] > threshold_deg))
+        if np.isfinite(thrust).any()
         else float("nan"),
         threshold_deg=float(threshold_deg),
         stance_rotation_range_deg=rot_range,
