@@ -1427,12 +1427,12 @@ class OpticalSync(_Record):
     more: dict[str, Any] = field(default_factory=dict)
 
     def drift_words(self) -> str:
-        """The drift in words: ``+12.3 ± 4.1 ppm``; ``not determined (−28 ± 78 ppm seen), not
+        """The drift in words: ``+12.3 ± 4.1 ppm``; ``not determined (measured −28 ± 78 ppm), not
         corrected``; ``not determined (one offset), not corrected``; a record written before
         drift grades, ``12.3 ppm``."""
         seen = np.array([self.drift_measured_ppm, self.drift_se_ppm], dtype=float)  # None: NaN
         if self.drift_grade == "not determined":
-            what = f"{seen[0]:+.0f} ± {seen[1]:.0f} ppm seen" if np.isfinite(seen).all() else (
+            what = f"measured {seen[0]:+.0f} ± {seen[1]:.0f} ppm" if np.isfinite(seen).all() else (
                 "one offset")  # fmt: skip
             return f"not determined ({what}), not corrected"
         if self.drift_grade == "determined" and np.isfinite(seen[1]):

@@ -389,11 +389,14 @@ def validate(
     notes += sync_notes(sync_record) if sync else []
     spread = np.ptp(residual[np.isfinite(residual)]) if np.isfinite(residual).any() else 0.0
     if spread * estimate_rate(t) > 1.0:
+        synced = session.results.clock_sync is not None
         notes.append(
             f"the sensors' clocks disagree with the cameras' by up to {spread * 1e3:.0f} ms "
-            "between sensors: they are not on one clock; synchronise them first (motionlab "
-            "sync, which run does by default)"
-        )
+            "between sensors: they are not on one clock; "
+            + ("the sensor sync left them so far apart, and their angles may carry it"
+               if synced else "synchronise them first (motionlab sync, which run does by "
+               "default)")
+        )  # fmt: skip
     frames: dict[str, str] = {}
     angles = None
     if protocol is not None and protocol.joints:

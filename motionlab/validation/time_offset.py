@@ -323,9 +323,10 @@ def sync_notes(sync: OpticalSync) -> list[str]:
         out.append(f"time sync: {sync.fallback}")
     elif sync.drift_grade == "not determined":
         out.append(
-            f"time sync: the camera clock's drift is {sync.drift_words()} (the sensors' windows "
-            "disagree about it, or are too few); the clock's standard error at the ends of the "
-            f"recording is {sync.ends_standard_error_s * 1e3:.1f} ms"
+            f"time sync: the camera clock's drift is {sync.drift_words()}: the windows do not "
+            "tell it from none (less than three standard errors; the sensors' own clocks "
+            "scatter, or the windows are too few or too close together); the clock's standard "
+            f"error at the ends of the recording is {sync.ends_standard_error_s * 1e3:.1f} ms"
         )
     if sync.grade == "poor":
         ends = sync.ends_standard_error_s  # None: a file written before the ends were graded
