@@ -255,8 +255,11 @@ def _synchronise_network(
     for a, b in tree:
         if label[a] in solved or label[b] in solved:
             contradicted.append(_uncorroborated(clocks, label, centres, a, b))
-    contradicted = [why for why in contradicted if why]
+    contradicted = [why.removeprefix("not reliable: ") for why in contradicted if why]
+    why_all = ""  # every sensor's status says why the heel strikes were not taken, and where
     if contradicted:
+        why_all = ("not reliable: the heel strikes were not taken, a joint centre did not "
+                   f"confirm them ({'; '.join(contradicted)})")  # fmt: skip
         clocks = {r: (None, "", r) for r in part.values()}
         unlinked = {
             r: f"no sensor joins it to {root} and the heel strikes were not taken (a "
@@ -275,7 +278,7 @@ def _synchronise_network(
             fits.append(_not_linked(root, lab, t0, unlinked[lab]))
             continue
         clock, follows, on = clocks[lab]
-        fit = _network_fit(on, lab, clock, follows, t0, span, "; ".join(contradicted))
+        fit = _network_fit(on, lab, clock, follows, t0, span, why_all)
         fits.append(fit)
         if fit.status == "applied" or (follows and clock is not None):
             _apply(session, lab, replace(fit, status="applied") if follows else fit)
