@@ -86,8 +86,7 @@ class ClockLine(NamedTuple):
     ``t_ref − t_imu`` (s) at ``centre`` (s, IMU clock), ``drift`` (s/s), ``cov`` the (2, 2)
     covariance of the two; ``level_lag_s`` the lag with the drift held at 0, its variance
     ``level_var`` (s²) and the time ``level_time`` (s) it is the lag at (the windows' weighted
-    centre); ``between_s`` and ``between_drift`` the spread of the sensors' own clocks about the
-    line (offset s, drift s/s; the likeliest), ``scale`` the factor on the windows' variances."""
+    centre)."""
 
     lag_s: float
     drift: float
@@ -96,9 +95,6 @@ class ClockLine(NamedTuple):
     level_lag_s: float
     level_var: float
     level_time: float
-    between_s: float
-    between_drift: float
-    scale: float
 
 
 def _pair_sums(z: np.ndarray, y: np.ndarray, w: np.ndarray, pair: np.ndarray) -> tuple:
@@ -112,7 +108,7 @@ def _pair_sums(z: np.ndarray, y: np.ndarray, w: np.ndarray, pair: np.ndarray) ->
 
 def _restricted(m: np.ndarray, g: np.ndarray, q: np.ndarray, n: int, tau2: np.ndarray) -> tuple:
     """For each row of ``tau2`` (G, 2), the spreads' variances relative to the windows' scale:
-    ``(−2 log L_REML (G,) without constants, scale (G,), A (G, 2, 2), B (G, 2))``, where
+    ``(−2 log L_REML (G,) without constants, A (G, 2, 2), B (G, 2))``, where
     ``V = scale (diag(sd²) + Z T Zᵀ)``, ``T = diag(tau2)``, ``A = Σ Zᵀ V⁻¹ Z`` and
     ``B = Σ Zᵀ V⁻¹ y`` over the pairs. Per pair by the Woodbury identity and the determinant
     lemma (2 × 2 only): ``Zᵀ V⁻¹ Z = M (I + T M)⁻¹``, ``Zᵀ V⁻¹ y = (I + M T)⁻¹ g``,
@@ -128,7 +124,7 @@ def _restricted(m: np.ndarray, g: np.ndarray, q: np.ndarray, n: int, tau2: np.nd
     scale = np.maximum(rss / dof, 1.0)
     sign, log_a = np.linalg.slogdet(a)
     value = np.where(sign > 0, dof * np.log(scale) + logdet + rss / scale + log_a, np.inf)
-    return value, scale, a / scale[:, None, None], b / scale[:, None]
+    return value, a / scale[:, None, None], b / scale[:, None]
 
 
 #: the spreads of the sensors' own clocks about the line that :func:`clock_line` weighs: none,
@@ -149,7 +145,7 @@ def clock_line(
     +27 ppm against the cameras, where the session's clock is +17). One line through all the
     windows weighted by their own precision alone follows the best-correlating sensor's clock
     and stated the drift to a few ppm. Here each pair's clock is the line plus an offset and a
-    drift of its own, drawn with standard deviations ``between_s`` and ``between_drift``, and
+    drift of its own, drawn with standard deviations (a spread of offsets and one of drifts), and
     the windows' variances are ``scale · sd²`` (``scale`` ≥ 1, profiled). How far the sensors'
     clocks stray is weighed by its restricted likelihood (REML, Patterson & Thompson 1971,
     Biometrika 58:545) over a grid of spreads (:data:`SPREAD_S` × :data:`SPREAD_DRIFT`, equally
@@ -169,7 +165,7 @@ def clock_line(
     else:
         su, sv = np.meshgrid(SPREAD_S, SPREAD_DRIFT, indexing="ij")
         tau2 = np.column_stack([su.ravel() ** 2, sv.ravel() ** 2])
-    value, scale, a, b = _restricted(m, g, q, len(t), tau2)
+    value, a, b = _restricted(m, g, q, len(t), tau2)
     weight = np.exp(-0.5 * (value - value.min()))
     weight /= weight.sum()
     covs = np.linalg.inv(a)
@@ -179,13 +175,10 @@ def clock_line(
     cov = np.einsum("g,gij->ij", weight, covs) + np.einsum("g,gi,gj->ij", weight, dev, dev)
     level, level_var = b[:, 0] / a[:, 0, 0], 1.0 / a[:, 0, 0]  # the drift held at 0
     level_lag = float(weight @ level)
-    k = int(np.argmax(weight))
-    between = np.sqrt(tau2[k] * scale[k])
     return ClockLine(
         lag_s=float(line[0]), drift=float(line[1]), cov=cov, centre=float(centre),
         level_lag_s=level_lag, level_var=float(weight @ (level_var + (level - level_lag) ** 2)),
         level_time=float(centre + weight @ (a[:, 0, 1] / a[:, 0, 0])),
-        between_s=float(between[0]), between_drift=float(between[1]), scale=float(scale[k]),
     )  # fmt: skip
 
 
