@@ -29,6 +29,14 @@ determined, up to ``CROSSTALK_DEG[1]`` weak, beyond it not determined. On real w
 1.5-10° apart, flexion 75-100° over the recording) that is 6.8-19°: a walk alone does not
 determine a real knee's ab/adduction and rotation.
 
+A knee whose shank took its flexion axis only from steps that flex the knee itself (the knee
+protocol's seated knee flexion, without its optional straight-leg hip flexions) has its
+ab/adduction and rotation ``weak``: the tibia turns about its long axis as the knee leaves
+extension (screw-home, ``SCREW_HOME_DEG``), and the flexion axis, fixed in the femur, turns with
+it as the tibia sees it, so the shank's axis is turned about its long axis by that rotation's
+mean over the movement (12-13° on the simulated knee), which carries flexion into the other two
+angles (:func:`_coupled_axis_grade`; docs/kinematics.md, "Optional steps whatever the mounting").
+
 A hip whose pelvis took its forward direction from the walk (:mod:`.walk_forward`: the first
 steps, about 5-10° off, or the turns, often 5-25°) has its frame turned about the vertical by up
 to ``HEADING_BOUND_DEG``. Flexion is about an axis in the horizontal plane: a frame turned by
@@ -70,8 +78,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from motionlab.kinematics import joint_types
 from motionlab.results import JointGrades
-from motionlab.segments.placement import hinge_spec
+from motionlab.segments.placement import hinge_spec, twists_about_long_axis
+from motionlab.segments.steps import reference_step
 
 if TYPE_CHECKING:
     from motionlab.results import HingeFit, SegmentCalibration, SegmentRecord
@@ -83,6 +93,11 @@ CROSSTALK_DEG = (3.0, 6.0)  # determined up to, weak up to (deg of flexion in th
 AXIS_FLOOR_DEG = 5.0  # a walk-calibrated knee axis is never known better than this
 #: how far (deg) a pelvis forward direction from the walk may be off, by method (walk_forward)
 HEADING_BOUND_DEG = {"turns": 20.0, "walk start": 10.0}
+#: how far (deg) the tibia turns about its long axis as the knee leaves extension (the
+#: screw-home rotation: 5-15° in passive flexion, Wilson et al. 2000, J Biomech 33:465; the
+#: simulated knee's 8° plus 0.03°/°): the shank's flexion axis measured from the knee's own
+#: flexion is turned by about its mean over the movement (the simulated knee: 12-13°)
+SCREW_HOME_DEG = (5.0, 15.0)
 #: a two-axis joint's proximal sensor that follows less of its segment's rotation about the long
 #: axis than this leaves the other two angles weak: the humerus' axial rotation in free arm
 #: movement spans 60-90° (docs/simulator.md), so 10 % missed is already 6-9° off them at times
@@ -215,6 +230,45 @@ def _crosstalk_grade(fit: HingeFit | None) -> tuple[str, str]:
     )
 
 
+def _flexes_joint(step, joint) -> bool:
+    """Whether functional ``step`` flexes ``joint``: it names the distal segment's axis and not
+    the proximal's as the same (a straight-leg hip flexion names both: the knee stays still)."""
+    return (
+        step.kind == "functional"
+        and joint.distal in step.axis
+        and step.axis.get(joint.proximal) != step.axis[joint.distal]
+    )
+
+
+def _coupled_axis_grade(protocol, joint, segs: dict[str, SegmentRecord]) -> tuple[str, str]:
+    """``weak`` (with the reason) for the angles off the flexion axis of a knee whose distal
+    segment took that axis only from steps that flex the knee itself (see the module notes:
+    the tibia's screw-home rotation turns it); ``("", "")`` otherwise."""
+    spec = hinge_spec(joint)
+    ref = reference_step(protocol, joint.proximal, joint.distal)
+    cal = segs.get(joint.distal)
+    if joint_types.joint_type(joint.type).name != "knee" or spec is None or cal is None:
+        return "", ""
+    if not twists_about_long_axis(protocol, joint, ref, spec):
+        return "", ""
+    steps = {s.name: s for s in protocol.calibration}
+    used = [steps[n] for n, r in cal.axes.items()
+            if r.in_fit and r.kind == "functional" and n in steps]  # fmt: skip
+    if not used or not all(_flexes_joint(step, joint) for step in used):
+        return "", ""
+    rigid = [
+        s.name
+        for s in protocol.calibration
+        if s.kind == "functional" and joint.distal in s.axis and not _flexes_joint(s, joint)
+    ]
+    remedy = f": record '{rigid[0]}' (the leg swung straight) for it" if rigid else ""
+    return "weak", (
+        f"{joint.distal}'s flexion axis is from the {joint.name}'s own flexion "
+        f"('{used[0].name}'), in which the tibia turns about its long axis (screw-home, "
+        f"{SCREW_HOME_DEG[0]:g}-{SCREW_HOME_DEG[1]:g}°), which turns that axis{remedy}"
+    )
+
+
 def _lag_grade(joint, fit: HingeFit | None) -> tuple[str, str]:
     """``weak`` (with the reason) for the angles off the flexion axis of a two-axis joint whose
     proximal sensor was found to follow less than ``AXIAL_FOLLOW_DETERMINED`` of its segment's
@@ -279,10 +333,13 @@ def grade_joints(protocol, calibration: SegmentCalibration) -> dict[str, JointGr
                 g_frame, r_frame = g_cross, "; ".join(filter(None, [r_frame, r_cross]))
             grades = [g_axis, g_frame, g_frame]
             reasons = [r_axis, r_frame, r_frame]
-            g_lag, r_lag = _lag_grade(joint, fit)
-            if g_lag and GRADES.index(g_lag) > GRADES.index(g_frame):
-                grades[1:] = [g_lag] * 2
-                reasons[1:] = ["; ".join(filter(None, [r_frame, r_lag]))] * 2
+            for g_more, r_more in (
+                _lag_grade(joint, fit),
+                _coupled_axis_grade(protocol, joint, segs),
+            ):
+                if g_more and GRADES.index(g_more) > GRADES.index(grades[1]):
+                    grades[1:] = [g_more] * 2
+                    reasons[1:] = ["; ".join(filter(None, [reasons[1], r_more]))] * 2
         else:
             grades, reasons = [g_frame] * 3, [r_frame] * 3
             g_flex, r_flex = _flexion_under_heading(joint, protocol, calibration, frames[1][0])

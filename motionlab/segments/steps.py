@@ -24,9 +24,13 @@ shorter than ``TWITCH_S`` during a pose do not end it. Steps are then matched in
   whole-body task such as walking; segments carried along, like the shank in a straight-leg
   hip flexion, may move), a length within ``DURATION_RANGE`` × its ``duration_s``, every named
   segment turning about its named axis (within ``AXIS_TOLERANCE_DEG`` of the nominal
-  placement's), and segments named with the same axis turning as one (their rates within
-  ``RIGID_TOLERANCE`` of each other: the knee locked in a straight-leg hip flexion, not
-  flexing as in gait).
+  placement's, or, whatever the mounting, lying to the verticals the static steps before it
+  measured in the sensor as the step's axis lies to theirs: :func:`_axes_as_measured`), and
+  segments named with the same axis turning as one (their rates within ``RIGID_TOLERANCE`` of
+  each other: the knee locked in a straight-leg hip flexion, not flexing as in gait). With the
+  nominal placement alone, the knee protocol's straight-leg hip flexions recorded with the
+  sensors strapped any way round were refused, and the shank took its flexion axis from the
+  seated knee flexion, turned by the tibia's screw-home rotation (:mod:`.grades`).
 
 A step's ``time_range`` in the protocol overrides detection. Required steps that are not found
 raise one :class:`InputError` naming all of them, what the recording holds (:func:`describe`)
@@ -46,9 +50,9 @@ keep a calibration movement from being taken for a task:
   before the tasks: the movement blocks that fit them by what does not depend on the sensors'
   placement (their segments leading and some other segment still, their length, segments named
   with one axis turning as one) are theirs, not a task's (:func:`calibration_stretches`). An
-  optional step recorded with sensors strapped any way round is not accepted (its axis is not
-  the nominal placement's), and its movement used to become the first task: the knee
-  protocol's two hip flexions, joined, were its walk;
+  optional step recorded but not accepted (its axes checked against the nominal placement
+  only, as before :func:`_axes_as_measured`, or a knee bent in a straight-leg swing) used to
+  become the first task: the knee protocol's two hip flexions, joined, were its walk;
 - a walking task takes, of its blocks, those in which both legs move (:func:`walking`; where
   both sides have leg sensors), and with none it is refused in one line naming the task and
   the leg that moved alone, rather than given a window without a stride.
@@ -264,6 +268,41 @@ def _looks_like(step: CalibrationStep, block: Block, protocol: Protocol, streams
     return True
 
 
+def _axes_as_measured(
+    step: CalibrationStep,
+    block: Block,
+    statics: list[tuple[CalibrationStep, Block]],
+    streams: Streams,
+) -> bool:
+    """What :func:`_looks_like` asks of an optional step's axes, whatever the sensors' mounting:
+    each named segment turning about an axis that lies to the verticals the static steps found
+    before measured in its sensor (the stand's long axis of the thigh and the shank) as the
+    step's axis lies to those steps' axes (a straight-leg hip flexion's z across the stand's y,
+    and across the sitting thigh's x), within ``AXIS_TOLERANCE_DEG``; plus the step's length and
+    its rigid segments (:func:`_shaped_like`). Needs at least one such vertical."""
+    if not _shaped_like(step, block, streams):
+        return False
+    checked = 0
+    for seg in (s for s in step.axis if s in streams):
+        t, _, gyr = streams[seg]
+        sel = (t >= block.start) & (t <= block.end)
+        if sel.sum() < 10:
+            return False
+        axis = functional_axis(gyr[sel])[0]
+        for other, b in statics:
+            if seg not in other.vertical_axis or seg not in b.up:
+                continue
+            expected = np.arccos(
+                abs(axis_vector(step.axis[seg]) @ axis_vector(other.vertical_axis[seg]))
+            )
+            up = b.up[seg] / np.linalg.norm(b.up[seg])
+            measured = np.arccos(np.clip(abs(float(axis @ up)), 0.0, 1.0))
+            if abs(np.degrees(measured - expected)) > AXIS_TOLERANCE_DEG:
+                return False
+            checked += 1
+    return checked > 0
+
+
 def _fmt(b: Block) -> str:
     return f"{b.start:.1f}-{b.end:.1f} s"
 
@@ -457,7 +496,11 @@ def find_steps(
                     i
                     for i in range(pos, len(bl))
                     if _functional_match(step, bl[i])
-                    and (not step.optional or _looks_like(step, bl[i], protocol, streams))
+                    and (
+                        not step.optional
+                        or _looks_like(step, bl[i], protocol, streams)
+                        or _axes_as_measured(step, bl[i], statics, streams)
+                    )
                 ),
                 None,
             )
@@ -583,8 +626,7 @@ def find_tasks(
     ``steps`` (the calibration's :func:`find_steps`, ``None`` for a step not found): the
     movements of the protocol's steps not found after the last one found come before the tasks
     and are left out of them (:func:`calibration_stretches`), so that an optional step recorded
-    but not accepted (its axis off the nominal placement, as with sensors strapped any way
-    round) is not taken for the first task.
+    but not accepted is not taken for the first task.
 
     A task held still (:attr:`~motionlab.protocol.Task.is_pose`: quiet sitting or standing)
     takes the middle of the first rest after the tasks before it that lasts at least half its
