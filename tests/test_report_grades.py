@@ -583,11 +583,12 @@ def test_a_flag_needs_the_value_beyond_its_own_uncertainty():
     """The demo's healthy knee was told its varus thrust of 3.3° (SD 0.3, 9 strides) was above
     the 3° flagged, "linked to progression of medial knee osteoarthritis", with an adduction
     the report itself gives as ±2°; its elbow was told of trunk compensation for a 10.2° lean
-    against a 10° limit. A flag now needs the value beyond the limit by more than its margin."""
+    against a 10° limit. A flag now needs the value beyond the limit by more than its margin,
+    and a thrust is said within its limit only below it by more than that margin."""
     import types
 
     from motionlab.protocol import load_protocol
-    from motionlab.report.model import accuracy_bound, thrust_above, trunk_above
+    from motionlab.report.model import accuracy_bound, thrust_above, thrust_within, trunk_above
     from motionlab.report.normative import load_accuracy
     from motionlab.results import TrunkAngleStats
 
@@ -603,8 +604,13 @@ def test_a_flag_needs_the_value_beyond_its_own_uncertainty():
     assert not thrust_above(view, "knee_r", stance(3.3, 0.3, 9))
     assert not thrust_above(view, "knee_r", stance(2.9 + bound, 0.5, 20))  # margin 0.22 + bound
     assert thrust_above(view, "knee_r", stance(3.3 + bound, 0.5, 20))
+    # "within" the same way: a simulated knee read 2.3° (27 strides) for a true 4.1°
+    assert not thrust_within(view, "knee_r", stance(2.3, 0.5, 27))
+    assert not thrust_within(view, "knee_r", stance(3.0 - bound, 0.5, 27))  # margin 0.19 + bound
+    assert thrust_within(view, "knee_r", stance(2.7 - bound, 0.5, 27))
     walk = types.SimpleNamespace(protocol=load_protocol("walk"))  # knee adduction: none on file
     assert not thrust_above(walk, "knee_r", stance(9.0, 0.5, 20))
+    assert not thrust_within(walk, "knee_r", stance(0.0, 0.5, 20))
     assert not trunk_above(TrunkAngleStats(10.2, 0.0, 10.2, 90.0, 10.0))
     assert trunk_above(TrunkAngleStats(12.5, 0.0, 12.5, 40.0, 10.0))
 

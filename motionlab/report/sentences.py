@@ -46,6 +46,8 @@ from motionlab.report.model import (
     segment_title,
     symmetry_rows,
     thrust_above,
+    thrust_margin,
+    thrust_within,
     trunk_above,
     walk_pace,
     walk_summary,
@@ -319,8 +321,13 @@ def _oop_findings(view: SessionView) -> tuple[list[str], list[str]]:
                 verdict = f"above the {limit:g}° this protocol flags"
             elif thrust > limit:  # over the limit, but not by more than its own uncertainty
                 verdict = f"not clearly above the {limit:g}° flagged, given its accuracy"
-            else:
+            elif thrust_within(view, name, g):
                 verdict = f"within the {limit:g}° this protocol flags"
+            else:  # under the limit, but not by more than its own uncertainty
+                verdict = (
+                    f"not clearly within the {limit:g}° flagged, given its accuracy of "
+                    f"±{thrust_margin(view, name, g):.1f}°"
+                )
             (out if thrust_above(view, name, g) else calm).append(
                 f"{side} knee varus thrust {thrust:.1f}° in stance during {task_name(task)} "
                 f"({verdict}; {g.strides} strides)."
