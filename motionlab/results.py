@@ -469,7 +469,11 @@ class SegmentRecord(_Record):
     the measured axes; ``quality``: its :class:`SegmentQuality`
     (``None`` in a file written without one); ``sensor``: the sensor's label;
     ``hint_contradicted``: the data put a measured axis more than 60° from the placement hint
-    (what was not measured is unknown; ``None``: not checked, as in a trunk calibration).
+    (what was not measured is unknown; ``None``: not checked, as in a trunk calibration);
+    ``unsigned_steps``: the steps whose axis (measured without a sign) still points the way the
+    contradicted hint says, for want of a signed axis of the data to turn it by
+    (:func:`motionlab.segments.placement.orient_by_data`): the frame may be half a turn off
+    (``None``: none, or a file written before it was kept).
     """
 
     _nested: ClassVar[dict[str, tuple[Any, int]]] = {
@@ -483,6 +487,7 @@ class SegmentRecord(_Record):
     quality: SegmentQuality | None = None
     sensor: str | None = None
     hint_contradicted: bool | None = None
+    unsigned_steps: list[str] | None = None
     more: dict[str, Any] = field(default_factory=dict)
 
 

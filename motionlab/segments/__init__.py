@@ -99,7 +99,10 @@ def calibrate_segments(
             name: fit for name, fit in hinges.items() if fit.used_for != "direction"
             or {protocol.joints[name].proximal, protocol.joints[name].distal} & contradicted
         }  # fmt: skip
-        unsure = placement.orient_by_data(protocol, records, hinges, contradicted)
+        signs = placement.data_signs(protocol, streams, steps, records)
+        contradicted |= placement.signs_contradicted(signs)
+        signed = placement.sign_by_data(records, signs, contradicted)
+        unsure = placement.orient_by_data(protocol, records, hinges, contradicted, signed)
         centres = placement.centre_headings(session, protocol, streams)
         forward_from = pelvis_forward(
             session, protocol, streams, steps, records, contradicted, notes
@@ -108,7 +111,10 @@ def calibrate_segments(
     for seg in streams:
         res = mounting.fit(seg, protocol, records[seg])
         segments[seg] = replace(
-            res, sensor=sensor_for_segment(session, seg), hint_contradicted=seg in contradicted
+            res,
+            sensor=sensor_for_segment(session, seg),
+            hint_contradicted=seg in contradicted,
+            unsigned_steps=unsure.get(seg),
         )
     if forward_from == "walk start" and "pelvis" in segments:  # the legs on their own side
         after = max((float(v[1]) for v in steps.values() if v), default=-np.inf)

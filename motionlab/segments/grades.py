@@ -122,6 +122,8 @@ def _frame_grade(segment: str, cal: SegmentRecord | None) -> tuple[str, str]:
     method = cal.method
     if method == "nominal":
         return "not determined", f"no axis of {segment} was measured (nominal placement only)"
+    if cal.unsigned_steps:
+        return "not determined", _unsigned(segment, cal.unsigned_steps)
     if method not in FULL_FRAME and cal.hint_contradicted:
         return "not determined", (
             f"{segment}'s frame has one measured axis, and the data contradict its placement "
@@ -159,6 +161,15 @@ def _heading_only(segment: str, cal: SegmentRecord | None) -> float | None:
         return None
     bounds = [HEADING_BOUND_DEG[m] for m in _methods(cal) if m in HEADING_BOUND_DEG]
     return max(bounds) if bounds else None
+
+
+def _unsigned(segment: str, steps: list[str]) -> str:
+    """Why a frame with an axis signed by a contradicted hint is not determined."""
+    return (
+        f"the direction of {segment}'s axis from {', '.join(steps)} follows its placement hint, "
+        "which the data contradict, and nothing in the recording signs it: the frame may be "
+        "half a turn off"
+    )
 
 
 def _flexion_under_heading(
@@ -200,6 +211,8 @@ def _axis_grade(joint, calibration: SegmentCalibration) -> tuple[str, str]:
         cal = segs.get(seg)
         if cal is None or cal.method == "nominal":
             return "not determined", f"no axis of {seg} was measured (nominal placement only)"
+        if cal.unsigned_steps:
+            return "not determined", _unsigned(seg, cal.unsigned_steps)
         measured = [
             r for r in cal.axes.values() if r.kind in ("functional", "movement") and r.in_fit
         ]

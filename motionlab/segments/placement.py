@@ -295,23 +295,181 @@ def _signed_axes(
     return out
 
 
+#: a functional step moves one way from its start (one-sided) when the larger of its two
+#: excursions about the step's axis is at least this large (deg) …
+ONE_WAY_MIN_DEG = 15.0
+#: … and this many times the other
+ONE_WAY_RATIO = 3.0
+#: a step starts from the reference pose when every segment it names sees gravity within this
+#: (deg) of where it saw it in that pose, just before the step
+START_POSE_DEG = 20.0
+START_REST_S = 1.0  # the rest just before a step: this long (s)
+#: a segment's long axis (y) within this (deg) of the vertical in the reference pose points up
+#: there (limbs hanging, a trunk upright: the forearm's is 10-15° off with the carrying angle)
+LONG_AXIS_UP_DEG = 45.0
+#: two segments a step names with one axis turn together when their rates about it correlate
+#: at least this much (either sign)
+CO_ROTATION_MIN = 0.7
+
+
+def _start_pose_kept(
+    protocol: Protocol, step, streams: Streams, start: float, ref: tuple[float, float]
+) -> bool:
+    """Whether every segment ``step`` names, and every segment jointed to one of them, sees
+    gravity over ``START_REST_S`` before ``start`` within ``START_POSE_DEG`` of where it saw it
+    over the reference pose ``ref`` (a shank hangs as in standing when seated, its thigh does
+    not)."""
+    named = set(step.segments) | set(step.axis)
+    for joint in protocol.joints.values():
+        if {joint.proximal, joint.distal} & named:
+            named |= {joint.proximal, joint.distal}
+    for seg in named:
+        if seg not in streams:
+            return False
+        t, acc, _ = streams[seg]
+        before = (t >= start - START_REST_S) & (t < start)
+        pose = (t >= ref[0]) & (t <= ref[1])
+        if before.sum() < 3 or pose.sum() < 3:
+            return False
+        a, b = acc[before].mean(axis=0), acc[pose].mean(axis=0)
+        cos = float(a @ b / max(np.linalg.norm(a) * np.linalg.norm(b), 1e-12))
+        if cos < np.cos(np.radians(START_POSE_DEG)):
+            return False
+    return True
+
+
+def data_signs(
+    protocol: Protocol,
+    streams: Streams,
+    steps: dict[str, Any],
+    records: dict[str, dict[str, AxisMeasurement]],
+) -> dict[tuple[str, str], int]:
+    """Which way the data point the functional axes measured without a sign: ``{(segment,
+    step): ±1}``, +1 where the record's sensor axis already points so (the hint signed it
+    right), for the records whose step tells it.
+
+    A step that starts from the protocol's reference pose (its first static step: the step's
+    segments and those jointed to them see gravity as there, :func:`_start_pose_kept`) and
+    turns one way about its axis (the larger excursion, the gyroscope integrated from the
+    step's start, at least
+    ``ONE_WAY_MIN_DEG`` and ``ONE_WAY_RATIO`` times the other) turns about the axis as the
+    protocol signs it: a shoulder or an elbow flexes forward (``z``), a trunk bends forward
+    (``-z``), an arm abducts sideways (``-x`` on the right) from standing. A step that goes
+    both ways (pronation, side bending) or starts elsewhere (the knee's seated flexion, which
+    starts flexed and extends) tells nothing by its excursion; its axis, where it is the
+    segment's long axis ``y`` and lies within ``LONG_AXIS_UP_DEG`` of the vertical in the
+    reference pose, points up there (a forearm hanging with its carrying angle: its pronation
+    axis). A segment that turns with a segment so signed carries its sign
+    (:func:`_co_rotation_signs`: the pelvis in a forward bend, which tilts 8-18° and back).
+    """
+    ref_step = next((s for s in protocol.calibration if s.kind == "static"), None)
+    ref = steps.get(ref_step.name) if ref_step is not None else None
+    out: dict[tuple[str, str], int] = {}
+    if ref is None:
+        return out
+    by_name = {s.name: s for s in protocol.calibration}
+    for seg, recs in records.items():
+        if seg not in streams:
+            continue
+        t, acc, gyr = streams[seg]
+        pose = (t >= ref[0]) & (t <= ref[1])
+        up = acc[pose].mean(axis=0) if pose.sum() >= 3 else np.zeros(3)
+        up = up / max(float(np.linalg.norm(up)), 1e-12)
+        for rec in recs.values():
+            step = by_name.get(rec.step)
+            span = steps.get(rec.step)
+            if rec.kind != "functional" or rec.method != "svd" or step is None or not span:
+                continue
+            along = float(rec.segment_axis @ np.array([0.0, 1.0, 0.0]))
+            upward = float(rec.sensor_axis @ up)
+            if abs(along) > 0.99 and abs(upward) >= np.cos(np.radians(LONG_AXIS_UP_DEG)):
+                out[seg, rec.step] = 1 if upward * along > 0 else -1  # up in the pose
+                continue
+            if not _start_pose_kept(protocol, step, streams, float(span[0]), ref):
+                continue
+            sel = (t >= span[0]) & (t <= span[1])
+            if sel.sum() < 10:
+                continue
+            rate = gyr[sel] @ rec.sensor_axis
+            turned = np.degrees(np.concatenate([[0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1])
+                                                                 * np.diff(t[sel]))]))  # fmt: skip
+            pos, neg = float(turned.max()), float(-turned.min())
+            if max(pos, neg) >= ONE_WAY_MIN_DEG and max(pos, neg) >= ONE_WAY_RATIO * min(pos, neg):
+                out[seg, rec.step] = 1 if pos > neg else -1
+    _co_rotation_signs(protocol, streams, steps, records, out)
+    return out
+
+
+def _co_rotation_signs(protocol, streams, steps, records, signs: dict) -> None:
+    """Add to ``signs`` the axes of segments a step names with the same axis as a segment
+    already signed in it (the pelvis with the thorax in a forward bend, the forearm with the
+    upper arm in a straight-arm raise): they turn together, so where their rates about their
+    axes correlate (``|r|`` at least ``CO_ROTATION_MIN``) the sign carries over with r's."""
+    for step in protocol.calibration:
+        span = steps.get(step.name)
+        if step.kind != "functional" or not span:
+            continue
+        named = [g for g in step.axis if g in streams and step.name in records.get(g, {})]
+        for a in [g for g in named if (g, step.name) in signs]:
+            for b in [g for g in named if (g, step.name) not in signs]:
+                if step.axis[a] != step.axis[b]:
+                    continue
+                t, _, gyr_a = streams[a]
+                sel = (t >= span[0]) & (t <= span[1])
+                tb, _, gyr_b = streams[b]
+                r_a = gyr_a[sel] @ records[a][step.name].sensor_axis
+                r_b = np.interp(t[sel], tb, gyr_b @ records[b][step.name].sensor_axis)
+                if sel.sum() < 10 or np.std(r_a) == 0 or np.std(r_b) == 0:
+                    continue
+                r = float(np.corrcoef(r_a, r_b)[0, 1])
+                if abs(r) >= CO_ROTATION_MIN:
+                    signs[b, step.name] = signs[a, step.name] * (1 if r > 0 else -1)
+
+
+def signs_contradicted(signs: dict[tuple[str, str], int]) -> set[str]:
+    """Segments one of whose functional axes the data point against the hint's sign
+    (:func:`data_signs`): a sensor half a turn round from the hint agrees with it in every
+    axis compared without its sign (the elbow protocol with sensors strapped any way round: a
+    forearm's pronation axis, its frame 180° off and its elbow 'weak' at 66-179° RMS)."""
+    return {seg for (seg, _), sign in signs.items() if sign < 0}
+
+
+def sign_by_data(
+    records: dict[str, dict[str, AxisMeasurement]],
+    signs: dict[tuple[str, str], int],
+    contradicted: set[str],
+) -> dict[str, list[tuple[np.ndarray, np.ndarray]]]:
+    """The functional axes of ``contradicted`` segments turned the way the data point them
+    (:func:`data_signs`), in place; per segment, the ``(sensor axis, segment axis)`` pairs so
+    signed (:func:`orient_by_data`)."""
+    out: dict[str, list[tuple[np.ndarray, np.ndarray]]] = {}
+    for (seg, step), sign in signs.items():
+        if seg in contradicted:
+            rec = records[seg][step]
+            rec.sensor_axis = sign * rec.sensor_axis
+            out.setdefault(seg, []).append((rec.sensor_axis, rec.segment_axis))
+    return out
+
+
 def orient_by_data(
     protocol: Protocol,
     records: dict[str, dict[str, AxisMeasurement]],
     fits: dict[str, movement.HingeFit],
     contradicted: set[str],
+    signed: dict[str, list[tuple[np.ndarray, np.ndarray]]] | None = None,
 ) -> dict[str, list[str]]:
     """Give the functional axes of ``contradicted`` segments their sign from the data.
 
-    The segment's signed axes (:func:`_signed_axes`) fix its frame when two of them differ
-    (a Procrustes fit), or the sign of a parallel axis when there is one. Returns, per segment,
+    The segment's signed axes (:func:`_signed_axes`, and those the data signed, ``signed``:
+    :func:`sign_by_data`) fix its frame when two of them differ (a
+    Procrustes fit), or the sign of a parallel axis when there is one. Returns, per segment,
     the steps whose axis still follows the hint.
     """
     unsure: dict[str, list[str]] = {}
     for seg in contradicted:
-        signed = _signed_axes(protocol, seg, records[seg], fits)
-        v = np.array([s for s, _ in signed]) if signed else np.empty((0, 3))
-        r = np.array([a for _, a in signed]) if signed else np.empty((0, 3))
+        pairs = _signed_axes(protocol, seg, records[seg], fits) + (signed or {}).get(seg, [])
+        v = np.array([s for s, _ in pairs]) if pairs else np.empty((0, 3))
+        r = np.array([a for _, a in pairs]) if pairs else np.empty((0, 3))
         distinct = {tuple(np.abs(a).round(6)) for a in r}
         m = frames.wahba(v, r) if len(distinct) >= 2 else None
         for rec in records[seg].values():
