@@ -703,3 +703,29 @@ def test_a_walks_cycles_get_the_gait_band_and_a_weak_angle_no_normal(walk):
     hip = joints["hip_r"]
     assert draw_cycle(ax, load_view(ses), hip, "walk", "adduction", "hip_r_adduction_deg") == ""
     assert not ax.patches
+
+
+def test_the_summary_says_what_to_record_for_a_shank_axis_or_a_sensor_half_a_turn_off():
+    """The two grades of sensors strapped any way round (segments.grades) in a clinician's
+    words: the knee's off-axis angles weak for want of the straight-leg swings, and a frame
+    whose axis nothing in the recording signs."""
+    import types
+
+    from motionlab.protocol import load_protocol
+    from motionlab.report.sentences import cause_and_remedy
+    from motionlab.segments.grades import _coupled_axis_grade, _unsigned
+
+    knee = load_protocol("knee")
+    segs = {"shank_r": types.SimpleNamespace(axes={"knee_flexion_r": types.SimpleNamespace(
+        in_fit=True, kind="functional")})}  # fmt: skip
+    grade, reason = _coupled_axis_grade(knee, knee.joints["knee_r"], segs)
+    assert grade == "weak"
+    cause, remedy = cause_and_remedy(types.SimpleNamespace(protocol=knee), "knee_r", reason)
+    assert cause == "shank axis from the knee's own flexion"
+    assert remedy.startswith("record the optional straight-leg swings (standing, holding")
+    elbow = types.SimpleNamespace(protocol=load_protocol("elbow"))
+    cause, remedy = cause_and_remedy(
+        elbow, "elbow_l", _unsigned("upperarm_l", ["shoulder_flexion_l"])
+    )
+    assert cause == "which way the left upperarm sensor sits"
+    assert "from the standing pose" in remedy

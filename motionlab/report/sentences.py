@@ -498,6 +498,23 @@ def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[s
             "follows the drift), or calibrate the gyroscopes (motionlab sensorcal, then "
             "--calibration)"
         )
+    if "nothing in the recording signs it" in r:  # segments.grades: a frame half a turn off?
+        still = first_pose(view)
+        pose = (still.pose or still.name.replace("_", " ")) if still else "standing"
+        return f"which way the {where} sensor sits", (
+            f"strap the {where} sensor as the protocol places it, or start each calibration "
+            f"movement from the {pose} pose and move one way (forward) first"
+        )
+    if "screw-home" in r:  # segments.grades._coupled_axis_grade: the shank's axis is turned
+        step = r.split("record '")[1].split("'")[0] if "record '" in r else ""
+        instruction = next(
+            (s.instructions for s in view.protocol.calibration if s.name == step), ""
+        )
+        return "shank axis from the knee's own flexion", (
+            f"record the optional straight-leg swings ({instruction.split('): ', 1)[-1]})"
+            if instruction
+            else "record a movement of the straight leg (the knee locked) for the shank's axis"
+        )
     if "which way the axis points" in r or "direction of flexion" in r:
         return "direction of flexion", f"stand still 5 s with the {display} straight, then {bend}"
     if "its zero" in r:
