@@ -728,4 +728,4 @@ def test_the_summary_says_what_to_record_for_a_shank_axis_or_a_sensor_half_a_tur
         elbow, "elbow_l", _unsigned("upperarm_l", ["shoulder_flexion_l"])
     )
     assert cause == "which way the left upperarm sensor sits"
-    assert "from the standing pose" in remedy
+    assert remedy.startswith("strap the left upperarm sensor as the protocol places it")

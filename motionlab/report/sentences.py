@@ -499,11 +499,8 @@ def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[s
             "--calibration)"
         )
     if "nothing in the recording signs it" in r:  # segments.grades: a frame half a turn off?
-        still = first_pose(view)
-        pose = (still.pose or still.name.replace("_", " ")) if still else "standing"
         return f"which way the {where} sensor sits", (
-            f"strap the {where} sensor as the protocol places it, or start each calibration "
-            f"movement from the {pose} pose and move one way (forward) first"
+            f"strap the {where} sensor as the protocol places it (see Sensors and placements)"
         )
     if "screw-home" in r:  # segments.grades._coupled_axis_grade: the shank's axis is turned
         step = r.split("record '")[1].split("'")[0] if "record '" in r else ""
