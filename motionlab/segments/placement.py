@@ -300,8 +300,9 @@ def _signed_axes(
 ONE_WAY_MIN_DEG = 15.0
 #: … and this many times the other
 ONE_WAY_RATIO = 3.0
-#: a step starts from the reference pose when every segment it names sees gravity within this
-#: (deg) of where it saw it in that pose, just before the step
+#: a step starts from the reference pose when every segment it names, and every segment jointed
+#: to one of them, sees gravity within this (deg) of where it saw it in that pose, just before
+#: the step
 START_POSE_DEG = 20.0
 START_REST_S = 1.0  # the rest just before a step: this long (s)
 #: a segment's long axis (y) within this (deg) of the vertical in the reference pose points up
@@ -351,15 +352,14 @@ def data_signs(
     A step that starts from the protocol's reference pose (its first static step: the step's
     segments and those jointed to them see gravity as there, :func:`_start_pose_kept`) and
     turns one way about its axis (the larger excursion, the gyroscope integrated from the
-    step's start, at least
-    ``ONE_WAY_MIN_DEG`` and ``ONE_WAY_RATIO`` times the other) turns about the axis as the
-    protocol signs it: a shoulder or an elbow flexes forward (``z``), a trunk bends forward
-    (``-z``), an arm abducts sideways (``-x`` on the right) from standing. A step that goes
-    both ways (pronation, side bending) or starts elsewhere (the knee's seated flexion, which
-    starts flexed and extends) tells nothing by its excursion; its axis, where it is the
-    segment's long axis ``y`` and lies within ``LONG_AXIS_UP_DEG`` of the vertical in the
-    reference pose, points up there (a forearm hanging with its carrying angle: its pronation
-    axis). A segment that turns with a segment so signed carries its sign
+    step's start, at least ``ONE_WAY_MIN_DEG`` and ``ONE_WAY_RATIO`` times the other) turns
+    about the axis as the protocol signs it: a shoulder or an elbow flexes forward (``z``), a
+    trunk bends forward (``-z``), an arm abducts sideways (``-x`` on the right) from standing.
+    A step that goes both ways (pronation, side bending) or starts elsewhere (the knee's seated
+    flexion, which starts flexed and extends) tells nothing by its excursion; its axis, where
+    it is the segment's long axis ``y`` and lies within ``LONG_AXIS_UP_DEG`` of the vertical in
+    the reference pose, points up there (a forearm hanging with its carrying angle: its
+    pronation axis). A segment that turns with a segment so signed carries its sign
     (:func:`_co_rotation_signs`: the pelvis in a forward bend, which tilts 8-18° and back).
     """
     ref_step = next((s for s in protocol.calibration if s.kind == "static"), None)
@@ -400,7 +400,13 @@ def data_signs(
     return out
 
 
-def _co_rotation_signs(protocol, streams, steps, records, signs: dict) -> None:
+def _co_rotation_signs(
+    protocol: Protocol,
+    streams: Streams,
+    steps: dict[str, Any],
+    records: dict[str, dict[str, AxisMeasurement]],
+    signs: dict[tuple[str, str], int],
+) -> None:
     """Add to ``signs`` the axes of segments a step names with the same axis as a segment
     already signed in it (the pelvis with the thorax in a forward bend, the forearm with the
     upper arm in a straight-arm raise): they turn together, so where their rates about their
@@ -416,10 +422,12 @@ def _co_rotation_signs(protocol, streams, steps, records, signs: dict) -> None:
                     continue
                 t, _, gyr_a = streams[a]
                 sel = (t >= span[0]) & (t <= span[1])
+                if sel.sum() < 10:
+                    continue
                 tb, _, gyr_b = streams[b]
                 r_a = gyr_a[sel] @ records[a][step.name].sensor_axis
                 r_b = np.interp(t[sel], tb, gyr_b @ records[b][step.name].sensor_axis)
-                if sel.sum() < 10 or np.std(r_a) == 0 or np.std(r_b) == 0:
+                if np.std(r_a) == 0 or np.std(r_b) == 0:
                     continue
                 r = float(np.corrcoef(r_a, r_b)[0, 1])
                 if abs(r) >= CO_ROTATION_MIN:
@@ -461,9 +469,9 @@ def orient_by_data(
     """Give the functional axes of ``contradicted`` segments their sign from the data.
 
     The segment's signed axes (:func:`_signed_axes`, and those the data signed, ``signed``:
-    :func:`sign_by_data`) fix its frame when two of them differ (a
-    Procrustes fit), or the sign of a parallel axis when there is one. Returns, per segment,
-    the steps whose axis still follows the hint.
+    :func:`sign_by_data`) fix its frame when two of them differ (a Procrustes fit), or the sign
+    of a parallel axis when there is one. Returns, per segment, the steps whose axis still
+    follows the hint.
     """
     unsure: dict[str, list[str]] = {}
     for seg in contradicted:
