@@ -69,6 +69,21 @@ def test_a_trunk_bent_forward_signs_the_thorax_and_the_pelvis_that_tilts_with_it
     assert session.results.calibration.grades["lumbar"].grades == ["determined"] * 3
 
 
+def test_arm_movements_from_standing_sign_the_axes_of_a_protocol_whose_pose_is_supine():
+    """The children's protocol (reference pose supine, arm movements standing) strapped any
+    way round (seed 0: elbow flexion 61° RMS off, 'weak'): its arm movements start with the
+    arms hanging, each segment's long axis vertical (across the supine pose's x and the
+    movement's z), so they sign their axes as from a stand."""
+    children = load_protocol("upper_body_children")
+    session, truth = simulate(children, 205.0, 0, preset="clean", rate_hz=50.0, mounting="random")
+    stages.prepare(session)
+    stages.fuse(session)
+    stages.calibrate(session, children)
+    errors = _frame_errors_deg(session, truth, ("thorax", *ARM))
+    assert max(errors.values()) < 3.0, errors
+    assert not any(r.unsigned_steps for r in session.results.calibration.segments.values())
+
+
 def test_the_hint_of_sensors_strapped_as_the_protocol_says_is_not_contradicted(elbow):
     """Within 30° of the placement: every axis the data sign points as the hint signed it."""
     session, _ = simulate(elbow, 205.0, 1, preset="clean", rate_hz=50.0)

@@ -320,11 +320,7 @@ def _start_pose_kept(
     gravity over ``START_REST_S`` before ``start`` within ``START_POSE_DEG`` of where it saw it
     over the reference pose ``ref`` (a shank hangs as in standing when seated, its thigh does
     not)."""
-    named = set(step.segments) | set(step.axis)
-    for joint in protocol.joints.values():
-        if {joint.proximal, joint.distal} & named:
-            named |= {joint.proximal, joint.distal}
-    for seg in named:
+    for seg in _with_joint_partners(protocol, step):
         if seg not in streams:
             return False
         t, acc, _ = streams[seg]
@@ -337,6 +333,55 @@ def _start_pose_kept(
         if cos < np.cos(np.radians(START_POSE_DEG)):
             return False
     return True
+
+
+def _long_axis_line(recs: dict[str, AxisMeasurement]) -> np.ndarray | None:
+    """A segment's long axis ``y`` in its sensor (unit, either sign): measured (gravity in a
+    pose, or a step about it), else across its measured ``x`` and ``z``; ``None`` without."""
+    ys = [r.sensor_axis for r in recs.values() if abs(float(r.segment_axis[1])) > 0.99]
+    if ys:
+        return ys[0] / np.linalg.norm(ys[0])
+    xs = [r.sensor_axis for r in recs.values() if abs(float(r.segment_axis[0])) > 0.99]
+    zs = [r.sensor_axis for r in recs.values() if abs(float(r.segment_axis[2])) > 0.99]
+    if not xs or not zs:
+        return None
+    v = np.cross(xs[0], zs[0])
+    n = float(np.linalg.norm(v))
+    return v / n if n > 0.5 else None
+
+
+def _upright_start(
+    protocol: Protocol,
+    step,
+    streams: Streams,
+    records: dict[str, dict[str, AxisMeasurement]],
+    start: float,
+) -> bool:
+    """Whether every segment ``step`` names, and every segment jointed to one of them, has its
+    long axis (:func:`_long_axis_line`) within ``START_POSE_DEG`` of the vertical over
+    ``START_REST_S`` before ``start``: standing with the limbs hanging, as a protocol whose
+    reference pose is another (the children's, lying supine) starts its arm movements."""
+    for seg in _with_joint_partners(protocol, step):
+        line = _long_axis_line(records.get(seg, {})) if seg in streams else None
+        if line is None:
+            return False
+        t, acc, _ = streams[seg]
+        before = (t >= start - START_REST_S) & (t < start)
+        if before.sum() < 3:
+            return False
+        g = acc[before].mean(axis=0)
+        if abs(float(line @ g)) < np.cos(np.radians(START_POSE_DEG)) * np.linalg.norm(g):
+            return False
+    return True
+
+
+def _with_joint_partners(protocol: Protocol, step) -> set[str]:
+    """The segments ``step`` names and those jointed to one of them."""
+    named = set(step.segments) | set(step.axis)
+    for joint in protocol.joints.values():
+        if {joint.proximal, joint.distal} & named:
+            named |= {joint.proximal, joint.distal}
+    return named
 
 
 def data_signs(
@@ -385,7 +430,11 @@ def data_signs(
             if abs(along) > 0.99 and abs(upward) >= np.cos(np.radians(LONG_AXIS_UP_DEG)):
                 out[seg, rec.step] = 1 if upward * along > 0 else -1  # up in the pose
                 continue
-            if not _start_pose_kept(protocol, step, streams, float(span[0]), ref):
+            start = float(span[0])
+            if not (
+                _start_pose_kept(protocol, step, streams, start, ref)
+                or _upright_start(protocol, step, streams, records, start)
+            ):
                 continue
             sel = (t >= span[0]) & (t <= span[1])
             if sel.sum() < 10:
