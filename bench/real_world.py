@@ -222,6 +222,9 @@ def main() -> None:
         "--per-seed", action="store_true", help="also a table of every seed's RMSE per angle"
     )
     args = ap.parse_args()
+    if "lumbar_seated" in args.protocols.split(","):  # its zero is its rest, not anatomy's
+        ap.error("lumbar_seated's angles are zero at its rest, the truth's are not: run "
+                 "bench/seated_trunk_sim.py, which compares them so")  # fmt: skip
     flags = (args.uncoupled_knee, args.old_simulator)
     jobs = [
         (
