@@ -313,6 +313,19 @@ LONG_AXIS_UP_DEG = 45.0
 CO_ROTATION_MIN = 0.7
 
 
+def _up(streams: Streams, seg: str, t0: float, t1: float) -> np.ndarray | None:
+    """Unit direction of ``seg``'s specific force (up, sensor frame) over ``[t0, t1)`` s;
+    ``None`` with fewer than 3 samples or no segment's sensor."""
+    if seg not in streams:
+        return None
+    t, acc, _ = streams[seg]
+    sel = (t >= t0) & (t < t1)
+    if sel.sum() < 3:
+        return None
+    g = acc[sel].mean(axis=0)
+    return g / max(float(np.linalg.norm(g)), 1e-12)
+
+
 def _start_pose_kept(
     protocol: Protocol, step, streams: Streams, start: float, ref: tuple[float, float]
 ) -> bool:
@@ -321,16 +334,8 @@ def _start_pose_kept(
     over the reference pose ``ref`` (a shank hangs as in standing when seated, its thigh does
     not)."""
     for seg in _with_joint_partners(protocol, step):
-        if seg not in streams:
-            return False
-        t, acc, _ = streams[seg]
-        before = (t >= start - START_REST_S) & (t < start)
-        pose = (t >= ref[0]) & (t <= ref[1])
-        if before.sum() < 3 or pose.sum() < 3:
-            return False
-        a, b = acc[before].mean(axis=0), acc[pose].mean(axis=0)
-        cos = float(a @ b / max(np.linalg.norm(a) * np.linalg.norm(b), 1e-12))
-        if cos < np.cos(np.radians(START_POSE_DEG)):
+        a, b = _up(streams, seg, start - START_REST_S, start), _up(streams, seg, *ref)
+        if a is None or b is None or float(a @ b) < np.cos(np.radians(START_POSE_DEG)):
             return False
     return True
 
@@ -362,15 +367,9 @@ def _upright_start(
     ``START_REST_S`` before ``start``: standing with the limbs hanging, as a protocol whose
     reference pose is another (the children's, lying supine) starts its arm movements."""
     for seg in _with_joint_partners(protocol, step):
-        line = _long_axis_line(records.get(seg, {})) if seg in streams else None
-        if line is None:
-            return False
-        t, acc, _ = streams[seg]
-        before = (t >= start - START_REST_S) & (t < start)
-        if before.sum() < 3:
-            return False
-        g = acc[before].mean(axis=0)
-        if abs(float(line @ g)) < np.cos(np.radians(START_POSE_DEG)) * np.linalg.norm(g):
+        line = _long_axis_line(records.get(seg, {}))
+        up = _up(streams, seg, start - START_REST_S, start)
+        if line is None or up is None or abs(float(line @ up)) < np.cos(np.radians(START_POSE_DEG)):
             return False
     return True
 
@@ -416,10 +415,9 @@ def data_signs(
     for seg, recs in records.items():
         if seg not in streams:
             continue
-        t, acc, gyr = streams[seg]
-        pose = (t >= ref[0]) & (t <= ref[1])
-        up = acc[pose].mean(axis=0) if pose.sum() >= 3 else np.zeros(3)
-        up = up / max(float(np.linalg.norm(up)), 1e-12)
+        t, _, gyr = streams[seg]
+        up = _up(streams, seg, *ref)
+        up = np.zeros(3) if up is None else up
         for rec in recs.values():
             step = by_name.get(rec.step)
             span = steps.get(rec.step)
