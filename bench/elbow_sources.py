@@ -44,11 +44,11 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import multiprocessing as mp
 from importlib import import_module
 
 import numpy as np
 from joint_angles import joint_clocks
+from pool import worker_pool
 from real_world import analyse_simulated, rmse, task_errors, with_true_mountings
 from seeds import seeds_arg
 
@@ -250,7 +250,7 @@ def main() -> None:
     jobs = [
         (s, args.clocks, not args.no_follow, args.exact, args.ideal_sensors) for s in args.seeds
     ]
-    with mp.get_context("spawn").Pool(args.workers) as pool:
+    with worker_pool(args.workers) as pool:
         rows = pool.map(diagnose, jobs)
     for side, col in zip("rl", COLS, strict=True):
         ua, fa = f"upperarm_{side}", f"forearm_{side}"

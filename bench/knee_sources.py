@@ -39,9 +39,9 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import multiprocessing as mp
 
 import numpy as np
+from pool import worker_pool
 from real_world import analyse_simulated, rmse, target, task_errors, with_true_mountings
 from seeds import seeds_arg
 
@@ -220,7 +220,7 @@ def main() -> None:
     ap.add_argument("--clocks", action="store_true", help="also run with perfect clocks")
     args = ap.parse_args()
     jobs = [(s, args.clocks) for s in args.seeds]
-    with mp.get_context("spawn").Pool(args.workers) as pool:
+    with worker_pool(args.workers) as pool:
         rows = pool.map(diagnose, jobs)
     short = {"flexion": "flex", "adduction": "add", "rotation": "rot"}
     print("knee RMSE (deg) over the walk by variant; axes (deg) of the proximal and distal "

@@ -14,7 +14,6 @@ gave no direction (the placement hint was kept).
 from __future__ import annotations
 
 import argparse
-import multiprocessing as mp
 import sys
 import warnings
 from pathlib import Path
@@ -24,6 +23,7 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
+from pool import worker_pool
 from real_world import analyse_simulated, simulator_options  # noqa: E402
 from seeds import seeds_arg  # noqa: E402
 
@@ -85,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args(argv)
     jobs = [(s, args.preset, t) for s in args.seeds for t in (False, True)]
-    with mp.get_context("spawn").Pool(args.workers) as pool:
+    with worker_pool(args.workers) as pool:
         out = {(s, t): r for s, t, r in pool.map(run_job, jobs)}
     print(f"walk {DURATION_S:g} s, preset {args.preset}, random mountings, seeds {args.seeds}\n")
     print("| seed | as shipped: method | error (deg) | turns only: error (deg) "

@@ -38,12 +38,12 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import multiprocessing as mp
 import time
 from collections import Counter
 
 import numpy as np
 from joint_angles import errors, joint_clocks, shared_clock
+from pool import worker_pool
 from seeds import seeds_arg
 
 from motionlab import rotations as rot
@@ -240,7 +240,7 @@ def main() -> None:
         for p in args.protocols.split(",")
         for s in args.seeds
     ]
-    with mp.get_context("spawn").Pool(args.workers) as pool:
+    with worker_pool(args.workers) as pool:
         results = pool.map(run_one, jobs)
     clocks = "one shared clock" if args.shared_clock else "every IMU on its own clock"
     clocks += ", true sampling instants, no sync" if args.true_clocks else ""

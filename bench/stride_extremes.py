@@ -16,10 +16,10 @@ the same stride (the metrics' strides), RMSE over the strides and the mean of th
 from __future__ import annotations
 
 import argparse
-import multiprocessing as mp
 
 import numpy as np
 from joint_angles import joint_clocks
+from pool import worker_pool
 from real_world import analyse_simulated, simulator_options
 from seeds import seeds_arg
 
@@ -76,7 +76,7 @@ def main() -> None:
     ap.add_argument("--preset", default="skin")
     ap.add_argument("--workers", type=int, default=2)
     args = ap.parse_args()
-    with mp.get_context("spawn").Pool(args.workers) as pool:
+    with worker_pool(args.workers) as pool:
         knees = [k for r in pool.starmap(stride_errors, [(s, args.preset) for s in args.seeds])
                  for k in r]  # fmt: skip
     print(f"walk, anatomical knee, preset {args.preset}, random mountings, seeds {args.seeds}")

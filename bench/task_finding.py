@@ -25,11 +25,11 @@ Needs no data files. Usage::
 from __future__ import annotations
 
 import argparse
-import multiprocessing as mp
 import time
 
 import numpy as np
 from joint_angles import duration
+from pool import worker_pool
 from real_world import DURATION_S, simulator_options
 from seeds import seeds_arg
 
@@ -156,7 +156,7 @@ def main() -> None:
     args = ap.parse_args()
     get_preset(args.preset)  # an unknown preset fails here, not in every worker
     jobs = [(n, s, args.preset, args.finder) for n in args.protocols.split(",") for s in args.seeds]
-    with mp.get_context("spawn").Pool(args.workers) as pool:
+    with worker_pool(args.workers) as pool:
         results = pool.map(run_one, jobs, chunksize=1)
     for r in results:
         show(r)
