@@ -26,7 +26,8 @@ Recordings (README of ``../shared``, section ``datasets/human``):
 
 - ``qmt_full_body``: 16 Xsens sensors, 100 Hz; a stand (40-44 s), sitting down, a seated rest,
   standing up, then about 45 s of walking; the ``walk`` protocol (pelvis = ``hip``) and the
-  ``arm`` protocol (thorax = ``upper_back``);
+  ``arm`` protocol (thorax = ``upper_back``); one time vector ``t`` for every sensor, so one
+  clock (marked as the readers mark one time column: the clock sync keeps the stamps);
 - ``imt_dot/knee_tracking1``, ``knee_tracking2``: one Xsens DOT on the thigh and one on the
   shank (one leg; mapped as the right), free leg movement and walking, a stand only at the end;
 - ``imt_dot/shoulder_tracking``: chest and upper arm (no shipped protocol has a joint for them).
@@ -52,6 +53,7 @@ import yaml
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
+from motionlab.io.clock import mark_shared_clock
 from motionlab.kinematics.joint_types import angle_columns
 from motionlab.kinematics.metrics import smoothed
 from motionlab.pipeline import PipelineOptions, analyse, load_inputs, prepare_sensors
@@ -88,6 +90,8 @@ def qmt_session(data: Path, protocol: str) -> tuple[Session, dict[str, np.ndarra
             segment=seg, vendor="Xsens", source_units={"acc": "m/s^2", "gyr": "rad/s"},
         )  # fmt: skip
         vendor[seg] = rot.make_continuous(np.asarray(d.quat, float))
+    # one time vector for every IMU: one clock, as the readers take one time column
+    mark_shared_clock(list(session.sensors.values()), "one time vector t in the .mat file")
     prepare_sensors(session)
     return session, vendor
 

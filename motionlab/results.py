@@ -211,6 +211,10 @@ class ClockFit:
 #: root sensor's (no sensor joins the parts, no reliable heel-strike lag across them):
 #: ``not linked: <why>``; the part's own sensors are timed against that root
 NOT_LINKED = "not linked"
+#: the statuses of a fit that timed its pair (applied, or found the two on one clock already)
+RELIABLE = ("applied", "consistent with one clock")
+#: the status of a fit not applied because the vendor synchronised the sensors' clocks
+VENDOR_KEPT = "not applied: the vendor synchronised these clocks"
 
 
 @dataclass
@@ -220,19 +224,46 @@ class ClockSync:
 
     fits: dict[str, ClockFit] = field(default_factory=dict)
 
-    def clock_of(self, label: str) -> str:
-        """The sensor whose clock ``label``'s stamps are on after the sync: its references
-        followed up to the root sensor, or to a part's root whose fit is :data:`NOT_LINKED`
-        (a sensor without a fit is on its own clock)."""
-        seen = {label}
+    def _chain(self, label: str) -> tuple[list[ClockFit], str]:
+        """The fits from ``label`` along its references, and the sensor whose clock they end on:
+        the root sensor, or a part's root whose fit is :data:`NOT_LINKED` (a sensor without a
+        fit is on its own clock)."""
+        seen, chain = {label}, []
         fit = self.fits.get(label)
         while fit is not None and not fit.status.startswith(NOT_LINKED):
+            chain.append(fit)
             label = fit.reference
             if label in seen:  # no cycle in a stored result; stop rather than loop
                 break
             seen.add(label)
             fit = self.fits.get(label)
-        return label
+        return chain, label
+
+    def clock_of(self, label: str) -> str:
+        """The sensor whose clock ``label``'s stamps are on after the sync: its references
+        followed up to the root sensor, or to a part's root whose fit is :data:`NOT_LINKED`
+        (a sensor without a fit is on its own clock)."""
+        return self._chain(label)[1]
+
+    def untimed(self, labels: list[str]) -> str:
+        """The first sensor between ``labels`` whose clock the sync could not time (its fit
+        neither :data:`RELIABLE` nor the vendor's synchronisation kept: its stamps taken as
+        recorded against its reference's) and why (``shank_r: not reliable: ...``), or empty.
+        Between: on the way from each label up to the first sensor all their ways pass (a
+        knee's shank timed against its thigh is timed for the knee, whatever the thigh's own
+        fit). Such sensors are on one clock only as well as the recording kept them together:
+        a simulated walk's shanks read 117 ms apart (43 % step-time asymmetry for a symmetric
+        walker), its left knee 52 ms from its thigh (10° more flexion in swing)."""
+        chains = {lab: self._chain(lab)[0] for lab in labels}
+        ways = [{lab, *(f.reference for f in chain)} for lab, chain in chains.items()]
+        shared = set.intersection(*ways) if ways else set()
+        for chain in chains.values():
+            for fit in chain:
+                if fit.sensor in shared:
+                    break
+                if fit.status not in RELIABLE and not fit.status.startswith(VENDOR_KEPT):
+                    return f"{fit.sensor}: {fit.status}"
+        return ""
 
     def not_linked(self, labels: list[str]) -> str:
         """Why the sensors ``labels`` are not all on one clock after the sync (``thigh_l: no

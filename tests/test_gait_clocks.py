@@ -148,6 +148,55 @@ def test_which_clock_each_sensor_is_on():
                                                      "never compared"  # fmt: skip
 
 
+def test_a_sensor_the_sync_could_not_time_is_named_on_the_way_to_its_clock():
+    """A fit neither applied nor consistent with one clock (kept as recorded) leaves its
+    sensor, and every sensor timed against it, at an unknown offset from the root; the
+    vendor's synchronisation kept counts as timed, a part's root not linked is not untimed."""
+    poor = "not reliable: the shared joint centre fits poorly"
+    tree = ClockSync({"thigh_r": _fit("thigh_r", "pelvis", poor),
+                      "shank_r": _fit("shank_r", "thigh_r"),
+                      "thigh_l": _fit("thigh_l", "pelvis", "consistent with one clock"),
+                      "shank_l": _fit("shank_l", "thigh_l")})  # fmt: skip
+    assert tree.untimed(["thigh_l", "shank_l"]) == ""
+    assert tree.untimed(["shank_l", "shank_r"]) == f"thigh_r: {poor}"  # the shank's reference
+    assert tree.untimed(["thigh_r", "shank_r"]) == ""  # the knee: its shank timed on its thigh
+    assert tree.untimed(["pelvis", "thigh_r"]) == f"thigh_r: {poor}"  # the hip
+    assert tree.clock_of("shank_r") == "pelvis"  # on the root's clock as recorded
+    vendor = ClockSync({"thigh_l": _fit("thigh_l", "thigh_r", f"{stage.VENDOR_KEPT} (Synced)")})
+    assert vendor.untimed(["thigh_l"]) == ""
+    apart = ClockSync({"thigh_l": _fit("thigh_l", "thigh_r", f"{NOT_LINKED}: no sensor joins it")})
+    assert apart.untimed(["thigh_l"]) == ""  # said by not_linked
+
+
+def test_legs_whose_clocks_were_not_timed_withhold_what_compares_them():
+    """A harsh simulated walk (clocks up to ~0.1 s apart) whose heel strikes and joint centres
+    did not time every leg sensor: the shanks stayed 66 ms apart as recorded and a symmetric
+    walker read 24 % step-time asymmetry (±2.4); now what compares the legs is withheld, and
+    each leg's own numbers are given; the knees, whose thigh and shank were not timed against
+    each other, are weak (they were determined)."""
+    from motionlab.pipeline import PipelineOptions, analyse
+    from motionlab.simulate import simulate
+
+    session, truth = simulate("walk", 40.0, 7, "harsh", rate_hz=50.0, gait={})
+    offset = {k: v["clock_offset_s"] for k, v in truth.sensors.items()}
+    assert abs(offset["shank_l"] - offset["shank_r"]) > 0.05  # else nothing to get wrong
+    analyse(session, PipelineOptions(protocol="walk", progress=False))
+    untimed = session.results.clock_sync.untimed(["thigh_r", "shank_r", "thigh_l", "shank_l"])
+    assert untimed.split(":")[0] in {"thigh_r", "shank_r", "thigh_l", "shank_l"}
+    summ = session.results.gait.summary
+    why = summ.withheld["step_time_asymmetry_pct"]
+    assert why.startswith("not given: the two legs' sensor clocks were not all timed (")
+    assert "--no-clock-sync" in why and all(summ.withheld[c] == why for c in sp.BOTH_LEGS)
+    assert np.isnan(summ.step_time_asymmetry_pct) and np.isnan(summ.walking_speed_m_s)
+    assert np.isfinite(summ.cadence_steps_per_min)
+    assert all(np.isfinite(summ.sides[k]["stride_time_s"].mean) for k in "rl")
+    knees = {k: session.results.calibration.grades[f"knee_{k}"] for k in "rl"}
+    for side, knee in knees.items():  # a knee's flexion: weak, the clocks its first reason
+        assert knee.grades[0] == "weak", side
+        assert knee.reasons[0].startswith(f"the clocks of thigh_{side} and shank_{side} were "
+                                          "not timed against each other ("), side  # fmt: skip
+
+
 def test_summary_withholds_what_compares_the_legs():
     """Hand-made events, both legs: with ``not_linked`` the per-side step time, double support
     and lengths and the asymmetry are NaN with the reason; stride, stance and cadence stay."""

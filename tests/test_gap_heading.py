@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 from conftest import SHARED, needs_shared
 
+from motionlab.io.clock import mark_shared_clock
 from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
 from motionlab.protocol import load_protocol
 from motionlab.report.model import SessionView
@@ -168,6 +169,7 @@ def test_a_real_walk_with_lost_packets_does_not_call_its_hips_determined():
             gyr=np.asarray(m[name].gyr, float)[keep], segment=seg, vendor="Xsens",
             source_units={"acc": "m/s^2", "gyr": "rad/s"},
         )  # fmt: skip
+    mark_shared_clock(list(session.sensors.values()), "one time vector t in the .mat file")
     prepare_sensors(session)
     analyse(session, PipelineOptions("walk", progress=False))
     g = session.results.calibration.grades

@@ -641,7 +641,8 @@ def test_clocks_the_sync_could_not_check_are_said_among_the_findings(walk):
     """The real 16-IMU walk (one radio clock, which its files do not show): every joint-centre
     and heel-strike fit was refused, each sensor kept its recorded clock and the knees were
     graded as if the clocks were known to agree; nothing on the summary said the angles assume
-    it. A sensor the sync could not check is named in one quality note; an applied fit, a
+    it. A sensor the sync could not check is named in one quality note, which says what it
+    does to the grades and the gait numbers (segments.grades.clock_graded); an applied fit, a
     vendor's clock kept, a part on its own clock (said by the withheld numbers across the legs)
     or no sync at all (--no-clock-sync) add none."""
     from motionlab.clocksync.stage import VENDOR_KEPT
@@ -659,8 +660,10 @@ def test_clocks_the_sync_could_not_check_are_said_among_the_findings(walk):
     refused = "not reliable: the shared joint centre fits poorly (residual 0.76 m/s²)"
     assert with_fits(refused, "applied", "not enough shared movement") == [
         "Clocks of thigh_r, shank_r not synchronised (no reliable timing in the recording, see "
-        "'Sensor clocks'): taken as recorded; sensors not synchronised may be off by degrees in "
-        "fast movement (at 300°/s, 3° per 10 ms)."
+        "'Sensor clocks'): taken as recorded, so the angles between sensors not timed against "
+        "each other are weak at best and the gait numbers comparing the legs are withheld (an "
+        "offset moves an angle by 3° per 10 ms at 300°/s); sensors that share one clock: run "
+        "with --no-clock-sync."
     ]
     assert with_fits("applied", "consistent with one clock") == []
     assert with_fits(f"{VENDOR_KEPT} (one time column); the data's fit said: {refused}") == []

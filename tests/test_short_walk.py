@@ -12,6 +12,7 @@ import pytest
 from conftest import SHARED, bench_module, needs_shared
 
 from motionlab.errors import InputError
+from motionlab.io.clock import mark_shared_clock
 from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
 from motionlab.protocol import Task, load_protocol
 from motionlab.segments import walk_begins
@@ -84,14 +85,16 @@ QUIET, AFTER, BEFORE, FIRST_14_S = range(4)  # the excerpt's spans (tests/data/S
 
 
 def _session(time: np.ndarray, signals: dict[str, tuple[np.ndarray, np.ndarray]]) -> Session:
-    """A session of the five lower-body sensors (acc m/s², gyr rad/s), prepared as ingest
-    does."""
+    """A session of the five lower-body sensors (acc m/s², gyr rad/s) on one clock, prepared
+    as ingest does."""
     session = Session()
     for seg, (acc, gyr) in signals.items():
         session.sensors[seg] = SensorStream(
             label=seg, time=time, acc=np.asarray(acc, float), gyr=np.asarray(gyr, float),
             segment=seg, vendor="Xsens", source_units={"acc": "m/s^2", "gyr": "rad/s"},
         )  # fmt: skip
+    # one time vector for every sensor (the .mat's t): one clock, as the readers mark it
+    mark_shared_clock(list(session.sensors.values()), "one time vector t in the .mat file")
     prepare_sensors(session)
     return session
 

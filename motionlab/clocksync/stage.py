@@ -79,7 +79,7 @@ from motionlab.clocksync.pairs import joint_pairs, sync_forest
 from motionlab.io.clock import SHARED_CLOCK
 from motionlab.kinematics.segment_types import kind_side
 from motionlab.protocol import Protocol
-from motionlab.results import NOT_LINKED, ClockFit
+from motionlab.results import NOT_LINKED, RELIABLE, VENDOR_KEPT, ClockFit
 from motionlab.session import Session
 
 # allowance for the errors of an impact lag that its block scatter does not show (medians
@@ -119,9 +119,6 @@ CORROBORATE_S = 0.030
 # root's (the legs without a pelvis sensor) for the heel strikes across to link it: 3 ms of one
 # leg's clock against the other's is 1 % of step-time asymmetry at 110 steps/min
 LINK_MAX_SE_S = 0.003
-
-#: the status of a fit not applied because the vendor synchronised the sensors' clocks
-VENDOR_KEPT = "not applied: the vendor synchronised these clocks"
 
 
 def synchronise(
@@ -432,10 +429,6 @@ def _spine(a: str, b: str) -> bool:
     joint-centre fit's spine rule (:func:`motionlab.clocksync.joint_centre.estimate_clock`)."""
     kinds = {kind_side(a)[0], kind_side(b)[0]}
     return len(kinds) == 2 and kinds <= {"pelvis", "lumbar", "thorax"}
-
-
-#: the statuses of a fit that timed its pair (applied, or found the two on one clock already)
-RELIABLE = ("applied", "consistent with one clock")
 
 
 def _reliable(fit: ClockFit) -> bool:

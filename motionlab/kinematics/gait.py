@@ -76,20 +76,28 @@ def _leg_reach(
 def legs_not_linked(session: Session, protocol: Protocol) -> str:
     """Why the two legs' knee sensors are not on one clock (``not given: ...``), or empty: the
     clock sync ran and could not link them (:meth:`~motionlab.results.ClockSync.not_linked`:
-    no pelvis sensor joins them and the heel strikes did not time one leg against the other).
-    Empty without a clock sync (the recorded clocks are taken as one) and for one leg."""
+    no pelvis sensor joins them and the heel strikes did not time one leg against the other),
+    or could not time one of them (:meth:`~motionlab.results.ClockSync.untimed`: kept as
+    recorded, its offset from the other leg unknown). Empty without a clock sync (the recorded
+    clocks are taken as one) and for one leg."""
     sync = session.results.clock_sync
     knees = [j for j in protocol.joints.values() if j.type == "knee"]
     if sync is None or len({j.side for j in knees if sensor_for_segment(session, j.distal)}) < 2:
         return ""
     labels = [sensor_for_segment(session, s) for j in knees for s in (j.proximal, j.distal)]
-    why = sync.not_linked([lab for lab in labels if lab is not None])
-    if not why:
+    labels = [lab for lab in labels if lab is not None]
+    if why := sync.not_linked(labels):
+        why = f"are not linked ({why}"
+    elif why := sync.untimed(labels):
+        sensor, status = why.split(": ", 1)
+        status = status.removeprefix("not reliable: ")
+        why = (f"were not all timed ({sensor}'s kept as recorded, {status}: one leg's offset "
+               "from the other unknown")  # fmt: skip
+    else:
         return ""
     return (
-        f"not given: the two legs' sensor clocks are not linked ({why}; sensors on one radio "
-        "clock their files do not show, e.g. a legacy Xsens Awinda export, need no clock sync: "
-        "--no-clock-sync)"
+        f"not given: the two legs' sensor clocks {why}; sensors on one radio clock their files "
+        "do not show, e.g. a legacy Xsens Awinda export, need no clock sync: --no-clock-sync)"
     )
 
 

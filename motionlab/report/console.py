@@ -10,7 +10,6 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from motionlab.clocksync.stage import VENDOR_KEPT
 from motionlab.kinematics.gait_course import change_text, walk_courses
 from motionlab.report.model import (
     REACH_TOLERANCE_DEG,
@@ -31,6 +30,7 @@ from motionlab.report.sentences import (
     span,
     task_name,
 )
+from motionlab.results import VENDOR_KEPT
 
 if TYPE_CHECKING:
     from motionlab.report import ReportOutput

@@ -50,7 +50,7 @@ _LABELS = {
 
 
 #: the table's cell of a number that compares the legs when their clocks are not linked
-NOT_LINKED_CELL = "withheld: the legs' clocks are not linked"
+NOT_LINKED_CELL = "withheld: the legs' clocks are not synchronised"
 
 #: the stride-table columns that need the legs' lengths (the leg model)
 LENGTH_COLUMNS = ("step_length_m", "stride_length_m", "walking_speed_m_s")

@@ -20,7 +20,6 @@ from typing import Any
 
 import numpy as np
 
-from motionlab.clocksync.stage import RELIABLE, VENDOR_KEPT
 from motionlab.kinematics.joint_types import JOINT_TYPES, angle_names, joint_type
 from motionlab.report.model import (
     NOT_DETERMINED,
@@ -54,7 +53,7 @@ from motionlab.report.model import (
     walking_spans,
     worst_grade,
 )
-from motionlab.results import NOT_LINKED
+from motionlab.results import NOT_LINKED, RELIABLE, VENDOR_KEPT
 
 #: what each out-of-plane metric means, in one sentence
 MEANING = {
@@ -478,6 +477,11 @@ def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[s
             "compute the angles from the fused orientations (motionlab angles without "
             "--method accel-only)"
         )
+    if "not timed against each other" in r:  # segments.grades.clock_graded: clocks as recorded
+        return "the sensors' clocks were not synchronised", (
+            "record with the sensors' clocks synchronised by their software (sensors that "
+            "share one clock: run with --no-clock-sync)"
+        )
     if "packet-loss gap" in r:  # segments.gap_headings: a hidden turn the heading keeps
         return "lost packets may have turned a sensor's heading", (
             "keep the receiver close to the subject and in sight of the sensors, so that fewer "
@@ -628,8 +632,10 @@ def quality_notes(view: SessionView) -> list[str]:
         notes.append(
             f"Clock{'s' if len(unchecked) > 1 else ''} of {', '.join(unchecked)} not "
             "synchronised (no reliable timing in the recording, see 'Sensor clocks'): taken as "
-            "recorded; sensors not synchronised may be off by degrees in fast movement (at "
-            "300°/s, 3° per 10 ms)."
+            "recorded, so the angles between sensors not timed against each other are weak at "
+            "best and the gait numbers comparing the legs are withheld (an offset moves an "
+            "angle by 3° per 10 ms at 300°/s); sensors that share one clock: run with "
+            "--no-clock-sync."
         )
     notes += list(beyond_anatomy(view).values())
     g = view.session.results.gait

@@ -77,6 +77,7 @@ def calibrate_segments(
         result.headings = heading_ties(session, protocol, result)
         result.gap_turns = gap_headings(session, protocol, result.headings, result.centres)
         result.grades = grades.gap_graded(result.grades, result.gap_turns)
+        result.grades = grades.clock_graded(result.grades, protocol, session)
         return result
     notes: list[str] = []
     streams = streams_of(session, protocol)
@@ -157,6 +158,7 @@ def calibrate_segments(
     result.grades = grades.hold_graded(
         result.grades, unheld_headings(session, protocol, result.headings)
     )
+    result.grades = grades.clock_graded(result.grades, protocol, session)
     if pose is None:
         result.hip_axes = hip_axes(session, protocol, result)
     return result

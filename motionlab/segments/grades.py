@@ -78,6 +78,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from motionlab.binding import sensor_for_segment
 from motionlab.kinematics import joint_types
 from motionlab.results import JointGrades
 from motionlab.segments.placement import hinge_spec, twists_about_long_axis
@@ -380,6 +381,29 @@ def gap_graded(graded: dict[str, JointGrades], gap_turns: dict) -> dict[str, Joi
         why = (f"{which} hidden a turn of {turn}, which the joint's heading, tied only where a "
                "pose was held or the walk went straight, keeps until its next anchor")  # fmt: skip
         out[name] = _lowered(out[name], [g_gap] * len(out[name].grades), why)
+    return out
+
+
+def clock_graded(graded: dict[str, JointGrades], protocol, session) -> dict[str, JointGrades]:
+    """``graded`` with each joint whose two sensors the clock sync could not time against each
+    other (:meth:`~motionlab.results.ClockSync.untimed`: one kept as recorded against the
+    other) graded ``weak`` at best: an offset moves the angle by the joint's speed times it
+    (a simulated harsh walk's left shank, 52 ms from its thigh, read 10° more knee flexion in
+    swing, graded determined, and a range 12 % apart from the right knee's). Without a clock
+    sync (``--no-clock-sync``, or the vendor's clocks) the recorded clocks are taken as one."""
+    sync = session.results.clock_sync
+    out = dict(graded)
+    for name, joint in protocol.joints.items():
+        labels = [sensor_for_segment(session, seg) for seg in (joint.proximal, joint.distal)]
+        why = sync.untimed(labels) if sync is not None and None not in labels else ""
+        if name not in out or not why:
+            continue
+        sensor, status = why.split(": ", 1)
+        status = status.removeprefix("not reliable: ")
+        why = (f"the clocks of {labels[0]} and {labels[1]} were not timed against each other "
+               f"({sensor}'s kept as recorded: {status}); an offset moves the angle by the "
+               "joint's speed times it (3° per 10 ms at 300°/s)")  # fmt: skip
+        out[name] = _lowered(out[name], ["weak"] * len(out[name].grades), why)
     return out
 
 
