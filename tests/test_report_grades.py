@@ -661,9 +661,9 @@ def test_clocks_the_sync_could_not_check_are_said_among_the_findings(walk):
     assert with_fits(refused, "applied", "not enough shared movement") == [
         "Clocks of thigh_r, shank_r not synchronised (no reliable timing in the recording, see "
         "'Sensor clocks'): taken as recorded, so the angles between sensors not timed against "
-        "each other are weak at best and the gait numbers comparing the legs are withheld (an "
-        "offset moves an angle by 3° per 10 ms at 300°/s); sensors that share one clock: run "
-        "with --no-clock-sync."
+        "each other are weak at best where they turn fast and the gait numbers comparing the "
+        "legs are withheld (an offset moves an angle by 3° per 10 ms at 300°/s); sensors that "
+        "share one clock: run with --no-clock-sync."
     ]
     assert with_fits("applied", "consistent with one clock") == []
     assert with_fits(f"{VENDOR_KEPT} (one time column); the data's fit said: {refused}") == []

@@ -633,9 +633,9 @@ def quality_notes(view: SessionView) -> list[str]:
             f"Clock{'s' if len(unchecked) > 1 else ''} of {', '.join(unchecked)} not "
             "synchronised (no reliable timing in the recording, see 'Sensor clocks'): taken as "
             "recorded, so the angles between sensors not timed against each other are weak at "
-            "best and the gait numbers comparing the legs are withheld (an offset moves an "
-            "angle by 3° per 10 ms at 300°/s); sensors that share one clock: run with "
-            "--no-clock-sync."
+            "best where they turn fast and the gait numbers comparing the legs are withheld (an "
+            "offset moves an angle by 3° per 10 ms at 300°/s); sensors that share one clock: "
+            "run with --no-clock-sync."
         )
     notes += list(beyond_anatomy(view).values())
     g = view.session.results.gait

@@ -399,6 +399,9 @@ def data_signs(
     step's start, at least ``ONE_WAY_MIN_DEG`` and ``ONE_WAY_RATIO`` times the other) turns
     about the axis as the protocol signs it: a shoulder or an elbow flexes forward (``z``), a
     trunk bends forward (``-z``), an arm abducts sideways (``-x`` on the right) from standing.
+    The gyroscope is integrated less its mean over the reference pose (its bias: 2°/s, the
+    ``harsh`` preset's, turned a 20-s trunk flexion's 50° out and back into 40° one way, and
+    both trunk frames half a turn round: lumbar flexion read as extension, r = -0.99).
     A step that goes both ways (pronation, side bending) or starts elsewhere (the knee's seated
     flexion, which starts flexed and extends) tells nothing by its excursion; its axis, where
     it is the segment's long axis ``y`` and lies within ``LONG_AXIS_UP_DEG`` of the vertical in
@@ -418,6 +421,8 @@ def data_signs(
         t, _, gyr = streams[seg]
         up = _up(streams, seg, *ref)
         up = np.zeros(3) if up is None else up
+        still = (t >= ref[0]) & (t < ref[1])
+        bias = gyr[still].mean(axis=0) if still.sum() >= 3 else np.zeros(3)
         for rec in recs.values():
             step = by_name.get(rec.step)
             span = steps.get(rec.step)
@@ -437,7 +442,7 @@ def data_signs(
             sel = (t >= span[0]) & (t <= span[1])
             if sel.sum() < 10:
                 continue
-            rate = gyr[sel] @ rec.sensor_axis
+            rate = (gyr[sel] - bias) @ rec.sensor_axis
             turned = np.degrees(np.concatenate([[0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1])
                                                                  * np.diff(t[sel]))]))  # fmt: skip
             pos, neg = float(turned.max()), float(-turned.min())
