@@ -182,6 +182,12 @@ class ClockFit:
     method: str = "joint centre"  # or "impacts" (heel-strike transients)
     other: str = ""
 
+    @property
+    def timed(self) -> bool:
+        """Whether the sync timed this sensor (:data:`RELIABLE`) or kept the vendor's
+        synchronisation (:data:`VENDOR_KEPT`); a part's root :data:`NOT_LINKED` is not."""
+        return self.status in RELIABLE or self.status.startswith(VENDOR_KEPT)
+
     def error_s(self, t: np.ndarray) -> np.ndarray:
         """c(t) (s) at reference times ``t``."""
         return self.offset_s + self.drift * (np.asarray(t, float) - self.t_mid_s)
@@ -245,10 +251,10 @@ class ClockSync:
         (a sensor without a fit is on its own clock)."""
         return self._chain(label)[1]
 
-    def untimed(self, labels: list[str]) -> str:
-        """The first sensor between ``labels`` whose clock the sync could not time (its fit
-        neither :data:`RELIABLE` nor the vendor's synchronisation kept: its stamps taken as
-        recorded against its reference's) and why (``shank_r: not reliable: ...``), or empty.
+    def untimed(self, labels: list[str]) -> ClockFit | None:
+        """The fit of the first sensor between ``labels`` whose clock the sync could not time
+        (not :attr:`ClockFit.timed`: its stamps taken as recorded against its reference's), or
+        ``None``.
         Between: on the way from each label up to the first sensor all their ways pass (a
         knee's shank timed against its thigh is timed for the knee, whatever the thigh's own
         fit). Such sensors are on one clock only as well as the recording kept them together:
@@ -261,9 +267,9 @@ class ClockSync:
             for fit in chain:
                 if fit.sensor in shared:
                     break
-                if fit.status not in RELIABLE and not fit.status.startswith(VENDOR_KEPT):
-                    return f"{fit.sensor}: {fit.status}"
-        return ""
+                if not fit.timed:
+                    return fit
+        return None
 
     def not_linked(self, labels: list[str]) -> str:
         """Why the sensors ``labels`` are not all on one clock after the sync (``thigh_l: no

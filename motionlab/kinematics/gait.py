@@ -88,11 +88,10 @@ def legs_not_linked(session: Session, protocol: Protocol) -> str:
     labels = [lab for lab in labels if lab is not None]
     if why := sync.not_linked(labels):
         why = f"are not linked ({why}"
-    elif why := sync.untimed(labels):
-        sensor, status = why.split(": ", 1)
-        status = status.removeprefix("not reliable: ")
-        why = (f"were not all timed ({sensor}'s kept as recorded, {status}: one leg's offset "
-               "from the other unknown")  # fmt: skip
+    elif fit := sync.untimed(labels):
+        why = (f"were not all timed ({fit.sensor}'s kept as recorded, "
+               f"{fit.status.removeprefix('not reliable: ')}: one leg's offset from the other "
+               "unknown")  # fmt: skip
     else:
         return ""
     return (

@@ -53,7 +53,7 @@ from motionlab.report.model import (
     walking_spans,
     worst_grade,
 )
-from motionlab.results import NOT_LINKED, RELIABLE, VENDOR_KEPT
+from motionlab.results import NOT_LINKED
 
 #: what each out-of-plane metric means, in one sentence
 MEANING = {
@@ -685,8 +685,7 @@ def unchecked_clocks(view: SessionView) -> list[str]:
     matters, by the numbers across the legs withheld."""
     sync = view.session.results.clock_sync
     fits = sync.fits.values() if sync is not None else []
-    return [f.sensor for f in fits if f.status not in RELIABLE
-            and not f.status.startswith((NOT_LINKED, VENDOR_KEPT))]  # fmt: skip
+    return [f.sensor for f in fits if not f.timed and not f.status.startswith(NOT_LINKED)]
 
 
 #: how far (deg) an angle may pass the joint's anatomical range before it is called beyond it:

@@ -405,17 +405,16 @@ def clock_graded(graded: dict[str, JointGrades], protocol, session) -> dict[str,
     out = dict(graded)
     for name, joint in protocol.joints.items():
         labels = [sensor_for_segment(session, seg) for seg in (joint.proximal, joint.distal)]
-        why = sync.untimed(labels) if sync is not None and None not in labels else ""
-        if name not in out or not why:
+        fit = sync.untimed(labels) if sync is not None and None not in labels else None
+        if name not in out or fit is None:
             continue
         speed = max(_speed_p95(session.sensors[lab].gyr) for lab in labels)
         if speed * RECORDED_CLOCK_S <= CLOCK_ERROR_DEG:
             continue
-        sensor, status = why.split(": ", 1)
-        status = status.removeprefix("not reliable: ")
+        status = fit.status.removeprefix("not reliable: ")
         moved = f"{speed * RECORDED_CLOCK_S:.0f}°" if np.isfinite(speed) else "an unknown angle"
         why = (f"the clocks of {labels[0]} and {labels[1]} were not timed against each other "
-               f"({sensor}'s kept as recorded: {status}); at their speed, stamps "
+               f"({fit.sensor}'s kept as recorded: {status}); at their speed, stamps "
                f"{1e3 * RECORDED_CLOCK_S:.0f} ms apart move the angles by {moved}")  # fmt: skip
         out[name] = _lowered(out[name], ["weak"] * len(out[name].grades), why)
     return out
