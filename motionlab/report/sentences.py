@@ -490,6 +490,12 @@ def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[s
     if "tied only where a pose was held" in r:  # segments.grades.hold_graded: drift between
         still = first_pose(view)
         pose = (still.pose or still.name.replace("_", " ")) if still else "standing"
+        if "drifting apart at" in r:  # fast: the hold shortened by the anchors' drift rate
+            return "the sensors' headings drift apart fast between poses", (
+                f"hold the {pose} pose still for 5 s before and after every task (each pose "
+                "held ties the headings again), or calibrate the gyroscopes first (motionlab "
+                "sensorcal, then --calibration)"
+            )
         return "the sensors' headings drift between poses", (
             f"hold the {pose} pose still for 5 s every 2 minutes of the recording (each pose "
             "held ties the headings again)"

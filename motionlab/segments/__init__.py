@@ -156,7 +156,9 @@ def calibrate_segments(
     result.gap_turns = gap_headings(session, protocol, result.headings, result.centres)
     result.grades = grades.gap_graded(grades.grade_joints(protocol, result), result.gap_turns)
     result.grades = grades.hold_graded(
-        result.grades, unheld_headings(session, protocol, result.headings)
+        result.grades,
+        unheld_headings(session, protocol, result.headings),
+        drift_beyond_anchors(session, protocol, result.headings),
     )
     result.grades = grades.clock_graded(result.grades, protocol, session)
     if pose is None:
@@ -226,6 +228,15 @@ def gap_headings(
     return out
 
 
+def _recorded_span(session: Session, joint) -> tuple[float, float] | None:
+    """First and last instant (s) either of a joint's sensors recorded; ``None`` without one."""
+    labels = [sensor_for_segment(session, s) for s in (joint.proximal, joint.distal)]
+    spans = [session.sensors[k].time[[0, -1]] for k in labels if k in session.sensors]
+    if not spans:
+        return None
+    return min(float(a) for a, _ in spans), max(float(b) for _, b in spans)
+
+
 def unheld_headings(session: Session, protocol: Protocol, ties: HeadingTies) -> dict[str, float]:
     """``{joint: s}``: for each joint whose heading is tied only at poses or straight walking
     (:data:`HELD_TIES`), how far its recording (both sensors' spans) reaches from those anchors:
@@ -236,17 +247,36 @@ def unheld_headings(session: Session, protocol: Protocol, ties: HeadingTies) -> 
     for name, tie in ties.joints.items():
         if tie.source not in HELD_TIES or name not in protocol.joints or not len(tie.times):
             continue
-        joint = protocol.joints[name]
-        labels = [sensor_for_segment(session, s) for s in (joint.proximal, joint.distal)]
-        spans = [session.sensors[k].time[[0, -1]] for k in labels if k in session.sensors]
-        if not spans:
+        span = _recorded_span(session, protocol.joints[name])
+        if span is None:
             continue
-        start, end = min(float(a) for a, _ in spans), max(float(b) for _, b in spans)
         anchors = np.sort(np.asarray(tie.times, float))
-        reach = max(anchors[0] - start, end - anchors[-1], 0.0)
+        reach = max(anchors[0] - span[0], span[1] - anchors[-1], 0.0)
         if len(anchors) > 1:
             reach = max(reach, float(np.max(np.diff(anchors))) / 2)
         out[name] = float(reach)
+    return out
+
+
+def drift_beyond_anchors(
+    session: Session, protocol: Protocol, ties: HeadingTies
+) -> dict[str, tuple[float, float]]:
+    """``{joint: (deg/s, s)}``: for each joint tied at its protocol's poses and rests (source
+    ``steps``), the rate its anchors put its two headings drifting apart at
+    (:func:`.heading.drift_rate`, unsigned) and how far its recording reaches before the first
+    anchor or after the last, where the heading track holds (between anchors it is linear: a
+    steady drift is taken out). A walk's ties are left out: they hold the hip's mean rotation in
+    walking as well as the drift."""
+    out = {}
+    for name, tie in ties.joints.items():
+        if tie.source != "steps" or name not in protocol.joints or not len(tie.times):
+            continue
+        span = _recorded_span(session, protocol.joints[name])
+        if span is None:
+            continue
+        rate = abs(float(np.degrees(heading.drift_rate(tie.times, tie.deltas))))
+        beyond = max(min(tie.times) - span[0], span[1] - max(tie.times), 0.0)
+        out[name] = (rate, float(beyond))
     return out
 
 
@@ -473,16 +503,21 @@ def heading_anchors(
     axis_p, axis_d = axis_vector(va[p]), axis_vector(va.get(d, va[p]))
     if times and abs(axis_p[1]) < 0.5:
         return times, deltas  # pose not about the long axis (supine): no pose anchors
+    # the reference pose ties first; the movements' ties and later rests join in time order
+    # where they keep to its track (a turned trunk's held pose does not; nor does a movement's
+    # tie that imperfect gyroscopes threw off: 11-20° on the harsh preset)
+    candidates = sorted(zip(times, deltas, strict=True))
+    times, deltas = [], []
     rng = steps.get(name)
     if rng:
         w = slice(*np.searchsorted(t, rng))
         if w.stop - w.start > 2:
             times.append(float(t[w].mean()))
             deltas.append(heading.heading_from_pose(qp[w], qd[w]))
-    turned = np.cumsum(np.abs(heading.earth_rates(t, qp)[:, 2]) * np.gradient(t))
     for w in heading.reference_rests(t, qp, qd, axis_p, axis_d, loose_distal=d not in va):
-        delta = heading.heading_from_pose(qp[w], qd[w])
-        at = float(t[w].mean())
+        candidates.append((float(t[w].mean()), heading.heading_from_pose(qp[w], qd[w])))
+    turned = np.cumsum(np.abs(heading.earth_rates(t, qp)[:, 2]) * np.gradient(t))
+    for at, delta in sorted(candidates):
         if times and not heading.on_track(times, deltas, at, delta, turned, t):
             continue  # a held pose (a turned trunk), not the reference pose
         times.append(at)

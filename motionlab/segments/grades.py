@@ -64,7 +64,11 @@ whose stand was its only pose read the right hip's rotation 28° RMS off the tru
 5 min and 89-154° in the next, its flexion 4° then 20-36° (the left hip stayed within 1-4°);
 walks of 60-95 s lie at most 47 s from their stand. Farther than ``HEADING_HOLD_S`` from every
 pose, the joint's other angles are ``not determined`` and its first ``weak``; farther than
-three times it, every angle ``not determined``.
+three times it, every angle ``not determined``. A joint tied at its protocol's poses and rests
+is graded the same way by the drift its anchors measured where the track holds, before its
+first anchor and after its last: over ``HEADING_DRIFT_DEG`` at their rate (the harsh preset's
+gyroscopes, 15-23°/min, 39 s past the last rest: lumbar lateral bending 5.7-7.4° off), over
+three times it every angle ``not determined``.
 
 The reason is kept in plain words with each grade. The grades depend on the calibration only:
 the angle table and the report carry them next to every number, and findings are not stated for
@@ -116,6 +120,9 @@ CLOCK_ERROR_DEG = 2.0
 #: a joint tied only at poses holds its heading this long from the nearest pose (s); see
 #: :func:`hold_graded`
 HEADING_HOLD_S = 120.0
+#: the heading drift (deg) a joint tied at poses may gather before its first or after its last
+#: anchor, at the rate its anchors measured (:func:`hold_graded`)
+HEADING_DRIFT_DEG = 5.0
 
 
 def _worse(a: str, b: str) -> str:
@@ -428,22 +435,44 @@ def _speed_p95(gyr: np.ndarray | None) -> float:
     return float(np.degrees(np.nanpercentile(np.linalg.norm(gyr, axis=1), 95)))
 
 
-def hold_graded(graded: dict[str, JointGrades], unheld: dict[str, float]) -> dict[str, JointGrades]:
+def hold_graded(
+    graded: dict[str, JointGrades],
+    unheld: dict[str, float],
+    drift: dict[str, tuple[float, float]] | None = None,
+) -> dict[str, JointGrades]:
     """``graded`` with each joint of ``unheld`` (``{joint: s}``: how far the recording reaches
     from the poses that tie its heading, :func:`motionlab.segments.unheld_headings`) graded by
     it: over ``HEADING_HOLD_S`` its angles after the first ``not determined`` and the first
-    ``weak``, over three times it all ``not determined`` (module notes)."""
+    ``weak``, over three times it all ``not determined`` (module notes). So too by ``drift``
+    (``{joint: (deg/s, s)}``, :func:`motionlab.segments.drift_beyond_anchors`: the rate its
+    anchors put the two headings drifting apart at, and how far the recording reaches beyond
+    its first or last anchor, where the track holds): the drift gathered there against
+    ``HEADING_DRIFT_DEG`` (sensors with large gyroscope biases)."""
     out = dict(graded)
+    tied = ("its heading is tied only where a pose was held or the walk went straight, and the "
+            "recording reaches")  # fmt: skip
     for name, seconds in unheld.items():
         if name not in out or not seconds > HEADING_HOLD_S:
             continue
-        why = (f"its heading is tied only where a pose was held or the walk went straight, and "
-               f"the recording reaches {seconds / 60:.0f} min from those (the 6-D fusion's "
-               "heading drifts about the vertical in between)")  # fmt: skip
+        why = (f"{tied} {seconds / 60:.0f} min from those (the 6-D fusion's heading drifts "
+               "about the vertical in between)")  # fmt: skip
         first = "weak" if seconds <= 3 * HEADING_HOLD_S else "not determined"
-        lowest = [first] + ["not determined"] * (len(out[name].grades) - 1)
-        out[name] = _lowered(out[name], lowest, why)
+        out[name] = _lowered(out[name], _first_kept(out[name], first), why)
+    for name, (rate, beyond) in (drift or {}).items():
+        drifted = rate * beyond
+        if name not in out or not drifted > HEADING_DRIFT_DEG:
+            continue
+        why = (f"{tied} {beyond:.0f} s past those, while its poses put the two sensors' headings "
+               f"drifting apart at {rate * 60:.0f}°/min: about {drifted:.0f}° by then")  # fmt: skip
+        first = "weak" if drifted <= 3 * HEADING_DRIFT_DEG else "not determined"
+        out[name] = _lowered(out[name], _first_kept(out[name], first), why)
     return out
+
+
+def _first_kept(joint: JointGrades, first: str) -> list[str]:
+    """The lowest grades of a joint whose heading is unknown: ``first`` for its first angle,
+    ``not determined`` for the others."""
+    return [first] + [NOT_DETERMINED] * (len(joint.grades) - 1)
 
 
 def _lowered(joint: JointGrades, lowest: list[str], why: str) -> JointGrades:

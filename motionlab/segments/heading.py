@@ -15,10 +15,13 @@ between them (held before the first and after the last):
   ``tr(R_prox,kᵀ R_z(δ) R_dist,k)`` over the still window (:func:`heading_from_pose`); later rests
   in the same pose (both segments still for ``REST_MIN_S``, their vertical axes within
   ``REST_TILT_DEG`` of vertical) re-reference it, which removes the drift between tasks (To 2012
-  §8.2 re-references at pauses). A rest whose δ is off the track so far by more than
-  ``REST_JUMP_DEG`` plus the drift the turning since the last anchor can explain
-  (``DRIFT_PER_TURN`` of the proximal segment's accumulated turning about the vertical) is a
-  held pose (a turned trunk), not the reference pose, and is skipped (:func:`on_track`);
+  §8.2 re-references at pauses). The reference pose ties first; the movements' ties and the
+  later rests join in time order where they keep to the track so far, carried on at the drift
+  rate its anchors measured (:func:`drift_rate`), within ``REST_JUMP_DEG`` plus the drift the
+  turning since the last anchor can explain (``DRIFT_PER_TURN`` of the proximal segment's
+  accumulated turning about the vertical) plus ``DRIFT_CHANGE`` per second since it; one that
+  does not is a held pose (a turned trunk) or a movement's tie that imperfect gyroscopes threw
+  off, and is skipped (:func:`on_track`);
 - the hinge constraint (:func:`heading_from_hinge`): the joint axis seen from both segments
   (after Laidig et al., Sensors 2022 22:9850). For a joint whose axis was calibrated from
   movement it holds at every sample, so :func:`hinge_anchors` measures δ over the whole
@@ -47,6 +50,17 @@ REST_TILT_DEG = 10.0
 REST_MIN_S = 2.0
 REST_JUMP_DEG = 6.0
 DRIFT_PER_TURN = 0.02  # heading drift allowed per turn of the segment (gyro scale errors)
+#: a rest is compared with the track carried on at the drift rate its anchors so far measured
+#: (:func:`drift_rate`), and may lie this much (rad/s) times the time since the last anchor
+#: further off it: how fast that rate may change (0.3°/s). The skin preset's relative trunk
+#: heading drifted 14° in the 37 s of an axial-rotation task after anchors that had measured
+#: 0.01°/s; with the harsh preset's gyroscopes (0.1-0.4°/s about the vertical apart after the
+#: fusion) neutral rests 40 s after the last anchor lay 9-20° off it and were refused, while
+#: end-range holds of the axial rotation whose ±35° the drift had half made up were taken:
+#: lumbar rotation 21-27° RMS off, graded determined
+DRIFT_CHANGE = np.radians(0.3)
+#: anchors spanning less than this (s) measure no drift rate (their own scatter would be one)
+DRIFT_SPAN_MIN_S = 20.0
 HINGE_WINDOW_S = 4.0
 HINGE_STEP_S = 1.0
 HINGE_MIN_HORIZONTAL = 0.3  # mean horizontal part of the unit axis, at least
@@ -313,14 +327,31 @@ def on_track(
     turned: np.ndarray,
     t: np.ndarray,
 ) -> bool:
-    """Whether a rest's ``delta`` at time ``at`` fits the anchors so far (see the module notes).
-
-    ``turned`` (rad, on ``t``) is the proximal segment's accumulated turning about the vertical.
+    """Whether a rest's ``delta`` at time ``at`` fits the anchors so far (see the module notes):
+    within ``REST_JUMP_DEG`` of their track carried on from the last anchor at the drift rate
+    they measured (:func:`drift_rate`), plus ``DRIFT_PER_TURN`` of the proximal segment's
+    turning about the vertical since the last anchor (``turned``, rad on ``t``: accumulated),
+    plus ``DRIFT_CHANGE`` times the time since the last anchor.
     """
+    last = max(times)
+    ahead = max(at - last, 0.0)
     pred = heading_track(np.array(times), np.array(deltas), np.array([at]))[0]
-    since = np.interp(at, t, turned) - np.interp(max(times), t, turned)
-    allowed = np.radians(REST_JUMP_DEG) + DRIFT_PER_TURN * max(since, 0.0)
+    pred += drift_rate(times, deltas) * ahead
+    since = np.interp(at, t, turned) - np.interp(last, t, turned)
+    allowed = np.radians(REST_JUMP_DEG) + DRIFT_PER_TURN * max(since, 0.0) + DRIFT_CHANGE * ahead
     return abs(float(np.angle(np.exp(1j * (delta - pred))))) <= allowed
+
+
+def drift_rate(times, deltas) -> float:
+    """How fast (rad/s, signed) two 6-D headings drifted apart by their anchors ``(times s,
+    deltas rad)``: the change from the first anchor to the last over the time between them (0
+    when they span less than ``DRIFT_SPAN_MIN_S``)."""
+    if not len(times):
+        return 0.0
+    order = np.argsort(times)
+    t, d = np.asarray(times, float)[order], np.unwrap(np.asarray(deltas, float)[order])
+    span = float(t[-1] - t[0])
+    return float(d[-1] - d[0]) / span if span >= DRIFT_SPAN_MIN_S else 0.0
 
 
 def heading_track(times: np.ndarray, deltas: np.ndarray, t: np.ndarray) -> np.ndarray:
