@@ -172,6 +172,10 @@ STANDS_IN = "; the frame takes it all the same: its placement hint says nothing"
 #: pose) or, a hip's, where the walk went straight: the heading drifts freely in between, and a
 #: turn about the vertical that a packet-loss gap hid stays until the next anchor
 HELD_TIES = ("steps", "single pose", "walk")
+#: how far apart (deg) two ties of one held pose may lie with no drift at all: a person stands
+#: a little differently each time (the real 16-IMU walk's rests 7 s apart: hip rotation 2.5°
+#: and 5° apart), so that much of the change between the first and the last is not drift
+POSE_SCATTER_DEG = 5.0
 #: a gap with a walk's anchors this close (s) on both sides is taken out by them (one a second)
 GAP_BRACKET_S = 5.0
 
@@ -262,11 +266,11 @@ def drift_beyond_anchors(
     session: Session, protocol: Protocol, ties: HeadingTies
 ) -> dict[str, tuple[float, float]]:
     """``{joint: (deg/s, s)}``: for each joint tied at its protocol's poses and rests (source
-    ``steps``), the rate its anchors put its two headings drifting apart at
-    (:func:`.heading.drift_rate`, unsigned) and how far its recording reaches before the first
-    anchor or after the last, where the heading track holds (between anchors it is linear: a
-    steady drift is taken out). A walk's ties are left out: they hold the hip's mean rotation in
-    walking as well as the drift."""
+    ``steps``), the rate its anchors put its two headings drifting apart at (the change from
+    the first to the last, :func:`.heading.drift_rate`, less ``POSE_SCATTER_DEG``, over the
+    time between them) and how far its recording reaches before the first anchor or after the
+    last, where the heading track holds (between anchors it is linear: a steady drift is taken
+    out). A walk's ties are left out: they hold the hip's mean rotation in walking as well."""
     out = {}
     for name, tie in ties.joints.items():
         if tie.source != "steps" or name not in protocol.joints or not len(tie.times):
@@ -274,9 +278,10 @@ def drift_beyond_anchors(
         span = _recorded_span(session, protocol.joints[name])
         if span is None:
             continue
-        rate = abs(float(np.degrees(heading.drift_rate(tie.times, tie.deltas))))
-        beyond = max(min(tie.times) - span[0], span[1] - max(tie.times), 0.0)
-        out[name] = (rate, float(beyond))
+        first, last = float(min(tie.times)), float(max(tie.times))
+        drifted = abs(float(np.degrees(heading.drift_rate(tie.times, tie.deltas)))) * (last - first)
+        rate = max(drifted - POSE_SCATTER_DEG, 0.0) / max(last - first, 1e-9)
+        out[name] = (rate, max(first - span[0], span[1] - last, 0.0))
     return out
 
 
@@ -519,7 +524,7 @@ def heading_anchors(
     turned = np.cumsum(np.abs(heading.earth_rates(t, qp)[:, 2]) * np.gradient(t))
     for at, delta in sorted(candidates):
         if times and not heading.on_track(times, deltas, at, delta, turned, t):
-            continue  # a held pose (a turned trunk), not the reference pose
+            continue  # a held pose (a turned trunk) or a thrown-off tie
         times.append(at)
         deltas.append(delta)
     return times, deltas

@@ -342,7 +342,7 @@ def on_track(
     return abs(float(np.angle(np.exp(1j * (delta - pred))))) <= allowed
 
 
-def drift_rate(times, deltas) -> float:
+def drift_rate(times: np.ndarray | list[float], deltas: np.ndarray | list[float]) -> float:
     """How fast (rad/s, signed) two 6-D headings drifted apart by their anchors ``(times s,
     deltas rad)``: the change from the first anchor to the last over the time between them (0
     when they span less than ``DRIFT_SPAN_MIN_S``)."""
