@@ -39,7 +39,7 @@ def _calibrated(seed: int, preset: str):
     return session, truth
 
 
-@pytest.fixture(scope="module", params=[(0, "harsh"), (3, "harsh"), (1, "skin")])
+@pytest.fixture(scope="module", params=[(0, "harsh"), (1, "skin")])
 def lumbar_session(request):
     return (*_calibrated(*request.param), request.param)
 
@@ -64,8 +64,8 @@ def test_headings_drifting_apart_fast_past_the_last_anchor_are_graded(lumbar_ses
     """Seed 0's anchors put the two headings 20°/min apart and its recording runs on 39 s past
     the last (no neutral rest after the axial rotation): about 13°, so lateral bending and
     axial rotation (5.7° and 4.7° RMS off, each earlier graded determined) are not determined
-    and flexion weak. Seed 3 (12°/min) and the skin preset (under 1°/min) end on a neutral
-    rest and keep their grades."""
+    and flexion weak. The skin preset's (under 1°/min, ending on a neutral rest) keep their
+    grades."""
     session, _, (seed, preset) = lumbar_session
     cal = session.results.calibration
     tie = cal.headings.joints["lumbar"]
