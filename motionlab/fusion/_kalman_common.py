@@ -22,6 +22,7 @@ from motionlab.fusion import detect
 from motionlab.fusion._common import prepare_mag
 from motionlab.fusion.markers import MarkerReferences, interval_rates, scenario
 from motionlab.fusion.registry import FusionResult, KernelParams, param, register
+from motionlab.fusion.rest import fusion_rest
 from motionlab.rotations import make_continuous
 
 
@@ -74,10 +75,9 @@ def prepare(
 ) -> Prepared:
     """Rest mask, magnetometer reference and pre-flags, and the initial orientation
     (:func:`~motionlab.fusion._common.prepare_mag`)."""
-    rest = detect.rest_mask(
-        gyr, acc, rate, p.rest_gyr_threshold, p.rest_acc_threshold,
-        min_duration=p.rest_min_duration,
-    )  # fmt: skip
+    rest = fusion_rest(
+        gyr, acc, rate, p.rest_gyr_threshold, p.rest_acc_threshold, p.rest_min_duration
+    )
     q0, mag, pre, use_mag, ref = prepare_mag(gyr, acc, mag, rate, p.mag_norm_tol)
     return Prepared(q0, rest, mag, pre, use_mag, ref[0], ref[1])
 

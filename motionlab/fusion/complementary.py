@@ -30,7 +30,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from motionlab.fusion import detect
 from motionlab.fusion._cf_kernels import (
     adaptive_kernel,
     liu_kernel,
@@ -40,6 +39,7 @@ from motionlab.fusion._cf_kernels import (
 from motionlab.fusion._common import prepare_mag
 from motionlab.fusion.markers import MarkerReferences, interval_rates, scenario
 from motionlab.fusion.registry import FusionResult, param, register
+from motionlab.fusion.rest import fusion_rest
 from motionlab.fusion.timegrid import GapNoise, gap_variance
 
 
@@ -93,7 +93,7 @@ class AdaptiveParams(_Common):
 
 def _prepare(gyr, acc, mag, rate, p: _Common):
     """Initial orientation, start-up length, magnetometer gating inputs and rest mask."""
-    rest = detect.rest_mask(gyr, acc, rate)
+    rest = fusion_rest(gyr, acc, rate)
     q0, mag, pre, use_mag, ref = prepare_mag(gyr, acc, mag, rate, p.mag_norm_tol)
     n_start = int(round(p.startup_time * rate))
     gating = (ref[0], ref[1], p.mag_norm_tol, p.mag_dip_tol)

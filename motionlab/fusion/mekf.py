@@ -18,7 +18,7 @@ Model (conventions of :mod:`motionlab.rotations`: scalar-first quaternions, sens
 - rest: the gyroscope measures the bias directly, a strong bias update (the idea of VQF's rest
   bias estimation, Laidig & Seel 2023). ``mekf`` detects rest from past samples only
   (:func:`causal_rest`), the smoother with the centred window of
-  :func:`motionlab.fusion.detect.rest_mask`, and the smoother's bias update takes only the
+  :func:`motionlab.fusion.rest.fusion_rest`, and the smoother's bias update takes only the
   rest's **steady** stretches (:func:`motionlab.fusion.detect.steady_mask`, ``rest_sway``): a
   person sitting "still" sways and turns slowly at 0.3–0.7°/s, under the rest's 2°/s, and the
   mean of that movement was taken for the bias (the shared trunk recordings: a seated back's
@@ -137,8 +137,9 @@ from motionlab.fusion import _mekf_blocks as blk
 from motionlab.fusion import _mekf_kernels as kern
 from motionlab.fusion import _mekf_monitor as mon_k
 from motionlab.fusion.attitude import initial_orientation
-from motionlab.fusion.detect import field_gate, rest_mask, steady_mask
+from motionlab.fusion.detect import field_gate, steady_mask
 from motionlab.fusion.registry import FusionResult, param, register
+from motionlab.fusion.rest import fusion_rest
 from motionlab.fusion.timegrid import GapNoise
 from motionlab.rotations import (
     conj,
@@ -447,8 +448,8 @@ def run_smoother(
     samples before the last of them take its smoothed state, carried back by the gyroscope.
     """
     p = params
-    rest = rest_mask(
-        gyr, acc, rate, p.rest_gyr_threshold, p.rest_acc_threshold, min_duration=p.rest_min_duration
+    rest = fusion_rest(
+        gyr, acc, rate, p.rest_gyr_threshold, p.rest_acc_threshold, p.rest_min_duration
     )
     steady = steady_mask(gyr, rate, rest, p.rest_sway)
     q0 = initial_orientation(acc, mag)

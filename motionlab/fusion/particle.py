@@ -41,7 +41,7 @@ Model and design (the choices the theses leave open are stated here):
   former ``mag_sigma`` of 10 rad 3.25° against 2.86°).
 - **Gyroscope bias (To §6.5.7, "BC").** One bias estimate shared by the particles (not per
   particle: bias states would make the particles 6-D and need far more of them). At rest
-  (:func:`~motionlab.fusion.detect.rest_mask`) the gyroscope reading is averaged into ``b`` with
+  (:func:`~motionlab.fusion.rest.fusion_rest`) the gyroscope reading is averaged into ``b`` with
   ``bias_rest_tau``; optionally (``bias_tau`` finite, off by default because it cost accuracy on
   the fast BROAD trials) the Mahony-type integral of the filter's own correction: the posterior
   mean's rotation away from the gyro-propagated mean, in the sensor frame ``c``, gives
@@ -84,6 +84,7 @@ from motionlab.fusion.attitude import initial_orientation
 from motionlab.fusion.markers import MarkerReferences, interval_rates, scenario
 from motionlab.fusion.registry import FusionResult, param, register
 from motionlab.fusion.resampling import SCHEMES
+from motionlab.fusion.rest import fusion_rest
 from motionlab.rotations import make_continuous
 from motionlab.units import STANDARD_GRAVITY
 
@@ -205,7 +206,7 @@ def particle_filter(
     acc = np.ascontiguousarray(acc, dtype=float)
     n_s = len(gyr)
     dt = 1.0 / rate
-    rest = detect.rest_mask(gyr, acc, rate)
+    rest = fusion_rest(gyr, acc, rate)
     n0 = max(1, int(round(0.1 * rate)))
     use_mag = mag is not None
     flag = np.zeros(n_s, dtype=bool)

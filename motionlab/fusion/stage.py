@@ -37,7 +37,7 @@ import numpy as np
 
 from motionlab.errors import InputError
 from motionlab.fusion import _mekf_blocks, registry
-from motionlab.fusion.detect import rest_mask
+from motionlab.fusion.rest import fusion_rest
 from motionlab.results import ClockFit, FusionEntry
 from motionlab.rotations import rotate
 from motionlab.session import Session
@@ -209,10 +209,9 @@ def calibration_acc_bias(
     """
     n = len(gyr)
     p = registry.make_params(registry.get("smoother"), params)
-    rest = rest_mask(
-        np.asarray(gyr, dtype=float), np.asarray(acc, dtype=float), rate, p.rest_gyr_threshold,
-        p.rest_acc_threshold, min_duration=p.rest_min_duration,
-    )  # fmt: skip
+    rest = fusion_rest(
+        gyr, acc, rate, p.rest_gyr_threshold, p.rest_acc_threshold, p.rest_min_duration
+    )
     pad = int(round((CALIBRATION_WINDOW_S if window_s is None else window_s) * rate))
     spans = _merged_windows(runs(rest), pad, n)
     wider = dict(params) | {"acc_bias_init": CALIBRATION_ACC_BIAS_INIT}

@@ -469,9 +469,10 @@ def _heading_drift(session, labels: dict[str, str], t, q, gyr, rest: slice) -> n
     """The heading (rad, per sample, 0 at the rest) that turns the distal sensor's 6-D earth
     frame back onto the proximal's as their headings drift apart: each sensor's gyroscope
     over the steady samples of a still rest (:func:`motionlab.fusion.detect.steady_mask`: a
-    back's sway is movement, not bias; none steady, no drift), less the bias its fusion
-    removed there, integrated about the earth vertical through its orientation (``labels``:
-    proximal then distal segment → sensor).
+    back's sway is movement, not bias; none steady, no drift), ``gyr`` being already less the
+    bias its fusion removed (:func:`motionlab.segments.sensors.corrected_gyr`), integrated
+    about the earth vertical through its orientation (``labels``: proximal then distal segment
+    → sensor).
     ``None`` unless both fusions are 6-D and report their gyroscope bias (a vendor's or a 9-D
     orientation has its own heading reference)."""
     drifts = []
@@ -486,9 +487,7 @@ def _heading_drift(session, labels: dict[str, str], t, q, gyr, rest: slice) -> n
         if not steady.any():  # a person's sway: the rest shows no bias
             drifts.append(np.zeros(len(t)))
             continue
-        b = np.asarray(fused.gyro_bias, float)
-        bias = b if b.ndim == 1 else _on(t, session.sensors[label].time, b)[rest][steady]
-        left = gyr[seg][rest][steady].mean(axis=0) - np.mean(np.atleast_2d(bias), axis=0)
+        left = gyr[seg][rest][steady].mean(axis=0)  # the rate is less the fusion's bias
         rate = rot.rotate(q[seg], np.broadcast_to(left, (len(t), 3)))[:, 2]
         e = np.concatenate([[0.0], np.cumsum(0.5 * (rate[1:] + rate[:-1]) * np.diff(t))])
         drifts.append(e - e[rest].mean())

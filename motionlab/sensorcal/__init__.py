@@ -19,6 +19,7 @@ References: Ricci, PhD thesis, Campus Bio-Medico 2015, §2.1–2.2 (eqs. 2.2–2
 952-1997 Annex C; Li & Griffiths, GMP 2004; Tedaldi, Pretto & Menegatti, ICRA 2014.
 """
 
+from motionlab.fusion.rest import find_rest
 from motionlab.sensorcal.allan import AllanResult, allan_analysis, allan_deviation
 from motionlab.sensorcal.calfile import (
     ChannelCalibration,
@@ -34,7 +35,6 @@ from motionlab.sensorcal.calfile import (
 from motionlab.sensorcal.ellipsoid import EllipsoidFit, coverage, fibonacci_sphere, fit_ellipsoid
 from motionlab.sensorcal.gyro import GyroBias, gyro_bias
 from motionlab.sensorcal.multiposition import MultiPositionFit, find_poses, multiposition
-from motionlab.sensorcal.rest import find_rest
 
 __all__ = [
     "AllanResult",

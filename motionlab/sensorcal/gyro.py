@@ -3,7 +3,7 @@
 At rest the gyroscope measures its bias plus noise (Ricci 2015, thesis eqs. 2.6–2.7), so the
 bias is the mean angular rate over the rest samples (long-term averaging while stationary,
 thesis §2.2; the Allan curve says how long: about 20 s for the APDM Opal, §2.1). Rest windows
-are found automatically (:func:`motionlab.sensorcal.rest.find_rest`), so any recording with a few
+are found automatically (:func:`motionlab.fusion.rest.find_rest`), so any recording with a few
 seconds of stillness — before, between or after movements — gives a bias.
 
 Units: gyr rad/s, acc m/s², time s. The correction is ``ω = y − bias``.
@@ -17,8 +17,8 @@ from typing import Any
 import numpy as np
 
 from motionlab.errors import InputError
+from motionlab.fusion.rest import find_rest
 from motionlab.sensorcal._validate import positive_rate, samples3
-from motionlab.sensorcal.rest import find_rest
 from motionlab.timebase import runs
 
 
@@ -93,7 +93,7 @@ def gyro_bias(
         Least total rest time, s; less raises :class:`InputError`. Ricci (2015, §2.1) found
         about 20 s optimal for the Opal.
     gyr_threshold, acc_threshold, min_duration
-        Rest detector settings (rad/s, m/s², s), see :func:`~motionlab.sensorcal.rest.find_rest`.
+        Rest detector settings (rad/s, m/s², s), see :func:`~motionlab.fusion.rest.find_rest`.
 
     Returns
     -------

@@ -33,8 +33,8 @@ import numpy as np
 from scipy.optimize import least_squares
 
 from motionlab.errors import InputError
+from motionlab.fusion.rest import find_rest
 from motionlab.sensorcal._validate import positive_rate, samples3
-from motionlab.sensorcal.rest import find_rest
 from motionlab.timebase import runs
 from motionlab.units import STANDARD_GRAVITY
 
@@ -95,7 +95,7 @@ def find_poses(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Mean accelerometer reading (P, 3) and sample count (P,) of each static pose.
 
-    Poses are the rest windows (bias-tolerant detector, :mod:`motionlab.sensorcal.rest`) of at
+    Poses are the rest windows (bias-tolerant detector, :mod:`motionlab.fusion.rest`) of at
     least ``min_duration`` s; without ``gyr`` only the accelerometer judges rest.
     """
     rate = positive_rate(rate)

@@ -27,12 +27,12 @@ from typing import Any
 import numpy as np
 
 from motionlab.errors import InputError
+from motionlab.fusion.rest import find_rest
 from motionlab.sensorcal.allan import AllanResult, allan_analysis
 from motionlab.sensorcal.calfile import ChannelCalibration, SensorCalibration, calibration_key
 from motionlab.sensorcal.ellipsoid import fit_ellipsoid
 from motionlab.sensorcal.gyro import gyro_bias
 from motionlab.sensorcal.multiposition import find_poses, multiposition
-from motionlab.sensorcal.rest import find_rest
 from motionlab.session import SensorStream
 from motionlab.units import STANDARD_GRAVITY
 
