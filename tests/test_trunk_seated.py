@@ -41,10 +41,13 @@ def _crop(session, t0: float, t1: float):
     return s
 
 
-def _errors(session, truth, series: dict[str, np.ndarray] | None = None) -> dict[str, np.ndarray]:
+def _errors(
+    session, truth, series: dict[str, np.ndarray] | None = None, missing: float = 0.05
+) -> dict[str, np.ndarray]:
     """Per plane the error (deg) over the trunk block, with the truth's zero at the rest
     (``series``: the truth's angles per plane on ``truth.time``, default the anatomical); not
-    inside the simulated packet losses, where no angle is given (at most 5 % of the block)."""
+    inside the simulated packet losses, where no angle is given (at most ``missing`` of the
+    block)."""
     cols = session.results.angles.columns()
     t = cols["time_s"]
     rest = session.results.calibration.steps["rest"]
@@ -56,7 +59,7 @@ def _errors(session, truth, series: dict[str, np.ndarray] | None = None) -> dict
         want = truth.joint_angles[f"lumbar_{plane}_deg"] if series is None else series[plane]
         ref = np.interp(t, truth.time, want)
         error = (cols[f"lumbar_{plane}_deg"] - (ref - ref[at_rest].mean()))[inside]
-        assert np.isnan(error).mean() < 0.05
+        assert np.isnan(error).mean() < missing
         out[plane] = error[np.isfinite(error)]
     return out
 
@@ -580,3 +583,37 @@ def test_lumbar_seated_is_suggested_only_for_a_recording_with_enough_trunk_movem
     lumbar = load_protocol("lumbar")
     assert "lumbar_seated" not in fitting_protocols(streams(0.7), lumbar)
     assert "lumbar_seated" in fitting_protocols(streams(TRUNK_MOVEMENT_S + 3.0), lumbar)
+
+
+def test_the_rest_is_not_taken_across_a_whole_body_turn():
+    """Harsh seed 9 (uncalibrated gyroscopes: 2 % scale, 1° misalignment): the stillest rest
+    (37-40 s) follows the everyday movement, in which the body turns 93° about the vertical,
+    and those gyroscope errors carried 6-8° of relative heading through the turn: axial
+    rotation 8.3° RMS off over the trunk block, graded determined. The still stretch before the
+    block is the rest now (axial rotation 1.50° off in the protocol's convention, determined)."""
+    session, truth = simulate("lumbar_seated", duration=40, seed=9, preset="harsh",
+                              rate_hz=50, mounting="random")  # fmt: skip
+    analyse(session, OPTIONS)
+    rest = session.results.calibration.steps["rest"]
+    assert rest[1] <= truth.step("trunk_movement")["start_s"] + 0.5, rest
+    convention = bench_module("seated_trunk_sim").rest_convention_truth(truth, tuple(rest))
+    rmse = {p: float(np.sqrt(np.mean(e**2)))
+            for p, e in _errors(session, truth, convention, missing=0.15).items()}  # fmt: skip
+    assert rmse["axial_rotation"] < 2.5, rmse  # measured 1.50° (8.32° from the late rest)
+
+
+def test_find_rest_prefers_a_still_stretch_not_turned_from_the_movement():
+    from motionlab.segments.trunk_axes import REST_TURN_DEG, find_rest
+
+    t = np.arange(0, 30, 0.02)
+    speed = np.full(len(t), 30.0)
+    speed[(t >= 1) & (t < 3)] = 0.8  # a rest before the movement
+    speed[(t >= 26) & (t < 29)] = 0.3  # stiller, after a whole-body turn
+    turned = np.where(t < 15, 10.0, 10.0 + 2 * REST_TURN_DEG)
+    assert t[find_rest(t, speed)[0]] >= 26.0  # the stillest without the turn
+    a, b, level = find_rest(t, speed, turned)
+    assert 0.9 <= t[a] and t[b - 1] < 3.1 and level == pytest.approx(0.8)
+    near = np.where(t < 15, 10.0, 10.0 + 0.5 * REST_TURN_DEG)
+    assert t[find_rest(t, speed, near)[0]] >= 26.0  # a small turn keeps the stillest
+    moving = speed + 10.0  # nothing still under 5°/s: the stillest, as without the turn
+    assert find_rest(t, moving, turned)[0] == find_rest(t, moving)[0]

@@ -79,7 +79,7 @@ from motionlab.results import (
 from motionlab.segments import grades as grading
 from motionlab.segments import heading
 from motionlab.segments.sensors import sensor_quats, streams_of
-from motionlab.segments.steps import SHORTEST_POSE_S, TRUNK_MOVEMENT_S
+from motionlab.segments.steps import SHORTEST_POSE_S, TRUNK_MOVEMENT_S, TRUNK_MOVING_DEG_S
 from motionlab.session import Session
 from motionlab.timebase import interp_columns
 
@@ -90,6 +90,10 @@ REST_MAX_DEG_S = 20.0  # the stillest second turning faster than this (mean per 
 REST_SLOW_DEG_S = 15.0  # a rest turning faster than this gives every angle ``weak``
 REST_GROW = 1.5  # the rest grows while the 0.2 s speed stays within this × the stillest second's
 STILL_DEG_S = 1.0  # a rest this still (mean deg/s) shows the gyroscope biases
+#: a still stretch turned this much less (deg, about the vertical) from the trunk movement than
+#: the stillest one is the rest (:func:`find_rest`): the harsh simulated preset's 2 % scale and
+#: 1° misalignment carried 6-8° of the two sensors' relative heading through a 93° turn
+REST_TURN_DEG = 45.0
 MOVING_DEG_S = 5.0  # the thorax turning faster than this relative to the pelvis is moving
 MOVEMENT_MIN_S = TRUNK_MOVEMENT_S  # the least trunk movement (s) that can give the axes
 AXIS_RATIO_MIN = 1.5  # the flexion axis's one-sidedness over the other axis's
@@ -113,9 +117,21 @@ def _unit(v: np.ndarray) -> np.ndarray:
     return v / max(float(np.linalg.norm(v)), 1e-12)
 
 
-def find_rest(t: np.ndarray, speed: np.ndarray) -> tuple[int, int, float]:
+def find_rest(
+    t: np.ndarray, speed: np.ndarray, turned: np.ndarray | None = None
+) -> tuple[int, int, float]:
     """``(start, stop, mean speed deg/s)`` of the stillest stretch of at least
-    :data:`REST_MIN_S` (indices into ``t``; ``speed`` deg/s, the mean over the sensors)."""
+    :data:`REST_MIN_S` (indices into ``t``; ``speed`` deg/s, the mean over the sensors).
+
+    ``turned`` (deg per sample of ``t``, optional): how far the body turns about the vertical
+    between a rest starting there and the trunk movement (:func:`_turn_to_movement`). A rest
+    is the axial rotation's zero and ties the two headings, and an uncalibrated gyroscope's
+    scale and misalignment carry a few percent of a whole-body turn into their relative
+    heading; so among the stretches still enough to grow into the stillest one's rest (within
+    :data:`REST_GROW` of it, or 2°/s) and not moving (under
+    :data:`~motionlab.segments.steps.TRUNK_MOVING_DEG_S`), the stillest of those turned least
+    is taken when it is turned :data:`REST_TURN_DEG` less.
+    """
     fs = 1.0 / float(np.median(np.diff(t)))
     n = max(int(round(REST_MIN_S * fs)), 2)
     if len(t) < n:
@@ -125,6 +141,17 @@ def find_rest(t: np.ndarray, speed: np.ndarray) -> tuple[int, int, float]:
         )
     mean = np.convolve(speed, np.ones(n) / n, mode="valid")  # window k .. k+n
     k = int(np.argmin(mean))
+    limit = max(REST_GROW * float(mean[k]), float(mean[k]) + 2.0)
+    if turned is not None:
+        cost = np.asarray(turned, float)[: len(mean)]
+        still = np.flatnonzero(mean <= min(limit, TRUNK_MOVING_DEG_S))
+        if len(still):  # the stillest of those turned least
+            least = still[cost[still] <= cost[still].min() + REST_TURN_DEG / 2]
+            best = int(least[np.argmin(mean[least])])
+        else:
+            best = k
+        if cost[k] - cost[best] > REST_TURN_DEG:
+            k = best
     level = float(mean[k])
     short = uniform_filter1d(speed, max(int(round(0.2 * fs)), 1), mode="nearest")
     limit = max(REST_GROW * level, level + 2.0)
@@ -140,6 +167,21 @@ def find_rest(t: np.ndarray, speed: np.ndarray) -> tuple[int, int, float]:
         else:
             b += 1
     return a, b, level
+
+
+def _turn_to_movement(t: np.ndarray, vertical_rate: np.ndarray, moving: np.ndarray) -> np.ndarray:
+    """Per sample (deg): the mean, over the trunk's ``moving`` samples, of how far the pelvis
+    turns about the vertical (the path, ∫|rate| dt; ``vertical_rate`` rad/s about earth up)
+    between that sample and them. Zeros without movement."""
+    path = np.degrees(np.concatenate([[0.0], np.cumsum(np.abs(vertical_rate[1:]) * np.diff(t))]))
+    at = path[moving]  # non-decreasing
+    if not len(at):
+        return np.zeros(len(t))
+    before = np.searchsorted(at, path, side="right")
+    total = np.concatenate([[0.0], np.cumsum(at)])
+    below = path * before - total[before]
+    above = (total[-1] - total[before]) - path * (len(at) - before)
+    return (below + above) / len(at)
 
 
 def _on(t: np.ndarray, ts: np.ndarray, x: np.ndarray) -> np.ndarray:
@@ -301,8 +343,20 @@ def calibrate(
     gyr = {s: _on(t, streams[s][0], streams[s][2]) for s in segs}
     q = {s: rot.resample(*quats[s], t) for s in segs}
 
+    # heading of the thorax's fusion onto the pelvis's, from the movement's rates
+    w_p = rot.rotate(q[p], gyr[p])
+    w_d = rot.rotate(q[d], gyr[d])
+    delta = heading.heading_from_rates(w_p, w_d)
+    turned = rot.rotate(rot.from_axis_angle(np.array([0.0, 0.0, 1.0]), delta), w_d)
+    h_p, h_d = w_p[:, :2], turned[:, :2]
+    heading_rho = float(np.sum(h_p * h_d) / max(np.sqrt(np.sum(h_p**2) * np.sum(h_d**2)), 1e-12))
+    q_d = heading.apply_heading(q[d], delta)
+    q_rel = rot.mul(rot.conj(q[p]), q_d)  # thorax sensor → pelvis sensor
+    w_rel = gyr[d] - rot.rotate(rot.conj(q_rel), gyr[p])
+    trunk_moving = np.degrees(np.linalg.norm(w_rel, axis=1)) > MOVING_DEG_S
+
     speed = np.mean([np.degrees(np.linalg.norm(gyr[s], axis=1)) for s in segs], axis=0)
-    a, b, level = find_rest(t, speed)
+    a, b, level = find_rest(t, speed, _turn_to_movement(t, w_p[:, 2], trunk_moving))
     if level > REST_MAX_DEG_S:
         speed_text = f"{level:.0f}" if level >= REST_MAX_DEG_S + 0.5 else f"{level:.1f}"
         raise InputError(
@@ -318,20 +372,9 @@ def calibrate(
     rest_rho = {s: float(np.linalg.norm(np.mean([_unit(v) for v in acc[s][rest]], axis=0)))
                 for s in segs}  # fmt: skip
 
-    # heading of the thorax's fusion onto the pelvis's, from the movement's rates
-    w_p = rot.rotate(q[p], gyr[p])
-    w_d = rot.rotate(q[d], gyr[d])
-    delta = heading.heading_from_rates(w_p, w_d)
-    turned = rot.rotate(rot.from_axis_angle(np.array([0.0, 0.0, 1.0]), delta), w_d)
-    h_p, h_d = w_p[:, :2], turned[:, :2]
-    heading_rho = float(np.sum(h_p * h_d) / max(np.sqrt(np.sum(h_p**2) * np.sum(h_d**2)), 1e-12))
-    q_d = heading.apply_heading(q[d], delta)
-    q_rel = rot.mul(rot.conj(q[p]), q_d)  # thorax sensor → pelvis sensor
-    w_rel = gyr[d] - rot.rotate(rot.conj(q_rel), gyr[p])
-
     moving = np.ones(len(t), bool)
     moving[rest] = False
-    turning = moving & (np.degrees(np.linalg.norm(w_rel, axis=1)) > MOVING_DEG_S)
+    turning = moving & trunk_moving
     moved_s = float(turning.sum() * np.median(np.diff(t)))
     if moving.sum() < 2 or np.degrees(np.sqrt(np.mean(np.sum(w_rel[moving] ** 2, 1)))) < 5.0:
         why = "the thorax hardly turns relative to the pelvis"
