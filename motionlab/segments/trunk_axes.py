@@ -145,7 +145,7 @@ def find_rest(
     if turned is not None:
         cost = np.asarray(turned, float)[: len(mean)]
         still = np.flatnonzero(mean <= min(limit, TRUNK_MOVING_DEG_S))
-        if len(still):  # the stillest of those turned least
+        if len(still) and np.isfinite(cost[still]).all():  # the stillest of those turned least
             least = still[cost[still] <= cost[still].min() + REST_TURN_DEG / 2]
             best = int(least[np.argmin(mean[least])])
         else:
@@ -173,7 +173,8 @@ def _turn_to_movement(t: np.ndarray, vertical_rate: np.ndarray, moving: np.ndarr
     """Per sample (deg): the mean, over the trunk's ``moving`` samples, of how far the pelvis
     turns about the vertical (the path, ∫|rate| dt; ``vertical_rate`` rad/s about earth up)
     between that sample and them. Zeros without movement."""
-    path = np.degrees(np.concatenate([[0.0], np.cumsum(np.abs(vertical_rate[1:]) * np.diff(t))]))
+    rate = np.abs(np.nan_to_num(np.asarray(vertical_rate, float)[1:]))  # a gap turns nothing
+    path = np.degrees(np.concatenate([[0.0], np.cumsum(rate * np.diff(t))]))
     at = path[moving]  # non-decreasing
     if not len(at):
         return np.zeros(len(t))
