@@ -227,3 +227,36 @@ def _events(ic: np.ndarray):
     from motionlab.results import GaitEvents
 
     return GaitEvents(ic, np.ones(len(ic)), ic + 0.68, np.ones(len(ic)))
+
+
+def test_a_refused_fit_that_measured_the_clocks_far_apart_leaves_the_joint_not_determined():
+    """A simulated harsh arm (seed 3): the forearm's clock 116 ms from its upper arm's; the
+    joint-centre fit said 120 ± 3 ms but was refused (its residual, soft tissue), so the elbow
+    was read on the recorded stamps, flexion 13.9° RMS off, graded weak. At the sensors' speed
+    the offset the refused fit measured, less twice its error, moves the angles by more than
+    CLOCK_UNDETERMINED_DEG: not determined. An offset it measured near zero keeps weak."""
+    from types import SimpleNamespace
+
+    from motionlab.results import JointGrades
+    from motionlab.segments import grades
+
+    t = np.arange(0, 20, 0.01)
+    gyr = np.column_stack([np.radians(200.0) * np.sin(2 * np.pi * 0.5 * t), 0 * t, 0 * t])
+    sensors = {s: SimpleNamespace(gyr=gyr, segment=s, side="") for s in ("upperarm_r", "forearm_r")}
+    protocol = SimpleNamespace(joints={"elbow_r": SimpleNamespace(
+        proximal="upperarm_r", distal="forearm_r")})  # fmt: skip
+    base = {"elbow_r": JointGrades(["determined"] * 3, [""] * 3)}
+    poor = "not reliable: the shared joint centre fits poorly (residual 0.12 m/s²)"
+
+    def graded(offset_s: float, se_s: float) -> JointGrades:
+        fit = ClockFit("upperarm_r", "forearm_r", offset_s, 0.0, 10.0, se_s, 1e-6, 0.12, 30.0,
+                       poor, "joint centre")  # fmt: skip
+        session = SimpleNamespace(sensors=sensors, results=SimpleNamespace(
+            clock_sync=ClockSync({"forearm_r": fit})))  # fmt: skip
+        return grades.clock_graded(base, protocol, session)["elbow_r"]
+
+    far = graded(-0.120, 0.003)
+    assert far.grades == ["not determined"] * 3
+    assert "the data put them 120 ± 3 ms apart: at least" in far.reasons[0]
+    assert graded(-0.010, 0.003).grades == ["weak"] * 3
+    assert graded(-0.120, 0.080).grades == ["weak"] * 3  # a fit that measured nothing

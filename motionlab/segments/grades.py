@@ -117,6 +117,11 @@ GAP_TURN_DEG = 10.0
 RECORDED_CLOCK_S = 0.020
 #: the angle error (deg) that offset may cause before the joint is weak (:func:`clock_graded`)
 CLOCK_ERROR_DEG = 2.0
+#: the angle error (deg) beyond which the offset the refused fit itself measured (less twice its
+#: standard error) makes the joint not determined (:func:`clock_graded`; the cross-talk scale's
+#: ``weak`` bound): a simulated harsh arm's forearm, 116 ms from its upper arm (the refused fit
+#: said 120 ± 3 ms), read elbow flexion 13.9° RMS off, graded weak
+CLOCK_UNDETERMINED_DEG = 6.0
 #: a joint tied only at poses holds its heading this long from the nearest pose (s); see
 #: :func:`hold_graded`
 HEADING_HOLD_S = 120.0
@@ -407,7 +412,9 @@ def clock_graded(graded: dict[str, JointGrades], protocol, session) -> dict[str,
     thigh, read 10° more knee flexion in swing, graded determined, and a range 12 % apart from
     the right knee's); a trunk bending at 30°/s over a still pelvis moves 0.6° in 20 ms.
     Without a clock sync (``--no-clock-sync``, or the vendor's clocks) the recorded clocks are
-    taken as one."""
+    taken as one. Where the refused fit itself put the two clocks so far apart (its offset less
+    twice its standard error) that their speed moves the angles by over
+    ``CLOCK_UNDETERMINED_DEG``, they are ``not determined``."""
     sync = session.results.clock_sync
     out = dict(graded)
     for name, joint in protocol.joints.items():
@@ -423,7 +430,15 @@ def clock_graded(graded: dict[str, JointGrades], protocol, session) -> dict[str,
         why = (f"the clocks of {labels[0]} and {labels[1]} were not timed against each other "
                f"({fit.sensor}'s kept as recorded: {status}); at their speed, stamps "
                f"{1e3 * RECORDED_CLOCK_S:.0f} ms apart move the angles by {moved}")  # fmt: skip
-        out[name] = _lowered(out[name], ["weak"] * len(out[name].grades), why)
+        grade = "weak"
+        apart = abs(fit.offset_s) - 2.0 * fit.offset_se_s  # what the refused fit measured, at least
+        if np.isfinite(apart) and speed * apart > CLOCK_UNDETERMINED_DEG:
+            grade = "not determined"
+            why += (
+                f", and the data put them {1e3 * abs(fit.offset_s):.0f} ± "
+                f"{1e3 * fit.offset_se_s:.0f} ms apart: at least {speed * apart:.0f}°"
+            )
+        out[name] = _lowered(out[name], [grade] * len(out[name].grades), why)
     return out
 
 
