@@ -44,13 +44,7 @@ def corrected_acc(session: Session, label: str) -> np.ndarray:
     the movement next to a rest cannot level it; the recording as it is when there is none):
     a stand's gravity direction is then not tilted by the bias that the fused orientation of
     the movement next to it does not have."""
-    acc = np.asarray(session.sensors[label].acc, dtype=float)
-    fused = session.results.fusion.get(label)
-    bias = None if fused is None else fused.acc_bias
-    if bias is None:
-        return acc
-    bias = np.asarray(bias, dtype=float)
-    return acc - bias if bias.shape == acc.shape else acc
+    return _less_bias(session, label, "acc", "acc_bias")
 
 
 def corrected_gyr(session: Session, label: str) -> np.ndarray:
@@ -59,13 +53,19 @@ def corrected_gyr(session: Session, label: str) -> np.ndarray:
     functional axis, a hinge fit or a heading tie then reads the segment's rotation, not the
     constant rate an uncalibrated gyroscope adds (3-6 °/s on the ``harsh`` simulated preset tilted
     a pelvis's flexion axis and set a lumbar lateral bending 6.6° off throughout)."""
-    gyr = np.asarray(session.sensors[label].gyr, dtype=float)
+    return _less_bias(session, label, "gyr", "gyro_bias")
+
+
+def _less_bias(session: Session, label: str, channel: str, bias_field: str) -> np.ndarray:
+    """Sensor ``label``'s ``channel`` less its fusion entry's ``bias_field`` (per sample, same
+    shape), or as recorded when the fusion gave none."""
+    x = np.asarray(getattr(session.sensors[label], channel), dtype=float)
     fused = session.results.fusion.get(label)
-    bias = None if fused is None else fused.gyro_bias
+    bias = None if fused is None else getattr(fused, bias_field)
     if bias is None:
-        return gyr
+        return x
     bias = np.asarray(bias, dtype=float)
-    return gyr - bias if bias.shape == gyr.shape else gyr
+    return x - bias if bias.shape == x.shape else x
 
 
 def streams_of(session: Session, protocol: Protocol) -> Streams:
