@@ -148,10 +148,8 @@ def find_rest(
         if len(still) and np.isfinite(cost[still]).all():  # the stillest of those turned least
             least = still[cost[still] <= cost[still].min() + REST_TURN_DEG / 2]
             best = int(least[np.argmin(mean[least])])
-        else:
-            best = k
-        if cost[k] - cost[best] > REST_TURN_DEG:
-            k = best
+            if cost[k] - cost[best] > REST_TURN_DEG:
+                k = best
     level = float(mean[k])
     short = uniform_filter1d(speed, max(int(round(0.2 * fs)), 1), mode="nearest")
     limit = max(REST_GROW * level, level + 2.0)
