@@ -453,6 +453,24 @@ def test_the_comparisons_rest_lies_inside_a_cut_recording():
     assert np.allclose(got[t >= 2.8], 0.0, atol=1e-6) and np.isnan(got[t < 2.8]).all()
 
 
+def test_the_split_turn_recovers_a_turned_frame():
+    """bench/real_trunk.py's split turn: a flexion and a lateral bending (deg) read in a frame
+    turned 25° about the vertical (the estimate's flexion ``cos θ F − sin θ S``, its lateral
+    bending ``sin θ F + cos θ S``) plus constant offsets are carried back by 25° (its sign: the
+    turn that maps the estimate onto the reference); the frame itself gives 0°."""
+    split_turn = bench_module("real_trunk").split_turn
+    t = np.linspace(0.0, 20.0, 1000)
+    ref = np.column_stack([40.0 * np.sin(0.7 * t), 25.0 * np.sin(1.3 * t + 0.4), np.zeros_like(t)])
+    th = np.radians(25.0)
+    est = np.column_stack([np.cos(th) * ref[:, 0] - np.sin(th) * ref[:, 1] + 3.0,
+                           np.sin(th) * ref[:, 0] + np.cos(th) * ref[:, 1] - 2.0,
+                           ref[:, 2]])  # fmt: skip
+    assert split_turn(est, ref) == pytest.approx(25.0, abs=0.1)
+    assert split_turn(ref, ref) == pytest.approx(0.0, abs=0.1)
+    est[:995] = np.nan
+    assert np.isnan(split_turn(est, ref))  # fewer than 10 common samples
+
+
 @needs_shared
 def test_real_trunk_sensors_get_the_clock_offset_optitrack_shows():
     """Aag/trunkmovement_hs (x-IMU3, timestamps synchronised by the vendor's software): the
