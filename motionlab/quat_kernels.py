@@ -151,3 +151,22 @@ def mul_rows(p: np.ndarray, q: np.ndarray, out: np.ndarray) -> None:
         out[i, 1] = pw * qx + px * qw + py * qz - pz * qy
         out[i, 2] = pw * qy - px * qz + py * qw + pz * qx
         out[i, 3] = pw * qz + px * qy - py * qx + pz * qw
+
+
+@numba.njit(cache=True)
+def rotate_rows(q: np.ndarray, v: np.ndarray, out: np.ndarray) -> None:
+    """``out[i] = q[i] ⊗ [0, v[i]] ⊗ q[i]*`` for (N, 4) or (1, 4) ``q`` and (N, 3) or (1, 3)
+    ``v`` (a single row is used for every ``i``), in :func:`motionlab.rotations.rotate`'s order
+    of operations (``t = 2 u × v``, ``v + w t + u × t``: the same numbers to the bit)."""
+    one_q, one_v = q.shape[0] == 1, v.shape[0] == 1
+    for i in range(out.shape[0]):
+        a = 0 if one_q else i
+        b = 0 if one_v else i
+        w, ux, uy, uz = q[a, 0], q[a, 1], q[a, 2], q[a, 3]
+        vx, vy, vz = v[b, 0], v[b, 1], v[b, 2]
+        tx = 2.0 * (uy * vz - uz * vy)
+        ty = 2.0 * (uz * vx - ux * vz)
+        tz = 2.0 * (ux * vy - uy * vx)
+        out[i, 0] = vx + w * tx + (uy * tz - uz * ty)
+        out[i, 1] = vy + w * ty + (uz * tx - ux * tz)
+        out[i, 2] = vz + w * tz + (ux * ty - uy * tx)

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from motionlab.quat_kernels import mul_rows, strapdown
+from motionlab.quat_kernels import mul_rows, rotate_rows, strapdown
 
 if TYPE_CHECKING:
     from scipy.spatial.transform import Rotation
@@ -68,6 +68,14 @@ def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Rotate vector(s) ``v`` (…, 3) by unit quaternion(s) ``q``: ``q ⊗ [0, v] ⊗ q*``."""
     q = np.asarray(q, dtype=float)
     v = np.asarray(v, dtype=float)
+    if q.ndim <= 2 and v.ndim <= 2 and q.shape[-1] == 4 and v.shape[-1] == 3:
+        n_q, n_v = (len(q) if q.ndim == 2 else 1), (len(v) if v.ndim == 2 else 1)
+        if n_q == n_v or 1 in (n_q, n_v):  # one loop, the same numbers (quat_kernels.rotate_rows)
+            out = np.empty((n_v if n_q == 1 else n_q, 3))
+            rotate_rows(
+                np.ascontiguousarray(q).reshape(-1, 4), np.ascontiguousarray(v).reshape(-1, 3), out
+            )
+            return out if q.ndim == 2 or v.ndim == 2 else out[0]
     w = q[..., :1]
     u = q[..., 1:]
     t = 2.0 * np.cross(u, v)

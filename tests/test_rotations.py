@@ -91,6 +91,24 @@ def test_rotate_matches_sandwich_matrix_and_scipy(q, v):
     np.testing.assert_allclose(R.rotate(q, v), R.to_scipy(q).apply(v), atol=1e-12)
 
 
+def test_rotate_loop_is_the_broadcast_formula_to_the_bit():
+    """The one-loop path (:func:`motionlab.quat_kernels.rotate_rows`) against the formula it
+    replaced, ``v + w t + u × t`` with ``t = 2 u × v`` broadcast by numpy, in every shape pair
+    it takes; shapes it does not take broadcast as before."""
+    rng = np.random.default_rng(3)
+    q, v = R.normalize(rng.normal(size=(7, 4))), rng.normal(size=(7, 3))
+
+    def formula(q, v):
+        t = 2.0 * np.cross(q[..., 1:], v)
+        return v + q[..., :1] * t + np.cross(q[..., 1:], t)
+
+    for a, b in [(q, v), (q[0], v), (q, v[0]), (q[0], v[0]), (q[:1], v), (q, v[:1]),
+                 (q[:1], v[0]), (q[::-2], v[::-2]), (q[:, None], v[None])]:  # fmt: skip
+        got, want = R.rotate(a, b), formula(a, b)
+        assert got.shape == want.shape
+        np.testing.assert_array_equal(got, want)
+
+
 def test_rotate_hand_computed():
     # 90° about earth z (ENU up): the sensor x axis points north (earth y)
     q = R.from_axis_angle([0, 0, 1], np.pi / 2)
