@@ -55,7 +55,7 @@ from motionlab.protocol import load_protocol
 from motionlab.simulate import simulate, timeline
 from motionlab.simulate.errors import get_preset
 
-DURATION_S = {"walk": 74.0, "arm": 74.0}
+DURATION_S = {"walk": 74.0, "arm": 74.0, "lumbar": 200.0}  # lumbar: its steps and tasks, 130 s
 
 
 def target(column: str) -> float:
@@ -208,7 +208,8 @@ def main() -> None:
         "--duration",
         type=float,
         default=None,
-        help="recording length (s; default 74): 28 gives a 5-s stand and 14 s of walking",
+        help="recording length (s; default 74, lumbar 200): 28 gives a 5-s stand and 14 s of "
+        "walking",
     )
     ap.add_argument(
         "--gyr-sampling",
@@ -225,6 +226,9 @@ def main() -> None:
     if "lumbar_seated" in args.protocols.split(","):  # its zero is its rest, not anatomy's
         ap.error("lumbar_seated's angles are zero at its rest, the truth's are not: run "
                  "bench/seated_trunk_sim.py, which compares them so")  # fmt: skip
+    unknown = set(args.protocols.split(",")) - set(DURATION_S)
+    if unknown and args.duration is None:
+        ap.error(f"no default length for {', '.join(sorted(unknown))}: give --duration")
     flags = (args.uncoupled_knee, args.old_simulator)
     jobs = [
         (
