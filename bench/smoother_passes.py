@@ -20,8 +20,10 @@ from broad import DEFAULT_DATA, load_trials
 from motionlab.fusion import estimate, mekf
 
 #: the smoother's stages, timed by wrapping these functions of :mod:`motionlab.fusion.mekf`;
-#: a function called more than once per run is listed per call (``_filter #1``: the first)
-STAGES = ("rest_mask", "steady_mask", "_filter", "_backward", "_blocks", "field_gate", "_result")
+#: a function called more than once per run is listed per call (``_blocks #1``: the first)
+STAGES = (
+    "fusion_rest", "steady_mask", "_blocks", "field_gate", "lowpassed_acc", "_result",
+)  # fmt: skip
 
 
 def _wrapped(fn, name: str, acc: dict[str, float]):

@@ -190,7 +190,10 @@ def calibration_acc_bias(
     tilt (simulated stand + walk, seeds 20–25: 0.74° against 0.81° without bias states), and
     with it a constant offset in every angle calibrated there. With 0.5 the calibration sees
     the bias the movement determines (0.45°). Measured in ``bench/real_world.py``: worst knee
-    flexion RMSE of seeds 0–9 2.52 → 1.79°, worst knee ab/adduction 3.12 → 2.86°.
+    flexion RMSE of seeds 0–9 2.52 → 1.79°, worst knee ab/adduction 3.12 → 2.86°. On the raw
+    accelerometer (``acc_lowpass_tau`` 0): the pre-filter's movement carries its first pass's
+    bias (the rest of it, turned with the sensor, is averaged out), which anchored the bias to
+    that pass (simulated walks, ``tests/test_fusion_accbias.py``: stand tilt 0.54 → 0.92°).
     ``filled``: the gaps ingest filled in ``time`` (:func:`filled_spans`), as for the fusion.
 
     The smoother only sees the bias at rests (in motion its rows leave the bias out, see
@@ -214,7 +217,7 @@ def calibration_acc_bias(
     )
     pad = int(round((CALIBRATION_WINDOW_S if window_s is None else window_s) * rate))
     spans = _merged_windows(runs(rest), pad, n)
-    wider = dict(params) | {"acc_bias_init": CALIBRATION_ACC_BIAS_INIT}
+    wider = dict(params) | {"acc_bias_init": CALIBRATION_ACC_BIAS_INIT, "acc_lowpass_tau": 0.0}
     bias = np.zeros((n, 3))
     ends, kept = [], []
     for lo, hi in spans:
