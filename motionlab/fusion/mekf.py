@@ -124,18 +124,18 @@ reset decouples the two sides of it; after resets within ``early_reset_window`` 
 samples before the last of them take its smoothed state carried back by the gyroscope, which makes
 the smoother insensitive to a wrong start.
 
-Where the time goes (issue #25; BROAD, 8 trials, 425 595 samples, 9-D, µs of one thread's CPU
-per sample, ``bench/smoother_passes.py``, the machine shared by other jobs): rest mask 0.07,
-steady mask 0.10, the 6-D gate pass (forward and backward at the instants) 0.14, the field gate
-0.05, the 9-D pass (forward, backward, interpolation) 0.25, whole ``estimate`` 0.71; offlineVQF
-1.49 in the same run (smoother 2.1 × its throughput). Per sample what is left is the strapdown
-step (a series for the small rotation: no trigonometric function), the rotation matrix, the
-accelerometer and field in the earth frame and their sums, and in the backward pass a linear
-interpolation of two correction quaternions; the 9 × 9 covariance arithmetic (about 500
-floating-point operations and an unrolled 9 × 9 Cholesky solve per update) runs once per block.
-Before (every sample, a 6-D and a 9-D smoother): 6-D forward 0.46, backward 0.54, field gate
-0.33, 9-D forward 0.72, backward 0.61, whole 3.00 (0.44 × offlineVQF). docs/performance.md has
-the rounds.
+Where the time goes (BROAD, 8 trials, 425 595 samples, 9-D, µs of one thread's CPU per
+sample, ``bench/smoother_passes.py``, 2 Dec 2026): rests (:func:`fusion_rest`) 0.32, steady
+mask 0.04, the 6-D gate pass (forward and backward at the instants) 0.08, the field gate 0.02,
+the accelerometer pre-filter 0.15, the 9-D pass (forward, backward, interpolation) 0.09, whole
+``estimate`` 0.76; offlineVQF 0.85 in the same run (smoother 1.12 × its throughput; 1.36 ×
+without the pre-filter). Per sample the pass does the strapdown step (a series for the small
+rotation: no trigonometric function), the rotation matrix, the accelerometer and field in the
+earth frame and their sums, and in the backward pass a linear interpolation of two correction
+quaternions; the 9 × 9 covariance arithmetic (about 500 floating-point operations and an
+unrolled 9 × 9 Cholesky solve per update) runs once per block. Before the multi-rate smoother
+(every sample, a 6-D and a 9-D smoother) the whole was 3.00 (0.44 × offlineVQF).
+docs/performance.md has the rounds.
 
 The default parameters were tuned on the 8 BROAD trials in ``../shared`` (Laidig et al. 2021),
 which are also the trials the accuracy is reported on; they are not an independent test set.
