@@ -39,18 +39,27 @@ def conj(q: np.ndarray) -> np.ndarray:
     return q * np.array([1.0, -1.0, -1.0, -1.0])
 
 
+def _by_rows(kernel, a: np.ndarray, b: np.ndarray, wa: int, wb: int, w_out: int):
+    """``kernel(a, b, out)`` in one compiled loop (:mod:`motionlab.quat_kernels`, the same
+    numbers as the broadcast formula) when ``a`` (N, wa) and ``b`` (N, wb) are rows of one
+    length or single rows; ``None`` for any other shape (the caller broadcasts)."""
+    if a.ndim > 2 or b.ndim > 2 or a.shape[-1] != wa or b.shape[-1] != wb:
+        return None
+    n_a, n_b = (len(a) if a.ndim == 2 else 1), (len(b) if b.ndim == 2 else 1)
+    if n_a != n_b and 1 not in (n_a, n_b):
+        return None
+    out = np.empty((n_b if n_a == 1 else n_a, w_out))
+    kernel(np.ascontiguousarray(a).reshape(-1, wa), np.ascontiguousarray(b).reshape(-1, wb), out)
+    return out if a.ndim == 2 or b.ndim == 2 else out[0]
+
+
 def mul(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Hamilton product ``p ⊗ q``, broadcasting over leading dimensions."""
     p = np.asarray(p, dtype=float)
     q = np.asarray(q, dtype=float)
-    if p.ndim <= 2 and q.ndim <= 2 and p.shape[-1] == q.shape[-1] == 4:
-        n_p, n_q = (len(p) if p.ndim == 2 else 1), (len(q) if q.ndim == 2 else 1)
-        if n_p == n_q or 1 in (n_p, n_q):  # one loop, the same numbers (quat_kernels.mul_rows)
-            out = np.empty((n_q if n_p == 1 else n_p, 4))
-            mul_rows(
-                np.ascontiguousarray(p).reshape(-1, 4), np.ascontiguousarray(q).reshape(-1, 4), out
-            )
-            return out if p.ndim == 2 or q.ndim == 2 else out[0]
+    rows = _by_rows(mul_rows, p, q, 4, 4, 4)
+    if rows is not None:
+        return rows
     pw, px, py, pz = np.moveaxis(p, -1, 0)
     qw, qx, qy, qz = np.moveaxis(q, -1, 0)
     return np.stack(
@@ -68,14 +77,9 @@ def rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """Rotate vector(s) ``v`` (…, 3) by unit quaternion(s) ``q``: ``q ⊗ [0, v] ⊗ q*``."""
     q = np.asarray(q, dtype=float)
     v = np.asarray(v, dtype=float)
-    if q.ndim <= 2 and v.ndim <= 2 and q.shape[-1] == 4 and v.shape[-1] == 3:
-        n_q, n_v = (len(q) if q.ndim == 2 else 1), (len(v) if v.ndim == 2 else 1)
-        if n_q == n_v or 1 in (n_q, n_v):  # one loop, the same numbers (quat_kernels.rotate_rows)
-            out = np.empty((n_v if n_q == 1 else n_q, 3))
-            rotate_rows(
-                np.ascontiguousarray(q).reshape(-1, 4), np.ascontiguousarray(v).reshape(-1, 3), out
-            )
-            return out if q.ndim == 2 or v.ndim == 2 else out[0]
+    rows = _by_rows(rotate_rows, q, v, 4, 3, 3)
+    if rows is not None:
+        return rows
     w = q[..., :1]
     u = q[..., 1:]
     t = 2.0 * np.cross(u, v)
