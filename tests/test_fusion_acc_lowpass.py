@@ -46,9 +46,10 @@ def test_gravity_is_kept_and_the_swing_averaged_out():
     true_g = rot.rotate(rot.conj(sig["quat"]), np.array([0.0, 0.0, G]))
     raw = np.linalg.norm(sig["acc"][inner] - true_g[inner], axis=1)
     low = np.linalg.norm(out[inner] - true_g[inner], axis=1)
-    # the swing (3 m/s² at 1.5 Hz) is cut to a few hundredths, gravity turned with the sensor
+    # the swing (3 m/s² at 1.5 Hz) is cut to hundredths, gravity turned with the sensor
+    # (measured 3.18 m/s² raw, 0.009 m/s² low-passed)
     assert np.sqrt(np.mean(raw**2)) > 2.5
-    assert np.sqrt(np.mean(low**2)) < 0.15
+    assert np.sqrt(np.mean(low**2)) < 0.05
 
 
 def test_the_accelerometer_bias_stays_in_the_sensor_frame():
@@ -62,7 +63,7 @@ def test_the_accelerometer_bias_stays_in_the_sensor_frame():
     out = lowpassed_acc(sig["gyr"], acc, RATE, first, np.zeros(n, bool), 1.0)
     inner = slice(500, n - 500)
     true = rot.rotate(rot.conj(sig["quat"]), np.array([0.0, 0.0, G])) + offset
-    assert np.abs(out[inner] - true[inner]).max() < 0.1
+    assert np.abs(out[inner] - true[inner]).max() < 0.05  # measured 0.011 m/s²
 
 
 def test_a_recording_too_short_to_filter_is_left_as_it_is():
