@@ -2,7 +2,7 @@
 the accelerometer low-passed in a frame the gyroscope carries."""
 
 import numpy as np
-from fusion_signals import G, constant_rotation
+from fusion_signals import G, constant_rotation, wrong_start
 
 from motionlab import rotations as rot
 from motionlab.fusion import estimate
@@ -88,3 +88,17 @@ def test_the_smoother_inclination_under_a_swing():
             incl = error_angles(res.quat, sig["quat"])["inclination"][300:-300]
             rms.append(float(np.sqrt(np.mean(incl**2))))
         assert rms[1] < 0.5 * rms[0], rms
+
+
+def test_a_first_pass_that_reset_keeps_the_raw_accelerometer():
+    """A 0.5-s wrong start (acc and mag from a pose 90° away): the first pass resets, so the
+    accelerometer stays raw and the smoother resets as it did without the pre-filter (low-passed,
+    the wrong start was spread over seconds: 20° at the start, 1.7° after a minute, no reset)."""
+    clean = constant_rotation(seconds=60.0, omega=(0.2, -0.1, 0.3))
+    for sig, lowpassed in ((clean, True), (wrong_start(clean), False)):
+        res = estimate("smoother", sig["gyr"], sig["acc"], None, RATE)
+        assert res.extra["acc_lowpassed"] is lowpassed
+        raw = estimate("smoother", sig["gyr"], sig["acc"], None, RATE, acc_lowpass_tau=0.0)
+        if not lowpassed:
+            np.testing.assert_array_equal(res.quat, raw.quat)
+            assert raw.extra["resets"]

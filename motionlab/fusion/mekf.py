@@ -540,7 +540,8 @@ def lowpassed_acc(
     Butterworth, cut-off ``1 / (2π tau)`` Hz, forward and backward), turned back and its bias
     added. Linear acceleration, which changes sign within a movement, averages out while
     gravity, fixed in the earth frame, is kept however the sensor turns. Rest samples keep the
-    raw accelerometer. Too short a recording (or ``tau`` under a sample) is returned as it is.
+    raw accelerometer. The cut-off is at most 0.45 × ``rate`` (a ``tau`` under a sample); a
+    recording too short to filter is returned as it is.
     """
     n = len(gyr)
     sos = butter(2, min(1.0 / (2.0 * np.pi * tau), 0.45 * rate), fs=rate)
