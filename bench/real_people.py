@@ -29,7 +29,9 @@ Recordings (README of ``../shared``, section ``datasets/human``):
   ``arm`` protocol (thorax = ``upper_back``); one time vector ``t`` for every sensor, so one
   clock (marked as the readers mark one time column: the clock sync keeps the stamps);
 - ``imt_dot/knee_tracking1``, ``knee_tracking2``: one Xsens DOT on the thigh and one on the
-  shank (one leg; mapped as the right), free leg movement and walking, a stand only at the end;
+  shank (one leg; mapped as the right), free leg movement and walking throughout with no rest
+  longer than about a second (the first starts seated): the ``walk`` protocol refuses both in
+  one line, naming the stand it needs;
 - ``imt_dot/shoulder_tracking``: chest and upper arm (no shipped protocol has a joint for them).
 
 The walk cut short as a clinic records it (a stand and 10-25 s of walking):

@@ -634,18 +634,18 @@ def quality_notes(view: SessionView) -> list[str]:
             "angles involving it are less certain."
         )
     unchecked = unchecked_clocks(view)
+    walks = {t.name for t in view.protocol.tasks if t.is_gait}
     if unchecked:
+        legs = " and the gait numbers comparing the legs are withheld" if walks else ""
         notes.append(
             f"Clock{'s' if len(unchecked) > 1 else ''} of {', '.join(unchecked)} not "
             "synchronised (no reliable timing in the recording, see 'Sensor clocks'): taken as "
             "recorded, so the angles between sensors not timed against each other are weak at "
-            "best where they turn fast and the gait numbers comparing the legs are withheld (an "
-            "offset moves an angle by 3° per 10 ms at 300°/s); sensors that share one clock: "
-            "run with --no-clock-sync."
+            f"best where they turn fast{legs} (an offset moves an angle by 3° per 10 ms at "
+            "300°/s); sensors that share one clock: run with --no-clock-sync."
         )
     notes += list(beyond_anatomy(view).values())
     g = view.session.results.gait
-    walks = {t.name for t in view.protocol.tasks if t.is_gait}
     if g is not None and not g.ok and walks:  # the gait pages went missing with no word why
         spans = ", ".join(f"{task_name(k)} {a:.0f}–{b:.0f} s"
                           for k, (a, b) in view.blocks().items() if k in walks)  # fmt: skip
