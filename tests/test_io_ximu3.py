@@ -166,8 +166,23 @@ def test_devices_whose_clocks_do_not_overlap_are_refused_naming_them(tmp_path):
 
 def test_a_folder_that_is_no_export_is_still_refused(tmp_path):
     (tmp_path / "x").mkdir()
-    with pytest.raises(InputError, match="is a folder"):
+    with pytest.raises(InputError, match="is a folder") as err:
         read_any(tmp_path / "x")
+    assert err.value.line().endswith("give the file's path")
+
+
+def test_a_trial_folder_holding_the_export_names_it_in_the_remedy(tmp_path):
+    """A user gave the trial folder (``imu/`` and the optical file beside it): the refusal
+    said only "give the file's path"; it names the export folder inside."""
+    imu = xe.write(tmp_path / "trial", xe.export_files())
+    (tmp_path / "trial" / "optitrack.csv").write_text("Format Version,1.23\n")
+    with pytest.raises(InputError) as err:
+        read_any(tmp_path / "trial")
+    assert err.value.line().endswith(f"give the x-IMU3 export folder inside it: {imu}")
+    res = CliRunner().invoke(main, ["ingest", str(tmp_path / "trial"), "-o",
+                                    str(tmp_path / "o.h5")])  # fmt: skip
+    assert res.exit_code == 2 and f"inside it: {imu}" in res.stderr
+    assert not (tmp_path / "o.h5").exists()
 
 
 @needs_shared

@@ -34,15 +34,12 @@ class InputFile(click.ParamType):
                 raise InputError("is a symbolic link that leads back to itself (a loop)", path,
                                  remedy="give the file's own path") from None  # fmt: skip
         if path.is_dir():
+            from motionlab.io import folder_refused
             from motionlab.io.ximu3 import is_export
 
             if is_export(path):  # the x-IMU3 GUI writes a folder per device
                 return str(value)
-            raise InputError(
-                "is a folder, expected a file (or an x-IMU3 export folder)",
-                path,
-                remedy="give the file's path",
-            )
+            raise folder_refused(path)
         what = _WHAT.get(param.name if param is not None else "", "a recording")
         check_regular(path, what=what)  # before any open: a FIFO without a writer blocks it
         if path.exists():

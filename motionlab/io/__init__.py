@@ -72,6 +72,25 @@ def detect_format(path: str | Path, options: dict[str, Any] | None = None) -> st
     return _detect(Path(path), options).FORMAT
 
 
+def folder_refused(path: Path) -> InputError:
+    """The error for a folder given as a recording that is no export folder: its remedy names
+    the export folders one level down, if any (a trial folder holding ``imu/`` and the optical
+    file beside it), else asks for a file."""
+    from motionlab.io.ximu3 import is_export
+
+    try:
+        below = sorted(p for p in path.iterdir() if p.is_dir() and is_export(p))
+    except OSError:
+        below = []
+    remedy = (
+        "give the x-IMU3 export folder inside it: " + ", ".join(str(p) for p in below[:3])
+        if below
+        else "give the file's path"
+    )
+    return InputError("is a folder, expected a file (or an x-IMU3 export folder)", path,
+                      remedy=remedy)  # fmt: skip
+
+
 def _detect(path: Path, options: dict[str, Any] | None):
     check_regular(path, folder_ok=True)  # a FIFO, socket or device: refused before any read
     if path.is_dir():  # a reader of folders has is_export(path) (x-IMU3: a folder per device)
@@ -87,11 +106,7 @@ def _detect(path: Path, options: dict[str, Any] | None):
                         f"'{module.FORMAT}')",
                     )
                 return module
-        raise InputError(
-            "is a folder, expected a file (or an x-IMU3 export folder)",
-            path,
-            remedy="give the file's path",
-        )
+        raise folder_refused(path)
     if not path.is_file():
         raise InputError("no such file", path, remedy="check the path")
     try:
