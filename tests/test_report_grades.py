@@ -671,10 +671,9 @@ def test_clocks_the_sync_could_not_check_are_said_among_the_findings(walk):
     assert with_fits() == []  # nothing synced
     # a protocol without a walk has no gait numbers to withhold (a lumbar report said it had)
     ses = copy.deepcopy(walk)
-    ses.results.clock_sync = ClockSync({"thorax": ClockFit(
-        "pelvis", "thorax", 0.0, 0.0, 20.0, 1e-3, 1e-6, np.nan, 0.0, refused, "network")})
-    view = load_view(ses)
-    view = replace(view, protocol=load_protocol("lumbar_seated"))
+    fit = ClockFit("pelvis", "thorax", 0.0, 0.0, 20.0, 1e-3, 1e-6, np.nan, 0.0, refused, "network")
+    ses.results.clock_sync = ClockSync({"thorax": fit})
+    view = replace(load_view(ses), protocol=load_protocol("lumbar_seated"))
     (note,) = [n for n in quality_notes(view) if "not synchronised (" in n]
     assert "turn fast (an offset moves" in note and "gait" not in note
 
