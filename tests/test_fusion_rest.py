@@ -9,8 +9,8 @@ import pytest
 from sensorcal_signals import measure, random_poses, trajectory
 
 from motionlab import stages
-from motionlab.fusion.detect import rest_mask
-from motionlab.fusion.rest import FUSION_MAX_BIAS, fusion_rest
+from motionlab.fusion.detect import acc_quiet, rest_mask
+from motionlab.fusion.rest import FUSION_MAX_BIAS, find_rest, fusion_rest
 from motionlab.protocol import load_protocol
 from motionlab.segments.sensors import streams_of
 from motionlab.simulate import simulate
@@ -34,6 +34,23 @@ def test_a_biased_gyroscope_still_has_its_rests():
     rest = fusion_rest(gyr, acc, RATE)
     assert rest.sum() / RATE > 18.0  # of 24 s held (the 0.5 s windows overlap the moves)
     assert not (rest & ~held).any()
+
+
+def test_the_accelerometers_half_computed_once_gives_the_same_rests():
+    """``find_rest`` tries up to 18 biases; the accelerometer's half of the test does not
+    depend on them and is passed in once (``acc_still``): the same samples to the bit, with
+    and without it, with and without an accelerometer."""
+    gyr, acc, _ = _recording([3.0, -2.0, 2.0])
+    thr = 0.1  # m/s²: a quarter of these samples move the accelerometer more
+    still = acc_quiet(acc, RATE, thr)
+    assert 0.5 < still.mean() < 0.9
+    np.testing.assert_array_equal(rest_mask(gyr, acc, RATE, acc_threshold=thr, acc_still=still),
+                                  rest_mask(gyr, acc, RATE, acc_threshold=thr))  # fmt: skip
+    with_half = find_rest(gyr, acc, RATE, acc_threshold=thr, acc_still=still)
+    np.testing.assert_array_equal(with_half, find_rest(gyr, acc, RATE, acc_threshold=thr))
+    assert with_half.sum() / RATE > 18.0  # the four holds, as without the half given
+    # the half given is what decides, not recomputed behind the caller
+    assert not find_rest(gyr, acc, RATE, acc_still=np.zeros(len(acc), bool)).any()
 
 
 def test_a_small_bias_leaves_the_plain_rests():

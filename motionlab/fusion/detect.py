@@ -33,6 +33,19 @@ def _erode(mask: np.ndarray, size: int) -> np.ndarray:
     return uniform_filter1d(mask.astype(np.float32), size, mode="nearest") > 1.0 - 1e-3 / size
 
 
+def acc_quiet(
+    acc: np.ndarray, rate: float, acc_threshold: float = 0.5, window: float = 0.5
+) -> np.ndarray:
+    """Samples (N,) bool whose accelerometer's moving-RMS deviation from its moving mean (both
+    over ``window`` s) is below ``acc_threshold`` (m/s²): the accelerometer's half of
+    :func:`rest_mask`."""
+    w = _window(window, rate)
+    acc_t = np.ascontiguousarray(acc.T)
+    acc_dev = acc_t - uniform_filter1d(acc_t, w, axis=1, mode="nearest")
+    acc_ms = uniform_filter1d(np.einsum("ij,ij->j", acc_dev, acc_dev), w, mode="nearest")
+    return acc_ms < acc_threshold**2
+
+
 def rest_mask(
     gyr: np.ndarray,
     acc: np.ndarray,
@@ -41,19 +54,20 @@ def rest_mask(
     acc_threshold: float = 0.5,
     window: float = 0.5,
     min_duration: float = 1.5,
+    acc_still: np.ndarray | None = None,
 ) -> np.ndarray:
     """Samples (N,) bool where the sensor is at rest.
 
     Rest means the moving-RMS (over ``window`` s) of the angular rate is below ``gyr_threshold``
     (rad/s) and of the accelerometer's deviation from its moving mean below ``acc_threshold``
-    (m/s²), for at least ``min_duration`` s.
+    (m/s²), for at least ``min_duration`` s. ``acc_still``: :func:`acc_quiet` of ``acc`` with
+    the same threshold and window, when the caller has it (it is then not recomputed).
     """
     w = _window(window, rate)
     gyr_ms = uniform_filter1d(np.einsum("ij,ij->i", gyr, gyr), w, mode="nearest")
-    acc_t = np.ascontiguousarray(acc.T)
-    acc_dev = acc_t - uniform_filter1d(acc_t, w, axis=1, mode="nearest")
-    acc_ms = uniform_filter1d(np.einsum("ij,ij->j", acc_dev, acc_dev), w, mode="nearest")
-    still = (gyr_ms < gyr_threshold**2) & (acc_ms < acc_threshold**2)
+    if acc_still is None:
+        acc_still = acc_quiet(acc, rate, acc_threshold, window)
+    still = (gyr_ms < gyr_threshold**2) & acc_still
     run = _window(min_duration, rate) | 1
     if run > 1 and len(still) >= run:
         still = _dilate(_erode(still, run), run)  # opening: drop shorter still runs

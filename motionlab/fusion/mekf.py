@@ -125,12 +125,12 @@ samples before the last of them take its smoothed state carried back by the gyro
 the smoother insensitive to a wrong start.
 
 Where the time goes (BROAD, 8 trials, 425 595 samples, 9-D, µs of one thread's CPU per
-sample, ``bench/smoother_passes.py``, 2 Dec 2026): rests (:func:`fusion_rest`) 0.32, steady
-mask 0.04, the 6-D gate pass (forward and backward at the instants) 0.08, the field gate 0.02,
+sample, ``bench/smoother_passes.py``, 2 Dec 2026): rests (:func:`fusion_rest`) 0.23, steady
+mask 0.05, the 6-D gate pass (forward and backward at the instants) 0.08, the field gate 0.02,
 the accelerometer pre-filter 0.15, the 9-D pass (forward, backward, interpolation) 0.09, whole
-``estimate`` 0.76; offlineVQF 0.85 in the same run (smoother 1.12 × its throughput; 1.36 ×
-without the pre-filter). Per sample the pass does the strapdown step (a series for the small
-rotation: no trigonometric function), the rotation matrix, the accelerometer and field in the
+``estimate`` 0.67; offlineVQF 0.86 in the same run (smoother 1.27 × its throughput). Per
+sample the pass does the strapdown step (a series for the small rotation: no trigonometric
+function), the rotation matrix, the accelerometer and field in the
 earth frame and their sums, and in the backward pass a linear interpolation of two correction
 quaternions; the 9 × 9 covariance arithmetic (about 500 floating-point operations and an
 unrolled 9 × 9 Cholesky solve per update) runs once per block. Before the multi-rate smoother

@@ -21,7 +21,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from motionlab.fusion.detect import rest_mask
+from motionlab.fusion.detect import acc_quiet, rest_mask
 
 #: the largest gyroscope bias (rad/s) the estimators' rest detector takes off: an uncalibrated
 #: MEMS gyroscope (10 °/s; the sensor calibration's own bound, 5 °/s, is for a trimmed one)
@@ -60,17 +60,24 @@ def find_rest(
     min_duration: float = 1.5,
     max_bias: float = np.deg2rad(5.0),
     iterations: int = 5,
+    acc_still: np.ndarray | None = None,
 ) -> np.ndarray:
     """Samples (N,) bool at rest, judged on the bias-compensated angular rate.
 
     Parameters are those of :func:`~motionlab.fusion.detect.rest_mask` (thresholds in rad/s and
     m/s² on 0.5 s moving RMS, ``min_duration`` in s). Without ``acc`` only the gyroscope is
     tested. ``max_bias`` (rad/s) bounds the norm of the bias the rest samples may imply.
+    ``acc_still``: the accelerometer's half of the test when the caller has it
+    (:func:`~motionlab.fusion.detect.acc_quiet`); it does not change with the bias, so it is
+    computed once for every bias tried.
     """
-    acc_in = np.zeros_like(gyr) if acc is None else acc
+    if acc_still is None:
+        acc_still = (np.ones(len(gyr), dtype=bool) if acc is None
+                     else acc_quiet(acc, rate, acc_threshold, 0.5))  # fmt: skip
 
     def detect(bias: np.ndarray) -> np.ndarray:
-        return rest_mask(gyr - bias, acc_in, rate, gyr_threshold, acc_threshold, 0.5, min_duration)
+        return rest_mask(gyr - bias, acc, rate, gyr_threshold, acc_threshold, 0.5, min_duration,
+                         acc_still)  # fmt: skip
 
     starts = [np.median(gyr, axis=0), np.zeros(3)]
     mode = _quiet_mode(gyr, rate, gyr_threshold)
@@ -108,8 +115,9 @@ def fusion_rest(
     """
     gyr = np.asarray(gyr, dtype=float)
     acc = np.asarray(acc, dtype=float)
+    still = acc_quiet(acc, rate, acc_threshold, 0.5)
     tolerant = find_rest(gyr, acc, rate, gyr_threshold, acc_threshold, min_duration,
-                         max_bias=FUSION_MAX_BIAS)  # fmt: skip
+                         max_bias=FUSION_MAX_BIAS, acc_still=still)  # fmt: skip
     if tolerant.any() and np.linalg.norm(gyr[tolerant].mean(axis=0)) > gyr_threshold / 2:
         return tolerant
-    return rest_mask(gyr, acc, rate, gyr_threshold, acc_threshold, min_duration=min_duration)
+    return rest_mask(gyr, acc, rate, gyr_threshold, acc_threshold, 0.5, min_duration, still)
