@@ -4,7 +4,7 @@ Steps, for files read by :func:`motionlab.io.read_any` (one file per sensor, one
 sensors, or optical files that become marker sets):
 
 0. each reader marks sensors it knows share one clock (one time column for several sensors, the
-   vendor's synchronisation; across files, :func:`motionlab.io.xsens.mark_awinda_recording`);
+   vendor's synchronisation; across files, :func:`motionlab.io.xsens.mark_one_recording`);
 1. the sensor map (:mod:`motionlab.sensor_map`) names each sensor's segment, side and label and
    gives subject/session metadata; a map key that matches no sensor is an error;
 2. every stream's clock is repaired (:func:`motionlab.timebase.repair_clock`);
@@ -517,7 +517,7 @@ def ingest(
     markers: list[tuple[MarkerSet, Path]] = []
     files: dict[str, Any] = {}
     read_files: list[Path] = []  # what was read, for the provenance (a folder: its files)
-    awinda: list[SensorStream] = []  # Xsens exports, maybe of one Awinda recording
+    xsens: list[tuple[SensorStream, Path]] = []  # Xsens exports, maybe of one recording
     for path in paths:
         rec = read_any(path, smap.reader or None)
         if not rec.sensors and not rec.markers:
@@ -527,11 +527,11 @@ def ingest(
         read_files += [Path(f) for f in rec.metadata.get("files", [])] or [path]
         streams += [(s, path) for s in rec.sensors]
         markers += [(m, path) for m in rec.markers]
-        awinda += rec.sensors if rec.format == "xsens" else []
-    if awinda:  # the reader (pandas, scipy) only when an Xsens file was read
-        from motionlab.io.xsens import mark_awinda_recording
+        xsens += [(s, path) for s in rec.sensors] if rec.format == "xsens" else []
+    if xsens:  # the reader (pandas, scipy) only when an Xsens file was read
+        from motionlab.io.xsens import mark_one_recording
 
-        mark_awinda_recording(awinda)
+        mark_one_recording(xsens)
 
     streams, unmatched = _apply_map(streams, smap)
     seen: dict[str, tuple[Path, str]] = {}

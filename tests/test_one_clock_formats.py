@@ -100,10 +100,12 @@ def _generic(sensors: dict, folder: Path) -> tuple:
     return [path], smap
 
 
-def _awinda(sensors: dict, folder: Path, late: str = "", product: str = "MTW2-3A7G6") -> tuple:
+def _awinda(sensors: dict, folder: Path, late: str = "", product: str = "MTW2-3A7G6",
+            name: str = "walk-000_{device}.txt") -> tuple:  # fmt: skip
     """MT Manager 2022 exports of one Awinda recording, one file per MTw: the station's
     PacketCounter (from 51400, wrapping at 2^16) and SampleTimeFine on every file; ``late``:
-    a sensor whose file starts one sample later; ``product``: the header's ProductCode."""
+    a sensor whose file starts one sample later; ``product``: the header's ProductCode;
+    ``name``: the file names (``{device}`` the device's id)."""
     paths, keys = [], {}
     t = sensors["thigh_r"].time
     counter = (51400 + np.arange(len(t))) % 65536
@@ -119,7 +121,7 @@ def _awinda(sensors: dict, folder: Path, late: str = "", product: str = "MTW2-3A
         values = _channels(sensors, (k,))[0]
         rows = [f"{counter[j]:05d}\t{fine[j]}\t" + "\t".join(f"{v:.6f}" for v in values[j])
                 for j in range(int(k == late), len(t))]  # fmt: skip
-        path = folder / f"walk-000_{device}.txt"
+        path = folder / name.format(device=device)
         path.write_text(head + "\n".join(rows) + "\n")
         paths.append(path)
     return paths, _map(folder, keys)
@@ -134,9 +136,18 @@ def _run(paths: list[Path], smap: Path, clock_sync: bool = True):
     return session, recorded
 
 
-@pytest.mark.parametrize("write", [_apdm, _generic, _awinda])
+#: legacy exports (no ProductCode) named after one recording of master 012005D6, as MT Manager
+#: names them (the OpenSense example ``MT_012005D6_031-000_00B421AF.txt``)
+LEGACY = {"product": "", "name": "MT_012005D6_031-000_{device}.txt"}
+
+
+@pytest.mark.parametrize("write", [_apdm, _generic, _awinda,
+                                   lambda s, f: _awinda(s, f, **LEGACY)])  # fmt: skip
 def test_files_on_one_clock_keep_what_compares_the_legs(write, walk, tmp_path, monkeypatch):
-    """An APDM CSV, a generic CSV and the MTw files of one Awinda recording: every sensor is
+    """An APDM CSV, a generic CSV, the MTw files of one Awinda recording and legacy exports
+    named after one recording of one master device (an Awinda station or an Xbus Master; a
+    legacy export names no product, and these were timed by the data, every angle weak where
+    the fits were refused): every sensor is
     marked as on the file's one clock, the sync fits each clock as a check and moves none, and
     the step-time asymmetry is given (within 2 points of the truth's), the console saying why
     no clock was moved: before, it was withheld as 'the two legs' sensor clocks are not
@@ -167,7 +178,8 @@ def test_files_on_one_clock_keep_what_compares_the_legs(write, walk, tmp_path, m
     ("write", "why"),
     [
         (lambda s, f: _awinda(s, f, late="shank_l"), "shank_l's file starts a sample later"),
-        (lambda s, f: _awinda(s, f, product=""), "no ProductCode says they are MTws"),
+        (lambda s, f: _awinda(s, f, product=""), "no ProductCode and no master's recording"),
+        (lambda s, f: _awinda(s, f, late="shank_l", **LEGACY), "one recording, one file late"),
         (lambda s, f: _apdm(s, f, (LEGS[::2], LEGS[1::2])), "each leg in its own file"),
     ],
 )
@@ -193,6 +205,34 @@ def test_files_that_do_not_show_one_clock_still_withhold(write, why, walk, tmp_p
     summ = skipped.results.gait.summary
     assert skipped.results.clock_sync is None and not summ.withheld
     assert summ.step_time_asymmetry_pct == pytest.approx(true, abs=2.0)
+
+
+@pytest.mark.parametrize(
+    ("names", "marked"),
+    [
+        (["MT_012005D6_031-000_00B42D4B.txt", "MT_012005D6_031-000_00B42D4C.txt"], True),
+        # two recordings of one station
+        (["MT_012005D6_031-000_00B42D4B.txt", "MT_012005D6_032-000_00B42D4C.txt"], False),
+        # two stations
+        (["MT_012005D6_031-000_00B42D4B.txt", "MT_012005D7_031-000_00B42D4C.txt"], False),
+        # the "master" is one of the sensors: devices connected on their own
+        (["MT_00B42D4B_031-000_00B42D4B.txt", "MT_00B42D4B_031-000_00B42D4C.txt"], False),
+        # a name that gives no master
+        (["MT46_01-000_00B42D4B.txt", "MT46_01-000_00B42D4C.txt"], False),
+    ],
+)
+def test_legacy_exports_are_one_clock_only_as_one_recording_of_one_master(names, marked,
+                                                                          tmp_path):  # fmt: skip
+    """Legacy MT Manager exports (no ProductCode) that start at one PacketCounter: one clock
+    only when their names give one recording of one master device that is none of them."""
+    head = "// Start Time: Unknown\n// Update Rate: 100.0Hz\nPacketCounter\tAcc_X\tAcc_Y\tAcc_Z\n"
+    rows = "\n".join(f"{4097 + j:05d}\t0.1\t0.2\t9.8" for j in range(200))
+    for n in names:
+        (tmp_path / n).write_text(head + rows + "\n")
+    session = ingest([tmp_path / n for n in names])
+    marks = {s.attrs.get(SHARED_CLOCK) for s in session.sensors.values()}
+    assert marks == ({f"Xsens MT Manager: 2 exports of recording {names[0][:19]} of master "
+                      "012005D6 starting at PacketCounter 4097"} if marked else {None})  # fmt: skip
 
 
 def test_an_opensense_sto_is_one_clock(walk, tmp_path):

@@ -39,7 +39,9 @@ with the pelvis). Without heel strikes (the arms without a thorax sensor) each p
 
 *Clocks the vendor synchronised* (every sensor's ``attrs["vendor_clock_sync"]`` set by its
 reader to one and the same value: an Xsens DOT export's ``SyncStatus: Synced``, the MTw files of
-one Awinda recording, one time column for all the sensors of an APDM CSV, an OpenSense ``.sto`` or
+one Awinda recording or the legacy exports of one recording of one master device
+(:func:`motionlab.io.xsens.mark_one_recording`), one time column for all the sensors of an APDM
+CSV, an OpenSense ``.sto`` or
 a generic CSV; docs/ingest.md, "Sensors on one clock"): the fits are made as a check and none is
 applied (status :data:`VENDOR_KEPT`, the data's answer kept in the fit), and the legs are on one
 clock without a pelvis sensor. The DOT app's

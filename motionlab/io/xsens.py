@@ -44,9 +44,11 @@ MTw Awinda: the MTws of one station sample on the station's clock (the MTw Awind
 on synchronising two Awinda Stations: each station's MTw data are time synchronised, two
 stations in one MT Manager are not tested), and MT Manager writes each file's rows against the
 recording's sample counter, so the files of one recording start at one ``PacketCounter`` (the
-two MTw2 files ``formats/xsens/MT2022_*`` at 51400). :func:`mark_awinda_recording` (called by
+two MTw2 files ``formats/xsens/MT2022_*`` at 51400). :func:`mark_one_recording` (called by
 ingest over the session's Xsens files) marks them as on one clock when every file says it is
-an MTw and they start together.
+an MTw and they start together, or, for a legacy export without a product code, when their
+names give one recording of one master device (an Awinda station or an Xbus Master, whose
+sensors it samples on its clock) and they start together.
 """
 
 from __future__ import annotations
@@ -307,7 +309,7 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     attrs.update(time_source=time_source, earth_frame=frame, header=info)
     counter = next((c for c in _COUNTERS if table.has(c)), None)
     counts = table.column(counter) if counter else np.empty(0)
-    if np.isfinite(counts).any():  # the Awinda station's count on an MTw: mark_awinda_recording
+    if np.isfinite(counts).any():  # the master's count of the recording: mark_one_recording
         attrs["first_packet_counter"] = int(counts[np.isfinite(counts)][0])
     if recorded := recording_date(info.get("Start Time")):  # legacy exports: may be "Unknown"
         attrs["recorded"] = recorded
@@ -353,19 +355,48 @@ def read(path: str | Path, options: dict[str, Any] | None = None) -> Recording:
     return Recording(sensors=[stream], metadata={"source": str(path)}, format=FORMAT)
 
 
-def mark_awinda_recording(streams: list[SensorStream]) -> None:
-    """Mark the MTw exports of one Awinda recording as on one clock
-    (:func:`motionlab.io.clock.mark_shared_clock`): two or more devices, every header's
-    ``ProductCode`` an MTw's (``MTW2-3A7G6``), every file's first ``PacketCounter`` the same and
-    its first stamp the same on the same time source (``SampleTimeFine`` ticks, or the counter).
-    Otherwise none is marked: a legacy export names no product, and files that start apart
-    may come from two recordings or two stations (whose synchronisation the manual leaves
-    untested)."""
+#: MT Manager's export names of a recording made through a master device (an Awinda station, an
+#: Xbus Master): ``MT_<master id>_<recording>_<device id>.txt``, e.g. the OpenSense example
+#: ``MT_012005D6_031-000_00B421AF.txt`` (station 012005D6, MTw 00B421AF)
+_MASTER_EXPORT = re.compile(r"^(?P<recording>MT_(?P<master>[0-9A-Fa-f]{8})[_-].*)_"
+                            r"(?P<device>[0-9A-Fa-f]{8})\.txt$")  # fmt: skip
+
+
+def mark_one_recording(files: list[tuple[SensorStream, Path]]) -> None:
+    """Mark the Xsens exports of one recording on one master's clock as on one clock
+    (:func:`motionlab.io.clock.mark_shared_clock`): two or more devices of different ids, every
+    file's first ``PacketCounter`` the same and its first stamp the same on the same time source
+    (``SampleTimeFine`` ticks, or the counter), and either
+
+    - every header's ``ProductCode`` an MTw's (``MTW2-3A7G6``): one Awinda station's MTws, or
+    - a legacy export (no ``ProductCode``) whose file names all name one recording of one master
+      device that is none of the sensors (``MT_<master>_<recording>_<device>.txt``,
+      :data:`_MASTER_EXPORT`): the master (an Awinda station, an Xbus Master) samples its
+      sensors on its own clock and counts the recording's packets, and MT Manager names every
+      export after that recording.
+
+    Otherwise none is marked: a legacy export under another name says neither, devices
+    connected on their own (MTi) keep their own clocks, and files that start apart may come
+    from two recordings or two stations (whose synchronisation the manual leaves untested)."""
+    streams = [s for s, _ in files]
     starts = {(s.attrs.get("first_packet_counter"), s.attrs.get("time_source"), float(s.time[0]))
               for s in streams}  # fmt: skip
-    mtw = all(s.attrs.get("header", {}).get("ProductCode", "").upper().startswith("MTW")
-              for s in streams)  # fmt: skip
     counter = next(iter(starts))[0] if len(starts) == 1 else None
-    if mtw and counter is not None and len({s.serial for s in streams}) == len(streams):
+    if counter is None or len(streams) < 2 or len({s.serial for s in streams}) < len(streams):
+        return
+    codes = [s.attrs.get("header", {}).get("ProductCode", "").strip().upper() for s in streams]
+    if all(c.startswith("MTW") for c in codes):
         mark_shared_clock(streams, f"Xsens Awinda: {len(streams)} MTw exports starting at "
                                    f"PacketCounter {counter}")  # fmt: skip
+        return
+    names = [_MASTER_EXPORT.match(Path(p).name) for _, p in files]
+    if any(codes) or not all(names):
+        return
+    recordings = {(m["recording"], m["master"].upper()) for m in names}
+    devices = {m["device"].upper() for m in names}
+    if len(recordings) == 1 and len(devices) == len(streams):
+        recording, master = next(iter(recordings))
+        if master not in devices:
+            mark_shared_clock(streams, f"Xsens MT Manager: {len(streams)} exports of recording "
+                                       f"{recording} of master {master} starting at "
+                                       f"PacketCounter {counter}")  # fmt: skip
