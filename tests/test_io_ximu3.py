@@ -178,7 +178,7 @@ def test_a_trial_folder_holding_the_export_names_it_in_the_remedy(tmp_path):
     (tmp_path / "trial" / "optitrack.csv").write_text("Format Version,1.23\n")
     with pytest.raises(InputError) as err:
         read_any(tmp_path / "trial")
-    assert err.value.line().endswith(f"give the x-IMU3 export folder inside it: {imu}")
+    assert err.value.line().endswith(f"give the export folder inside it: {imu}")
     res = CliRunner().invoke(main, ["ingest", str(tmp_path / "trial"), "-o",
                                     str(tmp_path / "o.h5")])  # fmt: skip
     assert res.exit_code == 2 and f"inside it: {imu}" in res.stderr

@@ -76,14 +76,13 @@ def folder_refused(path: Path) -> InputError:
     """The error for a folder given as a recording that is no export folder: its remedy names
     the export folders one level down, if any (a trial folder holding ``imu/`` and the optical
     file beside it), else asks for a file."""
-    from motionlab.io.ximu3 import is_export
-
+    exports = [m.is_export for m in _readers() if getattr(m, "is_export", None)]
     try:
-        below = sorted(p for p in path.iterdir() if p.is_dir() and is_export(p))
+        below = sorted(p for p in path.iterdir() if p.is_dir() and any(e(p) for e in exports))
     except OSError:
         below = []
     remedy = (
-        "give the x-IMU3 export folder inside it: " + ", ".join(str(p) for p in below[:3])
+        "give the export folder inside it: " + ", ".join(str(p) for p in below[:3])
         if below
         else "give the file's path"
     )
