@@ -166,6 +166,7 @@ from motionlab.rotations import (
     mul,
     rotate,
 )
+from motionlab.timebase import interp_columns
 from motionlab.units import STANDARD_GRAVITY
 
 
@@ -549,8 +550,8 @@ def lowpassed_acc(
         return acc
     k = np.arange(n)
     at = first["at"]
-    gyr_bias = np.column_stack([np.interp(k, at, first["bias_blk"][:, i]) for i in range(3)])
-    acc_bias = np.column_stack([np.interp(k, at, first["acc_bias_blk"][:, i]) for i in range(3)])
+    gyr_bias = interp_columns(k, at, first["bias_blk"])
+    acc_bias = interp_columns(k, at, first["acc_bias_blk"])
     carried = integrate_gyro(np.array([1.0, 0.0, 0.0, 0.0]), gyr - gyr_bias, 1.0 / rate)
     low = sosfiltfilt(sos, rotate(carried, acc - acc_bias), axis=0)
     out = rotate(conj(carried), low) + acc_bias

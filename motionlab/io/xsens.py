@@ -389,7 +389,7 @@ def mark_one_recording(files: list[tuple[SensorStream, Path]]) -> None:
         mark_shared_clock(streams, f"Xsens Awinda: {len(streams)} MTw exports starting at "
                                    f"PacketCounter {counter}")  # fmt: skip
         return
-    names = [_MASTER_EXPORT.match(Path(p).name) for _, p in files]
+    names = [_MASTER_EXPORT.match(p.name) for _, p in files]
     if any(codes) or not all(names):
         return
     recordings = {(m["recording"], m["master"].upper()) for m in names}
