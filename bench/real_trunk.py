@@ -364,6 +364,19 @@ def main(argv: list[str] | None = None) -> int:
     except ImportError:
         VARIANTS.pop("VQF offline 9-D")
         print("(vqf is not installed: no VQF rows)\n")
+    rows, notes = measure(trials, VARIANTS, args.start_moving)
+    print_tables(rows, notes)
+    return 0
+
+
+def measure(
+    trials: list[Path], variants: dict[str, dict], start_moving: bool = False
+) -> tuple[list[dict], list[str]]:
+    """Per trial folder (``<subject>/<task>``, holding ``imu/`` and ``optitrack.csv``), variant
+    (``{label: PipelineOptions keywords}``, ``motionlab 6-D`` among them: its rest and clock
+    offset are the comparison's) and angle: a row ``{trial, variant, angle, grade, rmse, free,
+    r}`` (deg), and the notes on clocks, rests and frames; ``start_moving``: as
+    ``--start-moving``."""
     rows: list[dict] = []
     notes = []
     seen = []  # the arm lines in the wheelchair's frame (the first second as rest)
@@ -388,13 +401,13 @@ def main(argv: list[str] | None = None) -> int:
         sp_opt = np.column_stack([speed(t_opt, quats[b]) for b in ("back", "low_back", "rolstoel")])
         coarse, r_clock = fit_clock_offset(t_imu, sp_imu, t_opt, sp_opt, CLOCK_SEARCH_S, 0.005)
         runs, start_s = {}, None
-        if args.start_moving:
-            rest = run_variant(trial / "imu", VARIANTS["motionlab 6-D"])[3]
+        if start_moving:
+            rest = run_variant(trial / "imu", variants["motionlab 6-D"])[3]
             if rest[0] - t_imu[0] < 0.5:
                 start_s = rest[1] + 0.5
                 notes.append(f"- {name}: cut to start at {start_s:.1f} s (its rest {rest[0]:.1f}–"
                              f"{rest[1]:.1f} s started the recording)")  # fmt: skip
-        for label, variant in VARIANTS.items():
+        for label, variant in variants.items():
             try:
                 runs[label] = run_variant(trial / "imu", variant, start_s)
             except Exception as exc:  # a failing variant is a row, the bench goes on
@@ -460,6 +473,12 @@ def main(argv: list[str] | None = None) -> int:
                     f"- {name}: the optical frame's lateral axis lies from the "
                     f"product's flexion axis by {', '.join(turns)} (split turn)"
                 )
+    return rows, notes
+
+
+def print_tables(rows: list[dict], notes: list[str]) -> None:
+    """The bench's tables: every row, the medians per variant, the rotation from rest against
+    the peers and the worst angle graded determined."""
     df = pd.DataFrame(rows)
     print("## Lumbar angles of real seated trunk movements against OptiTrack\n")
     print("Clock offsets and what the calibration found:\n")
@@ -473,7 +492,7 @@ def main(argv: list[str] | None = None) -> int:
     angles = [*PLANES, "rotation from rest", *(f"lean {w}" for w in LEANS), "lean from rest"]
     print("| variant | " + " | ".join(angles) + " |")
     print("|---|" + "---|" * len(angles))
-    for label in VARIANTS:
+    for label in dict.fromkeys(r["variant"] for r in rows):
         cells = []
         for a in angles:
             sel = df[(df.variant == label) & (df.angle == a)] if len(df) else df
@@ -496,7 +515,6 @@ def main(argv: list[str] | None = None) -> int:
         worst = det.loc[det.free.idxmax()]
         print(f"\nGraded determined: {len(det)} angles, offset-free RMSE up to "
               f"{worst.free:.1f}° ({worst.trial}, {worst.angle}).")  # fmt: skip
-    return 0
 
 
 if __name__ == "__main__":

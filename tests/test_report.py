@@ -1083,6 +1083,44 @@ def test_expected_accuracy_says_which_figures_this_recordings_grades_undo():
     assert "in this recording" not in flexion  # determined on both sides: the figure stands
 
 
+def test_expected_accuracy_gives_the_real_recordings_figures_beside_the_simulated(monkeypatch):
+    """The seated trunk report said "no validation results on file, so no accuracy can be
+    stated" while five real trials against OptiTrack had measured it; where a protocol has
+    real figures the page gives them (offset-free, median and worst, with the grade here), and
+    the flags' margin takes the larger of the simulated and the real bound."""
+    from motionlab.report import pages_methods
+    from motionlab.report.model import accuracy_bound
+
+    view = _graded_view()  # right knee: adduction weak, rotation not determined
+    sim = {"rmse_deg": 1.1, "max_rmse_deg": 1.4, "runs": 6}
+    real = {"rmse_deg": 2.2, "max_rmse_deg": 4.3, "with_offset_deg": 2.9, "runs": 5,
+            "determined": 2}  # fmt: skip
+    acc = {"protocols": {view.protocol.name: {
+        "knee_flexion": sim, "knee_adduction": sim,
+        "real": {"conditions": "five real trials", "knee_adduction": real,
+                 "knee_rotation_from_rest": {"rmse_deg": 1.6, "max_rmse_deg": 2.1, "runs": 5}},
+    }}}  # fmt: skip
+    monkeypatch.setattr(pages_methods, "load_accuracy", lambda: acc)
+    monkeypatch.setattr("motionlab.report.normative.load_accuracy", lambda: acc)
+    with matplotlib.rc_context(RC):
+        doc = Document("motionlab report · test", "subject X")
+        pages_methods.accuracy_page(doc, view)
+        text = " ".join(" ".join(page_text(f) for f in doc.pages).split())
+    real_part = text.split("On real recordings, against an optical reference")[1]
+    assert (
+        "varus-valgus: ±5° (offset-free RMSE 2.2° median, worst 4.3° over 5 recordings; 2.9° "
+        "with the offset; graded determined in 2 of 5) — weak for the right knee in this "
+        "recording" in real_part
+    )
+    assert "rotation away from the rest pose (any direction): ±3° (offset-free RMSE 1.6°" in (
+        real_part
+    )
+    assert "Conditions: five real trials." in real_part
+    assert "flexion" not in real_part.split("Conditions")[0]  # none on file: none told
+    assert accuracy_bound(view, "knee", "adduction") == 5.0  # the real bound, the larger
+    assert accuracy_bound(view, "knee", "flexion") == 2.0  # simulated only
+
+
 def test_a_range_called_within_though_its_ends_pass_the_normal_says_the_allowance(tmp_path):
     """A real walker's hip 'range -14 to 40° during walk, within the normal -10 to 35°' read
     as a contradiction on the summary page and the console (which also printed the normal

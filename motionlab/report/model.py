@@ -520,16 +520,19 @@ INCLINATION_ERROR_DEG = 2.0
 
 def accuracy_bound(view: SessionView, joint_type: str, angle: str) -> float:
     """The ± bound (deg) the Expected accuracy page states for one angle of this protocol (the
-    worst validation RMSE, rounded up); NaN when none is on file."""
+    worst validation RMSE, rounded up; the larger of the simulated and the real recordings'
+    where both are on file); NaN when none is."""
     from motionlab.report.normative import load_accuracy
 
     proto = (load_accuracy().get("protocols") or {}).get(view.protocol.name) or {}
-    entry = proto.get(f"{joint_type}_{angle}")
-    if not entry:
-        return float("nan")
-    rmse = float(entry.get("rmse_deg", np.nan))
-    worst = float(entry.get("max_rmse_deg", np.nan))
-    return float(np.ceil(max(rmse, worst) if np.isfinite(worst) else rmse))
+    key = f"{joint_type}_{angle}"
+    bounds = []
+    for entry in (proto.get(key), (proto.get("real") or {}).get(key)):
+        if entry:
+            rmse = float(entry.get("rmse_deg", np.nan))
+            worst = float(entry.get("max_rmse_deg", np.nan))
+            bounds.append(np.ceil(max(rmse, worst) if np.isfinite(worst) else rmse))
+    return float(max(bounds)) if bounds else float("nan")
 
 
 def clearly_above(value: float, limit: float, margin: float) -> bool:

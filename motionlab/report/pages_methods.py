@@ -17,7 +17,7 @@ from motionlab.report.model import (
 )
 from motionlab.report.normative import load_accuracy
 from motionlab.report.pdf import MUTED, SIZE, Document
-from motionlab.report.sentences import accuracy_sentence
+from motionlab.report.sentences import accuracy_sentence, real_accuracy_sentence
 
 
 def _columns(view: SessionView) -> list[str]:
@@ -132,6 +132,7 @@ def accuracy_page(doc: Document, view: SessionView) -> None:
         )
         if acc.get("caveat"):
             doc.paragraph(str(acc["caveat"]), size=SIZE["small"], colour=MUTED)
+    _real_figures(doc, view, types, proto.get("real") or {})
     validation = view.session.results.validation
     val = validation.angles if validation is not None else None
     val = val.columns if val is not None else {}
@@ -145,6 +146,43 @@ def accuracy_page(doc: Document, view: SessionView) -> None:
         if rows:
             doc.heading("In this session, against the optical reference")
             doc.table(["Angle", "RMSE (°)"], rows, [0.5, 0.2], align=["l", "r"])
+
+
+def _real_figures(doc: Document, view: SessionView, types: dict, real: dict[str, Any]) -> None:
+    """The protocol's figures from real recordings with an optical reference (``real`` in its
+    entry of ``accuracy.yaml``), each angle's grade here as for the simulated ones, and the
+    joint's rotation away from the rest pose, which no anatomical frame moves."""
+    blocks = {}
+    for jtype, names in types.items():
+        typed = [
+            real_accuracy_sentence(a, real[f"{jtype}_{a}"], jtype) + _here(view, jtype, a)
+            for a in names
+            if f"{jtype}_{a}" in real
+        ]
+        whole = real.get(f"{jtype}_rotation_from_rest")
+        if typed and whole:
+            typed.append(real_accuracy_sentence("rotation_from_rest", whole, jtype))
+        if typed:
+            blocks[jtype] = typed
+    if not blocks:
+        return
+    doc.heading("On real recordings, against an optical reference")
+    doc.paragraph(
+        "Where these are larger than the simulated figures above, they are the ones to read: "
+        "your recordings are real ones, and a range of motion in them is uncertain by about "
+        "these amounts."
+    )
+    for jtype, typed in blocks.items():
+        if len(types) > 1:
+            doc.paragraph(joint_type_title(jtype), weight="bold")
+        doc.bullets(typed)
+    doc.paragraph(
+        "± value: the worst offset-free root-mean-square error over the recordings, rounded up "
+        "(a range of motion does not depend on the angle's zero). "
+        f"Conditions: {real.get('conditions', 'not stated')}.",
+        size=SIZE["small"],
+        colour=MUTED,
+    )
 
 
 def _here(view: SessionView, jtype: str, angle: str) -> str:

@@ -741,3 +741,27 @@ def accuracy_sentence(angle: str, entry: dict[str, Any], joint_type: str = "") -
     if dropped:  # those runs' angle was not drawn: its error is not one a reader meets
         text += f"; not determined in {dropped} of {dropped + runs} runs, which are not counted"
     return text + ")"
+
+
+def real_accuracy_sentence(angle: str, entry: dict[str, Any], joint_type: str) -> str:
+    """``'flexion-extension: ±3° (offset-free RMSE 1.8°, worst 2.9° over 5 trials; 2.3° with
+    the offset; determined in 2)'``: a ``real`` figure of ``accuracy.yaml`` (median and worst
+    offset-free RMSE over real recordings against an optical reference); ``angle``
+    ``rotation_from_rest`` is the joint's rotation away from the rest pose."""
+    rmse = float(entry.get("rmse_deg", np.nan))
+    worst = float(entry.get("max_rmse_deg", np.nan))
+    runs = int(entry.get("runs", 0))
+    name = (
+        "rotation away from the rest pose (any direction)"
+        if angle == "rotation_from_rest"
+        else angle_title(joint_type, angle)
+    )
+    text = (
+        f"{name}: ±{np.ceil(max(rmse, worst)):.0f}° (offset-free RMSE {rmse:.1f}° median, "
+        f"worst {worst:.1f}° over {runs} recordings"
+    )
+    if "with_offset_deg" in entry:
+        text += f"; {float(entry['with_offset_deg']):.1f}° with the offset"
+    if "determined" in entry:
+        text += f"; graded determined in {int(entry['determined'])} of {runs}"
+    return text + ")"
