@@ -1121,6 +1121,36 @@ def test_expected_accuracy_gives_the_real_recordings_figures_beside_the_simulate
     assert accuracy_bound(view, "knee", "flexion") == 2.0  # simulated only
 
 
+def test_the_magnetometers_checks_are_not_raised_where_the_orientation_did_without_it():
+    """A seated trunk report (6-D) listed "mag scale assumed" for every sensor under "Quality
+    checks raised": a magnetometer the fusion left out touches no angle. A 9-D sensor keeps
+    it; the other flags stay; the file's flags (``quality_rows``) are as recorded."""
+    from motionlab.report.model import quality_rows, raised_flags
+    from motionlab.report.pages_quality import _mag_flags_unused
+    from motionlab.results import FusionEntry
+    from motionlab.session import SensorStream
+
+    view = _view((5.0, 45.0), (0.0, 64.0))
+    t = np.arange(200) / 100.0
+    flags = {"mag_scale_assumed": True, "dropped_samples": True, "held_samples": False}
+    for label, mag in (("Back", False), ("Chest", True)):
+        view.session.sensors[label] = SensorStream(
+            label=label, time=t, acc=np.zeros((200, 3)), gyr=np.zeros((200, 3)),
+            mag=np.ones((200, 3)), qc={"flags": dict(flags)},
+        )  # fmt: skip
+        view.session.results.fusion[label] = FusionEntry(
+            "smoother", np.tile([1.0, 0, 0, 0], (200, 1)), magnetometer=mag
+        )
+    assert raised_flags(view) == {
+        "Back": ["dropped_samples"],
+        "Chest": ["dropped_samples", "mag_scale_assumed"],
+    }
+    assert _mag_flags_unused(view)
+    assert all("mag_scale_assumed" in r.flags for r in quality_rows(view))
+    view.session.results.fusion["Back"].magnetometer = True
+    assert not _mag_flags_unused(view)
+
+
 def test_a_range_called_within_though_its_ends_pass_the_normal_says_the_allowance(tmp_path):
     """A real walker's hip 'range -14 to 40° during walk, within the normal -10 to 35°' read
     as a contradiction on the summary page and the console (which also printed the normal

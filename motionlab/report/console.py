@@ -19,6 +19,7 @@ from motionlab.report.model import (
     grade_mark,
     grade_rows,
     quality_rows,
+    raised_flags,
     rom_rows,
 )
 from motionlab.report.sentences import (
@@ -71,7 +72,7 @@ def run_summary(
     the stage ``times`` (s) and the ``total_s``."""
     ses, proto = view.session, view.protocol
     q = quality_rows(view)
-    flagged = sorted({f for r in q for f in r.flags})
+    flagged = sorted({f for flags in raised_flags(view).values() for f in flags})
     rate = q[0].rate_hz if q else float("nan")
     lines = [
         f"motionlab run: {proto.name} ({proto.title}) - subject {view.subject}, {view.date_label}",

@@ -765,6 +765,26 @@ def quality_rows(view: SessionView) -> list[QualityRow]:
     return rows
 
 
+#: quality flags about the magnetometer alone (:mod:`motionlab.qc`)
+MAG_FLAGS = frozenset({"mag_scale_assumed", "mag_norm_out_of_range"})
+
+
+def raised_flags(view: SessionView) -> dict[str, list[str]]:
+    """``{sensor: quality flags}`` the report raises: the sensor's flags (:func:`quality_rows`)
+    less the magnetometer's where its orientation was estimated without it (6-D), which they
+    cannot touch; sensors with none left out. A seated trunk report listed "mag scale
+    assumed" for every sensor of a 6-D run under "Quality checks raised"."""
+    fusion = view.session.results.fusion
+    out = {}
+    for row in quality_rows(view):
+        entry = fusion.get(row.sensor)
+        unused = entry is not None and not entry.magnetometer
+        flags = [f for f in row.flags if not (unused and f in MAG_FLAGS)]
+        if flags:
+            out[row.sensor] = flags
+    return out
+
+
 def _segment_ok(seg: str, res: SegmentRecord | None) -> bool:
     """Whether a segment's calibration passed its quality checks and determined its frame at
     least in part (false without one): the real full-body arm's thorax passed its checks while

@@ -8,6 +8,7 @@ import numpy as np
 
 from motionlab.clocksync import describe
 from motionlab.report.model import (
+    MAG_FLAGS,
     NOT_DETERMINED,
     CalibrationRow,
     SessionView,
@@ -17,6 +18,7 @@ from motionlab.report.model import (
     in_order,
     joint_title,
     quality_rows,
+    raised_flags,
 )
 from motionlab.report.pdf import HEADING_H, MUTED, SIZE, Document, label_spans
 from motionlab.report.sentences import missing_lines
@@ -144,12 +146,18 @@ def data_quality_page(doc: Document, view: SessionView) -> None:
         colour=MUTED,
     )
     flags = [
-        f"{q.sensor}: {', '.join(f.replace('_', ' ') for f in q.flags)}"
-        for q in quality_rows(view)
-        if q.flags
+        f"{sensor}: {', '.join(f.replace('_', ' ') for f in raised)}"
+        for sensor, raised in raised_flags(view).items()
     ]
     doc.heading("Quality checks raised")
     doc.bullets(flags or ["none: every sensor's signals passed their checks (the clocks: below)"])
+    if _mag_flags_unused(view):
+        doc.paragraph(
+            "The magnetometers' checks are not raised: the orientations were estimated without "
+            "them (6-D).",
+            size=SIZE["small"],
+            colour=MUTED,
+        )
     synced = view.session.results.clock_sync
     if synced is not None and synced.fits:
         doc.heading("Sensor clocks")
@@ -470,3 +478,13 @@ def calibration_cells(
     weak_rho = not own_check and bool(r.rho < floor)
     residual = bool(r.used and r.residual_deg > RESIDUAL_MAX_DEG)
     return cells, [False] * 3 + [weak_rho, weak, residual, False, not r.segment_ok]
+
+
+def _mag_flags_unused(view: SessionView) -> bool:
+    """Whether a sensor's magnetometer flag was left out of "Quality checks raised" (its
+    orientation 6-D)."""
+    raised = raised_flags(view)
+    return any(
+        set(q.flags) & MAG_FLAGS and not MAG_FLAGS & set(raised.get(q.sensor, ()))
+        for q in quality_rows(view)
+    )
