@@ -7,7 +7,9 @@ The files live in ``motionlab/report_data/`` (``reports/`` at the top of the rep
   band's source. Angles are named ``<joint type>_<angle>`` (``knee_flexion``) and apply to
   both sides.
 - ``accuracy.yaml``: motionlab's own accuracy per protocol and angle (RMSE against a known
-  truth), with the date, version and command that produced it.
+  truth: simulated recordings), with the date, version and command that produced it; a
+  protocol's ``real`` entry holds the figures of real recordings against an optical reference
+  (offset-free RMSE, median and worst over the recordings, with their conditions).
 
 Normal *ranges* (min-max per task) belong to each protocol's ``normative`` key, not here.
 """

@@ -744,10 +744,11 @@ def accuracy_sentence(angle: str, entry: dict[str, Any], joint_type: str = "") -
 
 
 def real_accuracy_sentence(angle: str, entry: dict[str, Any], joint_type: str) -> str:
-    """``'flexion-extension: ±3° (offset-free RMSE 1.8°, worst 2.9° over 5 trials; 2.3° with
-    the offset; determined in 2)'``: a ``real`` figure of ``accuracy.yaml`` (median and worst
-    offset-free RMSE over real recordings against an optical reference); ``angle``
-    ``rotation_from_rest`` is the joint's rotation away from the rest pose."""
+    """``'flexion-extension: ±2° (offset-free RMSE 1.8° median, worst 1.9° over 5 recordings;
+    2.0° with the offset; graded determined in 3 of 5)'``: a ``real`` figure of
+    ``accuracy.yaml`` (median and worst offset-free RMSE over real recordings against an
+    optical reference); ``angle`` ``rotation_from_rest`` is the joint's rotation away from the
+    rest pose."""
     rmse = float(entry.get("rmse_deg", np.nan))
     worst = float(entry.get("max_rmse_deg", np.nan))
     runs = int(entry.get("runs", 0))
