@@ -48,7 +48,7 @@ def acc_quiet(
 
 def rest_mask(
     gyr: np.ndarray,
-    acc: np.ndarray,
+    acc: np.ndarray | None,
     rate: float,
     gyr_threshold: float = np.deg2rad(2.0),
     acc_threshold: float = 0.5,
@@ -61,7 +61,8 @@ def rest_mask(
     Rest means the moving-RMS (over ``window`` s) of the angular rate is below ``gyr_threshold``
     (rad/s) and of the accelerometer's deviation from its moving mean below ``acc_threshold``
     (m/s²), for at least ``min_duration`` s. ``acc_still``: :func:`acc_quiet` of ``acc`` with
-    the same threshold and window, when the caller has it (it is then not recomputed).
+    the same threshold and window, when the caller has it (it is then not recomputed, and
+    ``acc`` may be None).
     """
     w = _window(window, rate)
     gyr_ms = uniform_filter1d(np.einsum("ij,ij->i", gyr, gyr), w, mode="nearest")

@@ -526,13 +526,16 @@ def accuracy_bound(view: SessionView, joint_type: str, angle: str) -> float:
 
     proto = (load_accuracy().get("protocols") or {}).get(view.protocol.name) or {}
     key = f"{joint_type}_{angle}"
-    bounds = []
-    for entry in (proto.get(key), (proto.get("real") or {}).get(key)):
-        if entry:
-            rmse = float(entry.get("rmse_deg", np.nan))
-            worst = float(entry.get("max_rmse_deg", np.nan))
-            bounds.append(np.ceil(max(rmse, worst) if np.isfinite(worst) else rmse))
-    return float(max(bounds)) if bounds else float("nan")
+    entries = [e for e in (proto.get(key), (proto.get("real") or {}).get(key)) if e]
+    return max((entry_bound(e) for e in entries), default=float("nan"))
+
+
+def entry_bound(entry: dict[str, Any]) -> float:
+    """The ± bound (deg) of one figure of ``accuracy.yaml``: its worst RMSE (``max_rmse_deg``,
+    else ``rmse_deg``), rounded up."""
+    rmse = float(entry.get("rmse_deg", np.nan))
+    worst = float(entry.get("max_rmse_deg", np.nan))
+    return float(np.ceil(max(rmse, worst) if np.isfinite(worst) else rmse))
 
 
 def clearly_above(value: float, limit: float, margin: float) -> bool:

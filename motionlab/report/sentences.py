@@ -34,6 +34,7 @@ from motionlab.report.model import (
     angle_grade,
     angle_title,
     calibration_rows,
+    entry_bound,
     grade_rows,
     is_determined,
     joint_title,
@@ -729,12 +730,11 @@ def accuracy_sentence(angle: str, entry: dict[str, Any], joint_type: str = "") -
     (default: the first clinical type that has it)."""
     rmse = float(entry.get("rmse_deg", np.nan))
     worst = float(entry.get("max_rmse_deg", np.nan))
-    bound = max(rmse, worst) if np.isfinite(worst) else rmse
     if not joint_type:
         known = (t.name for t in JOINT_TYPES.values() if t.angle_names and angle in t.angle_names)
         joint_type = next(known, "")
     name = angle_title(joint_type, angle)
-    text = f"{name}: ±{np.ceil(bound):.0f}° (RMSE {rmse:.1f}°"
+    text = f"{name}: ±{entry_bound(entry):.0f}° (RMSE {rmse:.1f}°"
     # two decimals: a worst case of 1.04° is rounded up to ±2°, and "1.0" would not show why
     text += f", worst case {worst:.2f}°" if np.isfinite(worst) else ""
     dropped, runs = int(entry.get("not_determined", 0)), int(entry.get("runs", 0))
@@ -758,7 +758,7 @@ def real_accuracy_sentence(angle: str, entry: dict[str, Any], joint_type: str) -
         else angle_title(joint_type, angle)
     )
     text = (
-        f"{name}: ±{np.ceil(max(rmse, worst)):.0f}° (offset-free RMSE {rmse:.1f}° median, "
+        f"{name}: ±{entry_bound(entry):.0f}° (offset-free RMSE {rmse:.1f}° median, "
         f"worst {worst:.1f}° over {runs} recordings"
     )
     if "with_offset_deg" in entry:
