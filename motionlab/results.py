@@ -260,16 +260,25 @@ class ClockSync:
         fit). Such sensors are on one clock only as well as the recording kept them together:
         a simulated walk's shanks read 117 ms apart (43 % step-time asymmetry for a symmetric
         walker), its left knee 52 ms from its thigh (10° more flexion in swing)."""
+        found = self.untimed_way(labels)
+        return found[0] if found else None
+
+    def untimed_way(self, labels: list[str]) -> tuple[ClockFit, list[str]] | None:
+        """:meth:`untimed`'s fit and the labels on whose way to the others an untimed fit
+        lies: the sensors whose stamps may be off against the others' (``None`` when all are
+        timed)."""
         chains = {lab: self._chain(lab)[0] for lab in labels}
         ways = [{lab, *(f.reference for f in chain)} for lab, chain in chains.items()]
         shared = set.intersection(*ways) if ways else set()
-        for chain in chains.values():
+        found: dict[str, ClockFit] = {}
+        for lab, chain in chains.items():
             for fit in chain:
                 if fit.sensor in shared:
                     break
                 if not fit.timed:
-                    return fit
-        return None
+                    found[lab] = fit
+                    break
+        return (next(iter(found.values())), list(found)) if found else None
 
     def not_linked(self, labels: list[str]) -> str:
         """Why the sensors ``labels`` are not all on one clock after the sync (``thigh_l: no

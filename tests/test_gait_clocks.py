@@ -161,6 +161,9 @@ def test_a_sensor_the_sync_could_not_time_is_named_on_the_way_to_its_clock():
     assert tree.untimed(["shank_l", "shank_r"]) is tree.fits["thigh_r"]  # the shank's reference
     assert tree.untimed(["thigh_r", "shank_r"]) is None  # the knee: its shank timed on its thigh
     assert tree.untimed(["pelvis", "thigh_r"]) is tree.fits["thigh_r"]  # the hip
+    # whose stamps may be off: the shank_r side of the shanks, the thigh's side of the hip
+    assert tree.untimed_way(["shank_l", "shank_r"]) == (tree.fits["thigh_r"], ["shank_r"])
+    assert tree.untimed_way(["pelvis", "thigh_r"]) == (tree.fits["thigh_r"], ["thigh_r"])
     assert tree.clock_of("shank_r") == "pelvis"  # on the root's clock as recorded
     vendor = ClockSync({"thigh_l": _fit("thigh_l", "thigh_r", f"{stage.VENDOR_KEPT} (Synced)")})
     assert vendor.untimed(["thigh_l"]) is None

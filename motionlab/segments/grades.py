@@ -405,30 +405,36 @@ def gap_graded(graded: dict[str, JointGrades], gap_turns: dict) -> dict[str, Joi
 def clock_graded(graded: dict[str, JointGrades], protocol, session) -> dict[str, JointGrades]:
     """``graded`` with each joint whose two sensors the clock sync could not time against each
     other (:meth:`~motionlab.results.ClockSync.untimed`: one kept as recorded against the
-    other) graded ``weak`` at best where they turn fast enough for recorded stamps
-    ``RECORDED_CLOCK_S`` apart to move its angles by over ``CLOCK_ERROR_DEG`` (the faster
-    sensor's 95th-percentile angular speed times it): an offset moves a joint's angles by its
-    distal sensor's rotation over it (a simulated harsh walk's left shank, 52 ms from its
-    thigh, read 10° more knee flexion in swing, graded determined, and a range 12 % apart from
-    the right knee's); a trunk bending at 30°/s over a still pelvis moves 0.6° in 20 ms.
+    other) graded ``weak`` at best where the sensor whose stamps may be off turns fast enough
+    for recorded stamps ``RECORDED_CLOCK_S`` apart to move its angles by over
+    ``CLOCK_ERROR_DEG`` (its 95th-percentile angular speed times it): an offset moves a joint's
+    angles by the rotation over it of the sensor read at the wrong instants, the other being on
+    the session's clock (a simulated harsh walk's left shank, 52 ms from its thigh, read 10°
+    more knee flexion in swing, graded determined, and a range 12 % apart from the right
+    knee's); a trunk bending at 30°/s over a still pelvis moves 0.6° in 20 ms, and a still
+    wheelchair's sensor, however far off its stamps, moves the trunk's lean against it by
+    nothing (the faster of the two sensors, used before, had the lean of every still
+    wheelchair of a simulated seated session ``weak``).
     Without a clock sync (``--no-clock-sync``, or the vendor's clocks) the recorded clocks are
     taken as one. Where the refused fit itself put the two clocks so far apart (its offset less
-    twice its standard error) that their speed moves the angles by over
+    twice its standard error) that that speed moves the angles by over
     ``CLOCK_UNDETERMINED_DEG``, they are ``not determined``."""
     sync = session.results.clock_sync
     out = dict(graded)
     for name, joint in protocol.joints.items():
         labels = [sensor_for_segment(session, seg) for seg in (joint.proximal, joint.distal)]
-        fit = sync.untimed(labels) if sync is not None and None not in labels else None
-        if name not in out or fit is None:
+        found = sync.untimed_way(labels) if sync is not None and None not in labels else None
+        if name not in out or found is None:
             continue
-        speed = max(_speed_p95(session.sensors[lab].gyr) for lab in labels)
+        fit, off = found
+        speed = max(_speed_p95(session.sensors[lab].gyr) for lab in off)
         if speed * RECORDED_CLOCK_S <= CLOCK_ERROR_DEG:
             continue
         status = fit.status.removeprefix("not reliable: ")
         moved = f"{speed * RECORDED_CLOCK_S:.0f}°" if np.isfinite(speed) else "an unknown angle"
         why = (f"the clocks of {labels[0]} and {labels[1]} were not timed against each other "
-               f"({fit.sensor}'s kept as recorded: {status}); at their speed, stamps "
+               f"({fit.sensor}'s kept as recorded: {status}); at {' and '.join(off)}'s "
+               "speed, stamps "
                f"{1e3 * RECORDED_CLOCK_S:.0f} ms apart move the angles by {moved}")  # fmt: skip
         grade = "weak"
         apart = abs(fit.offset_s) - 2.0 * fit.offset_se_s  # what the refused fit measured, at least
