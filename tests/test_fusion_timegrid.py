@@ -382,6 +382,34 @@ def test_a_gap_in_a_repeating_movement_is_bridged_by_its_pattern(length):
     assert rms(chosen) < rms(plain) / 3, (rms(plain), rms(chosen))
 
 
+def test_a_patterns_uncertainty_is_at_least_its_distance_from_the_line_or_cubic():
+    """Either bridge may be the true one, so a gap bridged by a pattern is at least as
+    uncertain as the pattern lies from the line or cubic it displaced (a stretch copied from
+    another movement adds a turn its test gaps did not see: tests/test_trunk_seated.py): per
+    axis, sigma ≥ |∫ (pattern − other) dt| / √3 for every pattern-bridged gap of the walk-like
+    rate, and the floor decides where the two are far apart."""
+    from motionlab.fusion.timegrid import with_patterns
+
+    t, gyr = stepping()
+    keep = np.ones(len(t), bool)
+    for start in np.linspace(8.0, 32.0, 8):
+        keep[int(start * RATE) : int(start * RATE) + 12] = False
+    grid = gap_grid(t[keep], RATE)
+    recorded = np.zeros(len(grid.time), bool)
+    recorded[grid.index] = True
+    noise = gap_noise(grid.time, grid.vectors(gyr[keep]), recorded, RATE, choose=True)
+    assert len(noise.patterns) == 8
+    other = grid.vectors(gyr[keep], noise.linear)
+    pattern = with_patterns(other, noise)
+    floors = []
+    for first, last, _ in noise.patterns:
+        apart = (pattern[first : last + 1] - other[first : last + 1]).sum(0) / RATE
+        k = int(np.flatnonzero(noise.after == last + 1)[0])
+        floors.append(np.linalg.norm(apart) / np.sqrt(3.0))
+        assert noise.sigma[k] >= floors[-1] - 1e-12
+    assert max(floors) > 0.0
+
+
 def test_a_pattern_is_copied_only_from_recorded_samples_and_meets_the_gap_ends():
     """Three gaps close together in the repeating rate: each pattern's source stretch, with
     its matched surroundings, lies on recorded samples away from its own gap, and the bridge
