@@ -9,10 +9,11 @@ made perpendicular to it (the pelvis's carried through the rest), as the calibra
 them from perfect measurements. Their difference is the convention, not an error of
 estimation; the second is what the method can be held to.
 
-Each seed: ``motionlab simulate --protocol lumbar_seated`` (sitting still, flexion, lateral
-bending and rotation in one continuous block, then everyday movement; 40 s, preset
-``typical``, 50 Hz unless told), run as ``motionlab run --protocol lumbar_seated`` does; RMSE
-(deg) per plane over the trunk block, the truth's zero at the product's rest (as
+Each seed: ``motionlab simulate --protocol lumbar_seated`` (sitting still, the trunk block's
+quick leans forward, to the sides and turning, as the trunk data set's people make them, then
+everyday movement; 40 s, preset ``typical``, 50 Hz unless told), run as ``motionlab run
+--protocol lumbar_seated`` does (clock sync included: every simulated IMU has its own clock);
+RMSE (deg) per plane over the trunk block, the truth's zero at the product's rest (as
 ``tests/test_trunk_seated.py``).
 
 Usage (from the repository root)::
@@ -67,7 +68,7 @@ def run_seed(
     """RMSE (deg) per plane over the trunk block against both truths, and the grades."""
     session, truth = simulate("lumbar_seated", duration=40, seed=seed, preset=preset,
                               rate_hz=rate, mounting=mounting)  # fmt: skip
-    analyse(session, PipelineOptions(protocol="lumbar_seated", progress=False, clock_sync=False))
+    analyse(session, PipelineOptions(protocol="lumbar_seated", progress=False))
     cols = session.results.angles.columns()
     cal = session.results.calibration
     t = np.asarray(cols["time_s"], float)

@@ -15,13 +15,14 @@ from motionlab.cli import main
 from motionlab.errors import InputError
 from motionlab.kinematics.joint_angles import decompose
 from motionlab.pipeline import PipelineOptions, analyse
+from motionlab.segments.trunk_axes import _frame
 from motionlab.session import SensorStream
 from motionlab.simulate import simulate
 from motionlab.timebase import take
 from tests.conftest import ROOT, SHARED, bench_module, needs_shared
 
 PLANES = ("flexion", "lateral_bending", "axial_rotation")
-OPTIONS = PipelineOptions(protocol="lumbar_seated", progress=False, clock_sync=False)
+OPTIONS = PipelineOptions(protocol="lumbar_seated", progress=False)
 
 
 @pytest.fixture(scope="module")
@@ -74,15 +75,16 @@ def test_seated_continuous_trunk_movement_gives_the_lumbar_angles(seated):
     assert rest[1] - rest[0] >= 1.0
     # the stillest rest is the seated one after the block (the thorax flexed 10° over the
     # pelvis, as at the start), so the protocol's convention is measured, and the anatomical
-    # angles carry that 10° between the two conventions (docs/kinematics.md)
+    # angles carry that 10° between the two conventions (docs/kinematics.md); the clocks are
+    # synchronised (each simulated IMU has its own, and the leans turn at 150°/s)
     convention = bench_module("seated_trunk_sim").rest_convention_truth(truth, tuple(rest))
     rmse = {p: float(np.sqrt(np.mean(e**2)))
             for p, e in _errors(session, truth, convention).items()}  # fmt: skip
-    # measured (seed 2, 50 Hz): 0.58 / 0.76 / 0.50° (the rest at 37-40 s before the gyroscope
-    # rates were taken less their bias: 1.0 / 1.1 / 0.4° anatomical)
-    assert max(rmse.values()) < 1.2, rmse
+    # measured (seed 2, 50 Hz): 0.36 / 0.43 / 0.26° (the slower block before the real trials'
+    # leans: 0.58 / 0.76 / 0.50°)
+    assert max(rmse.values()) < 0.8, rmse
     anatomical = {p: float(np.sqrt(np.mean(e**2))) for p, e in _errors(session, truth).items()}
-    assert max(anatomical.values()) < 2.5, anatomical  # measured 0.95 / 2.38 / 1.93°
+    assert max(anatomical.values()) < 1.5, anatomical  # measured 0.45 / 0.89 / 0.97°
 
 
 def test_everyday_movement_does_not_pull_the_flexion_axis():
@@ -97,17 +99,17 @@ def test_everyday_movement_does_not_pull_the_flexion_axis():
     m = np.asarray(session.results.calibration.segments["thorax"].mounting, float)
     true_z = rot.to_matrix(rot.conj(np.asarray(truth.sensors["thorax"]["mounting"])))[:, 2]
     z = (rot.to_matrix(m) if m.shape == (4,) else m)[:, 2]
-    assert np.degrees(np.arccos(abs(z @ true_z))) < 3.0  # measured 0.4° (17.9° before)
+    assert np.degrees(np.arccos(abs(z @ true_z))) < 3.0  # measured 1.0° (17.9° before)
     rmse = {p: float(np.sqrt(np.mean(e**2))) for p, e in _errors(session, truth).items()}
-    # measured 1.04 / 2.44 / 1.95°
-    assert rmse["flexion"] < 1.5 and rmse["lateral_bending"] < 3.0
-    assert rmse["axial_rotation"] < 2.5
+    # measured 0.34 / 0.93 / 0.58° (1.04 / 2.44 / 1.95° on the slower block)
+    assert rmse["flexion"] < 1.0 and rmse["lateral_bending"] < 1.5
+    assert rmse["axial_rotation"] < 1.2
     rest = session.results.calibration.steps["rest"]
     convention = bench_module("seated_trunk_sim").rest_convention_truth(truth, tuple(rest))
     rmse = {p: float(np.sqrt(np.mean(e**2)))
             for p, e in _errors(session, truth, convention).items()}  # fmt: skip
-    # measured 0.85 / 0.17 / 0.23°
-    assert max(rmse.values()) < 1.2, rmse
+    # measured 0.26 / 0.20 / 0.21° (0.85 / 0.17 / 0.23° on the slower block)
+    assert max(rmse.values()) < 0.8, rmse
 
 
 def test_the_axis_vote_finds_flexion_and_bending_among_other_movement():
@@ -280,17 +282,20 @@ def test_a_recording_that_starts_moving_and_rests_only_at_the_end(seated):
     late = _crop(session, block["start_s"] + 2.0, 1e9)  # started in the middle of the block
     analyse(late, OPTIONS)
     rest = late.results.calibration.steps["rest"]
-    assert rest[0] > block["end_s"] - 0.1  # the only rest left is after the movement
+    # the only rest left is after the movement (the block's last half second is its ramp:
+    # the leans have ended)
+    assert rest[0] > block["end_s"] - 0.6
     assert np.isfinite(late.results.angles.columns()["lumbar_flexion_deg"]).all()
 
 
 def test_a_rest_with_a_moment_of_movement_is_no_trunk_movement(seated):
     """A recording cut to its rest and the first second of the trunk block is refused: no
     trunk movement (without the check it ran and graded all three planes ``determined`` from
-    0.8-0.9 s of movement); six seconds of the block give the axes."""
+    0.8-0.9 s of movement of the slower simulated block before); six seconds of the block give
+    the axes."""
     session, truth = seated
     start = truth.step("trunk_movement")["start_s"]
-    with pytest.raises(InputError, match=r"no trunk movement: .* for 0\.[89] s besides the rest"):
+    with pytest.raises(InputError, match=r"no trunk movement: .* for 0\.\d s besides the rest"):
         analyse(_crop(session, start - 2.0, start + 1.0), OPTIONS)
     with pytest.raises(InputError, match="no trunk movement: the thorax hardly turns"):
         analyse(_crop(session, start - 6.0, start + 0.3), OPTIONS)
@@ -332,20 +337,26 @@ def test_the_trunk_leans_against_a_still_chair(seated):
     )  # fmt: skip
     analyse(session, OPTIONS)
     cols = session.results.angles.columns()
-    assert session.results.calibration.grades["trunk_chair"].grades[2] == "determined"
+    # the chair's clock is not timed against the thorax's (nothing joins them), but a still
+    # chair read at other instants is the same chair: all three graded by the movement
+    assert session.results.calibration.grades["trunk_chair"].grades == ["determined"] * 3
     t = cols["time_s"]
     rest = session.results.calibration.steps["rest"]
     q = rot.resample(truth.time, truth.segments["thorax"]["orientation"], t)
     at_rest = (t >= rest[0]) & (t <= rest[1])
     q0 = rot.mean(rot.make_continuous(q[at_rest]))
-    # the truth: the thorax against its own rest pose, the chair being still
+    # the truth: the thorax against its own rest pose, the chair being still, in the
+    # protocol's frame (y the rest's vertical, z the thorax's flexion axis made perpendicular
+    # to it); its ISB frame, flexed 10° at the seated rest, splits leans of 40-80° otherwise
+    up = rot.rotate(rot.conj(q0), np.array([0.0, 0.0, 1.0]))
+    frame = rot.from_matrix(_frame(up, np.array([0.0, 0.0, 1.0])))
+    q, q0 = rot.mul(q, np.broadcast_to(frame, q.shape)), rot.mul(q0, frame)
     want = np.degrees(decompose(np.broadcast_to(q0, q.shape), q, "lumbar"))
     inside = (t >= block["start_s"]) & (t <= block["end_s"])
-    forward = cols["trunk_lean_forward_deg"][inside]
-    sideways = cols["trunk_lean_sideways_deg"][inside]
-    assert forward.max() > 40  # the simulated forward bend
-    assert np.sqrt(np.mean((forward - want[inside, 0]) ** 2)) < 2.0
-    assert np.sqrt(np.mean((sideways - want[inside, 1]) ** 2)) < 3.0
+    assert np.nanmax(cols["trunk_lean_forward_deg"][inside]) > 40  # the simulated forward lean
+    for k, what in enumerate(("forward", "sideways", "rotation")):
+        error = cols[f"trunk_lean_{what}_deg"][inside] - want[inside, k]
+        assert np.sqrt(np.nanmean(error**2)) < 1.0, what  # measured 0.48 / 0.38 / 0.46°
 
 
 def test_the_lumbar_protocol_refusing_a_seated_recording_names_lumbar_seated(seated):
@@ -628,20 +639,36 @@ def test_lumbar_seated_is_suggested_only_for_a_recording_with_enough_trunk_movem
 
 
 def test_the_rest_is_not_taken_across_a_whole_body_turn():
-    """Harsh seed 9 (uncalibrated gyroscopes: 2 % scale, 1° misalignment): the stillest rest
-    (37-40 s) follows the everyday movement, in which the body turns 93° about the vertical,
-    and those gyroscope errors carried 6-8° of relative heading through the turn: axial
-    rotation 8.3° RMS off over the trunk block, graded determined. The still stretch before the
-    block is the rest now (axial rotation 1.50° off in the protocol's convention, determined)."""
-    session, truth = simulate("lumbar_seated", duration=40, seed=9, preset="harsh",
+    """Harsh preset (uncalibrated gyroscopes: 2 % scale, 1° misalignment; packet losses): the
+    everyday movement after the trunk block turns the body 93° about the vertical, and those
+    gyroscope errors carry 6-8° of relative heading through the turn, so a rest after it (the
+    stillest one of seed 9 before the simulated leans were made as quick as the real trials',
+    37-40 s: axial rotation 8.3° RMS off, graded determined) is not the zero. The rest is the
+    still sitting before the turn (:func:`find_rest`'s turn rule, tested on its own below)."""
+    session, truth = simulate("lumbar_seated", duration=40, seed=3, preset="harsh",
                               rate_hz=50, mounting="random")  # fmt: skip
     analyse(session, OPTIONS)
     rest = session.results.calibration.steps["rest"]
-    assert rest[1] <= truth.step("trunk_movement")["start_s"] + 0.5, rest
+    assert rest[1] <= truth.step("free")["start_s"] + 0.5, rest  # not after the turn
     convention = bench_module("seated_trunk_sim").rest_convention_truth(truth, tuple(rest))
     rmse = {p: float(np.sqrt(np.mean(e**2)))
             for p, e in _errors(session, truth, convention, missing=0.15).items()}  # fmt: skip
-    assert rmse["axial_rotation"] < 2.5, rmse  # measured 1.50° (8.32° from the late rest)
+    assert session.results.calibration.grades["lumbar"].grades[2] == "determined"
+    assert rmse["axial_rotation"] < 2.5, rmse  # measured 0.86°
+
+
+def test_a_pattern_bridge_that_adds_a_turn_is_not_determined():
+    """Harsh seed 0: a 0.42-s packet loss of the pelvis sensor as a quick lean ends. Its test
+    gaps said the pattern (the stretch whose surroundings match best) misses 2.8°; it added a
+    turn of 26° (the cubic would have missed 6°), which stayed in the 6-D headings: axial
+    rotation 22.7° RMS off over the block, graded determined. The two bridges lie 21° apart,
+    and that is the gap's uncertainty now: the lumbar angles are not determined."""
+    session, truth = simulate("lumbar_seated", duration=40, seed=0, preset="harsh",
+                              rate_hz=50, mounting="random")  # fmt: skip
+    analyse(session, OPTIONS)
+    grades = session.results.calibration.grades["lumbar"]
+    assert grades.grades == ["not determined"] * 3
+    assert "packet-loss gaps" in grades.reasons[2] and "pelvis at 23.4 s" in grades.reasons[2]
 
 
 def test_find_rest_prefers_a_still_stretch_not_turned_from_the_movement():

@@ -59,6 +59,7 @@ from motionlab.simulate.signals import (
     _poses,
     ideal_imu,
     impact_artefact,
+    movement_tremor,
     segment_kinematics,
     sensor_pose,
     skin_artefact,
@@ -72,7 +73,8 @@ __all__ = ["simulate", "Truth", "load_truth", "save_truth", "write_truth_csv", "
 PROVENANCE_TIME = "2000-01-01T00:00:00+00:00"  # fixed, so that the same seed gives the same bytes
 _STREAMS = {"mount": 1, "sensor": 2, "markers": 3, "field": 4}
 MOUNTINGS = ("nominal", "random", "surface")
-_SUB_SITE, _SUB_TISSUE, _SUB_SKIN = 1, 2, 3  # sub-streams of "mount" for the newer draws
+# sub-streams of "mount" for the newer draws
+_SUB_SITE, _SUB_TISSUE, _SUB_SKIN, _SUB_TREMOR = 1, 2, 3, 4
 TISSUE_RATE_HZ = 200.0  # grid of the soft-tissue dynamics
 #: named gait variants (``gait=``): options of the gait tasks (motion.gait_block); ``asymmetric``:
 #: the right stance ends at 67 % instead of 62 % and the left heel strikes at 47 % of the stride
@@ -134,6 +136,17 @@ STA_HUMERAL_FOLLOW_SD = 0.05
 #: frequency (Hz) and decay (s) of the skin's shift after a heel strike (its peak ≈ 3 decays)
 STA_IMPACT_HZ = (2.0, 4.0)
 STA_IMPACT_DECAY_S = (0.03, 0.05)
+#: the trunk sensors' tremor on the tissue while the trunk moves (:func:`movement_tremor`),
+#: from the trunk data set's two ``trunkmovement`` trials (x-IMU3 on the upper and lower back,
+#: ``bench/real_trunk.py``'s data; docs/simulator.md): the gyroscope's part above 4 Hz over
+#: half-second windows, median 15-17°/s RMS on the upper back where it turns at 50-200°/s and
+#: 12°/s at 20-50°/s (2.7°/s still), 4.1-5.7°/s on the lower back (0.9 still); spread over
+#: 4-12 Hz, about the upper back's two horizontal axes (12-13°/s each) more than its long axis
+#: (4-5°/s). Level (deg/s), axis weights (x, y, z segment frame), band (Hz), speed scale (deg/s)
+STA_TREMOR_DEG_S = {"thorax": 19.0, "pelvis": 5.5}
+STA_TREMOR_WEIGHTS = {"thorax": np.array([1.0, 0.35, 1.0]), "pelvis": np.array([1.0, 1.0, 1.0])}
+STA_TREMOR_BAND_HZ = (4.0, 12.0)
+STA_TREMOR_SPEED_DEG_S = 20.0
 
 
 def _skin_drivers(body: Body, seg: str, ch: np.ndarray) -> np.ndarray:
@@ -215,6 +228,16 @@ def _mount(body: Body, protocol: Protocol, seg: str, i: int, seed: int, preset: 
             artefact += impact_artefact(grid, impacts, direction, impact,
                                         s_rng.uniform(*STA_IMPACT_HZ),
                                         s_rng.uniform(*STA_IMPACT_DECAY_S))  # fmt: skip
+            if kind in STA_TREMOR_DEG_S and preset.sta_deg > 0:  # trembling on the back
+                artefact += movement_tremor(
+                    grid,
+                    kin[1],
+                    np.radians(STA_TREMOR_DEG_S[kind]),
+                    STA_TREMOR_WEIGHTS[kind],
+                    STA_TREMOR_BAND_HZ,
+                    np.radians(STA_TREMOR_SPEED_DEG_S),
+                    _rng(seed, "mount", i, _SUB_TREMOR),
+                )
             if kind == "upperarm" and preset.sta_deg > 0:  # the humerus turns under the skin
                 mount.humeral_follow = humeral_follow(body, seg, mount.site, s_rng)
                 artefact += _humeral_lag(body, seg, ch_grid, mount.humeral_follow)

@@ -233,6 +233,29 @@ def impact_artefact(t: np.ndarray, impacts: np.ndarray, direction: np.ndarray, a
     return amplitude * after_impacts(t, impacts, 20 * decay_s, pulse)[:, None] * direction
 
 
+def movement_tremor(t: np.ndarray, omega: np.ndarray, level: float, weights: np.ndarray,
+                    band_hz: tuple[float, float], speed_ref: float,
+                    rng: np.random.Generator) -> np.ndarray:  # fmt: skip
+    """Rotation (N, 3; rad, segment frame) of a sensor trembling on the tissue while its segment
+    moves: noise band-passed to ``band_hz`` (zero phase, on the uniform grid ``t``, s) about the
+    segment's axes with ``weights``, scaled so that its rate's RMS is ``level`` (rad/s) where the
+    segment turns fast and fading with ``1 − exp(−|ω| / speed_ref)`` (``omega`` (N, 3) rad/s,
+    smoothed over 0.25 s) towards rest, where it is none (what the upper-back sensors of the trunk
+    data set show: docs/simulator.md)."""
+    from scipy.signal import butter, sosfiltfilt
+
+    dt = float(t[1] - t[0])
+    sos = butter(4, band_hz, "bandpass", fs=1.0 / dt, output="sos")
+    if len(t) <= 3 * (2 * len(sos) + 1):  # too short to filter
+        return np.zeros((len(t), 3))
+    noise = sosfiltfilt(sos, rng.normal(size=(len(t), 3)), axis=0) * weights
+    rate = np.gradient(noise, dt, axis=0)
+    noise *= level / max(float(np.sqrt(np.mean(np.sum(rate**2, axis=1)))), 1e-12)
+    n = max(1, int(round(0.25 / dt)))
+    speed = np.convolve(np.linalg.norm(omega, axis=1), np.ones(n) / n, mode="same")
+    return noise * (1.0 - np.exp(-speed / speed_ref))[:, None]
+
+
 def tissue_motion(
     kin: tuple[np.ndarray, ...],
     t: np.ndarray,

@@ -261,6 +261,85 @@ def trunk(
     return Block(name, "trunk", phase, duration, fn, generator=f"trunk{list(planes)}")
 
 
+#: The seated trunk movement of wheelchair users as the trunk data set's two people record it
+#: (the three ``trunkmovement`` trials, ``bench/real_trunk.py``'s data: the product's lumbar and
+#: trunk-against-chair angles and each sensor's speed, measured 2 Dec 2026; docs/simulator.md):
+#: quick leans out and back of about a second each (``SEATED_LEAN_S``, the forward one 1.6
+#: times as long), forward, to both sides and turning both ways, nearly back to back, the
+#: lower-back sensor following most of the upper one: trunk against the chair 54 / 46-64 /
+#: 59-75° forward / sideways / turning at the extremes (``SEATED_LEAN_DEG``), the lumbar
+#: spine's share of the lean 0.43-0.59 / 0.25-0.35 / 0.34-0.40 (of its rate; of its extremes
+#: 0.26-0.33 / 0.25-0.27 / 0.33-0.37: ``SEATED_LUMBAR_SHARE``); after the forward lean the
+#: lumbar spine extends (13° then -10°, 18° then -9°: ``SEATED_REBOUND``) and the trunk leans
+#: back against the chair (-11, -26 and -51° after 54°: ``SEATED_LEAN_BACK``). The real upper
+#: back turns at 103-121°/s RMS (where over 20°/s), the lower back at 87-98°/s; these draws give
+#: 107-127 and 75-86°/s.
+SEATED_LEAN_S = (1.0, 1.5)
+SEATED_GAP_S = (0.0, 0.3)  # between leans
+SEATED_PAUSE_S = (0.3, 0.8)  # between rounds
+SEATED_LEAN_DEG = {0: (40.0, 55.0), 1: (45.0, 65.0), 2: (55.0, 80.0)}
+SEATED_LUMBAR_SHARE = {0: (0.4, 0.55), 1: (0.22, 0.3), 2: (0.32, 0.42)}
+SEATED_REBOUND = (0.4, 1.0)
+SEATED_LEAN_BACK = (0.0, 0.9)
+
+
+def _bump(u: np.ndarray) -> np.ndarray:
+    """0 → 1 → 0 over ``u`` in [0, 1] (``sin⁴ πu``: C³ at both ends), 0 outside."""
+    inside = (u > 0.0) & (u < 1.0)
+    return np.where(inside, np.sin(np.pi * np.clip(u, 0.0, 1.0)) ** 4, 0.0)
+
+
+def seated_trunk(body: Body, name, phase, duration, seed: int = 0) -> Block:
+    """Seated trunk movement as wheelchair users make it (:data:`SEATED_LEAN_S` and the other
+    ``SEATED_*`` figures): rounds of quick leans, forward (the lumbar spine extending after it),
+    to either side and turning either way, each side's order drawn per round; every lean
+    split between the pelvis (its tilt on the seat, the hips flexing with a forward one) and
+    the lumbar spine."""
+    rng = np.random.default_rng([seed, 28])
+    sit = posture(body, "sitting")
+    ramp = min(0.5, duration / 4)
+    # (start s, length s, plane, signed lean rad, lumbar share, the spine's and the seat's
+    # lean back after a forward lean, as shares of it)
+    events = []
+    t = 0.0
+    while not events or t < duration - 2 * ramp:
+        sides, turns = rng.permutation([-1.0, 1.0]), rng.permutation([-1.0, 1.0])
+        for plane, sign in ((0, 1.0), (1, sides[0]), (1, sides[1]), (2, turns[0]), (2, turns[1])):
+            length = rng.uniform(*SEATED_LEAN_S) * (1.6 if plane == 0 else 1.0)
+            lean = sign * rng.uniform(*SEATED_LEAN_DEG[plane]) * DEG
+            share = rng.uniform(*SEATED_LUMBAR_SHARE[plane])
+            back = (rng.uniform(*SEATED_REBOUND), rng.uniform(*SEATED_LEAN_BACK))
+            events.append((t, length, plane, lean, share, *back))
+            t += length + rng.uniform(*SEATED_GAP_S)
+            if t >= duration - 2 * ramp:
+                break
+        t += rng.uniform(*SEATED_PAUSE_S)
+    # the leans fill the block: their times taken to it (a round cut short keeps its leans)
+    scale = (duration - 2 * ramp) / (events[-1][0] + events[-1][1])
+    events = [(ramp + a * scale, b * scale, *rest) for a, b, *rest in events]
+    lumbar = [CH["lumbar_0"], CH["lumbar_1"], CH["lumbar_2"]]
+    pelvis = [CH["tilt_z"], CH["tilt_x"], CH["rot_y"]]
+    pelvis_sign = (-1.0, 1.0, 1.0)  # the pelvis leans with the spine (tilt_z < 0: forward)
+
+    def fn(tau):
+        out = _tile(sit, tau)
+        e = envelope(tau, duration, ramp)
+        for start, length, plane, lean, share, rebound, back in events:
+            u = (tau - start) / length
+            spine, seat = share * lean * _bump(u), (1.0 - share) * lean * _bump(u)
+            if plane == 0:  # lean forward (0-60 % of it), then sit back up, arching the back
+                trunk, arch = _bump(u / 0.6), _bump((u - 0.4) / 0.6)
+                spine = share * lean * (trunk - rebound * arch)
+                seat = (1.0 - share) * lean * (trunk - back * arch)
+                for s in "rl":
+                    out[:, CH[f"hip_{s}_0"]] += e * seat
+            out[:, lumbar[plane]] += e * spine
+            out[:, pelvis[plane]] += e * pelvis_sign[plane] * seat
+        return out
+
+    return Block(name, "trunk", phase, duration, fn, generator="seated_trunk")
+
+
 def mixed(body: Body, name, phase, duration, reps, options, seed: int = 0) -> Block:
     """Everyday movement: every joint a sum of slow sinusoids, turning 90° on the spot."""
     rng = np.random.default_rng(seed)
@@ -378,6 +457,8 @@ def functional_block(body: Body, step, seed: int) -> Block:
     three planes in one continuous block, in the step's pose."""
     if step.axis_method == "trunk":
         pose = posture_of(f"{step.pose} {step.instructions}")
+        if pose == "sitting":
+            return seated_trunk(body, step.name, "calibration", step.duration_s, seed)
         return trunk(body, step.name, "calibration", step.duration_s, step.repetitions, {},
                      pose=pose)  # fmt: skip
     joints = moving_joints(body, step)
