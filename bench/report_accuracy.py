@@ -101,9 +101,10 @@ SEATED = ("lumbar_seated",)
 SEATED_CONDITIONS = (
     "simulated seated sessions (motionlab simulate --protocol lumbar_seated, preset "
     "'{preset}', 50 Hz, every sensor anywhere on its segment, any way round): a rest, then "
-    "flexion, lateral bending and rotation in one continuous block, analysed as 'motionlab "
-    "run' does; RMSE over that block against the true angles in the protocol's frames (0° the "
-    "rest pose, as this report's angles), seeds {seeds}"
+    "quick leans forward, to both sides and turning both ways in one block, as the real "
+    "trials below make them, analysed as 'motionlab run' does; RMSE over that block against "
+    "the true angles in the protocol's frames (0° the rest pose, as this report's angles), "
+    "seeds {seeds}"
 )
 REAL_TRUNK = real_trunk.DEFAULT_DATA
 REAL_TRUNK_CONDITIONS = (
