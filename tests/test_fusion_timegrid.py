@@ -344,6 +344,16 @@ def stepping(
     return t, gyr + 0.02 * rng.standard_normal(gyr.shape)
 
 
+def pattern_noise(t: np.ndarray, gyr: np.ndarray, keep: np.ndarray, rate: float = RATE):
+    """The gap grid of the samples ``keep``, which of its samples were recorded, and their
+    bridges' noise with patterns chosen (:func:`gap_noise`, ``choose=True``)."""
+    grid = gap_grid(t[keep], rate)
+    recorded = np.zeros(len(grid.time), bool)
+    recorded[grid.index] = True
+    noise = gap_noise(grid.time, grid.vectors(gyr[keep]), recorded, rate, choose=True)
+    return grid, recorded, noise
+
+
 def missed_deg(
     t: np.ndarray, gyr: np.ndarray, keep: np.ndarray, patterns: bool, rate: float = RATE
 ) -> float:
@@ -351,10 +361,7 @@ def missed_deg(
     pattern bridge (the line or cubic its test gaps choose otherwise)."""
     from motionlab.fusion.timegrid import with_patterns
 
-    grid = gap_grid(t[keep], rate)
-    recorded = np.zeros(len(grid.time), bool)
-    recorded[grid.index] = True
-    noise = gap_noise(grid.time, grid.vectors(gyr[keep]), recorded, rate, choose=True)
+    grid, recorded, noise = pattern_noise(t, gyr, keep, rate)
     bridged = grid.vectors(gyr[keep], noise.linear)
     if patterns:
         bridged = with_patterns(bridged, noise)
@@ -373,11 +380,7 @@ def test_a_gap_in_a_repeating_movement_is_bridged_by_its_pattern(length):
         keep = ~((t > start) & (t < start + length))
         plain.append(missed_deg(t, gyr, keep, False))
         chosen.append(missed_deg(t, gyr, keep, True))
-        grid = gap_grid(t[keep], RATE)
-        recorded = np.zeros(len(grid.time), bool)
-        recorded[grid.index] = True
-        noise = gap_noise(grid.time, grid.vectors(gyr[keep]), recorded, RATE, choose=True)
-        assert len(noise.patterns) == 1, start
+        assert len(pattern_noise(t, gyr, keep)[2].patterns) == 1, start
     rms = lambda v: np.sqrt(np.mean(np.square(v)))  # noqa: E731
     assert rms(chosen) < rms(plain) / 3, (rms(plain), rms(chosen))
 
@@ -394,10 +397,7 @@ def test_a_patterns_uncertainty_is_at_least_its_distance_from_the_line_or_cubic(
     keep = np.ones(len(t), bool)
     for start in np.linspace(8.0, 32.0, 8):
         keep[int(start * RATE) : int(start * RATE) + 12] = False
-    grid = gap_grid(t[keep], RATE)
-    recorded = np.zeros(len(grid.time), bool)
-    recorded[grid.index] = True
-    noise = gap_noise(grid.time, grid.vectors(gyr[keep]), recorded, RATE, choose=True)
+    grid, _, noise = pattern_noise(t, gyr, keep)
     assert len(noise.patterns) == 8
     other = grid.vectors(gyr[keep], noise.linear)
     pattern = with_patterns(other, noise)
@@ -420,10 +420,7 @@ def test_a_pattern_is_copied_only_from_recorded_samples_and_meets_the_gap_ends()
     keep = np.ones(len(t), bool)
     for start in (20.0, 20.4, 21.5):
         keep[int(start * RATE) : int(start * RATE) + 9] = False
-    grid = gap_grid(t[keep], RATE)
-    recorded = np.zeros(len(grid.time), bool)
-    recorded[grid.index] = True
-    noise = gap_noise(grid.time, grid.vectors(gyr[keep]), recorded, RATE, choose=True)
+    grid, recorded, noise = pattern_noise(t, gyr, keep)
     assert len(noise.patterns) == 3
     k = int(round(PATTERN_CONTEXT_S * RATE))
     bridged = with_patterns(grid.vectors(gyr[keep], noise.linear), noise)
