@@ -49,6 +49,7 @@ from scipy.interpolate import BSpline, make_interp_spline
 from scipy.signal import cont2discrete, lfilter
 
 from motionlab import rotations as rot
+from motionlab.dsp import butter, padlen, sosfiltfilt
 from motionlab.simulate.body import Body
 from motionlab.simulate.chain import derivatives, derivatives_many, segment_poses
 from motionlab.simulate.timeline import Timeline
@@ -242,11 +243,9 @@ def movement_tremor(t: np.ndarray, omega: np.ndarray, level: float, weights: np.
     segment turns fast and fading with ``1 − exp(−|ω| / speed_ref)`` (``omega`` (N, 3) rad/s,
     smoothed over 0.25 s) towards rest, where it is none (what the upper-back sensors of the trunk
     data set show: docs/simulator.md)."""
-    from scipy.signal import butter, sosfiltfilt
-
     dt = float(t[1] - t[0])
-    sos = butter(4, band_hz, "bandpass", fs=1.0 / dt, output="sos")
-    if len(t) <= 3 * (2 * len(sos) + 1):  # too short to filter
+    sos = butter(4, band_hz, 1.0 / dt, "bandpass")
+    if len(t) <= padlen(sos):  # too short to filter
         return np.zeros((len(t), 3))
     noise = sosfiltfilt(sos, rng.normal(size=(len(t), 3)), axis=0) * weights
     rate = np.gradient(noise, dt, axis=0)
