@@ -145,13 +145,14 @@ def data_quality_page(doc: Document, view: SessionView) -> None:
         size=SIZE["small"],
         colour=MUTED,
     )
+    raised = raised_flags(view)
     flags = [
-        f"{sensor}: {', '.join(f.replace('_', ' ') for f in raised)}"
-        for sensor, raised in raised_flags(view).items()
+        f"{sensor}: {', '.join(f.replace('_', ' ') for f in these)}"
+        for sensor, these in raised.items()
     ]
     doc.heading("Quality checks raised")
     doc.bullets(flags or ["none: every sensor's signals passed their checks (the clocks: below)"])
-    if _mag_flags_unused(view):
+    if _mag_flags_unused(view, raised):
         doc.paragraph(
             "The magnetometers' checks are not raised: the orientations were estimated without "
             "them (6-D).",
@@ -480,10 +481,9 @@ def calibration_cells(
     return cells, [False] * 3 + [weak_rho, weak, residual, False, not r.segment_ok]
 
 
-def _mag_flags_unused(view: SessionView) -> bool:
-    """Whether a sensor's magnetometer flag was left out of "Quality checks raised" (its
-    orientation 6-D)."""
-    raised = raised_flags(view)
+def _mag_flags_unused(view: SessionView, raised: dict[str, list[str]]) -> bool:
+    """Whether a sensor's magnetometer flag was left out of "Quality checks raised"
+    (``raised``, :func:`raised_flags`: its orientation 6-D)."""
     return any(
         set(q.flags) & MAG_FLAGS and not MAG_FLAGS & set(raised.get(q.sensor, ()))
         for q in quality_rows(view)
