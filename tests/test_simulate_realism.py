@@ -377,3 +377,63 @@ def test_the_seated_trunk_moves_and_trembles_as_the_real_trials():
     assert 12.0 < np.median(fast) < 22.0 and np.median(still) < 1.0, (fast, still)
     fit = estimate_clock(session.sensors["pelvis"], session.sensors["thorax"], spine=True)
     assert 0.12 < fit.residual < 0.3, fit  # measured 0.18
+
+
+#: the real full-body walk's leg sensors (shared/datasets/human/qmt_full_body, Xsens at 100 Hz,
+#: ``bench/leg_ringing.py``): RMS of the accelerometer's and the gyroscope's vector above 10 Hz
+#: while walking, 5.4-8.4 m/s² and 2.4-3.4 rad/s; its pelvis 1.0 m/s² and 0.31 rad/s. The
+#: simulated legs gave 0.06-0.14 m/s² and 0.7-0.8 rad/s before they rang after heel strikes.
+REAL_LEG_RINGING = {"acc": (5.4, 8.4), "gyr": (2.4, 3.4)}
+REAL_PELVIS_RINGING = {"acc": 1.0, "gyr": 0.31}
+
+
+def _ringing(stream, walking_rad_s: float) -> tuple[float, float]:
+    """RMS of the accelerometer's and the gyroscope's vector above 10 Hz while walking."""
+    from scipy.signal import butter, sosfiltfilt
+
+    w = np.linalg.norm(stream.gyr, axis=1)
+    walking = np.sqrt(np.convolve(w**2, np.ones(100) / 100, "same")) > walking_rad_s
+    sos = butter(4, 10.0, "highpass", fs=100.0, output="sos")
+    return tuple(
+        float(np.sqrt(np.mean(np.sum(sosfiltfilt(sos, x, axis=0)[walking] ** 2, axis=1))))
+        for x in (stream.acc, stream.gyr)
+    )
+
+
+def test_the_legs_ring_after_heel_strikes_as_a_real_walks_do():
+    """The skin preset's thigh and shank sensors ring on the tissue after their own heel strike
+    (a shock and a wobble, docs/simulator.md) about as much as the real walk's, the pelvis far
+    less; the typical preset's legs hardly ring."""
+    session, _ = simulate("walk", 40.0, 0, "skin", mounting="random", knee_model="anatomical")
+    lo, hi = REAL_LEG_RINGING["acc"], REAL_LEG_RINGING["gyr"]
+    for seg in ("thigh_r", "thigh_l", "shank_r", "shank_l"):
+        acc, gyr = _ringing(session.sensors[seg], 1.0)
+        assert 0.6 * lo[0] < acc < 1.3 * lo[1], (seg, acc)
+        assert 0.6 * hi[0] < gyr < 1.3 * hi[1], (seg, gyr)
+    acc, gyr = _ringing(session.sensors["pelvis"], 0.3)
+    assert acc < 1.5 * REAL_PELVIS_RINGING["acc"] and gyr < 1.5 * REAL_PELVIS_RINGING["gyr"]
+    calm, _ = simulate("walk", 40.0, 0, "typical", mounting="random", knee_model="anatomical")
+    assert _ringing(calm.sensors["thigh_r"], 1.0)[0] < 0.5
+
+
+def test_heel_strikes_are_told_apart_by_leg():
+    """The walk's impacts carry their leg: right and left alternate and together are all."""
+    from motionlab.simulate.motion import gait_block
+
+    block = gait_block(Body(1.75), "walk", "task", 20.0, {}, seed=3)
+    sides = block.impact_sides
+    assert len(sides) == len(block.impacts) > 10
+    assert set(sides) == {"r", "l"}
+    assert all(a != b for a, b in zip(sides[:-1], sides[1:], strict=True))
+
+
+def test_a_shock_is_there_at_the_strike_whatever_its_decay():
+    """With a rise time the ringing's envelope is near its height within a few rise times of
+    each strike, for a slow decay as for a fast one (one onset for every sensor)."""
+    t = np.arange(0.0, 1.0, 0.001)
+    for decay in (0.03, 0.06):
+        ring = impact_artefact(t, np.array([0.2]), np.array([1.0, 0.0, 0.0]), 1.0, 15.0, decay,
+                               0.005)[:, 0]  # fmt: skip
+        assert np.all(ring[t <= 0.2] == 0.0)
+        first = np.argmax(np.abs(ring) > 0.3)  # the first swing past 0.3 of the amplitude
+        assert 0.2 < t[first] < 0.24

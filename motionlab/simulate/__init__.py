@@ -74,7 +74,7 @@ PROVENANCE_TIME = "2000-01-01T00:00:00+00:00"  # fixed, so that the same seed gi
 _STREAMS = {"mount": 1, "sensor": 2, "markers": 3, "field": 4}
 MOUNTINGS = ("nominal", "random", "surface")
 # sub-streams of "mount" for the newer draws
-_SUB_SITE, _SUB_TISSUE, _SUB_SKIN, _SUB_TREMOR = 1, 2, 3, 4
+_SUB_SITE, _SUB_TISSUE, _SUB_SKIN, _SUB_TREMOR, _SUB_SHOCK = 1, 2, 3, 4, 5
 TISSUE_RATE_HZ = 200.0  # grid of the soft-tissue dynamics
 #: named gait variants (``gait=``): options of the gait tasks (motion.gait_block); ``asymmetric``:
 #: the right stance ends at 67 % instead of 62 % and the left heel strikes at 47 % of the stride
@@ -136,6 +136,15 @@ STA_HUMERAL_FOLLOW_SD = 0.05
 #: frequency (Hz) and decay (s) of the skin's shift after a heel strike (its peak ≈ 3 decays)
 STA_IMPACT_HZ = (2.0, 4.0)
 STA_IMPACT_DECAY_S = (0.03, 0.05)
+#: the tissue's ringing after its own leg's heel strike (``sta_shock_mm`` on the thigh): scale
+#: per segment kind (the pelvis rings after either leg's), frequency (Hz) and decay (s). The real
+#: full-body walk's (``datasets/human``, Xsens MTw at 100 Hz) leg accelerometers put 39-42 % of
+#: their ‖a‖'s power above 10 Hz and reach 2.3-3.1 g at the 95th percentile (the pelvis 3 %, 1.7
+#: g); the smooth simulated segments 0-1 % and 1.4-1.6 g (docs/simulator.md)
+STA_RING_SCALE = {"thigh": 1.0, "shank": 1.0, "foot": 1.0, "pelvis": 0.12}
+STA_SHOCK_HZ = (12.0, 20.0)
+STA_SHOCK_DECAY_S = (0.030, 0.060)
+STA_SHOCK_RISE_S = 0.005  # the shock reaches every sensor at the strike: one rise for all
 #: the trunk sensors' tremor on the tissue while the trunk moves (:func:`movement_tremor`),
 #: from the trunk data set's two ``trunkmovement`` trials (x-IMU3 on the upper and lower back,
 #: ``bench/real_trunk.py``'s data; docs/simulator.md): the gyroscope's part above 4 Hz over
@@ -182,13 +191,17 @@ def _humeral_lag(body: Body, seg: str, ch: np.ndarray, follow: float) -> np.ndar
 def _mount(body: Body, protocol: Protocol, seg: str, i: int, seed: int, preset: Preset,
            max_deg: float, impacts: np.ndarray, mounting: str = "nominal",
            kin: tuple | None = None, grid: np.ndarray | None = None,
-           ch_grid: np.ndarray | None = None) -> Mount:  # fmt: skip
-    """Where sensor ``i`` sits; ``kin`` on ``grid`` (segment kinematics) for the soft tissue and
-    the channels ``ch_grid`` on it for the skin artefact."""
+           ch_grid: np.ndarray | None = None,
+           leg_impacts: dict[str, np.ndarray] | None = None) -> Mount:  # fmt: skip
+    """Where sensor ``i`` sits; ``kin`` on ``grid`` (segment kinematics) for the soft tissue, the
+    channels ``ch_grid`` on it for the skin artefact and each leg's heel strikes
+    ``leg_impacts`` (s, by side) for the tissue's ringing."""
     rng = _rng(seed, "mount", i)
     nominal = rot.from_matrix(protocol.segments[seg].nominal_mounting())
-    kind, _ = kind_side(seg)
+    kind, side = kind_side(seg)
     scale = 1.0 if kind in ("thigh", "shank", "foot") else 0.5
+    if preset.soft_tissue == "skin":  # the wobble rings as the shock does: STA_RING_SCALE
+        scale = STA_RING_SCALE.get(kind, scale)
     mount = Mount(
         segment=seg,
         q_mount=rot.mul(_random_rotation(rng, max_deg), nominal),
@@ -213,7 +226,7 @@ def _mount(body: Body, protocol: Protocol, seg: str, i: int, seed: int, preset: 
         damping = t_rng.uniform(0.3, 0.5)
         slip_axis = rot.normalize(np.array([0.3, 1.0, 0.3]) * t_rng.normal(size=3))
         slip = np.radians(preset.slip_deg) * t_rng.uniform(0.5, 1.0)
-        artefact, gain = None, preset.tissue_gain
+        artefact, shock, gain = None, None, preset.tissue_gain
         if ch_grid is not None:  # skin: per segment kind, largest on the thigh
             kind_scale = STA_SCALE.get(kind, STA_SCALE_OTHER)
             gain *= kind_scale
@@ -228,6 +241,14 @@ def _mount(body: Body, protocol: Protocol, seg: str, i: int, seed: int, preset: 
             artefact += impact_artefact(grid, impacts, direction, impact,
                                         s_rng.uniform(*STA_IMPACT_HZ),
                                         s_rng.uniform(*STA_IMPACT_DECAY_S))  # fmt: skip
+            if preset.sta_shock_mm > 0 and kind in STA_RING_SCALE:  # the heel's shock
+                h_rng = _rng(seed, "mount", i, _SUB_SHOCK)
+                own = impacts if side not in (leg_impacts or {}) else leg_impacts[side]
+                along = rot.normalize(h_rng.normal(size=3) * STA_AXIS_WEIGHTS)
+                size = preset.sta_shock_mm * 1e-3 * STA_RING_SCALE[kind] * h_rng.uniform(0.6, 1.0)
+                shock = impact_artefact(grid, own, along, size, h_rng.uniform(*STA_SHOCK_HZ),
+                                        h_rng.uniform(*STA_SHOCK_DECAY_S),
+                                        STA_SHOCK_RISE_S)  # fmt: skip
             if kind in STA_TREMOR_DEG_S and preset.sta_deg > 0:  # trembling on the back
                 artefact += movement_tremor(
                     grid,
@@ -242,7 +263,7 @@ def _mount(body: Body, protocol: Protocol, seg: str, i: int, seed: int, preset: 
                 mount.humeral_follow = humeral_follow(body, seg, mount.site, s_rng)
                 artefact += _humeral_lag(body, seg, ch_grid, mount.humeral_follow)
         mount.tissue = tissue_motion(kin, grid, mount.site, mount.normal, mount.wobble.freq_hz,
-                                     damping, gain, slip_axis, slip, artefact)  # fmt: skip
+                                     damping, gain, slip_axis, slip, artefact, shock)  # fmt: skip
     return mount
 
 
@@ -450,7 +471,8 @@ def simulate(
         ch_grid = timeline.channels(grid) if soft_tissue == "skin" else None
     for i, seg in enumerate(protocol.segments):
         mount = _mount(body, protocol, seg, i, seed, preset, mounting_max_deg, timeline.impacts(),
-                       mounting, kin[seg] if kin else None, grid, ch_grid)  # fmt: skip
+                       mounting, kin[seg] if kin else None, grid, ch_grid,
+                       {leg: timeline.impacts(leg) for leg in ("r", "l")})  # fmt: skip
         stream, info = _sensor(body, timeline, protocol, mount, seg, i, seed, preset, rate_hz,
                                duration, field, gravity, i == carried, gyr_sampling)  # fmt: skip
         q_grid, p_grid = sensor_pose(body, timeline, mount, tuple(poses))(t)

@@ -83,6 +83,7 @@ class Preset:
     slip_deg: float = 0.0  # slow slip of the mounting over the recording (deg)
     sta_deg: float = 0.0  # skin artefact driven by the joint angles (soft_tissue=skin), thigh, deg
     sta_impact_deg: float = 0.0  # skin artefact after heel strikes (soft_tissue=skin), thigh, deg
+    sta_shock_mm: float = 0.0  # the tissue ringing after its leg's heel strike (skin), thigh, mm
     dipole_moment: float = 0.0  # A·m², a ferromagnetic object in the room (0 = none)
     carried_field_ut: float = 0.0  # a field that moves with one sensor for a while (0 = none)
     marker_noise_m: float = 0.0
@@ -133,8 +134,10 @@ PRESETS["loose"] = replace(
     tissue_gain=3.0,
     slip_deg=5.0,
 )
-# Sensors strapped on skin as people strap them: the sensors of ``typical``, the wobble after
-# heel strikes of ``loose``, the acceleration-driven tissue motion of ``typical`` (scaled per
+# Sensors strapped on skin as people strap them: the sensors of ``typical``, the tissue ringing
+# after heel strikes as a real walk's leg sensors ring (a 5° wobble and a 5-mm shock on the thigh
+# and shank, little on the pelvis: ``STA_RING_SCALE``, docs/simulator.md), the
+# acceleration-driven tissue motion of ``typical`` (scaled per
 # segment, largest on the thigh), the skin's shift after heel strikes, and the
 # soft-tissue artefact that follows the joint angles (``sta_deg`` on the thigh, less on the other
 # segments; :func:`~motionlab.simulate.signals.skin_artefact`), largest on the thigh and of a few
@@ -145,10 +148,11 @@ PRESETS["loose"] = replace(
 PRESETS["skin"] = replace(
     PRESETS["typical"],
     name="skin",
-    wobble_deg=1.5,
+    wobble_deg=5.0,
     soft_tissue="skin",
     sta_deg=8.0,
     sta_impact_deg=3.0,
+    sta_shock_mm=6.0,
 )
 SOFT_TISSUE = ("impacts", "motion", "skin")
 # Preset fields added after the first release: left out of the stored error model at their
@@ -159,6 +163,7 @@ NEW_FIELDS = {
     "slip_deg": 0.0,
     "sta_deg": 0.0,
     "sta_impact_deg": 0.0,
+    "sta_shock_mm": 0.0,
 }
 
 

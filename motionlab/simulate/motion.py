@@ -204,7 +204,8 @@ class Block:
     """A stretch of the recording: channels as a function of block time ``tau`` (s).
 
     ``fn`` returns local channels (N, C); ``end`` is the displacement of the feet reference at
-    the end ``(dx, dy, dheading)`` in the block's local frame; ``impacts`` are heel-strike times.
+    the end ``(dx, dy, dheading)`` in the block's local frame; ``impacts`` are heel-strike times
+    (s, block time) and ``impact_sides`` the leg of each (``"r"`` or ``"l"``).
     """
 
     name: str
@@ -215,6 +216,7 @@ class Block:
     end: tuple[float, float, float] = (0.0, 0.0, 0.0)
     impacts: np.ndarray = field(default_factory=lambda: np.zeros(0))
     generator: str = ""
+    impact_sides: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype="U1"))
 
 
 def _tile(p: np.ndarray, tau: np.ndarray) -> np.ndarray:
@@ -355,7 +357,10 @@ def gait_block(
         grid = np.arange(0.0, duration, 1e-3)
         strikes = np.interp(strikes, cycles(grid), grid)
     strikes = strikes[(strikes < duration) & (envelope(strikes, duration, ramp) > 0.5)]
-    return Block(name, "gait", phase, duration, fn, end, strikes, "gait")
+    k = cycles(strikes)  # the right's at whole strides, the left's ``offset`` after
+    right = np.abs(k - np.round(k)) <= np.abs(k - offset - np.round(k - offset))
+    sides = np.where(right, "r", "l")
+    return Block(name, "gait", phase, duration, fn, end, strikes, "gait", sides)
 
 
 #: the stride-to-stride variation of the stride time (CV as a fraction) of the simulated walk

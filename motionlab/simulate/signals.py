@@ -217,19 +217,27 @@ def skin_artefact(drivers: np.ndarray, directions: np.ndarray, amplitude: float)
 
 
 def impact_artefact(t: np.ndarray, impacts: np.ndarray, direction: np.ndarray, amplitude: float,
-                    freq_hz: float, decay_s: float) -> np.ndarray:  # fmt: skip
-    """Rotation (N, 3; rad, segment frame) of the skin under a sensor after each heel strike.
+                    freq_hz: float, decay_s: float, rise_s: float = 0.0) -> np.ndarray:  # fmt: skip
+    """The ringing (N, 3; segment frame) of the tissue under a sensor after each heel strike: a
+    rotation (rad) of the skin or a displacement (m) of the tissue, in ``amplitude``'s unit.
 
     The skin shifts on the muscles as they take the load and swings back (Cappozzo et al. 1996,
-    Clin Biomech 11:90: the thigh's markers move most after heel strike): after each impact
-    ``amplitude · u³ e^{3−u} / 27 · sin(2π f (t − t_i))`` about ``direction`` (unit), ``u = (t −
-    t_i) / decay_s``; C³ at its onset, at most ``amplitude`` (rad) for strikes further apart than
-    its duration.
+    Clin Biomech 11:90: the thigh's markers move most after heel strike), and the soft tissue
+    rings as the heel's shock reaches it: after each impact ``amplitude · u³ e^{3−u} / 27 ·
+    sin(2π f (t − t_i))`` along (about) ``direction`` (unit), ``u = (t − t_i) / decay_s``; C³ at
+    its onset, at most ``amplitude`` for strikes further apart than its duration. With
+    ``rise_s`` > 0 the envelope is ``(1 − e^{−(t − t_i)/rise_s})³ e^{−(t − t_i)/decay_s}``
+    instead: a shock that is there within a few ``rise_s`` of the strike, whatever its decay
+    (C² at its onset, so the acceleration it gives is continuous).
     """
 
     def pulse(dt: np.ndarray) -> np.ndarray:
-        u = dt / decay_s
-        return u**3 * np.exp(3 - u) / 27 * np.sin(2 * np.pi * freq_hz * dt)
+        if rise_s > 0:
+            envelope = (1.0 - np.exp(-dt / rise_s)) ** 3 * np.exp(-dt / decay_s)
+        else:
+            u = dt / decay_s
+            envelope = u**3 * np.exp(3 - u) / 27
+        return envelope * np.sin(2 * np.pi * freq_hz * dt)
 
     return amplitude * after_impacts(t, impacts, 20 * decay_s, pulse)[:, None] * direction
 
@@ -266,10 +274,13 @@ def tissue_motion(
     slip_axis: np.ndarray,
     slip_rad: float,
     artefact: np.ndarray | None = None,
+    shock: np.ndarray | None = None,
 ) -> TissueMotion:
     """The soft-tissue motion of a sensor at ``site`` with skin normal ``normal`` (segment frame)
     from the segment's kinematics ``kin`` (:func:`segment_kinematics` on the uniform grid ``t``);
-    ``artefact`` (N, 3; rad) is a rotation added on that grid (:func:`skin_artefact`)."""
+    ``artefact`` (N, 3; rad) is a rotation added on that grid (:func:`skin_artefact`), ``shock``
+    (N, 3; m) a displacement (the ringing after heel strikes, :func:`impact_artefact`) that
+    shears the tissue as the response does."""
     q, omega, alpha, acc = kin
     a_site = (rot.rotate(rot.conj(q), acc) + np.cross(alpha, site)
               + np.cross(omega, np.cross(omega, site)))  # fmt: skip
@@ -279,6 +290,8 @@ def tissue_motion(
     drive = -gain * np.hstack([a_site, alpha])
     resp = lfilter(np.ravel(num), den, drive, axis=0)
     d, rho = resp[:, :3], resp[:, 3:]
+    if shock is not None:
+        d = d + shock
     theta = rho + np.cross(normal, d) / TISSUE_LEVER_M
     if artefact is not None:
         theta = theta + artefact

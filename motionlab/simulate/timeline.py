@@ -200,9 +200,13 @@ class Timeline:
                     walking += envelope(t - start, block.duration, min(2.0, block.duration / 3))
         return couple(out, self.knee_model, t, self.seed, walking)
 
-    def impacts(self) -> np.ndarray:
-        """Heel-strike times (s) of all walking blocks (they excite the soft-tissue wobble)."""
-        parts = [s + b.impacts for s, b in zip(self.starts, self.blocks, strict=True)]
+    def impacts(self, side: str | None = None) -> np.ndarray:
+        """Heel-strike times (s) of all walking blocks (they excite the soft-tissue wobble), or
+        of one leg's (``side`` ``"r"`` or ``"l"``)."""
+        parts = [
+            s + (b.impacts if side is None else b.impacts[b.impact_sides == side])
+            for s, b in zip(self.starts, self.blocks, strict=True)
+        ]
         return np.concatenate(parts) if parts else np.zeros(0)
 
     def steps(self) -> list[dict]:
