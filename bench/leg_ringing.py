@@ -94,6 +94,7 @@ def lags(session: Session) -> str:
 
 
 def print_rows(name: str, streams: list[SensorStream]) -> None:
+    """One table row per sensor of the recording ``name``."""
     for s in streams:
         r = ringing(s)
         print(f"| {name} | {s.label} | {r['walking_s']:.0f} | {r['p5']:.2f} / {r['p50']:.2f} / "
@@ -102,6 +103,7 @@ def print_rows(name: str, streams: list[SensorStream]) -> None:
 
 
 def real_sessions(data: Path) -> list[tuple[str, Session]]:
+    """``(name, session)`` of the real walks found under ``data`` (none without it)."""
     out = []
     if (data / QMT).is_file():
         mat = scipy.io.loadmat(data / QMT, squeeze_me=True, struct_as_record=False)
@@ -130,6 +132,7 @@ def real_sessions(data: Path) -> list[tuple[str, Session]]:
 
 
 def sim_session(seed: int) -> Session:
+    """The simulated walk of ``seed`` (preset ``skin`` on one clock, random mountings)."""
     session, _ = simulate("walk", 74.0, seed, shared_clock(get_preset("skin")), mounting="random",
                           knee_model="anatomical")  # fmt: skip
     prepare_sensors(session)

@@ -410,8 +410,9 @@ def test_the_legs_ring_after_heel_strikes_as_a_real_walks_do():
         acc, gyr = _ringing(session.sensors[seg], 1.0)
         assert 0.6 * lo[0] < acc < 1.3 * lo[1], (seg, acc)
         assert 0.6 * hi[0] < gyr < 1.3 * hi[1], (seg, gyr)
-    acc, gyr = _ringing(session.sensors["pelvis"], 0.3)
-    assert acc < 1.5 * REAL_PELVIS_RINGING["acc"] and gyr < 1.5 * REAL_PELVIS_RINGING["gyr"]
+    acc, gyr = _ringing(session.sensors["pelvis"], 0.3)  # simulated walks: 0.95-1.53, 0.16-0.38
+    assert 0.7 * REAL_PELVIS_RINGING["acc"] < acc < 1.6 * REAL_PELVIS_RINGING["acc"]
+    assert 0.4 * REAL_PELVIS_RINGING["gyr"] < gyr < 1.6 * REAL_PELVIS_RINGING["gyr"]
     calm, _ = simulate("walk", 40.0, 0, "typical", mounting="random", knee_model="anatomical")
     assert _ringing(calm.sensors["thigh_r"], 1.0)[0] < 0.5
 

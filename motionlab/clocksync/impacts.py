@@ -27,10 +27,10 @@ envelope); with ringing after heel strikes only (bench/gait.py seeds 0-4) ≤ 2.
 sensor rings in its own way after the strike, as the ``skin`` preset's legs do since they ring as
 a real walk's (a shock after the sensor's own leg's strike and a wobble after every strike,
 docs/simulator.md), the envelopes' shapes differ and so do their peaks: the lags of sensors on
-one clock are 10-35 ms for pelvis-thigh pairs and up to 11 ms for the knees
-(``bench/leg_ringing.py``), and reliable by the tests here; on the real one-clock walk every such
-lag is refused. The accelerometer is left out: its band carries the segment's own movement,
-which biased the simulated lags by 6-18 ms.
+one clock are up to 13 ms for pelvis-thigh pairs and 8 ms for the knees, or refused
+(``bench/leg_ringing.py``); on the real one-clock walk every such lag is refused. The
+accelerometer is left out: its band carries the segment's own movement, which biased the
+simulated lags by 6-18 ms.
 """
 
 from __future__ import annotations

@@ -103,8 +103,9 @@ TOGETHER_S = 0.005
 # larger worst case; a 2 ms hip floor, or 1 ms for the pelvis's and thighs' envelope delays, let
 # wrong joint centres through: 5-8 ms); reported on seeds 0-4 and 0-9 (bench/clock_network.py).
 # Tuned before the simulated legs rang after heel strikes as a real walk's: with that ringing
-# (preset ``skin``) the pelvis-thigh heel-strike lags are biased by 10-35 ms and the hips read
-# 2-4° off (docs/simulator.md, "The legs ring after heel strikes"; not yet solved).
+# (preset ``skin``) the pelvis-thigh heel-strike lags are biased by up to 13 ms and the hips
+# read 0.4-0.7° worse on average, up to 4.4° on one walk (docs/simulator.md, "The legs ring
+# after heel strikes"; not yet solved).
 # The standard deviation of a sensor's own delay of its heel-strike envelope (s) by segment kind:
 # the shank's own tissue resonance shifted all of its impact lags by up to 7 ms, the other
 # sensors' by ≤ 0.7 ms (the others: motionlab.clocknet.ENVELOPE_BIAS_S, 0.5 ms)

@@ -74,7 +74,7 @@ PROVENANCE_TIME = "2000-01-01T00:00:00+00:00"  # fixed, so that the same seed gi
 _STREAMS = {"mount": 1, "sensor": 2, "markers": 3, "field": 4}
 MOUNTINGS = ("nominal", "random", "surface")
 # sub-streams of "mount" for the newer draws
-_SUB_SITE, _SUB_TISSUE, _SUB_SKIN, _SUB_TREMOR, _SUB_SHOCK = 1, 2, 3, 4, 5
+_SUB_SITE, _SUB_TISSUE, _SUB_SKIN, _SUB_TREMOR, _SUB_SHOCK, _SUB_STRIKES = 1, 2, 3, 4, 5, 6
 TISSUE_RATE_HZ = 200.0  # grid of the soft-tissue dynamics
 #: named gait variants (``gait=``): options of the gait tasks (motion.gait_block); ``asymmetric``:
 #: the right stance ends at 67 % instead of 62 % and the left heel strikes at 47 % of the stride
@@ -145,6 +145,10 @@ STA_RING_SCALE = {"thigh": 1.0, "shank": 1.0, "foot": 1.0, "pelvis": 0.12}
 STA_SHOCK_HZ = (12.0, 20.0)
 STA_SHOCK_DECAY_S = (0.030, 0.060)
 STA_SHOCK_RISE_S = 0.005  # the shock reaches every sensor at the strike: one rise for all
+#: the spread of one strike's ringing from the next (log-normal SD of its strength, per sensor):
+#: the real walk's legs ring 19-27 % (gyroscope above 10 Hz, RMS over 0.3 s from each strike,
+#: coefficient of variation over the strikes), the simulated wobble 1-4 % alike
+STA_STRIKE_SPREAD = 0.25
 #: the trunk sensors' tremor on the tissue while the trunk moves (:func:`movement_tremor`),
 #: from the trunk data set's two ``trunkmovement`` trials (x-IMU3 on the upper and lower back,
 #: ``bench/real_trunk.py``'s data; docs/simulator.md): the gyroscope's part above 4 Hz over
@@ -200,8 +204,11 @@ def _mount(body: Body, protocol: Protocol, seg: str, i: int, seed: int, preset: 
     nominal = rot.from_matrix(protocol.segments[seg].nominal_mounting())
     kind, side = kind_side(seg)
     scale = 1.0 if kind in ("thigh", "shank", "foot") else 0.5
+    strengths = None
     if preset.soft_tissue == "skin":  # the wobble rings as the shock does: STA_RING_SCALE
         scale = STA_RING_SCALE.get(kind, scale)
+        spread = _rng(seed, "mount", i, _SUB_STRIKES)
+        strengths = np.exp(spread.normal(0.0, STA_STRIKE_SPREAD, len(impacts)))
     mount = Mount(
         segment=seg,
         q_mount=rot.mul(_random_rotation(rng, max_deg), nominal),
@@ -211,6 +218,7 @@ def _mount(body: Body, protocol: Protocol, seg: str, i: int, seed: int, preset: 
             axis=rot.normalize(rng.normal(size=3)),
             freq_hz=rng.uniform(10.0, 16.0),
             impacts=impacts,
+            strengths=strengths,
         ),
     )
     mount.normal = body.site_normal(seg, mount.site)
@@ -244,11 +252,12 @@ def _mount(body: Body, protocol: Protocol, seg: str, i: int, seed: int, preset: 
             if preset.sta_shock_mm > 0 and kind in STA_RING_SCALE:  # the heel's shock
                 h_rng = _rng(seed, "mount", i, _SUB_SHOCK)
                 own = impacts if side not in (leg_impacts or {}) else leg_impacts[side]
+                shocks = np.exp(h_rng.normal(0.0, STA_STRIKE_SPREAD, len(own)))
                 along = rot.normalize(h_rng.normal(size=3) * STA_AXIS_WEIGHTS)
                 size = preset.sta_shock_mm * 1e-3 * STA_RING_SCALE[kind] * h_rng.uniform(0.6, 1.0)
                 shock = impact_artefact(grid, own, along, size, h_rng.uniform(*STA_SHOCK_HZ),
                                         h_rng.uniform(*STA_SHOCK_DECAY_S),
-                                        STA_SHOCK_RISE_S)  # fmt: skip
+                                        STA_SHOCK_RISE_S, shocks)  # fmt: skip
             if kind in STA_TREMOR_DEG_S and preset.sta_deg > 0:  # trembling on the back
                 artefact += movement_tremor(
                     grid,

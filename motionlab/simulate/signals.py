@@ -90,6 +90,8 @@ class Wobble:
     freq_hz: float = 12.0
     decay_s: float = 0.04
     impacts: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    #: each impact's strength (relative, one per impact; ``None``: all 1)
+    strengths: np.ndarray | None = None
 
     def rotvec(self, t: np.ndarray) -> np.ndarray:
         """Wobble rotation vector (N, 3) in rad (sensor frame)."""
@@ -100,13 +102,15 @@ class Wobble:
                 x = dt / self.decay_s
                 return x**3 * np.exp(3 - x) / 27 * np.sin(2 * np.pi * self.freq_hz * dt)
 
-            w = after_impacts(t, self.impacts, 40 * self.decay_s, pulse)
+            w = after_impacts(t, self.impacts, 40 * self.decay_s, pulse, self.strengths)
         return self.amplitude * w[:, None] * self.axis
 
 
 def after_impacts(t: np.ndarray, impacts: np.ndarray, length: float,
-                  pulse: Callable[[np.ndarray], np.ndarray]) -> np.ndarray:  # fmt: skip
-    """``Σ_i pulse(t − t_i)`` (N,) over the impacts ``t_i`` (s) with ``t_i < t < t_i + length``.
+                  pulse: Callable[[np.ndarray], np.ndarray],
+                  strengths: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+    """``Σ_i s_i pulse(t − t_i)`` (N,) over the impacts ``t_i`` (s) with ``t_i < t < t_i +
+    length``; ``s_i`` the impacts' ``strengths`` (default 1).
 
     Each instant visits only the impacts that can reach it (found by bisection in the sorted
     impacts), so the cost grows with the samples times the impacts that overlap, not with the
@@ -118,7 +122,9 @@ def after_impacts(t: np.ndarray, impacts: np.ndarray, length: float,
     ti = np.asarray(impacts, dtype=float)
     if len(ti) == 0 or len(t) == 0:
         return w
-    ti = ti[np.argsort(ti, kind="stable")]
+    order = np.argsort(ti, kind="stable")
+    ti = ti[order]
+    si = None if strengths is None else np.asarray(strengths, dtype=float)[order]
     hi = np.searchsorted(ti, t, side="left")  # impacts before each instant: t_i < t exactly
     # a generous lower bound; the exact test t < t_i + length below decides
     lo = np.searchsorted(ti, t - length - 1e-9 * (1.0 + abs(length) + np.abs(t)), side="left")
@@ -128,7 +134,7 @@ def after_impacts(t: np.ndarray, impacts: np.ndarray, length: float,
         k = i[m]
         m[m] = t[m] < ti[k] + length
         k = i[m]
-        w[m] += pulse(t[m] - ti[k])
+        w[m] += pulse(t[m] - ti[k]) if si is None else si[k] * pulse(t[m] - ti[k])
     return w
 
 
@@ -217,7 +223,8 @@ def skin_artefact(drivers: np.ndarray, directions: np.ndarray, amplitude: float)
 
 
 def impact_artefact(t: np.ndarray, impacts: np.ndarray, direction: np.ndarray, amplitude: float,
-                    freq_hz: float, decay_s: float, rise_s: float = 0.0) -> np.ndarray:  # fmt: skip
+                    freq_hz: float, decay_s: float, rise_s: float = 0.0,
+                    strengths: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
     """The ringing (N, 3; segment frame) of the tissue under a sensor after each heel strike: a
     rotation (rad) of the skin or a displacement (m) of the tissue, in ``amplitude``'s unit.
 
@@ -228,7 +235,8 @@ def impact_artefact(t: np.ndarray, impacts: np.ndarray, direction: np.ndarray, a
     its onset, at most ``amplitude`` for strikes further apart than its duration. With
     ``rise_s`` > 0 the envelope is ``(1 − e^{−(t − t_i)/rise_s})³ e^{−(t − t_i)/decay_s}``
     instead: a shock that is there within a few ``rise_s`` of the strike, whatever its decay
-    (C² at its onset, so the acceleration it gives is continuous).
+    (C² at its onset, so the acceleration it gives is continuous). ``strengths``: each
+    impact's, relative (default 1).
     """
 
     def pulse(dt: np.ndarray) -> np.ndarray:
@@ -239,7 +247,8 @@ def impact_artefact(t: np.ndarray, impacts: np.ndarray, direction: np.ndarray, a
             envelope = u**3 * np.exp(3 - u) / 27
         return envelope * np.sin(2 * np.pi * freq_hz * dt)
 
-    return amplitude * after_impacts(t, impacts, 20 * decay_s, pulse)[:, None] * direction
+    ring = after_impacts(t, impacts, 20 * decay_s, pulse, strengths)
+    return amplitude * ring[:, None] * direction
 
 
 def movement_tremor(t: np.ndarray, omega: np.ndarray, level: float, weights: np.ndarray,
