@@ -137,10 +137,11 @@ STA_HUMERAL_FOLLOW_SD = 0.05
 STA_IMPACT_HZ = (2.0, 4.0)
 STA_IMPACT_DECAY_S = (0.03, 0.05)
 #: the tissue's ringing after its own leg's heel strike (``sta_shock_mm`` on the thigh): scale
-#: per segment kind (the pelvis rings after either leg's), frequency (Hz) and decay (s). The real
-#: full-body walk's (``datasets/human``, Xsens MTw at 100 Hz) leg accelerometers put 39-42 % of
-#: their ‖a‖'s power above 10 Hz and reach 2.3-3.1 g at the 95th percentile (the pelvis 3 %, 1.7
-#: g); the smooth simulated segments 0-1 % and 1.4-1.6 g (docs/simulator.md)
+#: per segment kind (the pelvis rings after either leg's; with ``soft_tissue="skin"`` the wobble
+#: takes the same scale), frequency (Hz), decay and rise (s). The real full-body walk's
+#: (``datasets/human``, Xsens at 100 Hz) leg sensors carry 5.4-8.4 m/s² and 2.4-3.4 rad/s RMS
+#: above 10 Hz while walking, its pelvis 1.0 and 0.31; the simulated legs carried 0.06-0.14 and
+#: 0.7-0.8 (``bench/leg_ringing.py``, docs/simulator.md)
 STA_RING_SCALE = {"thigh": 1.0, "shank": 1.0, "foot": 1.0, "pelvis": 0.12}
 STA_SHOCK_HZ = (12.0, 20.0)
 STA_SHOCK_DECAY_S = (0.030, 0.060)

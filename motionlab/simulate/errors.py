@@ -135,7 +135,7 @@ PRESETS["loose"] = replace(
     slip_deg=5.0,
 )
 # Sensors strapped on skin as people strap them: the sensors of ``typical``, the tissue ringing
-# after heel strikes as a real walk's leg sensors ring (a 5° wobble and a 5-mm shock on the thigh
+# after heel strikes as a real walk's leg sensors ring (a 5° wobble and a 6-mm shock on the thigh
 # and shank, little on the pelvis: ``STA_RING_SCALE``, docs/simulator.md), the
 # acceleration-driven tissue motion of ``typical`` (scaled per
 # segment, largest on the thigh), the skin's shift after heel strikes, and the
