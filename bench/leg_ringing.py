@@ -88,8 +88,8 @@ def lags(session: Session) -> str:
     for a, b in LAG_PAIRS:
         if a in session.sensors and b in session.sensors:
             fit = impact_clock(session.sensors[a], session.sensors[b])
-            ok = fit.status in ("applied", "reliable") or not fit.status.startswith("not")
-            cells.append(f"{a}–{b} {1000 * fit.offset_s:+.1f}" if ok else f"{a}–{b} refused")
+            refused = fit.status.startswith("not")  # "not reliable: …", "not enough …"
+            cells.append(f"{a}–{b} refused" if refused else f"{a}–{b} {1000 * fit.offset_s:+.1f}")
     return "; ".join(cells)
 
 

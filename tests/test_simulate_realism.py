@@ -418,7 +418,7 @@ def test_the_legs_ring_after_heel_strikes_as_a_real_walks_do():
 
 
 def test_heel_strikes_are_told_apart_by_leg():
-    """The walk's impacts carry their leg: right and left alternate and together are all."""
+    """Every impact of the walk carries its leg, and right and left alternate."""
     from motionlab.simulate.motion import gait_block
 
     block = gait_block(Body(1.75), "walk", "task", 20.0, {}, seed=3)

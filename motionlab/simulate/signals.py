@@ -124,7 +124,7 @@ def after_impacts(t: np.ndarray, impacts: np.ndarray, length: float,
         return w
     order = np.argsort(ti, kind="stable")
     ti = ti[order]
-    si = None if strengths is None else np.asarray(strengths, dtype=float)[order]
+    si = np.ones(len(ti)) if strengths is None else np.asarray(strengths, dtype=float)[order]
     hi = np.searchsorted(ti, t, side="left")  # impacts before each instant: t_i < t exactly
     # a generous lower bound; the exact test t < t_i + length below decides
     lo = np.searchsorted(ti, t - length - 1e-9 * (1.0 + abs(length) + np.abs(t)), side="left")
@@ -134,7 +134,7 @@ def after_impacts(t: np.ndarray, impacts: np.ndarray, length: float,
         k = i[m]
         m[m] = t[m] < ti[k] + length
         k = i[m]
-        w[m] += pulse(t[m] - ti[k]) if si is None else si[k] * pulse(t[m] - ti[k])
+        w[m] += si[k] * pulse(t[m] - ti[k])  # × 1.0 is exact: the same bits without strengths
     return w
 
 
