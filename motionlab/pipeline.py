@@ -339,6 +339,9 @@ class PipelineOptions:
     clock_sync
         Put the IMUs on one clock from their shared joint centres and heel strikes first
         (``motionlab sync``).
+    angle_lowpass_hz
+        The joint angles' zero-phase low-pass (Hz; 0: as computed;
+        :mod:`motionlab.kinematics.angle_filter`).
     force
         Replace existing outputs.
     progress
@@ -396,6 +399,12 @@ class PipelineOptions:
         stages_lib.CLOCK_SYNC, "--clock-sync/--no-clock-sync", "Put IMUs recorded on their own "
         "clocks on one clock (from the joints they share).", kind="bool",
         manifest="clock_sync", batch=True, show_default=True,
+    )  # fmt: skip
+    angle_lowpass_hz: int = _option(
+        int(stages_lib.ANGLES_LOWPASS_HZ), "--angle-lowpass", "Low-pass the joint angles at "
+        "this many Hz (zero-phase; a sensor's wobble on the skin is not the joint moving); 0 "
+        "keeps them as computed.", kind="int", manifest="angle_lowpass", batch=True,
+        stages=("angles",), show_default=True,
     )  # fmt: skip
     force: bool = _option(
         False, "--force", "Replace existing outputs.", kind="flag",
@@ -521,7 +530,8 @@ def analyse(
     with stages("calibrate"):
         cal = stages_lib.calibrate(session, protocol, force=True, record=False)
     with stages("angles"):
-        stages_lib.angles(session, protocol, force=True, record=False)
+        stages_lib.angles(session, protocol, angle_lowpass_hz=options.angle_lowpass_hz,
+                          force=True, record=False)  # fmt: skip
     with stages("metrics"):
         stages_lib.metrics(session, protocol, force=True, record=False)
     if options.reference is not None or session.markers:

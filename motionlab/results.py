@@ -893,7 +893,9 @@ class AngleTable:
     ``data`` column (N,) per angle (``knee_r_flexion_deg``, named by
     :func:`motionlab.kinematics.joint_types.angle_columns`), each column's unit in ``units``,
     and ``events`` ``{name: (start_s, end_s)}``: the calibration steps and the task blocks
-    (added by the metrics stage). ``method``: ``imu`` or ``accel-only``.
+    (added by the metrics stage). ``method``: ``imu`` or ``accel-only``. ``lowpass_hz``: the
+    cut-off the columns were low-passed at (:mod:`motionlab.kinematics.angle_filter`; 0: as
+    computed, as every table stored before it was recorded).
     """
 
     time: np.ndarray
@@ -901,6 +903,7 @@ class AngleTable:
     units: dict[str, str] = field(default_factory=dict)
     events: dict[str, tuple[float, float]] = field(default_factory=dict)
     method: str = "imu"
+    lowpass_hz: float = 0.0
 
     TIME: ClassVar[str] = "time_s"
 
@@ -914,10 +917,12 @@ class AngleTable:
         columns: dict[str, Any],
         method: str = "imu",
         events: dict[str, tuple[float, float]] | None = None,
+        lowpass_hz: float = 0.0,
     ) -> AngleTable:
         """From ``{"time_s": (N,), "<column>": (N,), ...}`` (as the angle functions give)."""
         data = {k: np.asarray(v) for k, v in columns.items() if k != cls.TIME}
-        return cls(np.asarray(columns[cls.TIME]), data, events=dict(events or {}), method=method)
+        time, events = np.asarray(columns[cls.TIME]), dict(events or {})
+        return cls(time, data, events=events, method=method, lowpass_hz=float(lowpass_hz))
 
     def columns(self) -> dict[str, np.ndarray]:
         """``{"time_s": time, <column>: values, ...}``: one dict of equal-length arrays (a
@@ -925,19 +930,23 @@ class AngleTable:
         return {self.TIME: self.time} | dict(self.data)
 
     def to_tree(self) -> dict[str, Any]:
-        """``time_s`` and the columns as datasets; ``method``, ``units`` and ``events``."""
+        """``time_s`` and the columns as datasets; ``method``, ``units``, ``events`` and
+        ``lowpass_hz``."""
         tree: dict[str, Any] = self.columns()
         tree["method"] = self.method
+        tree["lowpass_hz"] = float(self.lowpass_hz)
         tree["units"] = dict(self.units)
         tree["events"] = {k: [float(a), float(b)] for k, (a, b) in self.events.items()}
         return tree
 
     @classmethod
     def from_tree(cls, tree: dict[str, Any]) -> AngleTable:
-        """The table of a stored tree (schema 1 had no ``units`` nor ``events``)."""
+        """The table of a stored tree (schema 1 had no ``units`` nor ``events``; tables stored
+        before 3 Dec 2026 no ``lowpass_hz``: they were as computed)."""
         columns = {k: v for k, v in tree.items() if isinstance(v, np.ndarray)}
         events = {k: (float(v[0]), float(v[1])) for k, v in tree.get("events", {}).items()}
-        table = cls.from_columns(columns, str(tree.get("method", "imu")), events)
+        lowpass = float(tree.get("lowpass_hz", 0.0))
+        table = cls.from_columns(columns, str(tree.get("method", "imu")), events, lowpass)
         table.units.update(tree.get("units", {}))
         return table
 

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import numbers
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -30,6 +31,7 @@ from typing import TYPE_CHECKING, Any
 from motionlab.binding import check_joints, sensed_protocol
 from motionlab.errors import InputError
 from motionlab.ingest import DEFAULT_GAP_MAX, check_and_fill, drop_kept_nan_runs
+from motionlab.kinematics.angle_filter import ANGLES_LOWPASS_HZ, smoothed_table
 from motionlab.lineage import protocol_sha256, refuse_stale
 from motionlab.protocol import Protocol, load_protocol
 from motionlab.results import (
@@ -404,19 +406,28 @@ def angles(
     *,
     method: str = "imu",
     calibrated: bool = True,
+    angle_lowpass_hz: float = ANGLES_LOWPASS_HZ,
     force: bool = False,
     path: Any = None,
     record: bool = True,
 ) -> AngleTable:
-    """The joint angle table (degrees), stored in ``results.angles`` (with its ``method`` and
-    the calibration steps as events) and each joint's heading correction in
+    """The joint angle table (degrees), stored in ``results.angles`` (with its ``method``, its
+    low-pass and the calibration steps as events) and each joint's heading correction in
     ``results.heading``.
 
     ``protocol`` defaults to the calibration's. ``method``: ``imu`` (fused orientations) or
     ``accel-only`` (elbow from accelerometers, Lee 2012). ``calibrated=False`` takes sensor
-    frames as segment frames.
+    frames as segment frames. ``angle_lowpass_hz``: the angles' zero-phase low-pass (Hz; 6 by
+    default, 0: as computed; :mod:`motionlab.kinematics.angle_filter`: a sensor's wobble on the
+    skin after heel strikes is not the joint moving).
     """
     check_session(session)
+    if not (isinstance(angle_lowpass_hz, numbers.Real) and angle_lowpass_hz >= 0):
+        raise InputError(
+            f"angle_lowpass_hz={angle_lowpass_hz!r} is not a cut-off",
+            remedy="give a frequency in Hz, or 0 to keep the angles as computed",
+            argument="angle_lowpass_hz",
+        )
     from motionlab.kinematics.session_angles import session_angles
     from motionlab.results import HeadingCorrection
 
@@ -452,11 +463,13 @@ def angles(
         )
     steps = cal.steps if cal is not None else {}
     events = {k: (float(v[0]), float(v[1])) for k, v in steps.items() if v is not None}
-    result = AngleTable.from_columns(table, method, events)
+    if angle_lowpass_hz > 0:
+        table = smoothed_table(table, float(angle_lowpass_hz))
+    result = AngleTable.from_columns(table, method, events, angle_lowpass_hz)
     session.results.angles = result
     session.results.heading = corrections
     session.lineage.record(session.results, "angles", protocol, read)
-    _recorded(session, record, "angles", method=method)
+    _recorded(session, record, "angles", method=method, angle_lowpass_hz=angle_lowpass_hz)
     return result
 
 

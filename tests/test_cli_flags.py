@@ -126,6 +126,28 @@ def test_every_run_option_is_in_batch_the_manifest_and_its_stage_commands():
     assert "--orientation" in batch and OPTION_KEYS["orientation"] == "orientation"
 
 
+def test_a_stage_command_defaults_as_run_does():
+    """One path: a stage command's flag that is also a run option has run's default (the angles'
+    low-pass is spelled out in ``motionlab angles`` so that its ``--help`` stays light)."""
+    import dataclasses
+
+    from motionlab.cli import main
+    from motionlab.pipeline import RUN_OPTIONS, PipelineOptions
+
+    defaults = {f.name: f.default for f in dataclasses.fields(PipelineOptions)}
+    checked = 0
+    for name, option in RUN_OPTIONS.items():
+        if option.kind not in ("int", "choice", "text") or defaults[name] is dataclasses.MISSING:
+            continue
+        for stage in option.stages:
+            params = main.get_command(None, stage).params
+            param = next(p for p in params if option.flag in p.opts)
+            if param.default is not None:
+                assert param.default == defaults[name], (name, stage)
+                checked += 1
+    assert checked >= 3  # --angle-lowpass, --filter, --orientation, --seed
+
+
 def test_run_and_batch_help_keep_their_examples_and_options():
     """The generated options leave the help readable: examples, every flag, defaults."""
     from click.testing import CliRunner

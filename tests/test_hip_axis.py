@@ -85,9 +85,9 @@ def test_simulated_walk_hip_adduction_without_the_knee_axis_cross_talk():
     assert about_hip_axis < 3.0  # measured 1.25°
     # the hip's turn is the hip's alone: the knee is the thigh's knee-axis frame as before
     cal.hip_axes = {}
-    from motionlab.kinematics.session_angles import session_angles
+    from motionlab import stages
 
-    plain = session_angles(session, proto, cal)
+    plain = stages.angles(session, proto, force=True).columns()
     for col in ("knee_r_flexion_deg", "knee_r_adduction_deg"):
         assert np.array_equal(plain[col], ang[col])
     e0 = plain["hip_r_adduction_deg"] - np.interp(

@@ -357,3 +357,8 @@ def test_methods_text_names_only_the_conventions_and_cycles_of_the_protocol():
     walk = text("walk")
     assert "Grood & Suntay 1983 for the knee" in walk and "heel strike" in walk
     assert "elbow" not in walk
+    assert "tables are the angles as computed" in walk  # a table stored before the low-pass
+    p = load_protocol("walk")
+    smooth = decomposition_text(list(p.joints.values()), True, 6.0)
+    assert "low-passed at 6 Hz" in smooth and "tables are low-passed the same way" in smooth
+    assert "low-passed at 3 Hz" in decomposition_text(list(p.joints.values()), True, 3.0)

@@ -225,7 +225,7 @@ def test_a_sensors_wobble_at_heel_strike_is_not_a_peak():
     wobbling on the skin after the impact, not the knee): the strides' minimum read -3.9° where
     the movement around it reached about 8°. The metrics take the angles low-passed at 6 Hz:
     more than half of such a dip goes, and a walking knee's own curve stays within 0.2°."""
-    from motionlab.kinematics.metrics import smoothed
+    from motionlab.kinematics.angle_filter import smoothed
 
     t = np.arange(0, 10, 1 / RATE)
     knee = 5 + 30 * (1 - np.cos(2 * np.pi * t))  # 5-65°, one stride a second
@@ -244,7 +244,7 @@ def test_a_sensors_wobble_at_heel_strike_is_not_a_peak():
 
 def test_smoothing_keeps_gaps_and_short_runs():
     """NaN stays NaN; a run of finite samples too short to filter is kept as it is."""
-    from motionlab.kinematics.metrics import smoothed
+    from motionlab.kinematics.angle_filter import smoothed
 
     v = np.sin(np.arange(200) / 40.0) * 40  # 0.4 Hz
     v[50:60] = np.nan

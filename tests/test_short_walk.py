@@ -13,11 +13,11 @@ from conftest import SHARED, bench_module, needs_shared
 
 from motionlab.errors import InputError
 from motionlab.io.clock import mark_shared_clock
-from motionlab.kinematics.metrics import smoothed
+from motionlab.kinematics.angle_filter import as_metrics_take
 from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
 from motionlab.protocol import Task, load_protocol
 from motionlab.segments import walk_begins
-from motionlab.session import SensorStream, Session, estimate_rate
+from motionlab.session import SensorStream, Session
 from motionlab.simulate import simulate
 from motionlab.simulate.errors import get_preset
 
@@ -33,12 +33,13 @@ def _skin_one_clock():
 
 def _rmse(session, truth, column: str, step: str = "walk") -> float:
     """RMSE (deg) of ``column`` over ``step`` (its first and last second left out), the angle
-    low-passed as the metrics take it: the sensors' ringing after each heel strike (up to 1.5°
-    of the raw knee's RMSE on these walks) is no slow error of the forward direction."""
+    low-passed as the metrics take it (as the product's table is, by default): the sensors'
+    ringing after each heel strike (up to 1.5° of the raw knee's RMSE on these walks) is no slow
+    error of the forward direction."""
     ang = session.results.angles.columns()
     s = truth.step(step)
     w = (ang["time_s"] > s["start_s"] + 1) & (ang["time_s"] < s["end_s"] - 1)
-    values = smoothed(ang[column], estimate_rate(ang["time_s"]))
+    values = as_metrics_take(session.results.angles, column)
     err = values - np.interp(ang["time_s"], truth.time, truth.joint_angles[column])
     return float(np.sqrt(np.mean(err[w] ** 2)))
 

@@ -20,6 +20,15 @@ from motionlab.cli.paths import INPUT_FILE, OUTPUT_FILE
 )
 @click.option("--protocol", "protocol_path", help="Protocol (default: the calibration's).")
 @click.option("--no-calibration", is_flag=True, help="Use sensor frames as segment frames.")
+@click.option(
+    "--angle-lowpass",
+    "angle_lowpass_hz",
+    type=int,
+    default=6,  # motionlab.kinematics.angle_filter.ANGLES_LOWPASS_HZ, not imported for --help
+    show_default=True,
+    help="Low-pass the joint angles at this many Hz (zero-phase; a sensor's wobble on the skin "
+    "is not the joint moving); 0 keeps them as computed.",
+)
 @click.option("--force", is_flag=True, help="Replace existing angles and CSV.")
 def command(
     session: str,
@@ -27,6 +36,7 @@ def command(
     method: str,
     protocol_path: str | None,
     no_calibration: bool,
+    angle_lowpass_hz: int,
     force: bool,
 ) -> None:
     """Compute joint angles (degrees) and store them in the session.
@@ -34,6 +44,7 @@ def command(
     \b
     Example:
       motionlab angles session.h5 --csv angles.csv
+      motionlab angles session.h5 --angle-lowpass 0 --force   # as computed, unfiltered
     """
     import numpy as np
     import pandas as pd
@@ -52,6 +63,7 @@ def command(
             protocol_path,
             method=method,
             calibrated=not no_calibration,
+            angle_lowpass_hz=angle_lowpass_hz,
             force=force,
             path=session,
             record=False,
@@ -67,7 +79,9 @@ def command(
             }
             with atomic_path(csv_path, force=force) as tmp:
                 pd.DataFrame(columns).to_csv(tmp, index=False, float_format="%.4f")
-        ses.add_provenance(parameters={"stage": "angles", "method": method})
+        ses.add_provenance(
+            parameters={"stage": "angles", "method": method, "angle_lowpass_hz": angle_lowpass_hz}
+        )
         save_session(ses, session, force=True)
     click.echo(f"{len(table.time)} samples, {len(table.data)} angles")
     for c, v in table.data.items():

@@ -7,9 +7,9 @@ the joint metrics take too: each knee's shank sagittal angular velocity, turns f
 vertical angular velocity of the pelvis sensor, else of the side's shank sensor) →
 spatio-temporal parameters (:mod:`.spatiotemporal`) → pelvis angles relative to the walking
 direction (:mod:`.pelvis`, with a pelvis sensor) → per side the mean curve over kept strides of
-pelvis, hip and knee angles (low-passed at 6 Hz first, as the metrics take them:
-:func:`.metrics.smoothed`) → GPS and MAP (:mod:`.gps`), only from determined variables and
-sides with enough strides (:func:`.gps.gated_profile`).
+pelvis, hip and knee angles (low-passed as the metrics take them:
+:func:`.angle_filter.as_metrics_take`) → GPS and MAP (:mod:`.gps`), only from determined
+variables and sides with enough strides (:func:`.gps.gated_profile`).
 
 A session without a gait task, without shank sensors or without strides gives
 ``Gait(status="no gait: <why>")`` and nothing else.
@@ -21,6 +21,7 @@ import numpy as np
 
 from motionlab.binding import sensor_for_segment
 from motionlab.kinematics import spatiotemporal as sp
+from motionlab.kinematics.angle_filter import as_metrics_take, metrics_cutoff, smoothed
 from motionlab.kinematics.cycles import CURVE_POINTS
 from motionlab.kinematics.gps import (
     JOINT_VARIABLES,
@@ -29,7 +30,6 @@ from motionlab.kinematics.gps import (
     movement_analysis_profile,
     variable_grades,
 )
-from motionlab.kinematics.metrics import smoothed
 from motionlab.kinematics.pelvis import (
     PELVIS_COLUMNS,
     pelvis_angles,
@@ -160,11 +160,13 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
         walking_speed=speed_note,
     )
     angles = session.results.angles
+    # the curves from the angles low-passed as the metrics take theirs: the table's columns
+    # at their own cut-off, the pelvis's (computed here) at the same
     series: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     if angles is not None:
-        for col, v in angles.data.items():
+        for col in angles.data:
             if angles.units[col] == "deg":
-                series[col] = (np.asarray(angles.time), np.asarray(v, dtype=float))
+                series[col] = (np.asarray(angles.time), as_metrics_take(angles, col))
     if pelvis_label is not None:
         t_p, q_p = session_segments(session, protocol, cal, segments=[PELVIS_SEGMENT])[
             PELVIS_SEGMENT
@@ -184,6 +186,7 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
             ),
         )
     curves: dict[str, dict[str, np.ndarray]] = {}
+    cutoff = metrics_cutoff(angles.lowpass_hz if angles is not None else 0.0)
     for side, st in strides.items():
         keep = st.kept
         var_series: dict[str, tuple[np.ndarray, np.ndarray]] = {}
@@ -194,14 +197,13 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
                 var_series[v] = series[col]
         if out.pelvis is not None:
             pel = side_angles(out.pelvis.angles_deg(), side)
+            t_p = np.asarray(out.pelvis.time_s, float)
             for i, v in enumerate(PELVIS):
-                var_series[v] = (out.pelvis.time_s, pel[:, i])
+                var_series[v] = (t_p, smoothed(pel[:, i], estimate_rate(t_p), cutoff))
         curves[side] = {}
         for v, (t, x) in var_series.items():
-            # contiguous once: np.interp would copy a column (the pelvis's) for every stride;
-            # low-passed as the metrics take their angles (a sensor's wobble is no movement)
-            t = np.ascontiguousarray(t, float)
-            x = smoothed(np.ascontiguousarray(x, float), estimate_rate(t))
+            # contiguous once: np.interp would copy a column (the pelvis's) for every stride
+            t, x = np.ascontiguousarray(t, float), np.ascontiguousarray(x, float)
             cyc = np.array([_curve(t, x, a, b) for a, b in zip(st.ic[keep], st.next_ic[keep],
                                                               strict=True)])  # fmt: skip
             if len(cyc):

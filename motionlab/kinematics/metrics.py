@@ -3,8 +3,9 @@
 Per task block (the protocol's ``tasks``; times from the simulator's truth, the protocol's
 ``time_range`` or :func:`~motionlab.segments.steps.find_tasks`; a trunk protocol without tasks,
 such as ``lumbar_seated``, measures the trunk movement its calibration found, as one block
-without repetitions) and per angle column (degrees), from the angles low-passed at
-:data:`METRICS_LOWPASS_HZ` (:func:`smoothed`; the angle tables stay as computed):
+without repetitions) and per angle column (degrees), from the angles low-passed as the angle table
+is (:func:`~motionlab.kinematics.angle_filter.metrics_cutoff`: 6 Hz by default, and where the
+table is as computed):
 
 - ``rom_deg``, ``min_deg``, ``max_deg`` over the block (a gait task: over the kept strides of
   the joint's leg, where there are any);
@@ -37,11 +38,15 @@ import numpy as np
 import pandas as pd
 
 from motionlab import rotations as rot
-from motionlab.dsp import butter, padlen, sosfiltfilt
 from motionlab.errors import InputError
 from motionlab.kinematics import cycles as cyc
 from motionlab.kinematics import gait_events as ge
 from motionlab.kinematics import out_of_plane as oop
+from motionlab.kinematics.angle_filter import (
+    ANGLES_LOWPASS_HZ,
+    metrics_cutoff,
+    smoothed_table,
+)
 from motionlab.kinematics.joint_types import angle_columns, split_column
 from motionlab.kinematics.session_angles import angle_table, nominal_calibration
 from motionlab.kinematics.session_strides import session_strides
@@ -64,15 +69,9 @@ from motionlab.segments import (
 from motionlab.segments.sensors import angle_segments, sensor_quats
 from motionlab.segments.steps import find_tasks
 from motionlab.session import Session, estimate_rate
-from motionlab.timebase import runs
 
 OUT_OF_PLANE = ("cross_talk", "out_of_plane_offset", "trunk_compensation", "varus_thrust")
 THORAX = "thorax"
-#: the angles' low-pass (Hz) before their metrics: human movement lies below it (walking
-#: kinematics, Winter 2009, Biomechanics and Motor Control of Human Movement, 4th ed., §3.4.4),
-#: a sensor's wobble on the skin after each heel strike above it (a dip of 8-10° for about
-#: 40 ms in a real walk's knee flexion, ``bench/real_people.py``), which is not the joint moving
-METRICS_LOWPASS_HZ = 6.0
 
 
 def wanted(protocol: Protocol) -> set[str]:
@@ -81,30 +80,6 @@ def wanted(protocol: Protocol) -> set[str]:
     if "stance_rotation" in listed:
         listed.add("varus_thrust")
     return listed & set(OUT_OF_PLANE) if listed else set(OUT_OF_PLANE)
-
-
-def smoothed(values: np.ndarray, rate: float, cutoff: float = METRICS_LOWPASS_HZ) -> np.ndarray:
-    """``values`` (deg) low-passed at ``cutoff`` Hz (at most 0.4 × ``rate``; zero-phase
-    2nd-order Butterworth, forward and backward) over each run of finite samples; a run too
-    short to filter is kept as it is, and NaN stays NaN; so is everything without a rate (a
-    single instant)."""
-    v = np.asarray(values, dtype=float)
-    out = v.copy()
-    if not (np.isfinite(rate) and rate > 0):
-        return out
-    sos = butter(2, min(cutoff, 0.4 * rate), fs=rate)
-    edge = padlen(sos)
-    for a, b in runs(np.isfinite(v)):
-        if b - a > edge:
-            out[a:b] = sosfiltfilt(sos, v[a:b])
-    return out
-
-
-def smoothed_table(table: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    """An angle table (``time_s`` and degree columns) with every column :func:`smoothed`."""
-    time = np.asarray(table["time_s"], dtype=float)
-    rate = estimate_rate(time)
-    return {k: v if k == "time_s" else smoothed(v, rate) for k, v in table.items()}
 
 
 def _window(time: np.ndarray, t0: float, t1: float) -> slice:
@@ -222,6 +197,7 @@ def compute_metrics(
     steps: dict[str, Any],
     nominal_table: dict[str, np.ndarray] | None = None,
     strides: dict[str, ge.Strides] | None = None,
+    lowpass_hz: float = ANGLES_LOWPASS_HZ,
 ) -> Metrics:
     """The metrics (see the module docstring).
 
@@ -230,11 +206,13 @@ def compute_metrics(
     calibration step ranges, ``nominal_table`` the angles with nominal mountings (cross-talk),
     ``strides`` ``{shank segment: strides (s)}`` of the gait tasks
     (:func:`~motionlab.kinematics.session_strides.session_strides`: the gait analysis's; the
-    kept ones are a walk's cycles). The metrics are taken from the angles :func:`smoothed` (the
-    tables themselves are not changed).
+    kept ones are a walk's cycles). The metrics are taken from both tables low-passed at
+    ``lowpass_hz`` (:func:`~motionlab.kinematics.angle_filter.smoothed_table`; the tables given
+    are not changed).
     """
-    table = smoothed_table(table)
-    nominal_table = smoothed_table(nominal_table) if nominal_table is not None else None
+    table = smoothed_table(table, lowpass_hz)
+    if nominal_table is not None:
+        nominal_table = smoothed_table(nominal_table, lowpass_hz)
     time = np.asarray(table["time_s"], dtype=float)
     rate = estimate_rate(time)
     todo = wanted(protocol)
@@ -366,7 +344,9 @@ def session_metrics(
     """Metrics of a calibrated session; ``tasks`` ``{name: (start_s, end_s)}`` or found.
 
     The angles are computed as ``motionlab angles`` does (calibrated, heading-aligned IMU
-    orientations) and again with the nominal mountings for the cross-talk comparison.
+    orientations) and again with the nominal mountings for the cross-talk comparison, and
+    low-passed as the session's angle table is (:func:`~motionlab.kinematics.angle_filter.
+    metrics_cutoff`).
     """
     cal = session.results.calibration
     if cal is None:
@@ -400,9 +380,10 @@ def session_metrics(
         )
     walks = {k: v for k, v in tasks.items() if k in gait_tasks}
     legs = session_strides(session, protocol, cal, walks) if walks else {}
-    out = compute_metrics(
-        protocol, table, seg_q, tasks, steps, nominal, {k: v.strides for k, v in legs.items()}
-    )
+    exported = session.results.angles
+    cutoff = metrics_cutoff(exported.lowpass_hz if exported is not None else 0.0)
+    strides = {k: v.strides for k, v in legs.items()}
+    out = compute_metrics(protocol, table, seg_q, tasks, steps, nominal, strides, cutoff)
     out.blocks = {k: replace(v, source=source) for k, v in out.blocks.items()}
     return out
 

@@ -27,6 +27,7 @@ import numpy as np
 from motionlab import rotations as rot
 from motionlab.binding import sensor_for_segment
 from motionlab.errors import InputError
+from motionlab.kinematics.angle_filter import smoothed
 from motionlab.kinematics.cycles import Cycles
 from motionlab.kinematics.joint_angles import joint_angles
 from motionlab.kinematics.joint_types import angle_columns
@@ -236,7 +237,11 @@ def _angles(
         t_ref = to_reference(t)
         qp = resample_quat(*seg_quats[joint.proximal], t_ref)
         qd = resample_quat(*seg_quats[joint.distal], t_ref)
-        ref = _joint_angles(qp, qd, joint)
+        # low-passed as the IMU angles are, so that neither side is judged on what the
+        # other's filter took out
+        ref = {
+            c: smoothed(v, rate, table.lowpass_hz) for c, v in _joint_angles(qp, qd, joint).items()
+        }
         primary = angle_columns(joint)[0][1]
         reps = repetitions(ref[primary], rate)
         for col, ref_deg in ref.items():

@@ -47,6 +47,7 @@ import numpy as np
 
 from motionlab import rotations as rot
 from motionlab.errors import InputError
+from motionlab.kinematics.angle_filter import smoothed
 from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, column_name
 from motionlab.kinematics.session_angles import session_angles
 from motionlab.protocol import Protocol
@@ -267,7 +268,7 @@ def validate_model_angles(
     rate = estimate_rate(t)
     angles = AngleAgreements(time_s=t)
     for col, values in ref.items():
-        ref_deg = _interp(t_ref, values, tq)
+        ref_deg = smoothed(_interp(t_ref, values, tq), rate, table.lowpass_hz)  # as the IMU's
         imu_deg = np.asarray(table.data[col], dtype=float)
         reps = repetitions(ref_deg, rate) if col in primary else None
         angles.columns[col] = angle_agreement(imu_deg, ref_deg, mask, reps, t)
