@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
+from motionlab.kinematics.angle_filter import metrics_cutoff
 from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, angle_names, joint_sequence
 from motionlab.report.model import (
     DETERMINED,
@@ -33,9 +34,11 @@ _CONVENTION = {"knee": "Grood & Suntay 1983", "elbow": "ISB, Wu et al. 2005",
                "lumbar": "ISB, Wu et al. 2002", "hip": "ISB, Wu et al. 2002"}  # fmt: skip
 
 
-def decomposition_text(joints: list, gait: bool = False) -> str:
+def decomposition_text(joints: list, gait: bool = False, lowpass_hz: float = 0.0) -> str:
     """The methods paragraph on joint angles, naming the sequence each joint was decomposed
-    with; ``gait``: the protocol has a gait task (strides, heel strikes, varus thrust)."""
+    with; ``gait``: the protocol has a gait task (strides, heel strikes, varus thrust);
+    ``lowpass_hz``: the angle table's low-pass (0: as computed)."""
+    fc = f"{metrics_cutoff(lowpass_hz):g} Hz"
     listed = "; ".join(
         f"{joint_title(j)}: {j.distal} relative to {j.proximal}, intrinsic "
         f"{_dashed(joint_sequence(j))}"
@@ -75,7 +78,7 @@ def decomposition_text(joints: list, gait: bool = False) -> str:
             "from the shank's angular velocity; turns, starts and stops left out) for the knees "
             "and hips alike, other tasks the repetitions of the primary angle; each cycle "
             "resampled to 101 points (0-100 %). Metrics (ranges, extremes, cycle curves, "
-            "cross-talk, varus thrust) are taken from the angles low-passed at 6 Hz (zero-phase "
+            f"cross-talk, varus thrust) are taken from the angles low-passed at {fc} (zero-phase "
             "Butterworth, Winter 2009): a sensor's wobble on the skin after a heel strike is not "
             "a peak of the joint."
         )
@@ -83,9 +86,12 @@ def decomposition_text(joints: list, gait: bool = False) -> str:
         parts.append(
             "Cycles: the repetitions of each task's primary angle, each resampled to 101 points "
             "(0-100 %). Metrics (ranges, extremes, cycle curves, cross-talk) are taken from the "
-            "angles low-passed at 6 Hz (zero-phase Butterworth, Winter 2009)."
+            f"angles low-passed at {fc} (zero-phase Butterworth, Winter 2009)."
         )
-    parts.append("The angle curves and tables are the angles as computed.")
+    if lowpass_hz > 0:
+        parts.append("The angle curves and tables are low-passed the same way.")
+    else:
+        parts.append("The angle curves and tables are the angles as computed (not low-passed).")
     return " ".join(parts)
 
 
@@ -288,7 +294,9 @@ def methods_page(doc: Document, view: SessionView) -> None:
     if view.protocol.source:
         doc.paragraph(" ".join(view.protocol.source.split()), size=SIZE["small"], colour=MUTED)
     doc.heading("Joint angles and metrics")
-    doc.paragraph(decomposition_text(view.joints(), any(t.is_gait for t in view.protocol.tasks)))
+    angles = view.session.results.angles
+    gait = any(t.is_gait for t in view.protocol.tasks)
+    doc.paragraph(decomposition_text(view.joints(), gait, angles.lowpass_hz if angles else 0.0))
     doc.heading("Provenance")
     rows = []
     for p in view.session.provenance:

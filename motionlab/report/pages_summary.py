@@ -7,6 +7,7 @@ from __future__ import annotations
 import datetime as _dt
 
 from motionlab import __version__
+from motionlab.kinematics.angle_filter import metrics_cutoff
 from motionlab.report.model import SessionView, joint_title, segment_title
 from motionlab.report.pdf import MUTED, SIZE, Document
 from motionlab.report.sentences import (
@@ -50,9 +51,11 @@ def summary_page(doc: Document, view: SessionView) -> None:
     doc.bullets(items)
     tasks = (view.session.results.gait.tasks or {}) if view.session.results.gait else {}
     paced = any(pace_note(view, task)[0] in items for task in tasks)
+    angles = view.session.results.angles
+    fc = metrics_cutoff(angles.lowpass_hz if angles is not None else 0.0)
     doc.paragraph(
         "Ranges are the typical lowest and highest angle of the repetitions (means of the "
-        "per-cycle extremes of the angle low-passed at 6 Hz), in degrees; a range counts as "
+        f"per-cycle extremes of the angle low-passed at {fc:g} Hz), in degrees; a range counts as "
         "outside normal when it leaves the "
         "protocol's normal range by more than 5°, or a flexion peak falls 10° short of its top. "
         "Normal ranges are approximate, for orientation, "
