@@ -18,7 +18,7 @@ extreme poses, whatever the axis: a witness for the flexion range); and, for a h
 the per-stride range of the gyroscopes' relative rate about the calibrated axes integrated
 over the stride (no fusion involved: a fused flexion range far from it points at the fusion,
 not the knee). Every per-cycle figure is taken from its angle low-passed as the product's
-metrics take theirs (:func:`motionlab.kinematics.metrics.smoothed`, 6 Hz: a sensor's wobble at
+metrics take theirs (:func:`motionlab.kinematics.angle_filter.smoothed`, 6 Hz: a sensor's wobble at
 heel strike is not a peak), so that the witnesses compare like with like. A protocol that
 refuses a recording prints its one line instead.
 
@@ -56,8 +56,8 @@ import yaml
 from motionlab import rotations as rot
 from motionlab.errors import InputError
 from motionlab.io.clock import mark_shared_clock
+from motionlab.kinematics.angle_filter import as_metrics_take, smoothed
 from motionlab.kinematics.joint_types import angle_columns
-from motionlab.kinematics.metrics import smoothed
 from motionlab.pipeline import PipelineOptions, analyse, load_inputs, prepare_sensors
 from motionlab.protocol import load_protocol
 from motionlab.session import SensorStream, Session, estimate_rate
@@ -114,7 +114,7 @@ def stride_ranges(session: Session, column: str, side: str) -> np.ndarray:
     if gait is None or not gait.ok or side not in (gait.events or {}):
         return np.array([])
     t = np.asarray(angles.time)
-    x = smoothed(np.asarray(angles.data[column], float), estimate_rate(t))
+    x = as_metrics_take(angles, column)
     ic = np.asarray(gait.events[side].ic, float)
     out = []
     for a, b in zip(ic[:-1], ic[1:], strict=True):
@@ -152,7 +152,7 @@ def vendor_swings(session: Session, vendor: dict, joint, column: str, side: str)
     t = session.sensors[joint.proximal].time
     rel = rot.mul(rot.conj(vendor[joint.proximal]), vendor[joint.distal])
     ta = np.asarray(angles.time)
-    x = smoothed(np.asarray(angles.data[column], float), estimate_rate(ta))
+    x = as_metrics_take(angles, column)
     ic = np.asarray(gait.events[side].ic, float)
     out = []
     for a, b in zip(ic[:-1], ic[1:], strict=True):

@@ -58,10 +58,10 @@ from real_people import qmt_session, stride_ranges  # noqa: E402
 
 from motionlab import rotations as rot  # noqa: E402
 from motionlab.errors import InputError  # noqa: E402
-from motionlab.kinematics.metrics import smoothed  # noqa: E402
+from motionlab.kinematics.angle_filter import as_metrics_take  # noqa: E402
 from motionlab.pipeline import PipelineOptions, analyse  # noqa: E402
 from motionlab.segments.sensors import sensor_orientation  # noqa: E402
-from motionlab.session import Session, estimate_rate  # noqa: E402
+from motionlab.session import Session  # noqa: E402
 
 STAND_PRE = [(52.1, 54.9)]  # the stand just before the walk (swaying: 40-90 mrad/s RMS)
 STAND_LONG = [(44.7, 48.6), (44.7, 48.6), (52.1, 54.9)]  # the stands after standing up
@@ -221,7 +221,7 @@ def full_ranges(full: Session, side: str, pieces: list[tuple]) -> np.ndarray:
     ``pieces``, from the angle low-passed as the metrics take it (as :func:`stride_ranges`)."""
     gait, angles = full.results.gait, full.results.angles
     t = np.asarray(angles.time)
-    x = smoothed(np.asarray(angles.data[f"knee_{side}_flexion_deg"], float), estimate_rate(t))
+    x = as_metrics_take(angles, f"knee_{side}_flexion_deg")
     ic = np.asarray(gait.events[side].ic, float)
     ok = [(a, b) for a, b in zip(ic[:-1], ic[1:], strict=True) if 0.6 <= b - a <= 1.8]
     return np.asarray([np.ptp(x[(t >= a) & (t <= b)]) for a, b in ok
