@@ -430,6 +430,8 @@ class PipelineOptions:
                 wrong = "expected a path"
             elif kind == "text" and f.name != "protocol" and not isinstance(value, str):
                 wrong = "expected a name"
+            elif f.name == "angle_lowpass_hz" and value < 0:  # refused before any work is done
+                wrong = "expected a cut-off in Hz, or 0 to keep the angles as computed"
             else:
                 continue
             raise InputError(

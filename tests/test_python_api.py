@@ -115,7 +115,9 @@ def test_pipeline_options_of_the_wrong_kind_are_refused():
     for kw, what in (({"clock_sync": "no"}, "expected True or False"),
                      ({"frames": "bogus"}, "expected one of anatomical, body"),
                      ({"seed": "x"}, "expected an integer"),
-                     ({"map_path": 123}, "expected a path")):  # fmt: skip
+                     ({"map_path": 123}, "expected a path"),
+                     ({"angle_lowpass_hz": -6}, "expected a cut-off in Hz"),
+                     ({"angle_lowpass_hz": 6.5}, "expected an integer")):  # fmt: skip
         with pytest.raises(InputError, match=what):
             motionlab.PipelineOptions("knee", **kw)
     assert motionlab.PipelineOptions("knee", seed=3, clock_sync=False).seed == 3
