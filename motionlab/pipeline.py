@@ -340,8 +340,8 @@ class PipelineOptions:
         Put the IMUs on one clock from their shared joint centres and heel strikes first
         (``motionlab sync``).
     angle_lowpass_hz
-        The joint angles' zero-phase low-pass (Hz; 0: as computed;
-        :mod:`motionlab.kinematics.angle_filter`).
+        The joint angles' zero-phase low-pass (Hz; 0: as computed; ``None``: the protocol's,
+        else 6; :mod:`motionlab.kinematics.angle_filter`).
     force
         Replace existing outputs.
     progress
@@ -400,11 +400,11 @@ class PipelineOptions:
         "clocks on one clock (from the joints they share).", kind="bool",
         manifest="clock_sync", batch=True, show_default=True,
     )  # fmt: skip
-    angle_lowpass_hz: int = _option(
-        int(stages_lib.ANGLES_LOWPASS_HZ), "--angle-lowpass", "Low-pass the joint angles at "
-        "this many Hz (zero-phase; a sensor's wobble on the skin is not the joint moving); 0 "
-        "keeps them as computed.", kind="int", manifest="angle_lowpass", batch=True,
-        stages=("angles",), show_default=True,
+    angle_lowpass_hz: int | None = _option(
+        None, "--angle-lowpass", "Low-pass the joint angles at this many Hz (zero-phase; a "
+        "sensor's wobble on the skin is not the joint moving); 0 keeps them as computed "
+        "[default: the protocol's angle_lowpass_hz, else 6].", kind="int",
+        manifest="angle_lowpass", batch=True, stages=("angles",),
     )  # fmt: skip
     force: bool = _option(
         False, "--force", "Replace existing outputs.", kind="flag",
@@ -420,8 +420,10 @@ class PipelineOptions:
             kind = spec.kind
             if kind in ("bool", "flag", "off") and not isinstance(value, bool):
                 wrong = "expected True or False"
-            elif kind == "int" and (
-                isinstance(value, bool) or not isinstance(value, numbers.Integral)
+            elif (
+                kind == "int"
+                and (value is not None or f.default is not None)
+                and (isinstance(value, bool) or not isinstance(value, numbers.Integral))
             ):
                 wrong = "expected an integer"
             elif kind == "choice" and value not in spec.choices:
@@ -430,7 +432,7 @@ class PipelineOptions:
                 wrong = "expected a path"
             elif kind == "text" and f.name != "protocol" and not isinstance(value, str):
                 wrong = "expected a name"
-            elif f.name == "angle_lowpass_hz" and value < 0:  # refused before any work is done
+            elif f.name == "angle_lowpass_hz" and value is not None and value < 0:  # before work
                 wrong = "expected a cut-off in Hz, or 0 to keep the angles as computed"
             else:
                 continue

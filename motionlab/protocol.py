@@ -126,7 +126,9 @@ SIDES = ("l", "r", "")
 AXES = {"x": 0, "y": 1, "z": 2}
 #: the keys each part of a protocol may hold (anything else is a typo: an error with a hint)
 TOP_KEYS = ("name", "title", "purpose", "segments", "calibration", "joints", "tasks",
-            "normative", "metrics", "thresholds", "source")  # fmt: skip
+            "normative", "metrics", "thresholds", "source", "angle_lowpass_hz")  # fmt: skip
+#: the highest angle low-pass a protocol may set (Hz; any higher is the sampling's own limit)
+MAX_ANGLE_LOWPASS_HZ = 1000.0
 SEGMENT_KEYS = ("side", "placement", "sensor_axes", "landmarks", "required", "any_orientation")
 #: s: the longest calibration step or task a protocol may ask for (a day)
 MAX_DURATION_S = 86400.0
@@ -251,6 +253,9 @@ class Protocol:
     title: str = ""
     purpose: str = ""
     source: str = ""
+    #: the joint angles' low-pass (Hz) the protocol asks for (0: as computed; ``None``: the
+    #: default, :data:`motionlab.kinematics.angle_filter.ANGLES_LOWPASS_HZ`)
+    angle_lowpass_hz: float | None = None
     path: Path | None = None
     raw: dict[str, Any] = field(default_factory=dict)
 
@@ -485,9 +490,23 @@ def load_protocol(path: str | Path) -> Protocol:
         title=r.text(doc, "title", "", MAX_TITLE_CHARS, lines=False),
         purpose=r.text(doc, "purpose", ""),
         source=r.text(doc, "source", ""),
+        angle_lowpass_hz=_angle_lowpass(r, doc),
         path=path,
         raw=_plain(doc),
     )
+
+
+def _angle_lowpass(r: _Reader, doc: dict) -> float | None:
+    """``angle_lowpass_hz``: a cut-off from 0 (the angles as computed) to
+    :data:`MAX_ANGLE_LOWPASS_HZ`, or ``None`` when the protocol does not set one."""
+    if "angle_lowpass_hz" not in doc:
+        return None
+    line = doc.lines.get("angle_lowpass_hz")
+    x = r.number(doc["angle_lowpass_hz"], "angle_lowpass_hz", line)
+    if not 0 <= x <= MAX_ANGLE_LOWPASS_HZ:
+        r.fail("angle_lowpass_hz", line, f"is {x:g}: not a cut-off",
+               "give a frequency in Hz (e.g. 6), or 0 to keep the angles as computed")  # fmt: skip
+    return x
 
 
 def _top_level(r: _Reader, doc: Any) -> str:

@@ -406,7 +406,7 @@ def angles(
     *,
     method: str = "imu",
     calibrated: bool = True,
-    angle_lowpass_hz: float = ANGLES_LOWPASS_HZ,
+    angle_lowpass_hz: float | None = None,
     force: bool = False,
     path: Any = None,
     record: bool = True,
@@ -417,12 +417,15 @@ def angles(
 
     ``protocol`` defaults to the calibration's. ``method``: ``imu`` (fused orientations) or
     ``accel-only`` (elbow from accelerometers, Lee 2012). ``calibrated=False`` takes sensor
-    frames as segment frames. ``angle_lowpass_hz``: the angles' zero-phase low-pass (Hz; 6 by
-    default, 0: as computed; :mod:`motionlab.kinematics.angle_filter`: a sensor's wobble on the
-    skin after heel strikes is not the joint moving).
+    frames as segment frames. ``angle_lowpass_hz``: the angles' zero-phase low-pass (Hz; 0: as
+    computed; ``None``: the protocol's ``angle_lowpass_hz``, else 6;
+    :mod:`motionlab.kinematics.angle_filter`: a sensor's wobble on the skin after heel strikes
+    is not the joint moving).
     """
     check_session(session)
-    if not (isinstance(angle_lowpass_hz, numbers.Real) and angle_lowpass_hz >= 0):
+    if angle_lowpass_hz is not None and not (
+        isinstance(angle_lowpass_hz, numbers.Real) and angle_lowpass_hz >= 0
+    ):
         raise InputError(
             f"angle_lowpass_hz={angle_lowpass_hz!r} is not a cut-off",
             remedy="give a frequency in Hz, or 0 to keep the angles as computed",
@@ -446,6 +449,10 @@ def angles(
         read = ("clock_sync", "calibration")
     refuse_stale(session, read, path)
     protocol = stage_protocol(session, protocol, path)
+    if angle_lowpass_hz is None:
+        angle_lowpass_hz = protocol.angle_lowpass_hz
+    if angle_lowpass_hz is None:
+        angle_lowpass_hz = ANGLES_LOWPASS_HZ
     corrections: dict[str, HeadingCorrection] = {}
     if method == "imu":
         with in_session_file(path):

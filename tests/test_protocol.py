@@ -228,3 +228,24 @@ def test_a_misspelt_metric_is_refused_with_the_names_it_may_be(tmp_path):
         load_protocol(path)
     assert "key metrics: unknown metric 'cross_talks'" in err.value.line()
     assert "cross_talk" in err.value.line().split("—")[-1]
+
+
+@pytest.mark.parametrize("value, expect", [("0", 0.0), ("12.5", 12.5), (None, None)])
+def test_a_protocol_sets_the_angles_low_pass(tmp_path, value, expect):
+    """``angle_lowpass_hz``: a rig has no skin to wobble (its protocol keeps the angles as
+    computed); without the key the stage's default (6 Hz) applies."""
+    text = (PACKAGED / "knee.yaml").read_text()
+    path = _write(tmp_path, text + (f"angle_lowpass_hz: {value}\n" if value else ""))
+    assert load_protocol(path).angle_lowpass_hz == expect
+    assert load_protocol(PACKAGED / "examples" / "ring_rig.yaml").angle_lowpass_hz == 0.0
+
+
+@pytest.mark.parametrize("value, what", [("-6", "is -6: not a cut-off"),
+                                         ("six", "'six' is not a number"),
+                                         (".nan", "not a finite number")])  # fmt: skip
+def test_a_bad_angles_low_pass_is_refused_with_its_line(tmp_path, value, what):
+    text = (PACKAGED / "knee.yaml").read_text()
+    path = _write(tmp_path, text + f"angle_lowpass_hz: {value}\n")
+    line = len(path.read_text().splitlines())
+    with pytest.raises(InputError, match=rf"line {line}, key angle_lowpass_hz.*{what}"):
+        load_protocol(path)

@@ -24,10 +24,9 @@ from motionlab.cli.paths import INPUT_FILE, OUTPUT_FILE
     "--angle-lowpass",
     "angle_lowpass_hz",
     type=int,
-    default=6,  # motionlab.kinematics.angle_filter.ANGLES_LOWPASS_HZ, not imported for --help
-    show_default=True,
     help="Low-pass the joint angles at this many Hz (zero-phase; a sensor's wobble on the skin "
-    "is not the joint moving); 0 keeps them as computed.",
+    "is not the joint moving); 0 keeps them as computed [default: the protocol's "
+    "angle_lowpass_hz, else 6].",
 )
 @click.option("--force", is_flag=True, help="Replace existing angles and CSV.")
 def command(
@@ -36,7 +35,7 @@ def command(
     method: str,
     protocol_path: str | None,
     no_calibration: bool,
-    angle_lowpass_hz: int,
+    angle_lowpass_hz: int | None,
     force: bool,
 ) -> None:
     """Compute joint angles (degrees) and store them in the session.
@@ -79,8 +78,9 @@ def command(
             }
             with atomic_path(csv_path, force=force) as tmp:
                 pd.DataFrame(columns).to_csv(tmp, index=False, float_format="%.4f")
+        lowpass = table.lowpass_hz
         ses.add_provenance(
-            parameters={"stage": "angles", "method": method, "angle_lowpass_hz": angle_lowpass_hz}
+            parameters={"stage": "angles", "method": method, "angle_lowpass_hz": lowpass}
         )
         save_session(ses, session, force=True)
     click.echo(f"{len(table.time)} samples, {len(table.data)} angles")
