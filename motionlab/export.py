@@ -308,8 +308,9 @@ def results_json(session: Session) -> dict[str, Any]:
     """The machine-readable results (:data:`JSON_FORMAT`, version :data:`JSON_VERSION`).
 
     Keys: ``software``, ``metadata``, ``sensors`` (label, segment, side, rate_hz, QC flags),
-    ``angles`` (``time_s`` to 1e-6 s and per joint its ``columns`` (name → values, deg, to
-    1e-4 deg as in the CSVs) and ``grades``
+    ``angles`` (``time_s`` to 1e-6 s, ``method``, ``lowpass_hz`` (the angles' low-pass, 0: as
+    computed) and per joint its ``columns`` (name → values, deg, to 1e-4 deg as in the CSVs) and
+    ``grades``
     and ``reasons`` when the calibration graded them), ``metrics`` (rows ``block, joint, angle,
     column, metric, percent, value, unit, grade``), ``not_measured`` (the protocol's joints
     with no sensor on a segment, :func:`not_measured`; absent when none), ``calibration`` (ok,
@@ -358,7 +359,8 @@ def results_json(session: Session) -> dict[str, Any]:
                 entry["grades"] = {c: judged[c][0] for c in cols}
                 entry["reasons"] = {c: judged[c][1] for c in cols}
             joints[joint] = entry
-        out["angles"] = {"time_s": time, "method": res.angles.method, "joints": joints}
+        out["angles"] = {"time_s": time, "method": res.angles.method,
+                         "lowpass_hz": res.angles.lowpass_hz, "joints": joints}  # fmt: skip
     if res.metrics is not None:
         table = metrics_table(res.metrics, joint_columns(session))
         table = graded_table(table, graded, trunk_grade(res.calibration))

@@ -76,6 +76,7 @@ def test_json_export_loads_with_grades_and_metrics(run_dir):
                                      "knee_r_rotation_deg"]  # fmt: skip
     assert set(knee["grades"].values()) <= {"determined", "weak", "not determined"}
     assert len(knee["columns"]["knee_r_flexion_deg"]) == len(doc["angles"]["time_s"])
+    assert doc["angles"]["lowpass_hz"] == 6.0  # the default cut-off, said with the angles
     row = doc["metrics"][0]
     assert {"block", "joint", "angle", "metric", "value", "unit", "grade"} <= set(row)
     assert "validation" in doc and "sync" in doc["validation"]
