@@ -385,3 +385,28 @@ def test_a_segment_csv_cell_of_text_is_refused_and_an_empty_one_is_a_gap(tmp_pat
     path.write_text("\n".join(rows) + "\n")
     with pytest.raises(InputError, match=r"data row 6, column thigh_r_qx: 'zero' is not a number"):
         read_segment_csv(path)
+
+
+def test_the_reference_is_low_passed_as_the_imu_angles_are(knee, tmp_path):
+    """Angles low-passed at 6 Hz (``motionlab angles``' default) against a reference that
+    carries a 15-Hz, 4° wobble: the validation low-passes the reference's angles alike, so the
+    wobble (2.8° RMS) is not counted as the IMU's error; with the angles as computed (0) it is
+    compared as it comes."""
+    root, path, truth = knee
+    rate = 100.0
+    t_cam, t_true = _camera_times(truth, rate)
+    t_cam = t_cam - t_cam[0]
+    cols = ("knee_r_flexion_deg", "knee_r_adduction_deg", "knee_r_rotation_deg")
+    xyz = np.column_stack([np.interp(t_true, truth.time, truth.joint_angles[c]) for c in cols])
+    wobble = 4.0 * np.sin(2 * np.pi * 15.0 * t_cam)
+    _write_pig(tmp_path / "pig.c3d", t_cam, xyz + wobble[:, None], rate)
+    rmse = {}
+    for cutoff in ("6", "0"):
+        copy = tmp_path / f"s{cutoff}.h5"
+        copy.write_bytes(path.read_bytes())
+        res = CliRunner().invoke(main, ["angles", str(copy), "--angle-lowpass", cutoff])
+        assert res.exit_code == 0, res.output
+        _, result = _validate(copy, tmp_path / "pig.c3d")
+        rmse[cutoff] = result.angles.columns["knee_r_flexion_deg"].rmse_centred_deg
+    assert rmse["6"] < 1.0  # the wobble filtered out of the reference as out of the IMU's
+    assert rmse["0"] > 2.5  # compared as it comes: the wobble is in the difference
