@@ -132,6 +132,8 @@ BROKEN = [
     ("- a list\n", "key (top level)", "not a mapping"),
     ("protocol: knee\nseed: x\nsessions: [{subject: A, visit: v, files: x}]\n",
      "line 2, key seed", "expected an integer"),
+    ("protocol: knee\nsessions:\n  - {subject: A, visit: v, files: x,\n     angle_lowpass: -3}\n",
+     "line 4, key sessions[0].angle_lowpass", "not a cut-off"),
     ("protocol: knee\nsessions:\n  - {subject: A, visit: v, files: x,\n     magnetometer: 1}\n",
      "line 4, key sessions[0].magnetometer", "expected true or false"),
     ("protocol: knee\nfilter: nope\nsessions: [{subject: A, visit: v, files: x}]\n",

@@ -190,6 +190,9 @@ def _options(path: Path, base: Path, entry: dict, where: str) -> tuple[dict[str,
             _fail(path, line, at, f"is {value!r}, expected true or false", f"e.g. {key}: true")
         if kind == "int" and (isinstance(value, bool) or not isinstance(value, int)):
             _fail(path, line, at, f"is {value!r}, expected an integer", f"e.g. {key}: 3")
+        if name == "angle_lowpass_hz" and value < 0:
+            _fail(path, line, at, f"is {value!r}, not a cut-off",
+                  f"give Hz, e.g. {key}: 6, or 0 to keep the angles as computed")  # fmt: skip
         if kind in ("text", "folder") and not (isinstance(value, str) and value.strip()):
             _fail(path, line, at, f"is {value!r}, expected a name", f"e.g. {key}: default")
         choices = RUN_OPTIONS[name].choices
