@@ -1034,6 +1034,20 @@ def test_expected_accuracy_is_not_claimed_for_a_single_pose_calibration():
     assert _calibration_caveat(view).endswith("their accuracy is not known.")
 
 
+def test_expected_accuracy_says_when_the_angles_are_low_passed_otherwise():
+    """The figures on file are of angles low-passed at 6 Hz (the default); a session whose
+    table is as computed, or at another cut-off, is told what that can change."""
+    from motionlab.report.pages_methods import _lowpass_caveat
+    from motionlab.results import AngleTable
+
+    view = _view((5.0, 45.0), (0.0, 64.0))
+    table = {"time_s": np.arange(10.0), "knee_r_flexion_deg": np.zeros(10)}
+    for cutoff, said in ((6.0, ""), (0.0, "as computed, not low-passed"), (3.0, "at 3 Hz")):
+        view.session.results.angles = AngleTable.from_columns(table, lowpass_hz=cutoff)
+        text = _lowpass_caveat(view)
+        assert (said in text and "low-passed at 6 Hz" in text) if said else text == ""
+
+
 def test_an_interrupted_pdf_is_an_interruption_not_an_internal_error(tmp_path, monkeypatch):
     """Ctrl-C while the report's pages were written read "internal error (AssertionError: No
     offset for object 74 (page contents))": closing the page cut short replaced the

@@ -1,16 +1,19 @@
 """The joint angles' low-pass: human movement below the cut-off, a sensor's wobble above it.
 
 The angle table (:func:`motionlab.stages.angles`) is low-passed at ``ANGLES_LOWPASS_HZ`` unless
-the user asks otherwise (``angle_lowpass_hz``; 0 keeps the angles as computed), and the
-metrics and gait curves take their angles at no more than ``ANGLES_LOWPASS_HZ``
-(:func:`at_most`). Why 6 Hz: walking kinematics lie below it (Winter 2009, Biomechanics and
-Motor Control of Human Movement, 4th ed., §3.4.4; the optical gait labs' marker filters are of
-the same order), while a sensor rocks on the skin after every heel strike at 10-20 Hz: an 8-10°
-dip for about 40 ms in a real walk's knee flexion (``bench/real_people.py``), which is not the
-joint moving. On simulated walks whose legs ring as a real walk's (preset ``skin``,
-``bench/real_world.py --protocols walk --seeds 0-9``) the low-pass took knee flexion from 1.94 /
-2.27° to 1.45 / 1.87° mean RMSE (right / left) and hip flexion from 2.01 / 1.81° to 1.64 /
-1.57° (docs/kinematics.md, "The angles low-passed").
+the user (``--angle-lowpass``) or the protocol (``angle_lowpass_hz:``) asks otherwise (0 keeps
+the angles as computed: a rig has no skin), and the metrics and gait curves take their angles at
+the table's cut-off, or at ``ANGLES_LOWPASS_HZ`` where the table is as computed
+(:func:`metrics_cutoff`, :func:`as_metrics_take`).
+
+Why 6 Hz: walking kinematics lie below it (Winter 2009, Biomechanics and Motor Control of Human
+Movement, 4th ed., §3.4.4; the optical gait labs' marker filters are of the same order), while a
+sensor rocks on the skin after every heel strike at 10-20 Hz: an 8-10° dip for about 40 ms in a
+real walk's knee flexion (``bench/real_people.py``), which is not the joint moving. On simulated
+walks whose legs ring as a real walk's (preset ``skin``, ``bench/real_world.py --protocols walk
+--seeds 0-9``) the low-pass took knee flexion from 1.94 / 2.27° to 1.45 / 1.87° mean RMSE (right
+/ left) and hip flexion from 2.01 / 1.81° to 1.64 / 1.57° (docs/kinematics.md, "The angles
+low-passed").
 """
 
 from __future__ import annotations

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from motionlab.kinematics.angle_filter import metrics_cutoff
+from motionlab.kinematics.angle_filter import ANGLES_LOWPASS_HZ, metrics_cutoff
 from motionlab.kinematics.joint_types import JOINT_TYPES, angle_columns, angle_names, joint_sequence
 from motionlab.report.model import (
     DETERMINED,
@@ -111,6 +111,8 @@ def accuracy_page(doc: Document, view: SessionView) -> None:
     caveat = _calibration_caveat(view) if proto else ""
     if caveat:
         doc.paragraph(caveat)
+    if proto and (note := _lowpass_caveat(view)):
+        doc.paragraph(note)
     if not proto:
         doc.paragraph(
             f"motionlab has no validation results on file for the '{view.protocol.name}' "
@@ -211,6 +213,24 @@ def _here(view: SessionView, jtype: str, angle: str) -> str:
             whom = "" if len(by_grade) == 0 and not parts else f" for the {' and '.join(joints)}"
             parts.append(f"{grade}{whom} in this recording: {words}")
     return f" — {'; '.join(parts)} (see the calibration page)" if parts else ""
+
+
+def _lowpass_caveat(view: SessionView) -> str:
+    """Where this session's angle table is low-passed otherwise than the validation runs' (at
+    the default cut-off): what that can change; empty where it is the same."""
+    angles = view.session.results.angles
+    if angles is None or angles.lowpass_hz == ANGLES_LOWPASS_HZ:
+        return ""
+    if angles.lowpass_hz == 0:
+        here = "as computed, not low-passed (its ranges are taken at the same 6 Hz)"
+    else:
+        here = f"low-passed at {angles.lowpass_hz:g} Hz, and so are its ranges"
+    return (
+        f"These figures are of angles low-passed at {ANGLES_LOWPASS_HZ:g} Hz; this session's "
+        f"are {here}, so they may differ from the figures by what lies between the two "
+        "cut-offs (a sensor's wobble on the skin after each heel strike, or a fast movement's "
+        "own content)."
+    )
 
 
 def _calibration_caveat(view: SessionView) -> str:
