@@ -297,6 +297,14 @@ class RunOption:
     stages: tuple[str, ...] = ()
     #: the ``--help`` shows the default
     show_default: bool = False
+    #: the smallest value an ``int`` option takes, and what that value means (``None``: any)
+    minimum: int | None = None
+    minimum_means: str = ""
+
+    def below_minimum(self) -> str:
+        """What a value below :attr:`minimum` is told (checked before any work is done)."""
+        means = f" ({self.minimum} {self.minimum_means})" if self.minimum_means else ""
+        return f"expected {self.minimum} or more{means}"
 
 
 def _option(default: Any, flag: str, help: str, **option: Any) -> Any:  # noqa: A002
@@ -404,7 +412,8 @@ class PipelineOptions:
         None, "--angle-lowpass", "Low-pass the joint angles at this many Hz (zero-phase; a "
         "sensor's wobble on the skin is not the joint moving); 0 keeps them as computed "
         "[default: the protocol's angle_lowpass_hz, else 6].", kind="int",
-        manifest="angle_lowpass", batch=True, stages=("angles",),
+        manifest="angle_lowpass", batch=True, stages=("angles",), minimum=0,
+        minimum_means="keeps the angles as computed",
     )  # fmt: skip
     force: bool = _option(
         False, "--force", "Replace existing outputs.", kind="flag",
@@ -432,8 +441,8 @@ class PipelineOptions:
                 wrong = "expected a path"
             elif kind == "text" and f.name != "protocol" and not isinstance(value, str):
                 wrong = "expected a name"
-            elif f.name == "angle_lowpass_hz" and value is not None and value < 0:  # before work
-                wrong = "expected a cut-off in Hz, or 0 to keep the angles as computed"
+            elif spec.minimum is not None and value is not None and value < spec.minimum:
+                wrong = spec.below_minimum()
             else:
                 continue
             raise InputError(

@@ -133,7 +133,7 @@ BROKEN = [
     ("protocol: knee\nseed: x\nsessions: [{subject: A, visit: v, files: x}]\n",
      "line 2, key seed", "expected an integer"),
     ("protocol: knee\nsessions:\n  - {subject: A, visit: v, files: x,\n     angle_lowpass: -3}\n",
-     "line 4, key sessions[0].angle_lowpass", "not a cut-off"),
+     "line 4, key sessions[0].angle_lowpass", "is -3, expected 0 or more"),
     ("protocol: knee\nsessions:\n  - {subject: A, visit: v, files: x,\n     magnetometer: 1}\n",
      "line 4, key sessions[0].magnetometer", "expected true or false"),
     ("protocol: knee\nfilter: nope\nsessions: [{subject: A, visit: v, files: x}]\n",

@@ -190,9 +190,10 @@ def _options(path: Path, base: Path, entry: dict, where: str) -> tuple[dict[str,
             _fail(path, line, at, f"is {value!r}, expected true or false", f"e.g. {key}: true")
         if kind == "int" and (isinstance(value, bool) or not isinstance(value, int)):
             _fail(path, line, at, f"is {value!r}, expected an integer", f"e.g. {key}: 3")
-        if name == "angle_lowpass_hz" and value < 0:
-            _fail(path, line, at, f"is {value!r}, not a cut-off",
-                  f"give Hz, e.g. {key}: 6, or 0 to keep the angles as computed")  # fmt: skip
+        minimum = RUN_OPTIONS[name].minimum
+        if minimum is not None and value < minimum:
+            _fail(path, line, at, f"is {value!r}, {RUN_OPTIONS[name].below_minimum()}",
+                  f"e.g. {key}: {minimum}")  # fmt: skip
         if kind in ("text", "folder") and not (isinstance(value, str) and value.strip()):
             _fail(path, line, at, f"is {value!r}, expected a name", f"e.g. {key}: default")
         choices = RUN_OPTIONS[name].choices

@@ -20,6 +20,8 @@ from motionlab.cli.paths import INPUT_FILE, OUTPUT_FILE
 )
 @click.option("--protocol", "protocol_path", help="Protocol (default: the calibration's).")
 @click.option("--no-calibration", is_flag=True, help="Use sensor frames as segment frames.")
+# run's option (pipeline.PipelineOptions.angle_lowpass_hz) spelled out, so that --help does not
+# import the pipeline; tests/test_cli_flags.py checks that the two default alike
 @click.option(
     "--angle-lowpass",
     "angle_lowpass_hz",

@@ -186,7 +186,12 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
             ),
         )
     curves: dict[str, dict[str, np.ndarray]] = {}
-    cutoff = metrics_cutoff(angles.lowpass_hz if angles is not None else 0.0)
+    pelvis_deg = None  # low-passed once for both sides (a side only flips signs)
+    if out.pelvis is not None:
+        t_p = np.asarray(out.pelvis.time_s, float)
+        cutoff = metrics_cutoff(angles.lowpass_hz if angles is not None else 0.0)
+        pelvis_deg = np.column_stack([smoothed(c, estimate_rate(t_p), cutoff)
+                                      for c in out.pelvis.angles_deg().T])  # fmt: skip
     for side, st in strides.items():
         keep = st.kept
         var_series: dict[str, tuple[np.ndarray, np.ndarray]] = {}
@@ -195,11 +200,10 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
             col = f"{joint}_{side}_{angle}_deg"
             if col in series:
                 var_series[v] = series[col]
-        if out.pelvis is not None:
-            pel = side_angles(out.pelvis.angles_deg(), side)
-            t_p = np.asarray(out.pelvis.time_s, float)
+        if pelvis_deg is not None:
+            pel = side_angles(pelvis_deg, side)
             for i, v in enumerate(PELVIS):
-                var_series[v] = (t_p, smoothed(pel[:, i], estimate_rate(t_p), cutoff))
+                var_series[v] = (t_p, pel[:, i])
         curves[side] = {}
         for v, (t, x) in var_series.items():
             # contiguous once: np.interp would copy a column (the pelvis's) for every stride
