@@ -88,6 +88,8 @@ FLIP_RATE_DEG_S = 400.0
 JUMP_DEG = 2.0  # a frame this far from its body's smooth path is a jump …
 JUMP_WINDOW_S = 0.2  # … over this window (a jump lasting up to half of it is caught)
 CLOCK_SEARCH_S = 3.0
+#: two RMSEs closer than this (deg) are level: the bench cannot rank them
+LEVEL_DEG = 0.05
 #: Motive's Y-up lab frame → Z-up: +90° about x (Y → Z, Z → -Y)
 Y_UP_TO_Z_UP = np.array([np.sqrt(0.5), np.sqrt(0.5), 0.0, 0.0])
 #: the open estimators a user would pick instead (the issue's peers); the rest are motionlab's
@@ -505,10 +507,18 @@ def print_tables(rows: list[dict], notes: list[str]) -> None:
         med = rest.groupby("variant").free.median()
         ours = med.get("motionlab 6-D", np.nan)
         peers = med[[k for k in med.index if k in PEERS]]
-        ahead = bool(len(peers)) and bool((ours < peers).all())
+        ahead = bool(len(peers)) and bool((peers - ours >= LEVEL_DEG).all())
         print("\nRotation from rest, median offset-free RMSE (deg): "
               + ", ".join(f"{k} {v:.2f}" for k, v in med.items())
-              + f" — motionlab 6-D ahead of every peer: {'yes' if ahead else 'no'}")  # fmt: skip
+              + f" — motionlab 6-D ahead of every peer (by {LEVEL_DEG:g}° or more): "
+              + ("yes" if ahead else "no"))  # fmt: skip
+        by_trial = rest.pivot_table(index="trial", columns="variant", values="free")
+        for peer in peers.index:
+            d = by_trial[peer] - by_trial["motionlab 6-D"]
+            print(f"  against {peer}: median {peers[peer] - ours:+.2f}, mean "
+                  f"{by_trial[peer].mean() - by_trial['motionlab 6-D'].mean():+.2f}; per trial "
+                  f"ahead on {(d >= LEVEL_DEG).sum()}, level on {(d.abs() < LEVEL_DEG).sum()}, "
+                  f"behind on {(d <= -LEVEL_DEG).sum()} of {d.notna().sum()}")  # fmt: skip
     det = df[(df.variant == "motionlab 6-D") & (df.grade == "determined")
              & (df.angle != "rotation from rest")] if len(df) else df  # fmt: skip
     if len(det):
