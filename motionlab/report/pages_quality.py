@@ -403,8 +403,10 @@ def calibration_page(doc: Document, view: SessionView) -> None:
         "determined). 'In fit': no when a joint movement's axis was left out because a step "
         "keeping the "
         "joint still measured the same axis better (its residual is then not the frame's error). "
-        "An axis found in the movement itself has no ρ: it is judged by its own checks (the "
-        "grades below), whose verdict stands in 'ρ wanted', red unless determined.",
+        "An axis found in the movement itself is judged by its own checks (the grades below), "
+        "whose verdict stands in 'ρ wanted', red unless determined; its ρ, where one is shown, "
+        "is that method's own measure of how clearly the movement showed the axis, not held to "
+        "these limits.",
         size=SIZE["small"],
         colour=MUTED,
     )
@@ -456,9 +458,10 @@ def calibration_cells(
     """The cells of one row of the table "Per segment and step" and which to draw red.
 
     A protocol step's ρ is red below its floor (static or functional, or 0.1 under the
-    protocol's reference ρ); an axis found in the movement itself has no ρ (the weight the fit
-    gives it is set by its verdict): its own check's verdict stands in place of the floor, red
-    unless determined. A residual is red above ``RESIDUAL_MAX_DEG`` only for
+    protocol's reference ρ); an axis found in the movement itself is not held to a floor (the
+    weight the fit gives it is set by its verdict; a ρ it carries is its method's own measure,
+    e.g. the trunk's ``1 − 1/`` its axis's energy ratio): its own check's verdict stands in place
+    of the floor, red unless determined. A residual is red above ``RESIDUAL_MAX_DEG`` only for
     an axis that entered the fit (one left out leaves no error in the segment's frame).
     """
     floor = STATIC_RHO_MIN if r.kind == "static" else FUNCTIONAL_RHO_MIN
