@@ -257,8 +257,9 @@ class ClockSync:
         ``None``.
         Between: on the way from each label up to the first sensor all their ways pass (a
         knee's shank timed against its thigh is timed for the knee, whatever the thigh's own
-        fit). Such sensors are on one clock only as well as the recording kept them together:
-        a simulated walk's shanks read 117 ms apart (43 % step-time asymmetry for a symmetric
+        fit), or the root of a part not linked to the others' clock (:meth:`untimed_way`).
+        Such sensors are on one clock only as well as the recording kept them together: a
+        simulated walk's shanks read 117 ms apart (43 % step-time asymmetry for a symmetric
         walker), its left knee 52 ms from its thigh (10° more flexion in swing)."""
         found = self.untimed_way(labels)
         return found[0] if found else None
@@ -266,7 +267,14 @@ class ClockSync:
     def untimed_way(self, labels: list[str]) -> tuple[ClockFit, list[str]] | None:
         """:meth:`untimed`'s fit and the labels on whose way to the others an untimed fit
         lies: the sensors whose stamps may be off against the others' (``None`` when all are
-        timed)."""
+        timed). Labels whose ways end on different clocks (a part of the body the sync did not
+        link to the root's, :data:`NOT_LINKED`: a walk whose legs the heel strikes timed
+        against each other and nothing against the pelvis) were never compared: the fit is
+        that part's root's, the labels those on its clock."""
+        ends = {lab: self._chain(lab)[1] for lab in labels}
+        apart = [lab for lab, end in ends.items() if end in self.fits]
+        if len(set(ends.values())) > 1 and apart:
+            return self.fits[ends[apart[0]]], apart
         chains = {lab: self._chain(lab)[0] for lab in labels}
         ways = [{lab, *(f.reference for f in chain)} for lab, chain in chains.items()]
         shared = set.intersection(*ways) if ways else set()

@@ -171,6 +171,21 @@ def test_a_sensor_the_sync_could_not_time_is_named_on_the_way_to_its_clock():
     assert apart.untimed(["thigh_l"]) is None  # said by not_linked
 
 
+def test_a_hip_across_a_part_not_linked_to_the_pelvis_is_untimed():
+    """Legs the heel strikes timed against each other and nothing against the pelvis are on
+    the first leg sensor's clock, not linked to the pelvis's: a hip's two clocks were never
+    compared (both hips were graded as if timed), a knee's were."""
+    legs = ClockSync({"thigh_r": _fit("thigh_r", "pelvis", f"{NOT_LINKED}: nothing ties it"),
+                      "shank_r": _fit("shank_r", "thigh_r"),
+                      "thigh_l": _fit("thigh_l", "thigh_r"),
+                      "shank_l": _fit("shank_l", "thigh_l")})  # fmt: skip
+    assert legs.untimed_way(["pelvis", "thigh_r"]) == (legs.fits["thigh_r"], ["thigh_r"])
+    assert legs.untimed_way(["pelvis", "thigh_l"]) == (legs.fits["thigh_r"], ["thigh_l"])
+    assert legs.untimed(["thigh_l", "shank_l"]) is None  # the knees: one clock
+    assert legs.untimed(["thigh_r", "shank_r"]) is None
+    assert legs.untimed(["shank_l", "shank_r"]) is None
+
+
 def test_legs_whose_clocks_were_not_timed_withhold_what_compares_them():
     """A harsh simulated walk (clocks up to ~0.1 s apart) whose heel strikes and joint centres
     did not time every leg sensor: the shanks stayed 66 ms apart as recorded and a symmetric

@@ -84,7 +84,7 @@ import numpy as np
 
 from motionlab.binding import sensor_for_segment
 from motionlab.kinematics import joint_types
-from motionlab.results import JointGrades
+from motionlab.results import NOT_LINKED, JointGrades
 from motionlab.segments.placement import hinge_spec, twists_about_long_axis
 from motionlab.segments.steps import reference_step
 
@@ -404,9 +404,10 @@ def gap_graded(graded: dict[str, JointGrades], gap_turns: dict) -> dict[str, Joi
 
 def clock_graded(graded: dict[str, JointGrades], protocol, session) -> dict[str, JointGrades]:
     """``graded`` with each joint whose two sensors the clock sync could not time against each
-    other (:meth:`~motionlab.results.ClockSync.untimed`: one kept as recorded against the
-    other) graded ``weak`` at best where the sensor whose stamps may be off turns fast enough
-    for recorded stamps ``RECORDED_CLOCK_S`` apart to move its angles by over
+    other (:meth:`~motionlab.results.ClockSync.untimed_way`: one kept as recorded against the
+    other, or the two in parts of the body it timed each on its own clock) graded ``weak`` at
+    best where the sensor whose stamps may be off turns fast enough for recorded stamps
+    ``RECORDED_CLOCK_S`` apart to move its angles by over
     ``CLOCK_ERROR_DEG`` (its 95th-percentile angular speed times it): an offset moves a joint's
     angles by the rotation over it of the sensor read at the wrong instants, the other being on
     the session's clock (a simulated harsh walk's left shank, 52 ms from its thigh, read 10°
@@ -431,10 +432,12 @@ def clock_graded(graded: dict[str, JointGrades], protocol, session) -> dict[str,
         if speed * RECORDED_CLOCK_S <= CLOCK_ERROR_DEG:
             continue
         status = fit.status.removeprefix("not reliable: ")
+        how = f"{fit.sensor}'s kept as recorded: {status}"
+        if fit.status.startswith(NOT_LINKED):  # a part of the body timed on its own clock
+            how = f"{fit.sensor}'s clock {status}"
         moved = f"{speed * RECORDED_CLOCK_S:.0f}°" if np.isfinite(speed) else "an unknown angle"
         why = (f"the clocks of {labels[0]} and {labels[1]} were not timed against each other "
-               f"({fit.sensor}'s kept as recorded: {status}); at {' and '.join(off)}'s "
-               "speed, stamps "
+               f"({how}); at {' and '.join(off)}'s speed, stamps "
                f"{1e3 * RECORDED_CLOCK_S:.0f} ms apart move the angles by {moved}")  # fmt: skip
         grade = "weak"
         apart = abs(fit.offset_s) - 2.0 * fit.offset_se_s  # what the refused fit measured, at least
