@@ -186,7 +186,7 @@ def test_a_hip_across_a_part_not_linked_to_the_pelvis_is_untimed():
     assert legs.untimed(["shank_l", "shank_r"]) is None
 
 
-def test_legs_whose_clocks_were_not_timed_withhold_what_compares_them():
+def test_legs_whose_clocks_were_not_timed_withhold_what_compares_them(tmp_path):
     """A harsh simulated walk (clocks up to ~0.1 s apart) whose heel strikes and joint centres
     did not time every leg sensor: the shanks stayed 66 ms apart as recorded and a symmetric
     walker read 24 % step-time asymmetry (±2.4); now what compares the legs is withheld, and
@@ -213,6 +213,16 @@ def test_legs_whose_clocks_were_not_timed_withhold_what_compares_them():
         assert knee.grades[0] == "weak", side
         assert knee.reasons[0].startswith(f"the clocks of thigh_{side} and shank_{side} were "
                                           "not timed against each other ("), side  # fmt: skip
+    # the run's screen names the sensors left as recorded beside the corrections
+    from motionlab.report import ReportOutput, load_view
+    from motionlab.report.console import run_summary
+
+    names = {"session_file": "session.h5", "csv_dir": "csv", "results_json": "results.json"}
+    out = ReportOutput(tmp_path / "report.pdf", tmp_path / "report.txt")
+    text = run_summary(load_view(session), out, {}, 1.0, **names)
+    line = next(x for x in text.splitlines() if x.startswith("  clock sync: "))
+    kept = [k for k, f in session.results.clock_sync.fits.items() if not f.timed]
+    assert "; not timed, as recorded: " + ", ".join(kept) + " (" in line, line
 
 
 def test_summary_withholds_what_compares_the_legs():

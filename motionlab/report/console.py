@@ -31,7 +31,7 @@ from motionlab.report.sentences import (
     span,
     task_name,
 )
-from motionlab.results import VENDOR_KEPT
+from motionlab.results import NOT_LINKED, VENDOR_KEPT
 
 if TYPE_CHECKING:
     from motionlab.report import ReportOutput
@@ -91,8 +91,15 @@ def run_summary(
         said = "no correction needed or reliable"
         if all(v.status.startswith(VENDOR_KEPT) for v in synced.values()):
             said = "kept as recorded: the files show one clock"
+        # what the corrections do not say: sensors left as recorded, parts on their own clocks
+        parts = {k: v for k, v in synced.items() if v.status.startswith(NOT_LINKED)}
+        apart = [f"{k}'s clock not linked to {v.reference}'s" for k, v in parts.items()]
+        recorded = [k for k, v in synced.items() if not v.timed and k not in parts]
+        untimed = ([f"not timed, as recorded: {', '.join(recorded)}"] if recorded else []) + apart
         lines.append(
-            f"  clock sync: {', '.join(moved) or said} ({len(synced)} sensor pairs checked)"
+            f"  clock sync: {', '.join(moved) or said}"
+            + "".join(f"; {u}" for u in untimed)
+            + f" ({len(synced)} sensor pairs checked)"
         )
     segs = {r.segment: r.segment_ok for r in calibration_rows(view)}
     bad = [s for s, ok in segs.items() if not ok]
