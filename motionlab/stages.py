@@ -424,7 +424,9 @@ def angles(
     """
     check_session(session)
     if angle_lowpass_hz is not None and not (
-        isinstance(angle_lowpass_hz, numbers.Real) and angle_lowpass_hz >= 0
+        isinstance(angle_lowpass_hz, numbers.Real)
+        and not isinstance(angle_lowpass_hz, bool)
+        and angle_lowpass_hz >= 0
     ):
         raise InputError(
             f"angle_lowpass_hz={angle_lowpass_hz!r} is not a cut-off",

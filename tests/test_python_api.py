@@ -87,6 +87,9 @@ def test_natural_mistakes_in_python_are_input_errors(tmp_path):
         motionlab.validate(session, reference_kind="marker")
     with pytest.raises(InputError, match="no such reference file"):
         motionlab.validate(session, reference=str(tmp_path / "none.c3d"))
+    for cutoff in (-1, float("nan"), True, "6"):  # the stage's own check, before any work
+        with pytest.raises(InputError, match="is not a cut-off"):
+            motionlab.angles(session, angle_lowpass_hz=cutoff)
 
 
 def test_the_csv_tables_are_pandas_frames_from_python(tmp_path):

@@ -190,7 +190,7 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
     if out.pelvis is not None:
         t_p = np.asarray(out.pelvis.time_s, float)
         cutoff = metrics_cutoff(angles.lowpass_hz if angles is not None else 0.0)
-        pelvis_deg = np.column_stack([smoothed(c, estimate_rate(t_p), cutoff)
+        pelvis_deg = np.column_stack([smoothed(c, estimate_rate(t_p), cutoff, t_p)
                                       for c in out.pelvis.angles_deg().T])  # fmt: skip
     for side, st in strides.items():
         keep = st.kept

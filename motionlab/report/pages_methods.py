@@ -222,7 +222,7 @@ def _lowpass_caveat(view: SessionView) -> str:
     if angles is None or angles.lowpass_hz == ANGLES_LOWPASS_HZ:
         return ""
     if angles.lowpass_hz == 0:
-        here = "as computed, not low-passed (its ranges are taken at the same 6 Hz)"
+        here = f"as computed, not low-passed (its ranges are taken at {ANGLES_LOWPASS_HZ:g} Hz too)"
     else:
         here = f"low-passed at {angles.lowpass_hz:g} Hz, and so are its ranges"
     return (
