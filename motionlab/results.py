@@ -716,10 +716,14 @@ class TrunkMovement(_Record):
     sensor's, from the movement's rates; ``heading_rho``: the share of the horizontal rates
     that heading explains (1: all); ``heading_drift_deg`` (deg): the peak-to-peak drift of
     that heading followed from the gyroscopes over the recording (``None``: not followed, the
-    rest was not still or a fusion was 9-D or reported no bias).
+    rest was not still or a fusion was 9-D or reported no bias); ``lean_coupling``: the
+    correlation of the lumbar flexion with the thorax's lean about the flexion axis over the
+    movement (negative: the spine extended as the trunk leaned, as sensors swapped in the map
+    read; ``None`` in files written before 2026-12-03).
     """
 
-    _store_none: ClassVar[bool] = True
+    # ``heading_drift_deg`` predates the class and was always stored; a later field is not
+    _stored_when_none: ClassVar[frozenset[str]] = frozenset({"heading_drift_deg"})
 
     rest_s: list[float]
     rest_speed_deg_s: float
@@ -731,6 +735,7 @@ class TrunkMovement(_Record):
     heading_deg: float
     heading_rho: float
     heading_drift_deg: float | None = None
+    lean_coupling: float | None = None
     more: dict[str, Any] = field(default_factory=dict)
 
 

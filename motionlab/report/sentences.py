@@ -501,6 +501,11 @@ def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[s
             f"hold the {pose} pose still for 5 s every 2 minutes of the recording (each pose "
             "held ties the headings again)"
         )
+    if "sensors look swapped" in r:  # segments.trunk_axes: the spine extended as it leaned
+        return "the thorax and pelvis sensors look swapped", (
+            "check the sensor map: give the upper-back sensor the thorax and the lower-back "
+            "sensor the pelvis"
+        )
     if "axis's sign is not clear" in r:  # a trunk rest held leaning (segments.trunk_axes)
         return "direction of flexion", "rest sitting or standing upright for a few seconds"
     if "headings are tied at the rest only" in r:  # segments.trunk_axes: drift not followed

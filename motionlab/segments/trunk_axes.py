@@ -43,6 +43,10 @@ and **trunk movement** in any order, also as one continuous block:
    gyroscope biases: an unseen 0.2-0.3°/s about the pelvis sensor's vertical cost the three
    real trials without a still rest 0.1-0.5° of their rotation from the rest
    (docs/kinematics.md).
+   Every angle is at best ``weak`` when the lumbar spine extended as the thorax leaned forward
+   over the movement (:func:`_lean_coupling` under :data:`LEAN_COUPLING_MIN`): a spine flexes
+   as the trunk leans, and thorax and pelvis sensors swapped in the sensor map read so (the
+   inverse relative rotation: every angle's sign turned), which the warning names.
 5. **Chair** (optional segment of a ``trunk_lean`` joint): its vertical from the rest; its
    heading is tied to the thorax's at the rest, so the trunk's lean is measured from the rest
    posture about the thorax's own flexion axis, relative to the chair.
@@ -104,6 +108,12 @@ SIGN_RATIO_MIN = 1.3  # the thorax's excursion one way / the other, about the fl
 # trials' bends reach 12-52°
 BEND_MIN_DEG = 10.0
 HEADING_RHO_MIN = 0.5  # share of the horizontal rates the heading fit explains
+#: below this correlation of the lumbar flexion with the thorax's lean about the flexion axis
+#: over the movement the spine extended as the trunk leaned forward, as sensors swapped in the
+#: map read (:func:`_lean_coupling`): the five real trials as recorded and cut
+#: (``bench/trunk_cuts.py``) +0.10 to +0.92, simulated seated sessions +0.89 to +0.95; swapped
+#: −0.80 to −0.51 where the flexion axis was otherwise clear (three real, every simulated one)
+LEAN_COUPLING_MIN = -0.3
 AXIS_KERNEL_DEG = 10.0  # width of the vote for the flexion and lateral-bending axes
 
 
@@ -269,6 +279,24 @@ def _flexion_side(lean: np.ndarray, axis: np.ndarray) -> int:
     return 1 if hi - mid >= mid - lo else -1
 
 
+def _lean_coupling(
+    q_rel: np.ndarray, q_rest: np.ndarray, lean: np.ndarray, axis: np.ndarray, moving: np.ndarray
+) -> float:
+    """Pearson correlation over the ``moving`` samples between the lumbar flexion and the
+    thorax's lean, both since the rest and about the thorax sensor's flexion ``axis``: the
+    thorax's rotation relative to the pelvis (``q_rel`` (N, 4), thorax sensor → pelvis sensor,
+    ``q_rest`` at the rest) and its lean in the world (``lean``, :func:`_lean`). Seated or
+    standing, the thorax leans further than the pelvis and the spine flexes as it leans
+    (positive); sensors swapped in the map give the inverse relative rotation, a spine that
+    extends as the trunk leans (negative). NaN with too few samples or no lean."""
+    bend = rot.to_rotvec(rot.mul(rot.conj(q_rest), q_rel)) @ axis
+    tilt = lean @ axis
+    ok = moving & np.isfinite(bend) & np.isfinite(tilt)
+    if ok.sum() < 10 or np.std(bend[ok]) == 0.0 or np.std(tilt[ok]) == 0.0:
+        return float("nan")
+    return float(np.corrcoef(bend[ok], tilt[ok])[0, 1])
+
+
 def _frame(y: np.ndarray, z: np.ndarray) -> np.ndarray:
     """Mounting matrix (segment → sensor: columns x, y, z in sensor coordinates) with y
     exactly ``y`` and z the part of ``z`` perpendicular to it."""
@@ -406,6 +434,7 @@ def calibrate(
     ratio = sided[0] / max(sided[1], 1e-9)  # how clearly it is the flexion axis
     # flexion turns the thorax about its −z; its side is the longer tail from the usual posture
     forward = _flexion_side(lean, axis)
+    coupling = _lean_coupling(q_rel, q_rest, lean, axis, moving)
     z_d = -axis if forward > 0 else axis
     m_d = _frame(up[d], z_d)
     z_p = rot.rotate(q_rest, m_d[:, 2])
@@ -485,9 +514,16 @@ def calibrate(
         heading_deg=float(np.degrees(delta)),
         heading_rho=heading_rho,
         heading_drift_deg=None if drift is None else float(np.degrees(np.ptp(drift))),
+        lean_coupling=coupling,
     )
     if axis_verdict != "determined":
         notes.append(f"{d}: {_weak_axis(ratio, pos, neg)}: record a clear forward bend")
+    if coupling < LEAN_COUPLING_MIN:
+        labels = [sensor_for_segment(session, seg) for seg in (d, p)]
+        notes.append(
+            f"{d} and {p}: {_extends(coupling)}: are {labels[0]} and {labels[1]} swapped in the "
+            "sensor map? (give each the other's segment)"
+        )
     steps = {rest_name: [float(t[a]), float(t[b - 1])],
              move_name: [float(t[moving][0]), float(t[moving][-1])]}  # fmt: skip
     result = SegmentCalibration(
@@ -570,6 +606,14 @@ def _weak_axis(ratio: float, pos: float, neg: float) -> str:
     )
 
 
+def _extends(coupling: float) -> str:
+    """What a spine that extended as the trunk leaned showed, in words."""
+    return (
+        f"the lumbar spine extended as the thorax leaned forward (r {coupling:+.2f} between "
+        "them over the movement, where a spine flexes as the trunk leans)"
+    )
+
+
 def trunk_grades(
     joint, leans, summary: TrunkMovement, axis_verdict: str, followed: dict[str, bool]
 ) -> dict[str, JointGrades]:
@@ -615,6 +659,13 @@ def trunk_grades(
                 "and may drift apart"
             )
         out[lean.name] = JointGrades([grade] * 3, [why] * 3)
+    coupling = summary.lean_coupling
+    if coupling is not None and coupling < LEAN_COUPLING_MIN:  # every angle's frames in doubt
+        swapped = f"{_extends(coupling)}: the thorax and pelvis sensors look swapped"
+        out = {name: JointGrades([g if g != "determined" else "weak" for g in j.grades],
+                                 [swapped if g == "determined" else w
+                                  for g, w in zip(j.grades, j.reasons, strict=True)])
+               for name, j in out.items()}  # fmt: skip
     if summary.rest_speed_deg_s > REST_SLOW_DEG_S:
         slow = (
             f"the rest turns at {summary.rest_speed_deg_s:.1f}°/s (a still rest is under "
