@@ -111,7 +111,7 @@ HEADING_RHO_MIN = 0.5  # share of the horizontal rates the heading fit explains
 #: below this correlation of the lumbar flexion with the thorax's lean about the flexion axis
 #: over the movement the spine extended as the trunk leaned forward, as sensors swapped in the
 #: map read (:func:`_lean_coupling`): the five real trials as recorded and cut
-#: (``bench/trunk_cuts.py``) +0.10 to +0.92, simulated seated sessions +0.89 to +0.95; swapped
+#: (``bench/trunk_cuts.py``) +0.10 to +0.92, simulated seated sessions +0.89 to +0.96; swapped
 #: −0.80 to −0.51 where the flexion axis was otherwise clear (three real, every simulated one)
 LEAN_COUPLING_MIN = -0.3
 AXIS_KERNEL_DEG = 10.0  # width of the vote for the flexion and lateral-bending axes
