@@ -501,6 +501,11 @@ def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[s
             f"hold the {pose} pose still for 5 s every 2 minutes of the recording (each pose "
             "held ties the headings again)"
         )
+    if "look swapped left for right" in r:  # segments.arm_sides: an elbow reads varus
+        return "the arm's sensors look swapped left for right", (
+            "check the sensor map: the right arm's sensors on the right arm's segments, the "
+            "left's on the left"
+        )
     if "sensors look swapped" in r:  # segments.trunk_axes: the spine extended as it leaned
         return "the thorax and pelvis sensors look swapped", (
             "check the sensor map: give the upper-back sensor the thorax and the lower-back "

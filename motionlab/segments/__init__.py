@@ -41,6 +41,7 @@ from motionlab.results import (
     TwoAxisFit,
 )
 from motionlab.segments import (
+    arm_sides,
     grades,
     heading,
     hip_axis,
@@ -163,6 +164,17 @@ def calibrate_segments(
     result.grades = grades.clock_graded(result.grades, protocol, session)
     if pose is None:
         result.hip_axes = hip_axes(session, protocol, result)
+        if any(joint_type(j.type).name == "elbow" for j in protocol.joints.values()):
+            carrying = arm_sides.pose_carrying(
+                protocol,
+                result,
+                segment_orientations(protocol, result, sensor_quats(session, protocol)),
+            )
+            sides = arm_sides.side_warnings(session, protocol, result.grades, carrying)
+            result.grades = arm_sides.side_graded(result.grades, carrying)
+            result.warnings = [*result.warnings, *sides]
+            if warnings is not None:
+                warnings.extend(sides)
     return result
 
 

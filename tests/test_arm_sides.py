@@ -1,0 +1,100 @@
+"""Arms swapped left for right in the sensor map (:mod:`motionlab.segments.arm_sides`): an elbow
+whose carrying angle reads varus in the stand is not a determined angle of that side."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import pytest
+
+from motionlab.binding import sensor_for_segment
+from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
+from motionlab.protocol import load_protocol
+from motionlab.results import JointGrades
+from motionlab.segments import arm_sides
+from motionlab.simulate import simulate
+
+OPTIONS = PipelineOptions(protocol="arm", progress=False)
+
+
+def _arms_swapped(session):
+    """Each arm's sensors given the other arm's segments, as a map that swapped the sides."""
+    for a, b in (("upperarm_r", "upperarm_l"), ("forearm_r", "forearm_l")):
+        la, lb = sensor_for_segment(session, a), sensor_for_segment(session, b)
+        sa, sb = session.sensors[la], session.sensors[lb]
+        session.sensors[la] = dataclasses.replace(sa, segment=sb.segment, side=sb.side)
+        session.sensors[lb] = dataclasses.replace(sb, segment=sa.segment, side=sa.side)
+    return session
+
+
+@pytest.fixture(scope="module")
+def mapped_and_swapped():
+    """The ``arm`` protocol on skin, random mountings, seed 0 (40 s), analysed as mapped and with
+    the arms' sensors swapped left for right."""
+    out = []
+    for swap in (False, True):
+        session, _ = simulate("arm", 40.0, 0, "skin", mounting="random", knee_model="anatomical")
+        if swap:
+            _arms_swapped(session)
+        prepare_sensors(session)
+        analyse(session, OPTIONS)
+        out.append(session)
+    return out
+
+
+def test_arms_swapped_left_for_right_leave_no_determined_elbow(mapped_and_swapped):
+    """As mapped the left elbow is ``determined`` on all three angles and the stand's carrying
+    angle reads valgus; with the arms swapped the same elbow, now read as the right one, was
+    ``determined`` with its carrying angle and pronation turned (measured −10.7° and the
+    pronation's sign). It is ``weak``, saying why, and the warning names its sensors."""
+    mapped, swapped = mapped_and_swapped
+    cal = mapped.results.calibration
+    assert cal.grades["elbow_l"].grades == ["determined"] * 3
+    assert not any("varus" in w for w in cal.warnings)
+    cal = swapped.results.calibration
+    for name, g in cal.grades.items():
+        assert "determined" not in g.grades, name
+    assert all("look swapped left for right" in r for r in cal.grades["elbow_r"].reasons)
+    ua, fa = (sensor_for_segment(swapped, s) for s in ("upperarm_r", "forearm_r"))
+    assert any(
+        w.startswith("elbow_r: the carrying angle reads") and f"are {ua} and {fa} on the right" in w
+        for w in cal.warnings
+    )
+
+
+def test_the_stand_reads_the_carrying_angle_with_its_sign_turned(mapped_and_swapped):
+    from motionlab.segments import segment_orientations
+    from motionlab.segments.sensors import sensor_quats
+
+    protocol = load_protocol("arm")
+    read = []
+    for session in mapped_and_swapped:
+        cal = session.results.calibration
+        seg_q = segment_orientations(protocol, cal, sensor_quats(session, protocol))
+        read.append(arm_sides.pose_carrying(protocol, cal, seg_q))
+    (step, left), (_, right_swapped) = read[0]["elbow_l"], read[1]["elbow_r"]
+    assert step == "standing"
+    assert 5.0 < left < 20.0
+    assert right_swapped == pytest.approx(-left, abs=0.5)
+
+
+def test_only_a_found_axis_reading_varus_beyond_the_threshold_lowers_the_grades():
+    protocol = load_protocol("arm")
+    det, nd = (
+        JointGrades(["determined"] * 3, [""] * 3),
+        JointGrades(["not determined"] * 3, ["x"] * 3),
+    )
+    limit = arm_sides.CARRYING_VARUS_DEG
+    graded = {"elbow_r": det, "elbow_l": det}
+    near = {"elbow_r": ("standing", -limit + 0.1), "elbow_l": ("standing", 12.0)}
+    assert arm_sides.side_graded(graded, near) == graded
+    assert arm_sides.side_warnings(None, protocol, graded, near) == []
+    varus = {"elbow_r": ("standing", -limit - 0.1), "elbow_l": ("standing", -9.0)}
+    both = arm_sides.side_graded(graded, varus)
+    assert all(g.grades == ["weak"] * 3 for g in both.values())
+    assert "reads 9° varus in the standing pose" in both["elbow_l"].reasons[0]
+    (line,) = arm_sides.side_warnings(None, protocol, graded, varus)
+    assert line.startswith("both elbows read varus in the stand (elbow_r 5°, elbow_l 9°)")
+    assert "swap the sides of the arm sensors" in line
+    # an elbow whose axis was not found reads its carrying angle from a hint: no evidence
+    assert arm_sides.side_graded({"elbow_r": nd}, varus) == {"elbow_r": nd}
