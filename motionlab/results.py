@@ -719,7 +719,9 @@ class TrunkMovement(_Record):
     rest was not still or a fusion was 9-D or reported no bias); ``lean_coupling``: the
     correlation of the lumbar flexion with the thorax's lean about the flexion axis over the
     movement (negative: the spine extended as the trunk leaned, as sensors swapped in the map
-    read; ``None`` in files written before 2026-12-03).
+    read; ``twist_coupling``: the correlation of the thorax's rate about its vertical relative
+    to the pelvis with its own (negative: the pelvis turned further than the thorax, as swapped
+    sensors read); both ``None`` in files written before 2026-12-03).
     """
 
     # ``heading_drift_deg`` predates the class and was always stored; a later field is not
@@ -736,6 +738,7 @@ class TrunkMovement(_Record):
     heading_rho: float
     heading_drift_deg: float | None = None
     lean_coupling: float | None = None
+    twist_coupling: float | None = None
     more: dict[str, Any] = field(default_factory=dict)
 
 

@@ -60,6 +60,15 @@ def test_arms_swapped_left_for_right_leave_no_determined_elbow(mapped_and_swappe
         w.startswith("elbow_r: the carrying angle reads") and f"are {ua} and {fa} on the right" in w
         for w in cal.warnings
     )
+    # the report's summary gives the map's remedy
+    from motionlab.report.model import load_view
+    from motionlab.report.sentences import missing_lines
+
+    (right,) = [
+        line for line in missing_lines(load_view(swapped)) if line.startswith("Right elbow")
+    ]
+    assert right.endswith("— check the sensor map: the right arm's sensors on the right arm's "
+                          "segments, the left's on the left.")  # fmt: skip
 
 
 def test_the_stand_reads_the_carrying_angle_with_its_sign_turned(mapped_and_swapped):

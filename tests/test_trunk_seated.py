@@ -703,20 +703,22 @@ def test_thorax_and_pelvis_sensors_swapped_in_the_map_leave_no_angle_determined(
     """Thorax and pelvis sensors swapped in the map give the inverse relative rotation: every
     lumbar angle with its sign turned, which the simulated session graded ``determined`` on
     all three planes (seeds 0-3). The spine then extends as the thorax leans forward (the
-    correlation of the two over the movement, +0.94 as recorded, −0.72 swapped): every angle
-    is ``weak`` at best, saying the sensors look swapped, and the warning names both."""
-    from motionlab.segments.trunk_axes import LEAN_COUPLING_MIN
+    correlation of the two over the movement, +0.94 as recorded, −0.72 swapped) and the pelvis
+    turns further than the thorax (+0.98, −0.9): every angle is ``weak`` at best, saying the
+    sensors look swapped, and the warning names both."""
+    from motionlab.segments.trunk_axes import LEAN_COUPLING_MIN, TWIST_COUPLING_MIN
 
     session, _ = seated
     right = _crop(session, -1e9, 1e9)
     analyse(right, OPTIONS)
     lumbar = right.results.calibration.grades["lumbar"]
-    assert lumbar.trunk.lean_coupling > 0.8
+    assert lumbar.trunk.lean_coupling > 0.8 and lumbar.trunk.twist_coupling > 0.8
     assert not any("swapped" in w for w in right.results.calibration.warnings)
     swapped = _swapped(session, "thorax", "pelvis")
     analyse(swapped, OPTIONS)
     cal = swapped.results.calibration
     assert cal.grades["lumbar"].trunk.lean_coupling < LEAN_COUPLING_MIN
+    assert cal.grades["lumbar"].trunk.twist_coupling < TWIST_COUPLING_MIN
     for name, g in cal.grades.items():
         assert "determined" not in g.grades, name
     assert all("thorax and pelvis sensors look swapped" in r for r in cal.grades["lumbar"].reasons
@@ -730,28 +732,35 @@ def test_thorax_and_pelvis_sensors_swapped_in_the_map_leave_no_angle_determined(
 def test_a_spine_that_flexes_as_the_trunk_leans_keeps_its_grades():
     from types import SimpleNamespace
 
-    from motionlab.segments.trunk_axes import LEAN_COUPLING_MIN, trunk_grades
+    from motionlab.segments.trunk_axes import LEAN_COUPLING_MIN, TWIST_COUPLING_MIN, trunk_grades
 
     joint, lean = SimpleNamespace(name="lumbar"), SimpleNamespace(name="trunk_chair")
     followed = {"lumbar": True, "trunk_chair": True}
+    base = _movement([3.1, 4.3], 0.5)
     for coupling in (None, 0.1, LEAN_COUPLING_MIN + 0.01):
-        summary = dataclasses.replace(_movement([3.1, 4.3], 0.5), lean_coupling=coupling)
+        for twist in (None, 0.4, TWIST_COUPLING_MIN + 0.01):
+            summary = dataclasses.replace(base, lean_coupling=coupling, twist_coupling=twist)
+            graded = trunk_grades(joint, [lean], summary, "determined", followed)
+            assert all(g.grades == ["determined"] * 3 for g in graded.values())
+    cues = [({"lean_coupling": -0.5}, "extended as the thorax leaned forward"),
+            ({"twist_coupling": -0.2}, "the pelvis turned further than the thorax")]  # fmt: skip
+    for cue, said in cues:
+        summary = dataclasses.replace(base, **cue)
         graded = trunk_grades(joint, [lean], summary, "determined", followed)
-        assert all(g.grades == ["determined"] * 3 for g in graded.values())
-    summary = dataclasses.replace(_movement([3.1, 4.3], 0.5), lean_coupling=-0.5)
-    graded = trunk_grades(joint, [lean], summary, "determined", followed)
-    for g in graded.values():
-        assert g.grades == ["weak"] * 3
-        assert all("r -0.50" in r and "look swapped" in r for r in g.reasons)
+        for g in graded.values():
+            assert g.grades == ["weak"] * 3
+            assert all(said in r and "look swapped" in r for r in g.reasons)
 
 
 @needs_shared
-def test_real_trunk_sensors_swapped_in_the_map_are_told_to_be_swapped_back(tmp_path):
-    """Aag/trunkmovement_ls with `Back` mapped to the pelvis and `Chest` (at the lower back
-    despite its name) to the thorax: the lumbar flexion and lateral bending came out
-    ``determined`` with their signs turned (flexion −17 to 9° where the trial's is −8 to 17°);
-    now ``weak``, with the remedy on the run's screen."""
-    imu = SHARED / "datasets" / "trunk" / "Aag" / "trunkmovement_ls" / "imu"
+@pytest.mark.parametrize("trial", ["Aag/trunkmovement_ls", "Danique/trunkmovement_hs"])
+def test_real_trunk_sensors_swapped_in_the_map_are_told_to_be_swapped_back(tmp_path, trial):
+    """`Back` mapped to the pelvis and `Chest` (at the lower back despite its name) to the
+    thorax: Aag/trunkmovement_ls's lumbar flexion and lateral bending came out ``determined``
+    with their signs turned (flexion −17 to 9° where the trial's is −8 to 17°),
+    Danique/trunkmovement_hs's axial rotation so (its lean says nothing there, its twist
+    does); now ``weak``, with the remedy on the run's screen."""
+    imu = SHARED / "datasets" / "trunk" / trial / "imu"
     if not imu.is_dir():
         pytest.skip("trunk data set not present")
     (tmp_path / "map.yaml").write_text(

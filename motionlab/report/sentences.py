@@ -576,7 +576,8 @@ def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[s
 
 def missing_lines(view: SessionView) -> list[str]:
     """One line per joint with an angle that is not ``determined``: which angles, their grade
-    and short cause, and the single most useful remedy (for the worst of them):
+    and short cause, and the single most useful remedy (for sensors that look swapped in the
+    map, else for the worst of them):
     ``'Right knee: flexion-extension not determined (axis) — walk 10 straight steps at an even
     pace.'``; one per joint left out for a segment with no sensor (``'Right hip: not measured
     (no sensor on the pelvis) — …'``); plus one line for trunk compensation from a thorax that
@@ -596,7 +597,9 @@ def missing_lines(view: SessionView) -> list[str]:
             f"{' and '.join(angles) if len(angles) < 3 else 'all angles'} {grade} ({cause})"
             for (grade, cause), angles in groups.items()
         )
-        remedy = cause_and_remedy(view, joint.name, worst.reason)[1]
+        # sensors that look swapped in the map come first: the map fixed, every angle changes
+        swapped = [c for r in bad for c in r.reason.split("; ") if "look swapped" in c]
+        remedy = cause_and_remedy(view, joint.name, (swapped or [worst.reason])[0])[1]
         lines.append(f"{joint_title(joint)}: {what} — {remedy}.")
     for joint, segments in view.unmeasured:
         names = " and ".join(segment_title(view.protocol, s) for s in segments)

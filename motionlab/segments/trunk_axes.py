@@ -44,9 +44,11 @@ and **trunk movement** in any order, also as one continuous block:
    real trials without a still rest 0.1-0.5° of their rotation from the rest
    (docs/kinematics.md).
    Every angle is at best ``weak`` when the lumbar spine extended as the thorax leaned forward
-   over the movement (:func:`_lean_coupling` under :data:`LEAN_COUPLING_MIN`): a spine flexes
-   as the trunk leans, and thorax and pelvis sensors swapped in the sensor map read so (the
-   inverse relative rotation: every angle's sign turned), which the warning names.
+   over the movement (:func:`_lean_coupling` under :data:`LEAN_COUPLING_MIN`) or twisted
+   against the thorax's own turning about the vertical (:func:`_twist_coupling` under
+   :data:`TWIST_COUPLING_MIN`): a spine flexes as the trunk leans and the thorax turns further
+   than the pelvis, and thorax and pelvis sensors swapped in the sensor map read the inverse
+   (the inverse relative rotation: every angle's sign turned), which the warning names.
 5. **Chair** (optional segment of a ``trunk_lean`` joint): its vertical from the rest; its
    heading is tied to the thorax's at the rest, so the trunk's lean is measured from the rest
    posture about the thorax's own flexion axis, relative to the chair.
@@ -114,6 +116,12 @@ HEADING_RHO_MIN = 0.5  # share of the horizontal rates the heading fit explains
 #: (``bench/trunk_cuts.py``) +0.10 to +0.92, simulated seated sessions +0.89 to +0.96; swapped
 #: −0.80 to −0.51 where the flexion axis was otherwise clear (three real, every simulated one)
 LEAN_COUPLING_MIN = -0.3
+#: below this correlation of the thorax's rate about its vertical relative to the pelvis with
+#: its own rate about it the pelvis turned further than the thorax, as sensors swapped in the
+#: map read (:func:`_twist_coupling`): the five real trials as recorded +0.43 to +0.72, cut
+#: +0.21 or more, simulated seated sessions +0.90 to +0.98; swapped −0.14 to −0.49 (real),
+#: −0.86 to −0.96 (simulated, where the lean alone missed some: −0.24)
+TWIST_COUPLING_MIN = -0.1
 AXIS_KERNEL_DEG = 10.0  # width of the vote for the flexion and lateral-bending axes
 
 
@@ -297,6 +305,21 @@ def _lean_coupling(
     return float(np.corrcoef(bend[ok], tilt[ok])[0, 1])
 
 
+def _twist_coupling(
+    w_rel: np.ndarray, w_thorax: np.ndarray, up: np.ndarray, moving: np.ndarray
+) -> float:
+    """Pearson correlation over the ``moving`` samples between the thorax's rate relative to the
+    pelvis (``w_rel`` (N, 3), rad/s) and its own rate (``w_thorax``), both about its vertical at
+    the rest ``up`` (thorax sensor frame). The pelvis, held by the seat or the legs, turns less
+    than the thorax about the vertical, and a wheelchair's turn turns both alike: positive.
+    Sensors swapped in the map: negative. NaN with too few samples or no turning."""
+    rel, own = w_rel @ up, w_thorax @ up
+    ok = moving & np.isfinite(rel) & np.isfinite(own)
+    if ok.sum() < 10 or np.std(rel[ok]) == 0.0 or np.std(own[ok]) == 0.0:
+        return float("nan")
+    return float(np.corrcoef(rel[ok], own[ok])[0, 1])
+
+
 def _frame(y: np.ndarray, z: np.ndarray) -> np.ndarray:
     """Mounting matrix (segment → sensor: columns x, y, z in sensor coordinates) with y
     exactly ``y`` and z the part of ``z`` perpendicular to it."""
@@ -435,6 +458,7 @@ def calibrate(
     # flexion turns the thorax about its −z; its side is the longer tail from the usual posture
     forward = _flexion_side(lean, axis)
     coupling = _lean_coupling(q_rel, q_rest, lean, axis, moving)
+    twist = _twist_coupling(w_rel, gyr[d], up[d], moving)
     z_d = -axis if forward > 0 else axis
     m_d = _frame(up[d], z_d)
     z_p = rot.rotate(q_rest, m_d[:, 2])
@@ -515,14 +539,16 @@ def calibrate(
         heading_rho=heading_rho,
         heading_drift_deg=None if drift is None else float(np.degrees(np.ptp(drift))),
         lean_coupling=coupling,
+        twist_coupling=twist,
     )
     if axis_verdict != "determined":
         notes.append(f"{d}: {_weak_axis(ratio, pos, neg)}: record a clear forward bend")
-    if coupling < LEAN_COUPLING_MIN:
+    inverse = _inverse(summary)
+    if inverse:
         labels = [sensor_for_segment(session, seg) for seg in (d, p)]
         notes.append(
-            f"{d} and {p}: {_extends(coupling)}: are {labels[0]} and {labels[1]} swapped in the "
-            "sensor map? (give each the other's segment)"
+            f"{d} and {p}: {inverse}: are {labels[0]} and {labels[1]} swapped in the sensor map? "
+            "(give each the other's segment)"
         )
     steps = {rest_name: [float(t[a]), float(t[b - 1])],
              move_name: [float(t[moving][0]), float(t[moving][-1])]}  # fmt: skip
@@ -606,12 +632,23 @@ def _weak_axis(ratio: float, pos: float, neg: float) -> str:
     )
 
 
-def _extends(coupling: float) -> str:
-    """What a spine that extended as the trunk leaned showed, in words."""
-    return (
-        f"the lumbar spine extended as the thorax leaned forward (r {coupling:+.2f} between "
-        "them over the movement, where a spine flexes as the trunk leans)"
-    )
+def _inverse(summary: TrunkMovement) -> str:
+    """What the movement showed of a relative rotation the wrong way round (thorax and pelvis
+    sensors swapped in the map, :data:`LEAN_COUPLING_MIN`, :data:`TWIST_COUPLING_MIN`), in
+    words; empty when it showed nothing of the kind."""
+    lean, twist = summary.lean_coupling, summary.twist_coupling
+    said = []
+    if lean is not None and lean < LEAN_COUPLING_MIN:
+        said.append(
+            f"the lumbar spine extended as the thorax leaned forward (r {lean:+.2f} between "
+            "them over the movement, where a spine flexes as the trunk leans)"
+        )
+    if twist is not None and twist < TWIST_COUPLING_MIN:
+        said.append(
+            f"the pelvis turned further than the thorax about the vertical (r {twist:+.2f} "
+            "between the trunk's twist and the thorax's turning, where the thorax turns further)"
+        )
+    return ", and ".join(said)
 
 
 def trunk_grades(
@@ -659,9 +696,9 @@ def trunk_grades(
                 "and may drift apart"
             )
         out[lean.name] = JointGrades([grade] * 3, [why] * 3)
-    coupling = summary.lean_coupling
-    if coupling is not None and coupling < LEAN_COUPLING_MIN:  # every angle's frames in doubt
-        swapped = f"{_extends(coupling)}: the thorax and pelvis sensors look swapped"
+    inverse = _inverse(summary)
+    if inverse:  # every angle's frames in doubt
+        swapped = f"{inverse}: the thorax and pelvis sensors look swapped"
         out = {name: JointGrades([g if g != "determined" else "weak" for g in j.grades],
                                  [swapped if g == "determined" else w
                                   for g, w in zip(j.grades, j.reasons, strict=True)])
