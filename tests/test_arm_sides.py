@@ -103,7 +103,7 @@ def test_only_a_found_axis_reading_varus_beyond_the_threshold_lowers_the_grades(
     assert all(g.grades == ["weak"] * 3 for g in both.values())
     assert "reads 9° varus in the standing pose" in both["elbow_l"].reasons[0]
     (line,) = arm_sides.side_warnings(None, protocol, graded, varus)
-    assert line.startswith("both elbows read varus in the stand (elbow_r 5°, elbow_l 9°)")
+    assert line.startswith("both elbows read varus in the standing pose (elbow_r 5°, elbow_l 9°)")
     assert "swap the sides of the arm sensors" in line
     # an elbow whose axis was not found reads its carrying angle from a hint: no evidence
     assert arm_sides.side_graded({"elbow_r": nd}, varus) == {"elbow_r": nd}

@@ -113,10 +113,11 @@ def side_warnings(
     elbows = [n for n, j in protocol.joints.items() if joint_type(j.type).name == "elbow"]
     if len(varus) >= 2 and len(varus) == len(elbows):
         read = ", ".join(f"{name} {-deg:.0f}°" for name, (_, deg) in varus.items())
+        step = next(iter(varus.values()))[0]
         return [
-            f"both elbows read varus in the stand ({read}), where elbows are 5-15° valgus: the "
-            "arms' sensors look swapped left for right: swap the sides of the arm sensors in the "
-            "sensor map (right <-> left) and start again from ingest"
+            f"both elbows read varus in the {step} pose ({read}), where elbows are 5-15° "
+            "valgus: the arms' sensors look swapped left for right: swap the sides of the arm "
+            "sensors in the sensor map (right <-> left) and start again from ingest"
         ]
     lines = []
     for name, (step, deg) in varus.items():
