@@ -95,7 +95,7 @@ def side_graded(
     reference pose (``carrying``, :func:`pose_carrying`) ``weak`` at best (module notes)."""
     out = dict(graded)
     for name, (step, deg) in _varus(graded, carrying).items():
-        out[name] = grading._lowered(out[name], ["weak"] * len(out[name].grades), _why(step, deg))
+        out[name] = grading.lowered(out[name], ["weak"] * len(out[name].grades), _why(step, deg))
     return out
 
 

@@ -398,7 +398,7 @@ def gap_graded(graded: dict[str, JointGrades], gap_turns: dict) -> dict[str, Joi
                      f"{gap.time_s:.1f} s) may together have")  # fmt: skip
         why = (f"{which} hidden a turn of {turn}, which the joint's heading, tied only where a "
                "pose was held or the walk went straight, keeps until its next anchor")  # fmt: skip
-        out[name] = _lowered(out[name], [g_gap] * len(out[name].grades), why)
+        out[name] = lowered(out[name], [g_gap] * len(out[name].grades), why)
     return out
 
 
@@ -447,7 +447,7 @@ def clock_graded(graded: dict[str, JointGrades], protocol, session) -> dict[str,
                 f", and the data put them {1e3 * abs(fit.offset_s):.0f} ± "
                 f"{1e3 * fit.offset_se_s:.0f} ms apart: at least {speed * apart:.0f}°"
             )
-        out[name] = _lowered(out[name], [grade] * len(out[name].grades), why)
+        out[name] = lowered(out[name], [grade] * len(out[name].grades), why)
     return out
 
 
@@ -481,7 +481,7 @@ def hold_graded(
         why = (f"{tied} {seconds / 60:.0f} min from those (the 6-D fusion's heading drifts "
                "about the vertical in between)")  # fmt: skip
         first = "weak" if seconds <= 3 * HEADING_HOLD_S else "not determined"
-        out[name] = _lowered(out[name], _first_kept(out[name], first), why)
+        out[name] = lowered(out[name], _first_kept(out[name], first), why)
     for name, (rate, beyond) in (drift or {}).items():
         drifted = rate * beyond
         if name not in out or not drifted > HEADING_DRIFT_DEG:
@@ -489,7 +489,7 @@ def hold_graded(
         why = (f"{tied} {beyond:.0f} s past those, while its poses put the two sensors' headings "
                f"drifting apart at {rate * 60:.0f}°/min: about {drifted:.0f}° by then")  # fmt: skip
         first = "weak" if drifted <= 3 * HEADING_DRIFT_DEG else "not determined"
-        out[name] = _lowered(out[name], _first_kept(out[name], first), why)
+        out[name] = lowered(out[name], _first_kept(out[name], first), why)
     return out
 
 
@@ -499,7 +499,7 @@ def _first_kept(joint: JointGrades, first: str) -> list[str]:
     return [first] + [NOT_DETERMINED] * (len(joint.grades) - 1)
 
 
-def _lowered(joint: JointGrades, lowest: list[str], why: str) -> JointGrades:
+def lowered(joint: JointGrades, lowest: list[str], why: str) -> JointGrades:
     """``joint`` with each angle graded at most ``lowest[k]``, ``why`` added to its reason:
     first where it lowers the grade (the summary names the first clause as the cause), last
     where the grade was that already."""
