@@ -524,7 +524,9 @@ def analyse(
     differ from the defaults) is added; :func:`run_pipeline` writes its own.
     """
 
-    protocol = sensed_protocol(options.load_protocol(), session)
+    protocol = options.load_protocol()
+    check_joints(protocol, session)  # before the joints of absent segments are dropped
+    protocol = sensed_protocol(protocol, session)
     stages = stages or _Stages([], progress=options.progress)
     if options.clock_sync:
         with stages("clock sync"):

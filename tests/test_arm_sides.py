@@ -107,3 +107,22 @@ def test_only_a_found_axis_reading_varus_beyond_the_threshold_lowers_the_grades(
     assert "swap the sides of the arm sensors" in line
     # an elbow whose axis was not found reads its carrying angle from a hint: no evidence
     assert arm_sides.side_graded({"elbow_r": nd}, varus) == {"elbow_r": nd}
+
+
+def test_one_arm_is_enough_for_its_elbow():
+    """A clinic measures the affected arm: the ``arm`` protocol refused a recording of one arm
+    ("no sensor on segment 'upperarm_l'") as the walk no longer refuses one leg. Its elbow is
+    measured; the other is "not measured" in the report, not an error."""
+    from motionlab.report.model import load_view
+    from motionlab.report.sentences import missing_lines
+
+    session, _ = simulate("arm", 40.0, 0, "skin", mounting="random", knee_model="anatomical")
+    for label in [k for k, s in session.sensors.items() if s.segment.endswith("_r")]:
+        del session.sensors[label]
+    prepare_sensors(session)
+    analyse(session, OPTIONS)
+    assert list(session.results.calibration.grades) == ["elbow_l"]
+    assert session.results.calibration.grades["elbow_l"].grades[0] == "determined"
+    assert [c for c in session.results.angles.columns() if c.startswith("elbow_r")] == []
+    lines = missing_lines(load_view(session))
+    assert any(line.startswith("Right elbow: not measured (no sensor on the") for line in lines)

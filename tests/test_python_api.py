@@ -90,6 +90,10 @@ def test_natural_mistakes_in_python_are_input_errors(tmp_path):
     for cutoff in (-1, float("nan"), True, "6"):  # the stage's own check, before any work
         with pytest.raises(InputError, match="is not a cut-off"):
             motionlab.angles(session, angle_lowpass_hz=cutoff)
+    # a protocol whose every joint lacks a sensor (the knee recording given the arm protocol)
+    # stopped in the angles with a bare StopIteration; analyse refuses it as run does
+    with pytest.raises(InputError, match="no joint of the 'arm' protocol has sensors on both"):
+        motionlab.analyse(motionlab.load_session(demo), motionlab.PipelineOptions("arm"))
 
 
 def test_the_csv_tables_are_pandas_frames_from_python(tmp_path):
