@@ -777,3 +777,25 @@ def test_real_trunk_sensors_swapped_in_the_map_are_told_to_be_swapped_back(tmp_p
     assert "are Chest and Back swapped in the sensor map?" in screen
     assert "the thorax and pelvis sensors look swapped" in screen
     assert "give the upper-back sensor the thorax" in screen
+
+
+def test_a_trunk_that_only_sways_or_only_bends_says_nothing_of_swapped_sensors():
+    """The swap checks need movement to read: a lean under 10° either way (a seated sway) or a
+    relative twist under 10°/s RMS (a trunk that only bends twists by its axes' crosstalk) is
+    no evidence, whatever the correlation's sign, where the same signals larger are."""
+    from motionlab.segments.trunk_axes import _lean_coupling, _twist_coupling
+
+    t = np.linspace(0.0, 20.0, 1001)
+    wave = np.sin(2 * np.pi * 0.2 * t)
+    moving = np.ones(len(t), bool)
+    up, axis = np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    own = np.outer(np.radians(40.0) * wave, up)
+    for rate_deg_s, want_nan in ((3.0, True), (20.0, False)):  # the pelvis turning further
+        rel = np.outer(-np.radians(rate_deg_s) * np.sqrt(2.0) * wave, up)
+        r = _twist_coupling(rel, own, up, moving)
+        assert np.isnan(r) if want_nan else r == pytest.approx(-1.0)
+    for lean_deg, want_nan in ((6.0, True), (30.0, False)):  # the spine extending as it leans
+        lean = np.outer(np.radians(lean_deg) * wave, axis)
+        q_rel = rot.from_rotvec(-0.3 * lean)
+        r = _lean_coupling(q_rel, rot.IDENTITY, lean, axis, moving)
+        assert np.isnan(r) if want_nan else r == pytest.approx(-1.0)

@@ -122,6 +122,10 @@ LEAN_COUPLING_MIN = -0.3
 #: +0.21 or more, simulated seated sessions +0.90 to +0.98; swapped −0.14 to −0.49 (real),
 #: −0.86 to −0.96 (simulated, where the lean alone missed some: −0.24)
 TWIST_COUPLING_MIN = -0.1
+#: deg/s: the least RMS rate of the thorax about its vertical relative to the pelvis for the twist
+#: to tell (a trunk that only bends twists by the crosstalk of its axes; the real trials and
+#: their cuts 13-42°/s)
+TWIST_MIN_DEG_S = 10.0
 AXIS_KERNEL_DEG = 10.0  # width of the vote for the flexion and lateral-bending axes
 
 
@@ -296,11 +300,12 @@ def _lean_coupling(
     ``q_rest`` at the rest) and its lean in the world (``lean``, :func:`_lean`). Seated or
     standing, the thorax leans further than the pelvis and the spine flexes as it leans
     (positive); sensors swapped in the map give the inverse relative rotation, a spine that
-    extends as the trunk leans (negative). NaN with too few samples or no lean."""
+    extends as the trunk leans (negative). NaN with too few samples or a lean under
+    :data:`BEND_MIN_DEG` either way (a sway tells nothing)."""
     bend = rot.to_rotvec(rot.mul(rot.conj(q_rest), q_rel)) @ axis
     tilt = lean @ axis
     ok = moving & np.isfinite(bend) & np.isfinite(tilt)
-    if ok.sum() < 10 or np.std(bend[ok]) == 0.0 or np.std(tilt[ok]) == 0.0:
+    if ok.sum() < 10 or np.std(bend[ok]) == 0.0 or max(_excursions(lean[ok], axis)) < BEND_MIN_DEG:
         return float("nan")
     return float(np.corrcoef(bend[ok], tilt[ok])[0, 1])
 
@@ -312,10 +317,13 @@ def _twist_coupling(
     pelvis (``w_rel`` (N, 3), rad/s) and its own rate (``w_thorax``), both about its vertical at
     the rest ``up`` (thorax sensor frame). The pelvis, held by the seat or the legs, turns less
     than the thorax about the vertical, and a wheelchair's turn turns both alike: positive.
-    Sensors swapped in the map: negative. NaN with too few samples or no turning."""
+    Sensors swapped in the map: negative. NaN with too few samples or a twist under
+    :data:`TWIST_MIN_DEG_S` (RMS)."""
     rel, own = w_rel @ up, w_thorax @ up
     ok = moving & np.isfinite(rel) & np.isfinite(own)
-    if ok.sum() < 10 or np.std(rel[ok]) == 0.0 or np.std(own[ok]) == 0.0:
+    if ok.sum() < 10 or np.std(own[ok]) == 0.0:
+        return float("nan")
+    if np.degrees(np.sqrt(np.mean(rel[ok] ** 2))) < TWIST_MIN_DEG_S:
         return float("nan")
     return float(np.corrcoef(rel[ok], own[ok])[0, 1])
 
