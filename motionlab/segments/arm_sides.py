@@ -82,6 +82,7 @@ def _varus(graded: dict[str, JointGrades], carrying: dict[str, tuple[str, float]
 
 
 def _why(step: str, deg: float) -> str:
+    """Why an elbow reading ``deg`` (deg, valgus positive) in pose ``step`` is in doubt."""
     return (
         f"the carrying angle reads {-deg:.0f}° varus in the {step} pose, where an elbow is "
         "5-15° valgus: the arm's sensors look swapped left for right (or the elbow is in varus)"

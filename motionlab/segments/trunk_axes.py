@@ -707,9 +707,7 @@ def trunk_grades(
     inverse = _inverse(summary)
     if inverse:  # every angle's frames in doubt
         swapped = f"{inverse}: the thorax and pelvis sensors look swapped"
-        out = {name: JointGrades([g if g != "determined" else "weak" for g in j.grades],
-                                 [swapped if g == "determined" else w
-                                  for g, w in zip(j.grades, j.reasons, strict=True)])
+        out = {name: grading.lowered(j, ["weak"] * len(j.grades), swapped)
                for name, j in out.items()}  # fmt: skip
     if summary.rest_speed_deg_s > REST_SLOW_DEG_S:
         slow = (
