@@ -28,7 +28,7 @@ import numpy as np
 
 from motionlab.binding import sensor_for_segment
 from motionlab.kinematics.joint_angles import joint_angles
-from motionlab.kinematics.joint_types import joint_type
+from motionlab.kinematics.joint_types import angle_columns, joint_type
 from motionlab.protocol import Protocol
 from motionlab.results import JointGrades, SegmentCalibration
 from motionlab.rotations import resample
@@ -63,7 +63,7 @@ def pose_carrying(
         if len(t) < 2:
             continue
         qp, qd = (resample(*seg_q[seg], t) for seg in (joint.proximal, joint.distal))
-        carrying = list(joint_angles(qp, qd, joint).values())[1]
+        carrying = joint_angles(qp, qd, joint)[angle_columns(joint)[1][1]]  # the second angle
         if np.isfinite(carrying).any():
             out[name] = (step, float(np.nanmedian(carrying)))
     return out
