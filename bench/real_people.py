@@ -54,6 +54,7 @@ import scipy.io as sio
 import yaml
 
 from motionlab import rotations as rot
+from motionlab.binding import sensor_for_segment
 from motionlab.errors import InputError
 from motionlab.io.clock import mark_shared_clock
 from motionlab.kinematics.angle_filter import as_metrics_take, smoothed
@@ -176,7 +177,8 @@ def gyro_ranges(session: Session, jname: str, joint, side: str) -> np.ndarray:
     gait, fit = session.results.gait, session.results.calibration.hinges.get(jname)
     if gait is None or not gait.ok or fit is None:
         return np.array([])
-    prox, dist = session.sensors[joint.proximal], session.sensors[joint.distal]
+    prox, dist = (session.sensors[sensor_for_segment(session, seg)]
+                  for seg in (joint.proximal, joint.distal))  # fmt: skip
     t = prox.time
     rate = np.interp(t, dist.time, dist.gyr @ fit.axis_distal) - prox.gyr @ fit.axis_proximal
     fs = estimate_rate(t)
