@@ -180,9 +180,8 @@ def analyse_gait(session: Session, protocol: Protocol) -> Gait:
             *(pel[:, i] for i in range(len(PELVIS_COLUMNS))),
             method=(
                 "pelvis frame from the calibration (gravity in the stand; forward from the "
-                "placement hint, or from the walk's first steps or turns where the hint is "
-                "contradicted); "
-                "walking direction = pelvis heading averaged over one stride"
+                "placement hint, or from the walk's first or last steps or its turns where the "
+                "hint is contradicted); walking direction = pelvis heading averaged over one stride"
             ),
         )
     curves: dict[str, dict[str, np.ndarray]] = {}

@@ -67,7 +67,7 @@ from motionlab.segments import (
     trunk_axes,
 )
 from motionlab.segments.sensors import angle_segments, sensor_quats
-from motionlab.segments.steps import find_tasks
+from motionlab.segments.steps import find_tasks, task_window
 from motionlab.session import Session, estimate_rate
 
 OUT_OF_PLANE = ("cross_talk", "out_of_plane_offset", "trunk_compensation", "varus_thrust")
@@ -363,8 +363,9 @@ def session_metrics(
         tasks = {move: steps[move]} if move in steps else {}
         source = "calibration movement"
     elif tasks is None:
-        after = max((v[1] for v in steps.values()), default=-np.inf)
-        tasks = find_tasks(streams_of(session, protocol), protocol, after_s=after, steps=cal.steps)
+        streams = streams_of(session, protocol)
+        after, before = task_window(streams, protocol, cal.steps)
+        tasks = find_tasks(streams, protocol, after_s=after, steps=cal.steps, before_s=before)
         source = "detected"
     else:
         source = "given"

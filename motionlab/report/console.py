@@ -103,11 +103,18 @@ def run_summary(
         )
     segs = {r.segment: r.segment_ok for r in calibration_rows(view)}
     bad = [s for s, ok in segs.items() if not ok]
+    cal = ses.results.calibration
+    # where each step was found: a stand after the walk is not where the protocol puts it
+    found = [
+        f"{name} {span[0]:.0f}-{span[1]:.0f} s"
+        for name, span in (cal.steps if cal is not None else {}).items()
+        if span is not None and len(span) == 2
+    ]
     lines.append(
         f"  calibration: {len(segs) - len(bad)}/{len(segs)} segments ok"
         + (f"; check {', '.join(bad)}" if bad else "")
+        + (f" ({', '.join(found)})" if found else "")
     )
-    cal = ses.results.calibration
     lines += [f"  warning: {w}" for w in (cal.warnings if cal is not None else [])]
     tied = [
         f"{j} by its {h.source.replace('_', ' ')} ({h.range_deg:.1f}° range)"

@@ -559,8 +559,8 @@ def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[s
                 "the pelvis's forward direction to within 5-10°, the turns only to 5-25°"
             )
         return cause, (
-            "a stand and a walk cannot do better: the first steps give the pelvis's forward "
-            "direction to within 5-10°"
+            "a stand and a walk cannot do better: the steps next to the stand (the first after "
+            "it, or the last before it) give the pelvis's forward direction to within 5-10°"
         )
     if "forward direction" in r or "one measured axis" in r:
         return (

@@ -61,7 +61,7 @@ from motionlab.segments.sensors import (
     sensor_quats,
     streams_of,
 )
-from motionlab.segments.steps import blocks, find_steps, reference_step
+from motionlab.segments.steps import blocks, find_steps, reference_step, task_window
 from motionlab.session import Session
 
 
@@ -118,9 +118,9 @@ def calibrate_segments(
             hint_contradicted=seg in contradicted,
             unsigned_steps=unsure.get(seg),
         )
-    if forward_from == "walk start" and "pelvis" in segments:  # the legs on their own side
-        after = max((float(v[1]) for v in steps.values() if v), default=-np.inf)
-        walk_checks.sides_check(session, protocol, streams, segments["pelvis"], after)
+    if forward_from in ("walk start", "walk end") and "pelvis" in segments:  # legs' sides
+        after, before = task_window(streams, protocol, steps)
+        walk_checks.sides_check(session, protocol, streams, segments["pelvis"], after, before)
     for seg, names in unsure.items():
         _flag(
             segments,
@@ -371,7 +371,8 @@ def pelvis_forward(
     not give it (the walk does not start right after the stand, or turns in its first steps)
     from its turns
     (:mod:`.walk_forward`), added
-    to its ``records`` (kind ``movement``, method ``turns`` or ``walk start``, secondary: gravity
+    to its ``records`` (kind ``movement``, method ``turns``, ``walk start`` or ``walk end``: the
+    last steps before a stand that ends the walk; secondary: gravity
     keeps the tilt) when the recording measured only its vertical axis and the placement hint is
     contradicted: by the stand (its vertical, :func:`.placement.contradicted`) or by the walk
     (its forward direction further from the hint's than the walk's own bound,
@@ -401,11 +402,18 @@ def pelvis_forward(
     by_stand = seg in contradicted
     spread = walk_forward.MAX_SPREAD_CONTRADICTED_DEG if by_stand else walk_forward.MAX_SPREAD_DEG
     acc = corrected_acc(session, label)
-    begin = walk_begins(streams, float(rng[1]))
-    found = walk_forward.forward_from_start(s.time, acc, q, up, begin)
-    method, words = "walk start", "the first steps of the walk"
+    after, before = task_window(streams, protocol, steps)
+    if np.isfinite(before):  # the walk ends with the stand
+        found = walk_forward.forward_from_end(s.time, acc, q, up, walk_ends(streams, before))
+        method, words = "walk end", "the last steps of the walk"
+    else:
+        begin = walk_begins(streams, float(rng[1]))
+        found = walk_forward.forward_from_start(s.time, acc, q, up, begin)
+        method, words = "walk start", "the first steps of the walk"
     if not found.used:
-        found = walk_forward.forward_from_turns(s.time, acc, q, s.gyr, up, float(rng[1]), spread)
+        found = walk_forward.forward_from_turns(
+            s.time, acc, q, s.gyr, up, after, spread, before_s=before
+        )
         method, words = "turns", f"the walk's turns ({found.turns})"
     if not found.used:
         if by_stand:
@@ -452,6 +460,17 @@ def walk_begins(streams: Streams, after_s: float) -> float:
         return after_s
     longest = max(moving, key=lambda b: b.end - b.start)
     return max(after_s, longest.start)
+
+
+def walk_ends(streams: Streams, before_s: float) -> float:
+    """When (s) the walk before a stand that starts at ``before_s`` ends: the end of the
+    longest movement block before it, ``before_s`` itself without one (:func:`walk_begins`
+    the other way round: a walker who shuffles before standing still)."""
+    moving = [b for b in blocks(streams) if b.moving and b.start < before_s]
+    if not moving:
+        return before_s
+    longest = max(moving, key=lambda b: b.end - b.start)
+    return min(before_s, longest.end)
 
 
 def _add_note(notes: list[str], segment: str, text: str) -> None:

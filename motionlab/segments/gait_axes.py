@@ -279,7 +279,7 @@ def fit_knee(
         return movement.failed(joint, "thigh and shank sensors recorded too little at one time")
     on = (speed >= SWING_FRACTION * np.percentile(speed[recorded], 95)) & recorded
     if ref.sum() < 5:
-        return movement.failed(joint, "no stand with the knee straight before the walk")
+        return movement.failed(joint, "no stand with the knee straight before or after the walk")
     axes = principal_axes(t, g1, g2, q1, q2, ref, on)
     if axes is None:
         return movement.failed(

@@ -97,7 +97,7 @@ FULL_FRAME = ("procrustes", "primary_secondary")
 CROSSTALK_DEG = (3.0, 6.0)  # determined up to, weak up to (deg of flexion in the other planes)
 AXIS_FLOOR_DEG = 5.0  # a walk-calibrated knee axis is never known better than this
 #: how far (deg) a pelvis forward direction from the walk may be off, by method (walk_forward)
-HEADING_BOUND_DEG = {"turns": 20.0, "walk start": 10.0}
+HEADING_BOUND_DEG = {"turns": 20.0, "walk start": 10.0, "walk end": 10.0}
 #: how far (deg) the tibia turns about its long axis as the knee leaves extension (the
 #: screw-home rotation: 5-15° in passive flexion, Wilson et al. 2000, J Biomech 33:465; the
 #: simulated knee's 8° plus 0.03°/°): the shank's flexion axis measured from the knee's own
@@ -153,10 +153,12 @@ def _frame_grade(segment: str, cal: SegmentRecord | None) -> tuple[str, str]:
     methods = _methods(cal)
     if "turns" in methods:
         return "weak", f"{segment}'s forward direction is from the walk's turns (often 5-25° off)"
-    if "walk start" in methods:
-        return "weak", (
-            f"{segment}'s forward direction is from the first steps of the walk (about 5-10° off)"
-        )
+    for method, steps in (("walk start", "first"), ("walk end", "last")):
+        if method in methods:
+            return "weak", (
+                f"{segment}'s forward direction is from the {steps} steps of the walk (about "
+                "5-10° off)"
+            )
     if _flagged(cal):
         return "weak", f"the calibration of {segment} was flagged"
     return "determined", ""

@@ -130,11 +130,12 @@ def anatomical_sign(
 
     ``q_p``, ``q_d`` (N, 4) are the sensors' 6-D orientations on the time ``t`` (s). The distal
     heading is tied to the proximal one by the hinge (:func:`.heading.hinge_anchors`), and the
-    angle about ``j_p`` of the relative rotation since the ``reference`` window (a still pose
-    with the joint straight) is taken at every sample: unlike an integrated gyroscope it does
-    not drift with turns. The excursions (98th percentile each way, degrees: flexion then
-    extension) are returned with the sign. ``None`` (and the excursions along ``+j``, then
-    ``-j``) when neither dominates (see ``FLEXION_MIN_DEG``, ``FLEXION_RATIO``).
+    angle about ``j_p`` of the relative rotation from the ``reference`` window (a still pose
+    with the joint straight) is taken at every other sample, before and after it: unlike an
+    integrated gyroscope it does not drift with turns. The excursions (98th percentile each
+    way, degrees: flexion then extension) are returned with the sign. ``None`` (and the
+    excursions along ``+j``, then ``-j``) when neither dominates (see ``FLEXION_MIN_DEG``,
+    ``FLEXION_RATIO``).
     """
     sel = (t >= reference[0]) & (t <= reference[1])
     if sel.sum() < 5:
@@ -145,9 +146,11 @@ def anatomical_sign(
     q_rel = rot.mul(rot.conj(q_p), q_d)
     r = rot.mul(q_rel, rot.conj(rot.mean(q_rel[sel])))
     theta = np.degrees(2.0 * np.arctan2(r[:, 1:] @ j_p, np.abs(r[:, 0])) * np.sign(r[:, 0] + 1e-12))
-    after = (t >= reference[0]) & np.isfinite(theta)
-    up = float(np.percentile(theta[after], 98))
-    down = float(-np.percentile(theta[after], 2))
+    moved = ~sel & np.isfinite(theta)  # before the pose too: a walk may end with its stand
+    if not moved.any():
+        return None, (float("nan"), float("nan"))
+    up = float(np.percentile(theta[moved], 98))
+    down = float(-np.percentile(theta[moved], 2))
     big, small = max(up, down), max(min(up, down), 0.0)
     if big < FLEXION_MIN_DEG or big < FLEXION_RATIO * small:
         return None, (up, down)

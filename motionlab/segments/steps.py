@@ -40,7 +40,8 @@ chosen one also fits the step, moves no other segment, fits no later step and tu
 same axis (within ``SAME_AXIS_DEG``), and both last about the step's duration (0.5-2×), e.g. a
 movement done twice.
 
-Task blocks (:func:`find_tasks`) are the blocks after the last calibration step, matched to the
+Task blocks (:func:`find_tasks`) are the blocks after the last calibration step (or, for a
+stand-and-walk recording that ends with its stand, before it: :func:`task_window`), matched to the
 protocol's tasks in order: a task held still takes a long enough rest, the others the movement
 blocks (moves shorter than ``MIN_TASK_S`` left out and blocks joined across the shortest rests
 while there are more blocks than tasks); a task's ``time_range`` overrides detection. Two rules
@@ -606,8 +607,8 @@ def fitting_protocols(streams: Streams, protocol: Protocol) -> list[str]:
         mine = {s: streams[s] for s in other.segments if s in streams}
         try:
             steps = find_steps(mine, other, None, False)
-            after = max((v[1] for v in steps.values() if v is not None), default=-np.inf)
-            find_tasks(mine, other, after, suggest=False, steps=steps)
+            after, before = task_window(mine, other, steps)
+            find_tasks(mine, other, after, suggest=False, steps=steps, before_s=before)
         except InputError:
             continue
         out.append(other.name)
@@ -620,8 +621,10 @@ def find_tasks(
     after_s: float = -np.inf,
     suggest: bool = True,
     steps: dict[str, tuple[float, float] | list[float] | None] | None = None,
+    before_s: float = np.inf,
 ) -> dict[str, tuple[float, float]]:
-    """Time range (s) of each protocol task: blocks after ``after_s``, in order.
+    """Time range (s) of each protocol task: blocks after ``after_s`` (and ending by
+    ``before_s``: a walk before its stand, :func:`task_window`), in order.
 
     ``steps`` (the calibration's :func:`find_steps`, ``None`` for a step not found): the
     movements of the protocol's steps not found after the last one found come before the tasks
@@ -646,8 +649,10 @@ def find_tasks(
         return {t.name: fixed[t.name] for t in protocol.tasks}
 
     def free(b: Block) -> bool:
-        return b.start >= after_s and not any(
-            b.start < r[1] and b.end > r[0] for r in fixed.values()
+        return (
+            b.start >= after_s
+            and b.end <= before_s
+            and not any(b.start < r[1] and b.end > r[0] for r in fixed.values())
         )
 
     found_blocks = blocks(streams)
@@ -680,6 +685,39 @@ def find_tasks(
             cursor = rest.end
         i = j + 1
     return {t.name: found.get(t.name) or fixed[t.name] for t in protocol.tasks}
+
+
+def stand_and_walk(protocol: Protocol) -> bool:
+    """Whether the protocol's recording is poses and walking only (the ``walk`` protocol): then
+    the movement a knee's axes come from is the walk's swings, where a thigh turns slower than
+    its shank. Not where other tasks or functional steps move the leg too (the ``knee``
+    protocol's hip flexions turn the thigh twice as fast as the shank)."""
+    return (
+        bool(protocol.tasks)
+        and all(task.is_gait for task in protocol.tasks)
+        and all(step.kind == "static" for step in protocol.calibration)
+    )
+
+
+def task_window(
+    streams: Streams, protocol: Protocol, steps: dict[str, tuple[float, float] | list[float] | None]
+) -> tuple[float, float]:
+    """The span (s) the tasks lie in: after the last calibration step found (``steps``, as
+    :func:`find_steps` gives them), ``(end, inf)``. A stand-and-walk recording
+    (:func:`stand_and_walk`) may end with its stand instead: where less than ``MIN_TASK_S`` of
+    movement follows the stand and at least that much precedes it, the walk is before it,
+    ``(-inf, start)`` (a walk stopped, then a stand, then the recording stopped)."""
+    spans = [tuple(v) for v in steps.values() if v is not None]
+    after = max((v[1] for v in spans), default=-np.inf)
+    if not spans or not stand_and_walk(protocol):
+        return after, np.inf
+    first = min(v[0] for v in spans)
+    moving = [b for b in blocks(streams) if b.moving]
+    later = sum(b.end - max(b.start, after) for b in moving if b.end > after)
+    earlier = sum(min(b.end, first) - b.start for b in moving if b.start < first)
+    if later < MIN_TASK_S <= earlier:
+        return -np.inf, first
+    return after, np.inf
 
 
 def calibration_stretches(

@@ -11,7 +11,9 @@ right way round.
   real 16-IMU walk (pelvis 2°, thighs 14-16°, shanks 16-19°), where its seated rest taken as the
   stand gives the thighs 66-69°. A rest beyond ``STAND_WALK_DEG`` is passed over for a later
   one (a recording that starts seated, stands up, stands and walks), and with none the step is
-  missing: one line naming the rest and why.
+  missing: one line naming the rest and why. A rest with no walk after it is judged against
+  the walk before it: a walk that ends with its stand (:func:`.steps.task_window` then puts
+  the walk before the stand).
 - **Thigh and shank swapped** (:class:`.gait_axes.SwappedSensors`): the refusal names both
   sensors and their map keys.
 - **Legs swapped left for right** (:func:`sides_check`): each knee's fit holds, its flexion is
@@ -47,7 +49,7 @@ from motionlab.protocol import CalibrationStep, Protocol, axis_vector
 from motionlab.results import SegmentRecord
 from motionlab.segments import gait_axes
 from motionlab.segments.sensors import Streams, sensor_orientation
-from motionlab.segments.steps import PoseCheck
+from motionlab.segments.steps import PoseCheck, stand_and_walk  # noqa: F401 (re-exported)
 from motionlab.session import Session, estimate_rate
 from motionlab.timebase import interp_columns
 
@@ -69,25 +71,14 @@ SIDES_DETREND_S = 2.0  # about two strides: turns and accelerometer biases are s
 SIDES_WALKING_RAD_S = 2.0
 
 
-def stand_and_walk(protocol: Protocol) -> bool:
-    """Whether the protocol's recording is poses and walking only (the ``walk`` protocol): then
-    the movement a knee's axes come from is the walk's swings, where a thigh turns slower than
-    its shank. Not where other tasks or functional steps move the leg too (the ``knee``
-    protocol's hip flexions turn the thigh twice as fast as the shank)."""
-    return (
-        bool(protocol.tasks)
-        and all(task.is_gait for task in protocol.tasks)
-        and all(step.kind == "static" for step in protocol.calibration)
-    )
-
-
 def stand_tilts(
     session: Session, protocol: Protocol, streams: Streams, step: str, span: tuple[float, float]
 ) -> dict[str, float]:
     """Per segment with a vertical axis in static ``step`` (a rest at ``span``, s): the angle
-    (deg) between its sensor's up in the rest and its mean up over the moving samples after it;
-    NaN where fewer than ``MIN_MOVING`` samples move after it. Sensors with orientations only
-    (no rates of their own) are left out."""
+    (deg) between its sensor's up in the rest and its mean up over the moving samples after it,
+    or before it where fewer than ``MIN_MOVING`` move after it (a stand that ends the walk);
+    NaN where neither has that many. Sensors with orientations only (no rates of their own)
+    are left out."""
     spec = next(s for s in protocol.calibration if s.name == step)
     out = {}
     for seg in spec.vertical_axis:
@@ -100,11 +91,13 @@ def stand_tilts(
             continue
         up = rot.rotate(rot.conj(q), axis_vector("z"))
         pose = (t >= span[0]) & (t <= span[1])
-        moving = (t > span[1]) & (np.linalg.norm(gyr, axis=1) > MOVING_RAD_S)
-        moving &= np.isfinite(up).all(axis=1)
+        fast = (np.linalg.norm(gyr, axis=1) > MOVING_RAD_S) & np.isfinite(up).all(axis=1)
+        moving = fast & (t > span[1])
+        if moving.sum() < MIN_MOVING:  # no walk after the rest: the walk before a stand
+            moving = fast & (t < span[0])
         if pose.sum() < 2:
             continue
-        if moving.sum() < MIN_MOVING:  # no walk after the rest
+        if moving.sum() < MIN_MOVING:  # no walk after the rest, nor before it
             out[seg] = float("nan")
             continue
         a, b = (rot.normalize(np.nanmean(up[sel], axis=0)) for sel in (pose, moving))
@@ -122,15 +115,15 @@ def pose_check(session: Session, protocol: Protocol, streams: Streams) -> PoseCh
     def check(step: CalibrationStep, span: tuple[float, float]) -> str | None:
         tilts = stand_tilts(session, protocol, streams, step.name, span)
         if tilts and all(np.isnan(d) for d in tilts.values()):
-            return f"the rest at {span[0]:.1f}-{span[1]:.1f} s has no walk after it"
+            return f"the rest at {span[0]:.1f}-{span[1]:.1f} s has no walk after or before it"
         off = {seg: deg for seg, deg in tilts.items() if deg > STAND_WALK_DEG}
         if not off:
             return None
         segs = ", ".join(f"{seg} {deg:.0f}°" for seg, deg in off.items())
         return (
             f"the rest at {span[0]:.1f}-{span[1]:.1f} s is no {step.pose} pose: the segments "
-            f"lie far from where they point while moving after it ({segs}; after a stand under "
-            f"{STAND_WALK_DEG:.0f}°), as after a seated rest"
+            f"lie far from where they point while walking ({segs}; beside a stand under "
+            f"{STAND_WALK_DEG:.0f}°), as beside a seated rest"
         )
 
     return check
@@ -183,11 +176,16 @@ def _smooth(x: np.ndarray, fs: float) -> np.ndarray:
 
 
 def sway_swing_correlation(
-    session: Session, streams: Streams, pelvis_mounting: np.ndarray, after_s: float
+    session: Session,
+    streams: Streams,
+    pelvis_mounting: np.ndarray,
+    after_s: float,
+    before_s: float = np.inf,
 ) -> tuple[float, float]:
     """The correlation of the pelvis sensor's sideways acceleration (towards the pelvis's right:
     the segment's z through ``pelvis_mounting``, segment → sensor) with the right shank's
-    angular speed less the left's over the walking after ``after_s`` (s), and the walking's
+    angular speed less the left's over the walking after ``after_s`` and before ``before_s``
+    (s), and the walking's
     length (s); see the module notes. NaN when the walk is shorter than ``SIDES_MIN_S``."""
     t, acc, _ = streams["pelvis"]
     q = sensor_orientation(session, sensor_for_segment(session, "pelvis"))
@@ -204,7 +202,7 @@ def sway_swing_correlation(
         return float("nan"), 0.0
     fill = {k: np.interp(t, t[ok], v[ok]) for k, v in (("side", side), *speed.items())}
     a, r, l = (_smooth(fill[k], fs) for k in ("side", "r", "l"))
-    walking = ok & (t > after_s) & (fill["r"] + fill["l"] > SIDES_WALKING_RAD_S)
+    walking = ok & (t > after_s) & (t < before_s) & (fill["r"] + fill["l"] > SIDES_WALKING_RAD_S)
     seconds = float(walking.sum() / fs)
     if seconds < SIDES_MIN_S or np.std(a[walking]) == 0 or np.std((r - l)[walking]) == 0:
         return float("nan"), seconds
@@ -212,19 +210,25 @@ def sway_swing_correlation(
 
 
 def sides_check(
-    session: Session, protocol: Protocol, streams: Streams, pelvis: SegmentRecord, after_s: float
+    session: Session,
+    protocol: Protocol,
+    streams: Streams,
+    pelvis: SegmentRecord,
+    after_s: float,
+    before_s: float = np.inf,
 ) -> None:
     """For a stand-and-walk recording with a pelvis and both shanks, an :class:`InputError`
     naming the shanks' sensors when they swing as the other side's (module notes): the legs'
     sensors swapped left for right in the sensor map. Nothing where it cannot tell. The
     walker's right comes from the ``pelvis`` frame (the 6-D sensors share no heading): call it
-    only where the walk's first steps gave or confirmed its forward direction (0-2.3° on
-    simulated walks, :mod:`.walk_forward`); a hint the stand cannot refute (it sees only the
+    only where the walk's first (or last) steps gave or confirmed its forward direction
+    (0-2.3° on simulated walks, :mod:`.walk_forward`); the walk lies after ``after_s`` and
+    before ``before_s`` (s); a hint the stand cannot refute (it sees only the
     vertical) or the turns (up to 98° off) may be half a turn off."""
     if not stand_and_walk(protocol) or not {"pelvis", "shank_r", "shank_l"} <= set(streams):
         return
     mounting = np.asarray(pelvis.mounting, float)
-    corr, seconds = sway_swing_correlation(session, streams, mounting, after_s)
+    corr, seconds = sway_swing_correlation(session, streams, mounting, after_s, before_s)
     if not corr < SIDES_CORR:
         return
     raise InputError(

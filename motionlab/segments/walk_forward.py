@@ -46,7 +46,7 @@ off, the first steps 0.7° off; hip flexion 3.3 / 4.4° → 1.3 / 1.3°).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.integrate import cumulative_trapezoid
@@ -118,16 +118,18 @@ def forward_from_turns(
     up: np.ndarray,
     after_s: float,
     max_spread_deg: float = MAX_SPREAD_DEG,
+    before_s: float = np.inf,
 ) -> ForwardDirection:
     """The forward direction (unit, horizontal in the stand, sensor frame) from the turns.
 
     ``t`` (s), ``acc`` (m/s², specific force) and ``gyr`` (rad/s) of one sensor with its fused
     orientation ``q`` (sensor → earth, (N, 4)); ``up`` its vertical in the stand (sensor frame);
-    only samples after ``after_s`` (the stand's end) count.
+    only samples after ``after_s`` (the stand's end) and before ``before_s`` count (a walk
+    that ends with its stand: ``after_s`` −inf, ``before_s`` the stand's start).
     """
-    walk = t > after_s
+    walk = (t > after_s) & (t < before_s)
     if walk.sum() < 100:
-        return ForwardDirection(False, reason="no walk after the stand")
+        return ForwardDirection(False, reason="no walk beside the stand")
     rate = estimate_rate(t)
     if not rate > 2.5 * LOWPASS_HZ:
         return ForwardDirection(False, reason="sampling too slow")
@@ -162,6 +164,25 @@ def forward_from_turns(
         why = f"the turns disagree by up to {spread:.0f} deg"
         return ForwardDirection(False, reason=why, turns=len(parts), spread_deg=spread)
     return ForwardDirection(True, axis=whole, turns=len(parts), spread_deg=spread)
+
+
+def forward_from_end(
+    t: np.ndarray, acc: np.ndarray, q: np.ndarray, up: np.ndarray, before_s: float
+) -> ForwardDirection:
+    """The forward direction from the last steps before a stand that starts at ``before_s``
+    (s): a walk that ends at rest loses its velocity over its last ``START_S`` seconds as one
+    that starts from rest gains it, so this is :func:`forward_from_start` on the recording
+    reversed in time, whose velocity points backwards. Arguments as there."""
+    found = forward_from_start(-t[::-1], acc[::-1], q[::-1], up, -before_s)
+    if found.used:
+        return replace(found, axis=-found.axis)
+    words = (("right after the stand", "right before the stand"), ("first steps", "last steps"),
+             ("does not start", "does not end"), ("gained", "lost"),
+             ("no walk from rest", "no walk to rest"))  # fmt: skip
+    reason = found.reason
+    for start, end in words:
+        reason = reason.replace(start, end)
+    return replace(found, reason=reason)
 
 
 def forward_from_start(
