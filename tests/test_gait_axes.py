@@ -86,6 +86,42 @@ def test_the_principal_axis_is_perpendicular_to_the_long_axis_and_agrees_with_it
     assert abs(abs(axes.axis_proximal @ fit.axis_proximal) - 1.0) < 1e-3
 
 
+def test_a_walk_too_short_to_compare_its_parts_is_weak_at_best(walk):
+    """Under ``MIN_SAMPLES // 2`` samples of swing in a part (a real DOT walk in circles,
+    172 samples outside its turns, read ``determined`` with its parts never compared): the
+    consistency is unmeasured and the knee ``weak``, saying why; the same walk's swings in
+    full are ``determined``."""
+    proto, session, _ = walk
+    t, g1, g2, q1, q2, speed = movement.shared_movement(
+        "knee_r", _side(session, "thigh_r"), _side(session, "shank_r")
+    )
+    stand = session.results.calibration.steps["standing"]
+    ref = (t >= stand[0]) & (t <= stand[1])
+    swings = speed > 0.3
+    few = swings & (np.cumsum(swings) <= 180)  # the first 180 samples of swing: 45 per part
+    axes = gait_axes.principal_axes(t, g1, g2, q1, q2, ref, few)
+    assert axes is not None and np.isnan(axes.consistency_deg)
+    reasons: list[str] = []
+    assert gait_axes._verdict(axes, 0.0, reasons, hinted=False) == "weak"
+    assert "too little straight walking to check the axis between its parts" in reasons[0]
+    full = gait_axes.principal_axes(t, g1, g2, q1, q2, ref, swings)
+    assert gait_axes._verdict(full, 0.0, [], hinted=False) == "determined"
+
+
+def test_a_movement_with_one_part_to_fit_is_not_consistent_by_default():
+    """A hinge fit whose movement lies in one of its four parts: nothing to compare it with
+    (before: 0°, as consistent as can be); now NaN and ``weak`` at best."""
+    axis = np.array([0.0, 0.0, 1.0])
+    fits = iter([None, (axis, axis), None, None])
+    worst = movement._consistency(400, lambda a, b: next(fits), axis, axis)
+    assert np.isnan(worst)
+    reasons: list[str] = []
+    assert movement._verdict(worst, 0.1, False, reasons, "the axis differs", "one axis") == "weak"
+    assert "too little movement" in reasons[0]
+    fits = iter([None, (axis, axis), (axis, axis), None])
+    assert movement._consistency(400, lambda a, b: next(fits), axis, axis) == 0.0
+
+
 def test_a_walk_that_only_turns_leaves_the_knee_not_determined(walk):
     """Walking round a tight circle all the time: no straight walking to take the axis from."""
     _, session, truth = walk

@@ -17,7 +17,10 @@ adds a rotation about the vertical that a swinging segment carries out of its lo
 Three numbers judge the axis, each against what real walks give rather than a simulator:
 
 - the part consistency: the axis of each of ``N_PARTS`` consecutive parts of the walk against the
-  whole walk's (real walks: 0.6-4.9°);
+  whole walk's (real walks: 0.6-4.9°); unmeasured (NaN, ``weak`` at best) when a part holds
+  fewer than ``MIN_SAMPLES // 2`` samples of swing outside turns (a real DOT walk in circles,
+  ``../shared/datasets/human/imt_dot/knee_tracking2`` from 20 s: 172 samples, its parts went
+  unchecked and the knee read ``determined``);
 - the dominance: second singular value over the first (real walks: 0.16-0.33; a segment with no
   preferred axis is near 1);
 - the witness: Seel's constraint refitted with both axes held perpendicular to their long axes
@@ -211,11 +214,12 @@ def principal_axes(
     (a1, d1), (a2, d2) = (
         principal_axis(g[use], long) for g, long in zip((g1, g2), longs, strict=True)
     )
-    worst = 0.0
-    for part in np.array_split(np.flatnonzero(use), N_PARTS):
-        if len(part) >= MIN_SAMPLES // 2:
-            worst = max(worst, _angle_deg(principal_axis(g1[part], longs[0])[0], a1),
-                        _angle_deg(principal_axis(g2[part], longs[1])[0], a2))  # fmt: skip
+    parts = np.array_split(np.flatnonzero(use), N_PARTS)
+    worst = float("nan")  # unmeasured: too little straight walking to compare its parts
+    if min(len(part) for part in parts) >= MIN_SAMPLES // 2:
+        worst = max(max(_angle_deg(principal_axis(g1[part], longs[0])[0], a1),
+                        _angle_deg(principal_axis(g2[part], longs[1])[0], a2))
+                    for part in parts)  # fmt: skip
     w1, w2, rms, relative = constrained_hinge(g1[use], g2[use], a1, a2, *longs)
     # over every swing, turns too: the turns are found on the proximal segment's rates, which
     # would make the ratio depend on which of the two is taken for the thigh
@@ -348,6 +352,13 @@ def _verdict(axes: PrincipalAxes, extension_deg: float, reasons: list[str], hint
          "the walk (a shank turns faster): are the thigh and shank sensors swapped in the map?"),
     )  # fmt: skip
     worst = 0
+    if not np.isfinite(axes.consistency_deg):  # an axis no part of the walk could check
+        reasons.append(
+            f"the walk holds too little straight walking to check the axis between its parts "
+            f"({axes.n_samples} samples of swing outside turns; {N_PARTS * (MIN_SAMPLES // 2)} "
+            "needed)"
+        )
+        worst = 1
     for value, (good, bad), why in checks:
         if value > good:
             reasons.append(why)

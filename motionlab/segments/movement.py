@@ -226,7 +226,9 @@ def _verdict(
     (deg), the relative residual and whether a direction came from the hint; the reasons are
     appended to ``reasons`` in plain words (``axes``: "the axis differs", ``model``: what the
     movement should turn about)."""
-    if worst_deg > DETERMINED_DEG:
+    if not np.isfinite(worst_deg):  # the movement too short or too sparse to compare parts
+        reasons.append("too little movement in the parts of the recording to compare their axes")
+    elif worst_deg > DETERMINED_DEG:
         reasons.append(f"{axes} by up to {worst_deg:.0f}° between parts of the movement")
     if relative > DETERMINED_RESIDUAL:
         reasons.append(
@@ -234,7 +236,9 @@ def _verdict(
         )
     if worst_deg > WEAK_DEG or relative > WEAK_RESIDUAL:
         return "not determined"
-    if worst_deg > DETERMINED_DEG or relative > DETERMINED_RESIDUAL or hinted:
+    if not np.isfinite(worst_deg) or worst_deg > DETERMINED_DEG:
+        return "weak"
+    if relative > DETERMINED_RESIDUAL or hinted:
         return "weak"
     return "determined"
 
@@ -247,14 +251,15 @@ def _consistency(
 ) -> float:
     """The largest angle (deg) between the two axes and their refits (``refit(a, b)``: the
     axes from samples ``a:b``, ``None`` for too little there) on ``N_PARTS`` consecutive
-    parts of the ``n`` samples: how consistent the movement is about them."""
-    worst = 0.0
+    parts of the ``n`` samples: how consistent the movement is about them. NaN when fewer
+    than two parts could be refitted: nothing was compared."""
+    angles = []
     bounds = np.linspace(0, n, N_PARTS + 1).astype(int)
     for a, b in zip(bounds[:-1], bounds[1:], strict=True):
         axes = refit(a, b)
         if axes is not None:
-            worst = max(worst, _angle_deg(axes[0], axis_1), _angle_deg(axes[1], axis_2))
-    return worst
+            angles.append(max(_angle_deg(axes[0], axis_1), _angle_deg(axes[1], axis_2)))
+    return max(angles) if len(angles) >= 2 else float("nan")
 
 
 def shared_movement(
