@@ -189,7 +189,7 @@ def test_a_recording_without_a_rest_says_no_shipped_protocol_fits_and_why():
     msg = err.value.line()
     assert "'standing' (static) not found" in msg and "the recording holds movement 0.0-" in msg
     assert "no shipped protocol fits a recording without a rest" in msg
-    assert "record one before the task" in msg
+    assert "record the standing pose held still for 5 s before or after the walk" in msg
 
 
 def test_a_contradicted_hint_gives_one_warning_and_the_data_is_used(knee):

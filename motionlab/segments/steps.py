@@ -537,9 +537,19 @@ def find_steps(
             f"{describe(bl)}{needs}{why}{cut_short(streams)}",
             protocol.path,
             "calibration",
-            _remedy(fits, suggest, any(_is_pose(b) for b in bl)),
+            _remedy(fits, suggest, any(_is_pose(b) for b in bl), _record(missing, protocol)),
         )
     return found
+
+
+def _record(missing: list[CalibrationStep], protocol: Protocol) -> str:
+    """How to record the first missing static step: its pose, how long, and where (a stand
+    of a stand-and-walk recording before or after the walk); empty without one."""
+    step = next((s for s in missing if s.kind == "static"), None)
+    if step is None:
+        return ""
+    where = "before or after the walk" if stand_and_walk(protocol) else "before the task"
+    return f"record the {step.pose} pose held still for {step.duration_s:.0f} s {where}"
 
 
 def _pose_span(b: Block) -> tuple[float, float]:
@@ -553,20 +563,23 @@ def _is_pose(b: Block) -> bool:
     return not b.moving and b.end - b.start >= SHORTEST_POSE_S
 
 
-def _remedy(fits: list[str], suggested: bool, has_rest: bool) -> str:
-    """What to do about missing steps: a shipped protocol that fits, or why none does."""
+def _remedy(fits: list[str], suggested: bool, has_rest: bool, record: str = "") -> str:
+    """What to do about missing steps: a shipped protocol that fits, or why none does; with
+    ``record`` (:func:`_record`) how to record the missing pose first."""
     check = "check the recording holds the steps in protocol order, or give their time_range"
+    lead = f"{record}, or " if record else ""
     if fits:
         names = " or ".join(repr(f) for f in fits)
-        return f"the shipped protocol {names} fits this recording; or {check}"
+        return f"the shipped protocol {names} fits this recording; or {lead}{check}"
     if not suggested:
-        return check
+        return f"{lead}{check}"
     if not has_rest:
         return (
             "no shipped protocol fits a recording without a rest (each starts with a pose held "
-            f"still for a few seconds, mostly a stand): record one before the task, or {check}"
+            f"still for a few seconds, mostly a stand): {lead or 'record one before the task, or '}"
+            f"{check}"
         )
-    return f"no shipped protocol fits this recording either; {check}"
+    return f"no shipped protocol fits this recording either; {lead}{check}"
 
 
 def _trunk_moves(streams: Streams, protocol: Protocol) -> bool:
