@@ -5,7 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_short_walk import _rmse, _skin_one_clock
+from test_short_walk import _rmse, _skin_one_clock, _streams
 
 from motionlab.errors import InputError
 from motionlab.pipeline import PipelineOptions, analyse, prepare_sensors
@@ -47,30 +47,20 @@ def test_a_stand_after_the_walk_calibrates_it(seed):
         assert _rmse(session, truth, f"hip_{side}_flexion_deg") < 2.0
 
 
-def _streams(moving: list[tuple[float, float]], rate: float = 50.0) -> dict:
-    """Two leg segments' (time, acc, gyr) over 30 s: still, except a 1 Hz swing in each span."""
-    t = np.arange(0.0, 30.0, 1.0 / rate)
-    gyr = np.zeros((len(t), 3))
-    for a, b in moving:
-        on = (t >= a) & (t < b)
-        gyr[on, 0] = 2.0 * np.sin(2 * np.pi * (t[on] - a))
-    acc = np.tile([0.0, 9.81, 0.0], (len(t), 1))
-    return {"thigh_r": (t, acc, gyr), "shank_r": (t, acc, gyr)}
-
-
 def test_the_tasks_lie_after_the_stand_or_before_one_that_ends_the_walk():
-    """After the stand where the walk follows it; before it where nothing moves after it; after
-    it where neither side moves (the tasks then refuse as before); a protocol with functional
-    steps keeps its order."""
+    """After the stand where the walk follows it; before it where nothing (or a shift under
+    2 s) moves after it; after it where neither side moves (the tasks then refuse as before); a
+    protocol with functional steps keeps its order."""
     walk = load_protocol("walk")
     stand = {"standing": (2.0, 5.0)}
-    assert task_window(_streams([(6.0, 28.0)]), walk, stand) == (5.0, np.inf)
-    end = {"standing": (25.0, 29.0)}
-    assert task_window(_streams([(1.0, 23.0)]), walk, end) == (-np.inf, 25.0)
-    assert task_window(_streams([]), walk, end) == (29.0, np.inf)
+    assert task_window(_streams([(6.0, 19.0)]), walk, stand) == (5.0, np.inf)
+    end = {"standing": (15.0, 19.0)}
+    assert task_window(_streams([(1.0, 14.0)]), walk, end) == (-np.inf, 15.0)
+    assert task_window(_streams([(1.0, 14.0), (19.2, 19.8)]), walk, end) == (-np.inf, 15.0)
+    assert task_window(_streams([]), walk, end) == (19.0, np.inf)
     knee = load_protocol("knee")
-    steps = {s.name: None for s in knee.calibration} | {"standing": (25.0, 29.0)}
-    assert task_window(_streams([(1.0, 23.0)]), knee, steps) == (29.0, np.inf)
+    steps = {s.name: None for s in knee.calibration} | {"standing": (15.0, 19.0)}
+    assert task_window(_streams([(1.0, 14.0)]), knee, steps) == (19.0, np.inf)
 
 
 def test_a_rest_with_no_walk_beside_it_is_still_no_stand():
