@@ -126,3 +126,48 @@ def test_one_arm_is_enough_for_its_elbow():
     assert [c for c in session.results.angles.columns() if c.startswith("elbow_r")] == []
     lines = missing_lines(load_view(session))
     assert any(line.startswith("Right elbow: not measured (no sensor on the") for line in lines)
+
+
+def test_a_stand_with_the_forearms_hanging_passes(mapped_and_swapped):
+    """As mapped, each forearm's long axis (the fit's pronation axis) hangs within the
+    carrying angle of the vertical in the stand (simulated seeds 0-9: 7.7-14.1°)."""
+    mapped, _ = mapped_and_swapped
+    hanging = arm_sides.pose_hanging(mapped, load_protocol("arm"), mapped.results.calibration)
+    assert hanging and set(hanging) <= {"elbow_r", "elbow_l"}  # not for a fit not determined
+    assert all(5.0 < deg < 20.0 for _, deg in hanging.values()), hanging
+    assert not any("from hanging" in w for w in mapped.results.calibration.warnings)
+
+
+def test_hands_in_the_lap_taken_for_the_stand_leave_the_elbows_not_determined(monkeypatch):
+    """The recording starts seated with the hands in the lap (elbows at 90°) and no stand: that
+    rest was the stand, every elbow angle's zero 90° off (flexion 70-111° RMSE), graded
+    ``weak`` with a warning that the arms looked swapped. Now the forearms lie 80-81° from
+    hanging there: every elbow angle is ``not determined``, a warning says what to record, and
+    the swapped-arms warning is not given."""
+    from motionlab.simulate import motion, tasks
+
+    def seated(body, name, posture=motion.posture):
+        row = posture(body, name)
+        if name == "sitting":
+            for side in "rl":
+                row[motion.CH[f"elbow_{side}_0"]] = 90.0 * motion.DEG
+        return row
+
+    monkeypatch.setattr(motion, "posture", seated)
+    monkeypatch.setattr(tasks, "posture", seated)
+    arm = load_protocol("arm")
+    lap = dataclasses.replace(arm.calibration[0], pose="sitting", instructions="hands in the lap")
+    session, _ = simulate(dataclasses.replace(arm, calibration=[lap]), 40.0, 1, "skin",
+                          mounting="random", knee_model="anatomical")  # fmt: skip
+    prepare_sensors(session)
+    analyse(session, OPTIONS)
+    cal = session.results.calibration
+    hanging = arm_sides.pose_hanging(session, arm, cal)  # elbows whose fit found the axes
+    assert hanging and all(deg > 60.0 for _, deg in hanging.values()), hanging
+    for name in ("elbow_r", "elbow_l"):
+        assert cal.grades[name].grades == ["not determined"] * 3
+    for name in hanging:
+        assert "from hanging in the standing pose" in cal.grades[name].reasons[0]
+        assert any(w.startswith(f"{name}: the forearm lies") and "hands in the lap" in w
+                   for w in cal.warnings)  # fmt: skip
+    assert not any("swapped" in w for w in cal.warnings)

@@ -501,6 +501,11 @@ def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[s
             f"hold the {pose} pose still for 5 s every 2 minutes of the recording (each pose "
             "held ties the headings again)"
         )
+    if "from hanging in the" in r:  # segments.arm_sides: the stand was no stand for the arm
+        return "the forearm did not hang in the pose taken for the stand", (
+            "record the stand first: 5 s still, arms hanging by the sides, elbows straight, "
+            "palms forward"
+        )
     if "look swapped left for right" in r:  # segments.arm_sides: an elbow reads varus
         return "the arm's sensors look swapped left for right", (
             "check the sensor map: the right arm's sensors on the right arm's segments, the "

@@ -165,13 +165,19 @@ def calibrate_segments(
     if pose is None:
         result.hip_axes = hip_axes(session, protocol, result)
         if any(joint_type(j.type).name == "elbow" for j in protocol.joints.values()):
-            carrying = arm_sides.pose_carrying(
-                protocol,
-                result,
-                segment_orientations(protocol, result, sensor_quats(session, protocol)),
+            hanging = arm_sides.pose_hanging(session, protocol, result)
+            carrying = arm_sides.hanging_only(
+                arm_sides.pose_carrying(
+                    protocol,
+                    result,
+                    segment_orientations(protocol, result, sensor_quats(session, protocol)),
+                ),
+                hanging,
             )
             sides = arm_sides.side_warnings(session, protocol, result.grades, carrying)
+            sides += arm_sides.hang_warnings(protocol, result, hanging)
             result.grades = arm_sides.side_graded(result.grades, carrying)
+            result.grades = arm_sides.hang_graded(result.grades, hanging)
             result.warnings = [*result.warnings, *sides]
             if warnings is not None:
                 warnings.extend(sides)
