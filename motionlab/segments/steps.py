@@ -41,11 +41,11 @@ same axis (within ``SAME_AXIS_DEG``), and both last about the step's duration (0
 movement done twice.
 
 Task blocks (:func:`find_tasks`) are the blocks after the last calibration step (or, for a
-stand-and-walk recording that ends with its stand, before it: :func:`task_window`), matched to the
-protocol's tasks in order: a task held still takes a long enough rest, the others the movement
-blocks (moves shorter than ``MIN_TASK_S`` left out and blocks joined across the shortest rests
-while there are more blocks than tasks); a task's ``time_range`` overrides detection. Two rules
-keep a calibration movement from being taken for a task:
+recording of a stand and movement that ends with its stand, before it: :func:`task_window`),
+matched to the protocol's tasks in order: a task held still takes a long enough rest, the
+others the movement blocks (moves shorter than ``MIN_TASK_S`` left out and blocks joined across
+the shortest rests while there are more blocks than tasks); a task's ``time_range`` overrides
+detection. Two rules keep a calibration movement from being taken for a task:
 
 - the functional steps not found after the last step found come, in the protocol's order,
   before the tasks: the movement blocks that fit them by what does not depend on the sensors'
@@ -548,7 +548,11 @@ def _record(missing: list[CalibrationStep], protocol: Protocol) -> str:
     step = next((s for s in missing if s.kind == "static"), None)
     if step is None:
         return ""
-    where = "before or after the walk" if stand_and_walk(protocol) else "before the task"
+    where = (
+        "before or after the walk" if stand_and_walk(protocol)
+        else "before or after the movement" if pose_then_movement(protocol)
+        else "before the task"
+    )  # fmt: skip
     return f"record the {step.pose} pose held still for {step.duration_s:.0f} s {where}"
 
 
@@ -712,17 +716,28 @@ def stand_and_walk(protocol: Protocol) -> bool:
     )
 
 
+def pose_then_movement(protocol: Protocol) -> bool:
+    """Whether the protocol's recording is poses held still and movement tasks only (``walk``,
+    ``arm``): its poses may come before the movement or after it (:func:`task_window`)."""
+    return (
+        bool(protocol.tasks)
+        and not any(task.is_pose for task in protocol.tasks)
+        and all(step.kind == "static" for step in protocol.calibration)
+    )
+
+
 def task_window(
     streams: Streams, protocol: Protocol, steps: dict[str, tuple[float, float] | list[float] | None]
 ) -> tuple[float, float]:
     """The span (s) the tasks lie in: after the last calibration step found (``steps``, as
-    :func:`find_steps` gives them), ``(end, inf)``. A stand-and-walk recording
-    (:func:`stand_and_walk`) may end with its stand instead: where less than ``MIN_TASK_S`` of
-    movement follows the stand and at least that much precedes it, the walk is before it,
-    ``(-inf, start)`` (a walk stopped, then a stand, then the recording stopped)."""
+    :func:`find_steps` gives them), ``(end, inf)``. A recording of poses and movement only
+    (:func:`pose_then_movement`: ``walk``, ``arm``) may end with its stand instead: where less
+    than ``MIN_TASK_S`` of movement follows the stand and at least that much precedes it, the
+    movement is before it, ``(-inf, start)`` (a walk stopped, then a stand, then the recording
+    stopped)."""
     spans = [tuple(v) for v in steps.values() if v is not None]
     after = max((v[1] for v in spans), default=-np.inf)
-    if not spans or not stand_and_walk(protocol):
+    if not spans or not pose_then_movement(protocol):
         return after, np.inf
     first = min(v[0] for v in spans)
     moving = [b for b in blocks(streams) if b.moving]
