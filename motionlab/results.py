@@ -471,10 +471,12 @@ class AxisMeasurement(_Record):
     ``functional`` or ``movement`` (found in the recording's movement, not a protocol step);
     ``method``: ``gravity``, ``horizontal`` (an axis the pose lays level), ``svd`` (the principal
     axis of the rate), ``hinge`` (Seel's hinge fit), ``principal`` (the trunk's flexion axis),
-    ``turns`` or ``walk start`` (the pelvis's forward direction); ``sensor_axis`` (3,): the unit
-    axis measured, in sensor coordinates; ``segment_axis`` (3,): the segment axis it is, in segment
-    coordinates; ``rho``: its reliability ρ (0-1, Ricci 2015 eq. 6.2); ``reference_rho``: the
-    protocol's reference ρ for the step (``None``: none given; always stored);
+    ``turns``, ``walk start`` or ``walk end`` (the pelvis's forward direction from the walk's
+    turns, its first steps or its last steps before a stand that ends it); ``sensor_axis``
+    (3,): the unit axis measured, in sensor coordinates; ``segment_axis`` (3,): the segment axis
+    it is, in segment coordinates; ``rho``: its reliability ρ (0-1, Ricci 2015 eq. 6.2);
+    ``reference_rho``: the protocol's reference ρ for the step (``None``: none given; always
+    stored);
     ``joint_movement``: the step moves the joint (an axis a still-joint step also measured is
     left out of the fit); ``secondary``: the axis only turns the frame about a primary axis
     (``primary_secondary``); ``hinge_check_deg``: the angle (deg) between the step's SVD axis and

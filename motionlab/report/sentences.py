@@ -503,8 +503,8 @@ def cause_and_remedy(view: SessionView, joint_name: str, reason: str) -> tuple[s
         )
     if "from hanging in the" in r:  # segments.arm_sides: the stand was no stand for the arm
         return "the forearm did not hang in the pose taken for the stand", (
-            "record the stand first: 5 s still, arms hanging by the sides, elbows straight, "
-            "palms forward"
+            "record a stand before or after the movement: 5 s still, arms hanging by the sides, "
+            "elbows straight, palms forward"
         )
     if "look swapped left for right" in r:  # segments.arm_sides: an elbow reads varus
         return "the arm's sensors look swapped left for right", (
