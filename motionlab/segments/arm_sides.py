@@ -88,8 +88,10 @@ def pose_hanging(
         if not isinstance(fit, TwoAxisFit) or fit.verdict == "not determined" or label is None:
             continue
         t, q = session.sensors[label].time, sensor_orientation(session, label)
+        if len(q) != len(t):  # orientations on another time base: nothing to read the pose on
+            continue
         pose = (t >= span[0]) & (t <= span[1]) & np.isfinite(q).all(axis=1)
-        if len(q) != len(t) or pose.sum() < 2:
+        if pose.sum() < 2:
             continue
         axis = rot.rotate(q[pose], np.broadcast_to(fit.axis_distal, (int(pose.sum()), 3)))
         mean = axis.mean(axis=0)
