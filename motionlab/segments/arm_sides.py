@@ -126,12 +126,8 @@ def hang_graded(
 ) -> dict[str, JointGrades]:
     """``graded`` with every angle of an elbow whose forearm does not hang in its reference
     pose (``hanging``, :func:`pose_hanging`) ``not determined`` (module notes)."""
-    out = dict(graded)
-    for name, (step, deg) in _not_hanging(hanging).items():
-        if name in out:
-            n = len(out[name].grades)
-            out[name] = grading.lowered(out[name], ["not determined"] * n, _hang_why(step, deg))
-    return out
+    whys = {name: _hang_why(step, deg) for name, (step, deg) in _not_hanging(hanging).items()}
+    return _lowered_all(graded, whys, "not determined")
 
 
 def hang_warnings(
@@ -197,9 +193,19 @@ def side_graded(
 ) -> dict[str, JointGrades]:
     """``graded`` with every angle of an elbow whose carrying angle reads varus in its
     reference pose (``carrying``, :func:`pose_carrying`) ``weak`` at best (module notes)."""
+    whys = {name: _why(step, deg) for name, (step, deg) in _varus(graded, carrying).items()}
+    return _lowered_all(graded, whys, "weak")
+
+
+def _lowered_all(
+    graded: dict[str, JointGrades], whys: dict[str, str], grade: str
+) -> dict[str, JointGrades]:
+    """``graded`` with every angle of each joint of ``whys`` ``grade`` at best, its reason
+    added (:func:`motionlab.segments.grades.lowered`)."""
     out = dict(graded)
-    for name, (step, deg) in _varus(graded, carrying).items():
-        out[name] = grading.lowered(out[name], ["weak"] * len(out[name].grades), _why(step, deg))
+    for name, why in whys.items():
+        if name in out:
+            out[name] = grading.lowered(out[name], [grade] * len(out[name].grades), why)
     return out
 
 

@@ -704,18 +704,6 @@ def find_tasks(
     return {t.name: found.get(t.name) or fixed[t.name] for t in protocol.tasks}
 
 
-def stand_and_walk(protocol: Protocol) -> bool:
-    """Whether the protocol's recording is poses and walking only (the ``walk`` protocol): then
-    the movement a knee's axes come from is the walk's swings, where a thigh turns slower than
-    its shank. Not where other tasks or functional steps move the leg too (the ``knee``
-    protocol's hip flexions turn the thigh twice as fast as the shank)."""
-    return (
-        bool(protocol.tasks)
-        and all(task.is_gait for task in protocol.tasks)
-        and all(step.kind == "static" for step in protocol.calibration)
-    )
-
-
 def pose_then_movement(protocol: Protocol) -> bool:
     """Whether the protocol's recording is poses held still and movement tasks only (``walk``,
     ``arm``): its poses may come before the movement or after it (:func:`task_window`)."""
@@ -724,6 +712,14 @@ def pose_then_movement(protocol: Protocol) -> bool:
         and not any(task.is_pose for task in protocol.tasks)
         and all(step.kind == "static" for step in protocol.calibration)
     )
+
+
+def stand_and_walk(protocol: Protocol) -> bool:
+    """Whether the protocol's recording is poses and walking only (the ``walk`` protocol): then
+    the movement a knee's axes come from is the walk's swings, where a thigh turns slower than
+    its shank. Not where other tasks or functional steps move the leg too (the ``knee``
+    protocol's hip flexions turn the thigh twice as fast as the shank)."""
+    return pose_then_movement(protocol) and all(task.is_gait for task in protocol.tasks)
 
 
 def task_window(

@@ -49,7 +49,7 @@ from motionlab.protocol import CalibrationStep, Protocol, axis_vector
 from motionlab.results import SegmentRecord
 from motionlab.segments import gait_axes
 from motionlab.segments.sensors import Streams, sensor_orientation
-from motionlab.segments.steps import PoseCheck, stand_and_walk  # noqa: F401 (re-exported)
+from motionlab.segments.steps import PoseCheck, stand_and_walk
 from motionlab.session import Session, estimate_rate
 from motionlab.timebase import interp_columns
 
