@@ -115,6 +115,39 @@ def test_a_gap_that_may_hide_a_turn_grades_the_hip_not_the_knee(walk):
             assert "fewer packets are lost" in remedy
 
 
+def test_a_hips_flexion_is_graded_by_what_the_hidden_turn_moves_in_it(walk):
+    """The turn a gap may hide is about the vertical: a hip's flexion, about a horizontal axis,
+    moves by at most the thigh's tilt times (1 - cos turn). With the thigh tilting 30°: 15°
+    moves it by 1.0° (determined, the other angles weak), 30° by 4.0° (weak, the others not
+    determined), 45° by 8.8° (not determined, as they are); without a determined knee fit to
+    give the tilt, flexion is graded as the other angles."""
+    session, proto = walk
+    cal = session.results.calibration
+    tilted = dataclasses.replace(
+        cal, hinges={**cal.hinges, "knee_l": dataclasses.replace(
+            cal.hinges["knee_l"], proximal_tilt_deg=30.0, verdict="determined")},
+    )  # fmt: skip
+    assert cal.grades["hip_l"].grades[0] == "determined"
+    cases = ((15.0, "determined", "weak", None), (30.0, "weak", "not determined", 4),
+             (45.0, "not determined", "not determined", 9))  # fmt: skip
+    for turn, flexion, others, moved in cases:
+        gap = {"hip_l": GapTurn(turn, "thigh_l", 18.151, gaps=3)}
+        graded = grades.gap_graded(cal.grades, gap, proto, tilted)["hip_l"]
+        assert graded.grades == [flexion, others, others]
+        if moved is None:
+            assert graded.reasons[0] == cal.grades["hip_l"].reasons[0]
+        else:
+            assert graded.reasons[0].startswith("3 packet-loss gaps")
+            assert f"up to {moved}° of flexion where thigh_l tilts 30°" in graded.reasons[0]
+        assert "of flexion" not in graded.reasons[1]
+        unfitted = dataclasses.replace(
+            tilted, hinges={**tilted.hinges, "knee_l": dataclasses.replace(
+                tilted.hinges["knee_l"], verdict="weak")},
+        )  # fmt: skip
+        g_all = "weak" if turn <= 2 * grades.GAP_TURN_DEG else "not determined"
+        assert grades.gap_graded(cal.grades, gap, proto, unfitted)["hip_l"].grades == [g_all] * 3
+
+
 def test_a_long_gap_between_walk_anchors_is_taken_out_by_them(walk):
     """An 8-s gap with the walk's anchors up to its first lost sample and from its end: they
     tie the heading on both sides, so the turn it hid is not kept (the bracket is measured from
@@ -149,9 +182,10 @@ def test_a_long_gap_between_walk_anchors_is_taken_out_by_them(walk):
 @pytest.mark.skipif(not QMT.is_file(), reason="the qmt full-body recording is not in ../shared")
 def test_a_real_walk_with_lost_packets_does_not_call_its_hips_determined():
     """The real 16-IMU walk with 15 bursts of 2-14 lost packets per sensor: its thighs' gaps may
-    together have hidden turns of 22° and 32° (the hips then 2.6-35° RMS off the unbroken
+    together have hidden turns of 104° and 69° (the hips then 2.4-35° RMS off the unbroken
     recording's; the largest gap alone, 11° on the right, had left the right hip weak with its
-    rotation 35° off); the hips are not determined and the knees still are."""
+    rotation 35° off); the hips are not determined, flexion too (the thighs tilt 81-82° in the
+    sitting: up to 52° of flexion), and the knees still are."""
     import scipy.io as sio
 
     m = sio.loadmat(QMT, squeeze_me=True, struct_as_record=False)

@@ -77,7 +77,7 @@ def calibrate_segments(
         result = trunk_axes.calibrate(session, protocol, warnings)
         result.headings = heading_ties(session, protocol, result)
         result.gap_turns = gap_headings(session, protocol, result.headings, result.centres)
-        result.grades = grades.gap_graded(result.grades, result.gap_turns)
+        result.grades = grades.gap_graded(result.grades, result.gap_turns, protocol, result)
         result.grades = grades.clock_graded(result.grades, protocol, session)
         return result
     notes: list[str] = []
@@ -155,7 +155,9 @@ def calibrate_segments(
     )
     result.headings = heading_ties(session, protocol, result)  # first: the hip axes reuse them
     result.gap_turns = gap_headings(session, protocol, result.headings, result.centres)
-    result.grades = grades.gap_graded(grades.grade_joints(protocol, result), result.gap_turns)
+    result.grades = grades.gap_graded(
+        grades.grade_joints(protocol, result), result.gap_turns, protocol, result
+    )
     result.grades = grades.hold_graded(
         result.grades,
         unheld_headings(session, protocol, result.headings),
