@@ -440,7 +440,7 @@ def gap_graded(
                       if error <= lim)  # fmt: skip
         flexion = out[name]
         if g_flex != "determined":
-            flexion = lowered(flexion, [g_flex], f"{why}: up to {error:.0f}° of flexion where "
+            flexion = lowered(flexion, [g_flex], f"{why}: up to {error:.1f}° of flexion where "
                               f"{joint.distal} tilts {tilt:.0f}°")  # fmt: skip
         others = lowered(out[name], [g_gap] * len(out[name].grades), why)
         out[name] = replace(others, grades=[flexion.grades[0], *others.grades[1:]],
