@@ -95,6 +95,7 @@ from motionlab.segments.placement import hinge_spec, twists_about_long_axis
 from motionlab.segments.steps import reference_step
 
 if TYPE_CHECKING:
+    from motionlab.protocol import Joint, Protocol
     from motionlab.results import HingeFit, SegmentCalibration, SegmentRecord
 
 GRADES = ("determined", "weak", "not determined")
@@ -218,7 +219,7 @@ def _flexion_under_heading(
     )
 
 
-def distal_tilt(joint, protocol, calibration: SegmentCalibration) -> float | None:
+def distal_tilt(joint: Joint, protocol: Protocol, calibration: SegmentCalibration) -> float | None:
     """How far (deg) a ZXY joint's distal segment tilted from the vertical over the recording
     (the thigh of a hip: its knee's determined fit from the walk, ``proximal_tilt_deg``), which
     bounds what a turn of the joint's frame about the vertical moves its flexion by
@@ -408,7 +409,7 @@ def grade_joints(protocol, calibration: SegmentCalibration) -> dict[str, JointGr
 def gap_graded(
     graded: dict[str, JointGrades],
     gap_turns: dict,
-    protocol=None,
+    protocol: Protocol | None = None,
     calibration: SegmentCalibration | None = None,
 ) -> dict[str, JointGrades]:
     """``graded`` with each joint of ``gap_turns`` (``{joint: GapTurn}``,
