@@ -173,16 +173,26 @@ def forward_from_end(
     (s): a walk that ends at rest loses its velocity over its last ``START_S`` seconds as one
     that starts from rest gains it, so this is :func:`forward_from_start` on the recording
     reversed in time, whose velocity points backwards. Arguments as there."""
-    found = forward_from_start(-t[::-1], acc[::-1], q[::-1], up, -before_s)
-    if found.used:
-        return replace(found, axis=-found.axis)
-    words = (("right after the stand", "right before the stand"), ("first steps", "last steps"),
-             ("does not start", "does not end"), ("gained", "lost"),
-             ("no walk from rest", "no walk to rest"))  # fmt: skip
-    reason = found.reason
-    for start, end in words:
-        reason = reason.replace(start, end)
-    return replace(found, reason=reason)
+    found = _from_rest(-t[::-1], acc[::-1], q[::-1], up, -before_s, _END)
+    return replace(found, axis=-found.axis) if found.used else found
+
+
+@dataclass(frozen=True)
+class _Words:
+    """How a reason names the walk's edge beside the stand (its start, or its end)."""
+
+    beside: str  # where the steps are, against the stand
+    steps: str
+    starts: str  # the walk ... the stand
+    change: str  # the velocity ...
+    rest: str  # from rest / to rest
+    second: str  # the second of the steps the velocity is averaged over
+
+
+_START = _Words("right after the stand", "first steps", "does not start", "gained", "from rest",
+                "last second")  # fmt: skip
+_END = _Words("right before the stand", "last steps", "does not end", "lost", "to rest",
+              "first second")  # fmt: skip
 
 
 def forward_from_start(
@@ -196,10 +206,17 @@ def forward_from_start(
     ``START_AVERAGE_S`` (about a stride: the pelvis's sideways sway cancels). Needs no turn.
     Not where the walker turns more than ``MAX_START_TURN_DEG`` in those seconds. Arguments as
     :func:`forward_from_turns`."""
+    return _from_rest(t, acc, q, up, after_s, _START)
+
+
+def _from_rest(
+    t: np.ndarray, acc: np.ndarray, q: np.ndarray, up: np.ndarray, after_s: float, words: _Words
+) -> ForwardDirection:
+    """:func:`forward_from_start`, its reasons in ``words``."""
     start = (t > after_s) & (t <= after_s + START_S)
     still = (t > after_s - 2.0) & (t <= after_s)
     if start.sum() < 10 or still.sum() < 5:
-        return ForwardDirection(False, reason="no walk right after the stand")
+        return ForwardDirection(False, reason=f"no walk {words.beside}")
     vertical = rot.rotate(rot.conj(q), np.broadcast_to([0.0, 0.0, 1.0], (len(q), 3)))
     horizontal = acc - np.einsum("ij,ij->i", acc, vertical)[:, None] * vertical
     ts = t[start]
@@ -215,19 +232,19 @@ def forward_from_start(
     gained = seen.mean(axis=0)
     speed = float(np.linalg.norm(gained))
     if not speed >= MIN_START_SPEED_M_S:
-        why = "the walk does not start right after the stand"
+        why = f"the walk {words.starts} {words.beside}"
         return ForwardDirection(False, reason=why, speed_m_s=speed)
     slowest = float(np.min(np.linalg.norm(seen, axis=1)))
     if slowest < START_STEADY * speed:
         why = (
-            f"the velocity gained falls to {slowest:.2f} m/s in the last second of the first "
-            "steps: no walk from rest (a recording cut in mid-walk?)"
+            f"the velocity {words.change} falls to {slowest:.2f} m/s in the {words.second} of the "
+            f"{words.steps}: no walk {words.rest} (a recording cut in mid-walk?)"
         )
         return ForwardDirection(False, reason=why, speed_m_s=speed)
     ends = q[np.flatnonzero(start)[[0, -1]]]
     turn = rot.mul(ends[1], rot.conj(ends[0]))  # earth frame: its part about up is the turn
     turned = abs((float(np.degrees(2.0 * np.arctan2(turn[3], turn[0]))) + 180.0) % 360.0 - 180.0)
     if turned > MAX_START_TURN_DEG:
-        why = f"the walker turned {turned:.0f}° in the first steps"
+        why = f"the walker turned {turned:.0f}° in the {words.steps}"
         return ForwardDirection(False, reason=why, speed_m_s=speed)
     return ForwardDirection(True, axis=gained / speed, speed_m_s=speed)
